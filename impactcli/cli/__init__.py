@@ -1,0 +1,67 @@
+"""The ``impactcli`` command group: parses options, calls one pipeline function, picks the exit code.
+
+Each verb lives in its own module ``impactcli/cli/<verb>.py`` and is imported only
+when invoked, so ``impactcli --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+from typing import Any
+
+import click
+
+from .. import __version__
+
+#: verb -> (module, attribute, one-line help)
+VERBS: dict[str, tuple[str, str, str]] = {
+    "inspect": ("impactcli.cli.inspect", "inspect_cmd", "Show what a log holds: joints, channels, rate, gaps."),
+    "simulate": ("impactcli.cli.simulate", "simulate_cmd", "Simulate a flexible-joint arm with labelled contacts."),
+    "identify": ("impactcli.cli.identify", "identify_cmd", "Identify a rough rigid model from a log."),
+    "calibrate": ("impactcli.cli.calibrate", "calibrate_cmd", "Calibrate thresholds on collision-free logs."),
+    "detect": ("impactcli.cli.detect", "detect_cmd", "Replay the impact detectors over logs."),
+    "report": ("impactcli.cli.report", "report_cmd", "Write a safety-audit report (HTML + JSON)."),
+    "view": ("impactcli.cli.view", "view_cmd", "Open a run or a log in the Rerun viewer."),
+    "evaluate": ("impactcli.cli.evaluate", "evaluate_cmd", "Measure detection quality against labels."),
+    "sensitivity": ("impactcli.cli.sensitivity", "sensitivity_cmd", "Reproduce the paper's Table II on the simulator."),
+}
+
+
+class LazyGroup(click.Group):
+    """A click group whose subcommands are imported on first use."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return [v for v, (mod, _, _) in VERBS.items() if importlib.util.find_spec(mod) is not None]
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        if cmd_name not in VERBS:
+            return None
+        mod, attr, _ = VERBS[cmd_name]
+        if importlib.util.find_spec(mod) is None:
+            return None
+        cmd = getattr(importlib.import_module(mod), attr)
+        assert isinstance(cmd, click.Command)
+        return cmd
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        rows = [(v, VERBS[v][2]) for v in self.list_commands(ctx)]
+        if rows:
+            with formatter.section("Commands"):
+                formatter.write_dl(rows)
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="impactcli")
+@click.option("--debug", is_flag=True, help="Show tracebacks for data errors.")
+@click.pass_context
+def main(ctx: click.Context, debug: bool) -> None:
+    """Find out whether, when and where a robot arm hit something.
+
+    Exit codes: 0 success; 1 events found with --fail-on-detect; 2 usage error;
+    3 bad input (log, config, model, labels); 4 a batch where some inputs failed.
+    """
+    ctx.ensure_object(dict)
+    obj: dict[str, Any] = ctx.obj
+    obj["debug"] = debug
+

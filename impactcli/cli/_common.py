@@ -1,0 +1,63 @@
+"""What every verb shares: turning ImpactError into one line + exit code, warnings, progress."""
+
+from __future__ import annotations
+
+import functools
+import sys
+import warnings
+from collections.abc import Callable, Iterable, Iterator
+from typing import Any, TypeVar
+
+import click
+
+from ..errors import ImpactError, ImpactWarning
+
+F = TypeVar("F", bound=Callable[..., Any])
+T = TypeVar("T")
+
+
+def _show_warning(message: Warning | str, category: type[Warning], *args: Any, **kw: Any) -> None:
+    if issubclass(category, ImpactWarning):
+        click.echo(f"impactcli: warning: {message}", err=True)
+    else:  # a library's warning: still one line
+        click.echo(f"impactcli: warning: {category.__name__}: {message}", err=True)
+
+
+def handle_errors(func: F) -> F:
+    """Decorate a click command: ImpactError → ``impactcli: error: <msg>`` on stderr, its exit code.
+
+    With the group's ``--debug``, the traceback is shown too. Other exceptions are bugs and
+    propagate with their traceback.
+    """
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        ctx = click.get_current_context()
+        debug = bool((ctx.find_root().obj or {}).get("debug"))
+        old = warnings.showwarning
+        warnings.showwarning = _show_warning  # type: ignore[assignment]
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("always", ImpactWarning)
+                warnings.showwarning = _show_warning  # type: ignore[assignment]
+                return func(*args, **kwargs)
+        except ImpactError as err:
+            if debug:
+                raise
+            click.echo(f"impactcli: error: {err}", err=True)
+            ctx.exit(err.exit_code)
+        finally:
+            warnings.showwarning = old
+
+    return wrapper  # type: ignore[return-value]
+
+
+def progress(items: Iterable[T], total: int | None = None, desc: str = "") -> Iterator[T]:
+    """A progress bar on stderr over ``items`` (silent when stderr is not a terminal and
+    fewer than 2 items: a single log needs no bar)."""
+    from tqdm import tqdm
+
+    seq = list(items) if total is None else items
+    n = total if total is not None else len(seq)  # type: ignore[arg-type]
+    disable = n < 2
+    yield from tqdm(seq, total=n, desc=desc, disable=disable, file=sys.stderr, leave=False)

@@ -1,0 +1,59 @@
+"""One error hierarchy for impactcli.
+
+Every error that is the *input's* fault (a log, config, model, labels or robot
+description that is bad) is an :class:`ImpactError`; the CLI turns it into one
+line on stderr and the exit code in ``exit_code`` (``formats.md``: 3 for data
+errors, 4 for a batch in which some inputs failed). Anything else is a bug and
+keeps its traceback.
+
+Messages name the offending thing: ``f"{path}: column {name!r} missing"``.
+"""
+
+from __future__ import annotations
+
+#: Exit codes of the command line (formats.md, "Command line").
+EXIT_OK = 0
+EXIT_DETECTED = 1
+EXIT_USAGE = 2
+EXIT_DATA = 3
+EXIT_BATCH = 4
+
+
+class ImpactError(Exception):
+    """Base of all errors caused by bad input; carries the CLI exit code."""
+
+    exit_code: int = EXIT_DATA
+
+
+class LogFormatError(ImpactError, ValueError):
+    """A log file is missing, unreadable, malformed or of an unknown format."""
+
+
+class ChannelMapError(LogFormatError):
+    """A channel map is malformed or points at nothing in its log."""
+
+
+class ConfigError(ImpactError, ValueError):
+    """A detector config file or value is invalid."""
+
+
+class RobotDescriptionError(ImpactError, ValueError):
+    """A robot description (or its URDF) is invalid or does not match the log."""
+
+
+class ModelError(ImpactError, ValueError):
+    """A model file is invalid, or a model cannot be identified from the log."""
+
+
+class LabelsError(ImpactError, ValueError):
+    """A ground-truth labels file is invalid."""
+
+
+class BatchError(ImpactError):
+    """A batch finished but some inputs failed (their outputs are not written)."""
+
+    exit_code = EXIT_BATCH
+
+
+class ImpactWarning(UserWarning):
+    """A repair or fallback the user must know about (printed as one line by the CLI)."""

@@ -1,0 +1,302 @@
+"""Frozen data types passed between layers (io → model → detect → outputs).
+
+Arrays are float64 with their shape and unit stated here; time is int64 ns on the
+log's own clock. Validation happens on construction, so every later layer can
+trust what it is given.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+
+from .errors import LabelsError, LogFormatError, RobotDescriptionError
+
+TorqueSource = Literal["torque", "current"]
+TimeSource = Literal["column", "log", "publish", "header"]
+
+
+@dataclass(frozen=True)
+class LogSource:
+    """Provenance of a log: where it came from and how it was read.
+
+    Attributes:
+        path: the file path (or URL) as given by the user.
+        sha256: hex sha256 of the file's bytes.
+        format: reader used: ``csv``, ``csv-mapped``, ``npz``, ``mcap-json``, ``mcap-ros2``
+            (or ``memory`` for logs made in code, e.g. by the simulator).
+        torque_source: ``torque`` (logged torque/effort) or ``current`` (current × gear
+            ratio × torque constant).
+        time_source: ``column`` (CSV/NPZ time column), or MCAP ``log``/``publish``/``header``.
+        ignored_channels: channels present in the file but not used.
+        repairs: human-readable repairs applied while reading (also warned about).
+    """
+
+    path: str
+    sha256: str
+    format: str
+    torque_source: TorqueSource = "torque"
+    time_source: TimeSource = "column"
+    ignored_channels: tuple[str, ...] = ()
+    repairs: tuple[str, ...] = ()
+
+
+def _as_matrix(name: str, a: Any, n: int, j: int, where: str) -> np.ndarray:
+    arr = np.ascontiguousarray(a, dtype=np.float64)
+    if arr.shape != (n, j):
+        raise LogFormatError(f"{where}: {name} has shape {arr.shape}, expected ({n}, {j})")
+    if not np.all(np.isfinite(arr)):
+        bad = np.argwhere(~np.isfinite(arr))[0]
+        raise LogFormatError(
+            f"{where}: {name} is not finite at sample {bad[0]} of joint {bad[1]}"
+        )
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True)
+class RobotLog:
+    """One robot recording, in memory, validated.
+
+    Attributes:
+        t_ns: (N,) int64, sample times in ns on the log's own clock, strictly increasing.
+        joint_names: J joint names (no dots, unique).
+        position: (N, J) motor position after reduction [rad] (x1 in the paper).
+        torque: (N, J) motor torque after reduction [N·m] (tau, eq. 7).
+        velocity: optional (N, J) measured velocity [rad/s].
+        current: optional (N, J) measured motor current [A].
+        position_ref: optional (N, J) reference position x1_ref [rad].
+        velocity_ref: optional (N, J) reference velocity [rad/s].
+        acceleration_ref: optional (N, J) reference acceleration [rad/s²].
+        source: provenance (path, sha256, format, torque/time source, repairs).
+    """
+
+    t_ns: np.ndarray
+    joint_names: tuple[str, ...]
+    position: np.ndarray
+    torque: np.ndarray
+    velocity: np.ndarray | None = None
+    current: np.ndarray | None = None
+    position_ref: np.ndarray | None = None
+    velocity_ref: np.ndarray | None = None
+    acceleration_ref: np.ndarray | None = None
+    source: LogSource = field(default_factory=lambda: LogSource("<memory>", "", "memory"))
+
+    def __post_init__(self) -> None:
+        where = self.source.path
+        t = np.ascontiguousarray(self.t_ns)
+        if t.ndim != 1:
+            raise LogFormatError(f"{where}: time must be one-dimensional, got shape {t.shape}")
+        if t.dtype != np.int64:
+            if not np.issubdtype(t.dtype, np.integer):
+                raise LogFormatError(f"{where}: time must be int64 nanoseconds, got {t.dtype}")
+            t = t.astype(np.int64)
+        n = t.shape[0]
+        if n < 2:
+            raise LogFormatError(f"{where}: log holds {n} sample(s); at least 2 are needed")
+        dt = np.diff(t)
+        if np.any(dt <= 0):
+            k = int(np.argmax(dt <= 0)) + 1
+            raise LogFormatError(
+                f"{where}: time is not strictly increasing at sample {k} "
+                f"({t[k - 1]} ns then {t[k]} ns)"
+            )
+        t.setflags(write=False)
+        object.__setattr__(self, "t_ns", t)
+        names = tuple(str(s) for s in self.joint_names)
+        if not names:
+            raise LogFormatError(f"{where}: no joints")
+        if len(set(names)) != len(names):
+            raise LogFormatError(f"{where}: duplicate joint names {names}")
+        for s in names:
+            if "." in s or not s:
+                raise LogFormatError(f"{where}: invalid joint name {s!r} (empty or with a dot)")
+        object.__setattr__(self, "joint_names", names)
+        j = len(names)
+        for name in ("position", "torque"):
+            object.__setattr__(self, name, _as_matrix(name, getattr(self, name), n, j, where))
+        for name in ("velocity", "current", "position_ref", "velocity_ref", "acceleration_ref"):
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, _as_matrix(name, value, n, j, where))
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples N."""
+        return int(self.t_ns.shape[0])
+
+    @property
+    def n_joints(self) -> int:
+        """Number of joints J."""
+        return len(self.joint_names)
+
+    @property
+    def t0_ns(self) -> int:
+        """Absolute time of the first sample on the log's own clock [ns]."""
+        return int(self.t_ns[0])
+
+    @property
+    def time_s(self) -> np.ndarray:
+        """(N,) seconds since the first sample (float64)."""
+        return (self.t_ns - self.t_ns[0]).astype(np.float64) * 1e-9
+
+    @property
+    def duration_s(self) -> float:
+        """Duration from first to last sample [s]."""
+        return float(self.t_ns[-1] - self.t_ns[0]) * 1e-9
+
+    @property
+    def sample_period_s(self) -> float:
+        """Median sample period [s]."""
+        return float(np.median(np.diff(self.t_ns))) * 1e-9
+
+    @property
+    def sample_rate_hz(self) -> float:
+        """Median sample rate [Hz]."""
+        return 1.0 / self.sample_period_s
+
+    @property
+    def has_reference(self) -> bool:
+        """Whether the controller's reference position was logged."""
+        return self.position_ref is not None
+
+    def slice(self, start: int, stop: int) -> RobotLog:
+        """Samples ``start:stop`` as a new log with the same provenance."""
+        def cut(a: np.ndarray | None) -> np.ndarray | None:
+            return None if a is None else a[start:stop]
+
+        return RobotLog(
+            t_ns=self.t_ns[start:stop], joint_names=self.joint_names,
+            position=self.position[start:stop], torque=self.torque[start:stop],
+            velocity=cut(self.velocity), current=cut(self.current),
+            position_ref=cut(self.position_ref), velocity_ref=cut(self.velocity_ref),
+            acceleration_ref=cut(self.acceleration_ref), source=self.source,
+        )
+
+
+@dataclass(frozen=True)
+class JointSpec:
+    """One joint of a robot description.
+
+    Attributes:
+        name: joint name as in the logs.
+        gear_ratio: reduction ratio (motor turns per joint turn) [-].
+        torque_constant: motor torque constant [N·m/A], motor side.
+    """
+
+    name: str
+    gear_ratio: float = 1.0
+    torque_constant: float | None = None
+
+
+@dataclass(frozen=True)
+class RobotDescription:
+    """A robot description (formats.md, "Robot description").
+
+    Attributes:
+        joints: joint specs in chain order.
+        kinematics: ``None`` (no kinematics: decoupled model only), or a mapping with
+            ``type`` ``planar`` (``link_lengths`` [m], ``gravity`` [m/s²] 2-vector) or
+            ``urdf`` (``path``).
+        nominal: optional nominal dynamic parameters (may be wrong: the model is identified).
+        name: a human-readable name.
+        path: where it was read from ("" if made in code).
+    """
+
+    joints: tuple[JointSpec, ...]
+    kinematics: dict[str, Any] | None = None
+    nominal: dict[str, Any] | None = None
+    name: str = ""
+    path: str = ""
+
+    def __post_init__(self) -> None:
+        names = [j.name for j in self.joints]
+        if not names:
+            raise RobotDescriptionError(f"{self.path or 'robot description'}: no joints")
+        if len(set(names)) != len(names):
+            raise RobotDescriptionError(f"{self.path or 'robot description'}: duplicate joints")
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """Joint names in chain order."""
+        return tuple(j.name for j in self.joints)
+
+    def torque_scale(self) -> np.ndarray:
+        """(J,) current → torque factor gear_ratio × torque_constant [N·m/A].
+
+        Raises RobotDescriptionError naming the first joint without a torque constant.
+        """
+        out = []
+        for j in self.joints:
+            if j.torque_constant is None:
+                raise RobotDescriptionError(
+                    f"{self.path or 'robot description'}: joint {j.name!r} has no "
+                    "torque_constant, needed to convert current to torque"
+                )
+            out.append(j.gear_ratio * j.torque_constant)
+        return np.asarray(out, dtype=np.float64)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready mapping in the robot-description format."""
+        d: dict[str, Any] = {
+            "name": self.name,
+            "joints": [
+                {"name": j.name, "gear_ratio": j.gear_ratio, "torque_constant": j.torque_constant}
+                for j in self.joints
+            ],
+            "kinematics": self.kinematics,
+        }
+        if self.nominal is not None:
+            d["nominal"] = self.nominal
+        return d
+
+
+@dataclass(frozen=True)
+class ContactLabel:
+    """One ground-truth contact (formats.md, "Ground-truth labels").
+
+    Attributes:
+        start, end: contact interval [s since the log's first sample].
+        peak_force: peak contact force [N].
+        kind: ``impact``, ``push`` or ``clamp``.
+        link: 1-based index of the link touched.
+    """
+
+    start: float
+    end: float
+    peak_force: float
+    kind: str
+    link: int
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Labels:
+    """Ground truth for one log: its contacts and sample rate [Hz]."""
+
+    events: tuple[ContactLabel, ...]
+    sample_rate: float
+    path: str = ""
+
+    def __post_init__(self) -> None:
+        where = self.path or "labels"
+        if not (self.sample_rate > 0):
+            raise LabelsError(f"{where}: sample_rate must be positive")
+        for i, e in enumerate(self.events):
+            if not (e.end >= e.start):
+                raise LabelsError(f"{where}: event {i} ends before it starts")
+            if e.kind not in ("impact", "push", "clamp"):
+                raise LabelsError(f"{where}: event {i} has unknown kind {e.kind!r}")
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready mapping in the labels format."""
+        return {
+            "events": [
+                {"start": e.start, "end": e.end, "peak_force": e.peak_force,
+                 "kind": e.kind, "link": e.link, **e.extra}
+                for e in self.events
+            ],
+            "sample_rate": self.sample_rate,
+        }
