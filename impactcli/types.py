@@ -300,3 +300,44 @@ class Labels:
             ],
             "sample_rate": self.sample_rate,
         }
+
+
+DETECTORS: tuple[str, ...] = ("adaptive", "static_loading", "static_baseline")
+
+
+@dataclass(frozen=True)
+class Event:
+    """One detection event (formats.md, "Detection timeline").
+
+    Attributes:
+        detector: ``adaptive``, ``static_loading`` or ``static_baseline``.
+        t_start, t_end: first and last sample whose decision is 1, both inclusive
+            [s since the log's first sample].
+        i_start, i_end: the same as sample indices (inclusive).
+        joints: names of the joints that fired during the event, first to fire first.
+        peak_ratio: max over those joints and samples of statistic / threshold [-].
+        peak_residual: per joint that fired, the residual r of largest magnitude during
+            the event (signed) [N·m] — the contact-torque estimate.
+        in_warmup: the event starts before the warm-up ends (listed, never counted).
+    """
+
+    detector: str
+    t_start: float
+    t_end: float
+    i_start: int
+    i_end: int
+    joints: tuple[str, ...]
+    peak_ratio: float
+    peak_residual: dict[str, float]
+    in_warmup: bool
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready mapping (timeline ``events`` item)."""
+        return {
+            "t_start": self.t_start, "t_end": self.t_end,
+            "detector": self.detector, "joints": list(self.joints),
+            "peak_ratio": self.peak_ratio,
+            "peak_residual": dict(self.peak_residual),
+            "in_warmup": self.in_warmup,
+            "i_start": self.i_start, "i_end": self.i_end,
+        }
