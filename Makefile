@@ -1,0 +1,35 @@
+# Set-up and the two jobs of the README. Needs only python3 (>= 3.11) and make.
+PYTHON ?= python3
+VENV   ?= .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+
+.PHONY: setup demo test bench samples lint clean
+
+$(STAMP): pyproject.toml requirements.lock
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -c requirements.lock -e '.[dev,urdf]'
+	touch $(STAMP)
+
+setup: $(STAMP)
+
+# The main job on a bundled sample log: detect with thresholds calibrated on the
+# collision-free sample logs, write the timeline, signals and a Rerun recording.
+demo: $(STAMP)
+	$(BIN)/impactcli detect sample_logs/csv/assist_impacts.csv.gz \
+	    --config sample_logs/assist_like.config.toml --signals --rerun -o out/demo
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+bench: $(STAMP)
+	$(BIN)/python tests/benchmarks/run_all.py
+
+samples: $(STAMP)
+	$(BIN)/python -m impactcli.sim.samples sample_logs
+
+lint: $(STAMP)
+	$(BIN)/ruff check impactcli tests
+
+clean:
+	rm -rf $(VENV) out .pytest_cache

@@ -1,0 +1,47 @@
+"""Shared fixtures: small logs built in code, the real-log folder (skipped when absent)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from impactcli.types import LogSource, RobotLog
+
+REPO = Path(__file__).resolve().parents[1]
+REAL_LOGS = REPO.parent / "shared" / "real_logs"
+
+
+@pytest.fixture
+def real_logs() -> Path:
+    """The folder of real robot logs next to the repo; skips the test when absent."""
+    if not REAL_LOGS.is_dir():
+        pytest.skip("../shared/real_logs is absent (a user's clone has no shared/)")
+    return REAL_LOGS
+
+
+def make_log(n: int = 500, joints: tuple[str, ...] = ("j1", "j2"), dt: float = 0.004,
+             with_ref: bool = True, seed: int = 0) -> RobotLog:
+    """A small smooth log with references, for tests that need any valid RobotLog."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * dt
+    J = len(joints)
+    w = 2 * np.pi * (0.5 + np.arange(J) * 0.3)
+    q_ref = 0.5 * np.sin(np.outer(t, w))
+    qd_ref = 0.5 * w * np.cos(np.outer(t, w))
+    qdd_ref = -0.5 * w**2 * np.sin(np.outer(t, w))
+    q = q_ref + 1e-3 * rng.standard_normal((n, J))
+    tau = 2.0 * qdd_ref + 0.3 * np.sign(qd_ref) + 0.05 * rng.standard_normal((n, J))
+    return RobotLog(
+        t_ns=np.round(t * 1e9).astype(np.int64), joint_names=joints, position=q, torque=tau,
+        position_ref=q_ref if with_ref else None, velocity_ref=qd_ref if with_ref else None,
+        acceleration_ref=qdd_ref if with_ref else None,
+        source=LogSource("<test>", "0" * 64, "memory"),
+    )
+
+
+@pytest.fixture
+def small_log() -> RobotLog:
+    """A 2-joint, 2-second, 250 Hz log with references."""
+    return make_log()
