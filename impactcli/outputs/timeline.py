@@ -1,0 +1,85 @@
+"""The detection timeline JSON (formats.md, "Detection timeline"; schemas/timeline.schema.json).
+
+Formatting only: every number comes from a :class:`~impactcli.result.DetectionResult`.
+Times are seconds since the log's first sample; ``input.t0_ns`` anchors them on the
+log's own clock. Output is deterministic (sorted keys, fixed float formatting by
+``json``), so the same inputs give byte-identical files.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from typing import Any
+
+from .. import TOOL_NAME, __version__
+from .._fs import atomic_write_text
+from ..result import DetectionResult
+
+SCHEMA_VERSION = "1.0"
+
+
+def _clean(x: Any) -> Any:
+    """Make a value JSON-safe: numpy scalars → Python, non-finite floats → None, tuples → lists."""
+    if isinstance(x, dict):
+        return {str(k): _clean(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_clean(v) for v in x]
+    if hasattr(x, "item") and not isinstance(x, str | bytes):
+        x = x.item()
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x
+
+
+def timeline_dict(result: DetectionResult) -> dict[str, Any]:
+    """The timeline as a JSON-ready mapping (validated by schemas/timeline.schema.json)."""
+    log = result.log
+    src = log.source
+    doc: dict[str, Any] = {
+        "schema_version": SCHEMA_VERSION,
+        "tool": {"name": TOOL_NAME, "version": __version__},
+        "input": {
+            "path": src.path,
+            "sha256": src.sha256,
+            "format": src.format,
+            "joints": list(log.joint_names),
+            "n_samples": log.n_samples,
+            "duration_s": log.duration_s,
+            "sample_rate_hz": log.sample_rate_hz,
+            "t0_ns": log.t0_ns,
+            "torque_source": src.torque_source,
+            "time_source": src.time_source,
+            "read_options": result.read_options,
+            "repairs": list(src.repairs),
+        },
+        "config": result.config,
+        "calibrated": result.calibrated,
+        "model": {"source": result.model_source, "sha256": result.model_sha256, "model": result.model},
+        "replay": {
+            "online_equivalent": result.online_equivalent,
+            "reference_source": result.reference_source,
+            "torque_filtered": result.torque_filtered,
+            "residual_generator": result.residual_generator,
+        },
+        "warmup_end_s": result.warmup_end_s,
+        "warmup_per_joint_s": result.warmup_per_joint_s,
+        "thresholds": result.thresholds,
+        "filter_gain": result.filter_gain,
+        "events": [e.to_dict() for e in result.events],
+        "summary": result.summary(),
+        "warnings": list(result.warnings),
+    }
+    cleaned: dict[str, Any] = _clean(doc)
+    return cleaned
+
+
+def timeline_json(result: DetectionResult) -> str:
+    """The timeline as deterministic JSON text."""
+    return json.dumps(timeline_dict(result), indent=1, sort_keys=True, allow_nan=False) + "\n"
+
+
+def write_timeline(result: DetectionResult, path: str | os.PathLike[str]) -> None:
+    """Write ``<stem>.timeline.json`` atomically."""
+    atomic_write_text(path, timeline_json(result))
