@@ -1,0 +1,298 @@
+"""Detector configuration: every parameter of detection, as frozen dataclasses.
+
+Defaults are the paper's Table I where it gives them (eta = 2, rho = (2, 4), p = 20,
+w1 = 10 Hz, w2 = 50 Hz, N1 = 40 ms, N2 = 160 ms, lambda = 0.999, P(1) = 10 I,
+theta(1) = 0); every other default is documented at its field. A config file (TOML, YAML
+or JSON, by suffix) holds ``DetectorConfig.to_dict()`` and is validated against
+``schemas/config.schema.json``; any bad value raises :class:`ConfigError` naming the file
+and the field (CLI exit 3).
+
+Thresholds are per joint (mapping joint name → value in N·m). An empty mapping means "not
+calibrated": the caller then uses the robust rule of
+:func:`impactcli.detect.calibrate.uncalibrated_thresholds`. Table I's v_stat = [0.45, 0.2]
+N·m (ASSIST arm) is kept as :data:`TABLE_I_V_STAT` for reference and for 2-joint
+simulations only; it is never applied to a real robot silently.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import tomli_w
+import yaml
+
+from ._fs import atomic_write_text
+from .errors import ConfigError
+from .io.structured import load_mapping
+from .schema import validate
+
+#: Table I's static thresholds of the 2-joint ASSIST arm [N·m] (shoulder, elbow).
+TABLE_I_V_STAT: tuple[float, float] = (0.45, 0.2)
+
+ESTIMATES = ("a_priori", "a_posteriori")
+GENERATORS = ("rigid_model", "momentum_observer")
+
+
+@dataclass(frozen=True)
+class AdaptiveConfig:
+    """Adaptive evaluator (paper eq. 24–42, Table I).
+
+    Attributes:
+        eta: degree of G_j(z) (eq. 29) [samples].
+        rho: numerator orders rho_i per input type (u1 = tanh(slope·x1_ref'), u2 = x1_ref'')
+            [samples].
+        p: degree of A_j(z), the dynamic threshold's denominator (eq. 48) [samples].
+        w1_hz: F1 cut-off (filtered residual) [Hz].  w2_hz: F2 cut-off (threshold) [Hz].
+        n1_s: RMS window of the residual (eq. 41) [s] (N1 = 10 samples at 4 ms).
+        n2_s: RMS window of the threshold [s] (N2 = 40 samples at 4 ms).
+        forgetting_factor: lambda (eq. 37–39).
+        p0: P(1) = p0 I.  theta0: theta(1) = theta0 (all components).
+        estimate: ``a_priori`` (theta(k-1)) or ``a_posteriori`` (theta(k)) used for r_tilde
+            and v_dyn; default chosen by measurement (see impactcli.detect.adaptive).
+        tanh_slope: slope of u1 = tanh(tanh_slope · x1_ref') [s/rad]; 50 s/rad makes
+            |u1| > 0.96 above 0.04 rad/s (≈ 2.3 °/s), a sign() that stays continuous.
+        max_trace: RLS wind-up bound on trace(P) (impactcli.detect.rls); None → nu·p0
+            (the trace of P(1)); set a huge value to disable.
+        measured_input_cutoff_hz: cut-off of the causal 2nd-order Butterworth used to
+            differentiate the *measured* position when no reference is logged [Hz].
+    """
+
+    eta: int = 2
+    rho: tuple[int, ...] = (2, 4)
+    p: int = 20
+    w1_hz: float = 10.0
+    w2_hz: float = 50.0
+    n1_s: float = 0.040
+    n2_s: float = 0.160
+    forgetting_factor: float = 0.999
+    p0: float = 10.0
+    theta0: float = 0.0
+    estimate: str = "a_posteriori"
+    tanh_slope: float = 50.0
+    max_trace: float | None = None
+    measured_input_cutoff_hz: float = 10.0
+
+    def n_params(self, n_joints: int) -> int:
+        """nu = eta + p + n·sum(rho) (34 for 2 joints, 64 for 7 with Table I)."""
+        return self.eta + self.p + n_joints * sum(self.rho)
+
+
+@dataclass(frozen=True)
+class ThresholdsConfig:
+    """Per-joint thresholds [N·m]; empty mapping = not calibrated (robust rule used).
+
+    Attributes:
+        v_stat: adaptive detector's static term (eq. 42).
+        v0: static_baseline threshold on |r|.
+        vL: static_loading threshold on |LP(r)|.
+    """
+
+    v_stat: dict[str, float] = field(default_factory=dict)
+    v0: dict[str, float] = field(default_factory=dict)
+    vL: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class StaticLoadingConfig:
+    """static_loading detector: |LP(r)| > vL (method.md §5).
+
+    Attributes:
+        cutoff_hz: LP cut-off [Hz]; 2 Hz passes contacts building over ≳ 0.1 s and cuts the
+            residual's noise floor several-fold.
+        order: 1 (first-order, unit DC gain) or 2 (2nd-order Butterworth).
+    """
+
+    cutoff_hz: float = 2.0
+    order: int = 1
+
+
+@dataclass(frozen=True)
+class ResidualConfig:
+    """Residual generation options (used by the residual generator, not by detect/).
+
+    Attributes:
+        generator: ``rigid_model`` (eq. 7–8) or ``momentum_observer``.
+        derivative_cutoff_hz: causal low-pass of the estimated velocity/acceleration [Hz].
+        filter_torque: pass the measured torque through the same causal filter as the
+            estimate (method.md §8: lowers the residual's high-frequency floor 2–5×).
+        observer_gain: momentum-observer gain K [1/s].
+    """
+
+    generator: str = "rigid_model"
+    derivative_cutoff_hz: float = 15.0
+    filter_torque: bool = True
+    observer_gain: float = 50.0
+
+
+@dataclass(frozen=True)
+class EventsConfig:
+    """Event extraction (impactcli.detect.events).
+
+    Attributes:
+        merge_gap_s: bursts separated by at most this gap (last 1 → next 1) merge [s];
+            0.1 s keeps one event per contact (a contact's alarm flickers at the RMS
+            windows' 40–160 ms scale) while separating contacts a few tenths apart.
+        min_duration_s: events with t_end − t_start below this are dropped [s]; 0 keeps
+            single-sample alarms (the RMS already smooths; online, one sample stops the robot).
+    """
+
+    merge_gap_s: float = 0.1
+    min_duration_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class WarmupConfig:
+    """Warm-up (method.md §5b; impactcli.detect.warmup).
+
+    Attributes:
+        min_s: the RLS must have seen at least this long [s] (≈ one forgetting time
+            constant Ts/(1−lambda) = 4 s at Table I's values would be the ideal; 3 s).
+        window_s: rolling-RMS window of the a priori prediction error [s].
+        tolerance: settled when that rolling RMS ≤ (1 + tolerance) × its later level
+            (the median of the rolling RMS after ``min_s``).
+        max_s: upper cap of the warm-up [s].
+    """
+
+    min_s: float = 3.0
+    window_s: float = 0.5
+    tolerance: float = 0.5
+    max_s: float = 20.0
+
+
+@dataclass(frozen=True)
+class LogRecord:
+    """A log a config was calibrated on: path as given and sha256 of its bytes."""
+
+    path: str
+    sha256: str
+
+
+@dataclass(frozen=True)
+class CalibrationRecord:
+    """Where the thresholds come from.
+
+    Attributes:
+        calibrated: thresholds come from collision-free logs (False: defaults/robust rule).
+        margin_rule: ``leave-one-out``, ``fixed-single-log`` or ``uncalibrated-quantile``.
+        margins: detector → joint → margin applied to the statistic's maximum.
+        logs: the collision-free logs used.
+        model_sha256: sha256 of the model the thresholds belong to.
+        weak: the calibration is weaker than leave-one-out (one log / capped margin).
+    """
+
+    calibrated: bool = False
+    margin_rule: str = ""
+    margins: dict[str, dict[str, float]] = field(default_factory=dict)
+    logs: tuple[LogRecord, ...] = ()
+    model_sha256: str | None = None
+    weak: bool = False
+
+
+@dataclass(frozen=True)
+class DetectorConfig:
+    """Every detection parameter (formats.md, "Model and detector config").
+
+    Attributes:
+        adaptive, thresholds, static_loading, residual, events, warmup, calibration: see
+            their classes.
+        model: the embedded model mapping (model format) the thresholds belong to, or None.
+    """
+
+    adaptive: AdaptiveConfig = field(default_factory=AdaptiveConfig)
+    thresholds: ThresholdsConfig = field(default_factory=ThresholdsConfig)
+    static_loading: StaticLoadingConfig = field(default_factory=StaticLoadingConfig)
+    residual: ResidualConfig = field(default_factory=ResidualConfig)
+    events: EventsConfig = field(default_factory=EventsConfig)
+    warmup: WarmupConfig = field(default_factory=WarmupConfig)
+    calibration: CalibrationRecord = field(default_factory=CalibrationRecord)
+    model: dict[str, Any] | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON/TOML/YAML-ready mapping (None values omitted: TOML has no null)."""
+        return _drop_none(dataclasses.asdict(self))
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any], where: str = "config") -> DetectorConfig:
+        """Validate ``d`` against schemas/config.schema.json and build the config.
+
+        Raises ConfigError ``"<where>: <field path>: <problem>"``.
+        """
+        validate(d, "config", ConfigError, where)
+        try:
+            return _build(d, where)
+        except (TypeError, ValueError) as err:
+            if isinstance(err, ConfigError):
+                raise
+            raise ConfigError(f"{where}: {err}") from err
+
+    def replace(self, **changes: Any) -> DetectorConfig:
+        """A copy with top-level fields replaced."""
+        return dataclasses.replace(self, **changes)
+
+
+def _drop_none(x: Any) -> Any:
+    if isinstance(x, dict):
+        return {k: _drop_none(v) for k, v in x.items() if v is not None}
+    if isinstance(x, list | tuple):
+        return [_drop_none(v) for v in x]
+    return x
+
+
+def _build(d: dict[str, Any], where: str) -> DetectorConfig:
+    a = dict(d.get("adaptive", {}))
+    if "rho" in a:
+        a["rho"] = tuple(int(v) for v in a["rho"])
+    adaptive = AdaptiveConfig(**a)
+    if adaptive.w2_hz <= adaptive.w1_hz:
+        raise ConfigError(f"{where}: adaptive/w2_hz: must exceed w1_hz ({adaptive.w1_hz})")
+    if adaptive.n2_s < adaptive.n1_s:
+        raise ConfigError(f"{where}: adaptive/n2_s: must be at least n1_s ({adaptive.n1_s})")
+    t = d.get("thresholds", {})
+    thresholds = ThresholdsConfig(
+        **{k: {str(j): float(v) for j, v in t.get(k, {}).items()} for k in ("v_stat", "v0", "vL")}
+    )
+    c = dict(d.get("calibration", {}))
+    c["logs"] = tuple(LogRecord(**lg) for lg in c.get("logs", []))
+    c["margins"] = {
+        k: {str(j): float(v) for j, v in m.items()} for k, m in c.get("margins", {}).items()
+    }
+    return DetectorConfig(
+        adaptive=adaptive,
+        thresholds=thresholds,
+        static_loading=StaticLoadingConfig(**d.get("static_loading", {})),
+        residual=ResidualConfig(**d.get("residual", {})),
+        events=EventsConfig(**d.get("events", {})),
+        warmup=WarmupConfig(**d.get("warmup", {})),
+        calibration=CalibrationRecord(**c),
+        model=d.get("model"),
+    )
+
+
+def load_config(path: str | os.PathLike[str]) -> DetectorConfig:
+    """Read and validate a detector config (TOML, YAML or JSON by suffix).
+
+    Raises ConfigError naming the file and the offending field.
+    """
+    data = load_mapping(path, ConfigError, "detector config")
+    return DetectorConfig.from_dict(data, where=str(path))
+
+
+def dumps_config(cfg: DetectorConfig, suffix: str) -> str:
+    """Serialise ``cfg`` as TOML (``.toml``), YAML (``.yaml``/``.yml``) or JSON (else)."""
+    d = cfg.to_dict()
+    s = suffix.lower()
+    if s == ".toml":
+        return tomli_w.dumps(d)
+    if s in (".yaml", ".yml"):
+        return str(yaml.safe_dump(d, sort_keys=False))
+    return json.dumps(d, indent=2) + "\n"
+
+
+def save_config(cfg: DetectorConfig, path: str | os.PathLike[str]) -> None:
+    """Write ``cfg`` atomically to ``path`` (format by suffix)."""
+    atomic_write_text(path, dumps_config(cfg, Path(path).suffix))
