@@ -1,0 +1,829 @@
+"""Detection quality against ground-truth labels, and the equal-false-alarm threshold sweep.
+
+Pure logic: no file I/O, no printing. The CLI (``impactcli evaluate``) reads the files.
+
+Matching rule (documented in :class:`MatchTolerance`): an event *matches* a labelled contact
+when the event **starts** within ``[contact.start - pre_s, contact.end + post_s]``.
+
+- ``pre_s`` (default 0.02 s) absorbs clock and filter alignment between the label's source
+  (a load cell, a simulator) and the robot's log: an alarm a few samples before the labelled
+  onset is the same contact.
+- ``post_s`` (default 0.25 s) accepts an alarm raised just after the contact ended: the
+  adaptive detector is high-pass by design (method.md §7) and may fire only on the release
+  of a slow push or clamp.
+
+A contact is *detected* by a detector if any counted event of that detector matches it; its
+*delay* is the earliest matching event's start minus the labelled onset (it can be slightly
+negative, down to ``-pre_s``). One event may match several contacts (overlapping windows):
+all of them are detected and the event is no false alarm. An event that starts at one contact
+and is still on when a second contact begins matches only the first (the detector raised no
+new alarm for the second): the second counts as missed and is flagged
+``alarm_on_at_onset`` in its outcome.
+
+A *false alarm* is a counted event (starting after warm-up) that matches no contact. Events
+in warm-up (``in_warmup``, or starting before ``warmup_end_s``) are listed, never counted:
+they neither detect a contact nor count as false alarms. A contact whose onset lies before
+``warmup_end_s`` is reported separately (``in_warmup``) and is *not* counted as a miss — the
+detector is not yet armed there. A contact whose onset lies after the log's end is reported
+as ``outside_log`` and not counted either. The false-alarm rate is per hour of
+*collision-free time*: the part of ``[warmup_end_s, duration_s]`` outside every contact's
+tolerance window ``[start - pre_s, end + post_s]``.
+
+The *product* detector is the OR of ``adaptive`` and ``static_loading`` (method.md §5):
+their events are merged where they overlap (or lie within ``product_merge_gap_s``), so a
+moment where both fire is one product alarm, not two.
+
+The sweep (:func:`sweep_thresholds`) rescales every threshold by a factor ``s`` — decision
+``ratio > s`` with ``ratio = statistic / threshold`` (eq. 42 for the adaptive detector) —
+re-extracts events and evaluates them, so that detectors can be compared at equal false-alarm
+rates (:func:`at_zero_false_alarms`, :func:`verdict`).
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+import warnings
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .errors import ConfigError, ImpactWarning, LabelsError, LogFormatError
+from .types import DETECTORS, ContactLabel, Event, Labels
+
+if TYPE_CHECKING:
+    from .result import DetectionResult
+
+SCHEMA_VERSION = "1.0"
+#: The product's alarm: adaptive OR static_loading (method.md §5).
+PRODUCT = "product"
+PRODUCT_PARTS: tuple[str, ...] = ("adaptive", "static_loading")
+#: Every row of an evaluation, in display order.
+EVALUATED: tuple[str, ...] = (*DETECTORS, PRODUCT)
+KINDS: tuple[str, ...] = ("impact", "push", "clamp")
+SECONDS_PER_HOUR = 3600.0
+
+
+@dataclass(frozen=True)
+class MatchTolerance:
+    """When an event matches a contact: it starts within ``[start - pre_s, end + post_s]``.
+
+    Attributes:
+        pre_s: how long before the labelled onset an alarm still belongs to the contact [s]
+            (clock / filter alignment; default 0.02 s = 5 samples at 4 ms).
+        post_s: how long after the labelled end an alarm still belongs to it [s] (a
+            high-pass detector may fire on the release; default 0.25 s).
+    """
+
+    pre_s: float = 0.02
+    post_s: float = 0.25
+
+    def __post_init__(self) -> None:
+        for name in ("pre_s", "post_s"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
+                raise ConfigError(
+                    f"match tolerance: {name} must be a finite number >= 0, got {v!r}")
+
+    def window(self, c: ContactLabel) -> tuple[float, float]:
+        """The interval of event starts that match contact ``c`` [s]."""
+        return (c.start - self.pre_s, c.end + self.post_s)
+
+
+@dataclass(frozen=True)
+class _Ev:
+    """The part of an event evaluation needs (from an :class:`Event` or a timeline dict)."""
+
+    detector: str
+    t_start: float
+    t_end: float
+    in_warmup: bool
+    joints: tuple[str, ...] = ()
+    peak_ratio: float = float("nan")
+
+
+def _as_ev(e: Event | Mapping[str, Any], warmup_end_s: float, i: int) -> _Ev:
+    if isinstance(e, Event):
+        det, t0, t1, warm = e.detector, e.t_start, e.t_end, e.in_warmup
+        joints, peak = tuple(e.joints), e.peak_ratio
+    else:
+        try:
+            det = str(e["detector"])
+            t0, t1 = float(e["t_start"]), float(e["t_end"])
+            warm = bool(e.get("in_warmup", False))
+            joints = tuple(str(j) for j in e.get("joints", ()))
+            peak = float(e.get("peak_ratio", float("nan")))
+        except (KeyError, TypeError, ValueError) as err:
+            raise LogFormatError(f"events[{i}]: missing or bad field: {err}") from None
+    if det not in DETECTORS:
+        raise LogFormatError(f"events[{i}]: unknown detector {det!r}")
+    return _Ev(det, t0, t1, warm or t0 < warmup_end_s, joints, peak)
+
+
+def product_events(
+    events: Iterable[_Ev], warmup_end_s: float, merge_gap_s: float = 0.0
+) -> list[_Ev]:
+    """OR of the adaptive and static-loading events: overlapping ones merged into one alarm.
+
+    Two events merge when the next starts at most ``merge_gap_s`` after the current one ends
+    (default 0: only overlapping or touching events). A merged event is in warm-up when it
+    starts before ``warmup_end_s`` or its first part was flagged so.
+    """
+    parts = sorted((e for e in events if e.detector in PRODUCT_PARTS),
+                   key=lambda e: (e.t_start, e.t_end))
+    out: list[_Ev] = []
+    for e in parts:
+        if out and e.t_start <= out[-1].t_end + merge_gap_s:
+            cur = out[-1]
+            joints = cur.joints + tuple(j for j in e.joints if j not in cur.joints)
+            peak = e.peak_ratio if math.isnan(cur.peak_ratio) else max(cur.peak_ratio, e.peak_ratio)
+            out[-1] = _Ev(PRODUCT, cur.t_start, max(cur.t_end, e.t_end), cur.in_warmup,
+                          joints, peak)
+        else:
+            out.append(_Ev(PRODUCT, e.t_start, e.t_end, e.in_warmup or e.t_start < warmup_end_s,
+                           e.joints, e.peak_ratio))
+    return out
+
+
+@dataclass(frozen=True)
+class ContactOutcome:
+    """What each detector did about one labelled contact.
+
+    Attributes:
+        index: position in the labels file's ``events`` (0-based).
+        label: the contact itself.
+        status: ``counted``; ``in_warmup`` (onset before warm-up end: reported, not counted);
+            ``outside_log`` (onset after the log's last sample: not counted).
+        detected: detector → whether a counted event matched it (for ``in_warmup`` contacts:
+            whether any event, warm-up ones included, matched — informational).
+        delay_s: detector → earliest matching event start − contact start [s], or None.
+        alarm_on_at_onset: detector → not detected, but an earlier counted event of that
+            detector was still on at the contact's onset (its alarm was already raised).
+    """
+
+    index: int
+    label: ContactLabel
+    status: str
+    detected: dict[str, bool]
+    delay_s: dict[str, float | None]
+    alarm_on_at_onset: dict[str, bool]
+
+
+@dataclass(frozen=True)
+class KindScore:
+    """One detector's score on the counted contacts of one kind (impact, push, clamp)."""
+
+    kind: str
+    n_contacts: int
+    detected: int
+    delay_median_s: float | None
+    min_detected_force: float | None
+    max_missed_force: float | None
+
+
+@dataclass(frozen=True)
+class DetectorScore:
+    """One detector's score over a log.
+
+    Attributes:
+        detector: ``adaptive``, ``static_loading``, ``static_baseline`` or ``product``.
+        n_events: counted events (starting after warm-up).
+        n_events_in_warmup: events in warm-up (listed in ``warmup_events``, never counted).
+        n_contacts: counted contacts (onset after warm-up, inside the log).
+        detected: counted contacts matched by at least one counted event.
+        false_alarms: counted events matching no contact.
+        false_alarms_per_hour: ``false_alarms`` per hour of collision-free time (None when
+            there is no collision-free time).
+        delay_median_s, delay_max_s: over detected contacts [s] (None when none detected).
+        min_detected_force: smallest ``peak_force`` among detected contacts [N].
+        max_missed_force: largest ``peak_force`` among missed contacts [N].
+        by_kind: the same per contact kind present among counted contacts.
+        false_alarm_times: (t_start, t_end) of each false alarm [s].
+        warmup_events: (t_start, t_end) of each event in warm-up [s].
+    """
+
+    detector: str
+    n_events: int
+    n_events_in_warmup: int
+    n_contacts: int
+    detected: int
+    false_alarms: int
+    false_alarms_per_hour: float | None
+    delay_median_s: float | None
+    delay_max_s: float | None
+    min_detected_force: float | None
+    max_missed_force: float | None
+    by_kind: tuple[KindScore, ...] = ()
+    false_alarm_times: tuple[tuple[float, float], ...] = ()
+    warmup_events: tuple[tuple[float, float], ...] = ()
+
+    @property
+    def missed(self) -> int:
+        """Counted contacts not detected."""
+        return self.n_contacts - self.detected
+
+    @property
+    def recall(self) -> float | None:
+        """Detected / counted contacts (None without counted contacts)."""
+        return self.detected / self.n_contacts if self.n_contacts else None
+
+
+def _r(x: float | None, nd: int = 9) -> float | None:
+    """Round for output (drops float noise like 0.027000000000000003); non-finite → None."""
+    if x is None or not math.isfinite(x):
+        return None
+    return round(float(x), nd)
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """Detection quality of one log's events against its labels (see the module docstring).
+
+    Attributes:
+        tolerance: the matching rule used.
+        duration_s: log duration [s]; warmup_end_s: warm-up end [s].
+        collision_free_s: time after warm-up outside every contact's window [s].
+        contacts: per labelled contact, what each detector did.
+        scores: detector → its score, detectors in :data:`EVALUATED` order.
+        labels_path: where the labels came from (for the record).
+        product_merge_gap_s: gap below which adaptive and static-loading events merge [s].
+    """
+
+    tolerance: MatchTolerance
+    duration_s: float
+    warmup_end_s: float
+    collision_free_s: float
+    contacts: tuple[ContactOutcome, ...]
+    scores: dict[str, DetectorScore]
+    labels_path: str = ""
+    product_merge_gap_s: float = 0.0
+
+    def contacts_with_status(self, status: str) -> list[ContactOutcome]:
+        """Contacts of one status (``counted``, ``in_warmup``, ``outside_log``)."""
+        return [c for c in self.contacts if c.status == status]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready mapping (schemas/evaluation.schema.json); deterministic."""
+        def score(s: DetectorScore) -> dict[str, Any]:
+            return {
+                "n_events": s.n_events,
+                "n_events_in_warmup": s.n_events_in_warmup,
+                "n_contacts": s.n_contacts,
+                "detected": s.detected,
+                "missed": s.missed,
+                "recall": _r(s.recall, 6),
+                "false_alarms": s.false_alarms,
+                "false_alarms_per_hour": _r(s.false_alarms_per_hour, 6),
+                "delay_median_s": _r(s.delay_median_s),
+                "delay_max_s": _r(s.delay_max_s),
+                "min_detected_force": _r(s.min_detected_force),
+                "max_missed_force": _r(s.max_missed_force),
+                "by_kind": {
+                    k.kind: {
+                        "n_contacts": k.n_contacts, "detected": k.detected,
+                        "delay_median_s": _r(k.delay_median_s),
+                        "min_detected_force": _r(k.min_detected_force),
+                        "max_missed_force": _r(k.max_missed_force),
+                    }
+                    for k in s.by_kind
+                },
+                "false_alarm_times": [[_r(a), _r(b)] for a, b in s.false_alarm_times],
+                "warmup_events": [[_r(a), _r(b)] for a, b in s.warmup_events],
+            }
+
+        return {
+            "schema_version": SCHEMA_VERSION,
+            "labels": self.labels_path,
+            "tolerance": {"pre_s": self.tolerance.pre_s, "post_s": self.tolerance.post_s,
+                          "rule": "an event matches a contact if it starts within "
+                                  "[start - pre_s, end + post_s]"},
+            "product": {"detectors": list(PRODUCT_PARTS), "merge_gap_s": self.product_merge_gap_s},
+            "duration_s": _r(self.duration_s),
+            "warmup_end_s": _r(self.warmup_end_s),
+            "collision_free_s": _r(self.collision_free_s),
+            "n_contacts": {
+                st: len(self.contacts_with_status(st))
+                for st in ("counted", "in_warmup", "outside_log")
+            },
+            "detectors": {d: score(s) for d, s in self.scores.items()},
+            "contacts": [
+                {
+                    "index": c.index, "start": c.label.start, "end": c.label.end,
+                    "peak_force": c.label.peak_force, "kind": c.label.kind, "link": c.label.link,
+                    "status": c.status,
+                    "detected": dict(c.detected),
+                    "delay_s": {d: _r(v) for d, v in c.delay_s.items()},
+                    "alarm_on_at_onset": dict(c.alarm_on_at_onset),
+                }
+                for c in self.contacts
+            ],
+        }
+
+
+def _union_length(intervals: Iterable[tuple[float, float]], lo: float, hi: float) -> float:
+    """Length of the union of ``intervals`` clipped to ``[lo, hi]`` [s]."""
+    clipped = sorted((max(a, lo), min(b, hi)) for a, b in intervals)
+    total, cur_a, cur_b = 0.0, None, None
+    for a, b in clipped:
+        if b <= a:
+            continue
+        if cur_b is None or a > cur_b:
+            if cur_b is not None and cur_a is not None:
+                total += cur_b - cur_a
+            cur_a, cur_b = a, b
+        else:
+            cur_b = max(cur_b, b)
+    if cur_b is not None and cur_a is not None:
+        total += cur_b - cur_a
+    return total
+
+
+def _median(xs: Sequence[float]) -> float | None:
+    return float(statistics.median(xs)) if xs else None
+
+
+def _score_of(
+    idx: Sequence[int], det_k: Sequence[bool], del_k: Sequence[float | None],
+    contacts: Sequence[ContactLabel],
+) -> tuple[int, float | None, float | None, float | None, list[float]]:
+    """(detected, median delay, min detected force, max missed force, delays) over ``idx``."""
+    hits = [k for k in idx if det_k[k]]
+    delays = [v for k in hits if (v := del_k[k]) is not None]
+    det_f = [contacts[k].peak_force for k in hits]
+    miss_f = [contacts[k].peak_force for k in idx if not det_k[k]]
+    return (len(hits), _median(delays), min(det_f) if det_f else None,
+            max(miss_f) if miss_f else None, delays)
+
+
+def evaluate_events(
+    events: Sequence[Event | Mapping[str, Any]],
+    labels: Labels,
+    *,
+    duration_s: float,
+    warmup_end_s: float,
+    tolerance: MatchTolerance | None = None,
+    product_merge_gap_s: float = 0.0,
+    detectors: Sequence[str] = EVALUATED,
+) -> Evaluation:
+    """Score detection events against labelled contacts (rules in the module docstring).
+
+    Args:
+        events: detection events of any detectors — :class:`Event` or timeline ``events``
+            dicts (``t_start``, ``t_end``, ``detector``, ``in_warmup``) [s since first sample].
+        labels: the ground truth (times on the same base).
+        duration_s: the log's duration [s] (first to last sample).
+        warmup_end_s: end of the detector's warm-up [s]; earlier events and contacts are
+            reported, never counted.
+        tolerance: the matching window (default :class:`MatchTolerance()`).
+        product_merge_gap_s: adaptive and static-loading events closer than this merge into
+            one product alarm [s].
+        detectors: which rows to score (default every detector and ``product``).
+
+    Returns:
+        The :class:`Evaluation`. Contacts with onset after ``duration_s`` are warned about.
+    """
+    tol = tolerance if tolerance is not None else MatchTolerance()
+    if not (math.isfinite(duration_s) and duration_s >= 0):
+        raise LabelsError(
+            f"evaluation: duration_s must be a finite number >= 0, got {duration_s!r}")
+    for d in detectors:
+        if d not in EVALUATED:
+            raise ConfigError(f"evaluation: unknown detector {d!r} (expected one of {EVALUATED})")
+    evs = [_as_ev(e, warmup_end_s, i) for i, e in enumerate(events)]
+    by_det: dict[str, list[_Ev]] = {d: [e for e in evs if e.detector == d] for d in DETECTORS}
+    by_det[PRODUCT] = product_events(evs, warmup_end_s, product_merge_gap_s)
+    for d_evs in by_det.values():
+        d_evs.sort(key=lambda e: (e.t_start, e.t_end))
+
+    contacts = list(labels.events)
+    status = []
+    outside = []
+    for i, c in enumerate(contacts):
+        if c.start > duration_s:
+            status.append("outside_log")
+            outside.append(i)
+        elif c.start < warmup_end_s:
+            status.append("in_warmup")
+        else:
+            status.append("counted")
+    if outside:
+        where = labels.path or "labels"
+        warnings.warn(
+            f"{where}: {len(outside)} contact(s) start after the log's end ({duration_s:g} s), "
+            f"first at {contacts[outside[0]].start:g} s: not counted (labels of another log?)",
+            ImpactWarning, stacklevel=2,
+        )
+    windows = [tol.window(c) for c in contacts]
+    collision_free = max(0.0, duration_s - warmup_end_s) - _union_length(
+        windows, warmup_end_s, duration_s)
+    collision_free = max(0.0, collision_free)
+
+    detected: dict[str, list[bool]] = {}
+    delay: dict[str, list[float | None]] = {}
+    on_at_onset: dict[str, list[bool]] = {}
+    scores: dict[str, DetectorScore] = {}
+    for d in detectors:
+        d_evs = by_det[d]
+        counted = [e for e in d_evs if not e.in_warmup]
+        warm = [e for e in d_evs if e.in_warmup]
+        first_match: list[float | None] = [None] * len(contacts)
+        first_any: list[float | None] = [None] * len(contacts)  # warm-up events included
+        false_alarms: list[_Ev] = []
+        for e in d_evs:
+            hit = False
+            for k, (a, b) in enumerate(windows):
+                if a <= e.t_start <= b:
+                    hit = True
+                    if first_any[k] is None:
+                        first_any[k] = e.t_start  # events are sorted by start
+                    if not e.in_warmup and first_match[k] is None:
+                        first_match[k] = e.t_start
+            if not hit and not e.in_warmup:
+                false_alarms.append(e)
+        det_k, del_k, on_k = [], [], []
+        for k, c in enumerate(contacts):
+            if status[k] == "in_warmup":
+                t = first_any[k]
+            elif status[k] == "counted":
+                t = first_match[k]
+            else:
+                t = None
+            det_k.append(t is not None)
+            del_k.append(None if t is None else t - c.start)
+            on_k.append(t is None and status[k] == "counted" and any(
+                e.t_start < windows[k][0] and e.t_end >= c.start for e in counted))
+        detected[d], delay[d], on_at_onset[d] = det_k, del_k, on_k
+        idx_all = [k for k in range(len(contacts)) if status[k] == "counted"]
+        n_det, med, min_f, max_miss, delays = _score_of(idx_all, det_k, del_k, contacts)
+        by_kind = []
+        for kind in KINDS:
+            idx = [k for k in idx_all if contacts[k].kind == kind]
+            if idx:
+                kd, kmed, kmin, kmax, _ = _score_of(idx, det_k, del_k, contacts)
+                by_kind.append(KindScore(kind, len(idx), kd, kmed, kmin, kmax))
+        fa = len(false_alarms)
+        hours = collision_free / SECONDS_PER_HOUR
+        scores[d] = DetectorScore(
+            detector=d, n_events=len(counted), n_events_in_warmup=len(warm),
+            n_contacts=len(idx_all), detected=n_det, false_alarms=fa,
+            false_alarms_per_hour=fa / hours if hours > 0 else None,
+            delay_median_s=med, delay_max_s=max(delays) if delays else None,
+            min_detected_force=min_f, max_missed_force=max_miss, by_kind=tuple(by_kind),
+            false_alarm_times=tuple((e.t_start, e.t_end) for e in false_alarms),
+            warmup_events=tuple((e.t_start, e.t_end) for e in warm),
+        )
+
+    outcomes = tuple(
+        ContactOutcome(
+            index=k, label=c, status=status[k],
+            detected={d: detected[d][k] for d in detectors},
+            delay_s={d: delay[d][k] for d in detectors},
+            alarm_on_at_onset={d: on_at_onset[d][k] for d in detectors},
+        )
+        for k, c in enumerate(contacts)
+    )
+    return Evaluation(
+        tolerance=tol, duration_s=float(duration_s), warmup_end_s=float(warmup_end_s),
+        collision_free_s=collision_free, contacts=outcomes, scores=scores,
+        labels_path=labels.path, product_merge_gap_s=product_merge_gap_s,
+    )
+
+
+# ---------------------------------------------------------------------------------------
+# Text table
+
+
+def _fmt_ms(x: float | None) -> str:
+    return "-" if x is None else f"{x * 1e3:.0f} ms"
+
+
+def _fmt_n(x: float | None) -> str:
+    return "-" if x is None else f"{x:.3g} N"
+
+
+def _fmt_rate(x: float | None) -> str:
+    return "-" if x is None else f"{x:.3g}"
+
+
+def format_evaluation(ev: Evaluation) -> str:
+    """A plain-text table of an :class:`Evaluation` (one row per detector, then per kind)."""
+    n_counted = len(ev.contacts_with_status("counted"))
+    n_warm = len(ev.contacts_with_status("in_warmup"))
+    n_out = len(ev.contacts_with_status("outside_log"))
+    lines = [
+        f"Contacts: {n_counted} counted"
+        + (f", {n_warm} in warm-up (reported, not counted)" if n_warm else "")
+        + (f", {n_out} after the log's end (not counted)" if n_out else ""),
+        f"Log {ev.duration_s:.3f} s, warm-up until {ev.warmup_end_s:.3f} s, "
+        f"collision-free time {ev.collision_free_s:.3f} s",
+        f"Match: an event starting within [contact start - {ev.tolerance.pre_s:g} s, "
+        f"contact end + {ev.tolerance.post_s:g} s]; product = adaptive OR static_loading",
+        "",
+    ]
+    head = ("detector", "detected", "false alarms", "FA/h", "delay med", "delay max",
+            "min detected F", "max missed F", "warm-up ev.")
+    rows = [head]
+    for d, s in ev.scores.items():
+        rows.append((
+            d, f"{s.detected}/{s.n_contacts}", str(s.false_alarms),
+            _fmt_rate(s.false_alarms_per_hour),
+            _fmt_ms(s.delay_median_s), _fmt_ms(s.delay_max_s), _fmt_n(s.min_detected_force),
+            _fmt_n(s.max_missed_force), str(s.n_events_in_warmup),
+        ))
+    lines += _table(rows)
+    kind_rows: list[tuple[str, ...]] = [("detector", "kind", "detected", "delay med",
+                                         "min detected F", "max missed F")]
+    for d, s in ev.scores.items():
+        for k in s.by_kind:
+            kind_rows.append((d, k.kind, f"{k.detected}/{k.n_contacts}", _fmt_ms(k.delay_median_s),
+                              _fmt_n(k.min_detected_force), _fmt_n(k.max_missed_force)))
+    if len(kind_rows) > 1:
+        lines += ["", "By contact kind:", *_table(kind_rows)]
+    warm = ev.contacts_with_status("in_warmup")
+    if warm:
+        lines += ["", "Contacts in warm-up (not counted as misses):"]
+        for c in warm:
+            by = [d for d, v in c.detected.items() if v]
+            lines.append(f"  #{c.index} {c.label.kind} at {c.label.start:.3f} s, "
+                         f"{c.label.peak_force:.3g} N: alarm by {', '.join(by) if by else 'none'}")
+    return "\n".join(lines) + "\n"
+
+
+def _table(rows: Sequence[Sequence[str]]) -> list[str]:
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    out = []
+    for n, r in enumerate(rows):
+        out.append("  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in
+                             enumerate(zip(r, widths, strict=True))).rstrip())
+        if n == 0:
+            out.append("  ".join("-" * w for w in widths))
+    return out
+
+
+# ---------------------------------------------------------------------------------------
+# Threshold sweep (equal-false-alarm comparison)
+
+
+@dataclass(frozen=True)
+class SweepRow:
+    """One (detector, threshold scale) point of a sweep.
+
+    Attributes:
+        detector: a detector of :data:`EVALUATED`.
+        scale: threshold multiplier s (decision: statistic / threshold > s) [-].
+        n_events: counted events; n_contacts, detected: counted contacts and those detected.
+        false_alarms, false_alarms_per_hour: as in :class:`DetectorScore`.
+        delay_median_s [s], min_detected_force [N]: None when nothing is detected.
+    """
+
+    detector: str
+    scale: float
+    n_events: int
+    n_contacts: int
+    detected: int
+    false_alarms: int
+    false_alarms_per_hour: float | None
+    delay_median_s: float | None
+    min_detected_force: float | None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready mapping."""
+        return {
+            "detector": self.detector, "scale": _r(self.scale), "n_events": self.n_events,
+            "n_contacts": self.n_contacts, "detected": self.detected,
+            "false_alarms": self.false_alarms,
+            "false_alarms_per_hour": _r(self.false_alarms_per_hour, 6),
+            "delay_median_s": _r(self.delay_median_s),
+            "min_detected_force": _r(self.min_detected_force),
+        }
+
+
+def _extract_events_fallback(  # noqa: PLR0917 - extract_events' signature
+    detector: str, decision: np.ndarray, ratio: np.ndarray, residual: np.ndarray,
+    time_s: np.ndarray, joint_names: Sequence[str], warmup_end_s: float,
+    merge_gap_s: float, min_duration_s: float,
+) -> list[Event]:
+    """Events from an (N, J) decision, per formats.md: runs where any joint's decision is 1.
+
+    Runs separated by at most ``merge_gap_s`` merge; events shorter than ``min_duration_s``
+    (t_end − t_start) are dropped. Used only when :mod:`impactcli.detect.events` is absent.
+    """
+    anyd = np.asarray(decision, dtype=bool).any(axis=1)
+    if not anyd.any():
+        return []
+    x = np.concatenate(([False], anyd, [False])).astype(np.int8)
+    dx = np.diff(x)
+    starts = np.flatnonzero(dx == 1)
+    ends = np.flatnonzero(dx == -1) - 1
+    runs: list[list[int]] = []
+    for a, b in zip(starts.tolist(), ends.tolist(), strict=True):
+        if runs and time_s[a] - time_s[runs[-1][1]] <= merge_gap_s:
+            runs[-1][1] = b
+        else:
+            runs.append([a, b])
+    out = []
+    for a, b in runs:
+        if time_s[b] - time_s[a] < min_duration_s:
+            continue
+        seg = decision[a:b + 1]
+        fired = np.flatnonzero(seg.any(axis=0))
+        first = [int(np.argmax(seg[:, j])) for j in fired]
+        order = [int(j) for _, j in sorted(zip(first, fired.tolist(), strict=True))]
+        peak = float(np.max(ratio[a:b + 1][:, order]))
+        peak_res = {}
+        for j in order:
+            r = residual[a:b + 1, j]
+            peak_res[joint_names[j]] = float(r[int(np.argmax(np.abs(r)))])
+        out.append(Event(detector, float(time_s[a]), float(time_s[b]), int(a), int(b),
+                         tuple(joint_names[j] for j in order), peak, peak_res,
+                         bool(time_s[a] < warmup_end_s)))
+    return out
+
+
+def _extractor() -> Any:
+    try:
+        from .detect.events import extract_events  # noqa: PLC0415 - written in parallel
+    except ImportError:
+        return _extract_events_fallback
+    return extract_events
+
+
+def _event_settings(result: DetectionResult, merge_gap_s: float | None,
+                    min_duration_s: float | None) -> tuple[float, float]:
+    cfg = result.config.get("events") if isinstance(result.config, Mapping) else None
+    cfg = cfg if isinstance(cfg, Mapping) else {}
+    out = []
+    for name, given in (("merge_gap_s", merge_gap_s), ("min_duration_s", min_duration_s)):
+        v = given if given is not None else cfg.get(name)
+        if v is None:
+            raise ConfigError(f"sweep: the run's config has no events.{name}; pass {name}=")
+        out.append(float(v))
+    return out[0], out[1]
+
+
+def sweep_thresholds(
+    result: DetectionResult,
+    labels: Labels,
+    scales: Sequence[float],
+    *,
+    tolerance: MatchTolerance | None = None,
+    merge_gap_s: float | None = None,
+    min_duration_s: float | None = None,
+    detectors: Sequence[str] = EVALUATED,
+) -> list[SweepRow]:
+    """Rescale every detector's thresholds by each ``s`` in ``scales`` and evaluate.
+
+    For each detector, decisions are ``result.ratios[detector] > s`` ((N, J); ratio =
+    statistic / threshold, so s = 1 reproduces the run), events are re-extracted with the
+    run's ``config["events"]`` settings (``merge_gap_s``, ``min_duration_s``; the keyword
+    arguments override or supply them) and scored with :func:`evaluate_events`. The product
+    at scale s is the OR of adaptive and static_loading both at scale s.
+
+    Returns:
+        One :class:`SweepRow` per (detector, scale), detectors in :data:`EVALUATED` order,
+        scales ascending.
+    """
+    tol = tolerance if tolerance is not None else MatchTolerance()
+    gap, min_dur = _event_settings(result, merge_gap_s, min_duration_s)
+    scales_sorted = sorted({float(s) for s in scales})
+    if not scales_sorted or any(not (math.isfinite(s) and s > 0) for s in scales_sorted):
+        raise ConfigError(f"sweep: scales must be positive finite numbers, got {list(scales)!r}")
+    extract = _extractor()
+    log = result.log
+    time_s = log.time_s
+    residual = result.signals["residual"]
+    need = {d for d in detectors if d != PRODUCT}
+    if PRODUCT in detectors:
+        need |= set(PRODUCT_PARTS)
+    for d in need:
+        if d not in result.ratios:
+            raise ConfigError(f"sweep: the run holds no ratios for detector {d!r}")
+    rows: list[SweepRow] = []
+    per_scale: dict[float, dict[str, Any]] = {}
+    with warnings.catch_warnings():
+        # contacts after the log's end are warned about once, below, not once per scale
+        warnings.simplefilter("ignore", ImpactWarning)
+        for s in scales_sorted:
+            evs: list[Event] = []
+            for d in DETECTORS:
+                if d in need:
+                    ratio = result.ratios[d]
+                    evs += extract(d, ratio > s, ratio, residual, time_s, log.joint_names,
+                                   result.warmup_end_s, gap, min_dur)
+            per_scale[s] = evaluate_events(
+                evs, labels, duration_s=log.duration_s, warmup_end_s=result.warmup_end_s,
+                tolerance=tol, detectors=[d for d in EVALUATED if d in detectors],
+            ).scores
+    if any(c.start > log.duration_s for c in labels.events):
+        evaluate_events([], labels, duration_s=log.duration_s, warmup_end_s=result.warmup_end_s,
+                        tolerance=tol, detectors=())
+    for d in EVALUATED:
+        if d not in detectors:
+            continue
+        for s in scales_sorted:
+            sc = per_scale[s][d]
+            rows.append(SweepRow(
+                d, s, sc.n_events, sc.n_contacts, sc.detected, sc.false_alarms,
+                sc.false_alarms_per_hour, sc.delay_median_s, sc.min_detected_force))
+    return rows
+
+
+def at_zero_false_alarms(rows: Sequence[SweepRow]) -> dict[str, SweepRow | None]:
+    """Per detector, the sweep row at the smallest scale from which on it stays silent.
+
+    That is the smallest swept scale s such that this scale and every larger swept scale
+    give zero false alarms (a lone silent scale below a noisy one is not trusted: event
+    merging can make the count non-monotonic). None when even the largest scale
+    false-alarms. Its ``min_detected_force`` is the minimal detected force at zero false
+    alarms.
+    """
+    out: dict[str, SweepRow | None] = {}
+    for d in dict.fromkeys(r.detector for r in rows):
+        best: SweepRow | None = None
+        for r in sorted((r for r in rows if r.detector == d), key=lambda r: -r.scale):
+            if r.false_alarms:
+                break
+            best = r
+        out[d] = best
+    return out
+
+
+def adaptive_helps(zero: Mapping[str, SweepRow | None]) -> bool | None:
+    """Whether adaptive beats static_loading at matched (zero) false alarms, or None if unknown.
+
+    Helps: adaptive detects something and (static_loading detects nothing, or its minimal
+    detected force is smaller, or its median delay is shorter). Unknown: either detector
+    never reaches zero false alarms in the sweep, or there are no counted contacts.
+    """
+    a, s = zero.get("adaptive"), zero.get("static_loading")
+    if a is None or s is None or a.n_contacts == 0:
+        return None
+    if a.detected == 0:
+        return False
+    if s.detected == 0:
+        return True
+    assert a.min_detected_force is not None and s.min_detected_force is not None
+    smaller = a.min_detected_force < s.min_detected_force
+    faster = (a.delay_median_s is not None and s.delay_median_s is not None
+              and a.delay_median_s < s.delay_median_s)
+    return smaller or faster
+
+
+def _row_text(r: SweepRow) -> str:
+    txt = f"{r.detected}/{r.n_contacts} contacts at threshold scale {r.scale:g}"
+    if r.detected:
+        txt += (f", down to {r.min_detected_force:.3g} N with a median delay of "
+                f"{_fmt_ms(r.delay_median_s)}")
+    return txt
+
+
+def verdict(zero: Mapping[str, SweepRow | None]) -> str:
+    """One plain sentence: does the adaptive detector help on this robot and log?
+
+    Compares adaptive with static_loading at their zero-false-alarm points
+    (:func:`at_zero_false_alarms`); criteria in :func:`adaptive_helps`.
+    """
+    a, s = zero.get("adaptive"), zero.get("static_loading")
+    missing = [d for d, r in (("adaptive", a), ("static_loading", s)) if r is None]
+    if missing:
+        return (f"Undetermined: {' and '.join(missing)} never reached zero false alarms "
+                "within the swept threshold scales; sweep larger scales.")
+    assert a is not None and s is not None
+    if a.n_contacts == 0:
+        return "Undetermined: the labels hold no contact after warm-up to compare detectors on."
+    helps = adaptive_helps(zero)
+    both = f"adaptive detected {_row_text(a)}; static_loading detected {_row_text(s)}."
+    if helps:
+        return f"The adaptive detector helps here at zero false alarms: {both}"
+    return f"The adaptive detector does not help here at zero false alarms: {both}"
+
+
+def sweep_to_dict(rows: Sequence[SweepRow]) -> dict[str, Any]:
+    """The sweep, its zero-false-alarm points and the verdict, JSON-ready (deterministic)."""
+    zero = at_zero_false_alarms(rows)
+    return {
+        "rows": [r.to_dict() for r in rows],
+        "at_zero_false_alarms": {
+            d: (r.to_dict() if r is not None else None) for d, r in zero.items()},
+        "adaptive_helps": adaptive_helps(zero),
+        "verdict": verdict(zero),
+    }
+
+
+def format_sweep(rows: Sequence[SweepRow]) -> str:
+    """A plain-text table of the sweep's zero-false-alarm points and the verdict."""
+    zero = at_zero_false_alarms(rows)
+    table: list[tuple[str, ...]] = [("detector", "scale @ 0 FA", "detected", "min detected F",
+                                     "delay med")]
+    for d, r in zero.items():
+        if r is None:
+            table.append((d, "never", "-", "-", "-"))
+        else:
+            table.append((d, f"{r.scale:g}", f"{r.detected}/{r.n_contacts}",
+                          _fmt_n(r.min_detected_force), _fmt_ms(r.delay_median_s)))
+    scales = sorted({r.scale for r in rows})
+    rng = f"{scales[0]:g}–{scales[-1]:g}, {len(scales)} scales" if scales else "no scales"
+    return "\n".join([f"Threshold sweep ({rng}), at zero false alarms:", *_table(table), "",
+                      verdict(zero)]) + "\n"

@@ -1,0 +1,326 @@
+"""Detection quality against labels: hand-built events and contacts with known answers."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from impactcli.errors import ConfigError, ImpactWarning, LabelsError, LogFormatError
+from impactcli.evaluate import (
+    MatchTolerance,
+    SweepRow,
+    adaptive_helps,
+    at_zero_false_alarms,
+    evaluate_events,
+    format_evaluation,
+    format_sweep,
+    sweep_thresholds,
+    sweep_to_dict,
+    verdict,
+)
+from impactcli.schema import validate
+from impactcli.types import ContactLabel, Event, Labels
+
+from .fakes import fake_result
+
+H = 3600.0
+
+
+def ev(det: str, t0: float, t1: float | None = None, warm: bool = False) -> Event:
+    t1 = t0 + 0.05 if t1 is None else t1
+    return Event(det, t0, t1, 0, 0, ("j1",), 1.5, {"j1": 1.0}, warm)
+
+
+def contact(start: float, end: float, force: float = 10.0, kind: str = "impact") -> ContactLabel:
+    return ContactLabel(start, end, force, kind, 2)
+
+
+def labels(*cs: ContactLabel) -> Labels:
+    return Labels(events=tuple(cs), sample_rate=250.0, path="<test labels>")
+
+
+def run(events, lab, duration=10.0, warmup=1.0, **kw):
+    return evaluate_events(events, lab, duration_s=duration, warmup_end_s=warmup, **kw)
+
+
+def test_basic_counts_delays_forces_and_rates():
+    lab = labels(contact(2.0, 2.1, 5.0, "impact"), contact(4.0, 4.5, 10.0, "push"),
+                 contact(6.0, 7.0, 20.0, "clamp"))
+    events = [ev("adaptive", 2.03), ev("adaptive", 4.6), ev("adaptive", 8.0),
+              ev("static_loading", 6.2, 6.9)]
+    e = run(events, lab)
+    # windows [c.start - 0.02, c.end + 0.25]: 0.37 + 0.77 + 1.27 s of the 9 s after warm-up
+    assert e.collision_free_s == pytest.approx(9.0 - 2.41)
+    a = e.scores["adaptive"]
+    assert (a.n_contacts, a.detected, a.missed, a.false_alarms, a.n_events) == (3, 2, 1, 1, 3)
+    assert a.delay_median_s == pytest.approx((0.03 + 0.6) / 2)
+    assert a.delay_max_s == pytest.approx(0.6)
+    assert a.min_detected_force == 5.0 and a.max_missed_force == 20.0
+    assert a.false_alarms_per_hour == pytest.approx(1 / ((9.0 - 2.41) / H))
+    assert a.false_alarm_times == ((8.0, 8.05),)
+    kinds = {k.kind: k for k in a.by_kind}
+    assert [k.kind for k in a.by_kind] == ["impact", "push", "clamp"]
+    assert (kinds["clamp"].detected, kinds["clamp"].max_missed_force) == (0, 20.0)
+    assert kinds["push"].delay_median_s == pytest.approx(0.6)
+    sl = e.scores["static_loading"]
+    assert (sl.detected, sl.false_alarms, sl.min_detected_force) == (1, 0, 20.0)
+    assert sl.delay_median_s == pytest.approx(0.2)
+    p = e.scores["product"]
+    assert (p.detected, p.false_alarms, p.min_detected_force) == (3, 1, 5.0)
+    assert p.max_missed_force is None
+    b = e.scores["static_baseline"]
+    assert (b.detected, b.false_alarms, b.false_alarms_per_hour) == (0, 0, 0.0)
+    assert b.delay_median_s is None
+    assert b.max_missed_force == 20.0 and b.min_detected_force is None
+
+
+def test_tolerance_window_edges():
+    lab = labels(contact(2.0, 2.1))
+    early = [ev("adaptive", 1.97)]  # 30 ms before onset
+    assert run(early, lab).scores["adaptive"].detected == 0
+    assert run(early, lab).scores["adaptive"].false_alarms == 1
+    wide = run(early, lab, tolerance=MatchTolerance(pre_s=0.05, post_s=0.25)).scores["adaptive"]
+    assert (wide.detected, wide.false_alarms) == (1, 0)
+    assert wide.delay_median_s == pytest.approx(-0.03)
+    late = run([ev("adaptive", 2.36)], lab).scores["adaptive"]  # end + 0.26 s
+    assert (late.detected, late.false_alarms) == (0, 1)
+    ok = run([ev("adaptive", 2.34)], lab).scores["adaptive"]  # end + 0.24 s: the release
+    assert (ok.detected, ok.false_alarms) == (1, 0)
+    with pytest.raises(ConfigError):
+        MatchTolerance(pre_s=-0.1)
+
+
+def test_overlapping_contacts_one_event_detects_both():
+    lab = labels(contact(2.0, 2.3, 4.0), contact(2.2, 2.5, 8.0))
+    e = run([ev("adaptive", 2.25, 2.4)], lab)
+    a = e.scores["adaptive"]
+    assert (a.detected, a.false_alarms, a.min_detected_force) == (2, 0, 4.0)
+    assert sorted(c.delay_s["adaptive"] for c in e.contacts) == pytest.approx([0.05, 0.25])
+    # union of overlapping windows counted once: [1.98, 2.75]
+    assert e.collision_free_s == pytest.approx(9.0 - 0.77)
+
+
+def test_alarms_and_contacts_during_warmup_are_listed_not_counted():
+    lab = labels(contact(0.5, 0.6, 3.0), contact(5.0, 5.1, 7.0))
+    events = [
+        ev("adaptive", 0.2, warm=True),    # alarm in warm-up, no contact
+        ev("adaptive", 0.52, warm=True),   # matches the warm-up contact
+        ev("adaptive", 0.9),               # starts before warm-up end though not flagged
+        ev("adaptive", 5.01),
+    ]
+    e = run(events, lab, warmup=1.0)
+    a = e.scores["adaptive"]
+    assert (a.n_events, a.n_events_in_warmup, a.false_alarms) == (1, 3, 0)
+    assert (a.n_contacts, a.detected, a.max_missed_force) == (1, 1, None)
+    assert len(a.warmup_events) == 3
+    warm = e.contacts_with_status("in_warmup")
+    assert [c.index for c in warm] == [0]
+    assert warm[0].detected["adaptive"] is True        # informational
+    assert warm[0].detected["static_loading"] is False  # not a miss: not counted
+    assert e.scores["static_loading"].n_contacts == 1
+    assert e.scores["static_loading"].max_missed_force == 7.0  # only the counted one
+    assert "in warm-up (not counted as misses)" in format_evaluation(e)
+    # a counted contact cannot be detected by an in-warm-up event
+    e2 = run([ev("adaptive", 0.99, warm=True)], labels(contact(1.0, 1.1)), warmup=1.0)
+    assert (e2.scores["adaptive"].detected, e2.scores["adaptive"].n_contacts) == (0, 1)
+
+
+def test_contact_at_the_very_end_of_the_log():
+    lab = labels(contact(9.95, 10.0, 6.0))
+    e = run([ev("adaptive", 9.99, 10.0)], lab)
+    assert e.scores["adaptive"].detected == 1
+    assert e.scores["adaptive"].delay_median_s == pytest.approx(0.04)
+    # its window [9.93, 10.25] is clipped at the log's end
+    assert e.collision_free_s == pytest.approx(9.0 - 0.07)
+    missed = run([], lab)
+    assert missed.scores["adaptive"].max_missed_force == 6.0
+    with pytest.warns(ImpactWarning, match="after the log's end"):
+        out = run([], labels(contact(9.0, 9.1), contact(12.0, 12.1)))
+    assert [c.status for c in out.contacts] == ["counted", "outside_log"]
+    assert out.scores["adaptive"].n_contacts == 1
+
+
+def test_event_spanning_two_contacts_detects_only_the_first():
+    lab = labels(contact(2.0, 2.1, 5.0), contact(3.0, 3.1, 9.0))
+    e = run([ev("adaptive", 2.05, 3.5)], lab)
+    a = e.scores["adaptive"]
+    assert (a.detected, a.false_alarms, a.max_missed_force) == (1, 0, 9.0)
+    second = e.contacts[1]
+    assert second.detected["adaptive"] is False
+    assert second.alarm_on_at_onset["adaptive"] is True
+    assert e.contacts[0].alarm_on_at_onset["adaptive"] is False
+    assert second.alarm_on_at_onset["static_loading"] is False
+
+
+def test_zero_contacts_every_counted_event_is_a_false_alarm():
+    e = run([ev("adaptive", 3.0), ev("adaptive", 5.0), ev("static_loading", 5.02, 5.5)], labels())
+    a = e.scores["adaptive"]
+    assert (a.n_contacts, a.detected, a.false_alarms, a.recall) == (0, 0, 2, None)
+    assert a.false_alarms_per_hour == pytest.approx(2 / (9.0 / H))
+    assert a.delay_median_s is None and a.min_detected_force is None
+    # product: adaptive 5.0-5.05 and loading 5.02-5.5 overlap: one alarm, not two
+    assert e.scores["product"].false_alarms == 2
+    assert e.scores["static_loading"].false_alarms == 1
+
+
+def test_zero_events_and_zero_collision_free_time():
+    lab = labels(contact(2.0, 2.1, 5.0), contact(4.0, 4.1, 15.0, "push"))
+    e = run([], lab)
+    for s in e.scores.values():
+        assert (s.detected, s.false_alarms, s.n_events, s.max_missed_force) == (0, 0, 0, 15.0)
+    e2 = run([], labels(contact(1.0, 10.0)), warmup=1.0)
+    assert e2.collision_free_s == 0.0
+    assert e2.scores["adaptive"].false_alarms_per_hour is None
+
+
+def test_product_merges_overlapping_alarms():
+    lab = labels(contact(5.4, 5.45, 3.0))
+    # adaptive false alarm already on when loading fires on the contact: the product's alarm
+    # was raised at 5.0 — one product event, a false alarm, the contact not newly alarmed
+    e = run([ev("adaptive", 5.0, 5.5), ev("static_loading", 5.41, 6.0)], lab)
+    assert e.scores["static_loading"].detected == 1
+    p = e.scores["product"]
+    assert (p.n_events, p.false_alarms, p.detected) == (1, 1, 0)
+    assert e.contacts[0].alarm_on_at_onset["product"] is True
+    apart = run([ev("adaptive", 5.0, 5.1), ev("static_loading", 5.41, 6.0)], lab,
+                product_merge_gap_s=0.0)
+    assert (apart.scores["product"].n_events, apart.scores["product"].detected) == (2, 1)
+
+
+def test_timeline_dicts_equal_events_and_output_is_deterministic_and_valid():
+    lab = labels(contact(2.0, 2.1, 5.0), contact(4.0, 4.5, 10.0, "push"), contact(0.3, 0.4))
+    events = [ev("adaptive", 2.03), ev("adaptive", 0.31, warm=True), ev("static_loading", 7.0),
+              ev("static_baseline", 2.01)]
+    a = run(events, lab)
+    b = run([e.to_dict() for e in events], lab)
+    ja = json.dumps(a.to_dict(), sort_keys=True)
+    assert ja == json.dumps(b.to_dict(), sort_keys=True)
+    assert ja == json.dumps(run(list(events), lab).to_dict(), sort_keys=True)
+    doc = a.to_dict()
+    validate(doc, "evaluation", LabelsError, "evaluation")
+    assert doc["detectors"]["adaptive"]["delay_median_s"] == 0.03  # rounded: no float noise
+    assert doc["n_contacts"] == {"counted": 2, "in_warmup": 1, "outside_log": 0}
+    text = format_evaluation(a)
+    assert "static_loading" in text and "1/2" in text and "30 ms" in text
+
+
+def test_bad_event_dict_is_a_data_error():
+    with pytest.raises(LogFormatError, match="events\\[0\\]"):
+        run([{"t_start": 1.0}], labels())
+    with pytest.raises(LogFormatError, match="unknown detector"):
+        run([{"t_start": 1.0, "t_end": 1.1, "detector": "magic", "in_warmup": False}], labels())
+
+
+# --- threshold sweep ------------------------------------------------------------------
+
+
+def sweep_result(adaptive_delay: float = 0.0):
+    """10 s at 4 ms, warm-up 1 s; contacts at 4.0 s (3 N) and 8.0 s (1.5 N).
+
+    adaptive ratio: 0.5 floor, 2.0 at the first contact (from onset + adaptive_delay), a
+    1.5 false bump at 6.0 s, 1.2 at the second contact. static_loading: 0.3 floor, 1.4 from
+    4.048 s (delay 48 ms), a 1.1 false bump at 2.0 s. static_baseline: 0.2 everywhere.
+    """
+    base = fake_result()
+    t = base.log.time_s
+    n, J = len(t), 2
+
+    def box(a: float, b: float) -> np.ndarray:
+        return (t >= a - 1e-9) & (t <= b + 1e-9)
+
+    ad = np.full((n, J), 0.5)
+    ad[box(4.0 + adaptive_delay, 4.1 + adaptive_delay), 1] = 2.0
+    ad[box(6.0, 6.05), 0] = 1.5
+    ad[box(8.0, 8.1), 1] = 1.2
+    sl = np.full((n, J), 0.3)
+    sl[box(4.048, 4.3), 0] = 1.4
+    sl[box(2.0, 2.2), 0] = 1.1
+    ratios = {"adaptive": ad, "static_loading": sl, "static_baseline": np.full((n, J), 0.2)}
+    return dataclasses.replace(
+        base, ratios=ratios, decisions={d: r > 1 for d, r in ratios.items()},
+        config={"events": {"merge_gap_s": 0.02, "min_duration_s": 0.0}},
+    )
+
+
+SWEEP_LABELS = labels(contact(4.0, 4.1, 3.0), contact(8.0, 8.1, 1.5))
+
+
+def test_sweep_rows_have_the_known_counts():
+    rows = sweep_thresholds(sweep_result(), SWEEP_LABELS, [2.5, 1.0, 1.3, 1.6])
+    got = {(r.detector, r.scale): (r.detected, r.false_alarms) for r in rows}
+    assert [r.scale for r in rows if r.detector == "adaptive"] == [1.0, 1.3, 1.6, 2.5]
+    assert got[("adaptive", 1.0)] == (2, 1)
+    assert got[("adaptive", 1.3)] == (1, 1)
+    assert got[("adaptive", 1.6)] == (1, 0)
+    assert got[("adaptive", 2.5)] == (0, 0)
+    assert got[("static_loading", 1.0)] == (1, 1)
+    assert got[("static_loading", 1.3)] == (1, 0)
+    assert got[("static_baseline", 1.0)] == (0, 0)
+    assert got[("product", 1.0)] == (2, 2)
+    a10 = next(r for r in rows if (r.detector, r.scale) == ("adaptive", 1.0))
+    assert a10.min_detected_force == 1.5
+    duration = 2499 * 0.004  # fake_result: 2500 samples at 4 ms
+    assert a10.false_alarms_per_hour == pytest.approx(1 / ((duration - 1.0 - 2 * 0.37) / H))
+    zero = at_zero_false_alarms(rows)
+    assert zero["adaptive"] is not None and zero["adaptive"].scale == 1.6
+    assert zero["adaptive"].min_detected_force == 3.0
+    assert zero["adaptive"].delay_median_s == pytest.approx(0.0, abs=1e-9)
+    assert zero["static_loading"] is not None and zero["static_loading"].scale == 1.3
+    assert zero["static_loading"].delay_median_s == pytest.approx(0.048, abs=1e-6)
+    assert zero["static_baseline"] is not None and zero["static_baseline"].scale == 1.0
+    assert adaptive_helps(zero) is True  # same force, shorter delay
+    assert verdict(zero).startswith("The adaptive detector helps")
+    doc = sweep_to_dict(rows)
+    validate({**run([], SWEEP_LABELS).to_dict(), "sweep": doc}, "evaluation", LabelsError, "x")
+    assert json.dumps(doc, sort_keys=True) == json.dumps(
+        sweep_to_dict(sweep_thresholds(sweep_result(), SWEEP_LABELS, [1.0, 1.3, 1.6, 2.5])),
+        sort_keys=True)
+    assert "helps" in format_sweep(rows)
+
+
+def test_sweep_verdict_when_adaptive_is_slower():
+    rows = sweep_thresholds(sweep_result(adaptive_delay=0.1), SWEEP_LABELS, [1.0, 1.3, 1.6, 2.5])
+    zero = at_zero_false_alarms(rows)
+    assert zero["adaptive"] is not None
+    assert zero["adaptive"].delay_median_s == pytest.approx(0.1, abs=1e-6)
+    assert adaptive_helps(zero) is False
+    assert verdict(zero).startswith("The adaptive detector does not help")
+
+
+def test_sweep_needs_event_settings():
+    res = dataclasses.replace(sweep_result(), config={})
+    with pytest.raises(ConfigError, match="merge_gap_s"):
+        sweep_thresholds(res, SWEEP_LABELS, [1.0])
+    rows = sweep_thresholds(res, SWEEP_LABELS, [1.6], merge_gap_s=0.0, min_duration_s=0.0,
+                            detectors=("adaptive",))
+    assert [(r.detector, r.detected, r.false_alarms) for r in rows] == [("adaptive", 1, 0)]
+    with pytest.raises(ConfigError):
+        sweep_thresholds(res, SWEEP_LABELS, [0.0], merge_gap_s=0.0, min_duration_s=0.0)
+
+
+def row(det: str, scale: float, fa: int, *, det_n: int = 1, force: float | None = 2.0,
+        delay: float | None = 0.03) -> SweepRow:
+    return SweepRow(det, scale, fa + det_n, 3, det_n, fa, None, delay, force)
+
+
+def test_zero_false_alarm_point_ignores_a_lone_silent_scale_and_undetermined_verdicts():
+    rows = [row("adaptive", 1.0, 2), row("adaptive", 1.2, 0), row("adaptive", 1.4, 1),
+            row("adaptive", 1.6, 0), row("adaptive", 2.0, 0),
+            row("static_loading", 1.0, 3), row("static_loading", 2.0, 1)]
+    zero = at_zero_false_alarms(rows)
+    assert zero["adaptive"] is not None and zero["adaptive"].scale == 1.6
+    assert zero["static_loading"] is None
+    assert adaptive_helps(zero) is None
+    assert verdict(zero).startswith("Undetermined: static_loading never reached zero")
+    rows2 = [row("adaptive", 1.0, 0, force=4.0, delay=0.05),
+             row("static_loading", 1.0, 0, force=6.0, delay=0.02)]
+    assert adaptive_helps(at_zero_false_alarms(rows2)) is True  # smaller force wins
+    rows3 = [row("adaptive", 1.0, 0, det_n=0, force=None, delay=None),
+             row("static_loading", 1.0, 0)]
+    assert adaptive_helps(at_zero_false_alarms(rows3)) is False
+    rows4 = [row("adaptive", 1.0, 0),
+             row("static_loading", 1.0, 0, det_n=0, force=None, delay=None)]
+    assert adaptive_helps(at_zero_false_alarms(rows4)) is True
