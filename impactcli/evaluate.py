@@ -340,6 +340,30 @@ def _union_length(intervals: Iterable[tuple[float, float]], lo: float, hi: float
     return total
 
 
+def _match(
+    evs: Sequence[_Ev], win_lo: np.ndarray, win_hi: np.ndarray
+) -> tuple[list[float | None], list[float | None], np.ndarray]:
+    """Match events (sorted by start) to contact windows.
+
+    Returns, per contact, the earliest counted matching start and the earliest matching start
+    of any event (warm-up included), and per event whether it matched any contact.
+    """
+    n_c = win_lo.shape[0]
+    if not evs or n_c == 0:
+        return [None] * n_c, [None] * n_c, np.zeros(len(evs), dtype=bool)
+    t0 = np.array([e.t_start for e in evs], dtype=np.float64)
+    warm = np.array([e.in_warmup for e in evs], dtype=bool)
+    m = (t0[:, None] >= win_lo[None, :]) & (t0[:, None] <= win_hi[None, :])  # (E, C)
+
+    def first(mask: np.ndarray) -> list[float | None]:
+        any_ = mask.any(axis=0)
+        idx = np.argmax(mask, axis=0)  # first True: events are sorted by start
+        return [float(t0[i]) if a else None
+                for i, a in zip(idx.tolist(), any_.tolist(), strict=True)]
+
+    return first(m & ~warm[:, None]), first(m), m.any(axis=1)
+
+
 def _median(xs: Sequence[float]) -> float | None:
     return float(statistics.median(xs)) if xs else None
 
@@ -416,6 +440,8 @@ def evaluate_events(
             ImpactWarning, stacklevel=2,
         )
     windows = [tol.window(c) for c in contacts]
+    win_lo = np.array([w[0] for w in windows], dtype=np.float64)
+    win_hi = np.array([w[1] for w in windows], dtype=np.float64)
     collision_free = max(0.0, duration_s - warmup_end_s) - _union_length(
         windows, warmup_end_s, duration_s)
     collision_free = max(0.0, collision_free)
@@ -428,20 +454,10 @@ def evaluate_events(
         d_evs = by_det[d]
         counted = [e for e in d_evs if not e.in_warmup]
         warm = [e for e in d_evs if e.in_warmup]
-        first_match: list[float | None] = [None] * len(contacts)
-        first_any: list[float | None] = [None] * len(contacts)  # warm-up events included
-        false_alarms: list[_Ev] = []
-        for e in d_evs:
-            hit = False
-            for k, (a, b) in enumerate(windows):
-                if a <= e.t_start <= b:
-                    hit = True
-                    if first_any[k] is None:
-                        first_any[k] = e.t_start  # events are sorted by start
-                    if not e.in_warmup and first_match[k] is None:
-                        first_match[k] = e.t_start
-            if not hit and not e.in_warmup:
-                false_alarms.append(e)
+        first_match, first_any, matched = _match(d_evs, win_lo, win_hi)
+        false_alarms = [e for e, m in zip(d_evs, matched, strict=True) if not m and not e.in_warmup]
+        c_start = np.array([e.t_start for e in counted])
+        c_end = np.array([e.t_end for e in counted])
         det_k, del_k, on_k = [], [], []
         for k, c in enumerate(contacts):
             if status[k] == "in_warmup":
@@ -452,8 +468,8 @@ def evaluate_events(
                 t = None
             det_k.append(t is not None)
             del_k.append(None if t is None else t - c.start)
-            on_k.append(t is None and status[k] == "counted" and any(
-                e.t_start < windows[k][0] and e.t_end >= c.start for e in counted))
+            on_k.append(bool(t is None and status[k] == "counted" and np.any(
+                (c_start < win_lo[k]) & (c_end >= c.start))))
         detected[d], delay[d], on_at_onset[d] = det_k, del_k, on_k
         idx_all = [k for k in range(len(contacts)) if status[k] == "counted"]
         n_det, med, min_f, max_miss, delays = _score_of(idx_all, det_k, del_k, contacts)
@@ -650,9 +666,10 @@ def _extractor() -> Any:
     return extract_events
 
 
-def _event_settings(result: DetectionResult, merge_gap_s: float | None,
+def _event_settings(config: Any, merge_gap_s: float | None,
                     min_duration_s: float | None) -> tuple[float, float]:
-    cfg = result.config.get("events") if isinstance(result.config, Mapping) else None
+    """(merge_gap_s, min_duration_s): the keyword values, else the run's ``config["events"]``."""
+    cfg = config.get("events") if isinstance(config, Mapping) else None
     cfg = cfg if isinstance(cfg, Mapping) else {}
     out = []
     for name, given in (("merge_gap_s", merge_gap_s), ("min_duration_s", min_duration_s)):
@@ -661,6 +678,70 @@ def _event_settings(result: DetectionResult, merge_gap_s: float | None,
             raise ConfigError(f"sweep: the run's config has no events.{name}; pass {name}=")
         out.append(float(v))
     return out[0], out[1]
+
+
+def sweep_ratios(
+    ratios: Mapping[str, np.ndarray],
+    residual: np.ndarray,
+    time_s: np.ndarray,
+    joint_names: Sequence[str],
+    *,
+    labels: Labels,
+    scales: Sequence[float],
+    warmup_end_s: float,
+    merge_gap_s: float,
+    min_duration_s: float,
+    tolerance: MatchTolerance | None = None,
+    detectors: Sequence[str] = EVALUATED,
+) -> list[SweepRow]:
+    """The sweep on bare arrays (see :func:`sweep_thresholds`).
+
+    Args:
+        ratios: detector → (N, J) statistic / threshold [-] (decision at scale s: ratio > s).
+        residual: (N, J) residual r [N·m] (for the events' peak residual).
+        time_s: (N,) seconds since the first sample; joint_names: the J joints.
+        labels: ground truth. scales: threshold multipliers (> 0).
+        warmup_end_s [s]; merge_gap_s, min_duration_s: event extraction settings [s].
+    """
+    tol = tolerance if tolerance is not None else MatchTolerance()
+    scales_sorted = sorted({float(s) for s in scales})
+    if not scales_sorted or any(not (math.isfinite(s) and s > 0) for s in scales_sorted):
+        raise ConfigError(f"sweep: scales must be positive finite numbers, got {list(scales)!r}")
+    for d in detectors:
+        if d not in EVALUATED:
+            raise ConfigError(f"sweep: unknown detector {d!r} (expected one of {EVALUATED})")
+    need = {d for d in detectors if d != PRODUCT}
+    if PRODUCT in detectors:
+        need |= set(PRODUCT_PARTS)
+    for d in sorted(need):
+        if d not in ratios:
+            raise ConfigError(f"sweep: the run holds no ratios for detector {d!r}")
+    extract = _extractor()
+    time_s = np.asarray(time_s, dtype=np.float64)
+    duration_s = float(time_s[-1] - time_s[0]) if time_s.size else 0.0
+    rows_of: dict[str, list[SweepRow]] = {d: [] for d in EVALUATED if d in detectors}
+    with warnings.catch_warnings():
+        # contacts after the log's end are warned about once, below, not once per scale
+        warnings.simplefilter("ignore", ImpactWarning)
+        for s in scales_sorted:
+            evs: list[Event] = []
+            for d in DETECTORS:
+                if d in need:
+                    ratio = np.asarray(ratios[d])
+                    evs += extract(d, ratio > s, ratio, residual, time_s, list(joint_names),
+                                   warmup_end_s, merge_gap_s, min_duration_s)
+            scores = evaluate_events(
+                evs, labels, duration_s=duration_s, warmup_end_s=warmup_end_s, tolerance=tol,
+                product_merge_gap_s=merge_gap_s, detectors=list(rows_of),
+            ).scores
+            for d, sc in scores.items():
+                rows_of[d].append(SweepRow(
+                    d, s, sc.n_events, sc.n_contacts, sc.detected, sc.false_alarms,
+                    sc.false_alarms_per_hour, sc.delay_median_s, sc.min_detected_force))
+    if any(c.start > duration_s for c in labels.events):
+        evaluate_events([], labels, duration_s=duration_s, warmup_end_s=warmup_end_s,
+                        tolerance=tol, detectors=())
+    return [r for rows in rows_of.values() for r in rows]
 
 
 def sweep_thresholds(
@@ -676,58 +757,72 @@ def sweep_thresholds(
     """Rescale every detector's thresholds by each ``s`` in ``scales`` and evaluate.
 
     For each detector, decisions are ``result.ratios[detector] > s`` ((N, J); ratio =
-    statistic / threshold, so s = 1 reproduces the run), events are re-extracted with the
-    run's ``config["events"]`` settings (``merge_gap_s``, ``min_duration_s``; the keyword
-    arguments override or supply them) and scored with :func:`evaluate_events`. The product
-    at scale s is the OR of adaptive and static_loading both at scale s.
+    statistic / threshold — r_rms / |v_stat + v_rms| for the adaptive detector, eq. 42 —
+    so s = 1 reproduces the run), events are re-extracted
+    (:func:`impactcli.detect.events.extract_events`) with the run's ``config["events"]``
+    settings (``merge_gap_s``, ``min_duration_s``; the keyword arguments override or supply
+    them) and scored with :func:`evaluate_events`. The product at scale s is the OR of
+    adaptive and static_loading both at scale s (their events merged within merge_gap_s).
 
     Returns:
         One :class:`SweepRow` per (detector, scale), detectors in :data:`EVALUATED` order,
         scales ascending.
     """
-    tol = tolerance if tolerance is not None else MatchTolerance()
-    gap, min_dur = _event_settings(result, merge_gap_s, min_duration_s)
-    scales_sorted = sorted({float(s) for s in scales})
-    if not scales_sorted or any(not (math.isfinite(s) and s > 0) for s in scales_sorted):
-        raise ConfigError(f"sweep: scales must be positive finite numbers, got {list(scales)!r}")
-    extract = _extractor()
+    gap, min_dur = _event_settings(result.config, merge_gap_s, min_duration_s)
     log = result.log
-    time_s = log.time_s
-    residual = result.signals["residual"]
-    need = {d for d in detectors if d != PRODUCT}
-    if PRODUCT in detectors:
-        need |= set(PRODUCT_PARTS)
-    for d in need:
-        if d not in result.ratios:
-            raise ConfigError(f"sweep: the run holds no ratios for detector {d!r}")
-    rows: list[SweepRow] = []
-    per_scale: dict[float, dict[str, Any]] = {}
-    with warnings.catch_warnings():
-        # contacts after the log's end are warned about once, below, not once per scale
-        warnings.simplefilter("ignore", ImpactWarning)
-        for s in scales_sorted:
-            evs: list[Event] = []
-            for d in DETECTORS:
-                if d in need:
-                    ratio = result.ratios[d]
-                    evs += extract(d, ratio > s, ratio, residual, time_s, log.joint_names,
-                                   result.warmup_end_s, gap, min_dur)
-            per_scale[s] = evaluate_events(
-                evs, labels, duration_s=log.duration_s, warmup_end_s=result.warmup_end_s,
-                tolerance=tol, detectors=[d for d in EVALUATED if d in detectors],
-            ).scores
-    if any(c.start > log.duration_s for c in labels.events):
-        evaluate_events([], labels, duration_s=log.duration_s, warmup_end_s=result.warmup_end_s,
-                        tolerance=tol, detectors=())
-    for d in EVALUATED:
-        if d not in detectors:
-            continue
-        for s in scales_sorted:
-            sc = per_scale[s][d]
-            rows.append(SweepRow(
-                d, s, sc.n_events, sc.n_contacts, sc.detected, sc.false_alarms,
-                sc.false_alarms_per_hour, sc.delay_median_s, sc.min_detected_force))
-    return rows
+    return sweep_ratios(
+        result.ratios, result.signals["residual"], log.time_s, log.joint_names,
+        labels=labels, scales=scales, warmup_end_s=result.warmup_end_s, merge_gap_s=gap,
+        min_duration_s=min_dur, tolerance=tolerance, detectors=detectors,
+    )
+
+
+def ratios_from_signals(
+    columns: Mapping[str, np.ndarray], joint_names: Sequence[str],
+    thresholds: Mapping[str, Mapping[str, float]],
+) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """Rebuild the detectors' (N, J) ratios from a signals Parquet's columns (formats.md).
+
+    adaptive = ``residual_rms / threshold`` (eq. 42, threshold = |v_stat + v_rms|);
+    static_loading = ``loading_statistic / vL``; static_baseline = ``|residual| / v0``.
+
+    Args:
+        columns: column name → (N,) array (``<joint>.<signal>``).
+        joint_names: the J joints in order. thresholds: per joint ``{v0, vL}`` [N·m].
+
+    Returns:
+        (detector → (N, J) ratio, (N, J) residual [N·m]).
+
+    Raises:
+        LogFormatError naming the first missing column or threshold.
+    """
+    def col(j: str, name: str) -> np.ndarray:
+        key = f"{j}.{name}"
+        if key not in columns:
+            raise LogFormatError(f"signals: column {key!r} missing")
+        return np.asarray(columns[key], dtype=np.float64)
+
+    def thr(j: str, name: str) -> float:
+        try:
+            return float(thresholds[j][name])
+        except (KeyError, TypeError, ValueError):
+            raise LogFormatError(f"timeline: thresholds.{j}.{name} missing") from None
+
+    def safe_div(a: np.ndarray, b: np.ndarray | float) -> np.ndarray:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.asarray(np.where(np.asarray(b) > 0, a / b, np.inf))
+
+    res = np.column_stack([col(j, "residual") for j in joint_names])
+    ratios = {
+        "adaptive": np.column_stack([
+            safe_div(np.abs(col(j, "residual_rms")), np.abs(col(j, "threshold")))
+            for j in joint_names]),
+        "static_loading": np.column_stack([
+            safe_div(np.abs(col(j, "loading_statistic")), thr(j, "vL")) for j in joint_names]),
+        "static_baseline": np.column_stack([
+            safe_div(np.abs(col(j, "residual")), thr(j, "v0")) for j in joint_names]),
+    }
+    return ratios, res
 
 
 def at_zero_false_alarms(rows: Sequence[SweepRow]) -> dict[str, SweepRow | None]:
