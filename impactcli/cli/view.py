@@ -1,0 +1,160 @@
+"""``impactcli view RUN.rrd|LOG``: open a run (or a log, detected first) in the Rerun viewer.
+
+An ``.rrd`` is checked (a missing or garbled file is a data error, exit 3) and handed to
+the ``rerun`` viewer shipped in the rerun-sdk wheel. Any other path is read as a log, the
+detectors are replayed on it (:func:`impactcli.pipeline.analyze`), the recording is
+written to a temporary folder (or ``--save PATH``) and opened. ``--no-open`` only writes
+(for scripts and machines without a display). The command waits until the viewer closes.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import tempfile
+import warnings
+from pathlib import Path
+from typing import Any
+
+import click
+
+from ..errors import ImpactError, LogFormatError
+from ..outputs.decimate import DEFAULT_EVENT_WINDOW_S, DEFAULT_MAX_POINTS
+from ._common import handle_errors
+
+
+class ViewerError(ImpactError):
+    """The Rerun viewer could not be started or failed (exit 3, one line)."""
+
+
+def check_rrd(path: Path) -> None:
+    """Raise LogFormatError (one line naming ``path``) unless it is a readable Rerun recording."""
+    if not path.exists():
+        raise LogFormatError(f"{path}: no such file")
+    if not path.is_file():
+        raise LogFormatError(f"{path}: not a file")
+    from rerun.chunk import RrdReader  # noqa: PLC0415
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # "no footer/manifest" before the real error
+            recordings = RrdReader(path).recordings()
+    except (RuntimeError, OSError, ValueError) as err:
+        lines = str(err).replace(f" at {path}", "").splitlines()
+        detail = lines[0] if lines else type(err).__name__
+        raise LogFormatError(f"{path}: not a readable Rerun recording ({detail})") from err
+    if not recordings:
+        raise LogFormatError(f"{path}: Rerun file holds no recording")
+
+
+def log_stem(path: Path) -> str:
+    """The file name without its format extension (formats.md: ``.csv``, ``.csv.gz``, ...)."""
+    name = path.name
+    for ext in (".csv.gz", ".csv", ".mcap", ".npz"):
+        if name.lower().endswith(ext):
+            return name[: -len(ext)]
+    return path.stem
+
+
+def viewer_command(path: Path) -> list[str]:
+    """The command that opens ``path`` in the viewer shipped with rerun-sdk."""
+    exe = Path(sys.executable).with_name("rerun")
+    if exe.is_file():
+        return [str(exe), str(path)]
+    return [sys.executable, "-m", "rerun_cli", str(path)]
+
+
+def open_viewer(path: Path) -> None:
+    """Run the Rerun viewer on ``path`` and wait for it to close."""
+    cmd = viewer_command(path)
+    click.echo(f"impactcli: opening {path} in the Rerun viewer (close it to return)", err=True)
+    try:
+        rc = subprocess.call(cmd)
+    except OSError as err:
+        raise ViewerError(f"{path}: cannot start the Rerun viewer ({err}); "
+                          "write the file with --save and open it with `rerun FILE`") from err
+    if rc != 0:
+        raise ViewerError(f"{path}: the Rerun viewer exited with status {rc} "
+                          "(no display? use --no-open --save PATH)")
+
+
+def analyze_log(path: Path, *, model: Path | None, config: Path | None, robot: Path | None,
+                channel_map: str | None) -> Any:
+    """Read ``path`` and replay the detectors on it; returns a DetectionResult."""
+    from ..io import read_log  # type: ignore[attr-defined]  # noqa: PLC0415
+    from ..pipeline import analyze  # type: ignore[import-not-found]  # noqa: PLC0415
+
+    robot_desc = None
+    if robot is not None:
+        from ..io.robot import read_robot  # noqa: PLC0415
+
+        robot_desc = read_robot(robot)
+    model_obj = None
+    if model is not None:
+        from ..model.rigid import read_model  # noqa: PLC0415
+
+        model_obj = read_model(model)
+    config_obj = None
+    if config is not None:
+        from ..config import load_config  # noqa: PLC0415
+
+        config_obj = load_config(config)
+    log = read_log(path, channel_map=channel_map, robot=robot_desc)
+    return analyze(log, model=model_obj, config=config_obj, robot=robot_desc)
+
+
+@click.command("view")
+@click.argument("source", type=click.Path(dir_okay=True, path_type=Path))
+@click.option("--model", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Model JSON to detect with (LOG only).")
+@click.option("--config", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Detector config (TOML/YAML) to detect with (LOG only).")
+@click.option("--robot", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Robot description (JSON/YAML) (LOG only).")
+@click.option("--channel-map", default=None,
+              help="Channel map file or shipped map name, for foreign layouts (LOG only).")
+@click.option("--save", "save_path", type=click.Path(dir_okay=False, path_type=Path),
+              default=None, help="Also keep the recording at this .rrd path.")
+@click.option("--no-open", is_flag=True, help="Do not start the viewer (only check or write).")
+@click.option("--max-points", type=click.IntRange(min=1000), default=DEFAULT_MAX_POINTS,
+              show_default=True, help="Samples per series above which plots are decimated "
+              "(min/max envelope; events stay full rate).")
+@click.option("--event-window", type=click.FloatRange(min=0.0), default=DEFAULT_EVENT_WINDOW_S,
+              show_default=True, help="Full-rate window kept around each event [s].")
+@handle_errors
+def view_cmd(source: Path, model: Path | None, config: Path | None,  # noqa: PLR0917
+             robot: Path | None,
+             channel_map: str | None, save_path: Path | None, no_open: bool,
+             max_points: int, event_window: float) -> None:
+    """Open a run (RUN.rrd) or a log (detected first) in the Rerun viewer.
+
+    SOURCE is an .rrd written by `detect --rerun` (or `view --save`), or any log that
+    `detect` reads; for a log the detect options given here are used.
+    """
+    if source.suffix.lower() == ".rrd":
+        check_rrd(source)
+        if save_path is not None and save_path.resolve() != source.resolve():
+            save_path.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(source, save_path)
+        if not no_open:
+            open_viewer(source)
+        return
+    if not source.exists():
+        raise LogFormatError(f"{source}: no such file")
+    if no_open and save_path is None:
+        raise click.UsageError("--no-open on a LOG needs --save PATH (else nothing is kept)")
+
+    from ..outputs.rerun import write_rrd  # noqa: PLC0415
+
+    result = analyze_log(source, model=model, config=config, robot=robot, channel_map=channel_map)
+    if save_path is not None:
+        write_rrd(result, save_path, max_points=max_points, event_window_s=event_window)
+        click.echo(str(save_path))
+        if not no_open:
+            open_viewer(save_path)
+        return
+    with tempfile.TemporaryDirectory(prefix="impactcli-view-") as tmp:
+        rrd = Path(tmp) / f"{log_stem(source)}.rrd"
+        write_rrd(result, rrd, max_points=max_points, event_window_s=event_window)
+        open_viewer(rrd)
