@@ -1,0 +1,119 @@
+"""Per-joint thresholds from collision-free logs (method.md §5b, §8).
+
+The statistic each threshold must beat (after warm-up):
+- adaptive: ``r_rms − v_rms`` (eq. 42 fires iff r_rms > v_stat + v_rms, for v_stat ≥ 0),
+  so v_stat must exceed its maximum;
+- static_loading: ``|LP(r)|``;  static_baseline: ``|r|``.
+
+Rules (statistic maxima are floored at 0: a statistic that never rose above 0 needs no
+threshold above 0; thresholds are then floored at ``MIN_THRESHOLD``):
+- **leave-one-out** (≥ 2 logs), per joint: with M_l the maximum of log l,
+  ``m = max_l M_l / max_{o≠l} M_o`` — the smallest margin such that each log, left out of
+  the maximum, stays silent (m × max of the others ≥ its own maximum). Floored at
+  ``min_margin`` (1.05) and capped at ``max_margin`` (3.0, with an ImpactWarning; the
+  calibration is then flagged weak). Threshold = m × max over all logs.
+- **fixed-single-log** (1 log): threshold = 1.5 × its maximum; flagged weak.
+- **uncalibrated-quantile** (a log with no config, formats.md): threshold = 1.5 × the
+  0.995-quantile of the statistic after warm-up. The quantile leaves out the top 0.5 % of
+  samples (≥ 0.3 s per minute), so a few short contacts in the log do not set their own
+  threshold; the margin covers the rest. The run is marked uncalibrated.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ImpactWarning
+
+MIN_MARGIN = 1.05
+MAX_MARGIN = 3.0
+SINGLE_LOG_MARGIN = 1.5
+UNCALIBRATED_QUANTILE = 0.995
+UNCALIBRATED_MARGIN = 1.5
+#: Smallest threshold ever returned [N·m] (keeps |v_stat + v_rms| and ratios finite).
+MIN_THRESHOLD = 1e-6
+
+
+@dataclass(frozen=True)
+class ThresholdCalibration:
+    """thresholds (J,) [N·m]; margins (J,); maxima (L, J) per log (or (1, J) quantile);
+    rule: ``leave-one-out`` | ``fixed-single-log`` | ``uncalibrated-quantile``;
+    weak: weaker than an uncapped leave-one-out."""
+
+    thresholds: np.ndarray
+    margins: np.ndarray
+    maxima: np.ndarray
+    rule: str
+    weak: bool
+
+
+def adaptive_statistic(r_rms: np.ndarray, v_rms: np.ndarray) -> np.ndarray:
+    """(N, J) r_rms − v_rms: the quantity v_stat must exceed."""
+    return np.asarray(r_rms) - np.asarray(v_rms)
+
+
+def leave_one_out_margins(maxima: np.ndarray) -> np.ndarray:
+    """Raw leave-one-out margin per joint from (L ≥ 2, J) maxima (≥ 0); inf if a log has
+    a positive maximum while all the others are 0."""
+    m = np.maximum(np.asarray(maxima, dtype=np.float64), 0.0)
+    L = m.shape[0]
+    out = np.ones(m.shape[1])
+    for j in range(m.shape[1]):
+        for l_out in range(L):
+            others = np.max(np.delete(m[:, j], l_out))
+            if m[l_out, j] > 0:
+                need = np.inf if others <= 0 else m[l_out, j] / others
+                out[j] = max(out[j], need)
+    return out
+
+
+def calibrate_thresholds(
+    statistics: Sequence[np.ndarray], *, min_margin: float = MIN_MARGIN,
+    max_margin: float = MAX_MARGIN, single_log_margin: float = SINGLE_LOG_MARGIN,
+) -> ThresholdCalibration:
+    """Thresholds from collision-free logs.
+
+    Args:
+        statistics: per log, the (N_l, J) statistic after warm-up (see module doc).
+        min_margin, max_margin: floor and cap of the leave-one-out margin.
+        single_log_margin: margin when only one log is given.
+    """
+    if not statistics:
+        raise ValueError("calibration needs at least one log")
+    maxima = np.array([np.max(np.asarray(s, dtype=np.float64), axis=0) for s in statistics])
+    maxima_pos = np.maximum(maxima, 0.0)
+    overall = maxima_pos.max(axis=0)
+    if len(statistics) == 1:
+        margins = np.full(maxima.shape[1], single_log_margin)
+        rule, weak = "fixed-single-log", True
+    else:
+        raw = leave_one_out_margins(maxima_pos)
+        margins = np.maximum(raw, min_margin)
+        weak = bool(np.any(margins > max_margin))
+        if weak:
+            bad = [f"joint {j}: {raw[j]:.3g}" for j in np.flatnonzero(margins > max_margin)]
+            warnings.warn(
+                f"leave-one-out margin above {max_margin} ({', '.join(bad)}); capped — the "
+                "calibration logs disagree, add logs covering the robot's motions",
+                ImpactWarning, stacklevel=2,
+            )
+            margins = np.minimum(margins, max_margin)
+        rule = "leave-one-out"
+    thr = np.maximum(margins * overall, MIN_THRESHOLD)
+    return ThresholdCalibration(thr, margins, maxima, rule, weak)
+
+
+def uncalibrated_thresholds(
+    statistic: np.ndarray, *, quantile: float = UNCALIBRATED_QUANTILE,
+    margin: float = UNCALIBRATED_MARGIN,
+) -> ThresholdCalibration:
+    """Robust thresholds from a log's own (N, J) statistic after warm-up (no config)."""
+    s = np.asarray(statistic, dtype=np.float64)
+    q = np.maximum(np.quantile(s, quantile, axis=0), 0.0)
+    thr = np.maximum(margin * q, MIN_THRESHOLD)
+    return ThresholdCalibration(thr, np.full(s.shape[1], margin), q[None, :],
+                                "uncalibrated-quantile", True)
