@@ -1,0 +1,261 @@
+"""``impactcli evaluate TIMELINE|LOG --labels LABELS.json``: detection quality against labels.
+
+A ``*.json`` input is a detection timeline (``impactcli detect`` output, validated against
+schemas/timeline.schema.json); anything else is a log, on which the detectors are replayed
+first (:func:`impactcli.pipeline.analyze`, with detect's ``--robot/--model/--config/
+--channel-map``). The matching rules are :mod:`impactcli.evaluate`'s.
+
+``--sweep`` rescales every threshold over ``--scales`` and reports, per detector, the
+smallest scale with zero false alarms and what it still detects, then a one-sentence
+verdict: does the adaptive detector help on this robot and log? It needs the per-sample
+ratios: a LOG, or a timeline with its ``<stem>.signals.parquet`` beside it
+(``detect --signals``).
+
+Output: a text table, or with ``--json`` one JSON object on stdout
+(schemas/evaluation.schema.json). Exit 0; 2 bad options; 3 bad timeline, log or labels.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+from pathlib import Path
+from typing import Any
+
+import click
+import numpy as np
+
+from ..errors import ImpactWarning, LabelsError, LogFormatError
+from ._common import handle_errors
+
+DEFAULT_SCALES = "0.5:3:0.05"
+
+
+def parse_scales(text: str) -> tuple[float, ...]:
+    """``"a:b:step"`` (inclusive of b) or ``"s1,s2,..."`` → sorted positive scales.
+
+    Raises ValueError with a one-line message on anything else.
+    """
+    text = text.strip()
+    try:
+        if ":" in text:
+            parts = [float(p) for p in text.split(":")]
+            if len(parts) != 3:
+                raise ValueError
+            a, b, step = parts
+            if not (step > 0 and b >= a):
+                raise ValueError
+            n = math.floor((b - a) / step + 1e-9)
+            if n > 10_000:
+                raise ValueError
+            values = [round(a + k * step, 10) for k in range(n + 1)]
+        else:
+            values = [float(p) for p in text.split(",") if p.strip()]
+    except ValueError:
+        raise ValueError(f"{text!r} is not 'start:stop:step' or a comma-separated list") from None
+    if not values or any(not (math.isfinite(v) and v > 0) for v in values):
+        raise ValueError(f"{text!r}: scales must be positive numbers")
+    return tuple(sorted(set(values)))
+
+
+def _scales_option(ctx: click.Context, param: click.Parameter, value: str) -> tuple[float, ...]:
+    try:
+        return parse_scales(value)
+    except ValueError as err:
+        raise click.BadParameter(str(err)) from None
+
+
+def read_labels_checked(path: Path) -> Any:
+    """Labels validated against schemas/labels.schema.json (LabelsError naming the file)."""
+    from ..io.robot import labels_from_dict  # noqa: PLC0415
+    from ..io.structured import load_mapping  # noqa: PLC0415
+    from ..schema import validate  # noqa: PLC0415
+
+    d = load_mapping(path, LabelsError, "labels")
+    validate(d, "labels", LabelsError, str(path))
+    return labels_from_dict(d, str(path))
+
+
+def read_timeline(path: Path) -> dict[str, Any]:
+    """A timeline JSON validated against schemas/timeline.schema.json (LogFormatError)."""
+    from ..io.structured import load_mapping  # noqa: PLC0415
+    from ..schema import validate  # noqa: PLC0415
+
+    doc = load_mapping(path, LogFormatError, "timeline")
+    validate(doc, "timeline", LogFormatError, str(path))
+    return doc
+
+
+def signals_beside(timeline: Path) -> Path:
+    """``DIR/<stem>.signals.parquet`` for ``DIR/<stem>.timeline.json``."""
+    name = timeline.name
+    stem = name[: -len(".timeline.json")] if name.endswith(".timeline.json") else timeline.stem
+    return timeline.with_name(f"{stem}.signals.parquet")
+
+
+def _events_settings(config: Any) -> dict[str, float]:
+    ev = config.get("events") if isinstance(config, dict) else None
+    return ev if isinstance(ev, dict) else {}
+
+
+def _check_rate(labels: Any, rate_hz: float, where: str) -> None:
+    if rate_hz > 0 and abs(labels.sample_rate - rate_hz) > 0.05 * rate_hz:
+        warnings.warn(
+            f"{labels.path}: labels say {labels.sample_rate:g} Hz but {where} runs at "
+            f"{rate_hz:g} Hz: are they the labels of this log?", ImpactWarning, stacklevel=2)
+
+
+def analyze_log(path: Path, *, model: Path | None, config: Path | None, robot: Path | None,
+                channel_map: str | None) -> Any:
+    """Read ``path`` and replay the detectors on it; returns a DetectionResult."""
+    from ..io import read_log  # noqa: PLC0415
+    from ..pipeline import analyze  # type: ignore[import-not-found,unused-ignore]  # noqa: PLC0415
+
+    robot_desc = None
+    if robot is not None:
+        from ..io.robot import read_robot  # noqa: PLC0415
+
+        robot_desc = read_robot(robot)
+    model_obj = None
+    if model is not None:
+        from ..model.rigid import read_model  # noqa: PLC0415
+
+        model_obj = read_model(model)
+    config_obj = None
+    if config is not None:
+        from ..config import load_config  # noqa: PLC0415
+
+        config_obj = load_config(config)
+    log = read_log(path, channel_map=channel_map, robot=robot_desc)
+    return analyze(log, model=model_obj, config=config_obj, robot=robot_desc)
+
+
+def _timeline_sweep(source: Path, doc: dict[str, Any], labels: Any, scales: tuple[float, ...],
+                    tolerance: Any) -> Any:
+    """Sweep from a timeline and the signals Parquet beside it."""
+    from ..evaluate import ratios_from_signals, sweep_ratios  # noqa: PLC0415
+    from ..outputs.signals import read_signals  # noqa: PLC0415
+    from ..types import DETECTORS  # noqa: PLC0415
+
+    sig_path = signals_beside(source)
+    if not sig_path.is_file():
+        raise click.UsageError(
+            f"--sweep needs a LOG, or a timeline with its signals beside it ({sig_path} is "
+            "missing: run detect with --signals)")
+    try:
+        cols, _meta = read_signals(sig_path)
+    except (OSError, ValueError) as err:  # pyarrow's ArrowInvalid is a ValueError
+        msg = str(err).splitlines()[0] if str(err) else type(err).__name__
+        raise LogFormatError(f"{sig_path}: not a readable signals Parquet ({msg})") from err
+    joints = list(doc["input"]["joints"])
+    try:
+        ratios, residual = ratios_from_signals(cols, joints, doc["thresholds"])
+    except LogFormatError as err:
+        raise LogFormatError(f"{sig_path}: {err}") from None
+    if "time" not in cols:
+        raise LogFormatError(f"{sig_path}: column 'time' missing")
+    time_s = np.asarray(cols["time"], dtype=np.float64)
+    # the rebuilt ratios must reproduce the run's own decisions at scale 1
+    for det in DETECTORS:
+        keys = [f"{j}.{det}" for j in joints]
+        if all(k in cols for k in keys):
+            stored = np.column_stack([np.asarray(cols[k]) != 0 for k in keys])
+            diff = float(np.mean(stored != (ratios[det] > 1.0)))
+            if diff > 1e-3:
+                warnings.warn(
+                    f"{sig_path}: {det} decisions rebuilt from the signals differ from the "
+                    f"stored ones on {100 * diff:.2g}% of samples: the sweep may not match "
+                    "the run", ImpactWarning, stacklevel=2)
+    settings = _events_settings(doc["config"])
+    try:
+        gap, min_dur = float(settings["merge_gap_s"]), float(settings["min_duration_s"])
+    except (KeyError, TypeError, ValueError):
+        raise LogFormatError(f"{source}: config.events needs merge_gap_s and min_duration_s "
+                             "to re-extract events for --sweep") from None
+    return sweep_ratios(ratios, residual, time_s, joints, labels=labels, scales=scales,
+                        warmup_end_s=float(doc["warmup_end_s"]), merge_gap_s=gap,
+                        min_duration_s=min_dur, tolerance=tolerance)
+
+
+@click.command("evaluate")
+@click.argument("source", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+                metavar="TIMELINE|LOG")
+@click.option("--labels", "labels_path", required=True,
+              type=click.Path(dir_okay=False, path_type=Path),
+              help="Ground-truth labels JSON (formats.md, 'Ground-truth labels').")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
+@click.option("--sweep", is_flag=True,
+              help="Sweep threshold scales; compare detectors at zero false alarms "
+                   "(needs a LOG, or a timeline with its .signals.parquet beside it).")
+@click.option("--scales", default=DEFAULT_SCALES, show_default=True, callback=_scales_option,
+              help="Threshold scales for --sweep: 'start:stop:step' or 's1,s2,...'.")
+@click.option("--pre", "pre_s", type=click.FloatRange(min=0.0), default=0.02, show_default=True,
+              help="An alarm up to this long before a contact's start matches it [s].")
+@click.option("--post", "post_s", type=click.FloatRange(min=0.0), default=0.25,
+              show_default=True,
+              help="An alarm up to this long after a contact's end matches it (release) [s].")
+@click.option("--model", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Model JSON to detect with (LOG only).")
+@click.option("--config", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Detector config (TOML/YAML/JSON) to detect with (LOG only).")
+@click.option("--robot", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Robot description (JSON/YAML) (LOG only).")
+@click.option("--channel-map", default=None,
+              help="Channel map file or shipped map name, for foreign layouts (LOG only).")
+@handle_errors
+def evaluate_cmd(source: Path, labels_path: Path, as_json: bool, sweep: bool,  # noqa: PLR0917
+                 scales: tuple[float, ...], pre_s: float, post_s: float, model: Path | None,
+                 config: Path | None, robot: Path | None, channel_map: str | None) -> None:
+    """Measure detection quality of a timeline (or a log, detected first) against labels.
+
+    An event matches a contact when it starts within [start - PRE, end + POST]. Events in
+    warm-up are listed, never counted; contacts in warm-up are reported, not counted as
+    misses. 'product' is adaptive OR static_loading.
+    """
+    from ..evaluate import (  # noqa: PLC0415
+        MatchTolerance,
+        evaluate_events,
+        format_evaluation,
+        format_sweep,
+        sweep_thresholds,
+        sweep_to_dict,
+    )
+
+    tolerance = MatchTolerance(pre_s=pre_s, post_s=post_s)
+    is_timeline = source.name.lower().endswith(".json")
+    if is_timeline and any(v is not None for v in (model, config, robot, channel_map)):
+        raise click.UsageError("--model, --config, --robot and --channel-map apply to a LOG, "
+                               "not to a timeline")
+    labels = read_labels_checked(labels_path)
+    rows = None
+    if is_timeline:
+        doc = read_timeline(source)
+        _check_rate(labels, float(doc["input"]["sample_rate_hz"]), str(source))
+        gap = float(_events_settings(doc["config"]).get("merge_gap_s", 0.0))
+        ev = evaluate_events(doc["events"], labels, duration_s=float(doc["input"]["duration_s"]),
+                             warmup_end_s=float(doc["warmup_end_s"]), tolerance=tolerance,
+                             product_merge_gap_s=gap)
+        if sweep:
+            rows = _timeline_sweep(source, doc, labels, scales, tolerance)
+    else:
+        result = analyze_log(source, model=model, config=config, robot=robot,
+                             channel_map=channel_map)
+        _check_rate(labels, result.log.sample_rate_hz, str(source))
+        gap = float(_events_settings(result.config).get("merge_gap_s", 0.0))
+        ev = evaluate_events(result.events, labels, duration_s=result.log.duration_s,
+                             warmup_end_s=result.warmup_end_s, tolerance=tolerance,
+                             product_merge_gap_s=gap)
+        if sweep:
+            rows = sweep_thresholds(result, labels, scales, tolerance=tolerance)
+    if as_json:
+        out = ev.to_dict()
+        out["input"] = str(source)
+        if rows is not None:
+            out["sweep"] = sweep_to_dict(rows)
+        click.echo(json.dumps(out, sort_keys=True, indent=1, allow_nan=False))
+    else:
+        click.echo(format_evaluation(ev), nl=False)
+        if rows is not None:
+            click.echo("")
+            click.echo(format_sweep(rows), nl=False)

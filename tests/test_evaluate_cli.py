@@ -1,0 +1,234 @@
+"""``impactcli evaluate``: a timeline JSON and labels built in the test; exit codes and --json."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import impactcli.cli.evaluate as cli_eval
+from impactcli.cli import main
+from impactcli.errors import LabelsError
+from impactcli.outputs.signals import write_signals
+from impactcli.outputs.timeline import write_timeline
+from impactcli.schema import validate
+
+from .test_evaluate import SWEEP_LABELS, sweep_result
+
+H = 3600.0
+
+
+def timeline_doc() -> dict[str, Any]:
+    """60 s at 250 Hz, warm-up 5 s; events: adaptive in warm-up (1.0 s), adaptive on the
+    impact (10.01 s), baseline on the impact (10.05 s), loading on the push's release
+    (20.6 s), an adaptive false alarm (40.0 s)."""
+    def e(det: str, t0: float, warm: bool = False) -> dict[str, Any]:
+        return {"t_start": t0, "t_end": t0 + 0.04, "detector": det, "joints": ["j2"],
+                "peak_ratio": 1.7, "peak_residual": {"j2": -0.8}, "in_warmup": warm}
+
+    return {
+        "schema_version": "1.0",
+        "tool": {"name": "impactcli", "version": "0.0.0"},
+        "input": {"path": "arm.csv", "sha256": "0" * 64, "joints": ["j1", "j2"],
+                  "duration_s": 60.0, "sample_rate_hz": 250.0, "t0_ns": 0,
+                  "torque_source": "torque", "time_source": "column"},
+        "config": {"events": {"merge_gap_s": 0.1, "min_duration_s": 0.0}},
+        "calibrated": True,
+        "model": {"source": "given", "sha256": "ab" * 32, "model": {}},
+        "replay": {"online_equivalent": True, "reference_source": "reference",
+                   "torque_filtered": True},
+        "warmup_end_s": 5.0,
+        "thresholds": {j: {"v_stat": 0.2, "v0": 1.5, "vL": 0.5} for j in ("j1", "j2")},
+        "events": [e("adaptive", 1.0, True), e("adaptive", 10.01), e("static_baseline", 10.05),
+                   e("static_loading", 20.6), e("adaptive", 40.0)],
+        "summary": {},
+    }
+
+
+LABELS = {
+    "sample_rate": 250.0,
+    "events": [
+        {"start": 2.0, "end": 2.1, "peak_force": 3.0, "kind": "impact", "link": 1},   # warm-up
+        {"start": 10.0, "end": 10.1, "peak_force": 4.0, "kind": "impact", "link": 2},
+        {"start": 20.0, "end": 20.5, "peak_force": 12.0, "kind": "push", "link": 2},
+        {"start": 30.0, "end": 31.0, "peak_force": 25.0, "kind": "clamp", "link": 1},
+    ],
+}
+
+
+def write(tmp_path: Path, name: str, doc: Any) -> Path:
+    p = tmp_path / name
+    with p.open("w") as f:
+        json.dump(doc, f)
+    return p
+
+
+def invoke(*args: str) -> Any:
+    result = CliRunner().invoke(main, ["evaluate", *args], catch_exceptions=False)
+    return result
+
+
+def info(r: Any) -> str:
+    return f"exit {r.exit_code}\nstdout:\n{r.stdout}\nstderr:\n{r.stderr}"
+
+
+@pytest.fixture
+def files(tmp_path: Path) -> tuple[Path, Path]:
+    tl = write(tmp_path, "arm.timeline.json", timeline_doc())
+    return tl, write(tmp_path, "labels.json", LABELS)
+
+
+def test_text_table(files):
+    tl, lab = files
+    r = invoke(str(tl), "--labels", str(lab))
+    assert r.exit_code == 0, info(r)
+    out = r.stdout
+    assert "3 counted, 1 in warm-up" in out
+    row = next(line for line in out.splitlines() if line.startswith("adaptive "))
+    assert "1/3" in row and "10 ms" in row
+    assert "in warm-up (not counted as misses)" in out
+
+
+def test_json_has_the_known_numbers_and_is_deterministic(files):
+    tl, lab = files
+    r = invoke(str(tl), "--labels", str(lab), "--json")
+    assert r.exit_code == 0, info(r)
+    doc = json.loads(r.stdout)
+    validate(doc, "evaluation", LabelsError, "evaluate --json")
+    free = 55.0 - (0.37 + 0.77 + 1.27)
+    assert doc["collision_free_s"] == pytest.approx(free)
+    a = doc["detectors"]["adaptive"]
+    assert (a["detected"], a["n_contacts"], a["false_alarms"]) == (1, 3, 1)
+    assert a["n_events_in_warmup"] == 1
+    assert a["false_alarms_per_hour"] == pytest.approx(H / free, rel=1e-6)
+    assert a["delay_median_s"] == pytest.approx(0.01)
+    assert a["min_detected_force"] == 4.0 and a["max_missed_force"] == 25.0
+    sl = doc["detectors"]["static_loading"]
+    assert (sl["detected"], sl["false_alarms"], sl["delay_median_s"]) == (1, 0, pytest.approx(0.6))
+    p = doc["detectors"]["product"]
+    assert (p["detected"], p["false_alarms"], p["max_missed_force"]) == (2, 1, 25.0)
+    assert doc["detectors"]["static_baseline"]["by_kind"]["impact"]["detected"] == 1
+    assert doc["n_contacts"] == {"counted": 3, "in_warmup": 1, "outside_log": 0}
+    assert doc["input"] == str(tl)
+    again = invoke(str(tl), "--labels", str(lab), "--json")
+    assert again.stdout == r.stdout
+    wider = json.loads(invoke(str(tl), "--labels", str(lab), "--json", "--post", "0.7").stdout)
+    assert wider["detectors"]["adaptive"]["detected"] == 1  # the loading event is not adaptive's
+    assert wider["tolerance"]["post_s"] == 0.7
+
+
+@pytest.mark.parametrize("labels_doc, what", [
+    ({"sample_rate": 250.0, "events": [{"start": 1.0, "end": 2.0, "kind": "impact", "link": 1}]},
+     "peak_force"),
+    ({"sample_rate": 250.0, "events": [{"start": 1.0, "end": 2.0, "peak_force": 3,
+                                        "kind": "slap", "link": 1}]}, "slap"),
+    ({"events": []}, "sample_rate"),
+    ({"sample_rate": 250.0, "events": [{"start": 2.0, "end": 1.0, "peak_force": 3,
+                                        "kind": "push", "link": 1}]}, "ends before"),
+])
+def test_bad_labels_exit_3_one_line(files, tmp_path, labels_doc, what):
+    tl, _ = files
+    bad = write(tmp_path, "bad.json", labels_doc)
+    r = invoke(str(tl), "--labels", str(bad))
+    assert r.exit_code == 3, info(r)
+    assert r.stdout == ""
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("impactcli: error:"), info(r)
+    assert str(bad) in lines[0] and what in lines[0]
+
+
+def test_unreadable_or_missing_labels_exit_3(files, tmp_path):
+    tl, _ = files
+    garbled = tmp_path / "garbled.json"
+    garbled.write_text("{not json")
+    for p in (garbled, tmp_path / "absent.json"):
+        r = invoke(str(tl), "--labels", str(p))
+        assert r.exit_code == 3, info(r)
+        assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_bad_timeline_exit_3(tmp_path):
+    lab = write(tmp_path, "labels.json", LABELS)
+    doc = timeline_doc()
+    doc["events"][1]["detector"] = "magic"
+    tl = write(tmp_path, "bad.timeline.json", doc)
+    r = invoke(str(tl), "--labels", str(lab))
+    assert r.exit_code == 3, info(r)
+    assert "events/1/detector" in r.stderr and str(tl) in r.stderr
+    del doc["warmup_end_s"]
+    r = invoke(str(write(tmp_path, "b2.timeline.json", doc)), "--labels", str(lab))
+    assert r.exit_code == 3 and "warmup_end_s" in r.stderr, info(r)
+
+
+def test_usage_errors_exit_2(files):
+    tl, lab = files
+    r = invoke(str(tl), "--labels", str(lab), "--sweep")  # no signals beside the timeline
+    assert r.exit_code == 2 and "signals.parquet" in r.stderr, info(r)
+    r = invoke(str(tl), "--labels", str(lab), "--sweep", "--scales", "3:1:0.1")
+    assert r.exit_code == 2 and "--scales" in r.stderr, info(r)
+    r = invoke(str(tl), "--labels", str(lab), "--model", str(lab))
+    assert r.exit_code == 2, info(r)
+    r = invoke(str(tl))
+    assert r.exit_code == 2 and "--labels" in r.stderr, info(r)
+
+
+def test_labels_of_another_rate_warn(files, tmp_path):
+    tl, _ = files
+    lab = write(tmp_path, "l100.json", dict(LABELS, sample_rate=100.0))
+    r = invoke(str(tl), "--labels", str(lab), "--json")
+    assert r.exit_code == 0, info(r)
+    assert "impactcli: warning:" in r.stderr and "100 Hz" in r.stderr
+    json.loads(r.stdout)
+
+
+def test_sweep_from_a_log(tmp_path, monkeypatch):
+    """The LOG branch with the detection replaced by a known result (pipeline tested elsewhere)."""
+    seen: dict[str, Any] = {}
+
+    def fake_analyze_log(path: Path, **kw: Any) -> Any:
+        seen.update(kw, path=path)
+        return sweep_result()
+
+    monkeypatch.setattr(cli_eval, "analyze_log", fake_analyze_log)
+    log = tmp_path / "arm.csv"
+    log.write_text("time\n0\n")
+    lab = write(tmp_path, "labels.json", SWEEP_LABELS.to_dict())
+    r = invoke(str(log), "--labels", str(lab), "--json", "--sweep", "--scales", "1,1.3,1.6,2.5",
+               "--channel-map", "ur_ext_observer")
+    assert r.exit_code == 0, info(r)
+    assert seen["channel_map"] == "ur_ext_observer" and seen["path"] == log
+    doc = json.loads(r.stdout)
+    validate(doc, "evaluation", LabelsError, "evaluate --json --sweep")
+    zero = doc["sweep"]["at_zero_false_alarms"]
+    assert zero["adaptive"]["scale"] == 1.6 and zero["static_loading"]["scale"] == 1.3
+    assert doc["sweep"]["adaptive_helps"] is True
+    assert doc["sweep"]["verdict"].startswith("The adaptive detector helps")
+    text = invoke(str(log), "--labels", str(lab), "--sweep", "--scales", "1:2.5:0.3")
+    assert text.exit_code == 0, info(text)
+    assert "at zero false alarms" in text.stdout and "adaptive detector" in text.stdout
+
+
+def test_sweep_from_a_timeline_with_its_signals(tmp_path):
+    res = sweep_result()
+    # make the stored signals agree with the test's ratios: threshold 1, rms = ratio, etc.
+    sig = dict(res.signals)
+    sig["threshold"] = np.ones_like(res.ratios["adaptive"])
+    sig["residual_rms"] = res.ratios["adaptive"]
+    sig["loading_statistic"] = res.ratios["static_loading"] * 0.5   # vL = 0.5
+    sig["residual"] = res.ratios["static_baseline"] * 1.5           # v0 = 1.5
+    res = dataclasses.replace(res, signals=sig, events=())
+    tl = tmp_path / "arm.timeline.json"
+    write_timeline(res, tl)
+    write_signals(res, tmp_path / "arm.signals.parquet")
+    lab = write(tmp_path, "labels.json", SWEEP_LABELS.to_dict())
+    r = invoke(str(tl), "--labels", str(lab), "--json", "--sweep", "--scales", "1,1.3,1.6,2.5")
+    assert r.exit_code == 0, info(r)
+    doc = json.loads(r.stdout)
+    zero = doc["sweep"]["at_zero_false_alarms"]
+    assert zero["adaptive"]["scale"] == 1.6 and zero["static_loading"]["scale"] == 1.3
+    assert zero["adaptive"]["min_detected_force"] == 3.0
