@@ -50,6 +50,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .detect.events import extract_events
 from .errors import ConfigError, ImpactWarning, LabelsError, LogFormatError
 from .types import DETECTORS, ContactLabel, Event, Labels
 
@@ -616,56 +617,6 @@ class SweepRow:
         }
 
 
-def _extract_events_fallback(  # noqa: PLR0917 - extract_events' signature
-    detector: str, decision: np.ndarray, ratio: np.ndarray, residual: np.ndarray,
-    time_s: np.ndarray, joint_names: Sequence[str], warmup_end_s: float,
-    merge_gap_s: float, min_duration_s: float,
-) -> list[Event]:
-    """Events from an (N, J) decision, per formats.md: runs where any joint's decision is 1.
-
-    Runs separated by at most ``merge_gap_s`` merge; events shorter than ``min_duration_s``
-    (t_end − t_start) are dropped. Used only when :mod:`impactcli.detect.events` is absent.
-    """
-    anyd = np.asarray(decision, dtype=bool).any(axis=1)
-    if not anyd.any():
-        return []
-    x = np.concatenate(([False], anyd, [False])).astype(np.int8)
-    dx = np.diff(x)
-    starts = np.flatnonzero(dx == 1)
-    ends = np.flatnonzero(dx == -1) - 1
-    runs: list[list[int]] = []
-    for a, b in zip(starts.tolist(), ends.tolist(), strict=True):
-        if runs and time_s[a] - time_s[runs[-1][1]] <= merge_gap_s:
-            runs[-1][1] = b
-        else:
-            runs.append([a, b])
-    out = []
-    for a, b in runs:
-        if time_s[b] - time_s[a] < min_duration_s:
-            continue
-        seg = decision[a:b + 1]
-        fired = np.flatnonzero(seg.any(axis=0))
-        first = [int(np.argmax(seg[:, j])) for j in fired]
-        order = [int(j) for _, j in sorted(zip(first, fired.tolist(), strict=True))]
-        peak = float(np.max(ratio[a:b + 1][:, order]))
-        peak_res = {}
-        for j in order:
-            r = residual[a:b + 1, j]
-            peak_res[joint_names[j]] = float(r[int(np.argmax(np.abs(r)))])
-        out.append(Event(detector, float(time_s[a]), float(time_s[b]), int(a), int(b),
-                         tuple(joint_names[j] for j in order), peak, peak_res,
-                         bool(time_s[a] < warmup_end_s)))
-    return out
-
-
-def _extractor() -> Any:
-    try:
-        from .detect.events import extract_events  # noqa: PLC0415 - written in parallel
-    except ImportError:
-        return _extract_events_fallback
-    return extract_events
-
-
 def _event_settings(config: Any, merge_gap_s: float | None,
                     min_duration_s: float | None) -> tuple[float, float]:
     """(merge_gap_s, min_duration_s): the keyword values, else the run's ``config["events"]``."""
@@ -716,7 +667,6 @@ def sweep_ratios(
     for d in sorted(need):
         if d not in ratios:
             raise ConfigError(f"sweep: the run holds no ratios for detector {d!r}")
-    extract = _extractor()
     time_s = np.asarray(time_s, dtype=np.float64)
     duration_s = float(time_s[-1] - time_s[0]) if time_s.size else 0.0
     rows_of: dict[str, list[SweepRow]] = {d: [] for d in EVALUATED if d in detectors}
@@ -728,7 +678,7 @@ def sweep_ratios(
             for d in DETECTORS:
                 if d in need:
                     ratio = np.asarray(ratios[d])
-                    evs += extract(d, ratio > s, ratio, residual, time_s, list(joint_names),
+                    evs += extract_events(d, ratio > s, ratio, residual, time_s, list(joint_names),
                                    warmup_end_s, merge_gap_s, min_duration_s)
             scores = evaluate_events(
                 evs, labels, duration_s=duration_s, warmup_end_s=warmup_end_s, tolerance=tol,
