@@ -1,0 +1,310 @@
+"""Model structures linear in their parameters: tau = Y(q, q', q'') theta (method.md §2, eq. 7).
+
+Every structure ends, per joint j, with friction columns (method.md §2: Fv x1' + Fs sign(x1')):
+``fv`` (viscous, column q'_j), ``fc`` (Coulomb through the smooth sign
+tanh(q'_j / v_s), slope 1/v_s at zero, ``coulomb_slope_rad_s`` = v_s) and, optionally,
+``offset`` (a constant torque: sensor bias, unmodelled load).
+
+* ``decoupled`` — per joint, no kinematics: ``inertia`` q''_j, ``gcos`` cos q_j,
+  ``gsin`` sin q_j (gravity-like terms of its own angle) + friction. Works on any robot.
+* ``planar`` — a serial arm in a vertical plane (formats.md, robot description): absolute
+  angle of link i is phi_i = q_1 + ... + q_i (q_1 from the horizontal), joint i+1 sits at
+  L_i along link i, gravity [gx, gy]. The exact rigid-body model in base parameters: per
+  link ``ZZR`` (inertia about its joint + regrouped masses of the links beyond),
+  ``MXR``/``MYR`` (first moments along/across the link, with the outer masses regrouped at
+  the link's tip), 3 per link; the masses disappear by regrouping (m_i acts as a point mass
+  at joint i, i.e. on link i-1's first moment and inertia). Optional reflected motor
+  inertia ``Ia`` q''_j for joints 2..n (joint 1's merges with ZZR_1).
+* ``urdf`` — any serial arm: Pinocchio's joint-torque regressor
+  (``pinocchio.computeJointTorqueRegressor``, 10 inertial parameters per body:
+  m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz at the joint frame) + optional ``Ia`` columns
+  + friction, reduced to base parameters by pivoted QR on random states (structural
+  identifiability); the kept columns are stored in the model (``base_columns``).
+
+Regressors are returned as (N, J, P) arrays: Y[k, j, :] @ theta = tau_j at sample k [N·m].
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+from typing import Any
+
+import numpy as np
+from scipy.linalg import qr
+
+from ..errors import ModelError, RobotDescriptionError
+
+KINDS: tuple[str, ...] = ("decoupled", "planar", "urdf")
+
+PIN_PARAMS: tuple[str, ...] = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
+
+
+def friction_names(joint: str, structure: dict[str, Any]) -> list[str]:
+    """Names of the friction (and offset) parameters of one joint."""
+    names = [f"{joint}.fv", f"{joint}.fc"]
+    if structure.get("offset", True):
+        names.append(f"{joint}.offset")
+    return names
+
+
+def _friction_block(qd: np.ndarray, structure: dict[str, Any]) -> np.ndarray:
+    """(N, J, F) friction columns of each joint (only on its own row)."""
+    vs = float(structure["coulomb_slope_rad_s"])
+    cols = [qd, np.tanh(qd / vs)]
+    if structure.get("offset", True):
+        cols.append(np.ones_like(qd))
+    return np.stack(cols, axis=-1)
+
+
+# ---------------------------------------------------------------- decoupled
+def decoupled_names(joints: tuple[str, ...], structure: dict[str, Any]) -> list[str]:
+    """Parameter names of the decoupled structure (per joint, in joint order)."""
+    out: list[str] = []
+    for j in joints:
+        out += [f"{j}.inertia", f"{j}.gcos", f"{j}.gsin", *friction_names(j, structure)]
+    return out
+
+
+def decoupled_regressor(
+    q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, structure: dict[str, Any]
+) -> np.ndarray:
+    """(N, J, P) regressor of the decoupled structure (block diagonal over joints)."""
+    n, nj = q.shape
+    per = np.concatenate(
+        [np.stack([qdd, np.cos(q), np.sin(q)], axis=-1), _friction_block(qd, structure)], axis=-1
+    )  # (N, J, p)
+    p = per.shape[-1]
+    y = np.zeros((n, nj, nj * p))
+    for j in range(nj):
+        y[:, j, j * p:(j + 1) * p] = per[:, j, :]
+    return y
+
+
+# ---------------------------------------------------------------- planar
+def planar_names(joints: tuple[str, ...], structure: dict[str, Any]) -> list[str]:
+    """Parameter names of the planar structure (grouped per joint)."""
+    out: list[str] = []
+    for i, j in enumerate(joints):
+        out += [f"{j}.ZZR", f"{j}.MXR", f"{j}.MYR"]
+        if structure.get("motor_inertia", True) and i > 0:
+            out.append(f"{j}.Ia")
+        out += friction_names(j, structure)
+    return out
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.asarray(a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0])
+
+
+def planar_inertial_regressor(
+    q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, link_lengths: list[float], gravity: list[float]
+) -> np.ndarray:
+    """(N, n, 3n) rigid-body regressor of a planar serial arm in base parameters.
+
+    Columns per link i: ZZR_i, MXR_i, MYR_i. With h_i = R(phi_i) [MX, MY] (first moment about
+    joint i) and a_i the acceleration of joint i's origin, link i's contribution to the
+    torque of joint k <= i is ZZ phi_i'' + h_i x (a_i - g) + (p_i - p_k) x h_i''.
+    """
+    n_s, n = q.shape
+    ll = np.asarray(link_lengths, dtype=np.float64)
+    g = np.asarray(gravity, dtype=np.float64)
+    phi, phid, phidd = np.cumsum(q, 1), np.cumsum(qd, 1), np.cumsum(qdd, 1)
+    u = np.stack([np.cos(phi), np.sin(phi)], axis=-1)  # (N, n, 2) along link
+    ju = np.stack([-u[..., 1], u[..., 0]], axis=-1)  # across link
+    p = np.zeros((n_s, n, 2))
+    a = np.zeros((n_s, n, 2))
+    for i in range(1, n):
+        p[:, i] = p[:, i - 1] + ll[i - 1] * u[:, i - 1]
+        a[:, i] = a[:, i - 1] + ll[i - 1] * (
+            phidd[:, i - 1, None] * ju[:, i - 1] - phid[:, i - 1, None] ** 2 * u[:, i - 1]
+        )
+    y = np.zeros((n_s, n, 3 * n))
+    for i in range(n):
+        ag = a[:, i] - g
+        w2 = phid[:, i, None] ** 2
+        hdd_x = phidd[:, i, None] * ju[:, i] - w2 * u[:, i]
+        hdd_y = -phidd[:, i, None] * u[:, i] - w2 * ju[:, i]
+        mom_x = _cross(u[:, i], ag)
+        mom_y = _cross(ju[:, i], ag)
+        for k in range(i + 1):
+            r = p[:, i] - p[:, k]
+            y[:, k, 3 * i] = phidd[:, i]
+            y[:, k, 3 * i + 1] = mom_x + _cross(r, hdd_x)
+            y[:, k, 3 * i + 2] = mom_y + _cross(r, hdd_y)
+    return y
+
+
+def planar_regressor(
+    q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, structure: dict[str, Any]
+) -> np.ndarray:
+    """(N, J, P) regressor of the planar structure, columns in :func:`planar_names` order."""
+    n_s, n = q.shape
+    inert = planar_inertial_regressor(q, qd, qdd, structure["link_lengths"], structure["gravity"])
+    fric = _friction_block(qd, structure)
+    cols: list[np.ndarray] = []
+    for i in range(n):
+        cols.append(inert[:, :, 3 * i:3 * i + 3])
+        if structure.get("motor_inertia", True) and i > 0:
+            c = np.zeros((n_s, n, 1))
+            c[:, i, 0] = qdd[:, i]
+            cols.append(c)
+        f = np.zeros((n_s, n, fric.shape[-1]))
+        f[:, i, :] = fric[:, i, :]
+        cols.append(f)
+    return np.concatenate(cols, axis=-1)
+
+
+# ---------------------------------------------------------------- urdf
+def _pinocchio() -> Any:
+    try:
+        import pinocchio  # noqa: PLC0415 (optional extra, heavy: imported lazily)
+    except ImportError as err:
+        raise ModelError(
+            "the urdf model needs Pinocchio: pip install 'impactcli[urdf]' (PyPI package 'pin')"
+        ) from err
+    return pinocchio
+
+
+@functools.lru_cache(maxsize=8)
+def _pin_model(urdf_xml: str, joints: tuple[str, ...], where: str) -> Any:
+    """Pinocchio model from URDF text, reduced to ``joints`` (others locked at neutral)."""
+    pin = _pinocchio()
+    try:
+        full = pin.buildModelFromXML(urdf_xml)
+    except Exception as err:  # pinocchio raises ValueError/RuntimeError on bad URDF
+        msg = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+        raise RobotDescriptionError(f"{where}: URDF does not parse: {msg}") from err
+    names = list(full.names)[1:]
+    missing = [j for j in joints if j not in names]
+    if missing:
+        raise RobotDescriptionError(
+            f"{where}: URDF has no joint(s) {missing} (its joints: {names})"
+        )
+    lock = [full.getJointId(nm) for nm in names if nm not in joints]
+    model = pin.buildReducedModel(full, lock, pin.neutral(full)) if lock else full
+    for j in joints:
+        jm = model.joints[model.getJointId(j)]
+        if jm.nv != 1:
+            raise RobotDescriptionError(f"{where}: URDF joint {j!r} is not a 1-dof joint")
+    return model
+
+
+def urdf_full_names(joints: tuple[str, ...], structure: dict[str, Any]) -> list[str]:
+    """Names of all columns of the URDF structure before base reduction."""
+    model = _pin_model(structure["urdf_xml"], joints, structure.get("urdf_path", "URDF"))
+    names = [f"{nm}.{p}" for nm in list(model.names)[1:] for p in PIN_PARAMS]
+    if structure.get("motor_inertia", True):
+        names += [f"{j}.Ia" for j in joints]
+    for j in joints:
+        names += friction_names(j, structure)
+    return names
+
+
+def urdf_full_regressor(
+    q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+    joints: tuple[str, ...], structure: dict[str, Any],
+) -> np.ndarray:
+    """(N, J, P_full) Pinocchio joint-torque regressor + Ia + friction, rows in ``joints`` order."""
+    pin = _pinocchio()
+    model = _pin_model(structure["urdf_xml"], joints, structure.get("urdf_path", "URDF"))
+    data = model.createData()
+    n_s, n = q.shape
+    jids = [model.getJointId(j) for j in joints]
+    iq = [model.joints[i].idx_q for i in jids]
+    nq = [model.joints[i].nq for i in jids]
+    iv = np.array([model.joints[i].idx_v for i in jids])
+    qv = np.tile(pin.neutral(model), (n_s, 1))
+    for c, (a, m) in enumerate(zip(iq, nq, strict=True)):
+        if m == 1:
+            qv[:, a] = q[:, c]
+        else:  # continuous joint: (cos, sin)
+            qv[:, a], qv[:, a + 1] = np.cos(q[:, c]), np.sin(q[:, c])
+    v = np.zeros((n_s, model.nv))
+    acc = np.zeros((n_s, model.nv))
+    v[:, iv], acc[:, iv] = qd, qdd
+    pin_cols = 10 * (model.njoints - 1)
+    y_in = np.empty((n_s, n, pin_cols))
+    for k in range(n_s):
+        yk = pin.computeJointTorqueRegressor(model, data, qv[k], v[k], acc[k])
+        y_in[k] = yk[iv, :]
+    cols = [y_in]
+    if structure.get("motor_inertia", True):
+        ia = np.zeros((n_s, n, n))
+        ia[:, np.arange(n), np.arange(n)] = qdd
+        cols.append(ia)
+    fric = _friction_block(qd, structure)
+    nf = fric.shape[-1]
+    fr = np.zeros((n_s, n, n * nf))
+    for j in range(n):
+        fr[:, j, j * nf:(j + 1) * nf] = fric[:, j, :]
+    cols.append(fr)
+    return np.concatenate(cols, axis=-1)
+
+
+def urdf_base_columns(
+    joints: tuple[str, ...], structure: dict[str, Any], n_states: int = 40
+) -> list[int]:
+    """Indices of an independent set of full URDF columns (base parameters), by pivoted QR.
+
+    Evaluated on ``n_states`` random states (fixed seed: deterministic), column-normalised;
+    a column is kept when its pivot exceeds 1e-8 of the largest.
+    """
+    rng = np.random.default_rng(12345)
+    n = len(joints)
+    q = rng.uniform(-np.pi, np.pi, (n_states, n))
+    qd = rng.normal(0, 1.0, (n_states, n))
+    qdd = rng.normal(0, 3.0, (n_states, n))
+    y = urdf_full_regressor(q, qd, qdd, joints, structure).reshape(n_states * n, -1)
+    norms = np.linalg.norm(y, axis=0)
+    nz = np.flatnonzero(norms > 1e-10 * norms.max())
+    _, r, piv = qr(y[:, nz] / norms[nz], mode="economic", pivoting=True)
+    d = np.abs(np.diag(r))
+    rank = int(np.sum(d > 1e-8 * d[0]))
+    return sorted(int(nz[i]) for i in piv[:rank])
+
+
+def urdf_structure(
+    urdf_xml: str, joints: tuple[str, ...], base: dict[str, Any], where: str
+) -> dict[str, Any]:
+    """The structure mapping of a URDF model (parses the URDF, finds its base columns)."""
+    s = dict(base)
+    s["urdf_xml"] = urdf_xml
+    s["urdf_path"] = where
+    s["urdf_sha256"] = hashlib.sha256(urdf_xml.encode("utf-8")).hexdigest()
+    _pin_model(urdf_xml, joints, where)
+    s["base_columns"] = urdf_base_columns(joints, s)
+    return s
+
+
+# ---------------------------------------------------------------- dispatch
+def param_names(kind: str, joints: tuple[str, ...], structure: dict[str, Any]) -> list[str]:
+    """Parameter names of ``kind`` (base parameters for planar and urdf)."""
+    if kind == "decoupled":
+        return decoupled_names(joints, structure)
+    if kind == "planar":
+        return planar_names(joints, structure)
+    if kind == "urdf":
+        full = urdf_full_names(joints, structure)
+        return [full[i] for i in structure["base_columns"]]
+    raise ModelError(f"unknown model kind {kind!r} (choose from {', '.join(KINDS)})")
+
+
+def regressor(  # noqa: PLR0917 (structure, then the three signals)
+    kind: str, joints: tuple[str, ...], structure: dict[str, Any],
+    q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+) -> np.ndarray:
+    """(N, J, P) regressor Y(q, q', q'') of ``kind`` [q rad, q' rad/s, q'' rad/s²]."""
+    q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=np.float64)) for x in (q, qd, qdd))
+    if not q.shape == qd.shape == qdd.shape or q.shape[1] != len(joints):
+        raise ModelError(
+            f"q, qd, qdd must all be (N, {len(joints)}), got {q.shape}, {qd.shape}, {qdd.shape}"
+        )
+    if kind == "decoupled":
+        return decoupled_regressor(q, qd, qdd, structure)
+    if kind == "planar":
+        return planar_regressor(q, qd, qdd, structure)
+    if kind == "urdf":
+        y = urdf_full_regressor(q, qd, qdd, joints, structure)
+        return y[:, :, structure["base_columns"]]
+    raise ModelError(f"unknown model kind {kind!r} (choose from {', '.join(KINDS)})")
