@@ -1,0 +1,208 @@
+"""Adaptive evaluator (impactcli.detect.adaptive): compiled kernel = reference to 1e-9,
+filters / RMS / decision against direct computations, inputs, sample-rate rules, the
+a priori / a posteriori measurement and the wind-up guard in the full loop."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from impactcli.config import AdaptiveConfig
+from impactcli.detect.adaptive import (
+    evaluate,
+    evaluate_reference,
+    g_gain,
+    resolve_rates,
+    threshold_inputs,
+)
+from impactcli.errors import ImpactWarning
+from impactcli.types import RobotLog
+
+FS = 250.0
+
+
+def scenario(seed: int, *, n_s: float = 40.0, joints: int = 2, pulses: tuple[float, ...] = (),
+             amp: float = 0.5, still: tuple[float, float] | None = None):
+    """Synthetic residual of a robot on triangle references (paper Sec. IV): friction-like
+    and inertia-like model errors through a 8 Hz mode, an offset, white noise; optional
+    80 ms half-sine contact pulses on the last joint and a standstill interval."""
+    rng = np.random.default_rng(seed)
+    n = int(n_s * FS)
+    t = np.arange(n) / FS
+    per = 2.0 + 0.6 * np.arange(joints)
+
+    def tri(tt: np.ndarray) -> np.ndarray:
+        return np.stack([0.8 * signal.sawtooth(2 * np.pi * tt / p, 0.5) for p in per], axis=1)
+
+    pos = tri(t)
+    if still is not None:
+        a, b = still
+        m = (t >= a) & (t < b)
+        pos[m] = pos[np.flatnonzero(m)[0] - 1]
+        pos[t >= b] = tri(t[t >= b] - b + a)
+    v = np.zeros_like(pos)
+    v[1:] = np.diff(pos, axis=0) * FS
+    acc = np.zeros_like(v)
+    acc[1:] = np.diff(v, axis=0) * FS
+    u = np.stack([np.tanh(50 * v), acc])
+    b_, a_ = signal.butter(2, 8 / (FS / 2))
+    raw = 0.3 * np.tanh(50 * v) + 0.002 * acc + 0.001 * acc[:, ::-1]
+    r = signal.lfilter(b_, a_, raw, axis=0) + 0.03 * rng.standard_normal(pos.shape) + 0.2
+    for tp in pulses:
+        m = (t >= tp) & (t < tp + 0.08)
+        r[m, -1] += amp * np.sin(np.pi * (t[m] - tp) / 0.08)
+    return t, r, u
+
+
+@pytest.mark.parametrize("joints", [2, 3])
+@pytest.mark.parametrize("estimate", ["a_priori", "a_posteriori"])
+def test_numba_equals_reference(joints: int, estimate: str) -> None:
+    _, r, u = scenario(0, n_s=8.0, joints=joints)
+    cfg = AdaptiveConfig(estimate=estimate)
+    v_stat = np.linspace(0.05, 0.1, joints)
+    a = evaluate(r, u, FS, v_stat, cfg)
+    b = evaluate_reference(r, u, FS, v_stat, cfg)
+    assert a.theta.shape == (joints, 2 + 20 + joints * 6)
+    for name in ("r_tilde", "v_dyn", "r_f", "v_f", "r_rms", "v_rms", "threshold",
+                 "prediction_error", "theta"):
+        np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=0, atol=1e-9,
+                                   err_msg=name)
+    margin = np.abs(a.r_rms - a.threshold)
+    assert np.array_equal(a.decision[margin > 1e-9], b.decision[margin > 1e-9])
+
+
+def test_nu_matches_paper() -> None:
+    assert AdaptiveConfig().n_params(2) == 34
+    assert AdaptiveConfig().n_params(7) == 64
+
+
+def test_filters_rms_and_decision_match_direct_computation() -> None:
+    _, r, u = scenario(1, n_s=4.0)
+    v_stat = np.array([0.02, 0.03])
+    res = evaluate(r, u, FS, v_stat)
+    a1, a2 = np.exp(-2 * np.pi * 10 / FS), np.exp(-2 * np.pi * 50 / FS)
+    np.testing.assert_allclose(res.r_f, signal.lfilter([1 - a1], [1, -a1], res.r_tilde, axis=0),
+                               atol=1e-12)
+    np.testing.assert_allclose(res.v_f, signal.lfilter([1 - a2], [1, -a2], res.v_dyn, axis=0),
+                               atol=1e-12)
+    assert (res.rates.n1, res.rates.n2) == (10, 40)
+    for k in (0, 1, 5, 10, 11, 500, r.shape[0] - 1):
+        prev = res.r_f[max(0, k - 10):k]           # samples k-1 .. k-10, current excluded
+        np.testing.assert_allclose(res.r_rms[k], np.sqrt(np.sum(prev**2, axis=0) / 10),
+                                   atol=1e-12)
+        prev_v = res.v_f[max(0, k - 40):k]
+        np.testing.assert_allclose(res.v_rms[k], np.sqrt(np.sum(prev_v**2, axis=0) / 40),
+                                   atol=1e-12)
+    np.testing.assert_allclose(res.threshold, np.abs(v_stat + res.v_rms))
+    assert np.array_equal(res.decision, res.r_rms > res.threshold)
+    # r_tilde is G_hat r with the final theta at the last sample
+    th = res.theta
+    k = r.shape[0] - 1
+    np.testing.assert_allclose(res.r_tilde[k], r[k] - th[:, 0] * r[k - 1] - th[:, 1] * r[k - 2],
+                               atol=1e-12)
+
+
+def test_g_gain_against_polynomial() -> None:
+    th = np.array([[1.8, -0.8], [0.95, 0.0]])      # G = 1 - 1.8 z^-1 + 0.8 z^-2; 1 - 0.95 z^-1
+    f = np.array([1.0, 10.0, 62.5])
+    g = g_gain(th, f, FS)
+    z = np.exp(1j * 2 * np.pi * f / FS)
+    np.testing.assert_allclose(g[0], np.abs(1 - 1.8 / z + 0.8 / z**2))
+    np.testing.assert_allclose(g[1], np.abs(1 - 0.95 / z))
+    assert g[0, 0] < 0.01 < g[0, 2]                # a near-differentiator (method.md §7)
+
+
+def test_sample_rate_rules() -> None:
+    r1k = resolve_rates(AdaptiveConfig(), 1000.0)
+    assert (r1k.n1, r1k.n2) == (40, 160)
+    with pytest.warns(ImpactWarning, match="clipped to 40 Hz"):
+        r100 = resolve_rates(AdaptiveConfig(), 100.0)
+    assert r100.w2_hz == pytest.approx(40.0) and r100.w1_hz == 10.0
+    assert (r100.n1, r100.n2) == (4, 16)
+
+
+def _log(n: int = 500, **kw) -> RobotLog:
+    t = np.arange(n) * 4_000_000
+    pos = np.stack([np.sin(np.arange(n) * 0.01), np.cos(np.arange(n) * 0.02)], axis=1)
+    return RobotLog(t_ns=t, joint_names=("a", "b"), position=pos, torque=np.zeros((n, 2)),
+                    **kw)
+
+
+def test_threshold_inputs_sources() -> None:
+    n = 500
+    x = np.stack([np.sin(np.arange(n) * 0.01), np.cos(np.arange(n) * 0.02)], axis=1)
+    v = np.gradient(x, 0.004, axis=0)
+    acc = np.gradient(v, 0.004, axis=0)
+    cfg = AdaptiveConfig(tanh_slope=20.0)
+    got = threshold_inputs(_log(velocity_ref=v, acceleration_ref=acc), cfg)
+    assert got.source == "velocity_ref" and got.u.shape == (2, n, 2)
+    np.testing.assert_allclose(got.u[0], np.tanh(20.0 * v))
+    np.testing.assert_allclose(got.u[1], acc)
+    got = threshold_inputs(_log(position_ref=x), cfg)
+    assert got.source == "position_ref"
+    vd = np.diff(x, axis=0) / 0.004
+    np.testing.assert_allclose(got.u[0][1:], np.tanh(20.0 * vd), atol=1e-9)
+    np.testing.assert_allclose(got.u[1][2:], np.diff(vd, axis=0) / 0.004, atol=1e-6)
+    with pytest.warns(ImpactWarning, match="no reference trajectory"):
+        got = threshold_inputs(_log(), cfg)
+    assert got.source == "measured"
+    # causal: changing the future does not change the past
+    later = _log().position.copy()
+    later[300:] += 1.0
+    with pytest.warns(ImpactWarning):
+        got2 = threshold_inputs(RobotLog(t_ns=np.arange(n) * 4_000_000, joint_names=("a", "b"),
+                                         position=later, torque=np.zeros((n, 2))), cfg)
+    np.testing.assert_array_equal(got.u[:, :300], got2.u[:, :300])
+    # well below the filter's cut-off the acceleration keeps its amplitude (6.25, 25 rad/s²)
+    rms = np.sqrt(np.mean(got.u[1][100:] ** 2, axis=0))
+    np.testing.assert_allclose(rms, np.array([6.25, 25.0]) / np.sqrt(2), rtol=0.1)
+
+
+def test_a_posteriori_default_is_measured() -> None:
+    """The measurement behind the default (module docstring of adaptive.py): v_stat set to
+    1.2 × each option's own collision-free maximum of r_rms − v_rms after 5 s, then three
+    0.5 N·m, 80 ms pulses; a posteriori gives the larger pulse/threshold ratio, and both
+    stay silent outside the pulses."""
+    assert AdaptiveConfig().estimate == "a_posteriori"
+    pulses = (12.3, 21.7, 33.1)
+    k0 = int(5 * FS)
+    mean_ratio = {}
+    for est in ("a_priori", "a_posteriori"):
+        cfg = AdaptiveConfig(estimate=est)
+        _, r, u = scenario(1)
+        free = evaluate(r, u, FS, np.zeros(2), cfg)
+        v_stat = 1.2 * np.maximum((free.r_rms - free.v_rms)[k0:].max(axis=0), 0.0)
+        t, r, u = scenario(2, pulses=pulses)
+        hit = evaluate(r, u, FS, v_stat, cfg)
+        near = np.any([(t >= tp) & (t < tp + 0.3) for tp in pulses], axis=0)
+        assert not hit.decision[k0:][~near[k0:]].any()
+        mean_ratio[est] = np.mean([hit.ratio[(t >= tp) & (t < tp + 0.3), 1].max()
+                                   for tp in pulses])
+    assert mean_ratio["a_posteriori"] > mean_ratio["a_priori"]
+
+
+def test_large_contact_is_detected_on_its_joint() -> None:
+    _, r, u = scenario(1)
+    free = evaluate(r, u, FS, np.zeros(2))
+    v_stat = 1.2 * (free.r_rms - free.v_rms)[int(5 * FS):].max(axis=0)
+    t, r, u = scenario(2, pulses=(20.0,), amp=2.0)
+    hit = evaluate(r, u, FS, v_stat)
+    fired = np.flatnonzero(hit.decision[:, 1] & (t > 5))
+    assert fired.size and 20.0 < t[fired[0]] < 20.1
+
+
+def test_standstill_for_minutes_then_moving_gives_no_blow_up() -> None:
+    """3.5 min standstill (u = 0, residual = noise + offset), then triangles again."""
+    t, r, u = scenario(3, n_s=300.0, still=(40.0, 250.0))
+    pre, post = (t > 10) & (t < 40), t >= 250
+    res = {}
+    for name, mt in (("guarded", None), ("unguarded", 1e300)):
+        a = evaluate(r, u, FS, np.zeros(2), AdaptiveConfig(max_trace=mt))
+        assert np.all(np.isfinite(a.theta))
+        res[name] = (a, np.abs(a.r_rms[post]).max() / np.abs(a.r_rms[pre]).max())
+    a, ratio = res["guarded"]
+    assert a.n_resets.sum() == 0
+    assert ratio < 1.5
+    assert np.abs(a.v_dyn[post]).max() < 1.5 * np.abs(a.v_dyn[pre]).max()
+    assert res["unguarded"][1] > 2.0 * ratio        # without the guard it does blow up
