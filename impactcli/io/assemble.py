@@ -1,0 +1,156 @@
+"""From per-joint channels to a validated :class:`~impactcli.types.RobotLog`.
+
+Shared by every reader: picks the torque source (formats.md: ``.torque`` when present, else
+``.current`` × gear ratio × torque constant, ``--torque-source`` overrides), converts current
+to torque, and fills :class:`~impactcli.types.LogSource`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._fs import sha256_file
+from ..errors import LogFormatError
+from ..types import LogSource, RobotDescription, RobotLog
+
+TORQUE_SOURCES = ("torque", "current")
+TIME_SOURCES = ("log", "publish", "header")
+
+
+@dataclass
+class JointChannels:
+    """What a reader found, before torque conversion.
+
+    Attributes:
+        t_ns: (N,) int64 sample times [ns].
+        joints: J joint names.
+        signals: signal name → (N, J) float64 array; columns of joints that lack the
+            signal hold NaN and are listed in ``missing``.
+        missing: signal name → joint names without that signal.
+        current_scale: (J,) N·m per logged current unit from the channel map, NaN where
+            the map gives no scale (then the robot description's factor is used).
+        ignored: channels present in the file but not used.
+        repairs: repairs already made by the reader.
+    """
+
+    t_ns: np.ndarray
+    joints: tuple[str, ...]
+    signals: dict[str, np.ndarray]
+    missing: dict[str, list[str]] = field(default_factory=dict)
+    current_scale: np.ndarray | None = None
+    ignored: list[str] = field(default_factory=list)
+    repairs: list[str] = field(default_factory=list)
+
+
+def check_torque_source(value: str | None, where: str) -> None:
+    """Raise LogFormatError when ``value`` is not ``None``, ``torque`` or ``current``."""
+    if value is not None and value not in TORQUE_SOURCES:
+        raise LogFormatError(f"{where}: unknown torque source {value!r} (torque or current)")
+
+
+def _has(ch: JointChannels, sig: str, joint: str) -> bool:
+    return sig in ch.signals and joint not in ch.missing.get(sig, [])
+
+
+def build_log(
+    ch: JointChannels,
+    *,
+    path: str,
+    fmt: str,
+    robot: RobotDescription | None,
+    torque_source: str | None,
+    time_source: str,
+    sha256: str | None = None,
+) -> RobotLog:
+    """Make the RobotLog: choose the torque source, convert current, attach provenance.
+
+    Raises:
+        LogFormatError: a joint without position, without any torque signal, or with only
+            current and no way to convert it (naming the joint).
+    """
+    check_torque_source(torque_source, path)
+    for j in ch.joints:
+        if not _has(ch, "position", j):
+            raise LogFormatError(f"{path}: joint {j!r} has no position channel")
+    if torque_source is None:
+        if all(_has(ch, "torque", j) for j in ch.joints):
+            src = "torque"
+        else:
+            for j in ch.joints:
+                if not _has(ch, "torque", j) and not _has(ch, "current", j):
+                    raise LogFormatError(
+                        f"{path}: joint {j!r} has neither a torque nor a current channel"
+                    )
+            if not all(_has(ch, "current", j) for j in ch.joints):
+                j = next(j for j in ch.joints if not _has(ch, "current", j))
+                raise LogFormatError(
+                    f"{path}: joint {j!r} has no current channel while others have no torque "
+                    "channel; give every joint a torque or every joint a current"
+                )
+            src = "current"
+    else:
+        src = torque_source
+        for j in ch.joints:
+            if not _has(ch, src, j):
+                raise LogFormatError(
+                    f"{path}: torque source {src!r} requested but joint {j!r} has no {src} channel"
+                )
+    if src == "torque":
+        torque = ch.signals["torque"]
+    else:
+        current = ch.signals["current"]
+        scale = (
+            np.full(len(ch.joints), np.nan) if ch.current_scale is None
+            else np.asarray(ch.current_scale, dtype=np.float64)
+        )
+        need = np.isnan(scale)
+        if need.any():
+            if robot is None:
+                j = ch.joints[int(np.argmax(need))]
+                raise LogFormatError(
+                    f"{path}: joint {j!r} has only current; converting it to torque needs a "
+                    "robot description (--robot) with gear_ratio and torque_constant, or a "
+                    "scale in the channel map"
+                )
+            by_name = dict(zip(robot.joint_names, robot.torque_scale(), strict=True))
+            for k in np.flatnonzero(need):
+                j = ch.joints[int(k)]
+                if j not in by_name:
+                    raise LogFormatError(
+                        f"{path}: joint {j!r} has only current and is not in the robot "
+                        f"description {robot.path or robot.name!r}"
+                    )
+                scale[k] = by_name[j]
+        torque = current * scale
+    opt = {
+        s: ch.signals[s]
+        for s in ("velocity", "current", "position_ref", "velocity_ref", "acceleration_ref")
+        if s in ch.signals and not ch.missing.get(s)
+    }
+    # a signal present for some joints only is not usable: list it as ignored
+    ignored = list(ch.ignored)
+    for s, miss in ch.missing.items():
+        if s in ch.signals and miss and s in opt:
+            del opt[s]
+        if s in ch.signals and miss and s not in ("torque", "current", "position"):
+            have = [j for j in ch.joints if j not in miss]
+            ignored += [f"{j}.{s}" for j in have]
+    source = LogSource(
+        path=path,
+        sha256=sha256 if sha256 is not None else sha256_file(path),
+        format=fmt,
+        torque_source=src,  # type: ignore[arg-type]
+        time_source=time_source,  # type: ignore[arg-type]
+        ignored_channels=tuple(ignored),
+        repairs=tuple(ch.repairs),
+    )
+    return RobotLog(
+        t_ns=ch.t_ns,
+        joint_names=ch.joints,
+        position=ch.signals["position"],
+        torque=torque,
+        source=source,
+        **opt,
+    )
