@@ -50,7 +50,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .detect.events import extract_events
 from .errors import ConfigError, ImpactWarning, LabelsError, LogFormatError
 from .types import DETECTORS, ContactLabel, Event, Labels
 
@@ -105,7 +104,9 @@ class _Ev:
     peak_ratio: float = float("nan")
 
 
-def _as_ev(e: Event | Mapping[str, Any], warmup_end_s: float, i: int) -> _Ev:
+def _as_ev(e: Event | Mapping[str, Any] | _Ev, warmup_end_s: float, i: int) -> _Ev:
+    if isinstance(e, _Ev):
+        return e
     if isinstance(e, Event):
         det, t0, t1, warm = e.detector, e.t_start, e.t_end, e.in_warmup
         joints, peak = tuple(e.joints), e.peak_ratio
@@ -617,6 +618,32 @@ class SweepRow:
         }
 
 
+def event_intervals(
+    decision: np.ndarray, time_s: np.ndarray, merge_gap_s: float, min_duration_s: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """(i_start, i_end) sample indices of the events of an (N, J) decision, vectorised.
+
+    The same intervals as :func:`impactcli.detect.events.extract_events` (decisions ORed over
+    joints; bursts whose gap ≤ ``merge_gap_s`` merged; events shorter than
+    ``min_duration_s`` dropped) without the per-event joints and peaks, which a sweep does
+    not need — ~10× faster on noisy low scales (tests check the equality).
+    """
+    anyd = np.asarray(decision, dtype=bool)
+    anyd = anyd.any(axis=1) if anyd.ndim == 2 else anyd
+    t = np.asarray(time_s, dtype=np.float64)
+    x = np.diff(anyd.astype(np.int8), prepend=np.int8(0), append=np.int8(0))
+    starts = np.flatnonzero(x == 1)
+    ends = np.flatnonzero(x == -1) - 1
+    if starts.size == 0:
+        return starts, ends
+    new = np.concatenate(([True], t[starts[1:]] - t[ends[:-1]] > merge_gap_s))
+    first = np.flatnonzero(new)
+    g_start = starts[first]
+    g_end = ends[np.concatenate((first[1:] - 1, [ends.size - 1]))]
+    keep = t[g_end] - t[g_start] >= min_duration_s
+    return g_start[keep], g_end[keep]
+
+
 def _event_settings(config: Any, merge_gap_s: float | None,
                     min_duration_s: float | None) -> tuple[float, float]:
     """(merge_gap_s, min_duration_s): the keyword values, else the run's ``config["events"]``."""
@@ -633,9 +660,7 @@ def _event_settings(config: Any, merge_gap_s: float | None,
 
 def sweep_ratios(
     ratios: Mapping[str, np.ndarray],
-    residual: np.ndarray,
     time_s: np.ndarray,
-    joint_names: Sequence[str],
     *,
     labels: Labels,
     scales: Sequence[float],
@@ -649,8 +674,7 @@ def sweep_ratios(
 
     Args:
         ratios: detector → (N, J) statistic / threshold [-] (decision at scale s: ratio > s).
-        residual: (N, J) residual r [N·m] (for the events' peak residual).
-        time_s: (N,) seconds since the first sample; joint_names: the J joints.
+        time_s: (N,) seconds since the first sample.
         labels: ground truth. scales: threshold multipliers (> 0).
         warmup_end_s [s]; merge_gap_s, min_duration_s: event extraction settings [s].
     """
@@ -674,12 +698,13 @@ def sweep_ratios(
         # contacts after the log's end are warned about once, below, not once per scale
         warnings.simplefilter("ignore", ImpactWarning)
         for s in scales_sorted:
-            evs: list[Event] = []
+            evs: list[_Ev] = []
             for d in DETECTORS:
                 if d in need:
-                    ratio = np.asarray(ratios[d])
-                    evs += extract_events(d, ratio > s, ratio, residual, time_s, list(joint_names),
-                                   warmup_end_s, merge_gap_s, min_duration_s)
+                    i0, i1 = event_intervals(np.asarray(ratios[d]) > s, time_s, merge_gap_s,
+                                             min_duration_s)
+                    evs += [_Ev(d, a, b, a < warmup_end_s) for a, b in
+                            zip(time_s[i0].tolist(), time_s[i1].tolist(), strict=True)]
             scores = evaluate_events(
                 evs, labels, duration_s=duration_s, warmup_end_s=warmup_end_s, tolerance=tol,
                 product_merge_gap_s=merge_gap_s, detectors=list(rows_of),
@@ -709,7 +734,8 @@ def sweep_thresholds(
     For each detector, decisions are ``result.ratios[detector] > s`` ((N, J); ratio =
     statistic / threshold — r_rms / |v_stat + v_rms| for the adaptive detector, eq. 42 —
     so s = 1 reproduces the run), events are re-extracted
-    (:func:`impactcli.detect.events.extract_events`) with the run's ``config["events"]``
+    (the intervals of :func:`impactcli.detect.events.extract_events`, via
+    :func:`event_intervals`) with the run's ``config["events"]``
     settings (``merge_gap_s``, ``min_duration_s``; the keyword arguments override or supply
     them) and scored with :func:`evaluate_events`. The product at scale s is the OR of
     adaptive and static_loading both at scale s (their events merged within merge_gap_s).
@@ -721,16 +747,16 @@ def sweep_thresholds(
     gap, min_dur = _event_settings(result.config, merge_gap_s, min_duration_s)
     log = result.log
     return sweep_ratios(
-        result.ratios, result.signals["residual"], log.time_s, log.joint_names,
-        labels=labels, scales=scales, warmup_end_s=result.warmup_end_s, merge_gap_s=gap,
-        min_duration_s=min_dur, tolerance=tolerance, detectors=detectors,
+        result.ratios, log.time_s, labels=labels, scales=scales,
+        warmup_end_s=result.warmup_end_s, merge_gap_s=gap, min_duration_s=min_dur,
+        tolerance=tolerance, detectors=detectors,
     )
 
 
 def ratios_from_signals(
     columns: Mapping[str, np.ndarray], joint_names: Sequence[str],
     thresholds: Mapping[str, Mapping[str, float]],
-) -> tuple[dict[str, np.ndarray], np.ndarray]:
+) -> dict[str, np.ndarray]:
     """Rebuild the detectors' (N, J) ratios from a signals Parquet's columns (formats.md).
 
     adaptive = ``residual_rms / threshold`` (eq. 42, threshold = |v_stat + v_rms|);
@@ -741,7 +767,7 @@ def ratios_from_signals(
         joint_names: the J joints in order. thresholds: per joint ``{v0, vL}`` [N·m].
 
     Returns:
-        (detector → (N, J) ratio, (N, J) residual [N·m]).
+        detector → (N, J) ratio.
 
     Raises:
         LogFormatError naming the first missing column or threshold.
@@ -762,8 +788,7 @@ def ratios_from_signals(
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.asarray(np.where(np.asarray(b) > 0, a / b, np.inf))
 
-    res = np.column_stack([col(j, "residual") for j in joint_names])
-    ratios = {
+    return {
         "adaptive": np.column_stack([
             safe_div(np.abs(col(j, "residual_rms")), np.abs(col(j, "threshold")))
             for j in joint_names]),
@@ -772,7 +797,6 @@ def ratios_from_signals(
         "static_baseline": np.column_stack([
             safe_div(np.abs(col(j, "residual")), thr(j, "v0")) for j in joint_names]),
     }
-    return ratios, res
 
 
 def at_zero_false_alarms(rows: Sequence[SweepRow]) -> dict[str, SweepRow | None]:

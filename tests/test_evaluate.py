@@ -8,6 +8,7 @@ import json
 import numpy as np
 import pytest
 
+from impactcli.detect.events import extract_events
 from impactcli.errors import ConfigError, ImpactWarning, LabelsError, LogFormatError
 from impactcli.evaluate import (
     MatchTolerance,
@@ -15,6 +16,7 @@ from impactcli.evaluate import (
     adaptive_helps,
     at_zero_false_alarms,
     evaluate_events,
+    event_intervals,
     format_evaluation,
     format_sweep,
     sweep_thresholds,
@@ -288,6 +290,22 @@ def test_sweep_verdict_when_adaptive_is_slower():
     assert zero["adaptive"].delay_median_s == pytest.approx(0.1, abs=1e-6)
     assert adaptive_helps(zero) is False
     assert verdict(zero).startswith("The adaptive detector does not help")
+
+
+@pytest.mark.parametrize("gap, min_dur", [(0.0, 0.0), (0.02, 0.0), (0.1, 0.01), (0.3, 0.2)])
+def test_event_intervals_equal_extract_events(gap, min_dur):
+    rng = np.random.default_rng(3)
+    n, J = 3000, 3
+    t = np.cumsum(rng.uniform(0.003, 0.005, n))  # jittered 4 ms clock
+    ratio = np.abs(rng.standard_normal((n, J)))
+    decision = ratio > 2.5
+    decision[-3:, 1] = True  # an event running to the last sample
+    want = extract_events("adaptive", decision, ratio, ratio, t, ["a", "b", "c"], 0.0, gap, min_dur)
+    i0, i1 = event_intervals(decision, t, gap, min_dur)
+    assert len(want) >= 3
+    assert [(e.i_start, e.i_end) for e in want] == list(zip(i0.tolist(), i1.tolist(), strict=True))
+    none = event_intervals(np.zeros((n, J), dtype=bool), t, gap, min_dur)
+    assert none[0].size == 0 and none[1].size == 0
 
 
 def test_sweep_needs_event_settings():

@@ -150,7 +150,7 @@ def _timeline_sweep(source: Path, doc: dict[str, Any], labels: Any, scales: tupl
         raise LogFormatError(f"{sig_path}: not a readable signals Parquet ({msg})") from err
     joints = list(doc["input"]["joints"])
     try:
-        ratios, residual = ratios_from_signals(cols, joints, doc["thresholds"])
+        ratios = ratios_from_signals(cols, joints, doc["thresholds"])
     except LogFormatError as err:
         raise LogFormatError(f"{sig_path}: {err}") from None
     if "time" not in cols:
@@ -173,7 +173,7 @@ def _timeline_sweep(source: Path, doc: dict[str, Any], labels: Any, scales: tupl
     except (KeyError, TypeError, ValueError):
         raise LogFormatError(f"{source}: config.events needs merge_gap_s and min_duration_s "
                              "to re-extract events for --sweep") from None
-    return sweep_ratios(ratios, residual, time_s, joints, labels=labels, scales=scales,
+    return sweep_ratios(ratios, time_s, labels=labels, scales=scales,
                         warmup_end_s=float(doc["warmup_end_s"]), merge_gap_s=gap,
                         min_duration_s=min_dur, tolerance=tolerance)
 
