@@ -5,7 +5,7 @@ Rules:
 - bursts whose gap (time from the last 1 of one to the first 1 of the next) is at most
   ``merge_gap_s`` are merged (default 0.1 s, config.EventsConfig);
 - events whose duration ``t_end − t_start`` is below ``min_duration_s`` are dropped
-  (default 0: keep single-sample alarms);
+  (default 0: keep single-sample alarms); both comparisons tolerate 1 ns of rounding;
 - ``t_start``/``t_end`` are the first/last sample whose decision is 1 (inclusive);
 - ``joints``: the joints that fired in the event, ordered by their first firing sample
   (ties in joint order); ``peak_ratio``: max of ratio over those joints and samples;
@@ -20,6 +20,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..types import DETECTORS, Event
+
+#: Tolerance of the time comparisons [s] (sample times are float sums of periods).
+_EPS_S = 1e-9
 
 
 def extract_events(  # noqa: PLR0917 (the signature of the brief: all positional)
@@ -51,13 +54,13 @@ def extract_events(  # noqa: PLR0917 (the signature of the brief: all positional
     ends = np.concatenate([idx[breaks], [idx[-1]]])
     merged: list[list[int]] = [[int(starts[0]), int(ends[0])]]
     for s, e in zip(starts[1:], ends[1:], strict=True):
-        if t[s] - t[merged[-1][1]] <= merge_gap_s:
+        if t[s] - t[merged[-1][1]] <= merge_gap_s + _EPS_S:
             merged[-1][1] = int(e)
         else:
             merged.append([int(s), int(e)])
     events: list[Event] = []
     for i0, i1 in merged:
-        if t[i1] - t[i0] < min_duration_s:
+        if t[i1] - t[i0] < min_duration_s - _EPS_S:
             continue
         seg = d[i0 : i1 + 1]
         fired = np.flatnonzero(seg.any(axis=0))

@@ -4,8 +4,9 @@ Per joint j, the warm-up lasts from the first sample until BOTH
   (a) the RLS has seen ``min_s`` seconds (k ≥ k_min = ceil(min_s · fs)), and
   (b) its a priori prediction error (eq. 40) has settled: the trailing RMS of eps0 over
       ``window_s``, e_rms(k), is at most (1 + tolerance) × L_j, where L_j — "its later
-      level" — is the median of e_rms(k) over k ≥ k_min (the median ignores the few
-      seconds a contact can occupy);
+      level" — is the median of e_rms(k) over the later half of [k_min, N) (the median
+      ignores the few seconds a contact can occupy; the later half excludes a slow
+      convergence);
 with an upper cap of ``max_s`` seconds (and the log's end). The warm-up end index is the
 first k satisfying (a) and (b); samples before it are in the warm-up. ``warmup_end_s``
 is the latest over joints. Condition (b) looks at the whole log's level: it labels
@@ -65,7 +66,7 @@ def warmup_end(
         if k_min >= n:
             idx[j] = n
             continue
-        level = float(np.median(rms[k_min:, j]))
+        level = float(np.median(rms[(k_min + n) // 2 :, j]))
         ok = np.flatnonzero(rms[k_min:, j] <= (1.0 + cfg.tolerance) * level)
         k = k_min + int(ok[0]) if ok.size else n
         idx[j] = min(k, max(k_cap, 0), n)
