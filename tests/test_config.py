@@ -1,0 +1,125 @@
+"""DetectorConfig: defaults, round trip through TOML / YAML / JSON, validation errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from impactcli.config import (
+    TABLE_I_V_STAT,
+    CalibrationRecord,
+    DetectorConfig,
+    LogRecord,
+    ThresholdsConfig,
+    load_config,
+    save_config,
+)
+from impactcli.errors import ConfigError
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "schemas" / "examples" / "config.example.toml"
+
+
+def test_defaults_are_table_one() -> None:
+    a = DetectorConfig().adaptive
+    assert (a.eta, a.rho, a.p, a.w1_hz, a.w2_hz) == (2, (2, 4), 20, 10.0, 50.0)
+    assert (a.n1_s, a.n2_s, a.forgetting_factor, a.p0, a.theta0) == (0.04, 0.16, 0.999, 10.0, 0)
+    assert TABLE_I_V_STAT == (0.45, 0.2)
+    assert DetectorConfig().thresholds.v_stat == {}          # uncalibrated by default
+    assert DetectorConfig().calibration.calibrated is False
+
+
+def _full() -> DetectorConfig:
+    return DetectorConfig(
+        thresholds=ThresholdsConfig(v_stat={"j1": 0.45, "j2": 0.2}, v0={"j1": 3.0, "j2": 1.0},
+                                    vL={"j1": 1.0, "j2": 0.5}),
+        calibration=CalibrationRecord(
+            calibrated=True, margin_rule="leave-one-out",
+            margins={"adaptive": {"j1": 1.3, "j2": 1.1}},
+            logs=(LogRecord("a.csv", "a" * 64), LogRecord("b.csv", "b" * 64)),
+            model_sha256="c" * 64,
+        ),
+        model={"kind": "decoupled", "parameters": [[1.0, 2.0], [3.0, 4.0]], "names": ["x", "y"]},
+    )
+
+
+@pytest.mark.parametrize("suffix", [".toml", ".yaml", ".yml", ".json"])
+def test_round_trip(tmp_path: Path, suffix: str) -> None:
+    cfg = _full()
+    path = tmp_path / f"cfg{suffix}"
+    save_config(cfg, path)
+    assert load_config(path) == cfg
+    assert DetectorConfig.from_dict(cfg.to_dict()) == cfg
+    save_config(DetectorConfig(), path)
+    assert load_config(path) == DetectorConfig()
+
+
+def test_example_file_is_valid() -> None:
+    cfg = load_config(EXAMPLE)
+    assert cfg.thresholds.v_stat == {"shoulder": 0.45, "elbow": 0.2}
+    assert cfg.calibration.calibrated
+
+
+BAD = [
+    ("adaptive", "eta", 0, "adaptive/eta"),
+    ("adaptive", "eta", 1.5, "adaptive/eta"),
+    ("adaptive", "rho", [], "adaptive/rho"),
+    ("adaptive", "rho", [2, 0], "adaptive/rho/1"),
+    ("adaptive", "p", -1, "adaptive/p"),
+    ("adaptive", "w1_hz", 0, "adaptive/w1_hz"),
+    ("adaptive", "w2_hz", 5.0, "adaptive/w2_hz"),            # below w1 = 10 Hz
+    ("adaptive", "n1_s", -0.04, "adaptive/n1_s"),
+    ("adaptive", "n2_s", 0.01, "adaptive/n2_s"),             # below n1 = 40 ms
+    ("adaptive", "forgetting_factor", 1.2, "adaptive/forgetting_factor"),
+    ("adaptive", "forgetting_factor", 0, "adaptive/forgetting_factor"),
+    ("adaptive", "p0", "ten", "adaptive/p0"),
+    ("adaptive", "estimate", "sometimes", "adaptive/estimate"),
+    ("adaptive", "tanh_slope", -1, "adaptive/tanh_slope"),
+    ("adaptive", "max_trace", 0, "adaptive/max_trace"),
+    ("adaptive", "lambda", 0.99, "adaptive"),                 # unknown key
+    ("thresholds", "v_stat", {"j1": -0.1}, "thresholds/v_stat/j1"),
+    ("thresholds", "v0", {"j1": "high"}, "thresholds/v0/j1"),
+    ("thresholds", "vL", [1.0], "thresholds/vL"),
+    ("static_loading", "cutoff_hz", -2, "static_loading/cutoff_hz"),
+    ("static_loading", "order", 3, "static_loading/order"),
+    ("residual", "generator", "magic", "residual/generator"),
+    ("residual", "filter_torque", "yes", "residual/filter_torque"),
+    ("events", "merge_gap_s", -1, "events/merge_gap_s"),
+    ("events", "min_duration_s", "0", "events/min_duration_s"),
+    ("warmup", "min_s", -3, "warmup/min_s"),
+    ("warmup", "window_s", 0, "warmup/window_s"),
+    ("calibration", "calibrated", 1, "calibration/calibrated"),
+    ("calibration", "margin_rule", "guess", "calibration/margin_rule"),
+    ("calibration", "logs", [{"path": "a.csv", "sha256": "xyz"}], "calibration/logs/0/sha256"),
+    ("calibration", "model_sha256", "abc", "calibration/model_sha256"),
+    ("calibration", "margins", {"adaptive": {"j1": 0}}, "calibration/margins/adaptive/j1"),
+]
+
+
+@pytest.mark.parametrize(("section", "key", "value", "where"), BAD)
+def test_every_bad_value_is_a_config_error_naming_file_and_field(
+    tmp_path: Path, section: str, key: str, value: object, where: str
+) -> None:
+    d = _full().to_dict()
+    d.setdefault(section, {})[key] = value
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(d), encoding="utf-8")
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    msg = str(info.value)
+    assert msg.startswith(f"{path}: {where}"), msg
+    assert "\n" not in msg
+    assert info.value.exit_code == 3
+
+
+def test_bad_top_level_and_unparsable(tmp_path: Path) -> None:
+    p = tmp_path / "c.toml"
+    p.write_text("[adaptive]\neta = \n", encoding="utf-8")
+    with pytest.raises(ConfigError, match="does not parse"):
+        load_config(p)
+    p.write_text("[detectors]\nx = 1\n", encoding="utf-8")
+    with pytest.raises(ConfigError, match="Additional properties"):
+        load_config(p)
+    with pytest.raises(ConfigError, match="not found"):
+        load_config(tmp_path / "missing.toml")
