@@ -197,7 +197,7 @@ def test_no_half_written_file_on_failure(tmp_path: Path) -> None:
     bad["residual"] = bad["residual"][:10]  # wrong length: fails while logging
     broken = dataclasses.replace(res, signals=bad)
     path = tmp_path / "out" / "x.rrd"
-    with pytest.raises(ValueError, match="dimension"):
+    with pytest.raises(ValueError, match="'residual' has 10 samples"):
         write_rrd(broken, path)
     assert not path.exists()
     assert list(path.parent.iterdir()) == []

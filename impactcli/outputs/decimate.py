@@ -19,7 +19,7 @@ time columns) is indexed by the same selection.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 
@@ -68,59 +68,67 @@ def bucket_size(n: int, n_series: int = 1, max_points: int = DEFAULT_MAX_POINTS)
     return max(2, -(-2 * max(n_series, 1) * n // max_points))
 
 
-def envelope_indices(values: np.ndarray, bucket: int, keep: np.ndarray | None = None) -> np.ndarray:
+def _columns(values: np.ndarray | Sequence[np.ndarray]) -> list[np.ndarray]:
+    """The series as (N,) float arrays (views where possible, no copies of (N, K) input)."""
+    if isinstance(values, np.ndarray):
+        v = values if values.dtype.kind == "f" else values.astype(np.float64)
+        return [v] if v.ndim == 1 else [v[:, i] for i in range(v.shape[1])]
+    cols = [np.asarray(c) for c in values]
+    return [c if c.dtype.kind == "f" else c.astype(np.float64) for c in cols]
+
+
+def envelope_indices(values: np.ndarray | Sequence[np.ndarray], bucket: int,
+                     keep: np.ndarray | None = None) -> np.ndarray:
     """Indices of a min/max envelope of ``values``, plus every kept sample.
 
     Args:
-        values: (N,) or (N, K) samples (NaN allowed: ignored when finding extrema).
+        values: (N,) or (N, K) samples, or a sequence of K (N,) series (NaN allowed:
+            ignored when finding extrema).
         bucket: samples per bucket b (>= 1); 1 returns every index.
         keep: optional (N,) bool, samples always kept (e.g. event windows).
 
     Returns:
         (M,) int64 sorted unique indices: for each bucket of b consecutive samples and each
-        series, the index of its minimum and of its maximum over the samples not already
-        kept; every index with ``keep``; and 0 and N-1. Hence, for every bucket, the max
-        and min over the selected samples equal the max and min over all its samples.
+        series, the index of its minimum and of its maximum; every index with ``keep``; and
+        0 and N-1. Hence, for every bucket, the max and min over the selected samples
+        equal the max and min over all its samples.
     """
-    v = np.asarray(values, dtype=np.float64)
-    if v.ndim == 1:
-        v = v[:, None]
-    n, k = v.shape
+    cols = _columns(values)
+    n = cols[0].shape[0]
     if bucket <= 1 or n <= 2:
         return np.arange(n, dtype=np.int64)
-    nb = -(-n // bucket)
-    pad = nb * bucket - n
-    free = ~np.isnan(v)
+    sel = np.zeros(n, dtype=bool)
+    sel[[0, n - 1]] = True
     if keep is not None:
-        free &= ~np.asarray(keep, dtype=bool)[:, None]
-    hi = np.where(free, v, -np.inf)
-    lo = np.where(free, v, np.inf)
-    if pad:
-        hi = np.concatenate([hi, np.full((pad, k), -np.inf)])
-        lo = np.concatenate([lo, np.full((pad, k), np.inf)])
-    base = (np.arange(nb, dtype=np.int64) * bucket)[:, None]
-    i_max = base + np.argmax(hi.reshape(nb, bucket, k), axis=1)
-    i_min = base + np.argmin(lo.reshape(nb, bucket, k), axis=1)
-    parts = [i_max.ravel(), i_min.ravel(), np.array([0, n - 1], dtype=np.int64)]
-    if keep is not None:
-        parts.append(np.flatnonzero(keep).astype(np.int64))
-    idx = np.unique(np.concatenate(parts))
-    return idx[idx < n]
+        sel |= np.asarray(keep, dtype=bool)
+    n_full = n // bucket
+    for c in cols:
+        nan = np.isnan(c)
+        has_nan = bool(nan.any())
+        for lo, hi in ((0, n_full * bucket), (n_full * bucket, n)):
+            if hi <= lo:
+                continue
+            b = min(bucket, hi - lo)
+            nb = (hi - lo) // b
+            base = lo + np.arange(nb) * b
+            for fill, arg in ((-np.inf, np.argmax), (np.inf, np.argmin)):
+                # without NaN: a strided view, no copy; with NaN: NaN never wins
+                w = np.where(nan[lo:hi], fill, c[lo:hi]) if has_nan else c[lo:hi]
+                sel[base + arg(w.reshape(nb, b), axis=1)] = True
+    return np.flatnonzero(sel)
 
 
-def select_samples(values: np.ndarray, keep: np.ndarray | None = None,
+def select_samples(values: np.ndarray | Sequence[np.ndarray], keep: np.ndarray | None = None,
                    max_points: int = DEFAULT_MAX_POINTS) -> np.ndarray:
     """The samples of ``values`` to display: all of them, or the documented envelope.
 
     Args:
-        values: (N,) or (N, K) samples sharing one time column.
+        values: (N,) or (N, K) samples, or K (N,) series, sharing one time column.
         keep: optional (N,) bool, samples kept at full rate (event windows).
         max_points: per-series size above which the envelope is used.
 
     Returns:
         (M,) int64 sorted indices into the N samples.
     """
-    v = np.asarray(values)
-    n = v.shape[0]
-    k = 1 if v.ndim == 1 else v.shape[1]
-    return envelope_indices(v, bucket_size(n, k, max_points), keep)
+    cols = _columns(values)
+    return envelope_indices(cols, bucket_size(cols[0].shape[0], len(cols), max_points), keep)

@@ -101,7 +101,11 @@ def _plots(result: DetectionResult, j: int) -> dict[str, list[tuple[str, np.ndar
 
     def col(key: str) -> np.ndarray | None:
         a = sig.get(key)
-        return None if a is None else np.asarray(a, dtype=np.float64)[:, j]
+        if a is None:
+            return None
+        if np.shape(a)[0] != n:  # a bug upstream, not bad input
+            raise ValueError(f"signal {key!r} has {np.shape(a)[0]} samples, the log has {n}")
+        return np.asarray(a, dtype=np.float64)[:, j]
 
     plots: dict[str, list[tuple[str, np.ndarray]]] = {}
     wanted: dict[str, list[tuple[str, np.ndarray | None]]] = {
@@ -256,13 +260,13 @@ def _write_joint(rec: Any, result: DetectionResult, j: int, joint: str,  # noqa:
     plots = _plots(result, j)
     for plot, series in plots.items():
         entity = f"{root}/{plot}"
-        matrix = np.column_stack([v for _, v in series])
         colors = _COLORS[plot][: len(series)]
         rec.log(entity, rr.SeriesLines(names=[s for s, _ in series], colors=colors,
                                        widths=[1.5] * len(series)), static=True, strict=True)
-        sel = select_samples(matrix, keep, max_points)
+        sel = select_samples([v for _, v in series], keep, max_points)
+        matrix = np.column_stack([v[sel] for _, v in series])
         rec.send_columns(entity, indexes=indexes(sel),
-                         columns=rr.Scalars.columns(scalars=matrix[sel]), strict=True)
+                         columns=rr.Scalars.columns(scalars=matrix), strict=True)
 
     lanes = f"/detections/{_esc(joint)}"
     # warm-up lane: "warm-up" from the first sample, "running" from the joint's warm-up end
