@@ -3,7 +3,8 @@
 Pure logic: no file I/O, no printing. The CLI (``impactcli evaluate``) reads the files.
 
 Matching rule (documented in :class:`MatchTolerance`): an event *matches* a labelled contact
-when the event **starts** within ``[contact.start - pre_s, contact.end + post_s]``.
+when the event **starts** within ``[contact.start - pre_s, contact.end + post_s]`` (bounds
+included, with 1 ns of tolerance for float rounding of sample times).
 
 - ``pre_s`` (default 0.02 s) absorbs clock and filter alignment between the label's source
   (a load cell, a simulator) and the robot's log: an alarm a few samples before the labelled
@@ -64,6 +65,8 @@ PRODUCT_PARTS: tuple[str, ...] = ("adaptive", "static_loading")
 EVALUATED: tuple[str, ...] = (*DETECTORS, PRODUCT)
 KINDS: tuple[str, ...] = ("impact", "push", "clamp")
 SECONDS_PER_HOUR = 3600.0
+#: Tolerance of time comparisons [s]: sample times are float sums of periods (as detect.events).
+EPS_S = 1e-9
 
 
 @dataclass(frozen=True)
@@ -355,7 +358,7 @@ def _match(
         return [None] * n_c, [None] * n_c, np.zeros(len(evs), dtype=bool)
     t0 = np.array([e.t_start for e in evs], dtype=np.float64)
     warm = np.array([e.in_warmup for e in evs], dtype=bool)
-    m = (t0[:, None] >= win_lo[None, :]) & (t0[:, None] <= win_hi[None, :])  # (E, C)
+    m = (t0[:, None] >= win_lo[None, :] - EPS_S) & (t0[:, None] <= win_hi[None, :] + EPS_S)
 
     def first(mask: np.ndarray) -> list[float | None]:
         any_ = mask.any(axis=0)
@@ -625,8 +628,9 @@ def event_intervals(
 
     The same intervals as :func:`impactcli.detect.events.extract_events` (decisions ORed over
     joints; bursts whose gap ≤ ``merge_gap_s`` merged; events shorter than
-    ``min_duration_s`` dropped) without the per-event joints and peaks, which a sweep does
-    not need — ~10× faster on noisy low scales (tests check the equality).
+    ``min_duration_s`` dropped; 1 ns tolerance on both) without the per-event joints and
+    peaks, which a sweep does not need — several times faster on noisy low scales (tests
+    check the equality).
     """
     anyd = np.asarray(decision, dtype=bool)
     anyd = anyd.any(axis=1) if anyd.ndim == 2 else anyd
@@ -636,11 +640,11 @@ def event_intervals(
     ends = np.flatnonzero(x == -1) - 1
     if starts.size == 0:
         return starts, ends
-    new = np.concatenate(([True], t[starts[1:]] - t[ends[:-1]] > merge_gap_s))
+    new = np.concatenate(([True], t[starts[1:]] - t[ends[:-1]] > merge_gap_s + EPS_S))
     first = np.flatnonzero(new)
     g_start = starts[first]
     g_end = ends[np.concatenate((first[1:] - 1, [ends.size - 1]))]
-    keep = t[g_end] - t[g_start] >= min_duration_s
+    keep = t[g_end] - t[g_start] >= min_duration_s - EPS_S
     return g_start[keep], g_end[keep]
 
 

@@ -304,6 +304,17 @@ def test_event_intervals_equal_extract_events(gap, min_dur):
     i0, i1 = event_intervals(decision, t, gap, min_dur)
     assert len(want) >= 3
     assert [(e.i_start, e.i_end) for e in want] == list(zip(i0.tolist(), i1.tolist(), strict=True))
+    # bursts exactly merge_gap apart and exactly min_duration long, on a float clock where
+    # such differences land a few 1e-17 s above or below the nominal value
+    t4 = (np.arange(2000) * 4_000_000).astype(np.int64) * 1e-9
+    i = next(k for k in range(200, 1000) if t4[k + 25] - t4[k] > 0.1)
+    j = next(k for k in range(1200, 1900) if t4[k + 10] - t4[k] < 0.04)
+    d4 = np.zeros((2000, 1), dtype=bool)
+    d4[[i, i + 25, j, j + 10], 0] = True
+    want4 = extract_events("adaptive", d4, d4 * 1.0, d4 * 1.0, t4, ["a"], 0.0, 0.1, 0.04)
+    assert [(e.i_start, e.i_end) for e in want4] == [(i, i + 25), (j, j + 10)]
+    got4 = event_intervals(d4, t4, 0.1, 0.04)
+    assert list(zip(got4[0].tolist(), got4[1].tolist(), strict=True)) == [(i, i + 25), (j, j + 10)]
     none = event_intervals(np.zeros((n, J), dtype=bool), t, gap, min_dur)
     assert none[0].size == 0 and none[1].size == 0
 
