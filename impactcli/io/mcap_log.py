@@ -355,13 +355,16 @@ def write_mcap_json(log: RobotLog, path: str | os.PathLike[str]) -> None:
         w.finish()
 
 
-def write_mcap_ros2(log: RobotLog, path: str | os.PathLike[str], *, pad: int = 0) -> None:
+def write_mcap_ros2(
+    log: RobotLog, path: str | os.PathLike[str], *, pad: int = 0, chunk_size: int = 1 << 20,
+) -> None:
     """Write ``log`` as MCAP with ROS 2 JointState (CDR) on ``/joint_states`` (atomic).
 
     effort = torque; velocity filled when the log has it. The reference (``position_ref``,
     ``velocity_ref``) goes to ``/joint_states_ref`` at the same times. Header stamp =
     log_time = publish_time = t_ns. ``pad`` appends that many zero bytes to every message
-    (as some real recorders do; for tests). Current and acceleration_ref are not carried.
+    (as some real recorders do; for tests); ``chunk_size`` [bytes] is the MCAP chunk size.
+    Current and acceleration_ref are not carried.
     """
     from mcap.writer import CompressionType, Writer
 
@@ -377,7 +380,7 @@ def write_mcap_ros2(log: RobotLog, path: str | os.PathLike[str], *, pad: int = 0
                                   log.velocity_ref, None)
     zeros = b"\x00" * pad
     with atomic_output(p, "wb") as f:
-        w = Writer(f, compression=CompressionType.ZSTD)
+        w = Writer(f, compression=CompressionType.ZSTD, chunk_size=chunk_size)
         w.start(profile="ros2", library="impactcli")
         sid = w.register_schema(name=JOINT_STATE, encoding="ros2msg",
                                 data=JOINT_STATE_DEF.encode())

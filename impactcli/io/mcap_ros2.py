@@ -353,7 +353,9 @@ def decode_topic_official(
         with open(path, "rb") as f:
             reader = NonSeekingReader(f, decoder_factories=[DecoderFactory()])
             try:
-                for _s, ch, msg, dec in reader.iter_decoded_messages(topics=[topic]):
+                for _s, ch, msg, dec in reader.iter_decoded_messages(
+                    topics=[topic], log_time_order=False
+                ):
                     del ch
                     rows.append((msg.log_time, msg.publish_time, dec))
             except Exception:  # the cut of a truncated file: keep what came before
@@ -362,7 +364,8 @@ def decode_topic_official(
     except OSError as err:
         raise LogFormatError(f"{where}: cannot read: {err}") from err
     except Exception as err:
-        raise LogFormatError(f"{where}: corrupt MCAP: {str(err).splitlines()[0]}") from err
+        first = (str(err).splitlines() or [type(err).__name__])[0]
+        raise LogFormatError(f"{where}: corrupt MCAP: {first}") from err
     if not rows:
         raise LogFormatError(f"{where}: topic {topic!r} holds no messages")
     if joints is None:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import os
 import struct
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -228,7 +229,7 @@ class _Collector:
 def _chunk_bytes(buf: bytes, start: int, end: int, where: str) -> bytes:
     """The decompressed records of the chunk record whose body is ``buf[start:end]``."""
     try:
-        _st, _et, usize, _crc = struct.unpack_from("<QQQI", buf, start)
+        _st, _et, usize, crc = struct.unpack_from("<QQQI", buf, start)
         kind, p = _string(buf, start + 28)
         (rl,) = struct.unpack_from("<Q", buf, p)
         if p + 8 + rl > end:
@@ -240,6 +241,8 @@ def _chunk_bytes(buf: bytes, start: int, end: int, where: str) -> bytes:
         raise LogFormatError(f"{where}: corrupt chunk at byte {start}: {err}") from err
     if len(raw) != usize:
         raise LogFormatError(f"{where}: corrupt chunk at byte {start}: wrong size")
+    if crc and zlib.crc32(raw) != crc:
+        raise LogFormatError(f"{where}: corrupt chunk at byte {start}: CRC mismatch")
     return raw
 
 
