@@ -1,0 +1,284 @@
+"""The safety-audit report (HTML + JSON) built from synthetic results with known events."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import re
+from pathlib import Path
+
+import click
+import jsonschema
+import numpy as np
+import pytest
+
+from impactcli.cli.report import auto_labels, pair_labels
+from impactcli.outputs import svgplot
+from impactcli.outputs.report import (
+    GUARD_S,
+    build_report,
+    false_alarm_margins,
+    log_stem,
+    write_report,
+)
+from impactcli.result import DetectionResult
+from impactcli.schema import load_schema
+from impactcli.types import ContactLabel, Event, Labels, LogSource
+
+from .fakes import fake_result
+
+EVENTS_CFG = {
+    "adaptive": {"forgetting_factor": 0.999},
+    "events": {"merge_gap_s": 0.05, "min_duration_s": 0.0},
+}
+
+
+def result_named(path: str, sha: str, **changes: object) -> DetectionResult:
+    """fake_result() with its log's provenance replaced (and any result field changed)."""
+    r = fake_result()
+    log = dataclasses.replace(r.log, source=LogSource(path, sha, "csv"))
+    return dataclasses.replace(r, log=log, **changes)  # type: ignore[arg-type]
+
+
+def validate(doc: dict) -> None:
+    jsonschema.Draft202012Validator(load_schema("report")).validate(doc)
+
+
+def test_html_is_self_contained() -> None:
+    html, _ = build_report([fake_result()])
+    assert not re.search(r"""(src|href)\s*=\s*["']?\s*(https?:)?//""", html, re.I)
+    assert "<script" not in html.lower()
+    assert "<link" not in html.lower()
+    assert "@import" not in html and "url(http" not in html
+    hrefs = re.findall(r'href="([^"]*)"', html)
+    assert hrefs and all(h.startswith("#") for h in hrefs)
+    ids = re.findall(r'\bid="([^"]+)"', html)
+    assert len(ids) == len(set(ids)), "element ids must be unique"
+    for target in hrefs:
+        assert target[1:] in ids
+    assert "@media print" in html and "break-before: page" in html
+
+
+def test_html_has_every_event_sha_and_caveats() -> None:
+    sha = "5e" * 32
+    r = result_named("/data/arm_run3.csv", sha, reference_source="measured")
+    html, doc = build_report([r])
+    assert sha in html
+    assert "arm_run3" in html
+    n = len(r.events)
+    for k, e in enumerate(r.events, 1):
+        row = re.search(rf'<tr[^>]*id="log1-ev{k}">(.*?)</tr>', html)
+        assert row, f"event {k} missing from the table"
+        assert f"{e.t_start:.3f}" in row.group(1) and e.detector in row.group(1)
+        assert ", ".join(e.joints) in row.group(1)
+    assert not re.search(rf'id="log1-ev{n + 1}"', html)
+    assert "UNCALIBRATED" in html
+    assert "MEASURED position" in html
+    assert "Warm-up: the first 1.000 s" in html
+    codes = {c["code"] for c in doc["logs"][0]["caveats"]}
+    assert {"uncalibrated", "reference-missing", "warmup", "model-from-log"} <= codes
+    # every event gets a figure (the warm-up one included)
+    assert html.count("<figcaption>Event") == 3
+
+
+def test_calibrated_run_has_no_uncalibrated_caveat() -> None:
+    cfg = dict(
+        EVENTS_CFG,
+        calibration={
+            "calibrated": True,
+            "margin_rule": "leave-one-out",
+            "weak": False,
+            "logs": [{"path": "free.csv", "sha256": "c" * 64}],
+        },
+    )
+    r = result_named("run.csv", "1" * 64, calibrated=True, model_source="config", config=cfg)
+    html, doc = build_report([r])
+    codes = {c["code"] for c in doc["logs"][0]["caveats"]}
+    assert "uncalibrated" not in codes and "model-from-log" not in codes
+    assert "reference-missing" not in codes
+    assert "UNCALIBRATED" not in html
+    assert "free.csv" in html and "leave-one-out" in html
+    assert (
+        doc["summary"][0]["calibrated"] is True and doc["summary"][0]["online_equivalent"] is True
+    )
+
+
+def test_json_validates_and_is_byte_identical(tmp_path: Path) -> None:
+    labels = Labels((ContactLabel(3.99, 4.12, 12.0, "impact", 2),), 250.0, "a.labels.json")
+    runs = []
+    for k in range(2):
+        r = result_named("a.csv", "a" * 64, config=EVENTS_CFG)
+        h, j = tmp_path / f"r{k}.html", tmp_path / f"r{k}.json"
+        write_report([r, result_named("b.csv", "b" * 64)], h, j, labels=[labels, None])
+        runs.append((h.read_bytes(), j.read_bytes()))
+    assert runs[0][1] == runs[1][1]
+    assert runs[0][0] == runs[1][0]
+    doc = json.loads(runs[0][1])
+    validate(doc)
+    assert not list(tmp_path.glob("*.part"))
+
+
+def test_multi_log_summary_table() -> None:
+    stems = ["robotA_mon", "robotA_tue", "robotB_mon"]
+    results = [result_named(f"/fleet/{s}.csv.gz", f"{k:x}" * 64) for k, s in enumerate(stems)]
+    html, doc = build_report(results)
+    validate(doc)
+    assert [row["stem"] for row in doc["summary"]] == stems
+    assert [s["stem"] for s in doc["logs"]] == stems
+    for row, r in zip(doc["summary"], results, strict=True):
+        assert row["events"]["adaptive"] == {"events": 1, "in_warmup": 1}
+        assert row["events"]["static_loading"] == {"events": 1, "in_warmup": 0}
+        assert row["duration_s"] == pytest.approx(r.log.duration_s)
+        assert row["calibrated"] is False
+    summary = html[html.index("<h2>Summary</h2>") : html.index('<section class="log"')]
+    for k, s in enumerate(stems, 1):
+        assert f'<a href="#log{k}">{s}</a>' in summary
+    assert html.count('<section class="log"') == 3
+    assert html.index("<h2>Summary</h2>") < html.index('<section class="log" id="log1">')
+
+
+def test_false_alarm_margin_known_peaks() -> None:
+    r = fake_result()
+    t = r.log.time_s
+    ratios = {d: np.array(v, copy=True) for d, v in r.ratios.items()}
+    quiet = (t >= 1.0) & ((t < 3.4) | ((t > 4.7) & (t < 6.4)) | (t > 8.1))
+    base = float(np.max(ratios["adaptive"][quiet, 1]))
+
+    def put(ts: float, v: float) -> None:
+        ratios["adaptive"][int(np.argmin(np.abs(t - ts))), 1] = v
+
+    put(0.5, 5.0)  # in warm-up: ignored
+    put(4.1 + GUARD_S - 0.1, 0.95)  # inside the guard after the 4.0–4.1 s event: ignored
+    put(9.0, 0.97)  # a labelled contact (only with labels)
+    put(6.0, 0.9)  # collision-free: the margin
+    assert base < 0.9
+    r = dataclasses.replace(r, ratios=ratios)
+    m = false_alarm_margins(r)["per_detector"]["adaptive"]["j2"]
+    assert m["max_ratio"] == pytest.approx(0.97) and m["t_s"] == pytest.approx(9.0, abs=0.004)
+    lab = Labels((ContactLabel(8.95, 9.1, 5.0, "push", 2),), 250.0)
+    full = false_alarm_margins(r, lab)
+    m = full["per_detector"]["adaptive"]["j2"]
+    assert m["max_ratio"] == pytest.approx(0.9) and m["t_s"] == pytest.approx(6.0, abs=0.004)
+    assert m["headroom"] == pytest.approx(1 / 0.9)
+    assert full["worst"]["adaptive"] == {
+        "max_ratio": pytest.approx(0.9),
+        "joint": "j2",
+        "t_s": pytest.approx(6.0, abs=0.004),
+    }
+    # considered time: after warm-up minus the widened events [0.2±, 4.0–4.1, 7.0–7.5] and label
+    excluded = (4.1 - 4.0 + 2 * GUARD_S) + (7.5 - 7.0 + 2 * GUARD_S) + (9.1 - 8.95 + 2 * GUARD_S)
+    assert full["rule"]["considered_s"] == pytest.approx(
+        r.log.duration_s - 1.0 - excluded, abs=0.03
+    )
+
+
+def test_labels_give_the_quality_section() -> None:
+    r = result_named("run.csv", "9" * 64, config=EVENTS_CFG)
+    lab = Labels(
+        (
+            ContactLabel(3.99, 4.12, 12.0, "impact", 2),  # adaptive fires at 4.0
+            ContactLabel(6.95, 7.5, 30.0, "clamp", 1),  # static_loading at 7.0
+            ContactLabel(8.5, 8.6, 3.0, "push", 1),
+        ),  # nothing fires: missed
+        250.0,
+        "run.labels.json",
+    )
+    html, doc = build_report([r], [lab])
+    validate(doc)
+    q = doc["logs"][0]["quality"]
+    assert q["status"] == "done"
+    sc = q["evaluation"]["detectors"]
+    assert (sc["adaptive"]["detected"], sc["static_loading"]["detected"]) == (1, 1)
+    assert sc["product"]["detected"] == 2 and sc["product"]["n_contacts"] == 3
+    assert doc["summary"][0]["quality"] == {
+        "detector": "product",
+        "detected": 2,
+        "n_contacts": 3,
+        "false_alarms": 0,
+    }
+    assert q["sweep"] is not None and q["sweep"]["verdict"]
+    assert "Detection quality against labels" in html and "run.labels.json" in html
+    assert "2/3 hit" in html and "Verdict:" in html
+    assert html.count("missed") >= 1
+    # the labelled contact is excluded from the margin
+    assert "every labelled contact" in doc["logs"][0]["false_alarm_margin"]["rule"]["excludes"]
+
+
+def test_envelope_keeps_single_sample_peaks() -> None:
+    rng = np.random.default_rng(3)
+    n = 200_001
+    t = np.arange(n) * 1e-3
+    y = 0.1 * rng.standard_normal(n)
+    y[123_457] = 9.0
+    y[7] = -4.0
+    y[50_000] = np.nan
+    te, ye = svgplot.envelope(t, y, 500)
+    assert len(te) <= 1000
+    assert np.all(np.diff(te) >= 0)
+    assert np.nanmax(ye) == 9.0 and np.nanmin(ye) == -4.0
+    assert te[np.argmax(ye)] == t[123_457]
+    # every bucket's extremes are kept
+    edges = np.linspace(0, n, 501).astype(int)
+    k = 250
+    seg = y[edges[k] : edges[k + 1]]
+    assert np.nanmax(seg) in ye and np.nanmin(seg) in ye
+    ts, ys = svgplot.envelope(t[:900], y[:900], 500)  # short: unchanged
+    assert ts is not None and len(ys) == 900
+
+
+def test_clipped_axis_states_the_true_peak() -> None:
+    t = np.linspace(0, 1, 101)
+    stat = np.full(101, 0.1)
+    stat[50] = 40.0
+    chart = svgplot.Chart(
+        "j1",
+        (0.0, 1.0),
+        (svgplot.Series("stat", t, stat), svgplot.Series("thr", t, np.full(101, 1.0))),
+        clip_factor=4.0,
+        clip_reference="thr",
+    )
+    svg = svgplot.render_chart(chart, chart_id="x1")
+    assert "axis capped at 4; max 40" in svg
+    assert svg.startswith("<svg") and svg.endswith("</svg>")
+
+
+def test_event_figures_group_nearby_events() -> None:
+    r = fake_result()
+    t = r.log.time_s
+    extra = Event(
+        "static_baseline",
+        float(t[1050]),
+        float(t[1060]),
+        1050,
+        1060,
+        ("j2",),
+        1.1,
+        {"j2": 2.0},
+        False,
+    )  # 4.2 s: in the same ±1 s window as the 4.0 s event
+    r = dataclasses.replace(r, events=tuple(sorted((*r.events, extra), key=lambda e: e.t_start)))
+    html, doc = build_report([r])
+    validate(doc)
+    assert len(doc["logs"][0]["events"]) == 4
+    assert html.count("<figcaption>Event") == 3
+    assert "Events #2 adaptive" in html and "#3 static_baseline" in html
+
+
+def test_log_stem() -> None:
+    assert log_stem("/a/b/run1.csv.gz") == "run1"
+    assert log_stem("run1.timeline.json") == "run1"
+    assert log_stem("x.mcap") == "x" and log_stem("x.npz") == "x" and log_stem("x.CSV") == "x"
+
+
+def test_pair_labels_rule(tmp_path: Path) -> None:
+    a, b = tmp_path / "a.csv", tmp_path / "b.timeline.json"
+    la, lb = tmp_path / "a.labels.json", tmp_path / "b.labels.json"
+    assert pair_labels([a, b], [lb, la]) == [la, lb]  # by stem
+    x, y = tmp_path / "x.json", tmp_path / "y.json"
+    assert pair_labels([a, b], [x, y]) == [x, y]  # in order
+    assert pair_labels([a, b], [lb]) == [None, lb]  # one, by stem
+    with pytest.raises(click.BadParameter):
+        pair_labels([a, b], [x])
+    assert auto_labels(a, a) is None
+    la.write_text("{}")
+    assert auto_labels(a, a) == la
