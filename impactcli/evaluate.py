@@ -51,7 +51,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .errors import ConfigError, ImpactWarning, LabelsError, LogFormatError
+from .errors import ConfigError, ImpactWarning, LogFormatError
 from .types import DETECTORS, ContactLabel, Event, Labels
 
 if TYPE_CHECKING:
@@ -361,12 +361,11 @@ def _match(
     m = (t0[:, None] >= win_lo[None, :] - EPS_S) & (t0[:, None] <= win_hi[None, :] + EPS_S)
 
     def first(mask: np.ndarray) -> list[float | None]:
-        any_ = mask.any(axis=0)
-        idx = np.argmax(mask, axis=0)  # first True: events are sorted by start
-        return [float(t0[i]) if a else None
-                for i, a in zip(idx.tolist(), any_.tolist(), strict=True)]
+        any_: list[bool] = np.asarray(mask.any(axis=0)).tolist()
+        idx: list[int] = np.asarray(np.argmax(mask, axis=0)).tolist()  # events sorted by start
+        return [float(t0[i]) if a else None for i, a in zip(idx, any_, strict=True)]
 
-    return first(m & ~warm[:, None]), first(m), m.any(axis=1)
+    return first(m & ~warm[:, None]), first(m), np.asarray(m.any(axis=1))
 
 
 def _median(xs: Sequence[float]) -> float | None:
@@ -387,7 +386,7 @@ def _score_of(
 
 
 def evaluate_events(
-    events: Sequence[Event | Mapping[str, Any]],
+    events: Sequence[Event | Mapping[str, Any] | _Ev],
     labels: Labels,
     *,
     duration_s: float,
@@ -415,7 +414,7 @@ def evaluate_events(
     """
     tol = tolerance if tolerance is not None else MatchTolerance()
     if not (math.isfinite(duration_s) and duration_s >= 0):
-        raise LabelsError(
+        raise LogFormatError(
             f"evaluation: duration_s must be a finite number >= 0, got {duration_s!r}")
     for d in detectors:
         if d not in EVALUATED:
@@ -632,8 +631,8 @@ def event_intervals(
     peaks, which a sweep does not need — several times faster on noisy low scales (tests
     check the equality).
     """
-    anyd = np.asarray(decision, dtype=bool)
-    anyd = anyd.any(axis=1) if anyd.ndim == 2 else anyd
+    dec = np.asarray(decision, dtype=bool)
+    anyd = np.asarray(dec.any(axis=1)) if dec.ndim == 2 else dec
     t = np.asarray(time_s, dtype=np.float64)
     x = np.diff(anyd.astype(np.int8), prepend=np.int8(0), append=np.int8(0))
     starts = np.flatnonzero(x == 1)
