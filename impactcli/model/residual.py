@@ -29,7 +29,13 @@ from scipy import signal
 
 from ..errors import ModelError
 from ..types import RobotLog
-from .derivatives import causal_derivatives, causal_lowpass, clip_cutoff, first_order_lowpass
+from .derivatives import (
+    MAX_CUTOFF_FRACTION,
+    causal_derivatives,
+    causal_lowpass,
+    clip_cutoff,
+    first_order_lowpass,
+)
 from .rigid import RigidModel
 
 GENERATORS: tuple[str, ...] = ("inverse_dynamics", "momentum_observer")
@@ -44,12 +50,20 @@ class ResidualOptions:
         filter_torque: pass the measured torque through the same G (method.md §8; default).
         generator: ``inverse_dynamics`` (eq. 7–8) or ``momentum_observer`` (De Luca).
         observer_gain: K of the momentum observer [1/s] (bandwidth K / 2π Hz); K × Ts < 1.
+        coulomb_through_filter: when the torque is filtered, compute the Coulomb term
+            fc tanh(q'/v_s) from a wide-band causal velocity estimate (the same filter at
+            0.4 fs) and pass it through G like the torque: G(fc tanh(q')) instead of
+            fc tanh(G q'). The measured torque's friction step at a velocity reversal is
+            smoothed by G; without this the model's step stays sharp and the residual
+            spikes at every reversal (on the rigid 2-link test arm, fc = 0.4 N·m, 20 Hz:
+            peak 0.048 N·m without, 0.024 N·m with; at 10 Hz 0.11 vs 0.033).
     """
 
     cutoff_hz: float = 20.0
     filter_torque: bool = True
     generator: str = "inverse_dynamics"
     observer_gain: float = 50.0
+    coulomb_through_filter: bool = True
 
     def __post_init__(self) -> None:
         if self.generator not in GENERATORS:
@@ -94,8 +108,27 @@ def _log_columns(model: RigidModel, log: RobotLog) -> list[int]:
     return [log.joint_names.index(j) for j in model.joint_names]
 
 
+def _coulomb_correction(
+    model: RigidModel, q: np.ndarray, qd: np.ndarray, dt: float, cutoff: float
+) -> np.ndarray:
+    """(N, J) G(fc tanh(q'_fast / v_s)) − fc tanh(q'_G / v_s): add to the model torque."""
+    vs = float(model.structure.get("coulomb_slope_rad_s", 0.0) or 0.0)
+    names = model.param_names
+    fc = np.array([
+        model.theta[names.index(f"{j}.fc")] if f"{j}.fc" in names else 0.0
+        for j in model.joint_names
+    ])
+    if vs <= 0 or not np.any(fc):
+        return np.zeros_like(qd)
+    fast_cut = 0.999 * MAX_CUTOFF_FRACTION / dt
+    _, qd_fast, _ = causal_derivatives(dt, q, fast_cut)
+    smooth = causal_lowpass(fc * np.tanh(qd_fast / vs), dt, cutoff)
+    return np.asarray(smooth - fc * np.tanh(qd / vs))
+
+
 def momentum_observer(  # noqa: PLR0917 (signals first, settings last)
-    model: RigidModel, q: np.ndarray, qd: np.ndarray, tau: np.ndarray, dt: float, gain: float
+    model: RigidModel, q: np.ndarray, qd: np.ndarray, tau: np.ndarray, dt: float, gain: float,
+    n_correction: np.ndarray | None = None,
 ) -> np.ndarray:
     """(N, J) generalized-momentum observer residual [N·m] (De Luca), causal.
 
@@ -103,6 +136,7 @@ def momentum_observer(  # noqa: PLR0917 (signals first, settings last)
         model: the rigid model (M(q), n(q, q') from its regressor).
         q, qd: (N, J) positions [rad] and velocities [rad/s] (causally filtered).
         tau: (N, J) input torque [N·m]. dt: sample period [s]. gain: K [1/s].
+        n_correction: optional (N, J) added to n(q, q') (the Coulomb correction).
     """
     alpha = gain * dt
     if not alpha < 1.0:
@@ -113,6 +147,8 @@ def momentum_observer(  # noqa: PLR0917 (signals first, settings last)
     m = model.mass_matrix(q)
     p = np.einsum("nij,nj->ni", m, qd)
     n_term = model.predict(q, qd, np.zeros_like(q))
+    if n_correction is not None:
+        n_term = n_term + n_correction
     mdot_qd = np.zeros_like(q)
     mdot_qd[1:] = np.einsum("nij,nj->ni", (m[1:] - m[:-1]) / dt, qd[1:])
     u = tau - n_term + mdot_qd
@@ -136,12 +172,17 @@ def compute_residual(
     tau = log.torque[:, cols]
     q_f, qd, qdd = causal_derivatives(dt, q, cutoff)
     tau_in = causal_lowpass(tau, dt, cutoff) if options.filter_torque else np.array(tau)
+    corr = None
+    if options.filter_torque and options.coulomb_through_filter:
+        corr = _coulomb_correction(model, q, qd, dt, cutoff)
     if options.generator == "inverse_dynamics":
         tau_hat = model.predict(q_f, qd, qdd)
+        if corr is not None:
+            tau_hat = tau_hat + corr
         tau_used = tau_in
         r = tau_hat - tau_used
     else:
-        r = momentum_observer(model, q_f, qd, tau_in, dt, options.observer_gain)
+        r = momentum_observer(model, q_f, qd, tau_in, dt, options.observer_gain, corr)
         tau_used = first_order_lowpass(tau_in, dt, options.observer_gain)
         tau_hat = tau_used + r
     settings = asdict(options)

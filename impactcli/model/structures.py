@@ -26,8 +26,12 @@ Regressors are returned as (N, J, P) arrays: Y[k, j, :] @ theta = tau_j at sampl
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
+import os
+import tempfile
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -166,15 +170,43 @@ def _pinocchio() -> Any:
     return pinocchio
 
 
+@contextlib.contextmanager
+def _captured_stderr() -> Iterator[list[str]]:
+    """Capture what C++ code (urdfdom) writes to file descriptor 2; yield its lines after."""
+    lines: list[str] = []
+    try:
+        saved = os.dup(2)
+    except OSError:  # no real stderr: nothing to capture
+        yield lines
+        return
+    with tempfile.TemporaryFile(mode="w+b") as tmp:
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield lines
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            tmp.seek(0)
+            lines.extend(tmp.read().decode("utf-8", "replace").splitlines())
+
+
 @functools.lru_cache(maxsize=8)
 def _pin_model(urdf_xml: str, joints: tuple[str, ...], where: str) -> Any:
     """Pinocchio model from URDF text, reduced to ``joints`` (others locked at neutral)."""
     pin = _pinocchio()
-    try:
-        full = pin.buildModelFromXML(urdf_xml)
-    except Exception as err:  # pinocchio raises ValueError/RuntimeError on bad URDF
+    with _captured_stderr() as parser_output:
+        try:
+            full = pin.buildModelFromXML(urdf_xml)
+            err = None
+        except Exception as e:  # pinocchio raises ValueError/RuntimeError on bad URDF
+            err = e
+    if err is not None:
+        lines = [ln.strip() for ln in parser_output if ln.strip().startswith("Error:")]
+        detail = lines[-1].removeprefix("Error:").strip() if lines else ""
         msg = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
-        raise RobotDescriptionError(f"{where}: URDF does not parse: {msg}") from err
+        raise RobotDescriptionError(
+            f"{where}: URDF does not parse: {msg}" + (f" ({detail})" if detail else "")
+        ) from err
     names = list(full.names)[1:]
     missing = [j for j in joints if j not in names]
     if missing:
