@@ -30,7 +30,7 @@ def _rows(n: int, dt: float = 0.01) -> list[list[float]]:
 
 
 def _fmt(rows: list[list[float]]) -> str:
-    return "".join(",".join(repr(v) if v == v else "nan" for v in r) + "\n" for r in rows)
+    return "".join(",".join("nan" if np.isnan(v) else repr(v) for v in r) + "\n" for r in rows)
 
 
 def _npz_mismatch(tmp: Path) -> tuple[Path, dict[str, object]]:
@@ -60,7 +60,8 @@ def _case_unknown(tmp: Path) -> tuple[Path, dict[str, object]]:
 
 
 def _case_no_time(tmp: Path) -> tuple[Path, dict[str, object]]:
-    return _csv(tmp, "0.1,1,0.2,2\n0.2,1,0.3,2\n", head="j1.position,j1.torque,j2.position,j2.torque\n"), {}
+    head = "j1.position,j1.torque,j2.position,j2.torque\n"
+    return _csv(tmp, "0.1,1,0.2,2\n0.2,1,0.3,2\n", head=head), {}
 
 
 def _case_non_monotonic(tmp: Path) -> tuple[Path, dict[str, object]]:
@@ -173,13 +174,15 @@ CASES: dict[str, tuple[Callable[[Path], tuple[Path, dict[str, object]]], str]] =
     "NaN run": (_case_nan_run, r"column 'j1.torque', row 11 .*7 non-finite \(NaN\)"),
     "inf run": (_case_inf_run, r"column 'j1.position', row 4 .*infinite"),
     "NaN at start": (_case_nan_at_start, r"column 'j2.torque', row 1 .*start of the log"),
-    "non-numeric cell": (_case_non_numeric, r"column 'j1.torque', row 5 \(line 6\): non-numeric value 'abc'"),
+    "non-numeric cell": (_case_non_numeric,
+                         r"column 'j1.torque', row 5 \(line 6\): non-numeric value 'abc'"),
     "map points at nothing": (_case_map_points_at_nothing, "points at column 42"),
     "map key not in npz": (_case_map_bad_key, "points at array 'times'"),
     "corrupt mcap": (_case_corrupt_mcap, "corrupt"),
     "not an mcap": (_case_not_mcap, "not an MCAP file"),
     "corrupt chunk": (_case_corrupt_chunk, "corrupt chunk"),
-    "mcap topic missing": (_case_missing_topic, r"topic '/no_such_topic' not found \(topics: /joint_states\)"),
+    "mcap topic missing": (_case_missing_topic,
+                           r"topic '/no_such_topic' not found \(topics: /joint_states\)"),
     "empty csv": (_case_empty, "empty file"),
     "npz without map": (_case_npz_without_map, "needs a channel map"),
 }
@@ -225,7 +228,7 @@ def test_channel_map_errors_are_channel_map_errors(tmp_path: Path) -> None:
     bad.write_text("time: 0\njoints: [{name: a}]\n")  # no position
     with pytest.raises(ChannelMapError, match=r"bad_map.yaml.*position"):
         read_log(path, channel_map=bad)
-    with pytest.raises(ChannelMapError, match="channel map not found.*shipped: kuka_lwr4"):
+    with pytest.raises(ChannelMapError, match=r"channel map not found.*shipped: kuka_lwr4"):
         read_log(path, channel_map="no_such_map")
 
 

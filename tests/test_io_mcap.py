@@ -52,17 +52,16 @@ def _official_file(path: Path, msgs: list[dict[str, Any]], compression: Compress
         w.finish()
 
 
-def _random_msgs(n: int, seed: int = 0, shuffle: bool = True) -> tuple[list[dict[str, Any]], dict[str, np.ndarray]]:
+def _random_msgs(
+    n: int, seed: int = 0, shuffle: bool = True
+) -> tuple[list[dict[str, Any]], dict[str, np.ndarray]]:
     rng = np.random.default_rng(seed)
     t = 1_000_000_000 + np.arange(n, dtype=np.int64) * 2_000_000
     truth = {s: rng.normal(size=(n, 3)) for s in ("position", "velocity", "effort")}
     msgs = []
     for i in range(n):
         order = rng.permutation(3) if shuffle and i % 7 == 3 else np.arange(3)
-        if shuffle and i % 11 == 5:
-            frame = "base_link"  # another size: another layout group
-        else:
-            frame = ""
+        frame = "base_link" if shuffle and i % 11 == 5 else ""  # another size, another group
         msgs.append({
             "t": int(t[i]), "pub": int(t[i]) + 17, "stamp": int(t[i]) - 1000, "frame": frame,
             "name": [NAMES[k] for k in order],

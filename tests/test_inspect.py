@@ -1,0 +1,92 @@
+"""``impactcli inspect``: JSON output valid against schemas/inspect.schema.json, numbers right."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from impactcli.cli import main
+from impactcli.errors import ImpactError, ImpactWarning
+from impactcli.io import inspect_log, write_log
+from impactcli.schema import validate
+from impactcli.types import RobotLog
+
+from .conftest import make_log
+
+
+def _gappy_log() -> RobotLog:
+    base = make_log(n=300, joints=("a", "b"))
+    t = np.arange(300, dtype=np.int64) * 4_000_000
+    t[200:] += 40_000_000  # one 44 ms gap after sample 199
+    return RobotLog(t_ns=t, joint_names=base.joint_names, position=base.position,
+                    torque=base.torque, position_ref=base.position_ref)
+
+
+def test_inspect_json_validates_and_describes(tmp_path: Path) -> None:
+    p = tmp_path / "g.csv"
+    write_log(_gappy_log(), p)
+    res = CliRunner().invoke(main, ["inspect", str(p), "--json"])
+    assert res.exit_code == 0, res.stderr
+    d = json.loads(res.stdout)
+    validate(d, "inspect", ImpactError, "inspect output")
+    assert d["joints"] == ["a", "b"] and d["format"] == "csv"
+    assert d["n_samples"] == 300 and d["reference"] is True
+    assert d["duration_s"] == pytest.approx(299 * 0.004 + 0.040)
+    assert d["sample_rate_hz"] == pytest.approx(250.0)
+    assert d["gaps"]["count"] == 1
+    assert d["gaps"]["listed"][0] == {"sample": 199, "t_s": pytest.approx(0.796),
+                                      "length_s": pytest.approx(0.044)}
+    assert d["jitter"]["dt_max_s"] == pytest.approx(0.044)
+    assert d["torque_source"] == "torque" and d["time_source"] == "column"
+    assert "a.position_ref" in d["channels"]["used"]
+    assert d["repairs"] == [] and d["channels"]["ignored"] == []
+
+
+def test_inspect_table_and_repairs_warned_on_stderr(tmp_path: Path) -> None:
+    p = tmp_path / "r.csv"
+    p.write_text("time,j.position,j.torque,note\n0,0,1,x\n0.1,,1,y\n0.2,0.2,1,z\n")
+    res = CliRunner().invoke(main, ["inspect", str(p)])
+    assert res.exit_code == 0, res.stderr
+    assert "impactcli: warning:" in res.stderr and "interpolated 1" in res.stderr
+    assert "joints" in res.stdout and "note" in res.stdout and "repair:" in res.stdout
+    with pytest.warns(ImpactWarning):
+        d = inspect_log(p)
+    assert d["channels"]["ignored"] == ["note"] and len(d["repairs"]) == 1
+
+
+def test_inspect_mcap_ros2(tmp_path: Path) -> None:
+    p = tmp_path / "x.mcap"
+    write_log(make_log(n=100), p, mcap_encoding="ros2")
+    res = CliRunner().invoke(main, ["inspect", str(p), "--json", "--time-source", "log"])
+    assert res.exit_code == 0, res.stderr
+    d = json.loads(res.stdout)
+    validate(d, "inspect", ImpactError, "inspect output")
+    assert d["format"] == "mcap-ros2" and d["time_source"] == "log" and d["reference"]
+
+
+@pytest.mark.real_logs
+def test_inspect_real_logs_by_short_map_name(real_logs: Path) -> None:
+    for log, cmap, joints in (("ur_ext_observer/link4.csv", "ur_ext_observer", 6),
+                              ("kuka_lwr4/measurements_1.npz", "kuka_lwr4", 7)):
+        res = CliRunner().invoke(main, ["inspect", str(real_logs / log), "--channel-map",
+                                        cmap, "--json"])
+        assert res.exit_code == 0, res.stderr
+        d = json.loads(res.stdout)
+        validate(d, "inspect", ImpactError, "inspect output")
+        assert d["n_joints"] == joints and d["repairs"] == []
+
+
+def test_inspect_with_robot_for_currents(tmp_path: Path) -> None:
+    p = tmp_path / "c.csv"
+    p.write_text("time,a.position,a.current\n0,0,1\n0.01,0,2\n0.02,0,3\n")
+    robot = tmp_path / "robot.yaml"
+    robot.write_text(
+        "joints: [{name: a, gear_ratio: 100, torque_constant: 0.02}]\nkinematics: null\n"
+    )
+    res = CliRunner().invoke(main, ["inspect", str(p), "--robot", str(robot), "--json"])
+    assert res.exit_code == 0, res.stderr
+    assert json.loads(res.stdout)["torque_source"] == "current"
