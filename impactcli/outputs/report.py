@@ -796,8 +796,8 @@ def _section_html(
             for q in params
         )
         p.append(
-            '<h4>Model parameters</h4><table><tr><th>parameter</th><th class="num">value</th>'
-            f'</tr>{cells}</table>'
+            '<h4>Model parameters</h4><table><thead><tr><th>parameter</th>'
+            f'<th class="num">value</th></tr></thead>{cells}</table>'
         )
     # thresholds & filter gain per joint
     fg = sec.get("filter_gain") or {}
@@ -859,11 +859,11 @@ def _section_html(
                 f"<td>{'yes' if ev['in_warmup'] else ''}</td></tr>"
             )
         p.append(
-            '<h4>Events</h4><div class="wide"><table><tr><th class="num">#</th><th'
+            '<h4>Events</h4><div class="wide"><table><thead><tr><th class="num">#</th><th'
             ' class="num">start [s]</th>'
             '<th class="num">end [s]</th><th class="num">duration [ms]</th><th>detector</th>'
             '<th>joints (first to fire first)</th><th class="num">peak ratio</th>'
-            '<th class="num">peak residual [N·m]</th><th>in warm-up</th></tr>'
+            '<th class="num">peak residual [N·m]</th><th>in warm-up</th></tr></thead>'
             + "".join(rows)
             + "</table></div>"
         )
@@ -1051,11 +1051,12 @@ def _quality_html(q: dict[str, Any]) -> str:
                 else ""
             )
             p.append(
-                '<h4>Labelled contacts</h4><div class="wide"><table><tr><th class="num">#</th>'
+                '<h4>Labelled contacts</h4><div class="wide"><table><thead><tr>'
+                '<th class="num">#</th>'
                 '<th class="num">start [s]</th><th class="num">end [s]</th><th>kind</th>'
                 '<th class="num">link</th><th class="num">peak force [N]</th><th>status</th>'
                 + "".join(f"<th>{_e(d)}</th>" for d in cdets)
-                + "</tr>"
+                + "</tr></thead>"
                 + "".join(rows)
                 + f"</table></div>{more}"
             )
@@ -1097,9 +1098,9 @@ def _sweep_html(sw: dict[str, Any]) -> str:
             )
         body.append(f'<tr><th class="num">{s:g}</th>{"".join(tds)}</tr>')
     p.append(
-        '<div class="wide"><table><tr><th class="num">scale s</th>'
+        '<div class="wide"><table><thead><tr><th class="num">scale s</th>'
         + "".join(f'<th class="num">{_e(d)}</th>' for d in dets)
-        + "</tr>"
+        + "</tr></thead>"
         + "".join(body)
         + "</table></div>"
     )

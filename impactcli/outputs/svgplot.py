@@ -206,7 +206,7 @@ def render_chart(chart: Chart, width: int = 860, height: int = 170, chart_id: st
         bx0, bx1 = float(px(max(b.t0, x0))), float(px(min(b.t1, x1)))
         if bx1 < ml or bx0 > ml + pw:
             continue
-        w = max(bx1 - bx0, 1.5)
+        w = max(bx1 - bx0, 3.0)  # a short event on a long log stays visible
         stroke = f' stroke="{b.outline}" stroke-width="1"' if b.outline else ""
         tip = f"<title>{_esc(b.label)}</title>" if b.label else ""
         parts.append(

@@ -1,0 +1,170 @@
+"""``impactcli report`` through click's CliRunner.
+
+The wiring (labels pairing, batch failures, timeline re-runs, exit codes) is tested with a
+stand-in for :func:`impactcli.pipeline.analyze` that returns the synthetic result on the log
+actually read; one end-to-end test runs the real pipeline when it is installed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import re
+import sys
+import types
+from pathlib import Path
+from typing import Any
+
+import jsonschema
+import pytest
+from click.testing import CliRunner, Result
+
+import impactcli.cli.report as cli_report
+from impactcli.cli import main
+from impactcli.errors import LogFormatError
+from impactcli.io import read_log  # type: ignore[attr-defined]
+from impactcli.io.csv import write_csv
+from impactcli.io.robot import write_labels
+from impactcli.outputs.timeline import write_timeline
+from impactcli.schema import load_schema
+from impactcli.types import ContactLabel, Labels
+
+from .conftest import make_log
+from .fakes import fake_result
+
+N = 2500  # fake_result's length: its log is make_log(N)
+
+
+def run(args: list[str]) -> Result:
+    return CliRunner().invoke(main, args, catch_exceptions=False)
+
+
+def show(res: Result) -> str:
+    return f"exit {res.exit_code}\nstdout:\n{res.stdout}\nstderr:\n{res.stderr}"
+
+
+@pytest.fixture
+def fake_pipeline(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
+    """Replace impactcli.pipeline.analyze: the synthetic result on the log it is given."""
+    calls: list[dict[str, Any]] = []
+
+    def analyze(log: Any, *, model: Any = None, config: Any = None, robot: Any = None) -> Any:
+        calls.append({"log": log, "model": model, "config": config, "robot": robot})
+        return dataclasses.replace(fake_result(), log=log)
+
+    mod = types.ModuleType("impactcli.pipeline")
+    mod.analyze = analyze  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "impactcli.pipeline", mod)
+    return calls
+
+
+def write_log(path: Path) -> Path:
+    write_csv(make_log(n=N), path)
+    return path
+
+
+def test_report_on_logs_with_labels_and_json(tmp_path: Path, fake_pipeline: list) -> None:
+    a = write_log(tmp_path / "arm_a.csv")
+    sub = tmp_path / "b"
+    sub.mkdir()
+    b = write_log(sub / "arm_b.csv")
+    # auto-discovered labels beside arm_b; none for arm_a
+    truth = Labels((ContactLabel(3.99, 4.12, 12.0, "impact", 2),), 250.0)
+    write_labels(truth, sub / "arm_b.labels.json")
+    out, js = tmp_path / "out" / "report.html", tmp_path / "out" / "report.json"
+    res = run(["report", str(a), str(b), "-o", str(out), "--json", str(js)])
+    assert res.exit_code == 0, show(res)
+    html = out.read_text("utf-8")
+    doc = json.loads(js.read_text("utf-8"))
+    jsonschema.validate(doc, load_schema("report"))
+    assert [s["stem"] for s in doc["summary"]] == ["arm_a", "arm_b"]
+    assert doc["logs"][0]["quality"] is None
+    assert doc["logs"][1]["labels"]["path"].endswith("arm_b.labels.json")
+    for log in doc["logs"]:
+        assert log["input"]["sha256"] in html and len(log["input"]["sha256"]) == 64
+    assert len(fake_pipeline) == 2
+    # same command again: byte-identical JSON and HTML
+    out2, js2 = tmp_path / "r2.html", tmp_path / "r2.json"
+    assert run(["report", str(a), str(b), "-o", str(out2), "--json", str(js2)]).exit_code == 0
+    assert js2.read_bytes() == js.read_bytes()
+    assert out2.read_bytes() == out.read_bytes()
+    # --no-auto-labels drops the discovered file
+    res = run(["report", str(a), str(b), "-o", str(out2), "--json", str(js2), "--no-auto-labels"])
+    assert json.loads(js2.read_text())["logs"][1]["labels"] is None, show(res)
+
+
+def test_labels_count_mismatch_is_a_usage_error(tmp_path: Path, fake_pipeline: list) -> None:
+    a, b = write_log(tmp_path / "a.csv"), write_log(tmp_path / "b.csv")
+    lab = tmp_path / "truth.json"
+    write_labels(Labels((), 250.0), lab)
+    res = run(["report", str(a), str(b), "-o", str(tmp_path / "r.html"), "--labels", str(lab)])
+    assert res.exit_code == 2, show(res)
+    assert "--labels" in res.stderr
+    assert not fake_pipeline  # refused before any work
+
+
+def test_batch_with_a_failing_input_exits_4(tmp_path: Path, fake_pipeline: list,
+                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    good = write_log(tmp_path / "good.csv")
+    bad = tmp_path / "bad.csv"
+    bad.write_text("time,j1.position\n0,0\n")
+    real = cli_report.analyze_log
+
+    def analyze_log(path: Path, **kw: Any) -> Any:
+        if path.name == "bad.csv":
+            raise LogFormatError(f"{path}: column 'j1.torque' missing")
+        return real(path, **kw)
+
+    monkeypatch.setattr(cli_report, "analyze_log", analyze_log)
+    out, js = tmp_path / "r.html", tmp_path / "r.json"
+    res = run(["report", str(good), str(bad), "-o", str(out), "--json", str(js)])
+    assert res.exit_code == 4, show(res)
+    assert "column 'j1.torque' missing" in res.stderr
+    doc = json.loads(js.read_text())
+    assert [s["stem"] for s in doc["summary"]] == ["good"]
+    assert doc["failed"][0]["path"].endswith("bad.csv")
+    assert "could not be analysed" in out.read_text()
+    # every input failing: the first error, exit 3, nothing written
+    res = run(["report", str(bad), "-o", str(tmp_path / "none.html")])
+    assert res.exit_code == 3, show(res)
+    assert not (tmp_path / "none.html").exists()
+
+
+def test_report_on_a_timeline_reruns_it(tmp_path: Path, fake_pipeline: list) -> None:
+    (tmp_path / "logs").mkdir()
+    log_path = write_log(tmp_path / "logs" / "run7.csv")
+    first = dataclasses.replace(fake_result(), log=read_log(log_path))
+    tl = tmp_path / "det" / "run7.timeline.json"
+    tl.parent.mkdir()
+    write_timeline(first, tl)
+    out, js = tmp_path / "r.html", tmp_path / "r.json"
+    res = run(["report", str(tl), "-o", str(out), "--json", str(js)])
+    assert res.exit_code == 0, show(res)
+    assert "warning" not in res.stderr, show(res)  # the re-run matches the recorded events
+    doc = json.loads(js.read_text())
+    assert doc["logs"][0]["stem"] == "run7"
+    assert doc["logs"][0]["input"]["sha256"] == first.log.source.sha256
+    recorded = json.loads(tl.read_text())["events"]
+    assert [(e["t_start"], e["detector"]) for e in doc["logs"][0]["events"]] == \
+        [(e["t_start"], e["detector"]) for e in recorded]
+    assert fake_pipeline[-1]["config"] is not None  # the recorded config was used
+    # the log changed since detection: refused, exit 3
+    with log_path.open("a") as f:
+        f.write("\n")
+    res = run(["report", str(tl), "-o", str(out)])
+    assert res.exit_code == 3, show(res)
+    assert re.search(r"changed since detection", res.stderr), show(res)
+
+
+def test_report_end_to_end_with_the_pipeline(tmp_path: Path) -> None:
+    pytest.importorskip("impactcli.pipeline")
+    log = write_log(tmp_path / "e2e.csv")
+    out, js = tmp_path / "r.html", tmp_path / "r.json"
+    res = CliRunner().invoke(main, ["report", str(log), "-o", str(out), "--json", str(js)])
+    assert res.exit_code == 0, show(res)
+    doc = json.loads(js.read_text())
+    jsonschema.validate(doc, load_schema("report"))
+    html = out.read_text()
+    assert doc["logs"][0]["input"]["sha256"] in html
+    for k in range(1, len(doc["logs"][0]["events"]) + 1):
+        assert f'id="log1-ev{k}"' in html
