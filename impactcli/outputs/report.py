@@ -250,6 +250,13 @@ def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]
                 ),
             }
         )
+    unexcited = ((result.model or {}).get("fit") or {}).get("unexcited_parameters") or []
+    if unexcited:
+        out.append({"code": "model-unexcited", "text": (
+            f"The log used for identification did not excite {len(unexcited)} model "
+            f"parameter(s) ({', '.join(map(str, unexcited[:6]))}"
+            + (", …" if len(unexcited) > 6 else "") + "); they were fixed at 0, so motions "
+            "that excite them raise the residual.")})
     if result.reference_source == "measured":
         out.append(
             {
@@ -570,6 +577,71 @@ def _json_pre(obj: Any, max_str: int = 240) -> str:
 
 
 def _fit_table(fit: dict[str, Any], joints: Sequence[str]) -> str:
+    """The model's fit statistics (impactcli.model.identify layout: per joint RMS of the
+    torque error on the fitted and the held-back part); any other layout generically."""
+    per = fit.get("joints") if isinstance(fit.get("joints"), dict) else None
+    if not per or not isinstance(per.get("fit"), dict):
+        return _generic_fit_table(fit, joints)
+    fitj = per.get("fit") or {}
+    hold = per.get("holdout") or {}
+    robust = fit.get("robust") or {}
+    down = robust.get("downweighted_fraction") or {}
+    cols = [("fit RMS error [N·m]", lambda j: (fitj.get(j) or {}).get("rms_nm")),
+            ("… / torque RMS", lambda j: (fitj.get(j) or {}).get("rms_rel_torque_rms")),
+            ("hold-out RMS error [N·m]", lambda j: (hold.get(j) or {}).get("rms_nm")),
+            ("… / torque RMS", lambda j: (hold.get(j) or {}).get("rms_rel_torque_rms")),
+            ("torque RMS [N·m]", lambda j: (fitj.get(j) or {}).get("torque_rms_nm")),
+            ("down-weighted fraction", down.get)]
+    head = "".join(f'<th class="num">{_e(c)}</th>' for c, _ in cols)
+    body = "".join(
+        f"<tr><th>{_e(j)}</th>" + "".join(f'<td class="num">{_g(fn(j))}</td>' for _, fn in cols)
+        + "</tr>" for j in joints)
+    unexc = fit.get("unexcited_parameters") or []
+    rows = [("method", _e(fit.get("method", "—"))),
+            ("samples fitted / held out", f"{_f(fit.get('n_samples_fit'))} / "
+                                          f"{_f(fit.get('n_samples_holdout'))}"
+             + ("" if hold else ' <span class="warn">(not validated on held-out data)</span>')),
+            ("condition number", _g(fit.get("condition_number"))),
+            ("unexcited parameters (fixed at 0)",
+             _e(", ".join(map(str, unexc))) if unexc else "none")]
+    opts = fit.get("options")
+    if isinstance(opts, dict) and opts:
+        rows.append(("identification options", '<span class="small">' + _e(", ".join(
+            f"{k}={v}" for k, v in sorted(opts.items()))) + "</span>"))
+    return (f'<div class="wide"><table><thead><tr><th>joint</th>{head}</tr></thead>{body}</table>'
+            f"</div>{_kv_table(rows)}")
+
+
+def _params_table(params: list[dict[str, Any]], joints: Sequence[str]) -> str:
+    """Parameters ``<joint>.<name>`` as a joints × names matrix; other names listed after."""
+    matrix: dict[str, dict[str, Any]] = {}
+    names: list[str] = []
+    rest: list[dict[str, Any]] = []
+    for q in params:
+        joint, _, name = str(q.get("name", "")).partition(".")
+        if joint in joints and name:
+            matrix.setdefault(joint, {})[name] = q.get("value")
+            if name not in names:
+                names.append(name)
+        else:
+            rest.append(q)
+    out = ""
+    if matrix:
+        head = "".join(f'<th class="num">{_e(n)}</th>' for n in names)
+        body = "".join(f"<tr><th>{_e(j)}</th>" + "".join(
+            f'<td class="num">{_g(matrix.get(j, {}).get(n))}</td>' for n in names) + "</tr>"
+            for j in joints if j in matrix)
+        out += (f'<div class="wide"><table><thead><tr><th>joint</th>{head}</tr></thead>'
+                f"{body}</table></div>")
+    if rest:
+        out += ('<table><thead><tr><th>parameter</th><th class="num">value</th></tr></thead>'
+                + "".join(f"<tr><td><code>{_e(q.get('name'))}</code></td>"
+                          f'<td class="num">{_g(q.get("value"))}</td></tr>' for q in rest)
+                + "</table>")
+    return out + '<p class="small muted">SI units: kg·m², kg·m, N·m·s/rad, N·m.</p>'
+
+
+def _generic_fit_table(fit: dict[str, Any], joints: Sequence[str]) -> str:
     """The model's fit statistics: per-joint quantities as columns, scalars as rows."""
     if not fit:
         return '<p class="muted">The model records no fit statistics.</p>'
@@ -790,15 +862,7 @@ def _section_html(
     p.append(_fit_table(model["model"].get("fit") or {}, joints))
     params = model["model"].get("parameters")
     if isinstance(params, list) and params:
-        cells = "".join(
-            f"<tr><td><code>{_e(q.get('name'))}</code></td>"
-            f'<td class="num">{_g(q.get("value"))}</td></tr>'
-            for q in params
-        )
-        p.append(
-            '<h4>Model parameters</h4><table><thead><tr><th>parameter</th>'
-            f'<th class="num">value</th></tr></thead>{cells}</table>'
-        )
+        p.append("<h4>Model parameters</h4>" + _params_table(params, joints))
     # thresholds & filter gain per joint
     fg = sec.get("filter_gain") or {}
     freqs = list(fg.get("frequencies_hz") or [])
