@@ -282,3 +282,28 @@ def test_pair_labels_rule(tmp_path: Path) -> None:
     assert auto_labels(a, a) is None
     la.write_text("{}")
     assert auto_labels(a, a) == la
+
+
+def test_model_fit_quality_and_unexcited_caveat() -> None:
+    fit = {"method": "robust least squares (bisquare)", "n_samples_fit": 2000,
+           "n_samples_holdout": 0, "condition_number": 812.5,
+           "unexcited_parameters": ["j2.fc", "j2.fv"],
+           "joints": {"fit": {"j1": {"rms_nm": 0.0734, "rms_rel_torque_rms": 0.0105,
+                                     "torque_rms_nm": 7.03},
+                              "j2": {"rms_nm": 0.1833, "rms_rel_torque_rms": 0.0102,
+                                     "torque_rms_nm": 17.9}},
+                      "holdout": None}}
+    model = {"kind": "decoupled", "joint_names": ["j1", "j2"], "fit": fit,
+             "parameters": [{"name": "j1.inertia", "value": 0.0148},
+                            {"name": "j2.inertia", "value": 0.1307}]}
+    r = result_named("run.csv", "7" * 64, model=model)
+    html, doc = build_report([r])
+    validate(doc)
+    start, end = html.index("<h4>Model fit quality</h4>"), html.index("<h4>Model parameters</h4>")
+    fit_html = html[start:end]
+    assert "0.0734" in fit_html and "0.1833" in fit_html and "812.5" in fit_html
+    assert "not validated on held-out data" in fit_html
+    assert "j2.fc, j2.fv" in fit_html
+    assert "model-unexcited" in {c["code"] for c in doc["logs"][0]["caveats"]}
+    params = html[html.index("<h4>Model parameters</h4>"):]
+    assert re.search(r"<th>j2</th><td class=\"num\">0.1307</td>", params)
