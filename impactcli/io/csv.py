@@ -115,7 +115,8 @@ def decimal_text_to_ns(values: Any, unit_ns: int) -> np.ndarray | None:
         ns = whole * 10**9 + frac
     else:
         ns = whole * unit_ns + np.round(frac * (unit_ns / 1e9)).astype(np.int64)
-    return np.where(neg, -ns, ns).astype(np.int64)
+    out: np.ndarray = np.where(neg, -ns, ns).astype(np.int64)
+    return out
 
 
 def _row_labeller(skip: int) -> Any:
@@ -288,14 +289,21 @@ def channels_from_columns(
     )
 
 
-def _ns_to_decimal(t_ns: np.ndarray) -> list[str]:
-    neg = t_ns < 0
-    a = np.abs(t_ns)
-    sec, frac = np.divmod(a, 10**9)
-    return [
-        f"{'-' if ng else ''}{s}.{f:09d}"
-        for ng, s, f in zip(neg.tolist(), sec.tolist(), frac.tolist(), strict=True)
-    ]
+def _ns_to_decimal(t_ns: np.ndarray) -> Any:
+    """int64 ns → pyarrow strings of seconds with 9 decimals (exact), e.g. ``-0.500000000``."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    t = np.asarray(t_ns, dtype=np.int64)
+    sec, frac = np.divmod(np.abs(t), 10**9)
+    txt = pc.binary_join_element_wise(
+        pc.cast(pa.array(sec), pa.string()),
+        pc.utf8_lpad(pc.cast(pa.array(frac), pa.string()), 9, "0"),
+        ".",
+    )
+    if np.any(t < 0):
+        txt = pc.if_else(pa.array(t < 0), pc.binary_join_element_wise("-", txt, ""), txt)
+    return txt
 
 
 def canonical_columns(log: RobotLog) -> list[tuple[str, np.ndarray]]:
@@ -322,7 +330,7 @@ def write_csv(log: RobotLog, path: str | os.PathLike[str]) -> None:
 
     cols = canonical_columns(log)
     table = pa.table(
-        {"time": pa.array(_ns_to_decimal(np.asarray(log.t_ns)), pa.string())}
+        {"time": _ns_to_decimal(np.asarray(log.t_ns))}
         | {name: pa.array(np.ascontiguousarray(v)) for name, v in cols}
     )
     head = ",".join(["time"] + [c for c, _ in cols]) + "\n"
@@ -330,7 +338,7 @@ def write_csv(log: RobotLog, path: str | os.PathLike[str]) -> None:
     p = Path(path)
     with atomic_output(p, "wb") as f:
         if _is_gz(p):
-            with gzip.GzipFile(fileobj=f, mode="wb", compresslevel=6, mtime=0) as gz:
+            with gzip.GzipFile(fileobj=f, mode="wb", compresslevel=1, mtime=0) as gz:
                 gz.write(head.encode())
                 pacsv.write_csv(table, gz, opts)
         else:

@@ -305,9 +305,9 @@ def _assemble(
         signals["position_ref"] = ref.position[sel]
         if ref.has_velocity.all():
             signals["velocity_ref"] = ref.velocity[sel]
-        for k in ("position_ref", "velocity_ref"):
-            if k in signals and not np.all(np.isfinite(signals[k])):
-                raise LogFormatError(f"{where}: reference {k!r} on {rtopic!r} is not finite")
+        for sig in ("position_ref", "velocity_ref"):
+            if sig in signals and not np.all(np.isfinite(signals[sig])):
+                raise LogFormatError(f"{where}: reference {sig!r} on {rtopic!r} is not finite")
     ch = JointChannels(
         t_ns=t, joints=joints, signals=signals, missing={}, current_scale=None,
         ignored=ignored, repairs=repairs,
@@ -352,7 +352,7 @@ def write_mcap_json(log: RobotLog, path: str | os.PathLike[str]) -> None:
                 msg[s] = lists[s][i]
             w.add_message(cid, log_time=t, publish_time=t, sequence=i,
                           data=json.dumps(msg, separators=(",", ":")).encode())
-        w.finish()
+        w.finish()  # type: ignore[no-untyped-call]
 
 
 def write_mcap_ros2(
@@ -393,4 +393,4 @@ def write_mcap_ros2(
                               data=refs[i].tobytes() + zeros)
             w.add_message(cid, log_time=t, publish_time=t, sequence=i,
                           data=state[i].tobytes() + zeros)
-        w.finish()
+        w.finish()  # type: ignore[no-untyped-call]

@@ -211,7 +211,8 @@ def _rows(b: Batch, sel: np.ndarray, length: int) -> np.ndarray:
                 b.buf[off[0]:], shape=(off.shape[0], length), strides=(int(d[0]), 1),
                 writeable=False,
             )
-    return b.buf[off[:, None] + np.arange(length)]
+    rows: np.ndarray = b.buf[off[:, None] + np.arange(length)]
+    return rows
 
 
 def _static_ranges(lay: Layout, length: int) -> list[tuple[int, int]]:

@@ -130,7 +130,7 @@ class _Collector:
             stride = 9 + ln0
             total = end - start
             if ln0 >= 22 and total % stride == 0:
-                dt = np.dtype({**_MSG_DTYPE_FIELDS, "itemsize": stride})
+                dt = np.dtype({**_MSG_DTYPE_FIELDS, "itemsize": stride})  # type: ignore[call-overload]
                 rec = np.frombuffer(buf, dtype=dt, count=total // stride, offset=start)
                 if np.all(rec["op"] == OP_MESSAGE) and np.all(rec["len"] == ln0):
                     n = rec.shape[0]
