@@ -307,3 +307,17 @@ def test_model_fit_quality_and_unexcited_caveat() -> None:
     assert "model-unexcited" in {c["code"] for c in doc["logs"][0]["caveats"]}
     params = html[html.index("<h4>Model parameters</h4>"):]
     assert re.search(r"<th>j2</th><td class=\"num\">0.1307</td>", params)
+
+
+def test_many_event_bands_are_merged_at_pixel_scale() -> None:
+    t = np.linspace(0, 3600, 1001)
+    starts = np.arange(2000) * 0.5 + 100.0  # 2000 alarms, 0.5 s apart, over 1000 s
+    bands = [svgplot.Band(float(a), float(a) + 0.01, "#f00", "alarm") for a in starts]
+    bands.append(svgplot.Band(3000.0, 3000.01, "#f00", "alarm"))  # far away: its own band
+    chart = svgplot.Chart("long", (0.0, 3600.0), (svgplot.Series("s", t, np.sin(t)),), bands)
+    svg = svgplot.render_chart(chart, chart_id="m")
+    rects = re.findall(r'<rect x="([\d.]+)" y="\d+" width="([\d.]+)"[^>]*fill="#f00"', svg)
+    assert len(rects) == 2
+    assert "2000 × alarm" in svg
+    _, w = map(float, rects[1])
+    assert w >= 3.0  # a 10 ms alarm on an hour-long plot is still visible

@@ -17,6 +17,7 @@ import html
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -202,13 +203,10 @@ def render_chart(chart: Chart, width: int = 860, height: int = 170, chart_id: st
         f'<clipPath id="{clip_id}"><rect x="{ml}" y="{mt}" width="{pw}" height="{ph}"/></clipPath>'
     )
     parts.append(f'<g clip-path="url(#{clip_id})">')
-    for b in chart.bands:
-        bx0, bx1 = float(px(max(b.t0, x0))), float(px(min(b.t1, x1)))
-        if bx1 < ml or bx0 > ml + pw:
-            continue
-        w = max(bx1 - bx0, 3.0)  # a short event on a long log stays visible
+    for bx0, w, b, count in _merged_bands(chart.bands, px, ml, ml + pw):
         stroke = f' stroke="{b.outline}" stroke-width="1"' if b.outline else ""
-        tip = f"<title>{_esc(b.label)}</title>" if b.label else ""
+        label = b.label if count == 1 else f"{count} × {b.label}"
+        tip = f"<title>{_esc(label)}</title>" if label else ""
         parts.append(
             f'<rect x="{bx0:.1f}" y="{mt}" width="{w:.1f}" height="{ph}"'
             f' fill="{b.fill}"{stroke}>{tip}</rect>'
@@ -272,6 +270,35 @@ def render_chart(chart: Chart, width: int = 860, height: int = 170, chart_id: st
         )
     parts.append("</svg>")
     return "".join(parts)
+
+
+def _merged_bands(bands: Sequence[Band], px: Any, left: float, right: float,
+                  min_px: float = 3.0) -> list[tuple[float, float, Band, int]]:
+    """Bands as pixel rectangles (x, width, band, count), at least ``min_px`` wide so a short
+    event on a long log stays visible; bands of one style closer than a pixel are merged
+    (thousands of alarms stay a few rectangles), in the order the styles first appear."""
+    styles: dict[tuple[str, str], list[tuple[float, float, Band]]] = {}
+    for b in bands:
+        a0, a1 = float(px(b.t0)), float(px(b.t1))
+        if a1 < left or a0 > right:
+            continue
+        a0, a1 = max(a0, left), min(a1, right)
+        a1 = max(a1, a0 + min_px)
+        styles.setdefault((b.fill, b.outline), []).append((a0, a1, b))
+    out: list[tuple[float, float, Band, int]] = []
+    for items in styles.values():
+        items.sort(key=lambda it: (it[0], it[1]))
+        cur0, cur1, first = items[0]
+        n = 1
+        for a0, a1, b in items[1:]:
+            if a0 <= cur1 + 1.0:
+                cur1 = max(cur1, a1)
+                n += 1
+            else:
+                out.append((cur0, cur1 - cur0, first, n))
+                cur0, cur1, first, n = a0, a1, b, 1
+        out.append((cur0, cur1 - cur0, first, n))
+    return out
 
 
 def _stable_id(text: str) -> str:
