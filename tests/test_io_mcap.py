@@ -293,3 +293,22 @@ def test_write_log_ros2_readable_by_official_reader(tmp_path: Path) -> None:
         ref = decode_topic_official(path, "/joint_states_ref", str(path))
     np.testing.assert_array_equal(ref.position, log.position_ref)
     np.testing.assert_array_equal(ref.velocity, log.velocity_ref)
+
+
+def test_unsupported_files_fall_back_to_the_official_reader(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import impactcli.io.mcap_scan as scan_mod
+
+    log = _log(ref=True)
+    path = tmp_path / "f.mcap"
+    write_log(log, path, mcap_encoding="ros2")
+
+    def unsupported(kind: str, data: bytes, size: int) -> bytes:
+        raise scan_mod.UnsupportedMcap(f"compression {kind!r}")
+
+    monkeypatch.setattr(scan_mod, "_decompress", unsupported)
+    back = read_log(path)  # default reference topic <topic>_ref, as with the scanner
+    np.testing.assert_array_equal(back.t_ns, log.t_ns)
+    np.testing.assert_array_equal(back.torque, log.torque)
+    np.testing.assert_array_equal(back.position_ref, log.position_ref)

@@ -169,9 +169,15 @@ def read_mcap_channels(
         # the official reader, for what the scanner does not handle (ROS 2 only)
         t = topic or ROS2_TOPIC
         state = decode_topic_official(path, t, where)
-        ref = (decode_topic_official(path, reference_topic, where, state.joints)
-               if reference_topic else None)
-        return _assemble(state, ref, "ros2", where, t, reference_topic, time_source, [], [])
+        rt = reference_topic or f"{t}_ref"
+        try:
+            ref = decode_topic_official(path, rt, where, state.joints)
+        except LogFormatError as err:
+            if reference_topic is not None or "holds no messages" not in str(err):
+                raise
+            ref = None
+        rtopic = rt if ref is not None else None
+        return _assemble(state, ref, "ros2", where, t, rtopic, time_source, [], [])
     if scan.n_messages == 0:
         what = ("truncated before its first complete message" if scan.truncated
                 else "holds no messages")
