@@ -74,13 +74,13 @@ def analyze_log(
     channel_map: str | None,
 ) -> Any:
     """Read ``path`` and replay the detectors (:func:`impactcli.pipeline.analyze`)."""
-    from ..io import read_log  # type: ignore[attr-defined]
-    from ..pipeline import analyze  # type: ignore[import-not-found]
+    from ..io import read_log
+    from ..pipeline import analyze
 
     robot_desc = _read_robot(robot)
     model_obj = None
     if model is not None:
-        from ..model.rigid import read_model  # type: ignore[attr-defined]
+        from ..model.rigid import read_model
 
         model_obj = read_model(model)
     config_obj = None
@@ -124,8 +124,8 @@ def timeline_log_path(tl_path: Path, recorded: str) -> Path:
 def rerun_timeline(tl_path: Path, *, robot: Path | None) -> tuple[Any, Path]:
     """Re-run detection as a timeline records it; returns (DetectionResult, log path)."""
     from ..config import DetectorConfig
-    from ..io import read_log  # type: ignore[attr-defined]
-    from ..pipeline import analyze  # type: ignore[import-not-found]
+    from ..io import read_log
+    from ..pipeline import analyze
 
     tl = load_timeline(tl_path)
     inp = tl["input"]

@@ -15,7 +15,7 @@ from __future__ import annotations
 import hashlib
 import html
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -307,7 +307,7 @@ def _stable_id(text: str) -> str:
 
 def render_xy(
     title: str,
-    groups: dict[str, tuple[Sequence[float], Sequence[float]]],
+    groups: Mapping[str, tuple[Sequence[float], Sequence[float]]],
     x_label: str,
     y_label: str,
     *,
