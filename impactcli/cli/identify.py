@@ -35,6 +35,8 @@ def format_fit_table(model: Any) -> str:
             row += (f"  {h['rms_nm']:>8.4g}  {_pct(h['rms_rel_torque_rms'])}  "
                     f"{_pct(h['rms_rel_range'])}")
         lines.append(row)
+    if fit.get("still_joints"):
+        lines.append(f"still joints (constant torque only): {', '.join(fit['still_joints'])}")
     if fit.get("unexcited_parameters"):
         lines.append(f"not excited (fixed at 0): {', '.join(fit['unexcited_parameters'])}")
     return "\n".join(lines)
@@ -67,11 +69,14 @@ def _pct(x: float | None) -> str:
 @click.option("--coulomb-slope", "coulomb_slope", type=click.FloatRange(min=0, min_open=True),
               default=0.02, show_default=True,
               help="v_s of the smooth Coulomb sign tanh(q'/v_s) [rad/s].")
+@click.option("--allow-still-joints", "allow_still", is_flag=True,
+              help="Model a joint that does not move by its constant torque only "
+                   "(default: an error).")
 @handle_errors
 def identify_cmd(  # noqa: PLR0917 (click passes options by keyword; one per option)
     log: str, output: str, robot: str | None, kind: str | None, channel_map: str | None,
     torque_source: str | None, cutoff_hz: float, holdout_fraction: float, robust: str,
-    coulomb_slope: float,
+    coulomb_slope: float, allow_still: bool,
 ) -> None:
     """Identify a rough rigid model (tau = Y(q, q', q'') theta) from LOG and write it."""
     from ..io import read_log  # noqa: PLC0415 (verbs import lazily: fast --help)
@@ -81,7 +86,8 @@ def identify_cmd(  # noqa: PLR0917 (click passes options by keyword; one per opt
     desc = read_robot(robot) if robot else None
     data = read_log(log, channel_map=channel_map, robot=desc, torque_source=torque_source)
     options = IdentifyOptions(cutoff_hz=cutoff_hz, holdout_fraction=holdout_fraction,
-                              robust=robust, coulomb_slope_rad_s=coulomb_slope)
+                              robust=robust, coulomb_slope_rad_s=coulomb_slope,
+                              allow_still_joints=allow_still)
     model = identify(data, robot=desc, kind=kind, options=options)
     write_model(model, output)
     click.echo(format_fit_table(model))

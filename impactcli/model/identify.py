@@ -55,6 +55,8 @@ class IdentifyOptions:
         holdout_fraction: last fraction of the log held back for validation (0: none).
         min_holdout_s: hold back only when that part lasts at least this long [s].
         min_motion_rad: a joint whose position range is below this is "constant" [rad].
+        allow_still_joints: a constant joint is an error by default; with this, it is
+            warned about and its unexcited parameters are fixed at 0 (it keeps an offset).
         drop_tolerance: relative QR pivot below which a parameter is "not excited".
         condition_warn: warn when the normalised regressor's condition number exceeds it.
     """
@@ -72,6 +74,7 @@ class IdentifyOptions:
     holdout_fraction: float = 0.2
     min_holdout_s: float = 2.0
     min_motion_rad: float = 1e-3
+    allow_still_joints: bool = False
     drop_tolerance: float = 1e-4
     condition_warn: float = 1e3
 
@@ -117,8 +120,17 @@ def match_joints(
     return [log_joints.index(j) for j in rj]
 
 
-def check_motion(q: np.ndarray, joints: tuple[str, ...], min_motion_rad: float, where: str) -> None:
-    """ModelError if the log has no motion, or a joint stays constant."""
+MOTION_PARAMS: tuple[str, ...] = ("inertia", "gcos", "gsin", "Ia", "fv", "fc")
+
+
+def check_motion(
+    q: np.ndarray, joints: tuple[str, ...], min_motion_rad: float, where: str,
+    allow_still: bool = False,
+) -> list[str]:
+    """ModelError if the log has no motion, or (unless ``allow_still``) a joint stays constant.
+
+    Returns the names of the joints that stay constant (only with ``allow_still``).
+    """
     rng = np.ptp(q, axis=0)
     still = [j for j, r in zip(joints, rng, strict=True) if r < min_motion_rad]
     if len(still) == len(joints):
@@ -128,10 +140,18 @@ def check_motion(q: np.ndarray, joints: tuple[str, ...], min_motion_rad: float, 
         )
     if still:
         ranges = ", ".join(f"{j} {rng[joints.index(j)]:.2g} rad" for j in still)
+        if allow_still:
+            warnings.warn(
+                f"{where}: joint(s) stay constant ({ranges}): only their constant torque "
+                "is modelled", ImpactWarning, stacklevel=3,
+            )
+            return still
         raise ModelError(
             f"{where}: joint(s) stay constant ({ranges}, below {min_motion_rad:g} rad): their "
-            "dynamics cannot be identified; record a log in which every joint moves"
+            "dynamics cannot be identified; record a log in which every joint moves "
+            "(or allow still joints)"
         )
+    return []
 
 
 def _structure_for(
@@ -185,27 +205,38 @@ def robust_lstsq(
         theta (P,), weights (N, J) in [0, 1], info (iterations, stage).
     """
     n, nj, p = y_reg.shape
-    a = y_reg.reshape(n * nj, p)
-    b = tau.reshape(n * nj)
     trms = np.sqrt(np.mean(tau**2, axis=0))
     floor = 1e-9 * np.maximum(trms, 1e-12)
+    # per joint, only the columns that are non-zero in its rows (the decoupled model is
+    # block diagonal; a chain's last joints see few columns): far less work per iteration
+    blocks = []
+    for j in range(nj):
+        cols = np.flatnonzero(np.any(y_reg[:, j, :] != 0.0, axis=0))
+        blocks.append((cols, np.ascontiguousarray(y_reg[:, j, cols])))
 
-    def wls(row_w: np.ndarray) -> np.ndarray:
-        # normal equations on unit-norm columns: cheap, and accurate at the condition
-        # numbers the excitation check lets through (≤ 1/drop_tolerance)
-        sw = np.sqrt(row_w)
-        aw = a * sw[:, None]
-        cn = np.linalg.norm(aw, axis=0)
-        cn[cn == 0] = 1.0
-        aw /= cn
+    def predict(th: np.ndarray) -> np.ndarray:
+        return np.stack([aj @ th[cols] for cols, aj in blocks], axis=1)
+
+    def wls(w: np.ndarray) -> np.ndarray:
+        """Weighted normal equations (w: (N, J) row weights), diagonally scaled: accurate at
+        the condition numbers the excitation check lets through (≤ 1/drop_tolerance)."""
+        g = np.zeros((p, p))
+        h = np.zeros(p)
+        for j, (cols, aj) in enumerate(blocks):
+            awj = aj * w[:, j, None]
+            g[np.ix_(cols, cols)] += awj.T @ aj
+            h[cols] += awj.T @ tau[:, j]
+        d = np.sqrt(np.diag(g))
+        d[d == 0] = 1.0
+        gs = g / d[:, None] / d[None, :]
         try:
-            sol = np.linalg.solve(aw.T @ aw, aw.T @ (b * sw))
+            sol = np.linalg.solve(gs, h / d)
         except np.linalg.LinAlgError:
-            sol, *_ = np.linalg.lstsq(aw, b * sw, rcond=None)
-        return np.asarray(sol) / cn
+            sol, *_ = np.linalg.lstsq(gs, h / d, rcond=None)
+        return np.asarray(sol) / d
 
     scale0 = np.maximum(trms, floor)
-    theta = wls(np.tile(1.0 / scale0**2, n))
+    theta = wls(np.broadcast_to(1.0 / scale0**2, (n, nj)))
     w = np.ones((n, nj))
     iters = {"huber": 0, "bisquare": 0}
     if options.robust == "none":
@@ -215,7 +246,7 @@ def robust_lstsq(
         if stage == "bisquare" and options.robust != "bisquare":
             break
         for _ in range(options.max_iter):
-            res = tau - (a @ theta).reshape(n, nj)
+            res = tau - predict(theta)
             if stage == "huber":
                 sigma = _robust_scale(res, floor)
             u = np.abs(res) / sigma
@@ -224,9 +255,9 @@ def robust_lstsq(
             else:
                 c = options.bisquare_c
                 w = np.where(u < c, (1.0 - (u / c) ** 2) ** 2, 0.0)
-            new = wls((w / sigma**2).reshape(-1))
+            new = wls(w / sigma**2)
             iters[stage] += 1
-            done = np.linalg.norm(new - theta) <= 1e-10 * (1.0 + np.linalg.norm(theta))
+            done = bool(np.linalg.norm(new - theta) <= 1e-7 * np.linalg.norm(theta))
             theta = new
             if done:
                 break
@@ -272,7 +303,7 @@ def identify_signals(
     q, qd, qdd, tau = (np.asarray(x, dtype=np.float64) for x in (q, qd, qdd, tau))
     if kind not in structures.KINDS:
         raise ModelError(f"unknown model kind {kind!r} (choose from {', '.join(structures.KINDS)})")
-    check_motion(q, joints, options.min_motion_rad, where)
+    still = check_motion(q, joints, options.min_motion_rad, where, options.allow_still_joints)
     structure = _structure_for(kind, robot, joints, options, where)
     y_reg = structures.regressor(kind, joints, structure, q, qd, qdd)
     y_hold = None
@@ -281,17 +312,21 @@ def identify_signals(
         y_hold = (structures.regressor(kind, joints, structure, hq, hqd, hqdd), htau)
     return _fit(y_reg, tau, y_hold, kind=kind, joints=joints, structure=structure,
                 robot=robot, options=options, where=where, filter_info={},
-                input_sha256=input_sha256)
+                input_sha256=input_sha256, still=still)
 
 
 def _fit(
     y_reg: np.ndarray, tau: np.ndarray, y_hold: tuple[np.ndarray, np.ndarray] | None, *,
     kind: str, joints: tuple[str, ...], structure: dict[str, Any],
     robot: RobotDescription | None, options: IdentifyOptions, where: str,
-    filter_info: dict[str, Any], input_sha256: str,
+    filter_info: dict[str, Any], input_sha256: str, still: list[str] | None = None,
 ) -> RigidModel:
-    """Excitation check, robust fit and statistics on a stacked regressor (N, J, P)."""
+    """Excitation check, robust fit and statistics on a stacked regressor (N, J, P).
+
+    The motion parameters (:data:`MOTION_PARAMS`) of the joints in ``still`` are fixed at 0.
+    """
     names = structures.param_names(kind, joints, structure)
+    frozen = {f"{j}.{p}" for j in (still or []) for p in MOTION_PARAMS}
     n, nj, p = y_reg.shape
     a = y_reg.reshape(n * nj, p)
     # excitation: normalised pivoted QR (rows scaled per joint by the torque RMS)
@@ -300,7 +335,7 @@ def _fit(
     an = a * rs[:, None]
     norms = np.linalg.norm(an, axis=0)
     top = float(norms.max()) if norms.size else 0.0
-    live = norms > 1e-12 * top
+    live = (norms > 1e-12 * top) & np.array([nm not in frozen for nm in names], dtype=bool)
     keep = np.zeros(p, dtype=bool)
     if np.any(live):
         idx = np.flatnonzero(live)
@@ -308,7 +343,7 @@ def _fit(
         d = np.abs(np.diag(r))
         ok = d > options.drop_tolerance * d[0]
         keep[idx[piv[: int(np.sum(ok))]]] = True
-    dropped = [names[i] for i in range(p) if not keep[i]]
+    dropped = [names[i] for i in range(p) if not keep[i] and names[i] not in frozen]
     if dropped:
         warnings.warn(
             f"{where}: the log does not excite {len(dropped)} parameter(s) of the {kind} model "
@@ -335,6 +370,7 @@ def _fit(
         "n_samples_holdout": 0,
         "condition_number": cond,
         "unexcited_parameters": dropped,
+        "still_joints": list(still or []),
         "robust": {
             **info,
             "downweighted_fraction": {
@@ -395,7 +431,8 @@ def identify(
     joints = tuple(log.joint_names[c] for c in cols)
     q_raw = log.position[:, cols]
     tau_raw = log.torque[:, cols]
-    check_motion(q_raw, joints, options.min_motion_rad, where)
+    still = check_motion(q_raw, joints, options.min_motion_rad, where,
+                         options.allow_still_joints)
     t = log.time_s
     fs = log.sample_rate_hz
     cutoff = clip_cutoff(options.cutoff_hz, fs, "identification cut-off")
@@ -432,4 +469,4 @@ def identify(
     }
     return _fit(y_reg[fit_sl], tau_f[fit_sl], y_hold, kind=kind, joints=joints,
                 structure=structure, robot=robot, options=options, where=where,
-                filter_info=filter_info, input_sha256=log.source.sha256)
+                filter_info=filter_info, input_sha256=log.source.sha256, still=still)
