@@ -7,7 +7,13 @@ import numba
 import numpy as np
 import pytest
 
-from impactcli.detect.rls import RecursiveLeastSquares, rls_run, rls_step, rls_update_inplace
+from impactcli.detect.rls import (
+    RecursiveLeastSquares,
+    rls_run,
+    rls_step,
+    rls_update_inplace,
+    symmetrize,
+)
 
 
 def _data(n: int, nu: int, seed: int = 0, noise: float = 0.1):
@@ -77,7 +83,7 @@ def _drive(theta, P, pool, theta_true, n_steps, seed):  # noqa: PLR0917
 
 def test_stays_symmetric_positive_definite_over_5e6_steps() -> None:
     """nu = 34, lambda = 0.999 (Table I), guard off: 5e6 steps (a compiled driver, 1e6 per
-    chunk); P exactly symmetric and Cholesky-factorisable after every chunk, no reset,
+    chunk); P (symmetric by storage) Cholesky-factorisable after every chunk, no reset,
     estimate right at the end."""
     nu = 34
     rng = np.random.default_rng(3)
@@ -86,9 +92,9 @@ def test_stays_symmetric_positive_definite_over_5e6_steps() -> None:
     theta, P = np.zeros(nu), 10.0 * np.eye(nu)
     for chunk in range(5):
         assert _drive(theta, P, pool, theta_true, 1_000_000, chunk) == 0
-        assert np.array_equal(P, P.T)
-        np.linalg.cholesky(P)
-        assert np.linalg.eigvalsh(P).min() > 0
+        full = symmetrize(P)                      # the kernel keeps the lower triangle
+        np.linalg.cholesky(full)
+        assert np.linalg.eigvalsh(full).min() > 0
     np.testing.assert_allclose(theta, theta_true, atol=2e-3)
 
 

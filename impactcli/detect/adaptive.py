@@ -58,7 +58,7 @@ from scipy import signal
 from ..config import AdaptiveConfig
 from ..errors import ImpactWarning
 from ..types import RobotLog
-from .rls import default_max_trace, rls_update_inplace
+from .rls import FASTMATH, default_max_trace, rls_update_inplace
 
 #: Frequencies at which |G_hat| is reported [Hz] (plus fs/4 = Nyquist/2, added per log).
 GAIN_FREQUENCIES_HZ: tuple[float, ...] = (1.0, 2.0, 5.0, 10.0, 20.0)
@@ -244,7 +244,7 @@ def g_gain(theta_g: np.ndarray, freqs_hz: np.ndarray, fs_hz: float) -> np.ndarra
 
 
 # ----------------------------------------------------------------------------- kernels
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, fastmath=FASTMATH)
 def _evaluate_numba(  # noqa: PLR0917 (numba kernels take positional arguments)
     r: np.ndarray, u: np.ndarray, eta: int, p: int, rho: np.ndarray,
     lam: float, p0: float, theta0: float, max_trace: float, a_post: bool,
@@ -276,19 +276,38 @@ def _evaluate_numba(  # noqa: PLR0917 (numba kernels take positional arguments)
     th_old = np.empty(nu)
     inv_n1 = 1.0 / n1
     inv_n2 = 1.0 / n2
+    maxlag = max(eta, p)
+    uphi = np.zeros(nu - eta - p)
+    sum_r = np.zeros(J)
+    sum_v = np.zeros(J)
+    ring_r = np.zeros((J, n1))
+    ring_v = np.zeros((J, n2))
+    pos1 = 0
+    pos2 = 0
     for k in range(n):
+        # the inputs' part of phi is the same for every axis: u_{i,l}(k-1..k-rho_i)
+        c = 0
+        for i in range(m):
+            for ll in range(J):
+                for d in range(1, rho[i] + 1):
+                    uphi[c] = u[i, k - d, ll] if k - d >= 0 else 0.0
+                    c += 1
         for j in range(J):
-            # regressor phi(k)
-            for d in range(1, eta + 1):
-                phi[d - 1] = r[k - d, j] if k - d >= 0 else 0.0
-            for d in range(1, p + 1):
-                phi[eta + d - 1] = vd[k - d, j] if k - d >= 0 else 0.0
-            c = eta + p
-            for i in range(m):
-                for ll in range(J):
-                    for d in range(1, rho[i] + 1):
-                        phi[c] = u[i, k - d, ll] if k - d >= 0 else 0.0
-                        c += 1
+            # regressor phi(k) (zeros before the start; no branches once k >= max lag)
+            if k >= maxlag:
+                for d in range(1, eta + 1):
+                    phi[d - 1] = r[k - d, j]
+                for d in range(1, p + 1):
+                    phi[eta + d - 1] = vd[k - d, j]
+                for c in range(nu - eta - p):
+                    phi[eta + p + c] = uphi[c]
+            else:
+                for d in range(1, eta + 1):
+                    phi[d - 1] = r[k - d, j] if k - d >= 0 else 0.0
+                for d in range(1, p + 1):
+                    phi[eta + d - 1] = vd[k - d, j] if k - d >= 0 else 0.0
+                for c in range(nu - eta - p):
+                    phi[eta + p + c] = uphi[c]
             th = theta[j]
             if not a_post:
                 for i in range(nu):
@@ -310,17 +329,30 @@ def _evaluate_numba(  # noqa: PLR0917 (numba kernels take positional arguments)
             prev_v = vf[k - 1, j] if k > 0 else 0.0
             rf[k, j] = a1 * prev_r + (1.0 - a1) * rt[k, j]
             vf[k, j] = a2 * prev_v + (1.0 - a2) * v
-            # RMS over k-1..k-N (eq. 41)
-            sr = 0.0
-            for i in range(1, min(n1, k) + 1):
-                sr += rf[k - i, j] * rf[k - i, j]
-            sv = 0.0
-            for i in range(1, min(n2, k) + 1):
-                sv += vf[k - i, j] * vf[k - i, j]
+            # RMS over k-1..k-N (eq. 41): running sums of the last N squares (ring buffers,
+            # re-summed exactly at every wrap so rounding cannot accumulate)
+            sr = max(sum_r[j], 0.0)
+            sv = max(sum_v[j], 0.0)
+            q = rf[k, j] * rf[k, j]
+            sum_r[j] += q - ring_r[j, pos1]
+            ring_r[j, pos1] = q
+            q = vf[k, j] * vf[k, j]
+            sum_v[j] += q - ring_v[j, pos2]
+            ring_v[j, pos2] = q
             rr[k, j] = np.sqrt(sr * inv_n1)
             vr[k, j] = np.sqrt(sv * inv_n2)
             thr[k, j] = abs(v_stat[j] + vr[k, j])
             dec[k, j] = rr[k, j] > thr[k, j]
+        pos1 += 1
+        pos2 += 1
+        if pos1 == n1:
+            pos1 = 0
+            for j in range(J):
+                sum_r[j] = np.sum(ring_r[j])
+        if pos2 == n2:
+            pos2 = 0
+            for j in range(J):
+                sum_v[j] = np.sum(ring_v[j])
     return rt, vd, rf, vf, rr, vr, thr, dec, eps, theta, resets
 
 

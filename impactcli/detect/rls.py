@@ -10,12 +10,11 @@ For a regression ``y(k) = phi(k)^T theta + b(k)`` with ``nu`` parameters, one st
 Numerical soundness over hours of samples
 -----------------------------------------
 The textbook update (39) loses symmetry, then positive definiteness, after ~1e5 steps in
-double precision (performance.md). Here P is kept *exactly* symmetric by construction:
-with ``h = P(k-1) phi``, ``c = 1 / (lambda + phi^T h)``, every element is updated as
-``P[i, j] = (P[i, j] - (h[i] * h[j]) * c) / lambda``; since ``h[i] * h[j] == h[j] * h[i]``
-bit for bit, a symmetric P stays symmetric (no mirror pass is needed, and the loops stay
-contiguous). ``tests/test_rls.py`` runs 5e6 steps at nu = 34 and checks that P stays
-symmetric positive definite (Cholesky) and the estimate stays right. As a last resort, a
+double precision (performance.md). Here P is symmetric by construction: the kernel
+stores and updates only its lower triangle (``P[i, j]``, j ≤ i) — the "update one triangle"
+remedy, without a mirror pass — and computes ``P phi`` from that triangle. This also halves
+the update's work. ``tests/test_rls.py`` runs 5e6 steps at nu = 34 and checks that P stays
+positive definite (Cholesky) and the estimate stays right. As a last resort, a
 non-positive diagonal element or a non-positive ``phi^T P phi`` resets P to ``p0 I`` and
 is counted in ``n_resets`` (never seen in the tests).
 
@@ -47,17 +46,26 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+#: LLVM fast-math flags of the kernels: re-association (vectorised dot products), FMA
+#: contraction, no signed zeros, reciprocal arithmetic — but NOT no-NaN/no-Inf, so the
+#: positive-definiteness checks below keep working. Symmetry does not depend on rounding:
+#: only one triangle is stored.
+FASTMATH = {"reassoc", "contract", "nsz", "arcp"}
 
-@nb.njit(cache=True, nogil=True)
+
+@nb.njit(cache=True, nogil=True, inline="always", fastmath=FASTMATH)
 def rls_update_inplace(  # noqa: PLR0917 (numba kernels take positional arguments)
     theta: np.ndarray, P: np.ndarray, phi: np.ndarray, y: float,
     forgetting_factor: float, max_trace: float, p0: float, h: np.ndarray,
 ) -> tuple[float, int]:
     """One RLS step (eq. 38–40) in place on ``theta`` (nu,) and ``P`` (nu, nu).
 
+    ``P`` holds the symmetric covariance in its LOWER triangle (``P[i, j]``, j ≤ i); the
+    strict upper triangle is neither read nor written (use :func:`symmetrize`).
+
     Args:
         theta: (nu,) estimate theta(k-1), overwritten with theta(k).
-        P: (nu, nu) symmetric covariance P(k-1), overwritten with P(k).
+        P: (nu, nu) covariance P(k-1) (lower triangle), overwritten with P(k).
         phi: (nu,) regressor phi(k).
         y: measurement y(k).
         forgetting_factor: lambda in (0, 1].
@@ -69,13 +77,16 @@ def rls_update_inplace(  # noqa: PLR0917 (numba kernels take positional argument
         (eps0, reset) — the a priori error eq. 40 and 1 if P had to be reset, else 0.
     """
     nu = theta.shape[0]
-    # h = P phi as an axpy over rows of the symmetric P (contiguous, vectorisable)
+    # h = P phi from the lower triangle: row j gives P[j, :j] (axpy) and its dot with phi
     for i in range(nu):
         h[i] = 0.0
     for j in range(nu):
         pj = phi[j]
-        for i in range(nu):
+        acc = 0.0
+        for i in range(j):
             h[i] += P[j, i] * pj
+            acc += P[j, i] * phi[i]
+        h[j] += acc + P[j, j] * pj
     s = 0.0
     e = y
     tr = 0.0
@@ -88,7 +99,7 @@ def rls_update_inplace(  # noqa: PLR0917 (numba kernels take positional argument
     reset = 0
     if not (s >= 0.0):  # P lost positive definiteness (or NaN): restart from p0 I
         for i in range(nu):
-            for j in range(nu):
+            for j in range(i + 1):
                 P[i, j] = 0.0
             P[i, i] = p0
             h[i] = p0 * phi[i]
@@ -109,22 +120,27 @@ def rls_update_inplace(  # noqa: PLR0917 (numba kernels take positional argument
         theta[i] += h[i] * ec
     bad = False
     for i in range(nu):
-        hi = h[i]
-        for j in range(nu):
-            P[i, j] = (P[i, j] - (hi * h[j]) * c) * inv_lam
-    for i in range(nu):
+        hic = h[i] * c
+        for j in range(i + 1):
+            P[i, j] = (P[i, j] - hic * h[j]) * inv_lam
         if not (P[i, i] > 0.0):
             bad = True
     if bad:
         for i in range(nu):
-            for j in range(nu):
+            for j in range(i + 1):
                 P[i, j] = 0.0
             P[i, i] = p0
         reset = 1
     return e, reset
 
 
-@nb.njit(cache=True, nogil=True)
+def symmetrize(P: np.ndarray) -> np.ndarray:
+    """Full symmetric matrix from the lower triangle the kernels maintain."""
+    low = np.tril(P)
+    return low + np.tril(low, -1).T
+
+
+@nb.njit(cache=True, nogil=True, fastmath=FASTMATH)
 def _rls_run_kernel(  # noqa: PLR0917
     Phi: np.ndarray, y: np.ndarray, theta: np.ndarray, P: np.ndarray,
     forgetting_factor: float, max_trace: float, p0: float, keep_history: bool,
@@ -197,7 +213,7 @@ def rls_run(
     eps, hist, resets = _rls_run_kernel(
         Phi, y, theta, P, float(forgetting_factor), mt, float(p0), bool(keep_history)
     )
-    return RlsRun(theta, P, eps, hist, int(resets))
+    return RlsRun(theta, symmetrize(P), eps, hist, int(resets))
 
 
 def rls_step(
@@ -218,7 +234,7 @@ def rls_step(
         th, PP, ph, float(y), float(forgetting_factor), float(max_trace), float(p0),
         np.empty(th.shape[0]),
     )
-    return th, PP, float(e)
+    return th, symmetrize(PP), float(e)
 
 
 class RecursiveLeastSquares:
@@ -246,9 +262,14 @@ class RecursiveLeastSquares:
         self.theta = np.array(
             np.broadcast_to(np.asarray(theta0, dtype=np.float64), (self.n_params,))
         )
-        self.P = self.p0 * np.eye(self.n_params)
+        self._P = self.p0 * np.eye(self.n_params)  # lower triangle is authoritative
         self.n_resets = 0
         self._h = np.empty(self.n_params)
+
+    @property
+    def P(self) -> np.ndarray:
+        """(nu, nu) covariance P(k), symmetric (a copy)."""
+        return symmetrize(self._P)
 
     def update(self, phi: np.ndarray, y: float) -> float:
         """Absorb one sample; return the a priori error eps0(k) (eq. 40)."""
@@ -256,7 +277,7 @@ class RecursiveLeastSquares:
         if ph.shape != (self.n_params,):
             raise ValueError(f"phi must have shape ({self.n_params},), got {ph.shape}")
         e, r = rls_update_inplace(
-            self.theta, self.P, ph, float(y), self.forgetting_factor, self.max_trace,
+            self.theta, self._P, ph, float(y), self.forgetting_factor, self.max_trace,
             self.p0, self._h,
         )
         self.n_resets += int(r)
@@ -271,11 +292,11 @@ class RecursiveLeastSquares:
         Phi = np.ascontiguousarray(Phi, dtype=np.float64)
         y = np.ascontiguousarray(y, dtype=np.float64)
         eps, hist, resets = _rls_run_kernel(
-            Phi, y, self.theta, self.P, self.forgetting_factor, self.max_trace, self.p0,
+            Phi, y, self.theta, self._P, self.forgetting_factor, self.max_trace, self.p0,
             keep_history,
         )
         self.n_resets += int(resets)
-        return RlsRun(self.theta.copy(), self.P.copy(), eps, hist, int(resets))
+        return RlsRun(self.theta.copy(), self.P, eps, hist, int(resets))
 
 
 def _check_lambda(lam: float) -> None:
