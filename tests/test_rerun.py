@@ -90,9 +90,9 @@ def test_series_are_full_length_on_both_timelines(written: tuple[DetectionResult
         resid = scalars(ent[f"/joints/{joint}/residual"])
         np.testing.assert_allclose(resid[:, 0], res.signals["residual"][:, j])
         pos = scalars(ent[f"/joints/{joint}/position"])
-        np.testing.assert_allclose(pos[:, 0], res.log.position[:, j])
         assert res.log.position_ref is not None
-        np.testing.assert_allclose(pos[:, 1], res.log.position_ref[:, j])
+        np.testing.assert_allclose(pos[:, 0], res.log.position_ref[:, j])
+        np.testing.assert_allclose(pos[:, 1], res.log.position[:, j])
     styled = static_entities(path)
     assert {f"/joints/{j}/{p}" for j in res.log.joint_names
             for p in ("rms", "loading", "residual", "position")} <= styled
@@ -154,7 +154,8 @@ def test_default_blueprint_is_in_the_file(written: tuple[DetectionResult, Path])
     series = sorted(o for k, o in views if k == "TimeSeries")
     assert series == sorted(f"/joints/{j}/{p}" for j in res.log.joint_names
                             for p in ("rms", "loading", "residual", "position"))
-    assert ("StateTimeline", "/detections") in views
+    assert sorted(o for k, o in views if k == "StateTimeline") == sorted(
+        f"/detections/{j}" for j in res.log.joint_names)
     assert any(k == "TextLog" for k, _ in views)
 
 

@@ -27,7 +27,7 @@ Two timelines: ``message_log_time`` (a timestamp on the log's own clock, named l
 one Rerun's own MCAP import creates, so both recordings overlay) and
 ``time_since_start`` (a duration: seconds since the log's first sample, the base of
 every time in the timeline JSON). The file ships its default blueprint: one column (or
-tab, beyond four joints) per joint with its four plots, the state lanes and the event log.
+tab, beyond four joints) per joint with its four plots and its state lanes; the event log.
 
 Long logs are decimated for display with the documented min/max envelope of
 :mod:`impactcli.outputs.decimate` (above 200 000 samples per series), keeping every
@@ -69,11 +69,15 @@ _PLOT_TITLES: dict[str, str] = {
     "position": "position",
 }
 _RED = (214, 39, 40)
-_COLORS: dict[str, tuple[tuple[int, int, int], ...]] = {
-    "rms": ((31, 119, 180), _RED),
-    "loading": ((148, 103, 189), _RED),
-    "residual": ((127, 127, 127), (255, 127, 14)),
-    "position": ((31, 119, 180), (40, 40, 40)),
+_SERIES_COLORS: dict[str, tuple[int, int, int]] = {
+    "residual RMS": (31, 119, 180),
+    "threshold v_stat+v_rms": _RED,
+    "loading statistic": (148, 103, 189),
+    "vL": _RED,
+    "residual r": (127, 127, 127),
+    "filtered residual": (255, 127, 14),
+    "reference": (44, 160, 44),
+    "measured": (31, 119, 180),
 }
 _MARKER_STYLE: dict[str, tuple[str, tuple[int, int, int]]] = {
     "adaptive": ("Cross", _RED),
@@ -120,7 +124,8 @@ def _plots(result: DetectionResult, j: int) -> dict[str, list[tuple[str, np.ndar
     if v_l is not None:
         wanted["loading"].append(("vL", np.full(n, float(v_l))))
     if log.position_ref is not None:
-        wanted["position"].append(("reference", np.asarray(log.position_ref[:, j])))
+        # reference first, so the measured line is drawn over it
+        wanted["position"].insert(0, ("reference", np.asarray(log.position_ref[:, j])))
     for plot, series in wanted.items():
         kept = [(s, v) for s, v in series if v is not None]
         if kept:
@@ -165,32 +170,41 @@ def default_blueprint(joint_names: Sequence[str], has_reference: bool = True) ->
     """The layout shipped in the file (a ``rerun.blueprint.Blueprint``).
 
     One column per joint (tabs beyond four joints) stacking its RMS-vs-threshold,
-    loading-vs-vL, residual and position plots; below, the detection state lanes beside
-    a tab pair of the event log and the run summary. Time panel on ``time_since_start``.
+    loading-vs-vL, residual and position plots over its detection state lanes (warm-up and
+    one lane per detector); below, the event log beside the run summary. Time panel on
+    ``time_since_start``.
     """
     import rerun.blueprint as rrb  # noqa: PLC0415 (lazy: heavy)
 
+    legend = rrb.PlotLegend(corner="RightTop")
     columns = []
     for joint in joint_names:
         root = joint_entity(joint)
         titles = dict(_PLOT_TITLES)
         if not has_reference:
             titles["position"] = "position (measured; no reference logged)"
-        views = [rrb.TimeSeriesView(origin=f"{root}/{plot}", name=f"{joint}: {title}")
-                 for plot, title in titles.items()]
-        columns.append(rrb.Vertical(*views, name=joint))
+        views: list[Any] = [
+            rrb.TimeSeriesView(origin=f"{root}/{plot}", name=f"{joint}: {title}",
+                               plot_legend=legend)
+            for plot, title in titles.items()
+        ]
+        views.append(rrb.StateTimelineView(origin=f"/detections/{_esc(joint)}",
+                                           name=f"{joint}: detections"))
+        columns.append(rrb.Vertical(*views, row_shares=[3, 3, 3, 3, 5], name=joint))
     joints_box = rrb.Horizontal(*columns) if len(columns) <= 4 else rrb.Tabs(*columns)
-    bottom = rrb.Horizontal(
-        rrb.StateTimelineView(origin="/detections", name="detections (per joint)"),
-        rrb.Tabs(
-            rrb.TextLogView(origin="/", contents=["/events/**", "/run/log/**"], name="events"),
-            rrb.TextDocumentView(origin="/run/info", name="run"),
+    bottom = rrb.Tabs(
+        rrb.TextLogView(
+            origin="/", contents=["/events/**", "/run/log/**"], name="events",
+            columns=rrb.TextLogColumns(timeline_columns=[ELAPSED_TIMELINE],
+                                       text_log_columns=["loglevel", "body"]),
+            rows=rrb.TextLogRows(filter_by_log_level=["DEBUG", "INFO", "WARN", "ERROR"]),
         ),
-        column_shares=[3, 2],
+        rrb.TextDocumentView(origin="/run/info", name="run"),
     )
     return rrb.Blueprint(
-        rrb.Vertical(joints_box, bottom, row_shares=[3, 1]),
-        rrb.TimePanel(timeline=ELAPSED_TIMELINE),
+        rrb.Vertical(joints_box, bottom, row_shares=[4, 1]),
+        # "following" puts the cursor at the end: every event is listed at once
+        rrb.TimePanel(timeline=ELAPSED_TIMELINE, state="collapsed", play_state="following"),
         collapse_panels=True,
     )
 
@@ -260,7 +274,7 @@ def _write_joint(rec: Any, result: DetectionResult, j: int, joint: str,  # noqa:
     plots = _plots(result, j)
     for plot, series in plots.items():
         entity = f"{root}/{plot}"
-        colors = _COLORS[plot][: len(series)]
+        colors = [_SERIES_COLORS[name] for name, _ in series]
         rec.log(entity, rr.SeriesLines(names=[s for s, _ in series], colors=colors,
                                        widths=[1.5] * len(series)), static=True, strict=True)
         sel = select_samples([v for _, v in series], keep, max_points)
