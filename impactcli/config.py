@@ -19,10 +19,12 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import tomli_w
 import yaml
 
@@ -95,6 +97,21 @@ class ThresholdsConfig:
     v_stat: dict[str, float] = field(default_factory=dict)
     v0: dict[str, float] = field(default_factory=dict)
     vL: dict[str, float] = field(default_factory=dict)
+
+    def vector(self, kind: str, joint_names: Sequence[str], where: str = "config") -> (
+            np.ndarray | None):
+        """(J,) thresholds ``kind`` (``v_stat``, ``v0`` or ``vL``) in ``joint_names`` order
+        [N·m]; None if not calibrated (empty). ConfigError if some joints are missing."""
+        m: dict[str, float] = getattr(self, kind)
+        if not m:
+            return None
+        missing = [j for j in joint_names if j not in m]
+        if missing:
+            raise ConfigError(
+                f"{where}: thresholds/{kind}: no value for joint(s) {', '.join(missing)} "
+                f"(config has {', '.join(m)})"
+            )
+        return np.array([m[j] for j in joint_names], dtype=np.float64)
 
 
 @dataclass(frozen=True)

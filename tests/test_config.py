@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -123,3 +124,11 @@ def test_bad_top_level_and_unparsable(tmp_path: Path) -> None:
         load_config(p)
     with pytest.raises(ConfigError, match="not found"):
         load_config(tmp_path / "missing.toml")
+
+
+def test_threshold_vector_in_joint_order() -> None:
+    th = _full().thresholds
+    np.testing.assert_array_equal(th.vector("v_stat", ("j2", "j1")), [0.2, 0.45])
+    assert DetectorConfig().thresholds.vector("v0", ("j1",)) is None
+    with pytest.raises(ConfigError, match=r"cfg.toml: thresholds/vL: no value for joint\(s\) j3"):
+        th.vector("vL", ("j1", "j3"), "cfg.toml")
