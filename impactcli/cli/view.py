@@ -34,7 +34,7 @@ def check_rrd(path: Path) -> None:
         raise LogFormatError(f"{path}: no such file")
     if not path.is_file():
         raise LogFormatError(f"{path}: not a file")
-    from rerun.chunk import RrdReader  # noqa: PLC0415
+    from rerun.chunk import RrdReader
 
     try:
         with warnings.catch_warnings():
@@ -82,22 +82,22 @@ def open_viewer(path: Path) -> None:
 def analyze_log(path: Path, *, model: Path | None, config: Path | None, robot: Path | None,
                 channel_map: str | None) -> Any:
     """Read ``path`` and replay the detectors on it; returns a DetectionResult."""
-    from ..io import read_log  # type: ignore[attr-defined]  # noqa: PLC0415
-    from ..pipeline import analyze  # type: ignore[import-not-found]  # noqa: PLC0415
+    from ..io import read_log  # type: ignore[attr-defined]
+    from ..pipeline import analyze  # type: ignore[import-not-found]
 
     robot_desc = None
     if robot is not None:
-        from ..io.robot import read_robot  # noqa: PLC0415
+        from ..io.robot import read_robot
 
         robot_desc = read_robot(robot)
     model_obj = None
     if model is not None:
-        from ..model.rigid import read_model  # noqa: PLC0415
+        from ..model.rigid import read_model
 
         model_obj = read_model(model)
     config_obj = None
     if config is not None:
-        from ..config import load_config  # noqa: PLC0415
+        from ..config import load_config
 
         config_obj = load_config(config)
     log = read_log(path, channel_map=channel_map, robot=robot_desc)
@@ -145,7 +145,7 @@ def view_cmd(source: Path, model: Path | None, config: Path | None,  # noqa: PLR
     if no_open and save_path is None:
         raise click.UsageError("--no-open on a LOG needs --save PATH (else nothing is kept)")
 
-    from ..outputs.rerun import write_rrd  # noqa: PLC0415
+    from ..outputs.rerun import write_rrd
 
     result = analyze_log(source, model=model, config=config, robot=robot, channel_map=channel_map)
     if save_path is not None:

@@ -87,7 +87,7 @@ _MARKER_STYLE: dict[str, tuple[str, tuple[int, int, int]]] = {
 
 
 def _esc(name: str) -> str:
-    import rerun as rr  # noqa: PLC0415 (lazy: heavy)
+    import rerun as rr
 
     return str(rr.escape_entity_path_part(name))
 
@@ -174,7 +174,7 @@ def default_blueprint(joint_names: Sequence[str], has_reference: bool = True) ->
     one lane per detector); below, the event log beside the run summary. Time panel on
     ``time_since_start``.
     """
-    import rerun.blueprint as rrb  # noqa: PLC0415 (lazy: heavy)
+    import rerun.blueprint as rrb
 
     legend = rrb.PlotLegend(corner="RightTop")
     columns = []
@@ -228,7 +228,7 @@ def write_rrd(result: DetectionResult, path: str | os.PathLike[str], *,
         recording_id: Rerun recording id (default: a fresh one). Pass the id of another
             recording of the same log to merge both when opened together.
     """
-    import rerun as rr  # noqa: PLC0415 (lazy: heavy)
+    import rerun as rr
 
     log = result.log
     t_ns = np.asarray(log.t_ns, dtype=np.int64)
@@ -267,7 +267,7 @@ def write_rrd(result: DetectionResult, path: str | os.PathLike[str], *,
 
 def _write_joint(rec: Any, result: DetectionResult, j: int, joint: str,  # noqa: PLR0917
                  keep: np.ndarray, max_points: int, indexes: Any) -> None:
-    import rerun as rr  # noqa: PLC0415 (lazy: heavy)
+    import rerun as rr
 
     root = joint_entity(joint)
     log = result.log
@@ -325,7 +325,7 @@ def _write_joint(rec: Any, result: DetectionResult, j: int, joint: str,  # noqa:
 
 
 def _write_events(rec: Any, result: DetectionResult, indexes: Any) -> None:
-    import rerun as rr  # noqa: PLC0415 (lazy: heavy)
+    import rerun as rr
 
     log = result.log
     n = log.n_samples

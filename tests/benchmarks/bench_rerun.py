@@ -47,7 +47,7 @@ def main() -> None:
                                                        key=lambda e: e.t_start)))
     build = time.perf_counter() - t0
     t0 = time.perf_counter()
-    import rerun  # noqa: F401, PLC0415 - timed apart: write_rrd imports it lazily
+    import rerun  # noqa: F401 - timed apart: write_rrd imports it lazily
 
     imp = time.perf_counter() - t0
     rows = [("machine", f"{platform.platform()} {platform.processor() or platform.machine()}, "
