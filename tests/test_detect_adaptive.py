@@ -4,6 +4,8 @@ a priori / a posteriori measurement and the wind-up guard in the full loop."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy import signal
@@ -16,6 +18,7 @@ from impactcli.detect.adaptive import (
     resolve_rates,
     threshold_inputs,
 )
+from impactcli.detect.warmup import warmup_end
 from impactcli.errors import ImpactWarning
 from impactcli.types import RobotLog
 
@@ -206,3 +209,33 @@ def test_standstill_for_minutes_then_moving_gives_no_blow_up() -> None:
     assert ratio < 1.5
     assert np.abs(a.v_dyn[post]).max() < 1.5 * np.abs(a.v_dyn[pre]).max()
     assert res["unguarded"][1] > 2.0 * ratio        # without the guard it does blow up
+
+
+REAL = Path(__file__).resolve().parents[1].parent / "shared" / "real_logs"
+
+
+@pytest.mark.real_logs
+def test_real_kuka_7_joints_at_200_hz() -> None:
+    """KUKA LWR4+ (7 joints, 200 Hz, no contact): a crude per-joint LS residual; the
+    evaluator stays finite without covariance resets, warms up within the cap, and G is
+    high-pass (method.md §7)."""
+    path = REAL / "kuka_lwr4" / "measurements_1.npz"
+    if not path.is_file():
+        pytest.skip("real logs absent")
+    d = np.load(path)
+    t = d["times"] - d["times"][0]
+    q, v, a, tau = d["positions"], d["velocities"], d["accelerations"], d["torques"]
+    r = np.zeros_like(tau)
+    for j in range(7):
+        Y = np.column_stack([a[:, j], v[:, j], np.tanh(50 * v[:, j]), np.ones(len(t)),
+                             np.sin(q[:, j]), np.cos(q[:, j])])
+        r[:, j] = Y @ np.linalg.lstsq(Y, tau[:, j], rcond=None)[0] - tau[:, j]
+    fs = 1.0 / np.median(np.diff(t))
+    res = evaluate(r, np.stack([np.tanh(50 * v), a]), fs, np.zeros(7))
+    assert res.theta.shape == (7, 64)
+    assert res.n_resets.sum() == 0 and np.all(np.isfinite(res.r_rms))
+    w = warmup_end(res.prediction_error, t)
+    assert 3.0 <= w.end_s <= 20.0
+    f, g = res.g_gain()
+    assert f[-1] == pytest.approx(fs / 4)
+    assert np.all(g[:, 0] < g[:, -1])
