@@ -1,0 +1,294 @@
+"""analyze(log, ...) -> DetectionResult: the one entry for the CLI, tests and batch runs.
+
+The flow, one direction (architecture.md):
+  RobotLog → rigid model (given, embedded in the config, or identified from the log)
+           → causal residual r = tau_hat − tau (eq. 7–8; tau through the same causal filter)
+           → adaptive evaluator (eq. 24–42) beside static_loading (|LP(r)| > vL) and
+             static_baseline (|r| > v0)
+           → warm-up, thresholds (calibrated, or the log's own robust rule), decisions, events.
+Nothing here reads or writes files; everything it decided is in the result.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .config import DetectorConfig
+from .detect.adaptive import AdaptiveResult, evaluate, threshold_inputs
+from .detect.calibrate import adaptive_statistic, uncalibrated_thresholds
+from .detect.events import extract_events
+from .detect.static import causal_lowpass
+from .detect.warmup import Warmup, warmup_end
+from .errors import ConfigError, ImpactWarning, ModelError
+from .model import RigidModel, ResidualOptions, compute_residual, identify
+from .result import DetectionResult
+from .types import DETECTORS, RobotDescription, RobotLog
+
+#: config ``residual.generator`` → the model package's generator name
+_GENERATOR = {"rigid_model": "inverse_dynamics", "inverse_dynamics": "inverse_dynamics",
+              "momentum_observer": "momentum_observer"}
+
+
+def residual_options(cfg: DetectorConfig) -> ResidualOptions:
+    """The residual generator's options from the detector config."""
+    rc = cfg.residual
+    return ResidualOptions(cutoff_hz=rc.derivative_cutoff_hz, filter_torque=rc.filter_torque,
+                           generator=_GENERATOR[rc.generator], observer_gain=rc.observer_gain)
+
+
+def reorder_log(log: RobotLog, joints: tuple[str, ...], what: str) -> RobotLog:
+    """The log with its joints in ``joints`` order; ModelError naming what is missing."""
+    if log.joint_names == joints:
+        return log
+    missing = [j for j in joints if j not in log.joint_names]
+    extra = [j for j in log.joint_names if j not in joints]
+    if missing or extra:
+        raise ModelError(
+            f"{log.source.path}: joints {list(log.joint_names)} do not match the {what}'s "
+            f"{list(joints)}" + (f" (missing {missing})" if missing else "")
+            + (f" (not in the {what}: {extra})" if extra else "")
+        )
+    idx = [log.joint_names.index(j) for j in joints]
+
+    def pick(a: np.ndarray | None) -> np.ndarray | None:
+        return None if a is None else a[:, idx]
+
+    return RobotLog(
+        t_ns=log.t_ns, joint_names=joints, position=log.position[:, idx], torque=log.torque[:, idx],
+        velocity=pick(log.velocity), current=pick(log.current), position_ref=pick(log.position_ref),
+        velocity_ref=pick(log.velocity_ref), acceleration_ref=pick(log.acceleration_ref),
+        source=log.source,
+    )
+
+
+def resolve_model(
+    log: RobotLog, model: RigidModel | None, cfg: DetectorConfig, robot: RobotDescription | None,
+) -> tuple[RigidModel, str]:
+    """The model to use and where it came from (``given``, ``config``, ``identified-from-log``)."""
+    if model is not None:
+        if cfg.calibration.calibrated and cfg.calibration.model_sha256 not in (None, model.sha256):
+            warnings.warn(
+                "--model overrides the config's model: its thresholds belong to the model they "
+                "were calibrated with (another model gives the residual another scale)",
+                ImpactWarning, stacklevel=3,
+            )
+        return model, "given"
+    if cfg.model is not None:
+        return RigidModel.from_dict(cfg.model), "config"
+    return identify(log, robot=robot), "identified-from-log"
+
+
+def calibrated_thresholds(cfg: DetectorConfig, joints: tuple[str, ...]) -> dict[str, np.ndarray] | None:
+    """Per-detector threshold vectors from a calibrated config, or None if not calibrated."""
+    th = cfg.thresholds
+    if not cfg.calibration.calibrated:
+        return None
+    out = {}
+    for det, table in (("adaptive", th.v_stat), ("static_loading", th.vL), ("static_baseline", th.v0)):
+        missing = [j for j in joints if j not in table]
+        if missing:
+            raise ConfigError(f"calibrated config has no {det} threshold for joint(s) {missing}")
+        out[det] = np.array([table[j] for j in joints], dtype=np.float64)
+    return out
+
+
+def analyze(
+    log: RobotLog, *, model: RigidModel | None = None, config: DetectorConfig | None = None,
+    robot: RobotDescription | None = None, read_options: dict[str, Any] | None = None,
+) -> DetectionResult:
+    """Replay the detectors over ``log`` exactly as the robot would have run them online.
+
+    Args:
+        log: the recording.
+        model: a rigid model (``--model``); else the config's embedded model; else one is
+            identified from this log (robust fit; an offline convenience, recorded as such).
+        config: detector config (``--config``); None → Table I defaults, uncalibrated.
+        robot: robot description, used only when identifying (kinematics, joint order).
+        read_options: how the log was read (recorded so the run can be repeated).
+    Returns:
+        The :class:`DetectionResult`; ImpactWarnings raised on the way are in ``warnings``.
+    """
+    cfg = config or DetectorConfig()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ImpactWarning)
+        result = _analyze(log, model, cfg, robot, read_options or {})
+    msgs = tuple(dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, ImpactWarning)))
+    for w in caught:  # foreign warnings are not ours to swallow
+        if not issubclass(w.category, ImpactWarning):
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return _with_warnings(result, msgs)
+
+
+def _with_warnings(result: DetectionResult, msgs: tuple[str, ...]) -> DetectionResult:
+    import dataclasses
+
+    return dataclasses.replace(result, warnings=result.warnings + msgs)
+
+
+@dataclass(frozen=True)
+class Replay:
+    """The threshold-free part of a replay: residual, adaptive signals, statistics, warm-up.
+
+    ``stats`` maps each detector to the (N, J) statistic its threshold must beat:
+    adaptive r_rms − v_rms (eq. 42), static_loading |LP(r)|, static_baseline |r|.
+    """
+
+    log: RobotLog
+    model: RigidModel
+    model_source: str
+    residual_options: ResidualOptions
+    r: np.ndarray
+    adaptive: AdaptiveResult
+    reference_source: str
+    warmup: Warmup
+    stats: dict[str, np.ndarray]
+
+    def stats_after_warmup(self) -> dict[str, np.ndarray]:
+        """Each statistic from the warm-up's end on (all of it if the warm-up covers the log)."""
+        start = self.warmup.end_index if self.warmup.end_index < self.log.n_samples - 10 else 0
+        return {d: s[start:] for d, s in self.stats.items()}
+
+
+def replay(
+    log: RobotLog, model: RigidModel | None, cfg: DetectorConfig,
+    robot: RobotDescription | None = None, v_stat: np.ndarray | None = None,
+) -> Replay:
+    """Residual → adaptive evaluator and static statistics → warm-up (all causal)."""
+    model, model_source = resolve_model(log, model, cfg, robot)
+    log = reorder_log(log, tuple(model.joint_names), "model")
+    fs = log.sample_rate_hz
+    ropts = residual_options(cfg)
+    r = compute_residual(model, log, ropts).r
+    inputs = threshold_inputs(log, cfg.adaptive)
+    if inputs.source == "measured":
+        warnings.warn(f"{log.source.path}: no reference logged: threshold inputs from the "
+                      "measured position (no anticipation)", ImpactWarning, stacklevel=3)
+    vs = np.zeros(len(log.joint_names)) if v_stat is None else v_stat
+    ad = evaluate(r, inputs.u, fs, vs, cfg.adaptive)
+    wu = warmup_end(ad.prediction_error, log.time_s, cfg.warmup)
+    if wu.end_index >= log.n_samples - 10:
+        warnings.warn(f"{log.source.path}: the warm-up covers the whole log "
+                      f"({log.duration_s:.1f} s)", ImpactWarning, stacklevel=3)
+    loading = np.abs(causal_lowpass(r, cfg.static_loading.cutoff_hz, fs, cfg.static_loading.order))
+    stats = {"adaptive": adaptive_statistic(ad.r_rms, ad.v_rms), "static_loading": loading,
+             "static_baseline": np.abs(r)}
+    return Replay(log, model, model_source, ropts, r, ad,
+                  "measured" if inputs.source == "measured" else "reference", wu, stats)
+
+
+def _analyze(
+    log: RobotLog, model: RigidModel | None, cfg: DetectorConfig,
+    robot: RobotDescription | None, read_options: dict[str, Any],
+) -> DetectionResult:
+    joints_in = log.joint_names
+    given = calibrated_thresholds(cfg, joints_in) if cfg.calibration.calibrated else None
+    rp = replay(log, model, cfg, robot)
+    log, ad, wu, r = rp.log, rp.adaptive, rp.warmup, rp.r
+    joints = log.joint_names
+    t = log.time_s
+    if given is not None:
+        given = calibrated_thresholds(cfg, joints)  # in the model's joint order
+    if given is None:
+        after = rp.stats_after_warmup()
+        thr = {d: uncalibrated_thresholds(after[d]).thresholds for d in DETECTORS}
+        warnings.warn(
+            f"{log.source.path}: uncalibrated run — thresholds set from this log's own "
+            "statistics (1.5 × 99.5 % quantile after warm-up); calibrate on collision-free "
+            "logs (impactcli calibrate) for a replay the robot could have run",
+            ImpactWarning, stacklevel=3,
+        )
+    else:
+        thr = given
+    threshold_adaptive = np.abs(thr["adaptive"][None, :] + ad.v_rms)
+    loading, baseline = rp.stats["static_loading"], rp.stats["static_baseline"]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratios = {
+            "adaptive": np.where(threshold_adaptive > 0, ad.r_rms / threshold_adaptive, np.inf),
+            "static_loading": loading / thr["static_loading"][None, :],
+            "static_baseline": baseline / thr["static_baseline"][None, :],
+        }
+    decisions = {
+        "adaptive": ad.r_rms > threshold_adaptive,
+        "static_loading": loading > thr["static_loading"][None, :],
+        "static_baseline": baseline > thr["static_baseline"][None, :],
+    }
+    ev = cfg.events
+    events = []
+    for d in DETECTORS:
+        events += extract_events(d, decisions[d], ratios[d], r, t, joints, wu.end_s,
+                                 ev.merge_gap_s, ev.min_duration_s)
+    events.sort(key=lambda e: (e.t_start, DETECTORS.index(e.detector)))
+
+    freqs, gain = ad.g_gain()
+    signals = {
+        "torque": np.asarray(log.torque), "residual": r, "filtered_residual": ad.r_tilde,
+        "dynamic_threshold": ad.v_dyn, "residual_rms": ad.r_rms, "threshold": threshold_adaptive,
+        "loading_statistic": loading,
+    }
+    thresholds = {
+        j: {"v_stat": float(thr["adaptive"][k]), "v0": float(thr["static_baseline"][k]),
+            "vL": float(thr["static_loading"][k])}
+        for k, j in enumerate(joints)
+    }
+    return DetectionResult(
+        log=log, model=rp.model.to_dict(), model_sha256=rp.model.sha256,
+        model_source=rp.model_source, config=cfg.to_dict(), calibrated=given is not None,
+        thresholds=thresholds, reference_source=rp.reference_source,
+        torque_filtered=rp.residual_options.filter_torque,
+        signals=signals, decisions=decisions, ratios=ratios, events=tuple(events),
+        warmup_end_s=wu.end_s,
+        warmup_per_joint_s={j: float(t[i]) if i < len(t) else wu.end_s
+                            for j, i in zip(joints, wu.index, strict=True)},
+        filter_gain={"frequencies_hz": [float(f) for f in freqs],
+                     "gain": {j: [float(g) for g in gain[k]] for k, j in enumerate(joints)}},
+        residual_generator=rp.residual_options.generator, read_options=read_options,
+    )
+
+
+def calibrate(
+    logs: list[RobotLog], *, model: RigidModel | None = None,
+    config: DetectorConfig | None = None, robot: RobotDescription | None = None,
+) -> DetectorConfig:
+    """Thresholds v_stat, vL, v0 per joint from collision-free logs (method.md §5b).
+
+    The model is ``model``, else the config's, else identified from the logs
+    (:func:`impactcli.model.identify` over all of them). Each log is replayed with it; the
+    statistic after warm-up of every detector gives the thresholds by the leave-one-out
+    margin rule (≥ 2 logs) or a fixed margin (1 log, flagged weak)
+    (:func:`impactcli.detect.calibrate.calibrate_thresholds`). Returns a config holding
+    every parameter, the thresholds, the calibration record and the embedded model.
+    """
+    import dataclasses
+
+    from .config import CalibrationRecord, LogRecord, ThresholdsConfig
+    from .detect.calibrate import calibrate_thresholds
+    from .model import identify_many
+
+    cfg = config or DetectorConfig()
+    if model is None:
+        model = RigidModel.from_dict(cfg.model) if cfg.model is not None else identify_many(
+            logs, robot=robot)
+    joints = tuple(model.joint_names)
+    per_det: dict[str, list[np.ndarray]] = {d: [] for d in DETECTORS}
+    for log in logs:
+        rp = replay(log, model, cfg, robot)
+        for d, s in rp.stats_after_warmup().items():
+            per_det[d].append(s)
+    cal = {d: calibrate_thresholds(per_det[d]) for d in DETECTORS}
+    table = {d: {j: float(cal[d].thresholds[k]) for k, j in enumerate(joints)} for d in DETECTORS}
+    record = CalibrationRecord(
+        calibrated=True, margin_rule=cal["adaptive"].rule,
+        margins={d: {j: float(cal[d].margins[k]) for k, j in enumerate(joints)} for d in DETECTORS},
+        logs=tuple(LogRecord(lg.source.path, lg.source.sha256) for lg in logs),
+        model_sha256=model.sha256, weak=any(c.weak for c in cal.values()),
+    )
+    return dataclasses.replace(
+        cfg,
+        thresholds=ThresholdsConfig(v_stat=table["adaptive"], v0=table["static_baseline"],
+                                    vL=table["static_loading"]),
+        calibration=record, model=model.to_dict(),
+    )
