@@ -48,8 +48,10 @@ def fake_pipeline(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
     """Replace impactcli.pipeline.analyze: the synthetic result on the log it is given."""
     calls: list[dict[str, Any]] = []
 
-    def analyze(log: Any, *, model: Any = None, config: Any = None, robot: Any = None) -> Any:
-        calls.append({"log": log, "model": model, "config": config, "robot": robot})
+    def analyze(log: Any, *, model: Any = None, config: Any = None, robot: Any = None,
+                read_options: dict[str, Any] | None = None) -> Any:
+        calls.append({"log": log, "model": model, "config": config, "robot": robot,
+                      "read_options": read_options})
         return dataclasses.replace(fake_result(), log=log)
 
     mod = types.ModuleType("impactcli.pipeline")
@@ -157,14 +159,29 @@ def test_report_on_a_timeline_reruns_it(tmp_path: Path, fake_pipeline: list) -> 
 
 
 def test_report_end_to_end_with_the_pipeline(tmp_path: Path) -> None:
+    """LOG → report, and LOG → detect → TIMELINE → report: the same JSON, byte for byte."""
     pytest.importorskip("impactcli.pipeline")
     log = write_log(tmp_path / "e2e.csv")
     out, js = tmp_path / "r.html", tmp_path / "r.json"
     res = CliRunner().invoke(main, ["report", str(log), "-o", str(out), "--json", str(js)])
     assert res.exit_code == 0, show(res)
+    assert "uncalibrated" in res.stderr
     doc = json.loads(js.read_text())
     jsonschema.validate(doc, load_schema("report"))
     html = out.read_text()
-    assert doc["logs"][0]["input"]["sha256"] in html
-    for k in range(1, len(doc["logs"][0]["events"]) + 1):
+    sec = doc["logs"][0]
+    assert sec["input"]["sha256"] in html
+    for k in range(1, len(sec["events"]) + 1):
         assert f'id="log1-ev{k}"' in html
+    assert "uncalibrated" in {c["code"] for c in sec["caveats"]}
+    assert sec["model"]["source"] == "identified-from-log"
+    # through a timeline
+    det = tmp_path / "det"
+    res = CliRunner().invoke(main, ["detect", str(log), "-o", str(det)])
+    assert res.exit_code == 0, show(res)
+    js2 = tmp_path / "r2.json"
+    res = CliRunner().invoke(main, ["report", str(det / "e2e.timeline.json"), "-o",
+                                    str(tmp_path / "r2.html"), "--json", str(js2)])
+    assert res.exit_code == 0, show(res)
+    assert "re-running detection gave" not in res.stderr, show(res)
+    assert js2.read_bytes() == js.read_bytes()

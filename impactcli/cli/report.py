@@ -24,7 +24,6 @@ and exits 4; when every input fails the first error is raised (exit 3).
 """
 
 # Imports inside functions are deliberate: `impactcli --help` must stay fast.
-# ruff: noqa: PLC0415
 
 from __future__ import annotations
 
@@ -38,6 +37,7 @@ import click
 
 from ..errors import EXIT_BATCH, ImpactError, ImpactWarning, LogFormatError
 from ._common import handle_errors, progress
+from .detect import log_read_options, model_options, read_options_from
 
 TIMELINE_SUFFIX = ".timeline.json"
 LABELS_SUFFIX = ".labels.json"
@@ -65,31 +65,29 @@ def _read_robot(path: str | Path | None) -> Any:
     return read_robot(path)
 
 
-def analyze_log(
-    path: Path,
-    *,
-    model: Path | None,
-    config: Path | None,
-    robot: Path | None,
-    channel_map: str | None,
-) -> Any:
-    """Read ``path`` and replay the detectors (:func:`impactcli.pipeline.analyze`)."""
+def load_inputs(robot: Path | None, model: Path | None,
+                config: Path | None) -> tuple[Any, Any, Any]:
+    """Read --robot, --model and --config once (a bad one stops the run before any work)."""
+    from ..config import load_config
+    from ..model import read_model
+
+    return (_read_robot(robot), read_model(model) if model is not None else None,
+            load_config(config) if config is not None else None)
+
+
+def analyze_log(path: Path, *, robot: Any = None, model: Any = None, config: Any = None,
+                read_options: dict[str, Any] | None = None) -> Any:
+    """Read ``path`` and replay the detectors (:func:`impactcli.pipeline.analyze`).
+
+    ``robot``, ``model``, ``config`` are the loaded objects (or None); ``read_options`` the
+    :func:`impactcli.io.read_log` keyword arguments (recorded in the result).
+    """
     from ..io import read_log
     from ..pipeline import analyze
 
-    robot_desc = _read_robot(robot)
-    model_obj = None
-    if model is not None:
-        from ..model.rigid import read_model
-
-        model_obj = read_model(model)
-    config_obj = None
-    if config is not None:
-        from ..config import load_config
-
-        config_obj = load_config(config)
-    log = read_log(path, channel_map=channel_map, robot=robot_desc)
-    return analyze(log, model=model_obj, config=config_obj, robot=robot_desc)
+    opts = dict(read_options or {})
+    log = read_log(path, robot=robot, **opts)
+    return analyze(log, model=model, config=config, robot=robot, read_options=opts)
 
 
 def load_timeline(path: Path) -> dict[str, Any]:
@@ -121,34 +119,34 @@ def timeline_log_path(tl_path: Path, recorded: str) -> Path:
     )
 
 
-def rerun_timeline(tl_path: Path, *, robot: Path | None) -> tuple[Any, Path]:
-    """Re-run detection as a timeline records it; returns (DetectionResult, log path)."""
+def rerun_timeline(tl_path: Path, *, robot: Any = None) -> tuple[Any, Path]:
+    """Re-run detection as a timeline records it; returns (DetectionResult, log path).
+
+    The log is read with the recorded read options; the model is the recorded one when it
+    was given (a config's model comes with the config; an identified one is identified
+    again, deterministically); the config is the recorded one. ``robot`` (a loaded
+    description, from --robot) is used when given, else the robot description embedded in
+    the recorded model (needed for planar/URDF identification and current scaling).
+    """
     from ..config import DetectorConfig
     from ..io import read_log
+    from ..io.robot import robot_from_dict
+    from ..model import RigidModel
     from ..pipeline import analyze
 
     tl = load_timeline(tl_path)
     inp = tl["input"]
     log_path = timeline_log_path(tl_path, inp["path"])
     opts = dict(inp.get("read_options") or {})
-    robot_spec = robot if robot is not None else opts.pop("robot", None)
-    opts.pop("robot", None)
-    kwargs = {k: opts.pop(k) for k in READ_KEYS if opts.get(k) is not None}
-    for k in READ_KEYS:
-        opts.pop(k, None)
-    if opts:
-        warnings.warn(
-            f"{tl_path}: read options {sorted(opts)} not understood by report; ignored",
-            ImpactWarning,
-            stacklevel=2,
-        )
-    if isinstance(robot_spec, dict):
-        from ..io.robot import robot_from_dict
-
-        robot_desc = robot_from_dict(robot_spec, f"{tl_path}: read_options.robot")
-    else:
-        robot_desc = _read_robot(robot_spec)
-    log = read_log(log_path, robot=robot_desc, **kwargs)
+    unknown = sorted(set(opts) - set(READ_KEYS))
+    if unknown:
+        warnings.warn(f"{tl_path}: read options {unknown} not understood by report; ignored",
+                      ImpactWarning, stacklevel=2)
+    kwargs = {k: opts[k] for k in READ_KEYS if opts.get(k) is not None}
+    recorded_model = tl["model"]["model"]
+    if robot is None and isinstance(recorded_model.get("robot"), dict):
+        robot = robot_from_dict(recorded_model["robot"], f"{tl_path}: model.robot")
+    log = read_log(log_path, robot=robot, **kwargs)
     if inp.get("sha256") and log.source.sha256 and log.source.sha256 != inp["sha256"]:
         raise LogFormatError(
             f"{tl_path}: its log {log_path} changed since detection "
@@ -157,25 +155,17 @@ def rerun_timeline(tl_path: Path, *, robot: Path | None) -> tuple[Any, Path]:
     config = DetectorConfig.from_dict(tl["config"], where=f"{tl_path}: config")
     model = None
     if tl["model"]["source"] == "given":
-        from ..model.rigid import RigidModel
-
-        model = RigidModel.from_dict(tl["model"]["model"], where=f"{tl_path}: model")
-    result = analyze(log, model=model, config=config, robot=robot_desc)
-    recorded = [
-        (e["detector"], round(e["t_start"], 9), round(e["t_end"], 9), tuple(e["joints"]))
-        for e in tl["events"]
-    ]
-    now = [
-        (e.detector, round(e.t_start, 9), round(e.t_end, 9), tuple(e.joints)) for e in result.events
-    ]
+        model = RigidModel.from_dict(recorded_model, where=f"{tl_path}: model")
+    result = analyze(log, model=model, config=config, robot=robot, read_options=kwargs)
+    recorded = [(e["detector"], round(e["t_start"], 9), round(e["t_end"], 9), tuple(e["joints"]))
+                for e in tl["events"]]
+    now = [(e.detector, round(e.t_start, 9), round(e.t_end, 9), tuple(e.joints))
+           for e in result.events]
     if recorded != now or bool(tl["calibrated"]) != bool(result.calibrated):
         warnings.warn(
-            f"{tl_path}: re-running detection gave {len(now)} event(s) where the "
-            f"timeline records {len(recorded)} (or a different calibration); the "
-            "report shows the re-run",
-            ImpactWarning,
-            stacklevel=2,
-        )
+            f"{tl_path}: re-running detection gave {len(now)} event(s) where the timeline "
+            f"records {len(recorded)} (or a different calibration); the report shows the re-run",
+            ImpactWarning, stacklevel=2)
     return result, log_path
 
 
@@ -213,90 +203,52 @@ def auto_labels(inp: Path, log_path: Path | None) -> Path | None:
 
 
 @click.command("report")
-@click.argument(
-    "inputs", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False, path_type=Path)
-)
-@click.option(
-    "-o",
-    "--output",
-    "html_path",
-    required=True,
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="The HTML report to write.",
-)
-@click.option(
-    "--json",
-    "json_path",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="Also write the same facts as JSON (schemas/report.schema.json).",
-)
-@click.option(
-    "--labels",
-    "labels",
-    multiple=True,
-    type=click.Path(exists=True, dir_okay=False, path_type=Path),
-    help="Ground-truth labels JSON; repeat per input (in order, or named <stem>.labels.json).",
-)
-@click.option(
-    "--no-auto-labels",
-    is_flag=True,
-    help="Do not pick up <stem>.labels.json files found beside the inputs.",
-)
-@click.option(
-    "--model",
-    type=click.Path(exists=True, dir_okay=False, path_type=Path),
-    default=None,
-    help="Model JSON to detect with (LOG inputs).",
-)
-@click.option(
-    "--config",
-    type=click.Path(exists=True, dir_okay=False, path_type=Path),
-    default=None,
-    help="Detector config (TOML/YAML/JSON) to detect with (LOG inputs).",
-)
-@click.option(
-    "--robot",
-    type=click.Path(exists=True, dir_okay=False, path_type=Path),
-    default=None,
-    help="Robot description (JSON/YAML).",
-)
-@click.option(
-    "--channel-map",
-    default=None,
-    help="Channel map file or shipped map name, for foreign layouts (LOG inputs).",
-)
+@click.argument("inputs", nargs=-1, required=True,
+                type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option("-o", "--output", "html_path", required=True,
+              type=click.Path(dir_okay=False, path_type=Path), help="The HTML report to write.")
+@click.option("--json", "json_path", type=click.Path(dir_okay=False, path_type=Path),
+              default=None, help="Also write the same facts as JSON (schemas/report.schema.json).")
+@click.option("--labels", "labels", multiple=True,
+              type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Ground-truth labels JSON; repeat per input (in order, or named "
+                   "<stem>.labels.json).")
+@click.option("--no-auto-labels", is_flag=True,
+              help="Do not pick up <stem>.labels.json files found beside the inputs.")
+@model_options
+@log_read_options
 @handle_errors
-def report_cmd(
-    *,
-    inputs: tuple[Path, ...],
-    html_path: Path,
-    json_path: Path | None,
-    labels: tuple[Path, ...],
-    no_auto_labels: bool,
-    model: Path | None,
-    config: Path | None,
-    robot: Path | None,
-    channel_map: str | None,
-) -> None:
-    """Write a safety-audit report (one self-contained HTML file, and --json) over logs
-    or timelines: what was analysed, with what, the events, false-alarm margins, plots,
-    caveats, and detection quality when labels are given."""
+def report_cmd(*, inputs: tuple[Path, ...], html_path: Path, json_path: Path | None,
+               labels: tuple[Path, ...], no_auto_labels: bool, robot: Path | None,
+               model: Path | None, config: Path | None, channel_map: str | None,
+               topic: str | None, reference_topic: str | None, time_source: str | None,
+               torque_source: str | None) -> None:
+    """Write a safety-audit report: one self-contained HTML file (and --json) over LOGs or
+    TIMELINEs — what was analysed, with what, the events, false-alarm margins, plots,
+    caveats, and detection quality when labels are given.
+
+    A LOG is detected first with the options below; a TIMELINE (*.timeline.json) is re-run
+    from its log with the read options, model and config it records (--robot still
+    applies). Labels: --labels per input (in order, or named <stem>.labels.json), else
+    <stem>.labels.json found beside the input. Exit 4 when some inputs failed (the report
+    lists them), 3 when all did.
+    """
     from ..io.robot import read_labels
     from ..outputs.report import write_report
 
     explicit = pair_labels(inputs, labels)
+    robot_obj, model_obj, config_obj = load_inputs(robot, model, config)
+    ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
     results: list[Any] = []
     labs: list[Any] = []
     failed: list[tuple[Path, ImpactError]] = []
     for inp, given_labels in progress(list(zip(inputs, explicit, strict=True)), desc="report"):
         try:
             if is_timeline(inp):
-                result, log_path = rerun_timeline(inp, robot=robot)
+                result, log_path = rerun_timeline(inp, robot=robot_obj)
             else:
-                result = analyze_log(
-                    inp, model=model, config=config, robot=robot, channel_map=channel_map
-                )
+                result = analyze_log(inp, robot=robot_obj, model=model_obj, config=config_obj,
+                                     read_options=ropts)
                 log_path = inp
             lab_path = given_labels
             if lab_path is None and not no_auto_labels:
@@ -306,17 +258,15 @@ def report_cmd(
             click.echo(f"impactcli: error: {err}", err=True)
             failed.append((inp, err))
             continue
+        for w in result.warnings:
+            click.echo(f"impactcli: warning: {w}", err=True)
         results.append(result)
         labs.append(lab)
     if not results:
         raise failed[0][1]
-    write_report(
-        results, html_path, json_path, labels=labs, failed=[(str(p), str(e)) for p, e in failed]
-    )
-    click.echo(
-        f"impactcli: report of {len(results)} log(s) written to {html_path}"
-        + (f" and {json_path}" if json_path else ""),
-        err=True,
-    )
+    write_report(results, html_path, json_path, labels=labs,
+                 failed=[(str(p), str(e)) for p, e in failed])
+    click.echo(f"impactcli: report of {len(results)} log(s) written to {html_path}"
+               + (f" and {json_path}" if json_path else ""), err=True)
     if failed:
         click.get_current_context().exit(EXIT_BATCH)

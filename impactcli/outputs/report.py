@@ -343,7 +343,7 @@ def _evaluate(result: DetectionResult, labels: Labels) -> dict[str, Any]:
         "notes": [],
     }
     try:
-        from .. import evaluate as ev  # noqa: PLC0415 - optional at import time of outputs
+        from .. import evaluate as ev
     except ImportError:  # pragma: no cover - evaluate ships with impactcli
         out["status"] = "unavailable"
         out["notes"].append(
