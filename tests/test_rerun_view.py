@@ -95,7 +95,8 @@ def test_log_is_detected_then_written_and_opened(tmp_path: Path, monkeypatch: py
     out = tmp_path / "arm.rrd"
     r = run(str(log), "--no-open", "--save", str(out), "--channel-map", "kuka_lwr4")
     assert r.exit_code == 0, explain(r)
-    assert seen["path"] == log and seen["kw"]["channel_map"] == "kuka_lwr4"
+    assert seen["path"] == log
+    assert seen["kw"]["read_options"] == {"channel_map": "kuka_lwr4"}
     reader = rr.chunk.RrdReader(out)
     assert len(reader.recordings()) == 1 and len(reader.blueprints()) == 1
     assert not fake_viewer.exists()

@@ -15,13 +15,17 @@ import sys
 import tempfile
 import warnings
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
 from ..errors import ImpactError, LogFormatError
 from ..outputs.decimate import DEFAULT_EVENT_WINDOW_S, DEFAULT_MAX_POINTS
 from ._common import handle_errors
+from .detect import log_read_options, model_options, read_options_from
+
+if TYPE_CHECKING:
+    from ..result import DetectionResult
 
 
 class ViewerError(ImpactError):
@@ -48,15 +52,6 @@ def check_rrd(path: Path) -> None:
         raise LogFormatError(f"{path}: Rerun file holds no recording")
 
 
-def log_stem(path: Path) -> str:
-    """The file name without its format extension (formats.md: ``.csv``, ``.csv.gz``, ...)."""
-    name = path.name
-    for ext in (".csv.gz", ".csv", ".mcap", ".npz"):
-        if name.lower().endswith(ext):
-            return name[: -len(ext)]
-    return path.stem
-
-
 def viewer_command(path: Path) -> list[str]:
     """The command that opens ``path`` in the viewer shipped with rerun-sdk."""
     exe = Path(sys.executable).with_name("rerun")
@@ -79,41 +74,27 @@ def open_viewer(path: Path) -> None:
                           "(no display? use --no-open --save PATH)")
 
 
-def analyze_log(path: Path, *, model: Path | None, config: Path | None, robot: Path | None,
-                channel_map: str | None) -> Any:
-    """Read ``path`` and replay the detectors on it; returns a DetectionResult."""
-    from ..io import read_log  # type: ignore[attr-defined]
-    from ..pipeline import analyze  # type: ignore[import-not-found]
+def analyze_log(path: Path, *, robot: Path | None, model: Path | None, config: Path | None,
+                read_options: dict[str, Any]) -> DetectionResult:
+    """Read ``path`` and replay the detectors on it, as ``detect`` does."""
+    from ..config import load_config
+    from ..io import read_log
+    from ..io.robot import read_robot
+    from ..model import read_model
+    from ..pipeline import analyze
 
-    robot_desc = None
-    if robot is not None:
-        from ..io.robot import read_robot
-
-        robot_desc = read_robot(robot)
-    model_obj = None
-    if model is not None:
-        from ..model.rigid import read_model
-
-        model_obj = read_model(model)
-    config_obj = None
-    if config is not None:
-        from ..config import load_config
-
-        config_obj = load_config(config)
-    log = read_log(path, channel_map=channel_map, robot=robot_desc)
-    return analyze(log, model=model_obj, config=config_obj, robot=robot_desc)
+    robot_desc = read_robot(robot) if robot is not None else None
+    model_obj = read_model(model) if model is not None else None
+    config_obj = load_config(config) if config is not None else None
+    log = read_log(path, robot=robot_desc, **read_options)
+    return analyze(log, model=model_obj, config=config_obj, robot=robot_desc,
+                   read_options=read_options)
 
 
 @click.command("view")
 @click.argument("source", type=click.Path(dir_okay=True, path_type=Path))
-@click.option("--model", type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="Model JSON to detect with (LOG only).")
-@click.option("--config", type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="Detector config (TOML/YAML) to detect with (LOG only).")
-@click.option("--robot", type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="Robot description (JSON/YAML) (LOG only).")
-@click.option("--channel-map", default=None,
-              help="Channel map file or shipped map name, for foreign layouts (LOG only).")
+@model_options
+@log_read_options
 @click.option("--save", "save_path", type=click.Path(dir_okay=False, path_type=Path),
               default=None, help="Also keep the recording at this .rrd path.")
 @click.option("--no-open", is_flag=True, help="Do not start the viewer (only check or write).")
@@ -123,10 +104,11 @@ def analyze_log(path: Path, *, model: Path | None, config: Path | None, robot: P
 @click.option("--event-window", type=click.FloatRange(min=0.0), default=DEFAULT_EVENT_WINDOW_S,
               show_default=True, help="Full-rate window kept around each event [s].")
 @handle_errors
-def view_cmd(source: Path, model: Path | None, config: Path | None,  # noqa: PLR0917
-             robot: Path | None,
-             channel_map: str | None, save_path: Path | None, no_open: bool,
-             max_points: int, event_window: float) -> None:
+def view_cmd(source: Path, robot: Path | None, model: Path | None,
+             config: Path | None, channel_map: str | None, topic: str | None,
+             reference_topic: str | None, time_source: str | None, torque_source: str | None,
+             save_path: Path | None, no_open: bool, max_points: int,
+             event_window: float) -> None:
     """Open a run (RUN.rrd) or a log (detected first) in the Rerun viewer.
 
     SOURCE is an .rrd written by `detect --rerun` (or `view --save`), or any log that
@@ -147,7 +129,10 @@ def view_cmd(source: Path, model: Path | None, config: Path | None,  # noqa: PLR
 
     from ..outputs.rerun import write_rrd
 
-    result = analyze_log(source, model=model, config=config, robot=robot, channel_map=channel_map)
+    ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
+    result = analyze_log(source, robot=robot, model=model, config=config, read_options=ropts)
+    for msg in result.warnings:
+        click.echo(f"impactcli: warning: {msg}", err=True)
     if save_path is not None:
         write_rrd(result, save_path, max_points=max_points, event_window_s=event_window)
         click.echo(str(save_path))
@@ -155,6 +140,8 @@ def view_cmd(source: Path, model: Path | None, config: Path | None,  # noqa: PLR
             open_viewer(save_path)
         return
     with tempfile.TemporaryDirectory(prefix="impactcli-view-") as tmp:
+        from ..io import log_stem
+
         rrd = Path(tmp) / f"{log_stem(source)}.rrd"
         write_rrd(result, rrd, max_points=max_points, event_window_s=event_window)
         open_viewer(rrd)

@@ -265,7 +265,7 @@ def write_rrd(result: DetectionResult, path: str | os.PathLike[str], *,
         raise
 
 
-def _write_joint(rec: Any, result: DetectionResult, j: int, joint: str,  # noqa: PLR0917
+def _write_joint(rec: Any, result: DetectionResult, j: int, joint: str,
                  keep: np.ndarray, max_points: int, indexes: Any) -> None:
     import rerun as rr
 
