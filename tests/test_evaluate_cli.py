@@ -201,7 +201,7 @@ def test_sweep_from_a_log(tmp_path, monkeypatch):
     r = invoke(str(log), "--labels", str(lab), "--json", "--sweep", "--scales", "1,1.3,1.6,2.5",
                "--channel-map", "ur_ext_observer")
     assert r.exit_code == 0, info(r)
-    assert seen["channel_map"] == "ur_ext_observer" and seen["path"] == log
+    assert seen["read_options"] == {"channel_map": "ur_ext_observer"} and seen["path"] == log
     doc = json.loads(r.stdout)
     validate(doc, "evaluation", LabelsError, "evaluate --json --sweep")
     zero = doc["sweep"]["at_zero_false_alarms"]

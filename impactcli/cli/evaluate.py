@@ -2,8 +2,8 @@
 
 A ``*.json`` input is a detection timeline (``impactcli detect`` output, validated against
 schemas/timeline.schema.json); anything else is a log, on which the detectors are replayed
-first (:func:`impactcli.pipeline.analyze`, with detect's ``--robot/--model/--config/
---channel-map``). The matching rules are :mod:`impactcli.evaluate`'s.
+first (:func:`impactcli.pipeline.analyze`, with detect's ``--robot/--model/--config`` and
+log-reading options). The matching rules are :mod:`impactcli.evaluate`'s.
 
 ``--sweep`` rescales every threshold over ``--scales`` and reports, per detector, the
 smallest scale with zero false alarms and what it still detects, then a one-sentence
@@ -28,6 +28,7 @@ import numpy as np
 
 from ..errors import ImpactWarning, LabelsError, LogFormatError
 from ._common import handle_errors
+from .detect import log_read_options, model_options, read_options_from
 
 DEFAULT_SCALES = "0.5:3:0.05"
 
@@ -68,9 +69,9 @@ def _scales_option(ctx: click.Context, param: click.Parameter, value: str) -> tu
 
 def read_labels_checked(path: Path) -> Any:
     """Labels validated against schemas/labels.schema.json (LabelsError naming the file)."""
-    from ..io.robot import labels_from_dict  # noqa: PLC0415
-    from ..io.structured import load_mapping  # noqa: PLC0415
-    from ..schema import validate  # noqa: PLC0415
+    from ..io.robot import labels_from_dict
+    from ..io.structured import load_mapping
+    from ..schema import validate
 
     d = load_mapping(path, LabelsError, "labels")
     validate(d, "labels", LabelsError, str(path))
@@ -79,8 +80,8 @@ def read_labels_checked(path: Path) -> Any:
 
 def read_timeline(path: Path) -> dict[str, Any]:
     """A timeline JSON validated against schemas/timeline.schema.json (LogFormatError)."""
-    from ..io.structured import load_mapping  # noqa: PLC0415
-    from ..schema import validate  # noqa: PLC0415
+    from ..io.structured import load_mapping
+    from ..schema import validate
 
     doc = load_mapping(path, LogFormatError, "timeline")
     validate(doc, "timeline", LogFormatError, str(path))
@@ -106,37 +107,29 @@ def _check_rate(labels: Any, rate_hz: float, where: str) -> None:
             f"{rate_hz:g} Hz: are they the labels of this log?", ImpactWarning, stacklevel=2)
 
 
-def analyze_log(path: Path, *, model: Path | None, config: Path | None, robot: Path | None,
-                channel_map: str | None) -> Any:
-    """Read ``path`` and replay the detectors on it; returns a DetectionResult."""
-    from ..io import read_log  # noqa: PLC0415
-    from ..pipeline import analyze  # type: ignore[import-not-found,unused-ignore]  # noqa: PLC0415
+def analyze_log(path: Path, *, robot: Path | None, model: Path | None, config: Path | None,
+                read_options: dict[str, Any]) -> Any:
+    """Read ``path`` and replay the detectors on it, as ``detect`` does (a DetectionResult)."""
+    from ..config import load_config
+    from ..io import read_log
+    from ..io.robot import read_robot
+    from ..model import read_model
+    from ..pipeline import analyze
 
-    robot_desc = None
-    if robot is not None:
-        from ..io.robot import read_robot  # noqa: PLC0415
-
-        robot_desc = read_robot(robot)
-    model_obj = None
-    if model is not None:
-        from ..model.rigid import read_model  # noqa: PLC0415
-
-        model_obj = read_model(model)
-    config_obj = None
-    if config is not None:
-        from ..config import load_config  # noqa: PLC0415
-
-        config_obj = load_config(config)
-    log = read_log(path, channel_map=channel_map, robot=robot_desc)
-    return analyze(log, model=model_obj, config=config_obj, robot=robot_desc)
+    robot_desc = read_robot(robot) if robot is not None else None
+    model_obj = read_model(model) if model is not None else None
+    config_obj = load_config(config) if config is not None else None
+    log = read_log(path, robot=robot_desc, **read_options)
+    return analyze(log, model=model_obj, config=config_obj, robot=robot_desc,
+                   read_options=read_options)
 
 
 def _timeline_sweep(source: Path, doc: dict[str, Any], labels: Any, scales: tuple[float, ...],
                     tolerance: Any) -> Any:
     """Sweep from a timeline and the signals Parquet beside it."""
-    from ..evaluate import ratios_from_signals, sweep_ratios  # noqa: PLC0415
-    from ..outputs.signals import read_signals  # noqa: PLC0415
-    from ..types import DETECTORS  # noqa: PLC0415
+    from ..evaluate import ratios_from_signals, sweep_ratios
+    from ..outputs.signals import read_signals
+    from ..types import DETECTORS
 
     sig_path = signals_beside(source)
     if not sig_path.is_file():
@@ -195,25 +188,21 @@ def _timeline_sweep(source: Path, doc: dict[str, Any], labels: Any, scales: tupl
 @click.option("--post", "post_s", type=click.FloatRange(min=0.0), default=0.25,
               show_default=True,
               help="An alarm up to this long after a contact's end matches it (release) [s].")
-@click.option("--model", type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="Model JSON to detect with (LOG only).")
-@click.option("--config", type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="Detector config (TOML/YAML/JSON) to detect with (LOG only).")
-@click.option("--robot", type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="Robot description (JSON/YAML) (LOG only).")
-@click.option("--channel-map", default=None,
-              help="Channel map file or shipped map name, for foreign layouts (LOG only).")
+@model_options
+@log_read_options
 @handle_errors
-def evaluate_cmd(source: Path, labels_path: Path, as_json: bool, sweep: bool,  # noqa: PLR0917
-                 scales: tuple[float, ...], pre_s: float, post_s: float, model: Path | None,
-                 config: Path | None, robot: Path | None, channel_map: str | None) -> None:
+def evaluate_cmd(source: Path, labels_path: Path, as_json: bool, sweep: bool,
+                 scales: tuple[float, ...], pre_s: float, post_s: float, robot: Path | None,
+                 model: Path | None, config: Path | None, channel_map: str | None,
+                 topic: str | None, reference_topic: str | None, time_source: str | None,
+                 torque_source: str | None) -> None:
     """Measure detection quality of a timeline (or a log, detected first) against labels.
 
     An event matches a contact when it starts within [start - PRE, end + POST]. Events in
     warm-up are listed, never counted; contacts in warm-up are reported, not counted as
     misses. 'product' is adaptive OR static_loading.
     """
-    from ..evaluate import (  # noqa: PLC0415
+    from ..evaluate import (
         MatchTolerance,
         evaluate_events,
         format_evaluation,
@@ -224,9 +213,11 @@ def evaluate_cmd(source: Path, labels_path: Path, as_json: bool, sweep: bool,  #
 
     tolerance = MatchTolerance(pre_s=pre_s, post_s=post_s)
     is_timeline = source.name.lower().endswith(".json")
-    if is_timeline and any(v is not None for v in (model, config, robot, channel_map)):
-        raise click.UsageError("--model, --config, --robot and --channel-map apply to a LOG, "
-                               "not to a timeline")
+    read_options = read_options_from(channel_map, topic, reference_topic, time_source,
+                                     torque_source)
+    if is_timeline and (read_options or any(v is not None for v in (model, config, robot))):
+        raise click.UsageError("--robot, --model, --config and the log-reading options apply "
+                               "to a LOG, not to a timeline")
     labels = read_labels_checked(labels_path)
     rows = None
     if is_timeline:
@@ -240,7 +231,9 @@ def evaluate_cmd(source: Path, labels_path: Path, as_json: bool, sweep: bool,  #
             rows = _timeline_sweep(source, doc, labels, scales, tolerance)
     else:
         result = analyze_log(source, model=model, config=config, robot=robot,
-                             channel_map=channel_map)
+                             read_options=read_options)
+        for msg in result.warnings:
+            click.echo(f"impactcli: warning: {msg}", err=True)
         _check_rate(labels, result.log.sample_rate_hz, str(source))
         gap = float(_events_settings(result.config).get("merge_gap_s", 0.0))
         ev = evaluate_events(result.events, labels, duration_s=result.log.duration_s,
