@@ -73,15 +73,15 @@ def _pct(x: float | None) -> str:
               help="Model a joint that does not move by its constant torque only "
                    "(default: an error).")
 @handle_errors
-def identify_cmd(  # noqa: PLR0917 (click passes options by keyword; one per option)
+def identify_cmd(
     log: str, output: str, robot: str | None, kind: str | None, channel_map: str | None,
     torque_source: str | None, cutoff_hz: float, holdout_fraction: float, robust: str,
     coulomb_slope: float, allow_still: bool,
 ) -> None:
     """Identify a rough rigid model (tau = Y(q, q', q'') theta) from LOG and write it."""
-    from ..io import read_log  # noqa: PLC0415 (verbs import lazily: fast --help)
-    from ..io.robot import read_robot  # noqa: PLC0415
-    from ..model import IdentifyOptions, identify, write_model  # noqa: PLC0415
+    from ..io import read_log
+    from ..io.robot import read_robot
+    from ..model import IdentifyOptions, identify, write_model
 
     desc = read_robot(robot) if robot else None
     data = read_log(log, channel_map=channel_map, robot=desc, torque_source=torque_source)

@@ -191,7 +191,7 @@ def _robust_scale(res: np.ndarray, floor: np.ndarray) -> np.ndarray:
     """(J,) 1.4826 × median absolute deviation per joint, floored."""
     med = np.median(res, axis=0)
     s = 1.4826 * np.median(np.abs(res - med), axis=0)
-    return np.maximum(s, floor)
+    return np.asarray(np.maximum(s, floor))
 
 
 def robust_lstsq(

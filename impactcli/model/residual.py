@@ -126,7 +126,7 @@ def _coulomb_correction(
     return np.asarray(smooth - fc * np.tanh(qd / vs))
 
 
-def momentum_observer(  # noqa: PLR0917 (signals first, settings last)
+def momentum_observer(
     model: RigidModel, q: np.ndarray, qd: np.ndarray, tau: np.ndarray, dt: float, gain: float,
     n_correction: np.ndarray | None = None,
 ) -> np.ndarray:

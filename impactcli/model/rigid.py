@@ -124,7 +124,7 @@ class RigidModel:
     @classmethod
     def from_dict(cls, d: dict[str, Any], where: str = "model") -> RigidModel:
         """Build from the mapping of :meth:`to_dict` (validated against the schema)."""
-        from ..schema import validate  # noqa: PLC0415 (jsonschema is slow to import)
+        from ..schema import validate
 
         validate(d, "model", ModelError, where)
         params = d["parameters"]
@@ -173,7 +173,7 @@ def _jsonable(x: Any) -> Any:  # noqa: PLR0911 (one return per JSON type)
 
 def write_model(model: RigidModel, path: str | os.PathLike[str]) -> None:
     """Write ``model`` as indented JSON, atomically."""
-    from .._fs import atomic_write_text  # noqa: PLC0415
+    from .._fs import atomic_write_text
 
     atomic_write_text(path, json.dumps(model.to_dict(), indent=2, allow_nan=False) + "\n")
 

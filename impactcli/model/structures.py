@@ -162,7 +162,7 @@ def planar_regressor(
 # ---------------------------------------------------------------- urdf
 def _pinocchio() -> Any:
     try:
-        import pinocchio  # noqa: PLC0415 (optional extra, heavy: imported lazily)
+        import pinocchio
     except ImportError as err:
         raise ModelError(
             "the urdf model needs Pinocchio: pip install 'impactcli[urdf]' (PyPI package 'pin')"
@@ -322,7 +322,7 @@ def param_names(kind: str, joints: tuple[str, ...], structure: dict[str, Any]) -
     raise ModelError(f"unknown model kind {kind!r} (choose from {', '.join(KINDS)})")
 
 
-def regressor(  # noqa: PLR0917 (structure, then the three signals)
+def regressor(
     kind: str, joints: tuple[str, ...], structure: dict[str, Any],
     q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
 ) -> np.ndarray:

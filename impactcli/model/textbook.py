@@ -111,7 +111,7 @@ class TwoLinkArm:
         )
 
 
-def multisine(  # noqa: PLR0917
+def multisine(
     t: np.ndarray, n_joints: int = 2, seed: int = 0, f_max: float = 1.5, amp: float = 0.6,
     n_freq: int = 4,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
