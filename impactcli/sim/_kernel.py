@@ -20,8 +20,8 @@ Between samples the state is integrated with classical RK4 on ``n_sub`` equal su
 State vector layout: ``s = [x1 (n), x2 (n), x1' (n), x2' (n)]``.
 """
 
-# numba kernels take their arrays positionally (no keyword-only args in compiled calls):
-# ruff: noqa: PLR0917, PLR0911
+# force_profile returns from each phase of its piecewise profile:
+# ruff: noqa: PLR0911
 from __future__ import annotations
 
 import math

@@ -160,8 +160,9 @@ def _trap_profile(tau: np.ndarray) -> Arrays:
 class MultiSine:
     """Sum of n_sines sines per joint, random frequencies in [f_min, f_max] Hz and phases.
 
-    Peak deviation from center ≤ amplitude [rad]; a raised-cosine fade-in over fade_s [s]
-    starts the motion from rest.
+    Peak deviation from center ≤ amplitude [rad]; a quintic smoothstep fade-in over fade_s
+    [s] (zero first and second derivatives at both ends) starts the motion from rest with
+    a continuous acceleration.
     """
 
     center: tuple[float, ...]
@@ -179,9 +180,10 @@ class MultiSine:
         # fade-in window and its derivatives
         x = np.clip(t / self.fade_s, 0.0, 1.0)
         inside = t < self.fade_s
-        wv = np.where(inside, 0.5 * (1 - np.cos(math.pi * x)), 1.0)
-        wd = np.where(inside, 0.5 * math.pi / self.fade_s * np.sin(math.pi * x), 0.0)
-        wdd = np.where(inside, 0.5 * (math.pi / self.fade_s) ** 2 * np.cos(math.pi * x), 0.0)
+        big_t = self.fade_s
+        wv = np.where(inside, x**3 * (10 - 15 * x + 6 * x**2), 1.0)
+        wd = np.where(inside, 30 * x**2 * (1 - x) ** 2 / big_t, 0.0)
+        wdd = np.where(inside, 60 * x * (1 - x) * (1 - 2 * x) / big_t**2, 0.0)
         for j in range(n):
             f = rng.uniform(self.f_min, self.f_max, self.n_sines)
             ph = rng.uniform(0, 2 * math.pi, self.n_sines)

@@ -1,0 +1,165 @@
+"""The sample logs shipped in ``sample_logs/``: a manifest and a deterministic generator.
+
+``python -m impactcli.sim.samples OUTDIR`` regenerates every file (same bytes for the same
+code and library versions): ``OUTDIR/csv/<name>.csv.gz`` and ``OUTDIR/mcap/<name>.mcap``
+(separate folders: a CSV and an MCAP of one log share their stem, hence their timeline
+name), each folder with ``<name>.labels.json`` and ``<name>.robot.json``, and
+``OUTDIR/README.md`` with the table of what each log holds.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from .arm import preset
+from .core import Scenario, SimResult, simulate
+from .scenarios import impacts, scenario
+
+
+@dataclass(frozen=True)
+class Sample:
+    """One shipped log: name (file stem), how to build its scenario, seed, MCAP encoding."""
+
+    name: str
+    arm: str
+    scenario: str
+    duration_s: float | None
+    seed: int
+    mcap_encoding: str
+    use: str
+    build: Callable[[], Scenario] | None = None
+
+    def make(self) -> Scenario:
+        sc = self.build() if self.build else scenario(self.scenario, self.arm, self.duration_s)
+        return replace(sc, name=self.name)
+
+
+def _heavy_impacts() -> Scenario:
+    return impacts(preset("heavy_geared"), None, stiffnesses=(2.12, 5.93, 10.12),
+                   forces_n=(4.0, 12.0, 30.0), speeds=(0.15, 0.45, 0.3))
+
+
+MANIFEST: tuple[Sample, ...] = (
+    Sample("assist_free_triangle", "assist_like", "free_triangle", 40.0, 101, "json",
+           "collision-free: calibration"),
+    Sample("assist_free_fm_triangle", "assist_like", "free_fm_triangle", 40.0, 102, "json",
+           "collision-free: calibration"),
+    Sample("assist_free_p2p", "assist_like", "free_p2p", 40.0, 103, "ros2",
+           "collision-free: calibration or held-out test"),
+    Sample("assist_free_multisine", "assist_like", "free_multisine", 40.0, 104, "json",
+           "collision-free: held-out false-alarm test"),
+    Sample("assist_impacts", "assist_like", "impacts", None, 105, "ros2",
+           "detection: end-effector impacts on 2.12 / 5.93 / 10.12 N/mm elastomers"),
+    Sample("assist_pushes", "assist_like", "pushes", 44.0, 106, "json",
+           "detection: pushes of graded force on both links"),
+    Sample("assist_clamps", "assist_like", "clamps", 44.0, 107, "json",
+           "detection: slow clamping (static_loading detector)"),
+    Sample("assist_payload", "assist_like", "payload", 40.0, 108, "json",
+           "collision-free with an unknown 0.5 kg payload: robustness"),
+    Sample("heavy_free_multisine", "heavy_geared", "free_multisine", 30.0, 201, "ros2",
+           "collision-free: calibration (heavy geared arm)"),
+    Sample("heavy_impacts", "heavy_geared", "impacts", None, 202, "json",
+           "detection: impacts on elastomers (heavy geared arm)", _heavy_impacts),
+)
+
+
+def _contacts_summary(res: SimResult) -> str:
+    evs = res.labels.events
+    if not evs:
+        return "none"
+    kinds = sorted({e.kind for e in evs})
+    lo = min(e.peak_force for e in evs)
+    hi = max(e.peak_force for e in evs)
+    return f"{len(evs)} {'/'.join(kinds)}, peak {lo:.1f}–{hi:.1f} N"
+
+
+def generate(outdir: str | Path, names: list[str] | None = None) -> list[Path]:
+    """Simulate the manifest (or the named entries) and write every file under ``outdir``.
+
+    Returns the paths written (logs, labels, robot descriptions, README.md).
+    """
+    from ..io import write_log
+    from ..io.robot import write_labels, write_robot
+
+    out = Path(outdir)
+    written: list[Path] = []
+    rows = []
+    for entry in MANIFEST:
+        if names and entry.name not in names:
+            continue
+        sc = entry.make()
+        res = simulate(sc, seed=entry.seed)
+        for sub, suffix in (("csv", ".csv.gz"), ("mcap", ".mcap")):
+            folder = out / sub
+            folder.mkdir(parents=True, exist_ok=True)
+            log_path = folder / f"{entry.name}{suffix}"
+            write_log(res.log, log_path, mcap_encoding=entry.mcap_encoding)
+            write_labels(res.labels, folder / f"{entry.name}.labels.json")
+            write_robot(res.robot, folder / f"{entry.name}.robot.json")
+            written += [log_path, folder / f"{entry.name}.labels.json",
+                        folder / f"{entry.name}.robot.json"]
+        rows.append(
+            f"| `{entry.name}` | {entry.arm} | {sc.description or entry.scenario} | "
+            f"{res.log.duration_s:.0f} s @ {res.log.sample_rate_hz:.0f} Hz | "
+            f"{sc.payload_kg:g} kg | {_contacts_summary(res)} | {entry.use} | "
+            f"{'ROS 2 JointState' if entry.mcap_encoding == 'ros2' else 'JSON'} | "
+            f"{entry.seed} |"
+        )
+    if not names:
+        readme = out / "README.md"
+        readme.write_text(_README.format(rows="\n".join(rows)), encoding="utf-8")
+        written.append(readme)
+    return written
+
+
+_README = """# Sample logs (simulated)
+
+Generated by `python -m impactcli.sim.samples sample_logs` (deterministic: same code and
+library versions, same bytes) from the flexible-joint simulator `impactcli.sim` — the
+paper's eq. 1–2 for a planar arm in a vertical plane, PD motor-position control at the
+sample period with gravity feed-forward from the nominal model, encoder quantisation,
+noisy quantised motor current (`torque = gear_ratio × torque_constant × current`). The
+simulated robot is NOT the nominal one in `*.robot.json`: its masses, inertias, stiffness
+and friction differ by up to ±20 % (drawn from the seed), friction drifts slowly, and
+`assist_payload` carries a payload the description does not mention.
+
+Layout: `csv/<name>.csv.gz` (canonical wide CSV) and `mcap/<name>.mcap` hold the SAME log
+(MCAP encoding in the table; the ROS 2 files carry position, velocity and effort = torque
+on `/joint_states` and the reference on `/joint_states_ref`, not current or acceleration
+reference). They are in separate folders because their stems — hence their timeline
+names — are the same. Each folder also has `<name>.labels.json` (ground truth:
+`start`/`end` = first/last sample where that contact's true force exceeds 0.5 N, in s
+since the first sample; `peak_force` N; `kind`; 1-based `link`; extra fields: `source`,
+elastomer `stiffness_n_per_mm` and `tip_speed_m_s` for impacts, `duration_s` for pushes,
+`rise_s`/`hold_s` for clamps) and `<name>.robot.json` (nominal description).
+
+Arms (numbers in `impactcli/sim/arm.py`): `assist_like` — 2 joints, 0.4/0.4 m, cable
+reduction 20:1, soft joints (800/300 N·m/rad), low friction, Ts = 4 ms; `heavy_geared` —
+3 joints, 0.5/0.4/0.2 m, 100:1 gears, strong Coulomb friction, stiffer joints, Ts = 2 ms.
+
+Suggested use: calibrate thresholds on some collision-free logs, check false alarms on the
+others, then detect on the contact logs and `evaluate` against their labels.
+
+| name | arm | what | duration | payload | labelled contacts | use | MCAP | seed |
+|---|---|---|---|---|---|---|---|---|
+{rows}
+"""
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m impactcli.sim.samples OUTDIR [NAME ...]``."""
+    args = sys.argv[1:] if argv is None else argv
+    if not args or args[0] in ("-h", "--help"):
+        print("usage: python -m impactcli.sim.samples OUTDIR [NAME ...]")
+        print("names: " + ", ".join(e.name for e in MANIFEST))
+        return 0 if args else 2
+    for p in generate(args[0], args[1:] or None):
+        print(p)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
