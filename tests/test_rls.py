@@ -62,7 +62,7 @@ def test_three_forms_agree() -> None:
 
 
 @numba.njit(cache=True)
-def _drive(theta, P, pool, theta_true, n_steps, seed):  # noqa: PLR0917
+def _drive(theta, P, pool, theta_true, n_steps, seed):
     """n_steps RLS steps on regressors drawn from ``pool`` (random row, random sign)."""
     np.random.seed(seed)  # noqa: NPY002 (numba knows only the legacy API)
     nu = theta.shape[0]

@@ -245,7 +245,7 @@ def g_gain(theta_g: np.ndarray, freqs_hz: np.ndarray, fs_hz: float) -> np.ndarra
 
 # ----------------------------------------------------------------------------- kernels
 @nb.njit(cache=True, nogil=True, fastmath=FASTMATH)
-def _evaluate_numba(  # noqa: PLR0917 (numba kernels take positional arguments)
+def _evaluate_numba(
     r: np.ndarray, u: np.ndarray, eta: int, p: int, rho: np.ndarray,
     lam: float, p0: float, theta0: float, max_trace: float, a_post: bool,
     a1: float, a2: float, n1: int, n2: int, v_stat: np.ndarray,
@@ -393,7 +393,9 @@ def evaluate(
         cfg.p0, cfg.theta0, mt, cfg.estimate == "a_posteriori", rates.a1, rates.a2,
         rates.n1, rates.n2, vs,
     )
-    return AdaptiveResult(*out, rates=rates, nu=nu, eta=cfg.eta)
+    rt, vd, rf, vf, rr, vr, thr, dec, eps, theta, resets = out
+    return AdaptiveResult(rt, vd, rf, vf, rr, vr, thr, dec, eps, theta, resets,
+                          rates=rates, nu=nu, eta=cfg.eta)
 
 
 def evaluate_reference(

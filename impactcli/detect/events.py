@@ -25,7 +25,7 @@ from ..types import DETECTORS, Event
 _EPS_S = 1e-9
 
 
-def extract_events(  # noqa: PLR0917 (the signature of the brief: all positional)
+def extract_events(
     detector: str, decision: np.ndarray, ratio: np.ndarray, residual: np.ndarray,
     time_s: np.ndarray, joint_names: Sequence[str], warmup_end_s: float,
     merge_gap_s: float = 0.1, min_duration_s: float = 0.0,

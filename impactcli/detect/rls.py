@@ -54,7 +54,7 @@ FASTMATH = {"reassoc", "contract", "nsz", "arcp"}
 
 
 @nb.njit(cache=True, nogil=True, inline="always", fastmath=FASTMATH)
-def rls_update_inplace(  # noqa: PLR0917 (numba kernels take positional arguments)
+def rls_update_inplace(
     theta: np.ndarray, P: np.ndarray, phi: np.ndarray, y: float,
     forgetting_factor: float, max_trace: float, p0: float, h: np.ndarray,
 ) -> tuple[float, int]:
@@ -141,7 +141,7 @@ def symmetrize(P: np.ndarray) -> np.ndarray:
 
 
 @nb.njit(cache=True, nogil=True, fastmath=FASTMATH)
-def _rls_run_kernel(  # noqa: PLR0917
+def _rls_run_kernel(
     Phi: np.ndarray, y: np.ndarray, theta: np.ndarray, P: np.ndarray,
     forgetting_factor: float, max_trace: float, p0: float, keep_history: bool,
 ) -> tuple[np.ndarray, np.ndarray, int]:
