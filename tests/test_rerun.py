@@ -208,3 +208,23 @@ def test_module_import_does_not_import_rerun() -> None:
     code = ("import sys, impactcli.outputs.rerun, impactcli.cli.view; "
             "sys.exit(1 if 'rerun' in sys.modules else 0)")
     assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0
+
+
+def test_no_reference_and_no_events(tmp_path: Path) -> None:
+    res = fake_result()
+    log = dataclasses.replace(res.log, position_ref=None, velocity_ref=None,
+                              acceleration_ref=None)
+    quiet = {d: np.zeros_like(v) for d, v in res.decisions.items()}
+    res = dataclasses.replace(res, log=log, events=(), decisions=quiet)
+    path = tmp_path / "quiet.rrd"
+    write_rrd(res, path)
+    ent = read_entities(path)
+    assert "/events" not in ent
+    assert not any(p.endswith(("/adaptive", "/static_loading", "/static_baseline"))
+                   for p in ent if p.startswith("/joints/"))
+    for j, joint in enumerate(res.log.joint_names):
+        pos = scalars(ent[f"/joints/{joint}/position"])
+        assert pos.shape == (res.log.n_samples, 1)
+        np.testing.assert_allclose(pos[:, 0], res.log.position[:, j])
+        lane = ent[f"/detections/{joint}/adaptive"]["StateChange:state"]
+        assert [s[0] for s in lane] == ["clear"]
