@@ -822,15 +822,27 @@ def at_zero_false_alarms(rows: Sequence[SweepRow]) -> dict[str, SweepRow | None]
     return out
 
 
-def adaptive_helps(zero: Mapping[str, SweepRow | None]) -> bool | None:
+def _at_edge(zero: Mapping[str, SweepRow | None], smallest_scale: float | None) -> list[str]:
+    """Compared detectors already silent at the smallest swept scale (their zero-false-alarm
+    point lies below the sweep)."""
+    if smallest_scale is None:
+        return []
+    return [d for d in PRODUCT_PARTS
+            if (r := zero.get(d)) is not None and r.scale <= smallest_scale + EPS_S]
+
+
+def adaptive_helps(zero: Mapping[str, SweepRow | None], *,
+                   smallest_scale: float | None = None) -> bool | None:
     """Whether adaptive beats static_loading at matched (zero) false alarms, or None if unknown.
 
     Helps: adaptive detects something and (static_loading detects nothing, or its minimal
     detected force is smaller, or its median delay is shorter). Unknown: either detector
-    never reaches zero false alarms in the sweep, or there are no counted contacts.
+    never reaches zero false alarms in the sweep, or is already silent at
+    ``smallest_scale`` (the smallest swept scale: its true zero-false-alarm point lies
+    lower, so the two are not compared at matched rates), or there are no counted contacts.
     """
     a, s = zero.get("adaptive"), zero.get("static_loading")
-    if a is None or s is None or a.n_contacts == 0:
+    if a is None or s is None or a.n_contacts == 0 or _at_edge(zero, smallest_scale):
         return None
     if a.detected == 0:
         return False
@@ -851,7 +863,7 @@ def _row_text(r: SweepRow) -> str:
     return txt
 
 
-def verdict(zero: Mapping[str, SweepRow | None]) -> str:
+def verdict(zero: Mapping[str, SweepRow | None], *, smallest_scale: float | None = None) -> str:
     """One plain sentence: does the adaptive detector help on this robot and log?
 
     Compares adaptive with static_loading at their zero-false-alarm points
@@ -865,9 +877,13 @@ def verdict(zero: Mapping[str, SweepRow | None]) -> str:
     assert a is not None and s is not None
     if a.n_contacts == 0:
         return "Undetermined: the labels hold no contact after warm-up to compare detectors on."
-    helps = adaptive_helps(zero)
     both = f"adaptive detected {_row_text(a)}; static_loading detected {_row_text(s)}."
-    if helps:
+    edge = _at_edge(zero, smallest_scale)
+    if edge:
+        return (f"Undetermined: {' and '.join(edge)} had no false alarm even at the smallest "
+                f"swept scale ({smallest_scale:g}), so the detectors are not compared at "
+                f"matched rates; sweep smaller scales ({both[:-1]}).")
+    if adaptive_helps(zero):
         return f"The adaptive detector helps here at zero false alarms: {both}"
     return f"The adaptive detector does not help here at zero false alarms: {both}"
 
@@ -875,27 +891,31 @@ def verdict(zero: Mapping[str, SweepRow | None]) -> str:
 def sweep_to_dict(rows: Sequence[SweepRow]) -> dict[str, Any]:
     """The sweep, its zero-false-alarm points and the verdict, JSON-ready (deterministic)."""
     zero = at_zero_false_alarms(rows)
+    lo = min((r.scale for r in rows), default=None)
     return {
         "rows": [r.to_dict() for r in rows],
         "at_zero_false_alarms": {
             d: (r.to_dict() if r is not None else None) for d, r in zero.items()},
-        "adaptive_helps": adaptive_helps(zero),
-        "verdict": verdict(zero),
+        "adaptive_helps": adaptive_helps(zero, smallest_scale=lo),
+        "verdict": verdict(zero, smallest_scale=lo),
     }
 
 
 def format_sweep(rows: Sequence[SweepRow]) -> str:
     """A plain-text table of the sweep's zero-false-alarm points and the verdict."""
     zero = at_zero_false_alarms(rows)
+    scales = sorted({r.scale for r in rows})
+    lo = scales[0] if scales else None
     table: list[tuple[str, ...]] = [("detector", "scale @ 0 FA", "detected", "min detected F",
                                      "delay med")]
     for d, r in zero.items():
         if r is None:
-            table.append((d, "never", "-", "-", "-"))
+            table.append((d, f"never (> {scales[-1]:g})", "-", "-", "-"))
         else:
-            table.append((d, f"{r.scale:g}", f"{r.detected}/{r.n_contacts}",
+            at_lo = lo is not None and r.scale <= lo + EPS_S
+            table.append((d, f"<= {r.scale:g}" if at_lo else f"{r.scale:g}",
+                          f"{r.detected}/{r.n_contacts}",
                           _fmt_n(r.min_detected_force), _fmt_ms(r.delay_median_s)))
-    scales = sorted({r.scale for r in rows})
     rng = f"{scales[0]:g}–{scales[-1]:g}, {len(scales)} scales" if scales else "no scales"
     return "\n".join([f"Threshold sweep ({rng}), at zero false alarms:", *_table(table), "",
-                      verdict(zero)]) + "\n"
+                      verdict(zero, smallest_scale=lo)]) + "\n"

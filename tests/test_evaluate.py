@@ -350,6 +350,16 @@ def test_zero_false_alarm_point_ignores_a_lone_silent_scale_and_undetermined_ver
     rows3 = [row("adaptive", 1.0, 0, det_n=0, force=None, delay=None),
              row("static_loading", 1.0, 0)]
     assert adaptive_helps(at_zero_false_alarms(rows3)) is False
+    # silent already at the smallest swept scale: not compared at matched rates
+    rows5 = [row("adaptive", 0.5, 0), row("adaptive", 1.0, 0),
+             row("static_loading", 0.5, 1), row("static_loading", 1.0, 0, force=9.0)]
+    zero5 = at_zero_false_alarms(rows5)
+    assert adaptive_helps(zero5) is True
+    assert adaptive_helps(zero5, smallest_scale=0.5) is None
+    assert verdict(zero5, smallest_scale=0.5).startswith(
+        "Undetermined: adaptive had no false alarm even at the smallest swept scale (0.5)")
+    assert sweep_to_dict(rows5)["adaptive_helps"] is None
+    assert "<= 0.5" in format_sweep(rows5)
     rows4 = [row("adaptive", 1.0, 0),
              row("static_loading", 1.0, 0, det_n=0, force=None, delay=None)]
     assert adaptive_helps(at_zero_false_alarms(rows4)) is True

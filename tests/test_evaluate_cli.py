@@ -177,6 +177,18 @@ def test_usage_errors_exit_2(files):
     assert r.exit_code == 2 and "--labels" in r.stderr, info(r)
 
 
+def test_parse_scales():
+    geo = cli_eval.parse_scales(cli_eval.DEFAULT_SCALES)
+    assert geo[0] == 0.2 and 4.7 < geo[-1] <= 5.0 and len(geo) == 66
+    ratios = np.array(geo[1:]) / np.array(geo[:-1])
+    assert np.allclose(ratios, 1.05, atol=1e-3)
+    assert cli_eval.parse_scales("0.5:1:0.25") == (0.5, 0.75, 1.0)
+    assert cli_eval.parse_scales("2, 1,2") == (1.0, 2.0)
+    for bad in ("3:1:0.1", "0:1:x2", "1:2:x1", "1:2", "a,b", "-1,2", ""):
+        with pytest.raises(ValueError):
+            cli_eval.parse_scales(bad)
+
+
 def test_labels_of_another_rate_warn(files, tmp_path):
     tl, _ = files
     lab = write(tmp_path, "l100.json", dict(LABELS, sample_rate=100.0))

@@ -30,31 +30,38 @@ from ..errors import ImpactWarning, LabelsError, LogFormatError
 from ._common import handle_errors
 from .detect import log_read_options, model_options, read_options_from
 
-DEFAULT_SCALES = "0.5:3:0.05"
+#: 0.2 … 5 in 5 % steps (67 scales): thresholds are compared in ratios, so a geometric grid.
+DEFAULT_SCALES = "0.2:5:x1.05"
 
 
 def parse_scales(text: str) -> tuple[float, ...]:
-    """``"a:b:step"`` (inclusive of b) or ``"s1,s2,..."`` → sorted positive scales.
+    """Threshold scales from ``"a:b:step"`` (linear), ``"a:b:xF"`` (geometric, factor F > 1),
+    both inclusive of b, or ``"s1,s2,..."`` → sorted positive scales.
 
     Raises ValueError with a one-line message on anything else.
     """
     text = text.strip()
     try:
         if ":" in text:
-            parts = [float(p) for p in text.split(":")]
+            parts = text.split(":")
             if len(parts) != 3:
                 raise ValueError
-            a, b, step = parts
-            if not (step > 0 and b >= a):
+            a, b = float(parts[0]), float(parts[1])
+            geometric = parts[2].strip().lower().startswith("x")
+            step = float(parts[2].strip()[1:] if geometric else parts[2])
+            if not (b >= a > 0) or (geometric and not step > 1) or (not geometric and not step > 0):
                 raise ValueError
-            n = math.floor((b - a) / step + 1e-9)
+            n = math.floor((math.log(b / a) / math.log(step) if geometric else (b - a) / step)
+                           + 1e-9)
             if n > 10_000:
                 raise ValueError
-            values = [round(a + k * step, 10) for k in range(n + 1)]
+            values = [float(f"{a * step**k:.4g}") if geometric else round(a + k * step, 9)
+                      for k in range(n + 1)]
         else:
             values = [float(p) for p in text.split(",") if p.strip()]
-    except ValueError:
-        raise ValueError(f"{text!r} is not 'start:stop:step' or a comma-separated list") from None
+    except (ValueError, OverflowError, ZeroDivisionError):
+        raise ValueError(f"{text!r} is not 'start:stop:step', 'start:stop:xfactor' or a "
+                         "comma-separated list") from None
     if not values or any(not (math.isfinite(v) and v > 0) for v in values):
         raise ValueError(f"{text!r}: scales must be positive numbers")
     return tuple(sorted(set(values)))
@@ -182,7 +189,8 @@ def _timeline_sweep(source: Path, doc: dict[str, Any], labels: Any, scales: tupl
               help="Sweep threshold scales; compare detectors at zero false alarms "
                    "(needs a LOG, or a timeline with its .signals.parquet beside it).")
 @click.option("--scales", default=DEFAULT_SCALES, show_default=True, callback=_scales_option,
-              help="Threshold scales for --sweep: 'start:stop:step' or 's1,s2,...'.")
+              help="Threshold scales for --sweep: 'start:stop:step', 'start:stop:xfactor' "
+                   "(geometric) or 's1,s2,...'.")
 @click.option("--pre", "pre_s", type=click.FloatRange(min=0.0), default=0.02, show_default=True,
               help="An alarm up to this long before a contact's start matches it [s].")
 @click.option("--post", "post_s", type=click.FloatRange(min=0.0), default=0.25,
