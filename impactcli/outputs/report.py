@@ -515,7 +515,8 @@ nav ol { margin: 4px 0 8px 0; }
 }
 """
 
-BAND_EVENT = "#f6c9c3"
+BAND_EVENT = "#f3b6ae"
+ALARM_ZONE = "#fdf1ef"
 BAND_WARMUP = "#e4e4e4"
 BAND_LABEL = "#fde7cf"
 
@@ -738,7 +739,7 @@ def _panel(
         x_range=(float(t[lo]), float(t[hi - 1])),
         series=(
             svgplot.Series(sname, ts, ys, svgplot.BLUE),
-            svgplot.Series(tname, tt, yt, svgplot.RED, dash="6 3", width=1.4),
+            svgplot.Series(tname, tt, yt, svgplot.RED, width=1.1, fill_above=ALARM_ZONE),
         ),
         bands=_bands(result, detector, result.log.joint_names[j], labels),
         y_unit="N·m",
@@ -968,7 +969,8 @@ def _section_html(
     # plots
     p.append("<h3>Statistic against threshold over the whole log</h3>")
     p.append(
-        '<p class="small">Blue: the detector\'s statistic; red dashed: its threshold. '
+        '<p class="small">Blue: the detector\'s statistic; red: its threshold — the lightly '
+        'shaded area above it is where the detector alarms. '
         f'<span class="legend-key" style="background:{BAND_EVENT}"></span>events of that detector '
         f'<span class="legend-key" style="background:{BAND_WARMUP}"></span>warm-up'
         + (

@@ -31,7 +31,11 @@ ORANGE = "#d35400"
 
 @dataclass(frozen=True)
 class Series:
-    """One polyline: ``t`` [s] (M,) and ``y`` (M,), drawn in ``color`` (``dash`` e.g. ``"6 3"``)."""
+    """One polyline: ``t`` [s] (M,) and ``y`` (M,), drawn in ``color`` (``dash`` e.g. ``"6 3"``).
+
+    ``fill_above``: a colour shading the area between the line and the top of the panel
+    (a threshold's alarm zone), drawn under every line.
+    """
 
     name: str
     t: np.ndarray
@@ -39,6 +43,7 @@ class Series:
     color: str = BLUE
     dash: str = ""
     width: float = 1.2
+    fill_above: str = ""
 
 
 @dataclass(frozen=True)
@@ -180,6 +185,8 @@ def render_chart(chart: Chart, width: int = 860, height: int = 170, chart_id: st
         if ref_max > 0 and data_max > chart.clip_factor * ref_max:
             y_hi = chart.clip_factor * ref_max
             clipped = True
+        elif ref_max > 0:
+            y_hi = max(y_hi, 1.25 * ref_max)  # room above the threshold: its alarm zone shows
     if not y_hi > y_lo:
         y_hi = y_lo + 1.0
     y_hi_axis = y_hi * 1.05 if not clipped else y_hi
@@ -211,6 +218,14 @@ def render_chart(chart: Chart, width: int = 860, height: int = 170, chart_id: st
             f'<rect x="{bx0:.1f}" y="{mt}" width="{w:.1f}" height="{ph}"'
             f' fill="{b.fill}"{stroke}>{tip}</rect>'
         )
+    for s in chart.series:
+        ok = np.isfinite(s.y) & (s.t >= x0 - 1e-12) & (s.t <= x1 + 1e-12)
+        if not s.fill_above or not np.any(ok):
+            continue
+        xs, ys = px(s.t[ok]), py(s.y[ok])
+        pts = " ".join(f"{a:.1f},{b:.1f}" for a, b in zip(xs, ys, strict=True))
+        parts.append(f'<polygon fill="{s.fill_above}" stroke="none" '
+                     f'points="{xs[0]:.1f},{mt} {pts} {xs[-1]:.1f},{mt}"/>')
     for s in chart.series:
         ok = np.isfinite(s.y) & (s.t >= x0 - 1e-12) & (s.t <= x1 + 1e-12)
         if not np.any(ok):
