@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import os
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -72,6 +73,9 @@ def written(tmp_path_factory: pytest.TempPathFactory) -> tuple[DetectionResult, 
 
 def test_series_are_full_length_on_both_timelines(written: tuple[DetectionResult, Path]) -> None:
     res, path = written
+    mask = os.umask(0)
+    os.umask(mask)
+    assert path.stat().st_mode & 0o777 == 0o666 & ~mask  # an ordinary file, not mkstemp's 0600
     ent = read_entities(path)
     t_ns = res.log.t_ns
     n = res.log.n_samples

@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
+from .._fs import _umask
 from ..result import DetectionResult
 from ..types import DETECTORS
 from .decimate import DEFAULT_EVENT_WINDOW_S, DEFAULT_MAX_POINTS, select_samples, window_mask
@@ -257,6 +258,7 @@ def write_rrd(result: DetectionResult, path: str | os.PathLike[str], *,
             _write_joint(rec, result, j, joint, keep, max_points, indexes)
         _write_events(rec, result, indexes)
         rec.disconnect()
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs are ordinary files
         os.replace(tmp, target)
     except BaseException:
         rec.disconnect()
