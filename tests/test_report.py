@@ -321,3 +321,15 @@ def test_many_event_bands_are_merged_at_pixel_scale() -> None:
     assert "2000 × alarm" in svg
     _, w = map(float, rects[1])
     assert w >= 3.0  # a 10 ms alarm on an hour-long plot is still visible
+
+
+def test_run_warnings_shown_verbatim_without_the_path() -> None:
+    w = ("run.csv: the log excites the planar model poorly (condition number 1.7e+03 > 1000)",)
+    r = result_named("run.csv", "3" * 64, warnings=w)
+    html, doc = build_report([r])
+    validate(doc)
+    box = html[html.index('<div class="caveats">'):html.index("<h3>What was analysed</h3>")]
+    assert "Warnings raised during the run" in box
+    assert ("<li>the log excites the planar model poorly (condition number 1.7e+03 &gt; 1000)"
+            "</li>") in box
+    assert doc["logs"][0]["warnings"] == list(w)

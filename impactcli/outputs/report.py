@@ -323,8 +323,6 @@ def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]
         )
     for rep in tl["input"].get("repairs") or []:
         out.append({"code": "repair", "text": f"Input repaired while reading: {rep}"})
-    for w in result.warnings:
-        out.append({"code": "run-warning", "text": f"Warning during the run: {w}"})
     return out
 
 
@@ -780,7 +778,14 @@ def _section_html(
     # caveats first
     p.append('<div class="caveats"><h3>Caveats — read before the numbers</h3><ul>')
     p.extend(f"<li>{_e(c['text'])}</li>" for c in sec["caveats"])
-    p.append("</ul></div>")
+    p.append("</ul>")
+    if sec.get("warnings"):
+        prefix = f"{inp['path']}: "
+        p.append('<h4>Warnings raised during the run (verbatim)</h4><ul class="small">')
+        p.extend(f"<li>{_e(w[len(prefix):] if w.startswith(prefix) else w)}</li>"
+                 for w in sec["warnings"])
+        p.append("</ul>")
+    p.append("</div>")
     # what was analysed
     p.append("<h3>What was analysed</h3>")
     p.append(
