@@ -57,6 +57,9 @@ class IdentifyOptions:
         min_motion_rad: a joint whose position range is below this is "constant" [rad].
         allow_still_joints: a constant joint is an error by default; with this, it is
             warned about and its unexcited parameters are fixed at 0 (it keeps an offset).
+        max_fit_samples: at most this many samples (fit + held back) enter the least
+            squares; a longer log is fitted on every k-th filtered sample (memory and
+            time stay bounded; the rows of a 10 Hz band-limited signal are correlated).
         drop_tolerance: relative QR pivot below which a parameter is "not excited".
         condition_warn: warn when the normalised regressor's condition number exceeds it.
     """
@@ -75,6 +78,7 @@ class IdentifyOptions:
     min_holdout_s: float = 2.0
     min_motion_rad: float = 1e-3
     allow_still_joints: bool = False
+    max_fit_samples: int = 100_000
     drop_tolerance: float = 1e-4
     condition_warn: float = 1e3
 
@@ -400,6 +404,38 @@ def _robot_dict(robot: RobotDescription | None) -> dict[str, Any] | None:
     return d
 
 
+def _filtered_rows(
+    kind: str, joints: tuple[str, ...], structure: dict[str, Any],
+    q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, selections: tuple[np.ndarray, ...],
+    fs: float, cutoff: float, options: IdentifyOptions | None, margin: int,
+    chunk: int = 20000,
+) -> list[np.ndarray]:
+    """Regressor rows at the sample indices of each selection, computed chunk by chunk.
+
+    With ``options`` the regressor columns pass through the zero-phase filter (each chunk
+    is filtered with ``4 × margin`` extra samples on each side, then cut), so memory stays
+    bounded on hour-long logs. Returns one (len(sel), J, P) array per selection.
+    """
+    n = q.shape[0]
+    pad = 4 * margin if options is not None else 0
+    outs: list[list[np.ndarray]] = [[] for _ in selections]
+    for s in range(0, n, chunk):
+        e = min(n, s + chunk)
+        wanted = [sel[(sel >= s) & (sel < e)] for sel in selections]
+        if not any(w.size for w in wanted):
+            continue
+        a, b = max(0, s - pad), min(n, e + pad)
+        y = structures.regressor(kind, joints, structure, q[a:b], qd[a:b], qdd[a:b])
+        if options is not None:
+            shape = y.shape
+            y = zero_phase_lowpass(y.reshape(shape[0], -1), fs, cutoff,
+                                   options.filter_order).reshape(shape)
+        for k, w in enumerate(wanted):
+            outs[k].append(y[w - a])
+    p = len(structures.param_names(kind, joints, structure))
+    return [np.concatenate(o, axis=0) if o else np.zeros((0, len(joints), p)) for o in outs]
+
+
 def identify(
     log: RobotLog, *, robot: RobotDescription | None = None, kind: str | None = None,
     options: IdentifyOptions = IdentifyOptions(),
@@ -436,37 +472,44 @@ def identify(
     t = log.time_s
     fs = log.sample_rate_hz
     cutoff = clip_cutoff(options.cutoff_hz, fs, "identification cut-off")
-    edge = int(np.ceil(fs / cutoff))
     n = log.n_samples
-    if n < 4 * edge + 20:
+    if n < 4 * int(np.ceil(fs / cutoff)) + 20:
         raise ModelError(
             f"{where}: log too short to identify a model ({n} samples, {log.duration_s:.3g} s)"
         )
     structure = _structure_for(kind, robot, joints, options, where)
     qf, qd, qdd = zero_phase_derivatives(t, q_raw, cutoff, options.filter_order)
     tau_f = zero_phase_lowpass(tau_raw, fs, cutoff, options.filter_order)
-    y_reg = structures.regressor(kind, joints, structure, qf, qd, qdd)
-    if options.filter_regressor:
-        p = y_reg.shape[-1]
-        y_reg = zero_phase_lowpass(
-            y_reg.reshape(n, -1), fs, cutoff, options.filter_order
-        ).reshape(n, len(joints), p)
-    n_hold = round(options.holdout_fraction * n)
-    use_holdout = n_hold > 0 and n_hold / fs >= options.min_holdout_s and n - n_hold > 4 * edge + 20
-    split = n - n_hold if use_holdout else n
-    fit_sl = slice(edge, split - edge)
-    y_hold = None
-    if use_holdout:
-        h = slice(split + edge, n - edge)
-        y_hold = (y_reg[h], tau_f[h])
+    # everything is band-limited to the cut-off now: keep >= 10 samples per cut-off period
+    k1 = max(1, int(fs // (10.0 * cutoff)))
+    if k1 > 1:
+        qf, qd, qdd, tau_f, t = qf[::k1], qd[::k1], qdd[::k1], tau_f[::k1], t[::k1]
+    fs_d = fs / k1
+    nd = qf.shape[0]
+    edge = int(np.ceil(fs_d / cutoff))
+    n_hold = round(options.holdout_fraction * nd)
+    use_holdout = (n_hold > 0 and n_hold / fs_d >= options.min_holdout_s
+                   and nd - n_hold > 4 * edge + 20)
+    split = nd - n_hold if use_holdout else nd
+    fit_idx = np.arange(edge, split - edge)
+    hold_idx = np.arange(split + edge, nd - edge) if use_holdout else np.arange(0)
+    # a long log: fit on every k2-th filtered sample (the rows are strongly correlated)
+    k2 = max(1, int(np.ceil((fit_idx.size + hold_idx.size) / options.max_fit_samples)))
+    fit_idx, hold_idx = fit_idx[::k2], hold_idx[::k2]
+    y_fit, y_hold_arr = _filtered_rows(
+        kind, joints, structure, qf, qd, qdd, (fit_idx, hold_idx),
+        fs_d, cutoff, options if options.filter_regressor else None, edge,
+    )
+    y_hold = (y_hold_arr, tau_f[hold_idx]) if use_holdout else None
     filter_info = {
         "method": "butterworth zero-phase (filtfilt) on positions and torques; central differences"
                   + ("; regressor columns filtered alike" if options.filter_regressor else ""),
         "cutoff_hz": cutoff, "order": options.filter_order,
-        "sample_rate_hz": fs, "edge_trim_samples": edge,
+        "sample_rate_hz": fs, "edge_trim_samples": edge * k1,
+        "decimation": {"filtered_signals": k1, "fit_rows": k2},
         "holdout": {"fraction": options.holdout_fraction if use_holdout else 0.0,
                     "start_s": float(t[split]) if use_holdout else None},
     }
-    return _fit(y_reg[fit_sl], tau_f[fit_sl], y_hold, kind=kind, joints=joints,
+    return _fit(y_fit, tau_f[fit_idx], y_hold, kind=kind, joints=joints,
                 structure=structure, robot=robot, options=options, where=where,
                 filter_info=filter_info, input_sha256=log.source.sha256, still=still)
