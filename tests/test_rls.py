@@ -9,6 +9,7 @@ import pytest
 
 from impactcli.detect.rls import (
     RecursiveLeastSquares,
+    default_max_trace,
     rls_run,
     rls_step,
     rls_update_inplace,
@@ -123,7 +124,7 @@ def test_windup_guard_bounds_trace_when_excitation_stops() -> None:
         traces[name] = max(tr)
         errors[name] = np.abs(run.prediction_error).max()
         assert np.all(np.isfinite(rls.theta))
-    assert traces["guarded"] <= nu * p0 * (1 + 1e-12)
+    assert traces["guarded"] <= default_max_trace(nu, p0) * (1 + 1e-12)
     assert traces["unguarded"] > 1e6 * traces["guarded"]       # the guard is what bounds it
     # on resumption the guarded estimator's a priori error stays at the scale of the signal
     assert errors["guarded"] < 3 * np.abs(theta_true).sum()
