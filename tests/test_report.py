@@ -333,3 +333,19 @@ def test_run_warnings_shown_verbatim_without_the_path() -> None:
     assert ("<li>the log excites the planar model poorly (condition number 1.7e+03 &gt; 1000)"
             "</li>") in box
     assert doc["logs"][0]["warnings"] == list(w)
+
+
+def test_poor_model_fit_is_a_caveat() -> None:
+    def fit(rel_j1: float) -> dict:
+        stats = {"j1": {"rms_nm": rel_j1 * 2.0, "rms_rel_torque_rms": rel_j1, "torque_rms_nm": 2.0},
+                 "j2": {"rms_nm": 0.1, "rms_rel_torque_rms": 0.05, "torque_rms_nm": 2.0}}
+        return {"kind": "decoupled", "joint_names": ["j1", "j2"],
+                "fit": {"joints": {"fit": stats, "holdout": stats}}}
+
+    _, bad = build_report([result_named("a.csv", "4" * 64, model=fit(1.03))])
+    cav = [c for c in bad["logs"][0]["caveats"] if c["code"] == "model-poor-fit"]
+    assert len(cav) == 1
+    assert "j1 (RMS error 103 % of the torque RMS on held-out data)" in cav[0]["text"]
+    assert "j2" not in cav[0]["text"]
+    _, good = build_report([result_named("a.csv", "4" * 64, model=fit(0.3))])
+    assert "model-poor-fit" not in {c["code"] for c in good["logs"][0]["caveats"]}

@@ -22,6 +22,7 @@ same inputs give byte-identical JSON and HTML.
 from __future__ import annotations
 
 import dataclasses
+import datetime as dt
 import html
 import json
 import math
@@ -63,6 +64,9 @@ PRODUCT_DETECTORS: tuple[str, ...] = ("adaptive", "static_loading")
 #: A filter gain below this at a frequency <= 10 Hz triggers the "blind to slow contacts"
 #: caveat (method.md §7).
 LOW_GAIN = 0.2
+#: A model whose RMS torque error exceeds this fraction of the torque RMS (hold-out part
+#: when there is one) triggers the "poor fit" caveat.
+POOR_FIT = 0.5
 
 DETECTOR_TITLE = {
     "adaptive": "adaptive (eq. 41–42)",
@@ -212,6 +216,35 @@ def false_alarm_margins(
 # --------------------------------------------------------------------------- caveats
 
 
+def _share(part_s: float, total_s: float) -> str:
+    return f", {100 * part_s / total_s:.0f} % of the log" if total_s > 0 else ""
+
+
+def _epoch_text(t0_ns: int) -> str:
+    """`` (= <UTC time> if it is Unix time)`` for clocks that look like epoch ns, else ""."""
+    if not isinstance(t0_ns, int) or t0_ns < 10**17:  # before 1973: not an epoch clock
+        return ""
+    when = dt.datetime.fromtimestamp(t0_ns // 10**9, tz=dt.UTC)
+    ms = (t0_ns // 10**6) % 1000
+    return f" (= {when:%Y-%m-%d %H:%M:%S}.{ms:03d} UTC if it is Unix time)"
+
+
+def _poor_fit(result: DetectionResult) -> list[tuple[str, float, str]]:
+    """Joints whose model error (hold-out part when there is one, else the fit) exceeds
+    :data:`POOR_FIT` of the torque RMS: (joint, ratio, where)."""
+    per = ((result.model or {}).get("fit") or {}).get("joints")
+    if not isinstance(per, dict):
+        return []
+    part, where = (per.get("holdout"), " on held-out data") if per.get("holdout") else \
+        (per.get("fit"), "")
+    out = []
+    for j in result.log.joint_names:
+        rel = ((part or {}).get(j) or {}).get("rms_rel_torque_rms")
+        if isinstance(rel, int | float) and rel > POOR_FIT:
+            out.append((j, float(rel), where))
+    return out
+
+
 def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]:
     """Plain-language caveats an auditor must read before the numbers (code, text)."""
     out: list[dict[str, str]] = []
@@ -250,6 +283,14 @@ def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]
                 ),
             }
         )
+    poor = _poor_fit(result)
+    if poor:
+        out.append({"code": "model-poor-fit", "text": (
+            "The rigid model explains the measured torque poorly on "
+            + "; ".join(f"{j} (RMS error {100 * r:.0f} % of the torque RMS{where})"
+                        for j, r, where in poor)
+            + ": its residual carries that model error, so the thresholds there are high "
+            "and small contacts can hide below them.")})
     unexcited = ((result.model or {}).get("fit") or {}).get("unexcited_parameters") or []
     if unexcited:
         out.append({"code": "model-unexcited", "text": (
@@ -274,8 +315,9 @@ def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]
         {
             "code": "warmup",
             "text": (
-                f"Warm-up: the first {result.warmup_end_s:.3f} s (latest over joints) are the "
-                "adaptive estimator's convergence; a contact in that interval may go undetected. "
+                f"Warm-up: the first {result.warmup_end_s:.3f} s (latest over joints"
+                f"{_share(result.warmup_end_s, result.log.duration_s)}) are the adaptive "
+                "estimator's convergence; a contact in that interval may go undetected. "
                 + (
                     f"{n_warm} alarm(s) started in it: listed, not counted."
                     if n_warm
@@ -560,6 +602,32 @@ def _kv_table(rows: Sequence[tuple[str, str]]) -> str:
     return f'<table class="kv">{body}</table>'
 
 
+def _settings_table(cfg: dict[str, Any]) -> str:
+    """Every config value, one row per section: ``key=value`` with nested keys dotted and
+    values as compact JSON (the JSON report holds the same mapping)."""
+    def flat(d: dict[str, Any], prefix: str = "") -> list[tuple[str, Any]]:
+        out: list[tuple[str, Any]] = []
+        for k in sorted(d):
+            v = d[k]
+            if isinstance(v, dict) and v:
+                out += flat(v, f"{prefix}{k}.")
+            else:
+                out.append((f"{prefix}{k}", v))
+        return out
+
+    rows = []
+    for section in sorted(cfg):
+        v = cfg[section]
+        if isinstance(v, dict):
+            items = flat(v)
+            text = "; ".join(
+                f"{k}={json.dumps(x, sort_keys=True, ensure_ascii=False)}" for k, x in items)
+            rows.append((section, f'<span class="mono small">{_e(text or "{}")}</span>'))
+        else:
+            rows.append((section, f'<span class="mono small">{_e(json.dumps(v))}</span>'))
+    return _kv_table(rows)
+
+
 def _json_pre(obj: Any, max_str: int = 240) -> str:
     def shorten(x: Any) -> Any:
         if isinstance(x, dict):
@@ -800,8 +868,8 @@ def _section_html(
                 ("joints", _e(", ".join(joints))),
                 (
                     "first sample (t0_ns)",
-                    f"{inp['t0_ns']} ns on the log's own clock; times below are "
-                    "seconds since this sample",
+                    f"{inp['t0_ns']} ns on the log's own clock{_epoch_text(inp['t0_ns'])}; "
+                    "times below are seconds since this sample",
                 ),
                 ("torque source", _e(inp["torque_source"])),
                 ("time source", _e(inp["time_source"])),
@@ -876,7 +944,7 @@ def _section_html(
     head = (
         '<tr><th>joint</th><th class="num">v_stat [N·m]</th><th class="num">v0 [N·m]</th>'
         '<th class="num">vL [N·m]</th><th class="num">warm-up end [s]</th>'
-        + "".join(f'<th class="num">|G| at {f:g} Hz</th>' for f in freqs)
+        + "".join(f'<th class="num">|G| at {f:.3g} Hz</th>' for f in freqs)
         + "</tr>"
     )
     rows = []
@@ -893,7 +961,7 @@ def _section_html(
     p.append("<h4>Thresholds and adaptive filter gain per joint</h4>")
     p.append(f'<div class="wide"><table>{head}{"".join(rows)}</table></div>')
     p.append("<h4>Full detector configuration</h4>")
-    p.append(_json_pre({k: v for k, v in cfg.items() if k != "model"}))
+    p.append(_settings_table({k: v for k, v in cfg.items() if k != "model"}))
     if cfg.get("model") is not None:
         p.append(
             '<p class="small muted">The config also embeds its model (sha256 above); '
