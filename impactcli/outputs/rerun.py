@@ -80,7 +80,7 @@ _SERIES_COLORS: dict[str, tuple[int, int, int]] = {
     "reference": (44, 160, 44),
     "measured": (31, 119, 180),
 }
-_MARKER_STYLE: dict[str, tuple[str, tuple[int, int, int]]] = {
+_MARKER_STYLE: dict[str, tuple[Any, tuple[int, int, int]]] = {  # (rr MarkerShape name, RGB)
     "adaptive": ("Cross", _RED),
     "static_loading": ("Diamond", (227, 119, 194)),
     "static_baseline": ("Up", (255, 127, 14)),
