@@ -596,6 +596,9 @@ class SweepRow:
         n_events: counted events; n_contacts, detected: counted contacts and those detected.
         false_alarms, false_alarms_per_hour: as in :class:`DetectorScore`.
         delay_median_s [s], min_detected_force [N]: None when nothing is detected.
+        contact_delays_s: per labelled contact (labels order), its detection delay [s], or
+            None when missed or not counted (warm-up, outside the log) — for paired
+            comparisons between detectors.
     """
 
     detector: str
@@ -607,10 +610,11 @@ class SweepRow:
     false_alarms_per_hour: float | None
     delay_median_s: float | None
     min_detected_force: float | None
+    contact_delays_s: tuple[float | None, ...] = ()
 
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready mapping."""
-        return {
+    def to_dict(self, *, per_contact: bool = False) -> dict[str, Any]:
+        """JSON-ready mapping (``per_contact``: with ``contact_delays_s``)."""
+        d: dict[str, Any] = {
             "detector": self.detector, "scale": _r(self.scale), "n_events": self.n_events,
             "n_contacts": self.n_contacts, "detected": self.detected,
             "false_alarms": self.false_alarms,
@@ -618,6 +622,9 @@ class SweepRow:
             "delay_median_s": _r(self.delay_median_s),
             "min_detected_force": _r(self.min_detected_force),
         }
+        if per_contact:
+            d["contact_delays_s"] = [_r(v) for v in self.contact_delays_s]
+        return d
 
 
 def event_intervals(
@@ -708,14 +715,18 @@ def sweep_ratios(
                                              min_duration_s)
                     evs += [_Ev(d, a, b, a < warmup_end_s) for a, b in
                             zip(time_s[i0].tolist(), time_s[i1].tolist(), strict=True)]
-            scores = evaluate_events(
+            ev = evaluate_events(
                 evs, labels, duration_s=duration_s, warmup_end_s=warmup_end_s, tolerance=tol,
                 product_merge_gap_s=merge_gap_s, detectors=list(rows_of),
-            ).scores
-            for d, sc in scores.items():
+            )
+            for d, sc in ev.scores.items():
+                per_contact = tuple(
+                    c.delay_s[d] if c.status == "counted" and c.detected[d] else None
+                    for c in ev.contacts)
                 rows_of[d].append(SweepRow(
                     d, s, sc.n_events, sc.n_contacts, sc.detected, sc.false_alarms,
-                    sc.false_alarms_per_hour, sc.delay_median_s, sc.min_detected_force))
+                    sc.false_alarms_per_hour, sc.delay_median_s, sc.min_detected_force,
+                    per_contact))
     if any(c.start > duration_s for c in labels.events):
         evaluate_events([], labels, duration_s=duration_s, warmup_end_s=warmup_end_s,
                         tolerance=tol, detectors=())
@@ -831,28 +842,72 @@ def _at_edge(zero: Mapping[str, SweepRow | None], smallest_scale: float | None) 
             if (r := zero.get(d)) is not None and r.scale <= smallest_scale + EPS_S]
 
 
+@dataclass(frozen=True)
+class Comparison:
+    """Adaptive vs static_loading, each at its own zero-false-alarm threshold scale.
+
+    Attributes:
+        adaptive, static_loading: their sweep rows at that point.
+        adaptive_only, loading_only, both: counted contacts detected by only one / by both.
+        paired_delay_gain_s: median over contacts detected by both of (static_loading delay
+            − adaptive delay) [s]: positive when adaptive fires earlier; None if none shared.
+    """
+
+    adaptive: SweepRow
+    static_loading: SweepRow
+    adaptive_only: int
+    loading_only: int
+    both: int
+    paired_delay_gain_s: float | None
+
+    @property
+    def smaller_force(self) -> bool:
+        """Adaptive detects a smaller contact than static_loading's smallest detected one."""
+        a, s = self.adaptive.min_detected_force, self.static_loading.min_detected_force
+        return a is not None and (s is None or a < s)
+
+    @property
+    def earlier(self) -> bool:
+        """On the contacts both detect, adaptive fires earlier (median of paired delays)."""
+        return self.paired_delay_gain_s is not None and self.paired_delay_gain_s > EPS_S
+
+
+def compare_at_zero(zero: Mapping[str, SweepRow | None]) -> Comparison | None:
+    """The :class:`Comparison` of adaptive and static_loading at zero false alarms, or None
+    when either never reached zero false alarms in the sweep."""
+    a, s = zero.get("adaptive"), zero.get("static_loading")
+    if a is None or s is None:
+        return None
+    da, ds = a.contact_delays_s, s.contact_delays_s
+    if len(da) != len(ds):
+        raise ValueError("sweep rows of different label sets cannot be compared")
+    pairs = [(x, y) for x, y in zip(da, ds, strict=True) if x is not None and y is not None]
+    return Comparison(
+        adaptive=a, static_loading=s,
+        adaptive_only=sum(1 for x, y in zip(da, ds, strict=True) if x is not None and y is None),
+        loading_only=sum(1 for x, y in zip(da, ds, strict=True) if x is None and y is not None),
+        both=len(pairs),
+        paired_delay_gain_s=_median([y - x for x, y in pairs]),
+    )
+
+
 def adaptive_helps(zero: Mapping[str, SweepRow | None], *,
                    smallest_scale: float | None = None) -> bool | None:
     """Whether adaptive beats static_loading at matched (zero) false alarms, or None if unknown.
 
-    Helps: adaptive detects something and (static_loading detects nothing, or its minimal
-    detected force is smaller, or its median delay is shorter). Unknown: either detector
-    never reaches zero false alarms in the sweep, or is already silent at
+    Each detector is taken at its own zero-false-alarm scale (:func:`at_zero_false_alarms`).
+    Helps when adaptive detects a smaller contact than any static_loading detects (smaller
+    minimal detected force — that contact is one static_loading misses), or when, on the
+    contacts both detect, it fires earlier (median of the paired delay differences: median
+    delays over different sets of contacts are not compared). Unknown (None): either
+    detector never reaches zero false alarms in the sweep, or is already silent at
     ``smallest_scale`` (the smallest swept scale: its true zero-false-alarm point lies
-    lower, so the two are not compared at matched rates), or there are no counted contacts.
+    lower, so the two are not compared at matched rates), or there is no counted contact.
     """
-    a, s = zero.get("adaptive"), zero.get("static_loading")
-    if a is None or s is None or a.n_contacts == 0 or _at_edge(zero, smallest_scale):
+    cmp = compare_at_zero(zero)
+    if cmp is None or cmp.adaptive.n_contacts == 0 or _at_edge(zero, smallest_scale):
         return None
-    if a.detected == 0:
-        return False
-    if s.detected == 0:
-        return True
-    assert a.min_detected_force is not None and s.min_detected_force is not None
-    smaller = a.min_detected_force < s.min_detected_force
-    faster = (a.delay_median_s is not None and s.delay_median_s is not None
-              and a.delay_median_s < s.delay_median_s)
-    return smaller or faster
+    return cmp.smaller_force or cmp.earlier
 
 
 def _row_text(r: SweepRow) -> str:
@@ -861,6 +916,16 @@ def _row_text(r: SweepRow) -> str:
         txt += (f", down to {r.min_detected_force:.3g} N with a median delay of "
                 f"{_fmt_ms(r.delay_median_s)}")
     return txt
+
+
+def _pair_text(cmp: Comparison) -> str:
+    parts = [f"{cmp.adaptive_only} contact(s) only adaptive detects, {cmp.loading_only} only "
+             f"static_loading detects, {cmp.both} both"]
+    if cmp.paired_delay_gain_s is not None:
+        g = cmp.paired_delay_gain_s
+        parts.append(f"on those adaptive fires {_fmt_ms(abs(g))} "
+                     f"{'earlier' if g >= 0 else 'later'} (median)")
+    return ", ".join(parts)
 
 
 def verdict(zero: Mapping[str, SweepRow | None], *, smallest_scale: float | None = None) -> str:
@@ -874,18 +939,24 @@ def verdict(zero: Mapping[str, SweepRow | None], *, smallest_scale: float | None
     if missing:
         return (f"Undetermined: {' and '.join(missing)} never reached zero false alarms "
                 "within the swept threshold scales; sweep larger scales.")
-    assert a is not None and s is not None
+    cmp = compare_at_zero(zero)
+    assert a is not None and s is not None and cmp is not None
     if a.n_contacts == 0:
         return "Undetermined: the labels hold no contact after warm-up to compare detectors on."
-    both = f"adaptive detected {_row_text(a)}; static_loading detected {_row_text(s)}."
+    both = (f"adaptive detected {_row_text(a)}; static_loading detected {_row_text(s)}; "
+            f"{_pair_text(cmp)}.")
     edge = _at_edge(zero, smallest_scale)
     if edge:
         return (f"Undetermined: {' and '.join(edge)} had no false alarm even at the smallest "
                 f"swept scale ({smallest_scale:g}), so the detectors are not compared at "
                 f"matched rates; sweep smaller scales ({both[:-1]}).")
-    if adaptive_helps(zero):
-        return f"The adaptive detector helps here at zero false alarms: {both}"
-    return f"The adaptive detector does not help here at zero false alarms: {both}"
+    if cmp.smaller_force or cmp.earlier:
+        why = " and ".join(w for w, ok in (("detects smaller contacts", cmp.smaller_force),
+                                          ("fires earlier on shared contacts", cmp.earlier))
+                           if ok)
+        return f"The adaptive detector helps here at zero false alarms ({why}): {both}"
+    return ("The adaptive detector does not help here at zero false alarms (no smaller "
+            f"contact detected, not earlier on shared contacts): {both}")
 
 
 def sweep_to_dict(rows: Sequence[SweepRow]) -> dict[str, Any]:
@@ -895,7 +966,8 @@ def sweep_to_dict(rows: Sequence[SweepRow]) -> dict[str, Any]:
     return {
         "rows": [r.to_dict() for r in rows],
         "at_zero_false_alarms": {
-            d: (r.to_dict() if r is not None else None) for d, r in zero.items()},
+            d: (r.to_dict(per_contact=True) if r is not None else None)
+            for d, r in zero.items()},
         "adaptive_helps": adaptive_helps(zero, smallest_scale=lo),
         "verdict": verdict(zero, smallest_scale=lo),
     }

@@ -15,6 +15,7 @@ from impactcli.evaluate import (
     SweepRow,
     adaptive_helps,
     at_zero_false_alarms,
+    compare_at_zero,
     evaluate_events,
     event_intervals,
     format_evaluation,
@@ -273,7 +274,12 @@ def test_sweep_rows_have_the_known_counts():
     assert zero["static_loading"] is not None and zero["static_loading"].scale == 1.3
     assert zero["static_loading"].delay_median_s == pytest.approx(0.048, abs=1e-6)
     assert zero["static_baseline"] is not None and zero["static_baseline"].scale == 1.0
-    assert adaptive_helps(zero) is True  # same force, shorter delay
+    assert adaptive_helps(zero) is True  # same force, earlier on the shared contact
+    cmp = compare_at_zero(zero)
+    assert cmp is not None
+    assert (cmp.both, cmp.adaptive_only, cmp.loading_only) == (1, 0, 0)
+    assert cmp.paired_delay_gain_s == pytest.approx(0.048, abs=1e-6)
+    assert zero["adaptive"].contact_delays_s[1] is None
     assert verdict(zero).startswith("The adaptive detector helps")
     doc = sweep_to_dict(rows)
     validate({**run([], SWEEP_LABELS).to_dict(), "sweep": doc}, "evaluation", LabelsError, "x")
@@ -290,6 +296,7 @@ def test_sweep_verdict_when_adaptive_is_slower():
     assert zero["adaptive"].delay_median_s == pytest.approx(0.1, abs=1e-6)
     assert adaptive_helps(zero) is False
     assert verdict(zero).startswith("The adaptive detector does not help")
+    assert "fires 52 ms later" in verdict(zero)
 
 
 @pytest.mark.parametrize("gap, min_dur", [(0.0, 0.0), (0.02, 0.0), (0.1, 0.01), (0.3, 0.2)])
@@ -333,6 +340,20 @@ def test_sweep_needs_event_settings():
 def row(det: str, scale: float, fa: int, *, det_n: int = 1, force: float | None = 2.0,
         delay: float | None = 0.03) -> SweepRow:
     return SweepRow(det, scale, fa + det_n, 3, det_n, fa, None, delay, force)
+
+
+def test_median_delays_over_different_contacts_are_not_compared():
+    """Adaptive catches one big contact fast, static_loading three smaller ones slower: the
+    medians favour adaptive, the paired delays do not — it does not help."""
+    a = SweepRow("adaptive", 1.0, 1, 4, 1, 0, 0.0, 0.01, 30.0, (None, None, None, 0.01))
+    s = SweepRow("static_loading", 1.0, 3, 4, 3, 0, 0.0, 0.05, 10.0, (0.05, 0.05, None, 0.005))
+    zero = {"adaptive": a, "static_loading": s}
+    cmp = compare_at_zero(zero)
+    assert cmp is not None and (cmp.adaptive_only, cmp.loading_only, cmp.both) == (0, 2, 1)
+    assert cmp.paired_delay_gain_s == pytest.approx(-0.005)
+    assert adaptive_helps(zero) is False
+    faster = dataclasses.replace(a, contact_delays_s=(None, None, None, 0.001))
+    assert adaptive_helps({"adaptive": faster, "static_loading": s}) is True
 
 
 def test_zero_false_alarm_point_ignores_a_lone_silent_scale_and_undetermined_verdicts():
