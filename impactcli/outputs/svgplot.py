@@ -1,8 +1,9 @@
 """Small, dependency-free, deterministic SVG line charts for the audit report.
 
 Formatting only (no detection maths). Every chart is a self-contained ``<svg>`` element
-(no external fonts, CSS or scripts) whose text depends only on its inputs, so a report
-built twice from the same data is byte-identical.
+for inline use in HTML5 (no ``xmlns``: the HTML parser supplies the namespace, and the
+report then holds no URL at all; no external fonts, CSS or scripts) whose text depends
+only on its inputs, so a report built twice from the same data is byte-identical.
 
 Long series are reduced with a **min/max envelope** (:func:`envelope`): the samples are cut
 into at most ``n_buckets`` consecutive buckets and each bucket contributes its minimum and
@@ -199,7 +200,7 @@ def render_chart(chart: Chart, width: int = 860, height: int = 170, chart_id: st
         return mt + ph - (vv - y_lo) / (y_hi_axis - y_lo) * ph
 
     parts: list[str] = [
-        f'<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {width} {height}" '
+        f'<svg viewBox="0 0 {width} {height}" '
         f'class="chart" role="img" aria-label="{_esc(chart.title)}">',
         f"<title>{_esc(chart.title)}</title>",
         f'<rect x="{ml}" y="{mt}" width="{pw}" height="{ph}" fill="#ffffff" stroke="#999999"'
@@ -210,14 +211,6 @@ def render_chart(chart: Chart, width: int = 860, height: int = 170, chart_id: st
         f'<clipPath id="{clip_id}"><rect x="{ml}" y="{mt}" width="{pw}" height="{ph}"/></clipPath>'
     )
     parts.append(f'<g clip-path="url(#{clip_id})">')
-    for bx0, w, b, count in _merged_bands(chart.bands, px, ml, ml + pw):
-        stroke = f' stroke="{b.outline}" stroke-width="1"' if b.outline else ""
-        label = b.label if count == 1 else f"{count} × {b.label}"
-        tip = f"<title>{_esc(label)}</title>" if label else ""
-        parts.append(
-            f'<rect x="{bx0:.1f}" y="{mt}" width="{w:.1f}" height="{ph}"'
-            f' fill="{b.fill}"{stroke}>{tip}</rect>'
-        )
     for s in chart.series:
         ok = np.isfinite(s.y) & (s.t >= x0 - 1e-12) & (s.t <= x1 + 1e-12)
         if not s.fill_above or not np.any(ok):
@@ -226,6 +219,14 @@ def render_chart(chart: Chart, width: int = 860, height: int = 170, chart_id: st
         pts = " ".join(f"{a:.1f},{b:.1f}" for a, b in zip(xs, ys, strict=True))
         parts.append(f'<polygon fill="{s.fill_above}" stroke="none" '
                      f'points="{xs[0]:.1f},{mt} {pts} {xs[-1]:.1f},{mt}"/>')
+    for bx0, w, b, count in _merged_bands(chart.bands, px, ml, ml + pw):
+        stroke = f' stroke="{b.outline}" stroke-width="1"' if b.outline else ""
+        label = b.label if count == 1 else f"{count} × {b.label}"
+        tip = f"<title>{_esc(label)}</title>" if label else ""
+        parts.append(
+            f'<rect x="{bx0:.1f}" y="{mt}" width="{w:.1f}" height="{ph}"'
+            f' fill="{b.fill}" fill-opacity="0.85"{stroke}>{tip}</rect>'
+        )
     for s in chart.series:
         ok = np.isfinite(s.y) & (s.t >= x0 - 1e-12) & (s.t <= x1 + 1e-12)
         if not np.any(ok):
@@ -353,7 +354,7 @@ def render_xy(
 
     font = 'font-family="DejaVu Sans, Arial, Helvetica, sans-serif" font-size="10" fill="#222222"'
     parts = [
-        f'<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {width} {height}" class="chart xy" '
+        f'<svg viewBox="0 0 {width} {height}" class="chart xy" '
         f'role="img" aria-label="{_esc(title)}"><title>{_esc(title)}</title>',
         f'<rect x="{ml}" y="{mt}" width="{pw}" height="{ph}" fill="#ffffff" stroke="#999999"'
         ' stroke-width="0.8"/>',
