@@ -150,6 +150,10 @@ def test_report_on_a_timeline_reruns_it(tmp_path: Path, fake_pipeline: list) -> 
     assert [(e["t_start"], e["detector"]) for e in doc["logs"][0]["events"]] == \
         [(e["t_start"], e["detector"]) for e in recorded]
     assert fake_pipeline[-1]["config"] is not None  # the recorded config was used
+    res = run(["report", str(tl), "-o", str(out), "--channel-map", "kuka_lwr4"])
+    assert res.exit_code == 0, show(res)
+    assert "--channel-map apply to LOG inputs only" in res.stderr
+    assert fake_pipeline[-1]["read_options"] == {}  # as recorded, not the command line's
     # the log changed since detection: refused, exit 3
     with log_path.open("a") as f:
         f.write("\n")

@@ -239,6 +239,12 @@ def report_cmd(*, inputs: tuple[Path, ...], html_path: Path, json_path: Path | N
     explicit = pair_labels(inputs, labels)
     robot_obj, model_obj, config_obj = load_inputs(robot, model, config)
     ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
+    log_only = [n for n, v in (("--model", model), ("--config", config)) if v is not None]
+    log_only += [f"--{k.replace('_', '-')}" for k in ropts]
+    if log_only and any(is_timeline(p) for p in inputs):
+        warnings.warn(f"{', '.join(log_only)} apply to LOG inputs only: a TIMELINE is re-run "
+                      "with the read options, model and config it records", ImpactWarning,
+                      stacklevel=2)
     results: list[Any] = []
     labs: list[Any] = []
     failed: list[tuple[Path, ImpactError]] = []
