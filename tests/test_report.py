@@ -351,3 +351,35 @@ def test_poor_model_fit_is_a_caveat() -> None:
     assert "j2" not in cav[0]["text"]
     _, good = build_report([result_named("a.csv", "4" * 64, model=fit(0.3))])
     assert "model-poor-fit" not in {c["code"] for c in good["logs"][0]["caveats"]}
+
+
+def test_html_tags_are_balanced() -> None:
+    from html.parser import HTMLParser
+
+    void = {"meta", "br", "hr", "img", "input", "link", "area", "base", "col", "wbr"}
+
+    class Checker(HTMLParser):
+        def __init__(self) -> None:
+            super().__init__()
+            self.stack: list[str] = []
+            self.errors: list[str] = []
+
+        def handle_starttag(self, tag: str, attrs: list) -> None:
+            if tag not in void:
+                self.stack.append(tag)
+
+        def handle_startendtag(self, tag: str, attrs: list) -> None:
+            pass  # <line .../> in SVG
+
+        def handle_endtag(self, tag: str) -> None:
+            if not self.stack or self.stack[-1] != tag:
+                self.errors.append(f"</{tag}> closes {self.stack[-1:]}")
+            else:
+                self.stack.pop()
+
+    lab = Labels((ContactLabel(3.99, 4.12, 12.0, "impact", 2),), 250.0, "l.json")
+    html, _ = build_report([result_named("a.csv", "a" * 64, config=EVENTS_CFG), fake_result()],
+                           [lab, None], failed=[("b.csv", "b.csv: bad")])
+    c = Checker()
+    c.feed(html)
+    assert not c.errors[:5] and not c.stack
