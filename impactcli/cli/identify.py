@@ -67,7 +67,7 @@ def _pct(x: float | None) -> str:
 @click.option("--robust", type=click.Choice(["bisquare", "huber", "none"]), default="bisquare",
               show_default=True, help="Robust weighting against contacts in the log.")
 @click.option("--coulomb-slope", "coulomb_slope", type=click.FloatRange(min=0, min_open=True),
-              default=0.02, show_default=True,
+              default=0.01, show_default=True,
               help="v_s of the smooth Coulomb sign tanh(q'/v_s) [rad/s].")
 @click.option("--allow-still-joints", "allow_still", is_flag=True,
               help="Model a joint that does not move by its constant torque only "

@@ -55,8 +55,9 @@ class ResidualOptions:
             0.4 fs) and pass it through G like the torque: G(fc tanh(q')) instead of
             fc tanh(G q'). The measured torque's friction step at a velocity reversal is
             smoothed by G; without this the model's step stays sharp and the residual
-            spikes at every reversal (on the rigid 2-link test arm, fc = 0.4 N·m, 20 Hz:
-            peak 0.048 N·m without, 0.024 N·m with; at 10 Hz 0.11 vs 0.033).
+            spikes at every reversal (rigid 2-link test arm, fc = 0.4/0.25 N·m,
+            v_s = 0.01 rad/s, largest |r| in free motion: 20 Hz 0.10 N·m without, 0.034
+            with; 10 Hz 0.20 vs 0.020).
     """
 
     cutoff_hz: float = 20.0

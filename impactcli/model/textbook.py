@@ -39,7 +39,7 @@ class TwoLinkArm:
     off1: float = 0.1
     off2: float = -0.05
     g: float = 9.81
-    vs: float = 0.02
+    vs: float = 0.01
 
     def torque(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
         """(N, 2) joint torque M q'' + C q' + g + friction + offset [N·m]."""
