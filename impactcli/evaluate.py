@@ -511,6 +511,18 @@ def evaluate_events(
     )
 
 
+def evaluate_result(
+    result: DetectionResult, labels: Labels, *, tolerance: MatchTolerance | None = None
+) -> Evaluation:
+    """:func:`evaluate_events` on a run: its events, duration, warm-up, and its event merge
+    gap (``config["events"]["merge_gap_s"]``, else 0) for the product's alarms."""
+    ev_cfg = result.config.get("events") if isinstance(result.config, Mapping) else None
+    gap = float(ev_cfg.get("merge_gap_s", 0.0)) if isinstance(ev_cfg, Mapping) else 0.0
+    return evaluate_events(result.events, labels, duration_s=result.log.duration_s,
+                           warmup_end_s=result.warmup_end_s, tolerance=tolerance,
+                           product_merge_gap_s=gap)
+
+
 # ---------------------------------------------------------------------------------------
 # Text table
 

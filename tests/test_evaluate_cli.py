@@ -244,3 +244,36 @@ def test_sweep_from_a_timeline_with_its_signals(tmp_path):
     zero = doc["sweep"]["at_zero_false_alarms"]
     assert zero["adaptive"]["scale"] == 1.6 and zero["static_loading"]["scale"] == 1.3
     assert zero["adaptive"]["min_detected_force"] == 3.0
+
+
+def test_end_to_end_log_and_timeline_agree(tmp_path):
+    """Simulated impacts → LOG evaluated (detection inside) and LOG → detect --signals →
+    TIMELINE evaluated: the same evaluation and the same sweep."""
+    from impactcli.io import write_log
+    from impactcli.io.robot import write_labels, write_robot
+    from impactcli.sim.core import simulate
+    from impactcli.sim.scenarios import scenario
+
+    sim = simulate(scenario("impacts", duration_s=30.0), seed=1)
+    log, lab, rob = tmp_path / "imp.csv", tmp_path / "imp.labels.json", tmp_path / "imp.robot.json"
+    write_log(sim.log, log)
+    write_labels(sim.labels, lab)
+    write_robot(sim.robot, rob)
+    args = ["--labels", str(lab), "--json", "--sweep", "--scales", "0.2:3:x1.1"]
+    r = invoke(str(log), "--robot", str(rob), *args)
+    assert r.exit_code == 0, info(r)
+    assert "uncalibrated" in r.stderr
+    from_log = json.loads(r.stdout)
+    validate(from_log, "evaluation", LabelsError, "evaluate --json --sweep")
+    assert from_log["n_contacts"]["counted"] == len(sim.labels.events) == 5
+    assert from_log["detectors"]["product"]["detected"] >= 1
+    assert from_log["sweep"]["verdict"]
+    det = CliRunner().invoke(main, ["detect", str(log), "--robot", str(rob), "-o",
+                                    str(tmp_path / "out"), "--signals"])
+    assert det.exit_code == 0, info(det)
+    r2 = invoke(str(tmp_path / "out" / "imp.timeline.json"), *args)
+    assert r2.exit_code == 0, info(r2)
+    from_tl = json.loads(r2.stdout)
+    from_log.pop("input")
+    from_tl.pop("input")
+    assert from_tl == from_log

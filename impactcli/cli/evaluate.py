@@ -213,6 +213,7 @@ def evaluate_cmd(source: Path, labels_path: Path, as_json: bool, sweep: bool,
     from ..evaluate import (
         MatchTolerance,
         evaluate_events,
+        evaluate_result,
         format_evaluation,
         format_sweep,
         sweep_thresholds,
@@ -243,10 +244,7 @@ def evaluate_cmd(source: Path, labels_path: Path, as_json: bool, sweep: bool,
         for msg in result.warnings:
             click.echo(f"impactcli: warning: {msg}", err=True)
         _check_rate(labels, result.log.sample_rate_hz, str(source))
-        gap = float(_events_settings(result.config).get("merge_gap_s", 0.0))
-        ev = evaluate_events(result.events, labels, duration_s=result.log.duration_s,
-                             warmup_end_s=result.warmup_end_s, tolerance=tolerance,
-                             product_merge_gap_s=gap)
+        ev = evaluate_result(result, labels, tolerance=tolerance)
         if sweep:
             rows = sweep_thresholds(result, labels, scales, tolerance=tolerance)
     if as_json:
