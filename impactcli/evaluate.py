@@ -37,7 +37,14 @@ moment where both fire is one product alarm, not two.
 The sweep (:func:`sweep_thresholds`) rescales every threshold by a factor ``s`` — decision
 ``ratio > s`` with ``ratio = statistic / threshold`` (eq. 42 for the adaptive detector) —
 re-extracts events and evaluates them, so that detectors can be compared at equal false-alarm
-rates (:func:`at_zero_false_alarms`, :func:`verdict`).
+rates. :func:`at_zero_false_alarms` takes, per detector, the smallest swept scale from which
+on the log stays free of false alarms; :func:`compare_at_zero` pairs adaptive and
+static_loading there contact by contact, and :func:`verdict` says in one sentence whether the
+adaptive detector helps (it detects a smaller contact than static_loading's smallest, or
+fires earlier on the contacts both detect — medians over different contacts are not
+compared). The scales are chosen on the very log they are scored on: an in-sample,
+best-case comparison of the detectors at matched rates, not a calibration (that is
+``impactcli calibrate`` on collision-free logs).
 """
 
 from __future__ import annotations
