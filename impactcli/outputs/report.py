@@ -530,6 +530,7 @@ pre { white-space: pre-wrap; word-break: break-word; font-size: 10.5px; line-hei
 .warn { color: #9a5b00; font-weight: 600; }
 .good { color: #1e6b38; font-weight: 600; }
 .muted { color: #555; }
+.note { color: #555; font-weight: normal; font-size: 11px; }
 .small { font-size: 11px; }
 tr.warmup td { color: #666; font-style: italic; }
 figure { margin: 6px 0 10px 0; break-inside: avoid; page-break-inside: avoid; }
@@ -590,11 +591,12 @@ def _g(v: Any) -> str:
     return _e(v)
 
 
-def _ratio_cell(r: float | None) -> str:
+def _ratio_cell(r: float | None, note: str | None = None) -> str:
     if r is None:
         return '<td class="num muted">—</td>'
     cls = "bad" if r >= 1.0 else ("warn" if r >= 0.8 else "good")
-    return f'<td class="num {cls}">{r:.2f}</td>'
+    extra = f' <span class="note">{_e(note)}</span>' if note else ""
+    return f'<td class="num {cls}">{r:.2f}{extra}</td>'
 
 
 def _kv_table(rows: Sequence[tuple[str, str]]) -> str:
@@ -1294,7 +1296,9 @@ def _summary_html(doc: dict[str, Any]) -> str:
             for d in DETECTORS
             if d in ev
         )
-        worst = "".join(_ratio_cell(r["worst_margin"].get(d)) for d in PRODUCT_DETECTORS)
+        wj = doc["logs"][k]["false_alarm_margin"]["worst"]
+        worst = "".join(_ratio_cell(r["worst_margin"].get(d), (wj.get(d) or {}).get("joint"))
+                        for d in PRODUCT_DETECTORS)
         calib = (
             '<span class="good">yes</span>' if r["calibrated"] else '<span class="bad">no</span>'
         )
