@@ -1,7 +1,7 @@
 """Benchmark: the threshold sweep of ``impactcli evaluate --sweep`` on a long synthetic run.
 
 Run: ``python tests/benchmarks/bench_evaluate_sweep.py [minutes]`` (default 60 minutes of
-log at 250 Hz, 6 joints, 100 contacts, scales 0.5:3:0.05 — the CLI's default).
+log at 250 Hz, 6 joints, 100 contacts, the CLI's default scales 0.2:5:x1.05).
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ import time
 import numpy as np
 from scipy.signal import lfilter
 
+from impactcli.cli.evaluate import DEFAULT_SCALES, parse_scales
 from impactcli.evaluate import at_zero_false_alarms, sweep_ratios, verdict
 from impactcli.types import ContactLabel, Labels
 
@@ -38,7 +39,7 @@ def main(minutes: float = 60.0) -> None:
             r[m, i % J] += 0.05 * force
         contacts.append(ContactLabel(float(c0), float(c0 + 0.2), force, "impact", 1 + i % J))
     labels = Labels(tuple(contacts), fs)
-    scales = np.round(np.arange(0.5, 3.0 + 1e-9, 0.05), 4)
+    scales = parse_scales(DEFAULT_SCALES)
     t0 = time.perf_counter()
     rows = sweep_ratios(ratios, t, labels=labels,
                         scales=scales, warmup_end_s=5.0, merge_gap_s=0.1, min_duration_s=0.0)
