@@ -24,7 +24,7 @@ from .detect.events import extract_events
 from .detect.static import causal_lowpass
 from .detect.warmup import Warmup, warmup_end
 from .errors import ConfigError, ImpactWarning, ModelError
-from .model import RigidModel, ResidualOptions, compute_residual, identify
+from .model import IdentifyOptions, RigidModel, ResidualOptions, compute_residual, identify
 from .result import DetectionResult
 from .types import DETECTORS, RobotDescription, RobotLog
 
@@ -79,7 +79,9 @@ def resolve_model(
         return model, "given"
     if cfg.model is not None:
         return RigidModel.from_dict(cfg.model), "config"
-    return identify(log, robot=robot), "identified-from-log"
+    # offline convenience: a joint that never moves keeps only its offset (warned about)
+    return identify(log, robot=robot, options=IdentifyOptions(allow_still_joints=True)), \
+        "identified-from-log"
 
 
 def calibrated_thresholds(cfg: DetectorConfig, joints: tuple[str, ...]) -> dict[str, np.ndarray] | None:
@@ -271,7 +273,7 @@ def calibrate(
     cfg = config or DetectorConfig()
     if model is None:
         model = RigidModel.from_dict(cfg.model) if cfg.model is not None else identify_many(
-            logs, robot=robot)
+            logs, robot=robot, options=IdentifyOptions(allow_still_joints=True))
     joints = tuple(model.joint_names)
     per_det: dict[str, list[np.ndarray]] = {d: [] for d in DETECTORS}
     for log in logs:

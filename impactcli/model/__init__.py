@@ -10,7 +10,7 @@ from .derivatives import (
     zero_phase_derivatives,
     zero_phase_lowpass,
 )
-from .identify import IdentifyOptions, default_kind, identify, identify_signals
+from .identify import IdentifyOptions, default_kind, identify, identify_many, identify_signals
 from .residual import ResidualOptions, ResidualResult, compute_residual, momentum_observer
 from .rigid import RigidModel, read_model, write_model
 from .structures import KINDS
@@ -26,6 +26,7 @@ __all__ = [
     "compute_residual",
     "default_kind",
     "identify",
+    "identify_many",
     "identify_signals",
     "momentum_observer",
     "read_model",

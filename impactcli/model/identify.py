@@ -22,7 +22,9 @@ Stack tau(k) = Y(q(k), q'(k), q''(k)) theta over samples and joints and solve fo
 
 from __future__ import annotations
 
+import hashlib
 import warnings
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -438,29 +440,23 @@ def _filtered_rows(
     return [np.concatenate(o, axis=0) if o else np.zeros((0, len(joints), p)) for o in outs]
 
 
-def identify(
-    log: RobotLog, *, robot: RobotDescription | None = None, kind: str | None = None,
-    options: IdentifyOptions = IdentifyOptions(),
-) -> RigidModel:
-    """Identify a rough rigid model from a log (method.md §2; eq. 7).
+@dataclass(frozen=True)
+class _Rows:
+    """Filtered regressor rows of one log, ready to stack and fit."""
 
-    Positions are smoothed and differentiated without phase lag; the torque and — with
-    ``options.filter_regressor`` (default) — every regressor column pass through the same
-    zero-phase filter ("parallel filtering"), so that F tau = F(Y) theta holds even for the
-    sharp Coulomb term, which a filtered torque alone would smear at velocity reversals.
+    kind: str
+    joints: tuple[str, ...]
+    structure: dict[str, Any]
+    still: Any
+    y_fit: np.ndarray
+    tau_fit: np.ndarray
+    y_hold: tuple[np.ndarray, np.ndarray] | None
+    filter_info: dict[str, Any]
 
-    Args:
-        log: the recording (positions [rad], torques [N·m]).
-        robot: robot description (planar/urdf kinematics; joint order). Its joints must be
-            exactly the log's joints (any order).
-        kind: ``decoupled``, ``planar``, ``urdf``, or None for :func:`default_kind`.
-        options: :class:`IdentifyOptions`.
-    Returns:
-        The model, with per-joint fit statistics on the fitted part and the held-back part.
-    Raises:
-        ModelError (no motion, constant joint, too short), RobotDescriptionError (joints
-        do not match, kinematics missing, URDF does not parse).
-    """
+
+def _prepare_rows(
+    log: RobotLog, robot: RobotDescription | None, kind: str | None, options: IdentifyOptions,
+) -> _Rows:
     where = log.source.path
     kind = kind or default_kind(robot)
     if kind not in structures.KINDS:
@@ -503,15 +499,78 @@ def identify(
         fs_d, cutoff, options if options.filter_regressor else None, edge,
     )
     y_hold = (y_hold_arr, tau_f[hold_idx]) if use_holdout else None
-    filter_info = {
-        "method": "butterworth zero-phase (filtfilt) on positions and torques; central differences"
+    return _Rows(kind, joints, structure, still, y_fit, tau_f[fit_idx], y_hold,
+                 {
+        "method": "butterworth zero-phase (filtfilt) on positions and torques; central "
+                  "differences"
                   + ("; regressor columns filtered alike" if options.filter_regressor else ""),
         "cutoff_hz": cutoff, "order": options.filter_order,
         "sample_rate_hz": fs, "edge_trim_samples": edge * k1,
         "decimation": {"filtered_signals": k1, "fit_rows": k2},
         "holdout": {"fraction": options.holdout_fraction if use_holdout else 0.0,
                     "start_s": float(t[split]) if use_holdout else None},
-    }
-    return _fit(y_fit, tau_f[fit_idx], y_hold, kind=kind, joints=joints,
-                structure=structure, robot=robot, options=options, where=where,
-                filter_info=filter_info, input_sha256=log.source.sha256, still=still)
+    })
+
+
+def identify(
+    log: RobotLog, *, robot: RobotDescription | None = None, kind: str | None = None,
+    options: IdentifyOptions = IdentifyOptions(),
+) -> RigidModel:
+    """Identify a rough rigid model from a log (method.md §2; eq. 7).
+
+    Positions are smoothed and differentiated without phase lag; the torque and — with
+    ``options.filter_regressor`` (default) — every regressor column pass through the same
+    zero-phase filter ("parallel filtering"), so that F tau = F(Y) theta holds even for the
+    sharp Coulomb term, which a filtered torque alone would smear at velocity reversals.
+
+    Args:
+        log: the recording (positions [rad], torques [N·m]).
+        robot: robot description (planar/urdf kinematics; joint order). Its joints must be
+            exactly the log's joints (any order).
+        kind: ``decoupled``, ``planar``, ``urdf``, or None for :func:`default_kind`.
+        options: :class:`IdentifyOptions`.
+    Returns:
+        The model, with per-joint fit statistics on the fitted part and the held-back part.
+    Raises:
+        ModelError (no motion, constant joint, too short), RobotDescriptionError (joints
+        do not match, kinematics missing, URDF does not parse).
+    """
+    r = _prepare_rows(log, robot, kind, options)
+    return _fit(r.y_fit, r.tau_fit, r.y_hold, kind=r.kind, joints=r.joints,
+                structure=r.structure, robot=robot, options=options, where=log.source.path,
+                filter_info=r.filter_info, input_sha256=log.source.sha256, still=r.still)
+
+
+def identify_many(
+    logs: Sequence[RobotLog], *, robot: RobotDescription | None = None, kind: str | None = None,
+    options: IdentifyOptions = IdentifyOptions(),
+) -> RigidModel:
+    """Identify one model from several logs of the same robot (e.g. for calibration).
+
+    Each log is filtered and differentiated on its own (no filter runs across the seam
+    between two logs); their regressor rows are stacked into one robust fit, and each
+    log's held-back tail is stacked into the validation set. ``input_sha256`` of the model
+    is the sha256 of the logs' sha256s joined by newlines, in order.
+    """
+    if not logs:
+        raise ModelError("identify_many needs at least one log")
+    if len(logs) == 1:
+        return identify(logs[0], robot=robot, kind=kind, options=options)
+    rows = [_prepare_rows(lg, robot, kind, options) for lg in logs]
+    first = rows[0]
+    for lg, r in zip(logs[1:], rows[1:], strict=True):
+        if r.joints != first.joints or r.kind != first.kind:
+            raise ModelError(f"{lg.source.path}: joints {list(r.joints)} differ from "
+                             f"{logs[0].source.path}'s {list(first.joints)}")
+    y_fit = np.concatenate([r.y_fit for r in rows])
+    tau_fit = np.concatenate([r.tau_fit for r in rows])
+    holds = [r.y_hold for r in rows if r.y_hold is not None]
+    y_hold = ((np.concatenate([h[0] for h in holds]), np.concatenate([h[1] for h in holds]))
+              if holds else None)
+    digest = hashlib.sha256("\n".join(lg.source.sha256 for lg in logs).encode()).hexdigest()
+    info = dict(first.filter_info, logs=[lg.source.path for lg in logs])
+    still = first.still
+    return _fit(y_fit, tau_fit, y_hold, kind=first.kind, joints=first.joints,
+                structure=first.structure, robot=robot, options=options,
+                where=", ".join(lg.source.path for lg in logs), filter_info=info,
+                input_sha256=digest, still=still)

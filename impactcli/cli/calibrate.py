@@ -1,0 +1,60 @@
+"""``impactcli calibrate FREE_LOG... -o CONFIG``: thresholds from collision-free logs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from ._common import handle_errors
+from .detect import log_read_options, read_options_from
+
+
+@click.command("calibrate")
+@click.argument("logs", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option("-o", "--out", "out_path", required=True,
+              type=click.Path(dir_okay=False, path_type=Path),
+              help="Config to write (.toml, .yaml or .json), accepted by `detect --config`.")
+@click.option("--robot", type=click.Path(dir_okay=False, path_type=Path),
+              help="Robot description (kinematics for the model, joint order).")
+@click.option("--model", type=click.Path(dir_okay=False, path_type=Path),
+              help="Rigid model to calibrate for [default: identified from these logs].")
+@click.option("--config", "base_config", type=click.Path(dir_okay=False, path_type=Path),
+              help="Start from this config's parameters (its thresholds are replaced).")
+@log_read_options
+@handle_errors
+def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, model: Path | None,
+                  base_config: Path | None, channel_map: str | None, topic: str | None,
+                  reference_topic: str | None, time_source: str | None,
+                  torque_source: str | None) -> None:
+    """Set v_stat, vL and v0 per joint so that the collision-free LOGS raise no alarm.
+
+    With two or more logs the margin over the statistic's maximum is chosen by
+    leave-one-out (the smallest margin for which every log left out stays silent);
+    with one log a fixed 1.5× margin is used and the calibration is flagged weak.
+    Give logs that cover the motions the robot really makes: thresholds calibrated on
+    one motion family false-alarm on another.
+    """
+    from ..config import load_config, save_config
+    from ..io import read_log
+    from ..io.robot import read_robot
+    from ..model import read_model
+    from ..pipeline import calibrate
+
+    robot_d = read_robot(robot) if robot else None
+    model_m = read_model(model) if model else None
+    cfg = load_config(base_config) if base_config else None
+    ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
+    read = [read_log(p, robot=robot_d, **ropts) for p in logs]
+    out = calibrate(read, model=model_m, config=cfg, robot=robot_d)
+    save_config(out, out_path)
+    c = out.calibration
+    click.echo(f"calibrated on {len(read)} log(s), rule {c.margin_rule}"
+               + (" (weak: add collision-free logs covering the robot's motions)" if c.weak else ""))
+    click.echo(f"{'joint':<16} {'v_stat':>9} {'vL':>9} {'v0':>9}   margins (adaptive/loading/baseline)")
+    th = out.thresholds
+    for j in th.v_stat:
+        m = [c.margins[d][j] for d in ("adaptive", "static_loading", "static_baseline")]
+        click.echo(f"{j:<16} {th.v_stat[j]:>9.4f} {th.vL[j]:>9.4f} {th.v0[j]:>9.4f}   "
+                   + " / ".join(f"{x:.2f}" for x in m))
+    click.echo(f"wrote {out_path}")
