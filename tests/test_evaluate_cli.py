@@ -173,8 +173,16 @@ def test_usage_errors_exit_2(files):
     assert r.exit_code == 2 and "--scales" in r.stderr, info(r)
     r = invoke(str(tl), "--labels", str(lab), "--model", str(lab))
     assert r.exit_code == 2, info(r)
-    r = invoke(str(tl))
+    r = invoke(str(tl))  # no arm.labels.json beside arm.timeline.json
     assert r.exit_code == 2 and "--labels" in r.stderr, info(r)
+
+
+def test_labels_found_beside_the_input(files):
+    tl, lab = files
+    (tl.parent / "arm.labels.json").write_text(lab.read_text())
+    r = invoke(str(tl), "--json")
+    assert r.exit_code == 0, info(r)
+    assert json.loads(r.stdout)["labels"] == str(tl.parent / "arm.labels.json")
 
 
 def test_parse_scales():

@@ -1,4 +1,6 @@
-"""``impactcli evaluate TIMELINE|LOG --labels LABELS.json``: detection quality against labels.
+"""``impactcli evaluate TIMELINE|LOG [--labels LABELS.json]``: detection quality against labels.
+
+Labels default to ``<stem>.labels.json`` beside the input (as ``impactcli simulate`` writes).
 
 A ``*.json`` input is a detection timeline (``impactcli detect`` output, validated against
 schemas/timeline.schema.json); anything else is a log, on which the detectors are replayed
@@ -102,6 +104,20 @@ def signals_beside(timeline: Path) -> Path:
     return timeline.with_name(f"{stem}.signals.parquet")
 
 
+def labels_beside(source: Path) -> Path:
+    """``<stem>.labels.json`` beside a log or a ``<stem>.timeline.json`` (as ``simulate``
+    writes them); a usage error (exit 2) when there is none."""
+    from ..io import log_stem
+
+    name = source.name
+    stem = (name[: -len(".timeline.json")] if name.endswith(".timeline.json")
+            else log_stem(source))
+    cand = source.with_name(f"{stem}.labels.json")
+    if not cand.is_file():
+        raise click.UsageError(f"--labels is needed: no {cand.name} beside {source}")
+    return cand
+
+
 def _events_settings(config: Any) -> dict[str, float]:
     ev = config.get("events") if isinstance(config, dict) else None
     return ev if isinstance(ev, dict) else {}
@@ -181,9 +197,10 @@ def _timeline_sweep(source: Path, doc: dict[str, Any], labels: Any, scales: tupl
 @click.command("evaluate")
 @click.argument("source", type=click.Path(exists=True, dir_okay=False, path_type=Path),
                 metavar="TIMELINE|LOG")
-@click.option("--labels", "labels_path", required=True,
+@click.option("--labels", "labels_path", default=None,
               type=click.Path(dir_okay=False, path_type=Path),
-              help="Ground-truth labels JSON (formats.md, 'Ground-truth labels').")
+              help="Ground-truth labels JSON (formats.md, 'Ground-truth labels') "
+                   "[default: <stem>.labels.json beside the input].")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 @click.option("--sweep", is_flag=True,
               help="Sweep threshold scales; compare detectors at zero false alarms "
@@ -199,7 +216,7 @@ def _timeline_sweep(source: Path, doc: dict[str, Any], labels: Any, scales: tupl
 @model_options
 @log_read_options
 @handle_errors
-def evaluate_cmd(source: Path, labels_path: Path, as_json: bool, sweep: bool,
+def evaluate_cmd(source: Path, labels_path: Path | None, as_json: bool, sweep: bool,
                  scales: tuple[float, ...], pre_s: float, post_s: float, robot: Path | None,
                  model: Path | None, config: Path | None, channel_map: str | None,
                  topic: str | None, reference_topic: str | None, time_source: str | None,
@@ -227,6 +244,8 @@ def evaluate_cmd(source: Path, labels_path: Path, as_json: bool, sweep: bool,
     if is_timeline and (read_options or any(v is not None for v in (model, config, robot))):
         raise click.UsageError("--robot, --model, --config and the log-reading options apply "
                                "to a LOG, not to a timeline")
+    if labels_path is None:
+        labels_path = labels_beside(source)
     labels = read_labels_checked(labels_path)
     rows = None
     if is_timeline:
