@@ -16,6 +16,11 @@ effects can be included"; 0 reproduces eq. 1–2 exactly).
 The controller runs at the sample period Ts (zero-order hold): PD on the quantised motor
 position with gravity feed-forward from the nominal model, evaluated at the reference.
 Between samples the state is integrated with classical RK4 on ``n_sub`` equal substeps.
+Kernels use numba's ``error_model="numpy"`` (a division by zero gives inf/nan instead of
+raising): the Python error model's checks cost ~5× here; the caller checks the result is
+finite. The small helpers are inlined into :func:`derivative` at numba-IR level (2× faster
+per evaluation than calls); :func:`derivative` itself is not inlined into the RK4 loop
+(that quadruples compile time for no gain).
 
 State vector layout: ``s = [x1 (n), x2 (n), x1' (n), x2' (n)]``.
 """
@@ -40,7 +45,7 @@ RAMP = 1  # ramp up over t_rise, hold t_hold, release over t_fall
 CS, SN, OX, OY, JX, JY, ACX, ACY, ALPH, HV, RHS, YV = range(12)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def kin_w(x: np.ndarray, off: int, n: int, lengths: np.ndarray, w: np.ndarray) -> None:
     """Kinematics of the chain whose angles are x[off:off+n], into w's CS, SN, OX, OY rows."""
     a = 0.0
@@ -60,7 +65,7 @@ def kin_w(x: np.ndarray, off: int, n: int, lengths: np.ndarray, w: np.ndarray) -
     w[OY, n] = py
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def kinematics(q: np.ndarray, lengths: np.ndarray, cs: np.ndarray, sn: np.ndarray,
                ox: np.ndarray, oy: np.ndarray) -> None:
     """Absolute link directions and joint origins of a planar chain.
@@ -81,7 +86,7 @@ def kinematics(q: np.ndarray, lengths: np.ndarray, cs: np.ndarray, sn: np.ndarra
         oy[i] = w[OY, i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def mass_matrix_k(n: int, mass: np.ndarray, com: np.ndarray, inertia: np.ndarray,
                   w: np.ndarray, out: np.ndarray) -> None:
     """M(q) given the chain's kinematics already in w (rows CS, SN, OX, OY)."""
@@ -99,7 +104,7 @@ def mass_matrix_k(n: int, mass: np.ndarray, com: np.ndarray, inertia: np.ndarray
                 out[r, c] += mass[i] * (w[JX, r] * w[JX, c] + w[JY, r] * w[JY, c]) + inertia[i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def mass_matrix(q: np.ndarray, lengths: np.ndarray, mass: np.ndarray, com: np.ndarray,
                 inertia: np.ndarray, out: np.ndarray) -> None:
     """Link inertia matrix M(q) (n, n) [kg·m²] of eq. 1, from the COM Jacobians.
@@ -113,7 +118,7 @@ def mass_matrix(q: np.ndarray, lengths: np.ndarray, mass: np.ndarray, com: np.nd
     mass_matrix_k(n, mass, com, inertia, w, out)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def rnea(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, lengths: np.ndarray,
          mass: np.ndarray, com: np.ndarray, inertia: np.ndarray, gx: float, gy: float,
          out: np.ndarray) -> None:
@@ -125,15 +130,17 @@ def rnea(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, lengths: np.ndarray,
     n = q.shape[0]
     w = np.zeros((N_SCRATCH, n + 1))
     kin_w(q, 0, n, lengths, w)
-    rnea_k(n, qd, 0, qdd, 0, lengths, mass, com, inertia, gx, gy, w, out)
+    rnea_k(n, qd, 0, qdd, 0, lengths, mass, com, inertia, gx, gy, w, w, HV)
+    for i in range(n):
+        out[i] = w[HV, i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def rnea_k(n: int, qd: np.ndarray, qd_off: int, qdd: np.ndarray, qdd_off: int,
            lengths: np.ndarray, mass: np.ndarray, com: np.ndarray, inertia: np.ndarray,
-           gx: float, gy: float, w: np.ndarray, out: np.ndarray) -> None:
+           gx: float, gy: float, w: np.ndarray, out: np.ndarray, row: int) -> None:
     """Newton–Euler with velocities qd[qd_off:], accelerations qdd[qdd_off:] (a negative
-    qdd_off means zero accelerations), given the kinematics in w; writes out[0:n]."""
+    qdd_off means zero accelerations), given the kinematics in w; writes out[row, 0:n]."""
     om = 0.0
     al = 0.0
     ax = 0.0
@@ -163,10 +170,10 @@ def rnea_k(n: int, qd: np.ndarray, qd_off: int, qdd: np.ndarray, qdd_off: int,
         nm = inertia[i] * w[ALPH, i] + nm + (rcx * my - rcy * mx) + (rlx * fy - rly * fx)
         fx = mx + fx
         fy = my + fy
-        out[i] = nm
+        out[row, i] = nm
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def solve_spd(a: np.ndarray, b: np.ndarray, low: np.ndarray, y: np.ndarray,
               out: np.ndarray) -> None:
     """Solve a x = b for a small symmetric positive-definite a (n, n) by Cholesky.
@@ -174,13 +181,16 @@ def solve_spd(a: np.ndarray, b: np.ndarray, low: np.ndarray, y: np.ndarray,
     low (n, n) and y (n,) are scratch.
     """
     n = b.shape[0]
-    solve_spd_k(n, a, b, 0, low, y, 0, out, 0)
+    w = np.zeros((N_SCRATCH, n + 1))
+    for i in range(n):
+        w[RHS, i] = b[i]
+    solve_spd_k(n, a, w, low, out, 0)
 
 
-@njit(cache=True)
-def solve_spd_k(n: int, a: np.ndarray, b: np.ndarray, b_off: int, low: np.ndarray,
-                y: np.ndarray, y_off: int, out: np.ndarray, out_off: int) -> None:
-    """Cholesky solve with offsets into flat b, y and out (no array views)."""
+@njit(cache=True, error_model="numpy", inline="always")
+def solve_spd_k(n: int, a: np.ndarray, w: np.ndarray, low: np.ndarray, out: np.ndarray,
+                out_off: int) -> None:
+    """Cholesky solve of a x = w[RHS, :n] into out[out_off:out_off+n] (w[YV] is scratch)."""
     for i in range(n):
         for j in range(i + 1):
             s = a[i, j]
@@ -191,18 +201,18 @@ def solve_spd_k(n: int, a: np.ndarray, b: np.ndarray, b_off: int, low: np.ndarra
             else:
                 low[i, j] = s / low[j, j]
     for i in range(n):
-        s = b[b_off + i]
+        s = w[RHS, i]
         for k in range(i):
-            s -= low[i, k] * y[y_off + k]
-        y[y_off + i] = s / low[i, i]
+            s -= low[i, k] * w[YV, k]
+        w[YV, i] = s / low[i, i]
     for i in range(n - 1, -1, -1):
-        s = y[y_off + i]
+        s = w[YV, i]
         for k in range(i + 1, n):
             s -= low[k, i] * out[out_off + k]
         out[out_off + i] = s / low[i, i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def force_profile(t: float, forces: np.ndarray, p: int) -> float:
     """Magnitude [N] at time t [s] of prescribed force p (row p of the force table).
 
@@ -231,7 +241,7 @@ def force_profile(t: float, forces: np.ndarray, p: int) -> float:
     return 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def external(t: float, n: int, qd: np.ndarray, qd_off: int, lengths: np.ndarray,
              w: np.ndarray, surfaces: np.ndarray, forces: np.ndarray, tau_ext: np.ndarray,
              src_force: np.ndarray, penetration: np.ndarray) -> None:
@@ -281,7 +291,7 @@ def external(t: float, n: int, qd: np.ndarray, qd_off: int, lengths: np.ndarray,
             tau_ext[j] += (px - w[OX, j]) * fy - (py - w[OY, j]) * fx
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def derivative(t: float, s: np.ndarray, u: np.ndarray, lengths: np.ndarray,
                mass: np.ndarray, com: np.ndarray, inertia: np.ndarray, gx: float, gy: float,
                i_mot: np.ndarray, stiff: np.ndarray, damp: np.ndarray,
@@ -298,7 +308,7 @@ def derivative(t: float, s: np.ndarray, u: np.ndarray, lengths: np.ndarray,
     n = u.shape[0]
     kin_w(s, n, n, lengths, w)
     mass_matrix_k(n, mass, com, inertia, w, mm)
-    rnea_k(n, s, 3 * n, s, -1, lengths, mass, com, inertia, gx, gy, w, w[HV])
+    rnea_k(n, s, 3 * n, s, -1, lengths, mass, com, inertia, gx, gy, w, w, HV)
     external(t, n, s, 3 * n, lengths, w, surfaces, forces, tau_ext, src_force, penetration)
     for j in range(n):
         x1 = s[j]
@@ -313,10 +323,10 @@ def derivative(t: float, s: np.ndarray, u: np.ndarray, lengths: np.ndarray,
         out[j] = v1
         out[n + j] = v2
         out[2 * n + j] = (u[j] - tfm + spring) / i_mot[j]
-    solve_spd_k(n, mm, w[RHS], 0, low, w[YV], 0, out, 3 * n)
+    solve_spd_k(n, mm, w, low, out, 3 * n)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def run(s0: np.ndarray, ts: float, n_sub: int, n_samples: int,
         lengths: np.ndarray, mass: np.ndarray, com: np.ndarray, inertia: np.ndarray,
         gx: float, gy: float, i_mot: np.ndarray, stiff: np.ndarray, damp: np.ndarray,
@@ -351,7 +361,6 @@ def run(s0: np.ndarray, ts: float, n_sub: int, n_samples: int,
     k4 = np.empty(dim)
     tmp = np.empty(dim)
     u = np.zeros(n)
-    gff = np.empty(n)
     zero = np.zeros(n)
     tau_ext = np.empty(n)
     ns = surfaces.shape[0]
@@ -390,10 +399,10 @@ def run(s0: np.ndarray, ts: float, n_sub: int, n_samples: int,
             o_vel[k, j] = vest[j]
         if control:
             kin_w(ref_pos[k], 0, n, lengths, w2)
-            rnea_k(n, zero, 0, zero, -1, lengths, nom_mass, nom_com, zero, gx, gy, w2, gff)
+            rnea_k(n, zero, 0, zero, -1, lengths, nom_mass, nom_com, zero, gx, gy, w2, w2, HV)
             for j in range(n):
                 u[j] = (kp[j] * (ref_pos[k, j] - o_pos[k, j])
-                        + kd[j] * (ref_vel[k, j] - vest[j]) + gff[j])
+                        + kd[j] * (ref_vel[k, j] - vest[j]) + w2[HV, j])
         for j in range(n):
             o_u[k, j] = u[j]
             cur = u[j] / cur_scale[j] + cur_noise[k, j]

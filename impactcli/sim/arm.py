@@ -29,8 +29,8 @@ import numpy as np
 from ..types import JointSpec, RobotDescription
 
 #: Velocity scale of the smoothed Coulomb friction tanh(v / v_eps) [rad/s]: the smooth sign
-#: reaches 0.76 at 2 mrad/s; its slope at 0 is Fc / v_eps.
-COULOMB_VELOCITY_EPS = 2e-3
+#: reaches 0.76 at 5 mrad/s (0.3 deg/s); its slope at 0 is Fc / v_eps.
+COULOMB_VELOCITY_EPS = 5e-3
 
 
 @dataclass(frozen=True)

@@ -96,7 +96,8 @@ def tables(surfaces: tuple[Surface, ...], pushes: tuple[Push, ...],
            clamps: tuple[Clamp, ...]) -> tuple[np.ndarray, np.ndarray]:
     """The kernel's surface table (S, 7) and force table (P, 9); pushes before clamps."""
     s = np.array([x.row() for x in surfaces], dtype=np.float64).reshape(-1, 7)
-    f = np.array([x.row() for x in (*pushes, *clamps)], dtype=np.float64).reshape(-1, 9)
+    rows = [x.row() for x in pushes] + [x.row() for x in clamps]
+    f = np.array(rows, dtype=np.float64).reshape(-1, 9)
     return s, f
 
 
