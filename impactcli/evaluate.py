@@ -605,6 +605,24 @@ def _table(rows: Sequence[Sequence[str]]) -> list[str]:
 # Threshold sweep (equal-false-alarm comparison)
 
 
+def geometric_scales(start: float, stop: float, factor: float) -> tuple[float, ...]:
+    """Threshold scales ``start × factor^k`` up to ``stop`` (inclusive), 4 significant digits.
+
+    Thresholds compare in ratios, so a geometric grid spaces them evenly.
+    """
+    if not (stop >= start > 0 and factor > 1):
+        raise ValueError(f"geometric scales need 0 < start <= stop and factor > 1, got "
+                         f"{start!r}, {stop!r}, {factor!r}")
+    n = math.floor(math.log(stop / start) / math.log(factor) + 1e-9)
+    if n > 10_000:
+        raise ValueError(f"geometric scales: {n + 1} scales are too many")
+    return tuple(sorted({float(f"{start * factor**k:.4g}") for k in range(n + 1)}))
+
+
+#: The default sweep: 0.2 … 5 in 5 % steps (66 scales).
+DEFAULT_SWEEP_SCALES: tuple[float, ...] = geometric_scales(0.2, 5.0, 1.05)
+
+
 @dataclass(frozen=True)
 class SweepRow:
     """One (detector, threshold scale) point of a sweep.

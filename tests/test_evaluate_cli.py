@@ -14,6 +14,7 @@ from click.testing import CliRunner
 import impactcli.cli.evaluate as cli_eval
 from impactcli.cli import main
 from impactcli.errors import LabelsError
+from impactcli.evaluate import DEFAULT_SWEEP_SCALES
 from impactcli.outputs.signals import write_signals
 from impactcli.outputs.timeline import write_timeline
 from impactcli.schema import validate
@@ -187,6 +188,7 @@ def test_labels_found_beside_the_input(files):
 
 def test_parse_scales():
     geo = cli_eval.parse_scales(cli_eval.DEFAULT_SCALES)
+    assert geo == DEFAULT_SWEEP_SCALES
     assert geo[0] == 0.2 and 4.7 < geo[-1] <= 5.0 and len(geo) == 66
     ratios = np.array(geo[1:]) / np.array(geo[:-1])
     assert np.allclose(ratios, 1.05, atol=1e-3)

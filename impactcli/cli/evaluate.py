@@ -32,7 +32,7 @@ from ..errors import ImpactWarning, LabelsError, LogFormatError
 from ._common import handle_errors
 from .detect import log_read_options, model_options, read_options_from
 
-#: 0.2 … 5 in 5 % steps (67 scales): thresholds are compared in ratios, so a geometric grid.
+#: impactcli.evaluate.DEFAULT_SWEEP_SCALES: 0.2 … 5 in 5 % steps (66 scales).
 DEFAULT_SCALES = "0.2:5:x1.05"
 
 
@@ -42,6 +42,8 @@ def parse_scales(text: str) -> tuple[float, ...]:
 
     Raises ValueError with a one-line message on anything else.
     """
+    from ..evaluate import geometric_scales
+
     text = text.strip()
     try:
         if ":" in text:
@@ -49,16 +51,17 @@ def parse_scales(text: str) -> tuple[float, ...]:
             if len(parts) != 3:
                 raise ValueError
             a, b = float(parts[0]), float(parts[1])
-            geometric = parts[2].strip().lower().startswith("x")
-            step = float(parts[2].strip()[1:] if geometric else parts[2])
-            if not (b >= a > 0) or (geometric and not step > 1) or (not geometric and not step > 0):
-                raise ValueError
-            n = math.floor((math.log(b / a) / math.log(step) if geometric else (b - a) / step)
-                           + 1e-9)
-            if n > 10_000:
-                raise ValueError
-            values = [float(f"{a * step**k:.4g}") if geometric else round(a + k * step, 9)
-                      for k in range(n + 1)]
+            last = parts[2].strip()
+            if last.lower().startswith("x"):
+                values = list(geometric_scales(a, b, float(last[1:])))
+            else:
+                step = float(last)
+                if not (b >= a > 0 and step > 0):
+                    raise ValueError
+                n = math.floor((b - a) / step + 1e-9)
+                if n > 10_000:
+                    raise ValueError
+                values = [round(a + k * step, 9) for k in range(n + 1)]
         else:
             values = [float(p) for p in text.split(",") if p.strip()]
     except (ValueError, OverflowError, ZeroDivisionError):
