@@ -58,7 +58,14 @@ EVENT_BUCKETS = 500
 #: top edge, their true maximum written in the panel).
 CLIP_FACTOR = 4.0
 #: Threshold scales of the ROC-style sweep (when :mod:`impactcli.evaluate` provides it).
-SWEEP_SCALES: tuple[float, ...] = (0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1, 1.25, 1.5, 2.0, 3.0)
+def _sweep_scales() -> tuple[float, ...]:
+    from ..evaluate import DEFAULT_SWEEP_SCALES
+
+    return tuple(DEFAULT_SWEEP_SCALES)
+
+
+#: the threshold scales of the report's sweep: the same grid as ``impactcli evaluate --sweep``
+SWEEP_SCALES: tuple[float, ...] = _sweep_scales()
 #: The product's detectors (static_baseline exists to be compared against).
 PRODUCT_DETECTORS: tuple[str, ...] = ("adaptive", "static_loading")
 #: A filter gain below this at a frequency <= 10 Hz triggers the "blind to slow contacts"
@@ -382,18 +389,9 @@ def _evaluate(result: DetectionResult, labels: Labels) -> dict[str, Any]:
         "sweep": None,
         "notes": [],
     }
-    try:
-        from .. import evaluate as ev
-    except ImportError:  # pragma: no cover - evaluate ships with impactcli
-        out["status"] = "unavailable"
-        out["notes"].append(
-            "impactcli.evaluate is not available in this installation: "
-            "labels were read but detection quality was not evaluated."
-        )
-        return out
-    evaluation = ev.evaluate_events(
-        result.events, labels, duration_s=result.log.duration_s, warmup_end_s=result.warmup_end_s
-    )
+    from .. import evaluate as ev
+
+    evaluation = ev.evaluate_result(result, labels)
     out["evaluation"] = _to_mapping(evaluation)
     try:
         rows = ev.sweep_thresholds(result, labels, SWEEP_SCALES)
