@@ -8,8 +8,9 @@ Names (see :data:`SCENARIOS`):
 * ``impacts`` — the paper's experiment (its §IV-B): joint 1 moves the extended arm along
   triangles; on the way down the end effector meets an elastomer (2.12, 5.93, 10.12 N/mm
   by default, swapped between blocks of impacts) at varied speeds; the reference goes on
-  below the surface by Δ = F_target × reach / kp, so the pressing force reaches ≈ F_target
-  (3–40 N). A collision-free lead-in (10 s) comes first.
+  below the surface by Δ = F_target × (Σ_j r_j² / kp_j) / reach (r_j: joint j to tip), so
+  the servos' quasi-static pressing force is ≈ F_target (4–40 N), plus the impact
+  transient. A collision-free lead-in (10 s) comes first.
 * ``pushes`` — half-sine pushes of graded peak force (5–40 N) on both links during slow
   motion.
 * ``clamps`` — slow clamping ramps (20–40 N over 3–4 s, held, released) during slow motion.
@@ -93,6 +94,10 @@ def impacts(arm: ArmParams, duration_s: float | None,
     y_s = reach * math.sin(th_s)
     rest = tuple(arm.home[1:])
     sp = _speed(arm)
+    # tip compliance of the PD servos, arm extended: sum over joints of r_j² / kp_j with r_j
+    # the distance from joint j to the tip [m/N]; a reference Δ below contact makes the
+    # shoulder push with ≈ Δ · reach / compliance
+    compliance = sum(sum(arm.link_lengths[j:]) ** 2 / arm.kp[j] for j in range(arm.n_joints))
     times: list[float] = [0.0]
     pos: list[tuple[float, ...]] = [(th_top, *rest)]
 
@@ -113,7 +118,7 @@ def impacts(arm: ArmParams, duration_s: float | None,
         t_on = times[-1]
         for f, w in zip(forces_n if sp == 1.0 else tuple(0.5 * x for x in forces_n),
                         speeds, strict=True):
-            delta = f * reach / arm.kp[0]
+            delta = f * compliance / reach
             go(th_top, 1.0, 0.5)
             go(th_s - delta, w * sp, 0.4)
             go(th_top, w * sp, 1.0)
