@@ -53,11 +53,11 @@ def handle_errors(func: F) -> F:
 
 
 def progress(items: Iterable[T], total: int | None = None, desc: str = "") -> Iterator[T]:
-    """A progress bar on stderr over ``items`` (silent when stderr is not a terminal and
-    fewer than 2 items: a single log needs no bar)."""
+    """A progress bar on stderr over ``items``: shown for two or more items when stderr is
+    a terminal (a CI log or a pipe gets no carriage-return noise)."""
     from tqdm import tqdm
 
     seq = list(items) if total is None else items
     n = total if total is not None else len(seq)  # type: ignore[arg-type]
-    disable = n < 2
+    disable = n < 2 or not sys.stderr.isatty()
     yield from tqdm(seq, total=n, desc=desc, disable=disable, file=sys.stderr, leave=False)
