@@ -75,6 +75,14 @@ def test_numba_equals_reference(joints: int, estimate: str) -> None:
     assert np.array_equal(a.decision[margin > 1e-9], b.decision[margin > 1e-9])
 
 
+def test_axes_on_threads_give_identical_results() -> None:
+    _, r, u = scenario(1, n_s=8.0, joints=3)
+    a = evaluate(r, u, FS, np.full(3, 0.05), threads=1)
+    b = evaluate(r, u, FS, np.full(3, 0.05), threads=3)
+    for name in ("r_tilde", "v_dyn", "r_rms", "v_rms", "decision", "prediction_error", "theta"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+
+
 def test_nu_matches_paper() -> None:
     assert AdaptiveConfig().n_params(2) == 34
     assert AdaptiveConfig().n_params(7) == 64

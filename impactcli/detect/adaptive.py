@@ -48,6 +48,7 @@ to 1e-9.
 
 from __future__ import annotations
 
+import os
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -246,114 +247,132 @@ def g_gain(theta_g: np.ndarray, freqs_hz: np.ndarray, fs_hz: float) -> np.ndarra
 
 # ----------------------------------------------------------------------------- kernels
 @nb.njit(cache=True, nogil=True, fastmath=FASTMATH)
-def _evaluate_numba(
-    r: np.ndarray, u: np.ndarray, eta: int, p: int, rho: np.ndarray,
+def _evaluate_axis(  # noqa: PLR0917 (numba kernels take positional arguments)
+    r: np.ndarray, u: np.ndarray, j: int, eta: int, p: int, rho: np.ndarray,
     lam: float, p0: float, theta0: float, max_trace: float, a_post: bool,
-    a1: float, a2: float, n1: int, n2: int, v_stat: np.ndarray,
-) -> tuple[np.ndarray, ...]:
+    a1: float, a2: float, n1: int, n2: int, v_stat_j: float,
+    rt: np.ndarray, vd: np.ndarray, rf: np.ndarray, vf: np.ndarray, rr: np.ndarray,
+    vr: np.ndarray, thr: np.ndarray, dec: np.ndarray, eps: np.ndarray, theta: np.ndarray,
+) -> int:
+    """Axis ``j`` over all samples; writes column j of the outputs and row j of theta.
+
+    Axes are independent (eq. 34–35 per axis; only the inputs u are shared), so axes can
+    run on separate threads (the kernel releases the GIL). Returns the covariance resets.
+    """
     n, J = r.shape
     m = u.shape[0]
     srho = 0
     for i in range(m):
         srho += rho[i]
     nu = eta + p + J * srho
-    rt = np.zeros((n, J))
-    vd = np.zeros((n, J))
-    rf = np.zeros((n, J))
-    vf = np.zeros((n, J))
-    rr = np.zeros((n, J))
-    vr = np.zeros((n, J))
-    thr = np.zeros((n, J))
-    dec = np.zeros((n, J), dtype=np.bool_)
-    eps = np.zeros((n, J))
-    theta = np.full((J, nu), theta0)
-    P = np.zeros((J, nu, nu))
-    for j in range(J):
-        for i in range(nu):
-            P[j, i, i] = p0
-    resets = np.zeros(J, dtype=np.int64)
+    P = np.zeros((nu, nu))
+    for i in range(nu):
+        P[i, i] = p0
+    th = theta[j]
+    for i in range(nu):
+        th[i] = theta0
+    resets = 0
     phi = np.zeros(nu)
     h = np.empty(nu)
     th_old = np.empty(nu)
     inv_n1 = 1.0 / n1
     inv_n2 = 1.0 / n2
     maxlag = max(eta, p)
-    uphi = np.zeros(nu - eta - p)
-    sum_r = np.zeros(J)
-    sum_v = np.zeros(J)
-    ring_r = np.zeros((J, n1))
-    ring_v = np.zeros((J, n2))
+    sum_r = 0.0
+    sum_v = 0.0
+    ring_r = np.zeros(n1)
+    ring_v = np.zeros(n2)
     pos1 = 0
     pos2 = 0
     for k in range(n):
-        # the inputs' part of phi is the same for every axis: u_{i,l}(k-1..k-rho_i)
-        c = 0
+        # regressor phi(k) (zeros before the start): past residuals, past v_dyn, and the
+        # inputs u_{i,l}(k-1..k-rho_i) of every type i and every axis l (Appendix A)
+        if k >= maxlag:
+            for d in range(1, eta + 1):
+                phi[d - 1] = r[k - d, j]
+            for d in range(1, p + 1):
+                phi[eta + d - 1] = vd[k - d, j]
+        else:
+            for d in range(1, eta + 1):
+                phi[d - 1] = r[k - d, j] if k - d >= 0 else 0.0
+            for d in range(1, p + 1):
+                phi[eta + d - 1] = vd[k - d, j] if k - d >= 0 else 0.0
+        c = eta + p
         for i in range(m):
             for ll in range(J):
                 for d in range(1, rho[i] + 1):
-                    uphi[c] = u[i, k - d, ll] if k - d >= 0 else 0.0
+                    phi[c] = u[i, k - d, ll] if k - d >= 0 else 0.0
                     c += 1
-        for j in range(J):
-            # regressor phi(k) (zeros before the start; no branches once k >= max lag)
-            if k >= maxlag:
-                for d in range(1, eta + 1):
-                    phi[d - 1] = r[k - d, j]
-                for d in range(1, p + 1):
-                    phi[eta + d - 1] = vd[k - d, j]
-                for c in range(nu - eta - p):
-                    phi[eta + p + c] = uphi[c]
-            else:
-                for d in range(1, eta + 1):
-                    phi[d - 1] = r[k - d, j] if k - d >= 0 else 0.0
-                for d in range(1, p + 1):
-                    phi[eta + d - 1] = vd[k - d, j] if k - d >= 0 else 0.0
-                for c in range(nu - eta - p):
-                    phi[eta + p + c] = uphi[c]
-            th = theta[j]
-            if not a_post:
-                for i in range(nu):
-                    th_old[i] = th[i]
-            e, rs = rls_update_inplace(th, P[j], phi, r[k, j], lam, max_trace, p0, h)
-            eps[k, j] = e
-            resets[j] += rs
-            tv = th if a_post else th_old
-            g = 0.0
-            for i in range(eta):
-                g += phi[i] * tv[i]
-            v = 0.0
-            for i in range(eta, nu):
-                v += phi[i] * tv[i]
-            rt[k, j] = r[k, j] - g
-            vd[k, j] = v
-            # F1 / F2 (from rest)
-            prev_r = rf[k - 1, j] if k > 0 else 0.0
-            prev_v = vf[k - 1, j] if k > 0 else 0.0
-            rf[k, j] = a1 * prev_r + (1.0 - a1) * rt[k, j]
-            vf[k, j] = a2 * prev_v + (1.0 - a2) * v
-            # RMS over k-1..k-N (eq. 41): running sums of the last N squares (ring buffers,
-            # re-summed exactly at every wrap so rounding cannot accumulate)
-            sr = max(sum_r[j], 0.0)
-            sv = max(sum_v[j], 0.0)
-            q = rf[k, j] * rf[k, j]
-            sum_r[j] += q - ring_r[j, pos1]
-            ring_r[j, pos1] = q
-            q = vf[k, j] * vf[k, j]
-            sum_v[j] += q - ring_v[j, pos2]
-            ring_v[j, pos2] = q
-            rr[k, j] = np.sqrt(sr * inv_n1)
-            vr[k, j] = np.sqrt(sv * inv_n2)
-            thr[k, j] = abs(v_stat[j] + vr[k, j])
-            dec[k, j] = rr[k, j] > thr[k, j]
+        if not a_post:
+            for i in range(nu):
+                th_old[i] = th[i]
+        e, rs = rls_update_inplace(th, P, phi, r[k, j], lam, max_trace, p0, h)
+        eps[k, j] = e
+        resets += rs
+        tv = th if a_post else th_old
+        g = 0.0
+        for i in range(eta):
+            g += phi[i] * tv[i]
+        v = 0.0
+        for i in range(eta, nu):
+            v += phi[i] * tv[i]
+        rt[k, j] = r[k, j] - g
+        vd[k, j] = v
+        # F1 / F2 (from rest)
+        prev_r = rf[k - 1, j] if k > 0 else 0.0
+        prev_v = vf[k - 1, j] if k > 0 else 0.0
+        rf[k, j] = a1 * prev_r + (1.0 - a1) * rt[k, j]
+        vf[k, j] = a2 * prev_v + (1.0 - a2) * v
+        # RMS over k-1..k-N (eq. 41): running sums of the last N squares (ring buffers,
+        # re-summed exactly at every wrap so rounding cannot accumulate)
+        sr = max(sum_r, 0.0)
+        sv = max(sum_v, 0.0)
+        q = rf[k, j] * rf[k, j]
+        sum_r += q - ring_r[pos1]
+        ring_r[pos1] = q
+        q = vf[k, j] * vf[k, j]
+        sum_v += q - ring_v[pos2]
+        ring_v[pos2] = q
+        rr[k, j] = np.sqrt(sr * inv_n1)
+        vr[k, j] = np.sqrt(sv * inv_n2)
+        thr[k, j] = abs(v_stat_j + vr[k, j])
+        dec[k, j] = rr[k, j] > thr[k, j]
         pos1 += 1
         pos2 += 1
         if pos1 == n1:
             pos1 = 0
-            for j in range(J):
-                sum_r[j] = np.sum(ring_r[j])
+            sum_r = np.sum(ring_r)
         if pos2 == n2:
             pos2 = 0
-            for j in range(J):
-                sum_v[j] = np.sum(ring_v[j])
+            sum_v = np.sum(ring_v)
+    return resets
+
+
+def _evaluate_numba(  # noqa: PLR0917
+    r: np.ndarray, u: np.ndarray, eta: int, p: int, rho: np.ndarray,
+    lam: float, p0: float, theta0: float, max_trace: float, a_post: bool,
+    a1: float, a2: float, n1: int, n2: int, v_stat: np.ndarray, threads: int = 1,
+) -> tuple[np.ndarray, ...]:
+    """All axes with the compiled per-axis kernel; ``threads`` > 1 runs axes concurrently."""
+    n, J = r.shape
+    nu = eta + p + J * int(np.sum(rho))
+    out = [np.zeros((n, J)) for _ in range(9)]
+    out[7] = np.zeros((n, J), dtype=np.bool_)
+    theta = np.zeros((J, nu))
+    rt, vd, rf, vf, rr, vr, thr, dec, eps = out
+
+    def axis(j: int) -> int:
+        return int(_evaluate_axis(r, u, j, eta, p, rho, lam, p0, theta0, max_trace, a_post,
+                                  a1, a2, n1, n2, float(v_stat[j]),
+                                  rt, vd, rf, vf, rr, vr, thr, dec, eps, theta))
+
+    if threads > 1 and J > 1:
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max_workers=min(threads, J)) as ex:
+            resets = np.array(list(ex.map(axis, range(J))), dtype=np.int64)
+    else:
+        resets = np.array([axis(j) for j in range(J)], dtype=np.int64)
     return rt, vd, rf, vf, rr, vr, thr, dec, eps, theta, resets
 
 
@@ -371,6 +390,7 @@ def _check(r: np.ndarray, u: np.ndarray, v_stat: np.ndarray, cfg: AdaptiveConfig
 def evaluate(
     residual: np.ndarray, inputs: np.ndarray, sample_rate_hz: float,
     v_stat: Sequence[float] | np.ndarray, cfg: AdaptiveConfig | None = None,
+    threads: int | None = None,
 ) -> AdaptiveResult:
     """Run the adaptive evaluator (compiled) on all axes.
 
@@ -380,8 +400,12 @@ def evaluate(
         sample_rate_hz: fs [Hz].
         v_stat: (J,) static thresholds [N·m] (eq. 42).
         cfg: settings (Table I defaults).
+        threads: axes run concurrently on this many threads (results are identical: axes
+            are independent); None → one per core for logs of ≥ 100k samples, else 1.
     """
     cfg = cfg or AdaptiveConfig()
+    if threads is None:
+        threads = (os.cpu_count() or 1) if np.shape(residual)[0] >= 100_000 else 1
     r = np.ascontiguousarray(residual, dtype=np.float64)
     u = np.ascontiguousarray(inputs, dtype=np.float64)
     vs = np.ascontiguousarray(v_stat, dtype=np.float64)
@@ -392,7 +416,7 @@ def evaluate(
     out = _evaluate_numba(
         r, u, cfg.eta, cfg.p, np.asarray(cfg.rho, dtype=np.int64), cfg.forgetting_factor,
         cfg.p0, cfg.theta0, mt, cfg.estimate == "a_posteriori", rates.a1, rates.a2,
-        rates.n1, rates.n2, vs,
+        rates.n1, rates.n2, vs, threads,
     )
     rt, vd, rf, vf, rr, vr, thr, dec, eps, theta, resets = out
     return AdaptiveResult(rt, vd, rf, vf, rr, vr, thr, dec, eps, theta, resets,
