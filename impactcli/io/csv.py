@@ -173,19 +173,26 @@ def read_csv_channels(path: Path, cmap: ChannelMap | None) -> tuple[JointChannel
     refs = cmap.refs()
     for sig, j, ref in refs:
         used.add(colname(ref, f"{cmap.joints[j]}.{sig}"))
-    types = {tname: pa.string()}  # parsed exactly by decimal_text_to_ns
-    try:
-        table = pacsv.read_csv(
-            path,
-            read_options=pacsv.ReadOptions(
-                skip_rows=skip, autogenerate_column_names=not header, block_size=1 << 24,
-            ),
-            parse_options=pacsv.ParseOptions(delimiter=delim),
-            convert_options=pacsv.ConvertOptions(column_types=types),
-        )
-    except (pa.ArrowInvalid, OSError) as err:
-        msg = str(err).splitlines()[0]
-        raise LogFormatError(f"{where}: cannot parse CSV: {msg}") from err
+    def read(types: dict[str, Any], include: list[str] | None = None) -> Any:
+        try:
+            return pacsv.read_csv(
+                path,
+                read_options=pacsv.ReadOptions(
+                    skip_rows=skip, autogenerate_column_names=not header, block_size=1 << 24,
+                ),
+                parse_options=pacsv.ParseOptions(delimiter=delim),
+                convert_options=pacsv.ConvertOptions(column_types=types,
+                                                     include_columns=include),
+            )
+        except (pa.ArrowInvalid, OSError) as err:
+            msg = str(err).splitlines()[0]
+            raise LogFormatError(f"{where}: cannot parse CSV: {msg}") from err
+
+    # Time is parsed as float64 when that is exact to the nanosecond: decimal text with at
+    # most 9 decimals below 1e6 s rounds back to its integer ns (half an ulp plus the
+    # product's rounding stay below 0.2 ns). Larger (epoch) times are re-read as text and
+    # converted exactly by decimal_text_to_ns.
+    table = read({})
     if header:
         names = list(table.column_names)
     n = table.num_rows
@@ -221,6 +228,11 @@ def read_csv_channels(path: Path, cmap: ChannelMap | None) -> tuple[JointChannel
             raise LogFormatError(f"{where}: column {disp(tname)!r}, {label(i)}: empty time")
         t_ns = tarr.to_numpy().astype(np.int64) * unit_ns
     else:
+        if pa.types.is_floating(tarr.type) and (
+            tarr.null_count or float(np.nanmax(np.abs(tarr.to_numpy(zero_copy_only=False))))
+            * unit_ns / 1e9 >= 1e6
+        ):
+            tarr = read({tname: pa.string()}, [tname]).column(tname).combine_chunks()
         exact = decimal_text_to_ns(tarr, unit_ns) if pa.types.is_string(tarr.type) else None
         if exact is not None:
             t_ns = exact
