@@ -1,0 +1,176 @@
+"""Issue 4's done criteria on the committed sample logs (CSV copies) and configs.
+
+Thresholds: ``sample_logs/assist_like.config.toml`` — ``impactcli calibrate`` on the
+collision-free triangle, point-to-point and multi-sine logs (leave-one-out margins; the
+motion families of the contact logs). Criteria, ASSIST-like arm at 4 ms sampling:
+no product alarm between contacts after warm-up; every elastomer impact of ≥ 20 N caught
+by the product (adaptive OR static_loading) within 80 ms of onset; every push of ≥ 20 N
+while it lasts; every clamping ramp of ≥ 20 N by static_loading; the unknown-payload log
+analysed with no model raises no product alarm. A criterion that the product does not meet
+is an ``xfail(strict=True)`` with the measured reason — never a weakened threshold.
+The measurements and their explanation: ``python tests/benchmarks/sample_quality.py``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from impactcli.cli import main
+from impactcli.config import DetectorConfig, load_config
+from impactcli.evaluate import PRODUCT, evaluate_events
+
+from .benchmarks import sample_quality as sq
+
+if not (sq.CSV / "assist_impacts.csv.gz").exists():  # pragma: no cover - a trimmed checkout
+    pytest.skip("sample_logs/csv is absent", allow_module_level=True)
+
+ASSIST = "assist_like"
+
+
+@pytest.fixture(scope="module")
+def config() -> DetectorConfig:
+    return load_config(sq.config_path(ASSIST))
+
+
+@pytest.fixture(scope="module")
+def runs(config: DetectorConfig) -> dict:
+    """The three ASSIST-like contact logs replayed with the committed config."""
+    return {n: sq.run(n, config) for n, arm in sq.CONTACT_LOGS.items() if arm == ASSIST}
+
+
+# --------------------------------------------------------------------- the committed configs
+@pytest.mark.parametrize("arm", sorted(sq.CALIBRATION_LOGS))
+def test_committed_config_belongs_to_the_committed_free_logs(arm: str) -> None:
+    cfg = load_config(sq.config_path(arm))
+    cal = cfg.calibration
+    assert cal.calibrated and cfg.model is not None
+    assert cal.margin_rule == ("leave-one-out" if len(sq.CALIBRATION_LOGS[arm]) > 1
+                               else "fixed-single-log")
+    assert [Path(lg.path).name for lg in cal.logs] == [
+        f"{n}.csv.gz" for n in sq.CALIBRATION_LOGS[arm]]
+    for lg, name in zip(cal.logs, sq.CALIBRATION_LOGS[arm], strict=True):
+        digest = hashlib.sha256(sq.log_path(name).read_bytes()).hexdigest()
+        assert lg.sha256 == digest, f"{name} changed since the config was calibrated"
+
+
+def test_assist_config_is_what_calibrate_makes_today(config: DetectorConfig) -> None:
+    fresh = sq.calibrate_on(sq.CALIBRATION_LOGS[ASSIST])
+    for kind in ("v_stat", "vL", "v0"):
+        got, want = getattr(fresh.thresholds, kind), getattr(config.thresholds, kind)
+        assert got.keys() == want.keys()
+        for j in want:
+            assert got[j] == pytest.approx(want[j], rel=1e-6), (kind, j)
+
+
+@pytest.mark.parametrize("name", sq.CALIBRATION_LOGS[ASSIST])
+def test_calibration_logs_stay_silent(config: DetectorConfig, name: str) -> None:
+    """Leave-one-out margins ≥ 1: every log calibrated on stays silent with the result."""
+    res, ev = sq.run(name, config)
+    assert res.calibrated
+    assert ev.scores[PRODUCT].n_events == 0
+    assert ev.scores["static_baseline"].n_events == 0
+    assert max(sq.max_ratio_after_warmup(res).values()) < 1.0
+
+
+# ------------------------------------------------------------------------------ criteria
+@pytest.mark.parametrize("name", [
+    "assist_impacts",
+    "assist_pushes",
+    pytest.param("assist_clamps", marks=pytest.mark.xfail(strict=True, reason=(
+        "measured: 4 static_loading alarms 0.32-0.88 s after the 20 N and 40 N clamps' "
+        "release (true force 0): the sudden release excites the servo's ~2.5 Hz mode "
+        "(link speed up to 2 rad/s), the rigid model's error passes the 2 Hz low-pass and "
+        "reaches 1.27x vL (shoulder), 1.42x vL (elbow); no calibration log moves like it"))),
+])
+def test_no_product_alarm_between_contacts(runs: dict, name: str) -> None:
+    c = sq.no_alarm_between_contacts(name, runs[name][1])
+    assert c.passed, c.line()
+
+
+def test_clamp_alarms_outside_contacts_follow_a_release(runs: dict) -> None:
+    """The clamp log's alarms between contacts all start within 1 s after a clamp ends
+    (after-effects of the release, not alarms in free motion)."""
+    ev = runs["assist_clamps"][1]
+    ends = np.array([c.label.end for c in ev.contacts])
+    for t0, _ in ev.scores[PRODUCT].false_alarm_times:
+        gap = t0 - ends[ends <= t0]
+        assert gap.size and gap.min() <= 1.0, f"alarm at {t0:.3f} s not after a release"
+
+
+def test_impacts_of_20N_caught_within_80ms(runs: dict) -> None:
+    c = sq.impacts_within("assist_impacts", runs["assist_impacts"][1])
+    assert c.passed, c.line()
+    assert "6/6" in c.detail  # the six ≥ 20 N impacts of the log are all counted
+
+
+def test_pushes_of_20N_caught_while_they_last(runs: dict) -> None:
+    c = sq.pushes_while_lasting("assist_pushes", runs["assist_pushes"][1])
+    assert c.passed, c.line()
+    assert "4/4" in c.detail
+
+
+def test_clamps_of_20N_caught_by_static_loading(runs: dict) -> None:
+    c = sq.clamps_by_static_loading("assist_clamps", runs["assist_clamps"][1])
+    assert c.passed, c.line()
+    assert "3/3" in c.detail
+
+
+# ---------------------------------------------------------------------- unknown payload
+@pytest.mark.xfail(strict=True, reason=(
+    "measured: with no model and no config the run is uncalibrated and its thresholds are "
+    "1.5x the log's own 99.5 % quantile; adaptive (37.88 s, ratio 1.03) and static_loading "
+    "(7.17 s, ratio 1.08) cross them — the rule, not the payload: the same rule alarms on "
+    "the payload-free p2p log too (2 adaptive)"))
+def test_payload_log_no_alarm_with_model_identified_from_it() -> None:
+    res, ev = sq.run(sq.PAYLOAD_LOG, None)
+    assert res.model_source == "identified-from-log"
+    c = sq.payload_no_false_alarm("no model, no config", res, ev)
+    assert c.passed, c.line()
+
+
+def test_payload_log_no_alarm_with_config_thresholds_and_model_from_it(
+        config: DetectorConfig) -> None:
+    """Calibrated thresholds, model identified from this log (``identify`` then
+    ``detect --config --model``): the payload is absorbed by the model, no alarm."""
+    res, ev = sq.run(sq.PAYLOAD_LOG, config, model_from_log=True)
+    assert res.calibrated and res.model_source == "given"
+    c = sq.payload_no_false_alarm("config thresholds, model from the log", res, ev)
+    assert c.passed, c.line()
+
+
+def test_payload_is_a_static_load_for_the_configs_own_model(config: DetectorConfig) -> None:
+    """With the config's (payload-free) model the unknown 0.5 kg is an external load:
+    static_loading stays on from its start in warm-up to the log's end on the shoulder."""
+    res, _ = sq.run(sq.PAYLOAD_LOG, config)
+    assert res.model_source == "config"
+    k = int(np.searchsorted(res.log.time_s, res.warmup_end_s))
+    shoulder = res.log.joint_names.index("shoulder")
+    assert res.decisions["static_loading"][k:, shoulder].all()
+
+
+# ------------------------------------------------------------------------------ the demo
+def test_demo_command_detects_every_impact_of_20N_within_80ms(tmp_path: Path) -> None:
+    """README's ``make demo`` through the CLI: the timeline's events meet C2."""
+    import json
+
+    from impactcli.io.robot import read_labels
+
+    out = tmp_path / "demo"
+    r = CliRunner().invoke(main, [
+        "detect", str(sq.log_path("assist_impacts")), "--config",
+        str(sq.config_path(ASSIST)), "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    doc = json.loads((out / "assist_impacts.timeline.json").read_text())
+    assert doc["calibrated"] is True
+    ev = evaluate_events(doc["events"], read_labels(sq.CSV / "assist_impacts.labels.json"),
+                         duration_s=doc["input"]["duration_s"],
+                         warmup_end_s=doc["warmup_end_s"],
+                         product_merge_gap_s=doc["config"]["events"]["merge_gap_s"])
+    c = sq.impacts_within("assist_impacts", ev)
+    assert c.passed, c.line()
+    assert ev.scores[PRODUCT].false_alarms == 0
