@@ -249,3 +249,23 @@ def test_cli_tiny_run_json_valid(tmp_path) -> None:  # type: ignore[no-untyped-d
     assert "TABLE II (reproduced)" in r.output
     assert "Table II, reproduced" in md.read_text()
     assert np.isfinite(doc["wall_time_s"])
+
+
+def test_soak_counts_an_alarm_stuck_on_since_warmup() -> None:
+    """A detector above its threshold from the start (stuck on) is one false alarm, not
+    silence; alarms ending inside the warm-up are not counted; later bursts each count."""
+    from impactcli.sensitivity import soak_false_alarms
+
+    t = np.arange(1000) * 0.01  # 10 s, warm-up until 3 s
+    quiet = np.full((1000, 2), 0.5)
+    stuck = np.full((1000, 2), 2.0)  # above scale 1 everywhere
+    bursts = quiet.copy()
+    bursts[100:120, 0] = 3.0  # in warm-up only: not counted
+    bursts[500:510, 1] = 3.0  # after warm-up
+    bursts[800:805, 0] = 1.5  # after warm-up, only above scales < 1.5
+    ratios = {"adaptive": bursts, "static_loading": stuck, "static_baseline": quiet}
+    fa = soak_false_alarms(ratios, t, 3.0, (0.4, 1.0, 2.5, 5.0), 0.1, 0.0)
+    assert fa["static_loading"] == (1, 1, 0, 0)
+    assert fa["static_baseline"] == (1, 0, 0, 0)
+    assert fa["adaptive"] == (1, 2, 1, 0)  # at 0.4 the whole log is one alarm
+    assert fa["product"] == (1, 1, 1, 0)
