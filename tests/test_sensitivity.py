@@ -120,7 +120,7 @@ def test_summarize_matched_scale_and_forces_on_hand_built_data() -> None:
     assert c["static_loading"]["scale"] == 1.0 and c["static_loading"]["soak_false_alarms"] == 2
     assert c["static_loading"]["soak_false_alarms_per_hour"] == pytest.approx(2.0)
     verdict = v["verdict"]
-    assert verdict["adaptive_helps"] is True and verdict["smaller_forces"] is True
+    assert verdict["adaptive_helps"] is True and "YES" in verdict["text"]
     assert verdict["adaptive_only"] == 1 and verdict["static_loading_only"] == 0
     assert verdict["paired_delay_gain_s"] == pytest.approx(0.04)  # 0.06 (scale 2) - 0.02 (scale 1)
     # ROC rows ascend in scale and carry the soak counts
@@ -269,3 +269,25 @@ def test_soak_counts_an_alarm_stuck_on_since_warmup() -> None:
     assert fa["static_baseline"] == (1, 0, 0, 0)
     assert fa["adaptive"] == (1, 2, 1, 0)  # at 0.4 the whole log is one alarm
     assert fa["product"] == (1, 1, 1, 0)
+
+
+def test_verdict_no_when_adaptive_adds_nothing() -> None:
+    """static_loading catches every impact adaptive catches, earlier: the verdict is NO."""
+    spec = replace(TINY, scales=(0.5, 1.0, 2.0), stiffnesses=(10.12,))
+    nan = float("nan")
+    soak = SoakOutcome("assist_like", "task", 0, 1, 3603.0, 3.0, 3600.0,
+                       dict.fromkeys(EVALUATED, (3, 0, 0)), 0)
+    contacts = (
+        _contact(10.12, 4.0, {"adaptive": (0.02, nan, nan), "static_loading": (0.02, 0.03, 0.04),
+                              "static_baseline": (nan,) * 3, "product": (0.02, 0.03, 0.04)}),
+        _contact(10.12, 9.0, {"adaptive": (0.02, 0.05, nan), "static_loading": (0.02, 0.03, 0.03),
+                              "static_baseline": (nan,) * 3, "product": (0.02, 0.03, 0.03)}),
+    )
+    case = CaseOutcome("assist_like", 10.12, 0.2, 1, contacts, 0, 36.0,
+                       dict.fromkeys(EVALUATED, (0, 0, 0)), {})
+    s = summarize(spec, [CalibOutcome("assist_like", _dummy_config(), ("x",), {}, {})],
+                  [soak], [case])
+    v = s["variants"][0]["verdict"]
+    assert v["adaptive_helps"] is False and v["text"].startswith("assist_like: NO")
+    assert v["adaptive_only"] == 0 and v["static_loading_only"] == 1
+    assert v["paired_delay_gain_s"] == pytest.approx(-0.02)  # 0.03 - 0.05: adaptive later
