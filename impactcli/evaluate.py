@@ -58,6 +58,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .detect.events import split_at_warmup
 from .errors import ConfigError, ImpactWarning, LogFormatError
 from .types import DETECTORS, ContactLabel, Event, Labels
 
@@ -665,7 +666,8 @@ class SweepRow:
 
 
 def event_intervals(
-    decision: np.ndarray, time_s: np.ndarray, merge_gap_s: float, min_duration_s: float
+    decision: np.ndarray, time_s: np.ndarray, merge_gap_s: float, min_duration_s: float,
+    warmup_end_s: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """(i_start, i_end) sample indices of the events of an (N, J) decision, vectorised.
 
@@ -687,6 +689,8 @@ def event_intervals(
     first = np.flatnonzero(new)
     g_start = starts[first]
     g_end = ends[np.concatenate((first[1:] - 1, [ends.size - 1]))]
+    if warmup_end_s is not None:
+        g_start, g_end = split_at_warmup(g_start, g_end, anyd, t, warmup_end_s)
     keep = t[g_end] - t[g_start] >= min_duration_s - EPS_S
     return g_start[keep], g_end[keep]
 
@@ -749,7 +753,7 @@ def sweep_ratios(
             for d in DETECTORS:
                 if d in need:
                     i0, i1 = event_intervals(np.asarray(ratios[d]) > s, time_s, merge_gap_s,
-                                             min_duration_s)
+                                             min_duration_s, warmup_end_s)
                     evs += [_Ev(d, a, b, a < warmup_end_s) for a, b in
                             zip(time_s[i0].tolist(), time_s[i1].tolist(), strict=True)]
             ev = evaluate_events(

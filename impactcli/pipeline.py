@@ -24,7 +24,7 @@ from .detect.events import extract_events
 from .detect.static import causal_lowpass
 from .detect.warmup import Warmup, warmup_end
 from .errors import ConfigError, ImpactWarning, ModelError
-from .model import IdentifyOptions, RigidModel, ResidualOptions, compute_residual, identify
+from .model import IdentifyOptions, ResidualOptions, RigidModel, compute_residual, identify
 from .result import DetectionResult
 from .types import DETECTORS, RobotDescription, RobotLog
 
@@ -67,8 +67,33 @@ def reorder_log(log: RobotLog, joints: tuple[str, ...], what: str) -> RobotLog:
 
 def resolve_model(
     log: RobotLog, model: RigidModel | None, cfg: DetectorConfig, robot: RobotDescription | None,
+    model_from_log: bool = False,
 ) -> tuple[RigidModel, str]:
-    """The model to use and where it came from (``given``, ``config``, ``identified-from-log``)."""
+    """The model to use and where it came from (``given``, ``config``, ``identified-from-log``).
+
+    ``model_from_log`` identifies the model from this log even when the config embeds one,
+    with the config model's structure (kind and robot description), keeping the config's
+    thresholds: offline only, for a robot whose dynamics changed since calibration (an
+    unknown payload) — the identification absorbs the change for the static detectors.
+    """
+    if model_from_log:
+        if model is not None:
+            raise ConfigError("--model and --model-from-log exclude each other")
+        kind = None
+        if cfg.model is not None:
+            kind = cfg.model.get("kind")
+            if robot is None and cfg.model.get("robot"):
+                from .io.robot import robot_from_dict
+
+                robot = robot_from_dict(cfg.model["robot"], "the config's model")
+        if cfg.calibration.calibrated:
+            warnings.warn(
+                "--model-from-log: the config's thresholds were calibrated with another model; "
+                "this run is offline only (not what the robot could have run)",
+                ImpactWarning, stacklevel=3,
+            )
+        return identify(log, robot=robot, kind=kind,
+                        options=IdentifyOptions(allow_still_joints=True)), "identified-from-log"
     if model is not None:
         if cfg.calibration.calibrated and cfg.calibration.model_sha256 not in (None, model.sha256):
             warnings.warn(
@@ -101,6 +126,7 @@ def calibrated_thresholds(cfg: DetectorConfig, joints: tuple[str, ...]) -> dict[
 def analyze(
     log: RobotLog, *, model: RigidModel | None = None, config: DetectorConfig | None = None,
     robot: RobotDescription | None = None, read_options: dict[str, Any] | None = None,
+    model_from_log: bool = False,
 ) -> DetectionResult:
     """Replay the detectors over ``log`` exactly as the robot would have run them online.
 
@@ -111,13 +137,15 @@ def analyze(
         config: detector config (``--config``); None → Table I defaults, uncalibrated.
         robot: robot description, used only when identifying (kinematics, joint order).
         read_options: how the log was read (recorded so the run can be repeated).
+        model_from_log: identify the model from this log even with a config (keeping the
+            config's thresholds; see :func:`resolve_model`).
     Returns:
         The :class:`DetectionResult`; ImpactWarnings raised on the way are in ``warnings``.
     """
     cfg = config or DetectorConfig()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ImpactWarning)
-        result = _analyze(log, model, cfg, robot, read_options or {})
+        result = _analyze(log, model, cfg, robot, read_options or {}, model_from_log)
     msgs = tuple(dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, ImpactWarning)))
     for w in caught:  # foreign warnings are not ours to swallow
         if not issubclass(w.category, ImpactWarning):
@@ -158,9 +186,10 @@ class Replay:
 def replay(
     log: RobotLog, model: RigidModel | None, cfg: DetectorConfig,
     robot: RobotDescription | None = None, v_stat: np.ndarray | None = None,
+    model_from_log: bool = False,
 ) -> Replay:
     """Residual → adaptive evaluator and static statistics → warm-up (all causal)."""
-    model, model_source = resolve_model(log, model, cfg, robot)
+    model, model_source = resolve_model(log, model, cfg, robot, model_from_log)
     log = reorder_log(log, tuple(model.joint_names), "model")
     fs = log.sample_rate_hz
     ropts = residual_options(cfg)
@@ -184,11 +213,11 @@ def replay(
 
 def _analyze(
     log: RobotLog, model: RigidModel | None, cfg: DetectorConfig,
-    robot: RobotDescription | None, read_options: dict[str, Any],
+    robot: RobotDescription | None, read_options: dict[str, Any], model_from_log: bool = False,
 ) -> DetectionResult:
     joints_in = log.joint_names
     given = calibrated_thresholds(cfg, joints_in) if cfg.calibration.calibrated else None
-    rp = replay(log, model, cfg, robot)
+    rp = replay(log, model, cfg, robot, model_from_log=model_from_log)
     log, ad, wu, r = rp.log, rp.adaptive, rp.warmup, rp.r
     joints = log.joint_names
     t = log.time_s

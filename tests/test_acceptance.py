@@ -135,10 +135,10 @@ def test_payload_log_no_alarm_with_model_identified_from_it() -> None:
 
 def test_payload_log_no_alarm_with_config_thresholds_and_model_from_it(
         config: DetectorConfig) -> None:
-    """Calibrated thresholds, model identified from this log (``identify`` then
-    ``detect --config --model``): the payload is absorbed by the model, no alarm."""
+    """Calibrated thresholds, model identified from this log (``detect --config C
+    --model-from-log``): the payload is absorbed by the model, no alarm."""
     res, ev = sq.run(sq.PAYLOAD_LOG, config, model_from_log=True)
-    assert res.calibrated and res.model_source == "given"
+    assert res.calibrated and res.model_source == "identified-from-log"
     c = sq.payload_no_false_alarm("config thresholds, model from the log", res, ev)
     assert c.passed, c.line()
 

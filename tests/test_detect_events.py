@@ -58,3 +58,16 @@ def test_in_warmup_and_empty() -> None:
                           np.zeros((100, 2)), T, ("a", "b"), 0.0) == []
     with pytest.raises(ValueError, match="unknown detector"):
         extract_events("nope", d, d, d, T, ("a", "b"), 0.0)
+
+
+def test_alarm_straddling_warmup_end_is_split_and_counted() -> None:
+    # on from sample 10 to 80 with a short gap at 29-30; warm-up ends at 0.3 s (sample 30)
+    d = _dec((0, 10, 28), (1, 31, 80))
+    ev = extract_events("static_loading", d, np.ones((100, 2)), np.zeros((100, 2)), T,
+                        ("a", "b"), 0.3, 0.1)
+    assert [(e.i_start, e.i_end, e.in_warmup) for e in ev] == [(10, 28, True), (31, 80, False)]
+    assert ev[1].joints == ("b",)
+    # an alarm that starts before the end and is on at it: cut exactly at the end
+    d = _dec((0, 5, 90))
+    ev = extract_events("adaptive", d, np.ones((100, 2)), np.zeros((100, 2)), T, ("a", "b"), 0.5)
+    assert [(e.i_start, e.i_end, e.in_warmup) for e in ev] == [(5, 49, True), (50, 90, False)]

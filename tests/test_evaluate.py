@@ -311,6 +311,15 @@ def test_event_intervals_equal_extract_events(gap, min_dur):
     i0, i1 = event_intervals(decision, t, gap, min_dur)
     assert len(want) >= 3
     assert [(e.i_start, e.i_end) for e in want] == list(zip(i0.tolist(), i1.tolist(), strict=True))
+    # with a warm-up end inside a long alarm, both split it the same way
+    dw = decision.copy()
+    dw[500:900, 0] = True
+    tw = float(t[700])
+    want_w = extract_events("adaptive", dw, ratio, ratio, t, ["a", "b", "c"], tw, gap, min_dur)
+    iw0, iw1 = event_intervals(dw, t, gap, min_dur, tw)
+    assert [(e.i_start, e.i_end) for e in want_w] == list(zip(iw0.tolist(), iw1.tolist(),
+                                                              strict=True))
+    assert any(e.i_start == 700 and not e.in_warmup for e in want_w)
     # bursts exactly merge_gap apart and exactly min_duration long, on a float clock where
     # such differences land a few 1e-17 s above or below the nominal value
     t4 = (np.arange(2000) * 4_000_000).astype(np.int64) * 1e-9

@@ -10,7 +10,10 @@ Rules:
 - ``joints``: the joints that fired in the event, ordered by their first firing sample
   (ties in joint order); ``peak_ratio``: max of ratio over those joints and samples;
   ``peak_residual[joint]``: the signed r of largest |r| within [i_start, i_end];
-- ``in_warmup``: t_start < warmup_end_s.
+- ``in_warmup``: t_start < warmup_end_s. An event that starts in the warm-up and still
+  fires after it is split (:func:`split_at_warmup`): the part before the warm-up's end
+  stays ``in_warmup``; the rest, from its first firing sample at or after the end, is an
+  event of its own and is counted — an alarm that never stops must not hide in warm-up.
 """
 
 from __future__ import annotations
@@ -23,6 +26,34 @@ from ..types import DETECTORS, Event
 
 #: Tolerance of the time comparisons [s] (sample times are float sums of periods).
 _EPS_S = 1e-9
+
+
+def split_at_warmup(
+    starts: np.ndarray, ends: np.ndarray, any_d: np.ndarray, time_s: np.ndarray,
+    warmup_end_s: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Split the event that straddles the warm-up's end (see the module doc).
+
+    Args:
+        starts, ends: (E,) inclusive sample indices of merged events, in time order.
+        any_d: (N,) decisions ORed over joints.  time_s: (N,) [s].  warmup_end_s: [s].
+    Returns:
+        New (starts, ends) index arrays.
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    k_w = int(np.searchsorted(t, warmup_end_s - _EPS_S))  # first sample at/after the end
+    starts = np.asarray(starts, dtype=np.int64)
+    ends = np.asarray(ends, dtype=np.int64)
+    cut = np.flatnonzero((starts < k_w) & (ends >= k_w))
+    if cut.size == 0:
+        return starts, ends
+    e = int(cut[0])
+    after = k_w + int(np.argmax(any_d[k_w : ends[e] + 1]))
+    before = np.flatnonzero(any_d[starts[e] : k_w])
+    last_before = int(starts[e] + before[-1])
+    new_s = np.concatenate([starts[:e], [starts[e], after], starts[e + 1 :]])
+    new_e = np.concatenate([ends[:e], [last_before, ends[e]], ends[e + 1 :]])
+    return new_s, new_e
 
 
 def extract_events(
@@ -58,8 +89,10 @@ def extract_events(
             merged[-1][1] = int(e)
         else:
             merged.append([int(s), int(e)])
+    m = np.asarray(merged, dtype=np.int64)
+    s_idx, e_idx = split_at_warmup(m[:, 0], m[:, 1], any_d, t, warmup_end_s)
     events: list[Event] = []
-    for i0, i1 in merged:
+    for i0, i1 in zip(s_idx.tolist(), e_idx.tolist(), strict=True):
         if t[i1] - t[i0] < min_duration_s - _EPS_S:
             continue
         seg = d[i0 : i1 + 1]

@@ -47,7 +47,6 @@ from impactcli.config import DetectorConfig, load_config
 from impactcli.evaluate import PRODUCT, Evaluation, evaluate_result
 from impactcli.io import read_log
 from impactcli.io.robot import read_labels, read_robot
-from impactcli.model import IdentifyOptions, identify
 from impactcli.pipeline import analyze, calibrate
 from impactcli.result import DetectionResult
 from impactcli.types import DETECTORS, Labels, RobotDescription, RobotLog
@@ -110,15 +109,12 @@ def run(name: str, config: DetectorConfig | None, *, model_from_log: bool = Fals
     """Replay ``name`` with ``config`` (None: uncalibrated, model from the log) and score it.
 
     ``model_from_log``: the config's thresholds with a model identified from this very log
-    (what ``impactcli identify LOG -o m.json`` then ``detect --config C --model m.json`` do).
+    (``detect --config C --model-from-log``).
     """
     log, rob = read(name), robot_of(name)
-    model = None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        if model_from_log:
-            model = identify(log, robot=rob, options=IdentifyOptions(allow_still_joints=True))
-        res = analyze(log, config=config, robot=rob, model=model)
+        res = analyze(log, config=config, robot=rob, model_from_log=model_from_log)
         ev = evaluate_result(res, labels_of(name))
     return res, ev
 
