@@ -146,7 +146,8 @@ class StudySpec:
         seed: the study's seed (robot, references, noise, drift all derive from it).
     """
 
-    variants: tuple[str, ...] = ("assist_like", "heavy_geared", "heavy_geared+payload")
+    variants: tuple[str, ...] = ("assist_like", "assist_like+payload", "heavy_geared",
+                                 "heavy_geared+payload")
     stiffnesses: tuple[float, ...] = PAPER_STIFFNESSES
     forces_n: tuple[float, ...] = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0, 32.0)
     case_seeds: int = 2
@@ -805,6 +806,9 @@ def _verdict(variant: str, contacts: Sequence[ContactRecord], matched: dict[str,
                 f"(median) on the {len(both)} both catch" if gain is not None else "")
              + f"; alone: {alone('adaptive', a, ia)}; {alone('static_loading', s, il)} "
              f"({s_only} impact(s) only static_loading catches)")
+    if 2 * max(a["detected"], s["detected"]) < a["n_contacts"]:
+        facts += ("; neither detects half of the impacts at zero soak false alarms on this "
+                  "robot")
     if edge:
         text = (f"{variant}: undetermined — {' and '.join(edge)} already silent at the smallest "
                 f"swept scale; {facts}.")
@@ -886,10 +890,11 @@ def _soak_line(v: dict[str, Any]) -> str:
             f"runs, {v['cases']['n_contacts']} counted impacts")
 
 
-def _roc_rows(v: dict[str, Any], picks: Sequence[float]) -> list[list[str]]:
+def _roc_rows(v: dict[str, Any], picks: Sequence[float],
+              detectors: Sequence[str] = TABLE_DETECTORS) -> list[list[str]]:
     rows = [["Detector", "Scale", "Soak FA", "FA/h (95 % bound)", "Detected",
              "Min detected (N)", "All above (N)", "Delay med (ms)"]]
-    for d in TABLE_DETECTORS:
+    for d in detectors:
         pts = v["roc"][d]
         chosen = []
         for p in picks:
@@ -909,6 +914,9 @@ def _roc_rows(v: dict[str, Any], picks: Sequence[float]) -> list[list[str]]:
 
 
 ROC_PICKS: tuple[float, ...] = (0.25, 0.35, 0.5, 0.7, 1.0, 1.4, 2.0, 2.8, 4.0, 8.0, 16.0)
+
+
+MD_ROC_PICKS: tuple[float, ...] = (0.5, 0.7, 1.0, 1.4, 2.0, 4.0)
 
 
 def format_text(summary: dict[str, Any]) -> str:
@@ -950,7 +958,9 @@ def format_markdown(summary: dict[str, Any], command: str = "") -> str:
         for setting in SETTINGS:
             lines += [f"*Thresholds {setting}* — {summary['definitions'][setting]}.", "",
                       *_md(table_rows(v, setting)), ""]
-        lines += [f"**Verdict.** {v['verdict']['text']}", ""]
+        lines += ["*Detection vs soak false alarms (threshold scale sweep, all stiffnesses)*",
+                  "", *_md(_roc_rows(v, MD_ROC_PICKS, ("adaptive", "static_loading"))), "",
+                  f"**Verdict.** {v['verdict']['text']}", ""]
     return "\n".join(lines)
 
 

@@ -69,8 +69,8 @@ def _runner(jobs: int | None) -> Any:
 @click.option("--arm", "arms", multiple=True,
               type=click.Choice(["assist_like", "assist_like+payload", "heavy_geared",
                                  "heavy_geared+payload"]),
-              help="Robot variant(s) to study (repeatable) [default: assist_like, "
-                   "heavy_geared, heavy_geared+payload; --quick: assist_like].")
+              help="Robot variant(s) to study (repeatable) [default: all four; --quick: "
+                   "assist_like].")
 @click.option("--stiffness", callback=_floats, default=None,
               help="Elastomer stiffnesses [N/mm], comma-separated [default: 10.12,5.93,2.12].")
 @click.option("--forces", callback=_floats, default=None,
