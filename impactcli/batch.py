@@ -1,30 +1,56 @@
 """Running detection over many logs: one log = one job, failures kept per log.
 
-``run_detect_job`` is a top-level function of plain arguments so that it can run in a
-worker process (``--jobs N``, a ``concurrent.futures`` executor). It reads the log,
-replays the detectors, writes the outputs atomically, and returns a small summary —
-or the error, so one bad log never stops the others.
+``run_detect_job`` is a top-level function of plain arguments (paths and URLs, never file
+contents) so that it runs unchanged in a worker process (``--jobs N``) or on a Dask worker
+(``--scheduler``) — :mod:`impactcli.executors` chooses where. A job reads its log, robot
+description, model and config (local paths or fsspec URLs, :mod:`impactcli.io.urls`),
+replays the detectors, writes the outputs atomically (a local folder or a URL prefix), and
+returns a small :class:`JobOutcome` — or the error, so one bad log never stops the others.
+
+Failures per log (``JobOutcome.error_class``, with the exit code a one-log run would give):
+
+- ``data`` (3): the log, robot description, model or config is bad or missing
+  (an :class:`~impactcli.errors.ImpactError`);
+- ``io`` (3): an I/O error that persisted: transient ones (timeouts, connection errors,
+  ``EIO``…, see :func:`impactcli.io.urls.is_transient`) are first retried
+  :data:`~impactcli.io.urls.IO_RETRIES` times with backoff
+  (:data:`~impactcli.io.urls.BACKOFF_S` × 2^k s); the whole job is retried;
+- ``worker-lost`` (1): the worker process died on this log, also on its re-run;
+- ``internal`` (1): an unexpected exception (a bug): the traceback is kept in the outcome.
+
+:func:`batch_summary` folds outcomes into the batch summary (``detect --summary``).
 """
 
 from __future__ import annotations
 
-import os
+import tempfile
+import time
+import traceback
 import warnings
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
+from concurrent.futures import Executor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .errors import ImpactError, ImpactWarning
+from .errors import EXIT_DATA, ImpactError, ImpactWarning
 
 #: read_log keyword arguments recorded in a timeline's ``input.read_options``.
 READ_KEYS = ("channel_map", "topic", "reference_topic", "time_source", "torque_source")
+#: Detectors counted in summaries (DetectionResult.summary()).
+DETECTORS = ("adaptive", "static_loading", "static_baseline")
+SUMMARY_SCHEMA_VERSION = "1.0"
+#: Exit code a one-log run gives for a lost worker or a bug (Python's own for a traceback).
+EXIT_CRASH = 1
 
 
 @dataclass(frozen=True)
 class DetectJob:
-    """Everything one detection job needs (picklable: paths and plain values)."""
+    """Everything one detection job needs (picklable: paths, URLs and plain values).
+
+    ``log_path``, ``robot_path``, ``model_path``, ``config_path``: local paths or fsspec
+    URLs; ``out_dir``: a local folder or a URL prefix.
+    """
 
     log_path: str
     out_dir: str
@@ -38,7 +64,21 @@ class DetectJob:
 
 @dataclass(frozen=True)
 class JobOutcome:
-    """The result of one job: a summary row, or the error that stopped it."""
+    """The result of one job: a summary row, or the error that stopped it.
+
+    Attributes:
+        log_path: the log as given (path or URL).
+        ok: whether the outputs were written.
+        summary: ``log``, ``duration_s``, ``joints``, ``calibrated``, ``warmup_end_s`` and
+            the events after warm-up per detector (ok jobs).
+        outputs: files (or URLs) written.
+        warnings: the run's warnings (ImpactWarning messages, deduplicated).
+        error: one line naming the file and the problem (failed jobs).
+        exit_code: what a one-log run would exit with (failed jobs).
+        error_class: ``data``, ``io``, ``worker-lost`` or ``internal`` (module docstring).
+        attempts: tries made (> 1 after transient I/O errors).
+        traceback: for ``internal`` errors.
+    """
 
     log_path: str
     ok: bool
@@ -47,13 +87,17 @@ class JobOutcome:
     warnings: tuple[str, ...] = ()
     error: str = ""
     exit_code: int = 0
+    error_class: str = ""
+    attempts: int = 1
+    traceback: str = ""
 
 
 def output_stem(path: str) -> str:
     """Stem outputs are named by: the file name without its format extension."""
     from .io import log_stem
+    from .io.urls import url_name
 
-    return str(log_stem(path))
+    return str(log_stem(url_name(path)))
 
 
 def check_unique_stems(paths: Sequence[str]) -> None:
@@ -68,16 +112,47 @@ def check_unique_stems(paths: Sequence[str]) -> None:
 
 
 def run_detect_job(job: DetectJob) -> JobOutcome:
-    """Read, analyze and write one log; never raises an ImpactError (it is returned)."""
+    """Read, analyze and write one log; never raises for a bad input (module docstring)."""
+    from .io.urls import IO_RETRIES, is_transient, retry_transient
+
+    attempts = 0
+
+    def attempt() -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ...]]:
+        nonlocal attempts
+        attempts += 1
+        return _run(job)
+
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ImpactWarning)
         try:
-            outputs, summary, extra = _run(job)
+            outputs, summary, extra = retry_transient(attempt)
         except ImpactError as err:
-            return JobOutcome(job.log_path, False, error=str(err), exit_code=err.exit_code,
-                              warnings=_msgs(caught))
+            transient = is_transient(err)
+            return JobOutcome(job.log_path, False, error=_with_tries(str(err), transient),
+                              exit_code=err.exit_code, error_class="io" if transient else "data",
+                              warnings=_msgs(caught), attempts=attempts)
+        except OSError as err:
+            where = getattr(err, "filename", None) or job.log_path
+            why = err.strerror or str(err) or type(err).__name__
+            msg = _with_tries(f"{job.log_path}: I/O error on {where}: {why}",
+                              is_transient(err) and attempts > IO_RETRIES)
+            return JobOutcome(job.log_path, False, error=msg, exit_code=EXIT_DATA,
+                              error_class="io", warnings=_msgs(caught), attempts=attempts)
+        except Exception as err:
+            tb = "".join(traceback.format_exception(type(err), err, err.__traceback__))
+            return JobOutcome(job.log_path, False,
+                              error=f"{job.log_path}: internal error (a bug): "
+                                    f"{type(err).__name__}: {err}",
+                              exit_code=EXIT_CRASH, error_class="internal",
+                              warnings=_msgs(caught), attempts=attempts, traceback=tb)
     return JobOutcome(job.log_path, True, summary=summary, outputs=outputs,
-                      warnings=tuple(dict.fromkeys(_msgs(caught) + extra)))
+                      warnings=tuple(dict.fromkeys(_msgs(caught) + extra)), attempts=attempts)
+
+
+def _with_tries(msg: str, transient: bool) -> str:
+    from .io.urls import IO_RETRIES
+
+    return f"{msg} (after {IO_RETRIES} retries)" if transient else msg
 
 
 def _msgs(caught: list[warnings.WarningMessage]) -> tuple[str, ...]:
@@ -88,17 +163,37 @@ def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ..
     from .config import load_config
     from .io import read_log
     from .io.robot import read_robot
+    from .io.urls import load_by_url, local_path
     from .model import read_model
-    from .outputs.timeline import write_timeline
     from .pipeline import analyze
 
-    robot = read_robot(job.robot_path) if job.robot_path else None
-    model = read_model(job.model_path) if job.model_path else None
-    config = load_config(job.config_path) if job.config_path else None
+    robot = load_by_url(job.robot_path, read_robot, "robot description") if job.robot_path else None
+    model = load_by_url(job.model_path, read_model, "model") if job.model_path else None
+    config = load_by_url(job.config_path, load_config, "config") if job.config_path else None
     log = read_log(job.log_path, robot=robot, **job.read_options)
     result = analyze(log, model=model, config=config, robot=robot, read_options=job.read_options)
     stem = output_stem(job.log_path)
-    out = Path(job.out_dir)
+    local_out = local_path(job.out_dir)
+    if local_out is not None:
+        written = _write_outputs(result, local_out, stem, job)
+        outputs = tuple(str(p) for p in written)
+    else:
+        outputs = _write_remote(result, job.out_dir, stem, job)
+    summary = {
+        "log": job.log_path,
+        "duration_s": log.duration_s,
+        "joints": len(log.joint_names),
+        "calibrated": result.calibrated,
+        "warmup_end_s": result.warmup_end_s,
+        **{d: v["events"] for d, v in result.summary().items()},
+    }
+    return outputs, summary, result.warnings
+
+
+def _write_outputs(result: Any, out: Path, stem: str, job: DetectJob) -> list[Path]:
+    """Write the timeline (and signals, .rrd) into a local folder, each atomically."""
+    from .outputs.timeline import write_timeline
+
     written = [out / f"{stem}.timeline.json"]
     write_timeline(result, written[0])
     if job.signals:
@@ -111,31 +206,121 @@ def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ..
 
         written.append(out / f"{stem}.rrd")
         write_rrd(result, written[-1])
-    summary = {
-        "log": job.log_path,
-        "duration_s": log.duration_s,
-        "joints": len(log.joint_names),
-        "calibrated": result.calibrated,
-        "warmup_end_s": result.warmup_end_s,
-        **{d: v["events"] for d, v in result.summary().items()},
-    }
-    return tuple(str(p) for p in written), summary, result.warnings
+    return written
+
+
+def _write_remote(result: Any, prefix: str, stem: str, job: DetectJob) -> tuple[str, ...]:
+    """Write locally to a private folder, then upload each file atomically under ``prefix``."""
+    from .io.urls import join_url, put_file_atomic
+
+    with tempfile.TemporaryDirectory(prefix="impactcli-out-") as tmp:
+        targets = []
+        for p in _write_outputs(result, Path(tmp), stem, job):
+            target = join_url(prefix, p.name)
+            put_file_atomic(p, target)
+            targets.append(target)
+    return tuple(targets)
+
+
+def lost_outcome(job: DetectJob, reason: str, kind: str, tb: str = "") -> JobOutcome:
+    """The outcome of a job whose worker died (``kind='worker-lost'``) or that raised."""
+    cls = "worker-lost" if kind == "worker-lost" else "internal"
+    return JobOutcome(job.log_path, False, error=f"{job.log_path}: {reason}",
+                      exit_code=EXIT_CRASH, error_class=cls, traceback=tb)
+
+
+def run_batch(jobs: Sequence[DetectJob], *, n_jobs: int | None = None,
+              scheduler: str | None = None, client: Any = None) -> Iterator[JobOutcome]:
+    """Run detection jobs where :func:`impactcli.executors.choose_executor` says; yield
+    outcomes in completion order (every outcome carries its log path). A dead worker's
+    jobs are re-run once, then reported failed (:mod:`impactcli.executors`)."""
+    from .executors import TaskFailure, run_tasks
+
+    for i, res in run_tasks(run_detect_job, list(jobs), jobs=n_jobs, scheduler=scheduler,
+                            client=client):
+        if isinstance(res, TaskFailure):
+            yield lost_outcome(jobs[i], res.reason, res.kind, res.traceback)
+        else:
+            yield res
 
 
 def run_jobs(
     jobs: Sequence[DetectJob], n_jobs: int = 1,
     executor_factory: Callable[[int], Executor] | None = None,
 ) -> Iterator[JobOutcome]:
-    """Run jobs serially (``n_jobs`` ≤ 1 or one job) or on an executor; yield as they finish.
-
-    Every outcome carries its own log path; order is completion order.
-    """
-    if n_jobs <= 1 or len(jobs) <= 1:
-        for job in jobs:
-            yield run_detect_job(job)
+    """Run jobs serially (``n_jobs`` ≤ 1) or on ``n_jobs`` local processes (kept for
+    callers of the first version; new code uses :func:`run_batch`)."""
+    if executor_factory is None:
+        yield from run_batch(jobs, n_jobs=n_jobs)
         return
-    factory = executor_factory or (lambda n: ProcessPoolExecutor(max_workers=n))
-    with factory(min(n_jobs, len(jobs), os.cpu_count() or 1)) as ex:
+    from concurrent.futures import as_completed
+
+    with executor_factory(min(n_jobs, len(jobs))) as ex:
         futures = [ex.submit(run_detect_job, job) for job in jobs]
         for fut in as_completed(futures):
             yield fut.result()
+
+
+def batch_summary(outcomes: Sequence[JobOutcome], *, wall_s: float,
+                  executor: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The batch summary (``detect --summary``) as a JSON-ready mapping.
+
+    Args:
+        outcomes: one per input, in input order.
+        wall_s: wall-clock time of the batch [s].
+        executor: :meth:`impactcli.executors.ExecutorChoice.to_dict` of where it ran.
+    Returns:
+        ``logs`` {total, done, failed}; ``events`` per detector (after warm-up, summed);
+        ``hours_analysed`` [h of log]; ``wall_s``; ``throughput`` {logs_per_s,
+        log_hours_per_s}; ``results`` (per-log rows); ``failures`` (file, reason,
+        exit_code, class, attempts).
+    """
+    from . import TOOL_NAME, __version__
+
+    ok = [o for o in outcomes if o.ok]
+    failed = [o for o in outcomes if not o.ok]
+    hours = sum(float(o.summary.get("duration_s", 0.0)) for o in ok) / 3600.0
+
+    def rate(x: float) -> float | None:
+        return x / wall_s if wall_s > 0 else None
+
+    return {
+        "schema_version": SUMMARY_SCHEMA_VERSION,
+        "tool": {"name": TOOL_NAME, "version": __version__},
+        "executor": executor or {"kind": "serial"},
+        "logs": {"total": len(outcomes), "done": len(ok), "failed": len(failed)},
+        "events": {d: sum(int(o.summary.get(d, 0)) for o in ok) for d in DETECTORS},
+        "hours_analysed": hours,
+        "wall_s": wall_s,
+        "throughput": {"logs_per_s": rate(len(ok)), "log_hours_per_s": rate(hours)},
+        "results": [{**o.summary, "outputs": list(o.outputs), "attempts": o.attempts}
+                    for o in ok],
+        "failures": [{"file": o.log_path, "reason": o.error, "exit_code": o.exit_code,
+                      "class": o.error_class, "attempts": o.attempts} for o in failed],
+    }
+
+
+def write_text_to(target: str, text: str) -> None:
+    """Write ``text`` to a local path or URL atomically (summaries, reports)."""
+    from ._fs import atomic_write_text
+    from .io.urls import local_path, put_file_atomic, url_name
+
+    lp = local_path(target)
+    if lp is not None:
+        atomic_write_text(lp, text)
+        return
+    with tempfile.TemporaryDirectory(prefix="impactcli-out-") as tmp:
+        p = Path(tmp) / url_name(target)
+        p.write_text(text, "utf-8")
+        put_file_atomic(p, target)
+
+
+class Timer:
+    """Wall-clock seconds since creation (``time.perf_counter``)."""
+
+    def __init__(self) -> None:
+        self.t0 = time.perf_counter()
+
+    def elapsed(self) -> float:
+        """Seconds since creation."""
+        return time.perf_counter() - self.t0

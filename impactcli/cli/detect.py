@@ -1,6 +1,6 @@
 """``impactcli detect LOG... -o DIR``: replay the detectors, write timelines (and signals, .rrd)."""
 
-# ruff: noqa: PLC0415  (imports inside functions keep `impactcli --help` fast)
+# Imports inside functions keep `impactcli --help` fast.
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from typing import Any
 
 import click
 
-from ..errors import EXIT_BATCH, EXIT_DETECTED
+from ..errors import EXIT_BATCH, EXIT_DETECTED, EXIT_USAGE
 from ._common import handle_errors, progress
 
 #: the product's detectors: what --fail-on-detect counts (static_baseline is for comparison)
@@ -57,85 +57,162 @@ def model_options(func: Callable[..., Any]) -> Callable[..., Any]:
     return func
 
 
-def preload(robot: Path | None, model: Path | None, config: Path | None) -> None:
+def model_url_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """--robot, --model, --config as paths or fsspec URLs (detect: workers read them)."""
+    for opt in reversed([
+        click.option("--robot", metavar="PATH|URL",
+                     help="Robot description (JSON/YAML): joints, gear ratios, kinematics."),
+        click.option("--model", metavar="PATH|URL",
+                     help="Rigid model from `impactcli identify` [default: the config's, "
+                          "else identified from the log itself]."),
+        click.option("--config", metavar="PATH|URL",
+                     help="Detector config from `impactcli calibrate` (TOML/YAML) "
+                          "[default: Table I, uncalibrated thresholds from the log]."),
+    ]):
+        func = opt(func)
+    return func
+
+
+def executor_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """--jobs and --scheduler: where batch work runs (impactcli.executors)."""
+    for opt in reversed([
+        click.option("--jobs", "-j", type=click.IntRange(min=1), default=None,
+                     help="Inputs processed in parallel by N local processes (no Dask); with "
+                          "--scheduler local, the number of Dask workers  [default: 1]"),
+        click.option("--scheduler", metavar="local|ADDRESS|FILE", default=None,
+                     help="Run on Dask (extra impactcli[dask]): `local` starts a LocalCluster, "
+                          "tcp://host:8786 or a scheduler.json file joins a running one "
+                          "[default: $DASK_SCHEDULER_ADDRESS when set, else local "
+                          "processes per --jobs]."),
+    ]):
+        func = opt(func)
+    return func
+
+
+def resolve_executor(jobs: int | None, scheduler: str | None) -> Any:
+    """The :class:`~impactcli.executors.ExecutorChoice` for the options; a bad combination
+    is a usage error (exit 2), a missing Dask extra one line saying how to install it."""
+    from ..executors import _import_distributed, choose_executor
+
+    try:
+        choice = choose_executor(jobs, scheduler)
+    except ValueError as err:
+        raise click.BadParameter(str(err), param_hint="'--jobs'") from None
+    if choice.kind == "dask":
+        from ..executors import DaskMissingError
+
+        try:
+            _import_distributed()
+        except DaskMissingError as err:
+            fail_usage(str(err))
+    return choice
+
+
+def fail_usage(msg: str) -> None:
+    """One line on stderr and exit 2 (a command-line or environment problem)."""
+    click.echo(f"impactcli: error: {msg}", err=True)
+    click.get_current_context().exit(EXIT_USAGE)
+
+
+def preload(robot: str | Path | None, model: str | Path | None,
+            config: str | Path | None) -> None:
     """Read robot, model and config once up front: a bad one stops the run before any work."""
     from ..config import load_config
     from ..io.robot import read_robot
+    from ..io.urls import load_by_url
     from ..model import read_model
 
     if robot is not None:
-        read_robot(robot)
+        load_by_url(str(robot), read_robot, "robot description")
     if model is not None:
-        read_model(model)
+        load_by_url(str(model), read_model, "model")
     if config is not None:
-        load_config(config)
+        load_by_url(str(config), load_config, "config")
 
 
 def _fmt_row(s: dict[str, Any]) -> str:
-    return (f"{Path(s['log']).name:<36} {s['duration_s']:>9.1f} {'yes' if s['calibrated'] else 'no':>10} "
+    from ..io.urls import url_name
+
+    cal = "yes" if s["calibrated"] else "no"
+    return (f"{url_name(s['log']):<36} {s['duration_s']:>9.1f} {cal:>10} "
             f"{s['warmup_end_s']:>7.2f} {s['adaptive']:>8} {s['static_loading']:>8} "
             f"{s['static_baseline']:>8}")
 
 
+#: per-log rows printed at most (the --summary JSON has them all)
+MAX_ROWS = 50
+
+
 @click.command("detect")
-@click.argument("logs", nargs=-1, required=True, type=click.Path(path_type=Path))
-@click.option("-o", "--out", "out_dir", required=True, type=click.Path(file_okay=False, path_type=Path),
-              help="Output folder: <stem>.timeline.json per log (+ .signals.parquet, .rrd).")
-@model_options
+@click.argument("logs", nargs=-1, required=True, metavar="LOG...")
+@click.option("-o", "--out", "out_dir", required=True, metavar="DIR|URL",
+              help="Output folder or URL prefix: <stem>.timeline.json per log "
+                   "(+ .signals.parquet, .rrd), each written atomically.")
+@model_url_options
 @log_read_options
 @click.option("--signals", is_flag=True, help="Also write the per-sample signals (Parquet).")
 @click.option("--rerun", is_flag=True, help="Also write a Rerun recording (<stem>.rrd).")
 @click.option("--fail-on-detect", is_flag=True,
               help="Exit 1 when adaptive or static_loading found events after warm-up.")
-@click.option("--jobs", "-j", type=click.IntRange(min=1), default=1, show_default=True,
-              help="Logs processed in parallel (local processes).")
+@executor_options
+@click.option("--summary", "summary_path", metavar="PATH|URL", default=None,
+              help="Write the batch summary JSON: logs done/failed, events per detector, "
+                   "hours analysed, throughput, one row per log, failures.")
 @handle_errors
-def detect_cmd(logs: tuple[Path, ...], out_dir: Path, robot: Path | None, model: Path | None,
-               config: Path | None, channel_map: str | None, topic: str | None,
+def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: str | None,
+               config: str | None, channel_map: str | None, topic: str | None,
                reference_topic: str | None, time_source: str | None, torque_source: str | None,
-               signals: bool, rerun: bool, fail_on_detect: bool, jobs: int) -> None:
+               signals: bool, rerun: bool, fail_on_detect: bool, jobs: int | None,
+               scheduler: str | None, summary_path: str | None) -> None:
     """Replay the adaptive impact detector (Makarov et al. 2014) and the static detectors
     over LOGS, exactly as the robot would have run them online, and write one
     DIR/<stem>.timeline.json per log.
 
-    Without --model or --config the model is identified from each log itself and the
-    thresholds come from the log's own statistics: the run is marked uncalibrated.
-    Exit 0 whether or not collisions are found (unless --fail-on-detect); 3 on a bad
-    input; 4 when some logs of a batch failed (the others' outputs are written).
+    LOGS are paths or fsspec URLs (file://, s3://, ...), globs allowed ('runs/*.mcap',
+    's3://bucket/day1/*.csv.gz'). Without --model or --config the model is identified
+    from each log itself and the thresholds come from the log's own statistics: the run is
+    marked uncalibrated. A log that fails is reported and the others go on. Exit 0
+    whether or not collisions are found (unless --fail-on-detect); 3 on a bad input; 4
+    when some logs of a batch failed (the others' outputs are written).
     """
-    from ..batch import DetectJob, check_unique_stems, run_jobs
+    from ..batch import DetectJob, Timer, batch_summary, check_unique_stems, run_batch
+    from ..io.urls import expand_inputs
 
-    paths = [str(p) for p in logs]
+    paths = expand_inputs(logs)
     try:
         check_unique_stems(paths)
     except ValueError as err:
         raise click.UsageError(str(err)) from None
+    choice = resolve_executor(jobs, scheduler)
     preload(robot, model, config)
     ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
-    job_list = [
-        DetectJob(p, str(out_dir), ropts, str(robot) if robot else None,
-                  str(model) if model else None, str(config) if config else None, signals, rerun)
-        for p in paths
-    ]
+    job_list = [DetectJob(p, out_dir, ropts, robot, model, config, signals, rerun)
+                for p in paths]
+    debug = bool((click.get_current_context().find_root().obj or {}).get("debug"))
+    timer = Timer()
     outcomes = []
-    for outcome in progress(run_jobs(job_list, jobs), total=len(job_list), desc="detect"):
-        name = Path(outcome.log_path).name
-        for w in outcome.warnings:
-            click.echo(f"impactcli: warning: {name}: {w}" if name not in w else f"impactcli: warning: {w}",
-                       err=True)
-        if not outcome.ok:
-            click.echo(f"impactcli: error: {outcome.error}", err=True)
-        outcomes.append(outcome)
+    try:
+        stream = run_batch(job_list, n_jobs=jobs, scheduler=scheduler)
+        for outcome in progress(stream, total=len(job_list), desc="detect"):
+            _echo_outcome(outcome, debug or len(job_list) == 1)
+            outcomes.append(outcome)
+    except OSError as err:  # the Dask scheduler cannot be reached
+        fail_usage(f"cannot use {choice.describe()}: {err}")
+    wall = timer.elapsed()
     order = {p: i for i, p in enumerate(paths)}
     outcomes.sort(key=lambda o: order[o.log_path])
-    ok = [o for o in outcomes if o.ok]
-    if ok:
-        click.echo(f"{'log':<36} {'duration_s':>9} {'calibrated':>10} {'warmup':>7} "
-                   f"{'adaptive':>8} {'loading':>8} {'baseline':>8}")
-        for o in ok:
-            click.echo(_fmt_row(o.summary))
-        click.echo(f"(events after warm-up; timelines in {out_dir})")
+    summary = batch_summary(outcomes, wall_s=wall,
+                            executor={**choice.to_dict(), "description": choice.describe()})
+    _echo_table(outcomes, summary, out_dir)
+    if summary_path is not None:
+        import json
+
+        from ..batch import write_text_to
+
+        write_text_to(summary_path, json.dumps(summary, indent=1, sort_keys=True,
+                                               allow_nan=False) + "\n")
     failed = [o for o in outcomes if not o.ok]
+    ok = [o for o in outcomes if o.ok]
     ctx = click.get_current_context()
     if failed:
         if len(outcomes) == 1:
@@ -144,3 +221,39 @@ def detect_cmd(logs: tuple[Path, ...], out_dir: Path, robot: Path | None, model:
         ctx.exit(EXIT_BATCH)
     if fail_on_detect and any(o.summary[d] > 0 for o in ok for d in PRODUCT_DETECTORS):
         ctx.exit(EXIT_DETECTED)
+
+
+def _echo_outcome(outcome: Any, show_traceback: bool) -> None:
+    """Warnings and the error of one finished log, on stderr."""
+    from ..io.urls import url_name
+
+    name = url_name(outcome.log_path)
+    for w in outcome.warnings:
+        click.echo(f"impactcli: warning: {w}" if name in w else f"impactcli: warning: {name}: {w}",
+                   err=True)
+    if not outcome.ok:
+        click.echo(f"impactcli: error: {outcome.error}", err=True)
+        if outcome.traceback and show_traceback:
+            click.echo(outcome.traceback.rstrip(), err=True)
+
+
+def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str) -> None:
+    """Per-log rows (at most MAX_ROWS) and the batch totals, on stdout."""
+    ok = [o for o in outcomes if o.ok]
+    if ok:
+        click.echo(f"{'log':<36} {'duration_s':>9} {'calibrated':>10} {'warmup':>7} "
+                   f"{'adaptive':>8} {'loading':>8} {'baseline':>8}")
+        for o in ok[:MAX_ROWS]:
+            click.echo(_fmt_row(o.summary))
+        if len(ok) > MAX_ROWS:
+            click.echo(f"... {len(ok) - MAX_ROWS} more logs (all of them in --summary)")
+        click.echo(f"(events after warm-up; timelines in {out_dir})")
+    if len(outcomes) > 1:
+        n, ev, tp = summary["logs"], summary["events"], summary["throughput"]
+        lps = tp["logs_per_s"] or 0.0
+        hps = tp["log_hours_per_s"] or 0.0
+        click.echo(f"batch: {n['done']} done, {n['failed']} failed of {n['total']} logs; "
+                   f"{summary['hours_analysed']:.3f} h analysed in {summary['wall_s']:.1f} s "
+                   f"({lps:.2f} logs/s, {hps * 3600:.0f} h of log per hour) on "
+                   f"{summary['executor']['description']}")
+        click.echo("events: " + ", ".join(f"{d} {ev[d]}" for d in ev))

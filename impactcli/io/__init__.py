@@ -47,7 +47,8 @@ def read_log(
     Args:
         path: ``.csv``/``.csv.gz`` (canonical, or any layout with ``channel_map``),
             ``.npz`` (needs ``channel_map``) or ``.mcap`` (JSON joint samples or ROS 2
-            JointState).
+            JointState); a local path or an fsspec URL (``file://``, ``s3://``, ...:
+            see :mod:`impactcli.io.urls`; the URL is recorded as the source path).
         channel_map: a JSON/YAML channel map path, a shipped map's short name
             (``ur_ext_observer``, ``kuka_lwr4``) or a ChannelMap.
         robot: robot description; needed to convert a ``current`` without a map scale to
@@ -68,7 +69,13 @@ def read_log(
     from .._fs import sha256_file
     from .assemble import build_log, check_torque_source
     from .channel_map import load_channel_map
+    from .urls import is_url, read_log_url
 
+    if is_url(path):  # file://, s3://, ...: read a local copy, recorded under the URL
+        return read_log_url(  # type: ignore[no-any-return]
+            str(path), read_log, channel_map=channel_map, robot=robot, topic=topic,
+            reference_topic=reference_topic, time_source=time_source,
+            torque_source=torque_source)
     p = Path(path)
     where = str(path)
     check_torque_source(torque_source, where)
