@@ -142,21 +142,25 @@ def product_events(
 
     Two events merge when the next starts at most ``merge_gap_s`` after the current one ends
     (default 0: only overlapping or touching events). A merged event is in warm-up when it
-    starts before ``warmup_end_s`` or its first part was flagged so.
+    starts before ``warmup_end_s`` or its first part was flagged so; an alarm after the
+    warm-up is never merged into one from the warm-up (it stays counted, as in
+    :func:`impactcli.detect.events.split_at_warmup`).
     """
     parts = sorted((e for e in events if e.detector in PRODUCT_PARTS),
                    key=lambda e: (e.t_start, e.t_end))
     out: list[_Ev] = []
     for e in parts:
-        if out and e.t_start <= out[-1].t_end + merge_gap_s:
+        warm = e.in_warmup or e.t_start < warmup_end_s
+        # a counted alarm never merges into one from the warm-up (it would hide in it)
+        if out and e.t_start <= out[-1].t_end + merge_gap_s \
+                and not (out[-1].in_warmup and not warm):
             cur = out[-1]
             joints = cur.joints + tuple(j for j in e.joints if j not in cur.joints)
             peak = e.peak_ratio if math.isnan(cur.peak_ratio) else max(cur.peak_ratio, e.peak_ratio)
             out[-1] = _Ev(PRODUCT, cur.t_start, max(cur.t_end, e.t_end), cur.in_warmup,
                           joints, peak)
         else:
-            out.append(_Ev(PRODUCT, e.t_start, e.t_end, e.in_warmup or e.t_start < warmup_end_s,
-                           e.joints, e.peak_ratio))
+            out.append(_Ev(PRODUCT, e.t_start, e.t_end, warm, e.joints, e.peak_ratio))
     return out
 
 

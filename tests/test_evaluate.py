@@ -393,3 +393,17 @@ def test_zero_false_alarm_point_ignores_a_lone_silent_scale_and_undetermined_ver
     rows4 = [row("adaptive", 1.0, 0),
              row("static_loading", 1.0, 0, det_n=0, force=None, delay=None)]
     assert adaptive_helps(at_zero_false_alarms(rows4)) is True
+
+
+def test_product_keeps_an_alarm_after_warmup_apart_from_one_in_it():
+    from impactcli.evaluate import product_events
+    from impactcli.types import Event
+
+    warm = Event("static_loading", 0.5, 0.996, 125, 249, ("a",), 2.0, {"a": 1.0}, True)
+    tail = Event("static_loading", 1.0, 9.0, 250, 2250, ("a",), 2.0, {"a": 1.0}, False)
+    adap = Event("adaptive", 0.9, 1.2, 225, 300, ("a",), 1.5, {"a": 1.0}, True)
+    from impactcli.evaluate import _as_ev
+
+    evs = [_as_ev(e, 1.0, i) for i, e in enumerate((warm, tail, adap))]
+    out = product_events(evs, 1.0)
+    assert [(e.t_start, e.t_end, e.in_warmup) for e in out] == [(0.5, 1.2, True), (1.0, 9.0, False)]
