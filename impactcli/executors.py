@@ -24,9 +24,11 @@ environment can run them.
 Surviving a dead worker (:func:`run_tasks`):
 
 - local processes: a worker that dies breaks the whole pool
-  (:class:`~concurrent.futures.process.BrokenProcessPool`); the tasks that had not
-  finished are re-run once in a fresh pool; those lost again are reported as
-  :class:`TaskFailure` (``kind="worker-lost"``), the others complete;
+  (:class:`~concurrent.futures.process.BrokenProcessPool`) and takes every unfinished
+  task down with it; those are re-run once in a fresh pool. A break there too means one of
+  them kills its worker: each task still unfinished is then run alone in its own
+  one-process pool, so the innocent ones complete and the culprit is reported as a
+  :class:`TaskFailure` (``kind="worker-lost"``);
 - Dask: the scheduler re-runs a dead worker's tasks on the other workers (up to
   ``distributed.scheduler.allowed-failures``, default 3, deaths per task) and a task
   that raises is retried :data:`DASK_RETRIES` times; a task that still fails
@@ -311,6 +313,15 @@ def _run_pool(fn: Callable[[T], R], items: Sequence[T],
                 else:
                     yield i, res
         pending = sorted(lost)
+    # A break takes every unfinished task down with it: isolate them to find the culprit.
     for i in pending:
-        yield i, TaskFailure("worker-lost", f"its worker process died, also when re-run in "
-                                            f"a fresh pool ({POOL_ROUNDS} tries)")
+        with process_pool(1) as ex:
+            try:
+                res = ex.submit(fn, items[i]).result()
+            except BrokenProcessPool:
+                yield i, TaskFailure("worker-lost", "its worker process died, also when re-run "
+                                                    "in a fresh pool and alone")
+            except Exception as err:
+                yield i, _failure(err)
+            else:
+                yield i, res

@@ -1,0 +1,159 @@
+"""Batch jobs: transient-I/O retries, failure classes, the batch summary, atomic URL writes."""
+
+from __future__ import annotations
+
+import errno
+import gzip
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from impactcli import batch
+from impactcli.batch import DetectJob, JobOutcome, batch_summary, run_detect_job
+from impactcli.errors import LogFormatError
+from impactcli.io import urls
+
+
+@pytest.fixture(autouse=True)
+def _no_backoff(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(urls, "BACKOFF_S", 0.0)
+
+
+@pytest.mark.parametrize(("err", "transient"), [
+    (TimeoutError("read timed out"), True),
+    (ConnectionResetError(errno.ECONNRESET, "reset"), True),
+    (OSError(errno.EIO, "I/O error"), True),
+    (FileNotFoundError(errno.ENOENT, "nope"), False),
+    (PermissionError(errno.EACCES, "denied"), False),
+    (gzip.BadGzipFile("Not a gzipped file"), False),  # an OSError, but the data is bad
+    (OSError("Failed to interpret file as a pickle"), False),  # numpy: no errno, bad data
+    (ValueError("bad"), False),
+])
+def test_is_transient(err: BaseException, transient: bool) -> None:
+    assert urls.is_transient(err) is transient
+
+
+def test_is_transient_looks_through_the_cause() -> None:
+    try:
+        try:
+            raise TimeoutError("slow store")
+        except TimeoutError as inner:
+            raise LogFormatError("s3://b/x.mcap: cannot fetch: slow store") from inner
+    except LogFormatError as err:
+        assert urls.is_transient(err)
+
+
+def test_retry_transient_retries_then_gives_up() -> None:
+    calls: list[int] = []
+
+    def flaky() -> str:
+        calls.append(1)
+        if len(calls) < 3:
+            raise ConnectionResetError(errno.ECONNRESET, "reset")
+        return "ok"
+
+    assert urls.retry_transient(flaky) == "ok" and len(calls) == 3
+    calls.clear()
+
+    def dead() -> None:
+        calls.append(1)
+        raise TimeoutError("never")
+
+    with pytest.raises(TimeoutError):
+        urls.retry_transient(dead)
+    assert len(calls) == urls.IO_RETRIES + 1
+    calls.clear()
+
+    def missing() -> None:
+        calls.append(1)
+        raise FileNotFoundError("gone")
+
+    with pytest.raises(FileNotFoundError):
+        urls.retry_transient(missing)
+    assert len(calls) == 1  # never retried
+
+
+def _job(tmp_path: Path) -> DetectJob:
+    return DetectJob(str(tmp_path / "x.csv"), str(tmp_path / "out"))
+
+
+def test_job_retries_transient_errors(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    calls: list[int] = []
+    summary = {"log": "x", "duration_s": 7200.0, "adaptive": 1, "static_loading": 0,
+               "static_baseline": 2}
+
+    def run(job: DetectJob) -> Any:
+        calls.append(1)
+        if len(calls) < 3:
+            raise LogFormatError(f"{job.log_path}: cannot fetch") from TimeoutError("slow")
+        return ("a.timeline.json",), summary, ()
+
+    monkeypatch.setattr(batch, "_run", run)
+    out = run_detect_job(_job(tmp_path))
+    assert out.ok and out.attempts == 3 and out.summary == summary
+
+
+def test_job_failure_classes(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    def timeout(job: DetectJob) -> Any:
+        raise TimeoutError(errno.ETIMEDOUT, "timed out")
+
+    monkeypatch.setattr(batch, "_run", timeout)
+    out = run_detect_job(_job(tmp_path))
+    assert (out.ok, out.error_class, out.exit_code, out.attempts) == (
+        False, "io", 3, urls.IO_RETRIES + 1)
+    assert out.error.startswith(str(tmp_path / "x.csv")) and "retries" in out.error
+
+    def bug(job: DetectJob) -> Any:
+        raise KeyError("oops")
+
+    monkeypatch.setattr(batch, "_run", bug)
+    out = run_detect_job(_job(tmp_path))
+    assert (out.error_class, out.exit_code, out.attempts) == ("internal", 1, 1)
+    assert "KeyError" in out.error and "Traceback" in out.traceback
+
+
+def test_a_missing_log_is_a_data_error(tmp_path: Path) -> None:
+    out = run_detect_job(_job(tmp_path))
+    assert (out.ok, out.error_class, out.exit_code) == (False, "data", 3)
+    assert out.error == f"{tmp_path / 'x.csv'}: log file not found"
+
+
+def test_batch_summary_totals() -> None:
+    rows = [JobOutcome("a.csv", True, {"log": "a.csv", "duration_s": 1800.0, "adaptive": 2,
+                                       "static_loading": 1, "static_baseline": 0}),
+            JobOutcome("b.csv", True, {"log": "b.csv", "duration_s": 5400.0, "adaptive": 0,
+                                       "static_loading": 3, "static_baseline": 4}),
+            JobOutcome("c.csv", False, error="c.csv: corrupt", exit_code=3, error_class="data")]
+    doc = batch_summary(rows, wall_s=4.0)
+    assert doc["logs"] == {"total": 3, "done": 2, "failed": 1}
+    assert doc["events"] == {"adaptive": 2, "static_loading": 4, "static_baseline": 4}
+    assert doc["hours_analysed"] == pytest.approx(2.0)
+    assert doc["throughput"] == {"logs_per_s": 0.5, "log_hours_per_s": 0.5}
+    assert doc["failures"] == [{"file": "c.csv", "reason": "c.csv: corrupt", "exit_code": 3,
+                                "class": "data", "attempts": 1}]
+
+
+def test_put_file_atomic_to_a_url_leaves_no_part(tmp_path: Path) -> None:
+    import fsspec
+
+    fs = fsspec.filesystem("memory")
+    src = tmp_path / "a.json"
+    src.write_text('{"a": 1}')
+    try:
+        urls.put_file_atomic(src, "memory://bkt/deep/a.json")
+        assert fs.cat("/bkt/deep/a.json") == b'{"a": 1}'
+        assert fs.ls("/bkt/deep", detail=False) == ["/bkt/deep/a.json"]
+        urls.put_file_atomic(src, f"file://{tmp_path}/sub/b.json")
+        assert (tmp_path / "sub" / "b.json").read_text() == '{"a": 1}'
+        assert sorted(p.name for p in (tmp_path / "sub").iterdir()) == ["b.json"]
+    finally:
+        fs.rm("/bkt", recursive=True)
+
+
+def test_local_path_and_names() -> None:
+    assert urls.local_path("file:///data/a%20b.csv") == Path("/data/a b.csv")
+    assert urls.local_path("s3://bucket/a.csv") is None
+    assert urls.local_path("rel/a.csv") == Path("rel/a.csv")
+    assert batch.output_stem("s3://bucket/day1/run7.csv.gz") == "run7"
+    assert urls.join_url("s3://b/out/", "x.json") == "s3://b/out/x.json"
