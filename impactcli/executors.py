@@ -186,7 +186,7 @@ def dask_client(choice: ExecutorChoice) -> Iterator[Any]:
     if address == "local":
         with distributed.LocalCluster(
             n_workers=max(choice.workers, 1), threads_per_worker=1, processes=True,
-            dashboard_address=None, silence_logs=40,
+            dashboard_address=":0", silence_logs=40,
         ) as cluster, distributed.Client(cluster) as client:
             yield client
         return

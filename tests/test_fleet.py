@@ -47,7 +47,7 @@ def _msg(res: Result) -> str:
 def cluster() -> Iterator[Any]:
     """A LocalCluster of 2 single-threaded worker processes, and a client to it."""
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None, silence_logs=50) as lc, \
+                                  dashboard_address=":0", silence_logs=50) as lc, \
             distributed.Client(lc) as client:
         yield client
 
