@@ -109,13 +109,16 @@ def resolve_model(
         "identified-from-log"
 
 
-def calibrated_thresholds(cfg: DetectorConfig, joints: tuple[str, ...]) -> dict[str, np.ndarray] | None:
+def calibrated_thresholds(
+    cfg: DetectorConfig, joints: tuple[str, ...],
+) -> dict[str, np.ndarray] | None:
     """Per-detector threshold vectors from a calibrated config, or None if not calibrated."""
     th = cfg.thresholds
     if not cfg.calibration.calibrated:
         return None
     out = {}
-    for det, table in (("adaptive", th.v_stat), ("static_loading", th.vL), ("static_baseline", th.v0)):
+    pairs = (("adaptive", th.v_stat), ("static_loading", th.vL), ("static_baseline", th.v0))
+    for det, table in pairs:
         missing = [j for j in joints if j not in table]
         if missing:
             raise ConfigError(f"calibrated config has no {det} threshold for joint(s) {missing}")
@@ -146,7 +149,8 @@ def analyze(
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ImpactWarning)
         result = _analyze(log, model, cfg, robot, read_options or {}, model_from_log)
-    msgs = tuple(dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, ImpactWarning)))
+    msgs = tuple(dict.fromkeys(
+        str(w.message) for w in caught if issubclass(w.category, ImpactWarning)))
     for w in caught:  # foreign warnings are not ours to swallow
         if not issubclass(w.category, ImpactWarning):
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)

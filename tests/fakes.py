@@ -10,7 +10,9 @@ from impactcli.types import DETECTORS, Event
 from .conftest import make_log
 
 
-def fake_result(n: int = 2500, joints: tuple[str, ...] = ("j1", "j2"), dt: float = 0.004) -> DetectionResult:
+def fake_result(
+    n: int = 2500, joints: tuple[str, ...] = ("j1", "j2"), dt: float = 0.004,
+) -> DetectionResult:
     """10 s, 2 joints; an adaptive event on j2 then j1 at 4.0–4.1 s, a loading event at 7–7.5 s
     on j1, an adaptive event in warm-up at 0.2 s. Signals are smooth, ratios consistent."""
     log = make_log(n=n, joints=joints, dt=dt)
@@ -36,16 +38,20 @@ def fake_result(n: int = 2500, joints: tuple[str, ...] = ("j1", "j2"), dt: float
     i0, i1 = int(np.argmax(ev_a)), int(len(t) - 1 - np.argmax(ev_a[::-1]))
     l0, l1 = int(np.argmax(ev_l)), int(len(t) - 1 - np.argmax(ev_l[::-1]))
     events = (
-        Event("adaptive", float(t[50]), float(t[52]), 50, 52, (joints[0],), 1.4, {joints[0]: 0.5}, True),
+        Event("adaptive", float(t[50]), float(t[52]), 50, 52, (joints[0],), 1.4,
+              {joints[0]: 0.5}, True),
         Event("adaptive", float(t[i0]), float(t[i1]), i0, i1, (joints[-1], joints[0]), 2.0,
               {joints[-1]: -3.0, joints[0]: 1.0}, False),
-        Event("static_loading", float(t[l0]), float(t[l1]), l0, l1, (joints[0],), 2.0, {joints[0]: 1.2}, False),
+        Event("static_loading", float(t[l0]), float(t[l1]), l0, l1, (joints[0],), 2.0,
+              {joints[0]: 1.2}, False),
     )
     return DetectionResult(
         log=log, model={"kind": "decoupled", "joint_names": list(joints)}, model_sha256="ab" * 32,
-        model_source="identified-from-log", config={"adaptive": {"forgetting_factor": 0.999}},
+        model_source="identified-from-log",
+        config={"adaptive": {"forgetting_factor": 0.999}},
         calibrated=False, thresholds=thresholds, reference_source="reference", torque_filtered=True,
         signals=sig, decisions=decisions, ratios=ratios, events=events, warmup_end_s=1.0,
         warmup_per_joint_s=dict.fromkeys(joints, 1.0),
-        filter_gain={"frequencies_hz": [1.0, 5.0, 10.0], "gain": {j: [0.1, 0.4, 0.8] for j in joints}},
+        filter_gain={"frequencies_hz": [1.0, 5.0, 10.0],
+                     "gain": {j: [0.1, 0.4, 0.8] for j in joints}},
     )

@@ -23,7 +23,7 @@ def test_timeline_validates_and_counts(tmp_path) -> None:
     jsonschema.validate(doc, load_schema("timeline"))
     assert doc["summary"]["adaptive"] == {"events": 1, "in_warmup": 1}
     assert doc["summary"]["static_loading"] == {"events": 1, "in_warmup": 0}
-    ev = [e for e in doc["events"] if e["detector"] == "adaptive" and not e["in_warmup"]][0]
+    ev = next(e for e in doc["events"] if e["detector"] == "adaptive" and not e["in_warmup"])
     assert ev["joints"] == ["j2", "j1"]
     assert abs(ev["t_start"] - 4.0) < 0.004 and abs(ev["t_end"] - 4.1) < 0.004
     assert doc["input"]["t0_ns"] == 0 and doc["calibrated"] is False

@@ -39,7 +39,8 @@ def test_slice_keeps_channels(small_log: RobotLog) -> None:
         ({"t_ns": np.array([0, 1, 1], dtype=np.int64)}, "not strictly increasing"),
         ({"t_ns": np.array([0.0, 1.0, 2.0])}, "int64 nanoseconds"),
         ({"torque": np.zeros((3, 1))}, "torque has shape (3, 1)"),
-        ({"position": np.array([[0.0, 1.0], [np.nan, 1.0], [0.0, 1.0]])}, "position is not finite at sample 1"),
+        ({"position": np.array([[0.0, 1.0], [np.nan, 1.0], [0.0, 1.0]])},
+         "position is not finite at sample 1"),
         ({"joint_names": ("a.b", "c")}, "invalid joint name"),
         ({"joint_names": ("a", "a")}, "duplicate joint names"),
         ({"position_ref": np.ones((2, 2))}, "position_ref has shape"),
@@ -74,7 +75,8 @@ def test_robot_description_roundtrip(tmp_path) -> None:
     robot = read_robot(p)
     assert robot.joint_names == ("s", "e")
     np.testing.assert_allclose(robot.torque_scale(), [0.5, 0.1])
-    assert robot.kinematics == {"type": "planar", "link_lengths": [0.4, 0.3], "gravity": [0.0, -9.81]}
+    assert robot.kinematics == {"type": "planar", "link_lengths": [0.4, 0.3],
+                                "gravity": [0.0, -9.81]}
 
 
 @pytest.mark.parametrize(

@@ -1,4 +1,5 @@
-"""The ``impactcli`` command group: parses options, calls one pipeline function, picks the exit code.
+"""The ``impactcli`` command group: parses options, calls one pipeline function, picks the
+exit code.
 
 Each verb lives in its own module ``impactcli/cli/<verb>.py`` and is imported only
 when invoked, so ``impactcli --help`` stays fast.
@@ -16,15 +17,21 @@ from .. import __version__
 
 #: verb -> (module, attribute, one-line help)
 VERBS: dict[str, tuple[str, str, str]] = {
-    "inspect": ("impactcli.cli.inspect", "inspect_cmd", "Show what a log holds: joints, channels, rate, gaps."),
-    "simulate": ("impactcli.cli.simulate", "simulate_cmd", "Simulate a flexible-joint arm with labelled contacts."),
-    "identify": ("impactcli.cli.identify", "identify_cmd", "Identify a rough rigid model from a log."),
-    "calibrate": ("impactcli.cli.calibrate", "calibrate_cmd", "Calibrate thresholds on collision-free logs."),
+    "inspect": ("impactcli.cli.inspect", "inspect_cmd",
+                "Show what a log holds: joints, channels, rate, gaps."),
+    "simulate": ("impactcli.cli.simulate", "simulate_cmd",
+                 "Simulate a flexible-joint arm with labelled contacts."),
+    "identify": ("impactcli.cli.identify", "identify_cmd",
+                 "Identify a rough rigid model from a log."),
+    "calibrate": ("impactcli.cli.calibrate", "calibrate_cmd",
+                  "Calibrate thresholds on collision-free logs."),
     "detect": ("impactcli.cli.detect", "detect_cmd", "Replay the impact detectors over logs."),
     "report": ("impactcli.cli.report", "report_cmd", "Write a safety-audit report (HTML + JSON)."),
     "view": ("impactcli.cli.view", "view_cmd", "Open a run or a log in the Rerun viewer."),
-    "evaluate": ("impactcli.cli.evaluate", "evaluate_cmd", "Measure detection quality against labels."),
-    "sensitivity": ("impactcli.cli.sensitivity", "sensitivity_cmd", "Reproduce the paper's Table II on the simulator."),
+    "evaluate": ("impactcli.cli.evaluate", "evaluate_cmd",
+                 "Measure detection quality against labels."),
+    "sensitivity": ("impactcli.cli.sensitivity", "sensitivity_cmd",
+                    "Reproduce the paper's Table II on the simulator."),
 }
 
 

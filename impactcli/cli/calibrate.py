@@ -49,9 +49,10 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     out = calibrate(read, model=model_m, config=cfg, robot=robot_d)
     save_config(out, out_path)
     c = out.calibration
-    click.echo(f"calibrated on {len(read)} log(s), rule {c.margin_rule}"
-               + (" (weak: add collision-free logs covering the robot's motions)" if c.weak else ""))
-    click.echo(f"{'joint':<16} {'v_stat':>9} {'vL':>9} {'v0':>9}   margins (adaptive/loading/baseline)")
+    weak = " (weak: add collision-free logs covering the robot's motions)" if c.weak else ""
+    click.echo(f"calibrated on {len(read)} log(s), rule {c.margin_rule}{weak}")
+    click.echo(f"{'joint':<16} {'v_stat':>9} {'vL':>9} {'v0':>9}   "
+               "margins (adaptive/loading/baseline)")
     th = out.thresholds
     for j in th.v_stat:
         m = [c.margins[d][j] for d in ("adaptive", "static_loading", "static_baseline")]

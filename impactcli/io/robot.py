@@ -104,8 +104,10 @@ def labels_from_dict(d: dict[str, Any], where: str = "labels") -> Labels:
             peak = float(e["peak_force"])
             kind, link = str(e["kind"]), int(e["link"])
         except (KeyError, TypeError, ValueError) as err:
-            raise LabelsError(f"{where}: events[{i}] is missing or has a bad field: {err}") from None
-        extra = {k: v for k, v in e.items() if k not in ("start", "end", "peak_force", "kind", "link")}
+            raise LabelsError(
+                f"{where}: events[{i}] is missing or has a bad field: {err}") from None
+        known = ("start", "end", "peak_force", "kind", "link")
+        extra = {k: v for k, v in e.items() if k not in known}
         out.append(ContactLabel(start, end, peak, kind, link, extra))
     try:
         rate = float(d["sample_rate"])

@@ -11,7 +11,9 @@ from typing import Any
 from ..errors import ImpactError
 
 
-def load_mapping(path: str | os.PathLike[str], error: type[ImpactError], what: str) -> dict[str, Any]:
+def load_mapping(
+    path: str | os.PathLike[str], error: type[ImpactError], what: str,
+) -> dict[str, Any]:
     """Load a JSON, YAML or TOML file (by suffix) that must hold a mapping.
 
     Raises ``error`` (an ImpactError subclass) with one line naming the file on any problem.

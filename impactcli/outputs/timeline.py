@@ -56,7 +56,8 @@ def timeline_dict(result: DetectionResult) -> dict[str, Any]:
         },
         "config": result.config,
         "calibrated": result.calibrated,
-        "model": {"source": result.model_source, "sha256": result.model_sha256, "model": result.model},
+        "model": {"source": result.model_source, "sha256": result.model_sha256,
+                  "model": result.model},
         "replay": {
             "online_equivalent": result.online_equivalent,
             "reference_source": result.reference_source,
