@@ -25,10 +25,11 @@ Surviving a dead worker (:func:`run_tasks`):
 
 - local processes: a worker that dies breaks the whole pool
   (:class:`~concurrent.futures.process.BrokenProcessPool`) and takes every unfinished
-  task down with it; those are re-run once in a fresh pool. A break there too means one of
-  them kills its worker: each task still unfinished is then run alone in its own
-  one-process pool, so the innocent ones complete and the culprit is reported as a
-  :class:`TaskFailure` (``kind="worker-lost"``);
+  task down with it, started or not; those are re-run in a fresh pool. A break there too
+  means one of them kills its worker: each task still unfinished then runs alone in a
+  one-process pool, at most twice, so the innocent ones complete and only a task that
+  killed its own worker twice is reported as a :class:`TaskFailure`
+  (``kind="worker-lost"``);
 - Dask: the scheduler re-runs a dead worker's tasks on the other workers (up to
   ``distributed.scheduler.allowed-failures``, default 3, deaths per task) and a task
   that raises is retried :data:`DASK_RETRIES` times; a task that still fails
@@ -151,6 +152,7 @@ class SerialExecutor(Executor):
 
 
 #: Modules the local pool's fork server imports once, so that workers start warm.
+POOL_START_METHOD = "forkserver"
 POOL_PRELOAD = (
     "impactcli.batch", "impactcli.pipeline", "impactcli.io", "impactcli.outputs.timeline",
 )
@@ -161,8 +163,9 @@ def process_pool(workers: int) -> ProcessPoolExecutor:
     which may run threads, e.g. a Dask client's) with the pipeline already imported."""
     import multiprocessing as mp
 
-    ctx = mp.get_context("forkserver")
-    ctx.set_forkserver_preload(list(POOL_PRELOAD))
+    ctx = mp.get_context(POOL_START_METHOD)
+    if POOL_START_METHOD == "forkserver":
+        ctx.set_forkserver_preload(list(POOL_PRELOAD))
     return ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
 
 
@@ -313,15 +316,20 @@ def _run_pool(fn: Callable[[T], R], items: Sequence[T],
                 else:
                     yield i, res
         pending = sorted(lost)
-    # A break takes every unfinished task down with it: isolate them to find the culprit.
+    # A break takes every unfinished task down with it, started or not: run each survivor
+    # alone, twice at most, so that only a task that kills its own worker twice is lost.
     for i in pending:
+        yield i, _run_alone(fn, items[i])
+
+
+def _run_alone(fn: Callable[[T], R], item: T) -> R | TaskFailure:
+    for _ in range(POOL_ROUNDS):
         with process_pool(1) as ex:
             try:
-                res = ex.submit(fn, items[i]).result()
+                return ex.submit(fn, item).result()
             except BrokenProcessPool:
-                yield i, TaskFailure("worker-lost", "its worker process died, also when re-run "
-                                                    "in a fresh pool and alone")
+                continue
             except Exception as err:
-                yield i, _failure(err)
-            else:
-                yield i, res
+                return _failure(err)
+    return TaskFailure("worker-lost", f"its worker process died {POOL_ROUNDS} times when run "
+                                      "alone (after a pool broke)")
