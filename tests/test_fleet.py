@@ -280,3 +280,21 @@ def test_remote_url_in_and_url_prefix_out(fleet: dict[str, Any], tmp_path: Path)
         assert "memory://bucket/in/none.csv.gz: log file not found" in missing.stderr
     finally:
         fs.rm("/bucket", recursive=True)
+
+
+def test_fleet_report_from_batch_timelines_is_the_same_on_a_cluster(
+        fleet: dict[str, Any], cluster: Any, tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    inputs = [str(p) for p in fleet["logs"][:2]]
+    assert _detect(fleet, out, "--jobs", "2", inputs=inputs).exit_code == 0
+    timelines = sorted(str(p) for p in out.glob("*.timeline.json"))
+    docs = {}
+    for name, extra in [("serial", []), ("dask", ["--scheduler", cluster.scheduler.address])]:
+        r = run(["report", *timelines, str(fleet["bad"]), "-o", str(tmp_path / f"{name}.html"),
+                 "--json", str(tmp_path / f"{name}.json"), *extra])
+        assert r.exit_code == 4, _msg(r)  # the corrupt log is listed, the others reported
+        docs[name] = (tmp_path / f"{name}.json").read_bytes()
+    assert docs["dask"] == docs["serial"]
+    doc = json.loads(docs["serial"])
+    assert [s["stem"] for s in doc["summary"]] == ["run0", "run1"]  # input order
+    assert [Path(f["path"]).name for f in doc["failed"]] == ["corrupt.csv.gz"]

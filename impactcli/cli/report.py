@@ -27,9 +27,11 @@ and exits 4; when every input fails the first error is raised (exit 3).
 
 from __future__ import annotations
 
+import functools
 import json
 import warnings
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -37,7 +39,13 @@ import click
 
 from ..errors import EXIT_BATCH, ImpactError, ImpactWarning, LogFormatError
 from ._common import handle_errors, progress
-from .detect import log_read_options, model_options, read_options_from
+from .detect import (
+    executor_options,
+    log_read_options,
+    model_options,
+    read_options_from,
+    resolve_executor,
+)
 
 TIMELINE_SUFFIX = ".timeline.json"
 LABELS_SUFFIX = ".labels.json"
@@ -202,6 +210,57 @@ def auto_labels(inp: Path, log_path: Path | None) -> Path | None:
     return next((c for c in cands if c.is_file()), None)
 
 
+@dataclass(frozen=True)
+class ReportTask:
+    """One report input for a worker (picklable: paths and plain values)."""
+
+    inp: str
+    labels: str | None
+    auto_labels: bool
+    robot: str | None
+    model: str | None
+    config: str | None
+    read_options: dict[str, Any]
+
+
+@functools.lru_cache(maxsize=8)
+def _loaded(robot: str | None, model: str | None, config: str | None) -> tuple[Any, Any, Any]:
+    """robot, model, config read once per worker process."""
+    return load_inputs(Path(robot) if robot else None, Path(model) if model else None,
+                       Path(config) if config else None)
+
+
+def analyze_input(task: ReportTask) -> tuple[Any, Any, tuple[str, ...], ImpactError | None]:
+    """Analyse one report input in any worker: (result, labels, warnings, error).
+
+    A LOG is detected, a TIMELINE re-run (:func:`rerun_timeline`); the labels are the given
+    file, else ``<stem>.labels.json`` found beside it when ``auto_labels``. Warnings raised
+    on the way come back as messages; an ImpactError comes back as the error.
+    """
+    from ..io.robot import read_labels
+
+    inp = Path(task.inp)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ImpactWarning)
+        try:
+            robot_obj, model_obj, config_obj = _loaded(task.robot, task.model, task.config)
+            if is_timeline(inp):
+                result, log_path = rerun_timeline(inp, robot=robot_obj)
+            else:
+                result = analyze_log(inp, robot=robot_obj, model=model_obj, config=config_obj,
+                                     read_options=task.read_options)
+                log_path = inp
+            lab_path = Path(task.labels) if task.labels else None
+            if lab_path is None and task.auto_labels:
+                lab_path = auto_labels(inp, log_path)
+            lab = read_labels(lab_path) if lab_path is not None else None
+            err = None
+        except ImpactError as e:
+            result, lab, err = None, None, e
+    msgs = tuple(str(w.message) for w in caught if issubclass(w.category, ImpactWarning))
+    return result, lab, msgs, err
+
+
 @click.command("report")
 @click.argument("inputs", nargs=-1, required=True,
                 type=click.Path(exists=True, dir_okay=False, path_type=Path))
@@ -217,12 +276,14 @@ def auto_labels(inp: Path, log_path: Path | None) -> Path | None:
               help="Do not pick up <stem>.labels.json files found beside the inputs.")
 @model_options
 @log_read_options
+@executor_options
 @handle_errors
 def report_cmd(*, inputs: tuple[Path, ...], html_path: Path, json_path: Path | None,
                labels: tuple[Path, ...], no_auto_labels: bool, robot: Path | None,
                model: Path | None, config: Path | None, channel_map: str | None,
                topic: str | None, reference_topic: str | None, time_source: str | None,
-               torque_source: str | None) -> None:
+               torque_source: str | None, jobs: int | None = None,
+               scheduler: str | None = None) -> None:
     """Write a safety-audit report: one self-contained HTML file (and --json) over LOGs or
     TIMELINEs — what was analysed, with what, the events, false-alarm margins, plots,
     caveats, and detection quality when labels are given.
@@ -231,13 +292,15 @@ def report_cmd(*, inputs: tuple[Path, ...], html_path: Path, json_path: Path | N
     from its log with the read options, model and config it records (--robot still
     applies). Labels: --labels per input (in order, or named <stem>.labels.json), else
     <stem>.labels.json found beside the input. Exit 4 when some inputs failed (the report
-    lists them), 3 when all did.
+    lists them), 3 when all did. --jobs/--scheduler analyse the inputs in parallel (as
+    detect does); the report is the same.
     """
-    from ..io.robot import read_labels
+    from ..executors import TaskFailure, run_tasks
     from ..outputs.report import write_report
 
     explicit = pair_labels(inputs, labels)
-    robot_obj, model_obj, config_obj = load_inputs(robot, model, config)
+    resolve_executor(jobs, scheduler)
+    load_inputs(robot, model, config)  # a bad one stops the run before any work
     ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
     log_only = [n for n, v in (("--model", model), ("--config", config)) if v is not None]
     log_only += [f"--{k.replace('_', '-')}" for k in ropts]
@@ -245,29 +308,33 @@ def report_cmd(*, inputs: tuple[Path, ...], html_path: Path, json_path: Path | N
         warnings.warn(f"{', '.join(log_only)} apply to LOG inputs only: a TIMELINE is re-run "
                       "with the read options, model and config it records", ImpactWarning,
                       stacklevel=2)
-    results: list[Any] = []
-    labs: list[Any] = []
-    failed: list[tuple[Path, ImpactError]] = []
-    for inp, given_labels in progress(list(zip(inputs, explicit, strict=True)), desc="report"):
-        try:
-            if is_timeline(inp):
-                result, log_path = rerun_timeline(inp, robot=robot_obj)
-            else:
-                result = analyze_log(inp, robot=robot_obj, model=model_obj, config=config_obj,
-                                     read_options=ropts)
-                log_path = inp
-            lab_path = given_labels
-            if lab_path is None and not no_auto_labels:
-                lab_path = auto_labels(inp, log_path)
-            lab = read_labels(lab_path) if lab_path is not None else None
-        except ImpactError as err:
+    tasks = [ReportTask(str(inp), str(lab) if lab is not None else None, not no_auto_labels,
+                        str(robot) if robot else None, str(model) if model else None,
+                        str(config) if config else None, ropts)
+             for inp, lab in zip(inputs, explicit, strict=True)]
+    done: dict[int, tuple[Any, Any]] = {}
+    errors: dict[int, ImpactError] = {}
+    stream = run_tasks(analyze_input, tasks, jobs=jobs, scheduler=scheduler)
+    for i, res in progress(stream, total=len(tasks), desc="report"):
+        if isinstance(res, TaskFailure):
+            click.echo(f"impactcli: error: {inputs[i]}: {res.reason}", err=True)
+            if res.traceback:  # a bug: keep its traceback
+                click.echo(res.traceback.rstrip(), err=True)
+            errors[i] = ImpactError(f"{inputs[i]}: {res.reason}")
+            continue
+        result, lab, msgs, err = res
+        for m in msgs:
+            click.echo(f"impactcli: warning: {m}", err=True)
+        if err is not None:
             click.echo(f"impactcli: error: {err}", err=True)
-            failed.append((inp, err))
+            errors[i] = err
             continue
         for w in result.warnings:
             click.echo(f"impactcli: warning: {w}", err=True)
-        results.append(result)
-        labs.append(lab)
+        done[i] = (result, lab)
+    results = [done[i][0] for i in sorted(done)]  # input order, whatever finished first
+    labs = [done[i][1] for i in sorted(done)]
+    failed = [(inputs[i], errors[i]) for i in sorted(errors)]
     if not results:
         raise failed[0][1]
     write_report(results, html_path, json_path, labels=labs,
