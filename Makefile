@@ -22,8 +22,14 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
 
+# Every benchmark of the README's performance section (about 10 minutes on 2 cores).
 bench: $(STAMP)
-	$(BIN)/python tests/benchmarks/run_all.py
+	$(BIN)/python tests/benchmarks/bench_mcap_decode.py
+	$(BIN)/python tests/benchmarks/bench_rls.py
+	$(BIN)/python tests/benchmarks/bench_rerun.py
+	$(BIN)/python tests/benchmarks/bench_sim.py
+	$(BIN)/python tests/benchmarks/bench_detect_e2e.py 120
+	$(BIN)/python tests/benchmarks/sample_quality.py
 
 samples: $(STAMP)
 	$(BIN)/python -m impactcli.sim.samples sample_logs
