@@ -1,14 +1,15 @@
 # Set-up and the two jobs of the README. Needs only python3 (>= 3.11) and make.
+SHELL  := /bin/bash
 PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup demo test bench samples lint clean
+.PHONY: setup demo test bench samples outputs lint clean
 
 $(STAMP): pyproject.toml requirements.lock
 	$(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --disable-pip-version-check -c requirements.lock -e '.[dev,urdf]'
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -c requirements.lock -e '.[dev,urdf,dask]'
 	touch $(STAMP)
 
 setup: $(STAMP)
@@ -18,6 +19,19 @@ setup: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/impactcli detect sample_logs/csv/assist_impacts.csv.gz \
 	    --config sample_logs/assist_like.config.toml --signals --rerun -o out/demo
+
+# Timeline, Rerun recording and one audit report (HTML + JSON) for every sample log, CSV
+# and MCAP copies in separate folders (their stems collide), each arm with its own config.
+outputs: $(STAMP)
+	for fmt in csv mcap; do \
+	  for arm in assist:assist_like heavy:heavy_geared; do \
+	    pre=$${arm%%:*}; cfg=sample_logs/$${arm#*:}.config.toml; \
+	    $(BIN)/impactcli detect sample_logs/$$fmt/$${pre}_*.$${fmt/csv/csv.gz} --config $$cfg \
+	        --signals --rerun --jobs 2 -o out/$$fmt || exit $$?; \
+	  done; \
+	  $(BIN)/impactcli report out/$$fmt/*.timeline.json -o out/$$fmt/report.html \
+	      --json out/$$fmt/report.json || exit $$?; \
+	done
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -60,6 +60,7 @@ class DetectJob:
     config_path: str | None = None
     signals: bool = False
     rerun: bool = False
+    model_from_log: bool = False
 
 
 @dataclass(frozen=True)
@@ -171,7 +172,8 @@ def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ..
     model = load_by_url(job.model_path, read_model, "model") if job.model_path else None
     config = load_by_url(job.config_path, load_config, "config") if job.config_path else None
     log = read_log(job.log_path, robot=robot, **job.read_options)
-    result = analyze(log, model=model, config=config, robot=robot, read_options=job.read_options)
+    result = analyze(log, model=model, config=config, robot=robot, read_options=job.read_options,
+                     model_from_log=job.model_from_log)
     stem = output_stem(job.log_path)
     local_out = local_path(job.out_dir)
     if local_out is not None:

@@ -174,3 +174,23 @@ def test_demo_command_detects_every_impact_of_20N_within_80ms(tmp_path: Path) ->
     c = sq.impacts_within("assist_impacts", ev)
     assert c.passed, c.line()
     assert ev.scores[PRODUCT].false_alarms == 0
+
+
+def test_detect_model_from_log_cli_on_the_payload_log(tmp_path: Path) -> None:
+    """``detect --config C --model-from-log`` through the CLI: no alarm, recorded as an
+    offline (not online-equivalent) run; ``--model`` with it is a usage error."""
+    import json
+
+    out = tmp_path / "pl"
+    r = CliRunner().invoke(main, [
+        "detect", str(sq.log_path("assist_payload")), "--config", str(sq.config_path(ASSIST)),
+        "--model-from-log", "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    doc = json.loads((out / "assist_payload.timeline.json").read_text())
+    assert doc["model"]["source"] == "identified-from-log" and doc["calibrated"] is True
+    assert doc["replay"]["online_equivalent"] is False
+    assert all(v["events"] == 0 for d, v in doc["summary"].items() if d != "static_baseline")
+    r = CliRunner().invoke(main, [
+        "detect", str(sq.log_path("assist_payload")), "--config", str(sq.config_path(ASSIST)),
+        "--model-from-log", "--model", str(out / "x.json"), "-o", str(out)])
+    assert r.exit_code == 2

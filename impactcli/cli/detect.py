@@ -152,6 +152,9 @@ MAX_ROWS = 50
 @log_read_options
 @click.option("--signals", is_flag=True, help="Also write the per-sample signals (Parquet).")
 @click.option("--rerun", is_flag=True, help="Also write a Rerun recording (<stem>.rrd).")
+@click.option("--model-from-log", is_flag=True,
+              help="With --config: keep its thresholds but identify the model from each log "
+                   "(offline only; e.g. an unknown payload).")
 @click.option("--fail-on-detect", is_flag=True,
               help="Exit 1 when adaptive or static_loading found events after warm-up.")
 @executor_options
@@ -162,8 +165,8 @@ MAX_ROWS = 50
 def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: str | None,
                config: str | None, channel_map: str | None, topic: str | None,
                reference_topic: str | None, time_source: str | None, torque_source: str | None,
-               signals: bool, rerun: bool, fail_on_detect: bool, jobs: int | None,
-               scheduler: str | None, summary_path: str | None) -> None:
+               signals: bool, rerun: bool, model_from_log: bool, fail_on_detect: bool,
+               jobs: int | None, scheduler: str | None, summary_path: str | None) -> None:
     """Replay the adaptive impact detector (Makarov et al. 2014) and the static detectors
     over LOGS, exactly as the robot would have run them online, and write one
     DIR/<stem>.timeline.json per log.
@@ -183,11 +186,13 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
         check_unique_stems(paths)
     except ValueError as err:
         raise click.UsageError(str(err)) from None
+    if model_from_log and model is not None:
+        raise click.UsageError("--model and --model-from-log exclude each other")
     choice = resolve_executor(jobs, scheduler)
     preload(robot, model, config)
     ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
-    job_list = [DetectJob(p, out_dir, ropts, robot, model, config, signals, rerun)
-                for p in paths]
+    job_list = [DetectJob(p, out_dir, ropts, robot, model, config, signals, rerun,
+                          model_from_log) for p in paths]
     debug = bool((click.get_current_context().find_root().obj or {}).get("debug"))
     timer = Timer()
     outcomes = []

@@ -164,7 +164,10 @@ def rerun_timeline(tl_path: Path, *, robot: Any = None) -> tuple[Any, Path]:
     model = None
     if tl["model"]["source"] == "given":
         model = RigidModel.from_dict(recorded_model, where=f"{tl_path}: model")
-    result = analyze(log, model=model, config=config, robot=robot, read_options=kwargs)
+    # a config's thresholds with a model identified from the log (detect --model-from-log)
+    from_log = tl["model"]["source"] == "identified-from-log" and config.model is not None
+    result = analyze(log, model=model, config=config, robot=robot, read_options=kwargs,
+                     model_from_log=from_log)
     recorded = [(e["detector"], round(e["t_start"], 9), round(e["t_end"], 9), tuple(e["joints"]))
                 for e in tl["events"]]
     now = [(e.detector, round(e.t_start, 9), round(e.t_end, 9), tuple(e.joints))
