@@ -160,20 +160,37 @@ def _msgs(caught: list[warnings.WarningMessage]) -> tuple[str, ...]:
     return tuple(str(w.message) for w in caught if issubclass(w.category, ImpactWarning))
 
 
-def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ...]]:
+def analyze_file(
+    log_path: str, *, robot_path: str | None = None, model_path: str | None = None,
+    config_path: str | None = None, read_options: dict[str, Any] | None = None,
+    model_from_log: bool = False,
+) -> Any:
+    """Read one log and its robot, model and config (paths or URLs) and replay the
+    detectors — what ``detect`` does for one log; ``evaluate`` and ``view`` use it too.
+    Returns the :class:`impactcli.result.DetectionResult`."""
     from .config import load_config
     from .io import read_log
     from .io.robot import read_robot
-    from .io.urls import load_by_url, local_path
+    from .io.urls import load_by_url
     from .model import read_model
     from .pipeline import analyze
 
-    robot = load_by_url(job.robot_path, read_robot, "robot description") if job.robot_path else None
-    model = load_by_url(job.model_path, read_model, "model") if job.model_path else None
-    config = load_by_url(job.config_path, load_config, "config") if job.config_path else None
-    log = read_log(job.log_path, robot=robot, **job.read_options)
-    result = analyze(log, model=model, config=config, robot=robot, read_options=job.read_options,
-                     model_from_log=job.model_from_log)
+    opts = dict(read_options or {})
+    robot = load_by_url(robot_path, read_robot, "robot description") if robot_path else None
+    model = load_by_url(model_path, read_model, "model") if model_path else None
+    config = load_by_url(config_path, load_config, "config") if config_path else None
+    log = read_log(log_path, robot=robot, **opts)
+    return analyze(log, model=model, config=config, robot=robot, read_options=opts,
+                   model_from_log=model_from_log)
+
+
+def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ...]]:
+    from .io.urls import local_path
+
+    result = analyze_file(job.log_path, robot_path=job.robot_path, model_path=job.model_path,
+                          config_path=job.config_path, read_options=job.read_options,
+                          model_from_log=job.model_from_log)
+    log = result.log
     stem = output_stem(job.log_path)
     local_out = local_path(job.out_dir)
     if local_out is not None:

@@ -49,7 +49,7 @@ def fake_pipeline(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
     calls: list[dict[str, Any]] = []
 
     def analyze(log: Any, *, model: Any = None, config: Any = None, robot: Any = None,
-                read_options: dict[str, Any] | None = None) -> Any:
+                read_options: dict[str, Any] | None = None, model_from_log: bool = False) -> Any:
         calls.append({"log": log, "model": model, "config": config, "robot": robot,
                       "read_options": read_options})
         return dataclasses.replace(fake_result(), log=log)

@@ -77,18 +77,12 @@ def open_viewer(path: Path) -> None:
 def analyze_log(path: Path, *, robot: Path | None, model: Path | None, config: Path | None,
                 read_options: dict[str, Any]) -> DetectionResult:
     """Read ``path`` and replay the detectors on it, as ``detect`` does."""
-    from ..config import load_config
-    from ..io import read_log
-    from ..io.robot import read_robot
-    from ..model import read_model
-    from ..pipeline import analyze
+    from ..batch import analyze_file
 
-    robot_desc = read_robot(robot) if robot is not None else None
-    model_obj = read_model(model) if model is not None else None
-    config_obj = load_config(config) if config is not None else None
-    log = read_log(path, robot=robot_desc, **read_options)
-    return analyze(log, model=model_obj, config=config_obj, robot=robot_desc,
-                   read_options=read_options)
+    return analyze_file(str(path), robot_path=None if robot is None else str(robot),
+                        model_path=None if model is None else str(model),
+                        config_path=None if config is None else str(config),
+                        read_options=read_options)
 
 
 @click.command("view")
