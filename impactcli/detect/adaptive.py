@@ -247,19 +247,21 @@ def g_gain(theta_g: np.ndarray, freqs_hz: np.ndarray, fs_hz: float) -> np.ndarra
 
 # ----------------------------------------------------------------------------- kernels
 @nb.njit(cache=True, nogil=True, fastmath=FASTMATH)
-def _evaluate_axis(
-    r: np.ndarray, u: np.ndarray, j: int, eta: int, p: int, rho: np.ndarray,
+def _evaluate_axis(  # noqa: PLR0917 (numba kernels take positional arguments)
+    r: np.ndarray, u: np.ndarray, eta: int, p: int, rho: np.ndarray,
     lam: float, p0: float, theta0: float, max_trace: float, a_post: bool,
     a1: float, a2: float, n1: int, n2: int, v_stat_j: float,
     rt: np.ndarray, vd: np.ndarray, rf: np.ndarray, vf: np.ndarray, rr: np.ndarray,
-    vr: np.ndarray, thr: np.ndarray, dec: np.ndarray, eps: np.ndarray, theta: np.ndarray,
+    vr: np.ndarray, thr: np.ndarray, dec: np.ndarray, eps: np.ndarray, th: np.ndarray,
 ) -> int:
-    """Axis ``j`` over all samples; writes column j of the outputs and row j of theta.
+    """One axis over all samples: ``r`` (N,) is its residual, ``u`` (m, N, J) every axis's
+    inputs; the outputs are this axis's (N,) rows and its (nu,) theta ``th``.
 
     Axes are independent (eq. 34–35 per axis; only the inputs u are shared), so axes can
     run on separate threads (the kernel releases the GIL). Returns the covariance resets.
     """
-    n, J = r.shape
+    n = r.shape[0]
+    J = u.shape[2]
     m = u.shape[0]
     srho = 0
     for i in range(m):
@@ -268,7 +270,6 @@ def _evaluate_axis(
     P = np.zeros((nu, nu))
     for i in range(nu):
         P[i, i] = p0
-    th = theta[j]
     for i in range(nu):
         th[i] = theta0
     resets = 0
@@ -277,26 +278,21 @@ def _evaluate_axis(
     th_old = np.empty(nu)
     inv_n1 = 1.0 / n1
     inv_n2 = 1.0 / n2
-    maxlag = max(eta, p)
     sum_r = 0.0
     sum_v = 0.0
     ring_r = np.zeros(n1)
     ring_v = np.zeros(n2)
     pos1 = 0
     pos2 = 0
+    prev_r = 0.0
+    prev_v = 0.0
     for k in range(n):
         # regressor phi(k) (zeros before the start): past residuals, past v_dyn, and the
         # inputs u_{i,l}(k-1..k-rho_i) of every type i and every axis l (Appendix A)
-        if k >= maxlag:
-            for d in range(1, eta + 1):
-                phi[d - 1] = r[k - d, j]
-            for d in range(1, p + 1):
-                phi[eta + d - 1] = vd[k - d, j]
-        else:
-            for d in range(1, eta + 1):
-                phi[d - 1] = r[k - d, j] if k - d >= 0 else 0.0
-            for d in range(1, p + 1):
-                phi[eta + d - 1] = vd[k - d, j] if k - d >= 0 else 0.0
+        for d in range(1, eta + 1):
+            phi[d - 1] = r[k - d] if k - d >= 0 else 0.0
+        for d in range(1, p + 1):
+            phi[eta + d - 1] = vd[k - d] if k - d >= 0 else 0.0
         c = eta + p
         for i in range(m):
             for ll in range(J):
@@ -306,8 +302,8 @@ def _evaluate_axis(
         if not a_post:
             for i in range(nu):
                 th_old[i] = th[i]
-        e, rs = rls_update_inplace(th, P, phi, r[k, j], lam, max_trace, p0, h)
-        eps[k, j] = e
+        e, rs = rls_update_inplace(th, P, phi, r[k], lam, max_trace, p0, h)
+        eps[k] = e
         resets += rs
         tv = th if a_post else th_old
         g = 0.0
@@ -316,27 +312,31 @@ def _evaluate_axis(
         v = 0.0
         for i in range(eta, nu):
             v += phi[i] * tv[i]
-        rt[k, j] = r[k, j] - g
-        vd[k, j] = v
+        x = r[k] - g
+        rt[k] = x
+        vd[k] = v
         # F1 / F2 (from rest)
-        prev_r = rf[k - 1, j] if k > 0 else 0.0
-        prev_v = vf[k - 1, j] if k > 0 else 0.0
-        rf[k, j] = a1 * prev_r + (1.0 - a1) * rt[k, j]
-        vf[k, j] = a2 * prev_v + (1.0 - a2) * v
+        prev_r = a1 * prev_r + (1.0 - a1) * x
+        prev_v = a2 * prev_v + (1.0 - a2) * v
+        rf[k] = prev_r
+        vf[k] = prev_v
         # RMS over k-1..k-N (eq. 41): running sums of the last N squares (ring buffers,
         # re-summed exactly at every wrap so rounding cannot accumulate)
         sr = max(sum_r, 0.0)
         sv = max(sum_v, 0.0)
-        q = rf[k, j] * rf[k, j]
+        q = prev_r * prev_r
         sum_r += q - ring_r[pos1]
         ring_r[pos1] = q
-        q = vf[k, j] * vf[k, j]
+        q = prev_v * prev_v
         sum_v += q - ring_v[pos2]
         ring_v[pos2] = q
-        rr[k, j] = np.sqrt(sr * inv_n1)
-        vr[k, j] = np.sqrt(sv * inv_n2)
-        thr[k, j] = abs(v_stat_j + vr[k, j])
-        dec[k, j] = rr[k, j] > thr[k, j]
+        a = np.sqrt(sr * inv_n1)
+        b = np.sqrt(sv * inv_n2)
+        rr[k] = a
+        vr[k] = b
+        t = abs(v_stat_j + b)
+        thr[k] = t
+        dec[k] = a > t
         pos1 += 1
         pos2 += 1
         if pos1 == n1:
@@ -348,23 +348,27 @@ def _evaluate_axis(
     return resets
 
 
-def _evaluate_numba(
+def _evaluate_numba(  # noqa: PLR0917
     r: np.ndarray, u: np.ndarray, eta: int, p: int, rho: np.ndarray,
     lam: float, p0: float, theta0: float, max_trace: float, a_post: bool,
     a1: float, a2: float, n1: int, n2: int, v_stat: np.ndarray, threads: int = 1,
 ) -> tuple[np.ndarray, ...]:
-    """All axes with the compiled per-axis kernel; ``threads`` > 1 runs axes concurrently."""
+    """All axes with the compiled per-axis kernel; ``threads`` > 1 runs axes concurrently.
+
+    Each axis works on contiguous (N,) rows (outputs are (J, N) inside, returned (N, J)).
+    """
     n, J = r.shape
     nu = eta + p + J * int(np.sum(rho))
-    out = [np.zeros((n, J)) for _ in range(9)]
-    out[7] = np.zeros((n, J), dtype=np.bool_)
+    rows = np.ascontiguousarray(r.T)
+    out = [np.zeros((J, n)) for _ in range(9)]
+    out[7] = np.zeros((J, n), dtype=np.bool_)
     theta = np.zeros((J, nu))
     rt, vd, rf, vf, rr, vr, thr, dec, eps = out
 
     def axis(j: int) -> int:
-        return int(_evaluate_axis(r, u, j, eta, p, rho, lam, p0, theta0, max_trace, a_post,
-                                  a1, a2, n1, n2, float(v_stat[j]),
-                                  rt, vd, rf, vf, rr, vr, thr, dec, eps, theta))
+        return int(_evaluate_axis(rows[j], u, eta, p, rho, lam, p0, theta0, max_trace, a_post,
+                                  a1, a2, n1, n2, float(v_stat[j]), rt[j], vd[j], rf[j], vf[j],
+                                  rr[j], vr[j], thr[j], dec[j], eps[j], theta[j]))
 
     if threads > 1 and J > 1:
         from concurrent.futures import ThreadPoolExecutor
@@ -373,6 +377,7 @@ def _evaluate_numba(
             resets = np.array(list(ex.map(axis, range(J))), dtype=np.int64)
     else:
         resets = np.array([axis(j) for j in range(J)], dtype=np.int64)
+    rt, vd, rf, vf, rr, vr, thr, dec, eps = (np.ascontiguousarray(x.T) for x in out)
     return rt, vd, rf, vf, rr, vr, thr, dec, eps, theta, resets
 
 
