@@ -32,7 +32,11 @@ tolerance window ``[start - pre_s, end + post_s]``.
 
 The *product* detector is the OR of ``adaptive`` and ``static_loading`` (method.md §5):
 their events are merged where they overlap (or lie within ``product_merge_gap_s``), so a
-moment where both fire is one product alarm, not two.
+moment where both fire is one product alarm, not two. A contact counts as detected by the
+product when one of its parts detects it, with the earliest part's delay (so the product is
+never worse than a part, even when a merged alarm started earlier at an unrelated part's
+alarm); a product alarm is false when one of the part alarms starting in it matched no
+contact.
 
 The sweep (:func:`sweep_thresholds`) rescales every threshold by a factor ``s`` — decision
 ``ratio > s`` with ``ratio = statistic / threshold`` (eq. 42 for the adaptive detector) —
@@ -466,11 +470,33 @@ def evaluate_events(
     delay: dict[str, list[float | None]] = {}
     on_at_onset: dict[str, list[bool]] = {}
     scores: dict[str, DetectorScore] = {}
+    matches = {d: _match(by_det[d], win_lo, win_hi) for d in (*DETECTORS, PRODUCT)}
+    # The product detects a contact when one of its parts does, at the first part's alarm
+    # (a merged product alarm may start before the contact, at an unrelated part's alarm);
+    # a product alarm is false when one of the part alarms starting in it matched no contact
+    # (or, with no part start inside, when it matched none itself).
+    part_starts = [(e.t_start, bool(m)) for d in PRODUCT_PARTS
+                   for e, m in zip(by_det[d], matches[d][2], strict=True)]
+
+    def _earliest(xs: Sequence[float | None]) -> float | None:
+        vals = [x for x in xs if x is not None]
+        return min(vals) if vals else None
+
+    p_first = [_earliest([matches[d][0][k] for d in PRODUCT_PARTS]) for k in range(len(contacts))]
+    p_any = [_earliest([matches[d][1][k] for d in PRODUCT_PARTS]) for k in range(len(contacts))]
+    def _product_ok(e: _Ev, m: bool) -> bool:
+        inside = [ok for a, ok in part_starts if e.t_start - EPS_S <= a <= e.t_end + EPS_S]
+        return all(inside) if inside else bool(m)
+
+    p_matched = np.array([_product_ok(e, bool(m))
+                          for e, m in zip(by_det[PRODUCT], matches[PRODUCT][2], strict=True)],
+                         dtype=bool)
+    matches[PRODUCT] = (p_first, p_any, p_matched)
     for d in detectors:
         d_evs = by_det[d]
         counted = [e for e in d_evs if not e.in_warmup]
         warm = [e for e in d_evs if e.in_warmup]
-        first_match, first_any, matched = _match(d_evs, win_lo, win_hi)
+        first_match, first_any, matched = matches[d]
         false_alarms = [e for e, m in zip(d_evs, matched, strict=True) if not m and not e.in_warmup]
         c_start = np.array([e.t_start for e in counted])
         c_end = np.array([e.t_end for e in counted])

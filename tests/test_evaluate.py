@@ -181,13 +181,14 @@ def test_zero_events_and_zero_collision_free_time():
 
 def test_product_merges_overlapping_alarms():
     lab = labels(contact(5.4, 5.45, 3.0))
-    # adaptive false alarm already on when loading fires on the contact: the product's alarm
-    # was raised at 5.0 — one product event, a false alarm, the contact not newly alarmed
+    # adaptive false alarm already on when loading fires on the contact: one product event,
+    # a false alarm (its adaptive part matched nothing), and the contact detected by its
+    # static_loading part — the product detects what any of its parts detects
     e = run([ev("adaptive", 5.0, 5.5), ev("static_loading", 5.41, 6.0)], lab)
     assert e.scores["static_loading"].detected == 1
     p = e.scores["product"]
-    assert (p.n_events, p.false_alarms, p.detected) == (1, 1, 0)
-    assert e.contacts[0].alarm_on_at_onset["product"] is True
+    assert (p.n_events, p.false_alarms, p.detected) == (1, 1, 1)
+    assert e.contacts[0].delay_s["product"] == pytest.approx(0.01)
     apart = run([ev("adaptive", 5.0, 5.1), ev("static_loading", 5.41, 6.0)], lab,
                 product_merge_gap_s=0.0)
     assert (apart.scores["product"].n_events, apart.scores["product"].detected) == (2, 1)
