@@ -109,16 +109,29 @@ def signals_beside(timeline: Path) -> Path:
 
 def labels_beside(source: Path) -> Path:
     """``<stem>.labels.json`` beside a log or a ``<stem>.timeline.json`` (as ``simulate``
-    writes them); a usage error (exit 2) when there is none."""
+    writes them), for a timeline then beside the log it records; a usage error (exit 2)
+    when there is none."""
     from ..io import log_stem
 
     name = source.name
     stem = (name[: -len(".timeline.json")] if name.endswith(".timeline.json")
             else log_stem(source))
     cand = source.with_name(f"{stem}.labels.json")
-    if not cand.is_file():
-        raise click.UsageError(f"--labels is needed: no {cand.name} beside {source}")
-    return cand
+    if cand.is_file():
+        return cand
+    if name.endswith(".timeline.json"):  # then beside the log the timeline records
+        import json
+
+        try:
+            log_path = Path(json.loads(source.read_text("utf-8"))["input"]["path"])
+        except (OSError, ValueError, KeyError, TypeError):
+            log_path = None
+        if log_path is not None:
+            beside_log = log_path.with_name(f"{stem}.labels.json")
+            if beside_log.is_file():
+                return beside_log
+    raise click.UsageError(f"--labels is needed: no {cand.name} beside {source}"
+                           + (" or its log" if name.endswith(".timeline.json") else ""))
 
 
 def _events_settings(config: Any) -> dict[str, float]:
@@ -196,7 +209,7 @@ def _timeline_sweep(source: Path, doc: dict[str, Any], labels: Any, scales: tupl
                 metavar="TIMELINE|LOG")
 @click.option("--labels", "labels_path", default=None,
               type=click.Path(dir_okay=False, path_type=Path),
-              help="Ground-truth labels JSON (formats.md, 'Ground-truth labels') "
+              help="Ground-truth labels JSON (schemas/labels.schema.json) "
                    "[default: <stem>.labels.json beside the input].")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 @click.option("--sweep", is_flag=True,
