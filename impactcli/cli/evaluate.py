@@ -205,7 +205,7 @@ def _timeline_sweep(source: Path, doc: dict[str, Any], labels: Any, scales: tupl
 
 
 @click.command("evaluate")
-@click.argument("source", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+@click.argument("source", type=click.Path(dir_okay=False, path_type=Path),
                 metavar="TIMELINE|LOG")
 @click.option("--labels", "labels_path", default=None,
               type=click.Path(dir_okay=False, path_type=Path),

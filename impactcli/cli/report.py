@@ -266,7 +266,7 @@ def analyze_input(task: ReportTask) -> tuple[Any, Any, tuple[str, ...], ImpactEr
 
 @click.command("report")
 @click.argument("inputs", nargs=-1, required=True,
-                type=click.Path(exists=True, dir_okay=False, path_type=Path))
+                type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--output", "html_path", required=True,
               type=click.Path(dir_okay=False, path_type=Path), help="The HTML report to write.")
 @click.option("--json", "json_path", type=click.Path(dir_okay=False, path_type=Path),
