@@ -264,9 +264,23 @@ def analyze_input(task: ReportTask) -> tuple[Any, Any, tuple[str, ...], ImpactEr
     return result, lab, msgs, err
 
 
+def _local_inputs(patterns: Sequence[str]) -> tuple[Path, ...]:
+    """Inputs as local paths: globs expanded, ``file://`` URLs resolved; a remote URL is a
+    usage error (download it first: the report reads its logs beside the timelines)."""
+    from ..io.urls import expand_inputs, local_path
+
+    out = []
+    for item in expand_inputs(patterns):
+        local = local_path(item)
+        if local is None:
+            raise click.UsageError(f"{item}: report inputs must be local files or file:// "
+                                   "URLs (download remote ones first)")
+        out.append(local)
+    return tuple(out)
+
+
 @click.command("report")
-@click.argument("inputs", nargs=-1, required=True,
-                type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("inputs", nargs=-1, required=True)
 @click.option("-o", "--output", "html_path", required=True,
               type=click.Path(dir_okay=False, path_type=Path), help="The HTML report to write.")
 @click.option("--json", "json_path", type=click.Path(dir_okay=False, path_type=Path),
@@ -281,7 +295,7 @@ def analyze_input(task: ReportTask) -> tuple[Any, Any, tuple[str, ...], ImpactEr
 @log_read_options
 @executor_options
 @handle_errors
-def report_cmd(*, inputs: tuple[Path, ...], html_path: Path, json_path: Path | None,
+def report_cmd(*, inputs: tuple[str, ...], html_path: Path, json_path: Path | None,
                labels: tuple[Path, ...], no_auto_labels: bool, robot: Path | None,
                model: Path | None, config: Path | None, channel_map: str | None,
                topic: str | None, reference_topic: str | None, time_source: str | None,
@@ -301,6 +315,7 @@ def report_cmd(*, inputs: tuple[Path, ...], html_path: Path, json_path: Path | N
     from ..executors import TaskFailure, run_tasks
     from ..outputs.report import write_report
 
+    inputs = _local_inputs(inputs)
     explicit = pair_labels(inputs, labels)
     resolve_executor(jobs, scheduler)
     load_inputs(robot, model, config)  # a bad one stops the run before any work
@@ -338,8 +353,8 @@ def report_cmd(*, inputs: tuple[Path, ...], html_path: Path, json_path: Path | N
     results = [done[i][0] for i in sorted(done)]  # input order, whatever finished first
     labs = [done[i][1] for i in sorted(done)]
     failed = [(inputs[i], errors[i]) for i in sorted(errors)]
-    if not results:
-        raise failed[0][1]
+    if not results:  # every input failed: each was reported above; nothing is written
+        click.get_current_context().exit(failed[0][1].exit_code)
     write_report(results, html_path, json_path, labels=labs,
                  failed=[(str(p), str(e)) for p, e in failed])
     click.echo(f"impactcli: report of {len(results)} log(s) written to {html_path}"
