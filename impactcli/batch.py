@@ -27,8 +27,7 @@ import tempfile
 import time
 import traceback
 import warnings
-from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import Executor
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -261,23 +260,6 @@ def run_batch(jobs: Sequence[DetectJob], *, n_jobs: int | None = None,
             yield lost_outcome(jobs[i], res.reason, res.kind, res.traceback)
         else:
             yield res
-
-
-def run_jobs(
-    jobs: Sequence[DetectJob], n_jobs: int = 1,
-    executor_factory: Callable[[int], Executor] | None = None,
-) -> Iterator[JobOutcome]:
-    """Run jobs serially (``n_jobs`` ≤ 1) or on ``n_jobs`` local processes (kept for
-    callers of the first version; new code uses :func:`run_batch`)."""
-    if executor_factory is None:
-        yield from run_batch(jobs, n_jobs=n_jobs)
-        return
-    from concurrent.futures import as_completed
-
-    with executor_factory(min(n_jobs, len(jobs))) as ex:
-        futures = [ex.submit(run_detect_job, job) for job in jobs]
-        for fut in as_completed(futures):
-            yield fut.result()
 
 
 def batch_summary(outcomes: Sequence[JobOutcome], *, wall_s: float,

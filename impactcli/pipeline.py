@@ -219,14 +219,11 @@ def _analyze(
     log: RobotLog, model: RigidModel | None, cfg: DetectorConfig,
     robot: RobotDescription | None, read_options: dict[str, Any], model_from_log: bool = False,
 ) -> DetectionResult:
-    joints_in = log.joint_names
-    given = calibrated_thresholds(cfg, joints_in) if cfg.calibration.calibrated else None
     rp = replay(log, model, cfg, robot, model_from_log=model_from_log)
     log, ad, wu, r = rp.log, rp.adaptive, rp.warmup, rp.r
     joints = log.joint_names
     t = log.time_s
-    if given is not None:
-        given = calibrated_thresholds(cfg, joints)  # in the model's joint order
+    given = calibrated_thresholds(cfg, joints)  # None when not calibrated; model joint order
     if given is None:
         after = rp.stats_after_warmup()
         thr = {d: uncalibrated_thresholds(after[d]).thresholds for d in DETECTORS}

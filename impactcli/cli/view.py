@@ -15,7 +15,7 @@ import sys
 import tempfile
 import warnings
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import click
 
@@ -23,6 +23,7 @@ from ..errors import ImpactError, LogFormatError
 from ..outputs.decimate import DEFAULT_EVENT_WINDOW_S, DEFAULT_MAX_POINTS
 from ._common import handle_errors
 from .detect import log_read_options, model_options, read_options_from
+from .evaluate import analyze_log
 
 if TYPE_CHECKING:
     from ..result import DetectionResult
@@ -74,17 +75,6 @@ def open_viewer(path: Path) -> None:
                           "(no display? use --no-open --save PATH)")
 
 
-def analyze_log(path: Path, *, robot: Path | None, model: Path | None, config: Path | None,
-                read_options: dict[str, Any]) -> DetectionResult:
-    """Read ``path`` and replay the detectors on it, as ``detect`` does."""
-    from ..batch import analyze_file
-
-    return analyze_file(str(path), robot_path=None if robot is None else str(robot),
-                        model_path=None if model is None else str(model),
-                        config_path=None if config is None else str(config),
-                        read_options=read_options)
-
-
 @click.command("view")
 @click.argument("source", type=click.Path(dir_okay=True, path_type=Path))
 @model_options
@@ -124,7 +114,8 @@ def view_cmd(source: Path, robot: Path | None, model: Path | None,
     from ..outputs.rerun import write_rrd
 
     ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
-    result = analyze_log(source, robot=robot, model=model, config=config, read_options=ropts)
+    result: DetectionResult = analyze_log(source, robot=robot, model=model, config=config,
+                                          read_options=ropts)
     for msg in result.warnings:
         click.echo(f"impactcli: warning: {msg}", err=True)
     if save_path is not None:

@@ -247,7 +247,7 @@ def g_gain(theta_g: np.ndarray, freqs_hz: np.ndarray, fs_hz: float) -> np.ndarra
 
 # ----------------------------------------------------------------------------- kernels
 @nb.njit(cache=True, nogil=True, fastmath=FASTMATH)
-def _evaluate_axis(  # noqa: PLR0917 (numba kernels take positional arguments)
+def _evaluate_axis(
     r: np.ndarray, u: np.ndarray, eta: int, p: int, rho: np.ndarray,
     lam: float, p0: float, theta0: float, max_trace: float, a_post: bool,
     a1: float, a2: float, n1: int, n2: int, v_stat_j: float,
@@ -348,7 +348,7 @@ def _evaluate_axis(  # noqa: PLR0917 (numba kernels take positional arguments)
     return resets
 
 
-def _evaluate_numba(  # noqa: PLR0917
+def _evaluate_numba(
     r: np.ndarray, u: np.ndarray, eta: int, p: int, rho: np.ndarray,
     lam: float, p0: float, theta0: float, max_trace: float, a_post: bool,
     a1: float, a2: float, n1: int, n2: int, v_stat: np.ndarray, threads: int = 1,
