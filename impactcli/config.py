@@ -195,7 +195,8 @@ class CalibrationRecord:
 
     Attributes:
         calibrated: thresholds come from collision-free logs (False: defaults/robust rule).
-        margin_rule: ``leave-one-out``, ``fixed-single-log`` or ``uncalibrated-quantile``.
+        margin_rule: ``leave-one-out``, ``fixed-single-log`` or ``uncalibrated-block-quantile``
+            (recorded in an uncalibrated run's timeline; such a config stays uncalibrated).
         margins: detector → joint → margin applied to the statistic's maximum.
         logs: the collision-free logs used.
         model_sha256: sha256 of the model the thresholds belong to.

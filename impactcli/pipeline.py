@@ -11,15 +11,23 @@ Nothing here reads or writes files; everything it decided is in the result.
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from .config import DetectorConfig
+from .config import CalibrationRecord, DetectorConfig
 from .detect.adaptive import AdaptiveResult, evaluate, threshold_inputs
-from .detect.calibrate import adaptive_statistic, uncalibrated_thresholds
+from .detect.calibrate import (
+    UNCALIBRATED_BLOCK_S,
+    UNCALIBRATED_MARGIN,
+    UNCALIBRATED_QUANTILE,
+    UNCALIBRATED_RULE,
+    adaptive_statistic,
+    uncalibrated_thresholds,
+)
 from .detect.events import extract_events
 from .detect.static import causal_lowpass
 from .detect.warmup import Warmup, warmup_end
@@ -226,11 +234,19 @@ def _analyze(
     given = calibrated_thresholds(cfg, joints)  # None when not calibrated; model joint order
     if given is None:
         after = rp.stats_after_warmup()
-        thr = {d: uncalibrated_thresholds(after[d]).thresholds for d in DETECTORS}
+        cals = {d: uncalibrated_thresholds(after[d], log.sample_rate_hz) for d in DETECTORS}
+        thr = {d: c.thresholds for d, c in cals.items()}
+        cfg = dataclasses.replace(cfg, calibration=CalibrationRecord(
+            calibrated=False, margin_rule=UNCALIBRATED_RULE,
+            margins={d: {j: float(m) for j, m in zip(joints, c.margins, strict=True)}
+                     for d, c in cals.items()},
+        ))
         warnings.warn(
             f"{log.source.path}: uncalibrated run — thresholds set from this log's own "
-            "statistics (1.5 × 99.5 % quantile after warm-up); calibrate on collision-free "
-            "logs (impactcli calibrate) for a replay the robot could have run",
+            f"statistics ({UNCALIBRATED_MARGIN:g} × the {UNCALIBRATED_QUANTILE:g}-quantile of "
+            f"its {UNCALIBRATED_BLOCK_S:g} s maxima after warm-up): only contacts that stand "
+            "out well above its motion are found; calibrate on collision-free logs "
+            "(impactcli calibrate) for sensitivity and a replay the robot could have run",
             ImpactWarning, stacklevel=3,
         )
     else:

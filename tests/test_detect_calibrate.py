@@ -7,6 +7,7 @@ import pytest
 
 from impactcli.detect.calibrate import (
     adaptive_statistic,
+    block_maxima,
     calibrate_thresholds,
     leave_one_out_margins,
     uncalibrated_thresholds,
@@ -58,12 +59,49 @@ def test_single_log_and_negative_statistics() -> None:
     assert 0 < cal.thresholds[0] < 1e-3
 
 
-def test_uncalibrated_rule_ignores_a_short_contact() -> None:
-    rng = np.random.default_rng(5)
-    s = np.abs(rng.standard_normal((20_000, 1)))
-    s[1000:1050] += 20.0                                         # 0.25 % of samples
-    cal = uncalibrated_thresholds(s)
-    q = np.quantile(np.abs(rng.standard_normal(1_000_000)), 0.995)
-    assert cal.rule == "uncalibrated-quantile"
-    assert cal.thresholds[0] == pytest.approx(1.5 * q, rel=0.1)
-    assert cal.thresholds[0] < 20.0
+def _motion_like(n_s: float, fs: float, seed: int) -> np.ndarray:
+    """(N, 1) a collision-free-like statistic: noise plus a motion peak every 0.8 s."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(n_s * fs)) / fs
+    peaks = 4.0 * np.exp(-(((t % 0.8) - 0.4) / 0.02) ** 2)
+    return (np.abs(rng.standard_normal(t.size)) + peaks)[:, None]
+
+
+def test_uncalibrated_rule_covers_recurring_motion_peaks() -> None:
+    """A collision-free statistic whose peaks recur from second to second stays below."""
+    s = _motion_like(60.0, 250.0, 5)
+    cal = uncalibrated_thresholds(s, 250.0)
+    assert cal.rule == "uncalibrated-block-quantile"
+    assert cal.margins[0] == 3.0
+    level = np.quantile(block_maxima(s, 250), 0.9, axis=0)
+    assert cal.thresholds[0] == pytest.approx(3.0 * level[0])
+    assert s.max() < cal.thresholds[0]
+
+
+def test_uncalibrated_rule_ignores_contacts_in_few_blocks() -> None:
+    """Contacts in 5 of 60 one-second blocks neither set nor lift the threshold much."""
+    s = _motion_like(60.0, 250.0, 6)
+    free = uncalibrated_thresholds(s, 250.0).thresholds[0]
+    hit, contact = s.copy(), np.zeros(s.shape[0], bool)
+    for k in (5, 17, 29, 41, 53):                                # 0.3 s contacts of +30
+        contact[k * 250 + 50:k * 250 + 125] = True
+    hit[contact] += 30.0
+    thr = uncalibrated_thresholds(hit, 250.0).thresholds[0]
+    assert thr == pytest.approx(free, rel=0.15)
+    assert (hit[contact, 0] > thr).all() and (hit[~contact, 0] < thr).all()
+
+
+def test_uncalibrated_rule_on_short_logs() -> None:
+    """Blocks shrink to keep 10 of them; below 10 samples the maximum is the level."""
+    s = np.arange(100.0)[:, None]                                # 0.4 s at 250 Hz
+    cal = uncalibrated_thresholds(s, 250.0)
+    assert cal.maxima[0, 0] == pytest.approx(np.quantile(np.arange(9.0, 100.0, 10.0), 0.9))
+    tiny = uncalibrated_thresholds(np.array([[1.0], [2.0]]), 250.0)
+    assert tiny.thresholds[0] == pytest.approx(6.0)
+    with pytest.raises(ValueError, match="non-empty"):
+        uncalibrated_thresholds(np.zeros((0, 1)), 250.0)
+
+
+def test_block_maxima_keeps_a_short_last_block() -> None:
+    s = np.array([[1.0], [5.0], [2.0], [0.0], [7.0]])
+    assert block_maxima(s, 2)[:, 0].tolist() == [5.0, 2.0, 7.0]

@@ -34,6 +34,7 @@ import numpy as np
 
 from .. import TOOL_NAME, __version__
 from .._fs import atomic_write_text
+from ..detect.calibrate import UNCALIBRATED_BLOCK_S, UNCALIBRATED_MARGIN, UNCALIBRATED_QUANTILE
 from ..errors import ImpactError
 from ..result import DetectionResult
 from ..types import DETECTORS, Event, Labels
@@ -262,10 +263,13 @@ def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]
             {
                 "code": "uncalibrated",
                 "text": (
-                    "UNCALIBRATED: the thresholds were set from this log's own statistics, not "
-                    "calibrated on separate collision-free logs. The events below are not what the "
-                    "robot would have detected online; run `impactcli calibrate` on collision-free "
-                    "logs and re-run with --config."
+                    "UNCALIBRATED: the thresholds were set from this log's own statistics "
+                    f"({calib.get('margin_rule') or 'robust rule'}: {UNCALIBRATED_MARGIN:g} × the "
+                    f"{UNCALIBRATED_QUANTILE:g}-quantile of its {UNCALIBRATED_BLOCK_S:g} s "
+                    "maxima), not calibrated on separate collision-free logs. Only contacts "
+                    "standing well above the log's own motion are found, and the events below "
+                    "are not what the robot would have detected online; run `impactcli "
+                    "calibrate` on collision-free logs and re-run with --config."
                 ),
             }
         )
