@@ -5,6 +5,7 @@
     python tests/benchmarks/sample_quality.py --truth       # + true impact forces (re-simulated)
     python tests/benchmarks/sample_quality.py --on assist_free_triangle,assist_free_p2p
                                               # calibrate the ASSIST-like config on these
+    python tests/benchmarks/sample_quality.py --variants    # other residuals and low-passes
 
 Every contact log in ``sample_logs/csv`` is replayed with the thresholds of its arm's config
 (``sample_logs/assist_like.config.toml``, ``sample_logs/heavy_geared.config.toml``, made by
@@ -97,11 +98,45 @@ def labels_of(name: str) -> Labels:
     return read_labels(CSV / f"{name}.labels.json")
 
 
-def calibrate_on(names: Sequence[str]) -> DetectorConfig:
-    """What ``impactcli calibrate <names> --robot <first's robot>`` computes."""
+def calibrate_on(names: Sequence[str], config: DetectorConfig | None = None) -> DetectorConfig:
+    """What ``impactcli calibrate <names> --robot <first's robot> [--config C]`` computes."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return calibrate([read(n) for n in names], robot=robot_of(names[0]))
+        return calibrate([read(n) for n in names], robot=robot_of(names[0]), config=config)
+
+
+#: Design alternatives to the shipped residual and static-loading filter, each recalibrated
+#: on the same free logs (``--variants``): does any of them pass C1 on the clamps log
+#: without losing another criterion?
+VARIANTS: dict[str, dict[str, dict[str, object]]] = {
+    "shipped (rigid model, LP 2 Hz order 1)": {},
+    "LP 1 Hz order 1": {"static_loading": {"cutoff_hz": 1.0}},
+    "LP 2 Hz order 2": {"static_loading": {"order": 2}},
+    "LP 1 Hz order 2": {"static_loading": {"cutoff_hz": 1.0, "order": 2}},
+    "momentum observer K = 50/s": {"residual": {"generator": "momentum_observer"}},
+}
+
+
+def variants() -> None:
+    """Print the ASSIST-like criteria C1–C4 for each of :data:`VARIANTS`."""
+    import dataclasses
+
+    names = CALIBRATION_LOGS["assist_like"]
+    assist = [n for n, a in CONTACT_LOGS.items() if a == "assist_like"]
+    for label, change in VARIANTS.items():
+        base = DetectorConfig()
+        for section, fields in change.items():
+            base = dataclasses.replace(
+                base, **{section: dataclasses.replace(getattr(base, section), **fields)})
+        cfg = calibrate_on(names, base)
+        evals = {n: run(n, cfg)[1] for n in assist}
+        crit = [no_alarm_between_contacts(n, evals[n]) for n in assist]
+        crit += [impacts_within("assist_impacts", evals["assist_impacts"]),
+                 pushes_while_lasting("assist_pushes", evals["assist_pushes"]),
+                 clamps_by_static_loading("assist_clamps", evals["assist_clamps"])]
+        print(f"{label}: vL {', '.join(f'{v:.2f}' for v in cfg.thresholds.vL.values())} N·m")
+        for c in crit:
+            print(f"  {c.line()[:150]}")
 
 
 def run(name: str, config: DetectorConfig | None, *, model_from_log: bool = False
@@ -258,6 +293,38 @@ def contact_table(name: str, ev: Evaluation) -> str:
     return "\n".join(lines)
 
 
+def clamp_release_truth(res: DetectionResult, name: str = "assist_clamps",
+                        window_s: tuple[float, float] = (0.1, 1.4)) -> str:
+    """Re-simulate ``name`` and explain the static_loading alarms after clamp releases: per
+    release and joint, over ``window_s`` after the labelled end, the correlation between the
+    residual's error (r minus the true external torque, sign-aligned) and the transmission
+    deflection θ − q, and the largest |LP(error)| / vL."""
+    from impactcli.detect.static import causal_lowpass
+    from impactcli.sim.core import simulate
+    from impactcli.sim.samples import MANIFEST
+
+    entry = next(m for m in MANIFEST if m.name == name)
+    sim = simulate(entry.make(), seed=entry.seed)
+    t, te = sim.truth["time_s"], sim.truth["tau_ext"]
+    r = res.signals["residual"]
+    sign = -1.0 if float(np.sum(r * te)) < 0 else 1.0
+    err = r - sign * te
+    cfg = res.config["static_loading"]
+    lp = np.abs(causal_lowpass(err, cfg["cutoff_hz"], res.log.sample_rate_hz, cfg["order"]))
+    vl = np.array([res.thresholds[j]["vL"] for j in res.log.joint_names])
+    defl = sim.truth["x1"] - sim.truth["x2"]
+    out = [f"{name}: re-simulated; after each release ({window_s[0]}–{window_s[1]} s after "
+           "the labelled end): corr(residual error, θ − q) and max |LP(error)| / vL per joint"]
+    for c in labels_of(name).events:
+        w = (t > c.end + window_s[0]) & (t < c.end + window_s[1])
+        parts = []
+        for k, j in enumerate(res.log.joint_names):
+            rho = np.corrcoef(defl[w, k], err[w, k])[0, 1]
+            parts.append(f"{j} corr {rho:+.2f}, {lp[w, k].max() / vl[k]:.2f}× vL")
+        out.append(f"  {c.peak_force:4.0f} N clamp ending {c.end:6.2f} s: " + "; ".join(parts))
+    return "\n".join(out)
+
+
 def impact_truth(name: str = "assist_impacts", after_s: float = IMPACT_DELAY_S) -> str:
     """Re-simulate ``name`` (sample manifest, same seed) and give, per impact, the true
     contact force ``after_s`` after the labelled onset and the time to reach 20 N."""
@@ -292,8 +359,15 @@ def main(argv: list[str] | None = None) -> int:
                     "(implies --calibrate)")
     ap.add_argument("--truth", action="store_true",
                     help="re-simulate assist_impacts for the true force at onset + 80 ms")
+    ap.add_argument("--variants", action="store_true",
+                    help="C1–C4 for alternative residual generators and static-loading "
+                    "low-passes, each recalibrated (then exit)")
     args = ap.parse_args(argv)
     t_all = time.perf_counter()
+    if args.variants:
+        variants()
+        print(f"\ntotal {time.perf_counter() - t_all:.1f} s")
+        return 0
     cal = dict(CALIBRATION_LOGS)
     if args.on:
         cal["assist_like"] = tuple(args.on.split(","))
@@ -351,6 +425,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.truth:
         print()
         print(impact_truth())
+        print(clamp_release_truth(results["assist_clamps"]))
     print(f"\nmachine: {platform.platform()}, {platform.processor() or platform.machine()}, "
           f"{os.cpu_count()} CPUs; python {sys.version.split()[0]}; "
           f"total {time.perf_counter() - t_all:.1f} s")
