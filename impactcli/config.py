@@ -37,7 +37,8 @@ from .schema import validate
 TABLE_I_V_STAT: tuple[float, float] = (0.45, 0.2)
 
 ESTIMATES = ("a_priori", "a_posteriori")
-GENERATORS = ("rigid_model", "momentum_observer")
+#: Older spelling of ``inverse_dynamics`` still read from config files (written as the new).
+GENERATOR_ALIASES = {"rigid_model": "inverse_dynamics"}
 
 
 @dataclass(frozen=True)
@@ -133,14 +134,15 @@ class ResidualConfig:
     """Residual generation options (used by the residual generator, not by detect/).
 
     Attributes:
-        generator: ``rigid_model`` (eq. 7–8) or ``momentum_observer``.
+        generator: ``inverse_dynamics`` (eq. 7–8; ``rigid_model`` is read as it) or
+            ``momentum_observer`` — the names the timeline and model use.
         derivative_cutoff_hz: causal low-pass of the estimated velocity/acceleration [Hz].
         filter_torque: pass the measured torque through the same causal filter as the
             estimate (method.md §8: lowers the residual's high-frequency floor 2–5×).
         observer_gain: momentum-observer gain K [1/s].
     """
 
-    generator: str = "rigid_model"
+    generator: str = "inverse_dynamics"
     derivative_cutoff_hz: float = 15.0
     filter_torque: bool = True
     observer_gain: float = 50.0
@@ -279,11 +281,15 @@ def _build(d: dict[str, Any], where: str) -> DetectorConfig:
     c["margins"] = {
         k: {str(j): float(v) for j, v in m.items()} for k, m in c.get("margins", {}).items()
     }
+    residual = dict(d.get("residual", {}))
+    if "generator" in residual:
+        residual["generator"] = GENERATOR_ALIASES.get(residual["generator"],
+                                                      residual["generator"])
     return DetectorConfig(
         adaptive=adaptive,
         thresholds=thresholds,
         static_loading=StaticLoadingConfig(**d.get("static_loading", {})),
-        residual=ResidualConfig(**d.get("residual", {})),
+        residual=ResidualConfig(**residual),
         events=EventsConfig(**d.get("events", {})),
         warmup=WarmupConfig(**d.get("warmup", {})),
         calibration=CalibrationRecord(**c),

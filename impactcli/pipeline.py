@@ -36,16 +36,12 @@ from .model import IdentifyOptions, ResidualOptions, RigidModel, compute_residua
 from .result import DetectionResult
 from .types import DETECTORS, RobotDescription, RobotLog
 
-#: config ``residual.generator`` → the model package's generator name
-_GENERATOR = {"rigid_model": "inverse_dynamics", "inverse_dynamics": "inverse_dynamics",
-              "momentum_observer": "momentum_observer"}
-
 
 def residual_options(cfg: DetectorConfig) -> ResidualOptions:
     """The residual generator's options from the detector config."""
     rc = cfg.residual
     return ResidualOptions(cutoff_hz=rc.derivative_cutoff_hz, filter_torque=rc.filter_torque,
-                           generator=_GENERATOR[rc.generator], observer_gain=rc.observer_gain)
+                           generator=rc.generator, observer_gain=rc.observer_gain)
 
 
 def reorder_log(log: RobotLog, joints: tuple[str, ...], what: str) -> RobotLog:

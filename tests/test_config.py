@@ -56,6 +56,18 @@ def test_round_trip(tmp_path: Path, suffix: str) -> None:
     assert load_config(path) == DetectorConfig()
 
 
+def test_generator_names_match_the_timeline_and_the_old_name_is_read(tmp_path: Path) -> None:
+    """Config, model and timeline say ``inverse_dynamics``; ``rigid_model`` (the name
+    configs were written with before) loads as it and is written back as the new name."""
+    assert DetectorConfig().residual.generator == "inverse_dynamics"
+    old = tmp_path / "old.toml"
+    old.write_text('[residual]\ngenerator = "rigid_model"\n', encoding="utf-8")
+    cfg = load_config(old)
+    assert cfg.residual.generator == "inverse_dynamics"
+    save_config(cfg, tmp_path / "new.toml")
+    assert 'generator = "inverse_dynamics"' in (tmp_path / "new.toml").read_text("utf-8")
+
+
 def test_example_file_is_valid() -> None:
     cfg = load_config(EXAMPLE)
     assert cfg.thresholds.v_stat == {"shoulder": 0.45, "elbow": 0.2}
