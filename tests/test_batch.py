@@ -157,3 +157,19 @@ def test_local_path_and_names() -> None:
     assert urls.local_path("rel/a.csv") == Path("rel/a.csv")
     assert batch.output_stem("s3://bucket/day1/run7.csv.gz") == "run7"
     assert urls.join_url("s3://b/out/", "x.json") == "s3://b/out/x.json"
+
+
+def test_detect_out_that_is_a_file_is_a_usage_error(tmp_path: Path) -> None:
+    """``-o`` naming an existing regular file: exit 2 naming -o, before any log is read,
+    and the file is left as it was."""
+    from click.testing import CliRunner
+
+    from impactcli.cli import main
+
+    target = tmp_path / "taken"
+    target.write_text("keep", encoding="utf-8")
+    r = CliRunner().invoke(main, ["detect", str(tmp_path / "missing.csv"), "-o", str(target)])
+    assert r.exit_code == 2
+    assert "'-o'" in r.stderr and "exists and is not a folder" in r.stderr
+    assert "missing.csv" not in r.stderr and "Traceback" not in r.stderr
+    assert target.read_text(encoding="utf-8") == "keep"

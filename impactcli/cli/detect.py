@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -188,6 +189,9 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
         raise click.UsageError(str(err)) from None
     if model_from_log and model is not None:
         raise click.UsageError("--model and --model-from-log exclude each other")
+    local_out = out_dir[len("file://"):] if out_dir.startswith("file://") else out_dir
+    if "://" not in local_out and os.path.exists(local_out) and not os.path.isdir(local_out):
+        raise click.BadParameter(f"{out_dir!r} exists and is not a folder", param_hint="'-o'")
     choice = resolve_executor(jobs, scheduler)
     preload(robot, model, config)
     ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
