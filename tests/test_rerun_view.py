@@ -56,6 +56,8 @@ def test_no_open_only_checks_and_save_copies(rrd: Path, tmp_path: Path) -> None:
     r = run(str(rrd), "--no-open", "--save", str(out))
     assert r.exit_code == 0, explain(r)
     assert out.read_bytes() == rrd.read_bytes()
+    assert r.stdout.strip() == str(out)
+    assert "readable Rerun recording" in r.stderr and "not opened" in r.stderr
 
 
 @pytest.mark.parametrize("content", [None, b"", b"not a rerun file at all", "truncated"])

@@ -103,7 +103,13 @@ def view_cmd(source: Path, robot: Path | None, model: Path | None,
         if save_path is not None and save_path.resolve() != source.resolve():
             save_path.parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(source, save_path)
-        if not no_open:
+        if save_path is not None and save_path.resolve() != source.resolve():
+            click.echo(str(save_path))
+        if no_open:
+            click.echo(f"impactcli: {source}: a readable Rerun recording "
+                       f"({source.stat().st_size / 1e6:.1f} MB); not opened (--no-open)",
+                       err=True)
+        else:
             open_viewer(source)
         return
     if not source.exists():
