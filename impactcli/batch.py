@@ -77,7 +77,8 @@ class JobOutcome:
         exit_code: what a one-log run would exit with (failed jobs).
         error_class: ``data``, ``io``, ``worker-lost`` or ``internal`` (module docstring).
         attempts: tries made (> 1 after transient I/O errors).
-        traceback: for ``internal`` errors.
+        traceback: of the error (printed for ``internal`` errors, for the others with
+            ``--debug``; never in the batch summary).
     """
 
     log_path: str
@@ -130,16 +131,17 @@ def run_detect_job(job: DetectJob) -> JobOutcome:
             transient = is_transient(err)
             return JobOutcome(job.log_path, False, error=_with_tries(str(err), transient),
                               exit_code=err.exit_code, error_class="io" if transient else "data",
-                              warnings=_msgs(caught), attempts=attempts)
+                              warnings=_msgs(caught), attempts=attempts, traceback=_tb(err))
         except OSError as err:
             where = getattr(err, "filename", None) or job.log_path
             why = err.strerror or str(err) or type(err).__name__
             msg = _with_tries(f"{job.log_path}: I/O error on {where}: {why}",
                               is_transient(err) and attempts > IO_RETRIES)
             return JobOutcome(job.log_path, False, error=msg, exit_code=EXIT_DATA,
-                              error_class="io", warnings=_msgs(caught), attempts=attempts)
+                              error_class="io", warnings=_msgs(caught), attempts=attempts,
+                              traceback=_tb(err))
         except Exception as err:
-            tb = "".join(traceback.format_exception(type(err), err, err.__traceback__))
+            tb = _tb(err)
             return JobOutcome(job.log_path, False,
                               error=f"{job.log_path}: internal error (a bug): "
                                     f"{type(err).__name__}: {err}",
@@ -153,6 +155,10 @@ def _with_tries(msg: str, transient: bool) -> str:
     from .io.urls import IO_RETRIES
 
     return f"{msg} (after {IO_RETRIES} retries)" if transient else msg
+
+
+def _tb(err: BaseException) -> str:
+    return "".join(traceback.format_exception(type(err), err, err.__traceback__))
 
 
 def _msgs(caught: list[warnings.WarningMessage]) -> tuple[str, ...]:

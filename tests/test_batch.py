@@ -173,3 +173,21 @@ def test_detect_out_that_is_a_file_is_a_usage_error(tmp_path: Path) -> None:
     assert "'-o'" in r.stderr and "exists and is not a folder" in r.stderr
     assert "missing.csv" not in r.stderr and "Traceback" not in r.stderr
     assert target.read_text(encoding="utf-8") == "keep"
+
+
+def test_debug_shows_a_failed_logs_traceback_in_a_batch(tmp_path: Path) -> None:
+    """A bad log in a batch: one error line without --debug; its traceback with it."""
+    from click.testing import CliRunner
+
+    from impactcli.cli import main
+
+    bad = tmp_path / "bad.csv"
+    bad.write_text("time,j1.position\nnot,a number\n", encoding="utf-8")
+    args = ["detect", str(bad), str(tmp_path / "gone.csv"), "-o", str(tmp_path / "out")]
+    plain = CliRunner().invoke(main, args)
+    assert plain.exit_code == 4
+    assert "Traceback" not in plain.stderr
+    assert sum(line.startswith("impactcli: error: ") for line in plain.stderr.splitlines()) == 2
+    debug = CliRunner().invoke(main, ["--debug", *args])
+    assert debug.exit_code == 4
+    assert debug.stderr.count("Traceback (most recent call last)") == 2

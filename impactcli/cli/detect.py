@@ -203,7 +203,7 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     try:
         stream = run_batch(job_list, n_jobs=jobs, scheduler=scheduler)
         for outcome in progress(stream, total=len(job_list), desc="detect"):
-            _echo_outcome(outcome, debug or len(job_list) == 1)
+            _echo_outcome(outcome, debug, len(job_list) == 1)
             outcomes.append(outcome)
     except OSError as err:  # the Dask scheduler cannot be reached
         fail_usage(f"cannot use {choice.describe()}: {err}")
@@ -232,8 +232,9 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
         ctx.exit(EXIT_DETECTED)
 
 
-def _echo_outcome(outcome: Any, show_traceback: bool) -> None:
-    """Warnings and the error of one finished log, on stderr."""
+def _echo_outcome(outcome: Any, debug: bool, single: bool) -> None:
+    """Warnings and the error of one finished log, on stderr; its traceback with --debug,
+    or for a bug (``internal``) in a one-log run."""
     from ..io.urls import url_name
 
     name = url_name(outcome.log_path)
@@ -242,7 +243,7 @@ def _echo_outcome(outcome: Any, show_traceback: bool) -> None:
                    err=True)
     if not outcome.ok:
         click.echo(f"impactcli: error: {outcome.error}", err=True)
-        if outcome.traceback and show_traceback:
+        if outcome.traceback and (debug or (single and outcome.error_class == "internal")):
             click.echo(outcome.traceback.rstrip(), err=True)
 
 
