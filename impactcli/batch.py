@@ -69,7 +69,8 @@ class JobOutcome:
     Attributes:
         log_path: the log as given (path or URL).
         ok: whether the outputs were written.
-        summary: ``log``, ``duration_s``, ``joints``, ``calibrated``, ``warmup_end_s`` and
+        summary: ``log``, ``sha256``, ``model_source``, ``model_sha256``, ``duration_s``,
+            ``joints``, ``calibrated``, ``warmup_end_s`` and
             the events after warm-up per detector (ok jobs).
         outputs: files (or URLs) written.
         warnings: the run's warnings (ImpactWarning messages, deduplicated).
@@ -205,6 +206,9 @@ def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ..
         outputs = _write_remote(result, job.out_dir, stem, job)
     summary = {
         "log": job.log_path,
+        "sha256": log.source.sha256,
+        "model_source": result.model_source,
+        "model_sha256": result.model_sha256,
         "duration_s": log.duration_s,
         "joints": len(log.joint_names),
         "calibrated": result.calibrated,
@@ -269,18 +273,21 @@ def run_batch(jobs: Sequence[DetectJob], *, n_jobs: int | None = None,
 
 
 def batch_summary(outcomes: Sequence[JobOutcome], *, wall_s: float,
-                  executor: dict[str, Any] | None = None) -> dict[str, Any]:
+                  executor: dict[str, Any] | None = None,
+                  inputs: dict[str, dict[str, str]] | None = None) -> dict[str, Any]:
     """The batch summary (``detect --summary``) as a JSON-ready mapping.
 
     Args:
         outcomes: one per input, in input order.
         wall_s: wall-clock time of the batch [s].
         executor: :meth:`impactcli.executors.ExecutorChoice.to_dict` of where it ran.
+        inputs: ``robot``/``model``/``config`` → {path, sha256}, those given.
     Returns:
-        ``logs`` {total, done, failed}; ``events`` per detector (after warm-up, summed);
-        ``hours_analysed`` [h of log]; ``wall_s``; ``throughput`` {logs_per_s,
-        log_hours_per_s}; ``results`` (per-log rows); ``failures`` (file, reason,
-        exit_code, class, attempts).
+        The mapping ``schemas/batch_summary.schema.json`` describes: ``schema_version``,
+        ``tool``, ``executor``, ``inputs``; ``logs`` {total, done, failed}; ``events`` per
+        detector (after warm-up, summed); ``hours_analysed`` [h of log]; ``wall_s``;
+        ``throughput`` {logs_per_s, log_hours_per_s}; ``results`` (per-log rows);
+        ``failures`` (file, reason, exit_code, class, attempts).
     """
     from . import TOOL_NAME, __version__
 
@@ -295,6 +302,7 @@ def batch_summary(outcomes: Sequence[JobOutcome], *, wall_s: float,
         "schema_version": SUMMARY_SCHEMA_VERSION,
         "tool": {"name": TOOL_NAME, "version": __version__},
         "executor": executor or {"kind": "serial"},
+        "inputs": inputs or {},
         "logs": {"total": len(outcomes), "done": len(ok), "failed": len(failed)},
         "events": {d: sum(int(o.summary.get(d, 0)) for o in ok) for d in DETECTORS},
         "hours_analysed": hours,

@@ -20,6 +20,7 @@ import pytest
 from click.testing import CliRunner, Result
 
 from impactcli.cli import main
+from impactcli.errors import ImpactError
 from impactcli.executors import (
     DaskMissingError,
     ExecutorChoice,
@@ -28,6 +29,7 @@ from impactcli.executors import (
     make_executor,
     run_tasks,
 )
+from impactcli.schema import validate
 
 distributed = pytest.importorskip("distributed")  # CI installs the dask extra
 
@@ -133,7 +135,10 @@ def test_serial_jobs_and_cluster_give_byte_identical_timelines(
         assert r.exit_code == 0, _msg(r)
         outs[name] = _timelines(out)
         doc = json.loads(summary.read_text())
+        validate(doc, "batch_summary", ImpactError, str(summary))
         assert doc["logs"] == {"total": N_LOGS, "done": N_LOGS, "failed": 0}
+        assert {Path(r["log"]).name: r["sha256"] for r in doc["results"]} == {
+            p.name: _sha(p) for p in fleet["logs"]}
         assert doc["executor"]["kind"] == {"serial": "serial", "jobs2": "processes",
                                            "dask": "dask"}[name]
         assert doc["hours_analysed"] == pytest.approx(N_LOGS * DURATION_S / 3600, rel=1e-3)
@@ -162,6 +167,7 @@ def test_a_corrupt_log_is_reported_while_the_others_complete(
     assert r.exit_code == 4, _msg(r)
     assert sorted(_timelines(out)) == ["run0.timeline.json", "run1.timeline.json"]
     doc = json.loads(summary.read_text())
+    validate(doc, "batch_summary", ImpactError, str(summary))
     assert doc["logs"] == {"total": 4, "done": 2, "failed": 2}
     fails = {Path(f["file"]).name: f for f in doc["failures"]}
     assert set(fails) == {"corrupt.csv.gz", "missing.csv"}
@@ -274,7 +280,11 @@ def test_remote_url_in_and_url_prefix_out(fleet: dict[str, Any], tmp_path: Path)
         ref = json.loads((local / "run2.timeline.json").read_text())
         assert tl["events"] == ref["events"]
         doc = json.loads(fs.cat("/bucket/out/summary.json"))
+        validate(doc, "batch_summary", ImpactError, summary)
         assert doc["results"][0]["outputs"] == ["memory://bucket/out/run2.timeline.json"]
+        assert doc["inputs"] == {"model": {"path": "memory://bucket/cfg/model.json",
+                                           "sha256": _sha(fleet["model"])}}
+        assert doc["results"][0]["model_source"] == "given"
         missing = run(["detect", "memory://bucket/in/none.csv.gz", "-o", str(tmp_path / "o")])
         assert missing.exit_code == 3, _msg(missing)
         assert "memory://bucket/in/none.csv.gz: log file not found" in missing.stderr

@@ -116,19 +116,29 @@ def fail_usage(msg: str) -> None:
 
 
 def preload(robot: str | Path | None, model: str | Path | None,
-            config: str | Path | None) -> None:
-    """Read robot, model and config once up front: a bad one stops the run before any work."""
+            config: str | Path | None) -> dict[str, dict[str, str]]:
+    """Read robot, model and config once up front: a bad one stops the run before any work.
+
+    Returns ``{"robot"|"model"|"config": {"path", "sha256"}}`` for those given (the batch
+    summary's provenance).
+    """
+    from .._fs import sha256_file
     from ..config import load_config
     from ..io.robot import read_robot
     from ..io.urls import load_by_url
     from ..model import read_model
 
-    if robot is not None:
-        load_by_url(str(robot), read_robot, "robot description")
-    if model is not None:
-        load_by_url(str(model), read_model, "model")
-    if config is not None:
-        load_by_url(str(config), load_config, "config")
+    out: dict[str, dict[str, str]] = {}
+    for key, path, loader, what in (("robot", robot, read_robot, "robot description"),
+                                    ("model", model, read_model, "model"),
+                                    ("config", config, load_config, "config")):
+        if path is not None:
+            def load(lp: Path, loader: Callable[[Path], Any] = loader) -> str:
+                loader(lp)
+                return sha256_file(lp)
+
+            out[key] = {"path": str(path), "sha256": load_by_url(str(path), load, what)}
+    return out
 
 
 def _fmt_row(s: dict[str, Any]) -> str:
@@ -193,7 +203,7 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     if "://" not in local_out and os.path.exists(local_out) and not os.path.isdir(local_out):
         raise click.BadParameter(f"{out_dir!r} exists and is not a folder", param_hint="'-o'")
     choice = resolve_executor(jobs, scheduler)
-    preload(robot, model, config)
+    inputs = preload(robot, model, config)
     ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
     job_list = [DetectJob(p, out_dir, ropts, robot, model, config, signals, rerun,
                           model_from_log) for p in paths]
@@ -211,7 +221,8 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     order = {p: i for i, p in enumerate(paths)}
     outcomes.sort(key=lambda o: order[o.log_path])
     summary = batch_summary(outcomes, wall_s=wall,
-                            executor={**choice.to_dict(), "description": choice.describe()})
+                            executor={**choice.to_dict(), "description": choice.describe()},
+                            inputs=inputs)
     _echo_table(outcomes, summary, out_dir)
     if summary_path is not None:
         import json
