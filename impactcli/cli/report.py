@@ -215,7 +215,8 @@ def auto_labels(inp: Path, log_path: Path | None) -> Path | None:
 
 @dataclass(frozen=True)
 class ReportTask:
-    """One report input for a worker (picklable: paths and plain values)."""
+    """One report input for a worker (picklable: paths and plain values); ``key`` is its
+    input index."""
 
     inp: str
     labels: str | None
@@ -224,6 +225,18 @@ class ReportTask:
     model: str | None
     config: str | None
     read_options: dict[str, Any]
+    key: int = 0
+
+
+@dataclass(frozen=True)
+class ReportPart:
+    """What a worker sends back: the rendered log (small — never the per-sample signals),
+    the run's own warnings, the warnings raised on the way, or the error."""
+
+    rendered: Any
+    run_warnings: tuple[str, ...]
+    messages: tuple[str, ...]
+    error: ImpactError | None
 
 
 @functools.lru_cache(maxsize=8)
@@ -233,16 +246,19 @@ def _loaded(robot: str | None, model: str | None, config: str | None) -> tuple[A
                        Path(config) if config else None)
 
 
-def analyze_input(task: ReportTask) -> tuple[Any, Any, tuple[str, ...], ImpactError | None]:
-    """Analyse one report input in any worker: (result, labels, warnings, error).
+def analyze_input(task: ReportTask) -> ReportPart:
+    """Analyse and render one report input in any worker.
 
     A LOG is detected, a TIMELINE re-run (:func:`rerun_timeline`); the labels are the given
-    file, else ``<stem>.labels.json`` found beside it when ``auto_labels``. Warnings raised
-    on the way come back as messages; an ImpactError comes back as the error.
+    file, else ``<stem>.labels.json`` found beside it when ``auto_labels``; the log's section
+    is rendered here (:func:`impactcli.outputs.report.render_log`), so only it travels back.
+    Warnings raised on the way come back as messages; an ImpactError comes back as the error.
     """
     from ..io.robot import read_labels
+    from ..outputs.report import render_log
 
     inp = Path(task.inp)
+    rendered, run_warnings, err = None, (), None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ImpactWarning)
         try:
@@ -257,11 +273,11 @@ def analyze_input(task: ReportTask) -> tuple[Any, Any, tuple[str, ...], ImpactEr
             if lab_path is None and task.auto_labels:
                 lab_path = auto_labels(inp, log_path)
             lab = read_labels(lab_path) if lab_path is not None else None
-            err = None
+            rendered, run_warnings = render_log(result, lab, task.key), result.warnings
         except ImpactError as e:
-            result, lab, err = None, None, e
+            err = e
     msgs = tuple(str(w.message) for w in caught if issubclass(w.category, ImpactWarning))
-    return result, lab, msgs, err
+    return ReportPart(rendered, tuple(run_warnings), msgs, err)
 
 
 def _local_inputs(patterns: Sequence[str]) -> tuple[Path, ...]:
@@ -328,9 +344,9 @@ def report_cmd(*, inputs: tuple[str, ...], html_path: Path, json_path: Path | No
                       stacklevel=2)
     tasks = [ReportTask(str(inp), str(lab) if lab is not None else None, not no_auto_labels,
                         str(robot) if robot else None, str(model) if model else None,
-                        str(config) if config else None, ropts)
-             for inp, lab in zip(inputs, explicit, strict=True)]
-    done: dict[int, tuple[Any, Any]] = {}
+                        str(config) if config else None, ropts, k)
+             for k, (inp, lab) in enumerate(zip(inputs, explicit, strict=True))]
+    done: dict[int, Any] = {}
     errors: dict[int, ImpactError] = {}
     stream = run_tasks(analyze_input, tasks, jobs=jobs, scheduler=scheduler)
     for i, res in progress(stream, total=len(tasks), desc="report"):
@@ -340,22 +356,20 @@ def report_cmd(*, inputs: tuple[str, ...], html_path: Path, json_path: Path | No
                 click.echo(res.traceback.rstrip(), err=True)
             errors[i] = ImpactError(f"{inputs[i]}: {res.reason}")
             continue
-        result, lab, msgs, err = res
-        for m in msgs:
+        for m in res.messages:
             click.echo(f"impactcli: warning: {m}", err=True)
-        if err is not None:
-            click.echo(f"impactcli: error: {err}", err=True)
-            errors[i] = err
+        if res.error is not None:
+            click.echo(f"impactcli: error: {res.error}", err=True)
+            errors[i] = res.error
             continue
-        for w in result.warnings:
+        for w in res.run_warnings:
             click.echo(f"impactcli: warning: {w}", err=True)
-        done[i] = (result, lab)
-    results = [done[i][0] for i in sorted(done)]  # input order, whatever finished first
-    labs = [done[i][1] for i in sorted(done)]
+        done[i] = res.rendered
+    results = [done[i] for i in sorted(done)]  # input order, whatever finished first
     failed = [(inputs[i], errors[i]) for i in sorted(errors)]
     if not results:  # every input failed: each was reported above; nothing is written
         click.get_current_context().exit(failed[0][1].exit_code)
-    write_report(results, html_path, json_path, labels=labs,
+    write_report(results, html_path, json_path,
                  failed=[(str(p), str(e)) for p, e in failed])
     click.echo(f"impactcli: report of {len(results)} log(s) written to {html_path}"
                + (f" and {json_path}" if json_path else ""), err=True)

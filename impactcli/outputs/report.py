@@ -465,21 +465,15 @@ def _quality_summary(q: dict[str, Any] | None) -> dict[str, Any] | None:
 
 
 def report_dict(
-    results: Sequence[DetectionResult],
-    labels: Sequence[Labels | None] | None = None,
-    failed: Sequence[tuple[str, str]] = (),
+    sections: Sequence[dict[str, Any]], failed: Sequence[tuple[str, str]] = ()
 ) -> dict[str, Any]:
     """The report as a JSON-ready mapping (schemas/report.schema.json).
 
     Args:
-        results: one detection result per log, in report order.
-        labels: None, or one ``Labels | None`` per result (same order).
+        sections: one :func:`log_section` per log, in report order.
         failed: (input path, one-line error) of inputs that could not be analysed.
     """
-    labs = list(labels) if labels is not None else [None] * len(results)
-    if len(labs) != len(results):
-        raise ValueError(f"{len(labs)} labels for {len(results)} results")
-    logs = [log_section(r, lab) for r, lab in zip(results, labs, strict=True)]
+    logs = list(sections)
     doc = {
         "schema_version": SCHEMA_VERSION,
         "tool": {"name": TOOL_NAME, "version": __version__},
@@ -565,7 +559,8 @@ BAND_LABEL = "#fde7cf"
 
 
 def _e(x: Any) -> str:
-    return html.escape(str(x), quote=True)
+    """HTML-escaped text (NUL dropped: not valid in HTML, and it marks NUM_TOKEN)."""
+    return html.escape(str(x).replace("\x00", ""), quote=True)
 
 
 def _f(v: Any, digits: int = 3) -> str:
@@ -752,14 +747,16 @@ def _generic_fit_table(fit: dict[str, Any], joints: Sequence[str]) -> str:
 
 
 class _Ids:
-    """Deterministic ids for SVG clip paths (unique in the document)."""
+    """Deterministic ids for SVG clip paths, unique in the document: one counter per log
+    section, prefixed by the log's input index."""
 
-    def __init__(self) -> None:
+    def __init__(self, prefix: str = "") -> None:
+        self.prefix = prefix
         self.n = 0
 
     def __call__(self) -> str:
         self.n += 1
-        return f"clip{self.n}"
+        return f"clip{self.prefix}{self.n}"
 
 
 def _bands(
@@ -841,12 +838,13 @@ def _clusters(events: Sequence[Event]) -> list[list[int]]:
 
 
 def _section_html(
-    k: int, result: DetectionResult, sec: dict[str, Any], labels: Labels | None, ids: _Ids
+    num: str, result: DetectionResult, sec: dict[str, Any], labels: Labels | None, ids: _Ids
 ) -> str:
+    """One log's section; ``num`` is its number in the report (or :data:`NUM_TOKEN`)."""
     inp = sec["input"]
     joints = list(inp["joints"])
-    anchor = f"log{k + 1}"
-    p: list[str] = [f'<section class="log" id="{anchor}">', f"<h2>{k + 1}. {_e(sec['stem'])}</h2>"]
+    anchor = f"log{num}"
+    p: list[str] = [f'<section class="log" id="{anchor}">', f"<h2>{num}. {_e(sec['stem'])}</h2>"]
     # caveats first
     p.append('<div class="caveats"><h3>Caveats — read before the numbers</h3><ul>')
     p.extend(f"<li>{_e(c['text'])}</li>" for c in sec["caveats"])
@@ -1334,15 +1332,34 @@ def _summary_html(doc: dict[str, Any]) -> str:
     )
 
 
-def render_html(
-    doc: dict[str, Any],
-    results: Sequence[DetectionResult],
-    labels: Sequence[Labels | None] | None = None,
-) -> str:
-    """The self-contained HTML report (inline CSS and SVG only: nothing fetched)."""
-    labs = list(labels) if labels is not None else [None] * len(results)
-    ids = _Ids()
-    n = len(results)
+#: Stands for a log's number in a section rendered before the report is assembled (a
+#: worker does not know which inputs will fail); NUL never occurs in escaped text.
+NUM_TOKEN = "\x00num\x00"
+
+
+@dataclasses.dataclass(frozen=True)
+class RenderedLog:
+    """One log, rendered: its JSON facts and its HTML section (numbered by NUM_TOKEN).
+
+    What a report worker returns instead of the whole :class:`DetectionResult` (whose
+    per-sample signals dominate memory), so a fleet report holds only these.
+    """
+
+    section: dict[str, Any]
+    html: str
+
+
+def render_log(result: DetectionResult, labels: Labels | None = None,
+               key: int = 0) -> RenderedLog:
+    """Render one log (``key``: its input index, which keeps SVG ids unique)."""
+    sec = log_section(result, labels)
+    return RenderedLog(sec, _section_html(NUM_TOKEN, result, sec, labels, _Ids(f"{key}-")))
+
+
+def render_html(doc: dict[str, Any], sections: Sequence[str]) -> str:
+    """The self-contained HTML report (inline CSS and SVG only: nothing fetched) from the
+    JSON mapping and each log's section (from :func:`render_log`)."""
+    n = len(sections)
     toc = "".join(
         f'<li><a href="#log{k + 1}">{_e(s["stem"])}</a></li>' for k, s in enumerate(doc["logs"])
     )
@@ -1389,10 +1406,18 @@ def render_html(
         "to a false alarm.</p>"
     )
     parts.append(f"<nav><b>Logs</b><ol>{toc}</ol></nav>")
-    for k, (r, sec, lab) in enumerate(zip(results, doc["logs"], labs, strict=True)):
-        parts.append(_section_html(k, r, sec, lab, ids))
+    parts.extend(html_k.replace(NUM_TOKEN, str(k + 1)) for k, html_k in enumerate(sections))
     parts.append("</body></html>\n")
     return "\n".join(parts)
+
+
+def assemble_report(
+    rendered: Sequence[RenderedLog], failed: Sequence[tuple[str, str]] = ()
+) -> tuple[str, dict[str, Any]]:
+    """``(html, doc)`` from rendered logs (report order = given order) and failed inputs
+    ((input path, one-line error), listed in the summary)."""
+    doc = report_dict([r.section for r in rendered], failed)
+    return render_html(doc, [r.html for r in rendered]), doc
 
 
 def build_report(
@@ -1409,19 +1434,30 @@ def build_report(
         failed: (input path, one-line error) of inputs that could not be analysed; listed
             in the summary.
     """
-    doc = report_dict(results, labels, failed)
-    return render_html(doc, results, labels), doc
+    labs = list(labels) if labels is not None else [None] * len(results)
+    if len(labs) != len(results):
+        raise ValueError(f"{len(labs)} labels for {len(results)} results")
+    return assemble_report([render_log(r, lab, k)
+                            for k, (r, lab) in enumerate(zip(results, labs, strict=True))],
+                           failed)
 
 
 def write_report(
-    results: Sequence[DetectionResult],
+    results: Sequence[DetectionResult] | Sequence[RenderedLog],
     html_path: str | os.PathLike[str],
     json_path: str | os.PathLike[str] | None = None,
     labels: Sequence[Labels | None] | None = None,
     failed: Sequence[tuple[str, str]] = (),
 ) -> dict[str, Any]:
-    """Write the HTML report (and its JSON twin) atomically; return the JSON mapping."""
-    text, doc = build_report(results, labels, failed)
+    """Write the HTML report (and its JSON twin) atomically; return the JSON mapping.
+
+    ``results`` are detection results (rendered here, with ``labels``) or logs already
+    rendered by :func:`render_log` (``labels`` then unused).
+    """
+    if results and all(isinstance(r, RenderedLog) for r in results):
+        text, doc = assemble_report(results, failed)  # type: ignore[arg-type]
+    else:
+        text, doc = build_report(results, labels, failed)  # type: ignore[arg-type]
     atomic_write_text(html_path, text)
     if json_path is not None:
         atomic_write_text(json_path, report_json(doc))
