@@ -23,6 +23,9 @@ SCENARIO_NAMES = ("free_triangle", "free_fm_triangle", "free_p2p", "free_multisi
               help="Duration [s] (default 60 s; impacts: as long as its impacts take).")
 @click.option("--seed", type=int, default=0, show_default=True,
               help="Random seed (same seed, same files).")
+@click.option("--robot-seed", type=int, default=None,
+              help="Seed of the true robot alone: runs with the same --robot-seed simulate "
+                   "the same physical robot [default: drawn from --seed].")
 @click.option("--payload-kg", type=click.FloatRange(min=0.0), default=None,
               help="Unknown end-effector payload [kg] (default: the scenario's).")
 @click.option("--uncertainty", type=click.FloatRange(0.0, 0.9), default=None,
@@ -36,8 +39,9 @@ SCENARIO_NAMES = ("free_triangle", "free_fm_triangle", "free_p2p", "free_multisi
 @click.option("--name", default=None, help="File stem (default: the scenario name).")
 @handle_errors
 def simulate_cmd(arm: str, scenario_name: str, duration: float | None, seed: int,
-                 payload_kg: float | None, uncertainty: float | None, outdir: Path,
-                 formats: tuple[str, ...], name: str | None) -> None:
+                 robot_seed: int | None, payload_kg: float | None,
+                 uncertainty: float | None, outdir: Path, formats: tuple[str, ...],
+                 name: str | None) -> None:
     """Simulate a flexible-joint arm (the paper's eq. 1–2) with labelled contacts.
 
     Writes OUTDIR/NAME.<ext> per format, NAME.labels.json (ground truth) and
@@ -50,7 +54,9 @@ def simulate_cmd(arm: str, scenario_name: str, duration: float | None, seed: int
     from ..io.robot import write_labels, write_robot
     from ..sim import scenario, simulate
 
-    overrides: dict[str, float] = {}
+    overrides: dict[str, float | int] = {}
+    if robot_seed is not None:
+        overrides["robot_seed"] = robot_seed
     if payload_kg is not None:
         overrides["payload_kg"] = payload_kg
     if uncertainty is not None:

@@ -51,6 +51,9 @@ class Scenario:
             fixed-point text; 7 decimals keep the encoder grid to < 0.1 % of a count);
             None keeps full precision.
         description: one line saying what the scenario is (for READMEs and reports).
+        robot_seed: seed of the true parameters alone: runs with the same robot_seed
+            simulate the same physical robot (as a robot's own logs do) whatever their
+            run seed; None draws the robot from the run seed (every run another unit).
     """
 
     name: str
@@ -71,6 +74,7 @@ class Scenario:
     initial_link_velocity: tuple[float, ...] | None = None
     log_decimals: int | None = 7
     description: str = ""
+    robot_seed: int | None = None
 
 
 @dataclass(frozen=True)
@@ -196,6 +200,8 @@ def simulate(scenario: Scenario, *, seed: int = 0) -> SimResult:
     t = np.arange(n_samples, dtype=np.float64) * ts
     ss = np.random.SeedSequence(seed)
     r_par, r_ref, r_noise, r_drift = (np.random.default_rng(s) for s in ss.spawn(4))
+    if scenario.robot_seed is not None:  # the same robot across runs
+        r_par = np.random.default_rng(np.random.SeedSequence(scenario.robot_seed))
 
     p = true_parameters(arm, r_par, scenario.uncertainty, scenario.payload_kg)
     if not scenario.friction:

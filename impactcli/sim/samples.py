@@ -34,7 +34,14 @@ class Sample:
 
     def make(self) -> Scenario:
         sc = self.build() if self.build else scenario(self.scenario, self.arm, self.duration_s)
-        return replace(sc, name=self.name)
+        return replace(sc, name=self.name, robot_seed=ROBOT_SEEDS[self.arm])
+
+
+#: One physical robot per arm: every sample log of an arm is recorded on the same true
+#: robot (its parameters drawn once, from this seed), as a robot's own logs are; the run
+#: seed of each log draws its reference details, noise and friction drift. Fixed before
+#: any result was looked at (the arm's seed series: 101–108 → 100, 201–204 → 200).
+ROBOT_SEEDS: dict[str, int] = {"assist_like": 100, "heavy_geared": 200}
 
 
 def _heavy_impacts() -> Scenario:
@@ -61,6 +68,10 @@ MANIFEST: tuple[Sample, ...] = (
            "collision-free with an unknown 0.5 kg payload: robustness"),
     Sample("heavy_free_multisine", "heavy_geared", "free_multisine", 30.0, 201, "ros2",
            "collision-free: calibration (heavy geared arm)"),
+    Sample("heavy_free_triangle", "heavy_geared", "free_triangle", 30.0, 204, "json",
+           "collision-free: calibration (heavy geared arm; the impacts log's lead-in)"),
+    Sample("heavy_free_p2p", "heavy_geared", "free_p2p", 40.0, 203, "json",
+           "collision-free: calibration (heavy geared arm; the impacts log's moves)"),
     Sample("heavy_impacts", "heavy_geared", "impacts", None, 202, "json",
            "detection: impacts on elastomers (heavy geared arm)", _heavy_impacts),
 )
@@ -110,7 +121,9 @@ def generate(outdir: str | Path, names: list[str] | None = None) -> list[Path]:
         )
     if not names:
         readme = out / "README.md"
-        readme.write_text(_README.format(rows="\n".join(rows)), encoding="utf-8")
+        seeds = ", ".join(f"{a} {s}" for a, s in ROBOT_SEEDS.items())
+        readme.write_text(_README.format(rows="\n".join(rows), robot_seeds=seeds),
+                          encoding="utf-8")
         written.append(readme)
     return written
 
@@ -123,8 +136,10 @@ paper's eq. 1–2 for a planar arm in a vertical plane, PD motor-position contro
 sample period with gravity feed-forward from the nominal model, encoder quantisation,
 noisy quantised motor current (`torque = gear_ratio × torque_constant × current`). The
 simulated robot is NOT the nominal one in `*.robot.json`: its masses, inertias, stiffness
-and friction differ by up to ±20 % (drawn from the seed), friction drifts slowly, and
-`assist_payload` carries a payload the description does not mention.
+and friction differ by up to ±20 %, friction drifts slowly, and `assist_payload` carries a
+payload the description does not mention. All logs of an arm come from ONE such robot
+(true parameters drawn once per arm, robot seed {robot_seeds}), as a robot's own logs do;
+each log's seed draws its reference details, noise and friction drift.
 
 Layout: `csv/<name>.csv.gz` (canonical wide CSV) and `mcap/<name>.mcap` hold the SAME log
 (MCAP encoding in the table; the ROS 2 files carry position, velocity and effort = torque

@@ -6,6 +6,7 @@
     python tests/benchmarks/sample_quality.py --on assist_free_triangle,assist_free_p2p
                                               # calibrate the ASSIST-like config on these
     python tests/benchmarks/sample_quality.py --variants    # other residuals and low-passes
+    python tests/benchmarks/sample_quality.py --cross-unit  # + calibrated on other units
 
 Every contact log in ``sample_logs/csv`` is replayed with the thresholds of its arm's config
 (``sample_logs/assist_like.config.toml``, ``sample_logs/heavy_geared.config.toml``, made by
@@ -56,14 +57,15 @@ REPO = Path(__file__).resolve().parents[2]
 SAMPLES = REPO / "sample_logs"
 CSV = SAMPLES / "csv"
 
-#: Collision-free logs each committed config is calibrated on. ASSIST-like: the motion
-#: families the contact logs use — triangles (the impacts log's lead-in), point-to-point
-#: moves (its waypoint moves with dwells), slow multi-sines (pushes, clamps). The fast
+#: Collision-free logs each committed config is calibrated on: the motion families the
+#: contact logs use — triangles (the impacts logs' lead-in), point-to-point moves (their
+#: waypoint moves with dwells), slow multi-sines (pushes, clamps). The fast
 #: frequency-modulated triangles are left out: no contact log moves like them, and their
-#: corner ringing would set the shoulder thresholds (measured in the module's output with ``--on``).
+#: corner ringing would set the shoulder thresholds (measured in the module's output with
+#: ``--on``).
 CALIBRATION_LOGS: dict[str, tuple[str, ...]] = {
     "assist_like": ("assist_free_triangle", "assist_free_p2p", "assist_free_multisine"),
-    "heavy_geared": ("heavy_free_multisine",),
+    "heavy_geared": ("heavy_free_triangle", "heavy_free_p2p", "heavy_free_multisine"),
 }
 #: Contact logs → their arm.
 CONTACT_LOGS: dict[str, str] = {
@@ -293,18 +295,22 @@ def contact_table(name: str, ev: Evaluation) -> str:
     return "\n".join(lines)
 
 
-def clamp_release_truth(res: DetectionResult, name: str = "assist_clamps",
+def clamp_release_truth(res: DetectionResult, sim: object | None = None,
+                        name: str = "assist_clamps",
                         window_s: tuple[float, float] = (0.1, 1.4)) -> str:
-    """Re-simulate ``name`` and explain the static_loading alarms after clamp releases: per
-    release and joint, over ``window_s`` after the labelled end, the correlation between the
-    residual's error (r minus the true external torque, sign-aligned) and the transmission
-    deflection θ − q, and the largest |LP(error)| / vL."""
+    """What the residual gets wrong after each clamp release: per release and joint, over
+    ``window_s`` after the labelled end, the correlation between the residual's error (r
+    minus the true external torque, sign-aligned) and the transmission deflection θ − q,
+    and the largest |LP(error)| / vL. ``sim``: the simulation ``res`` replayed (default:
+    ``name`` re-simulated from the sample manifest)."""
     from impactcli.detect.static import causal_lowpass
-    from impactcli.sim.core import simulate
+    from impactcli.sim.core import SimResult, simulate
     from impactcli.sim.samples import MANIFEST
 
-    entry = next(m for m in MANIFEST if m.name == name)
-    sim = simulate(entry.make(), seed=entry.seed)
+    if sim is None:
+        entry = next(m for m in MANIFEST if m.name == name)
+        sim = simulate(entry.make(), seed=entry.seed)
+    assert isinstance(sim, SimResult)
     t, te = sim.truth["time_s"], sim.truth["tau_ext"]
     r = res.signals["residual"]
     sign = -1.0 if float(np.sum(r * te)) < 0 else 1.0
@@ -315,7 +321,7 @@ def clamp_release_truth(res: DetectionResult, name: str = "assist_clamps",
     defl = sim.truth["x1"] - sim.truth["x2"]
     out = [f"{name}: re-simulated; after each release ({window_s[0]}–{window_s[1]} s after "
            "the labelled end): corr(residual error, θ − q) and max |LP(error)| / vL per joint"]
-    for c in labels_of(name).events:
+    for c in sim.labels.events:
         w = (t > c.end + window_s[0]) & (t < c.end + window_s[1])
         parts = []
         for k, j in enumerate(res.log.joint_names):
@@ -323,6 +329,36 @@ def clamp_release_truth(res: DetectionResult, name: str = "assist_clamps",
             parts.append(f"{j} corr {rho:+.2f}, {lp[w, k].max() / vl[k]:.2f}× vL")
         out.append(f"  {c.peak_force:4.0f} N clamp ending {c.end:6.2f} s: " + "; ".join(parts))
     return "\n".join(out)
+
+
+def cross_unit() -> None:
+    """The ASSIST-like logs re-simulated as the sample set was first built — every log on
+    its OWN unit of the arm (true parameters drawn from each log's seed, ±20 %) — then
+    calibrated and judged like the committed set: thresholds calibrated on other units of
+    the same type, the way a fleet might share one config."""
+    from dataclasses import replace
+
+    from impactcli.sim.core import simulate
+    from impactcli.sim.samples import MANIFEST
+
+    sims = {m.name: simulate(replace(m.make(), robot_seed=None), seed=m.seed)
+            for m in MANIFEST if m.arm == "assist_like"}
+    names = CALIBRATION_LOGS["assist_like"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cfg = calibrate([sims[n].log for n in names], robot=sims[names[0]].robot)
+        assist = [n for n, a in CONTACT_LOGS.items() if a == "assist_like"]
+        results = {n: analyze(sims[n].log, config=cfg, robot=sims[n].robot) for n in assist}
+        evals = {n: evaluate_result(results[n], sims[n].labels) for n in assist}
+    print("ASSIST-like logs, each on its own unit; calibrated on " + ", ".join(names)
+          + f" (vL {', '.join(f'{v:.2f}' for v in cfg.thresholds.vL.values())} N·m)")
+    crit = [no_alarm_between_contacts(n, evals[n]) for n in assist]
+    crit += [impacts_within("assist_impacts", evals["assist_impacts"]),
+             pushes_while_lasting("assist_pushes", evals["assist_pushes"]),
+             clamps_by_static_loading("assist_clamps", evals["assist_clamps"])]
+    for c in crit:
+        print(f"  {c.line()}")
+    print(clamp_release_truth(results["assist_clamps"], sims["assist_clamps"]))
 
 
 def impact_truth(name: str = "assist_impacts", after_s: float = IMPACT_DELAY_S) -> str:
@@ -359,6 +395,9 @@ def main(argv: list[str] | None = None) -> int:
                     "(implies --calibrate)")
     ap.add_argument("--truth", action="store_true",
                     help="re-simulate assist_impacts for the true force at onset + 80 ms")
+    ap.add_argument("--cross-unit", action="store_true",
+                    help="also: the ASSIST-like logs each on its own unit of the arm, "
+                    "calibrated across units (how the sample set was first built)")
     ap.add_argument("--variants", action="store_true",
                     help="C1–C4 for alternative residual generators and static-loading "
                     "low-passes, each recalibrated (then exit)")
@@ -426,6 +465,9 @@ def main(argv: list[str] | None = None) -> int:
         print()
         print(impact_truth())
         print(clamp_release_truth(results["assist_clamps"]))
+    if args.cross_unit:
+        print()
+        cross_unit()
     print(f"\nmachine: {platform.platform()}, {platform.processor() or platform.machine()}, "
           f"{os.cpu_count()} CPUs; python {sys.version.split()[0]}; "
           f"total {time.perf_counter() - t_all:.1f} s")
