@@ -31,7 +31,7 @@ import yaml
 from ._fs import atomic_write_text
 from .errors import ConfigError
 from .io.structured import load_mapping
-from .schema import validate
+from .schema import restore_nulls, validate
 
 #: Table I's static thresholds of the 2-joint ASSIST arm [N·m] (shoulder, elbow).
 TABLE_I_V_STAT: tuple[float, float] = (0.45, 0.2)
@@ -233,8 +233,13 @@ class DetectorConfig:
     model: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON/TOML/YAML-ready mapping (None values omitted: TOML has no null)."""
-        return _drop_none(dataclasses.asdict(self))
+        """JSON/YAML-ready mapping: None values omitted, except inside the embedded model,
+        which is kept as it is (TOML, which has no null, drops those too; they are
+        restored from the model schema on reading)."""
+        d: dict[str, Any] = _drop_none(dataclasses.asdict(dataclasses.replace(self, model=None)))
+        if self.model is not None:
+            d["model"] = self.model
+        return d
 
     @classmethod
     def from_dict(cls, d: dict[str, Any], where: str = "config") -> DetectorConfig:
@@ -261,6 +266,16 @@ def _drop_none(x: Any) -> Any:
     if isinstance(x, list | tuple):
         return [_drop_none(v) for v in x]
     return x
+
+
+def _embedded_model(m: dict[str, Any] | None, where: str) -> dict[str, Any] | None:
+    """The config's embedded model with its nulls restored (TOML drops them), validated
+    against schemas/model.schema.json so a bad one is reported naming the config file."""
+    if m is None:
+        return None
+    model: dict[str, Any] = restore_nulls(m, "model")
+    validate(model, "model", ConfigError, f"{where}: model")
+    return model
 
 
 def _build(d: dict[str, Any], where: str) -> DetectorConfig:
@@ -293,7 +308,7 @@ def _build(d: dict[str, Any], where: str) -> DetectorConfig:
         events=EventsConfig(**d.get("events", {})),
         warmup=WarmupConfig(**d.get("warmup", {})),
         calibration=CalibrationRecord(**c),
-        model=d.get("model"),
+        model=_embedded_model(d.get("model"), where),
     )
 
 
@@ -311,7 +326,7 @@ def dumps_config(cfg: DetectorConfig, suffix: str) -> str:
     d = cfg.to_dict()
     s = suffix.lower()
     if s == ".toml":
-        return tomli_w.dumps(d)
+        return tomli_w.dumps(_drop_none(d))
     if s in (".yaml", ".yml"):
         return str(yaml.safe_dump(d, sort_keys=False))
     return json.dumps(d, indent=2) + "\n"

@@ -32,6 +32,7 @@ from .detect.events import extract_events
 from .detect.static import causal_lowpass
 from .detect.warmup import Warmup, warmup_end
 from .errors import ConfigError, ImpactWarning, ModelError
+from .io.inspect import GAP_FACTOR, time_gaps
 from .model import IdentifyOptions, ResidualOptions, RigidModel, compute_residual, identify
 from .result import DetectionResult
 from .types import DETECTORS, RobotDescription, RobotLog
@@ -200,6 +201,14 @@ def replay(
     model, model_source = resolve_model(log, model, cfg, robot, model_from_log)
     log = reorder_log(log, tuple(model.joint_names), "model")
     fs = log.sample_rate_hz
+    gaps, lengths = time_gaps(log)
+    if gaps.size:
+        k = int(np.argmax(lengths))
+        warnings.warn(
+            f"{log.source.path}: {gaps.size} time gap(s) longer than {GAP_FACTOR:g} sample "
+            f"periods (longest {lengths[k] * 1e3:.4g} ms after {log.time_s[gaps[k]]:.3f} s, "
+            f"first after {log.time_s[gaps[0]]:.3f} s): the detectors assume uniform sampling, "
+            "so alarms just after a gap may be artefacts of it", ImpactWarning, stacklevel=3)
     ropts = residual_options(cfg)
     r = compute_residual(model, log, ropts).r
     inputs = threshold_inputs(log, cfg.adaptive)

@@ -191,3 +191,30 @@ def test_debug_shows_a_failed_logs_traceback_in_a_batch(tmp_path: Path) -> None:
     debug = CliRunner().invoke(main, ["--debug", *args])
     assert debug.exit_code == 4
     assert debug.stderr.count("Traceback (most recent call last)") == 2
+
+
+def test_a_time_gap_is_warned_about_in_the_terminal_and_the_timeline(tmp_path: Path) -> None:
+    """Ten missing samples (a 44 ms step at 4 ms sampling): the run goes on and says so."""
+    import dataclasses
+    import json
+
+    import numpy as np
+    from click.testing import CliRunner
+
+    from impactcli.cli import main
+    from impactcli.io import write_log
+    from impactcli.sim import scenario, simulate
+
+    log = simulate(scenario("free_multisine", "assist_like", 8.0), seed=3).log
+    keep = np.r_[0:1000, 1010:log.n_samples]
+    n = log.n_samples
+    fields = {f.name: getattr(log, f.name) for f in dataclasses.fields(log)}
+    cut = dataclasses.replace(log, **{k: v[keep] for k, v in fields.items()
+                                      if isinstance(v, np.ndarray) and v.shape[:1] == (n,)})
+    path = tmp_path / "gap.csv"
+    write_log(cut, path)
+    r = CliRunner().invoke(main, ["detect", str(path), "-o", str(tmp_path / "out")])
+    assert r.exit_code == 0, r.output
+    assert "1 time gap(s)" in r.stderr and "44 ms" in r.stderr
+    tl = json.loads((tmp_path / "out" / "gap.timeline.json").read_text())
+    assert any("time gap" in w for w in tl["warnings"])

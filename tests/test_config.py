@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +21,7 @@ from impactcli.config import (
 from impactcli.errors import ConfigError
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "schemas" / "examples" / "config.example.toml"
+MODEL = EXAMPLE.with_name("model.example.json")
 
 
 def test_defaults_are_table_one() -> None:
@@ -41,8 +43,16 @@ def _full() -> DetectorConfig:
             logs=(LogRecord("a.csv", "a" * 64), LogRecord("b.csv", "b" * 64)),
             model_sha256="c" * 64,
         ),
-        model={"kind": "decoupled", "parameters": [[1.0, 2.0], [3.0, 4.0]], "names": ["x", "y"]},
+        model=json.loads(MODEL.read_text(encoding="utf-8")),
     )
+
+
+def _no_none(x: object) -> object:
+    if isinstance(x, dict):
+        return {k: _no_none(v) for k, v in x.items() if v is not None}
+    if isinstance(x, list):
+        return [_no_none(v) for v in x]
+    return x
 
 
 @pytest.mark.parametrize("suffix", [".toml", ".yaml", ".yml", ".json"])
@@ -50,7 +60,10 @@ def test_round_trip(tmp_path: Path, suffix: str) -> None:
     cfg = _full()
     path = tmp_path / f"cfg{suffix}"
     save_config(cfg, path)
-    assert load_config(path) == cfg
+    if suffix == ".toml":  # TOML has no null: the model's optional nulls become absent
+        assert load_config(path) == cfg.replace(model=_no_none(cfg.model))
+    else:
+        assert load_config(path) == cfg
     assert DetectorConfig.from_dict(cfg.to_dict()) == cfg
     save_config(DetectorConfig(), path)
     assert load_config(path) == DetectorConfig()
@@ -66,6 +79,21 @@ def test_generator_names_match_the_timeline_and_the_old_name_is_read(tmp_path: P
     assert cfg.residual.generator == "inverse_dynamics"
     save_config(cfg, tmp_path / "new.toml")
     assert 'generator = "inverse_dynamics"' in (tmp_path / "new.toml").read_text("utf-8")
+
+
+def test_embedded_model_without_robot_survives_toml(tmp_path: Path) -> None:
+    """A model with ``robot: null`` (identified with no --robot) embedded in a TOML config
+    (TOML has no null) loads back equal, and a broken embedded model names the file."""
+    model = json.loads(MODEL.read_text(encoding="utf-8"))
+    model["robot"] = None
+    cfg = DetectorConfig(model=model)
+    save_config(cfg, tmp_path / "c.toml")
+    assert "robot" not in (tmp_path / "c.toml").read_text(encoding="utf-8").split("[model")[0]
+    assert load_config(tmp_path / "c.toml").model == model
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[model]\nkind = "decoupled"\n', encoding="utf-8")
+    with pytest.raises(ConfigError, match=r"bad\.toml: model: "):
+        load_config(bad)
 
 
 def test_example_file_is_valid() -> None:

@@ -16,6 +16,16 @@ GAP_FACTOR = 1.5
 MAX_GAPS_LISTED = 20
 
 
+def time_gaps(log: RobotLog) -> tuple[np.ndarray, np.ndarray]:
+    """Indices i of the steps t[i] → t[i+1] longer than ``GAP_FACTOR`` median periods, and
+    their lengths [s]."""
+    dt = np.diff(log.t_ns).astype(np.float64) * 1e-9
+    if dt.size == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0)
+    idx = np.flatnonzero(dt > GAP_FACTOR * float(np.median(dt)))
+    return idx, dt[idx]
+
+
 def describe_log(log: RobotLog) -> dict[str, Any]:
     """JSON-ready description of ``log``: joints, channels, sources, timing, gaps, repairs.
 
