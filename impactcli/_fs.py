@@ -14,6 +14,8 @@ from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import IO
 
+from .errors import OutputError
+
 
 def sha256_file(path: str | os.PathLike[str], chunk: int = 1 << 20) -> str:
     """Return the hex sha256 of a file's bytes."""
@@ -31,18 +33,44 @@ def atomic_output(path: str | os.PathLike[str], mode: str = "wb") -> Iterator[IO
     On any exception the temporary file is removed and ``path`` is untouched.
     """
     target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=target.parent)
+    prepare_output(target)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part",
+                                   dir=target.parent)
+    except OSError as err:
+        raise OutputError(f"cannot write {path}: {err.strerror or err}") from err
     try:
         encoding = None if "b" in mode else "utf-8"
         with os.fdopen(fd, mode, encoding=encoding) as f:
             yield f
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs are ordinary files
-        os.replace(tmp, target)
+        try:
+            os.replace(tmp, target)
+        except OSError as err:
+            raise OutputError(f"cannot write {path}: {err.strerror or err}") from err
     except BaseException:
         with suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
+
+
+def prepare_output(path: str | os.PathLike[str]) -> None:
+    """Create ``path``'s folder if needed; OutputError (one line, exit 2) when ``path``
+    cannot be an output file there (its folder is a file, ``path`` is a folder, no
+    permission). Call it for every output before writing the first, so a bad second
+    output leaves nothing half done."""
+    target = Path(path)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):
+        raise OutputError(f"cannot write {path}: a part of its folder path is a file, "
+                          "not a folder") from None
+    except OSError as err:
+        raise OutputError(f"cannot write {path}: {err.strerror or err}") from err
+    if target.is_dir():
+        raise OutputError(f"cannot write {path}: it is a folder")
+    if not os.access(target.parent, os.W_OK):
+        raise OutputError(f"cannot write {path}: no permission to write in {target.parent}")
 
 
 def _umask() -> int:

@@ -49,6 +49,13 @@ class LabelsError(ImpactError, ValueError):
     """A ground-truth labels file is invalid."""
 
 
+class OutputError(ImpactError):
+    """An output path that cannot be written (its folder is a file, no permission, ...):
+    a bad ``-o``/``--json`` value, exit 2."""
+
+    exit_code = EXIT_USAGE
+
+
 class BatchError(ImpactError):
     """A batch finished but some inputs failed (their outputs are not written)."""
 

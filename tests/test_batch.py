@@ -218,3 +218,32 @@ def test_a_time_gap_is_warned_about_in_the_terminal_and_the_timeline(tmp_path: P
     assert "1 time gap(s)" in r.stderr and "44 ms" in r.stderr
     tl = json.loads((tmp_path / "out" / "gap.timeline.json").read_text())
     assert any("time gap" in w for w in tl["warnings"])
+
+
+@pytest.mark.parametrize("verb", ["report", "identify", "calibrate", "report-json"])
+def test_an_output_under_a_file_is_one_line_exit_2_and_nothing_written(
+        tmp_path: Path, verb: str) -> None:
+    """-o (or --json) whose folder path runs through a regular file: exit 2 before any
+    work, one line naming the path, no traceback, no other output left behind."""
+    from click.testing import CliRunner
+
+    from impactcli.cli import main
+
+    repo = Path(__file__).resolve().parents[1]
+    log = str(repo / "sample_logs" / "csv" / "assist_free_p2p.csv.gz")
+    block = tmp_path / "afile"
+    block.write_text("", encoding="utf-8")
+    args = {
+        "report": ["report", log, "-o", str(block / "r.html")],
+        "identify": ["identify", log, "-o", str(block / "m.json")],
+        "calibrate": ["calibrate", log, "-o", str(block / "c.toml")],
+        "report-json": ["report", log, "-o", str(tmp_path / "r.html"),
+                        "--json", str(block / "r.json")],
+    }[verb]
+    r = CliRunner().invoke(main, args)
+    assert r.exit_code == 2, r.output
+    bad = args[-1]
+    lines = [ln for ln in r.stderr.splitlines() if not ln.startswith("impactcli: warning")]
+    assert lines == [f"impactcli: error: cannot write {bad}: "
+                     "a part of its folder path is a file, not a folder"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]

@@ -12,7 +12,7 @@ from .detect import log_read_options, read_options_from
 
 @click.command("calibrate")
 @click.argument("logs", nargs=-1, required=True, type=click.Path(path_type=Path))
-@click.option("-o", "--out", "out_path", required=True,
+@click.option("-o", "--out", "--output", "out_path", required=True,
               type=click.Path(dir_okay=False, path_type=Path),
               help="Config to write (.toml, .yaml or .json), accepted by `detect --config`.")
 @click.option("--robot", type=click.Path(dir_okay=False, path_type=Path),
@@ -35,12 +35,17 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     Give logs that cover the motions the robot really makes: thresholds calibrated on
     one motion family false-alarm on another.
     """
+    from .._fs import prepare_output
     from ..config import load_config, save_config
     from ..io import read_log
     from ..io.robot import read_robot
     from ..model import read_model
     from ..pipeline import calibrate
 
+    if out_path.suffix.lower() not in (".toml", ".yaml", ".yml", ".json"):
+        raise click.BadParameter(f"{str(out_path)!r}: a config is written as .toml, .yaml or "
+                                 ".json — name the file with one of these", param_hint="'-o'")
+    prepare_output(out_path)  # a bad -o stops the run before any work
     robot_d = read_robot(robot) if robot else None
     model_m = read_model(model) if model else None
     cfg = load_config(base_config) if base_config else None

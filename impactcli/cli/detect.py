@@ -156,7 +156,7 @@ MAX_ROWS = 50
 
 @click.command("detect")
 @click.argument("logs", nargs=-1, required=True, metavar="LOG...")
-@click.option("-o", "--out", "out_dir", required=True, metavar="DIR|URL",
+@click.option("-o", "--out", "--output", "out_dir", required=True, metavar="DIR|URL",
               help="Output folder or URL prefix: <stem>.timeline.json per log "
                    "(+ .signals.parquet, .rrd), each written atomically.")
 @model_url_options

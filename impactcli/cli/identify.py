@@ -48,8 +48,8 @@ def _pct(x: float | None) -> str:
 
 @click.command("identify")
 @click.argument("log", type=click.Path(dir_okay=False, path_type=str))
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=str),
-              help="Model file to write (JSON).")
+@click.option("-o", "--output", "--out", "output", required=True,
+              type=click.Path(dir_okay=False, path_type=str), help="Model file to write (JSON).")
 @click.option("--robot", metavar="FILE", type=click.Path(dir_okay=False, path_type=str),
               help="Robot description (joints, kinematics: planar or urdf).")
 @click.option("--kind", type=click.Choice(["decoupled", "planar", "urdf"]),
@@ -79,10 +79,12 @@ def identify_cmd(
     coulomb_slope: float, allow_still: bool,
 ) -> None:
     """Identify a rough rigid model (tau = Y(q, q', q'') theta) from LOG and write it."""
+    from .._fs import prepare_output
     from ..io import read_log
     from ..io.robot import read_robot
     from ..model import IdentifyOptions, identify, write_model
 
+    prepare_output(output)  # a bad -o stops the run before any work
     desc = read_robot(robot) if robot else None
     data = read_log(log, channel_map=channel_map, robot=desc, torque_source=torque_source)
     options = IdentifyOptions(cutoff_hz=cutoff_hz, holdout_fraction=holdout_fraction,

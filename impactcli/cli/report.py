@@ -297,7 +297,7 @@ def _local_inputs(patterns: Sequence[str]) -> tuple[Path, ...]:
 
 @click.command("report")
 @click.argument("inputs", nargs=-1, required=True)
-@click.option("-o", "--output", "html_path", required=True,
+@click.option("-o", "--output", "--out", "html_path", required=True,
               type=click.Path(dir_okay=False, path_type=Path), help="The HTML report to write.")
 @click.option("--json", "json_path", type=click.Path(dir_okay=False, path_type=Path),
               default=None, help="Also write the same facts as JSON (schemas/report.schema.json).")
@@ -328,9 +328,13 @@ def report_cmd(*, inputs: tuple[str, ...], html_path: Path, json_path: Path | No
     lists them), 3 when all did. --jobs/--scheduler analyse the inputs in parallel (as
     detect does); the report is the same.
     """
+    from .._fs import prepare_output
     from ..executors import TaskFailure, run_tasks
     from ..outputs.report import write_report
 
+    for out in (html_path, json_path):  # a bad -o/--json stops the run before any work
+        if out is not None:
+            prepare_output(out)
     inputs = _local_inputs(inputs)
     explicit = pair_labels(inputs, labels)
     resolve_executor(jobs, scheduler)

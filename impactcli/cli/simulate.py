@@ -30,7 +30,7 @@ SCENARIO_NAMES = ("free_triangle", "free_fm_triangle", "free_p2p", "free_multisi
               help="Unknown end-effector payload [kg] (default: the scenario's).")
 @click.option("--uncertainty", type=click.FloatRange(0.0, 0.9), default=None,
               help="Relative spread of the true parameters around nominal (default 0.2).")
-@click.option("-o", "--output", "outdir", type=click.Path(file_okay=False, path_type=Path),
+@click.option("-o", "--output", "--out", "outdir", type=click.Path(file_okay=False, path_type=Path),
               required=True, help="Output folder (created).")
 @click.option("--format", "formats", type=click.Choice(list(FORMATS)), multiple=True,
               default=("csv.gz",), show_default=True,

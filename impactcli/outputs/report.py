@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from .. import TOOL_NAME, __version__
-from .._fs import atomic_write_text
+from .._fs import atomic_write_text, prepare_output
 from ..detect.calibrate import UNCALIBRATED_BLOCK_S, UNCALIBRATED_MARGIN, UNCALIBRATED_QUANTILE
 from ..errors import ImpactError
 from ..result import DetectionResult
@@ -1454,6 +1454,9 @@ def write_report(
     ``results`` are detection results (rendered here, with ``labels``) or logs already
     rendered by :func:`render_log` (``labels`` then unused).
     """
+    for p in (html_path, json_path):  # both destinations usable before either is written
+        if p is not None:
+            prepare_output(p)
     if results and all(isinstance(r, RenderedLog) for r in results):
         text, doc = assemble_report(results, failed)  # type: ignore[arg-type]
     else:
