@@ -318,6 +318,8 @@ def load_config(path: str | os.PathLike[str]) -> DetectorConfig:
     Raises ConfigError naming the file and the offending field.
     """
     data = load_mapping(path, ConfigError, "detector config")
+    if not data:
+        raise ConfigError(f"{path}: the config is empty (make one with `impactcli calibrate`)")
     return DetectorConfig.from_dict(data, where=str(path))
 
 

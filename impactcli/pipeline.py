@@ -31,7 +31,7 @@ from .detect.calibrate import (
 from .detect.events import extract_events
 from .detect.static import causal_lowpass
 from .detect.warmup import Warmup, warmup_end
-from .errors import ConfigError, ImpactWarning, ModelError
+from .errors import ConfigError, ImpactWarning, LogFormatError, ModelError
 from .io.inspect import GAP_FACTOR, time_gaps
 from .model import IdentifyOptions, ResidualOptions, RigidModel, compute_residual, identify
 from .result import DetectionResult
@@ -198,6 +198,11 @@ def replay(
     model_from_log: bool = False,
 ) -> Replay:
     """Residual → adaptive evaluator and static statistics → warm-up (all causal)."""
+    if log.duration_s < cfg.warmup.min_s:
+        raise LogFormatError(
+            f"{log.source.path}: {log.n_samples} samples ({log.duration_s:.3g} s), shorter than "
+            f"the detectors' warm-up (warmup.min_s = {cfg.warmup.min_s:g} s): nothing after it "
+            "could be detected")
     model, model_source = resolve_model(log, model, cfg, robot, model_from_log)
     log = reorder_log(log, tuple(model.joint_names), "model")
     fs = log.sample_rate_hz

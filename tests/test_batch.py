@@ -247,3 +247,19 @@ def test_an_output_under_a_file_is_one_line_exit_2_and_nothing_written(
     assert lines == [f"impactcli: error: cannot write {bad}: "
                      "a part of its folder path is a file, not a folder"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
+
+
+def test_a_log_shorter_than_the_warm_up_is_a_data_error(tmp_path: Path) -> None:
+    """10 samples: exit 3 naming the file, the length and the warm-up; nothing written."""
+    from click.testing import CliRunner
+
+    from impactcli.cli import main
+
+    repo = Path(__file__).resolve().parents[1]
+    text = gzip.decompress((repo / "sample_logs/csv/assist_free_p2p.csv.gz").read_bytes())
+    short = tmp_path / "ten.csv"
+    short.write_bytes(b"\n".join(text.split(b"\n")[:11]) + b"\n")
+    r = CliRunner().invoke(main, ["detect", str(short), "-o", str(tmp_path / "out")])
+    assert r.exit_code == 3
+    assert f"{short}: 10 samples (0.036 s), shorter than the detectors' warm-up" in r.stderr
+    assert not (tmp_path / "out").exists()

@@ -172,3 +172,11 @@ def test_threshold_vector_in_joint_order() -> None:
     assert DetectorConfig().thresholds.vector("v0", ("j1",)) is None
     with pytest.raises(ConfigError, match=r"cfg.toml: thresholds/vL: no value for joint\(s\) j3"):
         th.vector("vL", ("j1", "j3"), "cfg.toml")
+
+
+def test_an_empty_config_file_is_an_error(tmp_path: Path) -> None:
+    for name, text in (("e.toml", ""), ("e.yaml", "# nothing\n"), ("e.json", "{}")):
+        path = tmp_path / name
+        path.write_text(text, encoding="utf-8")
+        with pytest.raises(ConfigError, match=rf"{name}: the config is empty"):
+            load_config(path)

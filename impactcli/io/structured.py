@@ -31,6 +31,8 @@ def load_mapping(
             import yaml
 
             data = yaml.safe_load(text)
+            if data is None:  # an empty (or comment-only) YAML document
+                data = {}
         elif suffix == ".toml":
             data = tomllib.loads(text)
         else:
