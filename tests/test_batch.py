@@ -185,11 +185,15 @@ def test_debug_shows_a_failed_logs_traceback_in_a_batch(tmp_path: Path) -> None:
     bad.write_text("time,j1.position\nnot,a number\n", encoding="utf-8")
     args = ["detect", str(bad), str(tmp_path / "gone.csv"), "-o", str(tmp_path / "out")]
     plain = CliRunner().invoke(main, args)
-    assert plain.exit_code == 4
+    assert plain.exit_code == 3  # every log failed: the failures' own code
+    assert "2 of 2 logs failed" in plain.stderr
     assert "Traceback" not in plain.stderr
     assert sum(line.startswith("impactcli: error: ") for line in plain.stderr.splitlines()) == 2
+    ok = CliRunner().invoke(main, [*args, str(Path(__file__).resolve().parents[1]
+                                            / "sample_logs/csv/assist_free_p2p.csv.gz")])
+    assert ok.exit_code == 4 and "2 of 3 logs failed" in ok.stderr  # some failed
     debug = CliRunner().invoke(main, ["--debug", *args])
-    assert debug.exit_code == 4
+    assert debug.exit_code == 3
     assert debug.stderr.count("Traceback (most recent call last)") == 2
 
 

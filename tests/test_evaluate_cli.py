@@ -166,6 +166,13 @@ def test_bad_timeline_exit_3(tmp_path):
     assert r.exit_code == 3 and "warmup_end_s" in r.stderr, info(r)
 
 
+def test_a_missing_input_is_named_before_labels_are_looked_for(tmp_path):
+    for name, what in (("gone.csv", "log"), ("gone.timeline.json", "timeline")):
+        r = invoke(str(tmp_path / name))
+        assert r.exit_code == 3, info(r)
+        assert r.stderr.strip() == f"impactcli: error: {tmp_path / name}: {what} file not found"
+
+
 def test_usage_errors_exit_2(files):
     tl, lab = files
     r = invoke(str(tl), "--labels", str(lab), "--sweep")  # no signals beside the timeline

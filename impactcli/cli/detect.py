@@ -235,10 +235,10 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     ok = [o for o in outcomes if o.ok]
     ctx = click.get_current_context()
     if failed:
-        if len(outcomes) == 1:
-            ctx.exit(failed[0].exit_code)
-        click.echo(f"impactcli: {len(failed)} of {len(outcomes)} logs failed", err=True)
-        ctx.exit(EXIT_BATCH)
+        if len(outcomes) > 1:
+            click.echo(f"impactcli: {len(failed)} of {len(outcomes)} logs failed", err=True)
+        # some failed: 4; every one failed: the (first) failure's own code, as `report` does
+        ctx.exit(EXIT_BATCH if ok else failed[0].exit_code)
     if fail_on_detect and any(o.summary[d] > 0 for o in ok for d in PRODUCT_DETECTORS):
         ctx.exit(EXIT_DETECTED)
 

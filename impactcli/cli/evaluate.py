@@ -254,6 +254,8 @@ def evaluate_cmd(source: Path, labels_path: Path | None, as_json: bool, sweep: b
     if is_timeline and (read_options or any(v is not None for v in (model, config, robot))):
         raise click.UsageError("--robot, --model, --config and the log-reading options apply "
                                "to a LOG, not to a timeline")
+    if not source.is_file():  # say so before looking for labels beside it
+        raise LogFormatError(f"{source}: {'timeline' if is_timeline else 'log'} file not found")
     if labels_path is None:
         labels_path = labels_beside(source)
     labels = read_labels_checked(labels_path)
