@@ -83,6 +83,21 @@ def test_html_has_every_event_sha_and_caveats() -> None:
     assert html.count("<figcaption>Event") == 3
 
 
+@pytest.mark.parametrize(("rule", "margins", "says"), [
+    ("leave-one-out", {"adaptive": {"j1": 1.1}, "static_baseline": {"j1": 3.0}},
+     "margin hit its cap of 3× (static_baseline)"),
+    ("fixed-single-log", {"adaptive": {"j1": 1.5}}, "a single collision-free log"),
+])
+def test_weak_calibration_caveat_says_why(rule: str, margins: dict, says: str) -> None:
+    cfg = dict(EVENTS_CFG, calibration={"calibrated": True, "margin_rule": rule,
+                                        "weak": True, "margins": margins})
+    r = result_named("run.csv", "1" * 64, calibrated=True, model_source="config", config=cfg)
+    _, doc = build_report([r])
+    text = {c["code"]: c["text"] for c in doc["logs"][0]["caveats"]}["weak-calibration"]
+    assert text.startswith(f"Weak calibration ({rule}): ") and says in text
+    assert ("single" in text) == (rule == "fixed-single-log")
+
+
 def test_calibrated_run_has_no_uncalibrated_caveat() -> None:
     cfg = dict(
         EVENTS_CFG,

@@ -34,7 +34,12 @@ import numpy as np
 
 from .. import TOOL_NAME, __version__
 from .._fs import atomic_write_text, prepare_output
-from ..detect.calibrate import UNCALIBRATED_BLOCK_S, UNCALIBRATED_MARGIN, UNCALIBRATED_QUANTILE
+from ..detect.calibrate import (
+    MAX_MARGIN,
+    UNCALIBRATED_BLOCK_S,
+    UNCALIBRATED_MARGIN,
+    UNCALIBRATED_QUANTILE,
+)
 from ..errors import ImpactError
 from ..result import DetectionResult
 from ..types import DETECTORS, Event, Labels
@@ -70,7 +75,7 @@ SWEEP_SCALES: tuple[float, ...] = _sweep_scales()
 #: The product's detectors (static_baseline exists to be compared against).
 PRODUCT_DETECTORS: tuple[str, ...] = ("adaptive", "static_loading")
 #: A filter gain below this at a frequency <= 10 Hz triggers the "blind to slow contacts"
-#: caveat (method.md §7).
+#: caveat (the G(z) pitfall of the README's method section).
 LOW_GAIN = 0.2
 #: A model whose RMS torque error exceeds this fraction of the torque RMS (hold-out part
 #: when there is one) triggers the "poor fit" caveat.
@@ -275,15 +280,16 @@ def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]
         )
     elif calib.get("weak"):
         rule = calib.get("margin_rule") or "unknown rule"
-        out.append(
-            {
-                "code": "weak-calibration",
-                "text": (
-                    f"Weak calibration ({rule}): the thresholds come from a single log or a capped "
-                    "margin, not leave-one-out over several collision-free logs."
-                ),
-            }
-        )
+        margins = calib.get("margins") or {}
+        capped = sorted({d for d, m in margins.items() if max(m.values(), default=0) >= MAX_MARGIN})
+        if rule == "fixed-single-log":
+            why = ("the thresholds come from a single collision-free log with a fixed 1.5× "
+                   "margin, not a leave-one-out margin over several logs.")
+        else:
+            why = ("the collision-free logs disagreed: the leave-one-out margin hit its cap of "
+                   f"{MAX_MARGIN:g}× ({', '.join(capped) or 'some detector'}), so a log like "
+                   "the most different one may still raise alarms.")
+        out.append({"code": "weak-calibration", "text": f"Weak calibration ({rule}): {why}"})
     if result.model_source == "identified-from-log":
         out.append(
             {
@@ -370,7 +376,7 @@ def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]
                     + "; ".join(blind)
                     + "): slowly building contacts vanish from its residual; only the"
                       " static-loading "
-                    "detector covers them (method.md §7)."
+                    "detector covers them (README: the method as implemented)."
                 ),
             }
         )
