@@ -336,7 +336,7 @@ def calibrate(
         rp = replay(log, model, cfg, robot)
         for d, s in rp.stats_after_warmup().items():
             per_det[d].append(s)
-    cal = {d: calibrate_thresholds(per_det[d]) for d in DETECTORS}
+    cal = {d: calibrate_thresholds(per_det[d], joints=joints, detector=d) for d in DETECTORS}
     table = {d: {j: float(cal[d].thresholds[k]) for k, j in enumerate(joints)} for d in DETECTORS}
     record = CalibrationRecord(
         calibrated=True, margin_rule=cal["adaptive"].rule,

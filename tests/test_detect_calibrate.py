@@ -42,8 +42,10 @@ def test_margin_floor_and_cap() -> None:
     same = [_stat([1.0]), _stat([1.0], seed=3)]
     cal = calibrate_thresholds(same)
     np.testing.assert_allclose(cal.margins, [1.05])               # floor
-    with pytest.warns(ImpactWarning, match="capped"):
-        cal = calibrate_thresholds([_stat([1.0]), _stat([5.0])])
+    with pytest.warns(ImpactWarning, match=r"^static_loading: leave-one-out margin above 3 "
+                                           r"\(elbow 5\.\d+\); capped"):
+        cal = calibrate_thresholds([_stat([1.0]), _stat([5.0])], joints=["elbow"],
+                                   detector="static_loading")
     assert cal.weak and cal.margins[0] == 3.0
     np.testing.assert_allclose(cal.thresholds, [15.0])
     np.testing.assert_allclose(leave_one_out_margins(np.array([[0.0], [1.0]])), [np.inf])

@@ -86,6 +86,7 @@ def leave_one_out_margins(maxima: np.ndarray) -> np.ndarray:
 def calibrate_thresholds(
     statistics: Sequence[np.ndarray], *, min_margin: float = MIN_MARGIN,
     max_margin: float = MAX_MARGIN, single_log_margin: float = SINGLE_LOG_MARGIN,
+    joints: Sequence[str] | None = None, detector: str = "",
 ) -> ThresholdCalibration:
     """Thresholds from collision-free logs.
 
@@ -93,6 +94,7 @@ def calibrate_thresholds(
         statistics: per log, the (N_l, J) statistic after warm-up (see module doc).
         min_margin, max_margin: floor and cap of the leave-one-out margin.
         single_log_margin: margin when only one log is given.
+        joints, detector: names used in the capped-margin warning.
     """
     if not statistics:
         raise ValueError("calibration needs at least one log")
@@ -107,11 +109,13 @@ def calibrate_thresholds(
         margins = np.maximum(raw, min_margin)
         weak = bool(np.any(margins > max_margin))
         if weak:
-            bad = [f"joint {j}: {raw[j]:.3g}" for j in np.flatnonzero(margins > max_margin)]
+            names = list(joints) if joints is not None else [f"joint {j}" for j in
+                                                              range(len(raw))]
+            bad = [f"{names[j]} {raw[j]:.3g}" for j in np.flatnonzero(margins > max_margin)]
             warnings.warn(
-                f"leave-one-out margin above {max_margin} ({', '.join(bad)}); capped — the "
-                "calibration logs disagree, add logs covering the robot's motions",
-                ImpactWarning, stacklevel=2,
+                f"{detector + ': ' if detector else ''}leave-one-out margin above "
+                f"{max_margin:g} ({', '.join(bad)}); capped — the calibration logs disagree, "
+                "add logs covering the robot's motions", ImpactWarning, stacklevel=2,
             )
             margins = np.minimum(margins, max_margin)
         rule = "leave-one-out"
