@@ -163,6 +163,11 @@ def _case_npz_without_map(tmp: Path) -> tuple[Path, dict[str, object]]:
     return p, {}
 
 
+def _case_ragged_line(tmp: Path) -> tuple[Path, dict[str, object]]:
+    r = _fmt(_rows(10)).splitlines(keepends=True)
+    return _csv(tmp, "".join(r[:4]) + "garbage,line,here\n" + "".join(r[4:])), {}
+
+
 CASES: dict[str, tuple[Callable[[Path], tuple[Path, dict[str, object]]], str]] = {
     "missing file": (_case_missing, "not found"),
     "unknown format": (_case_unknown, "unknown log format"),
@@ -184,6 +189,8 @@ CASES: dict[str, tuple[Callable[[Path], tuple[Path, dict[str, object]]], str]] =
     "mcap topic missing": (_case_missing_topic,
                            r"topic '/no_such_topic' not found \(topics: /joint_states\)"),
     "empty csv": (_case_empty, "empty file"),
+    "ragged line": (_case_ragged_line,
+                    r"cannot parse CSV: line 6: 3 fields where the header has 5: garbage"),
     "npz without map": (_case_npz_without_map, "needs a channel map"),
 }
 

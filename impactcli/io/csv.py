@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import gzip
 import os
+import re
 from pathlib import Path
 from typing import Any
 
@@ -119,6 +120,20 @@ def decimal_text_to_ns(values: Any, unit_ns: int) -> np.ndarray | None:
     return out
 
 
+def _ragged_line(path: Path, skip: int, delim: str, expected: int) -> int | None:
+    """The 1-based line number of the first data line with another number of fields than
+    ``expected`` (only to name it in an error; quoted delimiters are not considered)."""
+    opener: Any = gzip.open if _is_gz(path) else open
+    try:
+        with opener(path, "rt", encoding="utf-8", errors="replace", newline="") as f:
+            for n, line in enumerate(f, 1):
+                if n > skip and line.strip() and line.count(delim) + 1 != expected:
+                    return n
+    except (OSError, EOFError):
+        return None
+    return None
+
+
 def _row_labeller(skip: int) -> Any:
     def label(i: int) -> str:
         return f"row {i + 1} (line {i + 1 + skip})"
@@ -186,6 +201,12 @@ def read_csv_channels(path: Path, cmap: ChannelMap | None) -> tuple[JointChannel
             )
         except (pa.ArrowInvalid, OSError) as err:
             msg = str(err).splitlines()[0]
+            m = re.search(r"Expected (\d+) columns, got (\d+)", msg)
+            if m:
+                at = _ragged_line(path, skip, delim, int(m.group(1)))
+                if at is not None:
+                    msg = (f"line {at}: {m.group(2)} fields where the header has "
+                           f"{m.group(1)}" + msg[m.end():])
             raise LogFormatError(f"{where}: cannot parse CSV: {msg}") from err
 
     # Time is parsed as float64 when that is exact to the nanosecond: decimal text with at
