@@ -320,6 +320,9 @@ def load_config(path: str | os.PathLike[str]) -> DetectorConfig:
     data = load_mapping(path, ConfigError, "detector config")
     if not data:
         raise ConfigError(f"{path}: the config is empty (make one with `impactcli calibrate`)")
+    if {"kind", "joint_names", "parameters"} <= set(data):
+        raise ConfigError(f"{path}: this is a model (from `impactcli identify`), not a "
+                          "detector config — give it with --model")
     return DetectorConfig.from_dict(data, where=str(path))
 
 

@@ -180,3 +180,13 @@ def test_an_empty_config_file_is_an_error(tmp_path: Path) -> None:
         path.write_text(text, encoding="utf-8")
         with pytest.raises(ConfigError, match=rf"{name}: the config is empty"):
             load_config(path)
+
+
+def test_a_model_given_as_config_and_a_config_as_model_say_so(tmp_path: Path) -> None:
+    from impactcli.errors import ModelError
+    from impactcli.model import read_model
+
+    with pytest.raises(ConfigError, match=r"model\.example\.json: this is a model .* --model"):
+        load_config(MODEL)
+    with pytest.raises(ModelError, match=r"config\.example\.toml: a model is the JSON .* --config"):
+        read_model(EXAMPLE)

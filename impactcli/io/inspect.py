@@ -16,6 +16,11 @@ GAP_FACTOR = 1.5
 MAX_GAPS_LISTED = 20
 
 
+def _ms(seconds: float) -> str:
+    """Milliseconds for the text table; below 1 ns (clock rounding) shown as 0."""
+    return "0" if abs(seconds) < 1e-9 else f"{seconds * 1e3:.4g}"
+
+
 def time_gaps(log: RobotLog) -> tuple[np.ndarray, np.ndarray]:
     """Indices i of the steps t[i] → t[i+1] longer than ``GAP_FACTOR`` median periods, and
     their lengths [s]."""
@@ -90,7 +95,8 @@ def format_table(d: dict[str, Any]) -> str:
         ("duration", f"{d['duration_s']:.3f} s"),
         ("sample rate",
          f"{d['sample_rate_hz']:.3f} Hz (period {d['sample_period_s'] * 1e3:.4g} ms)"),
-        ("jitter", f"dt std {j['dt_std_s'] * 1e3:.4g} ms, max {j['dt_max_s'] * 1e3:.4g} ms"),
+        ("jitter", f"dt std {_ms(j['dt_std_s'])} ms, largest |dt − period| "
+                   f"{_ms(j['abs_dev_max_s'])} ms"),
         ("gaps", f"{d['gaps']['count']} (steps > {d['gaps']['threshold_s'] * 1e3:.4g} ms)"),
         ("torque source", d["torque_source"]),
         ("time source", d["time_source"]),

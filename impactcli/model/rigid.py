@@ -183,6 +183,9 @@ def read_model(path: str | os.PathLike[str]) -> RigidModel:
     p = Path(path)
     if not p.is_file():
         raise ModelError(f"{p}: model file not found")
+    if p.suffix.lower() in (".toml", ".yaml", ".yml"):
+        raise ModelError(f"{p}: a model is the JSON file `impactcli identify` writes; a "
+                         f"{p.suffix} file is a detector config — give it with --config")
     try:
         d = json.loads(p.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
