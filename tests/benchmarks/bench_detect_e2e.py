@@ -16,6 +16,7 @@ import argparse
 import os
 import platform
 import resource
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -55,6 +56,16 @@ def main() -> None:
     args = ap.parse_args()
     tmp = Path(args.keep or tempfile.mkdtemp(prefix="impactcli-bench-"))
     tmp.mkdir(parents=True, exist_ok=True)
+    try:
+        _bench(args.minutes, tmp)
+    finally:
+        if args.keep is None:  # the CSV alone is ~1 GB at 120 min
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _bench(minutes: float, tmp: Path) -> None:
+    """Simulate (unless kept) and time ``detect`` twice on the log in ``tmp``."""
+    args = argparse.Namespace(minutes=minutes)
     csv = tmp / f"bench_{args.minutes:g}min.csv"
     if not csv.exists():
         t0 = time.perf_counter()

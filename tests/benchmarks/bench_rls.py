@@ -55,7 +55,7 @@ def regressors(r: np.ndarray, vd: np.ndarray, u: np.ndarray, cfg: AdaptiveConfig
     return np.hstack(cols)
 
 
-def best_of(fn, repeats: int = 3) -> float:
+def best_of(fn, repeats: int = 9) -> float:
     """Best CPU time of this process [s] (process_time: robust to other processes sharing
     the cores; on an idle machine it equals wall time for this single-threaded code)."""
     best = np.inf
@@ -77,7 +77,7 @@ def main() -> None:
     n = int(args.seconds * FS)
     print(f"machine: {platform.platform()} | {platform.processor() or platform.machine()} | "
           f"cpu_count={os.cpu_count()} | python {platform.python_version()}")
-    print(f"log: {n} samples at {FS:g} Hz; Table I settings; best of 3, CPU time; "
+    print(f"log: {n} samples at {FS:g} Hz; Table I settings; best of 9, CPU time; "
           f"load average {os.getloadavg()[0]:.1f}")
     print(f"{'joints':>6} {'nu':>4} {'evaluator axis-samples/s':>26} {'target':>10} "
           f"{'RLS-only upd/s':>15} {'padasip upd/s':>14} {'ratio eval/padasip':>19}")
@@ -85,9 +85,9 @@ def main() -> None:
         nn = n if joints == 2 else n // 3
         r, u = data(joints, nn)
         v_stat = np.full(joints, 0.1)
-        evaluate(r[:200], u[:, :200], FS, v_stat, cfg)             # compile / load cache
-        res = evaluate(r, u, FS, v_stat, cfg)
-        dt = best_of(lambda r=r, u=u, v_stat=v_stat: evaluate(r, u, FS, v_stat, cfg))
+        evaluate(r[:200], u[:, :200], FS, v_stat, cfg, threads=1)  # compile / load cache
+        res = evaluate(r, u, FS, v_stat, cfg, threads=1)
+        dt = best_of(lambda r=r, u=u, v_stat=v_stat: evaluate(r, u, FS, v_stat, cfg, threads=1))
         rate = nn * joints / dt
         Phi = regressors(r, res.v_dyn, u, cfg, 0)
         nu = Phi.shape[1]
