@@ -54,6 +54,20 @@ def atomic_output(path: str | os.PathLike[str], mode: str = "wb") -> Iterator[IO
         raise
 
 
+def check_output_folder(path: str | os.PathLike[str]) -> None:
+    """OutputError unless ``path`` is, or could be created as, a folder (nothing is made)."""
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise OutputError(f"cannot write into {path}: it exists and is not a folder")
+    q = p
+    while not q.exists() and q != q.parent:
+        q = q.parent
+    if q.exists() and not q.is_dir():
+        raise OutputError(f"cannot write into {path}: {q} is a file, not a folder")
+    if q.exists() and not os.access(q, os.W_OK):
+        raise OutputError(f"cannot write into {path}: no permission to write in {q}")
+
+
 def prepare_output(path: str | os.PathLike[str]) -> None:
     """Create ``path``'s folder if needed; OutputError (one line, exit 2) when ``path``
     cannot be an output file there (its folder is a file, ``path`` is a folder, no

@@ -267,3 +267,19 @@ def test_a_log_shorter_than_the_warm_up_is_a_data_error(tmp_path: Path) -> None:
     assert r.exit_code == 3
     assert f"{short}: 10 samples (0.036 s), shorter than the detectors' warm-up" in r.stderr
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("extra", [["-o", "{f}/sub"], ["-o", "{d}/out", "--summary", "{f}/s.json"]])
+def test_detect_outputs_are_checked_before_any_log_is_read(tmp_path: Path,
+                                                           extra: list[str]) -> None:
+    from click.testing import CliRunner
+
+    from impactcli.cli import main
+
+    f = tmp_path / "afile"
+    f.write_text("", encoding="utf-8")
+    args = [a.format(f=f, d=tmp_path) for a in extra]
+    r = CliRunner().invoke(main, ["detect", str(tmp_path / "missing.csv"), *args])
+    assert r.exit_code == 2, r.output
+    assert "missing.csv" not in r.stderr and "Traceback" not in r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]

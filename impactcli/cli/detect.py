@@ -4,7 +4,6 @@
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -200,8 +199,19 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     if model_from_log and model is not None:
         raise click.UsageError("--model and --model-from-log exclude each other")
     local_out = out_dir[len("file://"):] if out_dir.startswith("file://") else out_dir
-    if "://" not in local_out and os.path.exists(local_out) and not os.path.isdir(local_out):
-        raise click.BadParameter(f"{out_dir!r} exists and is not a folder", param_hint="'-o'")
+    if "://" not in local_out:
+        from .._fs import check_output_folder
+        from ..errors import OutputError
+
+        try:
+            check_output_folder(local_out)
+        except OutputError as err:
+            raise click.BadParameter(str(err).replace(f"cannot write into {local_out}: ", ""),
+                                     param_hint="'-o'") from None
+    if summary_path is not None and "://" not in summary_path:
+        from .._fs import prepare_output
+
+        prepare_output(summary_path)  # a bad --summary stops the batch before any work
     choice = resolve_executor(jobs, scheduler)
     inputs = preload(robot, model, config)
     ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)

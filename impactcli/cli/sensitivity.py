@@ -99,8 +99,12 @@ def sensitivity_cmd(arms: tuple[str, ...], stiffness: tuple[float, ...] | None,
                     jobs: int | None, json_out: str | None, md_out: Path | None) -> None:
     """Reproduce the paper's Table II on the simulator; soak for false alarms; compare the
     detectors at matched false-alarm rates."""
+    from .._fs import atomic_write_text, prepare_output
     from ..sensitivity import StudySpec, format_markdown, format_text, run_study
 
+    for out in (md_out, None if json_out in (None, "-") else Path(json_out)):
+        if out is not None:  # a bad output path stops the study before it runs
+            prepare_output(out)
     changes: dict[str, Any] = {"seed": seed}
     if arms:
         changes["variants"] = tuple(dict.fromkeys(arms))
@@ -121,11 +125,11 @@ def sensitivity_cmd(arms: tuple[str, ...], stiffness: tuple[float, ...] | None,
     summary["command"] = "impactcli sensitivity " + " ".join(
         shlex.quote(a) for a in sys.argv[2:]) if sys.argv[1:2] == ["sensitivity"] else ""
     if md_out is not None:
-        md_out.write_text(format_markdown(summary, summary["command"]), encoding="utf-8")
+        atomic_write_text(md_out, format_markdown(summary, summary["command"]))
     if json_out == "-":
         click.echo(json.dumps(summary, indent=1, sort_keys=False))
         return
     if json_out is not None:
-        Path(json_out).write_text(json.dumps(summary, indent=1) + "\n", encoding="utf-8")
+        atomic_write_text(json_out, json.dumps(summary, indent=1) + "\n")
     click.echo(format_text(summary), nl=False)
     click.echo(f"wall time {summary['wall_time_s']:.0f} s", err=True)

@@ -9,7 +9,6 @@ written to a temporary folder (or ``--save PATH``) and opened. ``--no-open`` onl
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -98,11 +97,14 @@ def view_cmd(source: Path, robot: Path | None, model: Path | None,
     SOURCE is an .rrd written by `detect --rerun` (or `view --save`), or any log that
     `detect` reads; for a log the detect options given here are used.
     """
+    from .._fs import atomic_write_bytes, prepare_output
+
+    if save_path is not None:  # a bad --save stops the run before any work
+        prepare_output(save_path)
     if source.suffix.lower() == ".rrd":
         check_rrd(source)
         if save_path is not None and save_path.resolve() != source.resolve():
-            save_path.parent.mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(source, save_path)
+            atomic_write_bytes(save_path, source.read_bytes())
         if save_path is not None and save_path.resolve() != source.resolve():
             click.echo(str(save_path))
         if no_open:
