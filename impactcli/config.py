@@ -300,6 +300,18 @@ def _build(d: dict[str, Any], where: str) -> DetectorConfig:
     if "generator" in residual:
         residual["generator"] = GENERATOR_ALIASES.get(residual["generator"],
                                                       residual["generator"])
+    model = _embedded_model(d.get("model"), where)
+    if model is not None:
+        known = list(model["joint_names"])
+        for kind, table in (("v_stat", thresholds.v_stat), ("v0", thresholds.v0),
+                            ("vL", thresholds.vL)):
+            if table and set(table) != set(known):
+                extra = sorted(set(table) - set(known))
+                missing = [j for j in known if j not in table]
+                raise ConfigError(
+                    f"{where}: thresholds/{kind}: joints {sorted(table)} do not match the "
+                    f"model's {known}" + (f" (unknown: {extra})" if extra else "")
+                    + (f" (missing: {missing})" if missing else ""))
     return DetectorConfig(
         adaptive=adaptive,
         thresholds=thresholds,
@@ -308,7 +320,7 @@ def _build(d: dict[str, Any], where: str) -> DetectorConfig:
         events=EventsConfig(**d.get("events", {})),
         warmup=WarmupConfig(**d.get("warmup", {})),
         calibration=CalibrationRecord(**c),
-        model=_embedded_model(d.get("model"), where),
+        model=model,
     )
 
 

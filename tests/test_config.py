@@ -35,11 +35,12 @@ def test_defaults_are_table_one() -> None:
 
 def _full() -> DetectorConfig:
     return DetectorConfig(
-        thresholds=ThresholdsConfig(v_stat={"j1": 0.45, "j2": 0.2}, v0={"j1": 3.0, "j2": 1.0},
-                                    vL={"j1": 1.0, "j2": 0.5}),
+        thresholds=ThresholdsConfig(v_stat={"shoulder": 0.45, "elbow": 0.2},
+                                    v0={"shoulder": 3.0, "elbow": 1.0},
+                                    vL={"shoulder": 1.0, "elbow": 0.5}),
         calibration=CalibrationRecord(
             calibrated=True, margin_rule="leave-one-out",
-            margins={"adaptive": {"j1": 1.3, "j2": 1.1}},
+            margins={"adaptive": {"shoulder": 1.3, "elbow": 1.1}},
             logs=(LogRecord("a.csv", "a" * 64), LogRecord("b.csv", "b" * 64)),
             model_sha256="c" * 64,
         ),
@@ -168,10 +169,10 @@ def test_bad_top_level_and_unparsable(tmp_path: Path) -> None:
 
 def test_threshold_vector_in_joint_order() -> None:
     th = _full().thresholds
-    np.testing.assert_array_equal(th.vector("v_stat", ("j2", "j1")), [0.2, 0.45])
-    assert DetectorConfig().thresholds.vector("v0", ("j1",)) is None
+    np.testing.assert_array_equal(th.vector("v_stat", ("elbow", "shoulder")), [0.2, 0.45])
+    assert DetectorConfig().thresholds.vector("v0", ("shoulder",)) is None
     with pytest.raises(ConfigError, match=r"cfg.toml: thresholds/vL: no value for joint\(s\) j3"):
-        th.vector("vL", ("j1", "j3"), "cfg.toml")
+        th.vector("vL", ("shoulder", "j3"), "cfg.toml")
 
 
 def test_an_empty_config_file_is_an_error(tmp_path: Path) -> None:
@@ -190,3 +191,15 @@ def test_a_model_given_as_config_and_a_config_as_model_say_so(tmp_path: Path) ->
         load_config(MODEL)
     with pytest.raises(ModelError, match=r"config\.example\.toml: a model is the JSON .* --config"):
         read_model(EXAMPLE)
+
+
+def test_threshold_joints_must_match_the_embedded_model(tmp_path: Path) -> None:
+    repo = Path(__file__).resolve().parents[1]
+    cfg = load_config(repo / "sample_logs" / "assist_like.config.toml")
+    d = cfg.to_dict()
+    d["thresholds"]["vL"] = {"shulder": 1.0, "elbow": 0.5}
+    bad = tmp_path / "typo.json"
+    bad.write_text(json.dumps(d), encoding="utf-8")
+    with pytest.raises(ConfigError, match=r"typo\.json: thresholds/vL: .*unknown: \['shulder'\]"
+                                          r".*missing: \['shoulder'\]"):
+        load_config(bad)
