@@ -55,7 +55,15 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     save_config(out, out_path)
     c = out.calibration
     weak = " (weak: add collision-free logs covering the robot's motions)" if c.weak else ""
-    click.echo(f"calibrated on {len(read)} log(s), rule {c.margin_rule}{weak}")
+    kind = (out.model or {}).get("kind", "?")
+    source = ("given" if model_m is not None else "the base config's" if cfg and cfg.model
+              else f"identified on the {len(read)} log(s)")
+    click.echo(f"calibrated on {len(read)} log(s), rule {c.margin_rule}{weak}; "
+               f"model {kind} ({source})")
+    if kind == "decoupled" and robot_d is None and model_m is None:
+        click.echo("impactcli: warning: no --robot: the model is 'decoupled' (each joint "
+                   "alone, no kinematics); a robot description with kinematics gives the "
+                   "planar or urdf model", err=True)
     click.echo(f"{'joint':<16} {'v_stat':>9} {'vL':>9} {'v0':>9}   "
                "margins (adaptive/loading/baseline)")
     th = out.thresholds
