@@ -138,7 +138,7 @@ def variants() -> None:
                  clamps_by_static_loading("assist_clamps", evals["assist_clamps"])]
         print(f"{label}: vL {', '.join(f'{v:.2f}' for v in cfg.thresholds.vL.values())} N·m")
         for c in crit:
-            print(f"  {c.line()[:150]}")
+            print(f"  {c.line()}")
 
 
 def run(name: str, config: DetectorConfig | None, *, model_from_log: bool = False
@@ -166,8 +166,12 @@ class Criterion:
     passed: bool
     detail: str
 
-    def line(self) -> str:
-        return f"{'PASS' if self.passed else 'FAIL'}  {self.name} [{self.log}]: {self.detail}"
+    def line(self, info: bool = False) -> str:
+        """``PASS``/``FAIL`` for a criterion; ``holds``/``does not hold`` for a measurement
+        that is not one (``info``)."""
+        word = (("holds" if self.passed else "does not hold") if info
+                else ("PASS" if self.passed else "FAIL"))
+        return f"{word}  {self.name} [{self.log}]: {self.detail}"
 
 
 def _prev_contact_end(ev: Evaluation, t: float) -> float | None:
@@ -457,7 +461,7 @@ def main(argv: list[str] | None = None) -> int:
     res_c, ev_c = run(PAYLOAD_LOG, cfgs["assist_like"])
     info.append(payload_no_false_alarm("config thresholds and the config's model", res_c, ev_c))
     for c in info:
-        print(c.line())
+        print(c.line(info=True))
     for lbl, r in (("no config", res_u), ("config + model from log", res_m)):
         print(f"  {PAYLOAD_LOG} ({lbl}): largest statistic/threshold after warm-up "
               + ", ".join(f"{d} {v:.2f}" for d, v in max_ratio_after_warmup(r).items()))
