@@ -185,6 +185,7 @@ class Replay:
     reference_source: str
     warmup: Warmup
     stats: dict[str, np.ndarray]
+    threshold_inputs: str = ""
 
     def stats_after_warmup(self) -> dict[str, np.ndarray]:
         """Each statistic from the warm-up's end on (all of it if the warm-up covers the log)."""
@@ -230,7 +231,8 @@ def replay(
     stats = {"adaptive": adaptive_statistic(ad.r_rms, ad.v_rms), "static_loading": loading,
              "static_baseline": np.abs(r)}
     return Replay(log, model, model_source, ropts, r, ad,
-                  "measured" if inputs.source == "measured" else "reference", wu, stats)
+                  "measured" if inputs.source == "measured" else "reference", wu, stats,
+                  inputs.detail)
 
 
 def _analyze(
@@ -296,6 +298,7 @@ def _analyze(
         log=log, model=rp.model.to_dict(), model_sha256=rp.model.sha256,
         model_source=rp.model_source, config=cfg.to_dict(), calibrated=given is not None,
         thresholds=thresholds, reference_source=rp.reference_source,
+        threshold_inputs=rp.threshold_inputs,
         torque_filtered=rp.residual_options.filter_torque,
         signals=signals, decisions=decisions, ratios=ratios, events=tuple(events),
         warmup_end_s=wu.end_s,

@@ -40,6 +40,8 @@ class DetectionResult:
         thresholds: per joint ``{"v_stat": .., "v0": .., "vL": ..}`` [N·m].
         reference_source: ``reference`` (logged controller reference) or ``measured``
             (fallback: causally filtered measured position).
+        threshold_inputs: how u1, u2 were made, in words (which reference signals were
+            logged, which were differentiated).
         torque_filtered: the measured torque went through the estimate's causal filter.
         signals: name → (N, J) float64 array, names in :data:`SIGNAL_NAMES`.
         decisions: detector → (N, J) bool array, detectors in :data:`DETECTORS`.
@@ -70,6 +72,7 @@ class DetectionResult:
     filter_gain: dict[str, Any]
     residual_generator: str = "inverse_dynamics"
     warnings: tuple[str, ...] = ()
+    threshold_inputs: str = ""
     read_options: dict[str, Any] = field(default_factory=dict)
 
     @property

@@ -283,3 +283,19 @@ def test_detect_outputs_are_checked_before_any_log_is_read(tmp_path: Path,
     assert r.exit_code == 2, r.output
     assert "missing.csv" not in r.stderr and "Traceback" not in r.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
+
+
+def test_timeline_says_how_the_threshold_inputs_were_made() -> None:
+    """The ROS 2 MCAP copy of a log has no acceleration reference: its inputs differ from
+    the CSV copy's, and each timeline says how they were made."""
+    from impactcli.io import read_log
+    from impactcli.outputs.timeline import timeline_dict
+    from impactcli.pipeline import analyze
+
+    repo = Path(__file__).resolve().parents[1] / "sample_logs"
+    details = {}
+    for fmt, name in (("csv", "assist_free_p2p.csv.gz"), ("mcap", "assist_free_p2p.mcap")):
+        res = analyze(read_log(repo / fmt / name))
+        details[fmt] = timeline_dict(res)["replay"]["threshold_inputs"]
+    assert details["csv"] == "velocity_ref and acceleration_ref as logged"
+    assert details["mcap"].startswith("velocity_ref as logged; acceleration by causal")

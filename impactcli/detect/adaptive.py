@@ -121,10 +121,13 @@ class ThresholdInputs:
         source: ``velocity_ref`` (logged reference derivatives), ``position_ref`` (causal
             finite differences of the logged reference position) or ``measured`` (causally
             filtered measured position; no reference logged).
+        detail: how u was made, in words (recorded in the timeline: two logs of one run
+            with and without an acceleration reference give slightly different inputs).
     """
 
     u: np.ndarray
     source: str
+    detail: str = ""
 
 
 def _causal_diff(x: np.ndarray, t_s: np.ndarray) -> np.ndarray:
@@ -156,13 +159,19 @@ def threshold_inputs(log: RobotLog, cfg: AdaptiveConfig | None = None) -> Thresh
     t = log.time_s
     if log.velocity_ref is not None:
         v = np.asarray(log.velocity_ref)
-        acc = (np.asarray(log.acceleration_ref) if log.acceleration_ref is not None
-               else _causal_diff(v, t))
+        if log.acceleration_ref is not None:
+            acc = np.asarray(log.acceleration_ref)
+            detail = "velocity_ref and acceleration_ref as logged"
+        else:
+            acc = _causal_diff(v, t)
+            detail = ("velocity_ref as logged; acceleration by causal backward difference "
+                      "(no acceleration_ref logged)")
         source = "velocity_ref"
     elif log.position_ref is not None:
         v = _causal_diff(np.asarray(log.position_ref), t)
         acc = _causal_diff(v, t)
         source = "position_ref"
+        detail = "position_ref; velocity and acceleration by causal backward differences"
     else:
         warnings.warn(
             f"{log.source.path}: no reference trajectory logged; the dynamic threshold's "
@@ -175,8 +184,10 @@ def threshold_inputs(log: RobotLog, cfg: AdaptiveConfig | None = None) -> Thresh
                            fc, fs)
         acc = _causal_diff(v, t)
         source = "measured"
+        detail = (f"measured position, causal {fc:g} Hz low-pass, backward differences "
+                  "(no reference logged)")
     u = np.stack([np.tanh(cfg.tanh_slope * v), acc]).astype(np.float64)
-    return ThresholdInputs(np.ascontiguousarray(u), source)
+    return ThresholdInputs(np.ascontiguousarray(u), source, detail)
 
 
 # ----------------------------------------------------------------------------- result

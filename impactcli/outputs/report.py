@@ -934,6 +934,7 @@ def _section_html(
                         else ' <span class="warn">(no logged reference)</span>'
                     ),
                 ),
+                ("threshold inputs", _e(replay.get("threshold_inputs") or "—")),
                 ("torque filtered like the estimate", _f(replay["torque_filtered"])),
                 ("residual generator", _e(replay.get("residual_generator", "—"))),
                 ("warm-up end", f"{sec['warmup_end_s']:.3f} s (latest over joints)"),

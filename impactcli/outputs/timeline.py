@@ -63,6 +63,7 @@ def timeline_dict(result: DetectionResult) -> dict[str, Any]:
             "reference_source": result.reference_source,
             "torque_filtered": result.torque_filtered,
             "residual_generator": result.residual_generator,
+            "threshold_inputs": result.threshold_inputs,
         },
         "warmup_end_s": result.warmup_end_s,
         "warmup_per_joint_s": result.warmup_per_joint_s,
