@@ -282,6 +282,7 @@ def _analyze(
         events += extract_events(d, decisions[d], ratios[d], r, t, joints, wu.end_s,
                                  ev.merge_gap_s, ev.min_duration_s)
     events.sort(key=lambda e: (e.t_start, DETECTORS.index(e.detector)))
+    _warn_events_after_gaps(log, events)
 
     freqs, gain = ad.g_gain()
     signals = {
@@ -308,6 +309,26 @@ def _analyze(
                      "gain": {j: [float(g) for g in gain[k]] for k, j in enumerate(joints)}},
         residual_generator=rp.residual_options.generator, read_options=read_options,
     )
+
+
+#: Events starting this long after a time gap are named in a warning [s].
+GAP_SETTLE_S = 0.5
+
+
+def _warn_events_after_gaps(log: RobotLog, events: list[Any]) -> None:
+    """Warn naming the events that start within GAP_SETTLE_S after a time gap."""
+    gaps, _ = time_gaps(log)
+    if not gaps.size or not events:
+        return
+    after = log.time_s[gaps + 1]
+    near = [e for e in events
+            if np.any((e.t_start >= after - 1e-9) & (e.t_start <= after + GAP_SETTLE_S))]
+    if near:
+        listed = ", ".join(f"{e.detector} at {e.t_start:.3f} s" for e in near[:5])
+        more = f" and {len(near) - 5} more" if len(near) > 5 else ""
+        warnings.warn(f"{log.source.path}: {len(near)} event(s) start within "
+                      f"{GAP_SETTLE_S:g} s after a time gap ({listed}{more}): check them",
+                      ImpactWarning, stacklevel=3)
 
 
 def calibrate(
