@@ -173,7 +173,8 @@ def read_csv_channels(path: Path, cmap: ChannelMap | None) -> tuple[JointChannel
             if ref.source >= len(names):
                 raise ChannelMapError(
                     f"{where}: channel map {cmap.path or cmap.name}: {what} points at column "
-                    f"{ref.source}, but the file has {len(names)} columns"
+                    f"{ref.source} (0-based), but the file has {len(names)} columns "
+                    f"(0–{len(names) - 1}): is this the file the map was written for?"
                 )
             return names[ref.source]
         if ref.source not in names:
