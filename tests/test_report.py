@@ -98,6 +98,17 @@ def test_weak_calibration_caveat_says_why(rule: str, margins: dict, says: str) -
     assert ("single" in text) == (rule == "fixed-single-log")
 
 
+def test_a_long_event_gets_a_caveat() -> None:
+    """A 12 s static_loading event (a persistent load) is called out; short ones are not."""
+    r = fake_result()
+    assert "long-event" not in {c["code"] for c in build_report([r])[1]["logs"][0]["caveats"]}
+    long = dataclasses.replace(r.events[0], detector="static_loading", t_start=1.0,
+                               t_end=13.0, in_warmup=False)
+    _, doc = build_report([dataclasses.replace(r, events=(*r.events, long))])
+    text = {c["code"]: c["text"] for c in doc["logs"][0]["caveats"]}["long-event"]
+    assert "static_loading, 1.0–13.0 s" in text and "--model-from-log" in text
+
+
 def test_calibrated_run_has_no_uncalibrated_caveat() -> None:
     cfg = dict(
         EVENTS_CFG,

@@ -258,6 +258,10 @@ def _poor_fit(result: DetectionResult) -> list[tuple[str, float, str]]:
     return out
 
 
+#: A counted event of adaptive or static_loading at least this long gets a caveat [s].
+LONG_EVENT_S = 10.0
+
+
 def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]:
     """Plain-language caveats an auditor must read before the numbers (code, text)."""
     out: list[dict[str, str]] = []
@@ -380,6 +384,20 @@ def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]
                 ),
             }
         )
+    long_ev = [e for e in result.events if not e.in_warmup
+               and e.t_end - e.t_start >= LONG_EVENT_S and e.detector != "static_baseline"]
+    if long_ev:
+        e = max(long_ev, key=lambda x: x.t_end - x.t_start)
+        out.append({
+            "code": "long-event",
+            "text": (
+                f"{len(long_ev)} event(s) of the product's detectors last {LONG_EVENT_S:g} s or "
+                f"more (the longest: {e.detector}, {e.t_start:.1f}–{e.t_end:.1f} s). A load "
+                "that persists is either a real one (a clamp, a held object) or a model that "
+                "does not fit this log (an unknown payload, a changed robot): if the robot "
+                "changed, re-identify (`detect --config C --model-from-log`) or recalibrate."
+            ),
+        })
     for rep in tl["input"].get("repairs") or []:
         out.append({"code": "repair", "text": f"Input repaired while reading: {rep}"})
     return out
