@@ -186,6 +186,7 @@ class Replay:
     warmup: Warmup
     stats: dict[str, np.ndarray]
     threshold_inputs: str = ""
+    gaps: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
     def stats_after_warmup(self) -> dict[str, np.ndarray]:
         """Each statistic from the warm-up's end on (all of it if the warm-up covers the log)."""
@@ -232,7 +233,7 @@ def replay(
              "static_baseline": np.abs(r)}
     return Replay(log, model, model_source, ropts, r, ad,
                   "measured" if inputs.source == "measured" else "reference", wu, stats,
-                  inputs.detail)
+                  inputs.detail, gaps)
 
 
 def _analyze(
@@ -282,7 +283,7 @@ def _analyze(
         events += extract_events(d, decisions[d], ratios[d], r, t, joints, wu.end_s,
                                  ev.merge_gap_s, ev.min_duration_s)
     events.sort(key=lambda e: (e.t_start, DETECTORS.index(e.detector)))
-    _warn_events_after_gaps(log, events)
+    _warn_events_after_gaps(log, rp.gaps, events)
 
     freqs, gain = ad.g_gain()
     signals = {
@@ -315,9 +316,9 @@ def _analyze(
 GAP_SETTLE_S = 0.5
 
 
-def _warn_events_after_gaps(log: RobotLog, events: list[Any]) -> None:
-    """Warn naming the events that start within GAP_SETTLE_S after a time gap."""
-    gaps, _ = time_gaps(log)
+def _warn_events_after_gaps(log: RobotLog, gaps: np.ndarray, events: list[Any]) -> None:
+    """Warn naming the events that start within GAP_SETTLE_S after a time gap (``gaps``:
+    indices i of the steps t[i] → t[i+1] that are gaps, from :func:`replay`)."""
     if not gaps.size or not events:
         return
     after = log.time_s[gaps + 1]
