@@ -57,17 +57,7 @@ def reorder_log(log: RobotLog, joints: tuple[str, ...], what: str) -> RobotLog:
             f"{list(joints)}" + (f" (missing {missing})" if missing else "")
             + (f" (not in the {what}: {extra})" if extra else "")
         )
-    idx = [log.joint_names.index(j) for j in joints]
-
-    def pick(a: np.ndarray | None) -> np.ndarray | None:
-        return None if a is None else a[:, idx]
-
-    return RobotLog(
-        t_ns=log.t_ns, joint_names=joints, position=log.position[:, idx], torque=log.torque[:, idx],
-        velocity=pick(log.velocity), current=pick(log.current), position_ref=pick(log.position_ref),
-        velocity_ref=pick(log.velocity_ref), acceleration_ref=pick(log.acceleration_ref),
-        source=log.source,
-    )
+    return log.select(joints)
 
 
 def resolve_model(

@@ -43,12 +43,20 @@ class LogSource:
     repairs: tuple[str, ...] = ()
 
 
+#: The controller's own channels (formats.md): a joint that lacks one holds NaN in its column.
+CONTROLLER_CHANNELS: tuple[str, ...] = ("torque_model", "torque_ext")
+
+
 def _as_matrix(name: str, a: Any, n: int, j: int, where: str) -> np.ndarray:
     arr = np.ascontiguousarray(a, dtype=np.float64)
     if arr.shape != (n, j):
         raise LogFormatError(f"{where}: {name} has shape {arr.shape}, expected ({n}, {j})")
-    if not np.all(np.isfinite(arr)):
-        bad = np.argwhere(~np.isfinite(arr))[0]
+    finite = np.isfinite(arr)
+    if name in CONTROLLER_CHANNELS:
+        # a column that is entirely NaN means "not logged for this joint"
+        finite = finite | np.all(np.isnan(arr), axis=0)[None, :]
+    if not np.all(finite):
+        bad = np.argwhere(~finite)[0]
         raise LogFormatError(
             f"{where}: {name} is not finite at sample {bad[0]} of joint {bad[1]}"
         )
@@ -70,6 +78,10 @@ class RobotLog:
         position_ref: optional (N, J) reference position x1_ref [rad].
         velocity_ref: optional (N, J) reference velocity [rad/s].
         acceleration_ref: optional (N, J) reference acceleration [rad/s²].
+        torque_model: optional (N, J) the controller's model torque for the measured motion,
+            without contact [N·m] (formats.md); an all-NaN column: not logged for that joint.
+        torque_ext: optional (N, J) the controller's own external-torque estimate [N·m];
+            an all-NaN column: not logged for that joint.
         source: provenance (path, sha256, format, torque/time source, repairs).
     """
 
@@ -82,6 +94,8 @@ class RobotLog:
     position_ref: np.ndarray | None = None
     velocity_ref: np.ndarray | None = None
     acceleration_ref: np.ndarray | None = None
+    torque_model: np.ndarray | None = None
+    torque_ext: np.ndarray | None = None
     source: LogSource = field(default_factory=lambda: LogSource("<memory>", "", "memory"))
 
     def __post_init__(self) -> None:
@@ -117,10 +131,27 @@ class RobotLog:
         j = len(names)
         for name in ("position", "torque"):
             object.__setattr__(self, name, _as_matrix(name, getattr(self, name), n, j, where))
-        for name in ("velocity", "current", "position_ref", "velocity_ref", "acceleration_ref"):
+        for name in ("velocity", "current", "position_ref", "velocity_ref", "acceleration_ref",
+                     *CONTROLLER_CHANNELS):
             value = getattr(self, name)
             if value is not None:
                 object.__setattr__(self, name, _as_matrix(name, value, n, j, where))
+        for name in CONTROLLER_CHANNELS:  # a channel no joint has is no channel
+            value = getattr(self, name)
+            if value is not None and not self._logged(value).any():
+                object.__setattr__(self, name, None)
+
+    @staticmethod
+    def _logged(a: np.ndarray) -> np.ndarray:
+        return ~np.all(np.isnan(a), axis=0)
+
+    def has_channel(self, signal: str) -> np.ndarray:
+        """(J,) bool: which joints carry ``signal`` (``torque_model``, ``torque_ext``, ...)."""
+        a = getattr(self, signal)
+        if a is None:
+            return np.zeros(self.n_joints, dtype=bool)
+        return np.asarray(self._logged(a)) if signal in CONTROLLER_CHANNELS else np.ones(
+            self.n_joints, dtype=bool)
 
     @property
     def n_samples(self) -> int:
@@ -172,7 +203,24 @@ class RobotLog:
             position=self.position[start:stop], torque=self.torque[start:stop],
             velocity=cut(self.velocity), current=cut(self.current),
             position_ref=cut(self.position_ref), velocity_ref=cut(self.velocity_ref),
-            acceleration_ref=cut(self.acceleration_ref), source=self.source,
+            acceleration_ref=cut(self.acceleration_ref), torque_model=cut(self.torque_model),
+            torque_ext=cut(self.torque_ext), source=self.source,
+        )
+
+    def select(self, joints: tuple[str, ...]) -> RobotLog:
+        """The log with only ``joints``, in that order (each must be in the log)."""
+        idx = [self.joint_names.index(j) for j in joints]
+
+        def pick(a: np.ndarray | None) -> np.ndarray | None:
+            return None if a is None else a[:, idx]
+
+        return RobotLog(
+            t_ns=self.t_ns, joint_names=joints, position=self.position[:, idx],
+            torque=self.torque[:, idx], velocity=pick(self.velocity),
+            current=pick(self.current), position_ref=pick(self.position_ref),
+            velocity_ref=pick(self.velocity_ref), acceleration_ref=pick(self.acceleration_ref),
+            torque_model=pick(self.torque_model), torque_ext=pick(self.torque_ext),
+            source=self.source,
         )
 
 

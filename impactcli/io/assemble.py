@@ -13,7 +13,7 @@ import numpy as np
 
 from .._fs import sha256_file
 from ..errors import LogFormatError
-from ..types import LogSource, RobotDescription, RobotLog
+from ..types import CONTROLLER_CHANNELS, LogSource, RobotDescription, RobotLog
 
 TORQUE_SOURCES = ("torque", "current")
 TIME_SOURCES = ("log", "publish", "header")
@@ -129,9 +129,18 @@ def build_log(
         for s in ("velocity", "current", "position_ref", "velocity_ref", "acceleration_ref")
         if s in ch.signals and not ch.missing.get(s)
     }
+    # the controller's channels are per joint: a joint without one holds NaN (formats.md)
+    for s in CONTROLLER_CHANNELS:
+        if s in ch.signals:
+            m = np.array(ch.signals[s], dtype=np.float64)
+            for j in ch.missing.get(s, []):
+                m[:, ch.joints.index(j)] = np.nan
+            opt[s] = m
     # a signal present for some joints only is not usable: list it as ignored
     ignored = list(ch.ignored)
     for s, miss in ch.missing.items():
+        if s in CONTROLLER_CHANNELS:
+            continue
         if s in ch.signals and miss and s in opt:
             del opt[s]
         if s in ch.signals and miss and s not in ("torque", "current", "position"):

@@ -28,6 +28,7 @@ from .structured import load_mapping
 SIGNALS: tuple[str, ...] = (
     "position", "velocity", "torque", "current",
     "position_ref", "velocity_ref", "acceleration_ref",
+    "torque_model", "torque_ext",
 )
 
 #: Time units and their size in ns.

@@ -346,7 +346,7 @@ def canonical_columns(log: RobotLog) -> list[tuple[str, np.ndarray]]:
     for j, name in enumerate(log.joint_names):
         for sig in SIGNALS:
             arr = getattr(log, sig)
-            if arr is not None:
+            if arr is not None and log.has_channel(sig)[j]:
                 out.append((f"{name}.{sig}", arr[:, j]))
     return out
 

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ImpactWarning, LogFormatError
-from ..types import RobotLog
+from ..types import CONTROLLER_CHANNELS, RobotLog
 from .assemble import TIME_SOURCES, JointChannels
 from .channel_map import SIGNALS
 from .mcap_ros2 import (
@@ -343,7 +343,8 @@ def write_mcap_json(log: RobotLog, path: str | os.PathLike[str]) -> None:
     _check_times(log, p)
     sigs = [(s, getattr(log, s)) for s in SIGNALS if getattr(log, s) is not None]
     names = list(log.joint_names)
-    lists = {s: a.tolist() for s, a in sigs}
+    lists = {s: np.where(np.isnan(a), None, a).tolist() if s in CONTROLLER_CHANNELS else a.tolist()
+             for s, a in sigs}
     with atomic_output(p, "wb") as f:
         w = Writer(f, compression=CompressionType.ZSTD)
         w.start(profile="", library="impactcli")

@@ -21,6 +21,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ..errors import ImpactWarning, LogFormatError
+from ..types import CONTROLLER_CHANNELS
 
 #: Longest run of consecutive non-finite samples in one channel that is interpolated.
 MAX_GAP_SAMPLES = 5
@@ -108,6 +109,20 @@ def repair_matrix(
                 f"({int(t[k - 1])} ns then {int(t[k])} ns); it must be strictly increasing"
             )
     bad = ~np.isfinite(mat)
+    # a controller channel (formats.md: torque_model, torque_ext) with no finite value at all
+    # was not logged for that joint: kept as NaN (the joint lacks it), said in a warning
+    empty = [c for c in np.flatnonzero(bad.all(axis=0))
+             if names[c].rsplit(".", 1)[-1] in CONTROLLER_CHANNELS] if n else []
+    for c in empty:
+        msg = (f"{where}: column {names[c]!r} holds no finite value: joint "
+               f"{names[c].rsplit('.', 1)[0]!r} is read as not logging "
+               f"{names[c].rsplit('.', 1)[-1]}")
+        repairs.append(msg)
+        warnings.warn(msg, ImpactWarning, stacklevel=3)
+        if not mat.flags.writeable:
+            mat = mat.copy()
+        mat[:, c] = np.nan
+        bad[:, c] = False
     if bad.any():
         tf = t.astype(np.float64)
         if not mat.flags.writeable:
