@@ -60,6 +60,7 @@ class DetectJob:
     signals: bool = False
     rerun: bool = False
     model_from_log: bool = False
+    generator: str | None = None
 
 
 @dataclass(frozen=True)
@@ -169,7 +170,7 @@ def _msgs(caught: list[warnings.WarningMessage]) -> tuple[str, ...]:
 def analyze_file(
     log_path: str, *, robot_path: str | None = None, model_path: str | None = None,
     config_path: str | None = None, read_options: dict[str, Any] | None = None,
-    model_from_log: bool = False,
+    model_from_log: bool = False, generator: str | None = None,
 ) -> Any:
     """Read one log and its robot, model and config (paths or URLs) and replay the
     detectors — what ``detect`` does for one log; ``evaluate`` and ``view`` use it too.
@@ -187,7 +188,8 @@ def analyze_file(
     config = load_by_url(config_path, load_config, "config") if config_path else None
     log = read_log(log_path, robot=robot, **opts)
     return analyze(log, model=model, config=config, robot=robot, read_options=opts,
-                   model_from_log=model_from_log)
+                   model_from_log=model_from_log, generator=generator,
+                   config_where=config_path or "config")
 
 
 def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ...]]:
@@ -195,7 +197,7 @@ def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ..
 
     result = analyze_file(job.log_path, robot_path=job.robot_path, model_path=job.model_path,
                           config_path=job.config_path, read_options=job.read_options,
-                          model_from_log=job.model_from_log)
+                          model_from_log=job.model_from_log, generator=job.generator)
     log = result.log
     stem = output_stem(job.log_path)
     local_out = local_path(job.out_dir)
@@ -213,6 +215,7 @@ def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ..
         "joints": len(log.joint_names),
         "calibrated": result.calibrated,
         "warmup_end_s": result.warmup_end_s,
+        "generators": {j: g["generator"] for j, g in result.generators.items()},
         **{d: v["events"] for d, v in result.summary().items()},
     }
     return outputs, summary, result.warnings

@@ -134,18 +134,29 @@ class ResidualConfig:
     """Residual generation options (used by the residual generator, not by detect/).
 
     Attributes:
-        generator: ``inverse_dynamics`` (eq. 7–8; ``rigid_model`` is read as it) or
-            ``momentum_observer`` — the names the timeline and model use.
+        generator: for every joint (formats.md): ``auto`` (the default for new configs and
+            for ``detect`` without one: per joint ``logged_external`` when the log carries
+            ``torque_ext``, else ``logged_model`` when it carries ``torque_model``, else
+            ``inverse_dynamics``), ``inverse_dynamics`` (eq. 7–8; ``rigid_model`` is read as
+            it), ``momentum_observer``, ``logged_model`` or ``logged_external``
+            (:mod:`impactcli.model.generators`). Configs written before ``auto`` existed name
+            their generator and keep it.
+        generators: joint → generator frozen by ``calibrate`` (thresholds belong to the
+            generator they were made with); wins over ``generator``.
+        logged_model_correction: joint → ``{scale, fv, fc, offset}``, the correction of
+            ``torque_model`` identified on the calibration logs.
         derivative_cutoff_hz: causal low-pass of the estimated velocity/acceleration [Hz].
         filter_torque: pass the measured torque through the same causal filter as the
             estimate (method.md §8: lowers the residual's high-frequency floor 2–5×).
         observer_gain: momentum-observer gain K [1/s].
     """
 
-    generator: str = "inverse_dynamics"
+    generator: str = "auto"
     derivative_cutoff_hz: float = 15.0
     filter_torque: bool = True
     observer_gain: float = 50.0
+    generators: dict[str, str] = field(default_factory=dict)
+    logged_model_correction: dict[str, dict[str, float]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -297,6 +308,10 @@ def _build(d: dict[str, Any], where: str) -> DetectorConfig:
         k: {str(j): float(v) for j, v in m.items()} for k, m in c.get("margins", {}).items()
     }
     residual = dict(d.get("residual", {}))
+    residual["generators"] = {str(j): str(g) for j, g in residual.get("generators", {}).items()}
+    residual["logged_model_correction"] = {
+        str(j): {k: float(v) for k, v in c.items()}
+        for j, c in residual.get("logged_model_correction", {}).items()}
     if "generator" in residual:
         residual["generator"] = GENERATOR_ALIASES.get(residual["generator"],
                                                       residual["generator"])

@@ -34,15 +34,53 @@ from .detect.warmup import Warmup, warmup_end
 from .errors import ConfigError, ImpactWarning, LogFormatError, ModelError
 from .io.inspect import GAP_FACTOR, time_gaps
 from .model import IdentifyOptions, ResidualOptions, RigidModel, compute_residual, identify
+from .model.generators import (
+    OWN_MODEL,
+    GeneratorChoice,
+    choices_dict,
+    choose_generators,
+    fit_logged_model_correction,
+    logged_residual,
+    needs_own_model,
+    summary_name,
+)
 from .result import DetectionResult
 from .types import DETECTORS, RobotDescription, RobotLog
 
 
-def residual_options(cfg: DetectorConfig) -> ResidualOptions:
-    """The residual generator's options from the detector config."""
+def residual_options(cfg: DetectorConfig, generator: str | None = None) -> ResidualOptions:
+    """The own-model residual generator's options from the detector config (``generator``:
+    ``inverse_dynamics`` or ``momentum_observer``; default the config's, ``auto`` and the
+    logged generators falling back to ``inverse_dynamics``)."""
     rc = cfg.residual
+    g = generator or rc.generator
+    if g not in OWN_MODEL:
+        g = "inverse_dynamics"
     return ResidualOptions(cutoff_hz=rc.derivative_cutoff_hz, filter_torque=rc.filter_torque,
-                           generator=rc.generator, observer_gain=rc.observer_gain)
+                           generator=g, observer_gain=rc.observer_gain)
+
+
+def generator_choices(log: RobotLog, cfg: DetectorConfig) -> tuple[GeneratorChoice, ...]:
+    """Each joint's residual generator for ``log`` under ``cfg`` (frozen choices win)."""
+    return choose_generators(log, cfg.residual.generator, cfg.residual.generators or None)
+
+
+def residual_matrix(
+    log: RobotLog, model: RigidModel | None, cfg: DetectorConfig,
+    choices: tuple[GeneratorChoice, ...], correction: dict[str, dict[str, float]],
+) -> np.ndarray:
+    """(N, J) causal residual, each joint from its own generator (log joint order)."""
+    rc = cfg.residual
+    cols: dict[str, np.ndarray] = logged_residual(
+        log, choices, correction, rc.derivative_cutoff_hz, rc.filter_torque)
+    for g in sorted({c.generator for c in choices if c.generator in OWN_MODEL}):
+        if model is None:
+            raise ModelError(f"{log.source.path}: the {g} generator needs a model")
+        res = compute_residual(model, log, residual_options(cfg, g))
+        for c in choices:
+            if c.generator == g:
+                cols[c.joint] = res.r[:, res.joint_names.index(c.joint)]
+    return np.column_stack([cols[j] for j in log.joint_names])
 
 
 def reorder_log(log: RobotLog, joints: tuple[str, ...], what: str) -> RobotLog:
@@ -124,7 +162,7 @@ def calibrated_thresholds(
 def analyze(
     log: RobotLog, *, model: RigidModel | None = None, config: DetectorConfig | None = None,
     robot: RobotDescription | None = None, read_options: dict[str, Any] | None = None,
-    model_from_log: bool = False,
+    model_from_log: bool = False, generator: str | None = None, config_where: str = "config",
 ) -> DetectionResult:
     """Replay the detectors over ``log`` exactly as the robot would have run them online.
 
@@ -137,10 +175,12 @@ def analyze(
         read_options: how the log was read (recorded so the run can be repeated).
         model_from_log: identify the model from this log even with a config (keeping the
             config's thresholds; see :func:`resolve_model`).
+        generator: ``--generator`` (:func:`with_generator`); None keeps the config's.
+        config_where: the config's file, for messages.
     Returns:
         The :class:`DetectionResult`; ImpactWarnings raised on the way are in ``warnings``.
     """
-    cfg = config or DetectorConfig()
+    cfg = with_generator(config or DetectorConfig(), generator, config_where)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ImpactWarning)
         result = _analyze(log, model, cfg, robot, read_options or {}, model_from_log)
@@ -150,6 +190,28 @@ def analyze(
         if not issubclass(w.category, ImpactWarning):
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     return _with_warnings(result, msgs)
+
+
+def with_generator(cfg: DetectorConfig, generator: str | None,
+                   where: str = "config") -> DetectorConfig:
+    """``cfg`` with ``--generator`` applied. ``auto`` or None keeps a calibrated config's
+    frozen choices; another generator where the config froze a different one is a
+    ConfigError (its thresholds belong to the generator they were made with)."""
+    if generator is None:
+        return cfg
+    frozen = cfg.residual.generators if cfg.calibration.calibrated else {}
+    if generator != "auto":
+        other = {j: g for j, g in frozen.items() if g != generator}
+        if other:
+            j, g = next(iter(other.items()))
+            raise ConfigError(
+                f"{where}: its thresholds were calibrated with the {g} generator for joint "
+                f"{j!r}; --generator {generator} cannot use them (calibrate again with "
+                f"--generator {generator})")
+    elif frozen:
+        return cfg
+    return dataclasses.replace(cfg, residual=dataclasses.replace(
+        cfg.residual, generator=generator, generators={} if not frozen else frozen))
 
 
 def _with_warnings(result: DetectionResult, msgs: tuple[str, ...]) -> DetectionResult:
@@ -167,7 +229,7 @@ class Replay:
     """
 
     log: RobotLog
-    model: RigidModel
+    model: RigidModel | None
     model_source: str
     residual_options: ResidualOptions
     r: np.ndarray
@@ -177,6 +239,9 @@ class Replay:
     stats: dict[str, np.ndarray]
     threshold_inputs: str = ""
     gaps: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    choices: tuple[GeneratorChoice, ...] = ()
+    correction: dict[str, dict[str, float]] = dataclasses.field(default_factory=dict)
+    correction_source: str | None = None
 
     def stats_after_warmup(self) -> dict[str, np.ndarray]:
         """Each statistic from the warm-up's end on (all of it if the warm-up covers the log)."""
@@ -195,8 +260,19 @@ def replay(
             f"{log.source.path}: {log.n_samples} samples ({log.duration_s:.3g} s), shorter than "
             f"the detectors' warm-up (warmup.min_s = {cfg.warmup.min_s:g} s): nothing after it "
             "could be detected")
-    model, model_source = resolve_model(log, model, cfg, robot, model_from_log)
-    log = reorder_log(log, tuple(model.joint_names), "model")
+    choices = generator_choices(log, cfg)
+    model_source = "none"
+    if needs_own_model(choices):
+        model, model_source = resolve_model(log, model, cfg, robot, model_from_log)
+        log = reorder_log(log, tuple(model.joint_names), "model")
+        choices = generator_choices(log, cfg)
+    else:
+        model = None
+        order = tuple(cfg.residual.generators)
+        if set(order) == set(log.joint_names):  # a calibrated config's joint order
+            log = reorder_log(log, order, "config")
+            choices = generator_choices(log, cfg)
+    correction, correction_source = resolve_correction(log, cfg, choices, model_from_log)
     fs = log.sample_rate_hz
     gaps, lengths = time_gaps(log)
     if gaps.size:
@@ -207,7 +283,7 @@ def replay(
             f"first after {log.time_s[gaps[0]]:.3f} s): the detectors assume uniform sampling, "
             "so alarms just after a gap may be artefacts of it", ImpactWarning, stacklevel=3)
     ropts = residual_options(cfg)
-    r = compute_residual(model, log, ropts).r
+    r = residual_matrix(log, model, cfg, choices, correction)
     inputs = threshold_inputs(log, cfg.adaptive)
     if inputs.source == "measured":
         warnings.warn(f"{log.source.path}: no reference logged: threshold inputs from the "
@@ -223,7 +299,25 @@ def replay(
              "static_baseline": np.abs(r)}
     return Replay(log, model, model_source, ropts, r, ad,
                   "measured" if inputs.source == "measured" else "reference", wu, stats,
-                  inputs.detail, gaps)
+                  inputs.detail, gaps, choices, correction, correction_source)
+
+
+def resolve_correction(
+    log: RobotLog, cfg: DetectorConfig, choices: tuple[GeneratorChoice, ...],
+    model_from_log: bool = False,
+) -> tuple[dict[str, dict[str, float]], str | None]:
+    """The ``logged_model`` correction for the joints that use it, and where it came from:
+    ``config`` (identified on the calibration logs: online equivalent) or
+    ``identified-from-log`` (no config correction, or ``--model-from-log``: offline)."""
+    joints = tuple(c.joint for c in choices if c.generator == "logged_model")
+    if not joints:
+        return {}, None
+    have = cfg.residual.logged_model_correction
+    if not model_from_log and all(j in have for j in joints):
+        return {j: dict(have[j]) for j in joints}, "config"
+    rc = cfg.residual
+    return (fit_logged_model_correction([log], joints, rc.derivative_cutoff_hz,
+                                        rc.filter_torque), "identified-from-log")
 
 
 def _analyze(
@@ -287,7 +381,8 @@ def _analyze(
         for k, j in enumerate(joints)
     }
     return DetectionResult(
-        log=log, model=rp.model.to_dict(), model_sha256=rp.model.sha256,
+        log=log, model=None if rp.model is None else rp.model.to_dict(),
+        model_sha256=None if rp.model is None else rp.model.sha256,
         model_source=rp.model_source, config=cfg.to_dict(), calibrated=given is not None,
         thresholds=thresholds, reference_source=rp.reference_source,
         threshold_inputs=rp.threshold_inputs,
@@ -298,7 +393,10 @@ def _analyze(
                             for j, i in zip(joints, wu.index, strict=True)},
         filter_gain={"frequencies_hz": [float(f) for f in freqs],
                      "gain": {j: [float(g) for g in gain[k]] for k, j in enumerate(joints)}},
-        residual_generator=rp.residual_options.generator, read_options=read_options,
+        residual_generator=summary_name(rp.choices), read_options=read_options,
+        generators=choices_dict(rp.choices),
+        logged_model_correction=({"source": rp.correction_source, "parameters": rp.correction}
+                                 if rp.correction_source else None),
     )
 
 
@@ -325,6 +423,7 @@ def _warn_events_after_gaps(log: RobotLog, gaps: np.ndarray, events: list[Any]) 
 def calibrate(
     logs: list[RobotLog], *, model: RigidModel | None = None,
     config: DetectorConfig | None = None, robot: RobotDescription | None = None,
+    generator: str | None = None,
 ) -> DetectorConfig:
     """Thresholds v_stat, vL, v0 per joint from collision-free logs (method.md §5b).
 
@@ -342,10 +441,23 @@ def calibrate(
     from .model import identify_many
 
     cfg = config or DetectorConfig()
-    if model is None:
+    if generator is not None:  # a new calibration: choose afresh
+        cfg = dataclasses.replace(cfg, residual=dataclasses.replace(
+            cfg.residual, generator=generator, generators={}))
+    frozen = common_generators(logs, cfg)
+    own = any(g in OWN_MODEL for g in frozen.values())
+    if own and model is None:
         model = RigidModel.from_dict(cfg.model) if cfg.model is not None else identify_many(
             logs, robot=robot, options=IdentifyOptions(allow_still_joints=True))
-    joints = tuple(model.joint_names)
+    if not own:
+        model = None
+    lm = tuple(j for j, g in frozen.items() if g == "logged_model")
+    rc = cfg.residual
+    correction = fit_logged_model_correction(logs, lm, rc.derivative_cutoff_hz,
+                                             rc.filter_torque) if lm else {}
+    cfg = dataclasses.replace(cfg, residual=dataclasses.replace(
+        rc, generators=frozen, logged_model_correction=correction))
+    joints = tuple(model.joint_names) if model is not None else tuple(frozen)
     per_det: dict[str, list[np.ndarray]] = {d: [] for d in DETECTORS}
     for log in logs:
         rp = replay(log, model, cfg, robot)
@@ -357,11 +469,33 @@ def calibrate(
         calibrated=True, margin_rule=cal["adaptive"].rule,
         margins={d: {j: float(cal[d].margins[k]) for k, j in enumerate(joints)} for d in DETECTORS},
         logs=tuple(LogRecord(lg.source.path, lg.source.sha256) for lg in logs),
-        model_sha256=model.sha256, weak=any(c.weak for c in cal.values()),
+        model_sha256=None if model is None else model.sha256,
+        weak=any(c.weak for c in cal.values()),
     )
     return dataclasses.replace(
         cfg,
         thresholds=ThresholdsConfig(v_stat=table["adaptive"], v0=table["static_baseline"],
                                     vL=table["static_loading"]),
-        calibration=record, model=model.to_dict(),
+        calibration=record, model=None if model is None else model.to_dict(),
     )
+
+
+#: The order ``auto`` prefers, best first.
+_PREFERENCE = ("logged_external", "logged_model", "inverse_dynamics")
+
+
+def common_generators(logs: list[RobotLog], cfg: DetectorConfig) -> dict[str, str]:
+    """joint → generator to freeze for calibration logs (each joint gets the best generator
+    that every log supports: a channel missing from one log rules it out for all)."""
+    per_log = [{c.joint: c.generator for c in generator_choices(lg, cfg)} for lg in logs]
+    joints = list(per_log[0])
+    out: dict[str, str] = {}
+    for j in joints:
+        gens = [m.get(j) for m in per_log]
+        if any(g is None for g in gens):
+            continue  # joint names differ between logs: the model/replay reports it
+        if len(set(gens)) == 1:
+            out[j] = str(gens[0])
+        else:
+            out[j] = max(gens, key=lambda g: _PREFERENCE.index(g) if g in _PREFERENCE else -1)
+    return out

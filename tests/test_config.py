@@ -71,9 +71,10 @@ def test_round_trip(tmp_path: Path, suffix: str) -> None:
 
 
 def test_generator_names_match_the_timeline_and_the_old_name_is_read(tmp_path: Path) -> None:
-    """Config, model and timeline say ``inverse_dynamics``; ``rigid_model`` (the name
-    configs were written with before) loads as it and is written back as the new name."""
-    assert DetectorConfig().residual.generator == "inverse_dynamics"
+    """A new config's generator is ``auto`` (formats.md); ``rigid_model`` (the name
+    configs were written with before) loads as ``inverse_dynamics`` and is written back as
+    the new name, so existing configs keep their generator."""
+    assert DetectorConfig().residual.generator == "auto"
     old = tmp_path / "old.toml"
     old.write_text('[residual]\ngenerator = "rigid_model"\n', encoding="utf-8")
     cfg = load_config(old)

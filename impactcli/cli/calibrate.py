@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from ._common import handle_errors
-from .detect import log_read_options, read_options_from
+from .detect import generator_option, log_read_options, read_options_from
 
 
 @click.command("calibrate")
@@ -21,11 +21,12 @@ from .detect import log_read_options, read_options_from
               help="Rigid model to calibrate for [default: identified from these logs].")
 @click.option("--config", "base_config", type=click.Path(dir_okay=False, path_type=Path),
               help="Start from this config's parameters (its thresholds are replaced).")
+@generator_option
 @log_read_options
 @handle_errors
 def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, model: Path | None,
-                  base_config: Path | None, channel_map: str | None, topic: str | None,
-                  reference_topic: str | None, time_source: str | None,
+                  base_config: Path | None, generator: str | None, channel_map: str | None,
+                  topic: str | None, reference_topic: str | None, time_source: str | None,
                   torque_source: str | None) -> None:
     """Set v_stat, vL and v0 per joint so that the collision-free LOGS raise no alarm.
 
@@ -34,6 +35,12 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     with one log a fixed 1.5× margin is used and the calibration is flagged weak.
     Give logs that cover the motions the robot really makes: thresholds calibrated on
     one motion family false-alarm on another.
+
+    Each joint's residual generator is frozen in the config (thresholds belong to the
+    generator they were made with): with --generator auto (the default for a new config)
+    the controller's own external-torque estimate (torque_ext) where every log carries it,
+    else its model torque (torque_model, with a correction identified on these logs), else
+    the tool's own identified model.
     """
     from .._fs import prepare_output
     from ..config import load_config, save_config
@@ -51,24 +58,26 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     cfg = load_config(base_config) if base_config else None
     ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
     read = [read_log(p, robot=robot_d, **ropts) for p in logs]
-    out = calibrate(read, model=model_m, config=cfg, robot=robot_d)
+    out = calibrate(read, model=model_m, config=cfg, robot=robot_d, generator=generator)
     save_config(out, out_path)
     c = out.calibration
     weak = " (weak: add collision-free logs covering the robot's motions)" if c.weak else ""
     kind = (out.model or {}).get("kind", "?")
     source = ("given" if model_m is not None else "the base config's" if cfg and cfg.model
               else f"identified on the {len(read)} log(s)")
-    click.echo(f"calibrated on {len(read)} log(s), rule {c.margin_rule}{weak}; "
-               f"model {kind} ({source})")
-    if kind == "decoupled" and robot_d is None and model_m is None:
+    gens = out.residual.generators
+    what = (f"model {kind} ({source})" if out.model is not None
+            else "no model (every joint reads the controller's channels)")
+    click.echo(f"calibrated on {len(read)} log(s), rule {c.margin_rule}{weak}; {what}")
+    if kind == "decoupled" and robot_d is None and model_m is None and out.model is not None:
         click.echo("impactcli: warning: no --robot: the model is 'decoupled' (each joint "
                    "alone, no kinematics); a robot description with kinematics gives the "
                    "planar or urdf model", err=True)
-    click.echo(f"{'joint':<16} {'v_stat':>9} {'vL':>9} {'v0':>9}   "
+    click.echo(f"{'joint':<16} {'generator':<17} {'v_stat':>9} {'vL':>9} {'v0':>9}   "
                "margins (adaptive/loading/baseline)")
     th = out.thresholds
     for j in th.v_stat:
         m = [c.margins[d][j] for d in ("adaptive", "static_loading", "static_baseline")]
-        click.echo(f"{j:<16} {th.v_stat[j]:>9.4f} {th.vL[j]:>9.4f} {th.v0[j]:>9.4f}   "
-                   + " / ".join(f"{x:.2f}" for x in m))
+        click.echo(f"{j:<16} {gens.get(j, '?'):<17} {th.v_stat[j]:>9.4f} {th.vL[j]:>9.4f} "
+                   f"{th.v0[j]:>9.4f}   " + " / ".join(f"{x:.2f}" for x in m))
     click.echo(f"wrote {out_path}")

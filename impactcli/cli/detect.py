@@ -41,6 +41,18 @@ def log_read_options(func: Callable[..., Any]) -> Callable[..., Any]:
     return func
 
 
+def generator_option(func: Callable[..., Any]) -> Callable[..., Any]:
+    """--generator (calibrate, detect): which residual each joint's detectors evaluate."""
+    from ..model.generators import GENERATOR_CHOICES
+
+    return click.option(
+        "--generator", type=click.Choice(GENERATOR_CHOICES), default=None,
+        help="Residual generator for every joint: auto (per joint the log's torque_ext, else "
+             "its torque_model with an identified correction, else the tool's own model), "
+             "inverse_dynamics, momentum_observer, logged_model, logged_external  [default: "
+             "the config's (frozen per joint by calibrate), else auto]")(func)
+
+
 def model_options(func: Callable[..., Any]) -> Callable[..., Any]:
     """--robot, --model, --config (shared by detect, report, view, evaluate)."""
     for opt in reversed([
@@ -167,6 +179,7 @@ MAX_ROWS = 50
                    "(offline only; e.g. an unknown payload).")
 @click.option("--fail-on-detect", is_flag=True,
               help="Exit 1 when adaptive or static_loading found events after warm-up.")
+@generator_option
 @executor_options
 @click.option("--summary", "summary_path", metavar="PATH|URL", default=None,
               help="Write the batch summary JSON: logs done/failed, events per detector, "
@@ -176,7 +189,7 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
                config: str | None, channel_map: str | None, topic: str | None,
                reference_topic: str | None, time_source: str | None, torque_source: str | None,
                signals: bool, rerun: bool, model_from_log: bool, fail_on_detect: bool,
-               jobs: int | None, scheduler: str | None, summary_path: str | None) -> None:
+               generator: str | None, jobs: int | None, scheduler: str | None, summary_path: str | None) -> None:
     """Replay the adaptive impact detector (Makarov et al. 2014) and the static detectors
     over LOGS, exactly as the robot would have run them online, and write one
     DIR/<stem>.timeline.json per log.
@@ -216,7 +229,7 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     inputs = preload(robot, model, config)
     ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
     job_list = [DetectJob(p, out_dir, ropts, robot, model, config, signals, rerun,
-                          model_from_log) for p in paths]
+                          model_from_log, generator) for p in paths]
     debug = bool((click.get_current_context().find_root().obj or {}).get("debug"))
     timer = Timer()
     outcomes = []
@@ -268,8 +281,18 @@ def _echo_outcome(outcome: Any, debug: bool, single: bool) -> None:
             click.echo(outcome.traceback.rstrip(), err=True)
 
 
+def _generators_line(row: dict[str, Any]) -> str:
+    """``logged_external (all joints)`` or ``j1 logged_external, j2 inverse_dynamics``."""
+    g = row.get("generators", {})
+    if len(set(g.values())) == 1:
+        return f"{next(iter(g.values()))} (all joints)"
+    return ", ".join(f"{j} {x}" for j, x in g.items())
+
+
 def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str) -> None:
     """Per-log rows (at most MAX_ROWS) and the batch totals, on stdout."""
+    from ..io.urls import url_name
+
     ok = [o for o in outcomes if o.ok]
     if ok:
         click.echo(f"{'log':<36} {'duration_s':>9} {'calibrated':>10} {'warmup':>7} "
@@ -278,6 +301,13 @@ def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str) -> N
             click.echo(_fmt_row(o.summary))
         if len(ok) > MAX_ROWS:
             click.echo(f"... {len(ok) - MAX_ROWS} more logs (all of them in --summary)")
+        gens = {tuple(sorted(o.summary.get("generators", {}).items())) for o in ok}
+        if len(gens) == 1:
+            click.echo("residual generator: " + _generators_line(ok[0].summary))
+        else:
+            for o in ok[:MAX_ROWS]:
+                click.echo(f"residual generator of {url_name(o.log_path)}: "
+                           + _generators_line(o.summary))
         click.echo(f"(events after warm-up; timelines in {out_dir})")
     if len(outcomes) > 1:
         n, ev, tp = summary["logs"], summary["events"], summary["throughput"]

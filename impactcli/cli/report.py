@@ -151,7 +151,8 @@ def rerun_timeline(tl_path: Path, *, robot: Any = None) -> tuple[Any, Path]:
         warnings.warn(f"{tl_path}: read options {unknown} not understood by report; ignored",
                       ImpactWarning, stacklevel=2)
     kwargs = {k: opts[k] for k in READ_KEYS if opts.get(k) is not None}
-    recorded_model = tl["model"]["model"]
+    tl_model = tl["model"] or {"source": "none", "model": {}}
+    recorded_model = tl_model["model"] or {}
     if robot is None and isinstance(recorded_model.get("robot"), dict):
         robot = robot_from_dict(recorded_model["robot"], f"{tl_path}: model.robot")
     log = read_log(log_path, robot=robot, **kwargs)
@@ -162,10 +163,10 @@ def rerun_timeline(tl_path: Path, *, robot: Any = None) -> tuple[Any, Path]:
         )
     config = DetectorConfig.from_dict(tl["config"], where=f"{tl_path}: config")
     model = None
-    if tl["model"]["source"] == "given":
+    if tl_model["source"] == "given":
         model = RigidModel.from_dict(recorded_model, where=f"{tl_path}: model")
     # a config's thresholds with a model identified from the log (detect --model-from-log)
-    from_log = tl["model"]["source"] == "identified-from-log" and config.model is not None
+    from_log = tl_model["source"] == "identified-from-log" and config.model is not None
     result = analyze(log, model=model, config=config, robot=robot, read_options=kwargs,
                      model_from_log=from_log)
     recorded = [(e["detector"], round(e["t_start"], 9), round(e["t_end"], 9), tuple(e["joints"]))

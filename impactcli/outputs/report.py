@@ -666,6 +666,19 @@ def _json_pre(obj: Any, max_str: int = 240) -> str:
     )
 
 
+def _generator_cell(replay: dict[str, Any]) -> str:
+    """Which residual generator each joint used and why (timeline 2.0), or the one name a
+    1.0 timeline records."""
+    per = replay.get("generator") or {}
+    if not per:
+        return _e(replay.get("residual_generator", "—"))
+    rows = "".join(f"<li><b>{_e(j)}</b>: {_e(g.get('generator'))} — {_e(g.get('reason'))}</li>"
+                   for j, g in per.items())
+    corr = replay.get("logged_model_correction") or {}
+    note = (f"<br>logged_model correction: {_e(corr.get('source'))}" if corr else "")
+    return f'<ul style="margin:0;padding-left:1.2em">{rows}</ul>{note}'
+
+
 def _fit_table(fit: dict[str, Any], joints: Sequence[str]) -> str:
     """The model's fit statistics (impactcli.model.identify layout: per joint RMS of the
     torque error on the fitted and the held-back part); any other layout generically."""
@@ -908,7 +921,7 @@ def _section_html(
         )
     )
     # with what
-    model = sec["model"]
+    model = sec["model"] or {"source": "none", "sha256": None, "model": {}}
     cfg = sec["config"] or {}
     calib = cfg.get("calibration") or {}
     replay = sec["replay"]
@@ -936,8 +949,9 @@ def _section_html(
                     )
                     or "—",
                 ),
-                ("model", f"{_e(model['model'].get('kind', '?'))}, source: {_e(model['source'])}"),
-                ("model sha256", f'<code class="hash">{_e(model["sha256"])}</code>'),
+                ("model", f"{_e(model['model'].get('kind', '?'))}, source: {_e(model['source'])}"
+                 if model["model"] else "none (every joint read the controller's channels)"),
+                ("model sha256", f'<code class="hash">{_e(model["sha256"] or "—")}</code>'),
                 (
                     "thresholds belong to model",
                     f'<code class="hash">{_e(calib.get("model_sha256") or "—")}</code>',
@@ -954,13 +968,14 @@ def _section_html(
                 ),
                 ("threshold inputs", _e(replay.get("threshold_inputs") or "—")),
                 ("torque filtered like the estimate", _f(replay["torque_filtered"])),
-                ("residual generator", _e(replay.get("residual_generator", "—"))),
+                ("residual generator", _generator_cell(replay)),
                 ("warm-up end", f"{sec['warmup_end_s']:.3f} s (latest over joints)"),
             ]
         )
     )
-    p.append("<h4>Model fit quality</h4>")
-    p.append(_fit_table(model["model"].get("fit") or {}, joints))
+    if model["model"]:
+        p.append("<h4>Model fit quality</h4>")
+        p.append(_fit_table(model["model"].get("fit") or {}, joints))
     params = model["model"].get("parameters")
     if isinstance(params, list) and params:
         p.append("<h4>Model parameters</h4>" + _params_table(params, joints))

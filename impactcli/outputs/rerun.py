@@ -141,8 +141,11 @@ def _markdown_summary(result: DetectionResult) -> str:
         "",
         f"- {log.n_joints} joints, {log.duration_s:.3f} s at {log.sample_rate_hz:.1f} Hz, "
         f"t0 = {log.t0_ns} ns ({log.source.format}, time source {log.source.time_source})",
-        f"- model: {result.model.get('kind', '?')} ({result.model_source}), "
-        f"sha256 {result.model_sha256[:12]}…",
+        (f"- model: {result.model.get('kind', '?')} ({result.model_source}), "
+         f"sha256 {(result.model_sha256 or '')[:12]}…" if result.model is not None
+         else "- model: none (the controller's channels)"),
+        "- residual generator: " + ", ".join(
+            f"{j} {g['generator']}" for j, g in result.generators.items()),
         "- thresholds "
         + ("calibrated" if result.calibrated else "UNCALIBRATED (from the log itself)")
         + f"; reference: {result.reference_source}",

@@ -17,7 +17,9 @@ from .. import TOOL_NAME, __version__
 from .._fs import atomic_write_text
 from ..result import DetectionResult
 
-SCHEMA_VERSION = "1.0"
+SCHEMA_VERSION = "2.0"
+#: Timeline versions ``report`` and ``evaluate`` read (2.x adds optional fields only).
+READABLE_VERSIONS: tuple[str, ...] = ("1.0", "2.0")
 
 
 def _clean(x: Any) -> Any:
@@ -56,13 +58,16 @@ def timeline_dict(result: DetectionResult) -> dict[str, Any]:
         },
         "config": result.config,
         "calibrated": result.calibrated,
-        "model": {"source": result.model_source, "sha256": result.model_sha256,
-                  "model": result.model},
+        "model": (None if result.model is None else
+                  {"source": result.model_source, "sha256": result.model_sha256,
+                   "model": result.model}),
         "replay": {
             "online_equivalent": result.online_equivalent,
             "reference_source": result.reference_source,
             "torque_filtered": result.torque_filtered,
             "residual_generator": result.residual_generator,
+            "generator": result.generators,
+            "logged_model_correction": result.logged_model_correction,
             "threshold_inputs": result.threshold_inputs,
         },
         "warmup_end_s": result.warmup_end_s,
