@@ -3,7 +3,8 @@
 Public API: :func:`simulate`, :class:`Scenario`, :class:`SimResult`, :func:`scenario`
 (named scenarios), the arm presets :func:`assist_like` / :func:`heavy_geared`, the
 references of :mod:`impactcli.sim.reference` and the contacts of
-:mod:`impactcli.sim.contacts`.
+:mod:`impactcli.sim.contacts`. A scenario's ``controller_channels`` adds the controller's own
+``torque_model`` / ``torque_ext`` channels to the log (:mod:`impactcli.sim.controller`).
 """
 
 from .arm import ArmParams, assist_like, heavy_geared, preset

@@ -44,6 +44,15 @@ class ArmParams:
     damping and viscous friction [N·m·s/rad], Coulomb friction [N·m], torque constant
     [N·m/A] (motor side), current noise and resolution [A], gains kp [N·m/rad] and
     kd [N·m·s/rad], sample period [s].
+
+    The controller's own channels (:mod:`impactcli.sim.controller`, logged when a scenario
+    sets ``controller_channels``) use: ``observer_gain`` K of the momentum observer [1/s]
+    (time constant 1/K: 20 ms at the default 50), ``torque_ext_cutoff_hz`` its output
+    low-pass [Hz] (0: none), ``accel_cutoff_hz`` the low-pass of the controller's
+    acceleration estimate for ``torque_model`` [Hz], ``controller_coulomb_eps`` the Coulomb
+    smoothing velocity of the controller's friction model [rad/s] (default 0.02 ≈ one
+    velocity quantum of the ASSIST encoder at 4 ms: one count does not flip the friction
+    sign) and ``controller_torque_lsb`` the resolution both channels are logged with [N·m].
     """
 
     name: str
@@ -72,6 +81,11 @@ class ArmParams:
     joint_ranges: tuple[tuple[float, float], ...]
     gravity: tuple[float, float] = (0.0, -9.81)
     coulomb_velocity_eps: float = COULOMB_VELOCITY_EPS
+    observer_gain: float = 50.0
+    torque_ext_cutoff_hz: float = 20.0
+    accel_cutoff_hz: float = 20.0
+    controller_coulomb_eps: float = 0.02
+    controller_torque_lsb: float = 0.01
     extra: dict[str, Any] = field(default_factory=dict)
 
     @property

@@ -10,6 +10,12 @@ What differs between the nominal description and the simulated robot (like a rea
 parameters drawn ±``uncertainty`` around nominal from the seed, an optional unknown payload,
 and friction that drifts slowly — a warm-up decay of a few to ``friction_drift`` × 100 %
 over ~10 min plus ±3 % wander over minutes (temperature).
+
+With ``Scenario.controller_channels`` the log also carries the controller's own channels
+``torque_model`` and ``torque_ext`` (:mod:`impactcli.sim.controller`: the nominal rigid
+model and a momentum observer on it, computed after the integration from the logged
+position, velocity estimate and torque, with no random draw: every other column and every
+random stream are the same with the flag on or off).
 """
 
 from __future__ import annotations
@@ -24,6 +30,7 @@ from ..types import Labels, LogSource, RobotDescription, RobotLog
 from . import _kernel as kern
 from .arm import ArmParams, nominal_parameters, true_parameters
 from .contacts import Clamp, Push, Surface, label_contacts, tables
+from .controller import quantise, simulate_channels
 from .reference import Reference
 
 
@@ -54,6 +61,10 @@ class Scenario:
         robot_seed: seed of the true parameters alone: runs with the same robot_seed
             simulate the same physical robot (as a robot's own logs do) whatever their
             run seed; None draws the robot from the run seed (every run another unit).
+        controller_channels: also log the controller's own channels ``torque_model`` and
+            ``torque_ext`` (:mod:`impactcli.sim.controller`; parameters on the arm). Off by
+            default: most logs in the wild have neither. Turning it on changes no other
+            column and no random draw.
     """
 
     name: str
@@ -75,6 +86,7 @@ class Scenario:
     log_decimals: int | None = 7
     description: str = ""
     robot_seed: int | None = None
+    controller_channels: bool = False
 
 
 @dataclass(frozen=True)
@@ -91,6 +103,11 @@ class SimResult:
             [N] (surfaces first, then pushes, then clamps); ``contact_force_total`` (N,);
             ``penetration`` (N, S) [m]; ``tip`` (N, 2) end-effector position [m];
             ``friction_scale`` (N, n); ``source_kind`` (S+P,) str; ``source_link`` (S+P,).
+            With ``controller_channels``, also ``torque_model_error`` (N, n) = logged
+            ``torque_model`` − (``tau`` + ``tau_ext``) — what the controller's model gets
+            wrong (in free motion the model should equal the applied torque; with contact,
+            applied plus external) — and ``torque_ext_error`` (N, n) = logged
+            ``torque_ext`` − ``tau_ext`` [N·m].
         params: the true parameters used (:func:`impactcli.sim.arm.true_parameters`).
         substeps: RK4 substeps per sample used.
         scenario: the scenario run.
@@ -252,11 +269,22 @@ def simulate(scenario: Scenario, *, seed: int = 0) -> SimResult:
     if scenario.log_decimals is not None:
         logged = [np.round(a, scenario.log_decimals) + 0.0 for a in logged]
     l_pos, l_tau, l_vel, l_cur, l_rp, l_rv, l_ra = logged
+    l_tm = l_te = None
+    if scenario.controller_channels:  # from logged data only: nothing above changes
+        tm, te = simulate_channels(
+            l_pos, l_vel, l_tau, ts, nom, arm.gravity, gain=arm.observer_gain,
+            accel_cutoff_hz=arm.accel_cutoff_hz, coulomb_eps=arm.controller_coulomb_eps,
+            ext_cutoff_hz=arm.torque_ext_cutoff_hz)
+        l_tm = quantise(tm, arm.controller_torque_lsb)
+        l_te = quantise(te, arm.controller_torque_lsb)
+        if scenario.log_decimals is not None:
+            l_tm = np.round(l_tm, scenario.log_decimals) + 0.0
+            l_te = np.round(l_te, scenario.log_decimals) + 0.0
     t_ns = scenario.t0_ns + np.arange(n_samples, dtype=np.int64) * ts_ns
     log = RobotLog(
         t_ns=t_ns, joint_names=arm.joint_names, position=l_pos, torque=l_tau,
         velocity=l_vel, current=l_cur, position_ref=l_rp, velocity_ref=l_rv,
-        acceleration_ref=l_ra,
+        acceleration_ref=l_ra, torque_model=l_tm, torque_ext=l_te,
         source=LogSource(f"<sim {scenario.name} seed={seed}>", "", "memory"),
     )
     kinds = (["impact"] * len(scenario.surfaces) + ["push"] * len(scenario.pushes)
@@ -291,6 +319,9 @@ def simulate(scenario: Scenario, *, seed: int = 0) -> SimResult:
         "friction_scale": fscale, "source_kind": np.array(kinds, dtype=str),
         "source_link": np.array(links, dtype=np.int64),
     }
+    if l_tm is not None and l_te is not None:
+        truth["torque_model_error"] = l_tm - (o_u + o_tau_ext)
+        truth["torque_ext_error"] = l_te - o_tau_ext
     return SimResult(log=log, labels=labels, robot=arm.robot_description(), truth=truth,
                      params=p, substeps=n_sub, scenario=scenario, seed=seed)
 

@@ -34,7 +34,8 @@ class Sample:
 
     def make(self) -> Scenario:
         sc = self.build() if self.build else scenario(self.scenario, self.arm, self.duration_s)
-        return replace(sc, name=self.name, robot_seed=ROBOT_SEEDS[self.arm])
+        return replace(sc, name=self.name, robot_seed=ROBOT_SEEDS[self.arm],
+                       controller_channels=self.arm in CONTROLLER_CHANNEL_ARMS)
 
 
 #: One physical robot per arm: every sample log of an arm is recorded on the same true
@@ -42,6 +43,12 @@ class Sample:
 #: seed of each log draws its reference details, noise and friction drift. Fixed before
 #: any result was looked at (the arm's seed series: 101–108 → 100, 201–204 → 200).
 ROBOT_SEEDS: dict[str, int] = {"assist_like": 100, "heavy_geared": 200}
+
+#: Arms whose sample logs carry the controller's own channels ``torque_model`` and
+#: ``torque_ext`` (:mod:`impactcli.sim.controller`); the others log neither, as most robots'
+#: logs in the wild. The channels are computed from the logged data after the simulation,
+#: so every other column is the same as without them.
+CONTROLLER_CHANNEL_ARMS: frozenset[str] = frozenset({"assist_like"})
 
 
 def _heavy_impacts() -> Scenario:
@@ -141,15 +148,25 @@ payload the description does not mention. All logs of an arm come from ONE such 
 (true parameters drawn once per arm, robot seed {robot_seeds}), as a robot's own logs do;
 each log's seed draws its reference details, noise and friction drift.
 
+The `assist_*` logs also carry the controller's own channels, as a real controller logs
+them: `torque_model` (the torque its NOMINAL rigid model expects for the measured motion,
+without contact) and `torque_ext` (its external-torque estimate: a generalized-momentum
+observer on that model, gain 50 1/s, low-passed at 20 Hz, sign = the external torque
+acting on the joint), both on a 0.01 N·m grid and both carrying the model's errors (wrong
+parameters, friction drift, the flexible transmissions a rigid model ignores — and in
+`assist_payload` the unknown payload, an external load to that model too); `heavy_*` logs
+have neither, like most logs in the wild.
+
 Layout: `csv/<name>.csv.gz` (canonical wide CSV) and `mcap/<name>.mcap` hold the SAME log
 (MCAP encoding in the table; the ROS 2 files carry position, velocity and effort = torque
-on `/joint_states` and the reference on `/joint_states_ref`, not current or acceleration
-reference). They are in separate folders because their stems — hence their timeline
-names — are the same. Each folder also has `<name>.labels.json` (ground truth:
-`start`/`end` = first/last sample where that contact's true force exceeds 0.5 N, in s
-since the first sample; `peak_force` N; `kind`; 1-based `link`; extra fields: `source`,
-elastomer `stiffness_n_per_mm` and `tip_speed_m_s` for impacts, `duration_s` for pushes,
-`rise_s`/`hold_s` for clamps) and `<name>.robot.json` (nominal description).
+on `/joint_states` and the reference on `/joint_states_ref`, not current, acceleration
+reference or the controller's channels). They are in separate folders because their
+stems — hence their timeline names — are the same. Each folder also has
+`<name>.labels.json` (ground truth: `start`/`end` = first/last sample where that contact's
+true force exceeds 0.5 N, in s since the first sample; `peak_force` N; `kind`; 1-based
+`link`; extra fields: `source`, elastomer `stiffness_n_per_mm` and `tip_speed_m_s` for
+impacts, `duration_s` for pushes, `rise_s`/`hold_s` for clamps) and `<name>.robot.json`
+(nominal description).
 
 Arms (numbers in `impactcli/sim/arm.py`): `assist_like` — 2 joints, 0.4/0.4 m, cable
 reduction 20:1, soft joints (800/300 N·m/rad), low friction, Ts = 4 ms; `heavy_geared` —
