@@ -2,7 +2,15 @@
 
 Formats: canonical wide CSV (``.csv``, ``.csv.gz``), any CSV or ``.npz`` through a
 channel map, MCAP with impactcli's JSON joint-sample schema, MCAP with ROS 2
-``sensor_msgs/msg/JointState``.
+``sensor_msgs/msg/JointState``, ROS bags through ``rosbags`` (rosbag2 ``.db3`` files and
+folders with ``metadata.yaml``, ROS 1 ``.bag``), and MCAP or bags of any message type
+through a channel map naming message fields (``format: messages``). MCAP and bags are read
+by one implementation (:mod:`impactcli.io.messages`), with ``_ref``/``_model``/``_ext``
+companion topics of a JointState state topic read by default.
+
+A log is a file, or a rosbag2 folder: its stem is the folder's name and its sha256 that of
+its files' sha256s in name order (:func:`impactcli.io.bags.folder_sha256`). Any other
+folder given as a log is a LogFormatError ("not a rosbag2 folder (no metadata.yaml)").
 """
 
 from __future__ import annotations
@@ -14,10 +22,13 @@ from typing import Any
 from ..errors import LogFormatError
 from ..types import RobotDescription, RobotLog
 
-__all__ = ["LOG_SUFFIXES", "inspect_log", "log_stem", "read_log", "write_log"]
+__all__ = ["LOG_SUFFIXES", "MESSAGE_SUFFIXES", "inspect_log", "log_sha256", "log_stem",
+           "read_log", "write_log"]
 
 #: Recognised log suffixes (lower case), longest first.
-LOG_SUFFIXES: tuple[str, ...] = (".csv.gz", ".csv", ".mcap", ".npz")
+LOG_SUFFIXES: tuple[str, ...] = (".csv.gz", ".csv", ".mcap", ".npz", ".bag", ".db3")
+#: Suffixes of message logs (topics, --time-source, channel maps naming fields).
+MESSAGE_SUFFIXES: tuple[str, ...] = (".mcap", ".bag", ".db3")
 
 
 def _suffix(path: Path) -> str | None:
@@ -26,10 +37,21 @@ def _suffix(path: Path) -> str | None:
 
 
 def log_stem(path: str | os.PathLike[str]) -> str:
-    """File name without its format extension (``.csv``, ``.csv.gz``, ``.mcap``, ``.npz``)."""
+    """File name without its format extension (``.csv``, ``.csv.gz``, ``.mcap``, ``.npz``,
+    ``.bag``, ``.db3``); a rosbag2 folder's own name (``run/`` → ``run``)."""
     p = Path(path)
     s = _suffix(p)
     return p.name[: -len(s)] if s else p.name
+
+
+def log_sha256(path: str | os.PathLike[str]) -> str:
+    """The sha256 recorded for a local log: a file's bytes, or for a rosbag2 folder the
+    sha256 of its files' hex sha256s in name order (formats.md)."""
+    from .._fs import sha256_file
+    from .bags import folder_sha256
+
+    p = Path(path)
+    return folder_sha256(p) if p.is_dir() else sha256_file(p)
 
 
 def read_log(
@@ -46,16 +68,19 @@ def read_log(
 
     Args:
         path: ``.csv``/``.csv.gz`` (canonical, or any layout with ``channel_map``),
-            ``.npz`` (needs ``channel_map``) or ``.mcap`` (JSON joint samples or ROS 2
-            JointState); a local path or an fsspec URL (``file://``, ``s3://``, ...:
-            see :mod:`impactcli.io.urls`; the URL is recorded as the source path).
+            ``.npz`` (needs ``channel_map``), ``.mcap`` (JSON joint samples, ROS 2
+            JointState, or any message type with a ``messages`` channel map), ``.bag``
+            (ROS 1), ``.db3`` or a rosbag2 folder (``metadata.yaml``); a local path or an
+            fsspec URL (``file://``, ``s3://``, ...: see :mod:`impactcli.io.urls`; the URL is
+            recorded as the source path; a folder only as a local path or ``file://``).
         channel_map: a JSON/YAML channel map path, a shipped map's short name
-            (``ur_ext_observer``, ``kuka_lwr4``) or a ChannelMap.
+            (``ur_ext_observer``, ``kuka_lwr4``, ``franka_state_example``, ...) or a ChannelMap.
         robot: robot description; needed to convert a ``current`` without a map scale to
             torque (gear_ratio × torque_constant, per joint by name).
-        topic: MCAP state topic (default: the only joint topic, else ``/joint_states``).
-        reference_topic: MCAP ROS 2 reference topic (default ``<topic>_ref`` if present).
-        time_source: MCAP ``log``, ``publish`` or ``header`` (default header when non-zero).
+        topic: MCAP/bag state topic (default: the only joint topic, else ``/joint_states``).
+        reference_topic: MCAP/bag reference topic (default ``<topic>_ref`` if present).
+        time_source: MCAP/bag ``log``, ``publish`` or ``header`` (default header when
+            non-zero; a bag's publish time is its log time).
         torque_source: ``torque`` or ``current`` (default: torque when logged).
 
     Returns:
@@ -81,25 +106,39 @@ def read_log(
     check_torque_source(torque_source, where)
     if not p.exists():
         raise LogFormatError(f"{where}: log file not found")
-    if not p.is_file():
+    folder = p.is_dir()
+    if folder:
+        from .bags import is_rosbag2_folder
+
+        if not is_rosbag2_folder(p):
+            raise LogFormatError(f"{where}: not a rosbag2 folder (no metadata.yaml)")
+        suffix: str | None = "rosbag2"
+    elif not p.is_file():
         raise LogFormatError(f"{where}: not a file")
-    suffix = _suffix(p)
+    else:
+        suffix = _suffix(p)
     if suffix is None:
         raise LogFormatError(
-            f"{where}: unknown log format (expected {', '.join(LOG_SUFFIXES)})"
+            f"{where}: unknown log format (expected {', '.join(LOG_SUFFIXES)}, or a rosbag2 "
+            "folder)"
         )
-    if suffix != ".mcap" and (topic or reference_topic or time_source):
+    messages = suffix in MESSAGE_SUFFIXES or folder
+    if not messages and (topic or reference_topic or time_source):
         raise LogFormatError(
-            f"{where}: --topic, --reference-topic and --time-source apply to MCAP logs only"
+            f"{where}: --topic, --reference-topic and --time-source apply to MCAP logs and "
+            "ROS bags only"
         )
     cmap = load_channel_map(channel_map) if channel_map is not None else None
+    if cmap is not None and not messages and cmap.format == "messages":
+        raise LogFormatError(f"{where}: channel map {cmap.path or cmap.name} names message "
+                             "fields (format: messages): it is for MCAP logs and ROS bags")
     tsrc = "column"
     # the file's sha256 is computed on a thread while the reader parses (hashlib releases
     # the GIL on large blocks): a 1 GB CSV is hashed for free instead of in 1.4 s
     from concurrent.futures import ThreadPoolExecutor
 
     hasher = ThreadPoolExecutor(max_workers=1)
-    digest = hasher.submit(sha256_file, p)
+    digest = hasher.submit(log_sha256 if folder else sha256_file, p)
     hasher.shutdown(wait=False)
     if suffix in (".csv", ".csv.gz"):
         if cmap is not None and cmap.format == "npz":
@@ -115,13 +154,19 @@ def read_log(
         from .npz import read_npz_channels
 
         ch, fmt = read_npz_channels(p, cmap), "npz"
-    else:
-        if cmap is not None:
-            raise LogFormatError(f"{where}: channel maps do not apply to MCAP logs")
+    elif suffix == ".mcap":
         from .mcap_log import read_mcap_channels
 
         ch, fmt, tsrc = read_mcap_channels(
-            p, topic=topic, reference_topic=reference_topic, time_source=time_source
+            p, topic=topic, reference_topic=reference_topic, time_source=time_source,
+            cmap=cmap,
+        )
+    else:  # .bag, .db3, rosbag2 folder
+        from .bags import read_bag_channels
+
+        ch, fmt, tsrc = read_bag_channels(
+            p, topic=topic, reference_topic=reference_topic, time_source=time_source,
+            cmap=cmap, where=where,
         )
     return build_log(
         ch, path=where, fmt=fmt, robot=robot, torque_source=torque_source,
@@ -134,16 +179,30 @@ def write_log(log: RobotLog, path: str | os.PathLike[str], *, mcap_encoding: str
 
     Args:
         log: the log.
-        path: ``.csv`` / ``.csv.gz`` (canonical wide CSV, exact round trip) or ``.mcap``.
+        path: ``.csv`` / ``.csv.gz`` (canonical wide CSV, exact round trip), ``.mcap``,
+            ``.db3`` (rosbag2 SQLite file) or ``.bag`` (ROS 1); the bags hold JointState
+            topics as ``mcap_encoding="ros2"`` does (:mod:`impactcli.io.bags`; a rosbag2
+            folder: :func:`impactcli.io.bags.write_rosbag2`).
         mcap_encoding: ``json`` (impactcli joint samples on ``/joint_samples``) or ``ros2``
             (JointState on ``/joint_states``, effort = torque; reference on
-            ``/joint_states_ref``).
+            ``/joint_states_ref``; effort = torque_model on ``/joint_states_model`` and
+            torque_ext on ``/joint_states_ext``).
 
     Raises:
         LogFormatError: unknown suffix or encoding.
     """
     p = Path(path)
     suffix = _suffix(p)
+    if suffix == ".db3":
+        from .bags import write_rosbag2
+
+        write_rosbag2(log, p)
+        return
+    if suffix == ".bag":
+        from .bags import write_rosbag1
+
+        write_rosbag1(log, p)
+        return
     if suffix in (".csv", ".csv.gz"):
         from .csv import write_csv
 
@@ -158,7 +217,8 @@ def write_log(log: RobotLog, path: str | os.PathLike[str], *, mcap_encoding: str
         else:
             raise LogFormatError(f"{p}: unknown MCAP encoding {mcap_encoding!r} (json or ros2)")
     else:
-        raise LogFormatError(f"{p}: cannot write this format (use .csv, .csv.gz or .mcap)")
+        raise LogFormatError(
+            f"{p}: cannot write this format (use .csv, .csv.gz, .mcap, .db3 or .bag)")
 
 
 def inspect_log(path: str | os.PathLike[str], **kwargs: Any) -> dict[str, Any]:

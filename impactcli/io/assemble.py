@@ -124,7 +124,7 @@ def build_log(
                     )
                 scale[k] = by_name[j]
         torque = current * scale
-    opt = {
+    opt: dict[str, np.ndarray] = {
         s: ch.signals[s]
         for s in ("velocity", "current", "position_ref", "velocity_ref", "acceleration_ref")
         if s in ch.signals and not ch.missing.get(s)

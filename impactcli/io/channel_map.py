@@ -5,6 +5,14 @@ names the time channel (with its unit and epoch handling) and, per joint, where 
 lives — a CSV column by name or 0-based index, or an ``.npz`` array key (with a column index
 for 2-D arrays) — with an optional ``scale`` and ``offset`` (value = raw × scale + offset).
 
+A map with ``format: messages`` is for MCAP files and ROS bags: it has no ``time`` (samples
+are the state topic's messages, stamped by ``--time-source``) and its signals are message
+fields, PlotJuggler-style: a bare string ``/topic/field/sub[i]`` or
+``{field: /topic/field, joint: NAME, scale: ..., offset: ...}`` where ``joint`` picks a
+JointState-like array by joint name (default: the map's joint name). ``position`` is optional
+per joint: without it the positions come from the JointState state topic
+(:mod:`impactcli.io.messages`, :mod:`impactcli.io.fields`).
+
 A ``current`` signal *with* a ``scale`` in the map is converted to torque by that scale
 (N·m per logged unit: gear ratio × torque constant × any unit factor); a ``current`` without
 a scale is converted with the robot description's gear ratio × torque constant.
@@ -40,20 +48,28 @@ class ChannelRef:
     """Where one signal of one joint lives.
 
     Attributes:
-        source: CSV column name (str) or 0-based index (int), or ``.npz`` array key.
+        source: CSV column name (str) or 0-based index (int), ``.npz`` array key, or a
+            message field path (``/topic/field[i]``, when ``is_field``).
         index: column within a 2-D ``.npz`` array (``None`` for 1-D arrays and CSV).
         scale: multiplier applied to the raw values (``None``: not given, i.e. 1 except
             for ``current`` where the robot description's factor is used).
         offset: added after scaling, in the signal's unit.
+        is_field: ``source`` is a message field path (maps with ``format: messages``).
+        joint: for a field path ending in a JointState-like array: the joint whose element
+            is picked by ``name[]`` (``None``: the map's joint name).
     """
 
     source: str | int
     index: int | None = None
     scale: float | None = None
     offset: float = 0.0
+    is_field: bool = False
+    joint: str | None = None
 
     def label(self) -> str:
         """Human name of the channel for messages (``column 3``, ``'a.b'``, ``positions[:, 2]``)."""
+        if self.is_field:
+            return str(self.source) if self.joint is None else f"{self.source}[{self.joint!r}]"
         if self.index is not None:
             return f"{self.source}[:, {self.index}]"
         if isinstance(self.source, int):
@@ -85,17 +101,18 @@ class ChannelMap:
     Attributes:
         name: short name of the map.
         path: file it was read from ("" if made in code).
-        format: ``csv`` or ``npz`` (``None``: decided by the log's suffix).
+        format: ``csv``, ``npz`` or ``messages`` (MCAP and ROS bags; ``None``: decided by
+            the log's suffix, CSV or .npz).
         header: whether the CSV has a header line.
         delimiter: CSV delimiter.
         skip_rows: lines to skip before the header (or first data line).
-        time: the time channel.
+        time: the time channel (``None`` for ``messages`` maps: the state topic's times).
         joints: joint names, in order.
         signals: signal → per-joint :class:`ChannelRef` (or ``None`` where absent).
     """
 
     name: str
-    time: TimeSpec
+    time: TimeSpec | None
     joints: tuple[str, ...]
     signals: dict[str, tuple[ChannelRef | None, ...]] = field(default_factory=dict)
     path: str = ""
@@ -112,6 +129,18 @@ class ChannelMap:
             for j, r in enumerate(per)
             if r is not None
         ]
+
+
+def require_time(cmap: ChannelMap, where: str) -> TimeSpec:
+    """The map's time channel; ChannelMapError for a map without one (a ``messages`` map
+    given for a CSV or .npz log)."""
+    if cmap.time is None:
+        raise ChannelMapError(
+            f"{where}: channel map {cmap.path or cmap.name} has no time channel"
+            + (" (it is for MCAP files and ROS bags: format: messages)"
+               if cmap.format == "messages" else "")
+        )
+    return cmap.time
 
 
 def shipped_maps_dir() -> Path:
@@ -143,17 +172,33 @@ def resolve_channel_map_path(spec: str | os.PathLike[str]) -> Path:
     )
 
 
-def _ref(raw: Any, where: str, what: str) -> ChannelRef:
+def _ref(raw: Any, where: str, what: str, messages: bool = False) -> ChannelRef:
     if isinstance(raw, bool):
         raise ChannelMapError(f"{where}: {what}: expected a column or key, got {raw!r}")
+    if messages:
+        if isinstance(raw, str):
+            raw = {"field": raw}
+        if not isinstance(raw, dict) or "field" not in raw:
+            raise ChannelMapError(f"{where}: {what}: a 'format: messages' map names message "
+                                  f"fields (/topic/field or {{field: ...}}), got {raw!r}")
     if isinstance(raw, int | str):
         return ChannelRef(source=raw)
     if not isinstance(raw, dict):
         raise ChannelMapError(f"{where}: {what}: expected a column or key, got {raw!r}")
+    scale = raw.get("scale")
+    if "field" in raw:
+        if not messages:
+            raise ChannelMapError(f"{where}: {what}: a message field needs 'format: messages'")
+        path = str(raw["field"])
+        if not path.startswith("/"):
+            raise ChannelMapError(f"{where}: {what}: field path {path!r} must start with "
+                                  "/topic")
+        return ChannelRef(source=path, scale=None if scale is None else float(scale),
+                          offset=float(raw.get("offset", 0.0)), is_field=True,
+                          joint=raw.get("joint"))
     if ("column" in raw) == ("key" in raw):
         raise ChannelMapError(f"{where}: {what}: give exactly one of 'column' or 'key'")
     src = raw["column"] if "column" in raw else raw["key"]
-    scale = raw.get("scale")
     return ChannelRef(
         source=src,
         index=raw.get("index"),
@@ -162,14 +207,42 @@ def _ref(raw: Any, where: str, what: str) -> ChannelRef:
     )
 
 
+def _explain_kind(d: dict[str, Any], where: str) -> None:
+    """Clear one-line errors for maps that mix the message kind with the column kind (the
+    schema says the same less readably)."""
+    messages = d.get("format") == "messages"
+    for key in ("time", "csv"):
+        if messages and key in d:
+            raise ChannelMapError(
+                f"{where}: a 'format: messages' map has no '{key}': its samples are the state "
+                "topic's messages, stamped by --time-source"
+            )
+    joints = d.get("joints")
+    for i, jd in enumerate(joints if isinstance(joints, list) else []):
+        for s in SIGNALS:
+            v = jd.get(s) if isinstance(jd, dict) else None
+            if messages and ((isinstance(v, dict) and "field" not in v) or isinstance(v, int)):
+                raise ChannelMapError(
+                    f"{where}: joints[{i}].{s}: a 'format: messages' map names message fields "
+                    f"(/topic/field or {{field: ...}}), got {v!r}"
+                )
+            if not messages and isinstance(v, dict) and "field" in v:
+                raise ChannelMapError(
+                    f"{where}: joints[{i}].{s}: a message field needs 'format: messages' "
+                    "(such maps are for MCAP logs and ROS bags)"
+                )
+
+
 def channel_map_from_dict(d: dict[str, Any], where: str = "channel map") -> ChannelMap:
     """Build a :class:`ChannelMap` from its mapping form (validated against the schema)."""
     from ..schema import validate
 
+    _explain_kind(d, where)
     validate(d, "channel_map", ChannelMapError, where)
     csv_opts = d.get("csv", {})
-    t = d["time"]
-    time = TimeSpec(
+    messages = d.get("format") == "messages"
+    t = d.get("time")
+    time = None if t is None else TimeSpec(
         ref=_ref(t, where, "time"),
         unit=t.get("unit", "s") if isinstance(t, dict) else "s",
         offset=float(t.get("offset", 0.0)) if isinstance(t, dict) else 0.0,
@@ -181,7 +254,7 @@ def channel_map_from_dict(d: dict[str, Any], where: str = "channel map") -> Chan
         joints.append(jd["name"])
         for s in SIGNALS:
             per_signal[s].append(
-                _ref(jd[s], where, f"joints[{i}].{s}") if s in jd else None
+                _ref(jd[s], where, f"joints[{i}].{s}", messages) if s in jd else None
             )
     if len(set(joints)) != len(joints):
         raise ChannelMapError(f"{where}: duplicate joint names {joints}")

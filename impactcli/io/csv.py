@@ -22,7 +22,7 @@ import numpy as np
 from ..errors import ChannelMapError, LogFormatError
 from ..types import RobotLog
 from .assemble import JointChannels
-from .channel_map import SIGNALS, TIME_UNITS, ChannelMap, ChannelRef, TimeSpec
+from .channel_map import SIGNALS, TIME_UNITS, ChannelMap, ChannelRef, TimeSpec, require_time
 from .repair import repair_samples
 
 #: Recognised time columns of a canonical CSV, by preference.
@@ -184,7 +184,8 @@ def read_csv_channels(path: Path, cmap: ChannelMap | None) -> tuple[JointChannel
             )
         return ref.source
 
-    tname = colname(cmap.time.ref, "time")
+    tspec = require_time(cmap, where)
+    tname = colname(tspec.ref, "time")
     used = {tname}
     refs = cmap.refs()
     for sig, j, ref in refs:
@@ -243,7 +244,7 @@ def read_csv_channels(path: Path, cmap: ChannelMap | None) -> tuple[JointChannel
 
     # time
     tarr = table.column(tname).combine_chunks()
-    unit_ns = TIME_UNITS[cmap.time.unit]
+    unit_ns = TIME_UNITS[tspec.unit]
     if pa.types.is_integer(tarr.type):
         if tarr.null_count:
             i = int(np.argmax(tarr.is_null().to_numpy(zero_copy_only=False)))
@@ -266,8 +267,8 @@ def read_csv_channels(path: Path, cmap: ChannelMap | None) -> tuple[JointChannel
                     f"{where}: column {disp(tname)!r}, {label(i)}: time is not a finite number"
                 )
             t_ns = np.round(tf * unit_ns).astype(np.int64)
-    if cmap.time.offset:
-        t_ns = t_ns + round(cmap.time.offset * unit_ns)
+    if tspec.offset:
+        t_ns = t_ns + round(tspec.offset * unit_ns)
     # signals
     cols: dict[str, np.ndarray] = {}
     keys: dict[tuple[str, int], str] = {}
@@ -280,7 +281,7 @@ def read_csv_channels(path: Path, cmap: ChannelMap | None) -> tuple[JointChannel
     t_ns, cols, repairs = repair_samples(
         t_ns, cols, where=where, time_name=disp(tname), row_label=label
     )
-    if cmap.time.start_at_zero:
+    if tspec.start_at_zero:
         t_ns = t_ns - t_ns[0]
     ignored = ignored_extra if fmt == "csv" else [disp(c) for c in names if c not in used]
     return channels_from_columns(cmap, t_ns, cols, keys, ignored, repairs), fmt

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -119,7 +119,7 @@ def parse_jointstate(data: bytes | memoryview) -> Layout:
 def encode_jointstates(
     t_ns: np.ndarray,
     names: Iterable[str],
-    position: np.ndarray,
+    position: np.ndarray | None,
     velocity: np.ndarray | None,
     effort: np.ndarray | None,
     frame_id: str = "",
@@ -186,6 +186,7 @@ class TopicArrays:
         has_joints: (n,) every joint present in the message.
         has_velocity, has_effort, has_position: (n,) the array is filled.
         extra_names: names seen in messages but not in ``joints``.
+        joint_seen: (J,) the joint is named in at least one message.
     """
 
     joints: tuple[str, ...]
@@ -200,6 +201,7 @@ class TopicArrays:
     has_velocity: np.ndarray
     has_effort: np.ndarray
     extra_names: set[str]
+    joint_seen: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
 
 
 def _rows(b: Batch, sel: np.ndarray, length: int) -> np.ndarray:
@@ -235,6 +237,7 @@ def _empty(n: int, j: int, names: tuple[str, ...]) -> TopicArrays:
     return TopicArrays(
         names, np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n, np.int64),
         nan, nan.copy(), nan.copy(), z, z.copy(), z.copy(), z.copy(), set(),
+        np.zeros(j, dtype=bool),
     )
 
 
@@ -244,6 +247,15 @@ def decode_topic(
 ) -> TopicArrays:
     """Decode every JointState message of ``channel_ids`` into :class:`TopicArrays` (file order)."""
     batches = [b for c in channel_ids for b in scan.batches.get(c, [])]
+    return decode_batches(batches, where, topic, joints)
+
+
+def decode_batches(
+    batches: list[Batch], where: str, topic: str, joints: tuple[str, ...] | None = None,
+) -> TopicArrays:
+    """Decode the CDR JointState messages of ``batches`` (one topic) into :class:`TopicArrays`
+    in file order (by each batch's ``order``); joints are those of the first message unless
+    given."""
     if not batches:
         raise LogFormatError(f"{where}: topic {topic!r} holds no messages")
     orders = np.sort(np.concatenate([b.order for b in batches]))
@@ -293,6 +305,7 @@ def decode_topic(
                 src = np.array([k for k, c in enumerate(self_cols) if c >= 0], dtype=np.int64)
                 dst = np.array([c for c in self_cols if c >= 0], dtype=np.int64)
                 out.has_joints[gi] = len(set(dst.tolist())) == jn
+                out.joint_seen[dst] = True
                 targets = (out.position, out.velocity, out.effort)
                 flags = (out.has_position, out.has_velocity, out.has_effort)
                 identity = len(lay.names) == jn and bool(np.all(dst == np.arange(jn)))
@@ -333,6 +346,7 @@ def _fill_one(out: TopicArrays, i: int, m: Layout, vals: list[np.ndarray],
     for nm in m.names:
         if nm in jidx:
             seen.add(nm)
+            out.joint_seen[jidx[nm]] = True
         else:
             out.extra_names.add(nm)
     out.has_joints[i] = len(seen) == len(jidx)
@@ -369,12 +383,25 @@ def decode_topic_official(
         raise LogFormatError(f"{where}: corrupt MCAP: {first}") from err
     if not rows:
         raise LogFormatError(f"{where}: topic {topic!r} holds no messages")
+    return arrays_from_messages(
+        [m for _, _, m in rows], np.array([r[0] for r in rows], dtype=np.int64),
+        np.array([r[1] for r in rows], dtype=np.int64), joints)
+
+
+def arrays_from_messages(
+    msgs: list[Any], log_time: np.ndarray, publish_time: np.ndarray,
+    joints: tuple[str, ...] | None = None,
+) -> TopicArrays:
+    """:class:`TopicArrays` from decoded JointState messages (objects with ``header.stamp``,
+    ``name``, ``position``, ``velocity``, ``effort``: mcap_ros2's or rosbags' classes, ROS 1
+    or ROS 2), in the given order; joints are those of the first message unless given."""
     if joints is None:
-        joints = tuple(rows[0][2].name)
+        joints = tuple(str(s) for s in msgs[0].name)
     jidx = {nm: i for i, nm in enumerate(joints)}
-    out = _empty(len(rows), len(joints), joints)
-    for i, (lt, pt, m) in enumerate(rows):
-        out.log_time[i], out.publish_time[i] = lt, pt
+    out = _empty(len(msgs), len(joints), joints)
+    out.log_time[:] = log_time
+    out.publish_time[:] = publish_time
+    for i, m in enumerate(msgs):
         stamp = m.header.stamp.sec * 10**9 + m.header.stamp.nanosec
         lay = Layout(stamp, tuple(m.name), ((0, len(m.position)), (0, len(m.velocity)),
                                             (0, len(m.effort))), True)

@@ -13,7 +13,7 @@ import numpy as np
 
 from ..errors import ChannelMapError, LogFormatError
 from .assemble import JointChannels
-from .channel_map import TIME_UNITS, ChannelMap, ChannelRef
+from .channel_map import TIME_UNITS, ChannelMap, ChannelRef, require_time
 from .csv import channels_from_columns
 from .repair import repair_samples
 
@@ -57,9 +57,10 @@ def read_npz_channels(path: Path, cmap: ChannelMap) -> JointChannels:
                 )
             return a[:, ref.index]
 
-        t_raw = get(cmap.time.ref, "time")
+        tspec = require_time(cmap, where)
+        t_raw = get(tspec.ref, "time")
         n = t_raw.shape[0]
-        tkey = str(cmap.time.ref.source)
+        tkey = str(tspec.ref.source)
         cols: dict[str, np.ndarray] = {}
         labels: dict[tuple[str, int], str] = {}
         for sig, j, ref in cmap.refs():
@@ -79,7 +80,7 @@ def read_npz_channels(path: Path, cmap: ChannelMap) -> JointChannels:
             cols[lab] = v.astype(np.float64)
         used = {str(r.source) for _, _, r in cmap.refs()} | {tkey}
         ignored = [k for k in keys if k not in used]
-    unit_ns = TIME_UNITS[cmap.time.unit]
+    unit_ns = TIME_UNITS[tspec.unit]
     if np.issubdtype(t_raw.dtype, np.integer):
         t_ns = t_raw.astype(np.int64) * unit_ns
     elif np.issubdtype(t_raw.dtype, np.floating):
@@ -89,9 +90,9 @@ def read_npz_channels(path: Path, cmap: ChannelMap) -> JointChannels:
         t_ns = np.round(t_raw.astype(np.float64) * unit_ns).astype(np.int64)
     else:
         raise LogFormatError(f"{where}: time array {tkey!r} is not numeric ({t_raw.dtype})")
-    if cmap.time.offset:
-        t_ns = t_ns + round(cmap.time.offset * unit_ns)
+    if tspec.offset:
+        t_ns = t_ns + round(tspec.offset * unit_ns)
     t_ns, cols, repairs = repair_samples(t_ns, cols, where=where, time_name=tkey)
-    if cmap.time.start_at_zero:
+    if tspec.start_at_zero:
         t_ns = t_ns - t_ns[0]
     return channels_from_columns(cmap, t_ns, cols, labels, ignored, repairs)
