@@ -143,8 +143,10 @@ class ResidualConfig:
             their generator and keep it.
         generators: joint → generator frozen by ``calibrate`` (thresholds belong to the
             generator they were made with); wins over ``generator``.
-        logged_model_correction: joint → ``{scale, fv, fc, offset}``, the correction of
-            ``torque_model`` identified on the calibration logs.
+        logged_correction: correct the controller's channels (``logged_model``,
+            ``logged_external``) by what the tool's own model structure, identified on the
+            calibration logs, finds they leave out in free motion
+            (:mod:`impactcli.model.generators`); false takes them plain.
         derivative_cutoff_hz: causal low-pass of the estimated velocity/acceleration [Hz].
         filter_torque: pass the measured torque through the same causal filter as the
             estimate (method.md §8: lowers the residual's high-frequency floor 2–5×).
@@ -156,7 +158,7 @@ class ResidualConfig:
     filter_torque: bool = True
     observer_gain: float = 50.0
     generators: dict[str, str] = field(default_factory=dict)
-    logged_model_correction: dict[str, dict[str, float]] = field(default_factory=dict)
+    logged_correction: bool = True
 
 
 @dataclass(frozen=True)
@@ -309,9 +311,6 @@ def _build(d: dict[str, Any], where: str) -> DetectorConfig:
     }
     residual = dict(d.get("residual", {}))
     residual["generators"] = {str(j): str(g) for j, g in residual.get("generators", {}).items()}
-    residual["logged_model_correction"] = {
-        str(j): {k: float(v) for k, v in c.items()}
-        for j, c in residual.get("logged_model_correction", {}).items()}
     if "generator" in residual:
         residual["generator"] = GENERATOR_ALIASES.get(residual["generator"],
                                                       residual["generator"])

@@ -35,14 +35,16 @@ from .errors import ConfigError, ImpactWarning, LogFormatError, ModelError
 from .io.inspect import GAP_FACTOR, time_gaps
 from .model import IdentifyOptions, ResidualOptions, RigidModel, compute_residual, identify
 from .model.generators import (
+    LOGGED,
     OWN_MODEL,
     GeneratorChoice,
     choices_dict,
     choose_generators,
-    fit_logged_model_correction,
-    logged_residual,
     needs_own_model,
+    plain_residual,
     summary_name,
+    target_log,
+    uses_correction,
 )
 from .result import DetectionResult
 from .types import DETECTORS, RobotDescription, RobotLog
@@ -65,21 +67,34 @@ def generator_choices(log: RobotLog, cfg: DetectorConfig) -> tuple[GeneratorChoi
     return choose_generators(log, cfg.residual.generator, cfg.residual.generators or None)
 
 
+def needs_model(choices: tuple[GeneratorChoice, ...], cfg: DetectorConfig) -> bool:
+    """Whether a rigid model is needed: some joint uses the tool's own model, or a logged
+    channel is corrected by one (``residual.logged_correction``)."""
+    return needs_own_model(choices) or uses_correction(choices, cfg.residual.logged_correction)
+
+
 def residual_matrix(
-    log: RobotLog, model: RigidModel | None, cfg: DetectorConfig,
-    choices: tuple[GeneratorChoice, ...], correction: dict[str, dict[str, float]],
+    log: RobotLog, target: RobotLog, model: RigidModel | None, cfg: DetectorConfig,
+    choices: tuple[GeneratorChoice, ...],
 ) -> np.ndarray:
-    """(N, J) causal residual, each joint from its own generator (log joint order)."""
+    """(N, J) causal residual, each joint from its own generator (log joint order).
+
+    ``target`` is :func:`impactcli.model.generators.target_log` of ``log``: the torque the
+    model was identified on (the log itself when no logged channel is corrected).
+    """
     rc = cfg.residual
-    cols: dict[str, np.ndarray] = logged_residual(
-        log, choices, correction, rc.derivative_cutoff_hz, rc.filter_torque)
-    for g in sorted({c.generator for c in choices if c.generator in OWN_MODEL}):
+    correct = uses_correction(choices, rc.logged_correction)
+    cols: dict[str, np.ndarray] = {} if correct else plain_residual(
+        log, choices, rc.derivative_cutoff_hz, rc.filter_torque)
+    wanted = {c.joint: ("inverse_dynamics" if c.generator in LOGGED else c.generator)
+              for c in choices if c.joint not in cols}
+    for g in sorted(set(wanted.values())):
         if model is None:
             raise ModelError(f"{log.source.path}: the {g} generator needs a model")
-        res = compute_residual(model, log, residual_options(cfg, g))
-        for c in choices:
-            if c.generator == g:
-                cols[c.joint] = res.r[:, res.joint_names.index(c.joint)]
+        res = compute_residual(model, target, residual_options(cfg, g))
+        for j, gj in wanted.items():
+            if gj == g:
+                cols[j] = res.r[:, res.joint_names.index(j)]
     return np.column_stack([cols[j] for j in log.joint_names])
 
 
@@ -240,8 +255,6 @@ class Replay:
     threshold_inputs: str = ""
     gaps: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     choices: tuple[GeneratorChoice, ...] = ()
-    correction: dict[str, dict[str, float]] = dataclasses.field(default_factory=dict)
-    correction_source: str | None = None
 
     def stats_after_warmup(self) -> dict[str, np.ndarray]:
         """Each statistic from the warm-up's end on (all of it if the warm-up covers the log)."""
@@ -262,17 +275,17 @@ def replay(
             "could be detected")
     choices = generator_choices(log, cfg)
     model_source = "none"
-    if needs_own_model(choices):
-        model, model_source = resolve_model(log, model, cfg, robot, model_from_log)
+    if needs_model(choices, cfg):
+        target = target_log(log, choices, cfg.residual.logged_correction)
+        model, model_source = resolve_model(target, model, cfg, robot, model_from_log)
         log = reorder_log(log, tuple(model.joint_names), "model")
-        choices = generator_choices(log, cfg)
     else:
         model = None
         order = tuple(cfg.residual.generators)
         if set(order) == set(log.joint_names):  # a calibrated config's joint order
             log = reorder_log(log, order, "config")
-            choices = generator_choices(log, cfg)
-    correction, correction_source = resolve_correction(log, cfg, choices, model_from_log)
+    choices = generator_choices(log, cfg)
+    target = target_log(log, choices, cfg.residual.logged_correction)
     fs = log.sample_rate_hz
     gaps, lengths = time_gaps(log)
     if gaps.size:
@@ -283,7 +296,7 @@ def replay(
             f"first after {log.time_s[gaps[0]]:.3f} s): the detectors assume uniform sampling, "
             "so alarms just after a gap may be artefacts of it", ImpactWarning, stacklevel=3)
     ropts = residual_options(cfg)
-    r = residual_matrix(log, model, cfg, choices, correction)
+    r = residual_matrix(log, target, model, cfg, choices)
     inputs = threshold_inputs(log, cfg.adaptive)
     if inputs.source == "measured":
         warnings.warn(f"{log.source.path}: no reference logged: threshold inputs from the "
@@ -299,25 +312,7 @@ def replay(
              "static_baseline": np.abs(r)}
     return Replay(log, model, model_source, ropts, r, ad,
                   "measured" if inputs.source == "measured" else "reference", wu, stats,
-                  inputs.detail, gaps, choices, correction, correction_source)
-
-
-def resolve_correction(
-    log: RobotLog, cfg: DetectorConfig, choices: tuple[GeneratorChoice, ...],
-    model_from_log: bool = False,
-) -> tuple[dict[str, dict[str, float]], str | None]:
-    """The ``logged_model`` correction for the joints that use it, and where it came from:
-    ``config`` (identified on the calibration logs: online equivalent) or
-    ``identified-from-log`` (no config correction, or ``--model-from-log``: offline)."""
-    joints = tuple(c.joint for c in choices if c.generator == "logged_model")
-    if not joints:
-        return {}, None
-    have = cfg.residual.logged_model_correction
-    if not model_from_log and all(j in have for j in joints):
-        return {j: dict(have[j]) for j in joints}, "config"
-    rc = cfg.residual
-    return (fit_logged_model_correction([log], joints, rc.derivative_cutoff_hz,
-                                        rc.filter_torque), "identified-from-log")
+                  inputs.detail, gaps, choices)
 
 
 def _analyze(
@@ -394,9 +389,7 @@ def _analyze(
         filter_gain={"frequencies_hz": [float(f) for f in freqs],
                      "gain": {j: [float(g) for g in gain[k]] for k, j in enumerate(joints)}},
         residual_generator=summary_name(rp.choices), read_options=read_options,
-        generators=choices_dict(rp.choices),
-        logged_model_correction=({"source": rp.correction_source, "parameters": rp.correction}
-                                 if rp.correction_source else None),
+        generators=choices_dict(rp.choices, cfg.residual.logged_correction),
     )
 
 
@@ -445,18 +438,17 @@ def calibrate(
         cfg = dataclasses.replace(cfg, residual=dataclasses.replace(
             cfg.residual, generator=generator, generators={}))
     frozen = common_generators(logs, cfg)
-    own = any(g in OWN_MODEL for g in frozen.values())
-    if own and model is None:
-        model = RigidModel.from_dict(cfg.model) if cfg.model is not None else identify_many(
-            logs, robot=robot, options=IdentifyOptions(allow_still_joints=True))
-    if not own:
+    cfg = dataclasses.replace(cfg, residual=dataclasses.replace(cfg.residual,
+                                                                generators=frozen))
+    choices = [generator_choices(lg, cfg) for lg in logs]
+    if needs_model(choices[0], cfg):
+        if model is None:
+            model = RigidModel.from_dict(cfg.model) if cfg.model is not None else identify_many(
+                [target_log(lg, ch, cfg.residual.logged_correction)
+                 for lg, ch in zip(logs, choices, strict=True)],
+                robot=robot, options=IdentifyOptions(allow_still_joints=True))
+    else:
         model = None
-    lm = tuple(j for j, g in frozen.items() if g == "logged_model")
-    rc = cfg.residual
-    correction = fit_logged_model_correction(logs, lm, rc.derivative_cutoff_hz,
-                                             rc.filter_torque) if lm else {}
-    cfg = dataclasses.replace(cfg, residual=dataclasses.replace(
-        rc, generators=frozen, logged_model_correction=correction))
     joints = tuple(model.joint_names) if model is not None else tuple(frozen)
     per_det: dict[str, list[np.ndarray]] = {d: [] for d in DETECTORS}
     for log in logs:

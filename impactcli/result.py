@@ -30,14 +30,13 @@ class DetectionResult:
 
     Attributes:
         log: the analysed log (its ``source`` carries path and sha256).
-        model: the rigid model used, as its JSON mapping (``RigidModel.to_dict()``); None
-            when no joint's residual needs the tool's own model (controller channels only).
+        model: the rigid model used, as its JSON mapping (``RigidModel.to_dict()``) — for
+            joints on a logged generator, the model of what the controller's channel leaves
+            out; None when no joint needs one (controller channels taken plain).
         model_sha256: sha256 of that model's canonical JSON (None without a model).
         model_source: ``given`` (--model), ``config`` (embedded in --config),
             ``identified-from-log`` (offline convenience) or ``none``.
-        generators: joint → {generator, reason} (:mod:`impactcli.model.generators`).
-        logged_model_correction: ``{"source": config|identified-from-log, "parameters":
-            {joint: {...}}}`` when a joint uses ``logged_model``; else None.
+        generators: joint → {generator, reason, residual} (:mod:`impactcli.model.generators`).
         config: the detector config used, as its mapping, thresholds included.
         calibrated: thresholds came from a calibration on other logs (else the log's own
             statistics — an uncalibrated run).
@@ -79,14 +78,12 @@ class DetectionResult:
     threshold_inputs: str = ""
     read_options: dict[str, Any] = field(default_factory=dict)
     generators: dict[str, dict[str, str]] = field(default_factory=dict)
-    logged_model_correction: dict[str, Any] | None = None
 
     @property
     def online_equivalent(self) -> bool:
-        """Model, correction and thresholds came from other logs: the robot could have run
-        this online."""
-        return (self.calibrated and self.model_source != "identified-from-log"
-                and (self.logged_model_correction or {}).get("source") != "identified-from-log")
+        """Model (or correction model) and thresholds came from other logs: the robot could
+        have run this online."""
+        return self.calibrated and self.model_source != "identified-from-log"
 
     def counted_events(self, detector: str) -> list[Event]:
         """Events of ``detector`` that start after warm-up (the ones summaries count)."""

@@ -66,8 +66,13 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     source = ("given" if model_m is not None else "the base config's" if cfg and cfg.model
               else f"identified on the {len(read)} log(s)")
     gens = out.residual.generators
-    what = (f"model {kind} ({source})" if out.model is not None
-            else "no model (every joint reads the controller's channels)")
+    logged = {g for g in gens.values() if g.startswith("logged_")}
+    if out.model is None:
+        what = "no model (every joint reads the controller's channels plain)"
+    elif logged and logged == set(gens.values()):
+        what = f"model {kind} ({source}) of what the controller's channels leave out"
+    else:
+        what = f"model {kind} ({source})"
     click.echo(f"calibrated on {len(read)} log(s), rule {c.margin_rule}{weak}; {what}")
     if kind == "decoupled" and robot_d is None and model_m is None and out.model is not None:
         click.echo("impactcli: warning: no --robot: the model is 'decoupled' (each joint "

@@ -5,18 +5,21 @@ Four generators make the residual r ≈ tau_ext (eq. 8) that every detector eval
 
 * ``inverse_dynamics`` (eq. 7–8) and ``momentum_observer`` (De Luca): the tool's own
   identified rigid model (:mod:`impactcli.model.residual`).
-* ``logged_external``: r = the log's ``torque_ext``, the controller's own external-torque
-  estimate, as logged (either sign convention: every detector uses magnitudes).
-* ``logged_model``: r = tau_hat − tau with tau_hat = (1 + a) τ_m + f_v q' + f_c tanh(q'/v_s)
-  + c, where τ_m is the log's ``torque_model`` (the controller's model torque for the
-  measured motion) and (a, f_v, f_c, c) is a per-joint *correction* for what that model
-  leaves out — a scale error, viscous and Coulomb friction, an offset — identified by a robust
-  fit (:func:`impactcli.model.identify.robust_lstsq`) of tau − τ_m on collision-free logs.
-  As for ``inverse_dynamics`` (method.md §8) the measured torque, τ_m and the correction's
-  regressors all pass through the same causal filter G, so the model side and the measured
-  side share one bandwidth; the friction regressors are made from a wide-band causal velocity
-  estimate and then filtered (G is linear: G(X)θ = G(Xθ)), so a friction step is smoothed
-  like the measured torque's.
+* ``logged_external`` and ``logged_model``: the controller's own channels — its
+  external-torque estimate ``torque_ext``, or its model torque ``torque_model`` for the
+  measured motion. A controller's model is not the robot: its errors (inertia, gravity,
+  friction, offsets) show in free motion as a torque that depends on the state, and are
+  linear in the rigid model's parameters exactly as the tool's own model is (eq. 10: the
+  error of a rigid model is Y (θ_nominal − θ_true)). So by default
+  (``residual.logged_correction``) the tool identifies, with its own model structure
+  (decoupled, planar or URDF) and the same robust fit on collision-free logs, what the
+  channel leaves out, and removes it: the identification target per joint is
+  tau − τ_m (``logged_model``) or −torque_ext (``logged_external``) instead of tau, and the
+  residual is the inverse-dynamics one on that target,
+  r = Ŷθ − G(target) — i.e. r = G τ_m + Ŷθ − G tau, or r = G torque_ext + Ŷθ. Both
+  estimate the external torque (either sign convention: detectors use magnitudes). With
+  ``logged_correction = false`` the channels are taken plain: r = torque_ext as logged, or
+  r = G τ_m − G tau.
 
 ``auto`` picks per joint the best the log offers: ``logged_external``, else ``logged_model``,
 else the tool's own model (``inverse_dynamics``). :func:`choose_generators` says which and
@@ -26,15 +29,15 @@ why; a frozen per-joint choice (from ``calibrate``) on a log that lacks its chan
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from ..errors import ConfigError, LogFormatError, ModelError
+from ..errors import ConfigError, LogFormatError
 from ..types import RobotLog
-from .derivatives import MAX_CUTOFF_FRACTION, causal_derivatives, causal_lowpass, clip_cutoff
 
 #: Generators of the tool's own identified model.
 OWN_MODEL: tuple[str, ...] = ("inverse_dynamics", "momentum_observer")
@@ -42,12 +45,6 @@ OWN_MODEL: tuple[str, ...] = ("inverse_dynamics", "momentum_observer")
 LOGGED: dict[str, str] = {"logged_external": "torque_ext", "logged_model": "torque_model"}
 #: Every generator name, and ``auto``.
 GENERATOR_CHOICES: tuple[str, ...] = ("auto", *OWN_MODEL, *LOGGED)
-
-#: v_s of the correction's smooth Coulomb sign tanh(q'/v_s) [rad/s] (as the rigid models').
-CORRECTION_SLOPE_RAD_S = 0.01
-#: Names of the correction's parameters, in regressor order.
-CORRECTION_PARAMS: tuple[str, ...] = ("scale", "fv", "fc", "offset")
-
 
 @dataclass(frozen=True)
 class GeneratorChoice:
@@ -115,97 +112,64 @@ def needs_own_model(choices: tuple[GeneratorChoice, ...]) -> bool:
     return any(c.generator in OWN_MODEL for c in choices)
 
 
-def _features(
-    log: RobotLog, cols: list[int], cutoff_hz: float, filter_torque: bool,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(N, J, 4) correction regressors, (N, J) filtered torque and model torque."""
+def uses_correction(choices: tuple[GeneratorChoice, ...], correct: bool) -> bool:
+    """Whether the logged joints' channels are corrected by an identified model."""
+    return correct and any(c.generator in LOGGED for c in choices)
+
+
+def target_log(log: RobotLog, choices: tuple[GeneratorChoice, ...], correct: bool) -> RobotLog:
+    """The log whose ``torque`` the (correction) model is identified on and compared with.
+
+    Per joint (module docstring): tau for the tool's own model; tau − τ_m for
+    ``logged_model``; −torque_ext for ``logged_external`` — so that the inverse-dynamics
+    residual Ŷθ − G(target) is, in every case, an estimate of the external torque. Without
+    correction (``correct`` False) the log itself.
+    """
+    if not uses_correction(choices, correct):
+        return log
+    tau = np.array(log.torque, dtype=np.float64)
+    for k, c in enumerate(choices):
+        if c.generator == "logged_model":
+            assert log.torque_model is not None
+            tau[:, k] = log.torque[:, k] - log.torque_model[:, k]
+        elif c.generator == "logged_external":
+            assert log.torque_ext is not None
+            tau[:, k] = -log.torque_ext[:, k]
+    return dataclasses.replace(log, torque=tau, current=None, torque_model=None,
+                               torque_ext=None)
+
+
+def plain_residual(
+    log: RobotLog, choices: tuple[GeneratorChoice, ...], cutoff_hz: float, filter_torque: bool,
+) -> dict[str, np.ndarray]:
+    """(N,) residual per logged joint without correction: r = torque_ext as logged, or
+    r = G τ_m − G tau (``residual.logged_correction = false``)."""
+    from .derivatives import causal_lowpass, clip_cutoff
+
+    out: dict[str, np.ndarray] = {}
     dt = log.sample_period_s
     cutoff = clip_cutoff(cutoff_hz, 1.0 / dt, "derivative cut-off")
-    q = log.position[:, cols]
-    tau = log.torque[:, cols]
-    assert log.torque_model is not None
-    tm = log.torque_model[:, cols]
-    if filter_torque:
-        fast = 0.999 * MAX_CUTOFF_FRACTION / dt
-        _, qd, _ = causal_derivatives(dt, q, fast)
-    else:
-        _, qd, _ = causal_derivatives(dt, q, cutoff)
-    x = np.stack([tm, qd, np.tanh(qd / CORRECTION_SLOPE_RAD_S), np.ones_like(qd)], axis=2)
-    if filter_torque:
-        n, nj, p = x.shape
-        x = causal_lowpass(x.reshape(n, nj * p), dt, cutoff).reshape(n, nj, p)
-        tau = causal_lowpass(tau, dt, cutoff)
-    return x, tau, x[:, :, 0]
-
-
-def fit_logged_model_correction(
-    logs: list[RobotLog], joints: tuple[str, ...], cutoff_hz: float, filter_torque: bool = True,
-) -> dict[str, dict[str, float]]:
-    """Per joint correction (a, f_v, f_c, c) of ``torque_model`` (module docstring),
-    identified on collision-free ``logs`` by a robust fit of G tau − G τ_m.
-
-    Args:
-        logs: logs carrying ``torque_model`` for ``joints`` (the calibration logs, or the
-            analysed log itself offline).
-        joints: joints whose generator is ``logged_model``.
-        cutoff_hz: the residual's causal filter G cut-off [Hz]; filter_torque as the residual.
-    Returns:
-        joint → {"scale": a, "fv": [N·m s/rad], "fc": [N·m], "offset": [N·m]}.
-    """
-    from .identify import IdentifyOptions, robust_lstsq
-
-    if not joints:
-        return {}
-    xs, ys = [], []
-    for log in logs:
-        cols = [log.joint_names.index(j) for j in joints]
-        x, tau_f, tm_f = _features(log, cols, cutoff_hz, filter_torque)
-        xs.append(x)
-        ys.append(tau_f - tm_f)
-    x = np.concatenate(xs)
-    y = np.concatenate(ys)
-    n, nj, p = x.shape
-    reg = np.zeros((n, nj, nj * p))
-    for k in range(nj):
-        reg[:, k, k * p:(k + 1) * p] = x[:, k, :]
-        # a joint that never moves has a zero velocity column: keep the fit well posed
-        for c in (1, 2):
-            if not np.any(np.abs(x[:, k, c]) > 1e-12):
-                reg[:, k, k * p + c] = 0.0
-    theta, _, _ = robust_lstsq(reg, y, IdentifyOptions())
-    if not np.all(np.isfinite(theta)):
-        raise ModelError("the logged_model correction fit did not converge (non-finite)")
-    return {j: {name: float(theta[k * p + i]) for i, name in enumerate(CORRECTION_PARAMS)}
-            for k, j in enumerate(joints)}
-
-
-def logged_residual(
-    log: RobotLog, choices: tuple[GeneratorChoice, ...],
-    correction: Mapping[str, Mapping[str, float]], cutoff_hz: float, filter_torque: bool,
-) -> dict[str, np.ndarray]:
-    """(N,) residual per joint whose generator reads the controller's channels.
-
-    ``logged_external``: r = torque_ext as logged. ``logged_model``: r = G τ_m +
-    G X θ − G tau (module docstring), with θ from ``correction`` (a joint missing from it is
-    a :class:`~impactcli.errors.ConfigError`).
-    """
-    out: dict[str, np.ndarray] = {}
-    ext = [c.joint for c in choices if c.generator == "logged_external"]
-    for j in ext:
-        assert log.torque_ext is not None
-        out[j] = np.array(log.torque_ext[:, log.joint_names.index(j)], dtype=np.float64)
-    lm = [c.joint for c in choices if c.generator == "logged_model"]
-    if lm:
-        missing = [j for j in lm if j not in correction]
-        if missing:
-            raise ConfigError(f"no logged_model correction for joint(s) {missing} "
-                              "(residual.logged_model_correction)")
-        cols = [log.joint_names.index(j) for j in lm]
-        x, tau_f, tm_f = _features(log, cols, cutoff_hz, filter_torque)
-        for k, j in enumerate(lm):
-            th = np.array([correction[j][name] for name in CORRECTION_PARAMS])
-            out[j] = tm_f[:, k] + x[:, k, :] @ th - tau_f[:, k]
+    for k, c in enumerate(choices):
+        if c.generator == "logged_external":
+            assert log.torque_ext is not None
+            out[c.joint] = np.array(log.torque_ext[:, k], dtype=np.float64)
+        elif c.generator == "logged_model":
+            assert log.torque_model is not None
+            d = log.torque_model[:, k] - log.torque[:, k]
+            out[c.joint] = causal_lowpass(d, dt, cutoff) if filter_torque else np.array(d)
     return out
+
+
+def formula(generator: str, correct: bool) -> str:
+    """The residual of ``generator`` in symbols (for the timeline and the report)."""
+    if generator in OWN_MODEL:
+        return ("r = Y θ − G tau (eq. 7–8)" if generator == "inverse_dynamics"
+                else "r: momentum observer of the identified model (De Luca)")
+    if generator == "logged_external":
+        return ("r = G torque_ext + Y θ (θ: what torque_ext reads in free motion)" if correct
+                else "r = torque_ext")
+    return ("r = G torque_model + Y θ − G tau (θ: what torque_model leaves out)" if correct
+            else "r = G torque_model − G tau")
 
 
 def summary_name(choices: tuple[GeneratorChoice, ...]) -> str:
@@ -214,6 +178,7 @@ def summary_name(choices: tuple[GeneratorChoice, ...]) -> str:
     return names.pop() if len(names) == 1 else "mixed"
 
 
-def choices_dict(choices: tuple[GeneratorChoice, ...]) -> dict[str, Any]:
-    """joint → {generator, reason} (timeline ``replay.generator``)."""
-    return {c.joint: c.to_dict() for c in choices}
+def choices_dict(choices: tuple[GeneratorChoice, ...], correct: bool = True) -> dict[str, Any]:
+    """joint → {generator, reason, residual} (timeline ``replay.generator``)."""
+    return {c.joint: {**c.to_dict(), "residual": formula(c.generator, correct)}
+            for c in choices}

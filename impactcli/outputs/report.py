@@ -672,11 +672,11 @@ def _generator_cell(replay: dict[str, Any]) -> str:
     per = replay.get("generator") or {}
     if not per:
         return _e(replay.get("residual_generator", "—"))
-    rows = "".join(f"<li><b>{_e(j)}</b>: {_e(g.get('generator'))} — {_e(g.get('reason'))}</li>"
-                   for j, g in per.items())
-    corr = replay.get("logged_model_correction") or {}
-    note = (f"<br>logged_model correction: {_e(corr.get('source'))}" if corr else "")
-    return f'<ul style="margin:0;padding-left:1.2em">{rows}</ul>{note}'
+    rows = "".join(
+        f"<li><b>{_e(j)}</b>: {_e(g.get('generator'))} — {_e(g.get('reason'))}"
+        + (f" (<code>{_e(g['residual'])}</code>)" if g.get("residual") else "") + "</li>"
+        for j, g in per.items())
+    return f'<ul style="margin:0;padding-left:1.2em">{rows}</ul>'
 
 
 def _fit_table(fit: dict[str, Any], joints: Sequence[str]) -> str:

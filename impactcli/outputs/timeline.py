@@ -67,7 +67,6 @@ def timeline_dict(result: DetectionResult) -> dict[str, Any]:
             "torque_filtered": result.torque_filtered,
             "residual_generator": result.residual_generator,
             "generator": result.generators,
-            "logged_model_correction": result.logged_model_correction,
             "threshold_inputs": result.threshold_inputs,
         },
         "warmup_end_s": result.warmup_end_s,
