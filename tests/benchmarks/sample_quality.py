@@ -7,6 +7,7 @@
                                               # calibrate the ASSIST-like config on these
     python tests/benchmarks/sample_quality.py --variants    # other residuals and low-passes
     python tests/benchmarks/sample_quality.py --cross-unit  # + calibrated on other units
+    python tests/benchmarks/sample_quality.py --generators  # each residual generator (then exit)
 
 Every contact log in ``sample_logs/csv`` is replayed with the thresholds of its arm's config
 (``sample_logs/assist_like.config.toml``, ``sample_logs/heavy_geared.config.toml``, made by
@@ -16,7 +17,9 @@ matches a contact when it starts within [start − 20 ms, end + 250 ms]). Printe
 table per detector and log (hits, misses, delays, false alarms, smallest detected force),
 then one PASS/FAIL line per criterion with what decided it.
 
-The criteria (issue 4), on the ASSIST-like logs (4 ms sampling):
+The criteria, on the ASSIST-like logs (4 ms sampling; since they carry the controller's
+``torque_ext`` and ``torque_model``, the committed config's generator is ``auto`` →
+``logged_external``):
 - C1 no alarm of the product (adaptive OR static_loading) between contacts after warm-up,
   on every contact log: no counted product event that matches no contact;
 - C2 every elastomer impact of ≥ 20 N: a product event within 80 ms of the labelled onset;
@@ -27,6 +30,8 @@ The criteria (issue 4), on the ASSIST-like logs (4 ms sampling):
   product alarm after warm-up; reported beside it, the same log with the config's
   thresholds and a model identified from the log (``identify`` then
   ``detect --config --model``) and with the config's own model.
+- C6 every contact of ≥ 10 N after warm-up (impact, push or clamp) caught by the product,
+  on every ASSIST-like contact log (the controller-channel criterion).
 
 The functions here are shared with ``tests/test_acceptance.py``.
 """
@@ -100,11 +105,51 @@ def labels_of(name: str) -> Labels:
     return read_labels(CSV / f"{name}.labels.json")
 
 
-def calibrate_on(names: Sequence[str], config: DetectorConfig | None = None) -> DetectorConfig:
-    """What ``impactcli calibrate <names> --robot <first's robot> [--config C]`` computes."""
+def calibrate_on(names: Sequence[str], config: DetectorConfig | None = None,
+                 generator: str | None = None) -> DetectorConfig:
+    """What ``impactcli calibrate <names> --robot <first's robot> [--config C]
+    [--generator G]`` computes."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return calibrate([read(n) for n in names], robot=robot_of(names[0]), config=config)
+        return calibrate([read(n) for n in names], robot=robot_of(names[0]), config=config,
+                         generator=generator)
+
+
+#: Residual generators compared by ``--generators`` (``auto`` is what a new config uses),
+#: with the controller's channels corrected (default) or plain (``logged_correction``).
+GENERATORS: tuple[tuple[str, bool], ...] = (
+    ("auto", True), ("logged_external", True), ("logged_external", False),
+    ("logged_model", True), ("logged_model", False), ("inverse_dynamics", True),
+    ("momentum_observer", True))
+#: Smallest force the controller-channel criterion C6 asks the product to catch [N].
+C6_MIN_FORCE_N = 10.0
+
+
+def generators() -> None:
+    """Per residual generator, calibrated on the committed calibration logs: contacts of
+    ≥ 10 N caught by the product and false alarms between contacts, per ASSIST-like log."""
+    names = CALIBRATION_LOGS["assist_like"]
+    assist = [n for n, a in CONTACT_LOGS.items() if a == "assist_like"]
+    print("| generator | " + " | ".join(f"{n}: ≥ {C6_MIN_FORCE_N:g} N caught, all caught, "
+                                         "false alarms" for n in assist) + " |")
+    print("|---|" + "---|" * len(assist))
+    import dataclasses
+
+    for gen, correct in GENERATORS:
+        base = DetectorConfig()
+        base = dataclasses.replace(base, residual=dataclasses.replace(
+            base.residual, logged_correction=correct))
+        cfg = calibrate_on(names, base, generator=gen)
+        cells = []
+        for n in assist:
+            ev = run(n, cfg)[1]
+            c6 = contacts_caught(n, ev)
+            s = ev.scores[PRODUCT]
+            cells.append(f"{c6.detail.split(' ')[0]}, {s.detected}/{s.n_contacts}, "
+                         f"{s.false_alarms}")
+        used = ", ".join(sorted(set(cfg.residual.generators.values())))
+        plain = "" if correct or not gen.startswith("logged") else ", plain"
+        print(f"| {gen} ({used}{plain}) | " + " | ".join(cells) + " |")
 
 
 #: Design alternatives to the shipped residual and static-loading filter, each recalibrated
@@ -238,6 +283,18 @@ def clamps_by_static_loading(name: str, ev: Evaluation, *, min_force: float = MI
                     for c in cs)
     return Criterion(f"C4 clamps ≥ {min_force:g} N caught by static_loading", name,
                      bool(cs) and not bad, f"{len(cs) - len(bad)}/{len(cs)} (delays ms — {det})")
+
+
+def contacts_caught(name: str, ev: Evaluation, *, min_force: float = C6_MIN_FORCE_N
+                    ) -> Criterion:
+    """C6: every counted contact ≥ ``min_force`` (any kind) caught by the product."""
+    cs = [c for c in ev.contacts if c.status == "counted" and c.label.peak_force >= min_force]
+    bad = [c for c in cs if c.delay_s[PRODUCT] is None]
+    miss = ", ".join(f"{c.label.kind} {c.label.peak_force:.1f} N at {c.label.start:.2f} s"
+                     for c in bad)
+    return Criterion(f"C6 contacts ≥ {min_force:g} N caught by the product", name,
+                     bool(cs) and not bad,
+                     f"{len(cs) - len(bad)}/{len(cs)}" + (f" (missed: {miss})" if bad else ""))
 
 
 def payload_no_false_alarm(label: str, res: DetectionResult, ev: Evaluation) -> Criterion:
@@ -402,11 +459,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cross-unit", action="store_true",
                     help="also: the ASSIST-like logs each on its own unit of the arm, "
                     "calibrated across units (how the sample set was first built)")
+    ap.add_argument("--generators", action="store_true",
+                    help="C6 and false alarms for every residual generator, each "
+                    "recalibrated (then exit)")
     ap.add_argument("--variants", action="store_true",
                     help="C1–C4 for alternative residual generators and static-loading "
                     "low-passes, each recalibrated (then exit)")
     args = ap.parse_args(argv)
     t_all = time.perf_counter()
+    if args.generators:
+        generators()
+        print(f"\ntotal {time.perf_counter() - t_all:.1f} s")
+        return 0
     if args.variants:
         variants()
         print(f"\ntotal {time.perf_counter() - t_all:.1f} s")
@@ -424,8 +488,11 @@ def main(argv: list[str] | None = None) -> int:
             src = f"{config_path(arm).relative_to(REPO)} (calibrated on " + ", ".join(
                 Path(lg.path).name for lg in cfgs[arm].calibration.logs) + ")"
         th = cfgs[arm].thresholds
+        gens = sorted(set(cfgs[arm].residual.generators.values())) or [
+            cfgs[arm].residual.generator]
         print(f"{arm}: {src}; rule {cfgs[arm].calibration.margin_rule}"
-              f"{' (weak)' if cfgs[arm].calibration.weak else ''}")
+              f"{' (weak)' if cfgs[arm].calibration.weak else ''}; generator "
+              f"{', '.join(gens)}")
         for j in th.v_stat:
             m = cfgs[arm].calibration.margins
             print(f"  {j}: v_stat {th.v_stat[j]:.3f} (×{m['adaptive'][j]:.2f}), vL {th.vL[j]:.3f} "
@@ -449,6 +516,7 @@ def main(argv: list[str] | None = None) -> int:
     crit.append(impacts_within("assist_impacts", evals["assist_impacts"]))
     crit.append(pushes_while_lasting("assist_pushes", evals["assist_pushes"]))
     crit.append(clamps_by_static_loading("assist_clamps", evals["assist_clamps"]))
+    crit += [contacts_caught(n, evals[n]) for n in assist]
     res_u, ev_u = run(PAYLOAD_LOG, None)
     crit.append(payload_no_false_alarm("no model, no config", res_u, ev_u))
     for c in crit:
