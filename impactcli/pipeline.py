@@ -226,7 +226,7 @@ def with_generator(cfg: DetectorConfig, generator: str | None,
     elif frozen:
         return cfg
     return dataclasses.replace(cfg, residual=dataclasses.replace(
-        cfg.residual, generator=generator, generators={} if not frozen else frozen))
+        cfg.residual, generator=generator, generators=dict(frozen)))
 
 
 def _with_warnings(result: DetectionResult, msgs: tuple[str, ...]) -> DetectionResult:
@@ -483,11 +483,8 @@ def common_generators(logs: list[RobotLog], cfg: DetectorConfig) -> dict[str, st
     joints = list(per_log[0])
     out: dict[str, str] = {}
     for j in joints:
-        gens = [m.get(j) for m in per_log]
-        if any(g is None for g in gens):
+        if any(j not in m for m in per_log):
             continue  # joint names differ between logs: the model/replay reports it
-        if len(set(gens)) == 1:
-            out[j] = str(gens[0])
-        else:
-            out[j] = max(gens, key=lambda g: _PREFERENCE.index(g) if g in _PREFERENCE else -1)
+        gens = [m[j] for m in per_log]
+        out[j] = max(gens, key=lambda g: _PREFERENCE.index(g) if g in _PREFERENCE else -1)
     return out

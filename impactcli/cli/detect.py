@@ -189,7 +189,8 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
                config: str | None, channel_map: str | None, topic: str | None,
                reference_topic: str | None, time_source: str | None, torque_source: str | None,
                signals: bool, rerun: bool, model_from_log: bool, fail_on_detect: bool,
-               generator: str | None, jobs: int | None, scheduler: str | None, summary_path: str | None) -> None:
+               generator: str | None, jobs: int | None, scheduler: str | None,
+               summary_path: str | None) -> None:
     """Replay the adaptive impact detector (Makarov et al. 2014) and the static detectors
     over LOGS, exactly as the robot would have run them online, and write one
     DIR/<stem>.timeline.json per log.
