@@ -73,7 +73,9 @@ def folder_sha256(path: Path) -> str:
 def _bag_error(where: str, kind: str, err: BaseException) -> LogFormatError:
     first = (str(err).splitlines() or [type(err).__name__])[0] or type(err).__name__
     what = "ROS 1 bag" if kind == "rosbag1" else "rosbag2"
-    return LogFormatError(f"{where}: corrupt, truncated or unreadable {what}: {first}")
+    hint = (" (a recording cut short has no index: 'rosbag reindex' rebuilds it)"
+            if kind == "rosbag1" and "index" in first.lower() else "")
+    return LogFormatError(f"{where}: corrupt, truncated or unreadable {what}: {first}{hint}")
 
 
 class BagSource(MessageSource):

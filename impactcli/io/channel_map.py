@@ -281,5 +281,14 @@ def load_channel_map(spec: str | os.PathLike[str] | ChannelMap) -> ChannelMap:
     if isinstance(spec, ChannelMap):
         return spec
     p = resolve_channel_map_path(spec)
-    d = load_mapping(p, ChannelMapError, "channel map")
+    try:
+        d = load_mapping(p, ChannelMapError, "channel map")
+    except ChannelMapError as err:
+        if "does not parse" in str(err) and "flow" in str(err):
+            # '{position: /t/q[0]}': YAML reads '[' inside {...} as the start of a list
+            raise ChannelMapError(
+                f"{err}; in YAML, quote a field path with [i] inside {{...}}: "
+                "{position: '/topic/q[0]'}"
+            ) from err.__cause__
+        raise
     return channel_map_from_dict(d, str(p))

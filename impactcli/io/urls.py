@@ -3,7 +3,9 @@
 - Reading: a URL other than ``file://`` is fetched to a private temporary file (same file
   name, so the format is still known by its suffix), read there, and deleted. The log's
   ``source.path`` is the URL and its ``sha256`` is that of the fetched bytes; error messages
-  name the URL, never the temporary file. ``file://`` URLs are read in place (no fsspec).
+  name the URL, never the temporary file. ``file://`` URLs are read in place (no fsspec),
+  rosbag2 folders included; a remote folder (a rosbag2 folder on S3, ...) is refused with a
+  LogFormatError: fetch it and give the local folder.
 - Globs (``*``, ``?``, ``[...]``) in local paths and URLs are expanded in sorted order.
 - Writing under a URL prefix (:func:`put_file_atomic`): the file is uploaded to
   ``<name>.part-<random>`` and then moved onto ``<name>``. On a local or POSIX-like file
@@ -217,7 +219,22 @@ def load_by_url(path: str | os.PathLike[str], loader: Callable[[Path], T],
 
 def read_log_url(url: str, reader: Callable[..., Any], **kwargs: Any) -> Any:
     """Read the log a URL names with ``reader`` (:func:`impactcli.io.read_log`) on a local
-    copy; the returned log's ``source.path`` is ``url`` and its sha256 the bytes' own."""
+    copy; the returned log's ``source.path`` is ``url`` and its sha256 the bytes' own.
+
+    Raises:
+        LogFormatError: a remote URL naming a folder (rosbag2 folders are read locally only).
+    """
+    if local_path(url) is None:
+        fs, p = _fs(url)
+        try:
+            is_dir = bool(fs.isdir(p))
+        except Exception:  # a protocol that cannot tell: fetching says what is wrong
+            is_dir = False
+        if is_dir:
+            raise LogFormatError(
+                f"{url}: a folder (rosbag2) is read from a local path or file:// URL only; "
+                "copy it to a local folder first"
+            )
     log = load_by_url(url, lambda lp: reader(lp, **kwargs), "log file")
     return replace(log, source=replace(log.source, path=url))
 
