@@ -216,6 +216,7 @@ def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ..
         "calibrated": result.calibrated,
         "warmup_end_s": result.warmup_end_s,
         "generators": {j: g["generator"] for j, g in result.generators.items()},
+        "generator_reasons": {j: g["reason"] for j, g in result.generators.items()},
         **{d: v["events"] for d, v in result.summary().items()},
     }
     return outputs, summary, result.warnings

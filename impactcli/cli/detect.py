@@ -285,9 +285,11 @@ def _echo_outcome(outcome: Any, debug: bool, single: bool) -> None:
 def _generators_line(row: dict[str, Any]) -> str:
     """``logged_external (all joints)`` or ``j1 logged_external, j2 inverse_dynamics``."""
     g = row.get("generators", {})
-    if len(set(g.values())) == 1:
-        return f"{next(iter(g.values()))} (all joints)"
-    return ", ".join(f"{j} {x}" for j, x in g.items())
+    why = row.get("generator_reasons", {})
+    if len(set(g.values())) == 1 and len(set(why.values())) <= 1:
+        reason = f"; {next(iter(why.values()))}" if why else ""
+        return f"{next(iter(g.values()))} (all joints{reason})"
+    return ", ".join(f"{j} {x} ({why.get(j, '')})" for j, x in g.items())
 
 
 def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str) -> None:
