@@ -131,11 +131,11 @@ def arm_messages(store: Any, log: RobotLog, name: str = ARM) -> list[bytes]:
 Channel = tuple[str, str, str, str, list[tuple[int, int, bytes]]]
 
 
-def write_mcap(path: Path, channels: list[Channel]) -> None:
+def write_mcap(path: Path, channels: list[Channel], chunk_size: int = 4096) -> None:
     """channels: (topic, schema name, schema encoding, message encoding, [(log time, publish
-    time, data)]); messages written in log-time order."""
+    time, data)]); messages written in log-time order, in small chunks (many batches)."""
     with open(path, "wb") as f:
-        w = McapWriter(f, compression=CompressionType.ZSTD, chunk_size=4096)
+        w = McapWriter(f, compression=CompressionType.ZSTD, chunk_size=chunk_size)
         w.start("ros2", "test")
         msgs = []
         sids: dict[tuple[str, str], int] = {}
@@ -567,3 +567,122 @@ def test_schema_example_and_shipped_maps_validate() -> None:
     assert len(fr.joints) == 7 and set(fr.signals) == {
         "position", "velocity", "torque", "position_ref", "velocity_ref", "acceleration_ref",
         "torque_ext"}
+
+
+# ------------------------------------------------------- bulk reading vs one message at a time
+
+ODD = "my_msgs/msg/Odd"
+#: variable-length strings and sequences before the numbers, nested arrays, a JointState
+#: inside, small integer types; the dependencies other than Point are not in the text: the
+#: reader takes std_msgs/Header and sensor_msgs/JointState from rosbags' own store
+ODD_DEF = """std_msgs/Header header
+string label
+float64[] tau
+my_msgs/Point[] pts
+sensor_msgs/JointState js
+int16 small
+bool flag
+================================================================================
+MSG: my_msgs/Point
+float64 x
+float32 y
+"""
+DEFS[ODD] = ODD_DEF
+
+
+def _odd_file(tmp: Path, n: int = 300, short_at: int | None = None) -> tuple[Path, dict[str, Any]]:
+    from rosbags.typesys import get_types_from_msg
+
+    store = store_with(base="ros2")
+    store.register(get_types_from_msg(ODD_DEF, ODD))
+    M, P = store.types[ODD], store.types["my_msgs/msg/Point"]
+    JS = store.types["sensor_msgs/msg/JointState"]
+    H, T = store.types["std_msgs/msg/Header"], store.types["builtin_interfaces/msg/Time"]
+    rng = np.random.default_rng(21)
+    t = T0 + np.arange(n, dtype=np.int64) * 2_000_000
+    truth: dict[str, Any] = {k: np.zeros(n) for k in ("tau1", "pt2x", "pt2y", "b", "small",
+                                                      "flag")}
+    rows = []
+    for i in range(n):
+        # a few layouts: label and sequence lengths, joint order, endianness, padding vary
+        ntau = 1 if i == short_at else 2 + (i // 2) % 2
+        tau = rng.normal(size=ntau)
+        pts = [P(x=float(rng.normal()), y=float(np.float32(rng.normal())))
+               for _ in range(3 + (i // 60) % 2)]
+        names = ["a", "b", "c"] if i < 150 else ["c", "a", "b", "d"]
+        eff = rng.normal(size=len(names))
+        small, flag = int(rng.integers(-30000, 30000)), bool(i % 3 == 0)
+        sec, nsec = divmod(int(t[i]), 10**9)
+        m = M(header=H(stamp=T(sec=sec, nanosec=nsec), frame_id="f" * (i // 100)),
+              label="x" * (5 * (i % 2)), tau=tau, pts=pts,
+              js=JS(header=H(stamp=T(sec=0, nanosec=0), frame_id=""), name=names,
+                    position=np.zeros(0), velocity=np.zeros(0), effort=eff),
+              small=small, flag=flag)
+        data = bytes(store.serialize_cdr(m, ODD, little_endian=bool(i % 50)))  # big-endian too
+        rows.append((int(t[i]), int(t[i]), data + b"\x00" * (4 if i % 50 == 1 else 0)))  # padded
+        if ntau > 1:
+            truth["tau1"][i] = tau[1]
+        truth["pt2x"][i], truth["pt2y"][i] = pts[2].x, pts[2].y
+        truth["b"][i] = eff[names.index("b")]
+        truth["small"][i], truth["flag"][i] = small, flag
+    truth["t"] = t
+    p = tmp / "odd.mcap"
+    write_mcap(p, [("/odd", ODD, "ros2msg", "cdr", rows)])
+    return p, truth
+
+
+def _odd_fields(p: Path) -> tuple[np.ndarray, np.ndarray | None]:
+    from impactcli.io.fieldread import read_fields
+    from impactcli.io.fields import FieldPath
+    from impactcli.io.mcap_scan import scan_mcap
+    from impactcli.io.msgsource import McapSource
+
+    src = McapSource(scan_mcap(p), str(p))
+    td = src.load(["/odd"])["/odd"]
+    paths = [FieldPath("/odd/tau[1]", "/odd", (("tau", 1),)),
+             FieldPath("/odd/pts[2]/x", "/odd", (("pts", 2), ("x", None))),
+             FieldPath("/odd/pts[2]/y", "/odd", (("pts", 2), ("y", None))),
+             FieldPath("/odd/js/effort", "/odd", (("js", None), ("effort", None)), "b"),
+             FieldPath("/odd/small", "/odd", (("small", None),)),
+             FieldPath("/odd/flag", "/odd", (("flag", None),))]
+    return read_fields(src, td, paths)
+
+
+def test_bulk_field_reading_equals_the_truth_and_the_one_by_one_decoder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import impactcli.io.fieldread as fr
+
+    p, truth = _odd_file(tmp_path)
+    want = np.c_[truth["tau1"], truth["pt2x"], truth["pt2y"], truth["b"], truth["small"],
+                 truth["flag"]]
+    calls: list[int] = []
+    decode = fr.MessageSource.decode_all
+
+    def counting(self: Any, td: Any, rows: Any = None) -> Any:
+        calls.append(td.n if rows is None else len(rows))
+        return decode(self, td, rows)
+
+    monkeypatch.setattr(fr.MessageSource, "decode_all", counting)
+    vals, header = _odd_fields(p)
+    np.testing.assert_array_equal(vals, want)
+    np.testing.assert_array_equal(header, truth["t"])
+    assert sum(calls) < 60  # most messages were read in bulk (one check per layout)
+    monkeypatch.setattr(fr, "_locate", lambda *a: None)  # everything one by one
+    calls.clear()
+    vals1, header1 = _odd_fields(p)
+    assert sum(calls) == 300
+    np.testing.assert_array_equal(vals1, want)
+    np.testing.assert_array_equal(header1, truth["t"])
+
+
+def test_an_index_past_a_sequence_names_the_message(tmp_path: Path) -> None:
+    p, _ = _odd_file(tmp_path, short_at=57)
+    m = tmp_path / "m.yaml"
+    m.write_text("format: messages\njoints:\n  - {name: a, position: '/odd/tau[1]', "
+                 "torque: /odd/small}\n")
+    with pytest.raises(LogFormatError) as info:
+        read_log(p, channel_map=m)
+    assert str(info.value) == (f"{p}: channel map {m}: field path /odd/tau[1]: message 57 on "
+                               "'/odd': index 1 of 'tau' is out of range (1 elements)")
+    assert not isinstance(info.value, ChannelMapError)  # the map fits; message 57 does not

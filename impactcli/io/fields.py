@@ -233,7 +233,7 @@ def _value(msg: Any, fp: FieldPath) -> float:
 
 
 def extract(msgs: list[Any], paths: list[FieldPath], where: str,
-            miss_is_error: bool = True) -> np.ndarray:
+            miss_is_error: bool = True, index: np.ndarray | None = None) -> np.ndarray:
     """Values of ``paths`` (all on one topic) in decoded messages ``msgs``.
 
     Args:
@@ -241,6 +241,7 @@ def extract(msgs: list[Any], paths: list[FieldPath], where: str,
         paths: field paths on that topic.
         where: ``<log>`` for messages.
         miss_is_error: a path that does not fit a message raises (else NaN there).
+        index: (n,) the messages' numbers in the topic, for errors (default 0..n-1).
 
     Returns:
         (n, len(paths)) float64.
@@ -259,7 +260,8 @@ def extract(msgs: list[Any], paths: list[FieldPath], where: str,
             except _Miss as err:
                 if not miss_is_error:
                     continue
-                err_cls = ChannelMapError if i == 0 else LogFormatError
-                raise err_cls(f"{where}: field path {fp.text}: message {i} on "
+                num = i if index is None else int(index[i])
+                err_cls = ChannelMapError if num == 0 else LogFormatError
+                raise err_cls(f"{where}: field path {fp.text}: message {num} on "
                               f"{fp.topic!r}: {err}") from None
     return out

@@ -41,7 +41,6 @@ from __future__ import annotations
 import json
 import warnings
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -49,9 +48,9 @@ from ..errors import ChannelMapError, ImpactWarning, LogFormatError
 from ..types import CONTROLLER_CHANNELS
 from .assemble import TIME_SOURCES, JointChannels
 from .channel_map import SIGNALS, ChannelMap, ChannelRef
-from .fields import FieldPath, check_ros_path, extract, parse_field_path
+from .fields import FieldPath, check_ros_path, parse_field_path
 from .mcap_ros2 import TopicArrays, arrays_from_messages, decode_batches
-from .msgsource import JOINT_SAMPLE, JOINT_STATE, MessageSource, TopicData, header_stamps
+from .msgsource import JOINT_SAMPLE, JOINT_STATE, MessageSource, TopicData
 from .repair import repair_matrix
 
 DEFAULT_STATE_TOPIC = "/joint_states"
@@ -239,9 +238,13 @@ def _map_fields(src: MessageSource, cmap: ChannelMap,
     return out
 
 
-def _field_columns(src: MessageSource, msgs: list[Any], fields: list[_MapField],
-                   mapname: str) -> list[tuple[str, int, np.ndarray]]:
-    vals = extract(msgs, [f.path for f in fields], f"{src.where}: channel map {mapname}")
+def _field_columns(src: MessageSource, td: TopicData, fields: list[_MapField],
+                   mapname: str) -> tuple[list[tuple[str, int, np.ndarray]], np.ndarray | None]:
+    """The map's field columns on ``td``'s topic (scaled; currents raw) and its header stamps."""
+    from .fieldread import read_fields
+
+    vals, header = read_fields(src, td, [f.path for f in fields],
+                               f"{src.where}: channel map {mapname}")
     out = []
     for c, f in enumerate(fields):
         v = vals[:, c]
@@ -251,7 +254,7 @@ def _field_columns(src: MessageSource, msgs: list[Any], fields: list[_MapField],
             if f.ref.offset:
                 v = v + f.ref.offset
         out.append((f.signal, f.joint, v))
-    return out
+    return out, header
 
 
 def read_message_channels(
@@ -310,10 +313,9 @@ def read_message_channels(
         td = src.load([state_topic])[state_topic]
         if td.n == 0:
             raise LogFormatError(f"{where}: topic {state_topic!r} holds no messages")
-        msgs = src.decode_all(td)
-        stimes = _Times(td.log_time, td.publish_time, header_stamps(msgs))
-        state_cols = _field_columns(src, msgs, [f for f in fields if f.path.topic == state_topic],
-                                    mapname)
+        state_cols, header = _field_columns(
+            src, td, [f for f in fields if f.path.topic == state_topic], mapname)
+        stimes = _Times(td.log_time, td.publish_time, header)
         kind = {"cdr": "ros2", "ros1": "ros1"}.get(td.encoding, "json")
     else:
         state_topic, kind = pick_state_topic(topics, topic, where)
@@ -372,7 +374,7 @@ def read_message_channels(
         ignored += [f"{state_topic}:{nm}" for nm in arr.joints if nm not in joints]
         on_state = [f for f in fields if f.path.topic == state_topic]
         if on_state:
-            state_cols += _field_columns(src, src.decode_all(td), on_state, mapname)
+            state_cols += _field_columns(src, td, on_state, mapname)[0]
         if kind in ("ros2", "ros1"):
             held += _companions(src, topics, state_topic, reference_topic, joints, mapped,
                                 missing)
@@ -391,10 +393,8 @@ def read_message_channels(
         ftd = loaded[t]
         if ftd.n == 0:
             raise LogFormatError(f"{where}: topic {t!r} (channel map {mapname}) holds no messages")
-        msgs = src.decode_all(ftd)
-        h = _Held(t, "topic", _Times(ftd.log_time, ftd.publish_time, header_stamps(msgs)))
-        h.cols = _field_columns(src, msgs, fl, mapname)
-        held.append(h)
+        cols, header = _field_columns(src, ftd, fl, mapname)
+        held.append(_Held(t, "topic", _Times(ftd.log_time, ftd.publish_time, header), cols))
     used_topics = {state_topic} | {h.topic for h in held}
     ignored = [x for x in sorted(topics) if x not in used_topics] + ignored
     ch, tsrc = _assemble(where, state_topic, stimes, state_cols, held, joints, time_source,

@@ -14,7 +14,9 @@ Measured (``franka_msgs/FrankaState``-like message, 717 bytes): rosbags' generat
 deserialiser takes 17 µs per message and accepts ROS 1 field names such as ``tau_J``;
 ``mcap_ros2``'s dynamic decoder refuses them (ROS 2 field-name rules), so rosbags is used.
 Trailing CDR padding (formats.md) is ignored: the deserialiser is called on the message
-body directly, without rosbags' size check.
+body directly, without rosbags' size check. Decoding every message is the reference path;
+fields are read in bulk where the layout allows (:mod:`impactcli.io.fieldread`), checked
+against it.
 
 Sources: :class:`McapSource` (a :class:`~impactcli.io.mcap_scan.McapScan`) here,
 :class:`~impactcli.io.bags.BagSource` (rosbags' ``AnyReader``) in :mod:`impactcli.io.bags`.
@@ -186,15 +188,16 @@ class MessageSource:
             raise LogFormatError(f"{self.where}: the file holds no definition of {msgtype}")
         return dict(defs)
 
-    def decode_all(self, td: TopicData) -> list[Any]:
-        """Every message of ``td`` decoded (file order).
+    def decode_all(self, td: TopicData, rows: np.ndarray | None = None) -> list[Any]:
+        """Every message of ``td`` decoded (file order), or those numbered ``rows``.
 
         Raises:
             LogFormatError: a message that does not decode, naming topic and message.
         """
+        which = range(td.n) if rows is None else [int(i) for i in rows]
         if td.encoding == "json":
             out = []
-            for i in range(td.n):
+            for i in which:
                 try:
                     out.append(json.loads(td.data(i)))
                 except ValueError as err:
@@ -210,7 +213,7 @@ class MessageSource:
                                  f"definition of {td.msgtype}")
         md = store.get_msgdef(td.msgtype)
         out = []
-        for i in range(td.n):
+        for i in which:
             raw = td.data(i)
             try:
                 if td.encoding == "ros1":
