@@ -686,3 +686,50 @@ def test_an_index_past_a_sequence_names_the_message(tmp_path: Path) -> None:
     assert str(info.value) == (f"{p}: channel map {m}: field path /odd/tau[1]: message 57 on "
                                "'/odd': index 1 of 'tau' is out of range (1 elements)")
     assert not isinstance(info.value, ChannelMapError)  # the map fits; message 57 does not
+
+
+def test_ros1_messages_in_mcap(tmp_path: Path) -> None:
+    """An MCAP of ROS 1 messages (ros1msg schemas): JointState state and a custom message."""
+    log = fixture_log(n=120)
+    store = store_with((ARM, ARM_BODY), base="ros1")
+    js = "sensor_msgs/msg/JointState"
+    JS = store.types[js]
+    H, T = store.types["std_msgs/msg/Header"], store.types["builtin_interfaces/msg/Time"]
+    rows_js, rows_arm = [], []
+    for i, t in enumerate(log.t_ns.tolist()):
+        sec, nsec = divmod(t, 10**9)
+        h = H(seq=i, stamp=T(sec=sec, nanosec=nsec), frame_id="")
+        rows_js.append((t, t, bytes(store.serialize_ros1(JS(
+            header=h, name=list(JOINTS), position=log.position[i].copy(), velocity=np.zeros(0),
+            effort=log.torque[i].copy()), js))))
+        M = store.types[ARM]
+        rows_arm.append((t, t, bytes(store.serialize_ros1(M(
+            header=h, q=log.position[i].copy(), dq=log.velocity[i].copy(),
+            q_d=log.position_ref[i].copy(), dq_d=log.velocity_ref[i].copy(), ddq_d=np.zeros(3),
+            tau_J=log.torque[i].copy(), tau_model=log.torque_model[i].copy(),
+            tau_ext=log.torque_ext[i].copy(), robot_mode=1, note="x"), ARM))))
+    p = tmp_path / "ros1.mcap"
+    with open(p, "wb") as f:
+        w = McapWriter(f)
+        w.start("ros1", "test")
+        sj = w.register_schema("sensor_msgs/JointState", "ros1msg",
+                               store.generate_msgdef(js, ros_version=1)[0].encode())
+        sa = w.register_schema("my_msgs/ArmState", "ros1msg",
+                               store.generate_msgdef(ARM, ros_version=1)[0].encode())
+        cj = w.register_channel("/joint_states", "ros1", sj)
+        ca = w.register_channel("/arm/state", "ros1", sa)
+        for (t, _, dj), (_, _, da) in zip(rows_js, rows_arm, strict=True):
+            w.add_message(cj, log_time=t, publish_time=t, data=dj)
+            w.add_message(ca, log_time=t, publish_time=t, data=da)
+        w.finish()
+    back = read_log(p, topic="/joint_states")
+    assert back.source.format == "mcap-ros1" and back.source.time_source == "header"
+    np.testing.assert_array_equal(back.t_ns, log.t_ns)
+    np.testing.assert_array_equal(back.torque, log.torque)
+    assert back.source.ignored_channels == ("/arm/state",)
+    m = tmp_path / "m.yaml"
+    m.write_text("format: messages\njoints:\n" + "".join(
+        f"  - {{name: {j}, torque_model: '/arm/state/tau_model[{k}]'}}\n"
+        for k, j in enumerate(JOINTS)))
+    back = read_log(p, channel_map=m)
+    np.testing.assert_array_equal(back.torque_model, log.torque_model)

@@ -44,6 +44,17 @@ class JointChannels:
     repairs: list[str] = field(default_factory=list)
 
 
+def _sha256(path: str) -> str:
+    """sha256 of a log file, or of a rosbag2 folder (its files' sha256s in name order)."""
+    from pathlib import Path
+
+    if Path(path).is_dir():
+        from .bags import folder_sha256
+
+        return folder_sha256(Path(path))
+    return sha256_file(path)
+
+
 def check_torque_source(value: str | None, where: str) -> None:
     """Raise LogFormatError when ``value`` is not ``None``, ``torque`` or ``current``."""
     if value is not None and value not in TORQUE_SOURCES:
@@ -148,7 +159,7 @@ def build_log(
             ignored += [f"{j}.{s}" for j in have]
     source = LogSource(
         path=path,
-        sha256=sha256 if sha256 is not None else sha256_file(path),
+        sha256=sha256 if sha256 is not None else _sha256(path),
         format=fmt,
         torque_source=src,  # type: ignore[arg-type]
         time_source=time_source,  # type: ignore[arg-type]

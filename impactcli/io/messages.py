@@ -229,6 +229,9 @@ def _map_fields(src: MessageSource, cmap: ChannelMap,
                                   "(/topic/field); MCAP and ROS bag maps name message fields")
         fp = parse_field_path(str(ref.source), names, ref.joint or cmap.joints[j], what)
         mtype, enc = topics[fp.topic]
+        if enc in ("cdr", "ros1") and not mtype:
+            raise LogFormatError(f"{what}: topic {fp.topic!r} has no message definition in the "
+                                 "file: its fields cannot be read")
         if enc in ("cdr", "ros1"):
             fp = check_ros_path(fp, mtype, src.fielddefs(mtype), what)
         elif enc != "json":
