@@ -18,7 +18,9 @@ A ``current`` signal *with* a ``scale`` in the map is converted to torque by tha
 a scale is converted with the robot description's gear ratio × torque constant.
 
 Maps shipped in ``impactcli/data/channel_maps/`` can be named by their short name
-(``ur_ext_observer``, ``kuka_lwr4``) instead of a path.
+(``ur_ext_observer``, ``kuka_lwr4``; the message examples ``franka_state_example`` and
+``jointstate_external_torque_example``) instead of a path. In YAML, a field path with
+``[i]`` inside ``{...}`` must be quoted (``{field: "/t/q[0]"}``): the parse error says so.
 """
 
 from __future__ import annotations

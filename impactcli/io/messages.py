@@ -337,10 +337,7 @@ def read_message_channels(
         else:
             joints = arr.joints
         jidx = [arr.joints.index(j) for j in joints]
-        stimes = _Times(arr.log_time, arr.publish_time,
-                        None if kind == "json" and not np.any(arr.header) else arr.header)
-        if kind == "json" and stimes.header is None:
-            stimes.header = arr.header  # JSON without stamp_ns: zeros, i.e. log time
+        stimes = _Times(arr.log_time, arr.publish_time, arr.header)  # JSON: stamp_ns or 0
         if not arr.has_joints.all():
             k = int(np.argmax(~arr.has_joints))
             raise LogFormatError(
@@ -379,8 +376,7 @@ def read_message_channels(
         if on_state:
             state_cols += _field_columns(src, td, on_state, mapname)[0]
         if kind in ("ros2", "ros1"):
-            held += _companions(src, topics, state_topic, reference_topic, joints, mapped,
-                                missing)
+            held += _companions(src, topics, state_topic, reference_topic, joints, mapped)
         elif reference_topic is not None:
             raise LogFormatError(
                 f"{where}: --reference-topic applies to ROS JointState; JSON samples carry "
@@ -407,8 +403,8 @@ def read_message_channels(
 
 
 def _companions(src: MessageSource, topics: dict[str, tuple[str, str]], state_topic: str,
-                reference_topic: str | None, joints: tuple[str, ...], mapped: set[str],
-                missing: dict[str, list[str]]) -> list[_Held]:
+                reference_topic: str | None, joints: tuple[str, ...],
+                mapped: set[str]) -> list[_Held]:
     """The reference and controller topics of a JointState state topic (module docstring)."""
     where = src.where
     out: list[_Held] = []
@@ -448,18 +444,17 @@ def _companions(src: MessageSource, topics: dict[str, tuple[str, str]], state_to
             if not arr.has_position.all():
                 m = int(np.argmax(~arr.has_position))
                 raise LogFormatError(f"{where}: topic {t!r}, message {m} has no position")
-            h.cols = [("position_ref", j, arr.position[:, j]) for j in range(len(joints))]
-            if arr.has_velocity.all():
+            if "position_ref" not in mapped:
+                h.cols = [("position_ref", j, arr.position[:, j]) for j in range(len(joints))]
+            if arr.has_velocity.all() and "velocity_ref" not in mapped:
                 h.cols += [("velocity_ref", j, arr.velocity[:, j]) for j in range(len(joints))]
         else:
+            # a joint no message names does not log the channel (_assemble: missing)
             sig = role.split()[0]
             h.cols = [(sig, j, arr.effort[:, j]) for j in range(len(joints))
                       if arr.joint_seen[j]]
-            lacking = [joints[j] for j in range(len(joints)) if not arr.joint_seen[j]]
-            if lacking:
-                missing.setdefault(sig, []).extend(lacking)
-            if not h.cols:
-                continue
+        if not h.cols:
+            continue
         out.append(h)
     return out
 
