@@ -733,3 +733,21 @@ def test_ros1_messages_in_mcap(tmp_path: Path) -> None:
         for k, j in enumerate(JOINTS)))
     back = read_log(p, channel_map=m)
     np.testing.assert_array_equal(back.torque_model, log.torque_model)
+
+
+def test_map_signal_replaces_the_companion_topic_one(tmp_path: Path) -> None:
+    log = fixture_log(n=60)
+    p = tmp_path / "s.mcap"
+    write_log(log, p, mcap_encoding="ros2")
+    m = tmp_path / "m.yaml"
+    m.write_text("format: messages\njoints:\n" + "".join(
+        f"  - {{name: {j}, velocity_ref: {{field: /joint_states/velocity}}, "
+        f"torque_ext: {{field: /joint_states_model/effort, scale: -1}}}}\n" for j in JOINTS))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        back = read_log(p, channel_map=m)
+    np.testing.assert_array_equal(back.position_ref, log.position_ref)  # still from _ref
+    np.testing.assert_array_equal(back.velocity_ref, log.velocity)  # the map's
+    np.testing.assert_array_equal(back.torque_ext, -log.torque_model)  # not /joint_states_ext
+    np.testing.assert_array_equal(back.torque_model, log.torque_model)  # the _model default
+    assert back.source.ignored_channels == ("/joint_states_ext",)
