@@ -159,8 +159,9 @@ have neither, like most logs in the wild.
 
 Layout: `csv/<name>.csv.gz` (canonical wide CSV) and `mcap/<name>.mcap` hold the SAME log
 (MCAP encoding in the table; the ROS 2 files carry position, velocity and effort = torque
-on `/joint_states` and the reference on `/joint_states_ref`, not current, acceleration
-reference or the controller's channels). They are in separate folders because their
+on `/joint_states`, the reference on `/joint_states_ref` and the controller's channels as
+the effort of `/joint_states_model` and `/joint_states_ext`; not current or acceleration
+reference). They are in separate folders because their
 stems — hence their timeline names — are the same. Each folder also has
 `<name>.labels.json` (ground truth: `start`/`end` = first/last sample where that contact's
 true force exceeds 0.5 N, in s since the first sample; `peak_force` N; `kind`; 1-based
