@@ -1,4 +1,5 @@
-"""What every verb shares: turning ImpactError into one line + exit code, warnings, progress."""
+"""What every verb shares: turning ImpactError into one line + exit code, warnings, progress,
+and what a log path may be (a file, or a rosbag2 folder)."""
 
 from __future__ import annotations
 
@@ -6,11 +7,12 @@ import functools
 import sys
 import warnings
 from collections.abc import Callable, Iterable, Iterator
+from pathlib import Path
 from typing import Any, TypeVar
 
 import click
 
-from ..errors import ImpactError, ImpactWarning
+from ..errors import ImpactError, ImpactWarning, LogFormatError
 
 F = TypeVar("F", bound=Callable[..., Any])
 T = TypeVar("T")
@@ -61,3 +63,21 @@ def progress(items: Iterable[T], total: int | None = None, desc: str = "") -> It
     n = total if total is not None else len(seq)  # type: ignore[arg-type]
     disable = n < 2 or not sys.stderr.isatty()
     yield from tqdm(seq, total=n, desc=desc, disable=disable, file=sys.stderr, leave=False)
+
+
+def is_log_path(path: Path) -> bool:
+    """Whether ``path`` can be a local log: a file, or a rosbag2 folder (``metadata.yaml``)."""
+    from ..io.bags import is_rosbag2_folder
+
+    return path.is_file() or is_rosbag2_folder(path)
+
+
+def check_log_path(path: Path) -> None:
+    """Raise the LogFormatError :func:`impactcli.io.read_log` would (exit 3, one line) for a
+    missing log or a folder that is not a rosbag2 folder — for verbs that look beside a log
+    (labels) before reading it. Log arguments take folders (``click.Path()`` without
+    ``dir_okay=False``): a folder is refused here or by ``read_log``, never by click."""
+    if not path.exists():
+        raise LogFormatError(f"{path}: log file not found")
+    if path.is_dir() and not is_log_path(path):
+        raise LogFormatError(f"{path}: not a rosbag2 folder (no metadata.yaml)")

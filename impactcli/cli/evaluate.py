@@ -19,6 +19,7 @@ Output: a text table, or with ``--json`` one JSON object on stdout
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import warnings
@@ -29,7 +30,7 @@ import click
 import numpy as np
 
 from ..errors import ImpactWarning, LabelsError, LogFormatError
-from ._common import handle_errors
+from ._common import check_log_path, handle_errors
 from .detect import log_read_options, model_options, read_options_from
 
 #: impactcli.evaluate.DEFAULT_SWEEP_SCALES: 0.2 … 5 in 5 % steps (66 scales).
@@ -109,29 +110,36 @@ def signals_beside(timeline: Path) -> Path:
 
 def labels_beside(source: Path) -> Path:
     """``<stem>.labels.json`` beside a log or a ``<stem>.timeline.json`` (as ``simulate``
-    writes them), for a timeline then beside the log it records; a usage error (exit 2)
-    when there is none."""
+    writes them; a rosbag2 folder's are beside the folder, named after it), for a timeline
+    then beside the log it records (found as ``report`` finds it), under the timeline's
+    stem, then the log's own; a usage error (exit 2) when there is none."""
     from ..io import log_stem
 
     name = source.name
-    stem = (name[: -len(".timeline.json")] if name.endswith(".timeline.json")
-            else log_stem(source))
+    timeline = name.endswith(".timeline.json")
+    stem = name[: -len(".timeline.json")] if timeline else log_stem(source)
     cand = source.with_name(f"{stem}.labels.json")
     if cand.is_file():
         return cand
-    if name.endswith(".timeline.json"):  # then beside the log the timeline records
-        import json
+    if timeline:  # then beside the log the timeline records
+        from .report import timeline_log_path
 
+        log_path: Path | None
         try:
-            log_path = Path(json.loads(source.read_text("utf-8"))["input"]["path"])
+            log_path = Path(str(json.loads(source.read_text("utf-8"))["input"]["path"]))
         except (OSError, ValueError, KeyError, TypeError):
             log_path = None
         if log_path is not None:
-            beside_log = log_path.with_name(f"{stem}.labels.json")
-            if beside_log.is_file():
-                return beside_log
+            # a moved log: relative to the timeline, or beside it; else as recorded
+            with contextlib.suppress(LogFormatError):
+                log_path = timeline_log_path(source, str(log_path))
+        if log_path is not None:
+            for st in dict.fromkeys((stem, log_stem(log_path))):
+                beside_log = log_path.with_name(f"{st}.labels.json")
+                if beside_log.is_file():
+                    return beside_log
     raise click.UsageError(f"--labels is needed: no {cand.name} beside {source}"
-                           + (" or its log" if name.endswith(".timeline.json") else ""))
+                           + (" or its log" if timeline else ""))
 
 
 def _events_settings(config: Any) -> dict[str, float]:
@@ -205,8 +213,7 @@ def _timeline_sweep(source: Path, doc: dict[str, Any], labels: Any, scales: tupl
 
 
 @click.command("evaluate")
-@click.argument("source", type=click.Path(dir_okay=False, path_type=Path),
-                metavar="TIMELINE|LOG")
+@click.argument("source", type=click.Path(path_type=Path), metavar="TIMELINE|LOG")
 @click.option("--labels", "labels_path", default=None,
               type=click.Path(dir_okay=False, path_type=Path),
               help="Ground-truth labels JSON (schemas/labels.schema.json) "
@@ -254,8 +261,12 @@ def evaluate_cmd(source: Path, labels_path: Path | None, as_json: bool, sweep: b
     if is_timeline and (read_options or any(v is not None for v in (model, config, robot))):
         raise click.UsageError("--robot, --model, --config and the log-reading options apply "
                                "to a LOG, not to a timeline")
-    if not source.is_file():  # say so before looking for labels beside it
-        raise LogFormatError(f"{source}: {'timeline' if is_timeline else 'log'} file not found")
+    # say so before looking for labels beside it
+    if is_timeline and not source.is_file():
+        raise LogFormatError(f"{source}: timeline file not found" if not source.exists()
+                             else f"{source}: a timeline is a file, not a folder")
+    if not is_timeline:
+        check_log_path(source)  # a file, or a rosbag2 folder
     if labels_path is None:
         labels_path = labels_beside(source)
     labels = read_labels_checked(labels_path)

@@ -47,7 +47,7 @@ def _pct(x: float | None) -> str:
 
 
 @click.command("identify")
-@click.argument("log", type=click.Path(dir_okay=False, path_type=str))
+@click.argument("log", type=click.Path(path_type=str))
 @click.option("-o", "--output", "--out", "output", required=True,
               type=click.Path(dir_okay=False, path_type=str), help="Model file to write (JSON).")
 @click.option("--robot", metavar="FILE", type=click.Path(dir_okay=False, path_type=str),

@@ -10,7 +10,7 @@ from ._common import handle_errors
 
 
 @click.command("inspect")
-@click.argument("log", type=click.Path(dir_okay=False, path_type=str))
+@click.argument("log", type=click.Path(path_type=str))
 @click.option("--channel-map", "channel_map", metavar="MAP",
               help="Channel map (JSON/YAML path, or a shipped map's name such as ur_ext_observer).")
 @click.option("--robot", metavar="FILE", type=click.Path(dir_okay=False, path_type=str),

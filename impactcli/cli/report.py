@@ -2,8 +2,10 @@
 
 Inputs:
 
-- a LOG (``.csv``, ``.csv.gz``, ``.mcap``, ``.npz``) is read and the detectors replayed on
-  it with ``detect``'s options (``--robot``, ``--model``, ``--config``, ``--channel-map``);
+- a LOG (``.csv``, ``.csv.gz``, ``.mcap``, ``.npz``, ``.bag``, ``.db3`` or a rosbag2 folder)
+  is read and the detectors replayed on it with ``detect``'s options (``--robot``,
+  ``--model``, ``--config``, ``--channel-map``); a folder that is not a rosbag2 folder is a
+  data error, as in every verb;
 - a TIMELINE (``*.timeline.json`` written by ``detect``) is re-run from the log it records
   (path resolved as recorded, else beside the timeline), with the read options, model and
   config it records — ``--model``/``--config``/``--channel-map`` apply to LOG inputs only.
@@ -15,8 +17,9 @@ Labels (ground truth, enabling the detection-quality section):
 1. ``--labels FILE`` may be repeated. When every file is named ``<stem>.labels.json`` after
    a distinct input's stem, files go to the inputs of that stem; otherwise their number
    must equal the number of inputs and they pair with the inputs in order.
-2. An input with no ``--labels`` gets ``<stem>.labels.json`` from beside the log (for a
-   timeline: beside the timeline, then beside its log) when that file exists, unless
+2. An input with no ``--labels`` gets ``<stem>.labels.json`` from beside the log (a rosbag2
+   folder's: beside the folder, named after it; for a timeline: beside the timeline, then
+   beside its log under the timeline's stem, then the log's) when that file exists, unless
    ``--no-auto-labels``. The report names every labels file it used.
 
 A batch where some inputs fail writes the report of the others, lists the failures in it,
@@ -38,7 +41,7 @@ from typing import Any
 import click
 
 from ..errors import EXIT_BATCH, ImpactError, ImpactWarning, LogFormatError
-from ._common import handle_errors, progress
+from ._common import handle_errors, is_log_path, progress
 from .detect import (
     executor_options,
     log_read_options,
@@ -54,7 +57,8 @@ READ_KEYS = ("channel_map", "topic", "reference_topic", "time_source", "torque_s
 
 
 def input_stem(path: Path) -> str:
-    """The stem outputs are named by (``x.csv.gz`` → ``x``, ``x.timeline.json`` → ``x``)."""
+    """The stem outputs are named by (``x.csv.gz`` → ``x``, ``x.timeline.json`` → ``x``, a
+    rosbag2 folder ``run/`` → ``run``)."""
     from ..outputs.report import log_stem
 
     return log_stem(str(path))
@@ -115,11 +119,12 @@ def load_timeline(path: Path) -> dict[str, Any]:
 
 
 def timeline_log_path(tl_path: Path, recorded: str) -> Path:
-    """The log a timeline records: as recorded (relative to the working folder), else
-    relative to the timeline's folder, else its file name beside the timeline."""
+    """The log a timeline records — a file or a rosbag2 folder: as recorded (relative to the
+    working folder), else relative to the timeline's folder, else its name beside the
+    timeline."""
     rec = Path(recorded)
     for cand in (rec, tl_path.parent / rec, tl_path.parent / rec.name):
-        if cand.is_file():
+        if is_log_path(cand):
             return cand
     raise LogFormatError(
         f"{tl_path}: the log it records, {recorded}, is not found (looked "
@@ -206,12 +211,14 @@ def pair_labels(inputs: Sequence[Path], labels: Sequence[Path]) -> list[Path | N
 
 
 def auto_labels(inp: Path, log_path: Path | None) -> Path | None:
-    """``<stem>.labels.json`` beside the input (then beside its log), if present."""
+    """``<stem>.labels.json`` beside the input, then beside its log (under the input's stem,
+    then the log's), if present; a rosbag2 folder's are beside the folder, named after it."""
     stem = input_stem(inp)
     cands = [inp.parent / f"{stem}{LABELS_SUFFIX}"]
     if log_path is not None:
-        cands.append(log_path.parent / f"{input_stem(log_path)}{LABELS_SUFFIX}")
-    return next((c for c in cands if c.is_file()), None)
+        cands += [log_path.parent / f"{st}{LABELS_SUFFIX}"
+                  for st in (stem, input_stem(log_path))]
+    return next((c for c in dict.fromkeys(cands) if c.is_file()), None)
 
 
 @dataclass(frozen=True)
@@ -336,30 +343,30 @@ def report_cmd(*, inputs: tuple[str, ...], html_path: Path, json_path: Path | No
     for out in (html_path, json_path):  # a bad -o/--json stops the run before any work
         if out is not None:
             prepare_output(out)
-    inputs = _local_inputs(inputs)
-    explicit = pair_labels(inputs, labels)
+    paths = _local_inputs(inputs)
+    explicit = pair_labels(paths, labels)
     resolve_executor(jobs, scheduler)
     load_inputs(robot, model, config)  # a bad one stops the run before any work
     ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
     log_only = [n for n, v in (("--model", model), ("--config", config)) if v is not None]
     log_only += [f"--{k.replace('_', '-')}" for k in ropts]
-    if log_only and any(is_timeline(p) for p in inputs):
+    if log_only and any(is_timeline(p) for p in paths):
         warnings.warn(f"{', '.join(log_only)} apply to LOG inputs only: a TIMELINE is re-run "
                       "with the read options, model and config it records", ImpactWarning,
                       stacklevel=2)
     tasks = [ReportTask(str(inp), str(lab) if lab is not None else None, not no_auto_labels,
                         str(robot) if robot else None, str(model) if model else None,
                         str(config) if config else None, ropts, k)
-             for k, (inp, lab) in enumerate(zip(inputs, explicit, strict=True))]
+             for k, (inp, lab) in enumerate(zip(paths, explicit, strict=True))]
     done: dict[int, Any] = {}
     errors: dict[int, ImpactError] = {}
     stream = run_tasks(analyze_input, tasks, jobs=jobs, scheduler=scheduler)
     for i, res in progress(stream, total=len(tasks), desc="report"):
         if isinstance(res, TaskFailure):
-            click.echo(f"impactcli: error: {inputs[i]}: {res.reason}", err=True)
+            click.echo(f"impactcli: error: {paths[i]}: {res.reason}", err=True)
             if res.traceback:  # a bug: keep its traceback
                 click.echo(res.traceback.rstrip(), err=True)
-            errors[i] = ImpactError(f"{inputs[i]}: {res.reason}")
+            errors[i] = ImpactError(f"{paths[i]}: {res.reason}")
             continue
         for m in res.messages:
             click.echo(f"impactcli: warning: {m}", err=True)
@@ -371,7 +378,7 @@ def report_cmd(*, inputs: tuple[str, ...], html_path: Path, json_path: Path | No
             click.echo(f"impactcli: warning: {w}", err=True)
         done[i] = res.rendered
     results = [done[i] for i in sorted(done)]  # input order, whatever finished first
-    failed = [(inputs[i], errors[i]) for i in sorted(errors)]
+    failed = [(paths[i], errors[i]) for i in sorted(errors)]
     if not results:  # every input failed: each was reported above; nothing is written
         click.get_current_context().exit(failed[0][1].exit_code)
     write_report(results, html_path, json_path,

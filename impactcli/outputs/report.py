@@ -122,13 +122,16 @@ def _to_mapping(obj: Any) -> Any:
 
 
 def log_stem(path: str) -> str:
-    """File name without its format extension (``.timeline.json``, ``.csv.gz``, ``.csv``,
-    ``.mcap``, ``.npz``) — the stem ``detect`` names its outputs by."""
-    name = os.path.basename(path)
-    for ext in (".timeline.json", ".csv.gz", ".csv", ".mcap", ".npz", ".json"):
+    """The stem ``detect`` names its outputs by (:func:`impactcli.io.log_stem`: the file
+    name without its format extension — ``.csv``, ``.csv.gz``, ``.mcap``, ``.npz``, ``.bag``,
+    ``.db3`` — or a rosbag2 folder's own name), and a timeline's (``x.timeline.json`` → x)."""
+    from ..io import log_stem as io_log_stem
+
+    name = os.path.basename(str(path).rstrip("/\\")) or str(path)
+    for ext in (".timeline.json", ".json"):
         if name.lower().endswith(ext):
             return name[: -len(ext)]
-    return os.path.splitext(name)[0]
+    return str(io_log_stem(name))
 
 
 def event_duration_s(e: Event, period_s: float) -> float:
