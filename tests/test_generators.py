@@ -132,7 +132,8 @@ def test_detect_cli_names_the_generator_and_old_configs_keep_theirs(tmp_path: Pa
     assert read_log(log_path).has_channel("torque_ext").all()
     r = CliRunner().invoke(main, ["detect", str(log_path), "-o", str(tmp_path / "out")])
     assert r.exit_code == 0, r.output
-    assert "residual generator: logged_external (all joints; auto: the log carries torque_ext)" in r.output
+    assert ("residual generator: logged_external (all joints; auto: the log carries "
+            "torque_ext)") in r.output
     tl = json.loads((tmp_path / "out" / "pushed.timeline.json").read_text())
     assert tl["replay"]["generator"]["shoulder"]["reason"].startswith("auto")
     r = CliRunner().invoke(main, ["detect", str(log_path), "-o", str(tmp_path / "o2"),

@@ -156,7 +156,7 @@ def generators() -> None:
 #: on the same free logs (``--variants``): does any of them pass C1 on the clamps log
 #: without losing another criterion?
 VARIANTS: dict[str, dict[str, dict[str, object]]] = {
-    "shipped (rigid model, LP 2 Hz order 1)": {},
+    "shipped (generator auto, LP 2 Hz order 1)": {},
     "LP 1 Hz order 1": {"static_loading": {"cutoff_hz": 1.0}},
     "LP 2 Hz order 2": {"static_loading": {"order": 2}},
     "LP 1 Hz order 2": {"static_loading": {"cutoff_hz": 1.0, "order": 2}},
