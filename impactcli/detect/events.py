@@ -90,7 +90,7 @@ def extract_events(
         else:
             merged.append([int(s), int(e)])
     m = np.asarray(merged, dtype=np.int64)
-    s_idx, e_idx = split_at_warmup(m[:, 0], m[:, 1], any_d, t, warmup_end_s)
+    s_idx, e_idx = split_at_warmup(m[:, 0], m[:, 1], np.asarray(any_d), t, warmup_end_s)
     events: list[Event] = []
     for i0, i1 in zip(s_idx.tolist(), e_idx.tolist(), strict=True):
         if t[i1] - t[i0] < min_duration_s - _EPS_S:
