@@ -216,6 +216,8 @@ class CalibrationRecord:
         logs: the collision-free logs used.
         model_sha256: sha256 of the model the thresholds belong to.
         weak: the calibration is weaker than leave-one-out (one log / capped margin).
+        joints_left_out: ``{name, reason}`` of the logged joints the calibration left out
+            (no thresholds: detect leaves them out too).
     """
 
     calibrated: bool = False
@@ -224,6 +226,7 @@ class CalibrationRecord:
     logs: tuple[LogRecord, ...] = ()
     model_sha256: str | None = None
     weak: bool = False
+    joints_left_out: tuple[dict[str, str], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -306,6 +309,8 @@ def _build(d: dict[str, Any], where: str) -> DetectorConfig:
     )
     c = dict(d.get("calibration", {}))
     c["logs"] = tuple(LogRecord(**lg) for lg in c.get("logs", []))
+    c["joints_left_out"] = tuple({"name": str(x["name"]), "reason": str(x["reason"])}
+                                 for x in c.get("joints_left_out", []))
     c["margins"] = {
         k: {str(j): float(v) for j, v in m.items()} for k, m in c.get("margins", {}).items()
     }

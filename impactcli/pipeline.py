@@ -28,7 +28,7 @@ from .detect.calibrate import (
     adaptive_statistic,
     uncalibrated_thresholds,
 )
-from .detect.events import extract_events
+from .detect.events import LONG_EVENT_S, extract_events
 from .detect.static import causal_lowpass
 from .detect.warmup import Warmup, warmup_end
 from .errors import ConfigError, ImpactWarning, LogFormatError, ModelError
@@ -46,8 +46,9 @@ from .model.generators import (
     target_log,
     uses_correction,
 )
+from .detect.screen import LeftOut, unusable_columns
 from .result import DetectionResult
-from .types import DETECTORS, RobotDescription, RobotLog
+from .types import CONTROLLER_CHANNELS, DETECTORS, RobotDescription, RobotLog
 
 
 def residual_options(cfg: DetectorConfig, generator: str | None = None) -> ResidualOptions:
@@ -198,13 +199,85 @@ def analyze(
     cfg = with_generator(config or DetectorConfig(), generator, config_where)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ImpactWarning)
+        known = _known_joints(model, cfg)
+        log, left_out = screen_log(log, known, cfg.calibration.joints_left_out)
         result = _analyze(log, model, cfg, robot, read_options or {}, model_from_log)
+        result = dataclasses.replace(result, joints_left_out=tuple(x.to_dict()
+                                                                   for x in left_out))
     msgs = tuple(dict.fromkeys(
         str(w.message) for w in caught if issubclass(w.category, ImpactWarning)))
     for w in caught:  # foreign warnings are not ours to swallow
         if not issubclass(w.category, ImpactWarning):
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     return _with_warnings(result, msgs)
+
+
+def _known_joints(model: RigidModel | None, cfg: DetectorConfig) -> tuple[str, ...] | None:
+    """The joints detection can run on by what was given: the model's (``--model``), else
+    the config's model's, else a calibrated config's thresholds'; None: any."""
+    if model is not None:
+        return tuple(model.joint_names)
+    if cfg.model is not None:
+        return tuple(cfg.model["joint_names"])
+    if cfg.calibration.calibrated and cfg.thresholds.v_stat:
+        return tuple(cfg.thresholds.v_stat)
+    return None
+
+
+def screen_log(
+    log: RobotLog, known: tuple[str, ...] | None = None,
+    recorded: tuple[dict[str, str], ...] = (),
+) -> tuple[RobotLog, tuple[LeftOut, ...]]:
+    """The log without the joints detection cannot use, and those joints with why
+    (:mod:`impactcli.detect.screen`), each warned about once.
+
+    Args:
+        log: the log as read.
+        known: the joints the model or the calibrated config covers (None: any). A logged
+            joint outside them is left out (a joint they need that the log lacks stays an
+            error, raised later).
+        recorded: joints a calibration left out (``calibration.joints_left_out``).
+    Also reads a flat or unmeasured controller channel as not logged for that joint.
+    """
+    where = log.source.path
+    left: list[LeftOut] = []
+    at_cal = {d["name"]: d["reason"] for d in recorded}
+    for j in log.joint_names:
+        if j in at_cal:
+            left.append(LeftOut(j, f"left out at calibration ({at_cal[j]})"))
+        elif known is not None and j not in known:
+            left.append(LeftOut(j, "not in the model or the calibrated config"))
+    out = {x.name for x in left}
+    ref = float(np.max(np.ptp(log.torque, axis=0)))
+    for j, why in zip(log.joint_names, unusable_columns(log.torque, ref), strict=True):
+        if why is not None and j not in out:
+            left.append(LeftOut(j, f"torque {why}"))
+    for x in left:
+        warnings.warn(f"{where}: joint {x.name!r} left out of detection: {x.reason}",
+                      ImpactWarning, stacklevel=3)
+    keep = tuple(j for j in log.joint_names if j not in {x.name for x in left})
+    if not keep:
+        raise LogFormatError(f"{where}: no joint left to detect on ("
+                             + "; ".join(f"{x.name}: {x.reason}" for x in left) + ")")
+    if left:
+        log = log.select(keep)
+    changes: dict[str, Any] = {}
+    for ch in CONTROLLER_CHANNELS:
+        a = getattr(log, ch)
+        if a is None:
+            continue
+        bad = unusable_columns(a, ref)
+        if any(bad):
+            m = np.array(a)
+            for k, why in enumerate(bad):
+                if why is not None:
+                    m[:, k] = np.nan
+                    warnings.warn(f"{where}: joint {log.joint_names[k]!r}: its {ch} is "
+                                  f"{why}; read as not logged", ImpactWarning, stacklevel=3)
+            changes[ch] = m
+    if changes:
+        log = dataclasses.replace(log, **changes)
+    return log, tuple(left)
 
 
 def with_generator(cfg: DetectorConfig, generator: str | None,
@@ -307,6 +380,16 @@ def replay(
     if wu.end_index >= log.n_samples - 10:
         warnings.warn(f"{log.source.path}: the warm-up covers the whole log "
                       f"({log.duration_s:.1f} s)", ImpactWarning, stacklevel=3)
+    else:
+        ts = log.time_s
+        capped = [j for j, i in zip(log.joint_names, wu.index, strict=True)
+                  if i < log.n_samples and ts[i] >= cfg.warmup.max_s - 1e-9]
+        if capped:
+            warnings.warn(
+                f"{log.source.path}: the warm-up reached its cap (warmup.max_s = "
+                f"{cfg.warmup.max_s:g} s) on joint(s) {', '.join(capped)}: the adaptive "
+                "filter's prediction error had not settled; alarms soon after it may be "
+                "artefacts", ImpactWarning, stacklevel=3)
     loading = np.abs(causal_lowpass(r, cfg.static_loading.cutoff_hz, fs, cfg.static_loading.order))
     stats = {"adaptive": adaptive_statistic(ad.r_rms, ad.v_rms), "static_loading": loading,
              "static_baseline": np.abs(r)}
@@ -363,6 +446,7 @@ def _analyze(
                                  ev.merge_gap_s, ev.min_duration_s)
     events.sort(key=lambda e: (e.t_start, DETECTORS.index(e.detector)))
     _warn_events_after_gaps(log, rp.gaps, events)
+    _warn_long_events(log, events)
 
     freqs, gain = ad.g_gain()
     signals = {
@@ -391,6 +475,19 @@ def _analyze(
         residual_generator=summary_name(rp.choices), read_options=read_options,
         generators=choices_dict(rp.choices, cfg.residual.logged_correction),
     )
+
+
+def _warn_long_events(log: RobotLog, events: list[Any]) -> None:
+    """Warn about product events after warm-up lasting LONG_EVENT_S or more."""
+    long_ev = [e for e in events if not e.in_warmup and e.detector != "static_baseline"
+               and e.t_end - e.t_start >= LONG_EVENT_S]
+    if long_ev:
+        e = max(long_ev, key=lambda x: x.t_end - x.t_start)
+        warnings.warn(
+            f"{log.source.path}: {len(long_ev)} alarm(s) last {LONG_EVENT_S:g} s or more (the "
+            f"longest: {e.detector} {e.t_start:.1f}–{e.t_end:.1f} s): a lasting load, or a "
+            "model that no longer fits this log (an unknown payload, a changed robot)",
+            ImpactWarning, stacklevel=3)
 
 
 #: Events starting this long after a time gap are named in a warning [s].
@@ -434,6 +531,7 @@ def calibrate(
     from .model import identify_many
 
     cfg = config or DetectorConfig()
+    logs, left_out = _screen_calibration_logs(logs, model, cfg)
     if generator is not None:  # a new calibration: choose afresh
         cfg = dataclasses.replace(cfg, residual=dataclasses.replace(
             cfg.residual, generator=generator, generators={}))
@@ -463,6 +561,7 @@ def calibrate(
         logs=tuple(LogRecord(lg.source.path, lg.source.sha256) for lg in logs),
         model_sha256=None if model is None else model.sha256,
         weak=any(c.weak for c in cal.values()),
+        joints_left_out=tuple(x.to_dict() for x in left_out),
     )
     return dataclasses.replace(
         cfg,
@@ -470,6 +569,29 @@ def calibrate(
                                     vL=table["static_loading"]),
         calibration=record, model=None if model is None else model.to_dict(),
     )
+
+
+def _screen_calibration_logs(
+    logs: list[RobotLog], model: RigidModel | None, cfg: DetectorConfig,
+) -> tuple[list[RobotLog], tuple[LeftOut, ...]]:
+    """Every calibration log screened (:func:`screen_log`); a joint left out of any log is
+    left out of all (a threshold needs every log), with the first reason found."""
+    known = _known_joints(model, cfg)
+    per = [screen_log(lg, known)[1] for lg in logs]
+    reasons: dict[str, str] = {}
+    for lg, left in zip(logs, per, strict=True):
+        for x in left:
+            reasons.setdefault(x.name, f"{x.reason}, in {lg.source.path}")
+    if not reasons:
+        return logs, ()
+    out = []
+    for lg in logs:
+        keep = tuple(j for j in lg.joint_names if j not in reasons)
+        if not keep:
+            raise LogFormatError(f"{lg.source.path}: no joint left to calibrate")
+        screened, _ = screen_log(lg.select(keep), None)
+        out.append(screened)
+    return out, tuple(LeftOut(j, r) for j, r in reasons.items())
 
 
 #: The order ``auto`` prefers, best first.

@@ -37,6 +37,9 @@ class DetectionResult:
         model_source: ``given`` (--model), ``config`` (embedded in --config),
             ``identified-from-log`` (offline convenience) or ``none``.
         generators: joint → {generator, reason, residual} (:mod:`impactcli.model.generators`).
+        joints_left_out: ``{name, reason}`` of each logged joint left out of detection
+            (:mod:`impactcli.detect.screen`; not in the model or config; left out at
+            calibration).
         config: the detector config used, as its mapping, thresholds included.
         calibrated: thresholds came from a calibration on other logs (else the log's own
             statistics — an uncalibrated run).
@@ -78,6 +81,7 @@ class DetectionResult:
     threshold_inputs: str = ""
     read_options: dict[str, Any] = field(default_factory=dict)
     generators: dict[str, dict[str, str]] = field(default_factory=dict)
+    joints_left_out: tuple[dict[str, str], ...] = ()
 
     @property
     def online_equivalent(self) -> bool:

@@ -27,6 +27,10 @@ from ..types import DETECTORS, Event
 #: Tolerance of the time comparisons [s] (sample times are float sums of periods).
 _EPS_S = 1e-9
 
+#: An event of the product's detectors this long or longer is said to persist [s]: a real
+#: lasting load (a clamp, a held object) or a model that no longer fits the log.
+LONG_EVENT_S = 10.0
+
 
 def split_at_warmup(
     starts: np.ndarray, ends: np.ndarray, any_d: np.ndarray, time_s: np.ndarray,

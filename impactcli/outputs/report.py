@@ -40,6 +40,7 @@ from ..detect.calibrate import (
     UNCALIBRATED_MARGIN,
     UNCALIBRATED_QUANTILE,
 )
+from ..detect.events import LONG_EVENT_S
 from ..errors import ImpactError
 from ..result import DetectionResult
 from ..types import DETECTORS, Event, Labels
@@ -262,7 +263,6 @@ def _poor_fit(result: DetectionResult) -> list[tuple[str, float, str]]:
 
 
 #: A counted event of adaptive or static_loading at least this long gets a caveat [s].
-LONG_EVENT_S = 10.0
 
 
 def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]:

@@ -55,6 +55,7 @@ def timeline_dict(result: DetectionResult) -> dict[str, Any]:
             "time_source": src.time_source,
             "read_options": result.read_options,
             "repairs": list(src.repairs),
+            "joints_left_out": list(result.joints_left_out),
         },
         "config": result.config,
         "calibrated": result.calibrated,
