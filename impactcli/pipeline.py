@@ -29,6 +29,7 @@ from .detect.calibrate import (
     uncalibrated_thresholds,
 )
 from .detect.events import LONG_EVENT_S, extract_events
+from .detect.screen import LeftOut, unusable_columns
 from .detect.static import causal_lowpass
 from .detect.warmup import Warmup, warmup_end
 from .errors import ConfigError, ImpactWarning, LogFormatError, ModelError
@@ -46,7 +47,6 @@ from .model.generators import (
     target_log,
     uses_correction,
 )
-from .detect.screen import LeftOut, unusable_columns
 from .result import DetectionResult
 from .types import CONTROLLER_CHANNELS, DETECTORS, RobotDescription, RobotLog
 
