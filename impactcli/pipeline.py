@@ -202,8 +202,8 @@ def analyze(
         known = _known_joints(model, cfg)
         log, left_out = screen_log(log, known, cfg.calibration.joints_left_out)
         result = _analyze(log, model, cfg, robot, read_options or {}, model_from_log)
-        result = dataclasses.replace(result, joints_left_out=tuple(x.to_dict()
-                                                                   for x in left_out))
+        result = dataclasses.replace(result, joints_left_out=tuple(
+            x.to_dict() for x in left_out) + result.joints_left_out)
     msgs = tuple(dict.fromkeys(
         str(w.message) for w in caught if issubclass(w.category, ImpactWarning)))
     for w in caught:  # foreign warnings are not ours to swallow
@@ -328,6 +328,7 @@ class Replay:
     threshold_inputs: str = ""
     gaps: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     choices: tuple[GeneratorChoice, ...] = ()
+    left_out: tuple[LeftOut, ...] = ()
 
     def stats_after_warmup(self) -> dict[str, np.ndarray]:
         """Each statistic from the warm-up's end on (all of it if the warm-up covers the log)."""
@@ -348,9 +349,17 @@ def replay(
             "could be detected")
     choices = generator_choices(log, cfg)
     model_source = "none"
+    left_out: tuple[LeftOut, ...] = ()
     if needs_model(choices, cfg):
         target = target_log(log, choices, cfg.residual.logged_correction)
         model, model_source = resolve_model(target, model, cfg, robot, model_from_log)
+        extra = [j for j in log.joint_names if j not in model.joint_names]
+        if extra and all(j in log.joint_names for j in model.joint_names):
+            for j in extra:  # e.g. a logged joint the URDF does not have
+                warnings.warn(f"{log.source.path}: joint {j!r} left out of detection: not in "
+                              "the model", ImpactWarning, stacklevel=3)
+            left_out += tuple(LeftOut(j, "not in the model") for j in extra)
+            log = log.select(tuple(model.joint_names))
         log = reorder_log(log, tuple(model.joint_names), "model")
     else:
         model = None
@@ -395,7 +404,7 @@ def replay(
              "static_baseline": np.abs(r)}
     return Replay(log, model, model_source, ropts, r, ad,
                   "measured" if inputs.source == "measured" else "reference", wu, stats,
-                  inputs.detail, gaps, choices)
+                  inputs.detail, gaps, choices, left_out)
 
 
 def _analyze(
@@ -474,6 +483,7 @@ def _analyze(
                      "gain": {j: [float(g) for g in gain[k]] for k, j in enumerate(joints)}},
         residual_generator=summary_name(rp.choices), read_options=read_options,
         generators=choices_dict(rp.choices, cfg.residual.logged_correction),
+        joints_left_out=tuple(x.to_dict() for x in rp.left_out),
     )
 
 
