@@ -218,6 +218,10 @@ class CalibrationRecord:
         weak: the calibration is weaker than leave-one-out (one log / capped margin).
         joints_left_out: ``{name, reason}`` of the logged joints the calibration left out
             (no thresholds: detect leaves them out too).
+        segments: stretches of collision-free log the margins were chosen over (long logs
+            are cut into segments; leave-one-out is over segments).
+        excluded: ``{log, start_s, end_s, reason}`` stretches left out of the calibration
+            (labelled contacts; likely contacts found without labels).
     """
 
     calibrated: bool = False
@@ -227,6 +231,8 @@ class CalibrationRecord:
     model_sha256: str | None = None
     weak: bool = False
     joints_left_out: tuple[dict[str, str], ...] = ()
+    segments: int = 0
+    excluded: tuple[dict[str, Any], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -311,6 +317,7 @@ def _build(d: dict[str, Any], where: str) -> DetectorConfig:
     c["logs"] = tuple(LogRecord(**lg) for lg in c.get("logs", []))
     c["joints_left_out"] = tuple({"name": str(x["name"]), "reason": str(x["reason"])}
                                  for x in c.get("joints_left_out", []))
+    c["excluded"] = tuple(dict(x) for x in c.get("excluded", []))
     c["margins"] = {
         k: {str(j): float(v) for j, v in m.items()} for k, m in c.get("margins", {}).items()
     }

@@ -10,6 +10,17 @@ from ._common import handle_errors
 from .detect import generator_option, log_read_options, read_options_from
 
 
+def _labels_for(logs: tuple[Path, ...], given: tuple[Path, ...]) -> list:  # type: ignore[type-arg]
+    """Labels per log: ``--labels`` paired as ``report`` pairs them, else
+    ``<stem>.labels.json`` beside the log when present, else None."""
+    from .evaluate import read_labels_checked
+    from .report import auto_labels, pair_labels
+
+    paths = pair_labels(list(logs), list(given)) if given else [
+        auto_labels(p, None) for p in logs]
+    return [None if p is None else read_labels_checked(p) for p in paths]
+
+
 @click.command("calibrate")
 @click.argument("logs", nargs=-1, required=True, type=click.Path(path_type=Path))
 @click.option("-o", "--out", "--output", "out_path", required=True,
@@ -21,11 +32,20 @@ from .detect import generator_option, log_read_options, read_options_from
               help="Rigid model to calibrate for [default: identified from these logs].")
 @click.option("--config", "base_config", type=click.Path(dir_okay=False, path_type=Path),
               help="Start from this config's parameters (its thresholds are replaced).")
+@click.option("--labels", "labels_paths", multiple=True,
+              type=click.Path(dir_okay=False, path_type=Path),
+              help="Labels of contacts in the LOGS (one per log, or named <stem>.labels.json): "
+                   "their stretches are left out [default: <stem>.labels.json beside each "
+                   "log, when present].")
+@click.option("--keep-suspect", is_flag=True,
+              help="Keep stretches that alone would set a threshold (likely contacts; "
+                   "left out by default, with a warning).")
 @generator_option
 @log_read_options
 @handle_errors
 def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, model: Path | None,
-                  base_config: Path | None, generator: str | None, channel_map: str | None,
+                  base_config: Path | None, labels_paths: tuple[Path, ...], keep_suspect: bool,
+                  generator: str | None, channel_map: str | None,
                   topic: str | None, reference_topic: str | None, time_source: str | None,
                   torque_source: str | None) -> None:
     """Set v_stat, vL and v0 per joint so that the collision-free LOGS raise no alarm.
@@ -35,6 +55,11 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     with one log a fixed 1.5× margin is used and the calibration is flagged weak.
     Give logs that cover the motions the robot really makes: thresholds calibrated on
     one motion family false-alarm on another.
+
+    Long logs are cut into 30 s segments after warm-up, so leave-one-out works on one long
+    log too. Contacts labelled in <stem>.labels.json beside a log (or --labels) are left out;
+    without labels, a stretch that alone would set a threshold far above all the others
+    (> 8× the median second) is reported as a likely contact and left out (--keep-suspect keeps it).
 
     Each joint's residual generator is frozen in the config (thresholds belong to the
     generator they were made with): with --generator auto (the default for a new config)
@@ -58,7 +83,12 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     cfg = load_config(base_config) if base_config else None
     ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
     read = [read_log(p, robot=robot_d, **ropts) for p in logs]
-    out = calibrate(read, model=model_m, config=cfg, robot=robot_d, generator=generator)
+    labels = _labels_for(logs, labels_paths)
+    for p, lab in zip(logs, labels, strict=True):
+        if lab is not None and lab.events:
+            click.echo(f"{p}: {len(lab.events)} labelled contact(s) left out ({lab.path})")
+    out = calibrate(read, model=model_m, config=cfg, robot=robot_d, generator=generator,
+                    labels=labels, drop_suspect=not keep_suspect)
     save_config(out, out_path)
     c = out.calibration
     weak = " (weak: add collision-free logs covering the robot's motions)" if c.weak else ""
@@ -73,7 +103,8 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
         what = f"model {kind} ({source}) of what the controller's channels leave out"
     else:
         what = f"model {kind} ({source})"
-    click.echo(f"calibrated on {len(read)} log(s), rule {c.margin_rule}{weak}; {what}")
+    click.echo(f"calibrated on {len(read)} log(s) ({c.segments} stretch(es) of collision-free "
+               f"motion), rule {c.margin_rule}{weak}; {what}")
     if kind == "decoupled" and robot_d is None and model_m is None and out.model is not None:
         click.echo("impactcli: warning: no --robot: the model is 'decoupled' (each joint "
                    "alone, no kinematics); a robot description with kinematics gives the "
