@@ -216,6 +216,10 @@ def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ..
         "calibrated": result.calibrated,
         "warmup_end_s": result.warmup_end_s,
         "generators": {j: g["generator"] for j, g in result.generators.items()},
+        "incidents": len(result.counted_incidents()),
+        "incident_list": [
+            {"t_start": i.t_start, "link": i.link, "force_n": i.force_n, "contact": i.contact,
+             "detectors": list(i.detectors)} for i in result.counted_incidents()],
         "generator_reasons": {j: g["reason"] for j, g in result.generators.items()},
         **{d: v["events"] for d, v in result.summary().items()},
     }
@@ -309,6 +313,7 @@ def batch_summary(outcomes: Sequence[JobOutcome], *, wall_s: float,
         "inputs": inputs or {},
         "logs": {"total": len(outcomes), "done": len(ok), "failed": len(failed)},
         "events": {d: sum(int(o.summary.get(d, 0)) for o in ok) for d in DETECTORS},
+        "incidents": sum(int(o.summary.get("incidents", 0)) for o in ok),
         "hours_analysed": hours,
         "wall_s": wall_s,
         "throughput": {"logs_per_s": rate(len(ok)), "log_hours_per_s": rate(hours)},

@@ -30,6 +30,7 @@ from .detect.calibrate import (
     uncalibrated_thresholds,
 )
 from .detect.events import LONG_EVENT_S, extract_events
+from .detect.incidents import Incident, group_events
 from .detect.screen import LeftOut, unusable_columns
 from .detect.static import causal_lowpass
 from .detect.warmup import Warmup, warmup_end
@@ -201,8 +202,11 @@ def analyze(
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ImpactWarning)
         known = _known_joints(model, cfg)
+        full = log
         log, left_out = screen_log(log, known, cfg.calibration.joints_left_out)
         result = _analyze(log, model, cfg, robot, read_options or {}, model_from_log)
+        result = dataclasses.replace(result, incidents=tuple(
+            find_incidents(result, full, robot, cfg.events.merge_gap_s)))
         result = dataclasses.replace(result, joints_left_out=tuple(
             x.to_dict() for x in left_out) + result.joints_left_out)
     msgs = tuple(dict.fromkeys(
@@ -211,6 +215,93 @@ def analyze(
         if not issubclass(w.category, ImpactWarning):
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     return _with_warnings(result, msgs)
+
+
+def robot_chain(full: RobotLog, robot: RobotDescription | None,
+                model: dict[str, Any] | None) -> tuple[tuple[str, ...], dict[str, Any] | None]:
+    """The robot's joint chain (base first) and its kinematics mapping: the robot
+    description's (given, or the one the model was identified with), else the log's own
+    joint order without kinematics. Link numbers are positions in this chain."""
+    desc = robot.to_dict() if robot is not None else (model or {}).get("robot")
+    if isinstance(desc, dict) and desc.get("joints"):
+        names = tuple(str(j["name"]) for j in desc["joints"])
+        mapped = dict(desc.get("joint_map") or {})
+        inverse = {v: k for k, v in mapped.items()}
+        names = tuple(inverse.get(n, n) for n in names)
+        if set(full.joint_names) <= set(names):
+            return names, desc.get("kinematics")
+    return full.joint_names, None
+
+
+def find_incidents(
+    result: DetectionResult, full: RobotLog, robot: RobotDescription | None,
+    merge_gap_s: float,
+) -> list[Incident]:
+    """The incidents of a replay (:mod:`impactcli.detect.incidents`): grouped product
+    events, the isolated link, the force at it (with kinematics), the contact type."""
+    from .detect.incidents import contact_type, estimate_force, isolate, planar_jacobian
+    from .model.derivatives import causal_derivatives
+
+    log, events = result.log, result.events
+    groups = group_events(events, merge_gap_s)
+    if not groups:
+        return []
+    chain, kin = robot_chain(full, robot, result.model)
+    index = [chain.index(j) + 1 for j in log.joint_names]
+    q_chain = np.zeros((log.n_samples, len(chain)))
+    for j in chain:
+        if j in full.joint_names:
+            q_chain[:, chain.index(j)] = full.position[:, full.joint_names.index(j)]
+    jac = None
+    if isinstance(kin, dict) and kin.get("type") == "planar":
+        jac = planar_jacobian(kin["link_lengths"])
+    dt = log.sample_period_s
+    _, qd, _ = causal_derivatives(dt, np.asarray(log.position), min(10.0, 0.2 / dt))
+    vl = np.array([result.thresholds[j]["vL"] for j in log.joint_names])
+    loading = result.signals["loading_statistic"] / np.maximum(vl, 1e-12)[None, :]
+    r = result.signals["residual"]
+    t = log.time_s
+    out = []
+    for g in groups:
+        evs = [events[k] for k in g]
+        a, b = min(e.i_start for e in evs), max(e.i_end for e in evs)
+        win = slice(a, b + 1)
+        link = isolate(loading[win], result.decisions["adaptive"][win], index)
+        joints = tuple(dict.fromkeys(j for e in sorted(evs, key=lambda e: e.t_start)
+                                     for j in e.joints))
+        force, method = (None, "no kinematics: the peak residual torques are the answer")
+        if link is not None and jac is not None:
+            force, method = estimate_force(r[win], q_chain[win], link, index, jac)
+        elif link is None:
+            method = "the residuals cannot say which link: no force estimate"
+        cols = [k for k, c in enumerate(index) if link is None or c <= link]
+        speed = np.max(np.abs(qd[win][:, cols]), axis=1)
+        kind = contact_type(np.asarray(result.decisions["static_loading"][win].any(axis=1)),
+                            speed, dt)
+        peak = {}
+        for j in joints:
+            k = log.joint_names.index(j)
+            seg = r[win, k]
+            peak[j] = float(seg[np.argmax(np.abs(seg))])
+        out.append(Incident(
+            t_start=float(t[a]), t_end=float(t[b]), i_start=int(a), i_end=int(b),
+            detectors=tuple(dict.fromkeys(e.detector for e in sorted(evs,
+                                                                     key=lambda e: e.t_start))),
+            joints=joints, link=link, force_n=force, force_method=method, contact=kind,
+            peak_residual=peak, in_warmup=bool(min(evs, key=lambda e: e.t_start).in_warmup),
+            t_start_utc=_utc(log.t0_ns + round(t[a] * 1e9)), events=tuple(g)))
+    return out
+
+
+def _utc(t_ns: int) -> str | None:
+    """ISO 8601 UTC of an epoch time [ns], or None when the clock is not an epoch (a log
+    whose time starts near 0: before 1990)."""
+    import datetime as _dt
+
+    if t_ns < 631_152_000 * 10**9:
+        return None
+    return _dt.datetime.fromtimestamp(t_ns / 1e9, tz=_dt.UTC).isoformat(
+        timespec="milliseconds").replace("+00:00", "Z")
 
 
 def _known_joints(model: RigidModel | None, cfg: DetectorConfig) -> tuple[str, ...] | None:

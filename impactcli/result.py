@@ -37,6 +37,7 @@ class DetectionResult:
         model_source: ``given`` (--model), ``config`` (embedded in --config),
             ``identified-from-log`` (offline convenience) or ``none``.
         generators: joint → {generator, reason, residual} (:mod:`impactcli.model.generators`).
+        incidents: :class:`impactcli.detect.incidents.Incident` per physical contact.
         joints_left_out: ``{name, reason}`` of each logged joint left out of detection
             (:mod:`impactcli.detect.screen`; not in the model or config; left out at
             calibration).
@@ -82,6 +83,7 @@ class DetectionResult:
     read_options: dict[str, Any] = field(default_factory=dict)
     generators: dict[str, dict[str, str]] = field(default_factory=dict)
     joints_left_out: tuple[dict[str, str], ...] = ()
+    incidents: tuple[Any, ...] = ()
 
     @property
     def online_equivalent(self) -> bool:
@@ -92,6 +94,10 @@ class DetectionResult:
     def counted_events(self, detector: str) -> list[Event]:
         """Events of ``detector`` that start after warm-up (the ones summaries count)."""
         return [e for e in self.events if e.detector == detector and not e.in_warmup]
+
+    def counted_incidents(self) -> list[Any]:
+        """Incidents that start after warm-up (the ones summaries count)."""
+        return [i for i in self.incidents if not i.in_warmup]
 
     def summary(self) -> dict[str, dict[str, int]]:
         """Per detector: events counted (after warm-up) and events in warm-up."""

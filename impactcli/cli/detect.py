@@ -135,11 +135,15 @@ def preload(robot: str | Path | None, model: str | Path | None,
     """
     from .._fs import sha256_file
     from ..config import load_config
-    from ..io.robot import read_robot
+    from ..io.robot import named_robot_sha256, read_robot
     from ..io.urls import load_by_url
     from ..model import read_model
 
     out: dict[str, dict[str, str]] = {}
+    if robot is not None and (named := named_robot_sha256(str(robot))) is not None:
+        read_robot(str(robot))  # a shipped robot's name: its URDF's sha256 is the provenance
+        out["robot"] = {"path": str(robot), "sha256": named}
+        robot = None
     for key, path, loader, what in (("robot", robot, read_robot, "robot description"),
                                     ("model", model, read_model, "model"),
                                     ("config", config, load_config, "config")):
@@ -157,8 +161,20 @@ def _fmt_row(s: dict[str, Any]) -> str:
 
     cal = "yes" if s["calibrated"] else "no"
     return (f"{url_name(s['log']):<36} {s['duration_s']:>9.1f} {cal:>10} "
-            f"{s['warmup_end_s']:>7.2f} {s['adaptive']:>8} {s['static_loading']:>8} "
-            f"{s['static_baseline']:>8}")
+            f"{s['warmup_end_s']:>7.2f} {s.get('incidents', 0):>9} | {s['adaptive']:>8} "
+            f"{s['static_loading']:>8} {s['static_baseline']:>8}")
+
+
+def _incident_line(k: int, inc: dict[str, Any]) -> str:
+    """``  1  12.040 s  link 2  ~14.5 N  transient  (adaptive, static_loading)``."""
+    link = f"link {inc['link']}" if inc["link"] is not None else "link ?"
+    force = f"~{inc['force_n']:.3g} N" if inc["force_n"] is not None else "force ?"
+    return (f"  {k:>3}  {inc['t_start']:>9.3f} s  {link:<7} {force:>9}  {inc['contact']:<12} "
+            f"({', '.join(inc['detectors'])})")
+
+
+#: incidents listed per log when one log is analysed (all of them are in the timeline)
+MAX_INCIDENTS_LISTED = 20
 
 
 #: per-log rows printed at most (the --summary JSON has them all)
@@ -178,7 +194,11 @@ MAX_ROWS = 50
               help="With --config: keep its thresholds but identify the model from each log "
                    "(offline only; e.g. an unknown payload).")
 @click.option("--fail-on-detect", is_flag=True,
-              help="Exit 1 when adaptive or static_loading found events after warm-up.")
+              help="Exit 1 when an incident (a contact found by adaptive or static_loading) "
+                   "starts after warm-up.")
+@click.option("--fail-on-force", type=click.FloatRange(min=0), default=None, metavar="N",
+              help="Exit 1 when an incident's estimated contact force exceeds N newtons "
+                   "(incidents without an estimate are not judged by it; a warning says so).")
 @generator_option
 @executor_options
 @click.option("--summary", "summary_path", metavar="PATH|URL", default=None,
@@ -189,8 +209,8 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
                config: str | None, channel_map: str | None, topic: str | None,
                reference_topic: str | None, time_source: str | None, torque_source: str | None,
                signals: bool, rerun: bool, model_from_log: bool, fail_on_detect: bool,
-               generator: str | None, jobs: int | None, scheduler: str | None,
-               summary_path: str | None) -> None:
+               fail_on_force: float | None, generator: str | None, jobs: int | None,
+               scheduler: str | None, summary_path: str | None) -> None:
     """Replay the adaptive impact detector (Makarov et al. 2014) and the static detectors
     over LOGS, exactly as the robot would have run them online, and write one
     DIR/<stem>.timeline.json per log.
@@ -263,8 +283,17 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
             click.echo(f"impactcli: {len(failed)} of {len(outcomes)} logs failed", err=True)
         # some failed: 4; every one failed: the (first) failure's own code, as `report` does
         ctx.exit(EXIT_BATCH if ok else failed[0].exit_code)
-    if fail_on_detect and any(o.summary[d] > 0 for o in ok for d in PRODUCT_DETECTORS):
+    if fail_on_detect and any(o.summary.get("incidents", 0) > 0 for o in ok):
         ctx.exit(EXIT_DETECTED)
+    if fail_on_force is not None:
+        incs = [i for o in ok for i in o.summary.get("incident_list", [])]
+        unknown = [i for i in incs if i["force_n"] is None]
+        if unknown:
+            click.echo(f"impactcli: warning: --fail-on-force: {len(unknown)} incident(s) "
+                       "have no force estimate (no kinematics, or the link could not be "
+                       "told) and are not judged by it", err=True)
+        if any(i["force_n"] is not None and i["force_n"] > fail_on_force for i in incs):
+            ctx.exit(EXIT_DETECTED)
 
 
 def _echo_outcome(outcome: Any, debug: bool, single: bool) -> None:
@@ -299,7 +328,8 @@ def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str) -> N
     ok = [o for o in outcomes if o.ok]
     if ok:
         click.echo(f"{'log':<36} {'duration_s':>9} {'calibrated':>10} {'warmup':>7} "
-                   f"{'adaptive':>8} {'loading':>8} {'baseline':>8}")
+                   f"{'incidents':>9} | events: {'adaptive':>8} {'loading':>8} {'baseline':>8}"
+                   .replace("| events: ", "| "))
         for o in ok[:MAX_ROWS]:
             click.echo(_fmt_row(o.summary))
         if len(ok) > MAX_ROWS:
@@ -311,7 +341,16 @@ def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str) -> N
             for o in ok[:MAX_ROWS]:
                 click.echo(f"residual generator of {url_name(o.log_path)}: "
                            + _generators_line(o.summary))
-        click.echo(f"(events after warm-up; timelines in {out_dir})")
+        click.echo(f"(incidents and events per detector after warm-up; an incident is one "
+                   f"contact, made of the adaptive and loading events; timelines in {out_dir})")
+        if len(ok) == 1 and ok[0].summary.get("incident_list"):
+            lst = ok[0].summary["incident_list"]
+            click.echo(f"incidents of {url_name(ok[0].log_path)}:  #  start       link      "
+                       "force  contact      detectors")
+            for k, inc in enumerate(lst[:MAX_INCIDENTS_LISTED], 1):
+                click.echo(_incident_line(k, inc))
+            if len(lst) > MAX_INCIDENTS_LISTED:
+                click.echo(f"  ... {len(lst) - MAX_INCIDENTS_LISTED} more (in the timeline)")
     if len(outcomes) > 1:
         n, ev, tp = summary["logs"], summary["events"], summary["throughput"]
         lps = tp["logs_per_s"] or 0.0
@@ -320,4 +359,5 @@ def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str) -> N
                    f"{summary['hours_analysed']:.3f} h analysed in {summary['wall_s']:.1f} s "
                    f"({lps:.2f} logs/s, {hps * 3600:.0f} h of log per hour) on "
                    f"{summary['executor']['description']}")
-        click.echo("events: " + ", ".join(f"{d} {ev[d]}" for d in ev))
+        click.echo(f"incidents: {summary['incidents']}; events: "
+                   + ", ".join(f"{d} {ev[d]}" for d in ev))

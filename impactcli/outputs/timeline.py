@@ -75,6 +75,7 @@ def timeline_dict(result: DetectionResult) -> dict[str, Any]:
         "thresholds": result.thresholds,
         "filter_gain": result.filter_gain,
         "events": [e.to_dict() for e in result.events],
+        "incidents": [i.to_dict() for i in result.incidents],
         "summary": result.summary(),
         "warnings": list(result.warnings),
     }

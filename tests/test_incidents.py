@@ -1,0 +1,149 @@
+"""Incidents (impactcli.detect.incidents): grouping, isolation, force through the Jacobian,
+contact type; end to end on the sample logs against their labels; the CLI's gates."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from impactcli.cli import main
+from impactcli.config import load_config
+from impactcli.detect.incidents import (
+    contact_type,
+    estimate_force,
+    group_events,
+    isolate,
+    planar_jacobian,
+)
+from impactcli.io import read_log
+from impactcli.io.robot import read_labels
+from impactcli.outputs.timeline import timeline_dict
+from impactcli.pipeline import analyze
+from impactcli.schema import validate
+from impactcli.types import Event
+
+REPO = Path(__file__).resolve().parents[1]
+CSV = REPO / "sample_logs" / "csv"
+CONFIG = REPO / "sample_logs" / "assist_like.config.toml"
+
+
+def ev(det: str, a: float, b: float) -> Event:
+    return Event(det, a, b, int(a * 250), int(b * 250), ("j1",), 2.0, {"j1": 1.0}, False)
+
+
+def test_group_events_merges_overlaps_and_near_gaps_only() -> None:
+    events = [ev("adaptive", 1.0, 1.1), ev("static_loading", 1.05, 1.5),
+              ev("static_baseline", 1.0, 9.0), ev("adaptive", 1.55, 1.6),
+              ev("static_loading", 3.0, 3.2)]
+    groups = group_events(events, merge_gap_s=0.1)
+    assert groups == [[0, 1, 3], [4]]  # 1.55 starts 0.05 s after 1.5; baseline not in any
+    product = sorted(k for g in groups for k in g)
+    assert product == [0, 1, 3, 4]  # every product event in exactly one incident
+
+
+def test_isolation_takes_the_most_distal_joint_that_fired() -> None:
+    ratio = np.array([[0.2, 0.1, 0.05], [3.0, 1.2, 0.3]])
+    fired = np.zeros((2, 3), dtype=bool)
+    assert isolate(ratio, fired, [1, 2, 4]) == 2  # joint 3 of the chain left out: link 2
+    fired[0, 2] = True
+    assert isolate(ratio, fired, [1, 2, 4]) == 4  # numbers stay the robot's own
+    assert isolate(np.full((2, 3), 0.3), np.zeros((2, 3), bool), [1, 2, 3]) is None
+
+
+def test_planar_jacobian_matches_finite_differences_and_force_is_recovered() -> None:
+    lengths = [0.4, 0.35, 0.2]
+    jac = planar_jacobian(lengths)
+
+    def tip(q: np.ndarray, i: int) -> np.ndarray:
+        phi = np.cumsum(q[:i])
+        return np.array([sum(lengths[k] * np.cos(phi[k]) for k in range(i)),
+                         sum(lengths[k] * np.sin(phi[k]) for k in range(i))])
+
+    q = np.array([0.3, -0.7, 1.1])
+    for i in (1, 2, 3):
+        num = np.column_stack([(tip(q + h, i) - tip(q - h, i)) / 2e-6
+                               for h in np.eye(3)[:i] * 1e-6])
+        np.testing.assert_allclose(jac(q, i), num, atol=1e-8)
+    force = np.array([3.0, -12.0])  # 12.4 N at the end of link 3
+    r = np.tile(jac(q, 3).T @ force, (5, 1))
+    f, method = estimate_force(r, np.tile(q, (5, 1)), 3, [1, 2, 3], jac)
+    assert f == pytest.approx(float(np.hypot(3.0, 12.0)), rel=1e-9)
+    assert "end of link 3" in method and "least squares" in method
+    # link 1: one equation, the normal force at its end
+    r1 = np.tile([2.0, 0.0, 0.0], (3, 1))
+    f1, m1 = estimate_force(r1, np.tile(q, (3, 1)), 1, [1, 2, 3], jac)
+    assert f1 == pytest.approx(2.0 / 0.4) and "one equation" in m1
+
+
+def test_contact_type_rule() -> None:
+    dt = 0.004
+    still = np.zeros(500)
+    assert contact_type(np.ones(500, bool), still, dt) == "quasi_static"  # 2 s pressing still
+    moving = np.full(500, 0.5)
+    assert contact_type(np.ones(100, bool), moving[:100], dt) == "transient"
+    assert contact_type(np.ones(1000, bool), np.full(1000, 0.5), dt) == "unknown"
+
+
+@pytest.mark.parametrize("name", ["assist_impacts", "assist_pushes", "assist_clamps"])
+def test_sample_contacts_each_one_incident_with_link_force_and_type(name: str) -> None:
+    res = analyze(read_log(CSV / f"{name}.csv.gz"), config=load_config(CONFIG))
+    labels = read_labels(CSV / f"{name}.labels.json")
+    product = [k for k, e in enumerate(res.events)
+               if e.detector in ("adaptive", "static_loading")]
+    owned = sorted(k for i in res.incidents for k in i.events)
+    assert owned == product  # every product event in exactly one incident
+    counted = res.counted_incidents()
+    assert len(counted) == len(labels.events)
+    kind = {"impact": "transient", "push": "transient", "clamp": "quasi_static"}
+    for inc, lab in zip(counted, labels.events, strict=True):
+        assert lab.start - 0.02 <= inc.t_start <= lab.end + 0.25
+        assert inc.link == lab.link, (inc.t_start, inc.link, lab.link)
+        assert inc.contact == kind[lab.kind], (inc.t_start, inc.contact, lab.kind)
+        assert inc.force_n is not None and "end" in inc.force_method
+        assert 0.4 * lab.peak_force <= inc.force_n <= 1.3 * lab.peak_force, (
+            inc.t_start, inc.force_n, lab.peak_force)
+    doc = timeline_dict(res)
+    validate(doc, "timeline", AssertionError, name)
+    assert len(doc["incidents"]) == len(res.incidents)
+
+
+def test_cli_counts_incidents_and_gates_on_force(tmp_path: Path) -> None:
+    log = str(CSV / "assist_pushes.csv.gz")
+    r = CliRunner().invoke(main, ["detect", log, "--config", str(CONFIG), "-o",
+                                  str(tmp_path / "a")])
+    assert r.exit_code == 0, r.output
+    row = next(line for line in r.output.splitlines() if line.startswith("assist_pushes"))
+    assert row.split()[4:6] == ["9", "|"]  # 9 incidents, then events per detector
+    assert "incidents of assist_pushes.csv.gz" in r.output
+    r = CliRunner().invoke(main, ["detect", log, "--config", str(CONFIG), "-o",
+                                  str(tmp_path / "b"), "--fail-on-force", "100"])
+    assert r.exit_code == 0, r.output
+    r = CliRunner().invoke(main, ["detect", log, "--config", str(CONFIG), "-o",
+                                  str(tmp_path / "c"), "--fail-on-force", "25"])
+    assert r.exit_code == 1, r.output
+    r = CliRunner().invoke(main, ["detect", log, "--config", str(CONFIG), "-o",
+                                  str(tmp_path / "d"), "--fail-on-detect"])
+    assert r.exit_code == 1, r.output
+    doc = json.loads((tmp_path / "d" / "assist_pushes.timeline.json").read_text())
+    assert doc["schema_version"] == "2.0" and len(doc["incidents"]) >= 9
+
+
+def test_fail_on_force_without_kinematics_warns(tmp_path: Path) -> None:
+    import dataclasses
+
+    from impactcli.io import write_log
+
+    from .test_screen import three_joint_log
+
+    log = three_joint_log()
+    tau = np.array(log.torque)
+    tau[1500:1600, 0] += 20.0  # a push on the first joint, no kinematics known
+    write_log(dataclasses.replace(log, torque=tau), tmp_path / "x.csv")
+    r = CliRunner().invoke(main, ["detect", str(tmp_path / "x.csv"), "-o", str(tmp_path),
+                                  "--fail-on-force", "1"])
+    assert "--fail-on-force: " in r.output and "have no force estimate" in r.output
+    assert r.exit_code == 0, r.output
