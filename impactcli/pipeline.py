@@ -50,6 +50,7 @@ from .model.generators import (
     uses_correction,
 )
 from .result import DetectionResult
+from .sampling import check_calibrated_rate
 from .types import CONTROLLER_CHANNELS, DETECTORS, Labels, RobotDescription, RobotLog
 
 
@@ -202,6 +203,7 @@ def analyze(
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ImpactWarning)
         known = _known_joints(model, cfg)
+        check_calibrated_rate(log.sample_rate_hz, cfg.calibration.sample_rate_hz, log.source.path)
         full = log
         log, left_out = screen_log(log, known, cfg.calibration.joints_left_out)
         result = _analyze(log, model, cfg, robot, read_options or {}, model_from_log)
@@ -242,8 +244,13 @@ def find_incidents(
     from .detect.incidents import contact_type, estimate_force, isolate, planar_jacobian
     from .model.derivatives import causal_derivatives
 
+    from .detect.incidents import BRIDGE_FRACTION
+
     log, events = result.log, result.events
-    groups = group_events(events, merge_gap_s)
+    vl0 = np.array([result.thresholds[j]["vL"] for j in log.joint_names])
+    pressing = np.any(result.signals["loading_statistic"]
+                      >= BRIDGE_FRACTION * np.maximum(vl0, 1e-12)[None, :], axis=1)
+    groups = group_events(events, merge_gap_s, pressing)
     if not groups:
         return []
     chain, kin = robot_chain(full, robot, result.model)
@@ -277,7 +284,7 @@ def find_incidents(
         cols = [k for k, c in enumerate(index) if link is None or c <= link]
         speed = np.max(np.abs(qd[win][:, cols]), axis=1)
         kind = contact_type(np.asarray(result.decisions["static_loading"][win].any(axis=1)),
-                            speed, dt)
+                            speed, dt, ends_with_log=b >= log.n_samples - 1)
         peak = {}
         for j in joints:
             k = log.joint_names.index(j)
@@ -675,6 +682,7 @@ def calibrate(
         weak=any(c.weak for c in cal.values()),
         joints_left_out=tuple(x.to_dict() for x in left_out),
         segments=len(segs), excluded=tuple(excluded),
+        sample_rate_hz=float(np.median([lg.sample_rate_hz for lg in logs])),
     )
     return dataclasses.replace(
         cfg,

@@ -81,11 +81,12 @@ def test_planar_jacobian_matches_finite_differences_and_force_is_recovered() -> 
 
 def test_contact_type_rule() -> None:
     dt = 0.004
-    still = np.zeros(500)
-    assert contact_type(np.ones(500, bool), still, dt) == "quasi_static"  # 2 s pressing still
-    moving = np.full(500, 0.5)
-    assert contact_type(np.ones(100, bool), moving[:100], dt) == "transient"
-    assert contact_type(np.ones(1000, bool), np.full(1000, 0.5), dt) == "unknown"
+    still = np.zeros(300)
+    assert contact_type(np.ones(300, bool), still, dt) == "quasi_static"  # 1.2 s still
+    moving = np.full(700, 0.5)
+    assert contact_type(np.ones(100, bool), moving[:100], dt) == "transient"  # 0.4 s
+    assert contact_type(np.ones(700, bool), moving, dt) == "quasi_static"  # 2.8 s pressing
+    assert contact_type(np.ones(100, bool), moving[:100], dt, ends_with_log=True) == "unknown"
 
 
 @pytest.mark.parametrize("name", ["assist_impacts", "assist_pushes", "assist_clamps"])
