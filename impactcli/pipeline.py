@@ -241,10 +241,14 @@ def find_incidents(
 ) -> list[Incident]:
     """The incidents of a replay (:mod:`impactcli.detect.incidents`): grouped product
     events, the isolated link, the force at it (with kinematics), the contact type."""
-    from .detect.incidents import contact_type, estimate_force, isolate, planar_jacobian
+    from .detect.incidents import (
+        BRIDGE_FRACTION,
+        contact_type,
+        estimate_force,
+        isolate,
+        planar_jacobian,
+    )
     from .model.derivatives import causal_derivatives
-
-    from .detect.incidents import BRIDGE_FRACTION
 
     log, events = result.log, result.events
     vl0 = np.array([result.thresholds[j]["vL"] for j in log.joint_names])
