@@ -260,3 +260,59 @@ def contact_type(
     if ends_with_log:
         return "unknown"
     return "transient"
+
+
+def smallest_caught_force(
+    vl: Sequence[float | None], q: np.ndarray, jacobian: JacobianFn,
+) -> list[dict[str, Any]]:
+    """Per link i (1-based, chain order), the smallest *static* force at the end of link i
+    that the static-loading thresholds catch at posture ``q`` (what an audit could not see).
+
+    The force is taken along n_i = J_i / |J_i| (J_i: joint i's column of the Jacobian of
+    the end of link i) — normal to the link in a planar arm, the direction that turns
+    joint i most in general. It gives joint k <= i the torque tau_k = (J_k · n_i) F, and
+    the low-passed residual of a static load settles at tau_k, so joint k's static-loading
+    detector fires once |tau_k| >= vL_k. Joint i's own lever arm |J_i| is the distance from
+    joint i to the end of link i (the link length in a planar arm, whatever the posture):
+    ``own_force_n`` = vL_i / |J_i| is the force that reaches joint i's threshold — the one
+    the incident would be isolated to link i by. ``any_force_n`` is the smallest over
+    k <= i (a proximal joint may fire first: an alarm, isolated to an inner link). A
+    contact nearer joint i than the link's end needs more force, by the lever-arm ratio.
+
+    Args:
+        vl: (J_chain,) each chain joint's static-loading threshold vL [N·m]; None for a
+            joint not detected (left out of detection, or not logged).
+        q: (J_chain,) the posture [rad], chain order.
+        jacobian: :data:`JacobianFn`.
+    Returns:
+        One mapping per link: ``link``, ``lever_m`` (|J_i|, None without a Jacobian),
+        ``own_force_n`` (None when joint i is not detected), ``any_force_n`` and
+        ``any_joint`` (the 1-based chain position giving it; None when no joint 1..i is).
+    """
+    out: list[dict[str, Any]] = []
+    for i in range(1, len(vl) + 1):
+        row: dict[str, Any] = {"link": i, "lever_m": None, "own_force_n": None,
+                               "any_force_n": None, "any_joint": None}
+        jac = jacobian(np.asarray(q, dtype=np.float64), i)
+        if jac is None:
+            out.append(row)
+            continue
+        lever = float(np.linalg.norm(jac[:, i - 1]))
+        row["lever_m"] = lever
+        if lever <= 0:
+            out.append(row)
+            continue
+        n = jac[:, i - 1] / lever
+        own = vl[i - 1]
+        if own is not None:
+            row["own_force_n"] = float(own) / lever
+        for k in range(1, i + 1):
+            v = vl[k - 1]
+            arm = abs(float(jac[:, k - 1] @ n))
+            if v is None or arm <= 1e-12 * lever:
+                continue
+            f = float(v) / arm
+            if row["any_force_n"] is None or f < row["any_force_n"]:
+                row["any_force_n"], row["any_joint"] = f, k
+        out.append(row)
+    return out
