@@ -35,6 +35,16 @@ def _clean(x: Any) -> Any:
     return x
 
 
+def _absolute(path: str) -> str:
+    """The log's absolute path, or its URL as given (so a timeline finds its log from any
+    folder)."""
+    import os
+
+    if "://" in path or path.startswith("<"):
+        return path
+    return os.path.abspath(path)
+
+
 def timeline_dict(result: DetectionResult) -> dict[str, Any]:
     """The timeline as a JSON-ready mapping (validated by schemas/timeline.schema.json)."""
     log = result.log
@@ -44,6 +54,7 @@ def timeline_dict(result: DetectionResult) -> dict[str, Any]:
         "tool": {"name": TOOL_NAME, "version": __version__},
         "input": {
             "path": src.path,
+            "abs_path": _absolute(src.path),
             "sha256": src.sha256,
             "format": src.format,
             "joints": list(log.joint_names),
