@@ -141,26 +141,201 @@ def test_one_text_log_row_per_event(written: tuple[DetectionResult, Path]) -> No
         assert t == res.log.t_ns[e.i_start] - res.log.t_ns[0]
 
 
+def _boundary(u: Any, i: int) -> tuple[str, Any]:
+    """(kind, value) of element ``i`` of a TimeRangeBoundary dense union array."""
+    code = u.type_codes[i].as_py()
+    child = list(u.type.type_codes).index(code)
+    return u.type[child].name, u.field(child)[u.offsets[i].as_py()].as_py()
+
+
+def _ranges(st: Any) -> list[tuple[tuple[str, Any], tuple[str, Any]]]:
+    """The (start, end) boundaries of each element of a struct<start, end> array."""
+    return [(_boundary(st.field("start"), i), _boundary(st.field("end"), i))
+            for i in range(len(st))]
+
+
+def read_blueprint(path: Path) -> dict[str, dict[str, Any]]:
+    """Per view id: class, origin, name, contents, x-axis view range and visible time ranges
+    (timeline → (start, end)) as the SDK reads them back from the file's blueprint."""
+    reader = rr.chunk.RrdReader(path)
+    assert len(reader.blueprints()) == 1
+    views: dict[str, dict[str, Any]] = {}
+    for ch in reader.store(store=reader.blueprints()[0]).stream():
+        parts = ch.entity_path.strip("/").split("/")
+        if parts[0] != "view":
+            continue
+        v = views.setdefault(parts[1], {})
+        batch = ch.to_record_batch()
+        cols = batch.to_pydict()
+        if "ViewBlueprint:class_identifier" in cols:
+            v["class"] = cols["ViewBlueprint:class_identifier"][0][0]
+            v["origin"] = cols["ViewBlueprint:space_origin"][0][0]
+            v["name"] = cols.get("ViewBlueprint:display_name", [[None]])[0][0]
+        if "ViewContents:query" in cols:
+            v["contents"] = list(cols["ViewContents:query"][0])
+        if "TimeAxis:view_range" in cols:
+            v["view_range"] = _ranges(batch.column("TimeAxis:view_range").values)[0]
+        if "VisibleTimeRanges:ranges" in cols:
+            lst = batch.column("VisibleTimeRanges:ranges").values
+            rng = _ranges(lst.field("range"))
+            v["time_ranges"] = {lst.field("timeline")[i].as_py(): rng[i] for i in range(len(lst))}
+    return views
+
+
+def _time_panel_timeline(path: Path) -> str | None:
+    reader = rr.chunk.RrdReader(path)
+    for ch in reader.store(store=reader.blueprints()[0]).stream():
+        cols = ch.to_record_batch().to_pydict()
+        if "TimePanelBlueprint:timeline" in cols:
+            return str(cols["TimePanelBlueprint:timeline"][0][0])
+    return None
+
+
+def assert_whole_log_in_view(path: Path, duration_s: float) -> dict[str, dict[str, Any]]:
+    """Every plot and lane of the default blueprint opens on [0, duration] on
+    time_since_start (absolute bounds: not a window that follows the time cursor)."""
+    whole = (("Absolute", 0), ("Absolute", round(duration_s * 1e9)))
+    views = read_blueprint(path)
+    timed = [v for v in views.values() if v.get("class") in ("TimeSeries", "StateTimeline")]
+    assert timed
+    for v in timed:
+        assert v.get("view_range") == whole, v
+        assert v.get("time_ranges") == {ELAPSED_TIMELINE: whole}, v
+    assert _time_panel_timeline(path) == ELAPSED_TIMELINE
+    return views
+
+
 def test_default_blueprint_is_in_the_file(written: tuple[DetectionResult, Path]) -> None:
     res, path = written
     reader = rr.chunk.RrdReader(path)
     assert len(reader.recordings()) == 1 and len(reader.blueprints()) == 1
-    views: list[tuple[str, str]] = []
-    timeline = None
-    for ch in reader.store(store=reader.blueprints()[0]).stream():
-        cols = ch.to_record_batch().to_pydict()
-        if "ViewBlueprint:class_identifier" in cols:
-            views.append((cols["ViewBlueprint:class_identifier"][0][0],
-                          cols["ViewBlueprint:space_origin"][0][0]))
-        if "TimePanelBlueprint:timeline" in cols:
-            timeline = cols["TimePanelBlueprint:timeline"][0][0]
-    assert timeline == ELAPSED_TIMELINE
-    series = sorted(o for k, o in views if k == "TimeSeries")
-    assert series == sorted(f"/joints/{j}/{p}" for j in res.log.joint_names
-                            for p in ("rms", "loading", "residual", "position"))
-    assert sorted(o for k, o in views if k == "StateTimeline") == sorted(
-        f"/detections/{j}" for j in res.log.joint_names)
-    assert any(k == "TextLog" for k, _ in views)
+    views = assert_whole_log_in_view(path, res.log.duration_s)
+    by_class: dict[str, list[str]] = {}
+    for v in views.values():
+        if "class" in v:
+            by_class.setdefault(v["class"], []).append(v["origin"])
+    assert sorted(by_class["TimeSeries"]) == sorted(
+        ["/incidents/force"] + [f"/joints/{j}/{p}" for j in res.log.joint_names
+                                for p in ("rms", "loading", "residual", "position")])
+    assert sorted(by_class["StateTimeline"]) == sorted(
+        ["/incidents"] + [f"/detections/{j}" for j in res.log.joint_names])
+    (log_view,) = [v for v in views.values() if v.get("class") == "TextLog"]
+    # the events panel lists every event and every incident (a text-log view shows all
+    # rows of its entities whatever the time cursor)
+    assert {"/incidents", "/events/**"} <= set(log_view["contents"])
+    (lane,) = [v for v in views.values() if v.get("origin") == "/incidents"]
+    assert lane["contents"] == ["/incidents/contact"]
+
+
+def test_plot_colours_tell_statistic_threshold_and_detectors_apart(
+        written: tuple[DetectionResult, Path]) -> None:
+    res, path = written
+    styles: dict[str, dict[str, list[Any]]] = {}
+    for ch in rr.chunk.RrdReader(path).store().stream():
+        if ch.is_static:
+            styles[ch.entity_path] = ch.to_record_batch().to_pydict()
+    for joint in res.log.joint_names:
+        root = f"/joints/{joint}"
+        lane_colors = {}
+        for det in DETECTORS:
+            cfg = styles[f"/detections/{joint}/{det}"]
+            values = list(cfg["StateConfiguration:values"][0])
+            lane_colors[det] = cfg["StateConfiguration:colors"][0][values.index("detected")]
+        assert len(set(lane_colors.values())) == len(DETECTORS)  # one colour per detector
+        for plot, det in (("rms", "adaptive"), ("loading", "static_loading"),
+                          ("residual", "static_baseline")):
+            series = list(styles[f"{root}/{plot}"]["SeriesLines:colors"][0])
+            assert len(set(series)) == len(series), (plot, series)  # statistic vs threshold
+            assert lane_colors[det] not in series, (plot, det)
+            markers = styles.get(f"{root}/{plot}/{det}")  # only where the detector fired
+            if markers is not None:
+                assert markers["SeriesPoints:colors"][0][0] == lane_colors[det]
+            others = [c for d, c in lane_colors.items() if d != det]
+            assert not set(series) & set(others), (plot, "a line has another detector's colour")
+
+
+def make_incidents(res: DetectionResult) -> tuple[Any, ...]:
+    """Incidents on fake_result's events: one in warm-up (no link, no force), the 4.0 s
+    adaptive event (link 2, 12.5 N, transient), the 7.0 s loading event (link 1,
+    quasi-static, no force)."""
+    from impactcli.detect.incidents import Incident
+
+    ev = res.events
+    def inc(e: Any, link: int | None, force: float | None, contact: str, k: int) -> Incident:
+        return Incident(e.t_start, e.t_end, e.i_start, e.i_end, (e.detector,), e.joints, link,
+                        force, "test", contact, dict(e.peak_residual), e.in_warmup, None, (k,))
+    return (inc(ev[0], None, None, "unknown", 0), inc(ev[1], 2, 12.5, "transient", 1),
+            inc(ev[2], 1, None, "quasi_static", 2))
+
+
+def test_incident_track_holds_one_entry_per_incident(tmp_path: Path) -> None:
+    res = fake_result()
+    res = dataclasses.replace(res, incidents=make_incidents(res))
+    path = tmp_path / "inc.rrd"
+    write_rrd(res, path)
+    ent = read_entities(path)
+    t0 = res.log.t_ns[0]
+    # one row per incident, at its start, carrying link, force and contact type as fields
+    rows = ent["/incidents"]
+    assert len(rows["TextLog:text"]) == len(res.incidents)
+    assert [int(x[0]) for x in rows["index"]] == [1, 2, 3]
+    assert [x[0] for x in rows["link"]] == [i.link for i in res.incidents]
+    assert [x[0] for x in rows["force_n"]] == [i.force_n for i in res.incidents]
+    assert [x[0] for x in rows["contact"]] == [i.contact for i in res.incidents]
+    assert [x[0] for x in rows["in_warmup"]] == [True, False, False]
+    np.testing.assert_allclose([x[0] for x in rows["t_end_s"]], [i.t_end for i in res.incidents])
+    np.testing.assert_array_equal(elapsed_ns(rows),
+                                  [res.log.t_ns[i.i_start] - t0 for i in res.incidents])
+    texts = [x[0] for x in rows["TextLog:text"]]
+    assert "link 2" in texts[1] and "12.5 N" in texts[1] and "transient" in texts[1]
+    assert "link unknown" in texts[0] and "force unknown" in texts[0]
+    assert [x[0] for x in rows["TextLog:level"]] == ["INFO", "WARN", "WARN"]
+    # the annotated spans: each incident labelled from its first to after its last sample
+    lane = ent["/incidents/contact"]
+    states = [s[0] for s in lane["StateChange:state"]]
+    assert states == ["no contact", "#1 link ? · force ? · unknown (warm-up)", "no contact",
+                      "#2 link 2 · 12.5 N · transient", "no contact",
+                      "#3 link 1 · force ? · quasi_static", "no contact"]
+    t = elapsed_ns(lane)
+    for k, inc in enumerate(res.incidents):
+        at = states.index(states[2 * k + 1])
+        assert t[at] == res.log.t_ns[inc.i_start] - t0
+        assert t[at + 1] == res.log.t_ns[inc.i_end + 1] - t0
+    # force markers only where a force is known
+    force = ent["/incidents/force"]
+    assert scalars(force).ravel().tolist() == [12.5]
+    assert elapsed_ns(force).tolist() == [res.log.t_ns[res.incidents[1].i_start] - t0]
+    # every incident lies inside the default view
+    assert_whole_log_in_view(path, res.log.duration_s)
+    assert all(0 <= i.t_start <= i.t_end <= res.log.duration_s for i in res.incidents)
+    assert "| 2 | 4.000 |" in next(
+        ch.to_record_batch().to_pydict()["TextDocument:text"][0][0]
+        for ch in rr.chunk.RrdReader(path).store().stream() if ch.entity_path == "/run/info")
+
+
+def test_sample_log_view_covers_every_incident(tmp_path: Path) -> None:
+    """The shipped ASSIST-like impacts log (72.7 s, 15 impacts): the default view spans the
+    whole log, and the incident track lists every incident of the run."""
+    root = Path(__file__).resolve().parents[1] / "sample_logs"
+    log = root / "csv" / "assist_impacts.csv.gz"
+    if not log.is_file():
+        pytest.skip("sample logs not present")
+    from impactcli.batch import analyze_file
+
+    res = analyze_file(str(log), robot_path=None, model_path=None,
+                       config_path=str(root / "assist_like.config.toml"), read_options={})
+    assert len(res.counted_incidents()) == 15
+    path = tmp_path / "impacts.rrd"
+    write_rrd(res, path)
+    assert_whole_log_in_view(path, res.log.duration_s)
+    rows = read_entities(path)["/incidents"]
+    assert len(rows["TextLog:text"]) == len(res.incidents)
+    assert [x[0] for x in rows["link"]] == [i.link for i in res.incidents]
+    assert [x[0] for x in rows["contact"]] == [i.contact for i in res.incidents]
+    np.testing.assert_allclose([x[0] for x in rows["force_n"]],
+                               [i.force_n for i in res.incidents])
+    t = elapsed_ns(rows) / 1e9
+    assert t.min() >= 0 and t.max() <= res.log.duration_s
 
 
 def test_rerun_cli_verifies_the_file(written: tuple[DetectionResult, Path]) -> None:

@@ -19,6 +19,17 @@ What the ``.rrd`` holds (entity paths; ``<j>`` is a joint name, escaped for Reru
                                           one per detector (clear / detected), full rate
 ``/events``                               one text-log row per event (WARN; INFO when
                                           the event starts in warm-up)
+``/incidents``                            the incident track: one row per incident at its
+                                          start, a text-log line (link, force, contact
+                                          type, detectors, joints; WARN, INFO in warm-up)
+                                          and the same as fields ``index`` (1-based),
+                                          ``link``, ``force_n``, ``contact``, ``t_end_s``,
+                                          ``detectors``, ``joints``, ``in_warmup``
+``/incidents/contact``                    a state lane: each incident a span from its start
+                                          to its end labelled ``#k link L · F N · type``,
+                                          coloured by contact type
+``/incidents/force``                      a marker per incident with a force estimate, at
+                                          its start, valued at ``force_n`` [N]
 ``/run/log``                              warm-up end per joint (INFO)
 ``/run/info``                             a markdown summary of the run (static)
 ========================================  ===============================================
@@ -26,8 +37,17 @@ What the ``.rrd`` holds (entity paths; ``<j>`` is a joint name, escaped for Reru
 Two timelines: ``message_log_time`` (a timestamp on the log's own clock, named like the
 one Rerun's own MCAP import creates, so both recordings overlay) and
 ``time_since_start`` (a duration: seconds since the log's first sample, the base of
-every time in the timeline JSON). The file ships its default blueprint: one column (or
-tab, beyond four joints) per joint with its four plots and its state lanes; the event log.
+every time in the timeline JSON). The file ships its default blueprint: on top the
+incident lane and the incident forces; one column (or tab, beyond four joints) per joint
+with its four plots and its state lanes; below, the event log (every event and incident:
+the text-log view lists all rows whatever the time cursor) beside the run summary. Every
+plot and lane opens on the whole log — its x axis and its visible time range are
+``[0, duration]`` on ``time_since_start`` — not on a window around the time cursor.
+
+Colours: within a plot the statistic, its threshold and its detector's markers differ,
+and each detector has one colour everywhere (its markers and its "detected" state):
+thresholds are gold, ``adaptive`` red, ``static_loading`` pink, ``static_baseline``
+orange; the filtered residual is cyan (not the baseline detector's orange).
 
 Long logs are decimated for display with the documented min/max envelope of
 :mod:`impactcli.outputs.decimate` (above 200 000 samples per series), keeping every
@@ -63,28 +83,47 @@ _MARKED_ON: dict[str, tuple[str, str]] = {
     "static_loading": ("loading", "loading_statistic"),
     "static_baseline": ("residual", "residual"),
 }
+#: Plot titles, with the colour of each series: the plots carry no legend box (it would
+#: cover the end of the log, where a contact may be), the series are named in the title.
 _PLOT_TITLES: dict[str, str] = {
-    "rms": "RMS vs threshold",
-    "loading": "loading vs vL",
-    "residual": "residual",
-    "position": "position",
+    "rms": "residual RMS (blue) vs threshold (gold), adaptive ✕ (red)",
+    "loading": "loading statistic (purple) vs vL (gold), static_loading ◆ (pink)",
+    "residual": "residual r (grey), filtered (cyan), static_baseline ▲ (orange)",
+    "position": "position: measured (blue), reference (green)",
 }
-_RED = (214, 39, 40)
-_SERIES_COLORS: dict[str, tuple[int, int, int]] = {
-    "residual RMS": (31, 119, 180),
-    "threshold v_stat+v_rms": _RED,
-    "loading statistic": (148, 103, 189),
-    "vL": _RED,
-    "residual r": (127, 127, 127),
-    "filtered residual": (255, 127, 14),
-    "reference": (44, 160, 44),
-    "measured": (31, 119, 180),
+RGB = tuple[int, int, int]
+#: One colour per detector, for its markers and its "detected" lane state.
+DETECTOR_COLORS: dict[str, RGB] = {
+    "adaptive": (214, 39, 40),          # red
+    "static_loading": (227, 119, 194),  # pink
+    "static_baseline": (255, 127, 14),  # orange
 }
-_MARKER_STYLE: dict[str, tuple[Any, tuple[int, int, int]]] = {  # (rr MarkerShape name, RGB)
-    "adaptive": ("Cross", _RED),
-    "static_loading": ("Diamond", (227, 119, 194)),
-    "static_baseline": ("Up", (255, 127, 14)),
+#: Thresholds (v_stat + v_rms, vL) in every plot.
+THRESHOLD_COLOR: RGB = (255, 193, 7)  # gold
+SERIES_COLORS: dict[str, RGB] = {
+    "residual RMS": (31, 119, 180),          # blue
+    "threshold v_stat+v_rms": THRESHOLD_COLOR,
+    "loading statistic": (148, 103, 189),    # purple
+    "vL": THRESHOLD_COLOR,
+    "residual r": (127, 127, 127),           # grey
+    "filtered residual": (23, 190, 207),     # cyan
+    "reference": (44, 160, 44),              # green
+    "measured": (31, 119, 180),              # blue
 }
+_MARKER_SHAPE: dict[str, Any] = {  # rr MarkerShape name
+    "adaptive": "Cross",
+    "static_loading": "Diamond",
+    "static_baseline": "Up",
+}
+#: Incident spans by contact type (``/incidents/contact``); the force markers' colour.
+CONTACT_COLORS: dict[str, RGB] = {
+    "transient": (0, 158, 115),      # bluish green
+    "quasi_static": (106, 61, 154),  # deep purple
+    "unknown": (150, 150, 150),
+}
+INCIDENT_FORCE_COLOR: RGB = (0, 158, 115)
+_CLEAR: RGB = (189, 189, 189)
+_NO_CONTACT = "no contact"
 
 
 def _esc(name: str) -> str:
@@ -155,6 +194,19 @@ def _markdown_summary(result: DetectionResult) -> str:
         "|---|---|---|",
     ]
     lines += [f"| {d} | {s['events']} | {s['in_warmup']} |" for d, s in result.summary().items()]
+    incs = list(result.incidents)
+    lines += ["", f"{len(result.counted_incidents())} incident(s) after warm-up"
+              + (f", {len(incs) - len(result.counted_incidents())} in warm-up" if
+                 len(incs) > len(result.counted_incidents()) else "")]
+    if incs:
+        lines += ["", "| # | start [s] | end [s] | link | force [N] | contact | detectors |",
+                  "|---|---|---|---|---|---|---|"]
+        for k, inc in enumerate(incs, 1):
+            force = f"{inc.force_n:.3g}" if inc.force_n is not None else "–"
+            link = str(inc.link) if inc.link is not None else "–"
+            lines.append(f"| {k}{' (warm-up)' if inc.in_warmup else ''} | {inc.t_start:.3f} | "
+                         f"{inc.t_end:.3f} | {link} | {force} | {inc.contact} | "
+                         f"{', '.join(inc.detectors)} |")
     lines += ["", "| joint | v_stat | v0 | vL |", "|---|---|---|---|"]
     for joint in log.joint_names:
         th = result.thresholds.get(joint, {})
@@ -170,44 +222,99 @@ def _event_text(e: Any) -> str:
     return text + (" [in warm-up]" if e.in_warmup else "")
 
 
-def default_blueprint(joint_names: Sequence[str], has_reference: bool = True) -> Any:
+def incident_label(k: int, inc: Any) -> str:
+    """The span label of incident number ``k`` (1-based, its place in the timeline's
+    ``incidents``): ``#k link L · F N · type``."""
+    link = f"link {inc.link}" if inc.link is not None else "link ?"
+    force = f"{inc.force_n:.3g} N" if inc.force_n is not None else "force ?"
+    return f"#{k} {link} · {force} · {inc.contact}" + (" (warm-up)" if inc.in_warmup else "")
+
+
+def _incident_text(k: int, inc: Any) -> str:
+    link = f"link {inc.link}" if inc.link is not None else "link unknown"
+    force = (f"~{inc.force_n:.3g} N ({inc.force_method})" if inc.force_n is not None
+             else "force unknown (no kinematics)")
+    text = (f"incident #{k}: {link}, {force}, {inc.contact} contact; "
+            f"{', '.join(inc.detectors)} on {', '.join(inc.joints)} "
+            f"({inc.t_start:.3f}–{inc.t_end:.3f} s)")
+    return text + (" [in warm-up]" if inc.in_warmup else "")
+
+
+def whole_log_range(duration_s: float) -> tuple[Any, Any]:
+    """``(TimeRange, VisibleTimeRange)`` covering ``[0, duration_s]`` on ``time_since_start``:
+    the x axis and the data range every plot and lane opens on."""
+    import rerun.blueprint as rrb
+
+    start = rrb.TimeRangeBoundary.absolute(seconds=0.0)
+    end = rrb.TimeRangeBoundary.absolute(seconds=max(float(duration_s), 0.0))
+    return (rrb.TimeRange(start=start, end=end),
+            rrb.VisibleTimeRange(ELAPSED_TIMELINE, start=start, end=end))
+
+
+def default_blueprint(joint_names: Sequence[str], has_reference: bool = True, *,
+                      duration_s: float | None = None, has_incidents: bool = True) -> Any:
     """The layout shipped in the file (a ``rerun.blueprint.Blueprint``).
 
-    One column per joint (tabs beyond four joints) stacking its RMS-vs-threshold,
-    loading-vs-vL, residual and position plots over its detection state lanes (warm-up and
-    one lane per detector); below, the event log beside the run summary. Time panel on
-    ``time_since_start``.
+    On top, the incident lane beside the incident forces (``has_incidents``); one column
+    per joint (tabs beyond four joints) stacking its RMS-vs-threshold, loading-vs-vL,
+    residual and position plots over its detection state lanes (warm-up and one lane per
+    detector); below, the event log (events and incidents) beside the run summary. Time
+    panel on ``time_since_start``. With ``duration_s`` every plot and lane shows the whole
+    log, ``[0, duration_s]`` (x axis and visible time range), whatever the time cursor.
     """
     import rerun.blueprint as rrb
 
-    legend = rrb.PlotLegend(corner="RightTop")
+    ranged: dict[str, Any] = {}
+    lane_ranged: dict[str, Any] = {}
+    if duration_s is not None:
+        view_range, visible = whole_log_range(duration_s)
+        ranged = {"axis_x": rrb.TimeAxis(view_range=view_range), "time_ranges": visible}
+        lane_ranged = {"time_view": rrb.TimeAxis(view_range=view_range),
+                       "time_ranges": visible}
+    legend = rrb.PlotLegend(visible=False)  # the titles name the series and their colours
     columns = []
     for joint in joint_names:
         root = joint_entity(joint)
         titles = dict(_PLOT_TITLES)
         if not has_reference:
-            titles["position"] = "position (measured; no reference logged)"
+            titles["position"] = "position: measured (blue; no reference logged)"
         views: list[Any] = [
             rrb.TimeSeriesView(origin=f"{root}/{plot}", name=f"{joint}: {title}",
-                               plot_legend=legend)
+                               plot_legend=legend, **ranged)
             for plot, title in titles.items()
         ]
         views.append(rrb.StateTimelineView(origin=f"/detections/{_esc(joint)}",
-                                           name=f"{joint}: detections"))
+                                           name=f"{joint}: detections", **lane_ranged))
         columns.append(rrb.Vertical(*views, row_shares=[3, 3, 3, 3, 5], name=joint))
     joints_box = rrb.Horizontal(*columns) if len(columns) <= 4 else rrb.Tabs(*columns)
     bottom = rrb.Tabs(
         rrb.TextLogView(
-            origin="/", contents=["/events/**", "/run/log/**"], name="events",
+            origin="/", contents=["/incidents", "/events/**", "/run/log/**"],
+            name="events and incidents",
             columns=rrb.TextLogColumns(timeline_columns=[ELAPSED_TIMELINE],
-                                       text_log_columns=["loglevel", "body"]),
-            rows=rrb.TextLogRows(filter_by_log_level=["DEBUG", "INFO", "WARN", "ERROR"]),
+                                       text_log_columns=["loglevel", "entitypath", "body"]),
+            rows=rrb.TextLogRows(filter_by_log_level=["TRACE", "DEBUG", "INFO", "WARN",
+                                                      "ERROR", "CRITICAL"]),
         ),
         rrb.TextDocumentView(origin="/run/info", name="run"),
     )
+    rows: list[Any] = [joints_box, bottom]
+    shares: list[float] = [10, 4]
+    if has_incidents:
+        top = rrb.Horizontal(
+            rrb.StateTimelineView(origin="/incidents", contents=["/incidents/contact"],
+                                  name="incidents (link · force · contact type)",
+                                  **lane_ranged),
+            rrb.TimeSeriesView(origin="/incidents/force",
+                               name="incident force [N] (green dots, at each start)",
+                               plot_legend=legend, **ranged),
+            column_shares=[3, 1],
+        )
+        rows.insert(0, top)
+        shares.insert(0, 2)
     return rrb.Blueprint(
-        rrb.Vertical(joints_box, bottom, row_shares=[4, 1]),
-        # "following" puts the cursor at the end: every event is listed at once
+        rrb.Vertical(*rows, row_shares=shares),
+        # "following" puts the cursor at the end (the plots keep their whole-log range)
         rrb.TimePanel(timeline=ELAPSED_TIMELINE, state="collapsed", play_state="following"),
         collapse_panels=True,
     )
@@ -253,13 +360,15 @@ def write_rrd(result: DetectionResult, path: str | os.PathLike[str], *,
     os.close(fd)
     rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
     try:
-        rec.save(tmp, default_blueprint=default_blueprint(log.joint_names, log.has_reference))
+        rec.save(tmp, default_blueprint=default_blueprint(
+            log.joint_names, log.has_reference, duration_s=log.duration_s))
         rec.send_recording_name(Path(log.source.path).name or "impactcli run")
         rec.log("/run/info", rr.TextDocument(_markdown_summary(result), media_type="text/markdown"),
                 static=True, strict=True)
         for j, joint in enumerate(log.joint_names):
             _write_joint(rec, result, j, joint, keep, max_points, indexes)
         _write_events(rec, result, indexes)
+        _write_incidents(rec, result, indexes)
         rec.disconnect()
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs are ordinary files
         os.replace(tmp, target)
@@ -279,7 +388,7 @@ def _write_joint(rec: Any, result: DetectionResult, j: int, joint: str,
     plots = _plots(result, j)
     for plot, series in plots.items():
         entity = f"{root}/{plot}"
-        colors = [_SERIES_COLORS[name] for name, _ in series]
+        colors = [SERIES_COLORS[name] for name, _ in series]
         rec.log(entity, rr.SeriesLines(names=[s for s, _ in series], colors=colors,
                                        widths=[1.5] * len(series)), static=True, strict=True)
         sel = select_samples([v for _, v in series], keep, max_points)
@@ -307,7 +416,8 @@ def _write_joint(rec: Any, result: DetectionResult, j: int, joint: str,
         # state lane: every transition, full rate
         change = np.concatenate([[0], np.flatnonzero(np.diff(d.astype(np.int8))) + 1])
         rec.log(f"{lanes}/{det}", rr.StateConfiguration(
-            values=["clear", "detected"], colors=[(189, 189, 189), _RED]), static=True, strict=True)
+            values=["clear", "detected"], colors=[_CLEAR, DETECTOR_COLORS[det]]),
+            static=True, strict=True)
         rec.send_columns(f"{lanes}/{det}", indexes=indexes(change),
                          columns=rr.StateChange.columns(
                              state=np.where(d[change], "detected", "clear").tolist()), strict=True)
@@ -319,7 +429,7 @@ def _write_joint(rec: Any, result: DetectionResult, j: int, joint: str,
             continue
         v = np.asarray(values, dtype=np.float64)[fired, j]
         fired = fired[select_samples(v, keep[fired], max_points)]
-        marker, color = _MARKER_STYLE[det]
+        marker, color = _MARKER_SHAPE[det], DETECTOR_COLORS[det]
         entity = f"{root}/{plot}/{det}"
         rec.log(entity, rr.SeriesPoints(names=[f"{det} detection"], markers=[marker],
                                         colors=[color], marker_sizes=[4.0]),
@@ -353,4 +463,61 @@ def _write_events(rec: Any, result: DetectionResult, indexes: Any) -> None:
         rec.send_columns("/run/log", indexes=indexes(np.array(at_w, dtype=np.int64)),
                          columns=rr.TextLog.columns(text=texts,
                                                     level=[rr.TextLogLevel.INFO] * len(texts)),
+                         strict=True)
+
+
+def _write_incidents(rec: Any, result: DetectionResult, indexes: Any) -> None:
+    """The incident track (module docstring): text rows with fields, spans, force markers."""
+    import pyarrow as pa
+    import rerun as rr
+
+    n = result.log.n_samples
+    incs = list(result.incidents)
+    labels = [incident_label(k, inc) for k, inc in enumerate(incs, 1)]
+    rec.log("/incidents/contact", rr.StateConfiguration(
+        values=[_NO_CONTACT, *labels], labels=["", *labels],
+        colors=[_CLEAR] + [CONTACT_COLORS.get(i.contact, CONTACT_COLORS["unknown"])
+                           for i in incs],
+        visible=[False] + [True] * len(incs)), static=True, strict=True)
+    rec.log("/incidents/force", rr.SeriesPoints(
+        names=["incident force [N]"], markers=["Circle"], colors=[INCIDENT_FORCE_COLOR],
+        marker_sizes=[6.0]), static=True, strict=True)
+    if not incs:
+        rec.send_columns("/incidents/contact", indexes=indexes(np.array([0], dtype=np.int64)),
+                         columns=rr.StateChange.columns(state=[_NO_CONTACT]), strict=True)
+        return
+    at = np.array([min(max(i.i_start, 0), n - 1) for i in incs], dtype=np.int64)
+    # one row per incident: its text-log line and its fields, in one chunk
+    text = rr.TextLog.columns(
+        text=[_incident_text(k, i) for k, i in enumerate(incs, 1)],
+        level=[rr.TextLogLevel.INFO if i.in_warmup else rr.TextLogLevel.WARN for i in incs])
+    fields = rr.AnyValues.columns(
+        index=pa.array(range(1, len(incs) + 1), pa.int64()),
+        link=pa.array([i.link for i in incs], pa.int64()),
+        force_n=pa.array([i.force_n for i in incs], pa.float64()),
+        contact=pa.array([i.contact for i in incs], pa.string()),
+        t_end_s=pa.array([float(i.t_end) for i in incs], pa.float64()),
+        detectors=pa.array([", ".join(i.detectors) for i in incs], pa.string()),
+        joints=pa.array([", ".join(i.joints) for i in incs], pa.string()),
+        in_warmup=pa.array([bool(i.in_warmup) for i in incs], pa.bool_()),
+    )
+    rec.send_columns("/incidents", indexes=indexes(at), columns=[*text, *fields], strict=True)
+    # spans: the incident's label from its first sample, "no contact" after its last
+    idx: list[int] = [0] if at[0] > 0 else []
+    states: list[str] = [_NO_CONTACT] if at[0] > 0 else []
+    for k, (inc, lab) in enumerate(zip(incs, labels, strict=True)):
+        idx.append(int(at[k]))
+        states.append(lab)
+        after = min(max(inc.i_end, inc.i_start), n - 1) + 1
+        nxt = int(at[k + 1]) if k + 1 < len(incs) else n
+        if after < nxt:
+            idx.append(after)
+            states.append(_NO_CONTACT)
+    rec.send_columns("/incidents/contact", indexes=indexes(np.array(idx, dtype=np.int64)),
+                     columns=rr.StateChange.columns(state=states), strict=True)
+    forced = [k for k, i in enumerate(incs) if i.force_n is not None]
+    if forced:
+        rec.send_columns("/incidents/force", indexes=indexes(at[forced]),
+                         columns=rr.Scalars.columns(scalars=np.array(
+                             [incs[k].force_n for k in forced], dtype=np.float64)),
                          strict=True)
