@@ -408,3 +408,136 @@ def test_product_keeps_an_alarm_after_warmup_apart_from_one_in_it():
     evs = [_as_ev(e, 1.0, i) for i, e in enumerate((warm, tail, adap))]
     out = product_events(evs, 1.0)
     assert [(e.t_start, e.t_end, e.in_warmup) for e in out] == [(0.5, 1.2, True), (1.0, 9.0, False)]
+
+
+# --- incidents: the answer (link, force, contact type) --------------------------------
+
+
+def inc(t0: float, t1: float, link: int | None, force: float | None, contact: str,
+        events: tuple[int, ...], warm: bool = False) -> dict:
+    """A timeline ``incidents`` item."""
+    return {"t_start": t0, "t_end": t1, "t_start_utc": None, "detectors": ["adaptive"],
+            "joints": ["j1"], "link": link, "force_n": force, "force_method": "test",
+            "contact": contact, "peak_residual": {"j1": 1.0}, "in_warmup": warm,
+            "events": list(events)}
+
+
+def answer_case():
+    """Four contacts: A impact on link 2 (10 N), B push on link 1 (20 N), C clamp on link 2
+    (30 N), D impact on link 1 (5 N, missed); incidents: one in warm-up, A right (+20 %),
+    B on the wrong link (−25 %), C transient instead of quasi-static without a force, and
+    a false one at 9.5 s."""
+    lab = labels(ContactLabel(2.0, 2.1, 10.0, "impact", 2),
+                 ContactLabel(4.0, 4.5, 20.0, "push", 1),
+                 ContactLabel(6.0, 7.0, 30.0, "clamp", 2),
+                 ContactLabel(8.5, 8.6, 5.0, "impact", 1))
+    events = [ev("adaptive", 2.03), ev("static_loading", 2.05, 2.2), ev("static_loading", 4.1),
+              ev("static_loading", 6.2, 6.9), ev("adaptive", 9.5), ev("adaptive", 0.3, warm=True)]
+    incs = [inc(0.3, 0.35, 1, 1.0, "transient", (5,), warm=True),
+            inc(2.03, 2.2, 2, 12.0, "transient", (0, 1)),
+            inc(4.1, 4.15, 2, 15.0, "transient", (2,)),
+            inc(6.2, 6.9, 2, None, "transient", (3,)),
+            inc(9.5, 9.55, 1, 11.0, "transient", (4,))]
+    return lab, events, incs
+
+
+def test_incidents_are_scored_for_link_force_and_contact_type():
+    lab, events, incs = answer_case()
+    e = run(events, lab, incidents=incs)
+    ie = e.incidents
+    assert ie.available
+    o = ie.overall
+    assert (o.n_contacts, o.matched, o.link_right, o.contact_right) == (4, 3, 2, 2)
+    assert o.link_accuracy == pytest.approx(2 / 3) and o.contact_accuracy == pytest.approx(2 / 3)
+    assert o.force_rel_error_median == pytest.approx(0.225)   # |+20 %|, |−25 %|
+    assert o.force_bias_median == pytest.approx(-0.025)
+    rows = {c.label_index: c for c in ie.contacts}
+    assert [rows[k].incident_index for k in range(4)] == [1, 2, 3, None]
+    assert rows[0].force_rel_error == pytest.approx(0.2) and rows[0].link_right
+    assert rows[1].link_right is False and rows[1].contact_right is True
+    assert rows[2].expected_contact == "quasi_static" and rows[2].contact_right is False
+    assert rows[2].force_rel_error is None  # no force estimate
+    assert rows[3].link_right is None and rows[3].n_incidents == 0
+    assert (ie.n_incidents, ie.n_incidents_in_warmup, ie.unmatched) == (4, 1, (4,))
+    # per link and per type (the type the label's kind calls for)
+    assert (ie.per_link[1].matched, ie.per_link[1].n_contacts, ie.per_link[1].link_right) == (
+        1, 2, 0)
+    assert (ie.per_link[2].matched, ie.per_link[2].link_right) == (2, 2)
+    assert list(ie.per_type) == ["transient", "quasi_static"]
+    assert (ie.per_type["transient"].matched, ie.per_type["transient"].contact_right) == (2, 2)
+    assert (ie.per_type["quasi_static"].matched,
+            ie.per_type["quasi_static"].contact_right) == (1, 0)
+    # every detected contact (A, B, C) is exactly one incident
+    assert (ie.detected, ie.one_incident_each, ie.split, ie.shared) == (3, True, (), ())
+    doc = e.to_dict()
+    validate(doc, "evaluation", LabelsError, "evaluation")
+    d = doc["incidents"]
+    assert [k for k in ("summary", "contacts") if k in d] == ["summary", "contacts"]
+    assert set(d["contacts"][0]) >= {
+        "label_index", "incident_index", "link_label", "link", "force_label_n", "force_n",
+        "force_rel_error", "kind", "contact", "link_right", "contact_right"}
+    assert d["link_accuracy"] == pytest.approx(2 / 3, abs=1e-6)
+    assert d["force_rel_error_median"] == 0.225
+    assert d["per_link"]["2"]["link_right"] == 2
+    assert all(isinstance(a, str) and isinstance(b, str) for a, b in d["summary"])
+    summary = dict(d["summary"])
+    assert summary["link right"] == "2/3 (67%)"
+    assert summary["every detected contact is exactly one incident"] == "yes (3/3)"
+    text = format_evaluation(e)
+    assert "link 2 / 2 ok" not in text  # columns are separate
+    assert "2 / 2 ok" in text and "1 / 2 WRONG" in text and "quasi_static / transient WRONG" in text
+    # incidents given as Incident objects score the same
+    from impactcli.detect.incidents import Incident
+
+    objs = [Incident(i["t_start"], i["t_end"], 0, 0, ("adaptive",), ("j1",), i["link"],
+                     i["force_n"], "test", i["contact"], {"j1": 1.0}, i["in_warmup"], None,
+                     tuple(i["events"])) for i in incs]
+    assert json.dumps(run(events, lab, incidents=objs).to_dict(), sort_keys=True) == \
+        json.dumps(doc, sort_keys=True)
+
+
+def test_a_contact_split_over_incidents_or_sharing_one():
+    lab = labels(ContactLabel(2.0, 3.0, 10.0, "push", 1))
+    events = [ev("adaptive", 2.01), ev("static_loading", 2.9)]
+    split = [inc(2.01, 2.06, 1, 9.0, "transient", (0,)),
+             inc(2.9, 2.95, 1, 9.0, "transient", (1,))]
+    ie = run(events, lab, incidents=split).incidents
+    assert (ie.detected, ie.split, ie.one_incident_each) == (1, (0,), False)
+    assert ie.contacts[0].n_incidents == 2 and ie.contacts[0].incident_index == 0
+    assert ie.unmatched == ()  # the second starts in the window: no false incident
+    assert "no (0/1); split over several incidents: labels #0" in dict(ie.summary())[
+        "every detected contact is exactly one incident"]
+    # without their events, alarms are given to the incident whose span holds them
+    no_events = [{k: v for k, v in i.items() if k != "events"} for i in split]
+    assert run(events, lab, incidents=no_events).incidents.split == (0,)
+    # two contacts whose alarms one incident holds: each is still exactly one incident
+    lab2 = labels(ContactLabel(2.0, 2.1, 5.0, "impact", 1),
+                  ContactLabel(2.2, 2.3, 6.0, "impact", 1))
+    ev2 = [ev("adaptive", 2.01, 2.3), ev("static_loading", 2.21)]
+    ie2 = run(ev2, lab2, incidents=[inc(2.01, 2.3, 1, 5.0, "transient", (0, 1))]).incidents
+    assert (ie2.shared, ie2.one_incident_each) == ((0,), True)
+    assert [c.incident_index for c in ie2.contacts] == [0, None]  # an incident on at onset
+
+
+def test_switch_labels_have_no_force_to_score():
+    lab = Labels(events=(ContactLabel(2.0, 2.1, 0.0, "push", 1, {"peak_force_known": False}),
+                         ContactLabel(4.0, 4.1, 0.0, "push", 1, {"peak_force_known": False})),
+                 sample_rate=250.0, path="<switch>")
+    e = run([ev("adaptive", 2.03)], lab, incidents=[inc(2.03, 2.08, 1, 9.0, "transient", (0,))])
+    c = e.incidents.contacts[0]
+    assert (c.force_label_n, c.force_rel_error, c.link_right) == (None, None, True)
+    assert e.incidents.overall.force_rel_error_median is None
+    a = e.scores["adaptive"]
+    assert (a.detected, a.min_detected_force, a.max_missed_force) == (1, None, None)
+    validate(e.to_dict(), "evaluation", LabelsError, "evaluation")
+    assert "switch / 9 N" in format_evaluation(e)
+
+
+def test_without_incidents_the_evaluation_says_so():
+    lab, events, _ = answer_case()
+    e = run(events, lab, incidents_note="arm.timeline.json is a 1.0 timeline: no incidents")
+    d = e.to_dict()["incidents"]
+    assert d["available"] is False and d["contacts"] == [] and d["link_accuracy"] is None
+    assert d["summary"] == [["incidents", "arm.timeline.json is a 1.0 timeline: no incidents"]]
+    assert "Incidents: arm.timeline.json is a 1.0 timeline" in format_evaluation(e)
+    validate(e.to_dict(), "evaluation", LabelsError, "evaluation")

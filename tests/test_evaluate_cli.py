@@ -123,6 +123,61 @@ def test_json_has_the_known_numbers_and_is_deterministic(files):
     assert wider["tolerance"]["post_s"] == 0.7
 
 
+def timeline_2_doc() -> dict[str, Any]:
+    """timeline_doc as a 2.0 timeline with incidents: the warm-up alarm; the impact
+    (events 1, 2: link 2, 5 N, transient); the push's release (event 3: link 1, no force,
+    quasi-static); the false alarm (event 4)."""
+    doc = timeline_doc()
+    doc["schema_version"] = "2.0"
+
+    def inc(t0: float, link: int | None, force: float | None, contact: str,
+            events: list[int], warm: bool = False) -> dict[str, Any]:
+        return {"t_start": t0, "t_end": t0 + 0.04, "t_start_utc": None,
+                "detectors": ["adaptive"], "joints": ["j2"], "link": link, "force_n": force,
+                "force_method": "test", "contact": contact, "peak_residual": {"j2": -0.8},
+                "in_warmup": warm, "events": events}
+
+    doc["incidents"] = [inc(1.0, 2, 1.0, "transient", [0], True),
+                        inc(10.01, 2, 5.0, "transient", [1, 2]),
+                        inc(20.6, 1, None, "quasi_static", [3]),
+                        inc(40.0, None, None, "unknown", [4])]
+    return doc
+
+
+def test_incidents_of_a_2_0_timeline_are_scored(files, tmp_path):
+    _, lab = files
+    tl = write(tmp_path, "arm2.timeline.json", timeline_2_doc())
+    r = invoke(str(tl), "--labels", str(lab), "--json")
+    assert r.exit_code == 0, info(r)
+    doc = json.loads(r.stdout)
+    validate(doc, "evaluation", LabelsError, "evaluate --json")
+    ie = doc["incidents"]
+    assert ie["available"] is True
+    assert (ie["n_contacts"], ie["matched"], ie["n_incidents"], ie["unmatched_incidents"]) == (
+        3, 2, 3, [3])
+    rows = {c["label_index"]: c for c in ie["contacts"]}
+    assert rows[1]["incident_index"] == 1 and rows[1]["link_right"] is True
+    assert rows[1]["force_rel_error"] == pytest.approx(0.25)  # 5 N for a 4 N impact
+    assert rows[2]["incident_index"] == 2 and rows[2]["link_right"] is False
+    assert rows[2]["contact_right"] is False  # a push is transient
+    assert rows[3]["incident_index"] is None  # the clamp was missed
+    assert ie["link_accuracy"] == 0.5 and ie["contact_accuracy"] == 0.5
+    assert ie["one_incident_per_contact"]["holds"] is True
+    text = invoke(str(tl), "--labels", str(lab))
+    assert text.exit_code == 0, info(text)
+    assert "link right                                      1/2 (50%)" in text.stdout
+
+
+def test_a_1_0_timeline_says_it_has_no_incidents(files):
+    tl, lab = files
+    r = invoke(str(tl), "--labels", str(lab))
+    assert r.exit_code == 0, info(r)
+    assert "is a 1.0 timeline: it has no incidents" in r.stdout
+    doc = json.loads(invoke(str(tl), "--labels", str(lab), "--json").stdout)
+    assert doc["incidents"]["available"] is False
+    assert "1.0 timeline" in doc["incidents"]["summary"][0][1]
+
+
 @pytest.mark.parametrize("labels_doc, what", [
     ({"sample_rate": 250.0, "events": [{"start": 1.0, "end": 2.0, "kind": "impact", "link": 1}]},
      "peak_force"),
@@ -296,3 +351,6 @@ def test_end_to_end_log_and_timeline_agree(tmp_path):
     from_log.pop("input")
     from_tl.pop("input")
     assert from_tl == from_log
+    # both score the run's incidents (the log's from the run, the timeline's from its JSON)
+    assert from_log["incidents"]["available"] is True
+    assert from_log["incidents"]["n_contacts"] == 5

@@ -7,6 +7,9 @@ schemas/timeline.schema.json); anything else is a log, on which the detectors ar
 first (:func:`impactcli.pipeline.analyze`, with detect's ``--robot/--model/--config`` and
 log-reading options). The matching rules are :mod:`impactcli.evaluate`'s.
 
+The incidents (link, force, contact type) are scored too: a timeline's ``incidents`` (a
+1.0 timeline has none, and the output says so), or for a log the run's own.
+
 ``--sweep`` rescales every threshold over ``--scales`` and reports, per detector, the
 smallest scale with zero false alarms and what it still detects, then a one-sentence
 verdict: does the adaptive detector help on this robot and log? It needs the per-sample
@@ -242,7 +245,9 @@ def evaluate_cmd(source: Path, labels_path: Path | None, as_json: bool, sweep: b
 
     An event matches a contact when it starts within [start - PRE, end + POST]. Events in
     warm-up are listed, never counted; contacts in warm-up are reported, not counted as
-    misses. 'product' is adaptive OR static_loading.
+    misses. 'product' is adaptive OR static_loading. The incidents (the answer) are scored
+    too: link against the label's link, force against peak_force, contact type against the
+    kind (impact, push: transient; clamp: quasi_static).
     """
     from ..evaluate import (
         MatchTolerance,
@@ -275,9 +280,14 @@ def evaluate_cmd(source: Path, labels_path: Path | None, as_json: bool, sweep: b
         doc = read_timeline(source)
         _check_rate(labels, float(doc["input"]["sample_rate_hz"]), str(source))
         gap = float(_events_settings(doc["config"]).get("merge_gap_s", 0.0))
+        incidents = doc.get("incidents")
+        note = "" if incidents is not None else (
+            f"{source} is a {doc.get('schema_version', '1.0')} timeline: it has no incidents "
+            "(link, force, contact type) to score; run `impactcli detect` again for them")
         ev = evaluate_events(doc["events"], labels, duration_s=float(doc["input"]["duration_s"]),
                              warmup_end_s=float(doc["warmup_end_s"]), tolerance=tolerance,
-                             product_merge_gap_s=gap)
+                             product_merge_gap_s=gap, incidents=incidents,
+                             incidents_note=note)
         if sweep:
             rows = _timeline_sweep(source, doc, labels, scales, tolerance)
     else:
