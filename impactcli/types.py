@@ -247,10 +247,13 @@ class RobotDescription:
         joints: joint specs in chain order.
         kinematics: ``None`` (no kinematics: decoupled model only), or a mapping with
             ``type`` ``planar`` (``link_lengths`` [m], ``gravity`` [m/s²] 2-vector) or
-            ``urdf`` (``path``).
+            ``urdf`` (``path``, or ``robot``: the name of a robot the tool ships,
+            :mod:`impactcli.robots`).
         nominal: optional nominal dynamic parameters (may be wrong: the model is identified).
         name: a human-readable name.
         path: where it was read from ("" if made in code).
+        joint_map: {log joint name: URDF joint name} for the joints whose names differ
+            (URDF kinematics only); None: the names are the URDF's.
     """
 
     joints: tuple[JointSpec, ...]
@@ -258,6 +261,7 @@ class RobotDescription:
     nominal: dict[str, Any] | None = None
     name: str = ""
     path: str = ""
+    joint_map: dict[str, str] | None = None
 
     def __post_init__(self) -> None:
         names = [j.name for j in self.joints]
@@ -296,6 +300,8 @@ class RobotDescription:
             ],
             "kinematics": self.kinematics,
         }
+        if self.joint_map:
+            d["joint_map"] = dict(self.joint_map)
         if self.nominal is not None:
             d["nominal"] = self.nominal
         return d

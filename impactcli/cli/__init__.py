@@ -32,6 +32,8 @@ VERBS: dict[str, tuple[str, str, str]] = {
                  "Measure detection quality against labels."),
     "sensitivity": ("impactcli.cli.sensitivity", "sensitivity_cmd",
                     "Reproduce the paper's Table II on the simulator."),
+    "robots": ("impactcli.cli.robots", "robots_cmd",
+               "List the robots --robot NAME takes (the robots extra)."),
 }
 
 

@@ -104,14 +104,19 @@ def default_kind(robot: RobotDescription | None) -> str:
 
 
 def match_joints(
-    log_joints: tuple[str, ...], robot: RobotDescription | None, where: str
+    log_joints: tuple[str, ...], robot: RobotDescription | None, where: str,
+    kind: str | None = None,
 ) -> list[int]:
     """Column indices of the log's joints in the robot's chain order.
 
-    Raises RobotDescriptionError naming the joints that are missing on either side.
+    For a ``urdf`` model of a robot with URDF kinematics see :func:`match_urdf_joints`
+    (joints may be missing on either side). Otherwise raises RobotDescriptionError naming
+    the joints that are missing on either side.
     """
     if robot is None:
         return list(range(len(log_joints)))
+    if kind == "urdf" and robot.kinematics and robot.kinematics.get("type") == "urdf":
+        return match_urdf_joints(log_joints, robot, where)
     rj = robot.joint_names
     missing = [j for j in rj if j not in log_joints]
     extra = [j for j in log_joints if j not in rj]
@@ -126,6 +131,74 @@ def match_joints(
             f"the log: {'; '.join(parts)}"
         )
     return [log_joints.index(j) for j in rj]
+
+
+def urdf_source(kin: dict[str, Any]) -> tuple[str, str, str | None]:
+    """The URDF text of ``urdf`` kinematics, how messages name it, and the shipped robot it
+    is (None for a file): ``urdf_xml`` when given, else the shipped robot ``robot``'s URDF,
+    else the file at ``path`` (the one file read in model/)."""
+    name = kin.get("robot")
+    if name is not None:
+        from .. import robots
+
+        xml = kin.get("urdf_xml") or robots.urdf_text(str(name))
+        shipped = robots.entry(str(name))
+        assert shipped is not None  # urdf_text raised otherwise
+        return str(xml), robots.urdf_label(shipped.name), shipped.name
+    xml = kin.get("urdf_xml")
+    upath = str(kin.get("path", "URDF"))
+    if xml is None:
+        try:
+            xml = Path(upath).read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as err:
+            raise RobotDescriptionError(f"{upath}: cannot read URDF: {err}") from err
+    return str(xml), upath, None
+
+
+def match_urdf_joints(
+    log_joints: tuple[str, ...], robot: RobotDescription, where: str
+) -> list[int]:
+    """Column indices of the log's joints that a URDF model can use, in the robot's order.
+
+    A joint of the robot description (through its ``joint_map``) that the URDF has is
+    modelled when logged. The robot's joints the log lacks — those of the description and,
+    for a shipped robot, its arm joints — are held at zero (one ImpactWarning naming
+    them). A logged joint that is not a modelled joint is left out (an ImpactWarning each,
+    worded as the pipeline's, which records it in the timeline). Nothing is renumbered.
+    Raises RobotDescriptionError when no logged joint is a joint of the URDF.
+    """
+    assert robot.kinematics is not None
+    xml, label, shipped = urdf_source(robot.kinematics)
+    in_urdf = set(structures.urdf_joint_names(xml, label))
+    jm = robot.joint_map or {}
+    modelled = [j for j in robot.joint_names if jm.get(j, j) in in_urdf]
+    used = [j for j in modelled if j in log_joints]
+    if not used:
+        raise RobotDescriptionError(
+            f"{where}: no logged joint is a joint of the URDF of {label} (log: "
+            f"{list(log_joints)}; robot description: {[jm.get(j, j) for j in modelled]})")
+    expected = [jm.get(j, j) for j in modelled]
+    if shipped is not None:
+        from .. import robots
+
+        expected += [a for a in robots.arm_joints(shipped) if a not in expected]
+    used_urdf = {jm.get(j, j) for j in used}
+    log_name = {jm.get(j, j): j for j in robot.joint_names if jm.get(j, j) != j}
+    held = [u for u in expected if u not in used_urdf]
+    if held:
+        named = ", ".join(f"{u} (log name {log_name[u]})" if u in log_name else u for u in held)
+        warnings.warn(f"{where}: URDF joint(s) {named} of {label} not in the log: held at zero",
+                      ImpactWarning, stacklevel=3)
+    stray = [j for j in robot.joint_names if j not in modelled and j not in log_joints]
+    if stray:
+        warnings.warn(f"{where}: joint(s) {', '.join(stray)} of the robot description are "
+                      f"neither in the URDF of {label} nor in the log: ignored",
+                      ImpactWarning, stacklevel=3)
+    for j in log_joints:
+        if j not in used:
+            warnings.warn(f"{where}: joint {j!r} left out of detection: not in the model",
+                          ImpactWarning, stacklevel=3)
+    return [log_joints.index(j) for j in used]
 
 
 MOTION_PARAMS: tuple[str, ...] = ("inertia", "gcos", "gsin", "Ia", "fv", "fc")
@@ -184,14 +257,10 @@ def _structure_for(
         base["gravity"] = [float(v) for v in kin.get("gravity", [0.0, -9.81])]
         return base
     if kind == "urdf":
-        xml = kin.get("urdf_xml")
-        upath = str(kin.get("path", "URDF"))
-        if xml is None:  # the one file read in model/: the URDF the description points at
-            try:
-                xml = Path(upath).read_text(encoding="utf-8")
-            except (OSError, UnicodeDecodeError) as err:
-                raise RobotDescriptionError(f"{upath}: cannot read URDF: {err}") from err
-        return structures.urdf_structure(str(xml), joints, base, upath)
+        xml, label, shipped = urdf_source(kin)
+        return structures.urdf_structure(xml, joints, base, label,
+                                         joint_map=robot.joint_map if robot else None,
+                                         robot=shipped)
     raise ModelError(f"unknown model kind {kind!r} (choose from {', '.join(structures.KINDS)})")
 
 
@@ -461,7 +530,7 @@ def _prepare_rows(
     kind = kind or default_kind(robot)
     if kind not in structures.KINDS:
         raise ModelError(f"unknown model kind {kind!r} (choose from {', '.join(structures.KINDS)})")
-    cols = match_joints(log.joint_names, robot, where)
+    cols = match_joints(log.joint_names, robot, where, kind)
     joints = tuple(log.joint_names[c] for c in cols)
     q_raw = log.position[:, cols]
     tau_raw = log.torque[:, cols]
@@ -526,7 +595,9 @@ def identify(
     Args:
         log: the recording (positions [rad], torques [N·m]).
         robot: robot description (planar/urdf kinematics; joint order). Its joints must be
-            exactly the log's joints (any order).
+            exactly the log's joints (any order) — except for a ``urdf`` model, where robot
+            joints the log lacks are held at zero and logged joints the URDF lacks are left
+            out, each warned about (:func:`match_urdf_joints`).
         kind: ``decoupled``, ``planar``, ``urdf``, or None for :func:`default_kind`.
         options: :class:`IdentifyOptions`.
     Returns:

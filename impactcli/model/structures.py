@@ -190,9 +190,9 @@ def _captured_stderr() -> Iterator[list[str]]:
             lines.extend(tmp.read().decode("utf-8", "replace").splitlines())
 
 
-@functools.lru_cache(maxsize=8)
-def _pin_model(urdf_xml: str, joints: tuple[str, ...], where: str) -> Any:
-    """Pinocchio model from URDF text, reduced to ``joints`` (others locked at neutral)."""
+@functools.lru_cache(maxsize=16)
+def _full_pin_model(urdf_xml: str, where: str) -> Any:
+    """Pinocchio model of the whole URDF (kinematic and inertial tree; meshes never read)."""
     pin = _pinocchio()
     with _captured_stderr() as parser_output:
         try:
@@ -207,6 +207,55 @@ def _pin_model(urdf_xml: str, joints: tuple[str, ...], where: str) -> Any:
         raise RobotDescriptionError(
             f"{where}: URDF does not parse: {msg}" + (f" ({detail})" if detail else "")
         ) from err
+    return full
+
+
+def urdf_joint_names(urdf_xml: str, where: str) -> tuple[str, ...]:
+    """The names of the URDF's joints (every non-fixed joint, Pinocchio's order)."""
+    return tuple(list(_full_pin_model(urdf_xml, where).names)[1:])
+
+
+def urdf_chain(urdf_xml: str, tip: str, base: str | None, where: str) -> tuple[str, ...]:
+    """The 1-dof joints on the chain from link ``base`` (None: the root) to link ``tip``,
+    in chain order (base to tip).
+
+    Raises RobotDescriptionError when a link is missing, ``base`` is not on the way to
+    ``tip``, or the chain has no joint.
+    """
+    pin = _pinocchio()
+    full = _full_pin_model(urdf_xml, where)
+
+    def link_joint(link: str) -> int:
+        if not full.existFrame(link, pin.FrameType.BODY):
+            raise RobotDescriptionError(f"{where}: URDF has no link {link!r}")
+        return int(full.frames[full.getFrameId(link, pin.FrameType.BODY)].parentJoint)
+
+    stop = 0 if base is None else link_joint(base)
+    chain: list[int] = []
+    j = link_joint(tip)
+    while j != stop:
+        if j == 0:
+            raise RobotDescriptionError(f"{where}: link {base!r} is not on the way to {tip!r}")
+        chain.append(j)
+        j = int(full.parents[j])
+    names = tuple(full.names[i] for i in reversed(chain) if full.joints[i].nv == 1)
+    if not names:
+        raise RobotDescriptionError(f"{where}: no joint between {base or 'the root'} and {tip!r}")
+    return names
+
+
+def _urdf_joints(joints: tuple[str, ...], structure: dict[str, Any]) -> tuple[str, ...]:
+    """The URDF's names of ``joints`` (the log's), through ``urdf_joint_map`` when present."""
+    jm = structure.get("urdf_joint_map") or {}
+    return tuple(str(jm.get(j, j)) for j in joints)
+
+
+@functools.lru_cache(maxsize=16)
+def _pin_model(urdf_xml: str, joints: tuple[str, ...], where: str) -> Any:
+    """Pinocchio model from URDF text, reduced to ``joints`` (URDF names; the others are
+    locked at neutral: zero, for revolute, continuous and prismatic joints)."""
+    pin = _pinocchio()
+    full = _full_pin_model(urdf_xml, where)
     names = list(full.names)[1:]
     missing = [j for j in joints if j not in names]
     if missing:
@@ -214,7 +263,14 @@ def _pin_model(urdf_xml: str, joints: tuple[str, ...], where: str) -> Any:
             f"{where}: URDF has no joint(s) {missing} (its joints: {names})"
         )
     lock = [full.getJointId(nm) for nm in names if nm not in joints]
-    model = pin.buildReducedModel(full, lock, pin.neutral(full)) if lock else full
+    src = full
+    clash = set(names) & {f.name for f in full.frames if f.type != pin.FrameType.JOINT}
+    if lock and clash:  # a link named like a joint (SO-100's "gripper"): the reduction
+        src = pin.Model(full)  # cannot tell their frames apart; rename the link's, in a copy
+        for i in range(len(src.frames)):
+            if src.frames[i].type != pin.FrameType.JOINT and src.frames[i].name in clash:
+                src.frames[i].name += " (link)"
+    model = pin.buildReducedModel(src, lock, pin.neutral(src)) if lock else full
     for j in joints:
         jm = model.joints[model.getJointId(j)]
         if jm.nv != 1:
@@ -223,9 +279,13 @@ def _pin_model(urdf_xml: str, joints: tuple[str, ...], where: str) -> Any:
 
 
 def urdf_full_names(joints: tuple[str, ...], structure: dict[str, Any]) -> list[str]:
-    """Names of all columns of the URDF structure before base reduction."""
-    model = _pin_model(structure["urdf_xml"], joints, structure.get("urdf_path", "URDF"))
-    names = [f"{nm}.{p}" for nm in list(model.names)[1:] for p in PIN_PARAMS]
+    """Names of all columns of the URDF structure before base reduction (every name is
+    ``<log joint>.<parameter>``: a URDF joint renamed by ``urdf_joint_map`` goes by the
+    log's name)."""
+    ujoints = _urdf_joints(joints, structure)
+    model = _pin_model(structure["urdf_xml"], ujoints, structure.get("urdf_path", "URDF"))
+    back = dict(zip(ujoints, joints, strict=True))
+    names = [f"{back.get(nm, nm)}.{p}" for nm in list(model.names)[1:] for p in PIN_PARAMS]
     if structure.get("motor_inertia", True):
         names += [f"{j}.Ia" for j in joints]
     for j in joints:
@@ -239,10 +299,11 @@ def urdf_full_regressor(
 ) -> np.ndarray:
     """(N, J, P_full) Pinocchio joint-torque regressor + Ia + friction, rows in ``joints`` order."""
     pin = _pinocchio()
-    model = _pin_model(structure["urdf_xml"], joints, structure.get("urdf_path", "URDF"))
+    ujoints = _urdf_joints(joints, structure)
+    model = _pin_model(structure["urdf_xml"], ujoints, structure.get("urdf_path", "URDF"))
     data = model.createData()
     n_s, n = q.shape
-    jids = [model.getJointId(j) for j in joints]
+    jids = [model.getJointId(j) for j in ujoints]
     iq = [model.joints[i].idx_q for i in jids]
     nq = [model.joints[i].nq for i in jids]
     iv = np.array([model.joints[i].idx_v for i in jids])
@@ -297,14 +358,26 @@ def urdf_base_columns(
 
 
 def urdf_structure(
-    urdf_xml: str, joints: tuple[str, ...], base: dict[str, Any], where: str
+    urdf_xml: str, joints: tuple[str, ...], base: dict[str, Any], where: str,
+    joint_map: dict[str, str] | None = None, robot: str | None = None,
 ) -> dict[str, Any]:
-    """The structure mapping of a URDF model (parses the URDF, finds its base columns)."""
+    """The structure mapping of a URDF model (parses the URDF, finds its base columns).
+
+    Args:
+        joint_map: {log joint: URDF joint} for names that differ (stored, for these
+            ``joints`` only, as ``urdf_joint_map``).
+        robot: the shipped robot the URDF is (stored as ``urdf_robot``).
+    """
     s = dict(base)
     s["urdf_xml"] = urdf_xml
     s["urdf_path"] = where
     s["urdf_sha256"] = hashlib.sha256(urdf_xml.encode("utf-8")).hexdigest()
-    _pin_model(urdf_xml, joints, where)
+    if robot:
+        s["urdf_robot"] = robot
+    renamed = {j: str(joint_map[j]) for j in joints if joint_map and joint_map.get(j, j) != j}
+    if renamed:
+        s["urdf_joint_map"] = renamed
+    _pin_model(urdf_xml, _urdf_joints(joints, s), where)
     s["base_columns"] = urdf_base_columns(joints, s)
     return s
 

@@ -1,0 +1,50 @@
+"""``impactcli robots``: the robots the tool ships (the ``robots`` extra), each with the URDF
+it uses and its arm joints — the names ``--robot NAME`` and a robot description's
+``{"type": "urdf", "robot": NAME}`` take."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import click
+
+from ._common import handle_errors
+
+
+@click.command("robots")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
+@handle_errors
+def robots_cmd(as_json: bool) -> None:
+    """List the robots --robot NAME takes: name, URDF, arm joints in chain order.
+
+    They come with the robots extra (pip install 'impactcli[robots]'); only those whose
+    URDF is installed and loads are listed. Meshes are never needed.
+    """
+    from .. import robots
+    from ..errors import EXIT_USAGE
+
+    try:
+        ok, bad = robots.available()
+    except robots.RobotsExtraMissing as err:
+        click.echo(f"impactcli: error: {err}", err=True)
+        click.get_current_context().exit(EXIT_USAGE)
+        return
+    doc: dict[str, Any] = {
+        "package": robots.DIST, "version": robots.data_version(),
+        "robots": [{"name": e.name, "urdf": e.urdf, "title": e.title, "joints": list(j)}
+                   for e, j in ok],
+    }
+    if bad:
+        doc["not_loaded"] = [{"name": n, "reason": why} for n, why in bad]
+    if as_json:
+        click.echo(json.dumps(doc, separators=(",", ":")))
+        return
+    click.echo(f"Robots shipped with the robots extra ({robots.DIST} {doc['version']}); "
+               "use --robot NAME:")
+    wn = max(len(e.name) for e, _ in ok) if ok else 4
+    wu = max(len(e.urdf) for e, _ in ok) if ok else 4
+    for e, joints in ok:
+        click.echo(f"  {e.name:<{wn}}  {e.urdf:<{wu}}  {', '.join(joints)}")
+    for name, why in bad:
+        click.echo(f"impactcli: warning: {name} not listed: {why}", err=True)
