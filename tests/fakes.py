@@ -55,3 +55,50 @@ def fake_result(
         filter_gain={"frequencies_hz": [1.0, 5.0, 10.0],
                      "gain": {j: [0.1, 0.4, 0.8] for j in joints}},
     )
+
+
+#: A two-link planar arm (link lengths 0.5 m and 0.25 m) for the report's kinematic facts.
+PLANAR_ROBOT = {"joints": [{"name": "j1"}, {"name": "j2"}],
+                "kinematics": {"type": "planar", "link_lengths": [0.5, 0.25],
+                               "gravity": [0.0, -9.81]}}
+
+
+def with_incidents(result: DetectionResult, *, kinematics: bool = True,
+                   t0_ns: int | None = None) -> DetectionResult:
+    """``fake_result()`` with its incidents: the warm-up alarm (0.2 s), a transient contact
+    on link 2 (the adaptive event at 4.0 s, ~12 N) and a quasi-static one on link 1 (the
+    loading event at 7.0 s, ~30 N). ``kinematics``: the model records a planar robot
+    (:data:`PLANAR_ROBOT`), else none (forces None). ``t0_ns``: an epoch clock start."""
+    import dataclasses
+
+    from impactcli.detect.incidents import Incident
+
+    log = result.log
+    if t0_ns is not None:
+        log = dataclasses.replace(log, t_ns=np.asarray(log.t_ns) - log.t_ns[0] + t0_ns)
+
+    def utc(t: float) -> str | None:
+        if t0_ns is None:
+            return None
+        import datetime as dt
+
+        when = dt.datetime.fromtimestamp((t0_ns + round(t * 1e9)) / 1e9, tz=dt.UTC)
+        return when.isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+    ev = result.events
+    method = "force at the end of the link (test)" if kinematics else "no kinematics"
+    incs = (
+        Incident(ev[0].t_start, ev[0].t_end, ev[0].i_start, ev[0].i_end, ("adaptive",),
+                 ev[0].joints, 1, 0.4 if kinematics else None, method, "transient",
+                 dict(ev[0].peak_residual), True, utc(ev[0].t_start), (0,)),
+        Incident(ev[1].t_start, ev[1].t_end, ev[1].i_start, ev[1].i_end, ("adaptive",),
+                 ev[1].joints, 2, 12.0 if kinematics else None, method, "transient",
+                 dict(ev[1].peak_residual), False, utc(ev[1].t_start), (1,)),
+        Incident(ev[2].t_start, ev[2].t_end, ev[2].i_start, ev[2].i_end, ("static_loading",),
+                 ev[2].joints, 1, 30.0 if kinematics else None, method, "quasi_static",
+                 dict(ev[2].peak_residual), False, utc(ev[2].t_start), (2,)),
+    )
+    model = dict(result.model or {})
+    if kinematics:
+        model["robot"] = PLANAR_ROBOT
+    return dataclasses.replace(result, log=log, incidents=incs, model=model)

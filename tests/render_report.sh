@@ -4,7 +4,8 @@
 #
 #   tests/render_report.sh [REPORT.html] [OUTDIR]
 #
-# Without REPORT.html, a demo report is built from tests/fakes.py (two logs, one with labels).
+# Without REPORT.html, a demo report is built from tests/fakes.py (two logs: one with incidents
+# on an epoch clock and labels, one run without incidents).
 # Writes OUTDIR/screen.png, OUTDIR/print.pdf and OUTDIR/page-N.png (OUTDIR defaults to a new
 # temporary folder, printed at the end) — open them and read them. Checks: Chromium renders
 # without network access (--host-resolver-rules maps every host to nothing, so a report that
@@ -39,14 +40,14 @@ import sys
 
 from impactcli.outputs.report import write_report
 from impactcli.types import ContactLabel, Labels, LogSource
-from tests.fakes import fake_result
+from tests.fakes import fake_result, with_incidents
 
 cfg = {"adaptive": {"forgetting_factor": 0.999},
        "events": {"merge_gap_s": 0.05, "min_duration_s": 0.0}}
-a = fake_result()
+a = with_incidents(fake_result(), t0_ns=1_767_225_600_000_000_000)  # incidents, epoch clock
 a = dataclasses.replace(a, config=cfg,
                         log=dataclasses.replace(a.log, source=LogSource("fleet/arm_a.csv", "a1" * 32, "csv")))
-b = fake_result(joints=("shoulder", "elbow", "wrist"))
+b = fake_result(joints=("shoulder", "elbow", "wrist"))  # a run without incidents (older)
 b = dataclasses.replace(b, reference_source="measured",
                         log=dataclasses.replace(b.log, source=LogSource("fleet/arm_b.mcap", "b2" * 32, "mcap-ros2")))
 labels = Labels((ContactLabel(3.99, 4.12, 12.0, "impact", 2), ContactLabel(6.95, 7.5, 30.0, "clamp", 1),

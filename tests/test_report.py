@@ -13,19 +13,22 @@ import numpy as np
 import pytest
 
 from impactcli.cli.report import auto_labels, pair_labels
-from impactcli.outputs import svgplot
+from impactcli.detect.incidents import planar_jacobian, smallest_caught_force
+from impactcli.outputs import report, svgplot
 from impactcli.outputs.report import (
     GUARD_S,
     build_report,
     false_alarm_margins,
     log_stem,
+    render_log,
+    verdict_text,
     write_report,
 )
 from impactcli.result import DetectionResult
 from impactcli.schema import load_schema
 from impactcli.types import ContactLabel, Event, Labels, LogSource
 
-from .fakes import fake_result
+from .fakes import fake_result, with_incidents
 
 EVENTS_CFG = {
     "adaptive": {"forgetting_factor": 0.999},
@@ -79,8 +82,14 @@ def test_html_has_every_event_sha_and_caveats() -> None:
     assert "Warm-up: the first 1.000 s" in html
     codes = {c["code"] for c in doc["logs"][0]["caveats"]}
     assert {"uncalibrated", "reference-missing", "warmup", "model-from-log"} <= codes
-    # every event gets a figure (the warm-up one included)
-    assert html.count("<figcaption>Event") == 3
+    # a run without incidents (made before they existed) says so, shows its events
+    # openly and plots each group of alarms
+    sec = doc["logs"][0]
+    assert sec["incidents_known"] is False and sec["incidents"] == []
+    assert "records no incidents" in sec["verdict"]
+    assert "no-incidents" in {c["code"] for c in sec["could_not_see"]}
+    assert '<details class="events" id="log1-events" open>' in html
+    assert html.count("<figcaption>Alarms") == 3
 
 
 @pytest.mark.parametrize(("rule", "margins", "says"), [
@@ -270,26 +279,25 @@ def test_clipped_axis_states_the_true_peak() -> None:
     assert svg.startswith("<svg") and svg.endswith("</svg>")
 
 
-def test_event_figures_group_nearby_events() -> None:
-    r = fake_result()
+def test_one_figure_per_incident_not_per_event() -> None:
+    """Events of several detectors in one contact give one incident figure; the events
+    stay listed (collapsed) under the incident list."""
+    r = with_incidents(fake_result())
     t = r.log.time_s
-    extra = Event(
-        "static_baseline",
-        float(t[1050]),
-        float(t[1060]),
-        1050,
-        1060,
-        ("j2",),
-        1.1,
-        {"j2": 2.0},
-        False,
-    )  # 4.2 s: in the same ±1 s window as the 4.0 s event
-    r = dataclasses.replace(r, events=tuple(sorted((*r.events, extra), key=lambda e: e.t_start)))
+    extra = Event("static_baseline", float(t[1050]), float(t[1060]), 1050, 1060, ("j2",),
+                  1.1, {"j2": 2.0}, False)  # 4.2 s: during the first counted incident
+    r = dataclasses.replace(r, events=(*r.events, extra))
     html, doc = build_report([r])
     validate(doc)
     assert len(doc["logs"][0]["events"]) == 4
-    assert html.count("<figcaption>Event") == 3
-    assert "Events #2 adaptive" in html and "#3 static_baseline" in html
+    assert [i["number"] for i in doc["logs"][0]["incidents"]] == [1, 2, 3]
+    assert html.count("<figcaption><b>Incident") == 3
+    for n in (1, 2, 3):
+        assert f'<figure id="log1-inc{n}">' in html and f'href="#log1-inc{n}"' in html
+    assert '<details class="events" id="log1-events">' in html  # collapsed
+    assert html.index('id="log1-incidents"') < html.index('id="log1-events"') \
+        < html.index('id="log1-unseen"') < html.index('id="log1-inc1"') \
+        < html.index("<h3>What was analysed</h3>")
 
 
 def test_log_stem() -> None:
@@ -409,3 +417,183 @@ def test_html_tags_are_balanced() -> None:
     c = Checker()
     c.feed(html)
     assert not c.errors[:5] and not c.stack
+
+
+# --------------------------------------------------------------------------- the answer
+
+
+def inc(t: float, link: int | None, force: float | None, contact: str = "transient", *,
+        warm: bool = False, utc: str | None = None,
+        peak: dict[str, float] | None = None) -> dict:
+    """A timeline incident (only the fields the verdict reads)."""
+    return {"t_start": t, "t_end": t + 0.5, "t_start_utc": utc, "link": link, "force_n": force,
+            "contact": contact, "in_warmup": warm, "peak_residual": peak or {"j1": 2.0}}
+
+
+def test_verdict_counts_by_kind_and_link() -> None:
+    v = verdict_text([inc(12.0, 2, 25.0), inc(20.0, 1, 60.0, "quasi_static"),
+                      inc(30.0, 2, 40.2)])
+    assert v == ("3 incidents: 2 transient on link 2, ~25 N and ~40 N; "
+                 "1 quasi-static on link 1, ~60 N.")
+
+
+def test_verdict_when_nothing_counts() -> None:
+    assert verdict_text([]) == "No incident after warm-up."
+    assert verdict_text([inc(0.2, 1, 0.4, warm=True)]) == \
+        "No incident after warm-up (1 more in the warm-up, listed, not counted)."
+    old = verdict_text([], known=False, alarms_counted=2)
+    assert old.startswith("2 alarms of the product's detectors after warm-up; this run "
+                          "records no incidents")
+
+
+def test_verdict_gives_clock_times_on_an_epoch_clock() -> None:
+    v = verdict_text([inc(4.0, 2, 12.0, utc="2026-01-01T00:00:04.000Z"),
+                      inc(7.0, 1, 30.0, "quasi_static", utc="2026-01-01T00:00:07.250Z")])
+    assert v == ("2 incidents on 2026-01-01 (UTC): 1 transient on link 2, ~12 N (00:00:04); "
+                 "1 quasi-static on link 1, ~30 N (00:00:07).")
+
+
+def test_verdict_many_incidents_and_no_kinematics() -> None:
+    many = [inc(10.0 + k, 2, f) for k, f in enumerate([4.9, 37.4, 8.7, 15.1])]
+    assert verdict_text(many) == "4 incidents: 4 transient on link 2, ~4.9 to ~37 N."
+    nf = [inc(1.0, None, None, "unknown", peak={"j1": -3.14, "j2": 1.0})]
+    assert verdict_text(nf) == ("1 incident: 1 of unknown kind on a link the residuals "
+                                "cannot say, ~3.1 N·m peak residual.")
+
+
+def test_smallest_caught_force_through_the_jacobian() -> None:
+    jac = planar_jacobian([0.4, 0.4])
+    q = np.array([0.3, 0.5])
+    lever1 = 0.4 * np.cos(0.5) + 0.4  # joint 1's arm for a force normal to link 2 at its end
+    rows = smallest_caught_force([0.8, 0.2], q, jac)
+    assert rows[0] == {"link": 1, "lever_m": pytest.approx(0.4), "own_force_n": pytest.approx(2.0),
+                       "any_force_n": pytest.approx(2.0), "any_joint": 1}
+    assert rows[1]["own_force_n"] == pytest.approx(0.5) and rows[1]["any_joint"] == 2
+    rows = smallest_caught_force([0.2, 0.8], q, jac)
+    assert rows[1]["own_force_n"] == pytest.approx(2.0)
+    assert rows[1]["any_force_n"] == pytest.approx(0.2 / lever1) and rows[1]["any_joint"] == 1
+    rows = smallest_caught_force([None, 0.8], q, jac)  # joint 1 left out of detection
+    assert rows[0]["own_force_n"] is None and rows[0]["any_force_n"] is None
+
+
+def unseen(doc: dict) -> dict[str, dict]:
+    return {c["code"]: c for c in doc["logs"][0]["could_not_see"]}
+
+
+def test_could_not_see_on_a_planar_arm() -> None:
+    r = with_incidents(fake_result())
+    _, doc = build_report([r])
+    validate(doc)
+    items = unseen(doc)
+    assert list(items) == ["warmup", "gaps", "joints-left-out", "smallest-force"]
+    assert items["warmup"]["text"].startswith(
+        "Warm-up: the first 1.000 s (latest over joints, 10 % of the log)")
+    assert "1 incident(s) started in it" in items["warmup"]["text"]
+    assert items["gaps"]["data"]["n"] == 0 and items["gaps"]["short"] == "no gap"
+    assert items["joints-left-out"]["data"]["items"] == []
+    # vL = 0.5 N·m on both joints; links of 0.5 m and 0.25 m
+    sf = items["smallest-force"]
+    after = r.log.time_s >= 1.0
+    q2 = float(np.median(np.asarray(r.log.position)[after, 1]))
+    via_j1 = 0.5 / abs(0.5 * np.cos(q2) + 0.25)
+    links = sf["data"]["links"]
+    assert links[0]["own_force_n"] == pytest.approx(1.0)
+    assert links[1]["own_force_n"] == pytest.approx(2.0)
+    assert links[1]["any_force_n"] == pytest.approx(via_j1) and links[1]["any_joint"] == 1
+    assert sf["data"]["posture_rule"] == "median after warm-up"
+    assert sf["data"]["posture_rad"]["j2"] == pytest.approx(q2)
+    assert "link 1 (j1) ~1.0 N; link 2 (j2) ~2.0 N (joint j1 already alarms at" in sf["text"]
+    assert "median posture after warm-up (j1 " in sf["text"]
+    assert doc["summary"][0]["could_not_see"] == list(items)
+
+
+def test_could_not_see_gaps_left_out_joints_and_no_kinematics() -> None:
+    r = with_incidents(fake_result(), kinematics=False)
+    t_ns = np.asarray(r.log.t_ns).copy()
+    t_ns[1500:] += 1_000_000_000  # the clock jumps 1 s after sample 1499
+    r = dataclasses.replace(r, log=dataclasses.replace(r.log, t_ns=t_ns),
+                            joints_left_out=({"name": "j3", "reason": "not in the model"},))
+    _, doc = build_report([r])
+    validate(doc)
+    items = unseen(doc)
+    gaps = items["gaps"]["data"]
+    assert gaps["n"] == 1 and gaps["longest_s"] == pytest.approx(1.004)
+    assert gaps["items"][0]["t_s"] == pytest.approx(1499 * 0.004)
+    assert "Gaps: 1 in the log's clock" in items["gaps"]["text"]
+    assert items["joints-left-out"]["data"]["items"] == [{"name": "j3",
+                                                          "reason": "not in the model"}]
+    assert "j3: not in the model" in items["joints-left-out"]["text"]
+    sf = items["smallest-force"]
+    assert sf["data"]["links"] == [] and "no kinematics are known" in sf["text"]
+    assert "j1 0.5 N·m, j2 0.5 N·m" in sf["text"]
+    assert doc["logs"][0]["verdict"] == (
+        "2 incidents: 1 transient on link 2, ~3.0 N·m peak residual; 1 quasi-static on "
+        "link 1, ~1.2 N·m peak residual (1 more in the warm-up, listed, not counted).")
+
+
+def test_an_older_timeline_says_what_it_cannot_tell() -> None:
+    origin = {"timeline": "det/run.timeline.json", "timeline_schema_version": "1.0",
+              "recorded_by": "impactcli 0.0.9", "recorded_incidents": None}
+    rendered = render_log(with_incidents(fake_result()), origin=origin)
+    items = unseen({"logs": [rendered.section]})
+    assert "older-timeline" in items
+    text = items["older-timeline"]["text"]
+    assert "det/run.timeline.json" in text and "impactcli 0.0.9" in text
+    assert "records no incidents" in text and "re-running detection" in text
+    assert rendered.section["origin"] == origin
+    assert "older-timeline" not in unseen({"logs": [render_log(fake_result()).section]})
+
+
+def test_the_incident_list_in_html_and_json() -> None:
+    r = with_incidents(fake_result(), t0_ns=1_767_225_600_000_000_000)
+    html, doc = build_report([r])
+    validate(doc)
+    sec = doc["logs"][0]
+    assert sec["verdict"] == ("2 incidents on 2026-01-01 (UTC): 1 transient on link 2, ~12 N "
+                              "(00:00:04); 1 quasi-static on link 1, ~30 N (00:00:07) (1 more "
+                              "in the warm-up, listed, not counted).")
+    assert f'<p class="verdict" id="log1-verdict">{sec["verdict"]}</p>' in html
+    incs = sec["incidents"]
+    assert [(i["number"], i["link"], i["force_n"], i["contact"]) for i in incs] == \
+        [(1, 1, 0.4, "transient"), (2, 2, 12.0, "transient"), (3, 1, 30.0, "quasi_static")]
+    assert incs[1]["peak_ratio"] == 2.0 and incs[1]["peak_ratio_detector"] == "adaptive"
+    row = re.search(r'<tr id="log1-row2">(.*?)</tr>', html)
+    assert row and "link 2" in row.group(1) and "~12 N" in row.group(1)
+    assert "2026-01-01 00:00:04.000 UTC" in row.group(1) and "2.0×" in row.group(1)
+    assert re.search(r'<tr class="warmup" id="log1-row1">.*?warm-up: not counted', html)
+    assert "quasi-static" in re.search(r'<tr id="log1-row3">(.*?)</tr>', html).group(1)
+    summ = doc["summary"][0]["incidents"]
+    assert summ == {"counted": 2, "in_warmup": 1, "by_contact": {"transient": 1,
+                                                                "quasi_static": 1},
+                    "max_force_n": 30.0, "known": True}
+    assert html.index('id="log1-verdict"') < html.index('id="log1-incidents"') \
+        < html.index("Caveats — read before the numbers")
+
+
+def test_sweep_table_is_short_and_its_plot_logarithmic() -> None:
+    r = with_incidents(result_named("run.csv", "9" * 64, config=EVENTS_CFG))
+    lab = Labels((ContactLabel(3.99, 4.12, 12.0, "impact", 2),
+                  ContactLabel(6.95, 7.5, 30.0, "clamp", 1)), 250.0, "run.labels.json")
+    html, doc = build_report([r], [lab])
+    validate(doc)
+    sweep = html[html.index("<h4>Threshold sweep"):]
+    table = sweep[:sweep.index("</table>")]
+    assert 3 <= table.count('<tr><th class="num">') <= 8
+    assert "this run" in table
+    assert f"of {len(doc['logs'][0]['quality']['sweep']['scales'])} scales" in sweep
+    assert "false alarms per hour (log scale" in sweep
+
+
+def test_evaluation_of_incidents_is_rendered_as_it_comes() -> None:
+    q = {"labels_path": "l.json", "n_labelled": 2, "notes": [], "sweep": None,
+         "evaluation": {"incidents": {
+             "summary": [["link right", "2/2"], {"label": "force error (median)", "value": 0.16}],
+             "contacts": [{"label": 1, "link_right": True, "force_error": 0.1},
+                          {"label": 2, "link_right": False, "per_type": {"a": 1}}]}}}
+    text = report.quality.quality_html(q)
+    assert "<th>link right</th><td>2/2</td>" in text
+    assert "<th>force error (median)</th><td>0.16</td>" in text
+    assert "<th>link_right</th>" in text and "<th>per_type</th>" in text
+    assert "{&quot;a&quot;: 1}" in text
+    assert "Incidents against labels" not in report.quality.quality_html(
+        {**q, "evaluation": {"incidents": None}})

@@ -188,4 +188,39 @@ def test_report_end_to_end_with_the_pipeline(tmp_path: Path) -> None:
                                     str(tmp_path / "r2.html"), "--json", str(js2)])
     assert res.exit_code == 0, show(res)
     assert "re-running detection gave" not in res.stderr, show(res)
-    assert js2.read_bytes() == js.read_bytes()
+    # the same facts; only the origin says the second came from a timeline
+    doc2 = json.loads(js2.read_text())
+    assert doc["logs"][0]["origin"] is None
+    origin = doc2["logs"][0].pop("origin")
+    assert origin["timeline_schema_version"] == "2.0" and origin["timeline"].endswith(
+        "e2e.timeline.json")
+    doc["logs"][0].pop("origin")
+    assert doc2 == doc
+
+
+def test_report_on_a_1_0_timeline_says_what_it_cannot_tell(tmp_path: Path,
+                                                          fake_pipeline: list) -> None:
+    """A timeline written before incidents (schema 1.0) is re-run and reported; the report
+    says the file itself records no incidents."""
+    log_path = write_log(tmp_path / "old7.csv")
+    tl = tmp_path / "old7.timeline.json"
+    write_timeline(dataclasses.replace(fake_result(), log=read_log(log_path)), tl)
+    doc = json.loads(tl.read_text())
+    doc["schema_version"] = "1.0"
+    doc["tool"]["version"] = "0.0.9"
+    for key in ("incidents",):
+        doc.pop(key, None)
+    for key in ("joints_left_out", "abs_path"):
+        doc["input"].pop(key, None)
+    doc["replay"].pop("generator", None)
+    tl.write_text(json.dumps(doc))
+    out, js = tmp_path / "r.html", tmp_path / "r.json"
+    res = run(["report", str(tl), "-o", str(out), "--json", str(js)])
+    assert res.exit_code == 0, show(res)
+    sec = json.loads(js.read_text())["logs"][0]
+    assert sec["origin"]["timeline_schema_version"] == "1.0"
+    assert sec["origin"]["recorded_by"] == "impactcli 0.0.9"
+    assert sec["origin"]["recorded_incidents"] is None
+    older = [c for c in sec["could_not_see"] if c["code"] == "older-timeline"]
+    assert older and "records no incidents" in older[0]["text"]
+    assert "This log came as a timeline of schema 1.0" in out.read_text()

@@ -186,6 +186,17 @@ def rerun_timeline(tl_path: Path, *, robot: Any = None) -> tuple[Any, Path]:
     return result, log_path
 
 
+def timeline_origin(tl_path: Path) -> dict[str, Any]:
+    """Where a re-run came from, for the report: the timeline, its schema version and the
+    tool that wrote it (a "1.0" timeline records no incidents; the report says so)."""
+    tl = load_timeline(tl_path)
+    tool = tl.get("tool") or {}
+    return {"timeline": str(tl_path), "timeline_schema_version": str(tl["schema_version"]),
+            "recorded_by": f"{tool.get('name', '?')} {tool.get('version', '?')}",
+            "recorded_incidents": (len(tl["incidents"]) if isinstance(tl.get("incidents"), list)
+                                   else None)}
+
+
 def pair_labels(inputs: Sequence[Path], labels: Sequence[Path]) -> list[Path | None]:
     """Explicit ``--labels`` files per input (rule 1 of the module docstring)."""
     out: list[Path | None] = [None] * len(inputs)
@@ -271,8 +282,10 @@ def analyze_input(task: ReportTask) -> ReportPart:
         warnings.simplefilter("always", ImpactWarning)
         try:
             robot_obj, model_obj, config_obj = _loaded(task.robot, task.model, task.config)
+            origin = None
             if is_timeline(inp):
                 result, log_path = rerun_timeline(inp, robot=robot_obj)
+                origin = timeline_origin(inp)
             else:
                 result = analyze_log(inp, robot=robot_obj, model=model_obj, config=config_obj,
                                      read_options=task.read_options)
@@ -281,7 +294,8 @@ def analyze_input(task: ReportTask) -> ReportPart:
             if lab_path is None and task.auto_labels:
                 lab_path = auto_labels(inp, log_path)
             lab = read_labels(lab_path) if lab_path is not None else None
-            rendered, run_warnings = render_log(result, lab, task.key), result.warnings
+            rendered = render_log(result, lab, task.key, origin=origin)
+            run_warnings = result.warnings
         except ImpactError as e:
             err = e
     msgs = tuple(str(w.message) for w in caught if issubclass(w.category, ImpactWarning))
@@ -326,8 +340,9 @@ def report_cmd(*, inputs: tuple[str, ...], html_path: Path, json_path: Path | No
                torque_source: str | None, jobs: int | None = None,
                scheduler: str | None = None) -> None:
     """Write a safety-audit report: one self-contained HTML file (and --json) over LOGs or
-    TIMELINEs — what was analysed, with what, the events, false-alarm margins, plots,
-    caveats, and detection quality when labels are given.
+    TIMELINEs — per log a verdict and the incidents (when, where, how hard, what kind),
+    what the audit could not see, plots around each incident, caveats, what was analysed
+    with what, the events per detector, and detection quality when labels are given.
 
     A LOG is detected first with the options below; a TIMELINE (*.timeline.json) is re-run
     from its log with the read options, model and config it records (--robot still

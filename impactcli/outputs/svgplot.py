@@ -329,12 +329,22 @@ def render_xy(
     *,
     width: int = 640,
     height: int = 300,
+    x_scale: str = "linear",
 ) -> str:
     """A small scatter-and-line chart (e.g. an ROC-style sweep): one polyline per group,
-    the legend to the right of the plot area."""
+    the legend to the right of the plot area.
+
+    ``x_scale="log1p"`` draws x >= 0 at log10(1 + x): 0 stays at the left edge and the
+    decades 1, 10, 100, … get equal room (false-alarm rates spanning 0 to thousands).
+    """
     ml, mr, mt, mb = 56, 150, 28, 40
     pw, ph = width - ml - mr, height - mt - mb
-    xs_all = [float(v) for x, _ in groups.values() for v in x if math.isfinite(float(v))]
+    log_x = x_scale == "log1p"
+
+    def tx(v: float) -> float:
+        return math.log10(1.0 + max(v, 0.0)) if log_x else v
+
+    xs_all = [tx(float(v)) for x, _ in groups.values() for v in x if math.isfinite(float(v))]
     ys_all = [float(v) for _, y in groups.values() for v in y if math.isfinite(float(v))]
     x0, x1 = min(xs_all, default=0.0), max(xs_all, default=1.0)
     y0, y1 = min(0.0, min(ys_all, default=0.0)), max(ys_all, default=1.0)
@@ -347,7 +357,7 @@ def render_xy(
     y1 *= 1.05
 
     def px(v: float) -> float:
-        return ml + (v - x0) / (x1 - x0) * pw
+        return ml + (tx(v) - x0) / (x1 - x0) * pw
 
     def py(v: float) -> float:
         return mt + ph - (v - y0) / (y1 - y0) * ph
@@ -368,10 +378,20 @@ def render_xy(
             f'<text x="{ml - 5}" y="{py(v) + 3:.1f}" text-anchor="end"'
             f' {font}>{fmt_num(v, y1 - y0)}</text>'
         )
-    for v in nice_ticks(x0, x1, 6):
+    if log_x:
+        x_ticks = [0.0] + [10.0**k for k in range(0, 12) if math.log10(1 + 10.0**k) <= x1]
+        x_labels = ["0"] + [f"{v:.0f}" for v in x_ticks[1:]]
+    else:
+        x_ticks = nice_ticks(x0, x1, 6)
+        x_labels = [fmt_num(v, x1 - x0) for v in x_ticks]
+    for v, label in zip(x_ticks, x_labels, strict=True):
+        parts.append(
+            f'<line x1="{px(v):.1f}" y1="{mt}" x2="{px(v):.1f}" y2="{mt + ph}" stroke="#eeeeee"'
+            ' stroke-width="0.6"/>'
+        )
         parts.append(
             f'<text x="{px(v):.1f}" y="{mt + ph + 13}" text-anchor="middle"'
-            f' {font}>{fmt_num(v, x1 - x0)}</text>'
+            f' {font}>{label}</text>'
         )
     parts.append(
         f'<text x="{ml + pw / 2:.1f}" y="{height - 6}" text-anchor="middle"'

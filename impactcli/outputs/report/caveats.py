@@ -1,0 +1,180 @@
+"""Caveats: plain-language warnings an auditor reads before trusting the numbers (code,
+text) — an uncalibrated or weak calibration, a model from the log itself or fitting it
+poorly, a missing reference, the warm-up, an unfiltered torque, a filter blind to slow
+contacts, a long event, repairs of the input.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from ...detect.calibrate import (
+    MAX_MARGIN,
+    UNCALIBRATED_BLOCK_S,
+    UNCALIBRATED_MARGIN,
+    UNCALIBRATED_QUANTILE,
+)
+from ...detect.events import LONG_EVENT_S
+from ...result import DetectionResult
+from .common import LOW_GAIN, POOR_FIT, share
+
+
+def _poor_fit(result: DetectionResult) -> list[tuple[str, float, str]]:
+    """Joints whose model error (hold-out part when there is one, else the fit) exceeds
+    :data:`POOR_FIT` of the torque RMS: (joint, ratio, where)."""
+    per = ((result.model or {}).get("fit") or {}).get("joints")
+    if not isinstance(per, dict):
+        return []
+    part, where = (per.get("holdout"), " on held-out data") if per.get("holdout") else \
+        (per.get("fit"), "")
+    out = []
+    for j in result.log.joint_names:
+        rel = ((part or {}).get(j) or {}).get("rms_rel_torque_rms")
+        if isinstance(rel, int | float) and rel > POOR_FIT:
+            out.append((j, float(rel), where))
+    return out
+
+
+#: A counted event of adaptive or static_loading at least this long gets a caveat [s].
+
+
+def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]:
+    """Plain-language caveats an auditor must read before the numbers (code, text)."""
+    out: list[dict[str, str]] = []
+    cfg = result.config or {}
+    calib = cfg.get("calibration") or {}
+    if not result.calibrated:
+        out.append(
+            {
+                "code": "uncalibrated",
+                "text": (
+                    "UNCALIBRATED: the thresholds were set from this log's own statistics "
+                    f"({calib.get('margin_rule') or 'robust rule'}: {UNCALIBRATED_MARGIN:g} × the "
+                    f"{UNCALIBRATED_QUANTILE:g}-quantile of its {UNCALIBRATED_BLOCK_S:g} s "
+                    "maxima), not calibrated on separate collision-free logs. Only contacts "
+                    "standing well above the log's own motion are found, and the events below "
+                    "are not what the robot would have detected online; run `impactcli "
+                    "calibrate` on collision-free logs and re-run with --config."
+                ),
+            }
+        )
+    elif calib.get("weak"):
+        rule = calib.get("margin_rule") or "unknown rule"
+        margins = calib.get("margins") or {}
+        capped = sorted({d for d, m in margins.items() if max(m.values(), default=0) >= MAX_MARGIN})
+        if rule == "fixed-single-log":
+            why = ("the thresholds come from a single collision-free log with a fixed 1.5× "
+                   "margin, not a leave-one-out margin over several logs.")
+        else:
+            why = ("the collision-free logs disagreed: the leave-one-out margin hit its cap of "
+                   f"{MAX_MARGIN:g}× ({', '.join(capped) or 'some detector'}), so a log like "
+                   "the most different one may still raise alarms.")
+        out.append({"code": "weak-calibration", "text": f"Weak calibration ({rule}): {why}"})
+    if result.model_source == "identified-from-log":
+        out.append(
+            {
+                "code": "model-from-log",
+                "text": (
+                    "The rigid model was identified from this very log (an offline convenience): "
+                    "its residual is smaller than a model made from other logs would give."
+                ),
+            }
+        )
+    poor = _poor_fit(result)
+    if poor:
+        out.append({"code": "model-poor-fit", "text": (
+            "The rigid model explains the measured torque poorly on "
+            + "; ".join(f"{j} (RMS error {100 * r:.0f} % of the torque RMS{where})"
+                        for j, r, where in poor)
+            + ": its residual carries that model error, so the thresholds there are high "
+            "and small contacts can hide below them.")})
+    unexcited = ((result.model or {}).get("fit") or {}).get("unexcited_parameters") or []
+    if unexcited:
+        out.append({"code": "model-unexcited", "text": (
+            f"The log used for identification did not excite {len(unexcited)} model "
+            f"parameter(s) ({', '.join(map(str, unexcited[:6]))}"
+            + (", …" if len(unexcited) > 6 else "") + "); they were fixed at 0, so motions "
+            "that excite them raise the residual.")})
+    if result.reference_source == "measured":
+        out.append(
+            {
+                "code": "reference-missing",
+                "text": (
+                    "No controller reference was logged: the adaptive detector's inputs (sign of "
+                    "the reference velocity and the reference acceleration, Table I) were taken "
+                    "from the causally filtered MEASURED position. A contact changes the measured "
+                    "motion too, so the adaptive detector can partly absorb it."
+                ),
+            }
+        )
+    n_warm = sum(1 for e in result.events if e.in_warmup)
+    out.append(
+        {
+            "code": "warmup",
+            "text": (
+                f"Warm-up: the first {result.warmup_end_s:.3f} s (latest over joints"
+                f"{share(result.warmup_end_s, result.log.duration_s)}) are the adaptive "
+                "estimator's convergence; a contact in that interval may go undetected. "
+                + (
+                    f"{n_warm} alarm(s) started in it: listed, not counted."
+                    if n_warm
+                    else "No alarm started in it."
+                )
+            ),
+        }
+    )
+    if not result.torque_filtered:
+        out.append(
+            {
+                "code": "torque-unfiltered",
+                "text": (
+                    "The measured torque was not passed through the estimate's causal filter: the "
+                    "residual's high-frequency floor (and the thresholds) are higher than they"
+                    " need be."
+                ),
+            }
+        )
+    fg = result.filter_gain or {}
+    freqs = list(fg.get("frequencies_hz") or [])
+    blind = []
+    for joint in result.log.joint_names:
+        gains = (fg.get("gain") or {}).get(joint) or []
+        low = [
+            (f, g)
+            for f, g in zip(freqs, gains, strict=False)
+            if f is not None and g is not None and f <= 10.0 and g < LOW_GAIN
+        ]
+        if low:
+            f, g = low[-1]  # the highest such frequency
+            blind.append(f"{joint} {100 * g:.0f} % at {f:g} Hz")
+    if blind:
+        out.append(
+            {
+                "code": "filter-blind",
+                "text": (
+                    "The adaptive filter G(z) passes little of slow signals ("
+                    + "; ".join(blind)
+                    + "): slowly building contacts vanish from its residual; only the"
+                      " static-loading "
+                    "detector covers them (README: the method as implemented)."
+                ),
+            }
+        )
+    long_ev = [e for e in result.events if not e.in_warmup
+               and e.t_end - e.t_start >= LONG_EVENT_S and e.detector != "static_baseline"]
+    if long_ev:
+        e = max(long_ev, key=lambda x: x.t_end - x.t_start)
+        out.append({
+            "code": "long-event",
+            "text": (
+                f"{len(long_ev)} event(s) of the product's detectors last {LONG_EVENT_S:g} s or "
+                f"more (the longest: {e.detector}, {e.t_start:.1f}–{e.t_end:.1f} s). A load "
+                "that persists is either a real one (a clamp, a held object) or a model that "
+                "does not fit this log (an unknown payload, a changed robot): if the robot "
+                "changed, re-identify (`detect --config C --model-from-log`) or recalibrate."
+            ),
+        })
+    for rep in tl["input"].get("repairs") or []:
+        out.append({"code": "repair", "text": f"Input repaired while reading: {rep}"})
+    return out
+

@@ -1,0 +1,207 @@
+"""Every plot of the report, built on :mod:`impactcli.outputs.svgplot` (inline SVG,
+decimated by a min/max envelope so no peak hides): one set of panels around each incident,
+the statistic against its threshold over the whole log, and the threshold sweep.
+
+A panel draws one detector's statistic (blue) against its threshold (red, the area above
+it shaded: where the detector alarms) on one joint, with the warm-up, the detector's events
+on that joint and labelled contacts as bands.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from ...detect.incidents import group_events
+from ...result import DetectionResult
+from ...types import DETECTORS, Labels
+from .. import svgplot
+from .common import (
+    CLIP_FACTOR,
+    DETECTOR_TITLE,
+    EVENT_BUCKETS,
+    EVENT_WINDOW_S,
+    MAX_EVENT_FIGURES,
+    PRODUCT_DETECTORS,
+    STAT_NAME,
+    WHOLE_LOG_BUCKETS,
+    Ids,
+    approx,
+    e,
+)
+
+BAND_EVENT = "#f3b6ae"
+ALARM_ZONE = "#fdf1ef"
+BAND_WARMUP = "#e4e4e4"
+BAND_LABEL = "#fde7cf"
+
+
+def statistic(result: DetectionResult, detector: str, j: int) -> tuple[np.ndarray, np.ndarray]:
+    """(statistic, threshold) of ``detector`` on joint index ``j``, each (N,) [N·m].
+
+    adaptive: residual_rms vs threshold (v_stat + v_rms, eq. 42); static_loading:
+    loading_statistic vs vL; static_baseline: |residual| vs v0.
+    """
+    n = result.log.n_samples
+    name = result.log.joint_names[j]
+    if detector == "adaptive":
+        return result.signals["residual_rms"][:, j], result.signals["threshold"][:, j]
+    if detector == "static_loading":
+        return result.signals["loading_statistic"][:, j], np.full(n, result.thresholds[name]["vL"])
+    return np.abs(result.signals["residual"][:, j]), np.full(n, result.thresholds[name]["v0"])
+
+
+def _bands(result: DetectionResult, detector: str, joint: str,
+           labels: Labels | None) -> list[svgplot.Band]:
+    bands = [svgplot.Band(0.0, result.warmup_end_s, BAND_WARMUP, "warm-up")]
+    if labels is not None:
+        bands += [svgplot.Band(c.start, c.end, BAND_LABEL, f"labelled {c.kind} {c.peak_force:g} N",
+                               outline=svgplot.ORANGE) for c in labels.events]
+    bands += [svgplot.Band(ev.t_start, ev.t_end, BAND_EVENT, f"{ev.detector} event")
+              for ev in result.events if ev.detector == detector and joint in ev.joints]
+    return bands
+
+
+def panel(result: DetectionResult, detector: str, j: int, *, lo: int, hi: int, buckets: int,
+          title: str, labels: Labels | None, ids: Ids, width: int, height: int) -> str:
+    """One detector on one joint over samples lo..hi-1, as an inline SVG."""
+    t = result.log.time_s
+    stat, thr = statistic(result, detector, j)
+    ts, ys = svgplot.envelope(t[lo:hi], stat[lo:hi], buckets)
+    tt, yt = svgplot.envelope(t[lo:hi], thr[lo:hi], buckets)
+    sname, tname = STAT_NAME[detector]
+    chart = svgplot.Chart(
+        title=title, x_range=(float(t[lo]), float(t[hi - 1])),
+        series=(svgplot.Series(sname, ts, ys, svgplot.BLUE),
+                svgplot.Series(tname, tt, yt, svgplot.RED, width=1.1, fill_above=ALARM_ZONE)),
+        bands=_bands(result, detector, result.log.joint_names[j], labels), y_unit="N·m",
+        clip_factor=CLIP_FACTOR, clip_reference=tname)
+    return svgplot.render_chart(chart, width=width, height=height, chart_id=ids())
+
+
+def legend_html(labels: Labels | None) -> str:
+    """What the colours of every panel mean."""
+    lab = (f'<span class="legend-key" style="background:{BAND_LABEL};border-color:'
+           f'{svgplot.ORANGE}"></span>labelled contacts' if labels is not None else "")
+    return (
+        '<p class="small">Blue: the detector\'s statistic; red: its threshold — the lightly '
+        "shaded area above it is where the detector alarms. "
+        f'<span class="legend-key" style="background:{BAND_EVENT}"></span>events of that '
+        f'detector <span class="legend-key" style="background:{BAND_WARMUP}"></span>warm-up'
+        f"{lab}. The y axis is capped at {CLIP_FACTOR:g}× the threshold (the true maximum is "
+        "then written in red).</p>")
+
+
+def _window(t: np.ndarray, t_a: float, t_b: float) -> tuple[int, int]:
+    n = len(t)
+    lo = int(np.searchsorted(t, t_a, side="left"))
+    hi = min(max(int(np.searchsorted(t, t_b, side="right")), lo + 2), n)
+    return min(lo, hi - 2), hi
+
+
+def _figure(result: DetectionResult, joints: Sequence[str], t_a: float, t_b: float,
+            labels: Labels | None, ids: Ids) -> str:
+    lo, hi = _window(result.log.time_s, t_a, t_b)
+    names = result.log.joint_names
+    return "".join(
+        panel(result, d, names.index(jn), lo=lo, hi=hi, buckets=EVENT_BUCKETS,
+              title=f"{jn} · {DETECTOR_TITLE[d]}", labels=labels, ids=ids, width=520, height=150)
+        for jn in joints for d in PRODUCT_DETECTORS)
+
+
+def _plot_joints(result: DetectionResult, joints: Sequence[str], link: int | None,
+                 chain: Sequence[str]) -> list[str]:
+    """The joints that fired, and the joint of the isolated link, in the log's order."""
+    want = set(joints)
+    if link is not None and 0 < link <= len(chain):
+        want.add(chain[link - 1])
+    return [j for j in result.log.joint_names if j in want]
+
+
+def incident_figures(result: DetectionResult, incidents: Sequence[dict[str, Any]],
+                     labels: Labels | None, ids: Ids, anchor: str,
+                     chain: Sequence[str]) -> str:
+    """One figure per incident (±EVENT_WINDOW_S around it): both product detectors on each
+    joint that fired and on the joint of its link."""
+    if not incidents:
+        return ""
+    p = [f"<h3>Around each incident (±{EVENT_WINDOW_S:g} s)</h3>", legend_html(labels)]
+    for inc in incidents[:MAX_EVENT_FIGURES]:
+        joints = _plot_joints(result, inc.get("joints") or [], inc.get("link"), chain)
+        how = (f"~{approx(inc['force_n'])} N" if inc.get("force_n") is not None
+               else "no force estimate")
+        where = f"link {inc['link']}" if inc.get("link") is not None else "link unknown"
+        evs = ", ".join(f"#{k + 1}" for k in inc.get("events") or [])
+        fig = _figure(result, joints, inc["t_start"] - EVENT_WINDOW_S,
+                      inc["t_end"] + EVENT_WINDOW_S, labels, ids)
+        p.append(
+            f'<figure id="{anchor}-inc{inc["number"]}"><figcaption><b>Incident '
+            f'{inc["number"]}</b>: {inc["t_start"]:.3f}–{inc["t_end"]:.3f} s, {e(where)}, '
+            f'{e(how)}, {e(inc.get("contact"))}'
+            + (", in warm-up (not counted)" if inc.get("in_warmup") else "")
+            + f"; events {e(evs)} of the event table.</figcaption>"
+            f'<div class="grid2">{fig}</div></figure>')
+    if len(incidents) > MAX_EVENT_FIGURES:
+        p.append(f'<p class="warn">{len(incidents) - MAX_EVENT_FIGURES} further incident(s) are '
+                 f"not plotted (at most {MAX_EVENT_FIGURES} figures per log); they are listed "
+                 "above and in the JSON report.</p>")
+    return "".join(p)
+
+
+def alarm_figures(result: DetectionResult, merge_gap_s: float, labels: Labels | None,
+                  ids: Ids) -> str:
+    """For a run without incidents: one figure per group of overlapping product alarms."""
+    groups = group_events(result.events, merge_gap_s)
+    if not groups:
+        return ""
+    p = [f"<h3>Around each group of alarms (±{EVENT_WINDOW_S:g} s)</h3>", legend_html(labels)]
+    for g in groups[:MAX_EVENT_FIGURES]:
+        evs = [result.events[k] for k in g]
+        joints = [j for j in result.log.joint_names if any(j in ev.joints for ev in evs)]
+        t_a, t_b = min(ev.t_start for ev in evs), max(ev.t_end for ev in evs)
+        desc = "; ".join(f"#{k + 1} {result.events[k].detector} on "
+                         f"{', '.join(result.events[k].joints)}" for k in g)
+        fig = _figure(result, joints, t_a - EVENT_WINDOW_S, t_b + EVENT_WINDOW_S, labels, ids)
+        p.append(f"<figure><figcaption>Alarms {t_a:.3f}–{t_b:.3f} s: {e(desc)}.</figcaption>"
+                 f'<div class="grid2">{fig}</div></figure>')
+    if len(groups) > MAX_EVENT_FIGURES:
+        p.append(f'<p class="warn">{len(groups) - MAX_EVENT_FIGURES} further group(s) are not '
+                 "plotted; they are in the event table.</p>")
+    return "".join(p)
+
+
+def whole_log_figures(result: DetectionResult, labels: Labels | None, ids: Ids) -> str:
+    """Every detector against its threshold over the whole log, per joint."""
+    n = result.log.n_samples
+    p = ["<h3>Statistic against threshold over the whole log</h3>", legend_html(labels),
+         f'<p class="small">Drawn as a min/max envelope of {WHOLE_LOG_BUCKETS} buckets, so no '
+         "peak is hidden.</p>"]
+    for j, name in enumerate(result.log.joint_names):
+        panels = "".join(
+            panel(result, d, j, lo=0, hi=n, buckets=WHOLE_LOG_BUCKETS,
+                  title=f"{name} · {DETECTOR_TITLE[d]}", labels=labels, ids=ids, width=1000,
+                  height=150)
+            for d in DETECTORS)
+        p.append(f"<figure>{panels}<figcaption>Joint {e(name)}, whole log.</figcaption></figure>")
+    return "".join(p)
+
+
+def sweep_plot(rows: Sequence[dict[str, Any]], detectors: Sequence[str]) -> str:
+    """The threshold sweep, ROC-style: contacts detected against false alarms per hour, on
+    a log(1 + x) axis (no false alarm at the left edge; 1, 10, 100, … decades)."""
+    groups: dict[str, tuple[list[float], list[float]]] = {}
+    for d in detectors:
+        pts = sorted({(float(r["false_alarms_per_hour"]), r["detected"] / r["n_contacts"])
+                      for r in rows if r["detector"] == d and r["n_contacts"]
+                      and r.get("false_alarms_per_hour") is not None})
+        if pts:
+            groups[d] = ([a for a, _ in pts], [b for _, b in pts])
+    if not groups:
+        return ""
+    return ("<figure>" + svgplot.render_xy(
+        "Threshold sweep", groups, "false alarms per hour (log scale; 0 at the left edge)",
+        "fraction of contacts detected", x_scale="log1p")
+        + "<figcaption>ROC-style: each point is one threshold scale; up and to the left is "
+        "better.</figcaption></figure>")

@@ -1,0 +1,273 @@
+"""The answer first: the verdict line of a log, its incident list, and the fleet summary.
+
+An *incident* is one physical contact as the product sees it (formats.md, "Detection
+timeline", ``incidents``; :mod:`impactcli.detect.incidents`): when (``t_start``, and
+``t_start_utc`` on an epoch clock), where (``link``), how hard (``force_n``, or without
+kinematics the peak residual torques), what kind (``contact``), which detectors. The report
+adds only reductions of the incident's own events: its ``peak_ratio`` (the largest
+statistic / threshold among its events) and the detector that reached it.
+
+Incidents that start in the warm-up are listed, never counted (as events are).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+from .common import CONTACT_TEXT, PRODUCT_DETECTORS, approx, e, ratio_cell, utc
+
+CONTACT_ORDER = ("transient", "quasi_static", "unknown")
+
+
+def incident_rows(tl: dict[str, Any], period_s: float) -> list[dict[str, Any]]:
+    """The timeline's incidents, each with ``number`` (1-based), ``duration_s``,
+    ``peak_ratio`` and ``peak_ratio_detector`` (over its events)."""
+    events = tl.get("events") or []
+    out = []
+    for n, inc in enumerate(tl.get("incidents") or [], 1):
+        evs = [events[k] for k in inc.get("events") or [] if 0 <= k < len(events)]
+        top = max(evs, key=lambda x: x["peak_ratio"], default=None)
+        out.append({**inc, "number": n, "duration_s": inc["t_end"] - inc["t_start"] + period_s,
+                    "peak_ratio": None if top is None else top["peak_ratio"],
+                    "peak_ratio_detector": None if top is None else top["detector"]})
+    return out
+
+
+def incidents_known(result_incidents: int, events: Sequence[dict[str, Any]]) -> bool:
+    """Whether the run records incidents: it does when it has any, or when no event of the
+    product's detectors exists (then there is none to record). A run made before incidents
+    existed has product events and no incident."""
+    return result_incidents > 0 or not any(ev["detector"] in PRODUCT_DETECTORS for ev in events)
+
+
+def peak_torque(inc: dict[str, Any]) -> float:
+    """The largest |peak residual| over an incident's joints [N·m]."""
+    return max((abs(v) for v in (inc.get("peak_residual") or {}).values()), default=0.0)
+
+
+def _clock(incs: Sequence[dict[str, Any]]) -> tuple[str, bool] | None:
+    """(date, all on that date) when every incident has a UTC time, else None."""
+    times = [utc(i.get("t_start_utc")) for i in incs]
+    if not times or any(t is None for t in times):
+        return None
+    days = {t.date() for t in times if t is not None}
+    return min(days).isoformat(), len(days) == 1
+
+
+def _when(inc: dict[str, Any], same_day: bool) -> str:
+    t = utc(inc.get("t_start_utc"))
+    if t is None:
+        return ""
+    return f"{t:%H:%M:%S}" if same_day else f"{t:%Y-%m-%d %H:%M:%S}"
+
+
+def _and(items: Sequence[str]) -> str:
+    return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1]
+
+
+def _how_hard(group: Sequence[dict[str, Any]], clock: tuple[str, bool] | None) -> str:
+    """``~25 N and ~40 N`` (≤ 3 incidents, with clock times), else ``~5 to ~37 N``; the
+    peak residual torque where no force is known."""
+    with_f = [i for i in group if i.get("force_n") is not None]
+    if len(group) <= 3:
+        parts = []
+        for i in group:
+            v = (f"~{approx(i['force_n'])} N" if i.get("force_n") is not None
+                 else f"~{approx(peak_torque(i))} N·m peak residual")
+            when = _when(i, clock[1]) if clock else ""
+            parts.append(f"{v} ({when})" if when else v)
+        return _and(parts)
+    if with_f:
+        fs = [i["force_n"] for i in with_f]
+        text = f"~{approx(min(fs))} to ~{approx(max(fs))} N"
+        if len(with_f) < len(group):
+            text += f" ({len(group) - len(with_f)} without a force estimate)"
+    else:
+        ts = [peak_torque(i) for i in group]
+        text = f"peak residual ~{approx(min(ts))} to ~{approx(max(ts))} N·m"
+    if clock:
+        text += f", {_when(group[0], clock[1])} to {_when(group[-1], clock[1])}"
+    return text
+
+
+def verdict_text(incidents: Sequence[dict[str, Any]], *, known: bool = True,
+                 alarms_counted: int = 0) -> str:
+    """The log's answer in one line, e.g. ``3 incidents: 2 transient on link 2, ~25 N and
+    ~40 N; 1 quasi-static on link 1, ~60 N.`` — clock times when the log's clock is an
+    epoch; ``No incident after warm-up.`` when none counts.
+
+    Args:
+        incidents: the log's incidents (timeline dicts), in time order.
+        known: False for a run that records no incidents though its product detectors
+            fired (made before incidents existed); ``alarms_counted`` then says how many.
+    """
+    if not known:
+        s = "" if alarms_counted == 1 else "s"
+        return (f"{alarms_counted} alarm{s} of the product's detectors after warm-up; this "
+                "run records no incidents (made before incidents existed), so which link, "
+                "how hard and what kind are not known.")
+    counted = [i for i in incidents if not i.get("in_warmup")]
+    warm = len(incidents) - len(counted)
+    tail = f" ({warm} more in the warm-up, listed, not counted)" if warm else ""
+    if not counted:
+        return f"No incident after warm-up{tail}."
+    clock = _clock(counted)
+    groups: dict[tuple[str, int | None], list[dict[str, Any]]] = {}
+    for i in counted:
+        groups.setdefault((i.get("contact") or "unknown", i.get("link")), []).append(i)
+
+    def order(kv: tuple[tuple[str, int | None], list[dict[str, Any]]]) -> tuple[Any, ...]:
+        (kind, link), items = kv
+        rank = CONTACT_ORDER.index(kind) if kind in CONTACT_ORDER else len(CONTACT_ORDER)
+        return (-len(items), rank, link if link is not None else 10**6)
+
+    parts = []
+    for (kind, link), items in sorted(groups.items(), key=order):
+        what = (f"{len(items)} of unknown kind" if kind == "unknown"
+                else f"{len(items)} {CONTACT_TEXT.get(kind, kind)}")
+        where = f"on link {link}" if link is not None else "on a link the residuals cannot say"
+        parts.append(f"{what} {where}, {_how_hard(items, clock)}")
+    n = len(counted)
+    head = f"{n} incident{'s' if n != 1 else ''}"
+    if clock:
+        head += f" on {clock[0]} (UTC)" if clock[1] else " (UTC)"
+    return f"{head}: {'; '.join(parts)}{tail}."
+
+
+def incident_counts(incidents: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """Counted incidents, in warm-up, per contact type, the largest force [N] (or None)."""
+    counted = [i for i in incidents if not i.get("in_warmup")]
+    forces = [i["force_n"] for i in counted if i.get("force_n") is not None]
+    by: dict[str, int] = {}
+    for i in counted:
+        by[i.get("contact") or "unknown"] = by.get(i.get("contact") or "unknown", 0) + 1
+    return {"counted": len(counted), "in_warmup": len(incidents) - len(counted),
+            "by_contact": by, "max_force_n": max(forces, default=None)}
+
+
+# --------------------------------------------------------------------------- HTML
+
+
+def _torques(inc: dict[str, Any]) -> str:
+    pr = inc.get("peak_residual") or {}
+    return " · ".join(f"{e(j)} {approx(v)}" for j, v in pr.items()) + " N·m" if pr else "—"
+
+
+def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: int) -> str:
+    """The incident list: when, where, how hard, what kind, which detectors, how far above
+    threshold; each row links to its plots (the first ``plotted`` incidents have one)."""
+    clock = any(r.get("t_start_utc") for r in rows)
+    body = []
+    for r in rows:
+        n = r["number"]
+        when = f'{r["t_start"]:.3f} s'
+        t = utc(r.get("t_start_utc"))
+        if clock and t is not None:
+            ms = t.microsecond // 1000
+            when = f'{t:%Y-%m-%d %H:%M:%S}.{ms:03d} UTC <span class="note">({when})</span>'
+        if r.get("in_warmup"):
+            when += ' <span class="note">warm-up: not counted</span>'
+        force = (f'<b>~{approx(r["force_n"])} N</b>' if r.get("force_n") is not None
+                 else '<span class="muted">no force estimate</span>')
+        link = f'link {r["link"]}' if r.get("link") is not None else "link unknown"
+        ratio = ("—" if r.get("peak_ratio") is None else
+                 f'{r["peak_ratio"]:.1f}× <span class="note">{e(r["peak_ratio_detector"])}</span>')
+        plot = f'<a href="#{anchor}-inc{n}">plot</a>' if n <= plotted else ""
+        cls = ' class="warmup"' if r.get("in_warmup") else ""
+        body.append(
+            f'<tr{cls} id="{anchor}-row{n}"><td class="num">{n}</td><td class="num">{when}</td>'
+            f'<td class="num">{r["duration_s"]:.2f}</td><td><b>{link}</b></td>'
+            f'<td>{force} <span class="small">({_torques(r)})</span></td>'
+            f'<td>{e(CONTACT_TEXT.get(r.get("contact") or "unknown", r.get("contact")))}</td>'
+            f'<td>{e(", ".join(r.get("detectors") or []))}</td><td class="num">{ratio}</td>'
+            f"<td>{plot}</td></tr>")
+    methods: dict[str, list[int]] = {}
+    for r in rows:
+        methods.setdefault(r.get("force_method") or "—", []).append(r["number"])
+    notes = "".join(
+        f"<li>{e(m)} (incident{'s' if len(ns) > 1 else ''} {e(_ranges(ns))})</li>"
+        for m, ns in methods.items())
+    return (
+        f'<div class="wide"><table class="incidents" id="{anchor}-incidents"><thead><tr>'
+        '<th class="num">#</th><th class="num">when (since log start)</th>'
+        '<th class="num">lasting [s]</th><th>where</th><th>how hard (peak)</th><th>kind</th>'
+        '<th>detectors (first first)</th><th class="num">peak / threshold</th><th></th>'
+        f'</tr></thead>{"".join(body)}</table></div>'
+        '<div class="small muted">How hard: the force at the end of the link, where the '
+        "contact point is assumed (a contact nearer the joint is under-estimated by the "
+        "lever-arm ratio); in brackets the peak residual torque of each joint that fired. "
+        f'<ul class="tight">{notes}</ul></div>')
+
+
+def _ranges(ns: Sequence[int]) -> str:
+    """``1–3, 5`` from sorted numbers."""
+    out: list[str] = []
+    start = prev = ns[0]
+    for n in [*ns[1:], None]:
+        if n is not None and n == prev + 1:
+            prev = n
+            continue
+        out.append(str(start) if start == prev else f"{start}–{prev}")
+        if n is not None:
+            start = prev = n
+    return ", ".join(out)
+
+
+def fleet_table_html(doc: dict[str, Any]) -> str:
+    """The fleet summary: per log its verdict, what could not be seen, calibration, and
+    the score against labels when given."""
+    with_q = any(r.get("quality") for r in doc["summary"])
+    rows = []
+    for k, r in enumerate(doc["summary"]):
+        sec = doc["logs"][k]
+        qs = r.get("quality")
+        qcell = "" if not with_q else (
+            '<td class="muted">no labels</td>' if not qs else
+            f'<td class="num">{qs["detected"]}/{qs["n_contacts"]} hit, '
+            f'{qs["false_alarms"]} FA</td>')
+        unseen = "; ".join(c["short"] for c in sec.get("could_not_see") or [] if c.get("short"))
+        calib = ('<span class="good">yes</span>' if r["calibrated"]
+                 else '<span class="bad">no</span>')
+        rows.append(
+            f'<tr><td class="num">{k + 1}</td><td><a href="#log{k + 1}">{e(r["stem"])}</a><br>'
+            f'<code class="small" title="{e(r["sha256"])}">{e(r["sha256"][:12])}…</code></td>'
+            f'<td class="verdict-cell">{e(r["verdict"])}</td>'
+            f'<td class="small">{e(unseen)}</td><td>{calib}</td>{qcell}</tr>')
+    return (
+        '<table class="summary" id="fleet-summary"><thead><tr><th class="num">#</th>'
+        "<th>log / sha256 (start)</th><th>verdict</th><th>what the audit could not see</th>"
+        "<th>calibrated</th>" + ("<th>vs labels (product)</th>" if with_q else "")
+        + f"</tr></thead>{''.join(rows)}</table>")
+
+
+def fleet_details_html(doc: dict[str, Any]) -> str:
+    """The fleet's per-detector numbers (events, worst false-alarm margin), collapsed."""
+    rows = []
+    for k, r in enumerate(doc["summary"]):
+        ev = r["events"]
+        cells = "".join(
+            f'<td class="num">{ev[d]["events"]}'
+            + (f' <span class="muted small">(+{ev[d]["in_warmup"]} w-u)</span>'
+               if ev[d]["in_warmup"] else "") + "</td>" for d in ev)
+        wj = doc["logs"][k]["false_alarm_margin"]["worst"]
+        worst = "".join(ratio_cell(r["worst_margin"].get(d), (wj.get(d) or {}).get("joint"))
+                        for d in PRODUCT_DETECTORS)
+        ref = (e(r["reference_source"]) if r["reference_source"] == "reference"
+               else f'<span class="warn">{e(r["reference_source"])}</span>')
+        rows.append(
+            f'<tr><td class="num">{k + 1}</td><td>{e(r["stem"])}</td>'
+            f'<td class="num">{r["duration_s"]:.1f}</td><td class="num">{r["sample_rate_hz"]:.0f}'
+            f'</td><td class="num">{r["n_joints"]}</td>{cells}<td>{ref}</td>{worst}</tr>')
+    dets = list(doc["summary"][0]["events"]) if doc["summary"] else []
+    head = "".join(f'<th class="num">{e(d)}</th>' for d in dets)
+    whead = "".join(f'<th class="num">{e(d)}</th>' for d in PRODUCT_DETECTORS)
+    return (
+        "<details><summary>Per detector: events and worst false-alarm margin per log"
+        '</summary><table class="summary"><tr><th rowspan="2" class="num">#</th>'
+        '<th rowspan="2">log</th><th rowspan="2" class="num">duration [s]</th>'
+        '<th rowspan="2" class="num">rate [Hz]</th><th rowspan="2" class="num">joints</th>'
+        f'<th colspan="{len(dets)}">events after warm-up (+ in warm-up)</th>'
+        '<th rowspan="2">reference</th>'
+        f'<th colspan="{len(PRODUCT_DETECTORS)}">worst false-alarm margin</th></tr>'
+        f"<tr>{head}{whead}</tr>{''.join(rows)}</table></details>")

@@ -1,0 +1,177 @@
+"""What the audit could not see, per log: the warm-up, gaps in the log's clock, joints left
+out of detection, the smallest force each link's thresholds catch, and what an older
+timeline cannot tell.
+
+Each item is ``{"code", "short", "text", "data"}``: ``short`` for the fleet table, ``text``
+as printed, ``data`` the numbers behind it.
+
+**Smallest caught force** (:func:`impactcli.detect.incidents.smallest_caught_force`), with
+planar kinematics: for link i, the static force at the end of link i, in the direction that
+turns joint i most (normal to the link), that just reaches joint i's static-loading
+threshold: vL_i / (lever arm of joint i to the end of link i); and the smallest force that
+reaches the threshold of any joint 1..i. Evaluated at the median posture after warm-up.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ...detect.incidents import planar_jacobian, smallest_caught_force
+from ...result import DetectionResult
+from .common import approx, e, share
+
+#: At most this many gaps are listed in the JSON.
+MAX_GAPS_LISTED = 50
+
+
+def chain_of(result: DetectionResult) -> tuple[tuple[str, ...], dict[str, Any] | None]:
+    """The robot's joint chain (base first) and its kinematics, from the robot description
+    the model records (as :func:`impactcli.pipeline.robot_chain` reads it); the analysed
+    joints without kinematics when the model records none."""
+    desc = (result.model or {}).get("robot")
+    joints = result.log.joint_names
+    if isinstance(desc, dict) and desc.get("joints"):
+        inverse = {v: k for k, v in dict(desc.get("joint_map") or {}).items()}
+        names = tuple(inverse.get(str(j["name"]), str(j["name"])) for j in desc["joints"])
+        if set(joints) <= set(names):
+            kin = desc.get("kinematics")
+            return names, kin if isinstance(kin, dict) else None
+    return tuple(joints), None
+
+
+def _warmup(result: DetectionResult, incidents: list[dict[str, Any]]) -> dict[str, Any]:
+    w = result.warmup_end_s
+    n = sum(1 for i in incidents if i.get("in_warmup"))
+    per = result.warmup_per_joint_s or {}
+    text = (f"Warm-up: the first {w:.3f} s (latest over joints{share(w, result.log.duration_s)})"
+            " are the adaptive estimator's convergence; a contact then may go unseen. "
+            + (f"{n} incident(s) started in it: listed, not counted." if n
+               else "No incident started in it."))
+    return {"code": "warmup", "short": f"warm-up to {w:.1f} s", "text": text,
+            "data": {"end_s": w, "per_joint_s": dict(per), "incidents_in_warmup": n,
+                     "fraction": w / result.log.duration_s if result.log.duration_s else None}}
+
+
+def _gaps(result: DetectionResult) -> dict[str, Any]:
+    from ...io.inspect import time_gaps
+
+    idx, lengths = time_gaps(result.log)
+    t = result.log.time_s
+    items = [{"t_s": float(t[int(i)]), "length_s": float(x)} for i, x in zip(idx, lengths,
+                                                                              strict=True)]
+    if not items:
+        return {"code": "gaps", "short": "no gap", "data": {"n": 0, "total_s": 0.0, "items": []},
+                "text": "Gaps: none — the log's clock has no step much longer than its period."}
+    total = float(np.sum(lengths))
+    big = max(items, key=lambda x: x["length_s"])
+    return {"code": "gaps", "short": f"{len(items)} gap(s), {total:.2g} s",
+            "data": {"n": len(items), "total_s": total, "longest_s": big["length_s"],
+                     "items": items[:MAX_GAPS_LISTED]},
+            "text": (f"Gaps: {len(items)} in the log's clock, {total:.3g} s in all (the longest "
+                     f"{big['length_s']:.3g} s at {big['t_s']:.3f} s): nothing was measured "
+                     "there, so a contact then was not seen.")}
+
+
+def _left_out(result: DetectionResult, chain: tuple[str, ...]) -> dict[str, Any]:
+    items = [dict(x) for x in result.joints_left_out]
+    if not items:
+        return {"code": "joints-left-out", "short": "all joints analysed", "data": {"items": []},
+                "text": "Joints left out of detection: none — every logged joint was analysed."}
+    desc = "; ".join(
+        f"{x.get('name')}" + (f" (link {chain.index(x['name']) + 1})" if x.get("name") in chain
+                              else "") + f": {x.get('reason')}" for x in items)
+    return {"code": "joints-left-out", "short": f"{len(items)} joint(s) left out",
+            "data": {"items": items},
+            "text": (f"Joints left out of detection: {desc}. A contact is seen only through "
+                     "the joints analysed; links keep their numbers.")}
+
+
+def _smallest_force(result: DetectionResult, chain: tuple[str, ...],
+                    kin: dict[str, Any] | None) -> dict[str, Any]:
+    log = result.log
+    vl_nm = {j: result.thresholds.get(j, {}).get("vL") for j in log.joint_names}
+    torques = ", ".join(f"{j} {approx(v)} N·m" for j, v in vl_nm.items() if v is not None)
+    data: dict[str, Any] = {"kinematics": (kin or {}).get("type"), "vL_nm": vl_nm}
+    if not kin or kin.get("type") != "planar" or not kin.get("link_lengths"):
+        why = ("no kinematics are known" if not kin else
+               f"the report computes it for planar arms only (this robot: {kin.get('type')})")
+        return {"code": "smallest-force", "short": "", "data": {**data, "links": []},
+                "text": (f"Smallest force caught: not stated — {why}. The static-loading "
+                         f"thresholds as torques: {torques}.")}
+    after = log.time_s >= result.warmup_end_s
+    q_log = np.asarray(log.position)[after if after.any() else slice(None)]
+    q = np.zeros(len(chain))
+    for k, j in enumerate(chain):
+        if j in log.joint_names:
+            q[k] = float(np.median(q_log[:, log.joint_names.index(j)]))
+    vl = [vl_nm.get(j) for j in chain]
+    rows = smallest_caught_force(vl, q, planar_jacobian(kin["link_lengths"]))
+    for r in rows:
+        r["joint"] = chain[r["link"] - 1]
+    posture = {j: float(q[k]) for k, j in enumerate(chain)}
+    held = [j for j in chain if j not in log.joint_names]
+    where = (", ".join(f"{j} {v:.2f} rad" for j, v in posture.items())
+             + (f"; {', '.join(held)} held at 0" if held else ""))
+    assumption = (
+        "a static force at the end of the link (where incident forces are estimated), in the "
+        "direction that turns the link's joint most (normal to the link, in the arm's plane), "
+        "held until the static-loading low-pass settles; at the median posture after warm-up "
+        f"({where})")
+    parts = []
+    for r in rows:
+        if r["own_force_n"] is None:
+            parts.append(f"link {r['link']} ({r['joint']}): its joint is not analysed")
+            continue
+        p = f"link {r['link']} ({r['joint']}) ~{approx(r['own_force_n'])} N"
+        if r["any_force_n"] is not None and r["any_force_n"] < 0.95 * r["own_force_n"]:
+            p += (f" (joint {chain[r['any_joint'] - 1]} already alarms at "
+                  f"~{approx(r['any_force_n'])} N, isolated to an inner link)")
+        parts.append(p)
+    short = ", ".join(f"link {r['link']} ≥ {approx(r['own_force_n'])} N" for r in rows
+                      if r["own_force_n"] is not None)
+    return {"code": "smallest-force", "short": short,
+            "data": {**data, "links": rows, "posture_rad": posture,
+                     "posture_rule": "median after warm-up", "assumption": assumption},
+            "text": (f"Smallest force the thresholds catch: {'; '.join(parts)}. Assumed: "
+                     f"{assumption}. A contact nearer the joint needs more (force × distance "
+                     "to the joint = vL); a short impact may also trip the adaptive detector, "
+                     "whose threshold follows the motion.")}
+
+
+def _older(origin: dict[str, Any] | None, known: bool) -> list[dict[str, Any]]:
+    out = []
+    if origin and origin.get("timeline_schema_version") == "1.0":
+        by = origin.get("recorded_by") or "an older impactcli"
+        out.append({"code": "older-timeline", "short": "timeline 1.0",
+                    "data": dict(origin),
+                    "text": (f"This log came as a timeline of schema 1.0 "
+                             f"({origin.get('timeline')}, "
+                             f"written by {by}): that file records no incidents, no residual "
+                             "generator per joint and no joints left out of detection. "
+                             "What this report shows of them comes from re-running detection "
+                             "now on the same log (its sha256 checked).")})
+    if not known:
+        out.append({"code": "no-incidents", "short": "no incidents recorded", "data": {},
+                    "text": ("This run records events per detector but no incidents (it was "
+                             "made before incidents existed): which link a contact touched, how "
+                             "hard and of what kind cannot be told; the alarms are listed per "
+                             "detector below.")})
+    return out
+
+
+def could_not_see(result: DetectionResult, incidents: list[dict[str, Any]], *,
+                  known: bool = True, origin: dict[str, Any] | None = None,
+                  ) -> list[dict[str, Any]]:
+    """The items of "what the audit could not see" for one log (module docstring)."""
+    chain, kin = chain_of(result)
+    return [*_older(origin, known), _warmup(result, incidents), _gaps(result),
+            _left_out(result, chain), _smallest_force(result, chain, kin)]
+
+
+def could_not_see_html(items: list[dict[str, Any]], anchor: str) -> str:
+    """The box under the incident list."""
+    lis = "".join(f'<li class="unseen-{e(c["code"])}">{e(c["text"])}</li>' for c in items)
+    return (f'<div class="unseen" id="{anchor}-unseen"><h3>What the audit could not see</h3>'
+            f"<ul>{lis}</ul></div>")
