@@ -220,18 +220,19 @@ def analyze(
 
 
 def robot_chain(full: RobotLog, robot: RobotDescription | None,
-                model: dict[str, Any] | None) -> tuple[tuple[str, ...], dict[str, Any] | None]:
+                model: dict[str, Any] | None, detected: tuple[str, ...] = (),
+                ) -> tuple[tuple[str, ...], dict[str, Any] | None]:
     """The robot's joint chain (base first) and its kinematics mapping: the robot
     description's (given, or the one the model was identified with), else the log's own
     joint order without kinematics. Link numbers are positions in this chain."""
     desc = robot.to_dict() if robot is not None else (model or {}).get("robot")
+    kin = desc.get("kinematics") if isinstance(desc, dict) else None
     if isinstance(desc, dict) and desc.get("joints"):
-        names = tuple(str(j["name"]) for j in desc["joints"])
-        mapped = dict(desc.get("joint_map") or {})
-        inverse = {v: k for k, v in mapped.items()}
-        names = tuple(inverse.get(n, n) for n in names)
-        if set(full.joint_names) <= set(names):
-            return names, desc.get("kinematics")
+        names = tuple(str(j["name"]) for j in desc["joints"])  # the log's names
+        if set(detected) <= set(names):
+            return names, kin
+    if isinstance(kin, dict) and kin.get("type") == "urdf" and model is not None:
+        return tuple(model["joint_names"]), kin  # a named robot: the model's chain
     return full.joint_names, None
 
 
@@ -257,7 +258,9 @@ def find_incidents(
     groups = group_events(events, merge_gap_s, pressing)
     if not groups:
         return []
-    chain, kin = robot_chain(full, robot, result.model)
+    chain, kin = robot_chain(full, robot, result.model, log.joint_names)
+    if not set(log.joint_names) <= set(chain):
+        chain, kin = full.joint_names, None
     index = [chain.index(j) + 1 for j in log.joint_names]
     q_chain = np.zeros((log.n_samples, len(chain)))
     for j in chain:
@@ -266,6 +269,9 @@ def find_incidents(
     jac = None
     if isinstance(kin, dict) and kin.get("type") == "planar":
         jac = planar_jacobian(kin["link_lengths"])
+    elif (isinstance(kin, dict) and kin.get("type") == "urdf" and result.model is not None
+          and result.model.get("kind") == "urdf"):
+        jac = _urdf_jacobian(result.model, chain)
     dt = log.sample_period_s
     _, qd, _ = causal_derivatives(dt, np.asarray(log.position), min(10.0, 0.2 / dt))
     vl = np.array([result.thresholds[j]["vL"] for j in log.joint_names])
@@ -302,6 +308,29 @@ def find_incidents(
             peak_residual=peak, in_warmup=bool(min(evs, key=lambda e: e.t_start).in_warmup),
             t_start_utc=_utc(log.t0_ns + round(t[a] * 1e9)), events=tuple(g)))
     return out
+
+
+def _urdf_jacobian(model: dict[str, Any], chain: tuple[str, ...]) -> Any:
+    """The link-end Jacobian of a URDF model, taking positions in ``chain`` order."""
+    from .model.kinematics import urdf_link_end_jacobian
+
+    mj = tuple(model["joint_names"])
+    inner = urdf_link_end_jacobian(model["structure"], mj)
+    pos = [chain.index(j) for j in mj]
+    # the chain's link i ends at model joint i+1: the link index in the model's joints
+    link_of = {c: sum(1 for p in pos if p < c) for c in range(1, len(chain) + 1)}
+
+    def jac(q: np.ndarray, i: int) -> np.ndarray | None:
+        k = link_of.get(i, 0)
+        j = inner(q[pos], k) if k >= 1 else None
+        if j is None:
+            return None
+        out = np.zeros((j.shape[0], i))
+        for n in range(k):
+            out[:, pos[n]] = j[:, n]
+        return out
+
+    return jac
 
 
 def _utc(t_ns: int) -> str | None:

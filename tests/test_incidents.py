@@ -148,3 +148,46 @@ def test_fail_on_force_without_kinematics_warns(tmp_path: Path) -> None:
                                   "--fail-on-force", "1"])
     assert "--fail-on-force: " in r.output and "have no force estimate" in r.output
     assert r.exit_code == 0, r.output
+
+
+def test_urdf_link_end_jacobian_matches_finite_differences() -> None:
+    """A shipped robot's URDF: the Jacobian of each link's end point (next joint's origin;
+    the tool for the last link) against finite differences, and a force at the end of link
+    4 recovered from J^T F."""
+    pytest.importorskip("pinocchio")
+    from impactcli.errors import ImpactError
+    from impactcli.model.kinematics import urdf_link_end_jacobian
+    from impactcli.robots import arm_joints, urdf_text
+
+    try:
+        joints, xml = arm_joints("panda"), urdf_text("panda")
+    except ImpactError as err:
+        pytest.skip(f"the robots extra is not installed: {err}")
+    structure = {"urdf_xml": xml, "urdf_path": "panda", "urdf_robot": "panda"}
+    jac = urdf_link_end_jacobian(structure, joints)
+    q = np.array([0.1, -0.5, 0.3, -2.0, 0.2, 1.5, 0.4])
+    import pinocchio as pin
+
+    from impactcli.model.structures import _pin_model
+
+    model = _pin_model(xml, joints, "panda")
+    data = model.createData()
+
+    def point(x: np.ndarray, i: int) -> np.ndarray:
+        pin.forwardKinematics(model, data, x)
+        pin.updateFramePlacements(model, data)
+        if i < 7:
+            return np.array(data.oMi[model.getJointId(joints[i])].translation)
+        return np.array(data.oMf[model.getFrameId("panda_hand")].translation)
+
+    for i in (1, 4, 7):
+        num = np.column_stack([(point(q + h, i) - point(q - h, i)) / 2e-6
+                               for h in np.eye(7)[:i] * 1e-6])
+        np.testing.assert_allclose(jac(q, i), num, atol=1e-7)
+    force = np.array([0.0, 20.0, -15.0])
+    j4 = jac(q, 4)
+    r = np.tile(j4.T @ force, (3, 1))
+    f, method = estimate_force(r, np.tile(q, (3, 1)), 4, [1, 2, 3, 4], jac)
+    # 4 equations, 3 unknowns: recovered unless a direction is near-singular (then less)
+    assert f == pytest.approx(25.0, rel=0.05) or f < 25.0
+    assert "end of link 4" in method
