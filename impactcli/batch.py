@@ -15,8 +15,10 @@ Failures per log (``JobOutcome.error_class``, with the exit code a one-log run w
   ``EIO``…, see :func:`impactcli.io.urls.is_transient`) are first retried
   :data:`~impactcli.io.urls.IO_RETRIES` times with backoff
   (:data:`~impactcli.io.urls.BACKOFF_S` × 2^k s); the whole job is retried;
-- ``worker-lost`` (1): the worker process died on this log, also on its re-run;
-- ``internal`` (1): an unexpected exception (a bug): the traceback is kept in the outcome.
+- ``worker-lost`` (70): the worker process died on this log, also on its re-run;
+- ``internal`` (70): an unexpected exception (a bug): the traceback is kept in the outcome.
+
+A crash exits 70 (``EX_SOFTWARE``), never 1: exit 1 means "incidents found" to a CI gate.
 
 :func:`batch_summary` folds outcomes into the batch summary (``detect --summary``).
 """
@@ -32,15 +34,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .errors import EXIT_DATA, ImpactError, ImpactWarning
+from .errors import EXIT_DATA, EXIT_SOFTWARE, ImpactError, ImpactWarning
 
 #: read_log keyword arguments recorded in a timeline's ``input.read_options``.
 READ_KEYS = ("channel_map", "topic", "reference_topic", "time_source", "torque_source")
 #: Detectors counted in summaries (DetectionResult.summary()).
 DETECTORS = ("adaptive", "static_loading", "static_baseline")
 SUMMARY_SCHEMA_VERSION = "1.0"
-#: Exit code a one-log run gives for a lost worker or a bug (Python's own for a traceback).
-EXIT_CRASH = 1
+#: Exit code a one-log run gives for a lost worker or a bug (EX_SOFTWARE; never 1, which
+#: means "incidents found").
+EXIT_CRASH = EXIT_SOFTWARE
 
 
 @dataclass(frozen=True)

@@ -59,9 +59,8 @@ class AdaptiveConfig:
             and v_dyn; default chosen by measurement (see impactcli.detect.adaptive).
         tanh_slope: slope of u1 = tanh(tanh_slope · x1_ref') [s/rad]; 50 s/rad makes
             |u1| > 0.96 above 0.04 rad/s (≈ 2.3 °/s), a sign() that stays continuous.
-        max_trace: RLS wind-up guard (impactcli.detect.rls): bounds trace(P) by capping
-            each diagonal element of P at max_trace / nu; None → 1e5 · nu · p0 (measured
-            choice, see that module); ``inf`` disables it (pure eq. 39).
+        max_trace: RLS wind-up bound on trace(P) (impactcli.detect.rls); None →
+            100 · nu · p0 (measured choice, see that module); a huge value disables it.
         measured_input_cutoff_hz: cut-off of the causal 2nd-order Butterworth used to
             differentiate the *measured* position when no reference is logged [Hz].
     """
@@ -223,6 +222,10 @@ class CalibrationRecord:
             are cut into segments; leave-one-out is over segments).
         excluded: ``{log, start_s, end_s, reason}`` stretches left out of the calibration
             (labelled contacts; likely contacts found without labels).
+        sample_rate_hz: the sample rate of the calibration logs [Hz]
+            (:func:`impactcli.sampling.sample_clock`; None: not recorded, older configs). A
+            log sampled at another rate is warned about
+            (:func:`impactcli.sampling.check_calibrated_rate`): thresholds depend on it.
     """
 
     calibrated: bool = False
@@ -234,6 +237,7 @@ class CalibrationRecord:
     joints_left_out: tuple[dict[str, str], ...] = ()
     segments: int = 0
     excluded: tuple[dict[str, Any], ...] = ()
+    sample_rate_hz: float | None = None
 
 
 @dataclass(frozen=True)

@@ -3,8 +3,9 @@
 Every error that is the *input's* fault (a log, config, model, labels or robot
 description that is bad) is an :class:`ImpactError`; the CLI turns it into one
 line on stderr and the exit code in ``exit_code`` (``formats.md``: 3 for data
-errors, 4 for a batch in which some inputs failed). Anything else is a bug and
-keeps its traceback.
+errors, 4 for a batch in which some inputs failed). Anything else is a bug: it
+keeps its traceback (printed on stderr) and exits :data:`EXIT_SOFTWARE` (70,
+sysexits' ``EX_SOFTWARE``) — never 1, which a CI gate reads as "collision found".
 
 Messages name the offending thing: ``f"{path}: column {name!r} missing"``.
 """
@@ -17,6 +18,8 @@ EXIT_DETECTED = 1
 EXIT_USAGE = 2
 EXIT_DATA = 3
 EXIT_BATCH = 4
+#: An internal error (a bug, or a worker that died): sysexits.h EX_SOFTWARE.
+EXIT_SOFTWARE = 70
 
 
 class ImpactError(Exception):

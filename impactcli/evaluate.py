@@ -865,6 +865,13 @@ def evaluate_events(
             f"first at {contacts[outside[0]].start:g} s: not counted (labels of another log?)",
             ImpactWarning, stacklevel=2,
         )
+    before = [i for i, c in enumerate(contacts) if c.start < 0]
+    if before:  # label times are seconds since the log's first sample (formats.md)
+        warnings.warn(
+            f"{labels.path or 'labels'}: {len(before)} contact(s) start before the log's "
+            f"first sample, first at {contacts[before[0]].start:g} s: in its warm-up, not "
+            "counted (labels of another log?)", ImpactWarning, stacklevel=2,
+        )
     windows = [tol.window(c) for c in contacts]
     win_lo = np.array([w[0] for w in windows], dtype=np.float64)
     win_hi = np.array([w[1] for w in windows], dtype=np.float64)

@@ -7,12 +7,14 @@ trust what it is given.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
 
 from .errors import LabelsError, LogFormatError, RobotDescriptionError
+from .sampling import SampleClock, sample_clock
 
 TorqueSource = Literal["torque", "current"]
 TimeSource = Literal["column", "log", "publish", "header"]
@@ -32,6 +34,9 @@ class LogSource:
         time_source: ``column`` (CSV/NPZ time column), or MCAP ``log``/``publish``/``header``.
         ignored_channels: channels present in the file but not used.
         repairs: human-readable repairs applied while reading (also warned about).
+        joints_dropped: ``(name, reason)`` of the logged joints the reader left out of the
+            log (a position or torque column without a finite value), each warned about;
+            the pipeline records them with the joints it leaves out of detection.
     """
 
     path: str
@@ -41,6 +46,7 @@ class LogSource:
     time_source: TimeSource = "column"
     ignored_channels: tuple[str, ...] = ()
     repairs: tuple[str, ...] = ()
+    joints_dropped: tuple[tuple[str, str], ...] = ()
 
 
 #: The controller's own channels (formats.md): a joint that lacks one holds NaN in its column.
@@ -178,14 +184,21 @@ class RobotLog:
         """Duration from first to last sample [s]."""
         return float(self.t_ns[-1] - self.t_ns[0]) * 1e-9
 
+    @functools.cached_property
+    def sample_clock(self) -> SampleClock:
+        """The log's sample clock: period, jitter, gap threshold (:mod:`impactcli.sampling`,
+        the one estimator every format and check uses)."""
+        return sample_clock(self.t_ns)
+
     @property
     def sample_period_s(self) -> float:
-        """Median sample period [s]."""
-        return float(np.median(np.diff(self.t_ns))) * 1e-9
+        """Sample period [s], robust to jitter, dropped samples and late stamps
+        (:func:`impactcli.sampling.sample_clock`)."""
+        return self.sample_clock.period_s
 
     @property
     def sample_rate_hz(self) -> float:
-        """Median sample rate [Hz]."""
+        """Sample rate 1 / :attr:`sample_period_s` [Hz]."""
         return 1.0 / self.sample_period_s
 
     @property

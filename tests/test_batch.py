@@ -109,7 +109,7 @@ def test_job_failure_classes(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) ->
 
     monkeypatch.setattr(batch, "_run", bug)
     out = run_detect_job(_job(tmp_path))
-    assert (out.error_class, out.exit_code, out.attempts) == ("internal", 1, 1)
+    assert (out.error_class, out.exit_code, out.attempts) == ("internal", 70, 1)
     assert "KeyError" in out.error and "Traceback" in out.traceback
 
 

@@ -48,7 +48,7 @@ def test_inspect_json_validates_and_describes(tmp_path: Path) -> None:
 
 def test_inspect_table_and_repairs_warned_on_stderr(tmp_path: Path) -> None:
     p = tmp_path / "r.csv"
-    p.write_text("time,j.position,j.torque,note\n0,0,1,x\n0.1,,1,y\n0.2,0.2,1,z\n")
+    p.write_text("time,j.position,j.torque,note\n0,0,1,x\n0.01,,1,y\n0.02,0.2,1,z\n")
     res = CliRunner().invoke(main, ["inspect", str(p)])
     assert res.exit_code == 0, res.stderr
     assert "impactcli: warning:" in res.stderr and "interpolated 1" in res.stderr

@@ -75,7 +75,7 @@ joints:
     assert log.t_ns[1] - log.t_ns[0] == 10_000_000  # exact decimal parse, no float rounding
     # canonical CSV with current only: the robot converts it, per joint by name
     canon = tmp_path / "c.csv"
-    canon.write_text("time,b.position,b.current,a.position,a.current\n0,0,1,0,2\n0.5,0,3,0,4\n")
+    canon.write_text("time,b.position,b.current,a.position,a.current\n0,0,1,0,2\n0.01,0,3,0,4\n")
     log = read_log(canon, robot=robot)
     assert log.joint_names == ("b", "a")
     np.testing.assert_allclose(log.torque, [[5.0, 10.0], [15.0, 20.0]])
@@ -83,7 +83,7 @@ joints:
 
 def test_torque_source_override(tmp_path: Path) -> None:
     p = tmp_path / "both.csv"
-    p.write_text("time,a.position,a.torque,a.current\n0,0,1.5,2\n0.5,0,2.5,4\n")
+    p.write_text("time,a.position,a.torque,a.current\n0,0,1.5,2\n0.01,0,2.5,4\n")
     robot = RobotDescription(joints=(JointSpec("a", 10.0, 0.2),))
     assert read_log(p).torque[:, 0].tolist() == [1.5, 2.5]
     log = read_log(p, robot=robot, torque_source="current")
@@ -151,7 +151,9 @@ def test_real_ur_logs_through_shipped_map(real_logs: Path, name: str, n: int,
     log = read_log(path, channel_map="ur_ext_observer")
     assert log.n_joints == 6 and log.n_samples == n
     assert log.duration_s == pytest.approx(seconds, abs=0.1)
-    assert log.sample_rate_hz == pytest.approx(100.0, rel=1e-6)
+    # steps of 10 ms and (a fifth to a third of them) 12 ms: the mean spacing
+    # (impactcli.sampling), not the median step's 100 Hz
+    assert log.sample_rate_hz == pytest.approx((n - 1) / log.duration_s, rel=1e-9)
     assert log.source.torque_source == "current" and log.source.repairs == ()
     raw = np.loadtxt(path, delimiter=",")
     k = np.array([10, 10.6956, 8.4566, 9.0029, 9.48, 10.1232])

@@ -99,7 +99,7 @@ def test_csv_time_is_exact_in_ns(tmp_path: Path) -> None:
     )
     log = read_log(path)
     assert log.t_ns.tolist() == [1700000000000000001, 1700000000001000002, 1700000000002000003]
-    path.write_text("time_ns,j.position,j.torque\n5,0.5,1\n10,0.6,2\n")
-    assert read_log(path).t_ns.tolist() == [5, 10]
-    path.write_text("__time,j.position,j.torque\n1.5e0,0.5,1\n2.5,0.6,2\n")
-    assert read_log(path).t_ns.tolist() == [1_500_000_000, 2_500_000_000]
+    path.write_text("time_ns,j.position,j.torque\n5,0.5,1\n4000005,0.6,2\n")
+    assert read_log(path).t_ns.tolist() == [5, 4_000_005]
+    path.write_text("__time,j.position,j.torque\n1.5e0,0.5,1\n1.504,0.6,2\n")
+    assert read_log(path).t_ns.tolist() == [1_500_000_000, 1_504_000_000]

@@ -68,7 +68,8 @@ def main(ctx: click.Context, debug: bool) -> None:
     """Find out whether, when and where a robot arm hit something.
 
     Exit codes: 0 success; 1 events found with --fail-on-detect; 2 usage error;
-    3 bad input (log, config, model, labels); 4 a batch where some inputs failed.
+    3 bad input (log, config, model, labels); 4 a batch where some inputs failed;
+    70 an internal error (a bug; its traceback is printed).
     """
     ctx.ensure_object(dict)
     obj: dict[str, Any] = ctx.obj

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import functools
 import sys
+import traceback
 import warnings
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
@@ -12,7 +13,7 @@ from typing import Any, TypeVar
 
 import click
 
-from ..errors import ImpactError, ImpactWarning, LogFormatError
+from ..errors import EXIT_SOFTWARE, ImpactError, ImpactWarning, LogFormatError
 
 F = TypeVar("F", bound=Callable[..., Any])
 T = TypeVar("T")
@@ -28,8 +29,11 @@ def _show_warning(message: Warning | str, category: type[Warning], *args: Any, *
 def handle_errors(func: F) -> F:
     """Decorate a click command: ImpactError → ``impactcli: error: <msg>`` on stderr, its exit code.
 
-    With the group's ``--debug``, the traceback is shown too. Other exceptions are bugs and
-    propagate with their traceback.
+    With the group's ``--debug``, the traceback is shown too (same exit code). Any other
+    exception is a bug: ``impactcli: error: internal error (a bug): <type>: <msg>`` and its
+    traceback on stderr, exit :data:`~impactcli.errors.EXIT_SOFTWARE` (70) — never 1, which
+    a CI gate reads as "collision found". click's own exits (usage errors, ``ctx.exit``) and
+    interrupts pass through.
     """
 
     @functools.wraps(func)
@@ -45,9 +49,17 @@ def handle_errors(func: F) -> F:
                 return func(*args, **kwargs)
         except ImpactError as err:
             if debug:
-                raise
+                click.echo(traceback.format_exc().rstrip(), err=True)
             click.echo(f"impactcli: error: {err}", err=True)
             ctx.exit(err.exit_code)
+        except (click.exceptions.ClickException, click.exceptions.Exit,
+                click.exceptions.Abort):
+            raise
+        except Exception as err:
+            click.echo(f"impactcli: error: internal error (a bug): {type(err).__name__}: "
+                       f"{err}", err=True)
+            click.echo(traceback.format_exc().rstrip(), err=True)
+            ctx.exit(EXIT_SOFTWARE)
         finally:
             warnings.showwarning = old
 

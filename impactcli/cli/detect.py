@@ -17,16 +17,46 @@ from ._common import handle_errors, progress
 PRODUCT_DETECTORS = ("adaptive", "static_loading")
 
 
+#: click context ``meta`` key under which --time-unit and --repair-order are kept.
+_READ_META = "impactcli.read_options"
+
+
 def read_options_from(channel_map: str | None, topic: str | None, reference_topic: str | None,
-                      time_source: str | None, torque_source: str | None) -> dict[str, Any]:
-    """The read_log keyword arguments given on the command line (None values dropped)."""
+                      time_source: str | None, torque_source: str | None, *,
+                      time_unit: str | None = None,
+                      repair_order: bool | None = None) -> dict[str, Any]:
+    """The read_log keyword arguments given on the command line (None values dropped).
+
+    ``time_unit`` and ``repair_order`` default to the ``--time-unit`` and
+    ``--repair-order`` of the running command (:func:`log_read_options` keeps them in the
+    click context, so verbs need not take them as parameters); ``repair_order`` is kept
+    only when true.
+    """
+    ctx = click.get_current_context(silent=True)
+    given = dict(ctx.meta.get(_READ_META, {})) if ctx is not None else {}
+    if time_unit is None:
+        time_unit = given.get("time_unit")
+    if repair_order is None:
+        repair_order = given.get("repair_order")
     opts = {"channel_map": channel_map, "topic": topic, "reference_topic": reference_topic,
-            "time_source": time_source, "torque_source": torque_source}
+            "time_source": time_source, "torque_source": torque_source,
+            "time_unit": time_unit, "repair_order": True if repair_order else None}
     return {k: v for k, v in opts.items() if v is not None}
 
 
+def _keep_read_option(ctx: click.Context, param: click.Parameter, value: Any) -> Any:
+    """Keep --time-unit / --repair-order in the context for :func:`read_options_from`."""
+    if value is not None and param.name is not None:
+        ctx.meta.setdefault(_READ_META, {})[param.name] = value
+    return value
+
+
 def log_read_options(func: Callable[..., Any]) -> Callable[..., Any]:
-    """The options that say how to read a log (shared by the verbs that read logs)."""
+    """The options that say how to read a log (shared by the verbs that read logs).
+
+    ``--time-unit`` and ``--repair-order`` are not passed to the command: they reach
+    :func:`read_options_from` through the click context.
+    """
     for opt in reversed([
         click.option("--channel-map", metavar="MAP",
                      help="Channel map (path, or a shipped name) for foreign CSV / .npz logs."),
@@ -36,6 +66,16 @@ def log_read_options(func: Callable[..., Any]) -> Callable[..., Any]:
                      help="MCAP: which clock stamps samples [default: header, else log]."),
         click.option("--torque-source", type=click.Choice(["current", "torque"]),
                      help="Use logged torque or current × gear ratio × torque constant."),
+        click.option("--time-unit", type=click.Choice(["s", "ms", "us", "ns"]),
+                     expose_value=False, callback=_keep_read_option,
+                     help="CSV / .npz: the unit of the time column [default: s, or the "
+                          "channel map's]. A time implying a rate outside 20 Hz – 100 kHz "
+                          "is an error."),
+        click.option("--repair-order", is_flag=True, default=None, expose_value=False,
+                     callback=_keep_read_option,
+                     help="Rows out of time order or sharing a stamp: keep the longest "
+                          "increasing run of stamps and drop the others, warned [default: "
+                          "an error naming the row]."),
     ]):
         func = opt(func)
     return func
@@ -220,7 +260,8 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     from each log itself and the thresholds come from the log's own statistics: the run is
     marked uncalibrated. A log that fails is reported and the others go on. Exit 0
     whether or not collisions are found (unless --fail-on-detect); 3 on a bad input; 4
-    when some logs of a batch failed (the others' outputs are written).
+    when some logs of a batch failed (the others' outputs are written); 70 on an internal
+    error (a bug, with its traceback) — never 1.
     """
     from ..batch import DetectJob, Timer, batch_summary, check_unique_stems, run_batch
     from ..io.urls import expand_inputs

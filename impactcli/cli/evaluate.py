@@ -17,7 +17,8 @@ ratios: a LOG, or a timeline with its ``<stem>.signals.parquet`` beside it
 (``detect --signals``).
 
 Output: a text table, or with ``--json`` one JSON object on stdout
-(schemas/evaluation.schema.json). Exit 0; 2 bad options; 3 bad timeline, log or labels.
+(schemas/evaluation.schema.json). Exit 0; 2 bad options; 3 bad timeline, log or labels;
+70 an internal error (a bug).
 """
 
 from __future__ import annotations

@@ -10,7 +10,8 @@ stiffness at every trajectory amplitude. Deterministic for ``--seed``.
 Output: Table II per variant at the calibrated thresholds and at each detector's
 zero-false-alarm scale on the soak, a detection-vs-false-alarm table and a verdict per
 variant; ``--json PATH`` (or ``-`` for stdout) writes schemas/sensitivity.schema.json;
-``--markdown PATH`` writes the README's tables. Exit 0; 2 bad options; 3 bad study values.
+``--markdown PATH`` writes the README's tables. Exit 0; 2 bad options; 3 bad study values;
+70 an internal error (a bug).
 """
 
 from __future__ import annotations

@@ -63,6 +63,8 @@ def read_log(
     reference_topic: str | None = None,
     time_source: str | None = None,
     torque_source: str | None = None,
+    time_unit: str | None = None,
+    repair_order: bool = False,
 ) -> RobotLog:
     """Read a robot log into a validated :class:`~impactcli.types.RobotLog`.
 
@@ -82,6 +84,13 @@ def read_log(
         time_source: MCAP/bag ``log``, ``publish`` or ``header`` (default header when
             non-zero; a bag's publish time is its log time).
         torque_source: ``torque`` or ``current`` (default: torque when logged).
+        time_unit: unit of the time column of a CSV or ``.npz`` log (``s``, ``ms``, ``us``,
+            ``ns``; ``--time-unit``): a canonical ``time`` column's, or the channel map's
+            time (replacing its ``unit``). Default: seconds, or the map's unit. A column
+            time implying a rate outside 20 Hz – 100 kHz is an error saying to give it.
+        repair_order: keep the longest increasing run of stamps when rows are out of time
+            order or share a stamp (``--repair-order``), dropping the other rows with a
+            warning (:mod:`impactcli.io.repair`); without it such a log is an error.
 
     Returns:
         The log, with ``source`` recording path, sha256, format, torque and time source,
@@ -91,16 +100,16 @@ def read_log(
         LogFormatError: missing or unknown file, malformed content (naming the file).
         ChannelMapError: a channel map that is malformed or points at nothing.
     """
-    from .._fs import sha256_file
     from .assemble import build_log, check_torque_source
     from .channel_map import load_channel_map
+    from .repair import repairing_order
     from .urls import is_url, read_log_url
 
     if is_url(path):  # file://, s3://, ...: read a local copy, recorded under the URL
         return read_log_url(  # type: ignore[no-any-return]
             str(path), read_log, channel_map=channel_map, robot=robot, topic=topic,
             reference_topic=reference_topic, time_source=time_source,
-            torque_source=torque_source)
+            torque_source=torque_source, time_unit=time_unit, repair_order=repair_order)
     p = Path(path)
     where = str(path)
     check_torque_source(torque_source, where)
@@ -128,10 +137,36 @@ def read_log(
             f"{where}: --topic, --reference-topic and --time-source apply to MCAP logs and "
             "ROS bags only"
         )
+    if time_unit is not None:
+        from .channel_map import TIME_UNITS
+
+        if time_unit not in TIME_UNITS:
+            raise LogFormatError(f"{where}: unknown time unit {time_unit!r} (s, ms, us or ns)")
+        if messages:
+            raise LogFormatError(f"{where}: --time-unit applies to CSV and .npz logs only "
+                                 "(MCAP and bag stamps are ns)")
     cmap = load_channel_map(channel_map) if channel_map is not None else None
     if cmap is not None and not messages and cmap.format == "messages":
         raise LogFormatError(f"{where}: channel map {cmap.path or cmap.name} names message "
                              "fields (format: messages): it is for MCAP logs and ROS bags")
+    if cmap is not None and time_unit is not None and cmap.time is not None:
+        import dataclasses
+
+        cmap = dataclasses.replace(cmap, time=dataclasses.replace(cmap.time, unit=time_unit))
+    with repairing_order(repair_order):
+        ch, fmt, tsrc, sha = _read_channels(p, where, suffix, folder, cmap, topic,
+                                            reference_topic, time_source, time_unit)
+    return build_log(
+        ch, path=where, fmt=fmt, robot=robot, torque_source=torque_source,
+        time_source=tsrc, sha256=sha,
+    )
+
+
+def _read_channels(p: Path, where: str, suffix: str, folder: bool, cmap: Any,
+                   topic: str | None, reference_topic: str | None, time_source: str | None,
+                   time_unit: str | None) -> tuple[Any, str, str, str]:
+    """The reader of ``suffix`` on ``p``: ``(channels, format, time source, sha256)``."""
+    from .._fs import sha256_file
     tsrc = "column"
     # the file's sha256 is computed on a thread while the reader parses (hashlib releases
     # the GIL on large blocks): a 1 GB CSV is hashed for free instead of in 1.4 s
@@ -145,15 +180,19 @@ def read_log(
             raise LogFormatError(f"{where}: channel map {cmap.path} is for .npz archives")
         from .csv import read_csv_channels
 
-        ch, fmt = read_csv_channels(p, cmap)
+        ch, fmt = read_csv_channels(p, cmap, time_unit=time_unit)
     elif suffix == ".npz":
         if cmap is None:
             raise LogFormatError(f"{where}: an .npz log needs a channel map (--channel-map)")
         if cmap.format == "csv":
             raise LogFormatError(f"{where}: channel map {cmap.path} is for CSV files")
         from .npz import read_npz_channels
+        from .repair import check_time_rate
 
         ch, fmt = read_npz_channels(p, cmap), "npz"
+        tspec = cmap.time
+        if tspec is not None:
+            check_time_rate(ch.t_ns, where, f"array {tspec.ref.source!r}", tspec.unit)
     elif suffix == ".mcap":
         from .mcap_log import read_mcap_channels
 
@@ -168,10 +207,7 @@ def read_log(
             p, topic=topic, reference_topic=reference_topic, time_source=time_source,
             cmap=cmap, where=where,
         )
-    return build_log(
-        ch, path=where, fmt=fmt, robot=robot, torque_source=torque_source,
-        time_source=tsrc, sha256=digest.result(),
-    )
+    return ch, fmt, tsrc, digest.result()
 
 
 def write_log(log: RobotLog, path: str | os.PathLike[str], *, mcap_encoding: str = "json") -> None:

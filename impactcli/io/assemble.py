@@ -3,16 +3,22 @@
 Shared by every reader: picks the torque source (formats.md: ``.torque`` when present, else
 ``.current`` × gear ratio × torque constant, ``--torque-source`` overrides), converts current
 to torque, and fills :class:`~impactcli.types.LogSource`.
+
+A joint whose position, or whose torque (the chosen source: torque or current), holds no
+finite value at all — an empty or all-NaN column, a sensor not logged — is left out of the
+log with a warning and recorded in ``LogSource.joints_dropped`` (the pipeline records it
+with the joints it leaves out of detection); a log without any joint left is an error.
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .._fs import sha256_file
-from ..errors import LogFormatError
+from ..errors import ImpactWarning, LogFormatError
 from ..types import CONTROLLER_CHANNELS, LogSource, RobotDescription, RobotLog
 
 TORQUE_SOURCES = ("torque", "current")
@@ -157,6 +163,22 @@ def build_log(
         if s in ch.signals and miss and s not in ("torque", "current", "position"):
             have = [j for j in ch.joints if j not in miss]
             ignored += [f"{j}.{s}" for j in have]
+    position = ch.signals["position"]
+    joints = ch.joints
+    dropped = _empty_joints(ch.joints, position, torque, src)
+    if dropped:
+        if len(dropped) == len(ch.joints):
+            raise LogFormatError(
+                f"{path}: no joint has a finite position and {src}: "
+                + "; ".join(f"{j}: {why}" for j, why in dropped))
+        for j, why in dropped:
+            warnings.warn(f"{path}: joint {j!r} left out of detection: {why}",
+                          ImpactWarning, stacklevel=3)
+        out = {j for j, _ in dropped}
+        keep = [k for k, j in enumerate(ch.joints) if j not in out]
+        joints = tuple(ch.joints[k] for k in keep)
+        position, torque = position[:, keep], torque[:, keep]
+        opt = {s: v[:, keep] for s, v in opt.items()}
     source = LogSource(
         path=path,
         sha256=sha256 if sha256 is not None else _sha256(path),
@@ -165,12 +187,25 @@ def build_log(
         time_source=time_source,  # type: ignore[arg-type]
         ignored_channels=tuple(ignored),
         repairs=tuple(ch.repairs),
+        joints_dropped=tuple(dropped),
     )
     return RobotLog(
         t_ns=ch.t_ns,
-        joint_names=ch.joints,
-        position=ch.signals["position"],
+        joint_names=joints,
+        position=position,
         torque=torque,
         source=source,
         **opt,
     )
+
+
+def _empty_joints(joints: tuple[str, ...], position: np.ndarray, torque: np.ndarray,
+                  src: str) -> list[tuple[str, str]]:
+    """``(joint, reason)`` of the joints whose position or torque holds no finite value."""
+    out = []
+    for k, j in enumerate(joints):
+        for what, a in (("position", position), (src, torque)):
+            if not np.isfinite(a[:, k]).any():
+                out.append((j, f"its {what} column holds no finite value (not logged?)"))
+                break
+    return out

@@ -2,7 +2,18 @@
 
 Reading uses ``pyarrow.csv`` (multi-threaded, ``.gz`` decompressed on the fly). The time
 column is read as text and converted to int64 ns exactly (no float rounding) whenever it is
-written as plain decimals; ``time_ns`` is read as int64.
+written as plain decimals; ``time_ns`` is read as int64; ``time`` may also hold ISO-8601
+stamps (``2024-05-01T12:00:00.001Z``; UTC unless the stamp gives an offset), read as epoch
+ns (the log's ``t0_ns``). ``--time-unit`` (``read_log(time_unit=...)``) says when ``time``
+holds ms, µs or ns; a time that does not fit the int64-ns clock, or an implied sample rate
+outside 20 Hz – 100 kHz, is an error naming the unit that would fit
+(:func:`impactcli.io.repair.check_time_rate`).
+
+Common variants of the canonical layout are read as well: a UTF-8 byte-order mark before
+the header (Excel), ``;`` or tab separators — the one with which the header names a time
+column — and with those a decimal comma (``0,004``), detected on the first data line.
+A file with binary content (a NUL byte, or mostly control or non-UTF-8 bytes in its first
+64 KiB) is "not a text CSV".
 
 Writing produces the canonical layout: ``time`` in seconds with 9 decimals (exact in ns),
 then per joint ``<joint>.position``, ``<joint>.torque`` and the optional signals, values in
@@ -23,10 +34,20 @@ from ..errors import ChannelMapError, LogFormatError
 from ..types import RobotLog
 from .assemble import JointChannels
 from .channel_map import SIGNALS, TIME_UNITS, ChannelMap, ChannelRef, TimeSpec, require_time
-from .repair import repair_samples
+from .repair import DROPPABLE_SIGNALS, GIVE_UNIT, check_time_rate, repair_samples, unit_hint
 
 #: Recognised time columns of a canonical CSV, by preference.
 TIME_COLUMNS: tuple[str, ...] = ("time_ns", "time", "__time")
+#: The unit each canonical time column is in (``time``: seconds unless --time-unit says).
+TIME_COLUMN_UNITS: dict[str, str] = {"time_ns": "ns", "time": "s", "__time": "s"}
+#: Separators of a canonical CSV, tried in this order on the header.
+SEPARATORS: tuple[str, ...] = (",", ";", "\t")
+#: Bytes looked at to tell a text CSV from binary content.
+SNIFF_BYTES = 1 << 16
+#: Largest |time| in ns the int64 clock holds (± about 292 years).
+_MAX_NS = float(2**63 - 1)
+#: An ISO-8601 date and time at the start of a time cell.
+_ISO_RE = re.compile(r"^\s*\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}")
 
 
 def _is_gz(path: Path) -> bool:
@@ -34,21 +55,68 @@ def _is_gz(path: Path) -> bool:
 
 
 def _first_line(path: Path, skip: int = 0) -> str:
+    return _lines(path, skip, 1)[0]
+
+
+def _lines(path: Path, skip: int, count: int) -> list[str]:
+    """``count`` lines after ``skip`` lines ("" past the end), a UTF-8 BOM removed."""
     opener: Any = gzip.open if _is_gz(path) else open
     try:
-        with opener(path, "rt", encoding="utf-8", errors="replace", newline="") as f:
+        with opener(path, "rt", encoding="utf-8-sig", errors="replace", newline="") as f:
             for _ in range(skip):
                 f.readline()
-            return str(f.readline())
-    except (OSError, EOFError) as err:
+            return [str(f.readline()) for _ in range(count)]
+    except (OSError, EOFError, ValueError) as err:
         raise LogFormatError(f"{path}: cannot read: {err}") from err
 
 
-def canonical_map(header: list[str], path: str) -> tuple[ChannelMap, list[str]]:
+def check_text(path: Path, where: str) -> None:
+    """LogFormatError ``not a text CSV`` when the first :data:`SNIFF_BYTES` bytes hold a NUL
+    byte, or are mostly control bytes or bytes that are not UTF-8 (binary content)."""
+    opener: Any = gzip.open if _is_gz(path) else open
+    try:
+        with opener(path, "rb") as f:
+            head = bytes(f.read(SNIFF_BYTES))
+    except (OSError, EOFError, ValueError) as err:
+        raise LogFormatError(f"{where}: cannot read: {err}") from err
+    nul = head.find(b"\x00")
+    if nul >= 0:
+        raise LogFormatError(f"{where}: not a text CSV (binary content: a NUL byte at byte "
+                             f"{nul})")
+    if not head:
+        return
+    arr = np.frombuffer(head, dtype=np.uint8)
+    control = (arr < 9) | ((arr > 13) & (arr < 32)) | (arr == 127)
+    try:
+        head.decode("utf-8")
+        not_utf8 = 0
+    except UnicodeDecodeError as err:
+        # a multi-byte character cut at the end of the sniffed bytes is still text
+        not_utf8 = 0 if err.start >= len(head) - 3 else int(np.count_nonzero(arr >= 128))
+    if np.count_nonzero(control) + not_utf8 > 0.1 * len(head):
+        k = int(np.argmax(control | (arr >= 128)))
+        raise LogFormatError(f"{where}: not a text CSV (binary content from byte {k})")
+
+
+def _separator(line: str) -> str:
+    """The separator with which the header ``line`` names a time column (default ``,``)."""
+    for sep in SEPARATORS:
+        if any(c.strip().strip('"') in TIME_COLUMNS for c in line.rstrip("\r\n").split(sep)):
+            return sep
+    return ","
+
+
+def canonical_map(header: list[str], path: str,
+                  time_unit: str | None = None) -> tuple[ChannelMap, list[str]]:
     """The channel map implied by a canonical CSV header, and the ignored columns.
 
+    Args:
+        header: the column names.  path: the file, for messages.
+        time_unit: the unit of a ``time`` column (``s``, ``ms``, ``us``, ``ns``; None: s).
+
     Raises:
-        LogFormatError: no time column, or no joint with a position.
+        LogFormatError: no time column, no joint with a position, or a ``time_unit`` for a
+            column whose unit its name says (``time_ns``, PlotJuggler's ``__time``).
     """
     tcol = next((c for c in TIME_COLUMNS if c in header), None)
     if tcol is None:
@@ -56,7 +124,14 @@ def canonical_map(header: list[str], path: str) -> tuple[ChannelMap, list[str]]:
             f"{path}: no time column (one of {', '.join(TIME_COLUMNS)}); for other layouts "
             "pass a channel map (--channel-map)"
         )
-    unit = "ns" if tcol == "time_ns" else "s"
+    unit = TIME_COLUMN_UNITS[tcol]
+    if time_unit is not None and time_unit not in TIME_UNITS:
+        raise LogFormatError(f"{path}: unknown time unit {time_unit!r} (s, ms, us or ns)")
+    if time_unit is not None and tcol != "time" and time_unit != unit:
+        raise LogFormatError(f"{path}: --time-unit {time_unit} does not apply: column "
+                             f"{tcol!r} is in {unit} by its name")
+    if time_unit is not None:
+        unit = time_unit
     joints: dict[str, dict[str, ChannelRef]] = {}
     ignored: list[str] = []
     for col in header:
@@ -108,10 +183,15 @@ def decimal_text_to_ns(values: Any, unit_ns: int) -> np.ndarray | None:
     s = pc.utf8_ltrim(s, characters="+-")
     s = pc.if_else(pc.match_substring(s, "."), s, pc.binary_join_element_wise(s, ".", ""))
     parts = pc.split_pattern(s, ".", max_splits=1)
-    whole = pc.cast(pc.list_element(parts, 0), pa.int64()).to_numpy()
+    whole_txt = pc.list_element(parts, 0)
+    if len(whole_txt) and int(pc.max(pc.utf8_length(whole_txt)).as_py()) > 18:
+        return None  # beyond int64: the float path names the row
+    whole = pc.cast(whole_txt, pa.int64()).to_numpy()
     frac_txt = pc.list_element(parts, 1)
     frac_txt = pc.utf8_slice_codeunits(pc.utf8_rpad(frac_txt, 9, "0"), 0, 9)
     frac = pc.cast(frac_txt, pa.int64()).to_numpy()  # units of 1e-9 of `unit`
+    if whole.size and int(np.max(whole)) >= (2**63 - 1) // unit_ns - 1:
+        return None  # beyond the int64-ns clock: the float path names the row
     if unit_ns == 10**9:
         ns = whole * 10**9 + frac
     else:
@@ -141,8 +221,14 @@ def _row_labeller(skip: int) -> Any:
     return label
 
 
-def read_csv_channels(path: Path, cmap: ChannelMap | None) -> tuple[JointChannels, str]:
+def read_csv_channels(path: Path, cmap: ChannelMap | None, *,
+                      time_unit: str | None = None) -> tuple[JointChannels, str]:
     """Read a CSV (canonical, or through ``cmap``) into :class:`JointChannels`.
+
+    Args:
+        path: the file.  cmap: its channel map (None: the canonical layout).
+        time_unit: unit of a canonical ``time`` column (None: seconds); a map's time unit
+            is the map's (:func:`impactcli.io.read_log` applies ``--time-unit`` to it).
 
     Returns:
         ``(channels, format)`` with format ``csv`` or ``csv-mapped``.
@@ -151,19 +237,24 @@ def read_csv_channels(path: Path, cmap: ChannelMap | None) -> tuple[JointChannel
     import pyarrow.csv as pacsv
 
     where = str(path)
+    check_text(path, where)
     header = True if cmap is None else cmap.header
     skip = 0 if cmap is None else cmap.skip_rows
-    delim = "," if cmap is None else cmap.delimiter
-    line = _first_line(path, skip)
+    line, data_line = _lines(path, skip, 2)
+    delim = _separator(line) if cmap is None else cmap.delimiter
     if not line.strip():
         raise LogFormatError(f"{where}: empty file (no header or data)")
+    if not header:
+        data_line = line
+    # a decimal comma goes with ';' or tab separators (spreadsheet exports)
+    decimal = "," if delim != "," and re.search(r"\d,\d", data_line) else "."
     if header:
         names = [c.strip().strip('"') for c in line.rstrip("\r\n").split(delim)]
     else:
         names = [f"f{i}" for i in range(len(line.split(delim)))]
     ignored_extra: list[str] = []
     if cmap is None:
-        cmap, ignored_extra = canonical_map(names, where)
+        cmap, ignored_extra = canonical_map(names, where, time_unit)
         fmt = "csv"
     else:
         fmt = "csv-mapped"
@@ -199,9 +290,10 @@ def read_csv_channels(path: Path, cmap: ChannelMap | None) -> tuple[JointChannel
                 ),
                 parse_options=pacsv.ParseOptions(delimiter=delim),
                 convert_options=pacsv.ConvertOptions(column_types=types,
-                                                     include_columns=include),
+                                                     include_columns=include,
+                                                     decimal_point=decimal),
             )
-        except (pa.ArrowInvalid, OSError) as err:
+        except (pa.ArrowInvalid, OSError, EOFError, UnicodeDecodeError) as err:
             msg = str(err).splitlines()[0]
             m = re.search(r"Expected (\d+) columns, got (\d+)", msg)
             if m:
@@ -217,7 +309,11 @@ def read_csv_channels(path: Path, cmap: ChannelMap | None) -> tuple[JointChannel
     # converted exactly by decimal_text_to_ns.
     table = read({})
     if header:
-        names = list(table.column_names)
+        try:
+            names = list(table.column_names)
+        except UnicodeDecodeError:
+            raise LogFormatError(f"{where}: cannot parse CSV: its header (line {skip + 1}) "
+                                 "is not UTF-8 text") from None
     n = table.num_rows
     if n < 2:
         raise LogFormatError(f"{where}: holds {n} data row(s); at least 2 are needed")
@@ -245,27 +341,50 @@ def read_csv_channels(path: Path, cmap: ChannelMap | None) -> tuple[JointChannel
     # time
     tarr = table.column(tname).combine_chunks()
     unit_ns = TIME_UNITS[tspec.unit]
-    if pa.types.is_integer(tarr.type):
+    tcol = f"column {disp(tname)!r}" if header else disp(tname)
+    unit: str | None = tspec.unit
+    if pa.types.is_string(tarr.type) and decimal == ",":
+        import pyarrow.compute as pc
+
+        tarr = pc.replace_substring(tarr, ",", ".")
+    if pa.types.is_timestamp(tarr.type) or (
+            pa.types.is_string(tarr.type) and _ISO_RE.match(_first_valid(tarr))):
+        if time_unit is not None and fmt == "csv":
+            raise LogFormatError(f"{where}: --time-unit {time_unit} does not apply: {tcol} "
+                                 "holds ISO-8601 stamps")
+        t_ns, unit = _iso_to_ns(tarr, where, tcol, label), None
+    elif pa.types.is_temporal(tarr.type):
+        raise LogFormatError(f"{where}: {tcol} holds {tarr.type} values: give ISO-8601 "
+                             "stamps with date and time, or numbers")
+    elif pa.types.is_integer(tarr.type):
         if tarr.null_count:
             i = int(np.argmax(tarr.is_null().to_numpy(zero_copy_only=False)))
-            raise LogFormatError(f"{where}: column {disp(tname)!r}, {label(i)}: empty time")
-        t_ns = tarr.to_numpy().astype(np.int64) * unit_ns
+            raise LogFormatError(f"{where}: {tcol}, {label(i)}: empty time")
+        raw = tarr.to_numpy().astype(np.int64)
+        _check_clock(raw.astype(np.float64), unit_ns, where, tcol, tspec.unit, label)
+        t_ns = raw * unit_ns
     else:
         if pa.types.is_floating(tarr.type) and (
             tarr.null_count or float(np.nanmax(np.abs(tarr.to_numpy(zero_copy_only=False))))
             * unit_ns / 1e9 >= 1e6
         ):
             tarr = read({tname: pa.string()}, [tname]).column(tname).combine_chunks()
+            if decimal == ",":
+                import pyarrow.compute as pc
+
+                tarr = pc.replace_substring(tarr, ",", ".")
         exact = decimal_text_to_ns(tarr, unit_ns) if pa.types.is_string(tarr.type) else None
         if exact is not None:
             t_ns = exact
         else:
-            tf = numeric(tname)
+            tf = numeric(tname) if not pa.types.is_string(tarr.type) else _floats(
+                tarr, where, tcol, label)
             if not np.all(np.isfinite(tf)):
                 i = int(np.argmax(~np.isfinite(tf)))
                 raise LogFormatError(
-                    f"{where}: column {disp(tname)!r}, {label(i)}: time is not a finite number"
+                    f"{where}: {tcol}, {label(i)}: time is not a finite number"
                 )
+            _check_clock(tf, unit_ns, where, tcol, tspec.unit, label)
             t_ns = np.round(tf * unit_ns).astype(np.int64)
     if tspec.offset:
         t_ns = t_ns + round(tspec.offset * unit_ns)
@@ -278,13 +397,85 @@ def read_csv_channels(path: Path, cmap: ChannelMap | None) -> tuple[JointChannel
         keys[(sig, j)] = key
         if key not in cols:
             cols[key] = numeric(col)
+    droppable = {k for (sig, _), k in keys.items() if sig in DROPPABLE_SIGNALS}
     t_ns, cols, repairs = repair_samples(
-        t_ns, cols, where=where, time_name=disp(tname), row_label=label
+        t_ns, cols, where=where, time_name=disp(tname), row_label=label,
+        keep_empty=droppable,
     )
+    check_time_rate(t_ns, where, tcol, unit)
     if tspec.start_at_zero:
         t_ns = t_ns - t_ns[0]
     ignored = ignored_extra if fmt == "csv" else [disp(c) for c in names if c not in used]
     return channels_from_columns(cmap, t_ns, cols, keys, ignored, repairs), fmt
+
+
+def _first_valid(arr: Any) -> str:
+    """The first non-null value of a pyarrow string array ("" when none)."""
+    v = arr.drop_null()
+    return str(v[0].as_py()) if len(v) else ""
+
+
+def _floats(arr: Any, where: str, what: str, label: Any) -> np.ndarray:
+    """A pyarrow string array of numbers as float64 (empty cells NaN), or the error naming
+    the first cell that is not a number."""
+    vals = arr.to_pylist()
+    out = np.empty(len(vals))
+    for i, v in enumerate(vals):
+        try:
+            out[i] = np.nan if v is None else float(v)
+        except (TypeError, ValueError):
+            raise LogFormatError(f"{where}: {what}, {label(i)}: non-numeric value {v!r}"
+                                 ) from None
+    return out
+
+
+def _check_clock(values: np.ndarray, unit_ns: int, where: str, what: str, unit: str,
+                 label: Any) -> None:
+    """LogFormatError when a time in ``unit`` does not fit the int64-ns clock (±292 years):
+    most often a time in ns or µs read as seconds."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        over = np.abs(values) * unit_ns >= _MAX_NS
+    if over.any():
+        i = int(np.argmax(over))
+        steps = np.diff(values[np.isfinite(values)])
+        step = float(np.median(steps)) if steps.size else 0.0
+        rate = 1e9 / (step * unit_ns) if step > 0 else float("nan")
+        raise LogFormatError(
+            f"{where}: {what}, {label(i)}: time {values[i]:g} {unit} is beyond the clock's "
+            f"range (±292 years in ns){unit_hint(rate, unit)}: {GIVE_UNIT}")
+
+
+def _iso_to_ns(arr: Any, where: str, what: str, label: Any) -> np.ndarray:
+    """ISO-8601 stamps (pyarrow timestamps, or strings) → (N,) int64 epoch ns; a stamp
+    without an offset is UTC."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    if arr.null_count:
+        i = int(np.argmax(arr.is_null().to_numpy(zero_copy_only=False)))
+        raise LogFormatError(f"{where}: {what}, {label(i)}: empty time")
+    if pa.types.is_string(arr.type):
+        txt = pc.utf8_trim_whitespace(arr)
+        has_offset = pc.match_substring_regex(txt, r"(Z|[+-]\d{2}(:?\d{2})?)$")
+        txt = pc.if_else(has_offset, txt, pc.binary_join_element_wise(txt, "Z", ""))
+        try:
+            arr = pc.cast(txt, pa.timestamp("ns", tz="UTC"))
+        except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
+            given = arr.to_pylist()
+            for i, v in enumerate(txt.to_pylist()):
+                try:
+                    pc.cast(pa.array([v]), pa.timestamp("ns", tz="UTC"))
+                except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
+                    raise LogFormatError(
+                        f"{where}: {what}, {label(i)}: {given[i]!r} is not an ISO-8601 time "
+                        "(YYYY-MM-DDThh:mm:ss[.f][Z|±hh:mm]) within 1677–2262"
+                    ) from None
+            raise LogFormatError(f"{where}: {what}: cannot read its ISO-8601 times") from None
+    try:
+        ns = pc.cast(arr, pa.timestamp("ns", tz=arr.type.tz)).cast(pa.int64())
+    except pa.ArrowInvalid as err:
+        raise LogFormatError(f"{where}: {what}: a time outside 1677–2262 ({err})") from None
+    return np.asarray(ns.to_numpy(), dtype=np.int64)
 
 
 def channels_from_columns(

@@ -7,11 +7,13 @@ from typing import Any
 import numpy as np
 
 from .. import TOOL_NAME, __version__
+from ..sampling import GAP_FACTOR as _GAP_FACTOR
+from ..sampling import gap_steps
 from ..types import RobotLog
 from .channel_map import SIGNALS
 
-#: A step longer than this many median periods is reported as a gap.
-GAP_FACTOR = 1.5
+#: A step longer than this many periods may be a gap (:mod:`impactcli.sampling`, rule (a)).
+GAP_FACTOR = _GAP_FACTOR
 #: At most this many gaps are listed (all are counted).
 MAX_GAPS_LISTED = 20
 
@@ -22,26 +24,28 @@ def _ms(seconds: float) -> str:
 
 
 def time_gaps(log: RobotLog) -> tuple[np.ndarray, np.ndarray]:
-    """Indices i of the steps t[i] → t[i+1] longer than ``GAP_FACTOR`` median periods, and
-    their lengths [s]."""
-    dt = np.diff(log.t_ns).astype(np.float64) * 1e-9
-    if dt.size == 0:
-        return np.zeros(0, dtype=np.int64), np.zeros(0)
-    idx = np.flatnonzero(dt > GAP_FACTOR * float(np.median(dt)))
-    return idx, dt[idx]
+    """Indices i of the steps t[i] → t[i+1] that are gaps, and their lengths [s]: longer
+    than ``GAP_FACTOR`` periods, clearly beyond the log's jitter and not given back by the
+    steps around them (:func:`impactcli.sampling.gap_steps`)."""
+    return gap_steps(log.t_ns, log.sample_clock)
 
 
 def describe_log(log: RobotLog) -> dict[str, Any]:
     """JSON-ready description of ``log``: joints, channels, sources, timing, gaps, repairs.
 
-    Timing: ``sample_rate_hz`` is 1 / median period; jitter is the std and max of
-    |dt − median| [s]; a gap is a step longer than ``GAP_FACTOR`` median periods, listed
-    with its start (s since the first sample) and length [s].
+    Timing (:mod:`impactcli.sampling`): ``sample_rate_hz`` is 1 / the estimated period
+    (the mean of the steps that span one period); jitter gives the std, min and max of the
+    steps, the largest |dt − period|, the robust std of the steps about the period
+    (``robust_std_s``) and the envelope holding 95 % of them (``envelope_s``); a gap is a
+    step longer than ``threshold_s`` (1.5 periods, and twice the envelope beyond the
+    period) that the steps around it do not give back, listed with its start (s since the
+    first sample) and length [s].
     """
     dt = np.diff(log.t_ns).astype(np.float64) * 1e-9
-    med = float(np.median(dt))
-    dev = np.abs(dt - med)
-    gap_idx = np.flatnonzero(dt > GAP_FACTOR * med)
+    clock = log.sample_clock
+    period = clock.period_s
+    dev = np.abs(dt - period)
+    gap_idx, _ = time_gaps(log)
     ts = log.time_s
     src = log.source
     present = [s for s in SIGNALS if getattr(log, s) is not None]
@@ -57,17 +61,19 @@ def describe_log(log: RobotLog) -> dict[str, Any]:
         "n_samples": log.n_samples,
         "t0_ns": log.t0_ns,
         "duration_s": log.duration_s,
-        "sample_rate_hz": 1.0 / med,
-        "sample_period_s": med,
+        "sample_rate_hz": clock.rate_hz,
+        "sample_period_s": period,
         "jitter": {
             "dt_std_s": float(np.std(dt)),
             "dt_min_s": float(dt.min()),
             "dt_max_s": float(dt.max()),
             "abs_dev_max_s": float(dev.max()),
+            "robust_std_s": clock.jitter_s,
+            "envelope_s": clock.envelope_s,
         },
         "gaps": {
             "count": int(gap_idx.size),
-            "threshold_s": GAP_FACTOR * med,
+            "threshold_s": clock.gap_threshold_s,
             "listed": [
                 {"sample": int(i), "t_s": float(ts[i]), "length_s": float(dt[i])}
                 for i in gap_idx[:MAX_GAPS_LISTED]
@@ -79,6 +85,7 @@ def describe_log(log: RobotLog) -> dict[str, Any]:
         "channels": {"used": used, "ignored": list(src.ignored_channels)},
         "reference": log.has_reference,
         "repairs": list(src.repairs),
+        "joints_dropped": [{"name": n, "reason": r} for n, r in src.joints_dropped],
     }
 
 
@@ -95,7 +102,8 @@ def format_table(d: dict[str, Any]) -> str:
         ("duration", f"{d['duration_s']:.3f} s"),
         ("sample rate",
          f"{d['sample_rate_hz']:.3f} Hz (period {d['sample_period_s'] * 1e3:.4g} ms)"),
-        ("jitter", f"dt std {_ms(j['dt_std_s'])} ms, largest |dt − period| "
+        ("jitter", f"dt std {_ms(j['dt_std_s'])} ms (robust {_ms(j['robust_std_s'])} ms), "
+                   f"95 % within ±{_ms(j['envelope_s'])} ms, largest |dt − period| "
                    f"{_ms(j['abs_dev_max_s'])} ms"),
         ("gaps", f"{d['gaps']['count']} (steps > {d['gaps']['threshold_s'] * 1e3:.4g} ms)"),
         ("torque source", d["torque_source"]),
@@ -104,6 +112,8 @@ def format_table(d: dict[str, Any]) -> str:
         ("reference", "yes" if d["reference"] else "no"),
         ("ignored", ", ".join(d["channels"]["ignored"]) or "none"),
         ("repairs", str(len(d["repairs"])) if d["repairs"] else "none"),
+        ("joints dropped", ", ".join(f"{x['name']} ({x['reason']})"
+                                     for x in d.get("joints_dropped", [])) or "none"),
     ]
     width = max(len(k) for k, _ in rows)
     lines = [f"{k:<{width}}  {v}" for k, v in rows]

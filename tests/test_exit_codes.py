@@ -1,0 +1,160 @@
+"""Crashes are not collisions: exit 1 means "incidents found" to a CI gate. A value that
+would overflow the computation is a data error naming the cell (exit 3); any internal
+error (a bug) exits 70 (EX_SOFTWARE) with its traceback, in one-log runs and in batches."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from impactcli import batch, pipeline
+from impactcli.cli import main
+from impactcli.errors import EXIT_SOFTWARE, LogFormatError
+from impactcli.io import inspect as io_inspect
+from impactcli.io import read_log, write_log
+
+REPO = Path(__file__).resolve().parents[1]
+LOG = REPO / "sample_logs" / "csv" / "assist_free_p2p.csv.gz"
+CONFIG = REPO / "sample_logs" / "assist_like.config.toml"
+
+
+def _run(*args: str) -> tuple[int, str, str]:
+    r = CliRunner().invoke(main, list(args))
+    return r.exit_code, r.stdout, r.stderr
+
+
+def _small_csv(tmp_path: Path, name: str = "x.csv") -> tuple[Path, list[str]]:
+    path = tmp_path / name
+    write_log(read_log(LOG).slice(0, 3000), path)
+    return path, path.read_text(encoding="utf-8").splitlines(keepends=True)
+
+
+def _set_cell(lines: list[str], row: int, column: str, value: str) -> None:
+    """Set data row ``row`` (0-based) of ``column`` to ``value``."""
+    col = lines[0].rstrip("\n").split(",").index(column)
+    cells = lines[row + 1].rstrip("\n").split(",")
+    cells[col] = value
+    lines[row + 1] = ",".join(cells) + "\n"
+
+
+def test_exit_70_is_documented_in_help() -> None:
+    code, out, _ = _run("--help")
+    assert code == 0
+    assert "70 an internal error (a bug; its traceback is printed)" in " ".join(out.split())
+    code, out, _ = _run("detect", "--help")
+    assert "70 on an internal error (a bug, with its traceback) — never 1" in " ".join(
+        out.split())
+
+
+@pytest.mark.parametrize("value", ["1e300", "-2.5e13"])
+def test_a_huge_torque_cell_is_a_data_error_naming_it(tmp_path: Path, value: str) -> None:
+    path, lines = _small_csv(tmp_path)
+    _set_cell(lines, 1234, "elbow.torque", value)
+    path.write_text("".join(lines), encoding="utf-8")
+    code, _, err = _run("detect", str(path), "--fail-on-detect", "-o", str(tmp_path / "out"))
+    assert code == 3
+    assert err.splitlines() == [
+        f"impactcli: error: {path}: column 'elbow.torque', row 1235 (line 1236): value "
+        f"{float(value):g} is beyond ±1e+12: no joint measures that (a corrupt cell, or a unit "
+        "far off)"]
+    assert not (tmp_path / "out" / "x.timeline.json").exists()
+
+
+def test_a_huge_value_in_an_mcap_is_the_same_error(tmp_path: Path) -> None:
+    log = read_log(LOG).slice(0, 3000)
+    pos = np.array(log.position)
+    pos[77, 0] = 3e15
+    import dataclasses
+
+    path = tmp_path / "big.mcap"
+    write_log(dataclasses.replace(log, position=pos), path)
+    with pytest.raises(LogFormatError) as e:
+        read_log(path)
+    assert str(e.value) == (
+        f"{path}: column 'shoulder.position', message 77 of '/joint_samples': value 3e+15 is "
+        "beyond ±1e+12: no joint measures that (a corrupt cell, or a unit far off)")
+
+
+def test_the_short_nan_repair_stays(tmp_path: Path) -> None:
+    path, lines = _small_csv(tmp_path)
+    for r in (500, 501):
+        _set_cell(lines, r, "shoulder.torque", "nan")
+    path.write_text("".join(lines), encoding="utf-8")
+    code, out, err = _run("inspect", str(path), "--json")
+    assert code == 0, err
+    assert json.loads(out)["repairs"] == [
+        f"{path}: column 'shoulder.torque': interpolated 2 non-finite value(s) in 1 gap(s) "
+        "(first at row 501 (line 502))"]
+
+
+def _boom(*_: Any, **__: Any) -> Any:
+    raise RuntimeError("boom")
+
+
+def test_a_bug_in_a_one_log_run_exits_70_with_its_traceback(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(pipeline, "analyze", _boom)
+    code, _, err = _run("detect", str(LOG), "--fail-on-detect", "-o", str(tmp_path / "out"))
+    assert code == EXIT_SOFTWARE == 70
+    lines = err.splitlines()
+    assert f"impactcli: error: {LOG}: internal error (a bug): RuntimeError: boom" in lines
+    assert "Traceback (most recent call last):" in lines and lines[-1] == "RuntimeError: boom"
+
+
+def test_a_bug_in_a_verb_exits_70_with_its_traceback(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(io_inspect, "describe_log", _boom)
+    for debug in ([], ["--debug"]):
+        code, out, err = _run(*debug, "inspect", str(LOG))
+        assert code == 70 and out == ""
+        lines = err.splitlines()
+        assert lines[0] == "impactcli: error: internal error (a bug): RuntimeError: boom"
+        assert lines[1] == "Traceback (most recent call last):"
+        assert lines[-1] == "RuntimeError: boom"
+
+
+def test_a_data_error_with_debug_keeps_its_exit_code(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.csv"
+    bad.write_text("time,j.position,j.torque\n0,1,2\n", encoding="utf-8")
+    code, _, err = _run("--debug", "inspect", str(bad))
+    assert code == 3
+    assert "Traceback (most recent call last):" in err
+    assert err.splitlines()[-1] == (f"impactcli: error: {bad}: holds 1 data row(s); at least "
+                                    "2 are needed")
+
+
+def test_a_bug_in_a_batch_is_70_in_the_summary_and_4_for_the_batch(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    real = pipeline.analyze
+    other = tmp_path / "other.csv"
+    write_log(read_log(LOG), other)
+
+    def flaky(log: Any, **kw: Any) -> Any:
+        if log.source.path == str(other):
+            raise ZeroDivisionError("division by zero")
+        return real(log, **kw)
+
+    monkeypatch.setattr(pipeline, "analyze", flaky)
+    summary = tmp_path / "summary.json"
+    code, _, err = _run("detect", str(LOG), str(other), "--config", str(CONFIG), "-o",
+                        str(tmp_path / "out"), "--summary", str(summary))
+    assert code == 4, err
+    fail = json.loads(summary.read_text())["failures"]
+    assert fail == [{"file": str(other), "attempts": 1, "class": "internal", "exit_code": 70,
+                     "reason": f"{other}: internal error (a bug): ZeroDivisionError: division "
+                               "by zero"}]
+    # every log failed: the failure's own code, 70 (never 1)
+    code, _, _ = _run("detect", str(other), "--config", str(CONFIG), "-o", str(tmp_path / "o"))
+    assert code == 70
+
+
+def test_a_lost_worker_is_70() -> None:
+    job = batch.DetectJob("x.csv", "out")
+    out = batch.lost_outcome(job, "its worker process died", "worker-lost")
+    assert (out.exit_code, out.error_class) == (70, "worker-lost")
+    assert batch.EXIT_CRASH == 70
