@@ -59,8 +59,9 @@ class AdaptiveConfig:
             and v_dyn; default chosen by measurement (see impactcli.detect.adaptive).
         tanh_slope: slope of u1 = tanh(tanh_slope · x1_ref') [s/rad]; 50 s/rad makes
             |u1| > 0.96 above 0.04 rad/s (≈ 2.3 °/s), a sign() that stays continuous.
-        max_trace: RLS wind-up bound on trace(P) (impactcli.detect.rls); None →
-            100 · nu · p0 (measured choice, see that module); a huge value disables it.
+        max_trace: RLS wind-up guard (impactcli.detect.rls): bounds trace(P) by capping
+            each diagonal element of P at max_trace / nu; None → 1e5 · nu · p0 (measured
+            choice, see that module); ``inf`` disables it (pure eq. 39).
         measured_input_cutoff_hz: cut-off of the causal 2nd-order Butterworth used to
             differentiate the *measured* position when no reference is logged [Hz].
     """

@@ -4,6 +4,8 @@ a priori / a posteriori measurement and the wind-up guard in the full loop."""
 
 from __future__ import annotations
 
+import dataclasses
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -208,7 +210,7 @@ def test_standstill_for_minutes_then_moving_gives_no_blow_up() -> None:
     t, r, u = scenario(3, n_s=300.0, still=(40.0, 250.0))
     pre, post = (t > 10) & (t < 40), t >= 250
     res = {}
-    for name, mt in (("guarded", None), ("unguarded", 1e300)):
+    for name, mt in (("guarded", None), ("unguarded", np.inf)):
         a = evaluate(r, u, FS, np.zeros(2), AdaptiveConfig(max_trace=mt))
         assert np.all(np.isfinite(a.theta))
         res[name] = (a, np.abs(a.r_rms[post]).max() / np.abs(a.r_rms[pre]).max())
@@ -217,6 +219,157 @@ def test_standstill_for_minutes_then_moving_gives_no_blow_up() -> None:
     assert ratio < 1.5
     assert np.abs(a.v_dyn[post]).max() < 1.5 * np.abs(a.v_dyn[pre]).max()
     assert res["unguarded"][1] > 2.0 * ratio        # without the guard it does blow up
+
+
+def sines(seed: int, n_s: float, still: tuple[float, float] | None = None):
+    """2 joints on sine references (no exact collinearity in the regressor, unlike the
+    triangles' sign(x') and x''); joint 2 (index 1) keeps its position during ``still``
+    [s] — from 0 on: its reference is constant, its inputs exactly 0 — then moves again
+    (smooth start)."""
+    rng = np.random.default_rng(seed)
+    n = int(n_s * FS)
+    t = np.arange(n) / FS
+    pos = np.stack([0.8 * np.sin(2 * np.pi * t / 3.0), 0.6 * np.sin(2 * np.pi * t / 4.1 + 1)],
+                   axis=1)
+    if still is not None:
+        a, b = still
+        hold = pos[max(0, int(a * FS) - 1), 1]
+        pos[(t >= a) & (t < b), 1] = hold
+        pos[t >= b, 1] = hold + 0.6 * (1 - np.cos(2 * np.pi * (t[t >= b] - b) / 4.1))
+    v = np.zeros_like(pos)
+    v[1:] = np.diff(pos, axis=0) * FS
+    acc = np.zeros_like(v)
+    acc[1:] = np.diff(v, axis=0) * FS
+    u = np.stack([np.tanh(50 * v), acc])
+    b_, a_ = signal.butter(2, 8 / (FS / 2))
+    raw = 0.3 * np.tanh(50 * v) + 0.02 * acc + 0.01 * acc[:, ::-1]
+    r = signal.lfilter(b_, a_, raw, axis=0) + 0.03 * rng.standard_normal(pos.shape) + 0.2
+    return t, r, u
+
+
+FIELDS = ("r_tilde", "v_dyn", "r_f", "v_f", "r_rms", "v_rms", "threshold", "decision",
+          "prediction_error")
+
+
+def test_numba_equals_reference_with_the_cap_acting() -> None:
+    """max_trace = nu p0: every diagonal element of P capped at p0, acting from the start."""
+    _, r, u = scenario(0, n_s=8.0)
+    cfg = AdaptiveConfig(max_trace=34 * 10.0)
+    a = evaluate(r, u, FS, np.full(2, 0.05), cfg)
+    b = evaluate_reference(r, u, FS, np.full(2, 0.05), cfg)
+    assert a.n_capped.min() > 1000
+    np.testing.assert_array_equal(a.n_capped, b.n_capped)
+    for name in ("r_tilde", "v_dyn", "r_f", "v_f", "r_rms", "v_rms", "threshold",
+                 "prediction_error", "theta"):
+        np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=0, atol=1e-9,
+                                   err_msg=name)
+
+
+def test_still_joint_gives_plain_eq39_bitwise() -> None:
+    """Joint 2's reference is constant for 80 s (its 6 input lags are exactly 0 in both
+    axes' regressions, as the elbow's in sample_logs' assist_impacts): the default guard
+    caps that block of P (from 46 s, when p0 lambda^-k reaches 1e5 p0) and every output
+    equals plain eq. 39's (max_trace = inf) bit for bit."""
+    _, r, u = sines(1, 80.0, still=(0.0, 1e9))
+    g = evaluate(r, u, FS, np.full(2, 0.05))
+    p = evaluate(r, u, FS, np.full(2, 0.05), AdaptiveConfig(max_trace=np.inf))
+    assert g.n_capped.min() > 5000 and p.n_capped.sum() == 0
+    for name in (*FIELDS, "theta"):
+        np.testing.assert_array_equal(getattr(g, name), getattr(p, name), err_msg=name)
+
+
+def test_one_joint_still_for_17_minutes_then_moving() -> None:
+    """Joint 2 stops for 250 000 samples (17 min at 4 ms) while joint 1 keeps moving, then
+    resumes. Plain eq. 39 (max_trace = inf) winds up — the P blocks of the still input lags
+    and of triangle references' collinear u1/u2 lags — loses positive definiteness and
+    resets P ten times per axis, and the moving joint's r_rms swings to 3.7 x its level
+    before; the default guard: no reset, r_rms during the standstill and after resuming
+    within its level before, v_dyn too."""
+    n0, n_still, n1 = 10_000, 250_000, 10_000
+    rng = np.random.default_rng(5)
+    n = n0 + n_still + n1
+    t = np.arange(n) / FS
+    pos = np.stack([0.8 * signal.sawtooth(2 * np.pi * t / p, 0.5) for p in (2.0, 2.6)], axis=1)
+    pos[n0:n0 + n_still, 1] = pos[n0 - 1, 1]
+    pos[n0 + n_still:, 1] = 0.8 * signal.sawtooth(
+        2 * np.pi * (t[n0 + n_still:] - t[n0 + n_still] + t[n0]) / 2.6, 0.5)
+    v = np.zeros_like(pos)
+    v[1:] = np.diff(pos, axis=0) * FS
+    acc = np.zeros_like(v)
+    acc[1:] = np.diff(v, axis=0) * FS
+    u = np.stack([np.tanh(50 * v), acc])
+    b_, a_ = signal.butter(2, 8 / (FS / 2))
+    raw = 0.3 * np.tanh(50 * v) + 0.002 * acc + 0.001 * acc[:, ::-1]
+    r = signal.lfilter(b_, a_, raw, axis=0) + 0.03 * rng.standard_normal(pos.shape) + 0.2
+    pre, still = slice(2500, n0), slice(n0 + 2500, n0 + n_still)
+    post = slice(n0 + n_still, n)
+    g = evaluate(r, u, FS, np.zeros(2))
+    p = evaluate(r, u, FS, np.zeros(2), AdaptiveConfig(max_trace=np.inf))
+    assert p.n_resets.min() >= 5
+    assert p.r_rms[still, 0].max() > 2.5 * p.r_rms[pre, 0].max()
+    assert g.n_resets.sum() == 0 and g.n_capped.min() > 0.9 * n_still
+    for a in (still, post):
+        assert np.all(g.r_rms[a].max(axis=0) < 1.1 * g.r_rms[pre].max(axis=0))
+    assert np.all(np.abs(g.v_dyn[post]).max(axis=0) < 1.5 * np.abs(g.v_dyn[pre]).max(axis=0))
+
+
+def test_ten_minutes_of_triangles_wind_up_plain_eq39_not_the_guard() -> None:
+    """Both joints on triangle references for 10 min: sign(x1_ref') changes exactly where
+    x1_ref'' is non-zero, so u1's lag differences are proportional to u2's lags and that
+    combination is never excited while moving. Plain eq. 39 lets P grow as lambda^-k there,
+    loses positive definiteness and resets P (every ~26 000 samples), r_rms swinging well
+    above its level; the guard caps it at a few % of the samples, without a reset."""
+    n = 150_000
+    rng = np.random.default_rng(5)
+    t = np.arange(n) / FS
+    pos = np.stack([0.8 * signal.sawtooth(2 * np.pi * t / p, 0.5) for p in (2.0, 2.6)], axis=1)
+    v = np.zeros_like(pos)
+    v[1:] = np.diff(pos, axis=0) * FS
+    acc = np.zeros_like(v)
+    acc[1:] = np.diff(v, axis=0) * FS
+    u = np.stack([np.tanh(50 * v), acc])
+    b_, a_ = signal.butter(2, 8 / (FS / 2))
+    raw = 0.3 * np.tanh(50 * v) + 0.002 * acc + 0.001 * acc[:, ::-1]
+    r = signal.lfilter(b_, a_, raw, axis=0) + 0.03 * rng.standard_normal(pos.shape) + 0.2
+    g = evaluate(r, u, FS, np.zeros(2))
+    p = evaluate(r, u, FS, np.zeros(2), AdaptiveConfig(max_trace=np.inf))
+    settled = slice(int(60 * FS), int(100 * FS))           # after the start-up, before 26k
+    assert p.n_resets.min() >= 3
+    assert np.any(p.r_rms[settled.stop:].max(axis=0) > 2.0 * p.r_rms[settled].max(axis=0))
+    assert g.n_resets.sum() == 0 and 0 < g.n_capped.max() < 0.1 * n
+    assert np.all(g.r_rms[settled.stop:].max(axis=0) < 1.2 * g.r_rms[settled].max(axis=0))
+
+
+SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
+
+
+def test_sample_impacts_log_gives_plain_eq39_bitwise() -> None:
+    """sample_logs' assist_impacts (the elbow's reference is constant throughout): the
+    guard acts at 6 669 of 18 176 samples per axis, and the replay equals plain eq. 39."""
+    from impactcli.config import load_config
+    from impactcli.io import read_log
+    from impactcli.io.robot import read_robot
+    from impactcli.pipeline import calibrated_thresholds, replay
+
+    csv = SAMPLES / "csv"
+    if not (csv / "assist_impacts.csv.gz").exists():  # pragma: no cover - trimmed checkout
+        pytest.skip("sample_logs/csv is absent")
+    robot = read_robot(csv / "assist_impacts.robot.json")
+    cfg = load_config(SAMPLES / "assist_like.config.toml")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ImpactWarning)
+        rp = replay(read_log(csv / "assist_impacts.csv.gz", robot=robot), None, cfg, robot)
+        inputs = threshold_inputs(rp.log, cfg.adaptive)
+    th = calibrated_thresholds(cfg, rp.log.joint_names)
+    assert th is not None
+    fs = rp.log.sample_rate_hz
+    g = evaluate(rp.r, inputs.u, fs, th["adaptive"], cfg.adaptive)
+    p = evaluate(rp.r, inputs.u, fs, th["adaptive"],
+                 dataclasses.replace(cfg.adaptive, max_trace=np.inf))
+    assert np.all(inputs.u[:, :, 1] == 0.0)
+    assert g.n_capped.tolist() == [6669, 6669] and p.n_capped.sum() == 0
+    for name in (*FIELDS, "theta"):
+        np.testing.assert_array_equal(getattr(g, name), getattr(p, name), err_msg=name)
 
 
 REAL = Path(__file__).resolve().parents[1].parent / "shared" / "real_logs"

@@ -9,7 +9,9 @@ For axis j, at each sample k (all axes in one pass):
    algorithm computed earlier (pseudo-linear regression). Samples before the log start
    are 0.
 2. RLS with constant forgetting (eq. 38–40) on ``y = r_j(k)``: :mod:`impactcli.detect.rls`
-   (P symmetric by storage, bounded-trace wind-up guard).
+   (P symmetric by storage; wind-up guard: each diagonal element of P capped at
+   max_trace / nu, which leaves the replay bit for bit plain eq. 39's where the capped
+   regressor entries are 0, e.g. a still joint's inputs).
 3. ``r_tilde(k) = r_j(k) - phi_G(k)^T theta_G`` (= G_hat(z) r_j, eq. 26, 29–31) and
    ``v_dyn(k) = phi_v(k)^T theta_v`` (eq. 33, 46) with theta = theta(k) (``a_posteriori``)
    or theta(k-1) (``a_priori``).
@@ -30,13 +32,13 @@ test_a_posteriori_default_is_measured`` reproduces it): a 2-joint synthetic resi
 at 4 ms, state-dependent model error driven by triangle-like references, white noise) with
 three added 0.5 N·m, 80 ms contact pulses. With each option's v_stat set to 1.2 × its own
 collision-free maximum of r_rms − v_rms (after 5 s), the peak of r_rms / threshold during
-each pulse was 0.94, 1.13, 0.95 (mean 1.005) a priori and 1.00, 1.20, 1.04 (mean 1.076)
-a posteriori — about 7 % more margin over the threshold, no false alarm with either (with
-the wind-up bound at nu·p0 instead of the default the same comparison gave means 1.03 and
-1.07); the fitted G was the same near-differentiator (|G| = 0.04 at 1 Hz, 1.58 at 62.5 Hz)
-in both. This agrees with the
-simulation study quoted in method.md §3. ``a_priori`` stays available (the conservative
-reading: the update that sees a collision cannot absorb it).
+each pulse was 0.94, 1.13, 0.93 (mean 1.001) a priori and 1.00, 1.20, 1.05 (mean 1.080)
+a posteriori — about 8 % more margin over the threshold, no false alarm with either (the
+default wind-up guard does not act in these 40 s: plain eq. 39; with every diagonal
+element of P capped at p0, max_trace = nu·p0, the means were 1.006 and 1.028); the fitted
+G was the same near-differentiator (|G| = 0.04 at 1 Hz, 1.58 at 62.5 Hz) in both. This
+agrees with the simulation study quoted in method.md §3. ``a_priori`` stays available (the
+conservative reading: the update that sees a collision cannot absorb it).
 
 Sample rate (method.md §5b): orders are in samples; N1, N2 are durations converted at the
 log's rate (at least 1 sample); w1, w2 are clipped below 0.4 × fs with an ImpactWarning.
@@ -51,7 +53,7 @@ from __future__ import annotations
 import os
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numba as nb
 import numpy as np
@@ -60,7 +62,7 @@ from scipy import signal
 from ..config import AdaptiveConfig
 from ..errors import ImpactWarning
 from ..types import RobotLog
-from .rls import FASTMATH, default_max_trace, rls_update_inplace
+from .rls import FASTMATH, max_diag_of, rls_update_inplace
 
 #: Frequencies at which |G_hat| is reported [Hz] (plus fs/4 = Nyquist/2, added per log).
 GAIN_FREQUENCIES_HZ: tuple[float, ...] = (1.0, 2.0, 5.0, 10.0, 20.0)
@@ -203,6 +205,8 @@ class AdaptiveResult:
         theta: (J, nu) final estimates.  n_resets: (J,) RLS covariance resets.
         rates: the converted settings.  nu: number of parameters per axis.
         eta: degree of G (theta[:, :eta] is theta_G).
+        n_capped: (J,) samples at which the RLS wind-up guard scaled P
+            (:mod:`impactcli.detect.rls`).
     """
 
     r_tilde: np.ndarray
@@ -219,6 +223,7 @@ class AdaptiveResult:
     rates: Rates
     nu: int
     eta: int
+    n_capped: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
     @property
     def statistic(self) -> np.ndarray:
@@ -260,16 +265,17 @@ def g_gain(theta_g: np.ndarray, freqs_hz: np.ndarray, fs_hz: float) -> np.ndarra
 @nb.njit(cache=True, nogil=True, fastmath=FASTMATH)
 def _evaluate_axis(
     r: np.ndarray, u: np.ndarray, eta: int, p: int, rho: np.ndarray,
-    lam: float, p0: float, theta0: float, max_trace: float, a_post: bool,
+    lam: float, p0: float, theta0: float, max_diag: float, a_post: bool,
     a1: float, a2: float, n1: int, n2: int, v_stat_j: float,
     rt: np.ndarray, vd: np.ndarray, rf: np.ndarray, vf: np.ndarray, rr: np.ndarray,
     vr: np.ndarray, thr: np.ndarray, dec: np.ndarray, eps: np.ndarray, th: np.ndarray,
-) -> int:
+) -> tuple[int, int]:
     """One axis over all samples: ``r`` (N,) is its residual, ``u`` (m, N, J) every axis's
     inputs; the outputs are this axis's (N,) rows and its (nu,) theta ``th``.
 
     Axes are independent (eq. 34–35 per axis; only the inputs u are shared), so axes can
-    run on separate threads (the kernel releases the GIL). Returns the covariance resets.
+    run on separate threads (the kernel releases the GIL). Returns the covariance resets
+    and the number of samples at which the wind-up guard scaled P.
     """
     n = r.shape[0]
     J = u.shape[2]
@@ -284,8 +290,10 @@ def _evaluate_axis(
     for i in range(nu):
         th[i] = theta0
     resets = 0
+    capped = 0
     phi = np.zeros(nu)
     h = np.empty(nu)
+    w = np.empty(nu)
     th_old = np.empty(nu)
     inv_n1 = 1.0 / n1
     inv_n2 = 1.0 / n2
@@ -313,9 +321,10 @@ def _evaluate_axis(
         if not a_post:
             for i in range(nu):
                 th_old[i] = th[i]
-        e, rs = rls_update_inplace(th, P, phi, r[k], lam, max_trace, p0, h)
+        e, rs, cp = rls_update_inplace(th, P, phi, r[k], lam, max_diag, p0, h, w)
         eps[k] = e
         resets += rs
+        capped += cp
         tv = th if a_post else th_old
         g = 0.0
         for i in range(eta):
@@ -356,12 +365,12 @@ def _evaluate_axis(
         if pos2 == n2:
             pos2 = 0
             sum_v = np.sum(ring_v)
-    return resets
+    return resets, capped
 
 
 def _evaluate_numba(
     r: np.ndarray, u: np.ndarray, eta: int, p: int, rho: np.ndarray,
-    lam: float, p0: float, theta0: float, max_trace: float, a_post: bool,
+    lam: float, p0: float, theta0: float, max_diag: float, a_post: bool,
     a1: float, a2: float, n1: int, n2: int, v_stat: np.ndarray, threads: int = 1,
 ) -> tuple[np.ndarray, ...]:
     """All axes with the compiled per-axis kernel; ``threads`` > 1 runs axes concurrently.
@@ -376,20 +385,21 @@ def _evaluate_numba(
     theta = np.zeros((J, nu))
     rt, vd, rf, vf, rr, vr, thr, dec, eps = out
 
-    def axis(j: int) -> int:
-        return int(_evaluate_axis(rows[j], u, eta, p, rho, lam, p0, theta0, max_trace, a_post,
-                                  a1, a2, n1, n2, float(v_stat[j]), rt[j], vd[j], rf[j], vf[j],
-                                  rr[j], vr[j], thr[j], dec[j], eps[j], theta[j]))
+    def axis(j: int) -> tuple[int, int]:
+        rs, cp = _evaluate_axis(rows[j], u, eta, p, rho, lam, p0, theta0, max_diag, a_post,
+                                a1, a2, n1, n2, float(v_stat[j]), rt[j], vd[j], rf[j], vf[j],
+                                rr[j], vr[j], thr[j], dec[j], eps[j], theta[j])
+        return int(rs), int(cp)
 
     if threads > 1 and J > 1:
         from concurrent.futures import ThreadPoolExecutor
 
         with ThreadPoolExecutor(max_workers=min(threads, J)) as ex:
-            resets = np.array(list(ex.map(axis, range(J))), dtype=np.int64)
+            counts = np.array(list(ex.map(axis, range(J))), dtype=np.int64).reshape(J, 2)
     else:
-        resets = np.array([axis(j) for j in range(J)], dtype=np.int64)
+        counts = np.array([axis(j) for j in range(J)], dtype=np.int64).reshape(J, 2)
     rt, vd, rf, vf, rr, vr, thr, dec, eps = (np.ascontiguousarray(x.T) for x in out)
-    return rt, vd, rf, vf, rr, vr, thr, dec, eps, theta, resets
+    return rt, vd, rf, vf, rr, vr, thr, dec, eps, theta, counts[:, 0], counts[:, 1]
 
 
 def _check(r: np.ndarray, u: np.ndarray, v_stat: np.ndarray, cfg: AdaptiveConfig) -> None:
@@ -428,15 +438,14 @@ def evaluate(
     _check(r, u, vs, cfg)
     rates = resolve_rates(cfg, sample_rate_hz)
     nu = cfg.n_params(r.shape[1])
-    mt = default_max_trace(nu, cfg.p0) if cfg.max_trace is None else float(cfg.max_trace)
     out = _evaluate_numba(
         r, u, cfg.eta, cfg.p, np.asarray(cfg.rho, dtype=np.int64), cfg.forgetting_factor,
-        cfg.p0, cfg.theta0, mt, cfg.estimate == "a_posteriori", rates.a1, rates.a2,
-        rates.n1, rates.n2, vs, threads,
+        cfg.p0, cfg.theta0, max_diag_of(nu, cfg.p0, cfg.max_trace),
+        cfg.estimate == "a_posteriori", rates.a1, rates.a2, rates.n1, rates.n2, vs, threads,
     )
-    rt, vd, rf, vf, rr, vr, thr, dec, eps, theta, resets = out
+    rt, vd, rf, vf, rr, vr, thr, dec, eps, theta, resets, capped = out
     return AdaptiveResult(rt, vd, rf, vf, rr, vr, thr, dec, eps, theta, resets,
-                          rates=rates, nu=nu, eta=cfg.eta)
+                          rates=rates, nu=nu, eta=cfg.eta, n_capped=capped)
 
 
 def evaluate_reference(
@@ -454,7 +463,7 @@ def evaluate_reference(
     eta, p, rho = cfg.eta, cfg.p, cfg.rho
     nu = cfg.n_params(J)
     lam = cfg.forgetting_factor
-    mt = default_max_trace(nu, cfg.p0) if cfg.max_trace is None else float(cfg.max_trace)
+    cap = max_diag_of(nu, cfg.p0, cfg.max_trace)
 
     def past(x: np.ndarray, k: int, order: int) -> np.ndarray:
         """[x(k-1), ..., x(k-order)], zero before the start."""
@@ -464,6 +473,7 @@ def evaluate_reference(
            ("rt", "vd", "rf", "vf", "rr", "vr", "thr", "eps")}
     dec = np.zeros((n, J), dtype=bool)
     thetas = np.zeros((J, nu))
+    capped = np.zeros(J, dtype=np.int64)
     for j in range(J):
         theta = np.full(nu, cfg.theta0)
         P = cfg.p0 * np.eye(nu)
@@ -476,12 +486,14 @@ def evaluate_reference(
             eps0 = r[k, j] - theta @ phi                                  # eq. 40
             s = phi @ P @ phi
             h = P @ phi
-            lam_k = lam
-            if (np.trace(P) - h @ h / (lam + s)) / lam > mt:              # wind-up guard
-                lam_k = 1.0
-            gain = h / (lam_k + s)
+            gain = h / (lam + s)
             theta_new = theta + gain * eps0                               # eq. 38
-            P = (P - np.outer(h, h) / (lam_k + s)) / lam_k                # eq. 39
+            P = (P - np.outer(h, h) / (lam + s)) / lam                    # eq. 39
+            over = np.diag(P) > cap                                       # wind-up guard
+            if over.any():
+                w = np.where(over, np.sqrt(cap / np.where(over, np.diag(P), 1.0)), 1.0)
+                P = P * np.outer(w, w)                                    # W P W
+                capped[j] += 1
             tv = theta_new if cfg.estimate == "a_posteriori" else theta
             theta = theta_new
             res["eps"][k, j] = eps0
@@ -500,4 +512,5 @@ def evaluate_reference(
     return AdaptiveResult(
         res["rt"], res["vd"], res["rf"], res["vf"], res["rr"], res["vr"], res["thr"], dec,
         res["eps"], thetas, np.zeros(J, dtype=np.int64), rates=rates, nu=nu, eta=eta,
+        n_capped=capped,
     )
