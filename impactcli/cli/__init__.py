@@ -34,6 +34,8 @@ VERBS: dict[str, tuple[str, str, str]] = {
                     "Reproduce the paper's Table II on the simulator."),
     "robots": ("impactcli.cli.robots", "robots_cmd",
                "List the robots --robot NAME takes (the robots extra)."),
+    "labels": ("impactcli.cli.labels", "labels_cmd",
+               "Make ground-truth labels from a logged switch or force channel."),
 }
 
 

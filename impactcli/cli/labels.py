@@ -1,0 +1,413 @@
+"""``impactcli labels LOG --from-channel NAME --above X --link N -o labels.json``: ground-truth
+labels from a logged switch or force sensor (formats.md, "Ground-truth labels").
+
+The channel is read from the raw file, whatever the log's reader makes of it:
+
+* ``<joint>.<signal>`` of a joint the log has (``j2.torque_ext``, or any signal a channel
+  map gives a joint): the log's own values, after the map's scale and offset;
+* a CSV column by name — typically one the reader ignores (``inspect`` lists them) — or,
+  in a headerless file read with a channel map, by 0-based index; it is read by the CSV
+  reader itself with the log's time column (same units, epoch handling, repairs);
+* an ``.npz`` array key (``key`` or ``key[i]`` for a column of a 2-D array), read with the
+  channel map's time;
+* in an MCAP file or a ROS bag, a message field ``/topic/field/sub[i]`` of any message type
+  (:mod:`impactcli.io.fields`), or ``/topic/array[joint]`` for the element of a
+  JointState-like array by joint name; stamped like the log's samples (its
+  ``time_source``: the field topic's header stamps, else its publish or log times).
+
+Contiguous stretches where the channel is above X become contacts: ``start`` and ``end``
+are the first and last sample above (both inclusive, seconds since the log's first
+sample, like events), stretches closer than ``--merge-gap`` are merged, and those shorter
+than ``--min-duration`` dropped. ``peak_force`` is the channel's peak in the stretch when
+the channel is a force [N]; a *switch* (a channel with two values, or ``--channel-kind
+switch``) knows no force: its labels carry ``peak_force`` 0 with ``peak_force_known``
+false, which ``evaluate`` leaves out of every force score. Every contact also records the
+channel's ``peak_value``. ``kind`` comes from ``--kind`` (default ``push``), ``link`` from
+``--link`` — required: a label names the link touched (1-based, formats.md), and a wrong
+default would make ``evaluate``'s link scores meaningless. ``sample_rate`` is the log's.
+
+The file (schemas/labels.schema.json, validated before writing) is written atomically
+and records where it came from under ``source``. Exit 0; 2 bad options; 3 a log or
+channel that cannot be read (a channel that does not exist: one line naming the file and
+listing what it has).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import click
+import numpy as np
+
+from ..errors import ImpactWarning, LogFormatError
+from ._common import check_log_path, handle_errors
+from .detect import log_read_options, read_options_from
+
+#: How a channel's contacts are labelled.
+CHANNEL_KINDS: tuple[str, ...] = ("auto", "force", "switch")
+#: Tolerance of time comparisons [s] (sample times are float sums of periods).
+EPS_S = 1e-9
+_JOINT_PICK = re.compile(r"^(?P<path>.*)\[(?P<joint>[^\]]*[^\]\d][^\]]*)\]$")
+_NPZ_COLUMN = re.compile(r"^(?P<key>.+)\[(?P<index>\d+)\]$")
+
+
+@dataclass(frozen=True)
+class Channel:
+    """A channel read for labelling.
+
+    Attributes:
+        name: as given. what: how it was found (for the record).
+        t_s: (n,) seconds since the log's first sample, increasing.
+        values: (n,) float64 (NaN where not logged).
+    """
+
+    name: str
+    what: str
+    t_s: np.ndarray
+    values: np.ndarray
+
+
+def read_channel(path: Path, name: str, log: Any, read_options: dict[str, Any]) -> Channel:
+    """The channel ``name`` of the log at ``path`` (module docstring), timed on ``log``'s
+    clock (``log`` is the log as :func:`impactcli.io.read_log` reads it).
+
+    Raises:
+        LogFormatError: no such channel (one line naming the file and listing what it has),
+            or a channel that cannot be read.
+    """
+    from ..io.channel_map import SIGNALS
+
+    joint, dot, sig = name.partition(".")
+    if dot and joint in log.joint_names and sig in SIGNALS:
+        arr = getattr(log, sig)
+        j = log.joint_names.index(joint)
+        if arr is None or not bool(log.has_channel(sig)[j]):
+            raise LogFormatError(f"{path}: joint {joint!r} does not log {sig!r}")
+        return Channel(name, f"the log's {name} (through its reader and channel map)",
+                       np.asarray(log.time_s, dtype=np.float64),
+                       np.asarray(arr[:, j], dtype=np.float64))
+    from ..io import MESSAGE_SUFFIXES, log_stem
+
+    lower = path.name.lower()
+    if path.is_dir() or lower.endswith(MESSAGE_SUFFIXES):
+        return _message_channel(path, name, log)
+    if lower.endswith(".npz"):
+        return _npz_channel(path, name, log, read_options)
+    if lower.endswith((".csv", ".csv.gz")):
+        return _csv_channel(path, name, log, read_options)
+    raise LogFormatError(f"{path}: cannot read channels of this format ({log_stem(path)})")
+
+
+def _relative(t_ns: np.ndarray, log: Any) -> np.ndarray:
+    return np.asarray((np.asarray(t_ns, dtype=np.int64) - int(log.t0_ns)) / 1e9)
+
+
+def _joint_channels_hint(log: Any) -> str:
+    from ..io.channel_map import SIGNALS
+
+    have = [f"{j}.{s}" for s in SIGNALS if getattr(log, s) is not None
+            for j, ok in zip(log.joint_names, log.has_channel(s), strict=True) if ok]
+    return ", ".join(have)
+
+
+def _csv_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Channel:
+    """A CSV column, read by the CSV reader with the log's own time column."""
+    from ..io.channel_map import ChannelMap, ChannelRef, load_channel_map
+    from ..io.csv import canonical_map, read_csv_channels
+
+    where = str(path)
+    cmap = load_channel_map(ropts["channel_map"]) if ropts.get("channel_map") else None
+    header = True if cmap is None else cmap.header
+    skip = 0 if cmap is None else cmap.skip_rows
+    line = _header_line(path, skip)
+    delim = _separator(line) if cmap is None else cmap.delimiter
+    names = ([c.strip().strip('"') for c in line.rstrip("\r\n").split(delim)] if header
+             else [str(i) for i in range(len(line.split(delim)))])
+    source: str | int
+    if header and name in names:
+        source = name
+    elif name.isdigit() and int(name) < len(names):
+        source = int(name)
+    else:
+        what = "columns" if header else f"columns 0–{len(names) - 1} (no header)"
+        hint = _joint_channels_hint(log) if cmap is not None else ""
+        raise LogFormatError(f"{path}: no channel {name!r}: its {what}: {', '.join(names)}"
+                             + (f"; the map's joint channels: {hint}" if hint else ""))
+    if cmap is None:
+        unit = ropts.get("time_unit")
+        tspec = (canonical_map(names, where) if unit is None
+                 else canonical_map(names, where, unit))[0].time  # type: ignore[call-arg,unused-ignore]
+    else:
+        tspec = cmap.time
+        if ropts.get("time_unit") is not None and tspec is not None:
+            import dataclasses
+
+            tspec = dataclasses.replace(tspec, unit=ropts["time_unit"])
+    one = ChannelMap(
+        name=f"--from-channel {name}", time=tspec, joints=("channel",),
+        signals={"position": (ChannelRef(source),)}, path=cmap.path if cmap else "",
+        format="csv", header=header, delimiter=delim, skip_rows=skip,
+    )
+    with warnings.catch_warnings():
+        # the log's own repairs were warned about when it was read
+        warnings.simplefilter("ignore", ImpactWarning)
+        with _repairing_order(bool(ropts.get("repair_order"))):
+            ch, _fmt = read_csv_channels(path, one)
+    col = name if isinstance(source, str) else f"column {source}"
+    return Channel(name, f"CSV {col}", _relative(ch.t_ns, log),
+                   np.asarray(ch.signals["position"][:, 0], dtype=np.float64))
+
+
+def _header_line(path: Path, skip: int) -> str:
+    """The first line after ``skip`` lines of a (possibly gzipped) CSV, without a BOM."""
+    import gzip
+
+    opener: Any = gzip.open if path.name.lower().endswith(".gz") else open
+    try:
+        with opener(path, "rt", encoding="utf-8-sig", errors="replace", newline="") as f:
+            for _ in range(skip):
+                f.readline()
+            return str(f.readline())
+    except (OSError, EOFError, ValueError) as err:
+        raise LogFormatError(f"{path}: cannot read: {err}") from err
+
+
+def _separator(line: str) -> str:
+    """The separator (``,``, ``;`` or tab) with which a canonical header names its time
+    column (as the CSV reader picks it)."""
+    for sep in (",", ";", "\t"):
+        if any(c.strip().strip('"') in ("time_ns", "time", "__time")
+               for c in line.rstrip("\r\n").split(sep)):
+            return sep
+    return ","
+
+
+def _repairing_order(on: bool) -> Any:
+    """The reader's --repair-order context (a no-op where the reader has none)."""
+    import contextlib
+
+    try:
+        from ..io.repair import repairing_order  # type: ignore[attr-defined,unused-ignore]
+    except ImportError:
+        return contextlib.nullcontext()
+    return repairing_order(on)
+
+
+def _npz_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Channel:
+    """An ``.npz`` array (``key`` or ``key[i]``) with the channel map's time."""
+    from ..io.channel_map import ChannelMap, ChannelRef, load_channel_map
+    from ..io.npz import read_npz_channels
+
+    cmap = load_channel_map(ropts["channel_map"]) if ropts.get("channel_map") else None
+    if cmap is None:
+        raise LogFormatError(f"{path}: an .npz log needs a channel map (--channel-map)")
+    with np.load(path, allow_pickle=False) as archive:
+        keys = list(archive.files)
+    m = _NPZ_COLUMN.match(name)
+    key, index = (m.group("key"), int(m.group("index"))) if m and name not in keys else (name,
+                                                                                         None)
+    if key not in keys:
+        raise LogFormatError(
+            f"{path}: no channel {name!r}: its arrays: {', '.join(keys)}"
+            + (f"; joint channels: {hint}" if (hint := _joint_channels_hint(log)) else ""))
+    one = ChannelMap(name=f"--from-channel {name}", time=cmap.time, joints=("channel",),
+                     signals={"position": (ChannelRef(key, index=index),)}, path=cmap.path,
+                     format="npz")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ImpactWarning)
+        ch = read_npz_channels(path, one)
+    return Channel(name, f"array {name}", _relative(ch.t_ns, log),
+                   np.asarray(ch.signals["position"][:, 0], dtype=np.float64))
+
+
+def _message_channel(path: Path, name: str, log: Any) -> Channel:
+    """A message field, stamped like the log's samples."""
+    from ..io.fieldread import read_fields
+    from ..io.fields import check_ros_path, parse_field_path
+    from ..io.msgsource import MessageSource
+
+    where = f"{path}: --from-channel"
+    src: MessageSource
+    if path.name.lower().endswith(".mcap"):
+        from ..io.mcap_scan import UnsupportedMcap, scan_mcap, scan_mcap_official
+        from ..io.msgsource import McapSource
+
+        try:
+            scan = scan_mcap(path)
+        except UnsupportedMcap:
+            scan = scan_mcap_official(path)
+        src = McapSource(scan, str(path))
+    else:
+        from ..io.bags import BagSource
+
+        src = BagSource(path, str(path))
+    topics = src.topics()
+    text, joint = name, None
+    m = _JOINT_PICK.match(name)
+    if m:
+        text, joint = m.group("path"), m.group("joint")
+    if not text.startswith("/"):
+        raise LogFormatError(
+            f"{path}: no channel {name!r}: in an MCAP file or a bag name a message field "
+            f"/topic/field (topics: {', '.join(sorted(topics)) or 'none'})"
+            + (f"; or a joint channel: {hint}" if (hint := _joint_channels_hint(log)) else ""))
+    fp = parse_field_path(text, list(topics), joint, where)
+    mtype, enc = topics[fp.topic]
+    if enc in ("cdr", "ros1"):
+        if not mtype:
+            raise LogFormatError(f"{where}: topic {fp.topic!r} has no message definition in "
+                                 "the file: its fields cannot be read")
+        fp = check_ros_path(fp, mtype, src.fielddefs(mtype), where)
+    elif enc != "json":
+        raise LogFormatError(f"{where}: topic {fp.topic!r} has message encoding {enc!r}, "
+                             "which cannot be decoded (cdr, ros1 or json)")
+    td = src.load([fp.topic])[fp.topic]
+    if td.n == 0:
+        raise LogFormatError(f"{where}: topic {fp.topic!r} holds no messages")
+    vals, header = read_fields(src, td, [fp], where)
+    tsrc = log.source.time_source
+    if tsrc == "header" and header is not None and np.all(header != 0):
+        t_ns = header
+    else:
+        t_ns = td.publish_time if tsrc == "publish" else td.log_time
+    order = np.argsort(t_ns, kind="stable")
+    return Channel(name, f"field {fp.label()} ({tsrc} time)",
+                   _relative(np.asarray(t_ns)[order], log),
+                   np.asarray(vals[order, 0], dtype=np.float64))
+
+
+def stretches(t_s: np.ndarray, values: np.ndarray, above: float, *, merge_gap_s: float = 0.0,
+              min_duration_s: float = 0.0) -> list[tuple[int, int]]:
+    """``(first, last)`` sample indices (inclusive) of the stretches where ``values`` is
+    above ``above`` (NaN is not): stretches whose gap (from one's last sample to the next's
+    first) is at most ``merge_gap_s`` merged, those shorter than ``min_duration_s``
+    (last − first) dropped."""
+    with np.errstate(invalid="ignore"):
+        on = np.isfinite(values) & (values > above)
+    x = np.diff(on.astype(np.int8), prepend=np.int8(0), append=np.int8(0))
+    starts = np.flatnonzero(x == 1).tolist()
+    ends = (np.flatnonzero(x == -1) - 1).tolist()
+    merged: list[tuple[int, int]] = []
+    for a, b in zip(starts, ends, strict=True):
+        if merged and t_s[a] - t_s[merged[-1][1]] <= merge_gap_s + EPS_S:
+            merged[-1] = (merged[-1][0], b)
+        else:
+            merged.append((a, b))
+    return [(a, b) for a, b in merged if t_s[b] - t_s[a] >= min_duration_s - EPS_S]
+
+
+def channel_kind(values: np.ndarray) -> str:
+    """``switch`` for a channel with at most two distinct finite values, else ``force``."""
+    finite = values[np.isfinite(values)]
+    return "switch" if np.unique(finite).size <= 2 else "force"
+
+
+def labels_doc(ch: Channel, *, above: float, kind: str, link: int, channel_is: str,
+               merge_gap_s: float, min_duration_s: float, sample_rate: float,
+               log_path: str) -> dict[str, Any]:
+    """The labels mapping (formats.md) of the stretches of ``ch`` above ``above``."""
+    resolved = channel_kind(ch.values) if channel_is == "auto" else channel_is
+    events = []
+    for a, b in stretches(ch.t_s, ch.values, above, merge_gap_s=merge_gap_s,
+                          min_duration_s=min_duration_s):
+        peak = float(np.nanmax(ch.values[a : b + 1]))
+        ev: dict[str, Any] = {
+            "start": round(float(ch.t_s[a]), 9), "end": round(float(ch.t_s[b]), 9),
+            "peak_force": max(peak, 0.0) if resolved == "force" else 0.0,
+            "kind": kind, "link": link, "peak_value": peak,
+        }
+        if resolved == "switch":
+            ev["peak_force_known"] = False
+        events.append(ev)
+    return {
+        "schema_version": "1.0",
+        "sample_rate": float(sample_rate),
+        "events": events,
+        "source": {
+            "tool": "impactcli labels", "log": log_path, "channel": ch.name,
+            "read_as": ch.what, "channel_kind": resolved, "above": above,
+            "merge_gap_s": merge_gap_s, "min_duration_s": min_duration_s,
+            "peak_force": ("the channel's peak in each stretch [N]" if resolved == "force"
+                           else "unknown: a switch says when, not how hard (peak_force 0, "
+                                "peak_force_known false; peak_value is the switch's value)"),
+        },
+    }
+
+
+@click.command("labels")
+@click.argument("log", type=click.Path(path_type=Path))
+@click.option("--from-channel", "channel", required=True, metavar="NAME",
+              help="The switch or force channel: a CSV column (one the reader ignores, or "
+                   "any), <joint>.<signal>, an .npz array (key or key[i]), or in an MCAP / "
+                   "bag a message field /topic/field[i] (or /topic/array[joint]).")
+@click.option("--above", type=float, required=True, metavar="X",
+              help="A contact is where the channel is above X (in its own unit).")
+@click.option("--link", type=click.IntRange(min=1), required=True, metavar="N",
+              help="The 1-based link the contacts are on (required: labels name the link).")
+@click.option("--kind", type=click.Choice(["impact", "push", "clamp"]), default="push",
+              show_default=True, help="The contacts' kind.")
+@click.option("--channel-kind", "channel_is", type=click.Choice(CHANNEL_KINDS),
+              default="auto", show_default=True,
+              help="force: peak_force is the channel's peak [N]; switch: no force "
+                   "(peak_force_known false); auto: a switch when the channel has two values.")
+@click.option("--min-duration", type=click.FloatRange(min=0.0), default=0.0, show_default=True,
+              help="Drop stretches shorter than this [s].")
+@click.option("--merge-gap", type=click.FloatRange(min=0.0), default=0.0, show_default=True,
+              help="Merge stretches this close (last sample to next first sample) [s].")
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
+              required=True, help="The labels JSON to write.")
+@click.option("--robot", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Robot description, for a log whose torque comes from currents.")
+@log_read_options
+@handle_errors
+def labels_cmd(log: Path, channel: str, above: float, link: int, kind: str, channel_is: str,
+               min_duration: float, merge_gap: float, output: Path, robot: Path | None,
+               channel_map: str | None, topic: str | None, reference_topic: str | None,
+               time_source: str | None, torque_source: str | None) -> None:
+    """Make ground-truth labels from a logged switch or force channel.
+
+    Contiguous stretches where the channel is above X become contacts (start and end in
+    seconds since the log's first sample); peak_force is the channel's peak for a force,
+    unknown for a switch. Writes LABELS.json (schemas/labels.schema.json) for
+    `impactcli evaluate LOG --labels LABELS.json`.
+    """
+    from .._fs import atomic_write_text, prepare_output
+    from ..errors import LabelsError
+    from ..io import read_log
+    from ..io.robot import labels_from_dict, read_robot
+    from ..schema import validate
+
+    if not np.isfinite(above):
+        raise click.BadParameter(f"{above!r} is not a finite number", param_hint="'--above'")
+    prepare_output(output)
+    check_log_path(log)
+    ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
+    desc = read_robot(robot) if robot is not None else None
+    data = read_log(log, robot=desc, **ropts)
+    ch = read_channel(log, channel, data, ropts)
+    if ch.t_s.size == 0:
+        raise LogFormatError(f"{log}: channel {channel!r} holds no samples")
+    doc = labels_doc(ch, above=above, kind=kind, link=link, channel_is=channel_is,
+                     merge_gap_s=merge_gap, min_duration_s=min_duration,
+                     sample_rate=data.sample_rate_hz, log_path=str(log))
+    validate(doc, "labels", LabelsError, str(output))
+    labels_from_dict(doc, str(output))  # the checks evaluate makes (end >= start, kinds)
+    if not doc["events"]:
+        finite = ch.values[np.isfinite(ch.values)]
+        top = f"{float(finite.max()):.4g}" if finite.size else "no finite value"
+        warnings.warn(f"{log}: {channel} is never above {above:g} (its largest value: {top}): "
+                      "the labels hold no contact", ImpactWarning, stacklevel=2)
+    atomic_write_text(output, json.dumps(doc, indent=2) + "\n")
+    src = doc["source"]
+    click.echo(f"{len(doc['events'])} contact(s) where {channel} > {above:g} "
+               f"({ch.what}; a {src['channel_kind']}), kind {kind}, link {link}:")
+    for k, e in enumerate(doc["events"]):
+        force = (f"peak {e['peak_force']:.4g} N" if src["channel_kind"] == "force"
+                 else f"switch value {e['peak_value']:.4g}")
+        click.echo(f"  #{k}  {e['start']:.3f}–{e['end']:.3f} s  {force}")
+    click.echo(f"wrote {output}")
