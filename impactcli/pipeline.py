@@ -34,7 +34,7 @@ from .detect.incidents import Incident, group_events
 from .detect.screen import LeftOut, unusable_columns
 from .detect.static import causal_lowpass
 from .detect.warmup import Warmup, warmup_end
-from .errors import ConfigError, ImpactWarning, LogFormatError, ModelError
+from .errors import ConfigError, ImpactError, ImpactWarning, LogFormatError, ModelError
 from .io.inspect import GAP_FACTOR, time_gaps
 from .model import IdentifyOptions, ResidualOptions, RigidModel, compute_residual, identify
 from .model.generators import (
@@ -206,6 +206,7 @@ def analyze(
         check_calibrated_rate(log.sample_rate_hz, cfg.calibration.sample_rate_hz, log.source.path)
         full = log
         log, left_out = screen_log(log, known, cfg.calibration.joints_left_out)
+        left_out = tuple(LeftOut(j, why) for j, why in log.source.joints_dropped) + left_out
         result = _analyze(log, model, cfg, robot, read_options or {}, model_from_log)
         result = dataclasses.replace(result, incidents=tuple(
             find_incidents(result, full, robot, cfg.events.merge_gap_s)))
@@ -271,7 +272,11 @@ def find_incidents(
         jac = planar_jacobian(kin["link_lengths"])
     elif (isinstance(kin, dict) and kin.get("type") == "urdf" and result.model is not None
           and result.model.get("kind") == "urdf"):
-        jac = _urdf_jacobian(result.model, chain)
+        try:
+            jac = _urdf_jacobian(result.model, chain)
+        except (ImpactError, RuntimeError, ValueError) as err:  # no Jacobian: no force
+            warnings.warn(f"{log.source.path}: no link Jacobian from the URDF ({err}): "
+                          "incidents without a force estimate", ImpactWarning, stacklevel=3)
     dt = log.sample_period_s
     _, qd, _ = causal_derivatives(dt, np.asarray(log.position), min(10.0, 0.2 / dt))
     vl = np.array([result.thresholds[j]["vL"] for j in log.joint_names])
@@ -699,7 +704,9 @@ def calibrate(
     keeps = [_calibration_mask(rp, labels[i] if labels is not None and i < len(labels)
                                else None, excluded) for i, rp in enumerate(replays)]
     if drop_suspect:
-        _drop_suspects(replays, keeps, joints, excluded)
+        unlabelled = [labels is None or i >= len(labels) or labels[i] is None
+                      for i in range(len(replays))]
+        _drop_suspects(replays, keeps, joints, excluded, unlabelled)
     segs = [s for rp, keep in zip(replays, keeps, strict=True) for s in _segments(rp, keep)]
     if not segs:
         raise LogFormatError("no collision-free stretch left to calibrate on: "
@@ -750,7 +757,7 @@ def _calibration_mask(rp: Replay, labels: Labels | None,
 
 
 def _drop_suspects(replays: list[Replay], keeps: list[np.ndarray], joints: tuple[str, ...],
-                   excluded: list[dict[str, Any]]) -> None:
+                   excluded: list[dict[str, Any]], searched: list[bool]) -> None:
     """Clear, in ``keeps``, the 1 s blocks that alone would set a product detector's
     threshold (:func:`impactcli.detect.calibrate.suspect_blocks`), with a guard around
     them; each stretch is warned about and recorded in ``excluded``."""
@@ -775,7 +782,7 @@ def _drop_suspects(replays: list[Replay], keeps: list[np.ndarray], joints: tuple
         return
     bad, ratio = suspect_blocks(np.array([r[3] for r in rows]))
     for (i, a, b, m), is_bad, q in zip(rows, bad, ratio, strict=True):
-        if not is_bad:
+        if not is_bad or not searched[i]:  # a labelled log: its labels say where
             continue
         rp = replays[i]
         t = rp.log.time_s

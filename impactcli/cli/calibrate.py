@@ -59,7 +59,7 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     Long logs are cut into 30 s segments after warm-up, so leave-one-out works on one long
     log too. Contacts labelled in <stem>.labels.json beside a log (or --labels) are left out;
     without labels, a stretch that alone would set a threshold far above all the others
-    (> 8× the median second) is reported as a likely contact and left out (--keep-suspect keeps it).
+    (> 20× the median second) in a log without labels is reported as a likely contact and left out (--keep-suspect keeps it).
 
     Each joint's residual generator is frozen in the config (thresholds belong to the
     generator they were made with): with --generator auto (the default for a new config)
@@ -109,6 +109,11 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
         click.echo("impactcli: warning: no --robot: the model is 'decoupled' (each joint "
                    "alone, no kinematics); a robot description with kinematics gives the "
                    "planar or urdf model", err=True)
+    if out.model is not None:  # the same fit table as `identify` prints
+        from ..model import RigidModel
+        from ._fit_table import format_fit_table
+
+        click.echo(format_fit_table(RigidModel.from_dict(out.model)))
     click.echo(f"{'joint':<16} {'generator':<17} {'v_stat':>9} {'vL':>9} {'v0':>9}   "
                "margins (adaptive/loading/baseline)")
     th = out.thresholds

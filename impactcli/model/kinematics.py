@@ -34,8 +34,8 @@ def urdf_link_end_jacobian(
         from ..robots import entry
 
         e = entry(str(robot))
-        if e is not None and model.existFrame(e.tip):
-            tip_frame = model.getFrameId(e.tip)
+        if e is not None and model.existFrame(e.tip, pin.FrameType.BODY):
+            tip_frame = model.getFrameId(e.tip, pin.FrameType.BODY)
     last_frames = [k for k, f in enumerate(model.frames) if f.parentJoint == ids[-1]]
 
     def jac(q: np.ndarray, i: int) -> np.ndarray | None:
