@@ -58,8 +58,9 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
 
     Long logs are cut into 30 s segments after warm-up, so leave-one-out works on one long
     log too. Contacts labelled in <stem>.labels.json beside a log (or --labels) are left out;
-    without labels, a stretch that alone would set a threshold far above all the others
-    (> 20× the median second) in a log without labels is reported as a likely contact and left out (--keep-suspect keeps it).
+    in a log without labels, a stretch that alone would set a threshold far above all the
+    others (> 20× the median second) is reported as a likely contact and left out
+    (--keep-suspect keeps it).
 
     Each joint's residual generator is frozen in the config (thresholds belong to the
     generator they were made with): with --generator auto (the default for a new config)

@@ -18,9 +18,9 @@ threshold above 0; thresholds are then floored at ``MIN_THRESHOLD``):
   two segments long, and leave-one-out runs over segments, so one long collision-free log
   gets a leave-one-out margin too. Labelled contacts beside a calibration log are cut out
   of its statistic; in a log without labels, a 1 s block whose maximum exceeds
-  ``SUSPECT_RATIO`` = 20 × the median of all calibration blocks' maxima (:func:`suspect_blocks`) alone
-  would set a product detector's threshold: it is reported as a likely contact and left
-  out.
+  ``SUSPECT_RATIO`` = 20 × the median of all calibration blocks' maxima
+  (:func:`suspect_blocks`) alone would set a product detector's threshold: it is reported
+  as a likely contact and left out.
 - **uncalibrated-block-quantile** (a log with no config, formats.md): the statistic after
   warm-up is cut into 1 s blocks (shorter when that gives fewer than 10 blocks); threshold
   = 3 × the 0.9-quantile of the block maxima. A contact lifts the maxima of the few blocks
