@@ -2,48 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import click
 
 from ._common import handle_errors
+from ._fit_table import format_fit_table
 
-
-def format_fit_table(model: Any) -> str:
-    """A short per-joint fit table (RMS error in N·m and relative to the torque RMS)."""
-    fit = model.fit
-    joints = fit["joints"]
-    hold = joints.get("holdout")
-    cond = fit.get("condition_number")
-    head = (
-        f"{model.kind} model: {len(model.theta)} parameters, condition number "
-        f"{cond:.3g}, fit on {fit['n_samples_fit']} samples"
-        + (f", held-back {fit['n_samples_holdout']} samples" if hold
-           else " (nothing held back: log too short or --holdout 0)")
-    )
-    w = max(5, *(len(j) for j in model.joint_names))
-    cols = f"{'joint':<{w}}  {'torque RMS':>10}  {'fit RMS':>8}  {'/RMS':>6}  {'/range':>6}"
-    if hold:
-        cols += f"  {'held RMS':>8}  {'/RMS':>6}  {'/range':>6}"
-    lines = [head, cols + "   [N·m]"]
-    for j in model.joint_names:
-        f = joints["fit"][j]
-        row = (f"{j:<{w}}  {f['torque_rms_nm']:>10.4g}  {f['rms_nm']:>8.4g}  "
-               f"{_pct(f['rms_rel_torque_rms'])}  {_pct(f['rms_rel_range'])}")
-        if hold:
-            h = hold[j]
-            row += (f"  {h['rms_nm']:>8.4g}  {_pct(h['rms_rel_torque_rms'])}  "
-                    f"{_pct(h['rms_rel_range'])}")
-        lines.append(row)
-    if fit.get("still_joints"):
-        lines.append(f"still joints (constant torque only): {', '.join(fit['still_joints'])}")
-    if fit.get("unexcited_parameters"):
-        lines.append(f"not excited (fixed at 0): {', '.join(fit['unexcited_parameters'])}")
-    return "\n".join(lines)
-
-
-def _pct(x: float | None) -> str:
-    return f"{'—':>6}" if x is None else f"{100 * x:>5.1f}%"
+__all__ = ["format_fit_table", "identify_cmd"]
 
 
 @click.command("identify")
@@ -52,8 +16,10 @@ def _pct(x: float | None) -> str:
               type=click.Path(dir_okay=False, path_type=str), help="Model file to write (JSON).")
 @click.option("--robot", metavar="FILE", type=click.Path(dir_okay=False, path_type=str),
               help="Robot description (joints, kinematics: planar or urdf).")
-@click.option("--kind", type=click.Choice(["decoupled", "planar", "urdf"]),
-              help="Model structure (default: the robot's kinematics type, else decoupled).")
+@click.option("--kind", type=click.Choice(["decoupled", "coupled", "planar", "urdf"]),
+              help="Model structure (default: the robot's kinematics type, else decoupled). "
+                   "coupled: a spatial arm without kinematics, every joint's motion in every "
+                   "joint's torque (docs/models.md).")
 @click.option("--channel-map", "channel_map", metavar="MAP",
               help="Channel map (JSON/YAML path, or a shipped map's name).")
 @click.option("--torque-source", "torque_source", type=click.Choice(["current", "torque"]),
@@ -69,9 +35,11 @@ def _pct(x: float | None) -> str:
 @click.option("--coulomb-slope", "coulomb_slope", type=click.FloatRange(min=0, min_open=True),
               default=0.01, show_default=True,
               help="v_s of the smooth Coulomb sign tanh(q'/v_s) [rad/s].")
-@click.option("--allow-still-joints", "allow_still", is_flag=True,
-              help="Model a joint that does not move by its constant torque only "
-                   "(default: an error).")
+@click.option("--allow-still-joints/--no-allow-still-joints", "allow_still", default=True,
+              show_default=True,
+              help="Model a joint that does not move by its constant torque only, with a "
+                   "warning, as calibrate and detect do; --no-allow-still-joints makes it "
+                   "an error.")
 @handle_errors
 def identify_cmd(
     log: str, output: str, robot: str | None, kind: str | None, channel_map: str | None,

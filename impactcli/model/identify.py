@@ -9,22 +9,54 @@ Stack tau(k) = Y(q(k), q'(k), q''(k)) theta over samples and joints and solve fo
    QR; a parameter whose pivot is below ``drop_tolerance`` of the largest is not excited by
    the log — it is fixed at 0 with an ImpactWarning naming it. The condition number of the
    remaining (normalised) regressor is reported and warned about above
-   ``condition_warn``.
+   ``condition_warn``. For ``coupled`` only its unpenalised (decoupled) terms are checked
+   and counted: its cross terms are often nearly collinear, which the ridge penalty
+   (step 3) takes care of.
 3. Robust fit: rows are normalised per joint by a robust residual scale (1.4826 × MAD);
    iteratively reweighted least squares with Huber weights (k = 1.345) to convergence,
    then, by default, Tukey bisquare weights (c = 4.685, scale frozen) so that the few
    samples of a contact a user's log may contain get zero weight instead of bending the
    model.
+   ``coupled`` adds a ridge penalty on its cross terms (every term but the decoupled
+   model's: the own-joint inertia, gravity-like, friction and offset terms, which are not
+   penalised, so a large penalty gives back the decoupled model), on the column-normalised
+   normal equations (the penalty is relative to each column's weighted energy: scale
+   free). The penalty is chosen per joint (each joint's row has its own parameters) by
+   blocked cross-validation on the fitted part: ``ridge_folds`` contiguous stretches, each
+   left out in turn with a margin of the filter's memory (1/cut-off) on both sides, the
+   others fitted, for each penalty of ``ridge_lambdas`` and "infinite" (the cross terms
+   off); by default the strongest penalty whose left-out error is within one standard
+   error of the least wins (``ridge_rule``). Contiguous stretches judge the model as the
+   held-back part does — on motion it did not see; generalized cross-validation, which
+   assumes independent rows, chose the smallest penalty on every log tried and
+   extrapolated badly (docs/models.md). The choice is made with equal weights, the robust
+   fit run with it, the choice made again with the robust weights and, if it changed, the
+   robust fit run again.
 4. Fit statistics per joint: RMS error [N·m], relative to the joint's torque RMS and to
    its torque range, on the fitted part and — when the log is long enough — on a held-back
    last part (``holdout_fraction``, at least ``min_holdout_s``) that the fit never saw.
+   A joint that stands still (slower than ``still_speed_rad_s``) in more than half of the
+   held-back part gets no relative held-back error (``still``): at standstill friction is
+   stiction, any torque within it, and the error would judge that, not the model.
+5. Fit sanity, warned about (ImpactWarning, one line per joint) and listed in
+   ``fit["sanity"]``: a negative inertia-like parameter (decoupled and coupled
+   ``inertia``, planar ``ZZR`` and ``Ia``, urdf the diagonal of M(q) at a few poses of the
+   log) whose term's RMS exceeds both the fit's robust residual scale (what the fit leaves
+   unexplained: a smaller term's sign is not determined by the log) and ``sanity_share``
+   of the joint's torque RMS, or negative friction — fv q' + fc tanh(q'/v_s) pushing the
+   joint along its motion on average over the log (fv and fc are judged together: on
+   near-constant speeds they trade against each other), with an RMS above the same
+   floor — typically a torque or current whose sign is wrong; a joint predicted worse than
+   zero torque on the held-back part (RMS error >= the torque's RMS); joints standing
+   still in the held-back part.
 """
 
 from __future__ import annotations
 
 import hashlib
+import itertools
 import warnings
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -61,11 +93,36 @@ class IdentifyOptions:
         min_motion_rad: a joint whose position range is below this is "constant" [rad].
         allow_still_joints: a constant joint is an error by default; with this, it is
             warned about and its unexcited parameters are fixed at 0 (it keeps an offset).
+            The CLI verbs (identify, calibrate, detect) all allow still joints.
         max_fit_samples: at most this many samples (fit + held back) enter the least
             squares; a longer log is fitted on every k-th filtered sample (memory and
             time stay bounded; the rows of a 10 Hz band-limited signal are correlated).
         drop_tolerance: relative QR pivot below which a parameter is "not excited".
         condition_warn: warn when the normalised regressor's condition number exceeds it.
+        coupled_velocity_products: the coupled model also gets q'_k q'_l terms (k <= l)
+            in every row (off by default: on the KUKA and simulated logs they made the
+            held-back error worse, docs/models.md).
+        ridge_lambdas: penalties tried for the coupled model's cross terms (relative to
+            the column energy), besides "infinite" (cross terms off).
+        ridge_folds: contiguous stretches of the blocked cross-validation that picks it.
+        ridge_rule: ``1se`` (the strongest penalty whose cross-validated error is within one
+            standard error, over the stretches, of the least — the textbook conservative
+            choice) or ``min`` (the least error). On the real KUKA and UR logs, with the
+            held-back stretch at five places, ``1se`` was better than the decoupled model
+            at all nine places; ``min`` was better on KUKA (16 % vs 19 % mean) but worse
+            than decoupled at one UR place (47 % vs 14 %) (docs/models.md).
+        coupled_max_mb: the coupled regressor (N × J × J(5J+1) numbers) is kept below this
+            many MiB by fitting on every k-th sample (like ``max_fit_samples``).
+        sanity_share: a negative inertia-like or friction parameter is warned about when
+            its term's RMS is at least this fraction of the joint's torque RMS and at
+            least the fit's robust residual scale (module doc, step 5).
+        check_sanity: run the fit-sanity checks (module doc, step 5). Off for a model of
+            what the controller's channels leave out (the logged generators' correction),
+            whose torque is a model error, not a joint's torque.
+        still_speed_rad_s: a joint slower than this stands still [rad/s]: its friction is
+            stiction, any torque within it, so no model predicts its torque there. A
+            joint that stands still in more than half of the held-back part gets no
+            relative held-back error. 0.01 rad/s: the Coulomb term's v_s.
     """
 
     cutoff_hz: float = 10.0
@@ -85,6 +142,14 @@ class IdentifyOptions:
     max_fit_samples: int = 100_000
     drop_tolerance: float = 1e-4
     condition_warn: float = 1e3
+    coupled_velocity_products: bool = False
+    ridge_lambdas: tuple[float, ...] = tuple(float(10.0 ** (e / 2)) for e in range(-12, 3))
+    ridge_folds: int = 10
+    ridge_rule: str = "1se"
+    coupled_max_mb: float = 256.0
+    sanity_share: float = 0.02
+    check_sanity: bool = True
+    still_speed_rad_s: float = 0.01
 
     def __post_init__(self) -> None:
         if self.robust not in ("bisquare", "huber", "none"):
@@ -93,6 +158,12 @@ class IdentifyOptions:
             raise ModelError(f"holdout_fraction must be in [0, 0.9), got {self.holdout_fraction}")
         if not self.coulomb_slope_rad_s > 0:
             raise ModelError("coulomb_slope_rad_s must be positive")
+        if not self.ridge_lambdas or not all(v > 0 for v in self.ridge_lambdas):
+            raise ModelError("ridge_lambdas must be positive numbers")
+        if self.ridge_rule not in ("1se", "min"):
+            raise ModelError(f"ridge_rule must be 1se or min, got {self.ridge_rule!r}")
+        if self.ridge_folds < 2:
+            raise ModelError(f"ridge_folds must be at least 2, got {self.ridge_folds}")
 
 
 # ------------------------------------------------------------------ helpers
@@ -246,6 +317,9 @@ def _structure_for(
     }
     if kind == "decoupled":
         return base
+    if kind == "coupled":
+        base["velocity_products"] = options.coupled_velocity_products
+        return base
     kin = robot.kinematics if robot is not None else None
     if not kin or kin.get("type") != kind:
         raise RobotDescriptionError(
@@ -272,12 +346,18 @@ def _robust_scale(res: np.ndarray, floor: np.ndarray) -> np.ndarray:
 
 
 def robust_lstsq(
-    y_reg: np.ndarray, tau: np.ndarray, options: IdentifyOptions
+    y_reg: np.ndarray, tau: np.ndarray, options: IdentifyOptions,
+    ridge: np.ndarray | None = None, separable: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     """Robust least squares tau ≈ Y theta over all samples and joints.
 
     Args:
         y_reg: (N, J, P) regressor; tau: (N, J) torques [N·m].
+        ridge: optional (P,) penalties added to the diagonal of the column-normalised
+            (unit-diagonal) weighted normal equations: ridge regression relative to each
+            column's weighted energy (0: not penalised).
+        separable: no column is non-zero in two joints' rows (decoupled, coupled): the
+            normal equations are solved joint by joint (the same solution, less work).
     Returns:
         theta (P,), weights (N, J) in [0, 1], info (iterations, stage).
     """
@@ -297,20 +377,20 @@ def robust_lstsq(
     def wls(w: np.ndarray) -> np.ndarray:
         """Weighted normal equations (w: (N, J) row weights), diagonally scaled: accurate at
         the condition numbers the excitation check lets through (≤ 1/drop_tolerance)."""
+        if separable:
+            sol = np.zeros(p)
+            for j, (cols, aj) in enumerate(blocks):
+                awj = aj * w[:, j, None]
+                sol[cols] = _scaled_solve(awj.T @ aj, awj.T @ tau[:, j],
+                                          None if ridge is None else ridge[cols])
+            return sol
         g = np.zeros((p, p))
         h = np.zeros(p)
         for j, (cols, aj) in enumerate(blocks):
             awj = aj * w[:, j, None]
             g[np.ix_(cols, cols)] += awj.T @ aj
             h[cols] += awj.T @ tau[:, j]
-        d = np.sqrt(np.diag(g))
-        d[d == 0] = 1.0
-        gs = g / d[:, None] / d[None, :]
-        try:
-            sol = np.linalg.solve(gs, h / d)
-        except np.linalg.LinAlgError:
-            sol, *_ = np.linalg.lstsq(gs, h / d, rcond=None)
-        return np.asarray(sol) / d
+        return _scaled_solve(g, h, ridge)
 
     scale0 = np.maximum(trms, floor)
     theta = wls(np.broadcast_to(1.0 / scale0**2, (n, nj)))
@@ -341,20 +421,113 @@ def robust_lstsq(
     return theta, w, {"iterations": iters, "robust_scale_nm": sigma.tolist()}
 
 
-def _joint_stats(res: np.ndarray, tau: np.ndarray, joints: tuple[str, ...]) -> dict[str, Any]:
+def _scaled_solve(g: np.ndarray, h: np.ndarray, ridge: np.ndarray | None) -> np.ndarray:
+    """Solve (g + ridge on the unit-diagonal scaling) x = h, diagonally scaled: accurate at
+    the condition numbers the excitation check lets through (≤ 1/drop_tolerance)."""
+    d = np.sqrt(np.diag(g))
+    d[d == 0] = 1.0
+    gs = g / d[:, None] / d[None, :]
+    if ridge is not None:
+        gs[np.diag_indices(gs.shape[0])] += ridge
+    try:
+        sol = np.linalg.solve(gs, h / d)
+    except np.linalg.LinAlgError:
+        sol, *_ = np.linalg.lstsq(gs, h / d, rcond=None)
+    return np.asarray(sol) / d
+
+
+def _joint_stats(
+    res: np.ndarray, tau: np.ndarray, joints: tuple[str, ...], still: Collection[str] = (),
+) -> dict[str, Any]:
+    """RMS error per joint, absolute and relative; a joint in ``still`` (standing still in
+    that part) gets no relative errors (``still``: True) — they would only judge a constant."""
     out: dict[str, Any] = {}
     for j, name in enumerate(joints):
         rms = float(np.sqrt(np.mean(res[:, j] ** 2)))
         trms = float(np.sqrt(np.mean(tau[:, j] ** 2)))
         rng = float(np.ptp(tau[:, j]))
+        st = name in still
         out[name] = {
             "rms_nm": rms,
             "torque_rms_nm": trms,
             "torque_range_nm": rng,
-            "rms_rel_torque_rms": rms / trms if trms > 0 else None,
-            "rms_rel_range": rms / rng if rng > 0 else None,
+            "rms_rel_torque_rms": rms / trms if trms > 0 and not st else None,
+            "rms_rel_range": rms / rng if rng > 0 and not st else None,
         }
+        if st:
+            out[name]["still"] = True
     return out
+
+
+def _cv_ridge(
+    a: np.ndarray, t: np.ndarray, w: np.ndarray, pen: np.ndarray,
+    lambdas: Sequence[float], folds: int, gap: int, rule: str = "min",
+) -> tuple[float, dict[str, float]]:
+    """Ridge penalty of one joint's row by blocked cross-validation (see the module doc).
+
+    Args:
+        a: (n, p) the row's regressor columns; t: (n,) torque; w: (n,) row weights;
+        pen: (p,) True for the penalised columns. lambdas: finite penalties to try.
+        folds: number of contiguous stretches; gap: rows left out on each side of one.
+    Returns:
+        The penalty (``inf``: penalised columns off) and the left-out RMS error relative
+        to the torque's weighted RMS at that penalty and with the cross terms off.
+    """
+    n, p = a.shape
+    aw = a * w[:, None]
+    g = aw.T @ a
+    h = aw.T @ t
+    d = np.sqrt(np.diag(g))
+    d[d == 0] = 1.0
+    g = g / d[:, None] / d[None, :]
+    h = h / d
+    an = a / d
+    wt = float(np.sum(w * t**2)) or 1.0
+    cuts = np.linspace(0, n, folds + 1).astype(int)
+    parts = []
+    for lo, hi in itertools.pairwise(cuts):
+        if hi <= lo:
+            continue
+        z = slice(max(0, lo - gap), min(n, hi + gap))
+        gz = (an[z] * w[z, None]).T @ an[z]
+        hz = (an[z] * w[z, None]).T @ t[z]
+        share = 1.0 - float(np.sum(w[z])) / max(float(np.sum(w)), 1e-300)
+        parts.append((slice(lo, hi), g - gz, h - hz, share))
+    own = ~pen
+
+    def cv_error(lam: float) -> np.ndarray:
+        err = []
+        for f, gf, hf, share in parts:
+            if np.isinf(lam):
+                th = np.zeros(p)
+                idx = np.flatnonzero(own)
+                m = gf[np.ix_(idx, idx)] + 1e-10 * np.eye(idx.size)
+                th[idx] = _solve(m, hf[idx])
+            else:
+                m = gf + np.diag(lam * share * pen + 1e-10)
+                th = _solve(m, hf)
+            r = an[f] @ th - t[f]
+            err.append(float(np.sum(w[f] * r**2)))
+        return np.array(err)
+
+    trials = [*sorted(float(v) for v in lambdas), float("inf")]
+    per_fold = np.array([cv_error(lam) for lam in trials])  # (trials, folds)
+    errs = per_fold.sum(axis=1)
+    k = int(np.argmin(errs))
+    if rule == "1se":  # the strongest penalty within one standard error of the least error
+        fw = np.array([max(float(np.sum(w[f])), 1e-300) for f, *_ in parts])
+        mse = per_fold / fw
+        se = float(np.std(mse[k], ddof=1) / np.sqrt(mse.shape[1])) if mse.shape[1] > 1 else 0.0
+        k = int(np.flatnonzero(mse.mean(axis=1) <= mse[k].mean() + se).max())
+    return trials[k], {"cv_rel_rms": float(np.sqrt(errs[k] / wt)),
+                       "cv_rel_rms_decoupled": float(np.sqrt(errs[-1] / wt))}
+
+
+def _solve(m: np.ndarray, b: np.ndarray) -> np.ndarray:
+    try:
+        return np.asarray(np.linalg.solve(m, b))
+    except np.linalg.LinAlgError:
+        return np.asarray(np.linalg.lstsq(m, b, rcond=None)[0])
 
 
 # ------------------------------------------------------------------ public
@@ -369,7 +542,7 @@ def identify_signals(
     Args:
         q, qd, qdd: (N, J) [rad, rad/s, rad/s²] in ``joint_names`` (= robot chain) order.
         tau: (N, J) torques [N·m].
-        joint_names: J names.  kind: ``decoupled``, ``planar`` or ``urdf``.
+        joint_names: J names.  kind: ``decoupled``, ``coupled``, ``planar`` or ``urdf``.
         robot: the robot description (needed for planar and urdf).
         holdout: optional (q, qd, qdd, tau) of a held-back part, for validation only.
         where: name of the input for messages.
@@ -384,12 +557,43 @@ def identify_signals(
     structure = _structure_for(kind, robot, joints, options, where)
     y_reg = structures.regressor(kind, joints, structure, q, qd, qdd)
     y_hold = None
+    hold_still = None
     if holdout is not None:
-        hq, hqd, hqdd, htau = holdout
+        hq, hqd, hqdd, htau = (np.asarray(x, dtype=np.float64) for x in holdout)
         y_hold = (structures.regressor(kind, joints, structure, hq, hqd, hqdd), htau)
+        hold_still = _still_fraction(hq, hqd, options)
     return _fit(y_reg, tau, y_hold, kind=kind, joints=joints, structure=structure,
                 robot=robot, options=options, where=where, filter_info={},
-                input_sha256=input_sha256, still=still)
+                input_sha256=input_sha256, still=still, hold_still_fraction=hold_still,
+                poses=_poses(q), acc_rms=np.sqrt(np.mean(qdd**2, axis=0)), cv_gap=1)
+
+
+def _still_fraction(q: np.ndarray, qd: np.ndarray, options: IdentifyOptions) -> np.ndarray:
+    """(J,) fraction of the samples in which each joint stands still: slower than
+    ``still_speed_rad_s`` (1 for a joint whose range stays below ``min_motion_rad``)."""
+    frac = np.mean(np.abs(qd) < options.still_speed_rad_s, axis=0)
+    return np.asarray(np.where(np.ptp(q, axis=0) < options.min_motion_rad, 1.0, frac))
+
+
+def _poses(q: np.ndarray, k: int = 8) -> np.ndarray:
+    """(<= k, J) evenly spaced rows of ``q``: the poses the sanity of M(q) is checked at."""
+    if q.shape[0] == 0:
+        return q
+    return q[np.unique(np.linspace(0, q.shape[0] - 1, k).round().astype(int))]
+
+
+def _frozen(kind: str, joints: tuple[str, ...], names: list[str], still: list[str]) -> set[str]:
+    """Parameters fixed at 0 because of still joints: their motion parameters (coupled: all
+    of their row but the offset, and their own terms in the other rows)."""
+    frozen = {f"{j}.{p}" for j in still for p in MOTION_PARAMS}
+    if kind == "coupled":
+        for nm in names:
+            row, term = nm.split(".", 1)
+            if row in still and term != "offset":
+                frozen.add(nm)
+            if ":" in term and term.split(":", 1)[1] in still:
+                frozen.add(nm)
+    return frozen
 
 
 def _fit(
@@ -397,75 +601,282 @@ def _fit(
     kind: str, joints: tuple[str, ...], structure: dict[str, Any],
     robot: RobotDescription | None, options: IdentifyOptions, where: str,
     filter_info: dict[str, Any], input_sha256: str, still: list[str] | None = None,
+    hold_still_fraction: np.ndarray | None = None, poses: np.ndarray | None = None,
+    acc_rms: np.ndarray | None = None, cv_gap: int = 1,
 ) -> RigidModel:
-    """Excitation check, robust fit and statistics on a stacked regressor (N, J, P).
+    """Excitation check, robust fit, statistics and sanity on a stacked regressor (N, J, P).
 
     The motion parameters (:data:`MOTION_PARAMS`) of the joints in ``still`` are fixed at 0.
+    ``hold_still_fraction``: (J,) fraction of the held-back part in which each joint stands
+    still (:func:`_still_fraction`);
+    ``poses``: a few positions of the log and ``acc_rms`` (J,) its RMS accelerations
+    (the urdf sanity check of M(q));
+    ``cv_gap``: rows left out on each side of a cross-validation stretch (coupled).
     """
     names = structures.param_names(kind, joints, structure)
-    frozen = {f"{j}.{p}" for j in (still or []) for p in MOTION_PARAMS}
+    still = list(still or [])
+    frozen = _frozen(kind, joints, names, still)
     n, nj, p = y_reg.shape
     a = y_reg.reshape(n * nj, p)
-    # excitation: normalised pivoted QR (rows scaled per joint by the torque RMS)
+    pen = (structures.coupled_penalised(joints, structure) if kind == "coupled"
+           else np.zeros(p, dtype=bool))
+    # excitation: normalised pivoted QR (rows scaled per joint by the torque RMS) of the
+    # unpenalised columns (the ridge takes care of the penalised ones)
     trms = np.sqrt(np.mean(tau**2, axis=0))
     rs = np.tile(1.0 / np.maximum(trms, 1e-12 * max(float(trms.max()), 1e-300)), n)
-    an = a * rs[:, None]
-    norms = np.linalg.norm(an, axis=0)
+    not_frozen = np.array([nm not in frozen for nm in names], dtype=bool)
+    norms = np.sqrt(np.einsum("i,ij,ij->j", rs**2, a, a))
     top = float(norms.max()) if norms.size else 0.0
-    live = (norms > 1e-12 * top) & np.array([nm not in frozen for nm in names], dtype=bool)
-    keep = np.zeros(p, dtype=bool)
-    if np.any(live):
-        idx = np.flatnonzero(live)
-        _, r, piv = qr(an[:, idx] / norms[idx], mode="economic", pivoting=True)
+    live = (norms > 1e-12 * top) & not_frozen
+    checked = np.flatnonzero(live & ~pen)
+    an = a[:, checked] * rs[:, None] / norms[checked]
+    keep = live & pen
+    if checked.size:
+        _, r, piv = qr(an, mode="economic", pivoting=True)
         d = np.abs(np.diag(r))
         ok = d > options.drop_tolerance * d[0]
-        keep[idx[piv[: int(np.sum(ok))]]] = True
+        keep[checked[piv[: int(np.sum(ok))]]] = True
     dropped = [names[i] for i in range(p) if not keep[i] and names[i] not in frozen]
     if dropped:
         warnings.warn(
             f"{where}: the log does not excite {len(dropped)} parameter(s) of the {kind} model "
             f"({', '.join(dropped)}); they are fixed at 0", ImpactWarning, stacklevel=3,
         )
-    ak = an[:, keep] / norms[keep]
-    _, sv, vt = np.linalg.svd(ak, full_matrices=False)
-    cond = float(sv[0] / sv[-1]) if sv.size and sv[-1] > 0 else float("inf")
+    kept_checked = keep[checked]
+    _, sv, vt = np.linalg.svd(an[:, kept_checked], full_matrices=False)
+    del an
+    cond = (float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")) if sv.size else 1.0
     if cond > options.condition_warn:
         weak_idx = np.argsort(np.abs(vt[-1]))[::-1][:3]
-        weak = [names[i] for i in np.flatnonzero(keep)[weak_idx]]
+        weak = [names[i] for i in checked[kept_checked][weak_idx]]
         warnings.warn(
             f"{where}: the log excites the {kind} model poorly (condition number {cond:.3g} "
             f"> {options.condition_warn:g}); least determined: {', '.join(weak)}",
             ImpactWarning, stacklevel=3,
         )
     theta = np.zeros(p)
-    th_k, w, info = robust_lstsq(y_reg[:, :, keep], tau, options)
+    ridge_info: dict[str, Any] | None = None
+    if kind == "coupled":
+        th_k, w, info, ridge_info, keep = _fit_ridge(
+            y_reg, tau, keep, pen, joints, names, options, cv_gap)
+    else:
+        th_k, w, info = robust_lstsq(y_reg[:, :, keep], tau, options)
     theta[keep] = th_k
     res = (a @ theta).reshape(n, nj) - tau
     fit: dict[str, Any] = {
-        "method": f"robust least squares ({options.robust})",
+        "method": f"robust least squares ({options.robust})"
+                  + (", ridge on the cross terms" if kind == "coupled" else ""),
         "n_samples_fit": int(n),
         "n_samples_holdout": 0,
         "condition_number": cond,
         "unexcited_parameters": dropped,
-        "still_joints": list(still or []),
+        "still_joints": still,
         "robust": {
             **info,
             "downweighted_fraction": {
                 nm: float(np.mean(w[:, j] < 0.5)) for j, nm in enumerate(joints)
             },
         },
-        "joints": {"fit": _joint_stats(res, tau, joints), "holdout": None},
+        "joints": {"fit": _joint_stats(res, tau, joints, still), "holdout": None},
         "options": asdict(options),
     }
+    if ridge_info is not None:
+        fit["ridge"] = ridge_info
+    hold_still: list[str] = []
     if y_hold is not None:
         yh, htau = y_hold
+        if hold_still_fraction is not None:
+            hold_still = [j for j, fr in zip(joints, hold_still_fraction, strict=True)
+                          if j in still or fr > 0.5]
         fit["n_samples_holdout"] = int(yh.shape[0])
-        fit["joints"]["holdout"] = _joint_stats(yh @ theta - htau, htau, joints)
+        fit["joints"]["holdout"] = _joint_stats(
+            np.asarray(yh @ theta) - htau, htau, joints, hold_still)
+    fit["sanity"] = _sanity(
+        kind, joints, names, theta, y_reg, tau, fit, still, hold_still,
+        hold_still_fraction, poses, acc_rms, structure, options, where
+    ) if options.check_sanity else []
     return RigidModel(
         kind=kind, joint_names=joints, param_names=tuple(names), theta=theta,
         structure=structure, filter=filter_info, fit=fit,
         robot=_robot_dict(robot), input_sha256=input_sha256,
     )
+
+
+def _fit_ridge(
+    y_reg: np.ndarray, tau: np.ndarray, keep: np.ndarray, pen: np.ndarray,
+    joints: tuple[str, ...], names: list[str], options: IdentifyOptions, cv_gap: int,
+) -> tuple[np.ndarray, np.ndarray, dict[str, Any], dict[str, Any], np.ndarray]:
+    """Robust ridge fit of the coupled model, the penalty of each joint by blocked
+    cross-validation (module doc, step 3). Returns theta of the (new) kept columns, the
+    robust weights, the robust info, the ridge record and the kept columns (a joint whose
+    penalty is infinite loses its cross terms)."""
+    n, nj, p = y_reg.shape
+    cols = [np.flatnonzero(keep & np.any(y_reg[:, j, :] != 0.0, axis=0)) for j in range(nj)]
+    trms = np.sqrt(np.mean(tau**2, axis=0))
+    folds = int(min(options.ridge_folds, max(2, n // 20)))
+
+    def choose(w: np.ndarray) -> tuple[list[float], list[dict[str, float]]]:
+        lams: list[float] = []
+        stats: list[dict[str, float]] = []
+        for j in range(nj):
+            c = cols[j]
+            if not np.any(pen[c]):
+                lams.append(float("inf"))
+                stats.append({})
+                continue
+            lam, st = _cv_ridge(y_reg[:, j, c], tau[:, j], w[:, j], pen[c],
+                                options.ridge_lambdas, folds, cv_gap, options.ridge_rule)
+            lams.append(lam)
+            stats.append(st)
+        return lams, stats
+
+    def run(lams: list[float]) -> tuple[np.ndarray, np.ndarray, dict[str, Any], np.ndarray]:
+        use = keep.copy()
+        ridge = np.zeros(p)
+        for j in range(nj):
+            c = cols[j][pen[cols[j]]]
+            if np.isinf(lams[j]):
+                use[c] = False
+            else:
+                ridge[c] = lams[j]
+        th, w, info = robust_lstsq(y_reg[:, :, use], tau, options, ridge=ridge[use],
+                                   separable=True)
+        return th, w, info, use
+
+    w0 = np.broadcast_to(1.0 / np.maximum(trms, 1e-300) ** 2, (n, nj))
+    lams, stats = choose(np.asarray(w0))
+    th, w, info, use = run(lams)
+    rounds = 1
+    if options.robust != "none":
+        lams2, stats2 = choose(w)
+        if lams2 != lams:
+            lams, stats = lams2, stats2
+            th, w, info, use = run(lams)
+            rounds = 2
+    record: dict[str, Any] = {
+        "penalised": "every term but a joint's own inertia, gcos, gsin, fv, fc, offset",
+        "rule": f"blocked cross-validation, {folds} contiguous stretches, margin "
+                f"{cv_gap} row(s), "
+                + ("the strongest penalty within one standard error of the least error"
+                   if options.ridge_rule == "1se" else "the least error")
+                + "; lambda null = infinite (cross terms off)",
+        "fits": rounds,
+        "joints": {
+            nm: {"lambda": None if np.isinf(lams[j]) else lams[j], **stats[j]}
+            for j, nm in enumerate(joints)
+        },
+    }
+    return th, w, info, record, use
+
+
+#: inertia-like parameters checked for sign, per kind (urdf: the diagonal of M(q) instead)
+INERTIA_LIKE: dict[str, tuple[str, ...]] = {
+    "decoupled": ("inertia",), "coupled": ("inertia",), "planar": ("ZZR", "Ia"), "urdf": (),
+}
+_UNITS = {"inertia": "kg·m²", "ZZR": "kg·m²", "Ia": "kg·m²", "fv": "N·m·s/rad", "fc": "N·m"}
+
+
+def _mass_diagonal(
+    kind: str, joints: tuple[str, ...], structure: dict[str, Any], theta: np.ndarray,
+    poses: np.ndarray,
+) -> np.ndarray:
+    """(k, J) diagonal of M(q) at ``poses``: M e_i = Y(q, 0, e_i) θ − Y(q, 0, 0) θ."""
+    zero = np.zeros_like(poses)
+    base = structures.predict(kind, joints, structure, poses, zero, zero, theta)
+    out = np.empty(poses.shape)
+    for i in range(poses.shape[1]):
+        e = np.zeros_like(poses)
+        e[:, i] = 1.0
+        out[:, i] = (structures.predict(kind, joints, structure, poses, zero, e, theta)
+                     - base)[:, i]
+    return out
+
+
+def _sanity(
+    kind: str, joints: tuple[str, ...], names: list[str], theta: np.ndarray,
+    y_reg: np.ndarray, tau: np.ndarray, fit: dict[str, Any], still: list[str],
+    hold_still: list[str], hold_still_fraction: np.ndarray | None, poses: np.ndarray | None,
+    acc_rms: np.ndarray | None, structure: dict[str, Any], options: IdentifyOptions,
+    where: str,
+) -> list[str]:
+    """Fit sanity (module doc, step 5): warn, one line per joint, and return the lines."""
+    msgs: list[str] = []
+    trms = np.sqrt(np.mean(tau**2, axis=0))
+    # a negative term is reported when it is larger than what the fit leaves unexplained
+    # (the robust residual scale) and than sanity_share of the torque: else its sign is
+    # not determined by the log (a decoupled model of a coupled arm trades friction for
+    # the coupling it lacks)
+    res = np.einsum("njp,p->nj", y_reg, theta) - tau
+    scale = fit["robust"].get("robust_scale_nm") or np.sqrt(np.mean(res**2, axis=0))
+    floor = np.maximum(options.sanity_share * trms, np.asarray(scale, dtype=np.float64))
+    bad: dict[str, dict[str, list[str]]] = {j: {"inertia": [], "friction": []} for j in joints}
+    index = {nm: i for i, nm in enumerate(names)}
+    for i, nm in enumerate(names):
+        jn, term = nm.split(".", 1)
+        if term not in INERTIA_LIKE.get(kind, ()) or theta[i] >= 0 or jn not in bad:
+            continue
+        j = joints.index(jn)
+        size = abs(theta[i]) * float(np.sqrt(np.mean(y_reg[:, j, i] ** 2)))
+        if size >= floor[j]:
+            bad[jn]["inertia"].append(f"{nm} = {theta[i]:.3g} {_UNITS[term]}")
+    # friction: fv and fc are judged together (on a log of near-constant speeds they trade
+    # against each other): negative when the friction torque fv q' + fc tanh(q'/v_s) on
+    # the log's motion pushes the joint along its motion on average (feeds energy)
+    for j, jn in enumerate(joints):
+        iv, ic = index.get(f"{jn}.fv"), index.get(f"{jn}.fc")
+        if iv is None or ic is None or (theta[iv] >= 0 and theta[ic] >= 0):
+            continue
+        f = theta[iv] * y_reg[:, j, iv] + theta[ic] * y_reg[:, j, ic]
+        power = float(np.mean(f * y_reg[:, j, iv]))
+        if power < 0 and float(np.sqrt(np.mean(f**2))) >= floor[j]:
+            bad[jn]["friction"].append(
+                f"{jn}.fv = {theta[iv]:.3g} {_UNITS['fv']}, {jn}.fc = {theta[ic]:.3g} "
+                f"{_UNITS['fc']} drive the joint instead of braking it")
+    if kind == "urdf" and poses is not None and poses.size:
+        diag = _mass_diagonal(kind, joints, structure, theta, poses)
+        for j, jn in enumerate(joints):
+            low = float(diag[:, j].min())
+            acc = float(acc_rms[j]) if acc_rms is not None else 1.0
+            if jn not in still and low < 0 and abs(low) * acc >= floor[j]:
+                k = int(np.sum(diag[:, j] < 0))
+                bad[jn]["inertia"].append(
+                    f"M[{jn},{jn}] down to {low:.3g} kg·m², at {k} of {len(diag)} poses of the log")
+    for jn, groups in bad.items():
+        what = [g for g in ("inertia", "friction") if groups[g]]
+        if what:
+            detail = "; ".join(groups["inertia"] + groups["friction"])
+            msgs.append(f"{where}: joint {jn}: negative {' and '.join(what)} ({detail}): a "
+                        "torque (or current) of the wrong sign, or a model that does not "
+                        "describe this joint")
+    hold = fit["joints"].get("holdout")
+    if hold:
+        for jn in joints:
+            h = hold[jn]
+            if jn in hold_still or not h["torque_rms_nm"] > 0:
+                continue
+            if h["rms_nm"] >= h["torque_rms_nm"]:
+                msgs.append(
+                    f"{where}: joint {jn}: predicted worse than zero torque on the held-back "
+                    f"part (RMS error {h['rms_nm']:.3g} N·m >= the torque's own RMS "
+                    f"{h['torque_rms_nm']:.3g} N·m): do not rely on its model")
+        new = [j for j in hold_still if j not in still]
+        frac = dict(zip(joints, hold_still_fraction if hold_still_fraction is not None
+                        else np.ones(len(joints)), strict=True))
+        how = (f"|q'| < {options.still_speed_rad_s:g} rad/s, where friction is stiction: any "
+               "torque within it")
+        if new and len(new) + len(still) == len(joints):
+            least = min(frac[j] for j in new)
+            msgs.append(
+                f"{where}: the arm stands still in the held-back part (every joint, in at "
+                f"least {100 * least:.0f} % of it; {how}): relative errors there are not "
+                "meaningful and are not given")
+        else:
+            msgs += [f"{where}: joint {j} stands still in {100 * frac[j]:.0f} % of the "
+                     f"held-back part ({how}): its held-back relative error is not "
+                     "meaningful and is not given" for j in new]
+    for m in msgs:
+        warnings.warn(m, ImpactWarning, stacklevel=4)
+    return msgs
 
 
 def _robot_dict(robot: RobotDescription | None) -> dict[str, Any] | None:
@@ -498,6 +909,13 @@ def _filtered_rows(
         if not any(w.size for w in wanted):
             continue
         a, b = max(0, s - pad), min(n, e + pad)
+        if kind == "coupled":  # filter the shared functions of the motion, then lay out
+            f = structures.coupled_features(q[a:b], qd[a:b], qdd[a:b], structure)
+            if options is not None:
+                f = zero_phase_lowpass(f, fs, cutoff, options.filter_order)
+            for k, w in enumerate(wanted):
+                outs[k].append(structures.coupled_assemble(f[w - a], len(joints), structure))
+            continue
         y = structures.regressor(kind, joints, structure, q[a:b], qd[a:b], qdd[a:b])
         if options is not None:
             shape = y.shape
@@ -521,6 +939,10 @@ class _Rows:
     tau_fit: np.ndarray
     y_hold: tuple[np.ndarray, np.ndarray] | None
     filter_info: dict[str, Any]
+    hold_still_fraction: np.ndarray | None = None
+    poses: np.ndarray | None = None
+    acc_rms: np.ndarray | None = None
+    cv_gap: int = 1
 
 
 def _prepare_rows(
@@ -561,15 +983,19 @@ def _prepare_rows(
     fit_idx = np.arange(edge, split - edge)
     hold_idx = np.arange(split + edge, nd - edge) if use_holdout else np.arange(0)
     # a long log: fit on every k2-th filtered sample (the rows are strongly correlated)
-    k2 = max(1, int(np.ceil((fit_idx.size + hold_idx.size) / options.max_fit_samples)))
+    max_rows = options.max_fit_samples
+    if kind == "coupled":  # its regressor has J × J(5J+1) numbers per sample
+        p_all = len(structures.param_names(kind, joints, structure))
+        max_rows = min(max_rows, max(1000, int(options.coupled_max_mb * 2**20
+                                               / (8 * len(joints) * p_all))))
+    k2 = max(1, int(np.ceil((fit_idx.size + hold_idx.size) / max_rows)))
     fit_idx, hold_idx = fit_idx[::k2], hold_idx[::k2]
     y_fit, y_hold_arr = _filtered_rows(
         kind, joints, structure, qf, qd, qdd, (fit_idx, hold_idx),
         fs_d, cutoff, options if options.filter_regressor else None, edge,
     )
     y_hold = (y_hold_arr, tau_f[hold_idx]) if use_holdout else None
-    return _Rows(kind, joints, structure, still, y_fit, tau_f[fit_idx], y_hold,
-                 {
+    return _Rows(kind, joints, structure, still, y_fit, tau_f[fit_idx], y_hold, {
         "method": "butterworth zero-phase (filtfilt) on positions and torques; central "
                   "differences"
                   + ("; regressor columns filtered alike" if options.filter_regressor else ""),
@@ -578,7 +1004,10 @@ def _prepare_rows(
         "decimation": {"filtered_signals": k1, "fit_rows": k2},
         "holdout": {"fraction": options.holdout_fraction if use_holdout else 0.0,
                     "start_s": float(t[split]) if use_holdout else None},
-    })
+    }, hold_still_fraction=(_still_fraction(qf[hold_idx], qd[hold_idx], options)
+                            if use_holdout and hold_idx.size else None),
+        poses=_poses(qf[fit_idx]), acc_rms=np.sqrt(np.mean(qdd[fit_idx] ** 2, axis=0)),
+        cv_gap=int(np.ceil(edge / k2)))
 
 
 def identify(
@@ -598,7 +1027,8 @@ def identify(
             exactly the log's joints (any order) — except for a ``urdf`` model, where robot
             joints the log lacks are held at zero and logged joints the URDF lacks are left
             out, each warned about (:func:`match_urdf_joints`).
-        kind: ``decoupled``, ``planar``, ``urdf``, or None for :func:`default_kind`.
+        kind: ``decoupled``, ``coupled``, ``planar``, ``urdf``, or None for
+            :func:`default_kind`.
         options: :class:`IdentifyOptions`.
     Returns:
         The model, with per-joint fit statistics on the fitted part and the held-back part.
@@ -609,7 +1039,9 @@ def identify(
     r = _prepare_rows(log, robot, kind, options)
     return _fit(r.y_fit, r.tau_fit, r.y_hold, kind=r.kind, joints=r.joints,
                 structure=r.structure, robot=robot, options=options, where=log.source.path,
-                filter_info=r.filter_info, input_sha256=log.source.sha256, still=r.still)
+                filter_info=r.filter_info, input_sha256=log.source.sha256, still=r.still,
+                hold_still_fraction=r.hold_still_fraction, poses=r.poses, acc_rms=r.acc_rms,
+                cv_gap=r.cv_gap)
 
 
 def identify_many(
@@ -641,7 +1073,17 @@ def identify_many(
     digest = hashlib.sha256("\n".join(lg.source.sha256 for lg in logs).encode()).hexdigest()
     info = dict(first.filter_info, logs=[lg.source.path for lg in logs])
     still = first.still
+    fracs = [(r.hold_still_fraction, r.y_hold[0].shape[0]) for r in rows
+             if r.hold_still_fraction is not None and r.y_hold is not None]
+    poses = [r.poses for r in rows if r.poses is not None]
+    accs = [r.acc_rms for r in rows if r.acc_rms is not None]
     return _fit(y_fit, tau_fit, y_hold, kind=first.kind, joints=first.joints,
                 structure=first.structure, robot=robot, options=options,
                 where=", ".join(lg.source.path for lg in logs), filter_info=info,
-                input_sha256=digest, still=still)
+                input_sha256=digest, still=still,
+                hold_still_fraction=(np.average([f for f, _ in fracs], axis=0,
+                                                weights=[max(k, 1) for _, k in fracs])
+                                     if fracs else None),
+                poses=np.concatenate(poses) if poses else None,
+                acc_rms=np.max(accs, axis=0) if accs else None,
+                cv_gap=max(r.cv_gap for r in rows))

@@ -29,13 +29,13 @@ class RigidModel:
     """A rigid model linear in its parameters: tau_hat = Y(q, q', q'') theta (eq. 7).
 
     Attributes:
-        kind: ``decoupled``, ``planar`` or ``urdf``.
+        kind: ``decoupled``, ``coupled``, ``planar`` or ``urdf``.
         joint_names: J joint names, in the order of the columns of q and tau.
         param_names: P parameter names (``<joint>.<name>``; base parameters).
         theta: (P,) parameter values [SI: kg·m², kg·m, N·m·s/rad, N·m].
         structure: structure settings (``coulomb_slope_rad_s``, ``offset``,
-            ``motor_inertia``; planar ``link_lengths`` [m] and ``gravity`` [m/s²]; urdf
-            ``urdf_xml``, ``urdf_sha256``, ``base_columns``).
+            ``motor_inertia``; coupled ``velocity_products``; planar ``link_lengths`` [m]
+            and ``gravity`` [m/s²]; urdf ``urdf_xml``, ``urdf_sha256``, ``base_columns``).
         filter: the derivative/torque filter used in identification (method, cut-off Hz…).
         fit: fit statistics (per joint RMS errors, condition number, robust weights…).
         robot: the robot description used (its mapping form) or None.
@@ -84,7 +84,8 @@ class RigidModel:
         out = np.empty(q.shape)
         for s in range(0, q.shape[0], _CHUNK):
             e = s + _CHUNK
-            out[s:e] = self.regressor(q[s:e], qd[s:e], qdd[s:e]) @ self.theta
+            out[s:e] = structures.predict(self.kind, self.joint_names, self.structure,
+                                          q[s:e], qd[s:e], qdd[s:e], self.theta)
         return out
 
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:

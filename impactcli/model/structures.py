@@ -7,6 +7,20 @@ tanh(q'_j / v_s), slope 1/v_s at zero, ``coulomb_slope_rad_s`` = v_s) and, optio
 
 * ``decoupled`` — per joint, no kinematics: ``inertia`` q''_j, ``gcos`` cos q_j,
   ``gsin`` sin q_j (gravity-like terms of its own angle) + friction. Works on any robot.
+* ``coupled`` — a rough model of a spatial arm without kinematics: every joint's motion in
+  every joint's torque. Per joint j (a row), linear in its own parameters: the decoupled
+  terms (``inertia`` q''_j, ``gcos`` cos q_j, ``gsin`` sin q_j) + for every other joint k
+  ``acc:k`` q''_k, ``cos:k`` cos q_k, ``sin:k`` sin q_k + for every pair of neighbouring
+  joints (consecutive in the joint order: the chain order of a serial arm)
+  ``cos:k+l`` cos(q_k + q_l), ``sin:k+l`` sin(q_k + q_l) + optionally (structure
+  ``velocity_products``) ``vel:k*l`` q'_k q'_l for k <= l + friction. 5J + 1 parameters
+  per joint (with the offset), J(5J + 1) in all: 22 for 2 joints, 186 for 6, 252 for 7.
+  The parameters of one joint's row appear in no other row (the regressor is block
+  diagonal), so each joint is fitted on its own; the cross terms (everything but the
+  decoupled terms) are ridge-regularised (identify.py), so that a joint whose coupling the
+  log does not show falls back to its decoupled model. Not a rigid-body model: M(q) (from
+  ``acc`` terms, constant here) need not be symmetric, and there are no Coriolis terms
+  unless ``velocity_products``.
 * ``planar`` — a serial arm in a vertical plane (formats.md, robot description): absolute
   angle of link i is phi_i = q_1 + ... + q_i (q_1 from the horizontal), joint i+1 sits at
   L_i along link i, gravity [gx, gy]. The exact rigid-body model in base parameters: per
@@ -39,7 +53,7 @@ from scipy.linalg import qr
 
 from ..errors import ModelError, RobotDescriptionError
 
-KINDS: tuple[str, ...] = ("decoupled", "planar", "urdf")
+KINDS: tuple[str, ...] = ("decoupled", "coupled", "planar", "urdf")
 
 PIN_PARAMS: tuple[str, ...] = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
 
@@ -83,6 +97,113 @@ def decoupled_regressor(
     for j in range(nj):
         y[:, j, j * p:(j + 1) * p] = per[:, j, :]
     return y
+
+
+# ---------------------------------------------------------------- coupled
+def _pairs(nj: int) -> list[tuple[int, int]]:
+    return [(k, m) for k in range(nj) for m in range(k, nj)]
+
+
+def _coupled_layout(nj: int, structure: dict[str, Any]) -> np.ndarray:
+    """(J, P_row) column indices into :func:`coupled_features` of each joint's row, in the
+    order of :func:`coupled_names`."""
+    # feature blocks: qdd (J) | cos q (J) | sin q (J) | q' (J) | tanh(q'/v_s) (J) | 1 |
+    # cos(q_k + q_k+1) (J-1) | sin(q_k + q_k+1) (J-1) | q'_k q'_l, k <= l (optional)
+    acc, cq, sq, vel, sgn, one = 0, nj, 2 * nj, 3 * nj, 4 * nj, 5 * nj
+    cs, ss = 5 * nj + 1, 5 * nj + 1 + (nj - 1)
+    vp = 5 * nj + 1 + 2 * (nj - 1)
+    rows = []
+    for j in range(nj):
+        r = [acc + j, cq + j, sq + j]
+        for k in range(nj):
+            if k != j:
+                r += [acc + k, cq + k, sq + k]
+        for k in range(nj - 1):
+            r += [cs + k, ss + k]
+        if structure.get("velocity_products", False):
+            r += [vp + i for i in range(len(_pairs(nj)))]
+        r += [vel + j, sgn + j] + ([one] if structure.get("offset", True) else [])
+        rows.append(r)
+    return np.array(rows, dtype=np.intp)
+
+
+def coupled_row_names(joints: tuple[str, ...], structure: dict[str, Any]) -> list[list[str]]:
+    """Parameter names of each joint's row (the model's parameters, row after row)."""
+    out: list[list[str]] = []
+    nj = len(joints)
+    for j, nm in enumerate(joints):
+        r = [f"{nm}.inertia", f"{nm}.gcos", f"{nm}.gsin"]
+        for k, other in enumerate(joints):
+            if k != j:
+                r += [f"{nm}.acc:{other}", f"{nm}.cos:{other}", f"{nm}.sin:{other}"]
+        for k in range(nj - 1):
+            pair = f"{joints[k]}+{joints[k + 1]}"
+            r += [f"{nm}.cos:{pair}", f"{nm}.sin:{pair}"]
+        if structure.get("velocity_products", False):
+            r += [f"{nm}.vel:{joints[k]}*{joints[m]}" for k, m in _pairs(nj)]
+        r += friction_names(nm, structure)
+        out.append(r)
+    return out
+
+
+def coupled_names(joints: tuple[str, ...], structure: dict[str, Any]) -> list[str]:
+    """Parameter names of the coupled structure (joint after joint)."""
+    return [n for row in coupled_row_names(joints, structure) for n in row]
+
+
+#: parameters of a coupled row that are not ridge-penalised (the decoupled model's)
+COUPLED_OWN: tuple[str, ...] = ("inertia", "gcos", "gsin", "fv", "fc", "offset")
+
+
+def coupled_penalised(joints: tuple[str, ...], structure: dict[str, Any]) -> np.ndarray:
+    """(P,) True for the cross terms of the coupled structure (ridge-penalised)."""
+    return np.array([n.split(".", 1)[1] not in COUPLED_OWN
+                     for n in coupled_names(joints, structure)], dtype=bool)
+
+
+def coupled_features(
+    q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, structure: dict[str, Any]
+) -> np.ndarray:
+    """(N, F) the functions of the motion that the coupled rows are made of (shared by all
+    rows; :func:`coupled_assemble` lays them out). F = 7J − 1 (+ J(J+1)/2)."""
+    vs = float(structure["coulomb_slope_rad_s"])
+    n, nj = q.shape
+    cols = [qdd, np.cos(q), np.sin(q), qd, np.tanh(qd / vs), np.ones((n, 1))]
+    s = q[:, :-1] + q[:, 1:]
+    cols += [np.cos(s), np.sin(s)]
+    if structure.get("velocity_products", False):
+        k, m = np.array(_pairs(nj)).T
+        cols.append(qd[:, k] * qd[:, m])
+    return np.concatenate(cols, axis=1)
+
+
+def coupled_assemble(f: np.ndarray, nj: int, structure: dict[str, Any]) -> np.ndarray:
+    """(N, J, J·P_row) block-diagonal regressor from :func:`coupled_features`."""
+    lay = _coupled_layout(nj, structure)
+    pr = lay.shape[1]
+    y = np.zeros((f.shape[0], nj, nj * pr))
+    for j in range(nj):
+        y[:, j, j * pr:(j + 1) * pr] = f[:, lay[j]]
+    return y
+
+
+def coupled_regressor(
+    q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, structure: dict[str, Any]
+) -> np.ndarray:
+    """(N, J, P) regressor of the coupled structure (block diagonal over joints)."""
+    return coupled_assemble(coupled_features(q, qd, qdd, structure), q.shape[1], structure)
+
+
+def coupled_predict(
+    q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, structure: dict[str, Any],
+    theta: np.ndarray,
+) -> np.ndarray:
+    """(N, J) Y theta of the coupled structure without forming the (N, J, P) regressor."""
+    f = coupled_features(q, qd, qdd, structure)
+    nj = q.shape[1]
+    lay = _coupled_layout(nj, structure)
+    th = np.asarray(theta, dtype=np.float64).reshape(nj, lay.shape[1])
+    return np.stack([f[:, lay[j]] @ th[j] for j in range(nj)], axis=1)
 
 
 # ---------------------------------------------------------------- planar
@@ -387,6 +508,8 @@ def param_names(kind: str, joints: tuple[str, ...], structure: dict[str, Any]) -
     """Parameter names of ``kind`` (base parameters for planar and urdf)."""
     if kind == "decoupled":
         return decoupled_names(joints, structure)
+    if kind == "coupled":
+        return coupled_names(joints, structure)
     if kind == "planar":
         return planar_names(joints, structure)
     if kind == "urdf":
@@ -407,9 +530,28 @@ def regressor(
         )
     if kind == "decoupled":
         return decoupled_regressor(q, qd, qdd, structure)
+    if kind == "coupled":
+        return coupled_regressor(q, qd, qdd, structure)
     if kind == "planar":
         return planar_regressor(q, qd, qdd, structure)
     if kind == "urdf":
         y = urdf_full_regressor(q, qd, qdd, joints, structure)
         return y[:, :, structure["base_columns"]]
     raise ModelError(f"unknown model kind {kind!r} (choose from {', '.join(KINDS)})")
+
+
+def predict(
+    kind: str, joints: tuple[str, ...], structure: dict[str, Any],
+    q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, theta: np.ndarray,
+) -> np.ndarray:
+    """(N, J) model torque Y(q, q', q'') theta [N·m] (``coupled`` without forming Y)."""
+    if kind == "coupled":
+        q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=np.float64)) for x in (q, qd, qdd))
+        if not q.shape == qd.shape == qdd.shape or q.shape[1] != len(joints):
+            raise ModelError(
+                f"q, qd, qdd must all be (N, {len(joints)}), got {q.shape}, {qd.shape}, "
+                f"{qdd.shape}"
+            )
+        return coupled_predict(q, qd, qdd, structure, theta)
+    return np.asarray(regressor(kind, joints, structure, q, qd, qdd) @ theta)
+
