@@ -34,6 +34,8 @@ class LogSource:
         time_source: ``column`` (CSV/NPZ time column), or MCAP ``log``/``publish``/``header``.
         ignored_channels: channels present in the file but not used.
         repairs: human-readable repairs applied while reading (also warned about).
+        notes: what could not be made of the file when it was read for description only
+            (``inspect``: a current not converted to torque).
         joints_dropped: ``(name, reason)`` of the logged joints the reader left out of the
             log (a position or torque column without a finite value), each warned about;
             the pipeline records them with the joints it leaves out of detection.
@@ -47,6 +49,7 @@ class LogSource:
     ignored_channels: tuple[str, ...] = ()
     repairs: tuple[str, ...] = ()
     joints_dropped: tuple[tuple[str, str], ...] = ()
+    notes: tuple[str, ...] = ()
 
 
 #: The controller's own channels (formats.md): a joint that lacks one holds NaN in its column.

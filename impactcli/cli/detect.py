@@ -51,6 +51,23 @@ def _keep_read_option(ctx: click.Context, param: click.Parameter, value: Any) ->
     return value
 
 
+def check_channel_map(ctx: click.Context, param: click.Parameter, value: str | None
+                      ) -> str | None:
+    """``--channel-map``: a file that exists or a shipped map's name, else a usage error
+    (exit 2) listing the shipped maps; a file's content is checked when it is read (a bad
+    one is a data error, exit 3)."""
+    if value is None or "://" in value:
+        return value
+    from ..errors import ChannelMapError
+    from ..io.channel_map import resolve_channel_map_path
+
+    try:
+        resolve_channel_map_path(value)
+    except ChannelMapError as err:
+        raise click.BadParameter(str(err), ctx=ctx, param=param) from None
+    return value
+
+
 def log_read_options(func: Callable[..., Any]) -> Callable[..., Any]:
     """The options that say how to read a log (shared by the verbs that read logs).
 
@@ -58,7 +75,7 @@ def log_read_options(func: Callable[..., Any]) -> Callable[..., Any]:
     :func:`read_options_from` through the click context.
     """
     for opt in reversed([
-        click.option("--channel-map", metavar="MAP",
+        click.option("--channel-map", metavar="MAP", callback=check_channel_map,
                      help="Channel map (path, or a shipped name) for foreign CSV / .npz logs."),
         click.option("--topic", help="MCAP: the JointState/state topic."),
         click.option("--reference-topic", help="MCAP: the reference topic."),

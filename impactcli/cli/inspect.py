@@ -7,37 +7,30 @@ import json
 import click
 
 from ._common import handle_errors
+from .detect import log_read_options, read_options_from
 
 
 @click.command("inspect")
 @click.argument("log", type=click.Path(path_type=str))
-@click.option("--channel-map", "channel_map", metavar="MAP",
-              help="Channel map (JSON/YAML path, or a shipped map's name such as ur_ext_observer).")
-@click.option("--robot", metavar="FILE", type=click.Path(dir_okay=False, path_type=str),
-              help="Robot description (needed to turn currents into torques).")
-@click.option("--topic", help="MCAP joint-state topic (default: the only one, else /joint_states).")
-@click.option("--reference-topic", "reference_topic",
-              help="MCAP reference topic (default: <topic>_ref when present).")
-@click.option("--time-source", "time_source", type=click.Choice(["log", "publish", "header"]),
-              help="MCAP clock (default: header stamp when non-zero, else log time).")
-@click.option("--torque-source", "torque_source", type=click.Choice(["current", "torque"]),
-              help="Use logged torque or current × gear ratio × torque constant "
-                   "(default: torque when logged).")
+@click.option("--robot", metavar="FILE|NAME",
+              help="Robot description, or a shipped robot's name (needed to turn currents "
+                   "into torques).")
+@log_read_options
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 @handle_errors
 def inspect_cmd(log: str, channel_map: str | None, robot: str | None, topic: str | None,
                 reference_topic: str | None, time_source: str | None,
                 torque_source: str | None, as_json: bool) -> None:
     """Show what LOG holds: joints, channels used and ignored, torque and time source,
-    duration, sample rate and jitter, gaps and repairs."""
+    duration, sample rate and jitter, gaps and repairs — and what it still needs (a current
+    without gear ratio and torque constant is shown in A, and said)."""
     from ..io import inspect_log
     from ..io.inspect import format_table
     from ..io.robot import read_robot
 
     desc = read_robot(robot) if robot else None
-    d = inspect_log(log, channel_map=channel_map, robot=desc, topic=topic,
-                    reference_topic=reference_topic, time_source=time_source,
-                    torque_source=torque_source)
+    opts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
+    d = inspect_log(log, robot=desc, **opts)
     if as_json:
         click.echo(json.dumps(d, separators=(",", ":")))
     else:

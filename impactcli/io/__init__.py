@@ -114,6 +114,8 @@ def read_log(
     where = str(path)
     check_torque_source(torque_source, where)
     if not p.exists():
+        if any(c in where for c in "*?["):
+            raise LogFormatError(f"{where}: the pattern matches no file")
         raise LogFormatError(f"{where}: log file not found")
     folder = p.is_dir()
     if folder:
@@ -262,6 +264,8 @@ def inspect_log(path: str | os.PathLike[str], **kwargs: Any) -> dict[str, Any]:
 
     Takes the same keyword arguments as :func:`read_log`.
     """
+    from .assemble import describing
     from .inspect import describe_log
 
-    return describe_log(read_log(path, **kwargs))
+    with describing():  # a log it cannot convert yet is still described
+        return describe_log(read_log(path, **kwargs))

@@ -12,7 +12,10 @@ with the joints it leaves out of detection); a log without any joint left is an 
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -71,6 +74,22 @@ def _has(ch: JointChannels, sig: str, joint: str) -> bool:
     return sig in ch.signals and joint not in ch.missing.get(sig, [])
 
 
+#: While set (:func:`describing`), a current that cannot be converted to torque (no gear
+#: ratio and torque constant) is kept as it is, in A, and said in ``LogSource.notes``
+#: instead of an error: ``inspect`` describes a log it cannot yet convert.
+_DESCRIBING: contextvars.ContextVar[bool] = contextvars.ContextVar("describing", default=False)
+
+
+@contextlib.contextmanager
+def describing() -> Iterator[None]:
+    """Read logs for description only (:data:`_DESCRIBING`)."""
+    token = _DESCRIBING.set(True)
+    try:
+        yield
+    finally:
+        _DESCRIBING.reset(token)
+
+
 def build_log(
     ch: JointChannels,
     *,
@@ -114,6 +133,7 @@ def build_log(
                 raise LogFormatError(
                     f"{path}: torque source {src!r} requested but joint {j!r} has no {src} channel"
                 )
+    notes: list[str] = []
     if src == "torque":
         torque = ch.signals["torque"]
     else:
@@ -123,6 +143,13 @@ def build_log(
             else np.asarray(ch.current_scale, dtype=np.float64)
         )
         need = np.isnan(scale)
+        if need.any() and robot is None and _DESCRIBING.get():
+            names = [ch.joints[int(k)] for k in np.flatnonzero(need)]
+            notes.append(f"current of {', '.join(names)} not converted to torque: needs a "
+                         "robot description (--robot) with gear_ratio and torque_constant, "
+                         "or a scale in the channel map (torque shown in A)")
+            scale[need] = 1.0
+            need[:] = False
         if need.any():
             if robot is None:
                 j = ch.joints[int(np.argmax(need))]
@@ -187,6 +214,7 @@ def build_log(
         time_source=time_source,  # type: ignore[arg-type]
         ignored_channels=tuple(ignored),
         repairs=tuple(ch.repairs),
+        notes=tuple(notes),
         joints_dropped=tuple(dropped),
     )
     return RobotLog(

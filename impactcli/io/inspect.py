@@ -85,6 +85,7 @@ def describe_log(log: RobotLog) -> dict[str, Any]:
         "channels": {"used": used, "ignored": list(src.ignored_channels)},
         "reference": log.has_reference,
         "repairs": list(src.repairs),
+        "missing": list(src.notes),
         "joints_dropped": [{"name": n, "reason": r} for n, r in src.joints_dropped],
     }
 
@@ -112,6 +113,7 @@ def format_table(d: dict[str, Any]) -> str:
         ("reference", "yes" if d["reference"] else "no"),
         ("ignored", ", ".join(d["channels"]["ignored"]) or "none"),
         ("repairs", str(len(d["repairs"])) if d["repairs"] else "none"),
+        ("missing", "; ".join(d.get("missing") or []) or "nothing"),
         ("joints dropped", ", ".join(f"{x['name']} ({x['reason']})"
                                      for x in d.get("joints_dropped", [])) or "none"),
     ]

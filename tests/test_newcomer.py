@@ -1,0 +1,66 @@
+"""A newcomer's first hour: what inspect says about a log it cannot convert yet, an unknown
+channel map's name and a glob that matches nothing — one clear line and the documented
+exit code in every verb."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from impactcli.cli import main
+from impactcli.io import write_log
+
+from .conftest import make_log
+
+SAMPLE = str(Path(__file__).resolve().parents[1] / "sample_logs" / "csv"
+             / "assist_pushes.csv.gz")
+
+
+def current_only_csv(tmp: Path) -> Path:
+    log = make_log(n=2500)
+    log = dataclasses.replace(log, current=np.asarray(log.torque) / 2.0)
+    write_log(log, tmp / "full.csv")
+    lines = (tmp / "full.csv").read_text().splitlines()
+    head = lines[0].split(",")
+    keep = [k for k, c in enumerate(head) if not c.endswith(".torque")]
+    out = tmp / "currents.csv"
+    out.write_text("\n".join(",".join(row.split(",")[k] for k in keep) for row in lines) + "\n")
+    return out
+
+
+def test_inspect_describes_a_log_it_cannot_convert_yet(tmp_path: Path) -> None:
+    path = current_only_csv(tmp_path)
+    r = CliRunner().invoke(main, ["inspect", str(path)])
+    assert r.exit_code == 0, r.output
+    assert ("current of j1, j2 not converted to torque: needs a robot description (--robot) "
+            "with gear_ratio and torque_constant") in r.output
+    assert "joints          2: j1, j2" in r.output or "2: j1, j2" in r.output
+    r = CliRunner().invoke(main, ["detect", str(path), "-o", str(tmp_path / "o")])
+    assert r.exit_code == 3
+    assert "joint 'j1' has only current; converting it to torque needs a robot" in r.output
+
+
+@pytest.mark.parametrize("verb,extra", [
+    ("inspect", []), ("detect", ["-o", "OUT"]), ("calibrate", ["-o", "OUT.toml"]),
+    ("evaluate", []), ("report", ["-o", "OUT.html"]), ("view", ["--no-open"]),
+    ("labels", ["--from-channel", "x", "--above", "1", "--link", "1", "-o", "OUT.json"]),
+])
+def test_unknown_channel_map_name_is_a_usage_error_in_every_verb(
+        verb: str, extra: list[str], tmp_path: Path) -> None:
+    args = [verb, SAMPLE, "--channel-map", "no_such_map",
+            *[a.replace("OUT", str(tmp_path / "out")) for a in extra]]
+    r = CliRunner().invoke(main, args)
+    assert r.exit_code == 2, r.output
+    assert "no_such_map: channel map not found (neither a file nor a shipped map; shipped: " \
+        in r.output
+
+
+def test_a_glob_that_matches_nothing_says_so(tmp_path: Path) -> None:
+    r = CliRunner().invoke(main, ["detect", str(tmp_path / "runs" / "*.csv"), "-o",
+                                  str(tmp_path / "o")])
+    assert r.exit_code == 3
+    assert "runs/*.csv: the pattern matches no file" in r.output
