@@ -1,5 +1,6 @@
 # Set-up and the two jobs of the README. Needs only python3 (>= 3.11) and make.
 SHELL  := /bin/bash
+.SHELLFLAGS := -eo pipefail -c
 PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
@@ -8,8 +9,10 @@ STAMP  := $(VENV)/.installed
 .PHONY: setup demo test bench samples outputs lint clean
 
 $(STAMP): pyproject.toml requirements.lock
+	@echo "impactcli: setting up $(VENV) with the pinned versions of requirements.lock (first time: 1-2 minutes)"
 	$(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --disable-pip-version-check -c requirements.lock -e '.[dev,urdf,dask,robots]'
+	$(BIN)/python -m pip install --disable-pip-version-check --progress-bar off -c requirements.lock -e '.[dev,urdf,dask,robots]' \
+	    | grep --line-buffered -E '^(Collecting|Successfully installed)' | cut -c1-100
 	touch $(STAMP)
 
 setup: $(STAMP)
@@ -17,8 +20,15 @@ setup: $(STAMP)
 # The main job on a bundled sample log: detect with thresholds calibrated on the
 # collision-free sample logs, write the timeline, signals and a Rerun recording.
 demo: $(STAMP)
+	@echo "impactcli: detecting contacts in sample_logs/csv/assist_impacts.csv.gz (15 simulated impacts) with the config calibrated on the collision-free sample logs"
 	$(BIN)/impactcli detect sample_logs/csv/assist_impacts.csv.gz \
 	    --config sample_logs/assist_like.config.toml --signals --rerun -o out/demo
+	@echo
+	@echo "Wrote out/demo/assist_impacts.timeline.json (incidents and events), .signals.parquet and .rrd."
+	@echo "Next:"
+	@echo "  $(BIN)/impactcli report sample_logs/csv/assist_impacts.csv.gz --config sample_logs/assist_like.config.toml -o out/report.html   # the safety-audit report"
+	@echo "  $(BIN)/impactcli evaluate out/demo/assist_impacts.timeline.json   # against the log's labels"
+	@echo "  $(BIN)/rerun out/demo/assist_impacts.rrd   # residuals against thresholds in the Rerun viewer"
 
 # Timeline, Rerun recording and one audit report (HTML + JSON) for every sample log, CSV
 # and MCAP copies in separate folders (their stems collide), each arm with its own config.
@@ -33,7 +43,10 @@ outputs: $(STAMP)
 	      --json out/$$fmt/report.json || exit $$?; \
 	done
 
+# The tests, after the linters (ruff, mypy: 0 errors is the bar) — the README's test command.
 test: $(STAMP)
+	$(BIN)/ruff check impactcli tests
+	$(BIN)/mypy impactcli
 	$(BIN)/python -m pytest -q
 
 # Every benchmark of the README's performance section (about 10 minutes on 2 cores).
@@ -50,6 +63,7 @@ samples: $(STAMP)
 
 lint: $(STAMP)
 	$(BIN)/ruff check impactcli tests
+	$(BIN)/mypy impactcli
 
 clean:
 	rm -rf $(VENV) out .pytest_cache

@@ -119,7 +119,7 @@ def reorder_log(log: RobotLog, joints: tuple[str, ...], what: str) -> RobotLog:
 
 def resolve_model(
     log: RobotLog, model: RigidModel | None, cfg: DetectorConfig, robot: RobotDescription | None,
-    model_from_log: bool = False,
+    model_from_log: bool = False, sanity: bool = True,
 ) -> tuple[RigidModel, str]:
     """The model to use and where it came from (``given``, ``config``, ``identified-from-log``).
 
@@ -145,7 +145,8 @@ def resolve_model(
                 ImpactWarning, stacklevel=3,
             )
         return identify(log, robot=robot, kind=kind,
-                        options=IdentifyOptions(allow_still_joints=True)), "identified-from-log"
+                        options=IdentifyOptions(allow_still_joints=True, check_sanity=sanity)), \
+            "identified-from-log"
     if model is not None:
         if cfg.calibration.calibrated and cfg.calibration.model_sha256 not in (None, model.sha256):
             warnings.warn(
@@ -157,8 +158,8 @@ def resolve_model(
     if cfg.model is not None:
         return RigidModel.from_dict(cfg.model), "config"
     # offline convenience: a joint that never moves keeps only its offset (warned about)
-    return identify(log, robot=robot, options=IdentifyOptions(allow_still_joints=True)), \
-        "identified-from-log"
+    return identify(log, robot=robot, options=IdentifyOptions(
+        allow_still_joints=True, check_sanity=sanity)), "identified-from-log"
 
 
 def calibrated_thresholds(
@@ -489,7 +490,9 @@ def replay(
     left_out: tuple[LeftOut, ...] = ()
     if needs_model(choices, cfg):
         target = target_log(log, choices, cfg.residual.logged_correction)
-        model, model_source = resolve_model(target, model, cfg, robot, model_from_log)
+        model, model_source = resolve_model(
+            target, model, cfg, robot, model_from_log,
+            sanity=not uses_correction(choices, cfg.residual.logged_correction))
         extra = [j for j in log.joint_names if j not in model.joint_names]
         if extra and all(j in log.joint_names for j in model.joint_names):
             for j in extra:  # e.g. a logged joint the URDF does not have
@@ -695,7 +698,9 @@ def calibrate(
             model = RigidModel.from_dict(cfg.model) if cfg.model is not None else identify_many(
                 [target_log(lg, ch, cfg.residual.logged_correction)
                  for lg, ch in zip(logs, choices, strict=True)],
-                robot=robot, options=IdentifyOptions(allow_still_joints=True))
+                robot=robot, options=IdentifyOptions(
+                    allow_still_joints=True,
+                    check_sanity=not uses_correction(choices[0], cfg.residual.logged_correction)))
     else:
         model = None
     joints = tuple(model.joint_names) if model is not None else tuple(frozen)

@@ -251,5 +251,8 @@ def test_current_without_robot_names_the_joint(tmp_path: Path) -> None:
     p.write_text("time,a.position,a.current,b.position,b.current\n0,0,1,0,1\n0.01,0,1,0,1\n")
     with pytest.raises(LogFormatError, match=r"c.csv: joint 'a' has only current.*--robot"):
         read_log(p)
-    res = CliRunner().invoke(main, ["inspect", str(p)])
+    res = CliRunner().invoke(main, ["identify", str(p), "-o", str(tmp_path / "m.json")])
     assert res.exit_code == 3 and "joint 'a' has only current" in res.stderr
+    # inspect still describes it and says what is missing
+    res = CliRunner().invoke(main, ["inspect", str(p)])
+    assert res.exit_code == 0 and "current of a, b not converted to torque" in res.stdout
