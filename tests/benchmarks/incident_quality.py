@@ -18,7 +18,7 @@ Scored per labelled contact of at least 10 N after warm-up that the product dete
 incident it belongs to (exactly one: events are grouped so); its link against the label's
 (overall, and for contacts not on the last link); its contact type against the label's kind
 (impact/push → transient, clamp → quasi_static); its force against the label's peak force
-(relative error). The issue's bar, printed as PASS/FAIL: link right ≥ 90 % overall and
+(relative error). The bar, printed as PASS/FAIL: link right ≥ 90 % overall and
 ≥ 75 % off the last link; type right ≥ 90 % overall and ≥ 75 % per type; median force error
 ≤ 30 %.
 """

@@ -1,4 +1,4 @@
-"""Detection quality on the shipped sample logs, against the done criteria of issue 4.
+"""Detection quality on the shipped sample logs, against the done criteria (C1–C6).
 
     python tests/benchmarks/sample_quality.py               # the committed configs
     python tests/benchmarks/sample_quality.py --calibrate   # recalibrate on the same logs
