@@ -64,6 +64,7 @@ class DetectJob:
     rerun: bool = False
     model_from_log: bool = False
     generator: str | None = None
+    allow_slow: bool = False
 
 
 @dataclass(frozen=True)
@@ -173,7 +174,7 @@ def _msgs(caught: list[warnings.WarningMessage]) -> tuple[str, ...]:
 def analyze_file(
     log_path: str, *, robot_path: str | None = None, model_path: str | None = None,
     config_path: str | None = None, read_options: dict[str, Any] | None = None,
-    model_from_log: bool = False, generator: str | None = None,
+    model_from_log: bool = False, generator: str | None = None, allow_slow: bool = False,
 ) -> Any:
     """Read one log and its robot, model and config (paths or URLs) and replay the
     detectors — what ``detect`` does for one log; ``evaluate`` and ``view`` use it too.
@@ -192,7 +193,7 @@ def analyze_file(
     log = read_log(log_path, robot=robot, **opts)
     return analyze(log, model=model, config=config, robot=robot, read_options=opts,
                    model_from_log=model_from_log, generator=generator,
-                   config_where=config_path or "config")
+                   config_where=config_path or "config", allow_slow=allow_slow)
 
 
 def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ...]]:
@@ -200,7 +201,8 @@ def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ..
 
     result = analyze_file(job.log_path, robot_path=job.robot_path, model_path=job.model_path,
                           config_path=job.config_path, read_options=job.read_options,
-                          model_from_log=job.model_from_log, generator=job.generator)
+                          model_from_log=job.model_from_log, generator=job.generator,
+                          allow_slow=job.allow_slow)
     log = result.log
     stem = output_stem(job.log_path)
     local_out = local_path(job.out_dir)

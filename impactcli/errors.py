@@ -59,6 +59,13 @@ class OutputError(ImpactError):
     exit_code = EXIT_USAGE
 
 
+class ScaleLimitError(ImpactError):
+    """A replay whose estimated cost is above the documented limit (exit 2: say
+    ``--allow-slow`` to go on anyway)."""
+
+    exit_code = EXIT_USAGE
+
+
 class BatchError(ImpactError):
     """A batch finished but some inputs failed (their outputs are not written)."""
 

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from .config import CalibrationRecord, DetectorConfig
-from .detect.adaptive import AdaptiveResult, evaluate, threshold_inputs
+from .detect.adaptive import AdaptiveResult, check_scale, evaluate, threshold_inputs
 from .detect.calibrate import (
     UNCALIBRATED_BLOCK_S,
     UNCALIBRATED_MARGIN,
@@ -183,6 +183,7 @@ def analyze(
     log: RobotLog, *, model: RigidModel | None = None, config: DetectorConfig | None = None,
     robot: RobotDescription | None = None, read_options: dict[str, Any] | None = None,
     model_from_log: bool = False, generator: str | None = None, config_where: str = "config",
+    allow_slow: bool = False,
 ) -> DetectionResult:
     """Replay the detectors over ``log`` exactly as the robot would have run them online.
 
@@ -197,6 +198,8 @@ def analyze(
             config's thresholds; see :func:`resolve_model`).
         generator: ``--generator`` (:func:`with_generator`); None keeps the config's.
         config_where: the config's file, for messages.
+        allow_slow: run even when the replay's estimated cost is above the limit
+            (:func:`impactcli.detect.adaptive.check_scale`).
     Returns:
         The :class:`DetectionResult`; ImpactWarnings raised on the way are in ``warnings``.
     """
@@ -208,7 +211,8 @@ def analyze(
         full = log
         log, left_out = screen_log(log, known, cfg.calibration.joints_left_out)
         left_out = tuple(LeftOut(j, why) for j, why in log.source.joints_dropped) + left_out
-        result = _analyze(log, model, cfg, robot, read_options or {}, model_from_log)
+        result = _analyze(log, model, cfg, robot, read_options or {}, model_from_log,
+                          allow_slow)
         result = dataclasses.replace(result, incidents=tuple(
             find_incidents(result, full, robot, cfg.events.merge_gap_s)))
         result = dataclasses.replace(result, joints_left_out=tuple(
@@ -477,7 +481,7 @@ class Replay:
 def replay(
     log: RobotLog, model: RigidModel | None, cfg: DetectorConfig,
     robot: RobotDescription | None = None, v_stat: np.ndarray | None = None,
-    model_from_log: bool = False,
+    model_from_log: bool = False, allow_slow: bool = False,
 ) -> Replay:
     """Residual → adaptive evaluator and static statistics → warm-up (all causal)."""
     if log.duration_s < cfg.warmup.min_s:
@@ -485,6 +489,8 @@ def replay(
             f"{log.source.path}: {log.n_samples} samples ({log.duration_s:.3g} s), shorter than "
             f"the detectors' warm-up (warmup.min_s = {cfg.warmup.min_s:g} s): nothing after it "
             "could be detected")
+    if not allow_slow:  # before any work: its cost depends on the joints, not the duration
+        check_scale(log.n_joints, log.sample_rate_hz, cfg.adaptive, log.source.path)
     choices = generator_choices(log, cfg)
     model_source = "none"
     left_out: tuple[LeftOut, ...] = ()
@@ -550,8 +556,9 @@ def replay(
 def _analyze(
     log: RobotLog, model: RigidModel | None, cfg: DetectorConfig,
     robot: RobotDescription | None, read_options: dict[str, Any], model_from_log: bool = False,
+    allow_slow: bool = False,
 ) -> DetectionResult:
-    rp = replay(log, model, cfg, robot, model_from_log=model_from_log)
+    rp = replay(log, model, cfg, robot, model_from_log=model_from_log, allow_slow=allow_slow)
     log, ad, wu, r = rp.log, rp.adaptive, rp.warmup, rp.r
     joints = log.joint_names
     t = log.time_s

@@ -257,6 +257,10 @@ MAX_ROWS = 50
               help="Exit 1 when an incident's estimated contact force exceeds N newtons "
                    "(incidents without an estimate are not judged by it; a warning says so).")
 @generator_option
+@click.option("--allow-slow", is_flag=True,
+              help="Run a replay estimated slower than real time or above 2 GiB of "
+                   "covariance (many joints: the adaptive evaluator's cost grows with the "
+                   "cube of the joint count).")
 @executor_options
 @click.option("--summary", "summary_path", metavar="PATH|URL", default=None,
               help="Write the batch summary JSON: logs done/failed, events per detector, "
@@ -266,7 +270,8 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
                config: str | None, channel_map: str | None, topic: str | None,
                reference_topic: str | None, time_source: str | None, torque_source: str | None,
                signals: bool, rerun: bool, model_from_log: bool, fail_on_detect: bool,
-               fail_on_force: float | None, generator: str | None, jobs: int | None,
+               fail_on_force: float | None, generator: str | None, allow_slow: bool,
+               jobs: int | None,
                scheduler: str | None, summary_path: str | None) -> None:
     """Replay the adaptive impact detector (Makarov et al. 2014) and the static detectors
     over LOGS, exactly as the robot would have run them online, and write one
@@ -308,7 +313,7 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     inputs = preload(robot, model, config)
     ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
     job_list = [DetectJob(p, out_dir, ropts, robot, model, config, signals, rerun,
-                          model_from_log, generator) for p in paths]
+                          model_from_log, generator, allow_slow) for p in paths]
     debug = bool((click.get_current_context().find_root().obj or {}).get("debug"))
     timer = Timer()
     outcomes = []

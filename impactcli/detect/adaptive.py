@@ -514,3 +514,43 @@ def evaluate_reference(
         res["eps"], thetas, np.zeros(J, dtype=np.int64), rates=rates, nu=nu, eta=eta,
         n_capped=capped,
     )
+
+
+# ----------------------------------------------------------------------------- scale guard
+#: Measured speed of the compiled evaluator at nu = 64 [axis-samples/s] on the project's
+#: 2-core machine, one thread (``tests/benchmarks/bench_rls.py``: 0.93–0.98 M); the cost
+#: per axis-sample grows as nu² (the covariance update).
+AXIS_SAMPLES_PER_S_AT_NU64 = 0.9e6
+#: Refuse (unless told) a replay estimated to run slower than the log's own time ...
+MAX_COST_PER_LOG_SECOND = 1.0
+#: ... or whose covariances need more memory than this [bytes].
+MAX_COVARIANCE_BYTES = 2 * 1024**3
+
+
+def replay_cost(n_joints: int, sample_rate_hz: float, cfg: AdaptiveConfig | None = None
+                ) -> tuple[float, float]:
+    """(seconds of compute per second of log, bytes of covariance) of the adaptive
+    evaluator for ``n_joints`` axes: J axes, each an RLS with nu = eta + p + J·Σrho
+    parameters (eq. 34–35), costing ∝ nu² per sample. Depends on the joint count and the
+    rate, never on the log's duration."""
+    cfg = cfg or AdaptiveConfig()
+    nu = cfg.n_params(n_joints)
+    per_sample = n_joints * (nu / 64.0) ** 2 / AXIS_SAMPLES_PER_S_AT_NU64
+    return per_sample * sample_rate_hz, float(n_joints * nu * nu * 8)
+
+
+def check_scale(n_joints: int, sample_rate_hz: float, cfg: AdaptiveConfig | None = None,
+                where: str = "log") -> None:
+    """Raise :class:`~impactcli.errors.ScaleLimitError` (exit 2) when the replay is
+    estimated to run slower than real time or to need more than 2 GiB of covariance."""
+    from ..errors import ScaleLimitError
+
+    cost, mem = replay_cost(n_joints, sample_rate_hz, cfg)
+    if cost > MAX_COST_PER_LOG_SECOND or mem > MAX_COVARIANCE_BYTES:
+        raise ScaleLimitError(
+            f"{where}: {n_joints} joints at {sample_rate_hz:.4g} Hz: the adaptive evaluator is "
+            f"estimated at {cost:.3g} s of compute per second of log and "
+            f"{mem / 1024**3:.3g} GiB of covariance (its cost grows with the cube of the joint "
+            f"count), above the limit of {MAX_COST_PER_LOG_SECOND:g} s per second of log and "
+            f"{MAX_COVARIANCE_BYTES / 1024**3:g} GiB: give --allow-slow to run it anyway")
+

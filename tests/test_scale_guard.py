@@ -1,0 +1,38 @@
+"""Scale guard: the adaptive evaluator's cost grows with the cube of the joint count; a
+replay estimated slower than real time (or above 2 GiB of covariance) is refused before
+any work, with one line naming the limit and the option to go on."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from impactcli.cli import main
+from impactcli.detect.adaptive import check_scale, replay_cost
+from impactcli.errors import ScaleLimitError
+from impactcli.io import write_log
+
+from .conftest import make_log
+
+
+def test_cost_depends_on_joints_and_rate_never_on_duration() -> None:
+    c7, m7 = replay_cost(7, 1000.0)
+    c100, m100 = replay_cost(100, 1000.0)
+    assert c7 < 0.05 and m7 < 1e6  # a 7-joint arm at 1 kHz: far below real time
+    assert c100 > 1.0 and c100 / c7 > (100 / 7) ** 2  # grows faster than J²
+    assert replay_cost(7, 250.0)[0] == pytest.approx(c7 / 4)
+    check_scale(7, 1000.0)
+    with pytest.raises(ScaleLimitError, match=r"100 joints at 1000 Hz: .* give --allow-slow"):
+        check_scale(100, 1000.0)
+
+
+def test_detect_refuses_a_huge_arm_before_any_work(tmp_path: Path) -> None:
+    joints = tuple(f"j{k}" for k in range(120))
+    write_log(make_log(n=1200, joints=joints), tmp_path / "big.csv")
+    r = CliRunner().invoke(main, ["detect", str(tmp_path / "big.csv"), "-o", str(tmp_path)])
+    assert r.exit_code == 2, r.output
+    assert "120 joints at 250 Hz: the adaptive evaluator is estimated at" in r.output
+    assert "give --allow-slow to run it anyway" in r.output
+    assert not list(tmp_path.glob("*.timeline.json"))
