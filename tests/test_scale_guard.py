@@ -19,7 +19,7 @@ from .conftest import make_log
 
 def test_cost_depends_on_joints_and_rate_never_on_duration() -> None:
     c7, m7 = replay_cost(7, 1000.0)
-    c100, m100 = replay_cost(100, 1000.0)
+    c100, _ = replay_cost(100, 1000.0)
     assert c7 < 0.05 and m7 < 1e6  # a 7-joint arm at 1 kHz: far below real time
     assert c100 > 1.0 and c100 / c7 > (100 / 7) ** 2  # grows faster than J²
     assert replay_cost(7, 250.0)[0] == pytest.approx(c7 / 4)
