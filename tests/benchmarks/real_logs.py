@@ -49,20 +49,18 @@ def split(log: RobotLog, frac: float = CAL_FRACTION) -> tuple[RobotLog, RobotLog
 
 def _robot(kind: str, which: str) -> object | None:
     """A robot description for ``urdf`` (a shipped robot), else None."""
-    import dataclasses
-
     if kind != "urdf":
         return None
-    from impactcli.io.robot import read_robot
-
     name = {"ur": "ur5", "kuka": None}[which]
     if name is None:
         raise LookupError("no shipped URDF of the KUKA LWR4")
-    robot = read_robot(name)
-    # the log names the UR joints shoulder_pan ... wrist_3; the URDF's are *_joint
-    return dataclasses.replace(robot, joint_map={j: f"{j}_joint" for j in (
-        "shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3")}) if hasattr(
-        robot, "joint_map") else robot
+    from impactcli.io.robot import robot_from_dict
+
+    # the log names the UR joints shoulder_pan ... wrist_3; the URDF's are <name>_joint
+    ur = ("shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3")
+    return robot_from_dict({"name": "ur (ur5 URDF)", "kinematics": {"type": "urdf",
+                                                                     "robot": name},
+                            "joint_map": {j: f"{j}_joint" for j in ur}}, "ur5 robot file")
 
 
 def run_case(which: str, kind: str, generator: str, cal: RobotLog,
