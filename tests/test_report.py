@@ -440,7 +440,7 @@ def test_verdict_counts_by_kind_and_link() -> None:
 def test_verdict_when_nothing_counts() -> None:
     assert verdict_text([]) == "No incident after warm-up."
     assert verdict_text([inc(0.2, 1, 0.4, warm=True)]) == \
-        "No incident after warm-up (1 more in the warm-up, listed, not counted)."
+        "No incident after warm-up (+1 in the warm-up, not counted)."
     old = verdict_text([], known=False, alarms_counted=2)
     assert old.startswith("2 alarms of the product's detectors after warm-up; this run "
                           "records no incidents")
@@ -528,7 +528,7 @@ def test_could_not_see_gaps_left_out_joints_and_no_kinematics() -> None:
     assert "j1 0.5 N·m, j2 0.5 N·m" in sf["text"]
     assert doc["logs"][0]["verdict"] == (
         "2 incidents: 1 transient on link 2, ~3.0 N·m peak residual; 1 quasi-static on "
-        "link 1, ~1.2 N·m peak residual (1 more in the warm-up, listed, not counted).")
+        "link 1, ~1.2 N·m peak residual (+1 in the warm-up, not counted).")
 
 
 def test_an_older_timeline_says_what_it_cannot_tell() -> None:
@@ -550,8 +550,8 @@ def test_the_incident_list_in_html_and_json() -> None:
     validate(doc)
     sec = doc["logs"][0]
     assert sec["verdict"] == ("2 incidents on 2026-01-01 (UTC): 1 transient on link 2, ~12 N "
-                              "(00:00:04); 1 quasi-static on link 1, ~30 N (00:00:07) (1 more "
-                              "in the warm-up, listed, not counted).")
+                              "(00:00:04); 1 quasi-static on link 1, ~30 N (00:00:07) (+1 in "
+                              "the warm-up, not counted).")
     assert f'<p class="verdict" id="log1-verdict">{sec["verdict"]}</p>' in html
     incs = sec["incidents"]
     assert [(i["number"], i["link"], i["force_n"], i["contact"]) for i in incs] == \

@@ -109,7 +109,7 @@ def verdict_text(incidents: Sequence[dict[str, Any]], *, known: bool = True,
                 "how hard and what kind are not known.")
     counted = [i for i in incidents if not i.get("in_warmup")]
     warm = len(incidents) - len(counted)
-    tail = f" ({warm} more in the warm-up, listed, not counted)" if warm else ""
+    tail = f" (+{warm} in the warm-up, not counted)" if warm else ""
     if not counted:
         return f"No incident after warm-up{tail}."
     clock = _clock(counted)
