@@ -65,6 +65,7 @@ class DetectJob:
     model_from_log: bool = False
     generator: str | None = None
     allow_slow: bool = False
+    show_progress: bool = False
 
 
 @dataclass(frozen=True)
@@ -175,6 +176,7 @@ def analyze_file(
     log_path: str, *, robot_path: str | None = None, model_path: str | None = None,
     config_path: str | None = None, read_options: dict[str, Any] | None = None,
     model_from_log: bool = False, generator: str | None = None, allow_slow: bool = False,
+    progress: Any = None,
 ) -> Any:
     """Read one log and its robot, model and config (paths or URLs) and replay the
     detectors — what ``detect`` does for one log; ``evaluate`` and ``view`` use it too.
@@ -193,16 +195,33 @@ def analyze_file(
     log = read_log(log_path, robot=robot, **opts)
     return analyze(log, model=model, config=config, robot=robot, read_options=opts,
                    model_from_log=model_from_log, generator=generator,
-                   config_where=config_path or "config", allow_slow=allow_slow)
+                   config_where=config_path or "config", allow_slow=allow_slow,
+                   progress=progress)
 
 
 def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ...]]:
     from .io.urls import local_path
 
+    bar = None
+    if job.show_progress:  # a slow replay (many joints) says how far it is, per axis
+        import sys
+
+        from tqdm import tqdm
+
+        bar = tqdm(total=0, desc=f"{output_stem(job.log_path)}: adaptive evaluator, axes",
+                   file=sys.stderr, leave=False, disable=not sys.stderr.isatty())
+
+        def progress(done: int, total: int) -> None:
+            bar.total = total
+            bar.n = done
+            bar.refresh()
     result = analyze_file(job.log_path, robot_path=job.robot_path, model_path=job.model_path,
                           config_path=job.config_path, read_options=job.read_options,
                           model_from_log=job.model_from_log, generator=job.generator,
-                          allow_slow=job.allow_slow)
+                          allow_slow=job.allow_slow,
+                          progress=progress if bar is not None else None)
+    if bar is not None:
+        bar.close()
     log = result.log
     stem = output_stem(job.log_path)
     local_out = local_path(job.out_dir)

@@ -13,14 +13,20 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from .config import CalibrationRecord, DetectorConfig
-from .detect.adaptive import AdaptiveResult, check_scale, evaluate, threshold_inputs
+from .detect.adaptive import (
+    AdaptiveResult,
+    check_scale,
+    evaluate,
+    replay_cost,
+    threshold_inputs,
+)
 from .detect.calibrate import (
     UNCALIBRATED_BLOCK_S,
     UNCALIBRATED_MARGIN,
@@ -52,6 +58,10 @@ from .model.generators import (
 from .result import DetectionResult
 from .sampling import check_calibrated_rate
 from .types import CONTROLLER_CHANNELS, DETECTORS, Labels, RobotDescription, RobotLog
+
+#: The adaptive evaluator reports its progress per axis when its estimated cost is this
+#: long or longer [s] (many joints; :func:`impactcli.detect.adaptive.replay_cost`).
+PROGRESS_AFTER_S = 10.0
 
 
 def residual_options(cfg: DetectorConfig, generator: str | None = None) -> ResidualOptions:
@@ -183,7 +193,7 @@ def analyze(
     log: RobotLog, *, model: RigidModel | None = None, config: DetectorConfig | None = None,
     robot: RobotDescription | None = None, read_options: dict[str, Any] | None = None,
     model_from_log: bool = False, generator: str | None = None, config_where: str = "config",
-    allow_slow: bool = False,
+    allow_slow: bool = False, progress: Callable[[int, int], None] | None = None,
 ) -> DetectionResult:
     """Replay the detectors over ``log`` exactly as the robot would have run them online.
 
@@ -200,6 +210,8 @@ def analyze(
         config_where: the config's file, for messages.
         allow_slow: run even when the replay's estimated cost is above the limit
             (:func:`impactcli.detect.adaptive.check_scale`).
+        progress: called with (axes done, axes) by the adaptive evaluator when its
+            estimated cost is ``PROGRESS_AFTER_S`` or more.
     Returns:
         The :class:`DetectionResult`; ImpactWarnings raised on the way are in ``warnings``.
     """
@@ -212,7 +224,7 @@ def analyze(
         log, left_out = screen_log(log, known, cfg.calibration.joints_left_out)
         left_out = tuple(LeftOut(j, why) for j, why in log.source.joints_dropped) + left_out
         result = _analyze(log, model, cfg, robot, read_options or {}, model_from_log,
-                          allow_slow)
+                          allow_slow, progress)
         result = dataclasses.replace(result, incidents=tuple(
             find_incidents(result, full, robot, cfg.events.merge_gap_s)))
         result = dataclasses.replace(result, joints_left_out=tuple(
@@ -482,6 +494,7 @@ def replay(
     log: RobotLog, model: RigidModel | None, cfg: DetectorConfig,
     robot: RobotDescription | None = None, v_stat: np.ndarray | None = None,
     model_from_log: bool = False, allow_slow: bool = False,
+    progress: Callable[[int, int], None] | None = None,
 ) -> Replay:
     """Residual → adaptive evaluator and static statistics → warm-up (all causal)."""
     if log.duration_s < cfg.warmup.min_s:
@@ -530,7 +543,10 @@ def replay(
         warnings.warn(f"{log.source.path}: no reference logged: threshold inputs from the "
                       "measured position (no anticipation)", ImpactWarning, stacklevel=3)
     vs = np.zeros(len(log.joint_names)) if v_stat is None else v_stat
-    ad = evaluate(r, inputs.u, fs, vs, cfg.adaptive)
+    cost, _ = replay_cost(log.n_joints, fs, cfg.adaptive)
+    shown = progress if progress is not None and cost * log.duration_s >= PROGRESS_AFTER_S \
+        else None
+    ad = evaluate(r, inputs.u, fs, vs, cfg.adaptive, progress=shown)
     wu = warmup_end(ad.prediction_error, log.time_s, cfg.warmup)
     if wu.end_index >= log.n_samples - 10:
         warnings.warn(f"{log.source.path}: the warm-up covers the whole log "
@@ -556,9 +572,10 @@ def replay(
 def _analyze(
     log: RobotLog, model: RigidModel | None, cfg: DetectorConfig,
     robot: RobotDescription | None, read_options: dict[str, Any], model_from_log: bool = False,
-    allow_slow: bool = False,
+    allow_slow: bool = False, progress: Callable[[int, int], None] | None = None,
 ) -> DetectionResult:
-    rp = replay(log, model, cfg, robot, model_from_log=model_from_log, allow_slow=allow_slow)
+    rp = replay(log, model, cfg, robot, model_from_log=model_from_log, allow_slow=allow_slow,
+                progress=progress)
     log, ad, wu, r = rp.log, rp.adaptive, rp.warmup, rp.r
     joints = log.joint_names
     t = log.time_s

@@ -36,3 +36,16 @@ def test_detect_refuses_a_huge_arm_before_any_work(tmp_path: Path) -> None:
     assert "120 joints at 250 Hz: the adaptive evaluator is estimated at" in r.output
     assert "give --allow-slow to run it anyway" in r.output
     assert not list(tmp_path.glob("*.timeline.json"))
+
+
+def test_a_slow_replay_reports_its_progress_per_axis(monkeypatch: pytest.MonkeyPatch) -> None:
+    import impactcli.pipeline as pipeline
+    from impactcli.pipeline import analyze
+
+    seen: list[tuple[int, int]] = []
+    log = make_log(n=1500, joints=("a", "b", "c"))
+    analyze(log, progress=lambda d, t: seen.append((d, t)))
+    assert seen == []  # cheap: no progress
+    monkeypatch.setattr(pipeline, "PROGRESS_AFTER_S", 0.0)
+    analyze(log, progress=lambda d, t: seen.append((d, t)))
+    assert seen == [(1, 3), (2, 3), (3, 3)]

@@ -312,8 +312,9 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     choice = resolve_executor(jobs, scheduler)
     inputs = preload(robot, model, config)
     ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
+    serial = (jobs or 1) == 1 and scheduler is None
     job_list = [DetectJob(p, out_dir, ropts, robot, model, config, signals, rerun,
-                          model_from_log, generator, allow_slow) for p in paths]
+                          model_from_log, generator, allow_slow, serial) for p in paths]
     debug = bool((click.get_current_context().find_root().obj or {}).get("debug"))
     timer = Timer()
     outcomes = []

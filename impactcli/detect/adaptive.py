@@ -52,7 +52,7 @@ from __future__ import annotations
 
 import os
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numba as nb
@@ -372,6 +372,7 @@ def _evaluate_numba(
     r: np.ndarray, u: np.ndarray, eta: int, p: int, rho: np.ndarray,
     lam: float, p0: float, theta0: float, max_diag: float, a_post: bool,
     a1: float, a2: float, n1: int, n2: int, v_stat: np.ndarray, threads: int = 1,
+    progress: Callable[[int, int], None] | None = None,
 ) -> tuple[np.ndarray, ...]:
     """All axes with the compiled per-axis kernel; ``threads`` > 1 runs axes concurrently.
 
@@ -395,9 +396,19 @@ def _evaluate_numba(
         from concurrent.futures import ThreadPoolExecutor
 
         with ThreadPoolExecutor(max_workers=min(threads, J)) as ex:
-            counts = np.array(list(ex.map(axis, range(J))), dtype=np.int64).reshape(J, 2)
+            done = []
+            for c in ex.map(axis, range(J)):
+                done.append(c)
+                if progress is not None:
+                    progress(len(done), J)
+            counts = np.array(done, dtype=np.int64).reshape(J, 2)
     else:
-        counts = np.array([axis(j) for j in range(J)], dtype=np.int64).reshape(J, 2)
+        done = []
+        for j in range(J):
+            done.append(axis(j))
+            if progress is not None:
+                progress(j + 1, J)
+        counts = np.array(done, dtype=np.int64).reshape(J, 2)
     rt, vd, rf, vf, rr, vr, thr, dec, eps = (np.ascontiguousarray(x.T) for x in out)
     return rt, vd, rf, vf, rr, vr, thr, dec, eps, theta, counts[:, 0], counts[:, 1]
 
@@ -416,7 +427,7 @@ def _check(r: np.ndarray, u: np.ndarray, v_stat: np.ndarray, cfg: AdaptiveConfig
 def evaluate(
     residual: np.ndarray, inputs: np.ndarray, sample_rate_hz: float,
     v_stat: Sequence[float] | np.ndarray, cfg: AdaptiveConfig | None = None,
-    threads: int | None = None,
+    threads: int | None = None, progress: Callable[[int, int], None] | None = None,
 ) -> AdaptiveResult:
     """Run the adaptive evaluator (compiled) on all axes.
 
@@ -428,6 +439,7 @@ def evaluate(
         cfg: settings (Table I defaults).
         threads: axes run concurrently on this many threads (results are identical: axes
             are independent); None → one per core for logs of ≥ 100k samples, else 1.
+        progress: called with (axes done, axes) after each axis (every axis costs the same).
     """
     cfg = cfg or AdaptiveConfig()
     if threads is None:
@@ -442,6 +454,7 @@ def evaluate(
         r, u, cfg.eta, cfg.p, np.asarray(cfg.rho, dtype=np.int64), cfg.forgetting_factor,
         cfg.p0, cfg.theta0, max_diag_of(nu, cfg.p0, cfg.max_trace),
         cfg.estimate == "a_posteriori", rates.a1, rates.a2, rates.n1, rates.n2, vs, threads,
+        progress,
     )
     rt, vd, rf, vf, rr, vr, thr, dec, eps, theta, resets, capped = out
     return AdaptiveResult(rt, vd, rf, vf, rr, vr, thr, dec, eps, theta, resets,
