@@ -39,7 +39,7 @@ def test_detect_refuses_a_huge_arm_before_any_work(tmp_path: Path) -> None:
 
 
 def test_a_slow_replay_reports_its_progress_per_axis(monkeypatch: pytest.MonkeyPatch) -> None:
-    import impactcli.pipeline as pipeline
+    from impactcli import pipeline
     from impactcli.pipeline import analyze
 
     seen: list[tuple[int, int]] = []
