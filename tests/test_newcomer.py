@@ -64,3 +64,21 @@ def test_a_glob_that_matches_nothing_says_so(tmp_path: Path) -> None:
                                   str(tmp_path / "o")])
     assert r.exit_code == 3
     assert "runs/*.csv: the pattern matches no file" in r.output
+
+
+def test_report_and_evaluate_find_the_log_from_any_folder(tmp_path: Path,
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    repo = Path(SAMPLE).parents[2]
+    monkeypatch.chdir(repo)  # detect with a relative path, as a user in the repo would
+    r = CliRunner().invoke(main, ["detect", "sample_logs/csv/assist_pushes.csv.gz", "--config",
+                                  "sample_logs/assist_like.config.toml", "-o", str(tmp_path)])
+    assert r.exit_code == 0, r.output
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    tl = str(tmp_path / "assist_pushes.timeline.json")
+    r = CliRunner().invoke(main, ["evaluate", tl])
+    assert r.exit_code == 0, r.output  # the labels found beside the log, via abs_path
+    assert "Contacts: 9 counted" in r.output
+    r = CliRunner().invoke(main, ["report", tl, "-o", str(tmp_path / "r.html")])
+    assert r.exit_code == 0, r.output

@@ -30,6 +30,7 @@ and exits 4; when every input fails the first error is raised (exit 3).
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import json
 import warnings
@@ -40,7 +41,7 @@ from typing import Any
 
 import click
 
-from ..errors import EXIT_BATCH, ImpactError, ImpactWarning, LogFormatError
+from ..errors import EXIT_BATCH, EXIT_SOFTWARE, ImpactError, ImpactWarning, LogFormatError
 from ._common import handle_errors, is_log_path, progress
 from .detect import (
     executor_options,
@@ -53,7 +54,8 @@ from .detect import (
 TIMELINE_SUFFIX = ".timeline.json"
 LABELS_SUFFIX = ".labels.json"
 #: read_log keyword arguments a timeline's ``input.read_options`` may carry.
-READ_KEYS = ("channel_map", "topic", "reference_topic", "time_source", "torque_source")
+READ_KEYS = ("channel_map", "topic", "reference_topic", "time_source", "torque_source",
+             "time_unit", "repair_order")
 
 
 def input_stem(path: Path) -> str:
@@ -118,12 +120,16 @@ def load_timeline(path: Path) -> dict[str, Any]:
     return doc
 
 
-def timeline_log_path(tl_path: Path, recorded: str) -> Path:
+def timeline_log_path(tl_path: Path, recorded: str, absolute: str | None = None) -> Path:
     """The log a timeline records — a file or a rosbag2 folder: as recorded (relative to the
-    working folder), else relative to the timeline's folder, else its name beside the
-    timeline."""
+    working folder), else at its recorded absolute path (timeline 2.x ``input.abs_path``),
+    else relative to the timeline's folder, else its name beside the timeline."""
     rec = Path(recorded)
-    for cand in (rec, tl_path.parent / rec, tl_path.parent / rec.name):
+    if absolute is None:
+        with contextlib.suppress(OSError, ValueError, KeyError, TypeError):
+            absolute = json.loads(tl_path.read_text("utf-8"))["input"].get("abs_path")
+    cands = [rec] + ([Path(absolute)] if absolute and "://" not in absolute else [])
+    for cand in (*cands, tl_path.parent / rec, tl_path.parent / rec.name):
         if is_log_path(cand):
             return cand
     raise LogFormatError(
@@ -149,7 +155,7 @@ def rerun_timeline(tl_path: Path, *, robot: Any = None) -> tuple[Any, Path]:
 
     tl = load_timeline(tl_path)
     inp = tl["input"]
-    log_path = timeline_log_path(tl_path, inp["path"])
+    log_path = timeline_log_path(tl_path, inp["path"], inp.get("abs_path"))
     opts = dict(inp.get("read_options") or {})
     unknown = sorted(set(opts) - set(READ_KEYS))
     if unknown:
@@ -381,7 +387,9 @@ def report_cmd(*, inputs: tuple[str, ...], html_path: Path, json_path: Path | No
             click.echo(f"impactcli: error: {paths[i]}: {res.reason}", err=True)
             if res.traceback:  # a bug: keep its traceback
                 click.echo(res.traceback.rstrip(), err=True)
-            errors[i] = ImpactError(f"{paths[i]}: {res.reason}")
+            err = ImpactError(f"{paths[i]}: {res.reason}")
+            err.exit_code = EXIT_SOFTWARE  # a bug or a lost worker: never a data error
+            errors[i] = err
             continue
         for m in res.messages:
             click.echo(f"impactcli: warning: {m}", err=True)
