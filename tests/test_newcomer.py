@@ -82,3 +82,22 @@ def test_report_and_evaluate_find_the_log_from_any_folder(tmp_path: Path,
     assert "Contacts: 9 counted" in r.output
     r = CliRunner().invoke(main, ["report", tl, "-o", str(tmp_path / "r.html")])
     assert r.exit_code == 0, r.output
+
+
+def test_identify_takes_the_topic_of_a_multi_arm_mcap(tmp_path: Path) -> None:
+    from impactcli.io.mcap_ros2 import JOINT_STATE
+
+    from .test_io_fields import jointstates, write_mcap
+
+    log = make_log(n=2500, joints=("j1", "j2"))
+    rows = jointstates(log.t_ns + 10**18, list(log.joint_names), np.asarray(log.position),
+                       np.asarray(log.torque))
+    p = tmp_path / "two_arms.mcap"
+    write_mcap(p, [("/left/joint_states", JOINT_STATE, "ros2msg", "cdr", rows),
+                   ("/right/joint_states", JOINT_STATE, "ros2msg", "cdr", rows)])
+    r = CliRunner().invoke(main, ["identify", str(p), "-o", str(tmp_path / "m.json")])
+    assert r.exit_code == 3
+    assert "/left/joint_states" in r.output and "/right/joint_states" in r.output
+    r = CliRunner().invoke(main, ["identify", str(p), "--topic", "/right/joint_states",
+                                  "-o", str(tmp_path / "m.json")])
+    assert r.exit_code == 0, r.output

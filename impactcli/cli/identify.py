@@ -6,6 +6,7 @@ import click
 
 from ._common import handle_errors
 from ._fit_table import format_fit_table
+from .detect import log_read_options, read_options_from
 
 __all__ = ["format_fit_table", "identify_cmd"]
 
@@ -20,10 +21,7 @@ __all__ = ["format_fit_table", "identify_cmd"]
               help="Model structure (default: the robot's kinematics type, else decoupled). "
                    "coupled: a spatial arm without kinematics, every joint's motion in every "
                    "joint's torque (docs/models.md).")
-@click.option("--channel-map", "channel_map", metavar="MAP",
-              help="Channel map (JSON/YAML path, or a shipped map's name).")
-@click.option("--torque-source", "torque_source", type=click.Choice(["current", "torque"]),
-              help="Use logged torque or current × gear ratio × torque constant.")
+@log_read_options
 @click.option("--cutoff", "cutoff_hz", type=click.FloatRange(min=0, min_open=True),
               default=10.0, show_default=True,
               help="Zero-phase filter cut-off for positions, torques and regressor [Hz].")
@@ -43,10 +41,14 @@ __all__ = ["format_fit_table", "identify_cmd"]
 @handle_errors
 def identify_cmd(
     log: str, output: str, robot: str | None, kind: str | None, channel_map: str | None,
+    topic: str | None, reference_topic: str | None, time_source: str | None,
     torque_source: str | None, cutoff_hz: float, holdout_fraction: float, robust: str,
     coulomb_slope: float, allow_still: bool,
 ) -> None:
-    """Identify a rough rigid model (tau = Y(q, q', q'') theta) from LOG and write it."""
+    """Identify a rough rigid model (tau = Y(q, q', q'') theta) from LOG and write it.
+
+    A multi-arm MCAP or bag: --topic picks the arm's JointState topic, as in the other
+    verbs."""
     from .._fs import prepare_output
     from ..io import read_log
     from ..io.robot import read_robot
@@ -54,7 +56,8 @@ def identify_cmd(
 
     prepare_output(output)  # a bad -o stops the run before any work
     desc = read_robot(robot) if robot else None
-    data = read_log(log, channel_map=channel_map, robot=desc, torque_source=torque_source)
+    ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
+    data = read_log(log, robot=desc, **ropts)
     options = IdentifyOptions(cutoff_hz=cutoff_hz, holdout_fraction=holdout_fraction,
                               robust=robust, coulomb_slope_rad_s=coulomb_slope,
                               allow_still_joints=allow_still)
