@@ -70,8 +70,11 @@ def unusable_columns(values: np.ndarray, reference_ptp: float | None = None) -> 
         if ptp[j] <= FLAT_NM:
             out.append(f"flat: its torque is constant ({float(col[0]):.6g} N·m)")
             continue
+        if not (ref > 0 and ptp[j] < SMALL_FRACTION * ref):
+            out.append(None)  # a range like the others': measured (no need to count values)
+            continue
         n_distinct = int(np.unique(col).size)
-        if n_distinct < FEW_VALUES and ref > 0 and ptp[j] < SMALL_FRACTION * ref:
+        if n_distinct < FEW_VALUES:
             out.append(f"unmeasured: {n_distinct} distinct values spanning "
                        f"{ptp[j]:.3g} N·m, under {SMALL_FRACTION:.0%} of the largest "
                        f"joint's {ref:.3g} N·m")
