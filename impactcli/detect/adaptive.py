@@ -43,13 +43,52 @@ conservative reading: the update that sees a collision cannot absorb it).
 Sample rate (method.md §5b): orders are in samples; N1, N2 are durations converted at the
 log's rate (at least 1 sample); w1, w2 are clipped below 0.4 × fs with an ImpactWarning.
 
-Two implementations of the same equations: :func:`_evaluate_numba` (compiled, all axes in
-one call) and :func:`evaluate_reference` (plain NumPy, obviously correct); tests compare them
-to 1e-9.
+Two implementations of the same equations: :func:`evaluate_chunk` / :func:`evaluate`
+(compiled per-axis kernel :func:`_evaluate_axis`) and :func:`evaluate_reference` (plain
+NumPy, obviously correct); tests compare them to 1e-9.
+
+Chunks and state (architecture.md, "Streaming")
+-----------------------------------------------
+:func:`evaluate_chunk` ``(state, residual (n, J), inputs (m, n, J), fs, v_stat, cfg) ->
+(result, new_state)`` runs the compiled per-axis kernel :func:`_evaluate_axis` on one
+chunk; the kernel reads the state at the start and writes it back at the end (the state
+passed in is left as it was). :func:`evaluate`, the whole-log API, is ``evaluate_chunk``
+on the whole log as one chunk from :meth:`EvaluatorState.initial`: one implementation.
+:class:`EvaluatorState` holds exactly what the recursion carries from sample k0 − 1 to
+k0 (k0 = ``n_samples``, the samples absorbed so far), per axis j:
+
+- theta(k0−1) and P(k0−1) of eq. 38–39 (P as the RLS kernel keeps it: the lower
+  triangle; initially theta0 and p0 I, Table I), and the reset / wind-up-guard counters;
+- the regressor's past values (eq. 31–35, 51–54): r_j(k0−eta..k0−1), v_dyn_j(k0−p..k0−1)
+  (the pseudo-linear block: values this algorithm computed) and u_{i,l}(k0−rho_max..k0−1)
+  of every input type i and axis l — one copy shared by the axes, since every axis's
+  inputs enter every regression (eq. 34); initially 0 (samples before the start are 0);
+- the outputs r_f(k0−1), v_f(k0−1) of F1 and F2 (step 4; initially 0: from rest);
+- eq. 41's windows: ring buffers of the last N1 values r_f² and N2 values v_f² and their
+  running sums; the ring positions are k0 mod N1 and k0 mod N2;
+- the settings it was made for (``cfg``, ``rates``): a chunk with others is refused.
+
+Guarantee, for any split of a log into consecutive chunks (any sizes, 1 sample included;
+boundaries inside the regression's start-up, inside a contact, while the wind-up guard
+acts): the chunks' outputs concatenated (:func:`join_chunks`) are bit for bit those of the
+whole-log call, and so is the final state. The kernel performs the same floating-point
+operations in the same order whatever the boundaries: every value carried across a
+boundary is stored in float64 exactly as the next iteration reads it (nothing is
+recomputed at a boundary), and the RMS running sums are updated sample by sample and
+re-summed from their ring at every wrap, at the samples k ≡ 0 (mod N) of the whole log,
+not of the chunk — so their rounding depends on k alone and cannot drift with the
+chunking. ``tests/test_evaluator_chunks.py`` checks ``np.array_equal`` of every output and
+every state array for chunks of 1, 7, 1000, 4096 samples and the whole log, and for
+boundaries after samples 1–5, mid-contact and at random places, on sample_logs'
+assist_impacts (guard acting: a still elbow) and synthetic logs (a standstill and
+contact pulses; a priori, plain eq. 39, other windows, axes on threads). Cost per chunk:
+a copy of the state (J·nu² for P) and the Python dispatch of the axes
+(``tests/benchmarks/bench_rls.py`` measures it).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import warnings
 from collections.abc import Callable, Sequence
@@ -261,34 +300,112 @@ def g_gain(theta_g: np.ndarray, freqs_hz: np.ndarray, fs_hz: float) -> np.ndarra
     return np.abs(g)
 
 
+# ----------------------------------------------------------------------------- state
+@dataclass(frozen=True)
+class EvaluatorState:
+    """Everything the evaluator carries from one sample to the next (module docstring,
+    "Chunks and state"). Arrays have the axis first; ``evaluate_chunk`` never modifies a
+    state it is given (it returns a new one).
+
+    Attributes:
+        theta: (J, nu) theta(k0-1) (eq. 38).
+        P: (J, nu, nu) P(k0-1), LOWER triangle authoritative (:mod:`impactcli.detect.rls`).
+        r_lags: (J, eta) r_j(k0-eta) .. r_j(k0-1), oldest first (phi's first block, eq. 51).
+        v_lags: (J, p) v_dyn_j(k0-p) .. v_dyn_j(k0-1), oldest first (pseudo-linear block).
+        u_lags: (m, rho_max, J) u_{i,l}(k0-rho_max) .. u_{i,l}(k0-1), oldest first; shared
+            by all axes (every axis's inputs enter every regression, eq. 34).
+        filters: (J, 2) F1 and F2 outputs r_f(k0-1), v_f(k0-1) (Fig. 11).
+        ring_r: (J, N1) r_f² of the last N1 samples (eq. 41), slot ``k % N1``.
+        ring_v: (J, N2) v_f² of the last N2 samples, slot ``k % N2``.
+        sums: (J, 2) the running sums of ring_r and ring_v as the kernel keeps them.
+        n_samples: samples absorbed so far (k0); fixes the ring positions.
+        n_resets, n_capped: (J,) covariance resets and wind-up-guard steps so far.
+        cfg, rates: the settings the state was made for (a chunk must use the same).
+    """
+
+    theta: np.ndarray
+    P: np.ndarray
+    r_lags: np.ndarray
+    v_lags: np.ndarray
+    u_lags: np.ndarray
+    filters: np.ndarray
+    ring_r: np.ndarray
+    ring_v: np.ndarray
+    sums: np.ndarray
+    n_samples: int
+    n_resets: np.ndarray
+    n_capped: np.ndarray
+    cfg: AdaptiveConfig
+    rates: Rates
+
+    @property
+    def n_joints(self) -> int:
+        return int(self.theta.shape[0])
+
+    @property
+    def nu(self) -> int:
+        return int(self.theta.shape[1])
+
+    @classmethod
+    def initial(cls, n_joints: int, cfg: AdaptiveConfig | None = None,
+                sample_rate_hz: float = 250.0) -> EvaluatorState:
+        """The state before the first sample: theta = theta0, P = p0 I (Table I), every
+        past value 0 (samples before the log start are 0), filters at rest, empty windows."""
+        cfg = cfg or AdaptiveConfig()
+        J = int(n_joints)
+        nu = cfg.n_params(J)
+        rates = resolve_rates(cfg, sample_rate_hz)
+        P = np.zeros((J, nu, nu))
+        idx = np.arange(nu)
+        P[:, idx, idx] = cfg.p0
+        return cls(
+            theta=np.full((J, nu), float(cfg.theta0)), P=P,
+            r_lags=np.zeros((J, cfg.eta)), v_lags=np.zeros((J, cfg.p)),
+            u_lags=np.zeros((len(cfg.rho), max(cfg.rho, default=0), J)),
+            filters=np.zeros((J, 2)), ring_r=np.zeros((J, rates.n1)),
+            ring_v=np.zeros((J, rates.n2)), sums=np.zeros((J, 2)), n_samples=0,
+            n_resets=np.zeros(J, dtype=np.int64), n_capped=np.zeros(J, dtype=np.int64),
+            cfg=cfg, rates=rates,
+        )
+
+    def copy(self) -> EvaluatorState:
+        """A deep copy (the arrays are copied; cfg and rates are immutable)."""
+        return dataclasses.replace(self, **{
+            f.name: getattr(self, f.name).copy() for f in dataclasses.fields(self)
+            if isinstance(getattr(self, f.name), np.ndarray)})
+
+
 # ----------------------------------------------------------------------------- kernels
 @nb.njit(cache=True, nogil=True, fastmath=FASTMATH)
 def _evaluate_axis(
     r: np.ndarray, u: np.ndarray, eta: int, p: int, rho: np.ndarray,
-    lam: float, p0: float, theta0: float, max_diag: float, a_post: bool,
+    lam: float, p0: float, max_diag: float, a_post: bool,
     a1: float, a2: float, n1: int, n2: int, v_stat_j: float,
     rt: np.ndarray, vd: np.ndarray, rf: np.ndarray, vf: np.ndarray, rr: np.ndarray,
-    vr: np.ndarray, thr: np.ndarray, dec: np.ndarray, eps: np.ndarray, th: np.ndarray,
+    vr: np.ndarray, thr: np.ndarray, dec: np.ndarray, eps: np.ndarray,
+    th: np.ndarray, P_state: np.ndarray, r_lag: np.ndarray, v_lag: np.ndarray, u_lag: np.ndarray,
+    filt: np.ndarray, ring_r: np.ndarray, ring_v: np.ndarray, sums: np.ndarray,
+    pos1: int, pos2: int,
 ) -> tuple[int, int]:
-    """One axis over all samples: ``r`` (N,) is its residual, ``u`` (m, N, J) every axis's
-    inputs; the outputs are this axis's (N,) rows and its (nu,) theta ``th``.
+    """One axis over one chunk: ``r`` (n,) is its residual, ``u`` (m, n, J) every axis's
+    inputs; the outputs are this axis's (n,) rows. The state (``th`` (nu,), ``P_state`` (nu, nu)
+    lower triangle, ``r_lag`` (eta,), ``v_lag`` (p,), ``filt`` (2,), ``ring_r`` (N1,),
+    ``ring_v`` (N2,), ``sums`` (2,)) is read at the start and written back at the end, in
+    place; ``u_lag`` (m, rho_max, J) is only read (shared by the axes; the caller advances
+    it); ``pos1``, ``pos2`` are the ring positions (samples so far mod N1, N2).
 
     Axes are independent (eq. 34–35 per axis; only the inputs u are shared), so axes can
     run on separate threads (the kernel releases the GIL). Returns the covariance resets
-    and the number of samples at which the wind-up guard scaled P.
+    and the number of samples at which the wind-up guard scaled P, in this chunk.
     """
     n = r.shape[0]
     J = u.shape[2]
     m = u.shape[0]
-    srho = 0
-    for i in range(m):
-        srho += rho[i]
-    nu = eta + p + J * srho
-    P = np.zeros((nu, nu))
-    for i in range(nu):
-        P[i, i] = p0
-    for i in range(nu):
-        th[i] = theta0
+    L = u_lag.shape[1]
+    nu = th.shape[0]
+    # read the state into locals (a private P lets the compiler vectorise eq. 39 without
+    # alias checks); written back at the end
+    P = P_state.copy()
     resets = 0
     capped = 0
     phi = np.zeros(nu)
@@ -297,26 +414,22 @@ def _evaluate_axis(
     th_old = np.empty(nu)
     inv_n1 = 1.0 / n1
     inv_n2 = 1.0 / n2
-    sum_r = 0.0
-    sum_v = 0.0
-    ring_r = np.zeros(n1)
-    ring_v = np.zeros(n2)
-    pos1 = 0
-    pos2 = 0
-    prev_r = 0.0
-    prev_v = 0.0
+    prev_r = filt[0]
+    prev_v = filt[1]
+    sum_r = sums[0]
+    sum_v = sums[1]
     for k in range(n):
-        # regressor phi(k) (zeros before the start): past residuals, past v_dyn, and the
-        # inputs u_{i,l}(k-1..k-rho_i) of every type i and every axis l (Appendix A)
+        # regressor phi(k): past residuals, past v_dyn, and the inputs u_{i,l}(k-1..k-rho_i)
+        # of every type i and every axis l (Appendix A); before the chunk from the state
         for d in range(1, eta + 1):
-            phi[d - 1] = r[k - d] if k - d >= 0 else 0.0
+            phi[d - 1] = r[k - d] if k - d >= 0 else r_lag[eta + k - d]
         for d in range(1, p + 1):
-            phi[eta + d - 1] = vd[k - d] if k - d >= 0 else 0.0
+            phi[eta + d - 1] = vd[k - d] if k - d >= 0 else v_lag[p + k - d]
         c = eta + p
         for i in range(m):
             for ll in range(J):
                 for d in range(1, rho[i] + 1):
-                    phi[c] = u[i, k - d, ll] if k - d >= 0 else 0.0
+                    phi[c] = u[i, k - d, ll] if k - d >= 0 else u_lag[i, L + k - d, ll]
                     c += 1
         if not a_post:
             for i in range(nu):
@@ -365,52 +478,85 @@ def _evaluate_axis(
         if pos2 == n2:
             pos2 = 0
             sum_v = np.sum(ring_v)
+    # write the state back: P, filters, sums, the last eta residuals / p values of v_dyn
+    P_state[:, :] = P
+    filt[0] = prev_r
+    filt[1] = prev_v
+    sums[0] = sum_r
+    sums[1] = sum_v
+    _shift_in(r_lag, r, n)
+    _shift_in(v_lag, vd, n)
     return resets, capped
 
 
-def _evaluate_numba(
-    r: np.ndarray, u: np.ndarray, eta: int, p: int, rho: np.ndarray,
-    lam: float, p0: float, theta0: float, max_diag: float, a_post: bool,
-    a1: float, a2: float, n1: int, n2: int, v_stat: np.ndarray, threads: int = 1,
+@nb.njit(cache=True, nogil=True, inline="always")
+def _shift_in(lag: np.ndarray, x: np.ndarray, n: int) -> None:
+    """lag <- the last len(lag) values of [lag, x[:n]] (oldest first)."""
+    L = lag.shape[0]
+    if n >= L:
+        for d in range(L):
+            lag[d] = x[n - L + d]
+    else:
+        for d in range(L - n):
+            lag[d] = lag[d + n]
+        for d in range(n):
+            lag[L - n + d] = x[d]
+
+
+def _run_axes(
+    st: EvaluatorState, r: np.ndarray, u: np.ndarray, v_stat: np.ndarray, threads: int = 1,
     progress: Callable[[int, int], None] | None = None,
 ) -> tuple[np.ndarray, ...]:
-    """All axes with the compiled per-axis kernel; ``threads`` > 1 runs axes concurrently.
+    """All axes of one chunk with the compiled per-axis kernel, advancing ``st`` IN PLACE;
+    ``threads`` > 1 runs axes concurrently.
 
-    Each axis works on contiguous (N,) rows (outputs are (J, N) inside, returned (N, J)).
+    Each axis works on contiguous (n,) rows (outputs are (J, n) inside, returned (n, J)).
     """
     n, J = r.shape
-    nu = eta + p + J * int(np.sum(rho))
+    cfg, rates = st.cfg, st.rates
+    rho = np.asarray(cfg.rho, dtype=np.int64)
+    lam, p0 = float(cfg.forgetting_factor), float(cfg.p0)
+    max_diag = max_diag_of(st.nu, cfg.p0, cfg.max_trace)
+    a_post = cfg.estimate == "a_posteriori"
+    pos1, pos2 = st.n_samples % rates.n1, st.n_samples % rates.n2
     rows = np.ascontiguousarray(r.T)
     out = [np.zeros((J, n)) for _ in range(9)]
     out[7] = np.zeros((J, n), dtype=np.bool_)
-    theta = np.zeros((J, nu))
     rt, vd, rf, vf, rr, vr, thr, dec, eps = out
 
     def axis(j: int) -> tuple[int, int]:
-        rs, cp = _evaluate_axis(rows[j], u, eta, p, rho, lam, p0, theta0, max_diag, a_post,
-                                a1, a2, n1, n2, float(v_stat[j]), rt[j], vd[j], rf[j], vf[j],
-                                rr[j], vr[j], thr[j], dec[j], eps[j], theta[j])
+        rs, cp = _evaluate_axis(
+            rows[j], u, cfg.eta, cfg.p, rho, lam, p0, max_diag, a_post, rates.a1, rates.a2,
+            rates.n1, rates.n2, float(v_stat[j]), rt[j], vd[j], rf[j], vf[j], rr[j], vr[j],
+            thr[j], dec[j], eps[j], st.theta[j], st.P[j], st.r_lags[j], st.v_lags[j],
+            st.u_lags, st.filters[j], st.ring_r[j], st.ring_v[j], st.sums[j], pos1, pos2)
         return int(rs), int(cp)
 
+    done: list[tuple[int, int]] = []
     if threads > 1 and J > 1:
         from concurrent.futures import ThreadPoolExecutor
 
         with ThreadPoolExecutor(max_workers=min(threads, J)) as ex:
-            done = []
             for c in ex.map(axis, range(J)):
                 done.append(c)
                 if progress is not None:
                     progress(len(done), J)
-            counts = np.array(done, dtype=np.int64).reshape(J, 2)
     else:
-        done = []
         for j in range(J):
             done.append(axis(j))
             if progress is not None:
                 progress(j + 1, J)
-        counts = np.array(done, dtype=np.int64).reshape(J, 2)
+    counts = np.array(done, dtype=np.int64).reshape(J, 2)
+    st.n_resets[:] += counts[:, 0]
+    st.n_capped[:] += counts[:, 1]
+    L = st.u_lags.shape[1]
+    if L and n:  # the shared input lags: the last rho_max samples of [u_lags, u]
+        if n >= L:
+            st.u_lags[:] = u[:, n - L:, :]
+        else:
+            st.u_lags[:] = np.concatenate([st.u_lags[:, n:, :], u], axis=1)
     rt, vd, rf, vf, rr, vr, thr, dec, eps = (np.ascontiguousarray(x.T) for x in out)
-    return rt, vd, rf, vf, rr, vr, thr, dec, eps, theta, counts[:, 0], counts[:, 1]
+    return rt, vd, rf, vf, rr, vr, thr, dec, eps
 
 
 def _check(r: np.ndarray, u: np.ndarray, v_stat: np.ndarray, cfg: AdaptiveConfig) -> None:
@@ -424,12 +570,75 @@ def _check(r: np.ndarray, u: np.ndarray, v_stat: np.ndarray, cfg: AdaptiveConfig
         raise ValueError(f"v_stat must be ({r.shape[1]},), got {v_stat.shape}")
 
 
+def evaluate_chunk(
+    state: EvaluatorState, residual_chunk: np.ndarray, inputs_chunk: np.ndarray,
+    sample_rate_hz: float, v_stat: Sequence[float] | np.ndarray,
+    cfg: AdaptiveConfig | None = None, threads: int = 1,
+    progress: Callable[[int, int], None] | None = None, *, _consume: bool = False,
+) -> tuple[AdaptiveResult, EvaluatorState]:
+    """Run the adaptive evaluator (compiled) on one chunk, continuing from ``state``.
+
+    Args:
+        state: the state after the previous chunk (:meth:`EvaluatorState.initial` before
+            the first); not modified.
+        residual_chunk: (n, J) residual of the chunk [N·m] (n may be 0).
+        inputs_chunk: (m, n, J) threshold inputs of the chunk.
+        sample_rate_hz: fs [Hz]; must be the state's.
+        v_stat: (J,) static thresholds [N·m] (eq. 42).
+        cfg: settings; None → the state's; otherwise must equal the state's.
+        threads, progress: as :func:`evaluate`.
+
+    Returns:
+        (result, new_state): ``result`` holds the chunk's (n, J) signals; its ``theta``,
+        ``n_resets`` and ``n_capped`` are the new state's (totals since the first chunk),
+        so :func:`join_chunks` of the results equals :func:`evaluate` on the whole log,
+        bit for bit (module docstring).
+    """
+    cfg = state.cfg if cfg is None else cfg
+    if cfg != state.cfg:
+        raise ValueError("cfg differs from the one the evaluator state was made with")
+    if float(sample_rate_hz) != state.rates.fs_hz:
+        raise ValueError(f"sample rate {sample_rate_hz} Hz differs from the state's "
+                         f"{state.rates.fs_hz} Hz")
+    r = np.ascontiguousarray(residual_chunk, dtype=np.float64)
+    u = np.ascontiguousarray(inputs_chunk, dtype=np.float64)
+    vs = np.ascontiguousarray(v_stat, dtype=np.float64)
+    _check(r, u, vs, cfg)
+    if r.shape[1] != state.n_joints:
+        raise ValueError(f"{r.shape[1]} joints but the state has {state.n_joints}")
+    st = state if _consume else state.copy()
+    rt, vd, rf, vf, rr, vr, thr, dec, eps = _run_axes(st, r, u, vs, threads, progress)
+    st = dataclasses.replace(st, n_samples=st.n_samples + r.shape[0])
+    res = AdaptiveResult(rt, vd, rf, vf, rr, vr, thr, dec, eps, st.theta.copy(),
+                         st.n_resets.copy(), rates=st.rates, nu=st.nu, eta=cfg.eta,
+                         n_capped=st.n_capped.copy())
+    return res, st
+
+
+def join_chunks(results: Sequence[AdaptiveResult]) -> AdaptiveResult:
+    """The chunks' results as one: signals concatenated in time; theta and the counters
+    from the last chunk (totals)."""
+    if not results:
+        raise ValueError("no chunks to join")
+    last = results[-1]
+    rt, vd, rf, vf, rr, vr, thr, dec, eps = (
+        np.concatenate([getattr(x, name) for x in results], axis=0) for name in SIGNALS)
+    return AdaptiveResult(rt, vd, rf, vf, rr, vr, thr, dec, eps, last.theta, last.n_resets,
+                          rates=last.rates, nu=last.nu, eta=last.eta, n_capped=last.n_capped)
+
+
+#: The (N, J) signals of an :class:`AdaptiveResult` (concatenated over chunks).
+SIGNALS = ("r_tilde", "v_dyn", "r_f", "v_f", "r_rms", "v_rms", "threshold", "decision",
+           "prediction_error")
+
+
 def evaluate(
     residual: np.ndarray, inputs: np.ndarray, sample_rate_hz: float,
     v_stat: Sequence[float] | np.ndarray, cfg: AdaptiveConfig | None = None,
     threads: int | None = None, progress: Callable[[int, int], None] | None = None,
 ) -> AdaptiveResult:
-    """Run the adaptive evaluator (compiled) on all axes.
+    """Run the adaptive evaluator (compiled) on all axes: :func:`evaluate_chunk` on the
+    whole log as one chunk from :meth:`EvaluatorState.initial`.
 
     Args:
         residual: (N, J) residual r = tau_hat − tau [N·m].
@@ -444,21 +653,13 @@ def evaluate(
     cfg = cfg or AdaptiveConfig()
     if threads is None:
         threads = (os.cpu_count() or 1) if np.shape(residual)[0] >= 100_000 else 1
-    r = np.ascontiguousarray(residual, dtype=np.float64)
-    u = np.ascontiguousarray(inputs, dtype=np.float64)
-    vs = np.ascontiguousarray(v_stat, dtype=np.float64)
-    _check(r, u, vs, cfg)
-    rates = resolve_rates(cfg, sample_rate_hz)
-    nu = cfg.n_params(r.shape[1])
-    out = _evaluate_numba(
-        r, u, cfg.eta, cfg.p, np.asarray(cfg.rho, dtype=np.int64), cfg.forgetting_factor,
-        cfg.p0, cfg.theta0, max_diag_of(nu, cfg.p0, cfg.max_trace),
-        cfg.estimate == "a_posteriori", rates.a1, rates.a2, rates.n1, rates.n2, vs, threads,
-        progress,
-    )
-    rt, vd, rf, vf, rr, vr, thr, dec, eps, theta, resets, capped = out
-    return AdaptiveResult(rt, vd, rf, vf, rr, vr, thr, dec, eps, theta, resets,
-                          rates=rates, nu=nu, eta=cfg.eta, n_capped=capped)
+    r = np.asarray(residual)
+    if r.ndim != 2:
+        raise ValueError(f"residual must be (N, J), got shape {r.shape}")
+    state = EvaluatorState.initial(r.shape[1], cfg, sample_rate_hz)
+    res, _ = evaluate_chunk(state, r, inputs, sample_rate_hz, v_stat, cfg, threads, progress,
+                            _consume=True)
+    return res
 
 
 def evaluate_reference(

@@ -7,6 +7,10 @@ joints (nu = 64), one core. padasip's FilterRLS is run on the same regression (t
 regressors phi(k) of axis 0, rebuilt from the evaluator's own outputs) and reported as a
 ratio. Numba compilation is excluded (one warm-up call on a short slice).
 
+The last rows time the chunked form (``evaluate_chunk``, state in, state out): its fixed
+cost per call [µs] (state copy, checks, dispatch of the axes; timed on empty chunks) as a
+share of a 4096-sample chunk's time, and the whole log in chunks of 4096 against one call.
+
 A third row times the wind-up guard's own path: 7 joints of which the last 4 stand still
 (their reference inputs are exactly 0), so the per-coordinate cap of
 :mod:`impactcli.detect.rls` scales P at most samples; ``capped`` is that share.
@@ -23,7 +27,7 @@ import numpy as np
 from scipy import signal
 
 from impactcli.config import AdaptiveConfig
-from impactcli.detect.adaptive import evaluate
+from impactcli.detect.adaptive import EvaluatorState, evaluate, evaluate_chunk
 from impactcli.detect.rls import rls_run
 
 FS = 250.0
@@ -115,7 +119,31 @@ def main() -> None:
         print(f"{joints:>6} {nu:>4} {rate:>26,.0f} {target:>10,} {nn / dt_rls:>15,.0f} "
               f"{rate_p:>14,.0f} {rate / rate_p:>19.1f}x"
               f"{'' if rate >= target else '   BELOW TARGET'}{note}")
+    print(f"{'joints':>6} {'nu':>4} {'fixed µs/chunk':>15} {'= % of a 4096 chunk':>20} "
+          f"{'chunks of 4096: s':>18} {'whole log: s':>13}")
+    for joints in (2, 7):
+        nn = n if joints == 2 else n // 3
+        r, u = data(joints, nn)
+        v_stat = np.full(joints, 0.1)
+        st0 = EvaluatorState.initial(joints, cfg, FS)
+        calls = 1000
 
+        def empty(st0=st0, r=r, u=u, v_stat=v_stat, calls=calls) -> None:
+            for _ in range(calls):  # the whole cost of a call but the samples' work
+                evaluate_chunk(st0, r[:0], u[:, :0], FS, v_stat, cfg)
+
+        fixed = best_of(empty, 5) / calls
+        dt = best_of(lambda r=r, u=u, v_stat=v_stat: evaluate(r, u, FS, v_stat, cfg, threads=1),
+                     5)
+
+        def chunked(r=r, u=u, v_stat=v_stat) -> None:
+            st = EvaluatorState.initial(r.shape[1], cfg, FS)
+            for a in range(0, r.shape[0], 4096):
+                _, st = evaluate_chunk(st, r[a:a + 4096], u[:, a:a + 4096], FS, v_stat, cfg)
+
+        dc = best_of(chunked, 5)
+        print(f"{joints:>6} {cfg.n_params(joints):>4} {fixed * 1e6:>15.0f} "
+              f"{fixed / (dt * 4096 / nn):>20.2%} {dc:>18.3f} {dt:>13.3f}")
 
 if __name__ == "__main__":
     main()
