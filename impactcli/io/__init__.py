@@ -100,8 +100,7 @@ def read_log(
         LogFormatError: missing or unknown file, malformed content (naming the file).
         ChannelMapError: a channel map that is malformed or points at nothing.
     """
-    from .assemble import build_log, check_torque_source
-    from .channel_map import load_channel_map
+    from .assemble import build_log
     from .repair import repairing_order
     from .urls import is_url, read_log_url
 
@@ -110,6 +109,36 @@ def read_log(
             str(path), read_log, channel_map=channel_map, robot=robot, topic=topic,
             reference_topic=reference_topic, time_source=time_source,
             torque_source=torque_source, time_unit=time_unit, repair_order=repair_order)
+    p, where, suffix, folder, cmap = open_log_options(
+        path, channel_map=channel_map, topic=topic, reference_topic=reference_topic,
+        time_source=time_source, torque_source=torque_source, time_unit=time_unit)
+    with repairing_order(repair_order):
+        ch, fmt, tsrc, sha = _read_channels(p, where, suffix, folder, cmap, topic,
+                                            reference_topic, time_source, time_unit)
+    return build_log(
+        ch, path=where, fmt=fmt, robot=robot, torque_source=torque_source,
+        time_source=tsrc, sha256=sha,
+    )
+
+
+def open_log_options(
+    path: str | os.PathLike[str], *, channel_map: Any = None, topic: str | None = None,
+    reference_topic: str | None = None, time_source: str | None = None,
+    torque_source: str | None = None, time_unit: str | None = None,
+) -> tuple[Path, str, str, bool, Any]:
+    """Check a local log path and :func:`read_log`'s options, load the channel map.
+
+    Returns:
+        ``(path, where, suffix, folder, cmap)``: the path, it as text for messages, its
+        format suffix (``rosbag2`` for a folder), whether it is a folder, the channel map
+        (None without one; ``--time-unit`` applied to its time).
+
+    Raises:
+        LogFormatError: as :func:`read_log` does for the path and the options.
+    """
+    from .assemble import check_torque_source
+    from .channel_map import load_channel_map
+
     p = Path(path)
     where = str(path)
     check_torque_source(torque_source, where)
@@ -155,13 +184,7 @@ def read_log(
         import dataclasses
 
         cmap = dataclasses.replace(cmap, time=dataclasses.replace(cmap.time, unit=time_unit))
-    with repairing_order(repair_order):
-        ch, fmt, tsrc, sha = _read_channels(p, where, suffix, folder, cmap, topic,
-                                            reference_topic, time_source, time_unit)
-    return build_log(
-        ch, path=where, fmt=fmt, robot=robot, torque_source=torque_source,
-        time_source=tsrc, sha256=sha,
-    )
+    return p, where, suffix, folder, cmap
 
 
 def _read_channels(p: Path, where: str, suffix: str, folder: bool, cmap: Any,

@@ -90,17 +90,32 @@ def describing() -> Iterator[None]:
         _DESCRIBING.reset(token)
 
 
-def build_log(
-    ch: JointChannels,
-    *,
-    path: str,
-    fmt: str,
-    robot: RobotDescription | None,
-    torque_source: str | None,
-    time_source: str,
-    sha256: str | None = None,
-) -> RobotLog:
-    """Make the RobotLog: choose the torque source, convert current, attach provenance.
+@dataclass(frozen=True)
+class LogPlan:
+    """How a reader's channels become a log's arrays (:func:`plan_log`): decided from which
+    channels there are, not from their values, so it applies to any run of samples.
+
+    Attributes:
+        torque_source: ``torque`` or ``current``.
+        scale: (J,) N·m per current unit (a current source), else None.
+        optional: the optional signals the log keeps (velocity, current, references).
+        controller: the controller channels there are (``torque_model``, ``torque_ext``).
+        ignored: channels present in the file but not used.
+        notes: what could not be made of the channels (:func:`describing` only).
+    """
+
+    torque_source: str
+    scale: np.ndarray | None
+    optional: tuple[str, ...]
+    controller: tuple[str, ...]
+    ignored: tuple[str, ...]
+    notes: tuple[str, ...]
+
+
+def plan_log(ch: JointChannels, *, path: str, robot: RobotDescription | None,
+             torque_source: str | None) -> LogPlan:
+    """Choose the torque source and its conversion, and the channels kept (module
+    docstring); only which channels ``ch`` has is looked at, not their values.
 
     Raises:
         LogFormatError: a joint without position, without any torque signal, or with only
@@ -134,106 +149,154 @@ def build_log(
                     f"{path}: torque source {src!r} requested but joint {j!r} has no {src} channel"
                 )
     notes: list[str] = []
-    if src == "torque":
-        torque = ch.signals["torque"]
-    else:
-        current = ch.signals["current"]
-        scale = (
-            np.full(len(ch.joints), np.nan) if ch.current_scale is None
-            else np.asarray(ch.current_scale, dtype=np.float64)
-        )
-        need = np.isnan(scale)
-        if need.any() and robot is None and _DESCRIBING.get():
-            names = [ch.joints[int(k)] for k in np.flatnonzero(need)]
-            notes.append(f"current of {', '.join(names)} not converted to torque: needs a "
-                         "robot description (--robot) with gear_ratio and torque_constant, "
-                         "or a scale in the channel map (torque shown in A)")
-            scale[need] = 1.0
-            need[:] = False
-        if need.any():
-            if robot is None:
-                j = ch.joints[int(np.argmax(need))]
-                raise LogFormatError(
-                    f"{path}: joint {j!r} has only current; converting it to torque needs a "
-                    "robot description (--robot) with gear_ratio and torque_constant, or a "
-                    "scale in the channel map"
-                )
-            by_name = dict(zip(robot.joint_names, robot.torque_scale(), strict=True))
-            for k in np.flatnonzero(need):
-                j = ch.joints[int(k)]
-                if j not in by_name:
-                    raise LogFormatError(
-                        f"{path}: joint {j!r} has only current and is not in the robot "
-                        f"description {robot.path or robot.name!r}"
-                    )
-                scale[k] = by_name[j]
-        torque = current * scale
-    opt: dict[str, np.ndarray] = {
-        s: ch.signals[s]
-        for s in ("velocity", "current", "position_ref", "velocity_ref", "acceleration_ref")
-        if s in ch.signals and not ch.missing.get(s)
-    }
-    # the controller's channels are per joint: a joint without one holds NaN (formats.md)
-    for s in CONTROLLER_CHANNELS:
-        if s in ch.signals:
-            m = np.array(ch.signals[s], dtype=np.float64)
-            for j in ch.missing.get(s, []):
-                m[:, ch.joints.index(j)] = np.nan
-            opt[s] = m
+    scale: np.ndarray | None = None
+    if src == "current":
+        scale = _current_scale(ch, path, robot, notes)
+    optional = [s for s in ("velocity", "current", "position_ref", "velocity_ref",
+                            "acceleration_ref") if s in ch.signals and not ch.missing.get(s)]
+    controller = tuple(s for s in CONTROLLER_CHANNELS if s in ch.signals)
     # a signal present for some joints only is not usable: list it as ignored
     ignored = list(ch.ignored)
     for s, miss in ch.missing.items():
         if s in CONTROLLER_CHANNELS:
             continue
-        if s in ch.signals and miss and s in opt:
-            del opt[s]
+        if s in ch.signals and miss and s in optional:
+            optional.remove(s)
         if s in ch.signals and miss and s not in ("torque", "current", "position"):
             have = [j for j in ch.joints if j not in miss]
             ignored += [f"{j}.{s}" for j in have]
-    position = ch.signals["position"]
+    return LogPlan(torque_source=src, scale=scale, optional=tuple(optional),
+                   controller=controller, ignored=tuple(ignored), notes=tuple(notes))
+
+
+def _current_scale(ch: JointChannels, path: str, robot: RobotDescription | None,
+                   notes: list[str]) -> np.ndarray:
+    """(J,) N·m per current unit: the channel map's scale, else the robot description's
+    gear ratio × torque constant (module docstring)."""
+    scale = (
+        np.full(len(ch.joints), np.nan) if ch.current_scale is None
+        else np.asarray(ch.current_scale, dtype=np.float64).copy()
+    )
+    need = np.isnan(scale)
+    if need.any() and robot is None and _DESCRIBING.get():
+        names = [ch.joints[int(k)] for k in np.flatnonzero(need)]
+        notes.append(f"current of {', '.join(names)} not converted to torque: needs a "
+                     "robot description (--robot) with gear_ratio and torque_constant, "
+                     "or a scale in the channel map (torque shown in A)")
+        scale[need] = 1.0
+        need[:] = False
+    if need.any():
+        if robot is None:
+            j = ch.joints[int(np.argmax(need))]
+            raise LogFormatError(
+                f"{path}: joint {j!r} has only current; converting it to torque needs a "
+                "robot description (--robot) with gear_ratio and torque_constant, or a "
+                "scale in the channel map"
+            )
+        by_name = dict(zip(robot.joint_names, robot.torque_scale(), strict=True))
+        for k in np.flatnonzero(need):
+            j = ch.joints[int(k)]
+            if j not in by_name:
+                raise LogFormatError(
+                    f"{path}: joint {j!r} has only current and is not in the robot "
+                    f"description {robot.path or robot.name!r}"
+                )
+            scale[k] = by_name[j]
+    return scale
+
+
+def assemble(plan: LogPlan, ch: JointChannels) -> dict[str, np.ndarray]:
+    """The log's (n, J) arrays of every joint of ``ch`` under ``plan``: ``position``,
+    ``torque`` and the optional and controller channels kept (a joint without a
+    controller channel holds NaN in it). Elementwise, so samples may come in any runs."""
+    torque = ch.signals["torque"] if plan.scale is None else ch.signals["current"] * plan.scale
+    out: dict[str, np.ndarray] = {"position": ch.signals["position"], "torque": torque}
+    for s in plan.optional:
+        out[s] = ch.signals[s]
+    # the controller's channels are per joint: a joint without one holds NaN (formats.md)
+    for s in plan.controller:
+        m = np.array(ch.signals[s], dtype=np.float64)
+        for j in ch.missing.get(s, []):
+            m[:, ch.joints.index(j)] = np.nan
+        out[s] = m
+    return out
+
+
+def drop_message(path: str, dropped: list[tuple[str, str]], src: str) -> str:
+    """The error when every joint is left out (:func:`build_log`)."""
+    return (f"{path}: no joint has a finite position and {src}: "
+            + "; ".join(f"{j}: {why}" for j, why in dropped))
+
+
+def warn_dropped(path: str, dropped: list[tuple[str, str]]) -> None:
+    """Warn about each joint left out of the log (ImpactWarning)."""
+    for j, why in dropped:
+        warnings.warn(f"{path}: joint {j!r} left out of detection: {why}",
+                      ImpactWarning, stacklevel=4)
+
+
+def build_log(
+    ch: JointChannels,
+    *,
+    path: str,
+    fmt: str,
+    robot: RobotDescription | None,
+    torque_source: str | None,
+    time_source: str,
+    sha256: str | None = None,
+) -> RobotLog:
+    """Make the RobotLog: choose the torque source, convert current, attach provenance.
+
+    Raises:
+        LogFormatError: a joint without position, without any torque signal, or with only
+            current and no way to convert it (naming the joint).
+    """
+    plan = plan_log(ch, path=path, robot=robot, torque_source=torque_source)
+    arrays = assemble(plan, ch)
+    src = plan.torque_source
     joints = ch.joints
-    dropped = _empty_joints(ch.joints, position, torque, src)
+    dropped = _empty_joints(ch.joints, arrays["position"], arrays["torque"], src)
     if dropped:
         if len(dropped) == len(ch.joints):
-            raise LogFormatError(
-                f"{path}: no joint has a finite position and {src}: "
-                + "; ".join(f"{j}: {why}" for j, why in dropped))
-        for j, why in dropped:
-            warnings.warn(f"{path}: joint {j!r} left out of detection: {why}",
-                          ImpactWarning, stacklevel=3)
+            raise LogFormatError(drop_message(path, dropped, src))
+        warn_dropped(path, dropped)
         out = {j for j, _ in dropped}
         keep = [k for k, j in enumerate(ch.joints) if j not in out]
         joints = tuple(ch.joints[k] for k in keep)
-        position, torque = position[:, keep], torque[:, keep]
-        opt = {s: v[:, keep] for s, v in opt.items()}
+        arrays = {s: v[:, keep] for s, v in arrays.items()}
     source = LogSource(
         path=path,
         sha256=sha256 if sha256 is not None else _sha256(path),
         format=fmt,
         torque_source=src,  # type: ignore[arg-type]
         time_source=time_source,  # type: ignore[arg-type]
-        ignored_channels=tuple(ignored),
+        ignored_channels=plan.ignored,
         repairs=tuple(ch.repairs),
-        notes=tuple(notes),
+        notes=plan.notes,
         joints_dropped=tuple(dropped),
     )
-    return RobotLog(
-        t_ns=ch.t_ns,
-        joint_names=joints,
-        position=position,
-        torque=torque,
-        source=source,
-        **opt,
-    )
+    return RobotLog(t_ns=ch.t_ns, joint_names=joints, source=source, **arrays)
 
 
 def _empty_joints(joints: tuple[str, ...], position: np.ndarray, torque: np.ndarray,
                   src: str) -> list[tuple[str, str]]:
     """``(joint, reason)`` of the joints whose position or torque holds no finite value."""
+    return empty_joint_reasons(joints, np.isfinite(position).any(axis=0),
+                               np.isfinite(torque).any(axis=0), src)
+
+
+def empty_joint_reasons(joints: tuple[str, ...], position_finite: np.ndarray,
+                        torque_finite: np.ndarray, src: str) -> list[tuple[str, str]]:
+    """``(joint, reason)`` of the joints left out of the log.
+
+    Args:
+        joints: J names.  position_finite, torque_finite: (J,) bool, whether the column
+            holds a finite value.  src: the torque source (``torque`` or ``current``).
+    """
     out = []
     for k, j in enumerate(joints):
-        for what, a in (("position", position), (src, torque)):
-            if not np.isfinite(a[:, k]).any():
+        for what, ok in (("position", position_finite), (src, torque_finite)):
+            if not ok[k]:
                 out.append((j, f"its {what} column holds no finite value (not logged?)"))
                 break
     return out

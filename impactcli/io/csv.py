@@ -25,6 +25,7 @@ from __future__ import annotations
 import gzip
 import os
 import re
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -221,21 +222,61 @@ def _row_labeller(skip: int) -> Any:
     return label
 
 
-def read_csv_channels(path: Path, cmap: ChannelMap | None, *,
-                      time_unit: str | None = None) -> tuple[JointChannels, str]:
-    """Read a CSV (canonical, or through ``cmap``) into :class:`JointChannels`.
+@dataclass
+class CsvLayout:
+    """What a CSV's first lines and its channel map say, before its data are read.
 
-    Args:
-        path: the file.  cmap: its channel map (None: the canonical layout).
-        time_unit: unit of a canonical ``time`` column (None: seconds); a map's time unit
-            is the map's (:func:`impactcli.io.read_log` applies ``--time-unit`` to it).
-
-    Returns:
-        ``(channels, format)`` with format ``csv`` or ``csv-mapped``.
+    Attributes:
+        path: the file.  where: it as text, for messages.
+        cmap: its channel map (the canonical layout's, or the given one).
+        fmt: ``csv`` or ``csv-mapped``.
+        header: whether the first line (after ``skip``) names the columns.
+        skip: lines skipped before the header or the data.
+        delim: the field separator.  decimal: the decimal point (``.`` or ``,``).
+        names: the column names as the header line gives them (``f0``, ``f1``, ... without
+            a header).
+        ignored_extra: a canonical CSV's columns that are not channels.
+        tname: the time column.  tspec: the time's spec (unit, offset, start at zero).
+        columns: (signal, joint index) → the column holding it, for every ref of ``cmap``.
     """
-    import pyarrow as pa
-    import pyarrow.csv as pacsv
 
+    path: Path
+    where: str
+    cmap: ChannelMap
+    fmt: str
+    header: bool
+    skip: int
+    delim: str
+    decimal: str
+    names: list[str]
+    ignored_extra: list[str]
+    tname: str
+    tspec: TimeSpec
+    columns: dict[tuple[str, int], str]
+
+    @property
+    def used(self) -> set[str]:
+        """The columns read: time and every channel's."""
+        return {self.tname, *self.columns.values()}
+
+    def disp(self, col: str) -> str:
+        """A column as messages name it (``column 3`` without a header)."""
+        return col if self.header else f"column {int(col[1:])}"
+
+    def label(self) -> Any:
+        """Row i (0-based data row) → ``row i+1 (line n)``."""
+        return _row_labeller(self.skip + (1 if self.header else 0))
+
+
+def csv_layout(path: Path, cmap: ChannelMap | None, *,
+               time_unit: str | None = None) -> CsvLayout:
+    """Read a CSV's first lines: separator, decimal point, header, the channel map and
+    which column holds what (:func:`read_csv_channels`' first step).
+
+    Raises:
+        LogFormatError: not a text CSV, empty, no time or position column (canonical).
+        ChannelMapError: a map pointing at a column the file does not have.
+    """
     where = str(path)
     check_text(path, where)
     header = True if cmap is None else cmap.header
@@ -258,50 +299,85 @@ def read_csv_channels(path: Path, cmap: ChannelMap | None, *,
         fmt = "csv"
     else:
         fmt = "csv-mapped"
+    the_map = cmap
 
     def colname(ref: ChannelRef, what: str) -> str:
         if isinstance(ref.source, int):
             if ref.source >= len(names):
                 raise ChannelMapError(
-                    f"{where}: channel map {cmap.path or cmap.name}: {what} points at column "
-                    f"{ref.source} (0-based), but the file has {len(names)} columns "
+                    f"{where}: channel map {the_map.path or the_map.name}: {what} points at "
+                    f"column {ref.source} (0-based), but the file has {len(names)} columns "
                     f"(0–{len(names) - 1}): is this the file the map was written for?"
                 )
             return names[ref.source]
         if ref.source not in names:
             raise ChannelMapError(
-                f"{where}: channel map {cmap.path or cmap.name}: {what} points at column "
-                f"{ref.source!r}, which is not in the file"
+                f"{where}: channel map {the_map.path or the_map.name}: {what} points at "
+                f"column {ref.source!r}, which is not in the file"
             )
         return ref.source
 
     tspec = require_time(cmap, where)
     tname = colname(tspec.ref, "time")
-    used = {tname}
-    refs = cmap.refs()
-    for sig, j, ref in refs:
-        used.add(colname(ref, f"{cmap.joints[j]}.{sig}"))
+    columns = {(sig, j): colname(ref, f"{cmap.joints[j]}.{sig}") for sig, j, ref in cmap.refs()}
+    return CsvLayout(path=path, where=where, cmap=cmap, fmt=fmt, header=header, skip=skip,
+                     delim=delim, decimal=decimal, names=names, ignored_extra=ignored_extra,
+                     tname=tname, tspec=tspec, columns=columns)
+
+
+def csv_read_options(lay: CsvLayout, block_size: int = 1 << 24) -> tuple[Any, Any]:
+    """pyarrow ``(ReadOptions, ParseOptions)`` of a CSV's layout."""
+    import pyarrow.csv as pacsv
+
+    return (pacsv.ReadOptions(skip_rows=lay.skip, autogenerate_column_names=not lay.header,
+                              block_size=block_size),
+            pacsv.ParseOptions(delimiter=lay.delim))
+
+
+def csv_parse_error(lay: CsvLayout, err: BaseException) -> LogFormatError:
+    """The LogFormatError of a pyarrow error reading ``lay``'s file (a ragged line named)."""
+    msg = str(err).splitlines()[0]
+    m = re.search(r"Expected (\d+) columns, got (\d+)", msg)
+    if m:
+        at = _ragged_line(lay.path, lay.skip, lay.delim, int(m.group(1)))
+        if at is not None:
+            msg = (f"line {at}: {m.group(2)} fields where the header has "
+                   f"{m.group(1)}" + msg[m.end():])
+    return LogFormatError(f"{lay.where}: cannot parse CSV: {msg}")
+
+
+def read_csv_channels(path: Path, cmap: ChannelMap | None, *,
+                      time_unit: str | None = None) -> tuple[JointChannels, str]:
+    """Read a CSV (canonical, or through ``cmap``) into :class:`JointChannels`.
+
+    Args:
+        path: the file.  cmap: its channel map (None: the canonical layout).
+        time_unit: unit of a canonical ``time`` column (None: seconds); a map's time unit
+            is the map's (:func:`impactcli.io.read_log` applies ``--time-unit`` to it).
+
+    Returns:
+        ``(channels, format)`` with format ``csv`` or ``csv-mapped``.
+    """
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+
+    lay = csv_layout(path, cmap, time_unit=time_unit)
+    where, cmap, fmt, header, skip = lay.where, lay.cmap, lay.fmt, lay.header, lay.skip
+    decimal, tspec, tname, names = lay.decimal, lay.tspec, lay.tname, lay.names
+    used = lay.used
+    ignored_extra = lay.ignored_extra
+
     def read(types: dict[str, Any], include: list[str] | None = None) -> Any:
+        ropts, popts = csv_read_options(lay)
         try:
             return pacsv.read_csv(
-                path,
-                read_options=pacsv.ReadOptions(
-                    skip_rows=skip, autogenerate_column_names=not header, block_size=1 << 24,
-                ),
-                parse_options=pacsv.ParseOptions(delimiter=delim),
+                path, read_options=ropts, parse_options=popts,
                 convert_options=pacsv.ConvertOptions(column_types=types,
                                                      include_columns=include,
                                                      decimal_point=decimal),
             )
         except (pa.ArrowInvalid, OSError, EOFError, UnicodeDecodeError) as err:
-            msg = str(err).splitlines()[0]
-            m = re.search(r"Expected (\d+) columns, got (\d+)", msg)
-            if m:
-                at = _ragged_line(path, skip, delim, int(m.group(1)))
-                if at is not None:
-                    msg = (f"line {at}: {m.group(2)} fields where the header has "
-                           f"{m.group(1)}" + msg[m.end():])
-            raise LogFormatError(f"{where}: cannot parse CSV: {msg}") from err
+            raise csv_parse_error(lay, err) from err
 
     # Time is parsed as float64 when that is exact to the nanosecond: decimal text with at
     # most 9 decimals below 1e6 s rounds back to its integer ns (half an ulp plus the
@@ -319,8 +395,7 @@ def read_csv_channels(path: Path, cmap: ChannelMap | None, *,
         raise LogFormatError(f"{where}: holds {n} data row(s); at least 2 are needed")
     label = _row_labeller(skip + (1 if header else 0))
 
-    def disp(col: str) -> str:
-        return col if header else f"column {int(col[1:])}"
+    disp = lay.disp
 
     def numeric(col: str) -> np.ndarray:
         arr = table.column(col)
@@ -391,8 +466,7 @@ def read_csv_channels(path: Path, cmap: ChannelMap | None, *,
     # signals
     cols: dict[str, np.ndarray] = {}
     keys: dict[tuple[str, int], str] = {}
-    for sig, j, ref in refs:
-        col = colname(ref, f"{cmap.joints[j]}.{sig}")
+    for (sig, j), col in lay.columns.items():
         key = col if header else disp(col)
         keys[(sig, j)] = key
         if key not in cols:

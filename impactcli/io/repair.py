@@ -171,9 +171,7 @@ def repair_matrix(
             if dup.any():
                 keep = np.ones(n, dtype=bool)
                 keep[1:][dup] = False
-                k = int(dup.sum())
-                first = row_label(int(np.argmax(dup)) + 1)
-                msg = f"{where}: dropped {k} exact duplicate sample(s) (first at {first})"
+                msg = duplicate_message(where, int(dup.sum()), row_label(int(np.argmax(dup)) + 1))
                 repairs.append(msg)
                 warnings.warn(msg, ImpactWarning, stacklevel=3)
                 t, mat, orig = t[keep], mat[keep], orig[keep]
@@ -199,12 +197,9 @@ def repair_matrix(
             bad[:, c] = False
     # a controller channel (formats.md: torque_model, torque_ext) with no finite value at all
     # was not logged for that joint: kept as NaN (the joint lacks it), said in a warning
-    empty = [c for c in allbad if names[c] not in droppable
-             and names[c].rsplit(".", 1)[-1] in CONTROLLER_CHANNELS]
+    empty = [c for c in allbad if names[c] not in droppable and is_controller_column(names[c])]
     for c in empty:
-        msg = (f"{where}: column {names[c]!r} holds no finite value: joint "
-               f"{names[c].rsplit('.', 1)[0]!r} is read as not logging "
-               f"{names[c].rsplit('.', 1)[-1]}")
+        msg = empty_controller_message(where, names[c])
         repairs.append(msg)
         warnings.warn(msg, ImpactWarning, stacklevel=3)
         if not mat.flags.writeable:
@@ -226,22 +221,12 @@ def repair_matrix(
                 length = int(e - s)
                 kind = "NaN" if np.isnan(col[s]) else "infinite"
                 if s == 0 or e == mat.shape[0] or length > MAX_GAP_SAMPLES:
-                    why = (
-                        f"a run of {length} non-finite ({kind}) value(s)"
-                        + (" at the start of the log" if s == 0 else "")
-                        + (" at the end of the log" if e == mat.shape[0] else "")
-                    )
-                    raise LogFormatError(
-                        f"{where}: column {names[c]!r}, {row_label(int(orig[s]))}: {why}; "
-                        f"only gaps of at most {MAX_GAP_SAMPLES} samples between finite "
-                        "values are interpolated"
-                    )
+                    raise LogFormatError(run_message(where, names[c], row_label(int(orig[s])),
+                                                     length, kind, s == 0, e == mat.shape[0]))
             good = ~mask
             col[mask] = np.interp(tf[mask], tf[good], col[good])
-            msg = (
-                f"{where}: column {names[c]!r}: interpolated {int(mask.sum())} non-finite "
-                f"value(s) in {len(starts)} gap(s) (first at {row_label(int(orig[starts[0]]))})"
-            )
+            msg = interpolated_message(where, names[c], int(mask.sum()), len(starts),
+                                       row_label(int(orig[starts[0]])))
             repairs.append(msg)
             warnings.warn(msg, ImpactWarning, stacklevel=3)
     return t, mat, repairs
@@ -296,10 +281,47 @@ def _check_magnitudes(mat: np.ndarray, names: list[str], orig: np.ndarray, where
     if not big.any():
         return
     r, c = np.argwhere(big)[0]
-    raise LogFormatError(
-        f"{where}: column {names[int(c)]!r}, {row_label(int(orig[int(r)]))}: value "
-        f"{float(mat[r, c]):g} is beyond ±{MAX_ABS_VALUE:g}: no joint measures that (a "
-        "corrupt cell, or a unit far off)")
+    raise LogFormatError(magnitude_message(where, names[int(c)], row_label(int(orig[int(r)])),
+                                           float(mat[r, c])))
+
+
+def magnitude_message(where: str, name: str, label: str, value: float) -> str:
+    """The error for a finite value beyond ±:data:`MAX_ABS_VALUE`."""
+    return (f"{where}: column {name!r}, {label}: value {value:g} is beyond "
+            f"±{MAX_ABS_VALUE:g}: no joint measures that (a corrupt cell, or a unit far off)")
+
+
+def duplicate_message(where: str, count: int, first_label: str) -> str:
+    """The repair of ``count`` exact duplicate samples, the first at ``first_label``."""
+    return f"{where}: dropped {count} exact duplicate sample(s) (first at {first_label})"
+
+
+def is_controller_column(name: str) -> bool:
+    """Whether a column named ``<joint>.torque_model`` or ``.torque_ext`` is a controller
+    channel (read as not logged when it holds no finite value)."""
+    return name.rsplit(".", 1)[-1] in CONTROLLER_CHANNELS
+
+
+def empty_controller_message(where: str, name: str) -> str:
+    """The repair of a controller column without a finite value."""
+    return (f"{where}: column {name!r} holds no finite value: joint "
+            f"{name.rsplit('.', 1)[0]!r} is read as not logging {name.rsplit('.', 1)[-1]}")
+
+
+def interpolated_message(where: str, name: str, count: int, runs: int, first_label: str) -> str:
+    """The repair of ``count`` non-finite values in ``runs`` gaps of column ``name``."""
+    return (f"{where}: column {name!r}: interpolated {count} non-finite value(s) in {runs} "
+            f"gap(s) (first at {first_label})")
+
+
+def run_message(where: str, name: str, label: str, length: int, kind: str, at_start: bool,
+                at_end: bool) -> str:
+    """The error for a run of non-finite values that is not interpolated."""
+    why = (f"a run of {length} non-finite ({kind}) value(s)"
+           + (" at the start of the log" if at_start else "")
+           + (" at the end of the log" if at_end else ""))
+    return (f"{where}: column {name!r}, {label}: {why}; only gaps of at most "
+            f"{MAX_GAP_SAMPLES} samples between finite values are interpolated")
 
 
 def check_time_rate(t_ns: np.ndarray, where: str, what: str, unit: str | None) -> None:
@@ -316,11 +338,18 @@ def check_time_rate(t_ns: np.ndarray, where: str, what: str, unit: str | None) -
     from ..sampling import MAX_STATS_STEPS, sample_clock
 
     rate = sample_clock(t_ns[:MAX_STATS_STEPS + 1]).rate_hz  # a unit is a unit from the start
+    msg = rate_message(rate, where, what, unit)
+    if msg is not None:
+        raise LogFormatError(msg)
+
+
+def rate_message(rate: float, where: str, what: str, unit: str | None) -> str | None:
+    """The error of :func:`check_time_rate` for the rate ``rate`` [Hz] of the first
+    :data:`~impactcli.sampling.MAX_STATS_STEPS` steps (None: within the range)."""
     if not np.isfinite(rate) or MIN_RATE_HZ <= rate <= MAX_RATE_HZ:
-        return
-    raise LogFormatError(
-        f"{where}: {what}: the implied sample rate is {_hz(rate)}, outside {_hz(MIN_RATE_HZ)}"
-        f" – {_hz(MAX_RATE_HZ)}{unit_hint(rate, unit)}: {GIVE_UNIT}")
+        return None
+    return (f"{where}: {what}: the implied sample rate is {_hz(rate)}, outside "
+            f"{_hz(MIN_RATE_HZ)} – {_hz(MAX_RATE_HZ)}{unit_hint(rate, unit)}: {GIVE_UNIT}")
 
 
 #: How to give a time column's unit (the end of the time-unit errors).
