@@ -12,6 +12,7 @@ Nothing here reads or writes files; everything it decided is in the result.
 from __future__ import annotations
 
 import dataclasses
+import os
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -23,9 +24,7 @@ from .config import CalibrationRecord, DetectorConfig
 from .detect.adaptive import (
     AdaptiveResult,
     check_scale,
-    evaluate,
     replay_cost,
-    threshold_inputs,
 )
 from .detect.calibrate import (
     UNCALIBRATED_BLOCK_S,
@@ -38,23 +37,21 @@ from .detect.calibrate import (
 from .detect.events import LONG_EVENT_S, extract_events
 from .detect.incidents import Incident, group_events
 from .detect.screen import LeftOut, unusable_columns
-from .detect.static import causal_lowpass
 from .detect.warmup import Warmup, warmup_end
 from .errors import ConfigError, ImpactError, ImpactWarning, LogFormatError, ModelError
 from .io.inspect import GAP_FACTOR, time_gaps
-from .model import IdentifyOptions, ResidualOptions, RigidModel, compute_residual, identify
+from .model import IdentifyOptions, ResidualOptions, RigidModel, identify
 from .model.generators import (
-    LOGGED,
     OWN_MODEL,
     GeneratorChoice,
     choices_dict,
     choose_generators,
     needs_own_model,
-    plain_residual,
     summary_name,
     target_log,
     uses_correction,
 )
+from .replay import ReplaySetup, ReplayState, chunk_arrays, replay_chunk
 from .result import DetectionResult
 from .sampling import check_calibrated_rate
 from .types import CONTROLLER_CHANNELS, DETECTORS, Labels, RobotDescription, RobotLog
@@ -85,31 +82,6 @@ def needs_model(choices: tuple[GeneratorChoice, ...], cfg: DetectorConfig) -> bo
     """Whether a rigid model is needed: some joint uses the tool's own model, or a logged
     channel is corrected by one (``residual.logged_correction``)."""
     return needs_own_model(choices) or uses_correction(choices, cfg.residual.logged_correction)
-
-
-def residual_matrix(
-    log: RobotLog, target: RobotLog, model: RigidModel | None, cfg: DetectorConfig,
-    choices: tuple[GeneratorChoice, ...],
-) -> np.ndarray:
-    """(N, J) causal residual, each joint from its own generator (log joint order).
-
-    ``target`` is :func:`impactcli.model.generators.target_log` of ``log``: the torque the
-    model was identified on (the log itself when no logged channel is corrected).
-    """
-    rc = cfg.residual
-    correct = uses_correction(choices, rc.logged_correction)
-    cols: dict[str, np.ndarray] = {} if correct else plain_residual(
-        log, choices, rc.derivative_cutoff_hz, rc.filter_torque)
-    wanted = {c.joint: ("inverse_dynamics" if c.generator in LOGGED else c.generator)
-              for c in choices if c.joint not in cols}
-    for g in sorted(set(wanted.values())):
-        if model is None:
-            raise ModelError(f"{log.source.path}: the {g} generator needs a model")
-        res = compute_residual(model, target, residual_options(cfg, g))
-        for j, gj in wanted.items():
-            if gj == g:
-                cols[j] = res.r[:, res.joint_names.index(j)]
-    return np.column_stack([cols[j] for j in log.joint_names])
 
 
 def reorder_log(log: RobotLog, joints: tuple[str, ...], what: str) -> RobotLog:
@@ -537,16 +509,17 @@ def replay(
             f"first after {log.time_s[gaps[0]]:.3f} s): the detectors assume uniform sampling, "
             "so alarms just after a gap may be artefacts of it", ImpactWarning, stacklevel=3)
     ropts = residual_options(cfg)
-    r = residual_matrix(log, target, model, cfg, choices)
-    inputs = threshold_inputs(log, cfg.adaptive)
-    if inputs.source == "measured":
-        warnings.warn(f"{log.source.path}: no reference logged: threshold inputs from the "
-                      "measured position (no anticipation)", ImpactWarning, stacklevel=3)
-    vs = np.zeros(len(log.joint_names)) if v_stat is None else v_stat
     cost, _ = replay_cost(log.n_joints, fs, cfg.adaptive)
     shown = progress if progress is not None and cost * log.duration_s >= PROGRESS_AFTER_S \
         else None
-    ad = evaluate(r, inputs.u, fs, vs, cfg.adaptive, progress=shown)
+    setup = ReplaySetup(log.joint_names, choices, model, cfg, fs, log.sample_period_s,
+                        threads=(os.cpu_count() or 1) if log.n_samples >= 100_000 else 1)
+    out, _ = replay_chunk(setup, ReplayState.initial(setup), chunk_arrays(log, log.time_s),
+                          where=log.source.path, progress=shown, consume=True)
+    r, ad = out.r, out.adaptive
+    if out.inputs_source == "measured":
+        warnings.warn(f"{log.source.path}: no reference logged: threshold inputs from the "
+                      "measured position (no anticipation)", ImpactWarning, stacklevel=3)
     wu = warmup_end(ad.prediction_error, log.time_s, cfg.warmup)
     if wu.end_index >= log.n_samples - 10:
         warnings.warn(f"{log.source.path}: the warm-up covers the whole log "
@@ -561,12 +534,12 @@ def replay(
                 f"{cfg.warmup.max_s:g} s) on joint(s) {', '.join(capped)}: the adaptive "
                 "filter's prediction error had not settled; alarms soon after it may be "
                 "artefacts", ImpactWarning, stacklevel=3)
-    loading = np.abs(causal_lowpass(r, cfg.static_loading.cutoff_hz, fs, cfg.static_loading.order))
+    loading = out.loading
     stats = {"adaptive": adaptive_statistic(ad.r_rms, ad.v_rms), "static_loading": loading,
              "static_baseline": np.abs(r)}
     return Replay(log, model, model_source, ropts, r, ad,
-                  "measured" if inputs.source == "measured" else "reference", wu, stats,
-                  inputs.detail, gaps, choices, left_out)
+                  "measured" if out.inputs_source == "measured" else "reference", wu, stats,
+                  out.inputs_detail, gaps, choices, left_out)
 
 
 def _analyze(

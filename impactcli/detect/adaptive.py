@@ -93,11 +93,13 @@ import os
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numba as nb
 import numpy as np
 from scipy import signal
 
+from ..causal import Carry
 from ..config import AdaptiveConfig
 from ..errors import ImpactWarning
 from ..types import RobotLog
@@ -171,59 +173,70 @@ class ThresholdInputs:
     detail: str = ""
 
 
-def _causal_diff(x: np.ndarray, t_s: np.ndarray) -> np.ndarray:
-    """Backward difference (x(k) - x(k-1)) / (t(k) - t(k-1)); 0 at k = 0."""
-    d = np.zeros_like(x)
-    d[1:] = np.diff(x, axis=0) / np.diff(t_s)[:, None]
-    return d
-
-
-def _butter_causal(x: np.ndarray, fc_hz: float, fs_hz: float) -> np.ndarray:
+def _butter(fc_hz: float, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
     b, a = signal.butter(2, fc_hz / (0.5 * fs_hz))
-    zi = signal.lfilter_zi(b, a)[:, None] * x[0][None, :]
-    y, _ = signal.lfilter(b, a, x, axis=0, zi=zi)
-    return np.asarray(y)
+    return np.asarray(b), np.asarray(a)
 
 
 def threshold_inputs(log: RobotLog, cfg: AdaptiveConfig | None = None) -> ThresholdInputs:
-    """Build (u1, u2) from a log (paper Sec. IV: inputs from the reference trajectory).
+    """Build (u1, u2) from a log (paper Sec. IV: inputs from the reference trajectory):
+    :func:`inputs_chunk` on the whole log."""
+    return inputs_chunk(log, log.time_s, log.sample_rate_hz, cfg, Carry(), log.source.path)
+
+
+def inputs_chunk(
+    chunk: Any, time_s: np.ndarray, sample_rate_hz: float, cfg: AdaptiveConfig | None,
+    carry: Carry, where: str = "",
+) -> ThresholdInputs:
+    """(u1, u2) of one chunk of a log, continued from ``carry`` (:mod:`impactcli.causal`).
 
     Order of preference: logged ``velocity_ref`` (and ``acceleration_ref``, else its causal
     backward difference); else causal backward differences of ``position_ref``; else the
     measured position through a causal 2nd-order Butterworth at
     ``cfg.measured_input_cutoff_hz`` (clipped below 0.4 fs) before each backward
-    difference — with an ImpactWarning, since the paper's anticipation is lost.
+    difference — with an ImpactWarning (at the log's first chunk), since the paper's
+    anticipation is lost.
 
-    Returns ThresholdInputs with u of shape (2, N, J).
+    Args:
+        chunk: a :class:`~impactcli.types.RobotLog` or a chunk of one (its ``position``,
+            ``position_ref``, ``velocity_ref``, ``acceleration_ref``: (n, J) or None).
+        time_s: (n,) the chunk's times [s since the log's first sample].
+        sample_rate_hz: the whole log's rate [Hz].
+        cfg: settings; carry: state after the previous chunk (updated); where: for messages.
+
+    Returns ThresholdInputs with u of shape (2, n, J).
     """
     cfg = cfg or AdaptiveConfig()
-    t = log.time_s
-    if log.velocity_ref is not None:
-        v = np.asarray(log.velocity_ref)
-        if log.acceleration_ref is not None:
-            acc = np.asarray(log.acceleration_ref)
+    t = np.asarray(time_s, dtype=np.float64)
+    dt = carry.steps_s("t", t)
+    if chunk.velocity_ref is not None:
+        v = np.asarray(chunk.velocity_ref)
+        if chunk.acceleration_ref is not None:
+            acc = np.asarray(chunk.acceleration_ref)
             detail = "velocity_ref and acceleration_ref as logged"
         else:
-            acc = _causal_diff(v, t)
+            acc = carry.backward_difference("v_ref", v, dt)
             detail = ("velocity_ref as logged; acceleration by causal backward difference "
                       "(no acceleration_ref logged)")
         source = "velocity_ref"
-    elif log.position_ref is not None:
-        v = _causal_diff(np.asarray(log.position_ref), t)
-        acc = _causal_diff(v, t)
+    elif chunk.position_ref is not None:
+        v = carry.backward_difference("q_ref", np.asarray(chunk.position_ref), dt)
+        acc = carry.backward_difference("v", v, dt)
         source = "position_ref"
         detail = "position_ref; velocity and acceleration by causal backward differences"
     else:
-        warnings.warn(
-            f"{log.source.path}: no reference trajectory logged; the dynamic threshold's "
-            "inputs come from the causally filtered measured position",
-            ImpactWarning, stacklevel=2,
-        )
-        fs = log.sample_rate_hz
+        if "q_meas" not in carry.state:
+            warnings.warn(
+                f"{where}: no reference trajectory logged; the dynamic threshold's "
+                "inputs come from the causally filtered measured position",
+                ImpactWarning, stacklevel=2,
+            )
+        fs = sample_rate_hz
         fc = clip_cutoff(cfg.measured_input_cutoff_hz, fs, "measured-input filter")
-        v = _butter_causal(_causal_diff(_butter_causal(np.asarray(log.position), fc, fs), t),
-                           fc, fs)
-        acc = _causal_diff(v, t)
+        b, a = _butter(fc, fs)
+        qf = carry.lfilter("q_meas", b, a, np.asarray(chunk.position), "steady")
+        v = carry.lfilter("v_meas", b, a, carry.backward_difference("qf", qf, dt), "steady")
+        acc = carry.backward_difference("v", v, dt)
         source = "measured"
         detail = (f"measured position, causal {fc:g} Hz low-pass, backward differences "
                   "(no reference logged)")

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import signal
 
+from ..causal import Carry
 from .adaptive import clip_cutoff, lowpass_pole
 
 
@@ -37,8 +38,11 @@ class StaticResult:
             return np.where(self.threshold > 0, self.statistic / self.threshold, np.inf)
 
 
-def causal_lowpass(x: np.ndarray, cutoff_hz: float, fs_hz: float, order: int = 1) -> np.ndarray:
-    """Causal unit-DC-gain low-pass of (N, J) ``x`` along time, started at rest on x(0)."""
+def causal_lowpass(x: np.ndarray, cutoff_hz: float, fs_hz: float, order: int = 1,
+                   carry: Carry | None = None) -> np.ndarray:
+    """Causal unit-DC-gain low-pass of (N, J) ``x`` along time, started at rest on x(0)
+    (steady state on the first sample), continued from ``carry`` (:mod:`impactcli.causal`)
+    when ``x`` is a chunk after the first."""
     x = np.asarray(x, dtype=np.float64)
     fc = clip_cutoff(cutoff_hz, fs_hz, "static-loading low-pass")
     if order == 1:
@@ -48,9 +52,7 @@ def causal_lowpass(x: np.ndarray, cutoff_hz: float, fs_hz: float, order: int = 1
         b_, a_ = signal.butter(2, fc / (0.5 * fs_hz))
     else:
         raise ValueError(f"static-loading low-pass order must be 1 or 2, got {order}")
-    zi = signal.lfilter_zi(b_, a_)[:, None] * x[:1]
-    y, _ = signal.lfilter(b_, a_, x, axis=0, zi=zi)
-    return np.asarray(y)
+    return (carry if carry is not None else Carry()).lfilter("loading", b_, a_, x, "steady")
 
 
 def static_loading(

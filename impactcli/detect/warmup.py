@@ -74,3 +74,111 @@ def warmup_end(
     end_s = float(t[end] - t[0]) if end < n else float(t[-1] - t[0]) + (
         float(t[-1] - t[-2]) if n > 1 else 0.0)
     return Warmup(idx, end, end_s)
+
+
+class WarmupTracker:
+    """:func:`warmup_end`, fed chunk by chunk (state in, state out: the tracker is the
+    state; :meth:`finish` gives the same :class:`Warmup` as :func:`warmup_end` on the whole
+    log, bit for bit).
+
+    Known before the first chunk (a first pass over the log's stamps): the sample count
+    ``n`` and the first and last times, hence fs, the window and the later half's start.
+    Carried: the running sum of squares eps0² (summed in the same order as the whole-log
+    ``cumsum``) and its last ``window`` values; kept: the trailing RMS up to the cap
+    (``max_s``: the warm-up cannot end later) in memory, and the later half's trailing RMS —
+    whose median is each joint's settled level — spilled to a temporary file (8 bytes per
+    joint and sample of the log's later half, on disk, not in memory).
+    """
+
+    def __init__(self, n: int, t_first_s: float, t_last_s: float, n_joints: int,
+                 cfg: WarmupConfig | None = None) -> None:
+        import tempfile
+
+        self.cfg = cfg = cfg or WarmupConfig()
+        self.n, self.J = int(n), int(n_joints)
+        fs = (n - 1) / (t_last_s - t_first_s) if n > 1 and t_last_s > t_first_s else 1.0
+        self.w = max(1, round(cfg.window_s * fs))
+        self.t_first = t_first_s
+        self.k = 0
+        self.k_min: int | None = None
+        self.k_cap: int | None = None
+        self.c_last = np.zeros(self.J)
+        self.c_ring = np.zeros((0, self.J))  # the last w cumulative sums (c[k-w+1..k])
+        self.head: list[np.ndarray] = []     # rms rows before the cap (or all, until known)
+        self.head_t: list[np.ndarray] = []
+        self.head_n = 0
+        self.spill = tempfile.TemporaryFile()
+        self.spill_start: int | None = None
+        self.spilled = 0
+        self.t_tail = np.zeros(0)
+
+    def _index_at(self, t: np.ndarray, offset: float) -> int | None:
+        """Index of the first sample of the chunk at/after t_first + offset, or None."""
+        i = int(np.searchsorted(t, self.t_first + offset - 1e-12))
+        return self.k + i if i < t.shape[0] else None
+
+    def update(self, prediction_error: np.ndarray, time_s: np.ndarray) -> None:
+        """Absorb one chunk: (m, J) eps0 [N·m] at (m,) times [s since the first sample]."""
+        e = np.asarray(prediction_error, dtype=np.float64)
+        t = np.asarray(time_s, dtype=np.float64)
+        m = e.shape[0]
+        if m == 0:
+            return
+        if self.k_min is None:
+            self.k_min = self._index_at(t, self.cfg.min_s)
+        if self.k_cap is None:
+            self.k_cap = self._index_at(t, self.cfg.max_s)
+        c = np.cumsum(np.vstack([self.c_last[None, :], e ** 2]), axis=0)[1:]
+        allc = np.vstack([self.c_ring, c])  # c[k0 - len(ring) .. k0 + m - 1]
+        base = self.k - self.c_ring.shape[0]
+        k = np.arange(self.k, self.k + m) + 1          # 1-based "k" of warmup_end's c index
+        lo = np.maximum(0, k - self.w)
+        c_lo = np.where((lo > 0)[:, None], allc[np.maximum(lo - 1 - base, 0)], 0.0)
+        rms = np.sqrt(np.maximum(c - c_lo, 0.0) / (k - lo)[:, None])
+        self.c_last = c[-1].copy()
+        self.c_ring = allc[-self.w:].copy()
+        cap = self.k_cap if self.k_cap is not None else self.k + m
+        keep = max(0, min(m, cap + 1 - self.k))
+        if keep:
+            self.head.append(rms[:keep])
+            self.head_t.append(t[:keep])
+            self.head_n += keep
+        if self.k_min is not None:
+            start = (self.k_min + self.n) // 2
+            self.spill_start = start
+            a = max(0, start - self.k)
+            if a < m:
+                self.spill.write(np.ascontiguousarray(rms[a:]).tobytes())
+                self.spilled += m - a
+        self.t_tail = np.concatenate([self.t_tail, t])[-2:]
+        self.k += m
+
+    def finish(self) -> Warmup:
+        """The warm-up of the whole log (:func:`warmup_end`)."""
+        n, J = self.n, self.J
+        if self.k != n:
+            raise ValueError(f"the tracker saw {self.k} samples, expected {n}")
+        k_min = self.k_min if self.k_min is not None else n
+        k_cap = self.k_cap if self.k_cap is not None else n
+        head = np.vstack(self.head) if self.head else np.zeros((0, J))
+        head_t = np.concatenate(self.head_t) if self.head_t else np.zeros(0)
+        idx = np.empty(J, dtype=np.int64)
+        later = None
+        if k_min < n and self.spilled:
+            self.spill.flush()
+            later = np.memmap(self.spill, dtype=np.float64, mode="r", shape=(self.spilled, J))
+        for j in range(J):
+            if k_min >= n or later is None:
+                idx[j] = n
+                continue
+            level = float(np.median(np.array(later[:, j])))  # one joint in memory at a time
+            ok = np.flatnonzero(head[k_min:, j] <= (1.0 + self.cfg.tolerance) * level)
+            k = k_min + int(ok[0]) if ok.size else n
+            idx[j] = min(k, max(k_cap, 0), n)
+        del later
+        self.spill.close()
+        end = int(idx.max())
+        t_last = float(self.t_tail[-1])
+        end_s = float(head_t[end] - self.t_first) if end < n else t_last - self.t_first + (
+            float(self.t_tail[-1] - self.t_tail[-2]) if n > 1 else 0.0)
+        return Warmup(idx, end, end_s)

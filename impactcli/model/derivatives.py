@@ -26,6 +26,7 @@ import warnings
 import numpy as np
 from scipy import signal
 
+from ..causal import Carry
 from ..errors import ImpactWarning, ModelError
 
 #: Largest cut-off allowed, as a fraction of the sample rate (method.md §5b).
@@ -119,14 +120,15 @@ def _svf_coefficients(dt: float, cutoff_hz: float) -> list[tuple[np.ndarray, np.
     return out
 
 
-def _lfilter_steady(b: np.ndarray, a: np.ndarray, x: np.ndarray) -> np.ndarray:
-    zi = signal.lfilter_zi(b, a)
-    y, _ = signal.lfilter(b, a, x, axis=0, zi=zi[:, None] * x[0][None, :])
-    return np.asarray(y)
+def _lfilter_steady(b: np.ndarray, a: np.ndarray, x: np.ndarray,
+                    carry: Carry | None = None, name: str = "x") -> np.ndarray:
+    """``lfilter`` along time started in steady state on x(0), continued from ``carry``
+    (:mod:`impactcli.causal`) when given."""
+    return (carry if carry is not None else Carry()).lfilter(name, b, a, x, "steady")
 
 
 def causal_derivatives(
-    dt: float, q: np.ndarray, cutoff_hz: float
+    dt: float, q: np.ndarray, cutoff_hz: float, carry: Carry | None = None, name: str = "q",
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Causal filtered position, velocity and acceleration (detection).
 
@@ -137,6 +139,8 @@ def causal_derivatives(
         dt: sample period [s] (the log's median period).
         q: (N, J) or (N,) positions [rad].
         cutoff_hz: filter cut-off [Hz] (clipped below 0.4 / dt).
+        carry: the filters' state from the previous chunk (:mod:`impactcli.causal`), or
+            None for a whole log; ``name`` keys it.
 
     Returns:
         q_f [rad], qd [rad/s], qdd [rad/s²], each shaped like ``q``.
@@ -145,39 +149,43 @@ def causal_derivatives(
         raise ModelError(f"sample period must be positive, got {dt!r}")
     q2, flat = _as_2d(q)
     (b0, a0), (b1, a1), (b2, a2) = _svf_coefficients(dt, cutoff_hz)
-    qf = _lfilter_steady(b0, a0, q2)
-    qd = _lfilter_steady(b1, a1, q2)
-    qdd = _lfilter_steady(b2, a2, q2)
+    qf = _lfilter_steady(b0, a0, q2, carry, f"{name}.G")
+    qd = _lfilter_steady(b1, a1, q2, carry, f"{name}.sG")
+    qdd = _lfilter_steady(b2, a2, q2, carry, f"{name}.s2G")
     if flat:
         return qf[:, 0], qd[:, 0], qdd[:, 0]
     return qf, qd, qdd
 
 
-def causal_lowpass(x: np.ndarray, dt: float, cutoff_hz: float) -> np.ndarray:
+def causal_lowpass(x: np.ndarray, dt: float, cutoff_hz: float, carry: Carry | None = None,
+                   name: str = "x") -> np.ndarray:
     """The causal G(s) of :func:`causal_derivatives` applied to ``x`` (e.g. measured torque).
 
     Args:
         x: (N,) or (N, J) signal (unit kept).
         dt: sample period [s].
         cutoff_hz: cut-off [Hz] (clipped below 0.4 / dt).
+        carry, name: as :func:`causal_derivatives`.
     """
     if not dt > 0:
         raise ModelError(f"sample period must be positive, got {dt!r}")
     x2, flat = _as_2d(x)
     b, a = _svf_coefficients(dt, cutoff_hz)[0]
-    y = _lfilter_steady(b, a, x2)
+    y = _lfilter_steady(b, a, x2, carry, f"{name}.G")
     return y[:, 0] if flat else y
 
 
-def first_order_lowpass(x: np.ndarray, dt: float, gain: float) -> np.ndarray:
+def first_order_lowpass(x: np.ndarray, dt: float, gain: float, carry: Carry | None = None,
+                        name: str = "x") -> np.ndarray:
     """Causal first-order low-pass gain/(s + gain), discretised like the momentum observer.
 
     Args:
         x: (N, J) signal; dt: sample period [s]; gain: pole [1/s].
+        carry, name: as :func:`causal_derivatives`.
     """
     x2, flat = _as_2d(x)
     alpha = gain * dt
     b = np.array([0.0, alpha])  # y(k) = (1 - alpha) y(k-1) + alpha x(k-1), alpha = gain dt
     a = np.array([1.0, alpha - 1.0])
-    y = _lfilter_steady(b, a, x2)
+    y = _lfilter_steady(b, a, x2, carry, f"{name}.lag")
     return y[:, 0] if flat else y

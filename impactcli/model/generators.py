@@ -140,14 +140,18 @@ def target_log(log: RobotLog, choices: tuple[GeneratorChoice, ...], correct: boo
 
 
 def plain_residual(
-    log: RobotLog, choices: tuple[GeneratorChoice, ...], cutoff_hz: float, filter_torque: bool,
+    log: Any, choices: tuple[GeneratorChoice, ...], cutoff_hz: float, filter_torque: bool,
+    dt: float | None = None, carry: Any = None,
 ) -> dict[str, np.ndarray]:
-    """(N,) residual per logged joint without correction: r = torque_ext as logged, or
-    r = G τ_m − G tau (``residual.logged_correction = false``)."""
+    """(n,) residual per logged joint without correction: r = torque_ext as logged, or
+    r = G τ_m − G tau (``residual.logged_correction = false``).
+
+    ``log``: a RobotLog, or a chunk of one with ``dt`` (the whole log's period [s]) and
+    ``carry`` (:mod:`impactcli.causal`, the filters' state after the previous chunk)."""
     from .derivatives import causal_lowpass, clip_cutoff
 
     out: dict[str, np.ndarray] = {}
-    dt = log.sample_period_s
+    dt = log.sample_period_s if dt is None else dt
     cutoff = clip_cutoff(cutoff_hz, 1.0 / dt, "derivative cut-off")
     for k, c in enumerate(choices):
         if c.generator == "logged_external":
@@ -156,7 +160,8 @@ def plain_residual(
         elif c.generator == "logged_model":
             assert log.torque_model is not None
             d = log.torque_model[:, k] - log.torque[:, k]
-            out[c.joint] = causal_lowpass(d, dt, cutoff) if filter_torque else np.array(d)
+            out[c.joint] = causal_lowpass(d, dt, cutoff, carry, f"logged_model.{c.joint}") \
+                if filter_torque else np.array(d)
     return out
 
 

@@ -25,8 +25,8 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
-from scipy import signal
 
+from ..causal import Carry
 from ..errors import ModelError
 from ..types import RobotLog
 from .derivatives import (
@@ -110,7 +110,8 @@ def _log_columns(model: RigidModel, log: RobotLog) -> list[int]:
 
 
 def _coulomb_correction(
-    model: RigidModel, q: np.ndarray, qd: np.ndarray, dt: float, cutoff: float
+    model: RigidModel, q: np.ndarray, qd: np.ndarray, dt: float, cutoff: float,
+    carry: Carry | None = None,
 ) -> np.ndarray:
     """(N, J) G(fc tanh(q'_fast / v_s)) − fc tanh(q'_G / v_s): add to the model torque."""
     vs = float(model.structure.get("coulomb_slope_rad_s", 0.0) or 0.0)
@@ -122,14 +123,14 @@ def _coulomb_correction(
     if vs <= 0 or not np.any(fc):
         return np.zeros_like(qd)
     fast_cut = 0.999 * MAX_CUTOFF_FRACTION / dt
-    _, qd_fast, _ = causal_derivatives(dt, q, fast_cut)
-    smooth = causal_lowpass(fc * np.tanh(qd_fast / vs), dt, cutoff)
+    _, qd_fast, _ = causal_derivatives(dt, q, fast_cut, carry, "q_fast")
+    smooth = causal_lowpass(fc * np.tanh(qd_fast / vs), dt, cutoff, carry, "coulomb")
     return np.asarray(smooth - fc * np.tanh(qd / vs))
 
 
 def momentum_observer(
     model: RigidModel, q: np.ndarray, qd: np.ndarray, tau: np.ndarray, dt: float, gain: float,
-    n_correction: np.ndarray | None = None,
+    n_correction: np.ndarray | None = None, carry: Carry | None = None,
 ) -> np.ndarray:
     """(N, J) generalized-momentum observer residual [N·m] (De Luca), causal.
 
@@ -138,6 +139,8 @@ def momentum_observer(
         q, qd: (N, J) positions [rad] and velocities [rad/s] (causally filtered).
         tau: (N, J) input torque [N·m]. dt: sample period [s]. gain: K [1/s].
         n_correction: optional (N, J) added to n(q, q') (the Coulomb correction).
+        carry: the state after the previous chunk (:mod:`impactcli.causal`: the previous
+            sample's p, M and u, and the observer's delay line), or None for a whole log.
     """
     alpha = gain * dt
     if not alpha < 1.0:
@@ -145,17 +148,28 @@ def momentum_observer(
             f"momentum observer gain {gain:g} 1/s is too high for the sample period "
             f"{dt:g} s (need gain × period < 1)"
         )
+    carry = carry if carry is not None else Carry()
     m = model.mass_matrix(q)
     p = np.einsum("nij,nj->ni", m, qd)
     n_term = model.predict(q, qd, np.zeros_like(q))
     if n_correction is not None:
         n_term = n_term + n_correction
+    m_prev = carry.previous("observer.M", m)
     mdot_qd = np.zeros_like(q)
-    mdot_qd[1:] = np.einsum("nij,nj->ni", (m[1:] - m[:-1]) / dt, qd[1:])
+    if m_prev is None:  # the log's first sample: no step before it
+        mdot_qd[1:] = np.einsum("nij,nj->ni", (m[1:] - m[:-1]) / dt, qd[1:])
+    else:
+        mdot_qd[:] = np.einsum("nij,nj->ni", (m - m_prev) / dt, qd)
     u = tau - n_term + mdot_qd
+    p_prev = carry.previous("observer.p", p)
+    u_prev = carry.previous("observer.u", u)
     x = np.zeros_like(q)
-    x[1:] = gain * ((p[1:] - p[:-1]) - dt * u[:-1])
-    return np.asarray(signal.lfilter([1.0], [1.0, alpha - 1.0], x, axis=0))
+    if p_prev is None:
+        x[1:] = gain * ((p[1:] - p[:-1]) - dt * u[:-1])
+    else:
+        assert u_prev is not None
+        x[:] = gain * ((p - p_prev) - dt * u_prev)
+    return carry.lfilter("observer", np.array([1.0]), np.array([1.0, alpha - 1.0]), x, "rest")
 
 
 def compute_residual(
@@ -167,15 +181,33 @@ def compute_residual(
     Raises ModelError when a model joint is missing from the log.
     """
     cols = _log_columns(model, log)
-    dt = log.sample_period_s
+    return residual_chunk(model, log.position[:, cols], log.torque[:, cols],
+                          log.sample_period_s, options)
+
+
+def residual_chunk(
+    model: RigidModel, q: np.ndarray, tau: np.ndarray, dt: float,
+    options: ResidualOptions = ResidualOptions(), carry: Carry | None = None,
+) -> ResidualResult:
+    """The residual of one chunk, continued from ``carry`` (:func:`compute_residual` is
+    this on the whole log with a fresh carry: one implementation).
+
+    Args:
+        model: the rigid model.
+        q: (n, J) positions [rad] and tau: (n, J) torques [N·m], in the model's joint order.
+        dt: the whole log's sample period [s] (not the chunk's).
+        options: the generator's settings.
+        carry: the filters' state after the previous chunk (updated in place), or None.
+    """
     cutoff = clip_cutoff(options.cutoff_hz, 1.0 / dt, "derivative cut-off")
-    q = log.position[:, cols]
-    tau = log.torque[:, cols]
-    q_f, qd, qdd = causal_derivatives(dt, q, cutoff)
-    tau_in = causal_lowpass(tau, dt, cutoff) if options.filter_torque else np.array(tau)
+    q = np.asarray(q, dtype=np.float64)
+    tau = np.asarray(tau, dtype=np.float64)
+    q_f, qd, qdd = causal_derivatives(dt, q, cutoff, carry, "q")
+    tau_in = causal_lowpass(tau, dt, cutoff, carry, "tau") if options.filter_torque \
+        else np.array(tau)
     corr = None
     if options.filter_torque and options.coulomb_through_filter:
-        corr = _coulomb_correction(model, q, qd, dt, cutoff)
+        corr = _coulomb_correction(model, q, qd, dt, cutoff, carry)
     if options.generator == "inverse_dynamics":
         tau_hat = model.predict(q_f, qd, qdd)
         if corr is not None:
@@ -183,8 +215,8 @@ def compute_residual(
         tau_used = tau_in
         r = tau_hat - tau_used
     else:
-        r = momentum_observer(model, q_f, qd, tau_in, dt, options.observer_gain, corr)
-        tau_used = first_order_lowpass(tau_in, dt, options.observer_gain)
+        r = momentum_observer(model, q_f, qd, tau_in, dt, options.observer_gain, corr, carry)
+        tau_used = first_order_lowpass(tau_in, dt, options.observer_gain, carry, "tau_obs")
         tau_hat = tau_used + r
     settings = asdict(options)
     settings["cutoff_hz_effective"] = cutoff

@@ -203,7 +203,7 @@ def coupled_predict(
     nj = q.shape[1]
     lay = _coupled_layout(nj, structure)
     th = np.asarray(theta, dtype=np.float64).reshape(nj, lay.shape[1])
-    return np.stack([f[:, lay[j]] @ th[j] for j in range(nj)], axis=1)
+    return np.stack([rowdot(f[:, lay[j]], th[j]) for j in range(nj)], axis=1)
 
 
 # ---------------------------------------------------------------- planar
@@ -553,5 +553,20 @@ def predict(
                 f"{qdd.shape}"
             )
         return coupled_predict(q, qd, qdd, structure, theta)
-    return np.asarray(regressor(kind, joints, structure, q, qd, qdd) @ theta)
+    y = regressor(kind, joints, structure, q, qd, qdd)
+    n, nj, p = y.shape
+    return rowdot(y.reshape(n * nj, p), np.asarray(theta, dtype=np.float64)).reshape(n, nj)
+
+
+def rowdot(a: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """(N,) the dot product of each row of ``a`` (N, P) with ``x`` (P,), summed in column
+    order: each row's value is the same bits whatever other rows are in the call (a BLAS
+    product's rounding may depend on a row's place in its blocks), so a chunked replay
+    equals the whole-log one (:mod:`impactcli.causal`)."""
+    a = np.asarray(a, dtype=np.float64)
+    out = np.zeros(a.shape[0])
+    for i in range(a.shape[1]):
+        if x[i] != 0.0:
+            out += a[:, i] * x[i]
+    return out
 
