@@ -10,6 +10,7 @@ boundaries, and compared with ``np.array_equal`` against one chunk holding the l
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from pathlib import Path
 
 import numpy as np
@@ -40,7 +41,7 @@ def _run(setup: ReplaySetup, log, bounds: list[int]) -> tuple[list[ChunkReplay],
     state = ReplayState.initial(setup)
     outs = []
     t = log.time_s
-    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+    for a, b in itertools.pairwise(bounds):
         ch = chunk_arrays(log.slice(a, b) if b - a >= 2 else _one(log, a, b), t[a:b])
         out, state = replay_chunk(setup, state, ch)
         outs.append(out)
@@ -75,9 +76,9 @@ def _assert_same(setup, log, n: int) -> None:
     whole, s_whole = _run(setup, log, [0, n])
     rng = np.random.default_rng(5)
     splits = [
-        list(range(0, min(n, 150))) + [n],            # single samples, then the rest
-        list(range(0, n, 97)) + [n],
-        list(range(0, n, 1000)) + [n],
+        [*list(range(0, min(n, 150))), n],            # single samples, then the rest
+        [*list(range(0, n, 97)), n],
+        [*list(range(0, n, 1000)), n],
         [0, *sorted(rng.choice(np.arange(1, n), 12, replace=False).tolist()), n],
     ]
     for bounds in splits:

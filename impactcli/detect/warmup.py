@@ -107,7 +107,7 @@ class WarmupTracker:
         self.head: list[np.ndarray] = []     # rms rows before the cap (or all, until known)
         self.head_t: list[np.ndarray] = []
         self.head_n = 0
-        self.spill = tempfile.TemporaryFile()
+        self.spill = tempfile.TemporaryFile()  # noqa: SIM115 (closed by finish())
         self.spill_start: int | None = None
         self.spilled = 0
         self.t_tail = np.zeros(0)
