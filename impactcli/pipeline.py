@@ -35,10 +35,10 @@ from .detect.calibrate import (
     uncalibrated_thresholds,
 )
 from .detect.events import LONG_EVENT_S, extract_events
-from .detect.incidents import Incident, group_events
+from .detect.incidents import Incident
 from .detect.screen import LeftOut, unusable_columns
 from .detect.warmup import Warmup, warmup_end
-from .errors import ConfigError, ImpactError, ImpactWarning, LogFormatError, ModelError
+from .errors import ConfigError, ImpactWarning, LogFormatError, ModelError
 from .io.inspect import GAP_FACTOR, time_gaps
 from .model import IdentifyOptions, ResidualOptions, RigidModel, identify
 from .model.generators import (
@@ -209,133 +209,25 @@ def analyze(
     return _with_warnings(result, msgs)
 
 
-def robot_chain(full: RobotLog, robot: RobotDescription | None,
-                model: dict[str, Any] | None, detected: tuple[str, ...] = (),
-                ) -> tuple[tuple[str, ...], dict[str, Any] | None]:
-    """The robot's joint chain (base first) and its kinematics mapping: the robot
-    description's (given, or the one the model was identified with), else the log's own
-    joint order without kinematics. Link numbers are positions in this chain."""
-    desc = robot.to_dict() if robot is not None else (model or {}).get("robot")
-    kin = desc.get("kinematics") if isinstance(desc, dict) else None
-    if isinstance(desc, dict) and desc.get("joints"):
-        names = tuple(str(j["name"]) for j in desc["joints"])  # the log's names
-        if set(detected) <= set(names):
-            return names, kin
-    if isinstance(kin, dict) and kin.get("type") == "urdf" and model is not None:
-        return tuple(model["joint_names"]), kin  # a named robot: the model's chain
-    return full.joint_names, None
-
-
 def find_incidents(
     result: DetectionResult, full: RobotLog, robot: RobotDescription | None,
     merge_gap_s: float,
 ) -> list[Incident]:
-    """The incidents of a replay (:mod:`impactcli.detect.incidents`): grouped product
+    """The incidents of a whole-log replay (:mod:`impactcli.contacts`): grouped product
     events, the isolated link, the force at it (with kinematics), the contact type."""
-    from .detect.incidents import (
-        BRIDGE_FRACTION,
-        contact_type,
-        estimate_force,
-        isolate,
-        planar_jacobian,
-    )
+    from .contacts import build_incidents, incident_context
     from .model.derivatives import causal_derivatives
+    from .replay import SPEED_CUTOFF_HZ
 
-    log, events = result.log, result.events
-    vl0 = np.array([result.thresholds[j]["vL"] for j in log.joint_names])
-    pressing = np.any(result.signals["loading_statistic"]
-                      >= BRIDGE_FRACTION * np.maximum(vl0, 1e-12)[None, :], axis=1)
-    groups = group_events(events, merge_gap_s, pressing)
-    if not groups:
-        return []
-    chain, kin = robot_chain(full, robot, result.model, log.joint_names)
-    if not set(log.joint_names) <= set(chain):
-        chain, kin = full.joint_names, None
-    index = [chain.index(j) + 1 for j in log.joint_names]
-    q_chain = np.zeros((log.n_samples, len(chain)))
-    for j in chain:
-        if j in full.joint_names:
-            q_chain[:, chain.index(j)] = full.position[:, full.joint_names.index(j)]
-    jac = None
-    if isinstance(kin, dict) and kin.get("type") == "planar":
-        jac = planar_jacobian(kin["link_lengths"])
-    elif (isinstance(kin, dict) and kin.get("type") == "urdf" and result.model is not None
-          and result.model.get("kind") == "urdf"):
-        try:
-            jac = _urdf_jacobian(result.model, chain)
-        except (ImpactError, RuntimeError, ValueError) as err:  # no Jacobian: no force
-            warnings.warn(f"{log.source.path}: no link Jacobian from the URDF ({err}): "
-                          "incidents without a force estimate", ImpactWarning, stacklevel=3)
-    dt = log.sample_period_s
-    _, qd, _ = causal_derivatives(dt, np.asarray(log.position), min(10.0, 0.2 / dt))
+    log = result.log
     vl = np.array([result.thresholds[j]["vL"] for j in log.joint_names])
-    loading = result.signals["loading_statistic"] / np.maximum(vl, 1e-12)[None, :]
-    r = result.signals["residual"]
-    t = log.time_s
-    out = []
-    for g in groups:
-        evs = [events[k] for k in g]
-        a, b = min(e.i_start for e in evs), max(e.i_end for e in evs)
-        win = slice(a, b + 1)
-        link = isolate(loading[win], result.decisions["adaptive"][win], index)
-        joints = tuple(dict.fromkeys(j for e in sorted(evs, key=lambda e: e.t_start)
-                                     for j in e.joints))
-        force, method = (None, "no kinematics: the peak residual torques are the answer")
-        if link is not None and jac is not None:
-            force, method = estimate_force(r[win], q_chain[win], link, index, jac)
-        elif link is None:
-            method = "the residuals cannot say which link: no force estimate"
-        cols = [k for k, c in enumerate(index) if link is None or c <= link]
-        speed = np.max(np.abs(qd[win][:, cols]), axis=1)
-        kind = contact_type(np.asarray(result.decisions["static_loading"][win].any(axis=1)),
-                            speed, dt, ends_with_log=b >= log.n_samples - 1)
-        peak = {}
-        for j in joints:
-            k = log.joint_names.index(j)
-            seg = r[win, k]
-            peak[j] = float(seg[np.argmax(np.abs(seg))])
-        out.append(Incident(
-            t_start=float(t[a]), t_end=float(t[b]), i_start=int(a), i_end=int(b),
-            detectors=tuple(dict.fromkeys(e.detector for e in sorted(evs,
-                                                                     key=lambda e: e.t_start))),
-            joints=joints, link=link, force_n=force, force_method=method, contact=kind,
-            peak_residual=peak, in_warmup=bool(min(evs, key=lambda e: e.t_start).in_warmup),
-            t_start_utc=_utc(log.t0_ns + round(t[a] * 1e9)), events=tuple(g)))
-    return out
-
-
-def _urdf_jacobian(model: dict[str, Any], chain: tuple[str, ...]) -> Any:
-    """The link-end Jacobian of a URDF model, taking positions in ``chain`` order."""
-    from .model.kinematics import urdf_link_end_jacobian
-
-    mj = tuple(model["joint_names"])
-    inner = urdf_link_end_jacobian(model["structure"], mj)
-    pos = [chain.index(j) for j in mj]
-    # the chain's link i ends at model joint i+1: the link index in the model's joints
-    link_of = {c: sum(1 for p in pos if p < c) for c in range(1, len(chain) + 1)}
-
-    def jac(q: np.ndarray, i: int) -> np.ndarray | None:
-        k = link_of.get(i, 0)
-        j = inner(q[pos], k) if k >= 1 else None
-        if j is None:
-            return None
-        out = np.zeros((j.shape[0], i))
-        for n in range(k):
-            out[:, pos[n]] = j[:, n]
-        return out
-
-    return jac
-
-
-def _utc(t_ns: int) -> str | None:
-    """ISO 8601 UTC of an epoch time [ns], or None when the clock is not an epoch (a log
-    whose time starts near 0: before 1990)."""
-    import datetime as _dt
-
-    if t_ns < 631_152_000 * 10**9:
-        return None
-    return _dt.datetime.fromtimestamp(t_ns / 1e9, tz=_dt.UTC).isoformat(
-        timespec="milliseconds").replace("+00:00", "Z")
+    dt = log.sample_period_s
+    ctx = incident_context(log.joint_names, full.joint_names, robot, result.model, vl, dt,
+                           log.t0_ns, log.n_samples, merge_gap_s, log.source.path)
+    _, qd, _ = causal_derivatives(dt, np.asarray(log.position), min(SPEED_CUTOFF_HZ, 0.2 / dt))
+    return build_incidents(ctx, list(result.events), log.time_s, result.signals["residual"],
+                           result.signals["loading_statistic"], result.decisions["adaptive"],
+                           result.decisions["static_loading"], np.asarray(full.position), qd)
 
 
 def _known_joints(model: RigidModel | None, cfg: DetectorConfig) -> tuple[str, ...] | None:
