@@ -257,45 +257,71 @@ def screen_log(
         recorded: joints a calibration left out (``calibration.joints_left_out``).
     Also reads a flat or unmeasured controller channel as not logged for that joint.
     """
-    where = log.source.path
+    ref = float(np.max(np.ptp(log.torque, axis=0)))
+    keep, left, unlogged = screen_plan(
+        log.source.path, log.joint_names, known, recorded,
+        unusable_columns(log.torque, ref),
+        lambda ch, cols: unusable_columns(getattr(log, ch)[:, cols], ref)
+        if getattr(log, ch) is not None else None)
+    if left:
+        log = log.select(keep)
+    changes: dict[str, Any] = {}
+    for ch, ks in unlogged.items():
+        m = np.array(getattr(log, ch))
+        m[:, ks] = np.nan
+        changes[ch] = m
+    if changes:
+        log = dataclasses.replace(log, **changes)
+    return log, left
+
+
+def screen_plan(
+    where: str, joint_names: tuple[str, ...], known: tuple[str, ...] | None,
+    recorded: tuple[dict[str, str], ...], torque_why: list[str | None],
+    channel_why: Callable[[str, list[int]], list[str | None] | None],
+) -> tuple[tuple[str, ...], tuple[LeftOut, ...], dict[str, list[int]]]:
+    """What :func:`screen_log` decides, from the screen of the whole log's columns (each
+    decision warned about once; a streamed replay gives the screen of its first pass).
+
+    Args:
+        where: the log's path. joint_names: as logged. known, recorded: as screen_log.
+        torque_why: per logged joint, ``unusable_columns`` of its torque.
+        channel_why: (controller channel, kept columns) → ``unusable_columns`` of those
+            columns of the channel, or None when the log has no such channel.
+    Returns:
+        (the joints kept, the joints left out with why, controller channel → the kept
+        columns read as not logged).
+    """
     left: list[LeftOut] = []
     at_cal = {d["name"]: d["reason"] for d in recorded}
-    for j in log.joint_names:
+    for j in joint_names:
         if j in at_cal:
             left.append(LeftOut(j, f"left out at calibration ({at_cal[j]})"))
         elif known is not None and j not in known:
             left.append(LeftOut(j, "not in the model or the calibrated config"))
     out = {x.name for x in left}
-    ref = float(np.max(np.ptp(log.torque, axis=0)))
-    for j, why in zip(log.joint_names, unusable_columns(log.torque, ref), strict=True):
+    for j, why in zip(joint_names, torque_why, strict=True):
         if why is not None and j not in out:
             left.append(LeftOut(j, f"torque {why}"))
     for x in left:
         warnings.warn(f"{where}: joint {x.name!r} left out of detection: {x.reason}",
                       ImpactWarning, stacklevel=3)
-    keep = tuple(j for j in log.joint_names if j not in {x.name for x in left})
+    keep = tuple(j for j in joint_names if j not in {x.name for x in left})
     if not keep:
         raise LogFormatError(f"{where}: no joint left to detect on ("
                              + "; ".join(f"{x.name}: {x.reason}" for x in left) + ")")
-    if left:
-        log = log.select(keep)
-    changes: dict[str, Any] = {}
+    cols = [joint_names.index(j) for j in keep]
+    unlogged: dict[str, list[int]] = {}
     for ch in CONTROLLER_CHANNELS:
-        a = getattr(log, ch)
-        if a is None:
+        bad = channel_why(ch, cols)
+        if bad is None or not any(bad):
             continue
-        bad = unusable_columns(a, ref)
-        if any(bad):
-            m = np.array(a)
-            for k, why in enumerate(bad):
-                if why is not None:
-                    m[:, k] = np.nan
-                    warnings.warn(f"{where}: joint {log.joint_names[k]!r}: its {ch} is "
-                                  f"{why}; read as not logged", ImpactWarning, stacklevel=3)
-            changes[ch] = m
-    if changes:
-        log = dataclasses.replace(log, **changes)
-    return log, tuple(left)
+        unlogged[ch] = [k for k, why in enumerate(bad) if why is not None]
+        for k, why in enumerate(bad):
+            if why is not None:
+                warnings.warn(f"{where}: joint {keep[k]!r}: its {ch} is "
+                              f"{why}; read as not logged", ImpactWarning, stacklevel=3)
+    return keep, tuple(left), unlogged
 
 
 def with_generator(cfg: DetectorConfig, generator: str | None,
