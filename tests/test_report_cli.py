@@ -49,9 +49,10 @@ def fake_pipeline(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
     calls: list[dict[str, Any]] = []
 
     def analyze(log: Any, *, model: Any = None, config: Any = None, robot: Any = None,
-                read_options: dict[str, Any] | None = None, model_from_log: bool = False) -> Any:
+                read_options: dict[str, Any] | None = None, model_from_log: bool = False,
+                allow_slow: bool = False) -> Any:
         calls.append({"log": log, "model": model, "config": config, "robot": robot,
-                      "read_options": read_options})
+                      "read_options": read_options, "allow_slow": allow_slow})
         return dataclasses.replace(fake_result(), log=log)
 
     mod = types.ModuleType("impactcli.pipeline")

@@ -49,3 +49,83 @@ def test_a_slow_replay_reports_its_progress_per_axis(monkeypatch: pytest.MonkeyP
     monkeypatch.setattr(pipeline, "PROGRESS_AFTER_S", 0.0)
     analyze(log, progress=lambda d, t: seen.append((d, t)))
     assert seen == [(1, 3), (2, 3), (3, 3)]
+
+
+def _huge_log(tmp_path: Path) -> Path:
+    """120 joints at 200 Hz for 4 s (past the 3 s warm-up): small, far above the limit."""
+    path = tmp_path / "huge.csv"
+    write_log(make_log(n=800, joints=tuple(f"j{k}" for k in range(120)), dt=0.005), path)
+    return path
+
+
+def _refusal(path: Path) -> str:
+    with pytest.raises(ScaleLimitError) as err:
+        check_scale(120, 200.0, None, str(path))
+    msg = str(err.value)
+    assert msg.startswith(f"{path}: 120 joints at 200 Hz: the adaptive evaluator is estimated")
+    assert msg.endswith("above the limit of 1 s per second of log and 2 GiB: give "
+                        "--allow-slow to run it anyway")
+    return f"impactcli: error: {msg}\n"
+
+
+def test_report_refuses_a_huge_arm_and_takes_allow_slow(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import impactcli.cli.report as cli_report
+
+    log = _huge_log(tmp_path)
+    html, js = tmp_path / "r.html", tmp_path / "r.json"
+    r = CliRunner().invoke(main, ["report", str(log), "-o", str(html), "--json", str(js)])
+    assert r.exit_code == 2, r.output
+    assert r.stderr == _refusal(log)
+    assert not html.exists() and not js.exists()
+    seen: dict[str, object] = {}
+
+    def analyze_log(path: Path, **kw: object) -> object:
+        seen.update(kw)
+        raise ScaleLimitError("stop here")
+
+    monkeypatch.setattr(cli_report, "analyze_log", analyze_log)
+    r = CliRunner().invoke(main, ["report", str(log), "-o", str(html), "--allow-slow"])
+    assert seen["allow_slow"] is True, r.output
+
+
+def test_evaluate_refuses_a_huge_arm_and_takes_allow_slow(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import impactcli.cli.evaluate as cli_eval
+
+    log = _huge_log(tmp_path)
+    labels = tmp_path / "huge.labels.json"
+    labels.write_text('{"sample_rate": 200.0, "events": []}')
+    r = CliRunner().invoke(main, ["evaluate", str(log), "--json"])
+    assert r.exit_code == 2, r.output
+    assert r.stderr == _refusal(log)
+    assert r.stdout == ""
+    seen: dict[str, object] = {}
+
+    def analyze_log(path: Path, **kw: object) -> object:
+        seen.update(kw)
+        raise ScaleLimitError("stop here")
+
+    monkeypatch.setattr(cli_eval, "analyze_log", analyze_log)
+    CliRunner().invoke(main, ["evaluate", str(log), "--allow-slow"])
+    assert seen["allow_slow"] is True
+
+
+def test_calibrate_refuses_a_huge_arm_before_identifying(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from impactcli import pipeline
+
+    def calibrate(*_: object, **__: object) -> object:
+        raise AssertionError("the pipeline must not run")
+
+    monkeypatch.setattr(pipeline, "calibrate", calibrate)
+    log = _huge_log(tmp_path)
+    out = tmp_path / "cfg.toml"
+    r = CliRunner().invoke(main, ["calibrate", str(log), "-o", str(out)])
+    assert r.exit_code == 2, r.output
+    assert r.stderr == _refusal(log)
+    assert r.stdout == "" and not out.exists()
+    # --allow-slow: no refusal from the verb, the pipeline is called
+    r = CliRunner().invoke(main, ["calibrate", str(log), "-o", str(out), "--allow-slow"])
+    assert r.exit_code == 70 and "the pipeline must not run" in r.stderr
+    assert "--allow-slow" in CliRunner().invoke(main, ["calibrate", "--help"]).stdout

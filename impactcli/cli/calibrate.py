@@ -42,12 +42,17 @@ def _labels_for(logs: tuple[Path, ...], given: tuple[Path, ...]) -> list:  # typ
                    "left out by default, with a warning).")
 @generator_option
 @log_read_options
+@click.option("--allow-slow", is_flag=True,
+              help="Calibrate on logs whose replay is estimated slower than real time or "
+                   "above 2 GiB of covariance (many joints: the adaptive evaluator's cost "
+                   "grows with the cube of the joint count); without it such a log is "
+                   "refused before the model is identified (exit 2).")
 @handle_errors
 def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, model: Path | None,
                   base_config: Path | None, labels_paths: tuple[Path, ...], keep_suspect: bool,
                   generator: str | None, channel_map: str | None,
                   topic: str | None, reference_topic: str | None, time_source: str | None,
-                  torque_source: str | None) -> None:
+                  torque_source: str | None, allow_slow: bool = False) -> None:
     """Set v_stat, vL and v0 per joint so that the collision-free LOGS raise no alarm.
 
     With two or more logs the margin over the statistic's maximum is chosen by
@@ -84,6 +89,12 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     cfg = load_config(base_config) if base_config else None
     ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
     read = [read_log(p, robot=robot_d, **ropts) for p in logs]
+    if not allow_slow:  # before identification and replay: the cost is the joints', not time's
+        from ..detect.adaptive import check_scale
+
+        for log in read:
+            check_scale(log.n_joints, log.sample_rate_hz, cfg.adaptive if cfg else None,
+                        log.source.path)
     labels = _labels_for(logs, labels_paths)
     for p, lab in zip(logs, labels, strict=True):
         if lab is not None and lab.events:

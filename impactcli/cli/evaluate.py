@@ -159,14 +159,15 @@ def _check_rate(labels: Any, rate_hz: float, where: str) -> None:
 
 
 def analyze_log(path: Path, *, robot: Path | None, model: Path | None, config: Path | None,
-                read_options: dict[str, Any]) -> Any:
-    """Read ``path`` and replay the detectors on it, as ``detect`` does."""
+                read_options: dict[str, Any], allow_slow: bool = False) -> Any:
+    """Read ``path`` and replay the detectors on it, as ``detect`` does (``allow_slow``:
+    run a replay above the scale limit, as ``detect --allow-slow``)."""
     from ..batch import analyze_file
 
     return analyze_file(str(path), robot_path=None if robot is None else str(robot),
                         model_path=None if model is None else str(model),
                         config_path=None if config is None else str(config),
-                        read_options=read_options)
+                        read_options=read_options, allow_slow=allow_slow)
 
 
 def _timeline_sweep(source: Path, doc: dict[str, Any], labels: Any, scales: tuple[float, ...],
@@ -236,12 +237,16 @@ def _timeline_sweep(source: Path, doc: dict[str, Any], labels: Any, scales: tupl
               help="An alarm up to this long after a contact's end matches it (release) [s].")
 @model_options
 @log_read_options
+@click.option("--allow-slow", is_flag=True,
+              help="With a LOG: run a replay estimated slower than real time or above 2 GiB "
+                   "of covariance (many joints: the adaptive evaluator's cost grows with the "
+                   "cube of the joint count), as detect --allow-slow.")
 @handle_errors
 def evaluate_cmd(source: Path, labels_path: Path | None, as_json: bool, sweep: bool,
                  scales: tuple[float, ...], pre_s: float, post_s: float, robot: Path | None,
                  model: Path | None, config: Path | None, channel_map: str | None,
                  topic: str | None, reference_topic: str | None, time_source: str | None,
-                 torque_source: str | None) -> None:
+                 torque_source: str | None, allow_slow: bool = False) -> None:
     """Measure detection quality of a timeline (or a log, detected first) against labels.
 
     An event matches a contact when it starts within [start - PRE, end + POST]. Events in
@@ -293,7 +298,7 @@ def evaluate_cmd(source: Path, labels_path: Path | None, as_json: bool, sweep: b
             rows = _timeline_sweep(source, doc, labels, scales, tolerance)
     else:
         result = analyze_log(source, model=model, config=config, robot=robot,
-                             read_options=read_options)
+                             read_options=read_options, allow_slow=allow_slow)
         for msg in result.warnings:
             click.echo(f"impactcli: warning: {msg}", err=True)
         _check_rate(labels, result.log.sample_rate_hz, str(source))

@@ -90,18 +90,20 @@ def load_inputs(robot: Path | None, model: Path | None,
 
 
 def analyze_log(path: Path, *, robot: Any = None, model: Any = None, config: Any = None,
-                read_options: dict[str, Any] | None = None) -> Any:
+                read_options: dict[str, Any] | None = None, allow_slow: bool = False) -> Any:
     """Read ``path`` and replay the detectors (:func:`impactcli.pipeline.analyze`).
 
     ``robot``, ``model``, ``config`` are the loaded objects (or None); ``read_options`` the
-    :func:`impactcli.io.read_log` keyword arguments (recorded in the result).
+    :func:`impactcli.io.read_log` keyword arguments (recorded in the result); ``allow_slow``
+    runs a replay above the scale limit (:func:`impactcli.detect.adaptive.check_scale`).
     """
     from ..io import read_log
     from ..pipeline import analyze
 
     opts = dict(read_options or {})
     log = read_log(path, robot=robot, **opts)
-    return analyze(log, model=model, config=config, robot=robot, read_options=opts)
+    return analyze(log, model=model, config=config, robot=robot, read_options=opts,
+                   allow_slow=allow_slow)
 
 
 def load_timeline(path: Path) -> dict[str, Any]:
@@ -138,7 +140,8 @@ def timeline_log_path(tl_path: Path, recorded: str, absolute: str | None = None)
     )
 
 
-def rerun_timeline(tl_path: Path, *, robot: Any = None) -> tuple[Any, Path]:
+def rerun_timeline(tl_path: Path, *, robot: Any = None,
+                   allow_slow: bool = False) -> tuple[Any, Path]:
     """Re-run detection as a timeline records it; returns (DetectionResult, log path).
 
     The log is read with the recorded read options; the model is the recorded one when it
@@ -146,6 +149,7 @@ def rerun_timeline(tl_path: Path, *, robot: Any = None) -> tuple[Any, Path]:
     again, deterministically); the config is the recorded one. ``robot`` (a loaded
     description, from --robot) is used when given, else the robot description embedded in
     the recorded model (needed for planar/URDF identification and current scaling).
+    ``allow_slow`` runs a replay above the scale limit, as ``detect --allow-slow``.
     """
     from ..config import DetectorConfig
     from ..io import read_log
@@ -179,7 +183,7 @@ def rerun_timeline(tl_path: Path, *, robot: Any = None) -> tuple[Any, Path]:
     # a config's thresholds with a model identified from the log (detect --model-from-log)
     from_log = tl_model["source"] == "identified-from-log" and config.model is not None
     result = analyze(log, model=model, config=config, robot=robot, read_options=kwargs,
-                     model_from_log=from_log)
+                     model_from_log=from_log, allow_slow=allow_slow)
     recorded = [(e["detector"], round(e["t_start"], 9), round(e["t_end"], 9), tuple(e["joints"]))
                 for e in tl["events"]]
     now = [(e.detector, round(e.t_start, 9), round(e.t_end, 9), tuple(e.joints))
@@ -251,6 +255,7 @@ class ReportTask:
     config: str | None
     read_options: dict[str, Any]
     key: int = 0
+    allow_slow: bool = False
 
 
 @dataclass(frozen=True)
@@ -290,11 +295,13 @@ def analyze_input(task: ReportTask) -> ReportPart:
             robot_obj, model_obj, config_obj = _loaded(task.robot, task.model, task.config)
             origin = None
             if is_timeline(inp):
-                result, log_path = rerun_timeline(inp, robot=robot_obj)
+                result, log_path = rerun_timeline(inp, robot=robot_obj,
+                                                  allow_slow=task.allow_slow)
                 origin = timeline_origin(inp)
             else:
                 result = analyze_log(inp, robot=robot_obj, model=model_obj, config=config_obj,
-                                     read_options=task.read_options)
+                                     read_options=task.read_options,
+                                     allow_slow=task.allow_slow)
                 log_path = inp
             lab_path = Path(task.labels) if task.labels else None
             if lab_path is None and task.auto_labels:
@@ -337,13 +344,17 @@ def _local_inputs(patterns: Sequence[str]) -> tuple[Path, ...]:
               help="Do not pick up <stem>.labels.json files found beside the inputs.")
 @model_options
 @log_read_options
+@click.option("--allow-slow", is_flag=True,
+              help="Run a replay estimated slower than real time or above 2 GiB of "
+                   "covariance (many joints: the adaptive evaluator's cost grows with the "
+                   "cube of the joint count), as detect --allow-slow.")
 @executor_options
 @handle_errors
 def report_cmd(*, inputs: tuple[str, ...], html_path: Path, json_path: Path | None,
                labels: tuple[Path, ...], no_auto_labels: bool, robot: Path | None,
                model: Path | None, config: Path | None, channel_map: str | None,
                topic: str | None, reference_topic: str | None, time_source: str | None,
-               torque_source: str | None, jobs: int | None = None,
+               torque_source: str | None, allow_slow: bool = False, jobs: int | None = None,
                scheduler: str | None = None) -> None:
     """Write a safety-audit report: one self-contained HTML file (and --json) over LOGs or
     TIMELINEs — per log a verdict and the incidents (when, where, how hard, what kind),
@@ -377,7 +388,7 @@ def report_cmd(*, inputs: tuple[str, ...], html_path: Path, json_path: Path | No
                       stacklevel=2)
     tasks = [ReportTask(str(inp), str(lab) if lab is not None else None, not no_auto_labels,
                         str(robot) if robot else None, str(model) if model else None,
-                        str(config) if config else None, ropts, k)
+                        str(config) if config else None, ropts, k, allow_slow)
              for k, (inp, lab) in enumerate(zip(paths, explicit, strict=True))]
     done: dict[int, Any] = {}
     errors: dict[int, ImpactError] = {}
