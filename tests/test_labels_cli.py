@@ -255,7 +255,12 @@ def test_usage_errors_exit_2(switch_log, tmp_path):
     log, _ = switch_log
     out = str(tmp_path / "l.json")
     base = ["labels", str(log), "--from-channel", "bumper", "-o", out]
-    assert invoke(*base, "--above", "0.5").exit_code == 2  # --link is required
+    no_link = invoke(*base, "--above", "0.5")  # --link is required, and said what it is
+    assert no_link.exit_code == 2
+    assert no_link.stderr.splitlines()[-1] == (
+        "Error: Missing option '--link'. --link N is the link the contacts are on: 1-based, "
+        "counted from the base along the robot's chain (1: the link the first joint moves); "
+        "a label names the link touched, and evaluate scores the incidents' link against it")
     assert invoke(*base, "--above", "0.5", "--link", "0").exit_code == 2
     assert invoke(*base, "--above", "nan", "--link", "1").exit_code == 2
     assert invoke(*base, "--link", "1").exit_code == 2
@@ -283,3 +288,13 @@ def test_stretches_rules():
     assert stretches(t, v, 0.5, merge_gap_s=0.4) == [(1, 9)]
     assert stretches(t, v, 0.5, min_duration_s=0.1) == [(1, 2), (8, 9)]
     assert stretches(t, np.zeros(10), 0.5) == []
+
+
+def test_readme_and_help_give_the_real_syntax():
+    """README's command table names every required option (--link N was missing)."""
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text("utf-8")
+    assert "`impactcli labels LOG --from-channel NAME --above X --link N -o labels.json`" in readme
+    text = " ".join(invoke("labels", "--help").stdout.split())
+    assert ("--link N The link the contacts are on: 1-based, counted from the base along the "
+            "robot's chain (1: the link the first joint moves); a label names the link touched, "
+            "and evaluate scores the incidents' link against it. [x>=1; required]") in text

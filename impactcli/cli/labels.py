@@ -339,6 +339,26 @@ def labels_doc(ch: Channel, *, above: float, kind: str, link: int, channel_is: s
     }
 
 
+#: What --link is, in its help and in the message when it is missing.
+LINK_HELP = ("the link the contacts are on: 1-based, counted from the base along the robot's "
+             "chain (1: the link the first joint moves); a label names the link touched, and "
+             "evaluate scores the incidents' link against it")
+
+
+class _ExplainedOption(click.Option):
+    """A required option whose "Missing option" message also says what it is."""
+
+    def __init__(self, *args: Any, missing: str = "", **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.missing = missing
+
+    def process_value(self, ctx: click.Context, value: Any) -> Any:
+        try:
+            return super().process_value(ctx, value)
+        except click.MissingParameter:
+            raise click.MissingParameter(message=self.missing, ctx=ctx, param=self) from None
+
+
 @click.command("labels")
 @click.argument("log", type=click.Path(path_type=Path))
 @click.option("--from-channel", "channel", required=True, metavar="NAME",
@@ -348,7 +368,8 @@ def labels_doc(ch: Channel, *, above: float, kind: str, link: int, channel_is: s
 @click.option("--above", type=float, required=True, metavar="X",
               help="A contact is where the channel is above X (in its own unit).")
 @click.option("--link", type=click.IntRange(min=1), required=True, metavar="N",
-              help="The 1-based link the contacts are on (required: labels name the link).")
+              cls=_ExplainedOption, missing=f"--link N is {LINK_HELP}",
+              help=f"The {LINK_HELP[4:]}.")
 @click.option("--kind", type=click.Choice(["impact", "push", "clamp"]), default="push",
               show_default=True, help="The contacts' kind.")
 @click.option("--channel-kind", "channel_is", type=click.Choice(CHANNEL_KINDS),
