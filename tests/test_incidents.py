@@ -123,9 +123,20 @@ def test_cli_counts_incidents_and_gates_on_force(tmp_path: Path) -> None:
     r = CliRunner().invoke(main, ["detect", log, "--config", str(CONFIG), "-o",
                                   str(tmp_path / "b"), "--fail-on-force", "100"])
     assert r.exit_code == 0, r.output
-    r = CliRunner().invoke(main, ["detect", log, "--config", str(CONFIG), "-o",
-                                  str(tmp_path / "c"), "--fail-on-force", "25"])
-    assert r.exit_code == 1, r.output
+    assert r.stderr == ""
+    for n, out in (("25", "c"), ("10", "c10")):
+        r = CliRunner().invoke(main, ["detect", log, "--config", str(CONFIG), "-o",
+                                      str(tmp_path / out), "--fail-on-force", n])
+        assert r.exit_code == 1, r.output
+        # exit 1 says why: the log's first incident above N, its time, link and force
+        tl = json.loads((tmp_path / out / "assist_pushes.timeline.json").read_text())
+        over = [i for i in tl["incidents"] if not i["in_warmup"] and i["force_n"] > float(n)]
+        assert len(over) == (1 if n == "25" else 6)
+        more = f" ({len(over)} incidents above it)" if len(over) > 1 else ""
+        assert r.stderr == (
+            f"impactcli: assist_pushes.csv.gz: the incident at {over[0]['t_start']:.3f} s on "
+            f"link {over[0]['link']}, ~{over[0]['force_n']:.3g} N, exceeds --fail-on-force "
+            f"{n} N{more}\n")
     r = CliRunner().invoke(main, ["detect", log, "--config", str(CONFIG), "-o",
                                   str(tmp_path / "d"), "--fail-on-detect"])
     assert r.exit_code == 1, r.output
@@ -191,3 +202,11 @@ def test_urdf_link_end_jacobian_matches_finite_differences() -> None:
     # 4 equations, 3 unknowns: recovered unless a direction is near-singular (then less)
     assert f == pytest.approx(25.0, rel=0.05) or f < 25.0
     assert "end of link 4" in method
+
+
+def test_top_level_help_names_both_gates_of_exit_1() -> None:
+    r = CliRunner().invoke(main, ["--help"])
+    assert r.exit_code == 0
+    text = " ".join(r.stdout.split())
+    assert ("Exit codes: 0 success; 1 events found with --fail-on-detect, or a contact force "
+            "above N with detect --fail-on-force N; 2 usage error;") in text

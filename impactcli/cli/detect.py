@@ -281,7 +281,8 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     's3://bucket/day1/*.csv.gz'). Without --model or --config the model is identified
     from each log itself and the thresholds come from the log's own statistics: the run is
     marked uncalibrated. A log that fails is reported and the others go on. Exit 0
-    whether or not collisions are found (unless --fail-on-detect); 3 on a bad input; 4
+    whether or not collisions are found (unless --fail-on-detect or --fail-on-force: 1,
+    with the incident above the force named on stderr); 3 on a bad input; 4
     when some logs of a batch failed (the others' outputs are written); 70 on an internal
     error (a bug, with its traceback) — never 1.
     """
@@ -356,8 +357,27 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
             click.echo(f"impactcli: warning: --fail-on-force: {len(unknown)} incident(s) "
                        "have no force estimate (no kinematics, or the link could not be "
                        "told) and are not judged by it", err=True)
-        if any(i["force_n"] is not None and i["force_n"] > fail_on_force for i in incs):
+        over = [line for o in ok if (line := _over_force(o, fail_on_force))]
+        for line in over:  # why exit 1: which incident, per log
+            click.echo(line, err=True)
+        if over:
             ctx.exit(EXIT_DETECTED)
+
+
+def _over_force(outcome: Any, limit: float) -> str | None:
+    """One line naming the log's first incident whose force exceeds ``limit`` (and how many
+    do), or None when none does."""
+    from ..io.urls import url_name
+
+    over = [i for i in outcome.summary.get("incident_list", [])
+            if i["force_n"] is not None and i["force_n"] > limit]
+    if not over:
+        return None
+    inc = over[0]
+    link = f"link {inc['link']}" if inc["link"] is not None else "an unknown link"
+    more = f" ({len(over)} incidents above it)" if len(over) > 1 else ""
+    return (f"impactcli: {url_name(outcome.log_path)}: the incident at {inc['t_start']:.3f} s "
+            f"on {link}, ~{inc['force_n']:.3g} N, exceeds --fail-on-force {limit:g} N{more}")
 
 
 def _echo_outcome(outcome: Any, debug: bool, single: bool) -> None:
