@@ -180,6 +180,8 @@ class StepHistogram:
         self._pending_size = 0
         self._base = 0  # the dense window: counts of steps base … base + window − 1
         self._dense: np.ndarray | None = None
+        self._used = (_DENSE_WINDOW, 0)  # the dense window's entries in use: [lo, hi)
+        self._cache: tuple[np.ndarray, np.ndarray] | None = None
         self.last: int | None = None
         self.n_stamps = 0
 
@@ -194,12 +196,16 @@ class StepHistogram:
         return self._all()[1]
 
     def _all(self) -> tuple[np.ndarray, np.ndarray]:
+        if self._cache is not None:
+            return self._cache
         self._flush()
         if self._dense is None:
             return self._hist
-        nz = np.flatnonzero(self._dense)
-        return merge_histograms(self._hist, (nz.astype(np.int64) + self._base,
-                                             self._dense[nz]))
+        lo, hi = self._used
+        nz = np.flatnonzero(self._dense[lo:hi]) + lo
+        self._cache = merge_histograms(self._hist, (nz.astype(np.int64) + self._base,
+                                                    self._dense[nz]))
+        return self._cache
 
     def _flush(self) -> None:
         if self._pending:
@@ -222,6 +228,7 @@ class StepHistogram:
         s = np.asarray(steps, dtype=np.int64).ravel()
         if s.size == 0:
             return
+        self._cache = None
         if self._dense is None:  # where the window goes only (any placement counts exactly)
             centre = int(np.median(s[:: max(1, s.size // 1024)]))
             self._base = max(centre - _DENSE_WINDOW // 2, -(2**63))
@@ -233,6 +240,7 @@ class StepHistogram:
             lo = int(d.min())
             cnt = np.bincount(d - lo)
             self._dense[lo: lo + cnt.size] += cnt
+            self._used = (min(self._used[0], lo), max(self._used[1], lo + cnt.size))
         if d.size < s.size:
             h = step_histogram(s[~inside])
             self._pending.append(h)

@@ -1,0 +1,333 @@
+"""The streaming reader (impactcli.io.stream): for every chunk size the chunks are read_log's
+arrays bit for bit, the scan its source, warnings, clock, gaps and screen, and a bad file
+fails in the scan with read_log's message."""
+
+from __future__ import annotations
+
+import gzip
+import json
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from impactcli.detect.screen import unusable_columns
+from impactcli.errors import ImpactWarning, LogFormatError
+from impactcli.io import read_log, stream, write_log
+from impactcli.io.inspect import time_gaps
+from impactcli.io.stream import OPTIONAL, LogScan, iter_chunks, scan_log
+from impactcli.types import JointSpec, RobotDescription
+
+CHUNKS = (1, 2, 7, 1000, 65536)
+N = 3000
+
+
+@pytest.fixture(autouse=True)
+def _small_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Many record batches per file: runs and duplicates fall across their boundaries."""
+    monkeypatch.setattr(stream, "BLOCK_SIZE", 4096)
+
+
+def _table(n: int = N, seed: int = 0, epoch: bool = False) -> dict[str, list[str]]:
+    """A 3-joint canonical CSV as text columns: time (jittery), position, torque,
+    references, a controller torque."""
+    rng = np.random.default_rng(seed)
+    t_ns = np.cumsum(rng.integers(990_000, 1_010_000, n)) + (1_714_567_890 * 10**9 if epoch else 0)
+    t_ns[n // 3:] += 40_000_000  # a gap
+    cols: dict[str, list[str]] = {
+        "time": [f"{v // 10**9}.{v % 10**9:09d}" for v in t_ns.tolist()]}
+    for j in ("j1", "j2", "j3"):
+        q = np.cumsum(rng.normal(0, 1e-3, n))
+        cols[f"{j}.position"] = [repr(float(v)) for v in q]
+        cols[f"{j}.torque"] = [repr(float(v)) for v in rng.normal(0, 5, n)]
+        cols[f"{j}.position_ref"] = [repr(float(v)) for v in q + 1e-4]
+        cols[f"{j}.torque_model"] = [repr(float(v)) for v in rng.normal(0, 5, n)]
+    cols["note"] = ["x"] * n
+    return cols
+
+
+def _write(path: Path, cols: dict[str, list[str]], sep: str = ",") -> Path:
+    n = len(cols["time"]) if "time" in cols else len(next(iter(cols.values())))
+    lines = [sep.join(cols)] + [sep.join(c[i] for c in cols.values()) for i in range(n)]
+    text = "\n".join(lines) + "\n"
+    if path.name.endswith(".gz"):
+        with gzip.open(path, "wt") as f:
+            f.write(text)
+    else:
+        path.write_text(text)
+    return path
+
+
+def _read(path: Path, **opts: Any) -> tuple[Any, list[str]]:
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        log = read_log(path, **opts)
+    return log, [str(x.message) for x in w if issubclass(x.category, ImpactWarning)]
+
+
+def _scan(path: Path, **opts: Any) -> tuple[LogScan, list[str]]:
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        scan = scan_log(path, **opts)
+    return scan, [str(x.message) for x in w if issubclass(x.category, ImpactWarning)]
+
+
+def _assert_same(path: Path, streamed: bool = True, chunks: tuple[int, ...] = CHUNKS,
+                 **opts: Any) -> LogScan:
+    """The invariant: scan + chunks == read_log, for every chunk size."""
+    log, warned = _read(path, **opts)
+    scan, scan_warned = _scan(path, **opts)
+    assert scan.streamed is streamed
+    assert scan_warned == warned
+    assert scan.log.source == log.source
+    assert scan.joint_names == log.joint_names
+    assert scan.n_samples == log.n_samples
+    assert (scan.t0_ns, scan.t_last_ns) == (log.t0_ns, int(log.t_ns[-1]))
+    assert scan.clock == log.sample_clock
+    assert scan.sample_rate_hz == log.sample_rate_hz
+    idx, lengths = time_gaps(log)
+    assert np.array_equal(scan.gaps, idx) and np.array_equal(scan.gap_lengths_s, lengths)
+    assert scan.torque_screen == unusable_columns(log.torque)
+    ref = float(np.max(np.ptp(log.torque, axis=0)))
+    assert scan.torque_ptp == ref
+    for ch in ("torque_model", "torque_ext"):
+        a = getattr(log, ch)
+        assert (ch in scan.screens) == (a is not None)
+        if a is not None:
+            assert scan.screens[ch].unusable(ref) == unusable_columns(a, ref)
+            assert np.array_equal(scan.screens[ch].logged, log.has_channel(ch))
+    assert scan.channels == tuple(s for s in OPTIONAL if getattr(log, s) is not None)
+    for size in (*chunks, log.n_samples + 5):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", ImpactWarning)  # repairs are warned by the scan
+            got = list(iter_chunks(path, scan, size, **opts))
+        assert [c.start for c in got] == list(range(0, log.n_samples, size))
+        assert all(1 <= c.n_samples <= size for c in got)
+        assert np.array_equal(np.concatenate([c.t_ns for c in got]), log.t_ns), size
+        for s in ("position", "torque", *OPTIONAL):
+            a = getattr(log, s)
+            if a is None:
+                assert all(getattr(c, s) is None for c in got)
+                continue
+            b = np.concatenate([getattr(c, s) for c in got])
+            assert b.dtype == np.float64 and np.array_equal(b, a, equal_nan=True), (s, size)
+    return scan
+
+
+def _error(path: Path, streamed: bool = True, **opts: Any) -> str:
+    """read_log's error, which the scan raises too (by itself when ``streamed``)."""
+    with pytest.raises(LogFormatError) as whole, warnings.catch_warnings():
+        warnings.simplefilter("ignore", ImpactWarning)
+        read_log(path, **opts)
+    with pytest.raises(LogFormatError) as scanned, warnings.catch_warnings(), \
+            pytest.MonkeyPatch.context() as mp:
+        warnings.simplefilter("ignore", ImpactWarning)
+        if streamed:
+            mp.setattr(stream, "_scan_whole", _no_fallback)
+        scan_log(path, **opts)
+    assert str(scanned.value) == str(whole.value)
+    return str(whole.value)
+
+
+# ------------------------------------------------------------------- clean files
+@pytest.mark.parametrize("name", ["plain.csv", "zipped.csv.gz"])
+def test_a_clean_log_streams_exactly(tmp_path: Path, name: str) -> None:
+    scan = _assert_same(_write(tmp_path / name, _table()))
+    assert scan.gaps.size == 1 and scan.log.n_samples == 2
+    assert scan.source.ignored_channels == ("note",)
+
+
+def test_epoch_times_and_the_default_block_size(tmp_path: Path,
+                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    path = _write(tmp_path / "epoch.csv", _table(epoch=True))
+    _assert_same(path, chunks=(7, 65536))
+    monkeypatch.setattr(stream, "BLOCK_SIZE", 1 << 24)
+    _assert_same(path, chunks=(1000,))
+
+
+def test_the_shipped_sample_logs(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(stream, "BLOCK_SIZE", 1 << 16)
+    root = Path(__file__).resolve().parents[1] / "sample_logs" / "csv"
+    for name in ("assist_impacts", "heavy_free_p2p"):
+        _assert_same(root / f"{name}.csv.gz", chunks=(1000, 65536))
+
+
+# ------------------------------------------------------------------------ repairs
+def _punch(cols: dict[str, list[str]], rng: np.random.Generator, what: str, n_runs: int,
+           max_len: int = 5) -> None:
+    """Runs of ``what`` ("", "nan", "inf") of 1..max_len values in random value columns."""
+    names = [c for c in cols if c not in ("time", "note")]
+    n = len(cols["time"])
+    for _ in range(n_runs):
+        col = names[int(rng.integers(len(names)))]
+        length = int(rng.integers(1, max_len + 1))
+        s = int(rng.integers(1, n - length - 1))
+        cols[col][s:s + length] = [what] * length
+
+
+def test_non_finite_runs_and_duplicates_across_batches(tmp_path: Path) -> None:
+    rng = np.random.default_rng(5)
+    cols = _table()
+    _punch(cols, rng, "", 60)
+    _punch(cols, rng, "nan", 20)
+    _punch(cols, rng, "inf", 5, 3)
+    # overlapping runs in two columns of one joint, and runs right next to each other
+    cols["j1.torque"][500:505] = [""] * 5
+    cols["j1.position"][503:506] = [""] * 3
+    cols["j2.torque"][700:702] = [""] * 2
+    cols["j2.torque"][703:708] = [""] * 5
+    # exact duplicate rows (some twice, some with an empty cell in them)
+    rows = sorted(rng.choice(np.arange(10, N - 10), 40, replace=False).tolist(), reverse=True)
+    for i in rows:
+        for c in cols.values():
+            c.insert(i + 1, c[i])
+    for c in cols.values():
+        c.insert(2001, c[2000])
+    path = _write(tmp_path / "repaired.csv", cols)
+    scan = _assert_same(path)
+    assert any("duplicate" in r for r in scan.source.repairs)
+    assert sum("interpolated" in r for r in scan.source.repairs) >= 10
+
+
+def test_channels_not_logged_and_joints_left_out(tmp_path: Path) -> None:
+    cols = _table()
+    cols["j2.torque_model"] = [""] * N  # the controller does not give it for j2
+    cols["j3.position"] = ["nan"] * N  # a joint without position: left out
+    cols["j3.torque"][5:8] = [""] * 3
+    cols["j1.velocity"] = ["0.5"] * N  # a signal of one joint only: ignored
+    scan = _assert_same(_write(tmp_path / "partial.csv", cols))
+    assert scan.joint_names == ("j1", "j2")
+    assert scan.source.joints_dropped and not scan.screens["torque_model"].logged[1]
+
+
+def test_flat_and_unmeasured_torque_is_screened(tmp_path: Path) -> None:
+    cols = _table()
+    cols["j2.torque"] = ["0.25"] * N
+    rng = np.random.default_rng(2)
+    cols["j3.torque"] = [repr(float(v)) for v in rng.integers(-3, 4, N) * 0.001]
+    cols["j1.torque_model"] = [repr(float(v)) for v in rng.integers(-3, 4, N) * 0.001]
+    scan = _assert_same(_write(tmp_path / "screen.csv", cols))
+    assert scan.torque_screen[1] is not None and scan.torque_screen[1].startswith("flat")
+    assert scan.torque_screen[2] is not None and "unmeasured" in scan.torque_screen[2]
+    assert scan.screens["torque_model"].unusable(scan.torque_ptp)[0] is not None
+
+
+def test_time_units_and_integer_stamps(tmp_path: Path) -> None:
+    cols = _table()
+    t_ns = [int(s.replace(".", "")) for s in cols["time"]]
+    ms = dict(cols, time=[f"{v // 10**6}.{v % 10**6:06d}" for v in t_ns])
+    _assert_same(_write(tmp_path / "ms.csv", ms), chunks=(7, 65536), time_unit="ms")
+    ns = {"time_ns": [str(v + 10**18) for v in t_ns], **{k: v for k, v in cols.items()
+                                                         if k != "time"}}
+    _assert_same(_write(tmp_path / "ns.csv", ns), chunks=(7, 65536))
+
+
+def test_a_channel_mapped_csv_with_current(tmp_path: Path) -> None:
+    rng = np.random.default_rng(9)
+    t = np.arange(N) * 2 + 1000  # ms
+    cols = {"ts": [str(v) for v in t]}
+    for j in ("a", "b"):
+        cols[f"q_{j}"] = [repr(float(v)) for v in rng.normal(size=N)]
+        cols[f"i_{j}"] = [repr(float(v)) for v in rng.normal(size=N) * 1000]
+        cols[f"tm_{j}"] = [repr(float(v)) for v in rng.normal(size=N)]
+    cols["junk"] = ["1"] * N
+    cols["i_b"][100:103] = ["", "", ""]
+    path = _write(tmp_path / "dump.csv", cols, sep=";")
+    cmap = tmp_path / "map.json"
+    cmap.write_text(json.dumps({
+        "csv": {"header": True, "delimiter": ";"},
+        "time": {"column": "ts", "unit": "ms", "start_at_zero": True},
+        "joints": [
+            {"name": "a", "position": {"column": "q_a", "offset": 0.5},
+             "current": {"column": "i_a", "scale": 0.002}, "torque_model": "tm_a"},
+            {"name": "b", "position": {"column": "q_b", "scale": -1}, "current": "i_b",
+             "torque_model": "tm_b"}]}))
+    robot = RobotDescription(joints=(JointSpec("b", 100.0, 0.05), JointSpec("a", 50.0, 0.1)))
+    scan = _assert_same(path, chunks=(7, 1000), channel_map=cmap, robot=robot)
+    assert scan.source.format == "csv-mapped" and scan.t0_ns == 0
+
+
+# -------------------------------------------------------------------------- errors
+def _no_fallback(*args: Any) -> None:
+    raise AssertionError("read whole")
+
+
+def _bad(tmp_path: Path, edit: Callable[[dict[str, list[str]]], None],
+         streamed: bool = True) -> str:
+    cols = _table()
+    edit(cols)
+    return _error(_write(tmp_path / "bad.csv", cols), streamed)
+
+
+def _set(col: str, i: int, v: str) -> Callable[[dict[str, list[str]]], None]:
+    def edit(cols: dict[str, list[str]]) -> None:
+        cols[col][i] = v
+    return edit
+
+
+def test_errors_name_the_cell_as_read_log_does(tmp_path: Path) -> None:
+    assert "time is decreasing" in _bad(tmp_path, _set("time", 2500, "0.5"))
+    assert "beyond ±1e+12" in _bad(tmp_path, _set("j2.torque", 2900, "1e13"))
+    msg = _bad(tmp_path, lambda c: c["j1.torque"].__setitem__(slice(1200, 1206), [""] * 6))
+    assert "a run of 6 non-finite" in msg
+    assert "at the start" in _bad(tmp_path, _set("j3.position_ref", 0, ""))
+    assert "at the end" in _bad(tmp_path, _set("j3.position_ref", N - 1, "nan"))
+    assert "non-numeric" in _bad(tmp_path, _set("j1.position", 2999, "abc"), streamed=False)
+    assert "not a finite number" in _bad(tmp_path, _set("time", 1500, "nan"), streamed=False)
+
+
+def test_the_first_error_is_the_whole_readers(tmp_path: Path) -> None:
+    # a value too large early, rows out of order late: the order is checked first
+    def both(cols: dict[str, list[str]]) -> None:
+        cols["j1.torque"][10] = "5e12"
+        cols["time"][2990] = cols["time"][2989]
+        cols["j1.torque"][1000:1010] = [""] * 10
+    assert "time is repeated" in _bad(tmp_path, both)
+
+    def runs(cols: dict[str, list[str]]) -> None:  # the first column's run is named
+        cols["j3.torque"][100:107] = [""] * 7
+        cols["j1.torque"][2000:2008] = [""] * 8
+    assert "'j1.torque'" in _bad(tmp_path, runs)
+
+
+def test_a_time_unit_that_does_not_fit(tmp_path: Path) -> None:
+    cols = _table()
+    cols["time"] = [str(1000 * i) for i in range(N)]
+    assert "implied sample rate" in _error(_write(tmp_path / "ms.csv", cols))
+
+
+def test_the_scan_warns_once_and_checks_its_options(tmp_path: Path) -> None:
+    cols = _table()
+    cols["j1.torque"][7] = ""
+    path = _write(tmp_path / "x.csv", cols)
+    scan, warned = _scan(path)
+    assert len(warned) == 1
+    with pytest.raises(ValueError):
+        next(iter_chunks(path, scan, 0))
+    with pytest.raises(ValueError):
+        next(iter_chunks(path, scan, 10, time_unit="s"))
+
+
+# --------------------------------------------------------------- the whole-file path
+def test_repair_order_and_variants_fall_back_to_read_log(tmp_path: Path) -> None:
+    cols = _table()
+    cols["time"][100], cols["time"][101] = cols["time"][101], cols["time"][100]
+    _assert_same(_write(tmp_path / "late.csv", cols), streamed=False, chunks=(7,),
+                 repair_order=True)
+    cols = _table()
+    path = _write(tmp_path / "semi.csv", {k: [v.replace(".", ",") for v in c]
+                                          for k, c in cols.items()}, sep=";")
+    _assert_same(path, streamed=False, chunks=(1000,))
+    bom = tmp_path / "bom.csv"
+    bom.write_bytes(b"\xef\xbb\xbf" + _write(tmp_path / "b.csv", _table()).read_bytes())
+    _assert_same(bom, streamed=False, chunks=(1000,))
+
+
+def test_other_formats_are_sliced(tmp_path: Path) -> None:
+    log, _ = _read(_write(tmp_path / "a.csv", _table()))
+    for name in ("a.mcap", "a.db3"):
+        write_log(log, tmp_path / name)
+        _assert_same(tmp_path / name, streamed=False, chunks=(7, 1000))
