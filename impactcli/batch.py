@@ -202,19 +202,41 @@ def analyze_file(
 def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ...]]:
     from .io.urls import local_path
 
-    bar = None
-    if job.show_progress:  # a slow replay (many joints) says how far it is, per axis
-        import sys
+    local_out = local_path(job.out_dir)
+    stem = output_stem(job.log_path)
+    streamed = _run_streamed(job, local_out, stem) if local_out is not None else None
+    if streamed is not None:
+        result, outputs = streamed
+    else:
+        result, outputs = _run_whole(job, local_out, stem)
+    summary = _summary(job, result)
+    return outputs, summary, result.warnings
 
-        from tqdm import tqdm
 
-        bar = tqdm(total=0, desc=f"{output_stem(job.log_path)}: adaptive evaluator, axes",
-                   file=sys.stderr, leave=False, disable=not sys.stderr.isatty())
+def _progress_bar(job: DetectJob, what: str, unit: str) -> Any:
+    """A progress bar on stderr for a serial run in a terminal (None otherwise)."""
+    if not job.show_progress:
+        return None
+    import sys
 
-        def progress(done: int, total: int) -> None:
-            bar.total = total
-            bar.n = done
-            bar.refresh()
+    from tqdm import tqdm
+
+    return tqdm(total=0, desc=f"{output_stem(job.log_path)}: {what}", unit=unit,
+                file=sys.stderr, leave=False, disable=not sys.stderr.isatty())
+
+
+def _run_whole(job: DetectJob, local_out: Path | None, stem: str
+               ) -> tuple[Any, tuple[str, ...]]:
+    """Read the whole log, replay it, write the outputs (the path for every case
+    :func:`_run_streamed` does not take)."""
+    bar = _progress_bar(job, "adaptive evaluator, axes", "axis")
+
+    def progress(done: int, total: int) -> None:
+        assert bar is not None
+        bar.total = total
+        bar.n = done
+        bar.refresh()
+
     result = analyze_file(job.log_path, robot_path=job.robot_path, model_path=job.model_path,
                           config_path=job.config_path, read_options=job.read_options,
                           model_from_log=job.model_from_log, generator=job.generator,
@@ -222,15 +244,75 @@ def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ..
                           progress=progress if bar is not None else None)
     if bar is not None:
         bar.close()
-    log = result.log
-    stem = output_stem(job.log_path)
-    local_out = local_path(job.out_dir)
     if local_out is not None:
         written = _write_outputs(result, local_out, stem, job)
-        outputs = tuple(str(p) for p in written)
-    else:
-        outputs = _write_remote(result, job.out_dir, stem, job)
-    summary = {
+        return result, tuple(str(p) for p in written)
+    return result, _write_remote(result, job.out_dir, stem, job)
+
+
+def _run_streamed(job: DetectJob, out: Path, stem: str) -> tuple[Any, tuple[str, ...]] | None:
+    """Replay the log chunk by chunk in bounded memory (:mod:`impactcli.stream`) when its
+    inputs allow (a calibrated config and a known model) and no Rerun recording is asked
+    for (it is made from the whole log); None otherwise. The signals are written as the
+    replay goes; the timeline at the end."""
+    if job.rerun:
+        return None
+    from .config import load_config
+    from .io.robot import read_robot
+    from .io.urls import load_by_url
+    from .model import read_model
+    from .stream import analyze_stream, streamable
+
+    config = load_by_url(job.config_path, load_config, "config") if job.config_path else None
+    model = load_by_url(job.model_path, read_model, "model") if job.model_path else None
+    if not streamable(config, model, job.model_from_log):
+        return None
+    assert config is not None
+    robot = load_by_url(job.robot_path, read_robot, "robot description") \
+        if job.robot_path else None
+    from contextlib import ExitStack
+
+    from .io.stream import scan_log
+    from .outputs.signals import SignalsWriter
+    from .outputs.timeline import write_timeline
+
+    opts = dict(job.read_options)
+    read_kw = dict(opts, robot=robot) if robot is not None else dict(opts)
+    scan = scan_log(job.log_path, **read_kw)
+    written = [out / f"{stem}.timeline.json"]
+    bar = _progress_bar(job, "replay", "s of log")
+    with ExitStack() as stack:
+        on_chunk = None
+        if job.signals:
+            written.append(out / f"{stem}.signals.parquet")
+            writer = stack.enter_context(SignalsWriter(
+                written[-1], scan.t0_ns, scan.source.sha256, scan.source.path))
+
+            def on_chunk(joints: tuple[str, ...], t: Any, signals: Any, decisions: Any
+                         ) -> None:
+                writer.append(joints, t, signals, decisions)
+
+        def progress(done_s: float, total_s: float) -> None:
+            assert bar is not None
+            bar.total = round(total_s)
+            bar.n = round(done_s)
+            bar.refresh()
+
+        result = analyze_stream(job.log_path, config=config, model=model, robot=robot,
+                                read_options=opts, generator=job.generator,
+                                config_where=job.config_path or "config",
+                                allow_slow=job.allow_slow, scan=scan, on_chunk=on_chunk,
+                                progress=progress if bar is not None else None)
+    if bar is not None:
+        bar.close()
+    write_timeline(result, written[0])
+    return result, tuple(str(p) for p in written)
+
+
+def _summary(job: DetectJob, result: Any) -> dict[str, Any]:
+    """The batch summary's row of one log."""
+    log = result.log
+    return {
         "log": job.log_path,
         "sha256": log.source.sha256,
         "model_source": result.model_source,
@@ -247,7 +329,6 @@ def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ..
         "generator_reasons": {j: g["reason"] for j, g in result.generators.items()},
         **{d: v["events"] for d, v in result.summary().items()},
     }
-    return outputs, summary, result.warnings
 
 
 def _write_outputs(result: Any, out: Path, stem: str, job: DetectJob) -> list[Path]:

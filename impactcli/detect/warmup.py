@@ -111,6 +111,7 @@ class WarmupTracker:
         self.spill_start: int | None = None
         self.spilled = 0
         self.t_tail = np.zeros(0)
+        self._end_s = float("nan")
 
     def _index_at(self, t: np.ndarray, offset: float) -> int | None:
         """Index of the first sample of the chunk at/after t_first + offset, or None."""
@@ -153,6 +154,13 @@ class WarmupTracker:
         self.t_tail = np.concatenate([self.t_tail, t])[-2:]
         self.k += m
 
+    def times_at(self, index: np.ndarray) -> list[float]:
+        """Each joint's warm-up end time [s since the first sample] (``index`` from
+        :meth:`finish`; the end of the warm-up covering the log for an index ≥ n)."""
+        head_t = np.concatenate(self.head_t) if self.head_t else np.zeros(0)
+        wu_end = self._end_s
+        return [float(head_t[i] - self.t_first) if i < self.n else wu_end for i in index]
+
     def finish(self) -> Warmup:
         """The warm-up of the whole log (:func:`warmup_end`)."""
         n, J = self.n, self.J
@@ -181,4 +189,5 @@ class WarmupTracker:
         t_last = float(self.t_tail[-1])
         end_s = float(head_t[end] - self.t_first) if end < n else t_last - self.t_first + (
             float(self.t_tail[-1] - self.t_tail[-2]) if n > 1 else 0.0)
+        self._end_s = end_s
         return Warmup(idx, end, end_s)

@@ -9,6 +9,7 @@ File metadata holds ``t0_ns``, the input sha256 and the tool version.
 from __future__ import annotations
 
 import os
+from typing import Any
 
 import numpy as np
 
@@ -22,20 +23,68 @@ def signals_table(result: DetectionResult):  # type: ignore[no-untyped-def]
     """The per-sample signals as a pyarrow Table."""
     import pyarrow as pa
 
-    cols: dict[str, np.ndarray] = {"time": result.log.time_s}
-    for j, joint in enumerate(result.log.joint_names):
-        for name in SIGNAL_NAMES:
-            cols[f"{joint}.{name}"] = np.asarray(result.signals[name][:, j], dtype=np.float64)
-        for det in DETECTORS:
-            cols[f"{joint}.{det}"] = result.decisions[det][:, j].astype(np.uint8)
+    cols = chunk_columns(result.log.joint_names, result.log.time_s, result.signals,
+                         result.decisions)
     table = pa.table(cols)
-    meta = {
+    src = result.log.source
+    return table.replace_schema_metadata(_meta(result.log.t0_ns, src.sha256, src.path))
+
+
+def _meta(t0_ns: int, sha256: str, path: str) -> dict[bytes, bytes]:
+    return {
         b"impactcli.version": __version__.encode(),
-        b"impactcli.t0_ns": str(result.log.t0_ns).encode(),
-        b"impactcli.input_sha256": result.log.source.sha256.encode(),
-        b"impactcli.input_path": result.log.source.path.encode(),
+        b"impactcli.t0_ns": str(t0_ns).encode(),
+        b"impactcli.input_sha256": sha256.encode(),
+        b"impactcli.input_path": path.encode(),
     }
-    return table.replace_schema_metadata(meta)
+
+
+def chunk_columns(joints: tuple[str, ...], t: np.ndarray, signals: dict[str, np.ndarray],
+                  decisions: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The file's columns for ``t`` (n,) [s] and (n, J) signals and decisions."""
+    cols: dict[str, np.ndarray] = {"time": np.asarray(t, dtype=np.float64)}
+    for j, joint in enumerate(joints):
+        for name in SIGNAL_NAMES:
+            cols[f"{joint}.{name}"] = np.asarray(signals[name][:, j], dtype=np.float64)
+        for det in DETECTORS:
+            cols[f"{joint}.{det}"] = decisions[det][:, j].astype(np.uint8)
+    return cols
+
+
+class SignalsWriter:
+    """``<stem>.signals.parquet`` written chunk by chunk (one row group each), atomically:
+    the file appears only when :meth:`close` succeeds (a failed run leaves nothing).
+
+    Use as a context manager; :meth:`append` takes the chunks in time order.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], t0_ns: int, sha256: str,
+                 input_path: str) -> None:
+        self._ctx = atomic_output(path, "wb")
+        self._f = self._ctx.__enter__()
+        self._meta = _meta(t0_ns, sha256, input_path)
+        self._writer: Any = None
+
+    def append(self, joints: tuple[str, ...], t: np.ndarray, signals: dict[str, np.ndarray],
+               decisions: dict[str, np.ndarray]) -> None:
+        """One chunk: (n,) times [s since the first sample], (n, J) signals of
+        :data:`impactcli.result.SIGNAL_NAMES` and (n, J) decisions per detector."""
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        table = pa.table(chunk_columns(joints, t, signals, decisions))
+        table = table.replace_schema_metadata(self._meta)
+        if self._writer is None:
+            self._writer = pq.ParquetWriter(self._f, table.schema, compression="zstd")
+        self._writer.write_table(table)
+
+    def __enter__(self) -> SignalsWriter:
+        return self
+
+    def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
+        if self._writer is not None:
+            self._writer.close()
+        self._ctx.__exit__(exc_type, exc, tb)
 
 
 def write_signals(result: DetectionResult, path: str | os.PathLike[str]) -> None:

@@ -1,0 +1,136 @@
+"""The streamed replay (impactcli.stream) gives the whole-log replay's answer.
+
+Byte-identical timelines and equal signals whatever the chunk size, with chunk boundaries
+inside the warm-up, inside events and at a time gap; the CLI takes the streamed path with
+a calibrated config and leaves nothing half-written when the log turns bad midway.
+"""
+
+from __future__ import annotations
+
+import gzip
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from impactcli.cli import main
+from impactcli.config import load_config
+from impactcli.io import read_log
+from impactcli.outputs.signals import SignalsWriter, read_signals, write_signals
+from impactcli.outputs.timeline import timeline_json
+from impactcli.pipeline import analyze
+from impactcli.stream import analyze_stream, streamable
+
+SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
+ASSIST = SAMPLES / "assist_like.config.toml"
+HEAVY = SAMPLES / "heavy_geared.config.toml"
+
+
+def _whole(path: Path, cfg_path: Path):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return analyze(read_log(path), config=load_config(cfg_path), read_options={})
+
+
+def _streamed(path: Path, cfg_path: Path, rows: int, signals: Path | None = None):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        if signals is None:
+            return analyze_stream(str(path), config=load_config(cfg_path), read_options={},
+                                  chunk_rows=rows)
+        with SignalsWriter(signals, 0, "", str(path)) as w:
+            return analyze_stream(str(path), config=load_config(cfg_path), read_options={},
+                                  chunk_rows=rows, on_chunk=w.append)
+
+
+@pytest.mark.parametrize(("log", "cfg", "rows"), [
+    ("assist_impacts", ASSIST, 997),      # boundaries inside every event
+    ("assist_impacts", ASSIST, 4096),     # a boundary inside the warm-up (16.4 s at 250 Hz)
+    ("assist_clamps", ASSIST, 2500),
+    ("heavy_impacts", HEAVY, 1500),
+    ("assist_pushes", ASSIST, 10**7),     # one chunk
+])
+def test_streamed_timeline_is_byte_identical(log: str, cfg: Path, rows: int) -> None:
+    path = SAMPLES / "csv" / f"{log}.csv.gz"
+    whole = _whole(path, cfg)
+    got = _streamed(path, cfg, rows)
+    assert whole.events and whole.incidents
+    assert timeline_json(got) == timeline_json(whole)
+
+
+def test_streamed_signals_equal_the_whole_logs(tmp_path: Path) -> None:
+    path = SAMPLES / "csv" / "assist_impacts.csv.gz"
+    whole = _whole(path, ASSIST)
+    write_signals(whole, tmp_path / "whole.parquet")
+    _streamed(path, ASSIST, 3001, tmp_path / "stream.parquet")
+    a, _ = read_signals(tmp_path / "whole.parquet")
+    b, _ = read_signals(tmp_path / "stream.parquet")
+    assert a.keys() == b.keys()
+    for k in a:
+        assert np.allclose(a[k], b[k], rtol=0, atol=1e-12, equal_nan=True), k
+
+
+def _write_with_gap(src: Path, dst: Path, drop: slice) -> int:
+    """The CSV without the rows of ``drop`` (a time gap); returns the gap's first row."""
+    with gzip.open(src, "rt") as f:
+        lines = f.read().splitlines(keepends=True)
+    body = lines[1:]
+    del body[drop]
+    dst.write_text(lines[0] + "".join(body))
+    return int(drop.start)
+
+
+def test_streamed_with_a_time_gap_at_a_chunk_boundary(tmp_path: Path) -> None:
+    """A 0.4 s gap; chunks that end exactly at it and just after it."""
+    path = tmp_path / "gap.csv"
+    k = _write_with_gap(SAMPLES / "csv" / "assist_impacts.csv.gz", path, slice(9000, 9100))
+    whole = _whole(path, ASSIST)
+    assert any("time gap" in w for w in whole.warnings)
+    for rows in (k, k + 1, k - 1):
+        assert timeline_json(_streamed(path, ASSIST, rows)) == timeline_json(whole)
+
+
+def test_streamable_needs_thresholds_and_a_model() -> None:
+    cfg = load_config(ASSIST)
+    assert streamable(cfg, None, False)
+    assert not streamable(cfg, None, True)          # --model-from-log
+    assert not streamable(None, None, False)         # no config: whole log
+
+
+def test_detect_streams_and_writes_the_same_files(tmp_path: Path) -> None:
+    """detect --config --signals (streamed) writes the timeline and signals the whole-log
+    replay writes; --rerun (whole log) gives the same timeline."""
+    log = SAMPLES / "csv" / "assist_pushes.csv.gz"
+    r = CliRunner().invoke(main, ["detect", str(log), "--config", str(ASSIST), "--signals",
+                                  "-o", str(tmp_path / "a")])
+    assert r.exit_code == 0, r.output
+    r2 = CliRunner().invoke(main, ["detect", str(log), "--config", str(ASSIST), "--rerun",
+                                   "-o", str(tmp_path / "b")])
+    assert r2.exit_code == 0, r2.output
+    ta = (tmp_path / "a" / "assist_pushes.timeline.json").read_bytes()
+    tb = (tmp_path / "b" / "assist_pushes.timeline.json").read_bytes()
+    assert ta == tb
+    whole = _whole(log, ASSIST)
+    write_signals(whole, tmp_path / "w.parquet")
+    a, _ = read_signals(tmp_path / "a" / "assist_pushes.signals.parquet")
+    b, _ = read_signals(tmp_path / "w.parquet")
+    assert all(np.array_equal(a[k], b[k], equal_nan=True) for k in b)
+
+
+def test_a_log_bad_midway_leaves_no_output(tmp_path: Path) -> None:
+    """A cell that is not a number far into the file: one line, exit 3, no file written."""
+    with gzip.open(SAMPLES / "csv" / "assist_impacts.csv.gz", "rt") as f:
+        lines = f.read().splitlines(keepends=True)
+    cells = lines[15000].split(",")
+    cells[2] = "oops"
+    lines[15000] = ",".join(cells)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("".join(lines))
+    out = tmp_path / "out"
+    r = CliRunner().invoke(main, ["detect", str(bad), "--config", str(ASSIST), "--signals",
+                                  "-o", str(out)])
+    assert r.exit_code == 3, r.output
+    assert "bad.csv" in r.output and "Traceback" not in r.output
+    assert not list(out.glob("*")) if out.exists() else True
