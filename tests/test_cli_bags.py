@@ -208,12 +208,14 @@ def _plain_args(verb: str, d: Path, tmp: Path, bags: dict[str, dict[str, Path]])
                             bags["db3"]["log"].with_name("run_db3.labels.json")],
         "report": ["report", d, "-o", tmp / "r.html"],
         "view": ["view", d, "--no-open", "--save", tmp / "x.rrd"],
+        "labels": ["labels", d, "--from-channel", "x", "--above", "1", "--link", "1",
+                   "-o", tmp / "l.json"],
     }[verb]
 
 
 @pytest.mark.parametrize("verb", ["inspect", "inspect-json", "identify", "calibrate",
                                   "calibrate-second", "detect", "evaluate", "evaluate-labels",
-                                  "report", "view"])
+                                  "report", "view", "labels"])
 def test_a_plain_folder_is_a_data_error_in_every_verb(bags: dict[str, dict[str, Path]],
                                                       verb: str, tmp_path: Path) -> None:
     d = bags["plain"]["log"]

@@ -45,8 +45,9 @@ def test_inspect_describes_a_log_it_cannot_convert_yet(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("verb,extra", [
-    ("inspect", []), ("detect", ["-o", "OUT"]), ("calibrate", ["-o", "OUT.toml"]),
-    ("evaluate", []), ("report", ["-o", "OUT.html"]), ("view", ["--no-open"]),
+    ("inspect", []), ("identify", ["-o", "OUT.json"]), ("detect", ["-o", "OUT"]),
+    ("calibrate", ["-o", "OUT.toml"]), ("evaluate", []), ("report", ["-o", "OUT.html"]),
+    ("view", ["--no-open"]),
     ("labels", ["--from-channel", "x", "--above", "1", "--link", "1", "-o", "OUT.json"]),
 ])
 def test_unknown_channel_map_name_is_a_usage_error_in_every_verb(
@@ -59,11 +60,25 @@ def test_unknown_channel_map_name_is_a_usage_error_in_every_verb(
         in r.output
 
 
-def test_a_glob_that_matches_nothing_says_so(tmp_path: Path) -> None:
-    r = CliRunner().invoke(main, ["detect", str(tmp_path / "runs" / "*.csv"), "-o",
-                                  str(tmp_path / "o")])
-    assert r.exit_code == 3
-    assert "runs/*.csv: the pattern matches no file" in r.output
+@pytest.mark.parametrize("verb,pattern,extra", [
+    ("inspect", "*.csv", []), ("inspect", "*.csv", ["--json"]),
+    ("identify", "*.csv", ["-o", "OUT/m.json"]), ("calibrate", "*.csv", ["-o", "OUT/c.toml"]),
+    ("detect", "*.csv", ["-o", "OUT"]), ("report", "*.csv", ["-o", "OUT/r.html"]),
+    ("report", "*.timeline.json", ["-o", "OUT/r.html"]),
+    ("evaluate", "*.csv", []), ("evaluate", "*.timeline.json", []),
+    ("view", "*.csv", ["--no-open", "--save", "OUT/x.rrd"]), ("view", "*.rrd", ["--no-open"]),
+    ("labels", "*.csv", ["--from-channel", "x", "--above", "1", "--link", "1",
+                         "-o", "OUT/l.json"]),
+])
+def test_a_glob_that_matches_nothing_says_so_in_every_verb(
+        verb: str, pattern: str, extra: list[str], tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    out.mkdir()
+    glob = str(tmp_path / "runs" / pattern)
+    r = CliRunner().invoke(main, [verb, glob, *[a.replace("OUT", str(out)) for a in extra]])
+    assert r.exit_code == 3, (r.stdout, r.stderr)
+    assert r.stderr == f"impactcli: error: {glob}: the pattern matches no file\n"
+    assert not list(out.iterdir())  # nothing written
 
 
 def test_report_and_evaluate_find_the_log_from_any_folder(tmp_path: Path,

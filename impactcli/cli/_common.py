@@ -84,12 +84,21 @@ def is_log_path(path: Path) -> bool:
     return path.is_file() or is_rosbag2_folder(path)
 
 
+def not_found(path: Path | str, what: str = "log file") -> LogFormatError:
+    """The error for a missing input, as :func:`impactcli.io.read_log` words it: a glob
+    (``*``, ``?``, ``[``) that matched nothing says so, else ``<what> not found``."""
+    where = str(path)
+    if any(c in where for c in "*?["):
+        return LogFormatError(f"{where}: the pattern matches no file")
+    return LogFormatError(f"{where}: {what} not found")
+
+
 def check_log_path(path: Path) -> None:
     """Raise the LogFormatError :func:`impactcli.io.read_log` would (exit 3, one line) for a
     missing log or a folder that is not a rosbag2 folder — for verbs that look beside a log
     (labels) before reading it. Log arguments take folders (``click.Path()`` without
     ``dir_okay=False``): a folder is refused here or by ``read_log``, never by click."""
     if not path.exists():
-        raise LogFormatError(f"{path}: log file not found")
+        raise not_found(path)
     if path.is_dir() and not is_log_path(path):
         raise LogFormatError(f"{path}: not a rosbag2 folder (no metadata.yaml)")

@@ -34,7 +34,7 @@ import click
 import numpy as np
 
 from ..errors import ImpactWarning, LabelsError, LogFormatError
-from ._common import check_log_path, handle_errors
+from ._common import check_log_path, handle_errors, not_found
 from .detect import log_read_options, model_options, read_options_from
 
 #: impactcli.evaluate.DEFAULT_SWEEP_SCALES: 0.2 … 5 in 5 % steps (66 scales).
@@ -274,8 +274,8 @@ def evaluate_cmd(source: Path, labels_path: Path | None, as_json: bool, sweep: b
                                "to a LOG, not to a timeline")
     # say so before looking for labels beside it
     if is_timeline and not source.is_file():
-        raise LogFormatError(f"{source}: timeline file not found" if not source.exists()
-                             else f"{source}: a timeline is a file, not a folder")
+        raise (not_found(source, "timeline file") if not source.exists()
+               else LogFormatError(f"{source}: a timeline is a file, not a folder"))
     if not is_timeline:
         check_log_path(source)  # a file, or a rosbag2 folder
     if labels_path is None:

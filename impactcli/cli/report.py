@@ -42,7 +42,7 @@ from typing import Any
 import click
 
 from ..errors import EXIT_BATCH, EXIT_SOFTWARE, ImpactError, ImpactWarning, LogFormatError
-from ._common import handle_errors, is_log_path, progress
+from ._common import handle_errors, is_log_path, not_found, progress
 from .detect import (
     executor_options,
     log_read_options,
@@ -113,7 +113,7 @@ def load_timeline(path: Path) -> dict[str, Any]:
     try:
         doc = json.loads(path.read_text("utf-8"))
     except FileNotFoundError:
-        raise LogFormatError(f"{path}: no such file") from None
+        raise not_found(path, "timeline file") from None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
         raise LogFormatError(f"{path}: not a readable timeline JSON ({err})") from None
     if not isinstance(doc, dict):

@@ -20,7 +20,7 @@ import click
 
 from ..errors import ImpactError, LogFormatError
 from ..outputs.decimate import DEFAULT_EVENT_WINDOW_S, DEFAULT_MAX_POINTS
-from ._common import handle_errors
+from ._common import handle_errors, not_found
 from .detect import log_read_options, model_options, read_options_from
 from .evaluate import analyze_log
 
@@ -35,7 +35,7 @@ class ViewerError(ImpactError):
 def check_rrd(path: Path) -> None:
     """Raise LogFormatError (one line naming ``path``) unless it is a readable Rerun recording."""
     if not path.exists():
-        raise LogFormatError(f"{path}: no such file")
+        raise not_found(path, "Rerun file")
     if not path.is_file():
         raise LogFormatError(f"{path}: not a file")
     from rerun.chunk import RrdReader
@@ -115,7 +115,7 @@ def view_cmd(source: Path, robot: Path | None, model: Path | None,
             open_viewer(source)
         return
     if not source.exists():
-        raise LogFormatError(f"{source}: no such file")
+        raise not_found(source)  # as every verb says it
     if no_open and save_path is None:
         raise click.UsageError("--no-open on a LOG needs --save PATH (else nothing is kept)")
 
