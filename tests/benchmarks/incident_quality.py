@@ -20,7 +20,7 @@ incident it belongs to (exactly one: events are grouped so); its link against th
 (impact/push → transient, clamp → quasi_static); its force against the label's peak force
 (relative error). The bar, printed as PASS/FAIL: link right ≥ 90 % overall and
 ≥ 75 % off the last link; type right ≥ 90 % overall and ≥ 75 % per type; median force error
-≤ 30 %.
+≤ 30 %. Exit 1 when any target FAILs, 0 when all PASS.
 """
 
 from __future__ import annotations
@@ -205,12 +205,16 @@ def main(argv: list[str] | None = None) -> int:
                          f"{args.first_seed}–{args.first_seed + args.seeds - 1})")
     sample = report(samples(), "sample logs, committed configs")
     print()
+    failed = 0
     for label, crit in (("fresh", fresh), ("samples", sample)):
         for name, ok in crit:
             print(f"{'PASS' if ok else 'FAIL'}  {name} [{label}]")
+            failed += not ok
     print(f"\nmachine: {platform.platform()}, {os.cpu_count()} CPUs; python "
           f"{sys.version.split()[0]}; total {time.perf_counter() - t0:.1f} s")
-    return 0
+    if failed:
+        print(f"{failed} target(s) FAIL", file=sys.stderr)
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":
