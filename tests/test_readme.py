@@ -51,3 +51,18 @@ def test_the_four_steps_work_as_written(tmp_path: Path) -> None:
     assert (tmp_path / "audit" / "report.html").stat().st_size > 10_000
     out = (tmp_path / "audit" / "assist_pushes.timeline.json").read_text()
     assert '"incidents"' in out
+
+
+def test_docs_point_only_inside_the_repo() -> None:
+    """docs/*.md name real data by its public source, never by a folder outside the repo
+    (a reader's checkout has no ../shared): every relative link and every quoted ../ path
+    stays inside the repository."""
+    root = REPO.resolve()
+    for doc in sorted((REPO / "docs").glob("*.md")):
+        text = doc.read_text(encoding="utf-8")
+        assert "../shared" not in text and "shared/real_logs" not in text, doc.name
+        targets = re.findall(r"\]\(([^)#]+)", text) + re.findall(r"`(\.\./[^`\s]*)", text)
+        for target in targets:
+            if "://" not in target:
+                resolved = (doc.parent / target).resolve()
+                assert resolved.is_relative_to(root), (doc.name, target)
