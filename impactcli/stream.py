@@ -118,9 +118,9 @@ class _Island:
     start: int
     rows: dict[str, list[np.ndarray]]
 
-    def append(self, arrays: dict[str, np.ndarray], sel: np.ndarray) -> None:
+    def append(self, arrays: dict[str, np.ndarray], a: int, b: int) -> None:
         for k, v in arrays.items():
-            self.rows.setdefault(k, []).append(v[sel])
+            self.rows.setdefault(k, []).append(v[a:b])
 
     def arrays(self) -> dict[str, np.ndarray]:
         return {k: np.concatenate(v) for k, v in self.rows.items()}
@@ -154,9 +154,7 @@ class _Islands:
             if a > 0 or self.open is None:
                 self._close()
                 self.open = _Island(k0 + int(a), {})
-            sel = np.zeros(n, dtype=bool)
-            sel[a:b] = True
-            self.open.append(arrays, sel)
+            self.open.append(arrays, int(a), int(b))
             if b < n:
                 self._close()
 

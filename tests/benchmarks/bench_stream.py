@@ -37,19 +37,21 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def write_log(path: Path, minutes: float, joints: int, seed: int) -> int:
-    """Write the synthetic log (module docstring), block by block; returns its rows."""
+    """Write the synthetic log (module docstring), block by block; returns its rows.
+    One robot (its parameters drawn once); ``seed`` draws the motion and the noise."""
     import pyarrow as pa
     import pyarrow.csv as pacsv
 
+    robot = np.random.default_rng(0)
+    inertia = robot.uniform(0.05, 2.0, joints)
+    grav = robot.uniform(0.0, 8.0, joints)
+    fv = robot.uniform(0.05, 0.5, joints)
+    fc = robot.uniform(0.05, 0.4, joints)
     rng = np.random.default_rng(seed)
     n = round(minutes * 60.0 * RATE_HZ)
     amp = rng.uniform(0.2, 0.8, (3, joints))
     freq = rng.uniform(0.05, 0.6, (3, joints))
     phase = rng.uniform(0, 2 * np.pi, (3, joints))
-    inertia = rng.uniform(0.05, 2.0, joints)
-    grav = rng.uniform(0.0, 8.0, joints)
-    fv = rng.uniform(0.05, 0.5, joints)
-    fc = rng.uniform(0.05, 0.4, joints)
     names = [f"j{k + 1}" for k in range(joints)]
     block = 200_000
     with pacsv.CSVWriter(str(path), _schema(names)) as w:
