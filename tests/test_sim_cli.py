@@ -74,3 +74,62 @@ def test_manifest_covers_the_brief():
         assert need in kinds
     assert any(e.arm == "heavy_geared" and e.scenario.startswith("free_") for e in MANIFEST)
     assert {e.mcap_encoding for e in MANIFEST} == {"json", "ros2"}
+
+
+def _csv_columns(path) -> list[str]:
+    return path.read_text(encoding="utf-8").splitlines()[0].split(",")
+
+
+@pytest.mark.parametrize("flag", ["--controller-channels", None])
+def test_simulate_controller_channels_on_assist_like(tmp_path, flag):
+    """assist_like logs the controller's channels by default, as its sample logs do."""
+    args = ["simulate", "--arm", "assist_like", "--scenario", "pushes", "--duration", "2",
+            "-o", str(tmp_path), "--format", "csv"] + ([flag] if flag else [])
+    res, msg = _run(args)
+    assert res.exit_code == 0, msg
+    cols = _csv_columns(tmp_path / "pushes.csv")
+    for joint in ("shoulder", "elbow"):
+        assert f"{joint}.torque_model" in cols, cols
+        assert f"{joint}.torque_ext" in cols, cols
+    log = read_log(tmp_path / "pushes.csv")
+    assert log.torque_model is not None and log.torque_ext is not None
+
+
+def test_simulate_no_controller_channels(tmp_path):
+    res, msg = _run(["simulate", "--arm", "assist_like", "--scenario", "pushes",
+                     "--duration", "2", "-o", str(tmp_path), "--format", "csv",
+                     "--no-controller-channels"])
+    assert res.exit_code == 0, msg
+    cols = _csv_columns(tmp_path / "pushes.csv")
+    assert "shoulder.torque" in cols
+    assert not [c for c in cols if c.endswith((".torque_model", ".torque_ext"))], cols
+
+
+def test_simulate_controller_channels_default_off_on_heavy_geared(tmp_path):
+    res, msg = _run(["simulate", "--arm", "heavy_geared", "--scenario", "free_p2p",
+                     "--duration", "1", "-o", str(tmp_path / "off"), "--format", "csv"])
+    assert res.exit_code == 0, msg
+    cols = _csv_columns(tmp_path / "off" / "free_p2p.csv")
+    assert not [c for c in cols if c.endswith((".torque_model", ".torque_ext"))], cols
+    res, msg = _run(["simulate", "--arm", "heavy_geared", "--scenario", "free_p2p",
+                     "--duration", "1", "-o", str(tmp_path / "on"), "--format", "csv",
+                     "--controller-channels"])
+    assert res.exit_code == 0, msg
+    cols = _csv_columns(tmp_path / "on" / "free_p2p.csv")
+    for joint in ("j1", "j2", "j3"):
+        assert f"{joint}.torque_model" in cols and f"{joint}.torque_ext" in cols, cols
+
+
+def test_simulate_controller_channels_default_mirrors_the_sample_logs():
+    """The default --help states is the sample set's: CONTROLLER_CHANNEL_ARMS."""
+    from impactcli.cli.simulate import ARMS
+    from impactcli.sim.samples import CONTROLLER_CHANNEL_ARMS
+
+    res, msg = _run(["simulate", "--help"])
+    assert res.exit_code == 0, msg
+    text = " ".join(res.stdout.split())
+    assert "--controller-channels / --no-controller-channels" in text
+    on = [a for a in ARMS if a in CONTROLLER_CHANNEL_ARMS]
+    off = [a for a in ARMS if a not in CONTROLLER_CHANNEL_ARMS]
+    assert on == ["assist_like"] and off == ["heavy_geared"]
+    assert "[default: on for assist_like, off for heavy_geared, as in the sample logs]" in text

@@ -37,11 +37,17 @@ SCENARIO_NAMES = ("free_triangle", "free_fm_triangle", "free_p2p", "free_multisi
               help="Log format(s); repeat for several (mcap-json and mcap-ros2 exclude "
                    "each other: both write NAME.mcap).")
 @click.option("--name", default=None, help="File stem (default: the scenario name).")
+@click.option("--controller-channels/--no-controller-channels", "controller_channels",
+              default=None,
+              help="Also log the controller's own channels <joint>.torque_model and "
+                   "<joint>.torque_ext (its nominal model's torque and its external-torque "
+                   "estimate; docs/controller_channels.md) [default: on for assist_like, "
+                   "off for heavy_geared, as in the sample logs].")
 @handle_errors
 def simulate_cmd(arm: str, scenario_name: str, duration: float | None, seed: int,
                  robot_seed: int | None, payload_kg: float | None,
                  uncertainty: float | None, outdir: Path, formats: tuple[str, ...],
-                 name: str | None) -> None:
+                 name: str | None, controller_channels: bool | None) -> None:
     """Simulate a flexible-joint arm (the paper's eq. 1–2) with labelled contacts.
 
     Writes OUTDIR/NAME.<ext> per format, NAME.labels.json (ground truth) and
@@ -53,8 +59,11 @@ def simulate_cmd(arm: str, scenario_name: str, duration: float | None, seed: int
     from ..io import write_log
     from ..io.robot import write_labels, write_robot
     from ..sim import scenario, simulate
+    from ..sim.samples import CONTROLLER_CHANNEL_ARMS
 
-    overrides: dict[str, float | int] = {}
+    if controller_channels is None:  # as the sample logs of this arm
+        controller_channels = arm in CONTROLLER_CHANNEL_ARMS
+    overrides: dict[str, float | int | bool] = {"controller_channels": controller_channels}
     if robot_seed is not None:
         overrides["robot_seed"] = robot_seed
     if payload_kg is not None:
