@@ -387,13 +387,13 @@ def replay(
     progress: Callable[[int, int], None] | None = None,
 ) -> Replay:
     """Residual → adaptive evaluator and static statistics → warm-up (all causal)."""
+    if not allow_slow:  # before any work: its cost depends on the joints, not the duration
+        check_scale(log.n_joints, log.sample_rate_hz, cfg.adaptive, log.source.path)
     if log.duration_s < cfg.warmup.min_s:
         raise LogFormatError(
             f"{log.source.path}: {log.n_samples} samples ({log.duration_s:.3g} s), shorter than "
             f"the detectors' warm-up (warmup.min_s = {cfg.warmup.min_s:g} s): nothing after it "
             "could be detected")
-    if not allow_slow:  # before any work: its cost depends on the joints, not the duration
-        check_scale(log.n_joints, log.sample_rate_hz, cfg.adaptive, log.source.path)
     choices = generator_choices(log, cfg)
     model_source = "none"
     left_out: tuple[LeftOut, ...] = ()
@@ -579,7 +579,7 @@ def calibrate(
     logs: list[RobotLog], *, model: RigidModel | None = None,
     config: DetectorConfig | None = None, robot: RobotDescription | None = None,
     generator: str | None = None, labels: Sequence[Labels | None] | None = None,
-    drop_suspect: bool = True,
+    drop_suspect: bool = True, allow_slow: bool = False,
 ) -> DetectorConfig:
     """Thresholds v_stat, vL, v0 per joint from collision-free logs (method.md §5b).
 
@@ -620,7 +620,7 @@ def calibrate(
         model = None
     joints = tuple(model.joint_names) if model is not None else tuple(frozen)
     excluded: list[dict[str, Any]] = []
-    replays = [replay(log, model, cfg, robot) for log in logs]
+    replays = [replay(log, model, cfg, robot, allow_slow=allow_slow) for log in logs]
     keeps = [_calibration_mask(rp, labels[i] if labels is not None and i < len(labels)
                                else None, excluded) for i, rp in enumerate(replays)]
     if drop_suspect:

@@ -223,13 +223,13 @@ def analyze_stream(
             logged[ch][ks] = False
         joints, choices, rig, model_source, extra_left = _plan(
             keep, scan.source, logged, model, cfg)
+        if not allow_slow:
+            check_scale(len(joints), scan.sample_rate_hz, cfg.adaptive, where)
         if scan.duration_s < cfg.warmup.min_s:
             raise LogFormatError(
                 f"{where}: {scan.n_samples} samples ({scan.duration_s:.3g} s), shorter than "
                 f"the detectors' warm-up (warmup.min_s = {cfg.warmup.min_s:g} s): nothing "
                 "after it could be detected")
-        if not allow_slow:
-            check_scale(len(joints), scan.sample_rate_hz, cfg.adaptive, where)
         thr = calibrated_thresholds(cfg, joints)
         assert thr is not None
         before = len(caught)

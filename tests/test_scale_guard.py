@@ -129,3 +129,27 @@ def test_calibrate_refuses_a_huge_arm_before_identifying(
     r = CliRunner().invoke(main, ["calibrate", str(log), "-o", str(out), "--allow-slow"])
     assert r.exit_code == 70 and "the pipeline must not run" in r.stderr
     assert "--allow-slow" in CliRunner().invoke(main, ["calibrate", "--help"]).stdout
+
+
+def test_calibrate_allow_slow_reaches_the_replay(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """calibrate --allow-slow is not refused later by the replay of each log."""
+    from impactcli import pipeline
+
+    seen: list[object] = []
+
+    def replay(*_: object, **kw: object) -> object:
+        seen.append(kw.get("allow_slow"))
+        raise ScaleLimitError("stop here")
+
+    import types
+
+    from impactcli import model as model_pkg
+
+    monkeypatch.setattr(pipeline, "replay", replay)
+    monkeypatch.setattr(model_pkg, "identify_many",  # no identification of 120 joints here
+                        lambda logs, **k: types.SimpleNamespace(joint_names=logs[0].joint_names))
+    log = _huge_log(tmp_path)
+    CliRunner().invoke(main, ["calibrate", str(log), "-o", str(tmp_path / "c.toml"),
+                              "--allow-slow", "--generator", "inverse_dynamics"])
+    assert seen and all(s is True for s in seen)

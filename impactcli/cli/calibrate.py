@@ -100,7 +100,7 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
         if lab is not None and lab.events:
             click.echo(f"{p}: {len(lab.events)} labelled contact(s) left out ({lab.path})")
     out = calibrate(read, model=model_m, config=cfg, robot=robot_d, generator=generator,
-                    labels=labels, drop_suspect=not keep_suspect)
+                    labels=labels, drop_suspect=not keep_suspect, allow_slow=allow_slow)
     save_config(out, out_path)
     c = out.calibration
     weak = " (weak: add collision-free logs covering the robot's motions)" if c.weak else ""
