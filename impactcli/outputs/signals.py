@@ -31,8 +31,9 @@ def signals_table(result: DetectionResult):  # type: ignore[no-untyped-def]
 
 
 #: How the Parquet file is written: zstd at its fastest level and no dictionary encoding
-#: (per-sample floats are nearly all distinct: building a dictionary and giving it up cost
-#: 3× the whole write).
+#: (per-sample floats are nearly all distinct: building a dictionary and giving it up, at
+#: zstd's default level, made writing 2.3× slower: 11.7 s against 5.1 s for 10 chunks of
+#: 65,536 rows × 71 columns of random floats here).
 PARQUET_OPTIONS: dict[str, Any] = {"compression": "zstd", "compression_level": 1,
                                    "use_dictionary": False}
 
