@@ -9,11 +9,33 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+import os
+import sys
 from typing import Any
 
 import click
 
 from .. import __version__
+
+#: Exit code when stdout's reader closed the pipe early (``impactcli detect ... | head -1``):
+#: the shell's code for a process ended by SIGPIPE, 128 + 13, as ``yes | head -1`` reports
+#: it under ``set -o pipefail``. Not 0: the run was cut short where it stood (what it had not
+#: yet printed, and anything after, is lost); not 1 ("collision found") nor 70 (a bug).
+EXIT_BROKEN_PIPE = 141
+
+
+def _quiet_broken_pipe() -> None:
+    """stdout's reader is gone: point stdout at devnull, as Python's docs recommend for
+    SIGPIPE, so the interpreter's final flush of what is still buffered cannot fail (no
+    "Exception ignored ... BrokenPipeError" at exit)."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):  # stdout without a file descriptor (e.g. captured)
+        pass
+    finally:
+        os.close(devnull)
+
 
 #: verb -> (module, attribute, one-line help)
 VERBS: dict[str, tuple[str, str, str]] = {
@@ -55,6 +77,27 @@ class LazyGroup(click.Group):
         assert isinstance(cmd, click.Command)
         return cmd
 
+    def make_context(self, info_name: str | None, args: list[str],
+                     parent: click.Context | None = None, **extra: Any) -> click.Context:
+        try:  # the group's own --help and --version print here
+            return super().make_context(info_name, args, parent, **extra)
+        except BrokenPipeError:
+            _quiet_broken_pipe()
+            raise click.exceptions.Exit(EXIT_BROKEN_PIPE) from None
+
+    def invoke(self, ctx: click.Context) -> Any:
+        """Run the verb; stdout's reader closing early (``| head -1``) ends the run quietly
+        with :data:`EXIT_BROKEN_PIPE` (click alone would exit 1, which reads as "collision
+        found"). The outputs already written stay."""
+        try:
+            try:
+                return super().invoke(ctx)
+            finally:  # a pipe broken under still-buffered output shows here, not at exit
+                sys.stdout.flush()
+        except BrokenPipeError:
+            _quiet_broken_pipe()
+            raise click.exceptions.Exit(EXIT_BROKEN_PIPE) from None
+
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
         rows = [(v, VERBS[v][2]) for v in self.list_commands(ctx)]
         if rows:
@@ -72,7 +115,8 @@ def main(ctx: click.Context, debug: bool) -> None:
     Exit codes: 0 success; 1 events found with --fail-on-detect, or a contact force above
     N with detect --fail-on-force N; 2 usage error;
     3 bad input (log, config, model, labels); 4 a batch where some inputs failed;
-    70 an internal error (a bug; its traceback is printed).
+    70 an internal error (a bug; its traceback is printed); 141 stdout's reader closed
+    early (| head), as for SIGPIPE.
     """
     ctx.ensure_object(dict)
     obj: dict[str, Any] = ctx.obj

@@ -32,8 +32,8 @@ def handle_errors(func: F) -> F:
     With the group's ``--debug``, the traceback is shown too (same exit code). Any other
     exception is a bug: ``impactcli: error: internal error (a bug): <type>: <msg>`` and its
     traceback on stderr, exit :data:`~impactcli.errors.EXIT_SOFTWARE` (70) — never 1, which
-    a CI gate reads as "collision found". click's own exits (usage errors, ``ctx.exit``) and
-    interrupts pass through.
+    a CI gate reads as "collision found". click's own exits (usage errors, ``ctx.exit``),
+    interrupts and a broken stdout pipe (the command group exits 141 on it) pass through.
     """
 
     @functools.wraps(func)
@@ -54,6 +54,8 @@ def handle_errors(func: F) -> F:
             ctx.exit(err.exit_code)
         except (click.exceptions.ClickException, click.exceptions.Exit,
                 click.exceptions.Abort):
+            raise
+        except BrokenPipeError:  # stdout's reader left (`| head`): the entry point's exit
             raise
         except Exception as err:
             click.echo(f"impactcli: error: internal error (a bug): {type(err).__name__}: "

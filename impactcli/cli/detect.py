@@ -284,7 +284,8 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     whether or not collisions are found (unless --fail-on-detect or --fail-on-force: 1,
     with the incident above the force named on stderr); 3 on a bad input; 4
     when some logs of a batch failed (the others' outputs are written); 70 on an internal
-    error (a bug, with its traceback) — never 1.
+    error (a bug, with its traceback) — never 1; 141 when stdout's reader closed early
+    (| head).
     """
     from ..batch import DetectJob, Timer, batch_summary, check_unique_stems, run_batch
     from ..io.urls import expand_inputs
@@ -324,6 +325,8 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
         for outcome in progress(stream, total=len(job_list), desc="detect"):
             _echo_outcome(outcome, debug, len(job_list) == 1)
             outcomes.append(outcome)
+    except BrokenPipeError:  # stdout's reader left: not the scheduler (the group's exit)
+        raise
     except OSError as err:  # the Dask scheduler cannot be reached
         fail_usage(f"cannot use {choice.describe()}: {err}")
     wall = timer.elapsed()
