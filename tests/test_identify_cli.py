@@ -213,8 +213,10 @@ NUM = r"-?[0-9.]+(?:e[-+]?[0-9]+)?"
 
 
 def _sanity_log(n: int = 4000, flip: int | None = None, noise_joint: int | None = None,
-                still_from: float | None = None, seed: int = 2) -> RobotLog:
-    """A 2-joint arm whose joints each follow tau = I q'' + fv q' + fc sign(q') + offset."""
+                still_from: float | None = None, seed: int = 2,
+                friction_flip: int | None = None) -> RobotLog:
+    """A 2-joint arm whose joints each follow tau = I q'' + fv q' + fc sign(q') + offset;
+    ``friction_flip``: that joint's friction torque has the wrong sign (it drives the joint)."""
     t = np.arange(n) * 0.004
     q, qd, qdd = multisine(t, 2, seed=seed)
     if still_from is not None:  # the arm stops (smoothly) and stays still
@@ -225,9 +227,12 @@ def _sanity_log(n: int = 4000, flip: int | None = None, noise_joint: int | None 
     dt = 0.004
     qd, qdd = np.gradient(q, dt, axis=0), np.gradient(np.gradient(q, dt, axis=0), dt, axis=0)
     rng = np.random.default_rng(seed)
-    tau = (np.array([0.8, 0.3]) * qdd + np.array([0.5, 0.2]) * qd
-           + np.array([0.6, 0.3]) * np.tanh(qd / 0.01) + np.array([0.2, -0.1])
-           + rng.normal(0, 0.01, (n, 2)))
+    fsign = np.ones(2)
+    if friction_flip is not None:
+        fsign[friction_flip] = -1.0
+    tau = (np.array([0.8, 0.3]) * qdd + fsign * (np.array([0.5, 0.2]) * qd
+                                                  + np.array([0.6, 0.3]) * np.tanh(qd / 0.01))
+           + np.array([0.2, -0.1]) + rng.normal(0, 0.01, (n, 2)))
     if flip is not None:
         tau[:, flip] = -tau[:, flip]
     if noise_joint is not None:  # a model fitted to noise predicts it worse than zero
@@ -254,6 +259,42 @@ def test_a_joint_whose_torque_sign_is_flipped_gets_a_negative_inertia_warning(ki
         r"not describe this joint", msgs[0]), msgs[0]
     assert m.fit["sanity"] == [s for s in _messages(record) if s in m.fit["sanity"]]
     assert msgs[0] in m.fit["sanity"]
+
+
+NEGATIVE_FRICTION = (
+    rf"joint elbow: negative friction \(elbow\.fv = ({NUM}) N·m·s/rad, elbow\.fc = ({NUM}) N·m "
+    r"drive the joint instead of braking it\): a torque \(or current\) of the wrong sign, or "
+    r"a model that does not describe this joint")
+
+
+@pytest.mark.parametrize("kind", ["decoupled", "coupled"])
+def test_friction_of_the_wrong_sign_alone_gets_a_negative_friction_warning(kind: str) -> None:
+    """Inertia right, friction reversed (the torque pushes the joint along its motion):
+    the warning names friction alone, with both parameters negative."""
+    with pytest.warns(ImpactWarning) as record:
+        m = identify(_sanity_log(friction_flip=1), kind=kind)
+    msgs = [s for s in _messages(record) if "negative" in s]
+    assert len(msgs) == 1, msgs
+    found = re.fullmatch(rf"sane\.csv: {NEGATIVE_FRICTION}", msgs[0])
+    assert found, msgs[0]
+    fv, fc = float(found.group(1)), float(found.group(2))
+    assert fv == pytest.approx(-0.2, abs=0.02) and fc == pytest.approx(-0.3, abs=0.03)
+    assert m.fit["sanity"] == msgs
+    assert "inertia" not in msgs[0]
+
+
+def test_negative_friction_warning_through_the_cli(tmp_path: Path) -> None:
+    """``impactcli identify``: the warning is one stderr line, the model still written
+    (exit 0): a warning, not an error."""
+    path = tmp_path / "reversed.csv"
+    write_log(_sanity_log(friction_flip=1), path)
+    code, out, err = run(["identify", str(path), "-o", str(tmp_path / "m.json")])
+    assert code == 0, err
+    lines = [ln for ln in err.splitlines() if "negative" in ln]
+    assert len(lines) == 1, err
+    assert re.fullmatch(rf"impactcli: warning: {re.escape(str(path))}: {NEGATIVE_FRICTION}",
+                        lines[0]), lines[0]
+    assert (tmp_path / "m.json").is_file() and f"wrote {tmp_path / 'm.json'}" in out
 
 
 def test_the_same_log_unflipped_raises_no_sanity_warning() -> None:
