@@ -4,6 +4,7 @@ alone would set a threshold reported as likely contacts and left out."""
 
 from __future__ import annotations
 
+import re
 import shutil
 import warnings
 from pathlib import Path
@@ -22,6 +23,7 @@ from impactcli.types import RobotLog
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs" / "csv"
 FREE = ("assist_free_triangle", "assist_free_p2p", "assist_free_multisine")
+NUM = r"[0-9]+(?:\.[0-9]+)?(?:e[-+]?[0-9]+)?"
 
 
 def _read(name: str) -> RobotLog:
@@ -82,8 +84,18 @@ def test_contacts_in_free_logs_are_reported_and_left_out(tmp_path: Path) -> None
     logs = [str(tmp_path / f"{n}.csv.gz") for n in FREE] + [str(tmp_path / "run7.csv.gz")]
     r = CliRunner().invoke(main, ["calibrate", *logs, "-o", str(tmp_path / "c.toml")])
     assert r.exit_code == 0, r.output
-    assert "run7.csv.gz: " in r.output and "a likely contact; left out of the calibration" \
-        in r.output
+    warned = [ln for ln in r.stderr.splitlines() if "likely contact" in ln]
+    assert warned, r.stderr
+    for line in warned:  # the whole line; the numbers by pattern
+        found = re.fullmatch(
+            rf"impactcli: warning: {re.escape(logs[3])}: ({NUM})–({NUM}) s: alone it would "
+            rf"set a threshold of (shoulder|elbow) ({NUM})× above the calibration's usual "
+            r"level \(> 20×\): a likely contact; left out of the calibration \(give the "
+            r"log's labels, or --keep-suspect to keep it\)", line)
+        assert found, line
+        start, end, ratio = float(found[1]), float(found[2]), float(found[4])
+        assert 0 <= start < end <= 44.0 and ratio > 20
+    assert "likely contact" not in r.stdout
     cfg = load_config(tmp_path / "c.toml")
     suspect = [x for x in cfg.calibration.excluded if "likely contact" in x["reason"]]
     assert suspect and all(x["log"].endswith("run7.csv.gz") for x in suspect)
@@ -96,3 +108,4 @@ def test_contacts_in_free_logs_are_reported_and_left_out(tmp_path: Path) -> None
     # the committed calibration (three free logs) flags nothing
     r = CliRunner().invoke(main, ["calibrate", *logs[:3], "-o", str(tmp_path / "f.toml")])
     assert "likely contact" not in r.output
+
