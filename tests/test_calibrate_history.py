@@ -109,3 +109,23 @@ def test_contacts_in_free_logs_are_reported_and_left_out(tmp_path: Path) -> None
     r = CliRunner().invoke(main, ["calibrate", *logs[:3], "-o", str(tmp_path / "f.toml")])
     assert "likely contact" not in r.output
 
+
+def test_labelled_contacts_beside_a_free_log_are_named(tmp_path: Path) -> None:
+    """A labels file beside a calibration log (<stem>.labels.json, found without --labels):
+    calibrate says how many contacts it leaves out and from which file, on stdout, and
+    records the stretch in the config."""
+    from impactcli.io import write_log
+    from impactcli.io.robot import write_labels
+    from impactcli.types import ContactLabel, Labels
+
+    log_path = tmp_path / "shift3.csv"
+    write_log(_read("assist_free_p2p").slice(0, 5000), log_path)  # 20 s
+    labels_path = tmp_path / "shift3.labels.json"
+    write_labels(Labels(events=(ContactLabel(start=8.0, end=8.3, peak_force=12.0, kind="push",
+                                             link=2),), sample_rate=250.0), labels_path)
+    r = CliRunner().invoke(main, ["calibrate", str(log_path), "-o", str(tmp_path / "c.toml")])
+    assert r.exit_code == 0, r.output
+    assert f"{log_path}: 1 labelled contact(s) left out ({labels_path})" in \
+        r.stdout.splitlines()
+    excluded = load_config(tmp_path / "c.toml").calibration.excluded
+    assert [x["log"] for x in excluded if x["reason"].startswith("labelled")] == [str(log_path)]
