@@ -331,3 +331,23 @@ def test_other_formats_are_sliced(tmp_path: Path) -> None:
     for name in ("a.mcap", "a.db3"):
         write_log(log, tmp_path / name)
         _assert_same(tmp_path / name, streamed=False, chunks=(7, 1000))
+
+
+def test_the_fast_decimal_time_is_decimal_text_to_ns() -> None:
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    from impactcli.io.csv import decimal_text_to_ns
+    from impactcli.io.stream import _decimal_ns
+
+    rng = np.random.default_rng(4)
+    ns = rng.integers(-10**18, 9 * 10**18, 2000)
+    many = [f"{'-' if v < 0 else ''}{abs(v) // 10**9}.{abs(v) % 10**9:09d}" for v in ns]
+    for texts in (many, ["-0.5", "007.5", "12", "0", "-0", "1.5"],
+                  ["0.1234567891", "1714567890.1234567899"], ["8999999999.999999999"],
+                  ["9300000000.5"]):
+        for unit in (10**9, 10**6):
+            arr = pa.array(texts)[1:] if len(texts) > 1 else pa.array(texts)
+            tf = pc.cast(arr, pa.float64()).to_numpy()
+            want, got = decimal_text_to_ns(arr, unit), _decimal_ns(arr, unit, tf)
+            assert (want is None and got is None) or np.array_equal(want, got), texts[:3]

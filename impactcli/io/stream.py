@@ -14,17 +14,21 @@ gap rule, :func:`impactcli.detect.screen.unusable_columns` from per-column minim
 and up to ``FEW_VALUES`` distinct values). Its errors are :func:`read_log`'s one-line
 LogFormatErrors, raised by the scan (a bad file fails before any output is written).
 
-Streamed (memory bounded by ``BLOCK_SIZE`` of text and ``chunk_rows``, whatever the log's
-length): a local ``.csv`` or ``.csv.gz`` — canonical, or through a CSV channel map — whose
-time column holds plain decimal numbers (``12.345``, ``1714567890.001``, ``1234``) and whose
-values are numbers with a decimal point. It is parsed by pyarrow's streaming reader and
-converted batch by batch by the whole-file reader's own steps (exact decimal time → int64
-ns, the map's scale and offset, current → torque), and repaired across batch boundaries as
-in the whole file (:mod:`impactcli.io.repair`): exact duplicate rows dropped, runs of at
-most 5 non-finite values interpolated (rows are held back until a run closes), values
+Streamed (memory bounded, whatever the log's length: pyarrow reads up to 32 blocks of
+:data:`BLOCK_SIZE` = 1 MiB of text ahead, one block's arrays are converted at a time, plus
+the chunk being put together): a local ``.csv`` or ``.csv.gz`` — canonical, or through a
+CSV channel map — with a ``.`` decimal point, whose time column holds plain decimal numbers
+(``12.345``, ``1714567890.001``, ``1234``) and whose value cells are numbers or empty.
+It is parsed by pyarrow's streaming reader and converted batch by batch by the whole-file
+reader's own steps (exact decimal time → int64 ns, the map's scale and offset, current →
+torque), and repaired across batch boundaries as in the whole file
+(:mod:`impactcli.io.repair`): exact duplicate rows dropped, runs of at most 5 non-finite
+values interpolated (rows are held back until a run closes), values
 beyond 1e12 and rows out of time order refused, the 20 Hz – 100 kHz rate check. The scan
 keeps, besides constants per column, the candidate gaps (steps longer than 1.2 provisional
-periods, with their windows).
+periods, with their windows; a second pass over the file if the period then drifts below).
+Both passes parse the whole file: the scan (all the channels: the repairs and the screen
+need their values) and :func:`iter_chunks`.
 
 Not streamed (``LogScan.streamed`` False; the scan reads the whole log with
 :func:`read_log` and the chunks are slices of it, memory NOT bounded): every other format
@@ -59,8 +63,10 @@ from ..types import CONTROLLER_CHANNELS, LogSource, RobotLog
 
 __all__ = ["BLOCK_SIZE", "ColumnScreen", "LogChunk", "LogScan", "iter_chunks", "scan_log"]
 
-#: Bytes of CSV text parsed at a time (one record batch).
-BLOCK_SIZE = 1 << 24
+#: Bytes of CSV text parsed at a time (one record batch). pyarrow's streaming reader reads
+#: up to 32 blocks ahead: 1 MiB keeps that at 32 MiB and costs no speed (a 7-joint log's
+#: row is ~430 bytes: ~2400 rows a block).
+BLOCK_SIZE = 1 << 20
 #: The first pass keeps the steps longer than this fraction of 1.5 provisional periods as
 #: gap candidates (exact while the final threshold is above; else a second pass).
 FLOOR_FRACTION = 0.8
@@ -511,12 +517,10 @@ def _time_ns(text: Any, ctx: _Context, ts: _TimeStats) -> np.ndarray:
     import pyarrow as pa
     import pyarrow.compute as pc
 
-    from .csv import decimal_text_to_ns
-
     if text.null_count or not pc.all(pc.match_substring_regex(text, _PLAIN)).as_py():
         raise _NotStreamable("time text that is not plain decimal")
     tf = pc.cast(text, pa.float64()).to_numpy()
-    as_text = decimal_text_to_ns(text, ctx.unit_ns)
+    as_text = _decimal_ns(text, ctx.unit_ns, tf)
     if pc.any(pc.match_substring(text, ".")).as_py():
         ts.all_int = False
         if as_text is None:
@@ -536,6 +540,29 @@ def _time_ns(text: Any, ctx: _Context, ts: _TimeStats) -> np.ndarray:
     if not ts.disagree:
         ts.disagree = not np.array_equal(np.round(tf * ctx.unit_ns).astype(np.int64), exact)
     return exact + ctx.offset_ns if ctx.offset_ns else exact
+
+
+def _decimal_ns(text: Any, unit_ns: int, tf: np.ndarray) -> np.ndarray | None:
+    """``decimal_text_to_ns(text, unit_ns)`` of plain decimal text; for seconds with at most
+    9 decimals (well within its range) by pyarrow's exact decimal parse, 20× faster.
+
+    Args:
+        text: (n,) pyarrow strings matching ``^-?\\d+(\\.\\d+)?$``.  unit_ns: the unit [ns].
+        tf: (n,) float64 the same values (to see the range).
+    """
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    from .csv import decimal_text_to_ns
+
+    if unit_ns != 10**9 or not float(np.max(np.abs(tf))) < 9e9:
+        return decimal_text_to_ns(text, unit_ns)
+    try:
+        d = pc.cast(text, pa.decimal128(38, 9))  # unscaled value: ns, exactly
+    except pa.ArrowInvalid:  # more than 9 decimals: truncated by decimal_text_to_ns
+        return decimal_text_to_ns(text, unit_ns)
+    words = np.frombuffer(d.buffers()[1], dtype=np.int64).reshape(-1, 2)
+    return words[d.offset: d.offset + len(d), 0].copy()
 
 
 def _fast_time(ctx: _Context, ts: _TimeStats) -> bool:
