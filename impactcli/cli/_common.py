@@ -19,6 +19,19 @@ F = TypeVar("F", bound=Callable[..., Any])
 T = TypeVar("T")
 
 
+#: --robot's metavar: a robot description file, or a shipped robot's name (``impactcli
+#: robots``); detect also fetches a URL (:data:`ROBOT_URL_METAVAR`).
+ROBOT_METAVAR = "FILE|NAME"
+ROBOT_URL_METAVAR = "FILE|URL|NAME"
+
+
+def robot_help(what: str, url: bool = False) -> str:
+    """--robot's help: ``what`` the description serves, then what the value may be."""
+    where = "a file or an fsspec URL" if url else "a file"
+    return (f"Robot description ({what}): {where} (JSON/YAML), or a shipped robot's name "
+            "(`impactcli robots` lists them).")
+
+
 def _show_warning(message: Warning | str, category: type[Warning], *args: Any, **kw: Any) -> None:
     if issubclass(category, ImpactWarning):
         click.echo(f"impactcli: warning: {message}", err=True)

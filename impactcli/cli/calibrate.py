@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from ._common import handle_errors
+from ._common import ROBOT_METAVAR, handle_errors, robot_help
 from .detect import generator_option, log_read_options, read_options_from
 
 
@@ -26,8 +26,8 @@ def _labels_for(logs: tuple[Path, ...], given: tuple[Path, ...]) -> list:  # typ
 @click.option("-o", "--out", "--output", "out_path", required=True,
               type=click.Path(dir_okay=False, path_type=Path),
               help="Config to write (.toml, .yaml or .json), accepted by `detect --config`.")
-@click.option("--robot", type=click.Path(dir_okay=False, path_type=Path),
-              help="Robot description (kinematics for the model, joint order).")
+@click.option("--robot", metavar=ROBOT_METAVAR, type=click.Path(dir_okay=False, path_type=Path),
+              help=robot_help("kinematics for the model, joint order"))
 @click.option("--model", type=click.Path(dir_okay=False, path_type=Path),
               help="Rigid model to calibrate for [default: identified from these logs].")
 @click.option("--config", "base_config", type=click.Path(dir_okay=False, path_type=Path),

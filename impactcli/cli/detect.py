@@ -11,7 +11,7 @@ from typing import Any
 import click
 
 from ..errors import EXIT_BATCH, EXIT_DETECTED, EXIT_USAGE
-from ._common import handle_errors, progress
+from ._common import ROBOT_METAVAR, ROBOT_URL_METAVAR, handle_errors, progress, robot_help
 
 #: the product's detectors: what --fail-on-detect counts (static_baseline is for comparison)
 PRODUCT_DETECTORS = ("adaptive", "static_loading")
@@ -113,8 +113,9 @@ def generator_option(func: Callable[..., Any]) -> Callable[..., Any]:
 def model_options(func: Callable[..., Any]) -> Callable[..., Any]:
     """--robot, --model, --config (shared by detect, report, view, evaluate)."""
     for opt in reversed([
-        click.option("--robot", type=click.Path(dir_okay=False, path_type=Path),
-                     help="Robot description (JSON/YAML): joints, gear ratios, kinematics."),
+        click.option("--robot", metavar=ROBOT_METAVAR,
+                     type=click.Path(dir_okay=False, path_type=Path),
+                     help=robot_help("joints, gear ratios, kinematics")),
         click.option("--model", type=click.Path(dir_okay=False, path_type=Path),
                      help="Rigid model from `impactcli identify` [default: the config's, "
                           "else identified from the log itself]."),
@@ -129,8 +130,8 @@ def model_options(func: Callable[..., Any]) -> Callable[..., Any]:
 def model_url_options(func: Callable[..., Any]) -> Callable[..., Any]:
     """--robot, --model, --config as paths or fsspec URLs (detect: workers read them)."""
     for opt in reversed([
-        click.option("--robot", metavar="PATH|URL",
-                     help="Robot description (JSON/YAML): joints, gear ratios, kinematics."),
+        click.option("--robot", metavar=ROBOT_URL_METAVAR,
+                     help=robot_help("joints, gear ratios, kinematics", url=True)),
         click.option("--model", metavar="PATH|URL",
                      help="Rigid model from `impactcli identify` [default: the config's, "
                           "else identified from the log itself]."),

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ._common import handle_errors
+from ._common import ROBOT_METAVAR, handle_errors, robot_help
 from ._fit_table import format_fit_table
 from .detect import log_read_options, read_options_from
 
@@ -15,8 +15,8 @@ __all__ = ["format_fit_table", "identify_cmd"]
 @click.argument("log", type=click.Path(path_type=str))
 @click.option("-o", "--output", "--out", "output", required=True,
               type=click.Path(dir_okay=False, path_type=str), help="Model file to write (JSON).")
-@click.option("--robot", metavar="FILE", type=click.Path(dir_okay=False, path_type=str),
-              help="Robot description (joints, kinematics: planar or urdf).")
+@click.option("--robot", metavar=ROBOT_METAVAR, type=click.Path(dir_okay=False, path_type=str),
+              help=robot_help("joints, kinematics: planar or urdf"))
 @click.option("--kind", type=click.Choice(["decoupled", "coupled", "planar", "urdf"]),
               help="Model structure (default: the robot's kinematics type, else decoupled). "
                    "coupled: a spatial arm without kinematics, every joint's motion in every "

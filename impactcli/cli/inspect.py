@@ -6,15 +6,14 @@ import json
 
 import click
 
-from ._common import handle_errors
+from ._common import ROBOT_METAVAR, handle_errors, robot_help
 from .detect import log_read_options, read_options_from
 
 
 @click.command("inspect")
 @click.argument("log", type=click.Path(path_type=str))
-@click.option("--robot", metavar="FILE|NAME",
-              help="Robot description, or a shipped robot's name (needed to turn currents "
-                   "into torques).")
+@click.option("--robot", metavar=ROBOT_METAVAR,
+              help=robot_help("needed to turn currents into torques"))
 @log_read_options
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 @handle_errors

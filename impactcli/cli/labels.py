@@ -45,7 +45,7 @@ import click
 import numpy as np
 
 from ..errors import ImpactWarning, LogFormatError
-from ._common import check_log_path, handle_errors
+from ._common import ROBOT_METAVAR, check_log_path, handle_errors, robot_help
 from .detect import log_read_options, read_options_from
 
 #: How a channel's contacts are labelled.
@@ -382,8 +382,8 @@ class _ExplainedOption(click.Option):
               help="Merge stretches this close (last sample to next first sample) [s].")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
               required=True, help="The labels JSON to write.")
-@click.option("--robot", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Robot description, for a log whose torque comes from currents.")
+@click.option("--robot", metavar=ROBOT_METAVAR, type=click.Path(dir_okay=False, path_type=Path),
+              default=None, help=robot_help("for a log whose torque comes from currents"))
 @log_read_options
 @handle_errors
 def labels_cmd(log: Path, channel: str, above: float, link: int, kind: str, channel_is: str,
