@@ -351,3 +351,18 @@ def test_the_fast_decimal_time_is_decimal_text_to_ns() -> None:
             tf = pc.cast(arr, pa.float64()).to_numpy()
             want, got = decimal_text_to_ns(arr, unit), _decimal_ns(arr, unit, tf)
             assert (want is None and got is None) or np.array_equal(want, got), texts[:3]
+
+
+def test_a_rate_that_drops_after_the_start_takes_a_second_gap_pass(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Early batches at 4 ms steps set a floor above the final 1.5 ms threshold: the gaps
+    are found again at the threshold, and equal the whole log's."""
+    cols = _table()
+    steps = np.where(np.arange(N) < 120, 4_000_000, 1_000_000)
+    t_ns = np.cumsum(steps)
+    cols["time"] = [f"{v // 10**9}.{v % 10**9:09d}" for v in t_ns.tolist()]
+    calls = []
+    real = stream._gap_pass
+    monkeypatch.setattr(stream, "_gap_pass", lambda *a: calls.append(1) or real(*a))
+    scan = _assert_same(_write(tmp_path / "drift.csv", cols), chunks=(1000,))
+    assert calls and scan.gaps.size > 100
