@@ -6,7 +6,7 @@ Run: ``python tests/benchmarks/bench_stream.py [--minutes 10 60 180] [--joints 7
 A synthetic arm (J joints, 1 kHz; each joint a sum of three sines, torque from a decoupled
 rigid model — inertia, gravity, viscous and Coulomb friction — plus noise; the reference
 is the commanded position with its velocity and acceleration) is written as canonical CSV
-into a temporary folder: a 3-minute collision-free log to calibrate on, and one log per
+into a temporary folder: a 5-minute collision-free log to calibrate on, and one log per
 duration asked for. ``impactcli calibrate`` makes the config once; then, for each
 duration, ``impactcli detect LOG --config C`` runs in a fresh process as a user runs it —
 plain, with ``--signals``, and with ``--rerun`` — and the benchmark reports its wall time,
@@ -38,7 +38,9 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def write_log(path: Path, minutes: float, joints: int, seed: int) -> int:
     """Write the synthetic log (module docstring), block by block; returns its rows.
-    One robot (its parameters drawn once); ``seed`` draws the motion and the noise."""
+    One robot and one task (the sines' amplitudes and frequencies, drawn once: a
+    calibration on one log covers the others' motion); ``seed`` draws the phases and the
+    noise."""
     import pyarrow as pa
     import pyarrow.csv as pacsv
 
@@ -47,10 +49,10 @@ def write_log(path: Path, minutes: float, joints: int, seed: int) -> int:
     grav = robot.uniform(0.0, 8.0, joints)
     fv = robot.uniform(0.05, 0.5, joints)
     fc = robot.uniform(0.05, 0.4, joints)
+    amp = robot.uniform(0.2, 0.8, (3, joints))
+    freq = robot.uniform(0.05, 0.6, (3, joints))
     rng = np.random.default_rng(seed)
     n = round(minutes * 60.0 * RATE_HZ)
-    amp = rng.uniform(0.2, 0.8, (3, joints))
-    freq = rng.uniform(0.05, 0.6, (3, joints))
     phase = rng.uniform(0, 2 * np.pi, (3, joints))
     names = [f"j{k + 1}" for k in range(joints)]
     block = 200_000
@@ -119,7 +121,7 @@ def main() -> None:
     release = _release(args.release, tmp)
     try:
         cal = tmp / "free.csv"
-        write_log(cal, 3.0, args.joints, seed=1)
+        write_log(cal, 5.0, args.joints, seed=1)
         cfg = tmp / "config.toml"
         subprocess.run([exe, "calibrate", str(cal), "-o", str(cfg)], check=True,
                        capture_output=True)
