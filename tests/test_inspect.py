@@ -90,3 +90,37 @@ def test_inspect_with_robot_for_currents(tmp_path: Path) -> None:
     res = CliRunner().invoke(main, ["inspect", str(p), "--robot", str(robot), "--json"])
     assert res.exit_code == 0, res.stderr
     assert json.loads(res.stdout)["torque_source"] == "current"
+
+
+def test_inspect_says_how_many_of_the_gaps_it_lists(tmp_path: Path) -> None:
+    """45 gaps: 20 are listed, and both the table and the JSON say 20 of 45."""
+    base = make_log(n=1000, joints=("a",))
+    t = base.t_ns.copy()
+    for k in range(45):  # a 40 ms gap after samples 19, 39, ..., 899
+        t[20 * (k + 1):] += 40_000_000
+    p = tmp_path / "gaps45.csv"
+    write_log(RobotLog(t_ns=t, joint_names=base.joint_names, position=base.position,
+                       torque=base.torque), p)
+    res = CliRunner().invoke(main, ["inspect", str(p)])
+    assert res.exit_code == 0, res.stderr
+    lines = res.stdout.splitlines()
+    assert [ln.split()[:2] for ln in lines if ln.startswith("gaps ")] == [["gaps", "45"]]
+    listed = [i for i, ln in enumerate(lines) if ln.strip().startswith("gap at ")]
+    assert len(listed) == 20
+    assert lines[listed[-1] + 1].strip() == "20 of 45 gaps listed"
+    res = CliRunner().invoke(main, ["inspect", str(p), "--json"])
+    assert res.exit_code == 0, res.stderr
+    d = json.loads(res.stdout)
+    validate(d, "inspect", ImpactError, "inspect output")
+    assert d["gaps"]["count"] == 45 and d["gaps"]["n_listed"] == 20
+    assert len(d["gaps"]["listed"]) == 20 and d["gaps"]["listed"][0]["sample"] == 19
+
+
+def test_inspect_lists_every_gap_without_a_count_line_when_all_fit(tmp_path: Path) -> None:
+    p = tmp_path / "g.csv"
+    write_log(_gappy_log(), p)
+    res = CliRunner().invoke(main, ["inspect", str(p)])
+    assert res.exit_code == 0, res.stderr
+    assert "gaps listed" not in res.stdout
+    assert json.loads(CliRunner().invoke(main, ["inspect", str(p), "--json"]).stdout)[
+        "gaps"]["n_listed"] == 1

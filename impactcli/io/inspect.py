@@ -39,13 +39,15 @@ def describe_log(log: RobotLog) -> dict[str, Any]:
     (``robust_std_s``) and the envelope holding 95 % of them (``envelope_s``); a gap is a
     step longer than ``threshold_s`` (1.5 periods, and twice the envelope beyond the
     period) that the steps around it do not give back, listed with its start (s since the
-    first sample) and length [s].
+    first sample) and length [s] — the first :data:`MAX_GAPS_LISTED` of them:
+    ``gaps.n_listed`` of ``gaps.count`` are listed.
     """
     dt = np.diff(log.t_ns).astype(np.float64) * 1e-9
     clock = log.sample_clock
     period = clock.period_s
     dev = np.abs(dt - period)
     gap_idx, _ = time_gaps(log)
+    listed = gap_idx[:MAX_GAPS_LISTED]
     ts = log.time_s
     src = log.source
     present = [s for s in SIGNALS if getattr(log, s) is not None]
@@ -76,8 +78,9 @@ def describe_log(log: RobotLog) -> dict[str, Any]:
             "threshold_s": clock.gap_threshold_s,
             "listed": [
                 {"sample": int(i), "t_s": float(ts[i]), "length_s": float(dt[i])}
-                for i in gap_idx[:MAX_GAPS_LISTED]
+                for i in listed
             ],
+            "n_listed": int(listed.size),
         },
         "torque_source": src.torque_source,
         "time_source": src.time_source,
@@ -119,8 +122,11 @@ def format_table(d: dict[str, Any]) -> str:
     ]
     width = max(len(k) for k, _ in rows)
     lines = [f"{k:<{width}}  {v}" for k, v in rows]
-    for g in d["gaps"]["listed"]:
+    gaps = d["gaps"]
+    for g in gaps["listed"]:
         lines.append(f"{'':<{width}}  gap at {g['t_s']:.6f} s: {g['length_s'] * 1e3:.4g} ms")
+    if len(gaps["listed"]) < gaps["count"]:
+        lines.append(f"{'':<{width}}  {len(gaps['listed'])} of {gaps['count']} gaps listed")
     for r in d["repairs"]:
         lines.append(f"{'':<{width}}  repair: {r}")
     return "\n".join(lines)
