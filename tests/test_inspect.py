@@ -124,3 +124,35 @@ def test_inspect_lists_every_gap_without_a_count_line_when_all_fit(tmp_path: Pat
     assert "gaps listed" not in res.stdout
     assert json.loads(CliRunner().invoke(main, ["inspect", str(p), "--json"]).stdout)[
         "gaps"]["n_listed"] == 1
+
+
+def test_inspect_names_the_joints_detection_leaves_out(tmp_path: Path) -> None:
+    """j3's torque is all 0.0: inspect says detection leaves it out, and why, as detect
+    says it (the reader keeps it: it is not 'dropped')."""
+    log = make_log(n=2500, joints=("j1", "j2", "j3"))
+    tau = np.array(log.torque) * np.array([10.0, 5.0, 0.0])
+    p = tmp_path / "flat.csv"
+    write_log(RobotLog(t_ns=log.t_ns, joint_names=log.joint_names, position=log.position,
+                       torque=tau), p)
+    why = "torque flat: its torque is constant (0 N·m)"
+    res = CliRunner().invoke(main, ["inspect", str(p)])
+    assert res.exit_code == 0, res.stderr
+    rows = {ln.split("  ")[0]: ln.split("  ", 1)[1].strip() for ln in res.stdout.splitlines()
+            if not ln.startswith(" ")}
+    assert rows["joints dropped"] == "none"
+    assert rows["joints left out"] == f"j3 ({why})"
+    res = CliRunner().invoke(main, ["inspect", str(p), "--json"])
+    assert res.exit_code == 0, res.stderr
+    d = json.loads(res.stdout)
+    validate(d, "inspect", ImpactError, "inspect output")
+    assert d["joints_dropped"] == [] and d["joints"] == ["j1", "j2", "j3"]
+    assert d["joints_left_out"] == [{"name": "j3", "reason": why}]
+    res = CliRunner().invoke(main, ["detect", str(p), "-o", str(tmp_path / "out")])
+    assert res.exit_code == 0, res.output
+    assert f"impactcli: warning: {p}: joint 'j3' left out of detection: {why}" in (
+        res.stderr.splitlines())
+    # a log whose every joint is usable says none
+    write_log(_gappy_log(), p.with_name("g.csv"))
+    d = json.loads(CliRunner().invoke(main, ["inspect", str(p.with_name("g.csv")),
+                                             "--json"]).stdout)
+    assert d["joints_left_out"] == []

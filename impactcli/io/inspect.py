@@ -30,6 +30,21 @@ def time_gaps(log: RobotLog) -> tuple[np.ndarray, np.ndarray]:
     return gap_steps(log.t_ns, log.sample_clock)
 
 
+def joints_left_out(log: RobotLog) -> list[dict[str, str]]:
+    """The logged joints detection will leave out by their torque, with why, as ``detect``
+    says it (``torque flat: …``, ``torque unmeasured: …``): the screen of
+    :func:`impactcli.detect.screen.unusable_columns` on the whole log's torque, against
+    the largest peak-to-peak among its joints. Joints a model or a calibrated config does
+    not cover are left out by ``detect`` too; ``inspect`` knows of neither."""
+    from ..detect.screen import unusable_columns
+
+    torque = np.asarray(log.torque, dtype=np.float64)
+    ref = float(np.max(np.ptp(torque, axis=0)))
+    return [{"name": j, "reason": f"torque {why}"}
+            for j, why in zip(log.joint_names, unusable_columns(torque, ref), strict=True)
+            if why is not None]
+
+
 def describe_log(log: RobotLog) -> dict[str, Any]:
     """JSON-ready description of ``log``: joints, channels, sources, timing, gaps, repairs.
 
@@ -40,7 +55,9 @@ def describe_log(log: RobotLog) -> dict[str, Any]:
     step longer than ``threshold_s`` (1.5 periods, and twice the envelope beyond the
     period) that the steps around it do not give back, listed with its start (s since the
     first sample) and length [s] — the first :data:`MAX_GAPS_LISTED` of them:
-    ``gaps.n_listed`` of ``gaps.count`` are listed.
+    ``gaps.n_listed`` of ``gaps.count`` are listed. ``joints_dropped``: the joints the
+    reader left out (no finite position or torque); ``joints_left_out``: those detection
+    will leave out by their torque (:func:`joints_left_out`).
     """
     dt = np.diff(log.t_ns).astype(np.float64) * 1e-9
     clock = log.sample_clock
@@ -90,6 +107,7 @@ def describe_log(log: RobotLog) -> dict[str, Any]:
         "repairs": list(src.repairs),
         "missing": list(src.notes),
         "joints_dropped": [{"name": n, "reason": r} for n, r in src.joints_dropped],
+        "joints_left_out": joints_left_out(log),
     }
 
 
@@ -119,6 +137,8 @@ def format_table(d: dict[str, Any]) -> str:
         ("missing", "; ".join(d.get("missing") or []) or "nothing"),
         ("joints dropped", ", ".join(f"{x['name']} ({x['reason']})"
                                      for x in d.get("joints_dropped", [])) or "none"),
+        ("joints left out", ", ".join(f"{x['name']} ({x['reason']})"
+                                      for x in d.get("joints_left_out", [])) or "none"),
     ]
     width = max(len(k) for k, _ in rows)
     lines = [f"{k:<{width}}  {v}" for k, v in rows]
