@@ -223,3 +223,112 @@ def test_a_partly_empty_torque_column_is_still_the_documented_error(tmp_path: Pa
     assert str(e.value) == (
         f"{path}: column 'j2.torque', row 101 (line 102): a run of 20 non-finite (NaN) "
         "value(s); only gaps of at most 5 samples between finite values are interpolated")
+
+
+def _with_empty_column(tmp_path: Path, column: str, cell: str) -> Path:
+    """A 3-joint log (velocity and references logged) whose ``column`` holds ``cell``
+    (empty or NaN) in every row."""
+    import dataclasses
+
+    from impactcli.io import write_log
+
+    from .conftest import make_log
+
+    log = make_log(n=2500, joints=("shoulder", "elbow", "wrist"))
+    log = dataclasses.replace(log, velocity=np.gradient(log.position, 0.004, axis=0))
+    path = tmp_path / "full.csv"
+    write_log(log, path)
+    head, *rows = path.read_text(encoding="utf-8").splitlines()
+    k = head.split(",").index(column)
+    out = tmp_path / f"empty_{column}.csv"
+    out.write_text("\n".join([head] + [",".join(cell if i == k else c for i, c in
+                                                 enumerate(r.split(","))) for r in rows])
+                   + "\n", encoding="utf-8")
+    return out
+
+
+@pytest.mark.parametrize(("column", "cell"), [("elbow.velocity", ""),
+                                               ("elbow.position_ref", "NaN")])
+def test_an_optional_column_without_any_value_is_read_as_not_logged(
+        tmp_path: Path, column: str, cell: str) -> None:
+    """A whole optional column empty or NaN: the signal is left out for every joint (a
+    log holds it for all joints or none), one warning naming the column; inspect and
+    detect go on (they stopped with exit 3 on 'a run of 2500 ... at the start of the log
+    at the end of the log')."""
+    path = _with_empty_column(tmp_path, column, cell)
+    sig = column.split(".")[1]
+    msg = (f"{path}: column {column!r} holds no finite value: {sig} is read as not logged, "
+           "for every joint (a log has a signal for all its joints or none)")
+    with pytest.warns(ImpactWarning) as rec:
+        log = read_log(path)
+    assert [str(w.message) for w in rec] == [msg]
+    assert getattr(log, sig) is None and log.joint_names == ("shoulder", "elbow", "wrist")
+    assert log.source.ignored_channels == (f"shoulder.{sig}", f"wrist.{sig}")
+    assert log.source.repairs == (msg,)
+    code, out, err = _run("inspect", str(path), "--json")
+    assert code == 0, err
+    assert err.splitlines() == [f"impactcli: warning: {msg}"]
+    d = json.loads(out)
+    assert sig not in d["signals"] and d["repairs"] == [msg]
+    assert d["channels"]["ignored"] == [f"shoulder.{sig}", f"wrist.{sig}"]
+    code, out, err = _run("inspect", str(path))
+    assert code == 0, err
+    assert f"repair: {msg}" in out
+    code, out, err = _run("detect", str(path), "-o", str(tmp_path / "out"))
+    assert code == 0, err
+    assert f"impactcli: warning: {msg}" in err.splitlines()
+
+
+def test_every_joints_optional_column_empty_says_so_once(tmp_path: Path) -> None:
+    _, vals = _rows()
+    path = tmp_path / "v.csv"
+    text = _text(cells=vals).splitlines()
+    path.write_text("\n".join([text[0] + ",j1.velocity,j2.velocity"]
+                              + [r + ",," for r in text[1:]]) + "\n", encoding="utf-8")
+    with pytest.warns(ImpactWarning) as rec:
+        log = read_log(path)
+    assert [str(w.message) for w in rec] == [
+        f"{path}: columns 'j1.velocity', 'j2.velocity' hold no finite value: velocity is "
+        "read as not logged"]
+    assert log.velocity is None and log.source.ignored_channels == ()
+
+
+def test_a_column_without_any_finite_value_that_must_have_one_says_so() -> None:
+    """The error of a non-finite run spanning the whole column says the column holds no
+    finite value (it read '... at the start of the log at the end of the log')."""
+    from impactcli.io.repair import repair_samples
+
+    t = np.arange(10, dtype=np.int64) * PERIOD_NS
+    with pytest.raises(LogFormatError) as e:
+        repair_samples(t, {"a.position": np.zeros(10), "x": np.full(10, np.nan)},
+                       where="f.csv", keep_empty=())
+    assert str(e.value) == (
+        "f.csv: column 'x', sample 0: no finite value in the column (all 10 values are "
+        "non-finite, NaN); only gaps of at most 5 samples between finite values are "
+        "interpolated")
+
+
+def test_a_mapped_npz_optional_array_without_a_value_is_read_as_not_logged(
+        tmp_path: Path) -> None:
+    """The .npz reader's labels (``velocities[:, 1]``) do not name the signal: it tells
+    the repair which may be empty, as the CSV reader does."""
+    rng = np.random.default_rng(1)
+    n = 40
+    qd = rng.normal(size=(n, 2))
+    qd[:, 1] = np.nan
+    p = tmp_path / "m.npz"
+    np.savez(p, times=np.arange(n) * 0.004, positions=rng.normal(size=(n, 2)),
+             torques=rng.normal(size=(n, 2)), velocities=qd)
+    cmap = tmp_path / "m.json"
+    cmap.write_text(json.dumps({
+        "format": "npz", "time": {"key": "times", "unit": "s"},
+        "joints": [{"name": f"q{k}", "position": {"key": "positions", "index": k},
+                    "velocity": {"key": "velocities", "index": k},
+                    "torque": {"key": "torques", "index": k}} for k in range(2)],
+    }))
+    with pytest.warns(ImpactWarning) as rec:
+        log = read_log(p, channel_map=cmap)
+    assert [str(w.message) for w in rec] == [
+        f"{p}: column 'q1.velocity' holds no finite value: velocity is read as not logged, "
+        "for every joint (a log has a signal for all its joints or none)"]
+    assert log.velocity is None and log.source.ignored_channels == ("q0.velocity",)

@@ -203,6 +203,36 @@ def test_channels_not_logged_and_joints_left_out(tmp_path: Path) -> None:
     assert scan.source.joints_dropped and not scan.screens["torque_model"].logged[1]
 
 
+def test_an_optional_signal_without_a_value_is_read_as_not_logged(tmp_path: Path) -> None:
+    """An all-empty j2.velocity and an all-NaN j3.velocity_ref (the other joints' finite):
+    both signals are left out for every joint, with read_log's warning; j1's velocity and
+    the other joints' velocity_ref are ignored. A joint left out (j3: no position) does not
+    count: its empty acceleration_ref leaves the others' in the log."""
+    cols = _table()
+    for j in ("j1", "j2", "j3"):
+        cols[f"{j}.velocity"] = [repr(0.01 * i) for i in range(N)]
+        cols[f"{j}.velocity_ref"] = [repr(0.02 * i) for i in range(N)]
+        cols[f"{j}.acceleration_ref"] = [repr(0.03 * i) for i in range(N)]
+    cols["j2.velocity"] = [""] * N
+    cols["j3.velocity_ref"] = ["NaN"] * N
+    path = _write(tmp_path / "empty_optional.csv", cols)
+    scan = _assert_same(path)
+    assert scan.channels == ("position_ref", "acceleration_ref", "torque_model")
+    assert scan.source.ignored_channels == ("note", "j1.velocity", "j3.velocity",
+                                            "j1.velocity_ref", "j2.velocity_ref")
+    msgs = [f"{path}: column 'j2.velocity' holds no finite value: velocity is read as not "
+            "logged, for every joint (a log has a signal for all its joints or none)",
+            f"{path}: column 'j3.velocity_ref' holds no finite value: velocity_ref is read as "
+            "not logged, for every joint (a log has a signal for all its joints or none)"]
+    assert [r for r in scan.source.repairs if "no finite value" in r] == msgs
+    cols["j3.position"] = ["nan"] * N
+    cols["j3.acceleration_ref"] = [""] * N
+    scan = _assert_same(_write(tmp_path / "empty_optional_dropped.csv", cols))
+    assert scan.joint_names == ("j1", "j2")
+    assert scan.channels == ("position_ref", "velocity_ref", "acceleration_ref",
+                             "torque_model")
+
+
 def test_flat_and_unmeasured_torque_is_screened(tmp_path: Path) -> None:
     cols = _table()
     cols["j2.torque"] = ["0.25"] * N

@@ -8,6 +8,11 @@ A joint whose position, or whose torque (the chosen source: torque or current), 
 finite value at all — an empty or all-NaN column, a sensor not logged — is left out of the
 log with a warning and recorded in ``LogSource.joints_dropped`` (the pipeline records it
 with the joints it leaves out of detection); a log without any joint left is an error.
+An optional signal (velocity, current beside a torque, references) whose column holds no
+finite value for one of the joints kept is left out of the log for every joint (a
+:class:`~impactcli.types.RobotLog` holds a signal for all its joints or none; the other
+joints' columns of it are listed as ignored), with a warning recorded in the repairs
+(:func:`empty_signals`).
 """
 
 from __future__ import annotations
@@ -235,6 +240,50 @@ def warn_dropped(path: str, dropped: list[tuple[str, str]]) -> None:
                       ImpactWarning, stacklevel=4)
 
 
+def empty_signals(joints: tuple[str, ...], finite: dict[str, np.ndarray]
+                  ) -> list[tuple[str, list[str]]]:
+    """``(signal, joints)`` of the optional signals some kept joint's column of which holds
+    no finite value: those signals are left out of the log (module docstring).
+
+    Args:
+        joints: the J joints kept.  finite: optional signal → (J,) bool, whether each
+            joint's column holds a finite value.
+    """
+    return [(s, [j for j, ok in zip(joints, f, strict=True) if not ok])
+            for s, f in finite.items() if not np.all(f)]
+
+
+def empty_signal_message(path: str, signal: str, empty: list[str],
+                         joints: tuple[str, ...]) -> str:
+    """The warning (and repair) for an optional signal left out of the log because the
+    columns of the joints ``empty`` hold no finite value."""
+    cols = ", ".join(repr(f"{j}.{signal}") for j in empty)
+    msg = (f"{path}: column{'s' if len(empty) > 1 else ''} {cols} "
+           f"hold{'' if len(empty) > 1 else 's'} no finite value: {signal} is read as not "
+           "logged")
+    if len(empty) < len(joints):
+        msg += ", for every joint (a log has a signal for all its joints or none)"
+    return msg
+
+
+def drop_empty_signals(path: str, joints: tuple[str, ...], finite: dict[str, np.ndarray]
+                       ) -> tuple[list[str], list[str], list[str]]:
+    """The optional signals to leave out of the log (:func:`empty_signals`), warned.
+
+    Returns:
+        (the signals left out, the other joints' channels of them — now ignored —, the
+        warnings, also repairs).
+    """
+    out, ignored, msgs = [], [], []
+    for sig, empty in empty_signals(joints, finite):
+        out.append(sig)
+        ignored += [f"{j}.{sig}" for j in joints if j not in empty]
+        msg = empty_signal_message(path, sig, empty, joints)
+        msgs.append(msg)
+        warnings.warn(msg, ImpactWarning, stacklevel=4)
+    return out, ignored, msgs
+
+
 def build_log(
     ch: JointChannels,
     *,
@@ -264,14 +313,18 @@ def build_log(
         keep = [k for k, j in enumerate(ch.joints) if j not in out]
         joints = tuple(ch.joints[k] for k in keep)
         arrays = {s: v[:, keep] for s, v in arrays.items()}
+    gone, ignored, msgs = drop_empty_signals(
+        path, joints, {s: np.isfinite(arrays[s]).any(axis=0) for s in plan.optional})
+    for s in gone:
+        del arrays[s]
     source = LogSource(
         path=path,
         sha256=sha256 if sha256 is not None else _sha256(path),
         format=fmt,
         torque_source=src,  # type: ignore[arg-type]
         time_source=time_source,  # type: ignore[arg-type]
-        ignored_channels=plan.ignored,
-        repairs=tuple(ch.repairs),
+        ignored_channels=plan.ignored + tuple(ignored),
+        repairs=tuple(ch.repairs) + tuple(msgs),
         notes=plan.notes,
         joints_dropped=tuple(dropped),
     )

@@ -15,7 +15,7 @@ from ..errors import ChannelMapError, LogFormatError
 from .assemble import JointChannels
 from .channel_map import TIME_UNITS, ChannelMap, ChannelRef, require_time
 from .csv import channels_from_columns
-from .repair import repair_samples
+from .repair import DROPPABLE_SIGNALS, repair_samples
 
 
 def read_npz_channels(path: Path, cmap: ChannelMap) -> JointChannels:
@@ -92,7 +92,10 @@ def read_npz_channels(path: Path, cmap: ChannelMap) -> JointChannels:
         raise LogFormatError(f"{where}: time array {tkey!r} is not numeric ({t_raw.dtype})")
     if tspec.offset:
         t_ns = t_ns + round(tspec.offset * unit_ns)
-    t_ns, cols, repairs = repair_samples(t_ns, cols, where=where, time_name=tkey)
+    # the arrays' labels (``positions[:, 2]``) do not name the signal: say which may be empty
+    keep_empty = {lab for (sig, _), lab in labels.items() if sig in DROPPABLE_SIGNALS}
+    t_ns, cols, repairs = repair_samples(t_ns, cols, where=where, time_name=tkey,
+                                         keep_empty=keep_empty)
     if tspec.start_at_zero:
         t_ns = t_ns - t_ns[0]
     return channels_from_columns(cmap, t_ns, cols, labels, ignored, repairs)

@@ -17,7 +17,9 @@ and recorded in ``RobotLog.source.repairs``:
 A channel without a single finite value is not repaired: a controller channel
 (``torque_model``, ``torque_ext``) is read as not logged for that joint; a position,
 torque or current column (``keep_empty``) is passed on as NaN, and the joint is left out
-of the log with a warning by :func:`impactcli.io.assemble.build_log`.
+of the log with a warning by :func:`impactcli.io.assemble.build_log`; so is an optional
+signal's column (velocity, references), and the log is read without that signal, for
+every joint, with a warning (:func:`impactcli.io.assemble.build_log`).
 
 Anything else is a :class:`~impactcli.errors.LogFormatError` naming the file, the column
 and the row: time that is not strictly increasing after dropping duplicates (without
@@ -48,8 +50,12 @@ MAX_ABS_VALUE = 1e12
 #: Implied sample rates outside [MIN_RATE_HZ, MAX_RATE_HZ] are an error (formats.md).
 MIN_RATE_HZ = 20.0
 MAX_RATE_HZ = 100_000.0
-#: Signals whose column may hold no finite value: the joint is then left out of the log.
-DROPPABLE_SIGNALS = ("position", "torque", "current")
+#: Signals whose column may hold no finite value (passed on as NaN): a position or torque
+#: (or current, the torque source) column leaves its joint out of the log; an optional
+#: signal's column (velocity, current not the torque source, references) leaves that
+#: signal out of the log (:func:`impactcli.io.assemble.build_log`).
+DROPPABLE_SIGNALS = ("position", "torque", "current", "velocity", "position_ref",
+                     "velocity_ref", "acceleration_ref")
 
 _REPAIR_ORDER: ContextVar[bool] = ContextVar("impactcli_repair_order", default=False)
 
@@ -122,7 +128,7 @@ def repair_samples(
         repair_order: keep the longest increasing run of stamps instead of refusing rows
             out of order (None: as :func:`repairing_order` says, default no).
         keep_empty: channels that may hold no finite value (passed on as NaN; None: those
-            named ``<joint>.position``, ``.torque`` or ``.current``).
+            named ``<joint>.<signal>`` for a signal of :data:`DROPPABLE_SIGNALS`).
 
     Returns:
         ``(t_ns, columns, repairs)``: repaired copies and the list of repairs made
@@ -186,7 +192,7 @@ def repair_matrix(
     bad = ~np.isfinite(mat)
     allbad = np.flatnonzero(bad.all(axis=0)) if mat.shape[0] else np.zeros(0, dtype=np.int64)
     # a position/torque/current column with no finite value: passed on as NaN, the joint is
-    # left out of the log (build_log, warned there)
+    # left out of the log; an optional signal's: the signal is (build_log, warned there)
     droppable = (set(keep_empty) if keep_empty is not None else
                  {c for c in names if c.rsplit(".", 1)[-1] in DROPPABLE_SIGNALS})
     for c in allbad:
@@ -316,10 +322,14 @@ def interpolated_message(where: str, name: str, count: int, runs: int, first_lab
 
 def run_message(where: str, name: str, label: str, length: int, kind: str, at_start: bool,
                 at_end: bool) -> str:
-    """The error for a run of non-finite values that is not interpolated."""
-    why = (f"a run of {length} non-finite ({kind}) value(s)"
-           + (" at the start of the log" if at_start else "")
-           + (" at the end of the log" if at_end else ""))
+    """The error for a run of non-finite values that is not interpolated (one that spans
+    the whole log: the column holds no finite value)."""
+    if at_start and at_end:
+        why = f"no finite value in the column (all {length} values are non-finite, {kind})"
+    else:
+        why = (f"a run of {length} non-finite ({kind}) value(s)"
+               + (" at the start of the log" if at_start else "")
+               + (" at the end of the log" if at_end else ""))
     return (f"{where}: column {name!r}, {label}: {why}; only gaps of at most "
             f"{MAX_GAP_SAMPLES} samples between finite values are interpolated")
 

@@ -919,6 +919,8 @@ class _ScanAcc:
         j = len(ctx.lay.cmap.joints)
         self.pos_finite = np.zeros(j, dtype=bool)
         self.torque_finite = np.zeros(j, dtype=bool)
+        # optional signal → (J,) whether each joint's column holds a finite value
+        self.opt_finite: dict[str, np.ndarray] = {}
         self.screens = {s: _ScreenAcc(j) for s in ("torque", *CONTROLLER_CHANNELS)}
         self.floor = float("-inf")
         self.bad_row: dict[str, np.ndarray] = {}  # signal → (J,) first non-finite sample
@@ -932,11 +934,11 @@ class _ScanAcc:
         new = (rows < 0) & ~fin.all(axis=0)
         rows[new] = self.n - a.shape[0] + np.argmax(~fin, axis=0)[new]
 
-    def check_finite(self, keep: list[int]) -> None:
+    def check_finite(self, keep: list[int], gone: list[str]) -> None:
         """RobotLog's error for a non-finite value left in a kept joint's column (in a
-        value scaled out of range; ``_as_matrix``)."""
+        value scaled out of range; ``_as_matrix``); the signals ``gone`` are not in the log."""
         for s in ("position", "torque", *OPTIONAL):
-            rows = self.bad_row.get(s)
+            rows = self.bad_row.get(s) if s not in gone else None
             if rows is None or not (rows[keep] >= 0).any():
                 continue
             r = rows[keep]
@@ -964,6 +966,9 @@ class _ScanAcc:
                          for s, a in arrays.items()}
         self.pos_finite |= np.isfinite(arrays["position"]).any(axis=0)
         self.torque_finite |= np.isfinite(arrays["torque"]).any(axis=0)
+        for s in self.ctx.plan.optional:
+            fin = np.isfinite(arrays[s]).any(axis=0)
+            self.opt_finite[s] = self.opt_finite[s] | fin if s in self.opt_finite else fin
         for s, a in arrays.items():
             if s not in CONTROLLER_CHANNELS:
                 self._first_bad(s, a)
@@ -981,7 +986,12 @@ class _ScanAcc:
 
     def finish(self, rep: _Repairer, sha256: str, options: dict[str, Any]) -> LogScan:
         """The scan: drop the joints without data, warn, the header, clock, gaps, screen."""
-        from .assemble import drop_message, empty_joint_reasons, warn_dropped
+        from .assemble import (
+            drop_empty_signals,
+            drop_message,
+            empty_joint_reasons,
+            warn_dropped,
+        )
 
         ctx, plan, lay = self.ctx, self.ctx.plan, self.ctx.lay
         joints = lay.cmap.joints
@@ -995,16 +1005,20 @@ class _ScanAcc:
         warn_dropped(lay.where, dropped)
         out = {j for j, _ in dropped}
         keep = [k for k, j in enumerate(joints) if j not in out]
+        kept = tuple(joints[k] for k in keep)
+        gone, ignored, msgs = drop_empty_signals(
+            lay.where, kept, {s: self.opt_finite[s][keep] for s in plan.optional})
         allbad = frozenset(int(c) for c in np.flatnonzero(rep.empty))
         shift = int(self.head_t[0]) if lay.tspec.start_at_zero else 0
         source = LogSource(path=lay.where, sha256=sha256, format=lay.fmt,
                            torque_source=plan.torque_source, time_source="column",
-                           ignored_channels=plan.ignored, repairs=tuple(repairs),
+                           ignored_channels=plan.ignored + tuple(ignored),
+                           repairs=tuple(repairs) + tuple(msgs),
                            notes=plan.notes, joints_dropped=tuple(dropped))
-        head = {s: _nan_where_empty(a, s, ctx, allbad)[:, keep] for s, a in self.head.items()}
-        log = RobotLog(t_ns=self.head_t - shift, joint_names=tuple(joints[k] for k in keep),
-                       source=source, **head)
-        self.check_finite(keep)
+        head = {s: _nan_where_empty(a, s, ctx, allbad)[:, keep] for s, a in self.head.items()
+                if s not in gone}
+        log = RobotLog(t_ns=self.head_t - shift, joint_names=kept, source=source, **head)
+        self.check_finite(keep, gone)
         clock = self.hist.clock()
         self.gaps.add(np.zeros(0, dtype=np.int64), self.floor, last=True)
         if not self.gaps.exact_for(clock):  # the rate moved: a second pass at the threshold
