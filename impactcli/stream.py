@@ -113,50 +113,80 @@ def streamable(config: DetectorConfig | None, model: RigidModel | None,
 
 @dataclass
 class _Island:
-    """Consecutive samples near an alarm (module docstring), rows appended per chunk."""
+    """Consecutive samples near an alarm (module docstring): the island's first sample in
+    the log and its rows [row_from, row_to) in the spill files."""
 
     start: int
-    rows: dict[str, list[np.ndarray]]
-
-    def append(self, arrays: dict[str, np.ndarray], a: int, b: int) -> None:
-        for k, v in arrays.items():
-            self.rows.setdefault(k, []).append(v[a:b])
-
-    def arrays(self) -> dict[str, np.ndarray]:
-        return {k: np.concatenate(v) for k, v in self.rows.items()}
+    row_from: int
+    row_to: int
 
 
 class _Islands:
-    """The islands of a streamed replay (module docstring)."""
+    """The islands of a streamed replay (module docstring), their rows spilled to
+    temporary files (one per array: memory holds only where each island lies).
+
+    A sample is kept when some detector fires on it, when it lies within the merge gap
+    after one that fires, or when the contact still presses on it (the static-loading
+    statistic of some joint at half its threshold) and the sample before it was kept —
+    the stretch between two alarms that a pressing contact bridges. Pressing that does not
+    follow an alarm is not kept: no event or incident reads it.
+    """
 
     def __init__(self, merge_gap_s: float) -> None:
+        import tempfile
+
         self.reach_s = merge_gap_s + 1e-9
-        self.last_t = -np.inf          # time of the last interesting sample so far
+        self.last_t = -np.inf          # time of the last alarm so far
+        self.kept_last = False         # whether the previous chunk's last sample was kept
         self.done: list[_Island] = []
         self.open: _Island | None = None
+        self.rows = 0
+        self.dir = tempfile.TemporaryDirectory(prefix="impactcli-islands-")
+        self.files: dict[str, Any] = {}
+        self.layout: dict[str, tuple[np.dtype[Any], tuple[int, ...]]] = {}
 
-    def update(self, k0: int, t: np.ndarray, interesting: np.ndarray,
+    def update(self, k0: int, t: np.ndarray, alarm: np.ndarray, pressing: np.ndarray,
                arrays: dict[str, np.ndarray]) -> None:
-        """Absorb a chunk starting at sample ``k0``: (n,) times, (n,) interesting."""
+        """Absorb a chunk starting at sample ``k0``: (n,) times [s], (n,) alarms, (n,)
+        pressing, and the (n, ...) arrays to keep of the kept samples."""
         n = t.shape[0]
-        idx = np.where(interesting, np.arange(n), -1)
+        idx = np.where(alarm, np.arange(n), -1)
         last = np.maximum.accumulate(idx)
         t_last = np.where(last >= 0, t[np.maximum(last, 0)], self.last_t)
-        keep = interesting | (t - t_last <= self.reach_s)
-        if interesting.any():
-            self.last_t = float(t[np.flatnonzero(interesting)[-1]])
+        base = alarm | (t - t_last <= self.reach_s)
+        if alarm.any():
+            self.last_t = float(t[np.flatnonzero(alarm)[-1]])
+        # kept = base, or pressing with the sample before kept: a pressing run continues
+        # the state at its start; a sample neither base nor pressing resets it
+        ar = np.arange(n)
+        set_at = np.maximum.accumulate(np.where(base, ar, -1))
+        reset_at = np.maximum.accumulate(np.where(~base & ~pressing, ar, -1))
+        carried = self.kept_last & (reset_at < 0) & (set_at < 0)
+        keep = base | (pressing & ((set_at > reset_at) | carried))
+        self.kept_last = bool(keep[-1]) if n else self.kept_last
         if not keep.any():
             self._close()
             return
-        # runs of kept samples
         edges = np.flatnonzero(np.diff(np.concatenate([[0], keep.astype(np.int8), [0]])))
         for a, b in zip(edges[::2], edges[1::2], strict=True):
             if a > 0 or self.open is None:
                 self._close()
-                self.open = _Island(k0 + int(a), {})
-            self.open.append(arrays, int(a), int(b))
+                self.open = _Island(k0 + int(a), self.rows, self.rows)
+            for key, v in arrays.items():
+                self._write(key, v[a:b])
+            self.rows += int(b - a)
+            self.open.row_to = self.rows
             if b < n:
                 self._close()
+
+    def _write(self, key: str, v: np.ndarray) -> None:
+        f = self.files.get(key)
+        if f is None:
+            import os
+
+            f = self.files[key] = open(os.path.join(self.dir.name, key), "wb")  # noqa: SIM115
+            self.layout[key] = (v.dtype, v.shape[1:])
+        f.write(np.ascontiguousarray(v).tobytes())
 
     def _close(self) -> None:
         if self.open is not None:
@@ -164,8 +194,31 @@ class _Islands:
             self.open = None
 
     def finish(self) -> list[_Island]:
+        """The islands, in time order (their rows readable until :meth:`close`)."""
         self._close()
+        for f in self.files.values():
+            f.close()
         return self.done
+
+    def arrays(self, isl: _Island) -> dict[str, np.ndarray]:
+        """An island's arrays, read back from the spill files."""
+        import os
+
+        out = {}
+        for key, (dtype, shape) in self.layout.items():
+            width = int(np.prod(shape)) if shape else 1
+            size = dtype.itemsize * width
+            with open(os.path.join(self.dir.name, key), "rb") as f:
+                f.seek(isl.row_from * size)
+                a = np.fromfile(f, dtype=dtype, count=(isl.row_to - isl.row_from) * width)
+            out[key] = a.reshape((-1, *shape))
+        return out
+
+    def close(self) -> None:
+        """Remove the spill files."""
+        for f in self.files.values():
+            f.close()
+        self.dir.cleanup()
 
 
 def analyze_stream(
@@ -256,6 +309,7 @@ def analyze_stream(
                                scan.sample_period_s, scan.t0_ns, scan.n_samples,
                                cfg.events.merge_gap_s, where)
         incidents = _incidents(islands, per_island, ctx)
+        islands.close()
     msgs = tuple(dict.fromkeys(str(w.message) for w in caught
                                if issubclass(w.category, ImpactWarning)))
     for w in caught:
@@ -341,7 +395,7 @@ def _replay_pass(
     joints: tuple[str, ...], choices: Any, rig: RigidModel | None,
     full_joints: tuple[str, ...], unlogged: dict[str, list[int]], keep: tuple[str, ...],
     thr: dict[str, np.ndarray], on_chunk: Any, progress: Any, caught: list[Any],
-) -> tuple[list[Any], np.ndarray, tuple[Warmup, list[float]], list[_Island], AdaptiveResult,
+) -> tuple[list[Any], np.ndarray, tuple[Warmup, list[float]], _Islands, AdaptiveResult,
            str, str]:
     """The second pass (module docstring): returns the warnings it raised, the times of
     the samples at and after each gap, the warm-up, the islands, the last chunk's
@@ -389,7 +443,7 @@ def _replay_pass(
         any_d = dec["adaptive"].any(axis=1) | dec["static_loading"].any(axis=1) | \
             dec["static_baseline"].any(axis=1)
         pressing = np.any(out.loading >= pressing_at[None, :], axis=1)
-        islands.update(k0, t, any_d | pressing, {
+        islands.update(k0, t, any_d, pressing, {
             "t": t, "r": r, "loading": out.loading, "qd": out.qd,
             "q_full": np.asarray(ch.position, dtype=np.float64),
             **{f"d.{d}": dec[d] for d in DETECTORS}, **{f"x.{d}": ratios[d] for d in DETECTORS}})
@@ -406,8 +460,9 @@ def _replay_pass(
     assert last is not None
     msgs = caught[start:]
     wu = tracker.finish()
-    return (msgs, gap_times, (wu, tracker.times_at(wu.index)), islands.finish(), last,
-            reference, detail)
+    islands.finish()
+    return (msgs, gap_times, (wu, tracker.times_at(wu.index)), islands, last, reference,
+            detail)
 
 
 def _chunk_arrays(ch: Any, t: np.ndarray, cols: list[int],
@@ -459,15 +514,15 @@ def _warmup_warnings(where: str, scan: Any, wu: Warmup, times: list[float],
             "artefacts", ImpactWarning, stacklevel=3)
 
 
-def _events(islands: list[_Island], wu: Warmup, joints: tuple[str, ...],
+def _events(islands: _Islands, wu: Warmup, joints: tuple[str, ...],
             cfg: DetectorConfig) -> tuple[list[Event], list[tuple[int, list[Event]]]]:
     """Every island's events (indices in the log, in timeline order), and per island its
     first event's index and its events with indices in the island."""
     ev = cfg.events
     events: list[Event] = []
     per_island = []
-    for isl in islands:
-        a = isl.arrays()
+    for isl in islands.done:
+        a = islands.arrays(isl)
         local: list[Event] = []
         for d in DETECTORS:
             local += extract_events(d, a[f"d.{d}"], a[f"x.{d}"], a["r"], a["t"], joints,
@@ -479,12 +534,12 @@ def _events(islands: list[_Island], wu: Warmup, joints: tuple[str, ...],
     return events, per_island
 
 
-def _incidents(islands: list[_Island], per_island: list[tuple[int, list[Event]]],
+def _incidents(islands: _Islands, per_island: list[tuple[int, list[Event]]],
                ctx: IncidentContext) -> list[Incident]:
     """Every island's incidents (:func:`impactcli.contacts.build_incidents`)."""
     out: list[Incident] = []
-    for isl, (e0, local) in zip(islands, per_island, strict=True):
-        a = isl.arrays()
+    for isl, (e0, local) in zip(islands.done, per_island, strict=True):
+        a = islands.arrays(isl)
         out += build_incidents(ctx, local, a["t"], a["r"], a["loading"], a["d.adaptive"],
                                a["d.static_loading"], a["q_full"], a["qd"],
                                offset=isl.start, event_offset=e0)
