@@ -419,13 +419,7 @@ def replay(
     target = target_log(log, choices, cfg.residual.logged_correction)
     fs = log.sample_rate_hz
     gaps, lengths = time_gaps(log)
-    if gaps.size:
-        k = int(np.argmax(lengths))
-        warnings.warn(
-            f"{log.source.path}: {gaps.size} time gap(s) longer than {GAP_FACTOR:g} sample "
-            f"periods (longest {lengths[k] * 1e3:.4g} ms after {log.time_s[gaps[k]]:.3f} s, "
-            f"first after {log.time_s[gaps[0]]:.3f} s): the detectors assume uniform sampling, "
-            "so alarms just after a gap may be artefacts of it", ImpactWarning, stacklevel=3)
+    warn_gaps(log.source.path, lengths, log.time_s[gaps])
     ropts = residual_options(cfg)
     cost, _ = replay_cost(log.n_joints, fs, cfg.adaptive)
     shown = progress if progress is not None and cost * log.duration_s >= PROGRESS_AFTER_S \
@@ -439,19 +433,10 @@ def replay(
         warnings.warn(f"{log.source.path}: no reference logged: threshold inputs from the "
                       "measured position (no anticipation)", ImpactWarning, stacklevel=3)
     wu = warmup_end(ad.prediction_error, log.time_s, cfg.warmup)
-    if wu.end_index >= log.n_samples - 10:
-        warnings.warn(f"{log.source.path}: the warm-up covers the whole log "
-                      f"({log.duration_s:.1f} s)", ImpactWarning, stacklevel=3)
-    else:
-        ts = log.time_s
-        capped = [j for j, i in zip(log.joint_names, wu.index, strict=True)
-                  if i < log.n_samples and ts[i] >= cfg.warmup.max_s - 1e-9]
-        if capped:
-            warnings.warn(
-                f"{log.source.path}: the warm-up reached its cap (warmup.max_s = "
-                f"{cfg.warmup.max_s:g} s) on joint(s) {', '.join(capped)}: the adaptive "
-                "filter's prediction error had not settled; alarms soon after it may be "
-                "artefacts", ImpactWarning, stacklevel=3)
+    ts = log.time_s
+    warn_warmup(log.source.path, wu, [float(ts[i]) if i < log.n_samples else wu.end_s
+                                      for i in wu.index],
+                log.joint_names, log.n_samples, log.duration_s, cfg)
     loading = out.loading
     stats = {"adaptive": adaptive_statistic(ad.r_rms, ad.v_rms), "static_loading": loading,
              "static_baseline": np.abs(r)}
@@ -562,15 +547,51 @@ GAP_SETTLE_S = 0.5
 def _warn_events_after_gaps(log: RobotLog, gaps: np.ndarray, events: list[Any]) -> None:
     """Warn naming the events that start within GAP_SETTLE_S after a time gap (``gaps``:
     indices i of the steps t[i] → t[i+1] that are gaps, from :func:`replay`)."""
-    if not gaps.size or not events:
+    if gaps.size:
+        warn_events_after_gaps(log.source.path, log.time_s[gaps + 1], events)
+
+
+def warn_gaps(where: str, lengths_s: np.ndarray, starts_s: np.ndarray) -> None:
+    """The time-gap warning: (G,) gap lengths [s] and the times of the samples before them."""
+    if not len(lengths_s):
         return
-    after = log.time_s[gaps + 1]
+    k = int(np.argmax(lengths_s))
+    warnings.warn(
+        f"{where}: {len(lengths_s)} time gap(s) longer than {GAP_FACTOR:g} sample "
+        f"periods (longest {lengths_s[k] * 1e3:.4g} ms after {starts_s[k]:.3f} s, "
+        f"first after {starts_s[0]:.3f} s): the detectors assume uniform sampling, "
+        "so alarms just after a gap may be artefacts of it", ImpactWarning, stacklevel=3)
+
+
+def warn_warmup(where: str, wu: Any, times_s: Sequence[float], joints: tuple[str, ...],
+                n_samples: int, duration_s: float, cfg: DetectorConfig) -> None:
+    """The warm-up warnings: it covers the whole log, or it reached its cap on some joints
+    (``times_s``: each joint's warm-up end [s])."""
+    if wu.end_index >= n_samples - 10:
+        warnings.warn(f"{where}: the warm-up covers the whole log "
+                      f"({duration_s:.1f} s)", ImpactWarning, stacklevel=3)
+        return
+    capped = [j for j, i, ts in zip(joints, wu.index, times_s, strict=True)
+              if i < n_samples and ts >= cfg.warmup.max_s - 1e-9]
+    if capped:
+        warnings.warn(
+            f"{where}: the warm-up reached its cap (warmup.max_s = "
+            f"{cfg.warmup.max_s:g} s) on joint(s) {', '.join(capped)}: the adaptive "
+            "filter's prediction error had not settled; alarms soon after it may be "
+            "artefacts", ImpactWarning, stacklevel=3)
+
+
+def warn_events_after_gaps(where: str, after_s: np.ndarray, events: list[Any]) -> None:
+    """Warn naming the events that start within GAP_SETTLE_S after a time gap (``after_s``:
+    the times of the samples just after the gaps [s])."""
+    if not len(after_s) or not events:
+        return
     near = [e for e in events
-            if np.any((e.t_start >= after - 1e-9) & (e.t_start <= after + GAP_SETTLE_S))]
+            if np.any((e.t_start >= after_s - 1e-9) & (e.t_start <= after_s + GAP_SETTLE_S))]
     if near:
         listed = ", ".join(f"{e.detector} at {e.t_start:.3f} s" for e in near[:5])
         more = f" and {len(near) - 5} more" if len(near) > 5 else ""
-        warnings.warn(f"{log.source.path}: {len(near)} event(s) start within "
+        warnings.warn(f"{where}: {len(near)} event(s) start within "
                       f"{GAP_SETTLE_S:g} s after a time gap ({listed}{more}): check them",
                       ImpactWarning, stacklevel=3)
 

@@ -33,7 +33,13 @@ from .detect.adaptive import AdaptiveResult, EvaluatorState, evaluate_chunk, inp
 from .detect.static import causal_lowpass as loading_lowpass
 from .errors import ModelError
 from .model.derivatives import causal_derivatives
-from .model.generators import LOGGED, GeneratorChoice, plain_residual, uses_correction
+from .model.generators import (
+    LOGGED,
+    GeneratorChoice,
+    plain_residual,
+    target_torque,
+    uses_correction,
+)
 from .model.residual import ResidualOptions, residual_chunk
 from .model.rigid import RigidModel
 
@@ -153,24 +159,6 @@ class ChunkReplay:
     qd: np.ndarray
     inputs_source: str
     inputs_detail: str
-
-
-def target_torque(chunk: ChunkArrays, choices: tuple[GeneratorChoice, ...],
-                  correct: bool) -> np.ndarray:
-    """(n, J) the torque the (correction) model is compared with: tau for the tool's own
-    model; tau − τ_m for ``logged_model``; −torque_ext for ``logged_external``
-    (:func:`impactcli.model.generators.target_log`)."""
-    tau = np.array(chunk.torque, dtype=np.float64)
-    if not uses_correction(choices, correct):
-        return tau
-    for k, c in enumerate(choices):
-        if c.generator == "logged_model":
-            assert chunk.torque_model is not None
-            tau[:, k] = chunk.torque[:, k] - chunk.torque_model[:, k]
-        elif c.generator == "logged_external":
-            assert chunk.torque_ext is not None
-            tau[:, k] = -chunk.torque_ext[:, k]
-    return tau
 
 
 def residual_columns(setup: ReplaySetup, chunk: ChunkArrays, carry: Carry,

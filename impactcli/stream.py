@@ -248,7 +248,15 @@ def analyze_stream(
         The result; its ``log`` is a :class:`LogHeader` and it holds no per-sample signals.
     """
     from .io.stream import scan_log
-    from .pipeline import _known_joints, calibrated_thresholds, screen_plan, with_generator
+    from .pipeline import (
+        _known_joints,
+        calibrated_thresholds,
+        screen_plan,
+        warn_events_after_gaps,
+        warn_gaps,
+        warn_warmup,
+        with_generator,
+    )
 
     opts = dict(read_options or {})
     read_kw = dict(opts, robot=robot) if robot is not None else dict(opts)
@@ -293,14 +301,14 @@ def analyze_stream(
         del caught[before:]
         header = LogHeader(joints, scan.source, scan.n_samples, scan.t0_ns, scan.duration_s,
                            scan.sample_rate_hz, scan.sample_period_s)
-        _gap_warning(where, scan, gap_times)
+        warn_gaps(where, np.asarray(scan.gap_lengths_s), gap_times[:, 0])
         caught.extend(replay_msgs)
         if reference == "measured":
             warnings.warn(f"{where}: no reference logged: threshold inputs from the "
                           "measured position (no anticipation)", ImpactWarning, stacklevel=2)
-        _warmup_warnings(where, scan, wu, wu_times, joints, cfg)
+        warn_warmup(where, wu, wu_times, joints, scan.n_samples, scan.duration_s, cfg)
         events, per_island = _events(islands, wu, joints, cfg)
-        _events_after_gaps(where, gap_times, events)
+        warn_events_after_gaps(where, gap_times[:, 1], events)
         from .pipeline import _warn_long_events
 
         _warn_long_events(cast(Any, header), events)
@@ -481,39 +489,6 @@ def _chunk_arrays(ch: Any, t: np.ndarray, cols: list[int],
     return dataclasses.replace(a, **changes) if changes else a
 
 
-def _gap_warning(where: str, scan: Any, gap_times: np.ndarray) -> None:
-    """The time-gap warning of :func:`impactcli.pipeline.replay`."""
-    from .io.inspect import GAP_FACTOR
-
-    gaps, lengths = np.asarray(scan.gaps), np.asarray(scan.gap_lengths_s)
-    if not gaps.size:
-        return
-    k = int(np.argmax(lengths))
-    warnings.warn(
-        f"{where}: {gaps.size} time gap(s) longer than {GAP_FACTOR:g} sample "
-        f"periods (longest {lengths[k] * 1e3:.4g} ms after {gap_times[k, 0]:.3f} s, "
-        f"first after {gap_times[0, 0]:.3f} s): the detectors assume uniform sampling, "
-        "so alarms just after a gap may be artefacts of it", ImpactWarning, stacklevel=3)
-
-
-def _warmup_warnings(where: str, scan: Any, wu: Warmup, times: list[float],
-                     joints: tuple[str, ...], cfg: DetectorConfig) -> None:
-    """The warm-up warnings of :func:`impactcli.pipeline.replay`."""
-    n = scan.n_samples
-    if wu.end_index >= n - 10:
-        warnings.warn(f"{where}: the warm-up covers the whole log "
-                      f"({scan.duration_s:.1f} s)", ImpactWarning, stacklevel=3)
-        return
-    capped = [j for j, i, ts in zip(joints, wu.index, times, strict=True)
-              if i < n and ts >= cfg.warmup.max_s - 1e-9]
-    if capped:
-        warnings.warn(
-            f"{where}: the warm-up reached its cap (warmup.max_s = "
-            f"{cfg.warmup.max_s:g} s) on joint(s) {', '.join(capped)}: the adaptive "
-            "filter's prediction error had not settled; alarms soon after it may be "
-            "artefacts", ImpactWarning, stacklevel=3)
-
-
 def _events(islands: _Islands, wu: Warmup, joints: tuple[str, ...],
             cfg: DetectorConfig) -> tuple[list[Event], list[tuple[int, list[Event]]]]:
     """Every island's events (indices in the log, in timeline order), and per island its
@@ -544,20 +519,3 @@ def _incidents(islands: _Islands, per_island: list[tuple[int, list[Event]]],
                                a["d.static_loading"], a["q_full"], a["qd"],
                                offset=isl.start, event_offset=e0)
     return out
-
-
-def _events_after_gaps(where: str, gap_times: np.ndarray, events: list[Event]) -> None:
-    """The warning of :func:`impactcli.pipeline._warn_events_after_gaps`."""
-    from .pipeline import GAP_SETTLE_S
-
-    if not gap_times.shape[0] or not events:
-        return
-    after = gap_times[:, 1]
-    near = [e for e in events
-            if np.any((e.t_start >= after - 1e-9) & (e.t_start <= after + GAP_SETTLE_S))]
-    if near:
-        listed = ", ".join(f"{e.detector} at {e.t_start:.3f} s" for e in near[:5])
-        more = f" and {len(near) - 5} more" if len(near) > 5 else ""
-        warnings.warn(f"{where}: {len(near)} event(s) start within "
-                      f"{GAP_SETTLE_S:g} s after a time gap ({listed}{more}): check them",
-                      ImpactWarning, stacklevel=3)

@@ -127,7 +127,16 @@ def target_log(log: RobotLog, choices: tuple[GeneratorChoice, ...], correct: boo
     """
     if not uses_correction(choices, correct):
         return log
+    return dataclasses.replace(log, torque=target_torque(log, choices, correct), current=None,
+                               torque_model=None, torque_ext=None)
+
+
+def target_torque(log: Any, choices: tuple[GeneratorChoice, ...], correct: bool) -> np.ndarray:
+    """(n, J) the torque of :func:`target_log`, for a log or a chunk of one (its
+    ``torque``, ``torque_model``, ``torque_ext``)."""
     tau = np.array(log.torque, dtype=np.float64)
+    if not uses_correction(choices, correct):
+        return tau
     for k, c in enumerate(choices):
         if c.generator == "logged_model":
             assert log.torque_model is not None
@@ -135,8 +144,7 @@ def target_log(log: RobotLog, choices: tuple[GeneratorChoice, ...], correct: boo
         elif c.generator == "logged_external":
             assert log.torque_ext is not None
             tau[:, k] = -log.torque_ext[:, k]
-    return dataclasses.replace(log, torque=tau, current=None, torque_model=None,
-                               torque_ext=None)
+    return tau
 
 
 def plain_residual(
