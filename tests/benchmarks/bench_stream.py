@@ -14,7 +14,8 @@ the real-time factor and its peak resident memory (ru_maxrss of that process alo
 by a wrapper process). ``--release REF`` (default the tag ``v0.1.0``, the release before the
 streaming replay; skipped when the ref does not exist) runs that release's code from a git
 worktree in the same environment on the same files, for durations up to
-``--release-max-minutes`` (default 60: it holds the whole log in memory).
+``--release-max-minutes`` (default 60: it holds the whole log in memory); ``--rerun`` (a
+whole-log replay still) up to ``--rerun-max-minutes`` (default 60).
 """
 
 from __future__ import annotations
@@ -95,10 +96,13 @@ _WRAP = ("import resource, subprocess, sys, time; t = time.perf_counter(); "
          "sys.stderr.write(p.stderr[-2000:] if p.returncode else '')")
 
 
-def measure(cmd: list[str], env: dict[str, str] | None = None) -> tuple[float, float]:
-    """Wall time [s] and peak RSS [MB] of ``cmd`` alone (a wrapper process reads it)."""
+def measure(cmd: list[str], cwd: Path, env: dict[str, str] | None = None
+            ) -> tuple[float, float]:
+    """Wall time [s] and peak RSS [MB] of ``cmd`` alone (a wrapper process reads it), run in
+    ``cwd`` (not the repository: ``python -m`` puts the working folder first on the path,
+    which would import the repository's code instead of the release's)."""
     p = subprocess.run([sys.executable, "-c", _WRAP, "x", *cmd], capture_output=True,
-                       text=True, env=env, check=False)
+                       text=True, env=env, cwd=cwd, check=False)
     rc, wall, rss = p.stdout.split()
     if int(rc) != 0:
         sys.exit(f"failed ({rc}): {' '.join(cmd)}\n{p.stderr}")
@@ -112,6 +116,8 @@ def main() -> None:
     ap.add_argument("--release", default="v0.1.0")
     ap.add_argument("--release-max-minutes", type=float, default=60.0)
     ap.add_argument("--variants", nargs="+", default=["plain", "signals", "rerun"])
+    ap.add_argument("--rerun-max-minutes", type=float, default=60.0,
+                    help="--rerun replays the whole log in memory: not beyond this")
     ap.add_argument("--keep", type=Path)
     args = ap.parse_args()
     tmp = Path(args.keep or tempfile.mkdtemp(prefix="impactcli-bench-stream-"))
@@ -136,14 +142,16 @@ def main() -> None:
                 extra = {"plain": [], "signals": ["--signals"], "rerun": ["--rerun"]}[variant]
                 out = tmp / f"out_{variant}"
                 cmd = [exe, "detect", str(log), "--config", str(cfg), "-o", str(out), *extra]
-                wall, rss = measure(cmd)
+                if variant == "rerun" and minutes > args.rerun_max_minutes:
+                    continue
+                wall, rss = measure(cmd, tmp)
                 rows.append(_row("this", minutes, variant, wall, rss, size))
                 print(json.dumps(rows[-1]), file=sys.stderr)
                 shutil.rmtree(out, ignore_errors=True)
                 if release is not None and minutes <= args.release_max_minutes:
                     env = dict(os.environ, PYTHONPATH=str(release))
                     cmd = [sys.executable, "-m", "impactcli", *cmd[1:]]
-                    wall, rss = measure(cmd, env)
+                    wall, rss = measure(cmd, tmp, env)
                     rows.append(_row(args.release, minutes, variant, wall, rss, size))
                     print(json.dumps(rows[-1]), file=sys.stderr)
                     shutil.rmtree(out, ignore_errors=True)
