@@ -178,9 +178,17 @@ def _row(code: str, minutes: float, variant: str, wall: float, rss: float,
             "x_real_time": minutes * 60.0 / wall, "peak_rss_mb": rss, "csv_mb": size}
 
 
+#: The commit the tag v0.1.0 names (a clone without tags still finds the release).
+RELEASE_COMMIT = "504e5ae194b6f66afa8778b2583a1a49010abbe7"
+
+
 def _release(ref: str, tmp: Path) -> Path | None:
     """A worktree of ``ref`` (its ``impactcli`` package importable from it), or None."""
     where = tmp / "release"
+    if ref == "v0.1.0" and subprocess.run(["git", "-C", str(ROOT), "rev-parse", "-q",
+                                           "--verify", "refs/tags/v0.1.0"],
+                                          capture_output=True, check=False).returncode:
+        ref = RELEASE_COMMIT
     p = subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(where),
                         ref], capture_output=True, text=True, check=False)
     if p.returncode != 0:
