@@ -161,3 +161,20 @@ def test_warmup_tracker_equals_whole_log(sizes: list[int]) -> None:
         got = tr.finish()
         assert np.array_equal(got.index, whole.index) and got.end_index == whole.end_index
         assert got.end_s == whole.end_s
+
+
+@pytest.mark.parametrize("m", [1, 2, 7, 1000, 250_001])
+def test_spilled_median_is_numpys(m: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The warm-up level's median read back from its spill file in bounded memory equals
+    np.median exactly (values narrowed by value bins: ties, a constant column)."""
+    import tempfile
+
+    from impactcli.detect import warmup
+
+    monkeypatch.setattr(warmup, "SELECT_IN_MEMORY", 1000)
+    rng = np.random.default_rng(m)
+    for x in (rng.normal(size=m), rng.integers(0, 5, m).astype(float), np.full(m, 2.5)):
+        with tempfile.TemporaryFile() as f:
+            f.write(x.tobytes())
+            f.flush()
+            assert warmup.spilled_median(f, m) == float(np.median(x))

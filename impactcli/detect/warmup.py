@@ -16,6 +16,7 @@ alarms for the report and is not part of the causal detection.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -86,7 +87,7 @@ class WarmupTracker:
     Carried: the running sum of squares eps0² (summed in the same order as the whole-log
     ``cumsum``) and its last ``window`` values; kept: the trailing RMS up to the cap
     (``max_s``: the warm-up cannot end later) in memory, and the later half's trailing RMS —
-    whose median is each joint's settled level — spilled to a temporary file (8 bytes per
+    whose median is each joint's settled level — spilled to a temporary file per joint (8 bytes per
     joint and sample of the log's later half, on disk, not in memory).
     """
 
@@ -107,7 +108,8 @@ class WarmupTracker:
         self.head: list[np.ndarray] = []     # rms rows before the cap (or all, until known)
         self.head_t: list[np.ndarray] = []
         self.head_n = 0
-        self.spill = tempfile.TemporaryFile()  # noqa: SIM115 (closed by finish())
+        self.spill = [tempfile.TemporaryFile()  # noqa: SIM115 (closed by finish())
+                      for _ in range(self.J)]
         self.spill_start: int | None = None
         self.spilled = 0
         self.t_tail = np.zeros(0)
@@ -149,7 +151,8 @@ class WarmupTracker:
             self.spill_start = start
             a = max(0, start - self.k)
             if a < m:
-                self.spill.write(np.ascontiguousarray(rms[a:]).tobytes())
+                for j, f in enumerate(self.spill):  # one file per joint: read alone later
+                    f.write(np.ascontiguousarray(rms[a:, j]).tobytes())
                 self.spilled += m - a
         self.t_tail = np.concatenate([self.t_tail, t])[-2:]
         self.k += m
@@ -171,23 +174,72 @@ class WarmupTracker:
         head = np.vstack(self.head) if self.head else np.zeros((0, J))
         head_t = np.concatenate(self.head_t) if self.head_t else np.zeros(0)
         idx = np.empty(J, dtype=np.int64)
-        later = None
-        if k_min < n and self.spilled:
-            self.spill.flush()
-            later = np.memmap(self.spill, dtype=np.float64, mode="r", shape=(self.spilled, J))
         for j in range(J):
-            if k_min >= n or later is None:
+            if k_min >= n or not self.spilled:
                 idx[j] = n
                 continue
-            level = float(np.median(np.array(later[:, j])))  # one joint in memory at a time
+            self.spill[j].flush()
+            level = spilled_median(self.spill[j], self.spilled)
             ok = np.flatnonzero(head[k_min:, j] <= (1.0 + self.cfg.tolerance) * level)
             k = k_min + int(ok[0]) if ok.size else n
             idx[j] = min(k, max(k_cap, 0), n)
-        del later
-        self.spill.close()
+        for f in self.spill:
+            f.close()
         end = int(idx.max())
         t_last = float(self.t_tail[-1])
         end_s = float(head_t[end] - self.t_first) if end < n else t_last - self.t_first + (
             float(self.t_tail[-1] - self.t_tail[-2]) if n > 1 else 0.0)
         self._end_s = end_s
         return Warmup(idx, end, end_s)
+
+
+#: Rows of a spilled (M, J) float64 matrix read at a time by :func:`spilled_median`.
+SPILL_BLOCK_ROWS = 1 << 16
+#: :func:`spilled_median` selects among at most this many values in memory.
+SELECT_IN_MEMORY = 1 << 20
+
+
+def spilled_median(f: Any, m: int) -> float:
+    """``np.median`` of the m float64 values written to the file ``f``, exactly, in bounded
+    memory: the values are narrowed to the ranks wanted by counting them into value bins
+    (one pass over the file per narrowing) until at most :data:`SELECT_IN_MEMORY` remain,
+    which are then read and selected. NaN-free input."""
+    ranks = sorted({(m - 1) // 2, m // 2})
+    vals = [_select_rank(f, m, r) for r in ranks]
+    return float(vals[0]) if len(vals) == 1 else float(np.mean(np.array(vals)))
+
+
+def _blocks(f: Any, m: int) -> Any:
+    f.seek(0)
+    for a in range(0, m, SPILL_BLOCK_ROWS):
+        yield np.fromfile(f, dtype=np.float64, count=min(SPILL_BLOCK_ROWS, m - a))
+
+
+def _select_rank(f: Any, m: int, rank: int) -> float:
+    """The value of rank ``rank`` (0-based, ascending) of the file's values (see above)."""
+    lo, hi = -np.inf, np.inf          # the value lies in [lo, hi]
+    below = 0                         # values < lo
+    while True:
+        count = 0
+        vmin, vmax = np.inf, -np.inf
+        for block in _blocks(f, m):
+            c = block[(block >= lo) & (block <= hi)]
+            count += c.size
+            if c.size:
+                vmin, vmax = min(vmin, float(c.min())), max(vmax, float(c.max()))
+        if vmin == vmax:
+            return vmin
+        if count <= SELECT_IN_MEMORY:
+            inside = np.concatenate([c[(c >= lo) & (c <= hi)] for c in _blocks(f, m)])
+            return float(np.partition(inside, rank - below)[rank - below])
+        edges = np.linspace(vmin, vmax, 4097)
+        counts = np.zeros(4096, dtype=np.int64)
+        for block in _blocks(f, m):
+            c = block[(block >= lo) & (block <= hi)]
+            k = np.clip(np.searchsorted(edges, c, side="right") - 1, 0, 4095)
+            counts += np.bincount(k, minlength=4096)
+        cum = below + np.cumsum(counts)
+        b = int(np.searchsorted(cum, rank, side="right"))
+        below = int(cum[b - 1]) if b > 0 else below
+        lo = float(edges[b]) if b > 0 else vmin
+        hi = float(np.nextafter(edges[b + 1], -np.inf)) if b < 4095 else vmax
