@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from impactcli import batch, pipeline
+from impactcli import batch, pipeline, stream
 from impactcli.cli import main
 from impactcli.errors import EXIT_SOFTWARE, LogFormatError
 from impactcli.io import inspect as io_inspect
@@ -139,7 +139,15 @@ def test_a_bug_in_a_batch_is_70_in_the_summary_and_4_for_the_batch(
             raise ZeroDivisionError("division by zero")
         return real(log, **kw)
 
+    real_stream = stream.analyze_stream
+
+    def flaky_stream(path: str, **kw: Any) -> Any:  # with --config, detect streams
+        if path == str(other):
+            raise ZeroDivisionError("division by zero")
+        return real_stream(path, **kw)
+
     monkeypatch.setattr(pipeline, "analyze", flaky)
+    monkeypatch.setattr(stream, "analyze_stream", flaky_stream)
     summary = tmp_path / "summary.json"
     code, _, err = _run("detect", str(LOG), str(other), "--config", str(CONFIG), "-o",
                         str(tmp_path / "out"), "--summary", str(summary))
