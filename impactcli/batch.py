@@ -252,11 +252,9 @@ def _run_whole(job: DetectJob, local_out: Path | None, stem: str
 
 def _run_streamed(job: DetectJob, out: Path, stem: str) -> tuple[Any, tuple[str, ...]] | None:
     """Replay the log chunk by chunk in bounded memory (:mod:`impactcli.stream`) when its
-    inputs allow (a calibrated config and a known model) and no Rerun recording is asked
-    for (it is made from the whole log); None otherwise. The signals are written as the
-    replay goes; the timeline at the end."""
-    if job.rerun:
-        return None
+    inputs allow (a calibrated config and a known model); None otherwise. The signals are
+    written as the replay goes; the timeline at the end; the Rerun recording from a spill
+    file of what it plots (:mod:`impactcli.outputs.rerun_stream`)."""
     from .config import load_config
     from .io.robot import read_robot
     from .io.urls import load_by_url
@@ -282,15 +280,24 @@ def _run_streamed(job: DetectJob, out: Path, stem: str) -> tuple[Any, tuple[str,
     written = [out / f"{stem}.timeline.json"]
     bar = _progress_bar(job, "replay", "s of log")
     with ExitStack() as stack:
-        on_chunk = None
+        writers: list[Any] = []
         if job.signals:
             written.append(out / f"{stem}.signals.parquet")
-            writer = stack.enter_context(SignalsWriter(
+            sig = stack.enter_context(SignalsWriter(
                 written[-1], scan.t0_ns, scan.source.sha256, scan.source.path))
+            writers.append(lambda c: sig.append(c.joints, c.time_s, c.signals, c.decisions))
+        spill = None
+        if job.rerun:
+            from .outputs.rerun_stream import SpillWriter, spill_columns
 
-            def on_chunk(joints: tuple[str, ...], t: Any, signals: Any, decisions: Any
-                         ) -> None:
-                writer.append(joints, t, signals, decisions)
+            spill = SpillWriter()
+            stack.callback(spill.close)
+            writers.append(lambda c: spill.append(spill_columns(
+                c.joints, c.t_ns, c.signals, c.decisions, c.position, c.position_ref)))
+
+        def on_chunk(c: Any) -> None:
+            for w in writers:
+                w(c)
 
         def progress(done_s: float, total_s: float) -> None:
             assert bar is not None
@@ -301,8 +308,14 @@ def _run_streamed(job: DetectJob, out: Path, stem: str) -> tuple[Any, tuple[str,
         result = analyze_stream(job.log_path, config=config, model=model, robot=robot,
                                 read_options=opts, generator=job.generator,
                                 config_where=job.config_path or "config",
-                                allow_slow=job.allow_slow, scan=scan, on_chunk=on_chunk,
+                                allow_slow=job.allow_slow, scan=scan,
+                                on_chunk=on_chunk if writers else None,
                                 progress=progress if bar is not None else None)
+        if spill is not None:
+            from .outputs.rerun_stream import write_rrd_from_spill
+
+            written.append(out / f"{stem}.rrd")
+            write_rrd_from_spill(result, spill, written[-1])
     if bar is not None:
         bar.close()
     write_timeline(result, written[0])

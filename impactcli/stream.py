@@ -70,6 +70,22 @@ CHUNK_ROWS = 65_536
 
 
 @dataclass(frozen=True)
+class StreamChunk:
+    """What a streamed replay hands its writers per chunk: the replayed joints, (n,) times
+    [s since the first sample] and [ns on the log's clock], signal name → (n, J)
+    (:data:`impactcli.result.SIGNAL_NAMES`), detector → (n, J) decisions, and the (n, J)
+    positions and reference positions (None when not logged)."""
+
+    joints: tuple[str, ...]
+    time_s: np.ndarray
+    t_ns: np.ndarray
+    signals: dict[str, np.ndarray]
+    decisions: dict[str, np.ndarray]
+    position: np.ndarray
+    position_ref: np.ndarray | None
+
+
+@dataclass(frozen=True)
 class LogHeader:
     """What a streamed result tells of its log (a :class:`~impactcli.types.RobotLog`
     without its samples): the replayed joints, the provenance and the clock."""
@@ -226,8 +242,7 @@ def analyze_stream(
     robot: RobotDescription | None = None, read_options: dict[str, Any] | None = None,
     generator: str | None = None, config_where: str = "config", allow_slow: bool = False,
     chunk_rows: int = CHUNK_ROWS, scan: Any = None,
-    on_chunk: Callable[[tuple[str, ...], np.ndarray, dict[str, np.ndarray],
-                        dict[str, np.ndarray]], None] | None = None,
+    on_chunk: Callable[[StreamChunk], None] | None = None,
     progress: Callable[[float, float], None] | None = None,
 ) -> DetectionResult:
     """Replay the detectors over a log read in chunks (module docstring).
@@ -241,8 +256,7 @@ def analyze_stream(
         allow_slow: as :func:`impactcli.pipeline.analyze`.
         chunk_rows: samples per chunk (the result does not depend on it).
         scan: the log's :func:`impactcli.io.stream.scan_log`, if already made.
-        on_chunk: called per chunk with (the replayed joints, (n,) times [s since the first
-            sample], signal name → (n, J), detector → (n, J) decisions).
+        on_chunk: called per chunk with its :class:`StreamChunk` (signals, decisions).
         progress: called with (seconds of log replayed, the log's duration).
     Returns:
         The result; its ``log`` is a :class:`LogHeader` and it holds no per-sample signals.
@@ -459,10 +473,10 @@ def _replay_pass(
             hit = (gaps + off >= k0) & (gaps + off < k0 + t.shape[0])
             gap_times[hit, g_col] = t[gaps[hit] + off - k0]
         if on_chunk is not None:
-            on_chunk(joints, t, {
+            on_chunk(StreamChunk(joints, t, np.asarray(ch.t_ns, dtype=np.int64), {
                 "torque": arrays.torque, "residual": r, "filtered_residual": ad.r_tilde,
                 "dynamic_threshold": ad.v_dyn, "residual_rms": ad.r_rms, "threshold": thr_ad,
-                "loading_statistic": out.loading}, dec)
+                "loading_statistic": out.loading}, dec, arrays.position, arrays.position_ref))
         if progress is not None:
             progress(float(t[-1]), scan.duration_s)
     assert last is not None

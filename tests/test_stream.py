@@ -10,6 +10,7 @@ from __future__ import annotations
 import gzip
 import warnings
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -41,8 +42,9 @@ def _streamed(path: Path, cfg_path: Path, rows: int, signals: Path | None = None
             return analyze_stream(str(path), config=load_config(cfg_path), read_options={},
                                   chunk_rows=rows)
         with SignalsWriter(signals, 0, "", str(path)) as w:
-            return analyze_stream(str(path), config=load_config(cfg_path), read_options={},
-                                  chunk_rows=rows, on_chunk=w.append)
+            return analyze_stream(
+                str(path), config=load_config(cfg_path), read_options={}, chunk_rows=rows,
+                on_chunk=lambda c: w.append(c.joints, c.time_s, c.signals, c.decisions))
 
 
 @pytest.mark.parametrize(("log", "cfg", "rows"), [
@@ -134,3 +136,53 @@ def test_a_log_bad_midway_leaves_no_output(tmp_path: Path) -> None:
     assert r.exit_code == 3, r.output
     assert "bad.csv" in r.output and "Traceback" not in r.output
     assert not list(out.glob("*")) if out.exists() else True
+
+
+def _rrd_rows(path: Path) -> dict[str, list[tuple[Any, ...]]]:
+    """Non-static rows per entity as sorted tuples (time and every value), and the static
+    entities' contents."""
+    import rerun as rr
+
+    out: dict[str, list[tuple[Any, ...]]] = {}
+    for ch in rr.chunk.RrdReader(path).store().stream():
+        cols = ch.to_record_batch().to_pydict()
+        names = sorted(k for k in cols if "rowid" not in k.lower().replace("_", ""))
+        rows = out.setdefault(("static " if ch.is_static else "") + ch.entity_path, [])
+        for i in range(len(cols[names[0]]) if names else 0):
+            rows.append(tuple(repr(cols[k][i]) for k in names))
+    return {k: sorted(v) for k, v in out.items()}
+
+
+@pytest.mark.parametrize("rows", [997, 4096])
+def test_streamed_rerun_holds_the_whole_log_recordings_samples(tmp_path: Path,
+                                                               rows: int) -> None:
+    """The recording written from the spill file holds the same rows per entity as
+    write_rrd of the whole-log result, decimated (buckets across chunk boundaries), with
+    event windows, markers, lanes, events and incidents."""
+    from impactcli.outputs.rerun import write_rrd
+    from impactcli.outputs.rerun_stream import SpillWriter, spill_columns, write_rrd_from_spill
+
+    path = SAMPLES / "csv" / "assist_impacts.csv.gz"
+    whole = _whole(path, ASSIST)
+    write_rrd(whole, tmp_path / "whole.rrd", max_points=1500, event_window_s=0.3,
+              recording_id="same")
+    spill = SpillWriter()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            got = analyze_stream(str(path), config=load_config(ASSIST), read_options={},
+                                 chunk_rows=rows, on_chunk=lambda c: spill.append(spill_columns(
+                                     c.joints, c.t_ns, c.signals, c.decisions, c.position,
+                                     c.position_ref)))
+        write_rrd_from_spill(got, spill, tmp_path / "stream.rrd", max_points=1500,
+                             event_window_s=0.3, recording_id="same")
+    finally:
+        spill.close()
+    a, b = _rrd_rows(tmp_path / "whole.rrd"), _rrd_rows(tmp_path / "stream.rrd")
+    assert a.keys() == b.keys()
+    decimated = [k for k, v in a.items() if "/rms" in k and not k.startswith("static")]
+    assert decimated and all(len(a[k]) < whole.log.n_samples for k in decimated)
+    for k in a:
+        if k.startswith("static /__properties") or "blueprint" in k:
+            continue
+        assert a[k] == b[k], k

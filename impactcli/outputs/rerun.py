@@ -440,6 +440,16 @@ def _write_joint(rec: Any, result: DetectionResult, j: int, joint: str,
 
 
 def _write_events(rec: Any, result: DetectionResult, indexes: Any) -> None:
+    t = result.log.time_s
+    warm = {j: int(np.searchsorted(t, result.warmup_per_joint_s.get(j, result.warmup_end_s),
+                                   side="left")) for j in result.log.joint_names}
+    _write_events_rows(rec, result, indexes, warm)
+
+
+def _write_events_rows(rec: Any, result: DetectionResult, indexes: Any,
+                       warm_index: dict[str, int]) -> None:
+    """The events' text rows and each joint's warm-up end (``warm_index``: joint → its
+    first sample after the warm-up, n if none)."""
     import rerun as rr
 
     log = result.log
@@ -450,11 +460,10 @@ def _write_events(rec: Any, result: DetectionResult, indexes: Any) -> None:
         levels = [rr.TextLogLevel.INFO if e.in_warmup else rr.TextLogLevel.WARN for e in events]
         rec.send_columns("/events", indexes=indexes(at), columns=rr.TextLog.columns(
             text=[_event_text(e) for e in events], level=levels), strict=True)
-    t = log.time_s
     at_w, texts = [], []
     for joint in log.joint_names:
         w_end = result.warmup_per_joint_s.get(joint, result.warmup_end_s)
-        i_w = int(np.searchsorted(t, w_end, side="left"))
+        i_w = warm_index[joint]
         if i_w < n:
             at_w.append(i_w)
             texts.append(f"warm-up ends for {joint} at {w_end:.3f} s: "
