@@ -186,3 +186,30 @@ def test_streamed_rerun_holds_the_whole_log_recordings_samples(tmp_path: Path,
         if k.startswith("static /__properties") or "blueprint" in k:
             continue
         assert a[k] == b[k], k
+
+
+@pytest.mark.parametrize(("n", "k", "max_points", "chunks"), [
+    (100_000, 2, 3000, [997]), (20_000, 1, 1000, [1, 7, 4096]),
+    (12_345, 3, 500, [100, 12_345]), (9_999, 2, 5000, [3000])])
+def test_envelope_stream_selects_the_whole_series_envelope(
+        n: int, k: int, max_points: int, chunks: list[int]) -> None:
+    """EnvelopeStream over chunks selects exactly decimate.envelope_indices of the whole
+    series (NaN, kept samples, a last bucket shorter than the others), each index once."""
+    from impactcli.outputs.decimate import bucket_size, envelope_indices
+    from impactcli.outputs.rerun_stream import EnvelopeStream
+
+    rng = np.random.default_rng(n)
+    v = rng.normal(size=(n, k))
+    v[rng.random(n) < 0.01, 0] = np.nan
+    keep = rng.random(n) < 0.001
+    want = envelope_indices([v[:, i] for i in range(k)], bucket_size(n, k, max_points), keep)
+    es = EnvelopeStream(n, k, max_points)
+    got: list[int] = []
+    a = i = 0
+    while a < n:
+        b = min(a + chunks[i % len(chunks)], n)
+        sel, rows = es.update(v[a:b], keep[a:b], np.arange(a, b, dtype=np.float64)[:, None])
+        assert np.array_equal(rows[:, 0].astype(np.int64), sel)
+        got += sel.tolist()
+        a, i = b, i + 1
+    assert sorted(got) == want.tolist() and len(set(got)) == len(got)

@@ -68,52 +68,73 @@ class EnvelopeStream:
             return idx[sel], rows[sel]
         out_idx: list[int] = []
         out_rows: list[Any] = []
-        bid = idx // self.b
-        last_of_chunk = bid[-1]
-        complete_end = np.minimum((bid + 1) * self.b, self.n)  # bucket's end (exclusive)
-        for b in np.unique(bid):
-            seg = np.flatnonzero(bid == b)
-            lo = int(seg[0])
-            local: list[tuple[float, int, float, int]] = []
-            for s in range(v.shape[1]):
-                c = v[seg, s]
-                nan = np.isnan(c)
-                cmax = np.where(nan, -np.inf, c)
-                cmin = np.where(nan, np.inf, c)
-                i_max, i_min = int(np.argmax(cmax)), int(np.argmin(cmin))
-                local.append((float(cmax[i_max]), lo + i_max, float(cmin[i_min]), lo + i_min))
-            if b == self.open_id:  # continue the carried bucket: earlier wins ties
-                for s, (mx, imx, mn, imn) in enumerate(local):
-                    c = self.cand[s]
-                    if mx > c[0]:
-                        c[0], c[1], c[2] = mx, int(idx[imx]), rows[imx]
-                    if mn < c[3]:
-                        c[3], c[4], c[5] = mn, int(idx[imn]), rows[imn]
-            else:
-                self.open_id = int(b)
-                self.emitted = set()
-                self.cand = [[mx, int(idx[imx]), rows[imx], mn, int(idx[imn]), rows[imn]]
-                             for mx, imx, mn, imn in local]
-            self.emitted |= {int(i) for i in idx[seg][sel[seg]]}
-            done = complete_end[seg[-1]] <= k0 + n
-            if done:
-                for c in self.cand:
-                    for gi, row in ((c[1], c[2]), (c[4], c[5])):
-                        if gi in self.emitted:
-                            continue
-                        self.emitted.add(gi)
-                        if k0 <= gi < k0 + n:
-                            sel[gi - k0] = True
-                        else:  # a candidate from an earlier chunk
-                            out_idx.append(gi)
-                            out_rows.append(row)
-                if b == last_of_chunk:
-                    self.open_id = -1
+        first_b, last_b = k0 // self.b, (k0 + n - 1) // self.b
+        # the first and the last bucket touched, one at a time (carried, or left open)
+        edges = [(0, min((first_b + 1) * self.b - k0, n), first_b)]
+        if last_b > first_b:
+            edges.append((last_b * self.b - k0, n, last_b))
+            mid = (edges[0][1], edges[1][0])  # whole buckets inside the chunk
+            if mid[1] > mid[0]:
+                sel[mid[0] + self._middle(v[mid[0]:mid[1]])] = True
+        for lo, hi, bid in edges:
+            self._segment(v, rows, idx, sel, lo, hi, bid, k0, n, out_idx, out_rows)
         i_new, r_new = idx[sel], rows[sel]
         if out_idx:
             i_new = np.concatenate([np.array(out_idx, dtype=np.int64), i_new])
             r_new = np.concatenate([np.stack(out_rows), r_new])
         return i_new, r_new
+
+    def _middle(self, v: np.ndarray) -> np.ndarray:
+        """Chunk-relative indices of the extrema of whole buckets (as envelope_indices)."""
+        nb = v.shape[0] // self.b
+        base = np.arange(nb) * self.b
+        out = []
+        for s in range(v.shape[1]):
+            c = v[:, s]
+            nan = np.isnan(c)
+            for fill, arg in ((-np.inf, np.argmax), (np.inf, np.argmin)):
+                w = np.where(nan, fill, c) if nan.any() else c
+                out.append(base + arg(w.reshape(nb, self.b), axis=1))
+        return np.concatenate(out)
+
+    def _segment(self, v: np.ndarray, rows: np.ndarray, idx: np.ndarray, sel: np.ndarray,
+                 lo: int, hi: int, bid: int, k0: int, n: int, out_idx: list[int],
+                 out_rows: list[Any]) -> None:
+        """Merge the chunk's samples [lo, hi) of bucket ``bid`` into its candidates; select
+        them when the bucket is complete."""
+        local: list[tuple[float, int, float, int]] = []
+        for s in range(v.shape[1]):
+            c = v[lo:hi, s]
+            nan = np.isnan(c)
+            cmax, cmin = np.where(nan, -np.inf, c), np.where(nan, np.inf, c)
+            i_max, i_min = int(np.argmax(cmax)), int(np.argmin(cmin))
+            local.append((float(cmax[i_max]), lo + i_max, float(cmin[i_min]), lo + i_min))
+        if bid == self.open_id:  # continue the carried bucket: earlier wins ties
+            for s, (mx, imx, mn, imn) in enumerate(local):
+                cd = self.cand[s]
+                if mx > cd[0]:
+                    cd[0], cd[1], cd[2] = mx, int(idx[imx]), rows[imx]
+                if mn < cd[3]:
+                    cd[3], cd[4], cd[5] = mn, int(idx[imn]), rows[imn]
+        else:
+            self.open_id = int(bid)
+            self.emitted = set()
+            self.cand = [[mx, int(idx[imx]), rows[imx], mn, int(idx[imn]), rows[imn]]
+                         for mx, imx, mn, imn in local]
+        self.emitted |= {int(i) for i in idx[lo:hi][sel[lo:hi]]}
+        if min((bid + 1) * self.b, self.n) > k0 + hi:
+            return  # the bucket goes on in the next chunk
+        for cd in self.cand:
+            for gi, row in ((cd[1], cd[2]), (cd[4], cd[5])):
+                if gi in self.emitted:
+                    continue
+                self.emitted.add(gi)
+                if k0 <= gi < k0 + n:
+                    sel[gi - k0] = True
+                else:  # a candidate from an earlier chunk
+                    out_idx.append(gi)
+                    out_rows.append(row)
+        self.open_id = -1
 
 
 def spill_columns(joints: tuple[str, ...], t_ns: np.ndarray, signals: dict[str, np.ndarray],
