@@ -379,6 +379,52 @@ def write_rrd(result: DetectionResult, path: str | os.PathLike[str], *,
         raise
 
 
+def lanes_entity(joint: str) -> str:
+    """Root entity path of a joint's detection lanes."""
+    return f"/detections/{_esc(joint)}"
+
+
+def style_series(rec: Any, entity: str, names: Sequence[str]) -> None:
+    """The static style of a plot's series (names and colours)."""
+    import rerun as rr
+
+    rec.log(entity, rr.SeriesLines(names=list(names), colors=[SERIES_COLORS[s] for s in names],
+                                   widths=[1.5] * len(names)), static=True, strict=True)
+
+
+def style_lane(rec: Any, joint: str, det: str) -> None:
+    """The static states of a detector's lane (clear / detected in its colour)."""
+    import rerun as rr
+
+    rec.log(f"{lanes_entity(joint)}/{det}", rr.StateConfiguration(
+        values=["clear", "detected"], colors=[_CLEAR, DETECTOR_COLORS[det]]),
+        static=True, strict=True)
+
+
+def style_markers(rec: Any, entity: str, det: str) -> None:
+    """The static style of a detector's markers on its statistic's plot."""
+    import rerun as rr
+
+    rec.log(entity, rr.SeriesPoints(names=[f"{det} detection"], markers=[_MARKER_SHAPE[det]],
+                                    colors=[DETECTOR_COLORS[det]], marker_sizes=[4.0]),
+            static=True, strict=True)
+
+
+def write_warmup_lane(rec: Any, joint: str, i_w: int, n: int, indexes: Any) -> None:
+    """A joint's warm-up lane: "warm-up" from the first sample, "running" from sample
+    ``i_w`` (its first after the warm-up; ``n``: none)."""
+    import rerun as rr
+
+    lane = f"{lanes_entity(joint)}/warmup"
+    rec.log(lane, rr.StateConfiguration(
+        values=["warm-up", "running"], colors=[(255, 193, 7), (76, 175, 80)]),
+        static=True, strict=True)
+    w_idx = np.array([0] if i_w <= 0 else ([0, i_w] if i_w < n else [0]))
+    w_states = ["running"] if i_w <= 0 else ["warm-up", "running"][: len(w_idx)]
+    rec.send_columns(lane, indexes=indexes(w_idx),
+                     columns=rr.StateChange.columns(state=w_states), strict=True)
+
+
 def _write_joint(rec: Any, result: DetectionResult, j: int, joint: str,
                  keep: np.ndarray, max_points: int, indexes: Any) -> None:
     import rerun as rr
@@ -388,25 +434,16 @@ def _write_joint(rec: Any, result: DetectionResult, j: int, joint: str,
     plots = _plots(result, j)
     for plot, series in plots.items():
         entity = f"{root}/{plot}"
-        colors = [SERIES_COLORS[name] for name, _ in series]
-        rec.log(entity, rr.SeriesLines(names=[s for s, _ in series], colors=colors,
-                                       widths=[1.5] * len(series)), static=True, strict=True)
+        style_series(rec, entity, [s for s, _ in series])
         sel = select_samples([v for _, v in series], keep, max_points)
         matrix = np.column_stack([v[sel] for _, v in series])
         rec.send_columns(entity, indexes=indexes(sel),
                          columns=rr.Scalars.columns(scalars=matrix), strict=True)
 
-    lanes = f"/detections/{_esc(joint)}"
-    # warm-up lane: "warm-up" from the first sample, "running" from the joint's warm-up end
+    lanes = lanes_entity(joint)
     w_end = result.warmup_per_joint_s.get(joint, result.warmup_end_s)
-    i_w = int(np.searchsorted(log.time_s, w_end, side="left"))
-    rec.log(f"{lanes}/warmup", rr.StateConfiguration(
-        values=["warm-up", "running"], colors=[(255, 193, 7), (76, 175, 80)]),
-        static=True, strict=True)
-    w_idx = np.array([0] if i_w <= 0 else ([0, i_w] if i_w < log.n_samples else [0]))
-    w_states = ["running"] if i_w <= 0 else ["warm-up", "running"][: len(w_idx)]
-    rec.send_columns(f"{lanes}/warmup", indexes=indexes(w_idx),
-                     columns=rr.StateChange.columns(state=w_states), strict=True)
+    write_warmup_lane(rec, joint, int(np.searchsorted(log.time_s, w_end, side="left")),
+                      log.n_samples, indexes)
 
     for det in DETECTORS:
         dec = result.decisions.get(det)
@@ -415,9 +452,7 @@ def _write_joint(rec: Any, result: DetectionResult, j: int, joint: str,
         d = np.asarray(dec, dtype=bool)[:, j]
         # state lane: every transition, full rate
         change = np.concatenate([[0], np.flatnonzero(np.diff(d.astype(np.int8))) + 1])
-        rec.log(f"{lanes}/{det}", rr.StateConfiguration(
-            values=["clear", "detected"], colors=[_CLEAR, DETECTOR_COLORS[det]]),
-            static=True, strict=True)
+        style_lane(rec, joint, det)
         rec.send_columns(f"{lanes}/{det}", indexes=indexes(change),
                          columns=rr.StateChange.columns(
                              state=np.where(d[change], "detected", "clear").tolist()), strict=True)
@@ -429,11 +464,8 @@ def _write_joint(rec: Any, result: DetectionResult, j: int, joint: str,
             continue
         v = np.asarray(values, dtype=np.float64)[fired, j]
         fired = fired[select_samples(v, keep[fired], max_points)]
-        marker, color = _MARKER_SHAPE[det], DETECTOR_COLORS[det]
         entity = f"{root}/{plot}/{det}"
-        rec.log(entity, rr.SeriesPoints(names=[f"{det} detection"], markers=[marker],
-                                        colors=[color], marker_sizes=[4.0]),
-                static=True, strict=True)
+        style_markers(rec, entity, det)
         rec.send_columns(entity, indexes=indexes(fired),
                          columns=rr.Scalars.columns(
                              scalars=np.asarray(values, dtype=np.float64)[fired, j]), strict=True)

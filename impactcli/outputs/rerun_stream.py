@@ -264,7 +264,7 @@ def write_rrd_from_spill(result: Any, spill: SpillWriter, path: str | os.PathLik
         _write_samples(rec, result, spill, joints, n, intervals, fired, max_points,
                        indexes_t)
         for j in joints:
-            _warmup_lane(rec, j, i_warm[j], n, indexes)
+            rrmod.write_warmup_lane(rec, j, i_warm[j], n, indexes)
         rrmod._write_events_rows(rec, result, indexes, i_warm)
         rrmod._write_incidents(rec, result, indexes)
         rec.disconnect()
@@ -277,25 +277,6 @@ def write_rrd_from_spill(result: Any, spill: SpillWriter, path: str | os.PathLik
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
-
-
-def _warmup_lane(rec: Any, joint: str, i_w: int, n: int, indexes: Any) -> None:
-    import rerun as rr
-
-    lanes = f"/detections/{rrmod_esc(joint)}"
-    rec.log(f"{lanes}/warmup", rr.StateConfiguration(
-        values=["warm-up", "running"], colors=[(255, 193, 7), (76, 175, 80)]),
-        static=True, strict=True)
-    w_idx = np.array([0] if i_w <= 0 else ([0, i_w] if i_w < n else [0]))
-    w_states = ["running"] if i_w <= 0 else ["warm-up", "running"][: len(w_idx)]
-    rec.send_columns(f"{lanes}/warmup", indexes=indexes(w_idx),
-                     columns=rr.StateChange.columns(state=w_states), strict=True)
-
-
-def rrmod_esc(name: str) -> str:
-    from .rerun import _esc
-
-    return _esc(name)
 
 
 def _write_samples(rec: Any, result: Any, spill: SpillWriter, joints: tuple[str, ...],
@@ -323,22 +304,14 @@ def _write_samples(rec: Any, result: Any, spill: SpillWriter, joints: tuple[str,
         for plot, series in plots.items():
             names = [s for s, _ in series] + (["vL"] if plot == "loading" and v_l is not None
                                               else [])
-            rec.log(f"{root}/{plot}", rr.SeriesLines(
-                names=names, colors=[rrmod.SERIES_COLORS[s] for s in names],
-                widths=[1.5] * len(names)), static=True, strict=True)
+            rrmod.style_series(rec, f"{root}/{plot}", names)
             streams[(j, plot)] = EnvelopeStream(n, len(names), max_points)
-        lanes = f"/detections/{rrmod_esc(j)}"
         for det in DETECTORS:
-            rec.log(f"{lanes}/{det}", rr.StateConfiguration(
-                values=["clear", "detected"], colors=[rrmod._CLEAR, rrmod.DETECTOR_COLORS[det]]),
-                static=True, strict=True)
+            rrmod.style_lane(rec, j, det)
             last[(j, det)] = None
             plot, _ = rrmod._MARKED_ON[det]
             if fired[(j, det)]:
-                rec.log(f"{root}/{plot}/{det}", rr.SeriesPoints(
-                    names=[f"{det} detection"], markers=[rrmod._MARKER_SHAPE[det]],
-                    colors=[rrmod.DETECTOR_COLORS[det]], marker_sizes=[4.0]),
-                    static=True, strict=True)
+                rrmod.style_markers(rec, f"{root}/{plot}/{det}", det)
                 marks[(j, det)] = EnvelopeStream(fired[(j, det)], 1, max_points)
     for g in _groups(spill.path):
         t = g["t_ns"]
@@ -361,7 +334,7 @@ def _write_samples(rec: Any, result: Any, spill: SpillWriter, joints: tuple[str,
                                      indexes=indexes_t(np.ascontiguousarray(r[:, -1]).view(
                                          np.int64)),
                                      columns=rr.Scalars.columns(scalars=r[:, :-1]), strict=True)
-            lanes = f"/detections/{rrmod_esc(j)}"
+            lanes = rrmod.lanes_entity(j)
             for det in DETECTORS:
                 d = g[f"{j}.{det}"].astype(bool)
                 prev = last[(j, det)]
