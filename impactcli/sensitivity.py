@@ -18,7 +18,7 @@ How the study is built (all deterministic for ``StudySpec.seed``):
 * **Calibration** (what the robot could have run online): collision-free runs of the
   variant's arm WITHOUT payload — the experiment's task triangles without the elastomer,
   two-joint triangles, trapezoidal point-to-point moves, multi-sines — ``calib_run_s``
-  each, seeds of their own. :func:`impactcli.pipeline.calibrate` identifies the rigid model
+  each, seeds of their own. :func:`impactcli.calibration.calibrate` identifies the rigid model
   over them (``identify_many``) and sets every threshold by leave-one-out. The same
   config (model embedded) is used for every soak run and every case of the arm.
 * **Cases** (Table II): one case = (stiffness k, amplitude A, seed). Joint 1 runs triangles
@@ -337,8 +337,8 @@ def run_calibration(task: CalibTask) -> CalibOutcome:
     """Calibrate one arm on its collision-free, payload-free runs (module docstring)."""
     import warnings
 
+    from .calibration import calibrate
     from .errors import ImpactWarning
-    from .pipeline import calibrate
     from .sim import preset, simulate
 
     spec = task.spec

@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from impactcli.calibration import calibrate
 from impactcli.cli import main
 from impactcli.config import load_config
 from impactcli.detect.calibrate import segment_bounds, suspect_blocks
 from impactcli.io import read_log
 from impactcli.io.robot import read_labels
-from impactcli.pipeline import calibrate
 from impactcli.types import RobotLog
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs" / "csv"

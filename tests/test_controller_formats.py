@@ -17,9 +17,10 @@ import numpy as np
 import pytest
 import yaml
 
+from impactcli.calibration import calibrate
 from impactcli.io import read_log, write_log
 from impactcli.io.mcap_ros2 import JOINT_STATE, JOINT_STATE_DEF, encode_jointstates
-from impactcli.pipeline import analyze, calibrate
+from impactcli.pipeline import analyze
 from impactcli.result import DetectionResult
 from impactcli.types import RobotLog
 

@@ -113,12 +113,12 @@ def test_evaluate_refuses_a_huge_arm_and_takes_allow_slow(
 
 def test_calibrate_refuses_a_huge_arm_before_identifying(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from impactcli import pipeline
+    from impactcli import calibration
 
     def calibrate(*_: object, **__: object) -> object:
         raise AssertionError("the pipeline must not run")
 
-    monkeypatch.setattr(pipeline, "calibrate", calibrate)
+    monkeypatch.setattr(calibration, "calibrate", calibrate)
     log = _huge_log(tmp_path)
     out = tmp_path / "cfg.toml"
     r = CliRunner().invoke(main, ["calibrate", str(log), "-o", str(out)])
@@ -134,7 +134,7 @@ def test_calibrate_refuses_a_huge_arm_before_identifying(
 def test_calibrate_allow_slow_reaches_the_replay(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """calibrate --allow-slow is not refused later by the replay of each log."""
-    from impactcli import pipeline
+    from impactcli import calibration
 
     seen: list[object] = []
 
@@ -146,7 +146,7 @@ def test_calibrate_allow_slow_reaches_the_replay(
 
     from impactcli import model as model_pkg
 
-    monkeypatch.setattr(pipeline, "replay", replay)
+    monkeypatch.setattr(calibration, "replay", replay)
     monkeypatch.setattr(model_pkg, "identify_many",  # no identification of 120 joints here
                         lambda logs, **k: types.SimpleNamespace(joint_names=logs[0].joint_names))
     log = _huge_log(tmp_path)

@@ -12,13 +12,14 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from impactcli.calibration import calibrate
 from impactcli.cli import main
 from impactcli.config import DetectorConfig
 from impactcli.detect.screen import unusable_columns
 from impactcli.errors import LogFormatError
 from impactcli.io import write_log
 from impactcli.outputs.timeline import timeline_dict
-from impactcli.pipeline import analyze, calibrate
+from impactcli.pipeline import analyze
 from impactcli.schema import validate
 from impactcli.types import RobotLog
 

@@ -74,11 +74,11 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     the tool's own identified model.
     """
     from .._fs import prepare_output
+    from ..calibration import calibrate
     from ..config import load_config, save_config
     from ..io import read_log
     from ..io.robot import read_robot
     from ..model import read_model
-    from ..pipeline import calibrate
 
     if out_path.suffix.lower() not in (".toml", ".yaml", ".yml", ".json"):
         raise click.BadParameter(f"{str(out_path)!r}: a config is written as .toml, .yaml or "

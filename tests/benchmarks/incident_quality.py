@@ -36,10 +36,11 @@ from pathlib import Path
 
 import numpy as np
 
+from impactcli.calibration import calibrate
 from impactcli.config import DetectorConfig, load_config
 from impactcli.io import read_log
 from impactcli.io.robot import read_labels, read_robot
-from impactcli.pipeline import analyze, calibrate
+from impactcli.pipeline import analyze
 from impactcli.result import DetectionResult
 from impactcli.sim import scenario, simulate
 from impactcli.types import Labels

@@ -30,8 +30,9 @@ import time
 import warnings
 from pathlib import Path
 
+from impactcli.calibration import calibrate
 from impactcli.io import read_log
-from impactcli.pipeline import analyze, calibrate
+from impactcli.pipeline import analyze
 from impactcli.types import RobotLog
 
 REAL = Path(__file__).resolve().parents[3] / "shared" / "real_logs"

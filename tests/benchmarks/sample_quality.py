@@ -50,11 +50,12 @@ from pathlib import Path
 
 import numpy as np
 
+from impactcli.calibration import calibrate
 from impactcli.config import DetectorConfig, load_config
 from impactcli.evaluate import PRODUCT, Evaluation, evaluate_result
 from impactcli.io import read_log
 from impactcli.io.robot import read_labels, read_robot
-from impactcli.pipeline import analyze, calibrate
+from impactcli.pipeline import analyze
 from impactcli.result import DetectionResult
 from impactcli.types import DETECTORS, Labels, RobotDescription, RobotLog
 
