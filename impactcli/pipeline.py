@@ -380,6 +380,19 @@ class Replay:
         return {d: s[start:] for d, s in self.stats.items()}
 
 
+def check_replayable(where: str, n_joints: int, sample_rate_hz: float, n_samples: int,
+                     duration_s: float, cfg: DetectorConfig, allow_slow: bool) -> None:
+    """Before any work: the replay's cost (it depends on the joints, not the duration;
+    refused above the limit unless ``allow_slow``), then a log longer than the warm-up."""
+    if not allow_slow:
+        check_scale(n_joints, sample_rate_hz, cfg.adaptive, where)
+    if duration_s < cfg.warmup.min_s:
+        raise LogFormatError(
+            f"{where}: {n_samples} samples ({duration_s:.3g} s), shorter than "
+            f"the detectors' warm-up (warmup.min_s = {cfg.warmup.min_s:g} s): nothing after it "
+            "could be detected")
+
+
 def replay(
     log: RobotLog, model: RigidModel | None, cfg: DetectorConfig,
     robot: RobotDescription | None = None, v_stat: np.ndarray | None = None,
@@ -387,13 +400,8 @@ def replay(
     progress: Callable[[int, int], None] | None = None,
 ) -> Replay:
     """Residual → adaptive evaluator and static statistics → warm-up (all causal)."""
-    if not allow_slow:  # before any work: its cost depends on the joints, not the duration
-        check_scale(log.n_joints, log.sample_rate_hz, cfg.adaptive, log.source.path)
-    if log.duration_s < cfg.warmup.min_s:
-        raise LogFormatError(
-            f"{log.source.path}: {log.n_samples} samples ({log.duration_s:.3g} s), shorter than "
-            f"the detectors' warm-up (warmup.min_s = {cfg.warmup.min_s:g} s): nothing after it "
-            "could be detected")
+    check_replayable(log.source.path, log.n_joints, log.sample_rate_hz, log.n_samples,
+                     log.duration_s, cfg, allow_slow)
     choices = generator_choices(log, cfg)
     model_source = "none"
     left_out: tuple[LeftOut, ...] = ()

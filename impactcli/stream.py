@@ -45,12 +45,12 @@ import numpy as np
 
 from .config import DetectorConfig
 from .contacts import IncidentContext, build_incidents, incident_context
-from .detect.adaptive import AdaptiveResult, check_scale
+from .detect.adaptive import AdaptiveResult
 from .detect.events import extract_events
 from .detect.incidents import BRIDGE_FRACTION, Incident
 from .detect.screen import LeftOut
 from .detect.warmup import Warmup, WarmupTracker
-from .errors import ImpactWarning, LogFormatError
+from .errors import ImpactWarning
 from .model.generators import (
     LOGGED,
     choices_dict,
@@ -265,6 +265,7 @@ def analyze_stream(
     from .pipeline import (
         _known_joints,
         calibrated_thresholds,
+        check_replayable,
         screen_plan,
         warn_events_after_gaps,
         warn_gaps,
@@ -298,13 +299,8 @@ def analyze_stream(
             logged[ch][ks] = False
         joints, choices, rig, model_source, extra_left = _plan(
             keep, scan.source, logged, model, cfg)
-        if not allow_slow:
-            check_scale(len(joints), scan.sample_rate_hz, cfg.adaptive, where)
-        if scan.duration_s < cfg.warmup.min_s:
-            raise LogFormatError(
-                f"{where}: {scan.n_samples} samples ({scan.duration_s:.3g} s), shorter than "
-                f"the detectors' warm-up (warmup.min_s = {cfg.warmup.min_s:g} s): nothing "
-                "after it could be detected")
+        check_replayable(where, len(joints), scan.sample_rate_hz, scan.n_samples,
+                         scan.duration_s, cfg, allow_slow)
         thr = calibrated_thresholds(cfg, joints)
         assert thr is not None
         before = len(caught)

@@ -59,7 +59,7 @@ from __future__ import annotations
 import contextlib
 import os
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -354,6 +354,22 @@ def write_rrd(result: DetectionResult, path: str | os.PathLike[str], *,
             rr.TimeColumn(ELAPSED_TIMELINE, duration=(ts - t_ns[0]).view("timedelta64[ns]")),
         ]
 
+    with open_recording(path, result, log.has_reference, recording_id) as rec:
+        for j, joint in enumerate(log.joint_names):
+            _write_joint(rec, result, j, joint, keep, max_points, indexes)
+        _write_events(rec, result, indexes)
+        _write_incidents(rec, result, indexes)
+
+
+@contextlib.contextmanager
+def open_recording(path: str | os.PathLike[str], result: DetectionResult, has_reference: bool,
+                   recording_id: str | None = None) -> Iterator[Any]:
+    """A Rerun recording of ``result`` written to a temporary sibling of ``path`` (with its
+    default blueprint, name and run summary) and moved into place when the block succeeds;
+    on any error the temporary file is removed and ``path`` is untouched."""
+    import rerun as rr
+
+    log = result.log
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=target.parent)
@@ -361,14 +377,11 @@ def write_rrd(result: DetectionResult, path: str | os.PathLike[str], *,
     rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
     try:
         rec.save(tmp, default_blueprint=default_blueprint(
-            log.joint_names, log.has_reference, duration_s=log.duration_s))
+            log.joint_names, has_reference, duration_s=log.duration_s))
         rec.send_recording_name(Path(log.source.path).name or "impactcli run")
         rec.log("/run/info", rr.TextDocument(_markdown_summary(result), media_type="text/markdown"),
                 static=True, strict=True)
-        for j, joint in enumerate(log.joint_names):
-            _write_joint(rec, result, j, joint, keep, max_points, indexes)
-        _write_events(rec, result, indexes)
-        _write_incidents(rec, result, indexes)
+        yield rec
         rec.disconnect()
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs are ordinary files
         os.replace(tmp, target)

@@ -22,7 +22,6 @@ import contextlib
 import os
 import tempfile
 from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -249,34 +248,13 @@ def write_rrd_from_spill(result: Any, spill: SpillWriter, path: str | os.PathLik
     def indexes(sel: Any) -> list[Any]:
         return indexes_t(np.array([times[int(i)] for i in np.atleast_1d(sel)], dtype=np.int64))
 
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=target.parent)
-    os.close(fd)
-    rec = rr.RecordingStream(rrmod.APPLICATION_ID, recording_id=recording_id)
-    try:
-        rec.save(tmp, default_blueprint=rrmod.default_blueprint(
-            joints, spill.has_reference, duration_s=log.duration_s))
-        rec.send_recording_name(Path(log.source.path).name or "impactcli run")
-        rec.log("/run/info", rr.TextDocument(rrmod._markdown_summary(result),
-                                             media_type="text/markdown"), static=True,
-                strict=True)
+    with rrmod.open_recording(path, result, spill.has_reference, recording_id) as rec:
         _write_samples(rec, result, spill, joints, n, intervals, fired, max_points,
                        indexes_t)
         for j in joints:
             rrmod.write_warmup_lane(rec, j, i_warm[j], n, indexes)
         rrmod._write_events_rows(rec, result, indexes, i_warm)
         rrmod._write_incidents(rec, result, indexes)
-        rec.disconnect()
-        from .._fs import _umask
-
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, target)
-    except BaseException:
-        rec.disconnect()
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
 
 
 def _write_samples(rec: Any, result: Any, spill: SpillWriter, joints: tuple[str, ...],
