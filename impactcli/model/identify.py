@@ -67,8 +67,9 @@ from scipy.linalg import qr
 from ..errors import ImpactWarning, ModelError, RobotDescriptionError
 from ..types import RobotDescription, RobotLog
 from . import structures
-from .derivatives import clip_cutoff, zero_phase_derivatives, zero_phase_lowpass
+from .derivatives import clip_cutoff
 from .rigid import RigidModel
+from .rows import Rows, RowsBuilder, RowsPlan
 
 
 @dataclass(frozen=True)
@@ -276,14 +277,15 @@ MOTION_PARAMS: tuple[str, ...] = ("inertia", "gcos", "gsin", "Ia", "fv", "fc")
 
 
 def check_motion(
-    q: np.ndarray, joints: tuple[str, ...], min_motion_rad: float, where: str,
-    allow_still: bool = False,
+    q: np.ndarray | None, joints: tuple[str, ...], min_motion_rad: float, where: str,
+    allow_still: bool = False, ranges: np.ndarray | None = None,
 ) -> list[str]:
     """ModelError if the log has no motion, or (unless ``allow_still``) a joint stays constant.
 
+    ``q`` (N, J) positions, or their (J,) ``ranges`` (a log read in chunks).
     Returns the names of the joints that stay constant (only with ``allow_still``).
     """
-    rng = np.ptp(q, axis=0)
+    rng = np.ptp(np.asarray(q), axis=0) if ranges is None else np.asarray(ranges)
     still = [j for j, r in zip(joints, rng, strict=True) if r < min_motion_rad]
     if len(still) == len(joints):
         raise ModelError(
@@ -291,15 +293,15 @@ def check_motion(
             f"{min_motion_rad:g} rad): a model cannot be identified from it"
         )
     if still:
-        ranges = ", ".join(f"{j} {rng[joints.index(j)]:.2g} rad" for j in still)
+        listed = ", ".join(f"{j} {rng[joints.index(j)]:.2g} rad" for j in still)
         if allow_still:
             warnings.warn(
-                f"{where}: joint(s) stay constant ({ranges}): only their constant torque "
+                f"{where}: joint(s) stay constant ({listed}): only their constant torque "
                 "is modelled", ImpactWarning, stacklevel=3,
             )
             return still
         raise ModelError(
-            f"{where}: joint(s) stay constant ({ranges}, below {min_motion_rad:g} rad): their "
+            f"{where}: joint(s) stay constant ({listed}, below {min_motion_rad:g} rad): their "
             "dynamics cannot be identified; record a log in which every joint moves "
             "(or allow still joints)"
         )
@@ -888,126 +890,93 @@ def _robot_dict(robot: RobotDescription | None) -> dict[str, Any] | None:
     return d
 
 
-def _filtered_rows(
-    kind: str, joints: tuple[str, ...], structure: dict[str, Any],
-    q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, selections: tuple[np.ndarray, ...],
-    fs: float, cutoff: float, options: IdentifyOptions | None, margin: int,
-    chunk: int = 20000,
-) -> list[np.ndarray]:
-    """Regressor rows at the sample indices of each selection, computed chunk by chunk.
+@dataclass
+class IdentifyStream:
+    """Identification fed a log's samples in order, whole or chunk by chunk: state in,
+    state out (:class:`impactcli.model.rows.RowsBuilder` — the same rows, bit for bit,
+    however the log arrives). :func:`identify` is it fed one whole log.
 
-    With ``options`` the regressor columns pass through the zero-phase filter (each chunk
-    is filtered with ``4 × margin`` extra samples on each side, then cut), so memory stays
-    bounded on hour-long logs. Returns one (len(sel), J, P) array per selection.
+    Use :meth:`start`, then :meth:`feed` every sample in order, then :meth:`finish`.
     """
-    n = q.shape[0]
-    pad = 4 * margin if options is not None else 0
-    outs: list[list[np.ndarray]] = [[] for _ in selections]
-    for s in range(0, n, chunk):
-        e = min(n, s + chunk)
-        wanted = [sel[(sel >= s) & (sel < e)] for sel in selections]
-        if not any(w.size for w in wanted):
-            continue
-        a, b = max(0, s - pad), min(n, e + pad)
-        if kind == "coupled":  # filter the shared functions of the motion, then lay out
-            f = structures.coupled_features(q[a:b], qd[a:b], qdd[a:b], structure)
-            if options is not None:
-                f = zero_phase_lowpass(f, fs, cutoff, options.filter_order)
-            for k, w in enumerate(wanted):
-                outs[k].append(structures.coupled_assemble(f[w - a], len(joints), structure))
-            continue
-        y = structures.regressor(kind, joints, structure, q[a:b], qd[a:b], qdd[a:b])
-        if options is not None:
-            shape = y.shape
-            y = zero_phase_lowpass(y.reshape(shape[0], -1), fs, cutoff,
-                                   options.filter_order).reshape(shape)
-        for k, w in enumerate(wanted):
-            outs[k].append(y[w - a])
-    p = len(structures.param_names(kind, joints, structure))
-    return [np.concatenate(o, axis=0) if o else np.zeros((0, len(joints), p)) for o in outs]
 
+    builder: RowsBuilder
+    cols: list[int]
+    robot: RobotDescription | None
+    options: IdentifyOptions
+    where: str
+    input_sha256: str
 
-@dataclass(frozen=True)
-class _Rows:
-    """Filtered regressor rows of one log, ready to stack and fit."""
+    @classmethod
+    def start(cls, joint_names: Sequence[str], n: int, fs: float, duration_s: float, *,
+              robot: RobotDescription | None = None, kind: str | None = None,
+              options: IdentifyOptions = IdentifyOptions(), where: str = "log",
+              input_sha256: str = "") -> IdentifyStream:
+        """Plan the identification of a log of ``n`` samples at ``fs`` [Hz] whose columns
+        are ``joint_names`` (raises what :func:`identify` raises before any sample)."""
+        kind = kind or default_kind(robot)
+        if kind not in structures.KINDS:
+            raise ModelError(
+                f"unknown model kind {kind!r} (choose from {', '.join(structures.KINDS)})")
+        cols = match_joints(tuple(joint_names), robot, where, kind)
+        joints = tuple(joint_names[c] for c in cols)
+        cutoff = clip_cutoff(options.cutoff_hz, fs, "identification cut-off")
+        if n < 4 * int(np.ceil(fs / cutoff)) + 20:
+            raise ModelError(
+                f"{where}: log too short to identify a model ({n} samples, {duration_s:.3g} s)"
+            )
+        structure = _structure_for(kind, robot, joints, options, where)
+        plan = RowsPlan.make(n, fs, cutoff, options, kind, len(joints),
+                             len(structures.param_names(kind, joints, structure)))
+        builder = RowsBuilder(plan, kind, joints, structure, options.filter_order,
+                              options.filter_regressor)
+        return cls(builder, list(cols), robot, options, where, input_sha256)
 
-    kind: str
-    joints: tuple[str, ...]
-    structure: dict[str, Any]
-    still: Any
-    y_fit: np.ndarray
-    tau_fit: np.ndarray
-    y_hold: tuple[np.ndarray, np.ndarray] | None
-    filter_info: dict[str, Any]
-    hold_still_fraction: np.ndarray | None = None
-    poses: np.ndarray | None = None
-    acc_rms: np.ndarray | None = None
-    cv_gap: int = 1
+    def feed(self, t: np.ndarray, q: np.ndarray, tau: np.ndarray) -> None:
+        """The next samples: (m,) times [s], (m, J) positions [rad] and torques [N·m] in
+        the order of the joint names :meth:`start` was given."""
+        self.builder.feed(t, np.asarray(q)[:, self.cols], np.asarray(tau)[:, self.cols])
+
+    def rows(self) -> Rows:
+        """The filtered rows, once every sample came (checks the motion first)."""
+        b, o, p = self.builder, self.options, self.builder.plan
+        still = check_motion(None, b.joints, o.min_motion_rad, self.where,
+                             o.allow_still_joints, ranges=b.ranges())
+        info = {
+            "method": "butterworth zero-phase (filtfilt) on positions and torques; central "
+                      "differences"
+                      + ("; regressor columns filtered alike" if o.filter_regressor else ""),
+            "cutoff_hz": p.cutoff, "order": o.filter_order,
+            "sample_rate_hz": p.fs, "edge_trim_samples": p.edge * p.k1,
+            "decimation": {"filtered_signals": p.k1, "fit_rows": p.k2},
+        }
+        return b.finish(still, info, o, _still_fraction, _poses)
+
+    def finish(self) -> RigidModel:
+        """The identified model."""
+        r = self.rows()
+        return _fit(r.y_fit, r.tau_fit, r.y_hold, kind=r.kind, joints=r.joints,
+                    structure=r.structure, robot=self.robot, options=self.options,
+                    where=self.where, filter_info=r.filter_info,
+                    input_sha256=self.input_sha256, still=r.still,
+                    hold_still_fraction=r.hold_still_fraction, poses=r.poses,
+                    acc_rms=r.acc_rms, cv_gap=r.cv_gap)
 
 
 def _prepare_rows(
     log: RobotLog, robot: RobotDescription | None, kind: str | None, options: IdentifyOptions,
-) -> _Rows:
-    where = log.source.path
-    kind = kind or default_kind(robot)
-    if kind not in structures.KINDS:
-        raise ModelError(f"unknown model kind {kind!r} (choose from {', '.join(structures.KINDS)})")
-    cols = match_joints(log.joint_names, robot, where, kind)
-    joints = tuple(log.joint_names[c] for c in cols)
-    q_raw = log.position[:, cols]
-    tau_raw = log.torque[:, cols]
-    still = check_motion(q_raw, joints, options.min_motion_rad, where,
-                         options.allow_still_joints)
-    t = log.time_s
-    fs = log.sample_rate_hz
-    cutoff = clip_cutoff(options.cutoff_hz, fs, "identification cut-off")
-    n = log.n_samples
-    if n < 4 * int(np.ceil(fs / cutoff)) + 20:
-        raise ModelError(
-            f"{where}: log too short to identify a model ({n} samples, {log.duration_s:.3g} s)"
-        )
-    structure = _structure_for(kind, robot, joints, options, where)
-    qf, qd, qdd = zero_phase_derivatives(t, q_raw, cutoff, options.filter_order)
-    tau_f = zero_phase_lowpass(tau_raw, fs, cutoff, options.filter_order)
-    # everything is band-limited to the cut-off now: keep >= 10 samples per cut-off period
-    k1 = max(1, int(fs // (10.0 * cutoff)))
-    if k1 > 1:
-        qf, qd, qdd, tau_f, t = qf[::k1], qd[::k1], qdd[::k1], tau_f[::k1], t[::k1]
-    fs_d = fs / k1
-    nd = qf.shape[0]
-    edge = int(np.ceil(fs_d / cutoff))
-    n_hold = round(options.holdout_fraction * nd)
-    use_holdout = (n_hold > 0 and n_hold / fs_d >= options.min_holdout_s
-                   and nd - n_hold > 4 * edge + 20)
-    split = nd - n_hold if use_holdout else nd
-    fit_idx = np.arange(edge, split - edge)
-    hold_idx = np.arange(split + edge, nd - edge) if use_holdout else np.arange(0)
-    # a long log: fit on every k2-th filtered sample (the rows are strongly correlated)
-    max_rows = options.max_fit_samples
-    if kind == "coupled":  # its regressor has J × J(5J+1) numbers per sample
-        p_all = len(structures.param_names(kind, joints, structure))
-        max_rows = min(max_rows, max(1000, int(options.coupled_max_mb * 2**20
-                                               / (8 * len(joints) * p_all))))
-    k2 = max(1, int(np.ceil((fit_idx.size + hold_idx.size) / max_rows)))
-    fit_idx, hold_idx = fit_idx[::k2], hold_idx[::k2]
-    y_fit, y_hold_arr = _filtered_rows(
-        kind, joints, structure, qf, qd, qdd, (fit_idx, hold_idx),
-        fs_d, cutoff, options if options.filter_regressor else None, edge,
-    )
-    y_hold = (y_hold_arr, tau_f[hold_idx]) if use_holdout else None
-    return _Rows(kind, joints, structure, still, y_fit, tau_f[fit_idx], y_hold, {
-        "method": "butterworth zero-phase (filtfilt) on positions and torques; central "
-                  "differences"
-                  + ("; regressor columns filtered alike" if options.filter_regressor else ""),
-        "cutoff_hz": cutoff, "order": options.filter_order,
-        "sample_rate_hz": fs, "edge_trim_samples": edge * k1,
-        "decimation": {"filtered_signals": k1, "fit_rows": k2},
-        "holdout": {"fraction": options.holdout_fraction if use_holdout else 0.0,
-                    "start_s": float(t[split]) if use_holdout else None},
-    }, hold_still_fraction=(_still_fraction(qf[hold_idx], qd[hold_idx], options)
-                            if use_holdout and hold_idx.size else None),
-        poses=_poses(qf[fit_idx]), acc_rms=np.sqrt(np.mean(qdd[fit_idx] ** 2, axis=0)),
-        cv_gap=int(np.ceil(edge / k2)))
+) -> Rows:
+    s = _start(log, robot, kind, options)
+    return s.rows()
+
+
+def _start(log: RobotLog, robot: RobotDescription | None, kind: str | None,
+           options: IdentifyOptions) -> IdentifyStream:
+    """:class:`IdentifyStream` fed the whole log."""
+    s = IdentifyStream.start(log.joint_names, log.n_samples, log.sample_rate_hz,
+                             log.duration_s, robot=robot, kind=kind, options=options,
+                             where=log.source.path, input_sha256=log.source.sha256)
+    s.feed(log.time_s, log.position, log.torque)
+    return s
 
 
 def identify(
@@ -1036,12 +1005,7 @@ def identify(
         ModelError (no motion, constant joint, too short), RobotDescriptionError (joints
         do not match, kinematics missing, URDF does not parse).
     """
-    r = _prepare_rows(log, robot, kind, options)
-    return _fit(r.y_fit, r.tau_fit, r.y_hold, kind=r.kind, joints=r.joints,
-                structure=r.structure, robot=robot, options=options, where=log.source.path,
-                filter_info=r.filter_info, input_sha256=log.source.sha256, still=r.still,
-                hold_still_fraction=r.hold_still_fraction, poses=r.poses, acc_rms=r.acc_rms,
-                cv_gap=r.cv_gap)
+    return _start(log, robot, kind, options).finish()
 
 
 def identify_many(
