@@ -119,6 +119,89 @@ def envelope(t: np.ndarray, y: np.ndarray, n_buckets: int) -> tuple[np.ndarray, 
     return t[order], y[order]
 
 
+class EnvelopeAccumulator:
+    """:func:`envelope` of a series whose ``n`` samples (known beforehand) arrive in
+    consecutive chunks: the same points, without holding the series.
+
+    The buckets are fixed by ``n`` alone (``linspace(0, n, n_buckets + 1)``), so each
+    chunk's samples fall into known buckets; per bucket the minimum and maximum and where
+    they lie are carried from chunk to chunk (fixed-size arrays, one slot per bucket). A
+    later equal value never replaces an earlier one, as :func:`envelope` takes the first
+    index equal to the bucket's extreme. A series of at most ``2 * n_buckets`` samples is
+    kept whole, as :func:`envelope` returns it unchanged.
+    """
+
+    def __init__(self, n: int, n_buckets: int) -> None:
+        self.n, self.nb, self.k0 = int(n), int(n_buckets), 0
+        self.whole = self.n <= 2 * self.nb
+        self.parts: list[tuple[np.ndarray, np.ndarray]] = []
+        if not self.whole:
+            self.edges = np.linspace(0, self.n, self.nb + 1).astype(np.int64)
+            self.mn = np.full(self.nb, np.inf)
+            self.mx = np.full(self.nb, -np.inf)
+            self.i_mn = np.full(self.nb, self.n + 1, dtype=np.int64)
+            self.i_mx = np.full(self.nb, self.n + 1, dtype=np.int64)
+            self.t_mn = np.zeros(self.nb)
+            self.t_mx = np.zeros(self.nb)
+            # the sample's own value (a -0.0 the reduction may give as 0.0)
+            self.y_mn = np.zeros(self.nb)
+            self.y_mx = np.zeros(self.nb)
+
+    def update(self, t: np.ndarray, y: np.ndarray) -> None:
+        """Absorb the next chunk: (m,) times [s] and (m,) values."""
+        t = np.asarray(t, dtype=np.float64)
+        y = np.asarray(y, dtype=np.float64)
+        m, k0 = t.shape[0], self.k0
+        self.k0 += m
+        if m == 0:
+            return
+        if self.whole:
+            self.parts.append((t.copy(), y.copy()))
+            return
+        b0 = int(np.searchsorted(self.edges, k0, side="right")) - 1
+        b1 = int(np.searchsorted(self.edges, k0 + m - 1, side="right")) - 1
+        starts = np.maximum(self.edges[b0:b1 + 1], k0) - k0
+        yy = np.where(np.isfinite(y), y, np.nan)
+        lo_fill = np.where(np.isnan(yy), np.inf, yy)
+        hi_fill = np.where(np.isnan(yy), -np.inf, yy)
+        mins = np.minimum.reduceat(lo_fill, starts)
+        maxs = np.maximum.reduceat(hi_fill, starts)
+        bucket = np.repeat(np.arange(starts.size), np.diff(np.append(starts, m)))
+        idx = np.arange(m)
+        big = m + 1
+        i_min = np.minimum.reduceat(np.where(lo_fill == mins[bucket], idx, big), starts)
+        i_max = np.minimum.reduceat(np.where(hi_fill == maxs[bucket], idx, big), starts)
+        sl = slice(b0, b1 + 1)
+        lower = mins < self.mn[sl]   # strictly: the earlier sample wins a tie
+        higher = maxs > self.mx[sl]
+        self.mn[sl] = np.where(lower, mins, self.mn[sl])
+        self.i_mn[sl] = np.where(lower, k0 + i_min, self.i_mn[sl])
+        at_mn, at_mx = np.minimum(i_min, m - 1), np.minimum(i_max, m - 1)
+        self.t_mn[sl] = np.where(lower, t[at_mn], self.t_mn[sl])
+        self.y_mn[sl] = np.where(lower, y[at_mn], self.y_mn[sl])
+        self.mx[sl] = np.where(higher, maxs, self.mx[sl])
+        self.i_mx[sl] = np.where(higher, k0 + i_max, self.i_mx[sl])
+        self.t_mx[sl] = np.where(higher, t[at_mx], self.t_mx[sl])
+        self.y_mx[sl] = np.where(higher, y[at_mx], self.y_mx[sl])
+
+    def result(self) -> tuple[np.ndarray, np.ndarray]:
+        """(t_out, y_out): what :func:`envelope` gives on the whole series."""
+        if self.k0 != self.n:
+            raise ValueError(f"envelope: {self.k0} samples given, {self.n} announced")
+        if self.whole:
+            if not self.parts:
+                return np.zeros(0), np.zeros(0)
+            return (np.concatenate([p[0] for p in self.parts]),
+                    np.concatenate([p[1] for p in self.parts]))
+        valid = (self.i_mn <= self.n) & np.isfinite(self.mn)
+        min_first = self.i_mn <= self.i_mx
+        t1 = np.where(min_first, self.t_mn, self.t_mx)[valid]
+        t2 = np.where(min_first, self.t_mx, self.t_mn)[valid]
+        y1 = np.where(min_first, self.y_mn, self.y_mx)[valid]
+        y2 = np.where(min_first, self.y_mx, self.y_mn)[valid]
+        return np.stack([t1, t2], axis=1).ravel(), np.stack([y1, y2], axis=1).ravel()
+
+
 def nice_ticks(lo: float, hi: float, n: int = 5) -> list[float]:
     """About ``n`` round tick values (1, 2, 5 × 10^k steps) covering [lo, hi]."""
     if not (math.isfinite(lo) and math.isfinite(hi)) or hi <= lo:

@@ -54,18 +54,47 @@ from .page import (
     summary_row,
     write_report,
 )
-from .plots import statistic
 from .quality import SWEEP_SCALES
+from .samples import ResultSamples, Samples, statistic
 from .section import log_section
 from .summary import incident_rows, verdict_text
 from .unseen import could_not_see
 
 __all__ = [
-    "CLIP_FACTOR", "CSS", "DETECTOR_TITLE", "EVENT_BUCKETS", "EVENT_WINDOW_S", "GUARD_S",
-    "LOW_GAIN", "MAX_EVENT_FIGURES", "NUM_TOKEN", "POOR_FIT", "PRODUCT_DETECTORS",
-    "SCHEMA_VERSION", "STAT_NAME", "SWEEP_SCALES", "WHOLE_LOG_BUCKETS", "RenderedLog",
-    "assemble_report", "build_report", "caveats", "collision_free_mask", "could_not_see",
-    "event_duration_s", "false_alarm_margins", "incident_rows", "log_section", "log_stem",
-    "render_html", "render_log", "report_dict", "report_json", "statistic", "summary_row",
-    "verdict_text", "write_report",
+    "CLIP_FACTOR",
+    "CSS",
+    "DETECTOR_TITLE",
+    "EVENT_BUCKETS",
+    "EVENT_WINDOW_S",
+    "GUARD_S",
+    "LOW_GAIN",
+    "MAX_EVENT_FIGURES",
+    "NUM_TOKEN",
+    "POOR_FIT",
+    "PRODUCT_DETECTORS",
+    "SCHEMA_VERSION",
+    "STAT_NAME",
+    "SWEEP_SCALES",
+    "WHOLE_LOG_BUCKETS",
+    "RenderedLog",
+    "ResultSamples",
+    "Samples",
+    "assemble_report",
+    "build_report",
+    "caveats",
+    "collision_free_mask",
+    "could_not_see",
+    "event_duration_s",
+    "false_alarm_margins",
+    "incident_rows",
+    "log_section",
+    "log_stem",
+    "render_html",
+    "render_log",
+    "report_dict",
+    "report_json",
+    "statistic",
+    "summary_row",
+    "verdict_text",
+    "write_report",
 ]

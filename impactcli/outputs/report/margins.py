@@ -21,75 +21,63 @@ import numpy as np
 from ...result import DetectionResult
 from ...types import DETECTORS, Labels
 from .common import GUARD_S
-
-
-def statistic(result: DetectionResult, detector: str, j: int) -> tuple[np.ndarray, np.ndarray]:
-    """(statistic, threshold) of ``detector`` on joint index ``j``, each (N,) [N·m].
-
-    adaptive: residual_rms vs threshold (v_stat + v_rms, eq. 42); static_loading:
-    loading_statistic vs vL; static_baseline: |residual| vs v0.
-    """
-    n = result.log.n_samples
-    name = result.log.joint_names[j]
-    if detector == "adaptive":
-        return result.signals["residual_rms"][:, j], result.signals["threshold"][:, j]
-    if detector == "static_loading":
-        return result.signals["loading_statistic"][:, j], np.full(n, result.thresholds[name]["vL"])
-    return np.abs(result.signals["residual"][:, j]), np.full(n, result.thresholds[name]["v0"])
+from .samples import ResultSamples, Samples
 
 
 def collision_free_mask(
     result: DetectionResult, labels: Labels | None = None, guard_s: float = GUARD_S
 ) -> np.ndarray:
     """(N,) bool: samples after warm-up and outside every event / labelled contact ± guard."""
-    t = result.log.time_s
-    mask = t >= result.warmup_end_s
+    return ResultSamples(result).mask(_spans(result, labels, guard_s), result.warmup_end_s)
+
+
+def _spans(result: DetectionResult, labels: Labels | None,
+           guard_s: float) -> list[tuple[float, float]]:
+    """Every event and labelled contact, widened by ``guard_s`` on both sides [s]."""
     spans = [(e.t_start, e.t_end) for e in result.events]
     if labels is not None:
         spans += [(c.start, c.end) for c in labels.events]
-    for a, b in spans:
-        lo = int(np.searchsorted(t, a - guard_s, side="left"))
-        hi = int(np.searchsorted(t, b + guard_s, side="right"))
-        mask[lo:hi] = False
-    return mask
+    return [(a - guard_s, b + guard_s) for a, b in spans]
 
 
 def false_alarm_margins(
-    result: DetectionResult, labels: Labels | None = None, guard_s: float = GUARD_S
+    result: DetectionResult, labels: Labels | None = None, guard_s: float = GUARD_S,
+    samples: Samples | None = None,
 ) -> dict[str, Any]:
     """Per detector and joint, the largest statistic / threshold ratio on collision-free
     stretches (see the module docstring), its time [s] and the headroom 1 / ratio.
 
+    ``samples``: where the per-sample ratios are read (default: the result's own, in
+    memory; a streamed run's come from its spill file, :mod:`.samples`).
+
     Returns ``{"rule": {...}, "per_detector": {det: {joint: {...}}}, "worst": {det: {...}}}``;
     ``max_ratio`` is None when no collision-free sample remains.
     """
-    t = result.log.time_s
-    mask = collision_free_mask(result, labels, guard_s)
+    samples = samples if samples is not None else ResultSamples(result)
+    n_free, maxima = samples.ratio_maxima(_spans(result, labels, guard_s),
+                                          result.warmup_end_s)
     period = result.log.sample_period_s
-    considered = float(np.count_nonzero(mask)) * period
+    considered = float(n_free) * period
     after_warmup = max(result.log.duration_s + period - result.warmup_end_s, 0.0)
     per: dict[str, dict[str, Any]] = {}
     worst: dict[str, Any] = {}
     for d in DETECTORS:
-        if d not in result.ratios:
+        if d not in maxima:
             continue
-        ratios = np.asarray(result.ratios[d], dtype=np.float64)
         per[d] = {}
         best: tuple[float, str, float] | None = None
-        for j, name in enumerate(result.log.joint_names):
-            r = np.where(mask & np.isfinite(ratios[:, j]), ratios[:, j], -np.inf)
-            k = int(np.argmax(r)) if r.size else 0
-            if r.size == 0 or not np.isfinite(r[k]):
+        for name, got in zip(result.log.joint_names, maxima[d], strict=True):
+            if got is None:
                 per[d][name] = {"max_ratio": None, "t_s": None, "headroom": None}
                 continue
-            m = float(r[k])
+            m, t_m = got
             per[d][name] = {
                 "max_ratio": m,
-                "t_s": float(t[k]),
+                "t_s": t_m,
                 "headroom": (1.0 / m) if m > 0 else None,
             }
             if best is None or m > best[0]:
-                best = (m, name, float(t[k]))
+                best = (m, name, t_m)
         worst[d] = (
             {"max_ratio": best[0], "joint": best[1], "t_s": best[2]}
             if best

@@ -30,6 +30,7 @@ from .common import (
     clean,
     e,
 )
+from .samples import ResultSamples, Samples
 from .section import log_section, section_html
 from .summary import fleet_details_html, fleet_table_html, incident_counts
 
@@ -232,11 +233,16 @@ class RenderedLog:
 
 
 def render_log(result: DetectionResult, labels: Labels | None = None, key: int = 0,
-               origin: dict[str, Any] | None = None) -> RenderedLog:
+               origin: dict[str, Any] | None = None,
+               samples: Samples | None = None) -> RenderedLog:
     """Render one log (``key``: its input index, which keeps SVG ids unique; ``origin``:
-    the timeline it was re-run from, see :func:`~.section.log_section`)."""
-    sec = log_section(result, labels, origin)
-    return RenderedLog(sec, section_html(NUM_TOKEN, result, sec, labels, Ids(f"{key}-")))
+    the timeline it was re-run from, see :func:`~.section.log_section`; ``samples``: where
+    its per-sample facts are read — a streamed run's spill, :mod:`.samples` — by default
+    the result's own signals)."""
+    samples = samples if samples is not None else ResultSamples(result)
+    sec = log_section(result, labels, origin, samples)
+    return RenderedLog(sec, section_html(NUM_TOKEN, result, sec, labels, Ids(f"{key}-"),
+                                         samples))
 
 
 def assemble_report(rendered: Sequence[RenderedLog],

@@ -31,26 +31,12 @@ from .common import (
     approx,
     e,
 )
+from .samples import ResultSamples, Samples, Stretch
 
 BAND_EVENT = "#f3b6ae"
 ALARM_ZONE = "#fdf1ef"
 BAND_WARMUP = "#e4e4e4"
 BAND_LABEL = "#fde7cf"
-
-
-def statistic(result: DetectionResult, detector: str, j: int) -> tuple[np.ndarray, np.ndarray]:
-    """(statistic, threshold) of ``detector`` on joint index ``j``, each (N,) [N·m].
-
-    adaptive: residual_rms vs threshold (v_stat + v_rms, eq. 42); static_loading:
-    loading_statistic vs vL; static_baseline: |residual| vs v0.
-    """
-    n = result.log.n_samples
-    name = result.log.joint_names[j]
-    if detector == "adaptive":
-        return result.signals["residual_rms"][:, j], result.signals["threshold"][:, j]
-    if detector == "static_loading":
-        return result.signals["loading_statistic"][:, j], np.full(n, result.thresholds[name]["vL"])
-    return np.abs(result.signals["residual"][:, j]), np.full(n, result.thresholds[name]["v0"])
 
 
 def _bands(result: DetectionResult, detector: str, joint: str,
@@ -64,21 +50,30 @@ def _bands(result: DetectionResult, detector: str, joint: str,
     return bands
 
 
-def panel(result: DetectionResult, detector: str, j: int, *, lo: int, hi: int, buckets: int,
-          title: str, labels: Labels | None, ids: Ids, width: int, height: int) -> str:
-    """One detector on one joint over samples lo..hi-1, as an inline SVG."""
-    t = result.log.time_s
-    stat, thr = statistic(result, detector, j)
-    ts, ys = svgplot.envelope(t[lo:hi], stat[lo:hi], buckets)
-    tt, yt = svgplot.envelope(t[lo:hi], thr[lo:hi], buckets)
+def panel(result: DetectionResult, detector: str, j: int, *, stat: tuple[np.ndarray, np.ndarray],
+          thr: tuple[np.ndarray, np.ndarray], x_range: tuple[float, float], title: str,
+          labels: Labels | None, ids: Ids, width: int, height: int) -> str:
+    """One detector on one joint: its enveloped statistic ``stat`` and threshold ``thr``
+    ((t, y) each) over ``x_range`` [s], as an inline SVG."""
     sname, tname = STAT_NAME[detector]
     chart = svgplot.Chart(
-        title=title, x_range=(float(t[lo]), float(t[hi - 1])),
-        series=(svgplot.Series(sname, ts, ys, svgplot.BLUE),
-                svgplot.Series(tname, tt, yt, svgplot.RED, width=1.1, fill_above=ALARM_ZONE)),
+        title=title, x_range=x_range,
+        series=(svgplot.Series(sname, stat[0], stat[1], svgplot.BLUE),
+                svgplot.Series(tname, thr[0], thr[1], svgplot.RED, width=1.1,
+                               fill_above=ALARM_ZONE)),
         bands=_bands(result, detector, result.log.joint_names[j], labels), y_unit="N·m",
         clip_factor=CLIP_FACTOR, clip_reference=tname)
     return svgplot.render_chart(chart, width=width, height=height, chart_id=ids())
+
+
+def stretch_panel(result: DetectionResult, part: Stretch, detector: str, j: int, *,
+                  buckets: int, **kw: Any) -> str:
+    """:func:`panel` over the samples of ``part`` (enveloped to ``buckets``)."""
+    t = part.t
+    stat, thr = part.series[(detector, j)]
+    return panel(result, detector, j, stat=svgplot.envelope(t, stat, buckets),
+                 thr=svgplot.envelope(t, thr, buckets), x_range=(float(t[0]), float(t[-1])),
+                 **kw)
 
 
 def legend_html(labels: Labels | None) -> str:
@@ -94,20 +89,14 @@ def legend_html(labels: Labels | None) -> str:
         "then written in red).</p>")
 
 
-def _window(t: np.ndarray, t_a: float, t_b: float) -> tuple[int, int]:
-    n = len(t)
-    lo = int(np.searchsorted(t, t_a, side="left"))
-    hi = min(max(int(np.searchsorted(t, t_b, side="right")), lo + 2), n)
-    return min(lo, hi - 2), hi
-
-
-def _figure(result: DetectionResult, joints: Sequence[str], t_a: float, t_b: float,
-            labels: Labels | None, ids: Ids) -> str:
-    lo, hi = _window(result.log.time_s, t_a, t_b)
+def _figure(result: DetectionResult, samples: Samples, joints: Sequence[str], t_a: float,
+            t_b: float, labels: Labels | None, ids: Ids) -> str:
+    part = samples.stretch(t_a, t_b)
     names = result.log.joint_names
     return "".join(
-        panel(result, d, names.index(jn), lo=lo, hi=hi, buckets=EVENT_BUCKETS,
-              title=f"{jn} · {DETECTOR_TITLE[d]}", labels=labels, ids=ids, width=520, height=150)
+        stretch_panel(result, part, d, names.index(jn), buckets=EVENT_BUCKETS,
+                      title=f"{jn} · {DETECTOR_TITLE[d]}", labels=labels, ids=ids, width=520,
+                      height=150)
         for jn in joints for d in PRODUCT_DETECTORS)
 
 
@@ -122,11 +111,12 @@ def _plot_joints(result: DetectionResult, joints: Sequence[str], link: int | Non
 
 def incident_figures(result: DetectionResult, incidents: Sequence[dict[str, Any]],
                      labels: Labels | None, ids: Ids, anchor: str,
-                     chain: Sequence[str]) -> str:
+                     chain: Sequence[str], samples: Samples | None = None) -> str:
     """One figure per incident (±EVENT_WINDOW_S around it): both product detectors on each
     joint that fired and on the joint of its link."""
     if not incidents:
         return ""
+    samples = samples if samples is not None else ResultSamples(result)
     p = [f"<h3>Around each incident (±{EVENT_WINDOW_S:g} s)</h3>", legend_html(labels)]
     for inc in incidents[:MAX_EVENT_FIGURES]:
         joints = _plot_joints(result, inc.get("joints") or [], inc.get("link"), chain)
@@ -134,7 +124,7 @@ def incident_figures(result: DetectionResult, incidents: Sequence[dict[str, Any]
                else "no force estimate")
         where = f"link {inc['link']}" if inc.get("link") is not None else "link unknown"
         evs = ", ".join(f"#{k + 1}" for k in inc.get("events") or [])
-        fig = _figure(result, joints, inc["t_start"] - EVENT_WINDOW_S,
+        fig = _figure(result, samples, joints, inc["t_start"] - EVENT_WINDOW_S,
                       inc["t_end"] + EVENT_WINDOW_S, labels, ids)
         p.append(
             f'<figure id="{anchor}-inc{inc["number"]}"><figcaption><b>Incident '
@@ -151,11 +141,12 @@ def incident_figures(result: DetectionResult, incidents: Sequence[dict[str, Any]
 
 
 def alarm_figures(result: DetectionResult, merge_gap_s: float, labels: Labels | None,
-                  ids: Ids) -> str:
+                  ids: Ids, samples: Samples | None = None) -> str:
     """For a run without incidents: one figure per group of overlapping product alarms."""
     groups = group_events(result.events, merge_gap_s)
     if not groups:
         return ""
+    samples = samples if samples is not None else ResultSamples(result)
     p = [f"<h3>Around each group of alarms (±{EVENT_WINDOW_S:g} s)</h3>", legend_html(labels)]
     for g in groups[:MAX_EVENT_FIGURES]:
         evs = [result.events[k] for k in g]
@@ -163,7 +154,8 @@ def alarm_figures(result: DetectionResult, merge_gap_s: float, labels: Labels | 
         t_a, t_b = min(ev.t_start for ev in evs), max(ev.t_end for ev in evs)
         desc = "; ".join(f"#{k + 1} {result.events[k].detector} on "
                          f"{', '.join(result.events[k].joints)}" for k in g)
-        fig = _figure(result, joints, t_a - EVENT_WINDOW_S, t_b + EVENT_WINDOW_S, labels, ids)
+        fig = _figure(result, samples, joints, t_a - EVENT_WINDOW_S, t_b + EVENT_WINDOW_S,
+                      labels, ids)
         p.append(f"<figure><figcaption>Alarms {t_a:.3f}–{t_b:.3f} s: {e(desc)}.</figcaption>"
                  f'<div class="grid2">{fig}</div></figure>')
     if len(groups) > MAX_EVENT_FIGURES:
@@ -172,19 +164,22 @@ def alarm_figures(result: DetectionResult, merge_gap_s: float, labels: Labels | 
     return "".join(p)
 
 
-def whole_log_figures(result: DetectionResult, labels: Labels | None, ids: Ids) -> str:
+def whole_log_figures(result: DetectionResult, labels: Labels | None, ids: Ids,
+                      samples: Samples | None = None) -> str:
     """Every detector against its threshold over the whole log, per joint."""
-    n = result.log.n_samples
+    samples = samples if samples is not None else ResultSamples(result)
     p = ["<h3>Statistic against threshold over the whole log</h3>", legend_html(labels),
          f'<p class="small">Drawn as a min/max envelope of {WHOLE_LOG_BUCKETS} buckets, so no '
          "peak is hidden.</p>"]
     for j, name in enumerate(result.log.joint_names):
-        panels = "".join(
-            panel(result, d, j, lo=0, hi=n, buckets=WHOLE_LOG_BUCKETS,
-                  title=f"{name} · {DETECTOR_TITLE[d]}", labels=labels, ids=ids, width=1000,
-                  height=150)
-            for d in DETECTORS)
-        p.append(f"<figure>{panels}<figcaption>Joint {e(name)}, whole log.</figcaption></figure>")
+        panels = []
+        for d in DETECTORS:
+            stat, thr, x_range = samples.whole_log(d, j, WHOLE_LOG_BUCKETS)
+            panels.append(panel(result, d, j, stat=stat, thr=thr, x_range=x_range,
+                                title=f"{name} · {DETECTOR_TITLE[d]}", labels=labels, ids=ids,
+                                width=1000, height=150))
+        p.append(f"<figure>{''.join(panels)}<figcaption>Joint {e(name)}, whole log."
+                 "</figcaption></figure>")
     return "".join(p)
 
 

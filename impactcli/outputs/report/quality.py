@@ -16,6 +16,7 @@ from ...result import DetectionResult
 from ...types import Labels
 from .common import e, g, generic_table, kv_table, to_mapping
 from .plots import sweep_plot
+from .samples import ResultSamples, Samples
 
 
 def _sweep_scales() -> tuple[float, ...]:
@@ -28,8 +29,10 @@ def _sweep_scales() -> tuple[float, ...]:
 SWEEP_SCALES: tuple[float, ...] = _sweep_scales()
 
 
-def evaluate(result: DetectionResult, labels: Labels) -> dict[str, Any]:
-    """The detection-quality evaluation and threshold sweep of one log."""
+def evaluate(result: DetectionResult, labels: Labels,
+             samples: Samples | None = None) -> dict[str, Any]:
+    """The detection-quality evaluation and threshold sweep of one log (``samples``: where
+    the sweep reads the ratios; default the result's own)."""
     out: dict[str, Any] = {"status": "done", "labels_path": labels.path,
                            "n_labelled": len(labels.events), "evaluation": None,
                            "sweep": None, "notes": []}
@@ -37,7 +40,8 @@ def evaluate(result: DetectionResult, labels: Labels) -> dict[str, Any]:
 
     out["evaluation"] = to_mapping(ev.evaluate_result(result, labels))
     try:
-        rows = ev.sweep_thresholds(result, labels, SWEEP_SCALES)
+        rows = (samples if samples is not None else ResultSamples(result)).sweep(
+            result, labels, SWEEP_SCALES)
     except ImpactError as err:  # e.g. a run whose config lacks the event settings
         out["notes"].append(f"No threshold sweep: {err}")
         return out

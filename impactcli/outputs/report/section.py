@@ -33,18 +33,22 @@ from .common import (
 from .margins import false_alarm_margins
 from .plots import alarm_figures, incident_figures, whole_log_figures
 from .quality import evaluate, quality_html
+from .samples import ResultSamples, Samples
 from .summary import incident_rows, incident_table_html, incidents_known, verdict_text
 from .unseen import chain_of, could_not_see, could_not_see_html
 
 
 def log_section(result: DetectionResult, labels: Labels | None = None,
-                origin: dict[str, Any] | None = None) -> dict[str, Any]:
+                origin: dict[str, Any] | None = None,
+                samples: Samples | None = None) -> dict[str, Any]:
     """The JSON facts of one log: the timeline's fields, plus the verdict, the incidents
     (with their peak ratio), what could not be seen, margins, caveats and evaluation.
 
     ``origin``: where the result came from when it is not the log itself (a re-run
-    timeline: ``{"timeline", "timeline_schema_version", "recorded_by"}``).
+    timeline: ``{"timeline", "timeline_schema_version", "recorded_by"}``); ``samples``:
+    where the per-sample facts are read (:mod:`.samples`; default the result's own).
     """
+    samples = samples if samples is not None else ResultSamples(result)
     tl = timeline_dict(result)
     period = result.log.sample_period_s
     events = [{**d, "duration_s": event_duration_s(ev, period)}
@@ -61,12 +65,13 @@ def log_section(result: DetectionResult, labels: Labels | None = None,
     counted_alarms = sum(1 for ev in events if ev["detector"] in ("adaptive", "static_loading")
                          and not ev["in_warmup"])
     sec["verdict"] = verdict_text(incidents, known=known, alarms_counted=counted_alarms)
-    sec["could_not_see"] = could_not_see(result, incidents, known=known, origin=origin)
-    sec["false_alarm_margin"] = false_alarm_margins(result, labels)
+    sec["could_not_see"] = could_not_see(result, incidents, known=known, origin=origin,
+                                         samples=samples)
+    sec["false_alarm_margin"] = false_alarm_margins(result, labels, samples=samples)
     sec["caveats"] = caveats(result, tl)
     sec["labels"] = (None if labels is None
                      else {"path": labels.path, "n_events": len(labels.events)})
-    sec["quality"] = None if labels is None else evaluate(result, labels)
+    sec["quality"] = None if labels is None else evaluate(result, labels, samples)
     return clean(sec)  # type: ignore[no-any-return]
 
 
@@ -164,8 +169,10 @@ def _margins_html(sec: dict[str, Any]) -> str:
 
 
 def section_html(num: str, result: DetectionResult, sec: dict[str, Any],
-                 labels: Labels | None, ids: Ids) -> str:
-    """One log's section; ``num`` is its number in the report (or ``NUM_TOKEN``)."""
+                 labels: Labels | None, ids: Ids, samples: Samples | None = None) -> str:
+    """One log's section; ``num`` is its number in the report (or ``NUM_TOKEN``);
+    ``samples`` as in :func:`log_section`."""
+    samples = samples if samples is not None else ResultSamples(result)
     anchor = f"log{num}"
     known = sec["incidents_known"]
     incidents = sec["incidents"]
@@ -182,13 +189,13 @@ def section_html(num: str, result: DetectionResult, sec: dict[str, Any],
     p.append(could_not_see_html(sec["could_not_see"], anchor))
     p.append(_caveats_html(sec))
     if known:
-        p.append(incident_figures(result, incidents, labels, ids, anchor, chain))
+        p.append(incident_figures(result, incidents, labels, ids, anchor, chain, samples))
     else:
         gap = float(((sec.get("config") or {}).get("events") or {}).get("merge_gap_s") or 0.0)
-        p.append(alarm_figures(result, gap, labels, ids))
+        p.append(alarm_figures(result, gap, labels, ids, samples))
     if sec.get("quality") is not None:
         p.append(f'<div id="{anchor}-quality">{quality_html(sec["quality"])}</div>')
-    p.append(whole_log_figures(result, labels, ids))
+    p.append(whole_log_figures(result, labels, ids, samples))
     p.append(_margins_html(sec))
     p.append(f'<div id="{anchor}-analysed">{analysed_html(sec)}</div>')
     p.append(with_what_html(sec))

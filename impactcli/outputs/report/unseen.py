@@ -21,6 +21,7 @@ import numpy as np
 from ...detect.incidents import planar_jacobian, smallest_caught_force
 from ...result import DetectionResult
 from .common import approx, e, share
+from .samples import ResultSamples, Samples
 
 #: At most this many gaps are listed in the JSON.
 MAX_GAPS_LISTED = 50
@@ -54,13 +55,9 @@ def _warmup(result: DetectionResult, incidents: list[dict[str, Any]]) -> dict[st
                      "fraction": w / result.log.duration_s if result.log.duration_s else None}}
 
 
-def _gaps(result: DetectionResult) -> dict[str, Any]:
-    from ...io.inspect import time_gaps
-
-    idx, lengths = time_gaps(result.log)
-    t = result.log.time_s
-    items = [{"t_s": float(t[int(i)]), "length_s": float(x)} for i, x in zip(idx, lengths,
-                                                                              strict=True)]
+def _gaps(samples: Samples) -> dict[str, Any]:
+    at, lengths = samples.gaps()
+    items = [{"t_s": a, "length_s": x} for a, x in zip(at, lengths, strict=True)]
     if not items:
         return {"code": "gaps", "short": "no gap", "data": {"n": 0, "total_s": 0.0, "items": []},
                 "text": "Gaps: none — the log's clock has no step much longer than its period."}
@@ -89,7 +86,7 @@ def _left_out(result: DetectionResult, chain: tuple[str, ...]) -> dict[str, Any]
 
 
 def _smallest_force(result: DetectionResult, chain: tuple[str, ...],
-                    kin: dict[str, Any] | None) -> dict[str, Any]:
+                    kin: dict[str, Any] | None, samples: Samples) -> dict[str, Any]:
     log = result.log
     vl_nm = {j: result.thresholds.get(j, {}).get("vL") for j in log.joint_names}
     torques = ", ".join(f"{j} {approx(v)} N·m" for j, v in vl_nm.items() if v is not None)
@@ -100,12 +97,11 @@ def _smallest_force(result: DetectionResult, chain: tuple[str, ...],
         return {"code": "smallest-force", "short": "", "data": {**data, "links": []},
                 "text": (f"Smallest force caught: not stated — {why}. The static-loading "
                          f"thresholds as torques: {torques}.")}
-    after = log.time_s >= result.warmup_end_s
-    q_log = np.asarray(log.position)[after if after.any() else slice(None)]
+    medians = samples.posture(result.warmup_end_s)
     q = np.zeros(len(chain))
     for k, j in enumerate(chain):
         if j in log.joint_names:
-            q[k] = float(np.median(q_log[:, log.joint_names.index(j)]))
+            q[k] = float(medians[log.joint_names.index(j)])
     vl = [vl_nm.get(j) for j in chain]
     rows = smallest_caught_force(vl, q, planar_jacobian(kin["link_lengths"]))
     for r in rows:
@@ -163,11 +159,13 @@ def _older(origin: dict[str, Any] | None, known: bool) -> list[dict[str, Any]]:
 
 def could_not_see(result: DetectionResult, incidents: list[dict[str, Any]], *,
                   known: bool = True, origin: dict[str, Any] | None = None,
-                  ) -> list[dict[str, Any]]:
-    """The items of "what the audit could not see" for one log (module docstring)."""
+                  samples: Samples | None = None) -> list[dict[str, Any]]:
+    """The items of "what the audit could not see" for one log (module docstring);
+    ``samples``: where the gaps and the posture are read (default: the result's own)."""
+    samples = samples if samples is not None else ResultSamples(result)
     chain, kin = chain_of(result)
-    return [*_older(origin, known), _warmup(result, incidents), _gaps(result),
-            _left_out(result, chain), _smallest_force(result, chain, kin)]
+    return [*_older(origin, known), _warmup(result, incidents), _gaps(samples),
+            _left_out(result, chain), _smallest_force(result, chain, kin, samples)]
 
 
 def could_not_see_html(items: list[dict[str, Any]], anchor: str) -> str:
