@@ -58,6 +58,10 @@ def fake_pipeline(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
     mod = types.ModuleType("impactcli.pipeline")
     mod.analyze = analyze  # type: ignore[attr-defined]
     monkeypatch.setitem(sys.modules, "impactcli.pipeline", mod)
+    # the whole-log path these tests fake (a log that could stream would bypass analyze)
+    import impactcli.stream
+
+    monkeypatch.setattr(impactcli.stream, "streamable", lambda *a, **k: False)
     return calls
 
 

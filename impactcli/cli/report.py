@@ -37,7 +37,7 @@ import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import click
 
@@ -140,6 +140,59 @@ def timeline_log_path(tl_path: Path, recorded: str, absolute: str | None = None)
     )
 
 
+def _timeline_plan(tl_path: Path, robot: Any) -> dict[str, Any]:
+    """What a timeline records for a re-run (see :func:`rerun_timeline`): the timeline, its
+    log, read options, config, model, whether the model comes from the log, and the robot."""
+    from ..config import DetectorConfig
+    from ..io.robot import robot_from_dict
+    from ..model import RigidModel
+
+    tl = load_timeline(tl_path)
+    inp = tl["input"]
+    log_path = timeline_log_path(tl_path, inp["path"], inp.get("abs_path"))
+    opts = dict(inp.get("read_options") or {})
+    unknown = sorted(set(opts) - set(READ_KEYS))
+    if unknown:
+        warnings.warn(f"{tl_path}: read options {unknown} not understood by report; ignored",
+                      ImpactWarning, stacklevel=3)
+    kwargs = {k: opts[k] for k in READ_KEYS if opts.get(k) is not None}
+    tl_model = tl["model"] or {"source": "none", "model": {}}
+    recorded_model = tl_model["model"] or {}
+    if robot is None and isinstance(recorded_model.get("robot"), dict):
+        robot = robot_from_dict(recorded_model["robot"], f"{tl_path}: model.robot")
+    config = DetectorConfig.from_dict(tl["config"], where=f"{tl_path}: config")
+    model = None
+    if tl_model["source"] == "given":
+        model = RigidModel.from_dict(recorded_model, where=f"{tl_path}: model")
+    # a config's thresholds with a model identified from the log (detect --model-from-log)
+    from_log = tl_model["source"] == "identified-from-log" and config.model is not None
+    return {"tl": tl, "log_path": log_path, "read_options": kwargs, "config": config,
+            "model": model, "model_from_log": from_log, "robot": robot}
+
+
+def _check_sha(tl_path: Path, plan: dict[str, Any], sha256: str | None) -> None:
+    """The log must be the one the timeline was made from."""
+    rec = plan["tl"]["input"].get("sha256")
+    if rec and sha256 and sha256 != rec:
+        raise LogFormatError(
+            f"{tl_path}: its log {plan['log_path']} changed since detection "
+            f"(sha256 {sha256[:12]}…, recorded {rec[:12]}…)"
+        )
+
+
+def _compare_events(tl_path: Path, tl: dict[str, Any], result: Any) -> None:
+    """Warn when the re-run's events or calibration differ from the recorded ones."""
+    recorded = [(e["detector"], round(e["t_start"], 9), round(e["t_end"], 9), tuple(e["joints"]))
+                for e in tl["events"]]
+    now = [(e.detector, round(e.t_start, 9), round(e.t_end, 9), tuple(e.joints))
+           for e in result.events]
+    if recorded != now or bool(tl["calibrated"]) != bool(result.calibrated):
+        warnings.warn(
+            f"{tl_path}: re-running detection gave {len(now)} event(s) where the timeline "
+            f"records {len(recorded)} (or a different calibration); the report shows the re-run",
+            ImpactWarning, stacklevel=3)
+
+
 def rerun_timeline(tl_path: Path, *, robot: Any = None,
                    allow_slow: bool = False) -> tuple[Any, Path]:
     """Re-run detection as a timeline records it; returns (DetectionResult, log path).
@@ -151,49 +204,102 @@ def rerun_timeline(tl_path: Path, *, robot: Any = None,
     the recorded model (needed for planar/URDF identification and current scaling).
     ``allow_slow`` runs a replay above the scale limit, as ``detect --allow-slow``.
     """
-    from ..config import DetectorConfig
     from ..io import read_log
-    from ..io.robot import robot_from_dict
-    from ..model import RigidModel
     from ..pipeline import analyze
 
-    tl = load_timeline(tl_path)
-    inp = tl["input"]
-    log_path = timeline_log_path(tl_path, inp["path"], inp.get("abs_path"))
-    opts = dict(inp.get("read_options") or {})
-    unknown = sorted(set(opts) - set(READ_KEYS))
-    if unknown:
-        warnings.warn(f"{tl_path}: read options {unknown} not understood by report; ignored",
-                      ImpactWarning, stacklevel=2)
-    kwargs = {k: opts[k] for k in READ_KEYS if opts.get(k) is not None}
-    tl_model = tl["model"] or {"source": "none", "model": {}}
-    recorded_model = tl_model["model"] or {}
-    if robot is None and isinstance(recorded_model.get("robot"), dict):
-        robot = robot_from_dict(recorded_model["robot"], f"{tl_path}: model.robot")
-    log = read_log(log_path, robot=robot, **kwargs)
-    if inp.get("sha256") and log.source.sha256 and log.source.sha256 != inp["sha256"]:
-        raise LogFormatError(
-            f"{tl_path}: its log {log_path} changed since detection "
-            f"(sha256 {log.source.sha256[:12]}…, recorded {inp['sha256'][:12]}…)"
-        )
-    config = DetectorConfig.from_dict(tl["config"], where=f"{tl_path}: config")
-    model = None
-    if tl_model["source"] == "given":
-        model = RigidModel.from_dict(recorded_model, where=f"{tl_path}: model")
-    # a config's thresholds with a model identified from the log (detect --model-from-log)
-    from_log = tl_model["source"] == "identified-from-log" and config.model is not None
-    result = analyze(log, model=model, config=config, robot=robot, read_options=kwargs,
-                     model_from_log=from_log, allow_slow=allow_slow)
-    recorded = [(e["detector"], round(e["t_start"], 9), round(e["t_end"], 9), tuple(e["joints"]))
-                for e in tl["events"]]
-    now = [(e.detector, round(e.t_start, 9), round(e.t_end, 9), tuple(e.joints))
-           for e in result.events]
-    if recorded != now or bool(tl["calibrated"]) != bool(result.calibrated):
-        warnings.warn(
-            f"{tl_path}: re-running detection gave {len(now)} event(s) where the timeline "
-            f"records {len(recorded)} (or a different calibration); the report shows the re-run",
-            ImpactWarning, stacklevel=2)
-    return result, log_path
+    plan = _timeline_plan(tl_path, robot)
+    log = read_log(plan["log_path"], robot=plan["robot"], **plan["read_options"])
+    _check_sha(tl_path, plan, log.source.sha256)
+    result = analyze(log, model=plan["model"], config=plan["config"], robot=plan["robot"],
+                     read_options=plan["read_options"], model_from_log=plan["model_from_log"],
+                     allow_slow=allow_slow)
+    _compare_events(tl_path, plan["tl"], result)
+    return result, plan["log_path"]
+
+
+def stream_for_report(path: Path, *, robot: Any, model: Any, config: Any,
+                      read_options: dict[str, Any], allow_slow: bool = False,
+                      show_progress: bool = False, check: Any = None) -> tuple[Any, Any]:
+    """Replay ``path`` chunk by chunk (:func:`impactcli.stream.analyze_stream`, bounded
+    memory) collecting what its report plots (:mod:`impactcli.outputs.report_stream`).
+
+    Returns (result, samples); the caller closes ``samples`` (it removes the spill file).
+    ``check`` is called with the scan before the replay (a timeline's sha256 check).
+    Progress in seconds of log as ``detect`` shows it, for a serial run in a terminal.
+    """
+    from types import SimpleNamespace
+
+    from ..batch import _progress_bar
+    from ..io.stream import scan_log
+    from ..outputs.report_stream import ReportCollector
+    from ..stream import analyze_stream
+
+    opts = dict(read_options)
+    read_kw = dict(opts, robot=robot) if robot is not None else dict(opts)
+    scan = scan_log(str(path), **read_kw)
+    if check is not None:
+        check(scan)
+    bar = _progress_bar(cast(Any, SimpleNamespace(show_progress=show_progress,
+                                                  log_path=str(path))), "replay", "s of log")
+
+    def progress(done_s: float, total_s: float) -> None:
+        assert bar is not None
+        bar.total = round(total_s)
+        bar.n = round(done_s)
+        bar.refresh()
+
+    collector = ReportCollector(scan.n_samples, scan.gaps, scan.gap_lengths_s)
+    try:
+        result = analyze_stream(str(path), config=config, model=model, robot=robot,
+                                read_options=opts, allow_slow=allow_slow, scan=scan,
+                                on_chunk=collector,
+                                progress=progress if bar is not None else None)
+        return result, collector.finish(result)
+    except BaseException:
+        collector.close()
+        raise
+    finally:
+        if bar is not None:
+            bar.close()
+        close = getattr(scan, "close", None)  # a scan may hold a cache of the rows
+        if close is not None:
+            close()
+
+
+def analyze_for_report(task: ReportTask, robot: Any, model: Any, config: Any
+                       ) -> tuple[Any, Path, Any, dict[str, Any] | None]:
+    """(result, log path, samples or None, origin) of one report input: streamed when its
+    inputs allow (:func:`impactcli.stream.streamable`: a calibrated config and a model
+    known before the first sample), else the whole-log replay (samples None)."""
+    from ..stream import streamable
+
+    inp = Path(task.inp)
+    if is_timeline(inp):
+        plan = _timeline_plan(inp, robot)
+        origin = timeline_origin(inp)
+        if not streamable(plan["config"], plan["model"], plan["model_from_log"]):
+            result, log_path = rerun_timeline(inp, robot=robot, allow_slow=task.allow_slow)
+            return result, log_path, None, origin
+        result, samples = stream_for_report(
+            plan["log_path"], robot=plan["robot"], model=plan["model"], config=plan["config"],
+            read_options=plan["read_options"], allow_slow=task.allow_slow,
+            show_progress=task.show_progress,
+            check=lambda scan: _check_sha(inp, plan, scan.source.sha256))
+        try:
+            _compare_events(inp, plan["tl"], result)
+        except BaseException:
+            samples.close()
+            raise
+        return result, plan["log_path"], samples, origin
+    if not streamable(config, model, False):
+        return (analyze_log(inp, robot=robot, model=model, config=config,
+                            read_options=task.read_options, allow_slow=task.allow_slow),
+                inp, None, None)
+    result, samples = stream_for_report(inp, robot=robot, model=model, config=config,
+                                        read_options=task.read_options,
+                                        allow_slow=task.allow_slow,
+                                        show_progress=task.show_progress)
+    return result, inp, samples, None
 
 
 def timeline_origin(tl_path: Path) -> dict[str, Any]:
@@ -256,6 +362,7 @@ class ReportTask:
     read_options: dict[str, Any]
     key: int = 0
     allow_slow: bool = False
+    show_progress: bool = False
 
 
 @dataclass(frozen=True)
@@ -279,7 +386,8 @@ def _loaded(robot: str | None, model: str | None, config: str | None) -> tuple[A
 def analyze_input(task: ReportTask) -> ReportPart:
     """Analyse and render one report input in any worker.
 
-    A LOG is detected, a TIMELINE re-run (:func:`rerun_timeline`); the labels are the given
+    A LOG is detected, a TIMELINE re-run (:func:`rerun_timeline`) — streamed in bounded
+    memory when the inputs allow (:func:`analyze_for_report`); the labels are the given
     file, else ``<stem>.labels.json`` found beside it when ``auto_labels``; the log's section
     is rendered here (:func:`impactcli.outputs.report.render_log`), so only it travels back.
     Warnings raised on the way come back as messages; an ImpactError comes back as the error.
@@ -291,26 +399,22 @@ def analyze_input(task: ReportTask) -> ReportPart:
     rendered, run_warnings, err = None, (), None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ImpactWarning)
+        samples = None
         try:
             robot_obj, model_obj, config_obj = _loaded(task.robot, task.model, task.config)
-            origin = None
-            if is_timeline(inp):
-                result, log_path = rerun_timeline(inp, robot=robot_obj,
-                                                  allow_slow=task.allow_slow)
-                origin = timeline_origin(inp)
-            else:
-                result = analyze_log(inp, robot=robot_obj, model=model_obj, config=config_obj,
-                                     read_options=task.read_options,
-                                     allow_slow=task.allow_slow)
-                log_path = inp
+            result, log_path, samples, origin = analyze_for_report(task, robot_obj, model_obj,
+                                                                   config_obj)
             lab_path = Path(task.labels) if task.labels else None
             if lab_path is None and task.auto_labels:
                 lab_path = auto_labels(inp, log_path)
             lab = read_labels(lab_path) if lab_path is not None else None
-            rendered = render_log(result, lab, task.key, origin=origin)
+            rendered = render_log(result, lab, task.key, origin=origin, samples=samples)
             run_warnings = result.warnings
         except ImpactError as e:
             err = e
+        finally:
+            if samples is not None:
+                samples.close()
     msgs = tuple(str(w.message) for w in caught if issubclass(w.category, ImpactWarning))
     return ReportPart(rendered, tuple(run_warnings), msgs, err)
 
@@ -388,7 +492,8 @@ def report_cmd(*, inputs: tuple[str, ...], html_path: Path, json_path: Path | No
                       stacklevel=2)
     tasks = [ReportTask(str(inp), str(lab) if lab is not None else None, not no_auto_labels,
                         str(robot) if robot else None, str(model) if model else None,
-                        str(config) if config else None, ropts, k, allow_slow)
+                        str(config) if config else None, ropts, k, allow_slow,
+                        (jobs or 1) == 1 and scheduler is None)
              for k, (inp, lab) in enumerate(zip(paths, explicit, strict=True))]
     done: dict[int, Any] = {}
     errors: dict[int, ImpactError] = {}

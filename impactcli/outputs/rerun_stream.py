@@ -156,8 +156,8 @@ class SpillWriter:
     """The spill file of a streamed replay (a temporary Parquet file, removed by
     :meth:`close`)."""
 
-    def __init__(self) -> None:
-        fd, self.path = tempfile.mkstemp(prefix="impactcli-rrd-", suffix=".parquet")
+    def __init__(self, prefix: str = "impactcli-rrd-") -> None:
+        fd, self.path = tempfile.mkstemp(prefix=prefix, suffix=".parquet")
         os.close(fd)
         self._writer: Any = None
         self.has_reference = False
