@@ -16,7 +16,7 @@ import pytest
 
 from impactcli.detect.screen import unusable_columns
 from impactcli.errors import ImpactWarning, LogFormatError
-from impactcli.io import read_log, stream, write_log
+from impactcli.io import read_log, stream, stream_cache, write_log
 from impactcli.io.inspect import time_gaps
 from impactcli.io.stream import OPTIONAL, LogScan, iter_chunks, scan_log
 from impactcli.types import JointSpec, RobotDescription
@@ -396,3 +396,74 @@ def test_a_rate_that_drops_after_the_start_takes_a_second_gap_pass(
     monkeypatch.setattr(stream, "_gap_pass", lambda *a: calls.append(1) or real(*a))
     scan = _assert_same(_write(tmp_path / "drift.csv", cols), chunks=(1000,))
     assert calls and scan.gaps.size > 100
+
+
+# ----------------------------------------------------------------- the scan's cache
+def _scan_dirs(root: Path) -> list[Path]:
+    return sorted(root.glob("impactcli-scan-*"))
+
+
+@pytest.fixture
+def _tmp_root(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """Temporary files (the scan's cache) go to a folder of the test's own."""
+    import tempfile
+
+    root = tmp_path / "tmp"
+    root.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(root))
+    return root
+
+
+def _inf_controller(tmp_path: Path) -> Path:
+    """Non-finite runs, duplicates, and a controller column of infinities only (set to
+    NaN by the passes after the scan, not by the scan's repairs)."""
+    rng = np.random.default_rng(7)
+    cols = _table()
+    _punch(cols, rng, "", 30)
+    _punch(cols, rng, "inf", 5, 3)
+    cols["j2.torque_model"] = ["inf"] * N
+    for c in cols.values():
+        c.insert(1501, c[1500])
+    return _write(tmp_path / "inf_controller.csv", cols)
+
+
+@pytest.mark.parametrize("cached", [True, False])
+def test_the_passes_after_the_scan_read_its_cache_or_the_file(
+        tmp_path: Path, _tmp_root: Path, monkeypatch: pytest.MonkeyPatch,
+        cached: bool) -> None:
+    """The chunks are read_log's whether they come from the scan's cache of the repaired
+    rows or (a disk too full for it) from parsing the file again."""
+    if not cached:
+        monkeypatch.setattr(stream_cache, "MIN_FREE_BYTES", float("inf"))
+    scan = _assert_same(_inf_controller(tmp_path))
+    assert (scan._pass is not None and scan._pass.cache is not None) is cached
+    assert len(_scan_dirs(_tmp_root)) == int(cached)
+    scan.close()
+    assert not _scan_dirs(_tmp_root)
+    assert scan._pass is not None and scan._pass.cache is None
+
+
+def test_the_cache_is_deleted_with_the_scan_and_on_errors(
+        tmp_path: Path, _tmp_root: Path) -> None:
+    import gc
+
+    path = _inf_controller(tmp_path)
+    with _scan(path)[0] as scan:
+        assert len(_scan_dirs(_tmp_root)) == 1
+        first = list(iter_chunks(path, scan, 1000))
+    assert not _scan_dirs(_tmp_root)
+    after = list(iter_chunks(path, scan, 1000))  # closed: the file is parsed again
+    for a, b in zip(first, after, strict=True):
+        assert np.array_equal(a.torque, b.torque, equal_nan=True)
+    scan = _scan(path)[0]
+    it = iter_chunks(path, scan, 100)
+    next(it)
+    del scan, it
+    gc.collect()
+    assert not _scan_dirs(_tmp_root)
+    cols = _table()
+    cols["j1.torque"][2500] = "1e13"
+    with pytest.raises(LogFormatError), warnings.catch_warnings():
+        warnings.simplefilter("ignore", ImpactWarning)
+        scan_log(_write(tmp_path / "bad.csv", cols))
+    assert not _scan_dirs(_tmp_root)

@@ -27,8 +27,11 @@ values interpolated (rows are held back until a run closes), values
 beyond 1e12 and rows out of time order refused, the 20 Hz – 100 kHz rate check. The scan
 keeps, besides constants per column, the candidate gaps (steps longer than 1.2 provisional
 periods, with their windows; a second pass over the file if the period then drifts below).
-Both passes parse the whole file: the scan (all the channels: the repairs and the screen
-need their values) and :func:`iter_chunks`.
+Only the scan parses the file (all the channels: the repairs and the screen need their
+values); it keeps the rows it repaired in a binary temporary file that :func:`iter_chunks`
+reads instead (:mod:`impactcli.io.stream_cache`: a copy instead of a parse; the same
+arrays bit for bit), until :meth:`LogScan.close`, the scan's garbage collection or the
+interpreter's exit deletes it. Without the cache (a full disk) each pass parses the file.
 
 Not streamed (``LogScan.streamed`` False; the scan reads the whole log with
 :func:`read_log` and the chunks are slices of it, memory NOT bounded): every other format
@@ -50,7 +53,6 @@ from typing import Any
 
 import numpy as np
 
-from ..detect.screen import FEW_VALUES, FLAT_NM, SMALL_FRACTION
 from ..errors import ImpactWarning, LogFormatError
 from ..sampling import (
     GAP_FACTOR,
@@ -60,7 +62,9 @@ from ..sampling import (
     StepHistogram,
 )
 from ..types import CONTROLLER_CHANNELS, LogSource, RobotLog
+from .stream_cache import RowCache, take
 from .stream_repair import _NotStreamable, _Repairer
+from .stream_screen import ColumnScreen, _screen_of, _ScreenAcc
 
 __all__ = ["BLOCK_SIZE", "ColumnScreen", "LogChunk", "LogScan", "iter_chunks", "scan_log"]
 
@@ -116,53 +120,6 @@ class LogChunk:
 
 
 @dataclass(frozen=True)
-class ColumnScreen:
-    """What :func:`impactcli.detect.screen.unusable_columns` needs of a torque-like
-    channel's columns, gathered chunk by chunk.
-
-    Attributes:
-        logged: (J,) bool, whether the column holds a finite value.
-        ptp: (J,) float64 peak-to-peak of its finite values [N·m] (0 when not logged).
-        first: (J,) float64 its first finite value (NaN when not logged).
-        n_distinct: (J,) int64 its distinct finite values, counted up to
-            :data:`~impactcli.detect.screen.FEW_VALUES` (that many: that many or more).
-    """
-
-    logged: np.ndarray
-    ptp: np.ndarray
-    first: np.ndarray
-    n_distinct: np.ndarray
-
-    def unusable(self, reference_ptp: float | None = None) -> list[str | None]:
-        """``unusable_columns(values, reference_ptp)`` of the whole channel: per column None,
-        or why it is not usable (the same messages)."""
-        logged = self.logged
-        ref = float(np.max(self.ptp[logged])) if reference_ptp is None and logged.any() else (
-            reference_ptp or 0.0)
-        out: list[str | None] = []
-        for j in range(logged.size):
-            ptp = float(self.ptp[j])
-            if not logged[j]:
-                out.append(None)
-            elif ptp <= FLAT_NM:
-                out.append(f"flat: its torque is constant ({float(self.first[j]):.6g} N·m)")
-            elif not (ref > 0 and ptp < SMALL_FRACTION * ref):
-                out.append(None)
-            elif self.n_distinct[j] < FEW_VALUES:
-                out.append(f"unmeasured: {int(self.n_distinct[j])} distinct values spanning "
-                           f"{ptp:.3g} N·m, under {SMALL_FRACTION:.0%} of the largest "
-                           f"joint's {ref:.3g} N·m")
-            else:
-                out.append(None)
-        return out
-
-    def select(self, keep: list[int]) -> ColumnScreen:
-        """The columns ``keep``."""
-        return ColumnScreen(self.logged[keep], self.ptp[keep], self.first[keep],
-                            self.n_distinct[keep])
-
-
-@dataclass(frozen=True)
 class LogScan:
     """The first pass over a log (:func:`scan_log`): what needs the whole log.
 
@@ -198,6 +155,20 @@ class LogScan:
     options: dict[str, Any] = field(default_factory=dict, repr=False)
     _whole: RobotLog | None = field(default=None, repr=False, compare=False)
     _pass: _Pass | None = field(default=None, repr=False, compare=False)
+
+    def close(self) -> None:
+        """Delete the scan's cache of the repaired rows (:mod:`impactcli.io.stream_cache`;
+        it is deleted anyway when the scan is garbage collected or at exit); later passes
+        parse the file again."""
+        if self._pass is not None and self._pass.cache is not None:
+            self._pass.cache.close()
+            self._pass.cache = None
+
+    def __enter__(self) -> LogScan:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -303,52 +274,6 @@ def _scan_whole(path: str | os.PathLike[str], read_options: dict[str, Any]) -> L
                    t_last_ns=int(log.t_ns[-1]), clock=log.sample_clock, gaps=idx,
                    gap_lengths_s=lengths, torque_screen=screens["torque"].unusable(),
                    screens=screens, streamed=False, options=dict(read_options), _whole=log)
-
-
-def _screen_of(values: np.ndarray) -> ColumnScreen:
-    acc = _ScreenAcc(values.shape[1])
-    acc.add(values)
-    return acc.result()
-
-
-# ----------------------------------------------------------------- per-column screening
-class _ScreenAcc:
-    """Accumulates :class:`ColumnScreen` over chunks of (n, J) values."""
-
-    def __init__(self, n_cols: int) -> None:
-        self.lo = np.full(n_cols, np.inf)
-        self.hi = np.full(n_cols, -np.inf)
-        self.first = np.full(n_cols, np.nan)
-        self.distinct: list[np.ndarray | None] = [np.zeros(0)] * n_cols
-
-    def add(self, values: np.ndarray) -> None:
-        """Count an (n, J) chunk."""
-        v = np.asarray(values, dtype=np.float64)
-        fin = np.isfinite(v)
-        if fin.all():
-            lo, hi = v.min(axis=0), v.max(axis=0)
-        else:
-            lo = np.where(fin, v, np.inf).min(axis=0)
-            hi = np.where(fin, v, -np.inf).max(axis=0)
-        self.lo = np.minimum(self.lo, lo)
-        self.hi = np.maximum(self.hi, hi)
-        for j in range(v.shape[1]):
-            d = self.distinct[j]
-            if np.isnan(self.first[j]) or d is not None:
-                col = v[:, j] if fin[:, j].all() else v[fin[:, j], j]
-                if col.size and np.isnan(self.first[j]):
-                    self.first[j] = col[0]
-                if d is not None:
-                    u = np.unique(np.concatenate((d, col)))
-                    self.distinct[j] = u if u.size < FEW_VALUES else None
-
-    def result(self) -> ColumnScreen:
-        """The columns' :class:`ColumnScreen`."""
-        logged = np.isfinite(self.lo)
-        ptp = np.where(logged, self.hi - np.where(logged, self.lo, 0.0), 0.0)
-        n = np.array([FEW_VALUES if d is None else d.size for d in self.distinct],
-                     dtype=np.int64)
-        return ColumnScreen(logged, ptp, self.first.copy(), n)
 
 
 # --------------------------------------------------------------------- the CSV context
@@ -579,6 +504,7 @@ class _Pass:
     optional: tuple[str, ...]  # the optional arrays the log has
     t_shift: int  # subtracted from every stamp (a map's start_at_zero)
     n_samples: int
+    cache: RowCache | None = None  # the repaired rows on disk (None: parse the file)
 
 
 def _blocks(ctx: _Context, allbad: frozenset[int] | None, ts: _TimeStats,
@@ -615,18 +541,25 @@ def _scan_stream(ctx: _Context, options: dict[str, Any]) -> LogScan:
     ts = _TimeStats()
     rep = _Repairer(ctx, None)
     acc = _ScanAcc(ctx)
-    for t, mat in _blocks(ctx, None, ts, rep):
-        acc.add(t, mat)
-    if not ts.all_int and (ts.disagree if _fast_time(ctx, ts) else ts.text_fails):
-        raise _NotStreamable("the whole-file reader converts this time column otherwise")
-    if rep.prev_t is None or rep.n_kept < 2:
-        raise _NotStreamable("fewer than 2 rows")  # the whole-file reader's message
-    err = rep.first_error() or acc.rate_error()
-    if err is not None:
-        raise LogFormatError(err)
-    if isinstance(ctx.plan, LogFormatError):
-        raise ctx.plan
-    return acc.finish(rep, digest.result(), options)
+    cache = RowCache(len(ctx.key_cols))
+    try:
+        for t, mat in _blocks(ctx, None, ts, rep):
+            acc.add(t, mat)
+            cache.add(t, mat)
+        cache.finish()
+        if not ts.all_int and (ts.disagree if _fast_time(ctx, ts) else ts.text_fails):
+            raise _NotStreamable("the whole-file reader converts this time column otherwise")
+        if rep.prev_t is None or rep.n_kept < 2:
+            raise _NotStreamable("fewer than 2 rows")  # the whole-file reader's message
+        err = rep.first_error() or acc.rate_error()
+        if err is not None:
+            raise LogFormatError(err)
+        if isinstance(ctx.plan, LogFormatError):
+            raise ctx.plan
+        return acc.finish(rep, digest.result(), options, cache)
+    except BaseException:
+        cache.close()
+        raise
 
 
 class _ScanAcc:
@@ -708,7 +641,8 @@ class _ScanAcc:
         unit = lay.tspec.unit
         return rate_message(self.rate.clock().rate_hz, lay.where, self.ctx.tcol, unit)
 
-    def finish(self, rep: _Repairer, sha256: str, options: dict[str, Any]) -> LogScan:
+    def finish(self, rep: _Repairer, sha256: str, options: dict[str, Any],
+               cache: RowCache) -> LogScan:
         """The scan: drop the joints without data, warn, the header, clock, gaps, screen."""
         from .assemble import (
             drop_empty_signals,
@@ -746,7 +680,7 @@ class _ScanAcc:
         clock = self.hist.clock()
         self.gaps.add(np.zeros(0, dtype=np.int64), self.floor, last=True)
         if not self.gaps.exact_for(clock):  # the rate moved: a second pass at the threshold
-            self.gaps = _gap_pass(ctx, allbad, clock)
+            self.gaps = _gap_pass(ctx, allbad, clock, cache)
         idx, lengths = self.gaps.gaps(clock)
         screens = {s: self.screens[s].result().select(keep) for s in self.screens
                    if getattr(log, s) is not None}
@@ -755,7 +689,8 @@ class _ScanAcc:
                        t_last_ns=int(self.hist.last or 0) - shift, clock=clock, gaps=idx,
                        gap_lengths_s=lengths, torque_screen=screens["torque"].unusable(),
                        screens=screens, streamed=True, options=dict(options),
-                       _pass=_Pass(ctx, allbad, keep, optional, shift, self.n))
+                       _pass=_Pass(ctx, allbad, keep, optional, shift, self.n,
+                                   cache if cache.usable else None))
 
 
 def _nan_where_empty(a: np.ndarray, signal: str, ctx: _Context,
@@ -771,20 +706,31 @@ def _nan_where_empty(a: np.ndarray, signal: str, ctx: _Context,
     return out
 
 
-def _gap_pass(ctx: _Context, allbad: frozenset[int], clock: SampleClock) -> GapStream:
-    """Gap candidates at the final threshold: a second pass over the file."""
+def _gap_pass(ctx: _Context, allbad: frozenset[int], clock: SampleClock,
+              cache: RowCache | None = None) -> GapStream:
+    """Gap candidates at the final threshold: a second pass over the times (the scan's
+    cache, else the file)."""
     gs = GapStream()
-    rep = _Repairer(ctx, allbad)
-    for t, _ in _blocks(ctx, allbad, _TimeStats(), rep):
+    if cache is not None and cache.usable:
+        times: Iterator[tuple[np.ndarray, Any]] = cache.blocks(1 << 20, times_only=True)
+    else:
+        times = _blocks(ctx, allbad, _TimeStats(), _Repairer(ctx, allbad))
+    for t, _ in times:
         gs.add(t, clock.gap_threshold_s * 1e9)
     gs.add(np.zeros(0, dtype=np.int64), clock.gap_threshold_s * 1e9, last=True)
     return gs
 
 
 def _stream_chunks(scan: LogScan, chunk_rows: int) -> Iterator[LogChunk]:
-    """The second pass: chunks of ``chunk_rows`` repaired samples."""
+    """A pass after the scan: chunks of ``chunk_rows`` repaired samples, from the scan's
+    cache of the repaired rows (:mod:`impactcli.io.stream_cache`), else from the file."""
+    from . import stream_cache
+
     ps = scan._pass
     assert ps is not None
+    if ps.cache is not None and ps.cache.usable:
+        yield from stream_cache.chunks(ps, ps.cache, chunk_rows)
+        return
     rep = _Repairer(ps.ctx, ps.allbad)
     pending: list[tuple[np.ndarray, dict[str, np.ndarray]]] = []
     size = 0
@@ -796,7 +742,7 @@ def _stream_chunks(scan: LogScan, chunk_rows: int) -> Iterator[LogChunk]:
             pending.append((t - ps.t_shift if ps.t_shift else t, arrays))
             size += t.size
             while size >= chunk_rows:
-                chunk, pending, size = _take(pending, chunk_rows, start)
+                chunk, pending, size = take(pending, chunk_rows, start)
                 start += chunk_rows
                 yield chunk
     except _NotStreamable as err:
@@ -804,41 +750,10 @@ def _stream_chunks(scan: LogScan, chunk_rows: int) -> Iterator[LogChunk]:
                              ) from None
     last: LogChunk | None = None
     if size:
-        last, pending, size = _take(pending, size, start)
+        last, pending, size = take(pending, size, start)
         start += last.n_samples
     if rep.first_error() is not None or start != ps.n_samples:
         raise LogFormatError(f"{ps.ctx.lay.where}: changed since it was scanned")
     if last is not None:
         yield last
-
-
-def _take(pending: list[tuple[np.ndarray, dict[str, np.ndarray]]], rows: int,
-          start: int) -> tuple[LogChunk, list[tuple[np.ndarray, dict[str, np.ndarray]]], int]:
-    """The first ``rows`` samples of the pending blocks as a chunk, and what is left."""
-    parts_t: list[np.ndarray] = []
-    parts: list[dict[str, np.ndarray]] = []
-    left = rows
-    rest: list[tuple[np.ndarray, dict[str, np.ndarray]]] = []
-    for i, (t, arrays) in enumerate(pending):
-        if left == 0:
-            rest = pending[i:]
-            break
-        if t.size <= left:
-            parts_t.append(t)
-            parts.append(arrays)
-            left -= t.size
-        else:
-            parts_t.append(t[:left])
-            parts.append({s: a[:left] for s, a in arrays.items()})
-            rest = [(t[left:], {s: a[left:] for s, a in arrays.items()}), *pending[i + 1:]]
-            left = 0
-            break
-    t_all = parts_t[0] if len(parts_t) == 1 else np.concatenate(parts_t)
-    joined = {s: np.ascontiguousarray(parts[0][s] if len(parts) == 1 else
-                                      np.concatenate([p[s] for p in parts]))
-              for s in parts[0]}
-    size = sum(t.size for t, _ in rest)
-    chunk = LogChunk(start=start, t_ns=np.ascontiguousarray(t_all),
-                     position=joined.pop("position"), torque=joined.pop("torque"), **joined)
-    return chunk, rest, size
 

@@ -1,0 +1,206 @@
+"""The scan's repaired rows kept on disk for the later passes of :mod:`impactcli.io.stream`.
+
+Why: the scan parses the whole CSV (its repairs, clock, gaps and screen need every value)
+and each replay pass needs every value again. Parsing the text a second time was half of
+a streamed replay's reading (about 2 s of CPU per 10 minutes of a 7-joint 1 kHz log on
+the project's 2-core machine, more than the rest of the replay but the evaluator).
+So the scan writes the rows it repaired — (n,) int64 times [ns] and (n, C) float64 values
+of the used columns, exactly as :class:`~impactcli.io.stream_repair._Repairer` gives them
+out — to two binary files in a temporary directory, and :func:`chunks` reads them back in
+blocks: a copy instead of a parse.
+
+Exact: a pass over the text after the scan gives the scan's rows, but for the columns
+without any finite value (``allbad``), which it sets to NaN before repairing. Such a
+column never closes a run of non-finite values (a run closes on a finite value), so
+nothing is interpolated or held back because of it, and the magnitude check skips
+non-finite values: every other column, the times and the rows kept are the scan's.
+:func:`chunks` sets the ``allbad`` columns to NaN and converts the rows as that pass
+did (``_arrays``, elementwise): the chunks are the same arrays bit for bit
+(``tests/test_io_stream.py``).
+
+Bounded: memory holds one block of rows (``max(chunk_rows, MIN_READ_ROWS)``). The disk
+holds 8·(1 + C) bytes per row (288 for 7 joints with 5 signals: less than the CSV text).
+The cache is given up — deleted, and the file parsed again by each pass, as before —
+when a write fails or its file system's free space falls under :data:`MIN_FREE_BYTES`
+(a day-long log must not fill the disk). It is deleted by :meth:`RowCache.close` (the
+scan's ``close``; the scan closes it itself when it fails), else when the scan is
+garbage collected or the interpreter exits (a :func:`weakref.finalize`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import tempfile
+import weakref
+from collections.abc import Iterator
+from typing import IO, TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from .stream import LogChunk, _Pass
+
+#: The cache is given up when its file system has less free space than this [bytes].
+MIN_FREE_BYTES = 2 * 1024**3
+#: Free space is checked again after this many bytes written.
+CHECK_EVERY_BYTES = 64 * 1024**2
+#: Rows read back at a time when the chunks are smaller (fewer, larger reads).
+MIN_READ_ROWS = 16_384
+
+
+class RowCache:
+    """The repaired rows of a scan on disk (module docstring): :meth:`add` them in order,
+    :meth:`finish`, then read them with :meth:`blocks` (any number of times) until
+    :meth:`close`. ``usable`` is False once given up or closed."""
+
+    def __init__(self, n_cols: int) -> None:
+        self.n_cols = int(n_cols)
+        self.rows = 0
+        self._dir: str | None = tempfile.mkdtemp(prefix="impactcli-scan-")
+        # removed when the cache is garbage collected or at exit, if not closed before
+        self._remove = weakref.finalize(self, shutil.rmtree, self._dir, ignore_errors=True)
+        self._files: list[IO[bytes]] | None = [
+            open(self._path(name), "wb")  # noqa: SIM115 (closed by finish/close)
+            for name in ("t.i8", "values.f8")]
+        self._unchecked = CHECK_EVERY_BYTES  # check the free space before the first write
+
+    @property
+    def usable(self) -> bool:
+        return self._dir is not None
+
+    def _path(self, name: str) -> str:
+        assert self._dir is not None
+        return os.path.join(self._dir, name)
+
+    def add(self, t: np.ndarray, mat: np.ndarray) -> None:
+        """Append rows: ``t`` (n,) int64 [ns], ``mat`` (n, C) float64."""
+        if self._files is None:
+            return
+        t = np.ascontiguousarray(t, dtype=np.int64)
+        mat = np.ascontiguousarray(mat, dtype=np.float64)
+        try:
+            if self._unchecked >= CHECK_EVERY_BYTES:
+                self._unchecked = 0
+                assert self._dir is not None
+                if shutil.disk_usage(self._dir).free < MIN_FREE_BYTES:
+                    self.close()
+                    return
+            self._files[0].write(t.data.cast("B"))
+            self._files[1].write(mat.reshape(-1).data.cast("B"))
+        except OSError:
+            self.close()
+            return
+        self._unchecked += t.nbytes + mat.nbytes
+        self.rows += t.shape[0]
+
+    def finish(self) -> None:
+        """The last row was added: the files are complete."""
+        if self._files is None:
+            return
+        try:
+            for f in self._files:
+                f.close()
+        except OSError:
+            self.close()
+        self._files = None
+
+    def blocks(self, rows: int, *, times_only: bool = False
+               ) -> Iterator[tuple[np.ndarray, np.ndarray | None]]:
+        """The rows in blocks of ``rows`` (the last one shorter): ``(t, mat)``, ``mat``
+        None when ``times_only``. The arrays are new (the caller may write into them)."""
+        assert self.usable and self._files is None, "finish() the cache before reading it"
+        c = self.n_cols
+        with open(self._path("t.i8"), "rb") as ft, (
+                open(os.devnull, "rb") if times_only else open(self._path("values.f8"), "rb")
+        ) as fv:
+            done = 0
+            while done < self.rows:
+                k = min(rows, self.rows - done)
+                t = np.empty(k, dtype=np.int64)
+                _read_into(ft, t)
+                mat = None
+                if not times_only:
+                    mat = np.empty((k, c), dtype=np.float64)
+                    _read_into(fv, mat)
+                done += k
+                yield t, mat
+
+    def close(self) -> None:
+        """Delete the files (the cache is no longer usable)."""
+        if self._files is not None:
+            for f in self._files:
+                with contextlib.suppress(OSError):
+                    f.close()
+            self._files = None
+        self._remove()
+        self._dir = None
+
+
+def _read_into(f: IO[bytes], a: np.ndarray) -> None:
+    view = a.reshape(-1).data.cast("B")
+    got = f.readinto(view)  # type: ignore[attr-defined]
+    if got != a.nbytes:
+        raise OSError(f"scan cache: {got} bytes read of {a.nbytes}")
+
+
+def chunks(ps: _Pass, cache: RowCache, chunk_rows: int) -> Iterator[LogChunk]:
+    """The log's chunks of ``chunk_rows`` samples from the scan's cached rows (module
+    docstring): the ``allbad`` columns set to NaN, the rows converted, the kept joints
+    and the log's arrays picked, the clock shifted, as the pass over the text does."""
+    from .stream import _arrays
+
+    cols = sorted(ps.allbad)
+    pending: list[tuple[np.ndarray, dict[str, np.ndarray]]] = []
+    size = 0
+    start = 0
+    for t, mat in cache.blocks(max(chunk_rows, MIN_READ_ROWS)):
+        assert mat is not None
+        if cols:
+            mat[:, cols] = np.nan
+        arrays = _arrays(ps.ctx, t, mat)
+        pending.append((t - ps.t_shift if ps.t_shift else t,
+                        {s: arrays[s][:, ps.keep] for s in ("position", "torque",
+                                                             *ps.optional)}))
+        size += t.size
+        while size >= chunk_rows:
+            chunk, pending, size = take(pending, chunk_rows, start)
+            start += chunk_rows
+            yield chunk
+    if size:
+        chunk, pending, size = take(pending, size, start)
+        yield chunk
+
+
+def take(pending: list[tuple[np.ndarray, dict[str, np.ndarray]]], rows: int,
+         start: int) -> tuple[LogChunk, list[tuple[np.ndarray, dict[str, np.ndarray]]], int]:
+    """The first ``rows`` samples of the pending blocks as a chunk, and what is left."""
+    from .stream import LogChunk
+
+    parts_t: list[np.ndarray] = []
+    parts: list[dict[str, np.ndarray]] = []
+    left = rows
+    rest: list[tuple[np.ndarray, dict[str, np.ndarray]]] = []
+    for i, (t, arrays) in enumerate(pending):
+        if left == 0:
+            rest = pending[i:]
+            break
+        if t.size <= left:
+            parts_t.append(t)
+            parts.append(arrays)
+            left -= t.size
+        else:
+            parts_t.append(t[:left])
+            parts.append({s: a[:left] for s, a in arrays.items()})
+            rest = [(t[left:], {s: a[left:] for s, a in arrays.items()}), *pending[i + 1:]]
+            left = 0
+            break
+    t_all = parts_t[0] if len(parts_t) == 1 else np.concatenate(parts_t)
+    joined = {s: np.ascontiguousarray(parts[0][s] if len(parts) == 1 else
+                                      np.concatenate([p[s] for p in parts]))
+              for s in parts[0]}
+    size = sum(t.size for t, _ in rest)
+    chunk = LogChunk(start=start, t_ns=np.ascontiguousarray(t_all),
+                     position=joined.pop("position"), torque=joined.pop("torque"), **joined)
+    return chunk, rest, size
