@@ -252,9 +252,10 @@ def _run_whole(job: DetectJob, local_out: Path | None, stem: str
 
 def _run_streamed(job: DetectJob, out: Path, stem: str) -> tuple[Any, tuple[str, ...]] | None:
     """Replay the log chunk by chunk in bounded memory (:mod:`impactcli.stream`) when its
-    inputs allow (a calibrated config and a known model); None otherwise. The signals are
-    written as the replay goes; the timeline at the end; the Rerun recording from a spill
-    file of what it plots (:mod:`impactcli.outputs.rerun_stream`)."""
+    inputs allow (all but ``--model`` with ``--model-from-log``, an error the whole-log
+    path reports); None otherwise. The signals are written as the comparison with the
+    thresholds goes; the timeline at the end; the Rerun recording from a spill file of what
+    it plots (:mod:`impactcli.outputs.rerun_stream`)."""
     from .config import load_config
     from .io.robot import read_robot
     from .io.urls import load_by_url
@@ -265,7 +266,6 @@ def _run_streamed(job: DetectJob, out: Path, stem: str) -> tuple[Any, tuple[str,
     model = load_by_url(job.model_path, read_model, "model") if job.model_path else None
     if not streamable(config, model, job.model_from_log):
         return None
-    assert config is not None
     robot = load_by_url(job.robot_path, read_robot, "robot description") \
         if job.robot_path else None
     from contextlib import ExitStack
@@ -278,7 +278,7 @@ def _run_streamed(job: DetectJob, out: Path, stem: str) -> tuple[Any, tuple[str,
     read_kw = dict(opts, robot=robot) if robot is not None else dict(opts)
     scan = scan_log(job.log_path, **read_kw)
     written = [out / f"{stem}.timeline.json"]
-    bar = _progress_bar(job, "replay", "s of log")
+    bar = _progress_bar(job, "replay", "s of log (all passes)")
     with ExitStack() as stack:
         writers: list[Any] = []
         if job.signals:
@@ -307,6 +307,7 @@ def _run_streamed(job: DetectJob, out: Path, stem: str) -> tuple[Any, tuple[str,
 
         result = analyze_stream(job.log_path, config=config, model=model, robot=robot,
                                 read_options=opts, generator=job.generator,
+                                model_from_log=job.model_from_log,
                                 config_where=job.config_path or "config",
                                 allow_slow=job.allow_slow, scan=scan,
                                 on_chunk=on_chunk if writers else None,

@@ -473,14 +473,7 @@ def _analyze(
             margins={d: {j: float(m) for j, m in zip(joints, c.margins, strict=True)}
                      for d, c in cals.items()},
         ))
-        warnings.warn(
-            f"{log.source.path}: uncalibrated run — thresholds set from this log's own "
-            f"statistics ({UNCALIBRATED_MARGIN:g} × the {UNCALIBRATED_QUANTILE:g}-quantile of "
-            f"its {UNCALIBRATED_BLOCK_S:g} s maxima after warm-up): only contacts that stand "
-            "out well above its motion are found; calibrate on collision-free logs "
-            "(impactcli calibrate) for sensitivity and a replay the robot could have run",
-            ImpactWarning, stacklevel=3,
-        )
+        warn_uncalibrated(log.source.path)
     else:
         thr = given
     threshold_adaptive = np.abs(thr["adaptive"][None, :] + ad.v_rms)
@@ -557,6 +550,18 @@ def _warn_events_after_gaps(log: RobotLog, gaps: np.ndarray, events: list[Any]) 
     indices i of the steps t[i] → t[i+1] that are gaps, from :func:`replay`)."""
     if gaps.size:
         warn_events_after_gaps(log.source.path, log.time_s[gaps + 1], events)
+
+
+def warn_uncalibrated(where: str) -> None:
+    """The warning of a run whose thresholds come from the log itself."""
+    warnings.warn(
+        f"{where}: uncalibrated run — thresholds set from this log's own "
+        f"statistics ({UNCALIBRATED_MARGIN:g} × the {UNCALIBRATED_QUANTILE:g}-quantile of "
+        f"its {UNCALIBRATED_BLOCK_S:g} s maxima after warm-up): only contacts that stand "
+        "out well above its motion are found; calibrate on collision-free logs "
+        "(impactcli calibrate) for sensitivity and a replay the robot could have run",
+        ImpactWarning, stacklevel=3,
+    )
 
 
 def warn_gaps(where: str, lengths_s: np.ndarray, starts_s: np.ndarray) -> None:

@@ -35,6 +35,7 @@ sample near an alarm: a log that alarms all the time keeps all of it).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import warnings
 from collections.abc import Callable
@@ -52,7 +53,6 @@ from .detect.screen import LeftOut
 from .detect.warmup import Warmup, WarmupTracker
 from .errors import ImpactWarning
 from .model.generators import (
-    LOGGED,
     choices_dict,
     choose_generators,
     needs_own_model,
@@ -63,6 +63,7 @@ from .model.rigid import RigidModel
 from .replay import ChunkArrays, ReplaySetup, ReplayState, replay_chunk
 from .result import DetectionResult
 from .sampling import check_calibrated_rate
+from .spill import ChunkSpill, Islands
 from .types import CONTROLLER_CHANNELS, DETECTORS, Event, LogSource, RobotDescription
 
 #: Samples per chunk of a streamed replay (about 40 MB of signals for 7 joints).
@@ -116,148 +117,69 @@ class _Header:
 
 def streamable(config: DetectorConfig | None, model: RigidModel | None,
                model_from_log: bool) -> bool:
-    """Whether :func:`analyze_stream` can replay with these inputs: calibrated thresholds
-    and a model known before the first sample (or controller channels only)."""
-    if config is None or not config.calibration.calibrated or model_from_log:
-        return False
-    if model is not None or config.model is not None:
-        return True
-    frozen = config.residual.generators
-    return bool(frozen) and all(g in LOGGED for g in frozen.values()) and not (
-        config.residual.logged_correction)
+    """Whether :func:`analyze_stream` replays these inputs: all of them — with or without a
+    config, a model given, embedded or identified from the log — but ``--model`` with
+    ``--model-from-log``, which the whole-log replay refuses with its message."""
+    return not (model is not None and model_from_log)
+
+
+#: How a run without calibrated thresholds gets them (module docstring): ``spill`` (the
+#: replay's per-sample arrays to a temporary file, read back once the thresholds are
+#: known) or ``reread`` (the statistics spilled, then the log read and replayed again).
+STRATEGIES = ("spill", "reread")
 
 
 @dataclass
-class _Island:
-    """Consecutive samples near an alarm (module docstring): the island's first sample in
-    the log and its rows [row_from, row_to) in the spill files."""
+class _Step:
+    """One chunk replayed: its first sample, times, the log's (n, J_all) positions, the
+    replay's arrays (:class:`impactcli.replay.ChunkArrays`, signals) and None for what the
+    run does not keep."""
 
-    start: int
-    row_from: int
-    row_to: int
+    k0: int
+    t: np.ndarray
+    t_ns: np.ndarray
+    q_full: np.ndarray
+    r: np.ndarray
+    loading: np.ndarray
+    qd: np.ndarray
+    r_rms: np.ndarray
+    v_rms: np.ndarray
+    r_tilde: np.ndarray | None = None
+    v_dyn: np.ndarray | None = None
+    torque: np.ndarray | None = None
+    position: np.ndarray | None = None
+    position_ref: np.ndarray | None = None
 
 
-class _Islands:
-    """The islands of a streamed replay (module docstring), their rows spilled to
-    temporary files (one per array: memory holds only where each island lies).
-
-    A sample is kept when some detector fires on it, when it lies within the merge gap
-    after one that fires, or when the contact still presses on it (the static-loading
-    statistic of some joint at half its threshold) and the sample before it was kept —
-    the stretch between two alarms that a pressing contact bridges. Pressing that does not
-    follow an alarm is not kept: no event or incident reads it.
-    """
-
-    def __init__(self, merge_gap_s: float) -> None:
-        import tempfile
-
-        self.reach_s = merge_gap_s + 1e-9
-        self.last_t = -np.inf          # time of the last alarm so far
-        self.kept_last = False         # whether the previous chunk's last sample was kept
-        self.done: list[_Island] = []
-        self.open: _Island | None = None
-        self.rows = 0
-        self.dir = tempfile.TemporaryDirectory(prefix="impactcli-islands-")
-        self.files: dict[str, Any] = {}
-        self.layout: dict[str, tuple[np.dtype[Any], tuple[int, ...]]] = {}
-
-    def update(self, k0: int, t: np.ndarray, alarm: np.ndarray, pressing: np.ndarray,
-               arrays: dict[str, np.ndarray]) -> None:
-        """Absorb a chunk starting at sample ``k0``: (n,) times [s], (n,) alarms, (n,)
-        pressing, and the (n, ...) arrays to keep of the kept samples."""
-        n = t.shape[0]
-        idx = np.where(alarm, np.arange(n), -1)
-        last = np.maximum.accumulate(idx)
-        t_last = np.where(last >= 0, t[np.maximum(last, 0)], self.last_t)
-        base = alarm | (t - t_last <= self.reach_s)
-        if alarm.any():
-            self.last_t = float(t[np.flatnonzero(alarm)[-1]])
-        # kept = base, or pressing with the sample before kept: a pressing run continues
-        # the state at its start; a sample neither base nor pressing resets it
-        ar = np.arange(n)
-        set_at = np.maximum.accumulate(np.where(base, ar, -1))
-        reset_at = np.maximum.accumulate(np.where(~base & ~pressing, ar, -1))
-        carried = self.kept_last & (reset_at < 0) & (set_at < 0)
-        keep = base | (pressing & ((set_at > reset_at) | carried))
-        self.kept_last = bool(keep[-1]) if n else self.kept_last
-        if not keep.any():
-            self._close()
-            return
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], keep.astype(np.int8), [0]])))
-        for a, b in zip(edges[::2], edges[1::2], strict=True):
-            if a > 0 or self.open is None:
-                self._close()
-                self.open = _Island(k0 + int(a), self.rows, self.rows)
-            for key, v in arrays.items():
-                self._write(key, v[a:b])
-            self.rows += int(b - a)
-            self.open.row_to = self.rows
-            if b < n:
-                self._close()
-
-    def _write(self, key: str, v: np.ndarray) -> None:
-        f = self.files.get(key)
-        if f is None:
-            import os
-
-            f = self.files[key] = open(os.path.join(self.dir.name, key), "wb")  # noqa: SIM115
-            self.layout[key] = (v.dtype, v.shape[1:])
-        f.write(np.ascontiguousarray(v).tobytes())
-
-    def _close(self) -> None:
-        if self.open is not None:
-            self.done.append(self.open)
-            self.open = None
-
-    def finish(self) -> list[_Island]:
-        """The islands, in time order (their rows readable until :meth:`close`)."""
-        self._close()
-        for f in self.files.values():
-            f.close()
-        return self.done
-
-    def arrays(self, isl: _Island) -> dict[str, np.ndarray]:
-        """An island's arrays, read back from the spill files."""
-        import os
-
-        out = {}
-        for key, (dtype, shape) in self.layout.items():
-            width = int(np.prod(shape)) if shape else 1
-            size = dtype.itemsize * width
-            with open(os.path.join(self.dir.name, key), "rb") as f:
-                f.seek(isl.row_from * size)
-                a = np.fromfile(f, dtype=dtype, count=(isl.row_to - isl.row_from) * width)
-            out[key] = a.reshape((-1, *shape))
-        return out
-
-    def close(self) -> None:
-        """Remove the spill files."""
-        for f in self.files.values():
-            f.close()
-        self.dir.cleanup()
+#: What a step needs for the events and incidents; the rest only for ``on_chunk``.
+_NEEDED = ("t", "t_ns", "q_full", "r", "loading", "qd", "r_rms", "v_rms")
+_FOR_WRITERS = ("r_tilde", "v_dyn", "torque", "position", "position_ref")
 
 
 def analyze_stream(
-    log_path: str, *, config: DetectorConfig, model: RigidModel | None = None,
+    log_path: str, *, config: DetectorConfig | None, model: RigidModel | None = None,
     robot: RobotDescription | None = None, read_options: dict[str, Any] | None = None,
-    generator: str | None = None, config_where: str = "config", allow_slow: bool = False,
-    chunk_rows: int = CHUNK_ROWS, scan: Any = None,
+    model_from_log: bool = False, generator: str | None = None, config_where: str = "config",
+    allow_slow: bool = False, chunk_rows: int = CHUNK_ROWS, scan: Any = None,
     on_chunk: Callable[[StreamChunk], None] | None = None,
-    progress: Callable[[float, float], None] | None = None,
+    progress: Callable[[float, float], None] | None = None, strategy: str = "spill",
 ) -> DetectionResult:
     """Replay the detectors over a log read in chunks (module docstring).
 
     Args:
         log_path: the log (any format :func:`impactcli.io.read_log` reads; streamed from
             the file for CSV, :mod:`impactcli.io.stream`).
-        config: a calibrated config (:func:`streamable`); model: ``--model`` or None.
+        config: the config, or None (Table I defaults, thresholds from the log itself);
+        model: ``--model`` or None (the config's, else identified from the log).
         robot: the robot description (currents, kinematics); read_options: how to read.
-        generator: ``--generator``; config_where: the config's file, for messages.
+        model_from_log, generator: as :func:`impactcli.pipeline.analyze`.
+        config_where: the config's file, for messages.
         allow_slow: as :func:`impactcli.pipeline.analyze`.
         chunk_rows: samples per chunk (the result does not depend on it).
         scan: the log's :func:`impactcli.io.stream.scan_log`, if already made.
         on_chunk: called per chunk with its :class:`StreamChunk` (signals, decisions).
-        progress: called with (seconds of log replayed, the log's duration).
+        progress: called with (seconds of log done, seconds to do), summed over the passes.
+        strategy: :data:`STRATEGIES` (without calibrated thresholds only).
     Returns:
         The result; its ``log`` is a :class:`LogHeader` and it holds no per-sample signals.
     """
@@ -269,19 +191,25 @@ def analyze_stream(
         screen_plan,
         warn_events_after_gaps,
         warn_gaps,
+        warn_uncalibrated,
         warn_warmup,
         with_generator,
     )
 
+    if strategy not in STRATEGIES:
+        raise ValueError(f"strategy must be one of {STRATEGIES}, got {strategy!r}")
     opts = dict(read_options or {})
     read_kw = dict(opts, robot=robot) if robot is not None else dict(opts)
-    cfg = with_generator(config, generator, config_where)
-    if not streamable(cfg, model, False):
-        raise ValueError("analyze_stream needs a calibrated config and a known model")
-    with warnings.catch_warnings(record=True) as caught:
+    cfg = with_generator(config or DetectorConfig(), generator, config_where)
+    if model is not None and model_from_log:
+        from .errors import ConfigError
+
+        raise ConfigError("--model and --model-from-log exclude each other")
+    with warnings.catch_warnings(record=True) as caught, contextlib.ExitStack() as stack:
         warnings.simplefilter("always", ImpactWarning)
-        if scan is None:
+        if scan is None:  # made here, so closed here (its cache file, io.stream_cache)
             scan = scan_log(log_path, **read_kw)
+            stack.callback(getattr(scan, "close", lambda: None))
         where = scan.source.path
         check_calibrated_rate(scan.sample_rate_hz, cfg.calibration.sample_rate_hz, where)
         ref = scan.torque_ptp
@@ -297,28 +225,38 @@ def analyze_stream(
         for ch, ks in unlogged.items():
             logged[ch] = logged[ch].copy()
             logged[ch][ks] = False
-        joints, choices, rig, model_source, extra_left = _plan(
-            keep, scan.source, logged, model, cfg)
-        check_replayable(where, len(joints), scan.sample_rate_hz, scan.n_samples,
+        check_replayable(where, len(keep), scan.sample_rate_hz, scan.n_samples,
                          scan.duration_s, cfg, allow_slow)
-        thr = calibrated_thresholds(cfg, joints)
-        assert thr is not None
+        passes = _Passes(scan.duration_s, progress)
+        reader = _Reader(log_path, scan, read_kw, chunk_rows, full_joints, keep, unlogged)
+
+        def identify(choices: Any, kind: str | None, rbt: RobotDescription | None,
+                     sanity: bool) -> RigidModel:
+            return _identify_pass(reader, cfg, choices, kind, rbt, sanity, passes)
+
+        joints, choices, rig, model_source, extra_left = _plan(
+            keep, scan.source, logged, model, cfg, model_from_log, robot, identify)
+        given = calibrated_thresholds(cfg, joints)
         before = len(caught)
-        _, gap_times, (wu, wu_times), islands, last, reference, detail = _replay_pass(
-            log_path, scan, read_kw, chunk_rows, cfg, joints, choices, rig, full_joints,
-            unlogged, keep, thr, on_chunk, progress, caught)
+        rp = _replay_passes(reader, cfg, joints, choices, rig, given, on_chunk, passes,
+                            strategy)
         replay_msgs = caught[before:]
         del caught[before:]
         header = LogHeader(joints, scan.source, scan.n_samples, scan.t0_ns, scan.duration_s,
                            scan.sample_rate_hz, scan.sample_period_s)
-        warn_gaps(where, np.asarray(scan.gap_lengths_s), gap_times[:, 0])
+        warn_gaps(where, np.asarray(scan.gap_lengths_s), rp.gap_times[:, 0])
         caught.extend(replay_msgs)
-        if reference == "measured":
+        if rp.reference == "measured":
             warnings.warn(f"{where}: no reference logged: threshold inputs from the "
                           "measured position (no anticipation)", ImpactWarning, stacklevel=2)
+        wu, wu_times = rp.warmup
         warn_warmup(where, wu, wu_times, joints, scan.n_samples, scan.duration_s, cfg)
-        events, per_island = _events(islands, wu, joints, cfg)
-        warn_events_after_gaps(where, gap_times[:, 1], events)
+        thr = rp.thresholds
+        if given is None:
+            cfg = _uncalibrated_config(cfg, joints, rp.margins)
+            warn_uncalibrated(where)
+        events, per_island = _events(rp.islands, wu, joints, cfg)
+        warn_events_after_gaps(where, rp.gap_times[:, 1], events)
         from .pipeline import _warn_long_events
 
         _warn_long_events(cast(Any, header), events)
@@ -326,23 +264,23 @@ def analyze_stream(
                                None if rig is None else rig.to_dict(), thr["static_loading"],
                                scan.sample_period_s, scan.t0_ns, scan.n_samples,
                                cfg.events.merge_gap_s, where)
-        incidents = _incidents(islands, per_island, ctx)
-        islands.close()
+        incidents = _incidents(rp.islands, per_island, ctx)
+        rp.islands.close()
     msgs = tuple(dict.fromkeys(str(w.message) for w in caught
                                if issubclass(w.category, ImpactWarning)))
     for w in caught:
         if not issubclass(w.category, ImpactWarning):
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-    freqs, gain = last.g_gain()
+    freqs, gain = rp.last.g_gain()
     thresholds = {j: {"v_stat": float(thr["adaptive"][k]), "v0": float(thr["static_baseline"][k]),
                       "vL": float(thr["static_loading"][k])} for k, j in enumerate(joints)}
     wu_s = dict(zip(joints, wu_times, strict=True))
     return DetectionResult(
         log=cast(Any, header), model=None if rig is None else rig.to_dict(),
         model_sha256=None if rig is None else rig.sha256, model_source=model_source,
-        config=cfg.to_dict(), calibrated=True, thresholds=thresholds,
-        reference_source="measured" if reference == "measured" else "reference",
-        threshold_inputs=detail, torque_filtered=cfg.residual.filter_torque,
+        config=cfg.to_dict(), calibrated=given is not None, thresholds=thresholds,
+        reference_source="measured" if rp.reference == "measured" else "reference",
+        threshold_inputs=rp.detail, torque_filtered=cfg.residual.filter_torque,
         signals={}, decisions={}, ratios={}, events=tuple(events),
         warmup_end_s=wu.end_s, warmup_per_joint_s=wu_s,
         filter_gain={"frequencies_hz": [float(f) for f in freqs],
@@ -355,11 +293,95 @@ def analyze_stream(
     )
 
 
+def _uncalibrated_config(cfg: DetectorConfig, joints: tuple[str, ...],
+                         margins: dict[str, np.ndarray]) -> DetectorConfig:
+    """The config recorded by an uncalibrated run (:func:`impactcli.pipeline.analyze`)."""
+    from .config import CalibrationRecord
+    from .detect.calibrate import UNCALIBRATED_RULE
+
+    return dataclasses.replace(cfg, calibration=CalibrationRecord(
+        calibrated=False, margin_rule=UNCALIBRATED_RULE,
+        margins={d: {j: float(m) for j, m in zip(joints, ms, strict=True)}
+                 for d, ms in margins.items()}))
+
+
+class _Passes:
+    """Progress over the passes that read the log (identification, replay, replay again):
+    seconds of log done, summed over the passes, against the passes' total."""
+
+    def __init__(self, duration_s: float, progress: Callable[[float, float], None] | None):
+        self.duration_s, self.progress = duration_s, progress
+        self.planned = 1
+        self.done = 0
+
+    def add(self, k: int = 1) -> None:
+        """``k`` more passes than the one replay planned at first."""
+        self.planned += k
+
+    def at(self, t_s: float) -> None:
+        if self.progress is not None:
+            self.progress(self.done * self.duration_s + t_s, self.planned * self.duration_s)
+
+    def next(self) -> None:
+        self.done += 1
+
+
+class _Reader:
+    """The log's chunks (:func:`impactcli.io.stream.iter_chunks`) as the replay sees them:
+    times [s since the first sample], and arrays in a given joint order with the flat
+    controller channels read as not logged; each call reads the file again."""
+
+    def __init__(self, log_path: str, scan: Any, read_kw: dict[str, Any], chunk_rows: int,
+                 full_joints: tuple[str, ...], keep: tuple[str, ...],
+                 unlogged: dict[str, list[int]]) -> None:
+        self.log_path, self.scan, self.read_kw, self.chunk_rows = (
+            log_path, scan, read_kw, chunk_rows)
+        self.full_joints, self.keep, self.unlogged = full_joints, keep, unlogged
+
+    def chunks(self, joints: tuple[str, ...]) -> Any:
+        """(chunk, times, :class:`~impactcli.replay.ChunkArrays` of ``joints``) per chunk."""
+        from .io.stream import iter_chunks
+
+        cols = [self.full_joints.index(j) for j in joints]
+        # controller-channel columns read as not logged, in this joint order
+        nan_cols = {ch: [joints.index(self.keep[k]) for k in ks if self.keep[k] in joints]
+                    for ch, ks in self.unlogged.items()}
+        t0 = self.scan.t0_ns
+        for ch in iter_chunks(self.log_path, self.scan, self.chunk_rows, **self.read_kw):
+            t = (np.asarray(ch.t_ns) - t0).astype(np.float64) * 1e-9
+            yield ch, t, _chunk_arrays(ch, t, cols, nan_cols)
+
+
+def _identify_pass(reader: _Reader, cfg: DetectorConfig, choices: Any, kind: str | None,
+                   robot: RobotDescription | None, sanity: bool,
+                   passes: _Passes) -> RigidModel:
+    """Identify the model from the log, read once more (:class:`IdentifyStream`: bounded
+    memory, the same model as :func:`impactcli.model.identify` on the whole log)."""
+    from .model import IdentifyOptions
+    from .model.generators import target_torque
+    from .model.identify import IdentifyStream
+
+    scan = reader.scan
+    ident = IdentifyStream.start(
+        reader.keep, scan.n_samples, scan.sample_rate_hz, scan.duration_s, robot=robot,
+        kind=kind, options=IdentifyOptions(allow_still_joints=True, check_sanity=sanity),
+        where=scan.source.path, input_sha256=scan.source.sha256)
+    passes.add()
+    for _, t, a in reader.chunks(reader.keep):
+        ident.feed(t, a.position, target_torque(a, choices, cfg.residual.logged_correction))
+        passes.at(float(t[-1]))
+    passes.next()
+    return ident.finish()
+
+
 def _plan(keep: tuple[str, ...], source: LogSource, logged: dict[str, np.ndarray],
-          model: RigidModel | None, cfg: DetectorConfig,
+          model: RigidModel | None, cfg: DetectorConfig, model_from_log: bool,
+          robot: RobotDescription | None, identify: Callable[..., RigidModel],
           ) -> tuple[tuple[str, ...], Any, RigidModel | None, str, tuple[LeftOut, ...]]:
     """The replayed joints (model order), their generators, the model and where it came
-    from, and the logged joints the model lacks (:func:`impactcli.pipeline.replay`)."""
+    from, and the logged joints the model lacks (:func:`impactcli.pipeline.replay`,
+    :func:`impactcli.pipeline.resolve_model`); ``identify(choices, kind, robot, sanity)``
+    identifies the model from the log."""
     where = source.path
 
     def choose(js: tuple[str, ...], lg: dict[str, np.ndarray]) -> Any:
@@ -371,17 +393,35 @@ def _plan(keep: tuple[str, ...], source: LogSource, logged: dict[str, np.ndarray
     rig: RigidModel | None = None
     source_name = "none"
     joints = keep
-    if needs_own_model(choices) or uses_correction(choices, cfg.residual.logged_correction):
-        if model is not None:
+    correct = cfg.residual.logged_correction
+    if needs_own_model(choices) or uses_correction(choices, correct):
+        sanity = not uses_correction(choices, correct)
+        if model_from_log:
+            kind = None
+            if cfg.model is not None:
+                kind = cfg.model.get("kind")
+                if robot is None and cfg.model.get("robot"):
+                    from .io.robot import robot_from_dict
+
+                    robot = robot_from_dict(cfg.model["robot"], "the config's model")
+            if cfg.calibration.calibrated:
+                warnings.warn(
+                    "--model-from-log: the config's thresholds were calibrated with another "
+                    "model; this run is offline only (not what the robot could have run)",
+                    ImpactWarning, stacklevel=3)
+            rig, source_name = identify(choices, kind, robot, sanity), "identified-from-log"
+        elif model is not None:
             rig, source_name = model, "given"
-            if cfg.calibration.model_sha256 not in (None, model.sha256):
+            if cfg.calibration.calibrated and cfg.calibration.model_sha256 not in (
+                    None, model.sha256):
                 warnings.warn(
                     "--model overrides the config's model: its thresholds belong to the model "
                     "they were calibrated with (another model gives the residual another "
                     "scale)", ImpactWarning, stacklevel=3)
-        else:
-            assert cfg.model is not None
+        elif cfg.model is not None:
             rig, source_name = RigidModel.from_dict(cfg.model), "config"
+        else:  # offline convenience: a joint that never moves keeps only its offset
+            rig, source_name = identify(choices, None, robot, sanity), "identified-from-log"
         extra = [j for j in keep if j not in rig.joint_names]
         if extra and all(j in keep for j in rig.joint_names):
             for j in extra:
@@ -408,79 +448,154 @@ def _plan(keep: tuple[str, ...], source: LogSource, logged: dict[str, np.ndarray
     return joints, choices, rig, source_name, extra_left
 
 
-def _replay_pass(
-    log_path: str, scan: Any, read_kw: dict[str, Any], chunk_rows: int, cfg: DetectorConfig,
-    joints: tuple[str, ...], choices: Any, rig: RigidModel | None,
-    full_joints: tuple[str, ...], unlogged: dict[str, list[int]], keep: tuple[str, ...],
-    thr: dict[str, np.ndarray], on_chunk: Any, progress: Any, caught: list[Any],
-) -> tuple[list[Any], np.ndarray, tuple[Warmup, list[float]], _Islands, AdaptiveResult,
-           str, str]:
-    """The second pass (module docstring): returns the warnings it raised, the times of
-    the samples at and after each gap, the warm-up, the islands, the last chunk's
-    evaluator result, the threshold inputs' source and how they were made."""
+@dataclass
+class _Replayed:
+    """What the replay passes leave: the times of the samples at and after each gap, the
+    warm-up and its per-joint times, the islands, the last chunk's evaluator result, the
+    threshold inputs' source and how they were made, the thresholds and (uncalibrated)
+    their margins."""
+
+    gap_times: np.ndarray
+    warmup: tuple[Warmup, list[float]]
+    islands: Islands
+    last: AdaptiveResult
+    reference: str
+    detail: str
+    thresholds: dict[str, np.ndarray]
+    margins: dict[str, np.ndarray]
+
+
+def _replay_passes(
+    reader: _Reader, cfg: DetectorConfig, joints: tuple[str, ...], choices: Any,
+    rig: RigidModel | None, given: dict[str, np.ndarray] | None, on_chunk: Any,
+    passes: _Passes, strategy: str,
+) -> _Replayed:
+    """The replay (module docstring): with thresholds ``given``, one pass that compares
+    and keeps as it goes; without, a pass that spills, the thresholds from what it spilled
+    once the warm-up's end is known, then the comparison over the spill (``spill``) or
+    over the log replayed again (``reread``)."""
     import os
 
-    from .io.stream import iter_chunks
-
+    scan = reader.scan
     fs, dt = scan.sample_rate_hz, scan.sample_period_s
     setup = ReplaySetup(joints, choices, rig, cfg, fs, dt,
                         threads=(os.cpu_count() or 1) if scan.n_samples >= 100_000 else 1)
-    state = ReplayState.initial(setup)
-    cols = [full_joints.index(j) for j in joints]
-    # controller-channel columns read as not logged, in the replay's joint order
-    nan_cols = {ch: [joints.index(keep[k]) for k in ks if keep[k] in joints]
-                for ch, ks in unlogged.items()}
     tracker = WarmupTracker(scan.n_samples, 0.0, scan.duration_s, len(joints), cfg.warmup)
-    islands = _Islands(cfg.events.merge_gap_s)
-    pressing_at = BRIDGE_FRACTION * np.maximum(thr["static_loading"], 1e-12)
-    gaps = np.asarray(scan.gaps, dtype=np.int64)
-    gap_times = np.full((gaps.size, 2), np.nan)
-    last: AdaptiveResult | None = None
-    reference, detail = "", ""
-    start = len(caught)
-    t0 = scan.t0_ns
-    for ch in iter_chunks(log_path, scan, chunk_rows, **read_kw):
-        k0 = ch.start
-        t = (np.asarray(ch.t_ns) - t0).astype(np.float64) * 1e-9
-        arrays = _chunk_arrays(ch, t, cols, nan_cols)
-        out, state = replay_chunk(setup, state, arrays, where=scan.source.path, consume=True)
-        ad, r = out.adaptive, out.r
-        last, reference, detail = ad, out.inputs_source, out.inputs_detail
-        thr_ad = np.abs(thr["adaptive"][None, :] + ad.v_rms)
-        baseline = np.abs(r)
+    writers = on_chunk is not None
+    margins: dict[str, np.ndarray] = {}
+    last: list[Any] = [None, "", ""]
+
+    def replayed() -> Any:
+        state = ReplayState.initial(setup)
+        for ch, t, a in reader.chunks(joints):
+            out, state = replay_chunk(setup, state, a, where=scan.source.path, consume=True)
+            ad = out.adaptive
+            last[:] = [ad, out.inputs_source, out.inputs_detail]
+            yield _Step(ch.start, t, np.asarray(ch.t_ns, dtype=np.int64),
+                        np.asarray(ch.position, dtype=np.float64), out.r, out.loading, out.qd,
+                        ad.r_rms, ad.v_rms, ad.r_tilde, ad.v_dyn, a.torque, a.position,
+                        a.position_ref), ad.prediction_error
+            passes.at(float(t[-1]))
+        passes.next()
+
+    if given is not None:
+        thr = given
+        comparing = _Compare(thr, cfg, scan, on_chunk, joints)
+        for step, pe in replayed():
+            tracker.update(pe, step.t)
+            comparing.update(step)
+        wu = tracker.finish()
+    else:
+        if strategy == "reread":
+            passes.add()
+        spill = ChunkSpill()
+        try:
+            for step, pe in replayed():
+                tracker.update(pe, step.t)
+                keys = _NEEDED + (_FOR_WRITERS if writers else ()) if strategy == "spill" \
+                    else ("r", "loading", "r_rms", "v_rms")
+                spill.write({k: v for k in keys if (v := getattr(step, k)) is not None})
+            wu = tracker.finish()
+            thr, margins = _thresholds_from_spill(spill, wu, scan.n_samples, fs)
+            comparing = _Compare(thr, cfg, scan, on_chunk, joints)
+            if strategy == "spill":
+                for k0, arrays in spill.read():
+                    comparing.update(_Step(k0, **arrays))
+            else:
+                spill.close()
+                for step, _ in replayed():
+                    comparing.update(step)
+        finally:
+            spill.close()
+    comparing.islands.finish()
+    assert last[0] is not None
+    return _Replayed(comparing.gap_times, (wu, tracker.times_at(wu.index)), comparing.islands,
+                     last[0], last[1], last[2], thr, margins)
+
+
+def _thresholds_from_spill(spill: ChunkSpill, wu: Warmup, n: int, fs: float,
+                           ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """The uncalibrated rule's thresholds and margins per detector
+    (:func:`impactcli.detect.calibrate.uncalibrated_thresholds`) from the statistics after
+    the warm-up's end, read back from the spill block by block."""
+    from .detect.calibrate import BlockMaxima, thresholds_from_maxima, uncalibrated_block
+
+    start = wu.end_index if wu.end_index < n - 10 else 0  # pipeline.Replay.stats_after_warmup
+    block = uncalibrated_block(n - start, fs)
+    bms = {d: BlockMaxima(start, block) for d in DETECTORS}
+    for k0, a in spill.read(("r", "loading", "r_rms", "v_rms")):
+        if k0 + a["r"].shape[0] <= start:
+            continue
+        bms["adaptive"].update(k0, a["r_rms"] - a["v_rms"])
+        bms["static_loading"].update(k0, a["loading"])
+        bms["static_baseline"].update(k0, np.abs(a["r"]))
+    cals = {d: thresholds_from_maxima(bm.finish(), bm.block) for d, bm in bms.items()}
+    return ({d: c.thresholds for d, c in cals.items()},
+            {d: c.margins for d, c in cals.items()})
+
+
+class _Compare:
+    """Thresholds applied to the replay's steps, in order (module docstring): decisions
+    and ratios, the islands, the times at the gaps, the writers' chunks."""
+
+    def __init__(self, thr: dict[str, np.ndarray], cfg: DetectorConfig, scan: Any,
+                 on_chunk: Any, joints: tuple[str, ...]) -> None:
+        self.thr, self.on_chunk, self.joints = thr, on_chunk, joints
+        self.islands = Islands(cfg.events.merge_gap_s)
+        self.pressing_at = BRIDGE_FRACTION * np.maximum(thr["static_loading"], 1e-12)
+        self.gaps = np.asarray(scan.gaps, dtype=np.int64)
+        self.gap_times = np.full((self.gaps.size, 2), np.nan)
+
+    def update(self, st: _Step) -> None:
+        thr, k0, t = self.thr, st.k0, st.t
+        thr_ad = np.abs(thr["adaptive"][None, :] + st.v_rms)
+        baseline = np.abs(st.r)
         with np.errstate(divide="ignore", invalid="ignore"):
             ratios = {
-                "adaptive": np.where(thr_ad > 0, ad.r_rms / thr_ad, np.inf),
-                "static_loading": out.loading / thr["static_loading"][None, :],
+                "adaptive": np.where(thr_ad > 0, st.r_rms / thr_ad, np.inf),
+                "static_loading": st.loading / thr["static_loading"][None, :],
                 "static_baseline": baseline / thr["static_baseline"][None, :],
             }
-        dec = {"adaptive": ad.r_rms > thr_ad,
-               "static_loading": out.loading > thr["static_loading"][None, :],
+        dec = {"adaptive": st.r_rms > thr_ad,
+               "static_loading": st.loading > thr["static_loading"][None, :],
                "static_baseline": baseline > thr["static_baseline"][None, :]}
-        tracker.update(ad.prediction_error, t)
         any_d = dec["adaptive"].any(axis=1) | dec["static_loading"].any(axis=1) | \
             dec["static_baseline"].any(axis=1)
-        pressing = np.any(out.loading >= pressing_at[None, :], axis=1)
-        islands.update(k0, t, any_d, pressing, {
-            "t": t, "r": r, "loading": out.loading, "qd": out.qd,
-            "q_full": np.asarray(ch.position, dtype=np.float64),
+        pressing = np.any(st.loading >= self.pressing_at[None, :], axis=1)
+        self.islands.update(k0, t, any_d, pressing, {
+            "t": t, "r": st.r, "loading": st.loading, "qd": st.qd, "q_full": st.q_full,
             **{f"d.{d}": dec[d] for d in DETECTORS}, **{f"x.{d}": ratios[d] for d in DETECTORS}})
+        gaps = self.gaps
         for g_col, off in ((0, 0), (1, 1)):
             hit = (gaps + off >= k0) & (gaps + off < k0 + t.shape[0])
-            gap_times[hit, g_col] = t[gaps[hit] + off - k0]
-        if on_chunk is not None:
-            on_chunk(StreamChunk(joints, t, np.asarray(ch.t_ns, dtype=np.int64), {
-                "torque": arrays.torque, "residual": r, "filtered_residual": ad.r_tilde,
-                "dynamic_threshold": ad.v_dyn, "residual_rms": ad.r_rms, "threshold": thr_ad,
-                "loading_statistic": out.loading}, dec, arrays.position, arrays.position_ref))
-        if progress is not None:
-            progress(float(t[-1]), scan.duration_s)
-    assert last is not None
-    msgs = caught[start:]
-    wu = tracker.finish()
-    islands.finish()
-    return (msgs, gap_times, (wu, tracker.times_at(wu.index)), islands, last, reference,
-            detail)
+            self.gap_times[hit, g_col] = t[gaps[hit] + off - k0]
+        if self.on_chunk is not None:
+            assert st.torque is not None and st.r_tilde is not None and st.v_dyn is not None
+            assert st.position is not None
+            self.on_chunk(StreamChunk(self.joints, t, st.t_ns, {
+                "torque": st.torque, "residual": st.r, "filtered_residual": st.r_tilde,
+                "dynamic_threshold": st.v_dyn, "residual_rms": st.r_rms, "threshold": thr_ad,
+                "loading_statistic": st.loading}, dec, st.position, st.position_ref))
 
 
 def _chunk_arrays(ch: Any, t: np.ndarray, cols: list[int],
@@ -499,7 +614,7 @@ def _chunk_arrays(ch: Any, t: np.ndarray, cols: list[int],
     return dataclasses.replace(a, **changes) if changes else a
 
 
-def _events(islands: _Islands, wu: Warmup, joints: tuple[str, ...],
+def _events(islands: Islands, wu: Warmup, joints: tuple[str, ...],
             cfg: DetectorConfig) -> tuple[list[Event], list[tuple[int, list[Event]]]]:
     """Every island's events (indices in the log, in timeline order), and per island its
     first event's index and its events with indices in the island."""
@@ -519,7 +634,7 @@ def _events(islands: _Islands, wu: Warmup, joints: tuple[str, ...],
     return events, per_island
 
 
-def _incidents(islands: _Islands, per_island: list[tuple[int, list[Event]]],
+def _incidents(islands: Islands, per_island: list[tuple[int, list[Event]]],
                ctx: IncidentContext) -> list[Incident]:
     """Every island's incidents (:func:`impactcli.contacts.build_incidents`)."""
     out: list[Incident] = []

@@ -90,3 +90,4 @@ def test_a_still_joint_is_found_from_the_chunks_ranges() -> None:
         r = s.rows()
     assert r.still == ["b"]
     assert any("joint(s) stay constant (b 0 rad)" in str(x.message) for x in w)
+

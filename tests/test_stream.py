@@ -22,7 +22,7 @@ from impactcli.io import read_log
 from impactcli.outputs.signals import SignalsWriter, read_signals, write_signals
 from impactcli.outputs.timeline import timeline_json
 from impactcli.pipeline import analyze
-from impactcli.stream import analyze_stream, streamable
+from impactcli.stream import analyze_stream
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
 ASSIST = SAMPLES / "assist_like.config.toml"
@@ -92,13 +92,6 @@ def test_streamed_with_a_time_gap_at_a_chunk_boundary(tmp_path: Path) -> None:
     assert any("time gap" in w for w in whole.warnings)
     for rows in (k, k + 1, k - 1):
         assert timeline_json(_streamed(path, ASSIST, rows)) == timeline_json(whole)
-
-
-def test_streamable_needs_thresholds_and_a_model() -> None:
-    cfg = load_config(ASSIST)
-    assert streamable(cfg, None, False)
-    assert not streamable(cfg, None, True)          # --model-from-log
-    assert not streamable(None, None, False)         # no config: whole log
 
 
 def test_detect_streams_and_writes_the_same_files(tmp_path: Path) -> None:

@@ -140,6 +140,58 @@ def block_maxima(statistic: np.ndarray, block: int) -> np.ndarray:
     return np.maximum.reduceat(s, starts, axis=0)
 
 
+def uncalibrated_block(n_after: int, sample_rate_hz: float, *,
+                       block_s: float = UNCALIBRATED_BLOCK_S,
+                       min_blocks: int = UNCALIBRATED_MIN_BLOCKS) -> int:
+    """Samples per block of the uncalibrated rule for a statistic of ``n_after`` samples
+    after warm-up: ``block_s`` shortened to give at least ``min_blocks`` blocks; 0 when the
+    statistic is shorter than ``min_blocks`` samples (its maximum is used)."""
+    return min(max(1, round(block_s * sample_rate_hz)), n_after // min_blocks)
+
+
+class BlockMaxima:
+    """:func:`block_maxima` of a statistic that arrives in chunks: blocks of ``block``
+    samples from sample ``start`` of the log on (``block`` 0: one block, the maximum).
+    State in, state out: :meth:`update` each chunk in order, then :meth:`finish`. The
+    maxima are exactly those of the whole statistic at once (a maximum does not round)."""
+
+    def __init__(self, start: int, block: int) -> None:
+        self.start, self.block = start, block
+        self.done: list[np.ndarray] = []
+        self.part: np.ndarray | None = None     # the maximum of the open block so far
+        self.filled = 0                         # samples in the open block
+
+    def update(self, k0: int, statistic: np.ndarray) -> None:
+        """Absorb (m, J) ``statistic`` of samples ``k0 .. k0 + m - 1`` of the log."""
+        s = np.asarray(statistic, dtype=np.float64)[max(0, self.start - k0):]
+        if s.shape[0] == 0:
+            return
+        if self.block <= 0:
+            m = s.max(axis=0)
+            self.part = m if self.part is None else np.maximum(self.part, m)
+            return
+        if self.part is not None:
+            take = min(self.block - self.filled, s.shape[0])
+            self.part = np.maximum(self.part, s[:take].max(axis=0))
+            self.filled += take
+            s = s[take:]
+            if self.filled == self.block:
+                self.done.append(self.part[None, :])
+                self.part = None
+        if s.shape[0] == 0:
+            return
+        full = s.shape[0] // self.block * self.block
+        if full:
+            self.done.append(block_maxima(s[:full], self.block))
+        if full < s.shape[0]:
+            self.part, self.filled = s[full:].max(axis=0), s.shape[0] - full
+
+    def finish(self) -> np.ndarray:
+        """(B, J) the blocks' maxima (the last block may be shorter; block 0: (1, J))."""
+        rows = self.done + ([self.part[None, :]] if self.part is not None else [])
+        return np.concatenate(rows, axis=0)
+
+
 def uncalibrated_thresholds(
     statistic: np.ndarray, sample_rate_hz: float, *, block_s: float = UNCALIBRATED_BLOCK_S,
     quantile: float = UNCALIBRATED_QUANTILE, margin: float = UNCALIBRATED_MARGIN,
@@ -150,17 +202,25 @@ def uncalibrated_thresholds(
     ``margin`` × the ``quantile`` of the maxima of ``block_s`` blocks (module doc); the
     block is shortened to give at least ``min_blocks`` blocks, and a statistic shorter
     than ``min_blocks`` samples uses its maximum. ``maxima`` holds the level per joint.
+    A statistic read in chunks: :class:`BlockMaxima` then :func:`thresholds_from_maxima`.
     """
     s = np.asarray(statistic, dtype=np.float64)
     if s.ndim != 2 or s.shape[0] == 0:
         raise ValueError(f"expected a non-empty (N, J) statistic, got shape {s.shape}")
-    n = s.shape[0]
-    block = min(max(1, round(block_s * sample_rate_hz)), n // min_blocks)
-    level = (np.quantile(block_maxima(s, block), quantile, axis=0) if block >= 1
-             else s.max(axis=0))  # fewer samples than min_blocks: the maximum
+    bm = BlockMaxima(0, uncalibrated_block(s.shape[0], sample_rate_hz, block_s=block_s,
+                                           min_blocks=min_blocks))
+    bm.update(0, s)
+    return thresholds_from_maxima(bm.finish(), bm.block, quantile=quantile, margin=margin)
+
+
+def thresholds_from_maxima(maxima: np.ndarray, block: int, *,
+                           quantile: float = UNCALIBRATED_QUANTILE,
+                           margin: float = UNCALIBRATED_MARGIN) -> ThresholdCalibration:
+    """The uncalibrated rule's thresholds from :class:`BlockMaxima`'s (B, J) maxima."""
+    level = np.quantile(maxima, quantile, axis=0) if block >= 1 else maxima[0]
     level = np.maximum(level, 0.0)
     thr = np.maximum(margin * level, MIN_THRESHOLD)
-    return ThresholdCalibration(thr, np.full(s.shape[1], margin), level[None, :],
+    return ThresholdCalibration(thr, np.full(maxima.shape[1], margin), level[None, :],
                                 UNCALIBRATED_RULE, True)
 
 

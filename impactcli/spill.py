@@ -1,0 +1,166 @@
+"""Temporary files of a streamed replay (:mod:`impactcli.stream`): the samples near an
+alarm (:class:`Islands`) and a pass's per-sample arrays (:class:`ChunkSpill`), so that
+memory holds only where things lie, whatever the log's length.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+
+@dataclass
+class Island:
+    """Consecutive samples near an alarm (module docstring): the island's first sample in
+    the log and its rows [row_from, row_to) in the spill files."""
+
+    start: int
+    row_from: int
+    row_to: int
+
+
+class Islands:
+    """The islands of a streamed replay (module docstring), their rows spilled to
+    temporary files (one per array: memory holds only where each island lies).
+
+    A sample is kept when some detector fires on it, when it lies within the merge gap
+    after one that fires, or when the contact still presses on it (the static-loading
+    statistic of some joint at half its threshold) and the sample before it was kept —
+    the stretch between two alarms that a pressing contact bridges. Pressing that does not
+    follow an alarm is not kept: no event or incident reads it.
+    """
+
+    def __init__(self, merge_gap_s: float) -> None:
+        self.reach_s = merge_gap_s + 1e-9
+        self.last_t = -np.inf          # time of the last alarm so far
+        self.kept_last = False         # whether the previous chunk's last sample was kept
+        self.done: list[Island] = []
+        self.open: Island | None = None
+        self.rows = 0
+        self.dir = tempfile.TemporaryDirectory(prefix="impactcli-islands-")
+        self.files: dict[str, Any] = {}
+        self.layout: dict[str, tuple[np.dtype[Any], tuple[int, ...]]] = {}
+
+    def update(self, k0: int, t: np.ndarray, alarm: np.ndarray, pressing: np.ndarray,
+               arrays: dict[str, np.ndarray]) -> None:
+        """Absorb a chunk starting at sample ``k0``: (n,) times [s], (n,) alarms, (n,)
+        pressing, and the (n, ...) arrays to keep of the kept samples."""
+        n = t.shape[0]
+        idx = np.where(alarm, np.arange(n), -1)
+        last = np.maximum.accumulate(idx)
+        t_last = np.where(last >= 0, t[np.maximum(last, 0)], self.last_t)
+        base = alarm | (t - t_last <= self.reach_s)
+        if alarm.any():
+            self.last_t = float(t[np.flatnonzero(alarm)[-1]])
+        # kept = base, or pressing with the sample before kept: a pressing run continues
+        # the state at its start; a sample neither base nor pressing resets it
+        ar = np.arange(n)
+        set_at = np.maximum.accumulate(np.where(base, ar, -1))
+        reset_at = np.maximum.accumulate(np.where(~base & ~pressing, ar, -1))
+        carried = self.kept_last & (reset_at < 0) & (set_at < 0)
+        keep = base | (pressing & ((set_at > reset_at) | carried))
+        self.kept_last = bool(keep[-1]) if n else self.kept_last
+        if not keep.any():
+            self._close()
+            return
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], keep.astype(np.int8), [0]])))
+        for a, b in zip(edges[::2], edges[1::2], strict=True):
+            if a > 0 or self.open is None:
+                self._close()
+                self.open = Island(k0 + int(a), self.rows, self.rows)
+            for key, v in arrays.items():
+                self._write(key, v[a:b])
+            self.rows += int(b - a)
+            self.open.row_to = self.rows
+            if b < n:
+                self._close()
+
+    def _write(self, key: str, v: np.ndarray) -> None:
+        f = self.files.get(key)
+        if f is None:
+            f = self.files[key] = open(os.path.join(self.dir.name, key), "wb")  # noqa: SIM115
+            self.layout[key] = (v.dtype, v.shape[1:])
+        f.write(np.ascontiguousarray(v).tobytes())
+
+    def _close(self) -> None:
+        if self.open is not None:
+            self.done.append(self.open)
+            self.open = None
+
+    def finish(self) -> list[Island]:
+        """The islands, in time order (their rows readable until :meth:`close`)."""
+        self._close()
+        for f in self.files.values():
+            f.close()
+        return self.done
+
+    def arrays(self, isl: Island) -> dict[str, np.ndarray]:
+        """An island's arrays, read back from the spill files."""
+        out = {}
+        for key, (dtype, shape) in self.layout.items():
+            width = int(np.prod(shape)) if shape else 1
+            size = dtype.itemsize * width
+            with open(os.path.join(self.dir.name, key), "rb") as f:
+                f.seek(isl.row_from * size)
+                a = np.fromfile(f, dtype=dtype, count=(isl.row_to - isl.row_from) * width)
+            out[key] = a.reshape((-1, *shape))
+        return out
+
+    def close(self) -> None:
+        """Remove the spill files."""
+        for f in self.files.values():
+            f.close()
+        self.dir.cleanup()
+
+
+class ChunkSpill:
+    """Per-sample arrays of a pass, chunk by chunk, in a temporary file per array, read
+    back later chunk by chunk (the same chunks, in order) or from a given sample on."""
+
+    def __init__(self) -> None:
+        self.dir = tempfile.TemporaryDirectory(prefix="impactcli-spill-")
+        self.files: dict[str, Any] = {}
+        self.layout: dict[str, tuple[np.dtype[Any], tuple[int, ...]]] = {}
+        self.lengths: list[int] = []
+
+    def write(self, arrays: dict[str, np.ndarray]) -> None:
+        """Append one chunk: name → (m, ...) array (the same names and shapes each time)."""
+        for key, v in arrays.items():
+            f = self.files.get(key)
+            if f is None:
+                f = self.files[key] = open(os.path.join(self.dir.name, key), "wb")  # noqa: SIM115
+                self.layout[key] = (v.dtype, v.shape[1:])
+            f.write(np.ascontiguousarray(v).tobytes())
+        self.lengths.append(int(next(iter(arrays.values())).shape[0]))
+
+    def read(self, keys: tuple[str, ...] | None = None,
+             ) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
+        """(first sample, arrays) per chunk as written; ``keys`` only these arrays."""
+        for f in self.files.values():
+            f.flush()
+        names = tuple(self.layout) if keys is None else keys
+        handles = {k: open(os.path.join(self.dir.name, k), "rb") for k in names}  # noqa: SIM115
+        try:
+            k0 = 0
+            for m in self.lengths:
+                out = {}
+                for k, h in handles.items():
+                    dtype, shape = self.layout[k]
+                    width = int(np.prod(shape)) if shape else 1
+                    out[k] = np.fromfile(h, dtype=dtype, count=m * width).reshape((m, *shape))
+                yield k0, out
+                k0 += m
+        finally:
+            for h in handles.values():
+                h.close()
+
+    def close(self) -> None:
+        """Remove the files."""
+        for f in self.files.values():
+            f.close()
+        self.dir.cleanup()

@@ -1,0 +1,127 @@
+"""The streamed replay without calibrated thresholds (impactcli.stream): the model
+identified from the log in chunks, the uncalibrated thresholds from spilled statistics,
+and the whole-log replay's answer, byte for byte, whatever the chunking and the strategy
+(spill or read again)."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from impactcli.cli import main
+from impactcli.config import DetectorConfig, load_config
+from impactcli.detect.calibrate import BlockMaxima, block_maxima
+from impactcli.io import read_log
+from impactcli.model import rows as rows_mod
+from impactcli.outputs.timeline import timeline_json
+from impactcli.pipeline import analyze
+from impactcli.stream import analyze_stream, streamable
+
+SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
+ASSIST = SAMPLES / "assist_like.config.toml"
+
+
+def _pair(path: Path, rows: int, strategy: str = "spill", config: DetectorConfig | None = None,
+          model_from_log: bool = False) -> tuple[str, str, object]:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        whole = analyze(read_log(path), config=config, read_options={},
+                        model_from_log=model_from_log)
+        got = analyze_stream(str(path), config=config, read_options={}, chunk_rows=rows,
+                             strategy=strategy, model_from_log=model_from_log)
+    return timeline_json(whole), timeline_json(got), whole
+
+
+@pytest.mark.parametrize(("log", "rows", "strategy"), [
+    ("assist_impacts", 997, "spill"),       # boundaries inside every event
+    ("assist_impacts", 4096, "reread"),     # a boundary inside the warm-up
+    ("heavy_impacts", 1500, "spill"),
+    ("assist_pushes", 10**7, "reread"),     # one chunk
+    ("assist_clamps", 2048, "spill"),
+])
+def test_no_config_streamed_is_byte_identical(log: str, rows: int, strategy: str) -> None:
+    a, b, whole = _pair(SAMPLES / "csv" / f"{log}.csv.gz", rows, strategy)
+    assert whole.model_source == "identified-from-log"  # type: ignore[attr-defined]
+    assert not whole.calibrated  # type: ignore[attr-defined]
+    assert whole.events  # type: ignore[attr-defined]
+    assert a == b
+
+
+def test_identification_spans_many_chunks_and_windows(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Windows of the identification's filters smaller than the log, chunks smaller than
+    the windows: still the whole-log answer (which uses the same windows)."""
+    monkeypatch.setattr(rows_mod, "WINDOW", 2_000)
+    monkeypatch.setattr(rows_mod, "ROW_WINDOW", 300)
+    a, b, _ = _pair(SAMPLES / "csv" / "assist_impacts.csv.gz", 777)
+    assert a == b
+
+
+def test_model_from_log_with_a_calibrated_config_streams() -> None:
+    cfg = load_config(ASSIST)   # logged channels with the correction model: identified
+    a, b, whole = _pair(SAMPLES / "csv" / "assist_impacts.csv.gz", 1234, config=cfg,
+                        model_from_log=True)
+    assert whole.model_source == "identified-from-log"  # type: ignore[attr-defined]
+    assert whole.calibrated  # type: ignore[attr-defined]
+    assert any("--model-from-log" in w for w in whole.warnings)  # type: ignore[attr-defined]
+    assert a == b
+
+
+def test_everything_streams_but_model_with_model_from_log() -> None:
+    cfg = load_config(ASSIST)
+    assert streamable(cfg, None, False) and streamable(cfg, None, True)
+    assert streamable(None, None, False)
+    from impactcli.model import read_model  # noqa: F401  (a model object is all it needs)
+
+    class _M:
+        pass
+
+    assert not streamable(cfg, _M(), True)  # type: ignore[arg-type]
+
+
+def test_detect_without_config_streams_in_bounded_passes(tmp_path: Path,
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """The CLI's detect without a config takes the streamed path (read_log is never called
+    on the log) and writes what the whole-log replay wrote."""
+    import impactcli.io as io_mod
+    import impactcli.pipeline as pipeline_mod
+
+    log = SAMPLES / "csv" / "assist_impacts.csv.gz"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        whole = analyze(read_log(log), read_options={})
+
+    def refuse(*a: object, **k: object) -> None:
+        raise AssertionError("whole-log path taken")
+
+    monkeypatch.setattr(pipeline_mod, "analyze", refuse)
+    monkeypatch.setattr(io_mod, "read_log", refuse)
+    out = tmp_path / "out"
+    res = CliRunner().invoke(main, ["detect", str(log), "--out", str(out), "--signals"])
+    assert res.exit_code == 0, res.output
+    got = (out / "assist_impacts.timeline.json").read_text()
+    import json
+
+    a, b = json.loads(got), json.loads(timeline_json(whole))
+    for d in (a, b):   # provenance of the run itself (time, command line) differs
+        d.pop("produced_by", None)
+    assert a["events"] == b["events"] and a["incidents"] == b["incidents"]
+    assert a["thresholds"] == b["thresholds"] and a["model"] == b["model"]
+    assert (out / "assist_impacts.signals.parquet").exists()
+
+
+def test_block_maxima_in_chunks_equal_the_whole_statistic() -> None:
+    rng = np.random.default_rng(5)
+    s = rng.standard_normal((10_007, 3))
+    s[4_321, 1] = np.nan
+    for start, block in ((0, 1000), (1_234, 1000), (17, 7), (5, 0)):
+        whole = (block_maxima(s[start:], block) if block else
+                 np.max(s[start:], axis=0)[None, :])
+        for size in (1, 999, 1000, 4_096, 20_000):
+            bm = BlockMaxima(start, block)
+            for k in range(0, s.shape[0], size):
+                bm.update(k, s[k:k + size])
+            assert np.array_equal(bm.finish(), whole, equal_nan=True), (start, block, size)
