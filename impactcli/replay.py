@@ -211,14 +211,22 @@ def replay_chunk(
     r = residual_columns(setup, chunk, carry.scoped("residual."), where)
     inputs = inputs_chunk(chunk, chunk.time_s, fs, setup.cfg.adaptive,
                           carry.scoped("inputs."), where)
-    ad, ev = evaluate_chunk(st.evaluator, r, inputs.u, fs, np.zeros(r.shape[1]),
-                            setup.cfg.adaptive, setup.threads, progress, _consume=True)
     sl = setup.cfg.static_loading
-    loading = np.abs(loading_lowpass(r, sl.cutoff_hz, fs, sl.order,
-                                     carry.scoped("static.")))
     dt = setup.sample_period_s
-    _, qd, _ = causal_derivatives(dt, chunk.position, min(SPEED_CUTOFF_HZ, 0.2 / dt),
-                                  carry.scoped("speed."), "q")
+    rest: list[np.ndarray] = []
+
+    def statistics() -> None:
+        """The static-loading statistic and the speed: on this thread while the
+        evaluator's axes run on theirs (they read neither's carry)."""
+        rest.append(np.abs(loading_lowpass(r, sl.cutoff_hz, fs, sl.order,
+                                           carry.scoped("static."))))
+        rest.append(causal_derivatives(dt, chunk.position, min(SPEED_CUTOFF_HZ, 0.2 / dt),
+                                       carry.scoped("speed."), "q")[1])
+
+    ad, ev = evaluate_chunk(st.evaluator, r, inputs.u, fs, np.zeros(r.shape[1]),
+                            setup.cfg.adaptive, setup.threads, progress, _consume=True,
+                            alongside=statistics)
+    loading, qd = rest
     new = dataclasses.replace(st, evaluator=ev, n_samples=st.n_samples + chunk.n_samples,
                               reference=inputs.source, threshold_inputs=inputs.detail)
     return ChunkReplay(r, ad, loading, qd, inputs.source, inputs.detail), new

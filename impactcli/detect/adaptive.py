@@ -519,11 +519,17 @@ def _shift_in(lag: np.ndarray, x: np.ndarray, n: int) -> None:
 def _run_axes(
     st: EvaluatorState, r: np.ndarray, u: np.ndarray, v_stat: np.ndarray, threads: int = 1,
     progress: Callable[[int, int], None] | None = None,
+    alongside: Callable[[], None] | None = None,
 ) -> tuple[np.ndarray, ...]:
     """All axes of one chunk with the compiled per-axis kernel, advancing ``st`` IN PLACE;
-    ``threads`` > 1 runs axes concurrently.
+    ``threads`` > 1 runs axes concurrently; ``alongside`` is called on this thread while
+    they run (before them with one thread).
 
     Each axis works on contiguous (n,) rows (outputs are (J, n) inside, returned (n, J)).
+    With more axes than threads, every axis gets a thread of its own: every axis costs
+    the same, so ``threads`` workers taking the axes in turn leave cores idle while the
+    last round runs (7 axes on 2 workers: 4 rounds where 3.5 would do, one core idle
+    for a seventh of the work); the OS shares the cores among all of them instead.
     """
     n, J = r.shape
     cfg, rates = st.cfg, st.rates
@@ -549,12 +555,17 @@ def _run_axes(
     if threads > 1 and J > 1:
         from concurrent.futures import ThreadPoolExecutor
 
-        with ThreadPoolExecutor(max_workers=min(threads, J)) as ex:
-            for c in ex.map(axis, range(J)):
-                done.append(c)
+        with ThreadPoolExecutor(max_workers=J) as ex:
+            futures = [ex.submit(axis, j) for j in range(J)]
+            if alongside is not None:
+                alongside()
+            for f in futures:
+                done.append(f.result())
                 if progress is not None:
                     progress(len(done), J)
     else:
+        if alongside is not None:
+            alongside()
         for j in range(J):
             done.append(axis(j))
             if progress is not None:
@@ -588,6 +599,7 @@ def evaluate_chunk(
     sample_rate_hz: float, v_stat: Sequence[float] | np.ndarray,
     cfg: AdaptiveConfig | None = None, threads: int = 1,
     progress: Callable[[int, int], None] | None = None, *, _consume: bool = False,
+    alongside: Callable[[], None] | None = None,
 ) -> tuple[AdaptiveResult, EvaluatorState]:
     """Run the adaptive evaluator (compiled) on one chunk, continuing from ``state``.
 
@@ -600,6 +612,10 @@ def evaluate_chunk(
         v_stat: (J,) static thresholds [N·m] (eq. 42).
         cfg: settings; None → the state's; otherwise must equal the state's.
         threads, progress: as :func:`evaluate`.
+        alongside: the caller's own work, called on the calling thread while the axes run
+            on theirs (``threads`` > 1; before them otherwise): a core that would wait for
+            the axes does it (:func:`impactcli.replay.replay_chunk`: the static-loading
+            statistic and the joints' speed).
 
     Returns:
         (result, new_state): ``result`` holds the chunk's (n, J) signals; its ``theta``,
@@ -620,7 +636,8 @@ def evaluate_chunk(
     if r.shape[1] != state.n_joints:
         raise ValueError(f"{r.shape[1]} joints but the state has {state.n_joints}")
     st = state if _consume else state.copy()
-    rt, vd, rf, vf, rr, vr, thr, dec, eps = _run_axes(st, r, u, vs, threads, progress)
+    rt, vd, rf, vf, rr, vr, thr, dec, eps = _run_axes(st, r, u, vs, threads, progress,
+                                                      alongside)
     st = dataclasses.replace(st, n_samples=st.n_samples + r.shape[0])
     res = AdaptiveResult(rt, vd, rf, vf, rr, vr, thr, dec, eps, st.theta.copy(),
                          st.n_resets.copy(), rates=st.rates, nu=st.nu, eta=cfg.eta,
@@ -659,8 +676,9 @@ def evaluate(
         sample_rate_hz: fs [Hz].
         v_stat: (J,) static thresholds [N·m] (eq. 42).
         cfg: settings (Table I defaults).
-        threads: axes run concurrently on this many threads (results are identical: axes
-            are independent); None → one per core for logs of ≥ 100k samples, else 1.
+        threads: > 1 runs the axes concurrently, each on a thread of its own (results are
+            identical: axes are independent); None → one per core (> 1 on a multi-core
+            machine) for logs of ≥ 100k samples, else 1.
         progress: called with (axes done, axes) after each axis (every axis costs the same).
     """
     cfg = cfg or AdaptiveConfig()
