@@ -152,6 +152,7 @@ def chunks(ps: _Pass, cache: RowCache, chunk_rows: int) -> Iterator[LogChunk]:
     from .stream import _arrays
 
     cols = sorted(ps.allbad)
+    every = ps.keep == list(range(len(ps.ctx.lay.cmap.joints)))  # no copy to pick them
     pending: list[tuple[np.ndarray, dict[str, np.ndarray]]] = []
     size = 0
     start = 0
@@ -161,8 +162,8 @@ def chunks(ps: _Pass, cache: RowCache, chunk_rows: int) -> Iterator[LogChunk]:
             mat[:, cols] = np.nan
         arrays = _arrays(ps.ctx, t, mat)
         pending.append((t - ps.t_shift if ps.t_shift else t,
-                        {s: arrays[s][:, ps.keep] for s in ("position", "torque",
-                                                             *ps.optional)}))
+                        {s: arrays[s] if every else arrays[s][:, ps.keep]
+                         for s in ("position", "torque", *ps.optional)}))
         size += t.size
         while size >= chunk_rows:
             chunk, pending, size = take(pending, chunk_rows, start)
