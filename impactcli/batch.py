@@ -29,7 +29,7 @@ import tempfile
 import time
 import traceback
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -172,6 +172,21 @@ def _msgs(caught: list[warnings.WarningMessage]) -> tuple[str, ...]:
     return tuple(str(w.message) for w in caught if issubclass(w.category, ImpactWarning))
 
 
+def load_inputs(robot_path: str | None, model_path: str | None, config_path: str | None
+                ) -> tuple[Any, Any, Any]:
+    """The robot description, model and config (paths or URLs; None when not given), each
+    read once and named in its error: what every replay of a log starts from."""
+    from .config import load_config
+    from .io.robot import read_robot
+    from .io.urls import load_by_url
+    from .model import read_model
+
+    robot = load_by_url(robot_path, read_robot, "robot description") if robot_path else None
+    model = load_by_url(model_path, read_model, "model") if model_path else None
+    config = load_by_url(config_path, load_config, "config") if config_path else None
+    return robot, model, config
+
+
 def analyze_file(
     log_path: str, *, robot_path: str | None = None, model_path: str | None = None,
     config_path: str | None = None, read_options: dict[str, Any] | None = None,
@@ -179,19 +194,14 @@ def analyze_file(
     progress: Any = None,
 ) -> Any:
     """Read one log and its robot, model and config (paths or URLs) and replay the
-    detectors — what ``detect`` does for one log; ``evaluate`` and ``view`` use it too.
-    Returns the :class:`impactcli.result.DetectionResult`."""
-    from .config import load_config
+    detectors on the whole log in memory — what ``detect``, ``evaluate`` and ``view`` do
+    for one log when :func:`stream_file` cannot stream it.
+    Returns the :class:`impactcli.result.DetectionResult` (with its per-sample signals)."""
     from .io import read_log
-    from .io.robot import read_robot
-    from .io.urls import load_by_url
-    from .model import read_model
     from .pipeline import analyze
 
     opts = dict(read_options or {})
-    robot = load_by_url(robot_path, read_robot, "robot description") if robot_path else None
-    model = load_by_url(model_path, read_model, "model") if model_path else None
-    config = load_by_url(config_path, load_config, "config") if config_path else None
+    robot, model, config = load_inputs(robot_path, model_path, config_path)
     log = read_log(log_path, robot=robot, **opts)
     return analyze(log, model=model, config=config, robot=robot, read_options=opts,
                    model_from_log=model_from_log, generator=generator,
@@ -215,13 +225,19 @@ def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ..
 
 def _progress_bar(job: DetectJob, what: str, unit: str) -> Any:
     """A progress bar on stderr for a serial run in a terminal (None otherwise)."""
-    if not job.show_progress:
+    return progress_bar(job.log_path, job.show_progress, what, unit)
+
+
+def progress_bar(log_path: str, show: bool, what: str, unit: str) -> Any:
+    """A progress bar on stderr named after the log, when ``show`` and stderr is a
+    terminal (None when not ``show``)."""
+    if not show:
         return None
     import sys
 
     from tqdm import tqdm
 
-    return tqdm(total=0, desc=f"{output_stem(job.log_path)}: {what}", unit=unit,
+    return tqdm(total=0, desc=f"{output_stem(log_path)}: {what}", unit=unit,
                 file=sys.stderr, leave=False, disable=not sys.stderr.isatty())
 
 
@@ -251,76 +267,115 @@ def _run_whole(job: DetectJob, local_out: Path | None, stem: str
 
 
 def _run_streamed(job: DetectJob, out: Path, stem: str) -> tuple[Any, tuple[str, ...]] | None:
-    """Replay the log chunk by chunk in bounded memory (:mod:`impactcli.stream`) when its
-    inputs allow (all but ``--model`` with ``--model-from-log``, an error the whole-log
-    path reports); None otherwise. The signals are written as the comparison with the
-    thresholds goes; the timeline at the end; the Rerun recording from a spill file of what
-    it plots (:mod:`impactcli.outputs.rerun_stream`)."""
-    from .config import load_config
-    from .io.robot import read_robot
-    from .io.urls import load_by_url
-    from .model import read_model
+    """Replay the log chunk by chunk in bounded memory (:func:`stream_file`) when its
+    inputs allow; None otherwise. The signals are written as the comparison with the
+    thresholds goes, the Rerun recording from a spill file, the timeline at the end."""
+    from .outputs.timeline import write_timeline
+
+    written = [out / f"{stem}.timeline.json"]
+    signals = out / f"{stem}.signals.parquet" if job.signals else None
+    rrd = out / f"{stem}.rrd" if job.rerun else None
+    result = stream_file(job.log_path, robot_path=job.robot_path, model_path=job.model_path,
+                         config_path=job.config_path, read_options=job.read_options,
+                         model_from_log=job.model_from_log, generator=job.generator,
+                         allow_slow=job.allow_slow, show_progress=job.show_progress,
+                         signals_path=signals, rrd_path=rrd)
+    if result is None:
+        return None
+    written += [p for p in (signals, rrd) if p is not None]
+    write_timeline(result, written[0])
+    return result, tuple(str(p) for p in written)
+
+
+def stream_file(
+    log_path: str, *, robot_path: str | None = None, model_path: str | None = None,
+    config_path: str | None = None, read_options: dict[str, Any] | None = None,
+    model_from_log: bool = False, generator: str | None = None, allow_slow: bool = False,
+    show_progress: bool = False, signals_path: Path | None = None,
+    rrd_path: Path | None = None, rrd_options: dict[str, Any] | None = None,
+    collector: Callable[[Any], Callable[[Any], None]] | None = None,
+) -> Any:
+    """Replay one log chunk by chunk in bounded memory (:mod:`impactcli.stream`) when its
+    inputs allow (:func:`impactcli.stream.streamable`: all but ``--model`` with
+    ``--model-from-log``, an error the whole-log path reports); None otherwise, and the
+    caller replays the whole log (:func:`analyze_file`). One routine for every verb that
+    replays a log (``detect``, ``view``, ``evaluate``), so that they stream alike.
+
+    The run's per-sample data never comes back (the result holds none); what a verb needs
+    of it is taken chunk by chunk: ``signals_path`` gets the signals Parquet, written as the
+    replay goes; ``rrd_path`` the Rerun recording (``rrd_options``: ``max_points``,
+    ``event_window_s``), written once the answer is known from a spill file of what it
+    plots (:mod:`impactcli.outputs.rerun_stream`) — both atomically, and not at all when
+    the replay fails; ``collector(scan)`` makes one more ``on_chunk`` from the log's scan
+    (its sample count and gaps are known before the first chunk). Progress in seconds of
+    log, summed over the passes, when ``show_progress`` and stderr is a terminal.
+
+    Returns:
+        The :class:`impactcli.result.DetectionResult` (its ``log`` a
+        :class:`impactcli.stream.LogHeader`), or None when the inputs do not stream.
+    """
+    from contextlib import ExitStack
+
     from .stream import analyze_stream, streamable
 
-    config = load_by_url(job.config_path, load_config, "config") if job.config_path else None
-    model = load_by_url(job.model_path, read_model, "model") if job.model_path else None
-    if not streamable(config, model, job.model_from_log):
+    robot, model, config = load_inputs(robot_path, model_path, config_path)
+    if not streamable(config, model, model_from_log):
         return None
-    robot = load_by_url(job.robot_path, read_robot, "robot description") \
-        if job.robot_path else None
-    from contextlib import ExitStack
 
     from .io.stream import scan_log
     from .outputs.signals import SignalsWriter
-    from .outputs.timeline import write_timeline
 
-    opts = dict(job.read_options)
+    opts = dict(read_options or {})
     read_kw = dict(opts, robot=robot) if robot is not None else dict(opts)
-    scan = scan_log(job.log_path, **read_kw)
-    written = [out / f"{stem}.timeline.json"]
-    bar = _progress_bar(job, "replay", "s of log (all passes)")
-    with ExitStack() as stack:
-        writers: list[Any] = []
-        if job.signals:
-            written.append(out / f"{stem}.signals.parquet")
-            sig = stack.enter_context(SignalsWriter(
-                written[-1], scan.t0_ns, scan.source.sha256, scan.source.path))
-            writers.append(lambda c: sig.append(c.joints, c.time_s, c.signals, c.decisions))
-        spill = None
-        if job.rerun:
-            from .outputs.rerun_stream import SpillWriter, spill_columns
+    scan = scan_log(log_path, **read_kw)
+    bar = progress_bar(log_path, show_progress, "replay", "s of log (all passes)")
+    try:
+        with ExitStack() as stack:
+            writers: list[Callable[[Any], None]] = []
+            if signals_path is not None:
+                sig = stack.enter_context(SignalsWriter(
+                    signals_path, scan.t0_ns, scan.source.sha256, scan.source.path))
+                writers.append(lambda c: sig.append(c.joints, c.time_s, c.signals,
+                                                    c.decisions))
+            spill = None
+            if rrd_path is not None:
+                from .outputs.rerun_stream import SpillWriter, spill_columns
 
-            spill = SpillWriter()
-            stack.callback(spill.close)
-            writers.append(lambda c: spill.append(spill_columns(
-                c.joints, c.t_ns, c.signals, c.decisions, c.position, c.position_ref)))
+                spill = SpillWriter()
+                stack.callback(spill.close)
+                writers.append(lambda c: spill.append(spill_columns(
+                    c.joints, c.t_ns, c.signals, c.decisions, c.position, c.position_ref)))
+            if collector is not None:
+                writers.append(collector(scan))
 
-        def on_chunk(c: Any) -> None:
-            for w in writers:
-                w(c)
+            def on_chunk(c: Any) -> None:
+                for w in writers:
+                    w(c)
 
-        def progress(done_s: float, total_s: float) -> None:
-            assert bar is not None
-            bar.total = round(total_s)
-            bar.n = round(done_s)
-            bar.refresh()
+            def progress(done_s: float, total_s: float) -> None:
+                assert bar is not None
+                bar.total = round(total_s)
+                bar.n = round(done_s)
+                bar.refresh()
 
-        result = analyze_stream(job.log_path, config=config, model=model, robot=robot,
-                                read_options=opts, generator=job.generator,
-                                model_from_log=job.model_from_log,
-                                config_where=job.config_path or "config",
-                                allow_slow=job.allow_slow, scan=scan,
-                                on_chunk=on_chunk if writers else None,
-                                progress=progress if bar is not None else None)
-        if spill is not None:
-            from .outputs.rerun_stream import write_rrd_from_spill
+            result = analyze_stream(log_path, config=config, model=model, robot=robot,
+                                    read_options=opts, generator=generator,
+                                    model_from_log=model_from_log,
+                                    config_where=config_path or "config",
+                                    allow_slow=allow_slow, scan=scan,
+                                    on_chunk=on_chunk if writers else None,
+                                    progress=progress if bar is not None else None)
+            if spill is not None and rrd_path is not None:
+                from .outputs.rerun_stream import write_rrd_from_spill
 
-            written.append(out / f"{stem}.rrd")
-            write_rrd_from_spill(result, spill, written[-1])
-    if bar is not None:
-        bar.close()
-    write_timeline(result, written[0])
-    return result, tuple(str(p) for p in written)
+                write_rrd_from_spill(result, spill, rrd_path, **(rrd_options or {}))
+    finally:
+        if bar is not None:
+            bar.close()
+        close = getattr(scan, "close", None)  # the scan's cache of the rows, if any
+        if close is not None:
+            close()
+    return result
 
 
 def _summary(job: DetectJob, result: Any) -> dict[str, Any]:
