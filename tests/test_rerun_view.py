@@ -94,6 +94,8 @@ def test_log_is_detected_then_written_and_opened(tmp_path: Path, monkeypatch: py
         return fake_result()
 
     monkeypatch.setattr(view_mod, "analyze_log", fake_analyze)
+    # the whole-log path (a log that streams: tests/test_view_evaluate_stream.py)
+    monkeypatch.setattr("impactcli.stream.streamable", lambda *a, **k: False)
     out = tmp_path / "arm.rrd"
     r = run(str(log), "--no-open", "--save", str(out), "--channel-map", "kuka_lwr4")
     assert r.exit_code == 0, explain(r)

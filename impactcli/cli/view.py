@@ -2,8 +2,9 @@
 
 An ``.rrd`` is checked (a missing or garbled file is a data error, exit 3) and handed to
 the ``rerun`` viewer shipped in the rerun-sdk wheel. Any other path is read as a log, the
-detectors are replayed on it (:func:`impactcli.pipeline.analyze`), the recording is
-written to a temporary folder (or ``--save PATH``) and opened. ``--no-open`` only writes
+detectors are replayed on it (:func:`record_log`: chunk by chunk in bounded memory as
+``detect --rerun`` does, :func:`impactcli.batch.stream_file`), the recording is written to
+a temporary folder (or ``--save PATH``) and opened. ``--no-open`` only writes
 (for scripts and machines without a display). The command waits until the viewer closes.
 """
 
@@ -14,7 +15,7 @@ import sys
 import tempfile
 import warnings
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, cast
 
 import click
 
@@ -74,6 +75,36 @@ def open_viewer(path: Path) -> None:
                           "(no display? use --no-open --save PATH)")
 
 
+def record_log(source: Path, rrd: Path, *, robot: Path | None, model: Path | None,
+               config: Path | None, read_options: dict[str, Any], max_points: int,
+               event_window_s: float) -> DetectionResult:
+    """Replay the detectors on the log ``source`` and write its Rerun recording to ``rrd``
+    (atomically); returns the run.
+
+    Streamed when its inputs allow (:func:`impactcli.batch.stream_file`, as ``detect
+    --rerun`` does: a day-long log in bounded memory, the recording written from a spill
+    file once the answer is known, the same samples as the whole-log recording); else the
+    whole log is read and replayed in memory (:func:`impactcli.cli.evaluate.analyze_log`).
+    Progress in seconds of log on a terminal, as ``detect``.
+    """
+    from ..batch import stream_file
+
+    opts: dict[str, Any] = {"max_points": max_points, "event_window_s": event_window_s}
+    result = stream_file(str(source), robot_path=None if robot is None else str(robot),
+                         model_path=None if model is None else str(model),
+                         config_path=None if config is None else str(config),
+                         read_options=read_options, show_progress=True, rrd_path=rrd,
+                         rrd_options=opts)
+    if result is not None:
+        return cast("DetectionResult", result)
+    from ..outputs.rerun import write_rrd
+
+    result = analyze_log(source, robot=robot, model=model, config=config,
+                         read_options=read_options)
+    write_rrd(result, rrd, **opts)
+    return cast("DetectionResult", result)
+
+
 @click.command("view")
 @click.argument("source", type=click.Path(dir_okay=True, path_type=Path))
 @model_options
@@ -119,15 +150,17 @@ def view_cmd(source: Path, robot: Path | None, model: Path | None,
     if no_open and save_path is None:
         raise click.UsageError("--no-open on a LOG needs --save PATH (else nothing is kept)")
 
-    from ..outputs.rerun import write_rrd
-
     ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
-    result: DetectionResult = analyze_log(source, robot=robot, model=model, config=config,
-                                          read_options=ropts)
-    for msg in result.warnings:
-        click.echo(f"impactcli: warning: {msg}", err=True)
+
+    def record(rrd: Path) -> None:
+        result = record_log(source, rrd, robot=robot, model=model, config=config,
+                            read_options=ropts, max_points=max_points,
+                            event_window_s=event_window)
+        for msg in result.warnings:
+            click.echo(f"impactcli: warning: {msg}", err=True)
+
     if save_path is not None:
-        write_rrd(result, save_path, max_points=max_points, event_window_s=event_window)
+        record(save_path)
         click.echo(str(save_path))
         if not no_open:
             open_viewer(save_path)
@@ -136,5 +169,5 @@ def view_cmd(source: Path, robot: Path | None, model: Path | None,
         from ..io import log_stem
 
         rrd = Path(tmp) / f"{log_stem(source)}.rrd"
-        write_rrd(result, rrd, max_points=max_points, event_window_s=event_window)
+        record(rrd)
         open_viewer(rrd)

@@ -1,0 +1,99 @@
+"""`impactcli view LOG` replays the log chunk by chunk
+(impactcli.batch.stream_file, bounded memory) and gives what the whole-log replay gives:
+the same Rerun recording's rows, with and without a config;
+the streamed run never calls pipeline.analyze or io.read_log, leaves no spill file behind,
+and writes nothing when the log turns bad midway."""
+
+from __future__ import annotations
+
+import gzip
+import tempfile
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner, Result
+
+from impactcli.cli import main
+
+from .test_stream import _rrd_rows
+
+SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
+ASSIST = SAMPLES / "assist_like.config.toml"
+HEAVY = SAMPLES / "heavy_geared.config.toml"
+
+
+def _run(args: list[str]) -> Result:
+    return CliRunner().invoke(main, args, catch_exceptions=False)
+
+
+def _whole_log_only(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Make stream_file decline (as for inputs that do not stream): the whole-log path."""
+    import impactcli.stream as stream_mod
+
+    monkeypatch.setattr(stream_mod, "streamable", lambda *a, **k: False)
+
+
+def _forbid_whole_log(monkeypatch: pytest.MonkeyPatch) -> None:
+    import impactcli.io as io_mod
+    import impactcli.pipeline as pipeline_mod
+
+    def refuse(*a: object, **k: object) -> None:
+        raise AssertionError("whole-log path taken")
+
+    monkeypatch.setattr(pipeline_mod, "analyze", refuse)
+    monkeypatch.setattr(io_mod, "read_log", refuse)
+
+
+@pytest.fixture
+def private_tmp(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """A temporary folder of this test's own (others' runs write spills to /tmp too)."""
+    d = tmp_path / "tmp"
+    d.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(d))
+    return d
+
+
+@pytest.mark.parametrize(("log", "cfg"), [("assist_impacts", ASSIST), ("assist_pushes", None)])
+def test_view_streams_the_whole_log_recording(tmp_path: Path, private_tmp: Path,
+                                              monkeypatch: pytest.MonkeyPatch, log: str,
+                                              cfg: Path | None) -> None:
+    path = SAMPLES / "csv" / f"{log}.csv.gz"
+    opts = ["--no-open", "--max-points", "1500", "--event-window", "0.3"]
+    opts += ["--config", str(cfg)] if cfg is not None else []
+    with monkeypatch.context() as m:
+        _whole_log_only(m)
+        r = _run(["view", str(path), *opts, "--save", str(tmp_path / "whole.rrd")])
+        assert r.exit_code == 0, r.output
+    with monkeypatch.context() as m:
+        _forbid_whole_log(m)
+        r2 = _run(["view", str(path), *opts, "--save", str(tmp_path / "stream.rrd")])
+        assert r2.exit_code == 0, r2.output
+    assert r2.stdout == r.stdout.replace("whole.rrd", "stream.rrd")
+    assert r2.stderr == r.stderr  # the run's warnings
+    a, b = _rrd_rows(tmp_path / "whole.rrd"), _rrd_rows(tmp_path / "stream.rrd")
+    assert a.keys() == b.keys()
+    decimated = [k for k, v in a.items() if "/rms" in k and not k.startswith("static")]
+    assert decimated and all(len(a[k]) < 20_000 for k in decimated)  # --max-points reached
+    for k in a:
+        if k.startswith("static /__properties") or "blueprint" in k:
+            continue
+        assert a[k] == b[k], k
+    assert not list(private_tmp.glob("impactcli-*"))
+
+
+def test_a_log_bad_midway_leaves_nothing(tmp_path: Path, private_tmp: Path) -> None:
+    """A cell that is not a number far into the file: one line, exit 3, no recording kept
+    and no spill file left (view --save)."""
+    with gzip.open(SAMPLES / "csv" / "assist_impacts.csv.gz", "rt") as f:
+        lines = f.read().splitlines(keepends=True)
+    cells = lines[15000].split(",")
+    cells[2] = "oops"
+    lines[15000] = ",".join(cells)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("".join(lines))
+    out = tmp_path / "bad.rrd"
+    r = _run(["view", str(bad), "--config", str(ASSIST), "--no-open", "--save", str(out)])
+    assert r.exit_code == 3, r.output
+    assert "bad.csv" in r.stderr and "Traceback" not in r.stderr
+    assert not out.exists() and not list(tmp_path.glob("*.rrd*"))
+    assert not list(private_tmp.glob("impactcli-*"))
