@@ -279,6 +279,8 @@ def test_sweep_from_a_log(tmp_path, monkeypatch):
         return sweep_result()
 
     monkeypatch.setattr(cli_eval, "analyze_log", fake_analyze_log)
+    # the whole-log path (a log that streams: tests/test_view_evaluate_stream.py)
+    monkeypatch.setattr("impactcli.stream.streamable", lambda *a, **k: False)
     log = tmp_path / "arm.csv"
     log.write_text("time\n0\n")
     lab = write(tmp_path, "labels.json", SWEEP_LABELS.to_dict())

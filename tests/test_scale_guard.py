@@ -91,8 +91,6 @@ def test_report_refuses_a_huge_arm_and_takes_allow_slow(
 
 def test_evaluate_refuses_a_huge_arm_and_takes_allow_slow(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    import impactcli.cli.evaluate as cli_eval
-
     log = _huge_log(tmp_path)
     labels = tmp_path / "huge.labels.json"
     labels.write_text('{"sample_rate": 200.0, "events": []}')
@@ -102,11 +100,11 @@ def test_evaluate_refuses_a_huge_arm_and_takes_allow_slow(
     assert r.stdout == ""
     seen: dict[str, object] = {}
 
-    def analyze_log(path: Path, **kw: object) -> object:
+    def analyze_stream(path: str, **kw: object) -> object:  # the replay evaluate runs
         seen.update(kw)
         raise ScaleLimitError("stop here")
 
-    monkeypatch.setattr(cli_eval, "analyze_log", analyze_log)
+    monkeypatch.setattr("impactcli.stream.analyze_stream", analyze_stream)
     CliRunner().invoke(main, ["evaluate", str(log), "--allow-slow"])
     assert seen["allow_slow"] is True
 

@@ -1,12 +1,13 @@
-"""`impactcli view LOG` replays the log chunk by chunk
-(impactcli.batch.stream_file, bounded memory) and gives what the whole-log replay gives:
-the same Rerun recording's rows, with and without a config;
+"""`impactcli view LOG` and `impactcli evaluate LOG` replay the log chunk by chunk
+(impactcli.batch.stream_file, bounded memory) and give what the whole-log replay gives:
+the same Rerun recording's rows, the same evaluation and sweep, with and without a config;
 the streamed run never calls pipeline.analyze or io.read_log, leaves no spill file behind,
 and writes nothing when the log turns bad midway."""
 
 from __future__ import annotations
 
 import gzip
+import json
 import tempfile
 from pathlib import Path
 
@@ -81,9 +82,45 @@ def test_view_streams_the_whole_log_recording(tmp_path: Path, private_tmp: Path,
     assert not list(private_tmp.glob("impactcli-*"))
 
 
+@pytest.mark.parametrize(("log", "cfg", "scales"), [
+    ("assist_impacts", ASSIST, None),            # the default scales
+    ("heavy_impacts", HEAVY, "0.5:3:x1.1"),
+    ("assist_clamps", None, "0.2:3:x1.1"),       # uncalibrated: the model from the log
+])
+def test_evaluate_streams_the_whole_log_evaluation(tmp_path: Path, private_tmp: Path,
+                                                   monkeypatch: pytest.MonkeyPatch, log: str,
+                                                   cfg: Path | None,
+                                                   scales: str | None) -> None:
+    path = SAMPLES / "csv" / f"{log}.csv.gz"
+    args = ["evaluate", str(path), "--json", "--sweep"]
+    args += ["--config", str(cfg)] if cfg is not None else []
+    args += ["--scales", scales] if scales is not None else []
+    with monkeypatch.context() as m:
+        _whole_log_only(m)
+        want = _run(args)
+        want_text = _run([a for a in args if a != "--json"])
+    assert want.exit_code == 0, want.output
+    with monkeypatch.context() as m:
+        _forbid_whole_log(m)
+        got = _run(args)
+        got_text = _run([a for a in args if a != "--json"])
+        plain = _run([a for a in args if a != "--sweep"])
+    assert got.exit_code == 0, got.output
+    doc = json.loads(got.stdout)
+    assert doc["sweep"]["rows"] and doc["n_contacts"]["counted"] > 0
+    assert got.stdout == want.stdout
+    assert got.stderr == want.stderr
+    assert got_text.stdout == want_text.stdout
+    # without --sweep: no collector, the same evaluation
+    assert plain.exit_code == 0, plain.output
+    doc.pop("sweep")
+    assert json.loads(plain.stdout) == doc
+    assert not list(private_tmp.glob("impactcli-*"))  # the spill files are removed
+
+
 def test_a_log_bad_midway_leaves_nothing(tmp_path: Path, private_tmp: Path) -> None:
     """A cell that is not a number far into the file: one line, exit 3, no recording kept
-    and no spill file left (view --save)."""
+    and no spill file left (view --save; evaluate --sweep)."""
     with gzip.open(SAMPLES / "csv" / "assist_impacts.csv.gz", "rt") as f:
         lines = f.read().splitlines(keepends=True)
     cells = lines[15000].split(",")
@@ -96,4 +133,7 @@ def test_a_log_bad_midway_leaves_nothing(tmp_path: Path, private_tmp: Path) -> N
     assert r.exit_code == 3, r.output
     assert "bad.csv" in r.stderr and "Traceback" not in r.stderr
     assert not out.exists() and not list(tmp_path.glob("*.rrd*"))
+    r = _run(["evaluate", str(bad), "--config", str(ASSIST), "--sweep", "--labels",
+              str(SAMPLES / "csv" / "assist_impacts.labels.json")])
+    assert r.exit_code == 3, r.output
     assert not list(private_tmp.glob("impactcli-*"))

@@ -4,8 +4,9 @@ Labels default to ``<stem>.labels.json`` beside the input (as ``impactcli simula
 
 A ``*.json`` input is a detection timeline (``impactcli detect`` output, validated against
 schemas/timeline.schema.json); anything else is a log, on which the detectors are replayed
-first (:func:`impactcli.pipeline.analyze`, with detect's ``--robot/--model/--config`` and
-log-reading options). The matching rules are :mod:`impactcli.evaluate`'s.
+first, with detect's ``--robot/--model/--config`` and log-reading options, chunk by chunk
+in bounded memory as ``detect`` replays it (:func:`replay_log`). The matching rules are
+:mod:`impactcli.evaluate`'s.
 
 The incidents (link, force, contact type) are scored too: a timeline's ``incidents`` (a
 1.0 timeline has none, and the output says so), or for a log the run's own.
@@ -170,6 +171,48 @@ def analyze_log(path: Path, *, robot: Path | None, model: Path | None, config: P
                         read_options=read_options, allow_slow=allow_slow)
 
 
+def replay_log(path: Path, *, robot: Path | None, model: Path | None, config: Path | None,
+               read_options: dict[str, Any], allow_slow: bool = False, sweep: bool = False
+               ) -> tuple[Any, Any]:
+    """Replay the detectors on the log ``path`` for its evaluation: (result, samples).
+
+    Streamed when its inputs allow (:func:`impactcli.batch.stream_file`: a day-long log in
+    bounded memory, as ``detect`` replays it); the scores need only the run's events and
+    incidents, which a streamed result holds. The sweep needs every sample's ratio to the
+    thresholds: with ``sweep`` the report's collector
+    (:class:`impactcli.outputs.report_stream.ReportCollector`) spills them to a temporary
+    file as the replay goes and ``samples`` reads them back
+    (:func:`impactcli.outputs.sweep_stream.sweep_streamed` gives the rows
+    :func:`impactcli.evaluate.sweep_thresholds` gives on the whole-log run); the caller
+    closes ``samples`` (it removes the spill file). Else (inputs that do not stream) the
+    whole log is replayed in memory (:func:`analyze_log`) and ``samples`` is None.
+    """
+    from ..batch import stream_file
+
+    made: list[Any] = []
+
+    def collect(scan: Any) -> Any:
+        from ..outputs.report_stream import ReportCollector
+
+        made.append(ReportCollector(scan.n_samples, scan.gaps, scan.gap_lengths_s))
+        return made[-1]
+
+    try:
+        result = stream_file(str(path), robot_path=None if robot is None else str(robot),
+                             model_path=None if model is None else str(model),
+                             config_path=None if config is None else str(config),
+                             read_options=read_options, allow_slow=allow_slow,
+                             show_progress=True, collector=collect if sweep else None)
+        if result is None:
+            return analyze_log(path, robot=robot, model=model, config=config,
+                               read_options=read_options, allow_slow=allow_slow), None
+        return result, (made[-1].finish(result) if made else None)
+    except BaseException:
+        for c in made:
+            c.close()
+        raise
+
+
 def _timeline_sweep(source: Path, doc: dict[str, Any], labels: Any, scales: tuple[float, ...],
                     tolerance: Any) -> Any:
     """Sweep from a timeline and the signals Parquet beside it."""
@@ -297,14 +340,23 @@ def evaluate_cmd(source: Path, labels_path: Path | None, as_json: bool, sweep: b
         if sweep:
             rows = _timeline_sweep(source, doc, labels, scales, tolerance)
     else:
-        result = analyze_log(source, model=model, config=config, robot=robot,
-                             read_options=read_options, allow_slow=allow_slow)
-        for msg in result.warnings:
-            click.echo(f"impactcli: warning: {msg}", err=True)
-        _check_rate(labels, result.log.sample_rate_hz, str(source))
-        ev = evaluate_result(result, labels, tolerance=tolerance)
-        if sweep:
-            rows = sweep_thresholds(result, labels, scales, tolerance=tolerance)
+        result, samples = replay_log(source, model=model, config=config, robot=robot,
+                                     read_options=read_options, allow_slow=allow_slow,
+                                     sweep=sweep)
+        try:
+            for msg in result.warnings:
+                click.echo(f"impactcli: warning: {msg}", err=True)
+            _check_rate(labels, result.log.sample_rate_hz, str(source))
+            ev = evaluate_result(result, labels, tolerance=tolerance)
+            if sweep and samples is not None:
+                from ..outputs.sweep_stream import sweep_streamed
+
+                rows = sweep_streamed(samples, result, labels, scales, tolerance=tolerance)
+            elif sweep:
+                rows = sweep_thresholds(result, labels, scales, tolerance=tolerance)
+        finally:
+            if samples is not None:
+                samples.close()
     if as_json:
         out = ev.to_dict()
         out["input"] = str(source)
