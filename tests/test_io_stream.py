@@ -467,3 +467,33 @@ def test_the_cache_is_deleted_with_the_scan_and_on_errors(
         warnings.simplefilter("ignore", ImpactWarning)
         scan_log(_write(tmp_path / "bad.csv", cols))
     assert not _scan_dirs(_tmp_root)
+
+
+@pytest.mark.parametrize("end", ["\r\n", "\r"])
+def test_line_ends_across_the_parsed_ranges(tmp_path: Path, end: str) -> None:
+    """The text is cut into ranges at line ends (io/stream_parse.py, 4 KiB here): with
+    CRLF and CR-only lines the rows are read_log's."""
+    cols = _table()
+    path = _write(tmp_path / "ends.csv", cols)
+    path.write_bytes(path.read_bytes().replace(b"\n", end.encode()))
+    _assert_same(path, chunks=(1000,))
+
+
+@pytest.mark.parametrize("block", [7, 61, 4096])
+def test_parsed_ranges_are_the_whole_files_rows(tmp_path: Path, block: int) -> None:
+    """Ranges cut at every place, between a CR and its LF included (tiny blocks): the
+    batches concatenated are the whole file parsed at once."""
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+
+    from impactcli.io.csv import csv_layout
+    from impactcli.io.stream_parse import parsed_batches
+
+    cols = {k: v[:300] for k, v in _table().items()}
+    path = _write(tmp_path / "crlf.csv", cols)
+    path.write_bytes(path.read_bytes().replace(b"\n", b"\r\n"))
+    lay = csv_layout(path, None)
+    names = list(cols)
+    copts = pacsv.ConvertOptions(column_types={"time": pa.string()})
+    got = pa.Table.from_batches(list(parsed_batches(lay, names, copts, block)))
+    assert got.equals(pacsv.read_csv(path, convert_options=copts))

@@ -14,18 +14,19 @@ gap rule, :func:`impactcli.detect.screen.unusable_columns` from per-column minim
 and up to ``FEW_VALUES`` distinct values). Its errors are :func:`read_log`'s one-line
 LogFormatErrors, raised by the scan (a bad file fails before any output is written).
 
-Streamed (memory bounded, whatever the log's length: pyarrow reads up to 32 blocks of
-:data:`BLOCK_SIZE` = 1 MiB of text ahead, one block's arrays are converted at a time, plus
-the chunk being put together): a local ``.csv`` or ``.csv.gz`` — canonical, or through a
-CSV channel map — with a ``.`` decimal point, whose time column holds plain decimal numbers
-(``12.345``, ``1714567890.001``, ``1234``) and whose value cells are numbers or empty.
-It is parsed by pyarrow's streaming reader and converted batch by batch by the whole-file
-reader's own steps (exact decimal time → int64 ns, the map's scale and offset, current →
-torque), and repaired across batch boundaries as in the whole file
-(:mod:`impactcli.io.repair`): exact duplicate rows dropped, runs of at most 5 non-finite
-values interpolated (rows are held back until a run closes), values
-beyond 1e12 and rows out of time order refused, the 20 Hz – 100 kHz rate check. The scan
-keeps, besides constants per column, the candidate gaps (steps longer than 1.2 provisional
+Streamed (memory bounded, whatever the log's length: the text is parsed on threads in
+ranges of about :data:`BLOCK_SIZE` = 1 MiB, at most 4 ahead of the scan
+(:mod:`impactcli.io.stream_parse`), one range's arrays are converted at a time, plus the
+chunk being put together): a local ``.csv`` or ``.csv.gz`` — canonical, or through a CSV
+channel map — with a ``.`` decimal point, whose time column holds plain decimal numbers
+(``12.345``, ``1714567890.001``, ``1234``) and whose value cells are numbers or empty. It
+is parsed by pyarrow (range by range, with the whole-file reader's options) and converted
+batch by batch by the whole-file reader's own steps (exact decimal time → int64 ns, the
+map's scale and offset, current → torque), and repaired across batch boundaries as in the
+whole file (:mod:`impactcli.io.repair`): exact duplicate rows dropped, runs of at most 5
+non-finite values interpolated (rows are held back until a run closes), values beyond 1e12
+and rows out of time order refused, the 20 Hz – 100 kHz rate check. The scan keeps,
+besides constants per column, the candidate gaps (steps longer than 1.2 provisional
 periods, with their windows; a second pass over the file if the period then drifts below).
 Only the scan parses the file (all the channels: the repairs and the screen need their
 values); it keeps the rows it repaired in a binary temporary file that :func:`iter_chunks`
@@ -68,9 +69,8 @@ from .stream_screen import ColumnScreen, _screen_of, _ScreenAcc
 
 __all__ = ["BLOCK_SIZE", "ColumnScreen", "LogChunk", "LogScan", "iter_chunks", "scan_log"]
 
-#: Bytes of CSV text parsed at a time (one record batch). pyarrow's streaming reader reads
-#: up to 32 blocks ahead: 1 MiB keeps that at 32 MiB and costs no speed (a 7-joint log's
-#: row is ~430 bytes: ~2400 rows a block).
+#: Bytes of CSV text parsed at a time (one range, one record batch: a 7-joint log's row is
+#: ~430 bytes, ~2400 rows a range; :mod:`impactcli.io.stream_parse` parses up to 4 ahead).
 BLOCK_SIZE = 1 << 20
 #: The first pass keeps the steps longer than this fraction of 1.5 provisional periods as
 #: gap candidates (exact while the final threshold is above; else a second pass).
@@ -402,23 +402,21 @@ class _TimeStats:
 
 
 def _raw_batches(ctx: _Context, ts: _TimeStats) -> Iterator[_Raw]:
-    """The file's record batches, time converted exactly and values as float64."""
+    """The file's record batches, time converted exactly and values as float64 (the text
+    parsed on threads ahead of the caller: :mod:`impactcli.io.stream_parse`)."""
     import pyarrow as pa
     import pyarrow.csv as pacsv
 
-    from .csv import csv_read_options
+    from .stream_parse import parsed_batches
 
     lay = ctx.lay
     cols = list(ctx.key_cols.values())
     types = {lay.tname: pa.string(), **{c: pa.float64() for c in cols}}
-    ropts, popts = csv_read_options(lay, BLOCK_SIZE)
     copts = pacsv.ConvertOptions(column_types=types, include_columns=[lay.tname, *cols],
                                  decimal_point=".")
     row0 = 0
     try:
-        reader = pacsv.open_csv(lay.path, read_options=ropts, parse_options=popts,
-                                convert_options=copts)
-        for batch in reader:
+        for batch in parsed_batches(lay, ctx.names, copts, BLOCK_SIZE):
             n = batch.num_rows
             if n == 0:
                 continue
