@@ -98,7 +98,10 @@ def _boom(*_: Any, **__: Any) -> Any:
 
 def test_a_bug_in_a_one_log_run_exits_70_with_its_traceback(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(pipeline, "analyze", _boom)
+    from impactcli import stream
+
+    monkeypatch.setattr(pipeline, "analyze", _boom)        # the whole-log replay
+    monkeypatch.setattr(stream, "analyze_stream", _boom)   # the streamed one (detect's)
     code, _, err = _run("detect", str(LOG), "--fail-on-detect", "-o", str(tmp_path / "out"))
     assert code == EXIT_SOFTWARE == 70
     lines = err.splitlines()

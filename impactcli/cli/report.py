@@ -219,7 +219,8 @@ def rerun_timeline(tl_path: Path, *, robot: Any = None,
 
 def stream_for_report(path: Path, *, robot: Any, model: Any, config: Any,
                       read_options: dict[str, Any], allow_slow: bool = False,
-                      show_progress: bool = False, check: Any = None) -> tuple[Any, Any]:
+                      show_progress: bool = False, check: Any = None,
+                      model_from_log: bool = False) -> tuple[Any, Any]:
     """Replay ``path`` chunk by chunk (:func:`impactcli.stream.analyze_stream`, bounded
     memory) collecting what its report plots (:mod:`impactcli.outputs.report_stream`).
 
@@ -240,7 +241,8 @@ def stream_for_report(path: Path, *, robot: Any, model: Any, config: Any,
     if check is not None:
         check(scan)
     bar = _progress_bar(cast(Any, SimpleNamespace(show_progress=show_progress,
-                                                  log_path=str(path))), "replay", "s of log")
+                                                  log_path=str(path))), "replay",
+                       "s of log (all passes)")
 
     def progress(done_s: float, total_s: float) -> None:
         assert bar is not None
@@ -252,7 +254,7 @@ def stream_for_report(path: Path, *, robot: Any, model: Any, config: Any,
     try:
         result = analyze_stream(str(path), config=config, model=model, robot=robot,
                                 read_options=opts, allow_slow=allow_slow, scan=scan,
-                                on_chunk=collector,
+                                model_from_log=model_from_log, on_chunk=collector,
                                 progress=progress if bar is not None else None)
         return result, collector.finish(result)
     except BaseException:
@@ -269,8 +271,8 @@ def stream_for_report(path: Path, *, robot: Any, model: Any, config: Any,
 def analyze_for_report(task: ReportTask, robot: Any, model: Any, config: Any
                        ) -> tuple[Any, Path, Any, dict[str, Any] | None]:
     """(result, log path, samples or None, origin) of one report input: streamed when its
-    inputs allow (:func:`impactcli.stream.streamable`: a calibrated config and a model
-    known before the first sample), else the whole-log replay (samples None)."""
+    inputs allow (:func:`impactcli.stream.streamable`: all but ``--model`` with
+    ``--model-from-log``), else the whole-log replay (samples None)."""
     from ..stream import streamable
 
     inp = Path(task.inp)
@@ -283,7 +285,7 @@ def analyze_for_report(task: ReportTask, robot: Any, model: Any, config: Any
         result, samples = stream_for_report(
             plan["log_path"], robot=plan["robot"], model=plan["model"], config=plan["config"],
             read_options=plan["read_options"], allow_slow=task.allow_slow,
-            show_progress=task.show_progress,
+            show_progress=task.show_progress, model_from_log=plan["model_from_log"],
             check=lambda scan: _check_sha(inp, plan, scan.source.sha256))
         try:
             _compare_events(inp, plan["tl"], result)

@@ -9,13 +9,18 @@ is the commanded position with its velocity and acceleration) is written as cano
 into a temporary folder: a 5-minute collision-free log to calibrate on, and one log per
 duration asked for. ``impactcli calibrate`` makes the config once; then, for each
 duration, ``impactcli detect LOG --config C`` runs in a fresh process as a user runs it —
-plain, with ``--signals``, and with ``--rerun`` — and the benchmark reports its wall time,
-the real-time factor and its peak resident memory (ru_maxrss of that process alone, read
-by a wrapper process). ``--release REF`` (default the tag ``v0.1.0``, the release before the
+plain (``plain``), with ``--signals`` (``signals``), and with ``--rerun`` (``rerun``) — and
+``impactcli detect LOG`` without a config (``noconfig``: the model identified from the log,
+thresholds from its own statistics; ``noconfig-signals`` with ``--signals``;
+``noconfig-reread``: the same answer by the other strategy, reading the log again instead
+of spilling the replay, run through ``impactcli.stream.analyze_stream(strategy="reread")``
+as the CLI has no switch for it). The benchmark reports each run's wall time, the
+real-time factor and its peak resident memory (ru_maxrss of that process alone, read by a
+wrapper process). ``--release REF`` (default the tag ``v0.1.0``, the release before the
 streaming replay; skipped when the ref does not exist) runs that release's code from a git
 worktree in the same environment on the same files, for durations up to
-``--release-max-minutes`` (default 60: it holds the whole log in memory); ``--rerun`` (a
-whole-log replay still) up to ``--rerun-max-minutes`` (default 60).
+``--release-max-minutes`` (default 60: it holds the whole log in memory; it has no
+``noconfig-reread``).
 """
 
 from __future__ import annotations
@@ -115,9 +120,8 @@ def main() -> None:
     ap.add_argument("--joints", type=int, default=7)
     ap.add_argument("--release", default="v0.1.0")
     ap.add_argument("--release-max-minutes", type=float, default=60.0)
-    ap.add_argument("--variants", nargs="+", default=["plain", "signals", "rerun"])
-    ap.add_argument("--rerun-max-minutes", type=float, default=60.0,
-                    help="--rerun replays the whole log in memory: not beyond this")
+    ap.add_argument("--variants", nargs="+", default=["plain", "signals", "rerun"],
+                    choices=sorted(VARIANTS))
     ap.add_argument("--keep", type=Path)
     args = ap.parse_args()
     tmp = Path(args.keep or tempfile.mkdtemp(prefix="impactcli-bench-stream-"))
@@ -139,16 +143,14 @@ def main() -> None:
             print(f"{minutes:g} min: wrote {size:.0f} MB in {time.perf_counter() - t:.0f} s",
                   file=sys.stderr)
             for variant in args.variants:
-                extra = {"plain": [], "signals": ["--signals"], "rerun": ["--rerun"]}[variant]
                 out = tmp / f"out_{variant}"
-                cmd = [exe, "detect", str(log), "--config", str(cfg), "-o", str(out), *extra]
-                if variant == "rerun" and minutes > args.rerun_max_minutes:
-                    continue
+                cmd = _command(variant, exe, log, cfg, out)
                 wall, rss = measure(cmd, tmp)
                 rows.append(_row("this", minutes, variant, wall, rss, size))
                 print(json.dumps(rows[-1]), file=sys.stderr)
                 shutil.rmtree(out, ignore_errors=True)
-                if release is not None and minutes <= args.release_max_minutes:
+                if release is not None and minutes <= args.release_max_minutes and \
+                        cmd[0] == exe:
                     env = dict(os.environ, PYTHONPATH=str(release))
                     cmd = [sys.executable, "-m", "impactcli", *cmd[1:]]
                     wall, rss = measure(cmd, tmp, env)
@@ -170,6 +172,28 @@ def main() -> None:
     for r in rows:
         print(f"| {r['code']} | {r['minutes']:g} min ({r['csv_mb']:.0f} MB) | {r['variant']} "
               f"| {r['wall_s']:.1f} s | {r['x_real_time']:.0f}× | {r['peak_rss_mb']:.0f} MB |")
+
+
+#: Each variant's command-line options after the log (None: through the Python API).
+VARIANTS: dict[str, list[str] | None] = {
+    "plain": ["--config"], "signals": ["--config", "--signals"],
+    "rerun": ["--config", "--rerun"], "noconfig": [], "noconfig-signals": ["--signals"],
+    "noconfig-reread": None,
+}
+
+
+def _command(variant: str, exe: str, log: Path, cfg: Path, out: Path) -> list[str]:
+    """The process a variant runs (module docstring)."""
+    opts = VARIANTS[variant]
+    if opts is None:
+        code = ("import sys, pathlib; from impactcli.stream import analyze_stream; "
+                "from impactcli.outputs.timeline import write_timeline; "
+                "o = pathlib.Path(sys.argv[2]); o.mkdir(parents=True, exist_ok=True); "
+                "write_timeline(analyze_stream(sys.argv[1], config=None, strategy='reread'), "
+                "o / 'log.timeline.json')")
+        return [sys.executable, "-c", code, str(log), str(out)]
+    extra = [o if o != "--config" else f"--config={cfg}" for o in opts]
+    return [exe, "detect", str(log), "-o", str(out), *extra]
 
 
 def _row(code: str, minutes: float, variant: str, wall: float, rss: float,
