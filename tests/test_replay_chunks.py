@@ -178,3 +178,33 @@ def test_spilled_median_is_numpys(m: int, monkeypatch: pytest.MonkeyPatch) -> No
             f.write(x.tobytes())
             f.flush()
             assert warmup.spilled_median(f, m) == float(np.median(x))
+
+
+@pytest.mark.parametrize("generator", ["inverse_dynamics", "momentum_observer"])
+def test_chunks_split_for_the_threads_are_the_same(
+        generator: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """With threads the evaluator starts on a chunk's first quarter while the rest's
+    residual is made (replay.FIRST_PART): every output and the state are one thread's."""
+    from impactcli import replay
+    from impactcli.detect.adaptive import SIGNALS
+
+    monkeypatch.setattr(replay, "MIN_SPLIT_SAMPLES", 64)
+    monkeypatch.setattr(replay, "MIN_SPLIT_JOINTS", 1)
+    cfg = load_config(SAMPLES / "heavy_geared.config.toml")
+    cfg = dataclasses.replace(cfg, residual=dataclasses.replace(
+        cfg.residual, generator=generator, generators={}))
+    log = read_log(SAMPLES / "csv" / "heavy_impacts.csv.gz").slice(0, 3000)
+    one = _setup(log, cfg, RigidModel.from_dict(cfg.model))
+    two = dataclasses.replace(one, threads=2)
+    for bounds in ([0, log.n_samples], [0, 63, 64, 1000, 1999, log.n_samples]):
+        a, sa = _run(one, log, bounds)
+        b, sb = _run(two, log, bounds)
+        for f in (*FIELDS, *(f"adaptive.{x}" for x in SIGNALS)):
+            assert np.array_equal(_cat(a, f), _cat(b, f)), (f, bounds)
+        for x, y in zip(a, b, strict=True):
+            for k in ("theta", "n_resets", "n_capped"):
+                assert np.array_equal(getattr(x.adaptive, k), getattr(y.adaptive, k))
+        assert sa.carry == sb.carry and sa.n_samples == sb.n_samples
+        for k in ("theta", "P", "r_lags", "v_lags", "u_lags", "filters", "ring_r",
+                  "ring_v", "sums", "n_resets", "n_capped"):
+            assert np.array_equal(getattr(sa.evaluator, k), getattr(sb.evaluator, k))
