@@ -631,26 +631,35 @@ def _fit(
     top = float(norms.max()) if norms.size else 0.0
     live = (norms > 1e-12 * top) & not_frozen
     checked = np.flatnonzero(live & ~pen)
-    an = a[:, checked] * rs[:, None] / norms[checked]
+    # column by column into Fortran order, which LAPACK factorises in place: no copy of
+    # the (rows × parameters) matrix beside the regressor (memory of a long log's fit)
+    an = np.empty((a.shape[0], checked.size), order="F")
+    for c, col in enumerate(checked):
+        an[:, c] = a[:, col] * rs / norms[col]
     keep = live & pen
+    r = np.zeros((0, 0))
+    nk = 0
+    piv = np.zeros(0, dtype=np.int64)
     if checked.size:
-        _, r, piv = qr(an, mode="economic", pivoting=True)
+        # "raw": R is cut from the factorised matrix (mode "r" copies all of it into triu)
+        _, r, piv = qr(an, mode="raw", pivoting=True, overwrite_a=True)
         d = np.abs(np.diag(r))
-        ok = d > options.drop_tolerance * d[0]
-        keep[checked[piv[: int(np.sum(ok))]]] = True
+        nk = int(np.sum(d > options.drop_tolerance * d[0]))
+        keep[checked[piv[:nk]]] = True
+    del an
     dropped = [names[i] for i in range(p) if not keep[i] and names[i] not in frozen]
     if dropped:
         warnings.warn(
             f"{where}: the log does not excite {len(dropped)} parameter(s) of the {kind} model "
             f"({', '.join(dropped)}); they are fixed at 0", ImpactWarning, stacklevel=3,
         )
-    kept_checked = keep[checked]
-    _, sv, vt = np.linalg.svd(an[:, kept_checked], full_matrices=False)
-    del an
+    # the kept columns, in pivot order, are Q R[:nk, :nk] (R upper triangular): the same
+    # singular values and right singular vectors from the small triangle
+    _, sv, vt = np.linalg.svd(r[:nk, :nk])
     cond = (float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")) if sv.size else 1.0
     if cond > options.condition_warn:
         weak_idx = np.argsort(np.abs(vt[-1]))[::-1][:3]
-        weak = [names[i] for i in checked[kept_checked][weak_idx]]
+        weak = [names[i] for i in checked[piv[:nk]][weak_idx]]
         warnings.warn(
             f"{where}: the log excites the {kind} model poorly (condition number {cond:.3g} "
             f"> {options.condition_warn:g}); least determined: {', '.join(weak)}",

@@ -249,6 +249,7 @@ class RowsBuilder:
                   "qdd": (0, nj)}
         fit, hold = ({k: np.concatenate(v) if v else np.zeros(shapes[k])
                       for k, v in o.items()} for o in self.out)
+        self.out = []   # the pieces, now copied: not twice in memory during the fit
         info = dict(filter_info, holdout={
             "fraction": options.holdout_fraction if p.use_holdout else 0.0,
             "start_s": self.split_t if p.use_holdout else None})
