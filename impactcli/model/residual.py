@@ -31,6 +31,7 @@ from ..errors import ModelError
 from ..types import RobotLog
 from .derivatives import (
     MAX_CUTOFF_FRACTION,
+    _svf_coefficients,
     causal_derivatives,
     causal_lowpass,
     clip_cutoff,
@@ -109,6 +110,16 @@ def _log_columns(model: RigidModel, log: RobotLog) -> list[int]:
     return [log.joint_names.index(j) for j in model.joint_names]
 
 
+def _velocity(dt: float, q: np.ndarray, cutoff_hz: float, carry: Carry | None,
+              name: str) -> np.ndarray:
+    """The velocity of :func:`causal_derivatives` alone (s G q: the same filter, state
+    and values). The Coulomb correction reads only the velocity; the position and
+    acceleration filters it also ran were two of the residual's seven (n, J) filters."""
+    b, a = _svf_coefficients(dt, cutoff_hz)[1]
+    return (carry if carry is not None else Carry()).lfilter(
+        f"{name}.sG", b, a, np.asarray(q, dtype=np.float64), "steady")
+
+
 def _coulomb_correction(
     model: RigidModel, q: np.ndarray, qd: np.ndarray, dt: float, cutoff: float,
     carry: Carry | None = None,
@@ -123,7 +134,7 @@ def _coulomb_correction(
     if vs <= 0 or not np.any(fc):
         return np.zeros_like(qd)
     fast_cut = 0.999 * MAX_CUTOFF_FRACTION / dt
-    _, qd_fast, _ = causal_derivatives(dt, q, fast_cut, carry, "q_fast")
+    qd_fast = _velocity(dt, q, fast_cut, carry, "q_fast")
     smooth = causal_lowpass(fc * np.tanh(qd_fast / vs), dt, cutoff, carry, "coulomb")
     return np.asarray(smooth - fc * np.tanh(qd / vs))
 
