@@ -39,7 +39,6 @@ from .detect.adaptive import (
 )
 from .detect.static import causal_lowpass as loading_lowpass
 from .errors import ModelError
-from .model.derivatives import causal_derivatives
 from .model.generators import (
     LOGGED,
     GeneratorChoice,
@@ -47,7 +46,7 @@ from .model.generators import (
     target_torque,
     uses_correction,
 )
-from .model.residual import ResidualOptions, residual_chunk
+from .model.residual import ResidualOptions, causal_velocity, residual_chunk
 from .model.rigid import RigidModel
 
 #: Cut-off of the joints' causal velocity used for the incidents' contact type [Hz]
@@ -272,8 +271,8 @@ def replay_chunk(
         evaluator's axes run on theirs (they read neither's carry)."""
         rest.append(np.abs(loading_lowpass(r, sl.cutoff_hz, fs, sl.order,
                                            carry.scoped("static."))))
-        rest.append(causal_derivatives(dt, chunk.position, min(SPEED_CUTOFF_HZ, 0.2 / dt),
-                                       carry.scoped("speed."), "q")[1])
+        rest.append(causal_velocity(dt, chunk.position, min(SPEED_CUTOFF_HZ, 0.2 / dt),
+                                    carry.scoped("speed."), "q"))
 
     ad, ev = evaluate_chunk(ev, r_tail, inputs.u, fs, v_stat, cfg, setup.threads, progress,
                             _consume=True, alongside=statistics)

@@ -110,11 +110,12 @@ def _log_columns(model: RigidModel, log: RobotLog) -> list[int]:
     return [log.joint_names.index(j) for j in model.joint_names]
 
 
-def _velocity(dt: float, q: np.ndarray, cutoff_hz: float, carry: Carry | None,
-              name: str) -> np.ndarray:
+def causal_velocity(dt: float, q: np.ndarray, cutoff_hz: float, carry: Carry | None,
+                    name: str) -> np.ndarray:
     """The velocity of :func:`causal_derivatives` alone (s G q: the same filter, state
-    and values). The Coulomb correction reads only the velocity; the position and
-    acceleration filters it also ran were two of the residual's seven (n, J) filters."""
+    and values). The Coulomb correction and the replay's joint speed read only the
+    velocity; the position and acceleration filters they also ran were unused (two of
+    the residual's seven (n, J) filters)."""
     b, a = _svf_coefficients(dt, cutoff_hz)[1]
     return (carry if carry is not None else Carry()).lfilter(
         f"{name}.sG", b, a, np.asarray(q, dtype=np.float64), "steady")
@@ -134,7 +135,7 @@ def _coulomb_correction(
     if vs <= 0 or not np.any(fc):
         return np.zeros_like(qd)
     fast_cut = 0.999 * MAX_CUTOFF_FRACTION / dt
-    qd_fast = _velocity(dt, q, fast_cut, carry, "q_fast")
+    qd_fast = causal_velocity(dt, q, fast_cut, carry, "q_fast")
     smooth = causal_lowpass(fc * np.tanh(qd_fast / vs), dt, cutoff, carry, "coulomb")
     return np.asarray(smooth - fc * np.tanh(qd / vs))
 
