@@ -59,6 +59,11 @@ class OutputError(ImpactError):
     exit_code = EXIT_USAGE
 
 
+class TempSpaceError(OutputError):
+    """The temporary folder (``TMPDIR``) cannot take what a streamed replay spills there
+    (full, or not writable): exit 2, set ``TMPDIR`` elsewhere."""
+
+
 class ScaleLimitError(ImpactError):
     """A replay whose estimated cost is above the documented limit (exit 2: say
     ``--allow-slow`` to go on anyway)."""

@@ -14,6 +14,20 @@ from typing import Any
 import numpy as np
 
 
+def write_spill(f: Any, v: np.ndarray) -> None:
+    """Append ``v``'s bytes to a spill file; a full or unwritable temporary folder is a
+    :class:`~impactcli.errors.TempSpaceError` naming it, not a traceback."""
+    try:
+        f.write(np.ascontiguousarray(v).tobytes())
+    except OSError as err:
+        from .errors import TempSpaceError
+
+        raise TempSpaceError(
+            f"temporary folder {tempfile.gettempdir()}: {err.strerror or err} while "
+            "spilling the replay (long logs without a config need about 0.35 kB per sample "
+            "for 7 joints there); set TMPDIR to a folder with room") from err
+
+
 @dataclass
 class Island:
     """Consecutive samples near an alarm (module docstring): the island's first sample in
@@ -85,7 +99,7 @@ class Islands:
         if f is None:
             f = self.files[key] = open(os.path.join(self.dir.name, key), "wb")  # noqa: SIM115
             self.layout[key] = (v.dtype, v.shape[1:])
-        f.write(np.ascontiguousarray(v).tobytes())
+        write_spill(f, v)
 
     def _close(self) -> None:
         if self.open is not None:
@@ -135,7 +149,7 @@ class ChunkSpill:
             if f is None:
                 f = self.files[key] = open(os.path.join(self.dir.name, key), "wb")  # noqa: SIM115
                 self.layout[key] = (v.dtype, v.shape[1:])
-            f.write(np.ascontiguousarray(v).tobytes())
+            write_spill(f, v)
         self.lengths.append(int(next(iter(arrays.values())).shape[0]))
 
     def read(self, keys: tuple[str, ...] | None = None,

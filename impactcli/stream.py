@@ -255,6 +255,7 @@ def analyze_stream(
         if given is None:
             cfg = _uncalibrated_config(cfg, joints, rp.margins)
             warn_uncalibrated(where)
+        stack.callback(rp.islands.close)
         events, per_island = _events(rp.islands, wu, joints, cfg)
         warn_events_after_gaps(where, rp.gap_times[:, 1], events)
         from .pipeline import _warn_long_events
@@ -265,7 +266,6 @@ def analyze_stream(
                                scan.sample_period_s, scan.t0_ns, scan.n_samples,
                                cfg.events.merge_gap_s, where)
         incidents = _incidents(rp.islands, per_island, ctx)
-        rp.islands.close()
     msgs = tuple(dict.fromkeys(str(w.message) for w in caught
                                if issubclass(w.category, ImpactWarning)))
     for w in caught:
@@ -498,36 +498,45 @@ def _replay_passes(
             passes.at(float(t[-1]))
         passes.next()
 
-    if given is not None:
-        thr = given
-        comparing = _Compare(thr, cfg, scan, on_chunk, joints)
-        for step, pe in replayed():
-            tracker.update(pe, step.t)
-            comparing.update(step)
-        wu = tracker.finish()
-    else:
-        if strategy == "reread":
-            passes.add()
-        spill = ChunkSpill()
-        try:
+    made: list[_Compare] = []   # the comparison, once made (its islands closed on failure)
+
+    def compare(thr: dict[str, np.ndarray]) -> _Compare:
+        made.append(_Compare(thr, cfg, scan, on_chunk, joints))
+        return made[-1]
+
+    try:
+        if given is not None:
+            thr = given
+            comparing = compare(thr)
             for step, pe in replayed():
                 tracker.update(pe, step.t)
-                keys = _NEEDED + (_FOR_WRITERS if writers else ()) if strategy == "spill" \
-                    else ("r", "loading", "r_rms", "v_rms")
-                spill.write({k: v for k in keys if (v := getattr(step, k)) is not None})
+                comparing.update(step)
             wu = tracker.finish()
-            thr, margins = _thresholds_from_spill(spill, wu, scan.n_samples, fs)
-            comparing = _Compare(thr, cfg, scan, on_chunk, joints)
-            if strategy == "spill":
-                for k0, arrays in spill.read():
-                    comparing.update(_Step(k0, **arrays))
-            else:
-                spill.close()
-                for step, _ in replayed():
-                    comparing.update(step)
-        finally:
-            spill.close()
-    comparing.islands.finish()
+        else:
+            if strategy == "reread":
+                passes.add()
+            with contextlib.closing(ChunkSpill()) as spill:
+                for step, pe in replayed():
+                    tracker.update(pe, step.t)
+                    keys = _NEEDED + (_FOR_WRITERS if writers else ()) \
+                        if strategy == "spill" else ("r", "loading", "r_rms", "v_rms")
+                    spill.write({k: v for k in keys if (v := getattr(step, k)) is not None})
+                wu = tracker.finish()
+                thr, margins = _thresholds_from_spill(spill, wu, scan.n_samples, fs)
+                comparing = compare(thr)
+                if strategy == "spill":
+                    for k0, arrays in spill.read():
+                        comparing.update(_Step(k0, **arrays))
+                else:
+                    spill.close()
+                    for step, _ in replayed():
+                        comparing.update(step)
+        comparing.islands.finish()
+    except BaseException:  # nothing left behind: the spills are temporary files
+        tracker.close()
+        for c in made:
+            c.islands.close()
+        raise
     assert last[0] is not None
     return _Replayed(comparing.gap_times, (wu, tracker.times_at(wu.index)), comparing.islands,
                      last[0], last[1], last[2], thr, margins)

@@ -125,3 +125,42 @@ def test_block_maxima_in_chunks_equal_the_whole_statistic() -> None:
             for k in range(0, s.shape[0], size):
                 bm.update(k, s[k:k + size])
             assert np.array_equal(bm.finish(), whole, equal_nan=True), (start, block, size)
+
+
+def test_a_full_temporary_folder_is_one_line_exit_2(tmp_path: Path,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """No room for the spill (TMPDIR full): one line naming the folder and what to do,
+    exit 2, no output file, no temporary file left."""
+    import errno
+    import tempfile
+
+    from impactcli import spill
+
+    class _Full:
+        def __init__(self, name: str, mode: str = "rb") -> None:
+            self.name = name
+
+        def write(self, b: bytes) -> int:
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+        def close(self) -> None:
+            pass
+
+        flush = close
+
+    monkeypatch.setattr(spill, "open", _Full, raising=False)   # the spill module's files
+    monkeypatch.setenv("TMPDIR", str(tmp_path))
+    monkeypatch.setattr(tempfile, "tempdir", None)               # read TMPDIR again
+    out = tmp_path / "out"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ResourceWarning)          # nothing left unclosed
+        res = CliRunner().invoke(main, ["detect", str(SAMPLES / "csv" / "assist_impacts.csv.gz"),
+                                        "-o", str(out)])
+    assert res.exit_code == 2, res.output
+    lines = [x for x in res.stderr.splitlines() if x.startswith("impactcli: error:")]
+    assert lines == [f"impactcli: error: temporary folder {tmp_path}: No space left on device "
+                     "while spilling the replay (long logs without a config need about 0.35 kB "
+                     "per sample for 7 joints there); set TMPDIR to a folder with room"]
+    assert "Traceback" not in res.stderr
+    assert not out.exists() or not any(out.iterdir())
+    assert not [p.name for p in tmp_path.iterdir() if p.name.startswith("impactcli-")]

@@ -151,11 +151,19 @@ class WarmupTracker:
             self.spill_start = start
             a = max(0, start - self.k)
             if a < m:
+                from ..spill import write_spill
+
                 for j, f in enumerate(self.spill):  # one file per joint: read alone later
-                    f.write(np.ascontiguousarray(rms[a:, j]).tobytes())
+                    write_spill(f, rms[a:, j])
                 self.spilled += m - a
         self.t_tail = np.concatenate([self.t_tail, t])[-2:]
         self.k += m
+
+    def close(self) -> None:
+        """Close (and so remove) the spill files; :meth:`finish` does it, a run that fails
+        on the way calls it."""
+        for f in self.spill:
+            f.close()
 
     def times_at(self, index: np.ndarray) -> list[float]:
         """Each joint's warm-up end time [s since the first sample] (``index`` from
@@ -183,8 +191,7 @@ class WarmupTracker:
             ok = np.flatnonzero(head[k_min:, j] <= (1.0 + self.cfg.tolerance) * level)
             k = k_min + int(ok[0]) if ok.size else n
             idx[j] = min(k, max(k_cap, 0), n)
-        for f in self.spill:
-            f.close()
+        self.close()
         end = int(idx.max())
         t_last = float(self.t_tail[-1])
         end_s = float(head_t[end] - self.t_first) if end < n else t_last - self.t_first + (
