@@ -113,7 +113,8 @@ def main(ctx: click.Context, debug: bool) -> None:
     """Find out whether, when and where a robot arm hit something.
 
     Exit codes: 0 success; 1 events found with --fail-on-detect, or a contact force above
-    N with detect --fail-on-force N; 2 usage error;
+    N with detect --fail-on-force N; 2 usage error (also an output that cannot be
+    written, or no room in TMPDIR);
     3 bad input (log, config, model, labels); 4 a batch where some inputs failed;
     70 an internal error (a bug; its traceback is printed); 141 stdout's reader closed
     early (| head), as for SIGPIPE.
