@@ -209,4 +209,4 @@ def test_top_level_help_names_both_gates_of_exit_1() -> None:
     assert r.exit_code == 0
     text = " ".join(r.stdout.split())
     assert ("Exit codes: 0 success; 1 events found with --fail-on-detect, or a contact force "
-            "above N with detect --fail-on-force N; 2 usage error;") in text
+            "above N with detect --fail-on-force N; 2 usage error ") in text
