@@ -54,9 +54,8 @@ Stack tau(k) = Y(q(k), q'(k), q''(k)) theta over samples and joints and solve fo
 from __future__ import annotations
 
 import hashlib
-import itertools
 import warnings
-from collections.abc import Collection, Sequence
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -68,8 +67,10 @@ from ..errors import ImpactWarning, ModelError, RobotDescriptionError
 from ..types import RobotDescription, RobotLog
 from . import structures
 from .derivatives import clip_cutoff
+from .fit import fit_ridge, joint_stats, robust_lstsq
 from .rigid import RigidModel
 from .rows import Rows, RowsBuilder, RowsPlan
+from .sanity import fit_sanity
 
 
 @dataclass(frozen=True)
@@ -340,199 +341,6 @@ def _structure_for(
     raise ModelError(f"unknown model kind {kind!r} (choose from {', '.join(structures.KINDS)})")
 
 
-def _robust_scale(res: np.ndarray, floor: np.ndarray) -> np.ndarray:
-    """(J,) 1.4826 × median absolute deviation per joint, floored."""
-    med = np.median(res, axis=0)
-    s = 1.4826 * np.median(np.abs(res - med), axis=0)
-    return np.asarray(np.maximum(s, floor))
-
-
-def robust_lstsq(
-    y_reg: np.ndarray, tau: np.ndarray, options: IdentifyOptions,
-    ridge: np.ndarray | None = None, separable: bool = False,
-) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
-    """Robust least squares tau ≈ Y theta over all samples and joints.
-
-    Args:
-        y_reg: (N, J, P) regressor; tau: (N, J) torques [N·m].
-        ridge: optional (P,) penalties added to the diagonal of the column-normalised
-            (unit-diagonal) weighted normal equations: ridge regression relative to each
-            column's weighted energy (0: not penalised).
-        separable: no column is non-zero in two joints' rows (decoupled, coupled): the
-            normal equations are solved joint by joint (the same solution, less work).
-    Returns:
-        theta (P,), weights (N, J) in [0, 1], info (iterations, stage).
-    """
-    n, nj, p = y_reg.shape
-    trms = np.sqrt(np.mean(tau**2, axis=0))
-    floor = 1e-9 * np.maximum(trms, 1e-12)
-    # per joint, only the columns that are non-zero in its rows (the decoupled model is
-    # block diagonal; a chain's last joints see few columns): far less work per iteration
-    blocks = []
-    for j in range(nj):
-        cols = np.flatnonzero(np.any(y_reg[:, j, :] != 0.0, axis=0))
-        blocks.append((cols, np.ascontiguousarray(y_reg[:, j, cols])))
-
-    def predict(th: np.ndarray) -> np.ndarray:
-        return np.stack([aj @ th[cols] for cols, aj in blocks], axis=1)
-
-    def wls(w: np.ndarray) -> np.ndarray:
-        """Weighted normal equations (w: (N, J) row weights), diagonally scaled: accurate at
-        the condition numbers the excitation check lets through (≤ 1/drop_tolerance)."""
-        if separable:
-            sol = np.zeros(p)
-            for j, (cols, aj) in enumerate(blocks):
-                awj = aj * w[:, j, None]
-                sol[cols] = _scaled_solve(awj.T @ aj, awj.T @ tau[:, j],
-                                          None if ridge is None else ridge[cols])
-            return sol
-        g = np.zeros((p, p))
-        h = np.zeros(p)
-        for j, (cols, aj) in enumerate(blocks):
-            awj = aj * w[:, j, None]
-            g[np.ix_(cols, cols)] += awj.T @ aj
-            h[cols] += awj.T @ tau[:, j]
-        return _scaled_solve(g, h, ridge)
-
-    scale0 = np.maximum(trms, floor)
-    theta = wls(np.broadcast_to(1.0 / scale0**2, (n, nj)))
-    w = np.ones((n, nj))
-    iters = {"huber": 0, "bisquare": 0}
-    if options.robust == "none":
-        return theta, w, {"iterations": iters}
-    sigma = scale0
-    for stage in ("huber", "bisquare"):
-        if stage == "bisquare" and options.robust != "bisquare":
-            break
-        for _ in range(options.max_iter):
-            res = tau - predict(theta)
-            if stage == "huber":
-                sigma = _robust_scale(res, floor)
-            u = np.abs(res) / sigma
-            if stage == "huber":
-                w = np.minimum(1.0, options.huber_k / np.maximum(u, 1e-300))
-            else:
-                c = options.bisquare_c
-                w = np.where(u < c, (1.0 - (u / c) ** 2) ** 2, 0.0)
-            new = wls(w / sigma**2)
-            iters[stage] += 1
-            done = bool(np.linalg.norm(new - theta) <= 1e-7 * np.linalg.norm(theta))
-            theta = new
-            if done:
-                break
-    return theta, w, {"iterations": iters, "robust_scale_nm": sigma.tolist()}
-
-
-def _scaled_solve(g: np.ndarray, h: np.ndarray, ridge: np.ndarray | None) -> np.ndarray:
-    """Solve (g + ridge on the unit-diagonal scaling) x = h, diagonally scaled: accurate at
-    the condition numbers the excitation check lets through (≤ 1/drop_tolerance)."""
-    d = np.sqrt(np.diag(g))
-    d[d == 0] = 1.0
-    gs = g / d[:, None] / d[None, :]
-    if ridge is not None:
-        gs[np.diag_indices(gs.shape[0])] += ridge
-    try:
-        sol = np.linalg.solve(gs, h / d)
-    except np.linalg.LinAlgError:
-        sol, *_ = np.linalg.lstsq(gs, h / d, rcond=None)
-    return np.asarray(sol) / d
-
-
-def _joint_stats(
-    res: np.ndarray, tau: np.ndarray, joints: tuple[str, ...], still: Collection[str] = (),
-) -> dict[str, Any]:
-    """RMS error per joint, absolute and relative; a joint in ``still`` (standing still in
-    that part) gets no relative errors (``still``: True) — they would only judge a constant."""
-    out: dict[str, Any] = {}
-    for j, name in enumerate(joints):
-        rms = float(np.sqrt(np.mean(res[:, j] ** 2)))
-        trms = float(np.sqrt(np.mean(tau[:, j] ** 2)))
-        rng = float(np.ptp(tau[:, j]))
-        st = name in still
-        out[name] = {
-            "rms_nm": rms,
-            "torque_rms_nm": trms,
-            "torque_range_nm": rng,
-            "rms_rel_torque_rms": rms / trms if trms > 0 and not st else None,
-            "rms_rel_range": rms / rng if rng > 0 and not st else None,
-        }
-        if st:
-            out[name]["still"] = True
-    return out
-
-
-def _cv_ridge(
-    a: np.ndarray, t: np.ndarray, w: np.ndarray, pen: np.ndarray,
-    lambdas: Sequence[float], folds: int, gap: int, rule: str = "min",
-) -> tuple[float, dict[str, float]]:
-    """Ridge penalty of one joint's row by blocked cross-validation (see the module doc).
-
-    Args:
-        a: (n, p) the row's regressor columns; t: (n,) torque; w: (n,) row weights;
-        pen: (p,) True for the penalised columns. lambdas: finite penalties to try.
-        folds: number of contiguous stretches; gap: rows left out on each side of one.
-    Returns:
-        The penalty (``inf``: penalised columns off) and the left-out RMS error relative
-        to the torque's weighted RMS at that penalty and with the cross terms off.
-    """
-    n, p = a.shape
-    aw = a * w[:, None]
-    g = aw.T @ a
-    h = aw.T @ t
-    d = np.sqrt(np.diag(g))
-    d[d == 0] = 1.0
-    g = g / d[:, None] / d[None, :]
-    h = h / d
-    an = a / d
-    wt = float(np.sum(w * t**2)) or 1.0
-    cuts = np.linspace(0, n, folds + 1).astype(int)
-    parts = []
-    for lo, hi in itertools.pairwise(cuts):
-        if hi <= lo:
-            continue
-        z = slice(max(0, lo - gap), min(n, hi + gap))
-        gz = (an[z] * w[z, None]).T @ an[z]
-        hz = (an[z] * w[z, None]).T @ t[z]
-        share = 1.0 - float(np.sum(w[z])) / max(float(np.sum(w)), 1e-300)
-        parts.append((slice(lo, hi), g - gz, h - hz, share))
-    own = ~pen
-
-    def cv_error(lam: float) -> np.ndarray:
-        err = []
-        for f, gf, hf, share in parts:
-            if np.isinf(lam):
-                th = np.zeros(p)
-                idx = np.flatnonzero(own)
-                m = gf[np.ix_(idx, idx)] + 1e-10 * np.eye(idx.size)
-                th[idx] = _solve(m, hf[idx])
-            else:
-                m = gf + np.diag(lam * share * pen + 1e-10)
-                th = _solve(m, hf)
-            r = an[f] @ th - t[f]
-            err.append(float(np.sum(w[f] * r**2)))
-        return np.array(err)
-
-    trials = [*sorted(float(v) for v in lambdas), float("inf")]
-    per_fold = np.array([cv_error(lam) for lam in trials])  # (trials, folds)
-    errs = per_fold.sum(axis=1)
-    k = int(np.argmin(errs))
-    if rule == "1se":  # the strongest penalty within one standard error of the least error
-        fw = np.array([max(float(np.sum(w[f])), 1e-300) for f, *_ in parts])
-        mse = per_fold / fw
-        se = float(np.std(mse[k], ddof=1) / np.sqrt(mse.shape[1])) if mse.shape[1] > 1 else 0.0
-        k = int(np.flatnonzero(mse.mean(axis=1) <= mse[k].mean() + se).max())
-    return trials[k], {"cv_rel_rms": float(np.sqrt(errs[k] / wt)),
-                       "cv_rel_rms_decoupled": float(np.sqrt(errs[-1] / wt))}
-
-
-def _solve(m: np.ndarray, b: np.ndarray) -> np.ndarray:
-    try:
-        return np.asarray(np.linalg.solve(m, b))
-    except np.linalg.LinAlgError:
-        return np.asarray(np.linalg.lstsq(m, b, rcond=None)[0])
-
-
-# ------------------------------------------------------------------ public
 def identify_signals(
     q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, tau: np.ndarray, *,
     joint_names: tuple[str, ...], kind: str, robot: RobotDescription | None = None,
@@ -668,7 +476,7 @@ def _fit(
     theta = np.zeros(p)
     ridge_info: dict[str, Any] | None = None
     if kind == "coupled":
-        th_k, w, info, ridge_info, keep = _fit_ridge(
+        th_k, w, info, ridge_info, keep = fit_ridge(
             y_reg, tau, keep, pen, joints, names, options, cv_gap)
     else:
         th_k, w, info = robust_lstsq(y_reg[:, :, keep], tau, options)
@@ -688,7 +496,7 @@ def _fit(
                 nm: float(np.mean(w[:, j] < 0.5)) for j, nm in enumerate(joints)
             },
         },
-        "joints": {"fit": _joint_stats(res, tau, joints, still), "holdout": None},
+        "joints": {"fit": joint_stats(res, tau, joints, still), "holdout": None},
         "options": asdict(options),
     }
     if ridge_info is not None:
@@ -700,9 +508,9 @@ def _fit(
             hold_still = [j for j, fr in zip(joints, hold_still_fraction, strict=True)
                           if j in still or fr > 0.5]
         fit["n_samples_holdout"] = int(yh.shape[0])
-        fit["joints"]["holdout"] = _joint_stats(
+        fit["joints"]["holdout"] = joint_stats(
             np.asarray(yh @ theta) - htau, htau, joints, hold_still)
-    fit["sanity"] = _sanity(
+    fit["sanity"] = fit_sanity(
         kind, joints, names, theta, y_reg, tau, fit, still, hold_still,
         hold_still_fraction, poses, acc_rms, structure, options, where
     ) if options.check_sanity else []
@@ -711,183 +519,6 @@ def _fit(
         structure=structure, filter=filter_info, fit=fit,
         robot=_robot_dict(robot), input_sha256=input_sha256,
     )
-
-
-def _fit_ridge(
-    y_reg: np.ndarray, tau: np.ndarray, keep: np.ndarray, pen: np.ndarray,
-    joints: tuple[str, ...], names: list[str], options: IdentifyOptions, cv_gap: int,
-) -> tuple[np.ndarray, np.ndarray, dict[str, Any], dict[str, Any], np.ndarray]:
-    """Robust ridge fit of the coupled model, the penalty of each joint by blocked
-    cross-validation (module doc, step 3). Returns theta of the (new) kept columns, the
-    robust weights, the robust info, the ridge record and the kept columns (a joint whose
-    penalty is infinite loses its cross terms)."""
-    n, nj, p = y_reg.shape
-    cols = [np.flatnonzero(keep & np.any(y_reg[:, j, :] != 0.0, axis=0)) for j in range(nj)]
-    trms = np.sqrt(np.mean(tau**2, axis=0))
-    folds = int(min(options.ridge_folds, max(2, n // 20)))
-
-    def choose(w: np.ndarray) -> tuple[list[float], list[dict[str, float]]]:
-        lams: list[float] = []
-        stats: list[dict[str, float]] = []
-        for j in range(nj):
-            c = cols[j]
-            if not np.any(pen[c]):
-                lams.append(float("inf"))
-                stats.append({})
-                continue
-            lam, st = _cv_ridge(y_reg[:, j, c], tau[:, j], w[:, j], pen[c],
-                                options.ridge_lambdas, folds, cv_gap, options.ridge_rule)
-            lams.append(lam)
-            stats.append(st)
-        return lams, stats
-
-    def run(lams: list[float]) -> tuple[np.ndarray, np.ndarray, dict[str, Any], np.ndarray]:
-        use = keep.copy()
-        ridge = np.zeros(p)
-        for j in range(nj):
-            c = cols[j][pen[cols[j]]]
-            if np.isinf(lams[j]):
-                use[c] = False
-            else:
-                ridge[c] = lams[j]
-        th, w, info = robust_lstsq(y_reg[:, :, use], tau, options, ridge=ridge[use],
-                                   separable=True)
-        return th, w, info, use
-
-    w0 = np.broadcast_to(1.0 / np.maximum(trms, 1e-300) ** 2, (n, nj))
-    lams, stats = choose(np.asarray(w0))
-    th, w, info, use = run(lams)
-    rounds = 1
-    if options.robust != "none":
-        lams2, stats2 = choose(w)
-        if lams2 != lams:
-            lams, stats = lams2, stats2
-            th, w, info, use = run(lams)
-            rounds = 2
-    record: dict[str, Any] = {
-        "penalised": "every term but a joint's own inertia, gcos, gsin, fv, fc, offset",
-        "rule": f"blocked cross-validation, {folds} contiguous stretches, margin "
-                f"{cv_gap} row(s), "
-                + ("the strongest penalty within one standard error of the least error"
-                   if options.ridge_rule == "1se" else "the least error")
-                + "; lambda null = infinite (cross terms off)",
-        "fits": rounds,
-        "joints": {
-            nm: {"lambda": None if np.isinf(lams[j]) else lams[j], **stats[j]}
-            for j, nm in enumerate(joints)
-        },
-    }
-    return th, w, info, record, use
-
-
-#: inertia-like parameters checked for sign, per kind (urdf: the diagonal of M(q) instead)
-INERTIA_LIKE: dict[str, tuple[str, ...]] = {
-    "decoupled": ("inertia",), "coupled": ("inertia",), "planar": ("ZZR", "Ia"), "urdf": (),
-}
-_UNITS = {"inertia": "kg·m²", "ZZR": "kg·m²", "Ia": "kg·m²", "fv": "N·m·s/rad", "fc": "N·m"}
-
-
-def _mass_diagonal(
-    kind: str, joints: tuple[str, ...], structure: dict[str, Any], theta: np.ndarray,
-    poses: np.ndarray,
-) -> np.ndarray:
-    """(k, J) diagonal of M(q) at ``poses``: M e_i = Y(q, 0, e_i) θ − Y(q, 0, 0) θ."""
-    zero = np.zeros_like(poses)
-    base = structures.predict(kind, joints, structure, poses, zero, zero, theta)
-    out = np.empty(poses.shape)
-    for i in range(poses.shape[1]):
-        e = np.zeros_like(poses)
-        e[:, i] = 1.0
-        out[:, i] = (structures.predict(kind, joints, structure, poses, zero, e, theta)
-                     - base)[:, i]
-    return out
-
-
-def _sanity(
-    kind: str, joints: tuple[str, ...], names: list[str], theta: np.ndarray,
-    y_reg: np.ndarray, tau: np.ndarray, fit: dict[str, Any], still: list[str],
-    hold_still: list[str], hold_still_fraction: np.ndarray | None, poses: np.ndarray | None,
-    acc_rms: np.ndarray | None, structure: dict[str, Any], options: IdentifyOptions,
-    where: str,
-) -> list[str]:
-    """Fit sanity (module doc, step 5): warn, one line per joint, and return the lines."""
-    msgs: list[str] = []
-    trms = np.sqrt(np.mean(tau**2, axis=0))
-    # a negative term is reported when it is larger than what the fit leaves unexplained
-    # (the robust residual scale) and than sanity_share of the torque: else its sign is
-    # not determined by the log (a decoupled model of a coupled arm trades friction for
-    # the coupling it lacks)
-    res = np.einsum("njp,p->nj", y_reg, theta) - tau
-    scale = fit["robust"].get("robust_scale_nm") or np.sqrt(np.mean(res**2, axis=0))
-    floor = np.maximum(options.sanity_share * trms, np.asarray(scale, dtype=np.float64))
-    bad: dict[str, dict[str, list[str]]] = {j: {"inertia": [], "friction": []} for j in joints}
-    index = {nm: i for i, nm in enumerate(names)}
-    for i, nm in enumerate(names):
-        jn, term = nm.split(".", 1)
-        if term not in INERTIA_LIKE.get(kind, ()) or theta[i] >= 0 or jn not in bad:
-            continue
-        j = joints.index(jn)
-        size = abs(theta[i]) * float(np.sqrt(np.mean(y_reg[:, j, i] ** 2)))
-        if size >= floor[j]:
-            bad[jn]["inertia"].append(f"{nm} = {theta[i]:.3g} {_UNITS[term]}")
-    # friction: fv and fc are judged together (on a log of near-constant speeds they trade
-    # against each other): negative when the friction torque fv q' + fc tanh(q'/v_s) on
-    # the log's motion pushes the joint along its motion on average (feeds energy)
-    for j, jn in enumerate(joints):
-        iv, ic = index.get(f"{jn}.fv"), index.get(f"{jn}.fc")
-        if iv is None or ic is None or (theta[iv] >= 0 and theta[ic] >= 0):
-            continue
-        f = theta[iv] * y_reg[:, j, iv] + theta[ic] * y_reg[:, j, ic]
-        power = float(np.mean(f * y_reg[:, j, iv]))
-        if power < 0 and float(np.sqrt(np.mean(f**2))) >= floor[j]:
-            bad[jn]["friction"].append(
-                f"{jn}.fv = {theta[iv]:.3g} {_UNITS['fv']}, {jn}.fc = {theta[ic]:.3g} "
-                f"{_UNITS['fc']} drive the joint instead of braking it")
-    if kind == "urdf" and poses is not None and poses.size:
-        diag = _mass_diagonal(kind, joints, structure, theta, poses)
-        for j, jn in enumerate(joints):
-            low = float(diag[:, j].min())
-            acc = float(acc_rms[j]) if acc_rms is not None else 1.0
-            if jn not in still and low < 0 and abs(low) * acc >= floor[j]:
-                k = int(np.sum(diag[:, j] < 0))
-                bad[jn]["inertia"].append(
-                    f"M[{jn},{jn}] down to {low:.3g} kg·m², at {k} of {len(diag)} poses of the log")
-    for jn, groups in bad.items():
-        what = [g for g in ("inertia", "friction") if groups[g]]
-        if what:
-            detail = "; ".join(groups["inertia"] + groups["friction"])
-            msgs.append(f"{where}: joint {jn}: negative {' and '.join(what)} ({detail}): a "
-                        "torque (or current) of the wrong sign, or a model that does not "
-                        "describe this joint")
-    hold = fit["joints"].get("holdout")
-    if hold:
-        for jn in joints:
-            h = hold[jn]
-            if jn in hold_still or not h["torque_rms_nm"] > 0:
-                continue
-            if h["rms_nm"] >= h["torque_rms_nm"]:
-                msgs.append(
-                    f"{where}: joint {jn}: predicted worse than zero torque on the held-back "
-                    f"part (RMS error {h['rms_nm']:.3g} N·m >= the torque's own RMS "
-                    f"{h['torque_rms_nm']:.3g} N·m): do not rely on its model")
-        new = [j for j in hold_still if j not in still]
-        frac = dict(zip(joints, hold_still_fraction if hold_still_fraction is not None
-                        else np.ones(len(joints)), strict=True))
-        how = (f"|q'| < {options.still_speed_rad_s:g} rad/s, where friction is stiction: any "
-               "torque within it")
-        if new and len(new) + len(still) == len(joints):
-            least = min(frac[j] for j in new)
-            msgs.append(
-                f"{where}: the arm stands still in the held-back part (every joint, in at "
-                f"least {100 * least:.0f} % of it; {how}): relative errors there are not "
-                "meaningful and are not given")
-        else:
-            msgs += [f"{where}: joint {j} stands still in {100 * frac[j]:.0f} % of the "
-                     f"held-back part ({how}): its held-back relative error is not "
-                     "meaningful and is not given" for j in new]
-    for m in msgs:
-        warnings.warn(m, ImpactWarning, stacklevel=4)
-    return msgs
 
 
 def _robot_dict(robot: RobotDescription | None) -> dict[str, Any] | None:
