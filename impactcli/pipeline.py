@@ -113,19 +113,7 @@ def resolve_model(
     if model_from_log:
         if model is not None:
             raise ConfigError("--model and --model-from-log exclude each other")
-        kind = None
-        if cfg.model is not None:
-            kind = cfg.model.get("kind")
-            if robot is None and cfg.model.get("robot"):
-                from .io.robot import robot_from_dict
-
-                robot = robot_from_dict(cfg.model["robot"], "the config's model")
-        if cfg.calibration.calibrated:
-            warnings.warn(
-                "--model-from-log: the config's thresholds were calibrated with another model; "
-                "this run is offline only (not what the robot could have run)",
-                ImpactWarning, stacklevel=3,
-            )
+        kind, robot = from_log_structure(cfg, robot)
         return identify(log, robot=robot, kind=kind,
                         options=IdentifyOptions(allow_still_joints=True, check_sanity=sanity)), \
             "identified-from-log"
@@ -142,6 +130,27 @@ def resolve_model(
     # offline convenience: a joint that never moves keeps only its offset (warned about)
     return identify(log, robot=robot, options=IdentifyOptions(
         allow_still_joints=True, check_sanity=sanity)), "identified-from-log"
+
+
+def from_log_structure(cfg: DetectorConfig, robot: RobotDescription | None,
+                       ) -> tuple[str | None, RobotDescription | None]:
+    """``--model-from-log``: the kind and robot of the config's model, to identify the same
+    structure from the log (warned about when the config's thresholds were calibrated:
+    they belong to the config's model)."""
+    kind = None
+    if cfg.model is not None:
+        kind = cfg.model.get("kind")
+        if robot is None and cfg.model.get("robot"):
+            from .io.robot import robot_from_dict
+
+            robot = robot_from_dict(cfg.model["robot"], "the config's model")
+    if cfg.calibration.calibrated:
+        warnings.warn(
+            "--model-from-log: the config's thresholds were calibrated with another model; "
+            "this run is offline only (not what the robot could have run)",
+            ImpactWarning, stacklevel=4,
+        )
+    return kind, robot
 
 
 def calibrated_thresholds(

@@ -397,18 +397,9 @@ def _plan(keep: tuple[str, ...], source: LogSource, logged: dict[str, np.ndarray
     if needs_own_model(choices) or uses_correction(choices, correct):
         sanity = not uses_correction(choices, correct)
         if model_from_log:
-            kind = None
-            if cfg.model is not None:
-                kind = cfg.model.get("kind")
-                if robot is None and cfg.model.get("robot"):
-                    from .io.robot import robot_from_dict
+            from .pipeline import from_log_structure
 
-                    robot = robot_from_dict(cfg.model["robot"], "the config's model")
-            if cfg.calibration.calibrated:
-                warnings.warn(
-                    "--model-from-log: the config's thresholds were calibrated with another "
-                    "model; this run is offline only (not what the robot could have run)",
-                    ImpactWarning, stacklevel=3)
+            kind, robot = from_log_structure(cfg, robot)
             rig, source_name = identify(choices, kind, robot, sanity), "identified-from-log"
         elif model is not None:
             rig, source_name = model, "given"
