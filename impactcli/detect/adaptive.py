@@ -522,18 +522,11 @@ def _run_axes(
     alongside: Callable[[], None] | None = None,
 ) -> tuple[np.ndarray, ...]:
     """All axes of one chunk with the compiled per-axis kernel, advancing ``st`` IN PLACE;
-    ``threads`` > 1 runs axes concurrently; ``alongside`` is called on this thread while
-    they run (before them with one thread).
+    ``threads`` > 1 runs each axis on a thread of its own (axes cost the same: 7 axes on
+    2 workers ran 4 rounds where the cores can share 3.5), ``alongside`` on this thread.
 
-    Each axis works on contiguous (n,) rows (outputs are (J, n) inside, returned (n, J)):
-    the kernel writes every sample of its rows, and the axis's thread copies them into
-    its column of the (n, J) outputs (the transposes ran on the calling thread after all
-    axes, about 0.2 s per 10 minutes of a 7-joint 1 kHz log with one core idle). With more
-    axes than threads, every axis gets a thread of its own: every axis costs the same, so
-    ``threads`` workers taking the axes in turn leave cores idle while the last round runs
-    (7 axes on 2 workers: 4 rounds where 3.5 would do, one core idle for a seventh of the
-    work); the OS shares the cores among all of them instead.
-    """
+    Each axis works on contiguous (n,) rows, then its thread copies them into its column
+    of the (n, J) outputs (not the calling thread after all axes, one core idle)."""
     n, J = r.shape
     cfg, rates = st.cfg, st.rates
     rho = np.asarray(cfg.rho, dtype=np.int64)
@@ -617,10 +610,8 @@ def evaluate_chunk(
         v_stat: (J,) static thresholds [N·m] (eq. 42).
         cfg: settings; None → the state's; otherwise must equal the state's.
         threads, progress: as :func:`evaluate`.
-        alongside: the caller's own work, called on the calling thread while the axes run
-            on theirs (``threads`` > 1; before them otherwise): a core that would wait for
-            the axes does it (:func:`impactcli.replay.replay_chunk`: the static-loading
-            statistic and the joints' speed).
+        alongside: the caller's work, run on the calling thread while the axes run on
+            theirs (:func:`impactcli.replay.replay_chunk`: the loading statistic, speed).
 
     Returns:
         (result, new_state): ``result`` holds the chunk's (n, J) signals; its ``theta``,
