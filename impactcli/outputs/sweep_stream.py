@@ -100,22 +100,13 @@ def sweep_streamed(samples: Any, result: Any, labels: Labels, scales: Sequence[f
     whose per-sample ratios ``samples`` (a
     :class:`impactcli.outputs.report_stream.StreamedSamples`) reads from its spill."""
     from ..detect.events import _EPS_S
-    from ..errors import ConfigError, ImpactWarning
-    from ..evaluate import (
-        EPS_S,
-        EVALUATED,
-        MatchTolerance,
-        SweepRow,
-        _Ev,
-        _event_settings,
-        evaluate_events,
-    )
+    from ..errors import ImpactWarning
+    from ..scoring.match import EPS_S, EVALUATED, MatchTolerance, _Ev
+    from ..scoring.sweep import _event_settings, add_rows, sorted_scales, warn_late_labels
 
     tol = tolerance if tolerance is not None else MatchTolerance()
     gap, min_dur = _event_settings(result.config, None, None)
-    scales_sorted = sorted({float(s) for s in scales})
-    if not scales_sorted or any(not (math.isfinite(s) and s > 0) for s in scales_sorted):
-        raise ConfigError(f"sweep: scales must be positive finite numbers, got {list(scales)!r}")
+    scales_sorted = sorted_scales(scales)
     wu = float(result.warmup_end_s)
     n = samples.col.n
     k_w = samples.index_at(wu - _EPS_S, "left")
@@ -139,18 +130,7 @@ def sweep_streamed(samples: Any, result: Any, labels: Labels, scales: Sequence[f
         for s in scales_sorted:
             evs = [_Ev(d, a, b, a < wu) for d in DETECTORS
                    for a, b in machines[(d, s)].finish()]
-            ev = evaluate_events(evs, labels, duration_s=duration_s, warmup_end_s=wu,
-                                 tolerance=tol, product_merge_gap_s=gap,
-                                 detectors=list(rows_of))
-            for d, sc in ev.scores.items():
-                per_contact = tuple(
-                    c.delay_s[d] if c.status == "counted" and c.detected[d] else None
-                    for c in ev.contacts)
-                rows_of[d].append(SweepRow(
-                    d, s, sc.n_events, sc.n_contacts, sc.detected, sc.false_alarms,
-                    sc.false_alarms_per_hour, sc.delay_median_s, sc.min_detected_force,
-                    per_contact))
-    if any(c.start > duration_s for c in labels.events):
-        evaluate_events([], labels, duration_s=duration_s, warmup_end_s=wu, tolerance=tol,
-                        detectors=())
+            add_rows(rows_of, s, evs, labels, duration_s=duration_s, warmup_end_s=wu,
+                     tolerance=tol, merge_gap_s=gap)
+    warn_late_labels(labels, duration_s, wu, tol)
     return [r for rows in rows_of.values() for r in rows]

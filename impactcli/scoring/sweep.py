@@ -157,9 +157,7 @@ def sweep_ratios(
         warmup_end_s [s]; merge_gap_s, min_duration_s: event extraction settings [s].
     """
     tol = tolerance if tolerance is not None else MatchTolerance()
-    scales_sorted = sorted({float(s) for s in scales})
-    if not scales_sorted or any(not (math.isfinite(s) and s > 0) for s in scales_sorted):
-        raise ConfigError(f"sweep: scales must be positive finite numbers, got {list(scales)!r}")
+    scales_sorted = sorted_scales(scales)
     for d in detectors:
         if d not in EVALUATED:
             raise ConfigError(f"sweep: unknown detector {d!r} (expected one of {EVALUATED})")
@@ -183,22 +181,46 @@ def sweep_ratios(
                                              min_duration_s, warmup_end_s)
                     evs += [_Ev(d, a, b, a < warmup_end_s) for a, b in
                             zip(time_s[i0].tolist(), time_s[i1].tolist(), strict=True)]
-            ev = evaluate_events(
-                evs, labels, duration_s=duration_s, warmup_end_s=warmup_end_s, tolerance=tol,
-                product_merge_gap_s=merge_gap_s, detectors=list(rows_of),
-            )
-            for d, sc in ev.scores.items():
-                per_contact = tuple(
-                    c.delay_s[d] if c.status == "counted" and c.detected[d] else None
-                    for c in ev.contacts)
-                rows_of[d].append(SweepRow(
-                    d, s, sc.n_events, sc.n_contacts, sc.detected, sc.false_alarms,
-                    sc.false_alarms_per_hour, sc.delay_median_s, sc.min_detected_force,
-                    per_contact))
+            add_rows(rows_of, s, evs, labels, duration_s=duration_s,
+                     warmup_end_s=warmup_end_s, tolerance=tol, merge_gap_s=merge_gap_s)
+    warn_late_labels(labels, duration_s, warmup_end_s, tol)
+    return [r for rows in rows_of.values() for r in rows]
+
+
+def sorted_scales(scales: Sequence[float]) -> list[float]:
+    """The sweep's distinct scales, ascending (ConfigError unless positive and finite)."""
+    out = sorted({float(s) for s in scales})
+    if not out or any(not (math.isfinite(s) and s > 0) for s in out):
+        raise ConfigError(f"sweep: scales must be positive finite numbers, got {list(scales)!r}")
+    return out
+
+
+def add_rows(rows_of: dict[str, list[SweepRow]], scale: float, evs: list[_Ev],
+             labels: Labels, *, duration_s: float, warmup_end_s: float,
+             tolerance: MatchTolerance, merge_gap_s: float) -> None:
+    """Score one scale's events against the labels; one :class:`SweepRow` per detector of
+    ``rows_of`` (the whole-log sweep and the streamed one, outputs/sweep_stream.py)."""
+    ev = evaluate_events(
+        evs, labels, duration_s=duration_s, warmup_end_s=warmup_end_s, tolerance=tolerance,
+        product_merge_gap_s=merge_gap_s, detectors=list(rows_of),
+    )
+    for d, sc in ev.scores.items():
+        per_contact = tuple(
+            c.delay_s[d] if c.status == "counted" and c.detected[d] else None
+            for c in ev.contacts)
+        rows_of[d].append(SweepRow(
+            d, scale, sc.n_events, sc.n_contacts, sc.detected, sc.false_alarms,
+            sc.false_alarms_per_hour, sc.delay_median_s, sc.min_detected_force,
+            per_contact))
+
+
+def warn_late_labels(labels: Labels, duration_s: float, warmup_end_s: float,
+                     tolerance: MatchTolerance) -> None:
+    """Contacts labelled after the log's end: warned about once (scoring the scales kept
+    quiet), by scoring nothing."""
     if any(c.start > duration_s for c in labels.events):
         evaluate_events([], labels, duration_s=duration_s, warmup_end_s=warmup_end_s,
-                        tolerance=tol, detectors=())
-    return [r for rows in rows_of.values() for r in rows]
+                        tolerance=tolerance, detectors=())
 
 
 def sweep_thresholds(
