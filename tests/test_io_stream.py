@@ -427,17 +427,21 @@ def _inf_controller(tmp_path: Path) -> Path:
     return _write(tmp_path / "inf_controller.csv", cols)
 
 
-@pytest.mark.parametrize("cached", [True, False])
+@pytest.mark.parametrize("cached", ["yes", "disk full", "no temporary folder"])
 def test_the_passes_after_the_scan_read_its_cache_or_the_file(
         tmp_path: Path, _tmp_root: Path, monkeypatch: pytest.MonkeyPatch,
-        cached: bool) -> None:
+        cached: str) -> None:
     """The chunks are read_log's whether they come from the scan's cache of the repaired
-    rows or (a disk too full for it) from parsing the file again."""
-    if not cached:
+    rows or (a disk too full for it, no temporary folder) from parsing the file again."""
+    import tempfile
+
+    if cached == "disk full":
         monkeypatch.setattr(stream_cache, "MIN_FREE_BYTES", float("inf"))
+    elif cached == "no temporary folder":
+        monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "missing"))
     scan = _assert_same(_inf_controller(tmp_path))
-    assert (scan._pass is not None and scan._pass.cache is not None) is cached
-    assert len(_scan_dirs(_tmp_root)) == int(cached)
+    assert (scan._pass is not None and scan._pass.cache is not None) is (cached == "yes")
+    assert len(_scan_dirs(_tmp_root)) == int(cached == "yes")
     scan.close()
     assert not _scan_dirs(_tmp_root)
     assert scan._pass is not None and scan._pass.cache is None

@@ -21,10 +21,11 @@ did (``_arrays``, elementwise): the chunks are the same arrays bit for bit
 Bounded: memory holds one block of rows (``max(chunk_rows, MIN_READ_ROWS)``). The disk
 holds 8·(1 + C) bytes per row (288 for 7 joints with 5 signals: less than the CSV text).
 The cache is given up — deleted, and the file parsed again by each pass, as before —
-when a write fails or its file system's free space falls under :data:`MIN_FREE_BYTES`
-(a day-long log must not fill the disk). It is deleted by :meth:`RowCache.close` (the
-scan's ``close``; the scan closes it itself when it fails), else when the scan is
-garbage collected or the interpreter exits (a :func:`weakref.finalize`).
+when no temporary folder can be made, a write fails or its file system's free space
+falls under :data:`MIN_FREE_BYTES` (a day-long log must not fill the disk). It is
+deleted by :meth:`RowCache.close` (the scan's ``close``; the scan closes it itself when
+it fails), else when the scan is garbage collected or the interpreter exits (a
+:func:`weakref.finalize`).
 """
 
 from __future__ import annotations
@@ -34,8 +35,8 @@ import os
 import shutil
 import tempfile
 import weakref
-from collections.abc import Iterator
-from typing import IO, TYPE_CHECKING
+from collections.abc import Callable, Iterator
+from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -58,13 +59,22 @@ class RowCache:
     def __init__(self, n_cols: int) -> None:
         self.n_cols = int(n_cols)
         self.rows = 0
-        self._dir: str | None = tempfile.mkdtemp(prefix="impactcli-scan-")
+        self._unchecked = CHECK_EVERY_BYTES  # check the free space before the first write
+        self._dir: str | None = None
+        self._files: list[IO[bytes]] | None = None
+        self._remove: Callable[[], Any] | None = None
+        try:  # no temporary folder to write in: no cache (each pass parses the file)
+            self._dir = tempfile.mkdtemp(prefix="impactcli-scan-")
+        except OSError:
+            return
         # removed when the cache is garbage collected or at exit, if not closed before
         self._remove = weakref.finalize(self, shutil.rmtree, self._dir, ignore_errors=True)
-        self._files: list[IO[bytes]] | None = [
-            open(self._path(name), "wb")  # noqa: SIM115 (closed by finish/close)
-            for name in ("t.i8", "values.f8")]
-        self._unchecked = CHECK_EVERY_BYTES  # check the free space before the first write
+        try:
+            self._files = []
+            for name in ("t.i8", "values.f8"):
+                self._files.append(open(self._path(name), "wb"))  # noqa: SIM115
+        except OSError:
+            self.close()
 
     @property
     def usable(self) -> bool:
@@ -134,7 +144,8 @@ class RowCache:
                 with contextlib.suppress(OSError):
                     f.close()
             self._files = None
-        self._remove()
+        if self._remove is not None:
+            self._remove()
         self._dir = None
 
 
