@@ -21,6 +21,7 @@ Filters start in steady state at the first sample (no start-up transient).
 
 from __future__ import annotations
 
+import functools
 import warnings
 
 import numpy as np
@@ -107,17 +108,28 @@ def zero_phase_derivatives(
 
 
 def _svf_coefficients(dt: float, cutoff_hz: float) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Discrete (b, a) of G, sG, s²G for the 2nd-order Butterworth state-variable filter."""
+    """Discrete (b, a) of G, sG, s²G for the 2nd-order Butterworth state-variable filter
+    (the cut-off clipped, and warned about, on every call; the design cached)."""
     fs = 1.0 / dt
     wc = clip_cutoff(cutoff_hz, fs, "derivative cut-off")
+    return list(_svf_design(fs, wc))
+
+
+@functools.lru_cache(maxsize=64)
+def _svf_design(fs: float, wc: float) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+    """:func:`_svf_coefficients` for a clipped cut-off: a bilinear design costs ~2 ms and a
+    streamed replay asks for it several times per chunk (read-only arrays: shared)."""
     w = 2.0 * fs * np.tan(np.pi * wc / fs)  # prewarped [rad/s]
     den = np.array([1.0, np.sqrt(2.0) * w, w * w])
     nums = [np.array([0.0, 0.0, w * w]), np.array([0.0, w * w, 0.0]), np.array([w * w, 0.0, 0.0])]
     out = []
     for num in nums:
         b, a = signal.bilinear(num, den, fs=fs)
-        out.append((np.asarray(b, dtype=np.float64), np.asarray(a, dtype=np.float64)))
-    return out
+        b, a = np.array(b, dtype=np.float64), np.array(a, dtype=np.float64)
+        b.setflags(write=False)
+        a.setflags(write=False)
+        out.append((b, a))
+    return tuple(out)
 
 
 def _lfilter_steady(b: np.ndarray, a: np.ndarray, x: np.ndarray,
