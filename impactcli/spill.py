@@ -5,6 +5,7 @@ memory holds only where things lie, whatever the log's length.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import tempfile
 from collections.abc import Iterator
@@ -14,18 +15,31 @@ from typing import Any
 import numpy as np
 
 
-def write_spill(f: Any, v: np.ndarray) -> None:
-    """Append ``v``'s bytes to a spill file; a full or unwritable temporary folder is a
-    :class:`~impactcli.errors.TempSpaceError` naming it, not a traceback."""
-    try:
-        f.write(np.ascontiguousarray(v).tobytes())
-    except OSError as err:
-        from .errors import TempSpaceError
+def temp_space_error(err: OSError) -> Exception:
+    """The one-line error of a temporary file that cannot be written (a full or unwritable
+    ``TMPDIR``): :class:`~impactcli.errors.TempSpaceError` naming the folder."""
+    from .errors import TempSpaceError
 
-        raise TempSpaceError(
-            f"temporary folder {tempfile.gettempdir()}: {err.strerror or err} while "
-            "spilling the replay (long logs without a config need about 0.35 kB per sample "
-            "for 7 joints there); set TMPDIR to a folder with room") from err
+    return TempSpaceError(
+        f"temporary folder {tempfile.gettempdir()}: {err.strerror or err} while writing the "
+        "replay's temporary files (a long log needs up to about 1 kB per sample for 7 joints "
+        "there); set TMPDIR to a folder with room")
+
+
+@contextlib.contextmanager
+def temp_space() -> Iterator[None]:
+    """Around writes into ``TMPDIR`` (a spill, its flush or close): an OSError becomes
+    :func:`temp_space_error`'s one line instead of a traceback."""
+    try:
+        yield
+    except OSError as err:
+        raise temp_space_error(err) from err
+
+
+def write_spill(f: Any, v: np.ndarray) -> None:
+    """Append ``v``'s bytes to a spill file (:func:`temp_space`)."""
+    with temp_space():
+        f.write(np.ascontiguousarray(v).tobytes())
 
 
 @dataclass
@@ -109,8 +123,9 @@ class Islands:
     def finish(self) -> list[Island]:
         """The islands, in time order (their rows readable until :meth:`close`)."""
         self._close()
-        for f in self.files.values():
-            f.close()
+        with temp_space():  # what the write buffers still held goes to disk here
+            for f in self.files.values():
+                f.close()
         return self.done
 
     def arrays(self, isl: Island) -> dict[str, np.ndarray]:
@@ -155,8 +170,9 @@ class ChunkSpill:
     def read(self, keys: tuple[str, ...] | None = None,
              ) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
         """(first sample, arrays) per chunk as written; ``keys`` only these arrays."""
-        for f in self.files.values():
-            f.flush()
+        with temp_space():
+            for f in self.files.values():
+                f.flush()
         names = tuple(self.layout) if keys is None else keys
         handles = {k: open(os.path.join(self.dir.name, k), "rb") for k in names}  # noqa: SIM115
         try:

@@ -228,6 +228,8 @@ def analyze_stream(
         check_replayable(where, len(keep), scan.sample_rate_hz, scan.n_samples,
                          scan.duration_s, cfg, allow_slow)
         passes = _Passes(scan.duration_s, progress)
+        if not cfg.calibration.calibrated:
+            passes.add()  # the comparison over the spill, or the replay again (strategy)
         reader = _Reader(log_path, scan, read_kw, chunk_rows, full_joints, keep, unlogged)
 
         def identify(choices: Any, kind: str | None, rbt: RobotDescription | None,
@@ -240,6 +242,7 @@ def analyze_stream(
         before = len(caught)
         rp = _replay_passes(reader, cfg, joints, choices, rig, given, on_chunk, passes,
                             strategy)
+        stack.callback(rp.islands.close)
         replay_msgs = caught[before:]
         del caught[before:]
         header = LogHeader(joints, scan.source, scan.n_samples, scan.t0_ns, scan.duration_s,
@@ -255,7 +258,6 @@ def analyze_stream(
         if given is None:
             cfg = _uncalibrated_config(cfg, joints, rp.margins)
             warn_uncalibrated(where)
-        stack.callback(rp.islands.close)
         events, per_island = _events(rp.islands, wu, joints, cfg)
         warn_events_after_gaps(where, rp.gap_times[:, 1], events)
         from .pipeline import _warn_long_events
@@ -504,8 +506,6 @@ def _replay_passes(
                 comparing.update(step)
             wu = tracker.finish()
         else:
-            if strategy == "reread":
-                passes.add()
             with contextlib.closing(ChunkSpill()) as spill:
                 for step, pe in replayed():
                     tracker.update(pe, step.t)
@@ -518,6 +518,8 @@ def _replay_passes(
                 if strategy == "spill":
                     for k0, arrays in spill.read():
                         comparing.update(_Step(k0, **arrays))
+                        passes.at(float(arrays["t"][-1]))
+                    passes.next()
                 else:
                     spill.close()
                     for step, _ in replayed():

@@ -127,10 +127,16 @@ def test_block_maxima_in_chunks_equal_the_whole_statistic() -> None:
             assert np.array_equal(bm.finish(), whole, equal_nan=True), (start, block, size)
 
 
-def test_a_full_temporary_folder_is_one_line_exit_2(tmp_path: Path,
+_FULL_LINE = ("temporary folder {}: No space left on device while writing the replay's "
+              "temporary files (a long log needs up to about 1 kB per sample for 7 joints "
+              "there); set TMPDIR to a folder with room")
+
+
+@pytest.mark.parametrize("verb", ["detect", "report", "view"])
+def test_a_full_temporary_folder_is_one_line_exit_2(tmp_path: Path, verb: str,
                                                     monkeypatch: pytest.MonkeyPatch) -> None:
     """No room for the spill (TMPDIR full): one line naming the folder and what to do,
-    exit 2, no output file, no temporary file left."""
+    exit 2, no output file, no temporary file left — in every verb that replays a log."""
     import errno
     import tempfile
 
@@ -154,13 +160,64 @@ def test_a_full_temporary_folder_is_one_line_exit_2(tmp_path: Path,
     out = tmp_path / "out"
     with warnings.catch_warnings():
         warnings.simplefilter("error", ResourceWarning)          # nothing left unclosed
-        res = CliRunner().invoke(main, ["detect", str(SAMPLES / "csv" / "assist_impacts.csv.gz"),
-                                        "-o", str(out)])
+        log = str(SAMPLES / "csv" / "assist_impacts.csv.gz")
+        args = {"detect": ["detect", log, "-o", str(out)],
+                "report": ["report", log, "-o", str(out / "r.html")],
+                "view": ["view", log, "--no-open", "--save", str(out / "r.rrd")]}[verb]
+        res = CliRunner().invoke(main, args)
     assert res.exit_code == 2, res.output
     lines = [x for x in res.stderr.splitlines() if x.startswith("impactcli: error:")]
-    assert lines == [f"impactcli: error: temporary folder {tmp_path}: No space left on device "
-                     "while spilling the replay (long logs without a config need about 0.35 kB "
-                     "per sample for 7 joints there); set TMPDIR to a folder with room"]
+    assert lines == ["impactcli: error: " + _FULL_LINE.format(tmp_path)]
     assert "Traceback" not in res.stderr
     assert not out.exists() or not any(out.iterdir())
     assert not [p.name for p in tmp_path.iterdir() if p.name.startswith("impactcli-")]
+
+
+def test_a_full_temporary_folder_under_the_parquet_spill(tmp_path: Path,
+                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The report's and --rerun's Parquet spill on a full TMPDIR: the same one line."""
+    import errno
+    import tempfile
+
+    import pyarrow.parquet as pq
+
+    def full(self: object, table: object, *a: object, **k: object) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(pq.ParquetWriter, "write_table", full)
+    monkeypatch.setenv("TMPDIR", str(tmp_path))
+    monkeypatch.setattr(tempfile, "tempdir", None)
+    html = tmp_path / "r.html"
+    res = CliRunner().invoke(main, ["report", str(SAMPLES / "csv" / "assist_impacts.csv.gz"),
+                                    "--config", str(ASSIST), "-o", str(html)])
+    assert res.exit_code == 2, res.output
+    lines = [x for x in res.stderr.splitlines() if x.startswith("impactcli: error:")]
+    assert lines == ["impactcli: error: " + _FULL_LINE.format(tmp_path)]
+    assert not html.exists()
+
+
+@pytest.mark.parametrize(("config", "strategy", "passes"), [
+    (None, "spill", 3),      # identification, replay, comparison over the spill
+    (None, "reread", 3),     # identification, replay, replay again
+    (ASSIST, "spill", 2),    # calibrated: the replay compares as it goes (+ identification)
+])
+def test_progress_counts_every_pass_once_and_ends_at_its_total(
+        config: Path | None, strategy: str, passes: int) -> None:
+    calls: list[tuple[float, float]] = []
+    path = SAMPLES / "csv" / "assist_impacts.csv.gz"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        analyze_stream(str(path), config=load_config(config) if config else None,
+                       read_options={}, chunk_rows=4096, strategy=strategy,
+                       model_from_log=config is not None,
+                       progress=lambda d, t: calls.append((d, t)))
+    totals = {t for _, t in calls}
+    assert len(totals) == 1                      # known before the first report
+    total = totals.pop()
+    done = [d for d, _ in calls]
+    assert done == sorted(done) and done[-1] == pytest.approx(total)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        duration = read_log(path).duration_s
+    assert total == pytest.approx(passes * duration)
+    assert len(calls) >= passes * 4              # reported chunk by chunk (18,176 samples)

@@ -238,32 +238,34 @@ def stream_for_report(path: Path, *, robot: Any, model: Any, config: Any,
     opts = dict(read_options)
     read_kw = dict(opts, robot=robot) if robot is not None else dict(opts)
     scan = scan_log(str(path), **read_kw)
-    if check is not None:
-        check(scan)
-    bar = _progress_bar(cast(Any, SimpleNamespace(show_progress=show_progress,
-                                                  log_path=str(path))), "replay",
-                       "s of log (all passes)")
-
-    def progress(done_s: float, total_s: float) -> None:
-        assert bar is not None
-        bar.total = round(total_s)
-        bar.n = round(done_s)
-        bar.refresh()
-
-    collector = ReportCollector(scan.n_samples, scan.gaps, scan.gap_lengths_s)
     try:
-        result = analyze_stream(str(path), config=config, model=model, robot=robot,
-                                read_options=opts, allow_slow=allow_slow, scan=scan,
-                                model_from_log=model_from_log, on_chunk=collector,
-                                progress=progress if bar is not None else None)
-        return result, collector.finish(result)
-    except BaseException:
-        collector.close()
-        raise
-    finally:
-        if bar is not None:
-            bar.close()
-        close = getattr(scan, "close", None)  # a scan may hold a cache of the rows
+        if check is not None:
+            check(scan)
+        bar = _progress_bar(cast(Any, SimpleNamespace(show_progress=show_progress,
+                                                      log_path=str(path))), "replay",
+                           "s of log (all passes)")
+
+        def progress(done_s: float, total_s: float) -> None:
+            assert bar is not None
+            bar.total = round(total_s)
+            bar.n = round(done_s)
+            bar.refresh()
+
+        collector = ReportCollector(scan.n_samples, scan.gaps, scan.gap_lengths_s)
+        try:
+            result = analyze_stream(str(path), config=config, model=model, robot=robot,
+                                    read_options=opts, allow_slow=allow_slow, scan=scan,
+                                    model_from_log=model_from_log, on_chunk=collector,
+                                    progress=progress if bar is not None else None)
+            return result, collector.finish(result)
+        except BaseException:
+            collector.close()
+            raise
+        finally:
+            if bar is not None:
+                bar.close()
+    finally:  # the scan's row cache goes, whatever happened (a sha256 mismatch included)
+        close = getattr(scan, "close", None)
         if close is not None:
             close()
 

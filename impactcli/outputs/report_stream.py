@@ -254,7 +254,9 @@ class StreamedSamples:
         n_j = len(self.joints)
         any_after = self.index_at(after_s, "left") < self.col.n
         out = np.zeros(n_j)
-        with tempfile.TemporaryDirectory(prefix="impactcli-report-q-") as tmp:
+        from ..spill import temp_space
+
+        with temp_space(), tempfile.TemporaryDirectory(prefix="impactcli-report-q-") as tmp:
             files = [open(os.path.join(tmp, str(k)), "w+b") for k in range(n_j)]  # noqa: SIM115
             try:
                 counts, nan = [0] * n_j, [False] * n_j

@@ -157,7 +157,10 @@ class SpillWriter:
     :meth:`close`)."""
 
     def __init__(self, prefix: str = "impactcli-rrd-") -> None:
-        fd, self.path = tempfile.mkstemp(prefix=prefix, suffix=".parquet")
+        from ..spill import temp_space
+
+        with temp_space():
+            fd, self.path = tempfile.mkstemp(prefix=prefix, suffix=".parquet")
         os.close(fd)
         self._writer: Any = None
         self.has_reference = False
@@ -166,17 +169,23 @@ class SpillWriter:
         import pyarrow as pa
         import pyarrow.parquet as pq
 
+        from ..spill import temp_space
+
         table = pa.table(cols)
-        if self._writer is None:
-            self._writer = pq.ParquetWriter(self.path, table.schema, compression="zstd",
-                                            compression_level=1, use_dictionary=False)
-            self.has_reference = any(c.endswith(".position_ref") for c in cols)
-        self._writer.write_table(table)
+        with temp_space():
+            if self._writer is None:
+                self._writer = pq.ParquetWriter(self.path, table.schema, compression="zstd",
+                                                compression_level=1, use_dictionary=False)
+                self.has_reference = any(c.endswith(".position_ref") for c in cols)
+            self._writer.write_table(table)
 
     def finish(self) -> None:
+        from ..spill import temp_space
+
         if self._writer is not None:
-            self._writer.close()
-            self._writer = None
+            writer, self._writer = self._writer, None
+            with temp_space():
+                writer.close()
 
     def close(self) -> None:
         self.finish()
