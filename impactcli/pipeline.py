@@ -12,7 +12,6 @@ Nothing here reads or writes files; everything it decided is in the result.
 from __future__ import annotations
 
 import dataclasses
-import os
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -24,6 +23,7 @@ from .config import CalibrationRecord, DetectorConfig
 from .detect.adaptive import (
     AdaptiveResult,
     check_scale,
+    default_threads,
     replay_cost,
 )
 from .detect.calibrate import (
@@ -442,7 +442,7 @@ def replay(
     shown = progress if progress is not None and cost * log.duration_s >= PROGRESS_AFTER_S \
         else None
     setup = ReplaySetup(log.joint_names, choices, model, cfg, fs, log.sample_period_s,
-                        threads=(os.cpu_count() or 1) if log.n_samples >= 100_000 else 1)
+                        threads=default_threads(log.n_samples))
     out, _ = replay_chunk(setup, ReplayState.initial(setup), chunk_arrays(log, log.time_s),
                           where=log.source.path, progress=shown, consume=True)
     r, ad = out.r, out.adaptive

@@ -46,7 +46,7 @@ import numpy as np
 
 from .config import DetectorConfig
 from .contacts import IncidentContext, build_incidents, incident_context
-from .detect.adaptive import AdaptiveResult
+from .detect.adaptive import AdaptiveResult, default_threads
 from .detect.events import extract_events
 from .detect.incidents import BRIDGE_FRACTION, Incident
 from .detect.screen import LeftOut
@@ -467,12 +467,11 @@ def _replay_passes(
     and keeps as it goes; without, a pass that spills, the thresholds from what it spilled
     once the warm-up's end is known, then the comparison over the spill (``spill``) or
     over the log replayed again (``reread``)."""
-    import os
 
     scan = reader.scan
     fs, dt = scan.sample_rate_hz, scan.sample_period_s
     setup = ReplaySetup(joints, choices, rig, cfg, fs, dt,
-                        threads=(os.cpu_count() or 1) if scan.n_samples >= 100_000 else 1)
+                        threads=default_threads(scan.n_samples))
     tracker = WarmupTracker(scan.n_samples, 0.0, scan.duration_s, len(joints), cfg.warmup)
     writers = on_chunk is not None
     margins: dict[str, np.ndarray] = {}

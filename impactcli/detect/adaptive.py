@@ -82,8 +82,7 @@ every state array for chunks of 1, 7, 1000, 4096 samples and the whole log, and 
 boundaries after samples 1–5, mid-contact and at random places, on sample_logs'
 assist_impacts (guard acting: a still elbow) and synthetic logs (a standstill and
 contact pulses; a priori, plain eq. 39, other windows, axes on threads). Cost per chunk:
-a copy of the state (J·nu² for P) and the Python dispatch of the axes
-(``tests/benchmarks/bench_rls.py`` measures it).
+a copy of the state (J·nu² for P), the axes' Python dispatch (tests/benchmarks/bench_rls.py).
 """
 
 from __future__ import annotations
@@ -592,6 +591,11 @@ def _check(r: np.ndarray, u: np.ndarray, v_stat: np.ndarray, cfg: AdaptiveConfig
         raise ValueError(f"v_stat must be ({r.shape[1]},), got {v_stat.shape}")
 
 
+def default_threads(n_samples: int) -> int:
+    """One thread per core from 100k samples (below, a thread's start costs more), else 1."""
+    return (os.cpu_count() or 1) if n_samples >= 100_000 else 1
+
+
 def evaluate_chunk(
     state: EvaluatorState, residual_chunk: np.ndarray, inputs_chunk: np.ndarray,
     sample_rate_hz: float, v_stat: Sequence[float] | np.ndarray,
@@ -673,13 +677,12 @@ def evaluate(
         v_stat: (J,) static thresholds [N·m] (eq. 42).
         cfg: settings (Table I defaults).
         threads: > 1 runs the axes concurrently, each on a thread of its own (results are
-            identical: axes are independent); None → one per core (> 1 on a multi-core
-            machine) for logs of ≥ 100k samples, else 1.
+            identical: axes are independent); None → :func:`default_threads`.
         progress: called with (axes done, axes) after each axis (every axis costs the same).
     """
     cfg = cfg or AdaptiveConfig()
     if threads is None:
-        threads = (os.cpu_count() or 1) if np.shape(residual)[0] >= 100_000 else 1
+        threads = default_threads(np.shape(residual)[0])
     r = np.asarray(residual)
     if r.ndim != 2:
         raise ValueError(f"residual must be (N, J), got shape {r.shape}")

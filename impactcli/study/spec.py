@@ -122,11 +122,6 @@ class StudySpec:
                    scales=(0.5, 0.7, 1.0, 1.4, 2.0, 3.0, 5.0))
         return replace(base, **changes)
 
-    @property
-    def soak_hours_per_variant(self) -> float:
-        """Simulated soak time per variant (warm-up included) [h]."""
-        return len(SOAK_FAMILIES) * self.soak_runs * self.soak_run_s / 3600.0
-
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping."""
         return {
