@@ -21,6 +21,7 @@ Nothing here reads a file or decides a threshold: the replay is threshold-free.
 from __future__ import annotations
 
 import dataclasses
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -33,10 +34,11 @@ from .detect.adaptive import (
     AdaptiveResult,
     EvaluatorState,
     ThresholdInputs,
-    evaluate_chunk,
     inputs_chunk,
     join_chunks,
+    result_of,
 )
+from .detect.axes import AxisJob, AxisRunner
 from .detect.static import causal_lowpass as loading_lowpass
 from .errors import ModelError
 from .model.generators import (
@@ -53,20 +55,12 @@ from .model.rigid import RigidModel
 #: (at most 0.2 × the sample rate).
 SPEED_CUTOFF_HZ = 10.0
 
-#: With threads, a chunk of at least MIN_SPLIT_SAMPLES samples of at least
-#: MIN_SPLIT_JOINTS joints is replayed in two parts: the evaluator's axes start on the
-#: first 1/FIRST_PART of it while the calling thread makes the rest's residual and inputs
-#: (before, one core waited while the whole chunk's were made: about 1.4 s per 10 minutes
-#: of a 7-joint 1 kHz log). A quarter: at 7 joints the evaluator costs about 4 times the
-#: residual per sample, so the first part's axes take about as long as the rest's
-#: residual. With few joints the evaluator is cheap (nu² per axis: 34² at 2 joints
-#: against 64² at 7) and the second residual call's fixed cost (its filters' design, the
-#: parts joined) ate the gain (2 joints, 10 min: 2.1 s replay against 1.8 s unsplit, on
-#: a loaded machine; 7 joints: 12.2 s against 13.1 s). The parts are chunks: the result
-#: is the same bit for bit (module docstring).
-FIRST_PART = 4
-MIN_SPLIT_SAMPLES = 8192
-MIN_SPLIT_JOINTS = 4
+#: Parts a chunk is fed to the evaluator's axes in (a whole-log replay is one chunk):
+#: the calling thread makes a part's residual while the axes work on the one before.
+PART_SAMPLES = 65_536
+#: Parts the calling thread may run ahead of the axes (each held part costs its signals:
+#: about 50 MB at 65,536 samples of 7 joints); 0: one part at a time.
+AHEAD = 2
 
 #: The chunk's arrays a replay reads (optional ones may be None).
 CHUNK_ARRAYS: tuple[str, ...] = (
@@ -217,11 +211,131 @@ def _part(chunk: ChunkArrays, a: int, b: int) -> ChunkArrays:
         if getattr(chunk, f.name) is not None})
 
 
+@dataclass
+class _Part:
+    """A part submitted to the axes: what the calling thread made, and the axes' job."""
+
+    tag: Any
+    last: bool  # the last part of its chunk
+    r: np.ndarray
+    inputs: ThresholdInputs
+    loading: np.ndarray
+    qd: np.ndarray
+    job: AxisJob
+
+
+class Replayer:
+    """Chunks replayed in order, pipelined (module docstring): :meth:`feed` a chunk, get
+    back the chunks whose replay is done, in order; :meth:`finish` for the rest, then
+    :attr:`state` is the state after the last chunk.
+
+    The calling thread makes each part's residual, threshold inputs, loading statistic and
+    speed (they continue the carry in order) and hands the residual and inputs to the
+    evaluator's axes (:class:`~impactcli.detect.axes.AxisRunner`, a thread per axis with
+    ``setup.threads`` > 1); up to ``ahead`` parts run ahead of the axes. The results are the
+    same bits as one part at a time on one thread.
+
+    Args:
+        setup: what the replay fixed before its first sample.
+        state: the state after the previous chunk (:meth:`ReplayState.initial` first);
+            left as it was unless ``consume``.
+        where: the log's path, for messages.
+        progress: the evaluator's per-axis progress of each part (slow replays).
+    """
+
+    def __init__(self, setup: ReplaySetup, state: ReplayState, *, where: str = "",
+                 consume: bool = False, ahead: int = AHEAD,
+                 progress: Callable[[int, int], None] | None = None) -> None:
+        self.setup, self.where, self.ahead, self.progress = setup, where, ahead, progress
+        self._st = state if consume else state.copy()
+        self._runner = AxisRunner(self._st.evaluator, np.zeros(len(setup.joint_names)),
+                                  setup.threads)
+        self._pending: deque[_Part] = deque()
+        self._done: list[_Part] = []  # finished parts of a chunk not finished yet
+        self._n = self._st.n_samples
+        self._inputs = (self._st.reference, self._st.threshold_inputs)
+        self._closed = False
+
+    def feed(self, tag: Any, chunk: ChunkArrays) -> list[tuple[Any, ChunkReplay]]:
+        """Start replaying ``chunk`` (``tag`` comes back with its replay); returns the
+        chunks done so far, oldest first."""
+        setup, carry = self.setup, self._st.carry
+        cfg, fs, dt = setup.cfg, setup.sample_rate_hz, setup.sample_period_s
+        n = chunk.n_samples
+        out: list[tuple[Any, ChunkReplay]] = []
+        for a in range(0, max(n, 1), PART_SAMPLES):
+            part = _part(chunk, a, min(a + PART_SAMPLES, n)) if n > PART_SAMPLES else chunk
+            r = residual_columns(setup, part, carry.scoped("residual."), self.where)
+            inputs = inputs_chunk(part, part.time_s, fs, cfg.adaptive, carry.scoped("inputs."),
+                                  self.where)
+            job = self._runner.submit(np.ascontiguousarray(r, dtype=np.float64),
+                                      np.ascontiguousarray(inputs.u, dtype=np.float64))
+            sl = cfg.static_loading  # while the axes run
+            loading = np.abs(loading_lowpass(r, sl.cutoff_hz, fs, sl.order,
+                                             carry.scoped("static.")))
+            qd = causal_velocity(dt, part.position, min(SPEED_CUTOFF_HZ, 0.2 / dt),
+                                 carry.scoped("speed."), "q")
+            self._n += part.n_samples
+            self._inputs = (inputs.source, inputs.detail)
+            self._pending.append(_Part(tag, a + PART_SAMPLES >= n, r, inputs, loading, qd,
+                                       job))
+            while len(self._pending) > self.ahead:
+                out += self._collect()
+        return out
+
+    def finish(self) -> list[tuple[Any, ChunkReplay]]:
+        """The chunks not returned yet, oldest first; then :attr:`state` is final."""
+        out: list[tuple[Any, ChunkReplay]] = []
+        try:
+            while self._pending:
+                out += self._collect()
+        finally:
+            self.close()
+        return out
+
+    def close(self) -> None:
+        """End the axes' threads (an abandoned replay: its state is then unusable)."""
+        if not self._closed:
+            self._closed = True
+            self._runner.close()
+
+    @property
+    def state(self) -> ReplayState:
+        """The state after every chunk fed (after :meth:`finish`)."""
+        if self._pending or not self._closed:
+            raise RuntimeError("Replayer.state before finish()")
+        ev = dataclasses.replace(self._st.evaluator, n_samples=self._runner.n_samples)
+        return dataclasses.replace(self._st, evaluator=ev, n_samples=self._n,
+                                   reference=self._inputs[0],
+                                   threshold_inputs=self._inputs[1])
+
+    def _collect(self) -> list[tuple[Any, ChunkReplay]]:
+        """Wait for the oldest part; its chunk's replay when it was the chunk's last."""
+        p = self._pending.popleft()
+        p.job.wait(self.progress)
+        self._done.append(p)
+        if not p.last:
+            return []
+        parts, self._done = self._done, []
+        ev = self._st.evaluator
+        ads = [result_of(q.job, ev) for q in parts]
+        one = len(parts) == 1
+
+        def cat(xs: list[np.ndarray]) -> np.ndarray:
+            return xs[0] if one else np.concatenate(xs)
+
+        return [(p.tag, ChunkReplay(
+            cat([q.r for q in parts]), ads[0] if one else join_chunks(ads),
+            cat([q.loading for q in parts]), cat([q.qd for q in parts]),
+            p.inputs.source, p.inputs.detail))]
+
+
 def replay_chunk(
     setup: ReplaySetup, state: ReplayState, chunk: ChunkArrays, *, where: str = "",
     progress: Callable[[int, int], None] | None = None, consume: bool = False,
 ) -> tuple[ChunkReplay, ReplayState]:
-    """Replay one chunk, continuing from ``state`` (module docstring).
+    """Replay one chunk, continuing from ``state`` (module docstring; a
+    :class:`Replayer` fed one chunk).
 
     Args:
         setup: what the replay fixed before its first sample.
@@ -233,52 +347,21 @@ def replay_chunk(
     Returns:
         (the chunk's replay, the state after it).
     """
-    st = state if consume else state.copy()
-    carry = st.carry
-    fs = setup.sample_rate_hz
-    cfg = setup.cfg.adaptive
-    n = chunk.n_samples
-    split = n // FIRST_PART if setup.threads > 1 and n >= MIN_SPLIT_SAMPLES and len(
-        setup.joint_names) >= MIN_SPLIT_JOINTS else 0
+    each: Callable[[int, int], None] | None = None
+    if progress is not None:  # the parts' axes as one count
+        shown = progress
+        parts = max(1, -(-chunk.n_samples // PART_SAMPLES))
+        seen = [0]
 
-    def made(part: ChunkArrays) -> tuple[np.ndarray, ThresholdInputs]:
-        """A part's residual and threshold inputs, continuing the carry."""
-        return (residual_columns(setup, part, carry.scoped("residual."), where),
-                inputs_chunk(part, part.time_s, fs, cfg, carry.scoped("inputs."), where))
+        def each(done: int, of: int) -> None:
+            shown(seen[0] * of + done, parts * of)
+            seen[0] += done == of
 
-    v_stat = np.zeros(len(setup.joint_names))
-    ev = st.evaluator
-    head: AdaptiveResult | None = None
-    if split:  # the evaluator starts on the first part while the rest's residual is made
-        from concurrent.futures import ThreadPoolExecutor
-
-        r_head, in_head = made(_part(chunk, 0, split))
-        with ThreadPoolExecutor(max_workers=1) as ex:
-            job = ex.submit(evaluate_chunk, ev, r_head, in_head.u, fs, v_stat, cfg,
-                            setup.threads, None, _consume=True)
-            r_tail, inputs = made(_part(chunk, split, n))
-            head, ev = job.result()
-        r = np.concatenate([r_head, r_tail])
-    else:
-        r_tail, inputs = made(chunk)
-        r = r_tail
-    sl = setup.cfg.static_loading
-    dt = setup.sample_period_s
-    rest: list[np.ndarray] = []
-
-    def statistics() -> None:
-        """The static-loading statistic and the speed: on this thread while the
-        evaluator's axes run on theirs (they read neither's carry)."""
-        rest.append(np.abs(loading_lowpass(r, sl.cutoff_hz, fs, sl.order,
-                                           carry.scoped("static."))))
-        rest.append(causal_velocity(dt, chunk.position, min(SPEED_CUTOFF_HZ, 0.2 / dt),
-                                    carry.scoped("speed."), "q"))
-
-    ad, ev = evaluate_chunk(ev, r_tail, inputs.u, fs, v_stat, cfg, setup.threads, progress,
-                            _consume=True, alongside=statistics)
-    if head is not None:
-        ad = join_chunks([head, ad])
-    loading, qd = rest
-    new = dataclasses.replace(st, evaluator=ev, n_samples=st.n_samples + chunk.n_samples,
-                              reference=inputs.source, threshold_inputs=inputs.detail)
-    return ChunkReplay(r, ad, loading, qd, inputs.source, inputs.detail), new
+    rp = Replayer(setup, state, where=where, consume=consume, progress=each)
+    try:
+        done = rp.feed(None, chunk)
+        done += rp.finish()
+    finally:
+        rp.close()
+    ((_, out),) = done
+    return out, rp.state

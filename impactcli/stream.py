@@ -12,7 +12,7 @@ Two passes over the file (:mod:`impactcli.io.stream`):
 1. the scan: provenance and sha256, the number of samples, the sample clock, the gaps and
    the columns' screen — every decision the whole-log replay takes before its first
    sample (:func:`impactcli.pipeline.screen_plan`, the model's joints, the generators);
-2. the replay, chunk by chunk (:func:`impactcli.replay.replay_chunk`, state in, state
+2. the replay, chunk by chunk (:class:`impactcli.replay.Replayer`, state in, state
    out), thresholds applied to each chunk; per chunk the signals go to ``on_chunk`` (the
    Parquet writer appends a row group) and three small things are kept:
 
@@ -60,7 +60,7 @@ from .model.generators import (
     uses_correction,
 )
 from .model.rigid import RigidModel
-from .replay import ChunkArrays, ReplaySetup, ReplayState, replay_chunk
+from .replay import ChunkArrays, ChunkReplay, Replayer, ReplaySetup, ReplayState
 from .result import DetectionResult
 from .sampling import check_calibrated_rate
 from .spill import ChunkSpill, Islands
@@ -478,16 +478,26 @@ def _replay_passes(
     last: list[Any] = [None, "", ""]
 
     def replayed() -> Any:
-        state = ReplayState.initial(setup)
-        for ch, t, a in reader.chunks(joints):
-            out, state = replay_chunk(setup, state, a, where=scan.source.path, consume=True)
-            ad = out.adaptive
-            last[:] = [ad, out.inputs_source, out.inputs_detail]
-            yield _Step(ch.start, t, np.asarray(ch.t_ns, dtype=np.int64),
-                        np.asarray(ch.position, dtype=np.float64), out.r, out.loading, out.qd,
-                        ad.r_rms, ad.v_rms, ad.r_tilde, ad.v_dyn, a.torque, a.position,
-                        a.position_ref), ad.prediction_error
-            passes.at(float(t[-1]))
+        """The replay's steps in order (the axes run ahead of the caller: replay.Replayer)."""
+        rp = Replayer(setup, ReplayState.initial(setup), where=scan.source.path,
+                      consume=True)
+
+        def steps(done: list[tuple[Any, ChunkReplay]]) -> Any:
+            for (ch, t, a), out in done:
+                ad = out.adaptive
+                last[:] = [ad, out.inputs_source, out.inputs_detail]
+                yield _Step(ch.start, t, np.asarray(ch.t_ns, dtype=np.int64),
+                            np.asarray(ch.position, dtype=np.float64), out.r, out.loading,
+                            out.qd, ad.r_rms, ad.v_rms, ad.r_tilde, ad.v_dyn, a.torque,
+                            a.position, a.position_ref), ad.prediction_error
+                passes.at(float(t[-1]))
+
+        try:
+            for ch, t, a in reader.chunks(joints):
+                yield from steps(rp.feed((ch, t, a), a))
+            yield from steps(rp.finish())
+        finally:
+            rp.close()
         passes.next()
 
     made: list[_Compare] = []   # the comparison, once made (its islands closed on failure)

@@ -180,31 +180,57 @@ def test_spilled_median_is_numpys(m: int, monkeypatch: pytest.MonkeyPatch) -> No
             assert warmup.spilled_median(f, m) == float(np.median(x))
 
 
+def _pipelined(setup: ReplaySetup, log, bounds: list[int], ahead: int
+               ) -> tuple[list[ChunkReplay], ReplayState]:
+    """The chunks through one Replayer (fed in turn, results as they come)."""
+    from impactcli.replay import Replayer
+
+    rp = Replayer(setup, ReplayState.initial(setup), ahead=ahead)
+    t = log.time_s
+    got: list[tuple[int, ChunkReplay]] = []
+    for i, (a, b) in enumerate(itertools.pairwise(bounds)):
+        got += rp.feed(i, chunk_arrays(log.slice(a, b) if b - a >= 2 else _one(log, a, b),
+                                       t[a:b]))
+    got += rp.finish()
+    assert [i for i, _ in got] == list(range(len(bounds) - 1))  # in order, each once
+    return [out for _, out in got], rp.state
+
+
 @pytest.mark.parametrize("generator", ["inverse_dynamics", "momentum_observer"])
-def test_chunks_split_for_the_threads_are_the_same(
-        generator: str, monkeypatch: pytest.MonkeyPatch) -> None:
-    """With threads the evaluator starts on a chunk's first quarter while the rest's
-    residual is made (replay.FIRST_PART): every output and the state are one thread's."""
+def test_pipelined_replay_is_the_same(generator: str, monkeypatch: pytest.MonkeyPatch
+                                      ) -> None:
+    """The Replayer's pipeline (chunks cut into parts, the axes on threads of their own
+    working on one part while the calling thread makes the next ones): every output and
+    the state are those of one chunk at a time on one thread, bit for bit."""
     from impactcli import replay
     from impactcli.detect.adaptive import SIGNALS
 
-    monkeypatch.setattr(replay, "MIN_SPLIT_SAMPLES", 64)
-    monkeypatch.setattr(replay, "MIN_SPLIT_JOINTS", 1)
+    monkeypatch.setattr(replay, "PART_SAMPLES", 64)  # chunks of several parts
     cfg = load_config(SAMPLES / "heavy_geared.config.toml")
     cfg = dataclasses.replace(cfg, residual=dataclasses.replace(
         cfg.residual, generator=generator, generators={}))
     log = read_log(SAMPLES / "csv" / "heavy_impacts.csv.gz").slice(0, 3000)
     one = _setup(log, cfg, RigidModel.from_dict(cfg.model))
     two = dataclasses.replace(one, threads=2)
-    for bounds in ([0, log.n_samples], [0, 63, 64, 1000, 1999, log.n_samples]):
+    for bounds in ([0, log.n_samples], [0, 63, 64, 65, 1000, 1999, log.n_samples]):
+        monkeypatch.setattr(replay, "PART_SAMPLES", 1 << 20)
         a, sa = _run(one, log, bounds)
-        b, sb = _run(two, log, bounds)
-        for f in (*FIELDS, *(f"adaptive.{x}" for x in SIGNALS)):
-            assert np.array_equal(_cat(a, f), _cat(b, f)), (f, bounds)
-        for x, y in zip(a, b, strict=True):
-            for k in ("theta", "n_resets", "n_capped"):
-                assert np.array_equal(getattr(x.adaptive, k), getattr(y.adaptive, k))
-        assert sa.carry == sb.carry and sa.n_samples == sb.n_samples
-        for k in ("theta", "P", "r_lags", "v_lags", "u_lags", "filters", "ring_r",
-                  "ring_v", "sums", "n_resets", "n_capped"):
-            assert np.array_equal(getattr(sa.evaluator, k), getattr(sb.evaluator, k))
+        monkeypatch.setattr(replay, "PART_SAMPLES", 64)
+        for setup, ahead in ((two, 2), (two, 0), (one, 3)):
+            b, sb = _pipelined(setup, log, bounds, ahead)
+            for f in (*FIELDS, *(f"adaptive.{x}" for x in SIGNALS)):
+                assert np.array_equal(_cat(a, f), _cat(b, f)), (f, bounds)
+            for x, y in zip(a, b, strict=True):
+                assert x.r.shape == y.r.shape
+                for k in ("theta", "n_resets", "n_capped"):
+                    assert np.array_equal(getattr(x.adaptive, k), getattr(y.adaptive, k))
+            _same_state(sa, sb)
+
+
+def _same_state(sa: ReplayState, sb: ReplayState) -> None:
+    assert sa.carry == sb.carry and sa.n_samples == sb.n_samples
+    assert sa.evaluator.n_samples == sb.evaluator.n_samples == sa.n_samples
+    assert (sa.reference, sa.threshold_inputs) == (sb.reference, sb.threshold_inputs)
+    for k in ("theta", "P", "r_lags", "v_lags", "u_lags", "filters", "ring_r",
+              "ring_v", "sums", "n_resets", "n_capped"):
+        assert np.array_equal(getattr(sa.evaluator, k), getattr(sb.evaluator, k))

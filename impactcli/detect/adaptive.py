@@ -44,14 +44,14 @@ Sample rate (method.md §5b): orders are in samples; N1, N2 are durations conver
 log's rate (at least 1 sample); w1, w2 are clipped below 0.4 × fs with an ImpactWarning.
 
 Two implementations of the same equations: :func:`evaluate_chunk` / :func:`evaluate`
-(compiled per-axis kernel :func:`_evaluate_axis`) and :func:`evaluate_reference` (plain
-NumPy, obviously correct); tests compare them to 1e-9.
+(the compiled per-axis kernel of :mod:`impactcli.detect.axes`) and
+:func:`evaluate_reference` (plain NumPy, obviously correct); tests compare them to 1e-9.
 
 Chunks and state (architecture.md, "Streaming")
 -----------------------------------------------
 :func:`evaluate_chunk` ``(state, residual (n, J), inputs (m, n, J), fs, v_stat, cfg) ->
-(result, new_state)`` runs the compiled per-axis kernel :func:`_evaluate_axis` on one
-chunk; the kernel reads the state at the start and writes it back at the end (the state
+(result, new_state)`` runs the compiled per-axis kernel (:mod:`impactcli.detect.axes`)
+on one chunk; the kernel reads the state at the start and writes it back at the end (the state
 passed in is left as it was). :func:`evaluate`, the whole-log API, is ``evaluate_chunk``
 on the whole log as one chunk from :meth:`EvaluatorState.initial`: one implementation.
 :class:`EvaluatorState` holds exactly what the recursion carries from sample k0 − 1 to
@@ -94,7 +94,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-import numba as nb
 import numpy as np
 from scipy import signal
 
@@ -102,7 +101,8 @@ from ..causal import Carry
 from ..config import AdaptiveConfig
 from ..errors import ImpactWarning
 from ..types import RobotLog
-from .rls import FASTMATH, max_diag_of, rls_update_inplace
+from .axes import AxisJob, AxisRunner
+from .rls import max_diag_of
 
 #: Frequencies at which |G_hat| is reported [Hz] (plus fs/4 = Nyquist/2, added per log).
 GAIN_FREQUENCIES_HZ: tuple[float, ...] = (1.0, 2.0, 5.0, 10.0, 20.0)
@@ -388,198 +388,6 @@ class EvaluatorState:
 
 
 # ----------------------------------------------------------------------------- kernels
-@nb.njit(cache=True, nogil=True, fastmath=FASTMATH)
-def _evaluate_axis(
-    r: np.ndarray, u: np.ndarray, eta: int, p: int, rho: np.ndarray,
-    lam: float, p0: float, max_diag: float, a_post: bool,
-    a1: float, a2: float, n1: int, n2: int, v_stat_j: float,
-    rt: np.ndarray, vd: np.ndarray, rf: np.ndarray, vf: np.ndarray, rr: np.ndarray,
-    vr: np.ndarray, thr: np.ndarray, dec: np.ndarray, eps: np.ndarray,
-    th: np.ndarray, P_state: np.ndarray, r_lag: np.ndarray, v_lag: np.ndarray, u_lag: np.ndarray,
-    filt: np.ndarray, ring_r: np.ndarray, ring_v: np.ndarray, sums: np.ndarray,
-    pos1: int, pos2: int,
-) -> tuple[int, int]:
-    """One axis over one chunk: ``r`` (n,) is its residual, ``u`` (m, n, J) every axis's
-    inputs; the outputs are this axis's (n,) rows. The state (``th`` (nu,), ``P_state`` (nu, nu)
-    lower triangle, ``r_lag`` (eta,), ``v_lag`` (p,), ``filt`` (2,), ``ring_r`` (N1,),
-    ``ring_v`` (N2,), ``sums`` (2,)) is read at the start and written back at the end, in
-    place; ``u_lag`` (m, rho_max, J) is only read (shared by the axes; the caller advances
-    it); ``pos1``, ``pos2`` are the ring positions (samples so far mod N1, N2).
-
-    Axes are independent (eq. 34–35 per axis; only the inputs u are shared), so axes can
-    run on separate threads (the kernel releases the GIL). Returns the covariance resets
-    and the number of samples at which the wind-up guard scaled P, in this chunk.
-    """
-    n = r.shape[0]
-    J = u.shape[2]
-    m = u.shape[0]
-    L = u_lag.shape[1]
-    nu = th.shape[0]
-    # read the state into locals (a private P lets the compiler vectorise eq. 39 without
-    # alias checks); written back at the end
-    P = P_state.copy()
-    resets = 0
-    capped = 0
-    phi = np.zeros(nu)
-    h = np.empty(nu)
-    w = np.empty(nu)
-    th_old = np.empty(nu)
-    inv_n1 = 1.0 / n1
-    inv_n2 = 1.0 / n2
-    prev_r = filt[0]
-    prev_v = filt[1]
-    sum_r = sums[0]
-    sum_v = sums[1]
-    for k in range(n):
-        # regressor phi(k): past residuals, past v_dyn, and the inputs u_{i,l}(k-1..k-rho_i)
-        # of every type i and every axis l (Appendix A); before the chunk from the state
-        for d in range(1, eta + 1):
-            phi[d - 1] = r[k - d] if k - d >= 0 else r_lag[eta + k - d]
-        for d in range(1, p + 1):
-            phi[eta + d - 1] = vd[k - d] if k - d >= 0 else v_lag[p + k - d]
-        c = eta + p
-        for i in range(m):
-            for ll in range(J):
-                for d in range(1, rho[i] + 1):
-                    phi[c] = u[i, k - d, ll] if k - d >= 0 else u_lag[i, L + k - d, ll]
-                    c += 1
-        if not a_post:
-            for i in range(nu):
-                th_old[i] = th[i]
-        e, rs, cp = rls_update_inplace(th, P, phi, r[k], lam, max_diag, p0, h, w)
-        eps[k] = e
-        resets += rs
-        capped += cp
-        tv = th if a_post else th_old
-        g = 0.0
-        for i in range(eta):
-            g += phi[i] * tv[i]
-        v = 0.0
-        for i in range(eta, nu):
-            v += phi[i] * tv[i]
-        x = r[k] - g
-        rt[k] = x
-        vd[k] = v
-        # F1 / F2 (from rest)
-        prev_r = a1 * prev_r + (1.0 - a1) * x
-        prev_v = a2 * prev_v + (1.0 - a2) * v
-        rf[k] = prev_r
-        vf[k] = prev_v
-        # RMS over k-1..k-N (eq. 41): running sums of the last N squares (ring buffers,
-        # re-summed exactly at every wrap so rounding cannot accumulate)
-        sr = max(sum_r, 0.0)
-        sv = max(sum_v, 0.0)
-        q = prev_r * prev_r
-        sum_r += q - ring_r[pos1]
-        ring_r[pos1] = q
-        q = prev_v * prev_v
-        sum_v += q - ring_v[pos2]
-        ring_v[pos2] = q
-        a = np.sqrt(sr * inv_n1)
-        b = np.sqrt(sv * inv_n2)
-        rr[k] = a
-        vr[k] = b
-        t = abs(v_stat_j + b)
-        thr[k] = t
-        dec[k] = a > t
-        pos1 += 1
-        pos2 += 1
-        if pos1 == n1:
-            pos1 = 0
-            sum_r = np.sum(ring_r)
-        if pos2 == n2:
-            pos2 = 0
-            sum_v = np.sum(ring_v)
-    # write the state back: P, filters, sums, the last eta residuals / p values of v_dyn
-    P_state[:, :] = P
-    filt[0] = prev_r
-    filt[1] = prev_v
-    sums[0] = sum_r
-    sums[1] = sum_v
-    _shift_in(r_lag, r, n)
-    _shift_in(v_lag, vd, n)
-    return resets, capped
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def _shift_in(lag: np.ndarray, x: np.ndarray, n: int) -> None:
-    """lag <- the last len(lag) values of [lag, x[:n]] (oldest first)."""
-    L = lag.shape[0]
-    if n >= L:
-        for d in range(L):
-            lag[d] = x[n - L + d]
-    else:
-        for d in range(L - n):
-            lag[d] = lag[d + n]
-        for d in range(n):
-            lag[L - n + d] = x[d]
-
-
-def _run_axes(
-    st: EvaluatorState, r: np.ndarray, u: np.ndarray, v_stat: np.ndarray, threads: int = 1,
-    progress: Callable[[int, int], None] | None = None,
-    alongside: Callable[[], None] | None = None,
-) -> tuple[np.ndarray, ...]:
-    """All axes of one chunk with the compiled per-axis kernel, advancing ``st`` IN PLACE;
-    ``threads`` > 1 runs each axis on a thread of its own (axes cost the same: 7 axes on
-    2 workers ran 4 rounds where the cores can share 3.5), ``alongside`` on this thread.
-
-    Each axis works on contiguous (n,) rows, then its thread copies them into its column
-    of the (n, J) outputs (not the calling thread after all axes, one core idle)."""
-    n, J = r.shape
-    cfg, rates = st.cfg, st.rates
-    rho = np.asarray(cfg.rho, dtype=np.int64)
-    lam, p0 = float(cfg.forgetting_factor), float(cfg.p0)
-    max_diag = max_diag_of(st.nu, cfg.p0, cfg.max_trace)
-    a_post = cfg.estimate == "a_posteriori"
-    pos1, pos2 = st.n_samples % rates.n1, st.n_samples % rates.n2
-    rows = np.ascontiguousarray(r.T)
-    out: list[np.ndarray] = [np.empty((J, n), dtype=np.bool_ if i == 7 else np.float64)
-                             for i in range(9)]
-    rt, vd, rf, vf, rr, vr, thr, dec, eps = out
-    res = [np.empty((n, J), dtype=x.dtype) for x in out]
-
-    def axis(j: int) -> tuple[int, int]:
-        rs, cp = _evaluate_axis(
-            rows[j], u, cfg.eta, cfg.p, rho, lam, p0, max_diag, a_post, rates.a1, rates.a2,
-            rates.n1, rates.n2, float(v_stat[j]), rt[j], vd[j], rf[j], vf[j], rr[j], vr[j],
-            thr[j], dec[j], eps[j], st.theta[j], st.P[j], st.r_lags[j], st.v_lags[j],
-            st.u_lags, st.filters[j], st.ring_r[j], st.ring_v[j], st.sums[j], pos1, pos2)
-        for x, y in zip(res, out, strict=True):
-            x[:, j] = y[j]
-        return int(rs), int(cp)
-
-    done: list[tuple[int, int]] = []
-    if threads > 1 and J > 1:
-        from concurrent.futures import ThreadPoolExecutor
-
-        with ThreadPoolExecutor(max_workers=J) as ex:
-            futures = [ex.submit(axis, j) for j in range(J)]
-            if alongside is not None:
-                alongside()
-            for f in futures:
-                done.append(f.result())
-                if progress is not None:
-                    progress(len(done), J)
-    else:
-        if alongside is not None:
-            alongside()
-        for j in range(J):
-            done.append(axis(j))
-            if progress is not None:
-                progress(j + 1, J)
-    counts = np.array(done, dtype=np.int64).reshape(J, 2)
-    st.n_resets[:] += counts[:, 0]
-    st.n_capped[:] += counts[:, 1]
-    L = st.u_lags.shape[1]
-    if L and n:  # the shared input lags: the last rho_max samples of [u_lags, u]
-        if n >= L:
-            st.u_lags[:] = u[:, n - L:, :]
-        else:
-            st.u_lags[:] = np.concatenate([st.u_lags[:, n:, :], u], axis=1)
-    return tuple(res)
-
-
 def _check(r: np.ndarray, u: np.ndarray, v_stat: np.ndarray, cfg: AdaptiveConfig) -> None:
     if r.ndim != 2:
         raise ValueError(f"residual must be (N, J), got shape {r.shape}")
@@ -636,13 +444,20 @@ def evaluate_chunk(
     if r.shape[1] != state.n_joints:
         raise ValueError(f"{r.shape[1]} joints but the state has {state.n_joints}")
     st = state if _consume else state.copy()
-    rt, vd, rf, vf, rr, vr, thr, dec, eps = _run_axes(st, r, u, vs, threads, progress,
-                                                      alongside)
-    st = dataclasses.replace(st, n_samples=st.n_samples + r.shape[0])
-    res = AdaptiveResult(rt, vd, rf, vf, rr, vr, thr, dec, eps, st.theta.copy(),
-                         st.n_resets.copy(), rates=st.rates, nu=st.nu, eta=cfg.eta,
-                         n_capped=st.n_capped.copy())
-    return res, st
+    with AxisRunner(st, vs, threads) as runner:
+        job = runner.submit(r, u)
+        if alongside is not None:
+            alongside()
+        job.wait(progress)
+    return result_of(job, st), dataclasses.replace(st, n_samples=runner.n_samples)
+
+
+def result_of(job: AxisJob, state: EvaluatorState) -> AdaptiveResult:
+    """The :class:`AdaptiveResult` of a chunk the axes have done (:mod:`.axes`)."""
+    rt, vd, rf, vf, rr, vr, thr, dec, eps = job.out
+    return AdaptiveResult(rt, vd, rf, vf, rr, vr, thr, dec, eps, job.theta, job.resets,
+                          rates=state.rates, nu=state.nu, eta=state.cfg.eta,
+                          n_capped=job.capped)
 
 
 def join_chunks(results: Sequence[AdaptiveResult]) -> AdaptiveResult:
