@@ -29,7 +29,8 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-from scipy import signal
+
+from . import iir
 
 Start = Literal["steady", "rest"]
 
@@ -81,11 +82,11 @@ class Carry:
             order = max(len(a), len(b)) - 1
             shape = (order, *x.shape[1:])
             if start == "steady":
-                z0 = signal.lfilter_zi(b, a)
+                z0 = iir.lfilter_zi(b, a)
                 zi = z0.reshape((order,) + (1,) * (x.ndim - 1)) * x[:1]
             else:
                 zi = np.zeros(shape)
-        y, zf = signal.lfilter(b, a, x, axis=0, zi=zi)
+        y, zf = iir.lfilter(b, a, x, zi)
         self.state[name] = np.asarray(zf)
         return np.asarray(y)
 

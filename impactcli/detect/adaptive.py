@@ -95,11 +95,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy import signal
 
 from ..causal import Carry
 from ..config import AdaptiveConfig
 from ..errors import ImpactWarning
+from ..iir import butter_lowpass
 from ..types import RobotLog
 from .axes import AxisJob, AxisRunner
 from .rls import max_diag_of
@@ -173,7 +173,7 @@ class ThresholdInputs:
 
 
 def _butter(fc_hz: float, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
-    b, a = signal.butter(2, fc_hz / (0.5 * fs_hz))
+    b, a = butter_lowpass(2, fc_hz / (0.5 * fs_hz))
     return np.asarray(b), np.asarray(a)
 
 
@@ -559,6 +559,8 @@ def evaluate_reference(
             res["rt"][k, j] = r[k, j] - phi[:eta] @ tv[:eta]
             res["vd"][k, j] = phi[eta:] @ tv[eta:]
         thetas[j] = theta
+    from scipy import signal  # the reference only (tests)
+
     res["rf"] = signal.lfilter([1 - rates.a1], [1, -rates.a1], res["rt"], axis=0)
     res["vf"] = signal.lfilter([1 - rates.a2], [1, -rates.a2], res["vd"], axis=0)
     for name, src, nn in (("rr", "rf", rates.n1), ("vr", "vf", rates.n2)):

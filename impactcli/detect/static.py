@@ -17,9 +17,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal
 
 from ..causal import Carry
+from ..iir import butter_lowpass
 from .adaptive import clip_cutoff, lowpass_pole
 
 
@@ -49,7 +49,7 @@ def causal_lowpass(x: np.ndarray, cutoff_hz: float, fs_hz: float, order: int = 1
         a = lowpass_pole(fc, fs_hz)
         b_, a_ = np.array([1.0 - a]), np.array([1.0, -a])
     elif order == 2:
-        b_, a_ = signal.butter(2, fc / (0.5 * fs_hz))
+        b_, a_ = butter_lowpass(2, fc / (0.5 * fs_hz))
     else:
         raise ValueError(f"static-loading low-pass order must be 1 or 2, got {order}")
     return (carry if carry is not None else Carry()).lfilter("loading", b_, a_, x, "steady")

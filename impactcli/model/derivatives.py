@@ -25,10 +25,10 @@ import functools
 import warnings
 
 import numpy as np
-from scipy import signal
 
 from ..causal import Carry
 from ..errors import ImpactWarning, ModelError
+from ..iir import bilinear
 
 #: Largest cut-off allowed, as a fraction of the sample rate (method.md §5b).
 MAX_CUTOFF_FRACTION = 0.4
@@ -71,6 +71,8 @@ def zero_phase_lowpass(x: np.ndarray, fs_hz: float, cutoff_hz: float, order: int
     """
     a2, flat = _as_2d(x)
     wc = clip_cutoff(cutoff_hz, fs_hz, "identification cut-off")
+    from scipy import signal  # identification only (1.5 s to import)
+
     sos = signal.butter(order, wc, fs=fs_hz, output="sos")
     n = a2.shape[0]
     padlen = min(n - 1, 4 * 3 * (2 * len(sos) + 1))  # 4× scipy's default: calmer edges
@@ -124,7 +126,7 @@ def _svf_design(fs: float, wc: float) -> tuple[tuple[np.ndarray, np.ndarray], ..
     nums = [np.array([0.0, 0.0, w * w]), np.array([0.0, w * w, 0.0]), np.array([w * w, 0.0, 0.0])]
     out = []
     for num in nums:
-        b, a = signal.bilinear(num, den, fs=fs)
+        b, a = bilinear(num, den, fs)
         b, a = np.array(b, dtype=np.float64), np.array(a, dtype=np.float64)
         b.setflags(write=False)
         a.setflags(write=False)

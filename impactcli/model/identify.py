@@ -61,7 +61,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.linalg import qr
 
 from ..errors import ImpactWarning, ModelError, RobotDescriptionError
 from ..types import RobotDescription, RobotLog
@@ -449,6 +448,8 @@ def _fit(
     nk = 0
     piv = np.zeros(0, dtype=np.int64)
     if checked.size:
+        from scipy.linalg import qr  # identification only (0.3 s to import)
+
         # "raw": R is cut from the factorised matrix (mode "r" copies all of it into triu)
         _, r, piv = qr(an, mode="raw", pivoting=True, overwrite_a=True)
         d = np.abs(np.diag(r))

@@ -31,7 +31,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy import signal
 
 from . import structures
 from .derivatives import zero_phase_lowpass
@@ -47,6 +46,8 @@ DECAY = 1e-20
 def decay_margin(fs: float, cutoff: float, order: int) -> int:
     """Samples after which the zero-phase Butterworth's slowest pole has decayed below
     :data:`DECAY` (a window's margin on each side)."""
+    from scipy import signal  # identification only (1.5 s to import)
+
     _, p, _ = signal.butter(order, cutoff, fs=fs, output="zpk")
     rho = float(np.max(np.abs(p)))
     return max(8, int(np.ceil(np.log(DECAY) / np.log(rho)))) if rho > 0 else 8

@@ -50,7 +50,6 @@ from typing import Any
 
 import numba as nb
 import numpy as np
-from scipy.linalg import qr
 
 from ..errors import ModelError, RobotDescriptionError
 
@@ -473,6 +472,8 @@ def urdf_base_columns(
     y = urdf_full_regressor(q, qd, qdd, joints, structure).reshape(n_states * n, -1)
     norms = np.linalg.norm(y, axis=0)
     nz = np.flatnonzero(norms > 1e-10 * norms.max())
+    from scipy.linalg import qr  # identification only (0.3 s to import)
+
     _, r, piv = qr(y[:, nz] / norms[nz], mode="economic", pivoting=True)
     d = np.abs(np.diag(r))
     rank = int(np.sum(d > 1e-8 * d[0]))
