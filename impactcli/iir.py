@@ -164,8 +164,8 @@ def _df2t(b: np.ndarray, a: np.ndarray, x: np.ndarray, z: np.ndarray, y: np.ndar
     """y (n, C) = x (n, C) filtered column by column; z (order, C) the delays, updated."""
     n, c = x.shape
     nb_ = b.shape[0]
-    for col in range(c):
-        for k in range(n):
+    for k in range(n):  # row by row (the columns are independent): memory order
+        for col in range(c):
             xn = x[k, col]
             if nb_ > 1:
                 yn = z[0, col] + b[0] * xn

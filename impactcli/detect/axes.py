@@ -175,11 +175,14 @@ class AxisJob:
     futures: list[Future[None]] = dataclasses.field(default_factory=list)
 
     def wait(self, progress: Callable[[int, int], None] | None = None) -> None:
-        """Until every axis has done this chunk (``progress(axes done, J)`` after each)."""
-        for i, f in enumerate(self.futures):
-            f.result()
+        """Until every axis has done this chunk (``progress(axes done, J)`` after each;
+        axes run at submission have all done)."""
+        axes = self.theta.shape[0]
+        for i in range(axes):
+            if self.futures:
+                self.futures[i].result()
             if progress is not None:
-                progress(i + 1, len(self.futures))
+                progress(i + 1, axes)
 
 
 class AxisRunner:

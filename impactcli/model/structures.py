@@ -99,6 +99,35 @@ def decoupled_regressor(
     return y
 
 
+def decoupled_predict(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+                      structure: dict[str, Any], theta: np.ndarray) -> np.ndarray:
+    """(N, J) ``rowdot`` of :func:`decoupled_regressor` with theta, the same bits, without
+    forming the (N, J, J·p) block-diagonal regressor (J times the work, nearly all zeros:
+    each row's sum over the zero columns adds only signed zeros, reproduced where the sum
+    is zero)."""
+    per = np.concatenate(
+        [np.stack([qdd, np.cos(q), np.sin(q)], axis=-1), _friction_block(qd, structure)], axis=-1
+    )  # (N, J, p): the regressor's nonzero entries
+    return _block_dot(np.ascontiguousarray(per), np.ascontiguousarray(theta, dtype=np.float64))
+
+
+@nb.njit(cache=True, nogil=True)
+def _block_dot(per: np.ndarray, x: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    """out[r, j] = sum_i per[r, j, i] x[j p + i], as :func:`_rowdot` sums the full row."""
+    n, nj, p = per.shape
+    out = np.empty((n, nj))
+    for r in range(n):
+        for j in range(nj):
+            acc = 0.0  # the zeros before the block add +0 (round to nearest)
+            for i in range(p):
+                acc += per[r, j, i] * x[j * p + i]
+            if acc == 0.0:  # then the zeros after the block may flip its sign
+                for k in range((j + 1) * p, nj * p):
+                    acc += 0.0 * x[k]
+            out[r, j] = acc
+    return out
+
+
 # ---------------------------------------------------------------- coupled
 def _pairs(nj: int) -> list[tuple[int, int]]:
     return [(k, m) for k in range(nj) for m in range(k, nj)]
@@ -547,13 +576,15 @@ def predict(
     q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, theta: np.ndarray,
 ) -> np.ndarray:
     """(N, J) model torque Y(q, q', q'') theta [N·m] (``coupled`` without forming Y)."""
-    if kind == "coupled":
+    if kind in ("coupled", "decoupled"):
         q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=np.float64)) for x in (q, qd, qdd))
         if not q.shape == qd.shape == qdd.shape or q.shape[1] != len(joints):
             raise ModelError(
                 f"q, qd, qdd must all be (N, {len(joints)}), got {q.shape}, {qd.shape}, "
                 f"{qdd.shape}"
             )
+        if kind == "decoupled":
+            return decoupled_predict(q, qd, qdd, structure, theta)
         return coupled_predict(q, qd, qdd, structure, theta)
     y = regressor(kind, joints, structure, q, qd, qdd)
     n, nj, p = y.shape
