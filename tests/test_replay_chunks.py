@@ -166,14 +166,19 @@ def test_warmup_tracker_equals_whole_log(sizes: list[int]) -> None:
 @pytest.mark.parametrize("m", [1, 2, 7, 1000, 250_001])
 def test_spilled_median_is_numpys(m: int, monkeypatch: pytest.MonkeyPatch) -> None:
     """The warm-up level's median read back from its spill file in bounded memory equals
-    np.median exactly (values narrowed by value bins: ties, a constant column)."""
+    np.median exactly (values narrowed by value bins: ties, a constant column, values over
+    600 decades, subnormals, adjacent floats, heavy tails)."""
     import tempfile
 
     from impactcli.detect import warmup
 
     monkeypatch.setattr(warmup, "SELECT_IN_MEMORY", 1000)
     rng = np.random.default_rng(m)
-    for x in (rng.normal(size=m), rng.integers(0, 5, m).astype(float), np.full(m, 2.5)):
+    wide = rng.normal(size=m) * 10.0 ** rng.integers(-300, 300, m)  # bins of every scale
+    tiny = rng.uniform(0, 1, m) * 5e-324 * rng.integers(1, 4, m)    # subnormals, zeros
+    near = 1.0 + rng.integers(0, 3, m) * np.finfo(float).eps         # adjacent floats
+    for x in (rng.normal(size=m), rng.integers(0, 5, m).astype(float), np.full(m, 2.5),
+              wide, tiny, near, np.abs(rng.standard_cauchy(m))):
         with tempfile.TemporaryFile() as f:
             f.write(x.tobytes())
             f.flush()
