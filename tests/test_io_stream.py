@@ -16,7 +16,7 @@ import pytest
 
 from impactcli.detect.screen import unusable_columns
 from impactcli.errors import ImpactWarning, LogFormatError
-from impactcli.io import read_log, stream, stream_cache, write_log
+from impactcli.io import read_log, stream, stream_cache, stream_csv, write_log
 from impactcli.io.inspect import time_gaps
 from impactcli.io.stream import OPTIONAL, LogScan, iter_chunks, scan_log
 from impactcli.types import JointSpec, RobotDescription
@@ -28,7 +28,7 @@ N = 3000
 @pytest.fixture(autouse=True)
 def _small_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
     """Many record batches per file: runs and duplicates fall across their boundaries."""
-    monkeypatch.setattr(stream, "BLOCK_SIZE", 4096)
+    monkeypatch.setattr(stream_csv, "BLOCK_SIZE", 4096)
 
 
 def _table(n: int = N, seed: int = 0, epoch: bool = False) -> dict[str, list[str]]:
@@ -144,12 +144,12 @@ def test_epoch_times_and_the_default_block_size(tmp_path: Path,
                                                 monkeypatch: pytest.MonkeyPatch) -> None:
     path = _write(tmp_path / "epoch.csv", _table(epoch=True))
     _assert_same(path, chunks=(7, 65536))
-    monkeypatch.setattr(stream, "BLOCK_SIZE", 1 << 24)
+    monkeypatch.setattr(stream_csv, "BLOCK_SIZE", 1 << 24)
     _assert_same(path, chunks=(1000,))
 
 
 def test_the_shipped_sample_logs(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(stream, "BLOCK_SIZE", 1 << 16)
+    monkeypatch.setattr(stream_csv, "BLOCK_SIZE", 1 << 16)
     root = Path(__file__).resolve().parents[1] / "sample_logs" / "csv"
     for name in ("assist_impacts", "heavy_free_p2p"):
         _assert_same(root / f"{name}.csv.gz", chunks=(1000, 65536))
@@ -356,11 +356,12 @@ def test_repair_order_and_variants_fall_back_to_read_log(tmp_path: Path) -> None
     _assert_same(bom, streamed=False, chunks=(1000,))
 
 
-def test_other_formats_are_sliced(tmp_path: Path) -> None:
+def test_message_logs_stream_too(tmp_path: Path) -> None:
+    """MCAP and bags stream (tests/test_stream_formats.py has the cases)."""
     log, _ = _read(_write(tmp_path / "a.csv", _table()))
-    for name in ("a.mcap", "a.db3"):
+    for name in ("a.mcap", "a.db3", "a.bag"):
         write_log(log, tmp_path / name)
-        _assert_same(tmp_path / name, streamed=False, chunks=(7, 1000))
+        _assert_same(tmp_path / name, chunks=(7, 1000))
 
 
 def test_the_fast_decimal_time_is_decimal_text_to_ns() -> None:
