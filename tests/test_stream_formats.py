@@ -15,7 +15,8 @@ import pytest
 
 from impactcli.errors import ImpactWarning, LogFormatError
 from impactcli.io import read_log, stream_npz, write_log
-from impactcli.io.mcap_ros2 import JOINT_STATE, JOINT_STATE_DEF, encode_jointstates
+from impactcli.io.mcap_log import ros2_writer
+from impactcli.io.mcap_ros2 import encode_jointstates
 from impactcli.io.stream import iter_chunks, scan_log
 from impactcli.types import LogSource, RobotLog
 
@@ -41,13 +42,8 @@ def _signals(n: int = N, seed: int = 0) -> tuple[np.ndarray, dict[str, np.ndarra
 def _write_ros2(path: Path, msgs: list[tuple[str, int, bytes]], chunk_size: int = 4096) -> Path:
     """An MCAP of CDR JointState messages ``(topic, log time, bytes)`` in this file order
     (small chunks: the state and its companions fall across many)."""
-    from mcap.writer import CompressionType, Writer
-
     with open(path, "wb") as f:
-        w = Writer(f, compression=CompressionType.ZSTD, chunk_size=chunk_size)
-        w.start(profile="ros2", library="test")
-        sid = w.register_schema(name=JOINT_STATE, encoding="ros2msg",
-                                data=JOINT_STATE_DEF.encode())
+        w, sid = ros2_writer(f, chunk_size)
         cids: dict[str, int] = {}
         for k, (topic, lt, data) in enumerate(msgs):
             if topic not in cids:

@@ -132,15 +132,9 @@ class BagBlocks:
 
 
 def _bag_block(rows: list[tuple[str, int, int, bytes]]) -> Block:
-    """Bag messages ``(topic, index, time, bytes)`` as one batch per topic (as
-    :meth:`~impactcli.io.bags.BagSource.load` makes them)."""
-    out: Block = {}
-    for topic in dict.fromkeys(r[0] for r in rows):
-        rs = [r for r in rows if r[0] == topic]
-        lens = np.array([len(r[3]) for r in rs], dtype=np.int64)
-        offs = np.concatenate(([0], np.cumsum(lens)[:-1])).astype(np.int64)
-        times = np.array([r[2] for r in rs], dtype=np.int64)
-        buf = np.frombuffer(b"".join(r[3] for r in rs), dtype=np.uint8)
-        out[topic] = [Batch(buf, offs, lens, times, times.copy(),
-                            np.array([r[1] for r in rs], dtype=np.int64))]
-    return out
+    """Bag messages ``(topic, index, time, bytes)`` as one batch per topic
+    (:func:`~impactcli.io.bags.bag_batch`)."""
+    from .bags import bag_batch
+
+    return {topic: [bag_batch([r[1:] for r in rows if r[0] == topic])]
+            for topic in dict.fromkeys(r[0] for r in rows)}

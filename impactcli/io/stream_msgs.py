@@ -38,6 +38,7 @@ import numpy as np
 
 from ..errors import ImpactError
 from .assemble import JointChannels
+from .messages import joint_signals
 from .stream_blocks import BagBlocks, McapBlocks
 from .stream_layout import StreamLayout, _Raw, plan_of
 from .stream_repair import _NotStreamable
@@ -76,7 +77,7 @@ class _TopicStats:
         self.all_joints &= bool(arr.has_joints.all())
         self.extra |= arr.extra_names
         self.seen |= arr.joint_seen
-        for s, h in _has(arr).items():
+        for s, h in joint_signals(arr)[1].items():
             self.has_all[s] = self.has_all.get(s, True) and bool(h.all())
             self.has_any[s] = self.has_any.get(s, False) or bool(h.any())
         self.header_nonzero &= bool(np.all(arr.header != 0))
@@ -88,25 +89,8 @@ class _TopicStats:
             self.last[src] = int(t[-1])
 
 
-def _has(arr: Any) -> dict[str, np.ndarray]:
-    """Signal → (n,) whether each message fills it."""
-    extra = getattr(arr, "json_extra", None)
-    if extra is not None:
-        return dict(extra[1])
-    return {"position": arr.has_position, "velocity": arr.has_velocity,
-            "torque": arr.has_effort}
-
-
-def _values(arr: Any) -> dict[str, np.ndarray]:
-    """Signal → (n, J) values of decoded messages."""
-    extra = getattr(arr, "json_extra", None)
-    if extra is not None:
-        return dict(extra[0])
-    return {"position": arr.position, "velocity": arr.velocity, "torque": arr.effort}
-
-
 @dataclass
-class _Held:
+class _Companion:
     """A companion topic: its columns ``(signal, joint, array name)`` and time source."""
 
     topic: str
@@ -130,7 +114,7 @@ class MessageLayout(StreamLayout):
         self.state = ""
         self.kind = ""
         self.state_cols: list[tuple[str, int]] = []
-        self.held: list[_Held] = []
+        self.held: list[_Companion] = []
         self.ignored: list[str] = []
 
     def label(self, i: int) -> str:
@@ -138,20 +122,13 @@ class MessageLayout(StreamLayout):
 
     def channels(self, t: np.ndarray, mat: np.ndarray) -> JointChannels:
         """As :func:`impactcli.io.messages._assemble` stacks the repaired columns."""
-        jn = len(self.joints)
-        signals: dict[str, np.ndarray] = {}
-        have: dict[str, set[int]] = {}
+        from .messages import stack_columns
+
         cols = self.state_cols + [(s, j) for h in self.held for s, j, _ in h.cols]
-        for c, (s, j) in enumerate(cols):
-            if s not in signals:
-                signals[s] = np.full((t.shape[0], jn), np.nan)
-            signals[s][:, j] = mat[:, c]
-            have.setdefault(s, set()).add(j)
-        missing = {s: [self.joints[j] for j in range(jn) if j not in have[s]]
-                   for s in signals}
-        return JointChannels(t_ns=t, joints=self.joints, signals=signals,
-                             missing={s: m for s, m in missing.items() if m},
-                             current_scale=np.full(jn, np.nan), ignored=list(self.ignored))
+        signals, missing = stack_columns(mat, cols, self.joints)
+        return JointChannels(t_ns=t, joints=self.joints, signals=signals, missing=missing,
+                             current_scale=np.full(len(self.joints), np.nan),
+                             ignored=list(self.ignored))
 
     def pre_repairs(self) -> list[str]:
         out = list(self.truncated)
@@ -172,7 +149,7 @@ class MessageLayout(StreamLayout):
             for block in self.reader.blocks(want):
                 if self.state in block:
                     arr = _decode(self.src, self.state, self.kind, block[self.state], self.joints)
-                    vals = _values(arr)
+                    vals = joint_signals(arr)[0]
                     merge.add_state(_time(arr, self.time_source),
                                     _stack([vals[s][:, j] for s, j in self.state_cols]))
                 for k, h in enumerate(self.held):
@@ -323,15 +300,14 @@ def _decode(src: Any, topic: str, kind: str, batches: list[Any],
     return arr
 
 
-def _time_source(st: _TopicStats, given: str | None) -> str:
-    """The state's time source (:func:`impactcli.io.messages._state_time`)."""
-    if given is None:
-        return "header" if st.header_nonzero else "log"
-    if given == "header" and not st.header_nonzero:
-        raise _NotStreamable("a zero header stamp")
-    if given not in _TIMES:
-        raise _NotStreamable("unknown time source")
-    return given
+def _time_source(st: _TopicStats, given: str | None, where: str, topic: str) -> str:
+    """The state's time source (:func:`impactcli.io.messages.choose_time_source`)."""
+    from .messages import choose_time_source
+
+    try:
+        return choose_time_source(given, True, None if st.header_nonzero else 0, where, topic)
+    except ImpactError as err:
+        raise _NotStreamable(str(err)) from err
 
 
 def _decide(lay: MessageLayout, stats: dict[str, _TopicStats], options: dict[str, Any]
@@ -366,7 +342,7 @@ def _decide(lay: MessageLayout, stats: dict[str, _TopicStats], options: dict[str
         raise _NotStreamable("no positions")
     lay.state_cols = [(s, c) for s in used for c in range(jn)]
     ignored += [f"{state}:{nm}" for nm in sorted(st.extra)]
-    lay.time_source = _time_source(st, options.get("time_source"))
+    lay.time_source = _time_source(st, options.get("time_source"), where, state)
     if not st.ordered[lay.time_source]:
         raise _NotStreamable("state stamps out of order (the whole-file reader sorts them)")
     for t, role, k in _companions(topics, state, kind, options.get("reference_topic")):
@@ -388,7 +364,7 @@ def _decide(lay: MessageLayout, stats: dict[str, _TopicStats], options: dict[str
                 "publish" if lay.time_source == "publish" else "log")
         if not hs.ordered[hsrc]:
             raise _NotStreamable(f"companion {t!r}: stamps out of order")
-        lay.held.append(_Held(t, role, k, hsrc, cols, hs.n))
+        lay.held.append(_Companion(t, role, k, hsrc, cols, hs.n))
     used_topics = {state} | {h.topic for h in lay.held}
     lay.ignored = [x for x in sorted(topics) if x not in used_topics] + ignored
     cols_all = lay.state_cols + [(s, j) for h in lay.held for s, j, _ in h.cols]
