@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from impactcli.errors import ImpactWarning, LogFormatError
+from impactcli.errors import ChannelMapError, ImpactWarning, LogFormatError
 from impactcli.io import read_log, stream_npz, write_log
 from impactcli.io.mcap_log import ros2_writer
 from impactcli.io.mcap_ros2 import encode_jointstates
@@ -209,6 +209,85 @@ def test_bad_message_logs_fail_as_read_log_does(tmp_path: Path) -> None:
     v2["torque"][300:310, 1] = np.nan  # a run of 10: an error, named as read_log names it
     path = _write_ros2(tmp_path / "run.mcap", _topics(t2, v2))
     assert "run of 10 non-finite" in _error(path)
+
+
+# ------------------------------------------------------------- MCAP through channel maps
+def test_a_custom_state_message_through_a_map(tmp_path: Path) -> None:
+    from .test_io_fields import (
+        ARM,
+        ARM_DEF,
+        arm_map,
+        arm_messages,
+        fixture_log,
+        store_with,
+        write_mcap,
+    )
+
+    log = fixture_log(n=700, acc_ref=True)
+    store = store_with((ARM, ARM_DEF))
+    p = tmp_path / "arm.mcap"  # the log time lags the header stamp
+    write_mcap(p, [("/arm/state", ARM, "ros2msg", "cdr",
+                    [(t + 700_000, t + 600_000, m) for t, m in
+                     zip(log.t_ns.tolist(), arm_messages(store, log), strict=True)])])
+    cmap = arm_map(tmp_path / "arm.yaml")
+    for tsrc in (None, "log", "publish"):
+        opts = {} if tsrc is None else {"time_source": tsrc}
+        scan = _assert_same(p, chunks=(1, 7, 1000), channel_map=cmap, **opts)
+    assert scan.source.format == "mcap-ros2"
+    bad = tmp_path / "bad.yaml"  # a field the message does not have: the map's error
+    bad.write_text("format: messages\njoints:\n  - {name: shoulder, position: /arm/state/nope}\n")
+    with pytest.raises(ChannelMapError) as whole:
+        read_log(p, channel_map=bad)
+    with pytest.raises(ChannelMapError) as scanned:
+        scan_log(p, channel_map=bad)
+    assert str(scanned.value) == str(whole.value)
+
+
+def test_maps_over_jointstate_and_other_topics(tmp_path: Path) -> None:
+    from .test_io_fields import JOINTS as FJ
+    from .test_io_fields import _two_topics, fixture_log
+
+    p = _two_topics(tmp_path, ["wrist", "gripper", "elbow_joint", "shoulder"])[0]
+    m = tmp_path / "ext.yaml"
+    m.write_text(
+        "format: messages\njoints:\n"
+        "  - {name: shoulder, torque_ext: {field: /external_torque/effort}}\n"
+        "  - {name: elbow, torque_ext: {field: /external_torque/effort, joint: elbow_joint,"
+        " scale: -2.0, offset: 0.5}}\n"
+        "  - {name: wrist, torque_ext: {field: /external_torque/effort}}\n")
+    for tsrc in (None, "log"):
+        opts = {} if tsrc is None else {"time_source": tsrc}
+        _assert_same(p, chunks=(1, 7, 1000), channel_map=m, **opts)
+    log = fixture_log(n=300)  # a map signal replaces the companion topic's
+    write_log(log, tmp_path / "s.mcap", mcap_encoding="ros2")
+    m2 = tmp_path / "m2.yaml"
+    m2.write_text("format: messages\njoints:\n" + "".join(
+        f"  - {{name: {j}, velocity_ref: {{field: /joint_states/velocity}}, "
+        f"torque_ext: {{field: /joint_states_model/effort, scale: -1}}}}\n" for j in FJ[::-1]))
+    scan = _assert_same(tmp_path / "s.mcap", chunks=(7, 1000), channel_map=m2)
+    assert scan.source.ignored_channels == ("/joint_states_ext",)
+
+
+def test_a_map_over_json_messages(tmp_path: Path) -> None:
+    from .test_io_fields import JOINT_STATE as JS
+    from .test_io_fields import JOINTS as FJ
+    from .test_io_fields import fixture_log, jointstates, write_mcap
+
+    log = fixture_log(n=400)
+    rows = [(ti, ti, json.dumps({"stamp_ns": ti, "ext": log.torque_ext[i].tolist(),
+                                 "model": {"name": list(FJ[::-1]),
+                                           "effort": log.torque_model[i, ::-1].tolist()}}
+                                ).replace("NaN", "null").encode())
+            for i, ti in enumerate(log.t_ns.tolist())]
+    p = tmp_path / "j.mcap"
+    write_mcap(p, [("/joint_states", JS, "ros2msg", "cdr",
+                    jointstates(log.t_ns, list(FJ), log.position, log.torque)),
+                   ("/controller", "my/Controller", "jsonschema", "json", rows)])
+    m = tmp_path / "m.yaml"
+    m.write_text("format: messages\njoints:\n" + "".join(
+        f"  - {{name: {j}, torque_ext: '/controller/ext[{k}]', "
+        f"torque_model: {{field: /controller/model/effort}}}}\n" for k, j in enumerate(FJ)))
+    _assert_same(p, chunks=(1, 1000), channel_map=m)
 
 
 # ------------------------------------------------------------------------------- bags

@@ -30,11 +30,13 @@ formats:
   pyarrow in ranges of about :data:`BLOCK_SIZE` = 1 MiB, on threads at most 4 ahead of the
   scan (:mod:`impactcli.io.stream_csv`, :mod:`impactcli.io.stream_parse`);
 - MCAP (ROS 2 JointState with its ``_ref``/``_model``/``_ext`` companions, impactcli's JSON
-  joint samples) and ROS bags (rosbag2 ``.db3`` files and folders, ROS 1 ``.bag``): one
-  MCAP chunk (or 8192 bag messages) at a time, in two passes — the first decodes and counts
-  (the state topic, its signals, the time source, each topic's stamps), the second merges
-  the companions by causal sample-and-hold (:mod:`impactcli.io.stream_msgs`,
-  :mod:`impactcli.io.stream_blocks`); a truncated MCAP as the whole reader reads it;
+  joint samples, any message type through a ``format: messages`` channel map) and ROS bags
+  (rosbag2 ``.db3`` files and folders, ROS 1 ``.bag``): one MCAP chunk (or 8192 bag
+  messages) at a time, in two passes — the first decodes and counts (the state topic, its
+  signals, the time source, each topic's stamps), the second merges the companion and map
+  topics by causal sample-and-hold (:mod:`impactcli.io.stream_msgs`,
+  :mod:`impactcli.io.stream_msgs_plan`, :mod:`impactcli.io.stream_blocks`); a truncated
+  MCAP as the whole reader reads it;
 - ``.npz`` through a ``format: npz`` map: each ``.npy`` member read 65536 rows at a time,
   deflated members too (:mod:`impactcli.io.stream_npz`);
 - any of these named by URL (``file://``, or fsspec: ``s3://``, ``memory://``...): the
@@ -54,11 +56,12 @@ interpreter's exit deletes it. Without the cache (a full disk) each pass reads t
 Not streamed (``LogScan.streamed`` False; the scan reads the whole log with
 :func:`read_log` and the chunks are slices of it, memory NOT bounded): CSV variants (a
 UTF-8 byte-order mark, a decimal comma, ISO-8601 or non-decimal time text, empty or
-non-numeric time cells, a value column that is not numeric); message logs read through a
-channel map (``format: messages``), whose state stamps (or a companion's) are out of order
-in the file (the whole reader sorts them), whose topics change their joint names between
-messages, with ROS 1 JointState inside MCAP, an MCAP compression the scanner does not know,
-or a companion more than 200 000 samples ahead or behind the state in the file;
+non-numeric time cells, a value column that is not numeric); message logs whose state
+stamps (or a held topic's) are out of order in the file (the whole reader sorts them),
+whose companion topics change their joint names between messages, with ROS 1 JointState
+inside MCAP, an MCAP compression the scanner does not know, a channel map on an MCAP
+without a summary section (a truncated one), or a held topic more than 200 000 messages
+ahead or behind the state in the file;
 ``--repair-order`` on a file with rows out of time order; and any file the whole-file
 reader refuses for a reason the stream does not check itself (the whole-file reader then
 raises its own error: a bad file, a topic it cannot choose, an array of the wrong shape...).

@@ -50,6 +50,36 @@ class McapBlocks:
         self.path, self.where = path, where
         self.scan = McapScan()
 
+    def summary(self) -> McapScan:
+        """The schemas and channels of the file's summary section (read from its end,
+        without the messages).
+
+        Raises:
+            _NotStreamable: no footer or no summary (a truncated file, a writer that
+                leaves it out): their channels are known after a pass only.
+        """
+        from .mcap_scan import _Collector
+
+        scan = McapScan()
+        try:
+            with open(self.path, "rb") as f:
+                f.seek(0, 2)
+                size = f.tell()
+                if size < 8 + 37:
+                    raise _NotStreamable("no footer")
+                f.seek(size - 37)
+                tail = f.read(37)
+                op, _, start = struct.unpack_from("<BQQ", tail)
+                if tail[29:] != MAGIC or op != OP_FOOTER or not 8 <= start < size - 37:
+                    raise _NotStreamable("no summary section")
+                f.seek(start)
+                buf = f.read(size - 37 - start)
+            _Collector(scan).walk(buf, np.frombuffer(buf, dtype=np.uint8), 0, len(buf),
+                                  self.where, inside_chunk=False)
+        except (OSError, LogFormatError, ValueError, struct.error) as err:
+            raise _NotStreamable(str(err)) from err
+        return scan
+
     def blocks(self, topics: Collection[str] | None = None) -> Iterator[Block]:
         """The blocks of the messages of ``topics`` (None: every topic)."""
         from .mcap_scan import _Collector

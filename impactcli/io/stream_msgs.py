@@ -1,30 +1,36 @@
-"""MCAP logs and ROS bags streamed (:mod:`impactcli.io.stream`): the JointState / JSON
-JointSample path of :mod:`impactcli.io.messages`, block by block.
+"""MCAP logs and ROS bags streamed (:mod:`impactcli.io.stream`): the path of
+:mod:`impactcli.io.messages` — JointState or JSON JointSample state topics with their
+companions, and any message type through a ``format: messages`` channel map — block by
+block.
 
 Two passes over the file, a block (an MCAP chunk, :mod:`impactcli.io.stream_blocks`) at a
 time:
 
-1. :func:`message_layout` — every joint topic's messages are decoded block by block and
-   only counted (:class:`_TopicStats`: messages, joint names, which arrays every message
-   fills, whether every header stamp is non-zero, whether each time source is in order);
-   from those, the whole-file reader's decisions: the state topic, its signals, the
-   companion topics ``_ref``/``_model``/``_ext`` and their columns, the ignored channels,
+1. :func:`message_layout` — every joint topic's messages are decoded block by block, the
+   map's fields read, and only counted (:class:`_TopicStats`: messages, joint names, which
+   arrays every message fills, whether every header stamp is non-zero, whether each time
+   source is in order); from those counts :mod:`impactcli.io.stream_msgs_plan` takes the
+   whole-file reader's decisions: the state topic, its joints and signals, the companion
+   (``_ref``/``_model``/``_ext``) and map topics and their columns, the ignored channels,
    the time source (header when every state stamp is non-zero, else log time) and each
-   companion's stamps.
-2. :meth:`MessageLayout.raw_batches` — the state topic and its companions decoded again,
-   block by block, and merged by causal sample-and-hold: a state sample is given out once
-   every companion has either ended or shown a message stamped after it (a bounded
-   look-ahead, :data:`MAX_LOOKAHEAD` samples, when stamps and file order disagree); the
-   state samples before a companion's first message are dropped (the warned repair).
-   The rows then go through the scan's repairs, cache and statistics like a CSV's.
+   held topic's stamps. With a channel map the MCAP's topics are first read from its
+   summary section (the map is checked against them, as the whole reader does).
+2. :meth:`MessageLayout.raw_batches` — the state topic and the held topics decoded again,
+   block by block, and merged by causal sample-and-hold (:class:`_Merge`): a state
+   sample is given out once every held topic has either ended or shown a message stamped
+   after it (a look-ahead of at most :data:`MAX_LOOKAHEAD` messages when stamps and file
+   order disagree); the state samples before a held topic's first message are dropped
+   (the warned repair). The rows then go through the scan's repairs, cache and
+   statistics as a CSV's do.
 
-Not streamed (``_NotStreamable``: the whole-file reader reads the log): a channel map;
-state stamps out of order in the file (the whole reader sorts them) or a companion's;
-joint names that change between a topic's messages (beyond extra names on the state
-topic) or between the JSON samples of two chunks; ROS 1 JointState inside MCAP; a look-ahead
-beyond :data:`MAX_LOOKAHEAD`; and anything the whole-file reader refuses (then it raises
-its own error): a bad file, a topic it cannot choose or decode, a zero stamp with
-``--time-source header``, messages lacking joints or arrays.
+Not streamed (``_NotStreamable``: the whole-file reader reads the log): state stamps out
+of order in the file (the whole reader sorts them) or a held topic's; companion topics
+whose messages name different joints, or a state topic whose messages lack some of its
+first message's joints; JSON samples whose joints change between chunks; ROS 1 JointState
+inside MCAP; a channel map on an MCAP without a summary section; a look-ahead beyond
+:data:`MAX_LOOKAHEAD`; and anything the whole-file reader refuses (then it raises its own
+error): a bad file, a topic it cannot choose or decode, a zero stamp with
+``--time-source header``, messages lacking joints or arrays, a map that does not fit.
 """
 
 from __future__ import annotations
@@ -40,7 +46,7 @@ from ..errors import ImpactError
 from .assemble import JointChannels
 from .messages import joint_signals
 from .stream_blocks import BagBlocks, McapBlocks
-from .stream_layout import StreamLayout, _Raw, plan_of
+from .stream_layout import StreamLayout, _Raw
 from .stream_repair import _NotStreamable
 
 #: State samples held back at most while waiting for a companion's later messages.
@@ -50,55 +56,74 @@ _TIMES = ("log", "publish", "header")
 
 @dataclass
 class _TopicStats:
-    """What the first pass counts of one joint topic (module docstring)."""
+    """What the first pass counts of one topic (module docstring): its messages' times
+    and, for a joint topic, its joint names and the arrays its messages fill."""
 
     kind: str
     n: int = 0
-    joints: tuple[str, ...] | None = None
-    all_joints: bool = True  # every message names every joint of ``joints``
-    extra: set[str] = field(default_factory=set)
-    seen: np.ndarray | None = None
-    has_all: dict[str, bool] = field(default_factory=dict)
-    has_any: dict[str, bool] = field(default_factory=dict)
+    has_header: bool | None = None  # its messages carry a header stamp
     header_nonzero: bool = True
     first: dict[str, int] = field(default_factory=dict)  # time source → first stamp
     last: dict[str, int] = field(default_factory=dict)
     ordered: dict[str, bool] = field(default_factory=lambda: dict.fromkeys(_TIMES, True))
+    joints: tuple[str, ...] | None = None
+    all_joints: bool = True  # every message names every joint of ``joints``
+    extra: set[str] = field(default_factory=set)
+    has_all: dict[str, bool] = field(default_factory=dict)
+    has_any: dict[str, bool] = field(default_factory=dict)
 
-    def add(self, arr: Any) -> None:
-        """Count one block's decoded messages (:class:`~impactcli.io.mcap_ros2.TopicArrays`)."""
-        if self.joints is None:
-            self.joints = arr.joints
-            self.seen = np.zeros(len(arr.joints), dtype=bool)
-        elif arr.joints != self.joints:
-            raise _NotStreamable("joint names differ between blocks")
-        assert self.seen is not None
-        self.n += arr.log_time.shape[0]
-        self.all_joints &= bool(arr.has_joints.all())
-        self.extra |= arr.extra_names
-        self.seen |= arr.joint_seen
-        for s, h in joint_signals(arr)[1].items():
-            self.has_all[s] = self.has_all.get(s, True) and bool(h.all())
-            self.has_any[s] = self.has_any.get(s, False) or bool(h.any())
-        self.header_nonzero &= bool(np.all(arr.header != 0))
-        for src, t in zip(_TIMES, (arr.log_time, arr.publish_time, arr.header), strict=True):
+    def add_times(self, log: np.ndarray, publish: np.ndarray, header: np.ndarray | None
+                  ) -> None:
+        """Count one block's messages by their times [ns] (``header`` None: no stamps)."""
+        if self.has_header is not None and self.has_header != (header is not None):
+            raise _NotStreamable("header stamps in some blocks only")
+        self.has_header = header is not None
+        self.n += log.shape[0]
+        times = (log, publish, header if header is not None else np.zeros_like(log))
+        self.header_nonzero &= bool(np.all(times[2] != 0))
+        for src, t in zip(_TIMES, times, strict=True):
             self.first.setdefault(src, int(t[0]))
             prev = self.last.get(src)
             if (prev is not None and t[0] < prev) or np.any(np.diff(t) < 0):
                 self.ordered[src] = False
             self.last[src] = int(t[-1])
 
+    def add(self, arr: Any) -> None:
+        """Count one block's decoded joint messages
+        (:class:`~impactcli.io.mcap_ros2.TopicArrays`)."""
+        if self.joints is None:
+            self.joints = arr.joints
+        elif arr.joints != self.joints:
+            raise _NotStreamable("joint names differ between blocks")
+        self.all_joints &= bool(arr.has_joints.all())
+        self.extra |= arr.extra_names
+        for s, h in joint_signals(arr)[1].items():
+            self.has_all[s] = self.has_all.get(s, True) and bool(h.all())
+            self.has_any[s] = self.has_any.get(s, False) or bool(h.any())
+        self.add_times(arr.log_time, arr.publish_time, arr.header)
+
 
 @dataclass
-class _Companion:
-    """A companion topic: its columns ``(signal, joint, array name)`` and time source."""
+class _Part:
+    """A topic the rows come from: the state topic (the first part), a companion, or a
+    topic of channel-map fields. Its columns: ``cols`` — ``(signal, joint, key)``, the
+    decoded joint messages' :func:`~impactcli.io.messages.joint_signals` ``key`` —, then
+    ``fields`` (:class:`~impactcli.io.messages._MapField`, scaled as the whole reader does)."""
 
     topic: str
     role: str
-    kind: str
-    tsrc: str
-    cols: list[tuple[str, int, str]]
+    kind: str  # ros2, ros1, json: joint messages decoded; "": fields only
+    tsrc: str  # its time source
     total: int  # its messages
+    joints: tuple[str, ...] | None = None  # the joints its messages are decoded for
+    # (signal, joint of the log, key, the decoded array's column)
+    cols: list[tuple[str, int, str, int]] = field(default_factory=list)
+    fields: list[Any] = field(default_factory=list)
+
+    @property
+    def signals(self) -> list[tuple[str, int]]:
+        """``(signal, joint)`` of its columns, in order."""
+        return [(c[0], c[1]) for c in self.cols] + [(f.signal, f.joint) for f in self.fields]
 
 
 class MessageLayout(StreamLayout):
@@ -112,10 +137,15 @@ class MessageLayout(StreamLayout):
         self.lead_counts: list[int] = []
         self.truncated: list[str] = []
         self.state = ""
-        self.kind = ""
-        self.state_cols: list[tuple[str, int]] = []
-        self.held: list[_Companion] = []
+        self.parts: list[_Part] = []  # the state topic first, then the held topics
         self.ignored: list[str] = []
+        self.current_scale: np.ndarray | None = None
+        self.mapname = ""
+
+    @property
+    def held(self) -> list[_Part]:
+        """The topics held onto the state samples."""
+        return self.parts[1:]
 
     def label(self, i: int) -> str:
         return f"message {i + self.lead} of {self.state!r}"
@@ -124,11 +154,10 @@ class MessageLayout(StreamLayout):
         """As :func:`impactcli.io.messages._assemble` stacks the repaired columns."""
         from .messages import stack_columns
 
-        cols = self.state_cols + [(s, j) for h in self.held for s, j, _ in h.cols]
+        cols = [sig for part in self.parts for sig in part.signals]
         signals, missing = stack_columns(mat, cols, self.joints)
         return JointChannels(t_ns=t, joints=self.joints, signals=signals, missing=missing,
-                             current_scale=np.full(len(self.joints), np.nan),
-                             ignored=list(self.ignored))
+                             current_scale=self.current_scale, ignored=list(self.ignored))
 
     def pre_repairs(self) -> list[str]:
         out = list(self.truncated)
@@ -144,19 +173,11 @@ class MessageLayout(StreamLayout):
     def raw_batches(self) -> Iterator[_Raw]:
         self.lead, self.lead_counts = 0, [0] * len(self.held)
         merge = _Merge(self)
-        want = [self.state, *(h.topic for h in self.held)]
         try:
-            for block in self.reader.blocks(want):
-                if self.state in block:
-                    arr = _decode(self.src, self.state, self.kind, block[self.state], self.joints)
-                    vals = joint_signals(arr)[0]
-                    merge.add_state(_time(arr, self.time_source),
-                                    _stack([vals[s][:, j] for s, j in self.state_cols]))
-                for k, h in enumerate(self.held):
-                    if h.topic in block:
-                        arr = _decode(self.src, h.topic, h.kind, block[h.topic], self.joints)
-                        merge.add_held(k, _time(arr, h.tsrc), _stack(
-                            [getattr(arr, a)[:, j] for _, j, a in h.cols]))
+            for block in self.reader.blocks([part.topic for part in self.parts]):
+                for k, part in enumerate(self.parts):
+                    if part.topic in block:
+                        merge.add(k, *self._read(part, block[part.topic]))
                 out = merge.ready(final=False)
                 if out is not None:
                     yield out
@@ -166,65 +187,74 @@ class MessageLayout(StreamLayout):
         if out is not None:
             yield out
 
+    def _read(self, part: _Part, batches: list[Any]) -> tuple[np.ndarray, np.ndarray]:
+        """A block's messages of one part: their times on its time source, its columns."""
+        from .messages import _field_columns
+        from .msgsource import TopicData
 
-def _time(arr: Any, tsrc: str) -> np.ndarray:
-    return {"log": arr.log_time, "publish": arr.publish_time, "header": arr.header}[tsrc]
-
-
-def _stack(cols: list[np.ndarray]) -> np.ndarray:
-    return np.column_stack(cols).astype(np.float64, copy=False)
+        mtype, enc = self.src.topics()[part.topic]
+        td = TopicData(part.topic, mtype, enc, batches)
+        cols: list[np.ndarray] = []
+        header = None
+        if part.kind:
+            arr = _decode(self.src, td, part.kind, part.joints)
+            vals = joint_signals(arr)[0]
+            cols += [vals[key][:, c] for _, _, key, c in part.cols]
+            header = arr.header
+        if part.fields:
+            fcols, fheader = _field_columns(self.src, td, part.fields, self.mapname)
+            cols += [v for _, _, v in fcols]
+            header = header if part.kind else fheader
+        t = {"log": td.log_time, "publish": td.publish_time, "header": header}[part.tsrc]
+        assert t is not None
+        return t, np.column_stack(cols).astype(np.float64, copy=False)
 
 
 class _Merge:
-    """Causal sample-and-hold of the companions onto the state samples, over blocks."""
+    """Causal sample-and-hold of the held topics onto the state samples, over blocks:
+    part 0 is the state, parts 1… are held."""
 
     def __init__(self, lay: MessageLayout) -> None:
         self.lay = lay
-        self.st = np.zeros(0, dtype=np.int64)
-        self.sm = np.zeros((0, len(lay.state_cols)))
-        self.ht = [np.zeros(0, dtype=np.int64) for _ in lay.held]
-        self.hm = [np.zeros((0, len(h.cols))) for h in lay.held]
-        self.got = [0] * len(lay.held)
+        self.t = [np.zeros(0, dtype=np.int64) for _ in lay.parts]
+        self.m = [np.zeros((0, len(part.signals))) for part in lay.parts]
+        self.got = [0] * len(lay.parts)
         self.rows = 0
 
-    def add_state(self, t: np.ndarray, m: np.ndarray) -> None:
-        self.st = np.concatenate((self.st, t))
-        self.sm = np.concatenate((self.sm, m))
-        if self.st.size > MAX_LOOKAHEAD:
-            raise _NotStreamable("companion topics lag too far behind the state topic")
-
-    def add_held(self, k: int, t: np.ndarray, m: np.ndarray) -> None:
-        self.ht[k] = np.concatenate((self.ht[k], t))
-        self.hm[k] = np.concatenate((self.hm[k], m))
+    def add(self, k: int, t: np.ndarray, m: np.ndarray) -> None:
+        """Part ``k``'s next messages: times (n,) [ns], columns (n, C_k)."""
+        self.t[k] = np.concatenate((self.t[k], t))
+        self.m[k] = np.concatenate((self.m[k], m))
         self.got[k] += t.size
-        if self.ht[k].size > MAX_LOOKAHEAD:
-            raise _NotStreamable("the state topic lags too far behind a companion")
+        if self.t[k].size > MAX_LOOKAHEAD:
+            raise _NotStreamable("topics too far apart in the file")
 
     def ready(self, final: bool) -> _Raw | None:
-        """The state samples every companion's latest message is known for, as rows."""
+        """The state samples every held topic's latest message is known for, as rows."""
         lay = self.lay
         limit = None
         if not final:
-            for k, h in enumerate(lay.held):
-                if self.got[k] < h.total:
-                    last = int(self.ht[k][-1]) if self.ht[k].size else None
-                    if last is None:
+            for k, part in enumerate(lay.parts[1:], start=1):
+                if self.got[k] < part.total:
+                    if not self.t[k].size:
                         return None
+                    last = int(self.t[k][-1])
                     limit = last if limit is None else min(limit, last)
-        n = self.st.size if limit is None else int(np.searchsorted(self.st, limit, "left"))
+        st = self.t[0]
+        n = st.size if limit is None else int(np.searchsorted(st, limit, "left"))
         if n == 0:
             return None
-        t, parts = self.st[:n], [self.sm[:n]]
+        t, parts = st[:n], [self.m[0][:n]]
         drop = np.zeros(n, dtype=bool)
-        for k in range(len(lay.held)):
-            idx = np.searchsorted(self.ht[k], t, side="right") - 1
+        for k in range(1, len(lay.parts)):
+            idx = np.searchsorted(self.t[k], t, side="right") - 1
             before = idx < 0
-            lay.lead_counts[k] += int(before.sum())
+            lay.lead_counts[k - 1] += int(before.sum())
             drop |= before
-            parts.append(self.hm[k][np.maximum(idx, 0)])
+            parts.append(self.m[k][np.maximum(idx, 0)])
             keep_from = max(int(idx[-1]), 0)
-            self.ht[k], self.hm[k] = self.ht[k][keep_from:], self.hm[k][keep_from:]
-        self.st, self.sm = self.st[n:], self.sm[n:]
+            self.t[k], self.m[k] = self.t[k][keep_from:], self.m[k][keep_from:]
+        self.t[0], self.m[0] = st[n:], self.m[0][n:]
         lay.lead = max(lay.lead_counts, default=0)
         if drop.all():
             return None
@@ -244,161 +274,66 @@ def message_layout(p: Path, where: str, suffix: str, cmap: Any,
     Raises:
         _NotStreamable: the log needs the whole-file reader.
     """
-    from .messages import joint_kind
-    from .msgsource import McapSource
+    from .messages import _field_columns, _map_fields, joint_kind
+    from .msgsource import McapSource, TopicData
+    from .stream_msgs_plan import decide
 
-    if cmap is not None:
-        raise _NotStreamable("a channel map")
     src: Any = None
-    if suffix == ".mcap":
-        reader: Any = McapBlocks(p, where)
-    else:
-        from .bags import BagSource
+    try:
+        if suffix == ".mcap":
+            reader: Any = McapBlocks(p, where)
+            if cmap is not None:  # the map's fields are checked against every topic first
+                src = McapSource(reader.summary(), where)
+        else:
+            from .bags import BagSource
 
-        try:
             src = BagSource(p, where)
-        except ImpactError as err:
-            raise _NotStreamable(str(err)) from err
-        reader = BagBlocks(src)
-    stats: dict[str, _TopicStats] = {}
+            reader = BagBlocks(src)
+        fields = _map_fields(src, cmap, src.topics()) if cmap is not None else []
+    except ImpactError as err:  # the whole-file reader says what is wrong
+        raise _NotStreamable(str(err)) from err
+    mapname = "" if cmap is None else (cmap.path or cmap.name)
+    by_topic: dict[str, list[Any]] = {}
+    for f in fields:
+        by_topic.setdefault(f.path.topic, []).append(f)
+    stats: dict[str, _TopicStats] = {}  # joint topics
+    fstats: dict[str, _TopicStats] = {}  # topics of map fields
     try:
         for block in reader.blocks():
-            if suffix == ".mcap":
-                src = McapSource(reader.scan, where)  # the channels known so far
             for topic, batches in block.items():
-                st = stats.get(topic)
-                if st is None:
-                    st = stats[topic] = _TopicStats(joint_kind(*src.topics()[topic]) or "")
+                if src is None or topic not in src.topics():
+                    src = McapSource(reader.scan, where)  # the channels known so far
+                mtype, enc = src.topics()[topic]
+                td = TopicData(topic, mtype, enc, batches)
+                st = stats.setdefault(topic, _TopicStats(joint_kind(mtype, enc) or ""))
                 if st.kind in ("ros2", "json") or (st.kind == "ros1" and suffix != ".mcap"):
-                    st.add(_decode(src, topic, st.kind, batches, st.joints))
-    except ImpactError as err:  # the whole-file reader says what is wrong
+                    st.add(_decode(src, td, st.kind, st.joints))
+                if topic in by_topic:
+                    _, header = _field_columns(src, td, by_topic[topic], mapname)
+                    fstats.setdefault(topic, _TopicStats("")).add_times(
+                        td.log_time, td.publish_time, header)
+    except ImpactError as err:
         raise _NotStreamable(str(err)) from err
     if suffix == ".mcap":
         if reader.scan.n_messages == 0:
             raise _NotStreamable("no messages")
-        src = McapSource(reader.scan, where)
+        if cmap is None:
+            src = McapSource(reader.scan, where)
     lay = MessageLayout(p, where, reader, src, options)
+    lay.mapname = mapname
     if suffix == ".mcap" and reader.scan.truncated:
         lay.truncated = [f"{where}: MCAP file is truncated (records end early); read "
                          f"the {reader.scan.n_messages} complete message(s) before the cut"]
-    _decide(lay, stats, options)
+    decide(lay, stats, fstats, fields, cmap, options)
     return lay
 
 
-def _decode(src: Any, topic: str, kind: str, batches: list[Any],
-            joints: tuple[str, ...] | None) -> Any:
+def _decode(src: Any, td: Any, kind: str, joints: tuple[str, ...] | None) -> Any:
     """A block's messages of one joint topic decoded (``joints``: None for its first
     message's, as :func:`impactcli.io.messages._joint_arrays` reads a whole topic)."""
     from .messages import _joint_arrays
-    from .msgsource import TopicData
 
-    mtype, enc = src.topics()[topic]
-    arr = _joint_arrays(src, TopicData(topic, mtype, enc, batches), kind,
-                        None if kind == "json" else joints)
+    arr = _joint_arrays(src, td, kind, None if kind == "json" else joints)
     if kind == "json" and joints is not None and arr.joints != joints:
         raise _NotStreamable("JSON joint names differ between chunks")
     return arr
-
-
-def _time_source(st: _TopicStats, given: str | None, where: str, topic: str) -> str:
-    """The state's time source (:func:`impactcli.io.messages.choose_time_source`)."""
-    from .messages import choose_time_source
-
-    try:
-        return choose_time_source(given, True, None if st.header_nonzero else 0, where, topic)
-    except ImpactError as err:
-        raise _NotStreamable(str(err)) from err
-
-
-def _decide(lay: MessageLayout, stats: dict[str, _TopicStats], options: dict[str, Any]
-            ) -> None:
-    """The whole-file reader's decisions from the first pass's counts (module docstring;
-    :func:`impactcli.io.messages.read_message_channels` without a channel map)."""
-    from .channel_map import SIGNALS
-    from .messages import pick_state_topic
-    from .repair import DROPPABLE_SIGNALS
-
-    where, topics = lay.where, lay.src.topics()
-    try:
-        state, kind = pick_state_topic(topics, options.get("topic"), where)
-    except ImpactError as err:
-        raise _NotStreamable(str(err)) from err
-    st = stats.get(state)
-    if st is None or st.n == 0 or not st.all_joints or st.joints is None:
-        raise _NotStreamable("the state topic cannot be read")
-    lay.state, lay.kind, lay.joints = state, kind, st.joints
-    jn = len(st.joints)
-    used, ignored = [], []
-    for s in SIGNALS:
-        if s not in st.has_all:
-            continue
-        if st.has_all[s]:
-            used.append(s)
-        elif st.has_any[s]:
-            if s in ("position", "torque"):
-                raise _NotStreamable("a message lacks position or torque")
-            ignored.append(f"{state}:{s} (not in every message)")
-    if "position" not in used:
-        raise _NotStreamable("no positions")
-    lay.state_cols = [(s, c) for s in used for c in range(jn)]
-    ignored += [f"{state}:{nm}" for nm in sorted(st.extra)]
-    lay.time_source = _time_source(st, options.get("time_source"), where, state)
-    if not st.ordered[lay.time_source]:
-        raise _NotStreamable("state stamps out of order (the whole-file reader sorts them)")
-    for t, role, k in _companions(topics, state, kind, options.get("reference_topic")):
-        hs = stats.get(t)
-        if hs is None or hs.n == 0 or hs.joints is None or not hs.all_joints or hs.extra:
-            raise _NotStreamable(f"companion {t!r}: empty, or joint names that change")
-        named = set(hs.joints)
-        if role == "reference topic":
-            if not (set(st.joints) <= named and hs.has_all.get("position")):
-                raise _NotStreamable("a reference message lacks joints or positions")
-            cols = [("position_ref", j, "position") for j in range(jn)]
-            if hs.has_all.get("velocity"):
-                cols += [("velocity_ref", j, "velocity") for j in range(jn)]
-        else:
-            cols = [(role.split()[0], j, "effort") for j in range(jn) if st.joints[j] in named]
-        if not cols:
-            continue
-        hsrc = ("header" if lay.time_source == "header" and hs.header_nonzero else
-                "publish" if lay.time_source == "publish" else "log")
-        if not hs.ordered[hsrc]:
-            raise _NotStreamable(f"companion {t!r}: stamps out of order")
-        lay.held.append(_Companion(t, role, k, hsrc, cols, hs.n))
-    used_topics = {state} | {h.topic for h in lay.held}
-    lay.ignored = [x for x in sorted(topics) if x not in used_topics] + ignored
-    cols_all = lay.state_cols + [(s, j) for h in lay.held for s, j, _ in h.cols]
-    lay.names = [f"{lay.joints[j]}.{s}" for s, j in cols_all]
-    if len(set(lay.names)) != len(lay.names):
-        raise _NotStreamable("a signal from two topics")
-    lay.keys = {(s, j): f"{lay.joints[j]}.{s}" for s, j in cols_all}
-    lay.droppable = {nm for nm in lay.names if nm.rsplit(".", 1)[-1] in DROPPABLE_SIGNALS}
-    lay.time_name = f"{lay.time_source} time"
-    lay.fmt = f"mcap-{kind}" if lay.src.kind == "mcap" else lay.src.kind
-    lay.lead_counts = [0] * len(lay.held)
-    lay.plan = plan_of(lay, options.get("robot"), options.get("torque_source"))
-
-
-def _companions(topics: dict[str, tuple[str, str]], state: str, kind: str,
-                rtopic: str | None) -> list[tuple[str, str, str]]:
-    """``(topic, role, kind)`` of the state's companion topics
-    (:func:`impactcli.io.messages._companions` without a channel map)."""
-    from .messages import COMPANIONS, joint_kind
-
-    if kind == "json":
-        if rtopic is not None:
-            raise _NotStreamable("--reference-topic on JSON samples")
-        return []
-    out = []
-    if rtopic is None and joint_kind(*topics.get(f"{state}_ref", ("", ""))) in ("ros2", "ros1"):
-        rtopic = f"{state}_ref"
-    if rtopic is not None:
-        rk = joint_kind(*topics[rtopic]) if rtopic in topics else None
-        if rk not in ("ros2", "ros1"):
-            raise _NotStreamable("reference topic missing or not JointState")
-        out.append((rtopic, "reference topic", rk or ""))
-    for suffix, _arr, sig in COMPANIONS:
-        cand = f"{state}{suffix}"
-        if cand in topics and (ck := joint_kind(*topics[cand])) in ("ros2", "ros1"):
-            out.append((cand, f"{sig} topic", ck or ""))
-    return out
