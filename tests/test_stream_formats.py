@@ -248,13 +248,13 @@ def test_maps_over_jointstate_and_other_topics(tmp_path: Path) -> None:
     from .test_io_fields import _two_topics, fixture_log
 
     p = _two_topics(tmp_path, ["wrist", "gripper", "elbow_joint", "shoulder"])[0]
-    m = tmp_path / "ext.yaml"
-    m.write_text(
-        "format: messages\njoints:\n"
-        "  - {name: shoulder, torque_ext: {field: /external_torque/effort}}\n"
-        "  - {name: elbow, torque_ext: {field: /external_torque/effort, joint: elbow_joint,"
-        " scale: -2.0, offset: 0.5}}\n"
-        "  - {name: wrist, torque_ext: {field: /external_torque/effort}}\n")
+    m = tmp_path / "ext.json"
+    ext = "/external_torque/effort"
+    m.write_text(json.dumps({"format": "messages", "joints": [
+        {"name": "shoulder", "torque_ext": {"field": ext}},
+        {"name": "elbow", "torque_ext": {"field": ext, "joint": "elbow_joint", "scale": -2.0,
+                                         "offset": 0.5}},
+        {"name": "wrist", "torque_ext": {"field": ext}}]}))
     for tsrc in (None, "log"):
         opts = {} if tsrc is None else {"time_source": tsrc}
         _assert_same(p, chunks=(1, 7, 1000), channel_map=m, **opts)
