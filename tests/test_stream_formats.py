@@ -389,3 +389,23 @@ def test_urls_stream_a_local_copy(tmp_path: Path) -> None:
         whole.value)
     with pytest.raises(LogFormatError, match="not found"):
         scan_log("memory://logs/none.mcap")
+
+
+# ------------------------------------------------------------------- without the cache
+def test_a_full_disk_reads_the_file_again(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+                                          ) -> None:
+    """Without the scan's cache of the repaired rows every pass reads the file again (a
+    second pass over the messages, or the archive): the same arrays."""
+    from impactcli.io import stream_cache
+
+    monkeypatch.setattr(stream_cache, "MIN_FREE_BYTES", float("inf"))
+    monkeypatch.setattr(stream_npz, "BLOCK_ROWS", 101)
+    t, v = _signals()
+    t, v = _repairs(v, t)
+    mcap = _write_ros2(tmp_path / "r.mcap", _topics(t, v, ref_from=20, ref_delay=3))
+    arrays = {"t": t * 1e-9, "q": v["position"], "tm": v["torque_model"],
+              **{f"tau_{j}": v["torque"][:, k] for k, j in enumerate(JOINTS)}}
+    np.savez_compressed(tmp_path / "a.npz", **arrays)
+    for path, opts in ((mcap, {}), (tmp_path / "a.npz", {"channel_map": _npz_map(tmp_path)})):
+        scan = _assert_same(path, chunks=(7, 1000), **opts)
+        assert scan._pass is not None and scan._pass.cache is None
