@@ -342,18 +342,31 @@ def test_the_scan_warns_once_and_checks_its_options(tmp_path: Path) -> None:
 
 
 # --------------------------------------------------------------- the whole-file path
-def test_repair_order_and_variants_fall_back_to_read_log(tmp_path: Path) -> None:
+def test_repair_order_falls_back_to_read_log(tmp_path: Path) -> None:
     cols = _table()
     cols["time"][100], cols["time"][101] = cols["time"][101], cols["time"][100]
     _assert_same(_write(tmp_path / "late.csv", cols), streamed=False, chunks=(7,),
                  repair_order=True)
+
+
+def test_a_decimal_comma_and_a_byte_order_mark_stream(tmp_path: Path) -> None:
+    rng = np.random.default_rng(5)
     cols = _table()
-    path = _write(tmp_path / "semi.csv", {k: [v.replace(".", ",") for v in c]
-                                          for k, c in cols.items()}, sep=";")
-    _assert_same(path, streamed=False, chunks=(1000,))
-    bom = tmp_path / "bom.csv"
-    bom.write_bytes(b"\xef\xbb\xbf" + _write(tmp_path / "b.csv", _table()).read_bytes())
-    _assert_same(bom, streamed=False, chunks=(1000,))
+    _punch(cols, rng, "", 20)  # short runs of empty cells
+    for c in cols.values():  # duplicates
+        c.insert(2001, c[2000])
+    semi = {k: [v.replace(".", ",") for v in c] for k, c in cols.items()}
+    _assert_same(_write(tmp_path / "semi.csv", semi, sep=";"), chunks=(7, 1000))
+    for name in ("bom.csv", "bom.csv.gz"):
+        text = _write(tmp_path / "b.csv", cols).read_bytes()
+        bom = _write(tmp_path / name, {"x": ["0"]})
+        if name.endswith(".gz"):
+            bom.write_bytes(gzip.compress(b"\xef\xbb\xbf" + text))
+        else:
+            bom.write_bytes(b"\xef\xbb\xbf" + text)
+        _assert_same(bom, chunks=(7, 1000))
+    epoch = {k: [v.replace(".", ",") for v in c] for k, c in _table(epoch=True).items()}
+    _assert_same(_write(tmp_path / "epoch_semi.csv", epoch, sep=";"), chunks=(1000,))
 
 
 def test_message_logs_stream_too(tmp_path: Path) -> None:

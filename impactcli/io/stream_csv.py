@@ -1,8 +1,10 @@
 """The CSV side of :mod:`impactcli.io.stream`: which CSV streams, and its rows in blocks.
 
-A local ``.csv`` or ``.csv.gz`` — canonical, or through a CSV channel map — with a ``.``
-decimal point, no byte-order mark, whose time column holds plain decimal numbers and whose
-value cells are numbers or empty (:func:`csv_stream_layout`; anything else is read whole).
+A local ``.csv`` or ``.csv.gz`` — canonical, or through a CSV channel map, with or without a
+UTF-8 byte-order mark (pyarrow drops it, as the whole-file reader does), with a ``.`` or a
+``,`` decimal point — whose time column holds plain decimal numbers and whose value cells
+are numbers or empty (:func:`csv_stream_layout`; anything else is read whole). A decimal
+comma's time text is read with a point, as the whole-file reader reads it.
 The text is parsed by pyarrow range by range with the whole-file reader's options, on
 threads ahead of the scan (:mod:`impactcli.io.stream_parse`), and each batch's time is
 converted exactly as :func:`~impactcli.io.csv.read_csv_channels` converts the column
@@ -102,19 +104,11 @@ def csv_stream_layout(p: Path, cmap: Any, options: dict[str, Any]) -> CsvStreamL
         names = _probe_names(lay)
     except (LogFormatError, _NotStreamable, UnicodeDecodeError, ValueError):
         return None  # the whole-file reader says what is wrong
-    if lay.decimal != "." or _has_bom(p) or len(set(names)) != len(names):
+    if len(set(names)) != len(names):
         return None
     if not lay.used <= set(names) or lay.tname in lay.columns.values():
         return None
     return CsvStreamLayout(lay, options, names)
-
-
-def _has_bom(path: Path) -> bool:
-    import gzip
-
-    opener: Any = gzip.open if path.name.lower().endswith(".gz") else open
-    with opener(path, "rb") as f:
-        return bytes(f.read(3)) == b"\xef\xbb\xbf"
 
 
 def _probe_names(lay: Any) -> list[str]:
@@ -150,7 +144,7 @@ def _raw_batches(ctx: CsvStreamLayout, ts: _TimeStats) -> Iterator[_Raw]:
     cols = list(ctx.key_cols.values())
     types = {lay.tname: pa.string(), **{c: pa.float64() for c in cols}}
     copts = pacsv.ConvertOptions(column_types=types, include_columns=[lay.tname, *cols],
-                                 decimal_point=".")
+                                 decimal_point=lay.decimal)
     row0 = 0
     try:
         for batch in parsed_batches(lay, ctx.file_names, copts, BLOCK_SIZE):
@@ -174,6 +168,8 @@ def _time_ns(text: Any, ctx: CsvStreamLayout, ts: _TimeStats) -> np.ndarray:
     import pyarrow as pa
     import pyarrow.compute as pc
 
+    if ctx.lay.decimal == ",":  # as the whole-file reader reads a decimal comma's time
+        text = pc.replace_substring(text, ",", ".")
     if text.null_count or not pc.all(pc.match_substring_regex(text, _PLAIN)).as_py():
         raise _NotStreamable("time text that is not plain decimal")
     tf = pc.cast(text, pa.float64()).to_numpy()
