@@ -568,20 +568,13 @@ class _Compare:
         self.gap_times = np.full((self.gaps.size, 2), np.nan)
 
     def update(self, st: _Step) -> None:
-        thr, k0, t = self.thr, st.k0, st.t
-        thr_ad = np.abs(thr["adaptive"][None, :] + st.v_rms)
-        baseline = np.abs(st.r)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ratios = {
-                "adaptive": np.where(thr_ad > 0, st.r_rms / thr_ad, np.inf),
-                "static_loading": st.loading / thr["static_loading"][None, :],
-                "static_baseline": baseline / thr["static_baseline"][None, :],
-            }
-        dec = {"adaptive": st.r_rms > thr_ad,
-               "static_loading": st.loading > thr["static_loading"][None, :],
-               "static_baseline": baseline > thr["static_baseline"][None, :]}
-        any_d = dec["adaptive"].any(axis=1) | dec["static_loading"].any(axis=1) | \
-            dec["static_baseline"].any(axis=1)
+        from .pipeline import compare_to_thresholds
+
+        k0, t = st.k0, st.t
+        thr_ad, ratios, dec = compare_to_thresholds(self.thr, st.r_rms, st.v_rms, st.loading,
+                                                    np.abs(st.r))
+        any_d = np.asarray(dec["adaptive"].any(axis=1) | dec["static_loading"].any(axis=1)
+                           | dec["static_baseline"].any(axis=1))
         pressing = np.any(st.loading >= self.pressing_at[None, :], axis=1)
         self.islands.update(k0, t, any_d, pressing, {
             "t": t, "r": st.r, "loading": st.loading, "qd": st.qd, "q_full": st.q_full,

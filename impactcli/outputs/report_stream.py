@@ -214,12 +214,11 @@ class StreamedSamples:
 
     def ratios(self, got: dict[str, np.ndarray], k: int) -> dict[str, np.ndarray]:
         """A row group's ratios of joint k, as the whole-log replay computes them."""
+        from ..pipeline import detector_ratios
+
         v_l, v_0 = self._thresholds(self.joints[k])
-        thr = got[f"{k}.thr"]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return {"adaptive": np.where(thr > 0, got[f"{k}.rms"] / thr, np.inf),
-                    "static_loading": got[f"{k}.load"] / v_l,
-                    "static_baseline": got[f"{k}.res"] / v_0}
+        return detector_ratios(got[f"{k}.rms"], got[f"{k}.thr"], got[f"{k}.load"],
+                               got[f"{k}.res"], v_l, v_0)
 
     def ratio_columns(self) -> list[str]:
         return ["t", *[f"{k}.{c}" for k in range(len(self.joints))
