@@ -515,7 +515,7 @@ def _replay_passes(
                 thr, margins = _thresholds_from_spill(spill, wu, scan.n_samples, fs)
                 comparing = compare(thr)
                 if strategy == "spill":
-                    for k0, arrays in spill.read():
+                    for k0, arrays in spill.read_chunks():
                         comparing.update(_Step(k0, **arrays))
                         passes.at(float(arrays["t"][-1]))
                     passes.next()
@@ -544,7 +544,7 @@ def _thresholds_from_spill(spill: ChunkSpill, wu: Warmup, n: int, fs: float,
     start = wu.end_index if wu.end_index < n - 10 else 0  # pipeline.Replay.stats_after_warmup
     block = uncalibrated_block(n - start, fs)
     bms = {d: BlockMaxima(start, block) for d in DETECTORS}
-    for k0, a in spill.read(("r", "loading", "r_rms", "v_rms")):
+    for k0, a in spill.read_chunks(("r", "loading", "r_rms", "v_rms")):
         if k0 + a["r"].shape[0] <= start:
             continue
         bms["adaptive"].update(k0, a["r_rms"] - a["v_rms"])
