@@ -342,6 +342,24 @@ def test_the_scan_warns_once_and_checks_its_options(tmp_path: Path) -> None:
 
 
 # --------------------------------------------------------------- the whole-file path
+def test_iso_8601_time_streams(tmp_path: Path) -> None:
+    rng = np.random.default_rng(9)
+    cols = _table()
+    _punch(cols, rng, "nan", 15)
+    t_ns = 1_714_567_890 * 10**9 + np.array([round(float(v) * 1e9) for v in cols["time"]])
+    stamps = np.datetime_as_string(t_ns.astype("datetime64[ns]"), unit="ns")
+    for fmt in ("{}Z", "{}+02:00", "{}", " {} "):
+        cols["time"] = [fmt.format(str(v)) for v in stamps]
+        for c in cols.values():  # a duplicate row
+            c.insert(1001, c[1000])
+        scan = _assert_same(_write(tmp_path / "iso.csv", cols), chunks=(7, 1000))
+        assert scan.t0_ns > 10**18
+    assert "does not apply" in _error(tmp_path / "iso.csv", streamed=False, time_unit="ms")
+    cols["time"][2500] = "not a time"
+    assert "is not an ISO-8601 time" in _error(_write(tmp_path / "bad.csv", cols),
+                                               streamed=False)
+
+
 def test_repair_order_falls_back_to_read_log(tmp_path: Path) -> None:
     cols = _table()
     cols["time"][100], cols["time"][101] = cols["time"][101], cols["time"][100]

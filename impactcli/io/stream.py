@@ -26,7 +26,8 @@ formats:
 
 - a local ``.csv`` or ``.csv.gz`` — canonical, or through a CSV channel map; a UTF-8
   byte-order mark or a decimal comma too — whose time column holds plain decimal numbers
-  (``12.345``, ``1714567890.001``, ``1234``) and whose value cells are numbers or empty: parsed by
+  (``12.345``, ``1714567890.001``, ``1234``) or ISO-8601 stamps and whose value cells are
+  numbers or empty: parsed by
   pyarrow in ranges of about :data:`BLOCK_SIZE` = 1 MiB, on threads at most 4 ahead of the
   scan (:mod:`impactcli.io.stream_csv`, :mod:`impactcli.io.stream_parse`);
 - MCAP (ROS 2 JointState with its ``_ref``/``_model``/``_ext`` companions, impactcli's JSON
@@ -55,8 +56,8 @@ interpreter's exit deletes it. Without the cache (a full disk) each pass reads t
 
 Not streamed (``LogScan.streamed`` False; the scan reads the whole log with
 :func:`read_log` and the chunks are slices of it, memory NOT bounded): CSV variants
-(ISO-8601 or non-decimal time text, empty or non-numeric time cells, a value column that
-is not numeric); message logs whose state
+(other time text — exponents, dates without a time —, empty or non-numeric time cells, a
+value column that is not numeric); message logs whose state
 stamps (or a held topic's) are out of order in the file (the whole reader sorts them),
 whose companion topics change their joint names between messages, with ROS 1 JointState
 inside MCAP, an MCAP compression the scanner does not know, a channel map on an MCAP

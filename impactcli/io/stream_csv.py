@@ -2,8 +2,9 @@
 
 A local ``.csv`` or ``.csv.gz`` — canonical, or through a CSV channel map, with or without a
 UTF-8 byte-order mark (pyarrow drops it, as the whole-file reader does), with a ``.`` or a
-``,`` decimal point — whose time column holds plain decimal numbers and whose value cells
-are numbers or empty (:func:`csv_stream_layout`; anything else is read whole). A decimal
+``,`` decimal point — whose time column holds plain decimal numbers or ISO-8601 stamps
+(``YYYY-MM-DDThh:mm:ss[.f][Z|±hh:mm]``, as its first cell says) and whose value cells are
+numbers or empty (:func:`csv_stream_layout`; anything else is read whole). A decimal
 comma's time text is read with a point, as the whole-file reader reads it.
 The text is parsed by pyarrow range by range with the whole-file reader's options, on
 threads ahead of the scan (:mod:`impactcli.io.stream_parse`), and each batch's time is
@@ -40,6 +41,7 @@ class _TimeStats:
     max_abs: float = 0.0
     disagree: bool = False  # the float conversion differs from the exact one somewhere
     text_fails: bool = False  # the exact decimal conversion of integers fails somewhere
+    iso: bool | None = None  # ISO-8601 stamps (the column's first cell decides)
 
 
 
@@ -72,6 +74,7 @@ class CsvStreamLayout(MappedLayout):
         self.time_name = lay.disp(lay.tname)
         self.start_at_zero = bool(tspec.start_at_zero)
         self.repair_order = bool(options.get("repair_order", False))
+        self.time_unit_given = options.get("time_unit") is not None
         self._label = lay.label()
         self.ts = _TimeStats()
         self.plan = plan_of(self, options.get("robot"), options.get("torque_source"))
@@ -86,7 +89,8 @@ class CsvStreamLayout(MappedLayout):
     def rate_error(self, rate_hz: float) -> str | None:
         from .repair import rate_message
 
-        return rate_message(rate_hz, self.where, self.tcol, self.lay.tspec.unit)
+        return rate_message(rate_hz, self.where, self.tcol,
+                            None if self.ts.iso else self.lay.tspec.unit)
 
     def check_pass(self) -> None:
         ts = self.ts
@@ -170,7 +174,15 @@ def _time_ns(text: Any, ctx: CsvStreamLayout, ts: _TimeStats) -> np.ndarray:
 
     if ctx.lay.decimal == ",":  # as the whole-file reader reads a decimal comma's time
         text = pc.replace_substring(text, ",", ".")
-    if text.null_count or not pc.all(pc.match_substring_regex(text, _PLAIN)).as_py():
+    if text.null_count:
+        raise _NotStreamable("empty time cells")
+    if ts.iso is None:
+        from .csv import _ISO_RE
+
+        ts.iso = bool(_ISO_RE.match(str(text[0].as_py())))
+    if ts.iso:
+        return _iso_ns(text, ctx)
+    if not pc.all(pc.match_substring_regex(text, _PLAIN)).as_py():
         raise _NotStreamable("time text that is not plain decimal")
     tf = pc.cast(text, pa.float64()).to_numpy()
     as_text = _decimal_ns(text, ctx.unit_ns, tf)
@@ -193,6 +205,21 @@ def _time_ns(text: Any, ctx: CsvStreamLayout, ts: _TimeStats) -> np.ndarray:
     if not ts.disagree:
         ts.disagree = not np.array_equal(np.round(tf * ctx.unit_ns).astype(np.int64), exact)
     return exact + ctx.offset_ns if ctx.offset_ns else exact
+
+
+def _iso_ns(text: Any, ctx: CsvStreamLayout) -> np.ndarray:
+    """A batch's ISO-8601 time text → (n,) int64 epoch ns, as the whole-file reader
+    converts the column (:func:`~impactcli.io.csv._iso_to_ns`: a stamp without an offset
+    is UTC; pyarrow's inferred timestamps of the whole file give the same instants)."""
+    from .csv import _iso_to_ns
+
+    if ctx.time_unit_given and ctx.fmt == "csv":
+        raise _NotStreamable("--time-unit with ISO-8601 time (the whole reader's error)")
+    try:
+        t = _iso_to_ns(text, ctx.where, ctx.tcol, ctx.label)
+    except LogFormatError as err:  # the whole-file reader names the cell
+        raise _NotStreamable(str(err)) from err
+    return t + ctx.offset_ns if ctx.offset_ns else t
 
 
 def _decimal_ns(text: Any, unit_ns: int, tf: np.ndarray) -> np.ndarray | None:

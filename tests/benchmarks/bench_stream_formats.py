@@ -1,7 +1,7 @@
 """Benchmark: peak memory and wall time of streaming long MCAP and ``.npz`` logs.
 
 Run: ``python tests/benchmarks/bench_stream_formats.py [MINUTES ...] [--chunk-rows 65536]
-[--formats mcap npz] [--whole]`` (default 10 60).
+[--formats mcap npz rosbag2] [--whole]`` (default 10 60).
 
 For each duration a synthetic 7-joint 1 kHz log is written, block by block (the benchmark
 itself stays bounded), into a temporary folder:
@@ -9,6 +9,7 @@ itself stays bounded), into a temporary folder:
 - ``mcap``: ROS 2 JointState on ``/joint_states`` (position, velocity, effort) and its
   ``/joint_states_ref`` companion (position, velocity), zstd chunks of 1 MiB, header
   stamp = log time;
+- ``rosbag2`` (not by default): the same two topics in a rosbag2 folder (SQLite);
 - ``npz``: an uncompressed archive of ``t`` (N,) [s], ``q``, ``tau``, ``qref`` (N, 7),
   each ``.npy`` member written in blocks, read through a ``format: npz`` channel map.
 
@@ -25,6 +26,7 @@ import argparse
 import json
 import os
 import platform
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -100,6 +102,27 @@ def write_mcap(n: int, path: Path) -> None:
         w.finish()  # type: ignore[no-untyped-call]
 
 
+def write_rosbag2(n: int, path: Path) -> None:
+    """The same topics as :func:`write_mcap` in a rosbag2 folder (SQLite), written block
+    by block."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    from impactcli.io.bags import _ros2_store
+    from impactcli.io.mcap_ros2 import JOINT_STATE, encode_jointstates
+
+    with Writer(path, version=9, storage_plugin=StoragePlugin.SQLITE3) as w:
+        store = _ros2_store()
+        ref = w.add_connection("/joint_states_ref", JOINT_STATE, typestore=store)
+        state = w.add_connection("/joint_states", JOINT_STATE, typestore=store)
+        for a in range(0, n, BLOCK_ROWS):
+            t, v = _block(a, min(n, a + BLOCK_ROWS))
+            rs = encode_jointstates(t, NAMES, v["position"], v["velocity"], v["torque"])
+            rr = encode_jointstates(t, NAMES, v["position_ref"], v["velocity_ref"], None)
+            for i, ti in enumerate(t.tolist()):
+                w.write(ref, ti, rr[i].tobytes())
+                w.write(state, ti, rs[i].tobytes())
+
+
 def write_npz(n: int, path: Path) -> Path:
     """The ``.npz`` log of ``n`` samples and its channel map (module docstring)."""
     from numpy.lib import format as npf
@@ -158,16 +181,21 @@ def _bench(fmt: str, minutes: float, folder: Path, modes: tuple[str, ...],
     opts: dict[str, Any] = {}
     if fmt == "mcap":
         write_mcap(n, path)
+    elif fmt == "rosbag2":
+        write_rosbag2(n, path)
     else:
         opts["channel_map"] = str(write_npz(n, path))
-    size = path.stat().st_size / 1e6
+    size = sum(f.stat().st_size for f in [path, *path.glob("*")] if f.is_file()) / 1e6
     for mode in modes:
         r = measure(mode, path, chunk_rows, opts)
         assert r["n"] == n
         scan = f"{r['scan_s']:7.1f}" if "scan_s" in r else f"{'':7s}"
         print(f"{fmt:6s} {minutes:7g} {n:9d} {size:6.0f} {mode:6s} {r['wall_s']:7.1f} "
               f"{scan} {r['peak_mb']:11.0f} {r.get('streamed', '')}", flush=True)
-    path.unlink()
+    if path.is_dir():
+        shutil.rmtree(path)
+    else:
+        path.unlink()
 
 if __name__ == "__main__":
     main()
