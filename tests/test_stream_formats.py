@@ -198,6 +198,18 @@ def test_what_is_read_whole(tmp_path: Path) -> None:
     _assert_same(_write_ros2(tmp_path / "s.mcap", swapped), streamed=False, chunks=(1000,))
 
 
+def test_a_look_ahead_beyond_the_bound_reads_whole(tmp_path: Path,
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    from impactcli.io import stream_msgs
+
+    t, v = _signals()
+    path = _write_ros2(tmp_path / "late.mcap", _topics(t, v, ref_delay=700))
+    monkeypatch.setattr(stream_msgs, "MAX_LOOKAHEAD", 500)
+    _assert_same(path, streamed=False, chunks=(1000,))
+    monkeypatch.setattr(stream_msgs, "MAX_LOOKAHEAD", 800)
+    _assert_same(path, chunks=(1000,))
+
+
 def test_bad_message_logs_fail_as_read_log_does(tmp_path: Path) -> None:
     bad = tmp_path / "bad.mcap"
     bad.write_bytes(b"not an mcap at all")
