@@ -10,7 +10,8 @@ a whole topic.
   loose message records between chunks are walked in runs of about 1 MiB. Schemas and
   channels are kept as they come. A file whose records stop early (no DataEnd or Footer,
   or a record running past the end) is ``truncated``, its complete records kept — as
-  :func:`~impactcli.io.mcap_scan.scan_mcap` does.
+  :func:`~impactcli.io.mcap_scan.scan_mcap` does. :meth:`McapBlocks.summary` reads the
+  schemas and channels alone, from the summary section at the file's end.
 - ROS bags (:class:`BagBlocks`): rosbags' ``AnyReader`` messages of the topics asked for,
   in the bag's order, :data:`BAG_BLOCK` messages a block.
 
