@@ -318,6 +318,8 @@ def test_bags(tmp_path: Path) -> None:
         _assert_same(tmp_path / name, chunks=(1, 7, 1000))
     write_rosbag2(log, tmp_path / "folder", split=3)
     _assert_same(tmp_path / "folder", chunks=(7, 1000))
+    write_rosbag2(log, tmp_path / "mcap_folder", split=2, storage="mcap")
+    _assert_same(tmp_path / "mcap_folder", chunks=(7, 1000))
 
 
 # -------------------------------------------------------------------------------- npz
