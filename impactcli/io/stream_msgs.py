@@ -49,7 +49,8 @@ from .stream_blocks import BagBlocks, McapBlocks
 from .stream_layout import StreamLayout, _Raw
 from .stream_repair import _NotStreamable
 
-#: State samples held back at most while waiting for a companion's later messages.
+#: Messages of one topic held back at most while the others catch up in the file (the
+#: state's while a held topic's later messages are awaited, or a held topic's).
 MAX_LOOKAHEAD = 200_000
 _TIMES = ("log", "publish", "header")
 
@@ -106,9 +107,10 @@ class _TopicStats:
 @dataclass
 class _Part:
     """A topic the rows come from: the state topic (the first part), a companion, or a
-    topic of channel-map fields. Its columns: ``cols`` — ``(signal, joint, key)``, the
-    decoded joint messages' :func:`~impactcli.io.messages.joint_signals` ``key`` —, then
-    ``fields`` (:class:`~impactcli.io.messages._MapField`, scaled as the whole reader does)."""
+    topic of channel-map fields. Its columns: ``cols`` — ``(signal, joint, key, column)``:
+    the log's ``signal`` of ``joint`` is column ``column`` of the decoded joint messages'
+    :func:`~impactcli.io.messages.joint_signals` ``key`` —, then ``fields``
+    (:class:`~impactcli.io.messages._MapField`, scaled as the whole reader does)."""
 
     topic: str
     role: str
