@@ -246,6 +246,10 @@ def test_a_custom_state_message_through_a_map(tmp_path: Path) -> None:
         opts = {} if tsrc is None else {"time_source": tsrc}
         scan = _assert_same(p, chunks=(1, 7, 1000), channel_map=cmap, **opts)
     assert scan.source.format == "mcap-ros2"
+    cut = tmp_path / "cut.mcap"  # no summary section: its topics from a pass of their own
+    cut.write_bytes(p.read_bytes()[: p.stat().st_size * 3 // 5])
+    scan = _assert_same(cut, chunks=(7, 1000), channel_map=cmap)
+    assert "truncated" in scan.source.repairs[0]
     bad = tmp_path / "bad.yaml"  # a field the message does not have: the map's error
     bad.write_text("format: messages\njoints:\n  - {name: shoulder, position: /arm/state/nope}\n")
     with pytest.raises(ChannelMapError) as whole:

@@ -60,9 +60,8 @@ Not streamed (``LogScan.streamed`` False; the scan reads the whole log with
 value column that is not numeric); message logs whose state
 stamps (or a held topic's) are out of order in the file (the whole reader sorts them),
 whose companion topics change their joint names between messages, with ROS 1 JointState
-inside MCAP, an MCAP compression the scanner does not know, a channel map on an MCAP
-without a summary section (a truncated one), or a held topic more than 200 000 messages
-ahead or behind the state in the file;
+inside MCAP, an MCAP compression the scanner does not know, or a held topic more than
+200 000 messages ahead or behind the state in the file;
 ``--repair-order`` on a file with rows out of time order; and any file the whole-file
 reader refuses for a reason the stream does not check itself (the whole-file reader then
 raises its own error: a bad file, a topic it cannot choose, an array of the wrong shape...).

@@ -14,7 +14,8 @@ time:
    (``_ref``/``_model``/``_ext``) and map topics and their columns, the ignored channels,
    the time source (header when every state stamp is non-zero, else log time) and each
    held topic's stamps. With a channel map the MCAP's topics are first read from its
-   summary section (the map is checked against them, as the whole reader does).
+   summary section (or, without one, by a pass that keeps only them): the map is checked
+   against them, as the whole reader does.
 2. :meth:`MessageLayout.raw_batches` — the state topic and the held topics decoded again,
    block by block, and merged by causal sample-and-hold (:class:`_Merge`): a state
    sample is given out once every held topic has either ended or shown a message stamped
@@ -27,7 +28,7 @@ Not streamed (``_NotStreamable``: the whole-file reader reads the log): state st
 of order in the file (the whole reader sorts them) or a held topic's; companion topics
 whose messages name different joints, or a state topic whose messages lack some of its
 first message's joints; JSON samples whose joints change between chunks; ROS 1 JointState
-inside MCAP; a channel map on an MCAP without a summary section; a look-ahead beyond
+inside MCAP; a look-ahead beyond
 :data:`MAX_LOOKAHEAD`; and anything the whole-file reader refuses (then it raises its own
 error): a bad file, a topic it cannot choose or decode, a zero stamp with
 ``--time-source header``, messages lacking joints or arrays, a map that does not fit.
@@ -285,7 +286,7 @@ def message_layout(p: Path, where: str, suffix: str, cmap: Any,
         if suffix == ".mcap":
             reader: Any = McapBlocks(p, where)
             if cmap is not None:  # the map's fields are checked against every topic first
-                src = McapSource(reader.summary(), where)
+                src = McapSource(_channels(reader), where)
         else:
             from .bags import BagSource
 
@@ -328,6 +329,17 @@ def message_layout(p: Path, where: str, suffix: str, cmap: Any,
                          f"the {reader.scan.n_messages} complete message(s) before the cut"]
     decide(lay, stats, fstats, fields, cmap, options)
     return lay
+
+
+def _channels(reader: McapBlocks) -> Any:
+    """The MCAP's schemas and channels: its summary section, else (a truncated file) a
+    pass over its records that keeps nothing else."""
+    try:
+        return reader.summary()
+    except _NotStreamable:
+        for _ in reader.blocks(()):
+            pass
+        return reader.scan
 
 
 def _decode(src: Any, td: Any, kind: str, joints: tuple[str, ...] | None) -> Any:
