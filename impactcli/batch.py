@@ -325,8 +325,10 @@ def stream_log(
     answer is known from a spill file of what it plots
     (:mod:`impactcli.outputs.rerun_stream`) — both atomically, and not at all when the
     replay fails; ``samples="report"`` keeps what a report reads of the samples
-    (:mod:`impactcli.outputs.report_stream`). Progress in seconds of log, summed over the
-    passes, when ``show_progress`` and stderr is a terminal.
+    (:mod:`impactcli.outputs.report_stream`), ``samples="sweep"`` only what the threshold
+    sweep reads (:mod:`impactcli.outputs.sweep_stream`: the ratios' columns). Progress in
+    seconds of log, summed over the passes, when ``show_progress`` and stderr is a
+    terminal.
 
     Returns:
         (the :class:`impactcli.result.DetectionResult`, its log a
@@ -367,7 +369,8 @@ def stream_log(
             if samples is not None:
                 from .outputs.report_stream import ReportCollector
 
-                collector = ReportCollector(scan.n_samples, scan.gaps, scan.gap_lengths_s)
+                collector = ReportCollector(scan.n_samples, scan.gaps, scan.gap_lengths_s,
+                                            plots=samples == "report")
                 writers.append(collector)
 
             def on_chunk(c: Any) -> None:

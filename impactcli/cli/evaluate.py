@@ -179,8 +179,8 @@ def replay_log(path: Path, *, robot: Path | None, model: Path | None, config: Pa
     Streamed when its inputs allow (:func:`impactcli.batch.stream_file`: a day-long log in
     bounded memory, as ``detect`` replays it); the scores need only the run's events and
     incidents, which a streamed result holds. The sweep needs every sample's ratio to the
-    thresholds: with ``sweep`` the report's collector
-    (:class:`impactcli.outputs.report_stream.ReportCollector`) spills them to a temporary
+    thresholds: with ``sweep`` the report's collector, keeping only the ratios' columns
+    (:class:`impactcli.outputs.report_stream.ReportCollector`), spills them to a temporary
     file as the replay goes and ``samples`` (its
     :class:`~impactcli.outputs.report_stream.StreamedSamples`) reads them back
     (:func:`impactcli.outputs.sweep_stream.sweep_streamed` gives the rows
@@ -194,7 +194,7 @@ def replay_log(path: Path, *, robot: Path | None, model: Path | None, config: Pa
                       model_path=None if model is None else str(model),
                       config_path=None if config is None else str(config),
                       read_options=read_options, allow_slow=allow_slow, show_progress=True,
-                      samples="report" if sweep else None)
+                      samples="sweep" if sweep else None)
     if got is None:
         return analyze_log(path, robot=robot, model=model, config=config,
                            read_options=read_options, allow_slow=allow_slow), None

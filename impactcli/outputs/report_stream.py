@@ -64,12 +64,14 @@ class ReportCollector:
         n_samples: the log's sample count (the scan's).
         gaps: (G,) the scan's gap steps i (t[i] → t[i+1]); gap_lengths_s: (G,) [s].
         buckets: the whole-log envelope's buckets.
+        plots: False keeps only what the threshold sweep reads (the ratios' columns: no
+            envelopes, no positions).
     """
 
     def __init__(self, n_samples: int, gaps: Sequence[int] | np.ndarray = (),
                  gap_lengths_s: Sequence[float] | np.ndarray = (),
-                 buckets: int = WHOLE_LOG_BUCKETS) -> None:
-        self.n, self.buckets = int(n_samples), int(buckets)
+                 buckets: int = WHOLE_LOG_BUCKETS, plots: bool = True) -> None:
+        self.n, self.buckets, self.plots = int(n_samples), int(buckets), plots
         self.joints: tuple[str, ...] | None = None
         self.env: dict[tuple[str, int], EnvelopeAccumulator] = {}
         self.const = EnvelopeAccumulator(self.n, self.buckets)
@@ -88,7 +90,7 @@ class ReportCollector:
             return
         if self.joints is None:
             self.joints = tuple(c.joints)
-            for k in range(len(self.joints)):
+            for k in range(len(self.joints) if self.plots else 0):
                 for key in ("rms", "thr", "load", "res"):
                     self.env[(key, k)] = EnvelopeAccumulator(self.n, self.buckets)
         cols: dict[str, np.ndarray] = {"t": t}
@@ -98,11 +100,14 @@ class ReportCollector:
                    "load": sig["loading_statistic"][:, k], "res": np.abs(sig["residual"][:, k]),
                    "q": c.position[:, k]}
             for key, raw in got.items():
+                if not self.plots and key == "q":
+                    continue
                 v = np.asarray(raw, dtype=np.float64)
                 cols[f"{k}.{key}"] = v
-                if key != "q":
+                if self.plots and key != "q":
                     self.env[(key, k)].update(t, v)
-        self.const.update(t, np.zeros(m))
+        if self.plots:
+            self.const.update(t, np.zeros(m))
         hit = (self.gaps >= self.k0) & (self.gaps < self.k0 + m)
         self.gap_t[hit] = t[self.gaps[hit] - self.k0]
         self.spill.append(cols)
