@@ -223,11 +223,6 @@ def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ..
     return outputs, summary, result.warnings
 
 
-def _progress_bar(job: DetectJob, what: str, unit: str) -> Any:
-    """A progress bar on stderr for a serial run in a terminal (None otherwise)."""
-    return progress_bar(job.log_path, job.show_progress, what, unit)
-
-
 def progress_bar(log_path: str, show: bool, what: str, unit: str) -> Any:
     """A progress bar on stderr named after the log, when ``show`` and stderr is a
     terminal (None when not ``show``)."""
@@ -245,7 +240,7 @@ def _run_whole(job: DetectJob, local_out: Path | None, stem: str
                ) -> tuple[Any, tuple[str, ...]]:
     """Read the whole log, replay it, write the outputs (the path for every case
     :func:`_run_streamed` does not take)."""
-    bar = _progress_bar(job, "adaptive evaluator, axes", "axis")
+    bar = progress_bar(job.log_path, job.show_progress, "adaptive evaluator, axes", "axis")
 
     def progress(done: int, total: int) -> None:
         assert bar is not None
@@ -275,13 +270,14 @@ def _run_streamed(job: DetectJob, out: Path, stem: str) -> tuple[Any, tuple[str,
     written = [out / f"{stem}.timeline.json"]
     signals = out / f"{stem}.signals.parquet" if job.signals else None
     rrd = out / f"{stem}.rrd" if job.rerun else None
-    result = stream_file(job.log_path, robot_path=job.robot_path, model_path=job.model_path,
-                         config_path=job.config_path, read_options=job.read_options,
-                         model_from_log=job.model_from_log, generator=job.generator,
-                         allow_slow=job.allow_slow, show_progress=job.show_progress,
-                         signals_path=signals, rrd_path=rrd)
-    if result is None:
+    got = stream_file(job.log_path, robot_path=job.robot_path, model_path=job.model_path,
+                      config_path=job.config_path, read_options=job.read_options,
+                      model_from_log=job.model_from_log, generator=job.generator,
+                      allow_slow=job.allow_slow, show_progress=job.show_progress,
+                      signals_path=signals, rrd_path=rrd)
+    if got is None:
         return None
+    result = got[0]
     written += [p for p in (signals, rrd) if p is not None]
     write_timeline(result, written[0])
     return result, tuple(str(p) for p in written)
@@ -289,47 +285,72 @@ def _run_streamed(job: DetectJob, out: Path, stem: str) -> tuple[Any, tuple[str,
 
 def stream_file(
     log_path: str, *, robot_path: str | None = None, model_path: str | None = None,
-    config_path: str | None = None, read_options: dict[str, Any] | None = None,
-    model_from_log: bool = False, generator: str | None = None, allow_slow: bool = False,
-    show_progress: bool = False, signals_path: Path | None = None,
-    rrd_path: Path | None = None, rrd_options: dict[str, Any] | None = None,
-    collector: Callable[[Any], Callable[[Any], None]] | None = None,
-) -> Any:
-    """Replay one log chunk by chunk in bounded memory (:mod:`impactcli.stream`) when its
-    inputs allow (:func:`impactcli.stream.streamable`: all but ``--model`` with
+    config_path: str | None = None, model_from_log: bool = False, **options: Any,
+) -> tuple[Any, Any] | None:
+    """:func:`stream_log` with the robot description, model and config read from these
+    paths or URLs (:func:`load_inputs`; the config's path named in messages) when the
+    inputs stream (:func:`impactcli.stream.streamable`: all but ``--model`` with
     ``--model-from-log``, an error the whole-log path reports); None otherwise, and the
-    caller replays the whole log (:func:`analyze_file`). One routine for every verb that
-    replays a log (``detect``, ``view``, ``evaluate``), so that they stream alike.
-
-    The run's per-sample data never comes back (the result holds none); what a verb needs
-    of it is taken chunk by chunk: ``signals_path`` gets the signals Parquet, written as the
-    replay goes; ``rrd_path`` the Rerun recording (``rrd_options``: ``max_points``,
-    ``event_window_s``), written once the answer is known from a spill file of what it
-    plots (:mod:`impactcli.outputs.rerun_stream`) — both atomically, and not at all when
-    the replay fails; ``collector(scan)`` makes one more ``on_chunk`` from the log's scan
-    (its sample count and gaps are known before the first chunk). Progress in seconds of
-    log, summed over the passes, when ``show_progress`` and stderr is a terminal.
-
-    Returns:
-        The :class:`impactcli.result.DetectionResult` (its ``log`` a
-        :class:`impactcli.stream.LogHeader`), or None when the inputs do not stream.
+    caller replays the whole log (:func:`analyze_file`). ``options``: :func:`stream_log`'s.
     """
-    from contextlib import ExitStack
-
-    from .stream import analyze_stream, streamable
+    from .stream import streamable
 
     robot, model, config = load_inputs(robot_path, model_path, config_path)
     if not streamable(config, model, model_from_log):
         return None
+    return stream_log(log_path, robot=robot, model=model, config=config,
+                      model_from_log=model_from_log, config_where=config_path or "config",
+                      **options)
+
+
+def stream_log(
+    log_path: str, *, robot: Any, model: Any, config: Any,
+    read_options: dict[str, Any] | None = None, model_from_log: bool = False,
+    generator: str | None = None, config_where: str = "config", allow_slow: bool = False,
+    show_progress: bool = False, signals_path: Path | None = None,
+    rrd_path: Path | None = None, rrd_options: dict[str, Any] | None = None,
+    samples: str | None = None, check: Callable[[Any], None] | None = None,
+) -> tuple[Any, Any]:
+    """Replay one log chunk by chunk in bounded memory (:mod:`impactcli.stream`): the one
+    routine of every verb that replays a log (``detect``, ``report``, ``view``,
+    ``evaluate``), so that they stream alike.
+
+    The log is scanned (:func:`impactcli.io.stream.scan_log`; ``check(scan)`` is called
+    before the replay, e.g. a timeline's sha256 check), then replayed with the loaded
+    ``robot``, ``model`` and ``config`` (``config_where``: its file, for messages; the other
+    arguments as :func:`impactcli.stream.analyze_stream`'s). The run's per-sample data never
+    comes back (the result holds none); what a verb needs of it is taken chunk by chunk:
+    ``signals_path`` gets the signals Parquet, written as the replay goes; ``rrd_path`` the
+    Rerun recording (``rrd_options``: ``max_points``, ``event_window_s``), written once the
+    answer is known from a spill file of what it plots
+    (:mod:`impactcli.outputs.rerun_stream`) — both atomically, and not at all when the
+    replay fails; ``samples="report"`` keeps what a report reads of the samples
+    (:mod:`impactcli.outputs.report_stream`), ``samples="sweep"`` only what the threshold
+    sweep reads (:mod:`impactcli.outputs.sweep_stream`: the ratios' columns). Progress in
+    seconds of log, summed over the passes, when ``show_progress`` and stderr is a
+    terminal.
+
+    Returns:
+        (the :class:`impactcli.result.DetectionResult`, its log a
+        :class:`impactcli.stream.LogHeader`; the
+        :class:`impactcli.outputs.report_stream.StreamedSamples` asked for, else None),
+        the caller closing the samples (they remove their spill file).
+    """
+    from contextlib import ExitStack
 
     from .io.stream import scan_log
     from .outputs.signals import SignalsWriter
+    from .stream import analyze_stream
 
     opts = dict(read_options or {})
     read_kw = dict(opts, robot=robot) if robot is not None else dict(opts)
     scan = scan_log(log_path, **read_kw)
-    bar = progress_bar(log_path, show_progress, "replay", "s of log (all passes)")
+    bar = None
+    collector = None
     try:
+        if check is not None:
+            check(scan)
+        bar = progress_bar(log_path, show_progress, "replay", "s of log (all passes)")
         with ExitStack() as stack:
             writers: list[Callable[[Any], None]] = []
             if signals_path is not None:
@@ -345,8 +366,12 @@ def stream_file(
                 stack.callback(spill.close)
                 writers.append(lambda c: spill.append(spill_columns(
                     c.joints, c.t_ns, c.signals, c.decisions, c.position, c.position_ref)))
-            if collector is not None:
-                writers.append(collector(scan))
+            if samples is not None:
+                from .outputs.report_stream import ReportCollector
+
+                collector = ReportCollector(scan.n_samples, scan.gaps, scan.gap_lengths_s,
+                                            plots=samples == "report")
+                writers.append(collector)
 
             def on_chunk(c: Any) -> None:
                 for w in writers:
@@ -360,8 +385,7 @@ def stream_file(
 
             result = analyze_stream(log_path, config=config, model=model, robot=robot,
                                     read_options=opts, generator=generator,
-                                    model_from_log=model_from_log,
-                                    config_where=config_path or "config",
+                                    model_from_log=model_from_log, config_where=config_where,
                                     allow_slow=allow_slow, scan=scan,
                                     on_chunk=on_chunk if writers else None,
                                     progress=progress if bar is not None else None)
@@ -369,13 +393,17 @@ def stream_file(
                 from .outputs.rerun_stream import write_rrd_from_spill
 
                 write_rrd_from_spill(result, spill, rrd_path, **(rrd_options or {}))
+            return result, None if collector is None else collector.finish(result)
+    except BaseException:
+        if collector is not None:
+            collector.close()
+        raise
     finally:
         if bar is not None:
             bar.close()
         close = getattr(scan, "close", None)  # the scan's cache of the rows, if any
         if close is not None:
             close()
-    return result
 
 
 def _summary(job: DetectJob, result: Any) -> dict[str, Any]:

@@ -42,6 +42,66 @@ def write_spill(f: Any, v: np.ndarray) -> None:
         f.write(np.ascontiguousarray(v).tobytes())
 
 
+class ColumnFiles:
+    """Arrays appended row by row to a temporary file per name (memory holds only their
+    layout), read back by rows: the one store of a streamed replay's spills.
+
+    Args:
+        prefix: the temporary folder's name prefix.
+    """
+
+    def __init__(self, prefix: str) -> None:
+        self.dir = tempfile.TemporaryDirectory(prefix=prefix)
+        self.files: dict[str, Any] = {}
+        self.layout: dict[str, tuple[np.dtype[Any], tuple[int, ...]]] = {}
+        self.rows = 0
+
+    def append(self, arrays: dict[str, np.ndarray]) -> None:
+        """Append rows: name → (m, ...) array (the same m, and each name's dtype and row
+        shape the same each time)."""
+        m = 0
+        for key, v in arrays.items():
+            f = self.files.get(key)
+            if f is None:
+                f = self.files[key] = open(os.path.join(self.dir.name, key), "wb")  # noqa: SIM115
+                self.layout[key] = (v.dtype, v.shape[1:])
+            write_spill(f, v)
+            m = int(v.shape[0])
+        self.rows += m
+
+    def flush(self) -> None:
+        """What the write buffers hold to disk (:func:`temp_space`), the files kept open."""
+        with temp_space():
+            for f in self.files.values():
+                f.flush()
+
+    def finish(self) -> None:
+        """Close the files for writing (:func:`temp_space`); their rows stay readable."""
+        with temp_space():
+            for f in self.files.values():
+                f.close()
+
+    def read(self, row_from: int, row_to: int, keys: tuple[str, ...] | None = None,
+             ) -> dict[str, np.ndarray]:
+        """Rows [row_from, row_to) of every array (``keys``: of these), written to disk
+        (:meth:`flush` or :meth:`finish`)."""
+        out = {}
+        for key in (tuple(self.layout) if keys is None else keys):
+            dtype, shape = self.layout[key]
+            width = int(np.prod(shape)) if shape else 1
+            with open(os.path.join(self.dir.name, key), "rb") as f:
+                f.seek(row_from * dtype.itemsize * width)
+                a = np.fromfile(f, dtype=dtype, count=(row_to - row_from) * width)
+            out[key] = a.reshape((-1, *shape))
+        return out
+
+    def close(self) -> None:
+        """Remove the files."""
+        for f in self.files.values():
+            f.close()
+        self.dir.cleanup()
+
+
 @dataclass
 class Island:
     """Consecutive samples near an alarm (module docstring): the island's first sample in
@@ -54,7 +114,7 @@ class Island:
 
 class Islands:
     """The islands of a streamed replay (module docstring), their rows spilled to
-    temporary files (one per array: memory holds only where each island lies).
+    temporary files (:class:`ColumnFiles`: memory holds only where each island lies).
 
     A sample is kept when some detector fires on it, when it lies within the merge gap
     after one that fires, or when the contact still presses on it (the static-loading
@@ -69,10 +129,7 @@ class Islands:
         self.kept_last = False         # whether the previous chunk's last sample was kept
         self.done: list[Island] = []
         self.open: Island | None = None
-        self.rows = 0
-        self.dir = tempfile.TemporaryDirectory(prefix="impactcli-islands-")
-        self.files: dict[str, Any] = {}
-        self.layout: dict[str, tuple[np.dtype[Any], tuple[int, ...]]] = {}
+        self.store = ColumnFiles("impactcli-islands-")
 
     def update(self, k0: int, t: np.ndarray, alarm: np.ndarray, pressing: np.ndarray,
                arrays: dict[str, np.ndarray]) -> None:
@@ -100,20 +157,11 @@ class Islands:
         for a, b in zip(edges[::2], edges[1::2], strict=True):
             if a > 0 or self.open is None:
                 self._close()
-                self.open = Island(k0 + int(a), self.rows, self.rows)
-            for key, v in arrays.items():
-                self._write(key, v[a:b])
-            self.rows += int(b - a)
-            self.open.row_to = self.rows
+                self.open = Island(k0 + int(a), self.store.rows, self.store.rows)
+            self.store.append({key: v[a:b] for key, v in arrays.items()})
+            self.open.row_to = self.store.rows
             if b < n:
                 self._close()
-
-    def _write(self, key: str, v: np.ndarray) -> None:
-        f = self.files.get(key)
-        if f is None:
-            f = self.files[key] = open(os.path.join(self.dir.name, key), "wb")  # noqa: SIM115
-            self.layout[key] = (v.dtype, v.shape[1:])
-        write_spill(f, v)
 
     def _close(self) -> None:
         if self.open is not None:
@@ -123,74 +171,36 @@ class Islands:
     def finish(self) -> list[Island]:
         """The islands, in time order (their rows readable until :meth:`close`)."""
         self._close()
-        with temp_space():  # what the write buffers still held goes to disk here
-            for f in self.files.values():
-                f.close()
+        self.store.finish()  # what the write buffers still held goes to disk here
         return self.done
 
     def arrays(self, isl: Island) -> dict[str, np.ndarray]:
         """An island's arrays, read back from the spill files."""
-        out = {}
-        for key, (dtype, shape) in self.layout.items():
-            width = int(np.prod(shape)) if shape else 1
-            size = dtype.itemsize * width
-            with open(os.path.join(self.dir.name, key), "rb") as f:
-                f.seek(isl.row_from * size)
-                a = np.fromfile(f, dtype=dtype, count=(isl.row_to - isl.row_from) * width)
-            out[key] = a.reshape((-1, *shape))
-        return out
+        return self.store.read(isl.row_from, isl.row_to)
 
     def close(self) -> None:
         """Remove the spill files."""
-        for f in self.files.values():
-            f.close()
-        self.dir.cleanup()
+        self.store.close()
 
 
-class ChunkSpill:
-    """Per-sample arrays of a pass, chunk by chunk, in a temporary file per array, read
-    back later chunk by chunk (the same chunks, in order) or from a given sample on."""
+class ChunkSpill(ColumnFiles):
+    """Per-sample arrays of a pass, chunk by chunk, in a temporary file per array
+    (:class:`ColumnFiles`), read back later chunk by chunk (the same chunks, in order)."""
 
     def __init__(self) -> None:
-        self.dir = tempfile.TemporaryDirectory(prefix="impactcli-spill-")
-        self.files: dict[str, Any] = {}
-        self.layout: dict[str, tuple[np.dtype[Any], tuple[int, ...]]] = {}
+        super().__init__("impactcli-spill-")
         self.lengths: list[int] = []
 
     def write(self, arrays: dict[str, np.ndarray]) -> None:
         """Append one chunk: name → (m, ...) array (the same names and shapes each time)."""
-        for key, v in arrays.items():
-            f = self.files.get(key)
-            if f is None:
-                f = self.files[key] = open(os.path.join(self.dir.name, key), "wb")  # noqa: SIM115
-                self.layout[key] = (v.dtype, v.shape[1:])
-            write_spill(f, v)
+        self.append(arrays)
         self.lengths.append(int(next(iter(arrays.values())).shape[0]))
 
-    def read(self, keys: tuple[str, ...] | None = None,
-             ) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
+    def read_chunks(self, keys: tuple[str, ...] | None = None,
+                    ) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
         """(first sample, arrays) per chunk as written; ``keys`` only these arrays."""
-        with temp_space():
-            for f in self.files.values():
-                f.flush()
-        names = tuple(self.layout) if keys is None else keys
-        handles = {k: open(os.path.join(self.dir.name, k), "rb") for k in names}  # noqa: SIM115
-        try:
-            k0 = 0
-            for m in self.lengths:
-                out = {}
-                for k, h in handles.items():
-                    dtype, shape = self.layout[k]
-                    width = int(np.prod(shape)) if shape else 1
-                    out[k] = np.fromfile(h, dtype=dtype, count=m * width).reshape((m, *shape))
-                yield k0, out
-                k0 += m
-        finally:
-            for h in handles.values():
-                h.close()
-
-    def close(self) -> None:
-        """Remove the files."""
-        for f in self.files.values():
-            f.close()
-        self.dir.cleanup()
+        self.flush()
+        k0 = 0
+        for m in self.lengths:
+            yield k0, self.read(k0, k0 + m, keys)
+            k0 += m

@@ -258,16 +258,19 @@ def analyze_stream(
         if given is None:
             cfg = _uncalibrated_config(cfg, joints, rp.margins)
             warn_uncalibrated(where)
-        events, per_island = _events(rp.islands, wu, joints, cfg)
-        warn_events_after_gaps(where, rp.gap_times[:, 1], events)
-        from .pipeline import _warn_long_events
-
-        _warn_long_events(cast(Any, header), events)
+        before = len(caught)  # the incidents' warnings follow the events' (whole-log order)
         ctx = incident_context(joints, full_joints, robot,
                                None if rig is None else rig.to_dict(), thr["static_loading"],
                                scan.sample_period_s, scan.t0_ns, scan.n_samples,
                                cfg.events.merge_gap_s, where)
-        incidents = _incidents(rp.islands, per_island, ctx)
+        ctx_msgs = caught[before:]
+        del caught[before:]
+        events, incidents = _events_and_incidents(rp.islands, wu, joints, cfg, ctx)
+        warn_events_after_gaps(where, rp.gap_times[:, 1], events)
+        from .pipeline import _warn_long_events
+
+        _warn_long_events(cast(Any, header), events)
+        caught.extend(ctx_msgs)
     msgs = tuple(dict.fromkeys(str(w.message) for w in caught
                                if issubclass(w.category, ImpactWarning)))
     for w in caught:
@@ -525,7 +528,7 @@ def _replay_passes(
                 thr, margins = _thresholds_from_spill(spill, wu, scan.n_samples, fs)
                 comparing = compare(thr)
                 if strategy == "spill":
-                    for k0, arrays in spill.read():
+                    for k0, arrays in spill.read_chunks():
                         comparing.update(_Step(k0, **arrays))
                         passes.at(float(arrays["t"][-1]))
                     passes.next()
@@ -554,7 +557,7 @@ def _thresholds_from_spill(spill: ChunkSpill, wu: Warmup, n: int, fs: float,
     start = wu.end_index if wu.end_index < n - 10 else 0  # pipeline.Replay.stats_after_warmup
     block = uncalibrated_block(n - start, fs)
     bms = {d: BlockMaxima(start, block) for d in DETECTORS}
-    for k0, a in spill.read(("r", "loading", "r_rms", "v_rms")):
+    for k0, a in spill.read_chunks(("r", "loading", "r_rms", "v_rms")):
         if k0 + a["r"].shape[0] <= start:
             continue
         bms["adaptive"].update(k0, a["r_rms"] - a["v_rms"])
@@ -578,20 +581,13 @@ class _Compare:
         self.gap_times = np.full((self.gaps.size, 2), np.nan)
 
     def update(self, st: _Step) -> None:
-        thr, k0, t = self.thr, st.k0, st.t
-        thr_ad = np.abs(thr["adaptive"][None, :] + st.v_rms)
-        baseline = np.abs(st.r)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ratios = {
-                "adaptive": np.where(thr_ad > 0, st.r_rms / thr_ad, np.inf),
-                "static_loading": st.loading / thr["static_loading"][None, :],
-                "static_baseline": baseline / thr["static_baseline"][None, :],
-            }
-        dec = {"adaptive": st.r_rms > thr_ad,
-               "static_loading": st.loading > thr["static_loading"][None, :],
-               "static_baseline": baseline > thr["static_baseline"][None, :]}
-        any_d = dec["adaptive"].any(axis=1) | dec["static_loading"].any(axis=1) | \
-            dec["static_baseline"].any(axis=1)
+        from .pipeline import compare_to_thresholds
+
+        k0, t = st.k0, st.t
+        thr_ad, ratios, dec = compare_to_thresholds(self.thr, st.r_rms, st.v_rms, st.loading,
+                                                    np.abs(st.r))
+        any_d = np.asarray(dec["adaptive"].any(axis=1) | dec["static_loading"].any(axis=1)
+                           | dec["static_baseline"].any(axis=1))
         pressing = np.any(st.loading >= self.pressing_at[None, :], axis=1)
         self.islands.update(k0, t, any_d, pressing, {
             "t": t, "r": st.r, "loading": st.loading, "qd": st.qd, "q_full": st.q_full,
@@ -625,13 +621,14 @@ def _chunk_arrays(ch: Any, t: np.ndarray, cols: list[int],
     return dataclasses.replace(a, **changes) if changes else a
 
 
-def _events(islands: Islands, wu: Warmup, joints: tuple[str, ...],
-            cfg: DetectorConfig) -> tuple[list[Event], list[tuple[int, list[Event]]]]:
-    """Every island's events (indices in the log, in timeline order), and per island its
-    first event's index and its events with indices in the island."""
+def _events_and_incidents(islands: Islands, wu: Warmup, joints: tuple[str, ...],
+                          cfg: DetectorConfig, ctx: IncidentContext,
+                          ) -> tuple[list[Event], list[Incident]]:
+    """Every island's events (indices in the log, in timeline order) and incidents
+    (:func:`impactcli.contacts.build_incidents`), each island read from its files once."""
     ev = cfg.events
     events: list[Event] = []
-    per_island = []
+    incidents: list[Incident] = []
     for isl in islands.done:
         a = islands.arrays(isl)
         local: list[Event] = []
@@ -639,19 +636,9 @@ def _events(islands: Islands, wu: Warmup, joints: tuple[str, ...],
             local += extract_events(d, a[f"d.{d}"], a[f"x.{d}"], a["r"], a["t"], joints,
                                     wu.end_s, ev.merge_gap_s, ev.min_duration_s)
         local.sort(key=lambda e: (e.t_start, DETECTORS.index(e.detector)))
-        per_island.append((len(events), local))
+        incidents += build_incidents(ctx, local, a["t"], a["r"], a["loading"], a["d.adaptive"],
+                                     a["d.static_loading"], a["q_full"], a["qd"],
+                                     offset=isl.start, event_offset=len(events))
         events += [dataclasses.replace(e, i_start=e.i_start + isl.start,
                                        i_end=e.i_end + isl.start) for e in local]
-    return events, per_island
-
-
-def _incidents(islands: Islands, per_island: list[tuple[int, list[Event]]],
-               ctx: IncidentContext) -> list[Incident]:
-    """Every island's incidents (:func:`impactcli.contacts.build_incidents`)."""
-    out: list[Incident] = []
-    for isl, (e0, local) in zip(islands.done, per_island, strict=True):
-        a = islands.arrays(isl)
-        out += build_incidents(ctx, local, a["t"], a["r"], a["loading"], a["d.adaptive"],
-                               a["d.static_loading"], a["q_full"], a["qd"],
-                               offset=isl.start, event_offset=e0)
-    return out
+    return events, incidents

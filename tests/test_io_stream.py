@@ -16,7 +16,7 @@ import pytest
 
 from impactcli.detect.screen import unusable_columns
 from impactcli.errors import ImpactWarning, LogFormatError
-from impactcli.io import read_log, stream, stream_cache, write_log
+from impactcli.io import read_log, stream, stream_cache, stream_csv, write_log
 from impactcli.io.inspect import time_gaps
 from impactcli.io.stream import OPTIONAL, LogScan, iter_chunks, scan_log
 from impactcli.types import JointSpec, RobotDescription
@@ -28,7 +28,7 @@ N = 3000
 @pytest.fixture(autouse=True)
 def _small_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
     """Many record batches per file: runs and duplicates fall across their boundaries."""
-    monkeypatch.setattr(stream, "BLOCK_SIZE", 4096)
+    monkeypatch.setattr(stream_csv, "BLOCK_SIZE", 4096)
 
 
 def _table(n: int = N, seed: int = 0, epoch: bool = False) -> dict[str, list[str]]:
@@ -144,12 +144,12 @@ def test_epoch_times_and_the_default_block_size(tmp_path: Path,
                                                 monkeypatch: pytest.MonkeyPatch) -> None:
     path = _write(tmp_path / "epoch.csv", _table(epoch=True))
     _assert_same(path, chunks=(7, 65536))
-    monkeypatch.setattr(stream, "BLOCK_SIZE", 1 << 24)
+    monkeypatch.setattr(stream_csv, "BLOCK_SIZE", 1 << 24)
     _assert_same(path, chunks=(1000,))
 
 
 def test_the_shipped_sample_logs(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(stream, "BLOCK_SIZE", 1 << 16)
+    monkeypatch.setattr(stream_csv, "BLOCK_SIZE", 1 << 16)
     root = Path(__file__).resolve().parents[1] / "sample_logs" / "csv"
     for name in ("assist_impacts", "heavy_free_p2p"):
         _assert_same(root / f"{name}.csv.gz", chunks=(1000, 65536))
@@ -342,25 +342,57 @@ def test_the_scan_warns_once_and_checks_its_options(tmp_path: Path) -> None:
 
 
 # --------------------------------------------------------------- the whole-file path
-def test_repair_order_and_variants_fall_back_to_read_log(tmp_path: Path) -> None:
+def test_iso_8601_time_streams(tmp_path: Path) -> None:
+    rng = np.random.default_rng(9)
+    cols = _table()
+    _punch(cols, rng, "nan", 15)
+    t_ns = 1_714_567_890 * 10**9 + np.array([round(float(v) * 1e9) for v in cols["time"]])
+    stamps = np.datetime_as_string(t_ns.astype("datetime64[ns]"), unit="ns")
+    for fmt in ("{}Z", "{}+02:00", "{}", " {} "):
+        cols["time"] = [fmt.format(str(v)) for v in stamps]
+        for c in cols.values():  # a duplicate row
+            c.insert(1001, c[1000])
+        scan = _assert_same(_write(tmp_path / "iso.csv", cols), chunks=(7, 1000))
+        assert scan.t0_ns > 10**18
+    assert "does not apply" in _error(tmp_path / "iso.csv", streamed=False, time_unit="ms")
+    cols["time"][2500] = "not a time"
+    assert "is not an ISO-8601 time" in _error(_write(tmp_path / "bad.csv", cols),
+                                               streamed=False)
+
+
+def test_repair_order_falls_back_to_read_log(tmp_path: Path) -> None:
     cols = _table()
     cols["time"][100], cols["time"][101] = cols["time"][101], cols["time"][100]
     _assert_same(_write(tmp_path / "late.csv", cols), streamed=False, chunks=(7,),
                  repair_order=True)
+
+
+def test_a_decimal_comma_and_a_byte_order_mark_stream(tmp_path: Path) -> None:
+    rng = np.random.default_rng(5)
     cols = _table()
-    path = _write(tmp_path / "semi.csv", {k: [v.replace(".", ",") for v in c]
-                                          for k, c in cols.items()}, sep=";")
-    _assert_same(path, streamed=False, chunks=(1000,))
-    bom = tmp_path / "bom.csv"
-    bom.write_bytes(b"\xef\xbb\xbf" + _write(tmp_path / "b.csv", _table()).read_bytes())
-    _assert_same(bom, streamed=False, chunks=(1000,))
+    _punch(cols, rng, "", 20)  # short runs of empty cells
+    for c in cols.values():  # duplicates
+        c.insert(2001, c[2000])
+    semi = {k: [v.replace(".", ",") for v in c] for k, c in cols.items()}
+    _assert_same(_write(tmp_path / "semi.csv", semi, sep=";"), chunks=(7, 1000))
+    for name in ("bom.csv", "bom.csv.gz"):
+        text = _write(tmp_path / "b.csv", cols).read_bytes()
+        bom = _write(tmp_path / name, {"x": ["0"]})
+        if name.endswith(".gz"):
+            bom.write_bytes(gzip.compress(b"\xef\xbb\xbf" + text))
+        else:
+            bom.write_bytes(b"\xef\xbb\xbf" + text)
+        _assert_same(bom, chunks=(7, 1000))
+    epoch = {k: [v.replace(".", ",") for v in c] for k, c in _table(epoch=True).items()}
+    _assert_same(_write(tmp_path / "epoch_semi.csv", epoch, sep=";"), chunks=(1000,))
 
 
-def test_other_formats_are_sliced(tmp_path: Path) -> None:
+def test_message_logs_stream_too(tmp_path: Path) -> None:
+    """MCAP and bags stream (tests/test_stream_formats.py has the cases)."""
     log, _ = _read(_write(tmp_path / "a.csv", _table()))
-    for name in ("a.mcap", "a.db3"):
+    for name in ("a.mcap", "a.db3", "a.bag"):
         write_log(log, tmp_path / name)
-        _assert_same(tmp_path / name, streamed=False, chunks=(7, 1000))
+        _assert_same(tmp_path / name, chunks=(7, 1000))
 
 
 def test_the_fast_decimal_time_is_decimal_text_to_ns() -> None:

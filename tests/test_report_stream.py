@@ -42,11 +42,11 @@ def _whole(path: Path, cfg: Path):
         return analyze(read_log(path), config=load_config(cfg), read_options={})
 
 
-def _streamed(path: Path, cfg: Path, rows: int):
+def _streamed(path: Path, cfg: Path, rows: int, plots: bool = True):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         scan = scan_log(str(path))
-        col = ReportCollector(scan.n_samples, scan.gaps, scan.gap_lengths_s)
+        col = ReportCollector(scan.n_samples, scan.gaps, scan.gap_lengths_s, plots=plots)
         try:
             result = analyze_stream(str(path), config=load_config(cfg), read_options={},
                                     chunk_rows=rows, scan=scan, on_chunk=col)
@@ -79,6 +79,30 @@ def test_streamed_report_is_the_whole_log_report(log: str, cfg: Path, rows: int)
     finally:
         samples.close()
     assert not os.path.exists(samples.col.spill.path)
+
+
+def test_the_sweeps_collector_keeps_only_the_ratios_and_sweeps_alike() -> None:
+    """evaluate --sweep's collector (plots=False): no envelopes, no positions in its spill,
+    and the same sweep rows as the report's full collector."""
+    import pyarrow.parquet as pq
+
+    from impactcli.outputs.sweep_stream import sweep_streamed
+
+    path = SAMPLES / "csv" / "assist_impacts.csv.gz"
+    labels = read_labels(SAMPLES / "csv" / "assist_impacts.labels.json")
+    full, lean = _streamed(path, ASSIST, 997), _streamed(path, ASSIST, 997, plots=False)
+    try:
+        assert not lean[1].col.env and full[1].col.env
+        names = pq.ParquetFile(lean[1].col.spill.path).schema_arrow.names
+        assert names == lean[1].ratio_columns()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            scales = (0.5, 1.0, 1.5, 3.0)
+            assert sweep_streamed(lean[1], lean[0], labels, scales) == \
+                sweep_streamed(full[1], full[0], labels, scales)
+    finally:
+        full[1].close()
+        lean[1].close()
 
 
 def test_streamed_report_with_a_time_gap(tmp_path: Path) -> None:

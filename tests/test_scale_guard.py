@@ -85,7 +85,7 @@ def test_report_refuses_a_huge_arm_and_takes_allow_slow(
         raise ScaleLimitError("stop here")
 
     monkeypatch.setattr(cli_report, "analyze_log", analyze_log)          # whole log
-    monkeypatch.setattr(cli_report, "stream_for_report", analyze_log)    # streamed
+    monkeypatch.setattr("impactcli.batch.stream_log", analyze_log)       # streamed
     r = CliRunner().invoke(main, ["report", str(log), "-o", str(html), "--allow-slow"])
     assert seen.get("allow_slow") is True, r.output
 

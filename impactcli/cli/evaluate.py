@@ -179,9 +179,10 @@ def replay_log(path: Path, *, robot: Path | None, model: Path | None, config: Pa
     Streamed when its inputs allow (:func:`impactcli.batch.stream_file`: a day-long log in
     bounded memory, as ``detect`` replays it); the scores need only the run's events and
     incidents, which a streamed result holds. The sweep needs every sample's ratio to the
-    thresholds: with ``sweep`` the report's collector
-    (:class:`impactcli.outputs.report_stream.ReportCollector`) spills them to a temporary
-    file as the replay goes and ``samples`` reads them back
+    thresholds: with ``sweep`` the report's collector, keeping only the ratios' columns
+    (:class:`impactcli.outputs.report_stream.ReportCollector`), spills them to a temporary
+    file as the replay goes and ``samples`` (its
+    :class:`~impactcli.outputs.report_stream.StreamedSamples`) reads them back
     (:func:`impactcli.outputs.sweep_stream.sweep_streamed` gives the rows
     :func:`impactcli.evaluate.sweep_thresholds` gives on the whole-log run); the caller
     closes ``samples`` (it removes the spill file). Else (inputs that do not stream) the
@@ -189,28 +190,15 @@ def replay_log(path: Path, *, robot: Path | None, model: Path | None, config: Pa
     """
     from ..batch import stream_file
 
-    made: list[Any] = []
-
-    def collect(scan: Any) -> Any:
-        from ..outputs.report_stream import ReportCollector
-
-        made.append(ReportCollector(scan.n_samples, scan.gaps, scan.gap_lengths_s))
-        return made[-1]
-
-    try:
-        result = stream_file(str(path), robot_path=None if robot is None else str(robot),
-                             model_path=None if model is None else str(model),
-                             config_path=None if config is None else str(config),
-                             read_options=read_options, allow_slow=allow_slow,
-                             show_progress=True, collector=collect if sweep else None)
-        if result is None:
-            return analyze_log(path, robot=robot, model=model, config=config,
-                               read_options=read_options, allow_slow=allow_slow), None
-        return result, (made[-1].finish(result) if made else None)
-    except BaseException:
-        for c in made:
-            c.close()
-        raise
+    got = stream_file(str(path), robot_path=None if robot is None else str(robot),
+                      model_path=None if model is None else str(model),
+                      config_path=None if config is None else str(config),
+                      read_options=read_options, allow_slow=allow_slow, show_progress=True,
+                      samples="sweep" if sweep else None)
+    if got is None:
+        return analyze_log(path, robot=robot, model=model, config=config,
+                           read_options=read_options, allow_slow=allow_slow), None
+    return got
 
 
 def _timeline_sweep(source: Path, doc: dict[str, Any], labels: Any, scales: tuple[float, ...],

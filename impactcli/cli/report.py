@@ -37,7 +37,7 @@ import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
 import click
 
@@ -217,64 +217,13 @@ def rerun_timeline(tl_path: Path, *, robot: Any = None,
     return result, plan["log_path"]
 
 
-def stream_for_report(path: Path, *, robot: Any, model: Any, config: Any,
-                      read_options: dict[str, Any], allow_slow: bool = False,
-                      show_progress: bool = False, check: Any = None,
-                      model_from_log: bool = False) -> tuple[Any, Any]:
-    """Replay ``path`` chunk by chunk (:func:`impactcli.stream.analyze_stream`, bounded
-    memory) collecting what its report plots (:mod:`impactcli.outputs.report_stream`).
-
-    Returns (result, samples); the caller closes ``samples`` (it removes the spill file).
-    ``check`` is called with the scan before the replay (a timeline's sha256 check).
-    Progress in seconds of log as ``detect`` shows it, for a serial run in a terminal.
-    """
-    from types import SimpleNamespace
-
-    from ..batch import _progress_bar
-    from ..io.stream import scan_log
-    from ..outputs.report_stream import ReportCollector
-    from ..stream import analyze_stream
-
-    opts = dict(read_options)
-    read_kw = dict(opts, robot=robot) if robot is not None else dict(opts)
-    scan = scan_log(str(path), **read_kw)
-    try:
-        if check is not None:
-            check(scan)
-        bar = _progress_bar(cast(Any, SimpleNamespace(show_progress=show_progress,
-                                                      log_path=str(path))), "replay",
-                           "s of log (all passes)")
-
-        def progress(done_s: float, total_s: float) -> None:
-            assert bar is not None
-            bar.total = round(total_s)
-            bar.n = round(done_s)
-            bar.refresh()
-
-        collector = ReportCollector(scan.n_samples, scan.gaps, scan.gap_lengths_s)
-        try:
-            result = analyze_stream(str(path), config=config, model=model, robot=robot,
-                                    read_options=opts, allow_slow=allow_slow, scan=scan,
-                                    model_from_log=model_from_log, on_chunk=collector,
-                                    progress=progress if bar is not None else None)
-            return result, collector.finish(result)
-        except BaseException:
-            collector.close()
-            raise
-        finally:
-            if bar is not None:
-                bar.close()
-    finally:  # the scan's row cache goes, whatever happened (a sha256 mismatch included)
-        close = getattr(scan, "close", None)
-        if close is not None:
-            close()
-
-
 def analyze_for_report(task: ReportTask, robot: Any, model: Any, config: Any
                        ) -> tuple[Any, Path, Any, dict[str, Any] | None]:
-    """(result, log path, samples or None, origin) of one report input: streamed when its
-    inputs allow (:func:`impactcli.stream.streamable`: all but ``--model`` with
+    """(result, log path, samples or None, origin) of one report input: streamed
+    (:func:`impactcli.batch.stream_log`: bounded memory, collecting what its report plots)
+    when its inputs allow (:func:`impactcli.stream.streamable`: all but ``--model`` with
     ``--model-from-log``), else the whole-log replay (samples None)."""
+    from ..batch import stream_log
     from ..stream import streamable
 
     inp = Path(task.inp)
@@ -284,10 +233,11 @@ def analyze_for_report(task: ReportTask, robot: Any, model: Any, config: Any
         if not streamable(plan["config"], plan["model"], plan["model_from_log"]):
             result, log_path = rerun_timeline(inp, robot=robot, allow_slow=task.allow_slow)
             return result, log_path, None, origin
-        result, samples = stream_for_report(
-            plan["log_path"], robot=plan["robot"], model=plan["model"], config=plan["config"],
-            read_options=plan["read_options"], allow_slow=task.allow_slow,
-            show_progress=task.show_progress, model_from_log=plan["model_from_log"],
+        result, samples = stream_log(
+            str(plan["log_path"]), robot=plan["robot"], model=plan["model"],
+            config=plan["config"], read_options=plan["read_options"],
+            allow_slow=task.allow_slow, show_progress=task.show_progress,
+            model_from_log=plan["model_from_log"], samples="report",
             check=lambda scan: _check_sha(inp, plan, scan.source.sha256))
         try:
             _compare_events(inp, plan["tl"], result)
@@ -299,10 +249,9 @@ def analyze_for_report(task: ReportTask, robot: Any, model: Any, config: Any
         return (analyze_log(inp, robot=robot, model=model, config=config,
                             read_options=task.read_options, allow_slow=task.allow_slow),
                 inp, None, None)
-    result, samples = stream_for_report(inp, robot=robot, model=model, config=config,
-                                        read_options=task.read_options,
-                                        allow_slow=task.allow_slow,
-                                        show_progress=task.show_progress)
+    result, samples = stream_log(str(inp), robot=robot, model=model, config=config,
+                                 read_options=task.read_options, allow_slow=task.allow_slow,
+                                 show_progress=task.show_progress, samples="report")
     return result, inp, samples, None
 
 

@@ -90,13 +90,13 @@ def record_log(source: Path, rrd: Path, *, robot: Path | None, model: Path | Non
     from ..batch import stream_file
 
     opts: dict[str, Any] = {"max_points": max_points, "event_window_s": event_window_s}
-    result = stream_file(str(source), robot_path=None if robot is None else str(robot),
-                         model_path=None if model is None else str(model),
-                         config_path=None if config is None else str(config),
-                         read_options=read_options, show_progress=True, rrd_path=rrd,
-                         rrd_options=opts)
-    if result is not None:
-        return cast("DetectionResult", result)
+    got = stream_file(str(source), robot_path=None if robot is None else str(robot),
+                      model_path=None if model is None else str(model),
+                      config_path=None if config is None else str(config),
+                      read_options=read_options, show_progress=True, rrd_path=rrd,
+                      rrd_options=opts)
+    if got is not None:
+        return cast("DetectionResult", got[0])
     from ..outputs.rerun import write_rrd
 
     result = analyze_log(source, robot=robot, model=model, config=config,

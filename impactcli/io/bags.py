@@ -141,17 +141,19 @@ class BagSource(MessageSource):
         for t in want:
             rs = rows[t]
             mtype, enc = self._topics[t]
-            if not rs:
-                out[t] = TopicData(t, mtype, enc, [])
-                continue
-            lens = np.array([len(r[2]) for r in rs], dtype=np.int64)
-            offs = np.concatenate(([0], np.cumsum(lens)[:-1])).astype(np.int64)
-            times = np.array([r[1] for r in rs], dtype=np.int64)
-            buf = np.frombuffer(b"".join(r[2] for r in rs), dtype=np.uint8)
-            batch = Batch(buf, offs, lens, times, times.copy(),
-                          np.array([r[0] for r in rs], dtype=np.int64))
-            out[t] = TopicData(t, mtype, enc, [batch])
+            out[t] = TopicData(t, mtype, enc, [bag_batch(rs)] if rs else [])
         return out
+
+
+def bag_batch(rows: list[tuple[int, int, bytes]]) -> Batch:
+    """Bag messages ``(index in the bag's order, time [ns], bytes)`` as one Batch (log
+    time = publish time = the bag's time)."""
+    lens = np.array([len(r[2]) for r in rows], dtype=np.int64)
+    offs = np.concatenate(([0], np.cumsum(lens)[:-1])).astype(np.int64)
+    times = np.array([r[1] for r in rows], dtype=np.int64)
+    buf = np.frombuffer(b"".join(r[2] for r in rows), dtype=np.uint8)
+    return Batch(buf, offs, lens, times, times.copy(), np.array([r[0] for r in rows],
+                                                                dtype=np.int64))
 
 
 class _Closing:

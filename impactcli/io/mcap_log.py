@@ -133,8 +133,6 @@ def write_mcap_ros2(
     (as some real recorders do; for tests); ``chunk_size`` [bytes] is the MCAP chunk size.
     Current and acceleration_ref are not carried.
     """
-    from mcap.writer import CompressionType, Writer
-
     from .._fs import atomic_output
 
     p = Path(path)
@@ -142,10 +140,7 @@ def write_mcap_ros2(
     topics = jointstate_topics(log, ROS2_TOPIC)
     zeros = b"\x00" * pad
     with atomic_output(p, "wb") as f:
-        w = Writer(f, compression=CompressionType.ZSTD, chunk_size=chunk_size)
-        w.start(profile="ros2", library="impactcli")
-        sid = w.register_schema(name=JOINT_STATE, encoding="ros2msg",
-                                data=JOINT_STATE_DEF.encode())
+        w, sid = ros2_writer(f, chunk_size)
         cids = [w.register_channel(topic=name, message_encoding="cdr", schema_id=sid)
                 for name, _ in topics]
         for i, t in enumerate(log.t_ns.tolist()):
@@ -154,6 +149,19 @@ def write_mcap_ros2(
                 w.add_message(cid, log_time=t, publish_time=t, sequence=i,
                               data=rows[i].tobytes() + zeros)
         w.finish()  # type: ignore[no-untyped-call]
+
+
+def ros2_writer(f: Any, chunk_size: int = 1 << 20) -> tuple[Any, int]:
+    """An MCAP writer started on the open binary file ``f`` (zstd chunks of
+    ``chunk_size`` bytes, ``ros2`` profile) and the id of its JointState schema
+    (``ros2msg``): register channels on it, add messages, ``finish()``."""
+    from mcap.writer import CompressionType, Writer
+
+    w = Writer(f, compression=CompressionType.ZSTD, chunk_size=chunk_size)
+    w.start(profile="ros2", library="impactcli")
+    sid = w.register_schema(name=JOINT_STATE, encoding="ros2msg",
+                            data=JOINT_STATE_DEF.encode())
+    return w, sid
 
 
 def jointstate_topics(log: RobotLog, state_topic: str) -> list[tuple[str, np.ndarray]]:

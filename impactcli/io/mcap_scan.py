@@ -31,6 +31,8 @@ OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 1, 2, 3, 4, 
 OP_DATA_END = 15
 #: bytes of a message record before its data: opcode(1) length(8) channel(2) seq(4) times(16)
 MSG_PREFIX = 31
+#: The longest period of record sizes located in bulk (:meth:`_Collector._periodic`).
+MAX_PERIOD = 8
 
 
 class UnsupportedMcap(Exception):
@@ -138,6 +140,8 @@ class _Collector:
                     self.add(arr, rec["ch"].astype(np.int64), off,
                              np.full(n, ln0 - 22, dtype=np.int64), rec["lt"], rec["pt"])
                     return end, False
+        if inside_chunk:  # records whose sizes repeat: located in bulk, the rest walked
+            start = self._periodic(buf, arr, start, end)
         chs: list[int] = []
         offs: list[int] = []
         lens: list[int] = []
@@ -195,6 +199,38 @@ class _Collector:
             else:
                 self.pending.append(("msgs", (arr, chs, offs, lens, lts, pts)))
         return pos, done
+
+    def _periodic(self, buf: bytes, arr: np.ndarray, start: int, end: int) -> int:
+        """Add the message records from ``start`` on whose sizes repeat with a period of
+        at most :data:`MAX_PERIOD` records (a state topic and its companions written in
+        turn), found with NumPy and checked record by record; returns where the records
+        not added start (``start`` when the chunk has no such run)."""
+        lens: list[int] = []
+        pos = start
+        while len(lens) < 2 * MAX_PERIOD and pos + 9 <= end and buf[pos] == OP_MESSAGE:
+            (ln,) = struct.unpack_from("<Q", buf, pos + 1)
+            lens.append(ln)
+            pos += 9 + ln
+        period = next((p for p in range(1, len(lens) // 2 + 1)
+                       if lens[p:2 * p] == lens[:p]), 0)
+        if not period or min(lens[:period]) < 22:
+            return start
+        rel = np.cumsum([0] + [9 + ln for ln in lens[:period]])
+        stride = int(rel[-1])
+        m = (end - start) // stride
+        if m < 2:
+            return start
+        at = (start + np.arange(m, dtype=np.int64)[:, None] * stride + rel[None, :-1]).ravel()
+
+        def field(off: int, dtype: str, size: int) -> np.ndarray:
+            return arr[at[:, None] + np.arange(off, off + size)].view(dtype).ravel()
+
+        want = np.tile(np.asarray(lens[:period], dtype=np.uint64), m)
+        if not (np.all(arr[at] == OP_MESSAGE) and np.array_equal(field(1, "<u8", 8), want)):
+            return start
+        self.add(arr, field(9, "<u2", 2).astype(np.int64), at + MSG_PREFIX,
+                 want.astype(np.int64) - 22, field(15, "<u8", 8), field(23, "<u8", 8))
+        return start + m * stride
 
     def run_pending(self, buf: bytes, where: str) -> None:
         """Decompress the chunks found at top level (in threads: zstd/lz4 release the GIL),

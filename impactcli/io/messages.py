@@ -121,24 +121,39 @@ class _Held:
 
 def _state_time(tm: _Times, time_source: str | None, where: str,
                 topic: str) -> tuple[np.ndarray, str]:
+    zero = None if tm.header is None or np.all(tm.header != 0) else int(
+        np.argmax(tm.header == 0))
+    tsrc = choose_time_source(time_source, tm.header is not None, zero, where, topic)
+    if tsrc == "header":
+        assert tm.header is not None
+        return tm.header, tsrc
+    return (tm.publish if tsrc == "publish" else tm.log), tsrc
+
+
+def choose_time_source(time_source: str | None, has_header: bool, zero_at: int | None,
+                       where: str, topic: str) -> str:
+    """The state topic's time source (module docstring): ``time_source``, else ``header``
+    when every stamp is non-zero, else ``log``.
+
+    Args:
+        has_header: the messages have header stamps.  zero_at: the first message whose
+            stamp is zero (None: none is).
+    Raises:
+        LogFormatError: ``header`` asked for messages without stamps, or with a zero stamp.
+    """
     if time_source is None:
-        if tm.header is not None and np.all(tm.header != 0):
-            return tm.header, "header"
-        return tm.log, "log"
+        return "header" if has_header and zero_at is None else "log"
     if time_source == "header":
-        if tm.header is None:
+        if not has_header:
             raise LogFormatError(f"{where}: topic {topic!r} has no header stamp; use "
                                  "--time-source log or publish")
-        if np.any(tm.header == 0):
-            k = int(np.argmax(tm.header == 0))
+        if zero_at is not None:
             raise LogFormatError(
-                f"{where}: topic {topic!r}, message {k}: header stamp is zero; use "
+                f"{where}: topic {topic!r}, message {zero_at}: header stamp is zero; use "
                 "--time-source log or publish"
             )
-        return tm.header, "header"
-    if time_source == "publish":
-        return tm.publish, "publish"
-    return tm.log, "log"
+        return "header"
+    return "publish" if time_source == "publish" else "log"
 
 
 def _held_time(tm: _Times, tsrc: str) -> np.ndarray:
@@ -191,6 +206,18 @@ def json_topic_arrays(src: MessageSource, td: TopicData) -> TopicArrays:
     )
     out.json_extra = (vals, has)  # type: ignore[attr-defined]
     return out
+
+
+def joint_signals(arr: TopicArrays) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """Signal → (n, J) values of a joint topic's decoded messages, and signal → (n,) whether
+    each message fills it (JointState: position, velocity, effort as torque; JSON samples:
+    every signal they carry)."""
+    extra = getattr(arr, "json_extra", None)
+    if extra is not None:
+        return extra  # type: ignore[no-any-return]
+    return ({"position": arr.position, "velocity": arr.velocity, "torque": arr.effort},
+            {"position": arr.has_position, "velocity": arr.has_velocity,
+             "torque": arr.has_effort})
 
 
 def _joint_arrays(src: MessageSource, td: TopicData, kind: str,
@@ -344,13 +371,7 @@ def read_message_channels(
                 f"{where}: topic {state_topic!r}, message {k} lacks some of the joints "
                 f"{', '.join(joints)}"
             )
-        extra = getattr(arr, "json_extra", None)
-        if extra is not None:
-            vals, has = extra
-        else:
-            vals = {"position": arr.position, "velocity": arr.velocity, "torque": arr.effort}
-            has = {"position": arr.has_position, "velocity": arr.has_velocity,
-                   "torque": arr.has_effort}
+        vals, has = joint_signals(arr)
         used: list[str] = []
         for s in SIGNALS:
             if s not in has or s in mapped:
@@ -506,17 +527,9 @@ def _assemble(
                                 row_label=label)
     repairs += rep
     jn = len(joints)
-    signals: dict[str, np.ndarray] = {}
-    have: dict[str, set[int]] = {}
-    for c, (s, j, _) in enumerate(cols):
-        if s not in signals:
-            signals[s] = np.full((t.shape[0], jn), np.nan)
-        signals[s][:, j] = mat[:, c]
-        have.setdefault(s, set()).add(j)
-    for s in signals:
-        lack = [joints[j] for j in range(jn) if j not in have[s]]
-        if lack:
-            missing[s] = sorted(set(missing.get(s, [])) | set(lack), key=joints.index)
+    signals, lacking = stack_columns(mat, [(s, j) for s, j, _ in cols], joints)
+    for s, lack in lacking.items():
+        missing[s] = sorted(set(missing.get(s, [])) | set(lack), key=joints.index)
     for s in list(missing):
         if s not in signals and s in CONTROLLER_CHANNELS:
             del missing[s]
@@ -529,3 +542,20 @@ def _assemble(
         ignored=ignored, repairs=repairs,
     )
     return ch, tsrc
+
+
+def stack_columns(mat: np.ndarray, cols: list[tuple[str, int]], joints: tuple[str, ...]
+                  ) -> tuple[dict[str, np.ndarray], dict[str, list[str]]]:
+    """Repaired columns ``mat`` (n, C), column c being ``cols[c]`` = (signal, joint index),
+    as signals (n, J) (NaN for the joints without the signal), and signal → the joints
+    without it (only the signals some joint lacks)."""
+    jn = len(joints)
+    signals: dict[str, np.ndarray] = {}
+    have: dict[str, set[int]] = {}
+    for c, (s, j) in enumerate(cols):
+        if s not in signals:
+            signals[s] = np.full((mat.shape[0], jn), np.nan)
+        signals[s][:, j] = mat[:, c]
+        have.setdefault(s, set()).add(j)
+    lacking = {s: [joints[j] for j in range(jn) if j not in have[s]] for s in signals}
+    return signals, {s: lack for s, lack in lacking.items() if lack}

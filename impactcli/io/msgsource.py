@@ -57,6 +57,7 @@ class TopicData:
     log_time: np.ndarray = field(init=False)
     publish_time: np.ndarray = field(init=False)
     _where: list[tuple[int, int]] = field(init=False, repr=False)
+    _idx: list[np.ndarray] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         orders = (np.concatenate([b.order for b in self.batches]) if self.batches
@@ -65,14 +66,13 @@ class TopicData:
         n = srt.shape[0]
         self.log_time = np.zeros(n, np.int64)
         self.publish_time = np.zeros(n, np.int64)
-        loc = [(0, 0)] * n
-        for bi, b in enumerate(self.batches):
+        self._idx = []
+        for b in self.batches:
             idx = np.searchsorted(srt, b.order)
             self.log_time[idx] = b.log_time
             self.publish_time[idx] = b.publish_time
-            for k, i in enumerate(idx.tolist()):
-                loc[i] = (bi, k)
-        self._where = loc
+            self._idx.append(idx)
+        self._where = []  # message → (batch, index in it), made when first asked for
 
     @property
     def n(self) -> int:
@@ -81,6 +81,12 @@ class TopicData:
 
     def data(self, i: int) -> bytes:
         """The bytes of message ``i`` (file order within the topic)."""
+        if not self._where and self.n:
+            loc = [(0, 0)] * self.n
+            for bi, idx in enumerate(self._idx):
+                for k, j in enumerate(idx.tolist()):
+                    loc[j] = (bi, k)
+            self._where = loc
         bi, k = self._where[i]
         b = self.batches[bi]
         o, ln = int(b.data_off[k]), int(b.data_len[k])

@@ -14,33 +14,57 @@ gap rule, :func:`impactcli.detect.screen.unusable_columns` from per-column minim
 and up to ``FEW_VALUES`` distinct values). Its errors are :func:`read_log`'s one-line
 LogFormatErrors, raised by the scan (a bad file fails before any output is written).
 
-Streamed (memory bounded, whatever the log's length: the text is parsed on threads in
-ranges of about :data:`BLOCK_SIZE` = 1 MiB, at most 4 ahead of the scan
-(:mod:`impactcli.io.stream_parse`), one range's arrays are converted at a time, plus the
-chunk being put together): a local ``.csv`` or ``.csv.gz`` — canonical, or through a CSV
-channel map — with a ``.`` decimal point, whose time column holds plain decimal numbers
-(``12.345``, ``1714567890.001``, ``1234``) and whose value cells are numbers or empty. It
-is parsed by pyarrow (range by range, with the whole-file reader's options) and converted
-batch by batch by the whole-file reader's own steps (exact decimal time → int64 ns, the
-map's scale and offset, current → torque), and repaired across batch boundaries as in the
-whole file (:mod:`impactcli.io.repair`): exact duplicate rows dropped, runs of at most 5
-non-finite values interpolated (rows are held back until a run closes), values beyond 1e12
-and rows out of time order refused, the 20 Hz – 100 kHz rate check. The scan keeps,
-besides constants per column, the candidate gaps (steps longer than 1.2 provisional
-periods, with their windows; a second pass over the file if the period then drifts below).
-Only the scan parses the file (all the channels: the repairs and the screen need their
+Streamed (memory bounded, whatever the log's length), one implementation for every
+format: a format's layout (:mod:`impactcli.io.stream_layout`) gives the file's rows in
+blocks, before repairs; they are repaired across block boundaries as in the whole file
+(:mod:`impactcli.io.stream_repair`, the policy of :mod:`impactcli.io.repair`: exact
+duplicate rows dropped, runs of at most 5 non-finite values interpolated — rows are held
+back until a run closes —, values beyond 1e12 and rows out of time order refused; the
+20 Hz – 100 kHz rate check of CSV and ``.npz`` time columns), converted block by block by
+the whole-file reader's own steps (the map's scale and offset, current → torque). The
+formats:
+
+- a local ``.csv`` or ``.csv.gz`` — canonical, or through a CSV channel map; a UTF-8
+  byte-order mark or a decimal comma too — whose time column holds plain decimal numbers
+  (``12.345``, ``1714567890.001``, ``1234``) or ISO-8601 stamps and whose value cells are
+  numbers or empty: parsed by
+  pyarrow in ranges of about :data:`BLOCK_SIZE` = 1 MiB, on threads at most 4 ahead of the
+  scan (:mod:`impactcli.io.stream_csv`, :mod:`impactcli.io.stream_parse`);
+- MCAP (ROS 2 JointState with its ``_ref``/``_model``/``_ext`` companions, impactcli's JSON
+  joint samples, any message type through a ``format: messages`` channel map) and ROS bags
+  (rosbag2 ``.db3`` files and folders, ROS 1 ``.bag``): one MCAP chunk (or 8192 bag
+  messages) at a time, in two passes — the first decodes and counts (the state topic, its
+  signals, the time source, each topic's stamps), the second merges the companion and map
+  topics by causal sample-and-hold (:mod:`impactcli.io.stream_msgs`,
+  :mod:`impactcli.io.stream_msgs_plan`, :mod:`impactcli.io.stream_blocks`); a truncated
+  MCAP as the whole reader reads it;
+- ``.npz`` through a ``format: npz`` map: each ``.npy`` member read 65536 rows at a time,
+  deflated members too (:mod:`impactcli.io.stream_npz`);
+- any of these named by URL (``file://``, or fsspec: ``s3://``, ``memory://``...): the
+  local copy :func:`read_log` reads (a remote object downloaded to a temporary folder) is
+  streamed and kept for the scan's lifetime, deleted by :meth:`LogScan.close`, the scan's
+  garbage collection or the interpreter's exit; ``source.path`` is the URL and errors name
+  it, as :func:`read_log`'s do (its repairs name the local copy, as :func:`read_log`'s do).
+
+The scan keeps, besides constants per column, the candidate gaps (steps longer than 1.2
+provisional periods, with their windows; a second pass if the period then drifts below).
+Only the scan reads the file (all the channels: the repairs and the screen need their
 values); it keeps the rows it repaired in a binary temporary file that :func:`iter_chunks`
 reads instead (:mod:`impactcli.io.stream_cache`: a copy instead of a parse; the same
 arrays bit for bit), until :meth:`LogScan.close`, the scan's garbage collection or the
-interpreter's exit deletes it. Without the cache (a full disk) each pass parses the file.
+interpreter's exit deletes it. Without the cache (a full disk) each pass reads the file.
 
 Not streamed (``LogScan.streamed`` False; the scan reads the whole log with
-:func:`read_log` and the chunks are slices of it, memory NOT bounded): every other format
-(``.npz``, MCAP, bags, rosbag2 folders), URLs, and CSV variants (a UTF-8 byte-order mark,
-a decimal comma, ISO-8601 or non-decimal time text, empty or non-numeric time cells, a value
-column that is not numeric), ``--repair-order`` on a file with rows out of time order, and
-any file the whole-file reader refuses for a reason the stream does not check itself (the
-whole-file reader then raises its own error).
+:func:`read_log` and the chunks are slices of it, memory NOT bounded): CSV variants
+(other time text — exponents, dates without a time —, empty or non-numeric time cells, a
+value column that is not numeric); message logs whose state
+stamps (or a held topic's) are out of order in the file (the whole reader sorts them),
+whose companion topics change their joint names between messages, with ROS 1 JointState
+inside MCAP, an MCAP compression the scanner does not know, or a held topic more than
+200 000 messages ahead or behind the state in the file;
+``--repair-order`` on a file with rows out of time order; and any file the whole-file
+reader refuses for a reason the stream does not check itself (the whole-file reader then
+raises its own error: a bad file, a topic it cannot choose, an array of the wrong shape...).
 """
 
 from __future__ import annotations
@@ -49,7 +73,6 @@ import os
 import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -64,22 +87,19 @@ from ..sampling import (
 )
 from ..types import CONTROLLER_CHANNELS, LogSource, RobotLog
 from .stream_cache import RowCache, take
+from .stream_csv import BLOCK_SIZE, _decimal_ns  # noqa: F401  (the CSV stream's, named here too)
+from .stream_layout import StreamLayout
 from .stream_repair import _NotStreamable, _Repairer
 from .stream_screen import ColumnScreen, _screen_of, _ScreenAcc
 
 __all__ = ["BLOCK_SIZE", "ColumnScreen", "LogChunk", "LogScan", "iter_chunks", "scan_log"]
 
-#: Bytes of CSV text parsed at a time (one range, one record batch: a 7-joint log's row is
-#: ~430 bytes, ~2400 rows a range; :mod:`impactcli.io.stream_parse` parses up to 4 ahead).
-BLOCK_SIZE = 1 << 20
 #: The first pass keeps the steps longer than this fraction of 1.5 provisional periods as
 #: gap candidates (exact while the final threshold is above; else a second pass).
 FLOOR_FRACTION = 0.8
 #: The log's optional arrays, in :class:`~impactcli.types.RobotLog`'s order.
 OPTIONAL = ("velocity", "current", "position_ref", "velocity_ref", "acceleration_ref",
             "torque_model", "torque_ext")
-#: The time text streamed: plain decimal numbers.
-_PLAIN = r"^-?\d+(\.\d+)?$"
 
 
 # --------------------------------------------------------------------------- results
@@ -155,6 +175,7 @@ class LogScan:
     options: dict[str, Any] = field(default_factory=dict, repr=False)
     _whole: RobotLog | None = field(default=None, repr=False, compare=False)
     _pass: _Pass | None = field(default=None, repr=False, compare=False)
+    _copy: Any = field(default=None, repr=False, compare=False)  # a URL's local copy
 
     def close(self) -> None:
         """Delete the scan's cache of the repaired rows (:mod:`impactcli.io.stream_cache`;
@@ -163,6 +184,8 @@ class LogScan:
         if self._pass is not None and self._pass.cache is not None:
             self._pass.cache.close()
             self._pass.cache = None
+        if self._copy is not None:
+            self._copy.close()
 
     def __enter__(self) -> LogScan:
         return self
@@ -220,13 +243,83 @@ def scan_log(path: str | os.PathLike[str], **read_options: Any) -> LogScan:
     Raises:
         LogFormatError, ChannelMapError: as :func:`read_log` would, for the same file.
     """
-    ctx = _context(path, read_options)
-    if ctx is not None:
-        try:
-            return _scan_stream(ctx, read_options)
-        except _NotStreamable:
-            pass
-    return _scan_whole(path, read_options)
+    _check_options(read_options)
+    from .urls import is_url
+
+    if is_url(path):
+        return _scan_url(str(path), read_options)
+    return _scan_local(path, read_options)
+
+
+def _check_options(options: dict[str, Any]) -> None:
+    known = {"channel_map", "robot", "topic", "reference_topic", "time_source",
+             "torque_source", "time_unit", "repair_order"}
+    unknown = set(options) - known
+    if unknown:
+        raise TypeError(f"unknown read options: {', '.join(sorted(unknown))}")
+
+
+def _scan_local(path: str | os.PathLike[str], options: dict[str, Any]) -> LogScan:
+    """:func:`scan_log` of a local file or folder: streamed when its format's layout says
+    so, else read whole."""
+    try:
+        ctx = _layout(path, options)
+        if ctx is not None:
+            return _scan_stream(ctx, options)
+    except _NotStreamable:
+        pass
+    return _scan_whole(path, options)
+
+
+def _layout(path: str | os.PathLike[str], options: dict[str, Any]) -> StreamLayout | None:
+    """The streaming layout of a local log (module docstring), None when it is read whole.
+    Raises what :func:`read_log` raises for the path and options, or ``_NotStreamable``."""
+    from . import open_log_options
+
+    opts = {k: v for k, v in options.items() if k not in ("robot", "repair_order")}
+    p, where, suffix, _folder, cmap = open_log_options(path, **opts)
+    if suffix in (".csv", ".csv.gz"):
+        if cmap is not None and cmap.format == "npz":
+            return None
+        from .stream_csv import csv_stream_layout
+
+        return csv_stream_layout(p, cmap, options)
+    if suffix == ".npz":
+        from .stream_npz import npz_stream_layout
+
+        return npz_stream_layout(p, where, cmap, options)
+    from .stream_msgs import message_layout
+
+    return message_layout(p, where, suffix, cmap, options)
+
+
+def _scan_url(url: str, options: dict[str, Any]) -> LogScan:
+    """:func:`scan_log` of a URL: the local copy (:func:`impactcli.io.urls.fetched`) is
+    scanned and kept for the scan's lifetime (deleted by :meth:`LogScan.close`, the scan's
+    garbage collection or the interpreter's exit); its ``source.path`` is the URL and its
+    errors name it, as :func:`read_log` on the URL does."""
+    import contextlib
+    import dataclasses
+    import sys
+    import weakref
+
+    from .urls import fetched, refuse_remote_folder
+
+    refuse_remote_folder(url)
+    stack = contextlib.ExitStack()
+    lp = stack.enter_context(fetched(url, "log file"))
+    try:
+        scan = _scan_local(lp, options)
+    except BaseException:
+        stack.__exit__(*sys.exc_info())  # raises the error renamed after the URL
+        raise
+    if scan._whole is not None:
+        stack.close()
+    log = scan.log
+    scan = dataclasses.replace(scan, log=dataclasses.replace(
+        log, source=dataclasses.replace(log.source, path=url)), _copy=stack)
+    weakref.finalize(scan, stack.close)
+    return scan
 
 
 def iter_chunks(path: str | os.PathLike[str], scan: LogScan, chunk_rows: int,
@@ -276,227 +369,12 @@ def _scan_whole(path: str | os.PathLike[str], read_options: dict[str, Any]) -> L
                    screens=screens, streamed=False, options=dict(read_options), _whole=log)
 
 
-# --------------------------------------------------------------------- the CSV context
-@dataclass
-class _Context:
-    """A streamable CSV and how its columns become the log (from its first lines)."""
-
-    lay: Any  # CsvLayout
-    options: dict[str, Any]
-    names: list[str]  # pyarrow's column names
-    keys: dict[tuple[str, int], str]  # (signal, joint) → column key (as repair names it)
-    key_cols: dict[str, str]  # column key → column name in the file
-    droppable: set[str]
-    ignored: list[str]
-    unit_ns: int
-    offset_ns: int
-    tcol: str  # the time column, as messages name it
-    plan: Any  # LogPlan, or the LogFormatError the plan raised
-    repair_order: bool
-
-
-def _context(path: str | os.PathLike[str], options: dict[str, Any]) -> _Context | None:
-    """The streaming context of a local canonical or mapped CSV, None when the file needs
-    the whole-file reader (module docstring). Raises what :func:`read_log` raises for the
-    path and options."""
-    from . import open_log_options
-    from .assemble import plan_log
-    from .channel_map import TIME_UNITS
-    from .csv import channels_from_columns, csv_layout
-    from .repair import DROPPABLE_SIGNALS
-    from .urls import is_url
-
-    known = {"channel_map", "robot", "topic", "reference_topic", "time_source",
-             "torque_source", "time_unit", "repair_order"}
-    unknown = set(options) - known
-    if unknown:
-        raise TypeError(f"unknown read options: {', '.join(sorted(unknown))}")
-    if is_url(path):
-        return None
-    opts = {k: v for k, v in options.items() if k not in ("robot", "repair_order")}
-    p, where, suffix, _folder, cmap = open_log_options(path, **opts)
-    if suffix not in (".csv", ".csv.gz") or (cmap is not None and cmap.format == "npz"):
-        return None
-    try:
-        lay = csv_layout(p, cmap, time_unit=options.get("time_unit"))
-        names = _probe_names(lay)
-    except (LogFormatError, _NotStreamable, UnicodeDecodeError, ValueError):
-        return None  # the whole-file reader says what is wrong
-    if lay.decimal != "." or _has_bom(p) or len(set(names)) != len(names):
-        return None
-    if not lay.used <= set(names) or lay.tname in lay.columns.values():
-        return None
-    keys: dict[tuple[str, int], str] = {}
-    key_cols: dict[str, str] = {}
-    for (sig, j), col in lay.columns.items():
-        key = col if lay.header else lay.disp(col)
-        keys[(sig, j)] = key
-        key_cols.setdefault(key, col)
-    droppable = {k for (sig, _), k in keys.items() if sig in DROPPABLE_SIGNALS}
-    ignored = (lay.ignored_extra if lay.fmt == "csv"
-               else [lay.disp(c) for c in names if c not in lay.used])
-    tspec = lay.tspec
-    unit_ns = TIME_UNITS[tspec.unit]
-    head = channels_from_columns(lay.cmap, np.zeros(0, dtype=np.int64),
-                                 {k: np.zeros(0) for k in key_cols}, keys, ignored, [])
-    plan: Any
-    try:
-        plan = plan_log(head, path=where, robot=options.get("robot"),
-                        torque_source=options.get("torque_source"))
-    except LogFormatError as err:
-        plan = err
-    tname = lay.tname
-    return _Context(
-        lay=lay, options=dict(options), names=names, keys=keys, key_cols=key_cols,
-        droppable=droppable, ignored=ignored, unit_ns=unit_ns,
-        offset_ns=round(tspec.offset * unit_ns) if tspec.offset else 0,
-        tcol=f"column {lay.disp(tname)!r}" if lay.header else lay.disp(tname),
-        plan=plan, repair_order=bool(options.get("repair_order", False)))
-
-
-def _has_bom(path: Path) -> bool:
-    import gzip
-
-    opener: Any = gzip.open if path.name.lower().endswith(".gz") else open
-    with opener(path, "rb") as f:
-        return bytes(f.read(3)) == b"\xef\xbb\xbf"
-
-
-def _probe_names(lay: Any) -> list[str]:
-    """pyarrow's column names of the file (those the whole-file reader uses)."""
-    import pyarrow as pa
-    import pyarrow.csv as pacsv
-
-    from .csv import csv_read_options
-
-    ropts, popts = csv_read_options(lay, 1 << 20)
-    try:
-        reader = pacsv.open_csv(lay.path, read_options=ropts, parse_options=popts,
-                                convert_options=pacsv.ConvertOptions(
-                                    column_types={}, include_columns=[]))
-        names = list(reader.schema.names)
-        reader.close()
-    except (pa.ArrowInvalid, OSError, EOFError, UnicodeDecodeError) as err:
-        raise _NotStreamable(str(err)) from err
-    return names
-
-
-# ------------------------------------------------------------------------ raw batches
-@dataclass
-class _Raw:
-    """One record batch as read: data rows ``row0`` … ``row0 + n − 1``."""
-
-    row0: int
-    t: np.ndarray  # (n,) int64 [ns], exact decimal conversion, offset applied
-    mat: np.ndarray  # (n, C) float64 the used columns' values, as logged
-
-
-@dataclass
-class _TimeStats:
-    """Whole-column facts the whole-file reader decides the time conversion by."""
-
-    all_int: bool = True
-    max_abs: float = 0.0
-    disagree: bool = False  # the float conversion differs from the exact one somewhere
-    text_fails: bool = False  # the exact decimal conversion of integers fails somewhere
-
-
-def _raw_batches(ctx: _Context, ts: _TimeStats) -> Iterator[_Raw]:
-    """The file's record batches, time converted exactly and values as float64 (the text
-    parsed on threads ahead of the caller: :mod:`impactcli.io.stream_parse`)."""
-    import pyarrow as pa
-    import pyarrow.csv as pacsv
-
-    from .stream_parse import parsed_batches
-
-    lay = ctx.lay
-    cols = list(ctx.key_cols.values())
-    types = {lay.tname: pa.string(), **{c: pa.float64() for c in cols}}
-    copts = pacsv.ConvertOptions(column_types=types, include_columns=[lay.tname, *cols],
-                                 decimal_point=".")
-    row0 = 0
-    try:
-        for batch in parsed_batches(lay, ctx.names, copts, BLOCK_SIZE):
-            n = batch.num_rows
-            if n == 0:
-                continue
-            t = _time_ns(batch.column(lay.tname), ctx, ts)
-            mat = np.empty((n, len(cols)))
-            for i, c in enumerate(cols):
-                mat[:, i] = batch.column(c).to_numpy(zero_copy_only=False)
-            yield _Raw(row0, t, mat)
-            row0 += n
-    except (pa.ArrowInvalid, OSError, EOFError, UnicodeDecodeError) as err:
-        raise _NotStreamable(str(err)) from err
-
-
-def _time_ns(text: Any, ctx: _Context, ts: _TimeStats) -> np.ndarray:
-    """A batch's time text → (n,) int64 ns as :func:`read_csv_channels` converts it
-    (exact decimal conversion; the float conversion, which the whole-file reader uses for
-    a column below 1e6 s with a decimal point, is checked to agree)."""
-    import pyarrow as pa
-    import pyarrow.compute as pc
-
-    if text.null_count or not pc.all(pc.match_substring_regex(text, _PLAIN)).as_py():
-        raise _NotStreamable("time text that is not plain decimal")
-    tf = pc.cast(text, pa.float64()).to_numpy()
-    as_text = _decimal_ns(text, ctx.unit_ns, tf)
-    if pc.any(pc.match_substring(text, ".")).as_py():
-        ts.all_int = False
-        if as_text is None:
-            raise _NotStreamable("time beyond the exact conversion")
-        exact = as_text
-    else:  # integers: the whole-file reader's integer path, while the column has no '.'
-        with np.errstate(over="ignore"):
-            if np.any(np.abs(tf) * ctx.unit_ns >= float(2**63 - 1)):
-                raise _NotStreamable("time beyond the clock's range")
-        try:
-            exact = pc.cast(text, pa.int64()).to_numpy() * ctx.unit_ns
-        except (pa.ArrowInvalid, OverflowError) as err:
-            raise _NotStreamable(str(err)) from err
-        if as_text is None or not np.array_equal(as_text, exact):
-            ts.text_fails = True
-    ts.max_abs = max(ts.max_abs, float(np.max(np.abs(tf))))
-    if not ts.disagree:
-        ts.disagree = not np.array_equal(np.round(tf * ctx.unit_ns).astype(np.int64), exact)
-    return exact + ctx.offset_ns if ctx.offset_ns else exact
-
-
-def _decimal_ns(text: Any, unit_ns: int, tf: np.ndarray) -> np.ndarray | None:
-    """``decimal_text_to_ns(text, unit_ns)`` of plain decimal text; for seconds with at most
-    9 decimals (well within its range) by pyarrow's exact decimal parse, 20× faster.
-
-    Args:
-        text: (n,) pyarrow strings matching ``^-?\\d+(\\.\\d+)?$``.  unit_ns: the unit [ns].
-        tf: (n,) float64 the same values (to see the range).
-    """
-    import pyarrow as pa
-    import pyarrow.compute as pc
-
-    from .csv import decimal_text_to_ns
-
-    if unit_ns != 10**9 or not float(np.max(np.abs(tf))) < 9e9:
-        return decimal_text_to_ns(text, unit_ns)
-    try:
-        d = pc.cast(text, pa.decimal128(38, 9))  # unscaled value: ns, exactly
-    except pa.ArrowInvalid:  # more than 9 decimals: truncated by decimal_text_to_ns
-        return decimal_text_to_ns(text, unit_ns)
-    words = np.frombuffer(d.buffers()[1], dtype=np.int64).reshape(-1, 2)
-    return words[d.offset: d.offset + len(d), 0].copy()
-
-
-def _fast_time(ctx: _Context, ts: _TimeStats) -> bool:
-    """Whether the whole-file reader converts this time column as floats (a decimal point
-    somewhere, all below 1e6 s)."""
-    return not ts.all_int and ts.max_abs * ctx.unit_ns / 1e9 < 1e6
-
-
 # ---------------------------------------------------------------------- one pass
 @dataclass
 class _Pass:
     """What the second pass needs from the first."""
 
-    ctx: _Context
+    ctx: StreamLayout
     allbad: frozenset[int]
     keep: list[int]  # the joints kept (indices into the layout's joints)
     optional: tuple[str, ...]  # the optional arrays the log has
@@ -505,10 +383,9 @@ class _Pass:
     cache: RowCache | None = None  # the repaired rows on disk (None: parse the file)
 
 
-def _blocks(ctx: _Context, allbad: frozenset[int] | None, ts: _TimeStats,
-            rep: _Repairer) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+def _blocks(ctx: StreamLayout, rep: _Repairer) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     """The repaired rows of one pass over the file, in blocks ``(t, mat)``."""
-    for raw in _raw_batches(ctx, ts):
+    for raw in ctx.raw_batches():
         out = rep.push(raw)
         if out is not None:
             yield out
@@ -517,36 +394,31 @@ def _blocks(ctx: _Context, allbad: frozenset[int] | None, ts: _TimeStats,
         yield out
 
 
-def _arrays(ctx: _Context, t: np.ndarray, mat: np.ndarray) -> dict[str, np.ndarray]:
+def _arrays(ctx: StreamLayout, t: np.ndarray, mat: np.ndarray) -> dict[str, np.ndarray]:
     """The log's (n, J) arrays of every joint of the layout, from repaired rows."""
     from .assemble import assemble
-    from .csv import channels_from_columns
 
-    cols = {k: mat[:, i] for i, k in enumerate(ctx.key_cols)}
-    ch = channels_from_columns(ctx.lay.cmap, t, cols, ctx.keys, ctx.ignored, [])
-    return assemble(ctx.plan, ch)
+    return assemble(ctx.plan, ctx.channels(t, mat))
 
 
-def _scan_stream(ctx: _Context, options: dict[str, Any]) -> LogScan:
-    """:func:`scan_log` of a streamable CSV."""
+def _scan_stream(ctx: StreamLayout, options: dict[str, Any]) -> LogScan:
+    """:func:`scan_log` of a streamable log (its layout: :mod:`impactcli.io.stream_layout`)."""
     from concurrent.futures import ThreadPoolExecutor
 
-    from .._fs import sha256_file
+    from . import log_sha256
 
     hasher = ThreadPoolExecutor(max_workers=1)
-    digest = hasher.submit(sha256_file, ctx.lay.path)
+    digest = hasher.submit(log_sha256, ctx.path)
     hasher.shutdown(wait=False)
-    ts = _TimeStats()
     rep = _Repairer(ctx, None)
     acc = _ScanAcc(ctx)
-    cache = RowCache(len(ctx.key_cols))
+    cache = RowCache(len(ctx.names))
     try:
-        for t, mat in _blocks(ctx, None, ts, rep):
+        for t, mat in _blocks(ctx, rep):
             acc.add(t, mat)
             cache.add(t, mat)
         cache.finish()
-        if not ts.all_int and (ts.disagree if _fast_time(ctx, ts) else ts.text_fails):
-            raise _NotStreamable("the whole-file reader converts this time column otherwise")
+        ctx.check_pass()
         if rep.prev_t is None or rep.n_kept < 2:
             raise _NotStreamable("fewer than 2 rows")  # the whole-file reader's message
         err = rep.first_error() or acc.rate_error()
@@ -563,7 +435,7 @@ def _scan_stream(ctx: _Context, options: dict[str, Any]) -> LogScan:
 class _ScanAcc:
     """The first pass's statistics over the repaired rows."""
 
-    def __init__(self, ctx: _Context) -> None:
+    def __init__(self, ctx: StreamLayout) -> None:
         self.ctx = ctx
         self.hist = StepHistogram()
         self.rate = StepHistogram()  # the first MAX_STATS_STEPS steps: the unit check
@@ -571,7 +443,7 @@ class _ScanAcc:
         self.n = 0
         self.head_t = np.zeros(0, dtype=np.int64)
         self.head: dict[str, np.ndarray] = {}
-        j = len(ctx.lay.cmap.joints)
+        j = len(ctx.joints)
         self.pos_finite = np.zeros(j, dtype=bool)
         self.torque_finite = np.zeros(j, dtype=bool)
         # optional signal → (J,) whether each joint's column holds a finite value
@@ -599,7 +471,7 @@ class _ScanAcc:
             r = rows[keep]
             row = int(np.min(r[r >= 0]))
             j = int(np.flatnonzero(r == row)[0])
-            raise LogFormatError(f"{self.ctx.lay.where}: {s} is not finite at sample {row} "
+            raise LogFormatError(f"{self.ctx.where}: {s} is not finite at sample {row} "
                                  f"of joint {j}")
 
     def add(self, t: np.ndarray, mat: np.ndarray) -> None:
@@ -633,11 +505,7 @@ class _ScanAcc:
 
     def rate_error(self) -> str | None:
         """The time-unit check on the first steps (:func:`check_time_rate`)."""
-        from .repair import rate_message
-
-        lay = self.ctx.lay
-        unit = lay.tspec.unit
-        return rate_message(self.rate.clock().rate_hz, lay.where, self.ctx.tcol, unit)
+        return self.ctx.rate_error(self.rate.clock().rate_hz)
 
     def finish(self, rep: _Repairer, sha256: str, options: dict[str, Any],
                cache: RowCache) -> LogScan:
@@ -649,25 +517,26 @@ class _ScanAcc:
             warn_dropped,
         )
 
-        ctx, plan, lay = self.ctx, self.ctx.plan, self.ctx.lay
-        joints = lay.cmap.joints
+        ctx, plan = self.ctx, self.ctx.plan
+        joints = ctx.joints
         dropped = empty_joint_reasons(joints, self.pos_finite, self.torque_finite,
                                       plan.torque_source)
         if len(dropped) == len(joints):
-            raise LogFormatError(drop_message(lay.where, dropped, plan.torque_source))
-        repairs = rep.repairs()
+            raise LogFormatError(drop_message(ctx.where, dropped, plan.torque_source))
+        repairs = ctx.pre_repairs() + rep.repairs()
         for msg in repairs:
             warnings.warn(msg, ImpactWarning, stacklevel=3)
-        warn_dropped(lay.where, dropped)
+        warn_dropped(ctx.where, dropped)
         out = {j for j, _ in dropped}
         keep = [k for k, j in enumerate(joints) if j not in out]
         kept = tuple(joints[k] for k in keep)
         gone, ignored, msgs = drop_empty_signals(
-            lay.where, kept, {s: self.opt_finite[s][keep] for s in plan.optional})
+            ctx.where, kept, {s: self.opt_finite[s][keep] for s in plan.optional})
         allbad = frozenset(int(c) for c in np.flatnonzero(rep.empty))
-        shift = int(self.head_t[0]) if lay.tspec.start_at_zero else 0
-        source = LogSource(path=lay.where, sha256=sha256, format=lay.fmt,
-                           torque_source=plan.torque_source, time_source="column",
+        shift = int(self.head_t[0]) if ctx.start_at_zero else 0
+        source = LogSource(path=ctx.where, sha256=sha256, format=ctx.fmt,
+                           torque_source=plan.torque_source,
+                           time_source=ctx.time_source,  # type: ignore[arg-type]
                            ignored_channels=plan.ignored + tuple(ignored),
                            repairs=tuple(repairs) + tuple(msgs),
                            notes=plan.notes, joints_dropped=tuple(dropped))
@@ -691,11 +560,11 @@ class _ScanAcc:
                                    cache if cache.usable else None))
 
 
-def _nan_where_empty(a: np.ndarray, signal: str, ctx: _Context,
+def _nan_where_empty(a: np.ndarray, signal: str, ctx: StreamLayout,
                      allbad: frozenset[int]) -> np.ndarray:
     """``a`` with NaN in the columns of joints whose column holds no finite value (the
     whole-file reader sets such a column to NaN; a ±inf would survive in the first rows)."""
-    names = list(ctx.key_cols)
+    names = ctx.names
     out = np.array(a, dtype=np.float64)
     for (sig, j), key in ctx.keys.items():
         if names.index(key) in allbad and (sig == signal or (
@@ -704,7 +573,7 @@ def _nan_where_empty(a: np.ndarray, signal: str, ctx: _Context,
     return out
 
 
-def _gap_pass(ctx: _Context, allbad: frozenset[int], clock: SampleClock,
+def _gap_pass(ctx: StreamLayout, allbad: frozenset[int], clock: SampleClock,
               cache: RowCache | None = None) -> GapStream:
     """Gap candidates at the final threshold: a second pass over the times (the scan's
     cache, else the file)."""
@@ -712,7 +581,7 @@ def _gap_pass(ctx: _Context, allbad: frozenset[int], clock: SampleClock,
     if cache is not None and cache.usable:
         times: Iterator[tuple[np.ndarray, Any]] = cache.blocks(1 << 20, times_only=True)
     else:
-        times = _blocks(ctx, allbad, _TimeStats(), _Repairer(ctx, allbad))
+        times = _blocks(ctx, _Repairer(ctx, allbad))
     for t, _ in times:
         gs.add(t, clock.gap_threshold_s * 1e9)
     gs.add(np.zeros(0, dtype=np.int64), clock.gap_threshold_s * 1e9, last=True)
@@ -734,7 +603,7 @@ def _stream_chunks(scan: LogScan, chunk_rows: int) -> Iterator[LogChunk]:
     size = 0
     start = 0
     try:
-        for t, mat in _blocks(ps.ctx, ps.allbad, _TimeStats(), rep):
+        for t, mat in _blocks(ps.ctx, rep):
             arrays = _arrays(ps.ctx, t, mat)
             arrays = {s: arrays[s][:, ps.keep] for s in ("position", "torque", *ps.optional)}
             pending.append((t - ps.t_shift if ps.t_shift else t, arrays))
@@ -744,14 +613,14 @@ def _stream_chunks(scan: LogScan, chunk_rows: int) -> Iterator[LogChunk]:
                 start += chunk_rows
                 yield chunk
     except _NotStreamable as err:
-        raise LogFormatError(f"{ps.ctx.lay.where}: changed since it was scanned ({err})"
+        raise LogFormatError(f"{ps.ctx.where}: changed since it was scanned ({err})"
                              ) from None
     last: LogChunk | None = None
     if size:
         last, pending, size = take(pending, size, start)
         start += last.n_samples
     if rep.first_error() is not None or start != ps.n_samples:
-        raise LogFormatError(f"{ps.ctx.lay.where}: changed since it was scanned")
+        raise LogFormatError(f"{ps.ctx.where}: changed since it was scanned")
     if last is not None:
         yield last
 

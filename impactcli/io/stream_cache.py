@@ -163,7 +163,7 @@ def chunks(ps: _Pass, cache: RowCache, chunk_rows: int) -> Iterator[LogChunk]:
     from .stream import _arrays
 
     cols = sorted(ps.allbad)
-    every = ps.keep == list(range(len(ps.ctx.lay.cmap.joints)))  # no copy to pick them
+    every = ps.keep == list(range(len(ps.ctx.joints)))  # no copy to pick them
     pending: list[tuple[np.ndarray, dict[str, np.ndarray]]] = []
     size = 0
     start = 0

@@ -1,4 +1,4 @@
-"""The repairs of :mod:`impactcli.io.repair` over the consecutive batches of a streamed CSV
+"""The repairs of :mod:`impactcli.io.repair` over the consecutive batches of a streamed log
 (:mod:`impactcli.io.stream`): the same decisions, values and messages as on the whole file
 — exact duplicate rows dropped, runs of at most ``MAX_GAP_SAMPLES`` non-finite values
 interpolated (rows held back while a run is open), values beyond ``MAX_ABS_VALUE`` and rows
@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from .stream import _Context, _Raw
+    from .stream_layout import StreamLayout, _Raw
 
 
 class _NotStreamable(Exception):
@@ -41,13 +41,13 @@ class _Repairer:
     the scan in the whole-file reader's order.
     """
 
-    def __init__(self, ctx: _Context, allbad: frozenset[int] | None) -> None:
+    def __init__(self, ctx: StreamLayout, allbad: frozenset[int] | None) -> None:
         from .repair import is_controller_column
 
         self.ctx = ctx
-        self.names = list(ctx.key_cols)
+        self.names = list(ctx.names)
         c = len(self.names)
-        self.label = ctx.lay.label()
+        self.label = ctx.label
         # a column that may hold no finite value (repair_matrix's keep_empty and controller
         # channels): not repaired then
         self.exempt = np.array([n in ctx.droppable or is_controller_column(n)
@@ -164,8 +164,7 @@ class _Repairer:
             raise _NotStreamable("rows out of time order to repair")
         k = int(bad[0]) + 1
         self.order_error = _order_message(tt[k - 1:k + 1], 1, oo[k - 1:k + 1],
-                                          self.ctx.lay.where, self.ctx.lay.disp(
-                                              self.ctx.lay.tname), self.label)
+                                          self.ctx.where, self.ctx.time_name, self.label)
 
     def _check_magnitudes(self, mat: np.ndarray, orig: np.ndarray) -> None:
         from .repair import MAX_ABS_VALUE, magnitude_message
@@ -175,7 +174,7 @@ class _Repairer:
         big &= np.isfinite(mat)
         if big.any():
             r, c = np.argwhere(big)[0]
-            self.mag_error = magnitude_message(self.ctx.lay.where, self.names[int(c)],
+            self.mag_error = magnitude_message(self.ctx.where, self.names[int(c)],
                                                self.label(int(orig[int(r)])),
                                                float(mat[r, c]))
 
@@ -267,7 +266,7 @@ class _Repairer:
             return self.mag_error
         for c, v in enumerate(self.violation):
             if v is not None:
-                return run_message(self.ctx.lay.where, self.names[c], self.label(v.orig),
+                return run_message(self.ctx.where, self.names[c], self.label(v.orig),
                                    v.length, v.kind, v.at_start, v.at_end)
         return None
 
@@ -279,7 +278,7 @@ class _Repairer:
             interpolated_message,
         )
 
-        where = self.ctx.lay.where
+        where = self.ctx.where
         out = []
         if self.n_dup:
             out.append(duplicate_message(where, self.n_dup, self.label(self.dup_first)))

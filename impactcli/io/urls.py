@@ -41,9 +41,9 @@ from urllib.parse import unquote, urlsplit
 from ..errors import ImpactError, LogFormatError
 
 __all__ = [
-    "BACKOFF_S", "IO_RETRIES", "expand_inputs", "is_transient", "is_url", "join_url",
+    "BACKOFF_S", "IO_RETRIES", "expand_inputs", "fetched", "is_transient", "is_url", "join_url",
     "load_by_url", "local_copy", "local_path", "put_file_atomic", "read_log_url",
-    "retry_transient", "url_name",
+    "refuse_remote_folder", "retry_transient", "url_name",
 ]
 
 T = TypeVar("T")
@@ -191,20 +191,17 @@ def _renamed(err: ImpactError, old: str, new: str) -> ImpactError:
     return out
 
 
-def load_by_url(path: str | os.PathLike[str], loader: Callable[[Path], T],
-                what: str = "file") -> T:
-    """``loader(local file)`` for a path or URL; errors name the URL as given.
-
-    Used for robot descriptions, models, configs, labels and logs given as URLs.
-    Raises:
-        LogFormatError: the URL names no object (for other I/O errors the OSError is
-            raised from it, so :func:`is_transient` still sees it).
-    """
+@contextmanager
+def fetched(path: str | os.PathLike[str], what: str = "file") -> Iterator[Path]:
+    """:func:`local_copy` whose errors name the URL as given: an ImpactError raised in the
+    block is renamed (the temporary file's name → the URL), a missing object or another
+    I/O error is a LogFormatError (for other I/O errors the OSError is raised from it, so
+    :func:`is_transient` still sees it)."""
     given = str(path)
     try:
         with local_copy(given) as lp:
             try:
-                return loader(lp)
+                yield lp
             except ImpactError as err:
                 if str(lp) == given:
                     raise
@@ -217,13 +214,22 @@ def load_by_url(path: str | os.PathLike[str], loader: Callable[[Path], T],
         raise LogFormatError(f"{given}: cannot fetch: {err}") from err
 
 
-def read_log_url(url: str, reader: Callable[..., Any], **kwargs: Any) -> Any:
-    """Read the log a URL names with ``reader`` (:func:`impactcli.io.read_log`) on a local
-    copy; the returned log's ``source.path`` is ``url`` and its sha256 the bytes' own.
+def load_by_url(path: str | os.PathLike[str], loader: Callable[[Path], T],
+                what: str = "file") -> T:
+    """``loader(local file)`` for a path or URL; errors name the URL as given
+    (:func:`fetched`).
 
+    Used for robot descriptions, models, configs, labels and logs given as URLs.
     Raises:
-        LogFormatError: a remote URL naming a folder (rosbag2 folders are read locally only).
+        LogFormatError: the URL names no object.
     """
+    with fetched(path, what) as lp:
+        return loader(lp)
+
+
+def refuse_remote_folder(url: str) -> None:
+    """Raise LogFormatError when a remote URL names a folder (rosbag2 folders are read
+    locally only)."""
     if local_path(url) is None:
         fs, p = _fs(url)
         try:
@@ -235,6 +241,16 @@ def read_log_url(url: str, reader: Callable[..., Any], **kwargs: Any) -> Any:
                 f"{url}: a folder (rosbag2) is read from a local path or file:// URL only; "
                 "copy it to a local folder first"
             )
+
+
+def read_log_url(url: str, reader: Callable[..., Any], **kwargs: Any) -> Any:
+    """Read the log a URL names with ``reader`` (:func:`impactcli.io.read_log`) on a local
+    copy; the returned log's ``source.path`` is ``url`` and its sha256 the bytes' own.
+
+    Raises:
+        LogFormatError: a remote URL naming a folder (rosbag2 folders are read locally only).
+    """
+    refuse_remote_folder(url)
     log = load_by_url(url, lambda lp: reader(lp, **kwargs), "log file")
     return replace(log, source=replace(log.source, path=url))
 

@@ -64,12 +64,14 @@ class ReportCollector:
         n_samples: the log's sample count (the scan's).
         gaps: (G,) the scan's gap steps i (t[i] → t[i+1]); gap_lengths_s: (G,) [s].
         buckets: the whole-log envelope's buckets.
+        plots: False keeps only what the threshold sweep reads (the ratios' columns: no
+            envelopes, no positions).
     """
 
     def __init__(self, n_samples: int, gaps: Sequence[int] | np.ndarray = (),
                  gap_lengths_s: Sequence[float] | np.ndarray = (),
-                 buckets: int = WHOLE_LOG_BUCKETS) -> None:
-        self.n, self.buckets = int(n_samples), int(buckets)
+                 buckets: int = WHOLE_LOG_BUCKETS, plots: bool = True) -> None:
+        self.n, self.buckets, self.plots = int(n_samples), int(buckets), plots
         self.joints: tuple[str, ...] | None = None
         self.env: dict[tuple[str, int], EnvelopeAccumulator] = {}
         self.const = EnvelopeAccumulator(self.n, self.buckets)
@@ -88,7 +90,7 @@ class ReportCollector:
             return
         if self.joints is None:
             self.joints = tuple(c.joints)
-            for k in range(len(self.joints)):
+            for k in range(len(self.joints) if self.plots else 0):
                 for key in ("rms", "thr", "load", "res"):
                     self.env[(key, k)] = EnvelopeAccumulator(self.n, self.buckets)
         cols: dict[str, np.ndarray] = {"t": t}
@@ -98,11 +100,14 @@ class ReportCollector:
                    "load": sig["loading_statistic"][:, k], "res": np.abs(sig["residual"][:, k]),
                    "q": c.position[:, k]}
             for key, raw in got.items():
+                if not self.plots and key == "q":
+                    continue
                 v = np.asarray(raw, dtype=np.float64)
                 cols[f"{k}.{key}"] = v
-                if key != "q":
+                if self.plots and key != "q":
                     self.env[(key, k)].update(t, v)
-        self.const.update(t, np.zeros(m))
+        if self.plots:
+            self.const.update(t, np.zeros(m))
         hit = (self.gaps >= self.k0) & (self.gaps < self.k0 + m)
         self.gap_t[hit] = t[self.gaps[hit] - self.k0]
         self.spill.append(cols)
@@ -214,12 +219,11 @@ class StreamedSamples:
 
     def ratios(self, got: dict[str, np.ndarray], k: int) -> dict[str, np.ndarray]:
         """A row group's ratios of joint k, as the whole-log replay computes them."""
+        from ..pipeline import detector_ratios
+
         v_l, v_0 = self._thresholds(self.joints[k])
-        thr = got[f"{k}.thr"]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return {"adaptive": np.where(thr > 0, got[f"{k}.rms"] / thr, np.inf),
-                    "static_loading": got[f"{k}.load"] / v_l,
-                    "static_baseline": got[f"{k}.res"] / v_0}
+        return detector_ratios(got[f"{k}.rms"], got[f"{k}.thr"], got[f"{k}.load"],
+                               got[f"{k}.res"], v_l, v_0)
 
     def ratio_columns(self) -> list[str]:
         return ["t", *[f"{k}.{c}" for k in range(len(self.joints))
