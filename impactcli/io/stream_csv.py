@@ -158,11 +158,26 @@ def _raw_batches(ctx: CsvStreamLayout, ts: _TimeStats) -> Iterator[_Raw]:
             t = _time_ns(batch.column(lay.tname), ctx, ts)
             mat = np.empty((n, len(cols)))
             for i, c in enumerate(cols):
-                mat[:, i] = batch.column(c).to_numpy(zero_copy_only=False)
+                mat[:, i] = numbers(batch.column(c))
             yield _Raw(row0, t, mat)
             row0 += n
     except (pa.ArrowInvalid, OSError, EOFError, UnicodeDecodeError) as err:
         raise _NotStreamable(str(err)) from err
+
+
+def numbers(arr: Any) -> np.ndarray:
+    """A float64 or int64 Arrow array as a NumPy array (a float's nulls NaN), as
+    ``Array.to_numpy(zero_copy_only=False)`` gives it — without it: it imports pandas
+    (0.5 s of every run's start-up)."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    dtype = {pa.float64(): np.float64, pa.int64(): np.int64}[arr.type]
+    if arr.null_count:
+        if dtype is not np.float64:
+            raise ValueError("integers with nulls have no NumPy form")
+        arr = pc.fill_null(arr, float("nan"))
+    return np.frombuffer(arr.buffers()[1], dtype=dtype, count=len(arr), offset=arr.offset * 8)
 
 
 def _time_ns(text: Any, ctx: CsvStreamLayout, ts: _TimeStats) -> np.ndarray:
@@ -184,7 +199,7 @@ def _time_ns(text: Any, ctx: CsvStreamLayout, ts: _TimeStats) -> np.ndarray:
         return _iso_ns(text, ctx)
     if not pc.all(pc.match_substring_regex(text, _PLAIN)).as_py():
         raise _NotStreamable("time text that is not plain decimal")
-    tf = pc.cast(text, pa.float64()).to_numpy()
+    tf = numbers(pc.cast(text, pa.float64()))
     as_text = _decimal_ns(text, ctx.unit_ns, tf)
     if pc.any(pc.match_substring(text, ".")).as_py():
         ts.all_int = False
@@ -196,7 +211,7 @@ def _time_ns(text: Any, ctx: CsvStreamLayout, ts: _TimeStats) -> np.ndarray:
             if np.any(np.abs(tf) * ctx.unit_ns >= float(2**63 - 1)):
                 raise _NotStreamable("time beyond the clock's range")
         try:
-            exact = pc.cast(text, pa.int64()).to_numpy() * ctx.unit_ns
+            exact = numbers(pc.cast(text, pa.int64())) * ctx.unit_ns
         except (pa.ArrowInvalid, OverflowError) as err:
             raise _NotStreamable(str(err)) from err
         if as_text is None or not np.array_equal(as_text, exact):
