@@ -137,8 +137,9 @@ def _probe_names(lay: Any) -> list[str]:
 
 # ------------------------------------------------------------------------ raw batches
 def _raw_batches(ctx: CsvStreamLayout, ts: _TimeStats) -> Iterator[_Raw]:
-    """The file's record batches, time converted exactly and values as float64 (the text
-    parsed on threads ahead of the caller: :mod:`impactcli.io.stream_parse`)."""
+    """The file's record batches, time converted exactly and values as float64: the text
+    is parsed and each batch converted (:func:`_converted`) on threads ahead of the caller
+    (:mod:`impactcli.io.stream_parse`); the time column's facts are gathered here, in order."""
     import pyarrow as pa
     import pyarrow.csv as pacsv
 
@@ -151,18 +152,38 @@ def _raw_batches(ctx: CsvStreamLayout, ts: _TimeStats) -> Iterator[_Raw]:
                                  decimal_point=lay.decimal)
     row0 = 0
     try:
-        for batch in parsed_batches(lay, ctx.file_names, copts, BLOCK_SIZE):
-            n = batch.num_rows
-            if n == 0:
+        for conv in parsed_batches(lay, ctx.file_names, copts, BLOCK_SIZE,
+                                   lambda batch: _converted(batch, ctx, cols)):
+            if conv is None:
                 continue
-            t = _time_ns(batch.column(lay.tname), ctx, ts)
-            mat = np.empty((n, len(cols)))
-            for i, c in enumerate(cols):
-                mat[:, i] = numbers(batch.column(c))
+            t, facts, mat = conv
+            if ts.iso is None:
+                ts.iso = facts.iso
+            elif facts.iso != ts.iso:
+                raise _NotStreamable("ISO-8601 and other time text mixed")
+            ts.all_int &= facts.all_int
+            ts.max_abs = max(ts.max_abs, facts.max_abs)
+            ts.disagree |= facts.disagree
+            ts.text_fails |= facts.text_fails
             yield _Raw(row0, t, mat)
-            row0 += n
+            row0 += t.shape[0]
     except (pa.ArrowInvalid, OSError, EOFError, UnicodeDecodeError) as err:
         raise _NotStreamable(str(err)) from err
+
+
+def _converted(batch: Any, ctx: CsvStreamLayout, cols: list[str]
+               ) -> tuple[np.ndarray, _TimeStats, np.ndarray] | None:
+    """One record batch → ``(t (n,) int64 ns, its time column's facts, (n, C) float64 the
+    used columns)``, None when empty; on a parse worker (it reads only the batch)."""
+    n = batch.num_rows
+    if n == 0:
+        return None
+    facts = _TimeStats()
+    t = _time_ns(batch.column(ctx.lay.tname), ctx, facts)
+    mat = np.empty((n, len(cols)))
+    for i, c in enumerate(cols):
+        mat[:, i] = numbers(batch.column(c))
+    return t, facts, mat
 
 
 def numbers(arr: Any) -> np.ndarray:
@@ -183,18 +204,18 @@ def numbers(arr: Any) -> np.ndarray:
 def _time_ns(text: Any, ctx: CsvStreamLayout, ts: _TimeStats) -> np.ndarray:
     """A batch's time text → (n,) int64 ns as :func:`read_csv_channels` converts it
     (exact decimal conversion; the float conversion, which the whole-file reader uses for
-    a column below 1e6 s with a decimal point, is checked to agree)."""
+    a column below 1e6 s with a decimal point, is checked to agree); ``ts`` gets the
+    batch's facts (ISO-8601 or not by its first cell)."""
     import pyarrow as pa
     import pyarrow.compute as pc
+
+    from .csv import _ISO_RE
 
     if ctx.lay.decimal == ",":  # as the whole-file reader reads a decimal comma's time
         text = pc.replace_substring(text, ",", ".")
     if text.null_count:
         raise _NotStreamable("empty time cells")
-    if ts.iso is None:
-        from .csv import _ISO_RE
-
-        ts.iso = bool(_ISO_RE.match(str(text[0].as_py())))
+    ts.iso = bool(_ISO_RE.match(str(text[0].as_py())))
     if ts.iso:
         return _iso_ns(text, ctx)
     if not pc.all(pc.match_substring_regex(text, _PLAIN)).as_py():
@@ -216,9 +237,8 @@ def _time_ns(text: Any, ctx: CsvStreamLayout, ts: _TimeStats) -> np.ndarray:
             raise _NotStreamable(str(err)) from err
         if as_text is None or not np.array_equal(as_text, exact):
             ts.text_fails = True
-    ts.max_abs = max(ts.max_abs, float(np.max(np.abs(tf))))
-    if not ts.disagree:
-        ts.disagree = not np.array_equal(np.round(tf * ctx.unit_ns).astype(np.int64), exact)
+    ts.max_abs = float(np.max(np.abs(tf)))
+    ts.disagree = not np.array_equal(np.round(tf * ctx.unit_ns).astype(np.int64), exact)
     return exact + ctx.offset_ns if ctx.offset_ns else exact
 
 

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import re
 from collections import deque
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
 
@@ -37,11 +37,13 @@ THREADS = 2
 _BREAK = re.compile(rb"\r\n|\r|\n")
 
 
-def parsed_batches(lay: Any, names: list[str], convert_options: Any,
-                   block_size: int) -> Iterator[Any]:
+def parsed_batches(lay: Any, names: list[str], convert_options: Any, block_size: int,
+                   each: Callable[[Any], Any] | None = None) -> Iterator[Any]:
     """The pyarrow record batches of the CSV ``lay`` (a :class:`~impactcli.io.csv.CsvLayout`;
     ``names``: pyarrow's column names of the file), in order, parsed on threads (module
-    docstring). Raises what pyarrow raises (``ArrowInvalid``, ``OSError``)."""
+    docstring) — or ``each(batch)`` of them, computed on the same threads (the batch's
+    conversion: it must read nothing but the batch). Raises what pyarrow raises
+    (``ArrowInvalid``, ``OSError``), and what ``each`` raises."""
     import pyarrow as pa
     import pyarrow.csv as pacsv
 
@@ -59,7 +61,8 @@ def parsed_batches(lay: Any, names: list[str], convert_options: Any,
                  pacsv.ReadOptions(column_names=names, block_size=size, use_threads=False))
         table = pacsv.read_csv(pa.py_buffer(text), read_options=ropts,
                                parse_options=parse_opts, convert_options=convert_options)
-        return table.combine_chunks().to_batches()
+        batches = table.combine_chunks().to_batches()
+        return batches if each is None else [each(b) for b in batches]
 
     pending: deque[Future[Any]] = deque()
     with pa.input_stream(str(lay.path)) as src, ThreadPoolExecutor(THREADS) as pool:
