@@ -194,8 +194,8 @@ def analyze_file(
     progress: Any = None,
 ) -> Any:
     """Read one log and its robot, model and config (paths or URLs) and replay the
-    detectors on the whole log in memory — what ``detect``, ``evaluate`` and ``view`` do
-    for one log when :func:`stream_file` cannot stream it.
+    detectors on the whole log in memory — what ``detect`` does for a log whose outputs go
+    to a remote URL prefix (:func:`stream_file` writes them as it goes, locally).
     Returns the :class:`impactcli.result.DetectionResult` (with its per-sample signals)."""
     from .io import read_log
     from .pipeline import analyze
@@ -214,11 +214,10 @@ def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ..
 
     local_out = local_path(job.out_dir)
     stem = output_stem(job.log_path)
-    streamed = _run_streamed(job, local_out, stem) if local_out is not None else None
-    if streamed is not None:
-        result, outputs = streamed
+    if local_out is not None:
+        result, outputs = _run_streamed(job, local_out, stem)
     else:
-        result, outputs = _run_whole(job, local_out, stem)
+        result, outputs = _run_whole(job, job.out_dir, stem)
     summary = _summary(job, result)
     return outputs, summary, result.warnings
 
@@ -236,10 +235,9 @@ def progress_bar(log_path: str, show: bool, what: str, unit: str) -> Any:
                 file=sys.stderr, leave=False, disable=not sys.stderr.isatty())
 
 
-def _run_whole(job: DetectJob, local_out: Path | None, stem: str
-               ) -> tuple[Any, tuple[str, ...]]:
-    """Read the whole log, replay it, write the outputs (the path for every case
-    :func:`_run_streamed` does not take)."""
+def _run_whole(job: DetectJob, prefix: str, stem: str) -> tuple[Any, tuple[str, ...]]:
+    """Read the whole log, replay it, write the outputs under a remote URL ``prefix``
+    (the path for outputs :func:`_run_streamed` cannot write as it goes)."""
     bar = progress_bar(job.log_path, job.show_progress, "adaptive evaluator, axes", "axis")
 
     def progress(done: int, total: int) -> None:
@@ -255,29 +253,24 @@ def _run_whole(job: DetectJob, local_out: Path | None, stem: str
                           progress=progress if bar is not None else None)
     if bar is not None:
         bar.close()
-    if local_out is not None:
-        written = _write_outputs(result, local_out, stem, job)
-        return result, tuple(str(p) for p in written)
-    return result, _write_remote(result, job.out_dir, stem, job)
+    return result, _write_remote(result, prefix, stem, job)
 
 
-def _run_streamed(job: DetectJob, out: Path, stem: str) -> tuple[Any, tuple[str, ...]] | None:
-    """Replay the log chunk by chunk in bounded memory (:func:`stream_file`) when its
-    inputs allow; None otherwise. The signals are written as the comparison with the
-    thresholds goes, the Rerun recording from a spill file, the timeline at the end."""
+def _run_streamed(job: DetectJob, out: Path, stem: str) -> tuple[Any, tuple[str, ...]]:
+    """Replay the log chunk by chunk in bounded memory (:func:`stream_file`) into a local
+    folder: the signals written as the comparison with the thresholds goes, the Rerun
+    recording from a spill file, the timeline at the end."""
     from .outputs.timeline import write_timeline
 
     written = [out / f"{stem}.timeline.json"]
     signals = out / f"{stem}.signals.parquet" if job.signals else None
     rrd = out / f"{stem}.rrd" if job.rerun else None
-    got = stream_file(job.log_path, robot_path=job.robot_path, model_path=job.model_path,
-                      config_path=job.config_path, read_options=job.read_options,
-                      model_from_log=job.model_from_log, generator=job.generator,
-                      allow_slow=job.allow_slow, show_progress=job.show_progress,
-                      signals_path=signals, rrd_path=rrd)
-    if got is None:
-        return None
-    result = got[0]
+    result, _ = stream_file(job.log_path, robot_path=job.robot_path,
+                            model_path=job.model_path, config_path=job.config_path,
+                            read_options=job.read_options, model_from_log=job.model_from_log,
+                            generator=job.generator, allow_slow=job.allow_slow,
+                            show_progress=job.show_progress, signals_path=signals,
+                            rrd_path=rrd)
     written += [p for p in (signals, rrd) if p is not None]
     write_timeline(result, written[0])
     return result, tuple(str(p) for p in written)
@@ -285,22 +278,14 @@ def _run_streamed(job: DetectJob, out: Path, stem: str) -> tuple[Any, tuple[str,
 
 def stream_file(
     log_path: str, *, robot_path: str | None = None, model_path: str | None = None,
-    config_path: str | None = None, model_from_log: bool = False, **options: Any,
-) -> tuple[Any, Any] | None:
+    config_path: str | None = None, **options: Any,
+) -> tuple[Any, Any]:
     """:func:`stream_log` with the robot description, model and config read from these
-    paths or URLs (:func:`load_inputs`; the config's path named in messages) when the
-    inputs stream (:func:`impactcli.stream.streamable`: all but ``--model`` with
-    ``--model-from-log``, an error the whole-log path reports); None otherwise, and the
-    caller replays the whole log (:func:`analyze_file`). ``options``: :func:`stream_log`'s.
-    """
-    from .stream import streamable
-
+    paths or URLs (:func:`load_inputs`; the config's path named in messages).
+    ``options``: :func:`stream_log`'s."""
     robot, model, config = load_inputs(robot_path, model_path, config_path)
-    if not streamable(config, model, model_from_log):
-        return None
     return stream_log(log_path, robot=robot, model=model, config=config,
-                      model_from_log=model_from_log, config_where=config_path or "config",
-                      **options)
+                      config_where=config_path or "config", **options)
 
 
 def stream_log(

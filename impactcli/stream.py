@@ -2,10 +2,11 @@
 
 :func:`analyze_stream` gives the same :class:`~impactcli.result.DetectionResult` fields
 as :func:`impactcli.pipeline.analyze` — the same timeline, byte for byte — without holding
-the log or its per-sample signals in memory. It needs what is fixed before the first
-sample: a calibrated config (thresholds) and a model (given, or embedded in the config,
-or none when every joint uses a controller channel as it is). Without them
-:func:`streamable` is False and the caller replays the whole log.
+the log or its per-sample signals in memory, for every input: with or without a config,
+the model given, embedded in the config or identified from the log (``--model`` with
+``--model-from-log`` is refused, as the whole-log replay refuses it). Without calibrated
+thresholds they come from the log's own statistics once a first pass is over
+(:data:`STRATEGIES`).
 
 Two passes over the file (:mod:`impactcli.io.stream`):
 
@@ -113,14 +114,6 @@ class _Header:
 
     def has_channel(self, signal: str) -> np.ndarray:
         return self._logged.get(signal, np.zeros(len(self.joint_names), dtype=bool))
-
-
-def streamable(config: DetectorConfig | None, model: RigidModel | None,
-               model_from_log: bool) -> bool:
-    """Whether :func:`analyze_stream` replays these inputs: all of them — with or without a
-    config, a model given, embedded or identified from the log — but ``--model`` with
-    ``--model-from-log``, which the whole-log replay refuses with its message."""
-    return not (model is not None and model_from_log)
 
 
 #: How a run without calibrated thresholds gets them (module docstring): ``spill`` (the

@@ -271,16 +271,34 @@ def test_labels_of_another_rate_warn(files, tmp_path):
 
 
 def test_sweep_from_a_log(tmp_path, monkeypatch):
-    """The LOG branch with the detection replaced by a known result (pipeline tested elsewhere)."""
+    """The LOG branch with the replay replaced by a known result and its samples (the
+    streamed replay: tests/test_view_evaluate_stream.py)."""
+    import dataclasses
+    import types
+
+    from impactcli.outputs.report_stream import ReportCollector
+
     seen: dict[str, Any] = {}
 
-    def fake_analyze_log(path: Path, **kw: Any) -> Any:
+    def fake_replay_log(path: Path, **kw: Any) -> Any:
         seen.update(kw, path=path)
-        return sweep_result()
+        known = sweep_result()
+        joints = known.log.joint_names
+        # thresholds of 1: the spilled statistics are the known ratios themselves
+        result = dataclasses.replace(known, thresholds={
+            j: {"v_stat": 1.0, "vL": 1.0, "v0": 1.0} for j in joints})
+        if not kw["sweep"]:
+            return result, None
+        r = known.ratios
+        col = ReportCollector(known.log.n_samples, plots=False)
+        col(types.SimpleNamespace(
+            joints=joints, time_s=known.log.time_s, position=np.zeros_like(r["adaptive"]),
+            signals={"residual_rms": r["adaptive"], "threshold": np.ones_like(r["adaptive"]),
+                     "loading_statistic": r["static_loading"],
+                     "residual": r["static_baseline"]}))
+        return result, col.finish(result)
 
-    monkeypatch.setattr(cli_eval, "analyze_log", fake_analyze_log)
-    # the whole-log path (a log that streams: tests/test_view_evaluate_stream.py)
-    monkeypatch.setattr("impactcli.stream.streamable", lambda *a, **k: False)
+    monkeypatch.setattr(cli_eval, "replay_log", fake_replay_log)
     log = tmp_path / "arm.csv"
     log.write_text("time\n0\n")
     lab = write(tmp_path, "labels.json", SWEEP_LABELS.to_dict())

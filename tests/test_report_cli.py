@@ -1,8 +1,8 @@
 """``impactcli report`` through click's CliRunner.
 
 The wiring (labels pairing, batch failures, timeline re-runs, exit codes) is tested with a
-stand-in for :func:`impactcli.pipeline.analyze` that returns the synthetic result on the log
-actually read; one end-to-end test runs the real pipeline when it is installed.
+stand-in for the replay (:func:`impactcli.batch.stream_log`) that returns the synthetic
+result on the log actually read; one end-to-end test runs the real pipeline when it is installed.
 """
 
 from __future__ import annotations
@@ -10,7 +10,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import re
-import sys
 import types
 from pathlib import Path
 from typing import Any
@@ -19,7 +18,6 @@ import jsonschema
 import pytest
 from click.testing import CliRunner, Result
 
-import impactcli.cli.report as cli_report
 from impactcli.cli import main
 from impactcli.errors import LogFormatError
 from impactcli.io import read_log  # type: ignore[attr-defined]
@@ -45,23 +43,21 @@ def show(res: Result) -> str:
 
 @pytest.fixture
 def fake_pipeline(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
-    """Replace impactcli.pipeline.analyze: the synthetic result on the log it is given."""
+    """Replace the replay (impactcli.batch.stream_log): the synthetic result on the log it
+    is given, read as the replay reads it (its sha256 checked as the scan's)."""
     calls: list[dict[str, Any]] = []
 
-    def analyze(log: Any, *, model: Any = None, config: Any = None, robot: Any = None,
-                read_options: dict[str, Any] | None = None, model_from_log: bool = False,
-                allow_slow: bool = False) -> Any:
+    def stream_log(log_path: str, *, robot: Any = None, model: Any = None, config: Any = None,
+                   read_options: dict[str, Any] | None = None, allow_slow: bool = False,
+                   check: Any = None, **kw: Any) -> Any:
+        log = read_log(Path(log_path), robot=robot, **(read_options or {}))
+        if check is not None:
+            check(types.SimpleNamespace(source=log.source))
         calls.append({"log": log, "model": model, "config": config, "robot": robot,
                       "read_options": read_options, "allow_slow": allow_slow})
-        return dataclasses.replace(fake_result(), log=log)
+        return dataclasses.replace(fake_result(), log=log), None
 
-    mod = types.ModuleType("impactcli.pipeline")
-    mod.analyze = analyze  # type: ignore[attr-defined]
-    monkeypatch.setitem(sys.modules, "impactcli.pipeline", mod)
-    # the whole-log path these tests fake (a log that could stream would bypass analyze)
-    import impactcli.stream
-
-    monkeypatch.setattr(impactcli.stream, "streamable", lambda *a, **k: False)
+    monkeypatch.setattr("impactcli.batch.stream_log", stream_log)
     return calls
 
 
@@ -115,14 +111,16 @@ def test_batch_with_a_failing_input_exits_4(tmp_path: Path, fake_pipeline: list,
     good = write_log(tmp_path / "good.csv")
     bad = tmp_path / "bad.csv"
     bad.write_text("time,j1.position\n0,0\n")
-    real = cli_report.analyze_log
+    import impactcli.batch
 
-    def analyze_log(path: Path, **kw: Any) -> Any:
-        if path.name == "bad.csv":
+    real = impactcli.batch.stream_log
+
+    def stream_log(path: str, **kw: Any) -> Any:
+        if path.endswith("bad.csv"):
             raise LogFormatError(f"{path}: column 'j1.torque' missing")
         return real(path, **kw)
 
-    monkeypatch.setattr(cli_report, "analyze_log", analyze_log)
+    monkeypatch.setattr(impactcli.batch, "stream_log", stream_log)
     out, js = tmp_path / "r.html", tmp_path / "r.json"
     res = run(["report", str(good), str(bad), "-o", str(out), "--json", str(js)])
     assert res.exit_code == 4, show(res)

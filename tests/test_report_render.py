@@ -114,14 +114,16 @@ def test_the_first_screen_answers_on_the_sample_logs(tmp_path: Path) -> None:
     """The sample logs of the README's report (three logs, 16 incidents on the first)."""
     chromium()
     pytest.importorskip("impactcli.pipeline")
-    from impactcli.cli.report import analyze_log
     from impactcli.config import load_config
+    from impactcli.io import read_log
     from impactcli.io.robot import read_labels
+    from impactcli.pipeline import analyze
 
     csv = REPO / "sample_logs" / "csv"
     cfg = load_config(REPO / "sample_logs" / "assist_like.config.toml")
     names = ("assist_impacts", "assist_pushes", "assist_clamps")
-    results = [analyze_log(csv / f"{n}.csv.gz", config=cfg) for n in names]
+    results = [analyze(read_log(csv / f"{n}.csv.gz"), config=cfg, read_options={})
+               for n in names]
     labels = [read_labels(csv / f"{n}.labels.json") for n in names]
     page = tmp_path / "report.html"
     write_report(results, page, labels=labels)

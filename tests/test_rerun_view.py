@@ -89,13 +89,15 @@ def test_log_is_detected_then_written_and_opened(tmp_path: Path, monkeypatch: py
     log.write_text("time\n0\n")
     seen = {}
 
-    def fake_analyze(path: Path, **kw: object) -> object:
-        seen["path"], seen["kw"] = path, kw
-        return fake_result()
+    def fake_stream(path: str, *, rrd_path: Path, rrd_options: dict[str, float],
+                    **kw: object) -> object:
+        """The replay (streamed: tests/test_view_evaluate_stream.py) of a known result."""
+        seen["path"], seen["kw"] = Path(path), kw
+        result = fake_result()
+        write_rrd(result, rrd_path, **rrd_options)  # type: ignore[arg-type]
+        return result, None
 
-    monkeypatch.setattr(view_mod, "analyze_log", fake_analyze)
-    # the whole-log path (a log that streams: tests/test_view_evaluate_stream.py)
-    monkeypatch.setattr("impactcli.stream.streamable", lambda *a, **k: False)
+    monkeypatch.setattr("impactcli.batch.stream_file", fake_stream)
     out = tmp_path / "arm.rrd"
     r = run(str(log), "--no-open", "--save", str(out), "--channel-map", "kuka_lwr4")
     assert r.exit_code == 0, explain(r)

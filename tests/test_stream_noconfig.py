@@ -19,7 +19,7 @@ from impactcli.io import read_log
 from impactcli.model import rows as rows_mod
 from impactcli.outputs.timeline import timeline_json
 from impactcli.pipeline import analyze
-from impactcli.stream import analyze_stream, streamable
+from impactcli.stream import analyze_stream
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
 ASSIST = SAMPLES / "assist_like.config.toml"
@@ -70,16 +70,29 @@ def test_model_from_log_with_a_calibrated_config_streams() -> None:
     assert a == b
 
 
-def test_everything_streams_but_model_with_model_from_log() -> None:
-    cfg = load_config(ASSIST)
-    assert streamable(cfg, None, False) and streamable(cfg, None, True)
-    assert streamable(None, None, False)
-    from impactcli.model import read_model  # noqa: F401  (a model object is all it needs)
+def test_everything_streams_but_model_with_model_from_log(tmp_path: Path) -> None:
+    """Every input streams; ``--model`` with ``--model-from-log`` is refused with the
+    whole-log replay's one line: a ConfigError (exit 3) from the library and a batch job,
+    a usage error (exit 2) from the command line."""
+    from impactcli.batch import DetectJob, run_detect_job
+    from impactcli.errors import ConfigError
+    from impactcli.model import identify, write_model
 
-    class _M:
-        pass
-
-    assert not streamable(cfg, _M(), True)  # type: ignore[arg-type]
+    log = SAMPLES / "csv" / "assist_impacts.csv.gz"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = identify(read_log(log))
+    with pytest.raises(ConfigError, match=r"^--model and --model-from-log exclude each other$"):
+        analyze_stream(str(log), config=load_config(ASSIST), model=model, model_from_log=True)
+    path = tmp_path / "m.json"
+    write_model(model, path)
+    out = run_detect_job(DetectJob(str(log), str(tmp_path / "out"), model_path=str(path),
+                                   config_path=str(ASSIST), model_from_log=True))
+    assert not out.ok and out.exit_code == 3 and out.error_class == "data"
+    assert out.error == "--model and --model-from-log exclude each other"
+    res = CliRunner().invoke(main, ["detect", str(log), "--model", str(path),
+                                    "--model-from-log", "-o", str(tmp_path / "o2")])
+    assert res.exit_code == 2 and "exclude each other" in res.stderr, res.output
 
 
 def test_detect_without_config_streams_in_bounded_passes(tmp_path: Path,

@@ -9,7 +9,9 @@ from __future__ import annotations
 import gzip
 import json
 import tempfile
+import warnings
 from pathlib import Path
+from typing import Any
 
 import pytest
 from click.testing import CliRunner, Result
@@ -27,11 +29,21 @@ def _run(args: list[str]) -> Result:
     return CliRunner().invoke(main, args, catch_exceptions=False)
 
 
-def _whole_log_only(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Make stream_file decline (as for inputs that do not stream): the whole-log path."""
-    import impactcli.stream as stream_mod
+def _whole(path: Path, cfg: Path | None) -> Any:
+    """The whole-log replay's result (impactcli.pipeline.analyze), the reference."""
+    from impactcli.config import load_config
+    from impactcli.io import read_log
+    from impactcli.pipeline import analyze
 
-    monkeypatch.setattr(stream_mod, "streamable", lambda *a, **k: False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return analyze(read_log(path), config=None if cfg is None else load_config(cfg),
+                       read_options={})
+
+
+def _warned(result: Any) -> str:
+    """The stderr of a verb that prints the run's warnings and nothing else."""
+    return "".join(f"impactcli: warning: {w}\n" for w in result.warnings)
 
 
 def _forbid_whole_log(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -61,16 +73,16 @@ def test_view_streams_the_whole_log_recording(tmp_path: Path, private_tmp: Path,
     path = SAMPLES / "csv" / f"{log}.csv.gz"
     opts = ["--no-open", "--max-points", "1500", "--event-window", "0.3"]
     opts += ["--config", str(cfg)] if cfg is not None else []
-    with monkeypatch.context() as m:
-        _whole_log_only(m)
-        r = _run(["view", str(path), *opts, "--save", str(tmp_path / "whole.rrd")])
-        assert r.exit_code == 0, r.output
+    from impactcli.outputs.rerun import write_rrd
+
+    whole = _whole(path, cfg)
+    write_rrd(whole, tmp_path / "whole.rrd", max_points=1500, event_window_s=0.3)
     with monkeypatch.context() as m:
         _forbid_whole_log(m)
         r2 = _run(["view", str(path), *opts, "--save", str(tmp_path / "stream.rrd")])
         assert r2.exit_code == 0, r2.output
-    assert r2.stdout == r.stdout.replace("whole.rrd", "stream.rrd")
-    assert r2.stderr == r.stderr  # the run's warnings
+    assert r2.stdout == f"{tmp_path / 'stream.rrd'}\n"
+    assert r2.stderr == _warned(whole)  # the run's warnings
     a, b = _rrd_rows(tmp_path / "whole.rrd"), _rrd_rows(tmp_path / "stream.rrd")
     assert a.keys() == b.keys()
     decimated = [k for k, v in a.items() if "/rms" in k and not k.startswith("static")]
@@ -95,11 +107,28 @@ def test_evaluate_streams_the_whole_log_evaluation(tmp_path: Path, private_tmp: 
     args = ["evaluate", str(path), "--json", "--sweep"]
     args += ["--config", str(cfg)] if cfg is not None else []
     args += ["--scales", scales] if scales is not None else []
-    with monkeypatch.context() as m:
-        _whole_log_only(m)
-        want = _run(args)
-        want_text = _run([a for a in args if a != "--json"])
-    assert want.exit_code == 0, want.output
+    from impactcli.cli.evaluate import DEFAULT_SCALES, parse_scales
+    from impactcli.evaluate import (
+        MatchTolerance,
+        evaluate_result,
+        format_evaluation,
+        format_sweep,
+        sweep_thresholds,
+        sweep_to_dict,
+    )
+    from impactcli.io.robot import read_labels
+
+    whole = _whole(path, cfg)  # evaluate's output on the whole-log run
+    labels = read_labels(SAMPLES / "csv" / f"{log}.labels.json")
+    tol = MatchTolerance(pre_s=0.02, post_s=0.25)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ev = evaluate_result(whole, labels, tolerance=tol)
+        rows = sweep_thresholds(whole, labels, parse_scales(scales or DEFAULT_SCALES),
+                                tolerance=tol)
+    doc = {**ev.to_dict(), "input": str(path), "sweep": sweep_to_dict(rows)}
+    want_stdout = json.dumps(doc, sort_keys=True, indent=1, allow_nan=False) + "\n"
+    want_text = format_evaluation(ev) + "\n" + format_sweep(rows)
     with monkeypatch.context() as m:
         _forbid_whole_log(m)
         got = _run(args)
@@ -108,9 +137,9 @@ def test_evaluate_streams_the_whole_log_evaluation(tmp_path: Path, private_tmp: 
     assert got.exit_code == 0, got.output
     doc = json.loads(got.stdout)
     assert doc["sweep"]["rows"] and doc["n_contacts"]["counted"] > 0
-    assert got.stdout == want.stdout
-    assert got.stderr == want.stderr
-    assert got_text.stdout == want_text.stdout
+    assert got.stdout == want_stdout
+    assert got.stderr == _warned(whole)
+    assert got_text.stdout == want_text
     # without --sweep: no collector, the same evaluation
     assert plain.exit_code == 0, plain.output
     doc.pop("sweep")

@@ -159,25 +159,13 @@ def _check_rate(labels: Any, rate_hz: float, where: str) -> None:
             f"{rate_hz:g} Hz: are they the labels of this log?", ImpactWarning, stacklevel=2)
 
 
-def analyze_log(path: Path, *, robot: Path | None, model: Path | None, config: Path | None,
-                read_options: dict[str, Any], allow_slow: bool = False) -> Any:
-    """Read ``path`` and replay the detectors on it, as ``detect`` does (``allow_slow``:
-    run a replay above the scale limit, as ``detect --allow-slow``)."""
-    from ..batch import analyze_file
-
-    return analyze_file(str(path), robot_path=None if robot is None else str(robot),
-                        model_path=None if model is None else str(model),
-                        config_path=None if config is None else str(config),
-                        read_options=read_options, allow_slow=allow_slow)
-
-
 def replay_log(path: Path, *, robot: Path | None, model: Path | None, config: Path | None,
                read_options: dict[str, Any], allow_slow: bool = False, sweep: bool = False
                ) -> tuple[Any, Any]:
     """Replay the detectors on the log ``path`` for its evaluation: (result, samples).
 
-    Streamed when its inputs allow (:func:`impactcli.batch.stream_file`: a day-long log in
-    bounded memory, as ``detect`` replays it); the scores need only the run's events and
+    Chunk by chunk (:func:`impactcli.batch.stream_file`: a day-long log in bounded memory,
+    as ``detect`` replays it); the scores need only the run's events and
     incidents, which a streamed result holds. The sweep needs every sample's ratio to the
     thresholds: with ``sweep`` the report's collector, keeping only the ratios' columns
     (:class:`impactcli.outputs.report_stream.ReportCollector`), spills them to a temporary
@@ -185,20 +173,15 @@ def replay_log(path: Path, *, robot: Path | None, model: Path | None, config: Pa
     :class:`~impactcli.outputs.report_stream.StreamedSamples`) reads them back
     (:func:`impactcli.outputs.sweep_stream.sweep_streamed` gives the rows
     :func:`impactcli.evaluate.sweep_thresholds` gives on the whole-log run); the caller
-    closes ``samples`` (it removes the spill file). Else (inputs that do not stream) the
-    whole log is replayed in memory (:func:`analyze_log`) and ``samples`` is None.
+    closes ``samples`` (it removes the spill file); without ``sweep`` it is None.
     """
     from ..batch import stream_file
 
-    got = stream_file(str(path), robot_path=None if robot is None else str(robot),
-                      model_path=None if model is None else str(model),
-                      config_path=None if config is None else str(config),
-                      read_options=read_options, allow_slow=allow_slow, show_progress=True,
-                      samples="sweep" if sweep else None)
-    if got is None:
-        return analyze_log(path, robot=robot, model=model, config=config,
-                           read_options=read_options, allow_slow=allow_slow), None
-    return got
+    return stream_file(str(path), robot_path=None if robot is None else str(robot),
+                       model_path=None if model is None else str(model),
+                       config_path=None if config is None else str(config),
+                       read_options=read_options, allow_slow=allow_slow, show_progress=True,
+                       samples="sweep" if sweep else None)
 
 
 def _timeline_sweep(source: Path, doc: dict[str, Any], labels: Any, scales: tuple[float, ...],
@@ -292,7 +275,6 @@ def evaluate_cmd(source: Path, labels_path: Path | None, as_json: bool, sweep: b
         evaluate_result,
         format_evaluation,
         format_sweep,
-        sweep_thresholds,
         sweep_to_dict,
     )
 
@@ -336,12 +318,10 @@ def evaluate_cmd(source: Path, labels_path: Path | None, as_json: bool, sweep: b
                 click.echo(f"impactcli: warning: {msg}", err=True)
             _check_rate(labels, result.log.sample_rate_hz, str(source))
             ev = evaluate_result(result, labels, tolerance=tolerance)
-            if sweep and samples is not None:
+            if samples is not None:  # --sweep
                 from ..outputs.sweep_stream import sweep_streamed
 
                 rows = sweep_streamed(samples, result, labels, scales, tolerance=tolerance)
-            elif sweep:
-                rows = sweep_thresholds(result, labels, scales, tolerance=tolerance)
         finally:
             if samples is not None:
                 samples.close()

@@ -89,23 +89,6 @@ def load_inputs(robot: Path | None, model: Path | None,
             load_config(config) if config is not None else None)
 
 
-def analyze_log(path: Path, *, robot: Any = None, model: Any = None, config: Any = None,
-                read_options: dict[str, Any] | None = None, allow_slow: bool = False) -> Any:
-    """Read ``path`` and replay the detectors (:func:`impactcli.pipeline.analyze`).
-
-    ``robot``, ``model``, ``config`` are the loaded objects (or None); ``read_options`` the
-    :func:`impactcli.io.read_log` keyword arguments (recorded in the result); ``allow_slow``
-    runs a replay above the scale limit (:func:`impactcli.detect.adaptive.check_scale`).
-    """
-    from ..io import read_log
-    from ..pipeline import analyze
-
-    opts = dict(read_options or {})
-    log = read_log(path, robot=robot, **opts)
-    return analyze(log, model=model, config=config, robot=robot, read_options=opts,
-                   allow_slow=allow_slow)
-
-
 def load_timeline(path: Path) -> dict[str, Any]:
     """Read and validate a timeline JSON (LogFormatError naming the file when bad)."""
     from ..schema import validate
@@ -141,8 +124,9 @@ def timeline_log_path(tl_path: Path, recorded: str, absolute: str | None = None)
 
 
 def _timeline_plan(tl_path: Path, robot: Any) -> dict[str, Any]:
-    """What a timeline records for a re-run (see :func:`rerun_timeline`): the timeline, its
-    log, read options, config, model, whether the model comes from the log, and the robot."""
+    """What a timeline records for a re-run (see :func:`analyze_for_report`): the timeline,
+    its log, read options, config, model, whether the model comes from the log, and the
+    robot."""
     from ..config import DetectorConfig
     from ..io.robot import robot_from_dict
     from ..model import RigidModel
@@ -193,46 +177,24 @@ def _compare_events(tl_path: Path, tl: dict[str, Any], result: Any) -> None:
             ImpactWarning, stacklevel=3)
 
 
-def rerun_timeline(tl_path: Path, *, robot: Any = None,
-                   allow_slow: bool = False) -> tuple[Any, Path]:
-    """Re-run detection as a timeline records it; returns (DetectionResult, log path).
-
-    The log is read with the recorded read options; the model is the recorded one when it
-    was given (a config's model comes with the config; an identified one is identified
-    again, deterministically); the config is the recorded one. ``robot`` (a loaded
-    description, from --robot) is used when given, else the robot description embedded in
-    the recorded model (needed for planar/URDF identification and current scaling).
-    ``allow_slow`` runs a replay above the scale limit, as ``detect --allow-slow``.
-    """
-    from ..io import read_log
-    from ..pipeline import analyze
-
-    plan = _timeline_plan(tl_path, robot)
-    log = read_log(plan["log_path"], robot=plan["robot"], **plan["read_options"])
-    _check_sha(tl_path, plan, log.source.sha256)
-    result = analyze(log, model=plan["model"], config=plan["config"], robot=plan["robot"],
-                     read_options=plan["read_options"], model_from_log=plan["model_from_log"],
-                     allow_slow=allow_slow)
-    _compare_events(tl_path, plan["tl"], result)
-    return result, plan["log_path"]
-
-
 def analyze_for_report(task: ReportTask, robot: Any, model: Any, config: Any
                        ) -> tuple[Any, Path, Any, dict[str, Any] | None]:
-    """(result, log path, samples or None, origin) of one report input: streamed
-    (:func:`impactcli.batch.stream_log`: bounded memory, collecting what its report plots)
-    when its inputs allow (:func:`impactcli.stream.streamable`: all but ``--model`` with
-    ``--model-from-log``), else the whole-log replay (samples None)."""
+    """(result, log path, samples, origin) of one report input, replayed chunk by chunk
+    (:func:`impactcli.batch.stream_log`: bounded memory, collecting what its report plots).
+
+    A LOG is detected with the loaded ``robot``, ``model`` and ``config``; a TIMELINE is
+    re-run as it records it: the log read with the recorded read options, sha256 checked;
+    the model the recorded one when it was given (a config's model comes with the config;
+    an identified one is identified again, deterministically); the recorded config;
+    ``robot`` when given, else the description embedded in the recorded model. The caller
+    closes the samples.
+    """
     from ..batch import stream_log
-    from ..stream import streamable
 
     inp = Path(task.inp)
     if is_timeline(inp):
         plan = _timeline_plan(inp, robot)
         origin = timeline_origin(inp)
-        if not streamable(plan["config"], plan["model"], plan["model_from_log"]):
-            result, log_path = rerun_timeline(inp, robot=robot, allow_slow=task.allow_slow)
-            return result, log_path, None, origin
         result, samples = stream_log(
             str(plan["log_path"]), robot=plan["robot"], model=plan["model"],
             config=plan["config"], read_options=plan["read_options"],
@@ -245,10 +207,6 @@ def analyze_for_report(task: ReportTask, robot: Any, model: Any, config: Any
             samples.close()
             raise
         return result, plan["log_path"], samples, origin
-    if not streamable(config, model, False):
-        return (analyze_log(inp, robot=robot, model=model, config=config,
-                            read_options=task.read_options, allow_slow=task.allow_slow),
-                inp, None, None)
     result, samples = stream_log(str(inp), robot=robot, model=model, config=config,
                                  read_options=task.read_options, allow_slow=task.allow_slow,
                                  show_progress=task.show_progress, samples="report")
@@ -339,8 +297,8 @@ def _loaded(robot: str | None, model: str | None, config: str | None) -> tuple[A
 def analyze_input(task: ReportTask) -> ReportPart:
     """Analyse and render one report input in any worker.
 
-    A LOG is detected, a TIMELINE re-run (:func:`rerun_timeline`) — streamed in bounded
-    memory when the inputs allow (:func:`analyze_for_report`); the labels are the given
+    A LOG is detected, a TIMELINE re-run, in bounded memory (:func:`analyze_for_report`);
+    the labels are the given
     file, else ``<stem>.labels.json`` found beside it when ``auto_labels``; the log's section
     is rendered here (:func:`impactcli.outputs.report.render_log`), so only it travels back.
     Warnings raised on the way come back as messages; an ImpactError comes back as the error.

@@ -23,7 +23,6 @@ from ..errors import ImpactError, LogFormatError
 from ..outputs.decimate import DEFAULT_EVENT_WINDOW_S, DEFAULT_MAX_POINTS
 from ._common import handle_errors, not_found
 from .detect import log_read_options, model_options, read_options_from
-from .evaluate import analyze_log
 
 if TYPE_CHECKING:
     from ..result import DetectionResult
@@ -81,27 +80,19 @@ def record_log(source: Path, rrd: Path, *, robot: Path | None, model: Path | Non
     """Replay the detectors on the log ``source`` and write its Rerun recording to ``rrd``
     (atomically); returns the run.
 
-    Streamed when its inputs allow (:func:`impactcli.batch.stream_file`, as ``detect
-    --rerun`` does: a day-long log in bounded memory, the recording written from a spill
-    file once the answer is known, the same samples as the whole-log recording); else the
-    whole log is read and replayed in memory (:func:`impactcli.cli.evaluate.analyze_log`).
-    Progress in seconds of log on a terminal, as ``detect``.
+    Chunk by chunk (:func:`impactcli.batch.stream_file`, as ``detect --rerun`` does: a
+    day-long log in bounded memory, the recording written from a spill file once the
+    answer is known, the same samples as the whole-log recording). Progress in seconds of
+    log on a terminal, as ``detect``.
     """
     from ..batch import stream_file
 
     opts: dict[str, Any] = {"max_points": max_points, "event_window_s": event_window_s}
-    got = stream_file(str(source), robot_path=None if robot is None else str(robot),
-                      model_path=None if model is None else str(model),
-                      config_path=None if config is None else str(config),
-                      read_options=read_options, show_progress=True, rrd_path=rrd,
-                      rrd_options=opts)
-    if got is not None:
-        return cast("DetectionResult", got[0])
-    from ..outputs.rerun import write_rrd
-
-    result = analyze_log(source, robot=robot, model=model, config=config,
-                         read_options=read_options)
-    write_rrd(result, rrd, **opts)
+    result, _ = stream_file(str(source), robot_path=None if robot is None else str(robot),
+                            model_path=None if model is None else str(model),
+                            config_path=None if config is None else str(config),
+                            read_options=read_options, show_progress=True, rrd_path=rrd,
+                            rrd_options=opts)
     return cast("DetectionResult", result)
 
 
