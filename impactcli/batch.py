@@ -217,7 +217,7 @@ def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ..
     if local_out is not None:
         result, outputs = _run_streamed(job, local_out, stem)
     else:
-        result, outputs = _run_whole(job, job.out_dir, stem)
+        result, outputs = _run_remote(job, job.out_dir, stem)
     summary = _summary(job, result)
     return outputs, summary, result.warnings
 
@@ -235,25 +235,20 @@ def progress_bar(log_path: str, show: bool, what: str, unit: str) -> Any:
                 file=sys.stderr, leave=False, disable=not sys.stderr.isatty())
 
 
-def _run_whole(job: DetectJob, prefix: str, stem: str) -> tuple[Any, tuple[str, ...]]:
-    """Read the whole log, replay it, write the outputs under a remote URL ``prefix``
-    (the path for outputs :func:`_run_streamed` cannot write as it goes)."""
-    bar = progress_bar(job.log_path, job.show_progress, "adaptive evaluator, axes", "axis")
+def _run_remote(job: DetectJob, prefix: str, stem: str) -> tuple[Any, tuple[str, ...]]:
+    """Replay the log in bounded memory into a private temporary folder
+    (:func:`_run_streamed`), then upload each output atomically under the remote URL
+    ``prefix``."""
+    from .io.urls import join_url, put_file_atomic
 
-    def progress(done: int, total: int) -> None:
-        assert bar is not None
-        bar.total = total
-        bar.n = done
-        bar.refresh()
-
-    result = analyze_file(job.log_path, robot_path=job.robot_path, model_path=job.model_path,
-                          config_path=job.config_path, read_options=job.read_options,
-                          model_from_log=job.model_from_log, generator=job.generator,
-                          allow_slow=job.allow_slow,
-                          progress=progress if bar is not None else None)
-    if bar is not None:
-        bar.close()
-    return result, _write_remote(result, prefix, stem, job)
+    with tempfile.TemporaryDirectory(prefix="impactcli-out-") as tmp:
+        result, written = _run_streamed(job, Path(tmp), stem)
+        targets = []
+        for p in written:
+            target = join_url(prefix, Path(p).name)
+            put_file_atomic(Path(p), target)
+            targets.append(target)
+    return result, tuple(targets)
 
 
 def _run_streamed(job: DetectJob, out: Path, stem: str) -> tuple[Any, tuple[str, ...]]:
@@ -411,38 +406,6 @@ def _summary(job: DetectJob, result: Any) -> dict[str, Any]:
         "generator_reasons": {j: g["reason"] for j, g in result.generators.items()},
         **{d: v["events"] for d, v in result.summary().items()},
     }
-
-
-def _write_outputs(result: Any, out: Path, stem: str, job: DetectJob) -> list[Path]:
-    """Write the timeline (and signals, .rrd) into a local folder, each atomically."""
-    from .outputs.timeline import write_timeline
-
-    written = [out / f"{stem}.timeline.json"]
-    write_timeline(result, written[0])
-    if job.signals:
-        from .outputs.signals import write_signals
-
-        written.append(out / f"{stem}.signals.parquet")
-        write_signals(result, written[-1])
-    if job.rerun:
-        from .outputs.rerun import write_rrd
-
-        written.append(out / f"{stem}.rrd")
-        write_rrd(result, written[-1])
-    return written
-
-
-def _write_remote(result: Any, prefix: str, stem: str, job: DetectJob) -> tuple[str, ...]:
-    """Write locally to a private folder, then upload each file atomically under ``prefix``."""
-    from .io.urls import join_url, put_file_atomic
-
-    with tempfile.TemporaryDirectory(prefix="impactcli-out-") as tmp:
-        targets = []
-        for p in _write_outputs(result, Path(tmp), stem, job):
-            target = join_url(prefix, p.name)
-            put_file_atomic(p, target)
-            targets.append(target)
-    return tuple(targets)
 
 
 def lost_outcome(job: DetectJob, reason: str, kind: str, tb: str = "") -> JobOutcome:
