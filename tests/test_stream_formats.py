@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import warnings
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -371,6 +372,33 @@ def test_npz_errors_are_read_logs(tmp_path: Path) -> None:
     np.savez(tmp_path / "ms.npz", t=t * 1e-6, q=v["position"], tm=v["torque_model"],
              **{f"tau_{j}": v["torque"][:, k] for k, j in enumerate(JOINTS)})
     assert "implied sample rate" in _error(tmp_path / "ms.npz", channel_map=cmap)
+
+
+def test_a_corrupt_npz_member_is_one_line_exit_3(tmp_path: Path) -> None:
+    """A compressed member whose bytes are damaged (bad CRC): ``detect`` says so in one
+    line naming the file and the array, exit 3, no traceback, no output."""
+    from click.testing import CliRunner
+
+    from impactcli.cli import main
+
+    t, v = _signals()
+    path = tmp_path / "bad.npz"
+    np.savez_compressed(path, t=t * 1e-9, q=v["position"], tm=v["torque_model"],
+                        **{f"tau_{j}": v["torque"][:, k] for k, j in enumerate(JOINTS)})
+    raw = bytearray(path.read_bytes())
+    with zipfile.ZipFile(path) as zf:
+        info = zf.getinfo("tm.npy")
+    body = info.header_offset + 30 + len(info.filename) + len(info.extra) + 200
+    raw[body:body + 64] = bytes(64)
+    path.write_bytes(bytes(raw))
+    out = tmp_path / "out"
+    r = CliRunner().invoke(main, ["detect", str(path), "--channel-map",
+                                  str(_npz_map(tmp_path)), "-o", str(out)])
+    assert r.exit_code == 3, r.output
+    assert "Traceback" not in r.output and "internal error" not in r.output
+    line = [x for x in r.output.splitlines() if "error" in x]
+    assert len(line) == 1 and "bad.npz" in line[0] and "'tm'" in line[0], r.output
+    assert not list(out.glob("*")) if out.exists() else True
 
 
 # ------------------------------------------------------------------------------- URLs

@@ -7,6 +7,7 @@ used must have the time array's length N. Float time in ``unit`` is rounded to n
 from __future__ import annotations
 
 import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -40,7 +41,8 @@ def read_npz_channels(path: Path, cmap: ChannelMap) -> JointChannels:
             if key not in cache:
                 try:
                     cache[key] = np.asarray(archive[key])
-                except ValueError as err:  # object arrays need pickle: refused
+                except (ValueError, zipfile.BadZipFile, zlib.error, EOFError, OSError) as err:
+                    # object arrays need pickle (refused); a corrupt or cut member
                     raise LogFormatError(f"{where}: array {key!r} cannot be read: {err}") from err
             a = cache[key]
             if ref.index is None:
