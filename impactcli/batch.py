@@ -194,8 +194,8 @@ def analyze_file(
     progress: Any = None,
 ) -> Any:
     """Read one log and its robot, model and config (paths or URLs) and replay the
-    detectors on the whole log in memory — what ``detect`` does for a log whose outputs go
-    to a remote URL prefix (:func:`stream_file` writes them as it goes, locally).
+    detectors on the whole log in memory (the CLI streams instead: :func:`stream_file`;
+    this is for callers that want the per-sample signals in memory, a short log).
     Returns the :class:`impactcli.result.DetectionResult` (with its per-sample signals)."""
     from .io import read_log
     from .pipeline import analyze
@@ -243,12 +243,31 @@ def _run_remote(job: DetectJob, prefix: str, stem: str) -> tuple[Any, tuple[str,
 
     with tempfile.TemporaryDirectory(prefix="impactcli-out-") as tmp:
         result, written = _run_streamed(job, Path(tmp), stem)
-        targets = []
-        for p in written:
-            target = join_url(prefix, Path(p).name)
-            put_file_atomic(Path(p), target)
-            targets.append(target)
+        # the timeline last: its presence says the run's outputs are all there
+        order = [*written[1:], written[0]]
+        targets = [join_url(prefix, Path(p).name) for p in written]
+        done: list[str] = []
+        try:
+            for p in order:
+                target = join_url(prefix, Path(p).name)
+                put_file_atomic(Path(p), target)
+                done.append(target)
+        except BaseException:
+            _remove_remote(done)  # no signals or .rrd left without their timeline
+            raise
     return result, tuple(targets)
+
+
+def _remove_remote(urls: list[str]) -> None:
+    """Delete these uploaded objects, as far as possible (after a failed upload)."""
+    import fsspec
+
+    for url in urls:
+        try:
+            fs, path = fsspec.core.url_to_fs(url)
+            fs.rm(path)
+        except Exception:  # best effort: the upload's error is the one shown
+            pass
 
 
 def _run_streamed(job: DetectJob, out: Path, stem: str) -> tuple[Any, tuple[str, ...]]:

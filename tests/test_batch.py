@@ -298,3 +298,27 @@ def test_timeline_says_how_the_threshold_inputs_were_made() -> None:
         details[fmt] = timeline_dict(res)["replay"]["threshold_inputs"]
     assert details["csv"] == "velocity_ref and acceleration_ref as logged"
     assert details["mcap"].startswith("velocity_ref as logged; acceleration by causal")
+
+
+def test_a_failed_remote_upload_leaves_no_outputs(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Outputs under a URL prefix: the timeline is uploaded last (its presence says the run
+    is complete); when an upload fails, the files already uploaded are removed and the
+    job fails with the upload's error."""
+    import fsspec
+
+    sample = Path(__file__).resolve().parents[1] / "sample_logs"
+    real = urls.put_file_atomic
+
+    def put(local: Any, target: str) -> None:
+        if target.endswith(".timeline.json"):
+            raise OSError(errno.EIO, "store went away")
+        real(local, target)
+
+    monkeypatch.setattr(urls, "put_file_atomic", put)
+    fs = fsspec.filesystem("memory")
+    job = DetectJob(log_path=str(sample / "csv" / "heavy_impacts.csv.gz"),
+                    out_dir="memory://failing/out", robot_path=None, model_path=None,
+                    config_path=str(sample / "heavy_geared.config.toml"), signals=True)
+    out = run_detect_job(job)
+    assert not out.ok and "store went away" in (out.error or "")
+    assert not fs.exists("/failing/out") or fs.ls("/failing/out", detail=False) == []
