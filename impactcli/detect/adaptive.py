@@ -423,7 +423,8 @@ def evaluate_chunk(
         cfg: settings; None → the state's; otherwise must equal the state's.
         threads, progress: as :func:`evaluate`.
         alongside: the caller's work, run on the calling thread while the axes run on
-            theirs (:func:`impactcli.replay.replay_chunk`: the loading statistic, speed).
+            theirs (the pipelined replay does this itself: :class:`impactcli.replay.
+            Replayer`).
 
     Returns:
         (result, new_state): ``result`` holds the chunk's (n, J) signals; its ``theta``,

@@ -6,7 +6,7 @@ a thread of its own (the kernel releases the GIL). :class:`AxisRunner` takes chu
 chunk (:meth:`~AxisRunner.submit`) and gives each axis its chunks in order on a
 single-thread executor of its own: axis j can work on chunk k + 1 while axis i still works
 on chunk k and the caller makes chunk k + 2's residual (:func:`impactcli.replay.
-replay_stream`). Results are the same bits as one chunk at a time on one thread — each
+Replayer`). Results are the same bits as one chunk at a time on one thread — each
 axis runs the same kernel on the same values in the same order; what the axes share is
 read only: each submitted chunk carries its own copy of the input lags u(k0−rho_max ..
 k0−1) (the runner advances its copy at submission), and each axis snapshots its theta
