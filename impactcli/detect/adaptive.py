@@ -409,7 +409,6 @@ def evaluate_chunk(
     sample_rate_hz: float, v_stat: Sequence[float] | np.ndarray,
     cfg: AdaptiveConfig | None = None, threads: int = 1,
     progress: Callable[[int, int], None] | None = None, *, _consume: bool = False,
-    alongside: Callable[[], None] | None = None,
 ) -> tuple[AdaptiveResult, EvaluatorState]:
     """Run the adaptive evaluator (compiled) on one chunk, continuing from ``state``.
 
@@ -422,9 +421,6 @@ def evaluate_chunk(
         v_stat: (J,) static thresholds [N·m] (eq. 42).
         cfg: settings; None → the state's; otherwise must equal the state's.
         threads, progress: as :func:`evaluate`.
-        alongside: the caller's work, run on the calling thread while the axes run on
-            theirs (the pipelined replay does this itself: :class:`impactcli.replay.
-            Replayer`).
 
     Returns:
         (result, new_state): ``result`` holds the chunk's (n, J) signals; its ``theta``,
@@ -447,8 +443,6 @@ def evaluate_chunk(
     st = state if _consume else state.copy()
     with AxisRunner(st, vs, threads) as runner:
         job = runner.submit(r, u)
-        if alongside is not None:
-            alongside()
         job.wait(progress)
     return result_of(job, st), dataclasses.replace(st, n_samples=runner.n_samples)
 
