@@ -252,7 +252,6 @@ class Replayer:
                                   setup.threads)
         self._pending: deque[_Part] = deque()
         self._done: list[_Part] = []  # finished parts of a chunk not finished yet
-        self._n = self._st.n_samples
         self._inputs = (self._st.reference, self._st.threshold_inputs)
         self._closed = False
 
@@ -275,7 +274,6 @@ class Replayer:
                                              carry.scoped("static.")))
             qd = causal_velocity(dt, part.position, min(SPEED_CUTOFF_HZ, 0.2 / dt),
                                  carry.scoped("speed."), "q")
-            self._n += part.n_samples
             self._inputs = (inputs.source, inputs.detail)
             self._pending.append(_Part(tag, a + PART_SAMPLES >= n, r, inputs, loading, qd,
                                        job))
@@ -304,8 +302,9 @@ class Replayer:
         """The state after every chunk fed (after :meth:`finish`)."""
         if self._pending or not self._closed:
             raise RuntimeError("Replayer.state before finish()")
-        ev = dataclasses.replace(self._st.evaluator, n_samples=self._runner.n_samples)
-        return dataclasses.replace(self._st, evaluator=ev, n_samples=self._n,
+        n = self._runner.n_samples  # the evaluator's samples are the replay's
+        ev = dataclasses.replace(self._st.evaluator, n_samples=n)
+        return dataclasses.replace(self._st, evaluator=ev, n_samples=n,
                                    reference=self._inputs[0],
                                    threshold_inputs=self._inputs[1])
 
