@@ -31,7 +31,7 @@ import yaml
 from ._fs import atomic_write_text
 from .errors import ConfigError
 from .io.structured import load_mapping
-from .schema import restore_nulls, validate
+from .schema import omit_nulls, validate
 
 #: Table I's static thresholds of the 2-joint ASSIST arm [N·m] (shoulder, elbow).
 TABLE_I_V_STAT: tuple[float, float] = (0.45, 0.2)
@@ -260,13 +260,15 @@ class DetectorConfig:
     calibration: CalibrationRecord = field(default_factory=CalibrationRecord)
     model: dict[str, Any] | None = None
 
+    def __post_init__(self) -> None:
+        if self.model is not None:  # one form in memory and in every file format
+            object.__setattr__(self, "model", omit_nulls(self.model))
+
     def to_dict(self) -> dict[str, Any]:
-        """JSON/YAML-ready mapping: None values omitted, except inside the embedded model,
-        which is kept as it is (TOML, which has no null, drops those too; they are
-        restored from the model schema on reading)."""
-        d: dict[str, Any] = _drop_none(dataclasses.asdict(dataclasses.replace(self, model=None)))
-        if self.model is not None:
-            d["model"] = self.model
+        """The config's mapping, the same in TOML, YAML and JSON: a field without a value
+        (None) is left out, the embedded model's included
+        (:func:`impactcli.schema.omit_nulls`)."""
+        d: dict[str, Any] = omit_nulls(dataclasses.asdict(self))
         return d
 
     @classmethod
@@ -288,20 +290,12 @@ class DetectorConfig:
         return dataclasses.replace(self, **changes)
 
 
-def _drop_none(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {k: _drop_none(v) for k, v in x.items() if v is not None}
-    if isinstance(x, list | tuple):
-        return [_drop_none(v) for v in x]
-    return x
-
-
 def _embedded_model(m: dict[str, Any] | None, where: str) -> dict[str, Any] | None:
-    """The config's embedded model with its nulls restored (TOML drops them), validated
-    against schemas/model.schema.json so a bad one is reported naming the config file."""
+    """The config's embedded model, validated against schemas/model.schema.json so a bad
+    one is reported naming the config file (nulls of older files left out)."""
     if m is None:
         return None
-    model: dict[str, Any] = restore_nulls(m, "model")
+    model: dict[str, Any] = omit_nulls(m)
     validate(model, "model", ConfigError, f"{where}: model")
     return model
 
@@ -375,7 +369,7 @@ def dumps_config(cfg: DetectorConfig, suffix: str) -> str:
     d = cfg.to_dict()
     s = suffix.lower()
     if s == ".toml":
-        return tomli_w.dumps(_drop_none(d))
+        return tomli_w.dumps(d)
     if s in (".yaml", ".yml"):
         return str(yaml.safe_dump(d, sort_keys=False))
     return json.dumps(d, indent=2) + "\n"

@@ -40,41 +40,17 @@ def validate(doc: Any, name: str, error: type[ImpactError], where: str) -> None:
         raise error(f"{where}: {loc}: {best.message}")
 
 
-def restore_nulls(doc: Any, name: str) -> Any:
-    """``doc`` with the required properties that may be null, and are absent, set to None.
+def omit_nulls(doc: Any) -> Any:
+    """``doc`` with every null value of a mapping left out, recursively.
 
-    A TOML file has no null, so a document embedded in a TOML config (a model) loses its
-    null values on the way; this puts them back before the document is validated. Only
-    ``properties``/``additionalProperties`` of objects and ``$ref`` into ``$defs`` are
-    followed (what impactcli's schemas use).
+    The one form of every document the tool writes and reads back (configs, models, robot
+    descriptions): TOML has no null, so a field without a value is absent in every format,
+    and the schemas make such fields optional. Items of lists are kept as they are; no
+    writer puts a null in a list (a per-joint value that can be missing is a table keyed
+    by joint name).
     """
-    root = load_schema(name)
-
-    def resolve(node: dict[str, Any]) -> dict[str, Any]:
-        ref = node.get("$ref")
-        if isinstance(ref, str) and ref.startswith("#/$defs/"):
-            return resolve(root["$defs"][ref.split("/")[-1]])
-        return node
-
-    def nullable(node: dict[str, Any]) -> bool:
-        node = resolve(node)
-        t = node.get("type")
-        return t == "null" or (isinstance(t, list) and "null" in t) or any(
-            isinstance(o, dict) and nullable(o) for o in node.get("oneOf", []))
-
-    def walk(x: Any, node: dict[str, Any]) -> Any:
-        node = resolve(node)
-        if not isinstance(x, dict):
-            return x
-        props = node.get("properties", {})
-        extra = node.get("additionalProperties")
-        out = {}
-        for k, v in x.items():
-            sub = props.get(k, extra if isinstance(extra, dict) else None)
-            out[k] = walk(v, sub) if isinstance(sub, dict) else v
-        for k in node.get("required", []):
-            if k not in out and isinstance(props.get(k), dict) and nullable(props[k]):
-                out[k] = None
-        return out
-
-    return walk(doc, root)
+    if isinstance(doc, dict):
+        return {k: omit_nulls(v) for k, v in doc.items() if v is not None}
+    if isinstance(doc, list | tuple):
+        return [omit_nulls(v) for v in doc]
+    return doc

@@ -311,11 +311,13 @@ class RobotDescription:
         d: dict[str, Any] = {
             "name": self.name,
             "joints": [
-                {"name": j.name, "gear_ratio": j.gear_ratio, "torque_constant": j.torque_constant}
+                {"name": j.name, "gear_ratio": j.gear_ratio}
+                | ({} if j.torque_constant is None else {"torque_constant": j.torque_constant})
                 for j in self.joints
             ],
-            "kinematics": self.kinematics,
         }
+        if self.kinematics is not None:
+            d["kinematics"] = self.kinematics
         if self.joint_map:
             d["joint_map"] = dict(self.joint_map)
         if self.nominal is not None:
@@ -344,11 +346,13 @@ class ContactLabel:
 
 @dataclass(frozen=True)
 class Labels:
-    """Ground truth for one log: its contacts and sample rate [Hz]."""
+    """Ground truth for one log: its contacts, sample rate [Hz], the file it came from and
+    the file's other top-level fields (kept, so a labels file reads back unchanged)."""
 
     events: tuple[ContactLabel, ...]
     sample_rate: float
     path: str = ""
+    extra: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         where = self.path or "labels"
@@ -369,6 +373,7 @@ class Labels:
                 for e in self.events
             ],
             "sample_rate": self.sample_rate,
+            **self.extra,
         }
 
 

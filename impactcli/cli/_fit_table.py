@@ -34,12 +34,12 @@ def format_fit_table(model: Any) -> str:
     for j in model.joint_names:
         f = joints["fit"][j]
         row = (f"{j:<{w}}  {f['torque_rms_nm']:>10.4g}  {f['rms_nm']:>8.4g}  "
-               f"{_pct(f['rms_rel_torque_rms'], f.get('still'))}  "
-               f"{_pct(f['rms_rel_range'], f.get('still'))}")
+               f"{_pct(f.get('rms_rel_torque_rms'), f.get('still'))}  "
+               f"{_pct(f.get('rms_rel_range'), f.get('still'))}")
         if hold:
             h = hold[j]
-            row += (f"  {h['rms_nm']:>8.4g}  {_pct(h['rms_rel_torque_rms'], h.get('still'))}  "
-                    f"{_pct(h['rms_rel_range'], h.get('still'))}")
+            row += (f"  {h['rms_nm']:>8.4g}  {_pct(h.get('rms_rel_torque_rms'), h.get('still'))}  "
+                    f"{_pct(h.get('rms_rel_range'), h.get('still'))}")
             if not h.get("still") and h["torque_rms_nm"] > 0 and \
                     h["rms_nm"] >= h["torque_rms_nm"]:
                 worse.append(j)

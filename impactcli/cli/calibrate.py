@@ -13,12 +13,12 @@ from .detect import generator_option, log_read_options, read_options_from
 def _labels_for(logs: tuple[Path, ...], given: tuple[Path, ...]) -> list:  # type: ignore[type-arg]
     """Labels per log: ``--labels`` paired as ``report`` pairs them, else
     ``<stem>.labels.json`` beside the log when present, else None."""
-    from .evaluate import read_labels_checked
+    from ..io.robot import read_labels
     from .report import auto_labels, pair_labels
 
     paths = pair_labels(list(logs), list(given)) if given else [
         auto_labels(p, None) for p in logs]
-    return [None if p is None else read_labels_checked(p) for p in paths]
+    return [None if p is None else read_labels(p) for p in paths]
 
 
 @click.command("calibrate")

@@ -34,7 +34,7 @@ from typing import Any
 import click
 import numpy as np
 
-from ..errors import ImpactWarning, LabelsError, LogFormatError
+from ..errors import ImpactWarning, LogFormatError
 from ._common import check_log_path, handle_errors, not_found
 from .detect import log_read_options, model_options, read_options_from
 
@@ -83,27 +83,6 @@ def _scales_option(ctx: click.Context, param: click.Parameter, value: str) -> tu
         return parse_scales(value)
     except ValueError as err:
         raise click.BadParameter(str(err)) from None
-
-
-def read_labels_checked(path: Path) -> Any:
-    """Labels validated against schemas/labels.schema.json (LabelsError naming the file)."""
-    from ..io.robot import labels_from_dict
-    from ..io.structured import load_mapping
-    from ..schema import validate
-
-    d = load_mapping(path, LabelsError, "labels")
-    validate(d, "labels", LabelsError, str(path))
-    return labels_from_dict(d, str(path))
-
-
-def read_timeline(path: Path) -> dict[str, Any]:
-    """A timeline JSON validated against schemas/timeline.schema.json (LogFormatError)."""
-    from ..io.structured import load_mapping
-    from ..schema import validate
-
-    doc = load_mapping(path, LogFormatError, "timeline")
-    validate(doc, "timeline", LogFormatError, str(path))
-    return doc
 
 
 def signals_beside(timeline: Path) -> Path:
@@ -277,6 +256,8 @@ def evaluate_cmd(source: Path, labels_path: Path | None, as_json: bool, sweep: b
         format_sweep,
         sweep_to_dict,
     )
+    from ..io.robot import read_labels
+    from ..outputs.timeline import read_timeline
 
     tolerance = MatchTolerance(pre_s=pre_s, post_s=post_s)
     is_timeline = source.name.lower().endswith(".json")
@@ -293,7 +274,7 @@ def evaluate_cmd(source: Path, labels_path: Path | None, as_json: bool, sweep: b
         check_log_path(source)  # a file, or a rosbag2 folder
     if labels_path is None:
         labels_path = labels_beside(source)
-    labels = read_labels_checked(labels_path)
+    labels = read_labels(labels_path)
     rows = None
     if is_timeline:
         doc = read_timeline(source)

@@ -34,7 +34,6 @@ listing what it has).
 
 from __future__ import annotations
 
-import json
 import re
 import warnings
 from dataclasses import dataclass
@@ -397,10 +396,10 @@ def labels_cmd(log: Path, channel: str, above: float, link: int, kind: str, chan
     unknown for a switch. Writes LABELS.json (schemas/labels.schema.json) for
     `impactcli evaluate LOG --labels LABELS.json`.
     """
-    from .._fs import atomic_write_text, prepare_output
+    from .._fs import prepare_output
     from ..errors import LabelsError
     from ..io import read_log
-    from ..io.robot import labels_from_dict, read_robot
+    from ..io.robot import labels_from_dict, read_robot, write_labels
     from ..schema import validate
 
     if not np.isfinite(above):
@@ -417,13 +416,13 @@ def labels_cmd(log: Path, channel: str, above: float, link: int, kind: str, chan
                      merge_gap_s=merge_gap, min_duration_s=min_duration,
                      sample_rate=data.sample_rate_hz, log_path=str(log))
     validate(doc, "labels", LabelsError, str(output))
-    labels_from_dict(doc, str(output))  # the checks evaluate makes (end >= start, kinds)
+    labels = labels_from_dict(doc, str(output))  # the checks evaluate makes (end >= start)
     if not doc["events"]:
         finite = ch.values[np.isfinite(ch.values)]
         top = f"{float(finite.max()):.4g}" if finite.size else "no finite value"
         warnings.warn(f"{log}: {channel} is never above {above:g} (its largest value: {top}): "
                       "the labels hold no contact", ImpactWarning, stacklevel=2)
-    atomic_write_text(output, json.dumps(doc, indent=2) + "\n")
+    write_labels(labels, output)
     src = doc["source"]
     click.echo(f"{len(doc['events'])} contact(s) where {channel} > {above:g} "
                f"({ch.what}; a {src['channel_kind']}), kind {kind}, link {link}:")

@@ -42,7 +42,7 @@ from typing import Any
 import click
 
 from ..errors import EXIT_BATCH, EXIT_SOFTWARE, ImpactError, ImpactWarning, LogFormatError
-from ._common import handle_errors, is_log_path, not_found, progress
+from ._common import handle_errors, is_log_path, progress
 from .detect import (
     executor_options,
     log_read_options,
@@ -89,22 +89,6 @@ def load_inputs(robot: Path | None, model: Path | None,
             load_config(config) if config is not None else None)
 
 
-def load_timeline(path: Path) -> dict[str, Any]:
-    """Read and validate a timeline JSON (LogFormatError naming the file when bad)."""
-    from ..schema import validate
-
-    try:
-        doc = json.loads(path.read_text("utf-8"))
-    except FileNotFoundError:
-        raise not_found(path, "timeline file") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
-        raise LogFormatError(f"{path}: not a readable timeline JSON ({err})") from None
-    if not isinstance(doc, dict):
-        raise LogFormatError(f"{path}: a timeline must be a JSON object")
-    validate(doc, "timeline", LogFormatError, str(path))
-    return doc
-
-
 def timeline_log_path(tl_path: Path, recorded: str, absolute: str | None = None) -> Path:
     """The log a timeline records — a file or a rosbag2 folder: as recorded (relative to the
     working folder), else at its recorded absolute path (timeline 2.x ``input.abs_path``),
@@ -130,8 +114,9 @@ def _timeline_plan(tl_path: Path, robot: Any) -> dict[str, Any]:
     from ..config import DetectorConfig
     from ..io.robot import robot_from_dict
     from ..model import RigidModel
+    from ..outputs.timeline import read_timeline
 
-    tl = load_timeline(tl_path)
+    tl = read_timeline(tl_path)
     inp = tl["input"]
     log_path = timeline_log_path(tl_path, inp["path"], inp.get("abs_path"))
     opts = dict(inp.get("read_options") or {})
@@ -216,7 +201,9 @@ def analyze_for_report(task: ReportTask, robot: Any, model: Any, config: Any
 def timeline_origin(tl_path: Path) -> dict[str, Any]:
     """Where a re-run came from, for the report: the timeline, its schema version and the
     tool that wrote it (a "1.0" timeline records no incidents; the report says so)."""
-    tl = load_timeline(tl_path)
+    from ..outputs.timeline import read_timeline
+
+    tl = read_timeline(tl_path)
     tool = tl.get("tool") or {}
     return {"timeline": str(tl_path), "timeline_schema_version": str(tl["schema_version"]),
             "recorded_by": f"{tool.get('name', '?')} {tool.get('version', '?')}",

@@ -51,7 +51,7 @@ def _urdf_kinematics(kin: dict[str, Any], where: str) -> dict[str, Any]:
             f"{where}: urdf kinematics needs a 'path' or a 'robot' (a shipped robot's name: "
             f"{', '.join(r.name for r in robots.CATALOGUE)}), not both")
     if has_path:
-        if not isinstance(kin["path"], str):
+        if not isinstance(kin["path"], str) or not kin["path"]:
             raise RobotDescriptionError(f"{where}: urdf kinematics needs a 'path'")
         return dict(kin)
     shipped = robots.entry(kin["robot"]) if isinstance(kin["robot"], str) else None
@@ -177,10 +177,16 @@ def read_robot(path: str | os.PathLike[str]) -> RobotDescription:
 
 
 def write_robot(robot: RobotDescription, path: str | os.PathLike[str]) -> None:
-    """Write a robot description as JSON (atomically)."""
+    """Write a robot description as JSON (atomically); a URDF path is written relative to
+    the file's folder, as :func:`read_robot` reads it."""
     from .._fs import atomic_write_text
 
-    atomic_write_text(path, json.dumps(robot.to_dict(), indent=2) + "\n")
+    d = robot.to_dict()
+    kin = d.get("kinematics")
+    if isinstance(kin, dict) and isinstance(kin.get("path"), str) and "://" not in kin["path"]:
+        folder = os.path.dirname(os.path.abspath(path))
+        d["kinematics"] = dict(kin, path=os.path.relpath(os.path.abspath(kin["path"]), folder))
+    atomic_write_text(path, json.dumps(d, indent=2) + "\n")
 
 
 def labels_from_dict(d: dict[str, Any], where: str = "labels") -> Labels:
@@ -206,12 +212,18 @@ def labels_from_dict(d: dict[str, Any], where: str = "labels") -> Labels:
         rate = float(d["sample_rate"])
     except (KeyError, TypeError, ValueError):
         raise LabelsError(f"{where}: 'sample_rate' (Hz) is missing or not a number") from None
-    return Labels(events=tuple(out), sample_rate=rate, path=where)
+    extra = {k: v for k, v in d.items() if k not in ("events", "sample_rate")}
+    return Labels(events=tuple(out), sample_rate=rate, path=where, extra=extra)
 
 
 def read_labels(path: str | os.PathLike[str]) -> Labels:
-    """Read a ground-truth labels JSON file."""
-    return labels_from_dict(load_mapping(path, LabelsError, "labels"), str(path))
+    """Read a ground-truth labels file (JSON or YAML), validated against
+    schemas/labels.schema.json; LabelsError naming the file and the field."""
+    from ..schema import validate
+
+    d = load_mapping(path, LabelsError, "labels")
+    validate(d, "labels", LabelsError, str(path))
+    return labels_from_dict(d, str(path))
 
 
 def write_labels(labels: Labels, path: str | os.PathLike[str]) -> None:

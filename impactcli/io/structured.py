@@ -20,6 +20,8 @@ def load_mapping(
     """
     p = Path(path)
     if not p.is_file():
+        if not p.exists() and any(c in str(p) for c in "*?["):
+            raise error(f"{p}: the pattern matches no file")
         raise error(f"{p}: {what} file not found")
     try:
         text = p.read_text(encoding="utf-8")

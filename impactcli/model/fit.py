@@ -268,10 +268,10 @@ def fit_ridge(
                 f"{cv_gap} row(s), "
                 + ("the strongest penalty within one standard error of the least error"
                    if options.ridge_rule == "1se" else "the least error")
-                + "; lambda null = infinite (cross terms off)",
+                + "; no lambda = infinite (cross terms off)",
         "fits": rounds,
         "joints": {
-            nm: {"lambda": None if np.isinf(lams[j]) else lams[j], **stats[j]}
+            nm: ({} if np.isinf(lams[j]) else {"lambda": lams[j]}) | stats[j]
             for j, nm in enumerate(joints)
         },
     }

@@ -482,6 +482,9 @@ def _fit(
     else:
         th_k, w, info = robust_lstsq(y_reg[:, :, keep], tau, options)
     theta[keep] = th_k
+    if "robust_scale_nm" in info:  # per joint: a table keyed by joint name
+        info = info | {"robust_scale_nm": dict(zip(joints, info["robust_scale_nm"],
+                                                   strict=True))}
     res = (a @ theta).reshape(n, nj) - tau
     fit: dict[str, Any] = {
         "method": f"robust least squares ({options.robust})"

@@ -105,8 +105,11 @@ class RigidModel:
         return m
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready mapping in the model file format (schemas/model.schema.json)."""
-        return {
+        """JSON-ready mapping in the model file format (schemas/model.schema.json); a field
+        without a value (None, a non-finite statistic) is left out, as TOML must."""
+        from ..schema import omit_nulls
+
+        d: dict[str, Any] = omit_nulls({
             "schema_version": MODEL_SCHEMA_VERSION,
             "tool": {"name": TOOL_NAME, "version": __version__},
             "kind": self.kind,
@@ -120,7 +123,8 @@ class RigidModel:
             "fit": _jsonable(self.fit),
             "robot": _jsonable(self.robot),
             "input_sha256": self.input_sha256,
-        }
+        })
+        return d
 
     @classmethod
     def from_dict(cls, d: dict[str, Any], where: str = "model") -> RigidModel:

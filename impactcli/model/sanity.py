@@ -55,7 +55,9 @@ def fit_sanity(
     # not determined by the log (a decoupled model of a coupled arm trades friction for
     # the coupling it lacks)
     res = np.einsum("njp,p->nj", y_reg, theta) - tau
-    scale = fit["robust"].get("robust_scale_nm") or np.sqrt(np.mean(res**2, axis=0))
+    per_joint = fit["robust"].get("robust_scale_nm")
+    scale = ([per_joint[j] for j in joints] if per_joint
+             else np.sqrt(np.mean(res**2, axis=0)))
     floor = np.maximum(options.sanity_share * trms, np.asarray(scale, dtype=np.float64))
     bad: dict[str, dict[str, list[str]]] = {j: {"inertia": [], "friction": []} for j in joints}
     index = {nm: i for i, nm in enumerate(names)}

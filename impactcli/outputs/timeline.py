@@ -96,7 +96,25 @@ def timeline_dict(result: DetectionResult) -> dict[str, Any]:
 
 def timeline_json(result: DetectionResult) -> str:
     """The timeline as deterministic JSON text."""
-    return json.dumps(timeline_dict(result), indent=1, sort_keys=True, allow_nan=False) + "\n"
+    return dumps_timeline(timeline_dict(result))
+
+
+def dumps_timeline(doc: dict[str, Any]) -> str:
+    """A timeline mapping as the deterministic JSON text the tool writes (sorted keys, one
+    space of indent, no NaN): what :func:`read_timeline` reads back unchanged."""
+    return json.dumps(doc, indent=1, sort_keys=True, allow_nan=False) + "\n"
+
+
+def read_timeline(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """A timeline file validated against schemas/timeline.schema.json (``report`` and
+    ``evaluate`` read 1.0 and 2.x); LogFormatError naming the file and the problem."""
+    from ..errors import LogFormatError
+    from ..io.structured import load_mapping
+    from ..schema import validate
+
+    doc = load_mapping(path, LogFormatError, "timeline")
+    validate(doc, "timeline", LogFormatError, str(path))
+    return doc
 
 
 def write_timeline(result: DetectionResult, path: str | os.PathLike[str]) -> None:
