@@ -225,7 +225,7 @@ class CalibrationRecord:
             (labelled contacts; likely contacts found without labels).
         sample_rate_hz: the sample rate of the calibration logs [Hz]
             (:func:`impactcli.sampling.sample_clock`; None: not recorded, older configs). A
-            log sampled at another rate is warned about
+            log sampled at another rate is refused
             (:func:`impactcli.sampling.check_calibrated_rate`): thresholds depend on it.
     """
 

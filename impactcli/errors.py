@@ -18,6 +18,9 @@ EXIT_DETECTED = 1
 EXIT_USAGE = 2
 EXIT_DATA = 3
 EXIT_BATCH = 4
+#: The machine cannot do what was asked (no display for the viewer): sysexits.h
+#: EX_UNAVAILABLE. Not the input's fault.
+EXIT_UNAVAILABLE = 69
 #: An internal error (a bug, or a worker that died): sysexits.h EX_SOFTWARE.
 EXIT_SOFTWARE = 70
 
@@ -69,6 +72,13 @@ class ScaleLimitError(ImpactError):
     ``--allow-slow`` to go on anyway)."""
 
     exit_code = EXIT_USAGE
+
+
+class UnavailableError(ImpactError):
+    """This machine cannot do it — the viewer needs a display (exit 69): not the input's
+    fault, and the message says what works instead."""
+
+    exit_code = EXIT_UNAVAILABLE
 
 
 class BatchError(ImpactError):

@@ -200,7 +200,8 @@ def analyze(
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ImpactWarning)
         known = _known_joints(model, cfg)
-        check_calibrated_rate(log.sample_rate_hz, cfg.calibration.sample_rate_hz, log.source.path)
+        check_calibrated_rate(log.sample_rate_hz, cfg.calibration.sample_rate_hz, log.source.path,
+                              f"its config ({config_where})")
         full = log
         log, left_out = screen_log(log, known, cfg.calibration.joints_left_out)
         left_out = tuple(LeftOut(j, why) for j, why in log.source.joints_dropped) + left_out

@@ -533,29 +533,29 @@ class GapStream:
 
 
 #: A log whose rate differs from its config's calibration rate by more than this
-#: fraction is warned about (:func:`check_calibrated_rate`).
+#: fraction is refused (:func:`check_calibrated_rate`): the same logger, a little late or
+#: early, stays inside it; another rate does not.
 RATE_TOLERANCE = 0.1
 
 
-def check_calibrated_rate(rate_hz: float, calibrated_hz: float | None, where: str) -> None:
-    """Warn (ImpactWarning) when a log's rate differs from the rate its config was
+def check_calibrated_rate(rate_hz: float, calibrated_hz: float | None, where: str,
+                          config_where: str = "config") -> None:
+    """Refuse (ConfigError, exit 3) a log whose rate differs from the rate its config was
     calibrated at by more than :data:`RATE_TOLERANCE`: the thresholds belong to that rate
-    (filters, windows and statistics are per sample).
+    (filters, RMS windows and the statistics they were set on are per sample).
 
     Args:
         rate_hz: the log's rate [Hz].  calibrated_hz: the config's
             ``calibration.sample_rate_hz`` (None: not recorded, nothing to check).
-        where: the log, for the message.
+        where: the log, config_where: the config, for the message.
     """
-    import warnings
-
-    from .errors import ImpactWarning
+    from .errors import ConfigError
 
     if calibrated_hz is None or not (calibrated_hz > 0 and rate_hz > 0):
         return
     if abs(rate_hz - calibrated_hz) > RATE_TOLERANCE * calibrated_hz:
-        warnings.warn(
-            f"{where}: sampled at {rate_hz:.4g} Hz, but its config was calibrated at "
-            f"{calibrated_hz:.4g} Hz: the thresholds belong to that rate (filters, windows "
-            "and statistics are per sample); calibrate on logs at this rate",
-            ImpactWarning, stacklevel=3)
+        raise ConfigError(
+            f"{where}: sampled at {rate_hz:.4g} Hz, but {config_where} was calibrated at "
+            f"{calibrated_hz:.4g} Hz (tolerance ±{RATE_TOLERANCE:.0%}): its thresholds belong "
+            f"to that rate; calibrate on logs at {rate_hz:.4g} Hz, or run without --config "
+            "(uncalibrated)")

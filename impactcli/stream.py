@@ -204,7 +204,8 @@ def analyze_stream(
             scan = scan_log(log_path, **read_kw)
             stack.callback(getattr(scan, "close", lambda: None))
         where = scan.source.path
-        check_calibrated_rate(scan.sample_rate_hz, cfg.calibration.sample_rate_hz, where)
+        check_calibrated_rate(scan.sample_rate_hz, cfg.calibration.sample_rate_hz, where,
+                              f"its config ({config_where})")
         ref = scan.torque_ptp
         full_joints = tuple(scan.joint_names)
         keep, left, unlogged = screen_plan(

@@ -16,7 +16,7 @@ import yaml
 from click.testing import CliRunner
 
 from impactcli.cli import main
-from impactcli.errors import ImpactWarning, LogFormatError
+from impactcli.errors import ConfigError, ImpactWarning, LogFormatError
 from impactcli.io import read_log, write_log
 from impactcli.io.repair import longest_increasing
 from impactcli.sampling import check_calibrated_rate, gap_steps, sample_clock
@@ -349,7 +349,9 @@ def test_a_channel_maps_unit_and_time_unit_over_it(tmp_path: Path) -> None:
 
 
 # --------------------------------------------------------------- the calibration's rate
-def test_calibrate_records_the_rate_and_detect_warns_at_another(tmp_path: Path) -> None:
+def test_calibrate_records_the_rate_and_detect_refuses_another(tmp_path: Path) -> None:
+    """Thresholds belong to the rate they were calibrated at: a log at another rate is a
+    data error naming both rates and what to do, in detect and report alike."""
     cfg = tmp_path / "cal.yaml"
     code, _, err = _run("calibrate", str(SAMPLES / "assist_free_p2p.csv.gz"), "--generator",
                         "logged_external", "-o", str(cfg))
@@ -361,24 +363,29 @@ def test_calibrate_records_the_rate_and_detect_warns_at_another(tmp_path: Path) 
     path = tmp_path / "slow.csv"
     rows = lines.splitlines(keepends=True)
     path.write_text(rows[0] + "".join(rows[1::2]), encoding="utf-8")
-    code, _, err = _run("detect", str(path), "--config", str(cfg), "-o", str(tmp_path / "o"))
-    assert code == 0, err
-    assert (f"impactcli: warning: {path}: sampled at 125 Hz, but its config was calibrated "
-            "at 250 Hz: the thresholds belong to that rate (filters, windows and statistics "
-            "are per sample); calibrate on logs at this rate") in err.splitlines()
+    expected = (f"impactcli: error: {path}: sampled at 125 Hz, but its config ({cfg}) was "
+                "calibrated at 250 Hz (tolerance ±10%): its thresholds belong to that rate; "
+                "calibrate on logs at 125 Hz, or run without --config (uncalibrated)\n")
+    code, out, err = _run("detect", str(path), "--config", str(cfg), "-o", str(tmp_path / "o"))
+    assert (code, err) == (3, expected), out
+    assert not (tmp_path / "o" / "slow.timeline.json").exists()
+    code, _, err = _run("report", str(path), "--config", str(cfg), "-o",
+                        str(tmp_path / "r.html"))
+    assert code == 3 and "calibrated at 250 Hz" in err, err
     code, _, err = _run("detect", str(SAMPLES / "assist_free_multisine.csv.gz"), "--config",
                         str(cfg), "-o", str(tmp_path / "o2"))
     assert code == 0 and "calibrated at" not in err
 
 
 def test_check_calibrated_rate_tolerance() -> None:
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", ImpactWarning)
-        check_calibrated_rate(96.3, 100.0, "x")  # the same logger, a little late
-        check_calibrated_rate(500.0, None, "x")  # an older config records no rate
-    with pytest.warns(ImpactWarning, match="sampled at 500 Hz, but its config was "
-                                           "calibrated at 1000 Hz"):
+    check_calibrated_rate(96.3, 100.0, "x")  # the same logger, a little late
+    check_calibrated_rate(500.0, None, "x")  # an older config records no rate
+    with pytest.raises(ConfigError, match="sampled at 500 Hz, but config was calibrated "
+                                          "at 1000 Hz"):
         check_calibrated_rate(500.0, 1000.0, "x")
+    with pytest.raises(ConfigError, match="sampled at 30 Hz, but config was calibrated at "
+                                          "990 Hz"):
+        check_calibrated_rate(30.0, 990.0, "x.bag")  # a ROS 1 bag against a 1 kHz config
 
 
 # ----------------------------------------------------------- labels against the log's time

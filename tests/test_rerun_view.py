@@ -40,6 +40,7 @@ def fake_viewer(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> Path:
     """Replace the viewer by a script that records the file it was asked to open."""
     record = tmp_path / "opened.txt"
     script = f"import sys; open({str(record)!r}, 'w').write(sys.argv[1])"
+    monkeypatch.setenv("DISPLAY", ":99")
     monkeypatch.setattr(view_mod, "viewer_command",
                         lambda path: [sys.executable, "-c", script, str(path)])
     return record
@@ -76,11 +77,34 @@ def test_missing_or_garbled_rrd_is_one_line_exit_3(tmp_path: Path, rrd: Path,
 
 
 def test_viewer_failure_is_a_clean_error(rrd: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("DISPLAY", ":99")
     monkeypatch.setattr(view_mod, "viewer_command",
                         lambda path: [sys.executable, "-c", "raise SystemExit(7)"])
     r = run(str(rrd))
-    assert r.exit_code == 3, explain(r)
-    assert "status 7" in r.stderr and "--save" in r.stderr
+    assert r.exit_code == 69, explain(r)  # the machine's, not the input's
+    assert "status 7" in r.stderr and "--no-open --save PATH" in r.stderr
+
+
+def test_no_display_is_exit_69_before_any_work(rrd: Path, tmp_path: Path,
+                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """Without a display the viewer cannot open: exit 69 (EX_UNAVAILABLE, not 'bad input'),
+    one line saying what works instead, and a log is not replayed first."""
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr(sys, "platform", "linux")
+    replayed = []
+    monkeypatch.setattr("impactcli.batch.stream_file", lambda *a, **k: replayed.append(a))
+    log = tmp_path / "arm.csv"
+    log.write_text("time\n0\n")
+    for source in (rrd, log):
+        r = run(str(source))
+        assert r.exit_code == 69, explain(r)
+        assert r.stderr == ("impactcli: error: no display here (DISPLAY and WAYLAND_DISPLAY "
+                            "are not set): the Rerun viewer needs one; write the recording "
+                            "with --no-open --save PATH and open it where there is a screen "
+                            "(rerun PATH)\n")
+    assert replayed == []
+    assert run(str(rrd), "--no-open").exit_code == 0  # checking needs no display
 
 
 def test_log_is_detected_then_written_and_opened(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,

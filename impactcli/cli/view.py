@@ -10,6 +10,7 @@ a temporary folder (or ``--save PATH``) and opened. ``--no-open`` only writes
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import tempfile
@@ -19,7 +20,7 @@ from typing import TYPE_CHECKING, Any, cast
 
 import click
 
-from ..errors import ImpactError, LogFormatError
+from ..errors import LogFormatError, UnavailableError
 from ..outputs.decimate import DEFAULT_EVENT_WINDOW_S, DEFAULT_MAX_POINTS
 from ._common import handle_errors, not_found
 from .detect import log_read_options, model_options, read_options_from
@@ -28,8 +29,17 @@ if TYPE_CHECKING:
     from ..result import DetectionResult
 
 
-class ViewerError(ImpactError):
-    """The Rerun viewer could not be started or failed (exit 3, one line)."""
+NO_VIEWER_HINT = ("write the recording with --no-open --save PATH and open it where there "
+                  "is a screen (rerun PATH)")
+
+
+def check_display() -> None:
+    """Refuse before any work when the viewer cannot open a window here: on Linux, neither
+    ``DISPLAY`` nor ``WAYLAND_DISPLAY`` is set (exit 69)."""
+    if sys.platform.startswith("linux") and not (
+            os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise UnavailableError("no display here (DISPLAY and WAYLAND_DISPLAY are not set): "
+                               f"the Rerun viewer needs one; {NO_VIEWER_HINT}")
 
 
 def check_rrd(path: Path) -> None:
@@ -62,16 +72,17 @@ def viewer_command(path: Path) -> list[str]:
 
 def open_viewer(path: Path) -> None:
     """Run the Rerun viewer on ``path`` and wait for it to close."""
+    check_display()
     cmd = viewer_command(path)
     click.echo(f"impactcli: opening {path} in the Rerun viewer (close it to return)", err=True)
     try:
         rc = subprocess.call(cmd)
     except OSError as err:
-        raise ViewerError(f"{path}: cannot start the Rerun viewer ({err}); "
-                          "write the file with --save and open it with `rerun FILE`") from err
+        raise UnavailableError(f"{path}: cannot start the Rerun viewer ({err}); "
+                               f"{NO_VIEWER_HINT}") from err
     if rc != 0:
-        raise ViewerError(f"{path}: the Rerun viewer exited with status {rc} "
-                          "(no display? use --no-open --save PATH)")
+        raise UnavailableError(f"{path}: the Rerun viewer exited with status {rc} "
+                               f"(no display?); {NO_VIEWER_HINT}")
 
 
 def record_log(source: Path, rrd: Path, *, robot: Path | None, model: Path | None,
@@ -142,6 +153,8 @@ def view_cmd(source: Path, robot: Path | None, model: Path | None,
         raise click.UsageError("--no-open on a LOG needs --save PATH (else nothing is kept)")
 
     ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
+    if not no_open:
+        check_display()  # before the replay's work
 
     def record(rrd: Path) -> None:
         result = record_log(source, rrd, robot=robot, model=model, config=config,
