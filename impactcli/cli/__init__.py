@@ -58,6 +58,8 @@ VERBS: dict[str, tuple[str, str, str]] = {
                "List the robots --robot NAME takes (the robots extra)."),
     "labels": ("impactcli.cli.labels", "labels_cmd",
                "Make ground-truth labels from a logged switch or force channel."),
+    "channel-maps": ("impactcli.cli.channel_maps", "channel_maps_cmd",
+                     "List the shipped channel maps, or print one to start your own."),
 }
 
 
