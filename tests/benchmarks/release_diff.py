@@ -88,22 +88,31 @@ def _rel(a: float, b: float) -> float:
     return abs(a - b) / max(abs(b), 1e-300)
 
 
-def _leaves(a: Any, b: Any, path: str = "") -> list[str]:
-    """The JSON paths where ``a`` and ``b`` differ (first ones only)."""
+def _first_leaf(a: Any, b: Any, path: str) -> str | None:
+    """The first JSON path where ``a`` and ``b`` differ, with both values."""
     if isinstance(a, dict) and isinstance(b, dict):
-        return [x for k in sorted(set(a) | set(b))
-                for x in _leaves(a.get(k), b.get(k), f"{path}.{k}")][:3]
+        keys = sorted(set(a) | set(b))
+        return next(filter(None, (_first_leaf(a.get(k), b.get(k), f"{path}.{k}")
+                                  for k in keys)), None)
     if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
-        return [x for i, (u, v) in enumerate(zip(a, b, strict=True))
-                for x in _leaves(u, v, f"{path}[{i}]")][:3]
-    return [] if a == b else [f"{path[1:]}: {json.dumps(a)[:60]} → {json.dumps(b)[:60]}"]
+        return next(filter(None, (_first_leaf(u, v, f"{path}[{i}]")
+                                  for i, (u, v) in enumerate(zip(a, b, strict=True)))), None)
+    return None if a == b else f"{path}: {json.dumps(a)[:70]} → {json.dumps(b)[:70]}"
 
 
-def _row(log: str, a: dict[str, Any], b: dict[str, Any]) -> tuple[str, bool, list[str]]:
-    """One table row, whether the two answers are the same, the first differing fields."""
+def _what_differs(a: dict[str, Any], b: dict[str, Any]) -> str:
+    """The timeline's top-level fields that differ, and the first difference outside the
+    embedded config (the config's own when only it differs)."""
+    keys = [k for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k)]
+    first = next((k for k in keys if k != "config"), keys[0] if keys else "")
+    return f"{', '.join(keys)}; first: {_first_leaf(a.get(first), b.get(first), first)}"
+
+
+def _row(log: str, a: dict[str, Any], b: dict[str, Any]) -> tuple[str, bool, str]:
+    """One table row, whether the two answers are the same bytes, what differs."""
     if "timeline" not in a or "timeline" not in b:
         err = " / ".join(f"exit {x['exit']}: {x['error'][:80]}" for x in (a, b))
-        return f"| {log} | {err} |", (a["exit"], a["error"]) == (b["exit"], b["error"]), []
+        return f"| {log} | {err} |", (a["exit"], a["error"]) == (b["exit"], b["error"]), ""
     ta, tb = a["timeline"], b["timeline"]
     same_bytes = a["text"] == b["text"]
     same_parquet = a["parquet"] == b["parquet"]
@@ -122,7 +131,7 @@ def _row(log: str, a: dict[str, Any], b: dict[str, Any]) -> tuple[str, bool, lis
     row = (f"| {log} | {'same' if same_bytes else 'DIFFER'} | "
            f"{'same' if same_parquet else 'DIFFER'} | {len(ea)}/{len(eb)} | {ea == eb} | "
            f"{len(ia)}/{len(ib)} | {ia == ib} | {dr:.1e} | {df:.1e} | {dt:.1e} |")
-    return row, same_bytes and same_parquet, [] if same_bytes else _leaves(ta, tb)
+    return row, same_bytes and same_parquet, "" if same_bytes else _what_differs(ta, tb)
 
 
 def _describe(ref: str) -> str:
@@ -167,13 +176,13 @@ def main() -> int:
     print("|---|---|---|---|---|---|---|---|---|---|")
     same, notes = 0, []
     for log in logs:
-        row, ok, leaves = _row(log, old[log], new[log])
+        row, ok, what = _row(log, old[log], new[log])
         print(row)
         same += ok
-        notes += [f"  {log}: {x}" for x in leaves]
+        notes += [f"  {log}: {what}"] if what else []
     print(f"{same} of {len(logs)} logs: the same timeline and Parquet bytes")
     if notes:
-        print("first differing timeline fields (release → now):")
+        print("timeline fields that differ (release → now):")
         print("\n".join(notes))
     return 0 if same == len(logs) else 1
 
