@@ -204,6 +204,8 @@ def _error_cases() -> Iterable[Case]:
 
 def all_cases() -> list[Case]:
     cases = [*_detect_cases(), *_other_cases(), *_error_cases()]
+    unknown = (_QUICK | _SLOW) - {c.id for c in cases}
+    assert not unknown, unknown
     return [Case(c.id, c.argv, c.cwd, c.texts, c.digests, c.error, _tier(c.id)) for c in cases]
 
 
