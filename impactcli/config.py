@@ -28,9 +28,8 @@ import numpy as np
 import tomli_w
 import yaml
 
-from ._fs import atomic_write_text
 from .errors import ConfigError
-from .io.structured import load_mapping
+from .files import atomic_write_text, load_mapping
 from .schema import omit_nulls, validate
 
 #: Table I's static thresholds of the 2-joint ASSIST arm [N·m] (shoulder, elbow).

@@ -178,7 +178,7 @@ def _jsonable(x: Any) -> Any:  # noqa: PLR0911 (one return per JSON type)
 
 def write_model(model: RigidModel, path: str | os.PathLike[str]) -> None:
     """Write ``model`` as indented JSON, atomically."""
-    from .._fs import atomic_write_text
+    from ..files import atomic_write_text
 
     atomic_write_text(path, json.dumps(model.to_dict(), indent=2, allow_nan=False) + "\n")
 
