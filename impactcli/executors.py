@@ -169,7 +169,8 @@ def process_pool(workers: int) -> ProcessPoolExecutor:
     return ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
 
 
-def _import_distributed() -> Any:
+def require_dask() -> Any:
+    """The ``distributed`` module; DaskMissingError (exit 2, naming the extra) without it."""
     try:
         import distributed
     except ImportError:
@@ -184,7 +185,7 @@ def _is_scheduler_file(address: str) -> bool:
 @contextmanager
 def dask_client(choice: ExecutorChoice) -> Iterator[Any]:
     """A ``distributed.Client`` for a Dask choice (a LocalCluster is started and closed)."""
-    distributed = _import_distributed()
+    distributed = require_dask()
     address = choice.address or "local"
     if address == "local":
         with distributed.LocalCluster(

@@ -164,7 +164,7 @@ def urdf_text(name: str) -> str:
 def arm_joints(name: str) -> tuple[str, ...]:
     """The arm joints of shipped robot ``name``: movable joints from its base link to its
     tip link, in chain order, as the URDF names them (Pinocchio parses the URDF)."""
-    from .model.structures import urdf_chain
+    from .urdf_helpers import urdf_chain
 
     e = entry(name)
     if e is None:

@@ -31,11 +31,11 @@ from ..errors import ModelError
 from ..types import RobotLog
 from .derivatives import (
     MAX_CUTOFF_FRACTION,
-    _svf_coefficients,
     causal_derivatives,
     causal_lowpass,
     clip_cutoff,
     first_order_lowpass,
+    svf_coefficients,
 )
 from .rigid import RigidModel
 
@@ -116,7 +116,7 @@ def causal_velocity(dt: float, q: np.ndarray, cutoff_hz: float, carry: Carry | N
     and values). The Coulomb correction and the replay's joint speed read only the
     velocity; the position and acceleration filters they also ran were unused (two of
     the residual's seven (n, J) filters)."""
-    b, a = _svf_coefficients(dt, cutoff_hz)[1]
+    b, a = svf_coefficients(dt, cutoff_hz)[1]
     return (carry if carry is not None else Carry()).lfilter(
         f"{name}.sG", b, a, np.asarray(q, dtype=np.float64), "steady")
 

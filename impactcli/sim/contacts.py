@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..types import ContactLabel, Labels
-from ._kernel import PULSE, RAMP
+from .kernel import PULSE, RAMP
 
 #: A contact "exists" at a sample when its force exceeds this [N].
 LABEL_THRESHOLD_N = 0.5

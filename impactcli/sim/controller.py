@@ -72,7 +72,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ._kernel import HV, N_SCRATCH, kin_w, mass_matrix_k, rnea_k
+from .kernel import HV, N_SCRATCH, kin_w, mass_matrix_k, rnea_k
 
 #: Step of the central difference giving Mdot v [s] (the displacement is eps · v [rad]).
 MDOT_EPS_S = 1e-5
