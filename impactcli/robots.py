@@ -1,7 +1,7 @@
 """The robots the tool ships: URDFs of the ``robots`` extra (PyPI ``example-robot-data``).
 
 ``impactcli robots`` lists them; ``--robot NAME`` and a robot description's kinematics
-``{"type": "urdf", "robot": NAME}`` name them (formats.md, "Robot description").
+``{"type": "urdf", "robot": NAME}`` name them (docs/formats.md, "Robot description").
 
 Each entry names one URDF of the package and the links its arm chain runs between; the
 arm's joints are the movable joints on that chain, in chain order, with the URDF's own

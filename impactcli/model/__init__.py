@@ -1,4 +1,4 @@
-"""The rough rigid model (method.md §2): structures, derivatives, identification, residuals.
+"""The rough rigid model (docs/method.md §2): structures, derivatives, identification, residuals.
 
 Pure maths: nothing here prints; the only file read is the URDF a robot description
 points at (and :func:`read_model` / :func:`write_model`, the model file's edge).

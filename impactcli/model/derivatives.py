@@ -1,4 +1,4 @@
-"""Velocities and accelerations from encoder positions (method.md §1, §5b, §8).
+"""Velocities and accelerations from encoder positions (docs/method.md §1, §5b, §8).
 
 Two estimators, for two purposes:
 
@@ -12,10 +12,10 @@ Two estimators, for two purposes:
   filtered position G q, velocity s G q and acceleration s² G q — no look-ahead, one
   filter, consistent signals. Discretised by the bilinear transform prewarped at the
   cut-off. :func:`causal_lowpass` is the same G(s), for passing the measured torque through
-  the filter the model estimate sees (method.md §8: r = tau_hat − G tau, eq. 7–8).
+  the filter the model estimate sees (docs/method.md §8: r = tau_hat − G tau, eq. 7–8).
 
 Cut-offs are in Hz and are clipped below 0.4 × the sample rate with an ImpactWarning
-(method.md §5b). Defaults (in the option classes) suit 100 Hz – 1 kHz logs.
+(docs/method.md §5b). Defaults (in the option classes) suit 100 Hz – 1 kHz logs.
 Filters start in steady state at the first sample (no start-up transient).
 """
 
@@ -30,7 +30,7 @@ from ..causal import Carry
 from ..errors import ImpactWarning, ModelError
 from ..iir import bilinear
 
-#: Largest cut-off allowed, as a fraction of the sample rate (method.md §5b).
+#: Largest cut-off allowed, as a fraction of the sample rate (docs/method.md §5b).
 MAX_CUTOFF_FRACTION = 0.4
 
 

@@ -1,54 +1,15 @@
-"""Identification of the rough rigid model by robust least squares (method.md §2, eq. 7).
+"""Identification of the rough rigid model by robust least squares (docs/method.md §2, eq. 7).
 
 Stack tau(k) = Y(q(k), q'(k), q''(k)) theta over samples and joints and solve for theta:
-
-1. Derivatives: zero-phase Butterworth on the positions, central differences, and the
-   same zero-phase filter on the torques (identification is offline, method.md §1).
-   The first and last 1/cut-off seconds are dropped (filter edges).
-2. Excitation: the stacked base regressor is column-normalised and factorised by pivoted
-   QR; a parameter whose pivot is below ``drop_tolerance`` of the largest is not excited by
-   the log — it is fixed at 0 with an ImpactWarning naming it. The condition number of the
-   remaining (normalised) regressor is reported and warned about above
-   ``condition_warn``. For ``coupled`` only its unpenalised (decoupled) terms are checked
-   and counted: its cross terms are often nearly collinear, which the ridge penalty
-   (step 3) takes care of.
-3. Robust fit: rows are normalised per joint by a robust residual scale (1.4826 × MAD);
-   iteratively reweighted least squares with Huber weights (k = 1.345) to convergence,
-   then, by default, Tukey bisquare weights (c = 4.685, scale frozen) so that the few
-   samples of a contact a user's log may contain get zero weight instead of bending the
-   model.
-   ``coupled`` adds a ridge penalty on its cross terms (every term but the decoupled
-   model's: the own-joint inertia, gravity-like, friction and offset terms, which are not
-   penalised, so a large penalty gives back the decoupled model), on the column-normalised
-   normal equations (the penalty is relative to each column's weighted energy: scale
-   free). The penalty is chosen per joint (each joint's row has its own parameters) by
-   blocked cross-validation on the fitted part: ``ridge_folds`` contiguous stretches, each
-   left out in turn with a margin of the filter's memory (1/cut-off) on both sides, the
-   others fitted, for each penalty of ``ridge_lambdas`` and "infinite" (the cross terms
-   off); by default the strongest penalty whose left-out error is within one standard
-   error of the least wins (``ridge_rule``). Contiguous stretches judge the model as the
-   held-back part does — on motion it did not see; generalized cross-validation, which
-   assumes independent rows, chose the smallest penalty on every log tried and
-   extrapolated badly (docs/models.md). The choice is made with equal weights, the robust
-   fit run with it, the choice made again with the robust weights and, if it changed, the
-   robust fit run again.
-4. Fit statistics per joint: RMS error [N·m], relative to the joint's torque RMS and to
-   its torque range, on the fitted part and — when the log is long enough — on a held-back
-   last part (``holdout_fraction``, at least ``min_holdout_s``) that the fit never saw.
-   A joint that stands still (slower than ``still_speed_rad_s``) in more than half of the
-   held-back part gets no relative held-back error (``still``): at standstill friction is
-   stiction, any torque within it, and the error would judge that, not the model.
-5. Fit sanity, warned about (ImpactWarning, one line per joint) and listed in
-   ``fit["sanity"]``: a negative inertia-like parameter (decoupled and coupled
-   ``inertia``, planar ``ZZR`` and ``Ia``, urdf the diagonal of M(q) at a few poses of the
-   log) whose term's RMS exceeds both the fit's robust residual scale (what the fit leaves
-   unexplained: a smaller term's sign is not determined by the log) and ``sanity_share``
-   of the joint's torque RMS, or negative friction — fv q' + fc tanh(q'/v_s) pushing the
-   joint along its motion on average over the log (fv and fc are judged together: on
-   near-constant speeds they trade against each other), with an RMS above the same
-   floor — typically a torque or current whose sign is wrong; a joint predicted worse than
-   zero torque on the held-back part (RMS error >= the torque's RMS); joints standing
-   still in the held-back part.
+zero-phase derivatives and the same filter on torques and regressor columns (offline);
+unexcited parameters fixed at 0 by pivoted QR; Huber then Tukey bisquare reweighting, so
+a contact in the log does not bend the model (:mod:`impactcli.model.fit`; ``coupled`` adds a
+ridge on its cross terms chosen by blocked cross-validation); fit statistics on the fitted
+part and a held-back last part; fit-sanity warnings (:mod:`impactcli.model.sanity`). Each
+step, and why: docs/method.md §2, "Identification". The rows are built in windows fixed by
+the sample count (:mod:`impactcli.model.rows`), so :class:`IdentifyStream` fed a log in
+chunks of any size gives the rows, and the model, of the log fed whole. Settings:
+:class:`~impactcli.model.identify_options.IdentifyOptions`.
 """
 
 from __future__ import annotations
@@ -534,7 +495,7 @@ def identify(
     log: RobotLog, *, robot: RobotDescription | None = None, kind: str | None = None,
     options: IdentifyOptions = IdentifyOptions(),
 ) -> RigidModel:
-    """Identify a rough rigid model from a log (method.md §2; eq. 7).
+    """Identify a rough rigid model from a log (docs/method.md §2; eq. 7).
 
     Positions are smoothed and differentiated without phase lag; the torque and — with
     ``options.filter_regressor`` (default) — every regressor column pass through the same

@@ -1,5 +1,5 @@
-"""Kinematics the incidents need: the Jacobian of a link's end point (formats.md,
-"incidents": the force at the isolated link). Planar arms: :func:`impactcli.detect.incidents.
+"""Kinematics the incidents need: the Jacobian of a link's end point (docs/incidents.md,
+"The rules": the force at the isolated link). Planar arms: :func:`impactcli.detect.incidents.
 planar_jacobian`; URDF arms (Pinocchio, the ``urdf`` extra): :func:`urdf_link_end_jacobian`.
 """
 

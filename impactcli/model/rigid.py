@@ -1,4 +1,4 @@
-"""The rough rigid model (method.md §2, eq. 7–8): tau_hat = Y(q, q', q'') theta, and its file.
+"""The rough rigid model (docs/method.md §2, eq. 7–8): tau_hat = Y(q, q', q'') theta, and its file.
 
 The model file (``schemas/model.schema.json``) holds the structure, the parameter names and
 values, the robot description used, the filter settings, the fit statistics, the sha256 of

@@ -1,39 +1,23 @@
-"""Model structures linear in their parameters: tau = Y(q, q', q'') theta (method.md §2, eq. 7).
+"""Model structures linear in their parameters: tau = Y(q, q', q'') theta (docs/method.md §2,
+eq. 7). What each kind assumes and how it measured: docs/models.md, "The kinds".
 
-Every structure ends, per joint j, with friction columns (method.md §2: Fv x1' + Fs sign(x1')):
-``fv`` (viscous, column q'_j), ``fc`` (Coulomb through the smooth sign
-tanh(q'_j / v_s), slope 1/v_s at zero, ``coulomb_slope_rad_s`` = v_s) and, optionally,
-``offset`` (a constant torque: sensor bias, unmodelled load).
+Every structure ends, per joint j, with friction columns (Fv x1' + Fs sign(x1')): ``fv``
+(viscous, q'_j), ``fc`` (Coulomb through the smooth sign tanh(q'_j / v_s), v_s =
+``coulomb_slope_rad_s``) and, optionally, ``offset`` (a constant torque).
 
-* ``decoupled`` — per joint, no kinematics: ``inertia`` q''_j, ``gcos`` cos q_j,
-  ``gsin`` sin q_j (gravity-like terms of its own angle) + friction. Works on any robot.
-* ``coupled`` — a rough model of a spatial arm without kinematics: every joint's motion in
-  every joint's torque. Per joint j (a row), linear in its own parameters: the decoupled
-  terms (``inertia`` q''_j, ``gcos`` cos q_j, ``gsin`` sin q_j) + for every other joint k
-  ``acc:k`` q''_k, ``cos:k`` cos q_k, ``sin:k`` sin q_k + for every pair of neighbouring
-  joints (consecutive in the joint order: the chain order of a serial arm)
-  ``cos:k+l`` cos(q_k + q_l), ``sin:k+l`` sin(q_k + q_l) + optionally (structure
-  ``velocity_products``) ``vel:k*l`` q'_k q'_l for k <= l + friction. 5J + 1 parameters
-  per joint (with the offset), J(5J + 1) in all: 22 for 2 joints, 186 for 6, 252 for 7.
-  The parameters of one joint's row appear in no other row (the regressor is block
-  diagonal), so each joint is fitted on its own; the cross terms (everything but the
-  decoupled terms) are ridge-regularised (identify.py), so that a joint whose coupling the
-  log does not show falls back to its decoupled model. Not a rigid-body model: M(q) (from
-  ``acc`` terms, constant here) need not be symmetric, and there are no Coriolis terms
-  unless ``velocity_products``.
-* ``planar`` — a serial arm in a vertical plane (formats.md, robot description): absolute
-  angle of link i is phi_i = q_1 + ... + q_i (q_1 from the horizontal), joint i+1 sits at
-  L_i along link i, gravity [gx, gy]. The exact rigid-body model in base parameters: per
-  link ``ZZR`` (inertia about its joint + regrouped masses of the links beyond),
-  ``MXR``/``MYR`` (first moments along/across the link, with the outer masses regrouped at
-  the link's tip), 3 per link; the masses disappear by regrouping (m_i acts as a point mass
-  at joint i, i.e. on link i-1's first moment and inertia). Optional reflected motor
-  inertia ``Ia`` q''_j for joints 2..n (joint 1's merges with ZZR_1).
-* ``urdf`` — any serial arm: Pinocchio's joint-torque regressor
-  (``pinocchio.computeJointTorqueRegressor``, 10 inertial parameters per body:
-  m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz at the joint frame) + optional ``Ia`` columns
-  + friction, reduced to base parameters by pivoted QR on random states (structural
-  identifiability); the kept columns are stored in the model (``base_columns``).
+* ``decoupled`` — per joint, no kinematics: ``inertia`` q''_j, ``gcos`` cos q_j, ``gsin``
+  sin q_j + friction. Works on any robot.
+* ``coupled`` — every joint's motion in every joint's torque, no kinematics: per joint row
+  the decoupled terms + ``acc:k``, ``cos:k``, ``sin:k`` of every other joint k +
+  ``cos:k+l``, ``sin:k+l`` of neighbouring joints (+ ``vel:k*l`` with
+  ``velocity_products``) + friction: 5J + 1 parameters per joint. Block diagonal (each
+  joint fitted on its own); the cross terms are ridge-regularised in identification.
+* ``planar`` — a serial arm in a vertical plane (docs/formats.md, "Robot description"): the
+  exact rigid-body model in base parameters, ``ZZR``, ``MXR``, ``MYR`` per link (masses
+  regrouped), optional reflected motor inertia ``Ia`` for joints 2..n.
+* ``urdf`` — any serial arm: Pinocchio's joint-torque regressor (10 inertial parameters
+  per body) + optional ``Ia`` + friction, reduced to base parameters by pivoted QR on random
+  states; the kept columns are stored in the model (``base_columns``).
 
 Regressors are returned as (N, J, P) arrays: Y[k, j, :] @ theta = tau_j at sample k [N·m].
 """

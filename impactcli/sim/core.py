@@ -95,7 +95,7 @@ class SimResult:
 
     Attributes:
         log: the drive's log (source format ``memory``).
-        labels: ground-truth contacts (formats.md).
+        labels: ground-truth contacts (docs/formats.md, "Ground-truth labels").
         robot: the NOMINAL robot description.
         truth: true signals, N rows each — ``time_s`` (N,), ``x1``, ``x2``, ``x1_dot``,
             ``x2_dot`` (N, n) [rad, rad/s]; ``tau`` (N, n) motor torque applied [N·m];

@@ -2,10 +2,10 @@
 
 Run:  python tests/benchmarks/bench_rls.py  [--seconds 600] [--release REF]
 
-Targets (brief): ≥ 1,000,000 axis-samples/s at 2 joints (nu = 34) and ≥ 300,000 at 7
-joints (nu = 64), one core. padasip's FilterRLS is run on the same regression (the
-regressors phi(k) of axis 0, rebuilt from the evaluator's own outputs) and reported as a
-ratio. Numba compilation is excluded (one warm-up call on a short slice).
+Targets (docs/performance.md, "The adaptive evaluator"): ≥ 1,000,000 axis-samples/s at 2
+joints (nu = 34) and ≥ 300,000 at 7 joints (nu = 64), one core. padasip's FilterRLS is run
+on the same regression (the regressors phi(k) of axis 0, rebuilt from the evaluator's own
+outputs) and reported as a ratio. Numba compilation is excluded (one warm-up call on a short slice).
 
 The last rows time the chunked form (``evaluate_chunk``, state in, state out): its fixed
 cost per call [µs] (state copy, checks, dispatch of the axes; timed on empty chunks) as a
@@ -24,7 +24,6 @@ by path) on whichever package is imported.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import os
 import platform
 import subprocess
@@ -50,13 +49,12 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def _reference_rls() -> Any:
-    """tests/reference/rls.py, loaded by path (works on this package or a release's)."""
-    spec = importlib.util.spec_from_file_location(
-        "bench_reference_rls", ROOT / "tests" / "reference" / "rls.py")
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    """tests/reference/rls.py of this tree, on whichever ``impactcli`` is already imported
+    (this tree's, or a release's through PYTHONPATH)."""
+    sys.path.insert(0, str(ROOT))  # after impactcli's import: only ``tests`` comes from here
+    from tests.reference import rls
+
+    return rls
 
 
 def evaluate(r: np.ndarray, u: np.ndarray, fs: float, v_stat: np.ndarray,
