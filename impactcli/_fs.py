@@ -1,105 +1,22 @@
-"""File-system helpers at the edge: hashing inputs and writing outputs atomically.
+"""alias: removed in M — the file helpers are :mod:`impactcli.files`; modules of other work
+packages still import them from here."""
 
-No output file is ever visible half-written: content goes to a temporary file
-in the same folder and is moved into place with :func:`os.replace`.
-"""
+from .files import (  # alias: removed in M
+    atomic_output,
+    atomic_write_bytes,
+    atomic_write_text,
+    check_output_folder,
+    prepare_output,
+    sha256_file,
+)
+from .files import umask as _umask  # alias: removed in M (outputs/rerun.py)
 
-from __future__ import annotations
-
-import hashlib
-import os
-import tempfile
-from collections.abc import Iterator
-from contextlib import contextmanager, suppress
-from pathlib import Path
-from typing import IO
-
-from .errors import OutputError
-
-
-def sha256_file(path: str | os.PathLike[str], chunk: int = 1 << 20) -> str:
-    """Return the hex sha256 of a file's bytes."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        while block := f.read(chunk):
-            h.update(block)
-    return h.hexdigest()
-
-
-@contextmanager
-def atomic_output(path: str | os.PathLike[str], mode: str = "wb") -> Iterator[IO]:  # type: ignore[type-arg]
-    """Open a temporary sibling of ``path`` for writing; move it into place on success.
-
-    On any exception the temporary file is removed and ``path`` is untouched.
-    """
-    target = Path(path)
-    prepare_output(target)
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part",
-                                   dir=target.parent)
-    except OSError as err:
-        raise OutputError(f"cannot write {path}: {err.strerror or err}") from err
-    try:
-        encoding = None if "b" in mode else "utf-8"
-        with os.fdopen(fd, mode, encoding=encoding) as f:
-            yield f
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs are ordinary files
-        try:
-            os.replace(tmp, target)
-        except OSError as err:
-            raise OutputError(f"cannot write {path}: {err.strerror or err}") from err
-    except BaseException:
-        with suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
-
-
-def check_output_folder(path: str | os.PathLike[str]) -> None:
-    """OutputError unless ``path`` is, or could be created as, a folder (nothing is made)."""
-    p = Path(path)
-    if p.exists() and not p.is_dir():
-        raise OutputError(f"cannot write into {path}: it exists and is not a folder")
-    q = p
-    while not q.exists() and q != q.parent:
-        q = q.parent
-    if q.exists() and not q.is_dir():
-        raise OutputError(f"cannot write into {path}: {q} is a file, not a folder")
-    if q.exists() and not os.access(q, os.W_OK):
-        raise OutputError(f"cannot write into {path}: no permission to write in {q}")
-
-
-def prepare_output(path: str | os.PathLike[str]) -> None:
-    """Create ``path``'s folder if needed; OutputError (one line, exit 2) when ``path``
-    cannot be an output file there (its folder is a file, ``path`` is a folder, no
-    permission). Call it for every output before writing the first, so a bad second
-    output leaves nothing half done."""
-    target = Path(path)
-    try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-    except (FileExistsError, NotADirectoryError):
-        raise OutputError(f"cannot write {path}: a part of its folder path is a file, "
-                          "not a folder") from None
-    except OSError as err:
-        raise OutputError(f"cannot write {path}: {err.strerror or err}") from err
-    if target.is_dir():
-        raise OutputError(f"cannot write {path}: it is a folder")
-    if not os.access(target.parent, os.W_OK):
-        raise OutputError(f"cannot write {path}: no permission to write in {target.parent}")
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
-    """Write ``text`` (UTF-8) to ``path`` atomically."""
-    with atomic_output(path, "w") as f:
-        f.write(text)
-
-
-def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically."""
-    with atomic_output(path, "wb") as f:
-        f.write(data)
+__all__ = [
+    "_umask",
+    "atomic_output",
+    "atomic_write_bytes",
+    "atomic_write_text",
+    "check_output_folder",
+    "prepare_output",
+    "sha256_file",
+]

@@ -7,21 +7,14 @@ lfilter``, direct form II transposed), backward differences and per-sample arith
 A :class:`Carry` holds, under a name per filter or difference, exactly what such a stage
 carries from sample k0 − 1 to k0: the filter's delay line ``zf`` (as ``lfilter`` returns
 it) or the previous sample. The stage functions take an optional ``carry``; the whole-log
-call is the same code with a fresh carry (architecture.md, "Streaming": one
-implementation).
+call is the same code with a fresh carry (docs/architecture.md, "Streaming"). Start
+conditions: ``steady`` (steady state on the first sample, ``lfilter_zi`` × x(0)), ``rest``
+(zero state); a backward difference is 0 at the log's first sample.
 
-Start conditions, unchanged from the whole-log functions:
-- ``steady``: the filter starts in steady state on the first sample (``lfilter_zi`` × x(0));
-- ``rest``: from rest (zero state);
-- a backward difference is 0 at the log's first sample.
-
-Guarantee: for any split of a log into consecutive chunks, the outputs concatenated are
-bit for bit those of one call on the whole log. ``lfilter`` performs the same operations
-per sample whatever the chunk (the carried delay line is the one it would have used), and
-a difference subtracts the same two stored float64 values.
-
-State in, state out: :meth:`Carry.copy` gives an independent state; a stage mutates the
-carry it is given (the chunked replay passes a copy when it must keep the old one).
+For any split of a log into consecutive chunks, the outputs concatenated are bit for bit
+those of one call on the whole log: ``lfilter`` performs the same operations per sample
+whatever the chunk, and a difference subtracts the same two stored float64 values. A
+stage mutates the carry it is given; :meth:`Carry.copy` gives an independent one.
 """
 
 from __future__ import annotations

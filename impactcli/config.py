@@ -28,9 +28,8 @@ import numpy as np
 import tomli_w
 import yaml
 
-from ._fs import atomic_write_text
 from .errors import ConfigError
-from .io.structured import load_mapping
+from .files import atomic_write_text, load_mapping
 from .schema import omit_nulls, validate
 
 #: Table I's static thresholds of the 2-joint ASSIST arm [N·m] (shoulder, elbow).
@@ -56,12 +55,14 @@ class AdaptiveConfig:
         forgetting_factor: lambda (eq. 37–39).
         p0: P(1) = p0 I.  theta0: theta(1) = theta0 (all components).
         estimate: ``a_priori`` (theta(k-1)) or ``a_posteriori`` (theta(k)) used for r_tilde
-            and v_dyn; default chosen by measurement (see impactcli.detect.adaptive).
+            and v_dyn; default chosen by measurement (docs/method.md §3, "A priori or a
+            posteriori").
         tanh_slope: slope of u1 = tanh(tanh_slope · x1_ref') [s/rad]; 50 s/rad makes
             |u1| > 0.96 above 0.04 rad/s (≈ 2.3 °/s), a sign() that stays continuous.
         max_trace: RLS wind-up guard (impactcli.detect.rls): bounds trace(P) by capping
             each diagonal element of P at max_trace / nu; None → 1e5 · nu · p0 (measured
-            choice, see that module); ``inf`` disables it (pure eq. 39).
+            choice: docs/method.md §3, "The wind-up guard"); ``inf`` disables it (pure
+            eq. 39).
         measured_input_cutoff_hz: cut-off of the causal 2nd-order Butterworth used to
             differentiate the *measured* position when no reference is logged [Hz].
     """
@@ -118,7 +119,7 @@ class ThresholdsConfig:
 
 @dataclass(frozen=True)
 class StaticLoadingConfig:
-    """static_loading detector: |LP(r)| > vL (method.md §5).
+    """static_loading detector: |LP(r)| > vL (docs/method.md §5).
 
     Attributes:
         cutoff_hz: LP cut-off [Hz]; 2 Hz passes contacts building over ≳ 0.1 s and cuts the
@@ -135,11 +136,12 @@ class ResidualConfig:
     """Residual generation options (used by the residual generator, not by detect/).
 
     Attributes:
-        generator: for every joint (formats.md): ``auto`` (the default for new configs and
-            for ``detect`` without one: per joint ``logged_external`` when the log carries
-            ``torque_ext``, else ``logged_model`` when it carries ``torque_model``, else
-            ``inverse_dynamics``), ``inverse_dynamics`` (eq. 7–8; ``rigid_model`` is read as
-            it), ``momentum_observer``, ``logged_model`` or ``logged_external``
+        generator: for every joint (docs/formats.md, "Model and detector config"): ``auto``
+            (the default for new configs and for ``detect`` without one: per joint
+            ``logged_external`` when the log carries ``torque_ext``, else ``logged_model``
+            when it carries ``torque_model``, else ``inverse_dynamics``),
+            ``inverse_dynamics`` (eq. 7–8; ``rigid_model`` is read as it),
+            ``momentum_observer``, ``logged_model`` or ``logged_external``
             (:mod:`impactcli.model.generators`). Configs written before ``auto`` existed name
             their generator and keep it.
         generators: joint → generator frozen by ``calibrate`` (thresholds belong to the
@@ -150,7 +152,7 @@ class ResidualConfig:
             (:mod:`impactcli.model.generators`); false takes them plain.
         derivative_cutoff_hz: causal low-pass of the estimated velocity/acceleration [Hz].
         filter_torque: pass the measured torque through the same causal filter as the
-            estimate (method.md §8: lowers the residual's high-frequency floor 2–5×).
+            estimate (docs/method.md §8: lowers the residual's high-frequency floor 2–5×).
         observer_gain: momentum-observer gain K [1/s].
     """
 
@@ -180,7 +182,7 @@ class EventsConfig:
 
 @dataclass(frozen=True)
 class WarmupConfig:
-    """Warm-up (method.md §5b; impactcli.detect.warmup).
+    """Warm-up (docs/method.md §5b; impactcli.detect.warmup).
 
     Attributes:
         min_s: the RLS must have seen at least this long [s] (≈ one forgetting time
@@ -243,7 +245,7 @@ class CalibrationRecord:
 
 @dataclass(frozen=True)
 class DetectorConfig:
-    """Every detection parameter (formats.md, "Model and detector config").
+    """Every detection parameter (docs/formats.md, "Model and detector config").
 
     Attributes:
         adaptive, thresholds, static_loading, residual, events, warmup, calibration: see

@@ -2,8 +2,8 @@
 
 Every error that is the *input's* fault (a log, config, model, labels or robot
 description that is bad) is an :class:`ImpactError`; the CLI turns it into one
-line on stderr and the exit code in ``exit_code`` (``formats.md``: 3 for data
-errors, 4 for a batch in which some inputs failed). Anything else is a bug: it
+line on stderr and the exit code in ``exit_code`` (docs/formats.md, "Command line": 3
+for data errors, 4 for a batch in which some inputs failed). Anything else is a bug: it
 keeps its traceback (printed on stderr) and exits :data:`EXIT_SOFTWARE` (70,
 sysexits' ``EX_SOFTWARE``) — never 1, which a CI gate reads as "collision found".
 
@@ -12,7 +12,7 @@ Messages name the offending thing: ``f"{path}: column {name!r} missing"``.
 
 from __future__ import annotations
 
-#: Exit codes of the command line (formats.md, "Command line").
+#: Exit codes of the command line (docs/formats.md, "Command line").
 EXIT_OK = 0
 EXIT_DETECTED = 1
 EXIT_USAGE = 2

@@ -19,23 +19,9 @@ to install it.
 
 Workers receive plain, picklable arguments (paths and URLs, never file contents) and the
 task functions are top-level functions of the package, so any worker with the same
-environment can run them.
-
-Surviving a dead worker (:func:`run_tasks`):
-
-- local processes: a worker that dies breaks the whole pool
-  (:class:`~concurrent.futures.process.BrokenProcessPool`) and takes every unfinished
-  task down with it, started or not; those are re-run in a fresh pool. A break there too
-  means one of them kills its worker: each task still unfinished then runs alone in a
-  one-process pool, at most twice, so the innocent ones complete and only a task that
-  killed its own worker twice is reported as a :class:`TaskFailure`
-  (``kind="worker-lost"``);
-- Dask: the scheduler re-runs a dead worker's tasks on the other workers (up to
-  ``distributed.scheduler.allowed-failures``, default 3, deaths per task) and a task
-  that raises is retried :data:`DASK_RETRIES` times; a task that still fails
-  (``KilledWorker`` or its exception) is reported as a :class:`TaskFailure`.
-
-Results come back in completion order, each with the index of its input.
+environment can run them. A dead worker is survived (:func:`run_tasks`; how, per executor:
+docs/fleet.md, "Surviving a dead worker"); results come back in completion order, each
+with the index of its input.
 """
 
 from __future__ import annotations
@@ -169,7 +155,8 @@ def process_pool(workers: int) -> ProcessPoolExecutor:
     return ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
 
 
-def _import_distributed() -> Any:
+def require_dask() -> Any:
+    """The ``distributed`` module; DaskMissingError (exit 2, naming the extra) without it."""
     try:
         import distributed
     except ImportError:
@@ -184,7 +171,7 @@ def _is_scheduler_file(address: str) -> bool:
 @contextmanager
 def dask_client(choice: ExecutorChoice) -> Iterator[Any]:
     """A ``distributed.Client`` for a Dask choice (a LocalCluster is started and closed)."""
-    distributed = _import_distributed()
+    distributed = require_dask()
     address = choice.address or "local"
     if address == "local":
         with distributed.LocalCluster(

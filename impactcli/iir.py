@@ -1,8 +1,8 @@
 """The few linear recursive filters of the causal replay, without importing ``scipy.signal``.
 
-``import scipy.signal`` costs about 1.5 s per process here (it pulls in scipy.stats,
-scipy.optimize and scipy.interpolate), half the start-up of ``impactcli detect``; the
-replay needs four of its functions on tiny arrays and one loop. They are here, computing
+``import scipy.signal`` pulls in scipy.stats, scipy.optimize and scipy.interpolate (about
+0.8 s of every run's start-up, docs/performance.md); the replay needs four of its functions
+on tiny arrays and one loop. They are here, computing
 the same floating-point operations in the same order as SciPy 1.17 (the version pinned
 in requirements.lock), so the results are the same bits (``tests/test_iir.py`` compares
 them with SciPy's on random designs and signals):

@@ -1,7 +1,7 @@
 """The robots the tool ships: URDFs of the ``robots`` extra (PyPI ``example-robot-data``).
 
 ``impactcli robots`` lists them; ``--robot NAME`` and a robot description's kinematics
-``{"type": "urdf", "robot": NAME}`` name them (formats.md, "Robot description").
+``{"type": "urdf", "robot": NAME}`` name them (docs/formats.md, "Robot description").
 
 Each entry names one URDF of the package and the links its arm chain runs between; the
 arm's joints are the movable joints on that chain, in chain order, with the URDF's own
@@ -164,7 +164,7 @@ def urdf_text(name: str) -> str:
 def arm_joints(name: str) -> tuple[str, ...]:
     """The arm joints of shipped robot ``name``: movable joints from its base link to its
     tip link, in chain order, as the URDF names them (Pinocchio parses the URDF)."""
-    from .model.structures import urdf_chain
+    from .urdf_helpers import urdf_chain
 
     e = entry(name)
     if e is None:

@@ -6,8 +6,10 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from impactcli.detect.static import causal_lowpass, static_baseline, static_loading
+from impactcli.detect.static import causal_lowpass
 from impactcli.errors import ImpactWarning
+
+from .reference.static import static_baseline, static_loading
 
 
 def test_static_baseline_is_plain_abs_comparison() -> None:

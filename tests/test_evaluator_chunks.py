@@ -16,15 +16,11 @@ import pytest
 from scipy import signal
 
 from impactcli.config import AdaptiveConfig
-from impactcli.detect.adaptive import (
-    SIGNALS,
-    AdaptiveResult,
-    EvaluatorState,
-    evaluate,
-    evaluate_chunk,
-    join_chunks,
-)
+from impactcli.detect.adaptive import SIGNALS, AdaptiveResult, evaluate_chunk, join_chunks
+from impactcli.detect.axes import EvaluatorState
 from impactcli.errors import ImpactWarning
+
+from .reference.adaptive import evaluate
 
 FS = 250.0
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
@@ -77,10 +73,11 @@ def assist_impacts() -> tuple[np.ndarray, np.ndarray, float, AdaptiveConfig, lis
     """Residual and inputs of sample_logs' assist_impacts through the pipeline's replay
     (the elbow's reference is constant: the wind-up guard acts at 6 669 samples per axis)."""
     from impactcli.config import load_config
-    from impactcli.detect.adaptive import threshold_inputs
     from impactcli.io import read_log
     from impactcli.io.robot import read_robot
     from impactcli.pipeline import replay
+
+    from .reference.adaptive import threshold_inputs
 
     csv = SAMPLES / "csv"
     if not (csv / "assist_impacts.csv.gz").exists():  # pragma: no cover - trimmed checkout

@@ -1,4 +1,6 @@
-"""Fleet scale (issue 7): one executor seam, URLs and globs, per-log failures, dead workers.
+"""Many logs: one executor seam (serial, local processes, Dask), URLs and globs, per-log
+failures recorded in the batch summary, dead workers survived, the same timelines whatever
+the executor.
 
 One Dask LocalCluster (2 worker processes, 1 thread each) serves the whole module; logs are
 short simulated ones (5 s, 250 Hz) and the model is identified once, so that the tests

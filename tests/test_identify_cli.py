@@ -13,12 +13,13 @@ import pytest
 from click.testing import CliRunner
 
 from impactcli.cli import main
-from impactcli.cli._fit_table import format_fit_table
+from impactcli.cli.fit_table import format_fit_table
 from impactcli.errors import ImpactWarning, ModelError, RobotDescriptionError
 from impactcli.io import read_log, write_log
 from impactcli.model import IdentifyOptions, identify, read_model
-from impactcli.model.textbook import TwoLinkArm, multisine
 from impactcli.types import JointSpec, LogSource, RobotDescription, RobotLog
+
+from .reference.two_link_arm import TwoLinkArm, multisine
 
 JOINTS = ("shoulder", "elbow")
 ARM = TwoLinkArm()

@@ -26,9 +26,10 @@ from impactcli.model import (
     read_model,
 )
 from impactcli.model import structures as st
-from impactcli.model.textbook import multisine
 from impactcli.schema import validate
 from impactcli.types import LogSource, RobotLog
+
+from .reference.two_link_arm import multisine
 
 REPO = Path(__file__).resolve().parents[1]
 SAMPLES = REPO / "sample_logs" / "csv"

@@ -10,9 +10,10 @@ import pytest
 
 from impactcli.errors import ModelError
 from impactcli.model import RigidModel, identify_signals, read_model, write_model
-from impactcli.model.textbook import TwoLinkArm, multisine
 from impactcli.schema import schema_dir, validate
 from impactcli.types import JointSpec, RobotDescription
+
+from .reference.two_link_arm import TwoLinkArm, multisine
 
 JOINTS = ("shoulder", "elbow")
 ARM = TwoLinkArm()

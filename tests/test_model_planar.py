@@ -8,8 +8,9 @@ import pytest
 from impactcli.errors import ImpactWarning
 from impactcli.model import IdentifyOptions, identify, identify_signals
 from impactcli.model.structures import planar_inertial_regressor
-from impactcli.model.textbook import TwoLinkArm, multisine
 from impactcli.types import JointSpec, LogSource, RobotDescription, RobotLog
+
+from .reference.two_link_arm import TwoLinkArm, multisine
 
 JOINTS = ("shoulder", "elbow")
 ARM = TwoLinkArm()

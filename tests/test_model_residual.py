@@ -7,8 +7,9 @@ import pytest
 
 from impactcli.errors import ModelError
 from impactcli.model import ResidualOptions, compute_residual, identify_signals
-from impactcli.model.textbook import TwoLinkArm, multisine
 from impactcli.types import JointSpec, LogSource, RobotDescription, RobotLog
+
+from .reference.two_link_arm import TwoLinkArm, multisine
 
 JOINTS = ("shoulder", "elbow")
 ARM = TwoLinkArm()

@@ -1,5 +1,7 @@
 """Identification and residual on the flexible-joint simulator (realistic: flexibility,
-friction drift, current noise, quantisation) — the issue's integration quality bars."""
+friction drift, current noise, quantisation): a planar model identified on one free run
+predicts another trajectory of the same arm within 8 % of the torque RMS, and its residual
+matches a slow 20 N push's external torque within 5 % at the push's peak."""
 
 from __future__ import annotations
 

@@ -8,8 +8,9 @@ import pytest
 from impactcli.errors import RobotDescriptionError
 from impactcli.model import IdentifyOptions, RigidModel, identify_signals
 from impactcli.model.structures import urdf_full_names, urdf_full_regressor, urdf_structure
-from impactcli.model.textbook import TwoLinkArm, multisine
 from impactcli.types import JointSpec, RobotDescription
+
+from .reference.two_link_arm import TwoLinkArm, multisine
 
 pin = pytest.importorskip("pinocchio")
 pytestmark = pytest.mark.urdf

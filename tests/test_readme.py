@@ -66,3 +66,48 @@ def test_docs_point_only_inside_the_repo() -> None:
             if "://" not in target:
                 resolved = (doc.parent / target).resolve()
                 assert resolved.is_relative_to(root), (doc.name, target)
+
+
+def _slug(heading: str) -> str:
+    """GitHub's anchor of a Markdown heading."""
+    s = re.sub(r"[^\w\- ]", "", heading.strip().lower())
+    return s.replace(" ", "-")
+
+
+def _headings(doc: Path) -> list[str]:
+    return [m.group(1).strip() for m in
+            re.finditer(r"^#+\s+(.*)$", doc.read_text(encoding="utf-8"), re.MULTILINE)]
+
+
+def test_every_citation_resolves_inside_the_repo() -> None:
+    """The code, the docs and the schemas cite docs/ pages, numbered sections of the method
+    (``docs/method.md §3``) and quoted sections (``docs/formats.md, "Time"``); each cited
+    page, section and Markdown anchor exists in the repository."""
+    sources = (sorted((REPO / "impactcli").rglob("*.py")) + sorted((REPO / "docs").glob("*.md"))
+               + sorted((REPO / "schemas").glob("*.json")) + [README])
+    docs = REPO / "docs"
+    bad: list[str] = []
+    for src in sources:
+        text = re.sub(r"\s+", " ", src.read_text(encoding="utf-8").replace("\\u00a7", "§"))
+        where = src.relative_to(REPO)
+        # a page: docs/NAME.md anywhere; NAME.md in code and schemas (docs/ name files too)
+        bare = r"(?<![\w./-])docs/(\w+)\.md\b" if src.suffix == ".md" else \
+            r"(?<![\w./-])(?:docs/)?(\w+)\.md\b"
+        for name in re.findall(bare, text):
+            if name != "README" and not (docs / f"{name}.md").exists():
+                bad.append(f"{where}: {name}.md")
+        for name, sec in re.findall(r"(\w+)\.md\)?,? (§\w+)", text):
+            if sec != "§N" and (docs / f"{name}.md").exists() and not any(
+                    h.split()[0] == sec for h in _headings(docs / f"{name}.md")):
+                bad.append(f"{where}: {name}.md {sec}")
+        quoted = r"(\w+)\.md\)?,?(?: §\w+,?)? (?:\"([^\"]+)\"|'([^']+)')"
+        for name, sec2, sec1 in re.findall(quoted, text):
+            sec = sec2 or sec1
+            if (not sec.startswith("<") and (docs / f"{name}.md").exists()
+                    and sec not in _headings(docs / f"{name}.md")):
+                bad.append(f'{where}: {name}.md, "{sec}"')
+        for target, anchor in re.findall(r"\]\(([^)#\s]*\.md)#([^)\s]+)\)", text):
+            page = (src.parent / target) if src.suffix == ".md" else REPO / target
+            if page.exists() and anchor not in {_slug(h) for h in _headings(page)}:
+                bad.append(f"{where}: {target}#{anchor}")
+    assert not bad, "citations that do not resolve:\n" + "\n".join(bad)

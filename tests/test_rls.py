@@ -1,6 +1,7 @@
-"""RLS (impactcli.detect.rls): equals (exponentially weighted) least squares, stays SPD
-over millions of steps, and the per-coordinate cap on P stops covariance wind-up without
-changing what eq. 38-40 compute where the regressor is silent."""
+"""RLS (the kernel of impactcli.detect.rls, in the forms of tests/reference/rls.py): equals
+(exponentially weighted) least squares, stays SPD over millions of steps, and the
+per-coordinate cap on P stops covariance wind-up without changing what eq. 38-40 compute
+where the regressor is silent."""
 
 from __future__ import annotations
 
@@ -8,14 +9,9 @@ import numba
 import numpy as np
 import pytest
 
-from impactcli.detect.rls import (
-    RecursiveLeastSquares,
-    default_max_trace,
-    rls_run,
-    rls_step,
-    rls_update_inplace,
-    symmetrize,
-)
+from impactcli.detect.rls import default_max_trace, rls_update_inplace
+
+from .reference.rls import RecursiveLeastSquares, rls_run, rls_step, symmetrize
 
 
 def _data(n: int, nu: int, seed: int = 0, noise: float = 0.1):

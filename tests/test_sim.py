@@ -25,7 +25,7 @@ from impactcli.sim import (
     scenario,
     simulate,
 )
-from impactcli.sim import _kernel as kern
+from impactcli.sim import kernel as kern
 from impactcli.sim.arm import true_parameters, without_losses
 from impactcli.sim.reference import FMTriangle, PointToPoint
 

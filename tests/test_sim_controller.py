@@ -23,7 +23,7 @@ from impactcli.sim import (
     scenario,
     simulate,
 )
-from impactcli.sim import _kernel as kern
+from impactcli.sim import kernel as kern
 from impactcli.sim.arm import ArmParams, nominal_parameters
 from impactcli.sim.controller import simulate_channels
 

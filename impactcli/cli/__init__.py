@@ -1,5 +1,5 @@
-"""The ``impactcli`` command group: parses options, calls one pipeline function, picks the
-exit code.
+"""The ``impactcli`` command group: parses options, calls one function, picks the exit code
+(docs/formats.md, "Command line").
 
 Each verb lives in its own module ``impactcli/cli/<verb>.py`` and is imported only
 when invoked, so ``impactcli --help`` stays fast.
@@ -118,6 +118,7 @@ def main(ctx: click.Context, debug: bool) -> None:
     N with detect --fail-on-force N; 2 usage error (also an output that cannot be
     written, or no room in TMPDIR);
     3 bad input (log, config, model, labels); 4 a batch where some inputs failed;
+    69 this machine cannot do it (view without a display);
     70 an internal error (a bug; its traceback is printed); 141 stdout's reader closed
     early (| head), as for SIGPIPE.
     """

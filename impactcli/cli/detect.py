@@ -10,178 +10,29 @@ from typing import Any
 
 import click
 
-from ..errors import EXIT_BATCH, EXIT_DETECTED, EXIT_USAGE
-from ._common import ROBOT_METAVAR, ROBOT_URL_METAVAR, handle_errors, progress, robot_help
+from ..errors import EXIT_BATCH, EXIT_DETECTED
+from .options import (
+    executor_options,
+    fail_usage,
+    generator_option,
+    handle_errors,
+    log_read_options,
+    model_options,  # alias: removed in M
+    model_url_options,
+    progress,
+    read_options_from,
+    resolve_executor,
+)
+
+# alias: removed in M — cli/calibrate, evaluate, inspect, labels, report and view import the
+# shared options (cli/options.py's) from here.
+__all__ = [
+    "PRODUCT_DETECTORS", "detect_cmd", "executor_options", "generator_option",
+    "log_read_options", "model_options", "preload", "read_options_from", "resolve_executor",
+]
 
 #: the product's detectors: what --fail-on-detect counts (static_baseline is for comparison)
 PRODUCT_DETECTORS = ("adaptive", "static_loading")
-
-
-#: click context ``meta`` key under which --time-unit and --repair-order are kept.
-_READ_META = "impactcli.read_options"
-
-
-def read_options_from(channel_map: str | None, topic: str | None, reference_topic: str | None,
-                      time_source: str | None, torque_source: str | None, *,
-                      time_unit: str | None = None,
-                      repair_order: bool | None = None) -> dict[str, Any]:
-    """The read_log keyword arguments given on the command line (None values dropped).
-
-    ``time_unit`` and ``repair_order`` default to the ``--time-unit`` and
-    ``--repair-order`` of the running command (:func:`log_read_options` keeps them in the
-    click context, so verbs need not take them as parameters); ``repair_order`` is kept
-    only when true.
-    """
-    ctx = click.get_current_context(silent=True)
-    given = dict(ctx.meta.get(_READ_META, {})) if ctx is not None else {}
-    if time_unit is None:
-        time_unit = given.get("time_unit")
-    if repair_order is None:
-        repair_order = given.get("repair_order")
-    opts = {"channel_map": channel_map, "topic": topic, "reference_topic": reference_topic,
-            "time_source": time_source, "torque_source": torque_source,
-            "time_unit": time_unit, "repair_order": True if repair_order else None}
-    return {k: v for k, v in opts.items() if v is not None}
-
-
-def _keep_read_option(ctx: click.Context, param: click.Parameter, value: Any) -> Any:
-    """Keep --time-unit / --repair-order in the context for :func:`read_options_from`."""
-    if value is not None and param.name is not None:
-        ctx.meta.setdefault(_READ_META, {})[param.name] = value
-    return value
-
-
-def check_channel_map(ctx: click.Context, param: click.Parameter, value: str | None
-                      ) -> str | None:
-    """``--channel-map``: a file that exists or a shipped map's name, else a usage error
-    (exit 2) listing the shipped maps; a file's content is checked when it is read (a bad
-    one is a data error, exit 3)."""
-    if value is None or "://" in value:
-        return value
-    from ..errors import ChannelMapError
-    from ..io.channel_map import resolve_channel_map_path
-
-    try:
-        resolve_channel_map_path(value)
-    except ChannelMapError as err:
-        raise click.BadParameter(str(err), ctx=ctx, param=param) from None
-    return value
-
-
-def log_read_options(func: Callable[..., Any]) -> Callable[..., Any]:
-    """The options that say how to read a log (shared by the verbs that read logs).
-
-    ``--time-unit`` and ``--repair-order`` are not passed to the command: they reach
-    :func:`read_options_from` through the click context.
-    """
-    for opt in reversed([
-        click.option("--channel-map", metavar="MAP", callback=check_channel_map,
-                     help="Channel map (path, or a shipped name) for foreign CSV / .npz logs."),
-        click.option("--topic", help="MCAP: the JointState/state topic."),
-        click.option("--reference-topic", help="MCAP: the reference topic."),
-        click.option("--time-source", type=click.Choice(["log", "publish", "header"]),
-                     help="MCAP: which clock stamps samples [default: header, else log]."),
-        click.option("--torque-source", type=click.Choice(["current", "torque"]),
-                     help="Use logged torque or current × gear ratio × torque constant."),
-        click.option("--time-unit", type=click.Choice(["s", "ms", "us", "ns"]),
-                     expose_value=False, callback=_keep_read_option,
-                     help="CSV / .npz: the unit of the time column [default: s, or the "
-                          "channel map's]. A time implying a rate outside 20 Hz – 100 kHz "
-                          "is an error."),
-        click.option("--repair-order", is_flag=True, default=None, expose_value=False,
-                     callback=_keep_read_option,
-                     help="Rows out of time order or sharing a stamp: keep the longest "
-                          "increasing run of stamps and drop the others, warned [default: "
-                          "an error naming the row]."),
-    ]):
-        func = opt(func)
-    return func
-
-
-def generator_option(func: Callable[..., Any]) -> Callable[..., Any]:
-    """--generator (calibrate, detect): which residual each joint's detectors evaluate."""
-    from ..model.generators import GENERATOR_CHOICES
-
-    return click.option(
-        "--generator", type=click.Choice(GENERATOR_CHOICES), default=None,
-        help="Residual generator for every joint: auto (per joint the log's torque_ext, else "
-             "its torque_model with an identified correction, else the tool's own model), "
-             "inverse_dynamics, momentum_observer, logged_model, logged_external  [default: "
-             "the config's (frozen per joint by calibrate), else auto]")(func)
-
-
-def model_options(func: Callable[..., Any]) -> Callable[..., Any]:
-    """--robot, --model, --config (shared by detect, report, view, evaluate)."""
-    for opt in reversed([
-        click.option("--robot", metavar=ROBOT_METAVAR,
-                     type=click.Path(dir_okay=False, path_type=Path),
-                     help=robot_help("joints, gear ratios, kinematics")),
-        click.option("--model", type=click.Path(dir_okay=False, path_type=Path),
-                     help="Rigid model from `impactcli identify` [default: the config's, "
-                          "else identified from the log itself]."),
-        click.option("--config", type=click.Path(dir_okay=False, path_type=Path),
-                     help="Detector config from `impactcli calibrate` (TOML/YAML) "
-                          "[default: Table I, uncalibrated thresholds from the log]."),
-    ]):
-        func = opt(func)
-    return func
-
-
-def model_url_options(func: Callable[..., Any]) -> Callable[..., Any]:
-    """--robot, --model, --config as paths or fsspec URLs (detect: workers read them)."""
-    for opt in reversed([
-        click.option("--robot", metavar=ROBOT_URL_METAVAR,
-                     help=robot_help("joints, gear ratios, kinematics", url=True)),
-        click.option("--model", metavar="PATH|URL",
-                     help="Rigid model from `impactcli identify` [default: the config's, "
-                          "else identified from the log itself]."),
-        click.option("--config", metavar="PATH|URL",
-                     help="Detector config from `impactcli calibrate` (TOML/YAML) "
-                          "[default: Table I, uncalibrated thresholds from the log]."),
-    ]):
-        func = opt(func)
-    return func
-
-
-def executor_options(func: Callable[..., Any]) -> Callable[..., Any]:
-    """--jobs and --scheduler: where batch work runs (impactcli.executors)."""
-    for opt in reversed([
-        click.option("--jobs", "-j", type=click.IntRange(min=1), default=None,
-                     help="Inputs processed in parallel by N local processes (no Dask); with "
-                          "--scheduler local, the number of Dask workers  [default: 1]"),
-        click.option("--scheduler", metavar="local|ADDRESS|FILE", default=None,
-                     help="Run on Dask (extra impactcli[dask]): `local` starts a LocalCluster, "
-                          "tcp://host:8786 or a scheduler.json file joins a running one "
-                          "[default: $DASK_SCHEDULER_ADDRESS when set, else local "
-                          "processes per --jobs]."),
-    ]):
-        func = opt(func)
-    return func
-
-
-def resolve_executor(jobs: int | None, scheduler: str | None) -> Any:
-    """The :class:`~impactcli.executors.ExecutorChoice` for the options; a bad combination
-    is a usage error (exit 2), a missing Dask extra one line saying how to install it."""
-    from ..executors import _import_distributed, choose_executor
-
-    try:
-        choice = choose_executor(jobs, scheduler)
-    except ValueError as err:
-        raise click.BadParameter(str(err), param_hint="'--jobs'") from None
-    if choice.kind == "dask":
-        from ..executors import DaskMissingError
-
-        try:
-            _import_distributed()
-        except DaskMissingError as err:
-            fail_usage(str(err))
-    return choice
-
-
-def fail_usage(msg: str) -> None:
-    """One line on stderr and exit 2 (a command-line or environment problem)."""
-    click.echo(f"impactcli: error: {msg}", err=True)
-    click.get_current_context().exit(EXIT_USAGE)
 
 
 def preload(robot: str | Path | None, model: str | Path | None,
@@ -191,8 +42,8 @@ def preload(robot: str | Path | None, model: str | Path | None,
     Returns ``{"robot"|"model"|"config": {"path", "sha256"}}`` for those given (the batch
     summary's provenance).
     """
-    from .._fs import sha256_file
     from ..config import load_config
+    from ..files import sha256_file
     from ..io.robot import named_robot_sha256, read_robot
     from ..io.urls import load_by_url
     from ..model import read_model
@@ -300,8 +151,8 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
         raise click.UsageError("--model and --model-from-log exclude each other")
     local_out = out_dir[len("file://"):] if out_dir.startswith("file://") else out_dir
     if "://" not in local_out:
-        from .._fs import check_output_folder
         from ..errors import OutputError
+        from ..files import check_output_folder
 
         try:
             check_output_folder(local_out)
@@ -309,7 +160,7 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
             raise click.BadParameter(str(err).replace(f"cannot write into {local_out}: ", ""),
                                      param_hint="'-o'") from None
     if summary_path is not None and "://" not in summary_path:
-        from .._fs import prepare_output
+        from ..files import prepare_output
 
         prepare_output(summary_path)  # a bad --summary stops the batch before any work
     choice = resolve_executor(jobs, scheduler)

@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import click
 
-from ._common import ROBOT_METAVAR, handle_errors, robot_help
-from ._fit_table import format_fit_table
-from .detect import log_read_options, read_options_from
+from .fit_table import format_fit_table
+from .options import ROBOT_METAVAR, handle_errors, log_read_options, read_options_from, robot_help
 
 __all__ = ["format_fit_table", "identify_cmd"]
 
@@ -49,7 +48,7 @@ def identify_cmd(
 
     A multi-arm MCAP or bag: --topic picks the arm's JointState topic, as in the other
     verbs."""
-    from .._fs import prepare_output
+    from ..files import prepare_output
     from ..io import read_log
     from ..io.robot import read_robot
     from ..model import IdentifyOptions, identify, write_model

@@ -9,7 +9,7 @@ from typing import Any
 
 import click
 
-from ._common import handle_errors
+from .options import handle_errors
 
 
 @click.command("robots")

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from ._common import handle_errors
+from .options import handle_errors
 
 FORMATS = {"csv": ".csv", "csv.gz": ".csv.gz", "mcap-json": ".mcap", "mcap-ros2": ".mcap"}
 ARMS = ("assist_like", "heavy_geared")

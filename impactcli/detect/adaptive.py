@@ -1,88 +1,23 @@
 """Adaptive residual evaluation, axis by axis (paper Section III, eq. 24–42, App. A/B).
 
-For axis j, at each sample k (all axes in one pass):
+For axis j, at each sample k: the regressor phi(k) = [r_j(k-1..k-eta) | v_dyn_j(k-1..k-p)
+| u_{i,l}(k-1..k-rho_i) for every input type i and axis l] (eq. 31–35, 51–54; nu = eta +
+p + n·sum(rho): 34 for 2 joints, 64 for 7 at Table I; past v_dyn are the values this
+algorithm computed, samples before the log start are 0); RLS with constant forgetting on
+y = r_j(k) (eq. 38–40, :mod:`impactcli.detect.rls`); r_tilde = r_j − phi_G^T theta_G
+(eq. 26) and v_dyn = phi_v^T theta_v (eq. 33) with theta(k) (``a_posteriori``, the
+default, measured in docs/method.md §3) or theta(k-1) (``a_priori``); F1, F2 first-order
+low-passes matched by the pole (Fig. 11); RMS over the previous N1 / N2 samples, the
+current one excluded (eq. 41); decision r_rms > |v_stat + v_rms| (eq. 42). Settings at the
+log's rate: :mod:`impactcli.detect.rates`.
 
-1. Regressor (eq. 31–35, 51–54; App. B for n = 2):
-   ``phi(k) = [ r_j(k-1..k-eta) | v_dyn_j(k-1..k-p) | u_{i,l}(k-1..k-rho_i) for i = 1..m,
-   l = 1..n ]`` — every axis's inputs enter every axis's regression; ``nu = eta + p +
-   n·sum(rho)`` (34 for 2 joints, 64 for 7 at Table I). Past v_dyn are the values this
-   algorithm computed earlier (pseudo-linear regression). Samples before the log start
-   are 0.
-2. RLS with constant forgetting (eq. 38–40) on ``y = r_j(k)``: :mod:`impactcli.detect.rls`
-   (P symmetric by storage; wind-up guard: each diagonal element of P capped at
-   max_trace / nu, which leaves the replay bit for bit plain eq. 39's where the capped
-   regressor entries are 0, e.g. a still joint's inputs).
-3. ``r_tilde(k) = r_j(k) - phi_G(k)^T theta_G`` (= G_hat(z) r_j, eq. 26, 29–31) and
-   ``v_dyn(k) = phi_v(k)^T theta_v`` (eq. 33, 46) with theta = theta(k) (``a_posteriori``)
-   or theta(k-1) (``a_priori``).
-4. F1, F2 (Fig. 11): first-order low-pass, unit DC gain, discretised by matching the pole
-   (exponential / impulse-invariant): ``y(k) = a y(k-1) + (1 - a) x(k)``,
-   ``a = exp(-2π f_c Ts)`` — i.e. ``scipy.signal.lfilter([1 - a], [1, -a], x)`` from rest.
-   (method.md §8: Tustin vs exponential did not matter.)
-5. RMS over the previous N samples, the current one excluded (eq. 41):
-   ``r_rms(k) = sqrt(sum_{i=1..N1} r_f(k-i)^2 / N1)``, samples before the start = 0;
-   v_rms likewise over N2.
-6. Decision (eq. 42): ``d(k) = r_rms(k) > |v_stat + v_rms(k)|``; ``threshold`` is
-   ``|v_stat + v_rms|``.
-
-a priori vs a posteriori (method.md §3) — measured
---------------------------------------------------
-Default: ``a_posteriori``. Measurement (``tests/test_detect_adaptive.py::
-test_a_posteriori_default_is_measured`` reproduces it): a 2-joint synthetic residual (40 s
-at 4 ms, state-dependent model error driven by triangle-like references, white noise) with
-three added 0.5 N·m, 80 ms contact pulses. With each option's v_stat set to 1.2 × its own
-collision-free maximum of r_rms − v_rms (after 5 s), the peak of r_rms / threshold during
-each pulse was 0.94, 1.13, 0.93 (mean 1.001) a priori and 1.00, 1.20, 1.05 (mean 1.080)
-a posteriori — about 8 % more margin over the threshold, no false alarm with either (the
-default wind-up guard does not act in these 40 s: plain eq. 39; with every diagonal
-element of P capped at p0, max_trace = nu·p0, the means were 1.006 and 1.028); the fitted
-G was the same near-differentiator (|G| = 0.04 at 1 Hz, 1.58 at 62.5 Hz) in both. This
-agrees with the simulation study quoted in method.md §3. ``a_priori`` stays available (the
-conservative reading: the update that sees a collision cannot absorb it).
-
-Sample rate (method.md §5b): orders are in samples; N1, N2 are durations converted at the
-log's rate (at least 1 sample); w1, w2 are clipped below 0.4 × fs with an ImpactWarning.
-
-Two implementations of the same equations: :func:`evaluate_chunk` / :func:`evaluate`
-(the compiled per-axis kernel of :mod:`impactcli.detect.axes`) and
-:func:`evaluate_reference` (plain NumPy, obviously correct); tests compare them to 1e-9.
-
-Chunks and state (architecture.md, "Streaming")
------------------------------------------------
-:func:`evaluate_chunk` ``(state, residual (n, J), inputs (m, n, J), fs, v_stat, cfg) ->
-(result, new_state)`` runs the compiled per-axis kernel (:mod:`impactcli.detect.axes`)
-on one chunk; the kernel reads the state at the start and writes it back at the end (the state
-passed in is left as it was). :func:`evaluate`, the whole-log API, is ``evaluate_chunk``
-on the whole log as one chunk from :meth:`EvaluatorState.initial`: one implementation.
-:class:`EvaluatorState` holds exactly what the recursion carries from sample k0 − 1 to
-k0 (k0 = ``n_samples``, the samples absorbed so far), per axis j:
-
-- theta(k0−1) and P(k0−1) of eq. 38–39 (P as the RLS kernel keeps it: the lower
-  triangle; initially theta0 and p0 I, Table I), and the reset / wind-up-guard counters;
-- the regressor's past values (eq. 31–35, 51–54): r_j(k0−eta..k0−1), v_dyn_j(k0−p..k0−1)
-  (the pseudo-linear block: values this algorithm computed) and u_{i,l}(k0−rho_max..k0−1)
-  of every input type i and axis l — one copy shared by the axes, since every axis's
-  inputs enter every regression (eq. 34); initially 0 (samples before the start are 0);
-- the outputs r_f(k0−1), v_f(k0−1) of F1 and F2 (step 4; initially 0: from rest);
-- eq. 41's windows: ring buffers of the last N1 values r_f² and N2 values v_f² and their
-  running sums; the ring positions are k0 mod N1 and k0 mod N2;
-- the settings it was made for (``cfg``, ``rates``): a chunk with others is refused.
-
-Guarantee, for any split of a log into consecutive chunks (any sizes, 1 sample included;
-boundaries inside the regression's start-up, inside a contact, while the wind-up guard
-acts): the chunks' outputs concatenated (:func:`join_chunks`) are bit for bit those of the
-whole-log call, and so is the final state. The kernel performs the same floating-point
-operations in the same order whatever the boundaries: every value carried across a
-boundary is stored in float64 exactly as the next iteration reads it (nothing is
-recomputed at a boundary), and the RMS running sums are updated sample by sample and
-re-summed from their ring at every wrap, at the samples k ≡ 0 (mod N) of the whole log,
-not of the chunk — so their rounding depends on k alone and cannot drift with the
-chunking. ``tests/test_evaluator_chunks.py`` checks ``np.array_equal`` of every output and
-every state array for chunks of 1, 7, 1000, 4096 samples and the whole log, and for
-boundaries after samples 1–5, mid-contact and at random places, on sample_logs'
-assist_impacts (guard acting: a still elbow) and synthetic logs (a standstill and
-contact pulses; a priori, plain eq. 39, other windows, axes on threads). Cost per chunk:
-a copy of the state (J·nu² for P), the axes' Python dispatch (tests/benchmarks/bench_rls.py).
+:func:`evaluate_chunk` ``(state, residual (n, J), inputs (m, n, J), fs, v_stat) ->
+(result, new_state)`` runs the compiled per-axis kernel of :mod:`impactcli.detect.axes`
+on one chunk from an :class:`~impactcli.detect.axes.EvaluatorState`; the chunks' results
+joined (:func:`join_chunks`) are bit for bit those of one call on the whole log, and so is
+the final state (docs/method.md §3, "Chunks and state"). :func:`inputs_chunk` makes the
+threshold's inputs u1, u2 (Table I) chunk by chunk. The plain NumPy reference the tests
+compare the kernel against is ``tests/reference/adaptive.py``.
 """
 
 from __future__ import annotations
@@ -100,57 +35,11 @@ from ..causal import Carry
 from ..config import AdaptiveConfig
 from ..errors import ImpactWarning
 from ..iir import butter_lowpass
-from ..types import RobotLog
-from .axes import AxisJob, AxisRunner
-from .rls import max_diag_of
+from .axes import AxisJob, AxisRunner, EvaluatorState
+from .rates import Rates, clip_cutoff
 
 #: Frequencies at which |G_hat| is reported [Hz] (plus fs/4 = Nyquist/2, added per log).
 GAIN_FREQUENCIES_HZ: tuple[float, ...] = (1.0, 2.0, 5.0, 10.0, 20.0)
-
-
-@dataclass(frozen=True)
-class Rates:
-    """Table I's settings converted at a sample rate (method.md §5b).
-
-    Attributes:
-        fs_hz: sample rate [Hz].  n1, n2: RMS windows [samples].
-        w1_hz, w2_hz: F1/F2 cut-offs after clipping [Hz].
-        a1, a2: F1/F2 poles exp(-2π w Ts).
-    """
-
-    fs_hz: float
-    n1: int
-    n2: int
-    w1_hz: float
-    w2_hz: float
-    a1: float
-    a2: float
-
-
-def clip_cutoff(f_hz: float, fs_hz: float, what: str) -> float:
-    """Clip a cut-off below 0.4·fs with an ImpactWarning (method.md §5b)."""
-    lim = 0.4 * fs_hz
-    if f_hz > lim:
-        warnings.warn(
-            f"{what} cut-off {f_hz:g} Hz is above 0.4 × the sample rate {fs_hz:g} Hz; "
-            f"clipped to {lim:g} Hz", ImpactWarning, stacklevel=3,
-        )
-        return lim
-    return float(f_hz)
-
-
-def lowpass_pole(f_hz: float, fs_hz: float) -> float:
-    """Pole a = exp(-2π f Ts) of the unit-DC-gain first-order low-pass."""
-    return float(np.exp(-2.0 * np.pi * f_hz / fs_hz))
-
-
-def resolve_rates(cfg: AdaptiveConfig, fs_hz: float) -> Rates:
-    """Convert durations and cut-offs of ``cfg`` at ``fs_hz`` (method.md §5b)."""
-    n1 = max(1, round(cfg.n1_s * fs_hz))
-    n2 = max(1, round(cfg.n2_s * fs_hz))
-    w1 = clip_cutoff(cfg.w1_hz, fs_hz, "F1 (w1)")
-    w2 = clip_cutoff(cfg.w2_hz, fs_hz, "F2 (w2)")
-    return Rates(float(fs_hz), n1, n2, w1, w2, lowpass_pole(w1, fs_hz), lowpass_pole(w2, fs_hz))
 
 
 # ----------------------------------------------------------------------------- inputs
@@ -175,12 +64,6 @@ class ThresholdInputs:
 def _butter(fc_hz: float, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
     b, a = butter_lowpass(2, fc_hz / (0.5 * fs_hz))
     return np.asarray(b), np.asarray(a)
-
-
-def threshold_inputs(log: RobotLog, cfg: AdaptiveConfig | None = None) -> ThresholdInputs:
-    """Build (u1, u2) from a log (paper Sec. IV: inputs from the reference trajectory):
-    :func:`inputs_chunk` on the whole log."""
-    return inputs_chunk(log, log.time_s, log.sample_rate_hz, cfg, Carry(), log.source.path)
 
 
 def inputs_chunk(
@@ -288,7 +171,7 @@ class AdaptiveResult:
             return np.where(self.threshold > 0, self.r_rms / self.threshold, np.inf)
 
     def g_gain(self, freqs_hz: Sequence[float] | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """|G_hat(e^{jωTs})| per joint from the final theta_G (method.md §7).
+        """|G_hat(e^{jωTs})| per joint from the final theta_G (docs/method.md §7).
 
         Returns (freqs (F,), gain (J, F)); default frequencies 1, 2, 5, 10, 20 Hz and fs/4.
         """
@@ -312,81 +195,6 @@ def g_gain(theta_g: np.ndarray, freqs_hz: np.ndarray, fs_hz: float) -> np.ndarra
     return np.abs(g)
 
 
-# ----------------------------------------------------------------------------- state
-@dataclass(frozen=True)
-class EvaluatorState:
-    """Everything the evaluator carries from one sample to the next (module docstring,
-    "Chunks and state"). Arrays have the axis first; ``evaluate_chunk`` never modifies a
-    state it is given (it returns a new one).
-
-    Attributes:
-        theta: (J, nu) theta(k0-1) (eq. 38).
-        P: (J, nu, nu) P(k0-1), LOWER triangle authoritative (:mod:`impactcli.detect.rls`).
-        r_lags: (J, eta) r_j(k0-eta) .. r_j(k0-1), oldest first (phi's first block, eq. 51).
-        v_lags: (J, p) v_dyn_j(k0-p) .. v_dyn_j(k0-1), oldest first (pseudo-linear block).
-        u_lags: (m, rho_max, J) u_{i,l}(k0-rho_max) .. u_{i,l}(k0-1), oldest first; shared
-            by all axes (every axis's inputs enter every regression, eq. 34).
-        filters: (J, 2) F1 and F2 outputs r_f(k0-1), v_f(k0-1) (Fig. 11).
-        ring_r: (J, N1) r_f² of the last N1 samples (eq. 41), slot ``k % N1``.
-        ring_v: (J, N2) v_f² of the last N2 samples, slot ``k % N2``.
-        sums: (J, 2) the running sums of ring_r and ring_v as the kernel keeps them.
-        n_samples: samples absorbed so far (k0); fixes the ring positions.
-        n_resets, n_capped: (J,) covariance resets and wind-up-guard steps so far.
-        cfg, rates: the settings the state was made for (a chunk must use the same).
-    """
-
-    theta: np.ndarray
-    P: np.ndarray
-    r_lags: np.ndarray
-    v_lags: np.ndarray
-    u_lags: np.ndarray
-    filters: np.ndarray
-    ring_r: np.ndarray
-    ring_v: np.ndarray
-    sums: np.ndarray
-    n_samples: int
-    n_resets: np.ndarray
-    n_capped: np.ndarray
-    cfg: AdaptiveConfig
-    rates: Rates
-
-    @property
-    def n_joints(self) -> int:
-        return int(self.theta.shape[0])
-
-    @property
-    def nu(self) -> int:
-        return int(self.theta.shape[1])
-
-    @classmethod
-    def initial(cls, n_joints: int, cfg: AdaptiveConfig | None = None,
-                sample_rate_hz: float = 250.0) -> EvaluatorState:
-        """The state before the first sample: theta = theta0, P = p0 I (Table I), every
-        past value 0 (samples before the log start are 0), filters at rest, empty windows."""
-        cfg = cfg or AdaptiveConfig()
-        J = int(n_joints)
-        nu = cfg.n_params(J)
-        rates = resolve_rates(cfg, sample_rate_hz)
-        P = np.zeros((J, nu, nu))
-        idx = np.arange(nu)
-        P[:, idx, idx] = cfg.p0
-        return cls(
-            theta=np.full((J, nu), float(cfg.theta0)), P=P,
-            r_lags=np.zeros((J, cfg.eta)), v_lags=np.zeros((J, cfg.p)),
-            u_lags=np.zeros((len(cfg.rho), max(cfg.rho, default=0), J)),
-            filters=np.zeros((J, 2)), ring_r=np.zeros((J, rates.n1)),
-            ring_v=np.zeros((J, rates.n2)), sums=np.zeros((J, 2)), n_samples=0,
-            n_resets=np.zeros(J, dtype=np.int64), n_capped=np.zeros(J, dtype=np.int64),
-            cfg=cfg, rates=rates,
-        )
-
-    def copy(self) -> EvaluatorState:
-        """A deep copy (the arrays are copied; cfg and rates are immutable)."""
-        return dataclasses.replace(self, **{
-            f.name: getattr(self, f.name).copy() for f in dataclasses.fields(self)
-            if isinstance(getattr(self, f.name), np.ndarray)})
-
-
 # ----------------------------------------------------------------------------- kernels
 def _check(r: np.ndarray, u: np.ndarray, v_stat: np.ndarray, cfg: AdaptiveConfig) -> None:
     if r.ndim != 2:
@@ -408,7 +216,7 @@ def evaluate_chunk(
     state: EvaluatorState, residual_chunk: np.ndarray, inputs_chunk: np.ndarray,
     sample_rate_hz: float, v_stat: Sequence[float] | np.ndarray,
     cfg: AdaptiveConfig | None = None, threads: int = 1,
-    progress: Callable[[int, int], None] | None = None, *, _consume: bool = False,
+    progress: Callable[[int, int], None] | None = None,
 ) -> tuple[AdaptiveResult, EvaluatorState]:
     """Run the adaptive evaluator (compiled) on one chunk, continuing from ``state``.
 
@@ -420,13 +228,15 @@ def evaluate_chunk(
         sample_rate_hz: fs [Hz]; must be the state's.
         v_stat: (J,) static thresholds [N·m] (eq. 42).
         cfg: settings; None → the state's; otherwise must equal the state's.
-        threads, progress: as :func:`evaluate`.
+        threads: > 1 runs the axes concurrently, each on a thread of its own (results are
+            identical: axes are independent; :func:`default_threads`).
+        progress: called with (axes done, axes) after each axis.
 
     Returns:
         (result, new_state): ``result`` holds the chunk's (n, J) signals; its ``theta``,
         ``n_resets`` and ``n_capped`` are the new state's (totals since the first chunk),
-        so :func:`join_chunks` of the results equals :func:`evaluate` on the whole log,
-        bit for bit (module docstring).
+        so :func:`join_chunks` of the results equals one call on the whole log, bit for
+        bit (module docstring).
     """
     cfg = state.cfg if cfg is None else cfg
     if cfg != state.cfg:
@@ -440,7 +250,7 @@ def evaluate_chunk(
     _check(r, u, vs, cfg)
     if r.shape[1] != state.n_joints:
         raise ValueError(f"{r.shape[1]} joints but the state has {state.n_joints}")
-    st = state if _consume else state.copy()
+    st = state.copy()
     with AxisRunner(st, vs, threads) as runner:
         job = runner.submit(r, u)
         job.wait(progress)
@@ -470,106 +280,6 @@ def join_chunks(results: Sequence[AdaptiveResult]) -> AdaptiveResult:
 #: The (N, J) signals of an :class:`AdaptiveResult` (concatenated over chunks).
 SIGNALS = ("r_tilde", "v_dyn", "r_f", "v_f", "r_rms", "v_rms", "threshold", "decision",
            "prediction_error")
-
-
-def evaluate(
-    residual: np.ndarray, inputs: np.ndarray, sample_rate_hz: float,
-    v_stat: Sequence[float] | np.ndarray, cfg: AdaptiveConfig | None = None,
-    threads: int | None = None, progress: Callable[[int, int], None] | None = None,
-) -> AdaptiveResult:
-    """Run the adaptive evaluator (compiled) on all axes: :func:`evaluate_chunk` on the
-    whole log as one chunk from :meth:`EvaluatorState.initial`.
-
-    Args:
-        residual: (N, J) residual r = tau_hat − tau [N·m].
-        inputs: (m, N, J) threshold inputs (see :func:`threshold_inputs`).
-        sample_rate_hz: fs [Hz].
-        v_stat: (J,) static thresholds [N·m] (eq. 42).
-        cfg: settings (Table I defaults).
-        threads: > 1 runs the axes concurrently, each on a thread of its own (results are
-            identical: axes are independent); None → :func:`default_threads`.
-        progress: called with (axes done, axes) after each axis (every axis costs the same).
-    """
-    cfg = cfg or AdaptiveConfig()
-    if threads is None:
-        threads = default_threads(np.shape(residual)[0])
-    r = np.asarray(residual)
-    if r.ndim != 2:
-        raise ValueError(f"residual must be (N, J), got shape {r.shape}")
-    state = EvaluatorState.initial(r.shape[1], cfg, sample_rate_hz)
-    res, _ = evaluate_chunk(state, r, inputs, sample_rate_hz, v_stat, cfg, threads, progress,
-                            _consume=True)
-    return res
-
-
-def evaluate_reference(
-    residual: np.ndarray, inputs: np.ndarray, sample_rate_hz: float,
-    v_stat: Sequence[float] | np.ndarray, cfg: AdaptiveConfig | None = None,
-) -> AdaptiveResult:
-    """Plain NumPy implementation of the same equations (slow; for tests)."""
-    cfg = cfg or AdaptiveConfig()
-    r = np.asarray(residual, dtype=np.float64)
-    u = np.asarray(inputs, dtype=np.float64)
-    vs = np.asarray(v_stat, dtype=np.float64)
-    _check(r, u, vs, cfg)
-    rates = resolve_rates(cfg, sample_rate_hz)
-    n, J = r.shape
-    eta, p, rho = cfg.eta, cfg.p, cfg.rho
-    nu = cfg.n_params(J)
-    lam = cfg.forgetting_factor
-    cap = max_diag_of(nu, cfg.p0, cfg.max_trace)
-
-    def past(x: np.ndarray, k: int, order: int) -> np.ndarray:
-        """[x(k-1), ..., x(k-order)], zero before the start."""
-        return np.array([x[k - d] if k - d >= 0 else 0.0 for d in range(1, order + 1)])
-
-    res = {name: np.zeros((n, J)) for name in
-           ("rt", "vd", "rf", "vf", "rr", "vr", "thr", "eps")}
-    dec = np.zeros((n, J), dtype=bool)
-    thetas = np.zeros((J, nu))
-    capped = np.zeros(J, dtype=np.int64)
-    for j in range(J):
-        theta = np.full(nu, cfg.theta0)
-        P = cfg.p0 * np.eye(nu)
-        for k in range(n):
-            parts = [past(r[:, j], k, eta), past(res["vd"][:, j], k, p)]
-            for i in range(len(rho)):
-                for ll in range(J):
-                    parts.append(past(u[i, :, ll], k, rho[i]))
-            phi = np.concatenate(parts)
-            eps0 = r[k, j] - theta @ phi                                  # eq. 40
-            s = phi @ P @ phi
-            h = P @ phi
-            gain = h / (lam + s)
-            theta_new = theta + gain * eps0                               # eq. 38
-            P = (P - np.outer(h, h) / (lam + s)) / lam                    # eq. 39
-            over = np.diag(P) > cap                                       # wind-up guard
-            if over.any():
-                w = np.where(over, np.sqrt(cap / np.where(over, np.diag(P), 1.0)), 1.0)
-                P = P * np.outer(w, w)                                    # W P W
-                capped[j] += 1
-            tv = theta_new if cfg.estimate == "a_posteriori" else theta
-            theta = theta_new
-            res["eps"][k, j] = eps0
-            res["rt"][k, j] = r[k, j] - phi[:eta] @ tv[:eta]
-            res["vd"][k, j] = phi[eta:] @ tv[eta:]
-        thetas[j] = theta
-    from scipy import signal  # the reference only (tests)
-
-    res["rf"] = signal.lfilter([1 - rates.a1], [1, -rates.a1], res["rt"], axis=0)
-    res["vf"] = signal.lfilter([1 - rates.a2], [1, -rates.a2], res["vd"], axis=0)
-    for name, src, nn in (("rr", "rf", rates.n1), ("vr", "vf", rates.n2)):
-        padded = np.vstack([np.zeros((nn, J)), res[src]])
-        for k in range(n):
-            window = padded[k : k + nn]        # samples k-nn .. k-1
-            res[name][k] = np.sqrt(np.sum(window**2, axis=0) / nn)
-    res["thr"] = np.abs(vs + res["vr"])
-    dec = res["rr"] > res["thr"]
-    return AdaptiveResult(
-        res["rt"], res["vd"], res["rf"], res["vf"], res["rr"], res["vr"], res["thr"], dec,
-        res["eps"], thetas, np.zeros(J, dtype=np.int64), rates=rates, nu=nu, eta=eta,
-        n_capped=capped,
-    )
 
 
 # ----------------------------------------------------------------------------- scale guard

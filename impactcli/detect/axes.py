@@ -19,15 +19,14 @@ import dataclasses
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numba as nb
 import numpy as np
 
+from ..config import AdaptiveConfig
+from .rates import Rates, resolve_rates
 from .rls import FASTMATH, max_diag_of, rls_update_inplace
-
-if TYPE_CHECKING:
-    from .adaptive import EvaluatorState
 
 #: The kernel's (n,) outputs per axis, in :data:`impactcli.detect.adaptive.SIGNALS` order.
 N_OUTPUTS = 9
@@ -159,6 +158,83 @@ def _shift_in(lag: np.ndarray, x: np.ndarray, n: int) -> None:
         for d in range(n):
             lag[L - n + d] = x[d]
 
+
+
+# ----------------------------------------------------------------------------- state
+@dataclass(frozen=True)
+class EvaluatorState:
+    """Everything the evaluator carries from sample k0 − 1 to k0 (k0 = ``n_samples``), per
+    axis: exactly what the recursion reads back, stored in float64 as the next iteration
+    reads it, so any split of a log into chunks gives the same bits (docs/method.md §3,
+    "Chunks and state"). Arrays have the axis first;
+    :func:`impactcli.detect.adaptive.evaluate_chunk` never modifies a state it is given.
+
+    Attributes:
+        theta: (J, nu) theta(k0-1) (eq. 38).
+        P: (J, nu, nu) P(k0-1), LOWER triangle authoritative (:mod:`impactcli.detect.rls`).
+        r_lags: (J, eta) r_j(k0-eta) .. r_j(k0-1), oldest first (phi's first block, eq. 51).
+        v_lags: (J, p) v_dyn_j(k0-p) .. v_dyn_j(k0-1), oldest first (pseudo-linear block).
+        u_lags: (m, rho_max, J) u_{i,l}(k0-rho_max) .. u_{i,l}(k0-1), oldest first; shared
+            by all axes (every axis's inputs enter every regression, eq. 34).
+        filters: (J, 2) F1 and F2 outputs r_f(k0-1), v_f(k0-1) (Fig. 11).
+        ring_r: (J, N1) r_f² of the last N1 samples (eq. 41), slot ``k % N1``.
+        ring_v: (J, N2) v_f² of the last N2 samples, slot ``k % N2``.
+        sums: (J, 2) the running sums of ring_r and ring_v as the kernel keeps them.
+        n_samples: samples absorbed so far (k0); fixes the ring positions.
+        n_resets, n_capped: (J,) covariance resets and wind-up-guard steps so far.
+        cfg, rates: the settings the state was made for (a chunk must use the same).
+    """
+
+    theta: np.ndarray
+    P: np.ndarray
+    r_lags: np.ndarray
+    v_lags: np.ndarray
+    u_lags: np.ndarray
+    filters: np.ndarray
+    ring_r: np.ndarray
+    ring_v: np.ndarray
+    sums: np.ndarray
+    n_samples: int
+    n_resets: np.ndarray
+    n_capped: np.ndarray
+    cfg: AdaptiveConfig
+    rates: Rates
+
+    @property
+    def n_joints(self) -> int:
+        return int(self.theta.shape[0])
+
+    @property
+    def nu(self) -> int:
+        return int(self.theta.shape[1])
+
+    @classmethod
+    def initial(cls, n_joints: int, cfg: AdaptiveConfig | None = None,
+                sample_rate_hz: float = 250.0) -> EvaluatorState:
+        """The state before the first sample: theta = theta0, P = p0 I (Table I), every
+        past value 0 (samples before the log start are 0), filters at rest, empty windows."""
+        cfg = cfg or AdaptiveConfig()
+        J = int(n_joints)
+        nu = cfg.n_params(J)
+        rates = resolve_rates(cfg, sample_rate_hz)
+        P = np.zeros((J, nu, nu))
+        idx = np.arange(nu)
+        P[:, idx, idx] = cfg.p0
+        return cls(
+            theta=np.full((J, nu), float(cfg.theta0)), P=P,
+            r_lags=np.zeros((J, cfg.eta)), v_lags=np.zeros((J, cfg.p)),
+            u_lags=np.zeros((len(cfg.rho), max(cfg.rho, default=0), J)),
+            filters=np.zeros((J, 2)), ring_r=np.zeros((J, rates.n1)),
+            ring_v=np.zeros((J, rates.n2)), sums=np.zeros((J, 2)), n_samples=0,
+            n_resets=np.zeros(J, dtype=np.int64), n_capped=np.zeros(J, dtype=np.int64),
+            cfg=cfg, rates=rates,
+        )
+
+    def copy(self) -> EvaluatorState:
+        """A deep copy (the arrays are copied; cfg and rates are immutable)."""
+        return dataclasses.replace(self, **{
+            f.name: getattr(self, f.name).copy() for f in dataclasses.fields(self)
+            if isinstance(getattr(self, f.name), np.ndarray)})
 
 
 # ----------------------------------------------------------------------------- threads

@@ -1,37 +1,21 @@
-"""Per-joint thresholds from collision-free logs (method.md §5b, §8).
+"""Per-joint thresholds from collision-free logs (docs/method.md §5b, "Thresholds" and
+"The uncalibrated rule"; §8).
 
-The statistic each threshold must beat (after warm-up):
-- adaptive: ``r_rms − v_rms`` (eq. 42 fires iff r_rms > v_stat + v_rms, for v_stat ≥ 0),
-  so v_stat must exceed its maximum;
-- static_loading: ``|LP(r)|``;  static_baseline: ``|r|``.
+The statistic each threshold must beat after warm-up: adaptive ``r_rms − v_rms`` (eq. 42
+fires iff r_rms > v_stat + v_rms, for v_stat ≥ 0); static_loading ``|LP(r)|``;
+static_baseline ``|r|``. Maxima are floored at 0, thresholds at ``MIN_THRESHOLD``. Rules:
 
-Rules (statistic maxima are floored at 0: a statistic that never rose above 0 needs no
-threshold above 0; thresholds are then floored at ``MIN_THRESHOLD``):
-- **leave-one-out** (≥ 2 logs), per joint: with M_l the maximum of log l,
-  ``m = max_l M_l / max_{o≠l} M_o`` — the smallest margin such that each log, left out of
-  the maximum, stays silent (m × max of the others ≥ its own maximum). Floored at
-  ``min_margin`` (1.05) and capped at ``max_margin`` (3.0, with an ImpactWarning; the
-  calibration is then flagged weak). Threshold = m × max over all logs.
-- **fixed-single-log** (1 log): threshold = 1.5 × its maximum; flagged weak.
-- **A robot's history** (:func:`segment_bounds`, :func:`suspect_blocks`): each log's
-  statistic after warm-up is cut into segments of ``SEGMENT_S`` (30 s) when it is at least
-  two segments long, and leave-one-out runs over segments, so one long collision-free log
-  gets a leave-one-out margin too. Labelled contacts beside a calibration log are cut out
-  of its statistic; in a log without labels, a 1 s block whose maximum exceeds
-  ``SUSPECT_RATIO`` = 20 × the median of all calibration blocks' maxima
-  (:func:`suspect_blocks`) alone would set a product detector's threshold: it is reported
-  as a likely contact and left out.
-- **uncalibrated-block-quantile** (a log with no config, formats.md): the statistic after
-  warm-up is cut into 1 s blocks (shorter when that gives fewer than 10 blocks); threshold
-  = 3 × the 0.9-quantile of the block maxima. A contact lifts the maxima of the few blocks
-  it touches, so contacts filling up to 10 % of the log's seconds do not set their own
-  threshold; a collision-free log's motion peaks, which recur from second to second, do.
-  The margin 3 is 1.25 × the largest margin that 30 simulated collision-free logs
-  (2 arms × 5 motion families × 3 seeds) needed, rounded; held out, 50 other simulated
-  logs, 20 ten-minute ones and the real KUKA LWR4 recording needed at most 2.61
-  (``python tests/benchmarks/uncalibrated_rule.py``). Sensitivity is the price: an
-  uncalibrated run finds contacts that stand out ≥ 3× above the log's own motion peaks,
-  far fewer than a calibrated run. The run is marked uncalibrated.
+- **leave-one-out** (≥ 2 logs or segments): the smallest margin m such that each one, left
+  out of the maximum, stays silent; floored at ``min_margin``, capped at ``max_margin``
+  (warned, flagged weak); threshold = m × the maximum over all.
+- **fixed-single-log** (1 log): 1.5 × its maximum, flagged weak.
+- **a robot's history** (:func:`segment_bounds`, :func:`suspect_blocks`): long logs cut
+  into ``SEGMENT_S`` segments; labelled contacts cut out; in a log without labels, a 1 s
+  block above ``SUSPECT_RATIO`` × the median of all blocks' maxima left out as a likely
+  contact.
+- **uncalibrated-block-quantile** (a log with no config): 3 × the 0.9-quantile of the
+  statistic's 1 s block maxima after warm-up (:class:`BlockMaxima` over chunks); the run is
+  marked uncalibrated.
 """
 
 from __future__ import annotations
@@ -234,13 +218,8 @@ SEGMENT_S = 30.0
 #: blocks' maxima alone would set that threshold: it is reported as a likely contact in the
 #: "free" logs and left out (with ``SUSPECT_GUARD_S`` around it). The median, not a higher
 #: quantile, because a "free" log full of contacts may have them in a third of its seconds.
-#: Measured on the sample logs (``sample_logs/``), pooled as the committed calibrations
-#: pool them: collision-free blocks reach 4.7× the pooled median on the ASSIST-like arm and
-#: 14.9× on the heavy arm (its point-to-point moves between dwells); contact blocks
-#: 10–300× (static_loading; the ASSIST-like impacts, pushes and clamps logs). 20 keeps
-#: every collision-free block seen; contacts that stand out less are not caught by this
-#: rule (labels are). Not validated on held-out logs. Logs with labels beside them are
-#: not searched: their labels say where the contacts are.
+#: Logs with labels beside them are not searched: their labels say where the contacts are.
+#: The ratio's measurement: docs/method.md §5b, "Thresholds".
 SUSPECT_RATIO = 20.0
 SUSPECT_BLOCK_S = 1.0
 SUSPECT_QUANTILE = 0.5

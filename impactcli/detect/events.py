@@ -1,4 +1,4 @@
-"""From per-sample decisions to detection events (formats.md, "Detection timeline").
+"""From per-sample decisions to detection events (docs/formats.md, "Detection timeline").
 
 Rules:
 - decisions are ORed over joints; a burst is a maximal run of samples whose OR is 1;

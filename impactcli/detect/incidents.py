@@ -1,47 +1,22 @@
-"""Incidents: one per physical contact — when, where, how hard, what kind (formats.md,
-"Detection timeline", ``incidents``).
+"""Incidents: one per physical contact — when, where, how hard, what kind
+(docs/formats.md, "Detection timeline"; the rules and their measured accuracy:
+docs/incidents.md).
 
-**When.** The product's detectors (adaptive, static_loading) fire per joint and per burst;
-one contact gives several events (the adaptive detector at the onset and the release,
-static_loading while it presses). Every product event belongs to exactly one incident:
-events that overlap, or follow each other within ``events.merge_gap_s``, form one
-(:func:`group_events`). An incident starts at its first product alarm.
+- **When** (:func:`group_events`): every product event (adaptive, static_loading) belongs to
+  exactly one incident; events that overlap or follow each other within
+  ``events.merge_gap_s`` form one. An incident starts at its first product alarm.
+- **Where** (:func:`isolate`): a contact on link i exerts torque on joints 1..i only
+  (r = J_cᵀ F), so the link is the most distal joint whose residual is significant during
+  the incident (its detectors fired, or see :data:`WEAK_FRACTION`); links are numbered
+  from the base along the robot's own chain; None when no joint is significant.
+- **How hard**: with kinematics, the force at the isolated link's end that best explains
+  the residuals of joints 1..i through the Jacobian, in least squares (small singular
+  values dropped); without, None and the peak residual torques.
+- **What kind** (:func:`contact_type`, ISO/TS 15066): quasi-static when the arm kept
+  pressing while it stood nearly still, or pressed for :data:`QS_MIN_PRESS_S` or longer;
+  transient otherwise; unknown when the incident runs to the end of the log.
 
-**Where — isolation.** A contact on link i exerts torque on joints 1..i only (the
-Jacobian of a point on link i has zero columns beyond i, paper eq. 8 context: r = J_c^T F);
-this holds for the joint-space residual of any generator. So the incident's link is the
-most distal joint whose residual is *significant* during the incident
-(:func:`isolate`): a joint is significant when its own detectors fired (measured against
-its own noise through its calibrated threshold), or when its static-loading statistic is
-at least half its threshold and a quarter of the inner joints' (see
-:data:`WEAK_FRACTION`). Links are
-numbered from the base along the robot's own chain (a joint left out of detection keeps
-its number and can never be significant); ``None`` when no joint is significant.
-
-**How hard — identification.** With kinematics, the contact force from the residual
-through the Jacobian of the isolated link: r_{1..i} = J_{1..i}(q)^T F. The contact point
-along the link is unknown; the tool assumes the link's *end* (the next joint, or the tool
-for the last link) and takes the force F there — a 2-D force in the plane (planar arms), a
-3-D force (URDF) — that best explains the residuals of joints 1..i in least squares (the
-minimum-norm one when joints are fewer than the force's components). On link 1 that is one
-equation: the force normal to the link at its end, |F| = |r_1| / L_1. ``force_n`` is the
-largest |F| over the samples where those residuals are at least half their peak (the
-Jacobian's singular values below a tenth of its largest are dropped: near a singular
-posture the unobservable part of the force is left out, not blown up); ``force_method``
-says which of these was used. A contact
-nearer the joint than the link's end is *under*-estimated by the lever-arm ratio. Without
-kinematics ``force_n`` is None and the peak residual torques are the answer.
-
-**What kind — contact type** (ISO/TS 15066: *transient*, a collision the body can recoil
-from, vs *quasi-static*, clamping or pinching against a constraint; the paper's Fig. 10
-distinction between impacts and slow loading) — :func:`contact_type`: quasi-static when the
-arm kept pressing while it stood (nearly) still — the isolated link's joints moved less
-than :data:`STILL_RAD_S` for at least :data:`QS_MIN_STILL_S` while the static-loading
-statistic stayed above its threshold — or when the pressing lasted :data:`QS_MIN_PRESS_S`
-or longer (a sustained load: the body cannot recoil); transient otherwise; ``unknown``
-when the incident runs to the end of the log (how long it pressed cannot be seen).
-
-Pure functions of arrays; :func:`impactcli.pipeline.analyze` applies them.
+Pure functions of arrays; the replay applies them to each stretch of the log near an alarm.
 """
 
 from __future__ import annotations
@@ -61,11 +36,8 @@ PRODUCT_DETECTORS: tuple[str, ...] = ("adaptive", "static_loading")
 #: COUPLING_FRACTION of the largest ratio among the joints nearer the base: a contact's
 #: torque on a distal joint may stay under its threshold (a light contact, a lever arm near
 #: the joint's axis), while a contact on an inner link leaks onto the outer joints through
-#: the dynamic coupling of the arm by a small share only. Measured on simulated arms
-#: (``tests/benchmarks/incident_quality.py``, robot seeds 301–302, which chose these
-#: values): pushes on link 1 of the ASSIST-like arm lift the elbow to 0.18–0.85 × vL, ≤ 0.11
-#: of the shoulder's ratio; contacts on link 3 of the heavy arm lift its wrist to
-#: 0.29–0.95 × vL, ≥ 0.21 of the inner joints' when under threshold.
+#: the dynamic coupling of the arm by a small share only (the values' measurement:
+#: docs/incidents.md, "The rules").
 WEAK_FRACTION = 0.5
 COUPLING_FRACTION = 0.25
 #: Two product events whose gap the static-loading statistic bridges at this fraction of
@@ -90,7 +62,8 @@ QS_MIN_PRESS_S = 2.5
 
 @dataclass(frozen=True)
 class Incident:
-    """One physical contact as the product sees it (formats.md ``incidents`` item)."""
+    """One physical contact as the product sees it (docs/formats.md, "Detection timeline":
+    an item of ``incidents``)."""
 
     t_start: float
     t_end: float
@@ -178,8 +151,9 @@ JacobianFn = Callable[[np.ndarray, int], np.ndarray | None]
 
 
 def planar_jacobian(link_lengths: Sequence[float]) -> JacobianFn:
-    """(2, i) Jacobian of the end of link i of a planar serial arm (formats.md: the first
-    angle from the horizontal, each next one relative to the previous link)."""
+    """(2, i) Jacobian of the end of link i of a planar serial arm: the first angle from the
+    horizontal, each next one relative to the previous link (docs/formats.md,
+    "Robot description")."""
     ll = np.asarray(link_lengths, dtype=np.float64)
 
     def jac(q: np.ndarray, i: int) -> np.ndarray | None:

@@ -1,4 +1,4 @@
-"""Warm-up of the adaptive evaluator (method.md §4 "zone I", §5b).
+"""Warm-up of the adaptive evaluator (docs/method.md §4: Fig. 15's "zone I"; §5b).
 
 Per joint j, the warm-up lasts from the first sample until BOTH
   (a) the RLS has seen ``min_s`` seconds (k ≥ k_min = ceil(min_s · fs)), and

@@ -1,4 +1,4 @@
-"""The rough rigid model (method.md §2): structures, derivatives, identification, residuals.
+"""The rough rigid model (docs/method.md §2): structures, derivatives, identification, residuals.
 
 Pure maths: nothing here prints; the only file read is the URDF a robot description
 points at (and :func:`read_model` / :func:`write_model`, the model file's edge).
@@ -10,7 +10,8 @@ from .derivatives import (
     zero_phase_derivatives,
     zero_phase_lowpass,
 )
-from .identify import IdentifyOptions, default_kind, identify, identify_many, identify_signals
+from .identify import default_kind, identify, identify_many, identify_signals
+from .identify_options import IdentifyOptions
 from .residual import ResidualOptions, ResidualResult, compute_residual, momentum_observer
 from .rigid import RigidModel, read_model, write_model
 from .structures import KINDS

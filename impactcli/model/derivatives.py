@@ -1,4 +1,4 @@
-"""Velocities and accelerations from encoder positions (method.md §1, §5b, §8).
+"""Velocities and accelerations from encoder positions (docs/method.md §1, §5b, §8).
 
 Two estimators, for two purposes:
 
@@ -12,10 +12,10 @@ Two estimators, for two purposes:
   filtered position G q, velocity s G q and acceleration s² G q — no look-ahead, one
   filter, consistent signals. Discretised by the bilinear transform prewarped at the
   cut-off. :func:`causal_lowpass` is the same G(s), for passing the measured torque through
-  the filter the model estimate sees (method.md §8: r = tau_hat − G tau, eq. 7–8).
+  the filter the model estimate sees (docs/method.md §8: r = tau_hat − G tau, eq. 7–8).
 
 Cut-offs are in Hz and are clipped below 0.4 × the sample rate with an ImpactWarning
-(method.md §5b). Defaults (in the option classes) suit 100 Hz – 1 kHz logs.
+(docs/method.md §5b). Defaults (in the option classes) suit 100 Hz – 1 kHz logs.
 Filters start in steady state at the first sample (no start-up transient).
 """
 
@@ -30,7 +30,7 @@ from ..causal import Carry
 from ..errors import ImpactWarning, ModelError
 from ..iir import bilinear
 
-#: Largest cut-off allowed, as a fraction of the sample rate (method.md §5b).
+#: Largest cut-off allowed, as a fraction of the sample rate (docs/method.md §5b).
 MAX_CUTOFF_FRACTION = 0.4
 
 
@@ -109,7 +109,7 @@ def zero_phase_derivatives(
     return qf, qd, qdd
 
 
-def _svf_coefficients(dt: float, cutoff_hz: float) -> list[tuple[np.ndarray, np.ndarray]]:
+def svf_coefficients(dt: float, cutoff_hz: float) -> list[tuple[np.ndarray, np.ndarray]]:
     """Discrete (b, a) of G, sG, s²G for the 2nd-order Butterworth state-variable filter
     (the cut-off clipped, and warned about, on every call; the design cached)."""
     fs = 1.0 / dt
@@ -119,7 +119,7 @@ def _svf_coefficients(dt: float, cutoff_hz: float) -> list[tuple[np.ndarray, np.
 
 @functools.lru_cache(maxsize=64)
 def _svf_design(fs: float, wc: float) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
-    """:func:`_svf_coefficients` for a clipped cut-off: a bilinear design costs ~2 ms and a
+    """:func:`svf_coefficients` for a clipped cut-off: a bilinear design costs ~2 ms and a
     streamed replay asks for it several times per chunk (read-only arrays: shared)."""
     w = 2.0 * fs * np.tan(np.pi * wc / fs)  # prewarped [rad/s]
     den = np.array([1.0, np.sqrt(2.0) * w, w * w])
@@ -162,7 +162,7 @@ def causal_derivatives(
     if not dt > 0:
         raise ModelError(f"sample period must be positive, got {dt!r}")
     q2, flat = _as_2d(q)
-    (b0, a0), (b1, a1), (b2, a2) = _svf_coefficients(dt, cutoff_hz)
+    (b0, a0), (b1, a1), (b2, a2) = svf_coefficients(dt, cutoff_hz)
     qf = _lfilter_steady(b0, a0, q2, carry, f"{name}.G")
     qd = _lfilter_steady(b1, a1, q2, carry, f"{name}.sG")
     qdd = _lfilter_steady(b2, a2, q2, carry, f"{name}.s2G")
@@ -184,7 +184,7 @@ def causal_lowpass(x: np.ndarray, dt: float, cutoff_hz: float, carry: Carry | No
     if not dt > 0:
         raise ModelError(f"sample period must be positive, got {dt!r}")
     x2, flat = _as_2d(x)
-    b, a = _svf_coefficients(dt, cutoff_hz)[0]
+    b, a = svf_coefficients(dt, cutoff_hz)[0]
     y = _lfilter_steady(b, a, x2, carry, f"{name}.G")
     return y[:, 0] if flat else y
 

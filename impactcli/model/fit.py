@@ -1,5 +1,5 @@
-"""Robust least squares of the identification (method.md §2; :mod:`impactcli.model.identify`
-steps 3–4): Huber then Tukey bisquare reweighting with a robust scale per joint, the
+"""Robust least squares of the identification (docs/method.md §2, "Identification", steps
+3–4): Huber then Tukey bisquare reweighting with a robust scale per joint, the
 coupled model's ridge on its cross terms chosen per joint by blocked cross-validation, and
 the per-joint fit statistics. Pure maths on a stacked regressor (N, J, P).
 """
@@ -8,12 +8,11 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Collection, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from .identify import IdentifyOptions
+from .identify_options import IdentifyOptions
 
 
 def _robust_scale(res: np.ndarray, floor: np.ndarray) -> np.ndarray:

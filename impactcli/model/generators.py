@@ -1,25 +1,16 @@
-"""Residual generators per joint, including the controller's own channels (formats.md,
-"Model and detector config"; method.md §2).
+"""Residual generators per joint, including the controller's own channels
+(docs/formats.md, "Model and detector config"; docs/method.md §2).
 
 Four generators make the residual r ≈ tau_ext (eq. 8) that every detector evaluates:
-
-* ``inverse_dynamics`` (eq. 7–8) and ``momentum_observer`` (De Luca): the tool's own
-  identified rigid model (:mod:`impactcli.model.residual`).
-* ``logged_external`` and ``logged_model``: the controller's own channels — its
-  external-torque estimate ``torque_ext``, or its model torque ``torque_model`` for the
-  measured motion. A controller's model is not the robot: its errors (inertia, gravity,
-  friction, offsets) show in free motion as a torque that depends on the state, and are
-  linear in the rigid model's parameters exactly as the tool's own model is (eq. 10: the
-  error of a rigid model is Y (θ_nominal − θ_true)). So by default
-  (``residual.logged_correction``) the tool identifies, with its own model structure
-  (decoupled, planar or URDF) and the same robust fit on collision-free logs, what the
-  channel leaves out, and removes it: the identification target per joint is
-  tau − τ_m (``logged_model``) or −torque_ext (``logged_external``) instead of tau, and the
-  residual is the inverse-dynamics one on that target,
-  r = Ŷθ − G(target) — i.e. r = G τ_m + Ŷθ − G tau, or r = G torque_ext + Ŷθ. Both
-  estimate the external torque (either sign convention: detectors use magnitudes). With
-  ``logged_correction = false`` the channels are taken plain: r = torque_ext as logged, or
-  r = G τ_m − G tau.
+``inverse_dynamics`` (eq. 7–8) and ``momentum_observer`` (De Luca) from the tool's own
+identified rigid model (:mod:`impactcli.model.residual`); ``logged_external`` and
+``logged_model`` from the controller's own channels ``torque_ext`` / ``torque_model``. A
+controller's model error is linear in the rigid model's parameters (eq. 10), so by default
+(``residual.logged_correction``) the tool identifies, with its own model structure, what the
+channel leaves out and removes it: the identification target is tau − τ_m
+(``logged_model``) or −torque_ext (``logged_external``), and r = Ŷθ − G(target). Without
+the correction the channels are taken plain (r = torque_ext, or r = G τ_m − G tau). Why:
+docs/controller_channels.md, "Residual generators: what each assumes".
 
 ``auto`` picks per joint the best the log offers: ``logged_external``, else ``logged_model``,
 else the tool's own model (``inverse_dynamics``). :func:`choose_generators` says which and

@@ -1,54 +1,15 @@
-"""Identification of the rough rigid model by robust least squares (method.md §2, eq. 7).
+"""Identification of the rough rigid model by robust least squares (docs/method.md §2, eq. 7).
 
 Stack tau(k) = Y(q(k), q'(k), q''(k)) theta over samples and joints and solve for theta:
-
-1. Derivatives: zero-phase Butterworth on the positions, central differences, and the
-   same zero-phase filter on the torques (identification is offline, method.md §1).
-   The first and last 1/cut-off seconds are dropped (filter edges).
-2. Excitation: the stacked base regressor is column-normalised and factorised by pivoted
-   QR; a parameter whose pivot is below ``drop_tolerance`` of the largest is not excited by
-   the log — it is fixed at 0 with an ImpactWarning naming it. The condition number of the
-   remaining (normalised) regressor is reported and warned about above
-   ``condition_warn``. For ``coupled`` only its unpenalised (decoupled) terms are checked
-   and counted: its cross terms are often nearly collinear, which the ridge penalty
-   (step 3) takes care of.
-3. Robust fit: rows are normalised per joint by a robust residual scale (1.4826 × MAD);
-   iteratively reweighted least squares with Huber weights (k = 1.345) to convergence,
-   then, by default, Tukey bisquare weights (c = 4.685, scale frozen) so that the few
-   samples of a contact a user's log may contain get zero weight instead of bending the
-   model.
-   ``coupled`` adds a ridge penalty on its cross terms (every term but the decoupled
-   model's: the own-joint inertia, gravity-like, friction and offset terms, which are not
-   penalised, so a large penalty gives back the decoupled model), on the column-normalised
-   normal equations (the penalty is relative to each column's weighted energy: scale
-   free). The penalty is chosen per joint (each joint's row has its own parameters) by
-   blocked cross-validation on the fitted part: ``ridge_folds`` contiguous stretches, each
-   left out in turn with a margin of the filter's memory (1/cut-off) on both sides, the
-   others fitted, for each penalty of ``ridge_lambdas`` and "infinite" (the cross terms
-   off); by default the strongest penalty whose left-out error is within one standard
-   error of the least wins (``ridge_rule``). Contiguous stretches judge the model as the
-   held-back part does — on motion it did not see; generalized cross-validation, which
-   assumes independent rows, chose the smallest penalty on every log tried and
-   extrapolated badly (docs/models.md). The choice is made with equal weights, the robust
-   fit run with it, the choice made again with the robust weights and, if it changed, the
-   robust fit run again.
-4. Fit statistics per joint: RMS error [N·m], relative to the joint's torque RMS and to
-   its torque range, on the fitted part and — when the log is long enough — on a held-back
-   last part (``holdout_fraction``, at least ``min_holdout_s``) that the fit never saw.
-   A joint that stands still (slower than ``still_speed_rad_s``) in more than half of the
-   held-back part gets no relative held-back error (``still``): at standstill friction is
-   stiction, any torque within it, and the error would judge that, not the model.
-5. Fit sanity, warned about (ImpactWarning, one line per joint) and listed in
-   ``fit["sanity"]``: a negative inertia-like parameter (decoupled and coupled
-   ``inertia``, planar ``ZZR`` and ``Ia``, urdf the diagonal of M(q) at a few poses of the
-   log) whose term's RMS exceeds both the fit's robust residual scale (what the fit leaves
-   unexplained: a smaller term's sign is not determined by the log) and ``sanity_share``
-   of the joint's torque RMS, or negative friction — fv q' + fc tanh(q'/v_s) pushing the
-   joint along its motion on average over the log (fv and fc are judged together: on
-   near-constant speeds they trade against each other), with an RMS above the same
-   floor — typically a torque or current whose sign is wrong; a joint predicted worse than
-   zero torque on the held-back part (RMS error >= the torque's RMS); joints standing
-   still in the held-back part.
+zero-phase derivatives and the same filter on torques and regressor columns (offline);
+unexcited parameters fixed at 0 by pivoted QR; Huber then Tukey bisquare reweighting, so
+a contact in the log does not bend the model (:mod:`impactcli.model.fit`; ``coupled`` adds a
+ridge on its cross terms chosen by blocked cross-validation); fit statistics on the fitted
+part and a held-back last part; fit-sanity warnings (:mod:`impactcli.model.sanity`). Each
+step, and why: docs/method.md §2, "Identification". The rows are built in windows fixed by
+the sample count (:mod:`impactcli.model.rows`), so :class:`IdentifyStream` fed a log in
+chunks of any size gives the rows, and the model, of the log fed whole. Settings:
+:class:`~impactcli.model.identify_options.IdentifyOptions`.
 """
 
 from __future__ import annotations
@@ -64,107 +25,14 @@ import numpy as np
 
 from ..errors import ImpactWarning, ModelError, RobotDescriptionError
 from ..types import RobotDescription, RobotLog
+from ..urdf_helpers import urdf_joint_names
 from . import structures
 from .derivatives import clip_cutoff
 from .fit import fit_ridge, joint_stats, robust_lstsq
+from .identify_options import IdentifyOptions
 from .rigid import RigidModel
 from .rows import Rows, RowsBuilder, RowsPlan
 from .sanity import fit_sanity
-
-
-@dataclass(frozen=True)
-class IdentifyOptions:
-    """Settings of :func:`identify`.
-
-    Attributes:
-        cutoff_hz: zero-phase Butterworth cut-off for positions and torques [Hz]
-            (clipped below 0.4 × sample rate). 10 Hz suits 100 Hz – 1 kHz logs of arm motion.
-        filter_order: Butterworth order (one way; filtfilt doubles it).
-        coulomb_slope_rad_s: v_s of the smooth sign tanh(q'/v_s) [rad/s].
-            0.01 rad/s: on the simulator (true v_eps 2 mrad/s, encoder quantisation)
-            it fitted and replayed better than 0.02 and 0.05, no worse than 0.005.
-        offset: include a constant torque per joint.
-        motor_inertia: include the reflected motor inertia Ia per joint (planar, urdf).
-        filter_regressor: pass the regressor columns through the torque's zero-phase filter.
-        robust: ``bisquare`` (Huber then Tukey bisquare), ``huber`` or ``none`` (plain LS).
-        huber_k, bisquare_c: tuning constants, in robust standard deviations.
-        max_iter: iteration cap of each reweighting stage.
-        holdout_fraction: last fraction of the log held back for validation (0: none).
-        min_holdout_s: hold back only when that part lasts at least this long [s].
-        min_motion_rad: a joint whose position range is below this is "constant" [rad].
-        allow_still_joints: a constant joint is an error by default; with this, it is
-            warned about and its unexcited parameters are fixed at 0 (it keeps an offset).
-            The CLI verbs (identify, calibrate, detect) all allow still joints.
-        max_fit_samples: at most this many samples (fit + held back) enter the least
-            squares; a longer log is fitted on every k-th filtered sample (memory and
-            time stay bounded; the rows of a 10 Hz band-limited signal are correlated).
-        drop_tolerance: relative QR pivot below which a parameter is "not excited".
-        condition_warn: warn when the normalised regressor's condition number exceeds it.
-        coupled_velocity_products: the coupled model also gets q'_k q'_l terms (k <= l)
-            in every row (off by default: on the KUKA and simulated logs they made the
-            held-back error worse, docs/models.md).
-        ridge_lambdas: penalties tried for the coupled model's cross terms (relative to
-            the column energy), besides "infinite" (cross terms off).
-        ridge_folds: contiguous stretches of the blocked cross-validation that picks it.
-        ridge_rule: ``1se`` (the strongest penalty whose cross-validated error is within one
-            standard error, over the stretches, of the least — the textbook conservative
-            choice) or ``min`` (the least error). On the real KUKA and UR logs, with the
-            held-back stretch at five places, ``1se`` was better than the decoupled model
-            at all nine places; ``min`` was better on KUKA (16 % vs 19 % mean) but worse
-            than decoupled at one UR place (47 % vs 14 %) (docs/models.md).
-        coupled_max_mb: the coupled regressor (N × J × J(5J+1) numbers) is kept below this
-            many MiB by fitting on every k-th sample (like ``max_fit_samples``).
-        sanity_share: a negative inertia-like or friction parameter is warned about when
-            its term's RMS is at least this fraction of the joint's torque RMS and at
-            least the fit's robust residual scale (module doc, step 5).
-        check_sanity: run the fit-sanity checks (module doc, step 5). Off for a model of
-            what the controller's channels leave out (the logged generators' correction),
-            whose torque is a model error, not a joint's torque.
-        still_speed_rad_s: a joint slower than this stands still [rad/s]: its friction is
-            stiction, any torque within it, so no model predicts its torque there. A
-            joint that stands still in more than half of the held-back part gets no
-            relative held-back error. 0.01 rad/s: the Coulomb term's v_s.
-    """
-
-    cutoff_hz: float = 10.0
-    filter_order: int = 4
-    coulomb_slope_rad_s: float = 0.01
-    offset: bool = True
-    motor_inertia: bool = True
-    filter_regressor: bool = True
-    robust: str = "bisquare"
-    huber_k: float = 1.345
-    bisquare_c: float = 4.685
-    max_iter: int = 50
-    holdout_fraction: float = 0.2
-    min_holdout_s: float = 2.0
-    min_motion_rad: float = 1e-3
-    allow_still_joints: bool = False
-    max_fit_samples: int = 100_000
-    drop_tolerance: float = 1e-4
-    condition_warn: float = 1e3
-    coupled_velocity_products: bool = False
-    ridge_lambdas: tuple[float, ...] = tuple(float(10.0 ** (e / 2)) for e in range(-12, 3))
-    ridge_folds: int = 10
-    ridge_rule: str = "1se"
-    coupled_max_mb: float = 256.0
-    sanity_share: float = 0.02
-    check_sanity: bool = True
-    still_speed_rad_s: float = 0.01
-
-    def __post_init__(self) -> None:
-        if self.robust not in ("bisquare", "huber", "none"):
-            raise ModelError(f"robust must be bisquare, huber or none, got {self.robust!r}")
-        if not 0.0 <= self.holdout_fraction < 0.9:
-            raise ModelError(f"holdout_fraction must be in [0, 0.9), got {self.holdout_fraction}")
-        if not self.coulomb_slope_rad_s > 0:
-            raise ModelError("coulomb_slope_rad_s must be positive")
-        if not self.ridge_lambdas or not all(v > 0 for v in self.ridge_lambdas):
-            raise ModelError("ridge_lambdas must be positive numbers")
-        if self.ridge_rule not in ("1se", "min"):
-            raise ModelError(f"ridge_rule must be 1se or min, got {self.ridge_rule!r}")
-        if self.ridge_folds < 2:
-            raise ModelError(f"ridge_folds must be at least 2, got {self.ridge_folds}")
 
 
 # ------------------------------------------------------------------ helpers
@@ -241,7 +109,7 @@ def match_urdf_joints(
     """
     assert robot.kinematics is not None
     xml, label, shipped = urdf_source(robot.kinematics)
-    in_urdf = set(structures.urdf_joint_names(xml, label))
+    in_urdf = set(urdf_joint_names(xml, label))
     jm = robot.joint_map or {}
     modelled = [j for j in robot.joint_names if jm.get(j, j) in in_urdf]
     used = [j for j in modelled if j in log_joints]
@@ -627,7 +495,7 @@ def identify(
     log: RobotLog, *, robot: RobotDescription | None = None, kind: str | None = None,
     options: IdentifyOptions = IdentifyOptions(),
 ) -> RigidModel:
-    """Identify a rough rigid model from a log (method.md §2; eq. 7).
+    """Identify a rough rigid model from a log (docs/method.md §2; eq. 7).
 
     Positions are smoothed and differentiated without phase lag; the torque and — with
     ``options.filter_regressor`` (default) — every regressor column pass through the same

@@ -1,5 +1,5 @@
-"""Kinematics the incidents need: the Jacobian of a link's end point (formats.md,
-"incidents": the force at the isolated link). Planar arms: :func:`impactcli.detect.incidents.
+"""Kinematics the incidents need: the Jacobian of a link's end point (docs/incidents.md,
+"The rules": the force at the isolated link). Planar arms: :func:`impactcli.detect.incidents.
 planar_jacobian`; URDF arms (Pinocchio, the ``urdf`` extra): :func:`urdf_link_end_jacobian`.
 """
 
@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from .structures import _pin_model, _pinocchio, _urdf_joints
+from ..urdf_helpers import pinocchio, reduced_model, urdf_joint_order
 
 
 def urdf_link_end_jacobian(
@@ -21,9 +21,9 @@ def urdf_link_end_jacobian(
     estimate of :mod:`impactcli.detect.incidents`. ``joints``: the model's (log) joints in
     chain order. Linear velocity of a point p: v + ω × p from Pinocchio's world-frame joint
     Jacobians."""
-    pin = _pinocchio()
-    ujoints = _urdf_joints(joints, structure)
-    model = _pin_model(structure["urdf_xml"], ujoints, structure.get("urdf_path", "URDF"))
+    pin = pinocchio()
+    ujoints = urdf_joint_order(joints, structure)
+    model = reduced_model(structure["urdf_xml"], ujoints, structure.get("urdf_path", "URDF"))
     data = model.createData()
     ids = [model.getJointId(j) for j in ujoints]
     idx_v = [model.joints[i].idx_v for i in ids]

@@ -1,4 +1,4 @@
-"""Residual generation, causal (method.md §1, §2, §8; paper eq. 7–8).
+"""Residual generation, causal (docs/method.md §1, §2, §8; paper eq. 7–8).
 
 Two generators, both causal (sample k uses samples 0..k only), both estimating the external
 torque with the same sign: with M q'' + n(q, q') = tau + tau_ext, r ≈ tau_ext.
@@ -6,7 +6,7 @@ torque with the same sign: with M q'' + n(q, q') = tau + tau_ext, r ≈ tau_ext.
 * ``inverse_dynamics`` (the paper's, eq. 7–8): r = tau_hat − G tau, where
   tau_hat = Y(G q, sG q, s²G q) theta is the model torque from the causal state-variable
   filter G(s) of :func:`causal_derivatives`, and the measured torque passes through the
-  same G (method.md §8: consistent filtering lowers the residual's noise floor 2–5×);
+  same G (docs/method.md §8: consistent filtering lowers the residual's noise floor 2–5×);
   ``filter_torque=False`` uses the raw torque instead.
 * ``momentum_observer`` (De Luca et al.): with the generalized momentum p = M(q) q',
   r(k) = K [ p(k) − p(0) − Σ_{i<k} (tau(i) − n(i) + Ṁq'(i) + r(i)) dt ], i.e. dr/dt =
@@ -31,11 +31,11 @@ from ..errors import ModelError
 from ..types import RobotLog
 from .derivatives import (
     MAX_CUTOFF_FRACTION,
-    _svf_coefficients,
     causal_derivatives,
     causal_lowpass,
     clip_cutoff,
     first_order_lowpass,
+    svf_coefficients,
 )
 from .rigid import RigidModel
 
@@ -48,7 +48,7 @@ class ResidualOptions:
 
     Attributes:
         cutoff_hz: cut-off of the causal derivative filter G [Hz] (clipped below 0.4 fs).
-        filter_torque: pass the measured torque through the same G (method.md §8; default).
+        filter_torque: pass the measured torque through the same G (docs/method.md §8; default).
         generator: ``inverse_dynamics`` (eq. 7–8) or ``momentum_observer`` (De Luca).
         observer_gain: K of the momentum observer [1/s] (bandwidth K / 2π Hz); K × Ts < 1.
         coulomb_through_filter: when the torque is filtered, compute the Coulomb term
@@ -116,7 +116,7 @@ def causal_velocity(dt: float, q: np.ndarray, cutoff_hz: float, carry: Carry | N
     and values). The Coulomb correction and the replay's joint speed read only the
     velocity; the position and acceleration filters they also ran were unused (two of
     the residual's seven (n, J) filters)."""
-    b, a = _svf_coefficients(dt, cutoff_hz)[1]
+    b, a = svf_coefficients(dt, cutoff_hz)[1]
     return (carry if carry is not None else Carry()).lfilter(
         f"{name}.sG", b, a, np.asarray(q, dtype=np.float64), "steady")
 

@@ -1,4 +1,4 @@
-"""The rough rigid model (method.md §2, eq. 7–8): tau_hat = Y(q, q', q'') theta, and its file.
+"""The rough rigid model (docs/method.md §2, eq. 7–8): tau_hat = Y(q, q', q'') theta, and its file.
 
 The model file (``schemas/model.schema.json``) holds the structure, the parameter names and
 values, the robot description used, the filter settings, the fit statistics, the sha256 of
@@ -178,7 +178,7 @@ def _jsonable(x: Any) -> Any:  # noqa: PLR0911 (one return per JSON type)
 
 def write_model(model: RigidModel, path: str | os.PathLike[str]) -> None:
     """Write ``model`` as indented JSON, atomically."""
-    from .._fs import atomic_write_text
+    from ..files import atomic_write_text
 
     atomic_write_text(path, json.dumps(model.to_dict(), indent=2, allow_nan=False) + "\n")
 

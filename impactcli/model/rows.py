@@ -1,6 +1,6 @@
 """The identification's filtered regressor rows, from a log read whole or in chunks.
 
-Identification (:mod:`impactcli.model.identify`, method.md §2) smooths positions and
+Identification (:mod:`impactcli.model.identify`, docs/method.md §2) smooths positions and
 torques without phase lag, differentiates, decimates, and lays out regressor rows at a few
 hundred thousand samples at most. All of it is local in time — a zero-phase filter's
 output at a sample depends on the samples around it, with a weight that decays as the
@@ -18,10 +18,8 @@ The windows are fixed by the sample count, not by how the log arrives, so
 :class:`RowsBuilder` fed one whole log or the same log in chunks of any size gives the
 same rows bit for bit (one implementation: :func:`impactcli.model.identify.identify` feeds
 it the whole log, the streamed detection its chunks) — and holds at most two windows and
-the rows it keeps, whatever the log's length. Against a filter run over the whole log at
-once (the release before), a window's margin leaves a difference of the order of 1e-20 of
-the signal, below the rounding of the arithmetic; a log shorter than one window is
-filtered exactly as before.
+the rows it keeps, whatever the log's length (docs/method.md §2, "Identification in
+windows").
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Fit sanity of an identified model (:mod:`impactcli.model.identify` step 5): negative
+"""Fit sanity of an identified model (docs/method.md §2, "Fit sanity"): negative
 inertia-like or friction parameters whose terms matter, joints predicted worse than zero
 torque on the held-back part, joints standing still there — each an ImpactWarning and a
 line of ``fit["sanity"]``.
@@ -7,16 +7,13 @@ line of ``fit["sanity"]``.
 from __future__ import annotations
 
 import warnings
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from ..errors import ImpactWarning
 from . import structures
-
-if TYPE_CHECKING:
-    from .identify import IdentifyOptions
-
+from .identify_options import IdentifyOptions
 
 INERTIA_LIKE: dict[str, tuple[str, ...]] = {
     "decoupled": ("inertia",), "coupled": ("inertia",), "planar": ("ZZR", "Ia"), "urdf": (),

@@ -1,57 +1,39 @@
-"""Model structures linear in their parameters: tau = Y(q, q', q'') theta (method.md §2, eq. 7).
+"""Model structures linear in their parameters: tau = Y(q, q', q'') theta (docs/method.md §2,
+eq. 7). What each kind assumes and how it measured: docs/models.md, "The kinds".
 
-Every structure ends, per joint j, with friction columns (method.md §2: Fv x1' + Fs sign(x1')):
-``fv`` (viscous, column q'_j), ``fc`` (Coulomb through the smooth sign
-tanh(q'_j / v_s), slope 1/v_s at zero, ``coulomb_slope_rad_s`` = v_s) and, optionally,
-``offset`` (a constant torque: sensor bias, unmodelled load).
+Every structure ends, per joint j, with friction columns (Fv x1' + Fs sign(x1')): ``fv``
+(viscous, q'_j), ``fc`` (Coulomb through the smooth sign tanh(q'_j / v_s), v_s =
+``coulomb_slope_rad_s``) and, optionally, ``offset`` (a constant torque).
 
-* ``decoupled`` — per joint, no kinematics: ``inertia`` q''_j, ``gcos`` cos q_j,
-  ``gsin`` sin q_j (gravity-like terms of its own angle) + friction. Works on any robot.
-* ``coupled`` — a rough model of a spatial arm without kinematics: every joint's motion in
-  every joint's torque. Per joint j (a row), linear in its own parameters: the decoupled
-  terms (``inertia`` q''_j, ``gcos`` cos q_j, ``gsin`` sin q_j) + for every other joint k
-  ``acc:k`` q''_k, ``cos:k`` cos q_k, ``sin:k`` sin q_k + for every pair of neighbouring
-  joints (consecutive in the joint order: the chain order of a serial arm)
-  ``cos:k+l`` cos(q_k + q_l), ``sin:k+l`` sin(q_k + q_l) + optionally (structure
-  ``velocity_products``) ``vel:k*l`` q'_k q'_l for k <= l + friction. 5J + 1 parameters
-  per joint (with the offset), J(5J + 1) in all: 22 for 2 joints, 186 for 6, 252 for 7.
-  The parameters of one joint's row appear in no other row (the regressor is block
-  diagonal), so each joint is fitted on its own; the cross terms (everything but the
-  decoupled terms) are ridge-regularised (identify.py), so that a joint whose coupling the
-  log does not show falls back to its decoupled model. Not a rigid-body model: M(q) (from
-  ``acc`` terms, constant here) need not be symmetric, and there are no Coriolis terms
-  unless ``velocity_products``.
-* ``planar`` — a serial arm in a vertical plane (formats.md, robot description): absolute
-  angle of link i is phi_i = q_1 + ... + q_i (q_1 from the horizontal), joint i+1 sits at
-  L_i along link i, gravity [gx, gy]. The exact rigid-body model in base parameters: per
-  link ``ZZR`` (inertia about its joint + regrouped masses of the links beyond),
-  ``MXR``/``MYR`` (first moments along/across the link, with the outer masses regrouped at
-  the link's tip), 3 per link; the masses disappear by regrouping (m_i acts as a point mass
-  at joint i, i.e. on link i-1's first moment and inertia). Optional reflected motor
-  inertia ``Ia`` q''_j for joints 2..n (joint 1's merges with ZZR_1).
-* ``urdf`` — any serial arm: Pinocchio's joint-torque regressor
-  (``pinocchio.computeJointTorqueRegressor``, 10 inertial parameters per body:
-  m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz at the joint frame) + optional ``Ia`` columns
-  + friction, reduced to base parameters by pivoted QR on random states (structural
-  identifiability); the kept columns are stored in the model (``base_columns``).
+* ``decoupled`` — per joint, no kinematics: ``inertia`` q''_j, ``gcos`` cos q_j, ``gsin``
+  sin q_j + friction. Works on any robot.
+* ``coupled`` — every joint's motion in every joint's torque, no kinematics: per joint row
+  the decoupled terms + ``acc:k``, ``cos:k``, ``sin:k`` of every other joint k +
+  ``cos:k+l``, ``sin:k+l`` of neighbouring joints (+ ``vel:k*l`` with
+  ``velocity_products``) + friction: 5J + 1 parameters per joint. Block diagonal (each
+  joint fitted on its own); the cross terms are ridge-regularised in identification.
+* ``planar`` — a serial arm in a vertical plane (docs/formats.md, "Robot description"): the
+  exact rigid-body model in base parameters, ``ZZR``, ``MXR``, ``MYR`` per link (masses
+  regrouped), optional reflected motor inertia ``Ia`` for joints 2..n.
+* ``urdf`` — any serial arm: Pinocchio's joint-torque regressor (10 inertial parameters
+  per body) + optional ``Ia`` + friction, reduced to base parameters by pivoted QR on random
+  states; the kept columns are stored in the model (``base_columns``).
 
 Regressors are returned as (N, J, P) arrays: Y[k, j, :] @ theta = tau_j at sample k [N·m].
 """
 
 from __future__ import annotations
 
-import contextlib
-import functools
 import hashlib
-import os
-import tempfile
-from collections.abc import Iterator
 from typing import Any
 
 import numba as nb
 import numpy as np
 
-from ..errors import ModelError, RobotDescriptionError
+from ..errors import ModelError
+from ..urdf_helpers import pinocchio, reduced_model, urdf_joint_order
+
+_pin_model = reduced_model  # alias: removed in M (tests/test_incidents.py)
 
 KINDS: tuple[str, ...] = ("decoupled", "coupled", "planar", "urdf")
 
@@ -310,130 +292,12 @@ def planar_regressor(
 
 
 # ---------------------------------------------------------------- urdf
-def _pinocchio() -> Any:
-    try:
-        import pinocchio
-    except ImportError as err:
-        raise ModelError(
-            "the urdf model needs Pinocchio: pip install 'impactcli[urdf]' (PyPI package 'pin')"
-        ) from err
-    return pinocchio
-
-
-@contextlib.contextmanager
-def _captured_stderr() -> Iterator[list[str]]:
-    """Capture what C++ code (urdfdom) writes to file descriptor 2; yield its lines after."""
-    lines: list[str] = []
-    try:
-        saved = os.dup(2)
-    except OSError:  # no real stderr: nothing to capture
-        yield lines
-        return
-    with tempfile.TemporaryFile(mode="w+b") as tmp:
-        os.dup2(tmp.fileno(), 2)
-        try:
-            yield lines
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-            tmp.seek(0)
-            lines.extend(tmp.read().decode("utf-8", "replace").splitlines())
-
-
-@functools.lru_cache(maxsize=16)
-def _full_pin_model(urdf_xml: str, where: str) -> Any:
-    """Pinocchio model of the whole URDF (kinematic and inertial tree; meshes never read)."""
-    pin = _pinocchio()
-    with _captured_stderr() as parser_output:
-        try:
-            full = pin.buildModelFromXML(urdf_xml)
-            err = None
-        except Exception as e:  # pinocchio raises ValueError/RuntimeError on bad URDF
-            err = e
-    if err is not None:
-        lines = [ln.strip() for ln in parser_output if ln.strip().startswith("Error:")]
-        detail = lines[-1].removeprefix("Error:").strip() if lines else ""
-        msg = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
-        raise RobotDescriptionError(
-            f"{where}: URDF does not parse: {msg}" + (f" ({detail})" if detail else "")
-        ) from err
-    return full
-
-
-def urdf_joint_names(urdf_xml: str, where: str) -> tuple[str, ...]:
-    """The names of the URDF's joints (every non-fixed joint, Pinocchio's order)."""
-    return tuple(list(_full_pin_model(urdf_xml, where).names)[1:])
-
-
-def urdf_chain(urdf_xml: str, tip: str, base: str | None, where: str) -> tuple[str, ...]:
-    """The 1-dof joints on the chain from link ``base`` (None: the root) to link ``tip``,
-    in chain order (base to tip).
-
-    Raises RobotDescriptionError when a link is missing, ``base`` is not on the way to
-    ``tip``, or the chain has no joint.
-    """
-    pin = _pinocchio()
-    full = _full_pin_model(urdf_xml, where)
-
-    def link_joint(link: str) -> int:
-        if not full.existFrame(link, pin.FrameType.BODY):
-            raise RobotDescriptionError(f"{where}: URDF has no link {link!r}")
-        return int(full.frames[full.getFrameId(link, pin.FrameType.BODY)].parentJoint)
-
-    stop = 0 if base is None else link_joint(base)
-    chain: list[int] = []
-    j = link_joint(tip)
-    while j != stop:
-        if j == 0:
-            raise RobotDescriptionError(f"{where}: link {base!r} is not on the way to {tip!r}")
-        chain.append(j)
-        j = int(full.parents[j])
-    names = tuple(full.names[i] for i in reversed(chain) if full.joints[i].nv == 1)
-    if not names:
-        raise RobotDescriptionError(f"{where}: no joint between {base or 'the root'} and {tip!r}")
-    return names
-
-
-def _urdf_joints(joints: tuple[str, ...], structure: dict[str, Any]) -> tuple[str, ...]:
-    """The URDF's names of ``joints`` (the log's), through ``urdf_joint_map`` when present."""
-    jm = structure.get("urdf_joint_map") or {}
-    return tuple(str(jm.get(j, j)) for j in joints)
-
-
-@functools.lru_cache(maxsize=16)
-def _pin_model(urdf_xml: str, joints: tuple[str, ...], where: str) -> Any:
-    """Pinocchio model from URDF text, reduced to ``joints`` (URDF names; the others are
-    locked at neutral: zero, for revolute, continuous and prismatic joints)."""
-    pin = _pinocchio()
-    full = _full_pin_model(urdf_xml, where)
-    names = list(full.names)[1:]
-    missing = [j for j in joints if j not in names]
-    if missing:
-        raise RobotDescriptionError(
-            f"{where}: URDF has no joint(s) {missing} (its joints: {names})"
-        )
-    lock = [full.getJointId(nm) for nm in names if nm not in joints]
-    src = full
-    clash = set(names) & {f.name for f in full.frames if f.type != pin.FrameType.JOINT}
-    if lock and clash:  # a link named like a joint (SO-100's "gripper"): the reduction
-        src = pin.Model(full)  # cannot tell their frames apart; rename the link's, in a copy
-        for i in range(len(src.frames)):
-            if src.frames[i].type != pin.FrameType.JOINT and src.frames[i].name in clash:
-                src.frames[i].name += " (link)"
-    model = pin.buildReducedModel(src, lock, pin.neutral(src)) if lock else full
-    for j in joints:
-        jm = model.joints[model.getJointId(j)]
-        if jm.nv != 1:
-            raise RobotDescriptionError(f"{where}: URDF joint {j!r} is not a 1-dof joint")
-    return model
-
-
 def urdf_full_names(joints: tuple[str, ...], structure: dict[str, Any]) -> list[str]:
     """Names of all columns of the URDF structure before base reduction (every name is
     ``<log joint>.<parameter>``: a URDF joint renamed by ``urdf_joint_map`` goes by the
     log's name)."""
-    ujoints = _urdf_joints(joints, structure)
-    model = _pin_model(structure["urdf_xml"], ujoints, structure.get("urdf_path", "URDF"))
+    ujoints = urdf_joint_order(joints, structure)
+    model = reduced_model(structure["urdf_xml"], ujoints, structure.get("urdf_path", "URDF"))
     back = dict(zip(ujoints, joints, strict=True))
     names = [f"{back.get(nm, nm)}.{p}" for nm in list(model.names)[1:] for p in PIN_PARAMS]
     if structure.get("motor_inertia", True):
@@ -448,9 +312,9 @@ def urdf_full_regressor(
     joints: tuple[str, ...], structure: dict[str, Any],
 ) -> np.ndarray:
     """(N, J, P_full) Pinocchio joint-torque regressor + Ia + friction, rows in ``joints`` order."""
-    pin = _pinocchio()
-    ujoints = _urdf_joints(joints, structure)
-    model = _pin_model(structure["urdf_xml"], ujoints, structure.get("urdf_path", "URDF"))
+    pin = pinocchio()
+    ujoints = urdf_joint_order(joints, structure)
+    model = reduced_model(structure["urdf_xml"], ujoints, structure.get("urdf_path", "URDF"))
     data = model.createData()
     n_s, n = q.shape
     jids = [model.getJointId(j) for j in ujoints]
@@ -529,7 +393,7 @@ def urdf_structure(
     renamed = {j: str(joint_map[j]) for j in joints if joint_map and joint_map.get(j, j) != j}
     if renamed:
         s["urdf_joint_map"] = renamed
-    _pin_model(urdf_xml, _urdf_joints(joints, s), where)
+    reduced_model(urdf_xml, urdf_joint_order(joints, s), where)
     s["base_columns"] = urdf_base_columns(joints, s)
     return s
 

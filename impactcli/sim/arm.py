@@ -105,7 +105,8 @@ class ArmParams:
         return np.array(self.gear_ratio) * np.array(self.torque_constant)
 
     def robot_description(self) -> RobotDescription:
-        """The NOMINAL robot description (formats.md): planar kinematics, nominal masses."""
+        """The NOMINAL robot description (docs/formats.md, "Robot description"): planar
+        kinematics, nominal masses."""
         joints = tuple(JointSpec(nm, float(g), float(k)) for nm, g, k in
                        zip(self.joint_names, self.gear_ratio, self.torque_constant, strict=True))
         nominal = {

@@ -9,7 +9,7 @@ Three kinds (each enters eq. 1 as tau_ext = J_p(x2)^T F at its point p):
 * :class:`Push` — a half-sine force pulse on a link (kind ``push``).
 * :class:`Clamp` — a slow linear ramp to a peak, a hold, and a release (kind ``clamp``).
 
-Labels (formats.md, "Ground-truth labels"): per contact source, an event spans the
+Labels (docs/formats.md, "Ground-truth labels"): per contact source, an event spans the
 samples where that source's force magnitude exceeds :data:`LABEL_THRESHOLD_N`; runs
 separated by less than :data:`LABEL_MERGE_GAP_S` (bounces) are one event. ``start`` and
 ``end`` are the first and last such sample [s since the first sample]; ``peak_force`` is
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..types import ContactLabel, Labels
-from ._kernel import PULSE, RAMP
+from .kernel import PULSE, RAMP
 
 #: A contact "exists" at a sample when its force exceeds this [N].
 LABEL_THRESHOLD_N = 0.5

@@ -1,68 +1,26 @@
 """The controller's own channels: model torque and external-torque estimate (numba).
 
-A real robot controller logs, besides position and torque, what its own model expects
-(``torque_model``) and its own external-torque estimate (``torque_ext``, like Franka's
-``tau_ext_hat_filtered``). The simulated controller computes both *online* from what it
-measures — the logged, encoder-quantised motor position q, the drive's velocity estimate
-q' (low-passed backward difference) and the logged (noisy, quantised) motor torque tau —
-with its NOMINAL rigid model. It never sees the true parameters, the link positions or
-the true external torque, so both channels carry the model error a real one carries:
-parameters off by the true robot's draw, friction drift, the transmission flexibility that
-a rigid model ignores, and the lag of the velocity and acceleration estimates.
+The simulated controller computes both *online* from what it measures — the quantised
+motor position q, the drive's velocity estimate v (a low-passed backward difference) and
+the logged motor torque tau — with its NOMINAL rigid model (eq. 7: M_r = M + diag(I_mot),
+H = C v + g, F = (Fv_m + Fv_a) v + (Fc_m + Fc_a) tanh(v / v_c)), so both carry the model
+error a real controller's carry. Derivation and measured choices: docs/method.md §6, "The
+simulated controller's channels".
 
-Rigid model (the paper's eq. 7–8: motor and link as one body, x1 = x2 = q)::
-
-    tau + tau_ext = M_r(q) q'' + H(q, q') + F(q')                                   (7)
-    M_r(q) = M(q) + diag(I_mot),  H = C(q, q') q' + g(q),
-    F(q')  = (Fv_m + Fv_a) q' + (Fc_m + Fc_a) tanh(q' / v_c)
-
-with the nominal link masses, COM distances and inertias, the nominal reflected motor
-inertias and the nominal motor + link friction (:func:`impactcli.sim.arm.nominal_parameters`
-holds them, and the robot description publishes the motor part, so the controller models
-friction; v_c is the controller's own Coulomb smoothing velocity, wider than one velocity
-quantum of the encoder so that a single count does not flip the friction sign).
-
-``torque_model`` (eq. 8's tau_hat, evaluated on the measured motion)::
+``torque_model`` (eq. 8's tau_hat on the measured motion)::
 
     tau_m(k) = M_r(q_k) a_k + H(q_k, v_k) + F(v_k),
     a_k = a_{k-1} + beta ((v_k - v_{k-1}) / Ts - a_{k-1}),  beta = 1 - exp(-2 pi f_a Ts)
 
-(a_k: the causal, first-order low-passed difference of the velocity estimate — a
-controller has no better acceleration; f_a the arm's ``accel_cutoff_hz``). In free motion
-tau_m ≈ tau; with a contact tau_m − tau ≈ tau_ext.
+``torque_ext``: the generalized-momentum observer (De Luca & Mattone 2003), forward Euler,
+then a first-order low-pass (``ArmParams.torque_ext_cutoff_hz``)::
 
-``torque_ext``: the generalized-momentum observer (De Luca & Mattone, ICRA 2003 and 2005;
-De Luca, Albu-Schäffer, Haddadin & Hirzinger, IROS 2006) on the same model, in discrete
-time with forward-Euler sums::
+    p_k = M_r(q_k) v_k,   n = C(q, v) v + g(q) + F(v)
+    S_k = S_{k-1} + Ts (tau_{k-1} - n_{k-1} + Mdot_{k-1} v_{k-1} + r_{k-1}),   S_0 = 0
+    r_k = K (p_k - p_0 - S_k),   y_k = y_{k-1} + gamma (r_k - y_{k-1}),   r_0 = y_0 = 0
 
-    p_k   = M_r(q_k) v_k
-    S_k   = S_{k-1} + Ts (tau_{k-1} - n_{k-1} + Mdot_{k-1} v_{k-1} + r_{k-1}),   S_0 = 0
-    r_k   = K (p_k - p_0 - S_k),                                                  r_0 = 0
-    n     = C(q, v) v + g(q) + F(v)    (Newton–Euler with zero acceleration, plus friction)
-
-With p' = tau + tau_ext − n + Mdot q' (the rigid model's momentum balance, M' = C + Cᵀ),
-r obeys r' = K (tau_ext − r): a first-order low-pass of the external torque with time
-constant 1/K, needing no acceleration. The logged estimate is r through a first-order
-low-pass (``ArmParams.torque_ext_cutoff_hz``; Franka's ``tau_ext_hat_filtered`` is filtered
-too): the drive's velocity estimate carries encoder-quantisation noise that enters r with
-the gain K·M_r directly (≈ 0.1 N·m rms on the ASSIST shoulder at K = 50 s⁻¹), and the
-filter takes a third of the free-motion peaks off, at 8 ms more lag (20 Hz)::
-
-    y_k = y_{k-1} + gamma (r_k - y_{k-1}),  y_0 = 0,  gamma = 1 - exp(-2 pi f_e Ts)
-
-Sign: r ≈ +tau_ext, the simulator's convention — the external torque acting ON the
-joints (``truth['tau_ext']`` = Jᵀ F, eq. 1's right-hand side: positive drives the joint
-towards positive angles). ``torque_model − torque`` has the same sign. Forward Euler on
-tau is exact for the drive's zero-order hold (the torque logged at sample k is the one
-applied over [k Ts, (k+1) Ts)); the discrete loop's pole is 1 − K Ts (stable for
-K Ts < 2; 0.8 at K = 50 s⁻¹, Ts = 4 ms). Mdot v is the directional derivative of M along
-v by a central difference, (M(q + eps v) − M(q − eps v)) / (2 eps) with eps = 1e-5 s
-(exact to ~1e-10 relative).
-
-An unknown payload is, to this model, an external load: it shows in torque_ext (≈ 4 N·m
-on the ASSIST shoulder for 0.5 kg), as on a real controller that was not told.
-The observer's state is kept in full precision; the logged values are quantised to the
-controller's torque LSB (``ArmParams.controller_torque_lsb``), like a fixed-point channel.
+Sign: r ≈ +tau_ext (the torque acting ON the joints, Jᵀ F). Logged values are quantised to
+the controller's torque LSB (``ArmParams.controller_torque_lsb``).
 """
 
 from __future__ import annotations
@@ -72,7 +30,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ._kernel import HV, N_SCRATCH, kin_w, mass_matrix_k, rnea_k
+from .kernel import HV, N_SCRATCH, kin_w, mass_matrix_k, rnea_k
 
 #: Step of the central difference giving Mdot v [s] (the displacement is eps · v [rad]).
 MDOT_EPS_S = 1e-5

@@ -4,7 +4,7 @@
 (quantised encoder position, noisy quantised current and the torque computed from it,
 velocity estimate, reference position/velocity/acceleration), ground-truth labels, the
 NOMINAL robot description and the true signals (link positions x2, contact forces,
-tau_ext ...). The integrator is :mod:`impactcli.sim._kernel` (RK4, numba).
+tau_ext ...). The integrator is :mod:`impactcli.sim.kernel` (RK4, numba).
 
 What differs between the nominal description and the simulated robot (like a real robot):
 parameters drawn ±``uncertainty`` around nominal from the seed, an optional unknown payload,
@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from ..types import Labels, LogSource, RobotDescription, RobotLog
-from . import _kernel as kern
+from . import kernel as kern
 from .arm import ArmParams, nominal_parameters, true_parameters
 from .contacts import Clamp, Push, Surface, label_contacts, tables
 from .controller import quantise, simulate_channels
@@ -95,7 +95,7 @@ class SimResult:
 
     Attributes:
         log: the drive's log (source format ``memory``).
-        labels: ground-truth contacts (formats.md).
+        labels: ground-truth contacts (docs/formats.md, "Ground-truth labels").
         robot: the NOMINAL robot description.
         truth: true signals, N rows each — ``time_s`` (N,), ``x1``, ``x2``, ``x1_dot``,
             ``x2_dot`` (N, n) [rad, rad/s]; ``tau`` (N, n) motor torque applied [N·m];

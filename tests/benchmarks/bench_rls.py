@@ -1,11 +1,11 @@
 """Benchmark: adaptive evaluator (RLS + regressor + F1/F2 + RMS + decision) throughput.
 
-Run:  python tests/benchmarks/bench_rls.py  [--seconds 600]
+Run:  python tests/benchmarks/bench_rls.py  [--seconds 600] [--release REF]
 
-Targets (brief): ≥ 1,000,000 axis-samples/s at 2 joints (nu = 34) and ≥ 300,000 at 7
-joints (nu = 64), one core. padasip's FilterRLS is run on the same regression (the
-regressors phi(k) of axis 0, rebuilt from the evaluator's own outputs) and reported as a
-ratio. Numba compilation is excluded (one warm-up call on a short slice).
+Targets (docs/performance.md, "The adaptive evaluator"): ≥ 1,000,000 axis-samples/s at 2
+joints (nu = 34) and ≥ 300,000 at 7 joints (nu = 64), one core. padasip's FilterRLS is run
+on the same regression (the regressors phi(k) of axis 0, rebuilt from the evaluator's own
+outputs) and reported as a ratio. Numba compilation is excluded (one warm-up call on a short slice).
 
 The last rows time the chunked form (``evaluate_chunk``, state in, state out): its fixed
 cost per call [µs] (state copy, checks, dispatch of the axes; timed on empty chunks) as a
@@ -14,6 +14,11 @@ share of a 4096-sample chunk's time, and the whole log in chunks of 4096 against
 A third row times the wind-up guard's own path: 7 joints of which the last 4 stand still
 (their reference inputs are exactly 0), so the per-coordinate cap of
 :mod:`impactcli.detect.rls` scales P at most samples; ``capped`` is that share.
+
+``--release REF`` first runs the same measurement on the package of git ref ``REF`` (a
+temporary worktree, imported through PYTHONPATH in a fresh process), so both figures come
+from one run on one machine. The batch RLS column uses ``tests/reference/rls.py`` (loaded
+by path) on whichever package is imported.
 """
 
 from __future__ import annotations
@@ -21,16 +26,42 @@ from __future__ import annotations
 import argparse
 import os
 import platform
+import subprocess
+import sys
+import tempfile
 import time
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy import signal
 
 from impactcli.config import AdaptiveConfig
-from impactcli.detect.adaptive import EvaluatorState, evaluate, evaluate_chunk
-from impactcli.detect.rls import rls_run
+from impactcli.detect.adaptive import evaluate_chunk
+
+try:
+    from impactcli.detect.axes import EvaluatorState
+except ImportError:  # a release before the state moved next to the kernel
+    from impactcli.detect.adaptive import EvaluatorState  # type: ignore[attr-defined,no-redef]
 
 FS = 250.0
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _reference_rls() -> Any:
+    """tests/reference/rls.py of this tree, on whichever ``impactcli`` is already imported
+    (this tree's, or a release's through PYTHONPATH)."""
+    sys.path.insert(0, str(ROOT))  # after impactcli's import: only ``tests`` comes from here
+    from tests.reference import rls
+
+    return rls
+
+
+def evaluate(r: np.ndarray, u: np.ndarray, fs: float, v_stat: np.ndarray,
+             cfg: AdaptiveConfig, threads: int = 1) -> Any:
+    """The compiled evaluator on a whole log: one chunk from the initial state."""
+    st = EvaluatorState.initial(r.shape[1], cfg, fs)
+    return evaluate_chunk(st, r, u, fs, v_stat, cfg, threads)[0]
 
 
 def data(joints: int, n: int, seed: int = 0, still: int = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -81,8 +112,15 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seconds", type=float, default=400.0, help="log length [s] at 250 Hz")
     ap.add_argument("--padasip-samples", type=int, default=20_000)
+    ap.add_argument("--release", default=None,
+                    help="also measure the package of this git ref, first, in the same run")
     args = ap.parse_args()
+    if args.release:
+        _run_release(args.release, sys.argv[1:])
+        print(f"this tree ({ROOT}):")
     import padasip as pa
+
+    rls_run = _reference_rls().rls_run
 
     cfg = AdaptiveConfig()
     n = int(args.seconds * FS)
@@ -144,6 +182,24 @@ def main() -> None:
         dc = best_of(chunked, 5)
         print(f"{joints:>6} {cfg.n_params(joints):>4} {fixed * 1e6:>15.0f} "
               f"{fixed / (dt * 4096 / nn):>20.2%} {dc:>18.3f} {dt:>13.3f}")
+
+def _run_release(ref: str, argv: list[str]) -> None:
+    """This script on the package of ``ref`` (a temporary git worktree), in a fresh process."""
+    with tempfile.TemporaryDirectory() as tmp:
+        where = Path(tmp) / "release"
+        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(where), ref],
+                       check=True, capture_output=True)
+        try:
+            rest = [a for i, a in enumerate(argv) if a != "--release"
+                    and not (i > 0 and argv[i - 1] == "--release")
+                    and not a.startswith("--release=")]
+            print(f"release {ref}:", flush=True)
+            env = dict(os.environ, PYTHONPATH=str(where))
+            subprocess.run([sys.executable, __file__, *rest], env=env, check=True)
+        finally:
+            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(where)],
+                           check=False, capture_output=True)
+
 
 if __name__ == "__main__":
     main()

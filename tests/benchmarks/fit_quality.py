@@ -1,4 +1,5 @@
-"""Fit quality of the rough rigid model, per model kind (issue 3's bar; real robots II).
+"""Fit quality of the rough rigid model, per model kind: on the simulator, the sample logs
+and the real logs when present (the tables of docs/validation.md, "Fit quality").
 
     python tests/benchmarks/fit_quality.py            # everything (about a minute)
     python tests/benchmarks/fit_quality.py sim real   # only some sections

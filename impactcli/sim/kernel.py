@@ -16,11 +16,9 @@ effects can be included"; 0 reproduces eq. 1–2 exactly).
 The controller runs at the sample period Ts (zero-order hold): PD on the quantised motor
 position with gravity feed-forward from the nominal model, evaluated at the reference.
 Between samples the state is integrated with classical RK4 on ``n_sub`` equal substeps.
-Kernels use numba's ``error_model="numpy"`` (a division by zero gives inf/nan instead of
-raising): the Python error model's checks cost ~5× here; the caller checks the result is
-finite. The small helpers are inlined into :func:`derivative` at numba-IR level (2× faster
-per evaluation than calls); :func:`derivative` itself is not inlined into the RK4 loop
-(that quadruples compile time for no gain).
+Kernels use numba's ``error_model="numpy"`` (a division by zero gives inf/nan; the caller
+checks the result is finite) and inline the small helpers into :func:`derivative`, for
+speed (``tests/benchmarks/bench_sim.py``).
 
 State vector layout: ``s = [x1 (n), x2 (n), x1' (n), x2' (n)]``.
 """
