@@ -40,13 +40,12 @@ from .common import (
     event_duration_s,
     log_stem,
 )
-from .margins import collision_free_mask, false_alarm_margins
+from .margins import false_alarm_margins
 from .page import (
     CSS,
     NUM_TOKEN,
     RenderedLog,
     assemble_report,
-    build_report,
     render_html,
     render_log,
     report_dict,
@@ -55,7 +54,7 @@ from .page import (
     write_report,
 )
 from .quality import SWEEP_SCALES
-from .samples import ResultSamples, Samples, statistic
+from .samples import ReportCollector, Samples
 from .section import log_section
 from .summary import incident_rows, verdict_text
 from .unseen import could_not_see
@@ -77,12 +76,10 @@ __all__ = [
     "SWEEP_SCALES",
     "WHOLE_LOG_BUCKETS",
     "RenderedLog",
-    "ResultSamples",
+    "ReportCollector",
     "Samples",
     "assemble_report",
-    "build_report",
     "caveats",
-    "collision_free_mask",
     "could_not_see",
     "event_duration_s",
     "false_alarm_margins",
@@ -93,7 +90,6 @@ __all__ = [
     "render_log",
     "report_dict",
     "report_json",
-    "statistic",
     "summary_row",
     "verdict_text",
     "write_report",

@@ -16,7 +16,7 @@ from ...result import DetectionResult
 from ...types import Labels
 from .common import e, g, generic_table, kv_table, to_mapping
 from .plots import sweep_plot
-from .samples import ResultSamples, Samples
+from .samples import Samples
 
 
 def _sweep_scales() -> tuple[float, ...]:
@@ -30,7 +30,7 @@ SWEEP_SCALES: tuple[float, ...] = _sweep_scales()
 
 
 def evaluate(result: DetectionResult, labels: Labels,
-             samples: Samples | None = None) -> dict[str, Any]:
+             samples: Samples) -> dict[str, Any]:
     """The detection-quality evaluation and threshold sweep of one log (``samples``: where
     the sweep reads the ratios; default the result's own)."""
     out: dict[str, Any] = {"status": "done", "labels_path": labels.path,
@@ -40,8 +40,7 @@ def evaluate(result: DetectionResult, labels: Labels,
 
     out["evaluation"] = to_mapping(ev.evaluate_result(result, labels))
     try:
-        rows = (samples if samples is not None else ResultSamples(result)).sweep(
-            result, labels, SWEEP_SCALES)
+        rows = samples.sweep(result, labels, SWEEP_SCALES)
     except ImpactError as err:  # e.g. a run whose config lacks the event settings
         out["notes"].append(f"No threshold sweep: {err}")
         return out
