@@ -10,7 +10,6 @@ in bounded memory as ``detect`` replays it (:func:`replay_log`). The matching ru
 
 The incidents (link, force, contact type) are scored too: a timeline's ``incidents`` (a
 1.0 timeline has none, and the output says so), or for a log the run's own.
-
 ``--sweep`` rescales every threshold over ``--scales`` and reports, per detector, the
 smallest scale with zero false alarms and what it still detects, then a one-sentence
 verdict: does the adaptive detector help on this robot and log? It needs the per-sample

@@ -14,7 +14,8 @@ Pure functions, no I/O. The rule (documented in the README's "Viewing a run"):
   kept (full rate), as are the first and last samples.
 
 The result is a sorted array of sample indices, so every series of an entity (and its
-time columns) is indexed by the same selection.
+time columns) is indexed by the same selection; :class:`EnvelopeStream` selects the same
+indices from a series that arrives in chunks.
 """
 
 from __future__ import annotations

@@ -1,32 +1,19 @@
 """A log's detection events scored against its labels: per labelled contact what each
-detector did, per detector its score (:func:`evaluate_events`, :class:`Evaluation`).
+detector did, per detector its score (:func:`evaluate_events`, :class:`Evaluation`); the
+window and the product's alarms are :mod:`impactcli.scoring.match`'s, the incidents part
+:mod:`impactcli.scoring.incidents`'s; the sweep calls :func:`evaluate_events` per scale.
 
-The matching window and the product's alarms are :mod:`impactcli.scoring.match`'s (an
-event matches a contact when it starts within ``[start - pre_s, end + post_s]``); the
-incidents part of an evaluation is :mod:`impactcli.scoring.incidents`'s. The sweep
-(:mod:`impactcli.scoring.sweep`) calls :func:`evaluate_events` once per threshold scale.
-
-A contact is *detected* by a detector if any counted event of that detector matches it; its
-*delay* is the earliest matching event's start minus the labelled onset (it can be slightly
-negative, down to ``-pre_s``). One event may match several contacts (overlapping windows):
-all of them are detected and the event is no false alarm. An event that starts at one contact
-and is still on when a second contact begins matches only the first (the detector raised no
-new alarm for the second): the second counts as missed and is flagged
-``alarm_on_at_onset`` in its outcome.
-
-A *false alarm* is a counted event (starting after warm-up) that matches no contact. Events
-in warm-up (``in_warmup``, or starting before ``warmup_end_s``) are listed, never counted:
-they neither detect a contact nor count as false alarms. A contact whose onset lies before
-``warmup_end_s`` is reported separately (``in_warmup``) and is *not* counted as a miss — the
-detector is not yet armed there. A contact whose onset lies after the log's end is reported
-as ``outside_log`` and not counted either. The false-alarm rate is per hour of
-*collision-free time*: the part of ``[warmup_end_s, duration_s]`` outside every contact's
-tolerance window ``[start - pre_s, end + post_s]``.
-
-The *product* (adaptive OR static_loading, its alarms merged) counts a contact as detected
-when one of its parts detects it, with the earliest part's delay (so the product is never
-worse than a part, even when a merged alarm started earlier at an unrelated part's alarm);
-a product alarm is false when one of the part alarms starting in it matched no contact.
+A contact is *detected* by a detector when a counted event of it matches; its *delay* is
+the earliest match's start minus the onset (down to ``-pre_s``). One event may match several
+contacts (all detected, no false alarm); an event still on when a second contact begins
+matches only the first (the second is missed, flagged ``alarm_on_at_onset``). A *false
+alarm* is a counted event (starting after warm-up) that matches no contact. Events in
+warm-up are listed, never counted; a contact with its onset in warm-up (``in_warmup``) or
+after the log's end (``outside_log``) is reported, not counted as a miss. False alarms are
+per hour of *collision-free time*: ``[warmup_end_s, duration_s]`` outside every contact's
+window. The *product* (adaptive OR static_loading, alarms merged) detects a contact when a
+part does, with the earliest part's delay (never worse than a part); a product alarm is
+false when one of the part alarms starting in it matched no contact.
 
 Pure logic: no file I/O, no printing.
 """
@@ -358,7 +345,7 @@ def evaluate_events(
             ImpactWarning, stacklevel=2,
         )
     before = [i for i, c in enumerate(contacts) if c.start < 0]
-    if before:  # label times are seconds since the log's first sample (formats.md)
+    if before:  # label times: seconds since the log's first sample
         warnings.warn(
             f"{labels.path or 'labels'}: {len(before)} contact(s) start before the log's "
             f"first sample, first at {contacts[before[0]].start:g} s: in its warm-up, not "

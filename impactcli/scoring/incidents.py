@@ -34,7 +34,8 @@ from .match import (
     rounded,
 )
 
-#: The contact type (ISO/TS 15066) a labelled kind calls for (formats.md, ``incidents``).
+#: The contact type (ISO/TS 15066) a labelled kind calls for (docs/formats.md,
+#: "Detection timeline", ``incidents``).
 CONTACT_OF_KIND: dict[str, str] = {"impact": "transient", "push": "transient",
                                    "clamp": "quasi_static"}
 #: Contact types, in display order.
@@ -313,8 +314,9 @@ def evaluate_incidents(
     incidents: Sequence[Any], evs: Sequence[ScoredEvent], contacts: Sequence[ContactLabel],
     status: Sequence[str], tolerance: MatchTolerance, warmup_end_s: float,
 ) -> IncidentEvaluation:
-    """Score incidents against labelled contacts (formats.md: ``link`` against the label's
-    link, ``force_n`` against ``peak_force``, ``contact`` against the kind).
+    """Score incidents against labelled contacts (docs/formats.md, "Ground-truth labels"):
+    ``link`` against the label's link, ``force_n`` against ``peak_force``, ``contact``
+    against the kind.
 
     A contact is answered by the earliest counted incident (after warm-up) that *starts*
     in its window ``[start - pre_s, end + post_s]`` — the events' matching rule; an

@@ -1,27 +1,19 @@
 """What an evaluation matches: the window around a labelled contact, the events it reads,
-and the product's alarms.
+and the product's alarms — the vocabulary every later stage of :mod:`impactcli.scoring`
+imports (it imports none of them): the evaluated detectors and constants,
+:class:`MatchTolerance`, the event record :class:`ScoredEvent` (from an
+:class:`~impactcli.types.Event` or a timeline dict), :func:`product_events`,
+:func:`force_known` and the rounding for output.
 
-The vocabulary that every later stage of :mod:`impactcli.evaluate` shares (the scores, the
-incidents, the sweep, the verdict import it; it imports none of them): the evaluated
-detectors and constants, :class:`MatchTolerance`, the event record :class:`ScoredEvent` (from an
-:class:`~impactcli.types.Event` or a timeline dict), :func:`product_events`, whether a
-label's force is a force (:func:`force_known`), and the rounding for output.
-
-Matching rule (:class:`MatchTolerance`): an event *matches* a labelled contact when the
-event **starts** within ``[contact.start - pre_s, contact.end + post_s]`` (bounds included,
-with 1 ns of tolerance for float rounding of sample times).
-
-- ``pre_s`` (default 0.02 s) absorbs clock and filter alignment between the label's source
-  (a load cell, a simulator) and the robot's log: an alarm a few samples before the labelled
-  onset is the same contact.
-- ``post_s`` (default 0.25 s) accepts an alarm raised just after the contact ended: the
-  adaptive detector is high-pass by design (method.md §7) and may fire only on the release
-  of a slow push or clamp.
-
-The *product* detector is the OR of ``adaptive`` and ``static_loading`` (method.md §5):
-their events are merged where they overlap (or lie within ``product_merge_gap_s``), so a
-moment where both fire is one product alarm, not two (:func:`product_events`; how a
-product alarm is scored: :mod:`impactcli.scoring.evaluation`).
+An event *matches* a labelled contact when it **starts** within ``[start - pre_s, end +
+post_s]`` (bounds included, 1 ns tolerance for float sample times). ``pre_s`` (0.02 s)
+absorbs clock and filter alignment between the label's source (a load cell, a simulator)
+and the log; ``post_s`` (0.25 s) accepts an alarm just after the contact: the adaptive
+detector is high-pass by design (docs/method.md §7) and may fire only on a slow push's or
+clamp's release. The *product* is the OR of ``adaptive`` and ``static_loading``
+(docs/method.md §5): their events merged where they overlap or lie within
+``product_merge_gap_s``, so a moment where both fire is one alarm (:func:`product_events`;
+its scoring: :mod:`impactcli.scoring.evaluation`).
 
 Pure logic: no file I/O, no printing.
 """
@@ -38,7 +30,7 @@ from ..errors import ConfigError, LogFormatError
 from ..types import DETECTORS, ContactLabel, Event
 
 SCHEMA_VERSION = "1.0"
-#: The product's alarm: adaptive OR static_loading (method.md §5).
+#: The product's alarm: adaptive OR static_loading (docs/method.md §5).
 PRODUCT = "product"
 PRODUCT_PARTS: tuple[str, ...] = ("adaptive", "static_loading")
 #: Every row of an evaluation, in display order.

@@ -2,11 +2,9 @@
 answer a safety engineer opens it for — did the arm hit something, when, where, how hard.
 
 Formatting only: every number comes from a :class:`~impactcli.result.DetectionResult`
-(through :func:`impactcli.outputs.timeline.timeline_dict`, whose fields are reused as they
-are), from :mod:`impactcli.detect.incidents` (incidents; the smallest force the thresholds
-catch) or from :mod:`impactcli.evaluate` when labels are given. The one quantity reduced
-here is the false-alarm margin (:mod:`.margins`).
-
+(through :func:`impactcli.outputs.timeline.timeline_dict`), from the run's chunks as
+:mod:`.samples` collects them, from :mod:`impactcli.detect.incidents` or, with labels,
+from :mod:`impactcli.scoring`. The one quantity reduced here is the false-alarm margin.
 Parts, by what the reader sees:
 
 - :mod:`.summary` — the verdict line, the incident list, the fleet summary;
@@ -18,6 +16,7 @@ Parts, by what the reader sees:
 - :mod:`.analysed` — what was analysed and with what;
 - :mod:`.caveats`, :mod:`.margins` — the caveats and the false-alarm margin;
 - :mod:`.page` — the page (CSS, assembly), the JSON twin, writing both;
+- :mod:`.samples` — what the report reads of the samples, collected from the chunks;
 - :mod:`.common` — settings and formatters they share.
 """
 

@@ -224,8 +224,8 @@ def render_html(doc: dict[str, Any], sections: Sequence[str]) -> str:
 class RenderedLog:
     """One log, rendered: its JSON facts and its HTML section (numbered by NUM_TOKEN).
 
-    What a report worker returns instead of the whole :class:`DetectionResult` (whose
-    per-sample signals dominate memory), so a fleet report holds only these.
+    What a report worker returns instead of its run and samples, so a fleet report holds
+    only these.
     """
 
     section: dict[str, Any]
