@@ -32,8 +32,8 @@ import numpy as np
 
 from ..types import DETECTORS
 from . import rerun_blueprint as look
+from .column_spill import ColumnSpill
 from .decimate import DEFAULT_EVENT_WINDOW_S, DEFAULT_MAX_POINTS, EnvelopeStream
-from .signals import ParquetSpill
 
 #: (plot, its series as (name, spill column)) — the reference position, when logged, is
 #: drawn first, under the measured one; the loading plot gets the constant vL.
@@ -60,7 +60,7 @@ def spill_columns(joints: tuple[str, ...], t_ns: np.ndarray, signals: dict[str, 
         if position_ref is not None:
             cols[f"{joint}.position_ref"] = np.asarray(position_ref[:, j], dtype=np.float64)
         for det in DETECTORS:
-            cols[f"{joint}.{det}"] = decisions[det][:, j].astype(np.uint8)
+            cols[f"{joint}.{det}"] = np.asarray(decisions[det][:, j], dtype=bool)
     return cols
 
 
@@ -73,7 +73,7 @@ class RerunWriter:
     """
 
     def __init__(self) -> None:
-        self.spill = ParquetSpill(prefix="impactcli-rrd-")
+        self.spill = ColumnSpill(prefix="impactcli-rrd-")
 
     def __call__(self, chunk: Any) -> None:
         """One chunk of the replay."""
@@ -119,7 +119,7 @@ def write_rrd(result: Any, path: str | os.PathLike[str], **options: Any) -> None
         w.write(result, path, **options)
 
 
-def write_recording(result: Any, spill: ParquetSpill, path: str | os.PathLike[str], *,
+def write_recording(result: Any, spill: ColumnSpill, path: str | os.PathLike[str], *,
                     max_points: int = DEFAULT_MAX_POINTS,
                     event_window_s: float = DEFAULT_EVENT_WINDOW_S,
                     recording_id: str | None = None) -> None:
@@ -222,7 +222,7 @@ def open_recording(path: str | os.PathLike[str], result: Any, has_reference: boo
         raise
 
 
-def _write_samples(rec: Any, result: Any, spill: ParquetSpill, n: int, has_reference: bool,
+def _write_samples(rec: Any, result: Any, spill: ColumnSpill, n: int, has_reference: bool,
                    windows: list[tuple[int, int]], fired: dict[Any, int], max_points: int,
                    at_times: Callable[[np.ndarray], list[Any]]) -> None:
     """The plots, the markers and the lanes, one row group at a time."""

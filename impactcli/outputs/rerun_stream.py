@@ -3,9 +3,9 @@
 
 from __future__ import annotations
 
+from .column_spill import ColumnSpill as SpillWriter  # alias: removed in M
 from .decimate import EnvelopeStream  # alias: removed in M
 from .rerun import spill_columns  # alias: removed in M
 from .rerun import write_recording as write_rrd_from_spill  # alias: removed in M
-from .signals import ParquetSpill as SpillWriter  # alias: removed in M
 
 __all__ = ["EnvelopeStream", "SpillWriter", "spill_columns", "write_rrd_from_spill"]

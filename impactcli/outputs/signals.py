@@ -5,15 +5,12 @@ name in :data:`impactcli.result.SIGNAL_NAMES` and one 0/1 column per detector
 (``<joint>.adaptive``, ``<joint>.static_loading``, ``<joint>.static_baseline``); one row group
 per replay chunk. File metadata holds ``t0_ns``, the input sha256 and path, the tool version.
 :class:`SignalsWriter` writes the file as the replay goes; :func:`signal_groups` reads it back
-row group by row group (bounded memory). :class:`ParquetSpill` is the temporary file of
-per-sample columns the Rerun and report writers keep until the run's answer is known.
+row group by row group (bounded memory).
 """
 
 from __future__ import annotations
 
-import contextlib
 import os
-import tempfile
 from collections.abc import Iterator, Sequence
 from types import SimpleNamespace
 from typing import Any
@@ -131,69 +128,3 @@ def read_signals(path: str | os.PathLike[str]) -> tuple[dict[str, np.ndarray], d
     groups = list(signal_groups(path))
     return {n: np.concatenate([g[n] for g in groups]) if groups else np.zeros(0)
             for n in names}, meta
-
-
-#: How a temporary spill is written: snappy, no dictionary — read back once, soon, so
-#: fast to write and read rather than small (zstd level 1 is about 1.6× slower to write
-#: and 2× to read on replay signals, for files about a fifth smaller).
-SPILL_OPTIONS: dict[str, Any] = {"compression": "snappy", "use_dictionary": False}
-
-
-class ParquetSpill:
-    """A temporary Parquet file of per-sample columns, one row group per :meth:`append`
-    (:data:`SPILL_OPTIONS`, in :func:`impactcli.spill.temp_space`); :meth:`close` removes
-    it."""
-
-    def __init__(self, prefix: str = "impactcli-spill-") -> None:
-        from ..spill import temp_space
-
-        with temp_space():
-            fd, self.path = tempfile.mkstemp(prefix=prefix, suffix=".parquet")
-        os.close(fd)
-        self._writer: Any = None
-        self.columns: list[str] = []
-        self.rows: list[int] = []  # per row group
-
-    def append(self, cols: dict[str, np.ndarray]) -> None:
-        """One row group: column name → (m,) array (the first call fixes the columns)."""
-        import pyarrow as pa
-        import pyarrow.parquet as pq
-
-        from ..spill import temp_space
-
-        table = pa.table(cols)
-        with temp_space():
-            if self._writer is None:
-                self._writer = pq.ParquetWriter(self.path, table.schema, **SPILL_OPTIONS)
-                self.columns = list(cols)
-            self._writer.write_table(table)
-        self.rows.append(table.num_rows)
-
-    def finish(self) -> None:
-        """Close the file for writing (the groups can then be read)."""
-        from ..spill import temp_space
-
-        if self._writer is not None:
-            writer, self._writer = self._writer, None
-            with temp_space():
-                writer.close()
-
-    def groups(self, columns: Sequence[str] | None = None,
-               which: Sequence[int] | None = None) -> Iterator[dict[str, np.ndarray]]:
-        """The row groups (all, or those numbered ``which``, in that order) of ``columns``."""
-        import pyarrow.parquet as pq
-
-        self.finish()
-        if not self.rows:
-            return
-        f = pq.ParquetFile(self.path)
-        cols = None if columns is None else list(columns)
-        for g in range(len(self.rows)) if which is None else which:
-            t = f.read_row_group(g, columns=cols)
-            yield {name: t.column(name).to_numpy() for name in t.column_names}
-
-    def close(self) -> None:
-        """Remove the file."""
-        self.finish()
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(self.path)

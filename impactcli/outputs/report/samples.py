@@ -30,7 +30,7 @@ import numpy as np
 
 from ...scoring.sweep import SweepRow, ThresholdSweep, event_settings, signal_ratios
 from ...types import DETECTORS, Labels
-from ..signals import ParquetSpill
+from ..column_spill import ColumnSpill
 from ..svgplot import EnvelopeAccumulator
 from .common import WHOLE_LOG_BUCKETS
 
@@ -77,7 +77,7 @@ class ReportCollector:
         self.groups: list[tuple[int, int, float, float]] = []  # (k0, rows, t first, t last)
         self.k0 = 0
         self.has_ratios = False  # the chunks carry their ratios (else rebuilt from the spill)
-        self.spill = ParquetSpill(prefix="impactcli-report-")
+        self.spill = ColumnSpill(prefix="impactcli-report-")
 
     def __call__(self, c: Any) -> None:
         """Absorb one chunk of the replay (``joints``, ``time_s``, ``signals``,
