@@ -8,6 +8,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+# alias: removed in M (the whole module: callers import impactcli.scoring.* directly)
 from .scoring.evaluation import (
     ContactOutcome,
     DetectorScore,
@@ -106,12 +107,13 @@ __all__ = [
 ]
 
 
+# alias: removed in M
 def sweep_thresholds(result: Any, labels: Any, scales: Sequence[float], *,
                      tolerance: MatchTolerance | None = None, merge_gap_s: float | None = None,
                      min_duration_s: float | None = None,
                      detectors: Sequence[str] = EVALUATED) -> list[SweepRow]:
     """:func:`sweep_ratios` of a result holding its (N, J) ratios in memory, with the run's
-    ``config["events"]`` settings unless given."""  # alias: removed in M
+    ``config["events"]`` settings unless given."""
     from .scoring.sweep import event_settings
 
     gap, min_dur = event_settings(result.config, merge_gap_s, min_duration_s)
