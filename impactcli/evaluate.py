@@ -1,28 +1,14 @@
-"""Detection quality against ground-truth labels, and the equal-false-alarm threshold sweep:
-the public entry (``from impactcli.evaluate import ...``).
-
-The code lives in :mod:`impactcli.scoring`, one concern a module, data flowing one way
-(each imports only the ones before it):
-
-- :mod:`impactcli.scoring.match`: the matching window (an event matches a labelled contact
-  when it starts within ``[start - pre_s, end + post_s]``, :class:`MatchTolerance`), the
-  events evaluation reads, the product's alarms (adaptive OR static_loading, merged);
-- :mod:`impactcli.scoring.incidents`: the incidents (link, force, contact type) scored
-  against the labels (:func:`evaluate_incidents`);
-- :mod:`impactcli.scoring.evaluation`: a log's events scored per contact and per detector
-  (:func:`evaluate_events`, :func:`evaluate_result`; the counting rules are its docstring);
-- :mod:`impactcli.scoring.sweep`: every threshold rescaled and the events scored again
-  (:func:`sweep_thresholds`, :func:`sweep_ratios`);
-- :mod:`impactcli.scoring.verdict`: the zero-false-alarm points, adaptive against
-  static_loading there, the verdict; the sweep as JSON and text;
-- :mod:`impactcli.scoring.text`: the plain-text table of an evaluation.
-
-This module only re-exports their names, so that callers and tests keep one import path.
-Pure logic: no file I/O, no printing. The CLI (``impactcli evaluate``) reads the files.
+"""Alias of :mod:`impactcli.scoring` for the modules not yet moved to it (``study/``, a
+benchmark): the names they import, re-exported, and :func:`sweep_thresholds` of an in-memory
+result. alias: removed in M (callers import the scoring modules directly).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import Any
+
+# alias: removed in M (the whole module: callers import impactcli.scoring.* directly)
 from .scoring.evaluation import (
     ContactOutcome,
     DetectorScore,
@@ -49,20 +35,18 @@ from .scoring.match import (
     SCHEMA_VERSION,
     SECONDS_PER_HOUR,
     MatchTolerance,
-    _as_ev,  # noqa: F401  private, re-exported for tests
-    _Ev,  # noqa: F401  private, re-exported for outputs/sweep_stream.py
+    ScoredEvent,
     force_known,
     product_events,
 )
 from .scoring.sweep import (
     DEFAULT_SWEEP_SCALES,
     SweepRow,
-    _event_settings,  # noqa: F401  private, re-exported for outputs/sweep_stream.py
+    ThresholdSweep,
     event_intervals,
     geometric_scales,
     ratios_from_signals,
     sweep_ratios,
-    sweep_thresholds,
 )
 from .scoring.text import (
     format_evaluation,
@@ -99,7 +83,9 @@ __all__ = [
     "IncidentOutcome",
     "KindScore",
     "MatchTolerance",
+    "ScoredEvent",
     "SweepRow",
+    "ThresholdSweep",
     "adaptive_helps",
     "at_zero_false_alarms",
     "compare_at_zero",
@@ -119,3 +105,18 @@ __all__ = [
     "sweep_to_dict",
     "verdict",
 ]
+
+
+# alias: removed in M
+def sweep_thresholds(result: Any, labels: Any, scales: Sequence[float], *,
+                     tolerance: MatchTolerance | None = None, merge_gap_s: float | None = None,
+                     min_duration_s: float | None = None,
+                     detectors: Sequence[str] = EVALUATED) -> list[SweepRow]:
+    """:func:`sweep_ratios` of a result holding its (N, J) ratios in memory, with the run's
+    ``config["events"]`` settings unless given."""
+    from .scoring.sweep import event_settings
+
+    gap, min_dur = event_settings(result.config, merge_gap_s, min_duration_s)
+    return sweep_ratios(result.ratios, result.log.time_s, labels=labels, scales=scales,
+                        warmup_end_s=result.warmup_end_s, merge_gap_s=gap,
+                        min_duration_s=min_dur, tolerance=tolerance, detectors=detectors)

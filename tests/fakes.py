@@ -1,13 +1,29 @@
-"""A synthetic DetectionResult with known events, for testing outputs without the pipeline."""
+"""A synthetic run with known events, for testing outputs without a replay: its result
+(:func:`fake_result`) and its per-sample data as the chunks a replay hands its writers
+(:func:`fake_chunks`), fed through the same writers the CLI uses."""
 
 from __future__ import annotations
 
+import os
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from typing import Any
+
 import numpy as np
 
+from impactcli.outputs.report import RenderedLog, assemble_report, render_log, write_report
+from impactcli.outputs.report.margins import false_alarm_margins
+from impactcli.outputs.report.samples import ReportCollector, Samples
+from impactcli.outputs.rerun import RerunWriter
+from impactcli.outputs.signals import SignalsWriter
 from impactcli.result import SIGNAL_NAMES, DetectionResult
-from impactcli.types import DETECTORS, Event
+from impactcli.sampling import gap_steps
+from impactcli.types import DETECTORS, Event, Labels
 
 from .conftest import make_log
+
+#: Rows per fake chunk: several chunks per fake log, boundaries inside its events.
+CHUNK_ROWS = 1000
 
 
 def fake_result(
@@ -102,3 +118,104 @@ def with_incidents(result: DetectionResult, *, kinematics: bool = True,
     if kinematics:
         model["robot"] = PLANAR_ROBOT
     return dataclasses.replace(result, log=log, incidents=incs, model=model)
+
+
+@dataclass(frozen=True)
+class FakeChunk:
+    """One chunk as a replay hands it to its writers: the joints, (n,) times [s] and [ns],
+    name → (n, J) signals, detector → (n, J) decisions and ratios, (n, J) positions."""
+
+    joints: tuple[str, ...]
+    time_s: np.ndarray
+    t_ns: np.ndarray
+    signals: dict[str, np.ndarray]
+    decisions: dict[str, np.ndarray]
+    position: np.ndarray
+    position_ref: np.ndarray | None
+    ratios: dict[str, np.ndarray]
+
+
+def fake_chunks(result: DetectionResult, rows: int = CHUNK_ROWS) -> Iterator[FakeChunk]:
+    """The fake run's per-sample data in chunks of ``rows`` samples, in time order."""
+    log = result.log
+    n = log.n_samples
+    for a in range(0, n, rows):
+        b = min(a + rows, n)
+        yield FakeChunk(
+            tuple(log.joint_names), log.time_s[a:b], np.asarray(log.t_ns)[a:b],
+            {k: v[a:b] for k, v in result.signals.items()},
+            {k: v[a:b] for k, v in result.decisions.items()}, np.asarray(log.position)[a:b],
+            None if log.position_ref is None else np.asarray(log.position_ref)[a:b],
+            {k: v[a:b] for k, v in result.ratios.items()})
+
+
+def collect(result: DetectionResult, rows: int = CHUNK_ROWS, plots: bool = True) -> Samples:
+    """The report's :class:`Samples` of the fake run, its chunks fed to a ReportCollector
+    (the gaps of its clock as a scan finds them); the caller closes them."""
+    log = result.log
+    gaps, lengths = gap_steps(np.asarray(log.t_ns))
+    col = ReportCollector(log.n_samples, gaps, lengths, plots=plots)
+    try:
+        for c in fake_chunks(result, rows):
+            col(c)
+        return col.finish(result)
+    except BaseException:
+        col.close()
+        raise
+
+
+def render(result: DetectionResult, labels: Labels | None = None, key: int = 0,
+           origin: dict[str, Any] | None = None, rows: int = CHUNK_ROWS) -> RenderedLog:
+    """:func:`render_log` of the fake run, on its collected samples."""
+    samples = collect(result, rows)
+    try:
+        return render_log(result, labels, key, origin, samples=samples)
+    finally:
+        samples.close()
+
+
+def build_report(results: Sequence[DetectionResult],
+                 labels: Sequence[Labels | None] | None = None,
+                 failed: Sequence[tuple[str, str]] = ()) -> tuple[str, dict[str, Any]]:
+    """(html, doc) of a report on fake runs (one labels or None per run)."""
+    labs = list(labels) if labels is not None else [None] * len(results)
+    return assemble_report([render(r, lab, k) for k, (r, lab) in
+                            enumerate(zip(results, labs, strict=True))], failed)
+
+
+def write_fake_report(results: Sequence[DetectionResult], html_path: str | os.PathLike[str],
+                      json_path: str | os.PathLike[str] | None = None,
+                      labels: Sequence[Labels | None] | None = None) -> dict[str, Any]:
+    """:func:`write_report` of fake runs (one labels or None per run)."""
+    labs = list(labels) if labels is not None else [None] * len(results)
+    return write_report([render(r, lab, k) for k, (r, lab) in
+                         enumerate(zip(results, labs, strict=True))], html_path, json_path)
+
+
+def margins(result: DetectionResult, labels: Labels | None = None) -> dict[str, Any]:
+    """:func:`false_alarm_margins` of the fake run, on its collected samples."""
+    samples = collect(result)
+    try:
+        return false_alarm_margins(result, labels, samples=samples)
+    finally:
+        samples.close()
+
+
+def write_fake_rrd(result: DetectionResult, path: str | os.PathLike[str],
+                   rows: int = CHUNK_ROWS, **options: Any) -> None:
+    """The fake run's Rerun recording: its chunks fed to a :class:`RerunWriter`."""
+    with RerunWriter() as w:
+        for c in fake_chunks(result, rows):
+            w(c)
+        w.write(result, path, **options)
+
+
+def write_fake_signals(result: DetectionResult, path: str | os.PathLike[str],
+                       rows: int = CHUNK_ROWS) -> int:
+    """The fake run's signals Parquet, written as ``detect --signals`` writes it (one row
+    group per chunk of ``rows``); returns the number of row groups."""
+    log = result.log
+    with SignalsWriter(path, log.t0_ns, log.source.sha256, log.source.path) as w:
+        for c in fake_chunks(result, rows):
+            w(c)
+    return -(-log.n_samples // rows)

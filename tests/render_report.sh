@@ -38,9 +38,8 @@ if [ -z "$report" ]; then
 import dataclasses
 import sys
 
-from impactcli.outputs.report import write_report
 from impactcli.types import ContactLabel, Labels, LogSource
-from tests.fakes import fake_result, with_incidents
+from tests.fakes import fake_result, with_incidents, write_fake_report
 
 cfg = {"adaptive": {"forgetting_factor": 0.999},
        "events": {"merge_gap_s": 0.05, "min_duration_s": 0.0}}
@@ -52,7 +51,7 @@ b = dataclasses.replace(b, reference_source="measured",
                         log=dataclasses.replace(b.log, source=LogSource("fleet/arm_b.mcap", "b2" * 32, "mcap-ros2")))
 labels = Labels((ContactLabel(3.99, 4.12, 12.0, "impact", 2), ContactLabel(6.95, 7.5, 30.0, "clamp", 1),
                  ContactLabel(8.5, 8.6, 3.0, "push", 1)), 250.0, "fleet/arm_a.labels.json")
-write_report([a, b], sys.argv[1], sys.argv[1].replace(".html", ".json"), labels=[labels, None])
+write_fake_report([a, b], sys.argv[1], sys.argv[1].replace(".html", ".json"), labels=[labels, None])
 EOF
     )
 fi

@@ -1,4 +1,4 @@
-"""Issue 4's done criteria on the committed sample logs (CSV copies) and configs.
+"""The committed sample logs (CSV copies) and configs meet the detection criteria.
 
 Thresholds: ``sample_logs/assist_like.config.toml`` — ``impactcli calibrate`` on the
 collision-free triangle, point-to-point and multi-sine logs (leave-one-out margins; the
@@ -22,7 +22,8 @@ from click.testing import CliRunner
 
 from impactcli.cli import main
 from impactcli.config import DetectorConfig, load_config
-from impactcli.evaluate import PRODUCT, evaluate_events
+from impactcli.scoring.evaluation import evaluate_events
+from impactcli.scoring.match import PRODUCT
 
 from .benchmarks import sample_quality as sq
 

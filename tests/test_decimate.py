@@ -7,6 +7,7 @@ import pytest
 
 from impactcli.outputs.decimate import (
     DEFAULT_MAX_POINTS,
+    EnvelopeStream,
     bucket_size,
     envelope_indices,
     select_samples,
@@ -98,3 +99,34 @@ def test_nan_samples_do_not_hide_the_extrema() -> None:
 def test_bad_max_points_is_refused() -> None:
     with pytest.raises(ValueError, match="max_points"):
         bucket_size(10, 1, 0)
+
+
+@pytest.mark.parametrize(("n", "k", "max_points", "chunks"), [
+    (100_000, 2, 3000, [997]), (20_000, 1, 1000, [1, 7, 4096]),
+    (12_345, 3, 500, [100, 12_345]), (9_999, 2, 5000, [3000]), (1_500, 2, 10**6, [7])])
+def test_envelope_stream_selects_the_whole_series_envelope(
+        n: int, k: int, max_points: int, chunks: list[int]) -> None:
+    """EnvelopeStream over chunks selects exactly envelope_indices of the whole series (NaN,
+    kept samples, a last bucket shorter than the others), each index once, its rows riding
+    along bit for bit (an int64 time seen as float64)."""
+    rng = np.random.default_rng(n)
+    v = rng.normal(size=(n, k))
+    v[rng.random(n) < 0.01, 0] = np.nan
+    keep = rng.random(n) < 0.001
+    t = np.arange(n, dtype=np.int64) - 3  # negative times: NaN bit patterns as float64
+    want = envelope_indices([v[:, i] for i in range(k)], bucket_size(n, k, max_points), keep)
+    es, old = EnvelopeStream(n, k, max_points), EnvelopeStream(n, k, max_points)
+    got: list[int] = []
+    a = i = 0
+    while a < n:
+        b = min(a + chunks[i % len(chunks)], n)
+        cols = [np.ascontiguousarray(v[a:b, s]) for s in range(k)]
+        sel, rows = es.select([*cols, t[a:b].view(np.float64)], k, keep[a:b])
+        assert np.array_equal(np.ascontiguousarray(rows[:, -1]).view(np.int64), sel - 3)
+        assert np.array_equal(rows[:, :k], v[sel], equal_nan=True)
+        sel_old, rows_old = old.update(v[a:b], keep[a:b],
+                                       np.arange(a, b, dtype=np.float64)[:, None])
+        assert np.array_equal(sel_old, sel) and np.array_equal(rows_old[:, 0], sel)
+        got += sel.tolist()
+        a, i = b, i + 1
+    assert sorted(got) == want.tolist() and len(set(got)) == len(got)

@@ -10,21 +10,26 @@ import pytest
 
 from impactcli.detect.events import extract_events
 from impactcli.errors import ConfigError, ImpactWarning, LabelsError, LogFormatError
-from impactcli.evaluate import (
-    MatchTolerance,
+from impactcli.schema import validate
+from impactcli.scoring.evaluation import evaluate_events
+from impactcli.scoring.match import MatchTolerance, product_events, scored_event
+from impactcli.scoring.sweep import (
+    EventIntervals,
     SweepRow,
+    ThresholdSweep,
+    event_intervals,
+    event_settings,
+    sweep_ratios,
+)
+from impactcli.scoring.text import format_evaluation
+from impactcli.scoring.verdict import (
     adaptive_helps,
     at_zero_false_alarms,
     compare_at_zero,
-    evaluate_events,
-    event_intervals,
-    format_evaluation,
     format_sweep,
-    sweep_thresholds,
     sweep_to_dict,
     verdict,
 )
-from impactcli.schema import validate
 from impactcli.types import ContactLabel, Event, Labels
 
 from .fakes import fake_result
@@ -252,6 +257,14 @@ def sweep_result(adaptive_delay: float = 0.0):
 SWEEP_LABELS = labels(contact(4.0, 4.1, 3.0), contact(8.0, 8.1, 1.5))
 
 
+def sweep_thresholds(res, lab, scales, *, merge_gap_s=None, min_duration_s=None, **kw):
+    """The sweep of a fake run's (N, J) ratios, with its config's event settings."""
+    gap, min_dur = event_settings(res.config, merge_gap_s, min_duration_s)
+    return sweep_ratios(res.ratios, res.log.time_s, labels=lab, scales=scales,
+                        warmup_end_s=res.warmup_end_s, merge_gap_s=gap, min_duration_s=min_dur,
+                        **kw)
+
+
 def test_sweep_rows_have_the_known_counts():
     rows = sweep_thresholds(sweep_result(), SWEEP_LABELS, [2.5, 1.0, 1.3, 1.6])
     got = {(r.detector, r.scale): (r.detected, r.false_alarms) for r in rows}
@@ -336,6 +349,56 @@ def test_event_intervals_equal_extract_events(gap, min_dur):
     assert none[0].size == 0 and none[1].size == 0
 
 
+def _chunks(n: int, sizes: list[int]) -> list[tuple[int, int]]:
+    out, a, k = [], 0, 0
+    while a < n:
+        b = min(a + sizes[k % len(sizes)], n)
+        out.append((a, b))
+        a, k = b, k + 1
+    return out
+
+
+@pytest.mark.parametrize("sizes", [[1], [7, 1, 300], [499], [2999, 1]])
+@pytest.mark.parametrize("gap, min_dur, warm_at", [(0.0, 0.0, None), (0.02, 0.0, 700),
+                                                    (0.1, 0.01, 0), (0.3, 0.2, 2999)])
+def test_event_intervals_whatever_the_chunks(sizes, gap, min_dur, warm_at):
+    """Fed in chunks of any size (runs and merged events across chunk boundaries, the
+    warm-up's end at a boundary or inside an alarm), EventIntervals finds the events of the
+    whole decision, which are extract_events'."""
+    rng = np.random.default_rng(5)
+    n, J = 3000, 2
+    t = np.cumsum(rng.uniform(0.003, 0.005, n))
+    ratio = np.abs(rng.standard_normal((n, J)))
+    dec = ratio > 2.8
+    dec[650:760, 0] = True  # a long alarm across sample 700
+    dec[-2:, 1] = True
+    wu = None if warm_at is None else float(t[warm_at])
+    want = extract_events("adaptive", dec, ratio, ratio, t, ["a", "b"],
+                          -1.0 if wu is None else wu, gap, min_dur)
+    iv = EventIntervals(gap, min_dur, wu)
+    for a, b in _chunks(n, sizes):
+        iv.update(t[a:b], dec[a:b].any(axis=1))
+    i0, t0, i1, t1 = iv.finish()
+    assert len(want) >= 4
+    assert [(e.i_start, e.i_end) for e in want] == list(zip(i0.tolist(), i1.tolist(),
+                                                            strict=True))
+    assert t0.tolist() == t[i0].tolist() and t1.tolist() == t[i1].tolist()
+
+
+def test_sweep_rows_whatever_the_chunks():
+    res = sweep_result()
+    gap, min_dur = event_settings(res.config, None, None)
+    scales = [0.9, 1.0, 1.3, 1.6, 2.5]
+    whole = sweep_thresholds(res, SWEEP_LABELS, scales)
+    t = res.log.time_s
+    for sizes in ([1000], [1, 13, 250], [1012]):  # boundaries in events and at the warm-up
+        sw = ThresholdSweep(scales, warmup_end_s=res.warmup_end_s, merge_gap_s=gap,
+                            min_duration_s=min_dur)
+        for a, b in _chunks(len(t), sizes):
+            sw.update(t[a:b], {d: r[a:b] for d, r in res.ratios.items()})
+        assert sw.rows(SWEEP_LABELS) == whole
+
+
 def test_sweep_needs_event_settings():
     res = dataclasses.replace(sweep_result(), config={})
     with pytest.raises(ConfigError, match="merge_gap_s"):
@@ -397,15 +460,10 @@ def test_zero_false_alarm_point_ignores_a_lone_silent_scale_and_undetermined_ver
 
 
 def test_product_keeps_an_alarm_after_warmup_apart_from_one_in_it():
-    from impactcli.evaluate import product_events
-    from impactcli.types import Event
-
     warm = Event("static_loading", 0.5, 0.996, 125, 249, ("a",), 2.0, {"a": 1.0}, True)
     tail = Event("static_loading", 1.0, 9.0, 250, 2250, ("a",), 2.0, {"a": 1.0}, False)
     adap = Event("adaptive", 0.9, 1.2, 225, 300, ("a",), 1.5, {"a": 1.0}, True)
-    from impactcli.evaluate import _as_ev
-
-    evs = [_as_ev(e, 1.0, i) for i, e in enumerate((warm, tail, adap))]
+    evs = [scored_event(e, 1.0, i) for i, e in enumerate((warm, tail, adap))]
     out = product_events(evs, 1.0)
     assert [(e.t_start, e.t_end, e.in_warmup) for e in out] == [(0.5, 1.2, True), (1.0, 9.0, False)]
 

@@ -14,11 +14,11 @@ from click.testing import CliRunner
 import impactcli.cli.evaluate as cli_eval
 from impactcli.cli import main
 from impactcli.errors import LabelsError
-from impactcli.evaluate import DEFAULT_SWEEP_SCALES
-from impactcli.outputs.signals import write_signals
 from impactcli.outputs.timeline import write_timeline
 from impactcli.schema import validate
+from impactcli.scoring.sweep import DEFAULT_SWEEP_SCALES, ratios_from_signals, sweep_ratios
 
+from .fakes import fake_result, write_fake_signals
 from .test_evaluate import SWEEP_LABELS, sweep_result
 
 H = 3600.0
@@ -276,7 +276,7 @@ def test_sweep_from_a_log(tmp_path, monkeypatch):
     import dataclasses
     import types
 
-    from impactcli.outputs.report_stream import ReportCollector
+    from impactcli.outputs.report.samples import ReportCollector
 
     seen: dict[str, Any] = {}
 
@@ -328,7 +328,7 @@ def test_sweep_from_a_timeline_with_its_signals(tmp_path):
     res = dataclasses.replace(res, signals=sig, events=())
     tl = tmp_path / "arm.timeline.json"
     write_timeline(res, tl)
-    write_signals(res, tmp_path / "arm.signals.parquet")
+    write_fake_signals(res, tmp_path / "arm.signals.parquet", rows=1012)  # a group at warm-up
     lab = write(tmp_path, "labels.json", SWEEP_LABELS.to_dict())
     r = invoke(str(tl), "--labels", str(lab), "--json", "--sweep", "--scales", "1,1.3,1.6,2.5")
     assert r.exit_code == 0, info(r)
@@ -336,6 +336,59 @@ def test_sweep_from_a_timeline_with_its_signals(tmp_path):
     zero = doc["sweep"]["at_zero_false_alarms"]
     assert zero["adaptive"]["scale"] == 1.6 and zero["static_loading"]["scale"] == 1.3
     assert zero["adaptive"]["min_detected_force"] == 3.0
+
+
+def test_timeline_sweep_reads_its_signals_one_row_group_at_a_time(tmp_path, monkeypatch):
+    """evaluate TIMELINE --sweep on a long run's signals (400,000 samples, 20 row groups):
+    the file is read one row group at a time, never whole, the memory the sweep allocates
+    stays far below what the whole log's ratios take, and the rows are the in-memory
+    sweep's of the whole run."""
+    import tracemalloc
+
+    import pyarrow.parquet as pq
+
+    res = dataclasses.replace(fake_result(n=400_000, dt=0.004),
+                              config={"events": {"merge_gap_s": 0.02, "min_duration_s": 0.0}})
+    tl, sig = tmp_path / "arm.timeline.json", tmp_path / "arm.signals.parquet"
+    write_timeline(res, tl)
+    assert write_fake_signals(res, sig, rows=20_000) == pq.ParquetFile(sig).num_row_groups == 20
+    lab = write(tmp_path, "labels.json", SWEEP_LABELS.to_dict())
+    groups: list[int] = []
+    real = pq.ParquetFile.read_row_group
+
+    def read_row_group(self: Any, i: int, *a: Any, **k: Any) -> Any:
+        t = real(self, i, *a, **k)
+        groups.append(t.num_rows)
+        return t
+
+    def whole(*a: Any, **k: Any) -> Any:
+        raise AssertionError("the signals file was read whole")
+
+    monkeypatch.setattr(pq.ParquetFile, "read_row_group", read_row_group)
+    monkeypatch.setattr(pq.ParquetFile, "read", whole)
+    monkeypatch.setattr(pq, "read_table", whole)
+    args = (str(tl), "--labels", str(lab), "--json", "--sweep", "--scales", "1,1.3")
+    assert invoke(*args).exit_code == 0  # once untraced: the modules it imports are loaded
+    groups.clear()
+    tracemalloc.start()
+    try:
+        r = invoke(*args)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert r.exit_code == 0, info(r)
+    assert groups == [20_000] * 20
+    whole_ratios = 3 * res.log.n_samples * 2 * 8  # bytes of the (N, J) ratios, 3 detectors
+    assert peak < whole_ratios / 3, f"peak {peak / 1e6:.1f} MB"
+    monkeypatch.undo()
+    cols = {f"{j}.{name}": res.signals[name][:, k] for k, j in enumerate(res.log.joint_names)
+            for name in ("residual_rms", "threshold", "loading_statistic", "residual")}
+    want = sweep_ratios(ratios_from_signals(cols, res.log.joint_names, res.thresholds),
+                        res.log.time_s, labels=SWEEP_LABELS, scales=(1, 1.3),
+                        warmup_end_s=res.warmup_end_s, merge_gap_s=0.02, min_duration_s=0.0)
+    from impactcli.scoring.verdict import sweep_to_dict
+
+    assert json.loads(r.stdout)["sweep"] == json.loads(json.dumps(sweep_to_dict(want)))
 
 
 def test_end_to_end_log_and_timeline_agree(tmp_path):

@@ -6,11 +6,11 @@ import json
 
 import numpy as np
 
-from impactcli.outputs.signals import read_signals, write_signals
+from impactcli.outputs.signals import read_signals, signal_groups, signals_schema
 from impactcli.outputs.timeline import timeline_json, write_timeline
 from impactcli.schema import load_schema
 
-from .fakes import fake_result
+from .fakes import fake_result, write_fake_signals
 
 
 def test_timeline_validates_and_counts(tmp_path) -> None:
@@ -36,10 +36,19 @@ def test_timeline_is_deterministic() -> None:
 
 
 def test_signals_roundtrip(tmp_path) -> None:
+    """Written chunk by chunk (one row group each), read back whole or group by group."""
     res = fake_result()
     p = tmp_path / "x.signals.parquet"
-    write_signals(res, p)
-    cols, meta = read_signals(p)
+    assert write_fake_signals(res, p, rows=1000) == 3
+    names, meta, n_groups = signals_schema(p)
+    assert n_groups == 3 and names[0] == "time"
+    groups = list(signal_groups(p, ["time", "j1.residual"]))
+    assert [len(g["time"]) for g in groups] == [1000, 1000, 500]
+    assert set(groups[0]) == {"time", "j1.residual"}
+    np.testing.assert_array_equal(np.concatenate([g["j1.residual"] for g in groups]),
+                                  res.signals["residual"][:, 0])
+    cols, meta2 = read_signals(p)
+    assert meta2 == meta
     np.testing.assert_array_equal(cols["time"], res.log.time_s)
     np.testing.assert_array_equal(cols["j2.residual_rms"], res.signals["residual_rms"][:, 1])
     np.testing.assert_array_equal(cols["j1.static_loading"], res.decisions["static_loading"][:, 0])

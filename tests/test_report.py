@@ -15,20 +15,12 @@ import pytest
 from impactcli.cli.report import auto_labels, pair_labels
 from impactcli.detect.incidents import planar_jacobian, smallest_caught_force
 from impactcli.outputs import report, svgplot
-from impactcli.outputs.report import (
-    GUARD_S,
-    build_report,
-    false_alarm_margins,
-    log_stem,
-    render_log,
-    verdict_text,
-    write_report,
-)
+from impactcli.outputs.report import GUARD_S, log_stem, verdict_text
 from impactcli.result import DetectionResult
 from impactcli.schema import load_schema
 from impactcli.types import ContactLabel, Event, Labels, LogSource
 
-from .fakes import fake_result, with_incidents
+from .fakes import build_report, fake_result, margins, render, with_incidents, write_fake_report
 
 EVENTS_CFG = {
     "adaptive": {"forgetting_factor": 0.999},
@@ -146,7 +138,7 @@ def test_json_validates_and_is_byte_identical(tmp_path: Path) -> None:
     for k in range(2):
         r = result_named("a.csv", "a" * 64, config=EVENTS_CFG)
         h, j = tmp_path / f"r{k}.html", tmp_path / f"r{k}.json"
-        write_report([r, result_named("b.csv", "b" * 64)], h, j, labels=[labels, None])
+        write_fake_report([r, result_named("b.csv", "b" * 64)], h, j, labels=[labels, None])
         runs.append((h.read_bytes(), j.read_bytes()))
     assert runs[0][1] == runs[1][1]
     assert runs[0][0] == runs[1][0]
@@ -190,10 +182,10 @@ def test_false_alarm_margin_known_peaks() -> None:
     put(6.0, 0.9)  # collision-free: the margin
     assert base < 0.9
     r = dataclasses.replace(r, ratios=ratios)
-    m = false_alarm_margins(r)["per_detector"]["adaptive"]["j2"]
+    m = margins(r)["per_detector"]["adaptive"]["j2"]
     assert m["max_ratio"] == pytest.approx(0.97) and m["t_s"] == pytest.approx(9.0, abs=0.004)
     lab = Labels((ContactLabel(8.95, 9.1, 5.0, "push", 2),), 250.0)
-    full = false_alarm_margins(r, lab)
+    full = margins(r, lab)
     m = full["per_detector"]["adaptive"]["j2"]
     assert m["max_ratio"] == pytest.approx(0.9) and m["t_s"] == pytest.approx(6.0, abs=0.004)
     assert m["headroom"] == pytest.approx(1 / 0.9)
@@ -534,14 +526,14 @@ def test_could_not_see_gaps_left_out_joints_and_no_kinematics() -> None:
 def test_an_older_timeline_says_what_it_cannot_tell() -> None:
     origin = {"timeline": "det/run.timeline.json", "timeline_schema_version": "1.0",
               "recorded_by": "impactcli 0.0.9", "recorded_incidents": None}
-    rendered = render_log(with_incidents(fake_result()), origin=origin)
+    rendered = render(with_incidents(fake_result()), origin=origin)
     items = unseen({"logs": [rendered.section]})
     assert "older-timeline" in items
     text = items["older-timeline"]["text"]
     assert "det/run.timeline.json" in text and "impactcli 0.0.9" in text
     assert "records no incidents" in text and "re-running detection" in text
     assert rendered.section["origin"] == origin
-    assert "older-timeline" not in unseen({"logs": [render_log(fake_result()).section]})
+    assert "older-timeline" not in unseen({"logs": [render(fake_result()).section]})
 
 
 def test_the_incident_list_in_html_and_json() -> None:

@@ -2,7 +2,7 @@
 
 The wiring (labels pairing, batch failures, timeline re-runs, exit codes) is tested with a
 stand-in for the replay (:func:`impactcli.batch.stream_log`) that returns the synthetic
-result on the log actually read; one end-to-end test runs the real pipeline when it is installed.
+result on the log actually read; one end-to-end test runs the real replay.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from impactcli.schema import load_schema
 from impactcli.types import ContactLabel, Labels
 
 from .conftest import make_log
-from .fakes import fake_result
+from .fakes import collect, fake_result
 
 N = 2500  # fake_result's length: its log is make_log(N)
 
@@ -44,7 +44,8 @@ def show(res: Result) -> str:
 @pytest.fixture
 def fake_pipeline(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
     """Replace the replay (impactcli.batch.stream_log): the synthetic result on the log it
-    is given, read as the replay reads it (its sha256 checked as the scan's)."""
+    is given, read as the replay reads it (its sha256 checked as the scan's), and its
+    report's samples collected from its chunks."""
     calls: list[dict[str, Any]] = []
 
     def stream_log(log_path: str, *, robot: Any = None, model: Any = None, config: Any = None,
@@ -55,7 +56,8 @@ def fake_pipeline(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
             check(types.SimpleNamespace(source=log.source))
         calls.append({"log": log, "model": model, "config": config, "robot": robot,
                       "read_options": read_options, "allow_slow": allow_slow})
-        return dataclasses.replace(fake_result(), log=log), None
+        result = dataclasses.replace(fake_result(), log=log)
+        return result, collect(result)  # its chunks collected as the replay's would be
 
     monkeypatch.setattr("impactcli.batch.stream_log", stream_log)
     return calls
@@ -167,7 +169,6 @@ def test_report_on_a_timeline_reruns_it(tmp_path: Path, fake_pipeline: list) -> 
 
 def test_report_end_to_end_with_the_pipeline(tmp_path: Path) -> None:
     """LOG → report, and LOG → detect → TIMELINE → report: the same JSON, byte for byte."""
-    pytest.importorskip("impactcli.pipeline")
     log = write_log(tmp_path / "e2e.csv")
     out, js = tmp_path / "r.html", tmp_path / "r.json"
     res = CliRunner().invoke(main, ["report", str(log), "-o", str(out), "--json", str(js)])

@@ -21,7 +21,7 @@ from impactcli.outputs.report import write_report
 from impactcli.types import ContactLabel, Labels, LogSource
 
 from .conftest import REPO
-from .fakes import fake_result, with_incidents
+from .fakes import fake_result, with_incidents, write_fake_report
 
 SCRIPT = Path(__file__).resolve().parent / "render_report.sh"
 #: The window the first screen is judged in (CSS px).
@@ -96,15 +96,15 @@ def test_the_first_screen_answers(tmp_path: Path) -> None:
     lab = Labels((ContactLabel(3.99, 4.12, 12.0, "impact", 2),
                   ContactLabel(6.95, 7.5, 30.0, "clamp", 1)), 250.0, "fleet/a.labels.json")
     one = tmp_path / "one.html"
-    write_report([labelled("arm_a", "a1")], one, labels=[lab])
+    write_fake_report([labelled("arm_a", "a1")], one, labels=[lab])
     ids = ("log1-verdict", "log1-incidents")
     pos = layout(one, ids, tmp_path)
     assert_first_screen(pos, ids)
     assert pos["log1-verdict"]["bottom"] <= pos["log1-incidents"]["top"]
     fleet = tmp_path / "fleet.html"
-    write_report([labelled(n, s, joints=j) for n, s, j in
-                  (("arm_a", "a1", ("j1", "j2")), ("arm_b", "b2", ("j1", "j2", "j3")),
-                   ("arm_c", "c3", ("j1", "j2")))], fleet, labels=[lab, None, None])
+    write_fake_report([labelled(n, s, joints=j) for n, s, j in
+                       (("arm_a", "a1", ("j1", "j2")), ("arm_b", "b2", ("j1", "j2", "j3")),
+                        ("arm_c", "c3", ("j1", "j2")))], fleet, labels=[lab, None, None])
     ids = ("fleet-summary", "log1-verdict", "log1-incidents")
     assert_first_screen(layout(fleet, ids, tmp_path), ids)
 
@@ -113,20 +113,29 @@ def test_the_first_screen_answers(tmp_path: Path) -> None:
 def test_the_first_screen_answers_on_the_sample_logs(tmp_path: Path) -> None:
     """The sample logs of the README's report (three logs, 16 incidents on the first)."""
     chromium()
-    pytest.importorskip("impactcli.pipeline")
+    import warnings
+
+    from impactcli.batch import stream_log
     from impactcli.config import load_config
-    from impactcli.io import read_log
     from impactcli.io.robot import read_labels
-    from impactcli.pipeline import analyze
+    from impactcli.outputs.report import render_log
 
     csv = REPO / "sample_logs" / "csv"
     cfg = load_config(REPO / "sample_logs" / "assist_like.config.toml")
     names = ("assist_impacts", "assist_pushes", "assist_clamps")
-    results = [analyze(read_log(csv / f"{n}.csv.gz"), config=cfg, read_options={})
-               for n in names]
-    labels = [read_labels(csv / f"{n}.labels.json") for n in names]
+    rendered = []
+    for k, n in enumerate(names):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            result, samples = stream_log(str(csv / f"{n}.csv.gz"), robot=None, model=None,
+                                         config=cfg, samples="report")
+        try:
+            rendered.append(render_log(result, read_labels(csv / f"{n}.labels.json"), k,
+                                       samples=samples))
+        finally:
+            samples.close()
     page = tmp_path / "report.html"
-    write_report(results, page, labels=labels)
+    write_report(rendered, page)
     ids = ("fleet-summary", "log1-verdict", "log1-incidents")
     assert_first_screen(layout(page, ids, tmp_path), ids)
 

@@ -1,15 +1,16 @@
-"""The report of a streamed replay (impactcli.outputs.report_stream) is the whole-log
-report: the same HTML and JSON, byte for byte — verdict, incidents, events, margins, the
-plots' points, the sweep — whatever the chunk size; and `impactcli report` streams with a
-calibrated config, leaving no spill file behind."""
+"""A log's report from its replay's chunks (impactcli.outputs.report.samples): the same
+HTML and JSON, byte for byte — verdict, incidents, events, margins, the plots' points, the
+sweep — whatever the chunk size, and whether the chunks carry their ratios or the report
+rebuilds them; `impactcli report` streams and leaves no spill file behind."""
 
 from __future__ import annotations
 
-import glob
 import os
 import tempfile
 import warnings
 from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -17,42 +18,55 @@ from click.testing import CliRunner
 
 from impactcli.cli import main
 from impactcli.config import load_config
-from impactcli.io import read_log
 from impactcli.io.robot import read_labels
 from impactcli.io.stream import scan_log
 from impactcli.outputs.report import assemble_report, render_log, report_json
-from impactcli.outputs.report_stream import ReportCollector
+from impactcli.outputs.report.samples import ReportCollector
 from impactcli.outputs.svgplot import EnvelopeAccumulator, envelope
-from impactcli.pipeline import analyze
+from impactcli.scoring.sweep import signal_ratios
 from impactcli.stream import analyze_stream
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
 ASSIST = SAMPLES / "assist_like.config.toml"
 HEAVY = SAMPLES / "heavy_geared.config.toml"
+#: Rows per chunk as the CLI replays (stream.CHUNK_ROWS): one chunk per sample log.
+CLI_ROWS = 65_536
 
 
-def _report(result, labels, samples=None):
+def _report(result, labels, samples):
     html, doc = assemble_report([render_log(result, labels, 0, samples=samples)])
     return html, report_json(doc)
 
 
-def _whole(path: Path, cfg: Path):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return analyze(read_log(path), config=load_config(cfg), read_options={})
+def _with_ratios(col: ReportCollector, thresholds: dict[str, dict[str, float]]) -> Any:
+    """``col`` fed chunks that carry their ratios (as the run computes them)."""
+    def feed(c: Any) -> None:
+        ratios = getattr(c, "ratios", None)
+        if ratios is None:
+            v_l = np.array([[thresholds[j]["vL"] for j in c.joints]])
+            v_0 = np.array([[thresholds[j]["v0"] for j in c.joints]])
+            ratios = signal_ratios(c.signals["residual_rms"], c.signals["threshold"],
+                                   c.signals["loading_statistic"], np.abs(c.signals["residual"]),
+                                   v_l, v_0)
+        col(SimpleNamespace(**{**vars(c), "ratios": ratios}))
+    return feed
 
 
-def _streamed(path: Path, cfg: Path, rows: int, plots: bool = True):
+def _streamed(path: Path, cfg: Path, rows: int, plots: bool = True,
+              thresholds: dict[str, dict[str, float]] | None = None):
+    """(result, samples) of the replay in chunks of ``rows``; with ``thresholds`` the
+    chunks carry their ratios."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         scan = scan_log(str(path))
-        col = ReportCollector(scan.n_samples, scan.gaps, scan.gap_lengths_s, plots=plots)
         try:
-            result = analyze_stream(str(path), config=load_config(cfg), read_options={},
-                                    chunk_rows=rows, scan=scan, on_chunk=col)
+            col = ReportCollector(scan.n_samples, scan.gaps, scan.gap_lengths_s, plots=plots)
         finally:
             if hasattr(scan, "close"):
                 scan.close()
+        feed = col if thresholds is None else _with_ratios(col, thresholds)
+        result = analyze_stream(str(path), config=load_config(cfg), read_options={},
+                                chunk_rows=rows, on_chunk=feed)
         return result, col.finish(result)
 
 
@@ -61,66 +75,75 @@ def _streamed(path: Path, cfg: Path, rows: int, plots: bool = True):
     ("assist_clamps", ASSIST, 4096),
     ("heavy_impacts", HEAVY, 1500),
 ])
-def test_streamed_report_is_the_whole_log_report(log: str, cfg: Path, rows: int) -> None:
+def test_the_report_whatever_the_chunks(log: str, cfg: Path, rows: int) -> None:
     path = SAMPLES / "csv" / f"{log}.csv.gz"
     labels = read_labels(SAMPLES / "csv" / f"{log}.labels.json")
-    whole = _whole(path, cfg)
-    result, samples = _streamed(path, cfg, rows)
+    runs = [_streamed(path, cfg, CLI_ROWS), _streamed(path, cfg, rows)]
+    runs.append(_streamed(path, cfg, rows, thresholds=runs[0][0].thresholds))
     try:
-        assert whole.incidents
+        assert runs[0][0].incidents and runs[0][1].col.groups[0][1] == runs[0][1].col.n
+        assert not runs[1][1].col.has_ratios and runs[2][1].col.has_ratios
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            want_html, want_json = _report(whole, labels)
-            got_html, got_json = _report(result, labels, samples)
-            assert got_json == want_json
-            assert got_html == want_html
-            # without labels too (no sweep; the margin's spans are the events alone)
-            assert _report(result, None, samples) == _report(whole, None)
+            want = _report(runs[0][0], labels, runs[0][1])
+            for result, samples in runs[1:]:
+                assert _report(result, labels, samples) == want
+                # without labels too (no sweep; the margin's spans are the events alone)
+                assert _report(result, None, samples) == _report(runs[0][0], None,
+                                                                 runs[0][1])
     finally:
-        samples.close()
-    assert not os.path.exists(samples.col.spill.path)
+        for _, samples in runs:
+            samples.close()
+    assert not any(os.path.exists(s.col.spill.path) for _, s in runs)
 
 
 def test_the_sweeps_collector_keeps_only_the_ratios_and_sweeps_alike() -> None:
     """evaluate --sweep's collector (plots=False): no envelopes, no positions in its spill,
-    and the same sweep rows as the report's full collector."""
+    and the same sweep rows as the report's full collector; with chunks that carry their
+    ratios it keeps only those."""
     import pyarrow.parquet as pq
-
-    from impactcli.outputs.sweep_stream import sweep_streamed
 
     path = SAMPLES / "csv" / "assist_impacts.csv.gz"
     labels = read_labels(SAMPLES / "csv" / "assist_impacts.labels.json")
     full, lean = _streamed(path, ASSIST, 997), _streamed(path, ASSIST, 997, plots=False)
+    leaner = _streamed(path, ASSIST, 997, plots=False, thresholds=full[0].thresholds)
     try:
         assert not lean[1].col.env and full[1].col.env
         names = pq.ParquetFile(lean[1].col.spill.path).schema_arrow.names
-        assert names == lean[1].ratio_columns()
+        assert names == ["t", *[f"{k}.{c}" for k in range(len(lean[0].log.joint_names))
+                                for c in ("rms", "thr", "load", "res")]]
+        names = pq.ParquetFile(leaner[1].col.spill.path).schema_arrow.names
+        assert names == ["t", *[f"{k}.x.{d}" for k in range(len(lean[0].log.joint_names))
+                                for d in ("adaptive", "static_loading", "static_baseline")]]
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             scales = (0.5, 1.0, 1.5, 3.0)
-            assert sweep_streamed(lean[1], lean[0], labels, scales) == \
-                sweep_streamed(full[1], full[0], labels, scales)
+            want = full[1].sweep(full[0], labels, scales)
+            assert sum(r.detected for r in want) > 0
+            assert lean[1].sweep(lean[0], labels, scales) == want
+            assert leaner[1].sweep(leaner[0], labels, scales) == want
     finally:
-        full[1].close()
-        lean[1].close()
+        for _, samples in (full, lean, leaner):
+            samples.close()
 
 
-def test_streamed_report_with_a_time_gap(tmp_path: Path) -> None:
+def test_the_report_with_a_time_gap(tmp_path: Path) -> None:
     """The gaps listed (their times from the chunks) and a window across a gap."""
     from tests.test_stream import _write_with_gap
 
     src = SAMPLES / "csv" / "assist_impacts.csv.gz"
     path = tmp_path / "gap.csv"
     _write_with_gap(src, path, slice(6000, 6050))
-    whole = _whole(path, ASSIST)
-    result, samples = _streamed(path, ASSIST, 2000)
+    one, many = _streamed(path, ASSIST, CLI_ROWS), _streamed(path, ASSIST, 2000)
     try:
-        assert samples.gaps()[0]
+        at, lengths = many[1].gaps()
+        assert at == one[1].gaps()[0] and len(at) == 1 and lengths[0] > 0.1
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            assert _report(result, None, samples) == _report(whole, None)
+            assert _report(many[0], None, many[1]) == _report(one[0], None, one[1])
     finally:
-        samples.close()
+        one[1].close()
+        many[1].close()
 
 
 @pytest.mark.parametrize(("n", "chunk"), [
@@ -146,32 +169,35 @@ def test_envelope_accumulator_is_envelope(n: int, chunk: int) -> None:
     assert np.array_equal(np.signbit(ya), np.signbit(yb))
 
 
-def _spills() -> set[str]:
-    return set(glob.glob(os.path.join(tempfile.gettempdir(), "impactcli-report-*")))
-
-
 def test_report_cli_streams_with_a_calibrated_config(tmp_path: Path, monkeypatch) -> None:
-    """`impactcli report LOG --config C` takes the streamed path (the whole-log replay is
-    not called) and writes the whole-log report; a timeline re-run streams too."""
-    from impactcli import pipeline
+    """`impactcli report LOG --config C` replays through batch.stream_log and writes the
+    report of the replay's chunks; a timeline re-run streams too; no spill file is left."""
+    import impactcli.batch
 
     log = SAMPLES / "csv" / "assist_impacts.csv.gz"
     labels = read_labels(SAMPLES / "csv" / "assist_impacts.labels.json")
-    whole = _whole(log, ASSIST)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        want_html, want_json = _report(whole, labels)
-    before = _spills()
+    result, samples = _streamed(log, ASSIST, CLI_ROWS)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            want_html, want_json = _report(result, labels, samples)
+    finally:
+        samples.close()
+    tmp = tmp_path / "tmp"  # a temporary folder of this test's own (others' runs use /tmp)
+    tmp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp))
     runner = CliRunner()
-    # the timeline to re-run, written before analyze is forbidden
     res = runner.invoke(main, ["detect", str(log), "--config", str(ASSIST), "-o",
                                str(tmp_path)])
     assert res.exit_code == 0, res.output
+    calls: list[str] = []
+    real = impactcli.batch.stream_log
 
-    def forbidden(*a, **k):
-        raise AssertionError("the whole-log replay was called")
+    def stream_log(path: str, **kw: Any) -> Any:
+        calls.append(kw.get("samples"))
+        return real(path, **kw)
 
-    monkeypatch.setattr(pipeline, "analyze", forbidden)
+    monkeypatch.setattr(impactcli.batch, "stream_log", stream_log)
     for inp in (str(log), str(tmp_path / "assist_impacts.timeline.json")):
         out = tmp_path / "r.html"
         res = runner.invoke(main, ["report", inp, "--config", str(ASSIST), "-o", str(out),
@@ -183,4 +209,5 @@ def test_report_cli_streams_with_a_calibrated_config(tmp_path: Path, monkeypatch
             assert got == want_json
         else:  # the re-run of a timeline: its origin is said, the rest is the same
             assert '"timeline":' in got
-    assert _spills() == before
+    assert calls == ["report", "report"]
+    assert not list(tmp.iterdir())

@@ -13,11 +13,12 @@ from typing import Any
 import numpy as np
 import pytest
 
-from impactcli.outputs.rerun import ELAPSED_TIMELINE, LOG_TIMELINE, write_rrd
+from impactcli.outputs.rerun_blueprint import ELAPSED_TIMELINE, LOG_TIMELINE
 from impactcli.result import DetectionResult
 from impactcli.types import DETECTORS
 
 from .fakes import fake_result
+from .fakes import write_fake_rrd as write_rrd
 
 rr = pytest.importorskip("rerun")
 
@@ -314,19 +315,23 @@ def test_incident_track_holds_one_entry_per_incident(tmp_path: Path) -> None:
 
 
 def test_sample_log_view_covers_every_incident(tmp_path: Path) -> None:
-    """The shipped ASSIST-like impacts log (72.7 s, 15 impacts): the default view spans the
-    whole log, and the incident track lists every incident of the run."""
+    """The shipped ASSIST-like impacts log (72.7 s, 15 impacts), replayed as detect --rerun
+    replays it: the default view spans the whole log, and the incident track lists every
+    incident of the run."""
+    import warnings
+
+    from impactcli.batch import stream_file
+
     root = Path(__file__).resolve().parents[1] / "sample_logs"
     log = root / "csv" / "assist_impacts.csv.gz"
     if not log.is_file():
         pytest.skip("sample logs not present")
-    from impactcli.batch import analyze_file
-
-    res = analyze_file(str(log), robot_path=None, model_path=None,
-                       config_path=str(root / "assist_like.config.toml"), read_options={})
-    assert len(res.counted_incidents()) == 15
     path = tmp_path / "impacts.rrd"
-    write_rrd(res, path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res, _ = stream_file(str(log), config_path=str(root / "assist_like.config.toml"),
+                             read_options={}, rrd_path=path)
+    assert len(res.counted_incidents()) == 15
     assert_whole_log_in_view(path, res.log.duration_s)
     rows = read_entities(path)["/incidents"]
     assert len(rows["TextLog:text"]) == len(res.incidents)
@@ -373,14 +378,53 @@ def test_long_logs_are_decimated_keeping_peaks_and_event_windows(tmp_path: Path)
 
 def test_no_half_written_file_on_failure(tmp_path: Path) -> None:
     res = fake_result()
-    bad = dict(res.signals)
-    bad["residual"] = bad["residual"][:10]  # wrong length: fails while logging
-    broken = dataclasses.replace(res, signals=bad)
+    broken = dataclasses.replace(res, thresholds={"j1": {"vL": "?"}})  # fails while logging
     path = tmp_path / "out" / "x.rrd"
-    with pytest.raises(ValueError, match="'residual' has 10 samples"):
+    with pytest.raises(ValueError, match="format code"):
         write_rrd(broken, path)
     assert not path.exists()
     assert list(path.parent.iterdir()) == []
+
+
+def rrd_rows(path: Path) -> dict[str, list[tuple[str, ...]]]:
+    """Every entity's rows (static ones apart; the blueprint's and properties' left out),
+    each row the repr of its values, sorted: what a recording holds, whatever its chunks."""
+    out: dict[str, list[tuple[str, ...]]] = {}
+    for ch in rr.chunk.RrdReader(path).store().stream():
+        cols = ch.to_record_batch().to_pydict()
+        names = sorted(k for k in cols if "rowid" not in k.lower().replace("_", ""))
+        rows = out.setdefault(("static " if ch.is_static else "") + ch.entity_path, [])
+        for i in range(len(cols[names[0]]) if names else 0):
+            rows.append(tuple(repr(cols[k][i]) for k in names))
+    return {k: sorted(v) for k, v in out.items()
+            if not k.startswith("static /__properties") and "blueprint" not in k}
+
+
+def test_the_recording_whatever_the_chunks(tmp_path: Path) -> None:
+    """Fed in one chunk or in chunks of any size (envelope buckets, event windows, marker
+    runs and lane states across chunk boundaries), the writer records the same rows."""
+    res = fake_result(n=60_000, dt=0.001)
+    res = dataclasses.replace(res, incidents=make_incidents(res))
+    opts = {"max_points": 5_000, "event_window_s": 0.5, "recording_id": "same"}
+    want = None
+    for rows in (60_000, 997, 4096, 1):
+        if rows == 1:  # one sample a chunk: on a short log
+            res = fake_result(n=600, dt=0.004)
+            opts["max_points"] = 100
+            want = None
+            for r in (600, 1):
+                write_rrd(res, tmp_path / f"s{r}.rrd", rows=r, **opts)
+                got = rrd_rows(tmp_path / f"s{r}.rrd")
+                want = got if want is None else want
+                assert got == want
+            continue
+        write_rrd(res, tmp_path / f"{rows}.rrd", rows=rows, **opts)
+        got = rrd_rows(tmp_path / f"{rows}.rrd")
+        if want is None:
+            want = got
+            decimated = [k for k, v in got.items() if k.endswith("/rms")]
+            assert decimated and all(len(got[k]) < 60_000 / 3 for k in decimated)
+        assert got == want
 
 
 def test_module_import_does_not_import_rerun() -> None:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib
 import sys
 from pathlib import Path
 
@@ -12,10 +11,10 @@ from click.testing import CliRunner, Result
 
 from impactcli.cli import main
 from impactcli.cli import view as view_mod
-from impactcli.outputs.rerun import write_rrd
 
 from .conftest import make_log
 from .fakes import fake_result
+from .fakes import write_fake_rrd as write_rrd
 
 rr = pytest.importorskip("rerun")
 
@@ -151,11 +150,7 @@ def test_missing_log_is_exit_3(tmp_path: Path) -> None:
 
 
 def test_real_pipeline_on_a_csv(tmp_path: Path) -> None:
-    """End to end through the real reader and pipeline (skipped until they exist)."""
-    pytest.importorskip("impactcli.pipeline")
-    if not hasattr(importlib.import_module("impactcli.io"), "read_log"):
-        pytest.skip("impactcli.io.read_log is not there yet")
-
+    """End to end through the real reader and replay."""
     log = make_log(n=5000, dt=0.002)
     path = tmp_path / "arm.csv"
     cols = {"time": log.time_s}

@@ -6,16 +6,15 @@ A ``*.json`` input is a detection timeline (``impactcli detect`` output, validat
 schemas/timeline.schema.json); anything else is a log, on which the detectors are replayed
 first, with detect's ``--robot/--model/--config`` and log-reading options, chunk by chunk
 in bounded memory as ``detect`` replays it (:func:`replay_log`). The matching rules are
-:mod:`impactcli.evaluate`'s.
+:mod:`impactcli.scoring`'s.
 
 The incidents (link, force, contact type) are scored too: a timeline's ``incidents`` (a
 1.0 timeline has none, and the output says so), or for a log the run's own.
-
 ``--sweep`` rescales every threshold over ``--scales`` and reports, per detector, the
 smallest scale with zero false alarms and what it still detects, then a one-sentence
 verdict: does the adaptive detector help on this robot and log? It needs the per-sample
-ratios: a LOG, or a timeline with its ``<stem>.signals.parquet`` beside it
-(``detect --signals``).
+ratios: a LOG (collected as the replay goes), or a timeline with its
+``<stem>.signals.parquet`` beside it (``detect --signals``), read row group by row group.
 
 Output: a text table, or with ``--json`` one JSON object on stdout
 (schemas/evaluation.schema.json). Exit 0; 2 bad options; 3 bad timeline, log or labels;
@@ -38,7 +37,7 @@ from ..errors import ImpactWarning, LogFormatError
 from ._common import check_log_path, handle_errors, not_found
 from .detect import log_read_options, model_options, read_options_from
 
-#: impactcli.evaluate.DEFAULT_SWEEP_SCALES: 0.2 … 5 in 5 % steps (66 scales).
+#: impactcli.scoring.sweep.DEFAULT_SWEEP_SCALES: 0.2 … 5 in 5 % steps (66 scales).
 DEFAULT_SCALES = "0.2:5:x1.05"
 
 
@@ -48,7 +47,7 @@ def parse_scales(text: str) -> tuple[float, ...]:
 
     Raises ValueError with a one-line message on anything else.
     """
-    from ..evaluate import geometric_scales
+    from ..scoring.sweep import geometric_scales
 
     text = text.strip()
     try:
@@ -144,15 +143,14 @@ def replay_log(path: Path, *, robot: Path | None, model: Path | None, config: Pa
     """Replay the detectors on the log ``path`` for its evaluation: (result, samples).
 
     Chunk by chunk (:func:`impactcli.batch.stream_file`: a day-long log in bounded memory,
-    as ``detect`` replays it); the scores need only the run's events and
-    incidents, which a streamed result holds. The sweep needs every sample's ratio to the
-    thresholds: with ``sweep`` the report's collector, keeping only the ratios' columns
-    (:class:`impactcli.outputs.report_stream.ReportCollector`), spills them to a temporary
-    file as the replay goes and ``samples`` (its
-    :class:`~impactcli.outputs.report_stream.StreamedSamples`) reads them back
-    (:func:`impactcli.outputs.sweep_stream.sweep_streamed` gives the rows
-    :func:`impactcli.evaluate.sweep_thresholds` gives on the whole-log run); the caller
-    closes ``samples`` (it removes the spill file); without ``sweep`` it is None.
+    as ``detect`` replays it); the scores need only the run's events and incidents. The
+    sweep needs every sample's ratio to the thresholds: with ``sweep`` the report's
+    collector, keeping only the ratios
+    (:class:`impactcli.outputs.report.samples.ReportCollector`), spills them to a temporary
+    file as the replay goes, and ``samples``
+    (:class:`~impactcli.outputs.report.samples.Samples`) sweeps them row group by row
+    group; the caller closes ``samples`` (it removes the spill file); without ``sweep`` it
+    is None.
     """
     from ..batch import stream_file
 
@@ -165,9 +163,10 @@ def replay_log(path: Path, *, robot: Path | None, model: Path | None, config: Pa
 
 def _timeline_sweep(source: Path, doc: dict[str, Any], labels: Any, scales: tuple[float, ...],
                     tolerance: Any) -> Any:
-    """Sweep from a timeline and the signals Parquet beside it."""
-    from ..evaluate import ratios_from_signals, sweep_ratios
-    from ..outputs.signals import read_signals
+    """Sweep from a timeline and the signals Parquet beside it, read row group by row group
+    (bounded memory: one replay chunk's rows at a time)."""
+    from ..outputs.signals import signal_groups, signals_schema
+    from ..scoring.sweep import ThresholdSweep, ratios_from_signals
     from ..types import DETECTORS
 
     sig_path = signals_beside(source)
@@ -175,39 +174,60 @@ def _timeline_sweep(source: Path, doc: dict[str, Any], labels: Any, scales: tupl
         raise click.UsageError(
             f"--sweep needs a LOG, or a timeline with its signals beside it ({sig_path} is "
             "missing: run detect with --signals)")
-    try:
-        cols, _meta = read_signals(sig_path)
-    except (OSError, ValueError) as err:  # pyarrow's ArrowInvalid is a ValueError
+
+    def unreadable(err: Exception) -> LogFormatError:
         msg = str(err).splitlines()[0] if str(err) else type(err).__name__
-        raise LogFormatError(f"{sig_path}: not a readable signals Parquet ({msg})") from err
-    joints = list(doc["input"]["joints"])
+        return LogFormatError(f"{sig_path}: not a readable signals Parquet ({msg})")
+
     try:
-        ratios = ratios_from_signals(cols, joints, doc["thresholds"])
+        names, _meta, _ = signals_schema(sig_path)
+    except (OSError, ValueError) as err:  # pyarrow's ArrowInvalid is a ValueError
+        raise unreadable(err) from err
+    joints = list(doc["input"]["joints"])
+    thresholds = doc["thresholds"]
+    try:  # every column and threshold there before reading any row
+        ratios_from_signals({n: np.zeros(0) for n in names}, joints, thresholds)
     except LogFormatError as err:
         raise LogFormatError(f"{sig_path}: {err}") from None
-    if "time" not in cols:
+    if "time" not in names:
         raise LogFormatError(f"{sig_path}: column 'time' missing")
-    time_s = np.asarray(cols["time"], dtype=np.float64)
-    # the rebuilt ratios must reproduce the run's own decisions at scale 1
-    for det in DETECTORS:
-        keys = [f"{j}.{det}" for j in joints]
-        if all(k in cols for k in keys):
-            stored = np.column_stack([np.asarray(cols[k]) != 0 for k in keys])
-            diff = float(np.mean(stored != (ratios[det] > 1.0)))
-            if diff > 1e-3:
-                warnings.warn(
-                    f"{sig_path}: {det} decisions rebuilt from the signals differ from the "
-                    f"stored ones on {100 * diff:.2g}% of samples: the sweep may not match "
-                    "the run", ImpactWarning, stacklevel=2)
     settings = _events_settings(doc["config"])
     try:
         gap, min_dur = float(settings["merge_gap_s"]), float(settings["min_duration_s"])
     except (KeyError, TypeError, ValueError):
+        gap = min_dur = math.nan  # refused below, after the check of the decisions
+    sweep = None if math.isnan(gap) or math.isnan(min_dur) else ThresholdSweep(
+        scales, warmup_end_s=float(doc["warmup_end_s"]), merge_gap_s=gap,
+        min_duration_s=min_dur)
+    stored = {d: [f"{j}.{d}" for j in joints] for d in DETECTORS}
+    stored = {d: keys for d, keys in stored.items() if all(k in names for k in keys)}
+    wanted = ["time", *[f"{j}.{c}" for j in joints
+                        for c in ("residual_rms", "threshold", "loading_statistic", "residual")],
+              *[k for keys in stored.values() for k in keys]]
+    differ = dict.fromkeys(stored, 0)
+    total = 0
+    try:
+        for cols in signal_groups(sig_path, wanted):
+            ratios = ratios_from_signals(cols, joints, thresholds)
+            # the rebuilt ratios must reproduce the run's own decisions at scale 1
+            for d, keys in stored.items():
+                dec = np.column_stack([np.asarray(cols[k]) != 0 for k in keys])
+                differ[d] += int(np.count_nonzero(dec != (ratios[d] > 1.0)))
+            total += len(cols["time"]) * len(joints)
+            if sweep is not None:
+                sweep.update(np.asarray(cols["time"], dtype=np.float64), ratios)
+    except (OSError, ValueError) as err:
+        raise unreadable(err) from err
+    for d, k in differ.items():
+        if total and k / total > 1e-3:
+            warnings.warn(
+                f"{sig_path}: {d} decisions rebuilt from the signals differ from the "
+                f"stored ones on {100 * (k / total):.2g}% of samples: the sweep may not match "
+                "the run", ImpactWarning, stacklevel=2)
+    if sweep is None:
         raise LogFormatError(f"{source}: config.events needs merge_gap_s and min_duration_s "
-                             "to re-extract events for --sweep") from None
-    return sweep_ratios(ratios, time_s, labels=labels, scales=scales,
-                        warmup_end_s=float(doc["warmup_end_s"]), merge_gap_s=gap,
-                        min_duration_s=min_dur, tolerance=tolerance)
+                             "to re-extract events for --sweep")
+    return sweep.rows(labels, tolerance)
 
 
 @click.command("evaluate")
@@ -248,16 +268,12 @@ def evaluate_cmd(source: Path, labels_path: Path | None, as_json: bool, sweep: b
     too: link against the label's link, force against peak_force, contact type against the
     kind (impact, push: transient; clamp: quasi_static).
     """
-    from ..evaluate import (
-        MatchTolerance,
-        evaluate_events,
-        evaluate_result,
-        format_evaluation,
-        format_sweep,
-        sweep_to_dict,
-    )
     from ..io.robot import read_labels
     from ..outputs.timeline import read_timeline
+    from ..scoring.evaluation import evaluate_events, evaluate_result
+    from ..scoring.match import MatchTolerance
+    from ..scoring.text import format_evaluation
+    from ..scoring.verdict import format_sweep, sweep_to_dict
 
     tolerance = MatchTolerance(pre_s=pre_s, post_s=post_s)
     is_timeline = source.name.lower().endswith(".json")
@@ -300,9 +316,7 @@ def evaluate_cmd(source: Path, labels_path: Path | None, as_json: bool, sweep: b
             _check_rate(labels, result.log.sample_rate_hz, str(source))
             ev = evaluate_result(result, labels, tolerance=tolerance)
             if samples is not None:  # --sweep
-                from ..outputs.sweep_stream import sweep_streamed
-
-                rows = sweep_streamed(samples, result, labels, scales, tolerance=tolerance)
+                rows = samples.sweep(result, labels, scales, tolerance=tolerance)
         finally:
             if samples is not None:
                 samples.close()

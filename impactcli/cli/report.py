@@ -1,26 +1,16 @@
 """``impactcli report LOG|TIMELINE... -o report.html [--json report.json] [--labels L]``.
 
-Inputs:
+A LOG (any format ``detect`` reads) is replayed with ``detect``'s options (``--robot``,
+``--model``, ``--config``, ``--channel-map``); a TIMELINE (``*.timeline.json``) is re-run
+from the log it records (as recorded, else beside the timeline) with the read options,
+model and config it records (its sha256 checked; events that differ are warned about) —
+``--model``/``--config``/``--channel-map`` apply to LOG inputs only. Each replay streams its
+chunks to the report's collector (:mod:`impactcli.outputs.report.samples`).
 
-- a LOG (``.csv``, ``.csv.gz``, ``.mcap``, ``.npz``, ``.bag``, ``.db3`` or a rosbag2 folder)
-  is read and the detectors replayed on it with ``detect``'s options (``--robot``,
-  ``--model``, ``--config``, ``--channel-map``); a folder that is not a rosbag2 folder is a
-  data error, as in every verb;
-- a TIMELINE (``*.timeline.json`` written by ``detect``) is re-run from the log it records
-  (path resolved as recorded, else beside the timeline), with the read options, model and
-  config it records — ``--model``/``--config``/``--channel-map`` apply to LOG inputs only.
-  The log's sha256 must match the recorded one, and a re-run whose events differ from the
-  recorded ones is warned about.
-
-Labels (ground truth, enabling the detection-quality section):
-
-1. ``--labels FILE`` may be repeated. When every file is named ``<stem>.labels.json`` after
-   a distinct input's stem, files go to the inputs of that stem; otherwise their number
-   must equal the number of inputs and they pair with the inputs in order.
-2. An input with no ``--labels`` gets ``<stem>.labels.json`` from beside the log (a rosbag2
-   folder's: beside the folder, named after it; for a timeline: beside the timeline, then
-   beside its log under the timeline's stem, then the log's) when that file exists, unless
-   ``--no-auto-labels``. The report names every labels file it used.
+Labels: ``--labels FILE`` may be repeated — named ``<stem>.labels.json`` after distinct
+inputs' stems they go by stem, else they pair with the inputs in order; an input without
+one gets ``<stem>.labels.json`` from beside its log (a timeline's: beside it, then beside
+its log) unless ``--no-auto-labels``. The report names every labels file it used.
 
 A batch where some inputs fail writes the report of the others, lists the failures in it,
 and exits 4; when every input fails the first error is raised (exit 3).

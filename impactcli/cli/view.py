@@ -92,9 +92,9 @@ def record_log(source: Path, rrd: Path, *, robot: Path | None, model: Path | Non
     (atomically); returns the run.
 
     Chunk by chunk (:func:`impactcli.batch.stream_file`, as ``detect --rerun`` does: a
-    day-long log in bounded memory, the recording written from a spill file once the
-    answer is known, the same samples as the whole-log recording). Progress in seconds of
-    log on a terminal, as ``detect``.
+    day-long log in bounded memory, the chunks handed to
+    :class:`impactcli.outputs.rerun.RerunWriter`, which writes the recording once the
+    answer is known). Progress in seconds of log on a terminal, as ``detect``.
     """
     from ..batch import stream_file
 

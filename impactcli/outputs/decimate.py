@@ -14,12 +14,14 @@ Pure functions, no I/O. The rule (documented in the README's "Viewing a run"):
   kept (full rate), as are the first and last samples.
 
 The result is a sorted array of sample indices, so every series of an entity (and its
-time columns) is indexed by the same selection.
+time columns) is indexed by the same selection; :class:`EnvelopeStream` selects the same
+indices from a series that arrives in chunks.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -132,3 +134,137 @@ def select_samples(values: np.ndarray | Sequence[np.ndarray], keep: np.ndarray |
     """
     cols = _columns(values)
     return envelope_indices(cols, bucket_size(cols[0].shape[0], len(cols), max_points), keep)
+
+
+class EnvelopeStream:
+    """:func:`envelope_indices` over K series of N samples that arrive in consecutive chunks
+    (N known beforehand; state in the object), each index selected once.
+
+    Buckets are counted from the first sample; a bucket that spans chunks keeps its
+    candidates (per series the maximum and the minimum, the earlier sample winning a tie)
+    until it completes. Memory: the open bucket's candidate rows.
+    """
+
+    def __init__(self, n: int, n_series: int, max_points: int = DEFAULT_MAX_POINTS) -> None:
+        self.n, self.k = int(n), int(n_series)
+        self.b = bucket_size(self.n, self.k, max_points)
+        self.k0 = 0
+        self.open_id = -1                  # the open bucket
+        self.cand: list[list[Any]] = []    # per series [max, index, row, min, index, row]
+        self.emitted: set[int] = set()     # indices of the open bucket already selected
+
+    def select(self, columns: Sequence[np.ndarray], n_values: int, keep: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+        """The next chunk's selection.
+
+        Args:
+            columns: (m,) float64 columns of the chunk: the first ``n_values`` are the K
+                series enveloped, the others ride along (e.g. the time, an int64 seen as
+                float64: rows are copied bit for bit).
+            n_values: K.
+            keep: (m,) bool, samples kept whatever the envelope (event windows).
+        Returns:
+            ((M,) int64 indices in the whole series, (M, len(columns)) their rows): the
+            chunk's kept samples, its completed buckets' extrema, and the extrema of a
+            bucket carried in from earlier chunks once it completes; no later chunk changes
+            them.
+        """
+        cols = [np.asarray(c) for c in columns]
+        n = len(keep)
+        if n == 0:
+            return np.zeros(0, dtype=np.int64), np.zeros((0, len(cols)))
+        k0, self.k0 = self.k0, self.k0 + n
+        sel = np.asarray(keep, dtype=bool).copy()
+        if k0 == 0:
+            sel[0] = True
+        if k0 <= self.n - 1 < k0 + n:
+            sel[self.n - 1 - k0] = True
+        out_idx: list[int] = []
+        out_rows: list[np.ndarray] = []
+        if self.b <= 1 or self.n <= 2:
+            sel[:] = True
+        else:
+            vals = [np.asarray(c, dtype=np.float64) for c in cols[:n_values]]
+            first_b, last_b = k0 // self.b, (k0 + n - 1) // self.b
+            # the first and the last bucket touched, one at a time (carried, or left open)
+            edges = [(0, min((first_b + 1) * self.b - k0, n), first_b)]
+            if last_b > first_b:
+                edges.append((last_b * self.b - k0, n, last_b))
+                lo, hi = edges[0][1], edges[1][0]  # whole buckets inside the chunk
+                if hi > lo:
+                    sel[lo + self._middle(vals, lo, hi)] = True
+            for lo, hi, bid in edges:
+                self._segment(vals, cols, sel, lo, hi, bid, k0, n, out_idx, out_rows)
+        local = np.flatnonzero(sel)
+        i_new = local + k0
+        r_new = np.column_stack([c[local] for c in cols]) if cols else np.zeros((local.size, 0))
+        if out_idx:
+            i_new = np.concatenate([np.array(out_idx, dtype=np.int64), i_new])
+            r_new = np.concatenate([np.stack(out_rows), r_new])
+        return i_new, r_new
+
+    def update(self, values: np.ndarray, keep: np.ndarray, rows: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`select` of (m, K) ``values``, with (m, R) ``rows`` riding along: the
+        indices selected and their rows."""
+        v = np.asarray(values, dtype=np.float64).reshape(len(keep), -1)
+        r = np.asarray(rows).reshape(len(keep), -1)
+        cols = [v[:, s] for s in range(v.shape[1])] + [r[:, s] for s in range(r.shape[1])]
+        idx, got = self.select(cols, v.shape[1], keep)
+        return idx, got[:, v.shape[1]:]
+
+    def _middle(self, vals: list[np.ndarray], lo: int, hi: int) -> np.ndarray:
+        """Chunk-relative indices of the extrema of the whole buckets in [lo, hi)."""
+        nb = (hi - lo) // self.b
+        base = np.arange(nb) * self.b
+        out = []
+        for v in vals:
+            c = v[lo:hi]
+            nan = np.isnan(c)
+            for fill, arg in ((-np.inf, np.argmax), (np.inf, np.argmin)):
+                w = np.where(nan, fill, c) if nan.any() else c
+                out.append(base + arg(w.reshape(nb, self.b), axis=1))
+        return np.concatenate(out)
+
+    def _segment(self, vals: list[np.ndarray], cols: list[np.ndarray], sel: np.ndarray,
+                 lo: int, hi: int, bid: int, k0: int, n: int, out_idx: list[int],
+                 out_rows: list[np.ndarray]) -> None:
+        """Merge the chunk's samples [lo, hi) of bucket ``bid`` into its candidates; select
+        them when the bucket is complete."""
+
+        def row(i: int) -> np.ndarray:
+            return np.concatenate([c[i:i + 1] for c in cols])
+
+        local: list[tuple[float, int, float, int]] = []
+        for v in vals:
+            c = v[lo:hi]
+            nan = np.isnan(c)
+            cmax, cmin = np.where(nan, -np.inf, c), np.where(nan, np.inf, c)
+            i_max, i_min = int(np.argmax(cmax)), int(np.argmin(cmin))
+            local.append((float(cmax[i_max]), lo + i_max, float(cmin[i_min]), lo + i_min))
+        if bid == self.open_id:  # continue the carried bucket: earlier wins ties
+            for s, (mx, imx, mn, imn) in enumerate(local):
+                cd = self.cand[s]
+                if mx > cd[0]:
+                    cd[0], cd[1], cd[2] = mx, k0 + imx, row(imx)
+                if mn < cd[3]:
+                    cd[3], cd[4], cd[5] = mn, k0 + imn, row(imn)
+        else:
+            self.open_id = int(bid)
+            self.emitted = set()
+            self.cand = [[mx, k0 + imx, row(imx), mn, k0 + imn, row(imn)]
+                         for mx, imx, mn, imn in local]
+        self.emitted |= {k0 + int(i) for i in np.flatnonzero(sel[lo:hi]) + lo}
+        if min((bid + 1) * self.b, self.n) > k0 + hi:
+            return  # the bucket goes on in the next chunk
+        for cd in self.cand:
+            for gi, r in ((cd[1], cd[2]), (cd[4], cd[5])):
+                if gi in self.emitted:
+                    continue
+                self.emitted.add(gi)
+                if k0 <= gi < k0 + n:
+                    sel[gi - k0] = True
+                else:  # a candidate from an earlier chunk
+                    out_idx.append(gi)
+                    out_rows.append(r)
+        self.open_id = -1

@@ -1,39 +1,29 @@
-"""Per-sample signals as Parquet (formats.md, "Per-sample signals").
+"""Per-sample signals as Parquet (docs/formats.md, "Per-sample signals"), chunk by chunk.
 
 Columns: ``time`` (s since the first sample), then per joint ``<joint>.<signal>`` for every
 name in :data:`impactcli.result.SIGNAL_NAMES` and one 0/1 column per detector
-(``<joint>.adaptive``, ``<joint>.static_loading``, ``<joint>.static_baseline``).
-File metadata holds ``t0_ns``, the input sha256 and the tool version.
+(``<joint>.adaptive``, ``<joint>.static_loading``, ``<joint>.static_baseline``); one row group
+per replay chunk. File metadata holds ``t0_ns``, the input sha256 and path, the tool version.
+:class:`SignalsWriter` writes the file as the replay goes; :func:`signal_groups` reads it back
+row group by row group (bounded memory).
 """
 
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator, Sequence
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
 
 from .. import __version__
 from .._fs import atomic_output
-from ..result import SIGNAL_NAMES, DetectionResult
+from ..result import SIGNAL_NAMES
 from ..types import DETECTORS
 
-
-def signals_table(result: DetectionResult):  # type: ignore[no-untyped-def]
-    """The per-sample signals as a pyarrow Table."""
-    import pyarrow as pa
-
-    cols = chunk_columns(result.log.joint_names, result.log.time_s, result.signals,
-                         result.decisions)
-    table = pa.table(cols)
-    src = result.log.source
-    return table.replace_schema_metadata(_meta(result.log.t0_ns, src.sha256, src.path))
-
-
 #: How the Parquet file is written: zstd at its fastest level and no dictionary encoding
-#: (per-sample floats are nearly all distinct: building a dictionary and giving it up, at
-#: zstd's default level, made writing 2.3× slower: 11.7 s against 5.1 s for 10 chunks of
-#: 65,536 rows × 71 columns of random floats here).
+#: (per-sample floats are nearly all distinct: a dictionary is built and given up).
 PARQUET_OPTIONS: dict[str, Any] = {"compression": "zstd", "compression_level": 1,
                                    "use_dictionary": False}
 
@@ -61,9 +51,10 @@ def chunk_columns(joints: tuple[str, ...], t: np.ndarray, signals: dict[str, np.
 
 class SignalsWriter:
     """``<stem>.signals.parquet`` written chunk by chunk (one row group each), atomically:
-    the file appears only when :meth:`close` succeeds (a failed run leaves nothing).
+    the file appears only when the ``with`` block succeeds (a failed run leaves nothing).
 
-    Use as a context manager; :meth:`append` takes the chunks in time order.
+    Called with a replay's chunk (``joints``, ``time_s``, ``signals``, ``decisions``) or
+    :meth:`append`; chunks in time order.
     """
 
     def __init__(self, path: str | os.PathLike[str], t0_ns: int, sha256: str,
@@ -72,6 +63,10 @@ class SignalsWriter:
         self._f = self._ctx.__enter__()
         self._meta = _meta(t0_ns, sha256, input_path)
         self._writer: Any = None
+
+    def __call__(self, chunk: Any) -> None:
+        """One replay chunk (the ``on_chunk`` of a run)."""
+        self.append(chunk.joints, chunk.time_s, chunk.signals, chunk.decisions)
 
     def append(self, joints: tuple[str, ...], t: np.ndarray, signals: dict[str, np.ndarray],
                decisions: dict[str, np.ndarray]) -> None:
@@ -95,19 +90,41 @@ class SignalsWriter:
         self._ctx.__exit__(exc_type, exc, tb)
 
 
-def write_signals(result: DetectionResult, path: str | os.PathLike[str]) -> None:
-    """Write ``<stem>.signals.parquet`` atomically (zstd-compressed)."""
+# alias: removed in M
+def write_signals(result: Any, path: str | os.PathLike[str]) -> None:
+    """:class:`SignalsWriter` fed a result's in-memory signals as one chunk."""
+    log = result.log
+    with SignalsWriter(path, log.t0_ns, log.source.sha256, log.source.path) as w:
+        w(SimpleNamespace(joints=tuple(log.joint_names), time_s=log.time_s,
+                          signals=result.signals, decisions=result.decisions))
+
+
+def signals_schema(path: str | os.PathLike[str]) -> tuple[list[str], dict[str, str], int]:
+    """A signals file's column names, metadata and number of row groups (nothing read but
+    its footer)."""
     import pyarrow.parquet as pq
 
-    table = signals_table(result)
-    with atomic_output(path, "wb") as f:
-        pq.write_table(table, f, **PARQUET_OPTIONS)
+    f = pq.ParquetFile(path)
+    meta = {k.decode(): v.decode() for k, v in (f.schema_arrow.metadata or {}).items()}
+    return list(f.schema_arrow.names), meta, f.num_row_groups
+
+
+def signal_groups(path: str | os.PathLike[str], columns: Sequence[str] | None = None
+                  ) -> Iterator[dict[str, np.ndarray]]:
+    """A Parquet file's ``columns`` (default all), one row group at a time: column name →
+    (m,) array."""
+    import pyarrow.parquet as pq
+
+    f = pq.ParquetFile(path)
+    cols = None if columns is None else list(columns)
+    for g in range(f.num_row_groups):
+        t = f.read_row_group(g, columns=cols)
+        yield {name: t.column(name).to_numpy() for name in t.column_names}
 
 
 def read_signals(path: str | os.PathLike[str]) -> tuple[dict[str, np.ndarray], dict[str, str]]:
-    """Read a signals file back: column name → array, and the file metadata."""
-    import pyarrow.parquet as pq
-
-    table = pq.read_table(path)
-    meta = {k.decode(): v.decode() for k, v in (table.schema.metadata or {}).items()}
-    return {name: table.column(name).to_numpy() for name in table.column_names}, meta
+    """A signals file read whole (short files, tests): column name → array, metadata."""
+    names, meta, _ = signals_schema(path)
+    groups = list(signal_groups(path))
+    return {n: np.concatenate([g[n] for g in groups]) if groups else np.zeros(0)
+            for n in names}, meta

@@ -1,4 +1,5 @@
-"""The detection timeline JSON (formats.md, "Detection timeline"; schemas/timeline.schema.json).
+"""The detection timeline JSON (docs/formats.md, "Detection timeline";
+schemas/timeline.schema.json).
 
 Formatting only: every number comes from a :class:`~impactcli.result.DetectionResult`.
 Times are seconds since the log's first sample; ``input.t0_ns`` anchors them on the

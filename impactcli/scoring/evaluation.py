@@ -1,32 +1,19 @@
 """A log's detection events scored against its labels: per labelled contact what each
-detector did, per detector its score (:func:`evaluate_events`, :class:`Evaluation`).
+detector did, per detector its score (:func:`evaluate_events`, :class:`Evaluation`); the
+window and the product's alarms are :mod:`impactcli.scoring.match`'s, the incidents part
+:mod:`impactcli.scoring.incidents`'s; the sweep calls :func:`evaluate_events` per scale.
 
-The matching window and the product's alarms are :mod:`impactcli.scoring.match`'s (an
-event matches a contact when it starts within ``[start - pre_s, end + post_s]``); the
-incidents part of an evaluation is :mod:`impactcli.scoring.incidents`'s. The sweep
-(:mod:`impactcli.scoring.sweep`) calls :func:`evaluate_events` once per threshold scale.
-
-A contact is *detected* by a detector if any counted event of that detector matches it; its
-*delay* is the earliest matching event's start minus the labelled onset (it can be slightly
-negative, down to ``-pre_s``). One event may match several contacts (overlapping windows):
-all of them are detected and the event is no false alarm. An event that starts at one contact
-and is still on when a second contact begins matches only the first (the detector raised no
-new alarm for the second): the second counts as missed and is flagged
-``alarm_on_at_onset`` in its outcome.
-
-A *false alarm* is a counted event (starting after warm-up) that matches no contact. Events
-in warm-up (``in_warmup``, or starting before ``warmup_end_s``) are listed, never counted:
-they neither detect a contact nor count as false alarms. A contact whose onset lies before
-``warmup_end_s`` is reported separately (``in_warmup``) and is *not* counted as a miss — the
-detector is not yet armed there. A contact whose onset lies after the log's end is reported
-as ``outside_log`` and not counted either. The false-alarm rate is per hour of
-*collision-free time*: the part of ``[warmup_end_s, duration_s]`` outside every contact's
-tolerance window ``[start - pre_s, end + post_s]``.
-
-The *product* (adaptive OR static_loading, its alarms merged) counts a contact as detected
-when one of its parts detects it, with the earliest part's delay (so the product is never
-worse than a part, even when a merged alarm started earlier at an unrelated part's alarm);
-a product alarm is false when one of the part alarms starting in it matched no contact.
+A contact is *detected* by a detector when a counted event of it matches; its *delay* is
+the earliest match's start minus the onset (down to ``-pre_s``). One event may match several
+contacts (all detected, no false alarm); an event still on when a second contact begins
+matches only the first (the second is missed, flagged ``alarm_on_at_onset``). A *false
+alarm* is a counted event (starting after warm-up) that matches no contact. Events in
+warm-up are listed, never counted; a contact with its onset in warm-up (``in_warmup``) or
+after the log's end (``outside_log``) is reported, not counted as a miss. False alarms are
+per hour of *collision-free time*: ``[warmup_end_s, duration_s]`` outside every contact's
+window. The *product* (adaptive OR static_loading, alarms merged) detects a contact when a
+part does, with the earliest part's delay (never worse than a part); a product alarm is
+false when one of the part alarms starting in it matched no contact.
 
 Pure logic: no file I/O, no printing.
 """
@@ -53,12 +40,12 @@ from .match import (
     SCHEMA_VERSION,
     SECONDS_PER_HOUR,
     MatchTolerance,
-    _as_ev,
-    _Ev,
-    _median,
-    _r,
+    ScoredEvent,
     force_known,
+    median_or_none,
     product_events,
+    rounded,
+    scored_event,
 )
 
 if TYPE_CHECKING:
@@ -188,24 +175,24 @@ class Evaluation:
                 "n_contacts": s.n_contacts,
                 "detected": s.detected,
                 "missed": s.missed,
-                "recall": _r(s.recall, 6),
+                "recall": rounded(s.recall, 6),
                 "false_alarms": s.false_alarms,
-                "false_alarms_per_hour": _r(s.false_alarms_per_hour, 6),
-                "delay_median_s": _r(s.delay_median_s),
-                "delay_max_s": _r(s.delay_max_s),
-                "min_detected_force": _r(s.min_detected_force),
-                "max_missed_force": _r(s.max_missed_force),
+                "false_alarms_per_hour": rounded(s.false_alarms_per_hour, 6),
+                "delay_median_s": rounded(s.delay_median_s),
+                "delay_max_s": rounded(s.delay_max_s),
+                "min_detected_force": rounded(s.min_detected_force),
+                "max_missed_force": rounded(s.max_missed_force),
                 "by_kind": {
                     k.kind: {
                         "n_contacts": k.n_contacts, "detected": k.detected,
-                        "delay_median_s": _r(k.delay_median_s),
-                        "min_detected_force": _r(k.min_detected_force),
-                        "max_missed_force": _r(k.max_missed_force),
+                        "delay_median_s": rounded(k.delay_median_s),
+                        "min_detected_force": rounded(k.min_detected_force),
+                        "max_missed_force": rounded(k.max_missed_force),
                     }
                     for k in s.by_kind
                 },
-                "false_alarm_times": [[_r(a), _r(b)] for a, b in s.false_alarm_times],
-                "warmup_events": [[_r(a), _r(b)] for a, b in s.warmup_events],
+                "false_alarm_times": [[rounded(a), rounded(b)] for a, b in s.false_alarm_times],
+                "warmup_events": [[rounded(a), rounded(b)] for a, b in s.warmup_events],
             }
 
         return {
@@ -215,9 +202,9 @@ class Evaluation:
                           "rule": "an event matches a contact if it starts within "
                                   "[start - pre_s, end + post_s]"},
             "product": {"detectors": list(PRODUCT_PARTS), "merge_gap_s": self.product_merge_gap_s},
-            "duration_s": _r(self.duration_s),
-            "warmup_end_s": _r(self.warmup_end_s),
-            "collision_free_s": _r(self.collision_free_s),
+            "duration_s": rounded(self.duration_s),
+            "warmup_end_s": rounded(self.warmup_end_s),
+            "collision_free_s": rounded(self.collision_free_s),
             "n_contacts": {
                 st: len(self.contacts_with_status(st))
                 for st in ("counted", "in_warmup", "outside_log")
@@ -229,7 +216,7 @@ class Evaluation:
                     "peak_force": c.label.peak_force, "kind": c.label.kind, "link": c.label.link,
                     "status": c.status,
                     "detected": dict(c.detected),
-                    "delay_s": {d: _r(v) for d, v in c.delay_s.items()},
+                    "delay_s": {d: rounded(v) for d, v in c.delay_s.items()},
                     "alarm_on_at_onset": dict(c.alarm_on_at_onset),
                 }
                 for c in self.contacts
@@ -257,7 +244,7 @@ def _union_length(intervals: Iterable[tuple[float, float]], lo: float, hi: float
 
 
 def _match(
-    evs: Sequence[_Ev], win_lo: np.ndarray, win_hi: np.ndarray
+    evs: Sequence[ScoredEvent], win_lo: np.ndarray, win_hi: np.ndarray
 ) -> tuple[list[float | None], list[float | None], np.ndarray]:
     """Match events (sorted by start) to contact windows.
 
@@ -289,12 +276,12 @@ def _score_of(
     # a switch label's peak_force is no force (force_known): left out of the forces
     det_f = [contacts[k].peak_force for k in hits if force_known(contacts[k])]
     miss_f = [contacts[k].peak_force for k in idx if not det_k[k] and force_known(contacts[k])]
-    return (len(hits), _median(delays), min(det_f) if det_f else None,
+    return (len(hits), median_or_none(delays), min(det_f) if det_f else None,
             max(miss_f) if miss_f else None, delays)
 
 
 def evaluate_events(
-    events: Sequence[Event | Mapping[str, Any] | _Ev],
+    events: Sequence[Event | Mapping[str, Any] | ScoredEvent],
     labels: Labels,
     *,
     duration_s: float,
@@ -332,8 +319,9 @@ def evaluate_events(
     for d in detectors:
         if d not in EVALUATED:
             raise ConfigError(f"evaluation: unknown detector {d!r} (expected one of {EVALUATED})")
-    evs = [_as_ev(e, warmup_end_s, i) for i, e in enumerate(events)]
-    by_det: dict[str, list[_Ev]] = {d: [e for e in evs if e.detector == d] for d in DETECTORS}
+    evs = [scored_event(e, warmup_end_s, i) for i, e in enumerate(events)]
+    by_det: dict[str, list[ScoredEvent]] = {d: [e for e in evs if e.detector == d]
+                                            for d in DETECTORS}
     by_det[PRODUCT] = product_events(evs, warmup_end_s, product_merge_gap_s)
     for d_evs in by_det.values():
         d_evs.sort(key=lambda e: (e.t_start, e.t_end))
@@ -357,7 +345,7 @@ def evaluate_events(
             ImpactWarning, stacklevel=2,
         )
     before = [i for i, c in enumerate(contacts) if c.start < 0]
-    if before:  # label times are seconds since the log's first sample (formats.md)
+    if before:  # label times: seconds since the log's first sample
         warnings.warn(
             f"{labels.path or 'labels'}: {len(before)} contact(s) start before the log's "
             f"first sample, first at {contacts[before[0]].start:g} s: in its warm-up, not "
@@ -379,8 +367,11 @@ def evaluate_events(
     # (a merged product alarm may start before the contact, at an unrelated part's alarm);
     # a product alarm is false when one of the part alarms starting in it matched no contact
     # (or, with no part start inside, when it matched none itself).
-    part_starts = [(e.t_start, bool(m)) for d in PRODUCT_PARTS
-                   for e, m in zip(by_det[d], matches[d][2], strict=True)]
+    starts = np.array([e.t_start for d in PRODUCT_PARTS for e in by_det[d]], dtype=np.float64)
+    unmatched = np.concatenate([~np.asarray(matches[d][2], dtype=bool) for d in PRODUCT_PARTS])
+    order = np.argsort(starts, kind="stable")
+    starts = starts[order]
+    bad_before = np.concatenate(([0], np.cumsum(unmatched[order])))  # unmatched in starts[:k]
 
     def _earliest(xs: Sequence[float | None]) -> float | None:
         vals = [x for x in xs if x is not None]
@@ -388,13 +379,12 @@ def evaluate_events(
 
     p_first = [_earliest([matches[d][0][k] for d in PRODUCT_PARTS]) for k in range(len(contacts))]
     p_any = [_earliest([matches[d][1][k] for d in PRODUCT_PARTS]) for k in range(len(contacts))]
-    def _product_ok(e: _Ev, m: bool) -> bool:
-        inside = [ok for a, ok in part_starts if e.t_start - EPS_S <= a <= e.t_end + EPS_S]
-        return all(inside) if inside else bool(m)
-
-    p_matched = np.array([_product_ok(e, bool(m))
-                          for e, m in zip(by_det[PRODUCT], matches[PRODUCT][2], strict=True)],
-                         dtype=bool)
+    p_evs = by_det[PRODUCT]
+    lo = np.searchsorted(starts, [e.t_start - EPS_S for e in p_evs], side="left")
+    hi = np.searchsorted(starts, [e.t_end + EPS_S for e in p_evs], side="right")
+    # the part starts inside a product alarm all matched; none inside: its own match
+    p_matched = np.where(hi > lo, bad_before[hi] == bad_before[lo],
+                         np.asarray(matches[PRODUCT][2], dtype=bool)).astype(bool)
     matches[PRODUCT] = (p_first, p_any, p_matched)
     for d in detectors:
         d_evs = by_det[d]

@@ -24,9 +24,18 @@ from typing import Any
 
 from ..errors import LogFormatError
 from ..types import ContactLabel
-from .match import EPS_S, PRODUCT_PARTS, MatchTolerance, _Ev, _median, _r, force_known
+from .match import (
+    EPS_S,
+    PRODUCT_PARTS,
+    MatchTolerance,
+    ScoredEvent,
+    force_known,
+    median_or_none,
+    rounded,
+)
 
-#: The contact type (ISO/TS 15066) a labelled kind calls for (formats.md, ``incidents``).
+#: The contact type (ISO/TS 15066) a labelled kind calls for (docs/formats.md,
+#: "Detection timeline", ``incidents``).
 CONTACT_OF_KIND: dict[str, str] = {"impact": "transient", "push": "transient",
                                    "clamp": "quasi_static"}
 #: Contact types, in display order.
@@ -108,12 +117,12 @@ class IncidentOutcome:
         return {
             "label_index": self.label_index, "incident_index": self.incident_index,
             "link_label": self.link_label, "link": self.link,
-            "force_label_n": _r(self.force_label_n), "force_n": _r(self.force_n),
-            "force_rel_error": _r(self.force_rel_error, 6), "kind": self.kind,
+            "force_label_n": rounded(self.force_label_n), "force_n": rounded(self.force_n),
+            "force_rel_error": rounded(self.force_rel_error, 6), "kind": self.kind,
             "contact": self.contact, "link_right": self.link_right,
             "contact_right": self.contact_right, "expected_contact": self.expected_contact,
             "status": self.status, "n_incidents": self.n_incidents,
-            "incident_t_start": _r(self.incident_t_start),
+            "incident_t_start": rounded(self.incident_t_start),
         }
 
 
@@ -144,22 +153,22 @@ class AnswerScore:
     @property
     def force_rel_error_median(self) -> float | None:
         """Median of |force_n − peak_force| / peak_force over contacts with both."""
-        return _median([abs(x) for x in self.force_rel_errors])
+        return median_or_none([abs(x) for x in self.force_rel_errors])
 
     @property
     def force_bias_median(self) -> float | None:
         """Median of the signed relative force error (negative: under-estimates)."""
-        return _median(list(self.force_rel_errors))
+        return median_or_none(list(self.force_rel_errors))
 
     def to_dict(self) -> dict[str, Any]:
         return {
             "n_contacts": self.n_contacts, "matched": self.matched,
-            "link_right": self.link_right, "link_accuracy": _r(self.link_accuracy, 6),
+            "link_right": self.link_right, "link_accuracy": rounded(self.link_accuracy, 6),
             "contact_right": self.contact_right,
-            "contact_accuracy": _r(self.contact_accuracy, 6),
+            "contact_accuracy": rounded(self.contact_accuracy, 6),
             "n_forces": len(self.force_rel_errors),
-            "force_rel_error_median": _r(self.force_rel_error_median, 6),
-            "force_bias_median": _r(self.force_bias_median, 6),
+            "force_rel_error_median": rounded(self.force_rel_error_median, 6),
+            "force_bias_median": rounded(self.force_bias_median, 6),
         }
 
 
@@ -269,10 +278,10 @@ class IncidentEvaluation:
             "n_incidents": self.n_incidents,
             "n_incidents_in_warmup": self.n_incidents_in_warmup,
             "unmatched_incidents": list(self.unmatched),
-            "link_accuracy": _r(o.link_accuracy, 6),
-            "contact_accuracy": _r(o.contact_accuracy, 6),
-            "force_rel_error_median": _r(o.force_rel_error_median, 6),
-            "force_bias_median": _r(o.force_bias_median, 6),
+            "link_accuracy": rounded(o.link_accuracy, 6),
+            "contact_accuracy": rounded(o.contact_accuracy, 6),
+            "force_rel_error_median": rounded(o.force_rel_error_median, 6),
+            "force_bias_median": rounded(o.force_bias_median, 6),
             "one_incident_per_contact": {
                 "holds": self.one_incident_each, "detected": self.detected,
                 "split": list(self.split), "not_in_incident": list(self.not_in_incident),
@@ -302,11 +311,12 @@ def _group_text(s: AnswerScore) -> str:
 
 
 def evaluate_incidents(
-    incidents: Sequence[Any], evs: Sequence[_Ev], contacts: Sequence[ContactLabel],
+    incidents: Sequence[Any], evs: Sequence[ScoredEvent], contacts: Sequence[ContactLabel],
     status: Sequence[str], tolerance: MatchTolerance, warmup_end_s: float,
 ) -> IncidentEvaluation:
-    """Score incidents against labelled contacts (formats.md: ``link`` against the label's
-    link, ``force_n`` against ``peak_force``, ``contact`` against the kind).
+    """Score incidents against labelled contacts (docs/formats.md, "Ground-truth labels"):
+    ``link`` against the label's link, ``force_n`` against ``peak_force``, ``contact``
+    against the kind.
 
     A contact is answered by the earliest counted incident (after warm-up) that *starts*
     in its window ``[start - pre_s, end + post_s]`` — the events' matching rule; an

@@ -1,27 +1,19 @@
 """What an evaluation matches: the window around a labelled contact, the events it reads,
-and the product's alarms.
+and the product's alarms — the vocabulary every later stage of :mod:`impactcli.scoring`
+imports (it imports none of them): the evaluated detectors and constants,
+:class:`MatchTolerance`, the event record :class:`ScoredEvent` (from an
+:class:`~impactcli.types.Event` or a timeline dict), :func:`product_events`,
+:func:`force_known` and the rounding for output.
 
-The vocabulary that every later stage of :mod:`impactcli.evaluate` shares (the scores, the
-incidents, the sweep, the verdict import it; it imports none of them): the evaluated
-detectors and constants, :class:`MatchTolerance`, the event record :class:`_Ev` (from an
-:class:`~impactcli.types.Event` or a timeline dict), :func:`product_events`, whether a
-label's force is a force (:func:`force_known`), and the rounding for output.
-
-Matching rule (:class:`MatchTolerance`): an event *matches* a labelled contact when the
-event **starts** within ``[contact.start - pre_s, contact.end + post_s]`` (bounds included,
-with 1 ns of tolerance for float rounding of sample times).
-
-- ``pre_s`` (default 0.02 s) absorbs clock and filter alignment between the label's source
-  (a load cell, a simulator) and the robot's log: an alarm a few samples before the labelled
-  onset is the same contact.
-- ``post_s`` (default 0.25 s) accepts an alarm raised just after the contact ended: the
-  adaptive detector is high-pass by design (method.md §7) and may fire only on the release
-  of a slow push or clamp.
-
-The *product* detector is the OR of ``adaptive`` and ``static_loading`` (method.md §5):
-their events are merged where they overlap (or lie within ``product_merge_gap_s``), so a
-moment where both fire is one product alarm, not two (:func:`product_events`; how a
-product alarm is scored: :mod:`impactcli.scoring.evaluation`).
+An event *matches* a labelled contact when it **starts** within ``[start - pre_s, end +
+post_s]`` (bounds included, 1 ns tolerance for float sample times). ``pre_s`` (0.02 s)
+absorbs clock and filter alignment between the label's source (a load cell, a simulator)
+and the log; ``post_s`` (0.25 s) accepts an alarm just after the contact: the adaptive
+detector is high-pass by design (docs/method.md §7) and may fire only on a slow push's or
+clamp's release. The *product* is the OR of ``adaptive`` and ``static_loading``
+(docs/method.md §5): their events merged where they overlap or lie within
+``product_merge_gap_s``, so a moment where both fire is one alarm (:func:`product_events`;
+its scoring: :mod:`impactcli.scoring.evaluation`).
 
 Pure logic: no file I/O, no printing.
 """
@@ -38,7 +30,7 @@ from ..errors import ConfigError, LogFormatError
 from ..types import DETECTORS, ContactLabel, Event
 
 SCHEMA_VERSION = "1.0"
-#: The product's alarm: adaptive OR static_loading (method.md §5).
+#: The product's alarm: adaptive OR static_loading (docs/method.md §5).
 PRODUCT = "product"
 PRODUCT_PARTS: tuple[str, ...] = ("adaptive", "static_loading")
 #: Every row of an evaluation, in display order.
@@ -76,8 +68,8 @@ class MatchTolerance:
 
 
 @dataclass(frozen=True)
-class _Ev:
-    """The part of an event evaluation needs (from an :class:`Event` or a timeline dict)."""
+class ScoredEvent:
+    """The part of an event an evaluation needs (from an :class:`Event` or a timeline dict)."""
 
     detector: str
     t_start: float
@@ -87,8 +79,11 @@ class _Ev:
     peak_ratio: float = float("nan")
 
 
-def _as_ev(e: Event | Mapping[str, Any] | _Ev, warmup_end_s: float, i: int) -> _Ev:
-    if isinstance(e, _Ev):
+def scored_event(e: Event | Mapping[str, Any] | ScoredEvent, warmup_end_s: float,
+                 i: int) -> ScoredEvent:
+    """The :class:`ScoredEvent` of ``e`` (``i``: its place, for messages); in warm-up when
+    flagged so or starting before ``warmup_end_s``. LogFormatError on a bad timeline event."""
+    if isinstance(e, ScoredEvent):
         return e
     if isinstance(e, Event):
         det, t0, t1, warm = e.detector, e.t_start, e.t_end, e.in_warmup
@@ -104,12 +99,12 @@ def _as_ev(e: Event | Mapping[str, Any] | _Ev, warmup_end_s: float, i: int) -> _
             raise LogFormatError(f"events[{i}]: missing or bad field: {err}") from None
     if det not in DETECTORS:
         raise LogFormatError(f"events[{i}]: unknown detector {det!r}")
-    return _Ev(det, t0, t1, warm or t0 < warmup_end_s, joints, peak)
+    return ScoredEvent(det, t0, t1, warm or t0 < warmup_end_s, joints, peak)
 
 
 def product_events(
-    events: Iterable[_Ev], warmup_end_s: float, merge_gap_s: float = 0.0
-) -> list[_Ev]:
+    events: Iterable[ScoredEvent], warmup_end_s: float, merge_gap_s: float = 0.0
+) -> list[ScoredEvent]:
     """OR of the adaptive and static-loading events: overlapping ones merged into one alarm.
 
     Two events merge when the next starts at most ``merge_gap_s`` after the current one ends
@@ -120,7 +115,7 @@ def product_events(
     """
     parts = sorted((e for e in events if e.detector in PRODUCT_PARTS),
                    key=lambda e: (e.t_start, e.t_end))
-    out: list[_Ev] = []
+    out: list[ScoredEvent] = []
     for e in parts:
         warm = e.in_warmup or e.t_start < warmup_end_s
         # a counted alarm never merges into one from the warm-up (it would hide in it)
@@ -129,10 +124,10 @@ def product_events(
             cur = out[-1]
             joints = cur.joints + tuple(j for j in e.joints if j not in cur.joints)
             peak = e.peak_ratio if math.isnan(cur.peak_ratio) else max(cur.peak_ratio, e.peak_ratio)
-            out[-1] = _Ev(PRODUCT, cur.t_start, max(cur.t_end, e.t_end), cur.in_warmup,
+            out[-1] = ScoredEvent(PRODUCT, cur.t_start, max(cur.t_end, e.t_end), cur.in_warmup,
                           joints, peak)
         else:
-            out.append(_Ev(PRODUCT, e.t_start, e.t_end, warm, e.joints, e.peak_ratio))
+            out.append(ScoredEvent(PRODUCT, e.t_start, e.t_end, warm, e.joints, e.peak_ratio))
     return out
 
 
@@ -146,12 +141,13 @@ def force_known(c: ContactLabel) -> bool:
     return c.extra.get(FORCE_KNOWN_FIELD, True) is not False
 
 
-def _r(x: float | None, nd: int = 9) -> float | None:
+def rounded(x: float | None, nd: int = 9) -> float | None:
     """Round for output (drops float noise like 0.027000000000000003); non-finite → None."""
     if x is None or not math.isfinite(x):
         return None
     return round(float(x), nd)
 
 
-def _median(xs: Sequence[float]) -> float | None:
+def median_or_none(xs: Sequence[float]) -> float | None:
+    """The median of ``xs``, None when empty."""
     return float(statistics.median(xs)) if xs else None

@@ -1,16 +1,19 @@
 """The threshold sweep: every threshold rescaled, events re-extracted and scored again.
 
-:func:`sweep_thresholds` rescales every threshold by a factor ``s`` — decision
-``ratio > s`` with ``ratio = statistic / threshold`` (eq. 42 for the adaptive detector) —
-re-extracts events (:func:`event_intervals`, the intervals of
-:func:`impactcli.detect.events.extract_events`) and evaluates them
-(:func:`impactcli.scoring.evaluation.evaluate_events`), so that detectors can be compared at
-equal false-alarm rates: one :class:`SweepRow` per (detector, scale). :func:`sweep_ratios`
-is the same on bare arrays (the ratios of a run, or :func:`ratios_from_signals` rebuilt
-from a signals Parquet); the streamed sweep (:mod:`impactcli.outputs.sweep_stream`) reuses
-its pieces. What the rows say is :mod:`impactcli.scoring.verdict`'s.
+At scale ``s`` a detector decides ``ratio > s``, ``ratio = statistic / threshold`` (eq. 42
+for the adaptive detector), so ``s = 1`` is the run; its events are re-extracted (the
+intervals of :func:`impactcli.detect.events.extract_events`) and scored
+(:func:`impactcli.scoring.evaluation.evaluate_events`), which compares detectors at equal
+false-alarm rates: one :class:`SweepRow` per (detector, scale). What the rows say is
+:mod:`impactcli.scoring.verdict`'s.
 
-Pure logic: no file I/O, no printing.
+One sweep, fed by chunks in time order (:class:`ThresholdSweep`): a report's spill row group
+by row group, a signals Parquet row group by row group (``evaluate TIMELINE --sweep``), or a
+run's arrays as one chunk (:func:`sweep_ratios`, :func:`event_intervals`). Per (detector,
+scale) an :class:`EventIntervals` carries across chunks the run of firing samples and the
+merged event still open, so memory is one chunk and the events found.
+:func:`signal_ratios` is the one place ratios are rebuilt from signal columns (a signals
+Parquet holds none). Pure logic: no file I/O, no printing.
 """
 
 from __future__ import annotations
@@ -19,18 +22,14 @@ import math
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-from ..detect.events import split_at_warmup
 from ..errors import ConfigError, ImpactWarning, LogFormatError
 from ..types import DETECTORS, Labels
 from .evaluation import evaluate_events
-from .match import EPS_S, EVALUATED, PRODUCT, PRODUCT_PARTS, MatchTolerance, _Ev, _r
-
-if TYPE_CHECKING:
-    from ..result import DetectionResult
+from .match import EPS_S, EVALUATED, PRODUCT, PRODUCT_PARTS, MatchTolerance, ScoredEvent, rounded
 
 
 def geometric_scales(start: float, stop: float, factor: float) -> tuple[float, ...]:
@@ -80,50 +79,134 @@ class SweepRow:
     def to_dict(self, *, per_contact: bool = False) -> dict[str, Any]:
         """JSON-ready mapping (``per_contact``: with ``contact_delays_s``)."""
         d: dict[str, Any] = {
-            "detector": self.detector, "scale": _r(self.scale), "n_events": self.n_events,
+            "detector": self.detector, "scale": rounded(self.scale), "n_events": self.n_events,
             "n_contacts": self.n_contacts, "detected": self.detected,
             "false_alarms": self.false_alarms,
-            "false_alarms_per_hour": _r(self.false_alarms_per_hour, 6),
-            "delay_median_s": _r(self.delay_median_s),
-            "min_detected_force": _r(self.min_detected_force),
+            "false_alarms_per_hour": rounded(self.false_alarms_per_hour, 6),
+            "delay_median_s": rounded(self.delay_median_s),
+            "min_detected_force": rounded(self.min_detected_force),
         }
         if per_contact:
-            d["contact_delays_s"] = [_r(v) for v in self.contact_delays_s]
+            d["contact_delays_s"] = [rounded(v) for v in self.contact_delays_s]
         return d
+
+
+class EventIntervals:
+    """The events of one decision, from its samples in consecutive chunks.
+
+    The intervals of :func:`impactcli.detect.events.extract_events` (decisions ORed over
+    joints): runs of firing samples merged across gaps of at most ``merge_gap_s``, the one
+    merged event across the warm-up's end split there, events shorter than
+    ``min_duration_s`` dropped (1 ns tolerance on both). The split is done on the runs: a run
+    across the warm-up's first sample k_w is cut before it, and a run at or after k_w never
+    merges with one before it — the two parts
+    :func:`impactcli.detect.events.split_at_warmup` gives (the part before ends at the last
+    firing sample before k_w, the part after starts at the first at or after it).
+
+    Args:
+        merge_gap_s, min_duration_s: event extraction settings [s].
+        warmup_end_s: the warm-up's end [s]; None: no split.
+    """
+
+    def __init__(self, merge_gap_s: float, min_duration_s: float,
+                 warmup_end_s: float | None = None) -> None:
+        self.gap, self.min_dur = merge_gap_s + EPS_S, min_duration_s - EPS_S
+        self.split = warmup_end_s is not None
+        self.wu = (warmup_end_s if warmup_end_s is not None else math.inf) - EPS_S
+        self.k_w: int | None = None          # first sample at or after the warm-up's end
+        self.t_kw = (math.nan, math.nan)     # t[k_w - 1], t[k_w]
+        self.k0, self.t_last = 0, math.nan   # samples seen; the last one's time
+        self.run: tuple[int, float, int, float] | None = None   # open at the last chunk's end
+        self.open: tuple[int, float, int, float] | None = None  # the merged event still open
+        self.out: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
+
+    def update(self, t: np.ndarray, fire: np.ndarray) -> None:
+        """Absorb the next chunk: (m,) times [s] and (m,) bool decisions."""
+        m = int(t.shape[0])
+        if m == 0:
+            return
+        k0, self.k0 = self.k0, self.k0 + m
+        if self.split and self.k_w is None:
+            j = int(np.searchsorted(t, self.wu))
+            if j < m:
+                self.k_w = k0 + j
+                self.t_kw = (float(t[j - 1]) if j > 0 else self.t_last, float(t[j]))
+        self.t_last = float(t[-1])
+        x = np.diff(np.asarray(fire, dtype=np.int8), prepend=np.int8(0), append=np.int8(0))
+        s = np.flatnonzero(x == 1)
+        e = np.flatnonzero(x == -1) - 1
+        i0, t0, i1, t1 = s + k0, t[s], e + k0, t[e]
+        if self.run is not None:
+            r, self.run = self.run, None
+            if s.size and s[0] == 0:  # the run goes on
+                i0[0], t0[0] = r[0], r[1]
+            else:
+                i0, t0 = np.concatenate(([r[0]], i0)), np.concatenate(([r[1]], t0))
+                i1, t1 = np.concatenate(([r[2]], i1)), np.concatenate(([r[3]], t1))
+        if e.size and e[-1] == m - 1:  # open at the chunk's end
+            self.run = (int(i0[-1]), float(t0[-1]), int(i1[-1]), float(t1[-1]))
+            i0, t0, i1, t1 = i0[:-1], t0[:-1], i1[:-1], t1[:-1]
+        self._runs(i0, t0, i1, t1)
+
+    def _runs(self, i0: np.ndarray, t0: np.ndarray, i1: np.ndarray, t1: np.ndarray) -> None:
+        """Merge complete runs (first and last index and time, in order) into events."""
+        if i0.size == 0:
+            return
+        kw = self.k_w if self.k_w is not None else np.iinfo(np.int64).max
+        cut = np.flatnonzero((i0 < kw) & (i1 >= kw))
+        if cut.size:  # across the warm-up's end: two runs
+            p = int(cut[0])
+            i0, t0 = np.insert(i0, p + 1, kw), np.insert(t0, p + 1, self.t_kw[1])
+            i1, t1 = np.insert(i1, p, kw - 1), np.insert(t1, p, self.t_kw[0])
+        if self.open is not None:
+            o = self.open
+            i0, t0 = np.concatenate(([o[0]], i0)), np.concatenate(([o[1]], t0))
+            i1, t1 = np.concatenate(([o[2]], i1)), np.concatenate(([o[3]], t1))
+        apart = ~(t0[1:] - t1[:-1] <= self.gap) | ((i0[1:] >= kw) & (i1[:-1] < kw))
+        first = np.concatenate(([0], np.flatnonzero(apart) + 1))
+        last = np.concatenate((first[1:] - 1, [i0.size - 1]))
+        self.open = (int(i0[first[-1]]), float(t0[first[-1]]), int(i1[last[-1]]),
+                     float(t1[last[-1]]))
+        self._close(i0[first[:-1]], t0[first[:-1]], i1[last[:-1]], t1[last[:-1]])
+
+    def _close(self, i0: np.ndarray, t0: np.ndarray, i1: np.ndarray, t1: np.ndarray) -> None:
+        keep = t1 - t0 >= self.min_dur
+        if keep.any():
+            self.out.append((i0[keep], t0[keep], i1[keep], t1[keep]))
+
+    def finish(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The events, in time order: (E,) first and last sample index, (E,) their times [s]."""
+        if self.run is not None:
+            r, self.run = self.run, None
+            self._runs(np.array([r[0]]), np.array([r[1]]), np.array([r[2]]), np.array([r[3]]))
+        if self.open is not None:
+            o, self.open = self.open, None
+            self._close(np.array([o[0]]), np.array([o[1]]), np.array([o[2]]), np.array([o[3]]))
+        if not self.out:
+            z = np.zeros(0, dtype=np.int64)
+            return z, np.zeros(0), z, np.zeros(0)
+        i0, t0, i1, t1 = (np.concatenate(p) for p in zip(*self.out, strict=True))
+        self.out = [(i0, t0, i1, t1)]
+        return i0, t0, i1, t1
 
 
 def event_intervals(
     decision: np.ndarray, time_s: np.ndarray, merge_gap_s: float, min_duration_s: float,
     warmup_end_s: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(i_start, i_end) sample indices of the events of an (N, J) decision, vectorised.
-
-    The same intervals as :func:`impactcli.detect.events.extract_events` (decisions ORed over
-    joints; bursts whose gap ≤ ``merge_gap_s`` merged; events shorter than
-    ``min_duration_s`` dropped; 1 ns tolerance on both) without the per-event joints and
-    peaks, which a sweep does not need — several times faster on noisy low scales (tests
-    check the equality).
-    """
+    """(i_start, i_end) sample indices of the events of an (N, J) or (N,) decision: the
+    intervals of :func:`impactcli.detect.events.extract_events` (:class:`EventIntervals`
+    fed one chunk), without the per-event joints and peaks a sweep does not need."""
     dec = np.asarray(decision, dtype=bool)
-    anyd = np.asarray(dec.any(axis=1)) if dec.ndim == 2 else dec
-    t = np.asarray(time_s, dtype=np.float64)
-    x = np.diff(anyd.astype(np.int8), prepend=np.int8(0), append=np.int8(0))
-    starts = np.flatnonzero(x == 1)
-    ends = np.flatnonzero(x == -1) - 1
-    if starts.size == 0:
-        return starts, ends
-    new = np.concatenate(([True], t[starts[1:]] - t[ends[:-1]] > merge_gap_s + EPS_S))
-    first = np.flatnonzero(new)
-    g_start = starts[first]
-    g_end = ends[np.concatenate((first[1:] - 1, [ends.size - 1]))]
-    if warmup_end_s is not None:
-        g_start, g_end = split_at_warmup(g_start, g_end, anyd, t, warmup_end_s)
-    keep = t[g_end] - t[g_start] >= min_duration_s - EPS_S
-    return g_start[keep], g_end[keep]
+    iv = EventIntervals(merge_gap_s, min_duration_s, warmup_end_s)
+    fire = np.asarray(dec.any(axis=1)) if dec.ndim == 2 else dec
+    iv.update(np.asarray(time_s, dtype=np.float64), fire)
+    i0, _, i1, _ = iv.finish()
+    return i0, i1
 
 
-def _event_settings(config: Any, merge_gap_s: float | None,
-                    min_duration_s: float | None) -> tuple[float, float]:
+def event_settings(config: Any, merge_gap_s: float | None,
+                   min_duration_s: float | None) -> tuple[float, float]:
     """(merge_gap_s, min_duration_s): the keyword values, else the run's ``config["events"]``."""
     cfg = config.get("events") if isinstance(config, Mapping) else None
     cfg = cfg if isinstance(cfg, Mapping) else {}
@@ -134,6 +217,80 @@ def _event_settings(config: Any, merge_gap_s: float | None,
             raise ConfigError(f"sweep: the run's config has no events.{name}; pass {name}=")
         out.append(float(v))
     return out[0], out[1]
+
+
+def sorted_scales(scales: Sequence[float]) -> list[float]:
+    """The sweep's distinct scales, ascending (ConfigError unless positive and finite)."""
+    out = sorted({float(s) for s in scales})
+    if not out or any(not (math.isfinite(s) and s > 0) for s in out):
+        raise ConfigError(f"sweep: scales must be positive finite numbers, got {list(scales)!r}")
+    return out
+
+
+class ThresholdSweep:
+    """The sweep of one run, fed its ratios chunk by chunk in time order.
+
+    Args:
+        scales: threshold multipliers (> 0).
+        warmup_end_s [s]; merge_gap_s, min_duration_s: event extraction settings [s].
+        detectors: the rows wanted, of :data:`EVALUATED` (the product needs its parts'
+            ratios).
+    """
+
+    def __init__(self, scales: Sequence[float], *, warmup_end_s: float, merge_gap_s: float,
+                 min_duration_s: float, detectors: Sequence[str] = EVALUATED) -> None:
+        self.scales = sorted_scales(scales)
+        for d in detectors:
+            if d not in EVALUATED:
+                raise ConfigError(f"sweep: unknown detector {d!r} (expected one of {EVALUATED})")
+        need = {d for d in detectors if d != PRODUCT}
+        if PRODUCT in detectors:
+            need |= set(PRODUCT_PARTS)
+        self.need = [d for d in DETECTORS if d in need]
+        self.rows_of = [d for d in EVALUATED if d in detectors]
+        self.warmup_end_s, self.merge_gap_s = float(warmup_end_s), float(merge_gap_s)
+        self.iv = {(d, s): EventIntervals(merge_gap_s, min_duration_s, warmup_end_s)
+                   for d in self.need for s in self.scales}
+        self.t_first = self.t_last = math.nan
+
+    def update(self, time_s: np.ndarray, ratios: Mapping[str, np.ndarray]) -> None:
+        """The next chunk: (m,) times [s since the first sample] and detector → (m, J)
+        statistic / threshold [-] (decision at scale s: ratio > s on some joint)."""
+        for d in sorted(self.need):
+            if d not in ratios:
+                raise ConfigError(f"sweep: the run holds no ratios for detector {d!r}")
+        t = np.asarray(time_s, dtype=np.float64)
+        if t.size == 0:
+            return
+        if math.isnan(self.t_first):
+            self.t_first = float(t[0])
+        self.t_last = float(t[-1])
+        for d in self.need:
+            r = np.asarray(ratios[d], dtype=np.float64)
+            # some joint above s <=> the largest non-NaN ratio above s
+            top = np.fmax.reduce(r, axis=1) if r.ndim == 2 else r
+            for s in self.scales:
+                self.iv[(d, s)].update(t, top > s)
+
+    def rows(self, labels: Labels, tolerance: MatchTolerance | None = None) -> list[SweepRow]:
+        """One :class:`SweepRow` per (detector, scale): detectors in :data:`EVALUATED`
+        order, scales ascending. Call once, after the last chunk."""
+        tol = tolerance if tolerance is not None else MatchTolerance()
+        wu = self.warmup_end_s
+        duration_s = 0.0 if math.isnan(self.t_first) else self.t_last - self.t_first
+        found = {k: iv.finish() for k, iv in self.iv.items()}
+        rows_of: dict[str, list[SweepRow]] = {d: [] for d in self.rows_of}
+        with warnings.catch_warnings():
+            # contacts after the log's end are warned about once, below, not once per scale
+            warnings.simplefilter("ignore", ImpactWarning)
+            for s in self.scales:
+                evs = [ScoredEvent(d, a, b, a < wu) for d in self.need
+                       for a, b in zip(found[(d, s)][1].tolist(), found[(d, s)][3].tolist(),
+                                       strict=True)]
+                add_rows(rows_of, s, evs, labels, duration_s=duration_s, warmup_end_s=wu,
+                         tolerance=tol, merge_gap_s=self.merge_gap_s)
+        warn_late_labels(labels, duration_s, wu, tol)
+        return [r for rows in rows_of.values() for r in rows]
 
 
 def sweep_ratios(
@@ -148,58 +305,26 @@ def sweep_ratios(
     tolerance: MatchTolerance | None = None,
     detectors: Sequence[str] = EVALUATED,
 ) -> list[SweepRow]:
-    """The sweep on bare arrays (see :func:`sweep_thresholds`).
+    """The sweep of a run's arrays, one chunk of :class:`ThresholdSweep`.
 
     Args:
         ratios: detector → (N, J) statistic / threshold [-] (decision at scale s: ratio > s).
         time_s: (N,) seconds since the first sample.
         labels: ground truth. scales: threshold multipliers (> 0).
         warmup_end_s [s]; merge_gap_s, min_duration_s: event extraction settings [s].
+        tolerance: the matching window. detectors: the rows wanted.
     """
-    tol = tolerance if tolerance is not None else MatchTolerance()
-    scales_sorted = sorted_scales(scales)
-    for d in detectors:
-        if d not in EVALUATED:
-            raise ConfigError(f"sweep: unknown detector {d!r} (expected one of {EVALUATED})")
-    need = {d for d in detectors if d != PRODUCT}
-    if PRODUCT in detectors:
-        need |= set(PRODUCT_PARTS)
-    for d in sorted(need):
-        if d not in ratios:
-            raise ConfigError(f"sweep: the run holds no ratios for detector {d!r}")
-    time_s = np.asarray(time_s, dtype=np.float64)
-    duration_s = float(time_s[-1] - time_s[0]) if time_s.size else 0.0
-    rows_of: dict[str, list[SweepRow]] = {d: [] for d in EVALUATED if d in detectors}
-    with warnings.catch_warnings():
-        # contacts after the log's end are warned about once, below, not once per scale
-        warnings.simplefilter("ignore", ImpactWarning)
-        for s in scales_sorted:
-            evs: list[_Ev] = []
-            for d in DETECTORS:
-                if d in need:
-                    i0, i1 = event_intervals(np.asarray(ratios[d]) > s, time_s, merge_gap_s,
-                                             min_duration_s, warmup_end_s)
-                    evs += [_Ev(d, a, b, a < warmup_end_s) for a, b in
-                            zip(time_s[i0].tolist(), time_s[i1].tolist(), strict=True)]
-            add_rows(rows_of, s, evs, labels, duration_s=duration_s,
-                     warmup_end_s=warmup_end_s, tolerance=tol, merge_gap_s=merge_gap_s)
-    warn_late_labels(labels, duration_s, warmup_end_s, tol)
-    return [r for rows in rows_of.values() for r in rows]
+    sweep = ThresholdSweep(scales, warmup_end_s=warmup_end_s, merge_gap_s=merge_gap_s,
+                           min_duration_s=min_duration_s, detectors=detectors)
+    sweep.update(time_s, ratios)
+    return sweep.rows(labels, tolerance)
 
 
-def sorted_scales(scales: Sequence[float]) -> list[float]:
-    """The sweep's distinct scales, ascending (ConfigError unless positive and finite)."""
-    out = sorted({float(s) for s in scales})
-    if not out or any(not (math.isfinite(s) and s > 0) for s in out):
-        raise ConfigError(f"sweep: scales must be positive finite numbers, got {list(scales)!r}")
-    return out
-
-
-def add_rows(rows_of: dict[str, list[SweepRow]], scale: float, evs: list[_Ev],
+def add_rows(rows_of: dict[str, list[SweepRow]], scale: float, evs: list[ScoredEvent],
              labels: Labels, *, duration_s: float, warmup_end_s: float,
              tolerance: MatchTolerance, merge_gap_s: float) -> None:
     """Score one scale's events against the labels; one :class:`SweepRow` per detector of
-    ``rows_of`` (the whole-log sweep and the streamed one, outputs/sweep_stream.py)."""
+    ``rows_of``."""
     ev = evaluate_events(
         evs, labels, duration_s=duration_s, warmup_end_s=warmup_end_s, tolerance=tolerance,
         product_merge_gap_s=merge_gap_s, detectors=list(rows_of),
@@ -223,55 +348,33 @@ def warn_late_labels(labels: Labels, duration_s: float, warmup_end_s: float,
                         tolerance=tolerance, detectors=())
 
 
-def sweep_thresholds(
-    result: DetectionResult,
-    labels: Labels,
-    scales: Sequence[float],
-    *,
-    tolerance: MatchTolerance | None = None,
-    merge_gap_s: float | None = None,
-    min_duration_s: float | None = None,
-    detectors: Sequence[str] = EVALUATED,
-) -> list[SweepRow]:
-    """Rescale every detector's thresholds by each ``s`` in ``scales`` and evaluate.
+def signal_ratios(residual_rms: np.ndarray, threshold: np.ndarray, loading: np.ndarray,
+                  abs_residual: np.ndarray, v_loading: np.ndarray | float,
+                  v_baseline: np.ndarray | float) -> dict[str, np.ndarray]:
+    """Each detector's statistic over its threshold, as the run computes them: adaptive
+    r_rms / |v_stat + v_rms| (eq. 42; inf where that threshold is 0), static_loading
+    |LP(r)| / vL, static_baseline |r| / v0.
 
-    For each detector, decisions are ``result.ratios[detector] > s`` ((N, J); ratio =
-    statistic / threshold — r_rms / |v_stat + v_rms| for the adaptive detector, eq. 42 —
-    so s = 1 reproduces the run), events are re-extracted
-    (the intervals of :func:`impactcli.detect.events.extract_events`, via
-    :func:`event_intervals`) with the run's ``config["events"]``
-    settings (``merge_gap_s``, ``min_duration_s``; the keyword arguments override or supply
-    them) and scored with :func:`evaluate_events`. The product at scale s is the OR of
-    adaptive and static_loading both at scale s (their events merged within merge_gap_s).
-
+    Args:
+        residual_rms, threshold, loading, abs_residual: (n, J) residual RMS, adaptive
+            threshold, loading statistic and |r| [N·m] (or a joint's (n,) columns).
+        v_loading, v_baseline: vL and v0 [N·m], broadcast against them.
     Returns:
-        One :class:`SweepRow` per (detector, scale), detectors in :data:`EVALUATED` order,
-        scales ascending.
+        detector → ratio, shaped as the statistics.
     """
-    gap, min_dur = _event_settings(result.config, merge_gap_s, min_duration_s)
-    log = result.log
-    return sweep_ratios(
-        result.ratios, log.time_s, labels=labels, scales=scales,
-        warmup_end_s=result.warmup_end_s, merge_gap_s=gap, min_duration_s=min_dur,
-        tolerance=tolerance, detectors=detectors,
-    )
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return {"adaptive": np.where(threshold > 0, residual_rms / threshold, np.inf),
+                "static_loading": loading / v_loading,
+                "static_baseline": abs_residual / v_baseline}
 
 
 def ratios_from_signals(
     columns: Mapping[str, np.ndarray], joint_names: Sequence[str],
     thresholds: Mapping[str, Mapping[str, float]],
 ) -> dict[str, np.ndarray]:
-    """Rebuild the detectors' (N, J) ratios from a signals Parquet's columns (formats.md).
-
-    adaptive = ``residual_rms / threshold`` (eq. 42, threshold = |v_stat + v_rms|);
-    static_loading = ``loading_statistic / vL``; static_baseline = ``|residual| / v0``.
-
-    Args:
-        columns: column name → (N,) array (``<joint>.<signal>``).
-        joint_names: the J joints in order. thresholds: per joint ``{v0, vL}`` [N·m].
-
-    Returns:
-        detector → (N, J) ratio.
+    """The detectors' (n, J) ratios (:func:`signal_ratios`) from a signals Parquet's columns
+    (``<joint>.<signal>``, docs/formats.md, "Per-sample signals") and a timeline's
+    per-joint thresholds ``{v0, vL}`` [N·m].
 
     Raises:
         LogFormatError naming the first missing column or threshold.
@@ -288,16 +391,7 @@ def ratios_from_signals(
         except (KeyError, TypeError, ValueError):
             raise LogFormatError(f"timeline: thresholds.{j}.{name} missing") from None
 
-    def safe_div(a: np.ndarray, b: np.ndarray | float) -> np.ndarray:
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return np.asarray(np.where(np.asarray(b) > 0, a / b, np.inf))
-
-    return {
-        "adaptive": np.column_stack([
-            safe_div(np.abs(col(j, "residual_rms")), np.abs(col(j, "threshold")))
-            for j in joint_names]),
-        "static_loading": np.column_stack([
-            safe_div(np.abs(col(j, "loading_statistic")), thr(j, "vL")) for j in joint_names]),
-        "static_baseline": np.column_stack([
-            safe_div(np.abs(col(j, "residual")), thr(j, "v0")) for j in joint_names]),
-    }
+    per = [signal_ratios(col(j, "residual_rms"), col(j, "threshold"),
+                         col(j, "loading_statistic"), np.abs(col(j, "residual")),
+                         thr(j, "vL"), thr(j, "v0")) for j in joint_names]
+    return {d: np.column_stack([p[d] for p in per]) for d in DETECTORS}

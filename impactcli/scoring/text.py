@@ -15,11 +15,13 @@ from .evaluation import Evaluation
 from .incidents import IncidentEvaluation
 
 
-def _fmt_ms(x: float | None) -> str:
+def fmt_ms(x: float | None) -> str:
+    """A duration in s as whole milliseconds (``-`` for None)."""
     return "-" if x is None else f"{x * 1e3:.0f} ms"
 
 
-def _fmt_n(x: float | None) -> str:
+def fmt_n(x: float | None) -> str:
+    """A force in N, 3 significant digits (``-`` for None)."""
     return "-" if x is None else f"{x:.3g} N"
 
 
@@ -49,18 +51,18 @@ def format_evaluation(ev: Evaluation) -> str:
         rows.append((
             d, f"{s.detected}/{s.n_contacts}", str(s.false_alarms),
             _fmt_rate(s.false_alarms_per_hour),
-            _fmt_ms(s.delay_median_s), _fmt_ms(s.delay_max_s), _fmt_n(s.min_detected_force),
-            _fmt_n(s.max_missed_force), str(s.n_events_in_warmup),
+            fmt_ms(s.delay_median_s), fmt_ms(s.delay_max_s), fmt_n(s.min_detected_force),
+            fmt_n(s.max_missed_force), str(s.n_events_in_warmup),
         ))
-    lines += _table(rows)
+    lines += text_table(rows)
     kind_rows: list[tuple[str, ...]] = [("detector", "kind", "detected", "delay med",
                                          "min detected F", "max missed F")]
     for d, s in ev.scores.items():
         for k in s.by_kind:
-            kind_rows.append((d, k.kind, f"{k.detected}/{k.n_contacts}", _fmt_ms(k.delay_median_s),
-                              _fmt_n(k.min_detected_force), _fmt_n(k.max_missed_force)))
+            kind_rows.append((d, k.kind, f"{k.detected}/{k.n_contacts}", fmt_ms(k.delay_median_s),
+                              fmt_n(k.min_detected_force), fmt_n(k.max_missed_force)))
     if len(kind_rows) > 1:
-        lines += ["", "By contact kind:", *_table(kind_rows)]
+        lines += ["", "By contact kind:", *text_table(kind_rows)]
     warm = ev.contacts_with_status("in_warmup")
     if warm:
         lines += ["", "Contacts in warm-up (not counted as misses):"]
@@ -100,11 +102,12 @@ def format_incident_evaluation(ie: IncidentEvaluation) -> list[str]:
             f"{c.expected_contact} / {c.contact or '-'}{mark(c.contact_right)}",
         ))
     lines += ["", "Per labelled contact (label # from 0, as in the labels' events):",
-              *_table(table)]
+              *text_table(table)]
     return lines
 
 
-def _table(rows: Sequence[Sequence[str]]) -> list[str]:
+def text_table(rows: Sequence[Sequence[str]]) -> list[str]:
+    """Lines of an aligned table (first row the header, underlined; first column left)."""
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     out = []
     for n, r in enumerate(rows):

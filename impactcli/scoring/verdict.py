@@ -20,9 +20,9 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from .match import EPS_S, PRODUCT_PARTS, _median
+from .match import EPS_S, PRODUCT_PARTS, median_or_none
 from .sweep import SweepRow
-from .text import _fmt_ms, _fmt_n, _table
+from .text import fmt_ms, fmt_n, text_table
 
 
 def at_zero_false_alarms(rows: Sequence[SweepRow]) -> dict[str, SweepRow | None]:
@@ -99,7 +99,7 @@ def compare_at_zero(zero: Mapping[str, SweepRow | None]) -> Comparison | None:
         adaptive_only=sum(1 for x, y in zip(da, ds, strict=True) if x is not None and y is None),
         loading_only=sum(1 for x, y in zip(da, ds, strict=True) if x is None and y is not None),
         both=len(pairs),
-        paired_delay_gain_s=_median([y - x for x, y in pairs]),
+        paired_delay_gain_s=median_or_none([y - x for x, y in pairs]),
     )
 
 
@@ -126,7 +126,7 @@ def _row_text(r: SweepRow) -> str:
     txt = f"{r.detected}/{r.n_contacts} contacts at threshold scale {r.scale:g}"
     if r.detected:
         txt += (f", down to {r.min_detected_force:.3g} N with a median delay of "
-                f"{_fmt_ms(r.delay_median_s)}")
+                f"{fmt_ms(r.delay_median_s)}")
     return txt
 
 
@@ -135,7 +135,7 @@ def _pair_text(cmp: Comparison) -> str:
              f"static_loading detects, {cmp.both} both"]
     if cmp.paired_delay_gain_s is not None:
         g = cmp.paired_delay_gain_s
-        parts.append(f"on those adaptive fires {_fmt_ms(abs(g))} "
+        parts.append(f"on those adaptive fires {fmt_ms(abs(g))} "
                      f"{'earlier' if g >= 0 else 'later'} (median)")
     return ", ".join(parts)
 
@@ -199,7 +199,7 @@ def format_sweep(rows: Sequence[SweepRow]) -> str:
             at_lo = lo is not None and r.scale <= lo + EPS_S
             table.append((d, f"<= {r.scale:g}" if at_lo else f"{r.scale:g}",
                           f"{r.detected}/{r.n_contacts}",
-                          _fmt_n(r.min_detected_force), _fmt_ms(r.delay_median_s)))
+                          fmt_n(r.min_detected_force), fmt_ms(r.delay_median_s)))
     rng = f"{scales[0]:g}–{scales[-1]:g}, {len(scales)} scales" if scales else "no scales"
-    return "\n".join([f"Threshold sweep ({rng}), at zero false alarms:", *_table(table), "",
+    return "\n".join([f"Threshold sweep ({rng}), at zero false alarms:", *text_table(table), "",
                       verdict(zero, smallest_scale=lo)]) + "\n"

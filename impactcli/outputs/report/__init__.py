@@ -2,11 +2,9 @@
 answer a safety engineer opens it for — did the arm hit something, when, where, how hard.
 
 Formatting only: every number comes from a :class:`~impactcli.result.DetectionResult`
-(through :func:`impactcli.outputs.timeline.timeline_dict`, whose fields are reused as they
-are), from :mod:`impactcli.detect.incidents` (incidents; the smallest force the thresholds
-catch) or from :mod:`impactcli.evaluate` when labels are given. The one quantity reduced
-here is the false-alarm margin (:mod:`.margins`).
-
+(through :func:`impactcli.outputs.timeline.timeline_dict`), from the run's chunks as
+:mod:`.samples` collects them, from :mod:`impactcli.detect.incidents` or, with labels,
+from :mod:`impactcli.scoring`. The one quantity reduced here is the false-alarm margin.
 Parts, by what the reader sees:
 
 - :mod:`.summary` — the verdict line, the incident list, the fleet summary;
@@ -18,6 +16,7 @@ Parts, by what the reader sees:
 - :mod:`.analysed` — what was analysed and with what;
 - :mod:`.caveats`, :mod:`.margins` — the caveats and the false-alarm margin;
 - :mod:`.page` — the page (CSS, assembly), the JSON twin, writing both;
+- :mod:`.samples` — what the report reads of the samples, collected from the chunks;
 - :mod:`.common` — settings and formatters they share.
 """
 
@@ -40,13 +39,12 @@ from .common import (
     event_duration_s,
     log_stem,
 )
-from .margins import collision_free_mask, false_alarm_margins
+from .margins import false_alarm_margins
 from .page import (
     CSS,
     NUM_TOKEN,
     RenderedLog,
     assemble_report,
-    build_report,
     render_html,
     render_log,
     report_dict,
@@ -55,7 +53,7 @@ from .page import (
     write_report,
 )
 from .quality import SWEEP_SCALES
-from .samples import ResultSamples, Samples, statistic
+from .samples import ReportCollector, Samples
 from .section import log_section
 from .summary import incident_rows, verdict_text
 from .unseen import could_not_see
@@ -77,12 +75,10 @@ __all__ = [
     "SWEEP_SCALES",
     "WHOLE_LOG_BUCKETS",
     "RenderedLog",
-    "ResultSamples",
+    "ReportCollector",
     "Samples",
     "assemble_report",
-    "build_report",
     "caveats",
-    "collision_free_mask",
     "could_not_see",
     "event_duration_s",
     "false_alarm_margins",
@@ -93,7 +89,6 @@ __all__ = [
     "render_log",
     "report_dict",
     "report_json",
-    "statistic",
     "summary_row",
     "verdict_text",
     "write_report",

@@ -1,5 +1,5 @@
-"""The false-alarm margin: how close each detector came to a false alarm (a maximum of
-``result.ratios``, the one quantity the report reduces itself):
+"""The false-alarm margin: how close each detector came to a false alarm (a maximum of the
+run's per-sample ratios, the one quantity the report reduces itself):
 
     margin_d,j = max { ratio_d(k, j) : t_k >= warmup_end_s, t_k outside every event }
 
@@ -16,19 +16,10 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
-
 from ...result import DetectionResult
 from ...types import DETECTORS, Labels
 from .common import GUARD_S
-from .samples import ResultSamples, Samples
-
-
-def collision_free_mask(
-    result: DetectionResult, labels: Labels | None = None, guard_s: float = GUARD_S
-) -> np.ndarray:
-    """(N,) bool: samples after warm-up and outside every event / labelled contact ± guard."""
-    return ResultSamples(result).mask(_spans(result, labels, guard_s), result.warmup_end_s)
+from .samples import Samples
 
 
 def _spans(result: DetectionResult, labels: Labels | None,
@@ -41,19 +32,17 @@ def _spans(result: DetectionResult, labels: Labels | None,
 
 
 def false_alarm_margins(
-    result: DetectionResult, labels: Labels | None = None, guard_s: float = GUARD_S,
-    samples: Samples | None = None,
+    result: DetectionResult, labels: Labels | None = None, guard_s: float = GUARD_S, *,
+    samples: Samples,
 ) -> dict[str, Any]:
     """Per detector and joint, the largest statistic / threshold ratio on collision-free
     stretches (see the module docstring), its time [s] and the headroom 1 / ratio.
 
-    ``samples``: where the per-sample ratios are read (default: the result's own, in
-    memory; a streamed run's come from its spill file, :mod:`.samples`).
+    ``samples``: where the per-sample ratios are read (:mod:`.samples`).
 
     Returns ``{"rule": {...}, "per_detector": {det: {joint: {...}}}, "worst": {det: {...}}}``;
     ``max_ratio`` is None when no collision-free sample remains.
     """
-    samples = samples if samples is not None else ResultSamples(result)
     n_free, maxima = samples.ratio_maxima(_spans(result, labels, guard_s),
                                           result.warmup_end_s)
     period = result.log.sample_period_s

@@ -30,7 +30,7 @@ from .common import (
     clean,
     e,
 )
-from .samples import ResultSamples, Samples
+from .samples import Samples
 from .section import log_section, section_html
 from .summary import fleet_details_html, fleet_table_html, incident_counts
 
@@ -224,8 +224,8 @@ def render_html(doc: dict[str, Any], sections: Sequence[str]) -> str:
 class RenderedLog:
     """One log, rendered: its JSON facts and its HTML section (numbered by NUM_TOKEN).
 
-    What a report worker returns instead of the whole :class:`DetectionResult` (whose
-    per-sample signals dominate memory), so a fleet report holds only these.
+    What a report worker returns instead of its run and samples, so a fleet report holds
+    only these.
     """
 
     section: dict[str, Any]
@@ -233,13 +233,10 @@ class RenderedLog:
 
 
 def render_log(result: DetectionResult, labels: Labels | None = None, key: int = 0,
-               origin: dict[str, Any] | None = None,
-               samples: Samples | None = None) -> RenderedLog:
+               origin: dict[str, Any] | None = None, *, samples: Samples) -> RenderedLog:
     """Render one log (``key``: its input index, which keeps SVG ids unique; ``origin``:
-    the timeline it was re-run from, see :func:`~.section.log_section`; ``samples``: where
-    its per-sample facts are read — a streamed run's spill, :mod:`.samples` — by default
-    the result's own signals)."""
-    samples = samples if samples is not None else ResultSamples(result)
+    the timeline it was re-run from, see :func:`~.section.log_section`; ``samples``: what
+    its run's chunks left for the report, :mod:`.samples`)."""
     sec = log_section(result, labels, origin, samples)
     return RenderedLog(sec, section_html(NUM_TOKEN, result, sec, labels, Ids(f"{key}-"),
                                          samples))
@@ -253,43 +250,15 @@ def assemble_report(rendered: Sequence[RenderedLog],
     return render_html(doc, [r.html for r in rendered]), doc
 
 
-def build_report(results: Sequence[DetectionResult],
-                 labels: Sequence[Labels | None] | None = None,
-                 failed: Sequence[tuple[str, str]] = ()) -> tuple[str, dict[str, Any]]:
-    """Build the report: ``(html, doc)`` — the HTML text and the JSON-ready mapping.
-
-    Args:
-        results: one :class:`DetectionResult` per log (report order = given order).
-        labels: None, or one ``Labels | None`` per result; logs with labels get the
-            detection-quality evaluation.
-        failed: (input path, one-line error) of inputs that could not be analysed; listed
-            in the summary.
-    """
-    labs = list(labels) if labels is not None else [None] * len(results)
-    if len(labs) != len(results):
-        raise ValueError(f"{len(labs)} labels for {len(results)} results")
-    return assemble_report([render_log(r, lab, k)
-                            for k, (r, lab) in enumerate(zip(results, labs, strict=True))],
-                           failed)
-
-
-def write_report(results: Sequence[DetectionResult] | Sequence[RenderedLog],
-                 html_path: str | os.PathLike[str],
+def write_report(rendered: Sequence[RenderedLog], html_path: str | os.PathLike[str],
                  json_path: str | os.PathLike[str] | None = None,
-                 labels: Sequence[Labels | None] | None = None,
                  failed: Sequence[tuple[str, str]] = ()) -> dict[str, Any]:
-    """Write the HTML report (and its JSON twin) atomically; return the JSON mapping.
-
-    ``results`` are detection results (rendered here, with ``labels``) or logs already
-    rendered by :func:`render_log` (``labels`` then unused).
-    """
+    """Write the HTML report of logs rendered by :func:`render_log` (and its JSON twin)
+    atomically; return the JSON mapping."""
     for p in (html_path, json_path):  # both destinations usable before either is written
         if p is not None:
             prepare_output(p)
-    if results and all(isinstance(r, RenderedLog) for r in results):
-        text, doc = assemble_report(results, failed)  # type: ignore[arg-type]
-    else:
-        text, doc = build_report(results, labels, failed)  # type: ignore[arg-type]
+    text, doc = assemble_report(rendered, failed)
     atomic_write_text(html_path, text)
     if json_path is not None:
         atomic_write_text(json_path, report_json(doc))

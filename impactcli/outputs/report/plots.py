@@ -31,7 +31,7 @@ from .common import (
     approx,
     e,
 )
-from .samples import ResultSamples, Samples, Stretch
+from .samples import Samples, Stretch
 
 BAND_EVENT = "#f3b6ae"
 ALARM_ZONE = "#fdf1ef"
@@ -111,12 +111,11 @@ def _plot_joints(result: DetectionResult, joints: Sequence[str], link: int | Non
 
 def incident_figures(result: DetectionResult, incidents: Sequence[dict[str, Any]],
                      labels: Labels | None, ids: Ids, anchor: str,
-                     chain: Sequence[str], samples: Samples | None = None) -> str:
+                     chain: Sequence[str], samples: Samples) -> str:
     """One figure per incident (±EVENT_WINDOW_S around it): both product detectors on each
     joint that fired and on the joint of its link."""
     if not incidents:
         return ""
-    samples = samples if samples is not None else ResultSamples(result)
     p = [f"<h3>Around each incident (±{EVENT_WINDOW_S:g} s)</h3>", legend_html(labels)]
     for inc in incidents[:MAX_EVENT_FIGURES]:
         joints = _plot_joints(result, inc.get("joints") or [], inc.get("link"), chain)
@@ -141,12 +140,11 @@ def incident_figures(result: DetectionResult, incidents: Sequence[dict[str, Any]
 
 
 def alarm_figures(result: DetectionResult, merge_gap_s: float, labels: Labels | None,
-                  ids: Ids, samples: Samples | None = None) -> str:
+                  ids: Ids, samples: Samples) -> str:
     """For a run without incidents: one figure per group of overlapping product alarms."""
     groups = group_events(result.events, merge_gap_s)
     if not groups:
         return ""
-    samples = samples if samples is not None else ResultSamples(result)
     p = [f"<h3>Around each group of alarms (±{EVENT_WINDOW_S:g} s)</h3>", legend_html(labels)]
     for g in groups[:MAX_EVENT_FIGURES]:
         evs = [result.events[k] for k in g]
@@ -165,9 +163,8 @@ def alarm_figures(result: DetectionResult, merge_gap_s: float, labels: Labels | 
 
 
 def whole_log_figures(result: DetectionResult, labels: Labels | None, ids: Ids,
-                      samples: Samples | None = None) -> str:
+                      samples: Samples) -> str:
     """Every detector against its threshold over the whole log, per joint."""
-    samples = samples if samples is not None else ResultSamples(result)
     p = ["<h3>Statistic against threshold over the whole log</h3>", legend_html(labels),
          f'<p class="small">Drawn as a min/max envelope of {WHOLE_LOG_BUCKETS} buckets, so no '
          "peak is hidden.</p>"]

@@ -3,7 +3,7 @@ labelled contact's outcome, the incidents' scores when the evaluation carries th
 (``evaluation["incidents"]``: ``summary`` rows of label/value and ``contacts`` dicts,
 rendered as they come), and the threshold sweep (a short table and an ROC-style plot).
 
-The numbers come from :mod:`impactcli.evaluate` (imported lazily).
+The numbers come from :mod:`impactcli.scoring`.
 """
 
 from __future__ import annotations
@@ -13,39 +13,32 @@ from typing import Any
 
 from ...errors import ImpactError
 from ...result import DetectionResult
+from ...scoring.evaluation import evaluate_result
+from ...scoring.sweep import DEFAULT_SWEEP_SCALES
+from ...scoring.verdict import sweep_to_dict
 from ...types import Labels
 from .common import e, g, generic_table, kv_table, to_mapping
 from .plots import sweep_plot
-from .samples import ResultSamples, Samples
-
-
-def _sweep_scales() -> tuple[float, ...]:
-    from ...evaluate import DEFAULT_SWEEP_SCALES
-
-    return tuple(DEFAULT_SWEEP_SCALES)
-
+from .samples import Samples
 
 #: the threshold scales of the report's sweep: the same grid as ``impactcli evaluate --sweep``
-SWEEP_SCALES: tuple[float, ...] = _sweep_scales()
+SWEEP_SCALES: tuple[float, ...] = tuple(DEFAULT_SWEEP_SCALES)
 
 
 def evaluate(result: DetectionResult, labels: Labels,
-             samples: Samples | None = None) -> dict[str, Any]:
+             samples: Samples) -> dict[str, Any]:
     """The detection-quality evaluation and threshold sweep of one log (``samples``: where
-    the sweep reads the ratios; default the result's own)."""
+    the sweep reads the ratios)."""
     out: dict[str, Any] = {"status": "done", "labels_path": labels.path,
                            "n_labelled": len(labels.events), "evaluation": None,
                            "sweep": None, "notes": []}
-    from ... import evaluate as ev
-
-    out["evaluation"] = to_mapping(ev.evaluate_result(result, labels))
+    out["evaluation"] = to_mapping(evaluate_result(result, labels))
     try:
-        rows = (samples if samples is not None else ResultSamples(result)).sweep(
-            result, labels, SWEEP_SCALES)
+        rows = samples.sweep(result, labels, SWEEP_SCALES)
     except ImpactError as err:  # e.g. a run whose config lacks the event settings
         out["notes"].append(f"No threshold sweep: {err}")
         return out
-    out["sweep"] = {"scales": list(SWEEP_SCALES), **ev.sweep_to_dict(rows)}
+    out["sweep"] = {"scales": list(SWEEP_SCALES), **sweep_to_dict(rows)}
     return out
 
 

@@ -33,22 +33,20 @@ from .common import (
 from .margins import false_alarm_margins
 from .plots import alarm_figures, incident_figures, whole_log_figures
 from .quality import evaluate, quality_html
-from .samples import ResultSamples, Samples
+from .samples import Samples
 from .summary import incident_rows, incident_table_html, incidents_known, verdict_text
 from .unseen import chain_of, could_not_see, could_not_see_html
 
 
-def log_section(result: DetectionResult, labels: Labels | None = None,
-                origin: dict[str, Any] | None = None,
-                samples: Samples | None = None) -> dict[str, Any]:
+def log_section(result: DetectionResult, labels: Labels | None,
+                origin: dict[str, Any] | None, samples: Samples) -> dict[str, Any]:
     """The JSON facts of one log: the timeline's fields, plus the verdict, the incidents
     (with their peak ratio), what could not be seen, margins, caveats and evaluation.
 
     ``origin``: where the result came from when it is not the log itself (a re-run
     timeline: ``{"timeline", "timeline_schema_version", "recorded_by"}``); ``samples``:
-    where the per-sample facts are read (:mod:`.samples`; default the result's own).
+    where the per-sample facts are read (:mod:`.samples`).
     """
-    samples = samples if samples is not None else ResultSamples(result)
     tl = timeline_dict(result)
     period = result.log.sample_period_s
     events = [{**d, "duration_s": event_duration_s(ev, period)}
@@ -169,10 +167,9 @@ def _margins_html(sec: dict[str, Any]) -> str:
 
 
 def section_html(num: str, result: DetectionResult, sec: dict[str, Any],
-                 labels: Labels | None, ids: Ids, samples: Samples | None = None) -> str:
+                 labels: Labels | None, ids: Ids, samples: Samples) -> str:
     """One log's section; ``num`` is its number in the report (or ``NUM_TOKEN``);
     ``samples`` as in :func:`log_section`."""
-    samples = samples if samples is not None else ResultSamples(result)
     anchor = f"log{num}"
     known = sec["incidents_known"]
     incidents = sec["incidents"]

@@ -1,11 +1,12 @@
 """The answer first: the verdict line of a log, its incident list, and the fleet summary.
 
-An *incident* is one physical contact as the product sees it (formats.md, "Detection
-timeline", ``incidents``; :mod:`impactcli.detect.incidents`): when (``t_start``, and
-``t_start_utc`` on an epoch clock), where (``link``), how hard (``force_n``, or without
-kinematics the peak residual torques), what kind (``contact``), which detectors. The report
-adds only reductions of the incident's own events: its ``peak_ratio`` (the largest
-statistic / threshold among its events) and the detector that reached it.
+An *incident* is one physical contact as the product sees it (docs/formats.md,
+"Detection timeline", ``incidents``; :mod:`impactcli.detect.incidents`): when
+(``t_start``, and ``t_start_utc`` on an epoch clock), where (``link``), how hard
+(``force_n``, or without kinematics the peak residual torques), what kind (``contact``),
+which detectors. The report adds only reductions of the incident's own events: its
+``peak_ratio`` (the largest statistic / threshold among its events) and the detector that
+reached it.
 
 Incidents that start in the warm-up are listed, never counted (as events are).
 """

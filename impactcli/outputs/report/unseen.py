@@ -21,7 +21,7 @@ import numpy as np
 from ...detect.incidents import planar_jacobian, smallest_caught_force
 from ...result import DetectionResult
 from .common import approx, e, share
-from .samples import ResultSamples, Samples
+from .samples import Samples
 
 #: At most this many gaps are listed in the JSON.
 MAX_GAPS_LISTED = 50
@@ -158,11 +158,10 @@ def _older(origin: dict[str, Any] | None, known: bool) -> list[dict[str, Any]]:
 
 
 def could_not_see(result: DetectionResult, incidents: list[dict[str, Any]], *,
-                  known: bool = True, origin: dict[str, Any] | None = None,
-                  samples: Samples | None = None) -> list[dict[str, Any]]:
+                  samples: Samples, known: bool = True,
+                  origin: dict[str, Any] | None = None) -> list[dict[str, Any]]:
     """The items of "what the audit could not see" for one log (module docstring);
-    ``samples``: where the gaps and the posture are read (default: the result's own)."""
-    samples = samples if samples is not None else ResultSamples(result)
+    ``samples``: where the gaps and the posture are read."""
     chain, kin = chain_of(result)
     return [*_older(origin, known), _warmup(result, incidents), _gaps(samples),
             _left_out(result, chain), _smallest_force(result, chain, kin, samples)]
