@@ -39,6 +39,7 @@ The functions here are shared with ``tests/test_acceptance.py``.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import platform
 import sys
@@ -57,7 +58,7 @@ from impactcli.evaluate import PRODUCT, Evaluation, evaluate_result
 from impactcli.io import read_log
 from impactcli.io.robot import read_labels, read_robot
 from impactcli.result import DetectionResult
-from impactcli.run.collect import Signals, detect_in_memory
+from impactcli.run.collect import detect_in_memory
 from impactcli.types import DETECTORS, Labels, RobotDescription, RobotLog
 
 REPO = Path(__file__).resolve().parents[2]
@@ -188,27 +189,17 @@ def variants() -> None:
             print(f"  {c.line()}")
 
 
-@dataclass(frozen=True)
-class Run:
-    """A log replayed in memory: its result (whose fields a Run answers for) and its
-    per-sample arrays."""
-
-    result: DetectionResult
-    samples: Signals
-
-    def __getattr__(self, name: str) -> Any:
-        if name in ("result", "samples"):
-            raise AttributeError(name)
-        return getattr(self.result, name)
-
-
-def replay(log: RobotLog, **setup: Any) -> Run:
-    """``log`` replayed in memory (:func:`impactcli.run.collect.detect_in_memory`)."""
-    return Run(*detect_in_memory(log, **setup))
+def replay(log: RobotLog, **setup: Any) -> DetectionResult:
+    """``log`` replayed in memory (:func:`impactcli.run.collect.detect_in_memory`), the
+    result holding its per-sample arrays and ``log`` (its replayed joints), which
+    ``tests/test_acceptance.py`` reads. alias: removed in M (then ``(result, Signals)``)."""
+    res, sig = detect_in_memory(log, **setup)
+    return dataclasses.replace(res, log=log.select(res.log.joint_names), signals=sig.signals,
+                               decisions=sig.decisions, ratios=sig.ratios)
 
 
 def run(name: str, config: DetectorConfig | None, *, model_from_log: bool = False
-        ) -> tuple[Run, Evaluation]:
+        ) -> tuple[DetectionResult, Evaluation]:
     """Replay ``name`` with ``config`` (None: uncalibrated, model from the log) and score it.
 
     ``model_from_log``: the config's thresholds with a model identified from this very log
@@ -218,7 +209,7 @@ def run(name: str, config: DetectorConfig | None, *, model_from_log: bool = Fals
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = replay(log, config=config, robot=rob, model_from_log=model_from_log)
-        ev = evaluate_result(res.result, labels_of(name))
+        ev = evaluate_result(res, labels_of(name))
     return res, ev
 
 
@@ -318,7 +309,7 @@ def contacts_caught(name: str, ev: Evaluation, *, min_force: float = C6_MIN_FORC
                      f"{len(cs) - len(bad)}/{len(cs)}" + (f" (missed: {miss})" if bad else ""))
 
 
-def payload_no_false_alarm(label: str, res: Run, ev: Evaluation) -> Criterion:
+def payload_no_false_alarm(label: str, res: DetectionResult, ev: Evaluation) -> Criterion:
     """C5: no product alarm after warm-up on the (collision-free) payload log; also lists
     events that started in warm-up and were still on after it (never counted otherwise)."""
     fa = ev.scores[PRODUCT].false_alarm_times
@@ -335,10 +326,10 @@ def payload_no_false_alarm(label: str, res: Run, ev: Evaluation) -> Criterion:
                      not fa and not lasting, detail)
 
 
-def max_ratio_after_warmup(res: Run) -> dict[str, float]:
+def max_ratio_after_warmup(res: DetectionResult) -> dict[str, float]:
     """Per detector, the largest statistic/threshold after warm-up (headroom below 1)."""
-    k = int(np.searchsorted(res.samples.time_s, res.warmup_end_s))
-    return {d: float(np.max(res.samples.ratios[d][k:])) for d in DETECTORS}
+    k = int(np.searchsorted(res.log.time_s, res.warmup_end_s))
+    return {d: float(np.max(res.ratios[d][k:])) for d in DETECTORS}
 
 
 # ----------------------------------------------------------------------------- the table
@@ -377,7 +368,7 @@ def contact_table(name: str, ev: Evaluation) -> str:
     return "\n".join(lines)
 
 
-def clamp_release_truth(res: Run, sim: object | None = None,
+def clamp_release_truth(res: DetectionResult, sim: object | None = None,
                         name: str = "assist_clamps",
                         window_s: tuple[float, float] = (0.1, 1.4)) -> str:
     """What the residual gets wrong after each clamp release: per release and joint, over
@@ -394,7 +385,7 @@ def clamp_release_truth(res: Run, sim: object | None = None,
         sim = simulate(entry.make(), seed=entry.seed)
     assert isinstance(sim, SimResult)
     t, te = sim.truth["time_s"], sim.truth["tau_ext"]
-    r = res.samples.signals["residual"]
+    r = res.signals["residual"]
     sign = -1.0 if float(np.sum(r * te)) < 0 else 1.0
     err = r - sign * te
     cfg = res.config["static_loading"]
@@ -431,7 +422,7 @@ def cross_unit() -> None:
         cfg = calibrate([sims[n].log for n in names], robot=sims[names[0]].robot)
         assist = [n for n, a in CONTACT_LOGS.items() if a == "assist_like"]
         results = {n: replay(sims[n].log, config=cfg, robot=sims[n].robot) for n in assist}
-        evals = {n: evaluate_result(results[n].result, sims[n].labels) for n in assist}
+        evals = {n: evaluate_result(results[n], sims[n].labels) for n in assist}
     print("ASSIST-like logs, each on its own unit; calibrated on " + ", ".join(names)
           + f" (vL {', '.join(f'{v:.2f}' for v in cfg.thresholds.vL.values())} N·m)")
     crit = [no_alarm_between_contacts(n, evals[n]) for n in assist]
@@ -520,7 +511,7 @@ def main(argv: list[str] | None = None) -> int:
                   f"(×{m['static_loading'][j]:.2f}), v0 {th.v0[j]:.3f} "
                   f"(×{m['static_baseline'][j]:.2f}) N·m")
     evals: dict[str, Evaluation] = {}
-    results: dict[str, Run] = {}
+    results: dict[str, DetectionResult] = {}
     for name, arm in CONTACT_LOGS.items():
         results[name], evals[name] = run(name, cfgs[arm])
     print()
