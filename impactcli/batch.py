@@ -29,17 +29,15 @@ import tempfile
 import time
 import traceback
 import warnings
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from .errors import EXIT_DATA, EXIT_SOFTWARE, ImpactError, ImpactWarning
+from .run.job import load_inputs, output_stem, run_log, run_log_from_paths
+from .types import DETECTORS
 
-#: read_log keyword arguments recorded in a timeline's ``input.read_options``.
-READ_KEYS = ("channel_map", "topic", "reference_topic", "time_source", "torque_source")
-#: Detectors counted in summaries (DetectionResult.summary()).
-DETECTORS = ("adaptive", "static_loading", "static_baseline")
 SUMMARY_SCHEMA_VERSION = "1.0"
 #: Exit code a one-log run gives for a lost worker or a bug (EX_SOFTWARE; never 1, which
 #: means "incidents found").
@@ -100,16 +98,9 @@ class JobOutcome:
     traceback: str = ""
 
 
-def output_stem(path: str) -> str:
-    """Stem outputs are named by: the file name without its format extension."""
-    from .io import log_stem
-    from .io.urls import url_name
-
-    return str(log_stem(url_name(path)))
-
-
 def check_unique_stems(paths: Sequence[str]) -> None:
-    """Refuse inputs that would write the same output names, naming both (formats.md)."""
+    """Refuse inputs that would write the same output names, naming both (docs/formats.md,
+    "Detection timeline")."""
     seen: dict[str, str] = {}
     for p in paths:
         s = output_stem(p)
@@ -172,41 +163,21 @@ def _msgs(caught: list[warnings.WarningMessage]) -> tuple[str, ...]:
     return tuple(str(w.message) for w in caught if issubclass(w.category, ImpactWarning))
 
 
-def load_inputs(robot_path: str | None, model_path: str | None, config_path: str | None
-                ) -> tuple[Any, Any, Any]:
-    """The robot description, model and config (paths or URLs; None when not given), each
-    read once and named in its error: what every replay of a log starts from."""
-    from .config import load_config
-    from .io.robot import read_robot
-    from .io.urls import load_by_url
-    from .model import read_model
-
-    robot = load_by_url(robot_path, read_robot, "robot description") if robot_path else None
-    model = load_by_url(model_path, read_model, "model") if model_path else None
-    config = load_by_url(config_path, load_config, "config") if config_path else None
-    return robot, model, config
-
-
-def analyze_file(
+def analyze_file(  # alias: removed in M
     log_path: str, *, robot_path: str | None = None, model_path: str | None = None,
     config_path: str | None = None, read_options: dict[str, Any] | None = None,
     model_from_log: bool = False, generator: str | None = None, allow_slow: bool = False,
-    progress: Any = None,
 ) -> Any:
-    """Read one log and its robot, model and config (paths or URLs) and replay the
-    detectors on the whole log in memory (the CLI streams instead: :func:`stream_file`;
-    this is for callers that want the per-sample signals in memory, a short log).
-    Returns the :class:`impactcli.result.DetectionResult` (with its per-sample signals)."""
+    """:func:`impactcli.pipeline.analyze` of a log read whole, its inputs from paths."""
     from .io import read_log
     from .pipeline import analyze
 
     opts = dict(read_options or {})
     robot, model, config = load_inputs(robot_path, model_path, config_path)
-    log = read_log(log_path, robot=robot, **opts)
-    return analyze(log, model=model, config=config, robot=robot, read_options=opts,
-                   model_from_log=model_from_log, generator=generator,
-                   config_where=config_path or "config", allow_slow=allow_slow,
-                   progress=progress)
+    return analyze(read_log(log_path, robot=robot, **opts), model=model, config=config,
+                   robot=robot, read_options=opts, model_from_log=model_from_log,
+                   generator=generator, config_where=config_path or "config",
+                   allow_slow=allow_slow)
 
 
 def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ...]]:
@@ -220,19 +191,6 @@ def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ..
         result, outputs = _run_remote(job, job.out_dir, stem)
     summary = _summary(job, result)
     return outputs, summary, result.warnings
-
-
-def progress_bar(log_path: str, show: bool, what: str, unit: str) -> Any:
-    """A progress bar on stderr named after the log, when ``show`` and stderr is a
-    terminal (None when not ``show``)."""
-    if not show:
-        return None
-    import sys
-
-    from tqdm import tqdm
-
-    return tqdm(total=0, desc=f"{output_stem(log_path)}: {what}", unit=unit,
-                file=sys.stderr, leave=False, disable=not sys.stderr.isatty())
 
 
 def _run_remote(job: DetectJob, prefix: str, stem: str) -> tuple[Any, tuple[str, ...]]:
@@ -290,119 +248,9 @@ def _run_streamed(job: DetectJob, out: Path, stem: str) -> tuple[Any, tuple[str,
     return result, tuple(str(p) for p in written)
 
 
-def stream_file(
-    log_path: str, *, robot_path: str | None = None, model_path: str | None = None,
-    config_path: str | None = None, **options: Any,
-) -> tuple[Any, Any]:
-    """:func:`stream_log` with the robot description, model and config read from these
-    paths or URLs (:func:`load_inputs`; the config's path named in messages).
-    ``options``: :func:`stream_log`'s."""
-    robot, model, config = load_inputs(robot_path, model_path, config_path)
-    return stream_log(log_path, robot=robot, model=model, config=config,
-                      config_where=config_path or "config", **options)
-
-
-def stream_log(
-    log_path: str, *, robot: Any, model: Any, config: Any,
-    read_options: dict[str, Any] | None = None, model_from_log: bool = False,
-    generator: str | None = None, config_where: str = "config", allow_slow: bool = False,
-    show_progress: bool = False, signals_path: Path | None = None,
-    rrd_path: Path | None = None, rrd_options: dict[str, Any] | None = None,
-    samples: str | None = None, check: Callable[[Any], None] | None = None,
-) -> tuple[Any, Any]:
-    """Replay one log chunk by chunk in bounded memory (:mod:`impactcli.stream`): the one
-    routine of every verb that replays a log (``detect``, ``report``, ``view``,
-    ``evaluate``), so that they stream alike.
-
-    The log is scanned (:func:`impactcli.io.stream.scan_log`; ``check(scan)`` is called
-    before the replay, e.g. a timeline's sha256 check), then replayed with the loaded
-    ``robot``, ``model`` and ``config`` (``config_where``: its file, for messages; the other
-    arguments as :func:`impactcli.stream.analyze_stream`'s). The run's per-sample data never
-    comes back (the result holds none); what a verb needs of it is taken chunk by chunk:
-    ``signals_path`` gets the signals Parquet, written as the replay goes; ``rrd_path`` the
-    Rerun recording (``rrd_options``: ``max_points``, ``event_window_s``), written once the
-    answer is known from a spill file of what it plots
-    (:mod:`impactcli.outputs.rerun_stream`) — both atomically, and not at all when the
-    replay fails; ``samples="report"`` keeps what a report reads of the samples
-    (:mod:`impactcli.outputs.report_stream`), ``samples="sweep"`` only what the threshold
-    sweep reads (:mod:`impactcli.outputs.sweep_stream`: the ratios' columns). Progress in
-    seconds of log, summed over the passes, when ``show_progress`` and stderr is a
-    terminal.
-
-    Returns:
-        (the :class:`impactcli.result.DetectionResult`, its log a
-        :class:`impactcli.stream.LogHeader`; the
-        :class:`impactcli.outputs.report_stream.StreamedSamples` asked for, else None),
-        the caller closing the samples (they remove their spill file).
-    """
-    from contextlib import ExitStack
-
-    from .io.stream import scan_log
-    from .outputs.signals import SignalsWriter
-    from .stream import analyze_stream
-
-    opts = dict(read_options or {})
-    read_kw = dict(opts, robot=robot) if robot is not None else dict(opts)
-    scan = scan_log(log_path, **read_kw)
-    bar = None
-    collector = None
-    try:
-        if check is not None:
-            check(scan)
-        bar = progress_bar(log_path, show_progress, "replay", "s of log (all passes)")
-        with ExitStack() as stack:
-            writers: list[Callable[[Any], None]] = []
-            if signals_path is not None:
-                sig = stack.enter_context(SignalsWriter(
-                    signals_path, scan.t0_ns, scan.source.sha256, scan.source.path))
-                writers.append(lambda c: sig.append(c.joints, c.time_s, c.signals,
-                                                    c.decisions))
-            spill = None
-            if rrd_path is not None:
-                from .outputs.rerun_stream import SpillWriter, spill_columns
-
-                spill = SpillWriter()
-                stack.callback(spill.close)
-                writers.append(lambda c: spill.append(spill_columns(
-                    c.joints, c.t_ns, c.signals, c.decisions, c.position, c.position_ref)))
-            if samples is not None:
-                from .outputs.report_stream import ReportCollector
-
-                collector = ReportCollector(scan.n_samples, scan.gaps, scan.gap_lengths_s,
-                                            plots=samples == "report")
-                writers.append(collector)
-
-            def on_chunk(c: Any) -> None:
-                for w in writers:
-                    w(c)
-
-            def progress(done_s: float, total_s: float) -> None:
-                assert bar is not None
-                bar.total = round(total_s)
-                bar.n = round(done_s)
-                bar.refresh()
-
-            result = analyze_stream(log_path, config=config, model=model, robot=robot,
-                                    read_options=opts, generator=generator,
-                                    model_from_log=model_from_log, config_where=config_where,
-                                    allow_slow=allow_slow, scan=scan,
-                                    on_chunk=on_chunk if writers else None,
-                                    progress=progress if bar is not None else None)
-            if spill is not None and rrd_path is not None:
-                from .outputs.rerun_stream import write_rrd_from_spill
-
-                write_rrd_from_spill(result, spill, rrd_path, **(rrd_options or {}))
-            return result, None if collector is None else collector.finish(result)
-    except BaseException:
-        if collector is not None:
-            collector.close()
-        raise
-    finally:
-        if bar is not None:
-            bar.close()
-        close = getattr(scan, "close", None)  # the scan's cache of the rows, if any
-        if close is not None:
-            close()
+#: The replay of one log for a verb (:mod:`impactcli.run.job`). alias: removed in M
+stream_file = run_log_from_paths
+stream_log = run_log
 
 
 def _summary(job: DetectJob, result: Any) -> dict[str, Any]:

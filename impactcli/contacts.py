@@ -5,9 +5,8 @@ the link numbers of the detected joints, the link Jacobian, the static-loading t
 and then read from the samples of the incident's own stretch: the residual, the
 static-loading statistic, the decisions, the positions of the whole chain and the joints'
 causal velocity. :func:`build_incidents` takes those arrays for any stretch of the log
-that holds whole incidents — the whole log, or one "island" of a streamed replay (the
-samples near an alarm or a pressing contact, :mod:`impactcli.stream`) — with its offset
-in the log, so both give the same incidents.
+that holds whole incidents — one "island" of a replay (the samples near an alarm or a
+pressing contact, :mod:`impactcli.run.one_log`) — with its offset in the log.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The causal replay, chunk by chunk: state in, state out (architecture.md, "Streaming").
+"""The causal replay, chunk by chunk: state in, state out (docs/architecture.md).
 
 One chunk of a log (n consecutive samples, n ≥ 1) goes through every causal stage of
 detection, each continuing from the state the previous chunk left:
@@ -6,15 +6,14 @@ detection, each continuing from the state the previous chunk left:
   residual r per joint (eq. 7–8 or the momentum observer on the tool's model, or the
   controller's channels: :mod:`impactcli.model.generators`) → threshold inputs u (Table I)
   → adaptive evaluator (eq. 24–42, :func:`impactcli.detect.adaptive.evaluate_chunk`)
-  beside the static-loading statistic |LP(r)| and the baseline statistic |r| (method.md
+  beside the static-loading statistic |LP(r)| and the baseline statistic |r| (docs/method.md
   §5), and the joints' causal velocity (for the incidents' contact type).
 
-:func:`replay_chunk` ``(setup, state, chunk) -> (ChunkReplay, new state)``. The whole-log
-replay (:func:`impactcli.pipeline.replay`) is one chunk of the same code from
-:meth:`ReplayState.initial`. Guarantee: for any split of a log into consecutive chunks
-the outputs concatenated are bit for bit those of the whole log, and so is the final
-state (:mod:`impactcli.causal`, :mod:`impactcli.detect.adaptive`; model torques are
-summed per row in a fixed order, :func:`impactcli.model.structures.rowdot`).
+:class:`Replayer` takes the chunks in order from :meth:`ReplayState.initial` (a log in
+memory is one chunk). Guarantee: for any split of a log into consecutive chunks the
+outputs concatenated are bit for bit those of the whole log, and so is the final state
+(:mod:`impactcli.causal`, :mod:`impactcli.detect.adaptive`; model torques are summed per
+row in a fixed order, :func:`impactcli.model.structures.rowdot`).
 Nothing here reads a file or decides a threshold: the replay is threshold-free.
 """
 
@@ -55,7 +54,7 @@ from .model.rigid import RigidModel
 #: (at most 0.2 × the sample rate).
 SPEED_CUTOFF_HZ = 10.0
 
-#: Parts a chunk is fed to the evaluator's axes in (a whole-log replay is one chunk):
+#: Parts a chunk is fed to the evaluator's axes in (a log in memory is one chunk):
 #: the calling thread makes a part's residual while the axes work on the one before.
 PART_SAMPLES = 65_536
 #: Parts the calling thread may run ahead of the axes (each held part costs its signals:
@@ -328,39 +327,3 @@ class Replayer:
             cat([q.loading for q in parts]), cat([q.qd for q in parts]),
             p.inputs.source, p.inputs.detail))]
 
-
-def replay_chunk(
-    setup: ReplaySetup, state: ReplayState, chunk: ChunkArrays, *, where: str = "",
-    progress: Callable[[int, int], None] | None = None, consume: bool = False,
-) -> tuple[ChunkReplay, ReplayState]:
-    """Replay one chunk, continuing from ``state`` (module docstring; a
-    :class:`Replayer` fed one chunk).
-
-    Args:
-        setup: what the replay fixed before its first sample.
-        state: the state after the previous chunk (:meth:`ReplayState.initial` first);
-            left as it was unless ``consume``.
-        chunk: the chunk's samples in ``setup.joint_names`` order.
-        where: the log's path, for messages.
-        progress: the adaptive evaluator's per-axis progress (slow replays).
-    Returns:
-        (the chunk's replay, the state after it).
-    """
-    each: Callable[[int, int], None] | None = None
-    if progress is not None:  # the parts' axes as one count
-        shown = progress
-        parts = max(1, -(-chunk.n_samples // PART_SAMPLES))
-        seen = [0]
-
-        def each(done: int, of: int) -> None:
-            shown(seen[0] * of + done, parts * of)
-            seen[0] += done == of
-
-    rp = Replayer(setup, state, where=where, consume=consume, progress=each)
-    try:
-        done = rp.feed(None, chunk)
-        done += rp.finish()
-    finally:
-        rp.close()
-    ((_, out),) = done
-    return out, rp.state

@@ -1,6 +1,6 @@
 """The result of one detection run: what every output (timeline, signals, report, Rerun) formats.
 
-Built by :func:`impactcli.pipeline.analyze`; outputs only read it (no maths in outputs/).
+Built by :func:`impactcli.run.one_log.detect_log`; outputs only read it (no maths in outputs/).
 """
 
 from __future__ import annotations
@@ -10,9 +10,9 @@ from typing import Any
 
 import numpy as np
 
-from .types import DETECTORS, Event, RobotLog
+from .types import DETECTORS, Event
 
-#: Per-sample signal names (formats.md, "Per-sample signals"), each an (N, J) array.
+#: Per-sample signal names (docs/formats.md, "Per-sample signals"), each an (N, J) array.
 SIGNAL_NAMES: tuple[str, ...] = (
     "torque",             # measured torque, after any current scaling, before filtering [N·m]
     "residual",           # r = tau_hat - tau (eq. 7) [N·m]
@@ -29,7 +29,8 @@ class DetectionResult:
     """Everything one replay produced.
 
     Attributes:
-        log: the analysed log (its ``source`` carries path and sha256).
+        log: the analysed log: a :class:`~impactcli.types.LogHeader` (the replayed joints
+            in order; its ``source`` carries path and sha256).
         model: the rigid model used, as its JSON mapping (``RigidModel.to_dict()``) — for
             joints on a logged generator, the model of what the controller's channel leaves
             out; None when no joint needs one (controller channels taken plain).
@@ -50,9 +51,8 @@ class DetectionResult:
         threshold_inputs: how u1, u2 were made, in words (which reference signals were
             logged, which were differentiated).
         torque_filtered: the measured torque went through the estimate's causal filter.
-        signals: name → (N, J) float64 array, names in :data:`SIGNAL_NAMES`.
-        decisions: detector → (N, J) bool array, detectors in :data:`DETECTORS`.
-        ratios: detector → (N, J) statistic / threshold (for peak ratios and sweeps).
+        signals, decisions, ratios: empty from a replay, which keeps no per-sample arrays
+            (they go to ``on_chunk``); filled only by the alias ``pipeline.analyze``.
         events: all events, every detector, sorted by start time.
         warmup_end_s: the latest warm-up end over joints [s since first sample].
         warmup_per_joint_s: per joint warm-up end [s].
@@ -61,7 +61,9 @@ class DetectionResult:
         read_options: the options the log was read with (to re-run exactly).
     """
 
-    log: RobotLog
+    # alias: removed in M — ``LogHeader`` once outputs/ read no samples from the result
+    # (the alias pipeline.analyze and tests/fakes.py put a RobotLog here)
+    log: Any
     model: dict[str, Any] | None
     model_sha256: str | None
     model_source: str

@@ -1,4 +1,4 @@
-"""Temporary files of a streamed replay (:mod:`impactcli.stream`): the samples near an
+"""Temporary files of a replay (:mod:`impactcli.run.one_log`): the samples near an
 alarm (:class:`Islands`) and a pass's per-sample arrays (:class:`ChunkSpill`), so that
 memory holds only where things lie, whatever the log's length.
 """
@@ -44,7 +44,7 @@ def write_spill(f: Any, v: np.ndarray) -> None:
 
 class ColumnFiles:
     """Arrays appended row by row to a temporary file per name (memory holds only their
-    layout), read back by rows: the one store of a streamed replay's spills.
+    layout), read back by rows: the one store of a replay's spills.
 
     Args:
         prefix: the temporary folder's name prefix.
@@ -113,7 +113,7 @@ class Island:
 
 
 class Islands:
-    """The islands of a streamed replay (module docstring), their rows spilled to
+    """The islands of a replay (module docstring), their rows spilled to
     temporary files (:class:`ColumnFiles`: memory holds only where each island lies).
 
     A sample is kept when some detector fires on it, when it lies within the merge gap

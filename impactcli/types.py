@@ -1,4 +1,4 @@
-"""Frozen data types passed between layers (io → model → detect → outputs).
+"""Frozen data types passed between layers (io → model → detect → run → outputs).
 
 Arrays are float64 with their shape and unit stated here; time is int64 ns on the
 log's own clock. Validation happens on construction, so every later layer can
@@ -52,7 +52,8 @@ class LogSource:
     notes: tuple[str, ...] = ()
 
 
-#: The controller's own channels (formats.md): a joint that lacks one holds NaN in its column.
+#: The controller's own channels (docs/formats.md, "Canonical wide CSV"): a joint that
+#: lacks one holds NaN in its column.
 CONTROLLER_CHANNELS: tuple[str, ...] = ("torque_model", "torque_ext")
 
 
@@ -88,7 +89,8 @@ class RobotLog:
         velocity_ref: optional (N, J) reference velocity [rad/s].
         acceleration_ref: optional (N, J) reference acceleration [rad/s²].
         torque_model: optional (N, J) the controller's model torque for the measured motion,
-            without contact [N·m] (formats.md); an all-NaN column: not logged for that joint.
+            without contact [N·m] (docs/formats.md, "Canonical wide CSV"); an all-NaN
+            column: not logged for that joint.
         torque_ext: optional (N, J) the controller's own external-torque estimate [N·m];
             an all-NaN column: not logged for that joint.
         source: provenance (path, sha256, format, torque/time source, repairs).
@@ -257,7 +259,7 @@ class JointSpec:
 
 @dataclass(frozen=True)
 class RobotDescription:
-    """A robot description (formats.md, "Robot description").
+    """A robot description (docs/formats.md, "Robot description").
 
     Attributes:
         joints: joint specs in chain order.
@@ -327,7 +329,7 @@ class RobotDescription:
 
 @dataclass(frozen=True)
 class ContactLabel:
-    """One ground-truth contact (formats.md, "Ground-truth labels").
+    """One ground-truth contact (docs/formats.md, "Ground-truth labels").
 
     Attributes:
         start, end: contact interval [s since the log's first sample].
@@ -382,7 +384,7 @@ DETECTORS: tuple[str, ...] = ("adaptive", "static_loading", "static_baseline")
 
 @dataclass(frozen=True)
 class Event:
-    """One detection event (formats.md, "Detection timeline").
+    """One detection event (docs/formats.md, "Detection timeline").
 
     Attributes:
         detector: ``adaptive``, ``static_loading`` or ``static_baseline``.
@@ -416,3 +418,57 @@ class Event:
             "in_warmup": self.in_warmup,
             "i_start": self.i_start, "i_end": self.i_end,
         }
+
+
+@dataclass(frozen=True)
+class LogHeader:
+    """What a detection result tells of its log: the replayed joints (in the replay's
+    order), the provenance and the clock — a :class:`RobotLog` without its samples.
+
+    Attributes:
+        joint_names: the J joints replayed.
+        source: the log's provenance (:class:`LogSource`).
+        n_samples: N, the log's samples.
+        t0_ns: its first sample time on its own clock [ns].
+        duration_s: from its first to its last sample [s].
+        sample_rate_hz, sample_period_s: its sample clock (:mod:`impactcli.sampling`).
+    """
+
+    joint_names: tuple[str, ...]
+    source: LogSource
+    n_samples: int
+    t0_ns: int
+    duration_s: float
+    sample_rate_hz: float
+    sample_period_s: float
+
+    @property
+    def n_joints(self) -> int:
+        """Number of joints J."""
+        return len(self.joint_names)
+
+
+@dataclass(frozen=True)
+class SignalsChunk:
+    """What a replay hands its writers per chunk of n consecutive samples (J replayed joints).
+
+    Attributes:
+        joints: the J joints, in the replay's order.
+        time_s: (n,) [s since the log's first sample]; t_ns: (n,) int64 [ns, the log's clock].
+        signals: name → (n, J) float64 (:data:`impactcli.result.SIGNAL_NAMES`) [N·m].
+        decisions: detector → (n, J) bool (:data:`DETECTORS`).
+        position: (n, J) [rad]; position_ref: (n, J) [rad], None when not logged.
+        ratios: detector → (n, J) statistic / threshold, the decision being ratio > 1
+            (:func:`impactcli.detect.thresholds.detector_ratios`).
+        start: index of the chunk's first sample in the log.
+    """
+
+    joints: tuple[str, ...]
+    time_s: np.ndarray
+    t_ns: np.ndarray
+    signals: dict[str, np.ndarray]
+    decisions: dict[str, np.ndarray]
+    position: np.ndarray
+    position_ref: np.ndarray | None
+    ratios: dict[str, np.ndarray] = field(default_factory=dict)
+    start: int = 0

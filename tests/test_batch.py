@@ -289,12 +289,12 @@ def test_timeline_says_how_the_threshold_inputs_were_made() -> None:
     the CSV copy's, and each timeline says how they were made."""
     from impactcli.io import read_log
     from impactcli.outputs.timeline import timeline_dict
-    from impactcli.pipeline import analyze
+    from impactcli.run.collect import detect_in_memory
 
     repo = Path(__file__).resolve().parents[1] / "sample_logs"
     details = {}
     for fmt, name in (("csv", "assist_free_p2p.csv.gz"), ("mcap", "assist_free_p2p.mcap")):
-        res = analyze(read_log(repo / fmt / name))
+        res, _ = detect_in_memory(read_log(repo / fmt / name))
         details[fmt] = timeline_dict(res)["replay"]["threshold_inputs"]
     assert details["csv"] == "velocity_ref and acceleration_ref as logged"
     assert details["mcap"].startswith("velocity_ref as logged; acceleration by causal")

@@ -20,8 +20,8 @@ import yaml
 from impactcli.calibration import calibrate
 from impactcli.io import read_log, write_log
 from impactcli.io.mcap_ros2 import JOINT_STATE, JOINT_STATE_DEF, encode_jointstates
-from impactcli.pipeline import analyze
 from impactcli.result import DetectionResult
+from impactcli.run.collect import detect_in_memory
 from impactcli.types import RobotLog
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs" / "csv"
@@ -220,23 +220,23 @@ def test_every_format_gives_the_same_detection(tmp_path: Path) -> None:
                                               err_msg=f"{name}: {sig}")
             np.testing.assert_array_equal(log.t_ns, ref.t_ns, err_msg=name)
         # uncalibrated (thresholds from the log itself, correction identified on it)
-        base = analyze(ref)
+        base = detect_in_memory(ref)[0]
         assert {g["generator"] for g in base.generators.values()} == {"logged_external"}
         assert len([e for e in base.events if not e.in_warmup]) > 0
         cfg = calibrate([free["csv"]])
-        calibrated = analyze(ref, config=cfg)
+        calibrated = detect_in_memory(ref, config=cfg)[0]
         assert any(e.detector == "static_loading" and not e.in_warmup
                    for e in calibrated.events)
         for name in pushes:
             if name == "csv":
                 continue
-            _same_detection(base, analyze(pushes[name]), f"{name}, uncalibrated")
+            _same_detection(base, detect_in_memory(pushes[name])[0], f"{name}, uncalibrated")
             cfg_n = calibrate([free[name]])
             for d in ("v_stat", "vL", "v0"):
                 for j, v in getattr(cfg.thresholds, d).items():
                     assert getattr(cfg_n.thresholds, d)[j] == pytest.approx(v, rel=1e-9), (
                         name, d, j)
-            _same_detection(calibrated, analyze(pushes[name], config=cfg_n),
+            _same_detection(calibrated, detect_in_memory(pushes[name], config=cfg_n)[0],
                             f"{name}, calibrated on its own copy of the free log")
 
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from impactcli import batch, pipeline, stream
+from impactcli import batch
 from impactcli.cli import main
 from impactcli.errors import EXIT_SOFTWARE, LogFormatError
 from impactcli.io import inspect as io_inspect
@@ -98,10 +98,9 @@ def _boom(*_: Any, **__: Any) -> Any:
 
 def test_a_bug_in_a_one_log_run_exits_70_with_its_traceback(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from impactcli import stream
+    from impactcli.run import job
 
-    monkeypatch.setattr(pipeline, "analyze", _boom)        # the whole-log replay
-    monkeypatch.setattr(stream, "analyze_stream", _boom)   # the streamed one (detect's)
+    monkeypatch.setattr(job, "detect_log", _boom)   # the replay detect runs
     code, _, err = _run("detect", str(LOG), "--fail-on-detect", "-o", str(tmp_path / "out"))
     assert code == EXIT_SOFTWARE == 70
     lines = err.splitlines()
@@ -133,24 +132,18 @@ def test_a_data_error_with_debug_keeps_its_exit_code(tmp_path: Path) -> None:
 
 def test_a_bug_in_a_batch_is_70_in_the_summary_and_4_for_the_batch(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    real = pipeline.analyze
+    from impactcli.run import job
+
     other = tmp_path / "other.csv"
     write_log(read_log(LOG), other)
+    real = job.detect_log
 
-    def flaky(log: Any, **kw: Any) -> Any:
-        if log.source.path == str(other):
+    def flaky(reader: Any, *a: Any, **kw: Any) -> Any:
+        if reader.scan().source.path == str(other):
             raise ZeroDivisionError("division by zero")
-        return real(log, **kw)
+        return real(reader, *a, **kw)
 
-    real_stream = stream.analyze_stream
-
-    def flaky_stream(path: str, **kw: Any) -> Any:  # with --config, detect streams
-        if path == str(other):
-            raise ZeroDivisionError("division by zero")
-        return real_stream(path, **kw)
-
-    monkeypatch.setattr(pipeline, "analyze", flaky)
-    monkeypatch.setattr(stream, "analyze_stream", flaky_stream)
+    monkeypatch.setattr(job, "detect_log", flaky)
     summary = tmp_path / "summary.json"
     code, _, err = _run("detect", str(LOG), str(other), "--config", str(CONFIG), "-o",
                         str(tmp_path / "out"), "--summary", str(summary))

@@ -19,7 +19,7 @@ from impactcli.errors import ConfigError, LogFormatError
 from impactcli.io import read_log, write_log
 from impactcli.model.generators import choose_generators
 from impactcli.outputs.timeline import timeline_dict
-from impactcli.pipeline import analyze
+from impactcli.run.collect import detect_in_memory
 from impactcli.schema import validate
 from impactcli.types import LogSource, RobotLog
 
@@ -78,8 +78,8 @@ def test_correction_removes_what_the_controller_model_leaves_out() -> None:
     plain_cfg = dataclasses.replace(plain_cfg, residual=dataclasses.replace(
         plain_cfg.residual, logged_correction=False))
     log = motion_log(ext=False, push_at=8.0, push_nm=2.0)
-    corrected = analyze(log, config=DetectorConfig()).signals["residual"]
-    plain = analyze(log, config=plain_cfg).signals["residual"]
+    corrected = detect_in_memory(log, config=DetectorConfig())[1].signals["residual"]
+    plain = detect_in_memory(log, config=plain_cfg)[1].signals["residual"]
     t = log.time_s
     free = (t > 1.0) & ((t < 7.9) | (t > 8.6))
     rms = lambda a: float(np.sqrt(np.mean(a[free] ** 2)))  # noqa: E731
@@ -94,10 +94,10 @@ def test_plain_logged_external_residual_is_the_logged_estimate_and_needs_no_mode
     cfg = DetectorConfig()
     cfg = dataclasses.replace(cfg, residual=dataclasses.replace(cfg.residual,
                                                                 logged_correction=False))
-    res = analyze(log, config=cfg)
+    res, sig = detect_in_memory(log, config=cfg)
     assert res.model is None and res.model_sha256 is None
     assert {g["generator"] for g in res.generators.values()} == {"logged_external"}
-    np.testing.assert_array_equal(res.signals["residual"], log.torque_ext)
+    np.testing.assert_array_equal(sig.signals["residual"], log.torque_ext)
     doc = timeline_dict(res)
     validate(doc, "timeline", AssertionError, "timeline")
     assert doc["schema_version"] == "2.0" and doc["model"] is None
@@ -110,20 +110,20 @@ def test_calibrate_freezes_generators_and_detect_needs_their_channels(tmp_path: 
     assert cfg.residual.generators == {"shoulder": "logged_external", "elbow": "logged_external"}
     assert cfg.model is not None and cfg.calibration.calibrated
     # a push of 2 N·m on the residual is caught by the calibrated config, nothing else
-    res = analyze(motion_log(seed=3, push_at=8.0), config=cfg)
+    res = detect_in_memory(motion_log(seed=3, push_at=8.0), config=cfg)[0]
     product = [e for e in res.events if e.detector in ("adaptive", "static_loading")
                and not e.in_warmup]
     assert product and all(7.9 <= e.t_start <= 8.4 for e in product)
     # the frozen channel is missing from the log: a data error naming joint and channel
     with pytest.raises(LogFormatError, match=r"joint 'shoulder' has no torque_ext channel"):
-        analyze(motion_log(seed=3, ext=False), config=cfg)
+        detect_in_memory(motion_log(seed=3, ext=False), config=cfg)
     # another generator cannot use these thresholds
     with pytest.raises(ConfigError, match=r"calibrated with the logged_external generator"):
-        analyze(motion_log(seed=3), config=cfg, generator="logged_model")
+        detect_in_memory(motion_log(seed=3), config=cfg, generator="logged_model")
     # a calibration over logs that do not all carry torque_ext falls back to torque_model
     mixed = calibrate([motion_log(seed=1), motion_log(seed=2, ext=False)])
     assert set(mixed.residual.generators.values()) == {"logged_model"}
-    res = analyze(motion_log(seed=3), config=mixed)
+    res = detect_in_memory(motion_log(seed=3), config=mixed)[0]
     assert res.model_source == "config" and res.online_equivalent
 
 

@@ -22,7 +22,7 @@ from impactcli.detect.incidents import (
 from impactcli.io import read_log
 from impactcli.io.robot import read_labels
 from impactcli.outputs.timeline import timeline_dict
-from impactcli.pipeline import analyze
+from impactcli.run.collect import detect_in_memory
 from impactcli.schema import validate
 from impactcli.types import Event
 
@@ -91,7 +91,7 @@ def test_contact_type_rule() -> None:
 
 @pytest.mark.parametrize("name", ["assist_impacts", "assist_pushes", "assist_clamps"])
 def test_sample_contacts_each_one_incident_with_link_force_and_type(name: str) -> None:
-    res = analyze(read_log(CSV / f"{name}.csv.gz"), config=load_config(CONFIG))
+    res, _ = detect_in_memory(read_log(CSV / f"{name}.csv.gz"), config=load_config(CONFIG))
     labels = read_labels(CSV / f"{name}.labels.json")
     product = [k for k, e in enumerate(res.events)
                if e.detector in ("adaptive", "static_loading")]

@@ -1,4 +1,4 @@
-"""The causal replay in chunks equals the whole-log replay bit for bit (impactcli.replay).
+"""The causal replay in chunks equals the replay of one chunk bit for bit (impactcli.replay).
 
 Every stage — residual (inverse dynamics, momentum observer, the controller's channels
 with and without correction), threshold inputs (logged references, position reference,
@@ -21,14 +21,29 @@ from impactcli.io import read_log
 from impactcli.model import RigidModel, identify
 from impactcli.model.generators import choose_generators
 from impactcli.replay import (
+    ChunkArrays,
     ChunkReplay,
+    Replayer,
     ReplaySetup,
     ReplayState,
     chunk_arrays,
-    replay_chunk,
 )
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
+
+
+def replay_chunk(setup: ReplaySetup, state: ReplayState, chunk: ChunkArrays
+                 ) -> tuple[ChunkReplay, ReplayState]:
+    """One chunk through a :class:`Replayer` that continues from ``state`` (left as it
+    was): (the chunk's replay, the state after it)."""
+    rp = Replayer(setup, state)
+    try:
+        done = rp.feed(None, chunk)
+        done += rp.finish()
+    finally:
+        rp.close()
+    ((_, out),) = done
+    return out, rp.state
 
 
 def _setup(log, cfg: DetectorConfig, model: RigidModel | None) -> ReplaySetup:
@@ -188,8 +203,6 @@ def test_spilled_median_is_numpys(m: int, monkeypatch: pytest.MonkeyPatch) -> No
 def _pipelined(setup: ReplaySetup, log, bounds: list[int], ahead: int
                ) -> tuple[list[ChunkReplay], ReplayState]:
     """The chunks through one Replayer (fed in turn, results as they come)."""
-    from impactcli.replay import Replayer
-
     rp = Replayer(setup, ReplayState.initial(setup), ahead=ahead)
     t = log.time_s
     got: list[tuple[int, ChunkReplay]] = []

@@ -13,6 +13,7 @@ from impactcli.cli import main
 from impactcli.detect.adaptive import check_scale, replay_cost
 from impactcli.errors import ScaleLimitError
 from impactcli.io import write_log
+from impactcli.run.one_log import RunSetup
 
 from .conftest import make_log
 
@@ -38,17 +39,22 @@ def test_detect_refuses_a_huge_arm_before_any_work(tmp_path: Path) -> None:
     assert not list(tmp_path.glob("*.timeline.json"))
 
 
-def test_a_slow_replay_reports_its_progress_per_axis(monkeypatch: pytest.MonkeyPatch) -> None:
-    from impactcli import pipeline
-    from impactcli.pipeline import analyze
+def test_a_replay_reports_its_progress_in_seconds_of_log_over_its_passes() -> None:
+    """Identification, replay and the comparison over the spill: each chunk's progress in
+    seconds of log, out of three passes over the log."""
+    import warnings
 
-    seen: list[tuple[int, int]] = []
+    from impactcli.run.one_log import RunSetup, detect_log
+    from impactcli.run.readers import MemoryReader
+
+    seen: list[tuple[float, float]] = []
     log = make_log(n=1500, joints=("a", "b", "c"))
-    analyze(log, progress=lambda d, t: seen.append((d, t)))
-    assert seen == []  # cheap: no progress
-    monkeypatch.setattr(pipeline, "PROGRESS_AFTER_S", 0.0)
-    analyze(log, progress=lambda d, t: seen.append((d, t)))
-    assert seen == [(1, 3), (2, 3), (3, 3)]
+    with warnings.catch_warnings(), MemoryReader(log) as reader:
+        warnings.simplefilter("ignore")
+        detect_log(reader, RunSetup(chunk_rows=500), progress=lambda d, t: seen.append((d, t)))
+    d = log.duration_s
+    t_end = [float(log.time_s[k]) for k in (499, 999, 1499)]
+    assert seen == [(p * d + t, 3 * d) for p in range(3) for t in t_end]
 
 
 def _huge_log(tmp_path: Path) -> Path:
@@ -98,11 +104,11 @@ def test_evaluate_refuses_a_huge_arm_and_takes_allow_slow(
     assert r.stdout == ""
     seen: dict[str, object] = {}
 
-    def analyze_stream(path: str, **kw: object) -> object:  # the replay evaluate runs
-        seen.update(kw)
+    def detect_log(reader: object, setup: RunSetup, **kw: object) -> object:  # evaluate's
+        seen["allow_slow"] = setup.allow_slow
         raise ScaleLimitError("stop here")
 
-    monkeypatch.setattr("impactcli.stream.analyze_stream", analyze_stream)
+    monkeypatch.setattr("impactcli.run.job.detect_log", detect_log)
     CliRunner().invoke(main, ["evaluate", str(log), "--allow-slow"])
     assert seen["allow_slow"] is True
 
@@ -134,15 +140,15 @@ def test_calibrate_allow_slow_reaches_the_replay(
 
     seen: list[object] = []
 
-    def replay(*_: object, **kw: object) -> object:
-        seen.append(kw.get("allow_slow"))
+    def check_replayable(*a: object) -> object:  # each log's, before its replay
+        seen.append(a[-1])
         raise ScaleLimitError("stop here")
 
     import types
 
     from impactcli import model as model_pkg
 
-    monkeypatch.setattr(calibration, "replay", replay)
+    monkeypatch.setattr(calibration, "check_replayable", check_replayable)
     monkeypatch.setattr(model_pkg, "identify_many",  # no identification of 120 joints here
                         lambda logs, **k: types.SimpleNamespace(joint_names=logs[0].joint_names))
     log = _huge_log(tmp_path)

@@ -19,7 +19,7 @@ from impactcli.detect.screen import unusable_columns
 from impactcli.errors import LogFormatError
 from impactcli.io import write_log
 from impactcli.outputs.timeline import timeline_dict
-from impactcli.pipeline import analyze
+from impactcli.run.collect import detect_in_memory
 from impactcli.schema import validate
 from impactcli.types import RobotLog
 
@@ -55,7 +55,7 @@ def test_rule_tells_flat_unmeasured_and_small_but_real_channels() -> None:
 
 def test_unmeasured_wrist_is_left_out_warned_and_recorded() -> None:
     log = three_joint_log(wrist="unmeasured")
-    res = analyze(log)
+    res = detect_in_memory(log)[0]
     assert res.log.joint_names == ("j1", "j2")
     assert [d["name"] for d in res.joints_left_out] == ["j3"]
     assert res.joints_left_out[0]["reason"].startswith("torque unmeasured: ")
@@ -76,14 +76,14 @@ def test_calibration_records_left_out_joints_and_detect_leaves_them_out() -> Non
     again = DetectorConfig.from_dict(cfg.to_dict())
     assert again.calibration.joints_left_out == rec
     # the detected log's wrist is fine, but the config has no threshold for it
-    res = analyze(three_joint_log(seed=3), config=again)
+    res = detect_in_memory(three_joint_log(seed=3), config=again)[0]
     assert res.log.joint_names == ("j1", "j2")
     assert res.joints_left_out[0]["reason"].startswith("left out at calibration (torque flat")
 
 
 def test_logged_joint_outside_the_config_is_left_out() -> None:
     cfg = calibrate([make_log(n=2500, seed=s) for s in (1, 2)])  # j1, j2
-    res = analyze(three_joint_log(seed=3), config=cfg)
+    res = detect_in_memory(three_joint_log(seed=3), config=cfg)[0]
     assert res.log.joint_names == ("j1", "j2")
     assert res.joints_left_out == ({"name": "j3",
                                     "reason": "not in the model or the calibrated config"},)
@@ -93,7 +93,7 @@ def test_flat_controller_channel_is_read_as_not_logged() -> None:
     log = three_joint_log()
     ext = np.zeros_like(log.torque)
     ext[:, 0] = 0.01 * np.random.default_rng(0).standard_normal(len(ext))
-    res = analyze(dataclasses.replace(log, torque_ext=ext))
+    res = detect_in_memory(dataclasses.replace(log, torque_ext=ext))[0]
     gens = {j: g["generator"] for j, g in res.generators.items()}
     assert gens == {"j1": "logged_external", "j2": "inverse_dynamics",
                     "j3": "inverse_dynamics"}
@@ -106,7 +106,7 @@ def test_no_joint_left_is_a_data_error(tmp_path: Path) -> None:
     log = make_log(n=2500, joints=("a",))
     flat = dataclasses.replace(log, torque=np.zeros_like(log.torque))
     with pytest.raises(LogFormatError, match=r"no joint left to detect on \(a: torque flat"):
-        analyze(flat)
+        detect_in_memory(flat)
     write_log(flat, tmp_path / "flat.csv")
     r = CliRunner().invoke(main, ["detect", str(tmp_path / "flat.csv"), "-o", str(tmp_path)])
     assert r.exit_code == 3
@@ -129,11 +129,11 @@ def test_terminal_says_warmup_cap_and_lasting_alarm(tmp_path: Path) -> None:
     loaded = make_log(n=6250, seed=3)
     tau = np.array(loaded.torque)
     tau[2000:5250, 0] += 5.0  # a load held for 13 s
-    res = analyze(dataclasses.replace(loaded, torque=tau), config=cfg)
+    res = detect_in_memory(dataclasses.replace(loaded, torque=tau), config=cfg)[0]
     assert any("alarm(s) last 10 s or more (the longest: static_loading 8.0–21.2 s)" in w
                for w in res.warnings), res.warnings
     short = dataclasses.replace(cfg, warmup=dataclasses.replace(
         cfg.warmup, min_s=3.0, max_s=3.5, tolerance=-0.999))
-    res = analyze(make_log(n=2500, seed=4), config=short)
+    res = detect_in_memory(make_log(n=2500, seed=4), config=short)[0]
     assert any("the warm-up reached its cap (warmup.max_s = 3.5 s) on joint(s) j1, j2" in w
                for w in res.warnings), res.warnings

@@ -1,8 +1,8 @@
-"""The streamed replay (impactcli.stream) gives the whole-log replay's answer.
+"""The replay of a log read in chunks gives the answer of the same log in memory (one chunk).
 
 Byte-identical timelines and equal signals whatever the chunk size, with chunk boundaries
-inside the warm-up, inside events and at a time gap; the CLI takes the streamed path with
-a calibrated config and leaves nothing half-written when the log turns bad midway.
+inside the warm-up, inside events and at a time gap; the CLI's detect writes those files and
+leaves nothing half-written when the log turns bad midway.
 """
 
 from __future__ import annotations
@@ -18,33 +18,41 @@ from click.testing import CliRunner
 
 from impactcli.cli import main
 from impactcli.config import load_config
+from impactcli.detect.thresholds import detector_ratios
 from impactcli.io import read_log
-from impactcli.outputs.signals import SignalsWriter, read_signals, write_signals
+from impactcli.outputs.signals import SignalsWriter, read_signals
 from impactcli.outputs.timeline import timeline_json
-from impactcli.pipeline import analyze
-from impactcli.stream import analyze_stream
+from impactcli.result import DetectionResult
+from impactcli.run.collect import detect_in_memory
+from impactcli.run.one_log import RunSetup, detect_log
+from impactcli.run.readers import FileReader
+from impactcli.types import LogHeader, SignalsChunk
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
 ASSIST = SAMPLES / "assist_like.config.toml"
 HEAVY = SAMPLES / "heavy_geared.config.toml"
 
 
-def _whole(path: Path, cfg_path: Path):
+def _in_memory(path: Path, cfg_path: Path) -> DetectionResult:
+    """The log read whole and replayed as one chunk."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return analyze(read_log(path), config=load_config(cfg_path), read_options={})
+        return detect_in_memory(read_log(path), config=load_config(cfg_path))[0]
 
 
-def _streamed(path: Path, cfg_path: Path, rows: int, signals: Path | None = None):
+def _chunked(path: Path, cfg_path: Path, rows: int, on_chunk: Any = None) -> DetectionResult:
+    """The log read from its file in chunks of ``rows`` samples."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        if signals is None:
-            return analyze_stream(str(path), config=load_config(cfg_path), read_options={},
-                                  chunk_rows=rows)
-        with SignalsWriter(signals, 0, "", str(path)) as w:
-            return analyze_stream(
-                str(path), config=load_config(cfg_path), read_options={}, chunk_rows=rows,
-                on_chunk=lambda c: w.append(c.joints, c.time_s, c.signals, c.decisions))
+        with FileReader(path) as reader:
+            return detect_log(reader, RunSetup(config=load_config(cfg_path), chunk_rows=rows),
+                              on_chunk=on_chunk)
+
+
+def _signals_file(path: Path, cfg_path: Path, rows: int, out: Path) -> DetectionResult:
+    with SignalsWriter(out, 0, "", str(path)) as w:
+        return _chunked(path, cfg_path, rows,
+                        lambda c: w.append(c.joints, c.time_s, c.signals, c.decisions))
 
 
 @pytest.mark.parametrize(("log", "cfg", "rows"), [
@@ -54,24 +62,46 @@ def _streamed(path: Path, cfg_path: Path, rows: int, signals: Path | None = None
     ("heavy_impacts", HEAVY, 1500),
     ("assist_pushes", ASSIST, 10**7),     # one chunk
 ])
-def test_streamed_timeline_is_byte_identical(log: str, cfg: Path, rows: int) -> None:
+def test_chunked_timeline_is_byte_identical(log: str, cfg: Path, rows: int) -> None:
     path = SAMPLES / "csv" / f"{log}.csv.gz"
-    whole = _whole(path, cfg)
-    got = _streamed(path, cfg, rows)
+    whole = _in_memory(path, cfg)
+    got = _chunked(path, cfg, rows)
     assert whole.events and whole.incidents
+    assert isinstance(got.log, LogHeader) and not got.signals
     assert timeline_json(got) == timeline_json(whole)
 
 
-def test_streamed_signals_equal_the_whole_logs(tmp_path: Path) -> None:
+def test_chunked_signals_equal_one_chunks(tmp_path: Path) -> None:
+    """The signals Parquet of 3001-sample chunks holds the values of one chunk's."""
     path = SAMPLES / "csv" / "assist_impacts.csv.gz"
-    whole = _whole(path, ASSIST)
-    write_signals(whole, tmp_path / "whole.parquet")
-    _streamed(path, ASSIST, 3001, tmp_path / "stream.parquet")
-    a, _ = read_signals(tmp_path / "whole.parquet")
-    b, _ = read_signals(tmp_path / "stream.parquet")
+    _signals_file(path, ASSIST, 10**7, tmp_path / "one.parquet")
+    _signals_file(path, ASSIST, 3001, tmp_path / "chunks.parquet")
+    a, _ = read_signals(tmp_path / "one.parquet")
+    b, _ = read_signals(tmp_path / "chunks.parquet")
     assert a.keys() == b.keys()
     for k in a:
-        assert np.allclose(a[k], b[k], rtol=0, atol=1e-12, equal_nan=True), k
+        assert np.array_equal(a[k], b[k], equal_nan=True), k
+
+
+def test_chunks_carry_their_ratios() -> None:
+    """Each chunk's ratios are the detectors' statistics over their thresholds (one
+    expression, detector_ratios), computed once; the decisions are the statistics above
+    the thresholds; the chunks tile the log."""
+    path = SAMPLES / "csv" / "assist_pushes.csv.gz"
+    chunks: list[SignalsChunk] = []
+    res = _chunked(path, ASSIST, 2000, chunks.append)
+    assert [c.start for c in chunks] == list(range(0, res.log.n_samples, 2000))
+    v_l = np.array([[res.thresholds[j]["vL"] for j in res.log.joint_names]])
+    v_0 = np.array([[res.thresholds[j]["v0"] for j in res.log.joint_names]])
+    for c in chunks:
+        s = c.signals
+        want = detector_ratios(s["residual_rms"], s["threshold"], s["loading_statistic"],
+                               np.abs(s["residual"]), v_l, v_0)
+        assert c.ratios.keys() == want.keys()
+        for d in want:
+            assert np.array_equal(c.ratios[d], want[d]), d
+        assert np.array_equal(c.decisions["static_loading"], s["loading_statistic"] > v_l)
+        assert np.array_equal(c.decisions["adaptive"], s["residual_rms"] > s["threshold"])
 
 
 def _write_with_gap(src: Path, dst: Path, drop: slice) -> int:
@@ -84,19 +114,19 @@ def _write_with_gap(src: Path, dst: Path, drop: slice) -> int:
     return int(drop.start)
 
 
-def test_streamed_with_a_time_gap_at_a_chunk_boundary(tmp_path: Path) -> None:
+def test_chunked_with_a_time_gap_at_a_chunk_boundary(tmp_path: Path) -> None:
     """A 0.4 s gap; chunks that end exactly at it and just after it."""
     path = tmp_path / "gap.csv"
     k = _write_with_gap(SAMPLES / "csv" / "assist_impacts.csv.gz", path, slice(9000, 9100))
-    whole = _whole(path, ASSIST)
+    whole = _in_memory(path, ASSIST)
     assert any("time gap" in w for w in whole.warnings)
     for rows in (k, k + 1, k - 1):
-        assert timeline_json(_streamed(path, ASSIST, rows)) == timeline_json(whole)
+        assert timeline_json(_chunked(path, ASSIST, rows)) == timeline_json(whole)
 
 
-def test_detect_streams_and_writes_the_same_files(tmp_path: Path) -> None:
-    """detect --config --signals (streamed) writes the timeline and signals the whole-log
-    replay writes; --rerun (whole log) gives the same timeline."""
+def test_detect_writes_the_timeline_and_signals_of_the_replay(tmp_path: Path) -> None:
+    """detect --config --signals writes the timeline and signals of the log's replay in
+    memory (one chunk); --rerun gives the same timeline."""
     log = SAMPLES / "csv" / "assist_pushes.csv.gz"
     r = CliRunner().invoke(main, ["detect", str(log), "--config", str(ASSIST), "--signals",
                                   "-o", str(tmp_path / "a")])
@@ -107,10 +137,11 @@ def test_detect_streams_and_writes_the_same_files(tmp_path: Path) -> None:
     ta = (tmp_path / "a" / "assist_pushes.timeline.json").read_bytes()
     tb = (tmp_path / "b" / "assist_pushes.timeline.json").read_bytes()
     assert ta == tb
-    whole = _whole(log, ASSIST)
-    write_signals(whole, tmp_path / "w.parquet")
+    assert ta.decode() == timeline_json(_in_memory(log, ASSIST))
+    _signals_file(log, ASSIST, 10**7, tmp_path / "w.parquet")
     a, _ = read_signals(tmp_path / "a" / "assist_pushes.signals.parquet")
     b, _ = read_signals(tmp_path / "w.parquet")
+    assert a.keys() == b.keys()
     assert all(np.array_equal(a[k], b[k], equal_nan=True) for k in b)
 
 
@@ -146,35 +177,34 @@ def _rrd_rows(path: Path) -> dict[str, list[tuple[Any, ...]]]:
     return {k: sorted(v) for k, v in out.items()}
 
 
-@pytest.mark.parametrize("rows", [997, 4096])
-def test_streamed_rerun_holds_the_whole_log_recordings_samples(tmp_path: Path,
-                                                               rows: int) -> None:
-    """The recording written from the spill file holds the same rows per entity as
-    write_rrd of the whole-log result, decimated (buckets across chunk boundaries), with
-    event windows, markers, lanes, events and incidents."""
-    from impactcli.outputs.rerun import write_rrd
+def _recording(path: Path, rows: int, out: Path) -> DetectionResult:
     from impactcli.outputs.rerun_stream import SpillWriter, spill_columns, write_rrd_from_spill
 
-    path = SAMPLES / "csv" / "assist_impacts.csv.gz"
-    whole = _whole(path, ASSIST)
-    write_rrd(whole, tmp_path / "whole.rrd", max_points=1500, event_window_s=0.3,
-              recording_id="same")
     spill = SpillWriter()
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            got = analyze_stream(str(path), config=load_config(ASSIST), read_options={},
-                                 chunk_rows=rows, on_chunk=lambda c: spill.append(spill_columns(
-                                     c.joints, c.t_ns, c.signals, c.decisions, c.position,
-                                     c.position_ref)))
-        write_rrd_from_spill(got, spill, tmp_path / "stream.rrd", max_points=1500,
-                             event_window_s=0.3, recording_id="same")
+        got = _chunked(path, ASSIST, rows, lambda c: spill.append(spill_columns(
+            c.joints, c.t_ns, c.signals, c.decisions, c.position, c.position_ref)))
+        write_rrd_from_spill(got, spill, out, max_points=1500, event_window_s=0.3,
+                             recording_id="same")
     finally:
         spill.close()
-    a, b = _rrd_rows(tmp_path / "whole.rrd"), _rrd_rows(tmp_path / "stream.rrd")
+    return got
+
+
+@pytest.mark.parametrize("rows", [997, 4096])
+def test_chunked_rerun_holds_the_one_chunk_recordings_samples(tmp_path: Path,
+                                                              rows: int) -> None:
+    """The recording of a replay in chunks holds the same rows per entity as the one of a
+    single chunk, decimated (buckets across chunk boundaries), with event windows,
+    markers, lanes, events and incidents."""
+    path = SAMPLES / "csv" / "assist_impacts.csv.gz"
+    one = _recording(path, 10**7, tmp_path / "one.rrd")
+    _recording(path, rows, tmp_path / "chunks.rrd")
+    a, b = _rrd_rows(tmp_path / "one.rrd"), _rrd_rows(tmp_path / "chunks.rrd")
     assert a.keys() == b.keys()
+    assert one.incidents and "/incidents" in a
     decimated = [k for k, v in a.items() if "/rms" in k and not k.startswith("static")]
-    assert decimated and all(len(a[k]) < whole.log.n_samples for k in decimated)
+    assert decimated and all(len(a[k]) < one.log.n_samples for k in decimated)
     for k in a:
         if k.startswith("static /__properties") or "blueprint" in k:
             continue

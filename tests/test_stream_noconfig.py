@@ -1,7 +1,6 @@
-"""The streamed replay without calibrated thresholds (impactcli.stream): the model
-identified from the log in chunks, the uncalibrated thresholds from spilled statistics,
-and the whole-log replay's answer, byte for byte, whatever the chunking and the strategy
-(spill or read again)."""
+"""The replay without calibrated thresholds: the model identified from the log in chunks,
+the uncalibrated thresholds from the replay's spilled statistics, and the answer of the log
+in memory (one chunk), byte for byte, whatever the chunking."""
 
 from __future__ import annotations
 
@@ -18,36 +17,40 @@ from impactcli.detect.calibrate import BlockMaxima, block_maxima
 from impactcli.io import read_log
 from impactcli.model import rows as rows_mod
 from impactcli.outputs.timeline import timeline_json
-from impactcli.pipeline import analyze
-from impactcli.stream import analyze_stream
+from impactcli.result import DetectionResult
+from impactcli.run.collect import detect_in_memory
+from impactcli.run.one_log import RunSetup, detect_log
+from impactcli.run.readers import FileReader
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
 ASSIST = SAMPLES / "assist_like.config.toml"
 
 
-def _pair(path: Path, rows: int, strategy: str = "spill", config: DetectorConfig | None = None,
-          model_from_log: bool = False) -> tuple[str, str, object]:
+def _pair(path: Path, rows: int, config: DetectorConfig | None = None,
+          model_from_log: bool = False) -> tuple[str, str, DetectionResult]:
+    """The timelines of the log in memory (one chunk) and from its file in chunks."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        whole = analyze(read_log(path), config=config, read_options={},
-                        model_from_log=model_from_log)
-        got = analyze_stream(str(path), config=config, read_options={}, chunk_rows=rows,
-                             strategy=strategy, model_from_log=model_from_log)
+        whole, _ = detect_in_memory(read_log(path), config=config,
+                                    model_from_log=model_from_log)
+        with FileReader(path) as reader:
+            got = detect_log(reader, RunSetup(config=config, model_from_log=model_from_log,
+                                              chunk_rows=rows))
     return timeline_json(whole), timeline_json(got), whole
 
 
-@pytest.mark.parametrize(("log", "rows", "strategy"), [
-    ("assist_impacts", 997, "spill"),       # boundaries inside every event
-    ("assist_impacts", 4096, "reread"),     # a boundary inside the warm-up
-    ("heavy_impacts", 1500, "spill"),
-    ("assist_pushes", 10**7, "reread"),     # one chunk
-    ("assist_clamps", 2048, "spill"),
+@pytest.mark.parametrize(("log", "rows"), [
+    ("assist_impacts", 997),        # boundaries inside every event
+    ("assist_impacts", 4096),       # a boundary inside the warm-up
+    ("heavy_impacts", 1500),
+    ("assist_pushes", 10**7),       # one chunk
+    ("assist_clamps", 2048),
 ])
-def test_no_config_streamed_is_byte_identical(log: str, rows: int, strategy: str) -> None:
-    a, b, whole = _pair(SAMPLES / "csv" / f"{log}.csv.gz", rows, strategy)
-    assert whole.model_source == "identified-from-log"  # type: ignore[attr-defined]
-    assert not whole.calibrated  # type: ignore[attr-defined]
-    assert whole.events  # type: ignore[attr-defined]
+def test_no_config_chunked_is_byte_identical(log: str, rows: int) -> None:
+    a, b, whole = _pair(SAMPLES / "csv" / f"{log}.csv.gz", rows)
+    assert whole.model_source == "identified-from-log"
+    assert not whole.calibrated
+    assert whole.events
     assert a == b
 
 
@@ -64,16 +67,16 @@ def test_model_from_log_with_a_calibrated_config_streams() -> None:
     cfg = load_config(ASSIST)   # logged channels with the correction model: identified
     a, b, whole = _pair(SAMPLES / "csv" / "assist_impacts.csv.gz", 1234, config=cfg,
                         model_from_log=True)
-    assert whole.model_source == "identified-from-log"  # type: ignore[attr-defined]
-    assert whole.calibrated  # type: ignore[attr-defined]
-    assert any("--model-from-log" in w for w in whole.warnings)  # type: ignore[attr-defined]
+    assert whole.model_source == "identified-from-log"
+    assert whole.calibrated
+    assert any("--model-from-log" in w for w in whole.warnings)
     assert a == b
 
 
 def test_everything_streams_but_model_with_model_from_log(tmp_path: Path) -> None:
-    """Every input streams; ``--model`` with ``--model-from-log`` is refused with the
-    whole-log replay's one line: a ConfigError (exit 3) from the library and a batch job,
-    a usage error (exit 2) from the command line."""
+    """``--model`` with ``--model-from-log`` is refused with one line, before the log is
+    read: a ConfigError (exit 3) from the library and a batch job, a usage error (exit 2)
+    from the command line."""
     from impactcli.batch import DetectJob, run_detect_job
     from impactcli.errors import ConfigError
     from impactcli.model import identify, write_model
@@ -82,8 +85,9 @@ def test_everything_streams_but_model_with_model_from_log(tmp_path: Path) -> Non
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         model = identify(read_log(log))
+    setup = RunSetup(config=load_config(ASSIST), model=model, model_from_log=True)
     with pytest.raises(ConfigError, match=r"^--model and --model-from-log exclude each other$"):
-        analyze_stream(str(log), config=load_config(ASSIST), model=model, model_from_log=True)
+        detect_log(FileReader(tmp_path / "not-read.csv"), setup)
     path = tmp_path / "m.json"
     write_model(model, path)
     out = run_detect_job(DetectJob(str(log), str(tmp_path / "out"), model_path=str(path),
@@ -95,22 +99,23 @@ def test_everything_streams_but_model_with_model_from_log(tmp_path: Path) -> Non
     assert res.exit_code == 2 and "exclude each other" in res.stderr, res.output
 
 
-def test_detect_without_config_streams_in_bounded_passes(tmp_path: Path,
-                                                         monkeypatch: pytest.MonkeyPatch) -> None:
-    """The CLI's detect without a config takes the streamed path (read_log is never called
-    on the log) and writes what the whole-log replay wrote."""
+def test_detect_without_config_reads_the_log_in_chunks(tmp_path: Path,
+                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """The CLI's detect without a config reads the log in chunks (read_log is never called
+    on it, no log is held in memory) and writes what the replay of the log in memory
+    gives."""
     import impactcli.io as io_mod
-    import impactcli.pipeline as pipeline_mod
+    from impactcli.run import readers
 
     log = SAMPLES / "csv" / "assist_impacts.csv.gz"
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        whole = analyze(read_log(log), read_options={})
+        whole, _ = detect_in_memory(read_log(log))
 
     def refuse(*a: object, **k: object) -> None:
-        raise AssertionError("whole-log path taken")
+        raise AssertionError("the log was read whole")
 
-    monkeypatch.setattr(pipeline_mod, "analyze", refuse)
+    monkeypatch.setattr(readers, "MemoryReader", refuse)
     monkeypatch.setattr(io_mod, "read_log", refuse)
     out = tmp_path / "out"
     res = CliRunner().invoke(main, ["detect", str(log), "--out", str(out), "--signals"])
@@ -209,21 +214,19 @@ def test_a_full_temporary_folder_under_the_parquet_spill(tmp_path: Path,
     assert not html.exists()
 
 
-@pytest.mark.parametrize(("config", "strategy", "passes"), [
-    (None, "spill", 3),      # identification, replay, comparison over the spill
-    (None, "reread", 3),     # identification, replay, replay again
-    (ASSIST, "spill", 2),    # calibrated: the replay compares as it goes (+ identification)
+@pytest.mark.parametrize(("config", "passes"), [
+    (None, 3),      # identification, replay, comparison over the spill
+    (ASSIST, 2),    # calibrated: the replay compares as it goes (+ identification)
 ])
 def test_progress_counts_every_pass_once_and_ends_at_its_total(
-        config: Path | None, strategy: str, passes: int) -> None:
+        config: Path | None, passes: int) -> None:
     calls: list[tuple[float, float]] = []
     path = SAMPLES / "csv" / "assist_impacts.csv.gz"
-    with warnings.catch_warnings():
+    setup = RunSetup(config=load_config(config) if config else None, chunk_rows=4096,
+                     model_from_log=config is not None)
+    with warnings.catch_warnings(), FileReader(path) as reader:
         warnings.simplefilter("ignore")
-        analyze_stream(str(path), config=load_config(config) if config else None,
-                       read_options={}, chunk_rows=4096, strategy=strategy,
-                       model_from_log=config is not None,
-                       progress=lambda d, t: calls.append((d, t)))
+        detect_log(reader, setup, progress=lambda d, t: calls.append((d, t)))
     totals = {t for _, t in calls}
     assert len(totals) == 1                      # known before the first report
     total = totals.pop()

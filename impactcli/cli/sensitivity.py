@@ -41,7 +41,7 @@ def _floats(ctx: click.Context, param: click.Parameter,
     return out
 
 
-def _runner(jobs: int | None) -> Any:
+def task_runner(jobs: int | None) -> Any:
     """Map tasks over a process pool (impactcli.executors) with a progress bar on stderr."""
     from tqdm import tqdm
 
@@ -121,7 +121,7 @@ def sensitivity_cmd(arms: tuple[str, ...], stiffness: tuple[float, ...] | None,
         changes["soak_runs"] = soak_runs
     spec = StudySpec.quick(**changes) if quick else StudySpec(**changes)
     t0 = time.monotonic()
-    summary = run_study(spec, runner=_runner(jobs))
+    summary = run_study(spec, runner=task_runner(jobs))
     summary["wall_time_s"] = round(time.monotonic() - t0, 1)
     summary["command"] = "impactcli sensitivity " + " ".join(
         shlex.quote(a) for a in sys.argv[2:]) if sys.argv[1:2] == ["sensitivity"] else ""

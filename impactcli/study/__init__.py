@@ -1,8 +1,8 @@
 """The parts of :mod:`impactcli.sensitivity` (the paper's Table II on the simulator, a
 false-alarm soak, the detectors compared at matched false-alarm rates).
 
-Import the public names from :mod:`impactcli.sensitivity`, whose docstring says how the
-study is built; these modules are where they live, data flowing one way:
+Import the public names from :mod:`impactcli.sensitivity` (the study's design:
+docs/validation.md); these modules are where they live, data flowing one way:
 
 - :mod:`.spec`: what the study runs — the paper's numbers, the variants, :class:`~.spec.StudySpec`;
 - :mod:`.scenarios`: the one simulated robot, the task's amplitudes, references and scenarios;

@@ -3,7 +3,7 @@ the preset's parameters drawn off it), the task's amplitudes (:func:`amplitudes`
 joint-1 triangle references, and the scenarios of a case (the elastomer slid in) and of a
 collision-free run (:func:`free_scenario`).
 
-How they are used: :mod:`impactcli.sensitivity`'s docstring. The simulator is imported
+How they are used: docs/validation.md. The simulator is imported
 lazily (:mod:`impactcli.sim`).
 """
 
@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from .spec import ARM_GEOMETRY, StudySpec, _seed
+from .spec import ARM_GEOMETRY, StudySpec, seed_of
 
 _SCENARIO_OF = {"triangle": "free_triangle", "trapezoid": "free_p2p",
                 "multisine": "free_multisine"}
@@ -32,7 +32,7 @@ def the_robot(arm_name: str, seed: int, uncertainty: float = 0.2) -> Any:
     from ..sim import preset
 
     arm = preset(arm_name)
-    rng = np.random.default_rng(_seed("robot", arm_name, seed))
+    rng = np.random.default_rng(seed_of("robot", arm_name, seed))
 
     def sc(v: tuple[float, ...], u: float = uncertainty) -> tuple[float, ...]:
         return tuple(float(x * (1.0 + rng.uniform(-u, u))) for x in v)

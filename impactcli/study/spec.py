@@ -2,7 +2,7 @@
 task geometry, the soak's run families, and :class:`StudySpec` (sizes, scales, seed).
 
 Everything else of the study (:mod:`impactcli.sensitivity`) reads these; nothing here
-simulates or scores. Seeds derive from ``StudySpec.seed`` through :func:`_seed`.
+simulates or scores. Seeds derive from ``StudySpec.seed`` through :func:`seed_of`.
 """
 
 from __future__ import annotations
@@ -136,7 +136,7 @@ class StudySpec:
         }
 
 
-def _seed(*key: int | float | str) -> int:
+def seed_of(*key: int | float | str) -> int:
     """A 32-bit seed from a key (deterministic across processes and runs)."""
     ints = [int(x) if isinstance(x, int) else sum(ord(c) * 131**i for i, c in enumerate(str(x)))
             for x in key]

@@ -229,8 +229,8 @@ def _verdict(variant: str, contacts: Sequence[ContactRecord], matched: dict[str,
                         f"every swept scale up to {max(scales):g} × its calibrated threshold, so "
                         "it cannot run without false alarms; adaptive is silent from scale "
                         f"{scales[ia]:g} and there detects {a['detected']}/{a['n_contacts']} "
-                        f"impacts (smallest {_f(a['min_detected_force_n'], ' N')}, all above "
-                        f"{_f(a['all_detected_above_n'], ' N')})."}
+                        f"impacts (smallest {fmt(a['min_detected_force_n'], ' N')}, all above "
+                        f"{fmt(a['all_detected_above_n'], ' N')})."}
     if ia is None or il is None:
         miss = [d for d, i in (("adaptive", ia), ("static_loading", il)) if i is None]
         return {"adaptive_helps": None,
@@ -251,9 +251,9 @@ def _verdict(variant: str, contacts: Sequence[ContactRecord], matched: dict[str,
 
     def alone(name: str, c: dict[str, Any], i: int) -> str:
         return (f"{name} (scale {scales[i]:g}) {c['detected']}/{c['n_contacts']}, smallest "
-                f"{_f(c['min_detected_force_n'], ' N')}, all above "
+                f"{fmt(c['min_detected_force_n'], ' N')}, all above "
                 + ("none missed" if c["all_detected_above_n"] is None
-                   else _f(c["all_detected_above_n"], " N")))
+                   else fmt(c["all_detected_above_n"], " N")))
 
     facts = (f"added to static_loading it catches {a_only} impact(s) static_loading misses"
              + (f" and fires {abs(gain) * 1e3:.0f} ms {'earlier' if gain >= 0 else 'later'} "
@@ -275,5 +275,6 @@ def _verdict(variant: str, contacts: Sequence[ContactRecord], matched: dict[str,
             "both": len(both), "paired_delay_gain_s": _r(gain, 4), "text": text}
 
 
-def _f(x: float | None, unit: str = "", nd: str = ".3g") -> str:
+def fmt(x: float | None, unit: str = "", nd: str = ".3g") -> str:
+    """``x`` formatted by ``nd`` with ``unit`` after it; ``-`` for None."""
     return "-" if x is None else f"{x:{nd}}{unit}"

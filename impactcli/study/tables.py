@@ -12,7 +12,7 @@ from collections.abc import Iterable, Sequence
 from typing import Any
 
 from .spec import PAPER_ADAPTIVE_N, PAPER_STATIC_N, SETTINGS, SOAK_FAMILIES
-from .summary import _f
+from .summary import fmt
 
 #: Table II's row labels for our detectors (static_loading is ours, not in the paper).
 ROW_LABELS: dict[str, str] = {
@@ -41,15 +41,15 @@ def table_rows(variant: dict[str, Any], setting: str) -> list[list[str]]:
                          _paper(d, None)])
             continue
         sc = f"{'<=' if cell.get('at_sweep_edge') else ''}{cell['scale']:g}"
-        fa = (f"{_f(cell['soak_false_alarms_per_hour'])} "
-              f"(<= {_f(cell['soak_false_alarms_per_hour_upper95'])})")
+        fa = (f"{fmt(cell['soak_false_alarms_per_hour'])} "
+              f"(<= {fmt(cell['soak_false_alarms_per_hour_upper95'])})")
         first = True
         for k, c in cell["by_stiffness"].items():
             rows.append([
                 ROW_LABELS[d] if first else "", sc if first else "", f"k = {k}",
-                _f(c["min_detected_force_n"], nd=".2f"), _f(c["equivalent_mass_kg"], nd=".3f"),
+                fmt(c["min_detected_force_n"], nd=".2f"), fmt(c["equivalent_mass_kg"], nd=".3f"),
                 "none missed" if c["all_detected_above_n"] is None and c["detected"]
-                else _f(c["all_detected_above_n"], nd=".2f"),
+                else fmt(c["all_detected_above_n"], nd=".2f"),
                 f"{c['detected']}/{c['n_contacts']}", _ms(c["delay_median_s"]),
                 fa if first else "", _paper(d, float(k))])
             first = False
@@ -99,11 +99,11 @@ def _roc_rows(v: dict[str, Any], picks: Sequence[float],
         first = True
         for r in chosen:
             rows.append([d if first else "", f"{r['scale']:g}", str(r["soak_false_alarms"]),
-                         f"{_f(r['soak_false_alarms_per_hour'])} "
-                         f"(<= {_f(r['soak_false_alarms_per_hour_upper95'])})",
+                         f"{fmt(r['soak_false_alarms_per_hour'])} "
+                         f"(<= {fmt(r['soak_false_alarms_per_hour_upper95'])})",
                          f"{r['detected']}/{r['n_contacts']}",
-                         _f(r["min_detected_force_n"], nd=".2f"),
-                         _f(r["all_detected_above_n"], nd=".2f"), _ms(r["delay_median_s"])])
+                         fmt(r["min_detected_force_n"], nd=".2f"),
+                         fmt(r["all_detected_above_n"], nd=".2f"), _ms(r["delay_median_s"])])
             first = False
     return rows
 

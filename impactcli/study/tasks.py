@@ -16,9 +16,10 @@ from typing import Any
 import numpy as np
 
 from ..config import DetectorConfig
-from ..evaluate import EVALUATED, sweep_thresholds
+from ..evaluate import EVALUATED, sweep_ratios
+from ..run.collect import detect_in_memory
 from .scenarios import amplitudes, case_scenario, free_scenario, the_robot
-from .spec import SOAK_FAMILIES, VARIANTS, StudySpec, _seed
+from .spec import SOAK_FAMILIES, VARIANTS, StudySpec, seed_of
 
 
 @dataclass(frozen=True)
@@ -52,7 +53,7 @@ def run_calibration(task: CalibTask) -> CalibOutcome:
     logs, names = [], []
     for fam in SOAK_FAMILIES:
         sc = free_scenario(arm, fam, spec.calib_run_s, 0.0, amps)
-        seed = _seed("calib", task.arm, fam, spec.seed)
+        seed = seed_of("calib", task.arm, fam, spec.seed)
         logs.append(simulate(sc, seed=seed).log)
         names.append(f"{fam} seed={seed} {spec.calib_run_s:g} s")
     with warnings.catch_warnings():
@@ -87,12 +88,6 @@ class SoakOutcome:
     free_s: float
     false_alarms: dict[str, tuple[int, ...]]
     n_warnings: int
-
-
-def _quiet_analyze(log: Any, cfg: DetectorConfig) -> Any:
-    from ..pipeline import analyze
-
-    return analyze(log, config=cfg)
 
 
 def soak_false_alarms(ratios: dict[str, np.ndarray], time_s: np.ndarray, warmup_end_s: float,
@@ -133,11 +128,11 @@ def run_soak(task: SoakTask) -> SoakOutcome:
     arm = the_robot(var.arm, spec.seed)
     sc = free_scenario(arm, task.family, spec.soak_run_s, var.payload_kg,
                        amplitudes(var.arm, spec.forces_n))
-    seed = _seed("soak", task.variant, task.family, task.run, spec.seed)
+    seed = seed_of("soak", task.variant, task.family, task.run, spec.seed)
     log = simulate(sc, seed=seed).log
-    res = _quiet_analyze(log, task.config)
+    res, sig = detect_in_memory(log, config=task.config)
     ev = res.config.get("events", {})
-    fa_t = soak_false_alarms(res.ratios, log.time_s, res.warmup_end_s, spec.scales,
+    fa_t = soak_false_alarms(sig.ratios, sig.time_s, res.warmup_end_s, spec.scales,
                              float(ev.get("merge_gap_s", 0.0)),
                              float(ev.get("min_duration_s", 0.0)))
     return SoakOutcome(task.variant, task.family, task.run, seed, log.duration_s,
@@ -201,17 +196,22 @@ def run_case(task: CaseTask) -> CaseOutcome:
     spec, var = task.spec, VARIANTS[task.variant]
     arm = the_robot(var.arm, spec.seed)
     sc = case_scenario(arm, task.stiffness, task.amplitude, spec, var.payload_kg)
-    seed = _seed("case", task.variant, task.stiffness, task.amplitude, task.seed_index,
+    seed = seed_of("case", task.variant, task.stiffness, task.amplitude, task.seed_index,
                  spec.seed)
     sim = simulate(sc, seed=seed)
-    res = _quiet_analyze(sim.log, task.config)
-    rows = sweep_thresholds(res, sim.labels, spec.scales, tolerance=spec.tolerance)
+    res, sig = detect_in_memory(sim.log, config=task.config)
+    ev_cfg = res.config.get("events", {})
+    rows = sweep_ratios(sig.ratios, sig.time_s, labels=sim.labels, scales=spec.scales,
+                        warmup_end_s=res.warmup_end_s,
+                        merge_gap_s=float(ev_cfg["merge_gap_s"]),
+                        min_duration_s=float(ev_cfg["min_duration_s"]),
+                        tolerance=spec.tolerance)
     ev = evaluate_result(res, sim.labels, tolerance=spec.tolerance)
     order = np.argsort(np.argsort(spec.scales))
     by_det: dict[str, list[Any]] = {d: [] for d in EVALUATED}
     for r in rows:
         by_det[r.detector].append(r)
-    t = sim.log.time_s
+    t = sig.time_s
     contacts = []
     for k, c in enumerate(sim.labels.events):
         if ev.contacts[k].status != "counted":
@@ -220,7 +220,7 @@ def run_case(task: CaseTask) -> CaseOutcome:
         sel = (t >= lo) & (t <= hi)
         peak = {}
         for d in ("adaptive", "static_loading", "static_baseline"):
-            rr = res.ratios[d][sel]
+            rr = sig.ratios[d][sel]
             peak[d] = float(np.max(rr)) if rr.size else float("nan")
         peak["product"] = max(peak["adaptive"], peak["static_loading"])
         delays = {d: tuple(float("nan") if (v := by_det[d][i].contact_delays_s[k]) is None

@@ -1,9 +1,8 @@
 """Benchmark: end-to-end ``impactcli detect`` on a long 2-joint 1 kHz canonical CSV.
 
-Run: ``python tests/benchmarks/bench_detect_e2e.py [MINUTES] [--keep DIR]`` (default 120 =
-the issue's 2-hour, ~1 GB CSV). The log is simulated (assist_like at Ts = 1 ms, impacts
-scenario repeated over the duration is not needed: a collision-free multi-sine with pushes
-would do; we use free_multisine), written as plain CSV, then ``impactcli detect`` runs in
+Run: ``python tests/benchmarks/bench_detect_e2e.py [MINUTES] [--keep DIR]`` (default 120:
+a 2-hour, ~1 GB CSV). The log is simulated (assist_like at Ts = 1 ms, the collision-free
+free_multisine scenario), written as plain CSV, then ``impactcli detect`` runs in
 a fresh subprocess exactly as a user runs it — no model, no config: the model is identified
 from the log and the run is uncalibrated, the heaviest path. Reported: CSV size, wall time
 of the command, real-time factor, peak resident memory of the command (ru_maxrss of the

@@ -11,16 +11,13 @@ duration asked for. ``impactcli calibrate`` makes the config once; then, for eac
 duration, ``impactcli detect LOG --config C`` runs in a fresh process as a user runs it —
 plain (``plain``), with ``--signals`` (``signals``), and with ``--rerun`` (``rerun``) — and
 ``impactcli detect LOG`` without a config (``noconfig``: the model identified from the log,
-thresholds from its own statistics; ``noconfig-signals`` with ``--signals``;
-``noconfig-reread``: the same answer by the other strategy, reading the log again instead
-of spilling the replay, run through ``impactcli.stream.analyze_stream(strategy="reread")``
-as the CLI has no switch for it). The benchmark reports each run's wall time, the
+thresholds from its own statistics; ``noconfig-signals`` with ``--signals``). The
+benchmark reports each run's wall time, the
 real-time factor and its peak resident memory (ru_maxrss of that process alone, read by a
 wrapper process). ``--release REF`` (default the tag ``v0.1.0``, the release before the
 streaming replay; skipped when the ref does not exist) runs that release's code from a git
 worktree in the same environment on the same files, for durations up to
-``--release-max-minutes`` (default 60: it holds the whole log in memory; it has no
-``noconfig-reread``).
+``--release-max-minutes`` (default 60: it holds the whole log in memory).
 """
 
 from __future__ import annotations
@@ -149,8 +146,7 @@ def main() -> None:
                 rows.append(_row("this", minutes, variant, wall, rss, size))
                 print(json.dumps(rows[-1]), file=sys.stderr)
                 shutil.rmtree(out, ignore_errors=True)
-                if release is not None and minutes <= args.release_max_minutes and \
-                        cmd[0] == exe:
+                if release is not None and minutes <= args.release_max_minutes:
                     env = dict(os.environ, PYTHONPATH=str(release))
                     cmd = [sys.executable, "-m", "impactcli", *cmd[1:]]
                     wall, rss = measure(cmd, tmp, env)
@@ -174,24 +170,16 @@ def main() -> None:
               f"| {r['wall_s']:.1f} s | {r['x_real_time']:.0f}× | {r['peak_rss_mb']:.0f} MB |")
 
 
-#: Each variant's command-line options after the log (None: through the Python API).
-VARIANTS: dict[str, list[str] | None] = {
+#: Each variant's command-line options after the log.
+VARIANTS: dict[str, list[str]] = {
     "plain": ["--config"], "signals": ["--config", "--signals"],
     "rerun": ["--config", "--rerun"], "noconfig": [], "noconfig-signals": ["--signals"],
-    "noconfig-reread": None,
 }
 
 
 def _command(variant: str, exe: str, log: Path, cfg: Path, out: Path) -> list[str]:
     """The process a variant runs (module docstring)."""
     opts = VARIANTS[variant]
-    if opts is None:
-        code = ("import sys, pathlib; from impactcli.stream import analyze_stream; "
-                "from impactcli.outputs.timeline import write_timeline; "
-                "o = pathlib.Path(sys.argv[2]); o.mkdir(parents=True, exist_ok=True); "
-                "write_timeline(analyze_stream(sys.argv[1], config=None, strategy='reread'), "
-                "o / 'log.timeline.json')")
-        return [sys.executable, "-c", code, str(log), str(out)]
     extra = [o if o != "--config" else f"--config={cfg}" for o in opts]
     return [exe, "detect", str(log), "-o", str(out), *extra]
 

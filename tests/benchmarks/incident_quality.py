@@ -40,8 +40,8 @@ from impactcli.calibration import calibrate
 from impactcli.config import DetectorConfig, load_config
 from impactcli.io import read_log
 from impactcli.io.robot import read_labels, read_robot
-from impactcli.pipeline import analyze
 from impactcli.result import DetectionResult
+from impactcli.run.collect import detect_in_memory
 from impactcli.sim import scenario, simulate
 from impactcli.types import Labels
 
@@ -117,7 +117,7 @@ def simulated(arm: str, robot_seed: int) -> list[Row]:
                            ("pushes", every_link_pushes(arm), 22),
                            ("clamps", every_link_clamps(arm), 23)):
         sim = run(sc, seed)
-        res = analyze(sim.log, config=cfg, robot=robot)
+        res, _ = detect_in_memory(sim.log, config=cfg, robot=robot)
         rows += score(f"{arm} robot {robot_seed} {name}", res, sim.labels)
     return rows
 
@@ -128,7 +128,7 @@ def samples() -> list[Row]:
     for name, cfg in (("assist_impacts", "assist_like"), ("assist_pushes", "assist_like"),
                       ("assist_clamps", "assist_like"), ("heavy_impacts", "heavy_geared")):
         csv = REPO / "sample_logs" / "csv"
-        res = analyze(read_log(csv / f"{name}.csv.gz"),
+        res, _ = detect_in_memory(read_log(csv / f"{name}.csv.gz"),
                       config=load_config(REPO / "sample_logs" / f"{cfg}.config.toml"),
                       robot=read_robot(csv / f"{name}.robot.json"))
         rows += score(f"sample {name}", res, read_labels(csv / f"{name}.labels.json"))

@@ -32,7 +32,7 @@ from pathlib import Path
 
 from impactcli.calibration import calibrate
 from impactcli.io import read_log
-from impactcli.pipeline import analyze
+from impactcli.run.collect import detect_in_memory
 from impactcli.types import RobotLog
 
 REAL = Path(__file__).resolve().parents[3] / "shared" / "real_logs"
@@ -87,7 +87,7 @@ def run_case(which: str, kind: str, generator: str, cal: RobotLog,
                     for j, v in hold.items() if v.get("rms_rel_torque_rms") is not None)
     cells = []
     for name, log in tests.items():
-        res = analyze(log, config=cfg, robot=robot)  # type: ignore[arg-type]
+        res, _ = detect_in_memory(log, config=cfg, robot=robot)  # type: ignore[arg-type]
         s = res.summary()
         left = ", ".join(d["name"] for d in res.joints_left_out) or "none"
         cells.append(f"{name}: adaptive {s['adaptive']['events']}, static_loading "

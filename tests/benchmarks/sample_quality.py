@@ -39,6 +39,7 @@ The functions here are shared with ``tests/test_acceptance.py``.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import platform
 import sys
@@ -47,6 +48,7 @@ import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -55,8 +57,8 @@ from impactcli.config import DetectorConfig, load_config
 from impactcli.evaluate import PRODUCT, Evaluation, evaluate_result
 from impactcli.io import read_log
 from impactcli.io.robot import read_labels, read_robot
-from impactcli.pipeline import analyze
 from impactcli.result import DetectionResult
+from impactcli.run.collect import detect_in_memory
 from impactcli.types import DETECTORS, Labels, RobotDescription, RobotLog
 
 REPO = Path(__file__).resolve().parents[2]
@@ -187,6 +189,15 @@ def variants() -> None:
             print(f"  {c.line()}")
 
 
+def replay(log: RobotLog, **setup: Any) -> DetectionResult:
+    """``log`` replayed in memory (:func:`impactcli.run.collect.detect_in_memory`), the
+    result holding its per-sample arrays and ``log`` (its replayed joints), which
+    ``tests/test_acceptance.py`` reads. alias: removed in M (then ``(result, Signals)``)."""
+    res, sig = detect_in_memory(log, **setup)
+    return dataclasses.replace(res, log=log.select(res.log.joint_names), signals=sig.signals,
+                               decisions=sig.decisions, ratios=sig.ratios)
+
+
 def run(name: str, config: DetectorConfig | None, *, model_from_log: bool = False
         ) -> tuple[DetectionResult, Evaluation]:
     """Replay ``name`` with ``config`` (None: uncalibrated, model from the log) and score it.
@@ -197,7 +208,7 @@ def run(name: str, config: DetectorConfig | None, *, model_from_log: bool = Fals
     log, rob = read(name), robot_of(name)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = analyze(log, config=config, robot=rob, model_from_log=model_from_log)
+        res = replay(log, config=config, robot=rob, model_from_log=model_from_log)
         ev = evaluate_result(res, labels_of(name))
     return res, ev
 
@@ -410,7 +421,7 @@ def cross_unit() -> None:
         warnings.simplefilter("ignore")
         cfg = calibrate([sims[n].log for n in names], robot=sims[names[0]].robot)
         assist = [n for n, a in CONTACT_LOGS.items() if a == "assist_like"]
-        results = {n: analyze(sims[n].log, config=cfg, robot=sims[n].robot) for n in assist}
+        results = {n: replay(sims[n].log, config=cfg, robot=sims[n].robot) for n in assist}
         evals = {n: evaluate_result(results[n], sims[n].labels) for n in assist}
     print("ASSIST-like logs, each on its own unit; calibrated on " + ", ".join(names)
           + f" (vL {', '.join(f'{v:.2f}' for v in cfg.thresholds.vL.values())} N·m)")

@@ -18,7 +18,7 @@ import sys
 import time
 from pathlib import Path
 
-from impactcli.cli.sensitivity import _runner
+from impactcli.cli.sensitivity import task_runner
 from impactcli.sensitivity import VARIANTS, StudySpec, format_markdown, format_text, run_study
 
 
@@ -32,7 +32,7 @@ def main() -> None:
     variants = tuple(VARIANTS)
     spec = StudySpec.quick() if args.quick else StudySpec(variants=variants)
     t0 = time.monotonic()
-    summary = run_study(spec, runner=_runner(args.jobs))
+    summary = run_study(spec, runner=task_runner(args.jobs))
     wall = time.monotonic() - t0
     summary["wall_time_s"] = round(wall, 1)
     cmd = ("impactcli sensitivity --jobs " + str(args.jobs)

@@ -37,6 +37,7 @@ import warnings
 from collections.abc import Iterable
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -98,31 +99,34 @@ def _summarise(name: str, arm: str, seed: int, t: np.ndarray, fs: float,
 
 def _simulated(job: tuple[str, str, int, float | None]) -> dict:
     warnings.simplefilter("ignore")
-    from impactcli.config import DetectorConfig
-    from impactcli.pipeline import replay
     from impactcli.sim.core import simulate
     from impactcli.sim.scenarios import scenario
 
     name, arm, seed, dur = job
     sim = simulate(scenario(name, arm, dur), seed=seed)
-    rp = replay(sim.log, None, DetectorConfig(), sim.robot)
-    k0 = rp.warmup.end_index if rp.warmup.end_index < sim.log.n_samples - 10 else 0
+    k0, after = _after_warmup(sim.log, sim.robot)
     labels = [(e.start, e.end, e.peak_force, e.kind, e.link) for e in sim.labels.events]
     return _summarise(name, arm, seed, sim.log.time_s[k0:], sim.log.sample_rate_hz,
-                      rp.stats_after_warmup(), labels)
+                      after, labels)
+
+
+def _after_warmup(log: Any, robot: Any) -> tuple[int, dict[str, np.ndarray]]:
+    """The first sample after the warm-up (0 when it covers the log) and each detector's
+    threshold-free statistic from there, Table I defaults, model identified from the log."""
+    from impactcli.run.collect import stats_in_memory
+
+    st, rp, _ = stats_in_memory(log, robot=robot)
+    k0 = rp.warmup.end_index if rp.warmup.end_index < log.n_samples - 10 else 0
+    return k0, {d: s[k0:] for d, s in st.stats.items()}
 
 
 def _real() -> dict:
     warnings.simplefilter("ignore")
-    from impactcli.config import DetectorConfig
     from impactcli.io import read_log
-    from impactcli.pipeline import replay
 
     log = read_log(KUKA, channel_map="kuka_lwr4")
-    rp = replay(log, None, DetectorConfig(), None)
-    k0 = rp.warmup.end_index if rp.warmup.end_index < log.n_samples - 10 else 0
-    return _summarise("kuka_lwr4", "real", 0, log.time_s[k0:], log.sample_rate_hz,
-                      rp.stats_after_warmup(), [])
+    k0, after = _after_warmup(log, None)
+    return _summarise("kuka_lwr4", "real", 0, log.time_s[k0:], log.sample_rate_hz, after, [])
 
 
 def _progress(it: Iterable[dict], n: int, label: str) -> list[dict]:

@@ -1,0 +1,389 @@
+"""The replay of one log: a log source and a setup in, a detection result out.
+
+:func:`detect_log` is the one routine every verb runs (a log file read in chunks, or a log
+in memory: one chunk). It plans the run from the log's scan (:mod:`impactcli.run.plan`),
+replays the chunks in order (:class:`impactcli.replay.Replayer`: state in, state out; a
+pass that is threshold-free, :func:`replay_passes`), applies the thresholds — the
+calibrated config's as it goes; without them, the log's own, from the statistics spilled
+by the replay once the warm-up's end is known, then applied over the spill — and hands each
+chunk's signals, decisions and ratios to ``on_chunk`` (the writers, or a collector). What it
+keeps meanwhile is small: the warm-up's statistics
+(:class:`~impactcli.detect.warmup.WarmupTracker`), the times at the gaps, and the *islands*:
+the samples where some detector fires or a contact still presses
+(:meth:`impactcli.contacts.IncidentContext.pressing`), and those within ``merge_gap_s``
+after one. Events and incidents never span a sample outside an island, so each island
+gives its events and incidents by :func:`~impactcli.detect.events.extract_events` and
+:func:`~impactcli.contacts.build_incidents` once the warm-up's end is known.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..config import CalibrationRecord, DetectorConfig
+from ..contacts import IncidentContext, build_incidents, incident_context
+from ..detect.adaptive import AdaptiveResult, default_threads
+from ..detect.events import extract_events
+from ..detect.incidents import BRIDGE_FRACTION, Incident
+from ..detect.thresholds import compare_to_thresholds
+from ..detect.warmup import Warmup, WarmupTracker
+from ..errors import ConfigError
+from ..model.generators import choices_dict, summary_name
+from ..model.rigid import RigidModel
+from ..replay import ChunkReplay, Replayer, ReplaySetup, ReplayState
+from ..result import DetectionResult
+from ..spill import ChunkSpill, Islands
+from ..types import DETECTORS, Event, LogHeader, RobotDescription, SignalsChunk
+from .plan import ChunkFeed, Passes, RunPlan, calibrated_thresholds, plan_run, with_generator
+from .readers import LogReader
+from .run_warnings import (
+    CaughtWarnings,
+    warn_events_after_gaps,
+    warn_gaps,
+    warn_long_events,
+    warn_measured_inputs,
+    warn_uncalibrated,
+    warn_warmup,
+)
+
+#: Samples per chunk of a log read from a file (about 40 MB of signals for 7 joints): the
+#: signals Parquet gets one row group per chunk.
+CHUNK_ROWS = 65_536
+
+
+@dataclass(frozen=True)
+class RunSetup:
+    """What a replay is run with, besides the log.
+
+    Attributes:
+        config: the detector config (``--config``), or None (Table I defaults, thresholds
+            from the log's own statistics).
+        model: ``--model``, or None (the config's, else identified from the log).
+        robot: the robot description (kinematics, joint order).
+        generator: ``--generator`` (:func:`impactcli.run.plan.with_generator`), None: the
+            config's.
+        model_from_log: identify the model from this log even with a config
+            (:func:`impactcli.run.plan.resolve_model`); refused with ``model``.
+        allow_slow: run even when the replay is estimated slower than real time.
+        config_where: the config's file, for messages.
+        read_options: how the log was read (recorded in the result).
+        chunk_rows: samples per chunk (the result does not depend on it).
+    """
+
+    config: DetectorConfig | None = None
+    model: RigidModel | None = None
+    robot: RobotDescription | None = None
+    generator: str | None = None
+    model_from_log: bool = False
+    allow_slow: bool = False
+    config_where: str = "config"
+    read_options: dict[str, Any] = field(default_factory=dict)
+    chunk_rows: int = CHUNK_ROWS
+
+
+@dataclass
+class ReplayStep:
+    """One chunk replayed: its first sample, (n,) times [s since the first sample] and
+    [ns], the log's (n, J_all) positions, and the replay's (n, J) arrays
+    (:class:`impactcli.replay.ChunkReplay`); the writers' arrays None where not kept."""
+
+    start: int
+    t: np.ndarray
+    t_ns: np.ndarray
+    q_full: np.ndarray
+    r: np.ndarray
+    loading: np.ndarray
+    qd: np.ndarray
+    r_rms: np.ndarray
+    v_rms: np.ndarray
+    r_tilde: np.ndarray | None = None
+    v_dyn: np.ndarray | None = None
+    torque: np.ndarray | None = None
+    position: np.ndarray | None = None
+    position_ref: np.ndarray | None = None
+
+
+#: What a step needs for the events and incidents; the rest only for ``on_chunk``.
+_NEEDED = ("t", "t_ns", "q_full", "r", "loading", "qd", "r_rms", "v_rms")
+_FOR_WRITERS = ("r_tilde", "v_dyn", "torque", "position", "position_ref")
+
+
+@dataclass
+class Replayed:
+    """What a replay pass leaves: the warm-up and each joint's warm-up end [s], the (G, 2)
+    times [s] of the samples at and just after each gap, the last chunk's evaluator result
+    (its final filter), the threshold inputs' source and how they were made."""
+
+    warmup: Warmup
+    warmup_times: list[float]
+    gap_times: np.ndarray
+    last: AdaptiveResult
+    reference: str
+    detail: str
+
+
+def replay_passes(feed: ChunkFeed, plan: RunPlan, on_step: Callable[[ReplayStep], None],
+                  passes: Passes | None = None) -> Replayed:
+    """One threshold-free replay pass over the log's chunks (module docstring): each
+    chunk's :class:`ReplayStep` to ``on_step``, in order; the warm-up tracked."""
+    scan = feed.scan
+    n = scan.n_samples
+    setup = ReplaySetup(plan.joints, plan.choices, plan.model, plan.cfg, scan.sample_rate_hz,
+                        scan.sample_period_s, threads=default_threads(n))
+    tracker = WarmupTracker(n, 0.0, scan.duration_s, len(plan.joints), plan.cfg.warmup)
+    gaps = np.asarray(scan.gaps, dtype=np.int64)
+    gap_times = np.full((gaps.size, 2), np.nan)
+    last: list[Any] = [None, "", ""]
+    rp = Replayer(setup, ReplayState.initial(setup), where=plan.where, consume=True)
+
+    def steps(done: list[tuple[Any, ChunkReplay]]) -> None:
+        for (ch, t, a), out in done:
+            ad = out.adaptive
+            last[:] = [ad, out.inputs_source, out.inputs_detail]
+            k0 = ch.start
+            tracker.update(ad.prediction_error, t)
+            for col, off in ((0, 0), (1, 1)):
+                hit = (gaps + off >= k0) & (gaps + off < k0 + t.shape[0])
+                gap_times[hit, col] = t[gaps[hit] + off - k0]
+            on_step(ReplayStep(k0, t, np.asarray(ch.t_ns, dtype=np.int64),
+                               np.asarray(ch.position, dtype=np.float64), out.r, out.loading,
+                               out.qd, ad.r_rms, ad.v_rms, ad.r_tilde, ad.v_dyn, a.torque,
+                               a.position, a.position_ref))
+            if passes is not None:
+                passes.at(float(t[-1]))
+
+    try:
+        for ch, t, a in feed.chunks(plan.joints):
+            steps(rp.feed((ch, t, a), a))
+        steps(rp.finish())
+        wu = tracker.finish()
+    except BaseException:  # nothing left behind: the tracker's spill is a temporary file
+        tracker.close()
+        raise
+    finally:
+        rp.close()
+    if passes is not None:
+        passes.next()
+    assert last[0] is not None
+    return Replayed(wu, tracker.times_at(wu.index), gap_times, last[0], last[1], last[2])
+
+
+def warn_replayed(caught: CaughtWarnings, since: int, plan: RunPlan, feed: ChunkFeed,
+                  rp: Replayed) -> None:
+    """The replay's warnings about the whole log: the gaps (before the replay's own
+    warnings, recorded since ``since``), the threshold inputs, the warm-up."""
+    scan = feed.scan
+    moved = caught.cut(since)
+    warn_gaps(plan.where, np.asarray(scan.gap_lengths_s), rp.gap_times[:, 0])
+    caught.paste(moved)
+    if rp.reference == "measured":
+        warn_measured_inputs(plan.where)
+    warn_warmup(plan.where, rp.warmup, rp.warmup_times, plan.joints, scan.n_samples,
+                scan.duration_s, plan.cfg)
+
+
+def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
+               on_chunk: Callable[[SignalsChunk], None] | None = None,
+               progress: Callable[[float, float], None] | None = None) -> DetectionResult:
+    """Replay the detectors over a log exactly as the robot would have run them online
+    (module docstring).
+
+    Args:
+        reader: the log (:mod:`impactcli.run.readers`); the caller closes it.
+        setup: config, model, robot... (:class:`RunSetup`).
+        on_chunk: called per chunk, in order, with its :class:`~impactcli.types.SignalsChunk`.
+        progress: called with (seconds of log done, seconds to do), summed over the passes
+            (identification, replay, comparison over the spill).
+    Returns:
+        The result (its ``log`` a :class:`~impactcli.types.LogHeader`, no per-sample
+        signals); the ImpactWarnings raised on the way are in its ``warnings``.
+    """
+    cfg = with_generator(setup.config or DetectorConfig(), setup.generator, setup.config_where)
+    if setup.model is not None and setup.model_from_log:
+        raise ConfigError("--model and --model-from-log exclude each other")
+    with CaughtWarnings() as caught, contextlib.ExitStack() as stack:
+        scan = reader.scan()
+        where = scan.source.path
+        passes = Passes(scan.duration_s, progress)
+        if not cfg.calibration.calibrated:
+            passes.add()  # the comparison over the spill
+        plan, feed = plan_run(reader, cfg, model=setup.model, robot=setup.robot,
+                              model_from_log=setup.model_from_log,
+                              allow_slow=setup.allow_slow, config_where=setup.config_where,
+                              chunk_rows=setup.chunk_rows, passes=passes)
+        joints = plan.joints
+        given = calibrated_thresholds(cfg, joints)
+        since = caught.mark()
+        rp, thr, margins, islands = _detect_passes(feed, plan, given, on_chunk, passes)
+        stack.callback(islands.close)
+        warn_replayed(caught, since, plan, feed, rp)
+        if given is None:
+            cfg = uncalibrated_config(cfg, joints, margins)
+            warn_uncalibrated(where)
+        since = caught.mark()  # the incidents' warnings follow the events' (as ever)
+        ctx = incident_context(joints, plan.full_joints, setup.robot,
+                               None if plan.model is None else plan.model.to_dict(),
+                               thr["static_loading"], scan.sample_period_s, scan.t0_ns,
+                               scan.n_samples, cfg.events.merge_gap_s, where)
+        ctx_msgs = caught.cut(since)
+        events, incidents = _events_and_incidents(islands, rp.warmup, joints, cfg, ctx)
+        warn_events_after_gaps(where, rp.gap_times[:, 1], events)
+        warn_long_events(where, events)
+        caught.paste(ctx_msgs)
+        header = LogHeader(joints, scan.source, scan.n_samples, scan.t0_ns, scan.duration_s,
+                           scan.sample_rate_hz, scan.sample_period_s)
+    caught.raise_again()
+    freqs, gain = rp.last.g_gain()
+    thresholds = {j: {"v_stat": float(thr["adaptive"][k]), "v0": float(thr["static_baseline"][k]),
+                      "vL": float(thr["static_loading"][k])} for k, j in enumerate(joints)}
+    rig = plan.model
+    return DetectionResult(
+        log=header, model=None if rig is None else rig.to_dict(),
+        model_sha256=None if rig is None else rig.sha256, model_source=plan.model_source,
+        config=cfg.to_dict(), calibrated=given is not None, thresholds=thresholds,
+        reference_source="measured" if rp.reference == "measured" else "reference",
+        threshold_inputs=rp.detail, torque_filtered=cfg.residual.filter_torque,
+        signals={}, decisions={}, ratios={}, events=tuple(events),
+        warmup_end_s=rp.warmup.end_s, warmup_per_joint_s=dict(zip(joints, rp.warmup_times,
+                                                                  strict=True)),
+        filter_gain={"frequencies_hz": [float(f) for f in freqs],
+                     "gain": {j: [float(g) for g in gain[k]] for k, j in enumerate(joints)}},
+        residual_generator=summary_name(plan.choices), read_options=dict(setup.read_options),
+        generators=choices_dict(plan.choices, cfg.residual.logged_correction),
+        joints_left_out=tuple(x.to_dict() for x in plan.left_out),
+        incidents=tuple(incidents), warnings=caught.messages(),
+    )
+
+
+def _detect_passes(
+    feed: ChunkFeed, plan: RunPlan, given: dict[str, np.ndarray] | None,
+    on_chunk: Callable[[SignalsChunk], None] | None, passes: Passes,
+) -> tuple[Replayed, dict[str, np.ndarray], dict[str, np.ndarray], Islands]:
+    """The replay and the comparison (module docstring): with thresholds ``given``, one
+    pass that compares as it goes; without, a pass that spills, the thresholds from what it
+    spilled, then the comparison over the spill. Returns the replay, the thresholds, their
+    margins (uncalibrated) and the islands (the caller closes them)."""
+    made: list[_Compare] = []   # the comparison, once made (its islands closed on failure)
+
+    def compare(thr: dict[str, np.ndarray]) -> _Compare:
+        made.append(_Compare(thr, plan.cfg, on_chunk, plan.joints))
+        return made[-1]
+
+    margins: dict[str, np.ndarray] = {}
+    try:
+        if given is not None:
+            thr = given
+            comparing = compare(thr)
+            rp = replay_passes(feed, plan, comparing.update, passes)
+        else:
+            keys = _NEEDED + (_FOR_WRITERS if on_chunk is not None else ())
+            with contextlib.closing(ChunkSpill()) as spill:
+                rp = replay_passes(feed, plan, lambda st: spill.write(
+                    {k: v for k in keys if (v := getattr(st, k)) is not None}), passes)
+                scan = feed.scan
+                thr, margins = _thresholds_from_spill(spill, rp.warmup, scan.n_samples,
+                                                      scan.sample_rate_hz)
+                comparing = compare(thr)
+                for k0, arrays in spill.read_chunks():
+                    comparing.update(ReplayStep(k0, **arrays))
+                    passes.at(float(arrays["t"][-1]))
+                passes.next()
+        comparing.islands.finish()
+    except BaseException:  # nothing left behind: the islands are temporary files
+        for c in made:
+            c.islands.close()
+        raise
+    return rp, thr, margins, comparing.islands
+
+
+def _thresholds_from_spill(spill: ChunkSpill, wu: Warmup, n: int, fs: float,
+                           ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """The uncalibrated rule's thresholds and margins per detector
+    (:func:`impactcli.detect.calibrate.uncalibrated_thresholds`) from the statistics after
+    the warm-up's end (all of them if it covers the log), read back block by block."""
+    from ..detect.calibrate import BlockMaxima, thresholds_from_maxima, uncalibrated_block
+
+    start = wu.end_index if wu.end_index < n - 10 else 0
+    block = uncalibrated_block(n - start, fs)
+    bms = {d: BlockMaxima(start, block) for d in DETECTORS}
+    for k0, a in spill.read_chunks(("r", "loading", "r_rms", "v_rms")):
+        if k0 + a["r"].shape[0] <= start:
+            continue
+        bms["adaptive"].update(k0, a["r_rms"] - a["v_rms"])
+        bms["static_loading"].update(k0, a["loading"])
+        bms["static_baseline"].update(k0, np.abs(a["r"]))
+    cals = {d: thresholds_from_maxima(bm.finish(), bm.block) for d, bm in bms.items()}
+    return ({d: c.thresholds for d, c in cals.items()},
+            {d: c.margins for d, c in cals.items()})
+
+
+def uncalibrated_config(cfg: DetectorConfig, joints: tuple[str, ...],
+                        margins: dict[str, np.ndarray]) -> DetectorConfig:
+    """The config an uncalibrated run records: its calibration record says the thresholds
+    came from the log itself, by which rule and margins."""
+    from ..detect.calibrate import UNCALIBRATED_RULE
+
+    return dataclasses.replace(cfg, calibration=CalibrationRecord(
+        calibrated=False, margin_rule=UNCALIBRATED_RULE,
+        margins={d: {j: float(m) for j, m in zip(joints, ms, strict=True)}
+                 for d, ms in margins.items()}))
+
+
+class _Compare:
+    """Thresholds applied to the replay's steps, in order (module docstring): decisions
+    and ratios, the islands, the writers' chunks."""
+
+    def __init__(self, thr: dict[str, np.ndarray], cfg: DetectorConfig,
+                 on_chunk: Callable[[SignalsChunk], None] | None,
+                 joints: tuple[str, ...]) -> None:
+        self.thr, self.on_chunk, self.joints = thr, on_chunk, joints
+        self.islands = Islands(cfg.events.merge_gap_s)
+        self.pressing_at = BRIDGE_FRACTION * np.maximum(thr["static_loading"], 1e-12)
+
+    def update(self, st: ReplayStep) -> None:
+        k0, t = st.start, st.t
+        thr_ad, ratios, dec = compare_to_thresholds(self.thr, st.r_rms, st.v_rms, st.loading,
+                                                    np.abs(st.r))
+        any_d = np.asarray(dec["adaptive"].any(axis=1) | dec["static_loading"].any(axis=1)
+                           | dec["static_baseline"].any(axis=1))
+        pressing = np.any(st.loading >= self.pressing_at[None, :], axis=1)
+        self.islands.update(k0, t, any_d, pressing, {
+            "t": t, "r": st.r, "loading": st.loading, "qd": st.qd, "q_full": st.q_full,
+            **{f"d.{d}": dec[d] for d in DETECTORS}, **{f"x.{d}": ratios[d] for d in DETECTORS}})
+        if self.on_chunk is not None:
+            assert st.torque is not None and st.r_tilde is not None and st.v_dyn is not None
+            assert st.position is not None
+            self.on_chunk(SignalsChunk(self.joints, t, st.t_ns, {
+                "torque": st.torque, "residual": st.r, "filtered_residual": st.r_tilde,
+                "dynamic_threshold": st.v_dyn, "residual_rms": st.r_rms, "threshold": thr_ad,
+                "loading_statistic": st.loading}, dec, st.position, st.position_ref,
+                ratios=ratios, start=k0))
+
+
+def _events_and_incidents(islands: Islands, wu: Warmup, joints: tuple[str, ...],
+                          cfg: DetectorConfig, ctx: IncidentContext,
+                          ) -> tuple[list[Event], list[Incident]]:
+    """Every island's events (indices in the log, in timeline order) and incidents
+    (:func:`impactcli.contacts.build_incidents`), each island read from its files once."""
+    ev = cfg.events
+    events: list[Event] = []
+    incidents: list[Incident] = []
+    for isl in islands.done:
+        a = islands.arrays(isl)
+        local: list[Event] = []
+        for d in DETECTORS:
+            local += extract_events(d, a[f"d.{d}"], a[f"x.{d}"], a["r"], a["t"], joints,
+                                    wu.end_s, ev.merge_gap_s, ev.min_duration_s)
+        local.sort(key=lambda e: (e.t_start, DETECTORS.index(e.detector)))
+        incidents += build_incidents(ctx, local, a["t"], a["r"], a["loading"], a["d.adaptive"],
+                                     a["d.static_loading"], a["q_full"], a["qd"],
+                                     offset=isl.start, event_offset=len(events))
+        events += [dataclasses.replace(e, i_start=e.i_start + isl.start,
+                                       i_end=e.i_end + isl.start) for e in local]
+    return events, incidents

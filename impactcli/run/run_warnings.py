@@ -1,0 +1,152 @@
+"""The warnings of a run: each one's text in one place, and how a run gathers them.
+
+A run's warnings end up in its timeline (``warnings``), so their texts and their order are
+part of the output: :class:`CaughtWarnings` records them in the order raised, lets the
+replay move a stretch of them (a warning about the whole log, known only once the replay
+is over, goes before the replay's own), and gives them de-duplicated. Warnings of other
+categories are not ours to swallow: they are raised again.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from types import TracebackType
+from typing import Any
+
+import numpy as np
+
+from ..config import DetectorConfig
+from ..detect.calibrate import UNCALIBRATED_BLOCK_S, UNCALIBRATED_MARGIN, UNCALIBRATED_QUANTILE
+from ..detect.events import LONG_EVENT_S
+from ..detect.warmup import Warmup
+from ..errors import ImpactWarning
+from ..sampling import GAP_FACTOR
+from ..types import Event
+
+#: Events starting this long after a time gap are named in a warning [s].
+GAP_SETTLE_S = 0.5
+
+
+class CaughtWarnings:
+    """Every :class:`~impactcli.errors.ImpactWarning` raised inside the ``with`` block,
+    recorded in order (each raised, not filtered away); other warnings as the filters say.
+    """
+
+    def __init__(self) -> None:
+        self._cm = warnings.catch_warnings(record=True)
+        self.caught: list[warnings.WarningMessage] = []
+
+    def __enter__(self) -> CaughtWarnings:
+        got = self._cm.__enter__()
+        assert got is not None
+        self.caught = got
+        warnings.simplefilter("always", ImpactWarning)
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, err: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self._cm.__exit__(kind, err, tb)
+
+    def mark(self) -> int:
+        """Where the next warning will be recorded (for :meth:`cut`)."""
+        return len(self.caught)
+
+    def cut(self, mark: int) -> list[warnings.WarningMessage]:
+        """The warnings recorded since ``mark``, taken out (:meth:`paste` puts them back
+        later, after the warnings raised meanwhile)."""
+        out = self.caught[mark:]
+        del self.caught[mark:]
+        return out
+
+    def paste(self, cut: list[warnings.WarningMessage]) -> None:
+        """Put back what :meth:`cut` took out, after the warnings recorded since."""
+        self.caught.extend(cut)
+
+    def messages(self) -> tuple[str, ...]:
+        """The ImpactWarnings' texts, each once, in the order first raised."""
+        return tuple(dict.fromkeys(str(w.message) for w in self.caught
+                                   if issubclass(w.category, ImpactWarning)))
+
+    def raise_again(self, impact: bool = False) -> None:
+        """Raise the recorded warnings again, outside the block: the other categories
+        (``impact``: the ImpactWarnings too, every one, in order)."""
+        for w in self.caught:
+            if impact or not issubclass(w.category, ImpactWarning):
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+
+def warn_uncalibrated(where: str) -> None:
+    """The warning of a run whose thresholds come from the log itself."""
+    warnings.warn(
+        f"{where}: uncalibrated run — thresholds set from this log's own "
+        f"statistics ({UNCALIBRATED_MARGIN:g} × the {UNCALIBRATED_QUANTILE:g}-quantile of "
+        f"its {UNCALIBRATED_BLOCK_S:g} s maxima after warm-up): only contacts that stand "
+        "out well above its motion are found; calibrate on collision-free logs "
+        "(impactcli calibrate) for sensitivity and a replay the robot could have run",
+        ImpactWarning, stacklevel=3,
+    )
+
+
+def warn_gaps(where: str, lengths_s: np.ndarray, starts_s: np.ndarray) -> None:
+    """The time-gap warning: (G,) gap lengths [s] and the times of the samples before them."""
+    if not len(lengths_s):
+        return
+    k = int(np.argmax(lengths_s))
+    warnings.warn(
+        f"{where}: {len(lengths_s)} time gap(s) longer than {GAP_FACTOR:g} sample "
+        f"periods (longest {lengths_s[k] * 1e3:.4g} ms after {starts_s[k]:.3f} s, "
+        f"first after {starts_s[0]:.3f} s): the detectors assume uniform sampling, "
+        "so alarms just after a gap may be artefacts of it", ImpactWarning, stacklevel=3)
+
+
+def warn_measured_inputs(where: str) -> None:
+    """The warning of a replay whose threshold inputs come from the measured position."""
+    warnings.warn(f"{where}: no reference logged: threshold inputs from the measured "
+                  "position (no anticipation)", ImpactWarning, stacklevel=3)
+
+
+def warn_warmup(where: str, wu: Warmup, times_s: Sequence[float], joints: tuple[str, ...],
+                n_samples: int, duration_s: float, cfg: DetectorConfig) -> None:
+    """The warm-up warnings: it covers the whole log, or it reached its cap on some joints
+    (``times_s``: each joint's warm-up end [s])."""
+    if wu.end_index >= n_samples - 10:
+        warnings.warn(f"{where}: the warm-up covers the whole log "
+                      f"({duration_s:.1f} s)", ImpactWarning, stacklevel=3)
+        return
+    capped = [j for j, i, ts in zip(joints, wu.index, times_s, strict=True)
+              if i < n_samples and ts >= cfg.warmup.max_s - 1e-9]
+    if capped:
+        warnings.warn(
+            f"{where}: the warm-up reached its cap (warmup.max_s = "
+            f"{cfg.warmup.max_s:g} s) on joint(s) {', '.join(capped)}: the adaptive "
+            "filter's prediction error had not settled; alarms soon after it may be "
+            "artefacts", ImpactWarning, stacklevel=3)
+
+
+def warn_events_after_gaps(where: str, after_s: np.ndarray, events: Sequence[Event]) -> None:
+    """Warn naming the events that start within GAP_SETTLE_S after a time gap (``after_s``:
+    the times of the samples just after the gaps [s])."""
+    if not len(after_s) or not events:
+        return
+    near = [e for e in events
+            if np.any((e.t_start >= after_s - 1e-9) & (e.t_start <= after_s + GAP_SETTLE_S))]
+    if near:
+        listed = ", ".join(f"{e.detector} at {e.t_start:.3f} s" for e in near[:5])
+        more = f" and {len(near) - 5} more" if len(near) > 5 else ""
+        warnings.warn(f"{where}: {len(near)} event(s) start within "
+                      f"{GAP_SETTLE_S:g} s after a time gap ({listed}{more}): check them",
+                      ImpactWarning, stacklevel=3)
+
+
+def warn_long_events(where: str, events: Sequence[Any]) -> None:
+    """Warn about product events after warm-up lasting LONG_EVENT_S or more."""
+    long_ev = [e for e in events if not e.in_warmup and e.detector != "static_baseline"
+               and e.t_end - e.t_start >= LONG_EVENT_S]
+    if long_ev:
+        e = max(long_ev, key=lambda x: x.t_end - x.t_start)
+        warnings.warn(
+            f"{where}: {len(long_ev)} alarm(s) last {LONG_EVENT_S:g} s or more (the "
+            f"longest: {e.detector} {e.t_start:.1f}–{e.t_end:.1f} s): a lasting load, or a "
+            "model that no longer fits this log (an unknown payload, a changed robot)",
+            ImpactWarning, stacklevel=3)
