@@ -23,7 +23,6 @@ from impactcli.io.stream import scan_log
 from impactcli.outputs.report import assemble_report, render_log, report_json
 from impactcli.outputs.report.samples import ReportCollector
 from impactcli.outputs.svgplot import EnvelopeAccumulator, envelope
-from impactcli.scoring.sweep import signal_ratios
 from impactcli.stream import analyze_stream
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
@@ -38,24 +37,16 @@ def _report(result, labels, samples):
     return html, report_json(doc)
 
 
-def _with_ratios(col: ReportCollector, thresholds: dict[str, dict[str, float]]) -> Any:
-    """``col`` fed chunks that carry their ratios (as the run computes them)."""
+def _without_ratios(col: ReportCollector) -> Any:
+    """``col`` fed the run's chunks without their ratios (the collector rebuilds them)."""
     def feed(c: Any) -> None:
-        ratios = getattr(c, "ratios", None)
-        if ratios is None:
-            v_l = np.array([[thresholds[j]["vL"] for j in c.joints]])
-            v_0 = np.array([[thresholds[j]["v0"] for j in c.joints]])
-            ratios = signal_ratios(c.signals["residual_rms"], c.signals["threshold"],
-                                   c.signals["loading_statistic"], np.abs(c.signals["residual"]),
-                                   v_l, v_0)
-        col(SimpleNamespace(**{**vars(c), "ratios": ratios}))
+        col(SimpleNamespace(**{**vars(c), "ratios": {}}))
     return feed
 
 
-def _streamed(path: Path, cfg: Path, rows: int, plots: bool = True,
-              thresholds: dict[str, dict[str, float]] | None = None):
-    """(result, samples) of the replay in chunks of ``rows``; with ``thresholds`` the
-    chunks carry their ratios."""
+def _streamed(path: Path, cfg: Path, rows: int, plots: bool = True, ratios: bool = True):
+    """(result, samples) of the replay in chunks of ``rows``; the chunks carry their
+    ratios (as the run computes them) unless ``ratios`` is False."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         scan = scan_log(str(path))
@@ -64,7 +55,7 @@ def _streamed(path: Path, cfg: Path, rows: int, plots: bool = True,
         finally:
             if hasattr(scan, "close"):
                 scan.close()
-        feed = col if thresholds is None else _with_ratios(col, thresholds)
+        feed = col if ratios else _without_ratios(col)
         result = analyze_stream(str(path), config=load_config(cfg), read_options={},
                                 chunk_rows=rows, on_chunk=feed)
         return result, col.finish(result)
@@ -78,8 +69,8 @@ def _streamed(path: Path, cfg: Path, rows: int, plots: bool = True,
 def test_the_report_whatever_the_chunks(log: str, cfg: Path, rows: int) -> None:
     path = SAMPLES / "csv" / f"{log}.csv.gz"
     labels = read_labels(SAMPLES / "csv" / f"{log}.labels.json")
-    runs = [_streamed(path, cfg, CLI_ROWS), _streamed(path, cfg, rows)]
-    runs.append(_streamed(path, cfg, rows, thresholds=runs[0][0].thresholds))
+    runs = [_streamed(path, cfg, CLI_ROWS), _streamed(path, cfg, rows, ratios=False),
+            _streamed(path, cfg, rows)]
     try:
         assert runs[0][0].incidents and runs[0][1].col.groups[0][1] == runs[0][1].col.n
         assert not runs[1][1].col.has_ratios and runs[2][1].col.has_ratios
@@ -105,8 +96,9 @@ def test_the_sweeps_collector_keeps_only_the_ratios_and_sweeps_alike() -> None:
 
     path = SAMPLES / "csv" / "assist_impacts.csv.gz"
     labels = read_labels(SAMPLES / "csv" / "assist_impacts.labels.json")
-    full, lean = _streamed(path, ASSIST, 997), _streamed(path, ASSIST, 997, plots=False)
-    leaner = _streamed(path, ASSIST, 997, plots=False, thresholds=full[0].thresholds)
+    full = _streamed(path, ASSIST, 997)
+    lean = _streamed(path, ASSIST, 997, plots=False, ratios=False)
+    leaner = _streamed(path, ASSIST, 997, plots=False)
     try:
         assert not lean[1].col.env and full[1].col.env
         names = pq.ParquetFile(lean[1].col.spill.path).schema_arrow.names

@@ -86,7 +86,7 @@ class ReportCollector:
         m = t.shape[0]
         if m == 0:
             return
-        ratios = getattr(c, "ratios", None)
+        ratios = getattr(c, "ratios", None) or None  # {}: a chunk without them
         if self.joints is None:
             self.joints = tuple(c.joints)
             self.has_ratios = ratios is not None
