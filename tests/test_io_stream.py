@@ -1,6 +1,7 @@
-"""The streaming reader (impactcli.io.stream): for every chunk size the chunks are read_log's
-arrays bit for bit, the scan its source, warnings, clock, gaps and screen, and a bad file
-fails in the scan with read_log's message."""
+"""The one reader (impactcli.io.stream) on CSV: for every chunk size the chunks are the same
+arrays bit for bit (read_log collects them), the scan's clock, gaps and screens are those
+of the whole log's arrays, the repairs are warned once by the scan, and a bad file fails
+in the scan with one message naming the cell."""
 
 from __future__ import annotations
 
@@ -18,7 +19,8 @@ from impactcli.detect.screen import unusable_columns
 from impactcli.errors import ImpactWarning, LogFormatError
 from impactcli.io import read_log, stream, stream_cache, stream_csv, write_log
 from impactcli.io.inspect import time_gaps
-from impactcli.io.stream import OPTIONAL, LogScan, iter_chunks, scan_log
+from impactcli.io.stream import LogScan, iter_chunks, scan_log
+from impactcli.io.stream_layout import OPTIONAL
 from impactcli.types import JointSpec, RobotDescription
 
 CHUNKS = (1, 2, 7, 1000, 65536)
@@ -75,12 +77,11 @@ def _scan(path: Path, **opts: Any) -> tuple[LogScan, list[str]]:
     return scan, [str(x.message) for x in w if issubclass(x.category, ImpactWarning)]
 
 
-def _assert_same(path: Path, streamed: bool = True, chunks: tuple[int, ...] = CHUNKS,
-                 **opts: Any) -> LogScan:
-    """The invariant: scan + chunks == read_log, for every chunk size."""
+def _assert_same(path: Path, chunks: tuple[int, ...] = CHUNKS, **opts: Any) -> LogScan:
+    """The invariants: the chunks are the same arrays for every chunk size, the scan's
+    clock, gaps and screens those of the whole log's arrays, its warnings read_log's."""
     log, warned = _read(path, **opts)
     scan, scan_warned = _scan(path, **opts)
-    assert scan.streamed is streamed
     assert scan_warned == warned
     assert scan.log.source == log.source
     assert scan.joint_names == log.joint_names
@@ -117,16 +118,13 @@ def _assert_same(path: Path, streamed: bool = True, chunks: tuple[int, ...] = CH
     return scan
 
 
-def _error(path: Path, streamed: bool = True, **opts: Any) -> str:
-    """read_log's error, which the scan raises too (by itself when ``streamed``)."""
+def _error(path: Path, **opts: Any) -> str:
+    """read_log's error, which the scan raises (nothing is read before it)."""
     with pytest.raises(LogFormatError) as whole, warnings.catch_warnings():
         warnings.simplefilter("ignore", ImpactWarning)
         read_log(path, **opts)
-    with pytest.raises(LogFormatError) as scanned, warnings.catch_warnings(), \
-            pytest.MonkeyPatch.context() as mp:
+    with pytest.raises(LogFormatError) as scanned, warnings.catch_warnings():
         warnings.simplefilter("ignore", ImpactWarning)
-        if streamed:
-            mp.setattr(stream, "_scan_whole", _no_fallback)
         scan_log(path, **opts)
     assert str(scanned.value) == str(whole.value)
     return str(whole.value)
@@ -281,15 +279,10 @@ def test_a_channel_mapped_csv_with_current(tmp_path: Path) -> None:
 
 
 # -------------------------------------------------------------------------- errors
-def _no_fallback(*args: Any) -> None:
-    raise AssertionError("read whole")
-
-
-def _bad(tmp_path: Path, edit: Callable[[dict[str, list[str]]], None],
-         streamed: bool = True) -> str:
+def _bad(tmp_path: Path, edit: Callable[[dict[str, list[str]]], None]) -> str:
     cols = _table()
     edit(cols)
-    return _error(_write(tmp_path / "bad.csv", cols), streamed)
+    return _error(_write(tmp_path / "bad.csv", cols))
 
 
 def _set(col: str, i: int, v: str) -> Callable[[dict[str, list[str]]], None]:
@@ -305,8 +298,8 @@ def test_errors_name_the_cell_as_read_log_does(tmp_path: Path) -> None:
     assert "a run of 6 non-finite" in msg
     assert "at the start" in _bad(tmp_path, _set("j3.position_ref", 0, ""))
     assert "at the end" in _bad(tmp_path, _set("j3.position_ref", N - 1, "nan"))
-    assert "non-numeric" in _bad(tmp_path, _set("j1.position", 2999, "abc"), streamed=False)
-    assert "not a finite number" in _bad(tmp_path, _set("time", 1500, "nan"), streamed=False)
+    assert "non-numeric" in _bad(tmp_path, _set("j1.position", 2999, "abc"))
+    assert "not a finite number" in _bad(tmp_path, _set("time", 1500, "nan"))
 
 
 def test_the_first_error_is_the_whole_readers(tmp_path: Path) -> None:
@@ -341,7 +334,7 @@ def test_the_scan_warns_once_and_checks_its_options(tmp_path: Path) -> None:
         next(iter_chunks(path, scan, 10, time_unit="s"))
 
 
-# --------------------------------------------------------------- the whole-file path
+# ------------------------------------------------------------------------- variants
 def test_iso_8601_time_streams(tmp_path: Path) -> None:
     rng = np.random.default_rng(9)
     cols = _table()
@@ -354,17 +347,40 @@ def test_iso_8601_time_streams(tmp_path: Path) -> None:
             c.insert(1001, c[1000])
         scan = _assert_same(_write(tmp_path / "iso.csv", cols), chunks=(7, 1000))
         assert scan.t0_ns > 10**18
-    assert "does not apply" in _error(tmp_path / "iso.csv", streamed=False, time_unit="ms")
+    assert "does not apply" in _error(tmp_path / "iso.csv", time_unit="ms")
     cols["time"][2500] = "not a time"
-    assert "is not an ISO-8601 time" in _error(_write(tmp_path / "bad.csv", cols),
-                                               streamed=False)
+    assert "is not an ISO-8601 time" in _error(_write(tmp_path / "bad.csv", cols))
 
 
-def test_repair_order_falls_back_to_read_log(tmp_path: Path) -> None:
+def test_repair_order_keeps_the_longest_increasing_run(tmp_path: Path) -> None:
+    """Rows written late, a repeated stamp and duplicates across blocks: the rows kept are
+    the longest increasing run of the stamps (repair.longest_increasing), dropped rows are
+    counted in one repair, and the other repairs run over the rows kept."""
+    from impactcli.io.repair import longest_increasing
+
+    rng = np.random.default_rng(3)
     cols = _table()
+    _punch(cols, rng, "", 10)
+    t = cols["time"][:]
     cols["time"][100], cols["time"][101] = cols["time"][101], cols["time"][100]
-    _assert_same(_write(tmp_path / "late.csv", cols), streamed=False, chunks=(7,),
-                 repair_order=True)
+    cols["time"][2500] = cols["time"][1200]  # far out of order
+    cols["time"][1700] = cols["time"][1699]  # a repeated stamp with other values
+    for c in cols.values():  # an exact duplicate
+        c.insert(901, c[900])
+    path = _write(tmp_path / "late.csv", cols)
+    scan = _assert_same(path, chunks=(7, 1000), repair_order=True)
+    stamps = np.array([int(v.replace(".", "")) for v in cols["time"]])
+    dedup = np.delete(stamps, 901)
+    kept = dedup[longest_increasing(dedup)]
+    assert np.array_equal(np.concatenate(
+        [c.t_ns for c in iter_chunks(path, scan, 1000, repair_order=True)]), kept)
+    assert t and scan.n_samples == kept.size == N - 3
+    assert scan.source.repairs[:2] == (
+        f"{path}: dropped 1 exact duplicate sample(s) (first at row 902 (line 903))",
+        f"{path}: dropped 3 row(s) (1 out of time order, 2 with a repeated stamp; first at "
+        f"row 101 (line 102)), keeping the longest increasing run of stamps ({N - 3} rows; "
+        "--repair-order)")
+    assert len([r for r in scan.source.repairs if "interpolated" in r]) == 8
 
 
 def test_a_decimal_comma_and_a_byte_order_mark_stream(tmp_path: Path) -> None:
@@ -400,7 +416,7 @@ def test_the_fast_decimal_time_is_decimal_text_to_ns() -> None:
     import pyarrow.compute as pc
 
     from impactcli.io.csv import decimal_text_to_ns
-    from impactcli.io.stream import _decimal_ns
+    from impactcli.io.stream_csv import _decimal_ns
 
     rng = np.random.default_rng(4)
     ns = rng.integers(-10**18, 9 * 10**18, 2000)
@@ -472,11 +488,12 @@ def test_the_passes_after_the_scan_read_its_cache_or_the_file(
     elif cached == "no temporary folder":
         monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "missing"))
     scan = _assert_same(_inf_controller(tmp_path))
-    assert (scan._pass is not None and scan._pass.cache is not None) is (cached == "yes")
+    ps = scan.reader._pass  # type: ignore[union-attr]
+    assert (ps is not None and ps.cache is not None) is (cached == "yes")
     assert len(_scan_dirs(_tmp_root)) == int(cached == "yes")
     scan.close()
     assert not _scan_dirs(_tmp_root)
-    assert scan._pass is not None and scan._pass.cache is None
+    assert ps is not None and ps.cache is None
 
 
 def test_the_cache_is_deleted_with_the_scan_and_on_errors(

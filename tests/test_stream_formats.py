@@ -16,9 +16,9 @@ import pytest
 
 from impactcli.errors import ChannelMapError, ImpactWarning, LogFormatError
 from impactcli.io import read_log, stream_npz, write_log
-from impactcli.io.mcap_log import ros2_writer
 from impactcli.io.mcap_ros2 import encode_jointstates
 from impactcli.io.stream import iter_chunks, scan_log
+from impactcli.io.write import ros2_writer
 from impactcli.types import LogSource, RobotLog
 
 from .test_io_stream import _assert_same, _error
@@ -129,7 +129,7 @@ def test_header_stamps_against_log_times(tmp_path: Path) -> None:
     msgs = _topics(t, v, log_t=np.sort(log_t), header=hdr)
     scan = _assert_same(_write_ros2(tmp_path / "z.mcap", msgs), chunks=(7, 1000))
     assert scan.source.time_source == "log"
-    _assert_same(tmp_path / "h.mcap", streamed=False, chunks=(1000,), time_source="log")
+    _assert_same(tmp_path / "h.mcap", chunks=(1000,), time_source="log")
 
 
 def test_json_samples_with_repairs(tmp_path: Path) -> None:
@@ -196,7 +196,7 @@ def test_what_is_read_whole(tmp_path: Path) -> None:
     swapped = msgs[:]  # two state messages out of stamp order: the whole reader sorts
     i, k = swapped.index(state[100]), swapped.index(state[101])
     swapped[i], swapped[k] = swapped[k], swapped[i]
-    _assert_same(_write_ros2(tmp_path / "s.mcap", swapped), streamed=False, chunks=(1000,))
+    _assert_same(_write_ros2(tmp_path / "s.mcap", swapped), chunks=(1000,))
 
 
 def test_a_look_ahead_beyond_the_bound_reads_whole(tmp_path: Path,
@@ -206,7 +206,7 @@ def test_a_look_ahead_beyond_the_bound_reads_whole(tmp_path: Path,
     t, v = _signals()
     path = _write_ros2(tmp_path / "late.mcap", _topics(t, v, ref_delay=700))
     monkeypatch.setattr(stream_msgs, "MAX_LOOKAHEAD", 500)
-    _assert_same(path, streamed=False, chunks=(1000,))
+    _assert_same(path, chunks=(1000,))
     monkeypatch.setattr(stream_msgs, "MAX_LOOKAHEAD", 800)
     _assert_same(path, chunks=(1000,))
 
@@ -214,10 +214,10 @@ def test_a_look_ahead_beyond_the_bound_reads_whole(tmp_path: Path,
 def test_bad_message_logs_fail_as_read_log_does(tmp_path: Path) -> None:
     bad = tmp_path / "bad.mcap"
     bad.write_bytes(b"not an mcap at all")
-    assert "bad magic" in _error(bad, streamed=False)
+    assert "bad magic" in _error(bad)
     t, v = _signals()
     path = _write_ros2(tmp_path / "r.mcap", _topics(t, v))
-    assert "not found" in _error(path, streamed=False, topic="/nope")
+    assert "not found" in _error(path, topic="/nope")
     t2, v2 = _signals()
     v2["torque"][300:310, 1] = np.nan  # a run of 10: an error, named as read_log names it
     path = _write_ros2(tmp_path / "run.mcap", _topics(t2, v2))
@@ -315,7 +315,7 @@ def _log(n: int = N) -> RobotLog:
 
 
 def test_bags(tmp_path: Path) -> None:
-    from impactcli.io.bags import write_rosbag2
+    from impactcli.io.write import write_rosbag2
 
     log = _log()
     for name in ("a.db3", "a.bag"):
@@ -367,7 +367,7 @@ def test_npz_errors_are_read_logs(tmp_path: Path) -> None:
     cmap = _npz_map(tmp_path)
     np.savez(tmp_path / "short.npz", t=t * 1e-9, q=v["position"][:-1], tm=v["torque_model"],
              **{f"tau_{j}": v["torque"][:, k] for k, j in enumerate(JOINTS)})
-    assert "mismatched channel lengths" in _error(tmp_path / "short.npz", streamed=False,
+    assert "mismatched channel lengths" in _error(tmp_path / "short.npz",
                                                   channel_map=cmap)
     np.savez(tmp_path / "ms.npz", t=t * 1e-6, q=v["position"], tm=v["torque_model"],
              **{f"tau_{j}": v["torque"][:, k] for k, j in enumerate(JOINTS)})
@@ -416,12 +416,13 @@ def test_urls_stream_a_local_copy(tmp_path: Path) -> None:
             warnings.simplefilter("ignore", ImpactWarning)
             log = read_log(u)
             s = scan_log(u)
-        assert s.streamed and s.source.path == u == log.source.path
+        assert s.source.path == u == log.source.path
         assert s.source.sha256 == scan.source.sha256
         got = list(iter_chunks(u, s, 333))
         assert np.array_equal(np.concatenate([c.torque for c in got]), log.torque)
-        assert s._pass is not None
-        local = s._pass.ctx.path
+        ps = s.reader._pass  # type: ignore[union-attr]
+        assert ps is not None
+        local = ps.layout.path
         assert local.exists()
         s.close()
         assert local.exists() == (u == url)  # a download is deleted with the scan
@@ -454,4 +455,4 @@ def test_a_full_disk_reads_the_file_again(tmp_path: Path, monkeypatch: pytest.Mo
     np.savez_compressed(tmp_path / "a.npz", **arrays)
     for path, opts in ((mcap, {}), (tmp_path / "a.npz", {"channel_map": _npz_map(tmp_path)})):
         scan = _assert_same(path, chunks=(7, 1000), **opts)
-        assert scan._pass is not None and scan._pass.cache is None
+        assert scan.reader._pass.cache is None  # type: ignore[union-attr]

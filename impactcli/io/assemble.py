@@ -22,10 +22,10 @@ import contextvars
 import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
-from .._fs import sha256_file
 from ..errors import ImpactWarning, LogFormatError
 from ..types import CONTROLLER_CHANNELS, LogSource, RobotDescription, RobotLog
 
@@ -56,17 +56,6 @@ class JointChannels:
     current_scale: np.ndarray | None = None
     ignored: list[str] = field(default_factory=list)
     repairs: list[str] = field(default_factory=list)
-
-
-def _sha256(path: str) -> str:
-    """sha256 of a log file, or of a rosbag2 folder (its files' sha256s in name order)."""
-    from pathlib import Path
-
-    if Path(path).is_dir():
-        from .bags import folder_sha256
-
-        return folder_sha256(Path(path))
-    return sha256_file(path)
 
 
 def check_torque_source(value: str | None, where: str) -> None:
@@ -319,7 +308,7 @@ def build_log(
         del arrays[s]
     source = LogSource(
         path=path,
-        sha256=sha256 if sha256 is not None else _sha256(path),
+        sha256=sha256 or "",
         format=fmt,
         torque_source=src,  # type: ignore[arg-type]
         time_source=time_source,  # type: ignore[arg-type]
@@ -353,3 +342,40 @@ def empty_joint_reasons(joints: tuple[str, ...], position_finite: np.ndarray,
                 out.append((j, f"its {what} column holds no finite value (not logged?)"))
                 break
     return out
+
+
+def channels_from_columns(
+    cmap: Any,
+    t_ns: np.ndarray,
+    cols: dict[str, np.ndarray],
+    keys: dict[tuple[str, int], str],
+    ignored: list[str],
+    repairs: list[str],
+) -> JointChannels:
+    """Apply scale/offset and stack per-joint columns into (N, J) signals."""
+    n, jn = t_ns.shape[0], len(cmap.joints)
+    signals: dict[str, np.ndarray] = {}
+    missing: dict[str, list[str]] = {}
+    current_scale = np.full(jn, np.nan)
+    for sig, per in cmap.signals.items():
+        m = np.full((n, jn), np.nan)
+        for j, ref in enumerate(per):
+            if ref is None:
+                missing.setdefault(sig, []).append(cmap.joints[j])
+                continue
+            v = cols[keys[(sig, j)]]
+            if sig == "current":
+                if ref.scale is not None:
+                    current_scale[j] = ref.scale
+                m[:, j] = v  # the current as logged; its scale converts it to torque
+                continue
+            if ref.scale is not None:
+                v = v * ref.scale
+            if ref.offset:
+                v = v + ref.offset
+            m[:, j] = v
+        signals[sig] = m
+    return JointChannels(
+        t_ns=t_ns, joints=cmap.joints, signals=signals, missing=missing,
+        current_scale=current_scale, ignored=ignored, repairs=repairs,
+    )

@@ -23,7 +23,6 @@ shortest round-trip (repr) precision — reading the file back gives the same Ro
 from __future__ import annotations
 
 import gzip
-import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,7 +31,6 @@ from typing import Any
 import numpy as np
 
 from ..errors import ChannelMapError, LogFormatError
-from ..types import RobotLog
 from .assemble import JointChannels
 from .channel_map import SIGNALS, TIME_UNITS, ChannelMap, ChannelRef, TimeSpec, require_time
 from .repair import DROPPABLE_SIGNALS, GIVE_UNIT, check_time_rate, repair_samples, unit_hint
@@ -552,95 +550,4 @@ def _iso_to_ns(arr: Any, where: str, what: str, label: Any) -> np.ndarray:
     return np.asarray(ns.to_numpy(), dtype=np.int64)
 
 
-def channels_from_columns(
-    cmap: ChannelMap,
-    t_ns: np.ndarray,
-    cols: dict[str, np.ndarray],
-    keys: dict[tuple[str, int], str],
-    ignored: list[str],
-    repairs: list[str],
-) -> JointChannels:
-    """Apply scale/offset and stack per-joint columns into (N, J) signals."""
-    n, jn = t_ns.shape[0], len(cmap.joints)
-    signals: dict[str, np.ndarray] = {}
-    missing: dict[str, list[str]] = {}
-    current_scale = np.full(jn, np.nan)
-    for sig, per in cmap.signals.items():
-        m = np.full((n, jn), np.nan)
-        for j, ref in enumerate(per):
-            if ref is None:
-                missing.setdefault(sig, []).append(cmap.joints[j])
-                continue
-            v = cols[keys[(sig, j)]]
-            if sig == "current":
-                if ref.scale is not None:
-                    current_scale[j] = ref.scale
-                m[:, j] = v  # the current as logged; its scale converts it to torque
-                continue
-            if ref.scale is not None:
-                v = v * ref.scale
-            if ref.offset:
-                v = v + ref.offset
-            m[:, j] = v
-        signals[sig] = m
-    return JointChannels(
-        t_ns=t_ns, joints=cmap.joints, signals=signals, missing=missing,
-        current_scale=current_scale, ignored=ignored, repairs=repairs,
-    )
-
-
-def _ns_to_decimal(t_ns: np.ndarray) -> Any:
-    """int64 ns → pyarrow strings of seconds with 9 decimals (exact), e.g. ``-0.500000000``."""
-    import pyarrow as pa
-    import pyarrow.compute as pc
-
-    t = np.asarray(t_ns, dtype=np.int64)
-    sec, frac = np.divmod(np.abs(t), 10**9)
-    txt = pc.binary_join_element_wise(
-        pc.cast(pa.array(sec), pa.string()),
-        pc.utf8_lpad(pc.cast(pa.array(frac), pa.string()), 9, "0"),
-        ".",
-    )
-    if np.any(t < 0):
-        txt = pc.if_else(pa.array(t < 0), pc.binary_join_element_wise("-", txt, ""), txt)
-    return txt
-
-
-def canonical_columns(log: RobotLog) -> list[tuple[str, np.ndarray]]:
-    """The canonical CSV's value columns: (name, (N,) values) in file order."""
-    out: list[tuple[str, np.ndarray]] = []
-    for j, name in enumerate(log.joint_names):
-        for sig in SIGNALS:
-            arr = getattr(log, sig)
-            if arr is not None and log.has_channel(sig)[j]:
-                out.append((f"{name}.{sig}", arr[:, j]))
-    return out
-
-
-def write_csv(log: RobotLog, path: str | os.PathLike[str]) -> None:
-    """Write ``log`` as canonical wide CSV (``.csv``, or gzip for ``.csv.gz``), atomically.
-
-    ``time`` holds seconds on the log's own clock with 9 decimals (exact ns); values are
-    written in shortest round-trip precision, so :func:`read_log` returns the same arrays.
-    """
-    import pyarrow as pa
-    import pyarrow.csv as pacsv
-
-    from .._fs import atomic_output
-
-    cols = canonical_columns(log)
-    table = pa.table(
-        {"time": _ns_to_decimal(np.asarray(log.t_ns))}
-        | {name: pa.array(np.ascontiguousarray(v)) for name, v in cols}
-    )
-    head = ",".join(["time"] + [c for c, _ in cols]) + "\n"
-    opts = pacsv.WriteOptions(include_header=False, quoting_style="none")
-    p = Path(path)
-    with atomic_output(p, "wb") as f:
-        if _is_gz(p):
-            with gzip.GzipFile(fileobj=f, mode="wb", compresslevel=1, mtime=0) as gz:
-                gz.write(head.encode())
-                pacsv.write_csv(table, gz, opts)
-        else:
-            f.write(head.encode())
-            pacsv.write_csv(table, f, opts)
+from .assemble import channels_from_columns  # noqa: E402  (stage 1: moved)

@@ -29,8 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import LogFormatError
+from ._whole import NotStreamable as _NotStreamable
 from .mcap_scan import MAGIC, OP_CHUNK, OP_DATA_END, OP_FOOTER, Batch, McapScan, UnsupportedMcap
-from .stream_repair import _NotStreamable
 
 #: Bag messages per block.
 BAG_BLOCK = 8192
@@ -89,6 +89,9 @@ class McapBlocks:
         col = _Collector(scan)
         try:
             with open(self.path, "rb") as f:
+                f.seek(0, 2)
+                size = f.tell()
+                f.seek(0)
                 if f.read(8) != MAGIC:
                     raise _NotStreamable("not an MCAP file")
                 loose = bytearray()
@@ -98,6 +101,8 @@ class McapBlocks:
                     body = b""
                     if len(head) == 9:
                         op, ln = struct.unpack("<BQ", head)
+                        if f.tell() + ln > size:
+                            break  # a record running past the end: truncated
                         body = f.read(ln)
                     if len(head) < 9 or len(body) < ln:
                         break  # the records stop early: truncated

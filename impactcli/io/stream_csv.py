@@ -23,8 +23,9 @@ from typing import Any
 import numpy as np
 
 from ..errors import LogFormatError
-from .stream_layout import MappedLayout, _Raw, plan_of
-from .stream_repair import _NotStreamable
+from ._whole import NotStreamable as _NotStreamable
+from .stream_layout import MappedLayout, plan_of
+from .stream_layout import RawRows as _Raw
 
 #: Bytes of CSV text parsed at a time (one range, one record batch: a 7-joint log's row is
 #: ~430 bytes, ~2400 rows a range; :mod:`impactcli.io.stream_parse` parses up to 4 ahead).
@@ -91,6 +92,10 @@ class CsvStreamLayout(MappedLayout):
 
         return rate_message(rate_hz, self.where, self.tcol,
                             None if self.ts.iso else self.lay.tspec.unit)
+
+    def pass_again(self) -> bool:
+        self.check_pass()
+        return False
 
     def check_pass(self) -> None:
         ts = self.ts

@@ -44,11 +44,12 @@ from typing import Any
 import numpy as np
 
 from ..errors import ImpactError
+from ._whole import NotStreamable as _NotStreamable
 from .assemble import JointChannels
 from .messages import joint_signals
 from .stream_blocks import BagBlocks, McapBlocks
-from .stream_layout import StreamLayout, _Raw
-from .stream_repair import _NotStreamable
+from .stream_layout import RawRows as _Raw
+from .stream_layout import StreamLayout
 
 #: Messages of one topic held back at most while the others catch up in the file (the
 #: state's while a held topic's later messages are awaited, or a held topic's).

@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import ImpactError
+from ._whole import NotStreamable as _NotStreamable
 from .stream_msgs import MessageLayout, _Part, _TopicStats
-from .stream_repair import _NotStreamable
 
 
 def decide(lay: MessageLayout, stats: dict[str, _TopicStats], fstats: dict[str, _TopicStats],

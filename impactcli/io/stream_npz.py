@@ -25,8 +25,9 @@ from typing import IO, Any
 
 import numpy as np
 
-from .stream_layout import MappedLayout, _Raw, plan_of
-from .stream_repair import _NotStreamable
+from ._whole import NotStreamable as _NotStreamable
+from .stream_layout import MappedLayout, plan_of
+from .stream_layout import RawRows as _Raw
 
 #: Rows read from each array at a time.
 BLOCK_ROWS = 65_536

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..detect.screen import FEW_VALUES, FLAT_NM, SMALL_FRACTION
 
-__all__ = ["ColumnScreen"]
+__all__ = ["ColumnScreen", "ScreenAccumulator"]
 
 
 @dataclass(frozen=True)
@@ -56,19 +56,20 @@ class ColumnScreen:
                 out.append(None)
         return out
 
+    @staticmethod
+    def of(values: np.ndarray) -> ColumnScreen:
+        """The screen of a whole (N, J) channel."""
+        acc = ScreenAccumulator(values.shape[1])
+        acc.add(values)
+        return acc.result()
+
     def select(self, keep: list[int]) -> ColumnScreen:
         """The columns ``keep``."""
         return ColumnScreen(self.logged[keep], self.ptp[keep], self.first[keep],
                             self.n_distinct[keep])
 
 
-def _screen_of(values: np.ndarray) -> ColumnScreen:
-    acc = _ScreenAcc(values.shape[1])
-    acc.add(values)
-    return acc.result()
-
-
-class _ScreenAcc:
+class ScreenAccumulator:
     """Accumulates :class:`ColumnScreen` over chunks of (n, J) values."""
 
     def __init__(self, n_cols: int) -> None:

@@ -53,7 +53,7 @@ if mode == "stream":
     n = 0
     for c in iter_chunks(path, scan, chunk_rows, **opts):
         n += c.n_samples
-    out["streamed"] = scan.streamed
+    out["streamed"] = getattr(scan, "streamed", True)
     scan.close()
 else:
     from impactcli.io import read_log
@@ -81,8 +81,8 @@ def _block(a: int, b: int) -> tuple[np.ndarray, dict[str, np.ndarray]]:
 
 def write_mcap(n: int, path: Path) -> None:
     """The ROS 2 MCAP log of ``n`` samples (module docstring)."""
-    from impactcli.io.mcap_log import ros2_writer
     from impactcli.io.mcap_ros2 import encode_jointstates
+    from impactcli.io.write import ros2_writer
 
     with open(path, "wb") as f:
         w, sid = ros2_writer(f)
@@ -107,11 +107,11 @@ def write_rosbag2(n: int, path: Path) -> None:
     by block."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
-    from impactcli.io.bags import _ros2_store
     from impactcli.io.mcap_ros2 import JOINT_STATE, encode_jointstates
+    from impactcli.io.write import ros2_typestore
 
     with Writer(path, version=9, storage_plugin=StoragePlugin.SQLITE3) as w:
-        store = _ros2_store()
+        store = ros2_typestore()
         ref = w.add_connection("/joint_states_ref", JOINT_STATE, typestore=store)
         state = w.add_connection("/joint_states", JOINT_STATE, typestore=store)
         for a in range(0, n, BLOCK_ROWS):

@@ -40,7 +40,7 @@ if mode == "stream":
     n = 0
     for c in iter_chunks(path, scan, chunk_rows):
         n += c.n_samples
-    out["streamed"] = scan.streamed
+    out["streamed"] = getattr(scan, "streamed", True)
 else:
     from impactcli.io import read_log
     n = read_log(path).n_samples
@@ -57,7 +57,7 @@ def write_csv(minutes: float, path: Path, seed: int = 1) -> int:
     import pyarrow as pa
     import pyarrow.csv as pacsv
 
-    from impactcli.io.csv import _ns_to_decimal
+    from impactcli.io.write import ns_to_decimal_text
 
     n = int(minutes * 60 * RATE_HZ)
     rng = np.random.default_rng(seed)
@@ -78,7 +78,7 @@ def write_csv(minutes: float, path: Path, seed: int = 1) -> int:
             qdd = -(amp[:, None, :] * (2 * np.pi * freq[:, None, :]) ** 2
                     * np.sin(ph)).sum(axis=0)
             tau = 20 * qdd + 5 * np.sin(q) + 2 * qd + rng.normal(0, 0.05, q.shape)
-            cols: dict[str, object] = {"time": _ns_to_decimal(k * (10**9 // RATE_HZ))}
+            cols: dict[str, object] = {"time": ns_to_decimal_text(k * (10**9 // RATE_HZ))}
             for j in range(JOINTS):
                 for s, v, d in (("position", q + rng.normal(0, 1e-5, q.shape), 9),
                                 ("torque", tau, 8), ("position_ref", q, 9),
