@@ -17,7 +17,9 @@ import pytest
 
 from impactcli.detect.screen import unusable_columns
 from impactcli.errors import ImpactWarning, LogFormatError
-from impactcli.io import read_log, stream, stream_cache, stream_csv, write_log
+from impactcli.io import csv as csv_reader
+from impactcli.io import read_log, stream_cache, write_log
+from impactcli.io import scan as scan_module
 from impactcli.io.inspect import time_gaps
 from impactcli.io.stream import LogScan, iter_chunks, scan_log
 from impactcli.io.stream_layout import OPTIONAL
@@ -30,7 +32,7 @@ N = 3000
 @pytest.fixture(autouse=True)
 def _small_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
     """Many record batches per file: runs and duplicates fall across their boundaries."""
-    monkeypatch.setattr(stream_csv, "BLOCK_SIZE", 4096)
+    monkeypatch.setattr(csv_reader, "BLOCK_SIZE", 4096)
 
 
 def _table(n: int = N, seed: int = 0, epoch: bool = False) -> dict[str, list[str]]:
@@ -142,12 +144,12 @@ def test_epoch_times_and_the_default_block_size(tmp_path: Path,
                                                 monkeypatch: pytest.MonkeyPatch) -> None:
     path = _write(tmp_path / "epoch.csv", _table(epoch=True))
     _assert_same(path, chunks=(7, 65536))
-    monkeypatch.setattr(stream_csv, "BLOCK_SIZE", 1 << 24)
+    monkeypatch.setattr(csv_reader, "BLOCK_SIZE", 1 << 24)
     _assert_same(path, chunks=(1000,))
 
 
 def test_the_shipped_sample_logs(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(stream_csv, "BLOCK_SIZE", 1 << 16)
+    monkeypatch.setattr(csv_reader, "BLOCK_SIZE", 1 << 16)
     root = Path(__file__).resolve().parents[1] / "sample_logs" / "csv"
     for name in ("assist_impacts", "heavy_free_p2p"):
         _assert_same(root / f"{name}.csv.gz", chunks=(1000, 65536))
@@ -415,8 +417,8 @@ def test_the_fast_decimal_time_is_decimal_text_to_ns() -> None:
     import pyarrow as pa
     import pyarrow.compute as pc
 
-    from impactcli.io.csv import decimal_text_to_ns
-    from impactcli.io.stream_csv import _decimal_ns
+    from impactcli.io.csv_layout import decimal_text_to_ns
+    from impactcli.io.csv_layout import decimal_to_ns as _decimal_ns
 
     rng = np.random.default_rng(4)
     ns = rng.integers(-10**18, 9 * 10**18, 2000)
@@ -440,8 +442,8 @@ def test_a_rate_that_drops_after_the_start_takes_a_second_gap_pass(
     t_ns = np.cumsum(steps)
     cols["time"] = [f"{v // 10**9}.{v % 10**9:09d}" for v in t_ns.tolist()]
     calls = []
-    real = stream._gap_pass
-    monkeypatch.setattr(stream, "_gap_pass", lambda *a: calls.append(1) or real(*a))
+    real = scan_module._gap_pass
+    monkeypatch.setattr(scan_module, "_gap_pass", lambda *a: calls.append(1) or real(*a))
     scan = _assert_same(_write(tmp_path / "drift.csv", cols), chunks=(1000,))
     assert calls and scan.gaps.size > 100
 
@@ -524,7 +526,7 @@ def test_the_cache_is_deleted_with_the_scan_and_on_errors(
 
 @pytest.mark.parametrize("end", ["\r\n", "\r"])
 def test_line_ends_across_the_parsed_ranges(tmp_path: Path, end: str) -> None:
-    """The text is cut into ranges at line ends (io/stream_parse.py, 4 KiB here): with
+    """The text is cut into ranges at line ends (io/csv.py, 4 KiB here): with
     CRLF and CR-only lines the rows are read_log's."""
     cols = _table()
     path = _write(tmp_path / "ends.csv", cols)
@@ -539,8 +541,8 @@ def test_parsed_ranges_are_the_whole_files_rows(tmp_path: Path, block: int) -> N
     import pyarrow as pa
     import pyarrow.csv as pacsv
 
-    from impactcli.io.csv import csv_layout
-    from impactcli.io.stream_parse import parsed_batches
+    from impactcli.io.csv import parsed_ranges
+    from impactcli.io.csv_layout import csv_layout
 
     cols = {k: v[:300] for k, v in _table().items()}
     path = _write(tmp_path / "crlf.csv", cols)
@@ -548,5 +550,6 @@ def test_parsed_ranges_are_the_whole_files_rows(tmp_path: Path, block: int) -> N
     lay = csv_layout(path, None)
     names = list(cols)
     copts = pacsv.ConvertOptions(column_types={"time": pa.string()})
-    got = pa.Table.from_batches(list(parsed_batches(lay, names, copts, block)))
+    tables = parsed_ranges(lay, names, block, lambda parse, first: parse(copts))
+    got = pa.concat_tables([t for t in tables if t.num_rows])
     assert got.equals(pacsv.read_csv(path, convert_options=copts))

@@ -117,14 +117,15 @@ def _joint_channels_hint(log: Any) -> str:
 def _csv_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Channel:
     """A CSV column, read by the CSV reader with the log's own time column."""
     from ..io.channel_map import ChannelMap, ChannelRef, load_channel_map
-    from ..io.csv import canonical_map, read_csv_channels
+    from ..io.csv_layout import canonical_map, separator
+    from ..io.stream import read_columns
 
     where = str(path)
     cmap = load_channel_map(ropts["channel_map"]) if ropts.get("channel_map") else None
     header = True if cmap is None else cmap.header
     skip = 0 if cmap is None else cmap.skip_rows
     line = _header_line(path, skip)
-    delim = _separator(line) if cmap is None else cmap.delimiter
+    delim = separator(line) if cmap is None else cmap.delimiter
     names = ([c.strip().strip('"') for c in line.rstrip("\r\n").split(delim)] if header
              else [str(i) for i in range(len(line.split(delim)))])
     source: str | int
@@ -155,11 +156,11 @@ def _csv_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Chan
     with warnings.catch_warnings():
         # the log's own repairs were warned about when it was read
         warnings.simplefilter("ignore", ImpactWarning)
-        with _repairing_order(bool(ropts.get("repair_order"))):
-            ch, _fmt = read_csv_channels(path, one)
+        t_ns, values = read_columns(path, {"channel_map": one,
+                                           "repair_order": bool(ropts.get("repair_order"))})
     col = name if isinstance(source, str) else f"column {source}"
-    return Channel(name, f"CSV {col}", _relative(ch.t_ns, log),
-                   np.asarray(ch.signals["position"][:, 0], dtype=np.float64))
+    return Channel(name, f"CSV {col}", _relative(t_ns, log),
+                   np.asarray(values[:, 0], dtype=np.float64))
 
 
 def _header_line(path: Path, skip: int) -> str:
@@ -176,31 +177,10 @@ def _header_line(path: Path, skip: int) -> str:
         raise LogFormatError(f"{path}: cannot read: {err}") from err
 
 
-def _separator(line: str) -> str:
-    """The separator (``,``, ``;`` or tab) with which a canonical header names its time
-    column (as the CSV reader picks it)."""
-    for sep in (",", ";", "\t"):
-        if any(c.strip().strip('"') in ("time_ns", "time", "__time")
-               for c in line.rstrip("\r\n").split(sep)):
-            return sep
-    return ","
-
-
-def _repairing_order(on: bool) -> Any:
-    """The reader's --repair-order context (a no-op where the reader has none)."""
-    import contextlib
-
-    try:
-        from ..io.repair import repairing_order  # type: ignore[attr-defined,unused-ignore]
-    except ImportError:
-        return contextlib.nullcontext()
-    return repairing_order(on)
-
-
 def _npz_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Channel:
     """An ``.npz`` array (``key`` or ``key[i]``) with the channel map's time."""
     from ..io.channel_map import ChannelMap, ChannelRef, load_channel_map
-    from ..io.npz import read_npz_channels
+    from ..io.stream import read_columns
 
     cmap = load_channel_map(ropts["channel_map"]) if ropts.get("channel_map") else None
     if cmap is None:
@@ -219,65 +199,24 @@ def _npz_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Chan
                      format="npz")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ImpactWarning)
-        ch = read_npz_channels(path, one)
-    return Channel(name, f"array {name}", _relative(ch.t_ns, log),
-                   np.asarray(ch.signals["position"][:, 0], dtype=np.float64))
+        t_ns, values = read_columns(path, {"channel_map": one}, check_rate=False)
+    return Channel(name, f"array {name}", _relative(t_ns, log),
+                   np.asarray(values[:, 0], dtype=np.float64))
 
 
 def _message_channel(path: Path, name: str, log: Any) -> Channel:
-    """A message field, stamped like the log's samples."""
-    from ..io.fieldread import read_fields
-    from ..io.fields import check_ros_path, parse_field_path
-    from ..io.msgsource import MessageSource
+    """A message field, stamped like the log's samples, through the message reader."""
+    from ..io.message_plan import field_channel
 
-    where = f"{path}: --from-channel"
-    src: MessageSource
-    if path.name.lower().endswith(".mcap"):
-        from ..io.mcap_scan import UnsupportedMcap, scan_mcap, scan_mcap_official
-        from ..io.msgsource import McapSource
-
-        try:
-            scan = scan_mcap(path)
-        except UnsupportedMcap:
-            scan = scan_mcap_official(path)
-        src = McapSource(scan, str(path))
-    else:
-        from ..io.bags import BagSource
-
-        src = BagSource(path, str(path))
-    topics = src.topics()
     text, joint = name, None
     m = _JOINT_PICK.match(name)
     if m:
         text, joint = m.group("path"), m.group("joint")
-    if not text.startswith("/"):
-        raise LogFormatError(
-            f"{path}: no channel {name!r}: in an MCAP file or a bag name a message field "
-            f"/topic/field (topics: {', '.join(sorted(topics)) or 'none'})"
-            + (f"; or a joint channel: {hint}" if (hint := _joint_channels_hint(log)) else ""))
-    fp = parse_field_path(text, list(topics), joint, where)
-    mtype, enc = topics[fp.topic]
-    if enc in ("cdr", "ros1"):
-        if not mtype:
-            raise LogFormatError(f"{where}: topic {fp.topic!r} has no message definition in "
-                                 "the file: its fields cannot be read")
-        fp = check_ros_path(fp, mtype, src.fielddefs(mtype), where)
-    elif enc != "json":
-        raise LogFormatError(f"{where}: topic {fp.topic!r} has message encoding {enc!r}, "
-                             "which cannot be decoded (cdr, ros1 or json)")
-    td = src.load([fp.topic])[fp.topic]
-    if td.n == 0:
-        raise LogFormatError(f"{where}: topic {fp.topic!r} holds no messages")
-    vals, header = read_fields(src, td, [fp], where)
     tsrc = log.source.time_source
-    if tsrc == "header" and header is not None and np.all(header != 0):
-        t_ns = header
-    else:
-        t_ns = td.publish_time if tsrc == "publish" else td.log_time
-    order = np.argsort(t_ns, kind="stable")
-    return Channel(name, f"field {fp.label()} ({tsrc} time)",
-                   _relative(np.asarray(t_ns)[order], log),
-                   np.asarray(vals[order, 0], dtype=np.float64))
+    t_ns, values, label = field_channel(path, name, text, joint, tsrc,
+                                        _joint_channels_hint(log))
+    return Channel(name, f"field {label} ({tsrc} time)", _relative(t_ns, log),
+                   np.asarray(values, dtype=np.float64))
 
 
 def stretches(t_s: np.ndarray, values: np.ndarray, above: float, *, merge_gap_s: float = 0.0,

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ImpactWarning, LogFormatError
-from ..types import CONTROLLER_CHANNELS, LogSource, RobotDescription, RobotLog
+from ..types import CONTROLLER_CHANNELS, RobotDescription
 
 TORQUE_SOURCES = ("torque", "current")
 TIME_SOURCES = ("log", "publish", "header")
@@ -271,60 +271,6 @@ def drop_empty_signals(path: str, joints: tuple[str, ...], finite: dict[str, np.
         msgs.append(msg)
         warnings.warn(msg, ImpactWarning, stacklevel=4)
     return out, ignored, msgs
-
-
-def build_log(
-    ch: JointChannels,
-    *,
-    path: str,
-    fmt: str,
-    robot: RobotDescription | None,
-    torque_source: str | None,
-    time_source: str,
-    sha256: str | None = None,
-) -> RobotLog:
-    """Make the RobotLog: choose the torque source, convert current, attach provenance.
-
-    Raises:
-        LogFormatError: a joint without position, without any torque signal, or with only
-            current and no way to convert it (naming the joint).
-    """
-    plan = plan_log(ch, path=path, robot=robot, torque_source=torque_source)
-    arrays = assemble(plan, ch)
-    src = plan.torque_source
-    joints = ch.joints
-    dropped = _empty_joints(ch.joints, arrays["position"], arrays["torque"], src)
-    if dropped:
-        if len(dropped) == len(ch.joints):
-            raise LogFormatError(drop_message(path, dropped, src))
-        warn_dropped(path, dropped)
-        out = {j for j, _ in dropped}
-        keep = [k for k, j in enumerate(ch.joints) if j not in out]
-        joints = tuple(ch.joints[k] for k in keep)
-        arrays = {s: v[:, keep] for s, v in arrays.items()}
-    gone, ignored, msgs = drop_empty_signals(
-        path, joints, {s: np.isfinite(arrays[s]).any(axis=0) for s in plan.optional})
-    for s in gone:
-        del arrays[s]
-    source = LogSource(
-        path=path,
-        sha256=sha256 or "",
-        format=fmt,
-        torque_source=src,  # type: ignore[arg-type]
-        time_source=time_source,  # type: ignore[arg-type]
-        ignored_channels=plan.ignored + tuple(ignored),
-        repairs=tuple(ch.repairs) + tuple(msgs),
-        notes=plan.notes,
-        joints_dropped=tuple(dropped),
-    )
-    return RobotLog(t_ns=ch.t_ns, joint_names=joints, source=source, **arrays)
-
-
-def _empty_joints(joints: tuple[str, ...], position: np.ndarray, torque: np.ndarray,
-                  src: str) -> list[tuple[str, str]]:
-    """``(joint, reason)`` of the joints whose position or torque holds no finite value."""
-    return empty_joint_reasons(joints, np.isfinite(position).any(axis=0),
-                               np.isfinite(torque).any(axis=0), src)
 
 
 def empty_joint_reasons(joints: tuple[str, ...], position_finite: np.ndarray,

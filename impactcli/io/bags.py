@@ -7,39 +7,35 @@ Inputs:
   metadata stored in the database). Format ``rosbag2``; messages are ROS 2 CDR.
 - ROS 1: a ``.bag`` file (format ``rosbag1``; messages in ROS 1 serialization).
 
-They are read exactly as MCAP logs (:func:`impactcli.io.messages.read_message_channels`):
-the same topic choice, ``_ref``/``_model``/``_ext`` companion topics, time sources and
-channel maps with message fields. A bag stores one time per message, the recorder's
-receive time: it is the ``log`` time, and ``publish`` time is the same (bags hold no
-publish time). Message types are decoded with the definitions stored in the bag; a bag
-without any (old rosbag2 databases) is read with rosbags' latest ROS 2 (or ROS 1 Noetic)
-types.
+They are read exactly as MCAP logs (:mod:`impactcli.io.messages`), :data:`BAG_BLOCK`
+messages a block (:class:`BagBlocks`): the same topic choice, ``_ref``/``_model``/``_ext``
+companion topics, time sources and channel maps with message fields. A bag stores one
+time per message, the recorder's receive time: it is the ``log`` time, and ``publish``
+time is the same (bags hold no publish time). Message types are decoded with the
+definitions stored in the bag; a bag without any (old rosbag2 databases) is read with
+rosbags' latest ROS 2 (or ROS 1 Noetic) types.
 
-A folder's identity (``LogSource.sha256``) is :func:`folder_sha256`: the sha256 of the
-concatenated hex sha256 digests of its files, in name order. Its stem
+A folder's identity (``LogSource.sha256``) is :func:`impactcli.io.paths.folder_sha256`:
+the sha256 of the concatenated hex sha256 digests of its files, in name order. Its stem
 (:func:`impactcli.io.log_stem`) is the folder's own name.
 
 A corrupt or truncated bag is one :class:`~impactcli.errors.LogFormatError` naming the file
 (rosbags reads a bag's index, which a truncated ``.bag`` lacks; SQLite refuses a cut
 database).
 
-Writers (for tests and conversions): :func:`write_rosbag2` (a ``.db3`` file, or a folder,
-optionally split into several files) and :func:`write_rosbag1`, with the JointState topics of
-:func:`impactcli.io.mcap_log.jointstate_topics` (``/joint_states``, ``_ref``, ``_model``,
-``_ext``).
+The writers are in :mod:`impactcli.io.write`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Collection
+from collections.abc import Collection, Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ..errors import LogFormatError
-from .mcap_scan import Batch
-from .msgsource import MessageSource, TopicData, normalize_type
+from .msgsource import Batch, MessageSource, TopicData, normalize_type
 from .paths import is_rosbag2_folder  # noqa: F401  (alias: removed in M; cli/_common)
 
 
@@ -62,7 +58,7 @@ class BagSource(MessageSource):
         self._default: Any = None
         self._topics: dict[str, tuple[str, str]] = {}
         self._defs: list[tuple[str, str, str]] = []
-        with self._open() as reader:
+        with self.open_reader() as reader:
             enc = "ros1" if self.kind == "rosbag1" else "cdr"
             for c in reader.connections:
                 ser = getattr(c.ext, "serialization_format", enc)
@@ -70,7 +66,7 @@ class BagSource(MessageSource):
                                                   "cdr" if ser == "cdr" else ser))
             self._store = reader.typestore
 
-    def _open(self) -> Any:
+    def open_reader(self) -> Any:
         """An open AnyReader (a context manager); bag errors become LogFormatError."""
         from rosbags.highlevel import AnyReader, AnyReaderError
 
@@ -103,7 +99,7 @@ class BagSource(MessageSource):
     def load(self, topics: Collection[str]) -> dict[str, TopicData]:
         want = set(topics)
         rows: dict[str, list[tuple[int, int, bytes]]] = {t: [] for t in want}
-        with self._open() as reader:
+        with self.open_reader() as reader:
             conns = [c for c in reader.connections if c.topic in want]
             try:
                 for k, (c, ts, raw) in enumerate(reader.messages(connections=conns)):
@@ -140,19 +136,43 @@ class _Closing:
         self.reader.close()
 
 
-def read_bag_channels(
-    path: Path, *, topic: str | None, reference_topic: str | None, time_source: str | None,
-    cmap: Any = None, where: str | None = None,
-) -> tuple[Any, str, str]:
-    """Read a ROS bag (``.bag``, ``.db3`` or rosbag2 folder) into JointChannels.
+#: Bag messages per block.
+BAG_BLOCK = 8192
 
-    Returns:
-        ``(channels, format, time_source)`` with format ``rosbag1`` or ``rosbag2``.
-    """
-    from .messages import read_message_channels
 
-    src = BagSource(path, where or str(path))
-    if not src.topics():
-        raise LogFormatError(f"{src.where}: the bag holds no topics")
-    return read_message_channels(src, cmap=cmap, topic=topic, reference_topic=reference_topic,
-                                 time_source=time_source)
+class BagBlocks:
+    """A ROS bag's messages (:class:`BagSource`), :data:`BAG_BLOCK` at a time, in the
+    bag's order: blocks ``{topic: [Batch]}`` as :class:`~impactcli.io.mcap_scan.McapBlocks`
+    gives them."""
+
+    kind = "bag"
+
+    def __init__(self, src: BagSource) -> None:
+        self.src = src
+
+    def blocks(self, topics: Collection[str] | None = None) -> Iterator[dict[str, list[Batch]]]:
+        """The blocks of the messages of ``topics`` (None: every topic).
+
+        Raises:
+            LogFormatError: a corrupt, truncated or unreadable bag.
+        """
+        src = self.src
+        rows: list[tuple[str, int, int, bytes]] = []
+        with src.open_reader() as reader:
+            conns = [c for c in reader.connections if topics is None or c.topic in topics]
+            try:
+                for k, (c, ts, raw) in enumerate(reader.messages(connections=conns)):
+                    rows.append((c.topic, k, ts, bytes(raw)))
+                    if len(rows) == BAG_BLOCK:
+                        yield _bag_block(rows)
+                        rows = []
+            except Exception as err:  # a damaged chunk or database page
+                raise _bag_error(src.where, src.kind, err) from err
+        if rows:
+            yield _bag_block(rows)
+
+
+def _bag_block(rows: list[tuple[str, int, int, bytes]]) -> dict[str, list[Batch]]:
+    """Bag messages ``(topic, index, time, bytes)`` as one batch per topic."""
+    return {topic: [bag_batch([r[1:] for r in rows if r[0] == topic])]
+            for topic in dict.fromkeys(r[0] for r in rows)}

@@ -244,7 +244,8 @@ def read_fields(src: MessageSource, td: TopicData, paths: list[FieldPath],
     """
     if td.encoding not in ("cdr", "ros1"):
         msgs = src.decode_all(td)
-        return extract(msgs, paths, where or src.where), header_stamps(msgs)
+        index = np.arange(td.first, td.first + len(msgs)) if td.first else None
+        return extract(msgs, paths, where or src.where, index=index), header_stamps(msgs)
     defs = src.typestore().fielddefs
     with_header = _has_header(defs, td.msgtype)
     wanted = _Wanted()
@@ -312,7 +313,7 @@ def read_fields(src: MessageSource, td: TopicData, paths: list[FieldPath],
     rest = np.flatnonzero(~done)
     if rest.size:
         msgs = src.decode_all(td, rest)
-        vals[rest, :k] = extract(msgs, paths, where or src.where, index=rest)
+        vals[rest, :k] = extract(msgs, paths, where or src.where, index=rest + td.first)
         if with_header:
             h = header_stamps(msgs)
             assert header is not None and h is not None

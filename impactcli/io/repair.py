@@ -33,16 +33,12 @@ computation).
 from __future__ import annotations
 
 import bisect
-import contextlib
-import warnings
-from collections.abc import Callable, Collection, Iterator
-from contextvars import ContextVar
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..errors import ImpactWarning, LogFormatError
 from ..types import CONTROLLER_CHANNELS
 
 if TYPE_CHECKING:
@@ -61,20 +57,6 @@ MAX_RATE_HZ = 100_000.0
 #: signal out of the log (:func:`impactcli.io.assemble.build_log`).
 DROPPABLE_SIGNALS = ("position", "torque", "current", "velocity", "position_ref",
                      "velocity_ref", "acceleration_ref")
-
-_REPAIR_ORDER: ContextVar[bool] = ContextVar("impactcli_repair_order", default=False)
-
-
-@contextlib.contextmanager
-def repairing_order(on: bool) -> Iterator[None]:
-    """Within the block, readers that do not pass ``repair_order`` themselves repair rows
-    out of time order (:func:`impactcli.io.read_log`'s ``repair_order``)."""
-    token = _REPAIR_ORDER.set(on)
-    try:
-        yield
-    finally:
-        _REPAIR_ORDER.reset(token)
-
 
 def longest_increasing(t: np.ndarray) -> np.ndarray:
     """Indices of a longest strictly increasing subsequence of ``t`` (patience sorting,
@@ -106,118 +88,6 @@ def longest_increasing(t: np.ndarray) -> np.ndarray:
     return np.asarray(out[::-1], dtype=np.int64)
 
 
-def default_row_label(i: int) -> str:
-    """Label of sample ``i`` (0-based) in messages: ``sample i``."""
-    return f"sample {i}"
-
-
-def repair_samples(t_ns: np.ndarray, columns: dict[str, np.ndarray], *, where: str,
-                   time_name: str = "time",
-                   row_label: Callable[[int], str] = default_row_label,
-                   repair_order: bool | None = None,
-                   keep_empty: Collection[str] | None = None,
-                   ) -> tuple[np.ndarray, dict[str, np.ndarray], list[str]]:
-    """TEMPORARY (stage 1): the whole readers' repair of named columns."""
-    names = list(columns)
-    n = np.asarray(t_ns).shape[0]
-    mat = (np.column_stack([np.asarray(columns[k], dtype=np.float64) for k in names])
-           if names else np.empty((n, 0)))
-    t, mat, repairs = repair_matrix(t_ns, mat, names, where=where, time_name=time_name,
-                                    row_label=row_label, repair_order=repair_order,
-                                    keep_empty=keep_empty)
-    return t, {k: np.ascontiguousarray(mat[:, i]) for i, k in enumerate(names)}, repairs
-
-
-def repair_matrix(
-    t_ns: np.ndarray,
-    mat: np.ndarray,
-    names: list[str],
-    *,
-    where: str,
-    time_name: str = "time",
-    row_label: Callable[[int], str] = default_row_label,
-    repair_order: bool | None = None,
-    keep_empty: Collection[str] | None = None,
-) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """The repair policy on a whole (N, C) float64 matrix whose columns are ``names``.
-
-    Returns ``(t_ns, mat, repairs)``; ``mat`` may be the input array, modified in place.
-    """
-    repairs: list[str] = []
-    t = np.asarray(t_ns, dtype=np.int64)
-    n = t.shape[0]
-    orig = np.arange(n)
-    if n >= 2:
-        dt = np.diff(t)
-        same_t = dt == 0
-        if same_t.any():
-            a, b = mat[:-1], mat[1:]
-            same_vals = np.all((a == b) | (np.isnan(a) & np.isnan(b)), axis=1)
-            dup = same_t & same_vals
-            if dup.any():
-                keep = np.ones(n, dtype=bool)
-                keep[1:][dup] = False
-                msg = duplicate_message(where, int(dup.sum()), row_label(int(np.argmax(dup)) + 1))
-                repairs.append(msg)
-                warnings.warn(msg, ImpactWarning, stacklevel=3)
-                t, mat, orig = t[keep], mat[keep], orig[keep]
-        dt = np.diff(t)
-        if np.any(dt <= 0):
-            if _REPAIR_ORDER.get() if repair_order is None else repair_order:
-                t, mat, orig = _keep_increasing(t, mat, orig, repairs, where, row_label)
-            else:
-                k = int(np.argmax(dt <= 0)) + 1
-                raise LogFormatError(order_message(t, k, orig, where, time_name, row_label))
-    _check_magnitudes(mat, names, orig, where, row_label)
-    bad = ~np.isfinite(mat)
-    allbad = np.flatnonzero(bad.all(axis=0)) if mat.shape[0] else np.zeros(0, dtype=np.int64)
-    # a position/torque/current column with no finite value: passed on as NaN, the joint is
-    # left out of the log; an optional signal's: the signal is (build_log, warned there)
-    droppable = (set(keep_empty) if keep_empty is not None else
-                 {c for c in names if c.rsplit(".", 1)[-1] in DROPPABLE_SIGNALS})
-    for c in allbad:
-        if names[c] in droppable:
-            if not mat.flags.writeable:
-                mat = mat.copy()
-            mat[:, c] = np.nan
-            bad[:, c] = False
-    # a controller channel (formats.md: torque_model, torque_ext) with no finite value at all
-    # was not logged for that joint: kept as NaN (the joint lacks it), said in a warning
-    empty = [c for c in allbad if names[c] not in droppable and is_controller_column(names[c])]
-    for c in empty:
-        msg = empty_controller_message(where, names[c])
-        repairs.append(msg)
-        warnings.warn(msg, ImpactWarning, stacklevel=3)
-        if not mat.flags.writeable:
-            mat = mat.copy()
-        mat[:, c] = np.nan
-        bad[:, c] = False
-    if bad.any():
-        tf = t.astype(np.float64)
-        if not mat.flags.writeable:
-            mat = mat.copy()
-        for c in np.flatnonzero(bad.any(axis=0)):
-            col = mat[:, c]
-            mask = bad[:, c]
-            # runs of consecutive non-finite samples: [start, stop)
-            edges = np.diff(np.concatenate(([0], mask.astype(np.int8), [0])))
-            starts = np.flatnonzero(edges == 1)
-            stops = np.flatnonzero(edges == -1)
-            for s, e in zip(starts, stops, strict=True):
-                length = int(e - s)
-                kind = "NaN" if np.isnan(col[s]) else "infinite"
-                if s == 0 or e == mat.shape[0] or length > MAX_GAP_SAMPLES:
-                    raise LogFormatError(run_message(where, names[c], row_label(int(orig[s])),
-                                                     length, kind, s == 0, e == mat.shape[0]))
-            good = ~mask
-            col[mask] = np.interp(tf[mask], tf[good], col[good])
-            msg = interpolated_message(where, names[c], int(mask.sum()), len(starts),
-                                       row_label(int(orig[starts[0]])))
-            repairs.append(msg)
-            warnings.warn(msg, ImpactWarning, stacklevel=3)
-    return t, mat, repairs
-
-
 def order_message(t: np.ndarray, k: int, orig: np.ndarray, where: str, time_name: str,
                    row_label: Callable[[int], str]) -> str:
     """The error for the first step t[k-1] → t[k] that does not increase."""
@@ -231,17 +101,6 @@ def order_message(t: np.ndarray, k: int, orig: np.ndarray, where: str, time_name
             f"then {int(t[k])} ns); it must be strictly increasing: rows written out of order "
             "are repaired by --repair-order (keeps the longest increasing run of stamps, "
             "drops the other rows, warned)")
-
-
-def _keep_increasing(
-    t: np.ndarray, mat: np.ndarray, orig: np.ndarray, repairs: list[str], where: str,
-    row_label: Callable[[int], str],
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Keep the longest strictly increasing run of stamps; record and warn what was dropped."""
-    keep, msg = increasing_run(t, orig, where, row_label)
-    repairs.append(msg)
-    warnings.warn(msg, ImpactWarning, stacklevel=4)
-    return t[keep], mat[keep], orig[keep]
 
 
 def increasing_run(t: np.ndarray, orig: np.ndarray, where: str,
@@ -267,21 +126,6 @@ def increasing_run(t: np.ndarray, orig: np.ndarray, where: str,
            f"{row_label(int(orig[dropped[0]]))}), keeping the longest increasing run of "
            f"stamps ({keep.size} rows; --repair-order)")
     return keep, msg
-
-
-def _check_magnitudes(mat: np.ndarray, names: list[str], orig: np.ndarray, where: str,
-                      row_label: Callable[[int], str]) -> None:
-    """LogFormatError naming the first finite value beyond ±MAX_ABS_VALUE."""
-    if mat.size == 0:
-        return
-    with np.errstate(invalid="ignore"):
-        big = np.abs(mat) > MAX_ABS_VALUE
-    big &= np.isfinite(mat)
-    if not big.any():
-        return
-    r, c = np.argwhere(big)[0]
-    raise LogFormatError(magnitude_message(where, names[int(c)], row_label(int(orig[int(r)])),
-                                           float(mat[r, c])))
 
 
 def magnitude_message(where: str, name: str, label: str, value: float) -> str:
@@ -327,28 +171,11 @@ def run_message(where: str, name: str, label: str, length: int, kind: str, at_st
             f"{MAX_GAP_SAMPLES} samples between finite values are interpolated")
 
 
-def check_time_rate(t_ns: np.ndarray, where: str, what: str, unit: str | None) -> None:
-    """LogFormatError when the rate implied by the stamps is outside
-    [:data:`MIN_RATE_HZ`, :data:`MAX_RATE_HZ`] — a time column in another unit than read
-    (formats.md) — naming the rate and the unit that would fit.
-
-    Args:
-        t_ns: (N,) int64 strictly increasing stamps [ns] as read.
-        where: the file.  what: the time channel, e.g. ``column 'time'``.
-        unit: the unit it was read in (``s``, ``ms``, ``us``, ``ns``; None: not a unit the
-            user chooses, e.g. ISO-8601 stamps).
-    """
-    from ..sampling import MAX_STATS_STEPS, sample_clock
-
-    rate = sample_clock(t_ns[:MAX_STATS_STEPS + 1]).rate_hz  # a unit is a unit from the start
-    msg = rate_message(rate, where, what, unit)
-    if msg is not None:
-        raise LogFormatError(msg)
-
-
 def rate_message(rate: float, where: str, what: str, unit: str | None) -> str | None:
-    """The error of :func:`check_time_rate` for the rate ``rate`` [Hz] of the first
-    :data:`~impactcli.sampling.MAX_STATS_STEPS` steps (None: within the range)."""
+    """The error for a time column whose implied rate ``rate`` [Hz] (of its first
+    :data:`~impactcli.sampling.MAX_STATS_STEPS` steps) is outside [:data:`MIN_RATE_HZ`,
+    :data:`MAX_RATE_HZ`] — a time in another unit than read (formats.md) — naming the rate
+    and the unit that would fit; None when within the range."""
     if not np.isfinite(rate) or MIN_RATE_HZ <= rate <= MAX_RATE_HZ:
         return None
     return (f"{where}: {what}: the implied sample rate is {_hz(rate)}, outside "
