@@ -150,14 +150,15 @@ class TopicSpill:
     def has(self, key: str) -> bool:
         return key in self.start
 
-    def read(self, key: str, a: int, b: int) -> np.ndarray:
-        """Rows ``a:b`` of column ``key`` (a new array)."""
+    def read(self, key: str, a: int, b: int, out: np.ndarray | None = None) -> np.ndarray:
+        """Rows ``a:b`` of column ``key``, into ``out`` when given (else a new array)."""
         dtype = self.dtype.get(key, np.dtype(np.float64))
-        out = np.full(b - a, _FILL[dtype], dtype=dtype)
-        if key not in self.start:
-            return out
-        s = self.start[key]
-        lo = max(a, s)
+        if out is None:
+            out = np.empty(b - a, dtype=dtype)
+        s = self.start.get(key, b)
+        lo = min(max(a, s), b)
+        if lo > a:
+            out[: lo - a] = _FILL[dtype]
         if lo < b:
             out[lo - a:] = self._arrays[key][lo - s:b - s]
         return out
@@ -279,27 +280,30 @@ def merged_rows(parts: list[Part], perm: np.ndarray | None, lead_counts: list[in
     ncols = sum(len(p.keys) for p in parts)
     for a in range(0, n, MERGE_ROWS):
         b = min(a + MERGE_ROWS, n)
+        mat = np.empty((b - a, ncols))
         if perm is None:
             t = sp.read(state.time_key, a, b)
-            vals = [sp.read(k, a, b) for k in state.keys]
+            for c, key in enumerate(state.keys):
+                sp.read(key, a, b, mat[:, c])
         else:
             assert t_sorted is not None
             rows = perm[a:b]
             t = t_sorted[a:b]
-            vals = [sp.take(k, rows) for k in state.keys]
+            for c, key in enumerate(state.keys):
+                mat[:, c] = sp.take(key, rows)
+        c = len(state.keys)
         drop = np.zeros(b - a, dtype=bool)
-        for k, h in enumerate(held):
+        for i, h in enumerate(held):
             rows_h = h.rows_at(t)
             before = rows_h < 0
-            lead_counts[k] += int(before.sum())
+            lead_counts[i] += int(before.sum())
             drop |= before
             safe = np.maximum(rows_h, 0)
-            vals += [h.part.spill.take(key, safe) for key in h.part.keys]
+            for key in h.part.keys:
+                mat[:, c] = h.part.spill.take(key, safe)
+                c += 1
         if drop.all():
             continue
-        mat = np.empty((b - a, ncols))
-        for c, v in enumerate(vals):
-            mat[:, c] = v
         if drop.any():
             t, mat = t[~drop], mat[~drop]
         yield t, mat

@@ -250,11 +250,18 @@ def stack_columns(mat: np.ndarray, cols: list[tuple[str, int]], joints: tuple[st
     jn = len(joints)
     signals: dict[str, np.ndarray] = {}
     have: dict[str, set[int]] = {}
+    at: dict[str, list[tuple[int, int]]] = {}
     for c, (s, j) in enumerate(cols):
-        if s not in signals:
+        at.setdefault(s, []).append((c, j))
+    for s, cj in at.items():
+        c0 = cj[0][0]
+        if [(c - c0, j) for c, j in cj] == [(k, k) for k in range(jn)]:
+            signals[s] = mat[:, c0:c0 + jn]  # every joint's column, in order: a view
+        else:
             signals[s] = np.full((mat.shape[0], jn), np.nan)
-        signals[s][:, j] = mat[:, c]
-        have.setdefault(s, set()).add(j)
+            for c, j in cj:
+                signals[s][:, j] = mat[:, c]
+        have[s] = {j for _, j in cj}
     lacking = {s: [joints[j] for j in range(jn) if j not in have[s]] for s in signals}
     return signals, {s: lack for s, lack in lacking.items() if lack}
 
@@ -384,9 +391,10 @@ def _first_names(src: MessageSource, td: TopicData, kind: str
 # ------------------------------------------------------------------------- the layout
 class MessageLayout(StreamLayout):
     """A message log (module docstring): its blocks read once at construction
-    (:meth:`read`), its rows merged from the spills (:meth:`raw_batches`)."""
+    (:meth:`read`), its rows merged from the spills (:meth:`raw_batches`; the passes after
+    the scan read the scan's cache of the rows, the spills are deleted then:
+    :meth:`release`)."""
 
-    reuse_rows = True  # the rows are merged from the spills, not read from the file again
 
     def __init__(self, p: Path, where: str, blocks: Any, src: MessageSource, kind: str,
                  options: dict[str, Any]) -> None:
@@ -411,6 +419,10 @@ class MessageLayout(StreamLayout):
         for r in self.readers.values():
             r.spill.close()
         self.folder.close()
+
+    def release(self) -> None:
+        """The scan keeps the rows: the spills are no longer needed."""
+        self.close()
 
     def label(self, i: int) -> str:
         row = i + self.lead if self.perm is None else int(self.perm[i + self.lead])

@@ -377,6 +377,8 @@ class Repairer:
     def _check_magnitudes(self, mat: np.ndarray, orig: np.ndarray) -> None:
         with np.errstate(invalid="ignore"):
             big = np.abs(mat) > MAX_ABS_VALUE
+        if not big.any():
+            return
         big &= np.isfinite(mat)
         if big.any():
             r, c = np.argwhere(big)[0]

@@ -231,7 +231,10 @@ def scan_layout(ctx: StreamLayout, options: dict[str, Any], reader: ScanReader
         raise_read_errors(ctx, rep, last.acc.rate_error())
         if isinstance(ctx.plan, LogFormatError):
             raise ctx.plan
-        return last.acc.finish(rep, digest.result(), options, last.cache, reader)
+        out = last.acc.finish(rep, digest.result(), options, last.cache, reader)
+        if out[1].cache is not None:
+            ctx.release()
+        return out
     except BaseException:
         last.discard()
         raise
@@ -242,7 +245,7 @@ class _ScanSink(Sink):
 
     def __init__(self, ctx: StreamLayout) -> None:
         self.acc = _ScanAcc(ctx)
-        self.cache = RowCache(len(ctx.names)) if not ctx.reuse_rows else None
+        self.cache: RowCache | None = RowCache(len(ctx.names))
 
     def add(self, t: np.ndarray, mat: np.ndarray) -> None:
         self.acc.add(t, mat)

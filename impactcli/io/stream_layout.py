@@ -62,8 +62,6 @@ class StreamLayout:
         time_name: the time as the order error names it.
         start_at_zero: the map's ``start_at_zero`` (times shifted to start at 0).
         read_error: the first error found reading the rows (raised by the scan first).
-        reuse_rows: whether :meth:`raw_batches` after the scan is cheap (it reads a spill
-            of the scan's own, not the file): the scan then keeps no cache of its rows.
     """
 
     path: Path
@@ -79,7 +77,6 @@ class StreamLayout:
     time_name: str = "time"
     start_at_zero: bool = False
     read_error: LogFormatError | None = None
-    reuse_rows: bool = False
 
     def label(self, i: int) -> str:
         """Row ``i`` of the repairs' numbering as messages name it."""
@@ -106,6 +103,10 @@ class StreamLayout:
     def pre_repairs(self) -> list[str]:
         """Repairs the reader makes before the repair policy's (given first)."""
         return []
+
+    def release(self) -> None:
+        """The scan keeps a cache of the rows: what the layout holds to read them again
+        (a spill) may go."""
 
     def close(self) -> None:
         """Release what the layout holds (a spill of the scan's)."""
