@@ -45,7 +45,7 @@ import numpy as np
 
 from ..errors import ImpactWarning, LogFormatError
 from ._common import ROBOT_METAVAR, check_log_path, handle_errors, robot_help
-from .detect import log_read_options, read_options_from
+from .log_options import log_read_options, read_options_from
 
 #: How a channel's contacts are labelled.
 CHANNEL_KINDS: tuple[str, ...] = ("auto", "force", "switch")

@@ -89,12 +89,17 @@ def write_log(log: RobotLog, path: str | os.PathLike[str], *, mcap_encoding: str
 
 def inspect_log(path: str | os.PathLike[str], **kwargs: Any) -> dict[str, Any]:
     """Describe a log as a JSON-ready dict (``schemas/inspect.schema.json``) from its scan
-    (:func:`impactcli.io.inspect.describe_log`).
+    and its sample times (:func:`impactcli.io.inspect.describe_log`; 8 bytes a sample in
+    memory, not the samples).
 
     Takes the same keyword arguments as :func:`read_log`.
     """
+    import numpy as np
+
     from . import inspect
     from .assemble import describing
 
-    with describing():  # a log it cannot convert yet is still described
-        return inspect.describe_log(read_log(path, **kwargs))
+    with describing(), open_log(path, **kwargs) as reader:  # a log it cannot convert yet
+        scan = reader.scan()                                  # is still described
+        t_ns = np.concatenate(list(reader.times()))
+        return inspect.describe_log(scan, t_ns)

@@ -61,6 +61,8 @@ class LogScan:
             :class:`ColumnScreen` (``screens[ch].unusable(ref)`` is
             ``unusable_columns(getattr(log, ch), ref)``).
         options: the read options the scan was made with.
+        ranges: each array the log has → (J,) its smallest and (J,) its largest finite
+            value per joint (NaN where a joint does not log it).
     """
 
     log: RobotLog
@@ -74,6 +76,8 @@ class LogScan:
     screens: dict[str, ColumnScreen]
     options: dict[str, Any] = field(default_factory=dict, repr=False)
     reader: ScanReader | None = field(default=None, repr=False, compare=False)
+    ranges: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict,
+                                                              repr=False, compare=False)
 
     def close(self) -> None:
         """Close the reader the scan was made by (its cache of the repaired rows, a URL's
@@ -289,6 +293,7 @@ class _ScanAcc:
         # optional signal → (J,) whether each joint's column holds a finite value
         self.opt_finite: dict[str, np.ndarray] = {}
         self.screens = {s: ScreenAccumulator(j) for s in ("torque", *CONTROLLER_CHANNELS)}
+        self.ranges: dict[str, ScreenAccumulator] = {}  # the other arrays' ranges
         self.floor = float("-inf")
         self.bad_row: dict[str, np.ndarray] = {}  # signal → (J,) first non-finite sample
 
@@ -344,6 +349,9 @@ class _ScanAcc:
         for s, acc in self.screens.items():
             if s in arrays:
                 acc.add(arrays[s])
+        for s, a in arrays.items():
+            if s not in self.screens:
+                self.ranges.setdefault(s, ScreenAccumulator(a.shape[1], distinct=False)).add(a)
 
     def rate_error(self) -> str | None:
         """The time-unit check on the first steps."""
@@ -397,11 +405,20 @@ class _ScanAcc:
         idx, lengths = self.gaps.gaps(clock)
         screens = {s: self.screens[s].result().select(keep) for s in self.screens
                    if getattr(log, s) is not None}
+        ranges = {s: self.ranges[s].result().select(keep) for s in self.ranges
+                  if getattr(log, s) is not None}
+        ranges.update(screens)
         scan = LogScan(log=log, n_samples=self.n, t0_ns=int(self.head_t[0]) - shift,
                        t_last_ns=int(self.hist.last or 0) - shift, clock=clock, gaps=idx,
                        gap_lengths_s=lengths, torque_screen=screens["torque"].unusable(),
-                       screens=screens, options=dict(options), reader=reader)
+                       screens=screens, options=dict(options), reader=reader,
+                       ranges={s: (ranges[s].lo, ranges[s].hi) for s in _arrays_of(log)})
         return scan, ps
+
+
+def _arrays_of(log: RobotLog) -> list[str]:
+    """The arrays a log has, in :class:`~impactcli.types.RobotLog`'s order."""
+    return [s for s in ("position", "torque", *OPTIONAL) if getattr(log, s) is not None]
 
 
 def _nan_where_empty(a: np.ndarray, signal: str, ctx: StreamLayout,

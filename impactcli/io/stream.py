@@ -57,6 +57,11 @@ class LogReader:
         """The log's samples in chunks of ``rows`` (the last one shorter), after the scan."""
         raise NotImplementedError
 
+    def times(self) -> Iterator[np.ndarray]:
+        """The log's sample times [ns] in blocks, after the scan."""
+        for ch in self.chunks(1 << 20):
+            yield ch.t_ns
+
     def close(self) -> None:
         """Delete what the reader keeps (its cache, a URL's local copy)."""
 
@@ -183,11 +188,17 @@ class MemoryReader(LogReader):
             screens = {s: ColumnScreen.of(getattr(log, s))
                        for s in ("torque", *CONTROLLER_CHANNELS) if getattr(log, s) is not None}
             idx, lengths = time_gaps(log)
+            ranges = {}
+            for s in ("position", "torque", *OPTIONAL):
+                a = getattr(log, s)
+                if a is not None:
+                    r = screens.get(s) or ColumnScreen.of(a)
+                    ranges[s] = (r.lo, r.hi)
             self._scan = LogScan(
                 log=log.slice(0, 2), n_samples=log.n_samples, t0_ns=log.t0_ns,
                 t_last_ns=int(log.t_ns[-1]), clock=log.sample_clock, gaps=idx,
                 gap_lengths_s=lengths, torque_screen=screens["torque"].unusable(),
-                screens=screens, options=self.options, reader=self)
+                screens=screens, options=self.options, reader=self, ranges=ranges)
         return self._scan
 
     def chunks(self, rows: int) -> Iterator[LogChunk]:
