@@ -1,35 +1,21 @@
 """``impactcli labels LOG --from-channel NAME --above X --link N -o labels.json``: ground-truth
-labels from a logged switch or force sensor (formats.md, "Ground-truth labels").
+labels from a logged switch or force sensor (docs/formats.md, "Ground-truth labels").
 
-The channel is read from the raw file, whatever the log's reader makes of it:
+The channel is read through the log's own reader, whatever the log's channels make of it:
+``<joint>.<signal>`` of a joint the log has (its values after the map's scale and offset);
+a CSV column by name (one the reader ignores) or, headerless, by 0-based index, read with
+the log's time column and repairs; an ``.npz`` array (``key`` or ``key[i]``) with the map's
+time; in an MCAP file or a ROS bag, a message field ``/topic/field/sub[i]`` or
+``/topic/array[joint]`` (:mod:`impactcli.io.fields`), stamped as the log's samples are.
 
-* ``<joint>.<signal>`` of a joint the log has (``j2.torque_ext``, or any signal a channel
-  map gives a joint): the log's own values, after the map's scale and offset;
-* a CSV column by name — typically one the reader ignores (``inspect`` lists them) — or,
-  in a headerless file read with a channel map, by 0-based index; it is read by the CSV
-  reader itself with the log's time column (same units, epoch handling, repairs);
-* an ``.npz`` array key (``key`` or ``key[i]`` for a column of a 2-D array), read with the
-  channel map's time;
-* in an MCAP file or a ROS bag, a message field ``/topic/field/sub[i]`` of any message type
-  (:mod:`impactcli.io.fields`), or ``/topic/array[joint]`` for the element of a
-  JointState-like array by joint name; stamped like the log's samples (its
-  ``time_source``: the field topic's header stamps, else its publish or log times).
-
-Contiguous stretches where the channel is above X become contacts: ``start`` and ``end``
-are the first and last sample above (both inclusive, seconds since the log's first
-sample, like events), stretches closer than ``--merge-gap`` are merged, and those shorter
-than ``--min-duration`` dropped. ``peak_force`` is the channel's peak in the stretch when
-the channel is a force [N]; a *switch* (a channel with two values, or ``--channel-kind
-switch``) knows no force: its labels carry ``peak_force`` 0 with ``peak_force_known``
-false, which ``evaluate`` leaves out of every force score. Every contact also records the
-channel's ``peak_value``. ``kind`` comes from ``--kind`` (default ``push``), ``link`` from
-``--link`` — required: a label names the link touched (1-based, formats.md), and a wrong
-default would make ``evaluate``'s link scores meaningless. ``sample_rate`` is the log's.
-
-The file (schemas/labels.schema.json, validated before writing) is written atomically
-and records where it came from under ``source``. Exit 0; 2 bad options; 3 a log or
-channel that cannot be read (a channel that does not exist: one line naming the file and
-listing what it has).
+Contiguous stretches where the channel is above X become contacts (``start``/``end`` the
+first and last sample above, seconds since the log's first sample), merged when closer
+than ``--merge-gap``, dropped when shorter than ``--min-duration``. ``peak_force`` is the
+channel's peak for a force; a *switch* (two values, or ``--channel-kind switch``) knows no
+force (``peak_force`` 0, ``peak_force_known`` false). ``--link`` is required: a label names
+the link touched (1-based). The file (schemas/labels.schema.json, validated) is written
+atomically with its ``source``. Exit 0; 2 bad options; 3 a log or channel that cannot be
+read (one line naming the file and what it has).
 """
 
 from __future__ import annotations
@@ -248,7 +234,7 @@ def channel_kind(values: np.ndarray) -> str:
 def labels_doc(ch: Channel, *, above: float, kind: str, link: int, channel_is: str,
                merge_gap_s: float, min_duration_s: float, sample_rate: float,
                log_path: str) -> dict[str, Any]:
-    """The labels mapping (formats.md) of the stretches of ``ch`` above ``above``."""
+    """The labels mapping (docs/formats.md) of the stretches of ``ch`` above ``above``."""
     resolved = channel_kind(ch.values) if channel_is == "auto" else channel_is
     events = []
     for a, b in stretches(ch.t_s, ch.values, above, merge_gap_s=merge_gap_s,

@@ -1,6 +1,6 @@
 """From per-joint channels to a validated :class:`~impactcli.types.RobotLog`.
 
-Shared by every reader: picks the torque source (formats.md: ``.torque`` when present, else
+Shared by every reader: picks the torque source (docs/formats.md: ``.torque`` when present, else
 ``.current`` × gear ratio × torque constant, ``--torque-source`` overrides), converts current
 to torque, and fills :class:`~impactcli.types.LogSource`.
 
@@ -207,7 +207,7 @@ def assemble(plan: LogPlan, ch: JointChannels) -> dict[str, np.ndarray]:
     out: dict[str, np.ndarray] = {"position": ch.signals["position"], "torque": torque}
     for s in plan.optional:
         out[s] = ch.signals[s]
-    # the controller's channels are per joint: a joint without one holds NaN (formats.md)
+    # the controller's channels are per joint: a joint without one holds NaN (docs/formats.md)
     for s in plan.controller:
         m = np.array(ch.signals[s], dtype=np.float64)
         for j in ch.missing.get(s, []):

@@ -1,29 +1,15 @@
-"""ROS bags (formats.md, "MCAP", last bullets), read and written through ``rosbags``.
-
-Inputs:
-
-- rosbag2: a folder with ``metadata.yaml`` (its split files, SQLite ``.db3`` or MCAP
-  storage, read as one log in time order) or a ``.db3`` file alone (rosbags reads the
-  metadata stored in the database). Format ``rosbag2``; messages are ROS 2 CDR.
-- ROS 1: a ``.bag`` file (format ``rosbag1``; messages in ROS 1 serialization).
+"""ROS bags (docs/formats.md, "MCAP", last bullets), read through ``rosbags``: rosbag2 (a
+folder with ``metadata.yaml`` — its split files, SQLite ``.db3`` or MCAP storage, read as
+one log in time order — or a ``.db3`` file alone; messages in ROS 2 CDR) and ROS 1
+``.bag`` files.
 
 They are read exactly as MCAP logs (:mod:`impactcli.io.messages`), :data:`BAG_BLOCK`
-messages a block (:class:`BagBlocks`): the same topic choice, ``_ref``/``_model``/``_ext``
-companion topics, time sources and channel maps with message fields. A bag stores one
-time per message, the recorder's receive time: it is the ``log`` time, and ``publish``
-time is the same (bags hold no publish time). Message types are decoded with the
-definitions stored in the bag; a bag without any (old rosbag2 databases) is read with
-rosbags' latest ROS 2 (or ROS 1 Noetic) types.
-
-A folder's identity (``LogSource.sha256``) is :func:`impactcli.io.paths.folder_sha256`:
-the sha256 of the concatenated hex sha256 digests of its files, in name order. Its stem
-(:func:`impactcli.io.log_stem`) is the folder's own name.
-
-A corrupt or truncated bag is one :class:`~impactcli.errors.LogFormatError` naming the file
-(rosbags reads a bag's index, which a truncated ``.bag`` lacks; SQLite refuses a cut
-database).
-
-The writers are in :mod:`impactcli.io.write`.
+messages a block (:class:`BagBlocks`). A bag stores one time per message, the recorder's
+receive time: it is the ``log`` time, and ``publish`` time is the same. Message types are
+decoded with the definitions stored in the bag; a bag without any (old rosbag2 databases)
+with rosbags' latest ROS 2 (or ROS 1 Noetic) types. A corrupt or truncated bag is one
+:class:`~impactcli.errors.LogFormatError` naming the file. A folder's identity and stem:
+:mod:`impactcli.io.paths`; the writers: :mod:`impactcli.io.write`.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """The CSV reader (canonical wide CSV, or any CSV through a channel map): its rows in blocks
-for the one scan of :mod:`impactcli.io.stream` (formats.md, "Canonical wide CSV").
+for the one scan (:mod:`impactcli.io.scan`; docs/formats.md, "Canonical wide CSV").
 
 The file's text is cut at line ends into ranges of about :data:`BLOCK_SIZE` bytes, each
 parsed by pyarrow on a worker thread (:func:`parsed_ranges`, at most :data:`IN_FLIGHT`

@@ -1,5 +1,5 @@
 """What a CSV's first lines and its channel map say (:func:`csv_layout`), and the
-conversions of its time text (formats.md, "Canonical wide CSV", "Channel maps").
+conversions of its time text (docs/formats.md, "Canonical wide CSV", "Channel maps").
 
 The time column is read as text and converted to int64 ns exactly (no float rounding)
 whenever it is written as plain decimals (:func:`decimal_text_to_ns`); ``time_ns`` is read

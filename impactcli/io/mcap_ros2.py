@@ -1,13 +1,15 @@
-"""MCAP with ROS 2 ``sensor_msgs/msg/JointState`` (CDR): bulk reader, encoder (formats.md "MCAP").
+"""MCAP with ROS 2 ``sensor_msgs/msg/JointState`` (CDR): bulk decoder, encoder (docs/formats.md).
 
-Reading: :func:`~impactcli.io.mcap_scan.scan_mcap` locates the message records; messages of
-one chunk with the same size are decoded together: the first is parsed field by field to
-learn its layout (offsets of the stamp and of the position/velocity/effort float64 arrays,
-its joint names), every other message of the group is checked to have the same bytes
-everywhere except the stamp and the float64 arrays, and the values are read with NumPy
-views. Messages that differ (other names, order or frame id) are parsed one by one. Joints
-are matched by ``name[]`` on every message. Trailing CDR padding is ignored. Anything the
-scanner does not handle falls back to the official ``mcap`` + ``mcap_ros2`` decoder.
+Decoding (:func:`decode_batches`, a block's messages of one topic as
+:class:`~impactcli.io.mcap_scan.McapBlocks` locates them): messages of one batch with the
+same size are decoded together: the first is parsed field by field to learn its layout
+(offsets of the stamp and of the position/velocity/effort float64 arrays, its joint
+names), every other message of the group is checked to have the same bytes everywhere
+except the stamp and the float64 arrays, and the values are read with NumPy views.
+Messages that differ (other names, order or frame id) are parsed one by one. Joints are
+matched by ``name[]`` on every message. Trailing CDR padding is ignored.
+:func:`decode_topic_official` is the official ``mcap`` + ``mcap_ros2`` decoder (the
+tests' reference).
 
 CDR layout of JointState (little endian, alignment relative to the byte after the 4-byte
 encapsulation header): ``int32 sec, uint32 nanosec, string frame_id, sequence<string> name,

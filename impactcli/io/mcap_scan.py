@@ -234,22 +234,11 @@ class RecordWalker:
         return start + m * stride
 
     def run_pending(self, buf: bytes, where: str) -> None:
-        """Decompress the chunks found at top level (in threads: zstd/lz4 release the GIL),
-        then walk them and the loose messages in file order."""
-        chunks = [a for kind, a in self.pending if kind == "chunk"]
-        workers = 1  # one chunk at a time: a block
-        if workers > 1:
-            from concurrent.futures import ThreadPoolExecutor
-
-            with ThreadPoolExecutor(workers) as ex:
-                raws = list(ex.map(lambda se: _chunk_bytes(buf, se[0], se[1], where,
-                                                           self.offset), chunks))
-        else:
-            raws = [_chunk_bytes(buf, a, b, where, self.offset) for a, b in chunks]
-        it = iter(raws)
+        """Decompress the chunks found at top level (once each) and walk them, and the
+        loose messages, in file order."""
         for kind, args in self.pending:
             if kind == "chunk":
-                raw = next(it)
+                raw = _chunk_bytes(buf, args[0], args[1], where, self.offset)
                 self.walk(raw, np.frombuffer(raw, dtype=np.uint8), 0, len(raw), where,
                           inside_chunk=True)
             else:

@@ -1,33 +1,20 @@
 """The reader of message logs — MCAP and ROS bags — one implementation for both
-(formats.md, "MCAP", "Channel maps").
+(docs/formats.md, "MCAP", "Channel maps").
 
-State topic (no channel map, or a map that names no position field): ``topic`` when given;
-else the only joint topic (ROS ``sensor_msgs/JointState`` in CDR or ROS 1, or impactcli's
-JSON ``JointSample``); else ``/joint_states``; else an error listing the joint topics (or all
-topics when there is none). JointState gives position, velocity, effort (= torque), joints
-matched by ``name[]`` on every message. Companion topics of a JointState state topic ``T``
-(JointState, joints matched by name, each used when present): ``T_ref`` (or
-``reference_topic``): ``position`` → ``position_ref``, ``velocity`` (when filled in every
-message) → ``velocity_ref``; ``T_model``: ``effort`` → ``torque_model``; ``T_ext``:
-``effort`` → ``torque_ext`` (a joint no message names does not log that channel).
+State topic: the map's position fields' topic when a ``format: messages`` channel map names
+every joint's position; else ``topic``, the only JointState / JSON JointSample topic, or
+``/joint_states``. A JointState state ``T`` has companions (``T_ref`` or ``reference_topic``:
+the reference; ``T_model``, ``T_ext``: the controller's torques), joints matched by
+``name[]`` on every message; a map's fields replace the signals they name. Time: the
+state's header stamps when every one is non-zero, else log time (``time_source``
+overrides); every other topic is stamped alike and held onto the state samples (its latest
+message at or before each), the samples before its first message dropped (a repair).
 
-Channel map (``format: messages``): each per-joint signal may be a field path
-(:mod:`impactcli.io.fields`), with the map's scale and offset. When the map names every
-joint's ``position`` by field path, the state topic is the topic of those fields and every
-signal comes from the map; otherwise the state is the JointState topic above, the log's
-joints are the map's, and a signal the map names replaces the state's or a companion's.
-
-Time: the state topic's ``header`` stamp when every stamp is non-zero, else ``log`` time;
-``time_source`` overrides. Every other topic is stamped the same way (its header when the
-state uses header and its stamps are all non-zero, publish time when the state uses
-publish time, else log time) and held onto the state samples (its latest message at or
-before each); state samples before such a topic's first message are dropped (a repair).
-
-One pass over the file's blocks (:meth:`MessageLayout.read`): each block decompressed and
-decoded once, every topic the log may use counted and its decoded columns spilled
-(:mod:`impactcli.io.message_merge`, which also merges them into rows); what the log is
-made of is decided from the counts (:meth:`MessageLayout.decide`), and a log that does not
-fit is refused with the first error in the order above.
+One pass over the file's blocks (:meth:`MessageLayout.read`) decodes each block once,
+counts every topic the log may use and spills its decoded columns
+(:mod:`impactcli.io.message_merge`, which merges them into rows); what the log is made of
+is decided from the counts (:mod:`impactcli.io.message_plan`), a log that does not fit
+refused with the first error in that order.
 """
 
 from __future__ import annotations

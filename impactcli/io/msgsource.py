@@ -1,25 +1,19 @@
 """Message sources: an MCAP file and a ROS bag seen the same way (topics, types, raw messages).
 
 A :class:`MessageSource` lists its topics with their message type and encoding (``cdr``:
-ROS 2; ``ros1``: ROS 1; ``json``) and loads the raw messages of the topics asked for as
-:class:`TopicData` — file order, log and publish times [ns], and the bytes of each message
-as :class:`~impactcli.io.mcap_scan.Batch` es, so the vectorised JointState decoder of
-:mod:`impactcli.io.mcap_ros2` reads MCAP and rosbag2 alike. :meth:`MessageSource.decode`
-decodes one message of any type with the definitions stored in the file (rosbags'
-``Typestore``: ``ros2msg``/``ros1msg`` through ``get_types_from_msg``, ``ros2idl`` through
-``get_types_from_idl``; types a definition refers to but does not carry are taken from
-rosbags' latest ROS 2 store) or ``json.loads``.
+ROS 2; ``ros1``: ROS 1; ``json``); the messages of a block come as :class:`TopicData` —
+file order, log and publish times [ns], and each message's bytes in :class:`Batch` es —, so
+the vectorised JointState decoder of :mod:`impactcli.io.mcap_ros2` reads MCAP and rosbag2
+alike. :meth:`MessageSource.decode_all` decodes messages of any type with the definitions
+stored in the file (rosbags' ``Typestore``: ``ros2msg``/``ros1msg``, ``ros2idl``; types a
+definition refers to but does not carry come from rosbags' latest ROS 2 store) or
+``json.loads``. rosbags' deserialiser is used because it accepts ROS 1 field names (such as
+``tau_J``) that ``mcap_ros2``'s refuses; it is called on the message body directly, so
+trailing CDR padding (docs/formats.md, "MCAP") is ignored. Fields are read in bulk where
+the layout allows (:mod:`impactcli.io.fieldread`), checked against this decoder.
 
-Measured (``franka_msgs/FrankaState``-like message, 717 bytes): rosbags' generated CDR
-deserialiser takes 17 µs per message and accepts ROS 1 field names such as ``tau_J``;
-``mcap_ros2``'s dynamic decoder refuses them (ROS 2 field-name rules), so rosbags is used.
-Trailing CDR padding (formats.md) is ignored: the deserialiser is called on the message
-body directly, without rosbags' size check. Decoding every message is the reference path;
-fields are read in bulk where the layout allows (:mod:`impactcli.io.fieldread`), checked
-against it.
-
-Sources: :class:`McapSource` (a :class:`~impactcli.io.mcap_scan.McapScan`) here,
-:class:`~impactcli.io.bags.BagSource` (rosbags' ``AnyReader``) in :mod:`impactcli.io.bags`.
+Sources: :class:`~impactcli.io.mcap_scan.McapSource` and
+:class:`~impactcli.io.bags.BagSource` (rosbags' ``AnyReader``).
 """
 
 from __future__ import annotations

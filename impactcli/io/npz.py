@@ -1,5 +1,5 @@
-"""NumPy ``.npz`` archives through a ``format: npz`` channel map (formats.md, "Channel
-maps"): the reader of :mod:`impactcli.io.stream`, block by block.
+"""NumPy ``.npz`` archives through a ``format: npz`` channel map (docs/formats.md, "Channel
+maps"): its reader for the one scan (:mod:`impactcli.io.scan`), block by block.
 
 Arrays are addressed by key; a 2-D array (N, k) by key plus column ``index``. Every array
 used must have the time array's length N. Integer time is multiplied by its unit, float

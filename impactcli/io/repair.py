@@ -1,33 +1,22 @@
-"""The repair policy every reader applies (formats.md, "Canonical wide CSV").
+"""The repair policy every reader applies (docs/formats.md, "Canonical wide CSV"), over the
+consecutive blocks of a log's rows (:class:`Repairer`): the decisions, values and messages
+are those of the whole file at once.
 
-Repairs are explicit and always warned about (:class:`~impactcli.errors.ImpactWarning`)
-and recorded in ``RobotLog.source.repairs``:
-
-* exact duplicate samples (same time, same values in every used channel, one after the
-  other) are dropped;
-* rows out of time order, only when asked (``read_log(..., repair_order=True)``, the
-  command line's ``--repair-order``): the longest strictly increasing subsequence of the
-  stamps is kept (O(N log N)) and the other rows are dropped, counted and warned about —
-  what a logger that writes some rows late leaves on a clean time grid. Of rows sharing a
-  stamp (a repeated stamp with other values) the last one written is kept;
-* short gaps of non-finite values (NaN or ±inf) of at most :data:`MAX_GAP_SAMPLES`
-  consecutive samples in one channel, with finite samples on both sides, are filled by
-  linear interpolation in time.
-
-A channel without a single finite value is not repaired: a controller channel
-(``torque_model``, ``torque_ext``) is read as not logged for that joint; a position,
-torque or current column (``keep_empty``) is passed on as NaN, and the joint is left out
-of the log with a warning by :func:`impactcli.io.assemble.build_log`; so is an optional
-signal's column (velocity, references), and the log is read without that signal, for
-every joint, with a warning (:func:`impactcli.io.assemble.build_log`).
+Repairs are explicit, warned about (:class:`~impactcli.errors.ImpactWarning`) and recorded
+in ``RobotLog.source.repairs``: exact duplicate samples (one after the other) are dropped;
+with ``--repair-order`` only, rows out of time order are dropped, keeping the longest
+strictly increasing run of stamps (:func:`longest_increasing`; of rows sharing a stamp the
+last one written); runs of at most :data:`MAX_GAP_SAMPLES` non-finite values in a channel,
+between finite values, are interpolated linearly in time. A column without a finite value
+is not repaired: a controller channel's is read as not logged for that joint, a position,
+torque or optional signal's is passed on as NaN (the joint, or the signal, is left out of
+the log by the scan, warned).
 
 Anything else is a :class:`~impactcli.errors.LogFormatError` naming the file, the column
-and the row: time that is not strictly increasing after dropping duplicates (without
-``repair_order``; the message names the option — a repeated stamp with other values is
-refused because which row is the sample is the user's call), a non-finite time, a longer
-gap, a gap touching the start or end of the log, and a finite value beyond
-±:data:`MAX_ABS_VALUE` (no joint measures that: a corrupt cell, which would overflow the
-computation).
+and the row: time not strictly increasing (without ``--repair-order``: which row is the
+sample is the user's call), a longer run of non-finite values or one touching the start or
+end, a finite value beyond ±:data:`MAX_ABS_VALUE` (a corrupt cell), and a time column whose
+implied rate says it is in another unit (:func:`rate_message`).
 """
 
 from __future__ import annotations
@@ -48,7 +37,7 @@ if TYPE_CHECKING:
 MAX_GAP_SAMPLES = 5
 #: Largest magnitude of a value read (any channel, in its logged unit); beyond is an error.
 MAX_ABS_VALUE = 1e12
-#: Implied sample rates outside [MIN_RATE_HZ, MAX_RATE_HZ] are an error (formats.md).
+#: Implied sample rates outside [MIN_RATE_HZ, MAX_RATE_HZ] are an error (docs/formats.md).
 MIN_RATE_HZ = 20.0
 MAX_RATE_HZ = 100_000.0
 #: Signals whose column may hold no finite value (passed on as NaN): a position or torque
@@ -174,7 +163,7 @@ def run_message(where: str, name: str, label: str, length: int, kind: str, at_st
 def rate_message(rate: float, where: str, what: str, unit: str | None) -> str | None:
     """The error for a time column whose implied rate ``rate`` [Hz] (of its first
     :data:`~impactcli.sampling.MAX_STATS_STEPS` steps) is outside [:data:`MIN_RATE_HZ`,
-    :data:`MAX_RATE_HZ`] — a time in another unit than read (formats.md) — naming the rate
+    :data:`MAX_RATE_HZ`] — a time in another unit than read (docs/formats.md) — naming the rate
     and the unit that would fit; None when within the range."""
     if not np.isfinite(rate) or MIN_RATE_HZ <= rate <= MAX_RATE_HZ:
         return None

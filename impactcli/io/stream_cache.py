@@ -1,31 +1,19 @@
-"""The scan's repaired rows kept on disk for the later passes of :mod:`impactcli.io.stream`.
+"""The scan's repaired rows kept on disk for the passes after it (:mod:`impactcli.io.scan`):
+a copy instead of a second parse or merge of the file.
 
-Why: the scan parses the whole CSV (its repairs, clock, gaps and screen need every value)
-and each replay pass needs every value again. Parsing the text a second time was half of
-a streamed replay's reading (about 2 s of CPU per 10 minutes of a 7-joint 1 kHz log on
-the project's 2-core machine, more than the rest of the replay but the evaluator).
-So the scan writes the rows it repaired — (n,) int64 times [ns] and (n, C) float64 values
-of the used columns, exactly as :class:`~impactcli.io.repair.Repairer` gives them
-out — to two binary files in a temporary directory, and :func:`chunks` reads them back in
-blocks: a copy instead of a parse.
+The scan writes the rows it repaired — (n,) int64 times [ns] and (n, C) float64 values of
+the used columns, as :class:`~impactcli.io.repair.Repairer` gives them out — to two binary
+files in a temporary directory; :func:`chunks` reads them back in blocks, sets the columns
+without any finite value (``allbad``) to NaN and converts the rows as a pass over the file
+does (:meth:`~impactcli.io.stream_layout.ScanPass.arrays`, elementwise): the same arrays
+bit for bit (``tests/test_io_stream.py``).
 
-Exact: a pass over the text after the scan gives the scan's rows, but for the columns
-without any finite value (``allbad``), which it sets to NaN before repairing. Such a
-column never closes a run of non-finite values (a run closes on a finite value), so
-nothing is interpolated or held back because of it, and the magnitude check skips
-non-finite values: every other column, the times and the rows kept are the scan's.
-:func:`chunks` sets the ``allbad`` columns to NaN and converts the rows as that pass
-does (:meth:`~impactcli.io.stream_layout.ScanPass.arrays`, elementwise): the chunks are
-the same arrays bit for bit (``tests/test_io_stream.py``).
-
-Bounded: memory holds one block of rows (``max(chunk_rows, MIN_READ_ROWS)``). The disk
-holds 8·(1 + C) bytes per row (288 for 7 joints with 5 signals: less than the CSV text).
-The cache is given up — deleted, and the file parsed again by each pass, as before —
-when no temporary folder can be made, a write fails or its file system's free space
-falls under :data:`MIN_FREE_BYTES` (a day-long log must not fill the disk). It is
-deleted by :meth:`RowCache.close` (the scan's ``close``; the scan closes it itself when
-it fails), else when the scan is garbage collected or the interpreter exits (a
-:func:`weakref.finalize`).
+Bounded: memory holds one block of rows (``max(chunk_rows, MIN_READ_ROWS)``), the disk
+8·(1 + C) bytes per row. The cache is given up — deleted, and each pass reads the file
+again — when no temporary folder can be made, a write fails or the free space falls under
+:data:`MIN_FREE_BYTES` (a day-long log must not fill the disk). It is deleted by
+:meth:`RowCache.close` (the reader's ``close``), else when it is garbage collected or at
+exit (a :func:`weakref.finalize`).
 """
 
 from __future__ import annotations

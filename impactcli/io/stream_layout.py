@@ -1,4 +1,4 @@
-"""What a format gives the one scan of :mod:`impactcli.io.stream`: a :class:`StreamLayout`,
+"""What a format gives the one scan of :mod:`impactcli.io.scan`: a :class:`StreamLayout`,
 and what the scan gives back: :class:`LogChunk` s, through a :class:`ScanPass`.
 
 A format's layout says where the log is and how messages name it, which columns its rows
@@ -20,15 +20,12 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from ..errors import LogFormatError
 from .assemble import JointChannels
-
-if TYPE_CHECKING:
-    from .stream_cache import RowCache
 
 #: The log's optional arrays, in :class:`~impactcli.types.RobotLog`'s order.
 OPTIONAL = ("velocity", "current", "position_ref", "velocity_ref", "acceleration_ref",
@@ -139,6 +136,7 @@ class MappedLayout(StreamLayout):
 
 
 # --------------------------------------------------------------------------- chunks
+
 @dataclass(frozen=True)
 class LogChunk:
     """Consecutive samples of a log, as :class:`~impactcli.types.RobotLog` holds them.
@@ -189,7 +187,9 @@ class ScanPass:
     t_shift: int  # subtracted from every stamp (a map's start_at_zero)
     n_samples: int
     order_keep: np.ndarray | None = None  # --repair-order: raw rows kept (bool), or None
-    cache: RowCache | None = field(default=None)
+    # the scan's cache of its rows (a stream_cache.RowCache), None: the layout's rows are
+    # read again
+    cache: Any = field(default=None)
     order_repair: str | None = None  # --repair-order: the repair's message
 
     def arrays(self, t: np.ndarray, mat: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:

@@ -16,7 +16,7 @@ itself stays bounded), into a temporary folder:
 Then, in a fresh process, :func:`impactcli.io.stream.scan_log` and every chunk of
 :func:`~impactcli.io.stream.iter_chunks` (``chunk_rows``); ``--whole`` also times
 :func:`impactcli.io.read_log` in another fresh process. Reported: wall time, the scan's
-share, ``streamed``, and the peak resident memory (``ru_maxrss`` of the child, which
+share, and the peak resident memory (``ru_maxrss`` of the child, which
 reports it itself). Peak RSS must not grow with the duration.
 """
 
@@ -53,7 +53,6 @@ if mode == "stream":
     n = 0
     for c in iter_chunks(path, scan, chunk_rows, **opts):
         n += c.n_samples
-    out["streamed"] = getattr(scan, "streamed", True)
     scan.close()
 else:
     from impactcli.io import read_log
@@ -166,7 +165,7 @@ def main() -> None:
     modes = ("stream", "whole") if args.whole else ("stream",)
     print(f"{platform.machine()}, {os.cpu_count()} cores, python {platform.python_version()}, "
           f"chunk_rows {args.chunk_rows}\n{'format':6s} {'minutes':>7s} {'samples':>9s} "
-          f"{'MB':>6s} {'read':6s} {'wall s':>7s} {'scan s':>7s} {'peak RSS MB':>11s} streamed")
+          f"{'MB':>6s} {'read':6s} {'wall s':>7s} {'scan s':>7s} {'peak RSS MB':>11s}")
     with tempfile.TemporaryDirectory(prefix="bench_stream_formats_") as tmp:
         for minutes in args.minutes:
             for fmt in args.formats:
@@ -191,7 +190,7 @@ def _bench(fmt: str, minutes: float, folder: Path, modes: tuple[str, ...],
         assert r["n"] == n
         scan = f"{r['scan_s']:7.1f}" if "scan_s" in r else f"{'':7s}"
         print(f"{fmt:6s} {minutes:7g} {n:9d} {size:6.0f} {mode:6s} {r['wall_s']:7.1f} "
-              f"{scan} {r['peak_mb']:11.0f} {r.get('streamed', '')}", flush=True)
+              f"{scan} {r['peak_mb']:11.0f}", flush=True)
     if path.is_dir():
         shutil.rmtree(path)
     else:
