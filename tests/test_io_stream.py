@@ -304,7 +304,7 @@ def test_errors_name_the_cell_as_read_log_does(tmp_path: Path) -> None:
     assert "not a finite number" in _bad(tmp_path, _set("time", 1500, "nan"))
 
 
-def test_the_first_error_is_the_whole_readers(tmp_path: Path) -> None:
+def test_the_first_error_is_the_files_first_in_order(tmp_path: Path) -> None:
     # a value too large early, rows out of order late: the order is checked first
     def both(cols: dict[str, list[str]]) -> None:
         cols["j1.torque"][10] = "5e12"

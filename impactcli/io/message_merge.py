@@ -8,7 +8,8 @@ joints, signals and time source, the companion and map topics) is decided from c
 only once the pass is over. So every topic the log may use keeps its decoded columns —
 the three time stamps, each array's values per joint name, which joints and arrays each
 message fills, the map's fields — in a spill of its own: a column per file in a temporary
-folder, read back in ranges of rows or by row numbers (:class:`numpy.memmap`).
+folder, read back in ranges of rows or by row numbers (reads of the files, not maps of
+them: the pages read do not stay in the process's memory).
 
 The merge reads the spills, not the file: the state samples in time order (the stamps of a
 topic written out of order are sorted by a stable argsort kept in memory, 8 bytes a
@@ -90,7 +91,7 @@ class TopicSpill:
         self.dtype: dict[str, np.dtype[Any]] = {}
         self._files: dict[str, IO[bytes]] = {}
         self._mem: dict[str, list[np.ndarray]] = {}
-        self._arrays: dict[str, np.ndarray] = {}  # after finish: memmaps or arrays
+        self._arrays: dict[str, _Stored] = {}  # after finish
         self.on_disk = folder.path is not None
 
     def _path(self, key: str) -> str:
@@ -137,13 +138,11 @@ class TopicSpill:
             m = self.n - self.start[key]
             if self.on_disk:
                 self._files[key].close()
-                self._arrays[key] = (np.memmap(self._files[key].name, dtype=self.dtype[key],
-                                               mode="r", shape=(m,)) if m else
-                                     np.zeros(0, dtype=self.dtype[key]))
+                self._arrays[key] = _Stored(self.dtype[key], m, path=self._files[key].name)
             else:
                 parts = self._mem[key]
-                self._arrays[key] = (np.concatenate(parts) if parts else
-                                     np.zeros(0, dtype=self.dtype[key]))
+                self._arrays[key] = _Stored(self.dtype[key], m, array=(
+                    np.concatenate(parts) if parts else np.zeros(0, dtype=self.dtype[key])))
                 self._mem[key] = []
         self._files = {}
 
@@ -160,7 +159,7 @@ class TopicSpill:
         if lo > a:
             out[: lo - a] = _FILL[dtype]
         if lo < b:
-            out[lo - a:] = self._arrays[key][lo - s:b - s]
+            self._arrays[key].read(lo - s, b - s, out[lo - a:])
         return out
 
     def take(self, key: str, rows: np.ndarray) -> np.ndarray:
@@ -170,10 +169,11 @@ class TopicSpill:
             return np.full(rows.shape[0], _FILL[dtype], dtype=dtype)
         s = self.start[key]
         if s == 0:
-            return np.asarray(self._arrays[key][rows])
+            return self._arrays[key].take(rows)
         out = np.full(rows.shape[0], _FILL[dtype], dtype=dtype)
         late = rows >= s
-        out[late] = self._arrays[key][rows[late] - s]
+        if late.any():
+            out[late] = self._arrays[key].take(rows[late] - s)
         return out
 
     def column(self, key: str) -> np.ndarray:
@@ -199,7 +199,49 @@ class TopicSpill:
             with contextlib.suppress(OSError):
                 f.close()
         self._files = {}
+        for a in self._arrays.values():
+            a.close()
         self._arrays = {}
+
+
+class _Stored:
+    """A finished column: a file read with ``pread``, or an array in memory."""
+
+    def __init__(self, dtype: np.dtype[Any], n: int, path: str | None = None,
+                 array: np.ndarray | None = None) -> None:
+        self.dtype, self.n, self.array = dtype, n, array
+        self.fd = os.open(path, os.O_RDONLY) if path is not None else None
+
+    def read(self, a: int, b: int, out: np.ndarray) -> None:
+        """Rows ``a:b`` into ``out``."""
+        if self.array is not None:
+            out[:] = self.array[a:b]
+            return
+        assert self.fd is not None
+        size = self.dtype.itemsize
+        buf = out if out.flags.c_contiguous else np.empty(b - a, dtype=self.dtype)
+        got = os.preadv(self.fd, [buf.data.cast("B")], a * size)
+        if got != (b - a) * size:
+            raise OSError(f"spill: {got} bytes read of {(b - a) * size}")
+        if buf is not out:
+            out[:] = buf
+
+    def take(self, rows: np.ndarray) -> np.ndarray:
+        """The rows ``rows`` (read as the span they cover)."""
+        if self.array is not None:
+            return np.asarray(self.array[rows])
+        if rows.size == 0:
+            return np.zeros(0, dtype=self.dtype)
+        lo, hi = int(rows.min()), int(rows.max()) + 1
+        span = np.empty(hi - lo, dtype=self.dtype)
+        self.read(lo, hi, span)
+        return span[rows - lo]
+
+    def close(self) -> None:
+        if self.fd is not None:
+            with contextlib.suppress(OSError):
+                os.close(self.fd)
+            self.fd = None
 
 
 @dataclass

@@ -16,7 +16,6 @@ from typing import Any
 import numpy as np
 
 from ..errors import ChannelMapError, ImpactError, LogFormatError
-from ..types import CONTROLLER_CHANNELS
 from .assemble import TIME_SOURCES
 from .channel_map import SIGNALS
 from .message_merge import Part
@@ -341,7 +340,6 @@ def _columns(lay: MessageLayout, sel: Selection) -> None:
         if f.signal == "current" and f.ref.scale is not None:
             scale[f.joint] = f.ref.scale
     lay.current_scale = scale
-    assert all(s in SIGNALS or s in CONTROLLER_CHANNELS for s, _ in cols)
 
 
 # ------------------------------------------------------------------------ the reader

@@ -293,7 +293,7 @@ class _ScanAcc:
         # optional signal → (J,) whether each joint's column holds a finite value
         self.opt_finite: dict[str, np.ndarray] = {}
         self.screens = {s: ScreenAccumulator(j) for s in ("torque", *CONTROLLER_CHANNELS)}
-        self.ranges: dict[str, ScreenAccumulator] = {}  # the other arrays' ranges
+        self.ranges: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # other arrays' lo, hi
         self.floor = float("-inf")
         self.bad_row: dict[str, np.ndarray] = {}  # signal → (J,) first non-finite sample
 
@@ -350,8 +350,11 @@ class _ScanAcc:
             if s in arrays:
                 acc.add(arrays[s])
         for s, a in arrays.items():
-            if s not in self.screens:
-                self.ranges.setdefault(s, ScreenAccumulator(a.shape[1], distinct=False)).add(a)
+            if s not in self.screens:  # NaN: not logged (a finite log has no ±inf left)
+                lo, hi = np.fmin.reduce(a, axis=0), np.fmax.reduce(a, axis=0)
+                if s in self.ranges:
+                    lo, hi = np.fmin(self.ranges[s][0], lo), np.fmax(self.ranges[s][1], hi)
+                self.ranges[s] = (lo, hi)
 
     def rate_error(self) -> str | None:
         """The time-unit check on the first steps."""
@@ -405,14 +408,13 @@ class _ScanAcc:
         idx, lengths = self.gaps.gaps(clock)
         screens = {s: self.screens[s].result().select(keep) for s in self.screens
                    if getattr(log, s) is not None}
-        ranges = {s: self.ranges[s].result().select(keep) for s in self.ranges
-                  if getattr(log, s) is not None}
-        ranges.update(screens)
+        ranges = {s: (lo[keep], hi[keep]) for s, (lo, hi) in self.ranges.items()}
+        ranges.update({s: (sc.lo, sc.hi) for s, sc in screens.items()})
         scan = LogScan(log=log, n_samples=self.n, t0_ns=int(self.head_t[0]) - shift,
                        t_last_ns=int(self.hist.last or 0) - shift, clock=clock, gaps=idx,
                        gap_lengths_s=lengths, torque_screen=screens["torque"].unusable(),
                        screens=screens, options=dict(options), reader=reader,
-                       ranges={s: (ranges[s].lo, ranges[s].hi) for s in _arrays_of(log)})
+                       ranges={s: ranges[s] for s in _arrays_of(log)})
         return scan, ps
 
 

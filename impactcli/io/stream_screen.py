@@ -118,14 +118,13 @@ class ColumnScreen:
 
 
 class ScreenAccumulator:
-    """Accumulates :class:`ColumnScreen` over chunks of (n, J) values (``distinct``:
-    counting the distinct values, the screen's; without, only the ranges)."""
+    """Accumulates :class:`ColumnScreen` over chunks of (n, J) values."""
 
-    def __init__(self, n_cols: int, distinct: bool = True) -> None:
+    def __init__(self, n_cols: int) -> None:
         self.lo = np.full(n_cols, np.inf)
         self.hi = np.full(n_cols, -np.inf)
         self.first = np.full(n_cols, np.nan)
-        self.distinct: list[np.ndarray | None] = [np.zeros(0) if distinct else None] * n_cols
+        self.distinct: list[np.ndarray | None] = [np.zeros(0)] * n_cols
 
     def add(self, values: np.ndarray) -> None:
         """Count an (n, J) chunk."""
