@@ -1,59 +1,22 @@
-"""A log's sample clock: the one rate estimator and the one gap rule of every format and check.
+"""A log's sample clock: the one rate estimator and the one gap rule of every format and check
+(docs/method.md §5b gives the reasons and the cases they were built on).
 
-Real time stamps are rarely a clean grid. Host-stamped logs jitter; loggers drop a sample
-now and then (a step of two periods), write a sample twice or stamp two samples alike (a
-repeated stamp), or deliver a late sample together with the next one (a long step, then a
-very short one). The median step, used before, is pulled off by such steps (a 1 kHz log
-could read as 1020 Hz) and the fixed "1.5 median steps" gap rule then calls every dropped
-or late sample a gap. Every consumer of a rate — :attr:`impactcli.types.RobotLog.sample_period_s`
-and ``sample_rate_hz`` (hence the detectors' filters and windows, the timeline's
-``input.sample_rate_hz``), :func:`impactcli.io.inspect.time_gaps` and ``inspect``'s rate,
-jitter and gaps, the readers' time-unit check — uses :func:`sample_clock` below.
+Real time stamps are rarely a clean grid: host-stamped logs jitter, loggers drop a sample,
+repeat a stamp or deliver a late sample with the next one. Every consumer of a rate
+(:attr:`impactcli.types.RobotLog.sample_period_s`, the detectors' filters and windows, the
+timeline's ``input.sample_rate_hz``, ``inspect``, the readers' time-unit check) uses
+:func:`sample_clock`, on the histogram of ALL the steps (:func:`step_histogram`, exact and
+additive over chunks: :class:`StepHistogram`): repeated stamps merged (a zero step is not a
+step); a first period, the median step; the period P, the mean of the steps within ±50 %
+(:data:`SINGLE_STEP_BAND`) of it, re-centred until it settles (dropped samples, gaps and
+late stamps fall outside; jitter averages out); the jitter, 1.4826 × the MAD of dt − P
+(``jitter_s``) and the 95th percentile of |dt − P| (``envelope_s``).
 
-Estimator (:func:`sample_clock`), on the (N,) int64 stamps t [ns]. Every statistic below
-is computed exactly from the histogram of ALL the steps (distinct step → count,
-:func:`step_histogram`; :func:`clock_from_histogram`): the medians and the quantile are
-read off the cumulative counts, the period's mean is an exact integer sum of value × count
-followed by one division. Histograms of consecutive chunks add up exactly
-(:class:`StepHistogram`, which carries the last stamp of a chunk to the next), so the clock
-of a log read chunk by chunk is the same, to the bit, whatever the chunking.
-
-1. Steps dt_i = t[i+1] − t[i]. Repeated stamps are merged: a zero step is not a step.
-   (A :class:`~impactcli.types.RobotLog` never holds one: the readers' repair policy,
-   :mod:`impactcli.io.repair`, drops exact duplicate rows and refuses a repeated stamp with
-   other values unless ``--repair-order`` is given, which keeps the last row of a stamp.)
-2. A first period P0: the median of the non-zero steps.
-3. The period P: the mean of the steps that span one period — those within ±50 %
-   (:data:`SINGLE_STEP_BAND`) of the estimate — re-centred on the new mean until it
-   settles. This is the slope of time against sample index over the regular steps: a
-   dropped sample or a gap (≥ 1.5 P), a very short step (a late stamp delivered with the
-   next sample, an inserted row) fall outside the band and do not pull it; jitter inside
-   the band averages out over the log (symmetric jitter, and a late stamp followed by an
-   early one, cancel), where the median of all steps is pulled by the irregular ones. On a
-   clean grid P is the grid's period (to the ns rounding of its stamps).
-4. The jitter of the steps about P: ``jitter_s`` = 1.4826 × the median absolute deviation
-   of dt − P (a robust standard deviation), and ``envelope_s`` = the 95th percentile of
-   |dt − P|: 95 % of the steps lie within P ± envelope.
-
-Gap rule (:func:`gap_steps`): the step t[i] → t[i+1] is a gap when
-
-(a) it is longer than :data:`GAP_FACTOR` (1.5) × P, and
-(b) it is clearly beyond the jitter: longer than P + :data:`ENVELOPE_FACTOR` (2) × envelope —
-    a step length that more than 5 % of the log's steps reach (a logger that drops every
-    17th sample) is the log's timing, not a gap; with Gaussian jitter of standard
-    deviation σ this asks for about 4 σ — and
-(c) the time is not given back: over the step and :data:`COMPENSATION_STEPS` (2) steps on
-    each side, the log falls behind its clock by more than (threshold − P). A late stamp
-    followed by an early one is jitter, not lost time.
-
-The threshold of (a) and (b), max(1.5 P, P + 2 envelope), is ``gap_threshold_s``.
-
-Chunk by chunk: a step's verdict needs the stamps from 2 before it to 3 after it, so
-:func:`chunk_gap_steps` (the clock known) takes a chunk with the previous chunks' last
-:data:`TAIL_STAMPS` stamps and decides the steps whose window ends in it;
-:class:`GapStream` (the clock not known yet: a first pass) keeps the steps longer than a
-floor with their windows and selects the gaps once the clock is known. Both give
-:func:`gap_steps`' result exactly, whatever the chunking.
+A step is a gap (:func:`gap_steps`) when it is longer than :data:`GAP_FACTOR` × P and than
+P + :data:`ENVELOPE_FACTOR` × envelope (``gap_threshold_s``), and the time is not given
+back over :data:`COMPENSATION_STEPS` steps on each side. Chunk by chunk the same gaps are
+found (:func:`chunk_gap_steps` with the clock known, :class:`GapStream` before), whatever
+the chunking.
 """
 
 from __future__ import annotations
@@ -74,7 +37,7 @@ COMPENSATION_STEPS = 2
 SINGLE_STEP_BAND = 0.5
 #: Re-centrings of the period estimate at most (it settles in a few).
 MAX_ITERATIONS = 50
-#: :func:`impactcli.io.repair.check_time_rate` judges a time column's unit on this many
+#: :func:`impactcli.io.repair.rate_message` judges a time column's unit on this many
 #: steps from the start (a unit is a unit from the start).
 MAX_STATS_STEPS = 1_000_000
 #: Stamps a chunk of :func:`chunk_gap_steps` needs from before it: the step before the

@@ -14,7 +14,7 @@ from click.testing import CliRunner, Result
 
 from impactcli.cli import main
 from impactcli.io import log_sha256, log_stem
-from impactcli.io.bags import write_rosbag1, write_rosbag2
+from impactcli.io.write import write_rosbag1, write_rosbag2
 from impactcli.types import RobotLog
 
 from .conftest import make_log

@@ -296,13 +296,19 @@ def test_every_joints_optional_column_empty_says_so_once(tmp_path: Path) -> None
 def test_a_column_without_any_finite_value_that_must_have_one_says_so() -> None:
     """The error of a non-finite run spanning the whole column says the column holds no
     finite value (it read '... at the start of the log at the end of the log')."""
-    from impactcli.io.repair import repair_samples
+    from impactcli.io.repair import Repairer
+    from impactcli.io.stream_layout import RawRows, StreamLayout
+
+    class Two(StreamLayout):
+        where, names, droppable = "f.csv", ["a.position", "x"], set()
 
     t = np.arange(10, dtype=np.int64) * PERIOD_NS
-    with pytest.raises(LogFormatError) as e:
-        repair_samples(t, {"a.position": np.zeros(10), "x": np.full(10, np.nan)},
-                       where="f.csv", keep_empty=())
-    assert str(e.value) == (
+    mat = np.column_stack([np.zeros(10), np.full(10, np.nan)])
+    rep = Repairer(Two(), None)
+    rep.push(RawRows(0, t[:4], mat[:4]))  # in two blocks
+    rep.push(RawRows(4, t[4:], mat[4:]))
+    rep.finish()
+    assert rep.first_error() == (
         "f.csv: column 'x', sample 0: no finite value in the column (all 10 values are "
         "non-finite, NaN); only gaps of at most 5 samples between finite values are "
         "interpolated")

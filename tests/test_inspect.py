@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -44,6 +45,47 @@ def test_inspect_json_validates_and_describes(tmp_path: Path) -> None:
     assert d["torque_source"] == "torque" and d["time_source"] == "column"
     assert "a.position_ref" in d["channels"]["used"]
     assert d["repairs"] == [] and d["channels"]["ignored"] == []
+
+
+def test_inspect_gives_each_channels_range_per_joint(tmp_path: Path) -> None:
+    """inspect describes the scan: every array's smallest and largest value per joint,
+    as the log's arrays hold them (a controller channel a joint does not log: null), in
+    the JSON and on a line of the table; for CSV and MCAP copies alike."""
+    log = _gappy_log()
+    tm = np.array(log.torque) * 0.5
+    tm[:, 1] = np.nan  # joint b does not log torque_model
+    log = RobotLog(t_ns=log.t_ns, joint_names=log.joint_names, position=log.position,
+                   torque=log.torque, position_ref=log.position_ref, torque_model=tm)
+    for name in ("g.csv", "g.mcap"):
+        p = tmp_path / name
+        write_log(log, p)
+        with warnings.catch_warnings():  # the MCAP's empty column is a warned repair
+            warnings.simplefilter("ignore", ImpactWarning)
+            d = inspect_log(p)
+        assert list(d["ranges"]) == ["position", "torque", "position_ref", "torque_model"]
+        for sig, per in d["ranges"].items():
+            a = getattr(log, sig)
+            for k, j in enumerate(log.joint_names):
+                if np.isnan(a[:, k]).all():
+                    assert per[j] is None
+                else:
+                    assert per[j] == [float(np.nanmin(a[:, k])), float(np.nanmax(a[:, k]))]
+    table = CliRunner().invoke(main, ["inspect", str(tmp_path / "g.csv")]).stdout
+    assert f"torque_model range: a {np.min(tm[:, 0]):.4g}…{np.max(tm[:, 0]):.4g}" in table
+
+
+def test_inspect_imports_no_model() -> None:
+    """``impactcli inspect`` starts without importing the model package (its read options
+    come from cli/log_options, not cli/detect)."""
+    import subprocess
+    import sys
+
+    code = ("import sys, impactcli.cli.inspect, impactcli.cli.labels; "
+            "print(any(m.startswith(('impactcli.model', 'impactcli.cli.detect')) "
+            "for m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip() == "False"
 
 
 def test_inspect_table_and_repairs_warned_on_stderr(tmp_path: Path) -> None:

@@ -17,7 +17,8 @@ from click.testing import CliRunner
 from impactcli.cli import main
 from impactcli.errors import ImpactError, LogFormatError, OutputError
 from impactcli.io import LOG_SUFFIXES, inspect_log, log_stem, read_log, write_log
-from impactcli.io.bags import folder_sha256, write_rosbag1, write_rosbag2
+from impactcli.io.paths import folder_sha256
+from impactcli.io.write import write_rosbag1, write_rosbag2
 from impactcli.schema import validate
 from impactcli.types import RobotLog
 

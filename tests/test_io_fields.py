@@ -634,8 +634,7 @@ def _odd_file(tmp: Path, n: int = 300, short_at: int | None = None) -> tuple[Pat
 def _odd_fields(p: Path) -> tuple[np.ndarray, np.ndarray | None]:
     from impactcli.io.fieldread import read_fields
     from impactcli.io.fields import FieldPath
-    from impactcli.io.mcap_scan import scan_mcap
-    from impactcli.io.msgsource import McapSource
+    from impactcli.io.mcap_scan import McapSource, scan_mcap
 
     src = McapSource(scan_mcap(p), str(p))
     td = src.load(["/odd"])["/odd"]

@@ -14,7 +14,6 @@ from mcap.writer import Writer as McapWriter
 
 from impactcli.errors import ImpactWarning, LogFormatError
 from impactcli.io import read_log, write_log
-from impactcli.io.mcap_log import write_mcap_ros2
 from impactcli.io.mcap_ros2 import (
     JOINT_STATE,
     JOINT_STATE_DEF,
@@ -24,6 +23,7 @@ from impactcli.io.mcap_ros2 import (
     parse_jointstate,
 )
 from impactcli.io.mcap_scan import scan_mcap
+from impactcli.io.write import write_mcap_ros2
 from impactcli.types import RobotLog
 
 from .conftest import make_log

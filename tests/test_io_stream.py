@@ -1,6 +1,7 @@
-"""The streaming reader (impactcli.io.stream): for every chunk size the chunks are read_log's
-arrays bit for bit, the scan its source, warnings, clock, gaps and screen, and a bad file
-fails in the scan with read_log's message."""
+"""The one reader (impactcli.io.stream) on CSV: for every chunk size the chunks are the same
+arrays bit for bit (read_log collects them), the scan's clock, gaps and screens are those
+of the whole log's arrays, the repairs are warned once by the scan, and a bad file fails
+in the scan with one message naming the cell."""
 
 from __future__ import annotations
 
@@ -16,9 +17,12 @@ import pytest
 
 from impactcli.detect.screen import unusable_columns
 from impactcli.errors import ImpactWarning, LogFormatError
-from impactcli.io import read_log, stream, stream_cache, stream_csv, write_log
+from impactcli.io import csv as csv_reader
+from impactcli.io import read_log, stream_cache, write_log
+from impactcli.io import scan as scan_module
 from impactcli.io.inspect import time_gaps
-from impactcli.io.stream import OPTIONAL, LogScan, iter_chunks, scan_log
+from impactcli.io.stream import LogScan, iter_chunks, scan_log
+from impactcli.io.stream_layout import OPTIONAL
 from impactcli.types import JointSpec, RobotDescription
 
 CHUNKS = (1, 2, 7, 1000, 65536)
@@ -28,7 +32,7 @@ N = 3000
 @pytest.fixture(autouse=True)
 def _small_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
     """Many record batches per file: runs and duplicates fall across their boundaries."""
-    monkeypatch.setattr(stream_csv, "BLOCK_SIZE", 4096)
+    monkeypatch.setattr(csv_reader, "BLOCK_SIZE", 4096)
 
 
 def _table(n: int = N, seed: int = 0, epoch: bool = False) -> dict[str, list[str]]:
@@ -75,12 +79,11 @@ def _scan(path: Path, **opts: Any) -> tuple[LogScan, list[str]]:
     return scan, [str(x.message) for x in w if issubclass(x.category, ImpactWarning)]
 
 
-def _assert_same(path: Path, streamed: bool = True, chunks: tuple[int, ...] = CHUNKS,
-                 **opts: Any) -> LogScan:
-    """The invariant: scan + chunks == read_log, for every chunk size."""
+def _assert_same(path: Path, chunks: tuple[int, ...] = CHUNKS, **opts: Any) -> LogScan:
+    """The invariants: the chunks are the same arrays for every chunk size, the scan's
+    clock, gaps and screens those of the whole log's arrays, its warnings read_log's."""
     log, warned = _read(path, **opts)
     scan, scan_warned = _scan(path, **opts)
-    assert scan.streamed is streamed
     assert scan_warned == warned
     assert scan.log.source == log.source
     assert scan.joint_names == log.joint_names
@@ -117,16 +120,13 @@ def _assert_same(path: Path, streamed: bool = True, chunks: tuple[int, ...] = CH
     return scan
 
 
-def _error(path: Path, streamed: bool = True, **opts: Any) -> str:
-    """read_log's error, which the scan raises too (by itself when ``streamed``)."""
+def _error(path: Path, **opts: Any) -> str:
+    """read_log's error, which the scan raises (nothing is read before it)."""
     with pytest.raises(LogFormatError) as whole, warnings.catch_warnings():
         warnings.simplefilter("ignore", ImpactWarning)
         read_log(path, **opts)
-    with pytest.raises(LogFormatError) as scanned, warnings.catch_warnings(), \
-            pytest.MonkeyPatch.context() as mp:
+    with pytest.raises(LogFormatError) as scanned, warnings.catch_warnings():
         warnings.simplefilter("ignore", ImpactWarning)
-        if streamed:
-            mp.setattr(stream, "_scan_whole", _no_fallback)
         scan_log(path, **opts)
     assert str(scanned.value) == str(whole.value)
     return str(whole.value)
@@ -144,12 +144,12 @@ def test_epoch_times_and_the_default_block_size(tmp_path: Path,
                                                 monkeypatch: pytest.MonkeyPatch) -> None:
     path = _write(tmp_path / "epoch.csv", _table(epoch=True))
     _assert_same(path, chunks=(7, 65536))
-    monkeypatch.setattr(stream_csv, "BLOCK_SIZE", 1 << 24)
+    monkeypatch.setattr(csv_reader, "BLOCK_SIZE", 1 << 24)
     _assert_same(path, chunks=(1000,))
 
 
 def test_the_shipped_sample_logs(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(stream_csv, "BLOCK_SIZE", 1 << 16)
+    monkeypatch.setattr(csv_reader, "BLOCK_SIZE", 1 << 16)
     root = Path(__file__).resolve().parents[1] / "sample_logs" / "csv"
     for name in ("assist_impacts", "heavy_free_p2p"):
         _assert_same(root / f"{name}.csv.gz", chunks=(1000, 65536))
@@ -281,15 +281,10 @@ def test_a_channel_mapped_csv_with_current(tmp_path: Path) -> None:
 
 
 # -------------------------------------------------------------------------- errors
-def _no_fallback(*args: Any) -> None:
-    raise AssertionError("read whole")
-
-
-def _bad(tmp_path: Path, edit: Callable[[dict[str, list[str]]], None],
-         streamed: bool = True) -> str:
+def _bad(tmp_path: Path, edit: Callable[[dict[str, list[str]]], None]) -> str:
     cols = _table()
     edit(cols)
-    return _error(_write(tmp_path / "bad.csv", cols), streamed)
+    return _error(_write(tmp_path / "bad.csv", cols))
 
 
 def _set(col: str, i: int, v: str) -> Callable[[dict[str, list[str]]], None]:
@@ -305,11 +300,11 @@ def test_errors_name_the_cell_as_read_log_does(tmp_path: Path) -> None:
     assert "a run of 6 non-finite" in msg
     assert "at the start" in _bad(tmp_path, _set("j3.position_ref", 0, ""))
     assert "at the end" in _bad(tmp_path, _set("j3.position_ref", N - 1, "nan"))
-    assert "non-numeric" in _bad(tmp_path, _set("j1.position", 2999, "abc"), streamed=False)
-    assert "not a finite number" in _bad(tmp_path, _set("time", 1500, "nan"), streamed=False)
+    assert "non-numeric" in _bad(tmp_path, _set("j1.position", 2999, "abc"))
+    assert "not a finite number" in _bad(tmp_path, _set("time", 1500, "nan"))
 
 
-def test_the_first_error_is_the_whole_readers(tmp_path: Path) -> None:
+def test_the_first_error_is_the_files_first_in_order(tmp_path: Path) -> None:
     # a value too large early, rows out of order late: the order is checked first
     def both(cols: dict[str, list[str]]) -> None:
         cols["j1.torque"][10] = "5e12"
@@ -341,7 +336,7 @@ def test_the_scan_warns_once_and_checks_its_options(tmp_path: Path) -> None:
         next(iter_chunks(path, scan, 10, time_unit="s"))
 
 
-# --------------------------------------------------------------- the whole-file path
+# ------------------------------------------------------------------------- variants
 def test_iso_8601_time_streams(tmp_path: Path) -> None:
     rng = np.random.default_rng(9)
     cols = _table()
@@ -354,17 +349,40 @@ def test_iso_8601_time_streams(tmp_path: Path) -> None:
             c.insert(1001, c[1000])
         scan = _assert_same(_write(tmp_path / "iso.csv", cols), chunks=(7, 1000))
         assert scan.t0_ns > 10**18
-    assert "does not apply" in _error(tmp_path / "iso.csv", streamed=False, time_unit="ms")
+    assert "does not apply" in _error(tmp_path / "iso.csv", time_unit="ms")
     cols["time"][2500] = "not a time"
-    assert "is not an ISO-8601 time" in _error(_write(tmp_path / "bad.csv", cols),
-                                               streamed=False)
+    assert "is not an ISO-8601 time" in _error(_write(tmp_path / "bad.csv", cols))
 
 
-def test_repair_order_falls_back_to_read_log(tmp_path: Path) -> None:
+def test_repair_order_keeps_the_longest_increasing_run(tmp_path: Path) -> None:
+    """Rows written late, a repeated stamp and duplicates across blocks: the rows kept are
+    the longest increasing run of the stamps (repair.longest_increasing), dropped rows are
+    counted in one repair, and the other repairs run over the rows kept."""
+    from impactcli.io.repair import longest_increasing
+
+    rng = np.random.default_rng(3)
     cols = _table()
+    _punch(cols, rng, "", 10)
+    t = cols["time"][:]
     cols["time"][100], cols["time"][101] = cols["time"][101], cols["time"][100]
-    _assert_same(_write(tmp_path / "late.csv", cols), streamed=False, chunks=(7,),
-                 repair_order=True)
+    cols["time"][2500] = cols["time"][1200]  # far out of order
+    cols["time"][1700] = cols["time"][1699]  # a repeated stamp with other values
+    for c in cols.values():  # an exact duplicate
+        c.insert(901, c[900])
+    path = _write(tmp_path / "late.csv", cols)
+    scan = _assert_same(path, chunks=(7, 1000), repair_order=True)
+    stamps = np.array([int(v.replace(".", "")) for v in cols["time"]])
+    dedup = np.delete(stamps, 901)
+    kept = dedup[longest_increasing(dedup)]
+    assert np.array_equal(np.concatenate(
+        [c.t_ns for c in iter_chunks(path, scan, 1000, repair_order=True)]), kept)
+    assert t and scan.n_samples == kept.size == N - 3
+    assert scan.source.repairs[:2] == (
+        f"{path}: dropped 1 exact duplicate sample(s) (first at row 902 (line 903))",
+        f"{path}: dropped 3 row(s) (1 out of time order, 2 with a repeated stamp; first at "
+        f"row 101 (line 102)), keeping the longest increasing run of stamps ({N - 3} rows; "
+        "--repair-order)")
+    assert len([r for r in scan.source.repairs if "interpolated" in r]) == 8
 
 
 def test_a_decimal_comma_and_a_byte_order_mark_stream(tmp_path: Path) -> None:
@@ -399,8 +417,8 @@ def test_the_fast_decimal_time_is_decimal_text_to_ns() -> None:
     import pyarrow as pa
     import pyarrow.compute as pc
 
-    from impactcli.io.csv import decimal_text_to_ns
-    from impactcli.io.stream import _decimal_ns
+    from impactcli.io.csv_layout import decimal_text_to_ns
+    from impactcli.io.csv_layout import decimal_to_ns as _decimal_ns
 
     rng = np.random.default_rng(4)
     ns = rng.integers(-10**18, 9 * 10**18, 2000)
@@ -424,8 +442,8 @@ def test_a_rate_that_drops_after_the_start_takes_a_second_gap_pass(
     t_ns = np.cumsum(steps)
     cols["time"] = [f"{v // 10**9}.{v % 10**9:09d}" for v in t_ns.tolist()]
     calls = []
-    real = stream._gap_pass
-    monkeypatch.setattr(stream, "_gap_pass", lambda *a: calls.append(1) or real(*a))
+    real = scan_module._gap_pass
+    monkeypatch.setattr(scan_module, "_gap_pass", lambda *a: calls.append(1) or real(*a))
     scan = _assert_same(_write(tmp_path / "drift.csv", cols), chunks=(1000,))
     assert calls and scan.gaps.size > 100
 
@@ -472,11 +490,12 @@ def test_the_passes_after_the_scan_read_its_cache_or_the_file(
     elif cached == "no temporary folder":
         monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "missing"))
     scan = _assert_same(_inf_controller(tmp_path))
-    assert (scan._pass is not None and scan._pass.cache is not None) is (cached == "yes")
+    ps = scan.reader._pass  # type: ignore[union-attr]
+    assert (ps is not None and ps.cache is not None) is (cached == "yes")
     assert len(_scan_dirs(_tmp_root)) == int(cached == "yes")
     scan.close()
     assert not _scan_dirs(_tmp_root)
-    assert scan._pass is not None and scan._pass.cache is None
+    assert ps is not None and ps.cache is None
 
 
 def test_the_cache_is_deleted_with_the_scan_and_on_errors(
@@ -507,7 +526,7 @@ def test_the_cache_is_deleted_with_the_scan_and_on_errors(
 
 @pytest.mark.parametrize("end", ["\r\n", "\r"])
 def test_line_ends_across_the_parsed_ranges(tmp_path: Path, end: str) -> None:
-    """The text is cut into ranges at line ends (io/stream_parse.py, 4 KiB here): with
+    """The text is cut into ranges at line ends (io/csv.py, 4 KiB here): with
     CRLF and CR-only lines the rows are read_log's."""
     cols = _table()
     path = _write(tmp_path / "ends.csv", cols)
@@ -522,8 +541,8 @@ def test_parsed_ranges_are_the_whole_files_rows(tmp_path: Path, block: int) -> N
     import pyarrow as pa
     import pyarrow.csv as pacsv
 
-    from impactcli.io.csv import csv_layout
-    from impactcli.io.stream_parse import parsed_batches
+    from impactcli.io.csv import parsed_ranges
+    from impactcli.io.csv_layout import csv_layout
 
     cols = {k: v[:300] for k, v in _table().items()}
     path = _write(tmp_path / "crlf.csv", cols)
@@ -531,5 +550,6 @@ def test_parsed_ranges_are_the_whole_files_rows(tmp_path: Path, block: int) -> N
     lay = csv_layout(path, None)
     names = list(cols)
     copts = pacsv.ConvertOptions(column_types={"time": pa.string()})
-    got = pa.Table.from_batches(list(parsed_batches(lay, names, copts, block)))
+    tables = parsed_ranges(lay, names, block, lambda parse, first: parse(copts))
+    got = pa.concat_tables([t for t in tables if t.num_rows])
     assert got.equals(pacsv.read_csv(path, convert_options=copts))

@@ -1,7 +1,7 @@
-"""The streaming reader (impactcli.io.stream) on MCAP, ROS bags, .npz and URLs: for every
-chunk size the chunks are read_log's arrays bit for bit, and the scan's source, warnings,
-clock, gaps and screens are the whole log's (``_assert_same`` of tests/test_io_stream.py),
-with ``streamed`` True where the module docstring says the format streams."""
+"""The one reader (impactcli.io.stream) on MCAP, ROS bags, .npz and URLs: for every chunk
+size the chunks are the same arrays, and the scan's clock, gaps and screens are the whole
+log's (``_assert_same`` of tests/test_io_stream.py); the variants (stamps out of order,
+topics far apart in the file) read through the same pass, each message decoded once."""
 
 from __future__ import annotations
 
@@ -15,10 +15,11 @@ import numpy as np
 import pytest
 
 from impactcli.errors import ChannelMapError, ImpactWarning, LogFormatError
-from impactcli.io import read_log, stream_npz, write_log
-from impactcli.io.mcap_log import ros2_writer
+from impactcli.io import npz as stream_npz
+from impactcli.io import read_log, write_log
 from impactcli.io.mcap_ros2 import encode_jointstates
 from impactcli.io.stream import iter_chunks, scan_log
+from impactcli.io.write import ros2_writer
 from impactcli.types import LogSource, RobotLog
 
 from .test_io_stream import _assert_same, _error
@@ -129,7 +130,7 @@ def test_header_stamps_against_log_times(tmp_path: Path) -> None:
     msgs = _topics(t, v, log_t=np.sort(log_t), header=hdr)
     scan = _assert_same(_write_ros2(tmp_path / "z.mcap", msgs), chunks=(7, 1000))
     assert scan.source.time_source == "log"
-    _assert_same(tmp_path / "h.mcap", streamed=False, chunks=(1000,), time_source="log")
+    _assert_same(tmp_path / "h.mcap", chunks=(1000,), time_source="log")
 
 
 def test_json_samples_with_repairs(tmp_path: Path) -> None:
@@ -189,35 +190,75 @@ def test_a_truncated_mcap(tmp_path: Path) -> None:
     assert "truncated" in scan.source.repairs[0]
 
 
-def test_what_is_read_whole(tmp_path: Path) -> None:
+def test_state_stamps_out_of_order_are_sorted(tmp_path: Path) -> None:
+    """Two state messages out of stamp order in the file: the samples are in time order (a
+    stable sort of the stamps), the repairs name the messages by their place in the file,
+    and the companions are held onto the sorted samples."""
     t, v = _signals()
     msgs = _topics(t, v)
     state = [m for m in msgs if m[0] == "/joint_states"]
-    swapped = msgs[:]  # two state messages out of stamp order: the whole reader sorts
+    swapped = msgs[:]
     i, k = swapped.index(state[100]), swapped.index(state[101])
     swapped[i], swapped[k] = swapped[k], swapped[i]
-    _assert_same(_write_ros2(tmp_path / "s.mcap", swapped), streamed=False, chunks=(1000,))
+    path = _write_ros2(tmp_path / "s.mcap", swapped)
+    scan = _assert_same(path, chunks=(7, 1000))
+    log = read_log(path)
+    assert np.array_equal(log.t_ns, t) and np.array_equal(log.position, v["position"])
+    assert np.array_equal(log.position_ref, v["position_ref"]) and scan.n_samples == t.size
+    v2 = dict(v, torque=v["torque"].copy())
+    v2["torque"][400:410, 1] = np.nan  # a run of 10, named by its first message in the file
+    swapped2 = _topics(t, v2)
+    st2 = [m for m in swapped2 if m[0] == "/joint_states"]
+    i, k = swapped2.index(st2[100]), swapped2.index(st2[101])
+    swapped2[i], swapped2[k] = swapped2[k], swapped2[i]
+    assert "message 400 of '/joint_states'" in _error(_write_ros2(tmp_path / "r.mcap",
+                                                                  swapped2))
 
 
-def test_a_look_ahead_beyond_the_bound_reads_whole(tmp_path: Path,
-                                                  monkeypatch: pytest.MonkeyPatch) -> None:
-    from impactcli.io import stream_msgs
-
+def test_topics_far_apart_in_the_file(tmp_path: Path) -> None:
+    """A reference written 700 samples late (its messages far from the state's in the
+    file): each topic is read from its own spill, file order does not matter."""
     t, v = _signals()
     path = _write_ros2(tmp_path / "late.mcap", _topics(t, v, ref_delay=700))
-    monkeypatch.setattr(stream_msgs, "MAX_LOOKAHEAD", 500)
-    _assert_same(path, streamed=False, chunks=(1000,))
-    monkeypatch.setattr(stream_msgs, "MAX_LOOKAHEAD", 800)
     _assert_same(path, chunks=(1000,))
+    log = read_log(path)
+    assert np.array_equal(log.position_ref, v["position_ref"])
+
+
+def test_a_message_decoded_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Reading an MCAP (the scan, then every chunk collected) decompresses each MCAP chunk
+    once and decodes each topic's messages of a chunk once: one decode call per chunk
+    and topic read."""
+    from impactcli.io import mcap_scan, messages
+
+    t, v = _signals()
+    path = _write_ros2(tmp_path / "r.mcap", _topics(t, v), chunk_size=8192)
+    chunks = mcap_scan.scan_mcap(path)
+    per_topic: dict[int, set[int]] = {}
+    for cid, batches in chunks.batches.items():
+        per_topic[cid] = {id(b.buf) for b in batches}
+    n_chunks = len({k for s in per_topic.values() for k in s})
+    decompressed: list[int] = []
+    decoded: list[str] = []
+    real_dec, real_decode = mcap_scan._decompress, messages.decode_batches
+    monkeypatch.setattr(mcap_scan, "_decompress",
+                        lambda *a: decompressed.append(1) or real_dec(*a))
+    monkeypatch.setattr(messages, "decode_batches",
+                        lambda batches, where, topic, *a: decoded.append(topic) or real_decode(
+                            batches, where, topic, *a))
+    log = read_log(path)
+    assert log.n_samples == t.size and n_chunks > 10
+    assert len(decompressed) == n_chunks
+    assert len(decoded) == sum(len(s) for s in per_topic.values())
 
 
 def test_bad_message_logs_fail_as_read_log_does(tmp_path: Path) -> None:
     bad = tmp_path / "bad.mcap"
     bad.write_bytes(b"not an mcap at all")
-    assert "bad magic" in _error(bad, streamed=False)
+    assert "bad magic" in _error(bad)
     t, v = _signals()
     path = _write_ros2(tmp_path / "r.mcap", _topics(t, v))
-    assert "not found" in _error(path, streamed=False, topic="/nope")
+    assert "not found" in _error(path, topic="/nope")
     t2, v2 = _signals()
     v2["torque"][300:310, 1] = np.nan  # a run of 10: an error, named as read_log names it
     path = _write_ros2(tmp_path / "run.mcap", _topics(t2, v2))
@@ -315,7 +356,7 @@ def _log(n: int = N) -> RobotLog:
 
 
 def test_bags(tmp_path: Path) -> None:
-    from impactcli.io.bags import write_rosbag2
+    from impactcli.io.write import write_rosbag2
 
     log = _log()
     for name in ("a.db3", "a.bag"):
@@ -367,7 +408,7 @@ def test_npz_errors_are_read_logs(tmp_path: Path) -> None:
     cmap = _npz_map(tmp_path)
     np.savez(tmp_path / "short.npz", t=t * 1e-9, q=v["position"][:-1], tm=v["torque_model"],
              **{f"tau_{j}": v["torque"][:, k] for k, j in enumerate(JOINTS)})
-    assert "mismatched channel lengths" in _error(tmp_path / "short.npz", streamed=False,
+    assert "mismatched channel lengths" in _error(tmp_path / "short.npz",
                                                   channel_map=cmap)
     np.savez(tmp_path / "ms.npz", t=t * 1e-6, q=v["position"], tm=v["torque_model"],
              **{f"tau_{j}": v["torque"][:, k] for k, j in enumerate(JOINTS)})
@@ -416,12 +457,13 @@ def test_urls_stream_a_local_copy(tmp_path: Path) -> None:
             warnings.simplefilter("ignore", ImpactWarning)
             log = read_log(u)
             s = scan_log(u)
-        assert s.streamed and s.source.path == u == log.source.path
+        assert s.source.path == u == log.source.path
         assert s.source.sha256 == scan.source.sha256
         got = list(iter_chunks(u, s, 333))
         assert np.array_equal(np.concatenate([c.torque for c in got]), log.torque)
-        assert s._pass is not None
-        local = s._pass.ctx.path
+        ps = s.reader._pass  # type: ignore[union-attr]
+        assert ps is not None
+        local = ps.layout.path
         assert local.exists()
         s.close()
         assert local.exists() == (u == url)  # a download is deleted with the scan
@@ -440,11 +482,12 @@ def test_urls_stream_a_local_copy(tmp_path: Path) -> None:
 # ------------------------------------------------------------------- without the cache
 def test_a_full_disk_reads_the_file_again(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
                                           ) -> None:
-    """Without the scan's cache of the repaired rows every pass reads the file again (a
-    second pass over the messages, or the archive): the same arrays."""
-    from impactcli.io import stream_cache
+    """Without the scan's cache of the repaired rows every pass reads the archive again,
+    and a message log's spill of decoded messages is kept in memory: the same arrays."""
+    from impactcli.io import message_merge, stream_cache
 
     monkeypatch.setattr(stream_cache, "MIN_FREE_BYTES", float("inf"))
+    monkeypatch.setattr(message_merge, "MIN_FREE_BYTES", float("inf"))
     monkeypatch.setattr(stream_npz, "BLOCK_ROWS", 101)
     t, v = _signals()
     t, v = _repairs(v, t)
@@ -454,4 +497,6 @@ def test_a_full_disk_reads_the_file_again(tmp_path: Path, monkeypatch: pytest.Mo
     np.savez_compressed(tmp_path / "a.npz", **arrays)
     for path, opts in ((mcap, {}), (tmp_path / "a.npz", {"channel_map": _npz_map(tmp_path)})):
         scan = _assert_same(path, chunks=(7, 1000), **opts)
-        assert scan._pass is not None and scan._pass.cache is None
+        ps = scan.reader._pass  # type: ignore[union-attr]
+        assert ps.cache is None
+        assert all(not r.spill.on_disk for r in getattr(ps.layout, "readers", {}).values())

@@ -7,7 +7,7 @@ import json
 import click
 
 from ._common import ROBOT_METAVAR, handle_errors, robot_help
-from .detect import log_read_options, read_options_from
+from .log_options import log_read_options, read_options_from
 
 
 @click.command("inspect")

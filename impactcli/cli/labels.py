@@ -1,35 +1,21 @@
 """``impactcli labels LOG --from-channel NAME --above X --link N -o labels.json``: ground-truth
-labels from a logged switch or force sensor (formats.md, "Ground-truth labels").
+labels from a logged switch or force sensor (docs/formats.md, "Ground-truth labels").
 
-The channel is read from the raw file, whatever the log's reader makes of it:
+The channel is read through the log's own reader, whatever the log's channels make of it:
+``<joint>.<signal>`` of a joint the log has (its values after the map's scale and offset);
+a CSV column by name (one the reader ignores) or, headerless, by 0-based index, read with
+the log's time column and repairs; an ``.npz`` array (``key`` or ``key[i]``) with the map's
+time; in an MCAP file or a ROS bag, a message field ``/topic/field/sub[i]`` or
+``/topic/array[joint]`` (:mod:`impactcli.io.fields`), stamped as the log's samples are.
 
-* ``<joint>.<signal>`` of a joint the log has (``j2.torque_ext``, or any signal a channel
-  map gives a joint): the log's own values, after the map's scale and offset;
-* a CSV column by name — typically one the reader ignores (``inspect`` lists them) — or,
-  in a headerless file read with a channel map, by 0-based index; it is read by the CSV
-  reader itself with the log's time column (same units, epoch handling, repairs);
-* an ``.npz`` array key (``key`` or ``key[i]`` for a column of a 2-D array), read with the
-  channel map's time;
-* in an MCAP file or a ROS bag, a message field ``/topic/field/sub[i]`` of any message type
-  (:mod:`impactcli.io.fields`), or ``/topic/array[joint]`` for the element of a
-  JointState-like array by joint name; stamped like the log's samples (its
-  ``time_source``: the field topic's header stamps, else its publish or log times).
-
-Contiguous stretches where the channel is above X become contacts: ``start`` and ``end``
-are the first and last sample above (both inclusive, seconds since the log's first
-sample, like events), stretches closer than ``--merge-gap`` are merged, and those shorter
-than ``--min-duration`` dropped. ``peak_force`` is the channel's peak in the stretch when
-the channel is a force [N]; a *switch* (a channel with two values, or ``--channel-kind
-switch``) knows no force: its labels carry ``peak_force`` 0 with ``peak_force_known``
-false, which ``evaluate`` leaves out of every force score. Every contact also records the
-channel's ``peak_value``. ``kind`` comes from ``--kind`` (default ``push``), ``link`` from
-``--link`` — required: a label names the link touched (1-based, formats.md), and a wrong
-default would make ``evaluate``'s link scores meaningless. ``sample_rate`` is the log's.
-
-The file (schemas/labels.schema.json, validated before writing) is written atomically
-and records where it came from under ``source``. Exit 0; 2 bad options; 3 a log or
-channel that cannot be read (a channel that does not exist: one line naming the file and
-listing what it has).
+Contiguous stretches where the channel is above X become contacts (``start``/``end`` the
+first and last sample above, seconds since the log's first sample), merged when closer
+than ``--merge-gap``, dropped when shorter than ``--min-duration``. ``peak_force`` is the
+channel's peak for a force; a *switch* (two values, or ``--channel-kind switch``) knows no
+force (``peak_force`` 0, ``peak_force_known`` false). ``--link`` is required: a label names
+the link touched (1-based). The file (schemas/labels.schema.json, validated) is written
+atomically with its ``source``. Exit 0; 2 bad options; 3 a log or channel that cannot be
+read (one line naming the file and what it has).
 """
 
 from __future__ import annotations
@@ -45,7 +31,7 @@ import numpy as np
 
 from ..errors import ImpactWarning, LogFormatError
 from ._common import ROBOT_METAVAR, check_log_path, handle_errors, robot_help
-from .detect import log_read_options, read_options_from
+from .log_options import log_read_options, read_options_from
 
 #: How a channel's contacts are labelled.
 CHANNEL_KINDS: tuple[str, ...] = ("auto", "force", "switch")
@@ -117,14 +103,15 @@ def _joint_channels_hint(log: Any) -> str:
 def _csv_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Channel:
     """A CSV column, read by the CSV reader with the log's own time column."""
     from ..io.channel_map import ChannelMap, ChannelRef, load_channel_map
-    from ..io.csv import canonical_map, read_csv_channels
+    from ..io.csv_layout import canonical_map, separator
+    from ..io.stream import read_columns
 
     where = str(path)
     cmap = load_channel_map(ropts["channel_map"]) if ropts.get("channel_map") else None
     header = True if cmap is None else cmap.header
     skip = 0 if cmap is None else cmap.skip_rows
     line = _header_line(path, skip)
-    delim = _separator(line) if cmap is None else cmap.delimiter
+    delim = separator(line) if cmap is None else cmap.delimiter
     names = ([c.strip().strip('"') for c in line.rstrip("\r\n").split(delim)] if header
              else [str(i) for i in range(len(line.split(delim)))])
     source: str | int
@@ -155,11 +142,11 @@ def _csv_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Chan
     with warnings.catch_warnings():
         # the log's own repairs were warned about when it was read
         warnings.simplefilter("ignore", ImpactWarning)
-        with _repairing_order(bool(ropts.get("repair_order"))):
-            ch, _fmt = read_csv_channels(path, one)
+        t_ns, values = read_columns(path, {"channel_map": one,
+                                           "repair_order": bool(ropts.get("repair_order"))})
     col = name if isinstance(source, str) else f"column {source}"
-    return Channel(name, f"CSV {col}", _relative(ch.t_ns, log),
-                   np.asarray(ch.signals["position"][:, 0], dtype=np.float64))
+    return Channel(name, f"CSV {col}", _relative(t_ns, log),
+                   np.asarray(values[:, 0], dtype=np.float64))
 
 
 def _header_line(path: Path, skip: int) -> str:
@@ -176,31 +163,10 @@ def _header_line(path: Path, skip: int) -> str:
         raise LogFormatError(f"{path}: cannot read: {err}") from err
 
 
-def _separator(line: str) -> str:
-    """The separator (``,``, ``;`` or tab) with which a canonical header names its time
-    column (as the CSV reader picks it)."""
-    for sep in (",", ";", "\t"):
-        if any(c.strip().strip('"') in ("time_ns", "time", "__time")
-               for c in line.rstrip("\r\n").split(sep)):
-            return sep
-    return ","
-
-
-def _repairing_order(on: bool) -> Any:
-    """The reader's --repair-order context (a no-op where the reader has none)."""
-    import contextlib
-
-    try:
-        from ..io.repair import repairing_order  # type: ignore[attr-defined,unused-ignore]
-    except ImportError:
-        return contextlib.nullcontext()
-    return repairing_order(on)
-
-
 def _npz_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Channel:
     """An ``.npz`` array (``key`` or ``key[i]``) with the channel map's time."""
     from ..io.channel_map import ChannelMap, ChannelRef, load_channel_map
-    from ..io.npz import read_npz_channels
+    from ..io.stream import read_columns
 
     cmap = load_channel_map(ropts["channel_map"]) if ropts.get("channel_map") else None
     if cmap is None:
@@ -219,65 +185,24 @@ def _npz_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Chan
                      format="npz")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ImpactWarning)
-        ch = read_npz_channels(path, one)
-    return Channel(name, f"array {name}", _relative(ch.t_ns, log),
-                   np.asarray(ch.signals["position"][:, 0], dtype=np.float64))
+        t_ns, values = read_columns(path, {"channel_map": one}, check_rate=False)
+    return Channel(name, f"array {name}", _relative(t_ns, log),
+                   np.asarray(values[:, 0], dtype=np.float64))
 
 
 def _message_channel(path: Path, name: str, log: Any) -> Channel:
-    """A message field, stamped like the log's samples."""
-    from ..io.fieldread import read_fields
-    from ..io.fields import check_ros_path, parse_field_path
-    from ..io.msgsource import MessageSource
+    """A message field, stamped like the log's samples, through the message reader."""
+    from ..io.message_plan import field_channel
 
-    where = f"{path}: --from-channel"
-    src: MessageSource
-    if path.name.lower().endswith(".mcap"):
-        from ..io.mcap_scan import UnsupportedMcap, scan_mcap, scan_mcap_official
-        from ..io.msgsource import McapSource
-
-        try:
-            scan = scan_mcap(path)
-        except UnsupportedMcap:
-            scan = scan_mcap_official(path)
-        src = McapSource(scan, str(path))
-    else:
-        from ..io.bags import BagSource
-
-        src = BagSource(path, str(path))
-    topics = src.topics()
     text, joint = name, None
     m = _JOINT_PICK.match(name)
     if m:
         text, joint = m.group("path"), m.group("joint")
-    if not text.startswith("/"):
-        raise LogFormatError(
-            f"{path}: no channel {name!r}: in an MCAP file or a bag name a message field "
-            f"/topic/field (topics: {', '.join(sorted(topics)) or 'none'})"
-            + (f"; or a joint channel: {hint}" if (hint := _joint_channels_hint(log)) else ""))
-    fp = parse_field_path(text, list(topics), joint, where)
-    mtype, enc = topics[fp.topic]
-    if enc in ("cdr", "ros1"):
-        if not mtype:
-            raise LogFormatError(f"{where}: topic {fp.topic!r} has no message definition in "
-                                 "the file: its fields cannot be read")
-        fp = check_ros_path(fp, mtype, src.fielddefs(mtype), where)
-    elif enc != "json":
-        raise LogFormatError(f"{where}: topic {fp.topic!r} has message encoding {enc!r}, "
-                             "which cannot be decoded (cdr, ros1 or json)")
-    td = src.load([fp.topic])[fp.topic]
-    if td.n == 0:
-        raise LogFormatError(f"{where}: topic {fp.topic!r} holds no messages")
-    vals, header = read_fields(src, td, [fp], where)
     tsrc = log.source.time_source
-    if tsrc == "header" and header is not None and np.all(header != 0):
-        t_ns = header
-    else:
-        t_ns = td.publish_time if tsrc == "publish" else td.log_time
-    order = np.argsort(t_ns, kind="stable")
-    return Channel(name, f"field {fp.label()} ({tsrc} time)",
-                   _relative(np.asarray(t_ns)[order], log),
-                   np.asarray(vals[order, 0], dtype=np.float64))
+    t_ns, values, label = field_channel(path, name, text, joint, tsrc,
+                                        _joint_channels_hint(log))
+    return Channel(name, f"field {label} ({tsrc} time)", _relative(t_ns, log),
+                   np.asarray(values, dtype=np.float64))
 
 
 def stretches(t_s: np.ndarray, values: np.ndarray, above: float, *, merge_gap_s: float = 0.0,
@@ -309,7 +234,7 @@ def channel_kind(values: np.ndarray) -> str:
 def labels_doc(ch: Channel, *, above: float, kind: str, link: int, channel_is: str,
                merge_gap_s: float, min_duration_s: float, sample_rate: float,
                log_path: str) -> dict[str, Any]:
-    """The labels mapping (formats.md) of the stretches of ``ch`` above ``above``."""
+    """The labels mapping (docs/formats.md) of the stretches of ``ch`` above ``above``."""
     resolved = channel_kind(ch.values) if channel_is == "auto" else channel_is
     events = []
     for a, b in stretches(ch.t_s, ch.values, above, merge_gap_s=merge_gap_s,

@@ -1,6 +1,6 @@
 """From per-joint channels to a validated :class:`~impactcli.types.RobotLog`.
 
-Shared by every reader: picks the torque source (formats.md: ``.torque`` when present, else
+Shared by every reader: picks the torque source (docs/formats.md: ``.torque`` when present, else
 ``.current`` × gear ratio × torque constant, ``--torque-source`` overrides), converts current
 to torque, and fills :class:`~impactcli.types.LogSource`.
 
@@ -22,12 +22,12 @@ import contextvars
 import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
-from .._fs import sha256_file
 from ..errors import ImpactWarning, LogFormatError
-from ..types import CONTROLLER_CHANNELS, LogSource, RobotDescription, RobotLog
+from ..types import CONTROLLER_CHANNELS, RobotDescription
 
 TORQUE_SOURCES = ("torque", "current")
 TIME_SOURCES = ("log", "publish", "header")
@@ -56,17 +56,6 @@ class JointChannels:
     current_scale: np.ndarray | None = None
     ignored: list[str] = field(default_factory=list)
     repairs: list[str] = field(default_factory=list)
-
-
-def _sha256(path: str) -> str:
-    """sha256 of a log file, or of a rosbag2 folder (its files' sha256s in name order)."""
-    from pathlib import Path
-
-    if Path(path).is_dir():
-        from .bags import folder_sha256
-
-        return folder_sha256(Path(path))
-    return sha256_file(path)
 
 
 def check_torque_source(value: str | None, where: str) -> None:
@@ -218,7 +207,7 @@ def assemble(plan: LogPlan, ch: JointChannels) -> dict[str, np.ndarray]:
     out: dict[str, np.ndarray] = {"position": ch.signals["position"], "torque": torque}
     for s in plan.optional:
         out[s] = ch.signals[s]
-    # the controller's channels are per joint: a joint without one holds NaN (formats.md)
+    # the controller's channels are per joint: a joint without one holds NaN (docs/formats.md)
     for s in plan.controller:
         m = np.array(ch.signals[s], dtype=np.float64)
         for j in ch.missing.get(s, []):
@@ -284,60 +273,6 @@ def drop_empty_signals(path: str, joints: tuple[str, ...], finite: dict[str, np.
     return out, ignored, msgs
 
 
-def build_log(
-    ch: JointChannels,
-    *,
-    path: str,
-    fmt: str,
-    robot: RobotDescription | None,
-    torque_source: str | None,
-    time_source: str,
-    sha256: str | None = None,
-) -> RobotLog:
-    """Make the RobotLog: choose the torque source, convert current, attach provenance.
-
-    Raises:
-        LogFormatError: a joint without position, without any torque signal, or with only
-            current and no way to convert it (naming the joint).
-    """
-    plan = plan_log(ch, path=path, robot=robot, torque_source=torque_source)
-    arrays = assemble(plan, ch)
-    src = plan.torque_source
-    joints = ch.joints
-    dropped = _empty_joints(ch.joints, arrays["position"], arrays["torque"], src)
-    if dropped:
-        if len(dropped) == len(ch.joints):
-            raise LogFormatError(drop_message(path, dropped, src))
-        warn_dropped(path, dropped)
-        out = {j for j, _ in dropped}
-        keep = [k for k, j in enumerate(ch.joints) if j not in out]
-        joints = tuple(ch.joints[k] for k in keep)
-        arrays = {s: v[:, keep] for s, v in arrays.items()}
-    gone, ignored, msgs = drop_empty_signals(
-        path, joints, {s: np.isfinite(arrays[s]).any(axis=0) for s in plan.optional})
-    for s in gone:
-        del arrays[s]
-    source = LogSource(
-        path=path,
-        sha256=sha256 if sha256 is not None else _sha256(path),
-        format=fmt,
-        torque_source=src,  # type: ignore[arg-type]
-        time_source=time_source,  # type: ignore[arg-type]
-        ignored_channels=plan.ignored + tuple(ignored),
-        repairs=tuple(ch.repairs) + tuple(msgs),
-        notes=plan.notes,
-        joints_dropped=tuple(dropped),
-    )
-    return RobotLog(t_ns=ch.t_ns, joint_names=joints, source=source, **arrays)
-
-
-def _empty_joints(joints: tuple[str, ...], position: np.ndarray, torque: np.ndarray,
-                  src: str) -> list[tuple[str, str]]:
-    """``(joint, reason)`` of the joints whose position or torque holds no finite value."""
-    return empty_joint_reasons(joints, np.isfinite(position).any(axis=0),
-                               np.isfinite(torque).any(axis=0), src)
-
-
 def empty_joint_reasons(joints: tuple[str, ...], position_finite: np.ndarray,
                         torque_finite: np.ndarray, src: str) -> list[tuple[str, str]]:
     """``(joint, reason)`` of the joints left out of the log.
@@ -353,3 +288,40 @@ def empty_joint_reasons(joints: tuple[str, ...], position_finite: np.ndarray,
                 out.append((j, f"its {what} column holds no finite value (not logged?)"))
                 break
     return out
+
+
+def channels_from_columns(
+    cmap: Any,
+    t_ns: np.ndarray,
+    cols: dict[str, np.ndarray],
+    keys: dict[tuple[str, int], str],
+    ignored: list[str],
+    repairs: list[str],
+) -> JointChannels:
+    """Apply scale/offset and stack per-joint columns into (N, J) signals."""
+    n, jn = t_ns.shape[0], len(cmap.joints)
+    signals: dict[str, np.ndarray] = {}
+    missing: dict[str, list[str]] = {}
+    current_scale = np.full(jn, np.nan)
+    for sig, per in cmap.signals.items():
+        m = np.full((n, jn), np.nan)
+        for j, ref in enumerate(per):
+            if ref is None:
+                missing.setdefault(sig, []).append(cmap.joints[j])
+                continue
+            v = cols[keys[(sig, j)]]
+            if sig == "current":
+                if ref.scale is not None:
+                    current_scale[j] = ref.scale
+                m[:, j] = v  # the current as logged; its scale converts it to torque
+                continue
+            if ref.scale is not None:
+                v = v * ref.scale
+            if ref.offset:
+                v = v + ref.offset
+            m[:, j] = v
+        signals[sig] = m
+    return JointChannels(
+        t_ns=t_ns, joints=cmap.joints, signals=signals, missing=missing,
+        current_scale=current_scale, ignored=ignored, repairs=repairs,
+    )

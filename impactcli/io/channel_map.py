@@ -1,4 +1,4 @@
-"""Channel maps (formats.md, "Channel maps"): reading foreign CSV layouts and ``.npz`` archives.
+"""Channel maps (docs/formats.md, "Channel maps"): reading foreign CSV layouts and .npz files.
 
 A channel map is a JSON or YAML file validated by ``schemas/channel_map.schema.json``. It
 names the time channel (with its unit and epoch handling) and, per joint, where each signal

@@ -1,646 +1,327 @@
-"""Canonical wide CSV and channel-mapped CSV (formats.md, "Canonical wide CSV", "Channel maps").
+"""The CSV reader (canonical wide CSV, or any CSV through a channel map): its rows in blocks
+for the one scan (:mod:`impactcli.io.scan`; docs/formats.md, "Canonical wide CSV").
 
-Reading uses ``pyarrow.csv`` (multi-threaded, ``.gz`` decompressed on the fly). The time
-column is read as text and converted to int64 ns exactly (no float rounding) whenever it is
-written as plain decimals; ``time_ns`` is read as int64; ``time`` may also hold ISO-8601
-stamps (``2024-05-01T12:00:00.001Z``; UTC unless the stamp gives an offset), read as epoch
-ns (the log's ``t0_ns``). ``--time-unit`` (``read_log(time_unit=...)``) says when ``time``
-holds ms, µs or ns; a time that does not fit the int64-ns clock, or an implied sample rate
-outside 20 Hz – 100 kHz, is an error naming the unit that would fit
-(:func:`impactcli.io.repair.check_time_rate`).
+The file's text is cut at line ends into ranges of about :data:`BLOCK_SIZE` bytes, each
+parsed by pyarrow on a worker thread (:func:`parsed_ranges`, at most :data:`IN_FLIGHT`
+ahead of the scan), with the options a parse of the whole file would take: every range's
+rows are the whole file's rows, cut elsewhere.
 
-Common variants of the canonical layout are read as well: a UTF-8 byte-order mark before
-the header (Excel), ``;`` or tab separators — the one with which the header names a time
-column — and with those a decimal comma (``0,004``), detected on the first data line.
-A file with binary content (a NUL byte, or mostly control or non-UTF-8 bytes in its first
-64 KiB) is "not a text CSV".
-
-Writing produces the canonical layout: ``time`` in seconds with 9 decimals (exact in ns),
-then per joint ``<joint>.position``, ``<joint>.torque`` and the optional signals, values in
-shortest round-trip (repr) precision — reading the file back gives the same RobotLog.
+How a column's text becomes numbers depends on what the whole column holds (pyarrow infers
+one type per column: integers, reals, ISO-8601 stamps, text...). The first pass assumes
+what nearly every log holds — time as plain decimals (``12.345``, ``1714567890.001``,
+``1234``) or ISO-8601 stamps, values as numbers or empty — and converts each range as the
+whole column would be (exact decimal text → int64 ns; the float conversion that a column
+of decimals below 1e6 s takes is checked to agree). A file that holds anything else is
+read again (:meth:`CsvReaderLayout.pass_again`): a first pass of the ranges infers each
+column's type as pyarrow does over the whole file, the second converts each range with
+those types (:mod:`impactcli.io.csv_exact`). Errors (a cell that is not a number, an empty
+time...) are found range by range and the first one in the whole file's order is raised
+by the scan.
 """
 
 from __future__ import annotations
 
-import gzip
-import os
-import re
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..errors import ChannelMapError, LogFormatError
-from ..types import RobotLog
-from .assemble import JointChannels
-from .channel_map import SIGNALS, TIME_UNITS, ChannelMap, ChannelRef, TimeSpec, require_time
-from .repair import DROPPABLE_SIGNALS, GIVE_UNIT, check_time_rate, repair_samples, unit_hint
+from ..errors import LogFormatError
+from .csv_exact import Exact, exact_rows, infer
+from .csv_layout import (
+    ISO_RE,
+    CsvLayout,
+    beyond_clock,
+    csv_layout,
+    csv_parse_error,
+    csv_read_options,
+    decimal_to_ns,
+    guarded,
+    is_parse_error,
+    iso_to_ns,
+    numbers,
+    parsed_ranges,
+)
+from .stream_layout import MappedLayout, RawRows, plan_of
+from .write import write_csv  # noqa: F401  (alias: removed in M; tests/test_report_cli.py)
 
-#: Recognised time columns of a canonical CSV, by preference.
-TIME_COLUMNS: tuple[str, ...] = ("time_ns", "time", "__time")
-#: The unit each canonical time column is in (``time``: seconds unless --time-unit says).
-TIME_COLUMN_UNITS: dict[str, str] = {"time_ns": "ns", "time": "s", "__time": "s"}
-#: Separators of a canonical CSV, tried in this order on the header.
-SEPARATORS: tuple[str, ...] = (",", ";", "\t")
-#: Bytes looked at to tell a text CSV from binary content.
-SNIFF_BYTES = 1 << 16
-#: Largest |time| in ns the int64 clock holds (± about 292 years).
-_MAX_NS = float(2**63 - 1)
-#: An ISO-8601 date and time at the start of a time cell.
-_ISO_RE = re.compile(r"^\s*\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}")
-
-
-def _is_gz(path: Path) -> bool:
-    return path.name.lower().endswith(".gz")
-
-
-def _first_line(path: Path, skip: int = 0) -> str:
-    return _lines(path, skip, 1)[0]
+#: Bytes of CSV text parsed at a time (one range: a 7-joint log's row is ~430 bytes).
+BLOCK_SIZE = 1 << 20
+#: The time text of the first pass: plain decimal numbers.
+_PLAIN = r"^-?\d+(\.\d+)?$"
 
 
-def _lines(path: Path, skip: int, count: int) -> list[str]:
-    """``count`` lines after ``skip`` lines ("" past the end), a UTF-8 BOM removed."""
-    opener: Any = gzip.open if _is_gz(path) else open
-    try:
-        with opener(path, "rt", encoding="utf-8-sig", errors="replace", newline="") as f:
-            for _ in range(skip):
-                f.readline()
-            return [str(f.readline()) for _ in range(count)]
-    except (OSError, EOFError, ValueError) as err:
-        raise LogFormatError(f"{path}: cannot read: {err}") from err
+# ------------------------------------------------------------------- the first pass
+@dataclass
+class _Facts:
+    """What a range's time text says (the first pass): ISO-8601 stamps, or plain decimals
+    — all integers or not, their largest magnitude, and whether the times given agree
+    with the float conversion and with the exact text conversion of the whole column."""
+
+    iso: bool
+    all_int: bool
+    max_abs: float
+    float_ok: bool
+    text_ok: bool
 
 
-def check_text(path: Path, where: str) -> None:
-    """LogFormatError ``not a text CSV`` when the first :data:`SNIFF_BYTES` bytes hold a NUL
-    byte, or are mostly control bytes or bytes that are not UTF-8 (binary content)."""
-    opener: Any = gzip.open if _is_gz(path) else open
-    try:
-        with opener(path, "rb") as f:
-            head = bytes(f.read(SNIFF_BYTES))
-    except (OSError, EOFError, ValueError) as err:
-        raise LogFormatError(f"{where}: cannot read: {err}") from err
-    nul = head.find(b"\x00")
-    if nul >= 0:
-        raise LogFormatError(f"{where}: not a text CSV (binary content: a NUL byte at byte "
-                             f"{nul})")
-    if not head:
-        return
-    arr = np.frombuffer(head, dtype=np.uint8)
-    control = (arr < 9) | ((arr > 13) & (arr < 32)) | (arr == 127)
-    try:
-        head.decode("utf-8")
-        not_utf8 = 0
-    except UnicodeDecodeError as err:
-        # a multi-byte character cut at the end of the sniffed bytes is still text
-        not_utf8 = 0 if err.start >= len(head) - 3 else int(np.count_nonzero(arr >= 128))
-    if np.count_nonzero(control) + not_utf8 > 0.1 * len(head):
-        k = int(np.argmax(control | (arr >= 128)))
-        raise LogFormatError(f"{where}: not a text CSV (binary content from byte {k})")
+class _Exotic(Exception):
+    """A range the first pass does not read as the whole file would be read."""
 
 
-def _separator(line: str) -> str:
-    """The separator with which the header ``line`` names a time column (default ``,``)."""
-    for sep in SEPARATORS:
-        if any(c.strip().strip('"') in TIME_COLUMNS for c in line.rstrip("\r\n").split(sep)):
-            return sep
-    return ","
+def _fast_range(table: Any, ctx: CsvReaderLayout) -> tuple[np.ndarray, _Facts, np.ndarray]:
+    """A range of the first pass: ``(t (n,) int64 ns, its time facts, (n, C) values)``."""
+    n = table.num_rows
+    facts = _Facts(iso=False, all_int=True, max_abs=0.0, float_ok=True, text_ok=True)
+    t = _fast_time(table.column(ctx.arrow[ctx.lay.tname]).combine_chunks(), ctx, facts)
+    mat = np.empty((n, len(ctx.names)))
+    for i, c in enumerate(ctx.key_cols.values()):
+        mat[:, i] = numbers(table.column(ctx.arrow[c]).combine_chunks())
+    return t, facts, mat
 
 
-def canonical_map(header: list[str], path: str,
-                  time_unit: str | None = None) -> tuple[ChannelMap, list[str]]:
-    """The channel map implied by a canonical CSV header, and the ignored columns.
-
-    Args:
-        header: the column names.  path: the file, for messages.
-        time_unit: the unit of a ``time`` column (``s``, ``ms``, ``us``, ``ns``; None: s).
-
-    Raises:
-        LogFormatError: no time column, no joint with a position, or a ``time_unit`` for a
-            column whose unit its name says (``time_ns``, PlotJuggler's ``__time``).
-    """
-    tcol = next((c for c in TIME_COLUMNS if c in header), None)
-    if tcol is None:
-        raise LogFormatError(
-            f"{path}: no time column (one of {', '.join(TIME_COLUMNS)}); for other layouts "
-            "pass a channel map (--channel-map)"
-        )
-    unit = TIME_COLUMN_UNITS[tcol]
-    if time_unit is not None and time_unit not in TIME_UNITS:
-        raise LogFormatError(f"{path}: unknown time unit {time_unit!r} (s, ms, us or ns)")
-    if time_unit is not None and tcol != "time" and time_unit != unit:
-        raise LogFormatError(f"{path}: --time-unit {time_unit} does not apply: column "
-                             f"{tcol!r} is in {unit} by its name")
-    if time_unit is not None:
-        unit = time_unit
-    joints: dict[str, dict[str, ChannelRef]] = {}
-    ignored: list[str] = []
-    for col in header:
-        if col == tcol:
-            continue
-        joint, dot, sig = col.partition(".")
-        if dot and joint and sig in SIGNALS:
-            joints.setdefault(joint, {})[sig] = ChannelRef(source=col)
-        else:
-            ignored.append(col)
-    # a "joint" without a position is not a joint: its columns are ignored
-    for j in [j for j, sigs in joints.items() if "position" not in sigs]:
-        ignored += [f"{j}.{s}" for s in joints.pop(j)]
-    if not joints:
-        raise LogFormatError(
-            f"{path}: no '<joint>.position' column; for other layouts pass a channel map "
-            "(--channel-map)"
-        )
-    names = tuple(joints)
-    signals = {
-        s: tuple(joints[j].get(s) for j in names)
-        for s in SIGNALS
-        if any(s in joints[j] for j in names)
-    }
-    cmap = ChannelMap(
-        name="canonical", time=TimeSpec(ChannelRef(tcol), unit=unit), joints=names,
-        signals=signals, path="", header=True,
-    )
-    return cmap, ignored
-
-
-def decimal_text_to_ns(values: Any, unit_ns: int) -> np.ndarray | None:
-    """Exact conversion of decimal text (``-12.345000001``) in a time unit to int64 ns.
-
-    Args:
-        values: a pyarrow string array.
-        unit_ns: size of the unit in ns.
-
-    Returns:
-        (N,) int64, or ``None`` when some value is not a plain decimal (exponent, null, …).
-    """
+def _fast_time(text: Any, ctx: CsvReaderLayout, facts: _Facts) -> np.ndarray:
+    """A range's time text → (n,) int64 ns as the whole column converts it when it is
+    plain decimals or ISO-8601 stamps (else :class:`_Exotic`)."""
     import pyarrow as pa
     import pyarrow.compute as pc
 
-    s = pc.utf8_trim_whitespace(values)
-    if s.null_count or not pc.all(pc.match_substring_regex(s, r"^[+-]?\d+(\.\d*)?$")).as_py():
-        return None
-    neg = pc.starts_with(s, "-").to_numpy(zero_copy_only=False)
-    s = pc.utf8_ltrim(s, characters="+-")
-    s = pc.if_else(pc.match_substring(s, "."), s, pc.binary_join_element_wise(s, ".", ""))
-    parts = pc.split_pattern(s, ".", max_splits=1)
-    whole_txt = pc.list_element(parts, 0)
-    if len(whole_txt) and int(pc.max(pc.utf8_length(whole_txt)).as_py()) > 18:
-        return None  # beyond int64: the float path names the row
-    whole = pc.cast(whole_txt, pa.int64()).to_numpy()
-    frac_txt = pc.list_element(parts, 1)
-    frac_txt = pc.utf8_slice_codeunits(pc.utf8_rpad(frac_txt, 9, "0"), 0, 9)
-    frac = pc.cast(frac_txt, pa.int64()).to_numpy()  # units of 1e-9 of `unit`
-    if whole.size and int(np.max(whole)) >= (2**63 - 1) // unit_ns - 1:
-        return None  # beyond the int64-ns clock: the float path names the row
-    if unit_ns == 10**9:
-        ns = whole * 10**9 + frac
-    else:
-        ns = whole * unit_ns + np.round(frac * (unit_ns / 1e9)).astype(np.int64)
-    out: np.ndarray = np.where(neg, -ns, ns).astype(np.int64)
-    return out
+    if ctx.lay.decimal == ",":  # a decimal comma's time is read with a point
+        text = pc.replace_substring(text, ",", ".")
+    if text.null_count or len(text) == 0:
+        raise _Exotic
+    facts.iso = bool(ISO_RE.match(str(text[0].as_py())))
+    if facts.iso:
+        if ctx.time_unit_given and ctx.fmt == "csv":
+            raise _Exotic
+        try:
+            t = iso_to_ns(text, ctx.where, ctx.tcol, ctx.label)
+        except LogFormatError:
+            raise _Exotic from None
+        return t + ctx.offset_ns if ctx.offset_ns else t
+    if not pc.all(pc.match_substring_regex(text, _PLAIN)).as_py():
+        raise _Exotic
+    tf = numbers(pc.cast(text, pa.float64()))
+    as_text = decimal_to_ns(text, ctx.unit_ns, tf)
+    if pc.any(pc.match_substring(text, ".")).as_py():
+        facts.all_int = False
+        if as_text is None:
+            raise _Exotic
+        exact = as_text
+    else:  # integers: the whole column's integer conversion, while no range has a '.'
+        if beyond_clock(tf, ctx.unit_ns) is not None:
+            raise _Exotic
+        try:
+            exact = numbers(pc.cast(text, pa.int64())) * ctx.unit_ns
+        except (pa.ArrowInvalid, OverflowError):
+            raise _Exotic from None
+    # a '.' anywhere makes the column reals, converted as floats or as exact text
+    facts.text_ok = as_text is not None and np.array_equal(as_text, exact)
+    facts.float_ok = np.array_equal(np.round(tf * ctx.unit_ns).astype(np.int64), exact)
+    facts.max_abs = float(np.max(np.abs(tf)))
+    return exact + ctx.offset_ns if ctx.offset_ns else exact
 
 
-def _ragged_line(path: Path, skip: int, delim: str, expected: int) -> int | None:
-    """The 1-based line number of the first data line with another number of fields than
-    ``expected`` (only to name it in an error; quoted delimiters are not considered)."""
-    opener: Any = gzip.open if _is_gz(path) else open
-    try:
-        with opener(path, "rt", encoding="utf-8", errors="replace", newline="") as f:
-            for n, line in enumerate(f, 1):
-                if n > skip and line.strip() and line.count(delim) + 1 != expected:
-                    return n
-    except (OSError, EOFError):
-        return None
-    return None
+class CsvReaderLayout(MappedLayout):
+    """A CSV and how its columns become the log (module docstring)."""
 
+    def __init__(self, lay: CsvLayout, options: dict[str, Any], file_names: list[str] | None,
+                 header_error: str | None) -> None:
+        from .channel_map import TIME_UNITS
+        from .repair import DROPPABLE_SIGNALS
 
-def _row_labeller(skip: int) -> Any:
-    def label(i: int) -> str:
-        return f"row {i + 1} (line {i + 1 + skip})"
+        self.lay = lay
+        self.path, self.where, self.fmt = lay.path, lay.where, lay.fmt
+        self.cmap = lay.cmap
+        self.joints = tuple(lay.cmap.joints)
+        self.file_names = file_names  # pyarrow's column names
+        # the header's names → pyarrow's (by position: a name read with spaces around it)
+        self.arrow = (dict(zip(lay.names, file_names, strict=True))
+                      if file_names is not None and len(file_names) == len(lay.names)
+                      else {c: c for c in lay.names})
+        self.header_error = header_error
+        self.keys = {}
+        self.key_cols: dict[str, str] = {}  # column key → column name in the file
+        for (sig, j), col in lay.columns.items():
+            key = col if lay.header else lay.disp(col)
+            self.keys[(sig, j)] = key
+            self.key_cols.setdefault(key, col)
+        self.names = list(self.key_cols)
+        self.droppable = {k for (sig, _), k in self.keys.items() if sig in DROPPABLE_SIGNALS}
+        self.ignored = (lay.ignored_extra if lay.fmt == "csv"
+                        else [lay.disp(c) for c in lay.names if c not in lay.used])
+        tspec = lay.tspec
+        self.unit_ns = TIME_UNITS[tspec.unit]
+        self.offset_ns = round(tspec.offset * self.unit_ns) if tspec.offset else 0
+        self.tcol = f"column {lay.disp(lay.tname)!r}" if lay.header else lay.disp(lay.tname)
+        self.time_name = lay.disp(lay.tname)
+        self.start_at_zero = bool(tspec.start_at_zero)
+        self.repair_order = bool(options.get("repair_order", False))
+        self.time_unit_given = options.get("time_unit") is not None
+        self._label = lay.label()
+        self.exact: Exact | None = None  # the exact passes' plan, once the first fails
+        self._again = False
+        self.iso = False
+        self.plan = plan_of(self, options.get("robot"), options.get("torque_source"))
 
-    return label
+    def label(self, i: int) -> str:
+        return str(self._label(i))
 
+    def rate_error(self, rate_hz: float) -> str | None:
+        from .repair import rate_message
 
-@dataclass
-class CsvLayout:
-    """What a CSV's first lines and its channel map say, before its data are read.
+        return rate_message(rate_hz, self.where, self.tcol,
+                            None if self.iso else self.lay.tspec.unit)
 
-    Attributes:
-        path: the file.  where: it as text, for messages.
-        cmap: its channel map (the canonical layout's, or the given one).
-        fmt: ``csv`` or ``csv-mapped``.
-        header: whether the first line (after ``skip``) names the columns.
-        skip: lines skipped before the header or the data.
-        delim: the field separator.  decimal: the decimal point (``.`` or ``,``).
-        names: the column names as the header line gives them (``f0``, ``f1``, ... without
-            a header).
-        ignored_extra: a canonical CSV's columns that are not channels.
-        tname: the time column.  tspec: the time's spec (unit, offset, start at zero).
-        columns: (signal, joint index) → the column holding it, for every ref of ``cmap``.
-    """
+    def ranges(self, work: Callable[[Callable[[Any], Any], bool], Any]) -> Iterator[Any]:
+        """``work`` of every range of the file (:func:`parsed_ranges`), an error reading
+        the file given as a result."""
+        return guarded(parsed_ranges(self.lay, self.file_names, BLOCK_SIZE, work))
 
-    path: Path
-    where: str
-    cmap: ChannelMap
-    fmt: str
-    header: bool
-    skip: int
-    delim: str
-    decimal: str
-    names: list[str]
-    ignored_extra: list[str]
-    tname: str
-    tspec: TimeSpec
-    columns: dict[tuple[str, int], str]
+    def pass_again(self) -> bool:
+        again, self._again = self._again, False
+        return again
 
-    @property
-    def used(self) -> set[str]:
-        """The columns read: time and every channel's."""
-        return {self.tname, *self.columns.values()}
+    def raw_batches(self) -> Iterator[RawRows]:
+        self.read_error = None
+        if self.header_error is not None or self.file_names is None:
+            yield from self._parse_only()
+        elif self.exact is None:
+            yield from self._fast_pass()
+        else:
+            yield from exact_rows(self)
 
-    def disp(self, col: str) -> str:
-        """A column as messages name it (``column 3`` without a header)."""
-        return col if self.header else f"column {int(col[1:])}"
+    # -- the passes
+    def _include(self) -> list[str]:
+        return list(dict.fromkeys(self.arrow[c] for c in (self.lay.tname,
+                                                          *self.key_cols.values())))
 
-    def label(self) -> Any:
-        """Row i (0-based data row) → ``row i+1 (line n)``."""
-        return _row_labeller(self.skip + (1 if self.header else 0))
+    def _parse_only(self) -> Iterator[RawRows]:
+        """A file whose header pyarrow cannot name: its first parse error, else the
+        header's (no rows)."""
+        import pyarrow.csv as pacsv
 
+        copts = pacsv.ConvertOptions(include_columns=[])
+        names = [f"f{i}" for i in range(len(self.lay.names))]  # pyarrow cannot name them
+        try:
+            for _ in parsed_ranges(self.lay, names, BLOCK_SIZE,
+                                   lambda parse, first: parse(copts).num_rows):
+                pass
+        except (OSError, EOFError, ValueError) as err:  # pyarrow's errors are ValueErrors
+            self.read_error = csv_parse_error(self.lay, err)
+            return
+        self.read_error = LogFormatError(self.header_error or f"{self.where}: cannot "
+                                         "parse CSV: its header is not UTF-8 text")
+        yield from ()
 
-def csv_layout(path: Path, cmap: ChannelMap | None, *,
-               time_unit: str | None = None) -> CsvLayout:
-    """Read a CSV's first lines: separator, decimal point, header, the channel map and
-    which column holds what (:func:`read_csv_channels`' first step).
+    def _fast_pass(self) -> Iterator[RawRows]:
+        """The first pass (module docstring); a range it does not read as the whole
+        file is read ends it, and the file is read again (:meth:`pass_again`)."""
+        import pyarrow as pa
+        import pyarrow.csv as pacsv
+
+        lay = self.lay
+        cols = [self.arrow[c] for c in self.key_cols.values()]
+        tname = self.arrow[lay.tname]
+        if tname in cols or len(set(cols)) != len(cols):
+            yield from self._go_exact()
+            return
+        types = {tname: pa.string(), **{c: pa.float64() for c in cols}}
+        copts = pacsv.ConvertOptions(column_types=types, include_columns=[tname, *cols],
+                                     decimal_point=lay.decimal)
+
+        def work(parse: Callable[[Any], Any], first: bool) -> Any:
+            try:
+                table = parse(copts)
+            except Exception as err:
+                if is_parse_error(err):
+                    return err
+                return _Exotic()
+            if table.num_rows == 0:
+                return None
+            try:
+                return _fast_range(table, self)
+            except _Exotic as err:
+                return err
+
+        row0 = 0
+        isos: set[bool] = set()
+        all_int, max_abs, float_ok, text_ok = True, 0.0, True, True
+        for got in self.ranges(work):
+            if got is None:
+                continue
+            if isinstance(got, _Exotic):
+                yield from self._go_exact()
+                return
+            if isinstance(got, BaseException):
+                self.read_error = csv_parse_error(lay, got)
+                return
+            t, facts, mat = got
+            isos.add(facts.iso)
+            if len(isos) > 1:
+                yield from self._go_exact()
+                return
+            all_int &= facts.all_int
+            max_abs = max(max_abs, facts.max_abs)
+            float_ok &= facts.float_ok
+            text_ok &= facts.text_ok
+            yield RawRows(row0, t, mat)
+            row0 += t.shape[0]
+        self.iso = isos == {True}
+        # a column of reals below 1e6 s is converted as floats, the others as exact text
+        if not self.iso and not all_int and not (
+                float_ok if max_abs * self.unit_ns / 1e9 < 1e6 else text_ok):
+            yield from self._go_exact()
+            return
+        if row0 < 2:
+            self.read_error = LogFormatError(f"{self.where}: holds {row0} data row(s); at "
+                                             "least 2 are needed")
+
+    def _go_exact(self) -> Iterator[RawRows]:
+        """Leave the first pass: the file is read again by the exact passes."""
+        self.exact = infer(self)
+        self._again = True
+        yield from ()
+
+# ------------------------------------------------------------------------- the layout
+def csv_reader_layout(p: Path, where: str, cmap: Any, options: dict[str, Any]
+                      ) -> CsvReaderLayout:
+    """The reader of a local canonical or mapped CSV (module docstring).
 
     Raises:
-        LogFormatError: not a text CSV, empty, no time or position column (canonical).
+        LogFormatError: not a text CSV, a layout its first lines refuse, a map for npz.
         ChannelMapError: a map pointing at a column the file does not have.
     """
-    where = str(path)
-    check_text(path, where)
-    header = True if cmap is None else cmap.header
-    skip = 0 if cmap is None else cmap.skip_rows
-    line, data_line = _lines(path, skip, 2)
-    delim = _separator(line) if cmap is None else cmap.delimiter
-    if not line.strip():
-        raise LogFormatError(f"{where}: empty file (no header or data)")
-    if not header:
-        data_line = line
-    # a decimal comma goes with ';' or tab separators (spreadsheet exports)
-    decimal = "," if delim != "," and re.search(r"\d,\d", data_line) else "."
-    if header:
-        names = [c.strip().strip('"') for c in line.rstrip("\r\n").split(delim)]
-    else:
-        names = [f"f{i}" for i in range(len(line.split(delim)))]
-    ignored_extra: list[str] = []
-    if cmap is None:
-        cmap, ignored_extra = canonical_map(names, where, time_unit)
-        fmt = "csv"
-    else:
-        fmt = "csv-mapped"
-    the_map = cmap
-
-    def colname(ref: ChannelRef, what: str) -> str:
-        if isinstance(ref.source, int):
-            if ref.source >= len(names):
-                raise ChannelMapError(
-                    f"{where}: channel map {the_map.path or the_map.name}: {what} points at "
-                    f"column {ref.source} (0-based), but the file has {len(names)} columns "
-                    f"(0–{len(names) - 1}): is this the file the map was written for?"
-                )
-            return names[ref.source]
-        if ref.source not in names:
-            raise ChannelMapError(
-                f"{where}: channel map {the_map.path or the_map.name}: {what} points at "
-                f"column {ref.source!r}, which is not in the file"
-            )
-        return ref.source
-
-    tspec = require_time(cmap, where)
-    tname = colname(tspec.ref, "time")
-    columns = {(sig, j): colname(ref, f"{cmap.joints[j]}.{sig}") for sig, j, ref in cmap.refs()}
-    return CsvLayout(path=path, where=where, cmap=cmap, fmt=fmt, header=header, skip=skip,
-                     delim=delim, decimal=decimal, names=names, ignored_extra=ignored_extra,
-                     tname=tname, tspec=tspec, columns=columns)
-
-
-def csv_read_options(lay: CsvLayout, block_size: int = 1 << 24) -> tuple[Any, Any]:
-    """pyarrow ``(ReadOptions, ParseOptions)`` of a CSV's layout."""
-    import pyarrow.csv as pacsv
-
-    return (pacsv.ReadOptions(skip_rows=lay.skip, autogenerate_column_names=not lay.header,
-                              block_size=block_size),
-            pacsv.ParseOptions(delimiter=lay.delim))
-
-
-def csv_parse_error(lay: CsvLayout, err: BaseException) -> LogFormatError:
-    """The LogFormatError of a pyarrow error reading ``lay``'s file (a ragged line named)."""
-    msg = str(err).splitlines()[0]
-    m = re.search(r"Expected (\d+) columns, got (\d+)", msg)
-    if m:
-        at = _ragged_line(lay.path, lay.skip, lay.delim, int(m.group(1)))
-        if at is not None:
-            msg = (f"line {at}: {m.group(2)} fields where the header has "
-                   f"{m.group(1)}" + msg[m.end():])
-    return LogFormatError(f"{lay.where}: cannot parse CSV: {msg}")
-
-
-def read_csv_channels(path: Path, cmap: ChannelMap | None, *,
-                      time_unit: str | None = None) -> tuple[JointChannels, str]:
-    """Read a CSV (canonical, or through ``cmap``) into :class:`JointChannels`.
-
-    Args:
-        path: the file.  cmap: its channel map (None: the canonical layout).
-        time_unit: unit of a canonical ``time`` column (None: seconds); a map's time unit
-            is the map's (:func:`impactcli.io.read_log` applies ``--time-unit`` to it).
-
-    Returns:
-        ``(channels, format)`` with format ``csv`` or ``csv-mapped``.
-    """
     import pyarrow as pa
     import pyarrow.csv as pacsv
 
-    lay = csv_layout(path, cmap, time_unit=time_unit)
-    where, cmap, fmt, header, skip = lay.where, lay.cmap, lay.fmt, lay.header, lay.skip
-    decimal, tspec, tname, names = lay.decimal, lay.tspec, lay.tname, lay.names
-    used = lay.used
-    ignored_extra = lay.ignored_extra
-
-    def read(types: dict[str, Any], include: list[str] | None = None) -> Any:
-        ropts, popts = csv_read_options(lay)
-        try:
-            return pacsv.read_csv(
-                path, read_options=ropts, parse_options=popts,
-                convert_options=pacsv.ConvertOptions(column_types=types,
-                                                     include_columns=include,
-                                                     decimal_point=decimal),
-            )
-        except (pa.ArrowInvalid, OSError, EOFError, UnicodeDecodeError) as err:
-            raise csv_parse_error(lay, err) from err
-
-    # Time is parsed as float64 when that is exact to the nanosecond: decimal text with at
-    # most 9 decimals below 1e6 s rounds back to its integer ns (half an ulp plus the
-    # product's rounding stay below 0.2 ns). Larger (epoch) times are re-read as text and
-    # converted exactly by decimal_text_to_ns.
-    table = read({})
-    if header:
-        try:
-            names = list(table.column_names)
-        except UnicodeDecodeError:
-            raise LogFormatError(f"{where}: cannot parse CSV: its header (line {skip + 1}) "
-                                 "is not UTF-8 text") from None
-    n = table.num_rows
-    if n < 2:
-        raise LogFormatError(f"{where}: holds {n} data row(s); at least 2 are needed")
-    label = _row_labeller(skip + (1 if header else 0))
-
-    disp = lay.disp
-
-    def numeric(col: str) -> np.ndarray:
-        arr = table.column(col)
-        if pa.types.is_integer(arr.type) or pa.types.is_floating(arr.type):
-            return np.asarray(arr.cast(pa.float64()).to_numpy(), dtype=np.float64).copy()
-        if pa.types.is_null(arr.type):
-            return np.full(n, np.nan)
-        vals = arr.to_pylist()
-        for i, v in enumerate(vals):
-            try:
-                float(v) if v is not None else None
-            except (TypeError, ValueError):
-                raise LogFormatError(
-                    f"{where}: column {disp(col)!r}, {label(i)}: non-numeric value {v!r}"
-                ) from None
-        return np.array([np.nan if v is None else float(v) for v in vals], dtype=np.float64)
-
-    # time
-    tarr = table.column(tname).combine_chunks()
-    unit_ns = TIME_UNITS[tspec.unit]
-    tcol = f"column {disp(tname)!r}" if header else disp(tname)
-    unit: str | None = tspec.unit
-    if pa.types.is_string(tarr.type) and decimal == ",":
-        import pyarrow.compute as pc
-
-        tarr = pc.replace_substring(tarr, ",", ".")
-    if pa.types.is_timestamp(tarr.type) or (
-            pa.types.is_string(tarr.type) and _ISO_RE.match(_first_valid(tarr))):
-        if time_unit is not None and fmt == "csv":
-            raise LogFormatError(f"{where}: --time-unit {time_unit} does not apply: {tcol} "
-                                 "holds ISO-8601 stamps")
-        t_ns, unit = _iso_to_ns(tarr, where, tcol, label), None
-    elif pa.types.is_temporal(tarr.type):
-        raise LogFormatError(f"{where}: {tcol} holds {tarr.type} values: give ISO-8601 "
-                             "stamps with date and time, or numbers")
-    elif pa.types.is_integer(tarr.type):
-        if tarr.null_count:
-            i = int(np.argmax(tarr.is_null().to_numpy(zero_copy_only=False)))
-            raise LogFormatError(f"{where}: {tcol}, {label(i)}: empty time")
-        raw = tarr.to_numpy().astype(np.int64)
-        _check_clock(raw.astype(np.float64), unit_ns, where, tcol, tspec.unit, label)
-        t_ns = raw * unit_ns
-    else:
-        if pa.types.is_floating(tarr.type) and (
-            tarr.null_count or float(np.nanmax(np.abs(tarr.to_numpy(zero_copy_only=False))))
-            * unit_ns / 1e9 >= 1e6
-        ):
-            tarr = read({tname: pa.string()}, [tname]).column(tname).combine_chunks()
-            if decimal == ",":
-                import pyarrow.compute as pc
-
-                tarr = pc.replace_substring(tarr, ",", ".")
-        exact = decimal_text_to_ns(tarr, unit_ns) if pa.types.is_string(tarr.type) else None
-        if exact is not None:
-            t_ns = exact
-        else:
-            tf = numeric(tname) if not pa.types.is_string(tarr.type) else _floats(
-                tarr, where, tcol, label)
-            if not np.all(np.isfinite(tf)):
-                i = int(np.argmax(~np.isfinite(tf)))
-                raise LogFormatError(
-                    f"{where}: {tcol}, {label(i)}: time is not a finite number"
-                )
-            _check_clock(tf, unit_ns, where, tcol, tspec.unit, label)
-            t_ns = np.round(tf * unit_ns).astype(np.int64)
-    if tspec.offset:
-        t_ns = t_ns + round(tspec.offset * unit_ns)
-    # signals
-    cols: dict[str, np.ndarray] = {}
-    keys: dict[tuple[str, int], str] = {}
-    for (sig, j), col in lay.columns.items():
-        key = col if header else disp(col)
-        keys[(sig, j)] = key
-        if key not in cols:
-            cols[key] = numeric(col)
-    droppable = {k for (sig, _), k in keys.items() if sig in DROPPABLE_SIGNALS}
-    t_ns, cols, repairs = repair_samples(
-        t_ns, cols, where=where, time_name=disp(tname), row_label=label,
-        keep_empty=droppable,
-    )
-    check_time_rate(t_ns, where, tcol, unit)
-    if tspec.start_at_zero:
-        t_ns = t_ns - t_ns[0]
-    ignored = ignored_extra if fmt == "csv" else [disp(c) for c in names if c not in used]
-    return channels_from_columns(cmap, t_ns, cols, keys, ignored, repairs), fmt
-
-
-def _first_valid(arr: Any) -> str:
-    """The first non-null value of a pyarrow string array ("" when none)."""
-    v = arr.drop_null()
-    return str(v[0].as_py()) if len(v) else ""
-
-
-def _floats(arr: Any, where: str, what: str, label: Any) -> np.ndarray:
-    """A pyarrow string array of numbers as float64 (empty cells NaN), or the error naming
-    the first cell that is not a number."""
-    vals = arr.to_pylist()
-    out = np.empty(len(vals))
-    for i, v in enumerate(vals):
-        try:
-            out[i] = np.nan if v is None else float(v)
-        except (TypeError, ValueError):
-            raise LogFormatError(f"{where}: {what}, {label(i)}: non-numeric value {v!r}"
-                                 ) from None
-    return out
-
-
-def _check_clock(values: np.ndarray, unit_ns: int, where: str, what: str, unit: str,
-                 label: Any) -> None:
-    """LogFormatError when a time in ``unit`` does not fit the int64-ns clock (±292 years):
-    most often a time in ns or µs read as seconds."""
-    with np.errstate(over="ignore", invalid="ignore"):
-        over = np.abs(values) * unit_ns >= _MAX_NS
-    if over.any():
-        i = int(np.argmax(over))
-        steps = np.diff(values[np.isfinite(values)])
-        step = float(np.median(steps)) if steps.size else 0.0
-        rate = 1e9 / (step * unit_ns) if step > 0 else float("nan")
-        raise LogFormatError(
-            f"{where}: {what}, {label(i)}: time {values[i]:g} {unit} is beyond the clock's "
-            f"range (±292 years in ns){unit_hint(rate, unit)}: {GIVE_UNIT}")
-
-
-def _iso_to_ns(arr: Any, where: str, what: str, label: Any) -> np.ndarray:
-    """ISO-8601 stamps (pyarrow timestamps, or strings) → (N,) int64 epoch ns; a stamp
-    without an offset is UTC."""
-    import pyarrow as pa
-    import pyarrow.compute as pc
-
-    if arr.null_count:
-        i = int(np.argmax(arr.is_null().to_numpy(zero_copy_only=False)))
-        raise LogFormatError(f"{where}: {what}, {label(i)}: empty time")
-    if pa.types.is_string(arr.type):
-        txt = pc.utf8_trim_whitespace(arr)
-        has_offset = pc.match_substring_regex(txt, r"(Z|[+-]\d{2}(:?\d{2})?)$")
-        txt = pc.if_else(has_offset, txt, pc.binary_join_element_wise(txt, "Z", ""))
-        try:
-            arr = pc.cast(txt, pa.timestamp("ns", tz="UTC"))
-        except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
-            given = arr.to_pylist()
-            for i, v in enumerate(txt.to_pylist()):
-                try:
-                    pc.cast(pa.array([v]), pa.timestamp("ns", tz="UTC"))
-                except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
-                    raise LogFormatError(
-                        f"{where}: {what}, {label(i)}: {given[i]!r} is not an ISO-8601 time "
-                        "(YYYY-MM-DDThh:mm:ss[.f][Z|±hh:mm]) within 1677–2262"
-                    ) from None
-            raise LogFormatError(f"{where}: {what}: cannot read its ISO-8601 times") from None
+    if cmap is not None and cmap.format == "npz":
+        raise LogFormatError(f"{where}: channel map {cmap.path} is for .npz archives")
+    lay = csv_layout(p, cmap, time_unit=options.get("time_unit"))
+    ropts, popts = csv_read_options(lay, BLOCK_SIZE)
+    names: list[str] | None = None
+    header_error = None
     try:
-        ns = pc.cast(arr, pa.timestamp("ns", tz=arr.type.tz)).cast(pa.int64())
-    except pa.ArrowInvalid as err:
-        raise LogFormatError(f"{where}: {what}: a time outside 1677–2262 ({err})") from None
-    return np.asarray(ns.to_numpy(), dtype=np.int64)
-
-
-def channels_from_columns(
-    cmap: ChannelMap,
-    t_ns: np.ndarray,
-    cols: dict[str, np.ndarray],
-    keys: dict[tuple[str, int], str],
-    ignored: list[str],
-    repairs: list[str],
-) -> JointChannels:
-    """Apply scale/offset and stack per-joint columns into (N, J) signals."""
-    n, jn = t_ns.shape[0], len(cmap.joints)
-    signals: dict[str, np.ndarray] = {}
-    missing: dict[str, list[str]] = {}
-    current_scale = np.full(jn, np.nan)
-    for sig, per in cmap.signals.items():
-        m = np.full((n, jn), np.nan)
-        for j, ref in enumerate(per):
-            if ref is None:
-                missing.setdefault(sig, []).append(cmap.joints[j])
-                continue
-            v = cols[keys[(sig, j)]]
-            if sig == "current":
-                if ref.scale is not None:
-                    current_scale[j] = ref.scale
-                m[:, j] = v  # the current as logged; its scale converts it to torque
-                continue
-            if ref.scale is not None:
-                v = v * ref.scale
-            if ref.offset:
-                v = v + ref.offset
-            m[:, j] = v
-        signals[sig] = m
-    return JointChannels(
-        t_ns=t_ns, joints=cmap.joints, signals=signals, missing=missing,
-        current_scale=current_scale, ignored=ignored, repairs=repairs,
-    )
-
-
-def _ns_to_decimal(t_ns: np.ndarray) -> Any:
-    """int64 ns → pyarrow strings of seconds with 9 decimals (exact), e.g. ``-0.500000000``."""
-    import pyarrow as pa
-    import pyarrow.compute as pc
-
-    t = np.asarray(t_ns, dtype=np.int64)
-    sec, frac = np.divmod(np.abs(t), 10**9)
-    txt = pc.binary_join_element_wise(
-        pc.cast(pa.array(sec), pa.string()),
-        pc.utf8_lpad(pc.cast(pa.array(frac), pa.string()), 9, "0"),
-        ".",
-    )
-    if np.any(t < 0):
-        txt = pc.if_else(pa.array(t < 0), pc.binary_join_element_wise("-", txt, ""), txt)
-    return txt
-
-
-def canonical_columns(log: RobotLog) -> list[tuple[str, np.ndarray]]:
-    """The canonical CSV's value columns: (name, (N,) values) in file order."""
-    out: list[tuple[str, np.ndarray]] = []
-    for j, name in enumerate(log.joint_names):
-        for sig in SIGNALS:
-            arr = getattr(log, sig)
-            if arr is not None and log.has_channel(sig)[j]:
-                out.append((f"{name}.{sig}", arr[:, j]))
-    return out
-
-
-def write_csv(log: RobotLog, path: str | os.PathLike[str]) -> None:
-    """Write ``log`` as canonical wide CSV (``.csv``, or gzip for ``.csv.gz``), atomically.
-
-    ``time`` holds seconds on the log's own clock with 9 decimals (exact ns); values are
-    written in shortest round-trip precision, so :func:`read_log` returns the same arrays.
-    """
-    import pyarrow as pa
-    import pyarrow.csv as pacsv
-
-    from .._fs import atomic_output
-
-    cols = canonical_columns(log)
-    table = pa.table(
-        {"time": _ns_to_decimal(np.asarray(log.t_ns))}
-        | {name: pa.array(np.ascontiguousarray(v)) for name, v in cols}
-    )
-    head = ",".join(["time"] + [c for c, _ in cols]) + "\n"
-    opts = pacsv.WriteOptions(include_header=False, quoting_style="none")
-    p = Path(path)
-    with atomic_output(p, "wb") as f:
-        if _is_gz(p):
-            with gzip.GzipFile(fileobj=f, mode="wb", compresslevel=1, mtime=0) as gz:
-                gz.write(head.encode())
-                pacsv.write_csv(table, gz, opts)
-        else:
-            f.write(head.encode())
-            pacsv.write_csv(table, f, opts)
+        reader = pacsv.open_csv(lay.path, read_options=ropts, parse_options=popts,
+                                convert_options=pacsv.ConvertOptions(
+                                    column_types={}, include_columns=[]))
+        try:
+            names = list(reader.schema.names)
+        except UnicodeDecodeError:
+            header_error = (f"{where}: cannot parse CSV: its header (line {lay.skip + 1}) "
+                            "is not UTF-8 text")
+        reader.close()
+    except UnicodeDecodeError:
+        header_error = (f"{where}: cannot parse CSV: its header (line {lay.skip + 1}) is "
+                        "not UTF-8 text")
+    except (pa.ArrowInvalid, OSError, EOFError) as err:
+        if "Empty CSV file" not in str(err):
+            raise csv_parse_error(lay, err) from err
+        names = []
+    if names is not None and len(names) != len(lay.names):
+        raise LogFormatError(f"{where}: cannot parse CSV: its header has {len(names)} "
+                             f"columns as CSV, {len(lay.names)} split at "
+                             f"{lay.delim!r}")
+    return CsvReaderLayout(lay, options, names, header_error)

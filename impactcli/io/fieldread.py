@@ -1,29 +1,19 @@
 """Reading field paths from the raw messages of one topic, in bulk where the layout allows.
 
 :func:`read_fields` returns the values of :class:`~impactcli.io.fields.FieldPath` s (and the
-header stamps) of every message of a topic. JSON messages are decoded one by one
-(:func:`impactcli.io.fields.extract`). ROS messages (CDR or ROS 1) are read in bulk, the way
-:mod:`impactcli.io.mcap_ros2` reads JointState:
+header stamps) of every message. JSON messages are decoded one by one
+(:func:`impactcli.io.fields.extract`). ROS messages (CDR or ROS 1) are read in bulk:
 
 1. Messages of one batch with the same length form a group. The first is walked field by
-   field over its type definition (:class:`_Locator`, CDR rules: each primitive aligned to its
-   size relative to the byte after the 4-byte encapsulation header, strings and sequences
-   prefixed by a uint32 length; ROS 1: no alignment, no header), which gives the byte offset
-   and type of every wanted number and the byte ranges its offsets depend on — the
-   encapsulation header and every string or sequence length read before the last wanted
-   number (plus the ``name[]`` strings when a joint is picked by name).
+   field over its type definition (:class:`_Locator`: CDR alignment relative to the byte
+   after the encapsulation header, strings and sequences prefixed by a uint32 length; ROS
+   1 without alignment or header), which gives the offset and type of every wanted number
+   and the byte ranges its offsets depend on.
 2. Every message of the group whose bytes equal the first's on those ranges has the same
-   offsets (offsets are sums of fixed sizes and those lengths); its numbers are read with
-   NumPy views of all such messages at once.
+   offsets: its numbers are read with NumPy views of all such messages at once.
 3. The first message's numbers are checked against rosbags' own decoder; any message that
-   differs on the ranges, any group whose check fails, and any path that does not fit
-   (an index past a sequence, a joint missing from ``name[]``) is decoded one message at a
-   time by rosbags (:meth:`MessageSource.decode_all`), which also names the message in
-   errors.
-
-Measured on a ``franka_msgs/FrankaState``-like message (717 bytes, 49 fields and the stamp
-read, 1 MiB MCAP chunks): 60,000 messages in 0.13 s here, where decoding each with rosbags
-and walking the objects took 15 s; ``read_log`` of the whole file 0.3 s instead of 24 s.
+   differs on the ranges, any group whose check fails and any path that does not fit is
+   decoded one message at a time by rosbags, which also names the message in errors.
 """
 
 from __future__ import annotations
@@ -244,7 +234,8 @@ def read_fields(src: MessageSource, td: TopicData, paths: list[FieldPath],
     """
     if td.encoding not in ("cdr", "ros1"):
         msgs = src.decode_all(td)
-        return extract(msgs, paths, where or src.where), header_stamps(msgs)
+        index = np.arange(td.first, td.first + len(msgs)) if td.first else None
+        return extract(msgs, paths, where or src.where, index=index), header_stamps(msgs)
     defs = src.typestore().fielddefs
     with_header = _has_header(defs, td.msgtype)
     wanted = _Wanted()
@@ -312,7 +303,7 @@ def read_fields(src: MessageSource, td: TopicData, paths: list[FieldPath],
     rest = np.flatnonzero(~done)
     if rest.size:
         msgs = src.decode_all(td, rest)
-        vals[rest, :k] = extract(msgs, paths, where or src.where, index=rest)
+        vals[rest, :k] = extract(msgs, paths, where or src.where, index=rest + td.first)
         if with_header:
             h = header_stamps(msgs)
             assert header is not None and h is not None

@@ -1,4 +1,4 @@
-"""Message fields named PlotJuggler-style (formats.md, "Channel maps", last paragraph).
+"""Message fields named PlotJuggler-style (docs/formats.md, "Channel maps", last paragraph).
 
 A field path is ``/topic/field/subfield[i]``: the longest topic of the log that prefixes the
 path is the topic, the rest names a field of its message type, one ``/`` per level of

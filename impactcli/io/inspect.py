@@ -1,4 +1,6 @@
-"""Describing a log for ``impactcli inspect`` (``schemas/inspect.schema.json``)."""
+"""Describing a log for ``impactcli inspect`` (``schemas/inspect.schema.json``) from its
+scan (:class:`~impactcli.io.scan.LogScan`) and its sample times: joints, channels and
+their ranges, sources, timing, gaps, repairs — without holding its samples."""
 
 from __future__ import annotations
 
@@ -11,6 +13,7 @@ from ..sampling import GAP_FACTOR as _GAP_FACTOR
 from ..sampling import gap_steps
 from ..types import RobotLog
 from .channel_map import SIGNALS
+from .scan import LogScan
 
 #: A step longer than this many periods may be a gap (:mod:`impactcli.sampling`, rule (a)).
 GAP_FACTOR = _GAP_FACTOR
@@ -30,23 +33,24 @@ def time_gaps(log: RobotLog) -> tuple[np.ndarray, np.ndarray]:
     return gap_steps(log.t_ns, log.sample_clock)
 
 
-def joints_left_out(log: RobotLog) -> list[dict[str, str]]:
+def joints_left_out(scan: LogScan) -> list[dict[str, str]]:
     """The logged joints detection will leave out by their torque, with why, as ``detect``
-    says it (``torque flat: …``, ``torque unmeasured: …``): the screen of
-    :func:`impactcli.detect.screen.unusable_columns` on the whole log's torque, against
-    the largest peak-to-peak among its joints. Joints a model or a calibrated config does
-    not cover are left out by ``detect`` too; ``inspect`` knows of neither."""
-    from ..detect.screen import unusable_columns
-
-    torque = np.asarray(log.torque, dtype=np.float64)
-    ref = float(np.max(np.ptp(torque, axis=0)))
-    return [{"name": j, "reason": f"torque {why}"}
-            for j, why in zip(log.joint_names, unusable_columns(torque, ref), strict=True)
-            if why is not None]
+    says it (``torque flat: …``, ``torque unmeasured: …``): the scan's torque screen
+    against the largest peak-to-peak among its joints (:mod:`impactcli.io.stream_screen`).
+    Joints a model or a calibrated config does not cover are left out by ``detect`` too;
+    ``inspect`` knows of neither."""
+    why = scan.screens["torque"].unusable(scan.torque_ptp)
+    return [{"name": j, "reason": f"torque {w}"}
+            for j, w in zip(scan.joint_names, why, strict=True) if w is not None]
 
 
-def describe_log(log: RobotLog) -> dict[str, Any]:
-    """JSON-ready description of ``log``: joints, channels, sources, timing, gaps, repairs.
+def _range(lo: float, hi: float) -> list[float] | None:
+    return None if np.isnan(lo) else [float(lo), float(hi)]
+
+
+def describe_log(scan: LogScan, t_ns: np.ndarray) -> dict[str, Any]:
+    """JSON-ready description of a log from its scan and its (N,) sample times [ns]:
+    joints, channels (and each one's range per joint), sources, timing, gaps, repairs.
 
     Timing (:mod:`impactcli.sampling`): ``sample_rate_hz`` is 1 / the estimated period
     (the mean of the steps that span one period); jitter gives the std, min and max of the
@@ -57,15 +61,16 @@ def describe_log(log: RobotLog) -> dict[str, Any]:
     first sample) and length [s] — the first :data:`MAX_GAPS_LISTED` of them:
     ``gaps.n_listed`` of ``gaps.count`` are listed. ``joints_dropped``: the joints the
     reader left out (no finite position or torque); ``joints_left_out``: those detection
-    will leave out by their torque (:func:`joints_left_out`).
+    will leave out by their torque (:func:`joints_left_out`); ``ranges``: per array the log
+    has, each joint's smallest and largest value (null where it does not log it).
     """
-    dt = np.diff(log.t_ns).astype(np.float64) * 1e-9
-    clock = log.sample_clock
+    log = scan.log
+    dt = np.diff(t_ns).astype(np.float64) * 1e-9
+    clock = scan.clock
     period = clock.period_s
     dev = np.abs(dt - period)
-    gap_idx, _ = time_gaps(log)
+    gap_idx = scan.gaps
     listed = gap_idx[:MAX_GAPS_LISTED]
-    ts = log.time_s
     src = log.source
     present = [s for s in SIGNALS if getattr(log, s) is not None]
     used = [f"{j}.{s}" for j in log.joint_names for s in present]
@@ -77,9 +82,9 @@ def describe_log(log: RobotLog) -> dict[str, Any]:
         "sha256": src.sha256,
         "joints": list(log.joint_names),
         "n_joints": log.n_joints,
-        "n_samples": log.n_samples,
-        "t0_ns": log.t0_ns,
-        "duration_s": log.duration_s,
+        "n_samples": scan.n_samples,
+        "t0_ns": scan.t0_ns,
+        "duration_s": scan.duration_s,
         "sample_rate_hz": clock.rate_hz,
         "sample_period_s": period,
         "jitter": {
@@ -94,7 +99,8 @@ def describe_log(log: RobotLog) -> dict[str, Any]:
             "count": int(gap_idx.size),
             "threshold_s": clock.gap_threshold_s,
             "listed": [
-                {"sample": int(i), "t_s": float(ts[i]), "length_s": float(dt[i])}
+                {"sample": int(i), "t_s": float((t_ns[i] - t_ns[0]).astype(np.float64)
+                                                * 1e-9), "length_s": float(dt[i])}
                 for i in listed
             ],
             "n_listed": int(listed.size),
@@ -107,12 +113,15 @@ def describe_log(log: RobotLog) -> dict[str, Any]:
         "repairs": list(src.repairs),
         "missing": list(src.notes),
         "joints_dropped": [{"name": n, "reason": r} for n, r in src.joints_dropped],
-        "joints_left_out": joints_left_out(log),
+        "joints_left_out": joints_left_out(scan),
+        "ranges": {s: {j: _range(lo[k], hi[k]) for k, j in enumerate(log.joint_names)}
+                   for s, (lo, hi) in scan.ranges.items()},
     }
 
 
 def format_table(d: dict[str, Any]) -> str:
-    """The human-readable form of :func:`describe_log`'s result."""
+    """The human-readable form of :func:`describe_log`'s result (each channel's range on a
+    line of its own after the repairs)."""
     j = d["jitter"]
     rows = [
         ("log", d["path"]),
@@ -149,4 +158,7 @@ def format_table(d: dict[str, Any]) -> str:
         lines.append(f"{'':<{width}}  {len(gaps['listed'])} of {gaps['count']} gaps listed")
     for r in d["repairs"]:
         lines.append(f"{'':<{width}}  repair: {r}")
+    for sig, per in (d.get("ranges") or {}).items():
+        text = ", ".join(f"{j} {v[0]:.4g}…{v[1]:.4g}" for j, v in per.items() if v is not None)
+        lines.append(f"{'':<{width}}  {sig} range: {text or 'not logged'}")
     return "\n".join(lines)

@@ -1,13 +1,15 @@
-"""MCAP with ROS 2 ``sensor_msgs/msg/JointState`` (CDR): bulk reader, encoder (formats.md "MCAP").
+"""MCAP with ROS 2 ``sensor_msgs/msg/JointState`` (CDR): bulk decoder, encoder (docs/formats.md).
 
-Reading: :func:`~impactcli.io.mcap_scan.scan_mcap` locates the message records; messages of
-one chunk with the same size are decoded together: the first is parsed field by field to
-learn its layout (offsets of the stamp and of the position/velocity/effort float64 arrays,
-its joint names), every other message of the group is checked to have the same bytes
-everywhere except the stamp and the float64 arrays, and the values are read with NumPy
-views. Messages that differ (other names, order or frame id) are parsed one by one. Joints
-are matched by ``name[]`` on every message. Trailing CDR padding is ignored. Anything the
-scanner does not handle falls back to the official ``mcap`` + ``mcap_ros2`` decoder.
+Decoding (:func:`decode_batches`, a block's messages of one topic as
+:class:`~impactcli.io.mcap_scan.McapBlocks` locates them): messages of one batch with the
+same size are decoded together: the first is parsed field by field to learn its layout
+(offsets of the stamp and of the position/velocity/effort float64 arrays, its joint
+names), every other message of the group is checked to have the same bytes everywhere
+except the stamp and the float64 arrays, and the values are read with NumPy views.
+Messages that differ (other names, order or frame id) are parsed one by one. Joints are
+matched by ``name[]`` on every message. Trailing CDR padding is ignored.
+:func:`decode_topic_official` is the official ``mcap`` + ``mcap_ros2`` decoder (the
+tests' reference).
 
 CDR layout of JointState (little endian, alignment relative to the byte after the 4-byte
 encapsulation header): ``int32 sec, uint32 nanosec, string frame_id, sequence<string> name,
@@ -26,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import LogFormatError
-from .mcap_scan import Batch, McapScan
+from .msgsource import Batch
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 JOINT_STATE_DEF = """std_msgs/Header header
@@ -187,6 +189,7 @@ class TopicArrays:
         has_velocity, has_effort, has_position: (n,) the array is filled.
         extra_names: names seen in messages but not in ``joints``.
         joint_seen: (J,) the joint is named in at least one message.
+        named: (n, J) the joint is named in the message.
     """
 
     joints: tuple[str, ...]
@@ -202,6 +205,7 @@ class TopicArrays:
     has_effort: np.ndarray
     extra_names: set[str]
     joint_seen: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    named: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), dtype=bool))
 
 
 def _rows(b: Batch, sel: np.ndarray, length: int) -> np.ndarray:
@@ -237,32 +241,36 @@ def _empty(n: int, j: int, names: tuple[str, ...]) -> TopicArrays:
     return TopicArrays(
         names, np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n, np.int64),
         nan, nan.copy(), nan.copy(), z, z.copy(), z.copy(), z.copy(), set(),
-        np.zeros(j, dtype=bool),
+        np.zeros(j, dtype=bool), np.zeros((n, j), dtype=bool),
     )
 
 
 def decode_topic(
-    scan: McapScan, channel_ids: list[int], where: str, topic: str,
+    scan: Any, channel_ids: list[int], where: str, topic: str,
     joints: tuple[str, ...] | None = None,
 ) -> TopicArrays:
-    """Decode every JointState message of ``channel_ids`` into :class:`TopicArrays` (file order)."""
+    """Decode every JointState message of ``channel_ids`` of an
+    :class:`~impactcli.io.mcap_scan.McapScan` into :class:`TopicArrays` (file order)."""
     batches = [b for c in channel_ids for b in scan.batches.get(c, [])]
     return decode_batches(batches, where, topic, joints)
 
 
 def decode_batches(
     batches: list[Batch], where: str, topic: str, joints: tuple[str, ...] | None = None,
+    offset: int = 0,
 ) -> TopicArrays:
     """Decode the CDR JointState messages of ``batches`` (one topic) into :class:`TopicArrays`
     in file order (by each batch's ``order``); joints are those of the first message unless
-    given."""
+    given. ``offset``: the topic's messages before these (errors name messages by their
+    number in the topic)."""
     if not batches:
         raise LogFormatError(f"{where}: topic {topic!r} holds no messages")
     orders = np.sort(np.concatenate([b.order for b in batches]))
     n = orders.shape[0]
 
     def bad(k: int, err: Exception) -> LogFormatError:
-        return LogFormatError(f"{where}: topic {topic!r}, message {k}: not a JointState: {err}")
+        return LogFormatError(f"{where}: topic {topic!r}, message {k + offset}: not a "
+                              f"JointState: {err}")
 
     if joints is None:
         first = min(batches, key=lambda b: int(b.order[0]))
@@ -306,6 +314,7 @@ def decode_batches(
                 dst = np.array([c for c in self_cols if c >= 0], dtype=np.int64)
                 out.has_joints[gi] = len(set(dst.tolist())) == jn
                 out.joint_seen[dst] = True
+                out.named[np.ix_(gi, dst)] = True
                 targets = (out.position, out.velocity, out.effort)
                 flags = (out.has_position, out.has_velocity, out.has_effort)
                 identity = len(lay.names) == jn and bool(np.all(dst == np.arange(jn)))
@@ -347,6 +356,7 @@ def _fill_one(out: TopicArrays, i: int, m: Layout, vals: list[np.ndarray],
         if nm in jidx:
             seen.add(nm)
             out.joint_seen[jidx[nm]] = True
+            out.named[i, jidx[nm]] = True
         else:
             out.extra_names.add(nm)
     out.has_joints[i] = len(seen) == len(jidx)

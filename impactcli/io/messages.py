@@ -1,57 +1,40 @@
-"""Joint signals from a message log — MCAP or ROS bag — one implementation for both.
+"""The reader of message logs — MCAP and ROS bags — one implementation for both
+(docs/formats.md, "MCAP", "Channel maps").
 
-Works on a :class:`~impactcli.io.msgsource.MessageSource` (formats.md, "MCAP", "Channel maps").
+State topic: the map's position fields' topic when a ``format: messages`` channel map names
+every joint's position; else ``topic``, the only JointState / JSON JointSample topic, or
+``/joint_states``. A JointState state ``T`` has companions (``T_ref`` or ``reference_topic``:
+the reference; ``T_model``, ``T_ext``: the controller's torques), joints matched by
+``name[]`` on every message; a map's fields replace the signals they name. Time: the
+state's header stamps when every one is non-zero, else log time (``time_source``
+overrides); every other topic is stamped alike and held onto the state samples (its latest
+message at or before each), the samples before its first message dropped (a repair).
 
-State topic (no channel map, or a map that names no position field): ``topic`` when given;
-else the only joint topic (ROS ``sensor_msgs/JointState`` in CDR or ROS 1, or impactcli's
-JSON ``JointSample``); else ``/joint_states``; else an error listing the joint topics (or all
-topics when there is none). JointState gives position, velocity, effort (= torque), joints
-matched by ``name[]`` on every message (CDR decoded in bulk by
-:func:`~impactcli.io.mcap_ros2.decode_batches`; ROS 1 one message at a time).
-
-Default companion topics of a JointState state topic ``T`` (all JointState, joints matched
-by name, each used when present):
-
-- ``T_ref`` (or ``reference_topic``): ``position`` → ``position_ref``, ``velocity`` (when
-  filled in every message) → ``velocity_ref``;
-- ``T_model``: ``effort`` → ``torque_model``; ``T_ext``: ``effort`` → ``torque_ext``. A joint
-  that no message names does not log that channel (its column is NaN, formats.md).
-
-Channel map (``format: messages``, :mod:`impactcli.io.channel_map`): each per-joint signal
-may be a field path (:mod:`impactcli.io.fields`), with the map's scale and offset. When the
-map names every joint's ``position`` by field path, the state topic is the topic of those
-fields (all on one topic), its messages give the sample times, and every signal comes from
-the map (no JointState, no companion topics). Otherwise the state is the JointState topic
-above, the log's joints are the map's joints (others are listed as ignored), and a signal
-the map names replaces the one from the state or a companion topic. Fields of the state
-topic are read row by row with it.
-
-Time: the state topic's ``header`` stamp when its messages have a header and every stamp is
-non-zero, else ``log`` time; ``time_source`` (``log``/``publish``/``header``) overrides. Every
-other topic (companions and field topics) is stamped the same way — header when the state
-uses header and that topic's stamps are all non-zero, publish time when the state uses
-publish time, else log time — and aligned to the state samples by sample-and-hold of its
-latest message at or before each one (causal). State samples before the first message of
-such a topic are dropped (a warned repair). Then the repair policy
-(:mod:`impactcli.io.repair`) applies to every column.
+One pass over the file's blocks (:meth:`MessageLayout.read`) decodes each block once,
+counts every topic the log may use and spills its decoded columns
+(:mod:`impactcli.io.message_merge`, which merges them into rows); what the log is made of
+is decided from the counts (:mod:`impactcli.io.message_plan`), a log that does not fit
+refused with the first error in that order.
 """
 
 from __future__ import annotations
 
 import json
-import warnings
-from dataclasses import dataclass, field
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from ..errors import ChannelMapError, ImpactWarning, LogFormatError
-from ..types import CONTROLLER_CHANNELS
-from .assemble import TIME_SOURCES, JointChannels
+from ..errors import ChannelMapError, ImpactError, LogFormatError
+from .assemble import JointChannels
 from .channel_map import SIGNALS, ChannelMap, ChannelRef
 from .fields import FieldPath, check_ros_path, parse_field_path
-from .mcap_ros2 import TopicArrays, arrays_from_messages, decode_batches
+from .mcap_ros2 import TopicArrays, arrays_from_messages, decode_batches, parse_jointstate
+from .message_merge import Part, SpillFolder, TopicSpill, merged_rows
 from .msgsource import JOINT_SAMPLE, JOINT_STATE, MessageSource, TopicData
-from .repair import repair_matrix
+from .stream_layout import RawRows, StreamLayout
 
 DEFAULT_STATE_TOPIC = "/joint_states"
 #: companion topic suffix → (JointState array, signal)
@@ -59,6 +42,7 @@ COMPANIONS: tuple[tuple[str, str, str], ...] = (
     ("_model", "effort", "torque_model"),
     ("_ext", "effort", "torque_ext"),
 )
+_TIMES = ("log", "publish", "header")
 
 
 def joint_kind(msgtype: str, encoding: str) -> str | None:
@@ -102,34 +86,6 @@ def pick_state_topic(topics: dict[str, tuple[str, str]], topic: str | None,
     )
 
 
-@dataclass
-class _Times:
-    log: np.ndarray
-    publish: np.ndarray
-    header: np.ndarray | None
-
-
-@dataclass
-class _Held:
-    """A topic aligned to the state samples by sample-and-hold."""
-
-    topic: str
-    role: str
-    times: _Times
-    cols: list[tuple[str, int, np.ndarray]] = field(default_factory=list)
-
-
-def _state_time(tm: _Times, time_source: str | None, where: str,
-                topic: str) -> tuple[np.ndarray, str]:
-    zero = None if tm.header is None or np.all(tm.header != 0) else int(
-        np.argmax(tm.header == 0))
-    tsrc = choose_time_source(time_source, tm.header is not None, zero, where, topic)
-    if tsrc == "header":
-        assert tm.header is not None
-        return tm.header, tsrc
-    return (tm.publish if tsrc == "publish" else tm.log), tsrc
-
-
 def choose_time_source(time_source: str | None, has_header: bool, zero_at: int | None,
                        where: str, topic: str) -> str:
     """The state topic's time source (module docstring): ``time_source``, else ``header``
@@ -156,14 +112,10 @@ def choose_time_source(time_source: str | None, has_header: bool, zero_at: int |
     return "publish" if time_source == "publish" else "log"
 
 
-def _held_time(tm: _Times, tsrc: str) -> np.ndarray:
-    if tsrc == "header" and tm.header is not None and np.all(tm.header != 0):
-        return tm.header
-    return tm.publish if tsrc == "publish" else tm.log
-
-
-def json_topic_arrays(src: MessageSource, td: TopicData) -> TopicArrays:
-    """Decode impactcli JSON joint samples into TopicArrays, every signal in ``json_extra``."""
+def json_topic_arrays(src: MessageSource, td: TopicData,
+                      joints: tuple[str, ...] | None = None) -> TopicArrays:
+    """Decode impactcli JSON joint samples into TopicArrays (joints matched by name: those
+    of the first message unless given), every signal in ``json_extra``."""
     where, topic = src.where, td.topic
     if td.n == 0:
         raise LogFormatError(f"{where}: topic {topic!r} holds no messages")
@@ -175,22 +127,23 @@ def json_topic_arrays(src: MessageSource, td: TopicData) -> TopicArrays:
                 raise ValueError("no 'name' list")
         except ValueError as err:
             raise LogFormatError(
-                f"{where}: topic {topic!r}, message {k}: bad JSON sample: {err}"
+                f"{where}: topic {topic!r}, message {k + td.first}: bad JSON sample: {err}"
             ) from None
         msgs.append(m)
-    joints = tuple(str(s) for s in msgs[0]["name"])
+    if joints is None:
+        joints = tuple(str(s) for s in msgs[0]["name"])
     jidx = {nm: i for i, nm in enumerate(joints)}
     n, jn = len(msgs), len(joints)
     vals = {s: np.full((n, jn), np.nan) for s in SIGNALS}
     has = {s: np.zeros(n, dtype=bool) for s in SIGNALS}
-    has_joints = np.zeros(n, dtype=bool)
+    named = np.zeros((n, jn), dtype=bool)
     header = np.zeros(n, dtype=np.int64)
     extra: set[str] = set()
     for i, m in enumerate(msgs):
         names = m["name"]
         cols = [jidx.get(nm, -1) for nm in names]
         extra.update(nm for nm in names if nm not in jidx)
-        has_joints[i] = len({c for c in cols if c >= 0}) == jn
+        named[i, [c for c in cols if c >= 0]] = True
         header[i] = int(m.get("stamp_ns", 0) or 0)
         for s in SIGNALS:
             v = m.get(s)
@@ -201,8 +154,9 @@ def json_topic_arrays(src: MessageSource, td: TopicData) -> TopicArrays:
                         vals[s][i, c] = np.nan if x is None else float(x)
     out = TopicArrays(
         joints, td.log_time.copy(), td.publish_time.copy(), header,
-        vals["position"], vals["velocity"], vals["torque"], has_joints,
-        has["position"], has["velocity"], has["torque"], extra, np.ones(jn, dtype=bool),
+        vals["position"], vals["velocity"], vals["torque"], np.all(named, axis=1),
+        has["position"], has["velocity"], has["torque"], extra, np.any(named, axis=0),
+        named,
     )
     out.json_extra = (vals, has)  # type: ignore[attr-defined]
     return out
@@ -220,31 +174,19 @@ def joint_signals(arr: TopicArrays) -> tuple[dict[str, np.ndarray], dict[str, np
              "torque": arr.has_effort})
 
 
-def _joint_arrays(src: MessageSource, td: TopicData, kind: str,
-                  joints: tuple[str, ...] | None = None) -> TopicArrays:
-    if td.n == 0:
-        raise LogFormatError(f"{src.where}: topic {td.topic!r} holds no messages")
-    if kind == "ros2":
-        return decode_batches(td.batches, src.where, td.topic, joints)
-    if kind == "ros1":
-        msgs = src.decode_all(td)
-        if joints is None and not list(msgs[0].name):
-            raise LogFormatError(
-                f"{src.where}: topic {td.topic!r}: first message has no joint names")
-        return arrays_from_messages(msgs, td.log_time, td.publish_time, joints)
-    return json_topic_arrays(src, td)
-
-
 @dataclass
-class _MapField:
+class MapField:
+    """A per-joint signal the channel map names by field path."""
+
     signal: str
     joint: int
     ref: ChannelRef
     path: FieldPath
 
 
-def _map_fields(src: MessageSource, cmap: ChannelMap,
-                topics: dict[str, tuple[str, str]]) -> list[_MapField]:
+def map_fields(src: MessageSource, cmap: ChannelMap,
+               topics: dict[str, tuple[str, str]]) -> list[MapField]:
+    """The map's field paths, checked against the topics' message definitions."""
     where = src.where
     mapname = cmap.path or cmap.name
     names = list(topics)
@@ -264,284 +206,27 @@ def _map_fields(src: MessageSource, cmap: ChannelMap,
         elif enc != "json":
             raise ChannelMapError(f"{what}: topic {fp.topic!r} has message encoding {enc!r}, "
                                   "which cannot be decoded (cdr, ros1 or json)")
-        out.append(_MapField(sig, j, ref, fp))
+        out.append(MapField(sig, j, ref, fp))
     return out
 
 
-def _field_columns(src: MessageSource, td: TopicData, fields: list[_MapField],
-                   mapname: str) -> tuple[list[tuple[str, int, np.ndarray]], np.ndarray | None]:
-    """The map's field columns on ``td``'s topic (scaled; currents raw) and its header stamps."""
+def field_columns(src: MessageSource, td: TopicData, fields: list[MapField],
+                  prefix: str) -> tuple[list[np.ndarray], np.ndarray | None]:
+    """The map's field columns on ``td``'s topic (scaled; currents raw: their scale converts
+    them to torque) and its header stamps; ``prefix`` starts the errors."""
     from .fieldread import read_fields
 
-    vals, header = read_fields(src, td, [f.path for f in fields],
-                               f"{src.where}: channel map {mapname}")
+    vals, header = read_fields(src, td, [f.path for f in fields], prefix)
     out = []
     for c, f in enumerate(fields):
         v = vals[:, c]
-        if f.signal != "current":  # a current's scale converts it to torque (build_log)
+        if f.signal != "current":
             if f.ref.scale is not None:
                 v = v * f.ref.scale
             if f.ref.offset:
                 v = v + f.ref.offset
-        out.append((f.signal, f.joint, v))
+        out.append(v)
     return out, header
-
-
-def read_message_channels(
-    src: MessageSource, *, cmap: ChannelMap | None, topic: str | None,
-    reference_topic: str | None, time_source: str | None,
-) -> tuple[JointChannels, str, str]:
-    """Read a message log into :class:`JointChannels` (module docstring).
-
-    Returns:
-        ``(channels, format, time_source)``; format ``mcap-ros2``, ``mcap-ros1`` or
-        ``mcap-json`` for MCAP (by the state topic's encoding), else the source's kind
-        (``rosbag2``, ``rosbag1``).
-
-    Raises:
-        LogFormatError: topics missing or unusable, messages that do not decode or lack
-            joints, times that cannot be repaired.
-        ChannelMapError: a map that does not fit the log (fields, types, joints).
-    """
-    where = src.where
-    if time_source is not None and time_source not in TIME_SOURCES:
-        raise LogFormatError(f"{where}: unknown time source {time_source!r} (log, publish, header)")
-    topics = src.topics()
-    mapname = "" if cmap is None else (cmap.path or cmap.name)
-    if cmap is not None and cmap.format != "messages":
-        kind_txt = {"csv": "CSV files", "npz": ".npz archives"}.get(cmap.format or "",
-                                                                    "CSV files or .npz archives")
-        raise ChannelMapError(f"{where}: channel map {mapname} is for {kind_txt}; a map for "
-                              "MCAP or ROS bags says 'format: messages' and names fields")
-    fields = _map_fields(src, cmap, topics) if cmap is not None else []
-    mapped = {f.signal for f in fields}
-    pos_fields = [f for f in fields if f.signal == "position"]
-    held: list[_Held] = []
-    state_cols: list[tuple[str, int, np.ndarray]] = []
-    ignored: list[str] = []
-    missing: dict[str, list[str]] = {}
-    repairs = list(src.repairs)
-    if pos_fields:
-        assert cmap is not None
-        if len(pos_fields) != len(cmap.joints):
-            have = {f.joint for f in pos_fields}
-            j = next(cmap.joints[k] for k in range(len(cmap.joints)) if k not in have)
-            raise ChannelMapError(f"{where}: channel map {mapname}: joint {j!r} has no position "
-                                  "field while others have: name every joint's position")
-        ptopics = sorted({f.path.topic for f in pos_fields})
-        if len(ptopics) > 1:
-            raise ChannelMapError(f"{where}: channel map {mapname}: the position fields are on "
-                                  f"several topics ({', '.join(ptopics)}); they must share one")
-        state_topic = ptopics[0]
-        if topic is not None and topic != state_topic:
-            raise LogFormatError(f"{where}: --topic {topic!r} differs from the topic of the "
-                                 f"channel map's position fields ({state_topic!r})")
-        if reference_topic is not None:
-            raise LogFormatError(f"{where}: --reference-topic does not apply when the channel "
-                                 "map names the positions; name position_ref in the map")
-        joints = cmap.joints
-        td = src.load([state_topic])[state_topic]
-        if td.n == 0:
-            raise LogFormatError(f"{where}: topic {state_topic!r} holds no messages")
-        state_cols, header = _field_columns(
-            src, td, [f for f in fields if f.path.topic == state_topic], mapname)
-        stimes = _Times(td.log_time, td.publish_time, header)
-        kind = {"cdr": "ros2", "ros1": "ros1"}.get(td.encoding, "json")
-    else:
-        state_topic, kind = pick_state_topic(topics, topic, where)
-        td = src.load([state_topic])[state_topic]
-        arr = _joint_arrays(src, td, kind)
-        if cmap is not None:
-            joints = cmap.joints
-            absent = [j for j in joints if j not in arr.joints]
-            if absent:
-                raise ChannelMapError(
-                    f"{where}: channel map {mapname}: joint {absent[0]!r} is not in name[] of "
-                    f"{state_topic!r} (names: {', '.join(arr.joints)})"
-                )
-            if kind != "json" and set(joints) != set(arr.joints):
-                arr = _joint_arrays(src, td, kind, joints)
-        else:
-            joints = arr.joints
-        jidx = [arr.joints.index(j) for j in joints]
-        stimes = _Times(arr.log_time, arr.publish_time, arr.header)  # JSON: stamp_ns or 0
-        if not arr.has_joints.all():
-            k = int(np.argmax(~arr.has_joints))
-            raise LogFormatError(
-                f"{where}: topic {state_topic!r}, message {k} lacks some of the joints "
-                f"{', '.join(joints)}"
-            )
-        vals, has = joint_signals(arr)
-        used: list[str] = []
-        for s in SIGNALS:
-            if s not in has or s in mapped:
-                continue
-            h = has[s]
-            if h.all():
-                used.append(s)
-            elif h.any():
-                if s in ("position", "torque"):
-                    k = int(np.argmax(~h))
-                    what = "effort (torque)" if s == "torque" and kind != "json" else s
-                    raise LogFormatError(f"{where}: topic {state_topic!r}, message {k} has no "
-                                         f"{what}")
-                ignored.append(f"{state_topic}:{s} (not in every message)")
-        if "position" not in used:
-            raise LogFormatError(f"{where}: topic {state_topic!r} carries no joint positions")
-        for s in used:
-            for c, jx in enumerate(jidx):
-                state_cols.append((s, c, vals[s][:, jx]))
-        ignored += [f"{state_topic}:{nm}" for nm in sorted(arr.extra_names)]
-        ignored += [f"{state_topic}:{nm}" for nm in arr.joints if nm not in joints]
-        on_state = [f for f in fields if f.path.topic == state_topic]
-        if on_state:
-            state_cols += _field_columns(src, td, on_state, mapname)[0]
-        if kind in ("ros2", "ros1"):
-            held += _companions(src, topics, state_topic, reference_topic, joints, mapped)
-        elif reference_topic is not None:
-            raise LogFormatError(
-                f"{where}: --reference-topic applies to ROS JointState; JSON samples carry "
-                "their reference in each message"
-            )
-    # field topics other than the state topic
-    by_topic: dict[str, list[_MapField]] = {}
-    for f in fields:
-        if f.path.topic != state_topic:
-            by_topic.setdefault(f.path.topic, []).append(f)
-    loaded = src.load(list(by_topic)) if by_topic else {}
-    for t, fl in by_topic.items():
-        ftd = loaded[t]
-        if ftd.n == 0:
-            raise LogFormatError(f"{where}: topic {t!r} (channel map {mapname}) holds no messages")
-        cols, header = _field_columns(src, ftd, fl, mapname)
-        held.append(_Held(t, "topic", _Times(ftd.log_time, ftd.publish_time, header), cols))
-    used_topics = {state_topic} | {h.topic for h in held}
-    ignored = [x for x in sorted(topics) if x not in used_topics] + ignored
-    ch, tsrc = _assemble(where, state_topic, stimes, state_cols, held, joints, time_source,
-                         ignored, repairs, missing, fields)
-    fmt = f"mcap-{kind}" if src.kind == "mcap" else src.kind
-    return ch, fmt, tsrc
-
-
-def _companions(src: MessageSource, topics: dict[str, tuple[str, str]], state_topic: str,
-                reference_topic: str | None, joints: tuple[str, ...],
-                mapped: set[str]) -> list[_Held]:
-    """The reference and controller topics of a JointState state topic (module docstring)."""
-    where = src.where
-    out: list[_Held] = []
-    rtopic = reference_topic
-    if rtopic is not None and ({"position_ref", "velocity_ref"} & mapped):
-        raise LogFormatError(f"{where}: --reference-topic and the channel map's position_ref "
-                             "both name the reference; give one")
-    if rtopic is None and "position_ref" not in mapped:
-        cand = f"{state_topic}_ref"
-        if cand in topics and joint_kind(*topics[cand]) in ("ros2", "ros1"):
-            rtopic = cand
-    wanted: list[tuple[str, str, str]] = []  # (topic, role, kind)
-    if rtopic is not None:
-        if rtopic not in topics:
-            raise LogFormatError(
-                f"{where}: reference topic {rtopic!r} not found (topics: "
-                f"{', '.join(sorted(topics))})"
-            )
-        rk = joint_kind(*topics[rtopic])
-        if rk not in ("ros2", "ros1"):
-            raise LogFormatError(f"{where}: reference topic {rtopic!r} is not a JointState topic")
-        wanted.append((rtopic, "reference topic", rk))
-    for suffix, _arr, sig in COMPANIONS:
-        cand = f"{state_topic}{suffix}"
-        if sig not in mapped and cand in topics:
-            ck = joint_kind(*topics[cand])
-            if ck in ("ros2", "ros1"):
-                wanted.append((cand, f"{sig} topic", ck))
-    loaded = src.load([w[0] for w in wanted]) if wanted else {}
-    for t, role, k in wanted:
-        arr = _joint_arrays(src, loaded[t], k, joints)
-        h = _Held(t, role, _Times(arr.log_time, arr.publish_time, arr.header))
-        if role == "reference topic":
-            if not arr.has_joints.all():
-                m = int(np.argmax(~arr.has_joints))
-                raise LogFormatError(f"{where}: topic {t!r}, message {m} lacks some of the joints")
-            if not arr.has_position.all():
-                m = int(np.argmax(~arr.has_position))
-                raise LogFormatError(f"{where}: topic {t!r}, message {m} has no position")
-            if "position_ref" not in mapped:
-                h.cols = [("position_ref", j, arr.position[:, j]) for j in range(len(joints))]
-            if arr.has_velocity.all() and "velocity_ref" not in mapped:
-                h.cols += [("velocity_ref", j, arr.velocity[:, j]) for j in range(len(joints))]
-        else:
-            # a joint no message names does not log the channel (_assemble: missing)
-            sig = role.split()[0]
-            h.cols = [(sig, j, arr.effort[:, j]) for j in range(len(joints))
-                      if arr.joint_seen[j]]
-        if not h.cols:
-            continue
-        out.append(h)
-    return out
-
-
-def _assemble(
-    where: str, topic: str, stimes: _Times, state_cols: list[tuple[str, int, np.ndarray]],
-    held: list[_Held], joints: tuple[str, ...], time_source: str | None, ignored: list[str],
-    repairs: list[str], missing: dict[str, list[str]], fields: list[_MapField],
-) -> tuple[JointChannels, str]:
-    t, tsrc = _state_time(stimes, time_source, where, topic)
-    sorted_already = bool(np.all(np.diff(t) >= 0))
-    perm = np.arange(t.shape[0]) if sorted_already else np.argsort(t, kind="stable")
-    t = t[perm]
-    # sample-and-hold of every other topic: its latest message at or before each sample
-    picks = []
-    lead, lead_topic = 0, ""
-    for h in held:
-        tr = _held_time(h.times, tsrc)
-        rp = np.argsort(tr, kind="stable")
-        idx = np.searchsorted(tr[rp], t, side="right") - 1
-        k = int(np.sum(idx < 0))
-        if k == len(t):
-            raise LogFormatError(f"{where}: {h.role} {h.topic!r} starts after the last state "
-                                 "message")
-        if k > lead:
-            lead, lead_topic = k, h.topic
-        picks.append((rp, idx))
-    if lead:
-        what = "reference " if any(h.topic == lead_topic and h.role == "reference topic"
-                                   for h in held) else ""
-        msg = (f"{where}: dropped the first {lead} state sample(s), recorded before the first "
-               f"{what}message on {lead_topic!r}")
-        warnings.warn(msg, ImpactWarning, stacklevel=4)
-        repairs.append(msg)
-    rows = perm[lead:]
-    t = t[lead:]
-    cols: list[tuple[str, int, np.ndarray]] = [(s, j, v[rows]) for s, j, v in state_cols]
-    for h, (rp, idx) in zip(held, picks, strict=True):
-        sel = rp[idx[lead:]]
-        cols += [(s, j, v[sel]) for s, j, v in h.cols]
-    names = [f"{joints[j]}.{s}" for s, j, _ in cols]
-    mat = (np.column_stack([v for _, _, v in cols]).astype(np.float64, copy=False)
-           if cols else np.empty((t.shape[0], 0)))
-
-    def label(i: int) -> str:
-        return f"message {int(rows[i])} of {topic!r}"
-
-    t, mat, rep = repair_matrix(t, mat, names, where=where, time_name=f"{tsrc} time",
-                                row_label=label)
-    repairs += rep
-    jn = len(joints)
-    signals, lacking = stack_columns(mat, [(s, j) for s, j, _ in cols], joints)
-    for s, lack in lacking.items():
-        missing[s] = sorted(set(missing.get(s, [])) | set(lack), key=joints.index)
-    for s in list(missing):
-        if s not in signals and s in CONTROLLER_CHANNELS:
-            del missing[s]
-    current_scale = np.full(jn, np.nan)
-    for f in fields:
-        if f.signal == "current" and f.ref.scale is not None:
-            current_scale[f.joint] = f.ref.scale
-    ch = JointChannels(
-        t_ns=t, joints=joints, signals=signals, missing=missing, current_scale=current_scale,
-        ignored=ignored, repairs=repairs,
-    )
-    return ch, tsrc
 
 
 def stack_columns(mat: np.ndarray, cols: list[tuple[str, int]], joints: tuple[str, ...]
@@ -552,10 +237,238 @@ def stack_columns(mat: np.ndarray, cols: list[tuple[str, int]], joints: tuple[st
     jn = len(joints)
     signals: dict[str, np.ndarray] = {}
     have: dict[str, set[int]] = {}
+    at: dict[str, list[tuple[int, int]]] = {}
     for c, (s, j) in enumerate(cols):
-        if s not in signals:
+        at.setdefault(s, []).append((c, j))
+    for s, cj in at.items():
+        c0 = cj[0][0]
+        if [(c - c0, j) for c, j in cj] == [(k, k) for k in range(jn)]:
+            signals[s] = mat[:, c0:c0 + jn]  # every joint's column, in order: a view
+        else:
             signals[s] = np.full((mat.shape[0], jn), np.nan)
-        signals[s][:, j] = mat[:, c]
-        have.setdefault(s, set()).add(j)
+            for c, j in cj:
+                signals[s][:, j] = mat[:, c]
+        have[s] = {j for _, j in cj}
     lacking = {s: [joints[j] for j in range(jn) if j not in have[s]] for s in signals}
     return signals, {s: lack for s, lack in lacking.items() if lack}
+
+
+# ------------------------------------------------------------------- one pass: a topic
+class TopicReader:
+    """One topic through the pass over the blocks: its messages decoded (joints matched by
+    name into every name seen, in order of appearance) or its map fields read, spilled,
+    and counted (module docstring). The first error decoding it is kept, not raised:
+    the log may not use the topic, and the log's errors have an order."""
+
+    def __init__(self, topic: str, mtype: str, enc: str, kind: str, fields: list[MapField],
+                 spill: TopicSpill) -> None:
+        self.topic, self.mtype, self.enc, self.kind = topic, mtype, enc, kind
+        self.fields = fields
+        self.spill = spill
+        self.names: list[str] = []  # every joint name seen (the first message's first)
+        self.first_names: tuple[str, ...] | None = None
+        self.first_error: ImpactError | None = None  # the first message does not parse
+        self.error: ImpactError | None = None  # decoding its joint messages
+        self.field_error: ImpactError | None = None  # reading the map's fields
+        self.n = 0
+        self.lo: dict[str, int] = {}  # time source → smallest stamp
+        self.hi: dict[str, int] = {}
+        self.ordered = dict.fromkeys(_TIMES, True)
+        self.last: dict[str, int] = {}
+        self.header_blocks = 0  # blocks whose messages have a header stamp
+        self.blocks = 0
+        self.first_zero: int | None = None  # first message whose header stamp is zero
+
+    @property
+    def has_header(self) -> bool:
+        """Whether every message has a header stamp."""
+        return self.blocks > 0 and self.header_blocks == self.blocks
+
+    def add(self, src: MessageSource, batches: list[Any], prefix: str) -> None:
+        """The topic's messages in one block."""
+        td = TopicData(self.topic, self.mtype, self.enc, batches, first=self.n)
+        cols: dict[str, np.ndarray] = {}
+        header: np.ndarray | None = None
+        if self.kind and self.error is None:
+            try:
+                header = self._joints(src, td, cols)
+            except ImpactError as err:
+                self.error = err
+        if self.fields and self.field_error is None:
+            try:
+                fcols, fheader = field_columns(src, td, self.fields, prefix)
+                cols.update({f"field:{k}": v for k, v in enumerate(fcols)})
+                header = header if self.kind else fheader
+            except ImpactError as err:
+                self.field_error = err
+        cols["log"], cols["publish"] = td.log_time, td.publish_time
+        self.blocks += 1
+        if header is not None:
+            cols["header"] = header
+            self.header_blocks += 1
+            zero = np.flatnonzero(header == 0)
+            if zero.size and self.first_zero is None:
+                self.first_zero = self.n + int(zero[0])
+        for s in _TIMES:
+            t = cols.get(s)
+            if t is None or not t.size:
+                continue
+            self.lo[s] = min(self.lo.get(s, int(t.min())), int(t.min()))
+            self.hi[s] = max(self.hi.get(s, int(t.max())), int(t.max()))
+            prev = self.last.get(s)
+            if (prev is not None and t[0] < prev) or bool(np.any(np.diff(t) < 0)):
+                self.ordered[s] = False
+            self.last[s] = int(t[-1])
+        self.spill.append(td.n, cols)
+        self.n += td.n
+
+    def _joints(self, src: MessageSource, td: TopicData, cols: dict[str, np.ndarray]
+                ) -> np.ndarray:
+        """Decode a block of joint messages into ``cols`` (values per joint name, the names
+        each message gives, the arrays it fills); its header stamps."""
+        if self.first_names is None:
+            self.first_names, self.first_error = _first_names(src, td, self.kind)
+            self.names = list(self.first_names)
+        arr = self._decode(src, td)
+        if arr.extra_names:  # names not seen before: decoded again with them
+            self.names += sorted(arr.extra_names)
+            arr = self._decode(src, td)
+        vals, has = joint_signals(arr)
+        for sig, v in vals.items():
+            if has[sig].any():
+                cols.update({f"{sig}:{nm}": v[:, k] for k, nm in enumerate(arr.joints)})
+        cols.update({f"has:{sig}": h for sig, h in has.items()})
+        cols.update({f"named:{nm}": arr.named[:, k] for k, nm in enumerate(arr.joints)})
+        return arr.header
+
+    def _decode(self, src: MessageSource, td: TopicData) -> TopicArrays:
+        joints = tuple(self.names)
+        if self.kind == "ros2":
+            return decode_batches(td.batches, src.where, td.topic, joints, td.first)
+        if self.kind == "ros1":
+            msgs = src.decode_all(td)
+            return arrays_from_messages(msgs, td.log_time, td.publish_time, joints)
+        return json_topic_arrays(src, td, joints)
+
+
+def _first_names(src: MessageSource, td: TopicData, kind: str
+                 ) -> tuple[tuple[str, ...], ImpactError | None]:
+    """The joint names of a topic's first message, and the error of a first message that
+    does not parse (no names then)."""
+    import struct
+
+    try:
+        if kind == "ros2":
+            first = min(td.batches, key=lambda b: int(b.order[0]))
+            o, ln = int(first.data_off[0]), int(first.data_len[0])
+            try:
+                return parse_jointstate(first.buf[o: o + ln].tobytes()).names, None
+            except (ValueError, struct.error) as err:
+                return (), LogFormatError(f"{src.where}: topic {td.topic!r}, message 0: not "
+                                          f"a JointState: {err}")
+        if kind == "ros1":
+            return tuple(str(s) for s in src.decode_all(td, np.array([0]))[0].name), None
+        m = json.loads(td.data(0))
+        return (tuple(str(s) for s in m["name"]) if isinstance(m, dict) and isinstance(
+            m.get("name"), list) else ()), None
+    except (ValueError, ImpactError, KeyError, TypeError, AttributeError):
+        return (), None
+
+
+# ------------------------------------------------------------------------- the layout
+class MessageLayout(StreamLayout):
+    """A message log (module docstring): its blocks read once at construction
+    (:meth:`read`), its rows merged from the spills (:meth:`raw_batches`; the passes after
+    the scan read the scan's cache of the rows, the spills are deleted then:
+    :meth:`release`)."""
+
+
+    def __init__(self, p: Path, where: str, blocks: Any, src: MessageSource, kind: str,
+                 options: dict[str, Any]) -> None:
+        self.path, self.where, self.blocks, self.src = p, where, blocks, src
+        self.source_kind = kind  # mcap, rosbag2, rosbag1
+        self.options = options
+        self.repair_order = bool(options.get("repair_order", False))
+        self.folder = SpillFolder()
+        self.readers: dict[str, TopicReader] = {}
+        self.parts: list[Part] = []
+        self.perm: np.ndarray | None = None
+        self.lead = 0
+        self.lead_counts: list[int] = []
+        self.truncated: list[str] = []
+        self.state = ""
+        self.ignored: list[str] = []
+        self.current_scale: np.ndarray | None = None
+        self.mapname = ""
+        self.prefix = ""  # starts the errors reading map fields
+
+    def close(self) -> None:
+        for r in self.readers.values():
+            r.spill.close()
+        self.folder.close()
+
+    def release(self) -> None:
+        """The scan keeps the rows: the spills are no longer needed."""
+        self.close()
+
+    def label(self, i: int) -> str:
+        row = i + self.lead if self.perm is None else int(self.perm[i + self.lead])
+        return f"message {row} of {self.state!r}"
+
+    def channels(self, t: np.ndarray, mat: np.ndarray) -> JointChannels:
+        """The merged columns stacked by signal (a joint without one holds NaN)."""
+        cols = [c for part in self.parts for c in part.cols]
+        signals, missing = stack_columns(mat, cols, self.joints)
+        return JointChannels(t_ns=t, joints=self.joints, signals=signals, missing=missing,
+                             current_scale=self.current_scale, ignored=list(self.ignored))
+
+    def pre_repairs(self) -> list[str]:
+        out = list(self.truncated)
+        lead = max(self.lead_counts, default=0)
+        if lead:
+            h = self.parts[1 + self.lead_counts.index(lead)]
+            what = "reference " if h.role == "reference topic" else ""
+            out.append(f"{self.where}: dropped the first {lead} state sample(s), recorded "
+                       f"before the first {what}message on {h.topic!r}")
+        return out
+
+    def raw_batches(self) -> Iterator[RawRows]:
+        self.lead_counts = [0] * (len(self.parts) - 1)
+        row0 = 0
+        first = True
+        for t, mat in merged_rows(self.parts, self.perm, self.lead_counts):
+            if first:
+                self.lead = max(self.lead_counts, default=0)
+                first = False
+            yield RawRows(row0, t, mat)
+            row0 += t.shape[0]
+
+    # -- the pass over the blocks
+    def read(self, topics: list[str], decode: set[str],
+             fields: dict[str, list[MapField]]) -> None:
+        """One pass over the file's blocks: the topics ``topics`` read and spilled (their
+        joint messages decoded for those in ``decode``, their map fields read); an MCAP
+        compression the walker does not know is read through the official reader."""
+        from .mcap_scan import OfficialBlocks, UnsupportedMcap
+
+        mtypes = self.src.topics()
+        for attempt in range(2):
+            self.readers = {}
+            for t in topics:
+                mtype, enc = mtypes[t]
+                kind = (joint_kind(mtype, enc) or "") if t in decode else ""
+                spill = TopicSpill(self.folder, f"a{attempt}t{len(self.readers)}")
+                self.readers[t] = TopicReader(t, mtype, enc, kind, fields.get(t, []), spill)
+            try:
+                for block in self.blocks.blocks(topics):
+                    for topic, batches in block.items():
+                        r = self.readers.get(topic)
+                        if r is not None:
+                            r.add(self.src, batches, self.prefix)
+                break
+            except UnsupportedMcap:
+                for r in self.readers.values():
+                    r.spill.close()
+                self.blocks = OfficialBlocks(self.path, self.where)
+        for r in self.readers.values():
+            r.spill.finish()

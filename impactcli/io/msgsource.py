@@ -1,25 +1,19 @@
 """Message sources: an MCAP file and a ROS bag seen the same way (topics, types, raw messages).
 
 A :class:`MessageSource` lists its topics with their message type and encoding (``cdr``:
-ROS 2; ``ros1``: ROS 1; ``json``) and loads the raw messages of the topics asked for as
-:class:`TopicData` — file order, log and publish times [ns], and the bytes of each message
-as :class:`~impactcli.io.mcap_scan.Batch` es, so the vectorised JointState decoder of
-:mod:`impactcli.io.mcap_ros2` reads MCAP and rosbag2 alike. :meth:`MessageSource.decode`
-decodes one message of any type with the definitions stored in the file (rosbags'
-``Typestore``: ``ros2msg``/``ros1msg`` through ``get_types_from_msg``, ``ros2idl`` through
-``get_types_from_idl``; types a definition refers to but does not carry are taken from
-rosbags' latest ROS 2 store) or ``json.loads``.
+ROS 2; ``ros1``: ROS 1; ``json``); the messages of a block come as :class:`TopicData` —
+file order, log and publish times [ns], and each message's bytes in :class:`Batch` es —, so
+the vectorised JointState decoder of :mod:`impactcli.io.mcap_ros2` reads MCAP and rosbag2
+alike. :meth:`MessageSource.decode_all` decodes messages of any type with the definitions
+stored in the file (rosbags' ``Typestore``: ``ros2msg``/``ros1msg``, ``ros2idl``; types a
+definition refers to but does not carry come from rosbags' latest ROS 2 store) or
+``json.loads``. rosbags' deserialiser is used because it accepts ROS 1 field names (such as
+``tau_J``) that ``mcap_ros2``'s refuses; it is called on the message body directly, so
+trailing CDR padding (docs/formats.md, "MCAP") is ignored. Fields are read in bulk where
+the layout allows (:mod:`impactcli.io.fieldread`), checked against this decoder.
 
-Measured (``franka_msgs/FrankaState``-like message, 717 bytes): rosbags' generated CDR
-deserialiser takes 17 µs per message and accepts ROS 1 field names such as ``tau_J``;
-``mcap_ros2``'s dynamic decoder refuses them (ROS 2 field-name rules), so rosbags is used.
-Trailing CDR padding (formats.md) is ignored: the deserialiser is called on the message
-body directly, without rosbags' size check. Decoding every message is the reference path;
-fields are read in bulk where the layout allows (:mod:`impactcli.io.fieldread`), checked
-against it.
-
-Sources: :class:`McapSource` (a :class:`~impactcli.io.mcap_scan.McapScan`) here,
-:class:`~impactcli.io.bags.BagSource` (rosbags' ``AnyReader``) in :mod:`impactcli.io.bags`.
+Sources: :class:`~impactcli.io.mcap_scan.McapSource` and
+:class:`~impactcli.io.bags.BagSource` (rosbags' ``AnyReader``).
 """
 
 from __future__ import annotations
@@ -32,10 +26,30 @@ from typing import Any
 import numpy as np
 
 from ..errors import LogFormatError
-from .mcap_scan import Batch, McapScan
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 JOINT_SAMPLE = "impactcli/JointSample"
+
+
+@dataclass
+class Batch:
+    """Messages of one channel found in one block (an MCAP chunk, records between
+    chunks, bag messages).
+
+    Attributes:
+        buf: (B,) uint8, the bytes the messages are in.
+        data_off: (n,) int64 offsets of each message's data in ``buf``.
+        data_len: (n,) int64 data lengths [bytes].
+        log_time, publish_time: (n,) int64 [ns].
+        order: (n,) int64 index of each message in file order (over all channels).
+    """
+
+    buf: np.ndarray
+    data_off: np.ndarray
+    data_len: np.ndarray
+    log_time: np.ndarray
+    publish_time: np.ndarray
+    order: np.ndarray
 
 
 @dataclass
@@ -47,6 +61,8 @@ class TopicData:
         msgtype: message type (``pkg/msg/Name`` for ROS; the schema name for JSON).
         encoding: ``cdr``, ``ros1`` or ``json``.
         batches: the bytes and times, possibly in several batches.
+        first: the topic's messages before these (errors name a message by its number in
+            the topic: ``first`` + its index here).
         log_time, publish_time: (n,) int64 [ns] in file order.
     """
 
@@ -54,6 +70,7 @@ class TopicData:
     msgtype: str
     encoding: str
     batches: list[Batch]
+    first: int = 0
     log_time: np.ndarray = field(init=False)
     publish_time: np.ndarray = field(init=False)
     _where: list[tuple[int, int]] = field(init=False, repr=False)
@@ -207,8 +224,8 @@ class MessageSource:
                 try:
                     out.append(json.loads(td.data(i)))
                 except ValueError as err:
-                    raise LogFormatError(f"{self.where}: topic {td.topic!r}, message {i}: "
-                                         f"bad JSON: {err}") from None
+                    raise LogFormatError(f"{self.where}: topic {td.topic!r}, message "
+                                         f"{i + td.first}: bad JSON: {err}") from None
             return out
         if td.encoding not in ("cdr", "ros1"):
             raise LogFormatError(f"{self.where}: topic {td.topic!r}: message encoding "
@@ -230,8 +247,8 @@ class MessageSource:
                     fn = md.deserialize_cdr_le if raw[1] else md.deserialize_cdr_be
                     msg, _ = fn(memoryview(raw)[4:], 0, md.cls, store)
             except Exception as err:  # struct/unicode/value errors of generated code
-                raise LogFormatError(f"{self.where}: topic {td.topic!r}, message {i}: not a "
-                                     f"{td.msgtype}: {err}") from None
+                raise LogFormatError(f"{self.where}: topic {td.topic!r}, message "
+                                     f"{i + td.first}: not a {td.msgtype}: {err}") from None
             out.append(msg)
         return out
 
@@ -259,41 +276,3 @@ def header_stamps(msgs: list[Any]) -> np.ndarray | None:
             return None
         out[i] = int(st.sec) * 10**9 + int(st.nanosec)
     return out
-
-
-class McapSource(MessageSource):
-    """An MCAP file, from the bulk scanner's result."""
-
-    kind = "mcap"
-
-    def __init__(self, scan: McapScan, where: str) -> None:
-        super().__init__()
-        self.scan = scan
-        self.where = where
-        self._topics: dict[str, tuple[str, str]] = {}
-        self._cids: dict[str, list[int]] = {}
-        for cid, (topic, sid, menc) in sorted(scan.channels.items()):
-            name, senc, _ = scan.schemas.get(sid, ("", "", b""))
-            mtype = normalize_type(name) if senc in ("ros2msg", "ros1msg", "ros2idl") else name
-            self._topics.setdefault(topic, (mtype, menc))
-            self._cids.setdefault(topic, []).append(cid)
-
-    def topics(self) -> dict[str, tuple[str, str]]:
-        return dict(self._topics)
-
-    def channel_ids(self, topic: str) -> list[int]:
-        """The MCAP channels of ``topic``."""
-        return list(self._cids[topic])
-
-    def load(self, topics: Collection[str]) -> dict[str, TopicData]:
-        out = {}
-        for t in topics:
-            mtype, enc = self._topics[t]
-            batches = [b for c in self._cids[t] for b in self.scan.batches.get(c, [])]
-            out[t] = TopicData(t, mtype, enc, batches)
-        return out
-
-    def definitions(self) -> list[tuple[str, str, str]]:
-        return [(name, enc, data.decode("utf-8", errors="replace"))
-                for name, enc, data in self.scan.schemas.values()
-                if enc in ("ros2msg", "ros1msg", "ros2idl")]

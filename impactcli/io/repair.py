@@ -1,53 +1,43 @@
-"""The repair policy every reader applies (formats.md, "Canonical wide CSV").
+"""The repair policy every reader applies (docs/formats.md, "Canonical wide CSV"), over the
+consecutive blocks of a log's rows (:class:`Repairer`): the decisions, values and messages
+are those of the whole file at once.
 
-Repairs are explicit and always warned about (:class:`~impactcli.errors.ImpactWarning`)
-and recorded in ``RobotLog.source.repairs``:
-
-* exact duplicate samples (same time, same values in every used channel, one after the
-  other) are dropped;
-* rows out of time order, only when asked (``read_log(..., repair_order=True)``, the
-  command line's ``--repair-order``): the longest strictly increasing subsequence of the
-  stamps is kept (O(N log N)) and the other rows are dropped, counted and warned about —
-  what a logger that writes some rows late leaves on a clean time grid. Of rows sharing a
-  stamp (a repeated stamp with other values) the last one written is kept;
-* short gaps of non-finite values (NaN or ±inf) of at most :data:`MAX_GAP_SAMPLES`
-  consecutive samples in one channel, with finite samples on both sides, are filled by
-  linear interpolation in time.
-
-A channel without a single finite value is not repaired: a controller channel
-(``torque_model``, ``torque_ext``) is read as not logged for that joint; a position,
-torque or current column (``keep_empty``) is passed on as NaN, and the joint is left out
-of the log with a warning by :func:`impactcli.io.assemble.build_log`; so is an optional
-signal's column (velocity, references), and the log is read without that signal, for
-every joint, with a warning (:func:`impactcli.io.assemble.build_log`).
+Repairs are explicit, warned about (:class:`~impactcli.errors.ImpactWarning`) and recorded
+in ``RobotLog.source.repairs``: exact duplicate samples (one after the other) are dropped;
+with ``--repair-order`` only, rows out of time order are dropped, keeping the longest
+strictly increasing run of stamps (:func:`longest_increasing`; of rows sharing a stamp the
+last one written); runs of at most :data:`MAX_GAP_SAMPLES` non-finite values in a channel,
+between finite values, are interpolated linearly in time. A column without a finite value
+is not repaired: a controller channel's is read as not logged for that joint, a position,
+torque or optional signal's is passed on as NaN (the joint, or the signal, is left out of
+the log by the scan, warned).
 
 Anything else is a :class:`~impactcli.errors.LogFormatError` naming the file, the column
-and the row: time that is not strictly increasing after dropping duplicates (without
-``repair_order``; the message names the option — a repeated stamp with other values is
-refused because which row is the sample is the user's call), a non-finite time, a longer
-gap, a gap touching the start or end of the log, and a finite value beyond
-±:data:`MAX_ABS_VALUE` (no joint measures that: a corrupt cell, which would overflow the
-computation).
+and the row: time not strictly increasing (without ``--repair-order``: which row is the
+sample is the user's call), a longer run of non-finite values or one touching the start or
+end, a finite value beyond ±:data:`MAX_ABS_VALUE` (a corrupt cell), and a time column whose
+implied rate says it is in another unit (:func:`rate_message`).
 """
 
 from __future__ import annotations
 
 import bisect
-import contextlib
-import warnings
-from collections.abc import Callable, Collection, Iterator
-from contextvars import ContextVar
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..errors import ImpactWarning, LogFormatError
 from ..types import CONTROLLER_CHANNELS
+
+if TYPE_CHECKING:
+    from .stream_layout import RawRows, StreamLayout
 
 #: Longest run of consecutive non-finite samples in one channel that is interpolated.
 MAX_GAP_SAMPLES = 5
 #: Largest magnitude of a value read (any channel, in its logged unit); beyond is an error.
 MAX_ABS_VALUE = 1e12
-#: Implied sample rates outside [MIN_RATE_HZ, MAX_RATE_HZ] are an error (formats.md).
+#: Implied sample rates outside [MIN_RATE_HZ, MAX_RATE_HZ] are an error (docs/formats.md).
 MIN_RATE_HZ = 20.0
 MAX_RATE_HZ = 100_000.0
 #: Signals whose column may hold no finite value (passed on as NaN): a position or torque
@@ -56,20 +46,6 @@ MAX_RATE_HZ = 100_000.0
 #: signal out of the log (:func:`impactcli.io.assemble.build_log`).
 DROPPABLE_SIGNALS = ("position", "torque", "current", "velocity", "position_ref",
                      "velocity_ref", "acceleration_ref")
-
-_REPAIR_ORDER: ContextVar[bool] = ContextVar("impactcli_repair_order", default=False)
-
-
-@contextlib.contextmanager
-def repairing_order(on: bool) -> Iterator[None]:
-    """Within the block, readers that do not pass ``repair_order`` themselves repair rows
-    out of time order (:func:`impactcli.io.read_log`'s ``repair_order``)."""
-    token = _REPAIR_ORDER.set(on)
-    try:
-        yield
-    finally:
-        _REPAIR_ORDER.reset(token)
-
 
 def longest_increasing(t: np.ndarray) -> np.ndarray:
     """Indices of a longest strictly increasing subsequence of ``t`` (patience sorting,
@@ -101,144 +77,7 @@ def longest_increasing(t: np.ndarray) -> np.ndarray:
     return np.asarray(out[::-1], dtype=np.int64)
 
 
-def default_row_label(i: int) -> str:
-    """Label of sample ``i`` (0-based) in messages: ``sample i``."""
-    return f"sample {i}"
-
-
-def repair_samples(
-    t_ns: np.ndarray,
-    columns: dict[str, np.ndarray],
-    *,
-    where: str,
-    time_name: str = "time",
-    row_label: Callable[[int], str] = default_row_label,
-    repair_order: bool | None = None,
-    keep_empty: Collection[str] | None = None,
-) -> tuple[np.ndarray, dict[str, np.ndarray], list[str]]:
-    """Apply the repair policy to one log's samples.
-
-    Args:
-        t_ns: (N,) int64 sample times [ns], in file order.
-        columns: channel name → (N,) float64 values (the channels actually used).
-        where: the file, for messages.
-        time_name: name of the time channel, for messages.
-        row_label: maps an original sample index to the text used in messages
-            (e.g. ``row 57 (line 58)`` for CSV).
-        repair_order: keep the longest increasing run of stamps instead of refusing rows
-            out of order (None: as :func:`repairing_order` says, default no).
-        keep_empty: channels that may hold no finite value (passed on as NaN; None: those
-            named ``<joint>.<signal>`` for a signal of :data:`DROPPABLE_SIGNALS`).
-
-    Returns:
-        ``(t_ns, columns, repairs)``: repaired copies and the list of repairs made
-        (each also warned about).
-    """
-    names = list(columns)
-    n = np.asarray(t_ns).shape[0]
-    mat = (
-        np.column_stack([np.asarray(columns[k], dtype=np.float64) for k in names])
-        if names else np.empty((n, 0))
-    )
-    t, mat, repairs = repair_matrix(
-        t_ns, mat, names, where=where, time_name=time_name, row_label=row_label,
-        repair_order=repair_order, keep_empty=keep_empty,
-    )
-    out = {k: np.ascontiguousarray(mat[:, i]) for i, k in enumerate(names)}
-    return t, out, repairs
-
-
-def repair_matrix(
-    t_ns: np.ndarray,
-    mat: np.ndarray,
-    names: list[str],
-    *,
-    where: str,
-    time_name: str = "time",
-    row_label: Callable[[int], str] = default_row_label,
-    repair_order: bool | None = None,
-    keep_empty: Collection[str] | None = None,
-) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """:func:`repair_samples` on an (N, C) float64 matrix whose columns are ``names``.
-
-    Returns ``(t_ns, mat, repairs)``; ``mat`` may be the input array, modified in place.
-    """
-    repairs: list[str] = []
-    t = np.asarray(t_ns, dtype=np.int64)
-    n = t.shape[0]
-    orig = np.arange(n)
-    if n >= 2:
-        dt = np.diff(t)
-        same_t = dt == 0
-        if same_t.any():
-            a, b = mat[:-1], mat[1:]
-            same_vals = np.all((a == b) | (np.isnan(a) & np.isnan(b)), axis=1)
-            dup = same_t & same_vals
-            if dup.any():
-                keep = np.ones(n, dtype=bool)
-                keep[1:][dup] = False
-                msg = duplicate_message(where, int(dup.sum()), row_label(int(np.argmax(dup)) + 1))
-                repairs.append(msg)
-                warnings.warn(msg, ImpactWarning, stacklevel=3)
-                t, mat, orig = t[keep], mat[keep], orig[keep]
-        dt = np.diff(t)
-        if np.any(dt <= 0):
-            if _REPAIR_ORDER.get() if repair_order is None else repair_order:
-                t, mat, orig = _keep_increasing(t, mat, orig, repairs, where, row_label)
-            else:
-                k = int(np.argmax(dt <= 0)) + 1
-                raise LogFormatError(_order_message(t, k, orig, where, time_name, row_label))
-    _check_magnitudes(mat, names, orig, where, row_label)
-    bad = ~np.isfinite(mat)
-    allbad = np.flatnonzero(bad.all(axis=0)) if mat.shape[0] else np.zeros(0, dtype=np.int64)
-    # a position/torque/current column with no finite value: passed on as NaN, the joint is
-    # left out of the log; an optional signal's: the signal is (build_log, warned there)
-    droppable = (set(keep_empty) if keep_empty is not None else
-                 {c for c in names if c.rsplit(".", 1)[-1] in DROPPABLE_SIGNALS})
-    for c in allbad:
-        if names[c] in droppable:
-            if not mat.flags.writeable:
-                mat = mat.copy()
-            mat[:, c] = np.nan
-            bad[:, c] = False
-    # a controller channel (formats.md: torque_model, torque_ext) with no finite value at all
-    # was not logged for that joint: kept as NaN (the joint lacks it), said in a warning
-    empty = [c for c in allbad if names[c] not in droppable and is_controller_column(names[c])]
-    for c in empty:
-        msg = empty_controller_message(where, names[c])
-        repairs.append(msg)
-        warnings.warn(msg, ImpactWarning, stacklevel=3)
-        if not mat.flags.writeable:
-            mat = mat.copy()
-        mat[:, c] = np.nan
-        bad[:, c] = False
-    if bad.any():
-        tf = t.astype(np.float64)
-        if not mat.flags.writeable:
-            mat = mat.copy()
-        for c in np.flatnonzero(bad.any(axis=0)):
-            col = mat[:, c]
-            mask = bad[:, c]
-            # runs of consecutive non-finite samples: [start, stop)
-            edges = np.diff(np.concatenate(([0], mask.astype(np.int8), [0])))
-            starts = np.flatnonzero(edges == 1)
-            stops = np.flatnonzero(edges == -1)
-            for s, e in zip(starts, stops, strict=True):
-                length = int(e - s)
-                kind = "NaN" if np.isnan(col[s]) else "infinite"
-                if s == 0 or e == mat.shape[0] or length > MAX_GAP_SAMPLES:
-                    raise LogFormatError(run_message(where, names[c], row_label(int(orig[s])),
-                                                     length, kind, s == 0, e == mat.shape[0]))
-            good = ~mask
-            col[mask] = np.interp(tf[mask], tf[good], col[good])
-            msg = interpolated_message(where, names[c], int(mask.sum()), len(starts),
-                                       row_label(int(orig[starts[0]])))
-            repairs.append(msg)
-            warnings.warn(msg, ImpactWarning, stacklevel=3)
-    return t, mat, repairs
-
-
-def _order_message(t: np.ndarray, k: int, orig: np.ndarray, where: str, time_name: str,
+def order_message(t: np.ndarray, k: int, orig: np.ndarray, where: str, time_name: str,
                    row_label: Callable[[int], str]) -> str:
     """The error for the first step t[k-1] → t[k] that does not increase."""
     here = row_label(int(orig[k]))
@@ -253,11 +92,15 @@ def _order_message(t: np.ndarray, k: int, orig: np.ndarray, where: str, time_nam
             "drops the other rows, warned)")
 
 
-def _keep_increasing(
-    t: np.ndarray, mat: np.ndarray, orig: np.ndarray, repairs: list[str], where: str,
-    row_label: Callable[[int], str],
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Keep the longest strictly increasing run of stamps; record and warn what was dropped."""
+def increasing_run(t: np.ndarray, orig: np.ndarray, where: str,
+                   row_label: Callable[[int], str]) -> tuple[np.ndarray, str]:
+    """``--repair-order``: the rows kept (the longest strictly increasing run of stamps,
+    :func:`longest_increasing`) and the repair's message.
+
+    Args:
+        t: (N,) int64 the stamps after dropping exact duplicates (some out of order).
+        orig: (N,) int64 their rows in the file (for the message).
+    """
     keep = longest_increasing(t)
     mask = np.zeros(t.shape[0], dtype=bool)
     mask[keep] = True
@@ -271,24 +114,7 @@ def _keep_increasing(
     msg = (f"{where}: dropped {dropped.size} row(s) ({', '.join(what)}; first at "
            f"{row_label(int(orig[dropped[0]]))}), keeping the longest increasing run of "
            f"stamps ({keep.size} rows; --repair-order)")
-    repairs.append(msg)
-    warnings.warn(msg, ImpactWarning, stacklevel=4)
-    return t[keep], mat[keep], orig[keep]
-
-
-def _check_magnitudes(mat: np.ndarray, names: list[str], orig: np.ndarray, where: str,
-                      row_label: Callable[[int], str]) -> None:
-    """LogFormatError naming the first finite value beyond ±MAX_ABS_VALUE."""
-    if mat.size == 0:
-        return
-    with np.errstate(invalid="ignore"):
-        big = np.abs(mat) > MAX_ABS_VALUE
-    big &= np.isfinite(mat)
-    if not big.any():
-        return
-    r, c = np.argwhere(big)[0]
-    raise LogFormatError(magnitude_message(where, names[int(c)], row_label(int(orig[int(r)])),
-                                           float(mat[r, c])))
+    return keep, msg
 
 
 def magnitude_message(where: str, name: str, label: str, value: float) -> str:
@@ -334,28 +160,11 @@ def run_message(where: str, name: str, label: str, length: int, kind: str, at_st
             f"{MAX_GAP_SAMPLES} samples between finite values are interpolated")
 
 
-def check_time_rate(t_ns: np.ndarray, where: str, what: str, unit: str | None) -> None:
-    """LogFormatError when the rate implied by the stamps is outside
-    [:data:`MIN_RATE_HZ`, :data:`MAX_RATE_HZ`] — a time column in another unit than read
-    (formats.md) — naming the rate and the unit that would fit.
-
-    Args:
-        t_ns: (N,) int64 strictly increasing stamps [ns] as read.
-        where: the file.  what: the time channel, e.g. ``column 'time'``.
-        unit: the unit it was read in (``s``, ``ms``, ``us``, ``ns``; None: not a unit the
-            user chooses, e.g. ISO-8601 stamps).
-    """
-    from ..sampling import MAX_STATS_STEPS, sample_clock
-
-    rate = sample_clock(t_ns[:MAX_STATS_STEPS + 1]).rate_hz  # a unit is a unit from the start
-    msg = rate_message(rate, where, what, unit)
-    if msg is not None:
-        raise LogFormatError(msg)
-
-
 def rate_message(rate: float, where: str, what: str, unit: str | None) -> str | None:
-    """The error of :func:`check_time_rate` for the rate ``rate`` [Hz] of the first
-    :data:`~impactcli.sampling.MAX_STATS_STEPS` steps (None: within the range)."""
+    """The error for a time column whose implied rate ``rate`` [Hz] (of its first
+    :data:`~impactcli.sampling.MAX_STATS_STEPS` steps) is outside [:data:`MIN_RATE_HZ`,
+    :data:`MAX_RATE_HZ`] — a time in another unit than read (docs/formats.md) — naming the rate
+    and the unit that would fit; None when within the range."""
     if not np.isfinite(rate) or MIN_RATE_HZ <= rate <= MAX_RATE_HZ:
         return None
     return (f"{where}: {what}: the implied sample rate is {_hz(rate)}, outside "
@@ -387,3 +196,286 @@ def _hz(rate: float) -> str:
         if rate >= scale:
             return f"{rate / scale:.4g} {name}"
     return f"{rate:.4g} Hz"
+
+
+class RepairOrderNeeded(Exception):
+    """Rows out of time order met with ``--repair-order``: the scan finds the rows to keep
+    over the whole file's stamps first (:class:`Repairer`)."""
+
+
+@dataclass
+class Violation:
+    """A run of non-finite values that is not interpolated (the first of its column)."""
+
+    orig: int
+    length: int
+    kind: str
+    at_start: bool
+    at_end: bool
+
+
+class Repairer:
+    """The repair policy (module docstring) over the consecutive blocks of a log's rows:
+    the decisions, values and messages are those of the whole file at once.
+
+    Rows are held back while a run of non-finite values (at most ``MAX_GAP_SAMPLES`` long,
+    not at the start) is open; errors are recorded (the first of each kind) and raised by
+    the scan in the order the whole file gives them (:meth:`first_error`).
+
+    ``--repair-order`` needs the whole file's stamps: a first pass meeting rows out of
+    order raises :class:`RepairOrderNeeded`; the scan then finds the rows to keep
+    (:func:`increasing_run` over the stamps of :meth:`deduplicated`) and passes them in
+    as ``order_keep`` (a bool per row of the file) with the repair's message.
+    """
+
+    def __init__(self, ctx: StreamLayout, allbad: frozenset[int] | None,
+                 order_keep: np.ndarray | None = None, order_repair: str | None = None
+                 ) -> None:
+        self.ctx = ctx
+        self.order_keep = order_keep  # --repair-order: the rows of the file kept
+        self.order_repair = order_repair
+        self.names = list(ctx.names)
+        c = len(self.names)
+        self.label = ctx.label
+        # a column that may hold no finite value (droppable, and controller channels): not
+        # repaired then
+        self.exempt = np.array([n in ctx.droppable or is_controller_column(n)
+                                for n in self.names], dtype=bool)
+        self.allbad = allbad  # known (second pass): set to NaN, not repaired
+        self.prev_t: int | None = None  # the last raw row (duplicates)
+        self.prev_vals = np.zeros(c)
+        self.last_t: int | None = None  # the last kept row (order)
+        self.last_orig = -1
+        self.n_kept = 0
+        self.n_dup = 0
+        self.dup_first = -1
+        self.order_error: str | None = None
+        self.mag_error: str | None = None
+        # rows held back: kept indices n_kept − held … n_kept − 1
+        self.held_t = np.zeros(0, dtype=np.int64)
+        self.held_m = np.zeros((0, c))
+        self.held_o = np.zeros(0, dtype=np.int64)
+        self.left_t = 0.0  # the last row given out (an interpolation's left neighbour)
+        self.left_v = np.zeros(c)
+        # per column: the open run of non-finite values
+        self.scanned = np.zeros(c, dtype=np.int64)
+        self.open_start = np.full(c, -1, dtype=np.int64)
+        self.open_orig = np.zeros(c, dtype=np.int64)
+        self.open_kind = ["NaN"] * c
+        self.n_interp = np.zeros(c, dtype=np.int64)
+        self.n_runs = np.zeros(c, dtype=np.int64)
+        self.first_run = np.full(c, -1, dtype=np.int64)
+        self.violation: list[Violation | None] = [None] * c
+        self.empty = np.zeros(c, dtype=bool)  # exempt columns without a finite value
+
+    @property
+    def failed(self) -> bool:
+        """Whether an order or magnitude error was found (rows are no longer given out)."""
+        return self.order_error is not None or self.mag_error is not None
+
+    def deduplicated(self, raw: RawRows) -> tuple[np.ndarray, np.ndarray]:
+        """A block's rows after dropping exact duplicates: their stamps and rows in the
+        file (the pass that finds the rows ``--repair-order`` keeps)."""
+        orig = np.arange(raw.row0, raw.row0 + raw.t.shape[0], dtype=np.int64)
+        keep = self._not_duplicate(raw.t, raw.mat, orig)
+        return (raw.t, orig) if keep is None else (raw.t[keep], orig[keep])
+
+    def push(self, raw: RawRows) -> tuple[np.ndarray, np.ndarray] | None:
+        """Repair the next batch; the rows that are final: ``(t, mat)`` or None."""
+        if self.order_error is not None:
+            return None
+        n = raw.t.shape[0]
+        orig = np.arange(raw.row0, raw.row0 + n, dtype=np.int64)
+        keep = self._not_duplicate(raw.t, raw.mat, orig)
+        if self.order_keep is not None:
+            mine = self.order_keep[orig]
+            keep = mine if keep is None else keep & mine
+        t, mat, orig = (raw.t, raw.mat, orig) if keep is None else (
+            raw.t[keep], raw.mat[keep], orig[keep])
+        if t.size == 0:
+            return None
+        self._check_order(t, orig)
+        if self.order_error is not None:
+            return None
+        if self.mag_error is None:
+            self._check_magnitudes(mat, orig)
+        self.last_t, self.last_orig = int(t[-1]), int(orig[-1])
+        k0 = self.n_kept
+        self.n_kept += t.size
+        if self.failed:
+            return None
+        return self._runs(t, mat, orig, k0)
+
+    def finish(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The end of the file: close the open runs, give out the rows held."""
+        if self.failed:
+            return None
+        for c in np.flatnonzero(self.open_start >= 0):
+            s = int(self.open_start[c])
+            if s == 0 and self.exempt[c]:
+                self.empty[c] = True  # no finite value: not repaired
+                continue
+            self._violate(int(c), int(self.open_orig[c]), self.n_kept - s, self.open_kind[c],
+                          s == 0, True)
+        if self.held_t.size == 0:
+            return None
+        out = self.held_t, self.held_m
+        self.held_t = self.held_t[:0]
+        return out
+
+    # -- steps
+    def _not_duplicate(self, t: np.ndarray, mat: np.ndarray,
+                       orig: np.ndarray) -> np.ndarray | None:
+        """Mask of the rows that are not an exact duplicate of the row before (None: all)."""
+        off = 0 if self.prev_t is None else 1
+        tt = t if self.prev_t is None else np.concatenate((np.array([self.prev_t]), t))
+        same = np.flatnonzero(np.diff(tt) == 0)
+        self.prev_t = int(t[-1])
+        prev_vals = self.prev_vals
+        self.prev_vals = mat[-1].copy()
+        if same.size == 0:
+            return None
+        ia = same - off
+        a = np.empty((same.size, mat.shape[1]))
+        a[ia >= 0] = mat[ia[ia >= 0]]
+        a[ia < 0] = prev_vals
+        b = mat[same + 1 - off]
+        eq = np.all((a == b) | (np.isnan(a) & np.isnan(b)), axis=1)
+        if not eq.any():
+            return None
+        dup = (same + 1 - off)[eq]
+        if self.dup_first < 0:
+            self.dup_first = int(orig[dup[0]])
+        self.n_dup += int(dup.size)
+        keep = np.ones(t.size, dtype=bool)
+        keep[dup] = False
+        return keep
+
+    def _check_order(self, t: np.ndarray, orig: np.ndarray) -> None:
+        tt = t if self.last_t is None else np.concatenate(([self.last_t], t))
+        oo = orig if self.last_t is None else np.concatenate(([self.last_orig], orig))
+        bad = np.flatnonzero(np.diff(tt) <= 0)
+        if bad.size == 0:
+            return
+        if self.ctx.repair_order:
+            raise RepairOrderNeeded
+        k = int(bad[0]) + 1
+        self.order_error = order_message(tt[k - 1:k + 1], 1, oo[k - 1:k + 1],
+                                          self.ctx.where, self.ctx.time_name, self.label)
+
+    def _check_magnitudes(self, mat: np.ndarray, orig: np.ndarray) -> None:
+        with np.errstate(invalid="ignore"):
+            big = np.abs(mat) > MAX_ABS_VALUE
+        if not big.any():
+            return
+        big &= np.isfinite(mat)
+        if big.any():
+            r, c = np.argwhere(big)[0]
+            self.mag_error = magnitude_message(self.ctx.where, self.names[int(c)],
+                                               self.label(int(orig[int(r)])),
+                                               float(mat[r, c]))
+
+    def _violate(self, c: int, orig: int, length: int, kind: str, at_start: bool,
+                 at_end: bool) -> None:
+        if self.violation[c] is None:
+            self.violation[c] = Violation(orig, length, kind, at_start, at_end)
+
+    def _runs(self, t: np.ndarray, mat: np.ndarray, orig: np.ndarray,
+              k0_new: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """Interpolate the runs of non-finite values that closed; give out the rows before
+        the first open run."""
+        if self.held_t.size:
+            t = np.concatenate((self.held_t, t))
+            mat = np.concatenate((self.held_m, mat))
+            orig = np.concatenate((self.held_o, orig))
+        elif not mat.flags.writeable:
+            mat = mat.copy()
+        k0 = k0_new - self.held_t.size  # kept index of row 0 of the buffer
+        k_end = self.n_kept
+        if self.allbad:
+            mat[:, sorted(self.allbad)] = np.nan
+        fin = np.isfinite(mat)
+        todo = ~fin.all(axis=0) | (self.open_start >= 0)
+        if self.allbad:
+            todo[sorted(self.allbad)] = False
+        tf = t.astype(np.float64) if todo.any() else t
+        for c in np.flatnonzero(todo):
+            self._column(int(c), t, tf, mat, fin, orig, k0, k_end)
+        holds = [int(s) for c, s in enumerate(self.open_start)
+                 if s > 0 and k_end - s <= MAX_GAP_SAMPLES]
+        hold = min(holds) - k0 if holds else t.size
+        self.held_t, self.held_m, self.held_o = t[hold:], mat[hold:], orig[hold:]
+        if hold == 0:
+            return None
+        self.left_t = float(t[hold - 1])
+        self.left_v = mat[hold - 1].copy()
+        return t[:hold], mat[:hold]
+
+    def _column(self, c: int, t: np.ndarray, tf: np.ndarray, mat: np.ndarray,
+                fin: np.ndarray, orig: np.ndarray, k0: int, k_end: int) -> None:
+        """Runs of non-finite values of column ``c`` in buffer rows it has not seen."""
+        r0 = max(int(self.scanned[c]) - k0, 0)  # rows before were seen (or finite)
+        mask = ~fin[r0:, c]
+        was_open = self.open_start[c] >= 0
+        ext = np.concatenate(([1 if was_open else 0], mask.astype(np.int8), [0]))
+        d = np.diff(ext)
+        starts = [int(s) for s in np.flatnonzero(d == 1) + r0 + k0]
+        stops = [int(e) for e in np.flatnonzero(d == -1) + r0 + k0]
+        runs_orig = [int(orig[s - k0]) for s in starts]
+        kinds = ["NaN" if np.isnan(mat[s - k0, c]) else "infinite" for s in starts]
+        if was_open:
+            starts.insert(0, int(self.open_start[c]))
+            runs_orig.insert(0, int(self.open_orig[c]))
+            kinds.insert(0, self.open_kind[c])
+        self.open_start[c] = -1
+        for s, e, o, kind in zip(starts, stops, runs_orig, kinds, strict=True):
+            if e == k_end:  # open at the end of what was read
+                self.open_start[c], self.open_orig[c], self.open_kind[c] = s, o, kind
+                continue
+            if s == 0 or e - s > MAX_GAP_SAMPLES:
+                self._violate(c, o, e - s, kind, s == 0, False)
+                continue
+            if s - 1 >= k0:
+                tl, vl = tf[s - 1 - k0], mat[s - 1 - k0, c]
+            else:
+                tl, vl = self.left_t, self.left_v[c]
+            rows = slice(s - k0, e - k0)
+            mat[rows, c] = np.interp(tf[rows], [tl, tf[e - k0]], [vl, mat[e - k0, c]])
+            self.n_interp[c] += e - s
+            self.n_runs[c] += 1
+            if self.first_run[c] < 0:
+                self.first_run[c] = o
+        self.scanned[c] = k_end
+
+    # -- results
+    def first_error(self) -> str | None:
+        """The error the whole file is refused with first, if any: rows out of order, a
+        value beyond 1e12, a run of non-finite values (the first column's)."""
+        if self.order_error is not None:
+            return self.order_error
+        if self.mag_error is not None:
+            return self.mag_error
+        for c, v in enumerate(self.violation):
+            if v is not None:
+                return run_message(self.ctx.where, self.names[c], self.label(v.orig),
+                                   v.length, v.kind, v.at_start, v.at_end)
+        return None
+
+    def repairs(self) -> list[str]:
+        """The repairs, in the order the whole file gives them."""
+        where = self.ctx.where
+        out = []
+        if self.n_dup:
+            out.append(duplicate_message(where, self.n_dup, self.label(self.dup_first)))
+        if self.order_repair is not None:
+            out.append(self.order_repair)
+        for c in np.flatnonzero(self.empty):
+            if self.names[c] not in self.ctx.droppable:
+                out.append(empty_controller_message(where, self.names[c]))
+        for c in np.flatnonzero(self.n_runs):
+            first = self.label(int(self.first_run[c]))
+            out.append(interpolated_message(where, self.names[c], int(self.n_interp[c]),
+                                            int(self.n_runs[c]), first))
+        return out
+
+

@@ -1,4 +1,4 @@
-"""Robot descriptions (formats.md, "Robot description") and ground-truth labels files.
+"""Robot descriptions (docs/formats.md, "Robot description") and ground-truth labels files.
 
 ``--robot`` takes a file (JSON or YAML), a URL, or the name of a robot the tool ships
 (:mod:`impactcli.robots`; a path that exists wins). A shipped robot given by name is its
@@ -190,7 +190,7 @@ def write_robot(robot: RobotDescription, path: str | os.PathLike[str]) -> None:
 
 
 def labels_from_dict(d: dict[str, Any], where: str = "labels") -> Labels:
-    """Build and validate :class:`Labels` from the labels mapping (formats.md)."""
+    """Build and validate :class:`Labels` from the labels mapping (docs/formats.md)."""
     evs = d.get("events")
     if not isinstance(evs, list):
         raise LabelsError(f"{where}: 'events' must be a list")

@@ -1,31 +1,19 @@
-"""The scan's repaired rows kept on disk for the later passes of :mod:`impactcli.io.stream`.
+"""The scan's repaired rows kept on disk for the passes after it (:mod:`impactcli.io.scan`):
+a copy instead of a second parse or merge of the file.
 
-Why: the scan parses the whole CSV (its repairs, clock, gaps and screen need every value)
-and each replay pass needs every value again. Parsing the text a second time was half of
-a streamed replay's reading (about 2 s of CPU per 10 minutes of a 7-joint 1 kHz log on
-the project's 2-core machine, more than the rest of the replay but the evaluator).
-So the scan writes the rows it repaired — (n,) int64 times [ns] and (n, C) float64 values
-of the used columns, exactly as :class:`~impactcli.io.stream_repair._Repairer` gives them
-out — to two binary files in a temporary directory, and :func:`chunks` reads them back in
-blocks: a copy instead of a parse.
+The scan writes the rows it repaired — (n,) int64 times [ns] and (n, C) float64 values of
+the used columns, as :class:`~impactcli.io.repair.Repairer` gives them out — to two binary
+files in a temporary directory; :func:`chunks` reads them back in blocks, sets the columns
+without any finite value (``allbad``) to NaN and converts the rows as a pass over the file
+does (:meth:`~impactcli.io.stream_layout.ScanPass.arrays`, elementwise): the same arrays
+bit for bit (``tests/test_io_stream.py``).
 
-Exact: a pass over the text after the scan gives the scan's rows, but for the columns
-without any finite value (``allbad``), which it sets to NaN before repairing. Such a
-column never closes a run of non-finite values (a run closes on a finite value), so
-nothing is interpolated or held back because of it, and the magnitude check skips
-non-finite values: every other column, the times and the rows kept are the scan's.
-:func:`chunks` sets the ``allbad`` columns to NaN and converts the rows as that pass
-did (``_arrays``, elementwise): the chunks are the same arrays bit for bit
-(``tests/test_io_stream.py``).
-
-Bounded: memory holds one block of rows (``max(chunk_rows, MIN_READ_ROWS)``). The disk
-holds 8·(1 + C) bytes per row (288 for 7 joints with 5 signals: less than the CSV text).
-The cache is given up — deleted, and the file parsed again by each pass, as before —
-when no temporary folder can be made, a write fails or its file system's free space
-falls under :data:`MIN_FREE_BYTES` (a day-long log must not fill the disk). It is
-deleted by :meth:`RowCache.close` (the scan's ``close``; the scan closes it itself when
-it fails), else when the scan is garbage collected or the interpreter exits (a
-:func:`weakref.finalize`).
+Bounded: memory holds one block of rows (``max(chunk_rows, MIN_READ_ROWS)``), the disk
+8·(1 + C) bytes per row. The cache is given up — deleted, and each pass reads the file
+again — when no temporary folder can be made, a write fails or the free space falls under
+:data:`MIN_FREE_BYTES` (a day-long log must not fill the disk). It is deleted by
+:meth:`RowCache.close` (the reader's ``close``), else when it is garbage collected or at
+exit (a :func:`weakref.finalize`).
 """
 
 from __future__ import annotations
@@ -36,12 +24,11 @@ import shutil
 import tempfile
 import weakref
 from collections.abc import Callable, Iterator
-from typing import IO, TYPE_CHECKING, Any
+from typing import IO, Any
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from .stream import LogChunk, _Pass
+from .stream_layout import LogChunk, ScanPass, chunked
 
 #: The cache is given up when its file system has less free space than this [bytes].
 MIN_FREE_BYTES = 2 * 1024**3
@@ -156,63 +143,17 @@ def _read_into(f: IO[bytes], a: np.ndarray) -> None:
         raise OSError(f"scan cache: {got} bytes read of {a.nbytes}")
 
 
-def chunks(ps: _Pass, cache: RowCache, chunk_rows: int) -> Iterator[LogChunk]:
+def chunks(ps: ScanPass, cache: RowCache, chunk_rows: int) -> Iterator[LogChunk]:
     """The log's chunks of ``chunk_rows`` samples from the scan's cached rows (module
     docstring): the ``allbad`` columns set to NaN, the rows converted, the kept joints
-    and the log's arrays picked, the clock shifted, as the pass over the text does."""
-    from .stream import _arrays
-
+    and the log's arrays picked, the clock shifted, as the pass over the file does."""
     cols = sorted(ps.allbad)
-    every = ps.keep == list(range(len(ps.ctx.joints)))  # no copy to pick them
-    pending: list[tuple[np.ndarray, dict[str, np.ndarray]]] = []
-    size = 0
-    start = 0
-    for t, mat in cache.blocks(max(chunk_rows, MIN_READ_ROWS)):
-        assert mat is not None
-        if cols:
-            mat[:, cols] = np.nan
-        arrays = _arrays(ps.ctx, t, mat)
-        pending.append((t - ps.t_shift if ps.t_shift else t,
-                        {s: arrays[s] if every else arrays[s][:, ps.keep]
-                         for s in ("position", "torque", *ps.optional)}))
-        size += t.size
-        while size >= chunk_rows:
-            chunk, pending, size = take(pending, chunk_rows, start)
-            start += chunk_rows
-            yield chunk
-    if size:
-        chunk, pending, size = take(pending, size, start)
-        yield chunk
 
+    def blocks() -> Iterator[tuple[np.ndarray, dict[str, np.ndarray]]]:
+        for t, mat in cache.blocks(max(chunk_rows, MIN_READ_ROWS)):
+            assert mat is not None
+            if cols:
+                mat[:, cols] = np.nan
+            yield ps.arrays(t, mat)
 
-def take(pending: list[tuple[np.ndarray, dict[str, np.ndarray]]], rows: int,
-         start: int) -> tuple[LogChunk, list[tuple[np.ndarray, dict[str, np.ndarray]]], int]:
-    """The first ``rows`` samples of the pending blocks as a chunk, and what is left."""
-    from .stream import LogChunk
-
-    parts_t: list[np.ndarray] = []
-    parts: list[dict[str, np.ndarray]] = []
-    left = rows
-    rest: list[tuple[np.ndarray, dict[str, np.ndarray]]] = []
-    for i, (t, arrays) in enumerate(pending):
-        if left == 0:
-            rest = pending[i:]
-            break
-        if t.size <= left:
-            parts_t.append(t)
-            parts.append(arrays)
-            left -= t.size
-        else:
-            parts_t.append(t[:left])
-            parts.append({s: a[:left] for s, a in arrays.items()})
-            rest = [(t[left:], {s: a[left:] for s, a in arrays.items()}), *pending[i + 1:]]
-            left = 0
-            break
-    t_all = parts_t[0] if len(parts_t) == 1 else np.concatenate(parts_t)
-    joined = {s: np.ascontiguousarray(parts[0][s] if len(parts) == 1 else
-                                      np.concatenate([p[s] for p in parts]))
-              for s in parts[0]}
-    size = sum(t.size for t, _ in rest)
-    chunk = LogChunk(start=start, t_ns=np.ascontiguousarray(t_all),
-                     position=joined.pop("position"), torque=joined.pop("torque"), **joined)
-    return chunk, rest, size
+    return chunked(blocks(), chunk_rows)

@@ -1,7 +1,7 @@
 """Benchmark: peak memory and wall time of streaming long MCAP and ``.npz`` logs.
 
 Run: ``python tests/benchmarks/bench_stream_formats.py [MINUTES ...] [--chunk-rows 65536]
-[--formats mcap npz rosbag2] [--whole]`` (default 10 60).
+[--formats mcap npz rosbag2] [--whole] [--release REF]`` (default 10 60).
 
 For each duration a synthetic 7-joint 1 kHz log is written, block by block (the benchmark
 itself stays bounded), into a temporary folder:
@@ -15,8 +15,9 @@ itself stays bounded), into a temporary folder:
 
 Then, in a fresh process, :func:`impactcli.io.stream.scan_log` and every chunk of
 :func:`~impactcli.io.stream.iter_chunks` (``chunk_rows``); ``--whole`` also times
-:func:`impactcli.io.read_log` in another fresh process. Reported: wall time, the scan's
-share, ``streamed``, and the peak resident memory (``ru_maxrss`` of the child, which
+:func:`impactcli.io.read_log` in another fresh process; ``--release REF`` measures that
+commit's code too, on the same files. Reported: wall time, the scan's
+share, and the peak resident memory (``ru_maxrss`` of the child, which
 reports it itself). Peak RSS must not grow with the duration.
 """
 
@@ -53,7 +54,6 @@ if mode == "stream":
     n = 0
     for c in iter_chunks(path, scan, chunk_rows, **opts):
         n += c.n_samples
-    out["streamed"] = scan.streamed
     scan.close()
 else:
     from impactcli.io import read_log
@@ -81,8 +81,8 @@ def _block(a: int, b: int) -> tuple[np.ndarray, dict[str, np.ndarray]]:
 
 def write_mcap(n: int, path: Path) -> None:
     """The ROS 2 MCAP log of ``n`` samples (module docstring)."""
-    from impactcli.io.mcap_log import ros2_writer
     from impactcli.io.mcap_ros2 import encode_jointstates
+    from impactcli.io.write import ros2_writer
 
     with open(path, "wb") as f:
         w, sid = ros2_writer(f)
@@ -107,11 +107,11 @@ def write_rosbag2(n: int, path: Path) -> None:
     by block."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
-    from impactcli.io.bags import _ros2_store
     from impactcli.io.mcap_ros2 import JOINT_STATE, encode_jointstates
+    from impactcli.io.write import ros2_typestore
 
     with Writer(path, version=9, storage_plugin=StoragePlugin.SQLITE3) as w:
-        store = _ros2_store()
+        store = ros2_typestore()
         ref = w.add_connection("/joint_states_ref", JOINT_STATE, typestore=store)
         state = w.add_connection("/joint_states", JOINT_STATE, typestore=store)
         for a in range(0, n, BLOCK_ROWS):
@@ -149,10 +149,14 @@ def write_npz(n: int, path: Path) -> Path:
     return cmap
 
 
-def measure(mode: str, path: Path, chunk_rows: int, opts: dict[str, Any]) -> dict[str, Any]:
-    """Wall time and peak RSS of reading ``path`` in a fresh process."""
+def measure(mode: str, path: Path, chunk_rows: int, opts: dict[str, Any],
+            tree: Path | None = None) -> dict[str, Any]:
+    """Wall time and peak RSS of reading ``path`` in a fresh process (``tree``: with that
+    commit's code)."""
+    env = dict(os.environ, PYTHONPATH=str(tree)) if tree is not None else None
     r = subprocess.run([sys.executable, "-c", _CHILD, mode, str(path), str(chunk_rows),
-                        json.dumps(opts)], capture_output=True, text=True, check=True)
+                        json.dumps(opts)], capture_output=True, text=True, check=True,
+                       env=env, cwd=tempfile.gettempdir())
     return json.loads(r.stdout.strip().splitlines()[-1])  # type: ignore[no-any-return]
 
 
@@ -162,19 +166,27 @@ def main() -> None:
     ap.add_argument("--chunk-rows", type=int, default=65536)
     ap.add_argument("--formats", nargs="*", default=["mcap", "npz"])
     ap.add_argument("--whole", action="store_true", help="also time read_log")
+    ap.add_argument("--release", help="also measure this commit's code (a git ref)")
     args = ap.parse_args()
     modes = ("stream", "whole") if args.whole else ("stream",)
+    with release_tree(args.release) as tree:
+        codes = [("this", None)] + ([(args.release, tree)] if tree is not None else [])
+        _all(args, modes, codes)
+
+
+def _all(args: argparse.Namespace, modes: tuple[str, ...],
+         codes: list[tuple[str, Path | None]]) -> None:
     print(f"{platform.machine()}, {os.cpu_count()} cores, python {platform.python_version()}, "
           f"chunk_rows {args.chunk_rows}\n{'format':6s} {'minutes':>7s} {'samples':>9s} "
-          f"{'MB':>6s} {'read':6s} {'wall s':>7s} {'scan s':>7s} {'peak RSS MB':>11s} streamed")
+          f"{'MB':>6s} {'read':6s} {'wall s':>7s} {'scan s':>7s} {'peak RSS MB':>11s} code")
     with tempfile.TemporaryDirectory(prefix="bench_stream_formats_") as tmp:
         for minutes in args.minutes:
             for fmt in args.formats:
-                _bench(fmt, minutes, Path(tmp), modes, args.chunk_rows)
+                _bench(fmt, minutes, Path(tmp), modes, args.chunk_rows, codes)
 
 
 def _bench(fmt: str, minutes: float, folder: Path, modes: tuple[str, ...],
-           chunk_rows: int) -> None:
+           chunk_rows: int, codes: list[tuple[str, Path | None]]) -> None:
     """Write one log, read it each way, print a table row per way."""
     n = int(minutes * 60 * RATE_HZ)
     path = folder / f"log_{minutes:g}min.{fmt}"
@@ -186,16 +198,20 @@ def _bench(fmt: str, minutes: float, folder: Path, modes: tuple[str, ...],
     else:
         opts["channel_map"] = str(write_npz(n, path))
     size = sum(f.stat().st_size for f in [path, *path.glob("*")] if f.is_file()) / 1e6
-    for mode in modes:
-        r = measure(mode, path, chunk_rows, opts)
-        assert r["n"] == n
-        scan = f"{r['scan_s']:7.1f}" if "scan_s" in r else f"{'':7s}"
-        print(f"{fmt:6s} {minutes:7g} {n:9d} {size:6.0f} {mode:6s} {r['wall_s']:7.1f} "
-              f"{scan} {r['peak_mb']:11.0f} {r.get('streamed', '')}", flush=True)
+    for code, tree in codes:
+        for mode in modes:
+            r = measure(mode, path, chunk_rows, opts, tree)
+            assert r["n"] == n
+            scan = f"{r['scan_s']:7.1f}" if "scan_s" in r else f"{'':7s}"
+            print(f"{fmt:6s} {minutes:7g} {n:9d} {size:6.0f} {mode:6s} {r['wall_s']:7.1f} "
+                  f"{scan} {r['peak_mb']:11.0f} {code}", flush=True)
     if path.is_dir():
         shutil.rmtree(path)
     else:
         path.unlink()
 
 if __name__ == "__main__":
+    sys.path.insert(0, str(Path(__file__).parent))
+    from release_tree import release_tree
+
     main()

@@ -1,21 +1,23 @@
-"""Benchmark: peak memory and wall time of reading a long CSV streamed vs whole.
+"""Benchmark: peak memory and wall time of reading a long CSV: scan + chunks, and read_log.
 
 Run: ``python tests/benchmarks/bench_stream_read.py [MINUTES ...] [--chunk-rows 65536]
-[--keep DIR]`` (default 10 60).
+[--keep DIR] [--release REF]`` (default 10 60).
 
 For each duration a synthetic 7-joint 1 kHz canonical CSV is written into a temporary
 folder (``time`` with 9 decimals, then per joint ``.position``, ``.torque``,
 ``.position_ref``, ``.velocity_ref``, ``.acceleration_ref``, values with about 10
 significant digits). Then, each in a fresh process, ``scan_log`` + iterating every chunk of
 :func:`impactcli.io.stream.iter_chunks` (``chunk_rows``) and :func:`impactcli.io.read_log`
-read it; the benchmark reports their wall time and peak resident memory (ru_maxrss of
-that process, which reports it itself).
+(the chunks collected) read it; the benchmark reports their wall time and peak resident
+memory (ru_maxrss of that process, which reports it itself). ``--release REF`` measures
+that commit's code too, in the same run.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import shutil
 import subprocess
@@ -40,7 +42,6 @@ if mode == "stream":
     n = 0
     for c in iter_chunks(path, scan, chunk_rows):
         n += c.n_samples
-    out["streamed"] = scan.streamed
 else:
     from impactcli.io import read_log
     n = read_log(path).n_samples
@@ -57,7 +58,7 @@ def write_csv(minutes: float, path: Path, seed: int = 1) -> int:
     import pyarrow as pa
     import pyarrow.csv as pacsv
 
-    from impactcli.io.csv import _ns_to_decimal
+    from impactcli.io.write import ns_to_decimal_text
 
     n = int(minutes * 60 * RATE_HZ)
     rng = np.random.default_rng(seed)
@@ -78,7 +79,7 @@ def write_csv(minutes: float, path: Path, seed: int = 1) -> int:
             qdd = -(amp[:, None, :] * (2 * np.pi * freq[:, None, :]) ** 2
                     * np.sin(ph)).sum(axis=0)
             tau = 20 * qdd + 5 * np.sin(q) + 2 * qd + rng.normal(0, 0.05, q.shape)
-            cols: dict[str, object] = {"time": _ns_to_decimal(k * (10**9 // RATE_HZ))}
+            cols: dict[str, object] = {"time": ns_to_decimal_text(k * (10**9 // RATE_HZ))}
             for j in range(JOINTS):
                 for s, v, d in (("position", q + rng.normal(0, 1e-5, q.shape), 9),
                                 ("torque", tau, 8), ("position_ref", q, 9),
@@ -88,10 +89,14 @@ def write_csv(minutes: float, path: Path, seed: int = 1) -> int:
     return n
 
 
-def measure(mode: str, path: Path, chunk_rows: int) -> dict[str, float]:
-    """Wall time and peak RSS of reading ``path`` in a fresh process."""
+def measure(mode: str, path: Path, chunk_rows: int, tree: Path | None = None
+            ) -> dict[str, float]:
+    """Wall time and peak RSS of reading ``path`` in a fresh process (``tree``: with that
+    commit's code)."""
+    env = dict(os.environ, PYTHONPATH=str(tree)) if tree is not None else None
     r = subprocess.run([sys.executable, "-c", _CHILD, mode, str(path), str(chunk_rows)],
-                       capture_output=True, text=True, check=True)
+                       capture_output=True, text=True, check=True, env=env,
+                       cwd=tempfile.gettempdir())
     return json.loads(r.stdout.strip().splitlines()[-1])  # type: ignore[no-any-return]
 
 
@@ -100,7 +105,13 @@ def main() -> None:
     ap.add_argument("minutes", nargs="*", type=float, default=[10.0, 60.0])
     ap.add_argument("--chunk-rows", type=int, default=65536)
     ap.add_argument("--keep", type=Path, help="write the logs here and keep them")
+    ap.add_argument("--release", help="also measure this commit's code (a git ref)")
     args = ap.parse_args()
+    with release_tree(args.release) as tree:
+        _run(args, tree)
+
+
+def _run(args: argparse.Namespace, tree: Path | None) -> None:
     folder = args.keep or Path(tempfile.mkdtemp(prefix="bench_stream_read_"))
     folder.mkdir(parents=True, exist_ok=True)
     print(f"machine: {platform.processor() or platform.machine()}, python "
@@ -113,13 +124,15 @@ def main() -> None:
             size = path.stat().st_size / 1e6
             print(f"\n{minutes:g} min: {n} rows x {1 + 5 * JOINTS} columns, {size:.0f} MB "
                   f"(written in {time.perf_counter() - t0:.0f} s)")
-            for mode in ("stream", "whole"):
-                r = measure(mode, path, args.chunk_rows)
-                extra = (f" (scan {r['scan_s']:.1f} s, streamed={r['streamed']})"
-                         if mode == "stream" else "")
-                print(f"  {mode:6s}: wall {r['wall_s']:6.1f} s, peak RSS {r['peak_mb']:7.0f} MB"
-                      f"{extra}")
-                assert r["n"] == n
+            for code, where in (("this", None), (args.release, tree)):
+                if code is None or (code != "this" and where is None):
+                    continue
+                for mode in ("stream", "whole"):
+                    r = measure(mode, path, args.chunk_rows, where)
+                    extra = f" (scan {r['scan_s']:.1f} s)" if mode == "stream" else ""
+                    print(f"  {code:>8s} {mode:6s}: wall {r['wall_s']:6.1f} s, peak RSS "
+                          f"{r['peak_mb']:7.0f} MB{extra}", flush=True)
+                    assert r["n"] == n
             if not args.keep:
                 path.unlink()
     finally:
@@ -128,4 +141,7 @@ def main() -> None:
 
 
 if __name__ == "__main__":
+    sys.path.insert(0, str(Path(__file__).parent))
+    from release_tree import release_tree
+
     main()

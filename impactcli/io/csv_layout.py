@@ -1,0 +1,538 @@
+"""What a CSV's first lines and its channel map say (:func:`csv_layout`), and the
+conversions of its time text (docs/formats.md, "Canonical wide CSV", "Channel maps").
+
+The time column is read as text and converted to int64 ns exactly (no float rounding)
+whenever it is written as plain decimals (:func:`decimal_text_to_ns`); ``time_ns`` is read
+as int64; ``time`` may also hold ISO-8601 stamps (``2024-05-01T12:00:00.001Z``; UTC unless
+the stamp gives an offset), read as epoch ns (:func:`iso_to_ns`). ``--time-unit`` says when
+``time`` holds ms, µs or ns; a time that does not fit the int64-ns clock is an error naming
+the unit that would fit (:func:`clock_message`).
+
+Common variants of the canonical layout are read as well: a UTF-8 byte-order mark before
+the header (Excel), ``;`` or tab separators — the one with which the header names a time
+column — and with those a decimal comma (``0,004``), detected on the first data line.
+A file with binary content (a NUL byte, or mostly control or non-UTF-8 bytes in its first
+64 KiB) is "not a text CSV".
+"""
+
+from __future__ import annotations
+
+import gzip
+import re
+from collections import deque
+from collections.abc import Callable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import ChannelMapError, LogFormatError
+from .channel_map import SIGNALS, TIME_UNITS, ChannelMap, ChannelRef, TimeSpec, require_time
+from .repair import GIVE_UNIT, unit_hint
+
+#: Recognised time columns of a canonical CSV, by preference.
+TIME_COLUMNS: tuple[str, ...] = ("time_ns", "time", "__time")
+#: The unit each canonical time column is in (``time``: seconds unless --time-unit says).
+TIME_COLUMN_UNITS: dict[str, str] = {"time_ns": "ns", "time": "s", "__time": "s"}
+#: Separators of a canonical CSV, tried in this order on the header.
+SEPARATORS: tuple[str, ...] = (",", ";", "\t")
+#: Bytes looked at to tell a text CSV from binary content.
+SNIFF_BYTES = 1 << 16
+#: Largest |time| in ns the int64 clock holds (± about 292 years).
+MAX_NS = float(2**63 - 1)
+#: Ranges parsed ahead of the reader (and at most this many tables in memory).
+IN_FLIGHT = 4
+#: Worker threads parsing ranges.
+THREADS = 2
+_BREAK = re.compile(rb"\r\n|\r|\n")
+#: An ISO-8601 date and time at the start of a time cell.
+ISO_RE = re.compile(r"^\s*\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}")
+
+
+def is_gz(path: Path) -> bool:
+    return path.name.lower().endswith(".gz")
+
+
+def _lines(path: Path, skip: int, count: int) -> list[str]:
+    """``count`` lines after ``skip`` lines ("" past the end), a UTF-8 BOM removed."""
+    opener: Any = gzip.open if is_gz(path) else open
+    try:
+        with opener(path, "rt", encoding="utf-8-sig", errors="replace", newline="") as f:
+            for _ in range(skip):
+                f.readline()
+            return [str(f.readline()) for _ in range(count)]
+    except (OSError, EOFError, ValueError) as err:
+        raise LogFormatError(f"{path}: cannot read: {err}") from err
+
+
+def check_text(path: Path, where: str) -> None:
+    """LogFormatError ``not a text CSV`` when the first :data:`SNIFF_BYTES` bytes hold a NUL
+    byte, or are mostly control bytes or bytes that are not UTF-8 (binary content)."""
+    opener: Any = gzip.open if is_gz(path) else open
+    try:
+        with opener(path, "rb") as f:
+            head = bytes(f.read(SNIFF_BYTES))
+    except (OSError, EOFError, ValueError) as err:
+        raise LogFormatError(f"{where}: cannot read: {err}") from err
+    nul = head.find(b"\x00")
+    if nul >= 0:
+        raise LogFormatError(f"{where}: not a text CSV (binary content: a NUL byte at byte "
+                             f"{nul})")
+    if not head:
+        return
+    arr = np.frombuffer(head, dtype=np.uint8)
+    control = (arr < 9) | ((arr > 13) & (arr < 32)) | (arr == 127)
+    try:
+        head.decode("utf-8")
+        not_utf8 = 0
+    except UnicodeDecodeError as err:
+        # a multi-byte character cut at the end of the sniffed bytes is still text
+        not_utf8 = 0 if err.start >= len(head) - 3 else int(np.count_nonzero(arr >= 128))
+    if np.count_nonzero(control) + not_utf8 > 0.1 * len(head):
+        k = int(np.argmax(control | (arr >= 128)))
+        raise LogFormatError(f"{where}: not a text CSV (binary content from byte {k})")
+
+
+def separator(line: str) -> str:
+    """The separator with which the header ``line`` names a time column (default ``,``)."""
+    for sep in SEPARATORS:
+        if any(c.strip().strip('"') in TIME_COLUMNS for c in line.rstrip("\r\n").split(sep)):
+            return sep
+    return ","
+
+
+def canonical_map(header: list[str], path: str,
+                  time_unit: str | None = None) -> tuple[ChannelMap, list[str]]:
+    """The channel map implied by a canonical CSV header, and the ignored columns.
+
+    Args:
+        header: the column names.  path: the file, for messages.
+        time_unit: the unit of a ``time`` column (``s``, ``ms``, ``us``, ``ns``; None: s).
+
+    Raises:
+        LogFormatError: no time column, no joint with a position, or a ``time_unit`` for a
+            column whose unit its name says (``time_ns``, PlotJuggler's ``__time``).
+    """
+    tcol = next((c for c in TIME_COLUMNS if c in header), None)
+    if tcol is None:
+        raise LogFormatError(
+            f"{path}: no time column (one of {', '.join(TIME_COLUMNS)}); for other layouts "
+            "pass a channel map (--channel-map)"
+        )
+    unit = TIME_COLUMN_UNITS[tcol]
+    if time_unit is not None and time_unit not in TIME_UNITS:
+        raise LogFormatError(f"{path}: unknown time unit {time_unit!r} (s, ms, us or ns)")
+    if time_unit is not None and tcol != "time" and time_unit != unit:
+        raise LogFormatError(f"{path}: --time-unit {time_unit} does not apply: column "
+                             f"{tcol!r} is in {unit} by its name")
+    if time_unit is not None:
+        unit = time_unit
+    joints: dict[str, dict[str, ChannelRef]] = {}
+    ignored: list[str] = []
+    for col in header:
+        if col == tcol:
+            continue
+        joint, dot, sig = col.partition(".")
+        if dot and joint and sig in SIGNALS:
+            joints.setdefault(joint, {})[sig] = ChannelRef(source=col)
+        else:
+            ignored.append(col)
+    # a "joint" without a position is not a joint: its columns are ignored
+    for j in [j for j, sigs in joints.items() if "position" not in sigs]:
+        ignored += [f"{j}.{s}" for s in joints.pop(j)]
+    if not joints:
+        raise LogFormatError(
+            f"{path}: no '<joint>.position' column; for other layouts pass a channel map "
+            "(--channel-map)"
+        )
+    names = tuple(joints)
+    signals = {
+        s: tuple(joints[j].get(s) for j in names)
+        for s in SIGNALS
+        if any(s in joints[j] for j in names)
+    }
+    cmap = ChannelMap(
+        name="canonical", time=TimeSpec(ChannelRef(tcol), unit=unit), joints=names,
+        signals=signals, path="", header=True,
+    )
+    return cmap, ignored
+
+
+def decimal_text_to_ns(values: Any, unit_ns: int) -> np.ndarray | None:
+    """Exact conversion of decimal text (``-12.345000001``) in a time unit to int64 ns.
+
+    Args:
+        values: a pyarrow string array.
+        unit_ns: size of the unit in ns.
+
+    Returns:
+        (N,) int64, or ``None`` when some value is not a plain decimal (exponent, null, …).
+    """
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    s = pc.utf8_trim_whitespace(values)
+    if s.null_count or not pc.all(pc.match_substring_regex(s, r"^[+-]?\d+(\.\d*)?$")).as_py():
+        return None
+    neg = pc.starts_with(s, "-").to_numpy(zero_copy_only=False)
+    s = pc.utf8_ltrim(s, characters="+-")
+    s = pc.if_else(pc.match_substring(s, "."), s, pc.binary_join_element_wise(s, ".", ""))
+    parts = pc.split_pattern(s, ".", max_splits=1)
+    whole_txt = pc.list_element(parts, 0)
+    if len(whole_txt) and int(pc.max(pc.utf8_length(whole_txt)).as_py()) > 18:
+        return None  # beyond int64: the float path names the row
+    whole = pc.cast(whole_txt, pa.int64()).to_numpy()
+    frac_txt = pc.list_element(parts, 1)
+    frac_txt = pc.utf8_slice_codeunits(pc.utf8_rpad(frac_txt, 9, "0"), 0, 9)
+    frac = pc.cast(frac_txt, pa.int64()).to_numpy()  # units of 1e-9 of `unit`
+    if whole.size and int(np.max(whole)) >= (2**63 - 1) // unit_ns - 1:
+        return None  # beyond the int64-ns clock: the float path names the row
+    if unit_ns == 10**9:
+        ns = whole * 10**9 + frac
+    else:
+        ns = whole * unit_ns + np.round(frac * (unit_ns / 1e9)).astype(np.int64)
+    out: np.ndarray = np.where(neg, -ns, ns).astype(np.int64)
+    return out
+
+
+def decimal_to_ns(text: Any, unit_ns: int, tf: np.ndarray) -> np.ndarray | None:
+    """``decimal_text_to_ns(text, unit_ns)`` of plain decimal text; for seconds with at most
+    9 decimals (well within its range) by pyarrow's exact decimal parse, 20× faster.
+
+    Args:
+        text: (n,) pyarrow strings matching ``^-?\\d+(\\.\\d+)?$``.  unit_ns: the unit [ns].
+        tf: (n,) float64 the same values (to see the range).
+    """
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    if unit_ns != 10**9 or not float(np.max(np.abs(tf))) < 9e9:
+        return decimal_text_to_ns(text, unit_ns)
+    try:
+        d = pc.cast(text, pa.decimal128(38, 9))  # unscaled value: ns, exactly
+    except pa.ArrowInvalid:  # more than 9 decimals: truncated by decimal_text_to_ns
+        return decimal_text_to_ns(text, unit_ns)
+    words = np.frombuffer(d.buffers()[1], dtype=np.int64).reshape(-1, 2)
+    return words[d.offset: d.offset + len(d), 0].copy()
+
+
+def ragged_line(path: Path, skip: int, delim: str, expected: int) -> int | None:
+    """The 1-based line number of the first data line with another number of fields than
+    ``expected`` (only to name it in an error; quoted delimiters are not considered)."""
+    opener: Any = gzip.open if is_gz(path) else open
+    try:
+        with opener(path, "rt", encoding="utf-8", errors="replace", newline="") as f:
+            for n, line in enumerate(f, 1):
+                if n > skip and line.strip() and line.count(delim) + 1 != expected:
+                    return n
+    except (OSError, EOFError):
+        return None
+    return None
+
+
+def row_labeller(skip: int) -> Any:
+    def label(i: int) -> str:
+        return f"row {i + 1} (line {i + 1 + skip})"
+
+    return label
+
+
+@dataclass
+class CsvLayout:
+    """What a CSV's first lines and its channel map say, before its data are read.
+
+    Attributes:
+        path: the file.  where: it as text, for messages.
+        cmap: its channel map (the canonical layout's, or the given one).
+        fmt: ``csv`` or ``csv-mapped``.
+        header: whether the first line (after ``skip``) names the columns.
+        skip: lines skipped before the header or the data.
+        delim: the field separator.  decimal: the decimal point (``.`` or ``,``).
+        names: the column names as the header line gives them (``f0``, ``f1``, ... without
+            a header).
+        ignored_extra: a canonical CSV's columns that are not channels.
+        tname: the time column.  tspec: the time's spec (unit, offset, start at zero).
+        columns: (signal, joint index) → the column holding it, for every ref of ``cmap``.
+    """
+
+    path: Path
+    where: str
+    cmap: ChannelMap
+    fmt: str
+    header: bool
+    skip: int
+    delim: str
+    decimal: str
+    names: list[str]
+    ignored_extra: list[str]
+    tname: str
+    tspec: TimeSpec
+    columns: dict[tuple[str, int], str]
+
+    @property
+    def used(self) -> set[str]:
+        """The columns read: time and every channel's."""
+        return {self.tname, *self.columns.values()}
+
+    def disp(self, col: str) -> str:
+        """A column as messages name it (``column 3`` without a header)."""
+        return col if self.header else f"column {int(col[1:])}"
+
+    def label(self) -> Any:
+        """Row i (0-based data row) → ``row i+1 (line n)``."""
+        return row_labeller(self.skip + (1 if self.header else 0))
+
+
+def csv_layout(path: Path, cmap: ChannelMap | None, *,
+               time_unit: str | None = None) -> CsvLayout:
+    """Read a CSV's first lines: separator, decimal point, header, the channel map and
+    which column holds what.
+
+    Raises:
+        LogFormatError: not a text CSV, empty, no time or position column (canonical).
+        ChannelMapError: a map pointing at a column the file does not have.
+    """
+    where = str(path)
+    check_text(path, where)
+    header = True if cmap is None else cmap.header
+    skip = 0 if cmap is None else cmap.skip_rows
+    line, data_line = _lines(path, skip, 2)
+    delim = separator(line) if cmap is None else cmap.delimiter
+    if not line.strip():
+        raise LogFormatError(f"{where}: empty file (no header or data)")
+    if not header:
+        data_line = line
+    # a decimal comma goes with ';' or tab separators (spreadsheet exports)
+    decimal = "," if delim != "," and re.search(r"\d,\d", data_line) else "."
+    if header:
+        names = [c.strip().strip('"') for c in line.rstrip("\r\n").split(delim)]
+    else:
+        names = [f"f{i}" for i in range(len(line.split(delim)))]
+    ignored_extra: list[str] = []
+    if cmap is None:
+        cmap, ignored_extra = canonical_map(names, where, time_unit)
+        fmt = "csv"
+    else:
+        fmt = "csv-mapped"
+    the_map = cmap
+
+    def colname(ref: ChannelRef, what: str) -> str:
+        if isinstance(ref.source, int):
+            if ref.source >= len(names):
+                raise ChannelMapError(
+                    f"{where}: channel map {the_map.path or the_map.name}: {what} points at "
+                    f"column {ref.source} (0-based), but the file has {len(names)} columns "
+                    f"(0–{len(names) - 1}): is this the file the map was written for?"
+                )
+            return names[ref.source]
+        if ref.source not in names:
+            raise ChannelMapError(
+                f"{where}: channel map {the_map.path or the_map.name}: {what} points at "
+                f"column {ref.source!r}, which is not in the file"
+            )
+        return ref.source
+
+    tspec = require_time(cmap, where)
+    tname = colname(tspec.ref, "time")
+    columns = {(sig, j): colname(ref, f"{cmap.joints[j]}.{sig}") for sig, j, ref in cmap.refs()}
+    # a column named twice could be read as either: refused when a channel is one of them
+    for col in sorted({tname, *columns.values()}, key=names.index):
+        if names.count(col) > 1:
+            raise LogFormatError(f"{where}: column {col!r} appears {names.count(col)} times "
+                                 "in the header: name each column once")
+    return CsvLayout(path=path, where=where, cmap=cmap, fmt=fmt, header=header, skip=skip,
+                     delim=delim, decimal=decimal, names=names, ignored_extra=ignored_extra,
+                     tname=tname, tspec=tspec, columns=columns)
+
+
+def csv_read_options(lay: CsvLayout, block_size: int = 1 << 24) -> tuple[Any, Any]:
+    """pyarrow ``(ReadOptions, ParseOptions)`` of a CSV's layout."""
+    import pyarrow.csv as pacsv
+
+    return (pacsv.ReadOptions(skip_rows=lay.skip, autogenerate_column_names=not lay.header,
+                              block_size=block_size),
+            pacsv.ParseOptions(delimiter=lay.delim))
+
+
+def csv_parse_error(lay: CsvLayout, err: BaseException) -> LogFormatError:
+    """The LogFormatError of a pyarrow error reading ``lay``'s file (a ragged line named)."""
+    msg = str(err).splitlines()[0]
+    m = re.search(r"Expected (\d+) columns, got (\d+)", msg)
+    if m:
+        at = ragged_line(lay.path, lay.skip, lay.delim, int(m.group(1)))
+        if at is not None:
+            msg = (f"line {at}: {m.group(2)} fields where the header has "
+                   f"{m.group(1)}" + msg[m.end():])
+    return LogFormatError(f"{lay.where}: cannot parse CSV: {msg}")
+
+
+def first_valid(arr: Any) -> str:
+    """The first non-null value of a pyarrow string array ("" when none)."""
+    v = arr.drop_null()
+    return str(v[0].as_py()) if len(v) else ""
+
+
+def floats(arr: Any, where: str, what: str, label: Any) -> np.ndarray:
+    """A pyarrow string array of numbers as float64 (empty cells NaN), or the error naming
+    the first cell that is not a number."""
+    vals = arr.to_pylist()
+    out = np.empty(len(vals))
+    for i, v in enumerate(vals):
+        try:
+            out[i] = np.nan if v is None else float(v)
+        except (TypeError, ValueError):
+            raise LogFormatError(f"{where}: {what}, {label(i)}: non-numeric value {v!r}"
+                                 ) from None
+    return out
+
+
+def beyond_clock(values: np.ndarray, unit_ns: int) -> int | None:
+    """The first time in the unit of ``unit_ns`` that does not fit the int64-ns clock
+    (±292 years), None when all do."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        over = np.abs(values) * unit_ns >= MAX_NS
+    return int(np.argmax(over)) if over.any() else None
+
+
+def clock_message(value: float, label: str, steps_median: float, unit_ns: int, where: str,
+                  what: str, unit: str) -> str:
+    """The error for a time beyond the clock's range: most often a time in ns or µs read as
+    seconds (the median step of the column's finite values says which unit fits)."""
+    step = steps_median
+    rate = 1e9 / (step * unit_ns) if step > 0 else float("nan")
+    return (f"{where}: {what}, {label}: time {value:g} {unit} is beyond the clock's "
+            f"range (±292 years in ns){unit_hint(rate, unit)}: {GIVE_UNIT}")
+
+
+def median_step(values: np.ndarray) -> float:
+    """The median step of the finite values of a time column (0 without steps)."""
+    steps = np.diff(values[np.isfinite(values)])
+    return float(np.median(steps)) if steps.size else 0.0
+
+
+def iso_to_ns(arr: Any, where: str, what: str, label: Any) -> np.ndarray:
+    """ISO-8601 stamps (pyarrow timestamps, or strings) → (N,) int64 epoch ns; a stamp
+    without an offset is UTC."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    if arr.null_count:
+        i = int(np.argmax(arr.is_null().to_numpy(zero_copy_only=False)))
+        raise LogFormatError(f"{where}: {what}, {label(i)}: empty time")
+    if pa.types.is_string(arr.type):
+        txt = pc.utf8_trim_whitespace(arr)
+        has_offset = pc.match_substring_regex(txt, r"(Z|[+-]\d{2}(:?\d{2})?)$")
+        txt = pc.if_else(has_offset, txt, pc.binary_join_element_wise(txt, "Z", ""))
+        try:
+            arr = pc.cast(txt, pa.timestamp("ns", tz="UTC"))
+        except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
+            given = arr.to_pylist()
+            for i, v in enumerate(txt.to_pylist()):
+                try:
+                    pc.cast(pa.array([v]), pa.timestamp("ns", tz="UTC"))
+                except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
+                    raise LogFormatError(
+                        f"{where}: {what}, {label(i)}: {given[i]!r} is not an ISO-8601 time "
+                        "(YYYY-MM-DDThh:mm:ss[.f][Z|±hh:mm]) within 1677–2262"
+                    ) from None
+            raise LogFormatError(f"{where}: {what}: cannot read its ISO-8601 times") from None
+    try:
+        ns = pc.cast(arr, pa.timestamp("ns", tz=arr.type.tz)).cast(pa.int64())
+    except pa.ArrowInvalid as err:
+        raise LogFormatError(f"{where}: {what}: a time outside 1677–2262 ({err})") from None
+    return np.asarray(ns.to_numpy(), dtype=np.int64)
+
+
+def parsed_ranges(lay: CsvLayout, names: list[str] | None, block_size: int,
+                  work: Callable[[Callable[[Any], Any], bool], Any]) -> Iterator[Any]:
+    """``work(parse, first)`` of every range of the CSV ``lay``, in order, computed on
+    threads: ``parse(convert_options)`` parses the range into a pyarrow table (the first
+    range with the layout's skipped lines and header, the others with the column
+    ``names``; None: pyarrow's own names, for a parse that looks at no column). Lines end
+    at ``\\n``, ``\\r\\n`` or ``\\r`` as pyarrow reads them (a cut between ``\\r`` and
+    ``\\n`` leaves an empty line, which pyarrow skips), and values never hold a line break
+    (``newlines_in_values`` is off). Raises what pyarrow raises and what ``work`` raises."""
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+
+    first_opts, parse_opts = csv_read_options(lay, block_size)
+    head_lines = lay.skip + (1 if lay.header else 0) + 1  # up to the first data line
+
+    def job(text: bytes, first: bool) -> Any:
+        size = max(len(text), 1)
+
+        def parse(convert_options: Any) -> Any:
+            if first:
+                ropts = pacsv.ReadOptions(skip_rows=first_opts.skip_rows,
+                                          autogenerate_column_names=not lay.header,
+                                          block_size=size, use_threads=False)
+            elif names is None:
+                ropts = pacsv.ReadOptions(autogenerate_column_names=True, block_size=size,
+                                          use_threads=False)
+            else:
+                ropts = pacsv.ReadOptions(column_names=names, block_size=size,
+                                          use_threads=False)
+            return pacsv.read_csv(pa.py_buffer(text), read_options=ropts,
+                                  parse_options=parse_opts, convert_options=convert_options)
+
+        return work(parse, first)
+
+    pending: deque[Future[Any]] = deque()
+    with pa.input_stream(str(lay.path)) as src, ThreadPoolExecutor(THREADS) as pool:
+        try:
+            rest = b""
+            first = True
+            eof = False
+            while not eof:
+                data = src.read(block_size)
+                eof = not data
+                buf = rest + data
+                if eof:
+                    text, rest = buf, b""
+                else:
+                    cut = max(buf.rfind(b"\n"), buf.rfind(b"\r")) + 1
+                    if cut == 0 or (first and len(_BREAK.findall(buf, 0, cut)) < head_lines):
+                        rest = buf  # no whole line yet (or not past the header): read on
+                        continue
+                    text, rest = buf[:cut], buf[cut:]
+                if text or first:
+                    pending.append(pool.submit(job, text, first))
+                    first = False
+                while pending and (len(pending) >= IN_FLIGHT or eof):
+                    yield pending.popleft().result()
+        finally:
+            for f in pending:
+                f.cancel()
+
+
+def numbers(arr: Any) -> np.ndarray:
+    """A float64 or int64 Arrow array as a NumPy array (a float's nulls NaN), as
+    ``Array.to_numpy(zero_copy_only=False)`` gives it — without it: it imports pandas
+    (0.5 s of every run's start-up)."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    dtype = {pa.float64(): np.float64, pa.int64(): np.int64}[arr.type]
+    if arr.null_count:
+        if dtype is not np.float64:
+            raise ValueError("integers with nulls have no NumPy form")
+        arr = pc.fill_null(arr, float("nan"))
+    return np.frombuffer(arr.buffers()[1], dtype=dtype, count=len(arr), offset=arr.offset * 8)
+
+
+def is_parse_error(err: BaseException) -> bool:
+    """Whether a pyarrow error is the text's (a ragged line), not a conversion's."""
+    return not (isinstance(err, Exception) and "conversion error" in str(err))
+
+
+
+def guarded(it: Iterator[Any]) -> Iterator[Any]:
+    """The ranges' results; an error reading the file (a cut gzip) is given as one."""
+    try:
+        yield from it
+    except (OSError, EOFError, ValueError) as err:  # pyarrow's errors are ValueErrors
+        yield err
+
+
