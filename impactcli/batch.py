@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import EXIT_DATA, EXIT_SOFTWARE, ImpactError, ImpactWarning
-from .run.job import load_inputs, output_stem, run_log, run_log_from_paths
+from .run.job import output_stem, run_log_from_paths
 from .types import DETECTORS
 
 SUMMARY_SCHEMA_VERSION = "1.0"
@@ -163,23 +163,6 @@ def _msgs(caught: list[warnings.WarningMessage]) -> tuple[str, ...]:
     return tuple(str(w.message) for w in caught if issubclass(w.category, ImpactWarning))
 
 
-def analyze_file(  # alias: removed in M
-    log_path: str, *, robot_path: str | None = None, model_path: str | None = None,
-    config_path: str | None = None, read_options: dict[str, Any] | None = None,
-    model_from_log: bool = False, generator: str | None = None, allow_slow: bool = False,
-) -> Any:
-    """:func:`impactcli.pipeline.analyze` of a log read whole, its inputs from paths."""
-    from .io import read_log
-    from .pipeline import analyze
-
-    opts = dict(read_options or {})
-    robot, model, config = load_inputs(robot_path, model_path, config_path)
-    return analyze(read_log(log_path, robot=robot, **opts), model=model, config=config,
-                   robot=robot, read_options=opts, model_from_log=model_from_log,
-                   generator=generator, config_where=config_path or "config",
-                   allow_slow=allow_slow)
-
-
 def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ...]]:
     from .io.urls import local_path
 
@@ -229,15 +212,15 @@ def _remove_remote(urls: list[str]) -> None:
 
 
 def _run_streamed(job: DetectJob, out: Path, stem: str) -> tuple[Any, tuple[str, ...]]:
-    """Replay the log chunk by chunk in bounded memory (:func:`stream_file`) into a local
-    folder: the signals written as the comparison with the thresholds goes, the Rerun
+    """Replay the log chunk by chunk in bounded memory
+    (:func:`impactcli.run.job.run_log_from_paths`) into a local folder: the signals written as the comparison with the thresholds goes, the Rerun
     recording from a spill file, the timeline at the end."""
     from .outputs.timeline import write_timeline
 
     written = [out / f"{stem}.timeline.json"]
     signals = out / f"{stem}.signals.parquet" if job.signals else None
     rrd = out / f"{stem}.rrd" if job.rerun else None
-    result, _ = stream_file(job.log_path, robot_path=job.robot_path,
+    result, _ = run_log_from_paths(job.log_path, robot_path=job.robot_path,
                             model_path=job.model_path, config_path=job.config_path,
                             read_options=job.read_options, model_from_log=job.model_from_log,
                             generator=job.generator, allow_slow=job.allow_slow,
@@ -246,11 +229,6 @@ def _run_streamed(job: DetectJob, out: Path, stem: str) -> tuple[Any, tuple[str,
     written += [p for p in (signals, rrd) if p is not None]
     write_timeline(result, written[0])
     return result, tuple(str(p) for p in written)
-
-
-#: The replay of one log for a verb (:mod:`impactcli.run.job`). alias: removed in M
-stream_file = run_log_from_paths
-stream_log = run_log
 
 
 def _summary(job: DetectJob, result: Any) -> dict[str, Any]:
@@ -343,7 +321,7 @@ def batch_summary(outcomes: Sequence[JobOutcome], *, wall_s: float,
 
 def write_text_to(target: str, text: str) -> None:
     """Write ``text`` to a local path or URL atomically (summaries, reports)."""
-    from ._fs import atomic_write_text
+    from .files import atomic_write_text
     from .io.urls import local_path, put_file_atomic, url_name
 
     lp = local_path(target)

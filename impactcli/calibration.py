@@ -24,7 +24,7 @@ from .config import DetectorConfig
 from .detect.screen import LeftOut
 from .detect.warmup import Warmup
 from .errors import ImpactWarning, LogFormatError
-from .io.stream import LogScan
+from .io.stream import LogScan, MemoryReader
 from .model import IdentifyOptions, RigidModel
 from .model.generators import GeneratorChoice, target_log, uses_correction
 from .run.collect import StatsCollector
@@ -41,7 +41,6 @@ from .run.plan import (
     resolve_model,
     screen_scan,
 )
-from .run.readers import MemoryReader
 from .run.run_warnings import CaughtWarnings
 from .types import DETECTORS, Labels, RobotDescription, RobotLog
 

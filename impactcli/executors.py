@@ -140,7 +140,7 @@ class SerialExecutor(Executor):
 #: Modules the local pool's fork server imports once, so that workers start warm.
 POOL_START_METHOD = "forkserver"
 POOL_PRELOAD = (
-    "impactcli.batch", "impactcli.pipeline", "impactcli.io", "impactcli.outputs.timeline",
+    "impactcli.batch", "impactcli.run.one_log", "impactcli.io", "impactcli.outputs.timeline",
 )
 
 

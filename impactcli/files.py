@@ -19,7 +19,9 @@ from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import IO, Any
 
-from .errors import ImpactError, OutputError
+import numpy as np
+
+from .errors import ImpactError, OutputError, TempSpaceError
 
 
 def sha256_file(path: str | os.PathLike[str], chunk: int = 1 << 20) -> str:
@@ -145,3 +147,28 @@ def load_mapping(
     if not isinstance(data, dict):
         raise error(f"{p}: {what} must be a mapping at top level, got {type(data).__name__}")
     return data
+
+
+def temp_space_error(err: OSError) -> Exception:
+    """The one-line error of a temporary file that cannot be written (a full or unwritable
+    ``TMPDIR``): :class:`~impactcli.errors.TempSpaceError` naming the folder."""
+    return TempSpaceError(
+        f"temporary folder {tempfile.gettempdir()}: {err.strerror or err} while writing the "
+        "replay's temporary files (a long log needs up to about 1 kB per sample for 7 joints "
+        "there); set TMPDIR to a folder with room")
+
+
+@contextmanager
+def temp_space() -> Iterator[None]:
+    """Around writes into ``TMPDIR`` (a spill, its flush or close): an OSError becomes
+    :func:`temp_space_error`'s one line instead of a traceback."""
+    try:
+        yield
+    except OSError as err:
+        raise temp_space_error(err) from err
+
+
+def write_spill(f: Any, v: np.ndarray) -> None:
+    """Append ``v``'s bytes to a spill file (:func:`temp_space`)."""
+    with temp_space():
+        f.write(np.ascontiguousarray(v).tobytes())

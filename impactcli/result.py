@@ -51,8 +51,6 @@ class DetectionResult:
         threshold_inputs: how u1, u2 were made, in words (which reference signals were
             logged, which were differentiated).
         torque_filtered: the measured torque went through the estimate's causal filter.
-        signals, decisions, ratios: empty from a replay, which keeps no per-sample arrays
-            (they go to ``on_chunk``); filled only by the alias ``pipeline.analyze``.
         events: all events, every detector, sorted by start time.
         warmup_end_s: the latest warm-up end over joints [s since first sample].
         warmup_per_joint_s: per joint warm-up end [s].
@@ -61,9 +59,7 @@ class DetectionResult:
         read_options: the options the log was read with (to re-run exactly).
     """
 
-    # alias: removed in M — ``LogHeader`` once outputs/ read no samples from the result
-    # (the alias pipeline.analyze and tests/fakes.py put a RobotLog here)
-    log: Any
+    log: LogHeader
     model: dict[str, Any] | None
     model_sha256: str | None
     model_source: str
@@ -72,9 +68,6 @@ class DetectionResult:
     thresholds: dict[str, dict[str, float]]
     reference_source: str
     torque_filtered: bool
-    signals: dict[str, np.ndarray]
-    decisions: dict[str, np.ndarray]
-    ratios: dict[str, np.ndarray]
     events: tuple[Event, ...]
     warmup_end_s: float
     warmup_per_joint_s: dict[str, float]

@@ -5,7 +5,6 @@ memory holds only where things lie, whatever the log's length.
 
 from __future__ import annotations
 
-import contextlib
 import os
 import tempfile
 from collections.abc import Iterator
@@ -14,32 +13,7 @@ from typing import Any
 
 import numpy as np
 
-
-def temp_space_error(err: OSError) -> Exception:
-    """The one-line error of a temporary file that cannot be written (a full or unwritable
-    ``TMPDIR``): :class:`~impactcli.errors.TempSpaceError` naming the folder."""
-    from .errors import TempSpaceError
-
-    return TempSpaceError(
-        f"temporary folder {tempfile.gettempdir()}: {err.strerror or err} while writing the "
-        "replay's temporary files (a long log needs up to about 1 kB per sample for 7 joints "
-        "there); set TMPDIR to a folder with room")
-
-
-@contextlib.contextmanager
-def temp_space() -> Iterator[None]:
-    """Around writes into ``TMPDIR`` (a spill, its flush or close): an OSError becomes
-    :func:`temp_space_error`'s one line instead of a traceback."""
-    try:
-        yield
-    except OSError as err:
-        raise temp_space_error(err) from err
-
-
-def write_spill(f: Any, v: np.ndarray) -> None:
-    """Append ``v``'s bytes to a spill file (:func:`temp_space`)."""
-    with temp_space():
-        f.write(np.ascontiguousarray(v).tobytes())
+from ..files import temp_space, write_spill
 
 
 class ColumnFiles:

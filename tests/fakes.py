@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -26,9 +26,19 @@ from .conftest import make_log
 CHUNK_ROWS = 1000
 
 
+@dataclass(frozen=True)
+class ResultWithSignals(DetectionResult):
+    """A detection result holding what its replay handed the writers (tests only): its log
+    in memory (a RobotLog in ``log``) and the (N, J) signals, decisions and ratios."""
+
+    signals: dict[str, np.ndarray] = field(default_factory=dict)
+    decisions: dict[str, np.ndarray] = field(default_factory=dict)
+    ratios: dict[str, np.ndarray] = field(default_factory=dict)
+
+
 def fake_result(
     n: int = 2500, joints: tuple[str, ...] = ("j1", "j2"), dt: float = 0.004,
-) -> DetectionResult:
+) -> ResultWithSignals:
     """10 s, 2 joints; an adaptive event on j2 then j1 at 4.0–4.1 s, a loading event at 7–7.5 s
     on j1, an adaptive event in warm-up at 0.2 s. Signals are smooth, ratios consistent."""
     log = make_log(n=n, joints=joints, dt=dt)
@@ -61,7 +71,7 @@ def fake_result(
         Event("static_loading", float(t[l0]), float(t[l1]), l0, l1, (joints[0],), 2.0,
               {joints[0]: 1.2}, False),
     )
-    return DetectionResult(
+    return ResultWithSignals(
         log=log, model={"kind": "decoupled", "joint_names": list(joints)}, model_sha256="ab" * 32,
         model_source="identified-from-log",
         config={"adaptive": {"forgetting_factor": 0.999}},

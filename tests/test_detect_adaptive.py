@@ -346,7 +346,8 @@ def test_sample_impacts_log_gives_plain_eq39_bitwise() -> None:
     from impactcli.config import load_config
     from impactcli.io import read_log
     from impactcli.io.robot import read_robot
-    from impactcli.pipeline import calibrated_thresholds, replay
+    from impactcli.run.collect import stats_in_memory
+    from impactcli.run.plan import calibrated_thresholds
 
     csv = SAMPLES / "csv"
     if not (csv / "assist_impacts.csv.gz").exists():  # pragma: no cover - trimmed checkout
@@ -355,13 +356,15 @@ def test_sample_impacts_log_gives_plain_eq39_bitwise() -> None:
     cfg = load_config(SAMPLES / "assist_like.config.toml")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ImpactWarning)
-        rp = replay(read_log(csv / "assist_impacts.csv.gz", robot=robot), None, cfg, robot)
-        inputs = threshold_inputs(rp.log, cfg.adaptive)
-    th = calibrated_thresholds(cfg, rp.log.joint_names)
+        log = read_log(csv / "assist_impacts.csv.gz", robot=robot)
+        st, _, plan = stats_in_memory(log, config=cfg, robot=robot)
+        log = log.select(plan.joints)
+        inputs = threshold_inputs(log, cfg.adaptive)
+    th = calibrated_thresholds(cfg, log.joint_names)
     assert th is not None
-    fs = rp.log.sample_rate_hz
-    g = evaluate(rp.r, inputs.u, fs, th["adaptive"], cfg.adaptive)
-    p = evaluate(rp.r, inputs.u, fs, th["adaptive"],
+    fs = log.sample_rate_hz
+    g = evaluate(st.r, inputs.u, fs, th["adaptive"], cfg.adaptive)
+    p = evaluate(st.r, inputs.u, fs, th["adaptive"],
                  dataclasses.replace(cfg.adaptive, max_trace=np.inf))
     assert np.all(inputs.u[:, :, 1] == 0.0)
     assert g.n_capped.tolist() == [6669, 6669] and p.n_capped.sum() == 0

@@ -70,12 +70,12 @@ def whole_log_state(r: np.ndarray, u: np.ndarray, fs: float, vs: np.ndarray,
 # ----------------------------------------------------------------------------- sample log
 @pytest.fixture(scope="module")
 def assist_impacts() -> tuple[np.ndarray, np.ndarray, float, AdaptiveConfig, list[float]]:
-    """Residual and inputs of sample_logs' assist_impacts through the pipeline's replay
+    """Residual and inputs of sample_logs' assist_impacts through the replay's threshold-free pass
     (the elbow's reference is constant: the wind-up guard acts at 6 669 samples per axis)."""
     from impactcli.config import load_config
     from impactcli.io import read_log
     from impactcli.io.robot import read_robot
-    from impactcli.pipeline import replay
+    from impactcli.run.collect import stats_in_memory
 
     from .reference.adaptive import threshold_inputs
 
@@ -86,12 +86,14 @@ def assist_impacts() -> tuple[np.ndarray, np.ndarray, float, AdaptiveConfig, lis
     cfg = load_config(SAMPLES / "assist_like.config.toml")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ImpactWarning)
-        rp = replay(read_log(csv / "assist_impacts.csv.gz", robot=robot), None, cfg, robot)
-        inputs = threshold_inputs(rp.log, cfg.adaptive)
+        log = read_log(csv / "assist_impacts.csv.gz", robot=robot)
+        st, _, plan = stats_in_memory(log, config=cfg, robot=robot)
+        log = log.select(plan.joints)
+        inputs = threshold_inputs(log, cfg.adaptive)
     labels = json.loads((csv / "assist_impacts.labels.json").read_text())
-    t = rp.log.time_s - rp.log.time_s[0]
+    t = log.time_s - log.time_s[0]
     mids = [float(np.searchsorted(t, 0.5 * (e["start"] + e["end"]))) for e in labels["events"]]
-    return rp.r, inputs.u, rp.log.sample_rate_hz, cfg.adaptive, mids
+    return st.r, inputs.u, log.sample_rate_hz, cfg.adaptive, mids
 
 
 @pytest.mark.parametrize("size", CHUNK_SIZES)

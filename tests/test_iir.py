@@ -100,10 +100,10 @@ def test_replay_does_not_import_scipy_signal() -> None:
         "import sys, warnings; warnings.simplefilter('ignore')\n"
         "from impactcli.config import load_config\n"
         "from impactcli.io import read_log\n"
-        "from impactcli.pipeline import analyze\n"
+        "from impactcli.run.collect import detect_in_memory\n"
         f"cfg = load_config({str(root / 'sample_logs' / 'heavy_geared.config.toml')!r})\n"
         f"log = read_log({str(root / 'sample_logs' / 'csv' / 'heavy_impacts.csv.gz')!r})\n"
-        "analyze(log.slice(0, 3000), config=cfg)\n"
+        "detect_in_memory(log.slice(0, 3000), config=cfg)\n"
         "print('scipy.signal' in sys.modules)\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          cwd=root, check=True)

@@ -179,9 +179,9 @@ def test_urdf_link_end_jacobian_matches_finite_differences() -> None:
     q = np.array([0.1, -0.5, 0.3, -2.0, 0.2, 1.5, 0.4])
     import pinocchio as pin
 
-    from impactcli.model.structures import _pin_model
+    from impactcli.urdf_helpers import reduced_model
 
-    model = _pin_model(xml, joints, "panda")
+    model = reduced_model(xml, joints, "panda")
     data = model.createData()
 
     def point(x: np.ndarray, i: int) -> np.ndarray:

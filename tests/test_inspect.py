@@ -76,7 +76,7 @@ def test_inspect_gives_each_channels_range_per_joint(tmp_path: Path) -> None:
 
 def test_inspect_imports_no_model() -> None:
     """``impactcli inspect`` starts without importing the model package (its read options
-    come from cli/log_options, not cli/detect)."""
+    come from cli/options, not cli/detect)."""
     import subprocess
     import sys
 

@@ -1,7 +1,7 @@
 """``impactcli report`` through click's CliRunner.
 
 The wiring (labels pairing, batch failures, timeline re-runs, exit codes) is tested with a
-stand-in for the replay (:func:`impactcli.batch.stream_log`) that returns the synthetic
+stand-in for the replay (:func:`impactcli.run.job.run_log`) that returns the synthetic
 result on the log actually read; one end-to-end test runs the real replay.
 """
 
@@ -21,8 +21,8 @@ from click.testing import CliRunner, Result
 from impactcli.cli import main
 from impactcli.errors import LogFormatError
 from impactcli.io import read_log  # type: ignore[attr-defined]
-from impactcli.io.csv import write_csv
 from impactcli.io.robot import write_labels
+from impactcli.io.write import write_csv
 from impactcli.outputs.timeline import write_timeline
 from impactcli.schema import load_schema
 from impactcli.types import ContactLabel, Labels
@@ -43,7 +43,7 @@ def show(res: Result) -> str:
 
 @pytest.fixture
 def fake_pipeline(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
-    """Replace the replay (impactcli.batch.stream_log): the synthetic result on the log it
+    """Replace the replay (impactcli.run.job.run_log): the synthetic result on the log it
     is given, read as the replay reads it (its sha256 checked as the scan's), and its
     report's samples collected from its chunks."""
     calls: list[dict[str, Any]] = []
@@ -59,7 +59,7 @@ def fake_pipeline(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
         result = dataclasses.replace(fake_result(), log=log)
         return result, collect(result)  # its chunks collected as the replay's would be
 
-    monkeypatch.setattr("impactcli.batch.stream_log", stream_log)
+    monkeypatch.setattr("impactcli.run.job.run_log", stream_log)
     return calls
 
 
@@ -113,16 +113,16 @@ def test_batch_with_a_failing_input_exits_4(tmp_path: Path, fake_pipeline: list,
     good = write_log(tmp_path / "good.csv")
     bad = tmp_path / "bad.csv"
     bad.write_text("time,j1.position\n0,0\n")
-    import impactcli.batch
+    import impactcli.run.job
 
-    real = impactcli.batch.stream_log
+    real = impactcli.run.job.run_log
 
     def stream_log(path: str, **kw: Any) -> Any:
         if path.endswith("bad.csv"):
             raise LogFormatError(f"{path}: column 'j1.torque' missing")
         return real(path, **kw)
 
-    monkeypatch.setattr(impactcli.batch, "stream_log", stream_log)
+    monkeypatch.setattr(impactcli.run.job, "run_log", stream_log)
     out, js = tmp_path / "r.html", tmp_path / "r.json"
     res = run(["report", str(good), str(bad), "-o", str(out), "--json", str(js)])
     assert res.exit_code == 4, show(res)

@@ -115,10 +115,10 @@ def test_the_first_screen_answers_on_the_sample_logs(tmp_path: Path) -> None:
     chromium()
     import warnings
 
-    from impactcli.batch import stream_log
     from impactcli.config import load_config
     from impactcli.io.robot import read_labels
     from impactcli.outputs.report import render_log
+    from impactcli.run.job import run_log as stream_log
 
     csv = REPO / "sample_logs" / "csv"
     cfg = load_config(REPO / "sample_logs" / "assist_like.config.toml")

@@ -19,16 +19,16 @@ from click.testing import CliRunner
 from impactcli.cli import main
 from impactcli.config import load_config
 from impactcli.io.robot import read_labels
-from impactcli.io.stream import scan_log
+from impactcli.io.stream import open_log, scan_log
 from impactcli.outputs.report import assemble_report, render_log, report_json
 from impactcli.outputs.report.samples import ReportCollector
 from impactcli.outputs.svgplot import EnvelopeAccumulator, envelope
-from impactcli.stream import analyze_stream
+from impactcli.run.one_log import RunSetup, detect_log
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
 ASSIST = SAMPLES / "assist_like.config.toml"
 HEAVY = SAMPLES / "heavy_geared.config.toml"
-#: Rows per chunk as the CLI replays (stream.CHUNK_ROWS): one chunk per sample log.
+#: Rows per chunk as the CLI replays (run.one_log.CHUNK_ROWS): one chunk per sample log.
 CLI_ROWS = 65_536
 
 
@@ -56,8 +56,9 @@ def _streamed(path: Path, cfg: Path, rows: int, plots: bool = True, ratios: bool
             if hasattr(scan, "close"):
                 scan.close()
         feed = col if ratios else _without_ratios(col)
-        result = analyze_stream(str(path), config=load_config(cfg), read_options={},
-                                chunk_rows=rows, on_chunk=feed)
+        with open_log(path) as reader:
+            result = detect_log(reader, RunSetup(config=load_config(cfg), chunk_rows=rows),
+                                on_chunk=feed)
         return result, col.finish(result)
 
 
@@ -164,7 +165,7 @@ def test_envelope_accumulator_is_envelope(n: int, chunk: int) -> None:
 def test_report_cli_streams_with_a_calibrated_config(tmp_path: Path, monkeypatch) -> None:
     """`impactcli report LOG --config C` replays through batch.stream_log and writes the
     report of the replay's chunks; a timeline re-run streams too; no spill file is left."""
-    import impactcli.batch
+    import impactcli.run.job
 
     log = SAMPLES / "csv" / "assist_impacts.csv.gz"
     labels = read_labels(SAMPLES / "csv" / "assist_impacts.labels.json")
@@ -183,13 +184,13 @@ def test_report_cli_streams_with_a_calibrated_config(tmp_path: Path, monkeypatch
                                str(tmp_path)])
     assert res.exit_code == 0, res.output
     calls: list[str] = []
-    real = impactcli.batch.stream_log
+    real = impactcli.run.job.run_log
 
     def stream_log(path: str, **kw: Any) -> Any:
         calls.append(kw.get("samples"))
         return real(path, **kw)
 
-    monkeypatch.setattr(impactcli.batch, "stream_log", stream_log)
+    monkeypatch.setattr(impactcli.run.job, "run_log", stream_log)
     for inp in (str(log), str(tmp_path / "assist_impacts.timeline.json")):
         out = tmp_path / "r.html"
         res = runner.invoke(main, ["report", inp, "--config", str(ASSIST), "-o", str(out),

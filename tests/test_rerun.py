@@ -320,7 +320,7 @@ def test_sample_log_view_covers_every_incident(tmp_path: Path) -> None:
     incident of the run."""
     import warnings
 
-    from impactcli.batch import stream_file
+    from impactcli.run.job import run_log_from_paths as stream_file
 
     root = Path(__file__).resolve().parents[1] / "sample_logs"
     log = root / "csv" / "assist_impacts.csv.gz"

@@ -92,7 +92,7 @@ def test_no_display_is_exit_69_before_any_work(rrd: Path, tmp_path: Path,
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     monkeypatch.setattr(sys, "platform", "linux")
     replayed = []
-    monkeypatch.setattr("impactcli.batch.stream_file", lambda *a, **k: replayed.append(a))
+    monkeypatch.setattr("impactcli.run.job.run_log_from_paths", lambda *a, **k: replayed.append(a))
     log = tmp_path / "arm.csv"
     log.write_text("time\n0\n")
     for source in (rrd, log):
@@ -120,7 +120,7 @@ def test_log_is_detected_then_written_and_opened(tmp_path: Path, monkeypatch: py
         write_rrd(result, rrd_path, **rrd_options)  # type: ignore[arg-type]
         return result, None
 
-    monkeypatch.setattr("impactcli.batch.stream_file", fake_stream)
+    monkeypatch.setattr("impactcli.run.job.run_log_from_paths", fake_stream)
     out = tmp_path / "arm.rrd"
     r = run(str(log), "--no-open", "--save", str(out), "--channel-map", "kuka_lwr4")
     assert r.exit_code == 0, explain(r)

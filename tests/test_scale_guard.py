@@ -44,8 +44,8 @@ def test_a_replay_reports_its_progress_in_seconds_of_log_over_its_passes() -> No
     seconds of log, out of three passes over the log."""
     import warnings
 
+    from impactcli.io.stream import MemoryReader
     from impactcli.run.one_log import RunSetup, detect_log
-    from impactcli.run.readers import MemoryReader
 
     seen: list[tuple[float, float]] = []
     log = make_log(n=1500, joints=("a", "b", "c"))
@@ -88,7 +88,7 @@ def test_report_refuses_a_huge_arm_and_takes_allow_slow(
         seen.update(kw)
         raise ScaleLimitError("stop here")
 
-    monkeypatch.setattr("impactcli.batch.stream_log", stream_log)
+    monkeypatch.setattr("impactcli.run.job.run_log", stream_log)
     r = CliRunner().invoke(main, ["report", str(log), "-o", str(html), "--allow-slow"])
     assert seen.get("allow_slow") is True, r.output
 

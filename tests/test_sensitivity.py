@@ -12,12 +12,13 @@ import pytest
 from click.testing import CliRunner
 
 from impactcli.cli import main
-from impactcli.evaluate import EVALUATED
 from impactcli.schema import load_schema
-from impactcli.sensitivity import (
-    PAPER_ADAPTIVE_N,
-    SOAK_FAMILIES,
-    TABLE_DETECTORS,
+from impactcli.scoring.match import EVALUATED
+from impactcli.study.scenarios import amplitudes, case_scenario, the_robot
+from impactcli.study.spec import PAPER_ADAPTIVE_N, SOAK_FAMILIES, StudySpec
+from impactcli.study.summary import poisson_upper_95, summarize, zero_fa_index
+from impactcli.study.tables import TABLE_DETECTORS, format_markdown, format_text, table_rows
+from impactcli.study.tasks import (
     CalibOutcome,
     CalibTask,
     CaseOutcome,
@@ -25,19 +26,9 @@ from impactcli.sensitivity import (
     ContactRecord,
     SoakOutcome,
     SoakTask,
-    StudySpec,
-    amplitudes,
-    case_scenario,
-    format_markdown,
-    format_text,
-    poisson_upper_95,
     run_calibration,
     run_case,
     run_soak,
-    summarize,
-    table_rows,
-    the_robot,
-    zero_fa_index,
 )
 
 TINY = StudySpec.quick(stiffnesses=(10.12,), forces_n=(8.0,), impacts_per_case=2,
@@ -256,7 +247,7 @@ def test_cli_tiny_run_json_valid(tmp_path) -> None:  # type: ignore[no-untyped-d
 def test_soak_counts_an_alarm_stuck_on_since_warmup() -> None:
     """A detector above its threshold from the start (stuck on) is one false alarm, not
     silence; alarms ending inside the warm-up are not counted; later bursts each count."""
-    from impactcli.sensitivity import soak_false_alarms
+    from impactcli.study.tasks import soak_false_alarms
 
     t = np.arange(1000) * 0.01  # 10 s, warm-up until 3 s
     quiet = np.full((1000, 2), 0.5)

@@ -20,12 +20,12 @@ from impactcli.cli import main
 from impactcli.config import load_config
 from impactcli.detect.thresholds import detector_ratios
 from impactcli.io import read_log
+from impactcli.io.stream import open_log
 from impactcli.outputs.signals import SignalsWriter, read_signals
 from impactcli.outputs.timeline import timeline_json
 from impactcli.result import DetectionResult
 from impactcli.run.collect import detect_in_memory
 from impactcli.run.one_log import RunSetup, detect_log
-from impactcli.run.readers import FileReader
 from impactcli.types import LogHeader, SignalsChunk
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
@@ -44,7 +44,7 @@ def _chunked(path: Path, cfg_path: Path, rows: int, on_chunk: Any = None) -> Det
     """The log read from its file in chunks of ``rows`` samples."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        with FileReader(path) as reader:
+        with open_log(path) as reader:
             return detect_log(reader, RunSetup(config=load_config(cfg_path), chunk_rows=rows),
                               on_chunk=on_chunk)
 
@@ -178,16 +178,11 @@ def _rrd_rows(path: Path) -> dict[str, list[tuple[Any, ...]]]:
 
 
 def _recording(path: Path, rows: int, out: Path) -> DetectionResult:
-    from impactcli.outputs.rerun_stream import SpillWriter, spill_columns, write_rrd_from_spill
+    from impactcli.outputs.rerun import RerunWriter
 
-    spill = SpillWriter()
-    try:
-        got = _chunked(path, ASSIST, rows, lambda c: spill.append(spill_columns(
-            c.joints, c.t_ns, c.signals, c.decisions, c.position, c.position_ref)))
-        write_rrd_from_spill(got, spill, out, max_points=1500, event_window_s=0.3,
-                             recording_id="same")
-    finally:
-        spill.close()
+    with RerunWriter() as writer:
+        got = _chunked(path, ASSIST, rows, writer)
+        writer.write(got, out, max_points=1500, event_window_s=0.3, recording_id="same")
     return got
 
 
@@ -218,8 +213,7 @@ def test_envelope_stream_selects_the_whole_series_envelope(
         n: int, k: int, max_points: int, chunks: list[int]) -> None:
     """EnvelopeStream over chunks selects exactly decimate.envelope_indices of the whole
     series (NaN, kept samples, a last bucket shorter than the others), each index once."""
-    from impactcli.outputs.decimate import bucket_size, envelope_indices
-    from impactcli.outputs.rerun_stream import EnvelopeStream
+    from impactcli.outputs.decimate import EnvelopeStream, bucket_size, envelope_indices
 
     rng = np.random.default_rng(n)
     v = rng.normal(size=(n, k))

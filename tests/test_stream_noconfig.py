@@ -15,12 +15,12 @@ from impactcli.cli import main
 from impactcli.config import DetectorConfig, load_config
 from impactcli.detect.calibrate import BlockMaxima, block_maxima
 from impactcli.io import read_log
+from impactcli.io.stream import open_log
 from impactcli.model import rows as rows_mod
 from impactcli.outputs.timeline import timeline_json
 from impactcli.result import DetectionResult
 from impactcli.run.collect import detect_in_memory
 from impactcli.run.one_log import RunSetup, detect_log
-from impactcli.run.readers import FileReader
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
 ASSIST = SAMPLES / "assist_like.config.toml"
@@ -33,7 +33,7 @@ def _pair(path: Path, rows: int, config: DetectorConfig | None = None,
         warnings.simplefilter("ignore")
         whole, _ = detect_in_memory(read_log(path), config=config,
                                     model_from_log=model_from_log)
-        with FileReader(path) as reader:
+        with open_log(path) as reader:
             got = detect_log(reader, RunSetup(config=config, model_from_log=model_from_log,
                                               chunk_rows=rows))
     return timeline_json(whole), timeline_json(got), whole
@@ -87,7 +87,7 @@ def test_everything_streams_but_model_with_model_from_log(tmp_path: Path) -> Non
         model = identify(read_log(log))
     setup = RunSetup(config=load_config(ASSIST), model=model, model_from_log=True)
     with pytest.raises(ConfigError, match=r"^--model and --model-from-log exclude each other$"):
-        detect_log(FileReader(tmp_path / "not-read.csv"), setup)
+        detect_log(open_log(tmp_path / "not-read.csv"), setup)
     path = tmp_path / "m.json"
     write_model(model, path)
     out = run_detect_job(DetectJob(str(log), str(tmp_path / "out"), model_path=str(path),
@@ -224,7 +224,7 @@ def test_progress_counts_every_pass_once_and_ends_at_its_total(
     path = SAMPLES / "csv" / "assist_impacts.csv.gz"
     setup = RunSetup(config=load_config(config) if config else None, chunk_rows=4096,
                      model_from_log=config is not None)
-    with warnings.catch_warnings(), FileReader(path) as reader:
+    with warnings.catch_warnings(), open_log(path) as reader:
         warnings.simplefilter("ignore")
         detect_log(reader, setup, progress=lambda d, t: calls.append((d, t)))
     totals = {t for _, t in calls}

@@ -1,5 +1,5 @@
 """`impactcli view LOG` and `impactcli evaluate LOG` replay the log chunk by chunk
-(impactcli.batch.stream_file, bounded memory) and give what the writers fed the replay's
+(impactcli.run.job.run_log_from_paths, bounded memory) and give what the writers fed the replay's
 chunks give, whatever the chunk size: the same Rerun recording's rows, the same evaluation
 and sweep, with and without a config; the run never reads the log whole, leaves no spill
 file behind, and writes nothing when the log turns bad midway."""
@@ -33,12 +33,13 @@ def _replayed(path: Path, cfg: Path | None, on_chunk: Any, rows: int = 997) -> A
     """The replay of ``path`` in chunks of ``rows`` (not the CLI's), its chunks handed to
     ``on_chunk``: the reference."""
     from impactcli.config import load_config
-    from impactcli.stream import analyze_stream
+    from impactcli.io.stream import open_log
+    from impactcli.run.one_log import RunSetup, detect_log
 
-    with warnings.catch_warnings():
+    setup = RunSetup(config=None if cfg is None else load_config(cfg), chunk_rows=rows)
+    with warnings.catch_warnings(), open_log(path) as reader:
         warnings.simplefilter("ignore")
-        return analyze_stream(str(path), config=None if cfg is None else load_config(cfg),
-                              read_options={}, chunk_rows=rows, on_chunk=on_chunk)
+        return detect_log(reader, setup, on_chunk=on_chunk)
 
 
 def _warned(result: Any) -> str:
@@ -52,7 +53,7 @@ def _forbid_whole_log(monkeypatch: pytest.MonkeyPatch) -> None:
     def refuse(*a: object, **k: object) -> None:
         raise AssertionError("whole-log path taken")
 
-    for mod, name in (("impactcli.pipeline", "analyze"), ("impactcli.io", "read_log")):
+    for mod, name in (("impactcli.run.collect", "detect_in_memory"), ("impactcli.io", "read_log")):
         try:
             m = importlib.import_module(mod)
         except ImportError:

@@ -6,8 +6,14 @@ from pathlib import Path
 
 import click
 
-from ._common import ROBOT_METAVAR, handle_errors, robot_help
-from .detect import generator_option, log_read_options, read_options_from
+from .options import (
+    ROBOT_METAVAR,
+    generator_option,
+    handle_errors,
+    log_read_options,
+    read_options_from,
+    robot_help,
+)
 
 
 def _labels_for(logs: tuple[Path, ...], given: tuple[Path, ...]) -> list:  # type: ignore[type-arg]
@@ -73,9 +79,9 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     else its model torque (torque_model, with a correction identified on these logs), else
     the tool's own identified model.
     """
-    from .._fs import prepare_output
     from ..calibration import calibrate
     from ..config import load_config, save_config
+    from ..files import prepare_output
     from ..io import read_log
     from ..io.robot import read_robot
     from ..model import read_model
@@ -123,7 +129,7 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
                    "planar or urdf model", err=True)
     if out.model is not None:  # the same fit table as `identify` prints
         from ..model import RigidModel
-        from ._fit_table import format_fit_table
+        from .fit_table import format_fit_table
 
         click.echo(format_fit_table(RigidModel.from_dict(out.model)))
     click.echo(f"{'joint':<16} {'generator':<17} {'v_stat':>9} {'vL':>9} {'v0':>9}   "

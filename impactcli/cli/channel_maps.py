@@ -13,7 +13,7 @@ from typing import Any
 
 import click
 
-from ._common import handle_errors
+from .options import handle_errors
 
 
 def shipped_maps() -> list[dict[str, Any]]:

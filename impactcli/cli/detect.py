@@ -17,19 +17,13 @@ from .options import (
     generator_option,
     handle_errors,
     log_read_options,
-    model_options,  # alias: removed in M
     model_url_options,
     progress,
     read_options_from,
     resolve_executor,
 )
 
-# alias: removed in M — cli/calibrate, evaluate, inspect, labels, report and view import the
-# shared options (cli/options.py's) from here.
-__all__ = [
-    "PRODUCT_DETECTORS", "detect_cmd", "executor_options", "generator_option",
-    "log_read_options", "model_options", "preload", "read_options_from", "resolve_executor",
-]
+__all__ = ["PRODUCT_DETECTORS", "detect_cmd", "preload"]
 
 #: the product's detectors: what --fail-on-detect counts (static_baseline is for comparison)
 PRODUCT_DETECTORS = ("adaptive", "static_loading")

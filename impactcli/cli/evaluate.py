@@ -34,8 +34,14 @@ import click
 import numpy as np
 
 from ..errors import ImpactWarning, LogFormatError
-from ._common import check_log_path, handle_errors, not_found
-from .detect import log_read_options, model_options, read_options_from
+from .options import (
+    check_log_path,
+    handle_errors,
+    log_read_options,
+    model_options,
+    not_found,
+    read_options_from,
+)
 
 #: impactcli.scoring.sweep.DEFAULT_SWEEP_SCALES: 0.2 … 5 in 5 % steps (66 scales).
 DEFAULT_SCALES = "0.2:5:x1.05"
@@ -142,7 +148,7 @@ def replay_log(path: Path, *, robot: Path | None, model: Path | None, config: Pa
                ) -> tuple[Any, Any]:
     """Replay the detectors on the log ``path`` for its evaluation: (result, samples).
 
-    Chunk by chunk (:func:`impactcli.batch.stream_file`: a day-long log in bounded memory,
+    Chunk by chunk (:func:`impactcli.run.job.run_log_from_paths`: a day-long log in bounded memory,
     as ``detect`` replays it); the scores need only the run's events and incidents. The
     sweep needs every sample's ratio to the thresholds: with ``sweep`` the report's
     collector, keeping only the ratios
@@ -152,9 +158,9 @@ def replay_log(path: Path, *, robot: Path | None, model: Path | None, config: Pa
     group; the caller closes ``samples`` (it removes the spill file); without ``sweep`` it
     is None.
     """
-    from ..batch import stream_file
+    from ..run.job import run_log_from_paths
 
-    return stream_file(str(path), robot_path=None if robot is None else str(robot),
+    return run_log_from_paths(str(path), robot_path=None if robot is None else str(robot),
                        model_path=None if model is None else str(model),
                        config_path=None if config is None else str(config),
                        read_options=read_options, allow_slow=allow_slow, show_progress=True,

@@ -6,8 +6,7 @@ import json
 
 import click
 
-from ._common import ROBOT_METAVAR, handle_errors, robot_help
-from .log_options import log_read_options, read_options_from
+from .options import ROBOT_METAVAR, handle_errors, log_read_options, read_options_from, robot_help
 
 
 @click.command("inspect")

@@ -30,8 +30,14 @@ import click
 import numpy as np
 
 from ..errors import ImpactWarning, LogFormatError
-from ._common import ROBOT_METAVAR, check_log_path, handle_errors, robot_help
-from .log_options import log_read_options, read_options_from
+from .options import (
+    ROBOT_METAVAR,
+    check_log_path,
+    handle_errors,
+    log_read_options,
+    read_options_from,
+    robot_help,
+)
 
 #: How a channel's contacts are labelled.
 CHANNEL_KINDS: tuple[str, ...] = ("auto", "force", "switch")
@@ -321,8 +327,8 @@ def labels_cmd(log: Path, channel: str, above: float, link: int, kind: str, chan
     unknown for a switch. Writes LABELS.json (schemas/labels.schema.json) for
     `impactcli evaluate LOG --labels LABELS.json`.
     """
-    from .._fs import prepare_output
     from ..errors import LabelsError
+    from ..files import prepare_output
     from ..io import read_log
     from ..io.robot import labels_from_dict, read_robot, write_labels
     from ..schema import validate

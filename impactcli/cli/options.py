@@ -97,7 +97,7 @@ def progress(items: Iterable[T], total: int | None = None, desc: str = "") -> It
 
 def is_log_path(path: Path) -> bool:
     """Whether ``path`` can be a local log: a file, or a rosbag2 folder (``metadata.yaml``)."""
-    from ..io.bags import is_rosbag2_folder
+    from ..io.paths import is_rosbag2_folder
 
     return path.is_file() or is_rosbag2_folder(path)
 

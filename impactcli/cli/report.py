@@ -32,11 +32,13 @@ from typing import Any
 import click
 
 from ..errors import EXIT_BATCH, EXIT_SOFTWARE, ImpactError, ImpactWarning, LogFormatError
-from ._common import handle_errors, is_log_path, progress
-from .detect import (
+from .options import (
     executor_options,
+    handle_errors,
+    is_log_path,
     log_read_options,
     model_options,
+    progress,
     read_options_from,
     resolve_executor,
 )
@@ -155,7 +157,7 @@ def _compare_events(tl_path: Path, tl: dict[str, Any], result: Any) -> None:
 def analyze_for_report(task: ReportTask, robot: Any, model: Any, config: Any
                        ) -> tuple[Any, Path, Any, dict[str, Any] | None]:
     """(result, log path, samples, origin) of one report input, replayed chunk by chunk
-    (:func:`impactcli.batch.stream_log`: bounded memory, collecting what its report plots).
+    (:func:`impactcli.run.job.run_log`: bounded memory, collecting what its report plots).
 
     A LOG is detected with the loaded ``robot``, ``model`` and ``config``; a TIMELINE is
     re-run as it records it: the log read with the recorded read options, sha256 checked;
@@ -164,13 +166,13 @@ def analyze_for_report(task: ReportTask, robot: Any, model: Any, config: Any
     ``robot`` when given, else the description embedded in the recorded model. The caller
     closes the samples.
     """
-    from ..batch import stream_log
+    from ..run.job import run_log
 
     inp = Path(task.inp)
     if is_timeline(inp):
         plan = _timeline_plan(inp, robot)
         origin = timeline_origin(inp)
-        result, samples = stream_log(
+        result, samples = run_log(
             str(plan["log_path"]), robot=plan["robot"], model=plan["model"],
             config=plan["config"], read_options=plan["read_options"],
             allow_slow=task.allow_slow, show_progress=task.show_progress,
@@ -182,7 +184,7 @@ def analyze_for_report(task: ReportTask, robot: Any, model: Any, config: Any
             samples.close()
             raise
         return result, plan["log_path"], samples, origin
-    result, samples = stream_log(str(inp), robot=robot, model=model, config=config,
+    result, samples = run_log(str(inp), robot=robot, model=model, config=config,
                                  read_options=task.read_options, allow_slow=task.allow_slow,
                                  show_progress=task.show_progress, samples="report")
     return result, inp, samples, None
@@ -360,8 +362,8 @@ def report_cmd(*, inputs: tuple[str, ...], html_path: Path, json_path: Path | No
     lists them), 3 when all did. --jobs/--scheduler analyse the inputs in parallel (as
     detect does); the report is the same.
     """
-    from .._fs import prepare_output
     from ..executors import TaskFailure, run_tasks
+    from ..files import prepare_output
     from ..outputs.report import write_report
 
     for out in (html_path, json_path):  # a bad -o/--json stops the run before any work

@@ -1,7 +1,7 @@
 """``impactcli sensitivity``: the paper's Table II reproduced on the simulator, with a
 false-alarm soak and the detectors compared at matched (zero) false-alarm rates.
 
-The study (:mod:`impactcli.sensitivity`): per arm, one simulated robot; a rigid model and
+The study (:mod:`impactcli.study`): per arm, one simulated robot; a rigid model and
 thresholds calibrated (leave-one-out) on collision-free, payload-free runs; a soak of
 collision-free runs (task triangles, two-joint triangles, trapezoids, multi-sines, with the
 variant's unknown payload) for false alarms per hour; impact cases on elastomers of each
@@ -25,7 +25,7 @@ from typing import Any
 
 import click
 
-from ._common import handle_errors
+from .options import handle_errors
 
 
 def _floats(ctx: click.Context, param: click.Parameter,
@@ -100,8 +100,11 @@ def sensitivity_cmd(arms: tuple[str, ...], stiffness: tuple[float, ...] | None,
                     jobs: int | None, json_out: str | None, md_out: Path | None) -> None:
     """Reproduce the paper's Table II on the simulator; soak for false alarms; compare the
     detectors at matched false-alarm rates."""
-    from .._fs import atomic_write_text, prepare_output
-    from ..sensitivity import StudySpec, format_markdown, format_text, run_study
+    from impactcli.study.runner import run_study
+    from impactcli.study.spec import StudySpec
+    from impactcli.study.tables import format_markdown, format_text
+
+    from ..files import atomic_write_text, prepare_output
 
     for out in (md_out, None if json_out in (None, "-") else Path(json_out)):
         if out is not None:  # a bad output path stops the study before it runs

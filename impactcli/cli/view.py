@@ -3,7 +3,7 @@
 An ``.rrd`` is checked (a missing or garbled file is a data error, exit 3) and handed to
 the ``rerun`` viewer shipped in the rerun-sdk wheel. Any other path is read as a log, the
 detectors are replayed on it (:func:`record_log`: chunk by chunk in bounded memory as
-``detect --rerun`` does, :func:`impactcli.batch.stream_file`), the recording is written to
+``detect --rerun`` does, :func:`impactcli.run.job.run_log_from_paths`), the recording is written to
 a temporary folder (or ``--save PATH``) and opened. ``--no-open`` only writes
 (for scripts and machines without a display). The command waits until the viewer closes.
 """
@@ -22,8 +22,7 @@ import click
 
 from ..errors import LogFormatError, UnavailableError
 from ..outputs.decimate import DEFAULT_EVENT_WINDOW_S, DEFAULT_MAX_POINTS
-from ._common import handle_errors, not_found
-from .detect import log_read_options, model_options, read_options_from
+from .options import handle_errors, log_read_options, model_options, not_found, read_options_from
 
 if TYPE_CHECKING:
     from ..result import DetectionResult
@@ -91,15 +90,15 @@ def record_log(source: Path, rrd: Path, *, robot: Path | None, model: Path | Non
     """Replay the detectors on the log ``source`` and write its Rerun recording to ``rrd``
     (atomically); returns the run.
 
-    Chunk by chunk (:func:`impactcli.batch.stream_file`, as ``detect --rerun`` does: a
+    Chunk by chunk (:func:`impactcli.run.job.run_log_from_paths`, as ``detect --rerun`` does: a
     day-long log in bounded memory, the chunks handed to
     :class:`impactcli.outputs.rerun.RerunWriter`, which writes the recording once the
     answer is known). Progress in seconds of log on a terminal, as ``detect``.
     """
-    from ..batch import stream_file
+    from ..run.job import run_log_from_paths
 
     opts: dict[str, Any] = {"max_points": max_points, "event_window_s": event_window_s}
-    result, _ = stream_file(str(source), robot_path=None if robot is None else str(robot),
+    result, _ = run_log_from_paths(str(source), robot_path=None if robot is None else str(robot),
                             model_path=None if model is None else str(model),
                             config_path=None if config is None else str(config),
                             read_options=read_options, show_progress=True, rrd_path=rrd,
@@ -130,7 +129,7 @@ def view_cmd(source: Path, robot: Path | None, model: Path | None,
     SOURCE is an .rrd written by `detect --rerun` (or `view --save`), or any log that
     `detect` reads; for a log the detect options given here are used.
     """
-    from .._fs import atomic_write_bytes, prepare_output
+    from ..files import atomic_write_bytes, prepare_output
 
     if save_path is not None:  # a bad --save stops the run before any work
         prepare_output(save_path)

@@ -151,7 +151,7 @@ class WarmupTracker:
             self.spill_start = start
             a = max(0, start - self.k)
             if a < m:
-                from ..spill import write_spill
+                from ..files import write_spill
 
                 for j, f in enumerate(self.spill):  # one file per joint: read alone later
                     write_spill(f, rms[a:, j])

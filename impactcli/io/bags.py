@@ -22,7 +22,6 @@ import numpy as np
 
 from ..errors import LogFormatError
 from .msgsource import Batch, MessageSource, TopicData, normalize_type
-from .paths import is_rosbag2_folder  # noqa: F401  (alias: removed in M; cli/_common)
 
 
 def _bag_error(where: str, kind: str, err: BaseException) -> LogFormatError:

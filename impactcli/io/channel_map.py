@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ChannelMapError
-from .structured import load_mapping
+from ..files import load_mapping
 
 #: Per-joint signals a log may carry, in RobotLog field names.
 SIGNALS: tuple[str, ...] = (

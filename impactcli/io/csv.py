@@ -45,7 +45,6 @@ from .csv_layout import (
     parsed_ranges,
 )
 from .stream_layout import MappedLayout, RawRows, plan_of
-from .write import write_csv  # noqa: F401  (alias: removed in M; tests/test_report_cli.py)
 
 #: Bytes of CSV text parsed at a time (one range: a 7-joint log's row is ~430 bytes).
 BLOCK_SIZE = 1 << 20

@@ -53,7 +53,7 @@ def folder_files(path: Path) -> list[Path]:
 
 def folder_sha256(path: Path) -> str:
     """sha256 of the concatenated hex sha256 digests of the folder's files, in name order."""
-    from .._fs import sha256_file
+    from ..files import sha256_file
 
     h = hashlib.sha256()
     for f in folder_files(path):
@@ -64,7 +64,7 @@ def folder_sha256(path: Path) -> str:
 def log_sha256(path: str | os.PathLike[str]) -> str:
     """The sha256 recorded for a local log: a file's bytes, or for a rosbag2 folder the
     sha256 of its files' hex sha256s in name order."""
-    from .._fs import sha256_file
+    from ..files import sha256_file
 
     p = Path(path)
     return folder_sha256(p) if p.is_dir() else sha256_file(p)

@@ -18,7 +18,7 @@ from typing import Any
 from .. import robots
 from ..errors import LabelsError, RobotDescriptionError
 from ..types import ContactLabel, JointSpec, Labels, RobotDescription
-from .structured import load_mapping
+from ..files import load_mapping
 
 
 def _num(value: Any, where: str, field: str, positive: bool = True) -> float:
@@ -179,7 +179,7 @@ def read_robot(path: str | os.PathLike[str]) -> RobotDescription:
 def write_robot(robot: RobotDescription, path: str | os.PathLike[str]) -> None:
     """Write a robot description as JSON (atomically); a URDF path is written relative to
     the file's folder, as :func:`read_robot` reads it."""
-    from .._fs import atomic_write_text
+    from ..files import atomic_write_text
 
     d = robot.to_dict()
     kin = d.get("kinematics")
@@ -228,6 +228,6 @@ def read_labels(path: str | os.PathLike[str]) -> Labels:
 
 def write_labels(labels: Labels, path: str | os.PathLike[str]) -> None:
     """Write labels as JSON (atomically)."""
-    from .._fs import atomic_write_text
+    from ..files import atomic_write_text
 
     atomic_write_text(path, json.dumps(labels.to_dict(), indent=2) + "\n")

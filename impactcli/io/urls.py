@@ -286,7 +286,7 @@ def put_file_atomic(local: str | os.PathLike[str], target: str) -> None:
     """
     lp = local_path(target)
     if lp is not None:
-        from .._fs import atomic_output
+        from ..files import atomic_output
 
         with open(local, "rb") as src, atomic_output(lp, "wb") as dst:
             shutil.copyfileobj(src, dst, 1 << 20)

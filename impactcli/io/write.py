@@ -111,7 +111,7 @@ def write_csv(log: RobotLog, path: str | os.PathLike[str]) -> None:
     import pyarrow as pa
     import pyarrow.csv as pacsv
 
-    from .._fs import atomic_output
+    from ..files import atomic_output
 
     cols = canonical_columns(log)
     table = pa.table(
@@ -154,7 +154,7 @@ def write_mcap_json(log: RobotLog, path: str | os.PathLike[str]) -> None:
     """
     from mcap.writer import CompressionType, Writer
 
-    from .._fs import atomic_output
+    from ..files import atomic_output
     from ..schema import schema_dir
 
     p = Path(path)
@@ -192,7 +192,7 @@ def write_mcap_ros2(
     (as some real recorders do; for tests); ``chunk_size`` [bytes] is the MCAP chunk size.
     Current and acceleration_ref are not carried.
     """
-    from .._fs import atomic_output
+    from ..files import atomic_output
 
     p = Path(path)
     _check_times(log, p)
@@ -360,7 +360,7 @@ def write_rosbag2(log: RobotLog, path: str | os.PathLike[str], *, split: int = 1
         if split != 1 or storage != "sqlite3":
             raise LogFormatError(f"{p}: a .db3 file is one SQLite file: write a folder to "
                                  "split or to use MCAP storage")
-        from .._fs import atomic_output
+        from ..files import atomic_output
 
         with atomic_output(p, "wb") as f:  # checks the target; the .db3 is moved onto it
             tmp = Path(tempfile.mkdtemp(prefix=".rosbag2-", dir=p.parent))
@@ -385,7 +385,7 @@ def write_rosbag1(log: RobotLog, path: str | os.PathLike[str]) -> None:
     from rosbags.rosbag1 import Writer
     from rosbags.typesys import Stores, get_typestore
 
-    from .._fs import atomic_output
+    from ..files import atomic_output
     p = Path(path)
     _check_ros_times(log, p)
     if log.t_ns[-1] >= 2**32 * 10**9:

@@ -33,8 +33,6 @@ import numpy as np
 from ..errors import ModelError
 from ..urdf_helpers import pinocchio, reduced_model, urdf_joint_order
 
-_pin_model = reduced_model  # alias: removed in M (tests/test_incidents.py)
-
 KINDS: tuple[str, ...] = ("decoupled", "coupled", "planar", "urdf")
 
 PIN_PARAMS: tuple[str, ...] = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")

@@ -27,7 +27,7 @@ class ColumnSpill:
     (the first fixes the columns); :meth:`close` removes it."""
 
     def __init__(self, prefix: str = "impactcli-spill-") -> None:
-        from ..spill import temp_space
+        from ..files import temp_space
 
         with temp_space():
             fd, self.path = tempfile.mkstemp(prefix=prefix, suffix=".parquet")
@@ -42,7 +42,7 @@ class ColumnSpill:
         import pyarrow as pa
         import pyarrow.parquet as pq
 
-        from ..spill import temp_space
+        from ..files import temp_space
 
         if self._schema is None:
             first = pa.table(cols)
@@ -58,7 +58,7 @@ class ColumnSpill:
 
     def finish(self) -> None:
         """Close the file for writing (its row groups can then be read)."""
-        from ..spill import temp_space
+        from ..files import temp_space
 
         if self._writer is not None:
             writer, self._writer = self._writer, None

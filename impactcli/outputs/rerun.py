@@ -25,7 +25,6 @@ import os
 import secrets
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -106,17 +105,6 @@ class RerunWriter:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-# alias: removed in M
-def write_rrd(result: Any, path: str | os.PathLike[str], **options: Any) -> None:
-    """:class:`RerunWriter` fed a result's in-memory signals as one chunk."""
-    log = result.log
-    with RerunWriter() as w:
-        w(SimpleNamespace(joints=tuple(log.joint_names), t_ns=log.t_ns, signals=result.signals,
-                          decisions=result.decisions, position=log.position,
-                          position_ref=log.position_ref))
-        w.write(result, path, **options)
 
 
 def write_recording(result: Any, spill: ColumnSpill, path: str | os.PathLike[str], *,

@@ -12,13 +12,12 @@ from __future__ import annotations
 
 import os
 from collections.abc import Iterator, Sequence
-from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
 
 from .. import __version__
-from .._fs import atomic_output
+from ..files import atomic_output
 from ..result import SIGNAL_NAMES
 from ..types import DETECTORS
 
@@ -88,15 +87,6 @@ class SignalsWriter:
         if self._writer is not None:
             self._writer.close()
         self._ctx.__exit__(exc_type, exc, tb)
-
-
-# alias: removed in M
-def write_signals(result: Any, path: str | os.PathLike[str]) -> None:
-    """:class:`SignalsWriter` fed a result's in-memory signals as one chunk."""
-    log = result.log
-    with SignalsWriter(path, log.t0_ns, log.source.sha256, log.source.path) as w:
-        w(SimpleNamespace(joints=tuple(log.joint_names), time_s=log.time_s,
-                          signals=result.signals, decisions=result.decisions))
 
 
 def signals_schema(path: str | os.PathLike[str]) -> tuple[list[str], dict[str, str], int]:

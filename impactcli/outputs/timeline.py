@@ -15,7 +15,7 @@ import os
 from typing import Any
 
 from .. import TOOL_NAME, __version__
-from .._fs import atomic_write_text
+from ..files import atomic_write_text
 from ..result import DetectionResult
 
 SCHEMA_VERSION = "2.0"
@@ -110,7 +110,7 @@ def read_timeline(path: str | os.PathLike[str]) -> dict[str, Any]:
     """A timeline file validated against schemas/timeline.schema.json (``report`` and
     ``evaluate`` read 1.0 and 2.x); LogFormatError naming the file and the problem."""
     from ..errors import LogFormatError
-    from ..io.structured import load_mapping
+    from ..files import load_mapping
     from ..schema import validate
 
     doc = load_mapping(path, LogFormatError, "timeline")

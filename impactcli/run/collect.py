@@ -16,11 +16,11 @@ from typing import Any
 import numpy as np
 
 from ..config import DetectorConfig
+from ..io.stream import MemoryReader
 from ..result import DetectionResult
 from ..types import RobotLog, SignalsChunk
 from .one_log import Replayed, ReplayStep, RunSetup, detect_log, replay_passes, warn_replayed
 from .plan import RunPlan, plan_run, with_generator
-from .readers import MemoryReader
 from .run_warnings import CaughtWarnings
 
 

@@ -14,9 +14,9 @@ from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
+from ..io.stream import open_log
 from ..types import SignalsChunk
 from .one_log import RunSetup, detect_log
-from .readers import FileReader
 
 
 def output_stem(path: str) -> str:
@@ -84,20 +84,20 @@ def run_log(
     signals Parquet, written as the replay goes; ``rrd_path`` the Rerun recording
     (``rrd_options``: ``max_points``, ``event_window_s``) — both atomically, and not at
     all when the replay fails; ``samples="report"`` keeps what a report reads of the
-    samples (:mod:`impactcli.outputs.report_stream`), ``samples="sweep"`` only what the
+    samples (:mod:`impactcli.outputs.report.samples`), ``samples="sweep"`` only what the
     threshold sweep reads (the ratios' columns). Progress in seconds of log, summed over the
     passes, when ``show_progress`` and stderr is a terminal.
 
     Returns:
         (the :class:`impactcli.result.DetectionResult`; the
-        :class:`impactcli.outputs.report_stream.StreamedSamples` asked for, else None),
+        :class:`impactcli.outputs.report.samples.Samples` asked for, else None),
         the caller closing the samples (they remove their spill file).
     """
     from ..outputs.signals import SignalsWriter
 
     opts = dict(read_options or {})
     read_kw = dict(opts, robot=robot) if robot is not None else dict(opts)
-    reader = FileReader(log_path, **read_kw)
+    reader = open_log(log_path, **read_kw)
     bar = None
     collector = None
     try:
@@ -112,16 +112,14 @@ def run_log(
                     signals_path, scan.t0_ns, scan.source.sha256, scan.source.path))
                 writers.append(lambda c: sig.append(c.joints, c.time_s, c.signals,
                                                     c.decisions))
-            spill = None
+            rerun = None
             if rrd_path is not None:
-                from ..outputs.rerun_stream import SpillWriter, spill_columns
+                from ..outputs.rerun import RerunWriter
 
-                spill = SpillWriter()
-                stack.callback(spill.close)
-                writers.append(lambda c: spill.append(spill_columns(
-                    c.joints, c.t_ns, c.signals, c.decisions, c.position, c.position_ref)))
+                rerun = stack.enter_context(RerunWriter())
+                writers.append(rerun)
             if samples is not None:
-                from ..outputs.report_stream import ReportCollector
+                from ..outputs.report.samples import ReportCollector
 
                 collector = ReportCollector(scan.n_samples, scan.gaps, scan.gap_lengths_s,
                                             plots=samples == "report")
@@ -142,10 +140,8 @@ def run_log(
                              config_where=config_where, read_options=opts)
             result = detect_log(reader, setup, on_chunk=on_chunk if writers else None,
                                 progress=progress if bar is not None else None)
-            if spill is not None and rrd_path is not None:
-                from ..outputs.rerun_stream import write_rrd_from_spill
-
-                write_rrd_from_spill(result, spill, rrd_path, **(rrd_options or {}))
+            if rerun is not None and rrd_path is not None:
+                rerun.write(result, rrd_path, **(rrd_options or {}))
             return result, None if collector is None else collector.finish(result)
     except BaseException:
         if collector is not None:

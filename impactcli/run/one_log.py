@@ -34,6 +34,7 @@ from ..detect.incidents import BRIDGE_FRACTION, Incident
 from ..detect.thresholds import compare_to_thresholds
 from ..detect.warmup import Warmup, WarmupTracker
 from ..errors import ConfigError
+from ..io.stream import LogReader
 from ..model.generators import choices_dict, summary_name
 from ..model.rigid import RigidModel
 from ..replay import ChunkReplay, Replayer, ReplaySetup, ReplayState
@@ -41,7 +42,6 @@ from ..result import DetectionResult
 from ..spill import ChunkSpill, Islands
 from ..types import DETECTORS, Event, LogHeader, RobotDescription, SignalsChunk
 from .plan import ChunkFeed, Passes, RunPlan, calibrated_thresholds, plan_run, with_generator
-from .readers import LogReader
 from .run_warnings import (
     CaughtWarnings,
     warn_events_after_gaps,
@@ -195,7 +195,7 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
     (module docstring).
 
     Args:
-        reader: the log (:mod:`impactcli.run.readers`); the caller closes it.
+        reader: the log (:func:`impactcli.io.stream.open_log`); the caller closes it.
         setup: config, model, robot... (:class:`RunSetup`).
         on_chunk: called per chunk, in order, with its :class:`~impactcli.types.SignalsChunk`.
         progress: called with (seconds of log done, seconds to do), summed over the passes
@@ -249,7 +249,7 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         config=cfg.to_dict(), calibrated=given is not None, thresholds=thresholds,
         reference_source="measured" if rp.reference == "measured" else "reference",
         threshold_inputs=rp.detail, torque_filtered=cfg.residual.filter_torque,
-        signals={}, decisions={}, ratios={}, events=tuple(events),
+        events=tuple(events),
         warmup_end_s=rp.warmup.end_s, warmup_per_joint_s=dict(zip(joints, rp.warmup_times,
                                                                   strict=True)),
         filter_gain={"frequencies_hz": [float(f) for f in freqs],

@@ -21,7 +21,7 @@ from ..config import DetectorConfig
 from ..detect.adaptive import check_scale
 from ..detect.screen import LeftOut
 from ..errors import ConfigError, ImpactWarning, LogFormatError, ModelError
-from ..io.stream import LogChunk, LogScan
+from ..io.stream import LogChunk, LogReader, LogScan
 from ..model.generators import (
     GeneratorChoice,
     choose_generators,
@@ -33,7 +33,6 @@ from ..model.rigid import RigidModel
 from ..replay import ChunkArrays, chunk_arrays
 from ..sampling import check_calibrated_rate
 from ..types import CONTROLLER_CHANNELS, LogSource, RobotDescription, RobotLog
-from .readers import LogReader
 
 
 def known_joints(model: RigidModel | None, cfg: DetectorConfig) -> tuple[str, ...] | None:

@@ -1,7 +1,7 @@
 """What the sensitivity study runs: the paper's Table II numbers, the arm variants and their
 task geometry, the soak's run families, and :class:`StudySpec` (sizes, scales, seed).
 
-Everything else of the study (:mod:`impactcli.sensitivity`) reads these; nothing here
+Everything else of the study (:mod:`impactcli.study`) reads these; nothing here
 simulates or scores. Seeds derive from ``StudySpec.seed`` through :func:`seed_of`.
 """
 
@@ -12,7 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from ..evaluate import MatchTolerance, geometric_scales
+from ..scoring.match import MatchTolerance
+from ..scoring.sweep import geometric_scales
 
 SCHEMA_VERSION = "1.0"
 G_N_PER_KG = 9.81
@@ -70,7 +71,7 @@ class StudySpec:
         variants: names in :data:`VARIANTS`.
         stiffnesses: elastomer stiffnesses [N/mm].
         forces_n: nominal pressing forces that set the amplitudes
-            (:mod:`impactcli.sensitivity`) [N].
+            (:mod:`impactcli.study`) [N].
         case_seeds: cases per (stiffness, amplitude), each with its own seed.
         impacts_per_case: impacts after the lead-in.
         lead_in_s: collision-free task triangles before the elastomer is slid in [s].

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ..evaluate import EVALUATED
+from ..scoring.match import EVALUATED
 from .scenarios import amplitudes
 from .spec import (
     ARM_GEOMETRY,

@@ -2,7 +2,7 @@
 
 Each task is a picklable dataclass and a top-level function (:func:`run_calibration`,
 :func:`run_soak`, :func:`run_case`): they run in worker processes
-(:func:`impactcli.sensitivity.run_study` maps them with its runner). Each simulates its
+(:func:`impactcli.study.runner.run_study` maps them with its runner). Each simulates its
 run, replays it at the arm's calibrated config and keeps only what the summary needs
 (:mod:`impactcli.study.summary`): false alarms and delays per swept threshold scale.
 """
@@ -16,8 +16,9 @@ from typing import Any
 import numpy as np
 
 from ..config import DetectorConfig
-from ..evaluate import EVALUATED, sweep_ratios
 from ..run.collect import detect_in_memory
+from ..scoring.match import EVALUATED
+from ..scoring.sweep import sweep_ratios
 from .scenarios import amplitudes, case_scenario, free_scenario, the_robot
 from .spec import SOAK_FAMILIES, VARIANTS, StudySpec, seed_of
 
@@ -40,7 +41,7 @@ class CalibOutcome:
 
 
 def run_calibration(task: CalibTask) -> CalibOutcome:
-    """Calibrate one arm on its collision-free, payload-free runs (:mod:`impactcli.sensitivity`)."""
+    """Calibrate one arm on its collision-free, payload-free runs (:mod:`impactcli.study`)."""
     import warnings
 
     from ..calibration import calibrate
@@ -97,12 +98,12 @@ def soak_false_alarms(ratios: dict[str, np.ndarray], time_s: np.ndarray, warmup_
 
     At scale s a detector decides ``ratio > s`` ((N, J), ORed over joints; the product ORs
     adaptive and static_loading); events are the intervals of
-    :func:`impactcli.evaluate.event_intervals` (the run's merge gap and minimum duration).
+    :func:`impactcli.scoring.sweep.event_intervals` (the run's merge gap and minimum duration).
     Every event still on at or after ``warmup_end_s`` is a false alarm — including one that
     began in the warm-up and never ended (a detector stuck on, e.g. a static threshold under
     an unknown payload, is not silent).
     """
-    from ..evaluate import event_intervals
+    from ..scoring.sweep import event_intervals
 
     t = np.asarray(time_s, dtype=np.float64)
     out: dict[str, tuple[int, ...]] = {}
@@ -190,7 +191,7 @@ class CaseOutcome:
 
 def run_case(task: CaseTask) -> CaseOutcome:
     """Simulate one case, replay it at the arm's calibrated config, sweep every scale."""
-    from ..evaluate import evaluate_result
+    from ..scoring.evaluation import evaluate_result
     from ..sim import simulate
 
     spec, var = task.spec, VARIANTS[task.variant]

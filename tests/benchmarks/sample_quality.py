@@ -12,7 +12,7 @@
 Every contact log in ``sample_logs/csv`` is replayed with the thresholds of its arm's config
 (``sample_logs/assist_like.config.toml``, ``sample_logs/heavy_geared.config.toml``, made by
 ``impactcli calibrate`` on collision-free sample logs — see :data:`CALIBRATION_LOGS`) and
-evaluated against its labels with :func:`impactcli.evaluate.evaluate_result` (an event
+evaluated against its labels with :func:`impactcli.scoring.evaluation.evaluate_result` (an event
 matches a contact when it starts within [start − 20 ms, end + 250 ms]). Printed: a markdown
 table per detector and log (hits, misses, delays, false alarms, smallest detected force),
 then one PASS/FAIL line per criterion with what decided it.
@@ -54,11 +54,12 @@ import numpy as np
 
 from impactcli.calibration import calibrate
 from impactcli.config import DetectorConfig, load_config
-from impactcli.evaluate import PRODUCT, Evaluation, evaluate_result
 from impactcli.io import read_log
 from impactcli.io.robot import read_labels, read_robot
 from impactcli.result import DetectionResult
 from impactcli.run.collect import detect_in_memory
+from impactcli.scoring.evaluation import Evaluation, evaluate_result
+from impactcli.scoring.match import PRODUCT
 from impactcli.types import DETECTORS, Labels, RobotDescription, RobotLog
 
 REPO = Path(__file__).resolve().parents[2]

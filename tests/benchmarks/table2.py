@@ -3,7 +3,7 @@
     python tests/benchmarks/table2.py [--quick] [--jobs N] [--markdown PATH] [--json PATH]
 
 Runs the same study as ``impactcli sensitivity --jobs N`` (default: every variant of
-:data:`impactcli.sensitivity.VARIANTS`, 15-min soak runs), prints the text tables, then a
+:data:`impactcli.study.spec.VARIANTS`, 15-min soak runs), prints the text tables, then a
 small table with the machine (platform, CPU count), the simulated soak hours, the number
 of impacts and the wall time.
 """
@@ -19,7 +19,9 @@ import time
 from pathlib import Path
 
 from impactcli.cli.sensitivity import task_runner
-from impactcli.sensitivity import VARIANTS, StudySpec, format_markdown, format_text, run_study
+from impactcli.study.runner import run_study
+from impactcli.study.spec import VARIANTS, StudySpec
+from impactcli.study.tables import format_markdown, format_text
 
 
 def main() -> None:

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from ... import TOOL_NAME, __version__
-from ..._fs import atomic_write_text, prepare_output
+from ...files import atomic_write_text, prepare_output
 from ...result import DetectionResult
 from ...types import Labels
 from .common import (

@@ -257,7 +257,7 @@ class Samples:
     def posture(self, after_s: float) -> np.ndarray:
         """(J,) each joint's median position after ``after_s`` (all samples when none)."""
         from ...detect.warmup import spilled_median
-        from ...spill import temp_space
+        from ...files import temp_space
 
         n_j = len(self.joints)
         any_after = self.index_at(after_s, "left") < self.col.n
