@@ -59,7 +59,7 @@ bench: $(STAMP)
 	$(BIN)/python tests/benchmarks/sample_quality.py
 
 samples: $(STAMP)
-	$(BIN)/python -m impactcli.sim.samples sample_logs
+	$(BIN)/python -m impactcli.sim.sample_logs sample_logs
 
 lint: $(STAMP)
 	$(BIN)/ruff check impactcli tests

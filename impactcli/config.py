@@ -9,7 +9,7 @@ and the field (CLI exit 3).
 
 Thresholds are per joint (mapping joint name → value in N·m). An empty mapping means "not
 calibrated": the caller then uses the robust rule of
-:func:`impactcli.detect.calibrate.uncalibrated_thresholds`. Table I's v_stat = [0.45, 0.2]
+:func:`impactcli.detect.thresholds.uncalibrated_thresholds`. Table I's v_stat = [0.45, 0.2]
 N·m (ASSIST arm) is kept as :data:`TABLE_I_V_STAT` for reference and for 2-joint
 simulations only; it is never applied to a real robot silently.
 """
@@ -226,9 +226,9 @@ class CalibrationRecord:
         excluded: ``{log, start_s, end_s, reason}`` stretches left out of the calibration
             (labelled contacts; likely contacts found without labels).
         sample_rate_hz: the sample rate of the calibration logs [Hz]
-            (:func:`impactcli.sampling.sample_clock`; None: not recorded, older configs). A
+            (:func:`impactcli.clock.sample_clock`; None: not recorded, older configs). A
             log sampled at another rate is refused
-            (:func:`impactcli.sampling.check_calibrated_rate`): thresholds depend on it.
+            (:func:`impactcli.clock.check_calibrated_rate`): thresholds depend on it.
     """
 
     calibrated: bool = False

@@ -11,14 +11,13 @@ from typing import Any
 
 import numpy as np
 
+from impactcli.clock import gap_steps
 from impactcli.outputs.report import RenderedLog, assemble_report, render_log, write_report
 from impactcli.outputs.report.margins import false_alarm_margins
 from impactcli.outputs.report.samples import ReportCollector, Samples
 from impactcli.outputs.rerun import RerunWriter
 from impactcli.outputs.signals import SignalsWriter
-from impactcli.result import SIGNAL_NAMES, DetectionResult
-from impactcli.sampling import gap_steps
-from impactcli.types import DETECTORS, Event, Labels
+from impactcli.types import DETECTORS, SIGNAL_NAMES, DetectionResult, Event, Labels
 
 from .conftest import make_log
 

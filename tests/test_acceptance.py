@@ -22,8 +22,8 @@ from click.testing import CliRunner
 
 from impactcli.cli import main
 from impactcli.config import DetectorConfig, load_config
-from impactcli.scoring.evaluation import evaluate_events
-from impactcli.scoring.match import PRODUCT
+from impactcli.quality.evaluation import evaluate_events
+from impactcli.quality.match import PRODUCT
 
 from .benchmarks import sample_quality as sq
 
@@ -163,7 +163,7 @@ def test_demo_command_detects_every_impact_of_20N_within_80ms(tmp_path: Path) ->
     """README's ``make demo`` through the CLI: the timeline's events meet C2."""
     import json
 
-    from impactcli.io.robot import read_labels
+    from impactcli.logs.robot_files import read_labels
 
     out = tmp_path / "demo"
     r = CliRunner().invoke(main, [

@@ -10,9 +10,9 @@ from typing import Any
 import pytest
 
 from impactcli import batch
-from impactcli.batch import DetectJob, JobOutcome, batch_summary, run_detect_job
 from impactcli.errors import LogFormatError
-from impactcli.io import urls
+from impactcli.logs import urls
+from impactcli.run.batch import DetectJob, JobOutcome, batch_summary, run_detect_job
 
 
 @pytest.fixture(autouse=True)
@@ -287,7 +287,7 @@ def test_detect_outputs_are_checked_before_any_log_is_read(tmp_path: Path,
 def test_timeline_says_how_the_threshold_inputs_were_made() -> None:
     """The ROS 2 MCAP copy of a log has no acceleration reference: its inputs differ from
     the CSV copy's, and each timeline says how they were made."""
-    from impactcli.io import read_log
+    from impactcli.logs import read_log
     from impactcli.outputs.timeline import timeline_dict
     from impactcli.run.collect import detect_in_memory
 

@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from impactcli.calibration import calibrate
 from impactcli.cli import main
 from impactcli.config import load_config
-from impactcli.detect.calibrate import segment_bounds, suspect_blocks
-from impactcli.io import read_log
-from impactcli.io.robot import read_labels
+from impactcli.detect.thresholds import segment_bounds, suspect_blocks
+from impactcli.logs import read_log
+from impactcli.logs.robot_files import read_labels
+from impactcli.run.calibration import calibrate
 from impactcli.types import RobotLog
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs" / "csv"
@@ -114,8 +114,8 @@ def test_labelled_contacts_beside_a_free_log_are_named(tmp_path: Path) -> None:
     """A labels file beside a calibration log (<stem>.labels.json, found without --labels):
     calibrate says how many contacts it leaves out and from which file, on stdout, and
     records the stretch in the config."""
-    from impactcli.io import write_log
-    from impactcli.io.robot import write_labels
+    from impactcli.logs import write_log
+    from impactcli.logs.robot_files import write_labels
     from impactcli.types import ContactLabel, Labels
 
     log_path = tmp_path / "shift3.csv"

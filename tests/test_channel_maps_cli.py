@@ -9,7 +9,7 @@ from pathlib import Path
 from click.testing import CliRunner
 
 from impactcli.cli import main
-from impactcli.io.channel_map import load_channel_map, shipped_map_names
+from impactcli.logs.channel_map import load_channel_map, shipped_map_names
 
 
 def test_the_list_names_every_shipped_map_with_its_format_and_folder() -> None:

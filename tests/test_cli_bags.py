@@ -13,8 +13,8 @@ import pytest
 from click.testing import CliRunner, Result
 
 from impactcli.cli import main
-from impactcli.io import log_sha256, log_stem
-from impactcli.io.write import write_rosbag1, write_rosbag2
+from impactcli.logs import log_sha256, log_stem
+from impactcli.logs.write import write_rosbag1, write_rosbag2
 from impactcli.types import RobotLog
 
 from .conftest import make_log

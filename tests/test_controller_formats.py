@@ -17,12 +17,11 @@ import numpy as np
 import pytest
 import yaml
 
-from impactcli.calibration import calibrate
-from impactcli.io import read_log, write_log
-from impactcli.io.mcap_ros2 import JOINT_STATE, JOINT_STATE_DEF, encode_jointstates
-from impactcli.result import DetectionResult
+from impactcli.logs import read_log, write_log
+from impactcli.logs.ros2_cdr import JOINT_STATE, JOINT_STATE_DEF, encode_jointstates
+from impactcli.run.calibration import calibrate
 from impactcli.run.collect import detect_in_memory
-from impactcli.types import RobotLog
+from impactcli.types import DetectionResult, RobotLog
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs" / "csv"
 STATE = "impactcli_test/msg/ArmSample"

@@ -16,7 +16,7 @@ from click.testing import CliRunner
 
 from impactcli.cli import main
 from impactcli.errors import ImpactWarning, LogFormatError
-from impactcli.io import read_log
+from impactcli.logs import read_log
 from impactcli.types import RobotLog
 
 N = 300
@@ -230,7 +230,7 @@ def _with_empty_column(tmp_path: Path, column: str, cell: str) -> Path:
     (empty or NaN) in every row."""
     import dataclasses
 
-    from impactcli.io import write_log
+    from impactcli.logs import write_log
 
     from .conftest import make_log
 
@@ -296,8 +296,8 @@ def test_every_joints_optional_column_empty_says_so_once(tmp_path: Path) -> None
 def test_a_column_without_any_finite_value_that_must_have_one_says_so() -> None:
     """The error of a non-finite run spanning the whole column says the column holds no
     finite value (it read '... at the start of the log at the end of the log')."""
-    from impactcli.io.repair import Repairer
-    from impactcli.io.stream_layout import RawRows, StreamLayout
+    from impactcli.logs.layout import RawRows, StreamLayout
+    from impactcli.logs.repair import Repairer
 
     class Two(StreamLayout):
         where, names, droppable = "f.csv", ["a.position", "x"], set()

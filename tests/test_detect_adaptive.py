@@ -344,8 +344,8 @@ def test_sample_impacts_log_gives_plain_eq39_bitwise() -> None:
     """sample_logs' assist_impacts (the elbow's reference is constant throughout): the
     guard acts at 6 669 of 18 176 samples per axis, and the replay equals plain eq. 39."""
     from impactcli.config import load_config
-    from impactcli.io import read_log
-    from impactcli.io.robot import read_robot
+    from impactcli.logs import read_log
+    from impactcli.logs.robot_files import read_robot
     from impactcli.run.collect import stats_in_memory
     from impactcli.run.plan import calibrated_thresholds
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from impactcli.detect.calibrate import (
+from impactcli.detect.thresholds import (
     adaptive_statistic,
     block_maxima,
     calibrate_thresholds,

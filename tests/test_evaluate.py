@@ -10,10 +10,9 @@ import pytest
 
 from impactcli.detect.events import extract_events
 from impactcli.errors import ConfigError, ImpactWarning, LabelsError, LogFormatError
-from impactcli.schema import validate
-from impactcli.scoring.evaluation import evaluate_events
-from impactcli.scoring.match import MatchTolerance, product_events, scored_event
-from impactcli.scoring.sweep import (
+from impactcli.quality.evaluation import evaluate_events
+from impactcli.quality.match import MatchTolerance, product_events, scored_event
+from impactcli.quality.sweep import (
     EventIntervals,
     SweepRow,
     ThresholdSweep,
@@ -21,8 +20,8 @@ from impactcli.scoring.sweep import (
     event_settings,
     sweep_ratios,
 )
-from impactcli.scoring.text import format_evaluation
-from impactcli.scoring.verdict import (
+from impactcli.quality.text import format_evaluation
+from impactcli.quality.verdict import (
     adaptive_helps,
     at_zero_false_alarms,
     compare_at_zero,
@@ -30,6 +29,7 @@ from impactcli.scoring.verdict import (
     sweep_to_dict,
     verdict,
 )
+from impactcli.schema import validate
 from impactcli.types import ContactLabel, Event, Labels
 
 from .fakes import fake_result

@@ -15,8 +15,8 @@ import impactcli.cli.evaluate as cli_eval
 from impactcli.cli import main
 from impactcli.errors import LabelsError
 from impactcli.outputs.timeline import write_timeline
+from impactcli.quality.sweep import DEFAULT_SWEEP_SCALES, ratios_from_signals, sweep_ratios
 from impactcli.schema import validate
-from impactcli.scoring.sweep import DEFAULT_SWEEP_SCALES, ratios_from_signals, sweep_ratios
 
 from .fakes import fake_result, write_fake_signals
 from .test_evaluate import SWEEP_LABELS, sweep_result
@@ -386,7 +386,7 @@ def test_timeline_sweep_reads_its_signals_one_row_group_at_a_time(tmp_path, monk
     want = sweep_ratios(ratios_from_signals(cols, res.log.joint_names, res.thresholds),
                         res.log.time_s, labels=SWEEP_LABELS, scales=(1, 1.3),
                         warmup_end_s=res.warmup_end_s, merge_gap_s=0.02, min_duration_s=0.0)
-    from impactcli.scoring.verdict import sweep_to_dict
+    from impactcli.quality.verdict import sweep_to_dict
 
     assert json.loads(r.stdout)["sweep"] == json.loads(json.dumps(sweep_to_dict(want)))
 
@@ -394,8 +394,8 @@ def test_timeline_sweep_reads_its_signals_one_row_group_at_a_time(tmp_path, monk
 def test_end_to_end_log_and_timeline_agree(tmp_path):
     """Simulated impacts → LOG evaluated (detection inside) and LOG → detect --signals →
     TIMELINE evaluated: the same evaluation and the same sweep."""
-    from impactcli.io import write_log
-    from impactcli.io.robot import write_labels, write_robot
+    from impactcli.logs import write_log
+    from impactcli.logs.robot_files import write_labels, write_robot
     from impactcli.sim.core import simulate
     from impactcli.sim.scenarios import scenario
 

@@ -73,8 +73,8 @@ def assist_impacts() -> tuple[np.ndarray, np.ndarray, float, AdaptiveConfig, lis
     """Residual and inputs of sample_logs' assist_impacts through the replay's threshold-free pass
     (the elbow's reference is constant: the wind-up guard acts at 6 669 samples per axis)."""
     from impactcli.config import load_config
-    from impactcli.io import read_log
-    from impactcli.io.robot import read_robot
+    from impactcli.logs import read_log
+    from impactcli.logs.robot_files import read_robot
     from impactcli.run.collect import stats_in_memory
 
     from .reference.adaptive import threshold_inputs

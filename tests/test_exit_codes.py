@@ -15,8 +15,8 @@ from click.testing import CliRunner
 from impactcli import batch
 from impactcli.cli import main
 from impactcli.errors import EXIT_SOFTWARE, LogFormatError
-from impactcli.io import inspect as io_inspect
-from impactcli.io import read_log, write_log
+from impactcli.logs import inspect as io_inspect
+from impactcli.logs import read_log, write_log
 
 REPO = Path(__file__).resolve().parents[1]
 LOG = REPO / "sample_logs" / "csv" / "assist_free_p2p.csv.gz"

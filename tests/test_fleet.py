@@ -23,7 +23,7 @@ from click.testing import CliRunner, Result
 
 from impactcli.cli import main
 from impactcli.errors import ImpactError
-from impactcli.executors import (
+from impactcli.run.executors import (
     DaskMissingError,
     ExecutorChoice,
     TaskFailure,
@@ -59,7 +59,7 @@ def cluster() -> Iterator[Any]:
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     """N_LOGS simulated logs (one with impacts), a corrupt one, and a model identified once."""
-    from impactcli.io import write_log
+    from impactcli.logs import write_log
     from impactcli.sim import scenario, simulate
 
     root = tmp_path_factory.mktemp("fleet")

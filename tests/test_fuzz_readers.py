@@ -21,7 +21,7 @@ from hypothesis import strategies as st
 
 from impactcli.cli import main
 from impactcli.errors import ImpactError, ImpactWarning
-from impactcli.io import read_log, write_log
+from impactcli.logs import read_log, write_log
 from impactcli.types import LogSource, RobotLog
 
 EXAMPLES = int(os.environ.get("IMPACTCLI_FUZZ_EXAMPLES", "0")) or None

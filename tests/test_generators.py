@@ -12,13 +12,13 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from impactcli.calibration import calibrate
 from impactcli.cli import main
 from impactcli.config import DetectorConfig, load_config
 from impactcli.errors import ConfigError, LogFormatError
-from impactcli.io import read_log, write_log
+from impactcli.logs import read_log, write_log
 from impactcli.model.generators import choose_generators
 from impactcli.outputs.timeline import timeline_dict
+from impactcli.run.calibration import calibrate
 from impactcli.run.collect import detect_in_memory
 from impactcli.schema import validate
 from impactcli.types import LogSource, RobotLog

@@ -1,4 +1,4 @@
-"""Time hygiene: one sample-rate estimator and gap rule (impactcli.sampling), rows out of
+"""Time hygiene: one sample-rate estimator and gap rule (impactcli.clock), rows out of
 time order (--repair-order), time units (--time-unit, the 20 Hz – 100 kHz check), the
 calibration rate, and labels that start before the log."""
 
@@ -16,10 +16,10 @@ import yaml
 from click.testing import CliRunner
 
 from impactcli.cli import main
+from impactcli.clock import check_calibrated_rate, gap_steps, sample_clock
 from impactcli.errors import ConfigError, ImpactWarning, LogFormatError
-from impactcli.io import read_log, write_log
-from impactcli.io.repair import longest_increasing
-from impactcli.sampling import check_calibrated_rate, gap_steps, sample_clock
+from impactcli.logs import read_log, write_log
+from impactcli.logs.repair import longest_increasing
 
 REPO = Path(__file__).resolve().parents[1]
 SAMPLES = REPO / "sample_logs" / "csv"

@@ -15,7 +15,7 @@ from click.testing import CliRunner
 from impactcli.cli import main
 from impactcli.cli.fit_table import format_fit_table
 from impactcli.errors import ImpactWarning, ModelError, RobotDescriptionError
-from impactcli.io import read_log, write_log
+from impactcli.logs import read_log, write_log
 from impactcli.model import IdentifyOptions, identify, read_model
 from impactcli.types import JointSpec, LogSource, RobotDescription, RobotLog
 

@@ -11,7 +11,7 @@ import pytest
 
 from impactcli.model import IdentifyOptions, zero_phase_lowpass
 from impactcli.model import rows as rows_mod
-from impactcli.model.identify import IdentifyStream
+from impactcli.model.identification import IdentifyStream
 from impactcli.model.rows import Windows, decay_margin
 
 

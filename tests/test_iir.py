@@ -1,4 +1,4 @@
-"""impactcli.iir: SciPy's filter design and recursive filtering without importing
+"""impactcli.model.iir: SciPy's filter design and recursive filtering without importing
 scipy.signal, the same bits (its module docstring)."""
 
 from __future__ import annotations
@@ -99,7 +99,7 @@ def test_replay_does_not_import_scipy_signal() -> None:
     code = (
         "import sys, warnings; warnings.simplefilter('ignore')\n"
         "from impactcli.config import load_config\n"
-        "from impactcli.io import read_log\n"
+        "from impactcli.logs import read_log\n"
         "from impactcli.run.collect import detect_in_memory\n"
         f"cfg = load_config({str(root / 'sample_logs' / 'heavy_geared.config.toml')!r})\n"
         f"log = read_log({str(root / 'sample_logs' / 'csv' / 'heavy_impacts.csv.gz')!r})\n"

@@ -19,8 +19,8 @@ from impactcli.detect.incidents import (
     isolate,
     planar_jacobian,
 )
-from impactcli.io import read_log
-from impactcli.io.robot import read_labels
+from impactcli.logs import read_log
+from impactcli.logs.robot_files import read_labels
 from impactcli.outputs.timeline import timeline_dict
 from impactcli.run.collect import detect_in_memory
 from impactcli.schema import validate
@@ -147,7 +147,7 @@ def test_cli_counts_incidents_and_gates_on_force(tmp_path: Path) -> None:
 def test_fail_on_force_without_kinematics_warns(tmp_path: Path) -> None:
     import dataclasses
 
-    from impactcli.io import write_log
+    from impactcli.logs import write_log
 
     from .test_screen import three_joint_log
 
@@ -167,8 +167,8 @@ def test_urdf_link_end_jacobian_matches_finite_differences() -> None:
     4 recovered from J^T F."""
     pytest.importorskip("pinocchio")
     from impactcli.errors import ImpactError
+    from impactcli.logs.robot_catalogue import arm_joints, urdf_text
     from impactcli.model.kinematics import urdf_link_end_jacobian
-    from impactcli.robots import arm_joints, urdf_text
 
     try:
         joints, xml = arm_joints("panda"), urdf_text("panda")
@@ -179,7 +179,7 @@ def test_urdf_link_end_jacobian_matches_finite_differences() -> None:
     q = np.array([0.1, -0.5, 0.3, -2.0, 0.2, 1.5, 0.4])
     import pinocchio as pin
 
-    from impactcli.urdf_helpers import reduced_model
+    from impactcli.logs.urdf import reduced_model
 
     model = reduced_model(xml, joints, "panda")
     data = model.createData()

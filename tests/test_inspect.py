@@ -12,7 +12,7 @@ from click.testing import CliRunner
 
 from impactcli.cli import main
 from impactcli.errors import ImpactError, ImpactWarning
-from impactcli.io import inspect_log, write_log
+from impactcli.logs import inspect_log, write_log
 from impactcli.schema import validate
 from impactcli.types import RobotLog
 

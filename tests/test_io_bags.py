@@ -16,9 +16,9 @@ from click.testing import CliRunner
 
 from impactcli.cli import main
 from impactcli.errors import ImpactError, LogFormatError, OutputError
-from impactcli.io import LOG_SUFFIXES, inspect_log, log_stem, read_log, write_log
-from impactcli.io.paths import folder_sha256
-from impactcli.io.write import write_rosbag1, write_rosbag2
+from impactcli.logs import LOG_SUFFIXES, inspect_log, log_stem, read_log, write_log
+from impactcli.logs.paths import folder_sha256
+from impactcli.logs.write import write_rosbag1, write_rosbag2
 from impactcli.schema import validate
 from impactcli.types import RobotLog
 
@@ -125,7 +125,7 @@ def _bag_with_topics(path: Path, topics: list[tuple[str, str]], n: int = 20) -> 
     """A rosbag2 .db3 folder file with JointState and String topics (n messages each)."""
     from rosbags.rosbag2 import Writer
 
-    from impactcli.io.mcap_ros2 import encode_jointstates
+    from impactcli.logs.ros2_cdr import encode_jointstates
 
     store = store_with(base="ros2")
     String = store.types["std_msgs/msg/String"]

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from impactcli.errors import ImpactWarning, LogFormatError
-from impactcli.io import read_log
-from impactcli.io.channel_map import load_channel_map, shipped_map_names
+from impactcli.logs import read_log
+from impactcli.logs.channel_map import load_channel_map, shipped_map_names
 from impactcli.schema import validate
 from impactcli.types import JointSpec, RobotDescription
 
@@ -152,7 +152,7 @@ def test_real_ur_logs_through_shipped_map(real_logs: Path, name: str, n: int,
     assert log.n_joints == 6 and log.n_samples == n
     assert log.duration_s == pytest.approx(seconds, abs=0.1)
     # steps of 10 ms and (a fifth to a third of them) 12 ms: the mean spacing
-    # (impactcli.sampling), not the median step's 100 Hz
+    # (impactcli.clock), not the median step's 100 Hz
     assert log.sample_rate_hz == pytest.approx((n - 1) / log.duration_s, rel=1e-9)
     assert log.source.torque_source == "current" and log.source.repairs == ()
     raw = np.loadtxt(path, delimiter=",")

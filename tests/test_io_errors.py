@@ -12,7 +12,7 @@ from click.testing import CliRunner
 
 from impactcli.cli import main
 from impactcli.errors import ChannelMapError, LogFormatError
-from impactcli.io import read_log, write_log
+from impactcli.logs import read_log, write_log
 
 from .conftest import make_log
 

@@ -22,9 +22,9 @@ from mcap.writer import Writer as McapWriter
 
 from impactcli.cli import main
 from impactcli.errors import ChannelMapError, ImpactError, ImpactWarning, LogFormatError
-from impactcli.io import inspect_log, read_log, write_log
-from impactcli.io.mcap_ros2 import JOINT_STATE, JOINT_STATE_DEF, decode_topic_official
-from impactcli.io.mcap_ros2 import encode_jointstates as encode_js
+from impactcli.logs import inspect_log, read_log, write_log
+from impactcli.logs.ros2_cdr import JOINT_STATE, JOINT_STATE_DEF, decode_topic_official
+from impactcli.logs.ros2_cdr import encode_jointstates as encode_js
 from impactcli.schema import validate
 from impactcli.types import RobotLog
 
@@ -554,7 +554,7 @@ def test_map_and_log_kinds_must_match(tmp_path: Path) -> None:
 
 
 def test_schema_example_and_shipped_maps_validate() -> None:
-    from impactcli.io.channel_map import load_channel_map, shipped_map_names
+    from impactcli.logs.channel_map import load_channel_map, shipped_map_names
     from impactcli.schema import schema_dir
 
     assert {"franka_state_example", "jointstate_external_torque_example"} <= set(
@@ -632,9 +632,9 @@ def _odd_file(tmp: Path, n: int = 300, short_at: int | None = None) -> tuple[Pat
 
 
 def _odd_fields(p: Path) -> tuple[np.ndarray, np.ndarray | None]:
-    from impactcli.io.fieldread import read_fields
-    from impactcli.io.fields import FieldPath
-    from impactcli.io.mcap_scan import McapSource, scan_mcap
+    from impactcli.logs.field_read import read_fields
+    from impactcli.logs.fields import FieldPath
+    from impactcli.logs.mcap import McapSource, scan_mcap
 
     src = McapSource(scan_mcap(p), str(p))
     td = src.load(["/odd"])["/odd"]
@@ -650,7 +650,7 @@ def _odd_fields(p: Path) -> tuple[np.ndarray, np.ndarray | None]:
 def test_bulk_field_reading_equals_the_truth_and_the_one_by_one_decoder(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    import impactcli.io.fieldread as fr
+    import impactcli.logs.field_read as fr
 
     p, truth = _odd_file(tmp_path)
     want = np.c_[truth["tau1"], truth["pt2x"], truth["pt2y"], truth["b"], truth["small"],

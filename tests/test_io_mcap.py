@@ -13,8 +13,9 @@ from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
 
 from impactcli.errors import ImpactWarning, LogFormatError
-from impactcli.io import read_log, write_log
-from impactcli.io.mcap_ros2 import (
+from impactcli.logs import read_log, write_log
+from impactcli.logs.mcap import scan_mcap
+from impactcli.logs.ros2_cdr import (
     JOINT_STATE,
     JOINT_STATE_DEF,
     decode_topic,
@@ -22,8 +23,7 @@ from impactcli.io.mcap_ros2 import (
     encode_jointstates,
     parse_jointstate,
 )
-from impactcli.io.mcap_scan import scan_mcap
-from impactcli.io.write import write_mcap_ros2
+from impactcli.logs.write import write_mcap_ros2
 from impactcli.types import RobotLog
 
 from .conftest import make_log
@@ -298,7 +298,7 @@ def test_write_log_ros2_readable_by_official_reader(tmp_path: Path) -> None:
 def test_unsupported_files_fall_back_to_the_official_reader(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import impactcli.io.mcap_scan as scan_mod
+    import impactcli.logs.mcap as scan_mod
 
     log = _log(ref=True)
     path = tmp_path / "f.mcap"

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from impactcli.io import log_stem, read_log, write_log
+from impactcli.logs import log_stem, read_log, write_log
 from impactcli.types import RobotLog
 
 from .conftest import make_log

@@ -1,4 +1,4 @@
-"""The one reader (impactcli.io.stream) on CSV: for every chunk size the chunks are the same
+"""The one reader (impactcli.logs.reader) on CSV: for every chunk size the chunks are the same
 arrays bit for bit (read_log collects them), the scan's clock, gaps and screens are those
 of the whole log's arrays, the repairs are warned once by the scan, and a bad file fails
 in the scan with one message naming the cell."""
@@ -15,14 +15,14 @@ from typing import Any
 import numpy as np
 import pytest
 
-from impactcli.detect.screen import unusable_columns
 from impactcli.errors import ImpactWarning, LogFormatError
-from impactcli.io import csv as csv_reader
-from impactcli.io import read_log, stream_cache, write_log
-from impactcli.io import scan as scan_module
-from impactcli.io.inspect import time_gaps
-from impactcli.io.stream import LogScan, iter_chunks, scan_log
-from impactcli.io.stream_layout import OPTIONAL
+from impactcli.logs import csv as csv_reader
+from impactcli.logs import read_log, stream_cache, write_log
+from impactcli.logs import scan as scan_module
+from impactcli.logs.describe import time_gaps
+from impactcli.logs.layout import OPTIONAL
+from impactcli.logs.reader import LogScan, iter_chunks, scan_log
+from impactcli.logs.screen import unusable_columns
 from impactcli.types import JointSpec, RobotDescription
 
 CHUNKS = (1, 2, 7, 1000, 65536)
@@ -358,7 +358,7 @@ def test_repair_order_keeps_the_longest_increasing_run(tmp_path: Path) -> None:
     """Rows written late, a repeated stamp and duplicates across blocks: the rows kept are
     the longest increasing run of the stamps (repair.longest_increasing), dropped rows are
     counted in one repair, and the other repairs run over the rows kept."""
-    from impactcli.io.repair import longest_increasing
+    from impactcli.logs.repair import longest_increasing
 
     rng = np.random.default_rng(3)
     cols = _table()
@@ -417,8 +417,8 @@ def test_the_fast_decimal_time_is_decimal_text_to_ns() -> None:
     import pyarrow as pa
     import pyarrow.compute as pc
 
-    from impactcli.io.csv_layout import decimal_text_to_ns
-    from impactcli.io.csv_layout import decimal_to_ns as _decimal_ns
+    from impactcli.logs.csv_layout import decimal_text_to_ns
+    from impactcli.logs.csv_layout import decimal_to_ns as _decimal_ns
 
     rng = np.random.default_rng(4)
     ns = rng.integers(-10**18, 9 * 10**18, 2000)
@@ -541,8 +541,8 @@ def test_parsed_ranges_are_the_whole_files_rows(tmp_path: Path, block: int) -> N
     import pyarrow as pa
     import pyarrow.csv as pacsv
 
-    from impactcli.io.csv import parsed_ranges
-    from impactcli.io.csv_layout import csv_layout
+    from impactcli.logs.csv import parsed_ranges
+    from impactcli.logs.csv_layout import csv_layout
 
     cols = {k: v[:300] for k, v in _table().items()}
     path = _write(tmp_path / "crlf.csv", cols)

@@ -13,7 +13,7 @@ from click.testing import CliRunner
 from impactcli.cli import main
 from impactcli.cli.labels import stretches
 from impactcli.errors import LabelsError
-from impactcli.io import write_log
+from impactcli.logs import write_log
 from impactcli.schema import validate
 
 from .conftest import make_log
@@ -141,8 +141,8 @@ def test_sample_log_labels_from_a_force_column_score_the_answer(tmp_path):
     log = SAMPLES / "csv" / "assist_pushes.csv.gz"
     if not log.is_file():
         pytest.skip("sample logs not present")
-    from impactcli.io import read_log
-    from impactcli.io.robot import read_labels
+    from impactcli.logs import read_log
+    from impactcli.logs.robot_files import read_labels
 
     t = read_log(log).time_s
     truth = read_labels(SAMPLES / "csv" / "assist_pushes.labels.json").events

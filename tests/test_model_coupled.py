@@ -14,8 +14,8 @@ from click.testing import CliRunner
 from impactcli.cli import main
 from impactcli.config import load_config
 from impactcli.errors import ImpactWarning
-from impactcli.io import read_log
-from impactcli.io.robot import read_robot
+from impactcli.logs import read_log
+from impactcli.logs.robot_files import read_robot
 from impactcli.model import (
     IdentifyOptions,
     ResidualOptions,

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from impactcli.plausibility import (
+from impactcli.logs.plausibility import (
     DEG,
     JointLimits,
     MotionSketch,

@@ -1,4 +1,4 @@
-"""The causal replay in chunks equals the replay of one chunk bit for bit (impactcli.replay).
+"""The causal replay in chunks equals the replay of one chunk bit for bit (impactcli.run.replay).
 
 Every stage — residual (inverse dynamics, momentum observer, the controller's channels
 with and without correction), threshold inputs (logged references, position reference,
@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 
 from impactcli.config import DetectorConfig, load_config
-from impactcli.io import read_log
+from impactcli.logs import read_log
 from impactcli.model import RigidModel, identify
 from impactcli.model.generators import choose_generators
-from impactcli.replay import (
+from impactcli.run.replay import (
     ChunkArrays,
     ChunkReplay,
     Replayer,

@@ -16,9 +16,8 @@ from impactcli.cli.report import auto_labels, pair_labels
 from impactcli.detect.incidents import planar_jacobian, smallest_caught_force
 from impactcli.outputs import report, svgplot
 from impactcli.outputs.report import GUARD_S, log_stem, verdict_text
-from impactcli.result import DetectionResult
 from impactcli.schema import load_schema
-from impactcli.types import ContactLabel, Event, Labels, LogSource
+from impactcli.types import ContactLabel, DetectionResult, Event, Labels, LogSource
 
 from .fakes import build_report, fake_result, margins, render, with_incidents, write_fake_report
 

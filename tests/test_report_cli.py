@@ -20,9 +20,9 @@ from click.testing import CliRunner, Result
 
 from impactcli.cli import main
 from impactcli.errors import LogFormatError
-from impactcli.io import read_log  # type: ignore[attr-defined]
-from impactcli.io.robot import write_labels
-from impactcli.io.write import write_csv
+from impactcli.logs import read_log  # type: ignore[attr-defined]
+from impactcli.logs.robot_files import write_labels
+from impactcli.logs.write import write_csv
 from impactcli.outputs.timeline import write_timeline
 from impactcli.schema import load_schema
 from impactcli.types import ContactLabel, Labels

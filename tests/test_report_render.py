@@ -116,7 +116,7 @@ def test_the_first_screen_answers_on_the_sample_logs(tmp_path: Path) -> None:
     import warnings
 
     from impactcli.config import load_config
-    from impactcli.io.robot import read_labels
+    from impactcli.logs.robot_files import read_labels
     from impactcli.outputs.report import render_log
     from impactcli.run.job import run_log as stream_log
 

@@ -18,8 +18,8 @@ from click.testing import CliRunner
 
 from impactcli.cli import main
 from impactcli.config import load_config
-from impactcli.io.robot import read_labels
-from impactcli.io.stream import open_log, scan_log
+from impactcli.logs.reader import open_log, scan_log
+from impactcli.logs.robot_files import read_labels
 from impactcli.outputs.report import assemble_report, render_log, report_json
 from impactcli.outputs.report.samples import ReportCollector
 from impactcli.outputs.svgplot import EnvelopeAccumulator, envelope

@@ -14,8 +14,7 @@ import numpy as np
 import pytest
 
 from impactcli.outputs.rerun_blueprint import ELAPSED_TIMELINE, LOG_TIMELINE
-from impactcli.result import DetectionResult
-from impactcli.types import DETECTORS
+from impactcli.types import DETECTORS, DetectionResult
 
 from .fakes import fake_result
 from .fakes import write_fake_rrd as write_rrd

@@ -21,8 +21,8 @@ from click.testing import CliRunner
 from impactcli import robots
 from impactcli.cli import main
 from impactcli.errors import RobotDescriptionError
-from impactcli.io import write_log
-from impactcli.io.robot import read_robot, robot_from_dict
+from impactcli.logs import write_log
+from impactcli.logs.robot_files import read_robot, robot_from_dict
 from impactcli.model import read_model
 from impactcli.schema import validate
 from impactcli.types import LogSource, RobotLog

@@ -25,8 +25,8 @@ from hypothesis import strategies as st
 from impactcli.cli import main
 from impactcli.config import DetectorConfig, dumps_config, load_config, save_config
 from impactcli.errors import ConfigError, LabelsError, ModelError, RobotDescriptionError
-from impactcli.io import read_log, write_log
-from impactcli.io.robot import (
+from impactcli.logs import read_log, write_log
+from impactcli.logs.robot_files import (
     labels_from_dict,
     read_labels,
     read_robot,

@@ -1,4 +1,4 @@
-"""The sample clock and the gap rule chunk by chunk (impactcli.sampling): the step histogram
+"""The sample clock and the gap rule chunk by chunk (impactcli.clock): the step histogram
 of consecutive chunks gives the whole log's clock to the bit, and chunked gap finding the
 whole log's gaps, whatever the chunking."""
 
@@ -12,7 +12,7 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 
-from impactcli.sampling import (
+from impactcli.clock import (
     TAIL_STAMPS,
     GapStream,
     SampleClock,

@@ -12,7 +12,7 @@ from click.testing import CliRunner
 from impactcli.cli import main
 from impactcli.detect.adaptive import check_scale, replay_cost
 from impactcli.errors import ScaleLimitError
-from impactcli.io import write_log
+from impactcli.logs import write_log
 from impactcli.run.one_log import RunSetup
 
 from .conftest import make_log
@@ -44,7 +44,7 @@ def test_a_replay_reports_its_progress_in_seconds_of_log_over_its_passes() -> No
     seconds of log, out of three passes over the log."""
     import warnings
 
-    from impactcli.io.stream import MemoryReader
+    from impactcli.logs.reader import MemoryReader
     from impactcli.run.one_log import RunSetup, detect_log
 
     seen: list[tuple[float, float]] = []

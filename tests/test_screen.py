@@ -1,6 +1,6 @@
 """Real-log hygiene: flat or unmeasured torque channels and joints the model or config does
 not cover are left out of detection (warned, recorded in the timeline and the config);
-flat controller channels are read as not logged (impactcli.detect.screen)."""
+flat controller channels are read as not logged (impactcli.logs.screen)."""
 
 from __future__ import annotations
 
@@ -12,13 +12,13 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from impactcli.calibration import calibrate
 from impactcli.cli import main
 from impactcli.config import DetectorConfig
-from impactcli.detect.screen import unusable_columns
 from impactcli.errors import LogFormatError
-from impactcli.io import write_log
+from impactcli.logs import write_log
+from impactcli.logs.screen import unusable_columns
 from impactcli.outputs.timeline import timeline_dict
+from impactcli.run.calibration import calibrate
 from impactcli.run.collect import detect_in_memory
 from impactcli.schema import validate
 from impactcli.types import RobotLog

@@ -12,11 +12,11 @@ import pytest
 from click.testing import CliRunner
 
 from impactcli.cli import main
+from impactcli.quality.match import EVALUATED
 from impactcli.schema import load_schema
-from impactcli.scoring.match import EVALUATED
-from impactcli.study.scenarios import amplitudes, case_scenario, the_robot
+from impactcli.study.aggregate import poisson_upper_95, summarize, zero_fa_index
+from impactcli.study.arms import amplitudes, case_scenario, the_robot
 from impactcli.study.spec import PAPER_ADAPTIVE_N, SOAK_FAMILIES, StudySpec
-from impactcli.study.summary import poisson_upper_95, summarize, zero_fa_index
 from impactcli.study.tables import TABLE_DETECTORS, format_markdown, format_text, table_rows
 from impactcli.study.tasks import (
     CalibOutcome,

@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from impactcli.io.robot import robot_from_dict
+from impactcli.logs.robot_files import robot_from_dict
 from impactcli.sim import (
     LABEL_THRESHOLD_N,
     SCENARIOS,
@@ -142,7 +142,7 @@ def test_robot_seed_fixes_the_robot_not_the_run():
 
 
 def test_sample_logs_of_an_arm_share_one_robot():
-    from impactcli.sim.samples import MANIFEST, ROBOT_SEEDS
+    from impactcli.sim.sample_logs import MANIFEST, ROBOT_SEEDS
 
     for arm, seed in ROBOT_SEEDS.items():
         scs = [m.make() for m in MANIFEST if m.arm == arm]

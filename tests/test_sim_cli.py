@@ -7,10 +7,10 @@ import pytest
 from click.testing import CliRunner
 
 from impactcli.cli import main
-from impactcli.io import read_log
-from impactcli.io.robot import read_labels, read_robot
+from impactcli.logs import read_log
+from impactcli.logs.robot_files import read_labels, read_robot
 from impactcli.sim import scenario, simulate
-from impactcli.sim.samples import MANIFEST
+from impactcli.sim.sample_logs import MANIFEST
 
 
 def _run(args: list[str]):
@@ -123,7 +123,7 @@ def test_simulate_controller_channels_default_off_on_heavy_geared(tmp_path):
 def test_simulate_controller_channels_default_mirrors_the_sample_logs():
     """The default --help states is the sample set's: CONTROLLER_CHANNEL_ARMS."""
     from impactcli.cli.simulate import ARMS
-    from impactcli.sim.samples import CONTROLLER_CHANNEL_ARMS
+    from impactcli.sim.sample_logs import CONTROLLER_CHANNEL_ARMS
 
     res, msg = _run(["simulate", "--help"])
     assert res.exit_code == 0, msg

@@ -262,7 +262,7 @@ def test_channels_on_the_lsb_grid(lsb, decimals):
 
 def test_sample_logs_carry_channels_on_assist_only():
     """The ASSIST-like sample logs log the controller's channels; the heavy arm's do not."""
-    from impactcli.sim.samples import MANIFEST
+    from impactcli.sim.sample_logs import MANIFEST
 
     for m in MANIFEST:
         assert m.make().controller_channels is (m.arm == "assist_like"), m.name

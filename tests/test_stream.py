@@ -19,14 +19,13 @@ from click.testing import CliRunner
 from impactcli.cli import main
 from impactcli.config import load_config
 from impactcli.detect.thresholds import detector_ratios
-from impactcli.io import read_log
-from impactcli.io.stream import open_log
+from impactcli.logs import read_log
+from impactcli.logs.reader import open_log
 from impactcli.outputs.signals import SignalsWriter, read_signals
 from impactcli.outputs.timeline import timeline_json
-from impactcli.result import DetectionResult
 from impactcli.run.collect import detect_in_memory
 from impactcli.run.one_log import RunSetup, detect_log
-from impactcli.types import LogHeader, SignalsChunk
+from impactcli.types import DetectionResult, LogHeader, SignalsChunk
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
 ASSIST = SAMPLES / "assist_like.config.toml"

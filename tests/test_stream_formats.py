@@ -1,4 +1,4 @@
-"""The one reader (impactcli.io.stream) on MCAP, ROS bags, .npz and URLs: for every chunk
+"""The one reader (impactcli.logs.reader) on MCAP, ROS bags, .npz and URLs: for every chunk
 size the chunks are the same arrays, and the scan's clock, gaps and screens are the whole
 log's (``_assert_same`` of tests/test_io_stream.py); the variants (stamps out of order,
 topics far apart in the file) read through the same pass, each message decoded once."""
@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 from impactcli.errors import ChannelMapError, ImpactWarning, LogFormatError
-from impactcli.io import npz as stream_npz
-from impactcli.io import read_log, write_log
-from impactcli.io.mcap_ros2 import encode_jointstates
-from impactcli.io.stream import iter_chunks, scan_log
-from impactcli.io.write import ros2_writer
+from impactcli.logs import npz as stream_npz
+from impactcli.logs import read_log, write_log
+from impactcli.logs.reader import iter_chunks, scan_log
+from impactcli.logs.ros2_cdr import encode_jointstates
+from impactcli.logs.write import ros2_writer
 from impactcli.types import LogSource, RobotLog
 
 from .test_io_stream import _assert_same, _error
@@ -159,7 +159,7 @@ def test_the_chunk_walker_equals_the_official_reader(tmp_path: Path) -> None:
     """Chunks of interleaved topics (record sizes repeating with a period, or not: the
     duplicates and the late reference break it) are located as the official reader reads
     them."""
-    from impactcli.io.mcap_scan import scan_mcap, scan_mcap_official
+    from impactcli.logs.mcap import scan_mcap, scan_mcap_official
 
     t, v = _signals(600)
     for k, msgs in enumerate((_topics(t, v), _topics(*_repairs(v, t)),
@@ -229,7 +229,7 @@ def test_a_message_decoded_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch)
     """Reading an MCAP (the scan, then every chunk collected) decompresses each MCAP chunk
     once and decodes each topic's messages of a chunk once: one decode call per chunk
     and topic read."""
-    from impactcli.io import mcap_scan, messages
+    from impactcli.logs import mcap_scan, messages
 
     t, v = _signals()
     path = _write_ros2(tmp_path / "r.mcap", _topics(t, v), chunk_size=8192)
@@ -356,7 +356,7 @@ def _log(n: int = N) -> RobotLog:
 
 
 def test_bags(tmp_path: Path) -> None:
-    from impactcli.io.write import write_rosbag2
+    from impactcli.logs.write import write_rosbag2
 
     log = _log()
     for name in ("a.db3", "a.bag"):
@@ -484,7 +484,7 @@ def test_a_full_disk_reads_the_file_again(tmp_path: Path, monkeypatch: pytest.Mo
                                           ) -> None:
     """Without the scan's cache of the repaired rows every pass reads the archive again,
     and a message log's spill of decoded messages is kept in memory: the same arrays."""
-    from impactcli.io import message_merge, stream_cache
+    from impactcli.logs import message_merge, stream_cache
 
     monkeypatch.setattr(stream_cache, "MIN_FREE_BYTES", float("inf"))
     monkeypatch.setattr(message_merge, "MIN_FREE_BYTES", float("inf"))

@@ -13,14 +13,14 @@ from click.testing import CliRunner
 
 from impactcli.cli import main
 from impactcli.config import DetectorConfig, load_config
-from impactcli.detect.calibrate import BlockMaxima, block_maxima
-from impactcli.io import read_log
-from impactcli.io.stream import open_log
+from impactcli.detect.thresholds import BlockMaxima, block_maxima
+from impactcli.logs import read_log
+from impactcli.logs.reader import open_log
 from impactcli.model import rows as rows_mod
 from impactcli.outputs.timeline import timeline_json
-from impactcli.result import DetectionResult
 from impactcli.run.collect import detect_in_memory
 from impactcli.run.one_log import RunSetup, detect_log
+from impactcli.types import DetectionResult
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
 ASSIST = SAMPLES / "assist_like.config.toml"
@@ -77,9 +77,9 @@ def test_everything_streams_but_model_with_model_from_log(tmp_path: Path) -> Non
     """``--model`` with ``--model-from-log`` is refused with one line, before the log is
     read: a ConfigError (exit 3) from the library and a batch job, a usage error (exit 2)
     from the command line."""
-    from impactcli.batch import DetectJob, run_detect_job
     from impactcli.errors import ConfigError
     from impactcli.model import identify, write_model
+    from impactcli.run.batch import DetectJob, run_detect_job
 
     log = SAMPLES / "csv" / "assist_impacts.csv.gz"
     with warnings.catch_warnings():
@@ -104,7 +104,7 @@ def test_detect_without_config_reads_the_log_in_chunks(tmp_path: Path,
     """The CLI's detect without a config reads the log in chunks (read_log is never called
     on it, no log is held in memory) and writes what the replay of the log in memory
     gives."""
-    import impactcli.io as io_mod
+    import impactcli.logs as io_mod
     from impactcli.run import readers
 
     log = SAMPLES / "csv" / "assist_impacts.csv.gz"

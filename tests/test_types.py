@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from impactcli.errors import LabelsError, LogFormatError, RobotDescriptionError
-from impactcli.io.robot import read_labels, read_robot, robot_from_dict
+from impactcli.logs.robot_files import read_labels, read_robot, robot_from_dict
 from impactcli.types import RobotLog
 
 from .conftest import make_log

@@ -33,7 +33,7 @@ def _replayed(path: Path, cfg: Path | None, on_chunk: Any, rows: int = 997) -> A
     """The replay of ``path`` in chunks of ``rows`` (not the CLI's), its chunks handed to
     ``on_chunk``: the reference."""
     from impactcli.config import load_config
-    from impactcli.io.stream import open_log
+    from impactcli.logs.reader import open_log
     from impactcli.run.one_log import RunSetup, detect_log
 
     setup = RunSetup(config=None if cfg is None else load_config(cfg), chunk_rows=rows)
@@ -53,7 +53,8 @@ def _forbid_whole_log(monkeypatch: pytest.MonkeyPatch) -> None:
     def refuse(*a: object, **k: object) -> None:
         raise AssertionError("whole-log path taken")
 
-    for mod, name in (("impactcli.run.collect", "detect_in_memory"), ("impactcli.io", "read_log")):
+    for mod, name in (("impactcli.run.collect", "detect_in_memory"),
+                      ("impactcli.logs", "read_log")):
         try:
             m = importlib.import_module(mod)
         except ImportError:
@@ -112,13 +113,13 @@ def test_evaluate_streams_the_evaluation(tmp_path: Path, private_tmp: Path,
     args += ["--config", str(cfg)] if cfg is not None else []
     args += ["--scales", scales] if scales is not None else []
     from impactcli.cli.evaluate import DEFAULT_SCALES, parse_scales
-    from impactcli.io.robot import read_labels
-    from impactcli.io.stream import scan_log
+    from impactcli.logs.reader import scan_log
+    from impactcli.logs.robot_files import read_labels
     from impactcli.outputs.report.samples import ReportCollector
-    from impactcli.scoring.evaluation import evaluate_result
-    from impactcli.scoring.match import MatchTolerance
-    from impactcli.scoring.text import format_evaluation
-    from impactcli.scoring.verdict import format_sweep, sweep_to_dict
+    from impactcli.quality.evaluation import evaluate_result
+    from impactcli.quality.match import MatchTolerance
+    from impactcli.quality.text import format_evaluation
+    from impactcli.quality.verdict import format_sweep, sweep_to_dict
 
     scan = scan_log(str(path))
     col = ReportCollector(scan.n_samples, plots=False)

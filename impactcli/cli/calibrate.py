@@ -19,7 +19,7 @@ from .options import (
 def _labels_for(logs: tuple[Path, ...], given: tuple[Path, ...]) -> list:  # type: ignore[type-arg]
     """Labels per log: ``--labels`` paired as ``report`` pairs them, else
     ``<stem>.labels.json`` beside the log when present, else None."""
-    from ..io.robot import read_labels
+    from ..logs.robot_files import read_labels
     from .report import auto_labels, pair_labels
 
     paths = pair_labels(list(logs), list(given)) if given else [
@@ -79,12 +79,12 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     else its model torque (torque_model, with a correction identified on these logs), else
     the tool's own identified model.
     """
-    from ..calibration import calibrate
     from ..config import load_config, save_config
     from ..files import prepare_output
-    from ..io import read_log
-    from ..io.robot import read_robot
+    from ..logs import read_log
+    from ..logs.robot_files import read_robot
     from ..model import read_model
+    from ..run.calibration import calibrate
 
     if out_path.suffix.lower() not in (".toml", ".yaml", ".yml", ".json"):
         raise click.BadParameter(f"{str(out_path)!r}: a config is written as .toml, .yaml or "

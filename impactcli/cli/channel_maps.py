@@ -20,7 +20,7 @@ def shipped_maps() -> list[dict[str, Any]]:
     """Name, format, description and file of every shipped map, sorted by name."""
     import yaml
 
-    from ..io.channel_map import shipped_map_names, shipped_maps_dir
+    from ..logs.channel_map import shipped_map_names, shipped_maps_dir
 
     out = []
     folder = shipped_maps_dir()
@@ -50,7 +50,7 @@ def channel_maps_cmd(name: str | None, show_path: bool, as_json: bool) -> None:
         if as_json:
             click.echo(json.dumps({"channel_maps": maps}, separators=(",", ":")))
             return
-        from ..io.channel_map import shipped_maps_dir
+        from ..logs.channel_map import shipped_maps_dir
 
         click.echo(f"Channel maps shipped in {shipped_maps_dir()} (use --channel-map NAME; "
                    "`impactcli channel-maps NAME` prints one):")

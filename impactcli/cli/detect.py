@@ -38,8 +38,8 @@ def preload(robot: str | Path | None, model: str | Path | None,
     """
     from ..config import load_config
     from ..files import sha256_file
-    from ..io.robot import named_robot_sha256, read_robot
-    from ..io.urls import load_by_url
+    from ..logs.robot_files import named_robot_sha256, read_robot
+    from ..logs.urls import load_by_url
     from ..model import read_model
 
     out: dict[str, dict[str, str]] = {}
@@ -60,7 +60,7 @@ def preload(robot: str | Path | None, model: str | Path | None,
 
 
 def _fmt_row(s: dict[str, Any]) -> str:
-    from ..io.urls import url_name
+    from ..logs.urls import url_name
 
     cal = "yes" if s["calibrated"] else "no"
     return (f"{url_name(s['log']):<36} {s['duration_s']:>9.1f} {cal:>10} "
@@ -133,8 +133,8 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     error (a bug, with its traceback) — never 1; 141 when stdout's reader closed early
     (| head).
     """
-    from ..batch import DetectJob, Timer, batch_summary, check_unique_stems, run_batch
-    from ..io.urls import expand_inputs
+    from ..logs.urls import expand_inputs
+    from ..run.batch import DetectJob, Timer, batch_summary, check_unique_stems, run_batch
 
     paths = expand_inputs(logs)
     try:
@@ -185,7 +185,7 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     if summary_path is not None:
         import json
 
-        from ..batch import write_text_to
+        from ..run.batch import write_text_to
 
         write_text_to(summary_path, json.dumps(summary, indent=1, sort_keys=True,
                                                allow_nan=False) + "\n")
@@ -216,7 +216,7 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
 def _over_force(outcome: Any, limit: float) -> str | None:
     """One line naming the log's first incident whose force exceeds ``limit`` (and how many
     do), or None when none does."""
-    from ..io.urls import url_name
+    from ..logs.urls import url_name
 
     over = [i for i in outcome.summary.get("incident_list", [])
             if i["force_n"] is not None and i["force_n"] > limit]
@@ -232,7 +232,7 @@ def _over_force(outcome: Any, limit: float) -> str | None:
 def _echo_outcome(outcome: Any, debug: bool, single: bool) -> None:
     """Warnings and the error of one finished log, on stderr; its traceback with --debug,
     or for a bug (``internal``) in a one-log run."""
-    from ..io.urls import url_name
+    from ..logs.urls import url_name
 
     name = url_name(outcome.log_path)
     for w in outcome.warnings:
@@ -256,7 +256,7 @@ def _generators_line(row: dict[str, Any]) -> str:
 
 def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str) -> None:
     """Per-log rows (at most MAX_ROWS) and the batch totals, on stdout."""
-    from ..io.urls import url_name
+    from ..logs.urls import url_name
 
     ok = [o for o in outcomes if o.ok]
     if ok:

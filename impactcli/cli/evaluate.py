@@ -6,7 +6,7 @@ A ``*.json`` input is a detection timeline (``impactcli detect`` output, validat
 schemas/timeline.schema.json); anything else is a log, on which the detectors are replayed
 first, with detect's ``--robot/--model/--config`` and log-reading options, chunk by chunk
 in bounded memory as ``detect`` replays it (:func:`replay_log`). The matching rules are
-:mod:`impactcli.scoring`'s.
+:mod:`impactcli.quality`'s.
 
 The incidents (link, force, contact type) are scored too: a timeline's ``incidents`` (a
 1.0 timeline has none, and the output says so), or for a log the run's own.
@@ -43,7 +43,7 @@ from .options import (
     read_options_from,
 )
 
-#: impactcli.scoring.sweep.DEFAULT_SWEEP_SCALES: 0.2 … 5 in 5 % steps (66 scales).
+#: impactcli.quality.sweep.DEFAULT_SWEEP_SCALES: 0.2 … 5 in 5 % steps (66 scales).
 DEFAULT_SCALES = "0.2:5:x1.05"
 
 
@@ -53,7 +53,7 @@ def parse_scales(text: str) -> tuple[float, ...]:
 
     Raises ValueError with a one-line message on anything else.
     """
-    from ..scoring.sweep import geometric_scales
+    from ..quality.sweep import geometric_scales
 
     text = text.strip()
     try:
@@ -102,7 +102,7 @@ def labels_beside(source: Path) -> Path:
     writes them; a rosbag2 folder's are beside the folder, named after it), for a timeline
     then beside the log it records (found as ``report`` finds it), under the timeline's
     stem, then the log's own; a usage error (exit 2) when there is none."""
-    from ..io import log_stem
+    from ..logs import log_stem
 
     name = source.name
     timeline = name.endswith(".timeline.json")
@@ -172,7 +172,7 @@ def _timeline_sweep(source: Path, doc: dict[str, Any], labels: Any, scales: tupl
     """Sweep from a timeline and the signals Parquet beside it, read row group by row group
     (bounded memory: one replay chunk's rows at a time)."""
     from ..outputs.signals import signal_groups, signals_schema
-    from ..scoring.sweep import ThresholdSweep, ratios_from_signals
+    from ..quality.sweep import ThresholdSweep, ratios_from_signals
     from ..types import DETECTORS
 
     sig_path = signals_beside(source)
@@ -274,12 +274,12 @@ def evaluate_cmd(source: Path, labels_path: Path | None, as_json: bool, sweep: b
     too: link against the label's link, force against peak_force, contact type against the
     kind (impact, push: transient; clamp: quasi_static).
     """
-    from ..io.robot import read_labels
+    from ..logs.robot_files import read_labels
     from ..outputs.timeline import read_timeline
-    from ..scoring.evaluation import evaluate_events, evaluate_result
-    from ..scoring.match import MatchTolerance
-    from ..scoring.text import format_evaluation
-    from ..scoring.verdict import format_sweep, sweep_to_dict
+    from ..quality.evaluation import evaluate_events, evaluate_result
+    from ..quality.match import MatchTolerance
+    from ..quality.text import format_evaluation
+    from ..quality.verdict import format_sweep, sweep_to_dict
 
     tolerance = MatchTolerance(pre_s=pre_s, post_s=post_s)
     is_timeline = source.name.lower().endswith(".json")

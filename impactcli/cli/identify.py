@@ -49,8 +49,8 @@ def identify_cmd(
     A multi-arm MCAP or bag: --topic picks the arm's JointState topic, as in the other
     verbs."""
     from ..files import prepare_output
-    from ..io import read_log
-    from ..io.robot import read_robot
+    from ..logs import read_log
+    from ..logs.robot_files import read_robot
     from ..model import IdentifyOptions, identify, write_model
 
     prepare_output(output)  # a bad -o stops the run before any work

@@ -22,9 +22,9 @@ def inspect_cmd(log: str, channel_map: str | None, robot: str | None, topic: str
     """Show what LOG holds: joints, channels used and ignored, torque and time source,
     duration, sample rate and jitter, gaps and repairs — and what it still needs (a current
     without gear ratio and torque constant is shown in A, and said)."""
-    from ..io import inspect_log
-    from ..io.inspect import format_table
-    from ..io.robot import read_robot
+    from ..logs import inspect_log
+    from ..logs.describe import format_table
+    from ..logs.robot_files import read_robot
 
     desc = read_robot(robot) if robot else None
     opts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)

@@ -6,7 +6,7 @@ The channel is read through the log's own reader, whatever the log's channels ma
 a CSV column by name (one the reader ignores) or, headerless, by 0-based index, read with
 the log's time column and repairs; an ``.npz`` array (``key`` or ``key[i]``) with the map's
 time; in an MCAP file or a ROS bag, a message field ``/topic/field/sub[i]`` or
-``/topic/array[joint]`` (:mod:`impactcli.io.fields`), stamped as the log's samples are.
+``/topic/array[joint]`` (:mod:`impactcli.logs.fields`), stamped as the log's samples are.
 
 Contiguous stretches where the channel is above X become contacts (``start``/``end`` the
 first and last sample above, seconds since the log's first sample), merged when closer
@@ -65,13 +65,13 @@ class Channel:
 
 def read_channel(path: Path, name: str, log: Any, read_options: dict[str, Any]) -> Channel:
     """The channel ``name`` of the log at ``path`` (module docstring), timed on ``log``'s
-    clock (``log`` is the log as :func:`impactcli.io.read_log` reads it).
+    clock (``log`` is the log as :func:`impactcli.logs.read_log` reads it).
 
     Raises:
         LogFormatError: no such channel (one line naming the file and listing what it has),
             or a channel that cannot be read.
     """
-    from ..io.channel_map import SIGNALS
+    from ..logs.channel_map import SIGNALS
 
     joint, dot, sig = name.partition(".")
     if dot and joint in log.joint_names and sig in SIGNALS:
@@ -82,7 +82,7 @@ def read_channel(path: Path, name: str, log: Any, read_options: dict[str, Any]) 
         return Channel(name, f"the log's {name} (through its reader and channel map)",
                        np.asarray(log.time_s, dtype=np.float64),
                        np.asarray(arr[:, j], dtype=np.float64))
-    from ..io import MESSAGE_SUFFIXES, log_stem
+    from ..logs import MESSAGE_SUFFIXES, log_stem
 
     lower = path.name.lower()
     if path.is_dir() or lower.endswith(MESSAGE_SUFFIXES):
@@ -99,7 +99,7 @@ def _relative(t_ns: np.ndarray, log: Any) -> np.ndarray:
 
 
 def _joint_channels_hint(log: Any) -> str:
-    from ..io.channel_map import SIGNALS
+    from ..logs.channel_map import SIGNALS
 
     have = [f"{j}.{s}" for s in SIGNALS if getattr(log, s) is not None
             for j, ok in zip(log.joint_names, log.has_channel(s), strict=True) if ok]
@@ -108,9 +108,9 @@ def _joint_channels_hint(log: Any) -> str:
 
 def _csv_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Channel:
     """A CSV column, read by the CSV reader with the log's own time column."""
-    from ..io.channel_map import ChannelMap, ChannelRef, load_channel_map
-    from ..io.csv_layout import canonical_map, separator
-    from ..io.stream import read_columns
+    from ..logs.channel_map import ChannelMap, ChannelRef, load_channel_map
+    from ..logs.csv_layout import canonical_map, separator
+    from ..logs.reader import read_columns
 
     where = str(path)
     cmap = load_channel_map(ropts["channel_map"]) if ropts.get("channel_map") else None
@@ -171,8 +171,8 @@ def _header_line(path: Path, skip: int) -> str:
 
 def _npz_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Channel:
     """An ``.npz`` array (``key`` or ``key[i]``) with the channel map's time."""
-    from ..io.channel_map import ChannelMap, ChannelRef, load_channel_map
-    from ..io.stream import read_columns
+    from ..logs.channel_map import ChannelMap, ChannelRef, load_channel_map
+    from ..logs.reader import read_columns
 
     cmap = load_channel_map(ropts["channel_map"]) if ropts.get("channel_map") else None
     if cmap is None:
@@ -198,7 +198,7 @@ def _npz_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Chan
 
 def _message_channel(path: Path, name: str, log: Any) -> Channel:
     """A message field, stamped like the log's samples, through the message reader."""
-    from ..io.message_plan import field_channel
+    from ..logs.message_plan import field_channel
 
     text, joint = name, None
     m = _JOINT_PICK.match(name)
@@ -329,8 +329,8 @@ def labels_cmd(log: Path, channel: str, above: float, link: int, kind: str, chan
     """
     from ..errors import LabelsError
     from ..files import prepare_output
-    from ..io import read_log
-    from ..io.robot import labels_from_dict, read_robot, write_labels
+    from ..logs import read_log
+    from ..logs.robot_files import labels_from_dict, read_robot, write_labels
     from ..schema import validate
 
     if not np.isfinite(above):

@@ -97,13 +97,13 @@ def progress(items: Iterable[T], total: int | None = None, desc: str = "") -> It
 
 def is_log_path(path: Path) -> bool:
     """Whether ``path`` can be a local log: a file, or a rosbag2 folder (``metadata.yaml``)."""
-    from ..io.paths import is_rosbag2_folder
+    from ..logs.paths import is_rosbag2_folder
 
     return path.is_file() or is_rosbag2_folder(path)
 
 
 def not_found(path: Path | str, what: str = "log file") -> LogFormatError:
-    """The error for a missing input, as :func:`impactcli.io.read_log` words it: a glob
+    """The error for a missing input, as :func:`impactcli.logs.read_log` words it: a glob
     (``*``, ``?``, ``[``) that matched nothing says so, else ``<what> not found``."""
     where = str(path)
     if any(c in where for c in "*?["):
@@ -112,7 +112,7 @@ def not_found(path: Path | str, what: str = "log file") -> LogFormatError:
 
 
 def check_log_path(path: Path) -> None:
-    """Raise the LogFormatError :func:`impactcli.io.read_log` would (exit 3, one line) for a
+    """Raise the LogFormatError :func:`impactcli.logs.read_log` would (exit 3, one line) for a
     missing log or a folder that is not a rosbag2 folder — for verbs that look beside a log
     (labels) before reading it. Log arguments take folders (``click.Path()`` without
     ``dir_okay=False``): a folder is refused here or by ``read_log``, never by click."""
@@ -164,7 +164,7 @@ def check_channel_map(ctx: click.Context, param: click.Parameter, value: str | N
     if value is None or "://" in value:
         return value
     from ..errors import ChannelMapError
-    from ..io.channel_map import resolve_channel_map_path
+    from ..logs.channel_map import resolve_channel_map_path
 
     try:
         resolve_channel_map_path(value)
@@ -249,7 +249,7 @@ def model_url_options(func: Callable[..., Any]) -> Callable[..., Any]:
 
 
 def executor_options(func: Callable[..., Any]) -> Callable[..., Any]:
-    """--jobs and --scheduler: where batch work runs (impactcli.executors)."""
+    """--jobs and --scheduler: where batch work runs (impactcli.run.executors)."""
     for opt in reversed([
         click.option("--jobs", "-j", type=click.IntRange(min=1), default=None,
                      help="Inputs processed in parallel by N local processes (no Dask); with "
@@ -265,16 +265,16 @@ def executor_options(func: Callable[..., Any]) -> Callable[..., Any]:
 
 
 def resolve_executor(jobs: int | None, scheduler: str | None) -> Any:
-    """The :class:`~impactcli.executors.ExecutorChoice` for the options; a bad combination
+    """The :class:`~impactcli.run.executors.ExecutorChoice` for the options; a bad combination
     is a usage error (exit 2), a missing Dask extra one line saying how to install it."""
-    from ..executors import choose_executor, require_dask
+    from ..run.executors import choose_executor, require_dask
 
     try:
         choice = choose_executor(jobs, scheduler)
     except ValueError as err:
         raise click.BadParameter(str(err), param_hint="'--jobs'") from None
     if choice.kind == "dask":
-        from ..executors import DaskMissingError
+        from ..run.executors import DaskMissingError
 
         try:
             require_dask()

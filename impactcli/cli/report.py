@@ -66,7 +66,7 @@ def is_timeline(path: Path) -> bool:
 def _read_robot(path: str | Path | None) -> Any:
     if path is None:
         return None
-    from ..io.robot import read_robot
+    from ..logs.robot_files import read_robot
 
     return read_robot(path)
 
@@ -104,7 +104,7 @@ def _timeline_plan(tl_path: Path, robot: Any) -> dict[str, Any]:
     its log, read options, config, model, whether the model comes from the log, and the
     robot."""
     from ..config import DetectorConfig
-    from ..io.robot import robot_from_dict
+    from ..logs.robot_files import robot_from_dict
     from ..model import RigidModel
     from ..outputs.timeline import read_timeline
 
@@ -282,7 +282,7 @@ def analyze_input(task: ReportTask) -> ReportPart:
     is rendered here (:func:`impactcli.outputs.report.render_log`), so only it travels back.
     Warnings raised on the way come back as messages; an ImpactError comes back as the error.
     """
-    from ..io.robot import read_labels
+    from ..logs.robot_files import read_labels
     from ..outputs.report import render_log
 
     inp = Path(task.inp)
@@ -312,7 +312,7 @@ def analyze_input(task: ReportTask) -> ReportPart:
 def _local_inputs(patterns: Sequence[str]) -> tuple[Path, ...]:
     """Inputs as local paths: globs expanded, ``file://`` URLs resolved; a remote URL is a
     usage error (download it first: the report reads its logs beside the timelines)."""
-    from ..io.urls import expand_inputs, local_path
+    from ..logs.urls import expand_inputs, local_path
 
     out = []
     for item in expand_inputs(patterns):
@@ -362,9 +362,9 @@ def report_cmd(*, inputs: tuple[str, ...], html_path: Path, json_path: Path | No
     lists them), 3 when all did. --jobs/--scheduler analyse the inputs in parallel (as
     detect does); the report is the same.
     """
-    from ..executors import TaskFailure, run_tasks
     from ..files import prepare_output
     from ..outputs.report import write_report
+    from ..run.executors import TaskFailure, run_tasks
 
     for out in (html_path, json_path):  # a bad -o/--json stops the run before any work
         if out is not None:

@@ -21,8 +21,8 @@ def robots_cmd(as_json: bool) -> None:
     They come with the robots extra (pip install 'impactcli[robots]'); only those whose
     URDF is installed and loads are listed. Meshes are never needed.
     """
-    from .. import robots
     from ..errors import EXIT_USAGE
+    from ..logs import robot_catalogue as robots
 
     try:
         ok, bad = robots.available()

@@ -42,7 +42,7 @@ def _floats(ctx: click.Context, param: click.Parameter,
 
 
 def task_runner(jobs: int | None) -> Any:
-    """Map tasks over a process pool (impactcli.executors) with a progress bar on stderr."""
+    """Map tasks over a process pool (impactcli.run.executors) with a progress bar on stderr."""
     from tqdm import tqdm
 
     def run(fn: Any, items: list[Any], desc: str) -> list[Any]:
@@ -52,7 +52,7 @@ def task_runner(jobs: int | None) -> Any:
                                        disable=len(items) < 2)):
                 out[i] = fn(x)
             return out
-        from ..executors import TaskFailure, run_tasks
+        from ..run.executors import TaskFailure, run_tasks
 
         with tqdm(total=len(items), desc=desc, file=sys.stderr, leave=False) as bar:
             for i, res in run_tasks(fn, items, jobs=jobs):

@@ -56,10 +56,10 @@ def simulate_cmd(arm: str, scenario_name: str, duration: float | None, seed: int
     if "mcap-json" in formats and "mcap-ros2" in formats:
         raise click.BadParameter("mcap-json and mcap-ros2 both write NAME.mcap; choose one",
                                  param_hint="--format")
-    from ..io import write_log
-    from ..io.robot import write_labels, write_robot
+    from ..logs import write_log
+    from ..logs.robot_files import write_labels, write_robot
     from ..sim import scenario, simulate
-    from ..sim.samples import CONTROLLER_CHANNEL_ARMS
+    from ..sim.sample_logs import CONTROLLER_CHANNEL_ARMS
 
     if controller_channels is None:  # as the sample logs of this arm
         controller_channels = arm in CONTROLLER_CHANNEL_ARMS

@@ -25,7 +25,7 @@ from ..outputs.decimate import DEFAULT_EVENT_WINDOW_S, DEFAULT_MAX_POINTS
 from .options import handle_errors, log_read_options, model_options, not_found, read_options_from
 
 if TYPE_CHECKING:
-    from ..result import DetectionResult
+    from ..types import DetectionResult
 
 
 NO_VIEWER_HINT = ("write the recording with --no-open --save PATH and open it where there "
@@ -169,7 +169,7 @@ def view_cmd(source: Path, robot: Path | None, model: Path | None,
             open_viewer(save_path)
         return
     with tempfile.TemporaryDirectory(prefix="impactcli-view-") as tmp:
-        from ..io import log_stem
+        from ..logs import log_stem
 
         rrd = Path(tmp) / f"{log_stem(source)}.rrd"
         record(rrd)

@@ -31,10 +31,10 @@ from typing import Any
 
 import numpy as np
 
-from ..causal import Carry
 from ..config import AdaptiveConfig
 from ..errors import ImpactWarning
-from ..iir import butter_lowpass
+from ..model.causal import Carry
+from ..model.iir import butter_lowpass
 from .axes import AxisJob, AxisRunner, EvaluatorState
 from .rates import Rates, clip_cutoff
 
@@ -70,7 +70,7 @@ def inputs_chunk(
     chunk: Any, time_s: np.ndarray, sample_rate_hz: float, cfg: AdaptiveConfig | None,
     carry: Carry, where: str = "",
 ) -> ThresholdInputs:
-    """(u1, u2) of one chunk of a log, continued from ``carry`` (:mod:`impactcli.causal`).
+    """(u1, u2) of one chunk of a log, continued from ``carry`` (:mod:`impactcli.model.causal`).
 
     Order of preference: logged ``velocity_ref`` (and ``acceleration_ref``, else its causal
     backward difference); else causal backward differences of ``position_ref``; else the

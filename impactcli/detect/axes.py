@@ -5,7 +5,7 @@ Axes are independent (eq. 34–35 per axis; only the inputs u are shared), so ea
 a thread of its own (the kernel releases the GIL). :class:`AxisRunner` takes chunk after
 chunk (:meth:`~AxisRunner.submit`) and gives each axis its chunks in order on a
 single-thread executor of its own: axis j can work on chunk k + 1 while axis i still works
-on chunk k and the caller makes chunk k + 2's residual (:func:`impactcli.replay.
+on chunk k and the caller makes chunk k + 2's residual (:func:`impactcli.run.replay.
 Replayer`). Results are the same bits as one chunk at a time on one thread — each
 axis runs the same kernel on the same values in the same order; what the axes share is
 read only: each submitted chunk carries its own copy of the input lags u(k0−rho_max ..

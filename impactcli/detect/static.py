@@ -10,7 +10,7 @@ unit DC gain, started at rest on r(0) (no start transient); order 1
 slow contacts are slow, and the low-pass lowers the noise floor several-fold. The cut-off
 is clipped below 0.4 fs with an ImpactWarning.
 
-The replay (:mod:`impactcli.replay`) compares both statistics with their thresholds chunk
+The replay (:mod:`impactcli.run.replay`) compares both statistics with their thresholds chunk
 by chunk; the whole-log forms the tests check the formulas with are in
 ``tests/reference/static.py``.
 """
@@ -19,15 +19,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..causal import Carry
-from ..iir import butter_lowpass
+from ..model.causal import Carry
+from ..model.iir import butter_lowpass
 from .rates import clip_cutoff, lowpass_pole
 
 
 def causal_lowpass(x: np.ndarray, cutoff_hz: float, fs_hz: float, order: int = 1,
                    carry: Carry | None = None) -> np.ndarray:
     """Causal unit-DC-gain low-pass of (N, J) ``x`` along time, started at rest on x(0)
-    (steady state on the first sample), continued from ``carry`` (:mod:`impactcli.causal`)
+    (steady state on the first sample), continued from ``carry`` (:mod:`impactcli.model.causal`)
     when ``x`` is a chunk after the first."""
     x = np.asarray(x, dtype=np.float64)
     fc = clip_cutoff(cutoff_hz, fs_hz, "static-loading low-pass")

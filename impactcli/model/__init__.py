@@ -10,7 +10,7 @@ from .derivatives import (
     zero_phase_derivatives,
     zero_phase_lowpass,
 )
-from .identify import default_kind, identify, identify_many, identify_signals
+from .identification import default_kind, identify, identify_many, identify_signals
 from .identify_options import IdentifyOptions
 from .residual import ResidualOptions, ResidualResult, compute_residual, momentum_observer
 from .rigid import RigidModel, read_model, write_model

@@ -26,9 +26,9 @@ import warnings
 
 import numpy as np
 
-from ..causal import Carry
 from ..errors import ImpactWarning, ModelError
-from ..iir import bilinear
+from .causal import Carry
+from .iir import bilinear
 
 #: Largest cut-off allowed, as a fraction of the sample rate (docs/method.md §5b).
 MAX_CUTOFF_FRACTION = 0.4
@@ -137,7 +137,7 @@ def _svf_design(fs: float, wc: float) -> tuple[tuple[np.ndarray, np.ndarray], ..
 def _lfilter_steady(b: np.ndarray, a: np.ndarray, x: np.ndarray,
                     carry: Carry | None = None, name: str = "x") -> np.ndarray:
     """``lfilter`` along time started in steady state on x(0), continued from ``carry``
-    (:mod:`impactcli.causal`) when given."""
+    (:mod:`impactcli.model.causal`) when given."""
     return (carry if carry is not None else Carry()).lfilter(name, b, a, x, "steady")
 
 
@@ -153,7 +153,7 @@ def causal_derivatives(
         dt: sample period [s] (the log's median period).
         q: (N, J) or (N,) positions [rad].
         cutoff_hz: filter cut-off [Hz] (clipped below 0.4 / dt).
-        carry: the filters' state from the previous chunk (:mod:`impactcli.causal`), or
+        carry: the filters' state from the previous chunk (:mod:`impactcli.model.causal`), or
             None for a whole log; ``name`` keys it.
 
     Returns:

@@ -146,7 +146,7 @@ def plain_residual(
     r = G τ_m − G tau (``residual.logged_correction = false``).
 
     ``log``: a RobotLog, or a chunk of one with ``dt`` (the whole log's period [s]) and
-    ``carry`` (:mod:`impactcli.causal`, the filters' state after the previous chunk)."""
+    ``carry`` (:mod:`impactcli.model.causal`, the filters' state after the previous chunk)."""
     from .derivatives import causal_lowpass, clip_cutoff
 
     out: dict[str, np.ndarray] = {}

@@ -1,4 +1,4 @@
-"""The settings of identification (:func:`impactcli.model.identify.identify`).
+"""The settings of identification (:func:`impactcli.model.identification.identify`).
 
 A module of its own so the fit (:mod:`impactcli.model.fit`) and its sanity checks
 (:mod:`impactcli.model.sanity`) can take the settings without importing the routine that

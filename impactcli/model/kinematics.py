@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from ..urdf_helpers import pinocchio, reduced_model, urdf_joint_order
+from ..logs.urdf import pinocchio, reduced_model, urdf_joint_order
 
 
 def urdf_link_end_jacobian(
@@ -31,7 +31,7 @@ def urdf_link_end_jacobian(
     tip_frame = None
     robot = structure.get("urdf_robot")
     if robot:
-        from ..robots import entry
+        from ..logs.robot_catalogue import entry
 
         e = entry(str(robot))
         if e is not None and model.existFrame(e.tip, pin.FrameType.BODY):

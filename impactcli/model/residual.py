@@ -26,9 +26,9 @@ from typing import Any
 
 import numpy as np
 
-from ..causal import Carry
 from ..errors import ModelError
 from ..types import RobotLog
+from .causal import Carry
 from .derivatives import (
     MAX_CUTOFF_FRACTION,
     causal_derivatives,
@@ -151,7 +151,7 @@ def momentum_observer(
         q, qd: (N, J) positions [rad] and velocities [rad/s] (causally filtered).
         tau: (N, J) input torque [N·m]. dt: sample period [s]. gain: K [1/s].
         n_correction: optional (N, J) added to n(q, q') (the Coulomb correction).
-        carry: the state after the previous chunk (:mod:`impactcli.causal`: the previous
+        carry: the state after the previous chunk (:mod:`impactcli.model.causal`: the previous
             sample's p, M and u, and the observer's delay line), or None for a whole log.
     """
     alpha = gain * dt

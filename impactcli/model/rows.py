@@ -1,6 +1,6 @@
 """The identification's filtered regressor rows, from a log read whole or in chunks.
 
-Identification (:mod:`impactcli.model.identify`, docs/method.md §2) smooths positions and
+Identification (:mod:`impactcli.model.identification`, docs/method.md §2) smooths positions and
 torques without phase lag, differentiates, decimates, and lays out regressor rows at a few
 hundred thousand samples at most. All of it is local in time — a zero-phase filter's
 output at a sample depends on the samples around it, with a weight that decays as the
@@ -16,7 +16,7 @@ on both sides that is filtered and then cut (:class:`Windows`):
 
 The windows are fixed by the sample count, not by how the log arrives, so
 :class:`RowsBuilder` fed one whole log or the same log in chunks of any size gives the
-same rows bit for bit (one implementation: :func:`impactcli.model.identify.identify` feeds
+same rows bit for bit (one implementation: :func:`impactcli.model.identification.identify` feeds
 it the whole log, the streamed detection its chunks) — and holds at most two windows and
 the rows it keeps, whatever the log's length (docs/method.md §2, "Identification in
 windows").
@@ -120,7 +120,7 @@ class RowsPlan:
     @classmethod
     def make(cls, n: int, fs: float, cutoff: float, options: Any, kind: str,
              n_joints: int, n_params: int) -> RowsPlan:
-        """The plan of :func:`impactcli.model.identify.identify` (its module doc)."""
+        """The plan of :func:`impactcli.model.identification.identify` (its module doc)."""
         k1 = max(1, int(fs // (10.0 * cutoff)))
         nd = len(range(0, n, k1))
         fs_d = fs / k1

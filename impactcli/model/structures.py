@@ -31,7 +31,7 @@ import numba as nb
 import numpy as np
 
 from ..errors import ModelError
-from ..urdf_helpers import pinocchio, reduced_model, urdf_joint_order
+from ..logs.urdf import pinocchio, reduced_model, urdf_joint_order
 
 KINDS: tuple[str, ...] = ("decoupled", "coupled", "planar", "urdf")
 
@@ -457,7 +457,7 @@ def rowdot(a: np.ndarray, x: np.ndarray) -> np.ndarray:
     """(N,) the dot product of each row of ``a`` (N, P) with ``x`` (P,), summed in column
     order: each row's value is the same bits whatever other rows are in the call (a BLAS
     product's rounding may depend on a row's place in its blocks), so a chunked replay
-    equals the whole-log one (:mod:`impactcli.causal`). Compiled (numba)."""
+    equals the whole-log one (:mod:`impactcli.model.causal`). Compiled (numba)."""
     return _rowdot(np.ascontiguousarray(a, dtype=np.float64),
                    np.ascontiguousarray(x, dtype=np.float64))
 

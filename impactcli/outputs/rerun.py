@@ -42,7 +42,7 @@ PLOTS: dict[str, list[tuple[str, str]]] = {
     "residual": [("residual r", "residual"), ("filtered residual", "filtered_residual")],
     "position": [("measured", "position")],
 }
-#: The signals a recording plots (of :data:`impactcli.result.SIGNAL_NAMES`).
+#: The signals a recording plots (of :data:`impactcli.types.SIGNAL_NAMES`).
 PLOTTED = ("residual_rms", "threshold", "loading_statistic", "residual", "filtered_residual")
 
 

@@ -1,7 +1,7 @@
 """Per-sample signals as Parquet (docs/formats.md, "Per-sample signals"), chunk by chunk.
 
 Columns: ``time`` (s since the first sample), then per joint ``<joint>.<signal>`` for every
-name in :data:`impactcli.result.SIGNAL_NAMES` and one 0/1 column per detector
+name in :data:`impactcli.types.SIGNAL_NAMES` and one 0/1 column per detector
 (``<joint>.adaptive``, ``<joint>.static_loading``, ``<joint>.static_baseline``); one row group
 per replay chunk. File metadata holds ``t0_ns``, the input sha256 and path, the tool version.
 :class:`SignalsWriter` writes the file as the replay goes; :func:`signal_groups` reads it back
@@ -18,8 +18,7 @@ import numpy as np
 
 from .. import __version__
 from ..files import atomic_output
-from ..result import SIGNAL_NAMES
-from ..types import DETECTORS
+from ..types import DETECTORS, SIGNAL_NAMES
 
 #: How the Parquet file is written: zstd at its fastest level and no dictionary encoding
 #: (per-sample floats are nearly all distinct: a dictionary is built and given up).
@@ -70,7 +69,7 @@ class SignalsWriter:
     def append(self, joints: tuple[str, ...], t: np.ndarray, signals: dict[str, np.ndarray],
                decisions: dict[str, np.ndarray]) -> None:
         """One chunk: (n,) times [s since the first sample], (n, J) signals of
-        :data:`impactcli.result.SIGNAL_NAMES` and (n, J) decisions per detector."""
+        :data:`impactcli.types.SIGNAL_NAMES` and (n, J) decisions per detector."""
         import pyarrow as pa
         import pyarrow.parquet as pq
 

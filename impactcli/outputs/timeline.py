@@ -1,7 +1,7 @@
 """The detection timeline JSON (docs/formats.md, "Detection timeline";
 schemas/timeline.schema.json).
 
-Formatting only: every number comes from a :class:`~impactcli.result.DetectionResult`.
+Formatting only: every number comes from a :class:`~impactcli.types.DetectionResult`.
 Times are seconds since the log's first sample; ``input.t0_ns`` anchors them on the
 log's own clock. Output is deterministic (sorted keys, fixed float formatting by
 ``json``), so the same inputs give byte-identical files.
@@ -16,7 +16,7 @@ from typing import Any
 
 from .. import TOOL_NAME, __version__
 from ..files import atomic_write_text
-from ..result import DetectionResult
+from ..types import DetectionResult
 
 SCHEMA_VERSION = "2.0"
 #: Timeline versions ``report`` and ``evaluate`` read (2.x adds optional fields only).

@@ -16,9 +16,8 @@ from typing import Any
 import numpy as np
 
 from ..config import DetectorConfig
-from ..io.stream import MemoryReader
-from ..result import DetectionResult
-from ..types import RobotLog, SignalsChunk
+from ..logs.reader import MemoryReader
+from ..types import DetectionResult, RobotLog, SignalsChunk
 from .one_log import Replayed, ReplayStep, RunSetup, detect_log, replay_passes, warn_replayed
 from .plan import RunPlan, plan_run, with_generator
 from .run_warnings import CaughtWarnings
@@ -30,7 +29,7 @@ class Signals:
 
     Attributes:
         joints: the J joints. time_s: (N,) [s since the first sample]; t_ns: (N,) [ns].
-        signals: name → (N, J) (:data:`impactcli.result.SIGNAL_NAMES`) [N·m].
+        signals: name → (N, J) (:data:`impactcli.types.SIGNAL_NAMES`) [N·m].
         decisions: detector → (N, J) bool. ratios: detector → (N, J) statistic / threshold.
         position: (N, J) [rad]; position_ref: (N, J) [rad] or None.
     """
@@ -98,7 +97,7 @@ class StatsCollector:
         self.steps: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
 
     def __call__(self, step: ReplayStep) -> None:
-        from ..detect.calibrate import adaptive_statistic
+        from ..detect.thresholds import adaptive_statistic
 
         self.steps.append((step.t, step.r, adaptive_statistic(step.r_rms, step.v_rms),
                            step.loading))

@@ -14,15 +14,15 @@ from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
-from ..io.stream import open_log
+from ..logs.reader import open_log
 from ..types import SignalsChunk
 from .one_log import RunSetup, detect_log
 
 
 def output_stem(path: str) -> str:
     """Stem outputs are named by: the file name without its format extension."""
-    from ..io import log_stem
-    from ..io.urls import url_name
+    from ..logs import log_stem
+    from ..logs.urls import url_name
 
     return str(log_stem(url_name(path)))
 
@@ -32,8 +32,8 @@ def load_inputs(robot_path: str | None, model_path: str | None, config_path: str
     """The robot description, model and config (paths or URLs; None when not given), each
     read once and named in its error: what every replay of a log starts from."""
     from ..config import load_config
-    from ..io.robot import read_robot
-    from ..io.urls import load_by_url
+    from ..logs.robot_files import read_robot
+    from ..logs.urls import load_by_url
     from ..model import read_model
 
     robot = load_by_url(robot_path, read_robot, "robot description") if robot_path else None
@@ -89,7 +89,7 @@ def run_log(
     passes, when ``show_progress`` and stderr is a terminal.
 
     Returns:
-        (the :class:`impactcli.result.DetectionResult`; the
+        (the :class:`impactcli.types.DetectionResult`; the
         :class:`impactcli.outputs.report.samples.Samples` asked for, else None),
         the caller closing the samples (they remove their spill file).
     """

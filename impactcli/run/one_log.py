@@ -2,7 +2,7 @@
 
 :func:`detect_log` is the one routine every verb runs (a log file read in chunks, or a log
 in memory: one chunk). It plans the run from the log's scan (:mod:`impactcli.run.plan`),
-replays the chunks in order (:class:`impactcli.replay.Replayer`: state in, state out; a
+replays the chunks in order (:class:`impactcli.run.replay.Replayer`: state in, state out; a
 pass that is threshold-free, :func:`replay_passes`), applies the thresholds — the
 calibrated config's as it goes; without them, the log's own, from the statistics spilled
 by the replay once the warm-up's end is known, then applied over the spill — and hands each
@@ -10,10 +10,10 @@ chunk's signals, decisions and ratios to ``on_chunk`` (the writers, or a collect
 keeps meanwhile is small: the warm-up's statistics
 (:class:`~impactcli.detect.warmup.WarmupTracker`), the times at the gaps, and the *islands*:
 the samples where some detector fires or a contact still presses
-(:meth:`impactcli.contacts.IncidentContext.pressing`), and those within ``merge_gap_s``
+(:meth:`impactcli.detect.isolation.IncidentContext.pressing`), and those within ``merge_gap_s``
 after one. Events and incidents never span a sample outside an island, so each island
 gives its events and incidents by :func:`~impactcli.detect.events.extract_events` and
-:func:`~impactcli.contacts.build_incidents` once the warm-up's end is known.
+:func:`~impactcli.detect.isolation.build_incidents` once the warm-up's end is known.
 """
 
 from __future__ import annotations
@@ -27,21 +27,19 @@ from typing import Any
 import numpy as np
 
 from ..config import CalibrationRecord, DetectorConfig
-from ..contacts import IncidentContext, build_incidents, incident_context
 from ..detect.adaptive import AdaptiveResult, default_threads
 from ..detect.events import extract_events
 from ..detect.incidents import BRIDGE_FRACTION, Incident
+from ..detect.isolation import IncidentContext, build_incidents, incident_context
 from ..detect.thresholds import compare_to_thresholds
 from ..detect.warmup import Warmup, WarmupTracker
 from ..errors import ConfigError
-from ..io.stream import LogReader
+from ..logs.reader import LogReader
 from ..model.generators import choices_dict, summary_name
 from ..model.rigid import RigidModel
-from ..replay import ChunkReplay, Replayer, ReplaySetup, ReplayState
-from ..result import DetectionResult
-from ..spill import ChunkSpill, Islands
-from ..types import DETECTORS, Event, LogHeader, RobotDescription, SignalsChunk
+from ..types import DETECTORS, DetectionResult, Event, LogHeader, RobotDescription, SignalsChunk
 from .plan import ChunkFeed, Passes, RunPlan, calibrated_thresholds, plan_run, with_generator
+from .replay import ChunkReplay, Replayer, ReplaySetup, ReplayState
 from .run_warnings import (
     CaughtWarnings,
     warn_events_after_gaps,
@@ -51,6 +49,7 @@ from .run_warnings import (
     warn_uncalibrated,
     warn_warmup,
 )
+from .spill import ChunkSpill, Islands
 
 #: Samples per chunk of a log read from a file (about 40 MB of signals for 7 joints): the
 #: signals Parquet gets one row group per chunk.
@@ -91,7 +90,7 @@ class RunSetup:
 class ReplayStep:
     """One chunk replayed: its first sample, (n,) times [s since the first sample] and
     [ns], the log's (n, J_all) positions, and the replay's (n, J) arrays
-    (:class:`impactcli.replay.ChunkReplay`); the writers' arrays None where not kept."""
+    (:class:`impactcli.run.replay.ChunkReplay`); the writers' arrays None where not kept."""
 
     start: int
     t: np.ndarray
@@ -195,7 +194,7 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
     (module docstring).
 
     Args:
-        reader: the log (:func:`impactcli.io.stream.open_log`); the caller closes it.
+        reader: the log (:func:`impactcli.logs.reader.open_log`); the caller closes it.
         setup: config, model, robot... (:class:`RunSetup`).
         on_chunk: called per chunk, in order, with its :class:`~impactcli.types.SignalsChunk`.
         progress: called with (seconds of log done, seconds to do), summed over the passes
@@ -305,9 +304,9 @@ def _detect_passes(
 def _thresholds_from_spill(spill: ChunkSpill, wu: Warmup, n: int, fs: float,
                            ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
     """The uncalibrated rule's thresholds and margins per detector
-    (:func:`impactcli.detect.calibrate.uncalibrated_thresholds`) from the statistics after
+    (:func:`impactcli.detect.thresholds.uncalibrated_thresholds`) from the statistics after
     the warm-up's end (all of them if it covers the log), read back block by block."""
-    from ..detect.calibrate import BlockMaxima, thresholds_from_maxima, uncalibrated_block
+    from ..detect.thresholds import BlockMaxima, thresholds_from_maxima, uncalibrated_block
 
     start = wu.end_index if wu.end_index < n - 10 else 0
     block = uncalibrated_block(n - start, fs)
@@ -327,7 +326,7 @@ def uncalibrated_config(cfg: DetectorConfig, joints: tuple[str, ...],
                         margins: dict[str, np.ndarray]) -> DetectorConfig:
     """The config an uncalibrated run records: its calibration record says the thresholds
     came from the log itself, by which rule and margins."""
-    from ..detect.calibrate import UNCALIBRATED_RULE
+    from ..detect.thresholds import UNCALIBRATED_RULE
 
     return dataclasses.replace(cfg, calibration=CalibrationRecord(
         calibrated=False, margin_rule=UNCALIBRATED_RULE,
@@ -370,7 +369,7 @@ def _events_and_incidents(islands: Islands, wu: Warmup, joints: tuple[str, ...],
                           cfg: DetectorConfig, ctx: IncidentContext,
                           ) -> tuple[list[Event], list[Incident]]:
     """Every island's events (indices in the log, in timeline order) and incidents
-    (:func:`impactcli.contacts.build_incidents`), each island read from its files once."""
+    (:func:`impactcli.detect.isolation.build_incidents`), each island read from its files once."""
     ev = cfg.events
     events: list[Event] = []
     incidents: list[Incident] = []

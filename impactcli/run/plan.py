@@ -3,7 +3,7 @@
 The joints detection can use (the screen of the log's columns, what the model or the
 calibrated config covers, what a calibration left out), each joint's residual generator,
 the rigid model (given, embedded in the config, or identified from the log in one more
-pass over its chunks: :class:`~impactcli.model.identify.IdentifyStream`) and the joint order
+pass over its chunks: :class:`~impactcli.model.identification.IdentifyStream`) and the joint order
 (the model's, or the calibrated config's). Every decision left out of detection is warned
 about once. Nothing here replays a sample.
 """
@@ -17,11 +17,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..clock import check_calibrated_rate
 from ..config import DetectorConfig
 from ..detect.adaptive import check_scale
-from ..detect.screen import LeftOut
 from ..errors import ConfigError, ImpactWarning, LogFormatError, ModelError
-from ..io.stream import LogChunk, LogReader, LogScan
+from ..logs.reader import LogChunk, LogReader, LogScan
+from ..logs.screen import LeftOut
 from ..model.generators import (
     GeneratorChoice,
     choose_generators,
@@ -30,9 +31,8 @@ from ..model.generators import (
     uses_correction,
 )
 from ..model.rigid import RigidModel
-from ..replay import ChunkArrays, chunk_arrays
-from ..sampling import check_calibrated_rate
 from ..types import CONTROLLER_CHANNELS, LogSource, RobotDescription, RobotLog
+from .replay import ChunkArrays, chunk_arrays
 
 
 def known_joints(model: RigidModel | None, cfg: DetectorConfig) -> tuple[str, ...] | None:
@@ -53,7 +53,7 @@ def screen_plan(
     channel_why: Callable[[str, list[int]], list[str | None] | None],
 ) -> tuple[tuple[str, ...], tuple[LeftOut, ...], dict[str, list[int]]]:
     """The joints detection cannot use and the controller channels read as not logged,
-    from the screen of the log's columns (:mod:`impactcli.detect.screen`), each warned
+    from the screen of the log's columns (:mod:`impactcli.logs.screen`), each warned
     about once.
 
     Args:
@@ -227,7 +227,7 @@ def from_log_structure(cfg: DetectorConfig, robot: RobotDescription | None,
     if cfg.model is not None:
         kind = cfg.model.get("kind")
         if robot is None and cfg.model.get("robot"):
-            from ..io.robot import robot_from_dict
+            from ..logs.robot_files import robot_from_dict
 
             robot = robot_from_dict(cfg.model["robot"], "the config's model")
     if cfg.calibration.calibrated:
@@ -281,7 +281,7 @@ class ChunkFeed:
 
     def chunks(self, joints: tuple[str, ...]
                ) -> Iterator[tuple[LogChunk, np.ndarray, ChunkArrays]]:
-        """(chunk, (n,) times [s], :class:`~impactcli.replay.ChunkArrays` of ``joints``)."""
+        """(chunk, (n,) times [s], :class:`~impactcli.run.replay.ChunkArrays` of ``joints``)."""
         cols = [self.full_joints.index(j) for j in joints]
         nan_cols = {ch: [joints.index(self.keep[k]) for k in ks if self.keep[k] in joints]
                     for ch, ks in self.unlogged.items()}
@@ -310,10 +310,10 @@ def identify_from_chunks(feed: ChunkFeed, cfg: DetectorConfig,
                          robot: RobotDescription | None, sanity: bool,
                          passes: Passes | None = None) -> RigidModel:
     """The rigid model identified from the log, read once more
-    (:class:`~impactcli.model.identify.IdentifyStream`: bounded memory, the model
-    :func:`impactcli.model.identify` makes of the whole log)."""
+    (:class:`~impactcli.model.identification.IdentifyStream`: bounded memory, the model
+    :func:`impactcli.model.identification` makes of the whole log)."""
     from ..model import IdentifyOptions
-    from ..model.identify import IdentifyStream
+    from ..model.identification import IdentifyStream
 
     scan = feed.scan
     ident = IdentifyStream.start(

@@ -16,12 +16,12 @@ from typing import Any
 
 import numpy as np
 
+from ..clock import GAP_FACTOR
 from ..config import DetectorConfig
-from ..detect.calibrate import UNCALIBRATED_BLOCK_S, UNCALIBRATED_MARGIN, UNCALIBRATED_QUANTILE
 from ..detect.events import LONG_EVENT_S
+from ..detect.thresholds import UNCALIBRATED_BLOCK_S, UNCALIBRATED_MARGIN, UNCALIBRATED_QUANTILE
 from ..detect.warmup import Warmup
 from ..errors import ImpactWarning
-from ..sampling import GAP_FACTOR
 from ..types import Event
 
 #: Events starting this long after a time gap are named in a warning [s].

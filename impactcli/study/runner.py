@@ -2,7 +2,7 @@
 the comparison of the detectors at matched false-alarm rates (``impactcli sensitivity``).
 
 One simulated robot per arm preset is calibrated on collision-free runs without payload
-(:func:`impactcli.calibration.calibrate`); that config replays every soak run (every alarm
+(:func:`impactcli.run.calibration.calibrate`); that config replays every soak run (every alarm
 after warm-up is a false alarm) and every Table II case. The study's design, definitions and
 rates: docs/validation.md. Pure maths and simulation; no file I/O, no printing.
 """
@@ -12,9 +12,9 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from .scenarios import amplitudes
+from .aggregate import summarize
+from .arms import amplitudes
 from .spec import SOAK_FAMILIES, VARIANTS, StudySpec
-from .summary import summarize
 from .tasks import (
     CalibTask,
     CaseOutcome,

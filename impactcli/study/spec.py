@@ -12,8 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from ..scoring.match import MatchTolerance
-from ..scoring.sweep import geometric_scales
+from ..quality.match import MatchTolerance
+from ..quality.sweep import geometric_scales
 
 SCHEMA_VERSION = "1.0"
 G_N_PER_KG = 9.81

@@ -2,7 +2,7 @@
 the detection-vs-false-alarm (ROC) table and the verdicts, in plain text
 (:func:`format_text`) and Markdown for the README (:func:`format_markdown`).
 
-Formatting only: the numbers are :func:`impactcli.study.summary.summarize`'s mapping.
+Formatting only: the numbers are :func:`impactcli.study.aggregate.summarize`'s mapping.
 """
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ import math
 from collections.abc import Iterable, Sequence
 from typing import Any
 
+from .aggregate import fmt
 from .spec import PAPER_ADAPTIVE_N, PAPER_STATIC_N, SETTINGS, SOAK_FAMILIES
-from .summary import fmt
 
 #: Table II's row labels for our detectors (static_loading is ours, not in the paper).
 ROW_LABELS: dict[str, str] = {

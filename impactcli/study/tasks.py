@@ -4,7 +4,7 @@ Each task is a picklable dataclass and a top-level function (:func:`run_calibrat
 :func:`run_soak`, :func:`run_case`): they run in worker processes
 (:func:`impactcli.study.runner.run_study` maps them with its runner). Each simulates its
 run, replays it at the arm's calibrated config and keeps only what the summary needs
-(:mod:`impactcli.study.summary`): false alarms and delays per swept threshold scale.
+(:mod:`impactcli.study.aggregate`): false alarms and delays per swept threshold scale.
 """
 
 from __future__ import annotations
@@ -16,10 +16,10 @@ from typing import Any
 import numpy as np
 
 from ..config import DetectorConfig
+from ..quality.match import EVALUATED
+from ..quality.sweep import sweep_ratios
 from ..run.collect import detect_in_memory
-from ..scoring.match import EVALUATED
-from ..scoring.sweep import sweep_ratios
-from .scenarios import amplitudes, case_scenario, free_scenario, the_robot
+from .arms import amplitudes, case_scenario, free_scenario, the_robot
 from .spec import SOAK_FAMILIES, VARIANTS, StudySpec, seed_of
 
 
@@ -44,8 +44,8 @@ def run_calibration(task: CalibTask) -> CalibOutcome:
     """Calibrate one arm on its collision-free, payload-free runs (:mod:`impactcli.study`)."""
     import warnings
 
-    from ..calibration import calibrate
     from ..errors import ImpactWarning
+    from ..run.calibration import calibrate
     from ..sim import preset, simulate
 
     spec = task.spec
@@ -98,12 +98,12 @@ def soak_false_alarms(ratios: dict[str, np.ndarray], time_s: np.ndarray, warmup_
 
     At scale s a detector decides ``ratio > s`` ((N, J), ORed over joints; the product ORs
     adaptive and static_loading); events are the intervals of
-    :func:`impactcli.scoring.sweep.event_intervals` (the run's merge gap and minimum duration).
+    :func:`impactcli.quality.sweep.event_intervals` (the run's merge gap and minimum duration).
     Every event still on at or after ``warmup_end_s`` is a false alarm — including one that
     began in the warm-up and never ended (a detector stuck on, e.g. a static threshold under
     an unknown payload, is not silent).
     """
-    from ..scoring.sweep import event_intervals
+    from ..quality.sweep import event_intervals
 
     t = np.asarray(time_s, dtype=np.float64)
     out: dict[str, tuple[int, ...]] = {}
@@ -191,7 +191,7 @@ class CaseOutcome:
 
 def run_case(task: CaseTask) -> CaseOutcome:
     """Simulate one case, replay it at the arm's calibrated config, sweep every scale."""
-    from ..scoring.evaluation import evaluate_result
+    from ..quality.evaluation import evaluate_result
     from ..sim import simulate
 
     spec, var = task.spec, VARIANTS[task.variant]

@@ -25,7 +25,7 @@ from pathlib import Path
 
 
 def _make_log(minutes: float, path: Path) -> float:
-    from impactcli.io import write_log
+    from impactcli.logs import write_log
     from impactcli.sim import scenario, simulate
     from impactcli.sim.arm import assist_like
 

@@ -59,8 +59,8 @@ def child(minutes: float) -> None:
     from impactcli.cli.evaluate import DEFAULT_SCALES, parse_scales
 
     try:
-        sweep_mod = importlib.import_module("impactcli.scoring.sweep")
-        verdict_mod = importlib.import_module("impactcli.scoring.verdict")
+        sweep_mod = importlib.import_module("impactcli.quality.sweep")
+        verdict_mod = importlib.import_module("impactcli.quality.verdict")
     except ImportError:  # pragma: no cover - older layouts
         sweep_mod = verdict_mod = importlib.import_module("impactcli.evaluate")
     t, ratios, labels = _run(minutes)

@@ -30,7 +30,7 @@ SCENARIOS = ("free_triangle", "free_fm_triangle", "free_p2p", "free_multisine", 
 
 def make_logs(folder: Path, n: int, duration_s: float) -> list[Path]:
     """Simulate ``n`` logs into ``folder`` (kept when already there)."""
-    from impactcli.io import write_log
+    from impactcli.logs import write_log
     from impactcli.sim import scenario, simulate
 
     folder.mkdir(parents=True, exist_ok=True)

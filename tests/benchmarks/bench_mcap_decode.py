@@ -30,9 +30,9 @@ _CHILD = r"""
 import json, sys, time
 from pathlib import Path
 path, n = Path(sys.argv[1]), int(sys.argv[2])
-from impactcli.io import read_log
-from impactcli.io.mcap_ros2 import decode_topic
-from impactcli.io.mcap_scan import scan_mcap
+from impactcli.logs import read_log
+from impactcli.logs.ros2_cdr import decode_topic
+from impactcli.logs.mcap import scan_mcap
 
 def best(fn, repeat=3):
     times = []
@@ -95,7 +95,7 @@ def official(path: Path, n: int) -> tuple[float, float]:
 def main() -> None:
     from release_tree import release_tree
 
-    from impactcli.io import write_log
+    from impactcli.logs import write_log
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("n", nargs="?", type=int, default=200_000)

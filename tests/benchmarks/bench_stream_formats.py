@@ -13,9 +13,9 @@ itself stays bounded), into a temporary folder:
 - ``npz``: an uncompressed archive of ``t`` (N,) [s], ``q``, ``tau``, ``qref`` (N, 7),
   each ``.npy`` member written in blocks, read through a ``format: npz`` channel map.
 
-Then, in a fresh process, :func:`impactcli.io.stream.scan_log` and every chunk of
-:func:`~impactcli.io.stream.iter_chunks` (``chunk_rows``); ``--whole`` also times
-:func:`impactcli.io.read_log` in another fresh process; ``--release REF`` measures that
+Then, in a fresh process, :func:`impactcli.logs.reader.scan_log` and every chunk of
+:func:`~impactcli.logs.reader.iter_chunks` (``chunk_rows``); ``--whole`` also times
+:func:`impactcli.logs.read_log` in another fresh process; ``--release REF`` measures that
 commit's code too, on the same files. Reported: wall time, the scan's
 share, and the peak resident memory (``ru_maxrss`` of the child, which
 reports it itself). Peak RSS must not grow with the duration.
@@ -48,7 +48,7 @@ mode, path, chunk_rows, opts = sys.argv[1], sys.argv[2], int(sys.argv[3]), json.
 t0 = time.perf_counter()
 out = {}
 if mode == "stream":
-    from impactcli.io.stream import iter_chunks, scan_log
+    from impactcli.logs.reader import iter_chunks, scan_log
     scan = scan_log(path, **opts)
     out["scan_s"] = time.perf_counter() - t0
     n = 0
@@ -56,7 +56,7 @@ if mode == "stream":
         n += c.n_samples
     scan.close()
 else:
-    from impactcli.io import read_log
+    from impactcli.logs import read_log
     n = read_log(path, **opts).n_samples
 out["n"] = n
 out["wall_s"] = time.perf_counter() - t0
@@ -81,8 +81,8 @@ def _block(a: int, b: int) -> tuple[np.ndarray, dict[str, np.ndarray]]:
 
 def write_mcap(n: int, path: Path) -> None:
     """The ROS 2 MCAP log of ``n`` samples (module docstring)."""
-    from impactcli.io.mcap_ros2 import encode_jointstates
-    from impactcli.io.write import ros2_writer
+    from impactcli.logs.ros2_cdr import encode_jointstates
+    from impactcli.logs.write import ros2_writer
 
     with open(path, "wb") as f:
         w, sid = ros2_writer(f)
@@ -107,8 +107,8 @@ def write_rosbag2(n: int, path: Path) -> None:
     by block."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
-    from impactcli.io.mcap_ros2 import JOINT_STATE, encode_jointstates
-    from impactcli.io.write import ros2_typestore
+    from impactcli.logs.ros2_cdr import JOINT_STATE, encode_jointstates
+    from impactcli.logs.write import ros2_typestore
 
     with Writer(path, version=9, storage_plugin=StoragePlugin.SQLITE3) as w:
         store = ros2_typestore()

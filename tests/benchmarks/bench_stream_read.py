@@ -7,7 +7,7 @@ For each duration a synthetic 7-joint 1 kHz canonical CSV is written into a temp
 folder (``time`` with 9 decimals, then per joint ``.position``, ``.torque``,
 ``.position_ref``, ``.velocity_ref``, ``.acceleration_ref``, values with about 10
 significant digits). Then, each in a fresh process, ``scan_log`` + iterating every chunk of
-:func:`impactcli.io.stream.iter_chunks` (``chunk_rows``) and :func:`impactcli.io.read_log`
+:func:`impactcli.logs.reader.iter_chunks` (``chunk_rows``) and :func:`impactcli.logs.read_log`
 (the chunks collected) read it; the benchmark reports their wall time and peak resident
 memory (ru_maxrss of that process, which reports it itself). ``--release REF`` measures
 that commit's code too, in the same run.
@@ -36,14 +36,14 @@ mode, path, chunk_rows = sys.argv[1], sys.argv[2], int(sys.argv[3])
 t0 = time.perf_counter()
 out = {}
 if mode == "stream":
-    from impactcli.io.stream import iter_chunks, scan_log
+    from impactcli.logs.reader import iter_chunks, scan_log
     scan = scan_log(path)
     out["scan_s"] = time.perf_counter() - t0
     n = 0
     for c in iter_chunks(path, scan, chunk_rows):
         n += c.n_samples
 else:
-    from impactcli.io import read_log
+    from impactcli.logs import read_log
     n = read_log(path).n_samples
 out["n"] = n
 out["wall_s"] = time.perf_counter() - t0
@@ -58,7 +58,7 @@ def write_csv(minutes: float, path: Path, seed: int = 1) -> int:
     import pyarrow as pa
     import pyarrow.csv as pacsv
 
-    from impactcli.io.write import ns_to_decimal_text
+    from impactcli.logs.write import ns_to_decimal_text
 
     n = int(minutes * 60 * RATE_HZ)
     rng = np.random.default_rng(seed)

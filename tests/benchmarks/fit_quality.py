@@ -7,7 +7,7 @@ and the real logs when present (the tables of docs/validation.md, "Fit quality")
 Sections (markdown tables, then the machine):
 
 * ``sim`` — the flexible-joint simulator's ASSIST-like arm: the preset, and three robots
-  whose every physical parameter is drawn ±20 % off it (``impactcli.study.scenarios.the_robot``).
+  whose every physical parameter is drawn ±20 % off it (``impactcli.study.arms.the_robot``).
   A ``planar`` model is identified on a 60 s collision-free multi-sine run and judged on
   *other* trajectories of the same robot (multi-sine, triangles, point-to-point, 30 s each,
   another seed): RMS torque error relative to the joint's torque RMS (both zero-phase
@@ -37,8 +37,8 @@ from pathlib import Path
 
 import numpy as np
 
-from impactcli.io import read_log
-from impactcli.io.robot import read_robot
+from impactcli.logs import read_log
+from impactcli.logs.robot_files import read_robot
 from impactcli.model import (
     IdentifyOptions,
     ResidualOptions,
@@ -50,7 +50,7 @@ from impactcli.model import (
 )
 from impactcli.model import structures as st
 from impactcli.sim import Push, preset, scenario, simulate
-from impactcli.study.scenarios import the_robot
+from impactcli.study.arms import the_robot
 from impactcli.types import LogSource, RobotLog
 
 REPO = Path(__file__).resolve().parents[2]

@@ -36,14 +36,13 @@ from pathlib import Path
 
 import numpy as np
 
-from impactcli.calibration import calibrate
 from impactcli.config import DetectorConfig, load_config
-from impactcli.io import read_log
-from impactcli.io.robot import read_labels, read_robot
-from impactcli.result import DetectionResult
+from impactcli.logs import read_log
+from impactcli.logs.robot_files import read_labels, read_robot
+from impactcli.run.calibration import calibrate
 from impactcli.run.collect import detect_in_memory
 from impactcli.sim import scenario, simulate
-from impactcli.types import Labels
+from impactcli.types import DetectionResult, Labels
 
 REPO = Path(__file__).resolve().parents[2]
 KIND = {"impact": "transient", "push": "transient", "clamp": "quasi_static"}

@@ -30,8 +30,8 @@ import time
 import warnings
 from pathlib import Path
 
-from impactcli.calibration import calibrate
-from impactcli.io import read_log
+from impactcli.logs import read_log
+from impactcli.run.calibration import calibrate
 from impactcli.run.collect import detect_in_memory
 from impactcli.types import RobotLog
 
@@ -55,7 +55,7 @@ def _robot(kind: str, which: str) -> object | None:
     name = {"ur": "ur5", "kuka": None}[which]
     if name is None:
         raise LookupError("no shipped URDF of the KUKA LWR4")
-    from impactcli.io.robot import robot_from_dict
+    from impactcli.logs.robot_files import robot_from_dict
 
     # the log names the UR joints shoulder_pan ... wrist_3; the URDF's are <name>_joint
     ur = ("shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3")

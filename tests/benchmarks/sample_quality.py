@@ -12,7 +12,7 @@
 Every contact log in ``sample_logs/csv`` is replayed with the thresholds of its arm's config
 (``sample_logs/assist_like.config.toml``, ``sample_logs/heavy_geared.config.toml``, made by
 ``impactcli calibrate`` on collision-free sample logs — see :data:`CALIBRATION_LOGS`) and
-evaluated against its labels with :func:`impactcli.scoring.evaluation.evaluate_result` (an event
+evaluated against its labels with :func:`impactcli.quality.evaluation.evaluate_result` (an event
 matches a contact when it starts within [start − 20 ms, end + 250 ms]). Printed: a markdown
 table per detector and log (hits, misses, delays, false alarms, smallest detected force),
 then one PASS/FAIL line per criterion with what decided it.
@@ -52,15 +52,14 @@ from typing import Any
 
 import numpy as np
 
-from impactcli.calibration import calibrate
 from impactcli.config import DetectorConfig, load_config
-from impactcli.io import read_log
-from impactcli.io.robot import read_labels, read_robot
-from impactcli.result import DetectionResult
+from impactcli.logs import read_log
+from impactcli.logs.robot_files import read_labels, read_robot
+from impactcli.quality.evaluation import Evaluation, evaluate_result
+from impactcli.quality.match import PRODUCT
+from impactcli.run.calibration import calibrate
 from impactcli.run.collect import detect_in_memory
-from impactcli.scoring.evaluation import Evaluation, evaluate_result
-from impactcli.scoring.match import PRODUCT
-from impactcli.types import DETECTORS, Labels, RobotDescription, RobotLog
+from impactcli.types import DETECTORS, DetectionResult, Labels, RobotDescription, RobotLog
 
 REPO = Path(__file__).resolve().parents[2]
 SAMPLES = REPO / "sample_logs"
@@ -379,7 +378,7 @@ def clamp_release_truth(res: DetectionResult, sim: object | None = None,
     ``name`` re-simulated from the sample manifest)."""
     from impactcli.detect.static import causal_lowpass
     from impactcli.sim.core import SimResult, simulate
-    from impactcli.sim.samples import MANIFEST
+    from impactcli.sim.sample_logs import MANIFEST
 
     if sim is None:
         entry = next(m for m in MANIFEST if m.name == name)
@@ -413,7 +412,7 @@ def cross_unit() -> None:
     from dataclasses import replace
 
     from impactcli.sim.core import simulate
-    from impactcli.sim.samples import MANIFEST
+    from impactcli.sim.sample_logs import MANIFEST
 
     sims = {m.name: simulate(replace(m.make(), robot_seed=None), seed=m.seed)
             for m in MANIFEST if m.arm == "assist_like"}
@@ -439,7 +438,7 @@ def impact_truth(name: str = "assist_impacts", after_s: float = IMPACT_DELAY_S) 
     """Re-simulate ``name`` (sample manifest, same seed) and give, per impact, the true
     contact force ``after_s`` after the labelled onset and the time to reach 20 N."""
     from impactcli.sim.core import simulate
-    from impactcli.sim.samples import MANIFEST
+    from impactcli.sim.sample_logs import MANIFEST
 
     entry = next(m for m in MANIFEST if m.name == name)
     sim = simulate(entry.make(), seed=entry.seed)

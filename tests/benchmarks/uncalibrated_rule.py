@@ -5,7 +5,7 @@
 
 With no config, ``detect`` identifies the model from the log and sets each threshold to
 ``margin × the quantile of the log's block maxima`` of the detector's statistic after
-warm-up (:func:`impactcli.detect.calibrate.uncalibrated_thresholds`). This script measures,
+warm-up (:func:`impactcli.detect.thresholds.uncalibrated_thresholds`). This script measures,
 for the rule as shipped and for the earlier rule (1.5 × the 0.995-quantile of the samples):
 
 * the margin each collision-free log needs (its statistic's maximum / the rule's level), on
@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from impactcli.detect.calibrate import (
+from impactcli.detect.thresholds import (
     UNCALIBRATED_BLOCK_S,
     UNCALIBRATED_MARGIN,
     UNCALIBRATED_QUANTILE,
@@ -122,7 +122,7 @@ def _after_warmup(log: Any, robot: Any) -> tuple[int, dict[str, np.ndarray]]:
 
 def _real() -> dict:
     warnings.simplefilter("ignore")
-    from impactcli.io import read_log
+    from impactcli.logs import read_log
 
     log = read_log(KUKA, channel_map="kuka_lwr4")
     k0, after = _after_warmup(log, None)

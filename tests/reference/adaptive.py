@@ -5,7 +5,7 @@
 :func:`evaluate_reference` implements eq. 24–42 again in plain NumPy, obviously correct
 and slow, for the tests to compare the kernel against (to 1e-9); :func:`threshold_inputs`
 is the inputs of a whole log. The product replays logs chunk by chunk
-(:mod:`impactcli.replay`) and never calls these.
+(:mod:`impactcli.run.replay`) and never calls these.
 """
 
 from __future__ import annotations
@@ -15,7 +15,6 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from scipy import signal
 
-from impactcli.causal import Carry
 from impactcli.config import AdaptiveConfig
 from impactcli.detect.adaptive import (
     AdaptiveResult,
@@ -27,6 +26,7 @@ from impactcli.detect.adaptive import (
 from impactcli.detect.axes import EvaluatorState
 from impactcli.detect.rates import resolve_rates
 from impactcli.detect.rls import max_diag_of
+from impactcli.model.causal import Carry
 from impactcli.types import RobotLog
 
 

@@ -1,7 +1,7 @@
 """The two static detectors on a whole log (tests only): the formulas of
 docs/method.md §5 written out, with the product's low-pass
 (:func:`impactcli.detect.static.causal_lowpass`). The replay compares the same statistics
-with their thresholds chunk by chunk (:mod:`impactcli.replay`).
+with their thresholds chunk by chunk (:mod:`impactcli.run.replay`).
 """
 
 from __future__ import annotations

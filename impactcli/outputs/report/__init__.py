@@ -1,10 +1,10 @@
 """The safety-audit report: one self-contained HTML file and its JSON twin, built around the
 answer a safety engineer opens it for — did the arm hit something, when, where, how hard.
 
-Formatting only: every number comes from a :class:`~impactcli.result.DetectionResult`
+Formatting only: every number comes from a :class:`~impactcli.types.DetectionResult`
 (through :func:`impactcli.outputs.timeline.timeline_dict`), from the run's chunks as
 :mod:`.samples` collects them, from :mod:`impactcli.detect.incidents` or, with labels,
-from :mod:`impactcli.scoring`. The one quantity reduced here is the false-alarm margin.
+from :mod:`impactcli.quality`. The one quantity reduced here is the false-alarm margin.
 Parts, by what the reader sees:
 
 - :mod:`.summary` — the verdict line, the incident list, the fleet summary;

@@ -55,7 +55,7 @@ def generator_cell(replay: dict[str, Any]) -> str:
 
 
 def fit_table(fit: dict[str, Any], joints: Sequence[str]) -> str:
-    """The model's fit statistics (impactcli.model.identify layout: per joint RMS of the
+    """The model's fit statistics (impactcli.model.identification layout: per joint RMS of the
     torque error on the fitted and the held-back part); any other layout generically."""
     per = fit.get("joints") if isinstance(fit.get("joints"), dict) else None
     if not per or not isinstance(per.get("fit"), dict):

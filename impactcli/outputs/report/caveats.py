@@ -8,14 +8,14 @@ from __future__ import annotations
 
 from typing import Any
 
-from ...detect.calibrate import (
+from ...detect.events import LONG_EVENT_S
+from ...detect.thresholds import (
     MAX_MARGIN,
     UNCALIBRATED_BLOCK_S,
     UNCALIBRATED_MARGIN,
     UNCALIBRATED_QUANTILE,
 )
-from ...detect.events import LONG_EVENT_S
-from ...result import DetectionResult
+from ...types import DetectionResult
 from .common import LOW_GAIN, POOR_FIT, share
 
 

@@ -84,10 +84,10 @@ def to_mapping(obj: Any) -> Any:
 
 
 def log_stem(path: str) -> str:
-    """The stem ``detect`` names its outputs by (:func:`impactcli.io.log_stem`: the file
+    """The stem ``detect`` names its outputs by (:func:`impactcli.logs.log_stem`: the file
     name without its format extension — ``.csv``, ``.csv.gz``, ``.mcap``, ``.npz``, ``.bag``,
     ``.db3`` — or a rosbag2 folder's own name), and a timeline's (``x.timeline.json`` → x)."""
-    from ...io import log_stem as io_log_stem
+    from ...logs import log_stem as io_log_stem
 
     name = os.path.basename(str(path).rstrip("/\\")) or str(path)
     for ext in (".timeline.json", ".json"):

@@ -16,8 +16,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from ...result import DetectionResult
-from ...types import DETECTORS, Labels
+from ...types import DETECTORS, DetectionResult, Labels
 from .common import GUARD_S
 from .samples import Samples
 

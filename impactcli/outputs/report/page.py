@@ -17,8 +17,7 @@ from typing import Any
 
 from ... import TOOL_NAME, __version__
 from ...files import atomic_write_text, prepare_output
-from ...result import DetectionResult
-from ...types import Labels
+from ...types import DetectionResult, Labels
 from .common import (
     CLIP_FACTOR,
     EVENT_WINDOW_S,

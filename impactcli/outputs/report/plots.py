@@ -15,8 +15,7 @@ from typing import Any
 import numpy as np
 
 from ...detect.incidents import group_events
-from ...result import DetectionResult
-from ...types import DETECTORS, Labels
+from ...types import DETECTORS, DetectionResult, Labels
 from .. import svgplot
 from .common import (
     CLIP_FACTOR,

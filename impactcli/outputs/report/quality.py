@@ -3,7 +3,7 @@ labelled contact's outcome, the incidents' scores when the evaluation carries th
 (``evaluation["incidents"]``: ``summary`` rows of label/value and ``contacts`` dicts,
 rendered as they come), and the threshold sweep (a short table and an ROC-style plot).
 
-The numbers come from :mod:`impactcli.scoring`.
+The numbers come from :mod:`impactcli.quality`.
 """
 
 from __future__ import annotations
@@ -12,11 +12,10 @@ from collections.abc import Sequence
 from typing import Any
 
 from ...errors import ImpactError
-from ...result import DetectionResult
-from ...scoring.evaluation import evaluate_result
-from ...scoring.sweep import DEFAULT_SWEEP_SCALES
-from ...scoring.verdict import sweep_to_dict
-from ...types import Labels
+from ...quality.evaluation import evaluate_result
+from ...quality.sweep import DEFAULT_SWEEP_SCALES
+from ...quality.verdict import sweep_to_dict
+from ...types import DetectionResult, Labels
 from .common import e, g, generic_table, kv_table, to_mapping
 from .plots import sweep_plot
 from .samples import Samples

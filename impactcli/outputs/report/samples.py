@@ -13,7 +13,7 @@ the adaptive threshold, the loading statistic, |r|, the position and the detecto
 is known only at the end: a window's rows found as ``np.searchsorted`` finds them on the
 whole log (an index of each row group's first and last time), the margin in one pass, the
 exact median posture (:func:`impactcli.detect.warmup.spilled_median`), the sweep
-(:class:`impactcli.scoring.sweep.ThresholdSweep`) row group by row group. Memory: one row
+(:class:`impactcli.quality.sweep.ThresholdSweep`) row group by row group. Memory: one row
 group and the envelope slots (4 J + 1 series × the buckets); disk up to 8 J + 1 float64 per
 sample, compressed, removed by :meth:`Samples.close`.
 """
@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from ...scoring.sweep import SweepRow, ThresholdSweep, event_settings, signal_ratios
+from ...quality.sweep import SweepRow, ThresholdSweep, event_settings, signal_ratios
 from ...types import DETECTORS, Labels
 from ..column_spill import ColumnSpill
 from ..svgplot import EnvelopeAccumulator

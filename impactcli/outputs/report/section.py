@@ -15,8 +15,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from ...result import DetectionResult
-from ...types import DETECTORS, Labels
+from ...types import DETECTORS, DetectionResult, Labels
 from ..timeline import timeline_dict
 from .analysed import analysed_html, with_what_html
 from .caveats import caveats

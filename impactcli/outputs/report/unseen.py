@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from ...detect.incidents import planar_jacobian, smallest_caught_force
-from ...result import DetectionResult
+from ...types import DetectionResult
 from .common import approx, e, share
 from .samples import Samples
 
@@ -29,7 +29,7 @@ MAX_GAPS_LISTED = 50
 
 def chain_of(result: DetectionResult) -> tuple[tuple[str, ...], dict[str, Any] | None]:
     """The robot's joint chain (base first) and its kinematics, from the robot description
-    the model records (as :func:`impactcli.contacts.robot_chain` reads it); the analysed
+    the model records (as :func:`impactcli.detect.isolation.robot_chain` reads it); the analysed
     joints without kinematics when the model records none."""
     desc = (result.model or {}).get("robot")
     joints = result.log.joint_names

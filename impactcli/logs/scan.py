@@ -1,0 +1,475 @@
+"""The one scan of a log's rows (:func:`scan_layout`): what every format's reader does
+with the blocks of rows its layout gives (:mod:`impactcli.logs.layout`).
+
+The rows are repaired across block boundaries (:class:`~impactcli.logs.repair.Repairer`),
+converted by the layout's plan, counted (the sample clock and gaps of
+:mod:`impactcli.clock`, the screens of the torque-like channels) and kept in a cache of
+the repaired rows (:mod:`impactcli.logs.row_cache`) that the passes after the scan read
+(:func:`pass_chunks`). A layout may ask for another pass (a CSV whose cells its first pass
+did not read as the whole file must be read); ``--repair-order`` first finds the rows to
+keep over the file's stamps (:func:`~impactcli.logs.repair.increasing_run`). The errors are
+raised in the order the whole file is refused with: the layout's, the repairs', the time
+unit's, the plan's.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from ..clock import GAP_FACTOR, MAX_STATS_STEPS, GapStream, SampleClock, StepHistogram
+from ..errors import ImpactWarning, LogFormatError
+from ..types import CONTROLLER_CHANNELS, LogSource, RobotLog
+from .layout import OPTIONAL, LogChunk, ScanPass, StreamLayout, chunked
+from .repair import Repairer, RepairOrderNeeded, increasing_run
+from .row_cache import RowCache
+from .screen import ColumnScreen, ScreenAccumulator
+
+#: The first pass keeps the steps longer than this fraction of 1.5 provisional periods as
+#: gap candidates (exact while the final threshold is above; else a second pass).
+FLOOR_FRACTION = 0.8
+
+
+class ScanReader(Protocol):
+    """The reader a scan was made by (:class:`impactcli.logs.reader.LogReader`)."""
+
+    def chunks(self, rows: int) -> Iterator[LogChunk]: ...
+
+    def close(self) -> None: ...
+
+
+@dataclass(frozen=True)
+class LogScan:
+    """The first pass over a log (:meth:`LogReader.scan`): what needs the whole log.
+
+    Attributes:
+        log: the log's header: a :class:`~impactcli.types.RobotLog` of its first 2 samples
+            with the whole log's ``joint_names``, ``source`` (sha256 of the whole file,
+            format, torque and time source, repairs, ignored channels, joints dropped) and
+            optional channels (an array where the whole log has one).
+        n_samples: N, the log's samples.
+        t0_ns, t_last_ns: its first and last sample time [ns].
+        clock: its sample clock (``RobotLog.sample_clock``).
+        gaps: (G,) int64 the gap steps i (t[i] → t[i+1]), and ``gap_lengths_s`` (G,) their
+            lengths [s], as :func:`impactcli.logs.describe.time_gaps` on the whole log.
+        torque_screen: ``unusable_columns(log.torque)`` of the whole log.
+        screens: ``torque`` and each controller channel the log has → its
+            :class:`ColumnScreen` (``screens[ch].unusable(ref)`` is
+            ``unusable_columns(getattr(log, ch), ref)``).
+        options: the read options the scan was made with.
+        ranges: each array the log has → (J,) its smallest and (J,) its largest finite
+            value per joint (NaN where a joint does not log it).
+    """
+
+    log: RobotLog
+    n_samples: int
+    t0_ns: int
+    t_last_ns: int
+    clock: SampleClock
+    gaps: np.ndarray
+    gap_lengths_s: np.ndarray
+    torque_screen: list[str | None]
+    screens: dict[str, ColumnScreen]
+    options: dict[str, Any] = field(default_factory=dict, repr=False)
+    reader: ScanReader | None = field(default=None, repr=False, compare=False)
+    ranges: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict,
+                                                              repr=False, compare=False)
+
+    def close(self) -> None:
+        """Close the reader the scan was made by (its cache of the repaired rows, a URL's
+        local copy; deleted anyway when the scan is garbage collected or at exit)."""
+        if self.reader is not None:
+            self.reader.close()
+
+    def __enter__(self) -> LogScan:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """The log's J joints."""
+        return self.log.joint_names
+
+    @property
+    def source(self) -> LogSource:
+        """The log's provenance."""
+        return self.log.source
+
+    @property
+    def channels(self) -> tuple[str, ...]:
+        """The optional arrays the log has (names of :data:`OPTIONAL`)."""
+        return tuple(s for s in OPTIONAL if getattr(self.log, s) is not None)
+
+    @property
+    def sample_period_s(self) -> float:
+        """``RobotLog.sample_period_s`` of the whole log [s]."""
+        return self.clock.period_s
+
+    @property
+    def sample_rate_hz(self) -> float:
+        """``RobotLog.sample_rate_hz`` of the whole log [Hz]."""
+        return 1.0 / self.clock.period_s
+
+    @property
+    def duration_s(self) -> float:
+        """From the first to the last sample [s]."""
+        return float(self.t_last_ns - self.t0_ns) * 1e-9
+
+    @property
+    def torque_ptp(self) -> float:
+        """The largest peak-to-peak of the log's torque columns [N·m] (the reference of
+        the screen)."""
+        s = self.screens["torque"]
+        return float(np.max(s.ptp)) if s.ptp.size else 0.0
+
+
+def _blocks(ctx: StreamLayout, rep: Repairer) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """The repaired rows of one pass over the layout's rows, in blocks ``(t, mat)``."""
+    for raw in ctx.raw_batches():
+        out = rep.push(raw)
+        if out is not None:
+            yield out
+    out = rep.finish()
+    if out is not None:
+        yield out
+
+
+def _order_pass(ctx: StreamLayout) -> tuple[np.ndarray, str]:
+    """``--repair-order``: the rows of the file kept (a bool per row) and the repair's
+    message, from the stamps of a pass without exact duplicates."""
+    while True:
+        rep = Repairer(ctx, None)
+        ts, origs = [], []
+        n = 0
+        for raw in ctx.raw_batches():
+            t, orig = rep.deduplicated(raw)
+            ts.append(t)
+            origs.append(orig)
+            n = raw.row0 + raw.t.shape[0]
+        if not ctx.pass_again():
+            break
+    t_all = np.concatenate(ts) if ts else np.zeros(0, np.int64)
+    o_all = np.concatenate(origs) if origs else np.zeros(0, np.int64)
+    keep, msg = increasing_run(t_all, o_all, ctx.where, ctx.label)
+    mask = np.zeros(n, dtype=bool)
+    mask[o_all[keep]] = True
+    return mask, msg
+
+
+class Sink:
+    """What a pass does with the repaired rows (the scan's statistics and cache)."""
+
+    def add(self, t: np.ndarray, mat: np.ndarray) -> None:
+        raise NotImplementedError
+
+    def discard(self) -> None:
+        """The pass is given up (the rows are read again)."""
+
+
+def passes(ctx: StreamLayout, sink: Any) -> Repairer:
+    """Passes over the layout's rows until one reads them as the whole file is read (the
+    layout may ask for another, ``--repair-order`` needs the stamps first); each pass's
+    repaired rows go to a new ``sink()``. Returns the last pass's repairer."""
+    order_keep: np.ndarray | None = None
+    order_repair: str | None = None
+    while True:
+        rep = Repairer(ctx, None, order_keep, order_repair)
+        out = sink()
+        try:
+            for t, mat in _blocks(ctx, rep):
+                out.add(t, mat)
+        except RepairOrderNeeded:
+            out.discard()
+            order_keep, order_repair = _order_pass(ctx)
+            continue
+        except BaseException:
+            out.discard()
+            raise
+        if ctx.pass_again():
+            out.discard()
+            continue
+        return rep
+
+
+def raise_read_errors(ctx: StreamLayout, rep: Repairer, rate_error: str | None) -> None:
+    """The first error of the rows read: the layout's, the repairs', the time unit's."""
+    if ctx.read_error is not None:
+        raise ctx.read_error
+    err = rep.first_error() or rate_error
+    if err is not None:
+        raise LogFormatError(err)
+
+
+def scan_layout(ctx: StreamLayout, options: dict[str, Any], reader: ScanReader
+                ) -> tuple[LogScan, ScanPass]:
+    """The scan of a layout's rows (module docstring): passes over them until the layout
+    has read them as the whole file must be read, then the statistics, checks and cache.
+
+    Raises:
+        LogFormatError: the first error the whole file is refused with.
+    """
+    from concurrent.futures import ThreadPoolExecutor
+
+    from .paths import log_sha256
+
+    hasher = ThreadPoolExecutor(max_workers=1)
+    digest = hasher.submit(log_sha256, ctx.path)
+    hasher.shutdown(wait=False)
+    sinks: list[_ScanSink] = []
+
+    def sink() -> _ScanSink:
+        sinks.append(_ScanSink(ctx))
+        return sinks[-1]
+
+    rep = passes(ctx, sink)
+    last = sinks[-1]
+    try:
+        if last.cache is not None:
+            last.cache.finish()
+        raise_read_errors(ctx, rep, last.acc.rate_error())
+        if isinstance(ctx.plan, LogFormatError):
+            raise ctx.plan
+        out = last.acc.finish(rep, digest.result(), options, last.cache, reader)
+        if out[1].cache is not None:
+            ctx.release()
+        return out
+    except BaseException:
+        last.discard()
+        raise
+
+
+class _ScanSink(Sink):
+    """The scan's statistics and cache of one pass."""
+
+    def __init__(self, ctx: StreamLayout) -> None:
+        self.acc = _ScanAcc(ctx)
+        self.cache: RowCache | None = RowCache(len(ctx.names))
+
+    def add(self, t: np.ndarray, mat: np.ndarray) -> None:
+        self.acc.add(t, mat)
+        if self.cache is not None:
+            self.cache.add(t, mat)
+
+    def discard(self) -> None:
+        if self.cache is not None:
+            self.cache.close()
+
+
+class RowsKept(Sink):
+    """The rows of a pass, kept (:func:`read_columns`) with the first steps' rate."""
+
+    def __init__(self) -> None:
+        self.t: list[np.ndarray] = []
+        self.mat: list[np.ndarray] = []
+        self.rate = StepHistogram()
+
+    def add(self, t: np.ndarray, mat: np.ndarray) -> None:
+        if self.rate.n_stamps < MAX_STATS_STEPS + 1:
+            self.rate.add(t[: MAX_STATS_STEPS + 1 - self.rate.n_stamps])
+        self.t.append(t)
+        self.mat.append(mat)
+
+
+class _ScanAcc:
+    """The first pass's statistics over the repaired rows."""
+
+    def __init__(self, ctx: StreamLayout) -> None:
+        self.ctx = ctx
+        self.hist = StepHistogram()
+        self.rate = StepHistogram()  # the first MAX_STATS_STEPS steps: the unit check
+        self.gaps = GapStream()
+        self.n = 0
+        self.head_t = np.zeros(0, dtype=np.int64)
+        self.head: dict[str, np.ndarray] = {}
+        j = len(ctx.joints)
+        self.pos_finite = np.zeros(j, dtype=bool)
+        self.torque_finite = np.zeros(j, dtype=bool)
+        # optional signal → (J,) whether each joint's column holds a finite value
+        self.opt_finite: dict[str, np.ndarray] = {}
+        self.screens = {s: ScreenAccumulator(j) for s in ("torque", *CONTROLLER_CHANNELS)}
+        self.ranges: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # other arrays' lo, hi
+        self.floor = float("-inf")
+        self.bad_row: dict[str, np.ndarray] = {}  # signal → (J,) first non-finite sample
+
+    def _first_bad(self, signal: str, a: np.ndarray) -> None:
+        """Note each column's first non-finite sample (RobotLog refuses it)."""
+        fin = np.isfinite(a)
+        if fin.all():
+            return
+        rows = self.bad_row.setdefault(signal, np.full(a.shape[1], -1, dtype=np.int64))
+        new = (rows < 0) & ~fin.all(axis=0)
+        rows[new] = self.n - a.shape[0] + np.argmax(~fin, axis=0)[new]
+
+    def check_finite(self, keep: list[int], gone: list[str]) -> None:
+        """RobotLog's error for a non-finite value left in a kept joint's column (a value
+        scaled out of range); the signals ``gone`` are not in the log."""
+        for s in ("position", "torque", *OPTIONAL):
+            rows = self.bad_row.get(s) if s not in gone else None
+            if rows is None or not (rows[keep] >= 0).any():
+                continue
+            r = rows[keep]
+            row = int(np.min(r[r >= 0]))
+            j = int(np.flatnonzero(r == row)[0])
+            raise LogFormatError(f"{self.ctx.where}: {s} is not finite at sample {row} "
+                                 f"of joint {j}")
+
+    def add(self, t: np.ndarray, mat: np.ndarray) -> None:
+        """Count repaired rows ``t`` (n,) int64 [ns], ``mat`` (n, C)."""
+        from .channels import assemble
+
+        if self.rate.n_stamps < MAX_STATS_STEPS + 1:
+            self.rate.add(t[: MAX_STATS_STEPS + 1 - self.rate.n_stamps])
+        self.hist.add(t)
+        period = self.hist.period_ns()
+        self.floor = FLOOR_FRACTION * GAP_FACTOR * period if period > 0 else float("-inf")
+        self.gaps.add(t, self.floor)
+        self.n += t.size
+        if isinstance(self.ctx.plan, LogFormatError):
+            return
+        arrays = assemble(self.ctx.plan, self.ctx.channels(t, mat))
+        if self.head_t.size < 2:
+            k = 2 - self.head_t.size
+            self.head_t = np.concatenate((self.head_t, t[:k]))
+            self.head = {s: np.concatenate((self.head[s], a[:k])) if s in self.head else a[:k]
+                         for s, a in arrays.items()}
+        self.pos_finite |= np.isfinite(arrays["position"]).any(axis=0)
+        self.torque_finite |= np.isfinite(arrays["torque"]).any(axis=0)
+        for s in self.ctx.plan.optional:
+            fin = np.isfinite(arrays[s]).any(axis=0)
+            self.opt_finite[s] = self.opt_finite[s] | fin if s in self.opt_finite else fin
+        for s, a in arrays.items():
+            if s not in CONTROLLER_CHANNELS:
+                self._first_bad(s, a)
+        for s, acc in self.screens.items():
+            if s in arrays:
+                acc.add(arrays[s])
+        for s, a in arrays.items():
+            if s not in self.screens:  # NaN: not logged (a finite log has no ±inf left)
+                lo, hi = np.fmin.reduce(a, axis=0), np.fmax.reduce(a, axis=0)
+                if s in self.ranges:
+                    lo, hi = np.fmin(self.ranges[s][0], lo), np.fmax(self.ranges[s][1], hi)
+                self.ranges[s] = (lo, hi)
+
+    def rate_error(self) -> str | None:
+        """The time-unit check on the first steps."""
+        return self.ctx.rate_error(self.rate.clock().rate_hz)
+
+    def finish(self, rep: Repairer, sha256: str, options: dict[str, Any],
+               cache: RowCache | None, reader: ScanReader) -> tuple[LogScan, ScanPass]:
+        """The scan: drop the joints without data, warn, the header, clock, gaps, screen."""
+        from .channels import (
+            drop_empty_signals,
+            drop_message,
+            empty_joint_reasons,
+            warn_dropped,
+        )
+
+        ctx, plan = self.ctx, self.ctx.plan
+        joints = ctx.joints
+        dropped = empty_joint_reasons(joints, self.pos_finite, self.torque_finite,
+                                      plan.torque_source)
+        if len(dropped) == len(joints):
+            raise LogFormatError(drop_message(ctx.where, dropped, plan.torque_source))
+        repairs = ctx.pre_repairs() + rep.repairs()
+        for msg in repairs:
+            warnings.warn(msg, ImpactWarning, stacklevel=3)
+        warn_dropped(ctx.where, dropped)
+        out = {j for j, _ in dropped}
+        keep = [k for k, j in enumerate(joints) if j not in out]
+        kept = tuple(joints[k] for k in keep)
+        gone, ignored, msgs = drop_empty_signals(
+            ctx.where, kept, {s: self.opt_finite[s][keep] for s in plan.optional})
+        allbad = frozenset(int(c) for c in np.flatnonzero(rep.empty))
+        shift = int(self.head_t[0]) if ctx.start_at_zero and self.head_t.size else 0
+        source = LogSource(path=ctx.where, sha256=sha256, format=ctx.fmt,
+                           torque_source=plan.torque_source,
+                           time_source=ctx.time_source,  # type: ignore[arg-type]
+                           ignored_channels=plan.ignored + tuple(ignored),
+                           repairs=tuple(repairs) + tuple(msgs),
+                           notes=plan.notes, joints_dropped=tuple(dropped))
+        head = {s: _nan_where_empty(a, s, ctx, allbad)[:, keep] for s, a in self.head.items()
+                if s not in gone}
+        log = RobotLog(t_ns=self.head_t - shift, joint_names=kept, source=source, **head)
+        self.check_finite(keep, gone)
+        clock = self.hist.clock()
+        optional = tuple(s for s in OPTIONAL if getattr(log, s) is not None)
+        ps = ScanPass(ctx, allbad, keep, optional, shift, self.n, rep.order_keep,
+                      cache if cache is not None and cache.usable else None,
+                      rep.order_repair)
+        self.gaps.add(np.zeros(0, dtype=np.int64), self.floor, last=True)
+        if not self.gaps.exact_for(clock):  # the rate moved: a second pass at the threshold
+            self.gaps = _gap_pass(ps, clock)
+        idx, lengths = self.gaps.gaps(clock)
+        screens = {s: self.screens[s].result().select(keep) for s in self.screens
+                   if getattr(log, s) is not None}
+        ranges = {s: (lo[keep], hi[keep]) for s, (lo, hi) in self.ranges.items()}
+        ranges.update({s: (sc.lo, sc.hi) for s, sc in screens.items()})
+        scan = LogScan(log=log, n_samples=self.n, t0_ns=int(self.head_t[0]) - shift,
+                       t_last_ns=int(self.hist.last or 0) - shift, clock=clock, gaps=idx,
+                       gap_lengths_s=lengths, torque_screen=screens["torque"].unusable(),
+                       screens=screens, options=dict(options), reader=reader,
+                       ranges={s: ranges[s] for s in _arrays_of(log)})
+        return scan, ps
+
+
+def _arrays_of(log: RobotLog) -> list[str]:
+    """The arrays a log has, in :class:`~impactcli.types.RobotLog`'s order."""
+    return [s for s in ("position", "torque", *OPTIONAL) if getattr(log, s) is not None]
+
+
+def _nan_where_empty(a: np.ndarray, signal: str, ctx: StreamLayout,
+                     allbad: frozenset[int]) -> np.ndarray:
+    """``a`` with NaN in the columns of joints whose column holds no finite value (such a
+    column is NaN in the log; a ±inf would survive in the first rows)."""
+    names = ctx.names
+    out = np.array(a, dtype=np.float64)
+    for (sig, j), key in ctx.keys.items():
+        if names.index(key) in allbad and (sig == signal or (
+                signal == "torque" and sig == ctx.plan.torque_source)):
+            out[:, j] = np.nan
+    return out
+
+
+def _repaired(ps: ScanPass) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """The repaired rows of a pass over the layout's rows after the scan (as the scan's)."""
+    rep = Repairer(ps.layout, ps.allbad, ps.order_keep, ps.order_repair)
+    n = 0
+    try:
+        for t, mat in _blocks(ps.layout, rep):
+            n += t.size
+            yield t, mat
+    except RepairOrderNeeded:
+        raise LogFormatError(f"{ps.layout.where}: changed since it was scanned") from None
+    if rep.first_error() is not None or n != ps.n_samples:
+        raise LogFormatError(f"{ps.layout.where}: changed since it was scanned")
+
+
+def _gap_pass(ps: ScanPass, clock: SampleClock) -> GapStream:
+    """Gap candidates at the final threshold: a second pass over the times (the scan's
+    cache, else the layout's rows)."""
+    gs = GapStream()
+    cache = ps.cache
+    if cache is not None and cache.usable:
+        times: Iterator[tuple[np.ndarray, Any]] = cache.blocks(1 << 20, times_only=True)
+    else:
+        times = _repaired(ps)
+    for t, _ in times:
+        gs.add(t, clock.gap_threshold_s * 1e9)
+    gs.add(np.zeros(0, dtype=np.int64), clock.gap_threshold_s * 1e9, last=True)
+    return gs
+
+
+def pass_chunks(ps: ScanPass, chunk_rows: int) -> Iterator[LogChunk]:
+    """A pass after the scan: chunks of ``chunk_rows`` repaired samples, from the scan's
+    cache of the repaired rows (:mod:`impactcli.logs.row_cache`), else from the layout."""
+    from . import row_cache as stream_cache
+
+    if ps.cache is not None and ps.cache.usable:
+        return stream_cache.chunks(ps, ps.cache, chunk_rows)
+    return chunked((ps.arrays(t, mat) for t, mat in _repaired(ps)), chunk_rows)

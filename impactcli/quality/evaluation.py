@@ -1,0 +1,460 @@
+"""A log's detection events scored against its labels: per labelled contact what each
+detector did, per detector its score (:func:`evaluate_events`, :class:`Evaluation`); the
+window and the product's alarms are :mod:`impactcli.quality.match`'s, the incidents part
+:mod:`impactcli.quality.incident_scores`'s; the sweep calls :func:`evaluate_events` per scale.
+
+A contact is *detected* by a detector when a counted event of it matches; its *delay* is
+the earliest match's start minus the onset (down to ``-pre_s``). One event may match several
+contacts (all detected, no false alarm); an event still on when a second contact begins
+matches only the first (the second is missed, flagged ``alarm_on_at_onset``). A *false
+alarm* is a counted event (starting after warm-up) that matches no contact. Events in
+warm-up are listed, never counted; a contact with its onset in warm-up (``in_warmup``) or
+after the log's end (``outside_log``) is reported, not counted as a miss. False alarms are
+per hour of *collision-free time*: ``[warmup_end_s, duration_s]`` outside every contact's
+window. The *product* (adaptive OR static_loading, alarms merged) detects a contact when a
+part does, with the earliest part's delay (never worse than a part); a product alarm is
+false when one of the part alarms starting in it matched no contact.
+
+Pure logic: no file I/O, no printing.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..errors import ConfigError, ImpactWarning, LogFormatError
+from ..types import DETECTORS, ContactLabel, Event, Labels
+from .incident_scores import IncidentEvaluation, evaluate_incidents
+from .match import (
+    EPS_S,
+    EVALUATED,
+    KINDS,
+    PRODUCT,
+    PRODUCT_PARTS,
+    SCHEMA_VERSION,
+    SECONDS_PER_HOUR,
+    MatchTolerance,
+    ScoredEvent,
+    force_known,
+    median_or_none,
+    product_events,
+    rounded,
+    scored_event,
+)
+
+if TYPE_CHECKING:
+    from ..types import DetectionResult
+
+
+@dataclass(frozen=True)
+class ContactOutcome:
+    """What each detector did about one labelled contact.
+
+    Attributes:
+        index: position in the labels file's ``events`` (0-based).
+        label: the contact itself.
+        status: ``counted``; ``in_warmup`` (onset before warm-up end: reported, not counted);
+            ``outside_log`` (onset after the log's last sample: not counted).
+        detected: detector → whether a counted event matched it (for ``in_warmup`` contacts:
+            whether any event, warm-up ones included, matched — informational).
+        delay_s: detector → earliest matching event start − contact start [s], or None.
+        alarm_on_at_onset: detector → not detected, but an earlier counted event of that
+            detector was still on at the contact's onset (its alarm was already raised).
+    """
+
+    index: int
+    label: ContactLabel
+    status: str
+    detected: dict[str, bool]
+    delay_s: dict[str, float | None]
+    alarm_on_at_onset: dict[str, bool]
+
+
+@dataclass(frozen=True)
+class KindScore:
+    """One detector's score on the counted contacts of one kind (impact, push, clamp)."""
+
+    kind: str
+    n_contacts: int
+    detected: int
+    delay_median_s: float | None
+    min_detected_force: float | None
+    max_missed_force: float | None
+
+
+@dataclass(frozen=True)
+class DetectorScore:
+    """One detector's score over a log.
+
+    Attributes:
+        detector: ``adaptive``, ``static_loading``, ``static_baseline`` or ``product``.
+        n_events: counted events (starting after warm-up).
+        n_events_in_warmup: events in warm-up (listed in ``warmup_events``, never counted).
+        n_contacts: counted contacts (onset after warm-up, inside the log).
+        detected: counted contacts matched by at least one counted event.
+        false_alarms: counted events matching no contact.
+        false_alarms_per_hour: ``false_alarms`` per hour of collision-free time (None when
+            there is no collision-free time).
+        delay_median_s, delay_max_s: over detected contacts [s] (None when none detected).
+        min_detected_force: smallest ``peak_force`` among detected contacts [N].
+        max_missed_force: largest ``peak_force`` among missed contacts [N].
+        by_kind: the same per contact kind present among counted contacts.
+        false_alarm_times: (t_start, t_end) of each false alarm [s].
+        warmup_events: (t_start, t_end) of each event in warm-up [s].
+    """
+
+    detector: str
+    n_events: int
+    n_events_in_warmup: int
+    n_contacts: int
+    detected: int
+    false_alarms: int
+    false_alarms_per_hour: float | None
+    delay_median_s: float | None
+    delay_max_s: float | None
+    min_detected_force: float | None
+    max_missed_force: float | None
+    by_kind: tuple[KindScore, ...] = ()
+    false_alarm_times: tuple[tuple[float, float], ...] = ()
+    warmup_events: tuple[tuple[float, float], ...] = ()
+
+    @property
+    def missed(self) -> int:
+        """Counted contacts not detected."""
+        return self.n_contacts - self.detected
+
+    @property
+    def recall(self) -> float | None:
+        """Detected / counted contacts (None without counted contacts)."""
+        return self.detected / self.n_contacts if self.n_contacts else None
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """Detection quality of one log's events against its labels (see the module docstring).
+
+    Attributes:
+        tolerance: the matching rule used.
+        duration_s: log duration [s]; warmup_end_s: warm-up end [s].
+        collision_free_s: time after warm-up outside every contact's window [s].
+        contacts: per labelled contact, what each detector did.
+        scores: detector → its score, detectors in :data:`EVALUATED` order.
+        labels_path: where the labels came from (for the record).
+        product_merge_gap_s: gap below which adaptive and static-loading events merge [s].
+        incidents: the incidents (the answer: link, force, contact type) scored against
+            the labels (:func:`evaluate_incidents`); ``available`` False without them.
+    """
+
+    tolerance: MatchTolerance
+    duration_s: float
+    warmup_end_s: float
+    collision_free_s: float
+    contacts: tuple[ContactOutcome, ...]
+    scores: dict[str, DetectorScore]
+    labels_path: str = ""
+    product_merge_gap_s: float = 0.0
+    # a frozen dataclass (an immutable default), defined in incidents.py
+    incidents: IncidentEvaluation = IncidentEvaluation(False, "no incidents given")  # noqa: RUF009
+
+    def contacts_with_status(self, status: str) -> list[ContactOutcome]:
+        """Contacts of one status (``counted``, ``in_warmup``, ``outside_log``)."""
+        return [c for c in self.contacts if c.status == status]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready mapping (schemas/evaluation.schema.json); deterministic."""
+        def score(s: DetectorScore) -> dict[str, Any]:
+            return {
+                "n_events": s.n_events,
+                "n_events_in_warmup": s.n_events_in_warmup,
+                "n_contacts": s.n_contacts,
+                "detected": s.detected,
+                "missed": s.missed,
+                "recall": rounded(s.recall, 6),
+                "false_alarms": s.false_alarms,
+                "false_alarms_per_hour": rounded(s.false_alarms_per_hour, 6),
+                "delay_median_s": rounded(s.delay_median_s),
+                "delay_max_s": rounded(s.delay_max_s),
+                "min_detected_force": rounded(s.min_detected_force),
+                "max_missed_force": rounded(s.max_missed_force),
+                "by_kind": {
+                    k.kind: {
+                        "n_contacts": k.n_contacts, "detected": k.detected,
+                        "delay_median_s": rounded(k.delay_median_s),
+                        "min_detected_force": rounded(k.min_detected_force),
+                        "max_missed_force": rounded(k.max_missed_force),
+                    }
+                    for k in s.by_kind
+                },
+                "false_alarm_times": [[rounded(a), rounded(b)] for a, b in s.false_alarm_times],
+                "warmup_events": [[rounded(a), rounded(b)] for a, b in s.warmup_events],
+            }
+
+        return {
+            "schema_version": SCHEMA_VERSION,
+            "labels": self.labels_path,
+            "tolerance": {"pre_s": self.tolerance.pre_s, "post_s": self.tolerance.post_s,
+                          "rule": "an event matches a contact if it starts within "
+                                  "[start - pre_s, end + post_s]"},
+            "product": {"detectors": list(PRODUCT_PARTS), "merge_gap_s": self.product_merge_gap_s},
+            "duration_s": rounded(self.duration_s),
+            "warmup_end_s": rounded(self.warmup_end_s),
+            "collision_free_s": rounded(self.collision_free_s),
+            "n_contacts": {
+                st: len(self.contacts_with_status(st))
+                for st in ("counted", "in_warmup", "outside_log")
+            },
+            "detectors": {d: score(s) for d, s in self.scores.items()},
+            "contacts": [
+                {
+                    "index": c.index, "start": c.label.start, "end": c.label.end,
+                    "peak_force": c.label.peak_force, "kind": c.label.kind, "link": c.label.link,
+                    "status": c.status,
+                    "detected": dict(c.detected),
+                    "delay_s": {d: rounded(v) for d, v in c.delay_s.items()},
+                    "alarm_on_at_onset": dict(c.alarm_on_at_onset),
+                }
+                for c in self.contacts
+            ],
+            "incidents": self.incidents.to_dict(),
+        }
+
+
+def _union_length(intervals: Iterable[tuple[float, float]], lo: float, hi: float) -> float:
+    """Length of the union of ``intervals`` clipped to ``[lo, hi]`` [s]."""
+    clipped = sorted((max(a, lo), min(b, hi)) for a, b in intervals)
+    total, cur_a, cur_b = 0.0, None, None
+    for a, b in clipped:
+        if b <= a:
+            continue
+        if cur_b is None or a > cur_b:
+            if cur_b is not None and cur_a is not None:
+                total += cur_b - cur_a
+            cur_a, cur_b = a, b
+        else:
+            cur_b = max(cur_b, b)
+    if cur_b is not None and cur_a is not None:
+        total += cur_b - cur_a
+    return total
+
+
+def _match(
+    evs: Sequence[ScoredEvent], win_lo: np.ndarray, win_hi: np.ndarray
+) -> tuple[list[float | None], list[float | None], np.ndarray]:
+    """Match events (sorted by start) to contact windows.
+
+    Returns, per contact, the earliest counted matching start and the earliest matching start
+    of any event (warm-up included), and per event whether it matched any contact.
+    """
+    n_c = win_lo.shape[0]
+    if not evs or n_c == 0:
+        return [None] * n_c, [None] * n_c, np.zeros(len(evs), dtype=bool)
+    t0 = np.array([e.t_start for e in evs], dtype=np.float64)
+    warm = np.array([e.in_warmup for e in evs], dtype=bool)
+    m = (t0[:, None] >= win_lo[None, :] - EPS_S) & (t0[:, None] <= win_hi[None, :] + EPS_S)
+
+    def first(mask: np.ndarray) -> list[float | None]:
+        any_: list[bool] = np.asarray(mask.any(axis=0)).tolist()
+        idx: list[int] = np.asarray(np.argmax(mask, axis=0)).tolist()  # events sorted by start
+        return [float(t0[i]) if a else None for i, a in zip(idx, any_, strict=True)]
+
+    return first(m & ~warm[:, None]), first(m), np.asarray(m.any(axis=1))
+
+
+def _score_of(
+    idx: Sequence[int], det_k: Sequence[bool], del_k: Sequence[float | None],
+    contacts: Sequence[ContactLabel],
+) -> tuple[int, float | None, float | None, float | None, list[float]]:
+    """(detected, median delay, min detected force, max missed force, delays) over ``idx``."""
+    hits = [k for k in idx if det_k[k]]
+    delays = [v for k in hits if (v := del_k[k]) is not None]
+    # a switch label's peak_force is no force (force_known): left out of the forces
+    det_f = [contacts[k].peak_force for k in hits if force_known(contacts[k])]
+    miss_f = [contacts[k].peak_force for k in idx if not det_k[k] and force_known(contacts[k])]
+    return (len(hits), median_or_none(delays), min(det_f) if det_f else None,
+            max(miss_f) if miss_f else None, delays)
+
+
+def evaluate_events(
+    events: Sequence[Event | Mapping[str, Any] | ScoredEvent],
+    labels: Labels,
+    *,
+    duration_s: float,
+    warmup_end_s: float,
+    tolerance: MatchTolerance | None = None,
+    product_merge_gap_s: float = 0.0,
+    detectors: Sequence[str] = EVALUATED,
+    incidents: Sequence[Any] | None = None,
+    incidents_note: str = "",
+) -> Evaluation:
+    """Score detection events against labelled contacts (rules in the module docstring).
+
+    Args:
+        events: detection events of any detectors — :class:`Event` or timeline ``events``
+            dicts (``t_start``, ``t_end``, ``detector``, ``in_warmup``) [s since first sample].
+        labels: the ground truth (times on the same base).
+        duration_s: the log's duration [s] (first to last sample).
+        warmup_end_s: end of the detector's warm-up [s]; earlier events and contacts are
+            reported, never counted.
+        tolerance: the matching window (default :class:`MatchTolerance()`).
+        product_merge_gap_s: adaptive and static-loading events closer than this merge into
+            one product alarm [s].
+        detectors: which rows to score (default every detector and ``product``).
+        incidents: the run's incidents (:class:`~impactcli.detect.incidents.Incident` s or
+            timeline ``incidents`` dicts; their ``events`` index ``events``), scored by
+            :func:`evaluate_incidents`; None: not available (``incidents_note`` says why).
+
+    Returns:
+        The :class:`Evaluation`. Contacts with onset after ``duration_s`` are warned about.
+    """
+    tol = tolerance if tolerance is not None else MatchTolerance()
+    if not (math.isfinite(duration_s) and duration_s >= 0):
+        raise LogFormatError(
+            f"evaluation: duration_s must be a finite number >= 0, got {duration_s!r}")
+    for d in detectors:
+        if d not in EVALUATED:
+            raise ConfigError(f"evaluation: unknown detector {d!r} (expected one of {EVALUATED})")
+    evs = [scored_event(e, warmup_end_s, i) for i, e in enumerate(events)]
+    by_det: dict[str, list[ScoredEvent]] = {d: [e for e in evs if e.detector == d]
+                                            for d in DETECTORS}
+    by_det[PRODUCT] = product_events(evs, warmup_end_s, product_merge_gap_s)
+    for d_evs in by_det.values():
+        d_evs.sort(key=lambda e: (e.t_start, e.t_end))
+
+    contacts = list(labels.events)
+    status = []
+    outside = []
+    for i, c in enumerate(contacts):
+        if c.start > duration_s:
+            status.append("outside_log")
+            outside.append(i)
+        elif c.start < warmup_end_s:
+            status.append("in_warmup")
+        else:
+            status.append("counted")
+    if outside:
+        where = labels.path or "labels"
+        warnings.warn(
+            f"{where}: {len(outside)} contact(s) start after the log's end ({duration_s:g} s), "
+            f"first at {contacts[outside[0]].start:g} s: not counted (labels of another log?)",
+            ImpactWarning, stacklevel=2,
+        )
+    before = [i for i, c in enumerate(contacts) if c.start < 0]
+    if before:  # label times: seconds since the log's first sample
+        warnings.warn(
+            f"{labels.path or 'labels'}: {len(before)} contact(s) start before the log's "
+            f"first sample, first at {contacts[before[0]].start:g} s: in its warm-up, not "
+            "counted (labels of another log?)", ImpactWarning, stacklevel=2,
+        )
+    windows = [tol.window(c) for c in contacts]
+    win_lo = np.array([w[0] for w in windows], dtype=np.float64)
+    win_hi = np.array([w[1] for w in windows], dtype=np.float64)
+    collision_free = max(0.0, duration_s - warmup_end_s) - _union_length(
+        windows, warmup_end_s, duration_s)
+    collision_free = max(0.0, collision_free)
+
+    detected: dict[str, list[bool]] = {}
+    delay: dict[str, list[float | None]] = {}
+    on_at_onset: dict[str, list[bool]] = {}
+    scores: dict[str, DetectorScore] = {}
+    matches = {d: _match(by_det[d], win_lo, win_hi) for d in (*DETECTORS, PRODUCT)}
+    # The product detects a contact when one of its parts does, at the first part's alarm
+    # (a merged product alarm may start before the contact, at an unrelated part's alarm);
+    # a product alarm is false when one of the part alarms starting in it matched no contact
+    # (or, with no part start inside, when it matched none itself).
+    starts = np.array([e.t_start for d in PRODUCT_PARTS for e in by_det[d]], dtype=np.float64)
+    unmatched = np.concatenate([~np.asarray(matches[d][2], dtype=bool) for d in PRODUCT_PARTS])
+    order = np.argsort(starts, kind="stable")
+    starts = starts[order]
+    bad_before = np.concatenate(([0], np.cumsum(unmatched[order])))  # unmatched in starts[:k]
+
+    def _earliest(xs: Sequence[float | None]) -> float | None:
+        vals = [x for x in xs if x is not None]
+        return min(vals) if vals else None
+
+    p_first = [_earliest([matches[d][0][k] for d in PRODUCT_PARTS]) for k in range(len(contacts))]
+    p_any = [_earliest([matches[d][1][k] for d in PRODUCT_PARTS]) for k in range(len(contacts))]
+    p_evs = by_det[PRODUCT]
+    lo = np.searchsorted(starts, [e.t_start - EPS_S for e in p_evs], side="left")
+    hi = np.searchsorted(starts, [e.t_end + EPS_S for e in p_evs], side="right")
+    # the part starts inside a product alarm all matched; none inside: its own match
+    p_matched = np.where(hi > lo, bad_before[hi] == bad_before[lo],
+                         np.asarray(matches[PRODUCT][2], dtype=bool)).astype(bool)
+    matches[PRODUCT] = (p_first, p_any, p_matched)
+    for d in detectors:
+        d_evs = by_det[d]
+        counted = [e for e in d_evs if not e.in_warmup]
+        warm = [e for e in d_evs if e.in_warmup]
+        first_match, first_any, matched = matches[d]
+        false_alarms = [e for e, m in zip(d_evs, matched, strict=True) if not m and not e.in_warmup]
+        c_start = np.array([e.t_start for e in counted])
+        c_end = np.array([e.t_end for e in counted])
+        det_k, del_k, on_k = [], [], []
+        for k, c in enumerate(contacts):
+            if status[k] == "in_warmup":
+                t = first_any[k]
+            elif status[k] == "counted":
+                t = first_match[k]
+            else:
+                t = None
+            det_k.append(t is not None)
+            del_k.append(None if t is None else t - c.start)
+            on_k.append(bool(t is None and status[k] == "counted" and np.any(
+                (c_start < win_lo[k]) & (c_end >= c.start))))
+        detected[d], delay[d], on_at_onset[d] = det_k, del_k, on_k
+        idx_all = [k for k in range(len(contacts)) if status[k] == "counted"]
+        n_det, med, min_f, max_miss, delays = _score_of(idx_all, det_k, del_k, contacts)
+        by_kind = []
+        for kind in KINDS:
+            idx = [k for k in idx_all if contacts[k].kind == kind]
+            if idx:
+                kd, kmed, kmin, kmax, _ = _score_of(idx, det_k, del_k, contacts)
+                by_kind.append(KindScore(kind, len(idx), kd, kmed, kmin, kmax))
+        fa = len(false_alarms)
+        hours = collision_free / SECONDS_PER_HOUR
+        scores[d] = DetectorScore(
+            detector=d, n_events=len(counted), n_events_in_warmup=len(warm),
+            n_contacts=len(idx_all), detected=n_det, false_alarms=fa,
+            false_alarms_per_hour=fa / hours if hours > 0 else None,
+            delay_median_s=med, delay_max_s=max(delays) if delays else None,
+            min_detected_force=min_f, max_missed_force=max_miss, by_kind=tuple(by_kind),
+            false_alarm_times=tuple((e.t_start, e.t_end) for e in false_alarms),
+            warmup_events=tuple((e.t_start, e.t_end) for e in warm),
+        )
+
+    outcomes = tuple(
+        ContactOutcome(
+            index=k, label=c, status=status[k],
+            detected={d: detected[d][k] for d in detectors},
+            delay_s={d: delay[d][k] for d in detectors},
+            alarm_on_at_onset={d: on_at_onset[d][k] for d in detectors},
+        )
+        for k, c in enumerate(contacts)
+    )
+    if incidents is None:
+        inc_eval = IncidentEvaluation(False, incidents_note or "no incidents given")
+    else:
+        inc_eval = evaluate_incidents(incidents, evs, contacts, status, tol, warmup_end_s)
+    return Evaluation(
+        tolerance=tol, duration_s=float(duration_s), warmup_end_s=float(warmup_end_s),
+        collision_free_s=collision_free, contacts=outcomes, scores=scores,
+        labels_path=labels.path, product_merge_gap_s=product_merge_gap_s,
+        incidents=inc_eval,
+    )
+
+
+def evaluate_result(
+    result: DetectionResult, labels: Labels, *, tolerance: MatchTolerance | None = None
+) -> Evaluation:
+    """:func:`evaluate_events` on a run: its events, incidents, duration, warm-up, and its
+    event merge gap (``config["events"]["merge_gap_s"]``, else 0) for the product's alarms."""
+    ev_cfg = result.config.get("events") if isinstance(result.config, Mapping) else None
+    gap = float(ev_cfg.get("merge_gap_s", 0.0)) if isinstance(ev_cfg, Mapping) else 0.0
+    return evaluate_events(result.events, labels, duration_s=result.log.duration_s,
+                           warmup_end_s=result.warmup_end_s, tolerance=tolerance,
+                           product_merge_gap_s=gap, incidents=list(result.incidents))

@@ -1,0 +1,346 @@
+"""Running detection over many logs: one log = one job, failures kept per log.
+
+``run_detect_job`` is a top-level function of plain arguments (paths and URLs, never file
+contents) so that it runs unchanged in a worker process (``--jobs N``) or on a Dask worker
+(``--scheduler``) — :mod:`impactcli.run.executors` chooses where. A job reads its log, robot
+description, model and config (local paths or fsspec URLs, :mod:`impactcli.logs.urls`),
+replays the detectors, writes the outputs atomically (a local folder or a URL prefix), and
+returns a small :class:`JobOutcome` — or the error, so one bad log never stops the others.
+
+Failures per log (``JobOutcome.error_class``, with the exit code a one-log run would give):
+
+- ``data`` (3): the log, robot description, model or config is bad or missing
+  (an :class:`~impactcli.errors.ImpactError`);
+- ``io`` (3): an I/O error that persisted: transient ones (timeouts, connection errors,
+  ``EIO``…, see :func:`impactcli.logs.urls.is_transient`) are first retried
+  :data:`~impactcli.logs.urls.IO_RETRIES` times with backoff
+  (:data:`~impactcli.logs.urls.BACKOFF_S` × 2^k s); the whole job is retried;
+- ``worker-lost`` (70): the worker process died on this log, also on its re-run;
+- ``internal`` (70): an unexpected exception (a bug): the traceback is kept in the outcome.
+
+A crash exits 70 (``EX_SOFTWARE``), never 1: exit 1 means "incidents found" to a CI gate.
+
+:func:`batch_summary` folds outcomes into the batch summary (``detect --summary``).
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+import traceback
+import warnings
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..errors import EXIT_DATA, EXIT_SOFTWARE, ImpactError, ImpactWarning
+from ..types import DETECTORS
+from .job import output_stem, run_log_from_paths
+
+SUMMARY_SCHEMA_VERSION = "1.0"
+#: Exit code a one-log run gives for a lost worker or a bug (EX_SOFTWARE; never 1, which
+#: means "incidents found").
+EXIT_CRASH = EXIT_SOFTWARE
+
+
+@dataclass(frozen=True)
+class DetectJob:
+    """Everything one detection job needs (picklable: paths, URLs and plain values).
+
+    ``log_path``, ``robot_path``, ``model_path``, ``config_path``: local paths or fsspec
+    URLs; ``out_dir``: a local folder or a URL prefix.
+    """
+
+    log_path: str
+    out_dir: str
+    read_options: dict[str, Any] = field(default_factory=dict)
+    robot_path: str | None = None
+    model_path: str | None = None
+    config_path: str | None = None
+    signals: bool = False
+    rerun: bool = False
+    model_from_log: bool = False
+    generator: str | None = None
+    allow_slow: bool = False
+    show_progress: bool = False
+
+
+@dataclass(frozen=True)
+class JobOutcome:
+    """The result of one job: a summary row, or the error that stopped it.
+
+    Attributes:
+        log_path: the log as given (path or URL).
+        ok: whether the outputs were written.
+        summary: ``log``, ``sha256``, ``model_source``, ``model_sha256``, ``duration_s``,
+            ``joints``, ``calibrated``, ``warmup_end_s`` and
+            the events after warm-up per detector (ok jobs).
+        outputs: files (or URLs) written.
+        warnings: the run's warnings (ImpactWarning messages, deduplicated).
+        error: one line naming the file and the problem (failed jobs).
+        exit_code: what a one-log run would exit with (failed jobs).
+        error_class: ``data``, ``io``, ``worker-lost`` or ``internal`` (module docstring).
+        attempts: tries made (> 1 after transient I/O errors).
+        traceback: of the error (printed for ``internal`` errors, for the others with
+            ``--debug``; never in the batch summary).
+    """
+
+    log_path: str
+    ok: bool
+    summary: dict[str, Any] = field(default_factory=dict)
+    outputs: tuple[str, ...] = ()
+    warnings: tuple[str, ...] = ()
+    error: str = ""
+    exit_code: int = 0
+    error_class: str = ""
+    attempts: int = 1
+    traceback: str = ""
+
+
+def check_unique_stems(paths: Sequence[str]) -> None:
+    """Refuse inputs that would write the same output names, naming both (docs/formats.md,
+    "Detection timeline")."""
+    seen: dict[str, str] = {}
+    for p in paths:
+        s = output_stem(p)
+        if s in seen:
+            raise ValueError(f"{seen[s]} and {p} would both write {s}.timeline.json; "
+                             "put them in separate runs or rename one")
+        seen[s] = p
+
+
+def run_detect_job(job: DetectJob) -> JobOutcome:
+    """Read, analyze and write one log; never raises for a bad input (module docstring)."""
+    from ..logs.urls import IO_RETRIES, is_transient, retry_transient
+
+    attempts = 0
+
+    def attempt() -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ...]]:
+        nonlocal attempts
+        attempts += 1
+        return _run(job)
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ImpactWarning)
+        try:
+            outputs, summary, extra = retry_transient(attempt)
+        except ImpactError as err:
+            transient = is_transient(err)
+            return JobOutcome(job.log_path, False, error=_with_tries(str(err), transient),
+                              exit_code=err.exit_code, error_class="io" if transient else "data",
+                              warnings=_msgs(caught), attempts=attempts, traceback=_tb(err))
+        except OSError as err:
+            where = getattr(err, "filename", None) or job.log_path
+            why = err.strerror or str(err) or type(err).__name__
+            msg = _with_tries(f"{job.log_path}: I/O error on {where}: {why}",
+                              is_transient(err) and attempts > IO_RETRIES)
+            return JobOutcome(job.log_path, False, error=msg, exit_code=EXIT_DATA,
+                              error_class="io", warnings=_msgs(caught), attempts=attempts,
+                              traceback=_tb(err))
+        except Exception as err:
+            tb = _tb(err)
+            return JobOutcome(job.log_path, False,
+                              error=f"{job.log_path}: internal error (a bug): "
+                                    f"{type(err).__name__}: {err}",
+                              exit_code=EXIT_CRASH, error_class="internal",
+                              warnings=_msgs(caught), attempts=attempts, traceback=tb)
+    return JobOutcome(job.log_path, True, summary=summary, outputs=outputs,
+                      warnings=tuple(dict.fromkeys(_msgs(caught) + extra)), attempts=attempts)
+
+
+def _with_tries(msg: str, transient: bool) -> str:
+    from ..logs.urls import IO_RETRIES
+
+    return f"{msg} (after {IO_RETRIES} retries)" if transient else msg
+
+
+def _tb(err: BaseException) -> str:
+    return "".join(traceback.format_exception(type(err), err, err.__traceback__))
+
+
+def _msgs(caught: list[warnings.WarningMessage]) -> tuple[str, ...]:
+    return tuple(str(w.message) for w in caught if issubclass(w.category, ImpactWarning))
+
+
+def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ...]]:
+    from ..logs.urls import local_path
+
+    local_out = local_path(job.out_dir)
+    stem = output_stem(job.log_path)
+    if local_out is not None:
+        result, outputs = _run_streamed(job, local_out, stem)
+    else:
+        result, outputs = _run_remote(job, job.out_dir, stem)
+    summary = _summary(job, result)
+    return outputs, summary, result.warnings
+
+
+def _run_remote(job: DetectJob, prefix: str, stem: str) -> tuple[Any, tuple[str, ...]]:
+    """Replay the log in bounded memory into a private temporary folder
+    (:func:`_run_streamed`), then upload each output atomically under the remote URL
+    ``prefix``."""
+    from ..logs.urls import join_url, put_file_atomic
+
+    with tempfile.TemporaryDirectory(prefix="impactcli-out-") as tmp:
+        result, written = _run_streamed(job, Path(tmp), stem)
+        # the timeline last: its presence says the run's outputs are all there
+        order = [*written[1:], written[0]]
+        targets = [join_url(prefix, Path(p).name) for p in written]
+        done: list[str] = []
+        try:
+            for p in order:
+                target = join_url(prefix, Path(p).name)
+                put_file_atomic(Path(p), target)
+                done.append(target)
+        except BaseException:
+            _remove_remote(done)  # no signals or .rrd left without their timeline
+            raise
+    return result, tuple(targets)
+
+
+def _remove_remote(urls: list[str]) -> None:
+    """Delete these uploaded objects, as far as possible (after a failed upload)."""
+    import fsspec
+
+    for url in urls:
+        try:
+            fs, path = fsspec.core.url_to_fs(url)
+            fs.rm(path)
+        except Exception:  # best effort: the upload's error is the one shown
+            pass
+
+
+def _run_streamed(job: DetectJob, out: Path, stem: str) -> tuple[Any, tuple[str, ...]]:
+    """Replay the log chunk by chunk in bounded memory
+    (:func:`impactcli.run.job.run_log_from_paths`) into a local folder: the signals written
+    as the comparison with the thresholds goes, the Rerun recording from a spill file, the
+    timeline at the end."""
+    from ..outputs.timeline import write_timeline
+
+    written = [out / f"{stem}.timeline.json"]
+    signals = out / f"{stem}.signals.parquet" if job.signals else None
+    rrd = out / f"{stem}.rrd" if job.rerun else None
+    result, _ = run_log_from_paths(job.log_path, robot_path=job.robot_path,
+                            model_path=job.model_path, config_path=job.config_path,
+                            read_options=job.read_options, model_from_log=job.model_from_log,
+                            generator=job.generator, allow_slow=job.allow_slow,
+                            show_progress=job.show_progress, signals_path=signals,
+                            rrd_path=rrd)
+    written += [p for p in (signals, rrd) if p is not None]
+    write_timeline(result, written[0])
+    return result, tuple(str(p) for p in written)
+
+
+def _summary(job: DetectJob, result: Any) -> dict[str, Any]:
+    """The batch summary's row of one log."""
+    log = result.log
+    return {
+        "log": job.log_path,
+        "sha256": log.source.sha256,
+        "model_source": result.model_source,
+        "model_sha256": result.model_sha256,
+        "duration_s": log.duration_s,
+        "joints": len(log.joint_names),
+        "calibrated": result.calibrated,
+        "warmup_end_s": result.warmup_end_s,
+        "generators": {j: g["generator"] for j, g in result.generators.items()},
+        "incidents": len(result.counted_incidents()),
+        "incident_list": [
+            {"t_start": i.t_start, "link": i.link, "force_n": i.force_n, "contact": i.contact,
+             "detectors": list(i.detectors)} for i in result.counted_incidents()],
+        "generator_reasons": {j: g["reason"] for j, g in result.generators.items()},
+        **{d: v["events"] for d, v in result.summary().items()},
+    }
+
+
+def lost_outcome(job: DetectJob, reason: str, kind: str, tb: str = "") -> JobOutcome:
+    """The outcome of a job whose worker died (``kind='worker-lost'``) or that raised."""
+    cls = "worker-lost" if kind == "worker-lost" else "internal"
+    return JobOutcome(job.log_path, False, error=f"{job.log_path}: {reason}",
+                      exit_code=EXIT_CRASH, error_class=cls, traceback=tb)
+
+
+def run_batch(jobs: Sequence[DetectJob], *, n_jobs: int | None = None,
+              scheduler: str | None = None, client: Any = None) -> Iterator[JobOutcome]:
+    """Run detection jobs where :func:`impactcli.run.executors.choose_executor` says; yield
+    outcomes in completion order (every outcome carries its log path). A dead worker's
+    jobs are re-run once, then reported failed (:mod:`impactcli.run.executors`)."""
+    from .executors import TaskFailure, run_tasks
+
+    for i, res in run_tasks(run_detect_job, list(jobs), jobs=n_jobs, scheduler=scheduler,
+                            client=client):
+        if isinstance(res, TaskFailure):
+            yield lost_outcome(jobs[i], res.reason, res.kind, res.traceback)
+        else:
+            yield res
+
+
+def batch_summary(outcomes: Sequence[JobOutcome], *, wall_s: float,
+                  executor: dict[str, Any] | None = None,
+                  inputs: dict[str, dict[str, str]] | None = None) -> dict[str, Any]:
+    """The batch summary (``detect --summary``) as a JSON-ready mapping.
+
+    Args:
+        outcomes: one per input, in input order.
+        wall_s: wall-clock time of the batch [s].
+        executor: :meth:`impactcli.run.executors.ExecutorChoice.to_dict` of where it ran.
+        inputs: ``robot``/``model``/``config`` → {path, sha256}, those given.
+    Returns:
+        The mapping ``schemas/batch_summary.schema.json`` describes: ``schema_version``,
+        ``tool``, ``executor``, ``inputs``; ``logs`` {total, done, failed}; ``events`` per
+        detector (after warm-up, summed); ``hours_analysed`` [h of log]; ``wall_s``;
+        ``throughput`` {logs_per_s, log_hours_per_s}; ``results`` (per-log rows);
+        ``failures`` (file, reason, exit_code, class, attempts).
+    """
+    from .. import TOOL_NAME, __version__
+
+    ok = [o for o in outcomes if o.ok]
+    failed = [o for o in outcomes if not o.ok]
+    hours = sum(float(o.summary.get("duration_s", 0.0)) for o in ok) / 3600.0
+
+    def rate(x: float) -> float | None:
+        return x / wall_s if wall_s > 0 else None
+
+    return {
+        "schema_version": SUMMARY_SCHEMA_VERSION,
+        "tool": {"name": TOOL_NAME, "version": __version__},
+        "executor": executor or {"kind": "serial"},
+        "inputs": inputs or {},
+        "logs": {"total": len(outcomes), "done": len(ok), "failed": len(failed)},
+        "events": {d: sum(int(o.summary.get(d, 0)) for o in ok) for d in DETECTORS},
+        "incidents": sum(int(o.summary.get("incidents", 0)) for o in ok),
+        "hours_analysed": hours,
+        "wall_s": wall_s,
+        "throughput": {"logs_per_s": rate(len(ok)), "log_hours_per_s": rate(hours)},
+        "results": [{**o.summary, "outputs": list(o.outputs), "attempts": o.attempts}
+                    for o in ok],
+        "failures": [{"file": o.log_path, "reason": o.error, "exit_code": o.exit_code,
+                      "class": o.error_class, "attempts": o.attempts} for o in failed],
+    }
+
+
+def write_text_to(target: str, text: str) -> None:
+    """Write ``text`` to a local path or URL atomically (summaries, reports)."""
+    from ..files import atomic_write_text
+    from ..logs.urls import local_path, put_file_atomic, url_name
+
+    lp = local_path(target)
+    if lp is not None:
+        atomic_write_text(lp, text)
+        return
+    with tempfile.TemporaryDirectory(prefix="impactcli-out-") as tmp:
+        p = Path(tmp) / url_name(target)
+        p.write_text(text, "utf-8")
+        put_file_atomic(p, target)
+
+
+class Timer:
+    """Wall-clock seconds since creation (``time.perf_counter``)."""
+
+    def __init__(self) -> None:
+        self.t0 = time.perf_counter()
+
+    def elapsed(self) -> float:
+        """Seconds since creation."""
+        return time.perf_counter() - self.t0

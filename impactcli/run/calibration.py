@@ -1,0 +1,319 @@
+"""Calibration: thresholds per joint from collision-free logs (docs/method.md §5b).
+
+Each calibration log is replayed by the one replay (its threshold-free pass,
+:func:`impactcli.run.one_log.replay_passes`, statistics collected per chunk) with the model
+(given, the config's, or identified over all the logs); the statistic of every detector
+after warm-up — long logs cut into segments, labelled contacts cut out, and, in logs
+without labels, stretches that alone would set a threshold far above the rest left out as
+likely contacts — gives the thresholds by the leave-one-out margin rule
+(:mod:`impactcli.detect.thresholds`). Each joint's residual generator is frozen in the
+config. The logs are in memory: the suspect rule pools every log's per-sample statistics.
+Nothing here reads or writes files.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..config import DetectorConfig
+from ..detect.warmup import Warmup
+from ..errors import ImpactWarning, LogFormatError
+from ..logs.reader import LogScan, MemoryReader
+from ..logs.screen import LeftOut
+from ..model import IdentifyOptions, RigidModel
+from ..model.generators import GeneratorChoice, target_log, uses_correction
+from ..types import DETECTORS, Labels, RobotDescription, RobotLog
+from .collect import StatsCollector
+from .one_log import replay_passes, warn_replayed
+from .plan import (
+    ChunkFeed,
+    RunPlan,
+    Screened,
+    check_replayable,
+    generator_choices,
+    identify_from_chunks,
+    known_joints,
+    needs_model,
+    resolve_model,
+    screen_scan,
+)
+from .run_warnings import CaughtWarnings
+
+
+def calibrate(
+    logs: list[RobotLog], *, model: RigidModel | None = None,
+    config: DetectorConfig | None = None, robot: RobotDescription | None = None,
+    generator: str | None = None, labels: Sequence[Labels | None] | None = None,
+    drop_suspect: bool = True, allow_slow: bool = False,
+) -> DetectorConfig:
+    """Thresholds v_stat, vL, v0 per joint from collision-free logs (docs/method.md §5b).
+
+    The model is ``model``, else the config's, else identified from the logs
+    (:func:`impactcli.model.identify_many` over all of them). Each log is replayed with it;
+    the statistic after warm-up of every detector, cut into segments of long logs and
+    without the stretches ``labels`` mark as contacts, gives the thresholds by the
+    leave-one-out margin rule (≥ 2 segments) or a fixed margin (1, flagged weak)
+    (:mod:`impactcli.detect.thresholds`). Without labels, a segment that alone would set a
+    product detector's threshold is warned about as a likely contact and, with
+    ``drop_suspect``, left out. Returns a config holding every parameter, the thresholds,
+    the calibration record and the embedded model.
+    """
+    import dataclasses
+
+    from ..config import CalibrationRecord, LogRecord, ThresholdsConfig
+    from ..detect.thresholds import calibrate_thresholds
+    from ..model import identify_many
+
+    cfg = config or DetectorConfig()
+    readers = [MemoryReader(lg) for lg in logs]
+    scans = [r.scan() for r in readers]
+    screens, left_out = _screen_calibration_logs(scans, model, cfg)
+    if generator is not None:  # a new calibration: choose afresh
+        cfg = dataclasses.replace(cfg, residual=dataclasses.replace(
+            cfg.residual, generator=generator, generators={}))
+    frozen = common_generators(scans, screens, cfg)
+    cfg = dataclasses.replace(cfg, residual=dataclasses.replace(cfg.residual,
+                                                                generators=frozen))
+    choices = [generator_choices(sc.keep, sc.logged, scan.source, cfg)
+               for scan, sc in zip(scans, screens, strict=True)]
+    if needs_model(choices[0], cfg):
+        if model is None:
+            model = RigidModel.from_dict(cfg.model) if cfg.model is not None else identify_many(
+                [target_log(lg.select(sc.keep), ch, cfg.residual.logged_correction)
+                 for lg, sc, ch in zip(logs, screens, choices, strict=True)],
+                robot=robot, options=IdentifyOptions(
+                    allow_still_joints=True,
+                    check_sanity=not uses_correction(choices[0], cfg.residual.logged_correction)))
+    else:
+        model = None
+    joints = tuple(model.joint_names) if model is not None else tuple(frozen)
+    excluded: list[dict[str, Any]] = []
+    replays = [_replay(reader, sc, model, cfg, robot, allow_slow)
+               for reader, sc in zip(readers, screens, strict=True)]
+    keeps = [_calibration_mask(rp, labels[i] if labels is not None and i < len(labels)
+                               else None, excluded) for i, rp in enumerate(replays)]
+    if drop_suspect:
+        unlabelled = [labels is None or i >= len(labels) or labels[i] is None
+                      for i in range(len(replays))]
+        _drop_suspects(replays, keeps, joints, excluded, unlabelled)
+    segs = [s for rp, keep in zip(replays, keeps, strict=True) for s in _segments(rp, keep)]
+    if not segs:
+        raise LogFormatError("no collision-free stretch left to calibrate on: "
+                             + ", ".join(lg.source.path for lg in logs))
+    per_det = {d: [x[3][d] for x in segs] for d in DETECTORS}
+    cal = {d: calibrate_thresholds(per_det[d], joints=joints, detector=d) for d in DETECTORS}
+    table = {d: {j: float(cal[d].thresholds[k]) for k, j in enumerate(joints)} for d in DETECTORS}
+    record = CalibrationRecord(
+        calibrated=True, margin_rule=cal["adaptive"].rule,
+        margins={d: {j: float(cal[d].margins[k]) for k, j in enumerate(joints)} for d in DETECTORS},
+        logs=tuple(LogRecord(lg.source.path, lg.source.sha256) for lg in logs),
+        model_sha256=None if model is None else model.sha256,
+        weak=any(c.weak for c in cal.values()),
+        joints_left_out=tuple(x.to_dict() for x in left_out),
+        segments=len(segs), excluded=tuple(excluded),
+        sample_rate_hz=float(np.median([lg.sample_rate_hz for lg in logs])),
+    )
+    return dataclasses.replace(
+        cfg,
+        thresholds=ThresholdsConfig(v_stat=table["adaptive"], v0=table["static_baseline"],
+                                    vL=table["static_loading"]),
+        calibration=record, model=None if model is None else model.to_dict(),
+    )
+
+
+@dataclass(frozen=True)
+class _Replayed:
+    """A calibration log replayed: its path, (N,) times [s], sample rate [Hz], warm-up,
+    and detector → (N, J) statistic (:class:`impactcli.run.collect.ReplayStats`)."""
+
+    path: str
+    time_s: np.ndarray
+    sample_rate_hz: float
+    warmup: Warmup
+    stats: dict[str, np.ndarray]
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.time_s.shape[0])
+
+
+def _replay(reader: MemoryReader, sc: Screened, model: RigidModel | None,
+            cfg: DetectorConfig, robot: RobotDescription | None,
+            allow_slow: bool) -> _Replayed:
+    """One calibration log's threshold-free replay (the joints screened ``sc``), its
+    warnings raised in the order a detection run gives them."""
+    scan = reader.scan()
+    where = scan.source.path
+    caught = CaughtWarnings()
+    try:
+        with caught:
+            check_replayable(where, len(sc.keep), scan.sample_rate_hz, scan.n_samples,
+                             scan.duration_s, cfg, allow_slow)
+            feed = ChunkFeed(reader, max(scan.n_samples, 1), sc.keep, sc.unlogged)
+
+            def identify(choices: tuple[GeneratorChoice, ...], kind: str | None,
+                         rbt: RobotDescription | None, sanity: bool) -> RigidModel:
+                return identify_from_chunks(feed, cfg, choices, kind, rbt, sanity)
+
+            joints, choices, rig, source, extra = resolve_model(
+                sc.keep, scan.source, sc.logged, model, cfg, False, robot, identify)
+            plan = RunPlan(cfg, where, feed.full_joints, joints, choices, rig, source, extra)
+            since = caught.mark()
+            collected = StatsCollector()
+            rp = replay_passes(feed, plan, collected)
+            warn_replayed(caught, since, plan, feed, rp)
+    finally:
+        caught.raise_again(impact=True)
+    st = collected.stats()
+    return _Replayed(where, st.time_s, scan.sample_rate_hz, rp.warmup, st.stats)
+
+
+#: Labelled contacts are cut out of a calibration log's statistic from this long before
+#: their start to this long after their end [s] (the residual's filters and the RMS windows
+#: spread a contact's effect after it).
+LABEL_GUARD_S = (0.1, 1.0)
+
+
+def _calibration_mask(rp: _Replayed, labels: Labels | None,
+                      excluded: list[dict[str, Any]]) -> np.ndarray:
+    """(N,) samples of a calibration log that count: after warm-up, outside labelled
+    contacts (each recorded in ``excluded``)."""
+    path, t, n = rp.path, rp.time_s, rp.n_samples
+    start = rp.warmup.end_index if rp.warmup.end_index < n - 10 else 0
+    keep = np.zeros(n, dtype=bool)
+    keep[start:] = True
+    if labels is not None:
+        for e in labels.events:
+            a, b = e.start - LABEL_GUARD_S[0], e.end + LABEL_GUARD_S[1]
+            keep &= ~((t >= a) & (t <= b))
+            excluded.append({"log": path, "start_s": float(max(a, 0.0)),
+                             "end_s": float(min(b, t[-1])),
+                             "reason": f"labelled {e.kind} ({e.peak_force:g} N)"})
+    return keep
+
+
+def _drop_suspects(replays: list[_Replayed], keeps: list[np.ndarray], joints: tuple[str, ...],
+                   excluded: list[dict[str, Any]], searched: list[bool]) -> None:
+    """Clear, in ``keeps``, the 1 s blocks that alone would set a product detector's
+    threshold (:func:`impactcli.detect.thresholds.suspect_blocks`), with a guard around
+    them; each stretch is warned about and recorded in ``excluded``."""
+    from ..detect.thresholds import (
+        SUSPECT_BLOCK_S,
+        SUSPECT_GUARD_S,
+        SUSPECT_RATIO,
+        suspect_blocks,
+    )
+
+    rows = []  # (log index, block start, block stop, (J,) max over product detectors)
+    for i, (rp, keep) in enumerate(zip(replays, keeps, strict=True)):
+        b = max(1, round(SUSPECT_BLOCK_S * rp.sample_rate_hz))
+        for a in range(0, rp.n_samples, b):
+            k = keep[a:a + b]
+            if k.sum() < b // 2:
+                continue
+            m = np.max([np.max(rp.stats[d][a:a + b][k], axis=0)
+                        for d in ("adaptive", "static_loading")], axis=0)
+            rows.append((i, a, min(a + b, rp.n_samples), m))
+    if not rows:
+        return
+    bad, ratio = suspect_blocks(np.array([r[3] for r in rows]))
+    for (i, a, b, m), is_bad, q in zip(rows, bad, ratio, strict=True):
+        if not is_bad or not searched[i]:  # a labelled log: its labels say where
+            continue
+        rp = replays[i]
+        t = rp.time_s
+        lo, hi = t[a] - SUSPECT_GUARD_S, t[b - 1] + SUSPECT_GUARD_S
+        keeps[i] &= ~((t >= lo) & (t <= hi))
+        j = joints[int(np.argmax(m))] if len(joints) == len(m) else "?"
+        why = (f"alone it would set a threshold of {j} {q:.3g}× above the calibration's usual "
+               f"level (> {SUSPECT_RATIO:g}×): a likely contact")
+        last = excluded[-1] if excluded else None
+        if last is not None and last["log"] == rp.path and \
+                last["reason"].startswith("alone") and lo <= last["end_s"] + SUSPECT_BLOCK_S:
+            last["end_s"] = float(min(hi, t[-1]))  # merge with the previous stretch
+            last["reason"] = max(last["reason"], why, key=_ratio_of)
+            continue
+        excluded.append({"log": rp.path, "start_s": float(max(lo, 0.0)),
+                         "end_s": float(min(hi, t[-1])), "reason": why})
+    for x in excluded:
+        if x["reason"].startswith("alone"):
+            warnings.warn(f"{x['log']}: {x['start_s']:.1f}–{x['end_s']:.1f} s: {x['reason']}; "
+                          "left out of the calibration (give the log's labels, or "
+                          "--keep-suspect to keep it)", ImpactWarning, stacklevel=3)
+
+
+def _ratio_of(reason: str) -> float:
+    """The ratio a suspect stretch's reason states (``... 125× above ...``)."""
+    import re
+
+    m = re.search(r" ([0-9.e+]+)× above", reason)
+    return float(m.group(1)) if m else 0.0
+
+
+def _segments(
+    rp: _Replayed, keep: np.ndarray,
+) -> list[tuple[str, float, float, dict[str, np.ndarray]]]:
+    """(log path, start s, end s, detector → (n, J) statistic) per segment after warm-up
+    (:func:`impactcli.detect.thresholds.segment_bounds`), over the ``keep`` samples."""
+    from ..detect.thresholds import segment_bounds
+
+    path, t, n = rp.path, rp.time_s, rp.n_samples
+    start = int(np.argmax(keep)) if keep.any() else n
+    out = []
+    for a, b in segment_bounds(n - start, rp.sample_rate_hz):
+        idx = np.arange(start + a, start + b)
+        idx = idx[keep[idx]]
+        if idx.size < 10:
+            continue
+        out.append((path, float(t[start + a]), float(t[start + b - 1]),
+                    {d: s[idx] for d, s in rp.stats.items()}))
+    return out
+
+
+def _screen_calibration_logs(
+    scans: list[LogScan], model: RigidModel | None, cfg: DetectorConfig,
+) -> tuple[list[Screened], tuple[LeftOut, ...]]:
+    """Every calibration log screened (:func:`impactcli.run.plan.screen_scan`); a joint left
+    out of any log is left out of all (a threshold needs every log), with the first reason
+    found."""
+    known = known_joints(model, cfg)
+    per = [screen_scan(scan, known) for scan in scans]
+    reasons: dict[str, str] = {}
+    for scan, sc in zip(scans, per, strict=True):
+        for x in sc.left_out:
+            reasons.setdefault(x.name, f"{x.reason}, in {scan.source.path}")
+    if not reasons:
+        return per, ()
+    out = []
+    for scan in scans:
+        keep = tuple(j for j in scan.joint_names if j not in reasons)
+        if not keep:
+            raise LogFormatError(f"{scan.source.path}: no joint left to calibrate")
+        out.append(screen_scan(scan, None, joints=keep))
+    return out, tuple(LeftOut(j, r) for j, r in reasons.items())
+
+
+#: The order ``auto`` prefers, best first.
+_PREFERENCE = ("logged_external", "logged_model", "inverse_dynamics")
+
+
+def common_generators(scans: list[LogScan], screens: list[Screened],
+                      cfg: DetectorConfig) -> dict[str, str]:
+    """joint → generator to freeze for calibration logs (each joint gets the best generator
+    that every log supports: a channel missing from one log rules it out for all)."""
+    per_log = [{c.joint: c.generator
+                for c in generator_choices(sc.keep, sc.logged, scan.source, cfg)}
+               for scan, sc in zip(scans, screens, strict=True)]
+    joints = list(per_log[0])
+    out: dict[str, str] = {}
+    for j in joints:
+        if any(j not in m for m in per_log):
+            continue  # joint names differ between logs: the model/replay reports it
+        gens = [m[j] for m in per_log]
+        out[j] = max(gens, key=lambda g: _PREFERENCE.index(g) if g in _PREFERENCE else -1)
+    return out
