@@ -9,9 +9,9 @@ from typing import Any
 
 import pytest
 
-from impactcli import batch
 from impactcli.errors import LogFormatError
 from impactcli.logs import urls
+from impactcli.run import batch
 from impactcli.run.batch import DetectJob, JobOutcome, batch_summary, run_detect_job
 
 

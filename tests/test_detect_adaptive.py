@@ -15,11 +15,11 @@ from scipy import signal
 from impactcli.config import AdaptiveConfig
 from impactcli.detect.adaptive import g_gain
 from impactcli.detect.rates import resolve_rates
-from impactcli.detect.warmup import warmup_end
 from impactcli.errors import ImpactWarning
 from impactcli.types import RobotLog
 
 from .reference.adaptive import evaluate, evaluate_reference, threshold_inputs
+from .reference.warmup import warmup_end
 
 FS = 250.0
 

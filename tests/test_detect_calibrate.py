@@ -10,9 +10,10 @@ from impactcli.detect.thresholds import (
     block_maxima,
     calibrate_thresholds,
     leave_one_out_margins,
-    uncalibrated_thresholds,
 )
 from impactcli.errors import ImpactWarning
+
+from .reference.thresholds import uncalibrated_thresholds
 
 
 def _stat(maxima: list[float], n: int = 100, seed: int = 0) -> np.ndarray:

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from impactcli.config import WarmupConfig
-from impactcli.detect.warmup import trailing_rms, warmup_end
+
+from .reference.warmup import trailing_rms, warmup_end
 
 
 def test_trailing_rms_direct() -> None:

@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from impactcli import batch
 from impactcli.cli import main
 from impactcli.errors import EXIT_SOFTWARE, LogFormatError
-from impactcli.logs import inspect as io_inspect
+from impactcli.logs import describe as io_inspect
 from impactcli.logs import read_log, write_log
+from impactcli.run import batch
 
 REPO = Path(__file__).resolve().parents[1]
 LOG = REPO / "sample_logs" / "csv" / "assist_free_p2p.csv.gz"

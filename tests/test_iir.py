@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from impactcli import iir
+from impactcli.model import iir
 
 
 @pytest.mark.parametrize("order", [1, 2, 3, 4])

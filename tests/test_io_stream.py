@@ -17,7 +17,8 @@ import pytest
 
 from impactcli.errors import ImpactWarning, LogFormatError
 from impactcli.logs import csv as csv_reader
-from impactcli.logs import read_log, stream_cache, write_log
+from impactcli.logs import read_log, write_log
+from impactcli.logs import row_cache as stream_cache
 from impactcli.logs import scan as scan_module
 from impactcli.logs.describe import time_gaps
 from impactcli.logs.layout import OPTIONAL

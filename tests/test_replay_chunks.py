@@ -158,7 +158,9 @@ def test_warmup_tracker_equals_whole_log(sizes: list[int]) -> None:
     """WarmupTracker fed in chunks gives warmup_end's answer bit for bit (a synthetic
     prediction error that settles at different times per joint, with a contact late on)."""
     from impactcli.config import WarmupConfig
-    from impactcli.detect.warmup import WarmupTracker, warmup_end
+    from impactcli.detect.warmup import WarmupTracker
+
+    from .reference.warmup import warmup_end
 
     rng = np.random.default_rng(3)
     n, fs = 12_000, 500.0
@@ -220,8 +222,8 @@ def test_pipelined_replay_is_the_same(generator: str, monkeypatch: pytest.Monkey
     """The Replayer's pipeline (chunks cut into parts, the axes on threads of their own
     working on one part while the calling thread makes the next ones): every output and
     the state are those of one chunk at a time on one thread, bit for bit."""
-    from impactcli import replay
     from impactcli.detect.adaptive import SIGNALS
+    from impactcli.run import replay
 
     monkeypatch.setattr(replay, "PART_SAMPLES", 64)  # chunks of several parts
     cfg = load_config(SAMPLES / "heavy_geared.config.toml")

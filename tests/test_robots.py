@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from impactcli import robots
 from impactcli.cli import main
 from impactcli.errors import RobotDescriptionError
+from impactcli.logs import robot_catalogue as robots
 from impactcli.logs import write_log
 from impactcli.logs.robot_files import read_robot, robot_from_dict
 from impactcli.model import read_model

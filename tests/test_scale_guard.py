@@ -115,7 +115,7 @@ def test_evaluate_refuses_a_huge_arm_and_takes_allow_slow(
 
 def test_calibrate_refuses_a_huge_arm_before_identifying(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from impactcli import calibration
+    from impactcli.run import calibration
 
     def calibrate(*_: object, **__: object) -> object:
         raise AssertionError("the pipeline must not run")
@@ -136,7 +136,7 @@ def test_calibrate_refuses_a_huge_arm_before_identifying(
 def test_calibrate_allow_slow_reaches_the_replay(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """calibrate --allow-slow is not refused later by the replay of each log."""
-    from impactcli import calibration
+    from impactcli.run import calibration
 
     seen: list[object] = []
 

@@ -229,7 +229,8 @@ def test_a_message_decoded_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch)
     """Reading an MCAP (the scan, then every chunk collected) decompresses each MCAP chunk
     once and decodes each topic's messages of a chunk once: one decode call per chunk
     and topic read."""
-    from impactcli.logs import mcap_scan, messages
+    from impactcli.logs import mcap as mcap_scan
+    from impactcli.logs import messages
 
     t, v = _signals()
     path = _write_ros2(tmp_path / "r.mcap", _topics(t, v), chunk_size=8192)
@@ -484,7 +485,8 @@ def test_a_full_disk_reads_the_file_again(tmp_path: Path, monkeypatch: pytest.Mo
                                           ) -> None:
     """Without the scan's cache of the repaired rows every pass reads the archive again,
     and a message log's spill of decoded messages is kept in memory: the same arrays."""
-    from impactcli.logs import message_merge, stream_cache
+    from impactcli.logs import message_merge
+    from impactcli.logs import row_cache as stream_cache
 
     monkeypatch.setattr(stream_cache, "MIN_FREE_BYTES", float("inf"))
     monkeypatch.setattr(message_merge, "MIN_FREE_BYTES", float("inf"))

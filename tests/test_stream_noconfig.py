@@ -105,7 +105,8 @@ def test_detect_without_config_reads_the_log_in_chunks(tmp_path: Path,
     on it, no log is held in memory) and writes what the replay of the log in memory
     gives."""
     import impactcli.logs as io_mod
-    from impactcli.run import readers
+    from impactcli.logs import reader
+    from impactcli.run import collect
 
     log = SAMPLES / "csv" / "assist_impacts.csv.gz"
     with warnings.catch_warnings():
@@ -115,7 +116,8 @@ def test_detect_without_config_reads_the_log_in_chunks(tmp_path: Path,
     def refuse(*a: object, **k: object) -> None:
         raise AssertionError("the log was read whole")
 
-    monkeypatch.setattr(readers, "MemoryReader", refuse)
+    monkeypatch.setattr(reader, "MemoryReader", refuse)
+    monkeypatch.setattr(collect, "MemoryReader", refuse)
     monkeypatch.setattr(io_mod, "read_log", refuse)
     out = tmp_path / "out"
     res = CliRunner().invoke(main, ["detect", str(log), "--out", str(out), "--signals"])
@@ -158,7 +160,7 @@ def test_a_full_temporary_folder_is_one_line_exit_2(tmp_path: Path, verb: str,
     import errno
     import tempfile
 
-    from impactcli import spill
+    from impactcli.run import spill
 
     class _Full:
         def __init__(self, name: str, mode: str = "rb") -> None:

@@ -181,27 +181,6 @@ class BlockMaxima:
         return np.concatenate(rows, axis=0)
 
 
-def uncalibrated_thresholds(
-    statistic: np.ndarray, sample_rate_hz: float, *, block_s: float = UNCALIBRATED_BLOCK_S,
-    quantile: float = UNCALIBRATED_QUANTILE, margin: float = UNCALIBRATED_MARGIN,
-    min_blocks: int = UNCALIBRATED_MIN_BLOCKS,
-) -> ThresholdCalibration:
-    """Robust thresholds from a log's own (N, J) statistic after warm-up (no config).
-
-    ``margin`` × the ``quantile`` of the maxima of ``block_s`` blocks (module doc); the
-    block is shortened to give at least ``min_blocks`` blocks, and a statistic shorter
-    than ``min_blocks`` samples uses its maximum. ``maxima`` holds the level per joint.
-    A statistic read in chunks: :class:`BlockMaxima` then :func:`thresholds_from_maxima`.
-    """
-    s = np.asarray(statistic, dtype=np.float64)
-    if s.ndim != 2 or s.shape[0] == 0:
-        raise ValueError(f"expected a non-empty (N, J) statistic, got shape {s.shape}")
-    bm = BlockMaxima(0, uncalibrated_block(s.shape[0], sample_rate_hz, block_s=block_s,
-                                           min_blocks=min_blocks))
-    bm.update(0, s)
-    return thresholds_from_maxima(bm.finish(), bm.block, quantile=quantile, margin=margin)
-
-
 def thresholds_from_maxima(maxima: np.ndarray, block: int, *,
                            quantile: float = UNCALIBRATED_QUANTILE,
                            margin: float = UNCALIBRATED_MARGIN) -> ThresholdCalibration:

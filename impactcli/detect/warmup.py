@@ -34,53 +34,10 @@ class Warmup:
     end_s: float
 
 
-def trailing_rms(x: np.ndarray, window: int) -> np.ndarray:
-    """(N, J) RMS of x over samples k-window+1..k (fewer at the start)."""
-    x = np.asarray(x, dtype=np.float64)
-    c = np.cumsum(np.vstack([np.zeros((1, x.shape[1])), x**2]), axis=0)
-    k = np.arange(1, x.shape[0] + 1)
-    lo = np.maximum(0, k - window)
-    return np.sqrt(np.maximum(c[k] - c[lo], 0.0) / (k - lo)[:, None])
-
-
-def warmup_end(
-    prediction_error: np.ndarray, time_s: np.ndarray, cfg: WarmupConfig | None = None,
-) -> Warmup:
-    """Warm-up end per joint from the RLS a priori error.
-
-    Args:
-        prediction_error: (N, J) eps0 (eq. 40) [N·m].
-        time_s: (N,) sample times [s since the first sample].
-        cfg: min_s, window_s, tolerance, max_s.
-    """
-    cfg = cfg or WarmupConfig()
-    e = np.asarray(prediction_error, dtype=np.float64)
-    t = np.asarray(time_s, dtype=np.float64)
-    n, J = e.shape
-    fs = (n - 1) / (t[-1] - t[0]) if n > 1 and t[-1] > t[0] else 1.0
-    w = max(1, round(cfg.window_s * fs))
-    k_min = int(np.searchsorted(t, t[0] + cfg.min_s - 1e-12))
-    k_cap = int(np.searchsorted(t, t[0] + cfg.max_s - 1e-12))
-    rms = trailing_rms(e, w)
-    idx = np.empty(J, dtype=np.int64)
-    for j in range(J):
-        if k_min >= n:
-            idx[j] = n
-            continue
-        level = float(np.median(rms[(k_min + n) // 2 :, j]))
-        ok = np.flatnonzero(rms[k_min:, j] <= (1.0 + cfg.tolerance) * level)
-        k = k_min + int(ok[0]) if ok.size else n
-        idx[j] = min(k, max(k_cap, 0), n)
-    end = int(idx.max())
-    end_s = float(t[end] - t[0]) if end < n else float(t[-1] - t[0]) + (
-        float(t[-1] - t[-2]) if n > 1 else 0.0)
-    return Warmup(idx, end, end_s)
-
-
 class WarmupTracker:
-    """:func:`warmup_end`, fed chunk by chunk (state in, state out: the tracker is the
-    state; :meth:`finish` gives the same :class:`Warmup` as :func:`warmup_end` on the whole
-    log, bit for bit).
+    """The warm-up rule (docs/method.md §5b, "Warm-up"), fed chunk by chunk (state in,
+    state out: the tracker is the state); :meth:`finish` gives the same :class:`Warmup`
+    as the rule on the whole log (``tests/reference/warmup.py``), bit for bit.
 
     Known before the first chunk (a first pass over the log's stamps): the sample count
     ``n`` and the first and last times, hence fs, the window and the later half's start.
@@ -134,7 +91,7 @@ class WarmupTracker:
         c = np.cumsum(np.vstack([self.c_last[None, :], e ** 2]), axis=0)[1:]
         allc = np.vstack([self.c_ring, c])  # c[k0 - len(ring) .. k0 + m - 1]
         base = self.k - self.c_ring.shape[0]
-        k = np.arange(self.k, self.k + m) + 1          # 1-based "k" of warmup_end's c index
+        k = np.arange(self.k, self.k + m) + 1          # 1-based "k" of the rule's c index
         lo = np.maximum(0, k - self.w)
         c_lo = np.where((lo > 0)[:, None], allc[np.maximum(lo - 1 - base, 0)], 0.0)
         rms = np.sqrt(np.maximum(c - c_lo, 0.0) / (k - lo)[:, None])
@@ -173,7 +130,7 @@ class WarmupTracker:
         return [float(head_t[i] - self.t_first) if i < self.n else wu_end for i in index]
 
     def finish(self) -> Warmup:
-        """The warm-up of the whole log (:func:`warmup_end`)."""
+        """The warm-up of the whole log."""
         n, J = self.n, self.J
         if self.k != n:
             raise ValueError(f"the tracker saw {self.k} samples, expected {n}")

@@ -189,13 +189,23 @@ def variants() -> None:
             print(f"  {c.line()}")
 
 
-def replay(log: RobotLog, **setup: Any) -> DetectionResult:
-    """``log`` replayed in memory (:func:`impactcli.run.collect.detect_in_memory`), the
-    result holding its per-sample arrays and ``log`` (its replayed joints), which
-    ``tests/test_acceptance.py`` reads. alias: removed in M (then ``(result, Signals)``)."""
+@dataclass(frozen=True)
+class ReplayedLog(DetectionResult):
+    """A detection result with its log in memory (the replayed joints, in ``log``) and the
+    (N, J) signals, decisions and ratios its replay handed the writers."""
+
+    signals: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
+    decisions: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
+    ratios: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
+
+
+def replay(log: RobotLog, **setup: Any) -> ReplayedLog:
+    """``log`` replayed in memory (:func:`impactcli.run.collect.detect_in_memory`), with
+    its per-sample arrays (``tests/test_acceptance.py`` reads them)."""
     res, sig = detect_in_memory(log, **setup)
-    return dataclasses.replace(res, log=log.select(res.log.joint_names), signals=sig.signals,
-                               decisions=sig.decisions, ratios=sig.ratios)
+    kept = {f.name: getattr(res, f.name) for f in dataclasses.fields(res)}
+    return ReplayedLog(**{**kept, "log": log.select(res.log.joint_names)},
+                       signals=sig.signals, decisions=sig.decisions, ratios=sig.ratios)
 
 
 def run(name: str, config: DetectorConfig | None, *, model_from_log: bool = False

@@ -45,10 +45,12 @@ from impactcli.detect.thresholds import (
     UNCALIBRATED_BLOCK_S,
     UNCALIBRATED_MARGIN,
     UNCALIBRATED_QUANTILE,
-    uncalibrated_thresholds,
 )
 
 REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO))  # after impactcli's import: only ``tests`` comes from here
+from tests.reference.thresholds import uncalibrated_thresholds  # noqa: E402
+
 KUKA = REPO.parent / "shared" / "real_logs" / "kuka_lwr4" / "measurements_1.npz"
 ARMS = ("assist_like", "heavy_geared")
 FREE = {"free_triangle": 60.0, "free_fm_triangle": 60.0, "free_p2p": 90.0,

@@ -1,0 +1,189 @@
+"""The package's layout holds (docs/development.md): imports go down the layers only, no
+module imports itself back through others, no private name crosses a module, no module is
+over 700 lines, no two modules share a file name, and every file the code and docs cite is
+in the repo. Read from the source with ``ast`` (function-local and TYPE_CHECKING imports
+count too)."""
+
+from __future__ import annotations
+
+import ast
+import re
+from collections import defaultdict
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PKG = ROOT / "impactcli"
+
+#: Layers, low to high: a module may import its own layer and the ones below.
+LAYERS: tuple[tuple[str, ...], ...] = (
+    ("impactcli", "impactcli.errors"),
+    ("impactcli.clock", "impactcli.files", "impactcli.schema"),
+    ("impactcli.types", "impactcli.config"),
+    ("impactcli.logs",),
+    ("impactcli.model", "impactcli.sim"),
+    ("impactcli.detect",),
+    ("impactcli.quality",),
+    ("impactcli.outputs",),
+    ("impactcli.run",),
+    ("impactcli.study",),
+    ("impactcli.cli",),
+    ("impactcli.__main__",),
+)
+#: Packages in the same layer that must not import each other.
+APART = {("impactcli.sim", "impactcli.model"), ("impactcli.model", "impactcli.sim")}
+MAX_LINES = 700
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for f in sorted(PKG.rglob("*.py")):
+        parts = list(f.relative_to(ROOT).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        out[".".join(parts)] = f
+    return out
+
+
+MODULES = _modules()
+
+
+def _imports(name: str, path: Path) -> list[tuple[str, str, int]]:
+    """(target module, imported name or "", line) of every import of ``name``'s source."""
+    is_pkg = path.name == "__init__.py"
+    here = name.split(".") if is_pkg else name.split(".")[:-1]
+    out = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            out += [(a.name, "", node.lineno) for a in node.names
+                    if a.name.split(".")[0] == "impactcli"]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = here[: len(here) - node.level + 1]
+                mod = ".".join(base + ([node.module] if node.module else []))
+            else:
+                mod = node.module or ""
+            if mod.split(".")[0] != "impactcli":
+                continue
+            for a in node.names:
+                sub = f"{mod}.{a.name}"
+                out.append((sub, "", node.lineno) if sub in MODULES
+                           else (mod, a.name, node.lineno))
+    return out
+
+
+EDGES = {m: _imports(m, p) for m, p in MODULES.items()}
+
+
+def _unit(mod: str) -> str:
+    for layer in LAYERS:
+        for u in sorted(layer, key=len, reverse=True):
+            if mod == u or (u != "impactcli" and mod.startswith(u + ".")):
+                return u
+    return mod
+
+
+def _layer(mod: str) -> int:
+    u = _unit(mod)
+    for i, layer in enumerate(LAYERS):
+        if u in layer:
+            return i
+    raise AssertionError(f"{mod} is in no layer of tests/test_layout.py")
+
+
+def test_every_module_is_in_a_layer() -> None:
+    for m in MODULES:
+        _layer(m)
+
+
+def test_imports_go_down_the_layers_only() -> None:
+    bad = [f"{MODULES[a].relative_to(ROOT)}:{line} imports {b}"
+           for a, rows in EDGES.items() for b, _, line in rows
+           if _layer(b) > _layer(a) or (_unit(a), _unit(b)) in APART]
+    assert not bad, "\n".join(bad)
+
+
+def test_no_import_cycle() -> None:
+    graph = {a: {b for b, _, _ in rows if b in MODULES and b != a} for a, rows in EDGES.items()}
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    cycles: list[list[str]] = []
+
+    def visit(v: str) -> None:  # Tarjan's strongly connected components
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                cycles.append(sorted(comp))
+
+    for v in graph:
+        if v not in index:
+            visit(v)
+    assert not cycles, cycles
+
+
+def _private(name: str) -> bool:
+    return name.startswith("_") and not (name.startswith("__") and name.endswith("__"))
+
+
+def test_no_private_name_crosses_a_module() -> None:
+    bad = [f"{MODULES[a].relative_to(ROOT)}:{line} imports {b}.{n}"
+           for a, rows in EDGES.items() for b, n, line in rows
+           if b != a and (_private(n) or _private(b.rsplit(".", 1)[-1]))]
+    assert not bad, "\n".join(bad)
+
+
+def test_no_module_over_700_lines() -> None:
+    long = {m: n for m, p in MODULES.items()
+            if (n := len(p.read_text().splitlines())) > MAX_LINES}
+    assert not long, long
+
+
+def test_no_two_modules_share_a_file_name() -> None:
+    seen: dict[str, list[str]] = defaultdict(list)
+    for m, p in MODULES.items():
+        if p.name not in ("__init__.py", "__main__.py"):
+            seen[p.name].append(m)
+    assert not {k: v for k, v in seen.items() if len(v) > 1}
+
+
+def test_no_test_only_code_in_the_package() -> None:
+    bad = [m for m, p in MODULES.items()
+           if re.search(r"^\s*(from|import) tests\b", p.read_text(), re.M)]
+    assert not bad
+
+
+#: ``docs/x.md`` (or ``schemas/x.json``, ``sample_logs/...``) cited in code or docs.
+CITED = re.compile(r"(?<![\w/.-])((?:docs|schemas|sample_logs|tests)/[\w./-]*\w)")
+
+
+def test_every_file_cited_is_in_the_repo() -> None:
+    texts = [*PKG.rglob("*.py"), *(ROOT / "docs").glob("*.md"), ROOT / "README.md",
+             *(ROOT / "schemas").glob("*.json")]
+    missing, n_cited = [], 0
+    for f in texts:
+        text = f.read_text()
+        assert "../shared" not in text, f"{f.relative_to(ROOT)} cites ../shared"
+        for m in CITED.finditer(text):
+            cited = m.group(1).rstrip(".")
+            if "*" in cited or "<" in cited:
+                continue
+            n_cited += 1
+            if not (ROOT / cited).exists() and not any(ROOT.glob(cited + "*")):
+                missing.append(f"{f.relative_to(ROOT)}: {cited}")
+    assert n_cited > 50 and not missing, "\n".join(missing)
