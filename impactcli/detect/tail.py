@@ -40,11 +40,11 @@ from .tail_fit import (
 )
 
 __all__ = [
-    "CONF", "DEFAULT_FALSE_ALARMS_PER_HOUR", "DETECTORS", "ChannelFits", "Clusters",
-    "LoloRow", "RateCalibration", "TailFit", "calibrate_rate", "clusters", "count_incidents",
-    "fit_channel", "fit_channels", "leave_one_log_out", "minutes_needed", "poisson_interval",
-    "rate_upper", "split_settle", "stack_detectors", "support", "support_statement",
-    "threshold_upper", "thresholds_for_rate",
+    "CONF", "CONFIG_KEYS", "DEFAULT_FALSE_ALARMS_PER_HOUR", "DETECTORS", "ChannelFits",
+    "Clusters", "LoloRow", "RateCalibration", "TailFit", "calibrate_rate", "clusters",
+    "count_incidents", "fit_channel", "fit_channels", "leave_one_log_out", "minutes_needed",
+    "poisson_interval", "rate_at", "rate_upper", "split_settle", "stack_detectors", "support",
+    "support_statement", "threshold_upper", "thresholds_for_rate",
 ]
 
 #: The audit's default [incidents per hour]: 0 held-out false alarms in 77 simulated hours,
@@ -162,6 +162,11 @@ def fit_channel(stats: Sequence[np.ndarray], c: int, dt_s: float | Sequence[floa
                     heavy_test=heavy_test)
 
 
+def rate_at(fit: TailFit, t: float, conf: float = CONF) -> tuple[float, float]:
+    """(predicted, upper ``conf`` bound) of the rate of clusters above threshold t [1/h]."""
+    return fit.rate(t), rate_upper(fit, t, conf)
+
+
 # ----------------------------------------------------------------------------- support
 def support(hours: float, conf: float = CONF) -> float:
     """The lowest rate [1/h] that ``hours`` of free motion support at ``conf``: the
@@ -245,7 +250,13 @@ class RateCalibration:
         return float(np.sum(self.upper))
 
     @property
+    def below_support(self) -> bool:
+        """The asked rate is below what the free-motion time supports (widening applies)."""
+        return self.rate < self.rate_supported
+
+    @property
     def any_widened(self) -> bool:
+        """Some threshold was raised by the widening (beyond its profile bound)."""
         return bool(np.any(self.widened))
 
     def support_statement(self) -> str:
