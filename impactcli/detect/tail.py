@@ -216,7 +216,7 @@ def stack_detectors(per_detector: Mapping[str, np.ndarray], joints: Sequence[str
 
 
 # ------------------------------------------------------------------------ all channels
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class RateCalibration:
     """Thresholds for ``rate`` incidents per hour over all channels together.
 
@@ -260,6 +260,7 @@ class RateCalibration:
         return bool(np.any(self.widened))
 
     def support_statement(self) -> str:
+        """:func:`support_statement` of this calibration (for the terminal and report)."""
         return support_statement(self.hours, self.rate, self.conf)
 
     def table(self) -> dict[str, dict[str, float]]:
@@ -285,7 +286,7 @@ class RateCalibration:
         return [*out, "  " + self.support_statement(), *(f"  note: {n}" for n in self.notes)]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ChannelFits:
     """Every channel's tail fit and its log-start floor (C,) [N·m] (−inf: none)."""
 
