@@ -12,9 +12,9 @@ import pytest
 from impactcli.config import EventsConfig
 from impactcli.detect import tail
 from impactcli.detect import tail_fit as tf
-from impactcli.detect.thresholds import MIN_THRESHOLD
 from impactcli.detect.events import extract_events
 from impactcli.detect.incidents import PRODUCT_DETECTORS, group_events
+from impactcli.detect.thresholds import MIN_THRESHOLD
 
 
 # ----------------------------------------------------------------------- the merge rule
