@@ -10,10 +10,10 @@ chunk's signals, decisions and ratios to ``on_chunk`` (the writers, or a collect
 keeps meanwhile is small: the warm-up's statistics
 (:class:`~impactcli.detect.warmup.WarmupTracker`), the times at the gaps, and the *islands*:
 the samples where some detector fires or a contact still presses
-(:meth:`impactcli.detect.isolation.IncidentContext.pressing`), and those within ``merge_gap_s``
-after one. Events and incidents never span a sample outside an island, so each island
-gives its events and incidents by :func:`~impactcli.detect.events.extract_events` and
-:func:`~impactcli.detect.isolation.build_incidents` once the warm-up's end is known.
+(:meth:`impactcli.detect.incident_builder.IncidentContext.pressing`), and those within
+``merge_gap_s`` after one. Events and incidents never span a sample outside an island, so
+each island gives its events and incidents by :func:`~impactcli.detect.events.extract_events` and
+:func:`~impactcli.detect.incident_builder.build_incidents` once the warm-up's end is known.
 """
 
 from __future__ import annotations
@@ -29,8 +29,8 @@ import numpy as np
 from ..config import CalibrationRecord, DetectorConfig
 from ..detect.adaptive import AdaptiveResult, default_threads
 from ..detect.events import extract_events
+from ..detect.incident_builder import IncidentContext, build_incidents, incident_context
 from ..detect.incidents import BRIDGE_FRACTION, Incident
-from ..detect.isolation import IncidentContext, build_incidents, incident_context
 from ..detect.thresholds import compare_to_thresholds
 from ..detect.warmup import Warmup, WarmupTracker
 from ..errors import ConfigError
@@ -369,7 +369,8 @@ def _events_and_incidents(islands: Islands, wu: Warmup, joints: tuple[str, ...],
                           cfg: DetectorConfig, ctx: IncidentContext,
                           ) -> tuple[list[Event], list[Incident]]:
     """Every island's events (indices in the log, in timeline order) and incidents
-    (:func:`impactcli.detect.isolation.build_incidents`), each island read from its files once."""
+    (:func:`impactcli.detect.incident_builder.build_incidents`), each island read from its
+    files once."""
     ev = cfg.events
     events: list[Event] = []
     incidents: list[Incident] = []

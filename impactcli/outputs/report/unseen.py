@@ -29,8 +29,8 @@ MAX_GAPS_LISTED = 50
 
 def chain_of(result: DetectionResult) -> tuple[tuple[str, ...], dict[str, Any] | None]:
     """The robot's joint chain (base first) and its kinematics, from the robot description
-    the model records (as :func:`impactcli.detect.isolation.robot_chain` reads it); the analysed
-    joints without kinematics when the model records none."""
+    the model records (as :func:`impactcli.detect.incident_builder.robot_chain` reads it);
+    the analysed joints without kinematics when the model records none."""
     desc = (result.model or {}).get("robot")
     joints = result.log.joint_names
     if isinstance(desc, dict) and desc.get("joints"):
