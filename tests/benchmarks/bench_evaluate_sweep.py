@@ -58,10 +58,14 @@ def child(minutes: float) -> None:
 
     from impactcli.cli.evaluate import DEFAULT_SCALES, parse_scales
 
-    try:
-        sweep_mod = importlib.import_module("impactcli.quality.sweep")
-        verdict_mod = importlib.import_module("impactcli.quality.verdict")
-    except ImportError:  # pragma: no cover - older layouts
+    for pkg in ("impactcli.quality", "impactcli.scoring"):  # today's layout, then older
+        try:
+            sweep_mod = importlib.import_module(f"{pkg}.sweep")
+            verdict_mod = importlib.import_module(f"{pkg}.verdict")
+            break
+        except ImportError:
+            continue
+    else:  # pragma: no cover - the oldest layout
         sweep_mod = verdict_mod = importlib.import_module("impactcli.evaluate")
     t, ratios, labels = _run(minutes)
     scales = parse_scales(DEFAULT_SCALES)

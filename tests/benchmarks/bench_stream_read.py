@@ -36,14 +36,20 @@ mode, path, chunk_rows = sys.argv[1], sys.argv[2], int(sys.argv[3])
 t0 = time.perf_counter()
 out = {}
 if mode == "stream":
-    from impactcli.logs.reader import iter_chunks, scan_log
+    try:
+        from impactcli.logs.reader import iter_chunks, scan_log
+    except ImportError:  # a release before the layout of docs/development.md
+        from impactcli.io.stream import iter_chunks, scan_log
     scan = scan_log(path)
     out["scan_s"] = time.perf_counter() - t0
     n = 0
     for c in iter_chunks(path, scan, chunk_rows):
         n += c.n_samples
 else:
-    from impactcli.logs import read_log
+    try:
+        from impactcli.logs import read_log
+    except ImportError:  # a release before the layout of docs/development.md
+        from impactcli.io import read_log
     n = read_log(path).n_samples
 out["n"] = n
 out["wall_s"] = time.perf_counter() - t0
