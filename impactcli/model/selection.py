@@ -59,6 +59,11 @@ from .rows import Rows
 
 _HUGE = 1e300
 
+#: The least cut of the held-back RMS error [fraction] for which the coupled model's
+#: cross terms are kept (besides the one-standard-error rule): a few per cent is what a
+#: pose outside the free logs costs them (docs/models.md, "Choosing the model").
+MIN_GAIN = 0.25
+
 #: Contiguous stretches a single log is cut into for the held-back comparison.
 STRETCHES = 5
 
@@ -151,14 +156,22 @@ def held_back_errors(a: np.ndarray, t: np.ndarray, w: np.ndarray, pen: np.ndarra
     return np.where(np.isfinite(out), out, _HUGE)  # a failed solve: never chosen
 
 
-def one_se(rel: np.ndarray) -> tuple[int, int, float]:
+def one_se(rel: np.ndarray, rms: np.ndarray | None = None,
+           min_gain: float = 0.0) -> tuple[int, int, float]:
     """(chosen, least, standard error) of the one-standard-error rule over candidates,
-    simplest first: ``rel`` (candidates, parts) relative held-back errors."""
+    simplest first: ``rel`` (candidates, parts) relative held-back errors. With ``rms``
+    (candidates,) their pooled held-back RMS errors, a candidate richer than the first
+    must also cut the first's by ``min_gain`` (rms <= (1 - min_gain) × the first's),
+    else the first is chosen."""
     mean = rel.mean(axis=1)
     best = int(np.argmin(mean))
     k = rel.shape[1]
     se = float(np.std(rel[best], ddof=1) / np.sqrt(k)) if k > 1 else 0.0
-    return int(np.flatnonzero(mean <= mean[best] + se)[0]), best, se
+    ok = mean <= mean[best] + se
+    if rms is not None:
+        ok[1:] &= rms[1:] <= (1.0 - min_gain) * rms[0]
+    ok[0] = ok[0] or not ok[1:].any()
+    return int(np.flatnonzero(ok)[0]), best, se
 
 
 def _solve(m: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -216,7 +229,7 @@ def choose(coupled: Sequence[Rows], names: Sequence[str], options: IdentifyOptio
         mse = held_back_errors(a, t, w[:, j], pen, use, folds)
         tms = np.array([max(float(np.mean(t[f.test] ** 2)), 1e-300) for f in folds])
         rel = mse / tms[None, :]
-        pick, _, se = one_se(rel)
+        pick, _, se = one_se(rel, np.array([_rms(m, fsize) for m in mse]), MIN_GAIN)
         lambdas.append(use[pick])
         dec = {"rms_nm": _rms(mse[0], fsize), "rel_mse": float(rel[0].mean()),
                "parts_rms_nm": [float(np.sqrt(v)) for v in mse[0]]}
@@ -366,7 +379,9 @@ def select_model(logs: Sequence[RobotLog], *, robot: RobotDescription | None = N
     rows[named] = [prepare_rows(lg, robot, named, options) for lg in logs]
     with warnings.catch_warnings():  # the same warnings as the rows above: said once
         warnings.simplefilter("ignore")
-        rows["coupled"] = [prepare_rows(lg, robot, "coupled", options) for lg in logs]
+        joints = rows[named][0].joints  # a URDF's: the logged joints it models
+        rows["coupled"] = [prepare_rows(lg.select(joints), None, "coupled", options)
+                           for lg in logs]
     choice = choose(rows["coupled"], paths, options,
                     named=None if named == "decoupled" else rows[named])
     return _chosen_model(choice, rows, paths, robot, options, many_sha256(logs))
@@ -431,4 +446,8 @@ def describe(record: dict[str, Any]) -> list[str]:
         if chosen == "coupled" and "lambda" in e:
             chosen += f" (λ {e['lambda']:.0e})"
         lines.append(f"  {jn:<{w}}  " + "  ".join(cells) + f"  {chosen}")
+    if record["chosen"] == "coupled" and not record["held_back"].startswith("leave-one-log"):
+        lines.append("  chosen on stretches of one log: a motion or pose the log lacks is not "
+                     "judged (a coupled model's cross terms may not carry over); calibrate on "
+                     "several free logs of the robot's motions")
     return lines
