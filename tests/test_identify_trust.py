@@ -11,8 +11,8 @@ import pytest
 from click.testing import CliRunner
 
 from impactcli.cli import main
-from impactcli.logs import write_log
 from impactcli.logs import robot_catalogue as robots
+from impactcli.logs import write_log
 from impactcli.types import LogSource, RobotLog
 
 from .reference.two_link_arm import TwoLinkArm, multisine
@@ -122,7 +122,7 @@ def test_what_the_still_arm_message_says_works(tmp_path: Path) -> None:
     write_log(arm_log(still=True), still)
     code, _, err = run(["identify", str(moving), "-o", str(tmp_path / "m.json")])
     assert code == 0, err
-    code, out, err = run(["detect", str(still), "--model", str(tmp_path / "m.json"),
+    code, _out, err = run(["detect", str(still), "--model", str(tmp_path / "m.json"),
                           "-o", str(tmp_path / "out")])
     assert code == 0, err
     assert (tmp_path / "out" / "still.timeline.json").is_file()

@@ -88,7 +88,7 @@ def test_one_standard_error_rule_prefers_the_simpler_within_one_se() -> None:
 
 def test_one_standard_error_rule_takes_the_richer_when_clearly_better() -> None:
     rel = np.array([[1.0, 1.1, 0.9], [0.5, 0.52, 0.48]])
-    chosen, least, se = one_se(rel)
+    chosen, least, _se = one_se(rel)
     assert (chosen, least) == (1, 1)
     rel = np.array([[0.50, 0.51, 0.49], [0.49, 0.60, 0.40]])  # better on average, not clearly
     chosen, least, _ = one_se(rel)
@@ -239,7 +239,7 @@ def test_identify_with_kind_uses_it_as_named(tmp_path: Path) -> None:
 def test_detect_without_config_uses_the_kind_that_predicts_best(tmp_path: Path) -> None:
     log = tmp_path / "arm.csv"
     write_log(arm_logs(1, 5000)[0], log)
-    code, out, err = run(["detect", str(log), "-o", str(tmp_path / "out")])
+    code, _out, err = run(["detect", str(log), "-o", str(tmp_path / "out")])
     assert code == 0, err
     tl = json.loads((tmp_path / "out" / "arm.timeline.json").read_text())
     model = tl["model"]["model"]
