@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import warnings
 from pathlib import Path
@@ -29,7 +30,8 @@ OPTS = IdentifyOptions(allow_still_joints=True)
 def _log(q: np.ndarray, tau: np.ndarray, name: str, dt: float = 0.004) -> RobotLog:
     t = np.arange(q.shape[0]) * dt
     return RobotLog(t_ns=np.round(t * 1e9).astype(np.int64), joint_names=JOINTS, position=q,
-                    torque=tau, source=LogSource(name, name, "memory"))
+                    torque=tau, source=LogSource(name, hashlib.sha256(name.encode()).hexdigest(),
+                                                 "memory"))
 
 
 def _derivs(q: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -299,3 +301,29 @@ def test_on_the_real_ur_log_the_still_wrist_stays_decoupled(real_logs: Path) -> 
     e = sel["joints"]["elbow"]
     assert e["chosen"] == "coupled"
     assert e["coupled"]["rms_nm"] < 0.8 * e["decoupled"]["rms_nm"]
+
+
+# ------------------------------------------------------------------ calibrate's call
+def test_calibrate_with_the_chosen_model_then_detect(tmp_path: Path) -> None:
+    """The call run/calibration.py is to make when no model is given (select_model in place
+    of identify_many), then `detect --config` on another run of the arm."""
+    from impactcli.run.calibration import calibrate
+
+    free = arm_logs(3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = select_model(free, options=OPTS)
+        cfg = calibrate(free, model=model, generator="inverse_dynamics")
+    assert cfg.model is not None and cfg.model["fit"]["selection"]["chosen"] == "coupled"
+    save_config(cfg, tmp_path / "c.toml")
+    other = tmp_path / "other.csv"
+    t = np.arange(4000) * 0.004
+    q, qd, qdd = multisine(t, 2, seed=99)
+    write_log(_log(q, ARM.torque(q, qd, qdd), "other.csv"), other)
+    code, _, err = run(["detect", str(other), "--config", str(tmp_path / "c.toml"),
+                        "-o", str(tmp_path / "out")])
+    assert code == 0, err
+    tl = json.loads((tmp_path / "out" / "other.timeline.json").read_text())
+    assert tl["model"]["source"] == "config"
+    assert tl["model"]["model"]["kind"] == "coupled"
+    assert tl["model"]["sha256"] == cfg.calibration.model_sha256

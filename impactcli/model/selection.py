@@ -128,7 +128,7 @@ def held_back_errors(a: np.ndarray, t: np.ndarray, w: np.ndarray, pen: np.ndarra
 
     Weighted least squares (row weights ``w``) on the column-normalised normal equations
     of the fitted rows, the penalty relative to each column's energy over all rows and
-    scaled by the fitted rows' share of it (docs/models.md, "Regularisation"); a 1e-10
+    scaled by the fitted rows' share of it (docs/models.md, "Choosing the model"); a 1e-10
     floor keeps columns constant in the fitted rows determined.
     """
     p = a.shape[1]
