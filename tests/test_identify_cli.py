@@ -366,7 +366,8 @@ def test_calibrate_prints_the_fit_table_identify_prints(files: dict[str, Path],
     code, ident, stderr = run(["identify", str(files["log"]), "--robot", str(files["robot"]),
                                "-o", str(out)])
     assert code == 0, stderr
-    table = ident.split("\nwrote ")[0]
+    table = ident.split("\nmodel kind: ")[0]  # the selection's lines follow the table
+    assert "model kind: planar: the robot's kinematics (--robot), used as named" in ident
     code, cal, stderr = run(["calibrate", str(files["log"]), "--model", str(out),
                              "--generator", "inverse_dynamics", "-o", str(tmp_path / "c.toml")])
     assert code == 0, (cal, stderr)

@@ -54,7 +54,8 @@ _JOINTS = st.lists(from_schema("model", _MODEL["properties"]["joint_names"]["ite
 def model_docs(draw: st.DrawFn) -> dict[str, Any]:
     """Model mappings of every kind but urdf (its parameter names need a URDF and
     pinocchio: covered by tests/test_model_urdf.py), whose parameter names match their
-    structure, with the fit, filter and robot drawn from the schema."""
+    structure, with the fit (and in half of them a model-kind selection record), filter
+    and robot drawn from the schema."""
     kind = draw(st.sampled_from(["decoupled", "coupled", "planar"]))
     joints = tuple(draw(_JOINTS))
     structure: dict[str, Any] = {"coulomb_slope_rad_s": draw(_POSITIVE),
@@ -79,6 +80,9 @@ def model_docs(draw: st.DrawFn) -> dict[str, Any]:
         "fit": draw(from_schema("model", props["fit"])),
         "input_sha256": draw(st.text(max_size=8)),
     }
+    if draw(st.booleans()):  # the model-kind selection's record (model/selection.py), always
+        doc["fit"]["selection"] = draw(from_schema(  # drawn in half the documents
+            "model", props["fit"]["properties"]["selection"]))
     robot = draw(st.one_of(st.none(), from_schema("robot")))
     if robot is not None or draw(st.booleans()):
         doc["robot"] = robot  # absent and null both mean "no robot description"

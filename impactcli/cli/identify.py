@@ -17,9 +17,11 @@ __all__ = ["format_fit_table", "identify_cmd"]
 @click.option("--robot", metavar=ROBOT_METAVAR, type=click.Path(dir_okay=False, path_type=str),
               help=robot_help("joints, kinematics: planar or urdf"))
 @click.option("--kind", type=click.Choice(["decoupled", "coupled", "planar", "urdf"]),
-              help="Model structure (default: the robot's kinematics type, else decoupled). "
-                   "coupled: a spatial arm without kinematics, every joint's motion in every "
-                   "joint's torque (docs/models.md).")
+              help="Model structure [default: the robot's kinematics type (planar, urdf); "
+                   "without kinematics, decoupled or coupled, whichever predicts contiguous "
+                   "stretches of the log best held back (one-standard-error rule, "
+                   "docs/models.md)]. coupled: a spatial arm without kinematics, every "
+                   "joint's motion in every joint's torque.")
 @log_read_options
 @click.option("--cutoff", "cutoff_hz", type=click.FloatRange(min=0, min_open=True),
               default=10.0, show_default=True,
@@ -46,12 +48,19 @@ def identify_cmd(
 ) -> None:
     """Identify a rough rigid model (tau = Y(q, q', q'') theta) from LOG and write it.
 
+    Without --kind the robot's kinematics name the model (planar, urdf); without
+    kinematics the kind, decoupled or coupled (and the coupled model's ridge penalty per
+    joint), is the one that predicts contiguous stretches of the log best held back —
+    the richer only when clearly better (one-standard-error rule). The choice and why are
+    printed and recorded in the model (fit.selection).
+
     A multi-arm MCAP or bag: --topic picks the arm's JointState topic, as in the other
     verbs."""
     from ..files import prepare_output
     from ..logs import read_log
     from ..logs.robot_files import read_robot
     from ..model import IdentifyOptions, identify, write_model
+    from ..model.selection import describe, select_model
 
     prepare_output(output)  # a bad -o stops the run before any work
     desc = read_robot(robot) if robot else None
@@ -60,7 +69,12 @@ def identify_cmd(
     options = IdentifyOptions(cutoff_hz=cutoff_hz, holdout_fraction=holdout_fraction,
                               robust=robust, coulomb_slope_rad_s=coulomb_slope,
                               allow_still_joints=allow_still)
-    model = identify(data, robot=desc, kind=kind, options=options)
+    if kind is None:  # the kind (and coupled penalty) that predicts best held back
+        model = select_model([data], robot=desc, options=options)
+    else:
+        model = identify(data, robot=desc, kind=kind, options=options)
     write_model(model, output)
     click.echo(format_fit_table(model))
+    if "selection" in model.fit:
+        click.echo("\n".join(describe(model.fit["selection"])))
     click.echo(f"wrote {output}")

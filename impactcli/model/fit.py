@@ -213,11 +213,13 @@ def _solve(m: np.ndarray, b: np.ndarray) -> np.ndarray:
 def fit_ridge(
     y_reg: np.ndarray, tau: np.ndarray, keep: np.ndarray, pen: np.ndarray,
     joints: tuple[str, ...], names: list[str], options: IdentifyOptions, cv_gap: int,
+    fixed: Sequence[float] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, dict[str, Any], dict[str, Any], np.ndarray]:
     """Robust ridge fit of the coupled model, the penalty of each joint by blocked
-    cross-validation (module doc, step 3). Returns theta of the (new) kept columns, the
-    robust weights, the robust info, the ridge record and the kept columns (a joint whose
-    penalty is infinite loses its cross terms)."""
+    cross-validation (module doc, step 3), or ``fixed`` (J,) penalties (``inf``: cross terms
+    off) chosen elsewhere — by held-back error across logs (:mod:`impactcli.model.selection`).
+    Returns theta of the (new) kept columns, the robust weights, the robust info, the ridge
+    record and the kept columns (a joint whose penalty is infinite loses its cross terms)."""
     n, nj, p = y_reg.shape
     cols = [np.flatnonzero(keep & np.any(y_reg[:, j, :] != 0.0, axis=0)) for j in range(nj)]
     trms = np.sqrt(np.mean(tau**2, axis=0))
@@ -251,6 +253,18 @@ def fit_ridge(
                                    separable=True)
         return th, w, info, use
 
+    if fixed is not None:
+        lams = [float(v) for v in fixed]
+        th, w, info, use = run(lams)
+        return th, w, info, {
+            "penalised": "every term but a joint's own inertia, gcos, gsin, fv, fc, offset",
+            "rule": "held-back error across logs or stretches of a log, one-standard-error "
+                    "rule (the model's selection record); no lambda = infinite (cross terms "
+                    "off)",
+            "fits": 1,
+            "joints": {nm: ({} if np.isinf(lams[j]) else {"lambda": lams[j]})
+                       for j, nm in enumerate(joints)},
+        }, use
     w0 = np.broadcast_to(1.0 / np.maximum(trms, 1e-300) ** 2, (n, nj))
     lams, stats = choose(np.asarray(w0))
     th, w, info, use = run(lams)

@@ -95,6 +95,41 @@ def urdf_source(kin: dict[str, Any]) -> tuple[str, str, str | None]:
     return str(xml), upath, None
 
 
+def _urdf_joints(log_joints: tuple[str, ...], robot: RobotDescription, where: str,
+                 ) -> tuple[list[str], list[str], str, str | None]:
+    """The robot's joints its URDF models, those of them logged, how messages name the
+    URDF and the shipped robot it is; RobotDescriptionError when none is logged."""
+    assert robot.kinematics is not None
+    xml, label, shipped = urdf_source(robot.kinematics)
+    in_urdf = set(urdf_joint_names(xml, label))
+    jm = robot.joint_map or {}
+    modelled = [j for j in robot.joint_names if jm.get(j, j) in in_urdf]
+    used = [j for j in modelled if j in log_joints]
+    if not used:
+        raise RobotDescriptionError(
+            f"{where}: no logged joint is a joint of the URDF of {label} (log: "
+            f"{list(log_joints)}; robot description: {[jm.get(j, j) for j in modelled]})")
+    return modelled, used, label, shipped
+
+
+def check_shares_joints(log_joints: tuple[str, ...], robot: RobotDescription | None,
+                        where: str) -> None:
+    """RobotDescriptionError (exit 3) when the robot shares no joint with the log — the
+    check identification makes (:func:`match_urdf_joints`), for every run that is given a
+    robot, with a config or without (docs/formats.md, "Robot description": a partial match
+    keeps its warnings)."""
+    if robot is None:
+        return
+    if robot.kinematics and robot.kinematics.get("type") == "urdf":
+        _urdf_joints(log_joints, robot, where)
+        return
+    if not set(robot.joint_names) & set(log_joints):
+        raise RobotDescriptionError(
+            f"{where}: robot description {robot.path or robot.name or ''!s} shares no joint "
+            f"with the log (log: {list(log_joints)}; robot description: "
+            f"{list(robot.joint_names)})")
+
+
 def match_urdf_joints(
     log_joints: tuple[str, ...], robot: RobotDescription, where: str
 ) -> list[int]:
@@ -107,16 +142,8 @@ def match_urdf_joints(
     worded as the pipeline's, which records it in the timeline). Nothing is renumbered.
     Raises RobotDescriptionError when no logged joint is a joint of the URDF.
     """
-    assert robot.kinematics is not None
-    xml, label, shipped = urdf_source(robot.kinematics)
-    in_urdf = set(urdf_joint_names(xml, label))
+    modelled, used, label, shipped = _urdf_joints(log_joints, robot, where)
     jm = robot.joint_map or {}
-    modelled = [j for j in robot.joint_names if jm.get(j, j) in in_urdf]
-    used = [j for j in modelled if j in log_joints]
-    if not used:
-        raise RobotDescriptionError(
-            f"{where}: no logged joint is a joint of the URDF of {label} (log: "
-            f"{list(log_joints)}; robot description: {[jm.get(j, j) for j in modelled]})")
     expected = [jm.get(j, j) for j in modelled]
     if shipped is not None:
         from ..logs import robot_catalogue as robots
@@ -143,6 +170,12 @@ def match_urdf_joints(
 
 MOTION_PARAMS: tuple[str, ...] = ("inertia", "gcos", "gsin", "Ia", "fv", "fc")
 
+#: What works on a log without motion (issue 21, 6b): a model or thresholds made on other
+#: logs of the same robot.
+STILL_HINT = ("a config or a model from other logs of the same robot, with motion, works: "
+              "--config CONFIG (from `impactcli calibrate` on logs with motion) or --model "
+              "MODEL (from `impactcli identify` on a log with motion)")
+
 
 def check_motion(
     q: np.ndarray | None, joints: tuple[str, ...], min_motion_rad: float, where: str,
@@ -158,7 +191,7 @@ def check_motion(
     if len(still) == len(joints):
         raise ModelError(
             f"{where}: the log has no motion (every joint moves less than "
-            f"{min_motion_rad:g} rad): a model cannot be identified from it"
+            f"{min_motion_rad:g} rad): a model cannot be identified from it; {STILL_HINT}"
         )
     if still:
         listed = ", ".join(f"{j} {rng[joints.index(j)]:.2g} rad" for j in still)
@@ -259,7 +292,8 @@ def _poses(q: np.ndarray, k: int = 8) -> np.ndarray:
     return q[np.unique(np.linspace(0, q.shape[0] - 1, k).round().astype(int))]
 
 
-def _frozen(kind: str, joints: tuple[str, ...], names: list[str], still: list[str]) -> set[str]:
+def frozen_params(kind: str, joints: tuple[str, ...], names: list[str],
+                  still: list[str]) -> set[str]:
     """Parameters fixed at 0 because of still joints: their motion parameters (coupled: all
     of their row but the offset, and their own terms in the other rows)."""
     frozen = {f"{j}.{p}" for j in still for p in MOTION_PARAMS}
@@ -280,6 +314,7 @@ def _fit(
     filter_info: dict[str, Any], input_sha256: str, still: list[str] | None = None,
     hold_still_fraction: np.ndarray | None = None, poses: np.ndarray | None = None,
     acc_rms: np.ndarray | None = None, cv_gap: int = 1,
+    lambdas: Sequence[float] | None = None,
 ) -> RigidModel:
     """Excitation check, robust fit, statistics and sanity on a stacked regressor (N, J, P).
 
@@ -288,11 +323,12 @@ def _fit(
     still (:func:`_still_fraction`);
     ``poses``: a few positions of the log and ``acc_rms`` (J,) its RMS accelerations
     (the urdf sanity check of M(q));
-    ``cv_gap``: rows left out on each side of a cross-validation stretch (coupled).
+    ``cv_gap``: rows left out on each side of a cross-validation stretch (coupled);
+    ``lambdas``: (J,) coupled ridge penalties chosen elsewhere (None: chosen here).
     """
     names = structures.param_names(kind, joints, structure)
     still = list(still or [])
-    frozen = _frozen(kind, joints, names, still)
+    frozen = frozen_params(kind, joints, names, still)
     n, nj, p = y_reg.shape
     a = y_reg.reshape(n * nj, p)
     pen = (structures.coupled_penalised(joints, structure) if kind == "coupled"
@@ -346,7 +382,7 @@ def _fit(
     ridge_info: dict[str, Any] | None = None
     if kind == "coupled":
         th_k, w, info, ridge_info, keep = fit_ridge(
-            y_reg, tau, keep, pen, joints, names, options, cv_gap)
+            y_reg, tau, keep, pen, joints, names, options, cv_gap, fixed=lambdas)
     else:
         th_k, w, info = robust_lstsq(y_reg[:, :, keep], tau, options)
     theta[keep] = th_k
@@ -465,20 +501,67 @@ class IdentifyStream:
 
     def finish(self) -> RigidModel:
         """The identified model."""
-        r = self.rows()
-        return _fit(r.y_fit, r.tau_fit, r.y_hold, kind=r.kind, joints=r.joints,
-                    structure=r.structure, robot=self.robot, options=self.options,
-                    where=self.where, filter_info=r.filter_info,
-                    input_sha256=self.input_sha256, still=r.still,
-                    hold_still_fraction=r.hold_still_fraction, poses=r.poses,
-                    acc_rms=r.acc_rms, cv_gap=r.cv_gap)
+        return fit_rows([self.rows()], [self.where], robot=self.robot, options=self.options,
+                        input_sha256=self.input_sha256)
 
 
-def _prepare_rows(
+def prepare_rows(
     log: RobotLog, robot: RobotDescription | None, kind: str | None, options: IdentifyOptions,
 ) -> Rows:
+    """The filtered regressor rows of one log in memory (what :func:`identify` fits)."""
     s = _start(log, robot, kind, options)
     return s.rows()
+
+
+def fit_rows(
+    rows: Sequence[Rows], paths: Sequence[str], *, robot: RobotDescription | None,
+    options: IdentifyOptions, input_sha256: str, lambdas: Sequence[float] | None = None,
+) -> RigidModel:
+    """The model fitted on the rows of one or more logs (``paths``: their names), stacked:
+    each log's fitted rows into one robust fit, each log's held-back tail into the
+    validation set. One log: exactly :meth:`IdentifyStream.finish`. ``lambdas``: the coupled
+    ridge penalties per joint chosen elsewhere (:mod:`impactcli.model.selection`)."""
+    if len(rows) == 1:
+        r = rows[0]
+        return _fit(r.y_fit, r.tau_fit, r.y_hold, kind=r.kind, joints=r.joints,
+                    structure=r.structure, robot=robot, options=options,
+                    where=paths[0], filter_info=r.filter_info,
+                    input_sha256=input_sha256, still=r.still,
+                    hold_still_fraction=r.hold_still_fraction, poses=r.poses,
+                    acc_rms=r.acc_rms, cv_gap=r.cv_gap, lambdas=lambdas)
+    first = rows[0]
+    for path, r in zip(paths[1:], rows[1:], strict=True):
+        if r.joints != first.joints or r.kind != first.kind:
+            raise ModelError(f"{path}: joints {list(r.joints)} differ from "
+                             f"{paths[0]}'s {list(first.joints)}")
+    y_fit = np.concatenate([r.y_fit for r in rows])
+    tau_fit = np.concatenate([r.tau_fit for r in rows])
+    holds = [r.y_hold for r in rows if r.y_hold is not None]
+    y_hold = ((np.concatenate([h[0] for h in holds]), np.concatenate([h[1] for h in holds]))
+              if holds else None)
+    info = dict(first.filter_info, logs=list(paths))
+    fracs = [(r.hold_still_fraction, r.y_hold[0].shape[0]) for r in rows
+             if r.hold_still_fraction is not None and r.y_hold is not None]
+    poses = [r.poses for r in rows if r.poses is not None]
+    accs = [r.acc_rms for r in rows if r.acc_rms is not None]
+    return _fit(y_fit, tau_fit, y_hold, kind=first.kind, joints=first.joints,
+                structure=first.structure, robot=robot, options=options,
+                where=", ".join(paths), filter_info=info,
+                input_sha256=input_sha256, still=first.still,
+                hold_still_fraction=(np.average([f for f, _ in fracs], axis=0,
+                                                weights=[max(k, 1) for _, k in fracs])
+                                     if fracs else None),
+                poses=np.concatenate(poses) if poses else None,
+                acc_rms=np.max(accs, axis=0) if accs else None,
+                cv_gap=max(r.cv_gap for r in rows), lambdas=lambdas)
+
+
+def many_sha256(logs: Sequence[RobotLog]) -> str:
+    """The ``input_sha256`` of a model identified on several logs: the sha256 of their
+    sha256s joined by newlines, in order (one log: its own)."""
+    if len(logs) == 1:
+        return logs[0].source.sha256
+    return hashlib.sha256("\n".join(lg.source.sha256 for lg in logs).encode()).hexdigest()
 
 
 def _start(log: RobotLog, robot: RobotDescription | None, kind: str | None,
@@ -535,31 +618,6 @@ def identify_many(
         raise ModelError("identify_many needs at least one log")
     if len(logs) == 1:
         return identify(logs[0], robot=robot, kind=kind, options=options)
-    rows = [_prepare_rows(lg, robot, kind, options) for lg in logs]
-    first = rows[0]
-    for lg, r in zip(logs[1:], rows[1:], strict=True):
-        if r.joints != first.joints or r.kind != first.kind:
-            raise ModelError(f"{lg.source.path}: joints {list(r.joints)} differ from "
-                             f"{logs[0].source.path}'s {list(first.joints)}")
-    y_fit = np.concatenate([r.y_fit for r in rows])
-    tau_fit = np.concatenate([r.tau_fit for r in rows])
-    holds = [r.y_hold for r in rows if r.y_hold is not None]
-    y_hold = ((np.concatenate([h[0] for h in holds]), np.concatenate([h[1] for h in holds]))
-              if holds else None)
-    digest = hashlib.sha256("\n".join(lg.source.sha256 for lg in logs).encode()).hexdigest()
-    info = dict(first.filter_info, logs=[lg.source.path for lg in logs])
-    still = first.still
-    fracs = [(r.hold_still_fraction, r.y_hold[0].shape[0]) for r in rows
-             if r.hold_still_fraction is not None and r.y_hold is not None]
-    poses = [r.poses for r in rows if r.poses is not None]
-    accs = [r.acc_rms for r in rows if r.acc_rms is not None]
-    return _fit(y_fit, tau_fit, y_hold, kind=first.kind, joints=first.joints,
-                structure=first.structure, robot=robot, options=options,
-                where=", ".join(lg.source.path for lg in logs), filter_info=info,
-                input_sha256=digest, still=still,
-                hold_still_fraction=(np.average([f for f, _ in fracs], axis=0,
-                                                weights=[max(k, 1) for _, k in fracs])
-                                     if fracs else None),
-                poses=np.concatenate(poses) if poses else None,
-                acc_rms=np.max(accs, axis=0) if accs else None,
-                cv_gap=max(r.cv_gap for r in rows))
+    rows = [prepare_rows(lg, robot, kind, options) for lg in logs]
+    return fit_rows(rows, [lg.source.path for lg in logs], robot=robot, options=options,
+                    input_sha256=many_sha256(logs))

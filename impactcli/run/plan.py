@@ -30,6 +30,7 @@ from ..model.generators import (
     target_torque,
     uses_correction,
 )
+from ..model.identification import check_shares_joints
 from ..model.rigid import RigidModel
 from ..types import CONTROLLER_CHANNELS, LogSource, RobotDescription, RobotLog
 from .replay import ChunkArrays, chunk_arrays
@@ -311,15 +312,27 @@ def identify_from_chunks(feed: ChunkFeed, cfg: DetectorConfig,
                          passes: Passes | None = None) -> RigidModel:
     """The rigid model identified from the log, read once more
     (:class:`~impactcli.model.identification.IdentifyStream`: bounded memory, the model
-    :func:`impactcli.model.identification` makes of the whole log)."""
-    from ..model import IdentifyOptions
+    :func:`impactcli.model.identification` makes of the whole log). The tool's own model
+    (``sanity``: not a correction of the controller's channels) of a kind nobody named —
+    no ``kind``, no kinematics in ``robot`` — is the kind that predicts contiguous
+    stretches of the log best held back (:class:`~impactcli.model.selection.SelectStream`,
+    docs/models.md, "Choosing the model"); a correction keeps the decoupled model."""
+    from ..model import IdentifyOptions, default_kind
     from ..model.identification import IdentifyStream
+    from ..model.selection import SelectStream
 
     scan = feed.scan
-    ident = IdentifyStream.start(
-        feed.keep, scan.n_samples, scan.sample_rate_hz, scan.duration_s, robot=robot,
-        kind=kind, options=IdentifyOptions(allow_still_joints=True, check_sanity=sanity),
-        where=scan.source.path, input_sha256=scan.source.sha256)
+    options = IdentifyOptions(allow_still_joints=True, check_sanity=sanity)
+    ident: IdentifyStream | SelectStream
+    if kind is None and sanity and default_kind(robot) == "decoupled":
+        ident = SelectStream.start(
+            feed.keep, scan.n_samples, scan.sample_rate_hz, scan.duration_s, robot=robot,
+            options=options, where=scan.source.path, input_sha256=scan.source.sha256)
+    else:
+        ident = IdentifyStream.start(
+            feed.keep, scan.n_samples, scan.sample_rate_hz, scan.duration_s, robot=robot,
+            kind=kind, options=options, where=scan.source.path,
+            input_sha256=scan.source.sha256)
     if passes is not None:
         passes.add()
     for _, t, a in feed.chunks(feed.keep):
@@ -353,6 +366,7 @@ def resolve_model(
     Without a model needed, the joints keep the log's order, or the calibrated config's.
     """
     where = source.path
+    check_shares_joints(keep, robot, where)  # with a config as without one (issue 21, 3a)
     choices = generator_choices(keep, logged, source, cfg)
     extra_left: tuple[LeftOut, ...] = ()
     rig: RigidModel | None = None
