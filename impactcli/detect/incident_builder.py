@@ -106,6 +106,8 @@ class IncidentContext:
         n_samples: the log's length. merge_gap_s: events.merge_gap_s [s].
         capacity: (J,) each detected joint's torque capacity [N·m] (NaN: unknown) and
             ``capacity_source``, what it is (:func:`torque_capacity`).
+        link_lengths: a planar arm's link lengths [m] (a joint's reach to a link's end is
+            their sum, whatever the posture); None otherwise.
     """
 
     joints: tuple[str, ...]
@@ -119,6 +121,15 @@ class IncidentContext:
     merge_gap_s: float
     capacity: np.ndarray | None = None
     capacity_source: str = ""
+    link_lengths: tuple[float, ...] | None = None
+
+    def reach(self, chain_pos: int, link: int, est: ForceEstimate) -> float:
+        """Chain joint ``chain_pos``'s longest lever arm to the end of ``link`` [m]: the sum
+        of the link lengths between (planar), else the longest seen over the estimate's
+        samples (|J_k|)."""
+        if self.link_lengths is not None and link <= len(self.link_lengths):
+            return float(sum(self.link_lengths[chain_pos - 1:link]))
+        return est.levers.get(chain_pos, 0.0)
 
     def pressing(self, loading: np.ndarray) -> np.ndarray:
         """(n,) some joint's static-loading statistic at BRIDGE_FRACTION of its threshold
@@ -189,8 +200,10 @@ def incident_context(
     index = [chain.index(j) + 1 for j in joints]
     cols = [full_joints.index(j) if j in full_joints else None for j in chain]
     jac = None
+    lengths = None
     if isinstance(kin, dict) and kin.get("type") == "planar":
         jac = planar_jacobian(kin["link_lengths"])
+        lengths = tuple(float(x) for x in kin["link_lengths"])
     elif (isinstance(kin, dict) and kin.get("type") == "urdf" and model is not None
           and model.get("kind") == "urdf"):
         try:
@@ -201,16 +214,16 @@ def incident_context(
     cap, source = torque_capacity(urdf_efforts(model, tuple(joints)), torque_peak)
     return IncidentContext(tuple(joints), index, cols, jac, np.asarray(vl, dtype=np.float64),
                            float(dt), int(t0_ns), int(n_samples), float(merge_gap_s),
-                           cap, source)
+                           cap, source, lengths)
 
 
 @dataclass(frozen=True)
 class ForceCheck:
     """Whether an estimated force is one the arm could exert (docs/incidents.md, "How
     hard"): ``plausible`` (None: not checked — no force, or no capacity known),
-    ``ceiling_n`` the force in the estimate's direction that would need
-    :data:`~impactcli.detect.incidents.FORCE_CEILING_FACTOR` × the capacity on its most
-    loaded joint [N], and ``why`` in words."""
+    ``ceiling_n`` :data:`~impactcli.detect.incidents.FORCE_CEILING_FACTOR` × the largest
+    force one of the joints up to the link holds at its end with its longest lever [N], and
+    ``why`` in words."""
 
     plausible: bool | None
     ceiling_n: float | None
@@ -218,29 +231,30 @@ class ForceCheck:
 
 
 def check_force(ctx: IncidentContext, est: ForceEstimate, link: int | None) -> ForceCheck:
-    """The :class:`ForceCheck` of a force estimate at ``link``: implausible when the joint
-    torques the force implies exceed FORCE_CEILING_FACTOR × a joint's capacity."""
-    if est.force_n is None or link is None or not est.torques or ctx.capacity is None:
+    """The :class:`ForceCheck` of a force estimate at ``link``: implausible above
+    FORCE_CEILING_FACTOR × the largest capacity / reach (:meth:`IncidentContext.reach`)
+    among the joints up to the link."""
+    if est.force_n is None or link is None or not est.levers or ctx.capacity is None:
         return ForceCheck(None, None, "no force estimate to check")
-    worst, at = 0.0, -1
-    for c, tau in est.torques.items():
+    best, at, arm = 0.0, -1, 0.0
+    for c in est.levers:
         k = ctx.index.index(c)
-        cap = float(ctx.capacity[k])
-        if np.isfinite(cap) and cap > 0 and tau / cap > worst:
-            worst, at = tau / cap, k
+        cap, lever = float(ctx.capacity[k]), ctx.reach(c, link, est)
+        if np.isfinite(cap) and cap > 0 and lever > 0 and cap / lever > best:
+            best, at, arm = cap / lever, k, lever
     if at < 0:
         return ForceCheck(None, None, "no torque capacity known for the joints up to the link")
-    ceiling = est.force_n * FORCE_CEILING_FACTOR / worst if worst > 0 else None
+    ceiling = FORCE_CEILING_FACTOR * best
     name = ctx.joints[at]
-    need = est.torques[ctx.index[at]]
-    if worst > FORCE_CEILING_FACTOR:
+    hold = (f"its strongest joint there, {name}, holds ~{best:,.0f} N: "
+            f"{float(ctx.capacity[at]):.3g} N·m ({ctx.capacity_source}) over a "
+            f"{arm:.3g} m lever arm")
+    if est.force_n > ceiling:
         return ForceCheck(False, ceiling, (
-            f"it needs ~{need:.3g} N·m on joint {name}, {worst:.0f}× its capacity "
-            f"({float(ctx.capacity[at]):.3g} N·m, {ctx.capacity_source}): beyond what the arm "
-            "can exert; positions in degrees? a wrong gear ratio or torque constant?"))
-    return ForceCheck(True, ceiling, (
-        f"within {FORCE_CEILING_FACTOR:g}× the joints' capacity ({ctx.capacity_source}; "
-        f"the most loaded: {name}, {worst:.2g}×)"))
+            f"beyond what the arm can exert — {hold}; positions in degrees? a wrong gear "
+            "ratio or torque constant?"))
+    return ForceCheck(True, ceiling, f"within {FORCE_CEILING_FACTOR:g}× what the arm can "
+                                     f"exert ({hold})")
 
 
 def build_findings(

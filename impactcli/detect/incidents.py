@@ -57,10 +57,12 @@ STRONG_FRACTION = 0.5
 #: force along those directions cannot be seen in the joint torques: the minimum-norm
 #: solution leaves it out, an under-estimate rather than a blow-up near singularities).
 RCOND = 0.1
-#: An estimated force is implausible — beyond what the arm can exert — when the joint torques
-#: it implies exceed this many times a joint's torque capacity (its URDF effort limit, else
-#: the largest torque logged on it): a residual that large is no contact but a log read
-#: wrongly (positions in degrees, a wrong gear ratio or torque constant; docs/incidents.md).
+#: An estimated force is implausible — beyond what the arm can exert — above this many times
+#: the largest force one of the joints 1..i holds at the link's end with its longest lever:
+#: its torque capacity (the URDF's effort limit, else the largest torque logged on it) over
+#: its reach to that point (docs/incidents.md, "How hard"): such a force is no contact but a
+#: log read wrongly (positions in degrees, a wrong gear ratio or torque constant). Genuine
+#: contacts of the sample and simulated sets reach at most 1.35 of that force.
 FORCE_CEILING_FACTOR = 3.0
 #: Contact type: a joint stands still below this speed [rad/s] ...
 STILL_RAD_S = 0.05
@@ -245,12 +247,12 @@ def planar_jacobian(link_lengths: Sequence[float]) -> JacobianFn:
 @dataclass(frozen=True)
 class ForceEstimate:
     """A contact-force estimate (:func:`force_estimate`): the peak magnitude [N] (None when
-    it cannot be made), how, and the joint torques the estimated force implies at that
-    sample (chain position → |J_kᵀ F| [N·m], joints 1..i that are detected)."""
+    it cannot be made), how, and each joint's longest lever arm to the link's end over the
+    samples solved (chain position → max |J_k| [m], joints 1..i that are detected)."""
 
     force_n: float | None
     method: str
-    torques: dict[int, float] = field(default_factory=dict)
+    levers: dict[int, float] = field(default_factory=dict)
 
 
 def force_estimate(
@@ -274,7 +276,7 @@ def force_estimate(
         return ForceEstimate(None, "no residual of the joints up to the isolated link")
     best = 0.0
     method = ""
-    torques: dict[int, float] = {}
+    levers: dict[int, float] = {}
     sel = [cols[c] for c in use]
     size = np.linalg.norm(r[:, sel], axis=1)
     strong = (np.flatnonzero(size >= STRONG_FRACTION * size.max()) if size.max() > 0
@@ -290,20 +292,18 @@ def force_estimate(
         if len(use) == 1 and link == 1:
             lever = float(np.linalg.norm(jac[:, 0]))
             f = abs(float(b[0])) / lever if lever > 0 else 0.0
-            implied = np.abs(b)
             method = ("force normal to link 1 at its end, from joint 1's residual (one "
                       "equation)")
         else:
             sol, *_ = np.linalg.lstsq(a, b, rcond=RCOND)
             f = float(np.linalg.norm(sol))
-            implied = np.abs(a @ sol)
             method = (f"force at the end of link {link} explaining the residuals of joints "
                       f"{', '.join(str(c) for c in use)} (least squares through the Jacobian"
                       + (", minimum norm" if len(use) < a.shape[1] else "") + ")")
-        if f > best or not torques:
-            torques = {c: float(x) for c, x in zip(use, implied, strict=True)}
+        arms = np.linalg.norm(a, axis=1)
+        levers = {c: max(levers.get(c, 0.0), float(x)) for c, x in zip(use, arms, strict=True)}
         best = max(best, f)
-    return ForceEstimate(best, method, torques)
+    return ForceEstimate(best, method, levers)
 
 
 def estimate_force(

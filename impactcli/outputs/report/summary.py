@@ -177,7 +177,12 @@ def verdict_text(incidents: Sequence[dict[str, Any]], *, known: bool = True,
         head += f" on {clock[0]} (UTC)" if clock[1] else " (UTC)"
     also = f"; and a {loads}" if loads.startswith("lasting load ") else (
         f"; and {loads}" if loads else "")
-    return f"{head}: {'; '.join(parts)}{tail}{also}."
+    bad = sum(1 for i in counted if i.get("force_plausible") is False)
+    units = ("" if not bad else
+             f" {'One estimated force is' if bad == 1 else f'{bad} estimated forces are'}"
+             " beyond what the arm can exert: positions in degrees? a wrong gear ratio or "
+             "torque constant?")
+    return f"{head}: {'; '.join(parts)}{tail}{also}.{units}"
 
 
 def incident_counts(incidents: Sequence[dict[str, Any]],
