@@ -30,10 +30,10 @@ from .incidents import (
     contact_type,
     force_estimate,
     group_events,
-    isolate,
     lasting,
     planar_jacobian,
 )
+from .link_evidence import LinkDecision, decide_link
 
 #: A lasting load's force is solved at this many of its samples at most (evenly spread).
 LASTING_FORCE_SAMPLES = 500
@@ -261,6 +261,7 @@ def build_findings(
     ctx: IncidentContext, events: list[Event], t: np.ndarray, r: np.ndarray,
     loading: np.ndarray, adaptive_d: np.ndarray, loading_d: np.ndarray,
     q_full: np.ndarray, qd: np.ndarray, offset: int = 0, event_offset: int = 0,
+    level: np.ndarray | None = None, noise: np.ndarray | None = None,
 ) -> tuple[list[Incident], list[LastingLoad]]:
     """The incidents and lasting loads of a stretch of the log holding whole incidents.
 
@@ -274,6 +275,9 @@ def build_findings(
             joints' causal velocity [rad/s].
         offset: the stretch's first sample in the log; event_offset: its first event's
             index in the log's event list.
+        level, noise: (n, J) each joint's residual level and noise before each sample
+            (:class:`impactcli.detect.link_evidence.ResidualNoise`; None: the link from the
+            detectors' evidence alone).
     Returns:
         Incidents (numbered later, by :func:`number_incidents`) and lasting loads, with
         indices in the log (``i_start``, ``i_end``, ``events``/``event``).
@@ -294,21 +298,26 @@ def build_findings(
     index = ctx.index
 
     def where_and_force(win: slice, max_samples: int | None = None,
-                        ) -> tuple[int | None, ForceEstimate]:
-        link = isolate(ratio[win], adaptive_d[win], index)
+                        ) -> tuple[LinkDecision, ForceEstimate]:
+        a0 = win.start
+        where = decide_link(ratio[win], adaptive_d[win], index, r[win],
+                            None if level is None else level[a0],
+                            None if noise is None else noise[a0], ctx.vl)
+        link = where.link
         est = ForceEstimate(None, "no kinematics: the peak residual torques are the answer")
         if link is not None and ctx.jac is not None:
             est = force_estimate(r[win], q_chain[win], link, index, ctx.jac, max_samples)
         elif link is None:
             est = ForceEstimate(None, "the residuals cannot say which link: no force estimate")
-        return link, est
+        return where, est
 
     out = []
     for g in groups:
         evs = [events[k] for k in g]
         a, b = min(e.i_start for e in evs), max(e.i_end for e in evs)
         win = slice(a, b + 1)
-        link, est = where_and_force(win)
+        where, est = where_and_force(win)
+        link = where.link
         chk = check_force(ctx, est, link)
         joints = tuple(dict.fromkeys(j for e in sorted(evs, key=lambda e: e.t_start)
                                      for j in e.joints))
@@ -330,11 +339,13 @@ def build_findings(
             contact=kind, peak_residual=peak, in_warmup=bool(first.in_warmup),
             t_start_utc=utc(ctx.t0_ns + round(t[a] * 1e9)),
             events=tuple(k + event_offset for k in g), force_plausible=chk.plausible,
-            force_ceiling_n=chk.ceiling_n, force_check=chk.why))
+            force_ceiling_n=chk.ceiling_n, force_check=chk.why,
+            link_candidates=where.candidates))
     loads = []
     for k in long_:
         e = events[k]
-        link, est = where_and_force(slice(e.i_start, e.i_end + 1), LASTING_FORCE_SAMPLES)
+        where, est = where_and_force(slice(e.i_start, e.i_end + 1), LASTING_FORCE_SAMPLES)
+        link = where.link
         chk = check_force(ctx, est, link)
         loads.append(LastingLoad(
             detector=e.detector, t_start=e.t_start, t_end=e.t_end,

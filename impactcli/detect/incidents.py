@@ -10,10 +10,12 @@ docs/incidents.md).
   or more is a finding of its own — an unknown payload, a clamp, a model that no longer
   fits — and absorbs no other event: the events during it form incidents as if it were not
   there.
-- **Where** (:func:`isolate`): a contact on link i exerts torque on joints 1..i only
-  (r = J_cᵀ F), so the link is the most distal joint whose residual is significant during
-  the incident (its detectors fired, or see :data:`WEAK_FRACTION`); links are numbered
-  from the base along the robot's own chain; None when no joint is significant.
+- **Where** (:func:`isolate`, :mod:`impactcli.detect.link_evidence`): a contact on link i
+  exerts torque on joints 1..i only (r = J_cᵀ F), so the link is the most distal joint
+  whose residual is significant during the incident — its detectors fired, or its residual
+  stands out of its own noise there — and the links the evidence cannot tell apart are
+  said; links are numbered from the base along the robot's own chain; None when no joint is
+  significant.
 - **How hard**: with kinematics, the force at the isolated link's end that best explains
   the residuals of joints 1..i through the Jacobian, in least squares (small singular
   values dropped); without, None and the peak residual torques.
@@ -34,18 +36,10 @@ import numpy as np
 
 from ..types import Event
 from .events import LONG_EVENT_S
+from .link_evidence import decide_link
 
 #: The product's detectors (what incidents are made of).
 PRODUCT_DETECTORS: tuple[str, ...] = ("adaptive", "static_loading")
-#: A joint is significant in an incident when its own detectors fired (|LP(r)| ≥ its vL, or
-#: its adaptive decision), or when |LP(r)| reaches WEAK_FRACTION of its vL *and*
-#: COUPLING_FRACTION of the largest ratio among the joints nearer the base: a contact's
-#: torque on a distal joint may stay under its threshold (a light contact, a lever arm near
-#: the joint's axis), while a contact on an inner link leaks onto the outer joints through
-#: the dynamic coupling of the arm by a small share only (the values' measurement:
-#: docs/incidents.md, "The rules").
-WEAK_FRACTION = 0.5
-COUPLING_FRACTION = 0.25
 #: Two product events whose gap the static-loading statistic bridges at this fraction of
 #: its threshold belong to one incident (:func:`group_events`).
 BRIDGE_FRACTION = 0.5
@@ -93,6 +87,7 @@ class Incident:
     t_start_utc: str | None = None
     events: tuple[int, ...] = field(default=())
     number: int | None = None
+    link_candidates: tuple[int, ...] = ()
     force_plausible: bool | None = None
     force_ceiling_n: float | None = None
     force_check: str = ""
@@ -106,6 +101,7 @@ class Incident:
             "contact": self.contact, "peak_residual": dict(self.peak_residual),
             "in_warmup": self.in_warmup, "i_start": self.i_start, "i_end": self.i_end,
             "events": list(self.events), "number": self.number,
+            "link_candidates": list(self.link_candidates) if self.link is not None else None,
             "force_plausible": self.force_plausible, "force_ceiling_n": self.force_ceiling_n,
             "force_check": self.force_check,
         }
@@ -198,25 +194,15 @@ def group_events(events: Sequence[Event], merge_gap_s: float,
 def isolate(
     loading_ratio: np.ndarray, adaptive_fired: np.ndarray, chain_index: Sequence[int],
 ) -> int | None:
-    """The 1-based link of a contact: the most distal significant joint (module doc).
+    """The 1-based link of a contact from its detectors' evidence alone (the residual's is
+    :func:`impactcli.detect.link_evidence.decide_link`'s).
 
     Args:
         loading_ratio: (n, J) |LP(r)| / vL over the incident.
         adaptive_fired: (n, J) the adaptive decision over the incident.
         chain_index: (J,) each detected joint's 1-based position in the robot's chain.
     """
-    peak = np.max(loading_ratio, axis=0)
-    fired = (peak >= 1.0) | np.any(adaptive_fired, axis=0)
-    order = np.argsort(np.asarray(chain_index))
-    sig = fired.copy()
-    inner = 0.0
-    for j in order:  # base first: compare each joint with the joints nearer the base
-        if not sig[j] and peak[j] >= WEAK_FRACTION and peak[j] >= COUPLING_FRACTION * inner:
-            sig[j] = True
-        inner = max(inner, float(peak[j]))
-    if not sig.any():
-        return None
-    return int(max(chain_index[int(j)] for j in np.flatnonzero(sig)))
+    return decide_link(loading_ratio, adaptive_fired, chain_index).link
 
 
 #: A function giving, for a posture q (chain order, (J_chain,)) and a 1-based link i, the

@@ -39,6 +39,7 @@ from ..detect.incident_builder import (
     number_incidents,
 )
 from ..detect.incidents import BRIDGE_FRACTION, Incident, LastingLoad
+from ..detect.link_evidence import ResidualNoise
 from ..detect.thresholds import compare_to_thresholds
 from ..detect.warmup import Warmup, WarmupTracker
 from ..errors import ConfigError
@@ -288,7 +289,7 @@ def _detect_passes(
     made: list[_Compare] = []   # the comparison, once made (its islands closed on failure)
 
     def compare(thr: dict[str, np.ndarray]) -> _Compare:
-        made.append(_Compare(thr, plan.cfg, on_chunk, plan.joints))
+        made.append(_Compare(thr, plan.cfg, on_chunk, plan.joints, feed.scan.sample_period_s))
         return made[-1]
 
     margins: dict[str, np.ndarray] = {}
@@ -353,14 +354,17 @@ def uncalibrated_config(cfg: DetectorConfig, joints: tuple[str, ...],
 
 class _Compare:
     """Thresholds applied to the replay's steps, in order (module docstring): decisions
-    and ratios, the islands, the writers' chunks."""
+    and ratios, the residual's running level and noise (the link's evidence,
+    :class:`~impactcli.detect.link_evidence.ResidualNoise`), the islands, the writers'
+    chunks."""
 
     def __init__(self, thr: dict[str, np.ndarray], cfg: DetectorConfig,
                  on_chunk: Callable[[SignalsChunk], None] | None,
-                 joints: tuple[str, ...]) -> None:
+                 joints: tuple[str, ...], dt: float) -> None:
         self.thr, self.on_chunk, self.joints = thr, on_chunk, joints
         self.islands = Islands(cfg.events.merge_gap_s)
         self.pressing_at = BRIDGE_FRACTION * np.maximum(thr["static_loading"], 1e-12)
+        self.noise = ResidualNoise(len(joints), dt)
 
     def update(self, st: ReplayStep) -> None:
         k0, t = st.start, st.t
@@ -369,8 +373,10 @@ class _Compare:
         any_d = np.asarray(dec["adaptive"].any(axis=1) | dec["static_loading"].any(axis=1)
                            | dec["static_baseline"].any(axis=1))
         pressing = np.any(st.loading >= self.pressing_at[None, :], axis=1)
+        level, noise = self.noise.update(st.r)
         self.islands.update(k0, t, any_d, pressing, {
             "t": t, "r": st.r, "loading": st.loading, "qd": st.qd, "q_full": st.q_full,
+            "r_level": level, "r_noise": noise,
             **{f"d.{d}": dec[d] for d in DETECTORS}, **{f"x.{d}": ratios[d] for d in DETECTORS}})
         if self.on_chunk is not None:
             assert st.torque is not None and st.r_tilde is not None and st.v_dyn is not None
@@ -401,7 +407,8 @@ def _events_and_incidents(islands: Islands, wu: Warmup, joints: tuple[str, ...],
         local.sort(key=lambda e: (e.t_start, DETECTORS.index(e.detector)))
         incs, lds = build_findings(ctx, local, a["t"], a["r"], a["loading"], a["d.adaptive"],
                                    a["d.static_loading"], a["q_full"], a["qd"],
-                                   offset=isl.start, event_offset=len(events))
+                                   offset=isl.start, event_offset=len(events),
+                                   level=a["r_level"], noise=a["r_noise"])
         incidents += incs
         loads += lds
         events += [dataclasses.replace(e, i_start=e.i_start + isl.start,
