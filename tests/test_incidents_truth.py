@@ -225,6 +225,7 @@ def test_residual_noise_is_causal_and_chunk_free() -> None:
     level, noise = whole
     np.testing.assert_allclose(level[-1], [5.0, -2.0], atol=0.3)
     np.testing.assert_allclose(noise[-1], [1.0, 3.0], rtol=0.2)
+    assert np.isinf(noise[:250]).all() and np.isfinite(noise[250:]).all()  # 1 s to settle
     # the values before a sample do not see it
     r2 = r.copy()
     r2[3000] += 100.0

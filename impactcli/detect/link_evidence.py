@@ -60,7 +60,8 @@ class ResidualNoise:
     """Each joint's causal residual level and noise, sample by sample, chunk after chunk:
     exponentially weighted mean m and mean square of r (time constant :data:`NOISE_TAU_S`),
     the noise sd = sqrt(E[r²] − m²). :meth:`update` gives, per sample, the values *before*
-    it (what was known when it came).
+    it (what was known when it came); the noise is infinite (no residual evidence) until
+    :data:`NOISE_TAU_S` of samples have been seen.
 
     Args:
         n_joints: J.  dt: sample period [s].
@@ -68,6 +69,8 @@ class ResidualNoise:
 
     def __init__(self, n_joints: int, dt: float) -> None:
         self.a = min(1.0, float(dt) / NOISE_TAU_S)
+        self.settle = int(np.ceil(NOISE_TAU_S / float(dt)))
+        self.seen = 0
         self.zi: np.ndarray | None = None  # (1, 2J) filter state
         self.last = np.zeros((2, n_joints))  # the last sample's mean and mean square
 
@@ -87,7 +90,11 @@ class ResidualNoise:
         self.last = y[-1].reshape(2, -1)
         j = r.shape[1]
         mean, sq = prev[:, :j], prev[:, j:]
-        return mean, np.sqrt(np.maximum(sq - mean * mean, 0.0))
+        sd = np.sqrt(np.maximum(sq - mean * mean, 0.0))
+        early = self.seen + np.arange(r.shape[0]) < self.settle
+        sd[early] = np.inf
+        self.seen += r.shape[0]
+        return mean, sd
 
 
 @dataclass(frozen=True)
