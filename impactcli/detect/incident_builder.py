@@ -170,7 +170,7 @@ def urdf_efforts(model: dict[str, Any] | None, joints: tuple[str, ...]) -> np.nd
 def torque_capacity(efforts: np.ndarray, torque_peak: np.ndarray | None,
                     ) -> tuple[np.ndarray, str]:
     """Each joint's torque capacity [N·m] for the force plausibility check
-    (docs/incidents.md, "How hard"): the URDF's effort limit where it gives one, else the
+    (docs/incidents.md, "The rules"): the URDF's effort limit where it gives one, else the
     largest |torque| logged on that joint over the log (what its motor demonstrably
     produced); NaN where neither is known. Returns (capacity, what it is in words)."""
     cap = np.asarray(efforts, dtype=np.float64).copy()
@@ -219,8 +219,8 @@ def incident_context(
 
 @dataclass(frozen=True)
 class ForceCheck:
-    """Whether an estimated force is one the arm could exert (docs/incidents.md, "How
-    hard"): ``plausible`` (None: not checked — no force, or no capacity known),
+    """Whether an estimated force is one the arm could exert (docs/incidents.md, "The
+    rules"): ``plausible`` (None: not checked — no force, or no capacity known),
     ``ceiling_n`` :data:`~impactcli.detect.incidents.FORCE_CEILING_FACTOR` × the largest
     force one of the joints up to the link holds at its end with its longest lever [N], and
     ``why`` in words."""

@@ -54,7 +54,7 @@ RCOND = 0.1
 #: An estimated force is implausible — beyond what the arm can exert — above this many times
 #: the largest force one of the joints 1..i holds at the link's end with its longest lever:
 #: its torque capacity (the URDF's effort limit, else the largest torque logged on it) over
-#: its reach to that point (docs/incidents.md, "How hard"): such a force is no contact but a
+#: its reach to that point (docs/incidents.md, "The rules"): such a force is no contact but a
 #: log read wrongly (positions in degrees, a wrong gear ratio or torque constant). Genuine
 #: contacts of the sample and simulated sets reach at most 1.35 of that force.
 FORCE_CEILING_FACTOR = 3.0
@@ -111,7 +111,7 @@ class Incident:
 class LastingLoad:
     """A product alarm of :data:`~impactcli.detect.events.LONG_EVENT_S` or more: a load
     that persists — an unknown payload, a clamp, or a model that no longer fits the log
-    (docs/incidents.md, "Lasting loads"; timeline ``lasting_loads``).
+    (docs/incidents.md, "The rules"; timeline ``lasting_loads``).
 
     ``event`` is its index in the log's events; ``ends_with_log``: it lasts to the log's
     last sample (how long it lasts is not known). ``link`` and ``force_n`` as for an

@@ -1,5 +1,5 @@
 """Which link: each joint's evidence of a contact's torque, against its own noise
-(docs/incidents.md, "Where").
+(docs/incidents.md, "The rules").
 
 A contact on link i exerts torque on joints 1..i only (r = J_cᵀ F), so the link is the most
 distal joint whose residual carries the contact. Two kinds of evidence make a joint
@@ -32,7 +32,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import lfilter
+
+from ..model.iir import lfilter
 
 #: A joint under its thresholds is significant when |LP(r)| reaches this fraction of its vL
 #: *and* COUPLING_FRACTION of the largest ratio among the joints nearer the base.
@@ -84,7 +85,7 @@ class ResidualNoise:
         if self.zi is None:
             self.zi = (1.0 - self.a) * x[:1]  # as if the first sample had always been
             self.last = np.stack([r[0], r[0] * r[0]])
-        y, zf = lfilter(b, a, x, axis=0, zi=self.zi)
+        y, zf = lfilter(np.asarray(b), np.asarray(a), x, self.zi)
         self.zi = zf
         prev = np.concatenate([self.last.reshape(1, -1), y[:-1]], axis=0)
         self.last = y[-1].reshape(2, -1)
