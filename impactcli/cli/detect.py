@@ -81,7 +81,10 @@ def _incident_line(k: int, inc: dict[str, Any]) -> str:
 def _lasting_line(k: int, x: dict[str, Any]) -> str:
     """``  L1   6.500–40.000 s (to the log's end) static_loading on j2, j3, up to 14× …``."""
     end = " (to the log's end)" if x.get("ends_with_log") else ""
-    force = f", ~{x['force_n']:.3g} N at link {x['link']}" if x.get("force_n") is not None else ""
+    force = (f", ~{x['force_n']:.3g} N at link {x['link']}" if x.get("force_n") is not None
+             else "")
+    if x.get("force_plausible") is False:
+        force += " (beyond what the arm can exert)"
     return (f"  L{k:<2} {x['t_start']:>9.3f}–{x['t_end']:.3f} s{end}  {x['detector']} on "
             f"{', '.join(x['joints'])}, up to {x['peak_ratio']:.3g}× its threshold{force}")
 
@@ -270,8 +273,9 @@ def _load_over(outcome: Any, loads: list[dict[str, Any]], limit: float) -> str |
     if not over:
         return None
     x = over[0]
+    link = f"link {x['link']}" if x.get("link") is not None else "an unknown link"
     return (f"impactcli: {url_name(outcome.log_path)}: the lasting load from "
-            f"{x['t_start']:.3f} s on link {x['link']}, ~{x['force_n']:.3g} N, exceeds "
+            f"{x['t_start']:.3f} s on {link}, ~{x['force_n']:.3g} N, exceeds "
             f"--fail-on-force {limit:g} N")
 
 
