@@ -501,6 +501,8 @@ class DetectionResult:
             ``identified-from-log`` (offline convenience) or ``none``.
         generators: joint → {generator, reason, residual} (:mod:`impactcli.model.generators`).
         incidents: :class:`impactcli.detect.incidents.Incident` per physical contact.
+        lasting_loads: :class:`impactcli.detect.incidents.LastingLoad` per product alarm
+            of 10 s or more (a finding of its own, in no incident).
         joints_left_out: ``{name, reason}`` of each logged joint left out of detection
             (:mod:`impactcli.logs.screen`; not in the model or config; left out at
             calibration).
@@ -541,6 +543,7 @@ class DetectionResult:
     generators: dict[str, dict[str, str]] = field(default_factory=dict)
     joints_left_out: tuple[dict[str, str], ...] = ()
     incidents: tuple[Any, ...] = ()
+    lasting_loads: tuple[Any, ...] = ()
 
     @property
     def online_equivalent(self) -> bool:
@@ -553,8 +556,25 @@ class DetectionResult:
         return [e for e in self.events if e.detector == detector and not e.in_warmup]
 
     def counted_incidents(self) -> list[Any]:
-        """Incidents that start after warm-up (the ones summaries count)."""
+        """Incidents after warm-up (the ones summaries count; an incident never spans the
+        warm-up's end)."""
         return [i for i in self.incidents if not i.in_warmup]
+
+    def counted_lasting_loads(self) -> list[Any]:
+        """Lasting loads after warm-up (counted, like incidents, by the summaries and the
+        gates)."""
+        return [x for x in self.lasting_loads if not x.in_warmup]
+
+    def counts(self) -> dict[str, dict[str, int]]:
+        """Incidents and lasting loads: counted (after warm-up) and in warm-up (the
+        timeline's ``counts``)."""
+        return {
+            "incidents": {"counted": len(self.counted_incidents()),
+                          "in_warmup": len(self.incidents) - len(self.counted_incidents())},
+            "lasting_loads": {"counted": len(self.counted_lasting_loads()),
+                              "in_warmup": len(self.lasting_loads)
+                              - len(self.counted_lasting_loads())},
+        }
 
     def summary(self) -> dict[str, dict[str, int]]:
         """Per detector: events counted (after warm-up) and events in warm-up."""

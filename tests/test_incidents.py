@@ -118,7 +118,7 @@ def test_cli_counts_incidents_and_gates_on_force(tmp_path: Path) -> None:
                                   str(tmp_path / "a")])
     assert r.exit_code == 0, r.output
     row = next(line for line in r.output.splitlines() if line.startswith("assist_pushes"))
-    assert row.split()[4:6] == ["9", "|"]  # 9 incidents, then events per detector
+    assert row.split()[4:7] == ["9", "0", "|"]  # 9 incidents, no lasting load, then events
     assert "incidents of assist_pushes.csv.gz" in r.output
     r = CliRunner().invoke(main, ["detect", log, "--config", str(CONFIG), "-o",
                                   str(tmp_path / "b"), "--fail-on-force", "100"])
@@ -141,7 +141,7 @@ def test_cli_counts_incidents_and_gates_on_force(tmp_path: Path) -> None:
                                   str(tmp_path / "d"), "--fail-on-detect"])
     assert r.exit_code == 1, r.output
     doc = json.loads((tmp_path / "d" / "assist_pushes.timeline.json").read_text())
-    assert doc["schema_version"] == "2.0" and len(doc["incidents"]) >= 9
+    assert doc["schema_version"] == "2.1" and len(doc["incidents"]) >= 9
 
 
 def test_fail_on_force_without_kinematics_warns(tmp_path: Path) -> None:

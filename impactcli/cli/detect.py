@@ -10,6 +10,7 @@ from typing import Any
 
 import click
 
+from ..detect.events import LONG_EVENT_S
 from ..errors import EXIT_BATCH, EXIT_DETECTED
 from .options import (
     executor_options,
@@ -59,21 +60,51 @@ def preload(robot: str | Path | None, model: str | Path | None,
     return out
 
 
-def _fmt_row(s: dict[str, Any]) -> str:
+def _fmt_row(s: dict[str, Any], lasting: int) -> str:
     from ..logs.urls import url_name
 
     cal = "yes" if s["calibrated"] else "no"
     return (f"{url_name(s['log']):<36} {s['duration_s']:>9.1f} {cal:>10} "
-            f"{s['warmup_end_s']:>7.2f} {s.get('incidents', 0):>9} | {s['adaptive']:>8} "
-            f"{s['static_loading']:>8} {s['static_baseline']:>8}")
+            f"{s['warmup_end_s']:>7.2f} {s.get('incidents', 0):>9} {lasting:>7} | "
+            f"{s['adaptive']:>8} {s['static_loading']:>8} {s['static_baseline']:>8}")
 
 
 def _incident_line(k: int, inc: dict[str, Any]) -> str:
-    """``  1  12.040 s  link 2  ~14.5 N  transient  (adaptive, static_loading)``."""
+    """``  1  12.040 s  link 2  ~14.5 N  transient  (adaptive, static_loading)``; ``k`` is
+    the incident's number (the report's: 1, 2, … over the counted incidents)."""
     link = f"link {inc['link']}" if inc["link"] is not None else "link ?"
     force = f"~{inc['force_n']:.3g} N" if inc["force_n"] is not None else "force ?"
     return (f"  {k:>3}  {inc['t_start']:>9.3f} s  {link:<7} {force:>9}  {inc['contact']:<12} "
             f"({', '.join(inc['detectors'])})")
+
+
+def _lasting_line(k: int, x: dict[str, Any]) -> str:
+    """``  L1   6.500–40.000 s (to the log's end) static_loading on j2, j3, up to 14× …``."""
+    end = " (to the log's end)" if x.get("ends_with_log") else ""
+    force = (f", ~{x['force_n']:.3g} N at link {x['link']}" if x.get("force_n") is not None
+             else "")
+    if x.get("force_plausible") is False:
+        force += " (beyond what the arm can exert)"
+    return (f"  L{k:<2} {x['t_start']:>9.3f}–{x['t_end']:.3f} s{end}  {x['detector']} on "
+            f"{', '.join(x['joints'])}, up to {x['peak_ratio']:.3g}× its threshold{force}")
+
+
+def lasting_loads_of(outcome: Any) -> list[dict[str, Any]]:
+    """The counted lasting loads of a finished log (timeline ``lasting_loads`` items after
+    warm-up): from its summary row when the batch carries them, else read back from the
+    timeline it wrote (``outputs[0]``; a path or URL)."""
+    rows = outcome.summary.get("lasting_load_list")
+    if rows is None:
+        from ..errors import OutputError
+        from ..files import load_mapping
+        from ..logs.urls import load_by_url
+
+        if not outcome.outputs:
+            return []
+        doc = load_by_url(outcome.outputs[0],
+                          lambda p: load_mapping(p, OutputError, "timeline"), "timeline")
+        rows = doc.get("lasting_loads") or []
+    return [x for x in rows if not x.get("in_warmup")]
 
 
 #: incidents listed per log when one log is analysed (all of them are in the timeline)
@@ -98,10 +129,11 @@ MAX_ROWS = 50
                    "(offline only; e.g. an unknown payload).")
 @click.option("--fail-on-detect", is_flag=True,
               help="Exit 1 when an incident (a contact found by adaptive or static_loading) "
-                   "starts after warm-up.")
+                   "or a lasting load (an alarm of 10 s or more) lies after warm-up.")
 @click.option("--fail-on-force", type=click.FloatRange(min=0), default=None, metavar="N",
-              help="Exit 1 when an incident's estimated contact force exceeds N newtons "
-                   "(incidents without an estimate are not judged by it; a warning says so).")
+              help="Exit 1 when an incident's or a lasting load's estimated contact force "
+                   "exceeds N newtons (those without an estimate are not judged by it; a "
+                   "warning says so).")
 @generator_option
 @click.option("--allow-slow", is_flag=True,
               help="Run a replay estimated slower than real time or above 2 GiB of "
@@ -128,7 +160,7 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     from each log itself and the thresholds come from the log's own statistics: the run is
     marked uncalibrated. A log that fails is reported and the others go on. Exit 0
     whether or not collisions are found (unless --fail-on-detect or --fail-on-force: 1,
-    with the incident above the force named on stderr); 3 on a bad input; 4
+    with the incident or lasting load above the force named on stderr); 3 on a bad input; 4
     when some logs of a batch failed (the others' outputs are written); 70 on an internal
     error (a bug, with its traceback) — never 1; 141 when stdout's reader closed early
     (| head).
@@ -181,7 +213,8 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     summary = batch_summary(outcomes, wall_s=wall,
                             executor={**choice.to_dict(), "description": choice.describe()},
                             inputs=inputs)
-    _echo_table(outcomes, summary, out_dir)
+    loads = {o.log_path: lasting_loads_of(o) for o in outcomes if o.ok}
+    _echo_table(outcomes, summary, out_dir, loads)
     if summary_path is not None:
         import json
 
@@ -197,7 +230,8 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
             click.echo(f"impactcli: {len(failed)} of {len(outcomes)} logs failed", err=True)
         # some failed: 4; every one failed: the (first) failure's own code, as `report` does
         ctx.exit(EXIT_BATCH if ok else failed[0].exit_code)
-    if fail_on_detect and any(o.summary.get("incidents", 0) > 0 for o in ok):
+    if fail_on_detect and any(o.summary.get("incidents", 0) > 0 or loads[o.log_path]
+                              for o in ok):
         ctx.exit(EXIT_DETECTED)
     if fail_on_force is not None:
         incs = [i for o in ok for i in o.summary.get("incident_list", [])]
@@ -206,7 +240,9 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
             click.echo(f"impactcli: warning: --fail-on-force: {len(unknown)} incident(s) "
                        "have no force estimate (no kinematics, or the link could not be "
                        "told) and are not judged by it", err=True)
-        over = [line for o in ok if (line := _over_force(o, fail_on_force))]
+        over = [line for o in ok
+                if (line := _over_force(o, fail_on_force) or _load_over(o, loads[o.log_path],
+                                                                       fail_on_force))]
         for line in over:  # why exit 1: which incident, per log
             click.echo(line, err=True)
         if over:
@@ -227,6 +263,20 @@ def _over_force(outcome: Any, limit: float) -> str | None:
     more = f" ({len(over)} incidents above it)" if len(over) > 1 else ""
     return (f"impactcli: {url_name(outcome.log_path)}: the incident at {inc['t_start']:.3f} s "
             f"on {link}, ~{inc['force_n']:.3g} N, exceeds --fail-on-force {limit:g} N{more}")
+
+
+def _load_over(outcome: Any, loads: list[dict[str, Any]], limit: float) -> str | None:
+    """One line naming the log's first lasting load whose force exceeds ``limit``."""
+    from ..logs.urls import url_name
+
+    over = [x for x in loads if x.get("force_n") is not None and x["force_n"] > limit]
+    if not over:
+        return None
+    x = over[0]
+    link = f"link {x['link']}" if x.get("link") is not None else "an unknown link"
+    return (f"impactcli: {url_name(outcome.log_path)}: the lasting load from "
+            f"{x['t_start']:.3f} s on {link}, ~{x['force_n']:.3g} N, exceeds "
+            f"--fail-on-force {limit:g} N")
 
 
 def _echo_outcome(outcome: Any, debug: bool, single: bool) -> None:
@@ -254,17 +304,19 @@ def _generators_line(row: dict[str, Any]) -> str:
     return ", ".join(f"{j} {x} ({why.get(j, '')})" for j, x in g.items())
 
 
-def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str) -> None:
-    """Per-log rows (at most MAX_ROWS) and the batch totals, on stdout."""
+def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str,
+                loads: dict[str, list[dict[str, Any]]]) -> None:
+    """Per-log rows (at most MAX_ROWS) and the batch totals, on stdout; ``loads``: each
+    log's counted lasting loads."""
     from ..logs.urls import url_name
 
     ok = [o for o in outcomes if o.ok]
     if ok:
         click.echo(f"{'log':<36} {'duration_s':>9} {'calibrated':>10} {'warmup':>7} "
-                   f"{'incidents':>9} | events: {'adaptive':>8} {'loading':>8} {'baseline':>8}"
-                   .replace("| events: ", "| "))
+                   f"{'incidents':>9} {'lasting':>7} | {'adaptive':>8} {'loading':>8} "
+                   f"{'baseline':>8}")
         for o in ok[:MAX_ROWS]:
-            click.echo(_fmt_row(o.summary))
+            click.echo(_fmt_row(o.summary, len(loads[o.log_path])))
         if len(ok) > MAX_ROWS:
             click.echo(f"... {len(ok) - MAX_ROWS} more logs (all of them in --summary)")
         gens = {tuple(sorted(o.summary.get("generators", {}).items())) for o in ok}
@@ -274,16 +326,24 @@ def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str) -> N
             for o in ok[:MAX_ROWS]:
                 click.echo(f"residual generator of {url_name(o.log_path)}: "
                            + _generators_line(o.summary))
-        click.echo(f"(incidents and events per detector after warm-up; an incident is one "
-                   f"contact, made of the adaptive and loading events; timelines in {out_dir})")
+        click.echo(f"(incidents, lasting loads and events per detector after warm-up; an "
+                   f"incident is one contact, made of the adaptive and loading events; a "
+                   f"lasting load an alarm of {LONG_EVENT_S:g} s or more; timelines in "
+                   f"{out_dir})")
         if len(ok) == 1 and ok[0].summary.get("incident_list"):
             lst = ok[0].summary["incident_list"]
             click.echo(f"incidents of {url_name(ok[0].log_path)}:  #  start       link      "
                        "force  contact      detectors")
+            # the counted incidents in time order: k is the incident's number (the report's)
             for k, inc in enumerate(lst[:MAX_INCIDENTS_LISTED], 1):
                 click.echo(_incident_line(k, inc))
             if len(lst) > MAX_INCIDENTS_LISTED:
                 click.echo(f"  ... {len(lst) - MAX_INCIDENTS_LISTED} more (in the timeline)")
+        if len(ok) == 1 and loads[ok[0].log_path]:
+            click.echo(f"lasting loads of {url_name(ok[0].log_path)} (an unknown payload, a "
+                       "clamp, or a model that no longer fits):")
+            for k, x in enumerate(loads[ok[0].log_path], 1):
+                click.echo(_lasting_line(k, x))
     if len(outcomes) > 1:
         n, ev, tp = summary["logs"], summary["events"], summary["throughput"]
         lps = tp["logs_per_s"] or 0.0
@@ -292,5 +352,6 @@ def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str) -> N
                    f"{summary['hours_analysed']:.3f} h analysed in {summary['wall_s']:.1f} s "
                    f"({lps:.2f} logs/s, {hps * 3600:.0f} h of log per hour) on "
                    f"{summary['executor']['description']}")
-        click.echo(f"incidents: {summary['incidents']}; events: "
+        n_loads = sum(len(v) for v in loads.values())
+        click.echo(f"incidents: {summary['incidents']}; lasting loads: {n_loads}; events: "
                    + ", ".join(f"{d} {ev[d]}" for d in ev))

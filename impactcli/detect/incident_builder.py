@@ -1,12 +1,13 @@
 """From a replay's events and signals to incidents (:mod:`impactcli.detect.incidents`).
 
 What an incident needs is fixed once per log (:class:`IncidentContext`: the robot's chain,
-the link numbers of the detected joints, the link Jacobian, the static-loading thresholds)
-and then read from the samples of the incident's own stretch: the residual, the
-static-loading statistic, the decisions, the positions of the whole chain and the joints'
-causal velocity. :func:`build_incidents` takes those arrays for any stretch of the log
-that holds whole incidents — one "island" of a replay (the samples near an alarm or a
-pressing contact, :mod:`impactcli.run.one_log`) — with its offset in the log.
+the link numbers of the detected joints, the link Jacobian, the static-loading thresholds,
+the joints' torque capacity) and then read from the samples of the incident's own stretch:
+the residual, the static-loading statistic, the decisions, the positions of the whole chain
+and the joints' causal velocity. :func:`build_findings` takes those arrays for any stretch
+of the log that holds whole incidents — one "island" of a replay (the samples near an alarm
+or a pressing contact, :mod:`impactcli.run.one_log`) — with its offset in the log, and
+gives its incidents and lasting loads.
 """
 
 from __future__ import annotations
@@ -21,14 +22,21 @@ from ..errors import ImpactError, ImpactWarning
 from ..types import Event, RobotDescription
 from .incidents import (
     BRIDGE_FRACTION,
+    FORCE_CEILING_FACTOR,
+    ForceEstimate,
     Incident,
     JacobianFn,
+    LastingLoad,
     contact_type,
-    estimate_force,
+    force_estimate,
     group_events,
-    isolate,
+    lasting,
     planar_jacobian,
 )
+from .link_evidence import LinkDecision, decide_link
+
+#: A lasting load's force is solved at this many of its samples at most (evenly spread).
+LASTING_FORCE_SAMPLES = 500
 
 
 def robot_chain(full_joints: tuple[str, ...], robot: RobotDescription | None,
@@ -96,6 +104,10 @@ class IncidentContext:
         vl: (J,) the static-loading thresholds [N·m].
         dt: the sample period [s]. t0_ns: the log's first sample [ns].
         n_samples: the log's length. merge_gap_s: events.merge_gap_s [s].
+        capacity: (J,) each detected joint's torque capacity [N·m] (NaN: unknown) and
+            ``capacity_source``, what it is (:func:`torque_capacity`).
+        link_lengths: a planar arm's link lengths [m] (a joint's reach to a link's end is
+            their sum, whatever the posture); None otherwise.
     """
 
     joints: tuple[str, ...]
@@ -107,6 +119,17 @@ class IncidentContext:
     t0_ns: int
     n_samples: int
     merge_gap_s: float
+    capacity: np.ndarray | None = None
+    capacity_source: str = ""
+    link_lengths: tuple[float, ...] | None = None
+
+    def reach(self, chain_pos: int, link: int, est: ForceEstimate) -> float:
+        """Chain joint ``chain_pos``'s longest lever arm to the end of ``link`` [m]: the sum
+        of the link lengths between (planar), else the longest seen over the estimate's
+        samples (|J_k|)."""
+        if self.link_lengths is not None and link <= len(self.link_lengths):
+            return float(sum(self.link_lengths[chain_pos - 1:link]))
+        return est.levers.get(chain_pos, 0.0)
 
     def pressing(self, loading: np.ndarray) -> np.ndarray:
         """(n,) some joint's static-loading statistic at BRIDGE_FRACTION of its threshold
@@ -115,21 +138,72 @@ class IncidentContext:
             loading >= BRIDGE_FRACTION * np.maximum(self.vl, 1e-12)[None, :], axis=1))
 
 
+def urdf_efforts(model: dict[str, Any] | None, joints: tuple[str, ...]) -> np.ndarray:
+    """(J,) each joint's effort limit [N·m] from a URDF model's ``<limit effort>`` (NaN
+    where the model is not a URDF or gives none)."""
+    out = np.full(len(joints), np.nan)
+    structure = (model or {}).get("structure") if (model or {}).get("kind") == "urdf" else None
+    xml = (structure or {}).get("urdf_xml") if isinstance(structure, dict) else None
+    if not xml:
+        return out
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.fromstring(xml)
+    except ET.ParseError:
+        return out
+    limits = {}
+    for jt in root.iter("joint"):
+        lim = jt.find("limit")
+        try:
+            eff = float(lim.get("effort", "nan")) if lim is not None else np.nan
+        except ValueError:
+            eff = np.nan
+        limits[str(jt.get("name"))] = eff
+    jm = (structure or {}).get("urdf_joint_map") or {}
+    for k, j in enumerate(joints):
+        v = limits.get(str(jm.get(j, j)), np.nan)
+        out[k] = v if np.isfinite(v) and v > 0 else np.nan
+    return out
+
+
+def torque_capacity(efforts: np.ndarray, torque_peak: np.ndarray | None,
+                    ) -> tuple[np.ndarray, str]:
+    """Each joint's torque capacity [N·m] for the force plausibility check
+    (docs/incidents.md, "The rules"): the URDF's effort limit where it gives one, else the
+    largest |torque| logged on that joint over the log (what its motor demonstrably
+    produced); NaN where neither is known. Returns (capacity, what it is in words)."""
+    cap = np.asarray(efforts, dtype=np.float64).copy()
+    peak = (np.full(cap.shape, np.nan) if torque_peak is None
+            else np.asarray(torque_peak, dtype=np.float64))
+    use_peak = ~np.isfinite(cap) & np.isfinite(peak) & (peak > 1e-9)
+    cap[use_peak] = peak[use_peak]
+    kinds = []
+    if np.isfinite(efforts).any():
+        kinds.append("the URDF's effort limit")
+    if use_peak.any():
+        kinds.append("the largest torque logged on the joint")
+    return cap, " or ".join(kinds)
+
+
 def incident_context(
     joints: tuple[str, ...], full_joints: tuple[str, ...], robot: RobotDescription | None,
     model: dict[str, Any] | None, vl: np.ndarray, dt: float, t0_ns: int, n_samples: int,
-    merge_gap_s: float, where: str = "",
+    merge_gap_s: float, where: str = "", torque_peak: np.ndarray | None = None,
 ) -> IncidentContext:
     """The :class:`IncidentContext` of a log: ``joints`` detected, ``full_joints`` as
-    logged (positions of joints left out of detection still place the links)."""
+    logged (positions of joints left out of detection still place the links);
+    ``torque_peak``: (J,) the largest |torque| logged per detected joint [N·m]."""
     chain, kin = robot_chain(full_joints, robot, model, joints)
     if not set(joints) <= set(chain):
         chain, kin = full_joints, None
     index = [chain.index(j) + 1 for j in joints]
     cols = [full_joints.index(j) if j in full_joints else None for j in chain]
     jac = None
+    lengths = None
     if isinstance(kin, dict) and kin.get("type") == "planar":
         jac = planar_jacobian(kin["link_lengths"])
+        lengths = tuple(float(x) for x in kin["link_lengths"])
     elif (isinstance(kin, dict) and kin.get("type") == "urdf" and model is not None
           and model.get("kind") == "urdf"):
         try:
@@ -137,16 +211,59 @@ def incident_context(
         except (ImpactError, RuntimeError, ValueError) as err:  # no Jacobian: no force
             warnings.warn(f"{where}: no link Jacobian from the URDF ({err}): "
                           "incidents without a force estimate", ImpactWarning, stacklevel=3)
+    cap, source = torque_capacity(urdf_efforts(model, tuple(joints)), torque_peak)
     return IncidentContext(tuple(joints), index, cols, jac, np.asarray(vl, dtype=np.float64),
-                           float(dt), int(t0_ns), int(n_samples), float(merge_gap_s))
+                           float(dt), int(t0_ns), int(n_samples), float(merge_gap_s),
+                           cap, source, lengths)
 
 
-def build_incidents(
+@dataclass(frozen=True)
+class ForceCheck:
+    """Whether an estimated force is one the arm could exert (docs/incidents.md, "The
+    rules"): ``plausible`` (None: not checked — no force, or no capacity known),
+    ``ceiling_n`` :data:`~impactcli.detect.incidents.FORCE_CEILING_FACTOR` × the largest
+    force one of the joints up to the link holds at its end with its longest lever [N], and
+    ``why`` in words."""
+
+    plausible: bool | None
+    ceiling_n: float | None
+    why: str
+
+
+def check_force(ctx: IncidentContext, est: ForceEstimate, link: int | None) -> ForceCheck:
+    """The :class:`ForceCheck` of a force estimate at ``link``: implausible above
+    FORCE_CEILING_FACTOR × the largest capacity / reach (:meth:`IncidentContext.reach`)
+    among the joints up to the link."""
+    if est.force_n is None or link is None or not est.levers or ctx.capacity is None:
+        return ForceCheck(None, None, "no force estimate to check")
+    best, at, arm = 0.0, -1, 0.0
+    for c in est.levers:
+        k = ctx.index.index(c)
+        cap, lever = float(ctx.capacity[k]), ctx.reach(c, link, est)
+        if np.isfinite(cap) and cap > 0 and lever > 0 and cap / lever > best:
+            best, at, arm = cap / lever, k, lever
+    if at < 0:
+        return ForceCheck(None, None, "no torque capacity known for the joints up to the link")
+    ceiling = FORCE_CEILING_FACTOR * best
+    name = ctx.joints[at]
+    hold = (f"its strongest joint there, {name}, holds ~{best:,.0f} N: "
+            f"{float(ctx.capacity[at]):.3g} N·m ({ctx.capacity_source}) over a "
+            f"{arm:.3g} m lever arm")
+    if est.force_n > ceiling:
+        return ForceCheck(False, ceiling, (
+            f"beyond what the arm can exert — {hold}; positions in degrees? a wrong gear "
+            "ratio or torque constant?"))
+    return ForceCheck(True, ceiling, f"within {FORCE_CEILING_FACTOR:g}× what the arm can "
+                                     f"exert ({hold})")
+
+
+def build_findings(
     ctx: IncidentContext, events: list[Event], t: np.ndarray, r: np.ndarray,
     loading: np.ndarray, adaptive_d: np.ndarray, loading_d: np.ndarray,
     q_full: np.ndarray, qd: np.ndarray, offset: int = 0, event_offset: int = 0,
-) -> list[Incident]:
-    """The incidents of a stretch of the log holding whole incidents.
+    level: np.ndarray | None = None, noise: np.ndarray | None = None,
+) -> tuple[list[Incident], list[LastingLoad]]:
+    """The incidents and lasting loads of a stretch of the log holding whole incidents.
 
     Args:
         ctx: the log's :class:`IncidentContext`.
@@ -158,12 +275,20 @@ def build_incidents(
             joints' causal velocity [rad/s].
         offset: the stretch's first sample in the log; event_offset: its first event's
             index in the log's event list.
+        level, noise: (n, J) each joint's residual level and noise before each sample
+            (:class:`impactcli.detect.link_evidence.ResidualNoise`; None: the link from the
+            detectors' evidence alone).
     Returns:
-        Incidents with indices in the log (``i_start``, ``i_end``, ``events``).
+        Incidents (numbered later, by :func:`number_incidents`) and lasting loads, with
+        indices in the log (``i_start``, ``i_end``, ``events``/``event``).
     """
-    groups = group_events(events, ctx.merge_gap_s, ctx.pressing(loading))
-    if not groups:
-        return []
+    long_ = lasting(events)
+    pressing = ctx.pressing(loading)
+    for k in long_:  # a lasting load bridges nothing: as if it were not there
+        pressing[events[k].i_start:events[k].i_end + 1] = False
+    groups = group_events(events, ctx.merge_gap_s, pressing, exclude=long_)
+    if not groups and not long_:
+        return [], []
     n = t.shape[0]
     q_chain = np.zeros((n, len(ctx.chain_cols)))
     for c, col in enumerate(ctx.chain_cols):
@@ -171,19 +296,31 @@ def build_incidents(
             q_chain[:, c] = q_full[:, col]
     ratio = loading / np.maximum(ctx.vl, 1e-12)[None, :]
     index = ctx.index
+
+    def where_and_force(win: slice, max_samples: int | None = None,
+                        ) -> tuple[LinkDecision, ForceEstimate]:
+        a0 = win.start
+        where = decide_link(ratio[win], adaptive_d[win], index, r[win],
+                            None if level is None else level[a0],
+                            None if noise is None else noise[a0], ctx.vl)
+        link = where.link
+        est = ForceEstimate(None, "no kinematics: the peak residual torques are the answer")
+        if link is not None and ctx.jac is not None:
+            est = force_estimate(r[win], q_chain[win], link, index, ctx.jac, max_samples)
+        elif link is None:
+            est = ForceEstimate(None, "the residuals cannot say which link: no force estimate")
+        return where, est
+
     out = []
     for g in groups:
         evs = [events[k] for k in g]
         a, b = min(e.i_start for e in evs), max(e.i_end for e in evs)
         win = slice(a, b + 1)
-        link = isolate(ratio[win], adaptive_d[win], index)
+        where, est = where_and_force(win)
+        link = where.link
+        chk = check_force(ctx, est, link)
         joints = tuple(dict.fromkeys(j for e in sorted(evs, key=lambda e: e.t_start)
                                      for j in e.joints))
-        force, method = (None, "no kinematics: the peak residual torques are the answer")
-        if link is not None and ctx.jac is not None:
-            force, method = estimate_force(r[win], q_chain[win], link, index, ctx.jac)
-        elif link is None:
-            method = "the residuals cannot say which link: no force estimate"
         cols = [k for k, c in enumerate(index) if link is None or c <= link]
         speed = np.max(np.abs(qd[win][:, cols]), axis=1)
         kind = contact_type(np.asarray(loading_d[win].any(axis=1)), speed, ctx.dt,
@@ -198,8 +335,40 @@ def build_incidents(
             i_end=int(b + offset),
             detectors=tuple(dict.fromkeys(e.detector for e in sorted(evs,
                                                                      key=lambda e: e.t_start))),
-            joints=joints, link=link, force_n=force, force_method=method, contact=kind,
-            peak_residual=peak, in_warmup=bool(first.in_warmup),
+            joints=joints, link=link, force_n=est.force_n, force_method=est.method,
+            contact=kind, peak_residual=peak, in_warmup=bool(first.in_warmup),
             t_start_utc=utc(ctx.t0_ns + round(t[a] * 1e9)),
-            events=tuple(k + event_offset for k in g)))
+            events=tuple(k + event_offset for k in g), force_plausible=chk.plausible,
+            force_ceiling_n=chk.ceiling_n, force_check=chk.why,
+            link_candidates=where.candidates))
+    loads = []
+    for k in long_:
+        e = events[k]
+        where, est = where_and_force(slice(e.i_start, e.i_end + 1), LASTING_FORCE_SAMPLES)
+        link = where.link
+        chk = check_force(ctx, est, link)
+        loads.append(LastingLoad(
+            detector=e.detector, t_start=e.t_start, t_end=e.t_end,
+            i_start=e.i_start + offset, i_end=e.i_end + offset, joints=e.joints,
+            peak_ratio=e.peak_ratio, in_warmup=e.in_warmup, event=k + event_offset,
+            ends_with_log=offset + e.i_end >= ctx.n_samples - 1, link=link,
+            force_n=est.force_n, force_method=est.method,
+            t_start_utc=utc(ctx.t0_ns + round(e.t_start * 1e9)),
+            force_plausible=chk.plausible, force_ceiling_n=chk.ceiling_n,
+            force_check=chk.why))
+    return out, loads
+
+
+def number_incidents(incidents: list[Incident]) -> list[Incident]:
+    """The log's incidents with their ``number``: 1, 2, … in time order for those counted
+    (after warm-up), None in the warm-up — the number the terminal and the report show."""
+    import dataclasses
+
+    out, n = [], 0
+    for inc in incidents:
+        if inc.in_warmup:
+            out.append(dataclasses.replace(inc, number=None))
+        else:
+            n += 1
+            out.append(dataclasses.replace(inc, number=n))
     return out

@@ -3,12 +3,19 @@
 docs/incidents.md).
 
 - **When** (:func:`group_events`): every product event (adaptive, static_loading) belongs to
-  exactly one incident; events that overlap or follow each other within
-  ``events.merge_gap_s`` form one. An incident starts at its first product alarm.
-- **Where** (:func:`isolate`): a contact on link i exerts torque on joints 1..i only
-  (r = J_cᵀ F), so the link is the most distal joint whose residual is significant during
-  the incident (its detectors fired, or see :data:`WEAK_FRACTION`); links are numbered
-  from the base along the robot's own chain; None when no joint is significant.
+  exactly one incident or is a lasting load; events that overlap or follow each other within
+  ``events.merge_gap_s`` form one, never across the warm-up's end (events are split there,
+  so incidents are too). An incident starts at its first product alarm.
+- **Lasting loads** (:class:`LastingLoad`): a product alarm of ``events.LONG_EVENT_S`` (10 s)
+  or more is a finding of its own — an unknown payload, a clamp, a model that no longer
+  fits — and absorbs no other event: the events during it form incidents as if it were not
+  there.
+- **Where** (:func:`isolate`, :mod:`impactcli.detect.link_evidence`): a contact on link i
+  exerts torque on joints 1..i only (r = J_cᵀ F), so the link is the most distal joint
+  whose residual is significant during the incident — its detectors fired, or its residual
+  stands out of its own noise there — and the links the evidence cannot tell apart are
+  said; links are numbered from the base along the robot's own chain; None when no joint is
+  significant.
 - **How hard**: with kinematics, the force at the isolated link's end that best explains
   the residuals of joints 1..i through the Jacobian, in least squares (small singular
   values dropped); without, None and the peak residual torques.
@@ -28,18 +35,11 @@ from typing import Any
 import numpy as np
 
 from ..types import Event
+from .events import LONG_EVENT_S
+from .link_evidence import decide_link
 
 #: The product's detectors (what incidents are made of).
 PRODUCT_DETECTORS: tuple[str, ...] = ("adaptive", "static_loading")
-#: A joint is significant in an incident when its own detectors fired (|LP(r)| ≥ its vL, or
-#: its adaptive decision), or when |LP(r)| reaches WEAK_FRACTION of its vL *and*
-#: COUPLING_FRACTION of the largest ratio among the joints nearer the base: a contact's
-#: torque on a distal joint may stay under its threshold (a light contact, a lever arm near
-#: the joint's axis), while a contact on an inner link leaks onto the outer joints through
-#: the dynamic coupling of the arm by a small share only (the values' measurement:
-#: docs/incidents.md, "The rules").
-WEAK_FRACTION = 0.5
-COUPLING_FRACTION = 0.25
 #: Two product events whose gap the static-loading statistic bridges at this fraction of
 #: its threshold belong to one incident (:func:`group_events`).
 BRIDGE_FRACTION = 0.5
@@ -51,6 +51,13 @@ STRONG_FRACTION = 0.5
 #: force along those directions cannot be seen in the joint torques: the minimum-norm
 #: solution leaves it out, an under-estimate rather than a blow-up near singularities).
 RCOND = 0.1
+#: An estimated force is implausible — beyond what the arm can exert — above this many times
+#: the largest force one of the joints 1..i holds at the link's end with its longest lever:
+#: its torque capacity (the URDF's effort limit, else the largest torque logged on it) over
+#: its reach to that point (docs/incidents.md, "The rules"): such a force is no contact but a
+#: log read wrongly (positions in degrees, a wrong gear ratio or torque constant). Genuine
+#: contacts of the sample and simulated sets reach at most 1.35 of that force.
+FORCE_CEILING_FACTOR = 3.0
 #: Contact type: a joint stands still below this speed [rad/s] ...
 STILL_RAD_S = 0.05
 #: ... and pressing while still for at least this long makes the contact quasi-static [s];
@@ -79,6 +86,11 @@ class Incident:
     in_warmup: bool
     t_start_utc: str | None = None
     events: tuple[int, ...] = field(default=())
+    number: int | None = None
+    link_candidates: tuple[int, ...] = ()
+    force_plausible: bool | None = None
+    force_ceiling_n: float | None = None
+    force_check: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (timeline ``incidents`` item)."""
@@ -88,12 +100,65 @@ class Incident:
             "force_n": self.force_n, "force_method": self.force_method,
             "contact": self.contact, "peak_residual": dict(self.peak_residual),
             "in_warmup": self.in_warmup, "i_start": self.i_start, "i_end": self.i_end,
-            "events": list(self.events),
+            "events": list(self.events), "number": self.number,
+            "link_candidates": list(self.link_candidates) if self.link is not None else None,
+            "force_plausible": self.force_plausible, "force_ceiling_n": self.force_ceiling_n,
+            "force_check": self.force_check,
         }
 
 
+@dataclass(frozen=True)
+class LastingLoad:
+    """A product alarm of :data:`~impactcli.detect.events.LONG_EVENT_S` or more: a load
+    that persists — an unknown payload, a clamp, or a model that no longer fits the log
+    (docs/incidents.md, "The rules"; timeline ``lasting_loads``).
+
+    ``event`` is its index in the log's events; ``ends_with_log``: it lasts to the log's
+    last sample (how long it lasts is not known). ``link`` and ``force_n`` as for an
+    incident, over its own samples (the peak).
+    """
+
+    detector: str
+    t_start: float
+    t_end: float
+    i_start: int
+    i_end: int
+    joints: tuple[str, ...]
+    peak_ratio: float
+    in_warmup: bool
+    event: int
+    ends_with_log: bool
+    link: int | None
+    force_n: float | None
+    force_method: str
+    t_start_utc: str | None = None
+    force_plausible: bool | None = None
+    force_ceiling_n: float | None = None
+    force_check: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready mapping (timeline ``lasting_loads`` item)."""
+        return {
+            "detector": self.detector, "t_start": self.t_start, "t_end": self.t_end,
+            "t_start_utc": self.t_start_utc, "i_start": self.i_start, "i_end": self.i_end,
+            "joints": list(self.joints), "peak_ratio": self.peak_ratio,
+            "in_warmup": self.in_warmup, "event": self.event,
+            "ends_with_log": self.ends_with_log, "link": self.link, "force_n": self.force_n,
+            "force_method": self.force_method, "force_plausible": self.force_plausible,
+            "force_ceiling_n": self.force_ceiling_n, "force_check": self.force_check,
+        }
+
+
+def lasting(events: Sequence[Event]) -> list[int]:
+    """Indices of the product events lasting :data:`~impactcli.detect.events.LONG_EVENT_S`
+    or more (1 ns of rounding tolerated): the lasting loads."""
+    return [k for k, e in enumerate(events) if e.detector in PRODUCT_DETECTORS
+            and e.t_end - e.t_start >= LONG_EVENT_S - 1e-9]
+
+
 def group_events(events: Sequence[Event], merge_gap_s: float,
-                 pressing: np.ndarray | None = None) -> list[list[int]]:
+                 pressing: np.ndarray | None = None,
+                 exclude: Sequence[int] = ()) -> list[list[int]]:
     """Indices into ``events`` of the product events of each incident, in time order.
 
     Events of the product's detectors that overlap or follow each other within
@@ -101,17 +166,22 @@ def group_events(events: Sequence[Event], merge_gap_s: float,
     gap the contact bridges — ``pressing`` (N,) true at every sample between them (the
     static-loading statistic of some joint still at :data:`BRIDGE_FRACTION` of its
     threshold: an alarm that flickers around its threshold while the contact goes on).
-    Every product event is in exactly one group.
+    An event in the warm-up and one after it never share an incident (events are split at
+    the warm-up's end: what is after it is counted, docs/incidents.md). Every product event
+    not in ``exclude`` (the lasting loads) is in exactly one group.
     """
-    idx = sorted((k for k, e in enumerate(events) if e.detector in PRODUCT_DETECTORS),
+    skip = set(exclude)
+    idx = sorted((k for k, e in enumerate(events)
+                  if e.detector in PRODUCT_DETECTORS and k not in skip),
                  key=lambda k: (events[k].t_start, events[k].t_end))
     groups: list[list[int]] = []
     end, i_end = -np.inf, -1
     for k in idx:
         e = events[k]
-        bridged = (pressing is not None and groups and e.i_start > i_end + 1
+        same_side = bool(groups) and events[groups[-1][0]].in_warmup == e.in_warmup
+        bridged = (pressing is not None and same_side and e.i_start > i_end + 1
                    and bool(np.all(pressing[i_end + 1:e.i_start])))
-        if groups and (e.t_start <= end + merge_gap_s + 1e-9 or bridged):
+        if same_side and (e.t_start <= end + merge_gap_s + 1e-9 or bridged):
             groups[-1].append(k)
             if e.t_end > end:
                 end, i_end = e.t_end, e.i_end
@@ -124,25 +194,15 @@ def group_events(events: Sequence[Event], merge_gap_s: float,
 def isolate(
     loading_ratio: np.ndarray, adaptive_fired: np.ndarray, chain_index: Sequence[int],
 ) -> int | None:
-    """The 1-based link of a contact: the most distal significant joint (module doc).
+    """The 1-based link of a contact from its detectors' evidence alone (the residual's is
+    :func:`impactcli.detect.link_evidence.decide_link`'s).
 
     Args:
         loading_ratio: (n, J) |LP(r)| / vL over the incident.
         adaptive_fired: (n, J) the adaptive decision over the incident.
         chain_index: (J,) each detected joint's 1-based position in the robot's chain.
     """
-    peak = np.max(loading_ratio, axis=0)
-    fired = (peak >= 1.0) | np.any(adaptive_fired, axis=0)
-    order = np.argsort(np.asarray(chain_index))
-    sig = fired.copy()
-    inner = 0.0
-    for j in order:  # base first: compare each joint with the joints nearer the base
-        if not sig[j] and peak[j] >= WEAK_FRACTION and peak[j] >= COUPLING_FRACTION * inner:
-            sig[j] = True
-        inner = max(inner, float(peak[j]))
-    if not sig.any():
-        return None
-    return int(max(chain_index[int(j)] for j in np.flatnonzero(sig)))
+    return decide_link(loading_ratio, adaptive_fired, chain_index).link
 
 
 #: A function giving, for a posture q (chain order, (J_chain,)) and a 1-based link i, the
@@ -170,10 +230,21 @@ def planar_jacobian(link_lengths: Sequence[float]) -> JacobianFn:
     return jac
 
 
-def estimate_force(
+@dataclass(frozen=True)
+class ForceEstimate:
+    """A contact-force estimate (:func:`force_estimate`): the peak magnitude [N] (None when
+    it cannot be made), how, and each joint's longest lever arm to the link's end over the
+    samples solved (chain position → max |J_k| [m], joints 1..i that are detected)."""
+
+    force_n: float | None
+    method: str
+    levers: dict[int, float] = field(default_factory=dict)
+
+
+def force_estimate(
     r: np.ndarray, q: np.ndarray, link: int, chain_index: Sequence[int],
-    jacobian: JacobianFn,
-) -> tuple[float | None, str]:
+    jacobian: JacobianFn, max_samples: int | None = None,
+) -> ForceEstimate:
     """Peak contact-force magnitude at the end of ``link`` over an incident (module doc).
 
     Args:
@@ -182,23 +253,26 @@ def estimate_force(
         link: the isolated link (1-based, chain order).
         chain_index: (J,) chain position of each detected joint.
         jacobian: :data:`JacobianFn`.
-    Returns:
-        (force [N] or None, force_method).
+        max_samples: solve at most this many of the strong samples, evenly spread (a
+            lasting load's hours of samples); None: every one.
     """
     cols = {c: k for k, c in enumerate(chain_index)}
     use = [c for c in range(1, link + 1) if c in cols]  # joints 1..i that are detected
     if not use:
-        return None, "no residual of the joints up to the isolated link"
+        return ForceEstimate(None, "no residual of the joints up to the isolated link")
     best = 0.0
     method = ""
+    levers: dict[int, float] = {}
     sel = [cols[c] for c in use]
     size = np.linalg.norm(r[:, sel], axis=1)
     strong = (np.flatnonzero(size >= STRONG_FRACTION * size.max()) if size.max() > 0
               else np.zeros(0, dtype=np.int64))
+    if max_samples is not None and strong.size > max_samples:
+        strong = strong[np.linspace(0, strong.size - 1, max_samples).round().astype(np.int64)]
     for n in strong:
         jac = jacobian(q[n], link)
         if jac is None:
-            return None, "no Jacobian for this link"
+            return ForceEstimate(None, "no Jacobian for this link")
         a = jac[:, [c - 1 for c in use]].T  # (m, d): r_m = a F
         b = r[n, [cols[c] for c in use]]
         if len(use) == 1 and link == 1:
@@ -212,8 +286,19 @@ def estimate_force(
             method = (f"force at the end of link {link} explaining the residuals of joints "
                       f"{', '.join(str(c) for c in use)} (least squares through the Jacobian"
                       + (", minimum norm" if len(use) < a.shape[1] else "") + ")")
+        arms = np.linalg.norm(a, axis=1)
+        levers = {c: max(levers.get(c, 0.0), float(x)) for c, x in zip(use, arms, strict=True)}
         best = max(best, f)
-    return best, method
+    return ForceEstimate(best, method, levers)
+
+
+def estimate_force(
+    r: np.ndarray, q: np.ndarray, link: int, chain_index: Sequence[int],
+    jacobian: JacobianFn,
+) -> tuple[float | None, str]:
+    """(force [N] or None, force_method): :func:`force_estimate`'s magnitude and method."""
+    est = force_estimate(r, q, link, chain_index, jacobian)
+    return est.force_n, est.method
 
 
 def contact_type(

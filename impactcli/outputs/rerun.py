@@ -335,7 +335,8 @@ def write_incidents(rec: Any, result: Any, n: int,
     import rerun as rr
 
     incs = list(result.incidents)
-    labels = [look.incident_label(k, inc) for k, inc in enumerate(incs, 1)]
+    names = look.incident_names(incs)
+    labels = [look.incident_label(k, inc) for k, inc in zip(names, incs, strict=True)]
     rec.log("/incidents/contact", rr.StateConfiguration(
         values=[look.NO_CONTACT, *labels], labels=["", *labels],
         colors=[look.CLEAR_COLOR] + [look.CONTACT_COLORS.get(i.contact,
@@ -352,7 +353,7 @@ def write_incidents(rec: Any, result: Any, n: int,
     at = np.array([min(max(i.i_start, 0), n - 1) for i in incs], dtype=np.int64)
     # one row per incident: its text-log line and its fields, in one chunk
     text = rr.TextLog.columns(
-        text=[look.incident_text(k, i) for k, i in enumerate(incs, 1)],
+        text=[look.incident_text(k, i) for k, i in zip(names, incs, strict=True)],
         level=[rr.TextLogLevel.INFO if i.in_warmup else rr.TextLogLevel.WARN for i in incs])
     fields = rr.AnyValues.columns(
         index=pa.array(range(1, len(incs) + 1), pa.int64()),

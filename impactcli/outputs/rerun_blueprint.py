@@ -108,18 +108,30 @@ def markdown_summary(result: Any) -> str:
     ]
     lines += [f"| {d} | {s['events']} | {s['in_warmup']} |" for d, s in result.summary().items()]
     incs = list(result.incidents)
+    loads = list(result.lasting_loads)
     lines += ["", f"{len(result.counted_incidents())} incident(s) after warm-up"
               + (f", {len(incs) - len(result.counted_incidents())} in warm-up" if
-                 len(incs) > len(result.counted_incidents()) else "")]
+                 len(incs) > len(result.counted_incidents()) else "")
+              + f"; {len(result.counted_lasting_loads())} lasting load(s) after warm-up"]
+    names = incident_names(incs)
     if incs:
         lines += ["", "| # | start [s] | end [s] | link | force [N] | contact | detectors |",
                   "|---|---|---|---|---|---|---|"]
-        for k, inc in enumerate(incs, 1):
+        for name, inc in zip(names, incs, strict=True):
             force = f"{inc.force_n:.3g}" if inc.force_n is not None else "–"
             link = str(inc.link) if inc.link is not None else "–"
-            lines.append(f"| {k}{' (warm-up)' if inc.in_warmup else ''} | {inc.t_start:.3f} | "
-                         f"{inc.t_end:.3f} | {link} | {force} | {inc.contact} | "
-                         f"{', '.join(inc.detectors)} |")
+            lines.append(f"| {name}{' (warm-up)' if inc.in_warmup else ''} | "
+                         f"{inc.t_start:.3f} | {inc.t_end:.3f} | {link} | {force} | "
+                         f"{inc.contact} | {', '.join(inc.detectors)} |")
+    if loads:
+        lines += ["", "Lasting loads (alarms of 10 s or more: an unknown payload, a clamp, or a "
+                  "model that no longer fits):", "",
+                  "| # | start [s] | end [s] | detector | joints | peak ratio |",
+                  "|---|---|---|---|---|---|"]
+        for k, x in enumerate(loads, 1):
+            lines.append(f"| L{k}{' (warm-up)' if x.in_warmup else ''} | {x.t_start:.3f} | "
+                         f"{x.t_end:.3f} | {x.detector} | {', '.join(x.joints)} | "
+                         f"{x.peak_ratio:.3g} |")
     lines += ["", "| joint | v_stat | v0 | vL |", "|---|---|---|---|"]
     for joint in log.joint_names:
         th = result.thresholds.get(joint, {})
@@ -136,16 +148,32 @@ def event_text(e: Any) -> str:
     return text + (" [in warm-up]" if e.in_warmup else "")
 
 
-def incident_label(k: int, inc: Any) -> str:
-    """The span label of incident number ``k`` (1-based, its place in the timeline's
-    ``incidents``): ``#k link L · F N · type``."""
+def incident_names(incs: Sequence[Any]) -> list[str]:
+    """Each incident's name, as the terminal and the report give it: its ``number`` (1, 2,
+    … over the counted incidents), ``w1``, ``w2``, … in the warm-up; incidents made
+    without numbers (before timeline 2.1) keep their place in the list (1, 2, …)."""
+    if not any(getattr(i, "number", None) is not None for i in incs):
+        return [str(k) for k in range(1, len(incs) + 1)]
+    out, warm = [], 0
+    for i in incs:
+        if i.in_warmup:
+            warm += 1
+            out.append(f"w{warm}")
+        else:
+            out.append(str(i.number))
+    return out
+
+
+def incident_label(k: int | str, inc: Any) -> str:
+    """The span label of the incident named ``k`` (:func:`incident_names`):
+    ``#k link L · F N · type``."""
     link = f"link {inc.link}" if inc.link is not None else "link ?"
     force = f"{inc.force_n:.3g} N" if inc.force_n is not None else "force ?"
     return f"#{k} {link} · {force} · {inc.contact}" + (" (warm-up)" if inc.in_warmup else "")
 
 
-def incident_text(k: int, inc: Any) -> str:
-    """Incident number ``k``'s text-log line."""
+def incident_text(k: int | str, inc: Any) -> str:
+    """The text-log line of the incident named ``k`` (:func:`incident_names`)."""
     link = f"link {inc.link}" if inc.link is not None else "link unknown"
     force = (f"~{inc.force_n:.3g} N ({inc.force_method})" if inc.force_n is not None
              else "force unknown (no kinematics)")

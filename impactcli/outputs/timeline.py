@@ -18,9 +18,10 @@ from .. import TOOL_NAME, __version__
 from ..files import atomic_write_text
 from ..types import DetectionResult
 
-SCHEMA_VERSION = "2.0"
-#: Timeline versions ``report`` and ``evaluate`` read (2.x adds optional fields only).
-READABLE_VERSIONS: tuple[str, ...] = ("1.0", "2.0")
+SCHEMA_VERSION = "2.1"
+#: Timeline versions ``report`` and ``evaluate`` read (2.x adds optional fields only; 2.1:
+#: ``lasting_loads``, ``counts``, each incident's ``number`` and force check).
+READABLE_VERSIONS: tuple[str, ...] = ("1.0", "2.0", "2.1")
 
 
 def _clean(x: Any) -> Any:
@@ -88,6 +89,8 @@ def timeline_dict(result: DetectionResult) -> dict[str, Any]:
         "filter_gain": result.filter_gain,
         "events": [e.to_dict() for e in result.events],
         "incidents": [i.to_dict() for i in result.incidents],
+        "lasting_loads": [x.to_dict() for x in result.lasting_loads],
+        "counts": result.counts(),
         "summary": result.summary(),
         "warnings": list(result.warnings),
     }

@@ -22,6 +22,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..detect.events import LONG_EVENT_S
 from ..errors import LogFormatError
 from ..types import ContactLabel
 from .match import (
@@ -324,7 +325,8 @@ def evaluate_incidents(
     answered by any incident (informational). The "exactly one incident" check follows
     the product's counted alarms that start in a detected contact's window to the
     incidents holding them (the incident's ``events``, else the incident whose span holds
-    the alarm's start).
+    the alarm's start); a lasting load (an alarm of ``events.LONG_EVENT_S`` or more, in
+    no incident: docs/incidents.md) is not one of those alarms.
 
     Args:
         incidents: :class:`~impactcli.detect.incidents.Incident` s or timeline dicts.
@@ -361,7 +363,8 @@ def evaluate_incidents(
         n_held = 0
         if status[c_idx] == "counted":
             alarms = [e_idx for e_idx, e in enumerate(evs) if e.detector in PRODUCT_PARTS
-                      and not e.in_warmup and lo - EPS_S <= e.t_start <= hi + EPS_S]
+                      and not e.in_warmup and lo - EPS_S <= e.t_start <= hi + EPS_S
+                      and e.t_end - e.t_start < LONG_EVENT_S - EPS_S]
             held = set().union(*(holder.get(a, set()) for a in alarms)) if alarms else set()
             n_held = len(held)
             if alarms:

@@ -11,9 +11,12 @@ keeps meanwhile is small: the warm-up's statistics
 (:class:`~impactcli.detect.warmup.WarmupTracker`), the times at the gaps, and the *islands*:
 the samples where some detector fires or a contact still presses
 (:meth:`impactcli.detect.incident_builder.IncidentContext.pressing`), and those within
-``merge_gap_s`` after one. Events and incidents never span a sample outside an island, so
-each island gives its events and incidents by :func:`~impactcli.detect.events.extract_events` and
-:func:`~impactcli.detect.incident_builder.build_incidents` once the warm-up's end is known.
+``merge_gap_s`` after one; and each joint's largest logged torque (the force plausibility
+check). Events and incidents never span a sample outside an island, so each island gives
+its events, incidents and lasting loads by :func:`~impactcli.detect.events.extract_events`
+and :func:`~impactcli.detect.incident_builder.build_findings` once the warm-up's end is
+known; the incidents are then numbered (:func:`~impactcli.detect.incident_builder.
+number_incidents`).
 """
 
 from __future__ import annotations
@@ -29,8 +32,14 @@ import numpy as np
 from ..config import CalibrationRecord, DetectorConfig
 from ..detect.adaptive import AdaptiveResult, default_threads
 from ..detect.events import extract_events
-from ..detect.incident_builder import IncidentContext, build_incidents, incident_context
-from ..detect.incidents import BRIDGE_FRACTION, Incident
+from ..detect.incident_builder import (
+    IncidentContext,
+    build_findings,
+    incident_context,
+    number_incidents,
+)
+from ..detect.incidents import BRIDGE_FRACTION, Incident, LastingLoad
+from ..detect.link_evidence import ResidualNoise
 from ..detect.thresholds import compare_to_thresholds
 from ..detect.warmup import Warmup, WarmupTracker
 from ..errors import ConfigError
@@ -44,6 +53,7 @@ from .run_warnings import (
     CaughtWarnings,
     warn_events_after_gaps,
     warn_gaps,
+    warn_implausible_forces,
     warn_long_events,
     warn_measured_inputs,
     warn_uncalibrated,
@@ -117,7 +127,8 @@ _FOR_WRITERS = ("r_tilde", "v_dyn", "torque", "position", "position_ref")
 class Replayed:
     """What a replay pass leaves: the warm-up and each joint's warm-up end [s], the (G, 2)
     times [s] of the samples at and just after each gap, the last chunk's evaluator result
-    (its final filter), the threshold inputs' source and how they were made."""
+    (its final filter), the threshold inputs' source and how they were made, and (J,) the
+    largest |torque| logged per joint [N·m] (NaN where none is finite)."""
 
     warmup: Warmup
     warmup_times: list[float]
@@ -125,6 +136,7 @@ class Replayed:
     last: AdaptiveResult
     reference: str
     detail: str
+    torque_peak: np.ndarray
 
 
 def replay_passes(feed: ChunkFeed, plan: RunPlan, on_step: Callable[[ReplayStep], None],
@@ -139,6 +151,7 @@ def replay_passes(feed: ChunkFeed, plan: RunPlan, on_step: Callable[[ReplayStep]
     gaps = np.asarray(scan.gaps, dtype=np.int64)
     gap_times = np.full((gaps.size, 2), np.nan)
     last: list[Any] = [None, "", ""]
+    peak = np.full(len(plan.joints), np.nan)
     rp = Replayer(setup, ReplayState.initial(setup), where=plan.where, consume=True)
 
     def steps(done: list[tuple[Any, ChunkReplay]]) -> None:
@@ -147,6 +160,9 @@ def replay_passes(feed: ChunkFeed, plan: RunPlan, on_step: Callable[[ReplayStep]
             last[:] = [ad, out.inputs_source, out.inputs_detail]
             k0 = ch.start
             tracker.update(ad.prediction_error, t)
+            tau = np.abs(np.asarray(a.torque, dtype=np.float64))
+            if tau.size:
+                peak[:] = np.fmax(peak, np.max(np.where(np.isfinite(tau), tau, -np.inf), axis=0))
             for col, off in ((0, 0), (1, 1)):
                 hit = (gaps + off >= k0) & (gaps + off < k0 + t.shape[0])
                 gap_times[hit, col] = t[gaps[hit] + off - k0]
@@ -170,7 +186,8 @@ def replay_passes(feed: ChunkFeed, plan: RunPlan, on_step: Callable[[ReplayStep]
     if passes is not None:
         passes.next()
     assert last[0] is not None
-    return Replayed(wu, tracker.times_at(wu.index), gap_times, last[0], last[1], last[2])
+    peak[~np.isfinite(peak)] = np.nan
+    return Replayed(wu, tracker.times_at(wu.index), gap_times, last[0], last[1], last[2], peak)
 
 
 def warn_replayed(caught: CaughtWarnings, since: int, plan: RunPlan, feed: ChunkFeed,
@@ -229,11 +246,12 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         ctx = incident_context(joints, plan.full_joints, setup.robot,
                                None if plan.model is None else plan.model.to_dict(),
                                thr["static_loading"], scan.sample_period_s, scan.t0_ns,
-                               scan.n_samples, cfg.events.merge_gap_s, where)
+                               scan.n_samples, cfg.events.merge_gap_s, where, rp.torque_peak)
         ctx_msgs = caught.cut(since)
-        events, incidents = _events_and_incidents(islands, rp.warmup, joints, cfg, ctx)
+        events, incidents, loads = _events_and_incidents(islands, rp.warmup, joints, cfg, ctx)
         warn_events_after_gaps(where, rp.gap_times[:, 1], events)
         warn_long_events(where, events)
+        warn_implausible_forces(where, [*incidents, *loads])
         caught.paste(ctx_msgs)
         header = LogHeader(joints, scan.source, scan.n_samples, scan.t0_ns, scan.duration_s,
                            scan.sample_rate_hz, scan.sample_period_s)
@@ -256,7 +274,7 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         residual_generator=summary_name(plan.choices), read_options=dict(setup.read_options),
         generators=choices_dict(plan.choices, cfg.residual.logged_correction),
         joints_left_out=tuple(x.to_dict() for x in plan.left_out),
-        incidents=tuple(incidents), warnings=caught.messages(),
+        incidents=tuple(incidents), lasting_loads=tuple(loads), warnings=caught.messages(),
     )
 
 
@@ -271,7 +289,7 @@ def _detect_passes(
     made: list[_Compare] = []   # the comparison, once made (its islands closed on failure)
 
     def compare(thr: dict[str, np.ndarray]) -> _Compare:
-        made.append(_Compare(thr, plan.cfg, on_chunk, plan.joints))
+        made.append(_Compare(thr, plan.cfg, on_chunk, plan.joints, feed.scan.sample_period_s))
         return made[-1]
 
     margins: dict[str, np.ndarray] = {}
@@ -336,14 +354,17 @@ def uncalibrated_config(cfg: DetectorConfig, joints: tuple[str, ...],
 
 class _Compare:
     """Thresholds applied to the replay's steps, in order (module docstring): decisions
-    and ratios, the islands, the writers' chunks."""
+    and ratios, the residual's running level and noise (the link's evidence,
+    :class:`~impactcli.detect.link_evidence.ResidualNoise`), the islands, the writers'
+    chunks."""
 
     def __init__(self, thr: dict[str, np.ndarray], cfg: DetectorConfig,
                  on_chunk: Callable[[SignalsChunk], None] | None,
-                 joints: tuple[str, ...]) -> None:
+                 joints: tuple[str, ...], dt: float) -> None:
         self.thr, self.on_chunk, self.joints = thr, on_chunk, joints
         self.islands = Islands(cfg.events.merge_gap_s)
         self.pressing_at = BRIDGE_FRACTION * np.maximum(thr["static_loading"], 1e-12)
+        self.noise = ResidualNoise(len(joints), dt)
 
     def update(self, st: ReplayStep) -> None:
         k0, t = st.start, st.t
@@ -352,8 +373,10 @@ class _Compare:
         any_d = np.asarray(dec["adaptive"].any(axis=1) | dec["static_loading"].any(axis=1)
                            | dec["static_baseline"].any(axis=1))
         pressing = np.any(st.loading >= self.pressing_at[None, :], axis=1)
+        level, noise = self.noise.update(st.r)
         self.islands.update(k0, t, any_d, pressing, {
             "t": t, "r": st.r, "loading": st.loading, "qd": st.qd, "q_full": st.q_full,
+            "r_level": level, "r_noise": noise,
             **{f"d.{d}": dec[d] for d in DETECTORS}, **{f"x.{d}": ratios[d] for d in DETECTORS}})
         if self.on_chunk is not None:
             assert st.torque is not None and st.r_tilde is not None and st.v_dyn is not None
@@ -367,13 +390,14 @@ class _Compare:
 
 def _events_and_incidents(islands: Islands, wu: Warmup, joints: tuple[str, ...],
                           cfg: DetectorConfig, ctx: IncidentContext,
-                          ) -> tuple[list[Event], list[Incident]]:
-    """Every island's events (indices in the log, in timeline order) and incidents
-    (:func:`impactcli.detect.incident_builder.build_incidents`), each island read from its
-    files once."""
+                          ) -> tuple[list[Event], list[Incident], list[LastingLoad]]:
+    """Every island's events (indices in the log, in timeline order), incidents (numbered)
+    and lasting loads (:func:`impactcli.detect.incident_builder.build_findings`), each
+    island read from its files once."""
     ev = cfg.events
     events: list[Event] = []
     incidents: list[Incident] = []
+    loads: list[LastingLoad] = []
     for isl in islands.done:
         a = islands.arrays(isl)
         local: list[Event] = []
@@ -381,9 +405,12 @@ def _events_and_incidents(islands: Islands, wu: Warmup, joints: tuple[str, ...],
             local += extract_events(d, a[f"d.{d}"], a[f"x.{d}"], a["r"], a["t"], joints,
                                     wu.end_s, ev.merge_gap_s, ev.min_duration_s)
         local.sort(key=lambda e: (e.t_start, DETECTORS.index(e.detector)))
-        incidents += build_incidents(ctx, local, a["t"], a["r"], a["loading"], a["d.adaptive"],
-                                     a["d.static_loading"], a["q_full"], a["qd"],
-                                     offset=isl.start, event_offset=len(events))
+        incs, lds = build_findings(ctx, local, a["t"], a["r"], a["loading"], a["d.adaptive"],
+                                   a["d.static_loading"], a["q_full"], a["qd"],
+                                   offset=isl.start, event_offset=len(events),
+                                   level=a["r_level"], noise=a["r_noise"])
+        incidents += incs
+        loads += lds
         events += [dataclasses.replace(e, i_start=e.i_start + isl.start,
                                        i_end=e.i_end + isl.start) for e in local]
-    return events, incidents
+    return events, number_incidents(incidents), loads

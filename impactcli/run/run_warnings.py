@@ -139,6 +139,21 @@ def warn_events_after_gaps(where: str, after_s: np.ndarray, events: Sequence[Eve
                       ImpactWarning, stacklevel=3)
 
 
+def warn_implausible_forces(where: str, findings: Sequence[Any]) -> None:
+    """Warn once, naming the largest, when estimated forces (incidents' or lasting loads')
+    are beyond what the arm can exert (``force_plausible`` false: docs/incidents.md)."""
+    bad = [x for x in findings if x.force_plausible is False and x.force_n is not None]
+    if not bad:
+        return
+    x = max(bad, key=lambda y: y.force_n)
+    more = f" ({len(bad)} estimates are)" if len(bad) > 1 else ""
+    link = f"link {x.link}" if x.link is not None else "an unknown link"
+    warnings.warn(
+        f"{where}: estimated {x.force_n:,.0f} N at {link} ({x.t_start:.3f} s): beyond what "
+        f"the arm can exert{more}; positions in degrees? a wrong gear ratio or torque "
+        "constant?", ImpactWarning, stacklevel=3)
+
+
 def warn_long_events(where: str, events: Sequence[Any]) -> None:
     """Warn about product events after warm-up lasting LONG_EVENT_S or more."""
     long_ev = [e for e in events if not e.in_warmup and e.detector != "static_baseline"

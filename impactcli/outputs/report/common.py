@@ -22,8 +22,9 @@ from ...types import Event
 
 __all__ = ["PRODUCT_DETECTORS"]
 
-#: Version of the report's JSON twin (1.1: verdict, incidents and could_not_see per log).
-SCHEMA_VERSION = "1.1"
+#: Version of the report's JSON twin (1.1: verdict, incidents and could_not_see per log; 1.2:
+#: lasting loads, incident labels and force checks).
+SCHEMA_VERSION = "1.2"
 #: Each side of an event or labelled contact excluded from the false-alarm margin [s].
 GUARD_S = 0.5
 #: Half-width of the time added before and after each incident in its plots [s].

@@ -124,7 +124,8 @@ def summary_row(sec: dict[str, Any]) -> dict[str, Any]:
         "online_equivalent": sec["replay"]["online_equivalent"],
         "reference_source": sec["replay"]["reference_source"],
         "verdict": sec["verdict"],
-        "incidents": {**incident_counts(sec["incidents"]), "known": sec["incidents_known"]},
+        "incidents": {**incident_counts(sec["incidents"], sec.get("lasting_loads") or []),
+                      "known": sec["incidents_known"]},
         "could_not_see": [c["code"] for c in sec["could_not_see"]],
         "events": sec["summary"],
         "worst_margin": {d: w["max_ratio"] for d, w in sec["false_alarm_margin"]["worst"].items()},
@@ -166,12 +167,18 @@ HOW_TO_READ = (
     "of the alarms of its two detectors that overlap or follow each other closely. For each: "
     "when it started (seconds since the log's first sample, and the clock time when the log's "
     "clock is Unix time), where (the link, numbered from the base along the robot's chain: "
-    "the most distal joint whose own detectors fired), how hard (the force at the end of that "
-    "link from the residual torques through the Jacobian, when the kinematics are known; "
-    "else the peak residual torques), what kind (transient — a collision the body can recoil "
+    "the most distal joint whose detectors fired or whose residual stands out of its own "
+    "noise; the links the residuals cannot tell apart are named), how hard (the force at the "
+    "end of that link from the residual torques through the Jacobian, when the kinematics "
+    "are known, marked when it is beyond what the arm can exert; else the peak residual "
+    "torques), what kind (transient — a collision the body can recoil "
     "from — or quasi-static — clamping, pressing while still — in the sense of ISO/TS 15066), "
-    "which detectors fired and how far above their thresholds. Incidents in the warm-up are "
-    "listed, never counted. Then what the audit could not see, the caveats, plots around "
+    "which detectors fired and how far above their thresholds. The counted incidents are "
+    "numbered 1, 2, … as <code>detect</code> prints them; those in the warm-up (w1, w2, …) "
+    "are listed, never counted, and an incident never spans the warm-up's end. A "
+    "<i>lasting load</i> — an alarm of 10 s or more: an unknown payload, a clamp, or a model "
+    "that no longer fits — is a finding of its own, counted beside the incidents. Then what "
+    "the audit could not see, the caveats, plots around "
     "each incident, and what was analysed with what.</p><p>impactcli replays, offline and "
     "causally, the adaptive impact detector of Makarov et al. (2014): a residual r = τ̂ − τ "
     "from a rough rigid model (eq. 7) is whitened by an RLS-estimated filter G(z) and "

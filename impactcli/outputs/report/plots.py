@@ -125,8 +125,8 @@ def incident_figures(result: DetectionResult, incidents: Sequence[dict[str, Any]
         fig = _figure(result, samples, joints, inc["t_start"] - EVENT_WINDOW_S,
                       inc["t_end"] + EVENT_WINDOW_S, labels, ids)
         p.append(
-            f'<figure id="{anchor}-inc{inc["number"]}"><figcaption><b>Incident '
-            f'{inc["number"]}</b>: {inc["t_start"]:.3f}–{inc["t_end"]:.3f} s, {e(where)}, '
+            f'<figure id="{anchor}-inc{inc["label"]}"><figcaption><b>Incident '
+            f'{inc["label"]}</b>: {inc["t_start"]:.3f}–{inc["t_end"]:.3f} s, {e(where)}, '
             f'{e(how)}, {e(inc.get("contact"))}'
             + (", in warm-up (not counted)" if inc.get("in_warmup") else "")
             + f"; events {e(evs)} of the event table.</figcaption>"

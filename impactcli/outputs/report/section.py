@@ -33,7 +33,13 @@ from .margins import false_alarm_margins
 from .plots import alarm_figures, incident_figures, whole_log_figures
 from .quality import evaluate, quality_html
 from .samples import Samples
-from .summary import incident_rows, incident_table_html, incidents_known, verdict_text
+from .summary import (
+    incident_rows,
+    incident_table_html,
+    incidents_known,
+    lasting_table_html,
+    verdict_text,
+)
 from .unseen import chain_of, could_not_see, could_not_see_html
 
 
@@ -61,7 +67,8 @@ def log_section(result: DetectionResult, labels: Labels | None,
     sec["incidents_known"] = known
     counted_alarms = sum(1 for ev in events if ev["detector"] in ("adaptive", "static_loading")
                          and not ev["in_warmup"])
-    sec["verdict"] = verdict_text(incidents, known=known, alarms_counted=counted_alarms)
+    sec["verdict"] = verdict_text(incidents, known=known, alarms_counted=counted_alarms,
+                                  lasting_loads=tl["lasting_loads"])
     sec["could_not_see"] = could_not_see(result, incidents, known=known, origin=origin,
                                          samples=samples)
     sec["false_alarm_margin"] = false_alarm_margins(result, labels, samples=samples)
@@ -181,6 +188,7 @@ def section_html(num: str, result: DetectionResult, sec: dict[str, Any],
                  "see the caveats below before relying on this answer.</p>")
     if incidents:
         p.append(incident_table_html(incidents, anchor, MAX_EVENT_FIGURES))
+    p.append(lasting_table_html(sec.get("lasting_loads") or [], anchor))
     p.append(_events_html(sec, anchor, open_=not known))
     p.append(could_not_see_html(sec["could_not_see"], anchor))
     p.append(_caveats_html(sec))

@@ -6,9 +6,12 @@ An *incident* is one physical contact as the product sees it (docs/formats.md,
 (``force_n``, or without kinematics the peak residual torques), what kind (``contact``),
 which detectors. The report adds only reductions of the incident's own events: its
 ``peak_ratio`` (the largest statistic / threshold among its events) and the detector that
-reached it.
+reached it, and its ``label`` — its number (1, 2, … over the counted incidents, as the
+terminal prints them) or ``w1``, ``w2``, … in the warm-up.
 
-Incidents that start in the warm-up are listed, never counted (as events are).
+Incidents in the warm-up are listed, never counted (as events are). A lasting load (an alarm
+of 10 s or more, timeline ``lasting_loads``) is a finding of its own: the verdict names it
+(:func:`lasting_text`) and it is counted beside the incidents.
 """
 
 from __future__ import annotations
@@ -22,17 +25,50 @@ CONTACT_ORDER = ("transient", "quasi_static", "unknown")
 
 
 def incident_rows(tl: dict[str, Any], period_s: float) -> list[dict[str, Any]]:
-    """The timeline's incidents, each with ``number`` (1-based), ``duration_s``,
+    """The timeline's incidents, each with ``number`` (1, 2, … over the counted incidents in
+    time order — the timeline's own, or counted here for a timeline before 2.1 — None in the
+    warm-up), ``label`` (the number, or ``w1``, ``w2``, … in the warm-up), ``duration_s``,
     ``peak_ratio`` and ``peak_ratio_detector`` (over its events)."""
     events = tl.get("events") or []
     out = []
-    for n, inc in enumerate(tl.get("incidents") or [], 1):
+    counted = warm = 0
+    for inc in tl.get("incidents") or []:
         evs = [events[k] for k in inc.get("events") or [] if 0 <= k < len(events)]
         top = max(evs, key=lambda x: x["peak_ratio"], default=None)
-        out.append({**inc, "number": n, "duration_s": inc["t_end"] - inc["t_start"] + period_s,
+        if inc.get("in_warmup"):
+            warm += 1
+            number, label = None, f"w{warm}"
+        else:
+            counted += 1
+            number = inc.get("number") or counted
+            label = str(number)
+        out.append({**inc, "number": number, "label": label,
+                    "duration_s": inc["t_end"] - inc["t_start"] + period_s,
                     "peak_ratio": None if top is None else top["peak_ratio"],
                     "peak_ratio_detector": None if top is None else top["detector"]})
     return out
+
+
+LASTING_WHY = "an unknown payload, a clamp, or a model that no longer fits"
+
+
+def lasting_text(loads: Sequence[dict[str, Any]]) -> str:
+    """The verdict's words for the counted lasting loads, e.g. ``lasting load from 6.5 s
+    (to the log's end) on joints j2, j3, up to 14× its threshold: an unknown payload, a
+    clamp, or a model that no longer fits``; "" when there is none."""
+    parts = []
+    for x in loads:
+        end = (" (to the log's end)" if x.get("ends_with_log")
+               else f" to {x['t_end']:.1f} s")
+        force = (f", ~{approx(x['force_n'])} N at link {x['link']}"
+                 if x.get("force_n") is not None and x.get("force_plausible") is not False
+                 else "")
+        parts.append(f"from {x['t_start']:.1f} s{end} on joints {', '.join(x['joints'])}, "
+                     f"up to {approx(x['peak_ratio'])}× its threshold{force}")
+    if not parts:
+        return ""
+    head = "lasting load " if len(parts) == 1 else f"{len(parts)} lasting loads: "
+    return head + "; ".join(parts) + f": {LASTING_WHY}"
 
 
 def incidents_known(result_incidents: int, events: Sequence[dict[str, Any]]) -> bool:
@@ -93,15 +129,18 @@ def _how_hard(group: Sequence[dict[str, Any]], clock: tuple[str, bool] | None) -
 
 
 def verdict_text(incidents: Sequence[dict[str, Any]], *, known: bool = True,
-                 alarms_counted: int = 0) -> str:
+                 alarms_counted: int = 0,
+                 lasting_loads: Sequence[dict[str, Any]] = ()) -> str:
     """The log's answer in one line, e.g. ``3 incidents: 2 transient on link 2, ~25 N and
     ~40 N; 1 quasi-static on link 1, ~60 N.`` — clock times when the log's clock is an
-    epoch; ``No incident after warm-up.`` when none counts.
+    epoch; ``No incident after warm-up.`` when none counts; the counted lasting loads
+    after the incidents (first when there is no incident), in :func:`lasting_text`'s words.
 
     Args:
         incidents: the log's incidents (timeline dicts), in time order.
         known: False for a run that records no incidents though its product detectors
             fired (made before incidents existed); ``alarms_counted`` then says how many.
+        lasting_loads: the log's lasting loads (timeline dicts).
     """
     if not known:
         s = "" if alarms_counted == 1 else "s"
@@ -111,7 +150,10 @@ def verdict_text(incidents: Sequence[dict[str, Any]], *, known: bool = True,
     counted = [i for i in incidents if not i.get("in_warmup")]
     warm = len(incidents) - len(counted)
     tail = f" (+{warm} in the warm-up, not counted)" if warm else ""
+    loads = lasting_text([x for x in lasting_loads if not x.get("in_warmup")])
     if not counted:
+        if loads:
+            return f"{loads[0].upper()}{loads[1:]}; no incident after warm-up{tail}."
         return f"No incident after warm-up{tail}."
     clock = _clock(counted)
     groups: dict[tuple[str, int | None], list[dict[str, Any]]] = {}
@@ -133,18 +175,28 @@ def verdict_text(incidents: Sequence[dict[str, Any]], *, known: bool = True,
     head = f"{n} incident{'s' if n != 1 else ''}"
     if clock:
         head += f" on {clock[0]} (UTC)" if clock[1] else " (UTC)"
-    return f"{head}: {'; '.join(parts)}{tail}."
+    also = f"; and a {loads}" if loads.startswith("lasting load ") else (
+        f"; and {loads}" if loads else "")
+    bad = sum(1 for i in counted if i.get("force_plausible") is False)
+    units = ("" if not bad else
+             f" {'One estimated force is' if bad == 1 else f'{bad} estimated forces are'}"
+             " beyond what the arm can exert: positions in degrees? a wrong gear ratio or "
+             "torque constant?")
+    return f"{head}: {'; '.join(parts)}{tail}{also}.{units}"
 
 
-def incident_counts(incidents: Sequence[dict[str, Any]]) -> dict[str, Any]:
-    """Counted incidents, in warm-up, per contact type, the largest force [N] (or None)."""
+def incident_counts(incidents: Sequence[dict[str, Any]],
+                    lasting_loads: Sequence[dict[str, Any]] = ()) -> dict[str, Any]:
+    """Counted incidents, in warm-up, per contact type, the largest force [N] (or None),
+    and the counted lasting loads."""
     counted = [i for i in incidents if not i.get("in_warmup")]
     forces = [i["force_n"] for i in counted if i.get("force_n") is not None]
     by: dict[str, int] = {}
     for i in counted:
         by[i.get("contact") or "unknown"] = by.get(i.get("contact") or "unknown", 0) + 1
     return {"counted": len(counted), "in_warmup": len(incidents) - len(counted),
-            "by_contact": by, "max_force_n": max(forces, default=None)}
+            "by_contact": by, "max_force_n": max(forces, default=None),
+            "lasting_loads": sum(1 for x in lasting_loads if not x.get("in_warmup"))}
 
 
 # --------------------------------------------------------------------------- HTML
@@ -157,11 +209,12 @@ def _torques(inc: dict[str, Any]) -> str:
 
 def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: int) -> str:
     """The incident list: when, where, how hard, what kind, which detectors, how far above
-    threshold; each row links to its plots (the first ``plotted`` incidents have one)."""
+    threshold; each row links to its plots (the first ``plotted`` incidents have one). Rows
+    are named by ``label``: the counted incidents' numbers, ``w1``… in the warm-up."""
     clock = any(r.get("t_start_utc") for r in rows)
     body = []
-    for r in rows:
-        n = r["number"]
+    for pos, r in enumerate(rows, 1):
+        n = r["label"]
         when = f'{r["t_start"]:.3f} s'
         t = utc(r.get("t_start_utc"))
         if clock and t is not None:
@@ -171,10 +224,17 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
             when += ' <span class="note">warm-up: not counted</span>'
         force = (f'<b>~{approx(r["force_n"])} N</b>' if r.get("force_n") is not None
                  else '<span class="muted">no force estimate</span>')
+        if r.get("force_plausible") is False:
+            force += (' <span class="bad">implausible: '
+                      f'{e(r.get("force_check") or "beyond what the arm can exert")}</span>')
         link = f'link {r["link"]}' if r.get("link") is not None else "link unknown"
+        if r.get("link_candidates") and len(r["link_candidates"]) > 1:
+            link += (' <span class="note">(or link '
+                     + " or ".join(str(c) for c in r["link_candidates"] if c != r.get("link"))
+                     + ": the residuals cannot tell)</span>")
         ratio = ("—" if r.get("peak_ratio") is None else
                  f'{r["peak_ratio"]:.1f}× <span class="note">{e(r["peak_ratio_detector"])}</span>')
-        plot = f'<a href="#{anchor}-inc{n}">plot</a>' if n <= plotted else ""
+        plot = f'<a href="#{anchor}-inc{n}">plot</a>' if pos <= plotted else ""
         cls = ' class="warmup"' if r.get("in_warmup") else ""
         body.append(
             f'<tr{cls} id="{anchor}-row{n}"><td class="num">{n}</td><td class="num">{when}</td>'
@@ -184,11 +244,12 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
             f'<td>{e(", ".join(r.get("detectors") or []))}</td><td class="num">{ratio}</td>'
             f"<td>{plot}</td></tr>")
     methods: dict[str, list[int]] = {}
-    for r in rows:
-        methods.setdefault(r.get("force_method") or "—", []).append(r["number"])
+    for pos, r in enumerate(rows):
+        methods.setdefault(r.get("force_method") or "—", []).append(pos)
+    labels = [str(r["label"]) for r in rows]
     notes = "".join(
-        f"<li>{e(m)} (incident{'s' if len(ns) > 1 else ''} {e(_ranges(ns))})</li>"
-        for m, ns in methods.items())
+        f"<li>{e(m)} (incident{'s' if len(ps) > 1 else ''} {e(_ranges(ps, labels))})</li>"
+        for m, ps in methods.items())
     return (
         f'<div class="wide"><table class="incidents" id="{anchor}-incidents"><thead><tr>'
         '<th class="num">#</th><th class="num">when (since log start)</th>'
@@ -201,15 +262,46 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
         f'<ul class="tight">{notes}</ul></div>')
 
 
-def _ranges(ns: Sequence[int]) -> str:
-    """``1–3, 5`` from sorted numbers."""
+def lasting_table_html(loads: Sequence[dict[str, Any]], anchor: str) -> str:
+    """The lasting loads (alarms of 10 s or more, each a finding of its own): when, which
+    detector on which joints, how far above threshold, where and how hard; "" when none."""
+    if not loads:
+        return ""
+    body = []
+    for k, x in enumerate(loads, 1):
+        end = "the log's end" if x.get("ends_with_log") else f'{x["t_end"]:.3f} s'
+        warm = ' <span class="note">warm-up: not counted</span>' if x.get("in_warmup") else ""
+        link = f'link {x["link"]}' if x.get("link") is not None else "link unknown"
+        force = (f'~{approx(x["force_n"])} N' if x.get("force_n") is not None
+                 else '<span class="muted">no force estimate</span>')
+        if x.get("force_plausible") is False:
+            force += (' <span class="bad">implausible: '
+                      f'{e(x.get("force_check") or "beyond what the arm can exert")}</span>')
+        cls = ' class="warmup"' if x.get("in_warmup") else ""
+        body.append(
+            f'<tr{cls} id="{anchor}-load{k}"><td class="num">L{k}</td>'
+            f'<td class="num">{x["t_start"]:.3f} s to {end}{warm}</td>'
+            f'<td>{e(x["detector"])} on {e(", ".join(x["joints"]))}</td>'
+            f'<td class="num">{x["peak_ratio"]:.1f}×</td><td><b>{link}</b></td>'
+            f"<td>{force}</td></tr>")
+    return (
+        f'<div class="wide"><table class="incidents" id="{anchor}-lasting"><thead><tr>'
+        '<th class="num">#</th><th class="num">lasting load</th><th>detector, joints</th>'
+        '<th class="num">peak / threshold</th><th>where</th><th>how hard (peak)</th>'
+        f'</tr></thead>{"".join(body)}</table></div>'
+        f'<div class="small muted">A lasting load is an alarm of 10 s or more: '
+        f"{LASTING_WHY}. It is counted beside the incidents and absorbs none of them.</div>")
+
+
+def _ranges(ps: Sequence[int], labels: Sequence[str]) -> str:
+    """``1–3, 5`` from sorted row positions, by their labels (runs of consecutive rows)."""
     out: list[str] = []
-    start = prev = ns[0]
-    for n in [*ns[1:], None]:
+    start = prev = ps[0]
+    for n in [*ps[1:], None]:
         if n is not None and n == prev + 1:
             prev = n
             continue
-        out.append(str(start) if start == prev else f"{start}–{prev}")
+        out.append(labels[start] if start == prev else f"{labels[start]}–{labels[prev]}")
         if n is not None:
             start = prev = n
     return ", ".join(out)
