@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
@@ -14,6 +15,49 @@ from .options import (
     read_options_from,
     robot_help,
 )
+
+if TYPE_CHECKING:
+    from ..run.calibration import Calibrated
+
+
+def threshold_lines(done: Calibrated) -> list[str]:
+    """What calibrate prints after the model: per joint its generator and thresholds; the
+    rate's fit per joint and detector, its support and leave-one-log-out rows; the motion
+    envelope."""
+    out = done.config
+    c, th, gens = out.calibration, out.thresholds, out.residual.generators
+    rate = done.rate is not None
+    head = ("v0 margin" if rate else "margins (adaptive/loading/baseline)")
+    lines = [f"{'joint':<16} {'generator':<17} {'v_stat':>9} {'vL':>9} {'v0':>9}   {head}"]
+    for j in th.v_stat:
+        dets = ("static_baseline",) if rate else ("adaptive", "static_loading",
+                                                  "static_baseline")
+        m = [c.margins.get(d, {}).get(j) for d in dets]
+        lines.append(f"{j:<16} {gens.get(j, '?'):<17} {th.v_stat[j]:>9.4f} {th.vL[j]:>9.4f} "
+                     f"{th.v0[j]:>9.4f}   "
+                     + " / ".join("—" if x is None else f"{x:.2f}" for x in m))
+    if done.rate is not None:
+        lines += done.rate.lines()
+    if done.lolo:
+        lines.append("leave-one-log-out (calibrated on the other logs; rates a few minutes "
+                     "can show):")
+        lines.append(f"  {'log':<40} {'min':>5} {'R [1/h]':>8} {'observed':>9} "
+                     f"{'obs. [1/h]':>10} {'90 % interval':>17} {'predicted':>9} {'bound':>7}")
+        conf = done.rate.conf if done.rate is not None else 0.9
+        for r in done.lolo:
+            lo, hi = r.interval(conf)
+            name = Path(done.log_paths[r.log]).name
+            lines.append(f"  {name:<40.40} {r.hours * 60:>5.2f} {r.rate:>8g} {r.observed:>9d} "
+                         f"{r.observed / r.hours:>10.3g} {f'{lo:.3g}–{hi:.3g}':>17} "
+                         f"{r.predicted:>9.3g} {r.upper:>7.3g}")
+        lines.append("  (a log observed above its bound moves unlike the others: its motion "
+                     "is not in their envelope)")
+    if done.envelope is not None:
+        src = {"position_ref": "reference", "position": "measured position"}
+        lines.append(f"motion envelope ({src.get(done.envelope.source, done.envelope.source)}"
+                     f", {done.envelope.samples} samples): a rate holds for motion inside it")
+        lines += done.envelope.lines()
+    return lines
 
 
 def _labels_for(logs: tuple[Path, ...], given: tuple[Path, ...]) -> list:  # type: ignore[type-arg]
@@ -43,6 +87,22 @@ def _labels_for(logs: tuple[Path, ...], given: tuple[Path, ...]) -> list:  # typ
               help="Labels of contacts in the LOGS (one per log, or named <stem>.labels.json): "
                    "their stretches are left out [default: <stem>.labels.json beside each "
                    "log, when present].")
+@click.option("--false-alarms-per-hour", "rate", type=click.FloatRange(min=0, min_open=True),
+              metavar="R",
+              help="False alarms per hour (incidents of the product's detectors after "
+                   "warm-up, all joints together) the thresholds are set for: the upper "
+                   "bound of the predicted rate, at --confidence, is R. Where the free logs "
+                   "are too short to support R, the thresholds are widened and calibrate "
+                   "says how many minutes of free motion R needs [default: 1].")
+@click.option("--confidence", type=click.FloatRange(min=0.5, max=1.0, max_open=True),
+              default=0.9, show_default=True,
+              help="One-sided confidence of the rate's upper bound.")
+@click.option("--threshold-rule", type=click.Choice(["false-alarm-rate", "leave-one-out"]),
+              default="false-alarm-rate", show_default=True,
+              help="How v_stat and vL are set: for the false-alarm rate R, or by the older "
+                   "leave-one-out margin over the free logs' maxima (no stated rate; kept "
+                   "to compare with and for configs made by it). v0 (static_baseline, a "
+                   "comparison detector) always follows leave-one-out.")
 @click.option("--keep-suspect", is_flag=True,
               help="Keep stretches that alone would set a threshold (likely contacts; "
                    "left out by default, with a warning).")
@@ -55,23 +115,30 @@ def _labels_for(logs: tuple[Path, ...], given: tuple[Path, ...]) -> list:  # typ
                    "refused before the model is identified (exit 2).")
 @handle_errors
 def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, model: Path | None,
-                  base_config: Path | None, labels_paths: tuple[Path, ...], keep_suspect: bool,
+                  base_config: Path | None, labels_paths: tuple[Path, ...], rate: float | None,
+                  confidence: float, threshold_rule: str, keep_suspect: bool,
                   generator: str | None, channel_map: str | None,
                   topic: str | None, reference_topic: str | None, time_source: str | None,
                   torque_source: str | None, allow_slow: bool = False) -> None:
-    """Set v_stat, vL and v0 per joint so that the collision-free LOGS raise no alarm.
+    """Set v_stat, vL and v0 per joint from the collision-free LOGS.
 
-    With two or more logs the margin over the statistic's maximum is chosen by
-    leave-one-out (the smallest margin for which every log left out stays silent);
-    with one log a fixed 1.5× margin is used and the calibration is flagged weak.
-    Give logs that cover the motions the robot really makes: thresholds calibrated on
-    one motion family false-alarm on another.
+    By default v_stat and vL are set for a false-alarm rate: the tail of each joint's and
+    detector's statistic on the free logs (peaks over a level, declustered as incidents
+    are, fitted by a generalized Pareto tail) gives the threshold whose predicted rate's
+    upper bound, over all joints and both detectors, is --false-alarms-per-hour (1 per
+    hour). calibrate prints per joint the threshold, its fit, predicted rate and bound,
+    what the free minutes support, and, with two or more logs, each log left out against
+    the others' prediction. The rate holds for motion like the free logs': the config
+    records their motion envelope, and thresholds calibrated on one motion family
+    false-alarm on another.
 
-    Long logs are cut into 30 s segments after warm-up, so leave-one-out works on one long
-    log too. Contacts labelled in <stem>.labels.json beside a log (or --labels) are left out;
-    in a log without labels, a stretch that alone would set a threshold far above all the
-    others (> 20× the median second) is reported as a likely contact and left out
-    (--keep-suspect keeps it).
+    v0 (and, with --threshold-rule leave-one-out, every threshold): the margin over the
+    statistic's maximum chosen by leave-one-out over the logs (the smallest margin for
+    which every log left out stays silent); with one log a fixed 1.5× margin, flagged weak.
+    Long logs are cut into 30 s segments for it. Contacts labelled in <stem>.labels.json
+    beside a log (or --labels) are left out; in a log without labels, a stretch that alone
+    would set a threshold far above all the others (> 20× the median second) is reported
+    as a likely contact and left out (--keep-suspect keeps it).
 
     Each joint's residual generator is frozen in the config (thresholds belong to the
     generator they were made with): with --generator auto (the default for a new config)
@@ -84,11 +151,15 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     from ..logs import read_log
     from ..logs.robot_files import read_robot
     from ..model import read_model
-    from ..run.calibration import calibrate
+    from ..run.calibration import RATE_RULE, calibrate_run
 
     if out_path.suffix.lower() not in (".toml", ".yaml", ".yml", ".json"):
         raise click.BadParameter(f"{str(out_path)!r}: a config is written as .toml, .yaml or "
                                  ".json — name the file with one of these", param_hint="'-o'")
+    if rate is not None and threshold_rule != RATE_RULE:
+        raise click.BadParameter("--false-alarms-per-hour sets thresholds for a rate; "
+                                 f"--threshold-rule {threshold_rule} has none",
+                                 param_hint="'--false-alarms-per-hour'")
     prepare_output(out_path)  # a bad -o stops the run before any work
     robot_d = read_robot(robot) if robot else None
     model_m = read_model(model) if model else None
@@ -105,8 +176,14 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     for p, lab in zip(logs, labels, strict=True):
         if lab is not None and lab.events:
             click.echo(f"{p}: {len(lab.events)} labelled contact(s) left out ({lab.path})")
-    out = calibrate(read, model=model_m, config=cfg, robot=robot_d, generator=generator,
-                    labels=labels, drop_suspect=not keep_suspect, allow_slow=allow_slow)
+    from ..detect.tail import DEFAULT_FALSE_ALARMS_PER_HOUR
+
+    done = calibrate_run(read, model=model_m, config=cfg, robot=robot_d, generator=generator,
+                         labels=labels, drop_suspect=not keep_suspect, allow_slow=allow_slow,
+                         threshold_rule=threshold_rule, confidence=confidence,
+                         false_alarms_per_hour=DEFAULT_FALSE_ALARMS_PER_HOUR if rate is None
+                         else rate)
+    out = done.config
     save_config(out, out_path)
     c = out.calibration
     weak = " (weak: add collision-free logs covering the robot's motions)" if c.weak else ""
@@ -121,8 +198,10 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
         what = f"model {kind} ({source}) of what the controller's channels leave out"
     else:
         what = f"model {kind} ({source})"
+    rule = (f"v_stat and vL for {done.rate.rate:g} false alarm(s) per hour, v0 by "
+            f"{c.margin_rule}" if done.rate is not None else f"rule {c.margin_rule}")
     click.echo(f"calibrated on {len(read)} log(s) ({c.segments} stretch(es) of collision-free "
-               f"motion), rule {c.margin_rule}{weak}; {what}")
+               f"motion), {rule}{weak}; {what}")
     if kind == "decoupled" and robot_d is None and model_m is None and out.model is not None:
         click.echo("impactcli: warning: no --robot: the model is 'decoupled' (each joint "
                    "alone, no kinematics); a robot description with kinematics gives the "
@@ -132,11 +211,5 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
         from .fit_table import format_fit_table
 
         click.echo(format_fit_table(RigidModel.from_dict(out.model)))
-    click.echo(f"{'joint':<16} {'generator':<17} {'v_stat':>9} {'vL':>9} {'v0':>9}   "
-               "margins (adaptive/loading/baseline)")
-    th = out.thresholds
-    for j in th.v_stat:
-        m = [c.margins[d][j] for d in ("adaptive", "static_loading", "static_baseline")]
-        click.echo(f"{j:<16} {gens.get(j, '?'):<17} {th.v_stat[j]:>9.4f} {th.vL[j]:>9.4f} "
-                   f"{th.v0[j]:>9.4f}   " + " / ".join(f"{x:.2f}" for x in m))
+    click.echo("\n".join(threshold_lines(done)))
     click.echo(f"wrote {out_path}")
