@@ -104,7 +104,7 @@ def calibrate_run(
     config: DetectorConfig | None = None, robot: RobotDescription | None = None,
     generator: str | None = None, labels: Sequence[Labels | None] | None = None,
     drop_suspect: bool = True, allow_slow: bool = False,
-    threshold_rule: str = RATE_RULE,
+    threshold_rule: str = MARGIN_RULE,
     false_alarms_per_hour: float = DEFAULT_FALSE_ALARMS_PER_HOUR, confidence: float = CONF,
 ) -> Calibrated:
     """Thresholds v_stat, vL, v0 per joint from collision-free logs (docs/method.md §5b).
@@ -115,15 +115,17 @@ def calibrate_run(
     without labels, stretches that alone would set a product detector's threshold: warned
     about as likely contacts and, with ``drop_suspect``, left out) give the thresholds:
 
-    - ``threshold_rule`` ``false-alarm-rate`` (default): v_stat and vL from the tail fits
+    - ``threshold_rule`` ``false-alarm-rate`` (the ``calibrate`` command's default; here
+      explicit, so that the library's callers — the sensitivity study, the benchmarks —
+      keep the rule they were measured with): v_stat and vL from the tail fits
       of the whole free logs (:func:`impactcli.detect.tail.calibrate_rate`): the upper
       ``confidence`` bound of the predicted incident rate, over all joints and both
       product detectors, is ``false_alarms_per_hour``; below what the free time supports
       the thresholds are widened and the record says so. v0 (static_baseline) by the
       leave-one-out margin. With ≥ 2 logs, leave-one-log-out rows (predicted against
       observed, at :data:`LOLO_RATES`).
-    - ``leave-one-out``: every threshold by the leave-one-out margin over 30 s segments
-      (≥ 2 segments) or a fixed margin (1, flagged weak)
+    - ``leave-one-out`` (default here): every threshold by the leave-one-out margin over
+      30 s segments (≥ 2 segments) or a fixed margin (1, flagged weak)
       (:mod:`impactcli.detect.thresholds`).
 
     The motion envelope of the kept samples is recorded either way
