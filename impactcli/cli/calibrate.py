@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import click
 
@@ -17,46 +18,77 @@ from .options import (
 )
 
 if TYPE_CHECKING:
-    from ..run.calibration import Calibrated
+    from ..config import DetectorConfig
 
 
-def threshold_lines(done: Calibrated) -> list[str]:
-    """What calibrate prints after the model: per joint its generator and thresholds; the
-    rate's fit per joint and detector, its support and leave-one-log-out rows; the motion
-    envelope."""
-    out = done.config
+def threshold_lines(out: DetectorConfig) -> list[str]:
+    """What calibrate prints after the model, read from the config it wrote: per joint its
+    generator and thresholds; the rate's fit per joint and detector, what the free minutes
+    support and the leave-one-log-out rows; the motion envelope."""
     c, th, gens = out.calibration, out.thresholds, out.residual.generators
-    rate = done.rate is not None
-    head = ("v0 margin" if rate else "margins (adaptive/loading/baseline)")
+    rate = c.false_alarm_rate
+    head = "v0 margin" if rate else "margins (adaptive/loading/baseline)"
     lines = [f"{'joint':<16} {'generator':<17} {'v_stat':>9} {'vL':>9} {'v0':>9}   {head}"]
+    dets = ("static_baseline",) if rate else ("adaptive", "static_loading", "static_baseline")
     for j in th.v_stat:
-        dets = ("static_baseline",) if rate else ("adaptive", "static_loading",
-                                                  "static_baseline")
         m = [c.margins.get(d, {}).get(j) for d in dets]
         lines.append(f"{j:<16} {gens.get(j, '?'):<17} {th.v_stat[j]:>9.4f} {th.vL[j]:>9.4f} "
                      f"{th.v0[j]:>9.4f}   "
                      + " / ".join("—" if x is None else f"{x:.2f}" for x in m))
-    if done.rate is not None:
-        lines += done.rate.lines()
-    if done.lolo:
+    if rate:
+        lines += rate_lines(rate)
+    env = c.motion_envelope
+    if env:
+        from ..detect.envelope import MotionEnvelope
+
+        src = {"position_ref": "reference", "position": "measured position"}
+        lines.append(f"motion envelope ({src.get(env['source'], env['source'])}, "
+                     f"{env['samples']} samples): a rate holds for motion inside it")
+        lines += MotionEnvelope.from_dict(env).lines()
+    return lines
+
+
+def rate_lines(rate: dict[str, Any]) -> list[str]:
+    """The rate's record as calibrate prints it: totals, one line per joint and detector
+    (threshold, fit, predicted rate and bound), the support statement, notes, and the
+    leave-one-log-out rows."""
+    conf = float(rate["confidence"])
+    pct = f"{100 * conf:.0f} %"
+    lines = [f"false alarms per hour: asked {rate['per_hour']:g}; predicted "
+             f"{rate['predicted_per_hour']:.2g}, upper bound {rate['upper_per_hour']:.2g} at "
+             f"{pct} confidence, on {rate['free_minutes']:.1f} min of free motion"]
+    for det, per in rate.get("channels", {}).items():
+        for j, ch in per.items():
+            tag = (" (widened)" if ch.get("widened") else
+                   " (log-start floor)" if ch.get("log_start_floor") else "")
+            shape = ("exponential" if ch.get("shape") == "exponential"
+                     else f"GPD ξ={ch.get('xi', 0.0):.2f}")
+            lines.append(f"  {j + '/' + det:28s} threshold {ch['threshold']:.4g}{tag}: free max "
+                         f"{ch.get('free_max', math.nan):.4g}, u {ch.get('level', math.nan):.4g}, "
+                         f"{ch.get('clusters', 0)} clusters, {shape}, σ "
+                         f"{ch.get('sigma', math.nan):.3g}; rate "
+                         f"{ch['predicted_per_hour']:.2g}/h, bound {ch['upper_per_hour']:.2g}/h")
+    if rate.get("statement"):
+        lines.append("  " + rate["statement"])
+    lines += [f"  note: {n}" for n in rate.get("notes", [])]
+    rows = rate.get("leave_one_log_out") or []
+    if rows:
+        from ..detect.tail import poisson_interval
+
         lines.append("leave-one-log-out (calibrated on the other logs; rates a few minutes "
                      "can show):")
         lines.append(f"  {'log':<40} {'min':>5} {'R [1/h]':>8} {'observed':>9} "
-                     f"{'obs. [1/h]':>10} {'90 % interval':>17} {'predicted':>9} {'bound':>7}")
-        conf = done.rate.conf if done.rate is not None else 0.9
-        for r in done.lolo:
-            lo, hi = r.interval(conf)
-            name = Path(done.log_paths[r.log]).name
-            lines.append(f"  {name:<40.40} {r.hours * 60:>5.2f} {r.rate:>8g} {r.observed:>9d} "
-                         f"{r.observed / r.hours:>10.3g} {f'{lo:.3g}–{hi:.3g}':>17} "
-                         f"{r.predicted:>9.3g} {r.upper:>7.3g}")
+                     f"{'obs. [1/h]':>10} {pct + ' interval':>17} {'predicted':>9} "
+                     f"{'bound':>7}")
+        for r in rows:
+            hours = r["minutes"] / 60.0
+            lo, hi = poisson_interval(int(r["observed"]), hours, conf)
+            lines.append(f"  {Path(r['log']).name:<40.40} {r['minutes']:>5.2f} "
+                         f"{r['per_hour']:>8g} {r['observed']:>9d} "
+                         f"{r['observed'] / hours:>10.3g} {f'{lo:.3g}–{hi:.3g}':>17} "
+                         f"{r['predicted_per_hour']:>9.3g} {r['upper_per_hour']:>7.3g}")
         lines.append("  (a log observed above its bound moves unlike the others: its motion "
                      "is not in their envelope)")
-    if done.envelope is not None:
-        src = {"position_ref": "reference", "position": "measured position"}
-        lines.append(f"motion envelope ({src.get(done.envelope.source, done.envelope.source)}"
-                     f", {done.envelope.samples} samples): a rate holds for motion inside it")
-        lines += done.envelope.lines()
     return lines
 
 
@@ -151,7 +183,8 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     from ..logs import read_log
     from ..logs.robot_files import read_robot
     from ..model import read_model
-    from ..run.calibration import RATE_RULE, calibrate_run
+    from ..run import calibration
+    from ..run.calibration import RATE_RULE
 
     if out_path.suffix.lower() not in (".toml", ".yaml", ".yml", ".json"):
         raise click.BadParameter(f"{str(out_path)!r}: a config is written as .toml, .yaml or "
@@ -178,12 +211,11 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
             click.echo(f"{p}: {len(lab.events)} labelled contact(s) left out ({lab.path})")
     from ..detect.tail import DEFAULT_FALSE_ALARMS_PER_HOUR
 
-    done = calibrate_run(read, model=model_m, config=cfg, robot=robot_d, generator=generator,
-                         labels=labels, drop_suspect=not keep_suspect, allow_slow=allow_slow,
-                         threshold_rule=threshold_rule, confidence=confidence,
-                         false_alarms_per_hour=DEFAULT_FALSE_ALARMS_PER_HOUR if rate is None
-                         else rate)
-    out = done.config
+    out = calibration.calibrate(
+        read, model=model_m, config=cfg, robot=robot_d, generator=generator, labels=labels,
+        drop_suspect=not keep_suspect, allow_slow=allow_slow, threshold_rule=threshold_rule,
+        confidence=confidence,
+        false_alarms_per_hour=DEFAULT_FALSE_ALARMS_PER_HOUR if rate is None else rate)
     save_config(out, out_path)
     c = out.calibration
     weak = " (weak: add collision-free logs covering the robot's motions)" if c.weak else ""
@@ -198,8 +230,9 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
         what = f"model {kind} ({source}) of what the controller's channels leave out"
     else:
         what = f"model {kind} ({source})"
-    rule = (f"v_stat and vL for {done.rate.rate:g} false alarm(s) per hour, v0 by "
-            f"{c.margin_rule}" if done.rate is not None else f"rule {c.margin_rule}")
+    fa = c.false_alarm_rate
+    rule = (f"v_stat and vL for {fa['per_hour']:g} false alarm(s) per hour, v0 by "
+            f"{c.margin_rule}" if fa else f"rule {c.margin_rule}")
     click.echo(f"calibrated on {len(read)} log(s) ({c.segments} stretch(es) of collision-free "
                f"motion), {rule}{weak}; {what}")
     if kind == "decoupled" and robot_d is None and model_m is None and out.model is not None:
@@ -211,5 +244,5 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
         from .fit_table import format_fit_table
 
         click.echo(format_fit_table(RigidModel.from_dict(out.model)))
-    click.echo("\n".join(threshold_lines(done)))
+    click.echo("\n".join(threshold_lines(out)))
     click.echo(f"wrote {out_path}")

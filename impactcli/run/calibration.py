@@ -185,8 +185,14 @@ def calibrate_run(
     rate: RateCalibration | None = None
     lolo: list[LoloRow] = []
     if threshold_rule == RATE_RULE:
-        rate, lolo = _rate_thresholds(replays, keeps, joints, cfg, false_alarms_per_hour,
-                                      confidence)
+        use = _rate_logs(replays, excluded)
+        rate, lolo = _rate_thresholds([replays[i] for i in use], [keeps[i] for i in use],
+                                      joints, cfg, false_alarms_per_hour, confidence)
+        if len(use) < len(replays):
+            rate = dataclasses.replace(rate, notes=(*rate.notes, *(
+                f"{replays[i].path}: left out of the rate's fit (contacts found in it)"
+                for i in range(len(replays)) if i not in use)))
+            lolo = [dataclasses.replace(r, log=use[r.log]) for r in lolo]
         table.update(rate.table())
         # the product's margins say what the rate's thresholds are over the free maximum
         for d in ("adaptive", "static_loading"):
@@ -214,6 +220,26 @@ def calibrate_run(
         calibration=record, model=None if model is None else model.to_dict(),
     )
     return Calibrated(out, rate, tuple(lolo), paths, envelope)
+
+
+def _rate_logs(replays: list[_Replayed], excluded: list[dict[str, Any]]) -> list[int]:
+    """The logs the rate's tail is fitted on: those without likely contacts found in them
+    (all of them if every log has some). A log in which the suspect rule found contacts
+    holds smaller ones it cannot find (it flags only stretches 20× above the usual level),
+    and their peaks make the tail look heavy: with the old rule they only raised the
+    maximum, here they are extrapolated (measured on the sample pushes log given as free:
+    vL 17× the clean calibration's). Warned about; the log still counts for v0."""
+    found = {x["log"] for x in excluded if str(x["reason"]).startswith("alone")}
+    use = [i for i, rp in enumerate(replays) if rp.path not in found]
+    if not use:
+        return list(range(len(replays)))
+    for rp in replays:
+        if rp.path in found:
+            warnings.warn(f"{rp.path}: left out of the false-alarm-rate fit: contacts were "
+                          "found in it, and smaller ones the 20× rule cannot find would be "
+                          "fitted as free motion (give the log's labels to use it)",
+                          ImpactWarning, stacklevel=3)
+    return use
 
 
 def _stretches(rp: _Replayed, keep: np.ndarray) -> list[tuple[int, int, bool]]:
