@@ -43,7 +43,7 @@ def assist(tmp_path_factory: pytest.TempPathFactory) -> tuple[object, Path]:
 
 
 def test_default_rate_prints_fit_support_and_leave_one_log_out(assist: tuple) -> None:
-    r, out = assist
+    r, _ = assist
     assert r.exit_code == 0, r.output
     lines = r.stdout.splitlines()
     assert any(ln.startswith("calibrated on 3 log(s)") and "v_stat and vL for 1 false "
