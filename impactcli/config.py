@@ -229,6 +229,19 @@ class CalibrationRecord:
             (:func:`impactcli.clock.sample_clock`; None: not recorded, older configs). A
             log sampled at another rate is refused
             (:func:`impactcli.clock.check_calibrated_rate`): thresholds depend on it.
+        threshold_rule: how the product's thresholds (v_stat, vL) were set:
+            ``false-alarm-rate`` (for a stated rate, ``false_alarm_rate``) or
+            ``leave-one-out`` (``margin_rule``); None: not recorded (configs before the
+            rate existed: ``margin_rule`` set them all). static_baseline's v0 always
+            follows ``margin_rule``.
+        false_alarm_rate: the rate calibration (docs/formats.md, "Model and detector
+            config"; :func:`impactcli.run.calibration.rate_record`): R per hour, its
+            confidence, the free-motion minutes it rests on, the predicted rate and its
+            upper bound, the rate those minutes support and the sentence saying so, per
+            detector and joint the threshold and its tail fit, and leave-one-log-out rows.
+        motion_envelope: the calibration's motion envelope
+            (:meth:`impactcli.detect.envelope.MotionEnvelope.to_dict`): per joint the
+            ranges of velocity, acceleration and position of the free motion.
     """
 
     calibrated: bool = False
@@ -241,6 +254,9 @@ class CalibrationRecord:
     segments: int = 0
     excluded: tuple[dict[str, Any], ...] = ()
     sample_rate_hz: float | None = None
+    threshold_rule: str | None = None
+    false_alarm_rate: dict[str, Any] | None = None
+    motion_envelope: dict[str, Any] | None = None
 
 
 @dataclass(frozen=True)

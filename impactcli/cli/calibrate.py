@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import click
 
@@ -14,6 +16,80 @@ from .options import (
     read_options_from,
     robot_help,
 )
+
+if TYPE_CHECKING:
+    from ..config import DetectorConfig
+
+
+def threshold_lines(out: DetectorConfig) -> list[str]:
+    """What calibrate prints after the model, read from the config it wrote: per joint its
+    generator and thresholds; the rate's fit per joint and detector, what the free minutes
+    support and the leave-one-log-out rows; the motion envelope."""
+    c, th, gens = out.calibration, out.thresholds, out.residual.generators
+    rate = c.false_alarm_rate
+    head = "v0 margin" if rate else "margins (adaptive/loading/baseline)"
+    lines = [f"{'joint':<16} {'generator':<17} {'v_stat':>9} {'vL':>9} {'v0':>9}   {head}"]
+    dets = ("static_baseline",) if rate else ("adaptive", "static_loading", "static_baseline")
+    for j in th.v_stat:
+        m = [c.margins.get(d, {}).get(j) for d in dets]
+        lines.append(f"{j:<16} {gens.get(j, '?'):<17} {th.v_stat[j]:>9.4f} {th.vL[j]:>9.4f} "
+                     f"{th.v0[j]:>9.4f}   "
+                     + " / ".join("—" if x is None else f"{x:.2f}" for x in m))
+    if rate:
+        lines += rate_lines(rate)
+    env = c.motion_envelope
+    if env:
+        from ..detect.envelope import MotionEnvelope
+
+        src = {"position_ref": "reference", "position": "measured position"}
+        lines.append(f"motion envelope ({src.get(env['source'], env['source'])}, "
+                     f"{env['samples']} samples): a rate holds for motion inside it")
+        lines += MotionEnvelope.from_dict(env).lines()
+    return lines
+
+
+def rate_lines(rate: dict[str, Any]) -> list[str]:
+    """The rate's record as calibrate prints it: totals, one line per joint and detector
+    (threshold, fit, predicted rate and bound), the support statement, notes, and the
+    leave-one-log-out rows."""
+    conf = float(rate["confidence"])
+    pct = f"{100 * conf:.0f} %"
+    lines = [f"false alarms per hour: asked {rate['per_hour']:g}; predicted "
+             f"{rate['predicted_per_hour']:.2g}, upper bound {rate['upper_per_hour']:.2g} at "
+             f"{pct} confidence, on {rate['free_minutes']:.1f} min of free motion"]
+    for det, per in rate.get("channels", {}).items():
+        for j, ch in per.items():
+            tag = (" (widened)" if ch.get("widened") else
+                   " (log-start floor)" if ch.get("log_start_floor") else "")
+            shape = ("exponential" if ch.get("shape") == "exponential"
+                     else f"GPD ξ={ch.get('xi', 0.0):.2f}")
+            lines.append(f"  {j + '/' + det:28s} threshold {ch['threshold']:.4g}{tag}: free max "
+                         f"{ch.get('free_max', math.nan):.4g}, u {ch.get('level', math.nan):.4g}, "
+                         f"{ch.get('clusters', 0)} clusters, {shape}, σ "
+                         f"{ch.get('sigma', math.nan):.3g}; rate "
+                         f"{ch['predicted_per_hour']:.2g}/h, bound {ch['upper_per_hour']:.2g}/h")
+    if rate.get("statement"):
+        lines.append("  " + rate["statement"])
+    lines += [f"  note: {n}" for n in rate.get("notes", [])]
+    rows = rate.get("leave_one_log_out") or []
+    if rows:
+        from ..detect.tail import poisson_interval
+
+        lines.append("leave-one-log-out (calibrated on the other logs; rates a few minutes "
+                     "can show):")
+        lines.append(f"  {'log':<40} {'min':>5} {'R [1/h]':>8} {'observed':>9} "
+                     f"{'obs. [1/h]':>10} {pct + ' interval':>17} {'predicted':>9} "
+                     f"{'bound':>7}")
+        for r in rows:
+            hours = r["minutes"] / 60.0
+            lo, hi = poisson_interval(int(r["observed"]), hours, conf)
+            lines.append(f"  {Path(r['log']).name:<40.40} {r['minutes']:>5.2f} "
+                         f"{r['per_hour']:>8g} {r['observed']:>9d} "
+                         f"{r['observed'] / hours:>10.3g} {f'{lo:.3g}–{hi:.3g}':>17} "
+                         f"{r['predicted_per_hour']:>9.3g} {r['upper_per_hour']:>7.3g}")
+        lines.append("  (a log observed above its bound moves unlike the others: its motion "
+                     "is not in their envelope)")
+    return lines
 
 
 def _labels_for(logs: tuple[Path, ...], given: tuple[Path, ...]) -> list:  # type: ignore[type-arg]
@@ -43,6 +119,22 @@ def _labels_for(logs: tuple[Path, ...], given: tuple[Path, ...]) -> list:  # typ
               help="Labels of contacts in the LOGS (one per log, or named <stem>.labels.json): "
                    "their stretches are left out [default: <stem>.labels.json beside each "
                    "log, when present].")
+@click.option("--false-alarms-per-hour", "rate", type=click.FloatRange(min=0, min_open=True),
+              metavar="R",
+              help="False alarms per hour (incidents of the product's detectors after "
+                   "warm-up, all joints together) the thresholds are set for: the upper "
+                   "bound of the predicted rate, at --confidence, is R. Where the free logs "
+                   "are too short to support R, the thresholds are widened and calibrate "
+                   "says how many minutes of free motion R needs [default: 1].")
+@click.option("--confidence", type=click.FloatRange(min=0.5, max=1.0, max_open=True),
+              default=0.9, show_default=True,
+              help="One-sided confidence of the rate's upper bound.")
+@click.option("--threshold-rule", type=click.Choice(["false-alarm-rate", "leave-one-out"]),
+              default="false-alarm-rate", show_default=True,
+              help="How v_stat and vL are set: for the false-alarm rate R, or by the older "
+                   "leave-one-out margin over the free logs' maxima (no stated rate; kept "
+                   "to compare with and for configs made by it). v0 (static_baseline, a "
+                   "comparison detector) always follows leave-one-out.")
 @click.option("--keep-suspect", is_flag=True,
               help="Keep stretches that alone would set a threshold (likely contacts; "
                    "left out by default, with a warning).")
@@ -55,23 +147,30 @@ def _labels_for(logs: tuple[Path, ...], given: tuple[Path, ...]) -> list:  # typ
                    "refused before the model is identified (exit 2).")
 @handle_errors
 def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, model: Path | None,
-                  base_config: Path | None, labels_paths: tuple[Path, ...], keep_suspect: bool,
+                  base_config: Path | None, labels_paths: tuple[Path, ...], rate: float | None,
+                  confidence: float, threshold_rule: str, keep_suspect: bool,
                   generator: str | None, channel_map: str | None,
                   topic: str | None, reference_topic: str | None, time_source: str | None,
                   torque_source: str | None, allow_slow: bool = False) -> None:
-    """Set v_stat, vL and v0 per joint so that the collision-free LOGS raise no alarm.
+    """Set v_stat, vL and v0 per joint from the collision-free LOGS.
 
-    With two or more logs the margin over the statistic's maximum is chosen by
-    leave-one-out (the smallest margin for which every log left out stays silent);
-    with one log a fixed 1.5× margin is used and the calibration is flagged weak.
-    Give logs that cover the motions the robot really makes: thresholds calibrated on
-    one motion family false-alarm on another.
+    By default v_stat and vL are set for a false-alarm rate: the tail of each joint's and
+    detector's statistic on the free logs (peaks over a level, declustered as incidents
+    are, fitted by a generalized Pareto tail) gives the threshold whose predicted rate's
+    upper bound, over all joints and both detectors, is --false-alarms-per-hour (1 per
+    hour). calibrate prints per joint the threshold, its fit, predicted rate and bound,
+    what the free minutes support, and, with two or more logs, each log left out against
+    the others' prediction. The rate holds for motion like the free logs': the config
+    records their motion envelope, and thresholds calibrated on one motion family
+    false-alarm on another.
 
-    Long logs are cut into 30 s segments after warm-up, so leave-one-out works on one long
-    log too. Contacts labelled in <stem>.labels.json beside a log (or --labels) are left out;
-    in a log without labels, a stretch that alone would set a threshold far above all the
-    others (> 20× the median second) is reported as a likely contact and left out
-    (--keep-suspect keeps it).
+    v0 (and, with --threshold-rule leave-one-out, every threshold): the margin over the
+    statistic's maximum chosen by leave-one-out over the logs (the smallest margin for
+    which every log left out stays silent); with one log a fixed 1.5× margin, flagged weak.
+    Long logs are cut into 30 s segments for it. Contacts labelled in <stem>.labels.json
+    beside a log (or --labels) are left out; in a log without labels, a stretch that alone
+    would set a threshold far above all the others (> 20× the median second) is reported
+    as a likely contact and left out (--keep-suspect keeps it).
 
     Each joint's residual generator is frozen in the config (thresholds belong to the
     generator they were made with): with --generator auto (the default for a new config)
@@ -84,11 +183,16 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     from ..logs import read_log
     from ..logs.robot_files import read_robot
     from ..model import read_model
-    from ..run.calibration import calibrate
+    from ..run import calibration
+    from ..run.calibration import RATE_RULE
 
     if out_path.suffix.lower() not in (".toml", ".yaml", ".yml", ".json"):
         raise click.BadParameter(f"{str(out_path)!r}: a config is written as .toml, .yaml or "
                                  ".json — name the file with one of these", param_hint="'-o'")
+    if rate is not None and threshold_rule != RATE_RULE:
+        raise click.BadParameter("--false-alarms-per-hour sets thresholds for a rate; "
+                                 f"--threshold-rule {threshold_rule} has none",
+                                 param_hint="'--false-alarms-per-hour'")
     prepare_output(out_path)  # a bad -o stops the run before any work
     robot_d = read_robot(robot) if robot else None
     model_m = read_model(model) if model else None
@@ -105,8 +209,13 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     for p, lab in zip(logs, labels, strict=True):
         if lab is not None and lab.events:
             click.echo(f"{p}: {len(lab.events)} labelled contact(s) left out ({lab.path})")
-    out = calibrate(read, model=model_m, config=cfg, robot=robot_d, generator=generator,
-                    labels=labels, drop_suspect=not keep_suspect, allow_slow=allow_slow)
+    from ..detect.tail import DEFAULT_FALSE_ALARMS_PER_HOUR
+
+    out = calibration.calibrate(
+        read, model=model_m, config=cfg, robot=robot_d, generator=generator, labels=labels,
+        drop_suspect=not keep_suspect, allow_slow=allow_slow, threshold_rule=threshold_rule,
+        confidence=confidence,
+        false_alarms_per_hour=DEFAULT_FALSE_ALARMS_PER_HOUR if rate is None else rate)
     save_config(out, out_path)
     c = out.calibration
     weak = " (weak: add collision-free logs covering the robot's motions)" if c.weak else ""
@@ -121,8 +230,11 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
         what = f"model {kind} ({source}) of what the controller's channels leave out"
     else:
         what = f"model {kind} ({source})"
+    fa = c.false_alarm_rate
+    rule = (f"v_stat and vL for {fa['per_hour']:g} false alarm(s) per hour, v0 by "
+            f"{c.margin_rule}" if fa else f"rule {c.margin_rule}")
     click.echo(f"calibrated on {len(read)} log(s) ({c.segments} stretch(es) of collision-free "
-               f"motion), rule {c.margin_rule}{weak}; {what}")
+               f"motion), {rule}{weak}; {what}")
     if kind == "decoupled" and robot_d is None and model_m is None and out.model is not None:
         click.echo("impactcli: warning: no --robot: the model is 'decoupled' (each joint "
                    "alone, no kinematics); a robot description with kinematics gives the "
@@ -132,11 +244,5 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
         from .fit_table import format_fit_table
 
         click.echo(format_fit_table(RigidModel.from_dict(out.model)))
-    click.echo(f"{'joint':<16} {'generator':<17} {'v_stat':>9} {'vL':>9} {'v0':>9}   "
-               "margins (adaptive/loading/baseline)")
-    th = out.thresholds
-    for j in th.v_stat:
-        m = [c.margins[d][j] for d in ("adaptive", "static_loading", "static_baseline")]
-        click.echo(f"{j:<16} {gens.get(j, '?'):<17} {th.v_stat[j]:>9.4f} {th.vL[j]:>9.4f} "
-                   f"{th.v0[j]:>9.4f}   " + " / ".join(f"{x:.2f}" for x in m))
+    click.echo("\n".join(threshold_lines(out)))
     click.echo(f"wrote {out_path}")

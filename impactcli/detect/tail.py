@@ -421,24 +421,38 @@ class LoloRow:
 def leave_one_log_out(stats: Sequence[np.ndarray], dt_s: float | Sequence[float],
                       rates: Sequence[float] = (30.0, 100.0, 300.0), *, conf: float = CONF,
                       merge_gap_s: float = MERGE_GAP_S, settle_s: float = SETTLE_S,
-                      n_target: int = N_TARGET, heavy_test: float | None = HEAVY_TEST
-                      ) -> list[LoloRow]:
+                      n_target: int = N_TARGET, heavy_test: float | None = HEAVY_TEST,
+                      log_start: Sequence[bool] | None = None,
+                      groups: Sequence[int] | None = None) -> list[LoloRow]:
     """For each free log and rate: :func:`calibrate_rate` on the other logs, incidents
     counted on the whole left-out log after warm-up. Use rates the left-out minutes can
     show (tens to hundreds per hour for 1–2 min logs). A fold above its bound says that
-    log's motion is not represented by the others (docs/validation.md)."""
-    if len(stats) < 2:
-        raise ValueError("leave-one-log-out needs at least two free logs")
+    log's motion is not represented by the others (docs/validation.md).
+
+    ``log_start``: as :func:`fit_channels`. ``groups``: (L,) the log each entry belongs
+    to (a log cut by contacts is several entries, left out together); default one log per
+    entry. Rows carry the group as ``log``; hours are the group's entries' together.
+    """
     dts = _per_log(dt_s, len(stats))
+    starts = [True] * len(stats) if log_start is None else [bool(b) for b in log_start]
+    grp = list(range(len(stats))) if groups is None else [int(g) for g in groups]
+    if len(grp) != len(stats) or len(starts) != len(stats):
+        raise ValueError("log_start and groups need one entry per statistic")
+    order = sorted(set(grp))
+    if len(order) < 2:
+        raise ValueError("leave-one-log-out needs at least two free logs")
     rows = []
-    for k in range(len(stats)):
-        keep = [s for i, s in enumerate(stats) if i != k]
-        kd = [d for i, d in enumerate(dts) if i != k]
-        hours = np.shape(stats[k])[0] * dts[k] / 3600.0
-        fits = fit_channels(keep, kd, merge_gap_s=merge_gap_s, settle_s=settle_s,
-                            n_target=n_target, heavy_test=heavy_test)
+    for k in order:
+        out = [i for i, g in enumerate(grp) if g == k]
+        keep = [i for i, g in enumerate(grp) if g != k]
+        hours = sum(np.shape(stats[i])[0] * dts[i] for i in out) / 3600.0
+        fits = fit_channels([stats[i] for i in keep], [dts[i] for i in keep],
+                            merge_gap_s=merge_gap_s, settle_s=settle_s,
+                            log_start=[starts[i] for i in keep], n_target=n_target,
+                            heavy_test=heavy_test)
         for r in rates:
             cal = thresholds_for_rate(fits, r, conf=conf)
-            obs = count_incidents([stats[k]], cal.thresholds, dts[k], merge_gap_s)
+            obs = sum(count_incidents([stats[i]], cal.thresholds, dts[i], merge_gap_s)
+                      for i in out)
             rows.append(LoloRow(k, hours, float(r), obs, cal.predicted_total, cal.upper_total))
     return rows

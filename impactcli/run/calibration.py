@@ -3,11 +3,16 @@
 Each calibration log is replayed by the one replay (its threshold-free pass,
 :func:`impactcli.run.one_log.replay_passes`, statistics collected per chunk) with the model
 (given, the config's, or identified over all the logs); the statistic of every detector
-after warm-up — long logs cut into segments, labelled contacts cut out, and, in logs
-without labels, stretches that alone would set a threshold far above the rest left out as
-likely contacts — gives the thresholds by the leave-one-out margin rule
-(:mod:`impactcli.detect.thresholds`). Each joint's residual generator is frozen in the
-config. The logs are in memory: the suspect rule pools every log's per-sample statistics.
+after warm-up — labelled contacts cut out, and, in logs without labels, stretches that
+alone would set a threshold far above the rest left out as likely contacts — gives the
+thresholds: the product's detectors' for a stated false-alarm rate from the tail of whole
+free logs (:mod:`impactcli.detect.tail`; docs/method.md §5b, "Thresholds for a
+false-alarm rate"), static_baseline's (and, with the ``leave-one-out`` rule, every
+detector's) by the leave-one-out margin over 30 s segments
+(:mod:`impactcli.detect.thresholds`). The motion the logs cover is recorded as the
+calibration's envelope (:mod:`impactcli.detect.envelope`). Each joint's residual
+generator is frozen in the config. The logs are in memory: the suspect rule pools every
+log's per-sample statistics.
 Nothing here reads or writes files.
 """
 
@@ -21,15 +26,26 @@ from typing import Any
 import numpy as np
 
 from ..config import DetectorConfig
+from ..detect.envelope import EnvelopeAccumulator, Motion, MotionEnvelope, MotionTrace
+from ..detect.tail import (
+    CONF,
+    DEFAULT_FALSE_ALARMS_PER_HOUR,
+    LoloRow,
+    RateCalibration,
+    calibrate_rate,
+    leave_one_log_out,
+    minutes_needed,
+    stack_detectors,
+)
 from ..detect.warmup import Warmup
-from ..errors import ImpactWarning, LogFormatError
+from ..errors import ConfigError, ImpactWarning, LogFormatError
 from ..logs.reader import LogScan, MemoryReader
 from ..logs.screen import LeftOut
 from ..model import IdentifyOptions, RigidModel
 from ..model.generators import GeneratorChoice, target_log, uses_correction
 from ..types import DETECTORS, Labels, RobotDescription, RobotLog
 from .collect import StatsCollector
-from .one_log import replay_passes, warn_replayed
+from .one_log import ReplayStep, replay_passes, warn_replayed
 from .plan import (
     ChunkFeed,
     RunPlan,
@@ -44,24 +60,77 @@ from .plan import (
 )
 from .run_warnings import CaughtWarnings
 
+#: ``calibrate``'s threshold rules for the product's detectors (adaptive, static_loading):
+#: thresholds for a stated false-alarm rate (the default), or the leave-one-out margin over
+#: the free logs' maxima (the rule before it; static_baseline, a comparison detector,
+#: always keeps it).
+RATE_RULE = "false-alarm-rate"
+MARGIN_RULE = "leave-one-out"
+THRESHOLD_RULES: tuple[str, ...] = (RATE_RULE, MARGIN_RULE)
+#: Rates [1/h] the leave-one-log-out rows are made at: what a left-out log of minutes can
+#: show (the asked rate, ~1 per hour, cannot be seen in minutes).
+LOLO_RATES: tuple[float, ...] = (30.0, 100.0, 300.0)
+#: A collision-free stretch between cut-outs shorter than this is not fitted [samples].
+MIN_STRETCH = 10
 
-def calibrate(
+
+@dataclass(frozen=True)
+class Calibrated:
+    """What :func:`calibrate_run` made: the config, and what ``calibrate`` prints.
+
+    Attributes:
+        config: the calibrated config (its record holds everything below too).
+        rate: the false-alarm-rate calibration (None under the leave-one-out rule).
+        lolo: leave-one-log-out rows (≥ 2 free logs; :func:`impactcli.detect.tail.
+            leave_one_log_out`), their ``log`` an index into ``log_paths``.
+        log_paths: the free logs, in order.
+        envelope: the calibration's motion envelope (None when nothing was kept).
+    """
+
+    config: DetectorConfig
+    rate: RateCalibration | None
+    lolo: tuple[LoloRow, ...]
+    log_paths: tuple[str, ...]
+    envelope: MotionEnvelope | None
+
+
+def calibrate(logs: list[RobotLog], **options: Any) -> DetectorConfig:
+    """The calibrated config of :func:`calibrate_run` (same arguments)."""
+    return calibrate_run(logs, **options).config
+
+
+def calibrate_run(
     logs: list[RobotLog], *, model: RigidModel | None = None,
     config: DetectorConfig | None = None, robot: RobotDescription | None = None,
     generator: str | None = None, labels: Sequence[Labels | None] | None = None,
     drop_suspect: bool = True, allow_slow: bool = False,
-) -> DetectorConfig:
+    threshold_rule: str = MARGIN_RULE,
+    false_alarms_per_hour: float = DEFAULT_FALSE_ALARMS_PER_HOUR, confidence: float = CONF,
+) -> Calibrated:
     """Thresholds v_stat, vL, v0 per joint from collision-free logs (docs/method.md §5b).
 
     The model is ``model``, else the config's, else identified from the logs
     (:func:`impactcli.model.identify_many` over all of them). Each log is replayed with it;
-    the statistic after warm-up of every detector, cut into segments of long logs and
-    without the stretches ``labels`` mark as contacts, gives the thresholds by the
-    leave-one-out margin rule (≥ 2 segments) or a fixed margin (1, flagged weak)
-    (:mod:`impactcli.detect.thresholds`). Without labels, a segment that alone would set a
-    product detector's threshold is warned about as a likely contact and, with
-    ``drop_suspect``, left out. Returns a config holding every parameter, the thresholds,
-    the calibration record and the embedded model.
+    its statistics after warm-up, without the stretches ``labels`` mark as contacts (and,
+    without labels, stretches that alone would set a product detector's threshold: warned
+    about as likely contacts and, with ``drop_suspect``, left out) give the thresholds:
+
+    - ``threshold_rule`` ``false-alarm-rate`` (the ``calibrate`` command's default; here
+      explicit, so that the library's callers — the sensitivity study, the benchmarks —
+      keep the rule they were measured with): v_stat and vL from the tail fits
+      of the whole free logs (:func:`impactcli.detect.tail.calibrate_rate`): the upper
+      ``confidence`` bound of the predicted incident rate, over all joints and both
+      product detectors, is ``false_alarms_per_hour``; below what the free time supports
+      the thresholds are widened and the record says so. v0 (static_baseline) by the
+      leave-one-out margin. With ≥ 2 logs, leave-one-log-out rows (predicted against
+      observed, at :data:`LOLO_RATES`).
+    - ``leave-one-out`` (default here): every threshold by the leave-one-out margin over
+      30 s segments (≥ 2 segments) or a fixed margin (1, flagged weak)
+      (:mod:`impactcli.detect.thresholds`).
+
+    The motion envelope of the kept samples is recorded either way
+    (:mod:`impactcli.detect.envelope`). Returns the config (every parameter, the
+    thresholds, the calibration record, the embedded model) and what ``calibrate`` prints.
     """
     import dataclasses
 
@@ -69,6 +138,8 @@ def calibrate(
     from ..detect.thresholds import calibrate_thresholds
     from ..model import identify_many
 
+    if threshold_rule not in THRESHOLD_RULES:
+        raise ValueError(f"threshold rule {threshold_rule!r}: one of {THRESHOLD_RULES}")
     cfg = config or DetectorConfig()
     readers = [MemoryReader(lg) for lg in logs]
     scans = [r.scan() for r in readers]
@@ -108,34 +179,169 @@ def calibrate(
     per_det = {d: [x[3][d] for x in segs] for d in DETECTORS}
     cal = {d: calibrate_thresholds(per_det[d], joints=joints, detector=d) for d in DETECTORS}
     table = {d: {j: float(cal[d].thresholds[k]) for k, j in enumerate(joints)} for d in DETECTORS}
+    margins = {d: {j: float(cal[d].margins[k]) for k, j in enumerate(joints)} for d in DETECTORS}
+    weak = any(c.weak for c in cal.values())
+    envelope = _envelope(replays, keeps, joints)
+    rate: RateCalibration | None = None
+    lolo: list[LoloRow] = []
+    if threshold_rule == RATE_RULE:
+        use = _rate_logs(replays, excluded)
+        rate, lolo = _rate_thresholds([replays[i] for i in use], [keeps[i] for i in use],
+                                      joints, cfg, false_alarms_per_hour, confidence)
+        if len(use) < len(replays):
+            rate = dataclasses.replace(rate, notes=(*rate.notes, *(
+                f"{replays[i].path}: left out of the rate's fit (contacts found in it)"
+                for i in range(len(replays)) if i not in use)))
+            lolo = [dataclasses.replace(r, log=use[r.log]) for r in lolo]
+        table.update(rate.table())
+        # the product's margins say what the rate's thresholds are over the free maximum
+        for d in ("adaptive", "static_loading"):
+            top = np.max([np.max(x, axis=0) for x in per_det[d]], axis=0)
+            margins[d] = {j: float(table[d][j] / top[k]) for k, j in enumerate(joints)
+                          if top[k] > 0 and table[d][j] / top[k] > 0}
+        weak = cal["static_baseline"].weak or rate.below_support
+    paths = tuple(lg.source.path for lg in logs)
     record = CalibrationRecord(
-        calibrated=True, margin_rule=cal["adaptive"].rule,
-        margins={d: {j: float(cal[d].margins[k]) for k, j in enumerate(joints)} for d in DETECTORS},
+        calibrated=True, margin_rule=cal["adaptive"].rule, margins=margins,
         logs=tuple(LogRecord(lg.source.path, lg.source.sha256) for lg in logs),
         model_sha256=None if model is None else model.sha256,
-        weak=any(c.weak for c in cal.values()),
+        weak=weak,
         joints_left_out=tuple(x.to_dict() for x in left_out),
         segments=len(segs), excluded=tuple(excluded),
         sample_rate_hz=float(np.median([lg.sample_rate_hz for lg in logs])),
+        threshold_rule=threshold_rule,
+        false_alarm_rate=None if rate is None else rate_record(rate, joints, lolo, paths),
+        motion_envelope=None if envelope is None else envelope.to_dict(),
     )
-    return dataclasses.replace(
+    out = dataclasses.replace(
         cfg,
         thresholds=ThresholdsConfig(v_stat=table["adaptive"], v0=table["static_baseline"],
                                     vL=table["static_loading"]),
         calibration=record, model=None if model is None else model.to_dict(),
     )
+    return Calibrated(out, rate, tuple(lolo), paths, envelope)
+
+
+def _rate_logs(replays: list[_Replayed], excluded: list[dict[str, Any]]) -> list[int]:
+    """The logs the rate's tail is fitted on: those without likely contacts found in them
+    (all of them if every log has some). A log in which the suspect rule found contacts
+    holds smaller ones it cannot find (it flags only stretches 20× above the usual level),
+    and their peaks make the tail look heavy: with the old rule they only raised the
+    maximum, here they are extrapolated (measured on the sample pushes log given as free:
+    vL 17× the clean calibration's). Warned about; the log still counts for v0."""
+    found = {x["log"] for x in excluded if str(x["reason"]).startswith("alone")}
+    use = [i for i, rp in enumerate(replays) if rp.path not in found]
+    if not use:
+        return list(range(len(replays)))
+    for rp in replays:
+        if rp.path in found:
+            warnings.warn(f"{rp.path}: left out of the false-alarm-rate fit: contacts were "
+                          "found in it, and smaller ones the 20× rule cannot find would be "
+                          "fitted as free motion (give the log's labels to use it)",
+                          ImpactWarning, stacklevel=3)
+    return use
+
+
+def _stretches(rp: _Replayed, keep: np.ndarray) -> list[tuple[int, int, bool]]:
+    """[a, b) sample ranges of a calibration log's kept samples (after warm-up, cut-outs
+    removed), each with whether it begins at the warm-up's end (a log start: the adaptive
+    statistic still settles there, :func:`impactcli.detect.tail.split_settle`)."""
+    start = _fit_start(rp)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], keep.astype(np.int8), [0]])))
+    return [(int(a), int(b), int(a) == start) for a, b in zip(edges[::2], edges[1::2],
+                                                              strict=True)
+            if b - a >= MIN_STRETCH]
+
+
+def _rate_thresholds(replays: list[_Replayed], keeps: list[np.ndarray],
+                     joints: tuple[str, ...], cfg: DetectorConfig, rate: float, conf: float
+                     ) -> tuple[RateCalibration, list[LoloRow]]:
+    """The product's thresholds for ``rate`` false alarms per hour (whole logs, never
+    their 30 s segments: a cluster must not be cut) and the leave-one-log-out rows."""
+    stats, dts, starts, groups = [], [], [], []
+    names: tuple[str, ...] = ()
+    for i, (rp, keep) in enumerate(zip(replays, keeps, strict=True)):
+        x, names = stack_detectors(rp.stats, joints)
+        for a, b, first in _stretches(rp, keep):
+            stats.append(x[a:b])
+            dts.append(1.0 / rp.sample_rate_hz)
+            starts.append(first)
+            groups.append(i)
+    if not stats:
+        raise LogFormatError("no collision-free stretch left to calibrate on: "
+                             + ", ".join(rp.path for rp in replays))
+    gap = cfg.events.merge_gap_s
+    try:
+        cal = calibrate_rate(stats, dts, rate, conf=conf, names=names, merge_gap_s=gap,
+                             log_start=starts)
+    except ValueError as err:
+        raise ConfigError(f"--false-alarms-per-hour: {err}") from err
+    lolo: list[LoloRow] = []
+    if len(set(groups)) >= 2:
+        lolo = leave_one_log_out(stats, dts, LOLO_RATES, conf=conf, merge_gap_s=gap,
+                                 log_start=starts, groups=groups)
+    return cal, lolo
+
+
+def _envelope(replays: list[_Replayed], keeps: list[np.ndarray], joints: tuple[str, ...]
+              ) -> MotionEnvelope | None:
+    """The motion envelope of every log's kept samples."""
+    sources = {rp.motion_source for rp in replays}
+    src = "position_ref" if sources == {"position_ref"} else "position"
+    acc = EnvelopeAccumulator(joints, src)
+    for rp, keep in zip(replays, keeps, strict=True):
+        if rp.motion is not None and rp.motion_source == src:
+            acc.add(rp.motion, keep)
+    return acc.finish()
+
+
+def rate_record(cal: RateCalibration, joints: Sequence[str], lolo: Sequence[LoloRow],
+                paths: Sequence[str]) -> dict[str, Any]:
+    """The config's ``calibration.false_alarm_rate`` table (docs/formats.md): R, confidence,
+    the free-motion time, predicted rate and bound, the support, and per detector and joint
+    the threshold and its fit; leave-one-log-out rows. No null (TOML)."""
+    channels: dict[str, dict[str, Any]] = {}
+    for k, (name, fit) in enumerate(zip(cal.names, cal.fits, strict=True)):
+        joint, det = name.rsplit("/", 1)
+        channels.setdefault(det, {})[joint] = {
+            "threshold": float(cal.thresholds[k]),
+            "predicted_per_hour": float(cal.predicted[k]),
+            "upper_per_hour": float(cal.upper[k]),
+            "shape": "exponential" if fit.xi_fixed or fit.xi <= 0 else "gpd",
+            "xi": float(fit.xi), "sigma": float(fit.sigma), "level": float(fit.u),
+            "clusters": int(fit.n), "free_max": float(fit.max_stat),
+            "widened": bool(cal.widened[k]), "log_start_floor": bool(cal.floored[k]),
+        }
+    return {
+        "per_hour": float(cal.rate), "confidence": float(cal.conf),
+        "free_minutes": float(cal.hours * 60.0),
+        "predicted_per_hour": cal.predicted_total, "upper_per_hour": cal.upper_total,
+        "supported_per_hour": float(cal.rate_supported),
+        "supported": not cal.below_support,
+        "minutes_needed": float(minutes_needed(cal.rate, cal.conf)),
+        "statement": cal.support_statement(),
+        "channels": channels, "notes": list(cal.notes),
+        "leave_one_log_out": [
+            {"log": str(paths[r.log]), "minutes": float(r.hours * 60.0),
+             "per_hour": float(r.rate), "observed": int(r.observed),
+             "predicted_per_hour": float(r.predicted), "upper_per_hour": float(r.upper)}
+            for r in lolo],
+    }
 
 
 @dataclass(frozen=True)
 class _Replayed:
     """A calibration log replayed: its path, (N,) times [s], sample rate [Hz], warm-up,
-    and detector → (N, J) statistic (:class:`impactcli.run.collect.ReplayStats`)."""
+    detector → (N, J) statistic (:class:`impactcli.run.collect.ReplayStats`), and its
+    motion (:class:`impactcli.detect.envelope.MotionTrace`) and what it was made of."""
 
     path: str
     time_s: np.ndarray
     sample_rate_hz: float
     warmup: Warmup
     stats: dict[str, np.ndarray]
+    motion: Motion | None = None
+    motion_source: str = "position"
 
     @property
     def n_samples(self) -> int:
@@ -165,12 +371,23 @@ def _replay(reader: MemoryReader, sc: Screened, model: RigidModel | None,
             plan = RunPlan(cfg, where, feed.full_joints, joints, choices, rig, source, extra)
             since = caught.mark()
             collected = StatsCollector()
-            rp = replay_passes(feed, plan, collected)
+            trace = MotionTrace(scan.sample_rate_hz)
+            moved: list[Motion] = []
+
+            def on_step(step: ReplayStep) -> None:
+                collected(step)
+                assert step.position is not None
+                moved.append(trace.update(step.t, step.position, step.position_ref))
+
+            rp = replay_passes(feed, plan, on_step)
             warn_replayed(caught, since, plan, feed, rp)
     finally:
         caught.raise_again(impact=True)
     st = collected.stats()
-    return _Replayed(where, st.time_s, scan.sample_rate_hz, rp.warmup, st.stats)
+    motion = Motion(*(np.concatenate([getattr(m, k) for m in moved])
+                      for k in ("velocity", "acceleration", "position"))) if moved else None
+    return _Replayed(where, st.time_s, scan.sample_rate_hz, rp.warmup, st.stats, motion,
+                     trace.source or "position")
 
 
 #: Labelled contacts are cut out of a calibration log's statistic from this long before
@@ -179,12 +396,18 @@ def _replay(reader: MemoryReader, sc: Screened, model: RigidModel | None,
 LABEL_GUARD_S = (0.1, 1.0)
 
 
+def _fit_start(rp: _Replayed) -> int:
+    """The first sample that counts: the warm-up's end (the log's start if warm-up covers
+    nearly all of it)."""
+    return rp.warmup.end_index if rp.warmup.end_index < rp.n_samples - 10 else 0
+
+
 def _calibration_mask(rp: _Replayed, labels: Labels | None,
                       excluded: list[dict[str, Any]]) -> np.ndarray:
     """(N,) samples of a calibration log that count: after warm-up, outside labelled
     contacts (each recorded in ``excluded``)."""
     path, t, n = rp.path, rp.time_s, rp.n_samples
-    start = rp.warmup.end_index if rp.warmup.end_index < n - 10 else 0
+    start = _fit_start(rp)
     keep = np.zeros(n, dtype=bool)
     keep[start:] = True
     if labels is not None:

@@ -199,6 +199,7 @@ def with_what_html(sec: dict[str, Any]) -> str:
     p = ["<h3>With what</h3>", kv_table([
         ("tool", f"{e(TOOL_NAME)} {e(__version__)}"),
         ("calibrated thresholds", calibrated),
+        ("threshold rule", threshold_rule_cell(calib)),
         ("margin rule", e(calib.get("margin_rule") or "—")),
         ("calibrated on", logs),
         ("model", f"{e(model['model'].get('kind', '?'))}, source: {e(model['source'])}"
@@ -220,12 +221,101 @@ def with_what_html(sec: dict[str, Any]) -> str:
         p.append("<h4>Model parameters</h4>" + params_table(params, joints))
     p.append("<h4>Thresholds and adaptive filter gain per joint</h4>"
              + thresholds_table(sec, joints))
+    rate = calib.get("false_alarm_rate")
+    if isinstance(rate, dict):
+        p.append("<h4>Thresholds for a false-alarm rate</h4>" + rate_html(rate))
+    env = calib.get("motion_envelope")
+    if isinstance(env, dict):
+        p.append("<h4>The calibration's motion envelope</h4>" + envelope_html(env))
     p.append("<h4>Full detector configuration</h4>")
     p.append(settings_table({k: v for k, v in cfg.items() if k != "model"}))
     if cfg.get("model") is not None:
         p.append('<p class="small muted">The config also embeds its model (sha256 above); '
                  "it is in the JSON report.</p>")
     return "".join(p)
+
+
+def threshold_rule_cell(calib: dict[str, Any]) -> str:
+    """How v_stat and vL were set: for a stated false-alarm rate (R, predicted rate and
+    bound, free minutes, whether they support R) or by the margin rule."""
+    rate = calib.get("false_alarm_rate")
+    if not isinstance(rate, dict):
+        rule = calib.get("threshold_rule") or calib.get("margin_rule")
+        return e(rule or "—") + (" (no stated false-alarm rate)" if rule else "")
+    conf = rate.get("confidence")
+    txt = (f"for {g(rate.get('per_hour'))} false alarm(s) per hour (incidents after warm-up, "
+           f"all joints together): predicted {g(rate.get('predicted_per_hour'))} per hour, "
+           f"upper bound {g(rate.get('upper_per_hour'))} at "
+           f"{'—' if conf is None else format(100 * conf, '.0f')} % confidence, on "
+           f"{f(rate.get('free_minutes'), 1)} min of free motion; v0 by "
+           f"{calib.get('margin_rule') or '—'}")
+    out = e(txt)
+    if rate.get("statement"):
+        cls = "warn" if rate.get("supported") is False else "muted"
+        out += f'<br><span class="{cls} small">{e(rate["statement"])}</span>'
+    return out
+
+
+def rate_html(rate: dict[str, Any]) -> str:
+    """Per detector and joint: threshold, tail fit, predicted rate and bound; notes;
+    leave-one-log-out rows (predicted against observed)."""
+    rows = []
+    for det, per in (rate.get("channels") or {}).items():
+        for j, c in per.items():
+            tag = (" (widened)" if c.get("widened") else
+                   " (log-start floor)" if c.get("log_start_floor") else "")
+            shape = ("exponential" if c.get("shape") == "exponential"
+                     else f"GPD ξ {g(c.get('xi'))}" if c.get("shape") else "—")
+            rows.append(
+                f"<tr><th>{e(j)}</th><td>{e(det)}</td><td class=\"num\">{g(c.get('threshold'))}"
+                f"{e(tag)}</td><td class=\"num\">{g(c.get('free_max'))}</td>"
+                f"<td>{e(shape)}, σ {g(c.get('sigma'))}, u {g(c.get('level'))}, "
+                f"{f(c.get('clusters'))} clusters</td>"
+                f"<td class=\"num\">{g(c.get('predicted_per_hour'))}</td>"
+                f"<td class=\"num\">{g(c.get('upper_per_hour'))}</td></tr>")
+    out = ""
+    if rows:
+        out += ('<div class="wide"><table><tr><th>joint</th><th>detector</th>'
+                '<th class="num">threshold [N·m]</th><th class="num">free max [N·m]</th>'
+                '<th>tail fit</th><th class="num">predicted [1/h]</th>'
+                '<th class="num">upper bound [1/h]</th></tr>' + "".join(rows)
+                + "</table></div>")
+    notes = rate.get("notes") or []
+    if notes:
+        out += '<ul class="small">' + "".join(f"<li>{e(n)}</li>" for n in notes) + "</ul>"
+    lolo = rate.get("leave_one_log_out") or []
+    if lolo:
+        body = "".join(
+            f"<tr><td><code>{e(r.get('log'))}</code></td><td class=\"num\">"
+            f"{f(r.get('minutes'), 2)}</td><td class=\"num\">{g(r.get('per_hour'))}</td>"
+            f"<td class=\"num\">{f(r.get('observed'))}</td>"
+            f"<td class=\"num\">{g(r.get('predicted_per_hour'))}</td>"
+            f"<td class=\"num\">{g(r.get('upper_per_hour'))}</td></tr>" for r in lolo)
+        out += ('<p class="small">Leave-one-log-out: each free log against the thresholds of '
+                "the others, at rates its minutes can show (a log above its bound moves "
+                "unlike the others).</p><div class=\"wide\"><table><tr><th>log left out</th>"
+                '<th class="num">min</th><th class="num">R [1/h]</th>'
+                '<th class="num">incidents seen</th><th class="num">predicted [1/h]</th>'
+                '<th class="num">upper bound [1/h]</th></tr>' + body + "</table></div>")
+    return out or '<p class="muted">No fit recorded.</p>'
+
+
+def envelope_html(env: dict[str, Any]) -> str:
+    """Per joint the ranges of velocity, acceleration and position calibrated on."""
+    src = {"position_ref": "the logs' reference", "position": "the measured position"}
+    rows = "".join(
+        f"<tr><th>{e(j)}</th>" + "".join(
+            f'<td class="num">{g((q.get(k) or [None, None])[0])} … '
+            f'{g((q.get(k) or [None, None])[1])}</td>'
+            for k in ("velocity", "acceleration", "position")) + "</tr>"
+        for j, q in (env.get("joints") or {}).items())
+    source = str(env.get("source"))
+    return (f'<p class="small">Of {e(src.get(source, source))}, '
+            f"{f(env.get('samples'))} samples after warm-up: a stated rate holds for motion "
+            "inside these ranges.</p>"
+            '<table><tr><th>joint</th><th class="num">velocity [rad/s]</th>'
+            '<th class="num">acceleration [rad/s²]</th><th class="num">position [rad]</th>'
+            f"</tr>{rows}</table>")
 
 
 def thresholds_table(sec: dict[str, Any], joints: Sequence[str]) -> str:

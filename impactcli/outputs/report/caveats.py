@@ -38,6 +38,35 @@ def _poor_fit(result: DetectionResult) -> list[tuple[str, float, str]]:
 #: A counted event of adaptive or static_loading at least this long gets a caveat [s].
 
 
+def rate_caveats(calib: dict[str, Any]) -> list[dict[str, str]]:
+    """The false-alarm rate the thresholds were set for, when the free motion does not
+    support it (``rate-not-supported``: what it supports and how much more it needs), and
+    that the rate holds only for motion like the calibration's (``rate-envelope``)."""
+    rate = calib.get("false_alarm_rate")
+    if not isinstance(rate, dict):
+        return []
+    out = []
+    r, conf = rate.get("per_hour"), rate.get("confidence")
+    pct = "—" if conf is None else f"{100 * conf:.0f}"
+    if rate.get("supported") is False:
+        widened = [f"{j}/{d}" for d, per in (rate.get("channels") or {}).items()
+                   for j, c in per.items() if c.get("widened")]
+        out.append({"code": "rate-not-supported", "text": (
+            f"The thresholds were set for {r:g} false alarm(s) per hour, but the "
+            f"{rate.get('free_minutes', 0.0):.1f} min of free motion they rest on do not "
+            f"support it at {pct} % confidence: {rate.get('statement', '')}. "
+            + (f"Widened beyond their fit: {', '.join(widened)}. " if widened else
+               "The fits' own bounds were wider than the widening. ")
+            + "The stated rate is not promised; calibrate on more of the robot's free motion.")})
+    out.append({"code": "rate-envelope", "text": (
+        f"The false-alarm rate ({r:g} per hour asked; predicted "
+        f"{rate.get('predicted_per_hour', 0.0):.2g}, upper bound "
+        f"{rate.get('upper_per_hour', 0.0):.2g} at {pct} % confidence) holds for motion like "
+        "the calibration logs': where this log moves faster or accelerates harder than they "
+        "did (the motion envelope in the config), false alarms are not bounded by it.")})
+    return out
+
+
 def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]:
     """Plain-language caveats an auditor must read before the numbers (code, text)."""
     out: list[dict[str, str]] = []
@@ -61,15 +90,22 @@ def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]
     elif calib.get("weak"):
         rule = calib.get("margin_rule") or "unknown rule"
         margins = calib.get("margins") or {}
-        capped = sorted({d for d, m in margins.items() if max(m.values(), default=0) >= MAX_MARGIN})
-        if rule == "fixed-single-log":
+        rated = isinstance(calib.get("false_alarm_rate"), dict)
+        capped = sorted({d for d, m in margins.items() if max(m.values(), default=0) >= MAX_MARGIN
+                         and not (rated and d in ("adaptive", "static_loading"))})
+        if rated and not capped and rule != "fixed-single-log":
+            pass  # the rate's own caveat below says why
+        elif rule == "fixed-single-log":
             why = ("the thresholds come from a single collision-free log with a fixed 1.5× "
                    "margin, not a leave-one-out margin over several logs.")
         else:
             why = ("the collision-free logs disagreed: the leave-one-out margin hit its cap of "
                    f"{MAX_MARGIN:g}× ({', '.join(capped) or 'some detector'}), so a log like "
                    "the most different one may still raise alarms.")
-        out.append({"code": "weak-calibration", "text": f"Weak calibration ({rule}): {why}"})
+        if not (rated and not capped and rule != "fixed-single-log"):
+            out.append({"code": "weak-calibration",
+                        "text": f"Weak calibration ({rule}): {why}"})
+    out += rate_caveats(calib)
     if result.model_source == "identified-from-log":
         out.append(
             {

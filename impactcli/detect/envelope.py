@@ -1,0 +1,346 @@
+"""The calibration's motion envelope: the motion a threshold's stated rate was measured on.
+
+A false-alarm rate fitted on free logs (:mod:`impactcli.detect.tail`) holds for motion like
+theirs: on held-out simulated hours every false alarm outside the calibration's motion
+families touched a sample whose reference velocity or acceleration lay outside the ranges
+the calibration logs covered (docs/validation.md, "Thresholds for a false-alarm rate").
+``calibrate`` records those ranges per joint (:class:`MotionEnvelope`, in the config's
+calibration record); ``detect`` checks each chunk against them (:class:`EnvelopeCheck`)
+and says which share of the log lay outside, and which incidents touch it.
+
+The motion of a joint is its reference position where the log has one (else its measured
+position), through a causal 2nd-order Butterworth low-pass at ``CUTOFF_HZ`` and backward
+differences — the path of the adaptive detector's threshold inputs without a reference
+(:func:`impactcli.detect.adaptive.inputs_chunk`), so calibrate and detect compute the same
+quantity from the same log, chunk by chunk, bit for bit whatever the split
+(:mod:`impactcli.model.causal`). Velocity [rad/s], acceleration [rad/s²], position [rad].
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..model.causal import Carry
+from ..model.derivatives import MAX_CUTOFF_FRACTION
+from ..model.iir import butter_lowpass
+
+__all__ = ["CHECKED", "CUTOFF_HZ", "LEAD_S", "QUANTITIES", "EnvelopeAccumulator",
+           "EnvelopeCheck", "EnvelopeShare", "Motion", "MotionEnvelope", "MotionTrace",
+           "outside_share_text"]
+
+#: Low-pass of the position before each difference [Hz] (the adaptive inputs' measured path).
+CUTOFF_HZ = 10.0
+#: The quantities recorded per joint, and those a sample is checked on (position is recorded
+#: for the reader: no measurement yet shows that posture alone makes false alarms).
+QUANTITIES: tuple[str, ...] = ("velocity", "acceleration", "position")
+CHECKED: tuple[str, ...] = ("velocity", "acceleration")
+#: An incident touches the outside when a sample from LEAD_S before its start to its end
+#: is outside (the residual's filters lag the motion that causes it) [s].
+LEAD_S = 0.2
+#: Outside stretches closer than this merge into one (as alarms merge) [s] (the share
+#: counts only the samples outside).
+MERGE_S = 0.1
+
+
+@dataclass(frozen=True)
+class Motion:
+    """One chunk's motion, (n, J) each: velocity, acceleration, position."""
+
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    position: np.ndarray
+
+    def get(self, quantity: str) -> np.ndarray:
+        """The (n, J) array of ``quantity`` (one of :data:`QUANTITIES`)."""
+        return np.asarray(getattr(self, quantity))
+
+
+class MotionTrace:
+    """The motion of a log chunk after chunk (module docstring): :meth:`update` in order.
+
+    Args:
+        sample_rate_hz: the log's rate [Hz] (the low-pass is clipped below
+            0.4 × it, silently: the clip is the same at calibrate and detect).
+        cutoff_hz: the low-pass [Hz].
+    """
+
+    def __init__(self, sample_rate_hz: float, cutoff_hz: float = CUTOFF_HZ) -> None:
+        fc = min(float(cutoff_hz), MAX_CUTOFF_FRACTION * float(sample_rate_hz))
+        b, a = butter_lowpass(2, fc / (0.5 * float(sample_rate_hz)))
+        self.b, self.a = np.asarray(b), np.asarray(a)
+        self.carry = Carry()
+        self.source: str | None = None
+
+    def update(self, time_s: np.ndarray, position: np.ndarray,
+               position_ref: np.ndarray | None = None) -> Motion:
+        """The motion of (n,) ``time_s`` [s since the log's first sample] and (n, J)
+        positions [rad]: of ``position_ref`` when given, else of ``position``. The source
+        is fixed by the first chunk (a log has a reference or not)."""
+        if self.source is None:
+            self.source = "position_ref" if position_ref is not None else "position"
+        q = np.asarray(position_ref if self.source == "position_ref" and
+                       position_ref is not None else position, dtype=np.float64)
+        dt = self.carry.steps_s("t", np.asarray(time_s, dtype=np.float64))
+        qf = self.carry.lfilter("q", self.b, self.a, q, "steady")
+        v = self.carry.lfilter("v", self.b, self.a,
+                               self.carry.backward_difference("qf", qf, dt), "steady")
+        acc = self.carry.backward_difference("vf", v, dt)
+        return Motion(v, acc, qf)
+
+
+def _range(lo_hi: Sequence[float]) -> tuple[float, float]:
+    lo, hi = (float(x) for x in lo_hi)
+    return lo, hi
+
+
+@dataclass(frozen=True)
+class MotionEnvelope:
+    """Per joint, the [min, max] of each quantity over the calibration's free motion.
+
+    Attributes:
+        joints: joint → quantity → (min, max) (:data:`QUANTITIES`; units in the module doc).
+        source: ``position_ref`` (the logs' reference) or ``position`` (measured).
+        samples: samples the ranges were taken over (after warm-up, contacts cut out).
+        cutoff_hz: the low-pass the motion went through [Hz].
+    """
+
+    joints: dict[str, dict[str, tuple[float, float]]]
+    source: str
+    samples: int
+    cutoff_hz: float = CUTOFF_HZ
+
+    def to_dict(self) -> dict[str, Any]:
+        """The config's ``calibration.motion_envelope`` table (no null: TOML)."""
+        return {"source": self.source, "samples": int(self.samples),
+                "cutoff_hz": float(self.cutoff_hz),
+                "joints": {j: {k: [float(lo), float(hi)] for k, (lo, hi) in q.items()}
+                           for j, q in self.joints.items()}}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> MotionEnvelope:
+        """The envelope a config records (:meth:`to_dict`'s mapping)."""
+        return cls({str(j): {str(k): _range(v) for k, v in q.items()}
+                    for j, q in dict(d["joints"]).items()},
+                   str(d["source"]), int(d["samples"]), float(d.get("cutoff_hz", CUTOFF_HZ)))
+
+    def lines(self) -> list[str]:
+        """One line per joint, as ``calibrate`` prints it."""
+        unit = {"velocity": "rad/s", "acceleration": "rad/s²", "position": "rad"}
+        out = []
+        for j, q in self.joints.items():
+            out.append(f"  {j:16s} " + "; ".join(
+                f"{k} {lo:.3g} … {hi:.3g} {unit.get(k, '')}" for k, (lo, hi) in q.items()))
+        return out
+
+
+class EnvelopeAccumulator:
+    """The envelope of the motions :meth:`add` is given (only their ``keep`` samples).
+
+    Args:
+        joints: the J joints, in the motions' column order.
+        source: what the motion was made of (:attr:`MotionTrace.source`).
+    """
+
+    def __init__(self, joints: Sequence[str], source: str = "position",
+                 cutoff_hz: float = CUTOFF_HZ) -> None:
+        self.joints = tuple(joints)
+        self.source, self.cutoff_hz = source, float(cutoff_hz)
+        self.lo: dict[str, np.ndarray] = {}
+        self.hi: dict[str, np.ndarray] = {}
+        self.samples = 0
+
+    def add(self, motion: Motion, keep: np.ndarray | None = None) -> None:
+        """Absorb a chunk's motion (n, J), its samples where ``keep`` (n,) is True."""
+        for k in QUANTITIES:
+            x = motion.get(k)
+            if keep is not None:
+                x = x[np.asarray(keep, dtype=bool)]
+            if x.shape[0] == 0:
+                continue
+            lo, hi = x.min(axis=0), x.max(axis=0)
+            self.lo[k] = lo if k not in self.lo else np.minimum(self.lo[k], lo)
+            self.hi[k] = hi if k not in self.hi else np.maximum(self.hi[k], hi)
+        n = motion.velocity.shape[0] if keep is None else int(np.count_nonzero(keep))
+        self.samples += n
+
+    def finish(self) -> MotionEnvelope | None:
+        """The envelope; None when no sample was kept."""
+        if not self.samples or not self.lo:
+            return None
+        return MotionEnvelope({j: {k: (float(self.lo[k][c]), float(self.hi[k][c]))
+                                   for k in QUANTITIES}
+                               for c, j in enumerate(self.joints)},
+                              self.source, self.samples, self.cutoff_hz)
+
+
+@dataclass(frozen=True)
+class EnvelopeShare:
+    """What :meth:`EnvelopeCheck.finish` found, from sample ``start`` on.
+
+    Attributes:
+        samples: samples checked; outside: of them, outside the envelope.
+        per_joint: joint → share of the checked samples outside on that joint.
+        stretches: (K, 2) [s] first and last time of each outside stretch after ``start``
+            (runs merged over MERGE_S), in order. unchecked: the log's joints the envelope
+            does not have.
+        source: the motion's source in this log; note: a mismatch with the calibration's.
+    """
+
+    samples: int
+    outside: int
+    per_joint: dict[str, float]
+    stretches: np.ndarray
+    unchecked: tuple[str, ...] = ()
+    source: str = "position"
+    note: str = ""
+
+    @property
+    def share(self) -> float:
+        """Share of the checked samples outside (0 when none was checked)."""
+        return self.outside / self.samples if self.samples else 0.0
+
+    def touches(self, t_start: float, t_end: float, lead_s: float = LEAD_S) -> bool:
+        """Whether an incident from ``t_start`` to ``t_end`` [s] touches an outside
+        stretch (from ``lead_s`` before its start)."""
+        s = self.stretches
+        if s.shape[0] == 0:
+            return False
+        return bool(np.any((s[:, 0] <= t_end) & (s[:, 1] >= t_start - lead_s)))
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-ready mapping (for a timeline's 2.x optional field)."""
+        return {"samples": self.samples, "outside": self.outside, "share": self.share,
+                "per_joint": dict(self.per_joint), "source": self.source,
+                "stretches_s": self.stretches.tolist(), "unchecked": list(self.unchecked),
+                **({"note": self.note} if self.note else {})}
+
+
+def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """First and last index of each run of True in (n,) ``mask``."""
+    idx = np.flatnonzero(mask)
+    if idx.size == 0:
+        z = np.zeros(0, dtype=np.int64)
+        return z, z
+    brk = np.flatnonzero(np.diff(idx) > 1)
+    return (np.concatenate([idx[:1], idx[brk + 1]]), np.concatenate([idx[brk], idx[-1:]]))
+
+
+class _Runs:
+    """Runs of outside samples as [a, b) index ranges of the log (with their first and last
+    times), joined across chunk boundaries."""
+
+    def __init__(self) -> None:
+        self.ab: list[list[int]] = []
+        self.t: list[list[float]] = []
+
+    def add(self, k0: int, t: np.ndarray, mask: np.ndarray) -> None:
+        for a, b in zip(*_runs(mask), strict=True):
+            ga, gb = k0 + int(a), k0 + int(b) + 1
+            if self.ab and self.ab[-1][1] == ga:
+                self.ab[-1][1], self.t[-1][1] = gb, float(t[b])
+            else:
+                self.ab.append([ga, gb])
+                self.t.append([float(t[a]), float(t[b])])
+
+    def count_from(self, start: int) -> int:
+        return sum(b - max(a, start) for a, b in self.ab if b > start)
+
+
+class EnvelopeCheck:
+    """Each chunk's samples against a recorded envelope (detect's side).
+
+    One :meth:`update` per chunk, in order (a :class:`~impactcli.types.SignalsChunk`, or
+    :meth:`update_arrays`), returns the chunk's (n,) outside mask; :meth:`finish` once,
+    with the warm-up's end, gives the :class:`EnvelopeShare`. A sample is outside when, on
+    any joint the envelope has, a quantity of :data:`CHECKED` leaves [lo − m, hi + m] with
+    m = ``margin`` × (hi − lo). Holds only the runs of outside samples, not the samples.
+    """
+
+    def __init__(self, envelope: MotionEnvelope, sample_rate_hz: float,
+                 joints: Sequence[str], *, margin: float = 0.0,
+                 checked: Sequence[str] = CHECKED) -> None:
+        self.envelope = envelope
+        self.joints = tuple(joints)
+        self.cols = [c for c, j in enumerate(self.joints) if j in envelope.joints]
+        self.names = [self.joints[c] for c in self.cols]
+        self.unchecked = tuple(j for j in self.joints if j not in envelope.joints)
+        self.trace = MotionTrace(sample_rate_hz, envelope.cutoff_hz)
+        self.bounds: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        for k in checked:
+            lo = np.array([envelope.joints[j][k][0] for j in self.names])
+            hi = np.array([envelope.joints[j][k][1] for j in self.names])
+            m = margin * (hi - lo)
+            self.bounds[k] = (lo - m, hi + m)
+        self.n = 0
+        self.any = _Runs()
+        self.each = [_Runs() for _ in self.cols]
+
+    def update(self, chunk: Any) -> np.ndarray:
+        """A :class:`~impactcli.types.SignalsChunk` (its ``time_s``, ``position``,
+        ``position_ref``, ``start``): its (n,) outside mask."""
+        return self.update_arrays(chunk.time_s, chunk.position, chunk.position_ref,
+                                  getattr(chunk, "start", self.n))
+
+    def update_arrays(self, time_s: np.ndarray, position: np.ndarray,
+                      position_ref: np.ndarray | None = None, start: int | None = None
+                      ) -> np.ndarray:
+        """The chunk of samples ``start`` … (default: right after the last) as arrays."""
+        k0 = self.n if start is None else int(start)
+        t = np.asarray(time_s, dtype=np.float64)
+        mot = self.trace.update(t, position, position_ref)
+        n = t.shape[0]
+        out_j = np.zeros((n, len(self.cols)), dtype=bool)
+        for k, (lo, hi) in self.bounds.items():
+            x = mot.get(k)[:, self.cols]
+            out_j |= (x < lo) | (x > hi)
+        mask: np.ndarray = (np.asarray(out_j.any(axis=1)) if self.cols
+                            else np.zeros(n, dtype=bool))
+        self.any.add(k0, t, mask)
+        for c, runs in enumerate(self.each):
+            runs.add(k0, t, out_j[:, c])
+        self.n = k0 + n
+        return mask
+
+    def finish(self, start: int = 0) -> EnvelopeShare:
+        """The share outside from sample ``start`` on (the warm-up's end index; samples
+        before it are not counted, as alarms there are not)."""
+        start = max(0, min(int(start), self.n))
+        checked = self.n - start
+        stretches: list[list[float]] = []
+        for (_, b), tt in zip(self.any.ab, self.any.t, strict=True):
+            if b <= start:
+                continue
+            if stretches and tt[0] - stretches[-1][1] <= MERGE_S + 1e-9:
+                stretches[-1][1] = tt[1]
+            else:
+                stretches.append(list(tt))
+        src = self.trace.source or "position"
+        note = ""
+        if src != self.envelope.source:
+            note = (f"the calibration's motion is of its logs' {self.envelope.source}, "
+                    f"this log's of its {src}: ranges compared across sources")
+        return EnvelopeShare(
+            checked, self.any.count_from(start),
+            {j: (r.count_from(start) / checked if checked else 0.0)
+             for j, r in zip(self.names, self.each, strict=True)},
+            np.array(stretches, dtype=np.float64).reshape(-1, 2), self.unchecked, src, note)
+
+
+def outside_share_text(share: EnvelopeShare) -> str:
+    """One sentence for a report or terminal (detect's wiring may use it)."""
+    if not share.samples:
+        return "motion envelope: nothing checked"
+    worst = max(share.per_joint.items(), key=lambda kv: kv[1], default=("", 0.0))
+    pct = 100.0 * share.share
+    txt = (f"{pct:.3g} % of the log after warm-up moved outside the calibration's motion "
+           "envelope (velocity or acceleration beyond the ranges calibrated on)")
+    if worst[0] and worst[1] > 0:
+        txt += f"; most on {worst[0]} ({100 * worst[1]:.3g} %)"
+    if share.note:
+        txt += f"; {share.note}"
+    return txt if math.isfinite(pct) else "motion envelope: nothing checked"

@@ -1,0 +1,150 @@
+"""The calibration's motion envelope (impactcli.detect.envelope) against known motion:
+sinusoids whose velocity and acceleration ranges are known in closed form, chunk splits
+that must not change a bit, and a check that finds exactly the faster stretch."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from impactcli.detect.envelope import (
+    EnvelopeAccumulator,
+    EnvelopeCheck,
+    MotionEnvelope,
+    MotionTrace,
+    outside_share_text,
+)
+
+FS = 500.0
+
+
+def sine(amp: float, hz: float, seconds: float, phase: float = 0.0) -> tuple[np.ndarray,
+                                                                             np.ndarray]:
+    t = np.arange(round(seconds * FS)) / FS
+    return t, amp * np.sin(2 * math.pi * hz * t + phase)
+
+
+def trace_in_chunks(t: np.ndarray, q: np.ndarray, cuts: list[int], ref: bool = True
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    tr = MotionTrace(FS)
+    parts = [tr.update(t[a:b], q[a:b] * 0.0 if ref else q[a:b], q[a:b] if ref else None)
+             for a, b in zip([0, *cuts], [*cuts, t.size], strict=True)]
+    assert tr.source == ("position_ref" if ref else "position")
+    return (np.concatenate([p.velocity for p in parts]),
+            np.concatenate([p.acceleration for p in parts]))
+
+
+def test_motion_is_the_same_bit_for_bit_whatever_the_chunks() -> None:
+    t, q1 = sine(0.5, 0.7, 20.0)
+    q = np.stack([q1, 0.3 * q1 ** 2], axis=1)
+    whole = trace_in_chunks(t, q, [])
+    rng = np.random.default_rng(3)
+    cuts = sorted(rng.choice(np.arange(1, t.size), 7, replace=False).tolist())
+    for a, b in zip(whole, trace_in_chunks(t, q, cuts), strict=True):
+        assert np.array_equal(a, b)
+    # the reference is preferred; without one the measured position is used
+    v_meas, _ = trace_in_chunks(t, q, cuts, ref=False)
+    assert np.array_equal(v_meas, whole[0])
+
+
+def test_ranges_of_a_sinusoid_are_its_amplitude_times_omega() -> None:
+    amp, hz = 0.4, 0.5  # 0.5 Hz, far below the 10 Hz low-pass: gain ≈ 1
+    t, q = sine(amp, hz, 30.0)
+    tr = MotionTrace(FS)
+    m = tr.update(t, q[:, None], q[:, None])
+    acc = EnvelopeAccumulator(["j"], tr.source or "")
+    keep = t >= 5.0  # the filters' start left out, as calibrate leaves out warm-up
+    acc.add(m, keep)
+    env = acc.finish()
+    assert env is not None and env.samples == int(keep.sum()) and env.source == "position_ref"
+    w = 2 * math.pi * hz
+    lo, hi = env.joints["j"]["velocity"]
+    assert lo == pytest.approx(-amp * w, rel=2e-3) and hi == pytest.approx(amp * w, rel=2e-3)
+    lo, hi = env.joints["j"]["acceleration"]
+    assert lo == pytest.approx(-amp * w * w, rel=5e-3) and hi == pytest.approx(amp * w * w,
+                                                                                rel=5e-3)
+    lo, hi = env.joints["j"]["position"]
+    assert lo == pytest.approx(-amp, rel=1e-3) and hi == pytest.approx(amp, rel=1e-3)
+    assert EnvelopeAccumulator(["j"]).finish() is None  # nothing kept: no envelope
+
+
+def test_envelope_round_trips_through_its_mapping() -> None:
+    env = MotionEnvelope({"a": {"velocity": (-1.0, 2.0), "acceleration": (-3.0, 4.0),
+                                "position": (-0.5, 0.25)}}, "position", 1234, 10.0)
+    d = env.to_dict()
+    assert d == {"source": "position", "samples": 1234, "cutoff_hz": 10.0,
+                 "joints": {"a": {"velocity": [-1.0, 2.0], "acceleration": [-3.0, 4.0],
+                                  "position": [-0.5, 0.25]}}}
+    assert MotionEnvelope.from_dict(d) == env
+    assert "velocity -1 … 2 rad/s" in env.lines()[0]
+
+
+def envelope_of(t: np.ndarray, q: np.ndarray, start_s: float = 5.0) -> MotionEnvelope:
+    tr = MotionTrace(FS)
+    acc = EnvelopeAccumulator(["j1", "j2"], "position_ref")
+    acc.add(tr.update(t, q, q), t >= start_s)
+    env = acc.finish()
+    assert env is not None
+    return env
+
+
+def test_check_finds_the_faster_stretch_and_nothing_else() -> None:
+    t, a = sine(0.4, 0.5, 40.0)
+    q = np.stack([a, 0.5 * a], axis=1)
+    env = envelope_of(t, q)
+    # the same motion stays inside (after the filters' start)
+    same = EnvelopeCheck(env, FS, ["j1", "j2"])
+    same.update_arrays(t, q, q)
+    res = same.finish(round(5.0 * FS))
+    assert res.outside == 0 and res.share == 0.0 and res.stretches.shape == (0, 2)
+    # 20–24 s: joint 2 moves at twice the frequency (4× the acceleration)
+    _, fast = sine(0.25, 1.0, 40.0)
+    q2 = q.copy()
+    inside = (t >= 20.0) & (t < 24.0)
+    q2[inside, 1] = fast[inside]
+    chk = EnvelopeCheck(env, FS, ["j1", "j2", "j3"])
+    q3 = np.c_[q2, np.zeros(t.size)]  # a third joint the envelope lacks
+    masks = [chk.update_arrays(t[i:i + 777], q3[i:i + 777], q3[i:i + 777], start=i)
+             for i in range(0, t.size, 777)]  # in chunks
+    mask = np.concatenate(masks)
+    out = chk.finish(round(5.0 * FS))
+    assert out.unchecked == ("j3",)
+    assert mask[(t < 19.9) & (t > 5.0)].sum() == 0 and mask[(t > 24.5)].sum() == 0
+    assert mask[inside].mean() > 0.5
+    assert out.outside == int(mask[round(5.0 * FS):].sum())
+    assert out.per_joint["j1"] == 0.0
+    assert out.per_joint["j2"] == pytest.approx(out.share)
+    assert out.stretches[0, 0] >= 19.9 and out.stretches[-1, 1] <= 24.5
+    end = float(out.stretches[-1, 1])
+    assert out.touches(end + 0.15, end + 1.0) and not out.touches(end + 0.25, end + 1.0)
+    assert not out.touches(10.0, 12.0)
+    assert "moved outside the calibration's motion envelope" in outside_share_text(out)
+    # samples before ``start`` are not counted
+    late = EnvelopeCheck(env, FS, ["j1", "j2"])
+    late.update_arrays(t, q2, q2)
+    after = late.finish(round(22.0 * FS))
+    assert 0 < after.outside < out.outside and after.samples == t.size - round(22.0 * FS)
+
+
+def test_margin_widens_the_ranges() -> None:
+    t, a = sine(0.4, 0.5, 30.0)
+    q = np.stack([a, a], axis=1)
+    env = envelope_of(t, q)
+    q2 = 1.05 * q  # 5 % more velocity and acceleration
+    shares = []
+    for margin in (0.0, 0.1):
+        chk = EnvelopeCheck(env, FS, ["j1", "j2"], margin=margin)
+        chk.update_arrays(t, q2, q2)
+        shares.append(chk.finish(round(5.0 * FS)).share)
+    assert shares[0] > 0.05 and shares[1] == 0.0
+
+
+def test_a_log_without_reference_is_compared_across_sources() -> None:
+    t, a = sine(0.4, 0.5, 30.0)
+    q = np.stack([a, a], axis=1)
+    chk = EnvelopeCheck(envelope_of(t, q), FS, ["j1", "j2"])
+    chk.update_arrays(t, q, None)
+    res = chk.finish(round(5.0 * FS))
+    assert res.source == "position" and "across sources" in res.note
