@@ -99,16 +99,16 @@ class MotionSketch:
         self.lag = max(1, round(SPEED_WINDOW_S / sample_period_s))
         self.span_s = self.lag * sample_period_s
         self.counts = np.zeros((n_joints, _EDGES.size + 1), dtype=np.int64)
-        self.tail = np.empty((0, n_joints))
-        # the smoothness check: windows SMOOTH_FACTOR × longer, one starting every lag
+        # the smoothness check: windows SMOOTH_FACTOR × longer
         self.long = SMOOTH_FACTOR * self.lag
         self.counts_long = np.zeros_like(self.counts)
-        self.tail_long = np.empty((0, n_joints))
+        self.tail = np.empty((0, n_joints))  # the last `long` samples fed
         self.seen = 0  # samples fed
 
     def update(self, position: np.ndarray) -> None:
         """Feed the next (n, J) positions [as read]; NaN (a joint not logged) is skipped,
-        and so is a window touching an infinite value."""
+        and so is a window touching an infinite value. The windows start every ``lag``
+        samples of the whole log (the speed windows tile it), whatever the chunks."""
         q = np.asarray(position, dtype=np.float64)
         if q.shape[0] == 0:
             return
@@ -116,19 +116,16 @@ class MotionSketch:
             self.lo = np.fmin(self.lo, np.fmin.reduce(q, axis=0))  # NaN: not logged
             self.hi = np.fmax(self.hi, np.fmax.reduce(q, axis=0))
             both = np.concatenate([self.tail, q])
-            if both.shape[0] > self.lag:
-                self._count(self.counts, np.abs(both[self.lag:] - both[:-self.lag])
-                            / self.span_s)
-            self.tail = both[-self.lag:]
-            longer = np.concatenate([self.tail_long, q])
-            base = self.seen - self.tail_long.shape[0]  # the sample longer[0] is
-            starts = np.arange(max(longer.shape[0] - self.long, 0))
-            starts = starts[(base + starts) % self.lag == 0]
-            if starts.size:
-                self._count(self.counts_long, np.abs(longer[starts + self.long]
-                                                     - longer[starts])
-                            / (self.span_s * SMOOTH_FACTOR))
-            self.tail_long = longer[-self.long:]
+            base = self.seen - self.tail.shape[0]  # the sample both[0] is
+            for counts, length in ((self.counts, self.lag), (self.counts_long, self.long)):
+                # windows ending in q: starting from its first row − length on
+                first = max(self.tail.shape[0] - length, 0)
+                starts = np.arange(first, max(both.shape[0] - length, first))
+                starts = starts[(base + starts) % self.lag == 0]
+                if starts.size:
+                    self._count(counts, np.abs(both[starts + length] - both[starts])
+                                / (self.span_s * length / self.lag))
+            self.tail = both[-self.long:]
         self.seen += q.shape[0]
 
     @staticmethod
