@@ -72,7 +72,7 @@ def bags(tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict[str, Path]]
                      "free2": write_bag(bag_log(2, False), d, f"free2_{kind}", kind)}
     plain = root / "plain" / "not_a_bag"
     plain.mkdir(parents=True)
-    (plain / "run.db3").write_bytes(b"")  # files inside, but no metadata.yaml
+    (plain / "run.db3-wal").write_bytes(b"")  # files inside, no log and no metadata.yaml
     out["plain"] = {"log": plain}
     return out
 
@@ -221,6 +221,9 @@ def test_a_plain_folder_is_a_data_error_in_every_verb(bags: dict[str, dict[str, 
     d = bags["plain"]["log"]
     r = run(*_plain_args(verb, d, tmp_path, bags))
     assert r.exit_code == 3, (r.output, r.stderr)
-    assert r.stderr == f"impactcli: error: {d}: not a rosbag2 folder (no metadata.yaml)\n"
+    # a folder that is not a bag stands for the logs in it (tests/test_log_folders.py)
+    assert r.stderr == (f"impactcli: error: {d}: a folder without any log (looked for "
+                        ".csv.gz, .csv, .mcap, .npz, .bag, .db3 files or rosbag2 folders "
+                        "(with metadata.yaml), directly inside it)\n")
     assert r.stdout == ""
     assert sorted(p.name for p in tmp_path.iterdir()) == []  # nothing written

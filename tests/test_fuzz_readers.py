@@ -185,3 +185,98 @@ def test_extreme_cells_through_detect_are_exit_0_or_3(
     path.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n",
                     encoding="utf-8")
     _check_cli(path, "detect", "--config", str(CONFIG), "-o", str(tmp_path / "out"))
+
+
+# ------------------------------------------------- corrupt MCAP files, through every verb
+MAGIC = b"\x89MCAP0\r\n"
+SAMPLE_MCAP = REPO / "sample_logs" / "mcap" / "assist_free_p2p.mcap"
+SAMPLE_LABELS = REPO / "sample_logs" / "mcap" / "assist_free_p2p.labels.json"
+
+
+def _rec(op: int, body: bytes) -> bytes:
+    """An MCAP record: opcode, length, body."""
+    import struct
+
+    return bytes([op]) + struct.pack("<Q", len(body)) + body
+
+
+def _corrupt_mcaps(folder: Path) -> list[Path]:
+    """MCAP files a disk, a crash or a bad copy could leave: the magic bytes and random
+    garbage; records whose fields do not fit them (these exited 70: struct.error,
+    UnicodeDecodeError); a chunk claiming 32 TiB; a real file cut before its first complete
+    message."""
+    import struct
+
+    def text(b: bytes) -> bytes:
+        return struct.pack("<I", len(b)) + b
+
+    header = _rec(1, text(b"") + text(b""))
+    rng = np.random.default_rng(21)
+    files = {f"garbage{k}.mcap": MAGIC + rng.bytes(size)
+             for k, size in enumerate((0, 9, 1000, 300_000))}
+    files.update({
+        "schema_name_not_utf8.mcap": MAGIC + header + _rec(
+            3, struct.pack("<H", 1) + text(b"\xff\xfe") + text(b"ros2msg") + b"\0" * 4),
+        "schema_cut.mcap": MAGIC + header + _rec(3, b"\x01"),
+        "channel_cut.mcap": MAGIC + header + _rec(4, b"\x01"),
+        "schema_name_2GiB.mcap": MAGIC + header + _rec(3, struct.pack("<HI", 1, 2**31) + b"ab"),
+        "chunk_record_cut.mcap": MAGIC + header + _rec(
+            6, struct.pack("<QQQI", 0, 0, 12, 0) + text(b"") + struct.pack("<Q", 12)
+            + _rec(3, b"\x01\x02\x03")),
+        "chunk_32TiB.mcap": MAGIC + header + _rec(
+            6, struct.pack("<QQQI", 0, 0, 2**45, 0) + text(b"zstd") + struct.pack("<Q", 4)
+            + b"abcd"),
+    })
+    real = SAMPLE_MCAP.read_bytes()
+    files.update({f"cut{frac}.mcap": real[:int(frac * len(real))] for frac in (0.001, 0.02)})
+    out = []
+    for name, blob in files.items():
+        (folder / name).write_bytes(blob)
+        out.append(folder / name)
+    return out
+
+
+VERBS: dict[str, list[str]] = {
+    "inspect": [], "identify": ["-o", "{out}/m.json"], "calibrate": ["-o", "{out}/c.toml"],
+    "detect": ["-o", "{out}/d"], "report": ["-o", "{out}/r.html"],
+    "labels": ["--from-channel", "/joint_states/effort[0]", "--above", "1", "--link", "1",
+               "-o", "{out}/l.json"],
+    "evaluate": ["--labels", str(SAMPLE_LABELS)],
+    "view": ["--no-open", "--save", "{out}/v.rrd"],
+}
+
+
+@pytest.mark.parametrize("verb", sorted(VERBS))
+def test_a_corrupt_mcap_is_one_line_and_exit_3_in_every_verb(tmp_path: Path,
+                                                            verb: str) -> None:
+    """An MCAP with valid magic bytes and garbage after them made detect exit 70
+    (MemoryError); damaged records made every verb exit 70 (struct.error): now exit 3 and
+    one line naming the file, and nothing written."""
+    out = tmp_path / "out"
+    out.mkdir()
+    for path in _corrupt_mcaps(tmp_path):
+        args = [a.format(out=out) for a in VERBS[verb]]
+        r = CliRunner().invoke(main, [verb, str(path), *args])
+        note = f"{verb} {path.name}: exit {r.exit_code}\n{r.stderr[-2000:]}"
+        assert r.exit_code == 3, note
+        assert "Traceback" not in r.stderr, note
+        errors = [ln for ln in r.stderr.splitlines() if ln.startswith("impactcli: error:")]
+        assert len(errors) == 1 and errors[0].startswith(f"impactcli: error: {path}: "), note
+        assert list(out.rglob("*")) == [] or verb == "detect", note
+    if verb == "detect":
+        assert not list(out.rglob("*.json")), "a timeline written for a corrupt MCAP"
+
+
+def test_a_real_mcap_cut_after_some_messages_is_read_with_a_warning(tmp_path: Path) -> None:
+    """docs/formats.md, "MCAP": a valid start whose records end early, holding complete
+    messages, yields what was recorded, warned."""
+    real = SAMPLE_MCAP.read_bytes()
+    path = tmp_path / "cut.mcap"
+    path.write_bytes(real[:len(real) // 2])
+    r = CliRunner().invoke(main, ["inspect", str(path), "--json"])
+    assert r.exit_code == 0, r.stderr
+    assert any("truncated" in ln for ln in r.stderr.splitlines()), r.stderr
+    full = CliRunner().invoke(main, ["inspect", str(SAMPLE_MCAP), "--json"])
+    import json
+
+    assert 0 < json.loads(r.stdout)["n_samples"] < json.loads(full.stdout)["n_samples"]

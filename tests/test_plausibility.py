@@ -139,3 +139,43 @@ def test_real_arms_pass(real_logs: object) -> None:
     s = MotionSketch(q.shape[1], float(np.median(np.diff(kuka["times"]))))
     s.update(q / DEG)
     assert position_unit_verdict("kuka.npz", names, s.travel(), s.speed()).kind == "refuse"
+
+
+def test_noise_is_no_motion_and_says_nothing_of_a_unit() -> None:
+    """Positions that are noise (test fixtures, a sensor gone wrong) move 10× slower over
+    200 ms than over 20 ms: they are not judged, whatever their numbers."""
+    rng = np.random.default_rng(5)
+    arm = _sketch(_arm_motion())
+    assert arm.smooth().all()
+    noise = 3.0 * rng.standard_normal((30_000, 6))  # travel ~25, speeds ~400 "rad/s"
+    walk = np.cumsum(rng.standard_normal((30_000, 6)), axis=0)
+    for q in (noise, walk):
+        s = _sketch(q)
+        assert not s.smooth().any()
+        assert position_unit_verdict("x.csv", JOINTS, s.travel(), s.speed()).kind == "refuse"
+        assert position_unit_verdict("x.csv", JOINTS, s.travel(), s.speed(),
+                                     smooth=s.smooth()).kind == "ok"
+    deg = _sketch(_arm_motion() / DEG)  # degrees are a motion: still refused
+    assert deg.smooth().all()
+    assert position_unit_verdict("x.csv", JOINTS, deg.travel(), deg.speed(),
+                                 smooth=deg.smooth()).kind == "refuse"
+
+
+def test_the_smoothness_does_not_depend_on_the_chunks() -> None:
+    q = np.concatenate([_arm_motion(seconds=6), 0.5 * np.random.default_rng(2)
+                        .standard_normal((3000, 6))])
+    whole = _sketch(q)
+    for chunk in (1, 7, 53, 1000):
+        s = _sketch(q, chunk=chunk)
+        np.testing.assert_array_equal(s.counts_long, whole.counts_long)
+        np.testing.assert_array_equal(s.smooth(), whole.smooth())
+
+
+def test_beyond_a_urdfs_velocity_limit_is_warned_never_refused() -> None:
+    """A description may be wrong (or a simulated log faster than the arm): only what no
+    arm's radians could be is refused."""
+    q = _arm_motion()
+    limits = {j: JointLimits("revolute", -3.0, 3.0, 0.1) for j in JOINTS}  # 0.1 rad/s
+    v = _verdict(q, limits)
+    assert v.kind == "warn" and set(v.joints) == set(JOINTS)
+    assert "beyond the URDF's velocity limit or range" in v.message

@@ -28,7 +28,7 @@ def inspect_cmd(log: str, channel_map: str | None, robot: str | None, topic: str
 
     desc = read_robot(robot) if robot else None
     opts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
-    d = inspect_log(log, robot=desc, **opts)
+    d = inspect_log(log, robot=desc, **opts)  # a folder's one log, as every verb reads one
     if as_json:
         click.echo(json.dumps(d, separators=(",", ":")))
     else:

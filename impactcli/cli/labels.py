@@ -107,19 +107,22 @@ def _joint_channels_hint(log: Any) -> str:
 
 
 def _csv_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Channel:
-    """A CSV column, read by the CSV reader with the log's own time column."""
-    from ..logs.channel_map import ChannelMap, ChannelRef, load_channel_map
-    from ..logs.csv_layout import canonical_map, separator
+    """A CSV column, read by the CSV reader with the log's own time (its layout as the log
+    was read: separator, header, time column and unit, or ``--rate``)."""
+    from ..logs.channel_map import ChannelMap, ChannelRef
+    from ..logs.csv_layout import csv_layout
+    from ..logs.paths import open_log_options
     from ..logs.reader import read_columns
 
-    where = str(path)
-    cmap = load_channel_map(ropts["channel_map"]) if ropts.get("channel_map") else None
-    header = True if cmap is None else cmap.header
-    skip = 0 if cmap is None else cmap.skip_rows
-    line = _header_line(path, skip)
-    delim = separator(line) if cmap is None else cmap.delimiter
-    names = ([c.strip().strip('"') for c in line.rstrip("\r\n").split(delim)] if header
-             else [str(i) for i in range(len(line.split(delim)))])
+    opts = {k: v for k, v in ropts.items()
+            if k not in ("robot", "repair_order", "position_unit")}
+    _p, _where, _suffix, _folder, cmap = open_log_options(path, **opts)
+    canonical = cmap is None
+    lay = csv_layout(path, cmap, time_unit=opts.get("time_unit") if canonical else None,
+                     time_column=opts.get("time_column") if canonical else None,
+                     rate=ropts.get("rate"))
+    header = lay.header
+    names = lay.names if header else [str(i) for i in range(len(lay.names))]
     source: str | int
     if header and name in names:
         source = name
@@ -127,54 +130,36 @@ def _csv_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Chan
         source = int(name)
     else:
         what = "columns" if header else f"columns 0–{len(names) - 1} (no header)"
-        hint = _joint_channels_hint(log) if cmap is not None else ""
+        hint = _joint_channels_hint(log) if not canonical else ""
         raise LogFormatError(f"{path}: no channel {name!r}: its {what}: {', '.join(names)}"
                              + (f"; the map's joint channels: {hint}" if hint else ""))
-    if cmap is None:
-        unit = ropts.get("time_unit")
-        tspec = (canonical_map(names, where) if unit is None
-                 else canonical_map(names, where, unit))[0].time  # type: ignore[call-arg,unused-ignore]
-    else:
-        tspec = cmap.time
-        if ropts.get("time_unit") is not None and tspec is not None:
-            import dataclasses
-
-            tspec = dataclasses.replace(tspec, unit=ropts["time_unit"])
     one = ChannelMap(
-        name=f"--from-channel {name}", time=tspec, joints=("channel",),
+        name=f"--from-channel {name}", time=lay.tspec, joints=("channel",),
         signals={"position": (ChannelRef(source),)}, path=cmap.path if cmap else "",
-        format="csv", header=header, delimiter=delim, skip_rows=skip,
+        format="csv", header=header, delimiter=lay.delim, skip_rows=lay.skip,
     )
+    read = {"channel_map": one, "repair_order": bool(ropts.get("repair_order"))}
+    if ropts.get("rate") is not None:
+        read["rate"] = ropts["rate"]
     with warnings.catch_warnings():
         # the log's own repairs were warned about when it was read
         warnings.simplefilter("ignore", ImpactWarning)
-        t_ns, values = read_columns(path, {"channel_map": one,
-                                           "repair_order": bool(ropts.get("repair_order"))})
+        t_ns, values = read_columns(path, read)
     col = name if isinstance(source, str) else f"column {source}"
     return Channel(name, f"CSV {col}", _relative(t_ns, log),
                    np.asarray(values[:, 0], dtype=np.float64))
 
 
-def _header_line(path: Path, skip: int) -> str:
-    """The first line after ``skip`` lines of a (possibly gzipped) CSV, without a BOM."""
-    import gzip
-
-    opener: Any = gzip.open if path.name.lower().endswith(".gz") else open
-    try:
-        with opener(path, "rt", encoding="utf-8-sig", errors="replace", newline="") as f:
-            for _ in range(skip):
-                f.readline()
-            return str(f.readline())
-    except (OSError, EOFError, ValueError) as err:
-        raise LogFormatError(f"{path}: cannot read: {err}") from err
-
-
 def _npz_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Channel:
-    """An ``.npz`` array (``key`` or ``key[i]``) with the channel map's time."""
-    from ..logs.channel_map import ChannelMap, ChannelRef, load_channel_map
+    """An ``.npz`` array (``key`` or ``key[i]``) with the channel map's time (with
+    ``--time-unit`` / ``--time-column`` applied), or ``--rate``'s."""
+    from ..logs.channel_map import ChannelMap, ChannelRef
+    from ..logs.paths import open_log_options
     from ..logs.reader import read_columns
 
-    cmap = load_channel_map(ropts["channel_map"]) if ropts.get("channel_map") else None
+    opts = {k: v for k, v in ropts.items()
+            if k not in ("robot", "repair_order", "position_unit")}
+    cmap = open_log_options(path, **opts)[4] if ropts.get("channel_map") else None
     if cmap is None:
         raise LogFormatError(f"{path}: an .npz log needs a channel map (--channel-map)")
     with np.load(path, allow_pickle=False) as archive:
@@ -191,7 +176,9 @@ def _npz_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Chan
                      format="npz")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ImpactWarning)
-        t_ns, values = read_columns(path, {"channel_map": one}, check_rate=False)
+        t_ns, values = read_columns(path, {"channel_map": one, **(
+            {"rate": ropts["rate"]} if ropts.get("rate") is not None else {})},
+            check_rate=False)
     return Channel(name, f"array {name}", _relative(t_ns, log),
                    np.asarray(values[:, 0], dtype=np.float64))
 
@@ -336,7 +323,7 @@ def labels_cmd(log: Path, channel: str, above: float, link: int, kind: str, chan
     if not np.isfinite(above):
         raise click.BadParameter(f"{above!r} is not a finite number", param_hint="'--above'")
     prepare_output(output)
-    check_log_path(log)
+    log = check_log_path(log)  # a folder's one log
     ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
     desc = read_robot(robot) if robot is not None else None
     data = read_log(log, robot=desc, **ropts)

@@ -111,46 +111,61 @@ def not_found(path: Path | str, what: str = "log file") -> LogFormatError:
     return LogFormatError(f"{where}: {what} not found")
 
 
-def check_log_path(path: Path) -> None:
-    """Raise the LogFormatError :func:`impactcli.logs.read_log` would (exit 3, one line) for a
-    missing log or a folder that is not a rosbag2 folder — for verbs that look beside a log
+def check_log_path(path: Path) -> Path:
+    """The log a verb that reads one log reads for ``path`` (``path`` itself, or the one
+    log of a folder that is not a rosbag2 folder: :func:`impactcli.logs.paths.one_log_in`),
+    raising what :func:`impactcli.logs.read_log` would for a missing log, a folder without
+    a log (exit 3) or of several (exit 2, listing them) — for verbs that look beside a log
     (labels) before reading it. Log arguments take folders (``click.Path()`` without
-    ``dir_okay=False``): a folder is refused here or by ``read_log``, never by click."""
+    ``dir_okay=False``): a folder is resolved here or by ``read_log``, never by click."""
+    from ..logs.paths import one_log_in
+
     if not path.exists():
         raise not_found(path)
-    if path.is_dir() and not is_log_path(path):
-        raise LogFormatError(f"{path}: not a rosbag2 folder (no metadata.yaml)")
+    return one_log_in(path)
 
 
-#: click context ``meta`` key under which --time-unit and --repair-order are kept.
+#: click context ``meta`` key under which the read options verbs do not take as
+#: parameters are kept (:data:`CONTEXT_READ_OPTIONS`).
 _READ_META = "impactcli.read_options"
+#: The read options :func:`log_read_options` keeps in the click context (not passed to
+#: the verbs): ``--time-unit``, ``--time-column``, ``--rate``, ``--position-unit``,
+#: ``--repair-order``.
+CONTEXT_READ_OPTIONS = ("time_unit", "time_column", "rate", "position_unit", "repair_order")
 
 
 def read_options_from(channel_map: str | None, topic: str | None, reference_topic: str | None,
-                      time_source: str | None, torque_source: str | None, *,
-                      time_unit: str | None = None,
-                      repair_order: bool | None = None) -> dict[str, Any]:
-    """The read_log keyword arguments given on the command line (None values dropped).
-
-    ``time_unit`` and ``repair_order`` default to the ``--time-unit`` and
-    ``--repair-order`` of the running command (:func:`log_read_options` keeps them in the
+                      time_source: str | None, torque_source: str | None,
+                      **given_here: Any) -> dict[str, Any]:
+    """The read_log keyword arguments given on the command line (None values dropped):
+    the verb's own parameters, and :data:`CONTEXT_READ_OPTIONS` — from ``given_here``
+    when given, else from the running command (:func:`log_read_options` keeps them in the
     click context, so verbs need not take them as parameters); ``repair_order`` is kept
-    only when true.
+    only when true. ``--rate`` with ``--time-unit`` or ``--time-column`` is a usage error
+    (exit 2).
     """
+    from ..logs.paths import READ_OPTIONS
+
     ctx = click.get_current_context(silent=True)
     given = dict(ctx.meta.get(_READ_META, {})) if ctx is not None else {}
-    if time_unit is None:
-        time_unit = given.get("time_unit")
-    if repair_order is None:
-        repair_order = given.get("repair_order")
+    unknown = set(given_here) - set(CONTEXT_READ_OPTIONS)
+    if unknown:
+        raise TypeError(f"read_options_from: unknown options {sorted(unknown)}")
+    ctx_opts = {k: given_here[k] if given_here.get(k) is not None else given.get(k)
+                for k in CONTEXT_READ_OPTIONS}
+    if ctx_opts["rate"] is not None and (ctx_opts["time_unit"] is not None
+                                         or ctx_opts["time_column"] is not None):
+        raise click.UsageError("--rate is for a log without a time column: it excludes "
+                               "--time-unit and --time-column")
+    ctx_opts["repair_order"] = True if ctx_opts["repair_order"] else None
     opts = {"channel_map": channel_map, "topic": topic, "reference_topic": reference_topic,
-            "time_source": time_source, "torque_source": torque_source,
-            "time_unit": time_unit, "repair_order": True if repair_order else None}
-    return {k: v for k, v in opts.items() if v is not None}
+            "time_source": time_source, "torque_source": torque_source, **ctx_opts}
+    return {k: opts[k] for k in READ_OPTIONS if opts.get(k) is not None}
 
 
 def _keep_read_option(ctx: click.Context, param: click.Parameter, value: Any) -> Any:
-    """Keep --time-unit / --repair-order in the context for :func:`read_options_from`."""
+    """Keep a read option of :data:`CONTEXT_READ_OPTIONS` in the context for
+    :func:`read_options_from`."""
     if value is not None and param.name is not None:
         ctx.meta.setdefault(_READ_META, {})[param.name] = value
     return value
@@ -176,8 +191,9 @@ def check_channel_map(ctx: click.Context, param: click.Parameter, value: str | N
 def log_read_options(func: Callable[..., Any]) -> Callable[..., Any]:
     """The options that say how to read a log (shared by the verbs that read logs).
 
-    ``--time-unit`` and ``--repair-order`` are not passed to the command: they reach
-    :func:`read_options_from` through the click context.
+    ``--time-unit``, ``--time-column``, ``--rate``, ``--position-unit`` and
+    ``--repair-order`` are not passed to the command: they reach :func:`read_options_from`
+    through the click context (:data:`CONTEXT_READ_OPTIONS`).
     """
     for opt in reversed([
         click.option("--channel-map", metavar="MAP", callback=check_channel_map,
@@ -190,9 +206,25 @@ def log_read_options(func: Callable[..., Any]) -> Callable[..., Any]:
                      help="Use logged torque or current × gear ratio × torque constant."),
         click.option("--time-unit", type=click.Choice(["s", "ms", "us", "ns"]),
                      expose_value=False, callback=_keep_read_option,
-                     help="CSV / .npz: the unit of the time column [default: s, or the "
-                          "channel map's]. A time implying a rate outside 20 Hz – 100 kHz "
-                          "is an error."),
+                     help="CSV / .npz: the unit of the time column [default: the unit its "
+                          "name says (time_ms, stamp_us, ...), else s, or the channel "
+                          "map's]. A time implying a rate outside 20 Hz – 100 kHz is an "
+                          "error."),
+        click.option("--time-column", metavar="NAME", expose_value=False,
+                     callback=_keep_read_option,
+                     help="CSV / .npz: the time column (or array) [default: one named time, "
+                          "timestamp, stamp, t or __time, any case, with an optional unit "
+                          "suffix _s/_ms/_us/_ns; or the channel map's]."),
+        click.option("--rate", metavar="HZ", type=click.FloatRange(min=0, min_open=True),
+                     expose_value=False, callback=_keep_read_option,
+                     help="CSV / .npz without a time column: sample i is at i / HZ seconds "
+                          "(recorded in the log's repairs and the timeline)."),
+        click.option("--position-unit", type=click.Choice(["rad", "deg"]),
+                     expose_value=False, callback=_keep_read_option,
+                     help="The unit of the logged positions (and their references, "
+                          "velocities and accelerations, per second), converted to rad as "
+                          "they are read [default: rad; a log whose positions cannot be "
+                          "radians is refused, naming this option]."),
         click.option("--repair-order", is_flag=True, default=None, expose_value=False,
                      callback=_keep_read_option,
                      help="Rows out of time order or sharing a stamp: keep the longest "

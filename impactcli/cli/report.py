@@ -32,6 +32,7 @@ from typing import Any
 import click
 
 from ..errors import EXIT_BATCH, EXIT_SOFTWARE, ImpactError, ImpactWarning, LogFormatError
+from ..logs.paths import RECORDED_READ_OPTIONS
 from .options import (
     executor_options,
     handle_errors,
@@ -45,9 +46,9 @@ from .options import (
 
 TIMELINE_SUFFIX = ".timeline.json"
 LABELS_SUFFIX = ".labels.json"
-#: read_log keyword arguments a timeline's ``input.read_options`` may carry.
-READ_KEYS = ("channel_map", "topic", "reference_topic", "time_source", "torque_source",
-             "time_unit", "repair_order")
+#: read_log keyword arguments a timeline's ``input.read_options`` may carry (the one list:
+#: :data:`impactcli.logs.paths.RECORDED_READ_OPTIONS`).
+READ_KEYS = RECORDED_READ_OPTIONS
 
 
 def input_stem(path: Path) -> str:

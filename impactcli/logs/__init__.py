@@ -34,6 +34,9 @@ def read_log(
     time_source: str | None = None,
     torque_source: str | None = None,
     time_unit: str | None = None,
+    time_column: str | None = None,
+    rate: float | None = None,
+    position_unit: str | None = None,
     repair_order: bool = False,
 ) -> RobotLog:
     """Read a robot log into a validated :class:`~impactcli.types.RobotLog`: the chunks of
@@ -58,7 +61,17 @@ def read_log(
         time_unit: unit of the time column of a CSV or ``.npz`` log (``s``, ``ms``, ``us``,
             ``ns``; ``--time-unit``): a canonical ``time`` column's, or the channel map's
             time (replacing its ``unit``). Default: seconds, or the map's unit. A column
-            time implying a rate outside 20 Hz – 100 kHz is an error saying to give it.
+            time implying a rate outside 20 Hz – 100 kHz is an error saying to give it (or,
+            for a log read right at a rate below 20 Hz, that the rate is too low).
+        time_column: the time column of a CSV (or array of an ``.npz``), ``--time-column``:
+            default the one named ``time``, ``timestamp``, ``stamp``, ``t`` or ``__time``
+            (any case; an optional unit suffix ``_s/_ms/_us/_ns`` gives its unit), or the
+            channel map's.
+        rate: ``--rate`` [Hz] of a CSV or ``.npz`` log without a time column: sample i is
+            at i / rate s (recorded in the log's repairs, warned).
+        position_unit: ``rad`` (default) or ``deg``: the positions' unit (``--position-unit``;
+            degrees are converted to radians, with the references, velocities and
+            accelerations). Positions that cannot be radians are refused.
         repair_order: keep the longest increasing run of stamps when rows are out of time
             order or share a stamp (``--repair-order``), dropping the other rows with a
             warning (:mod:`impactcli.logs.repair`); without it such a log is an error.
@@ -76,6 +89,7 @@ def read_log(
     with open_log(path, channel_map=channel_map, robot=robot, topic=topic,
                   reference_topic=reference_topic, time_source=time_source,
                   torque_source=torque_source, time_unit=time_unit,
+                  time_column=time_column, rate=rate, position_unit=position_unit,
                   repair_order=repair_order) as reader:
         return collect(reader)
 

@@ -106,7 +106,8 @@ class ChannelMap:
         format: ``csv``, ``npz`` or ``messages`` (MCAP and ROS bags; ``None``: decided by
             the log's suffix, CSV or .npz).
         header: whether the CSV has a header line.
-        delimiter: CSV delimiter.
+        delimiter: CSV delimiter (None: detected,
+            :func:`impactcli.logs.csv_header.mapped_separator`).
         skip_rows: lines to skip before the header (or first data line).
         time: the time channel (``None`` for ``messages`` maps: the state topic's times).
         joints: joint names, in order.
@@ -120,7 +121,7 @@ class ChannelMap:
     path: str = ""
     format: str | None = None
     header: bool = True
-    delimiter: str = ","
+    delimiter: str | None = None
     skip_rows: int = 0
 
     def refs(self) -> list[tuple[str, int, ChannelRef]]:
@@ -140,7 +141,8 @@ def require_time(cmap: ChannelMap, where: str) -> TimeSpec:
         raise ChannelMapError(
             f"{where}: channel map {cmap.path or cmap.name} has no time channel"
             + (" (it is for MCAP files and ROS bags: format: messages)"
-               if cmap.format == "messages" else "")
+               if cmap.format == "messages" else
+               ": give --rate HZ for a log without one, or --time-column NAME")
         )
     return cmap.time
 
@@ -269,7 +271,8 @@ def channel_map_from_dict(d: dict[str, Any], where: str = "channel map") -> Chan
         path=where,
         format=d.get("format"),
         header=bool(csv_opts.get("header", True)),
-        delimiter=str(csv_opts.get("delimiter", ",")),
+        delimiter=(None if csv_opts.get("delimiter") is None
+                   else str(csv_opts["delimiter"])),
         skip_rows=int(csv_opts.get("skip_rows", 0)),
     )
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import math
 import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -30,6 +31,9 @@ from ..errors import ImpactWarning, LogFormatError
 from ..types import CONTROLLER_CHANNELS, RobotDescription
 
 TORQUE_SOURCES = ("torque", "current")
+#: The signals in the positions' unit (or it per second, per second²): converted by
+#: ``--position-unit``.
+ANGULAR_SIGNALS = ("position", "velocity", "position_ref", "velocity_ref", "acceleration_ref")
 TIME_SOURCES = ("log", "publish", "header")
 
 
@@ -84,6 +88,12 @@ def describing() -> Iterator[None]:
         _DESCRIBING.reset(token)
 
 
+def describing_only() -> bool:
+    """Whether logs are read for description only (inside :func:`describing`): what would
+    refuse a log (positions that cannot be radians) is said instead."""
+    return _DESCRIBING.get()
+
+
 @dataclass(frozen=True)
 class LogPlan:
     """How a reader's channels become a log's arrays (:func:`plan_log`): decided from which
@@ -96,6 +106,8 @@ class LogPlan:
         controller: the controller channels there are (``torque_model``, ``torque_ext``).
         ignored: channels present in the file but not used.
         notes: what could not be made of the channels (:func:`describing` only).
+        angle_scale: rad per logged unit of the angular signals (:data:`ANGULAR_SIGNALS`:
+            ``--position-unit deg`` → π/180), None when they are radians.
     """
 
     torque_source: str
@@ -104,12 +116,15 @@ class LogPlan:
     controller: tuple[str, ...]
     ignored: tuple[str, ...]
     notes: tuple[str, ...]
+    angle_scale: float | None = None
 
 
 def plan_log(ch: JointChannels, *, path: str, robot: RobotDescription | None,
-             torque_source: str | None) -> LogPlan:
+             torque_source: str | None, position_unit: str | None = None) -> LogPlan:
     """Choose the torque source and its conversion, and the channels kept (module
     docstring); only which channels ``ch`` has is looked at, not their values.
+    ``position_unit`` ``deg`` converts the angular signals to radians (after a channel
+    map's scale and offset: one conversion path, :func:`assemble`).
 
     Raises:
         LogFormatError: a joint without position, without any torque signal, or with only
@@ -160,7 +175,8 @@ def plan_log(ch: JointChannels, *, path: str, robot: RobotDescription | None,
             have = [j for j in ch.joints if j not in miss]
             ignored += [f"{j}.{s}" for j in have]
     return LogPlan(torque_source=src, scale=scale, optional=tuple(optional),
-                   controller=controller, ignored=tuple(ignored), notes=tuple(notes))
+                   controller=controller, ignored=tuple(ignored), notes=tuple(notes),
+                   angle_scale=math.pi / 180.0 if position_unit == "deg" else None)
 
 
 def _current_scale(ch: JointChannels, path: str, robot: RobotDescription | None,
@@ -202,11 +218,16 @@ def _current_scale(ch: JointChannels, path: str, robot: RobotDescription | None,
 def assemble(plan: LogPlan, ch: JointChannels) -> dict[str, np.ndarray]:
     """The log's (n, J) arrays of every joint of ``ch`` under ``plan``: ``position``,
     ``torque`` and the optional and controller channels kept (a joint without a
-    controller channel holds NaN in it). Elementwise, so samples may come in any runs."""
+    controller channel holds NaN in it); the angular signals in radians
+    (``plan.angle_scale``). Elementwise, so samples may come in any runs."""
     torque = ch.signals["torque"] if plan.scale is None else ch.signals["current"] * plan.scale
     out: dict[str, np.ndarray] = {"position": ch.signals["position"], "torque": torque}
     for s in plan.optional:
         out[s] = ch.signals[s]
+    if plan.angle_scale is not None:
+        for s in ANGULAR_SIGNALS:
+            if s in out:
+                out[s] = out[s] * plan.angle_scale
     # the controller's channels are per joint: a joint without one holds NaN (docs/formats.md)
     for s in plan.controller:
         m = np.array(ch.signals[s], dtype=np.float64)

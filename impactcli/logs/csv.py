@@ -44,7 +44,7 @@ from .csv_layout import (
     numbers,
     parsed_ranges,
 )
-from .layout import MappedLayout, RawRows, plan_of
+from .layout import MappedLayout, RawRows, plan_of, rate_note, rate_times
 
 #: Bytes of CSV text parsed at a time (one range: a 7-joint log's row is ~430 bytes).
 BLOCK_SIZE = 1 << 20
@@ -70,11 +70,14 @@ class _Exotic(Exception):
     """A range the first pass does not read as the whole file would be read."""
 
 
-def _fast_range(table: Any, ctx: CsvReaderLayout) -> tuple[np.ndarray, _Facts, np.ndarray]:
-    """A range of the first pass: ``(t (n,) int64 ns, its time facts, (n, C) values)``."""
+def _fast_range(table: Any, ctx: CsvReaderLayout
+                ) -> tuple[np.ndarray | None, _Facts, np.ndarray]:
+    """A range of the first pass: ``(t (n,) int64 ns, its time facts, (n, C) values)``;
+    ``t`` None for a log read with ``--rate`` (the rows' times are their indices')."""
     n = table.num_rows
     facts = _Facts(iso=False, all_int=True, max_abs=0.0, float_ok=True, text_ok=True)
-    t = _fast_time(table.column(ctx.arrow[ctx.lay.tname]).combine_chunks(), ctx, facts)
+    t = (None if ctx.lay.tname is None else
+         _fast_time(table.column(ctx.arrow[ctx.lay.tname]).combine_chunks(), ctx, facts))
     mat = np.empty((n, len(ctx.names)))
     for i, c in enumerate(ctx.key_cols.values()):
         mat[:, i] = numbers(table.column(ctx.arrow[c]).combine_chunks())
@@ -152,27 +155,40 @@ class CsvReaderLayout(MappedLayout):
         self.ignored = (lay.ignored_extra if lay.fmt == "csv"
                         else [lay.disp(c) for c in lay.names if c not in lay.used])
         tspec = lay.tspec
-        self.unit_ns = TIME_UNITS[tspec.unit]
-        self.offset_ns = round(tspec.offset * self.unit_ns) if tspec.offset else 0
-        self.tcol = f"column {lay.disp(lay.tname)!r}" if lay.header else lay.disp(lay.tname)
-        self.time_name = lay.disp(lay.tname)
-        self.start_at_zero = bool(tspec.start_at_zero)
+        self.rate_hz = lay.rate_hz
+        if tspec is None or lay.tname is None:  # --rate: no time column
+            self.unit_ns, self.offset_ns = 1, 0
+            self.tcol = self.time_name = "--rate"
+            self.start_at_zero = False
+        else:
+            self.unit_ns = TIME_UNITS[tspec.unit]
+            self.offset_ns = round(tspec.offset * self.unit_ns) if tspec.offset else 0
+            self.tcol = (f"column {lay.disp(lay.tname)!r}" if lay.header
+                         else lay.disp(lay.tname))
+            self.time_name = lay.disp(lay.tname)
+            self.start_at_zero = bool(tspec.start_at_zero)
         self.repair_order = bool(options.get("repair_order", False))
         self.time_unit_given = options.get("time_unit") is not None
         self._label = lay.label()
         self.exact: Exact | None = None  # the exact passes' plan, once the first fails
         self._again = False
         self.iso = False
-        self.plan = plan_of(self, options.get("robot"), options.get("torque_source"))
+        self.plan = plan_of(self, options)
 
     def label(self, i: int) -> str:
         return str(self._label(i))
 
-    def rate_error(self, rate_hz: float) -> str | None:
+    def rate_error(self, rate_hz: float, duration_s: float | None = None) -> str | None:
         from .repair import rate_message
 
+        if self.rate_hz is not None:
+            return rate_message(self.rate_hz, self.where, "--rate", None, duration_s)
+        assert self.lay.tspec is not None
         return rate_message(rate_hz, self.where, self.tcol,
-                            None if self.iso else self.lay.tspec.unit)
+                            None if self.iso else self.lay.tspec.unit, duration_s)
+
+    def pre_repairs(self) -> list[str]:
+        return [] if self.rate_hz is None else [rate_note(self.where, self.rate_hz)]
 
     def ranges(self, work: Callable[[Callable[[Any], Any], bool], Any]) -> Iterator[Any]:
         """``work`` of every range of the file (:func:`parsed_ranges`), an error reading
@@ -193,9 +209,9 @@ class CsvReaderLayout(MappedLayout):
             yield from exact_rows(self)
 
     # -- the passes
-    def _include(self) -> list[str]:
-        return list(dict.fromkeys(self.arrow[c] for c in (self.lay.tname,
-                                                          *self.key_cols.values())))
+    def include_columns(self) -> list[str]:
+        tname = [] if self.lay.tname is None else [self.lay.tname]
+        return list(dict.fromkeys(self.arrow[c] for c in (*tname, *self.key_cols.values())))
 
     def _parse_only(self) -> Iterator[RawRows]:
         """A file whose header pyarrow cannot name: its first parse error, else the
@@ -223,12 +239,12 @@ class CsvReaderLayout(MappedLayout):
 
         lay = self.lay
         cols = [self.arrow[c] for c in self.key_cols.values()]
-        tname = self.arrow[lay.tname]
-        if tname in cols or len(set(cols)) != len(cols):
+        tnames = [] if lay.tname is None else [self.arrow[lay.tname]]
+        if set(tnames) & set(cols) or len(set(cols)) != len(cols):
             yield from self._go_exact()
             return
-        types = {tname: pa.string(), **{c: pa.float64() for c in cols}}
-        copts = pacsv.ConvertOptions(column_types=types, include_columns=[tname, *cols],
+        types = {**{c: pa.string() for c in tnames}, **{c: pa.float64() for c in cols}}
+        copts = pacsv.ConvertOptions(column_types=types, include_columns=[*tnames, *cols],
                                      decimal_point=lay.decimal)
 
         def work(parse: Callable[[Any], Any], first: bool) -> Any:
@@ -258,6 +274,8 @@ class CsvReaderLayout(MappedLayout):
                 self.read_error = csv_parse_error(lay, got)
                 return
             t, facts, mat = got
+            if t is None:
+                t = rate_times(row0, mat.shape[0], self.rate_hz or 1.0)
             isos.add(facts.iso)
             if len(isos) > 1:
                 yield from self._go_exact()
@@ -298,7 +316,10 @@ def csv_reader_layout(p: Path, where: str, cmap: Any, options: dict[str, Any]
 
     if cmap is not None and cmap.format == "npz":
         raise LogFormatError(f"{where}: channel map {cmap.path} is for .npz archives")
-    lay = csv_layout(p, cmap, time_unit=options.get("time_unit"))
+    rate = options.get("rate")
+    lay = csv_layout(p, cmap, time_unit=None if cmap is not None else options.get("time_unit"),
+                     time_column=None if cmap is not None else options.get("time_column"),
+                     rate=None if rate is None else float(rate))
     ropts, popts = csv_read_options(lay, BLOCK_SIZE)
     names: list[str] | None = None
     header_error = None

@@ -33,7 +33,7 @@ from .csv_layout import (
     median_step,
     numbers,
 )
-from .layout import RawRows
+from .layout import RawRows, rate_times
 
 #: pyarrow's type inference, in the order it tries types (each accepts the values of
 #: every earlier one but where :func:`_fits` says otherwise).
@@ -102,8 +102,8 @@ def infer(ctx: Any) -> Exact:
     import pyarrow.csv as pacsv
 
     lay = ctx.lay
-    tname = ctx.arrow[lay.tname]
-    include = ctx._include()
+    tname = None if lay.tname is None else ctx.arrow[lay.tname]  # None: --rate
+    include = ctx.include_columns()
     infer_opts = pacsv.ConvertOptions(include_columns=include, decimal_point=lay.decimal)
     text_opts = pacsv.ConvertOptions(column_types={tname: pa.string()},
                                      include_columns=[tname])
@@ -111,7 +111,8 @@ def infer(ctx: Any) -> Exact:
     def work(parse: Callable[[Any], Any], first: bool) -> Any:
         try:
             table = parse(infer_opts)
-            text = parse(text_opts).column(tname).combine_chunks()
+            text = (pa.array([], pa.string()) if tname is None
+                    else parse(text_opts).column(tname).combine_chunks())
         except Exception as err:
             return err
         out: dict[str, tuple[int, bool, int, float]] = {}
@@ -151,6 +152,8 @@ def infer(ctx: Any) -> Exact:
         return Exact({}, "", None, LogFormatError(
             f"{ctx.where}: holds {rows} data row(s); at least 2 are needed"))
     types = {c: _arrow_type(KINDS[whole_type(col.kinds)]) for c, col in cols.items()}
+    if tname is None:
+        return Exact(types, "rate", None)
     return _route(ctx, types, cols[tname], exact_ok, head)
 
 def _route(ctx: Any, types: dict[str, Any], tcol: _Column, exact_ok: bool,
@@ -192,15 +195,17 @@ def exact_rows(ctx: Any) -> Iterator[RawRows]:
         ctx.read_error = plan.error
         return
     lay = ctx.lay
-    tname = ctx.arrow[lay.tname]
+    tname = None if lay.tname is None else ctx.arrow[lay.tname]  # None: --rate
     vcols = [ctx.arrow[c] for c in ctx.key_cols.values()]
     types = dict(plan.types)
     both = tname in vcols and str(plan.time_type) != str(plan.types[tname])
-    types[tname] = plan.time_type
-    copts = pacsv.ConvertOptions(column_types=types, include_columns=ctx._include(),
+    if tname is not None:
+        types[tname] = plan.time_type
+    copts = pacsv.ConvertOptions(column_types=types, include_columns=ctx.include_columns(),
                                  decimal_point=lay.decimal)
-    vopts = pacsv.ConvertOptions(column_types={tname: plan.types[tname]},
-                                 include_columns=[tname], decimal_point=lay.decimal)
+    vopts = (pacsv.ConvertOptions(column_types={tname: plan.types[tname]},
+                                  include_columns=[tname], decimal_point=lay.decimal)
+             if both and tname is not None else None)
 
     def work(parse: Callable[[Any], Any], first: bool) -> Any:
         try:
@@ -208,7 +213,10 @@ def exact_rows(ctx: Any) -> Iterator[RawRows]:
             values = parse(vopts) if both else table
         except Exception as err:
             return err
-        t, terr = _time(ctx, table.column(tname).combine_chunks(), plan.route)
+        terr: dict[str, tuple[int, Any]] = {}
+        t: np.ndarray | None = None
+        if tname is not None:
+            t, terr = _time(ctx, table.column(tname).combine_chunks(), plan.route)
         mat = np.empty((table.num_rows, len(vcols)))
         verr: dict[int, tuple[int, Any]] = {}
         for i, c in enumerate(vcols):
@@ -227,6 +235,8 @@ def exact_rows(ctx: Any) -> Iterator[RawRows]:
             ctx.read_error = csv_parse_error(lay, got)
             return
         t, terr, mat, verr = got
+        if t is None:
+            t = rate_times(row0, mat.shape[0], ctx.rate_hz)
         for kind, (i, what) in terr.items():
             time_err.setdefault(kind, (row0 + i, what))
         for c, (i, v) in verr.items():

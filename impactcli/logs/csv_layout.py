@@ -9,8 +9,11 @@ the stamp gives an offset), read as epoch ns (:func:`iso_to_ns`). ``--time-unit`
 the unit that would fit (:func:`clock_message`).
 
 Common variants of the canonical layout are read as well: a UTF-8 byte-order mark before
-the header (Excel), ``;`` or tab separators — the one with which the header names a time
-column — and with those a decimal comma (``0,004``), detected on the first data line.
+the header (Excel), ``;``, tab or space separators — the one with which the header names a
+time column (:mod:`impactcli.logs.csv_header`; for a mapped CSV, the map's columns) — and
+with those a decimal comma (``0,004``), detected on the first data line; blanks around
+separators (``time, q``) are not part of names or cells. A log read with ``--rate`` has no
+time column (``tname`` None): its times are the rows' indices at the rate.
 A file with binary content (a NUL byte, or mostly control or non-UTF-8 bytes in its first
 64 KiB) is "not a text CSV".
 """
@@ -29,15 +32,10 @@ from typing import Any
 import numpy as np
 
 from ..errors import ChannelMapError, LogFormatError
-from .channel_map import SIGNALS, TIME_UNITS, ChannelMap, ChannelRef, TimeSpec, require_time
+from .channel_map import ChannelMap, ChannelRef, TimeSpec, require_time
+from .csv_header import canonical_map, header_names, mapped_separator, separator
 from .repair import GIVE_UNIT, unit_hint
 
-#: Recognised time columns of a canonical CSV, by preference.
-TIME_COLUMNS: tuple[str, ...] = ("time_ns", "time", "__time")
-#: The unit each canonical time column is in (``time``: seconds unless --time-unit says).
-TIME_COLUMN_UNITS: dict[str, str] = {"time_ns": "ns", "time": "s", "__time": "s"}
-#: Separators of a canonical CSV, tried in this order on the header.
-SEPARATORS: tuple[str, ...] = (",", ";", "\t")
 #: Bytes looked at to tell a text CSV from binary content.
 SNIFF_BYTES = 1 << 16
 #: Largest |time| in ns the int64 clock holds (± about 292 years).
@@ -93,71 +91,6 @@ def check_text(path: Path, where: str) -> None:
     if np.count_nonzero(control) + not_utf8 > 0.1 * len(head):
         k = int(np.argmax(control | (arr >= 128)))
         raise LogFormatError(f"{where}: not a text CSV (binary content from byte {k})")
-
-
-def separator(line: str) -> str:
-    """The separator with which the header ``line`` names a time column (default ``,``)."""
-    for sep in SEPARATORS:
-        if any(c.strip().strip('"') in TIME_COLUMNS for c in line.rstrip("\r\n").split(sep)):
-            return sep
-    return ","
-
-
-def canonical_map(header: list[str], path: str,
-                  time_unit: str | None = None) -> tuple[ChannelMap, list[str]]:
-    """The channel map implied by a canonical CSV header, and the ignored columns.
-
-    Args:
-        header: the column names.  path: the file, for messages.
-        time_unit: the unit of a ``time`` column (``s``, ``ms``, ``us``, ``ns``; None: s).
-
-    Raises:
-        LogFormatError: no time column, no joint with a position, or a ``time_unit`` for a
-            column whose unit its name says (``time_ns``, PlotJuggler's ``__time``).
-    """
-    tcol = next((c for c in TIME_COLUMNS if c in header), None)
-    if tcol is None:
-        raise LogFormatError(
-            f"{path}: no time column (one of {', '.join(TIME_COLUMNS)}); for other layouts "
-            "pass a channel map (--channel-map)"
-        )
-    unit = TIME_COLUMN_UNITS[tcol]
-    if time_unit is not None and time_unit not in TIME_UNITS:
-        raise LogFormatError(f"{path}: unknown time unit {time_unit!r} (s, ms, us or ns)")
-    if time_unit is not None and tcol != "time" and time_unit != unit:
-        raise LogFormatError(f"{path}: --time-unit {time_unit} does not apply: column "
-                             f"{tcol!r} is in {unit} by its name")
-    if time_unit is not None:
-        unit = time_unit
-    joints: dict[str, dict[str, ChannelRef]] = {}
-    ignored: list[str] = []
-    for col in header:
-        if col == tcol:
-            continue
-        joint, dot, sig = col.partition(".")
-        if dot and joint and sig in SIGNALS:
-            joints.setdefault(joint, {})[sig] = ChannelRef(source=col)
-        else:
-            ignored.append(col)
-    # a "joint" without a position is not a joint: its columns are ignored
-    for j in [j for j, sigs in joints.items() if "position" not in sigs]:
-        ignored += [f"{j}.{s}" for s in joints.pop(j)]
-    if not joints:
-        raise LogFormatError(
-            f"{path}: no '<joint>.position' column; for other layouts pass a channel map "
-            "(--channel-map)"
-        )
-    names = tuple(joints)
-    signals = {
-        s: tuple(joints[j].get(s) for j in names)
-        for s in SIGNALS
-        if any(s in joints[j] for j in names)
-    }
-    cmap = ChannelMap(
-        name="canonical", time=TimeSpec(ChannelRef(tcol), unit=unit), joints=names,
-        signals=signals, path="", header=True,
-    )
-    return cmap, ignored
 
 
 def decimal_text_to_ns(values: Any, unit_ns: int) -> np.ndarray | None:
@@ -254,6 +187,7 @@ class CsvLayout:
             a header).
         ignored_extra: a canonical CSV's columns that are not channels.
         tname: the time column.  tspec: the time's spec (unit, offset, start at zero).
+            Both None for a log read with ``--rate`` (``rate_hz``).
         columns: (signal, joint index) → the column holding it, for every ref of ``cmap``.
     """
 
@@ -267,14 +201,15 @@ class CsvLayout:
     decimal: str
     names: list[str]
     ignored_extra: list[str]
-    tname: str
-    tspec: TimeSpec
+    tname: str | None
+    tspec: TimeSpec | None
     columns: dict[tuple[str, int], str]
+    rate_hz: float | None = None
 
     @property
     def used(self) -> set[str]:
         """The columns read: time and every channel's."""
-        return {self.tname, *self.columns.values()}
+        return {*([self.tname] if self.tname is not None else []), *self.columns.values()}
 
     def disp(self, col: str) -> str:
         """A column as messages name it (``column 3`` without a header)."""
@@ -285,10 +220,16 @@ class CsvLayout:
         return row_labeller(self.skip + (1 if self.header else 0))
 
 
-def csv_layout(path: Path, cmap: ChannelMap | None, *,
-               time_unit: str | None = None) -> CsvLayout:
+def csv_layout(path: Path, cmap: ChannelMap | None, *, time_unit: str | None = None,
+               time_column: str | None = None, rate: float | None = None) -> CsvLayout:
     """Read a CSV's first lines: separator, decimal point, header, the channel map and
     which column holds what.
+
+    Args:
+        path: the file.  cmap: its channel map (None: the canonical layout).
+        time_unit, time_column, rate: ``--time-unit``, ``--time-column`` and ``--rate``
+            of a canonical CSV (:func:`~impactcli.logs.csv_header.canonical_map`; a map's
+            own time has them applied already).
 
     Raises:
         LogFormatError: not a text CSV, empty, no time or position column (canonical).
@@ -299,20 +240,24 @@ def csv_layout(path: Path, cmap: ChannelMap | None, *,
     header = True if cmap is None else cmap.header
     skip = 0 if cmap is None else cmap.skip_rows
     line, data_line = _lines(path, skip, 2)
-    delim = separator(line) if cmap is None else cmap.delimiter
     if not line.strip():
         raise LogFormatError(f"{where}: empty file (no header or data)")
+    if cmap is None:
+        delim = separator(line, time_column)
+    else:
+        delim = cmap.delimiter or mapped_separator(cmap, line)
     if not header:
         data_line = line
-    # a decimal comma goes with ';' or tab separators (spreadsheet exports)
+    # a decimal comma goes with ';', tab or space separators (spreadsheet exports)
     decimal = "," if delim != "," and re.search(r"\d,\d", data_line) else "."
     if header:
-        names = [c.strip().strip('"') for c in line.rstrip("\r\n").split(delim)]
+        names = header_names(line, delim)
     else:
         names = [f"f{i}" for i in range(len(line.split(delim)))]
     ignored_extra: list[str] = []
     if cmap is None:
-        cmap, ignored_extra = canonical_map(names, where, time_unit)
+        cmap, ignored_extra = canonical_map(names, where, time_unit, time_column=time_column,
+                                            rate=rate)
         fmt = "csv"
     else:
         fmt = "csv-mapped"
@@ -330,21 +275,23 @@ def csv_layout(path: Path, cmap: ChannelMap | None, *,
         if ref.source not in names:
             raise ChannelMapError(
                 f"{where}: channel map {the_map.path or the_map.name}: {what} points at "
-                f"column {ref.source!r}, which is not in the file"
+                f"column {ref.source!r}, which is not in the file (its columns split at "
+                f"{delim!r}: {', '.join(names[:12])}{', …' if len(names) > 12 else ''})"
             )
         return ref.source
 
-    tspec = require_time(cmap, where)
-    tname = colname(tspec.ref, "time")
+    tspec = None if rate is not None else require_time(cmap, where)
+    tname = None if tspec is None else colname(tspec.ref, "time")
     columns = {(sig, j): colname(ref, f"{cmap.joints[j]}.{sig}") for sig, j, ref in cmap.refs()}
+    used = {*columns.values(), *([tname] if tname is not None else [])}
     # a column named twice could be read as either: refused when a channel is one of them
-    for col in sorted({tname, *columns.values()}, key=names.index):
+    for col in sorted(used, key=names.index):
         if names.count(col) > 1:
             raise LogFormatError(f"{where}: column {col!r} appears {names.count(col)} times "
                                  "in the header: name each column once")
     return CsvLayout(path=path, where=where, cmap=cmap, fmt=fmt, header=header, skip=skip,
                      delim=delim, decimal=decimal, names=names, ignored_extra=ignored_extra,
-                     tname=tname, tspec=tspec, columns=columns)
+                     tname=tname, tspec=tspec, columns=columns, rate_hz=rate)
 
 
 def csv_read_options(lay: CsvLayout, block_size: int = 1 << 24) -> tuple[Any, Any]:

@@ -62,7 +62,10 @@ def describe_log(scan: LogScan, t_ns: np.ndarray) -> dict[str, Any]:
     ``gaps.n_listed`` of ``gaps.count`` are listed. ``joints_dropped``: the joints the
     reader left out (no finite position or torque); ``joints_left_out``: those detection
     will leave out by their torque (:func:`joints_left_out`); ``ranges``: per array the log
-    has, each joint's smallest and largest value (null where it does not log it).
+    has, each joint's smallest and largest value (null where it does not log it);
+    ``position_unit``: whether the positions can be radians (``ok``, ``warn`` or
+    ``refuse`` — what ``detect`` would refuse, :mod:`impactcli.logs.plausibility`), and
+    ``warnings``: what the scan warned of besides the repairs.
     """
     log = scan.log
     dt = np.diff(t_ns).astype(np.float64) * 1e-9
@@ -116,7 +119,20 @@ def describe_log(scan: LogScan, t_ns: np.ndarray) -> dict[str, Any]:
         "joints_left_out": joints_left_out(scan),
         "ranges": {s: {j: _range(lo[k], hi[k]) for k, j in enumerate(log.joint_names)}
                    for s, (lo, hi) in scan.ranges.items()},
+        **({} if scan.position_unit is None else {"position_unit": {
+            "verdict": scan.position_unit.kind, "message": scan.position_unit.message,
+            "joints": list(scan.position_unit.joints)}}),
+        "warnings": list(scan.warnings),
     }
+
+
+def _unit_row(v: dict[str, Any] | None) -> str:
+    """The table's line on the position unit."""
+    if v is None:
+        return "not checked"
+    return {"ok": "rad (plausible)",
+            "warn": "rad, suspicious: " + v["message"],
+            "refuse": "cannot be radians: " + v["message"]}[v["verdict"]]
 
 
 def format_table(d: dict[str, Any]) -> str:
@@ -148,6 +164,7 @@ def format_table(d: dict[str, Any]) -> str:
                                      for x in d.get("joints_dropped", [])) or "none"),
         ("joints left out", ", ".join(f"{x['name']} ({x['reason']})"
                                       for x in d.get("joints_left_out", [])) or "none"),
+        ("position unit", _unit_row(d.get("position_unit"))),
     ]
     width = max(len(k) for k, _ in rows)
     lines = [f"{k:<{width}}  {v}" for k, v in rows]

@@ -87,8 +87,9 @@ class StreamLayout:
         """Repaired rows ``t`` (n,), ``mat`` (n, C) as the reader's channels."""
         raise NotImplementedError
 
-    def rate_error(self, rate_hz: float) -> str | None:
-        """The time-unit check on the first steps' rate (None: fine, or not checked)."""
+    def rate_error(self, rate_hz: float, duration_s: float | None = None) -> str | None:
+        """The time-unit check on the first steps' rate (None: fine, or not checked);
+        ``duration_s``: the log's duration as read [s], when known."""
         return None
 
     def pass_again(self) -> bool:
@@ -109,14 +110,30 @@ class StreamLayout:
         """Release what the layout holds (a spill of the scan's)."""
 
 
-def plan_of(layout: StreamLayout, robot: Any, torque_source: str | None) -> Any:
-    """The layout's :class:`~impactcli.logs.channels.LogPlan` from its channels without rows,
-    or the LogFormatError planning raises."""
+def rate_times(row0: int, n: int, rate_hz: float) -> np.ndarray:
+    """The times [ns] of rows ``row0`` … ``row0 + n − 1`` of a log read with ``--rate``:
+    row i at round(i × 1e9 / rate) ns (the same for any blocks)."""
+    return np.round((row0 + np.arange(n, dtype=np.float64)) * (1e9 / rate_hz)).astype(np.int64)
+
+
+def rate_note(where: str, rate_hz: float) -> str:
+    """The log's provenance when read with ``--rate`` (warned, and recorded in its repairs):
+    its times are the rate's, not logged."""
+    return (f"{where}: no time column: sample i is at i / {rate_hz:g} Hz (--rate {rate_hz:g}); "
+            "the times are not logged, so gaps and jitter cannot be seen")
+
+
+def plan_of(layout: StreamLayout, options: dict[str, Any]) -> Any:
+    """The layout's :class:`~impactcli.logs.channels.LogPlan` from its channels without rows
+    and the read ``options`` (``robot``, ``torque_source``, ``position_unit``), or the
+    LogFormatError planning raises."""
     from .channels import plan_log
 
     head = layout.channels(np.zeros(0, dtype=np.int64), np.zeros((0, len(layout.names))))
     try:
-        return plan_log(head, path=layout.where, robot=robot, torque_source=torque_source)
+        return plan_log(head, path=layout.where, robot=options.get("robot"),
+                        torque_source=options.get("torque_source"),
+                        position_unit=options.get("position_unit"))
     except LogFormatError as err:
         return err
 

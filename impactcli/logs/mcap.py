@@ -47,6 +47,9 @@ LOOSE_BYTES = 1 << 20
 OFFICIAL_BLOCK = 8192
 
 Block = dict[str, list[Batch]]
+#: What parsing a damaged record's fields raises (a length past the record, a name that is
+#: not UTF-8, a size no memory holds): the file is corrupt (a LogFormatError naming it).
+RECORD_ERRORS = (struct.error, UnicodeDecodeError, IndexError, OverflowError, MemoryError)
 
 
 class UnsupportedMcap(Exception):
@@ -369,9 +372,16 @@ class McapBlocks:
             return
         scan = self.scan
         walker.offset = at
-        walker.walk(buf, np.frombuffer(buf, dtype=np.uint8), 0, len(buf), self.where,
-                    inside_chunk=False)
-        walker.run_pending(buf, self.where)
+        try:
+            walker.walk(buf, np.frombuffer(buf, dtype=np.uint8), 0, len(buf), self.where,
+                        inside_chunk=False)
+            walker.run_pending(buf, self.where)
+        except RECORD_ERRORS as err:  # a record whose fields do not fit it: damaged
+            why = ("a name that is not UTF-8" if isinstance(err, UnicodeDecodeError) else
+                   "a field running past its record" if isinstance(err, struct.error | IndexError)
+                   else "a size beyond memory")
+            raise LogFormatError(f"{self.where}: corrupt MCAP: a damaged record between "
+                                 f"bytes {at} and {at + len(buf)} ({why})") from err
         out: Block = {}
         for cid, batches in scan.batches.items():
             topic = scan.channels[cid][0] if cid in scan.channels else ""

@@ -376,7 +376,7 @@ def message_layout(p: Path, where: str, suffix: str, cmap: Any,
             _mcap_checks(lay)
         sel.raise_error()
         decide(lay, sel, options)
-        lay.plan = plan_of(lay, options.get("robot"), options.get("torque_source"))
+        lay.plan = plan_of(lay, options)
     except BaseException:
         lay.close()
         raise

@@ -26,7 +26,7 @@ from typing import IO, Any
 import numpy as np
 
 from ..errors import ChannelMapError, LogFormatError
-from .layout import MappedLayout, RawRows, plan_of
+from .layout import MappedLayout, RawRows, plan_of, rate_times
 
 #: Rows read from each array at a time.
 BLOCK_ROWS = 65_536
@@ -65,13 +65,19 @@ class NpzLayout(MappedLayout):
                 keys = list(archive.files)
         except READ_ERRORS as err:
             raise LogFormatError(f"{where}: not a readable .npz archive: {err}") from err
-        tspec = require_time(cmap, where)
-        self.tref = tspec.ref
-        self.tkey = str(tspec.ref.source)
-        self.time_name = self.tkey
-        self.unit, self.unit_ns = tspec.unit, TIME_UNITS[tspec.unit]
-        self.offset_ns = round(tspec.offset * self.unit_ns) if tspec.offset else 0
-        self.start_at_zero = bool(tspec.start_at_zero)
+        rate = options.get("rate")
+        self.rate_hz = None if rate is None else float(rate)
+        if self.rate_hz is None:
+            tspec = require_time(cmap, where)
+            self.tref: Any = tspec.ref
+            self.tkey: str | None = str(tspec.ref.source)
+            self.time_name = str(self.tkey)
+            self.unit, self.unit_ns = tspec.unit, TIME_UNITS[tspec.unit]
+            self.offset_ns = round(tspec.offset * self.unit_ns) if tspec.offset else 0
+            self.start_at_zero = bool(tspec.start_at_zero)
+        else:  # --rate: no time array
+            self.tref, self.tkey, self.time_name = None, None, "--rate"
+            self.unit, self.unit_ns, self.offset_ns = "s", 10**9, 0
         # the columns: (signal, joint) → label, label → (array key, column index or None)
         self.keys = {}
         self.cols: dict[str, tuple[str, int | None]] = {}
@@ -80,14 +86,15 @@ class NpzLayout(MappedLayout):
             self.cols.setdefault(ref.label(), (str(ref.source), ref.index))
         self.names = list(self.cols)
         self.droppable = {lab for (sig, _), lab in self.keys.items() if sig in DROPPABLE_SIGNALS}
-        used = {str(r.source) for _, _, r in cmap.refs()} | {self.tkey}
+        used = {str(r.source) for _, _, r in cmap.refs()} | (
+            {self.tkey} if self.tkey is not None else set())
         self.ignored = [k for k in keys if k not in used]
         self.archive_keys = keys
         self.shapes: dict[str, tuple[tuple[int, ...], np.dtype[Any]]] = {}
         self.whole: dict[str, np.ndarray] = {}  # members read whole
         self.n = self._check(cmap)
         self.time_error: LogFormatError | None = None
-        self.plan = plan_of(self, options.get("robot"), options.get("torque_source"))
+        self.plan = plan_of(self, options)
 
     # -- the archive as a whole array of each member would be read
     def _member(self, key: str) -> str:
@@ -182,15 +189,21 @@ class NpzLayout(MappedLayout):
                 raise self._first_error(read) or bad
             return return_shape, dtype
 
-        tshape, tdtype = get(self.tref, "time")
+        if self.tref is not None:
+            tshape, tdtype = get(self.tref, "time")
+        else:  # --rate: the length of the first array the map names
+            sig0, j0, ref0 = cmap.refs()[0]
+            tshape, tdtype = get(ref0, f"{cmap.joints[j0]}.{sig0}")
         n = tshape[0]
         for sig, j, ref in cmap.refs():
             what = f"{cmap.joints[j]}.{sig}"
             shape, dtype = get(ref, what)
             err: LogFormatError | None = None
             if shape[0] != n:
+                first = (repr(self.tkey) if self.tkey is not None
+                         else repr(cmap.refs()[0][2].label()))
                 err = LogFormatError(
-                    f"{where}: mismatched channel lengths: {self.tkey!r} has {n} samples but "
+                    f"{where}: mismatched channel lengths: {first} has {n} samples but "
                     f"{ref.label()!r} ({what}) has {shape[0]}")
             elif not np.issubdtype(dtype, np.number) or np.issubdtype(dtype,
                                                                        np.complexfloating):
@@ -198,16 +211,25 @@ class NpzLayout(MappedLayout):
                                      f"({dtype})")
             if err is not None:
                 raise self._first_error(read) or err
-        if not (np.issubdtype(tdtype, np.integer) or np.issubdtype(tdtype, np.floating)):
+        if self.tkey is not None and not (np.issubdtype(tdtype, np.integer)
+                                          or np.issubdtype(tdtype, np.floating)):
             raise self._first_error(read) or LogFormatError(
                 f"{where}: time array {self.tkey!r} is not numeric ({tdtype})")
         self.read_order = read
         return int(n)
 
-    def rate_error(self, rate_hz: float) -> str | None:
+    def rate_error(self, rate_hz: float, duration_s: float | None = None) -> str | None:
         from .repair import rate_message
 
-        return rate_message(rate_hz, self.where, f"array {self.tkey!r}", self.unit)
+        if self.rate_hz is not None:
+            return rate_message(self.rate_hz, self.where, "--rate", None, duration_s)
+        return rate_message(rate_hz, self.where, f"array {self.tkey!r}", self.unit,
+                            duration_s)
+
+    def pre_repairs(self) -> list[str]:
+        from .layout import rate_note
+
+        return [] if self.rate_hz is None else [rate_note(self.where, self.rate_hz)]
 
     def _time(self, raw: np.ndarray, row0: int) -> np.ndarray:
         """A block of the time array → int64 ns (integers × the unit, floats rounded)."""
@@ -229,7 +251,7 @@ class NpzLayout(MappedLayout):
         self.time_error = None
         keys = list(self.shapes)
         failed: set[str] = set()
-        tidx = self.tref.index
+        tidx = None if self.tref is None else self.tref.index
         try:
             with zipfile.ZipFile(self.path) as zf:
                 files = {k: zf.open(self._member(k)) for k in keys if k not in self.whole}
@@ -253,8 +275,11 @@ class NpzLayout(MappedLayout):
                         for c, (key, idx) in enumerate(self.cols.values()):
                             a = block[key]
                             mat[:, c] = a if idx is None else a[:, idx]
-                        tb = block[self.tkey]
-                        t = self._time(tb if tidx is None else tb[:, tidx], r0)
+                        if self.tkey is None:  # --rate
+                            t = rate_times(r0, k, self.rate_hz or 1.0)
+                        else:
+                            tb = block[self.tkey]
+                            t = self._time(tb if tidx is None else tb[:, tidx], r0)
                         if self.time_error is None:
                             yield RawRows(r0, t, mat)
                     for key, f in files.items():  # the rest of the member: its CRC

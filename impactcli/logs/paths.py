@@ -1,9 +1,13 @@
 """What a log path is: its format by suffix, its stem, its sha256, and the read options
-that apply to it (:func:`check_log_path`).
+that apply to it (:func:`open_log_options`).
 
 A log is a file, or a rosbag2 folder (a folder holding ``metadata.yaml``): its stem is the
 folder's name and its sha256 that of its files' sha256s in name order
-(:func:`folder_sha256`). Any other folder given as a log is refused.
+(:func:`folder_sha256`). Any other folder stands for the logs in it (:func:`folder_logs`:
+the files of a recognised format and the rosbag2 folders directly inside, by name): the
+verbs that take many logs read them all (:func:`impactcli.logs.urls.expand_inputs`, as a
+glob), a verb that takes one reads a folder's one log (:func:`one_log_in`); several are a
+usage error (exit 2) listing them, none a data error (exit 3) naming what was looked for.
 """
 
 from __future__ import annotations
@@ -14,7 +18,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from ..errors import LogFormatError
+from ..errors import EXIT_USAGE, ImpactError, LogFormatError
 
 #: Recognised log suffixes (lower case), longest first.
 LOG_SUFFIXES: tuple[str, ...] = (".csv.gz", ".csv", ".mcap", ".npz", ".bag", ".db3")
@@ -24,7 +28,27 @@ MESSAGE_SUFFIXES: tuple[str, ...] = (".mcap", ".bag", ".db3")
 ROSBAG2_METADATA = "metadata.yaml"
 #: The read options a log reader takes (``read_log``'s keyword arguments).
 READ_OPTIONS: tuple[str, ...] = ("channel_map", "robot", "topic", "reference_topic",
-                                 "time_source", "torque_source", "time_unit", "repair_order")
+                                 "time_source", "torque_source", "time_unit", "time_column",
+                                 "rate", "position_unit", "repair_order")
+#: The read options a timeline records (``input.read_options``) and ``report`` reads a
+#: timeline's log again with: all but the robot (``--robot``, given as itself).
+RECORDED_READ_OPTIONS: tuple[str, ...] = tuple(k for k in READ_OPTIONS if k != "robot")
+#: ``--position-unit``: the unit of a log's positions (and their references, velocities
+#: and accelerations, per second): converted to radians as they are read.
+POSITION_UNITS: tuple[str, ...] = ("rad", "deg")
+
+
+#: At most this many logs are named when a folder holds several for a verb reading one.
+MAX_LISTED = 10
+#: What a folder is searched for, in messages.
+LOOKED_FOR = (f"{', '.join(LOG_SUFFIXES)} files or rosbag2 folders (with metadata.yaml), "
+              "directly inside it")
+
+
+class SeveralLogsError(ImpactError):
+    """A folder of several logs given to a verb that reads one: a usage error (exit 2)."""
+
+    exit_code = EXIT_USAGE
 
 
 def log_suffix(path: Path) -> str | None:
@@ -44,6 +68,41 @@ def log_stem(path: str | os.PathLike[str]) -> str:
 def is_rosbag2_folder(path: Path) -> bool:
     """Whether ``path`` is a folder holding a rosbag2 ``metadata.yaml``."""
     return path.is_dir() and (path / ROSBAG2_METADATA).is_file()
+
+
+def folder_logs(path: Path) -> list[Path]:
+    """The logs in a folder that is not a rosbag2 folder, by name: its files of a
+    recognised format (:data:`LOG_SUFFIXES`) and the rosbag2 folders directly inside it
+    (hidden entries, ``.name``, left out; not recursive)."""
+    try:
+        entries = sorted(path.iterdir(), key=lambda p: p.name)
+    except OSError as err:
+        raise LogFormatError(f"{path}: cannot list the folder: {err.strerror or err}") from err
+    return [p for p in entries if not p.name.startswith(".") and (
+        (p.is_file() and log_suffix(p) is not None) or is_rosbag2_folder(p))]
+
+
+def one_log_in(path: Path, where: str | None = None) -> Path:
+    """The log a verb that reads one log reads for ``path``: ``path`` itself (a file, a
+    rosbag2 folder), or the one log of a folder that is no rosbag2 folder.
+
+    Raises:
+        LogFormatError: a folder without a log (naming what was looked for).
+        SeveralLogsError: a folder of several logs (listing them; exit 2).
+    """
+    if not path.is_dir() or is_rosbag2_folder(path):
+        return path
+    where = where or str(path)
+    logs = folder_logs(path)
+    if not logs:
+        raise LogFormatError(f"{where}: a folder without any log (looked for {LOOKED_FOR})")
+    if len(logs) > 1:
+        names = [p.name + ("/" if p.is_dir() else "") for p in logs[:MAX_LISTED]]
+        more = f", … and {len(logs) - MAX_LISTED} more" if len(logs) > MAX_LISTED else ""
+        raise SeveralLogsError(
+            f"{where}: a folder of {len(logs)} logs ({', '.join(names)}{more}), and this verb "
+            "reads one: name the log (detect and report read every log of a folder)")
+    return logs[0]
 
 
 def folder_files(path: Path) -> list[Path]:
@@ -77,36 +136,97 @@ def check_read_options(options: dict[str, Any]) -> None:
         raise TypeError(f"unknown read options: {', '.join(sorted(unknown))}")
 
 
+def check_time_options(where: str, time_unit: str | None, time_column: str | None,
+                       rate: Any, position_unit: str | None) -> float | None:
+    """The values of ``--time-unit``, ``--time-column``, ``--rate`` and
+    ``--position-unit`` checked (``--rate`` excludes the other two): the rate [Hz] as a
+    float (None without one); LogFormatError naming the bad one."""
+    import math
+
+    from .channel_map import TIME_UNITS
+
+    if time_unit is not None and time_unit not in TIME_UNITS:
+        raise LogFormatError(f"{where}: unknown time unit {time_unit!r} (s, ms, us or ns)")
+    if position_unit is not None and position_unit not in POSITION_UNITS:
+        raise LogFormatError(f"{where}: unknown position unit {position_unit!r} (rad or deg)")
+    if time_column is not None and not str(time_column).strip():
+        raise LogFormatError(f"{where}: --time-column needs a column's name")
+    if rate is None:
+        return None
+    try:
+        hz = float(rate)
+    except (TypeError, ValueError):
+        raise LogFormatError(f"{where}: --rate {rate!r} is not a number of Hz") from None
+    if not (math.isfinite(hz) and hz > 0):
+        raise LogFormatError(f"{where}: --rate {rate!r} must be a positive number of Hz")
+    if time_unit is not None or time_column is not None:
+        raise LogFormatError(f"{where}: --rate is for a log without a time column: it "
+                             "excludes --time-unit and --time-column")
+    return hz
+
+
+def _map_time(cmap: Any, where: str, time_unit: str | None, time_column: str | None,
+              rate: float | None) -> Any:
+    """A CSV or .npz channel map with ``--time-column`` / ``--time-unit`` applied to its
+    time (``--time-column`` replaces its column or key, in the unit ``--time-unit``, else
+    the unit its name says, else the map's); with ``--rate``, the map must name no time."""
+    from .channel_map import ChannelRef, TimeSpec
+    from .csv_header import name_unit
+
+    mapname = cmap.path or cmap.name
+    if rate is not None:
+        if cmap.time is not None:
+            raise LogFormatError(
+                f"{where}: --rate is for a log without a time column, and channel map "
+                f"{mapname} names one ({cmap.time.ref.label()}): leave --rate out, or the "
+                "map's 'time'")
+        return cmap
+    if time_column is not None:
+        src: str | int = time_column
+        if cmap.format != "npz" and not cmap.header and str(time_column).isdigit():
+            src = int(time_column)  # a headerless CSV's columns are numbered
+        old = cmap.time or TimeSpec(ChannelRef(src))
+        unit = time_unit or name_unit(str(time_column)) or old.unit
+        return dataclasses.replace(cmap, time=dataclasses.replace(
+            old, ref=ChannelRef(src), unit=unit))
+    if time_unit is not None and cmap.time is not None:
+        return dataclasses.replace(cmap, time=dataclasses.replace(cmap.time, unit=time_unit))
+    return cmap
+
+
 def open_log_options(
     path: str | os.PathLike[str], *, channel_map: Any = None, topic: str | None = None,
     reference_topic: str | None = None, time_source: str | None = None,
     torque_source: str | None = None, time_unit: str | None = None,
+    time_column: str | None = None, rate: Any = None, position_unit: str | None = None,
 ) -> tuple[Path, str, str, bool, Any]:
     """Check a local log path and the read options that apply to it; load the channel map.
 
     Returns:
         ``(path, where, suffix, folder, cmap)``: the path, it as text for messages, its
         format suffix (``rosbag2`` for a folder), whether it is a folder, the channel map
-        (None without one; ``--time-unit`` applied to its time).
+        (None without one; ``--time-unit`` and ``--time-column`` applied to its time).
 
     Raises:
         LogFormatError: a missing or unknown file, or options that do not apply to it.
         ChannelMapError: a channel map that does not load.
     """
-    from .channel_map import TIME_UNITS, load_channel_map
+    from .channel_map import load_channel_map
     from .channels import check_torque_source
 
     p = Path(path)
     where = str(path)
     check_torque_source(torque_source, where)
+    hz = check_time_options(where, time_unit, time_column, rate, position_unit)
     if not p.exists():
         if any(c in where for c in "*?["):
             raise LogFormatError(f"{where}: the pattern matches no file")
         raise LogFormatError(f"{where}: log file not found")
+    if p.is_dir() and not is_rosbag2_folder(p):  # a folder of logs: its one log
+        p = one_log_in(p, where)
+        where = str(p)
     folder = p.is_dir()
     if folder:
-        if not is_rosbag2_folder(p):
-            raise LogFormatError(f"{where}: not a rosbag2 folder (no metadata.yaml)")
         suffix: str | None = "rosbag2"
     elif not p.is_file():
         raise LogFormatError(f"{where}: not a file")
@@ -123,16 +243,17 @@ def open_log_options(
             f"{where}: --topic, --reference-topic and --time-source apply to MCAP logs and "
             "ROS bags only"
         )
-    if time_unit is not None:
-        if time_unit not in TIME_UNITS:
-            raise LogFormatError(f"{where}: unknown time unit {time_unit!r} (s, ms, us or ns)")
-        if messages:
-            raise LogFormatError(f"{where}: --time-unit applies to CSV and .npz logs only "
-                                 "(MCAP and bag stamps are ns)")
+    if messages:
+        given = [opt for opt, v in (("--time-unit", time_unit), ("--time-column", time_column),
+                                    ("--rate", rate)) if v is not None]
+        if given:
+            raise LogFormatError(f"{where}: {', '.join(given)} appl"
+                                 f"{'ies' if len(given) == 1 else 'y'} to CSV and .npz logs "
+                                 "only (MCAP and bag stamps are ns)")
     cmap = load_channel_map(channel_map) if channel_map is not None else None
     if cmap is not None and not messages and cmap.format == "messages":
         raise LogFormatError(f"{where}: channel map {cmap.path or cmap.name} names message "
                              "fields (format: messages): it is for MCAP logs and ROS bags")
-    if cmap is not None and time_unit is not None and cmap.time is not None:
-        cmap = dataclasses.replace(cmap, time=dataclasses.replace(cmap.time, unit=time_unit))
+    if cmap is not None and not messages:
+        cmap = _map_time(cmap, where, time_unit, time_column, hz)
     return p, where, suffix, folder, cmap

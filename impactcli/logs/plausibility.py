@@ -11,6 +11,9 @@ bound, its revolute joints' limits bound their travel, its velocity limits their
 
 Speeds are a high percentile (:data:`SPEED_QUANTILE`) of the speed over
 :data:`SPEED_WINDOW_S` windows, so a wrapped angle or a glitch of a few samples does not count.
+Positions that are no motion — noise, whose speed over windows :data:`SMOOTH_FACTOR` times
+longer is far lower (:meth:`MotionSketch.smooth`) — say nothing of a unit: such a joint is
+not judged.
 """
 
 from __future__ import annotations
@@ -34,6 +37,12 @@ DEG = math.pi / 180.0
 SPEED_WINDOW_S = 0.02
 #: ... and the joint's speed is this quantile of them (a few glitches do not count).
 SPEED_QUANTILE = 0.99
+#: The smoothness check's windows are this many speed windows long ...
+SMOOTH_FACTOR = 10
+#: ... and a joint whose speed over them is below this share of its speed over the short
+#: windows is noise, not motion (white noise: about 0.1, a random walk 0.3; an arm's
+#: motion, whose periods are seconds: about 1).
+SMOOTH_RATIO = 0.5
 #: Bins of the speed histogram: log-spaced edges [rad/s], 50 per decade.
 _EDGES = np.logspace(-6, 8, 14 * 50 + 1)
 
@@ -90,25 +99,42 @@ class MotionSketch:
         self.lag = max(1, round(SPEED_WINDOW_S / sample_period_s))
         self.span_s = self.lag * sample_period_s
         self.counts = np.zeros((n_joints, _EDGES.size + 1), dtype=np.int64)
-        self.tail = np.empty((0, n_joints))
+        # the smoothness check: windows SMOOTH_FACTOR × longer
+        self.long = SMOOTH_FACTOR * self.lag
+        self.counts_long = np.zeros_like(self.counts)
+        self.tail = np.empty((0, n_joints))  # the last `long` samples fed
+        self.seen = 0  # samples fed
 
     def update(self, position: np.ndarray) -> None:
-        """Feed the next (n, J) positions [as read]; NaN (a joint not logged) is skipped."""
+        """Feed the next (n, J) positions [as read]; NaN (a joint not logged) is skipped,
+        and so is a window touching an infinite value. The windows start every ``lag``
+        samples of the whole log (the speed windows tile it), whatever the chunks."""
         q = np.asarray(position, dtype=np.float64)
         if q.shape[0] == 0:
             return
-        with np.errstate(invalid="ignore"):
-            self.lo = np.fmin(self.lo, np.nanmin(q, axis=0, initial=np.inf))
-            self.hi = np.fmax(self.hi, np.nanmax(q, axis=0, initial=-np.inf))
-        both = np.concatenate([self.tail, q])
-        if both.shape[0] > self.lag:
-            speed = np.abs(both[self.lag:] - both[:-self.lag]) / self.span_s
-            for j in range(q.shape[1]):
-                s = speed[:, j]
-                s = s[np.isfinite(s)]
-                self.counts[j] += np.bincount(np.searchsorted(_EDGES, s),
-                                              minlength=_EDGES.size + 1)
-        self.tail = both[-self.lag:]
+        with np.errstate(invalid="ignore", over="ignore"):
+            self.lo = np.fmin(self.lo, np.fmin.reduce(q, axis=0))  # NaN: not logged
+            self.hi = np.fmax(self.hi, np.fmax.reduce(q, axis=0))
+            both = np.concatenate([self.tail, q])
+            base = self.seen - self.tail.shape[0]  # the sample both[0] is
+            for counts, length in ((self.counts, self.lag), (self.counts_long, self.long)):
+                # windows ending in q: starting from its first row − length on
+                first = max(self.tail.shape[0] - length, 0)
+                starts = np.arange(first, max(both.shape[0] - length, first))
+                starts = starts[(base + starts) % self.lag == 0]
+                if starts.size:
+                    self._count(counts, np.abs(both[starts + length] - both[starts])
+                                / (self.span_s * length / self.lag))
+            self.tail = both[-self.long:]
+        self.seen += q.shape[0]
+
+    @staticmethod
+    def _count(counts: np.ndarray, speed: np.ndarray) -> None:
+        """Add (m, J) window speeds to the (J, bins) histogram ``counts`` (finite ones)."""
+        fin = np.isfinite(speed)
+        nb = _EDGES.size + 1
+        flat = _bins(np.where(fin, speed, 0.0)) + nb * np.arange(speed.shape[1])
+        counts += np.bincount(flat[fin], minlength=counts.size).reshape(counts.shape)
 
     def travel(self) -> np.ndarray:
         """(J,) max − min of each joint's positions [as read]; 0 for a joint never logged."""
@@ -118,13 +144,39 @@ class MotionSketch:
     def speed(self, quantile: float = SPEED_QUANTILE) -> np.ndarray:
         """(J,) the ``quantile`` of each joint's window speed [as read per s] (upper bin
         edge: never below the true quantile); 0 without samples."""
-        out = np.zeros(self.counts.shape[0])
-        for j, c in enumerate(self.counts):
-            total = int(c.sum())
-            if total:
-                k = int(np.searchsorted(np.cumsum(c), quantile * total))
-                out[j] = _EDGES[min(k, _EDGES.size - 1)]
-        return out
+        return _quantiles(self.counts, quantile)
+
+    def smooth(self, quantile: float = SPEED_QUANTILE) -> np.ndarray:
+        """(J,) bool: whether each joint's positions are a motion, not noise — its speed
+        over windows :data:`SMOOTH_FACTOR` × longer is at least :data:`SMOOTH_RATIO` of its
+        speed over the short ones (true without samples or speed)."""
+        short, long = self.speed(quantile), _quantiles(self.counts_long, quantile)
+        return np.asarray((short == 0) | (long >= SMOOTH_RATIO * short), dtype=bool)
+
+
+def _quantiles(counts: np.ndarray, quantile: float) -> np.ndarray:
+    """(J,) the ``quantile`` of each row of a (J, bins) speed histogram: the upper edge of
+    its bin (never below the true quantile); 0 for an empty row."""
+    out = np.zeros(counts.shape[0])
+    for j, c in enumerate(counts):
+        total = int(c.sum())
+        if total:
+            k = int(np.searchsorted(np.cumsum(c), quantile * total))
+            out[j] = _EDGES[min(k, _EDGES.size - 1)]
+    return out
+
+
+def _bins(s: np.ndarray) -> np.ndarray:
+    """``np.searchsorted(_EDGES, s)`` (the number of edges below each speed ``s`` ≥ 0),
+    from the edges' log spacing (an estimate, then set right against the edges): several
+    times faster, the same bins."""
+    size = _EDGES.size
+    with np.errstate(divide="ignore", invalid="ignore"):
+        est = np.ceil((np.log10(s) + 6.0) * 50.0)
+    k = np.clip(np.nan_to_num(est, nan=0.0, neginf=0.0, posinf=size), 0, size).astype(np.intp)
+    k += (k < size) & (_EDGES.take(np.minimum(k, size - 1)) < s)  # an edge below s: up
+    k -= (k > 0) & (_EDGES.take(np.maximum(k - 1, 0)) >= s)  # the one before isn't: down
+    return k
 
 
 @dataclass(frozen=True)
@@ -138,15 +190,23 @@ class UnitVerdict:
 
 
 def _impossible(travel: float, speed: float, lim: JointLimits | None) -> bool:
-    """A joint's motion that no arm's radians could be."""
-    if lim is not None and lim.velocity and speed > 3.0 * lim.velocity:
-        return True
+    """A joint's motion that no arm's radians could be (a URDF's ``continuous`` joint may
+    travel without bound: only its speed counts)."""
     if lim is not None and lim.kind == "continuous":
         return speed > MAX_JOINT_SPEED_RAD_S
-    if lim is not None and lim.lower is not None and lim.upper is not None \
-            and lim.upper > lim.lower and travel > 2.0 * (lim.upper - lim.lower) + 0.1:
-        return True
     return travel > MAX_JOINT_TRAVEL_RAD or speed > MAX_JOINT_SPEED_RAD_S
+
+
+def _beyond_description(travel: float, speed: float, lim: JointLimits | None) -> bool:
+    """A joint's motion beyond what its URDF allows (3× its velocity limit, or twice its
+    range): this arm's radians cannot be so, but a description may be wrong — warned, never
+    refused."""
+    if lim is None:
+        return False
+    if lim.velocity and speed > 3.0 * lim.velocity:
+        return True
+    return (lim.kind != "continuous" and lim.lower is not None and lim.upper is not None
+            and lim.upper > lim.lower and travel > 2.0 * (lim.upper - lim.lower) + 0.1)
 
 
 def _suspicious(travel: float, speed: float, lim: JointLimits | None) -> bool:
@@ -157,7 +217,7 @@ def _suspicious(travel: float, speed: float, lim: JointLimits | None) -> bool:
 
 def position_unit_verdict(
     where: str, joints: Sequence[str], travel: np.ndarray, speed: np.ndarray,
-    limits: dict[str, JointLimits] | None = None,
+    limits: dict[str, JointLimits] | None = None, smooth: np.ndarray | None = None,
 ) -> UnitVerdict:
     """Whether a log's positions can be radians.
 
@@ -167,17 +227,26 @@ def position_unit_verdict(
         travel: (J,) max − min of each joint's positions [as read].
         speed: (J,) each joint's high-percentile speed [as read per s] (:class:`MotionSketch`).
         limits: a URDF's :class:`JointLimits` by joint name, or None.
+        smooth: (J,) whether each joint's positions are a motion
+            (:meth:`MotionSketch.smooth`); the others are not judged. None: all are.
     Returns:
         ``refuse`` when most joints (more than half of those that move) are impossible as
-        radians and plausible as degrees; ``warn`` when some joint is impossible or
-        suspicious; else ``ok``.
+        radians for any arm and plausible as degrees; ``warn`` when some joint is
+        impossible, beyond its URDF's limits (a description may be wrong: never refused)
+        or suspicious; else ``ok``.
     """
     lims = limits or {}
-    moving = [j for j, t in enumerate(travel) if t > 0]
-    bad = [j for j in moving if _impossible(travel[j], speed[j], lims.get(joints[j]))]
-    as_deg = [j for j in bad
-              if not _impossible(travel[j] * DEG, speed[j] * DEG, lims.get(joints[j]))]
+    moving = [j for j, t in enumerate(travel)
+              if t > 0 and (smooth is None or bool(smooth[j]))]
+
+    def impossible(j: int, scale: float = 1.0, described: bool = False) -> bool:
+        test = _beyond_description if described else _impossible
+        return test(travel[j] * scale, speed[j] * scale, lims.get(joints[j]))
+
+    bad = [j for j in moving if impossible(j)]
+    as_deg = [j for j in bad if not impossible(j, DEG) and not impossible(j, DEG, True)]
     names = tuple(joints[j] for j in bad)
+    beyond = [j for j in moving if j not in bad and impossible(j, described=True)]
 
     def span(idx: list[int], scale: float = 1.0) -> str:
         tr = [travel[j] * scale for j in idx]
@@ -196,6 +265,12 @@ def position_unit_verdict(
             f"{where}: joint(s) {', '.join(names)} {span(bad)} read as radians, more than an "
             "arm's joint moves: check the position unit (--position-unit deg|rad) and the "
             "gear ratio"), names)
+    if beyond:
+        far = tuple(joints[j] for j in beyond)
+        return UnitVerdict("warn", (
+            f"{where}: joint(s) {', '.join(far)} {span(beyond)} read as radians, beyond the "
+            "URDF's velocity limit or range: check the position unit (--position-unit "
+            "deg|rad), the gear ratio and the robot description"), far)
     odd = [j for j in moving if _suspicious(travel[j], speed[j], lims.get(joints[j]))]
     if odd:
         odd_names = tuple(joints[j] for j in odd)
@@ -204,3 +279,60 @@ def position_unit_verdict(
             "check the position unit (--position-unit deg|rad), or that the joint is "
             "continuous"), odd_names)
     return UnitVerdict("ok")
+
+
+#: A position beyond a URDF joint's limits by more than this share of its range (and at
+#: least :data:`LIMIT_MARGIN_RAD`) is "far outside" them: warned by name.
+LIMIT_MARGIN_SHARE = 0.1
+LIMIT_MARGIN_RAD = 0.1
+
+
+def robot_joint_limits(robot: object, joints: Sequence[str]) -> dict[str, JointLimits]:
+    """The URDF :class:`JointLimits` of the log's ``joints`` (by the log's names, through
+    the robot's ``joint_map``) when ``robot`` (a
+    :class:`~impactcli.types.RobotDescription`) has URDF kinematics; ``{}`` without one or
+    when its URDF cannot be read (the model's reader reports that)."""
+    kin = getattr(robot, "kinematics", None)
+    if not isinstance(kin, dict) or kin.get("type") != "urdf":
+        return {}
+    xml = kin.get("urdf_xml")
+    try:
+        if xml is None and kin.get("robot") is not None:
+            from .robot_catalogue import urdf_text
+
+            xml = urdf_text(str(kin["robot"]))
+        elif xml is None and kin.get("path") is not None:
+            from pathlib import Path
+
+            xml = Path(str(kin["path"])).read_text(encoding="utf-8")
+    except Exception:  # a missing extra or file: the model's reader says so
+        return {}
+    if not isinstance(xml, str):
+        return {}
+    limits = urdf_joint_limits(xml)
+    jmap = getattr(robot, "joint_map", None) or {}
+    return {j: limits[jmap.get(j, j)] for j in joints if jmap.get(j, j) in limits}
+
+
+def limit_warnings(where: str, joints: Sequence[str], lo: np.ndarray, hi: np.ndarray,
+                   limits: dict[str, JointLimits]) -> list[str]:
+    """One warning per joint whose positions [rad] lie far outside its URDF limits
+    (beyond them by more than :data:`LIMIT_MARGIN_SHARE` of the range and
+    :data:`LIMIT_MARGIN_RAD`): a unit, offset or sign the description does not share.
+
+    Args:
+        lo, hi: (J,) each joint's smallest and largest position [rad] (NaN: not logged).
+    """
+    out = []
+    for k, j in enumerate(joints):
+        lim = limits.get(j)
+        if lim is None or lim.lower is None or lim.upper is None or lim.upper <= lim.lower \
+                or not np.isfinite(lo[k]):
+            continue
+        margin = max(LIMIT_MARGIN_SHARE * (lim.upper - lim.lower), LIMIT_MARGIN_RAD)
+        if lo[k] < lim.lower - margin or hi[k] > lim.upper + margin:
+            out.append(f"{where}: joint {j}'s positions {lo[k]:.4g}…{hi[k]:.4g} rad lie far "
+                       f"outside its URDF limits {lim.lower:.4g}…{lim.upper:.4g} rad: check "
+                       "the position unit (--position-unit deg|rad), the joint's offset and "
+                       "sign, and the joint map")
+    return out

@@ -316,9 +316,10 @@ def read_columns(path: str | os.PathLike[str], options: dict[str, Any], *,
         with w.catch_warnings():
             rep = passes(ctx, sink)
         kept = rows[-1]
-        rate = ctx.rate_error(kept.rate.clock().rate_hz) if check_rate else None
-        raise_read_errors(ctx, rep, rate)
         t = np.concatenate(kept.t) if kept.t else np.zeros(0, np.int64)
+        dur = float(t[-1] - t[0]) * 1e-9 if t.size else None
+        rate = ctx.rate_error(kept.rate.clock().rate_hz, dur) if check_rate else None
+        raise_read_errors(ctx, rep, rate)
         mat = np.concatenate(kept.mat) if kept.mat else np.zeros((0, len(ctx.names)))
         if ctx.start_at_zero and t.size:
             t = t - t[0]

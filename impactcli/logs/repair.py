@@ -160,15 +160,88 @@ def run_message(where: str, name: str, label: str, length: int, kind: str, at_st
             f"{MAX_GAP_SAMPLES} samples between finite values are interpolated")
 
 
-def rate_message(rate: float, where: str, what: str, unit: str | None) -> str | None:
-    """The error for a time column whose implied rate ``rate`` [Hz] (of its first
-    :data:`~impactcli.clock.MAX_STATS_STEPS` steps) is outside [:data:`MIN_RATE_HZ`,
-    :data:`MAX_RATE_HZ`] — a time in another unit than read (docs/formats.md) — naming the rate
-    and the unit that would fit; None when within the range."""
+#: A log's duration as read is plausible from this long [s] (a shorter one is no robot
+#: log: warm-up alone takes seconds) ...
+MIN_PLAUSIBLE_DURATION_S = 1.0
+#: ... to this long [s]: a log read in a unit that makes it last longer than a day at a
+#: rate below :data:`MIN_RATE_HZ` is most likely in a smaller unit (ms read as s).
+MAX_PLAUSIBLE_DURATION_S = 86_400.0
+#: The rates robot controllers log at [Hz] (UR 125/500, KUKA FRI and Franka 1 k, drives a
+#: few k): another unit is suggested for a low rate only when it gives one of these.
+TYPICAL_RATE_HZ = (50.0, 4_000.0)
+
+
+def needed_rate_hz() -> tuple[float, float]:
+    """The sample rate impact detection needs [Hz] and why: twice the upper corner w2 of
+    the adaptive detector's band-pass (Table I's, docs/method.md §5b) — ``(2 × w2, w2)``."""
+    from ..config import AdaptiveConfig
+
+    w2 = float(AdaptiveConfig().w2_hz)
+    return 2.0 * w2, w2
+
+
+def rate_message(rate: float, where: str, what: str, unit: str | None,
+                 duration_s: float | None = None) -> str | None:
+    """The error for a log whose rate ``rate`` [Hz] (of its time column's first
+    :data:`~impactcli.clock.MAX_STATS_STEPS` steps read in ``unit``; ``unit`` None: ISO
+    stamps or ``--rate``, ``what`` naming which) is outside [:data:`MIN_RATE_HZ`,
+    :data:`MAX_RATE_HZ`]; None when within the range (docs/formats.md, "Time").
+
+    Above the range, or below it when another unit is far more likely than the rate
+    (:func:`other_unit_likely`), the time is in another unit than read: the message names
+    the rate and the unit that fits. Below it otherwise, the log is read right and its rate
+    is too low for impact detection: the message names the rate, the duration read and the
+    rate the detector needs (:func:`needed_rate_hz`).
+
+    Args:
+        duration_s: the log's duration as read [s], when known.
+    """
     if not np.isfinite(rate) or MIN_RATE_HZ <= rate <= MAX_RATE_HZ:
         return None
-    return (f"{where}: {what}: the implied sample rate is {_hz(rate)}, outside "
-            f"{_hz(MIN_RATE_HZ)} – {_hz(MAX_RATE_HZ)}{unit_hint(rate, unit)}: {GIVE_UNIT}")
+    if rate > MAX_RATE_HZ or other_unit_likely(rate, unit, duration_s):
+        return (f"{where}: {what}: the implied sample rate is {_hz(rate)}, outside "
+                f"{_hz(MIN_RATE_HZ)} – {_hz(MAX_RATE_HZ)}{unit_hint(rate, unit)}: "
+                f"{GIVE_UNIT}")
+    need, w2 = needed_rate_hz()
+    dur = f" (a log of {_duration(duration_s)}, read in {unit})" if duration_s and unit else ""
+    other = (f"; if the time column is not in {unit}, give --time-unit s|ms|us|ns"
+             if unit is not None else "")
+    said = "the sample rate" if unit is not None or what != "--rate" else "the rate given"
+    return (f"{where}: {what}: {said} is {_hz(rate)}{dur}: too low for impact detection, "
+            f"which needs at least {_hz(need)} (twice the detector's band-pass corner w2 = "
+            f"{w2:g} Hz): record the arm at {_hz(need)} or more{other}")
+
+
+def other_unit_likely(rate: float, unit: str | None, duration_s: float | None) -> bool:
+    """Whether a time column read in ``unit`` at ``rate`` < :data:`MIN_RATE_HZ` [Hz] is
+    more likely in a smaller unit: read in it, the rate is a controller's
+    (:data:`TYPICAL_RATE_HZ`) and the duration at least :data:`MIN_PLAUSIBLE_DURATION_S`;
+    or read in ``unit`` the log would last beyond :data:`MAX_PLAUSIBLE_DURATION_S` while a
+    smaller unit gives a rate in the accepted range (docs/formats.md, "Time")."""
+    from .channel_map import TIME_UNITS
+
+    if unit is None or not rate > 0:
+        return False
+    for size in TIME_UNITS.values():
+        f = TIME_UNITS[unit] / size
+        if f <= 1:
+            continue
+        r = rate * f
+        long_enough = duration_s is None or duration_s / f >= MIN_PLAUSIBLE_DURATION_S
+        if TYPICAL_RATE_HZ[0] <= r <= TYPICAL_RATE_HZ[1] and long_enough:
+            return True
+        if (duration_s is not None and duration_s > MAX_PLAUSIBLE_DURATION_S
+                and MIN_RATE_HZ <= r <= MAX_RATE_HZ):
+            return True
+    return False
+
+
+def _duration(seconds: float) -> str:
+    """``26 s``, ``3.2 min``, ``5.1 h``, ``12 days``."""
+    for scale, name in ((86_400.0, "days"), (3_600.0, "h"), (60.0, "min")):
+        if seconds >= 2 * scale:
+            return f"{seconds / scale:.3g} {name}"
+    return f"{seconds:.3g} s"
 
 
 #: How to give a time column's unit (the end of the time-unit errors).

@@ -25,6 +25,13 @@ from ..clock import GAP_FACTOR, MAX_STATS_STEPS, GapStream, SampleClock, StepHis
 from ..errors import ImpactWarning, LogFormatError
 from ..types import CONTROLLER_CHANNELS, LogSource, RobotLog
 from .layout import OPTIONAL, LogChunk, ScanPass, StreamLayout, chunked
+from .plausibility import (
+    MotionSketch,
+    UnitVerdict,
+    limit_warnings,
+    position_unit_verdict,
+    robot_joint_limits,
+)
 from .repair import Repairer, RepairOrderNeeded, increasing_run
 from .row_cache import RowCache
 from .screen import ColumnScreen, ScreenAccumulator
@@ -63,6 +70,11 @@ class LogScan:
         options: the read options the scan was made with.
         ranges: each array the log has → (J,) its smallest and (J,) its largest finite
             value per joint (NaN where a joint does not log it).
+        position_unit: whether the positions can be radians
+            (:func:`~impactcli.logs.plausibility.position_unit_verdict` of the motion; None
+            for a log in memory).
+        warnings: what the scan warned of besides the repairs (the position unit, positions
+            far outside a URDF's limits), in order.
     """
 
     log: RobotLog
@@ -78,6 +90,8 @@ class LogScan:
     reader: ScanReader | None = field(default=None, repr=False, compare=False)
     ranges: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict,
                                                               repr=False, compare=False)
+    position_unit: UnitVerdict | None = field(default=None, compare=False)
+    warnings: tuple[str, ...] = field(default=(), compare=False)
 
     def close(self) -> None:
         """Close the reader the scan was made by (its cache of the repaired rows, a URL's
@@ -296,6 +310,8 @@ class _ScanAcc:
         self.ranges: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # other arrays' lo, hi
         self.floor = float("-inf")
         self.bad_row: dict[str, np.ndarray] = {}  # signal → (J,) first non-finite sample
+        self.sketch: MotionSketch | None = None  # the positions' travel and speeds
+        self.sketch_wait: list[np.ndarray] = []  # positions before the period is known
 
     def _first_bad(self, signal: str, a: np.ndarray) -> None:
         """Note each column's first non-finite sample (RobotLog refuses it)."""
@@ -339,6 +355,7 @@ class _ScanAcc:
             self.head = {s: np.concatenate((self.head[s], a[:k])) if s in self.head else a[:k]
                          for s, a in arrays.items()}
         self.pos_finite |= np.isfinite(arrays["position"]).any(axis=0)
+        self._sketch(arrays["position"])
         self.torque_finite |= np.isfinite(arrays["torque"]).any(axis=0)
         for s in self.ctx.plan.optional:
             fin = np.isfinite(arrays[s]).any(axis=0)
@@ -356,14 +373,43 @@ class _ScanAcc:
                     lo, hi = np.fmin(self.ranges[s][0], lo), np.fmax(self.ranges[s][1], hi)
                 self.ranges[s] = (lo, hi)
 
+    def _sketch(self, q: np.ndarray) -> None:
+        """Feed (n, J) positions [rad] to the motion sketch (made once the provisional
+        period is known: its speed window is in samples)."""
+        if self.sketch is None:
+            period = self.hist.period_ns()
+            if not period > 0:
+                self.sketch_wait.append(q)
+                return
+            self.sketch = MotionSketch(q.shape[1], period * 1e-9)
+            for w in self.sketch_wait:
+                self.sketch.update(w)
+            self.sketch_wait = []
+        self.sketch.update(q)
+
+    def unit_verdict(self, keep: list[int], kept: tuple[str, ...],
+                     options: dict[str, Any]) -> tuple[UnitVerdict, list[str]]:
+        """Whether the kept joints' positions can be radians (docs/formats.md, "Canonical
+        wide CSV"), and the warnings of positions far outside a URDF's limits."""
+        sk = self.sketch
+        if sk is None:
+            return UnitVerdict("ok"), []
+        limits = robot_joint_limits(options.get("robot"), kept)
+        verdict = position_unit_verdict(self.ctx.where, kept, sk.travel()[keep],
+                                        sk.speed()[keep], limits, sk.smooth()[keep])
+        return verdict, limit_warnings(self.ctx.where, kept, sk.lo[keep], sk.hi[keep], limits)
+
     def rate_error(self) -> str | None:
-        """The time-unit check on the first steps."""
-        return self.ctx.rate_error(self.rate.clock().rate_hz)
+        """The time-unit check on the first steps, with the duration read."""
+        dur = (float(self.hist.last - self.head_t[0]) * 1e-9
+               if self.head_t.size and self.hist.last is not None else None)
+        return self.ctx.rate_error(self.rate.clock().rate_hz, dur)
 
     def finish(self, rep: Repairer, sha256: str, options: dict[str, Any],
                cache: RowCache | None, reader: ScanReader) -> tuple[LogScan, ScanPass]:
         """The scan: drop the joints without data, warn, the header, clock, gaps, screen."""
         from .channels import (
+            describing_only,
             drop_empty_signals,
             drop_message,
             empty_joint_reasons,
@@ -397,6 +443,13 @@ class _ScanAcc:
                 if s not in gone}
         log = RobotLog(t_ns=self.head_t - shift, joint_names=kept, source=source, **head)
         self.check_finite(keep, gone)
+        verdict, limit_msgs = self.unit_verdict(keep, kept, options)
+        given = options.get("position_unit") is not None
+        if verdict.kind == "refuse" and not given and not describing_only():
+            raise LogFormatError(verdict.message)
+        said = [verdict.message] if verdict.kind != "ok" else []
+        for msg in (*said, *limit_msgs):
+            warnings.warn(msg, ImpactWarning, stacklevel=3)
         clock = self.hist.clock()
         optional = tuple(s for s in OPTIONAL if getattr(log, s) is not None)
         ps = ScanPass(ctx, allbad, keep, optional, shift, self.n, rep.order_keep,
@@ -414,7 +467,8 @@ class _ScanAcc:
                        t_last_ns=int(self.hist.last or 0) - shift, clock=clock, gaps=idx,
                        gap_lengths_s=lengths, torque_screen=screens["torque"].unusable(),
                        screens=screens, options=dict(options), reader=reader,
-                       ranges={s: ranges[s] for s in _arrays_of(log)})
+                       ranges={s: ranges[s] for s in _arrays_of(log)},
+                       position_unit=verdict, warnings=(*said, *limit_msgs))
         return scan, ps
 
 

@@ -6,7 +6,9 @@
   name the URL, never the temporary file. ``file://`` URLs are read in place (no fsspec),
   rosbag2 folders included; a remote folder (a rosbag2 folder on S3, ...) is refused with a
   LogFormatError: fetch it and give the local folder.
-- Globs (``*``, ``?``, ``[...]``) in local paths and URLs are expanded in sorted order.
+- Globs (``*``, ``?``, ``[...]``) in local paths and URLs are expanded in sorted order; a
+  local folder (or ``file://`` URL) that is not a rosbag2 folder stands for the logs in it
+  (:func:`impactcli.logs.paths.folder_logs`), as a glob would.
 - Writing under a URL prefix (:func:`put_file_atomic`): the file is uploaded to
   ``<name>.part-<random>`` and then moved onto ``<name>``. On a local or POSIX-like file
   system the move is an atomic rename; on object stores (S3, GCS) a move is copy-then-delete:
@@ -256,16 +258,19 @@ def read_log_url(url: str, reader: Callable[..., Any], **kwargs: Any) -> Any:
 
 
 def expand_inputs(patterns: Sequence[str]) -> list[str]:
-    """Expand globs in local paths and URLs (sorted, duplicates removed, order kept).
+    """Expand globs in local paths and URLs (sorted, duplicates removed, order kept), and
+    local folders that are not rosbag2 folders into the logs in them
+    (:func:`impactcli.logs.paths.folder_logs`, by name).
 
-    A pattern that matches nothing is kept as it is (its job then fails with a clear
-    message); a name without glob characters is never checked here.
+    A pattern that matches nothing, or a folder without a log, is kept as it is (its job
+    then fails with a clear message); a name without glob characters is never checked here
+    but for being such a folder.
     """
     out: list[str] = []
     for pat in patterns:
         s = str(pat)
         if not _GLOB_CHARS.search(s):
-            out.append(s)
+            out.extend(_folder_logs(s))
             continue
         if not is_url(s):
             hits = sorted(_glob.glob(s, recursive=True))
@@ -274,8 +279,27 @@ def expand_inputs(patterns: Sequence[str]) -> list[str]:
         else:
             fs, p = _fs(s)
             hits = [fs.unstrip_protocol(h) for h in sorted(fs.glob(p)) if not fs.isdir(h)]
-        out.extend(hits or [s])
+        out.extend([x for h in hits for x in _folder_logs(h)] or [s])
     return list(dict.fromkeys(out))
+
+
+def _folder_logs(item: str) -> list[str]:
+    """A local folder that is not a rosbag2 folder as the logs in it (``file://`` URLs
+    for a ``file://`` folder); anything else, or a folder without a log, as it is."""
+    from .paths import folder_logs, is_rosbag2_folder
+
+    lp = local_path(item)
+    if lp is None or not lp.is_dir() or is_rosbag2_folder(lp):
+        return [item]
+    try:
+        logs = folder_logs(lp)
+    except LogFormatError:
+        return [item]
+    if not logs:
+        return [item]
+    if is_url(item):
+        return ["file://" + str(p) for p in logs]
+    return [str(Path(item) / p.name) for p in logs]
 
 
 def put_file_atomic(local: str | os.PathLike[str], target: str) -> None:
