@@ -503,6 +503,9 @@ class DetectionResult:
         incidents: :class:`impactcli.detect.incidents.Incident` per physical contact.
         lasting_loads: :class:`impactcli.detect.incidents.LastingLoad` per product alarm
             of 10 s or more (a finding of its own, in no incident).
+        motion_envelope: the share of the log after warm-up that moved outside the
+            calibration's motion envelope (:meth:`impactcli.detect.envelope.EnvelopeShare.
+            to_dict`); None when the config recorded none.
         joints_left_out: ``{name, reason}`` of each logged joint left out of detection
             (:mod:`impactcli.logs.screen`; not in the model or config; left out at
             calibration).
@@ -544,6 +547,7 @@ class DetectionResult:
     joints_left_out: tuple[dict[str, str], ...] = ()
     incidents: tuple[Any, ...] = ()
     lasting_loads: tuple[Any, ...] = ()
+    motion_envelope: dict[str, Any] | None = None
 
     @property
     def online_equivalent(self) -> bool:

@@ -322,7 +322,8 @@ BAD: dict[str, tuple[Any, str]] = {
     "bag without the topic": (_no_topic, r"topic '/no_such_topic' not found \(topics: "
                                          r"/joint_states, /joint_states_ext, "
                                          r"/joint_states_model, /joint_states_ref\)$"),
-    "folder without metadata.yaml": (_not_rosbag2, r"not a rosbag2 folder \(no metadata.yaml\)$"),
+    "folder without metadata.yaml": (_not_rosbag2, r"plain_folder/x.db3: corrupt, truncated "
+                                                   r"or unreadable rosbag2"),
     "field path naming nothing": (_field_naming_nothing,
                                   r"shoulder.torque_ext: field path '/nope/effort' names no topic"
                                   r" of the log \(topics: /joint_states, "),

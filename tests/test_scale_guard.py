@@ -149,8 +149,13 @@ def test_calibrate_allow_slow_reaches_the_replay(
     from impactcli import model as model_pkg
 
     monkeypatch.setattr(calibration, "check_replayable", check_replayable)
-    monkeypatch.setattr(model_pkg, "identify_many",  # no identification of 120 joints here
-                        lambda logs, **k: types.SimpleNamespace(joint_names=logs[0].joint_names))
+    from impactcli.model import selection
+
+    def fake_fit(logs: list, **k: object) -> object:  # no identification of 120 joints here
+        return types.SimpleNamespace(joint_names=logs[0].joint_names)
+
+    monkeypatch.setattr(model_pkg, "identify_many", fake_fit)
+    monkeypatch.setattr(selection, "select_model", fake_fit)
     log = _huge_log(tmp_path)
     CliRunner().invoke(main, ["calibrate", str(log), "-o", str(tmp_path / "c.toml"),
                               "--allow-slow", "--generator", "inverse_dynamics"])

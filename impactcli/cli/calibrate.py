@@ -119,7 +119,7 @@ def _labels_for(logs: tuple[Path, ...], given: tuple[Path, ...]) -> list:  # typ
               help="Labels of contacts in the LOGS (one per log, or named <stem>.labels.json): "
                    "their stretches are left out [default: <stem>.labels.json beside each "
                    "log, when present].")
-@click.option("--false-alarms-per-hour", "rate", type=click.FloatRange(min=0, min_open=True),
+@click.option("--false-alarms-per-hour", "fa_rate", type=click.FloatRange(min=0, min_open=True),
               metavar="R",
               help="False alarms per hour (incidents of the product's detectors after "
                    "warm-up, all joints together) the thresholds are set for: the upper "
@@ -147,7 +147,7 @@ def _labels_for(logs: tuple[Path, ...], given: tuple[Path, ...]) -> list:  # typ
                    "refused before the model is identified (exit 2).")
 @handle_errors
 def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, model: Path | None,
-                  base_config: Path | None, labels_paths: tuple[Path, ...], rate: float | None,
+                  base_config: Path | None, labels_paths: tuple[Path, ...], fa_rate: float | None,
                   confidence: float, threshold_rule: str, keep_suspect: bool,
                   generator: str | None, channel_map: str | None,
                   topic: str | None, reference_topic: str | None, time_source: str | None,
@@ -189,11 +189,14 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     if out_path.suffix.lower() not in (".toml", ".yaml", ".yml", ".json"):
         raise click.BadParameter(f"{str(out_path)!r}: a config is written as .toml, .yaml or "
                                  ".json — name the file with one of these", param_hint="'-o'")
-    if rate is not None and threshold_rule != RATE_RULE:
+    if fa_rate is not None and threshold_rule != RATE_RULE:
         raise click.BadParameter("--false-alarms-per-hour sets thresholds for a rate; "
                                  f"--threshold-rule {threshold_rule} has none",
                                  param_hint="'--false-alarms-per-hour'")
     prepare_output(out_path)  # a bad -o stops the run before any work
+    from ..logs.urls import expand_inputs
+
+    logs = tuple(Path(p) for p in expand_inputs([str(p) for p in logs]))  # folders, globs
     robot_d = read_robot(robot) if robot else None
     model_m = read_model(model) if model else None
     cfg = load_config(base_config) if base_config else None
@@ -215,7 +218,7 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
         read, model=model_m, config=cfg, robot=robot_d, generator=generator, labels=labels,
         drop_suspect=not keep_suspect, allow_slow=allow_slow, threshold_rule=threshold_rule,
         confidence=confidence,
-        false_alarms_per_hour=DEFAULT_FALSE_ALARMS_PER_HOUR if rate is None else rate)
+        false_alarms_per_hour=DEFAULT_FALSE_ALARMS_PER_HOUR if fa_rate is None else fa_rate)
     save_config(out, out_path)
     c = out.calibration
     weak = " (weak: add collision-free logs covering the robot's motions)" if c.weak else ""
@@ -243,6 +246,11 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
         from ..model import RigidModel
         from .fit_table import format_fit_table
 
-        click.echo(format_fit_table(RigidModel.from_dict(out.model)))
+        fitted = RigidModel.from_dict(out.model)
+        click.echo(format_fit_table(fitted))
+        if model_m is None and "selection" in fitted.fit:  # which kind, and why
+            from ..model.selection import describe
+
+            click.echo("\n".join(describe(fitted.fit["selection"])))
     click.echo("\n".join(threshold_lines(out)))
     click.echo(f"wrote {out_path}")

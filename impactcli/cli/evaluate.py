@@ -293,7 +293,7 @@ def evaluate_cmd(source: Path, labels_path: Path | None, as_json: bool, sweep: b
         raise (not_found(source, "timeline file") if not source.exists()
                else LogFormatError(f"{source}: a timeline is a file, not a folder"))
     if not is_timeline:
-        check_log_path(source)  # a file, or a rosbag2 folder
+        source = check_log_path(source)  # a file, a rosbag2 folder, a folder's one log
     if labels_path is None:
         labels_path = labels_beside(source)
     labels = read_labels(labels_path)

@@ -91,9 +91,11 @@ class Incident:
     force_plausible: bool | None = None
     force_ceiling_n: float | None = None
     force_check: str = ""
+    outside_envelope: bool | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready mapping (timeline ``incidents`` item)."""
+        """JSON-ready mapping (timeline ``incidents`` item); ``outside_envelope`` only when
+        the config recorded a motion envelope (:mod:`impactcli.detect.envelope`)."""
         return {
             "t_start": self.t_start, "t_end": self.t_end, "t_start_utc": self.t_start_utc,
             "detectors": list(self.detectors), "joints": list(self.joints), "link": self.link,
@@ -104,6 +106,8 @@ class Incident:
             "link_candidates": list(self.link_candidates) if self.link is not None else None,
             "force_plausible": self.force_plausible, "force_ceiling_n": self.force_ceiling_n,
             "force_check": self.force_check,
+            **({} if self.outside_envelope is None
+               else {"outside_envelope": self.outside_envelope}),
         }
 
 

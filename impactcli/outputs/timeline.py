@@ -90,6 +90,8 @@ def timeline_dict(result: DetectionResult) -> dict[str, Any]:
         "events": [e.to_dict() for e in result.events],
         "incidents": [i.to_dict() for i in result.incidents],
         "lasting_loads": [x.to_dict() for x in result.lasting_loads],
+        **({} if result.motion_envelope is None
+           else {"motion_envelope": result.motion_envelope}),
         "counts": result.counts(),
         "summary": result.summary(),
         "warnings": list(result.warnings),

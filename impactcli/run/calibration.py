@@ -137,6 +137,7 @@ def calibrate_run(
     from ..config import CalibrationRecord, LogRecord, ThresholdsConfig
     from ..detect.thresholds import calibrate_thresholds
     from ..model import identify_many
+    from ..model.selection import select_model
 
     if threshold_rule not in THRESHOLD_RULES:
         raise ValueError(f"threshold rule {threshold_rule!r}: one of {THRESHOLD_RULES}")
@@ -154,12 +155,15 @@ def calibrate_run(
                for scan, sc in zip(scans, screens, strict=True)]
     if needs_model(choices[0], cfg):
         if model is None:
-            model = RigidModel.from_dict(cfg.model) if cfg.model is not None else identify_many(
+            # the tool's own model: its kind and ridge chosen by held-back error
+            # (docs/models.md, "Choosing the model"); a correction model stays decoupled
+            correction = uses_correction(choices[0], cfg.residual.logged_correction)
+            fit = identify_many if correction else select_model
+            model = RigidModel.from_dict(cfg.model) if cfg.model is not None else fit(
                 [target_log(lg.select(sc.keep), ch, cfg.residual.logged_correction)
                  for lg, sc, ch in zip(logs, screens, choices, strict=True)],
-                robot=robot, options=IdentifyOptions(
-                    allow_still_joints=True,
-                    check_sanity=not uses_correction(choices[0], cfg.residual.logged_correction)))
+                robot=robot, options=IdentifyOptions(allow_still_joints=True,
+                                                     check_sanity=not correction))
     else:
         model = None
     joints = tuple(model.joint_names) if model is not None else tuple(frozen)

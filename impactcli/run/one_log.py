@@ -31,6 +31,7 @@ import numpy as np
 
 from ..config import CalibrationRecord, DetectorConfig
 from ..detect.adaptive import AdaptiveResult, default_threads
+from ..detect.envelope import EnvelopeCheck, MotionEnvelope, outside_share_text
 from ..detect.events import extract_events
 from ..detect.incident_builder import (
     IncidentContext,
@@ -56,6 +57,7 @@ from .run_warnings import (
     warn_implausible_forces,
     warn_long_events,
     warn_measured_inputs,
+    warn_outside_envelope,
     warn_uncalibrated,
     warn_warmup,
 )
@@ -236,7 +238,8 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         joints = plan.joints
         given = calibrated_thresholds(cfg, joints)
         since = caught.mark()
-        rp, thr, margins, islands = _detect_passes(feed, plan, given, on_chunk, passes)
+        rp, thr, margins, islands, envelope = _detect_passes(feed, plan, given, on_chunk,
+                                                             passes)
         stack.callback(islands.close)
         warn_replayed(caught, since, plan, feed, rp)
         if given is None:
@@ -253,6 +256,15 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         warn_long_events(where, events)
         warn_implausible_forces(where, [*incidents, *loads])
         caught.paste(ctx_msgs)
+        outside = None
+        if envelope is not None:  # the motion the thresholds' rate was not measured on
+            share = envelope.finish(rp.warmup.end_index)
+            outside = share.to_dict()
+            incidents = [dataclasses.replace(i, outside_envelope=share.touches(i.t_start,
+                                                                              i.t_end))
+                         for i in incidents]
+            warn_outside_envelope(where, outside_share_text(share), share.outside,
+                                  sum(1 for i in incidents if i.outside_envelope))
         header = LogHeader(joints, scan.source, scan.n_samples, scan.t0_ns, scan.duration_s,
                            scan.sample_rate_hz, scan.sample_period_s)
     caught.raise_again()
@@ -274,22 +286,26 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         residual_generator=summary_name(plan.choices), read_options=dict(setup.read_options),
         generators=choices_dict(plan.choices, cfg.residual.logged_correction),
         joints_left_out=tuple(x.to_dict() for x in plan.left_out),
-        incidents=tuple(incidents), lasting_loads=tuple(loads), warnings=caught.messages(),
+        incidents=tuple(incidents), lasting_loads=tuple(loads), motion_envelope=outside,
+        warnings=tuple(dict.fromkeys((*scan.warnings, *caught.messages()))),  # scan's first
     )
 
 
 def _detect_passes(
     feed: ChunkFeed, plan: RunPlan, given: dict[str, np.ndarray] | None,
     on_chunk: Callable[[SignalsChunk], None] | None, passes: Passes,
-) -> tuple[Replayed, dict[str, np.ndarray], dict[str, np.ndarray], Islands]:
+) -> tuple[Replayed, dict[str, np.ndarray], dict[str, np.ndarray], Islands,
+           EnvelopeCheck | None]:
     """The replay and the comparison (module docstring): with thresholds ``given``, one
     pass that compares as it goes; without, a pass that spills, the thresholds from what it
     spilled, then the comparison over the spill. Returns the replay, the thresholds, their
-    margins (uncalibrated) and the islands (the caller closes them)."""
+    margins (uncalibrated), the islands (the caller closes them) and the motion envelope's
+    check (None without one)."""
     made: list[_Compare] = []   # the comparison, once made (its islands closed on failure)
 
     def compare(thr: dict[str, np.ndarray]) -> _Compare:
-        made.append(_Compare(thr, plan.cfg, on_chunk, plan.joints, feed.scan.sample_period_s))
+        made.append(_Compare(thr, plan.cfg, on_chunk, plan.joints, feed.scan.sample_period_s,
+                             envelope_check(plan.cfg, plan.joints, feed.scan.sample_rate_hz)))
         return made[-1]
 
     margins: dict[str, np.ndarray] = {}
@@ -316,7 +332,17 @@ def _detect_passes(
         for c in made:
             c.islands.close()
         raise
-    return rp, thr, margins, comparing.islands
+    return rp, thr, margins, comparing.islands, comparing.envelope
+
+
+def envelope_check(cfg: DetectorConfig, joints: tuple[str, ...], sample_rate_hz: float
+                   ) -> EnvelopeCheck | None:
+    """The check of the log's motion against the motion envelope the config's calibration
+    recorded (:mod:`impactcli.detect.envelope`; docs/validation.md), None without one."""
+    env = cfg.calibration.motion_envelope
+    if not env:
+        return None
+    return EnvelopeCheck(MotionEnvelope.from_dict(env), sample_rate_hz, joints)
 
 
 def _thresholds_from_spill(spill: ChunkSpill, wu: Warmup, n: int, fs: float,
@@ -360,8 +386,10 @@ class _Compare:
 
     def __init__(self, thr: dict[str, np.ndarray], cfg: DetectorConfig,
                  on_chunk: Callable[[SignalsChunk], None] | None,
-                 joints: tuple[str, ...], dt: float) -> None:
+                 joints: tuple[str, ...], dt: float,
+                 envelope: EnvelopeCheck | None = None) -> None:
         self.thr, self.on_chunk, self.joints = thr, on_chunk, joints
+        self.envelope = envelope
         self.islands = Islands(cfg.events.merge_gap_s)
         self.pressing_at = BRIDGE_FRACTION * np.maximum(thr["static_loading"], 1e-12)
         self.noise = ResidualNoise(len(joints), dt)
@@ -374,6 +402,8 @@ class _Compare:
                            | dec["static_baseline"].any(axis=1))
         pressing = np.any(st.loading >= self.pressing_at[None, :], axis=1)
         level, noise = self.noise.update(st.r)
+        if self.envelope is not None and st.position is not None:
+            self.envelope.update_arrays(t, st.position, st.position_ref, k0)
         self.islands.update(k0, t, any_d, pressing, {
             "t": t, "r": st.r, "loading": st.loading, "qd": st.qd, "q_full": st.q_full,
             "r_level": level, "r_noise": noise,

@@ -165,3 +165,14 @@ def warn_long_events(where: str, events: Sequence[Any]) -> None:
             f"longest: {e.detector} {e.t_start:.1f}–{e.t_end:.1f} s): a lasting load, or a "
             "model that no longer fits this log (an unknown payload, a changed robot)",
             ImpactWarning, stacklevel=3)
+
+
+def warn_outside_envelope(where: str, text: str, outside: int, touching: int) -> None:
+    """The log moved outside the calibration's motion envelope after warm-up
+    (:func:`impactcli.detect.envelope.outside_share_text`): the thresholds' stated
+    false-alarm rate does not hold there (docs/validation.md)."""
+    if outside > 0:
+        tail = (f"; {touching} incident(s) touch it (outside_envelope in the timeline)"
+                if touching else "")
+        warnings.warn(f"{where}: {text}: the thresholds' stated false-alarm rate was not "
+                      f"measured on such motion{tail}", ImpactWarning, stacklevel=2)

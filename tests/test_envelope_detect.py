@@ -1,0 +1,73 @@
+"""detect against the calibration's motion envelope (issue 23 item 3): a log that moves
+faster than the calibration logs did has its share outside in the timeline, a warning
+naming it, and the incidents there marked; a log inside it has share 0 and no warning."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+from click.testing import CliRunner
+
+from impactcli.cli import main
+from impactcli.logs import read_log, write_log
+from impactcli.schema import validate
+
+SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
+CONFIG = SAMPLES / "assist_like.config.toml"
+LOG = SAMPLES / "csv" / "assist_impacts.csv.gz"
+
+
+def _detect(log: Path, out: Path) -> tuple[dict, str]:
+    r = CliRunner().invoke(main, ["detect", str(log), "--config", str(CONFIG), "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    doc = json.loads((out / f"{log.name.split('.')[0]}.timeline.json").read_text())
+    validate(doc, "timeline", AssertionError, "timeline")
+    return doc, r.stderr
+
+
+def test_a_log_inside_the_envelope_has_nothing_outside(tmp_path: Path) -> None:
+    doc, err = _detect(LOG, tmp_path)
+    env = doc["motion_envelope"]
+    assert env["samples"] > 10_000 and env["outside"] == 0 and env["share"] == 0.0
+    assert env["source"] == "position_ref"
+    assert all(i["outside_envelope"] is False for i in doc["incidents"])
+    assert "motion envelope" not in err
+
+
+def test_a_faster_log_is_outside_and_says_so(tmp_path: Path) -> None:
+    """The same log played 2.5× faster is refused (its rate is not the config's); the same
+    log with 2.5× larger motion at its own rate lies partly outside the calibrated ranges:
+    the share, the warning, the incidents touching it."""
+    log = read_log(LOG)
+    t0 = log.t_ns[0]
+    fast = dataclasses.replace(log, t_ns=(t0 + (log.t_ns - t0) / 2.5).astype(np.int64),
+                               velocity_ref=None if log.velocity_ref is None
+                               else log.velocity_ref * 2.5,
+                               acceleration_ref=None if log.acceleration_ref is None
+                               else log.acceleration_ref * 6.25)
+    path = tmp_path / "fast.csv"
+    write_log(fast, path)
+    cfg_rate = 250.0 * 2.5  # the config's calibration rate no longer matches: refused
+    r = CliRunner().invoke(main, ["detect", str(path), "--config", str(CONFIG), "-o",
+                                  str(tmp_path / "o")])
+    assert r.exit_code == 3 and "Hz" in r.stderr, (cfg_rate, r.output)
+    # same rate, larger motion: positions and references scaled by 2.5 about their mean
+    q = log.position.mean(axis=0)
+    big = dataclasses.replace(
+        log, position=q + 2.5 * (log.position - q),
+        position_ref=None if log.position_ref is None else q + 2.5 * (log.position_ref - q),
+        velocity_ref=None if log.velocity_ref is None else 2.5 * log.velocity_ref,
+        acceleration_ref=None if log.acceleration_ref is None else 2.5 * log.acceleration_ref)
+    path = tmp_path / "big.csv"
+    write_log(big, path)
+    doc, err = _detect(path, tmp_path / "o2")
+    env = doc["motion_envelope"]
+    assert env["share"] > 0.1 and env["outside"] > 0 and env["stretches_s"]
+    assert "outside the calibration's motion envelope" in err
+    assert "stated false-alarm rate was not measured on such motion" in err
+    touched = [i for i in doc["incidents"] if i["outside_envelope"]]
+    assert touched and f"{len(touched)} incident(s) touch it" in err
+    assert any("motion envelope" in w for w in doc["warnings"])
