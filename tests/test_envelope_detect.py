@@ -71,3 +71,38 @@ def test_a_faster_log_is_outside_and_says_so(tmp_path: Path) -> None:
     touched = [i for i in doc["incidents"] if i["outside_envelope"]]
     assert touched and f"{len(touched)} incident(s) touch it" in err
     assert any("motion envelope" in w for w in doc["warnings"])
+
+
+def test_the_report_says_what_moved_outside(tmp_path: Path) -> None:
+    """The report's "what the audit could not see" names the share outside (and says the
+    rate applies when nothing was)."""
+    log = read_log(LOG)
+    q = log.position.mean(axis=0)
+    big = dataclasses.replace(
+        log, position=q + 2.5 * (log.position - q),
+        position_ref=None if log.position_ref is None else q + 2.5 * (log.position_ref - q),
+        velocity_ref=None if log.velocity_ref is None else 2.5 * log.velocity_ref,
+        acceleration_ref=None if log.acceleration_ref is None else 2.5 * log.acceleration_ref)
+    path = tmp_path / "big.csv"
+    write_log(big, path)
+    for src, outside in ((LOG, False), (path, True)):
+        out = tmp_path / f"{src.name}.json"
+        r = CliRunner().invoke(main, ["report", str(src), "--config", str(CONFIG), "-o",
+                                      str(tmp_path / f"{src.name}.html"), "--json", str(out)])
+        assert r.exit_code == 0, r.output
+        text = out.read_text()
+        doc = json.loads(text)
+        validate(doc, "report", AssertionError, "report")
+        items = [i for i in _walk(doc) if isinstance(i, dict)
+                 and i.get("code") == "motion-envelope"]
+        assert len(items) == 1
+        assert ("outside the calibration's motion envelope" in items[0]["text"]) is outside
+        assert (items[0]["data"]["share"] > 0.1) is outside
+
+
+def _walk(x: object) -> list[object]:
+    if isinstance(x, dict):
+        return [x, *[y for v in x.values() for y in _walk(v)]]
+    if isinstance(x, list):
+        return [y for v in x for y in _walk(v)]
+    return []

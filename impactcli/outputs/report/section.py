@@ -83,8 +83,11 @@ def _meta(sec: dict[str, Any], anchor: str) -> str:
     inp = sec["input"]
     model = (sec.get("model") or {}).get("model") or {}
     calib = (sec.get("config") or {}).get("calibration") or {}
-    cal = (f'calibrated ({e(calib.get("margin_rule") or "rule not recorded")})'
-           if sec["calibrated"] else '<span class="bad">UNCALIBRATED</span>')
+    fa = calib.get("false_alarm_rate") or {}
+    rule = (f'{fa["per_hour"]:g} false alarm(s) per hour' if fa.get("per_hour")
+            else calib.get("margin_rule") or "rule not recorded")
+    cal = (f'calibrated ({e(rule)})' if sec["calibrated"]
+           else '<span class="bad">UNCALIBRATED</span>')
     ev = ((sec.get("quality") or {}).get("evaluation") or {})
     prod = (ev.get("detectors") or {}).get("product")
     labels = (f' · <a href="#{anchor}-quality">vs labels</a> (product): {prod["detected"]}/'

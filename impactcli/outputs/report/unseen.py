@@ -157,6 +157,31 @@ def _older(origin: dict[str, Any] | None, known: bool) -> list[dict[str, Any]]:
     return out
 
 
+def _envelope(result: DetectionResult, incidents: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The motion the thresholds' false-alarm rate was not measured on: the share of the log
+    outside the calibration's motion envelope (:mod:`impactcli.detect.envelope`); nothing
+    when the config recorded no envelope."""
+    env = result.motion_envelope
+    if env is None:
+        return []
+    if not env.get("outside"):
+        return [{"code": "motion-envelope", "short": "inside the calibrated motion",
+                 "data": dict(env),
+                 "text": ("The log after warm-up moved inside the calibration's motion "
+                          "envelope (each joint's velocity and acceleration within the "
+                          "ranges calibrated on): the thresholds' stated rate applies.")}]
+    worst = max(env["per_joint"].items(), key=lambda kv: kv[1], default=("", 0.0))
+    there = sum(1 for i in incidents if i.get("outside_envelope"))
+    return [{"code": "motion-envelope",
+             "short": f"{100 * env['share']:.2g} % outside the calibrated motion",
+             "data": dict(env),
+             "text": (f"{100 * env['share']:.3g} % of the log after warm-up moved outside the "
+                      "calibration's motion envelope (velocity or acceleration beyond the "
+                      f"ranges calibrated on; most on {worst[0]}, {100 * worst[1]:.3g} %): "
+                      "the thresholds' stated false-alarm rate was not measured on such "
+                      f"motion; {there} incident(s) touch it (marked in the timeline).")}]
+
+
 def could_not_see(result: DetectionResult, incidents: list[dict[str, Any]], *,
                   samples: Samples, known: bool = True,
                   origin: dict[str, Any] | None = None) -> list[dict[str, Any]]:
@@ -164,7 +189,8 @@ def could_not_see(result: DetectionResult, incidents: list[dict[str, Any]], *,
     ``samples``: where the gaps and the posture are read."""
     chain, kin = chain_of(result)
     return [*_older(origin, known), _warmup(result, incidents), _gaps(samples),
-            _left_out(result, chain), _smallest_force(result, chain, kin, samples)]
+            _left_out(result, chain), *_envelope(result, incidents),
+            _smallest_force(result, chain, kin, samples)]
 
 
 def could_not_see_html(items: list[dict[str, Any]], anchor: str) -> str:
