@@ -165,11 +165,13 @@ def _envelope(result: DetectionResult, incidents: list[dict[str, Any]]) -> list[
     if env is None:
         return []
     if not env.get("outside"):
+        rated = bool((result.config.get("calibration") or {}).get("false_alarm_rate"))
         return [{"code": "motion-envelope", "short": "inside the calibrated motion",
                  "data": dict(env),
                  "text": ("The log after warm-up moved inside the calibration's motion "
                           "envelope (each joint's velocity and acceleration within the "
-                          "ranges calibrated on): the thresholds' stated rate applies.")}]
+                          "ranges calibrated on)" + (": the thresholds' stated false-alarm "
+                                                     "rate applies." if rated else "."))}]
     worst = max(env["per_joint"].items(), key=lambda kv: kv[1], default=("", 0.0))
     there = sum(1 for i in incidents if i.get("outside_envelope"))
     return [{"code": "motion-envelope",
