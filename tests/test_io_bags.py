@@ -336,8 +336,8 @@ def test_bad_bag_is_one_error_naming_the_file(tmp_path: Path, case: str) -> None
     path, kwargs = make(tmp_path)
     with pytest.raises(LogFormatError) as info:
         read_log(path, **kwargs)
-    msg = str(info.value)
-    assert msg.startswith(f"{path}: ") and "\n" not in msg, msg
+    msg = str(info.value)  # a folder's error names the log in it that failed
+    assert msg.startswith((f"{path}: ", f"{path}/")) and "\n" not in msg, msg
     assert re.search(pattern, msg), msg
 
 
@@ -356,6 +356,7 @@ def test_bad_bag_through_the_cli_is_exit_3_one_line(tmp_path: Path, case: str) -
     detail = f"stdout={res.stdout!r} stderr={res.stderr!r}"
     assert res.exit_code == 3, detail
     lines = res.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith(f"impactcli: error: {path}: "), detail
+    assert len(lines) == 1 and lines[0].startswith(  # a folder: the log in it that failed
+        (f"impactcli: error: {path}: ", f"impactcli: error: {path}/")), detail
     assert re.search(pattern, lines[0]), detail
     assert "Traceback" not in res.stderr + res.stdout
