@@ -132,6 +132,11 @@ def main() -> None:
         cfg = tmp / "config.toml"
         subprocess.run([exe, "calibrate", str(cal), "-o", str(cfg)], check=True,
                        capture_output=True)
+        cfg_release = tmp / "config_release.toml"  # the release's own calibrate: its schema
+        if release is not None:
+            subprocess.run([sys.executable, "-m", "impactcli", "calibrate", str(cal), "-o",
+                            str(cfg_release)], check=True, capture_output=True,
+                           env=dict(os.environ, PYTHONPATH=str(release)))
         for minutes in args.minutes:
             log = tmp / f"log_{minutes:g}min.csv"
             t = time.perf_counter()
@@ -148,7 +153,8 @@ def main() -> None:
                 shutil.rmtree(out, ignore_errors=True)
                 if release is not None and minutes <= args.release_max_minutes:
                     env = dict(os.environ, PYTHONPATH=str(release))
-                    cmd = [sys.executable, "-m", "impactcli", *cmd[1:]]
+                    cmd = [sys.executable, "-m", "impactcli",
+                           *_command(variant, exe, log, cfg_release, out)[1:]]
                     wall, rss = measure(cmd, tmp, env)
                     rows.append(_row(args.release, minutes, variant, wall, rss, size))
                     print(json.dumps(rows[-1]), file=sys.stderr)
