@@ -135,7 +135,7 @@ def main() -> None:
         cfg_release = tmp / "config_release.toml"  # the release's own calibrate: its schema
         if release is not None:
             subprocess.run([sys.executable, "-m", "impactcli", "calibrate", str(cal), "-o",
-                            str(cfg_release)], check=True, capture_output=True,
+                            str(cfg_release)], check=True, capture_output=True, cwd=tmp,
                            env=dict(os.environ, PYTHONPATH=str(release)))
         for minutes in args.minutes:
             log = tmp / f"log_{minutes:g}min.csv"
