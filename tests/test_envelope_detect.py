@@ -14,6 +14,7 @@ from click.testing import CliRunner
 from impactcli.cli import main
 from impactcli.logs import read_log, write_log
 from impactcli.schema import validate
+from impactcli.types import RobotLog
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
 CONFIG = SAMPLES / "assist_like.config.toml"
@@ -55,14 +56,7 @@ def test_a_faster_log_is_outside_and_says_so(tmp_path: Path) -> None:
                                   str(tmp_path / "o")])
     assert r.exit_code == 3 and "Hz" in r.stderr, (cfg_rate, r.output)
     # same rate, larger motion: positions and references scaled by 2.5 about their mean
-    q = log.position.mean(axis=0)
-    big = dataclasses.replace(
-        log, position=q + 2.5 * (log.position - q),
-        position_ref=None if log.position_ref is None else q + 2.5 * (log.position_ref - q),
-        velocity_ref=None if log.velocity_ref is None else 2.5 * log.velocity_ref,
-        acceleration_ref=None if log.acceleration_ref is None else 2.5 * log.acceleration_ref)
-    path = tmp_path / "big.csv"
-    write_log(big, path)
+    path = _larger_motion(log, tmp_path / "big.csv")
     doc, err = _detect(path, tmp_path / "o2")
     env = doc["motion_envelope"]
     assert env["share"] > 0.1 and env["outside"] > 0 and env["stretches_s"]
@@ -76,15 +70,7 @@ def test_a_faster_log_is_outside_and_says_so(tmp_path: Path) -> None:
 def test_the_report_says_what_moved_outside(tmp_path: Path) -> None:
     """The report's "what the audit could not see" names the share outside (and says the
     rate applies when nothing was)."""
-    log = read_log(LOG)
-    q = log.position.mean(axis=0)
-    big = dataclasses.replace(
-        log, position=q + 2.5 * (log.position - q),
-        position_ref=None if log.position_ref is None else q + 2.5 * (log.position_ref - q),
-        velocity_ref=None if log.velocity_ref is None else 2.5 * log.velocity_ref,
-        acceleration_ref=None if log.acceleration_ref is None else 2.5 * log.acceleration_ref)
-    path = tmp_path / "big.csv"
-    write_log(big, path)
+    path = _larger_motion(read_log(LOG), tmp_path / "big.csv")
     for src, outside in ((LOG, False), (path, True)):
         out = tmp_path / f"{src.name}.json"
         r = CliRunner().invoke(main, ["report", str(src), "--config", str(CONFIG), "-o",
@@ -98,6 +84,19 @@ def test_the_report_says_what_moved_outside(tmp_path: Path) -> None:
         assert len(items) == 1
         assert ("outside the calibration's motion envelope" in items[0]["text"]) is outside
         assert (items[0]["data"]["share"] > 0.1) is outside
+
+
+def _larger_motion(log: RobotLog, path: Path) -> Path:
+    """``log`` with 2.5× its motion about its mean posture, at its own rate, written to
+    ``path``."""
+    q = log.position.mean(axis=0)
+    big = dataclasses.replace(
+        log, position=q + 2.5 * (log.position - q),
+        position_ref=None if log.position_ref is None else q + 2.5 * (log.position_ref - q),
+        velocity_ref=None if log.velocity_ref is None else 2.5 * log.velocity_ref,
+        acceleration_ref=None if log.acceleration_ref is None else 2.5 * log.acceleration_ref)
+    write_log(big, path)
+    return path
 
 
 def _walk(x: object) -> list[object]:

@@ -91,20 +91,9 @@ def _lasting_line(k: int, x: dict[str, Any]) -> str:
 
 def lasting_loads_of(outcome: Any) -> list[dict[str, Any]]:
     """The counted lasting loads of a finished log (timeline ``lasting_loads`` items after
-    warm-up): from its summary row when the batch carries them, else read back from the
-    timeline it wrote (``outputs[0]``; a path or URL)."""
-    rows = outcome.summary.get("lasting_load_list")
-    if rows is None:
-        from ..errors import OutputError
-        from ..files import load_mapping
-        from ..logs.urls import load_by_url
-
-        if not outcome.outputs:
-            return []
-        doc = load_by_url(outcome.outputs[0],
-                          lambda p: load_mapping(p, OutputError, "timeline"), "timeline")
-        rows = doc.get("lasting_loads") or []
-    return [x for x in rows if not x.get("in_warmup")]
+    warm-up), from its batch summary row."""
+    return [x for x in outcome.summary.get("lasting_load_list") or []
+            if not x.get("in_warmup")]
 
 
 #: incidents listed per log when one log is analysed (all of them are in the timeline)

@@ -38,6 +38,7 @@ from .tail_fit import (
     sigma_upper,
     threshold_upper,
 )
+from .thresholds import MIN_THRESHOLD  # the smallest threshold returned [N·m]
 
 __all__ = [
     "CONF", "CONFIG_KEYS", "DEFAULT_FALSE_ALARMS_PER_HOUR", "DETECTORS", "ChannelFits",
@@ -63,8 +64,6 @@ SETTLE_S = 10.0
 START_MARGIN = 1.2
 #: How far the fit may extrapolate beyond the free time's zero-count bound (support).
 MAX_EXTRAPOLATION = 30.0
-#: Smallest threshold returned [N·m] (calibrate.MIN_THRESHOLD).
-MIN_THRESHOLD = 1e-6
 _EPS_S = 1e-9
 
 

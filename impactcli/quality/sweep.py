@@ -12,8 +12,8 @@ by row group, a signals Parquet row group by row group (``evaluate TIMELINE --sw
 run's arrays as one chunk (:func:`sweep_ratios`, :func:`event_intervals`). Per (detector,
 scale) an :class:`EventIntervals` carries across chunks the run of firing samples and the
 merged event still open, so memory is one chunk and the events found.
-:func:`signal_ratios` is the one place ratios are rebuilt from signal columns (a signals
-Parquet holds none). Pure logic: no file I/O, no printing.
+Ratios are rebuilt from signal columns (a signals Parquet holds none) by the run's own
+formula, :func:`impactcli.detect.thresholds.detector_ratios`. Pure logic: no file I/O, no printing.
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from ..detect.thresholds import detector_ratios
 from ..errors import ConfigError, ImpactWarning, LogFormatError
 from ..types import DETECTORS, Labels
 from .evaluation import evaluate_events
@@ -348,31 +349,12 @@ def warn_late_labels(labels: Labels, duration_s: float, warmup_end_s: float,
                         tolerance=tolerance, detectors=())
 
 
-def signal_ratios(residual_rms: np.ndarray, threshold: np.ndarray, loading: np.ndarray,
-                  abs_residual: np.ndarray, v_loading: np.ndarray | float,
-                  v_baseline: np.ndarray | float) -> dict[str, np.ndarray]:
-    """Each detector's statistic over its threshold, as the run computes them: adaptive
-    r_rms / |v_stat + v_rms| (eq. 42; inf where that threshold is 0), static_loading
-    |LP(r)| / vL, static_baseline |r| / v0.
-
-    Args:
-        residual_rms, threshold, loading, abs_residual: (n, J) residual RMS, adaptive
-            threshold, loading statistic and |r| [N·m] (or a joint's (n,) columns).
-        v_loading, v_baseline: vL and v0 [N·m], broadcast against them.
-    Returns:
-        detector → ratio, shaped as the statistics.
-    """
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return {"adaptive": np.where(threshold > 0, residual_rms / threshold, np.inf),
-                "static_loading": loading / v_loading,
-                "static_baseline": abs_residual / v_baseline}
-
-
 def ratios_from_signals(
     columns: Mapping[str, np.ndarray], joint_names: Sequence[str],
     thresholds: Mapping[str, Mapping[str, float]],
 ) -> dict[str, np.ndarray]:
-    """The detectors' (n, J) ratios (:func:`signal_ratios`) from a signals Parquet's columns
+    """The detectors' (n, J) ratios (:func:`~impactcli.detect.thresholds.detector_ratios`)
+    from a signals Parquet's columns
     (``<joint>.<signal>``, docs/formats.md, "Per-sample signals") and a timeline's
     per-joint thresholds ``{v0, vL}`` [N·m].
 
@@ -391,7 +373,7 @@ def ratios_from_signals(
         except (KeyError, TypeError, ValueError):
             raise LogFormatError(f"timeline: thresholds.{j}.{name} missing") from None
 
-    per = [signal_ratios(col(j, "residual_rms"), col(j, "threshold"),
+    per = [detector_ratios(col(j, "residual_rms"), col(j, "threshold"),
                          col(j, "loading_statistic"), np.abs(col(j, "residual")),
                          thr(j, "vL"), thr(j, "v0")) for j in joint_names]
     return {d: np.column_stack([p[d] for p in per]) for d in DETECTORS}

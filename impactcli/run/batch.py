@@ -249,6 +249,7 @@ def _summary(job: DetectJob, result: Any) -> dict[str, Any]:
         "incident_list": [
             {"t_start": i.t_start, "link": i.link, "force_n": i.force_n, "contact": i.contact,
              "detectors": list(i.detectors)} for i in result.counted_incidents()],
+        "lasting_load_list": [x.to_dict() for x in result.counted_lasting_loads()],
         "generator_reasons": {j: g["reason"] for j, g in result.generators.items()},
         **{d: v["events"] for d, v in result.summary().items()},
     }

@@ -28,7 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from ...quality.sweep import SweepRow, ThresholdSweep, event_settings, signal_ratios
+from ...detect.thresholds import detector_ratios
+from ...quality.sweep import SweepRow, ThresholdSweep, event_settings
 from ...types import DETECTORS, Labels
 from ..column_spill import ColumnSpill
 from ..svgplot import EnvelopeAccumulator
@@ -185,7 +186,7 @@ class Samples:
         if self.col.has_ratios:
             return {d: got[f"{k}.x.{d}"] for d in DETECTORS}
         v_l, v_0 = self._thresholds(self.joints[k])
-        return signal_ratios(got[f"{k}.rms"], got[f"{k}.thr"], got[f"{k}.load"],
+        return detector_ratios(got[f"{k}.rms"], got[f"{k}.thr"], got[f"{k}.load"],
                              got[f"{k}.res"], v_l, v_0)
 
     def _ratio_groups(self) -> Iterator[tuple[np.ndarray, list[dict[str, np.ndarray]]]]:
