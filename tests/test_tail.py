@@ -179,6 +179,45 @@ def test_thresholds_for_a_rate_hold_over_long_synthetic_time() -> None:
     assert tail.count_incidents([held_out(rng, 50.0, nu, sigma)], base, SLOT_S) / 50 > 3.0
 
 
+def test_rate_stated_for_thresholds_set_another_way() -> None:
+    """The margin rule's thresholds (max × 1.05 over 4 free logs of 5 min): the rate the
+    fits state for them bounds the true rate and what 300 held-out hours show; given the
+    rate rule's own thresholds, it states the rate rule's rates."""
+    rng = np.random.default_rng(13)
+    nu, sigma = (360.0, 240.0), (0.5, 2.0)
+    logs = [free_log(rng, 5.0, nu, sigma) for _ in range(4)]
+    names = ("a/adaptive", "a/static_loading")
+    chans = tail.fit_channels(logs, 0.01, names=names)
+    base = 1.05 * np.max([lg.max(axis=0) for lg in logs], axis=0)
+    st = tail.rates_for_thresholds(chans, base)
+    assert st.rate is None and not st.below_support and not st.any_widened
+    truth = sum(r * math.exp(-(t - 1.0) / s) for r, s, t in zip(nu, sigma, base, strict=True))
+    assert st.predicted_total < st.upper_total and truth <= st.upper_total
+    seen = sum(tail.count_incidents([held_out(rng, 50.0, nu, sigma)], base, SLOT_S)
+               for _ in range(6))
+    lo, _ = tf.poisson_interval(seen, 300.0, 0.9)
+    assert lo <= st.upper_total and seen > 0            # honest, and not vacuous
+    assert st.lines()[0].startswith("false alarms per hour: not asked; predicted ")
+    ask = tail.thresholds_for_rate(chans, 3.0)
+    again = tail.rates_for_thresholds(chans, ask.thresholds)
+    np.testing.assert_allclose(again.predicted, ask.predicted, rtol=1e-9)
+    np.testing.assert_allclose(again.upper, ask.upper, rtol=1e-6)
+    with pytest.raises(ValueError, match="need 2 thresholds"):
+        tail.rates_for_thresholds(chans, base[:1])
+
+
+def test_stated_bound_is_never_below_what_the_free_time_supports() -> None:
+    rng = np.random.default_rng(17)
+    logs = [free_log(rng, 2.0, (360.0,), (0.5,)) for _ in range(2)]
+    chans = tail.fit_channels(logs, 0.01)
+    st = tail.rates_for_thresholds(chans, np.array([1e3]))   # far above every peak
+    assert float(np.sum(st.upper)) < st.rate_supported
+    assert st.upper_total == st.rate_supported
+    assert any("below what the free motion supports" in n for n in st.notes)
+    low = tail.rates_for_thresholds(chans, np.array([0.0]))  # under the log-start floor
+    assert low.floored.tolist() == [True] and any("log-start" in n for n in low.notes)
+
+
 def test_log_start_floor_holds_a_channel_and_shares_its_rate() -> None:
     rng = np.random.default_rng(11)
     logs = [free_log(rng, 4.0, (360.0, 360.0), (0.5, 0.5)) for _ in range(3)]

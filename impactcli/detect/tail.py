@@ -44,12 +44,14 @@ __all__ = [
     "CONF", "CONFIG_KEYS", "DEFAULT_FALSE_ALARMS_PER_HOUR", "DETECTORS", "ChannelFits",
     "Clusters", "LoloRow", "RateCalibration", "TailFit", "calibrate_rate", "clusters",
     "count_incidents", "fit_channel", "fit_channels", "leave_one_log_out", "minutes_needed",
-    "poisson_interval", "rate_at", "rate_upper", "split_settle", "stack_detectors", "support",
-    "support_statement", "threshold_upper", "thresholds_for_rate",
+    "per_hour_text", "poisson_interval", "rate_at", "rate_upper", "rates_for_thresholds",
+    "split_settle", "stack_detectors", "support", "support_statement", "threshold_upper",
+    "thresholds_for_rate",
 ]
 
-#: The audit's default [incidents per hour]: 0 held-out false alarms in 77 simulated hours,
-#: as at 0.1, with more contacts caught; what ~5 min of free motion supports.
+#: The audit's rate [incidents per hour] (``calibrate --threshold-rule false-alarm-rate``
+#: without a rate): 0 held-out false alarms in 77 simulated hours, as at 0.1, with more
+#: contacts caught; what ~5 min of free motion supports.
 DEFAULT_FALSE_ALARMS_PER_HOUR = 1.0
 #: The product's detectors whose thresholds this sets (incidents.PRODUCT_DETECTORS), and
 #: the config's threshold each one replaces.
@@ -178,17 +180,26 @@ def minutes_needed(rate: float, conf: float = CONF) -> float:
     return 60.0 * -math.log(1.0 - conf) / (MAX_EXTRAPOLATION * rate)
 
 
-def support_statement(hours: float, rate: float, conf: float = CONF) -> str:
-    """What ``hours`` of free motion support, and what ``rate`` [1/h] would need."""
+def support_statement(hours: float, rate: float | None, conf: float = CONF) -> str:
+    """What ``hours`` of free motion support, and what ``rate`` [1/h] would need (None:
+    no rate asked)."""
     rs = support(hours, conf)
     per = (f"1 false alarm per ~{1 / rs:.2g} h" if rs < 1
            else f"{rs:.2g} false alarms per hour")
     s = (f"{hours * 60:.1f} min of free motion supports at best {per} at "
          f"{conf * 100:.0f} % confidence")
+    if rate is None:
+        return s
     if rate < rs:
         return (s + f"; log ≥ {math.ceil(minutes_needed(rate, conf))} min of the robot's "
                 f"motions for {rate:g} per hour (thresholds widened until then)")
     return s + f"; {rate:g} per hour is within it"
+
+
+def per_hour_text(rate: float) -> str:
+    """A rate [1/h] as the terminal and report print it: 2 significant digits, whole
+    numbers from 100 on (``200``, not ``2e+02``)."""
+    return f"{rate:.0f}" if rate >= 100 else f"{rate:.2g}"
 
 
 # -------------------------------------------------------------------------- log starts
@@ -217,12 +228,14 @@ def stack_detectors(per_detector: Mapping[str, np.ndarray], joints: Sequence[str
 # ------------------------------------------------------------------------ all channels
 @dataclass(frozen=True, eq=False)
 class RateCalibration:
-    """Thresholds for ``rate`` incidents per hour over all channels together.
+    """Thresholds for ``rate`` incidents per hour over all channels together, or (``rate``
+    None) the rate that thresholds set another way are predicted to give.
 
     Per channel (C,): names ``joint/detector``; thresholds [N·m]; predicted: the
     maximum-likelihood rate at the threshold [1/h]; upper: its upper ``conf`` bound [1/h];
     widened: raised beyond the fit because ``rate`` < rate_supported; floored: held at the
-    log-start floor; fits (ξ, σ, u, ν, n). hours: free-motion time of the fits [h].
+    log-start floor (``rate`` None: below it, so log starts may alarm beyond the
+    prediction); fits (ξ, σ, u, ν, n). hours: free-motion time of the fits [h].
     """
 
     names: tuple[str, ...]
@@ -232,7 +245,7 @@ class RateCalibration:
     widened: np.ndarray
     floored: np.ndarray
     fits: tuple[TailFit, ...]
-    rate: float
+    rate: float | None
     conf: float
     hours: float
     rate_supported: float
@@ -245,13 +258,16 @@ class RateCalibration:
 
     @property
     def upper_total(self) -> float:
-        """Upper ``conf`` bound of the incident rate (union bound) [1/h]."""
-        return float(np.sum(self.upper))
+        """Upper ``conf`` bound of the incident rate (union bound) [1/h]; for thresholds
+        set another way (``rate`` None) never below what the free time supports: a
+        smaller rate is an extrapolation the data cannot back."""
+        total = float(np.sum(self.upper))
+        return total if self.rate is not None else max(total, self.rate_supported)
 
     @property
     def below_support(self) -> bool:
         """The asked rate is below what the free-motion time supports (widening applies)."""
-        return self.rate < self.rate_supported
+        return self.rate is not None and self.rate < self.rate_supported
 
     @property
     def any_widened(self) -> bool:
@@ -272,16 +288,19 @@ class RateCalibration:
 
     def lines(self) -> list[str]:
         """What ``calibrate`` prints: totals, one line per channel, support, notes."""
-        out = [f"false alarms per hour: asked {self.rate:g}; predicted "
-               f"{self.predicted_total:.2g}, upper bound {self.upper_total:.2g} at "
+        asked = "not asked" if self.rate is None else f"asked {self.rate:g}"
+        out = [f"false alarms per hour: {asked}; predicted "
+               f"{per_hour_text(self.predicted_total)}, upper bound "
+               f"{per_hour_text(self.upper_total)} at "
                f"{self.conf * 100:.0f} % confidence, on {self.hours * 60:.1f} min of free motion"]
         for k, f in enumerate(self.fits):
-            tag = " (widened)" if self.widened[k] else " (log-start floor)" if \
-                self.floored[k] else ""
+            floor = " (log-start floor)" if self.rate is not None else " (below log-start floor)"
+            tag = " (widened)" if self.widened[k] else floor if self.floored[k] else ""
             out.append(f"  {f.name:28s} threshold {self.thresholds[k]:.4g}{tag}: free max "
                        f"{f.max_stat:.4g}, u {f.u:.4g}, {f.n} clusters ({f.nu:.3g}/h), "
-                       f"{f.shape}, σ {f.sigma:.3g}; rate {self.predicted[k]:.2g}/h, "
-                       f"bound {self.upper[k]:.2g}/h")
+                       f"{f.shape}, σ {f.sigma:.3g}; rate "
+                       f"{per_hour_text(self.predicted[k])}/h, bound "
+                       f"{per_hour_text(self.upper[k])}/h")
         return [*out, "  " + self.support_statement(), *(f"  note: {n}" for n in self.notes)]
 
 
@@ -397,6 +416,33 @@ def thresholds_for_rate(channels: ChannelFits, rate: float = DEFAULT_FALSE_ALARM
     pred = np.array([f.rate(float(t)) for f, t in zip(fits, thr, strict=True)])
     return RateCalibration(tuple(f.name for f in fits), thr, pred, upper, wid, held, fits,
                            float(rate), conf, hours, rs, tuple(notes))
+
+
+def rates_for_thresholds(channels: ChannelFits, thresholds: np.ndarray, *,
+                         conf: float = CONF) -> RateCalibration:
+    """The incident rate that thresholds (C,) [N·m] set another way (the leave-one-out
+    margin) are predicted to give on motion like the free logs': per channel the fit's
+    rate and its upper ``conf`` bound at the threshold (:func:`rate_at`), summed (union
+    bound); the total bound is never stated below :func:`support`. A threshold under its
+    channel's log-start floor is noted: log starts may alarm beyond the prediction."""
+    fits, floor = channels.fits, channels.floor
+    thr = np.asarray(thresholds, dtype=np.float64)
+    if thr.shape != (len(fits),):
+        raise ValueError(f"need {len(fits)} thresholds, got shape {thr.shape}")
+    pred, upper = np.zeros(thr.size), np.zeros(thr.size)
+    for c, (f, t) in enumerate(zip(fits, thr, strict=True)):
+        pred[c], upper[c] = rate_at(f, float(t), conf)
+    below = floor > thr
+    notes = [f"{fits[c].name}: threshold {thr[c]:.4g} below the log-start peak's floor "
+             f"{floor[c]:.4g}: log starts (settling after warm-up) may alarm beyond the "
+             "prediction" for c in np.flatnonzero(below)]
+    rs = support(channels.hours, conf)
+    if float(np.sum(upper)) < rs:
+        notes.append(f"the fits' bound {float(np.sum(upper)):.2g} per hour is below what the "
+                     f"free motion supports; stated as {rs:.2g}")
+    return RateCalibration(tuple(f.name for f in fits), thr, pred, upper,
+                           np.zeros(thr.size, dtype=bool), below, fits, None, conf,
+                           channels.hours, rs, tuple(notes))
 
 
 # ------------------------------------------------------------------- leave-one-log-out
