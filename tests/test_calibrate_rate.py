@@ -1,6 +1,7 @@
 """``calibrate --false-alarms-per-hour`` through the CLI: thresholds for a stated rate on
 every format and model kind the fixtures have, what it prints, what the config records,
-the report's caveat when the free motion does not support the rate, and bad options.
+the report's caveat when the free motion does not support the rate, and bad options; and
+the default (leave-one-out) with the rate its thresholds are predicted to give.
 
 Known truth: the recorded fit reproduces the recorded predicted rate (ν e^{−(t − u)/σ} for
 an exponential tail); thresholds bound the free logs they were fitted on (a rate far below
@@ -38,11 +39,11 @@ def run(*args: str) -> object:
 def assist(tmp_path_factory: pytest.TempPathFactory) -> tuple[object, Path]:
     out = tmp_path_factory.mktemp("rate") / "assist.toml"
     r = run("calibrate", *free("assist"), "--robot", str(CSV / "assist_free_triangle.robot.json"),
-            "-o", str(out))
+            "--false-alarms-per-hour", "1", "-o", str(out))
     return r, out
 
 
-def test_default_rate_prints_fit_support_and_leave_one_log_out(assist: tuple) -> None:
+def test_audit_rate_prints_fit_support_and_leave_one_log_out(assist: tuple) -> None:
     r, _ = assist
     assert r.exit_code == 0, r.output
     lines = r.stdout.splitlines()
@@ -142,7 +143,8 @@ def test_mcap_gives_the_csv_thresholds(assist: tuple, tmp_path: Path) -> None:
     _, csv_cfg = assist
     out = tmp_path / "m.json"
     r = run("calibrate", *free("assist", MCAP, ".mcap"), "--robot",
-            str(MCAP / "assist_free_triangle.robot.json"), "-o", str(out))
+            str(MCAP / "assist_free_triangle.robot.json"), "--false-alarms-per-hour", "1",
+            "-o", str(out))
     assert r.exit_code == 0, r.output
     a, b = load_config(csv_cfg), load_config(out)
     assert b.calibration.threshold_rule == "false-alarm-rate"
@@ -176,7 +178,8 @@ def test_every_model_kind(tmp_path: Path, kind: str) -> None:
     r = run("identify", str(CSV / "heavy_free_p2p.csv.gz"), "--kind", kind, "-o", str(model))
     assert r.exit_code == 0, r.output
     out = tmp_path / "h.toml"
-    r = run("calibrate", *free("heavy"), "--model", str(model), "-o", str(out))
+    r = run("calibrate", *free("heavy"), "--model", str(model), "--false-alarms-per-hour", "1",
+            "-o", str(out))
     assert r.exit_code == 0, r.output
     assert f"model {kind} (given)" in r.stdout
     cfg = load_config(out)
@@ -186,21 +189,51 @@ def test_every_model_kind(tmp_path: Path, kind: str) -> None:
     assert fa["upper_per_hour"] <= 1.0 + 1e-3
 
 
-def test_leave_one_out_rule_is_the_committed_sample_config(tmp_path: Path) -> None:
+def test_default_is_leave_one_out_with_its_predicted_rate(tmp_path: Path) -> None:
+    """No rate asked: the committed sample config's thresholds (leave-one-out), and the
+    rate the same tail fits predict for them, recorded and printed."""
     out = tmp_path / "loo.toml"
     r = run("calibrate", *free("assist"), "--robot", str(CSV / "assist_free_triangle.robot.json"),
-            "--threshold-rule", "leave-one-out", "-o", str(out))
+            "-o", str(out))
     assert r.exit_code == 0, r.output
-    assert "rule leave-one-out" in r.stdout and "leave-one-log-out" not in r.stdout
     got, want = load_config(out), load_config(REPO / "sample_logs" / "assist_like.config.toml")
     assert got.thresholds == want.thresholds
     assert got.calibration.threshold_rule == "leave-one-out"
-    assert got.calibration.false_alarm_rate is None
     assert got.calibration.motion_envelope == want.calibration.motion_envelope
+    fa = got.calibration.false_alarm_rate
+    assert fa is not None and "per_hour" not in fa and "supported" not in fa
+    assert re.search(r"rule leave-one-out \(predicted [0-9.e+]+ false alarm\(s\) per hour, "
+                     r"upper bound [0-9.e+]+\)", r.stdout), r.stdout
+    assert "false alarms per hour: not asked (thresholds by leave-one-out); predicted " \
+        in r.stdout
+    # every channel's threshold is the config's, and its rate the fit's at it
+    hours = fa["free_minutes"] / 60.0
+    total = 0.0
+    for det, key in (("adaptive", "v_stat"), ("static_loading", "vL")):
+        for j, ch in fa["channels"][det].items():
+            assert getattr(got.thresholds, key)[j] == ch["threshold"]
+            assert ch["upper_per_hour"] >= ch["predicted_per_hour"]
+            if ch["shape"] == "exponential":
+                nu = ch["clusters"] / hours
+                want_rate = nu * math.exp(-(ch["threshold"] - ch["level"]) / ch["sigma"])
+                assert ch["predicted_per_hour"] == pytest.approx(want_rate, rel=1e-6)
+            total += ch["upper_per_hour"]
+    # the stated bound: the union bound, never below what the free minutes support
+    assert fa["upper_per_hour"] == pytest.approx(max(total, fa["supported_per_hour"]))
+    assert len(fa["leave_one_log_out"]) == 9
+
+
+def test_rule_without_a_rate_takes_the_audit_default(tmp_path: Path) -> None:
+    out = tmp_path / "r.toml"
+    r = run("calibrate", *free("assist"), "--threshold-rule", "false-alarm-rate", "-o", str(out))
+    assert r.exit_code == 0, r.output
+    fa = load_config(out).calibration.false_alarm_rate
+    assert fa is not None and fa["per_hour"] == 1.0
 
 
 def test_one_free_log_has_no_leave_one_log_out(tmp_path: Path) -> None:
-    r = run("calibrate", free("assist")[1], "-o", str(tmp_path / "one.toml"))
+    r = run("calibrate", free("assist")[1], "--false-alarms-per-hour", "1",
+            "-o", str(tmp_path / "one.toml"))
     assert r.exit_code == 0, r.output
     assert "leave-one-log-out" not in r.stdout
     fa = load_config(tmp_path / "one.toml").calibration.false_alarm_rate

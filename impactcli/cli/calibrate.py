@@ -27,9 +27,10 @@ def threshold_lines(out: DetectorConfig) -> list[str]:
     support and the leave-one-log-out rows; the motion envelope."""
     c, th, gens = out.calibration, out.thresholds, out.residual.generators
     rate = c.false_alarm_rate
-    head = "v0 margin" if rate else "margins (adaptive/loading/baseline)"
+    asked = "per_hour" in (rate or {})
+    head = "v0 margin" if asked else "margins (adaptive/loading/baseline)"
     lines = [f"{'joint':<16} {'generator':<17} {'v_stat':>9} {'vL':>9} {'v0':>9}   {head}"]
-    dets = ("static_baseline",) if rate else ("adaptive", "static_loading", "static_baseline")
+    dets = ("static_baseline",) if asked else ("adaptive", "static_loading", "static_baseline")
     for j in th.v_stat:
         m = [c.margins.get(d, {}).get(j) for d in dets]
         lines.append(f"{j:<16} {gens.get(j, '?'):<17} {th.v_stat[j]:>9.4f} {th.vL[j]:>9.4f} "
@@ -52,22 +53,27 @@ def rate_lines(rate: dict[str, Any]) -> list[str]:
     """The rate's record as calibrate prints it: totals, one line per joint and detector
     (threshold, fit, predicted rate and bound), the support statement, notes, and the
     leave-one-log-out rows."""
+    from ..detect.tail import per_hour_text as ph
+
     conf = float(rate["confidence"])
     pct = f"{100 * conf:.0f} %"
-    lines = [f"false alarms per hour: asked {rate['per_hour']:g}; predicted "
-             f"{rate['predicted_per_hour']:.2g}, upper bound {rate['upper_per_hour']:.2g} at "
+    asked = (f"asked {rate['per_hour']:g}" if "per_hour" in rate
+             else "not asked (thresholds by leave-one-out)")
+    lines = [f"false alarms per hour: {asked}; predicted "
+             f"{ph(rate['predicted_per_hour'])}, upper bound {ph(rate['upper_per_hour'])} at "
              f"{pct} confidence, on {rate['free_minutes']:.1f} min of free motion"]
+    floor = " (log-start floor)" if "per_hour" in rate else " (below log-start floor)"
     for det, per in rate.get("channels", {}).items():
         for j, ch in per.items():
             tag = (" (widened)" if ch.get("widened") else
-                   " (log-start floor)" if ch.get("log_start_floor") else "")
+                   floor if ch.get("log_start_floor") else "")
             shape = ("exponential" if ch.get("shape") == "exponential"
                      else f"GPD ξ={ch.get('xi', 0.0):.2f}")
             lines.append(f"  {j + '/' + det:28s} threshold {ch['threshold']:.4g}{tag}: free max "
                          f"{ch.get('free_max', math.nan):.4g}, u {ch.get('level', math.nan):.4g}, "
                          f"{ch.get('clusters', 0)} clusters, {shape}, σ "
                          f"{ch.get('sigma', math.nan):.3g}; rate "
-                         f"{ch['predicted_per_hour']:.2g}/h, bound {ch['upper_per_hour']:.2g}/h")
+                         f"{ph(ch['predicted_per_hour'])}/h, bound {ph(ch['upper_per_hour'])}/h")
     if rate.get("statement"):
         lines.append("  " + rate["statement"])
     lines += [f"  note: {n}" for n in rate.get("notes", [])]
@@ -121,19 +127,21 @@ def _labels_for(logs: tuple[Path, ...], given: tuple[Path, ...]) -> list:  # typ
                    "log, when present].")
 @click.option("--false-alarms-per-hour", "fa_rate", type=click.FloatRange(min=0, min_open=True),
               metavar="R",
-              help="False alarms per hour (incidents of the product's detectors after "
-                   "warm-up, all joints together) the thresholds are set for: the upper "
+              help="Set v_stat and vL for R false alarms per hour (incidents of the "
+                   "product's detectors after warm-up, all joints together): the upper "
                    "bound of the predicted rate, at --confidence, is R. Where the free logs "
                    "are too short to support R, the thresholds are widened and calibrate "
-                   "says how many minutes of free motion R needs [default: 1].")
+                   "says how many minutes of free motion R needs. For an audit: 1. "
+                   "[default: the leave-one-out margin, its predicted rate stated]")
 @click.option("--confidence", type=click.FloatRange(min=0.5, max=1.0, max_open=True),
               default=0.9, show_default=True,
               help="One-sided confidence of the rate's upper bound.")
 @click.option("--threshold-rule", type=click.Choice(["false-alarm-rate", "leave-one-out"]),
-              default="false-alarm-rate", show_default=True,
-              help="How v_stat and vL are set: for the false-alarm rate R, or by the older "
-                   "leave-one-out margin over the free logs' maxima (no stated rate; kept "
-                   "to compare with and for configs made by it). v0 (static_baseline, a "
+              help="How v_stat and vL are set: for a false-alarm rate (R of "
+                   "--false-alarms-per-hour, 1 per hour when not given), or by the "
+                   "leave-one-out margin over the free logs' maxima, with the rate the tail "
+                   "fits predict for it stated [default: false-alarm-rate with "
+                   "--false-alarms-per-hour, else leave-one-out]. v0 (static_baseline, a "
                    "comparison detector) always follows leave-one-out.")
 @click.option("--keep-suspect", is_flag=True,
               help="Keep stretches that alone would set a threshold (likely contacts; "
@@ -148,25 +156,27 @@ def _labels_for(logs: tuple[Path, ...], given: tuple[Path, ...]) -> list:  # typ
 @handle_errors
 def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, model: Path | None,
                   base_config: Path | None, labels_paths: tuple[Path, ...], fa_rate: float | None,
-                  confidence: float, threshold_rule: str, keep_suspect: bool,
+                  confidence: float, threshold_rule: str | None, keep_suspect: bool,
                   generator: str | None, channel_map: str | None,
                   topic: str | None, reference_topic: str | None, time_source: str | None,
                   torque_source: str | None, allow_slow: bool = False) -> None:
     """Set v_stat, vL and v0 per joint from the collision-free LOGS.
 
-    By default v_stat and vL are set for a false-alarm rate: the tail of each joint's and
-    detector's statistic on the free logs (peaks over a level, declustered as incidents
-    are, fitted by a generalized Pareto tail) gives the threshold whose predicted rate's
-    upper bound, over all joints and both detectors, is --false-alarms-per-hour (1 per
-    hour). calibrate prints per joint the threshold, its fit, predicted rate and bound,
-    what the free minutes support, and, with two or more logs, each log left out against
-    the others' prediction. The rate holds for motion like the free logs': the config
-    records their motion envelope, and thresholds calibrated on one motion family
-    false-alarm on another.
+    Every threshold by default, and v0 always: the margin over the statistic's maximum
+    chosen by leave-one-out over the logs (the smallest margin for which every log left out
+    stays silent); with one log a fixed 1.5× margin, flagged weak. The false-alarm rate
+    these v_stat and vL are predicted to give is stated beside them.
 
-    v0 (and, with --threshold-rule leave-one-out, every threshold): the margin over the
-    statistic's maximum chosen by leave-one-out over the logs (the smallest margin for
-    which every log left out stays silent); with one log a fixed 1.5× margin, flagged weak.
+    With --false-alarms-per-hour R, v_stat and vL are set for that rate instead: the tail
+    of each joint's and detector's statistic on the free logs (peaks over a level,
+    declustered as incidents are, fitted by a generalized Pareto tail) gives the threshold
+    whose predicted rate's upper bound, over all joints and both detectors, is R. Either
+    way calibrate prints per joint the threshold, its fit, predicted rate and bound, what
+    the free minutes support, and, with two or more logs, each log left out against the
+    others' prediction. The rate holds for motion like the free logs': the config records
+    their motion envelope, and thresholds calibrated on one motion family false-alarm on
+    another.
+
     Long logs are cut into 30 s segments for it. Contacts labelled in <stem>.labels.json
     beside a log (or --labels) are left out; in a log without labels, a stretch that alone
     would set a threshold far above all the others (> 20× the median second) is reported
@@ -184,11 +194,13 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     from ..logs.robot_files import read_robot
     from ..model import read_model
     from ..run import calibration
-    from ..run.calibration import RATE_RULE
+    from ..run.calibration import MARGIN_RULE, RATE_RULE
 
     if out_path.suffix.lower() not in (".toml", ".yaml", ".yml", ".json"):
         raise click.BadParameter(f"{str(out_path)!r}: a config is written as .toml, .yaml or "
                                  ".json — name the file with one of these", param_hint="'-o'")
+    if threshold_rule is None:
+        threshold_rule = RATE_RULE if fa_rate is not None else MARGIN_RULE
     if fa_rate is not None and threshold_rule != RATE_RULE:
         raise click.BadParameter("--false-alarms-per-hour sets thresholds for a rate; "
                                  f"--threshold-rule {threshold_rule} has none",
@@ -233,9 +245,13 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
         what = f"model {kind} ({source}) of what the controller's channels leave out"
     else:
         what = f"model {kind} ({source})"
-    fa = c.false_alarm_rate
+    from ..detect.tail import per_hour_text as ph
+
+    fa = c.false_alarm_rate or {}
     rule = (f"v_stat and vL for {fa['per_hour']:g} false alarm(s) per hour, v0 by "
-            f"{c.margin_rule}" if fa else f"rule {c.margin_rule}")
+            f"{c.margin_rule}" if "per_hour" in fa else f"rule {c.margin_rule}" + (
+                f" (predicted {ph(fa['predicted_per_hour'])} false alarm(s) per hour, upper "
+                f"bound {ph(fa['upper_per_hour'])})" if fa else ""))
     click.echo(f"calibrated on {len(read)} log(s) ({c.segments} stretch(es) of collision-free "
                f"motion), {rule}{weak}; {what}")
     if kind == "decoupled" and robot_d is None and model_m is None and out.model is not None:

@@ -9,7 +9,8 @@ thresholds: the product's detectors' for a stated false-alarm rate from the tail
 free logs (:mod:`impactcli.detect.tail`; docs/method.md §5b, "Thresholds for a
 false-alarm rate"), static_baseline's (and, with the ``leave-one-out`` rule, every
 detector's) by the leave-one-out margin over 30 s segments
-(:mod:`impactcli.detect.thresholds`). The motion the logs cover is recorded as the
+(:mod:`impactcli.detect.thresholds`); thresholds set by that margin get the rate the
+tail fits predict for them, stated the same way. The motion the logs cover is recorded as the
 calibration's envelope (:mod:`impactcli.detect.envelope`). Each joint's residual
 generator is frozen in the config. The logs are in memory: the suspect rule pools every
 log's per-sample statistics.
@@ -33,10 +34,13 @@ from ..detect.tail import (
     LoloRow,
     RateCalibration,
     calibrate_rate,
+    fit_channels,
     leave_one_log_out,
     minutes_needed,
+    rates_for_thresholds,
     stack_detectors,
 )
+from ..detect.tail import DETECTORS as TAIL_DETECTORS
 from ..detect.warmup import Warmup
 from ..errors import ConfigError, ImpactWarning, LogFormatError
 from ..logs.reader import LogScan, MemoryReader
@@ -61,9 +65,9 @@ from .plan import (
 from .run_warnings import CaughtWarnings
 
 #: ``calibrate``'s threshold rules for the product's detectors (adaptive, static_loading):
-#: thresholds for a stated false-alarm rate (the default), or the leave-one-out margin over
-#: the free logs' maxima (the rule before it; static_baseline, a comparison detector,
-#: always keeps it).
+#: thresholds for a false-alarm rate the user asks for, or the leave-one-out margin over
+#: the free logs' maxima (the default: it keeps contacts the rate's bound costs, and its
+#: predicted rate is stated; static_baseline, a comparison detector, always keeps it).
 RATE_RULE = "false-alarm-rate"
 MARGIN_RULE = "leave-one-out"
 THRESHOLD_RULES: tuple[str, ...] = (RATE_RULE, MARGIN_RULE)
@@ -80,7 +84,9 @@ class Calibrated:
 
     Attributes:
         config: the calibrated config (its record holds everything below too).
-        rate: the false-alarm-rate calibration (None under the leave-one-out rule).
+        rate: the false-alarm rate: asked (``rate.rate``) or, under the leave-one-out
+            rule, predicted for its thresholds (``rate.rate`` None; None when the free
+            motion is too short for a tail fit).
         lolo: leave-one-log-out rows (≥ 2 free logs; :func:`impactcli.detect.tail.
             leave_one_log_out`), their ``log`` an index into ``log_paths``.
         log_paths: the free logs, in order.
@@ -115,18 +121,18 @@ def calibrate_run(
     without labels, stretches that alone would set a product detector's threshold: warned
     about as likely contacts and, with ``drop_suspect``, left out) give the thresholds:
 
-    - ``threshold_rule`` ``false-alarm-rate`` (the ``calibrate`` command's default; here
-      explicit, so that the library's callers — the sensitivity study, the benchmarks —
-      keep the rule they were measured with): v_stat and vL from the tail fits
+    - ``threshold_rule`` ``false-alarm-rate`` (``calibrate --false-alarms-per-hour``):
+      v_stat and vL from the tail fits
       of the whole free logs (:func:`impactcli.detect.tail.calibrate_rate`): the upper
       ``confidence`` bound of the predicted incident rate, over all joints and both
       product detectors, is ``false_alarms_per_hour``; below what the free time supports
       the thresholds are widened and the record says so. v0 (static_baseline) by the
       leave-one-out margin. With ≥ 2 logs, leave-one-log-out rows (predicted against
       observed, at :data:`LOLO_RATES`).
-    - ``leave-one-out`` (default here): every threshold by the leave-one-out margin over
+    - ``leave-one-out`` (the default): every threshold by the leave-one-out margin over
       30 s segments (≥ 2 segments) or a fixed margin (1, flagged weak)
-      (:mod:`impactcli.detect.thresholds`).
+      (:mod:`impactcli.detect.thresholds`); the same tail fits state the rate v_stat and
+      vL are predicted to give (:func:`impactcli.detect.tail.rates_for_thresholds`).
 
     The motion envelope of the kept samples is recorded either way
     (:mod:`impactcli.detect.envelope`). Returns the config (every parameter, the
@@ -186,17 +192,24 @@ def calibrate_run(
     margins = {d: {j: float(cal[d].margins[k]) for k, j in enumerate(joints)} for d in DETECTORS}
     weak = any(c.weak for c in cal.values())
     envelope = _envelope(replays, keeps, joints)
+    rated = threshold_rule == RATE_RULE
+    use = _rate_logs(replays, excluded, warn=rated)
+    given = None if rated else np.array([table[d][j] for d in TAIL_DETECTORS for j in joints])
     rate: RateCalibration | None = None
     lolo: list[LoloRow] = []
-    if threshold_rule == RATE_RULE:
-        use = _rate_logs(replays, excluded)
+    try:
         rate, lolo = _rate_thresholds([replays[i] for i in use], [keeps[i] for i in use],
-                                      joints, cfg, false_alarms_per_hour, confidence)
-        if len(use) < len(replays):
-            rate = dataclasses.replace(rate, notes=(*rate.notes, *(
-                f"{replays[i].path}: left out of the rate's fit (contacts found in it)"
-                for i in range(len(replays)) if i not in use)))
-            lolo = [dataclasses.replace(r, log=use[r.log]) for r in lolo]
+                                      joints, cfg, false_alarms_per_hour, confidence, given)
+    except (ConfigError, LogFormatError):
+        if rated:
+            raise
+        # too little free motion to fit a tail: the margin's thresholds stand unstated
+    if rate is not None and len(use) < len(replays):
+        rate = dataclasses.replace(rate, notes=(*rate.notes, *(
+            f"{replays[i].path}: left out of the rate's fit (contacts found in it)"
+            for i in range(len(replays)) if i not in use)))
+        lolo = [dataclasses.replace(r, log=use[r.log]) for r in lolo]
+    if rated and rate is not None:
         table.update(rate.table())
         # the product's margins say what the rate's thresholds are over the free maximum
         for d in ("adaptive", "static_loading"):
@@ -226,7 +239,8 @@ def calibrate_run(
     return Calibrated(out, rate, tuple(lolo), paths, envelope)
 
 
-def _rate_logs(replays: list[_Replayed], excluded: list[dict[str, Any]]) -> list[int]:
+def _rate_logs(replays: list[_Replayed], excluded: list[dict[str, Any]], warn: bool = True
+               ) -> list[int]:
     """The logs the rate's tail is fitted on: those without likely contacts found in them
     (all of them if every log has some). A log in which the suspect rule found contacts
     holds smaller ones it cannot find (it flags only stretches 20× above the usual level),
@@ -238,7 +252,7 @@ def _rate_logs(replays: list[_Replayed], excluded: list[dict[str, Any]]) -> list
     if not use:
         return list(range(len(replays)))
     for rp in replays:
-        if rp.path in found:
+        if warn and rp.path in found:
             warnings.warn(f"{rp.path}: left out of the false-alarm-rate fit: contacts were "
                           "found in it, and smaller ones the 20× rule cannot find would be "
                           "fitted as free motion (give the log's labels to use it)",
@@ -258,10 +272,13 @@ def _stretches(rp: _Replayed, keep: np.ndarray) -> list[tuple[int, int, bool]]:
 
 
 def _rate_thresholds(replays: list[_Replayed], keeps: list[np.ndarray],
-                     joints: tuple[str, ...], cfg: DetectorConfig, rate: float, conf: float
+                     joints: tuple[str, ...], cfg: DetectorConfig, rate: float, conf: float,
+                     given: np.ndarray | None = None
                      ) -> tuple[RateCalibration, list[LoloRow]]:
-    """The product's thresholds for ``rate`` false alarms per hour (whole logs, never
-    their 30 s segments: a cluster must not be cut) and the leave-one-log-out rows."""
+    """The product's thresholds for ``rate`` false alarms per hour — or, ``given`` (C,)
+    thresholds set another way, the rate they are predicted to give — from the tails of
+    whole logs (never their 30 s segments: a cluster must not be cut), and the
+    leave-one-log-out rows."""
     stats, dts, starts, groups = [], [], [], []
     names: tuple[str, ...] = ()
     for i, (rp, keep) in enumerate(zip(replays, keeps, strict=True)):
@@ -276,8 +293,12 @@ def _rate_thresholds(replays: list[_Replayed], keeps: list[np.ndarray],
                              + ", ".join(rp.path for rp in replays))
     gap = cfg.events.merge_gap_s
     try:
-        cal = calibrate_rate(stats, dts, rate, conf=conf, names=names, merge_gap_s=gap,
-                             log_start=starts)
+        if given is None:
+            cal = calibrate_rate(stats, dts, rate, conf=conf, names=names, merge_gap_s=gap,
+                                 log_start=starts)
+        else:
+            cal = rates_for_thresholds(fit_channels(stats, dts, names=names, merge_gap_s=gap,
+                                                    log_start=starts), given, conf=conf)
     except ValueError as err:
         raise ConfigError(f"--false-alarms-per-hour: {err}") from err
     lolo: list[LoloRow] = []
@@ -316,13 +337,14 @@ def rate_record(cal: RateCalibration, joints: Sequence[str], lolo: Sequence[Lolo
             "clusters": int(fit.n), "free_max": float(fit.max_stat),
             "widened": bool(cal.widened[k]), "log_start_floor": bool(cal.floored[k]),
         }
+    asked = {} if cal.rate is None else {
+        "per_hour": float(cal.rate), "supported": not cal.below_support,
+        "minutes_needed": float(minutes_needed(cal.rate, cal.conf))}
     return {
-        "per_hour": float(cal.rate), "confidence": float(cal.conf),
+        **asked, "confidence": float(cal.conf),
         "free_minutes": float(cal.hours * 60.0),
         "predicted_per_hour": cal.predicted_total, "upper_per_hour": cal.upper_total,
         "supported_per_hour": float(cal.rate_supported),
-        "supported": not cal.below_support,
-        "minutes_needed": float(minutes_needed(cal.rate, cal.conf)),
         "statement": cal.support_statement(),
         "channels": channels, "notes": list(cal.notes),
         "leave_one_log_out": [

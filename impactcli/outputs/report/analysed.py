@@ -223,7 +223,8 @@ def with_what_html(sec: dict[str, Any]) -> str:
              + thresholds_table(sec, joints))
     rate = calib.get("false_alarm_rate")
     if isinstance(rate, dict):
-        p.append("<h4>Thresholds for a false-alarm rate</h4>" + rate_html(rate))
+        p.append(("<h4>Thresholds for a false-alarm rate</h4>" if "per_hour" in rate else
+                  "<h4>The thresholds' predicted false-alarm rate</h4>") + rate_html(rate))
     env = calib.get("motion_envelope")
     if isinstance(env, dict):
         p.append("<h4>The calibration's motion envelope</h4>" + envelope_html(env))
@@ -237,13 +238,17 @@ def with_what_html(sec: dict[str, Any]) -> str:
 
 def threshold_rule_cell(calib: dict[str, Any]) -> str:
     """How v_stat and vL were set: for a stated false-alarm rate (R, predicted rate and
-    bound, free minutes, whether they support R) or by the margin rule."""
+    bound, free minutes, whether they support R) or by the margin rule (with the rate its
+    thresholds are predicted to give, when recorded)."""
     rate = calib.get("false_alarm_rate")
     if not isinstance(rate, dict):
         rule = calib.get("threshold_rule") or calib.get("margin_rule")
         return e(rule or "—") + (" (no stated false-alarm rate)" if rule else "")
     conf = rate.get("confidence")
-    txt = (f"for {g(rate.get('per_hour'))} false alarm(s) per hour (incidents after warm-up, "
+    how = (f"for {g(rate.get('per_hour'))} false alarm(s) per hour" if "per_hour" in rate
+           else f"{calib.get('threshold_rule') or calib.get('margin_rule') or '—'}, no rate "
+                "asked; the rate its thresholds give")
+    txt = (f"{how} (incidents after warm-up, "
            f"all joints together): predicted {g(rate.get('predicted_per_hour'))} per hour, "
            f"upper bound {g(rate.get('upper_per_hour'))} at "
            f"{'—' if conf is None else format(100 * conf, '.0f')} % confidence, on "
@@ -260,10 +265,11 @@ def rate_html(rate: dict[str, Any]) -> str:
     """Per detector and joint: threshold, tail fit, predicted rate and bound; notes;
     leave-one-log-out rows (predicted against observed)."""
     rows = []
+    floor = " (log-start floor)" if "per_hour" in rate else " (below log-start floor)"
     for det, per in (rate.get("channels") or {}).items():
         for j, c in per.items():
             tag = (" (widened)" if c.get("widened") else
-                   " (log-start floor)" if c.get("log_start_floor") else "")
+                   floor if c.get("log_start_floor") else "")
             shape = ("exponential" if c.get("shape") == "exponential"
                      else f"GPD ξ {g(c.get('xi'))}" if c.get("shape") else "—")
             rows.append(

@@ -9,6 +9,7 @@ from __future__ import annotations
 from typing import Any
 
 from ...detect.events import LONG_EVENT_S
+from ...detect.tail import per_hour_text
 from ...detect.thresholds import (
     MAX_MARGIN,
     UNCALIBRATED_BLOCK_S,
@@ -48,6 +49,17 @@ def rate_caveats(calib: dict[str, Any]) -> list[dict[str, str]]:
     out = []
     r, conf = rate.get("per_hour"), rate.get("confidence")
     pct = "—" if conf is None else f"{100 * conf:.0f}"
+    if r is None:  # leave-one-out thresholds: the rate they are predicted to give
+        return [{"code": "rate-envelope", "text": (
+            f"The thresholds were set by {calib.get('margin_rule') or 'a margin rule'}, not "
+            "for a false-alarm rate; on motion like the calibration logs' they are "
+            f"predicted to give {per_hour_text(rate.get('predicted_per_hour', 0.0))} false "
+            f"alarm(s) per hour, upper bound {per_hour_text(rate.get('upper_per_hour', 0.0))} "
+            f"at {pct} % confidence "
+            f"({rate.get('statement', '')}). For a rate you choose: calibrate "
+            "--false-alarms-per-hour R. Where this log moves faster or accelerates harder "
+            "than the calibration logs did (the motion envelope in the config), false alarms "
+            "are not bounded by it.")}]
     if rate.get("supported") is False:
         widened = [f"{j}/{d}" for d, per in (rate.get("channels") or {}).items()
                    for j, c in per.items() if c.get("widened")]
@@ -60,8 +72,9 @@ def rate_caveats(calib: dict[str, Any]) -> list[dict[str, str]]:
             + "The stated rate is not promised; calibrate on more of the robot's free motion.")})
     out.append({"code": "rate-envelope", "text": (
         f"The false-alarm rate ({r:g} per hour asked; predicted "
-        f"{rate.get('predicted_per_hour', 0.0):.2g}, upper bound "
-        f"{rate.get('upper_per_hour', 0.0):.2g} at {pct} % confidence) holds for motion like "
+        f"{per_hour_text(rate.get('predicted_per_hour', 0.0))}, upper bound "
+        f"{per_hour_text(rate.get('upper_per_hour', 0.0))} at {pct} % confidence) holds for "
+        "motion like "
         "the calibration logs': where this log moves faster or accelerates harder than they "
         "did (the motion envelope in the config), false alarms are not bounded by it.")})
     return out
@@ -90,7 +103,7 @@ def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]
     elif calib.get("weak"):
         rule = calib.get("margin_rule") or "unknown rule"
         margins = calib.get("margins") or {}
-        rated = isinstance(calib.get("false_alarm_rate"), dict)
+        rated = "per_hour" in (calib.get("false_alarm_rate") or {})
         capped = sorted({d for d, m in margins.items() if max(m.values(), default=0) >= MAX_MARGIN
                          and not (rated and d in ("adaptive", "static_loading"))})
         if rated and not capped and rule != "fixed-single-log":

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from ...detect.tail import per_hour_text
 from ...types import DETECTORS, DetectionResult, Labels
 from ..timeline import timeline_dict
 from .analysed import analysed_html, with_what_html
@@ -85,7 +86,9 @@ def _meta(sec: dict[str, Any], anchor: str) -> str:
     calib = (sec.get("config") or {}).get("calibration") or {}
     fa = calib.get("false_alarm_rate") or {}
     rule = (f'{fa["per_hour"]:g} false alarm(s) per hour' if fa.get("per_hour")
-            else calib.get("margin_rule") or "rule not recorded")
+            else (calib.get("margin_rule") or "rule not recorded") + (
+                f', ≤ {per_hour_text(fa["upper_per_hour"])} false alarm(s) per hour predicted'
+                if fa.get("upper_per_hour") is not None else ""))
     cal = (f'calibrated ({e(rule)})' if sec["calibrated"]
            else '<span class="bad">UNCALIBRATED</span>')
     ev = ((sec.get("quality") or {}).get("evaluation") or {})
