@@ -10,7 +10,8 @@ saw. Every incident there is a false alarm. Printed per arm, set and R: the hour
 incidents inside the set's motion families and outside them, the observed rate and its
 two-sided 90 % Garwood interval against the rate the config states (predicted, upper
 bound), the share of time outside the calibration's motion envelope, and how many
-incidents touched it; the leave-one-out rule of before on the same logs for comparison;
+incidents touched it; the leave-one-out rule (``calibrate``'s default) on the same logs,
+with the rate the tail fits predict for its thresholds;
 and per set and rule, the contacts of the arm's sample contact logs the product catches
 (``--contacts-only``: only those).
 
@@ -130,12 +131,16 @@ def run_set(data: Path, arm: str, set_name: str, n_short: int, rates: list[float
                              "supported": not done.rate.below_support,
                              "minutes": done.rate.hours * 60.0}
         cfg = configs[f"R={r:g}"] = done.config
-    base = configs["leave-one-out"] = calibrate_run(logs, robot=robot,
-                                                    threshold_rule=MARGIN_RULE).config
+    loo = calibrate_run(logs, robot=robot, threshold_rule=MARGIN_RULE)
+    base = configs["leave-one-out"] = loo.config
     joints = list(base.thresholds.v_stat)
     rules["leave-one-out"] = {"thr": np.array([base.thresholds.v_stat[j] for j in joints]
                                               + [base.thresholds.vL[j] for j in joints]),
                               "rate": None}
+    if loo.rate is not None:  # the rate its thresholds are predicted to give
+        rules["leave-one-out"].update(predicted=loo.rate.predicted_total,
+                                      upper=loo.rate.upper_total, supported=True,
+                                      minutes=loo.rate.hours * 60.0)
     assert cfg is not None and cfg.calibration.motion_envelope is not None
     env = MotionEnvelope.from_dict(cfg.calibration.motion_envelope)
     fams = {n.split("_")[0] for n in CAL_SETS[set_name]}
@@ -182,7 +187,7 @@ def table(results: list[dict[str, Any]]) -> str:
             n_in, h_in, _ = c.get("in", [0, 0, 0])
             n_out, h_out, t_out = c.get("out", [0, 0, 0])
             lo, hi = poisson_interval(int(n_in), h_in, CONF) if h_in else (0, 0)
-            if rule["rate"] is None:
+            if "upper" not in rule:
                 stated, within, mins = "none", "—", "—"
             else:
                 stated = f"{rule['predicted']:.2g} / {rule['upper']:.2g}"

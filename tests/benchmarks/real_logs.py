@@ -15,12 +15,13 @@ channel (these logs have none), as a user would run it: **calibrate on one part,
 on another** — KUKA: calibrate on the first 60 %, detect on the last 40 % (collision-free:
 events are false alarms); UR: calibrate on the first 60 % of ``link4``, detect on its last
 40 % and on ``ur-static`` (pushes by hand: events are expected, unlabelled). Each
-calibration twice: **before**, the leave-one-out rule (``--threshold-rule leave-one-out``),
-and **after**, the default false-alarm rate (1 per hour). Printed per row: the model's
-held-back fit error on the calibration part (RMS error / RMS torque, per joint), and per
-test part and rule the product's incidents after warm-up, their rate per hour of log after
-warm-up, and (after) the rate the config states with its bound. Kinds that need what the
-machine lacks (``urdf`` without the robots extra) are reported as not available.
+calibration twice: **before**, the leave-one-out rule (``calibrate``'s default), and
+**after**, a false-alarm rate of 1 per hour (``--false-alarms-per-hour 1``, the audit's).
+Printed per row: the model's held-back fit error on the calibration part (RMS error / RMS
+torque, per joint), and per test part and rule the product's incidents after warm-up,
+their rate per hour of log after warm-up, and the rate the config states with its bound.
+Kinds that need what the machine lacks (``urdf`` without the robots extra) are reported as
+not available.
 
 No real log here carries contact labels: the contacts caught are measured on every
 labelled log the repository has, the simulated sample contact logs, calibrated on their
@@ -94,7 +95,7 @@ def envelope_share(cfg: object, log: RobotLog, res: DetectionResult) -> float:
 def run_case(which: str, kind: str, generator: str, cal: RobotLog,
              tests: dict[str, RobotLog]) -> str:
     """One table row: fit on the calibration part, incidents on each test part, before
-    (leave-one-out) and after (false-alarm rate, default R)."""
+    (leave-one-out) and after (false-alarm rate, 1 per hour)."""
     import dataclasses
 
     from impactcli.config import DetectorConfig
