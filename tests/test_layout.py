@@ -17,7 +17,7 @@ PKG = ROOT / "impactcli"
 #: Layers, low to high: a module may import its own layer and the ones below.
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("impactcli", "impactcli.errors"),
-    ("impactcli.clock", "impactcli.files", "impactcli.schema"),
+    ("impactcli.clock", "impactcli.columns", "impactcli.files", "impactcli.schema"),
     ("impactcli.types", "impactcli.config"),
     ("impactcli.logs",),
     ("impactcli.model", "impactcli.sim"),
@@ -187,3 +187,33 @@ def test_every_file_cited_is_in_the_repo() -> None:
             if not (ROOT / cited).exists() and not any(ROOT.glob(cited + "*")):
                 missing.append(f"{f.relative_to(ROOT)}: {cited}")
     assert n_cited > 50 and not missing, "\n".join(missing)
+
+
+#: ``impactcli.pkg.module.name`` cited in code, docs and schemas.
+DOTTED = re.compile(r"(?<![\w.])impactcli(?:\.\w+)+")
+
+
+def _resolves(dotted: str) -> bool | None:
+    """A dotted name is a module of the package, or a name in one (defined or imported);
+    None when it does not start with a module of the package (a metadata key, a host)."""
+    parts = dotted.split(".")
+    for k in range(len(parts), 1, -1):
+        base = ROOT.joinpath(*parts[:k])
+        mod = base / "__init__.py" if base.is_dir() else base.with_suffix(".py")
+        if mod.exists():
+            rest = parts[k:]
+            return not rest or re.search(rf"\b{re.escape(rest[0])}\b", mod.read_text()) is not None
+    return None
+
+
+def test_every_module_cited_exists() -> None:
+    texts = [*PKG.rglob("*.py"), *(ROOT / "docs").glob("*.md"), ROOT / "README.md",
+             ROOT / "sample_logs" / "README.md", *(ROOT / "schemas").glob("*.json")]
+    missing, n_cited = [], 0
+    for f in texts:
+        for m in DOTTED.finditer(f.read_text()):
+            found = _resolves(m.group(0).rstrip("."))
+            n_cited += found is not None
+            if found is False:
+                missing.append(f"{f.relative_to(ROOT)}: {m.group(0)}")
+    assert n_cited > 50 and not missing, "\n".join(sorted(set(missing)))

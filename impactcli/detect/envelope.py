@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from ..columns import column_range
 from ..model.causal import Carry
 from ..model.derivatives import MAX_CUTOFF_FRACTION
 from ..model.iir import butter_lowpass
@@ -162,7 +163,7 @@ class EnvelopeAccumulator:
                 x = x[np.asarray(keep, dtype=bool)]
             if x.shape[0] == 0:
                 continue
-            lo, hi = x.min(axis=0), x.max(axis=0)
+            lo, hi = column_range(x)
             self.lo[k] = lo if k not in self.lo else np.minimum(self.lo[k], lo)
             self.hi[k] = hi if k not in self.hi else np.maximum(self.hi[k], hi)
         n = motion.velocity.shape[0] if keep is None else int(np.count_nonzero(keep))

@@ -25,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..columns import column_range
+
 #: No robot arm's joint reaches this speed [rad/s] (fast wrists: 2π–10 rad/s).
 MAX_JOINT_SPEED_RAD_S = 20.0
 #: No revolute joint of an arm travels more than this over one log [rad] (two turns).
@@ -113,8 +115,8 @@ class MotionSketch:
         if q.shape[0] == 0:
             return
         with np.errstate(invalid="ignore", over="ignore"):
-            self.lo = np.fmin(self.lo, np.fmin.reduce(q, axis=0))  # NaN: not logged
-            self.hi = np.fmax(self.hi, np.fmax.reduce(q, axis=0))
+            lo, hi = column_range(q, skip_nan=True)  # NaN: not logged
+            self.lo, self.hi = np.fmin(self.lo, lo), np.fmax(self.hi, hi)
             both = np.concatenate([self.tail, q])
             base = self.seen - self.tail.shape[0]  # the sample both[0] is
             for counts, length in ((self.counts, self.lag), (self.counts_long, self.long)):

@@ -22,6 +22,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from ..clock import GAP_FACTOR, MAX_STATS_STEPS, GapStream, SampleClock, StepHistogram
+from ..columns import column_all, column_any, column_range
 from ..errors import ImpactWarning, LogFormatError
 from ..types import CONTROLLER_CHANNELS, LogSource, RobotLog
 from .layout import OPTIONAL, LogChunk, ScanPass, StreamLayout, chunked
@@ -319,7 +320,7 @@ class _ScanAcc:
         if fin.all():
             return
         rows = self.bad_row.setdefault(signal, np.full(a.shape[1], -1, dtype=np.int64))
-        new = (rows < 0) & ~fin.all(axis=0)
+        new = (rows < 0) & ~column_all(fin)
         rows[new] = self.n - a.shape[0] + np.argmax(~fin, axis=0)[new]
 
     def check_finite(self, keep: list[int], gone: list[str]) -> None:
@@ -354,11 +355,11 @@ class _ScanAcc:
             self.head_t = np.concatenate((self.head_t, t[:k]))
             self.head = {s: np.concatenate((self.head[s], a[:k])) if s in self.head else a[:k]
                          for s, a in arrays.items()}
-        self.pos_finite |= np.isfinite(arrays["position"]).any(axis=0)
+        self.pos_finite |= column_any(np.isfinite(arrays["position"]))
         self._sketch(arrays["position"])
-        self.torque_finite |= np.isfinite(arrays["torque"]).any(axis=0)
+        self.torque_finite |= column_any(np.isfinite(arrays["torque"]))
         for s in self.ctx.plan.optional:
-            fin = np.isfinite(arrays[s]).any(axis=0)
+            fin = column_any(np.isfinite(arrays[s]))
             self.opt_finite[s] = self.opt_finite[s] | fin if s in self.opt_finite else fin
         for s, a in arrays.items():
             if s not in CONTROLLER_CHANNELS:
@@ -368,7 +369,7 @@ class _ScanAcc:
                 acc.add(arrays[s])
         for s, a in arrays.items():
             if s not in self.screens:  # NaN: not logged (a finite log has no ±inf left)
-                lo, hi = np.fmin.reduce(a, axis=0), np.fmax.reduce(a, axis=0)
+                lo, hi = column_range(a, skip_nan=True)
                 if s in self.ranges:
                     lo, hi = np.fmin(self.ranges[s][0], lo), np.fmax(self.ranges[s][1], hi)
                 self.ranges[s] = (lo, hi)

@@ -25,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..columns import column_range
+
 __all__ = ["FEW_VALUES", "FLAT_NM", "SMALL_FRACTION", "ColumnScreen", "LeftOut",
            "ScreenAccumulator", "unusable_columns"]
 
@@ -131,10 +133,10 @@ class ScreenAccumulator:
         v = np.asarray(values, dtype=np.float64)
         fin = np.isfinite(v)
         if fin.all():
-            lo, hi = v.min(axis=0), v.max(axis=0)
+            lo, hi = column_range(v)
         else:
-            lo = np.where(fin, v, np.inf).min(axis=0)
-            hi = np.where(fin, v, -np.inf).max(axis=0)
+            lo = column_range(np.where(fin, v, np.inf))[0]
+            hi = column_range(np.where(fin, v, -np.inf))[1]
         self.lo = np.minimum(self.lo, lo)
         self.hi = np.maximum(self.hi, hi)
         for j in range(v.shape[1]):
