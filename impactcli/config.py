@@ -9,7 +9,7 @@ and the field (CLI exit 3).
 
 Thresholds are per joint (mapping joint name → value in N·m). An empty mapping means "not
 calibrated": the caller then uses the robust rule of
-:func:`impactcli.detect.thresholds.uncalibrated_thresholds`. Table I's v_stat = [0.45, 0.2]
+:func:`impactcli.detect.thresholds.thresholds_from_maxima`. Table I's v_stat = [0.45, 0.2]
 N·m (ASSIST arm) is kept as :data:`TABLE_I_V_STAT` for reference and for 2-joint
 simulations only; it is never applied to a real robot silently.
 """
@@ -234,11 +234,14 @@ class CalibrationRecord:
             ``leave-one-out`` (``margin_rule``); None: not recorded (configs before the
             rate existed: ``margin_rule`` set them all). static_baseline's v0 always
             follows ``margin_rule``.
-        false_alarm_rate: the rate calibration (docs/formats.md, "Model and detector
-            config"; :func:`impactcli.run.calibration.rate_record`): R per hour, its
-            confidence, the free-motion minutes it rests on, the predicted rate and its
-            upper bound, the rate those minutes support and the sentence saying so, per
-            detector and joint the threshold and its tail fit, and leave-one-log-out rows.
+        false_alarm_rate: the false-alarm rate record (docs/formats.md, "Model and detector
+            config"; :func:`impactcli.run.calibration.rate_record`): R per hour when asked
+            (``false-alarm-rate``; without it, the rate the margin's thresholds are
+            predicted to give), its confidence, the free-motion minutes it rests on, the
+            predicted rate and its upper bound, the rate those minutes support and the
+            sentence saying so, per detector and joint the threshold and its tail fit, and
+            leave-one-log-out rows; None in older configs or when the free motion was too
+            short for a tail fit.
         motion_envelope: the calibration's motion envelope
             (:meth:`impactcli.detect.envelope.MotionEnvelope.to_dict`): per joint the
             ranges of velocity, acceleration and position of the free motion.

@@ -248,7 +248,7 @@ def test_one_free_log_has_no_leave_one_log_out(tmp_path: Path) -> None:
     (["--confidence", "0.3"], "'--confidence'"),
     (["--threshold-rule", "max"], "'--threshold-rule'"),
     (["--false-alarms-per-hour", "1", "--threshold-rule", "leave-one-out"],
-     "--threshold-rule leave-one-out has none"),
+     "--threshold-rule leave-one-out sets them by the margin"),
 ])
 def test_bad_rate_options_are_usage_errors(tmp_path: Path, args: list[str], says: str) -> None:
     out = tmp_path / "x.toml"

@@ -177,10 +177,11 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     their motion envelope, and thresholds calibrated on one motion family false-alarm on
     another.
 
-    Long logs are cut into 30 s segments for it. Contacts labelled in <stem>.labels.json
-    beside a log (or --labels) are left out; in a log without labels, a stretch that alone
-    would set a threshold far above all the others (> 20× the median second) is reported
-    as a likely contact and left out (--keep-suspect keeps it).
+    For the margin, long logs are cut into 30 s segments (the tail fits use whole logs).
+    Contacts labelled in <stem>.labels.json beside a log (or --labels) are left out; in a
+    log without labels, a stretch that alone would set a threshold far above all the
+    others (> 20× the median second) is reported as a likely contact and left out
+    (--keep-suspect keeps it).
 
     Each joint's residual generator is frozen in the config (thresholds belong to the
     generator they were made with): with --generator auto (the default for a new config)
@@ -203,7 +204,8 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
         threshold_rule = RATE_RULE if fa_rate is not None else MARGIN_RULE
     if fa_rate is not None and threshold_rule != RATE_RULE:
         raise click.BadParameter("--false-alarms-per-hour sets thresholds for a rate; "
-                                 f"--threshold-rule {threshold_rule} has none",
+                                 f"--threshold-rule {threshold_rule} sets them by the "
+                                 "margin (and states the rate they give)",
                                  param_hint="'--false-alarms-per-hour'")
     prepare_output(out_path)  # a bad -o stops the run before any work
     from ..logs.urls import expand_inputs

@@ -1,4 +1,6 @@
-"""Thresholds for a stated false-alarm rate from collision-free logs (peaks over threshold).
+"""Thresholds for a stated false-alarm rate from collision-free logs (peaks over threshold),
+and the rate that thresholds set another way (the leave-one-out margin, calibrate's
+default) are predicted to give (:func:`rates_for_thresholds`).
 
 ``calibrate --false-alarms-per-hour R``: per channel (joint × product detector: adaptive
 ``r_rms − v_rms`` against v_stat, static_loading ``|LP(r)|`` against vL), the free logs'

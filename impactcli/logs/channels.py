@@ -238,7 +238,7 @@ def assemble(plan: LogPlan, ch: JointChannels) -> dict[str, np.ndarray]:
 
 
 def drop_message(path: str, dropped: list[tuple[str, str]], src: str) -> str:
-    """The error when every joint is left out (:func:`build_log`)."""
+    """The error when every joint is left out (the scan's finish)."""
     return (f"{path}: no joint has a finite position and {src}: "
             + "; ".join(f"{j}: {why}" for j, why in dropped))
 

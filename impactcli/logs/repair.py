@@ -43,7 +43,7 @@ MAX_RATE_HZ = 100_000.0
 #: Signals whose column may hold no finite value (passed on as NaN): a position or torque
 #: (or current, the torque source) column leaves its joint out of the log; an optional
 #: signal's column (velocity, current not the torque source, references) leaves that
-#: signal out of the log (:func:`impactcli.logs.channels.build_log`).
+#: signal out of the log (:func:`impactcli.logs.channels.drop_empty_signals`).
 DROPPABLE_SIGNALS = ("position", "torque", "current", "velocity", "position_ref",
                      "velocity_ref", "acceleration_ref")
 

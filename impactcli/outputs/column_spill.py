@@ -4,7 +4,7 @@ the run's answer is known: one row group per chunk, read back group by group.
 A Parquet file written for speed, not size — it is read back once, soon after: no
 compression, no statistics and non-nullable columns (no definition levels), so writing and
 reading it cost little more than a copy (per-sample floats hardly compress). Written in
-:func:`impactcli.run.spill.temp_space` (a full ``TMPDIR`` is one line, not a traceback).
+:func:`impactcli.files.temp_space` (a full ``TMPDIR`` is one line, not a traceback).
 """
 
 from __future__ import annotations

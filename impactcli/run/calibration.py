@@ -5,13 +5,12 @@ Each calibration log is replayed by the one replay (its threshold-free pass,
 (given, the config's, or identified over all the logs); the statistic of every detector
 after warm-up — labelled contacts cut out, and, in logs without labels, stretches that
 alone would set a threshold far above the rest left out as likely contacts — gives the
-thresholds: the product's detectors' for a stated false-alarm rate from the tail of whole
-free logs (:mod:`impactcli.detect.tail`; docs/method.md §5b, "Thresholds for a
-false-alarm rate"), static_baseline's (and, with the ``leave-one-out`` rule, every
-detector's) by the leave-one-out margin over 30 s segments
-(:mod:`impactcli.detect.thresholds`); thresholds set by that margin get the rate the
-tail fits predict for them, stated the same way. The motion the logs cover is recorded as the
-calibration's envelope (:mod:`impactcli.detect.envelope`). Each joint's residual
+thresholds: by default every detector's by the leave-one-out margin over 30 s segments
+(:mod:`impactcli.detect.thresholds`), with the rate the tail fits of whole free logs
+predict for v_stat and vL stated; with the ``false-alarm-rate`` rule, v_stat and vL for a
+stated rate from those fits (:mod:`impactcli.detect.tail`; docs/method.md §5b,
+"Thresholds for a false-alarm rate"; v0 keeps the margin). The motion the logs cover is
+recorded as the calibration's envelope (:mod:`impactcli.detect.envelope`). Each joint's residual
 generator is frozen in the config. The logs are in memory: the suspect rule pools every
 log's per-sample statistics.
 Nothing here reads or writes files.
@@ -132,7 +131,8 @@ def calibrate_run(
     - ``leave-one-out`` (the default): every threshold by the leave-one-out margin over
       30 s segments (≥ 2 segments) or a fixed margin (1, flagged weak)
       (:mod:`impactcli.detect.thresholds`); the same tail fits state the rate v_stat and
-      vL are predicted to give (:func:`impactcli.detect.tail.rates_for_thresholds`).
+      vL are predicted to give (:func:`impactcli.detect.tail.rates_for_thresholds`), with
+      the leave-one-log-out rows as above.
 
     The motion envelope of the kept samples is recorded either way
     (:mod:`impactcli.detect.envelope`). Returns the config (every parameter, the
@@ -322,9 +322,10 @@ def _envelope(replays: list[_Replayed], keeps: list[np.ndarray], joints: tuple[s
 
 def rate_record(cal: RateCalibration, joints: Sequence[str], lolo: Sequence[LoloRow],
                 paths: Sequence[str]) -> dict[str, Any]:
-    """The config's ``calibration.false_alarm_rate`` table (docs/formats.md): R, confidence,
-    the free-motion time, predicted rate and bound, the support, and per detector and joint
-    the threshold and its fit; leave-one-log-out rows. No null (TOML)."""
+    """The config's ``calibration.false_alarm_rate`` table (docs/formats.md): R when asked
+    (with ``supported`` and ``minutes_needed``), confidence, the free-motion time, predicted
+    rate and bound, the support, and per detector and joint the threshold and its fit;
+    leave-one-log-out rows. No null (TOML)."""
     channels: dict[str, dict[str, Any]] = {}
     for k, (name, fit) in enumerate(zip(cal.names, cal.fits, strict=True)):
         joint, det = name.rsplit("/", 1)

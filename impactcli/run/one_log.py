@@ -348,7 +348,7 @@ def envelope_check(cfg: DetectorConfig, joints: tuple[str, ...], sample_rate_hz:
 def _thresholds_from_spill(spill: ChunkSpill, wu: Warmup, n: int, fs: float,
                            ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
     """The uncalibrated rule's thresholds and margins per detector
-    (:func:`impactcli.detect.thresholds.uncalibrated_thresholds`) from the statistics after
+    (:func:`impactcli.detect.thresholds.thresholds_from_maxima`) from the statistics after
     the warm-up's end (all of them if it covers the log), read back block by block."""
     from ..detect.thresholds import BlockMaxima, thresholds_from_maxima, uncalibrated_block
 

@@ -6,7 +6,7 @@ For each arm, ``calibrate`` on its three free sample logs (the committed configs
 1.0–1.3 min after warm-up) for each R [1/h] and confidence, then the product on the arm's
 sample contact logs: contacts caught, false alarms between contacts, the rate the free
 minutes support and the thresholds. What decided the sample configs' rule and the default
-(docs/validation.md, "The sample configs at the new default").
+(docs/validation.md, "Why the default is the leave-one-out margin, its rate stated").
 """
 
 from __future__ import annotations

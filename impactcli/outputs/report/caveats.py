@@ -42,7 +42,9 @@ def _poor_fit(result: DetectionResult) -> list[tuple[str, float, str]]:
 def rate_caveats(calib: dict[str, Any]) -> list[dict[str, str]]:
     """The false-alarm rate the thresholds were set for, when the free motion does not
     support it (``rate-not-supported``: what it supports and how much more it needs), and
-    that the rate holds only for motion like the calibration's (``rate-envelope``)."""
+    that the rate holds only for motion like the calibration's (``rate-envelope``). Without
+    R (leave-one-out thresholds): one ``rate-envelope`` with the rate they are predicted to
+    give and how to ask for one."""
     rate = calib.get("false_alarm_rate")
     if not isinstance(rate, dict):
         return []
