@@ -206,6 +206,8 @@ def test_default_is_leave_one_out_with_its_predicted_rate(tmp_path: Path) -> Non
                      r"upper bound [0-9.e+]+\)", r.stdout), r.stdout
     assert "false alarms per hour: not asked (thresholds by leave-one-out); predicted " \
         in r.stdout
+    assert "--false-alarms-per-hour R sets v_stat and vL for R false alarms per hour " \
+        "instead" in r.stdout
     # every channel's threshold is the config's, and its rate the fit's at it
     hours = fa["free_minutes"] / 60.0
     total = 0.0

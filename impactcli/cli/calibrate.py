@@ -76,6 +76,9 @@ def rate_lines(rate: dict[str, Any]) -> list[str]:
                          f"{ph(ch['predicted_per_hour'])}/h, bound {ph(ch['upper_per_hour'])}/h")
     if rate.get("statement"):
         lines.append("  " + rate["statement"])
+    if "per_hour" not in rate:
+        lines.append("  --false-alarms-per-hour R sets v_stat and vL for R false alarms per "
+                     "hour instead (1 for an audit; fewer small contacts caught)")
     lines += [f"  note: {n}" for n in rate.get("notes", [])]
     rows = rate.get("leave_one_log_out") or []
     if rows:
