@@ -37,7 +37,7 @@ def threshold_lines(out: DetectorConfig) -> list[str]:
                      f"{th.v0[j]:>9.4f}   "
                      + " / ".join("—" if x is None else f"{x:.2f}" for x in m))
     if rate:
-        lines += rate_lines(rate)
+        lines += rate_lines(rate, c.margin_rule)
     env = c.motion_envelope
     if env:
         from ..detect.envelope import MotionEnvelope
@@ -49,19 +49,20 @@ def threshold_lines(out: DetectorConfig) -> list[str]:
     return lines
 
 
-def rate_lines(rate: dict[str, Any]) -> list[str]:
+def rate_lines(rate: dict[str, Any], margin_rule: str = "leave-one-out") -> list[str]:
     """The rate's record as calibrate prints it: totals, one line per joint and detector
     (threshold, fit, predicted rate and bound), the support statement, notes, and the
     leave-one-log-out rows."""
+    from ..detect.tail import minutes_text
     from ..detect.tail import per_hour_text as ph
 
     conf = float(rate["confidence"])
     pct = f"{100 * conf:.0f} %"
     asked = (f"asked {rate['per_hour']:g}" if "per_hour" in rate
-             else "not asked (thresholds by leave-one-out)")
+             else f"not asked (thresholds by {margin_rule})")
     lines = [f"false alarms per hour: {asked}; predicted "
              f"{ph(rate['predicted_per_hour'])}, upper bound {ph(rate['upper_per_hour'])} at "
-             f"{pct} confidence, on {rate['free_minutes']:.1f} min of free motion"]
+             f"{pct} confidence, on {minutes_text(rate['free_minutes'])} min of free motion"]
     floor = " (log-start floor)" if "per_hour" in rate else " (below log-start floor)"
     for det, per in rate.get("channels", {}).items():
         for j, ch in per.items():

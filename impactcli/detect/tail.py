@@ -46,9 +46,9 @@ __all__ = [
     "CONF", "CONFIG_KEYS", "DEFAULT_FALSE_ALARMS_PER_HOUR", "DETECTORS", "ChannelFits",
     "Clusters", "LoloRow", "RateCalibration", "TailFit", "calibrate_rate", "clusters",
     "count_incidents", "fit_channel", "fit_channels", "leave_one_log_out", "minutes_needed",
-    "per_hour_text", "poisson_interval", "rate_at", "rate_upper", "rates_for_thresholds",
-    "split_settle", "stack_detectors", "support", "support_statement", "threshold_upper",
-    "thresholds_for_rate",
+    "minutes_text", "per_hour_text", "poisson_interval", "rate_at", "rate_upper",
+    "rates_for_thresholds", "split_settle", "stack_detectors", "support",
+    "support_statement", "threshold_upper", "thresholds_for_rate",
 ]
 
 #: The audit's rate [incidents per hour] (``calibrate --threshold-rule false-alarm-rate``
@@ -187,8 +187,8 @@ def support_statement(hours: float, rate: float | None, conf: float = CONF) -> s
     no rate asked)."""
     rs = support(hours, conf)
     per = (f"1 false alarm per ~{1 / rs:.2g} h" if rs < 1
-           else f"{rs:.2g} false alarms per hour")
-    s = (f"{hours * 60:.1f} min of free motion supports at best {per} at "
+           else f"{per_hour_text(rs)} false alarms per hour")
+    s = (f"{minutes_text(hours * 60)} min of free motion supports at best {per} at "
          f"{conf * 100:.0f} % confidence")
     if rate is None:
         return s
@@ -196,6 +196,12 @@ def support_statement(hours: float, rate: float | None, conf: float = CONF) -> s
         return (s + f"; log ≥ {math.ceil(minutes_needed(rate, conf))} min of the robot's "
                 f"motions for {rate:g} per hour (thresholds widened until then)")
     return s + f"; {rate:g} per hour is within it"
+
+
+def minutes_text(minutes: float) -> str:
+    """Free-motion minutes as printed: one decimal from 1 min on, else 2 significant
+    digits (``0.037``, not ``0.0``)."""
+    return f"{minutes:.1f}" if minutes >= 1 else f"{minutes:.2g}"
 
 
 def per_hour_text(rate: float) -> str:
@@ -294,7 +300,8 @@ class RateCalibration:
         out = [f"false alarms per hour: {asked}; predicted "
                f"{per_hour_text(self.predicted_total)}, upper bound "
                f"{per_hour_text(self.upper_total)} at "
-               f"{self.conf * 100:.0f} % confidence, on {self.hours * 60:.1f} min of free motion"]
+               f"{self.conf * 100:.0f} % confidence, on {minutes_text(self.hours * 60)} min "
+               "of free motion"]
         for k, f in enumerate(self.fits):
             floor = " (log-start floor)" if self.rate is not None else " (below log-start floor)"
             tag = " (widened)" if self.widened[k] else floor if self.floored[k] else ""

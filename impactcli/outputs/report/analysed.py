@@ -10,6 +10,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from ... import TOOL_NAME, __version__
+from ...detect.tail import minutes_text
 from .common import e, epoch_text, f, g, json_pre, kv_table
 
 
@@ -246,13 +247,13 @@ def threshold_rule_cell(calib: dict[str, Any]) -> str:
         return e(rule or "—") + (" (no stated false-alarm rate)" if rule else "")
     conf = rate.get("confidence")
     how = (f"for {g(rate.get('per_hour'))} false alarm(s) per hour" if "per_hour" in rate
-           else f"{calib.get('threshold_rule') or calib.get('margin_rule') or '—'}, no rate "
+           else f"{calib.get('margin_rule') or calib.get('threshold_rule') or '—'}, no rate "
                 "asked; the rate its thresholds give")
     txt = (f"{how} (incidents after warm-up, "
            f"all joints together): predicted {g(rate.get('predicted_per_hour'))} per hour, "
            f"upper bound {g(rate.get('upper_per_hour'))} at "
            f"{'—' if conf is None else format(100 * conf, '.0f')} % confidence, on "
-           f"{f(rate.get('free_minutes'), 1)} min of free motion; v0 by "
+           f"{minutes_text(float(rate.get('free_minutes') or 0.0))} min of free motion; v0 by "
            f"{calib.get('margin_rule') or '—'}")
     out = e(txt)
     if rate.get("statement"):
