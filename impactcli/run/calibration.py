@@ -165,9 +165,14 @@ def calibrate_run(
             # (docs/models.md, "Choosing the model"); a correction model stays decoupled
             correction = uses_correction(choices[0], cfg.residual.logged_correction)
             fit = identify_many if correction else select_model
+            # in the order of the logs' contents, not of the command line: the same logs
+            # give the same model to the last bit (a least-squares fit's sums depend on
+            # the row order, and the adaptive replay magnifies the difference)
+            order = sorted(range(len(logs)), key=lambda i: (logs[i].source.sha256,
+                                                            logs[i].source.path))
             model = RigidModel.from_dict(cfg.model) if cfg.model is not None else fit(
-                [target_log(lg.select(sc.keep), ch, cfg.residual.logged_correction)
-                 for lg, sc, ch in zip(logs, screens, choices, strict=True)],
+                [target_log(logs[i].select(screens[i].keep), choices[i],
+                            cfg.residual.logged_correction) for i in order],
                 robot=robot, options=IdentifyOptions(allow_still_joints=True,
                                                      check_sanity=not correction))
     else:
