@@ -242,8 +242,8 @@ def test_support_statement_for_a_known_duration() -> None:
     assert tail.minutes_needed(0.1) == pytest.approx(46.05, rel=1e-3)
     assert tail.support_statement(h, 0.1) == (
         "2.5 min of free motion supports at best 1.8 false alarms per hour at 90 % "
-        "confidence; log ≥ 47 min of the robot's motions for 0.1 per hour (thresholds "
-        "widened until then)")
+        "confidence; log ≥ 47 min of the robot's motions for 0.1 per hour (until then "
+        "not promised; each threshold at least its widened value)")
     assert tail.support_statement(1.0, 0.1) == (
         "60.0 min of free motion supports at best 1 false alarm per ~13 h at 90 % "
         "confidence; 0.1 per hour is within it")

@@ -102,6 +102,41 @@ def rate_lines(rate: dict[str, Any], margin_rule: str = "leave-one-out") -> list
     return lines
 
 
+#: A threshold this many times its free motion's maximum is warned about.
+FAR_ABOVE_FREE_MAX = 5.0
+#: A default calibration whose stated bound exceeds this rate [1/h] is warned about.
+HIGH_STATED_RATE = 10.0
+
+
+def rate_warnings(rate: dict[str, Any] | None) -> list[str]:
+    """What a safety engineer must not miss in the rate record: a rate-rule threshold far
+    above everything the free motion showed (contacts that move its statistic less are not
+    seen), and default thresholds stated to false-alarm often."""
+    if not rate:
+        return []
+    from ..detect.tail import per_hour_text as ph
+
+    out = []
+    if "per_hour" in rate:
+        for det, per in (rate.get("channels") or {}).items():
+            for j, ch in per.items():
+                top, thr = float(ch.get("free_max", 0.0)), float(ch["threshold"])
+                if top > 0 and thr >= FAR_ABOVE_FREE_MAX * top:
+                    shape = ("exponential tail" if ch.get("shape") == "exponential"
+                             else f"GPD tail ξ {ch.get('xi', 0.0):.2f}")
+                    out.append(f"{j}/{det}: threshold {thr:.4g} is {thr / top:.0f}× the free "
+                               f"motion's maximum {top:.4g} ({shape} on "
+                               f"{ch.get('clusters', 0)} clusters): a contact moving it less "
+                               "is not seen; more free motion, a higher R or a lower "
+                               "--confidence narrows it")
+    elif float(rate.get("upper_per_hour", 0.0)) > HIGH_STATED_RATE:
+        out.append(f"these thresholds are predicted to give {ph(rate['predicted_per_hour'])} "
+                   f"false alarm(s) per hour (≤ {ph(rate['upper_per_hour'])}) on motion like "
+                   "the free logs': calibrate on more of the robot's free motion, or set "
+                   "them for a rate (--false-alarms-per-hour R)")
+    return out
+
+
 def _labels_for(logs: tuple[Path, ...], given: tuple[Path, ...]) -> list:  # type: ignore[type-arg]
     """Labels per log: ``--labels`` paired as ``report`` pairs them, else
     ``<stem>.labels.json`` beside the log when present, else None."""
@@ -204,6 +239,9 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     if out_path.suffix.lower() not in (".toml", ".yaml", ".yml", ".json"):
         raise click.BadParameter(f"{str(out_path)!r}: a config is written as .toml, .yaml or "
                                  ".json — name the file with one of these", param_hint="'-o'")
+    if fa_rate is not None and not math.isfinite(fa_rate):
+        raise click.BadParameter(f"{fa_rate} is not a finite rate (false alarms per hour)",
+                                 param_hint="'--false-alarms-per-hour'")
     if threshold_rule is None:
         threshold_rule = RATE_RULE if fa_rate is not None else MARGIN_RULE
     if fa_rate is not None and threshold_rule != RATE_RULE:
@@ -275,4 +313,6 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
 
             click.echo("\n".join(describe(fitted.fit["selection"])))
     click.echo("\n".join(threshold_lines(out)))
+    for line in rate_warnings(c.false_alarm_rate):
+        click.echo(f"impactcli: warning: {line}", err=True)
     click.echo(f"wrote {out_path}")

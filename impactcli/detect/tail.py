@@ -194,7 +194,8 @@ def support_statement(hours: float, rate: float | None, conf: float = CONF) -> s
         return s
     if rate < rs:
         return (s + f"; log ≥ {math.ceil(minutes_needed(rate, conf))} min of the robot's "
-                f"motions for {rate:g} per hour (thresholds widened until then)")
+                f"motions for {rate:g} per hour (until then not promised; each threshold "
+                "at least its widened value)")
     return s + f"; {rate:g} per hour is within it"
 
 

@@ -85,10 +85,13 @@ def _meta(sec: dict[str, Any], anchor: str) -> str:
     model = (sec.get("model") or {}).get("model") or {}
     calib = (sec.get("config") or {}).get("calibration") or {}
     fa = calib.get("false_alarm_rate") or {}
-    rule = (f'{fa["per_hour"]:g} false alarm(s) per hour' if fa.get("per_hour")
+    unsupported = ", not supported by its free motion" if fa.get("supported") is False else ""
+    rule = (f'{fa["per_hour"]:g} false alarm(s) per hour{unsupported}' if fa.get("per_hour")
             else (calib.get("margin_rule") or "rule not recorded") + (
-                f', ≤ {per_hour_text(fa["upper_per_hour"])} false alarm(s) per hour predicted'
-                if fa.get("upper_per_hour") is not None else ""))
+                f', predicted {per_hour_text(fa["predicted_per_hour"])} false alarm(s) per '
+                f'hour, ≤ {per_hour_text(fa["upper_per_hour"])}'
+                if fa.get("upper_per_hour") is not None
+                and fa.get("predicted_per_hour") is not None else ""))
     cal = (f'calibrated ({e(rule)})' if sec["calibrated"]
            else '<span class="bad">UNCALIBRATED</span>')
     ev = ((sec.get("quality") or {}).get("evaluation") or {})
