@@ -295,3 +295,19 @@ def test_the_order_of_the_logs_does_not_change_the_config(tmp_path: Path) -> Non
     assert got.thresholds == want.thresholds
     assert got.model is not None and want.model is not None
     assert got.model["parameters"] == want.model["parameters"]   # (paths differ: absolute)
+
+
+def test_a_rate_config_without_its_rate_is_refused(assist: tuple, tmp_path: Path) -> None:
+    """Hand-edited: threshold_rule false-alarm-rate with the asked rate deleted would be
+    reported as a margin config; it is a bad config (exit 3) naming the file and field."""
+    _, cfg = assist
+    text = cfg.read_text()
+    assert "\nper_hour = 1.0\n" in text
+    bad = tmp_path / "edited.toml"
+    bad.write_text(text.replace("\nper_hour = 1.0\n", "\n", 1))
+    r = CliRunner().invoke(main, ["detect", str(CSV / "assist_pushes.csv.gz"), "--config",
+                                  str(bad), "-o", str(tmp_path / "out")])
+    assert r.exit_code == 3, r.output
+    assert "edited.toml" in r.stderr and "calibration/false_alarm_rate" in r.stderr
+    assert "'per_hour' is a required property" in r.stderr and "Traceback" not in r.output
+    assert not (tmp_path / "out" / "assist_pushes.timeline.json").exists()
