@@ -66,6 +66,9 @@ def test_audit_rate_prints_fit_support_and_leave_one_log_out(assist: tuple) -> N
     lolo = [ln for ln in lines if re.match(r"  assist_free_\w+\.csv\.gz +[0-9.]+ +(30|100|300) ",
                                            ln)]
     assert len(lolo) == 9  # 3 logs × 3 rates
+    # the triangles, left out, show ~1000 per hour against bounds of 30-169: named
+    assert [ln.split(":")[0].strip() for ln in lines
+            if "observed above its bound" in ln] == ["assist_free_triangle.csv.gz"]
     assert any(ln.startswith("motion envelope (reference, ") for ln in lines)
     env = [ln for ln in lines if re.match(r"  (shoulder|elbow) +velocity .* rad/s; "
                                           r"acceleration .* rad/s²; position .* rad$", ln)]

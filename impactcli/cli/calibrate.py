@@ -85,20 +85,27 @@ def rate_lines(rate: dict[str, Any], margin_rule: str = "leave-one-out") -> list
     if rows:
         from ..detect.tail import poisson_interval
 
-        lines.append("leave-one-log-out (calibrated on the other logs; rates a few minutes "
-                     "can show):")
+        lines.append("leave-one-log-out (thresholds set for R on the other logs, R a rate "
+                     "a few minutes can show; each log left out counted against them):")
         lines.append(f"  {'log':<40} {'min':>5} {'R [1/h]':>8} {'observed':>9} "
                      f"{'obs. [1/h]':>10} {pct + ' interval':>17} {'predicted':>9} "
                      f"{'bound':>7}")
+        above: dict[str, float] = {}
         for r in rows:
             hours = r["minutes"] / 60.0
             lo, hi = poisson_interval(int(r["observed"]), hours, conf)
+            if lo > r["upper_per_hour"]:
+                name = Path(r["log"]).name
+                above[name] = max(above.get(name, 0.0), lo / r["upper_per_hour"])
             lines.append(f"  {Path(r['log']).name:<40.40} {r['minutes']:>5.2f} "
                          f"{r['per_hour']:>8g} {r['observed']:>9d} "
                          f"{r['observed'] / hours:>10.3g} {f'{lo:.3g}–{hi:.3g}':>17} "
                          f"{r['predicted_per_hour']:>9.3g} {r['upper_per_hour']:>7.3g}")
-        lines.append("  (a log observed above its bound moves unlike the others: its motion "
-                     "is not in their envelope)")
+        lines += [f"  {name}: observed above its bound (the interval's low end {k:.3g}× it): "
+                  "its motion is not in the other logs' envelope — thresholds made without "
+                  "it false-alarm on such motion" for name, k in above.items()]
+        if not above:
+            lines.append("  (every log left out within its bound)")
     return lines
 
 
