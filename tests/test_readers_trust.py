@@ -215,6 +215,19 @@ def test_time_column_is_recorded_and_report_reads_the_log_again_with_it(
     assert code == 0, err
 
 
+def test_a_bad_cell_in_a_log_read_with_rate_is_one_line(tmp_path: Path) -> None:
+    """No time column (--rate) and a non-numeric cell: the exact reader's error (exit 3
+    naming the cell), not pyarrow's TypeError on a time column that does not exist."""
+    rows = ["j1.position,j1.torque", "0.1,1.0", "0.2,abc"]
+    rows += [f"0.{k},1.{k}" for k in range(3, 200)]
+    log = tmp_path / "norate.csv"
+    log.write_text("\n".join(rows) + "\n")
+    r = CliRunner().invoke(main, ["inspect", str(log), "--rate", "500"])
+    assert r.exit_code == 3, r.output
+    assert r.stderr.strip().splitlines() == [
+        f"impactcli: error: {log}: column 'j1.torque', row 2 (line 3): non-numeric value 'abc'"]
+
+
 def test_rate_is_refused_where_it_does_not_apply(tmp_path: Path) -> None:
     timed = _with_time(tmp_path / "timed.csv", "Time")
     code, _, err = _run("inspect", str(timed), "--rate", "250")

@@ -105,8 +105,8 @@ def infer(ctx: Any) -> Exact:
     tname = None if lay.tname is None else ctx.arrow[lay.tname]  # None: --rate
     include = ctx.include_columns()
     infer_opts = pacsv.ConvertOptions(include_columns=include, decimal_point=lay.decimal)
-    text_opts = pacsv.ConvertOptions(column_types={tname: pa.string()},
-                                     include_columns=[tname])
+    text_opts = (None if tname is None else
+                 pacsv.ConvertOptions(column_types={tname: pa.string()}, include_columns=[tname]))
 
     def work(parse: Callable[[Any], Any], first: bool) -> Any:
         try:
@@ -205,7 +205,7 @@ def exact_rows(ctx: Any) -> Iterator[RawRows]:
                                  decimal_point=lay.decimal)
     vopts = (pacsv.ConvertOptions(column_types={tname: plan.types[tname]},
                                   include_columns=[tname], decimal_point=lay.decimal)
-             if both and tname is not None else None)
+             if both else None)
 
     def work(parse: Callable[[Any], Any], first: bool) -> Any:
         try:
