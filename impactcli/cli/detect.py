@@ -91,9 +91,8 @@ def _lasting_line(k: int, x: dict[str, Any]) -> str:
 
 def lasting_loads_of(outcome: Any) -> list[dict[str, Any]]:
     """The counted lasting loads of a finished log (timeline ``lasting_loads`` items after
-    warm-up), from its batch summary row."""
-    return [x for x in outcome.summary.get("lasting_load_list") or []
-            if not x.get("in_warmup")]
+    warm-up), from its batch summary row (which lists only those)."""
+    return list(outcome.summary.get("lasting_load_list") or [])
 
 
 #: incidents listed per log when one log is analysed (all of them are in the timeline)

@@ -135,12 +135,11 @@ CONTEXT_READ_OPTIONS = ("time_unit", "time_column", "rate", "position_unit", "re
 
 
 def read_options_from(channel_map: str | None, topic: str | None, reference_topic: str | None,
-                      time_source: str | None, torque_source: str | None,
-                      **given_here: Any) -> dict[str, Any]:
+                      time_source: str | None, torque_source: str | None) -> dict[str, Any]:
     """The read_log keyword arguments given on the command line (None values dropped):
-    the verb's own parameters, and :data:`CONTEXT_READ_OPTIONS` — from ``given_here``
-    when given, else from the running command (:func:`log_read_options` keeps them in the
-    click context, so verbs need not take them as parameters); ``repair_order`` is kept
+    the verb's own parameters, and :data:`CONTEXT_READ_OPTIONS` from the running command
+    (:func:`log_read_options` keeps them in the click context, so verbs need not take them
+    as parameters); ``repair_order`` is kept
     only when true. ``--rate`` with ``--time-unit`` or ``--time-column`` is a usage error
     (exit 2).
     """
@@ -148,11 +147,7 @@ def read_options_from(channel_map: str | None, topic: str | None, reference_topi
 
     ctx = click.get_current_context(silent=True)
     given = dict(ctx.meta.get(_READ_META, {})) if ctx is not None else {}
-    unknown = set(given_here) - set(CONTEXT_READ_OPTIONS)
-    if unknown:
-        raise TypeError(f"read_options_from: unknown options {sorted(unknown)}")
-    ctx_opts = {k: given_here[k] if given_here.get(k) is not None else given.get(k)
-                for k in CONTEXT_READ_OPTIONS}
+    ctx_opts = {k: given.get(k) for k in CONTEXT_READ_OPTIONS}
     if ctx_opts["rate"] is not None and (ctx_opts["time_unit"] is not None
                                          or ctx_opts["time_column"] is not None):
         raise click.UsageError("--rate is for a log without a time column: it excludes "

@@ -32,7 +32,6 @@ from typing import Any
 import click
 
 from ..errors import EXIT_BATCH, EXIT_SOFTWARE, ImpactError, ImpactWarning, LogFormatError
-from ..logs.paths import RECORDED_READ_OPTIONS
 from .options import (
     executor_options,
     handle_errors,
@@ -46,11 +45,6 @@ from .options import (
 
 TIMELINE_SUFFIX = ".timeline.json"
 LABELS_SUFFIX = ".labels.json"
-#: read_log keyword arguments a timeline's ``input.read_options`` may carry (the one list:
-#: :data:`impactcli.logs.paths.RECORDED_READ_OPTIONS`).
-READ_KEYS = RECORDED_READ_OPTIONS
-
-
 def input_stem(path: Path) -> str:
     """The stem outputs are named by (``x.csv.gz`` → ``x``, ``x.timeline.json`` → ``x``, a
     rosbag2 folder ``run/`` → ``run``)."""
@@ -105,6 +99,7 @@ def _timeline_plan(tl_path: Path, robot: Any) -> dict[str, Any]:
     its log, read options, config, model, whether the model comes from the log, and the
     robot."""
     from ..config import DetectorConfig
+    from ..logs.paths import RECORDED_READ_OPTIONS  # what input.read_options may carry
     from ..logs.robot_files import robot_from_dict
     from ..model import RigidModel
     from ..outputs.timeline import read_timeline
@@ -113,11 +108,11 @@ def _timeline_plan(tl_path: Path, robot: Any) -> dict[str, Any]:
     inp = tl["input"]
     log_path = timeline_log_path(tl_path, inp["path"], inp.get("abs_path"))
     opts = dict(inp.get("read_options") or {})
-    unknown = sorted(set(opts) - set(READ_KEYS))
+    unknown = sorted(set(opts) - set(RECORDED_READ_OPTIONS))
     if unknown:
         warnings.warn(f"{tl_path}: read options {unknown} not understood by report; ignored",
                       ImpactWarning, stacklevel=3)
-    kwargs = {k: opts[k] for k in READ_KEYS if opts.get(k) is not None}
+    kwargs = {k: opts[k] for k in RECORDED_READ_OPTIONS if opts.get(k) is not None}
     tl_model = tl["model"] or {"source": "none", "model": {}}
     recorded_model = tl_model["model"] or {}
     if robot is None and isinstance(recorded_model.get("robot"), dict):

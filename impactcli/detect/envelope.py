@@ -18,7 +18,6 @@ quantity from the same log, chunk by chunk, bit for bit whatever the split
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -263,8 +262,7 @@ class EnvelopeCheck:
     """
 
     def __init__(self, envelope: MotionEnvelope, sample_rate_hz: float,
-                 joints: Sequence[str], *, margin: float = 0.0,
-                 checked: Sequence[str] = CHECKED) -> None:
+                 joints: Sequence[str], *, margin: float = 0.0) -> None:
         self.envelope = envelope
         self.joints = tuple(joints)
         self.cols = [c for c, j in enumerate(self.joints) if j in envelope.joints]
@@ -272,7 +270,7 @@ class EnvelopeCheck:
         self.unchecked = tuple(j for j in self.joints if j not in envelope.joints)
         self.trace = MotionTrace(sample_rate_hz, envelope.cutoff_hz)
         self.bounds: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-        for k in checked:
+        for k in CHECKED:
             lo = np.array([envelope.joints[j][k][0] for j in self.names])
             hi = np.array([envelope.joints[j][k][1] for j in self.names])
             m = margin * (hi - lo)
@@ -280,12 +278,6 @@ class EnvelopeCheck:
         self.n = 0
         self.any = _Runs()
         self.each = [_Runs() for _ in self.cols]
-
-    def update(self, chunk: Any) -> np.ndarray:
-        """A :class:`~impactcli.types.SignalsChunk` (its ``time_s``, ``position``,
-        ``position_ref``, ``start``): its (n,) outside mask."""
-        return self.update_arrays(chunk.time_s, chunk.position, chunk.position_ref,
-                                  getattr(chunk, "start", self.n))
 
     def update_arrays(self, time_s: np.ndarray, position: np.ndarray,
                       position_ref: np.ndarray | None = None, start: int | None = None
@@ -344,4 +336,4 @@ def outside_share_text(share: EnvelopeShare) -> str:
         txt += f"; most on {worst[0]} ({100 * worst[1]:.3g} %)"
     if share.note:
         txt += f"; {share.note}"
-    return txt if math.isfinite(pct) else "motion envelope: nothing checked"
+    return txt

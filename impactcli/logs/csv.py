@@ -44,7 +44,7 @@ from .csv_layout import (
     numbers,
     parsed_ranges,
 )
-from .layout import MappedLayout, RawRows, plan_of, rate_note, rate_times
+from .layout import MappedLayout, RawRows, plan_of, rate_times
 
 #: Bytes of CSV text parsed at a time (one range: a 7-joint log's row is ~430 bytes).
 BLOCK_SIZE = 1 << 20
@@ -186,9 +186,6 @@ class CsvReaderLayout(MappedLayout):
         assert self.lay.tspec is not None
         return rate_message(rate_hz, self.where, self.tcol,
                             None if self.iso else self.lay.tspec.unit, duration_s)
-
-    def pre_repairs(self) -> list[str]:
-        return [] if self.rate_hz is None else [rate_note(self.where, self.rate_hz)]
 
     def ranges(self, work: Callable[[Callable[[Any], Any], bool], Any]) -> Iterator[Any]:
         """``work`` of every range of the file (:func:`parsed_ranges`), an error reading

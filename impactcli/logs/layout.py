@@ -144,6 +144,10 @@ class MappedLayout(StreamLayout):
 
     cmap: Any
     ignored: list[str]
+    rate_hz: float | None  # --rate: no time column, sample i at i / rate_hz
+
+    def pre_repairs(self) -> list[str]:
+        return [] if self.rate_hz is None else [rate_note(self.where, self.rate_hz)]
 
     def channels(self, t: np.ndarray, mat: np.ndarray) -> JointChannels:
         from .channels import channels_from_columns

@@ -226,11 +226,6 @@ class NpzLayout(MappedLayout):
         return rate_message(rate_hz, self.where, f"array {self.tkey!r}", self.unit,
                             duration_s)
 
-    def pre_repairs(self) -> list[str]:
-        from .layout import rate_note
-
-        return [] if self.rate_hz is None else [rate_note(self.where, self.rate_hz)]
-
     def _time(self, raw: np.ndarray, row0: int) -> np.ndarray:
         """A block of the time array → int64 ns (integers × the unit, floats rounded)."""
         if np.issubdtype(raw.dtype, np.integer):

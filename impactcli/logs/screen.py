@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..columns import column_range
+from ..columns import by_column, column_range
 
 __all__ = ["FEW_VALUES", "FLAT_NM", "SMALL_FRACTION", "ColumnScreen", "LeftOut",
            "ScreenAccumulator", "unusable_columns"]
@@ -135,8 +135,9 @@ class ScreenAccumulator:
         if fin.all():
             lo, hi = column_range(v)
         else:
-            lo = column_range(np.where(fin, v, np.inf))[0]
-            hi = column_range(np.where(fin, v, -np.inf))[1]
+            c, f = by_column(v), by_column(fin)
+            lo = np.where(f, c, np.inf).min(axis=1)
+            hi = np.where(f, c, -np.inf).max(axis=1)
         self.lo = np.minimum(self.lo, lo)
         self.hi = np.maximum(self.hi, hi)
         for j in range(v.shape[1]):

@@ -179,10 +179,10 @@ def _cv_ridge(
                 th = np.zeros(p)
                 idx = np.flatnonzero(own)
                 m = gf[np.ix_(idx, idx)] + 1e-10 * np.eye(idx.size)
-                th[idx] = _solve(m, hf[idx])
+                th[idx] = solve_normal(m, hf[idx])
             else:
                 m = gf + np.diag(lam * share * pen + 1e-10)
-                th = _solve(m, hf)
+                th = solve_normal(m, hf)
             r = an[f] @ th - t[f]
             err.append(float(np.sum(w[f] * r**2)))
         return np.array(err)
@@ -200,7 +200,8 @@ def _cv_ridge(
                        "cv_rel_rms_decoupled": float(np.sqrt(errs[-1] / wt))}
 
 
-def _solve(m: np.ndarray, b: np.ndarray) -> np.ndarray:
+def solve_normal(m: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Solve the normal equations m x = b; least squares where m is singular."""
     try:
         return np.asarray(np.linalg.solve(m, b))
     except np.linalg.LinAlgError:

@@ -34,6 +34,7 @@ the coupled one with the chosen penalties) and carries the record in ``fit.selec
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import warnings
 from collections.abc import Mapping, Sequence
@@ -44,7 +45,7 @@ import numpy as np
 
 from ..types import RobotDescription, RobotLog
 from . import structures
-from .fit import robust_lstsq
+from .fit import robust_lstsq, solve_normal
 from .identification import (
     IdentifyStream,
     default_kind,
@@ -148,9 +149,9 @@ def held_back_errors(a: np.ndarray, t: np.ndarray, w: np.ndarray, pen: np.ndarra
             th = np.zeros(p)
             if np.isinf(lam):
                 k = np.flatnonzero(own)
-                th[k] = _solve(g[np.ix_(k, k)] + 1e-10 * np.eye(k.size), h[k])
+                th[k] = solve_normal(g[np.ix_(k, k)] + 1e-10 * np.eye(k.size), h[k])
             else:
-                th = _solve(g + np.diag(lam * share * pen + 1e-10), h)
+                th = solve_normal(g + np.diag(lam * share * pen + 1e-10), h)
             r = an[fold.test] @ th - t[fold.test]
             out[i, f] = float(np.mean(r**2))
     return np.where(np.isfinite(out), out, _HUGE)  # a failed solve: never chosen
@@ -172,13 +173,6 @@ def one_se(rel: np.ndarray, rms: np.ndarray | None = None,
         ok[1:] &= rms[1:] <= (1.0 - min_gain) * rms[0]
     ok[0] = ok[0] or not ok[1:].any()
     return int(np.flatnonzero(ok)[0]), best, se
-
-
-def _solve(m: np.ndarray, b: np.ndarray) -> np.ndarray:
-    try:
-        return np.asarray(np.linalg.solve(m, b))
-    except np.linalg.LinAlgError:
-        return np.asarray(np.linalg.lstsq(m, b, rcond=None)[0])
 
 
 def _rms(mse: np.ndarray, sizes: np.ndarray) -> float:
@@ -292,7 +286,7 @@ def _named_errors(rows: Sequence[Rows], names: Sequence[str],
         a = (yn[tr] * sw[:, :, None]).reshape(-1, yn.shape[2])
         g = a.T @ a
         h = a.T @ (tau[tr] * sw).reshape(-1)
-        th = _solve(g + 1e-10 * np.eye(g.shape[0]), h)
+        th = solve_normal(g + 1e-10 * np.eye(g.shape[0]), h)
         r = yn[fold.test] @ th - tau[fold.test]
         mse[f] = np.mean(r**2, axis=0)
     mse = np.where(np.isfinite(mse), mse, _HUGE)
@@ -360,11 +354,7 @@ def _chosen_model(choice: Choice, rows: Mapping[str, Sequence[Rows]], paths: Seq
     lam = choice.lambdas if choice.kind == "coupled" else None
     model = fit_rows(rows[choice.kind], paths, robot=robot, options=options,
                      input_sha256=input_sha256, lambdas=lam)
-    fit = dict(model.fit, selection=choice.record)
-    return RigidModel(kind=model.kind, joint_names=model.joint_names,
-                      param_names=model.param_names, theta=model.theta,
-                      structure=model.structure, filter=model.filter, fit=fit,
-                      robot=model.robot, input_sha256=model.input_sha256)
+    return dataclasses.replace(model, fit=dict(model.fit, selection=choice.record))
 
 
 def select_model(logs: Sequence[RobotLog], *, robot: RobotDescription | None = None,

@@ -32,12 +32,12 @@ from ..detect.tail import (
     DEFAULT_FALSE_ALARMS_PER_HOUR,
     LoloRow,
     RateCalibration,
-    calibrate_rate,
     fit_channels,
     leave_one_log_out,
     minutes_needed,
     rates_for_thresholds,
     stack_detectors,
+    thresholds_for_rate,
 )
 from ..detect.tail import DETECTORS as TAIL_DETECTORS
 from ..detect.warmup import Warmup
@@ -79,24 +79,18 @@ MIN_STRETCH = 10
 
 @dataclass(frozen=True)
 class Calibrated:
-    """What :func:`calibrate_run` made: the config, and what ``calibrate`` prints.
+    """What :func:`calibrate_run` made (its record holds the leave-one-log-out rows and
+    the motion envelope too).
 
     Attributes:
-        config: the calibrated config (its record holds everything below too).
+        config: the calibrated config.
         rate: the false-alarm rate: asked (``rate.rate``) or, under the leave-one-out
             rule, predicted for its thresholds (``rate.rate`` None; None when the free
             motion is too short for a tail fit).
-        lolo: leave-one-log-out rows (≥ 2 free logs; :func:`impactcli.detect.tail.
-            leave_one_log_out`), their ``log`` an index into ``log_paths``.
-        log_paths: the free logs, in order.
-        envelope: the calibration's motion envelope (None when nothing was kept).
     """
 
     config: DetectorConfig
     rate: RateCalibration | None
-    lolo: tuple[LoloRow, ...]
-    log_paths: tuple[str, ...]
-    envelope: MotionEnvelope | None
 
 
 def calibrate(logs: list[RobotLog], **options: Any) -> DetectorConfig:
@@ -217,7 +211,7 @@ def calibrate_run(
     if rated and rate is not None:
         table.update(rate.table())
         # the product's margins say what the rate's thresholds are over the free maximum
-        for d in ("adaptive", "static_loading"):
+        for d in TAIL_DETECTORS:
             top = np.max([np.max(x, axis=0) for x in per_det[d]], axis=0)
             margins[d] = {j: float(table[d][j] / top[k]) for k, j in enumerate(joints)
                           if top[k] > 0 and table[d][j] / top[k] > 0}
@@ -241,7 +235,7 @@ def calibrate_run(
                                     vL=table["static_loading"]),
         calibration=record, model=None if model is None else model.to_dict(),
     )
-    return Calibrated(out, rate, tuple(lolo), paths, envelope)
+    return Calibrated(out, rate)
 
 
 def _rate_logs(replays: list[_Replayed], excluded: list[dict[str, Any]], warn: bool = True
@@ -298,12 +292,9 @@ def _rate_thresholds(replays: list[_Replayed], keeps: list[np.ndarray],
                              + ", ".join(rp.path for rp in replays))
     gap = cfg.events.merge_gap_s
     try:
-        if given is None:
-            cal = calibrate_rate(stats, dts, rate, conf=conf, names=names, merge_gap_s=gap,
-                                 log_start=starts)
-        else:
-            cal = rates_for_thresholds(fit_channels(stats, dts, names=names, merge_gap_s=gap,
-                                                    log_start=starts), given, conf=conf)
+        fits = fit_channels(stats, dts, names=names, merge_gap_s=gap, log_start=starts)
+        cal = (thresholds_for_rate(fits, rate, conf=conf) if given is None
+               else rates_for_thresholds(fits, given, conf=conf))
     except ValueError as err:
         raise ConfigError(f"--false-alarms-per-hour: {err}") from err
     lolo: list[LoloRow] = []

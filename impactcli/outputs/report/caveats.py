@@ -108,16 +108,13 @@ def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]
         rated = "per_hour" in (calib.get("false_alarm_rate") or {})
         capped = sorted({d for d, m in margins.items() if max(m.values(), default=0) >= MAX_MARGIN
                          and not (rated and d in ("adaptive", "static_loading"))})
-        if rated and not capped and rule != "fixed-single-log":
-            pass  # the rate's own caveat below says why
-        elif rule == "fixed-single-log":
+        single = rule == "fixed-single-log"
+        if single or capped or not rated:  # else the rate's own caveat below says why
             why = ("the thresholds come from a single collision-free log with a fixed 1.5× "
-                   "margin, not a leave-one-out margin over several logs.")
-        else:
-            why = ("the collision-free logs disagreed: the leave-one-out margin hit its cap of "
-                   f"{MAX_MARGIN:g}× ({', '.join(capped) or 'some detector'}), so a log like "
-                   "the most different one may still raise alarms.")
-        if not (rated and not capped and rule != "fixed-single-log"):
+                   "margin, not a leave-one-out margin over several logs." if single else
+                   "the collision-free logs disagreed: the leave-one-out margin hit its cap "
+                   f"of {MAX_MARGIN:g}× ({', '.join(capped) or 'some detector'}), so a log "
+                   "like the most different one may still raise alarms.")
             out.append({"code": "weak-calibration",
                         "text": f"Weak calibration ({rule}): {why}"})
     out += rate_caveats(calib)
