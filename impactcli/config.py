@@ -40,6 +40,14 @@ ESTIMATES = ("a_priori", "a_posteriori")
 GENERATOR_ALIASES = {"rigid_model": "inverse_dynamics"}
 
 
+#: The adaptive evaluator's default regularisation delta (docs/method.md §3, measured).
+REGULARIZATION = 10.0
+#: The formulation of the adaptive evaluator this version runs, recorded in every config
+#: ``calibrate`` writes (``calibration.formulation``): thresholds calibrated on another
+#: formulation's statistic are warned about (docs/formats.md).
+FORMULATION = "regularised-rls-1"
+
+
 @dataclass(frozen=True)
 class AdaptiveConfig:
     """Adaptive evaluator (paper eq. 24–42, Table I).
@@ -65,6 +73,11 @@ class AdaptiveConfig:
             eq. 39).
         measured_input_cutoff_hz: cut-off of the causal 2nd-order Butterworth used to
             differentiate the *measured* position when no reference is logged [Hz].
+        regularization: delta, the information about theta = theta0 the RLS keeps whatever
+            it forgets (impactcli.detect.rls.regularize_inplace): P stays below ~I/delta and
+            the evaluator's answer a property of the log, not of the last bits of the
+            arithmetic; 0 → plain eq. 39 (the paper; sensitive: docs/method.md §3,
+            "Sensitivity, and the regularised form").
     """
 
     eta: int = 2
@@ -81,6 +94,7 @@ class AdaptiveConfig:
     tanh_slope: float = 50.0
     max_trace: float | None = None
     measured_input_cutoff_hz: float = 10.0
+    regularization: float = REGULARIZATION
 
     def n_params(self, n_joints: int) -> int:
         """nu = eta + p + n·sum(rho) (34 for 2 joints, 64 for 7 with Table I)."""
@@ -245,6 +259,10 @@ class CalibrationRecord:
         motion_envelope: the calibration's motion envelope
             (:meth:`impactcli.detect.envelope.MotionEnvelope.to_dict`): per joint the
             ranges of velocity, acceleration and position of the free motion.
+        formulation: the adaptive evaluator's formulation the thresholds were calibrated
+            on (:data:`FORMULATION`); None: before formulations were recorded (the plain
+            eq. 39 of releases up to 2026-11-27). Another than the running one is warned
+            about at detect.
     """
 
     calibrated: bool = False
@@ -260,6 +278,7 @@ class CalibrationRecord:
     threshold_rule: str | None = None
     false_alarm_rate: dict[str, Any] | None = None
     motion_envelope: dict[str, Any] | None = None
+    formulation: str | None = None
 
 
 @dataclass(frozen=True)

@@ -202,13 +202,19 @@ def test_large_contact_is_detected_on_its_joint() -> None:
     assert fired.size and 20.0 < t[fired[0]] < 20.1
 
 
+#: The wind-up guard alone (no regulariser) and plain eq. 39 (neither): the guard's tests
+#: compare these two; the regularised default is tested beside them.
+GUARD_ONLY = AdaptiveConfig(regularization=0.0)
+PLAIN_39 = AdaptiveConfig(max_trace=np.inf, regularization=0.0)
+
+
 def test_standstill_for_minutes_then_moving_gives_no_blow_up() -> None:
     """3.5 min standstill (u = 0, residual = noise + offset), then triangles again."""
     t, r, u = scenario(3, n_s=300.0, still=(40.0, 250.0))
     pre, post = (t > 10) & (t < 40), t >= 250
     res = {}
     for name, mt in (("guarded", None), ("unguarded", np.inf)):
-        a = evaluate(r, u, FS, np.zeros(2), AdaptiveConfig(max_trace=mt))
+        a = evaluate(r, u, FS, np.zeros(2), AdaptiveConfig(max_trace=mt, regularization=0.0))
         assert np.all(np.isfinite(a.theta))
         res[name] = (a, np.abs(a.r_rms[post]).max() / np.abs(a.r_rms[pre]).max())
     a, ratio = res["guarded"]
@@ -251,7 +257,7 @@ FIELDS = ("r_tilde", "v_dyn", "r_f", "v_f", "r_rms", "v_rms", "threshold", "deci
 def test_numba_equals_reference_with_the_cap_acting() -> None:
     """max_trace = nu p0: every diagonal element of P capped at p0, acting from the start."""
     _, r, u = scenario(0, n_s=8.0)
-    cfg = AdaptiveConfig(max_trace=34 * 10.0)
+    cfg = AdaptiveConfig(max_trace=34 * 10.0, regularization=0.0)
     a = evaluate(r, u, FS, np.full(2, 0.05), cfg)
     b = evaluate_reference(r, u, FS, np.full(2, 0.05), cfg)
     assert a.n_capped.min() > 1000
@@ -268,8 +274,8 @@ def test_still_joint_gives_plain_eq39_bitwise() -> None:
     caps that block of P (from 46 s, when p0 lambda^-k reaches 1e5 p0) and every output
     equals plain eq. 39's (max_trace = inf) bit for bit."""
     _, r, u = sines(1, 80.0, still=(0.0, 1e9))
-    g = evaluate(r, u, FS, np.full(2, 0.05))
-    p = evaluate(r, u, FS, np.full(2, 0.05), AdaptiveConfig(max_trace=np.inf))
+    g = evaluate(r, u, FS, np.full(2, 0.05), GUARD_ONLY)
+    p = evaluate(r, u, FS, np.full(2, 0.05), PLAIN_39)
     assert g.n_capped.min() > 5000 and p.n_capped.sum() == 0
     for name in (*FIELDS, "theta"):
         np.testing.assert_array_equal(getattr(g, name), getattr(p, name), err_msg=name)
@@ -300,8 +306,8 @@ def test_one_joint_still_for_17_minutes_then_moving() -> None:
     r = signal.lfilter(b_, a_, raw, axis=0) + 0.03 * rng.standard_normal(pos.shape) + 0.2
     pre, still = slice(2500, n0), slice(n0 + 2500, n0 + n_still)
     post = slice(n0 + n_still, n)
-    g = evaluate(r, u, FS, np.zeros(2))
-    p = evaluate(r, u, FS, np.zeros(2), AdaptiveConfig(max_trace=np.inf))
+    g = evaluate(r, u, FS, np.zeros(2), GUARD_ONLY)
+    p = evaluate(r, u, FS, np.zeros(2), PLAIN_39)
     assert p.n_resets.min() >= 5
     assert p.r_rms[still, 0].max() > 2.5 * p.r_rms[pre, 0].max()
     assert g.n_resets.sum() == 0 and g.n_capped.min() > 0.9 * n_still
@@ -328,8 +334,8 @@ def test_ten_minutes_of_triangles_wind_up_plain_eq39_not_the_guard() -> None:
     b_, a_ = signal.butter(2, 8 / (FS / 2))
     raw = 0.3 * np.tanh(50 * v) + 0.002 * acc + 0.001 * acc[:, ::-1]
     r = signal.lfilter(b_, a_, raw, axis=0) + 0.03 * rng.standard_normal(pos.shape) + 0.2
-    g = evaluate(r, u, FS, np.zeros(2))
-    p = evaluate(r, u, FS, np.zeros(2), AdaptiveConfig(max_trace=np.inf))
+    g = evaluate(r, u, FS, np.zeros(2), GUARD_ONLY)
+    p = evaluate(r, u, FS, np.zeros(2), PLAIN_39)
     settled = slice(int(60 * FS), int(100 * FS))           # after the start-up, before 26k
     assert p.n_resets.min() >= 3
     assert np.any(p.r_rms[settled.stop:].max(axis=0) > 2.0 * p.r_rms[settled].max(axis=0))
@@ -363,9 +369,10 @@ def test_sample_impacts_log_gives_plain_eq39_bitwise() -> None:
     th = calibrated_thresholds(cfg, log.joint_names)
     assert th is not None
     fs = log.sample_rate_hz
-    g = evaluate(st.r, inputs.u, fs, th["adaptive"], cfg.adaptive)
+    g = evaluate(st.r, inputs.u, fs, th["adaptive"],
+                 dataclasses.replace(cfg.adaptive, regularization=0.0))
     p = evaluate(st.r, inputs.u, fs, th["adaptive"],
-                 dataclasses.replace(cfg.adaptive, max_trace=np.inf))
+                 dataclasses.replace(cfg.adaptive, max_trace=np.inf, regularization=0.0))
     assert np.all(inputs.u[:, :, 1] == 0.0)
     assert g.n_capped.tolist() == [6669, 6669] and p.n_capped.sum() == 0
     for name in (*FIELDS, "theta"):

@@ -100,12 +100,16 @@ def assist_impacts() -> tuple[np.ndarray, np.ndarray, float, AdaptiveConfig, lis
 def test_sample_log_any_chunk_size_is_bitwise_the_whole_log(assist_impacts, size) -> None:
     r, u, fs, cfg, _ = assist_impacts
     vs = np.array([0.08, 0.03])
-    whole = evaluate(r, u, fs, vs, cfg)
-    assert whole.n_capped.tolist() == [6669, 6669]  # the guard acts (a still joint)
-    assert whole.decision.any()
-    got, st = run_chunks(r, u, fs, vs, cfg, bounds_of(len(r), size))
-    assert_identical(got, whole, f"chunks of {size}")
-    assert_same_state(st, whole_log_state(r, u, fs, vs, cfg)[1], f"chunks of {size}")
+    # the regularised default (the regulariser's coordinate crosses every boundary), and
+    # the guard alone, which acts there (a still joint)
+    for c, capped in ((cfg, [0, 0]), (dataclasses.replace(cfg, regularization=0.0),
+                                      [6669, 6669])):
+        whole = evaluate(r, u, fs, vs, c)
+        assert whole.n_capped.tolist() == capped
+        assert whole.decision.any()
+        got, st = run_chunks(r, u, fs, vs, c, bounds_of(len(r), size))
+        assert_identical(got, whole, f"chunks of {size}")
+        assert_same_state(st, whole_log_state(r, u, fs, vs, c)[1], f"chunks of {size}")
 
 
 def test_sample_log_boundaries_inside_contacts_and_start_up(assist_impacts) -> None:
@@ -159,13 +163,14 @@ def synthetic(seed: int = 0, n_s: float = 60.0, joints: int = 3):
 @pytest.mark.parametrize("size", CHUNK_SIZES)
 def test_synthetic_any_chunk_size_is_bitwise_the_whole_log(size) -> None:
     r, u, _ = synthetic()
-    cfg = AdaptiveConfig()
     vs = np.full(3, 0.1)
-    whole = evaluate(r, u, FS, vs, cfg)
-    assert whole.n_capped[0] > 0  # joint 1's silent input lags are capped
-    got, st = run_chunks(r, u, FS, vs, cfg, bounds_of(len(r), size))
-    assert_identical(got, whole, f"chunks of {size}")
-    assert_same_state(st, whole_log_state(r, u, FS, vs, cfg)[1], f"chunks of {size}")
+    for cfg in (AdaptiveConfig(), AdaptiveConfig(regularization=0.0)):
+        whole = evaluate(r, u, FS, vs, cfg)
+        if cfg.regularization == 0.0:
+            assert whole.n_capped[0] > 0  # joint 1's silent input lags are capped
+        got, st = run_chunks(r, u, FS, vs, cfg, bounds_of(len(r), size))
+        assert_identical(got, whole, f"chunks of {size}")
+        assert_same_state(st, whole_log_state(r, u, FS, vs, cfg)[1], f"chunks of {size}")
 
 
 def test_synthetic_random_chunks_threads_and_plain_eq39() -> None:
@@ -178,7 +183,8 @@ def test_synthetic_random_chunks_threads_and_plain_eq39() -> None:
     bounds = [0, *sorted(c for c in cuts if 0 < c < n), n]
     vs = np.full(3, 0.1)
     for cfg in (AdaptiveConfig(), AdaptiveConfig(estimate="a_priori"),
-                AdaptiveConfig(max_trace=np.inf), AdaptiveConfig(n1_s=0.1, n2_s=0.004)):
+                AdaptiveConfig(max_trace=np.inf), AdaptiveConfig(regularization=0.0),
+                AdaptiveConfig(n1_s=0.1, n2_s=0.004)):
         whole = evaluate(r, u, FS, vs, cfg, threads=1)
         got, st = run_chunks(r, u, FS, vs, cfg, bounds, threads=2)
         assert_identical(got, whole, repr(cfg))

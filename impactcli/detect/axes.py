@@ -26,7 +26,13 @@ import numpy as np
 
 from ..config import AdaptiveConfig
 from .rates import Rates, resolve_rates
-from .rls import FASTMATH, max_diag_of, rls_update_inplace
+from .rls import (
+    FASTMATH,
+    max_diag_of,
+    regularization_weight,
+    regularize_inplace,
+    rls_update_inplace,
+)
 
 #: The kernel's (n,) outputs per axis, in :data:`impactcli.detect.adaptive.SIGNALS` order.
 N_OUTPUTS = 9
@@ -41,14 +47,16 @@ def _evaluate_axis(
     vr: np.ndarray, thr: np.ndarray, dec: np.ndarray, eps: np.ndarray,
     th: np.ndarray, P_state: np.ndarray, r_lag: np.ndarray, v_lag: np.ndarray, u_lag: np.ndarray,
     filt: np.ndarray, ring_r: np.ndarray, ring_v: np.ndarray, sums: np.ndarray,
-    pos1: int, pos2: int,
+    pos1: int, pos2: int, reg_c: float, theta0: float, pos_reg: int,
 ) -> tuple[int, int]:
     """One axis over one chunk: ``r`` (n,) is its residual, ``u`` (m, n, J) every axis's
     inputs; the outputs are this axis's (n,) rows. The state (``th`` (nu,), ``P_state`` (nu, nu)
     lower triangle, ``r_lag`` (eta,), ``v_lag`` (p,), ``filt`` (2,), ``ring_r`` (N1,),
     ``ring_v`` (N2,), ``sums`` (2,)) is read at the start and written back at the end, in
     place; ``u_lag`` (m, rho_max, J) is only read (shared by the axes; the caller advances
-    it); ``pos1``, ``pos2`` are the ring positions (samples so far mod N1, N2).
+    it); ``pos1``, ``pos2`` are the ring positions (samples so far mod N1, N2);
+    ``pos_reg`` the regulariser's coordinate (samples so far mod nu), ``reg_c`` its weight
+    (0: none, plain eq. 39) toward ``theta0`` (:func:`impactcli.detect.rls.regularize_inplace`).
 
     Axes are independent (eq. 34–35 per axis; only the inputs u are shared), so axes can
     run on separate threads (the kernel releases the GIL). Returns the covariance resets
@@ -68,6 +76,7 @@ def _evaluate_axis(
     h = np.empty(nu)
     w = np.empty(nu)
     th_old = np.empty(nu)
+    pc = np.empty(nu)
     inv_n1 = 1.0 / n1
     inv_n2 = 1.0 / n2
     prev_r = filt[0]
@@ -91,6 +100,11 @@ def _evaluate_axis(
             for i in range(nu):
                 th_old[i] = th[i]
         e, rs, cp = rls_update_inplace(th, P, phi, r[k], lam, max_diag, p0, h, w)
+        if reg_c > 0.0:
+            regularize_inplace(th, P, pos_reg, reg_c, theta0, pc)
+        pos_reg += 1
+        if pos_reg == nu:
+            pos_reg = 0
         eps[k] = e
         resets += rs
         capped += cp
@@ -280,6 +294,8 @@ class AxisRunner:
         self._args = (cfg.eta, cfg.p, self._rho, float(cfg.forgetting_factor),
                       float(cfg.p0), self._max_diag, cfg.estimate == "a_posteriori",
                       rates.a1, rates.a2, rates.n1, rates.n2)
+        self._reg = (regularization_weight(state.nu, cfg.forgetting_factor,
+                                           cfg.regularization), float(cfg.theta0))
         J = state.n_joints
         self._pools = ([ThreadPoolExecutor(1, thread_name_prefix=f"impactcli-axis{j}")
                         for j in range(J)] if threads > 1 and J > 1 else None)
@@ -291,6 +307,7 @@ class AxisRunner:
         n, J = r.shape
         rates = st.rates
         pos1, pos2 = self.n_samples % rates.n1, self.n_samples % rates.n2
+        pos_reg = self.n_samples % st.nu
         u_lag = st.u_lags.copy()
         L = st.u_lags.shape[1]
         if L and n:  # the shared input lags: the last rho_max samples of [u_lags, u]
@@ -308,7 +325,7 @@ class AxisRunner:
             rs, cp = _evaluate_axis(  # type: ignore[call-arg]
                 rows[j], u, *self._args, float(self.v_stat[j]), *out,  # type: ignore[arg-type]
                 st.theta[j], st.P[j], st.r_lags[j], st.v_lags[j], u_lag, st.filters[j],
-                st.ring_r[j], st.ring_v[j], st.sums[j], pos1, pos2)
+                st.ring_r[j], st.ring_v[j], st.sums[j], pos1, pos2, *self._reg, pos_reg)
             for x, y in zip(job.out, out, strict=True):
                 x[:, j] = y  # on this axis's thread, not the caller's after all axes
             st.n_resets[j] += rs

@@ -7,6 +7,14 @@ For a regression ``y(k) = phi(k)^T theta + b(k)`` with ``nu`` parameters, one st
     theta(k) = theta(k-1) + g(k) eps0(k)                                    (38)
     P(k)     = (P(k-1) - g(k) (P(k-1) phi(k))^T) / lambda                   (39)
 
+Regularisation (docs/method.md §3, "Sensitivity, and the regularised form"): after each
+step, :func:`regularize_inplace` adds the pseudo-measurement theta_i = theta0 with weight c
+for ONE coordinate i = k mod nu (cyclic), c = nu (1 − lambda) delta: the information matrix
+then carries about delta I that forgetting never removes (the minimiser of
+sum_i lambda^{k-i} eps_i^2 + delta |theta − theta0|^2, the regulariser spread one coordinate
+per step), so P ≤ ~I / delta and two replays started 1e-12 apart stay within ~1e-9 of each
+other instead of separating (the diagnosis and the choice of delta: docs/method.md §3).
+
 P is symmetric by construction: :func:`rls_update_inplace` stores and updates only its
 lower triangle (which also halves the work). Wind-up guard: after eq. 39 every diagonal
 element of P is capped at ``max_trace / nu`` by a congruence ``P <- W P W``,
@@ -124,6 +132,40 @@ def rls_update_inplace(
             P[i, i] = p0
         reset = 1
     return e, reset, capped
+
+
+@nb.njit(cache=True, nogil=True, inline="always", fastmath=FASTMATH)
+def regularize_inplace(theta: np.ndarray, P: np.ndarray, i: int, c: float, theta0: float,
+                       pc: np.ndarray) -> None:
+    """The regulariser's step (module docstring): the RLS update (eq. 38/39 with lambda = 1)
+    for the pseudo-measurement ``theta_i = theta0`` of weight ``c``, i.e. regressor
+    sqrt(c) e_i. In place on ``theta`` and on ``P``'s LOWER triangle; ``pc`` (nu,) work.
+
+        p_i    = P e_i                      (column i, from the lower triangle)
+        theta <- theta + p_i c (theta0 − theta_i) / (1 + c P_ii)
+        P     <- P − c p_i p_i^T / (1 + c P_ii)
+    """
+    nu = theta.shape[0]
+    for j in range(nu):
+        pc[j] = P[i, j] if j <= i else P[j, i]
+    den = 1.0 / (1.0 + c * pc[i])
+    f = c * (theta0 - theta[i]) * den
+    for j in range(nu):
+        theta[j] += pc[j] * f
+    cd = c * den
+    for a in range(nu):
+        ca = cd * pc[a]
+        for b in range(a + 1):
+            P[a, b] -= ca * pc[b]
+
+
+def regularization_weight(n_params: int, forgetting_factor: float, delta: float) -> float:
+    """The weight c = nu (1 − lambda) delta of one coordinate's pseudo-measurement per step,
+    so that each coordinate's share, forgotten by lambda, sums to about delta
+    (c / (1 − lambda^nu) = delta · nu (1 − lambda) / (1 − lambda^nu) ≈ delta)."""
+    if not delta >= 0.0:
+        raise ValueError(f"regularization must be >= 0, got {delta}")
+    return float(n_params) * (1.0 - float(forgetting_factor)) * float(delta)
 
 
 #: Default cap on each diagonal element of P as a multiple of p0: the default ``max_trace``

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from ..clock import GAP_FACTOR
-from ..config import DetectorConfig
+from ..config import FORMULATION, DetectorConfig
 from ..detect.events import LONG_EVENT_S
 from ..detect.thresholds import UNCALIBRATED_BLOCK_S, UNCALIBRATED_MARGIN, UNCALIBRATED_QUANTILE
 from ..detect.warmup import Warmup
@@ -84,6 +84,19 @@ def warn_uncalibrated(where: str) -> None:
         f"its {UNCALIBRATED_BLOCK_S:g} s maxima after warm-up): only contacts that stand "
         "out well above its motion are found; calibrate on collision-free logs "
         "(impactcli calibrate) for sensitivity and a replay the robot could have run",
+        ImpactWarning, stacklevel=3,
+    )
+
+
+def warn_formulation(where: str, config_where: str, recorded: str | None) -> None:
+    """The warning of a config calibrated on another formulation of the adaptive
+    evaluator than the one running (:data:`impactcli.config.FORMULATION`)."""
+    was = (f"formulation {recorded!r}" if recorded else
+           "the plain eq. 39 of releases before 2026-11-28")
+    warnings.warn(
+        f"{where}: its config ({config_where}) was calibrated with the adaptive evaluator's "
+        f"{was}; this version runs {FORMULATION!r}, whose statistic differs, so the "
+        "adaptive thresholds (v_stat) may not fit: calibrate again (impactcli calibrate)",
         ImpactWarning, stacklevel=3,
     )
 

@@ -25,7 +25,7 @@ from impactcli.detect.adaptive import (
 )
 from impactcli.detect.axes import EvaluatorState
 from impactcli.detect.rates import resolve_rates
-from impactcli.detect.rls import max_diag_of
+from impactcli.detect.rls import max_diag_of, regularization_weight
 from impactcli.model.causal import Carry
 from impactcli.types import RobotLog
 
@@ -79,8 +79,9 @@ def evaluate_reference(
     v_stat: Sequence[float] | np.ndarray, cfg: AdaptiveConfig | None = None,
 ) -> AdaptiveResult:
     """Plain NumPy implementation of the same equations, obviously correct and slow: a
-    Python loop over samples with the textbook RLS (full P) and the wind-up cap applied by
-    its definition."""
+    Python loop over samples with the textbook RLS (full P), the wind-up cap applied by
+    its definition, then the regulariser's pseudo-measurement theta_i = theta0 (weight c,
+    coordinate i = k mod nu) as one more textbook update with lambda = 1."""
     cfg = cfg or AdaptiveConfig()
     r = np.asarray(residual, dtype=np.float64)
     u = np.asarray(inputs, dtype=np.float64)
@@ -92,6 +93,7 @@ def evaluate_reference(
     nu = cfg.n_params(J)
     lam = cfg.forgetting_factor
     cap = max_diag_of(nu, cfg.p0, cfg.max_trace)
+    c_reg = regularization_weight(nu, lam, cfg.regularization)
 
     def past(x: np.ndarray, k: int, order: int) -> np.ndarray:
         """[x(k-1), ..., x(k-order)], zero before the start."""
@@ -122,6 +124,14 @@ def evaluate_reference(
                 w = np.where(over, np.sqrt(cap / np.where(over, np.diag(P), 1.0)), 1.0)
                 P = P * np.outer(w, w)                                    # W P W
                 capped[j] += 1
+            if c_reg > 0.0:                                               # regulariser
+                i = k % nu
+                e_i = np.zeros(nu)
+                e_i[i] = np.sqrt(c_reg)
+                h = P @ e_i
+                den = 1.0 + e_i @ h
+                theta_new = theta_new + h * (np.sqrt(c_reg) * cfg.theta0 - e_i @ theta_new) / den
+                P = P - np.outer(h, h) / den
             tv = theta_new if cfg.estimate == "a_posteriori" else theta
             theta = theta_new
             res["eps"][k, j] = eps0
