@@ -74,7 +74,7 @@ class AdaptiveConfig:
         measured_input_cutoff_hz: cut-off of the causal 2nd-order Butterworth used to
             differentiate the *measured* position when no reference is logged [Hz].
         regularization: delta, the information about theta = theta0 the RLS keeps whatever
-            it forgets (impactcli.detect.rls.regularize_inplace): P stays below ~I/delta and
+            it forgets (impactcli.detect.rls.rls_update_inplace): P stays below ~I/delta and
             the evaluator's answer a property of the log, not of the last bits of the
             arithmetic; 0 → plain eq. 39 (the paper; sensitive: docs/method.md §3,
             "Sensitivity, and the regularised form").

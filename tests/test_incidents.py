@@ -149,11 +149,12 @@ def test_fail_on_force_without_kinematics_warns(tmp_path: Path) -> None:
 
     from impactcli.logs import write_log
 
-    from .test_screen import three_joint_log
+    from .conftest import make_log
 
-    log = three_joint_log()
-    tau = np.array(log.torque)
-    tau[1500:1600, 0] += 20.0  # a push on the first joint, no kinematics known
+    # 30 s (the uncalibrated rule's block quantile needs more than the push's own blocks)
+    log = make_log(n=7500, joints=("j1", "j2", "j3"), seed=0)
+    tau = np.array(log.torque) * np.array([10.0, 5.0, 0.05])
+    tau[5500:5600, 0] += 20.0  # a push on the first joint, no kinematics known
     write_log(dataclasses.replace(log, torque=tau), tmp_path / "x.csv")
     r = CliRunner().invoke(main, ["detect", str(tmp_path / "x.csv"), "-o", str(tmp_path),
                                   "--fail-on-force", "1"])

@@ -30,7 +30,6 @@ from .rls import (
     FASTMATH,
     max_diag_of,
     regularization_weight,
-    regularize_inplace,
     rls_update_inplace,
 )
 
@@ -56,7 +55,7 @@ def _evaluate_axis(
     place; ``u_lag`` (m, rho_max, J) is only read (shared by the axes; the caller advances
     it); ``pos1``, ``pos2`` are the ring positions (samples so far mod N1, N2);
     ``pos_reg`` the regulariser's coordinate (samples so far mod nu), ``reg_c`` its weight
-    (0: none, plain eq. 39) toward ``theta0`` (:func:`impactcli.detect.rls.regularize_inplace`).
+    (0: none, plain eq. 39) toward ``theta0`` (:func:`impactcli.detect.rls.rls_update_inplace`).
 
     Axes are independent (eq. 34–35 per axis; only the inputs u are shared), so axes can
     run on separate threads (the kernel releases the GIL). Returns the covariance resets
@@ -99,9 +98,8 @@ def _evaluate_axis(
         if not a_post:
             for i in range(nu):
                 th_old[i] = th[i]
-        e, rs, cp = rls_update_inplace(th, P, phi, r[k], lam, max_diag, p0, h, w)
-        if reg_c > 0.0:
-            regularize_inplace(th, P, pos_reg, reg_c, theta0, pc)
+        e, rs, cp = rls_update_inplace(th, P, phi, r[k], lam, max_diag, p0, h, w,
+                                       pos_reg, reg_c, theta0, pc)
         pos_reg += 1
         if pos_reg == nu:
             pos_reg = 0

@@ -7,9 +7,9 @@ For a regression ``y(k) = phi(k)^T theta + b(k)`` with ``nu`` parameters, one st
     theta(k) = theta(k-1) + g(k) eps0(k)                                    (38)
     P(k)     = (P(k-1) - g(k) (P(k-1) phi(k))^T) / lambda                   (39)
 
-Regularisation (docs/method.md §3, "Sensitivity, and the regularised form"): after each
-step, :func:`regularize_inplace` adds the pseudo-measurement theta_i = theta0 with weight c
-for ONE coordinate i = k mod nu (cyclic), c = nu (1 − lambda) delta: the information matrix
+Regularisation (docs/method.md §3, "Sensitivity, and the regularised form"): each step
+also adds the pseudo-measurement theta_i = theta0 with weight c for ONE coordinate
+i = k mod nu (cyclic), c = nu (1 − lambda) delta (fused into eq. 39's pass): the information matrix
 then carries about delta I that forgetting never removes (the minimiser of
 sum_i lambda^{k-i} eps_i^2 + delta |theta − theta0|^2, the regulariser spread one coordinate
 per step), so P ≤ ~I / delta and two replays started 1e-12 apart stay within ~1e-9 of each
@@ -45,9 +45,18 @@ FASTMATH = {"reassoc", "contract", "nsz", "arcp"}
 def rls_update_inplace(
     theta: np.ndarray, P: np.ndarray, phi: np.ndarray, y: float,
     forgetting_factor: float, max_diag: float, p0: float, h: np.ndarray, w: np.ndarray,
+    q: int = 0, c_reg: float = 0.0, theta0: float = 0.0, pc: np.ndarray | None = None,
 ) -> tuple[float, int, int]:
     """One RLS step (eq. 38–40) in place on ``theta`` (nu,) and ``P`` (nu, nu), then the
-    wind-up guard: each diagonal element of P(k) capped at ``max_diag`` (module docstring).
+    wind-up guard: each diagonal element of P(k) capped at ``max_diag``, then the
+    regulariser's pseudo-measurement theta_q = theta0 of weight ``c_reg`` (module
+    docstring; 0: none) — one more update with lambda = 1 and regressor sqrt(c_reg) e_q:
+
+        p_q    = P(k) e_q                   (column q of the step's P(k))
+        theta <- theta + p_q c_reg (theta0 − theta_q) / (1 + c_reg P(k)_qq)
+        P     <- P(k) − c_reg p_q p_q^T / (1 + c_reg P(k)_qq)
+
+    fused into eq. 39's pass over P (p_q is made from P(k−1) and h first).
 
     ``P`` holds the symmetric covariance in its LOWER triangle (``P[i, j]``, j ≤ i); the
     strict upper triangle is neither read nor written.
@@ -61,6 +70,8 @@ def rls_update_inplace(
         max_diag: cap on every diagonal element of P(k) (``inf``: none, pure eq. 39).
         p0: reset value of P's diagonal if P ever lost positive definiteness.
         h, w: (nu,) work arrays.
+        q, c_reg, theta0: the regulariser's coordinate, weight and target; ``pc`` (nu,) its
+            work array (needed when ``c_reg`` > 0).
 
     Returns:
         (eps0, reset, capped) — the a priori error eq. 40; 1 if P had to be reset, else 0;
@@ -109,20 +120,45 @@ def rls_update_inplace(
             capped = 1
         else:
             w[i] = 1.0
-    bad = False
-    if capped == 0:
+    # the regulariser: column q of P(k) (eq. 39 and the guard's W, from P(k-1) and h), then
+    # theta's update; P's own is fused into eq. 39's pass below (g_i p_q[j])
+    cd = 0.0
+    if c_reg > 0.0 and pc is not None:
+        hqc = h[q] * c
+        wq = w[q] * inv_lam
+        for j in range(nu):
+            pjq = P[q, j] if j <= q else P[j, q]
+            pc[j] = (pjq - hqc * h[j]) * (wq * w[j])
+        den = 1.0 / (1.0 + c_reg * pc[q])
+        f = c_reg * (theta0 - theta[q]) * den
         for i in range(nu):
-            hic = h[i] * c
-            for j in range(i + 1):
-                P[i, j] = (P[i, j] - hic * h[j]) * inv_lam
-            if not (P[i, i] > 0.0):
-                bad = True
+            theta[i] += pc[i] * f
+        cd = c_reg * den
+    bad = False
+    if cd == 0.0:
+        if capped == 0:
+            for i in range(nu):
+                hic = h[i] * c
+                for j in range(i + 1):
+                    P[i, j] = (P[i, j] - hic * h[j]) * inv_lam
+                if not (P[i, i] > 0.0):
+                    bad = True
+        else:
+            for i in range(nu):
+                hic = h[i] * c
+                wi = w[i] * inv_lam
+                for j in range(i + 1):
+                    P[i, j] = (P[i, j] - hic * h[j]) * (wi * w[j])
+                if not (P[i, i] > 0.0):
+                    bad = True
     else:
+        assert pc is not None
         for i in range(nu):
             hic = h[i] * c
             wi = w[i] * inv_lam
+            gi = cd * pc[i]
             for j in range(i + 1):
-                P[i, j] = (P[i, j] - hic * h[j]) * (wi * w[j])
+                P[i, j] = (P[i, j] - hic * h[j]) * (wi * w[j]) - gi * pc[j]
             if not (P[i, i] > 0.0):
                 bad = True
     if bad:
@@ -132,31 +168,6 @@ def rls_update_inplace(
             P[i, i] = p0
         reset = 1
     return e, reset, capped
-
-
-@nb.njit(cache=True, nogil=True, inline="always", fastmath=FASTMATH)
-def regularize_inplace(theta: np.ndarray, P: np.ndarray, i: int, c: float, theta0: float,
-                       pc: np.ndarray) -> None:
-    """The regulariser's step (module docstring): the RLS update (eq. 38/39 with lambda = 1)
-    for the pseudo-measurement ``theta_i = theta0`` of weight ``c``, i.e. regressor
-    sqrt(c) e_i. In place on ``theta`` and on ``P``'s LOWER triangle; ``pc`` (nu,) work.
-
-        p_i    = P e_i                      (column i, from the lower triangle)
-        theta <- theta + p_i c (theta0 − theta_i) / (1 + c P_ii)
-        P     <- P − c p_i p_i^T / (1 + c P_ii)
-    """
-    nu = theta.shape[0]
-    for j in range(nu):
-        pc[j] = P[i, j] if j <= i else P[j, i]
-    den = 1.0 / (1.0 + c * pc[i])
-    f = c * (theta0 - theta[i]) * den
-    for j in range(nu):
-        theta[j] += pc[j] * f
-    cd = c * den
-    for a in range(nu):
-        ca = cd * pc[a]
-        for b in range(a + 1):
-            P[a, b] -= ca * pc[b]
 
 
 def regularization_weight(n_params: int, forgetting_factor: float, delta: float) -> float:

@@ -1,6 +1,7 @@
 """Benchmark: peak memory and speed of ``impactcli detect`` on long logs, streamed.
 
 Run: ``python tests/benchmarks/bench_stream.py [--minutes 10 60 180] [--joints 7]
+[--repeat N] [--busy]
 [--release REF] [--keep DIR]``.
 
 A synthetic arm (J joints, 1 kHz; each joint a sum of three sines, torque from a decoupled
@@ -23,6 +24,7 @@ worktree in the same environment on the same files, for durations up to
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import os
 import platform
@@ -120,7 +122,14 @@ def main() -> None:
     ap.add_argument("--variants", nargs="+", default=["plain", "signals", "rerun"],
                     choices=sorted(VARIANTS))
     ap.add_argument("--keep", type=Path)
+    ap.add_argument("--repeat", type=int, default=1,
+                    help="runs of each code, interleaved (this, release, this, ...); the "
+                         "table then gives each run and the medians")
+    ap.add_argument("--busy", action="store_true",
+                    help="keep one core busy (a spinning process) during the runs")
     args = ap.parse_args()
+    spinner = (subprocess.Popen([sys.executable, "-c", "while 1: pass"])
+               if args.busy else None)
     tmp = Path(args.keep or tempfile.mkdtemp(prefix="impactcli-bench-stream-"))
     tmp.mkdir(parents=True, exist_ok=True)
     exe = str(Path(sys.executable).with_name("impactcli"))
@@ -144,7 +153,7 @@ def main() -> None:
             size = log.stat().st_size / 1e6
             print(f"{minutes:g} min: wrote {size:.0f} MB in {time.perf_counter() - t:.0f} s",
                   file=sys.stderr)
-            for variant in args.variants:
+            for variant, _ in itertools.product(args.variants, range(args.repeat)):
                 out = tmp / f"out_{variant}"
                 cmd = _command(variant, exe, log, cfg, out)
                 wall, rss = measure(cmd, tmp)
@@ -161,6 +170,8 @@ def main() -> None:
                     shutil.rmtree(out, ignore_errors=True)
             log.unlink()
     finally:
+        if spinner is not None:
+            spinner.kill()
         if release is not None:
             subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force",
                             str(release)], check=False, capture_output=True)
@@ -168,12 +179,24 @@ def main() -> None:
             shutil.rmtree(tmp, ignore_errors=True)
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, "
           f"Python {platform.python_version()}; {args.joints} joints at {RATE_HZ:g} Hz, "
-          "calibrated config (decoupled model)")
+          "calibrated config (decoupled model)"
+          + ("; one core kept busy by a spinning process" if args.busy else "")
+          + f"; load average at the end {os.getloadavg()[0]:.1f}")
     print("| code | log | outputs | wall | × real time | peak RSS |")
     print("|---|---|---|---|---|---|")
     for r in rows:
         print(f"| {r['code']} | {r['minutes']:g} min ({r['csv_mb']:.0f} MB) | {r['variant']} "
               f"| {r['wall_s']:.1f} s | {r['x_real_time']:.0f}× | {r['peak_rss_mb']:.0f} MB |")
+    if args.repeat > 1:
+        print(f"medians of {args.repeat} interleaved runs:")
+        groups: dict[tuple[object, ...], list[dict[str, object]]] = {}
+        for r in rows:
+            groups.setdefault((r["code"], r["minutes"], r["variant"]), []).append(r)
+        for (code, minutes, variant), rs in groups.items():
+            each = [float(x["x_real_time"]) for x in rs]  # type: ignore[arg-type]
+            runs = ", ".join(f"{v:.0f}" for v in each)
+            print(f"| {code} | {minutes:g} min | {variant} | median "
+                  f"{float(np.median(each)):.1f}× real time ({runs}) |")
 
 
 #: Each variant's command-line options after the log.
