@@ -11,7 +11,7 @@ from typing import Any
 import click
 
 from ..detect.events import LONG_EVENT_S
-from ..errors import EXIT_BATCH, EXIT_DETECTED
+from ..errors import EXIT_BATCH, EXIT_DETECTED, one_line
 from .options import (
     executor_options,
     fail_usage,
@@ -274,10 +274,11 @@ def _echo_outcome(outcome: Any, debug: bool, single: bool) -> None:
 
     name = url_name(outcome.log_path)
     for w in outcome.warnings:
-        click.echo(f"impactcli: warning: {w}" if name in w else f"impactcli: warning: {name}: {w}",
+        click.echo(one_line(f"impactcli: warning: {w}" if name in w
+                            else f"impactcli: warning: {name}: {w}"),
                    err=True)
     if not outcome.ok:
-        click.echo(f"impactcli: error: {outcome.error}", err=True)
+        click.echo(f"impactcli: error: {one_line(outcome.error)}", err=True)
         if outcome.traceback and (debug or (single and outcome.error_class == "internal")):
             click.echo(outcome.traceback.rstrip(), err=True)
 

@@ -11,6 +11,8 @@ Failures per log (``JobOutcome.error_class``, with the exit code a one-log run w
 
 - ``data`` (3): the log, robot description, model or config is bad or missing
   (an :class:`~impactcli.errors.ImpactError`);
+- ``output`` (2): an output cannot be written (a full disk, a read-only one, no
+  permission, a folder in the way; also a full ``TMPDIR``): the line names the output;
 - ``io`` (3): an I/O error that persisted: transient ones (timeouts, connection errors,
   ``EIO``…, see :func:`impactcli.logs.urls.is_transient`) are first retried
   :data:`~impactcli.logs.urls.IO_RETRIES` times with backoff
@@ -34,7 +36,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..errors import EXIT_DATA, EXIT_SOFTWARE, ImpactError, ImpactWarning
+from ..errors import (
+    EXIT_DATA,
+    EXIT_SOFTWARE,
+    EXIT_USAGE,
+    ImpactError,
+    ImpactWarning,
+    OutputError,
+)
+from ..files import OUTPUT_ERRNOS
 from ..types import DETECTORS
 from .job import output_stem, run_log_from_paths
 
@@ -127,13 +137,24 @@ def run_detect_job(job: DetectJob) -> JobOutcome:
             outputs, summary, extra = retry_transient(attempt)
         except ImpactError as err:
             transient = is_transient(err)
-            return JobOutcome(job.log_path, False, error=_with_tries(str(err), transient),
-                              exit_code=err.exit_code, error_class="io" if transient else "data",
+            cls = ("output" if isinstance(err, OutputError) else
+                   "io" if transient else "data")
+            return JobOutcome(job.log_path, False,
+                              error=_naming(job, _with_tries(str(err), transient)),
+                              exit_code=err.exit_code, error_class=cls,
                               warnings=_msgs(caught), attempts=attempts, traceback=_tb(err))
         except OSError as err:
-            where = getattr(err, "filename", None) or job.log_path
+            where = getattr(err, "filename", None)
             why = err.strerror or str(err) or type(err).__name__
-            msg = _with_tries(f"{job.log_path}: I/O error on {where}: {why}",
+            if err.errno in OUTPUT_ERRNOS:  # the output side's fault, whoever met it
+                return JobOutcome(job.log_path, False,
+                                  error=f"{job.log_path}: cannot write "
+                                        f"{where or 'its outputs in ' + job.out_dir}: {why}",
+                                  exit_code=EXIT_USAGE, error_class="output",
+                                  warnings=_msgs(caught), attempts=attempts,
+                                  traceback=_tb(err))
+            on = f" on {where}" if where else ""  # never blame the log for an error without a file
+            msg = _with_tries(f"{job.log_path}: I/O error{on}: {why}",
                               is_transient(err) and attempts > IO_RETRIES)
             return JobOutcome(job.log_path, False, error=msg, exit_code=EXIT_DATA,
                               error_class="io", warnings=_msgs(caught), attempts=attempts,
@@ -147,6 +168,12 @@ def run_detect_job(job: DetectJob) -> JobOutcome:
                               warnings=_msgs(caught), attempts=attempts, traceback=tb)
     return JobOutcome(job.log_path, True, summary=summary, outputs=outputs,
                       warnings=tuple(dict.fromkeys(_msgs(caught) + extra)), attempts=attempts)
+
+
+def _naming(job: DetectJob, msg: str) -> str:
+    """``msg`` led by the job's log when it does not name it (a batch line always names
+    the log it concerns: an output's or ``TMPDIR``'s error names only those)."""
+    return msg if job.log_path in msg else f"{job.log_path}: {msg}"
 
 
 def _with_tries(msg: str, transient: bool) -> str:
