@@ -155,7 +155,7 @@ def remove_stale_parts(folder: str | os.PathLike[str]) -> list[Path]:
     for p in d.glob(".*.part"):
         pid = _part_pid(p.name)
         try:
-            stale = (not _running(pid) if pid is not None
+            stale = (not process_running(pid) if pid is not None
                      else now - p.stat().st_mtime > LEGACY_PART_AGE_S)
             if stale and p.is_file():
                 p.unlink()
@@ -173,7 +173,7 @@ def _part_pid(name: str) -> int | None:
     return int(pid) if dash and pid.isdigit() and len(rand) == 8 else None
 
 
-def _running(pid: int) -> bool:
+def process_running(pid: int) -> bool:
     """Whether process ``pid`` runs on this machine (a zombie counts as ended)."""
     if pid == os.getpid():
         return True

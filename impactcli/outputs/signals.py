@@ -83,19 +83,7 @@ class SignalsWriter:
         self._rows += table.num_rows
 
     def _verify(self, tmp: Path) -> None:
-        """The written file before it is moved into place: a Parquet file (its magic at
-        both ends) whose footer parses and counts every row appended."""
-        import pyarrow.parquet as pq
-
-        with open(tmp, "rb") as f:
-            head = f.read(4)
-            f.seek(-4, os.SEEK_END)
-            tail = f.read(4)
-        if head != b"PAR1" or tail != b"PAR1":
-            raise ValueError("not a whole Parquet file (no footer: truncated)")
-        rows = pq.ParquetFile(tmp).metadata.num_rows
-        if rows != self._rows:
-            raise ValueError(f"{rows} rows read back of {self._rows} written")
+        verify_parquet(tmp, self._rows)
 
     def __enter__(self) -> SignalsWriter:
         return self
@@ -111,6 +99,26 @@ class SignalsWriter:
             self._ctx.__exit__(type(failed), failed, failed.__traceback__)
             raise failed
         self._ctx.__exit__(exc_type, exc, tb)  # moves into place, or removes and re-raises
+
+
+def verify_parquet(tmp: Path, rows: int) -> None:
+    """A written signals file before it is moved into place: a Parquet file (its magic at
+    both ends) whose footer parses and counts the ``rows`` written; ValueError if not."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    with open(tmp, "rb") as f:
+        head = f.read(4)
+        f.seek(max(tmp.stat().st_size - 4, 0))
+        tail = f.read(4)
+    if head != b"PAR1" or tail != b"PAR1":
+        raise ValueError("not a whole Parquet file (no footer: truncated)")
+    try:
+        n = pq.ParquetFile(tmp).metadata.num_rows
+    except pa.ArrowException as err:
+        raise ValueError(f"its Parquet footer does not parse: {err}") from err
+    if n != rows:
+        raise ValueError(f"{n} rows read back of {rows} written")
 
 
 def signals_schema(path: str | os.PathLike[str]) -> tuple[list[str], dict[str, str], int]:
