@@ -11,7 +11,7 @@ from typing import Any
 import click
 
 from ..detect.events import LONG_EVENT_S
-from ..errors import EXIT_BATCH, EXIT_DETECTED, one_line
+from ..errors import EXIT_BATCH, EXIT_DETECTED, Interrupted, one_line
 from .options import (
     executor_options,
     fail_usage,
@@ -154,7 +154,7 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     (| head).
     """
     from ..logs.urls import expand_inputs
-    from ..run.batch import DetectJob, Timer, batch_summary, check_unique_stems, run_batch
+    from ..run.batch import DetectJob, Timer, check_unique_stems, run_batch
 
     paths = expand_inputs(logs)
     try:
@@ -184,10 +184,14 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     job_list = [DetectJob(p, out_dir, ropts, robot, model, config, signals, rerun,
                           model_from_log, generator, allow_slow, serial) for p in paths]
     debug = bool((click.get_current_context().find_root().obj or {}).get("debug"))
+    if "://" not in local_out:
+        from ..files import remove_stale_parts
+
+        remove_stale_parts(local_out)  # of a run killed before: a rerun redoes every log
     timer = Timer()
-    outcomes = []
+    outcomes: list[Any] = []
+    stream = run_batch(job_list, n_jobs=jobs, scheduler=scheduler)
     try:
-        stream = run_batch(job_list, n_jobs=jobs, scheduler=scheduler)
         for outcome in progress(stream, total=len(job_list), desc="detect"):
             _echo_outcome(outcome, debug, len(job_list) == 1)
             outcomes.append(outcome)
@@ -195,21 +199,14 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
         raise
     except OSError as err:  # the Dask scheduler cannot be reached
         fail_usage(f"cannot use {choice.describe()}: {err}")
-    wall = timer.elapsed()
-    order = {p: i for i, p in enumerate(paths)}
-    outcomes.sort(key=lambda o: order[o.log_path])
-    summary = batch_summary(outcomes, wall_s=wall,
-                            executor={**choice.to_dict(), "description": choice.describe()},
-                            inputs=inputs)
-    loads = {o.log_path: lasting_loads_of(o) for o in outcomes if o.ok}
-    _echo_table(outcomes, summary, out_dir, loads)
-    if summary_path is not None:
-        import json
-
-        from ..run.batch import write_text_to
-
-        write_text_to(summary_path, json.dumps(summary, indent=1, sort_keys=True,
-                                               allow_nan=False) + "\n")
+    except Interrupted:  # stopped: nothing more dispatched, the running logs abandoned
+        stream.close()   # (their temporary files removed); what finished is listed
+        _finish(outcomes, paths, choice, inputs, timer.elapsed(), out_dir, summary_path)
+        click.echo(f"impactcli: {len(outcomes)} of {len(paths)} logs finished before the "
+                   "stop; run the same command again to redo the batch", err=True)
+        raise
+    _, loads = _finish(outcomes, paths, choice, inputs, timer.elapsed(), out_dir,
+                       summary_path)
     failed = [o for o in outcomes if not o.ok]
     ok = [o for o in outcomes if o.ok]
     ctx = click.get_current_context()
@@ -235,6 +232,31 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
             click.echo(line, err=True)
         if over:
             ctx.exit(EXIT_DETECTED)
+
+
+def _finish(outcomes: list[Any], paths: list[str], choice: Any,
+            inputs: dict[str, dict[str, str]], wall: float, out_dir: str,
+            summary_path: str | None) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The table of the logs finished (in input order) and the ``--summary`` file: after
+    the batch, or after a stop (then it lists what finished). Returns the summary and each
+    finished log's lasting loads."""
+    from ..run.batch import batch_summary
+
+    order = {p: i for i, p in enumerate(paths)}
+    outcomes.sort(key=lambda o: order[o.log_path])
+    summary = batch_summary(outcomes, wall_s=wall,
+                            executor={**choice.to_dict(), "description": choice.describe()},
+                            inputs=inputs)
+    loads = {o.log_path: lasting_loads_of(o) for o in outcomes if o.ok}
+    _echo_table(outcomes, summary, out_dir, loads)
+    if summary_path is not None:
+        import json
+
+        from ..run.batch import write_text_to
+
+        write_text_to(summary_path, json.dumps(summary, indent=1, sort_keys=True,
+                                               allow_nan=False) + "\n")
+    return summary, loads
 
 
 def _over_force(outcome: Any, limit: float) -> str | None:

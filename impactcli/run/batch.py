@@ -31,7 +31,7 @@ import tempfile
 import time
 import traceback
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Generator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -290,18 +290,23 @@ def lost_outcome(job: DetectJob, reason: str, kind: str, tb: str = "") -> JobOut
 
 
 def run_batch(jobs: Sequence[DetectJob], *, n_jobs: int | None = None,
-              scheduler: str | None = None, client: Any = None) -> Iterator[JobOutcome]:
+              scheduler: str | None = None, client: Any = None
+              ) -> Generator[JobOutcome, None, None]:
     """Run detection jobs where :func:`impactcli.run.executors.choose_executor` says; yield
     outcomes in completion order (every outcome carries its log path). A dead worker's
     jobs are re-run once, then reported failed (:mod:`impactcli.run.executors`)."""
     from .executors import TaskFailure, run_tasks
 
-    for i, res in run_tasks(run_detect_job, list(jobs), jobs=n_jobs, scheduler=scheduler,
-                            client=client):
-        if isinstance(res, TaskFailure):
-            yield lost_outcome(jobs[i], res.reason, res.kind, res.traceback)
-        else:
-            yield res
+    tasks = run_tasks(run_detect_job, list(jobs), jobs=n_jobs, scheduler=scheduler,
+                      client=client)
+    try:
+        for i, res in tasks:
+            if isinstance(res, TaskFailure):
+                yield lost_outcome(jobs[i], res.reason, res.kind, res.traceback)
+            else:
+                yield res
+    finally:  # a consumer that stops early stops the executor now (its pool's workers)
+        tasks.close()
 
 
 def batch_summary(outcomes: Sequence[JobOutcome], *, wall_s: float,
