@@ -148,10 +148,13 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     from each log itself and the thresholds come from the log's own statistics: the run is
     marked uncalibrated. A log that fails is reported and the others go on. Exit 0
     whether or not collisions are found (unless --fail-on-detect or --fail-on-force: 1,
-    with the incident or lasting load above the force named on stderr); 3 on a bad input; 4
-    when some logs of a batch failed (the others' outputs are written); 70 on an internal
-    error (a bug, with its traceback) — never 1; 141 when stdout's reader closed early
-    (| head).
+    with the incident or lasting load above the force named on stderr); 2 when an output
+    cannot be written (a full disk: the output named); 3 on a bad input; 4 when some logs
+    of a batch failed (the others' outputs are written); 70 on an internal error (a bug,
+    with its traceback) — never 1; 130 on SIGINT (Ctrl-C) and 143 on SIGTERM (the logs
+    finished are listed, their outputs kept); 141 when stdout's reader closed early
+    (| head). Run into a folder it wrote before, it redoes every log and removes the
+    temporary .part files a killed run left there.
     """
     from ..logs.urls import expand_inputs
     from ..run.batch import DetectJob, Timer, check_unique_stems, run_batch
