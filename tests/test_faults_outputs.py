@@ -269,3 +269,48 @@ def test_a_real_full_disk_fails_fast_with_exit_2(tiny_disk: Path, flag: str) -> 
         f"impactcli: error: {LOG}: cannot write {out / name}: No space left on device"
         + (" (the Rerun SDK's file writer stopped)" if flag == "--rerun" else "")]
     assert list(out.iterdir()) == []
+
+
+def test_a_sink_that_never_finishes_is_given_up_on(
+        monkeypatch: pytest.MonkeyPatch, tmp_path: Path, small_log: Path) -> None:
+    """The fallback for an SDK that blocks on a failed file sink: the flush waited for at
+    most SINK_TIMEOUT_S, then exit 2 naming the recording, and nothing left."""
+    import threading
+    import time
+
+    import rerun as rr
+
+    from impactcli.outputs import rerun as writer
+
+    release = threading.Event()
+    real_flush = rr.RecordingStream.flush
+
+    def hung_flush(self: rr.RecordingStream, *a: object, **k: object) -> None:
+        release.wait(30)  # a sink that does not answer (released at the end of the test)
+        real_flush(self)
+
+    monkeypatch.setattr(rr.RecordingStream, "flush", hung_flush)
+    monkeypatch.setattr(writer, "SINK_TIMEOUT_S", 0.5)
+    out = tmp_path / "out"
+    t0 = time.monotonic()
+    try:
+        code, _, err = _run("detect", str(small_log), "--config", str(CONFIG), "--rerun",
+                            "-o", str(out))
+    finally:
+        release.set()
+    assert time.monotonic() - t0 < 15
+    assert code == 2
+    assert err.splitlines() == [
+        f"impactcli: error: {small_log}: cannot write {out / 'x.rrd'}: the Rerun SDK did not "
+        "finish its file within 0.5 s (a full or failed disk?); given up"]
+    assert not [p for p in out.iterdir() if p.name.endswith((".rrd", ".part"))]
+
+
+def test_a_newline_in_a_log_name_stays_one_line_in_the_table(
+        tmp_path: Path, small_log: Path) -> None:
+    odd = tmp_path / "odd\nname.csv"
+    shutil.copy(small_log, odd)
+    code, out, _ = _run("detect", str(odd), "--config", str(CONFIG), "-o", str(tmp_path / "o"))
+    assert code == 0
+    rows = [ln for ln in out.splitlines() if ln.startswith("odd")]
+    assert len(rows) == 1 and rows[0].startswith("odd\\nname.csv ")

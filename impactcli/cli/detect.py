@@ -64,7 +64,7 @@ def _fmt_row(s: dict[str, Any], lasting: int) -> str:
     from ..logs.urls import url_name
 
     cal = "yes" if s["calibrated"] else "no"
-    return (f"{url_name(s['log']):<36} {s['duration_s']:>9.1f} {cal:>10} "
+    return (f"{one_line(url_name(s['log'])):<36} {s['duration_s']:>9.1f} {cal:>10} "
             f"{s['warmup_end_s']:>7.2f} {s.get('incidents', 0):>9} {lasting:>7} | "
             f"{s['adaptive']:>8} {s['static_loading']:>8} {s['static_baseline']:>8}")
 
@@ -274,7 +274,8 @@ def _over_force(outcome: Any, limit: float) -> str | None:
     inc = over[0]
     link = f"link {inc['link']}" if inc["link"] is not None else "an unknown link"
     more = f" ({len(over)} incidents above it)" if len(over) > 1 else ""
-    return (f"impactcli: {url_name(outcome.log_path)}: the incident at {inc['t_start']:.3f} s "
+    name = one_line(url_name(outcome.log_path))
+    return (f"impactcli: {name}: the incident at {inc['t_start']:.3f} s "
             f"on {link}, ~{inc['force_n']:.3g} N, exceeds --fail-on-force {limit:g} N{more}")
 
 
@@ -287,7 +288,7 @@ def _load_over(outcome: Any, loads: list[dict[str, Any]], limit: float) -> str |
         return None
     x = over[0]
     link = f"link {x['link']}" if x.get("link") is not None else "an unknown link"
-    return (f"impactcli: {url_name(outcome.log_path)}: the lasting load from "
+    return (f"impactcli: {one_line(url_name(outcome.log_path))}: the lasting load from "
             f"{x['t_start']:.3f} s on {link}, ~{x['force_n']:.3g} N, exceeds "
             f"--fail-on-force {limit:g} N")
 
@@ -297,7 +298,7 @@ def _echo_outcome(outcome: Any, debug: bool, single: bool) -> None:
     or for a bug (``internal``) in a one-log run."""
     from ..logs.urls import url_name
 
-    name = url_name(outcome.log_path)
+    name = one_line(url_name(outcome.log_path))
     for w in outcome.warnings:
         click.echo(one_line(f"impactcli: warning: {w}" if name in w
                             else f"impactcli: warning: {name}: {w}"),
@@ -338,7 +339,7 @@ def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str,
             click.echo("residual generator: " + _generators_line(ok[0].summary))
         else:
             for o in ok[:MAX_ROWS]:
-                click.echo(f"residual generator of {url_name(o.log_path)}: "
+                click.echo(f"residual generator of {one_line(url_name(o.log_path))}: "
                            + _generators_line(o.summary))
         click.echo(f"(incidents, lasting loads and events per detector after warm-up; an "
                    f"incident is one contact, made of the adaptive and loading events; a "
@@ -346,7 +347,8 @@ def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str,
                    f"{out_dir})")
         if len(ok) == 1 and ok[0].summary.get("incident_list"):
             lst = ok[0].summary["incident_list"]
-            click.echo(f"incidents of {url_name(ok[0].log_path)}:  #  start       link      "
+            first = one_line(url_name(ok[0].log_path))
+            click.echo(f"incidents of {first}:  #  start       link      "
                        "force  contact      detectors")
             # the counted incidents in time order: k is the incident's number (the report's)
             for k, inc in enumerate(lst[:MAX_INCIDENTS_LISTED], 1):
@@ -354,7 +356,8 @@ def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str,
             if len(lst) > MAX_INCIDENTS_LISTED:
                 click.echo(f"  ... {len(lst) - MAX_INCIDENTS_LISTED} more (in the timeline)")
         if len(ok) == 1 and loads[ok[0].log_path]:
-            click.echo(f"lasting loads of {url_name(ok[0].log_path)} (an unknown payload, a "
+            first = one_line(url_name(ok[0].log_path))
+            click.echo(f"lasting loads of {first} (an unknown payload, a "
                        "clamp, or a model that no longer fits):")
             for k, x in enumerate(loads[ok[0].log_path], 1):
                 click.echo(_lasting_line(k, x))

@@ -174,12 +174,16 @@ def write_recording(result: Any, spill: ColumnSpill, path: str | os.PathLike[str
 SINK_TIMEOUT_S = 120.0
 
 
-def _bounded(fn: Callable[[], None], target: Path, what: str,
-             timeout_s: float = SINK_TIMEOUT_S) -> None:
+def sink_call(fn: Callable[[], None], target: Path, what: str,
+              timeout_s: float | None = None) -> None:
     """Run ``fn`` (a call into the SDK's sink) in a helper thread and wait at most
-    ``timeout_s`` for it: past that, give up — OutputError naming ``target`` — and leave
-    the thread behind (a daemon). Its errors are raised here."""
+    ``timeout_s`` (default :data:`SINK_TIMEOUT_S`) for it: past that, give up —
+    OutputError naming ``target`` — and leave the thread behind (a daemon). Its errors are
+    raised here."""
     import threading
+
+    if timeout_s is None:
+        timeout_s = SINK_TIMEOUT_S
 
     failed: list[BaseException] = []
 
@@ -274,10 +278,15 @@ def open_recording(path: str | os.PathLike[str], result: Any, has_reference: boo
     prepare_output(target)
     tmp = part_path(target)
     rec = rr.RecordingStream(look.APPLICATION_ID, recording_id=recording_id)
+
+    def finish() -> None:
+        rec.flush(timeout_sec=SINK_TIMEOUT_S)
+        rec.disconnect()
+
     open_sink = True
     try:
         try:
-            _bounded(lambda: rec.save(str(tmp), default_blueprint=look.default_blueprint(
+            sink_call(lambda: rec.save(str(tmp), default_blueprint=look.default_blueprint(
                 log.joint_names, has_reference, duration_s=log.duration_s)), target, "open")
             rec.send_recording_name(Path(log.source.path).name or "impactcli run")
             rec.log("/run/info", rr.TextDocument(look.markdown_summary(result),
@@ -285,8 +294,7 @@ def open_recording(path: str | os.PathLike[str], result: Any, has_reference: boo
                     static=True, strict=True)
             yield rec
             open_sink = False
-            _bounded(lambda: (rec.flush(timeout_sec=SINK_TIMEOUT_S), rec.disconnect())[1],
-                     target, "finish")
+            sink_call(finish, target, "finish")
         except Exception as err:
             if (out := sdk_write_error(target, err)) is not None:
                 raise out from err
@@ -295,7 +303,7 @@ def open_recording(path: str | os.PathLike[str], result: Any, has_reference: boo
     except BaseException:
         if open_sink:
             with contextlib.suppress(Exception):
-                _bounded(rec.disconnect, target, "close", timeout_s=5.0)
+                sink_call(rec.disconnect, target, "close", timeout_s=5.0)
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
