@@ -296,13 +296,18 @@ def run_tasks(fn: Callable[[T], R], items: Sequence[T], *, jobs: int | None = No
         return
     with make_executor(jobs, scheduler, environ=environ, client=client) as ex:
         futures = {ex.submit(fn, item): i for i, item in enumerate(items)}
-        for fut in as_completed(futures):
-            try:
-                res = fut.result()
-            except Exception as err:
-                yield futures[fut], _failure(err)
-            else:
-                yield futures[fut], res
+        try:
+            for fut in as_completed(futures):
+                try:
+                    res = fut.result()
+                except Exception as err:
+                    yield futures[fut], _failure(err)
+                else:
+                    yield futures[fut], res
+        except BaseException:  # stopped (a signal, a consumer gone): dispatch nothing more
+            for fut in futures:
+                fut.cancel()
+            raise
 
 
 def _run_pool(fn: Callable[[T], R], items: Sequence[T],
