@@ -73,7 +73,7 @@ def test_a_full_disk_is_exit_2_naming_the_output_and_leaves_nothing(
     assert hit, "the writer never reached the seam"
     assert code == 2
     assert err.splitlines() == [
-        f"impactcli: error: {small_log}: cannot write {out / named}: No space left on device"]
+        f"impactcli: error: cannot write {out / named}: No space left on device"]
     # nothing under a final name of what failed, and no temporary file anywhere
     left = sorted(p.name for p in out.iterdir())
     assert not [n for n in left if n.endswith(".part")]
@@ -122,7 +122,7 @@ def test_a_truncated_output_is_never_moved_into_place(
                         "-o", str(out))
     assert code == 2
     [line] = err.splitlines()
-    assert line.startswith(f"impactcli: error: {small_log}: cannot write {out}/x{suffix}: ")
+    assert line.startswith(f"impactcli: error: cannot write {out}/x{suffix}: ")
     assert why in line
     assert not [p for p in out.iterdir() if p.name.endswith((suffix, ".part"))]
 
@@ -185,6 +185,20 @@ def test_an_oserror_without_a_file_name_does_not_blame_the_log(
     code, _, err = _run("detect", str(small_log), "--config", str(CONFIG), "-o", str(out))
     assert code == 3
     assert err.splitlines() == [f"impactcli: error: {small_log}: I/O error: Invalid argument"]
+
+
+def test_a_full_disk_in_a_batch_names_each_log(
+        monkeypatch: pytest.MonkeyPatch, tmp_path: Path, small_log: Path) -> None:
+    _full_disk_for(monkeypatch, ".rrd")
+    second = tmp_path / "y.csv"
+    shutil.copy(small_log, second)
+    out = tmp_path / "out"
+    code, _, err = _run("detect", str(small_log), str(second), "--config", str(CONFIG),
+                        "--rerun", "-o", str(out))
+    assert code == 2
+    assert [ln for ln in err.splitlines() if ln.startswith("impactcli: error: ")] == [
+        f"impactcli: error: {log}: cannot write {out / log.stem}.rrd: No space left on device"
+        for log in (small_log, second)]
 
 
 def test_a_full_tmpdir_in_a_batch_names_each_log(
@@ -266,7 +280,7 @@ def test_a_real_full_disk_fails_fast_with_exit_2(tiny_disk: Path, flag: str) -> 
     name = "assist_free_p2p.rrd" if flag == "--rerun" else "assist_free_p2p.signals.parquet"
     assert proc.returncode == 2, proc.stderr
     assert proc.stderr.splitlines() == [
-        f"impactcli: error: {LOG}: cannot write {out / name}: No space left on device"
+        f"impactcli: error: cannot write {out / name}: No space left on device"
         + (" (the Rerun SDK's file writer stopped)" if flag == "--rerun" else "")]
     assert list(out.iterdir()) == []
 
@@ -301,7 +315,7 @@ def test_a_sink_that_never_finishes_is_given_up_on(
     assert time.monotonic() - t0 < 15
     assert code == 2
     assert err.splitlines() == [
-        f"impactcli: error: {small_log}: cannot write {out / 'x.rrd'}: the Rerun SDK did not "
+        f"impactcli: error: cannot write {out / 'x.rrd'}: the Rerun SDK did not "
         "finish its file within 0.5 s (a full or failed disk?); given up"]
     assert not [p for p in out.iterdir() if p.name.endswith((".rrd", ".part"))]
 

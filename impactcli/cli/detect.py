@@ -304,7 +304,10 @@ def _echo_outcome(outcome: Any, debug: bool, single: bool) -> None:
                             else f"impactcli: warning: {name}: {w}"),
                    err=True)
     if not outcome.ok:
-        click.echo(f"impactcli: error: {one_line(outcome.error)}", err=True)
+        # in a batch every line names its log (an output's or TMPDIR's error names those)
+        error = (outcome.error if single or outcome.log_path in outcome.error
+                 else f"{outcome.log_path}: {outcome.error}")
+        click.echo(f"impactcli: error: {one_line(error)}", err=True)
         if outcome.traceback and (debug or (single and outcome.error_class == "internal")):
             click.echo(outcome.traceback.rstrip(), err=True)
 

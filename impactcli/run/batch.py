@@ -139,8 +139,7 @@ def run_detect_job(job: DetectJob) -> JobOutcome:
             transient = is_transient(err)
             cls = ("output" if isinstance(err, OutputError) else
                    "io" if transient else "data")
-            return JobOutcome(job.log_path, False,
-                              error=_naming(job, _with_tries(str(err), transient)),
+            return JobOutcome(job.log_path, False, error=_with_tries(str(err), transient),
                               exit_code=err.exit_code, error_class=cls,
                               warnings=_msgs(caught), attempts=attempts, traceback=_tb(err))
         except OSError as err:
@@ -168,12 +167,6 @@ def run_detect_job(job: DetectJob) -> JobOutcome:
                               warnings=_msgs(caught), attempts=attempts, traceback=tb)
     return JobOutcome(job.log_path, True, summary=summary, outputs=outputs,
                       warnings=tuple(dict.fromkeys(_msgs(caught) + extra)), attempts=attempts)
-
-
-def _naming(job: DetectJob, msg: str) -> str:
-    """``msg`` led by the job's log when it does not name it (a batch line always names
-    the log it concerns: an output's or ``TMPDIR``'s error names only those)."""
-    return msg if job.log_path in msg else f"{job.log_path}: {msg}"
 
 
 def _with_tries(msg: str, transient: bool) -> str:
