@@ -23,6 +23,10 @@ EXIT_BATCH = 4
 EXIT_UNAVAILABLE = 69
 #: An internal error (a bug, or a worker that died): sysexits.h EX_SOFTWARE.
 EXIT_SOFTWARE = 70
+#: Stopped by SIGINT (Ctrl-C) or SIGTERM: the shell's 128 + the signal's number. They win
+#: over 1 and 4: a run that was stopped judged nothing.
+EXIT_SIGINT = 130
+EXIT_SIGTERM = 143
 
 
 class ImpactError(Exception):
@@ -85,6 +89,30 @@ class BatchError(ImpactError):
     """A batch finished but some inputs failed (their outputs are not written)."""
 
     exit_code = EXIT_BATCH
+
+
+class Interrupted(BaseException):
+    """The run was stopped by a signal (SIGINT or SIGTERM): raised where the main process
+    stands, so that every ``with`` and ``finally`` on the way out runs (temporary files
+    removed, outputs already moved into place kept). Not an :class:`ImpactError` (nothing
+    was wrong with the input) and not an ``Exception`` (a batch's per-log ``except
+    Exception`` must not swallow it)."""
+
+    def __init__(self, signum: int, name: str) -> None:
+        super().__init__(name)
+        self.signum = signum
+        self.name = name
+        self.exit_code = 128 + signum
+
+
+def one_line(text: object) -> str:
+    """``text`` with its control characters escaped (a newline as ``\\n``), so that a
+    message naming a file called ``a\\nb.csv`` stays one line."""
+    s = str(text)
+    if s.isprintable():
+        return s
+    return "".join(c if c.isprintable() or c == " " else
+                   c.encode("unicode_escape").decode("ascii") for c in s)
 
 
 class ImpactWarning(UserWarning):

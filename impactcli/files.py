@@ -9,12 +9,15 @@ error line naming the file (:func:`load_mapping`).
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import json
 import os
+import secrets
 import tempfile
+import time
 import tomllib
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import IO, Any
@@ -33,32 +36,158 @@ def sha256_file(path: str | os.PathLike[str], chunk: int = 1 << 20) -> str:
     return h.hexdigest()
 
 
-@contextmanager
-def atomic_output(path: str | os.PathLike[str], mode: str = "wb") -> Iterator[IO]:  # type: ignore[type-arg]
-    """Open a temporary sibling of ``path`` for writing; move it into place on success.
+#: errno values that are the output side's fault whoever meets them (a full disk, a quota,
+#: a read-only file system, a file too large): an output that cannot be written, exit 2.
+OUTPUT_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG})
+#: A ``.part`` file named without its writer's process id (made by an older version) is
+#: stale once this old [s].
+LEGACY_PART_AGE_S = 3600.0
 
-    On any exception the temporary file is removed and ``path`` is untouched.
+
+def output_error(path: str | os.PathLike[str], err: BaseException) -> OutputError:
+    """The one line of an output that cannot be written: its path and the reason."""
+    why = err.strerror if isinstance(err, OSError) and err.strerror else str(err)
+    return OutputError(f"cannot write {path}: {why or type(err).__name__}")
+
+
+def part_path(target: str | os.PathLike[str]) -> Path:
+    """A new empty temporary sibling of ``target`` (0666 less the umask):
+    ``.<name>.<pid>-<random>.part``, the writer's process id in its name so that a later run
+    can tell a killed writer's file (:func:`remove_stale_parts`)."""
+    t = Path(target)
+    for _ in range(100):
+        tmp = t.with_name(f".{t.name}.{os.getpid()}-{secrets.token_hex(4)}.part")
+        try:
+            os.close(os.open(tmp, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o666))
+        except FileExistsError:
+            continue
+        except OSError as err:
+            raise output_error(target, err) from err
+        return tmp
+    raise OutputError(f"cannot write {target}: no free temporary name beside it")
+
+
+def sync_output(tmp: str | os.PathLike[str]) -> None:
+    """Flush a finished temporary output to the disk (``fsync``): a full disk or a failed
+    device that the writes did not report shows here. Every output goes through it
+    (:func:`finish_output`): the seam where the tests inject a full disk."""
+    fd = os.open(tmp, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def finish_output(tmp: str | os.PathLike[str], target: str | os.PathLike[str],
+                  verify: Callable[[Path], None] | None = None) -> None:
+    """Move a written temporary file onto ``target`` once it is on the disk
+    (:func:`sync_output`) and ``verify(tmp)`` accepts it (raising names what is wrong);
+    on any failure the temporary file is removed, ``target`` is untouched and the error is
+    :func:`output_error`'s one line naming ``target``."""
+    try:
+        sync_output(tmp)
+        if verify is not None:
+            verify(Path(tmp))
+        os.replace(tmp, target)
+    except BaseException as err:
+        with suppress(FileNotFoundError):
+            os.unlink(tmp)
+        if isinstance(err, OSError | ValueError):
+            raise output_error(target, err) from err
+        raise
+
+
+def check_size(expected: int) -> Callable[[Path], None]:
+    """A :func:`finish_output` check: the file holds the ``expected`` bytes written."""
+    def verify(tmp: Path) -> None:
+        size = tmp.stat().st_size
+        if size != expected:
+            raise ValueError(f"{size} bytes on disk of {expected} written (truncated)")
+    return verify
+
+
+@contextmanager
+def atomic_output(path: str | os.PathLike[str], mode: str = "wb",
+                  verify: Callable[[Path], None] | None = None) -> Iterator[IO]:  # type: ignore[type-arg]
+    """Open a temporary sibling of ``path`` for writing; move it into place on success,
+    once flushed to the disk and checked: its size is what was written, and ``verify``
+    (if given) accepts it (:func:`finish_output`).
+
+    On any exception the temporary file is removed and ``path`` is untouched; a write
+    that fails for want of space or a read-only disk (:data:`OUTPUT_ERRNOS`) is an
+    :class:`~impactcli.errors.OutputError` naming ``path`` (exit 2).
     """
     target = Path(path)
     prepare_output(target)
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part",
-                                   dir=target.parent)
-    except OSError as err:
-        raise OutputError(f"cannot write {path}: {err.strerror or err}") from err
+    tmp = part_path(target)
     try:
         encoding = None if "b" in mode else "utf-8"
-        with os.fdopen(fd, mode, encoding=encoding) as f:
+        with open(tmp, mode, encoding=encoding) as f:
             yield f
-        os.chmod(tmp, 0o666 & ~umask())  # mkstemp makes 0600; outputs are ordinary files
-        try:
-            os.replace(tmp, target)
-        except OSError as err:
-            raise OutputError(f"cannot write {path}: {err.strerror or err}") from err
-    except BaseException:
+            f.flush()
+            written = f.tell() if "b" in mode else f.buffer.tell()  # type: ignore[attr-defined]
+    except BaseException as err:
         with suppress(FileNotFoundError):
             os.unlink(tmp)
+        if isinstance(err, OSError) and err.errno in OUTPUT_ERRNOS:
+            raise output_error(path, err) from err
         raise
+    size_ok = check_size(written)
+
+    def checks(p: Path) -> None:
+        size_ok(p)
+        if verify is not None:
+            verify(p)
+
+    finish_output(tmp, target, checks)
+
+
+def remove_stale_parts(folder: str | os.PathLike[str]) -> list[Path]:
+    """Remove the ``.part`` files a killed run left in ``folder`` (not recursive): those
+    whose writer (the process id in the name, :func:`part_path`) is no longer running, and
+    those without one older than :data:`LEGACY_PART_AGE_S`. Another run still writing the
+    folder keeps its own. Returns the files removed."""
+    d = Path(folder)
+    if not d.is_dir():
+        return []
+    gone = []
+    now = time.time()
+    for p in d.glob(".*.part"):
+        pid = _part_pid(p.name)
+        try:
+            stale = (not process_running(pid) if pid is not None
+                     else now - p.stat().st_mtime > LEGACY_PART_AGE_S)
+            if stale and p.is_file():
+                p.unlink()
+                gone.append(p)
+        except OSError:  # gone meanwhile, or not ours to remove: left alone
+            continue
+    return gone
+
+
+def _part_pid(name: str) -> int | None:
+    """The writer's process id in a ``.part`` file's name (:func:`part_path`), or None."""
+    stem = name[: -len(".part")]
+    tail = stem.rsplit(".", 1)[-1]
+    pid, dash, rand = tail.partition("-")
+    return int(pid) if dash and pid.isdigit() and len(rand) == 8 else None
+
+
+def process_running(pid: int) -> bool:
+    """Whether process ``pid`` runs on this machine (a zombie counts as ended)."""
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # someone else's process
+        return True
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii") as f:
+            return f.read().rsplit(")", 1)[-1].split()[0] != "Z"
+    except OSError:  # no /proc (not Linux): the signal test is all there is
+        return True
 
 
 def check_output_folder(path: str | os.PathLike[str]) -> None:
@@ -94,17 +223,19 @@ def prepare_output(path: str | os.PathLike[str]) -> None:
         raise OutputError(f"cannot write {path}: no permission to write in {target.parent}")
 
 
-def umask() -> int:
-    """The process's file-mode creation mask (read without changing it)."""
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
 def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
-    """Write ``text`` (UTF-8) to ``path`` atomically."""
-    with atomic_output(path, "w") as f:
+    """Write ``text`` (UTF-8) to ``path`` atomically; a ``.json`` file must parse back."""
+    verify = check_json if Path(path).suffix.lower() == ".json" else None
+    with atomic_output(path, "w", verify=verify) as f:
         f.write(text)
+
+
+def check_json(tmp: Path) -> None:
+    """A :func:`finish_output` check: the file parses as JSON."""
+    try:
+        json.loads(tmp.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise ValueError(f"it does not parse back: {err}") from err
 
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:

@@ -91,14 +91,26 @@ class LazyGroup(click.Group):
         """Run the verb; stdout's reader closing early (``| head -1``) ends the run quietly
         with :data:`EXIT_BROKEN_PIPE` (click alone would exit 1, which reads as "collision
         found"). The outputs already written stay."""
+        from ..errors import EXIT_SIGINT, Interrupted
+        from ..run.stopping import stop_on_signals
+
         try:
             try:
-                return super().invoke(ctx)
+                with stop_on_signals():
+                    return super().invoke(ctx)
             finally:  # a pipe broken under still-buffered output shows here, not at exit
                 sys.stdout.flush()
         except BrokenPipeError:
             _quiet_broken_pipe()
             raise click.exceptions.Exit(EXIT_BROKEN_PIPE) from None
+        except (Interrupted, KeyboardInterrupt) as stop:
+            # 128 + the signal (130 SIGINT, 143 SIGTERM), over 1 and 4: a stopped run judged
+            # nothing; the outputs already written stay, no temporary file is left
+            name, code = ((stop.name, stop.exit_code) if isinstance(stop, Interrupted)
+                          else ("SIGINT", EXIT_SIGINT))
+            click.echo(f"impactcli: stopped by {name}: the outputs already written stay "
+                       f"(exit {code})", err=True)
+            raise click.exceptions.Exit(code) from None
 
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
         rows = [(v, VERBS[v][2]) for v in self.list_commands(ctx)]
@@ -119,8 +131,9 @@ def main(ctx: click.Context, debug: bool) -> None:
     written, or no room in TMPDIR);
     3 bad input (log, config, model, labels); 4 a batch where some inputs failed;
     69 this machine cannot do it (view without a display);
-    70 an internal error (a bug; its traceback is printed); 141 stdout's reader closed
-    early (| head), as for SIGPIPE.
+    70 an internal error (a bug; its traceback is printed); 130 stopped by SIGINT (Ctrl-C),
+    143 by SIGTERM (outputs already written stay); 141 stdout's reader closed early
+    (| head), as for SIGPIPE.
     """
     ctx.ensure_object(dict)
     obj: dict[str, Any] = ctx.obj

@@ -11,7 +11,7 @@ from typing import Any
 import click
 
 from ..detect.events import LONG_EVENT_S
-from ..errors import EXIT_BATCH, EXIT_DETECTED
+from ..errors import EXIT_BATCH, EXIT_DETECTED, Interrupted, one_line
 from .options import (
     executor_options,
     fail_usage,
@@ -64,7 +64,7 @@ def _fmt_row(s: dict[str, Any], lasting: int) -> str:
     from ..logs.urls import url_name
 
     cal = "yes" if s["calibrated"] else "no"
-    return (f"{url_name(s['log']):<36} {s['duration_s']:>9.1f} {cal:>10} "
+    return (f"{one_line(url_name(s['log'])):<36} {s['duration_s']:>9.1f} {cal:>10} "
             f"{s['warmup_end_s']:>7.2f} {s.get('incidents', 0):>9} {lasting:>7} | "
             f"{s['adaptive']:>8} {s['static_loading']:>8} {s['static_baseline']:>8}")
 
@@ -148,13 +148,16 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     from each log itself and the thresholds come from the log's own statistics: the run is
     marked uncalibrated. A log that fails is reported and the others go on. Exit 0
     whether or not collisions are found (unless --fail-on-detect or --fail-on-force: 1,
-    with the incident or lasting load above the force named on stderr); 3 on a bad input; 4
-    when some logs of a batch failed (the others' outputs are written); 70 on an internal
-    error (a bug, with its traceback) — never 1; 141 when stdout's reader closed early
-    (| head).
+    with the incident or lasting load above the force named on stderr); 2 when an output
+    cannot be written (a full disk: the output named); 3 on a bad input; 4 when some logs
+    of a batch failed (the others' outputs are written); 70 on an internal error (a bug,
+    with its traceback) — never 1; 130 on SIGINT (Ctrl-C) and 143 on SIGTERM (the logs
+    finished are listed, their outputs kept); 141 when stdout's reader closed early
+    (| head). Run into a folder it wrote before, it redoes every log and removes the
+    temporary .part files a killed run left there.
     """
     from ..logs.urls import expand_inputs
-    from ..run.batch import DetectJob, Timer, batch_summary, check_unique_stems, run_batch
+    from ..run.batch import DetectJob, Timer, check_unique_stems, run_batch
 
     paths = expand_inputs(logs)
     try:
@@ -184,10 +187,14 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     job_list = [DetectJob(p, out_dir, ropts, robot, model, config, signals, rerun,
                           model_from_log, generator, allow_slow, serial) for p in paths]
     debug = bool((click.get_current_context().find_root().obj or {}).get("debug"))
+    if "://" not in local_out:
+        from ..files import remove_stale_parts
+
+        remove_stale_parts(local_out)  # of a run killed before: a rerun redoes every log
     timer = Timer()
-    outcomes = []
+    outcomes: list[Any] = []
+    stream = run_batch(job_list, n_jobs=jobs, scheduler=scheduler)
     try:
-        stream = run_batch(job_list, n_jobs=jobs, scheduler=scheduler)
         for outcome in progress(stream, total=len(job_list), desc="detect"):
             _echo_outcome(outcome, debug, len(job_list) == 1)
             outcomes.append(outcome)
@@ -195,21 +202,14 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
         raise
     except OSError as err:  # the Dask scheduler cannot be reached
         fail_usage(f"cannot use {choice.describe()}: {err}")
-    wall = timer.elapsed()
-    order = {p: i for i, p in enumerate(paths)}
-    outcomes.sort(key=lambda o: order[o.log_path])
-    summary = batch_summary(outcomes, wall_s=wall,
-                            executor={**choice.to_dict(), "description": choice.describe()},
-                            inputs=inputs)
-    loads = {o.log_path: lasting_loads_of(o) for o in outcomes if o.ok}
-    _echo_table(outcomes, summary, out_dir, loads)
-    if summary_path is not None:
-        import json
-
-        from ..run.batch import write_text_to
-
-        write_text_to(summary_path, json.dumps(summary, indent=1, sort_keys=True,
-                                               allow_nan=False) + "\n")
+    except Interrupted:  # stopped: nothing more dispatched, the running logs abandoned
+        stream.close()   # (their temporary files removed); what finished is listed
+        _finish(outcomes, paths, choice, inputs, timer.elapsed(), out_dir, summary_path)
+        click.echo(f"impactcli: {len(outcomes)} of {len(paths)} logs finished before the "
+                   "stop; run the same command again to redo the batch", err=True)
+        raise
+    _, loads = _finish(outcomes, paths, choice, inputs, timer.elapsed(), out_dir,
+                       summary_path)
     failed = [o for o in outcomes if not o.ok]
     ok = [o for o in outcomes if o.ok]
     ctx = click.get_current_context()
@@ -237,6 +237,31 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
             ctx.exit(EXIT_DETECTED)
 
 
+def _finish(outcomes: list[Any], paths: list[str], choice: Any,
+            inputs: dict[str, dict[str, str]], wall: float, out_dir: str,
+            summary_path: str | None) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The table of the logs finished (in input order) and the ``--summary`` file: after
+    the batch, or after a stop (then it lists what finished). Returns the summary and each
+    finished log's lasting loads."""
+    from ..run.batch import batch_summary
+
+    order = {p: i for i, p in enumerate(paths)}
+    outcomes.sort(key=lambda o: order[o.log_path])
+    summary = batch_summary(outcomes, wall_s=wall,
+                            executor={**choice.to_dict(), "description": choice.describe()},
+                            inputs=inputs)
+    loads = {o.log_path: lasting_loads_of(o) for o in outcomes if o.ok}
+    _echo_table(outcomes, summary, out_dir, loads)
+    if summary_path is not None:
+        import json
+
+        from ..run.batch import write_text_to
+
+        write_text_to(summary_path, json.dumps(summary, indent=1, sort_keys=True,
+                                               allow_nan=False) + "\n")
+    return summary, loads
+
+
 def _over_force(outcome: Any, limit: float) -> str | None:
     """One line naming the log's first incident whose force exceeds ``limit`` (and how many
     do), or None when none does."""
@@ -249,7 +274,8 @@ def _over_force(outcome: Any, limit: float) -> str | None:
     inc = over[0]
     link = f"link {inc['link']}" if inc["link"] is not None else "an unknown link"
     more = f" ({len(over)} incidents above it)" if len(over) > 1 else ""
-    return (f"impactcli: {url_name(outcome.log_path)}: the incident at {inc['t_start']:.3f} s "
+    name = one_line(url_name(outcome.log_path))
+    return (f"impactcli: {name}: the incident at {inc['t_start']:.3f} s "
             f"on {link}, ~{inc['force_n']:.3g} N, exceeds --fail-on-force {limit:g} N{more}")
 
 
@@ -262,7 +288,7 @@ def _load_over(outcome: Any, loads: list[dict[str, Any]], limit: float) -> str |
         return None
     x = over[0]
     link = f"link {x['link']}" if x.get("link") is not None else "an unknown link"
-    return (f"impactcli: {url_name(outcome.log_path)}: the lasting load from "
+    return (f"impactcli: {one_line(url_name(outcome.log_path))}: the lasting load from "
             f"{x['t_start']:.3f} s on {link}, ~{x['force_n']:.3g} N, exceeds "
             f"--fail-on-force {limit:g} N")
 
@@ -272,12 +298,16 @@ def _echo_outcome(outcome: Any, debug: bool, single: bool) -> None:
     or for a bug (``internal``) in a one-log run."""
     from ..logs.urls import url_name
 
-    name = url_name(outcome.log_path)
+    name = one_line(url_name(outcome.log_path))
     for w in outcome.warnings:
-        click.echo(f"impactcli: warning: {w}" if name in w else f"impactcli: warning: {name}: {w}",
+        click.echo(one_line(f"impactcli: warning: {w}" if name in w
+                            else f"impactcli: warning: {name}: {w}"),
                    err=True)
     if not outcome.ok:
-        click.echo(f"impactcli: error: {outcome.error}", err=True)
+        # in a batch every line names its log (an output's or TMPDIR's error names those)
+        error = (outcome.error if single or outcome.log_path in outcome.error
+                 else f"{outcome.log_path}: {outcome.error}")
+        click.echo(f"impactcli: error: {one_line(error)}", err=True)
         if outcome.traceback and (debug or (single and outcome.error_class == "internal")):
             click.echo(outcome.traceback.rstrip(), err=True)
 
@@ -312,7 +342,7 @@ def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str,
             click.echo("residual generator: " + _generators_line(ok[0].summary))
         else:
             for o in ok[:MAX_ROWS]:
-                click.echo(f"residual generator of {url_name(o.log_path)}: "
+                click.echo(f"residual generator of {one_line(url_name(o.log_path))}: "
                            + _generators_line(o.summary))
         click.echo(f"(incidents, lasting loads and events per detector after warm-up; an "
                    f"incident is one contact, made of the adaptive and loading events; a "
@@ -320,7 +350,8 @@ def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str,
                    f"{out_dir})")
         if len(ok) == 1 and ok[0].summary.get("incident_list"):
             lst = ok[0].summary["incident_list"]
-            click.echo(f"incidents of {url_name(ok[0].log_path)}:  #  start       link      "
+            first = one_line(url_name(ok[0].log_path))
+            click.echo(f"incidents of {first}:  #  start       link      "
                        "force  contact      detectors")
             # the counted incidents in time order: k is the incident's number (the report's)
             for k, inc in enumerate(lst[:MAX_INCIDENTS_LISTED], 1):
@@ -328,7 +359,8 @@ def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str,
             if len(lst) > MAX_INCIDENTS_LISTED:
                 click.echo(f"  ... {len(lst) - MAX_INCIDENTS_LISTED} more (in the timeline)")
         if len(ok) == 1 and loads[ok[0].log_path]:
-            click.echo(f"lasting loads of {url_name(ok[0].log_path)} (an unknown payload, a "
+            first = one_line(url_name(ok[0].log_path))
+            click.echo(f"lasting loads of {first} (an unknown payload, a "
                        "clamp, or a model that no longer fits):")
             for k, x in enumerate(loads[ok[0].log_path], 1):
                 click.echo(_lasting_line(k, x))

@@ -16,7 +16,14 @@ from typing import Any, TypeVar
 
 import click
 
-from ..errors import EXIT_SOFTWARE, EXIT_USAGE, ImpactError, ImpactWarning, LogFormatError
+from ..errors import (
+    EXIT_SOFTWARE,
+    EXIT_USAGE,
+    ImpactError,
+    ImpactWarning,
+    LogFormatError,
+    one_line,
+)
 
 F = TypeVar("F", bound=Callable[..., Any])
 T = TypeVar("T")
@@ -37,9 +44,9 @@ def robot_help(what: str, url: bool = False) -> str:
 
 def _show_warning(message: Warning | str, category: type[Warning], *args: Any, **kw: Any) -> None:
     if issubclass(category, ImpactWarning):
-        click.echo(f"impactcli: warning: {message}", err=True)
+        click.echo(one_line(f"impactcli: warning: {message}"), err=True)
     else:  # a library's warning: still one line
-        click.echo(f"impactcli: warning: {category.__name__}: {message}", err=True)
+        click.echo(one_line(f"impactcli: warning: {category.__name__}: {message}"), err=True)
 
 
 def handle_errors(func: F) -> F:
@@ -66,7 +73,7 @@ def handle_errors(func: F) -> F:
         except ImpactError as err:
             if debug:
                 click.echo(traceback.format_exc().rstrip(), err=True)
-            click.echo(f"impactcli: error: {err}", err=True)
+            click.echo(f"impactcli: error: {one_line(err)}", err=True)
             ctx.exit(err.exit_code)
         except (click.exceptions.ClickException, click.exceptions.Exit,
                 click.exceptions.Abort):
@@ -312,5 +319,5 @@ def resolve_executor(jobs: int | None, scheduler: str | None) -> Any:
 
 def fail_usage(msg: str) -> None:
     """One line on stderr and exit 2 (a command-line or environment problem)."""
-    click.echo(f"impactcli: error: {msg}", err=True)
+    click.echo(f"impactcli: error: {one_line(msg)}", err=True)
     click.get_current_context().exit(EXIT_USAGE)

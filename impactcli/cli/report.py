@@ -31,7 +31,14 @@ from typing import Any
 
 import click
 
-from ..errors import EXIT_BATCH, EXIT_SOFTWARE, ImpactError, ImpactWarning, LogFormatError
+from ..errors import (
+    EXIT_BATCH,
+    EXIT_SOFTWARE,
+    ImpactError,
+    ImpactWarning,
+    LogFormatError,
+    one_line,
+)
 from .options import (
     executor_options,
     handle_errors,
@@ -386,7 +393,7 @@ def report_cmd(*, inputs: tuple[str, ...], html_path: Path, json_path: Path | No
     stream = run_tasks(analyze_input, tasks, jobs=jobs, scheduler=scheduler)
     for i, res in progress(stream, total=len(tasks), desc="report"):
         if isinstance(res, TaskFailure):
-            click.echo(f"impactcli: error: {paths[i]}: {res.reason}", err=True)
+            click.echo(one_line(f"impactcli: error: {paths[i]}: {res.reason}"), err=True)
             if res.traceback:  # a bug: keep its traceback
                 click.echo(res.traceback.rstrip(), err=True)
             err = ImpactError(f"{paths[i]}: {res.reason}")
@@ -394,13 +401,13 @@ def report_cmd(*, inputs: tuple[str, ...], html_path: Path, json_path: Path | No
             errors[i] = err
             continue
         for m in res.messages:
-            click.echo(f"impactcli: warning: {m}", err=True)
+            click.echo(one_line(f"impactcli: warning: {m}"), err=True)
         if res.error is not None:
-            click.echo(f"impactcli: error: {res.error}", err=True)
+            click.echo(one_line(f"impactcli: error: {res.error}"), err=True)
             errors[i] = res.error
             continue
         for w in res.run_warnings:
-            click.echo(f"impactcli: warning: {w}", err=True)
+            click.echo(one_line(f"impactcli: warning: {w}"), err=True)
         done[i] = res.rendered
     results = [done[i] for i in sorted(done)]  # input order, whatever finished first
     failed = [(paths[i], errors[i]) for i in sorted(errors)]

@@ -21,13 +21,13 @@ def robots_cmd(as_json: bool) -> None:
     They come with the robots extra (pip install 'impactcli[robots]'); only those whose
     URDF is installed and loads are listed. Meshes are never needed.
     """
-    from ..errors import EXIT_USAGE
+    from ..errors import EXIT_USAGE, one_line
     from ..logs import robot_catalogue as robots
 
     try:
         ok, bad = robots.available()
     except robots.RobotsExtraMissing as err:
-        click.echo(f"impactcli: error: {err}", err=True)
+        click.echo(f"impactcli: error: {one_line(err)}", err=True)
         click.get_current_context().exit(EXIT_USAGE)
         return
     doc: dict[str, Any] = {

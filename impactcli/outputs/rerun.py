@@ -22,13 +22,14 @@ from __future__ import annotations
 
 import contextlib
 import os
-import secrets
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..errors import OutputError
+from ..files import finish_output, part_path, prepare_output
 from ..types import DETECTORS
 from . import rerun_blueprint as look
 from .column_spill import ColumnSpill
@@ -112,7 +113,7 @@ def write_recording(result: Any, spill: ColumnSpill, path: str | os.PathLike[str
                     event_window_s: float = DEFAULT_EVENT_WINDOW_S,
                     recording_id: str | None = None) -> None:
     """The recording of ``result`` from its spill file (:class:`RerunWriter`), atomically."""
-    import rerun as rr
+    rr = import_rerun()
 
     spill.finish()
     joints = tuple(result.log.joint_names)
@@ -168,43 +169,141 @@ def write_recording(result: Any, spill: ColumnSpill, path: str | os.PathLike[str
         write_incidents(rec, result, n, at_samples)
 
 
-def _sibling(target: Path) -> Path:
-    """A new empty file beside ``target``, made with the ordinary mode (0666 less umask)."""
-    for _ in range(100):
-        tmp = target.with_name(f".{target.name}.{secrets.token_hex(4)}.part")
+#: How long the Rerun SDK may take to set up, flush and close a recording's file sink [s]
+#: before the writer gives up on it and says so (a sink that failed can block for good).
+SINK_TIMEOUT_S = 120.0
+
+
+def sink_call(fn: Callable[[], None], target: Path, what: str,
+              timeout_s: float | None = None) -> None:
+    """Run ``fn`` (a call into the SDK's sink) in a helper thread and wait at most
+    ``timeout_s`` (default :data:`SINK_TIMEOUT_S`) for it: past that, give up —
+    OutputError naming ``target`` — and leave the thread behind (a daemon). Its errors are
+    raised here."""
+    import threading
+
+    if timeout_s is None:
+        timeout_s = SINK_TIMEOUT_S
+
+    failed: list[BaseException] = []
+
+    def run() -> None:
         try:
-            os.close(os.open(tmp, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o666))
-        except FileExistsError:
-            continue
-        return tmp
-    raise FileExistsError(f"no free temporary name beside {target}")
+            fn()
+        except BaseException as err:
+            failed.append(err)
+
+    t = threading.Thread(target=run, name=f"impactcli-rrd-{what}", daemon=True)
+    t.start()
+    t.join(timeout_s)
+    if t.is_alive():
+        raise OutputError(f"cannot write {target}: the Rerun SDK did not {what} its file "
+                          f"within {timeout_s:g} s (a full or failed disk?); given up")
+    if failed:
+        raise failed[0]
+
+
+def sdk_write_error(target: Path, err: BaseException) -> OutputError | None:
+    """The SDK's error for a file sink that could not write (``Failed to encode LogMsg:
+    Failed to write: No space left on device (os error 28)``) as the one line of an output
+    that cannot be written; None for any other error."""
+    msg = str(err)
+    if not isinstance(err, RuntimeError | OSError) or not any(
+            k in msg for k in ("Failed to write", "os error", "File-writer")):
+        return None
+    if "Failed to write: " in msg:
+        why = msg.rsplit("Failed to write: ", 1)[-1].partition(" (os error")[0].strip()
+    else:  # the writer thread died and kept its reason to itself: look at the disk
+        try:
+            st = os.statvfs(target.parent)
+            full = st.f_bavail * st.f_frsize < 1 << 20
+        except (OSError, AttributeError):
+            full = False
+        why = (f"{'No space left on device' if full else 'the disk refused the writes'} "
+               "(the Rerun SDK's file writer stopped)")
+    return OutputError(f"cannot write {target}: {why}")
+
+
+def import_rerun() -> Any:
+    """``rerun``, its own log lines on stderr silenced (``RUST_LOG=off`` unless set): a
+    failure of its file sink is told by :func:`open_recording` as one line."""
+    os.environ.setdefault("RUST_LOG", "off")
+    import rerun as rr
+
+    return rr
+
+
+def verify_rrd(tmp: Path) -> None:
+    """A written recording before it is moved into place: the RRD header, the footer the
+    SDK writes last (rerun-sdk 0.41: the manifest's offset and size, a checksum,
+    ``RRF2FOOT``, a version) agreeing with the file's size, and the SDK's reader finding the
+    recording in it — what the viewer needs to open it. ValueError naming what is wrong."""
+    import struct
+    import warnings
+
+    import rerun as rr
+
+    size = tmp.stat().st_size
+    with open(tmp, "rb") as f:
+        head = f.read(4)
+        f.seek(max(size - 32, 0))
+        tail = f.read(32)
+    if head != b"RRF2" or size < 36 or tail[20:28] != b"RRF2FOOT":
+        raise ValueError("no RRD footer: the recording is truncated")
+    offset, length = struct.unpack("<QQ", tail[:16])
+    if offset + length + 32 != size:
+        raise ValueError("its RRD footer does not match its size: the recording is truncated")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            stores = rr.chunk.RrdReader(tmp).recordings()
+    except (Warning, RuntimeError) as err:
+        raise ValueError(f"the Rerun reader refuses it: {err}") from err
+    if not stores:
+        raise ValueError("the Rerun reader finds no recording in it")
 
 
 @contextlib.contextmanager
 def open_recording(path: str | os.PathLike[str], result: Any, has_reference: bool,
                    recording_id: str | None = None) -> Iterator[Any]:
-    """A Rerun recording of ``result`` written to a temporary sibling of ``path`` (with its
-    default blueprint, name and run summary) and moved into place when the block succeeds;
-    on any error the temporary file is removed and ``path`` is untouched."""
-    import rerun as rr
-
+    """A Rerun recording of ``result`` written by the SDK to a temporary sibling of ``path``
+    (with its default blueprint, name and run summary), then flushed, closed and checked
+    (:func:`verify_rrd`) and only then moved into place
+    (:func:`impactcli.files.finish_output`). On any error — the SDK's own when the disk is
+    full, a sink that does not finish within :data:`SINK_TIMEOUT_S` — the temporary file is
+    removed, ``path`` is untouched, and a write failure is an OutputError naming ``path``."""
+    rr = import_rerun()
     log = result.log
     target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = _sibling(target)
+    prepare_output(target)
+    tmp = part_path(target)
     rec = rr.RecordingStream(look.APPLICATION_ID, recording_id=recording_id)
+
+    def finish() -> None:
+        rec.flush(timeout_sec=SINK_TIMEOUT_S)
+        rec.disconnect()
+
+    open_sink = True
     try:
-        rec.save(str(tmp), default_blueprint=look.default_blueprint(
-            log.joint_names, has_reference, duration_s=log.duration_s))
-        rec.send_recording_name(Path(log.source.path).name or "impactcli run")
-        rec.log("/run/info", rr.TextDocument(look.markdown_summary(result),
-                                             media_type="text/markdown"),
-                static=True, strict=True)
-        yield rec
-        rec.disconnect()
-        os.replace(tmp, target)
+        try:
+            sink_call(lambda: rec.save(str(tmp), default_blueprint=look.default_blueprint(
+                log.joint_names, has_reference, duration_s=log.duration_s)), target, "open")
+            rec.send_recording_name(Path(log.source.path).name or "impactcli run")
+            rec.log("/run/info", rr.TextDocument(look.markdown_summary(result),
+                                                 media_type="text/markdown"),
+                    static=True, strict=True)
+            yield rec
+            open_sink = False
+            sink_call(finish, target, "finish")
+        except Exception as err:
+            if (out := sdk_write_error(target, err)) is not None:
+                raise out from err
+            raise
+        finish_output(tmp, target, verify_rrd)
     except BaseException:
-        rec.disconnect()
+        if open_sink:
+            with contextlib.suppress(Exception):
+                sink_call(rec.disconnect, target, "close", timeout_s=5.0)
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Iterator, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -57,7 +58,8 @@ class SignalsWriter:
 
     def __init__(self, path: str | os.PathLike[str], t0_ns: int, sha256: str,
                  input_path: str) -> None:
-        self._ctx = atomic_output(path, "wb")
+        self._rows = 0
+        self._ctx = atomic_output(path, "wb", verify=self._verify)
         self._f = self._ctx.__enter__()
         self._meta = _meta(t0_ns, sha256, input_path)
         self._writer: Any = None
@@ -78,14 +80,45 @@ class SignalsWriter:
         if self._writer is None:
             self._writer = pq.ParquetWriter(self._f, table.schema, **PARQUET_OPTIONS)
         self._writer.write_table(table)
+        self._rows += table.num_rows
+
+    def _verify(self, tmp: Path) -> None:
+        verify_parquet(tmp, self._rows)
 
     def __enter__(self) -> SignalsWriter:
         return self
 
     def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
+        failed: BaseException | None = None
         if self._writer is not None:
-            self._writer.close()
-        self._ctx.__exit__(exc_type, exc, tb)
+            try:
+                self._writer.close()  # writes the footer: a full disk may show here
+            except BaseException as err:
+                failed = err
+        if exc is None and failed is not None:  # the file goes; the error is told
+            self._ctx.__exit__(type(failed), failed, failed.__traceback__)
+            raise failed
+        self._ctx.__exit__(exc_type, exc, tb)  # moves into place, or removes and re-raises
+
+
+def verify_parquet(tmp: Path, rows: int) -> None:
+    """A written signals file before it is moved into place: a Parquet file (its magic at
+    both ends) whose footer parses and counts the ``rows`` written; ValueError if not."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    with open(tmp, "rb") as f:
+        head = f.read(4)
+        f.seek(max(tmp.stat().st_size - 4, 0))
+        tail = f.read(4)
+    if head != b"PAR1" or tail != b"PAR1":
+        raise ValueError("not a whole Parquet file (no footer: truncated)")
+    try:
+        n = pq.ParquetFile(tmp).metadata.num_rows
+    except pa.ArrowException as err:
+        raise ValueError(f"its Parquet footer does not parse: {err}") from err
+    if n != rows:
+        raise ValueError(f"{n} rows read back of {rows} written")
 
 
 def signals_schema(path: str | os.PathLike[str]) -> tuple[list[str], dict[str, str], int]:

@@ -11,6 +11,8 @@ Failures per log (``JobOutcome.error_class``, with the exit code a one-log run w
 
 - ``data`` (3): the log, robot description, model or config is bad or missing
   (an :class:`~impactcli.errors.ImpactError`);
+- ``output`` (2): an output cannot be written (a full disk, a read-only one, no
+  permission, a folder in the way; also a full ``TMPDIR``): the line names the output;
 - ``io`` (3): an I/O error that persisted: transient ones (timeouts, connection errors,
   ``EIO``…, see :func:`impactcli.logs.urls.is_transient`) are first retried
   :data:`~impactcli.logs.urls.IO_RETRIES` times with backoff
@@ -29,12 +31,20 @@ import tempfile
 import time
 import traceback
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Generator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..errors import EXIT_DATA, EXIT_SOFTWARE, ImpactError, ImpactWarning
+from ..errors import (
+    EXIT_DATA,
+    EXIT_SOFTWARE,
+    EXIT_USAGE,
+    ImpactError,
+    ImpactWarning,
+    OutputError,
+)
+from ..files import OUTPUT_ERRNOS
 from ..types import DETECTORS
 from .job import output_stem, run_log_from_paths
 
@@ -127,13 +137,23 @@ def run_detect_job(job: DetectJob) -> JobOutcome:
             outputs, summary, extra = retry_transient(attempt)
         except ImpactError as err:
             transient = is_transient(err)
+            cls = ("output" if isinstance(err, OutputError) else
+                   "io" if transient else "data")
             return JobOutcome(job.log_path, False, error=_with_tries(str(err), transient),
-                              exit_code=err.exit_code, error_class="io" if transient else "data",
+                              exit_code=err.exit_code, error_class=cls,
                               warnings=_msgs(caught), attempts=attempts, traceback=_tb(err))
         except OSError as err:
-            where = getattr(err, "filename", None) or job.log_path
+            where = getattr(err, "filename", None)
             why = err.strerror or str(err) or type(err).__name__
-            msg = _with_tries(f"{job.log_path}: I/O error on {where}: {why}",
+            if err.errno in OUTPUT_ERRNOS:  # the output side's fault, whoever met it
+                return JobOutcome(job.log_path, False,
+                                  error=f"{job.log_path}: cannot write "
+                                        f"{where or 'its outputs in ' + job.out_dir}: {why}",
+                                  exit_code=EXIT_USAGE, error_class="output",
+                                  warnings=_msgs(caught), attempts=attempts,
+                                  traceback=_tb(err))
+            on = f" on {where}" if where else ""  # never blame the log for an error without a file
+            msg = _with_tries(f"{job.log_path}: I/O error{on}: {why}",
                               is_transient(err) and attempts > IO_RETRIES)
             return JobOutcome(job.log_path, False, error=msg, exit_code=EXIT_DATA,
                               error_class="io", warnings=_msgs(caught), attempts=attempts,
@@ -263,18 +283,23 @@ def lost_outcome(job: DetectJob, reason: str, kind: str, tb: str = "") -> JobOut
 
 
 def run_batch(jobs: Sequence[DetectJob], *, n_jobs: int | None = None,
-              scheduler: str | None = None, client: Any = None) -> Iterator[JobOutcome]:
+              scheduler: str | None = None, client: Any = None
+              ) -> Generator[JobOutcome, None, None]:
     """Run detection jobs where :func:`impactcli.run.executors.choose_executor` says; yield
     outcomes in completion order (every outcome carries its log path). A dead worker's
     jobs are re-run once, then reported failed (:mod:`impactcli.run.executors`)."""
     from .executors import TaskFailure, run_tasks
 
-    for i, res in run_tasks(run_detect_job, list(jobs), jobs=n_jobs, scheduler=scheduler,
-                            client=client):
-        if isinstance(res, TaskFailure):
-            yield lost_outcome(jobs[i], res.reason, res.kind, res.traceback)
-        else:
-            yield res
+    tasks = run_tasks(run_detect_job, list(jobs), jobs=n_jobs, scheduler=scheduler,
+                      client=client)
+    try:
+        for i, res in tasks:
+            if isinstance(res, TaskFailure):
+                yield lost_outcome(jobs[i], res.reason, res.kind, res.traceback)
+            else:
+                yield res
+    finally:  # a consumer that stops early stops the executor now (its pool's workers)
+        tasks.close()
 
 
 def batch_summary(outcomes: Sequence[JobOutcome], *, wall_s: float,

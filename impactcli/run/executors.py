@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import os
 import traceback
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Generator, Iterator, Mapping, Sequence
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
@@ -140,19 +140,41 @@ class SerialExecutor(Executor):
 #: Modules the local pool's fork server imports once, so that workers start warm.
 POOL_START_METHOD = "forkserver"
 POOL_PRELOAD = (
-    "impactcli.run.batch", "impactcli.run.one_log", "impactcli.logs", "impactcli.outputs.timeline",
+    "impactcli.run.forkserver_guard", "impactcli.run.batch", "impactcli.run.one_log",
+    "impactcli.logs", "impactcli.outputs.timeline",
 )
 
 
 def process_pool(workers: int) -> ProcessPoolExecutor:
     """A local pool whose workers are forked from a fork server (not from this process,
-    which may run threads, e.g. a Dask client's) with the pipeline already imported."""
+    which may run threads, e.g. a Dask client's) with the pipeline already imported; the
+    fork server and every worker die with this process (:mod:`impactcli.run.stopping`)."""
     import multiprocessing as mp
+
+    from .stopping import worker_init
 
     ctx = mp.get_context(POOL_START_METHOD)
     if POOL_START_METHOD == "forkserver":
         ctx.set_forkserver_preload(list(POOL_PRELOAD))
-    return ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
+    return ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=worker_init,
+                               initargs=(os.getpid(),))
+
+
+@contextmanager
+def pool(workers: int) -> Iterator[ProcessPoolExecutor]:
+    """:func:`process_pool` for a block: shut down waiting for its tasks when the block
+    ends normally; stopped at once (:func:`impactcli.run.stopping.stop_workers`: nothing
+    more dispatched, running tasks unwound, workers gone within a bounded time) when it
+    ends by an exception, a signal's stop or a consumer that left (``GeneratorExit``)."""
+    from .stopping import stop_workers
+
+    ex = process_pool(workers)
+    try:
+        yield ex
+    except BaseException:
+        stop_workers(ex)
+        raise
+    ex.shutdown(wait=True)
 
 
 def require_dask() -> Any:
@@ -216,7 +238,7 @@ def make_executor(jobs: int | None = None, scheduler: str | None = None, *,
     if choice.kind == "serial":
         yield SerialExecutor()
     elif choice.kind == "processes":
-        with process_pool(choice.workers) as ex:
+        with pool(choice.workers) as ex:
             yield ex
     else:
         with dask_client(choice) as cl:
@@ -249,7 +271,7 @@ def _failure(err: BaseException) -> TaskFailure:
 
 def run_tasks(fn: Callable[[T], R], items: Sequence[T], *, jobs: int | None = None,
               scheduler: str | None = None, environ: Mapping[str, str] | None = None,
-              client: Any = None) -> Iterator[tuple[int, R | TaskFailure]]:
+              client: Any = None) -> Generator[tuple[int, R | TaskFailure], None, None]:
     """Run ``fn(item)`` for every item; yield ``(index, result or TaskFailure)`` as they finish.
 
     ``fn`` must be a picklable top-level function and the items picklable (paths, URLs,
@@ -274,24 +296,31 @@ def run_tasks(fn: Callable[[T], R], items: Sequence[T], *, jobs: int | None = No
         return
     with make_executor(jobs, scheduler, environ=environ, client=client) as ex:
         futures = {ex.submit(fn, item): i for i, item in enumerate(items)}
-        for fut in as_completed(futures):
-            try:
-                res = fut.result()
-            except Exception as err:
-                yield futures[fut], _failure(err)
-            else:
-                yield futures[fut], res
+        try:
+            for fut in as_completed(futures):
+                try:
+                    res = fut.result()
+                except Exception as err:
+                    yield futures[fut], _failure(err)
+                else:
+                    yield futures[fut], res
+        except BaseException:  # stopped (a signal, a consumer gone): dispatch nothing more
+            for fut in futures:
+                fut.cancel()
+            raise
 
 
 def _run_pool(fn: Callable[[T], R], items: Sequence[T],
               workers: int) -> Iterator[tuple[int, R | TaskFailure]]:
+    from .stopping import run_in_worker
+
     pending = list(range(len(items)))
     for _ in range(POOL_ROUNDS):
         if not pending:
             return
         lost: list[int] = []
-        with process_pool(min(workers, len(pending))) as ex:
-            futures = {ex.submit(fn, items[i]): i for i in pending}
+        with pool(min(workers, len(pending))) as ex:
+            futures = {ex.submit(run_in_worker, fn, items[i]): i for i in pending}
             for fut in as_completed(futures):
                 i = futures[fut]
                 try:
@@ -310,10 +339,12 @@ def _run_pool(fn: Callable[[T], R], items: Sequence[T],
 
 
 def _run_alone(fn: Callable[[T], R], item: T) -> R | TaskFailure:
+    from .stopping import run_in_worker
+
     for _ in range(POOL_ROUNDS):
-        with process_pool(1) as ex:
+        with pool(1) as ex:
             try:
-                return ex.submit(fn, item).result()
+                return ex.submit(run_in_worker, fn, item).result()
             except BrokenProcessPool:
                 continue
             except Exception as err:

@@ -1,0 +1,211 @@
+"""A batch stopped by a signal or killed (issue "Faults"), through the CLI in a subprocess:
+SIGINT exits 130 and SIGTERM 143, serial and ``--jobs 2``, within a bounded time, with no
+temporary file left and every output written valid; ``kill -9`` of the main process leaves
+no process of its pool behind; a rerun into the same folder gives the timelines of a clean
+run byte for byte. Linux only (the process tree is read from /proc)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from impactcli.files import process_running
+from impactcli.logs import read_log, write_log
+from impactcli.outputs.rerun import verify_rrd
+from impactcli.outputs.signals import verify_parquet
+from impactcli.outputs.timeline import read_timeline
+
+pytestmark = pytest.mark.skipif(not Path("/proc/self/stat").exists(),
+                                reason="reads the process tree from /proc (Linux)")
+
+REPO = Path(__file__).resolve().parents[1]
+LOG = REPO / "sample_logs" / "csv" / "assist_free_p2p.csv.gz"
+CONFIG = REPO / "sample_logs" / "assist_like.config.toml"
+N_LOGS = 10
+#: Bound on a stop: from the signal to the exit [s].
+STOP_BOUND_S = 10.0
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
+    """N_LOGS copies of the first 6000 samples (12 s) of a collision-free sample log."""
+    d = tmp_path_factory.mktemp("logs")
+    first = d / "l00.csv"
+    write_log(read_log(LOG).slice(0, 6000), first)
+    out = [first]
+    for k in range(1, N_LOGS):
+        out.append(d / f"l{k:02d}.csv")
+        shutil.copy(first, out[-1])
+    return out
+
+
+def _start(logs: list[Path], out: Path, tmpdir: Path, *extra: str) -> subprocess.Popen[str]:
+    tmpdir.mkdir(exist_ok=True)
+    env = {**os.environ, "TMPDIR": str(tmpdir)}
+    return subprocess.Popen(
+        [sys.executable, "-m", "impactcli", "detect", *map(str, logs), "--config", str(CONFIG),
+         "-o", str(out), *extra],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+        start_new_session=True)  # its own process group: a Ctrl-C reaches all of it, only it
+
+
+def _wait_for_output(proc: subprocess.Popen[str], out: Path, timeout_s: float = 60.0) -> None:
+    """Until the batch has written its first timeline (it is under way, not done)."""
+    t_end = time.monotonic() + timeout_s
+    while time.monotonic() < t_end:
+        if out.is_dir() and any(out.glob("*.timeline.json")):
+            return
+        assert proc.poll() is None, proc.communicate()
+        time.sleep(0.02)
+    raise AssertionError("no output within the timeout")
+
+
+def _descendants(pid: int) -> set[int]:
+    """Every process under ``pid`` now (from /proc)."""
+    children: dict[int, list[int]] = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        children.setdefault(int(fields[1]), []).append(int(stat.parent.name))
+    found: set[int] = set()
+    todo = [pid]
+    while todo:
+        for c in children.get(todo.pop(), []):
+            if c not in found:
+                found.add(c)
+                todo.append(c)
+    return found
+
+
+def _wait_gone(pids: set[int], timeout_s: float) -> set[int]:
+    """The processes of ``pids`` still running after at most ``timeout_s``."""
+    t_end = time.monotonic() + timeout_s
+    alive = {p for p in pids if process_running(p)}
+    while alive and time.monotonic() < t_end:
+        time.sleep(0.05)
+        alive = {p for p in alive if process_running(p)}
+    return alive
+
+
+@pytest.fixture
+def reaper() -> Iterator[list[subprocess.Popen[str]]]:
+    """Processes a test started: killed with their group (and anything left under them)
+    when the test ends, whatever happened."""
+    procs: list[subprocess.Popen[str]] = []
+    yield procs
+    for p in procs:
+        rest = _descendants(p.pid)
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)
+        p.communicate(timeout=10)  # reaped, its pipes closed
+        for pid in rest:
+            if process_running(pid):
+                os.kill(pid, signal.SIGKILL)
+
+
+def _check_outputs(out: Path, tmpdir: Path, extras: bool) -> int:
+    """No temporary file in ``out`` or TMPDIR; every timeline valid, and with ``extras``
+    every log with a timeline has its signals and recording, each whole. Returns the
+    number of timelines."""
+    assert not [p.name for p in out.iterdir() if p.name.endswith(".part")]
+    assert not [p.name for p in tmpdir.iterdir() if p.name.startswith("impactcli-")]
+    timelines = sorted(out.glob("*.timeline.json"))
+    for t in timelines:
+        doc = read_timeline(t)  # parses and validates against its schema
+        stem = t.name[: -len(".timeline.json")]
+        if extras:
+            verify_rrd(out / f"{stem}.rrd")
+            verify_parquet(out / f"{stem}.signals.parquet", doc["input"]["n_samples"])
+    return len(timelines)
+
+
+#: serial: with the signals and the recording (their writers stopped mid-way); --jobs 2:
+#: the timelines only (a pool's start is the test's cost)
+RUNS = {"serial": ["--signals", "--rerun"], "jobs2": ["--jobs", "2"]}
+
+
+@pytest.mark.parametrize("run", list(RUNS))
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_stops_the_batch_with_the_shell_code(
+        logs: list[Path], tmp_path: Path, reaper: list[subprocess.Popen[str]], run: str,
+        sig: signal.Signals) -> None:
+    out, tmpdir = tmp_path / "out", tmp_path / "tmp"
+    proc = _start(logs, out, tmpdir, *RUNS[run])
+    reaper.append(proc)
+    _wait_for_output(proc, out)
+    tree = _descendants(proc.pid)
+    t0 = time.monotonic()
+    if sig == signal.SIGINT:  # Ctrl-C: the terminal signals the whole foreground group
+        os.killpg(proc.pid, sig)
+    else:  # a supervisor's SIGTERM: the main process only
+        os.kill(proc.pid, sig)
+    _, err = proc.communicate(timeout=STOP_BOUND_S * 3)
+    assert time.monotonic() - t0 < STOP_BOUND_S
+    assert proc.returncode == 128 + sig, err
+    assert f"impactcli: stopped by {sig.name}: the outputs already written stay " \
+           f"(exit {128 + sig})" in err.splitlines()
+    assert "Traceback" not in err
+    done = _check_outputs(out, tmpdir, extras=run == "serial")
+    assert 1 <= done < N_LOGS  # stopped early: nothing more dispatched after the signal
+    assert f"impactcli: {done} of {N_LOGS} logs finished before the stop; run the same " \
+           "command again to redo the batch" in err.splitlines()
+    assert not _wait_gone(tree, 5.0), "processes of the run left behind"
+
+
+def test_kill_9_of_a_pool_batch_leaves_no_process(
+        logs: list[Path], tmp_path: Path, reaper: list[subprocess.Popen[str]]) -> None:
+    out, tmpdir = tmp_path / "out", tmp_path / "tmp"
+    proc = _start(logs, out, tmpdir, "--jobs", "2")
+    reaper.append(proc)
+    _wait_for_output(proc, out)
+    tree = _descendants(proc.pid)
+    assert len(tree) >= 3  # the fork server, the resource tracker, the workers
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait(10)
+    assert not _wait_gone(tree, 8.0), "the pool outlived its main process"
+    assert len(list(out.glob("*.timeline.json"))) < N_LOGS
+    assert not [p.name for p in out.iterdir() if p.name.endswith(".part")]  # workers unwound
+
+
+def test_a_rerun_after_a_kill_gives_a_clean_runs_timelines(
+        logs: list[Path], tmp_path: Path, reaper: list[subprocess.Popen[str]]) -> None:
+    """Killed mid-batch (kill -9: nothing of it runs, its temporary files stay), then the
+    same command into the same folder: every log redone, the killed run's ``.part`` files
+    gone, the timelines those of a clean run byte for byte."""
+    from click.testing import CliRunner
+
+    from impactcli.cli import main
+
+    batch = logs[:4]
+    out, tmpdir = tmp_path / "out", tmp_path / "tmp"
+    args = ["--signals", "--rerun"]
+    proc = _start(batch, out, tmpdir, *args)
+    reaper.append(proc)
+    _wait_for_output(proc, out)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait(10)
+    assert len(list(out.glob("*.timeline.json"))) < len(batch)
+    # what a writer killed mid-file leaves (planted too: the kill may fall between files)
+    stale = out / f".l00.timeline.json.{proc.pid}-0badc0de.part"
+    stale.write_text('{"half": ', encoding="utf-8")
+    r = CliRunner().invoke(main, ["detect", *map(str, batch), "--config", str(CONFIG),
+                                  "-o", str(out), *args])
+    assert r.exit_code == 0, r.stderr
+    assert _check_outputs(out, tmpdir, extras=True) == len(batch)
+    clean = tmp_path / "clean"
+    r = CliRunner().invoke(main, ["detect", *map(str, batch), "--config", str(CONFIG),
+                                  "-o", str(clean)])
+    assert r.exit_code == 0, r.stderr
+    for log in batch:
+        name = f"{log.stem}.timeline.json"
+        assert (out / name).read_bytes() == (clean / name).read_bytes(), name
