@@ -29,6 +29,7 @@ from .rates import Rates, resolve_rates
 from .rls import (
     FASTMATH,
     max_diag_of,
+    REGULARIZE_EVERY,
     regularization_weight,
     rls_update_inplace,
 )
@@ -46,7 +47,7 @@ def _evaluate_axis(
     vr: np.ndarray, thr: np.ndarray, dec: np.ndarray, eps: np.ndarray,
     th: np.ndarray, P_state: np.ndarray, r_lag: np.ndarray, v_lag: np.ndarray, u_lag: np.ndarray,
     filt: np.ndarray, ring_r: np.ndarray, ring_v: np.ndarray, sums: np.ndarray,
-    pos1: int, pos2: int, reg_c: float, theta0: float, pos_reg: int,
+    pos1: int, pos2: int, reg_c: float, theta0: float, pos_reg: int, every: int,
 ) -> tuple[int, int]:
     """One axis over one chunk: ``r`` (n,) is its residual, ``u`` (m, n, J) every axis's
     inputs; the outputs are this axis's (n,) rows. The state (``th`` (nu,), ``P_state`` (nu, nu)
@@ -54,7 +55,8 @@ def _evaluate_axis(
     ``ring_v`` (N2,), ``sums`` (2,)) is read at the start and written back at the end, in
     place; ``u_lag`` (m, rho_max, J) is only read (shared by the axes; the caller advances
     it); ``pos1``, ``pos2`` are the ring positions (samples so far mod N1, N2);
-    ``pos_reg`` the regulariser's coordinate (samples so far mod nu), ``reg_c`` its weight
+    ``pos_reg`` the regulariser's phase (samples so far mod nu · ``every``): at every
+    ``every``-th sample it regularises coordinate pos_reg // every with weight ``reg_c``
     (0: none, plain eq. 39) toward ``theta0`` (:func:`impactcli.detect.rls.rls_update_inplace`).
 
     Axes are independent (eq. 34–35 per axis; only the inputs u are shared), so axes can
@@ -98,10 +100,11 @@ def _evaluate_axis(
         if not a_post:
             for i in range(nu):
                 th_old[i] = th[i]
+        cc = reg_c if pos_reg % every == 0 else 0.0
         e, rs, cp = rls_update_inplace(th, P, phi, r[k], lam, max_diag, p0, h, w,
-                                       pos_reg, reg_c, theta0, pc)
+                                       pos_reg // every, cc, theta0, pc)
         pos_reg += 1
-        if pos_reg == nu:
+        if pos_reg == nu * every:
             pos_reg = 0
         eps[k] = e
         resets += rs
@@ -292,6 +295,7 @@ class AxisRunner:
         self._args = (cfg.eta, cfg.p, self._rho, float(cfg.forgetting_factor),
                       float(cfg.p0), self._max_diag, cfg.estimate == "a_posteriori",
                       rates.a1, rates.a2, rates.n1, rates.n2)
+        self._every = REGULARIZE_EVERY
         self._reg = (regularization_weight(state.nu, cfg.forgetting_factor,
                                            cfg.regularization), float(cfg.theta0))
         J = state.n_joints
@@ -305,7 +309,7 @@ class AxisRunner:
         n, J = r.shape
         rates = st.rates
         pos1, pos2 = self.n_samples % rates.n1, self.n_samples % rates.n2
-        pos_reg = self.n_samples % st.nu
+        pos_reg = self.n_samples % (st.nu * self._every)
         u_lag = st.u_lags.copy()
         L = st.u_lags.shape[1]
         if L and n:  # the shared input lags: the last rho_max samples of [u_lags, u]
@@ -323,7 +327,7 @@ class AxisRunner:
             rs, cp = _evaluate_axis(  # type: ignore[call-arg]
                 rows[j], u, *self._args, float(self.v_stat[j]), *out,  # type: ignore[arg-type]
                 st.theta[j], st.P[j], st.r_lags[j], st.v_lags[j], u_lag, st.filters[j],
-                st.ring_r[j], st.ring_v[j], st.sums[j], pos1, pos2, *self._reg, pos_reg)
+                st.ring_r[j], st.ring_v[j], st.sums[j], pos1, pos2, *self._reg, pos_reg, self._every)
             for x, y in zip(job.out, out, strict=True):
                 x[:, j] = y  # on this axis's thread, not the caller's after all axes
             st.n_resets[j] += rs

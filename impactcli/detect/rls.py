@@ -7,9 +7,9 @@ For a regression ``y(k) = phi(k)^T theta + b(k)`` with ``nu`` parameters, one st
     theta(k) = theta(k-1) + g(k) eps0(k)                                    (38)
     P(k)     = (P(k-1) - g(k) (P(k-1) phi(k))^T) / lambda                   (39)
 
-Regularisation (docs/method.md §3, "Sensitivity, and the regularised form"): each step
-also adds the pseudo-measurement theta_i = theta0 with weight c for ONE coordinate
-i = k mod nu (cyclic), c = nu (1 − lambda) delta (fused into eq. 39's pass): the information matrix
+Regularisation (docs/method.md §3, "Sensitivity, and the regularised form"): every 4th
+step also adds the pseudo-measurement theta_i = theta0 with weight c for ONE coordinate
+i = (k / 4) mod nu (cyclic), c = 4 nu (1 − lambda) delta (fused into eq. 39's pass): the information matrix
 then carries about delta I that forgetting never removes (the minimiser of
 sum_i lambda^{k-i} eps_i^2 + delta |theta − theta0|^2, the regulariser spread one coordinate
 per step), so P ≤ ~I / delta and two replays started 1e-12 apart stay within ~1e-9 of each
@@ -170,13 +170,20 @@ def rls_update_inplace(
     return e, reset, capped
 
 
-def regularization_weight(n_params: int, forgetting_factor: float, delta: float) -> float:
-    """The weight c = nu (1 − lambda) delta of one coordinate's pseudo-measurement per step,
-    so that each coordinate's share, forgotten by lambda, sums to about delta
-    (c / (1 − lambda^nu) = delta · nu (1 − lambda) / (1 − lambda^nu) ≈ delta)."""
+#: The regulariser acts at every REGULARIZE_EVERY-th sample (one coordinate, cyclic), with
+#: that many times the weight: 4 costs a quarter of the extra pass over P at the same floor
+#: (measured: docs/method.md §3, "Sensitivity, and the regularised form").
+REGULARIZE_EVERY = 4
+
+
+def regularization_weight(n_params: int, forgetting_factor: float, delta: float,
+                          every: int = REGULARIZE_EVERY) -> float:
+    """The weight c = every · nu (1 − lambda) delta of one coordinate's pseudo-measurement,
+    made at every ``every``-th sample, so that each coordinate's share, forgotten by lambda,
+    sums to about delta (c / (1 − lambda^(every·nu)) ≈ delta)."""
     if not delta >= 0.0:
         raise ValueError(f"regularization must be >= 0, got {delta}")
-    return float(n_params) * (1.0 - float(forgetting_factor)) * float(delta)
+    return float(every) * float(n_params) * (1.0 - float(forgetting_factor)) * float(delta)
 
 
 #: Default cap on each diagonal element of P as a multiple of p0: the default ``max_trace``

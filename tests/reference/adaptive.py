@@ -25,7 +25,7 @@ from impactcli.detect.adaptive import (
 )
 from impactcli.detect.axes import EvaluatorState
 from impactcli.detect.rates import resolve_rates
-from impactcli.detect.rls import max_diag_of, regularization_weight
+from impactcli.detect.rls import REGULARIZE_EVERY, max_diag_of, regularization_weight
 from impactcli.model.causal import Carry
 from impactcli.types import RobotLog
 
@@ -80,8 +80,9 @@ def evaluate_reference(
 ) -> AdaptiveResult:
     """Plain NumPy implementation of the same equations, obviously correct and slow: a
     Python loop over samples with the textbook RLS (full P), the wind-up cap applied by
-    its definition, then the regulariser's pseudo-measurement theta_i = theta0 (weight c,
-    coordinate i = k mod nu) as one more textbook update with lambda = 1."""
+    its definition, then at every REGULARIZE_EVERY-th sample the regulariser's
+    pseudo-measurement theta_i = theta0 (weight c, coordinate i = (k / REGULARIZE_EVERY) mod
+    nu) as one more textbook update with lambda = 1."""
     cfg = cfg or AdaptiveConfig()
     r = np.asarray(residual, dtype=np.float64)
     u = np.asarray(inputs, dtype=np.float64)
@@ -124,8 +125,8 @@ def evaluate_reference(
                 w = np.where(over, np.sqrt(cap / np.where(over, np.diag(P), 1.0)), 1.0)
                 P = P * np.outer(w, w)                                    # W P W
                 capped[j] += 1
-            if c_reg > 0.0:                                               # regulariser
-                i = k % nu
+            if c_reg > 0.0 and k % REGULARIZE_EVERY == 0:                 # regulariser
+                i = (k // REGULARIZE_EVERY) % nu
                 e_i = np.zeros(nu)
                 e_i[i] = np.sqrt(c_reg)
                 h = P @ e_i
