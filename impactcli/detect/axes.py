@@ -28,8 +28,8 @@ from ..config import AdaptiveConfig
 from .rates import Rates, resolve_rates
 from .rls import (
     FASTMATH,
-    max_diag_of,
     REGULARIZE_EVERY,
+    max_diag_of,
     regularization_weight,
     rls_update_inplace,
 )
