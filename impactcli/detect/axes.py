@@ -327,7 +327,8 @@ class AxisRunner:
             rs, cp = _evaluate_axis(  # type: ignore[call-arg]
                 rows[j], u, *self._args, float(self.v_stat[j]), *out,  # type: ignore[arg-type]
                 st.theta[j], st.P[j], st.r_lags[j], st.v_lags[j], u_lag, st.filters[j],
-                st.ring_r[j], st.ring_v[j], st.sums[j], pos1, pos2, *self._reg, pos_reg, self._every)
+                st.ring_r[j], st.ring_v[j], st.sums[j], pos1, pos2, *self._reg, pos_reg,
+                self._every)
             for x, y in zip(job.out, out, strict=True):
                 x[:, j] = y  # on this axis's thread, not the caller's after all axes
             st.n_resets[j] += rs

@@ -9,8 +9,8 @@ For a regression ``y(k) = phi(k)^T theta + b(k)`` with ``nu`` parameters, one st
 
 Regularisation (docs/method.md §3, "Sensitivity, and the regularised form"): every 4th
 step also adds the pseudo-measurement theta_i = theta0 with weight c for ONE coordinate
-i = (k / 4) mod nu (cyclic), c = 4 nu (1 − lambda) delta (fused into eq. 39's pass): the information matrix
-then carries about delta I that forgetting never removes (the minimiser of
+i = (k / 4) mod nu (cyclic), c = 4 nu (1 − lambda) delta (fused into eq. 39's pass): the
+information matrix then carries about delta I that forgetting never removes (the minimiser of
 sum_i lambda^{k-i} eps_i^2 + delta |theta − theta0|^2, the regulariser spread one coordinate
 per step), so P ≤ ~I / delta and two replays started 1e-12 apart stay within ~1e-9 of each
 other instead of separating (the diagnosis and the choice of delta: docs/method.md §3).
