@@ -17,60 +17,19 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy import signal
 
 from impactcli.config import FORMULATION, AdaptiveConfig, load_config
-from impactcli.detect.adaptive import AdaptiveResult, inputs_chunk
-from impactcli.errors import ImpactWarning
-from impactcli.logs import read_log
-from impactcli.model import RigidModel
-from impactcli.model.causal import Carry
-from impactcli.model.generators import choose_generators
-from impactcli.run.replay import Replayer, ReplaySetup, ReplayState, chunk_arrays
+from impactcli.detect.adaptive import AdaptiveResult
 
 from .reference.adaptive import evaluate
+from .sample_replay import SAMPLES, replay
 
-SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
-CONFIGS = {"assist": "assist_like.config.toml", "heavy": "heavy_geared.config.toml"}
 #: The bound: 1e-8 of the statistic's range (the issue's "1e-8 of the signal's range").
 TOL = 1e-8
-
-
-def replay(name: str, scale_model: float = 1.0, adaptive: AdaptiveConfig | None = None
-           ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray, AdaptiveConfig]:
-    """(r, u, fs, v_stat, cfg) of a sample log as detect makes them with its arm's config,
-    every model parameter scaled by ``scale_model``."""
-    cfg = load_config(SAMPLES / CONFIGS[name.split("_", maxsplit=1)[0]])
-    if adaptive is not None:
-        cfg = dataclasses.replace(cfg, adaptive=adaptive)
-    model = None
-    if cfg.model:
-        d = dict(cfg.model)
-        d["parameters"] = [{**x, "value": x["value"] * scale_model}
-                           for x in d["parameters"]]
-        model = RigidModel.from_dict(d)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ImpactWarning)
-        log = read_log(SAMPLES / "csv" / f"{name}.csv.gz")
-        choices = choose_generators(log, cfg.residual.generator,
-                                    cfg.residual.generators or None)
-        setup = ReplaySetup(log.joint_names, choices, model, cfg, log.sample_rate_hz,
-                            log.sample_period_s)
-        rp = Replayer(setup, ReplayState.initial(setup))
-        try:
-            done = rp.feed(None, chunk_arrays(log, log.time_s))
-            done += rp.finish()
-        finally:
-            rp.close()
-        u = inputs_chunk(log, log.time_s, log.sample_rate_hz, cfg.adaptive, Carry(), name).u
-    r = np.concatenate([out.r for _, out in done])
-    v_stat = cfg.thresholds.vector("v_stat", log.joint_names)
-    return r, u, log.sample_rate_hz, v_stat, cfg.adaptive
 
 
 def ulp(x: np.ndarray, seed: int = 0) -> np.ndarray:

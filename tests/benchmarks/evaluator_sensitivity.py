@@ -35,38 +35,17 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
-from impactcli.config import load_config  # noqa: E402
-from impactcli.detect.adaptive import evaluate_chunk, inputs_chunk  # noqa: E402
+from impactcli.config import AdaptiveConfig  # noqa: E402
+from impactcli.detect.adaptive import evaluate_chunk  # noqa: E402
 from impactcli.detect.axes import EvaluatorState  # noqa: E402
-from impactcli.logs import read_log  # noqa: E402
-from impactcli.model import RigidModel  # noqa: E402
-from impactcli.model.causal import Carry  # noqa: E402
-from impactcli.model.generators import choose_generators  # noqa: E402
-from impactcli.run.replay import Replayer, ReplaySetup, ReplayState, chunk_arrays  # noqa: E402
-
-SAMPLES = ROOT / "sample_logs"
-ARMS = {"assist": "assist_like.config.toml", "heavy": "heavy_geared.config.toml"}
+from tests.sample_replay import SAMPLES, replay  # noqa: E402
 
 
-def residual_and_inputs(name: str) -> tuple[np.ndarray, np.ndarray, float, np.ndarray, object]:
-    """(r (N, J), u (m, N, J), fs, v_stat (J,), adaptive cfg) of a sample log, as detect
-    makes them with its arm's committed config."""
-    cfg = load_config(SAMPLES / ARMS[name.split("_", maxsplit=1)[0]])
-    log = read_log(SAMPLES / "csv" / f"{name}.csv.gz")
-    model = RigidModel.from_dict(cfg.model) if cfg.model else None
-    choices = choose_generators(log, cfg.residual.generator, cfg.residual.generators or None)
-    setup = ReplaySetup(log.joint_names, choices, model, cfg, log.sample_rate_hz,
-                        log.sample_period_s)
-    rp = Replayer(setup, ReplayState.initial(setup))
-    try:
-        done = rp.feed(None, chunk_arrays(log, log.time_s))
-        done += rp.finish()
-    finally:
-        rp.close()
-    r = np.concatenate([out.r for _, out in done])
-    u = inputs_chunk(log, log.time_s, log.sample_rate_hz, cfg.adaptive, Carry(), name).u
-    v_stat = cfg.thresholds.vector("v_stat", log.joint_names)
-    return r, u, log.sample_rate_hz, v_stat, cfg.adaptive
+def residual_and_inputs(name: str) -> tuple[np.ndarray, np.ndarray, float, np.ndarray,
+                                            AdaptiveConfig]:
+    """(r, u, fs, v_stat, adaptive cfg) of a sample log, as detect makes them with its arm's
+    committed config (``tests/sample_replay.py``)."""
+    return replay(name)
 
 
 def trace(r: np.ndarray, u: np.ndarray, fs: float, v_stat: np.ndarray, cfg: object,
