@@ -42,10 +42,13 @@ GENERATOR_ALIASES = {"rigid_model": "inverse_dynamics"}
 
 #: The adaptive evaluator's default regularisation delta (docs/method.md §3, measured).
 REGULARIZATION = 10.0
-#: The formulation of the adaptive evaluator this version runs, recorded in every config
-#: ``calibrate`` writes (``calibration.formulation``): thresholds calibrated on another
-#: formulation's statistic are warned about (docs/formats.md).
+#: The adaptive evaluator's formulations, recorded in every config ``calibrate`` writes
+#: (``calibration.formulation``; :func:`formulation_of`): thresholds calibrated on another
+#: formulation's statistic than the one a replay runs are warned about (docs/formats.md).
+#: ``regularised-rls-1``: the regulariser at every 4th sample (docs/method.md §3); a
+#: config without a record was calibrated on ``plain-eq39`` (releases before 2026-11-28).
 FORMULATION = "regularised-rls-1"
+PLAIN_FORMULATION = "plain-eq39"
 
 
 @dataclass(frozen=True)
@@ -99,6 +102,13 @@ class AdaptiveConfig:
     def n_params(self, n_joints: int) -> int:
         """nu = eta + p + n·sum(rho) (34 for 2 joints, 64 for 7 with Table I)."""
         return self.eta + self.p + n_joints * sum(self.rho)
+
+    @property
+    def formulation(self) -> str:
+        """The formulation these settings run: :data:`FORMULATION` when the regulariser acts
+        (regularization > 0 and forgetting_factor < 1), else :data:`PLAIN_FORMULATION`."""
+        active = self.regularization > 0.0 and self.forgetting_factor < 1.0
+        return FORMULATION if active else PLAIN_FORMULATION
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -24,6 +25,7 @@ from scipy import signal
 
 from impactcli.config import FORMULATION, AdaptiveConfig, load_config
 from impactcli.detect.adaptive import AdaptiveResult
+from impactcli.errors import ImpactWarning
 
 from .reference.adaptive import evaluate
 from .sample_replay import SAMPLES, replay
@@ -123,27 +125,58 @@ def test_poor_excitation_gives_the_same_answer_under_last_bit_changes() -> None:
         assert worst <= TOL and differ == 0, (what, worst, differ)
 
 
-@pytest.mark.parametrize("formulation", [None, "plain-eq39", FORMULATION])
-def test_detect_warns_about_a_config_of_another_formulation(tmp_path, formulation) -> None:
-    """A config calibrated on another formulation of the evaluator (or before one was
-    recorded) is warned about once, naming the config and how to mend it; the sample
-    config of this version is not."""
+@pytest.mark.parametrize(("formulation", "regularization", "warned"), [
+    (None, None, True),                   # a config made before the record: plain eq. 39
+    ("plain-eq39", None, True),
+    ("regularised-rls-0", None, True),    # another, unknown, formulation
+    (FORMULATION, None, False),           # this version's sample config
+    (None, 0.0, False),                   # an old config told to replay plain eq. 39
+    (FORMULATION, 0.0, True),             # calibrated regularised, replayed plain
+])
+def test_detect_warns_about_a_config_of_another_formulation(
+        tmp_path, formulation, regularization, warned) -> None:
+    """A config calibrated on another formulation of the evaluator than its settings run
+    is warned about once, naming the config, both formulations and the mend; a config
+    whose record matches what it runs is not."""
     from click.testing import CliRunner
 
     from impactcli.cli import main
 
     cfg = load_config(SAMPLES / "assist_like.config.toml")
-    assert cfg.calibration.formulation == FORMULATION
-    old = dataclasses.replace(cfg, calibration=dataclasses.replace(
+    assert cfg.calibration.formulation == FORMULATION == cfg.adaptive.formulation
+    adaptive = (cfg.adaptive if regularization is None
+                else dataclasses.replace(cfg.adaptive, regularization=regularization))
+    old = dataclasses.replace(cfg, adaptive=adaptive, calibration=dataclasses.replace(
         cfg.calibration, formulation=formulation))
     path = tmp_path / "c.json"
     path.write_text(json.dumps(old.to_dict()))
     r = CliRunner().invoke(main, ["detect", str(SAMPLES / "csv" / "assist_free_p2p.csv.gz"),
                                   "--config", str(path), "-o", str(tmp_path / "out")])
     assert r.exit_code == 0, r.output
-    said = [ln for ln in r.output.splitlines() if "calibrated with the adaptive" in ln]
-    if formulation == FORMULATION:
+    said = [ln for ln in r.output.splitlines() if "was calibrated on the adaptive" in ln]
+    if not warned:
         assert said == []
-    else:
-        assert len(said) == 1 and str(path) in said[0] and "calibrate again" in said[0]
-        assert (repr(formulation) if formulation else "before 2026-11-28") in said[0]
+        return
+    assert len(said) == 1 and str(path) in said[0] and "calibrate again" in said[0]
+    assert repr(formulation or "plain-eq39") in said[0]
+    assert repr(adaptive.formulation) in said[0]
+    if formulation in (None, "plain-eq39"):
+        assert "adaptive.regularization = 0" in said[0]
+
+
+def test_calibrate_records_the_formulation_it_ran() -> None:
+    """calibrate records the formulation of the settings it calibrated with: the
+    regularised default, and plain eq. 39 when the regulariser is off."""
+    from impactcli.config import DetectorConfig
+    from impactcli.logs import read_log
+    from impactcli.run.calibration import calibrate
+
+    assert AdaptiveConfig().formulation == FORMULATION
+    assert AdaptiveConfig(regularization=0.0).formulation == "plain-eq39"
+    assert AdaptiveConfig(forgetting_factor=1.0).formulation == "plain-eq39"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ImpactWarning)
+        log = read_log(SAMPLES / "csv" / "assist_free_p2p.csv.gz")
+        for adaptive in (AdaptiveConfig(), AdaptiveConfig(regularization=0.0)):
+            cfg = calibrate([log], config=DetectorConfig(adaptive=adaptive))
+            assert cfg.calibration.formulation == adaptive.formulation

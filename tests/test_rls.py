@@ -199,3 +199,41 @@ def test_one_joint_still_for_1_2e6_steps_then_moving(guard: str) -> None:
     assert np.abs(resumed.theta_history - theta_true).max() < 0.05
     assert np.abs(resumed.theta - theta_true).max() < 2e-3
     assert rls.n_resets == 0
+
+
+@pytest.mark.parametrize("q", [0, 11, 23])
+@pytest.mark.parametrize("cap", [np.inf, 2.0])
+def test_regulariser_step_is_the_textbook_second_update(q: int, cap: float) -> None:
+    """One kernel step with the regulariser (coordinate q, weight c) equals, to rounding,
+    eq. 38–39 with the guard applied by its definition, then the textbook RLS update with
+    lambda = 1 for the pseudo-measurement theta_q = theta0 (regressor sqrt(c) e_q) — with
+    the guard off and acting (its scales enter the regulariser's column of P)."""
+    nu, lam, c, theta0 = 24, 0.99, 0.7, 0.25
+    rng = np.random.default_rng(q)
+    a = rng.standard_normal((nu, nu))
+    P_full = a @ a.T + 0.5 * np.eye(nu)
+    theta = rng.standard_normal(nu)
+    phi = rng.standard_normal(nu)
+    y = 0.3
+    # textbook
+    h = P_full @ phi
+    s = phi @ h
+    th = theta + h * (y - theta @ phi) / (lam + s)
+    Pk = (P_full - np.outer(h, h) / (lam + s)) / lam
+    over = np.diag(Pk) > cap
+    wv = np.where(over, np.sqrt(cap / np.where(over, np.diag(Pk), 1.0)), 1.0)
+    Pk = Pk * np.outer(wv, wv)
+    e_q = np.zeros(nu)
+    e_q[q] = np.sqrt(c)
+    hq = Pk @ e_q
+    den = 1.0 + e_q @ hq
+    th = th + hq * (np.sqrt(c) * theta0 - e_q @ th) / den
+    Pk = Pk - np.outer(hq, hq) / den
+    # kernel (lower triangle)
+    P = np.tril(P_full).copy()
+    t = theta.copy()
+    rls_update_inplace(t, P, phi, y, lam, cap, 10.0, np.empty(nu), np.empty(nu),
+                       q, c, theta0, np.empty(nu))
+    assert over.any() == (cap != np.inf)
+    np.testing.assert_allclose(t, th, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(np.tril(P), np.tril(Pk), rtol=0, atol=1e-12)

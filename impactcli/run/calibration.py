@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from ..config import FORMULATION, DetectorConfig
+from ..config import DetectorConfig
 from ..detect.envelope import EnvelopeAccumulator, Motion, MotionEnvelope, MotionTrace
 from ..detect.tail import (
     CONF,
@@ -228,7 +228,7 @@ def calibrate_run(
         threshold_rule=threshold_rule,
         false_alarm_rate=None if rate is None else rate_record(rate, joints, lolo, paths),
         motion_envelope=None if envelope is None else envelope.to_dict(),
-        formulation=FORMULATION,
+        formulation=cfg.adaptive.formulation,
     )
     out = dataclasses.replace(
         cfg,

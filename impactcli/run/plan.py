@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..clock import check_calibrated_rate
-from ..config import FORMULATION, DetectorConfig
+from ..config import PLAIN_FORMULATION, DetectorConfig
 from ..detect.adaptive import check_scale
 from ..errors import ConfigError, ImpactWarning, LogFormatError, ModelError
 from ..logs.reader import LogChunk, LogReader, LogScan
@@ -453,8 +453,9 @@ def plan_run(reader: LogReader, cfg: DetectorConfig, *, model: RigidModel | None
     where = scan.source.path
     check_calibrated_rate(scan.sample_rate_hz, cfg.calibration.sample_rate_hz, where,
                           f"its config ({config_where})")
-    if cfg.calibration.calibrated and cfg.calibration.formulation != FORMULATION:
-        warn_formulation(where, config_where, cfg.calibration.formulation)
+    calibrated_on = cfg.calibration.formulation or PLAIN_FORMULATION
+    if cfg.calibration.calibrated and calibrated_on != cfg.adaptive.formulation:
+        warn_formulation(where, config_where, calibrated_on, cfg.adaptive.formulation)
     sc = screen_scan(scan, known_joints(model, cfg), cfg.calibration.joints_left_out)
     check_replayable(where, len(sc.keep), scan.sample_rate_hz, scan.n_samples,
                      scan.duration_s, cfg, allow_slow)

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from ..clock import GAP_FACTOR
-from ..config import FORMULATION, DetectorConfig
+from ..config import PLAIN_FORMULATION, DetectorConfig
 from ..detect.events import LONG_EVENT_S
 from ..detect.thresholds import UNCALIBRATED_BLOCK_S, UNCALIBRATED_MARGIN, UNCALIBRATED_QUANTILE
 from ..detect.warmup import Warmup
@@ -88,15 +88,18 @@ def warn_uncalibrated(where: str) -> None:
     )
 
 
-def warn_formulation(where: str, config_where: str, recorded: str | None) -> None:
-    """The warning of a config calibrated on another formulation of the adaptive
-    evaluator than the one running (:data:`impactcli.config.FORMULATION`)."""
-    was = (f"formulation {recorded!r}" if recorded else
-           "the plain eq. 39 of releases before 2026-11-28")
+def warn_formulation(where: str, config_where: str, calibrated_on: str, runs: str) -> None:
+    """The warning of a config calibrated on another formulation of the adaptive evaluator
+    than the one its settings run (:attr:`impactcli.config.AdaptiveConfig.formulation`)."""
+    mend = ("calibrate again (impactcli calibrate), or set adaptive.regularization = 0 in "
+            "the config to replay the statistic its thresholds were calibrated on"
+            if calibrated_on == PLAIN_FORMULATION else "calibrate again (impactcli calibrate)")
+    was = (f"{calibrated_on!r} (plain eq. 39: a config without a record, made before "
+           "2026-11-28)" if calibrated_on == PLAIN_FORMULATION else repr(calibrated_on))
     warnings.warn(
-        f"{where}: its config ({config_where}) was calibrated with the adaptive evaluator's "
-        f"{was}; this version runs {FORMULATION!r}, whose statistic differs, so the "
-        "adaptive thresholds (v_stat) may not fit: calibrate again (impactcli calibrate)",
+        f"{where}: its config ({config_where}) was calibrated on the adaptive evaluator's "
+        f"formulation {was} but runs {runs!r}, whose statistic differs, so its adaptive "
+        f"thresholds (v_stat) may not fit: {mend}",
         ImpactWarning, stacklevel=3,
     )
 
