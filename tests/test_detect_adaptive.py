@@ -254,13 +254,13 @@ FIELDS = ("r_tilde", "v_dyn", "r_f", "v_f", "r_rms", "v_rms", "threshold", "deci
           "prediction_error")
 
 
-@pytest.mark.parametrize("regularization", [0.0, 10.0])
-def test_numba_equals_reference_with_the_cap_acting(regularization: float) -> None:
-    """max_trace = nu p0: every diagonal element of P capped at p0, acting from the start —
-    with the guard alone, and with the regulariser too (its column of P is then made with
-    the guard's scales: the fused path against the two textbook updates)."""
+@pytest.mark.parametrize(("regularization", "cap"), [(0.0, 10.0), (10.0, 0.05)])
+def test_numba_equals_reference_with_the_cap_acting(regularization: float, cap: float) -> None:
+    """Every diagonal element of P capped low (p0 with the guard alone; 0.05, under the
+    regulariser's ~1/delta, with it), acting from the start — so the regulariser's column of
+    P is made with the guard's scales: the fused path against the textbook updates."""
     _, r, u = scenario(0, n_s=8.0)
-    cfg = AdaptiveConfig(max_trace=34 * 10.0, regularization=regularization)
+    cfg = AdaptiveConfig(max_trace=34 * cap, regularization=regularization)
     a = evaluate(r, u, FS, np.full(2, 0.05), cfg)
     b = evaluate_reference(r, u, FS, np.full(2, 0.05), cfg)
     assert a.n_capped.min() > 1000
