@@ -4,7 +4,8 @@ For axis j, at each sample k: the regressor phi(k) = [r_j(k-1..k-eta) | v_dyn_j(
 | u_{i,l}(k-1..k-rho_i) for every input type i and axis l] (eq. 31–35, 51–54; nu = eta +
 p + n·sum(rho): 34 for 2 joints, 64 for 7 at Table I; past v_dyn are the values this
 algorithm computed, samples before the log start are 0); RLS with constant forgetting on
-y = r_j(k) (eq. 38–40, :mod:`impactcli.detect.rls`); r_tilde = r_j − phi_G^T theta_G
+y = r_j(k) (eq. 38–40) and a regulariser that keeps a floor of information about theta
+(:mod:`impactcli.detect.rls`; docs/method.md §3); r_tilde = r_j − phi_G^T theta_G
 (eq. 26) and v_dyn = phi_v^T theta_v (eq. 33) with theta(k) (``a_posteriori``, the
 default, measured in docs/method.md §3) or theta(k-1) (``a_priori``); F1, F2 first-order
 low-passes matched by the pole (Fig. 11); RMS over the previous N1 / N2 samples, the

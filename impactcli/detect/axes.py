@@ -195,7 +195,8 @@ class EvaluatorState:
         ring_r: (J, N1) r_f² of the last N1 samples (eq. 41), slot ``k % N1``.
         ring_v: (J, N2) v_f² of the last N2 samples, slot ``k % N2``.
         sums: (J, 2) the running sums of ring_r and ring_v as the kernel keeps them.
-        n_samples: samples absorbed so far (k0); fixes the ring positions.
+        n_samples: samples absorbed so far (k0); fixes the ring positions and the
+            regulariser's phase (k0 mod nu · REGULARIZE_EVERY).
         n_resets, n_capped: (J,) covariance resets and wind-up-guard steps so far.
         cfg, rates: the settings the state was made for (a chunk must use the same).
     """

@@ -12,8 +12,9 @@ cost per call [µs] (state copy, checks, dispatch of the axes; timed on empty ch
 share of a 4096-sample chunk's time, and the whole log in chunks of 4096 against one call.
 
 A third row times the wind-up guard's own path: 7 joints of which the last 4 stand still
-(their reference inputs are exactly 0), so the per-coordinate cap of
-:mod:`impactcli.detect.rls` scales P at most samples; ``capped`` is that share.
+(their reference inputs are exactly 0), with the regulariser off (``regularization = 0``,
+else P stays below the cap), so the per-coordinate cap of :mod:`impactcli.detect.rls`
+scales P at most samples of a long enough log; ``capped`` is that share.
 
 ``--release REF`` first runs the same measurement on the package of git ref ``REF`` (a
 temporary worktree, imported through PYTHONPATH in a fresh process), so both figures come
@@ -24,6 +25,7 @@ by path) on whichever package is imported.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import platform
 import subprocess
@@ -133,12 +135,17 @@ def main() -> None:
     for joints, target, still in ((2, 1_000_000, 0), (7, 300_000, 0), (7, 300_000, 4)):
         nn = n if joints == 2 else n // 3
         r, u = data(joints, nn, still=still)
+        # the guard's row without the regulariser (a release before it has no such field)
+        off = ({"regularization": 0.0} if "regularization" in
+               {f.name for f in dataclasses.fields(AdaptiveConfig)} else {})
+        row_cfg = AdaptiveConfig(**off) if still else cfg
         v_stat = np.full(joints, 0.1)
-        evaluate(r[:200], u[:, :200], FS, v_stat, cfg, threads=1)  # compile / load cache
-        res = evaluate(r, u, FS, v_stat, cfg, threads=1)
-        dt = best_of(lambda r=r, u=u, v_stat=v_stat: evaluate(r, u, FS, v_stat, cfg, threads=1))
+        evaluate(r[:200], u[:, :200], FS, v_stat, row_cfg, threads=1)  # compile / load cache
+        res = evaluate(r, u, FS, v_stat, row_cfg, threads=1)
+        dt = best_of(lambda r=r, u=u, v_stat=v_stat, c=row_cfg: evaluate(r, u, FS, v_stat, c,
+                                                                           threads=1))
         rate = nn * joints / dt
-        Phi = regressors(r, res.v_dyn, u, cfg, 0)
+        Phi = regressors(r, res.v_dyn, u, row_cfg, 0)
         nu = Phi.shape[1]
         rls_run(Phi[:100], r[:100, 0])
         dt_rls = best_of(lambda Phi=Phi, r=r: rls_run(Phi, r[:, 0], keep_history=False))

@@ -18,6 +18,10 @@ log and axis:
 * ``cond``: the largest condition number of P (eq. 39) over the sampled instants;
 * ``capped``: the samples at which the wind-up guard scaled P (docs/method.md §3).
 
+``--set KEY=VALUE ...`` overrides adaptive settings (``regularization=0`` for plain eq. 39);
+``--reference`` adds the compiled kernel's largest difference from the plain NumPy reference
+of the same equations.
+
 The state is sampled every ``--every`` seconds (chunks; the chunked run is bit for bit the
 one-chunk run). ``--json PATH`` writes the per-instant traces for plotting.
 """
@@ -89,6 +93,10 @@ def main() -> None:
     ap.add_argument("--json", type=Path, default=None, help="write the traces here")
     ap.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
                     help="override adaptive settings, e.g. p=0 max_trace=inf")
+    ap.add_argument("--reference", action="store_true",
+                    help="also the largest difference of the compiled evaluator from the "
+                         "plain NumPy reference of the same equations (tests/reference/"
+                         "adaptive.py; slow: seconds per log)")
     args = ap.parse_args()
     names = args.logs or sorted(p.name.removesuffix(".csv.gz")
                                 for p in (SAMPLES / "csv").glob("*.csv.gz"))
@@ -120,6 +128,15 @@ def main() -> None:
             out[f"{name}/{j + 1}"] = {"t": base["t"].tolist(), "pole": pl.tolist(),
                                       "cond": base["cond"][:, j].tolist(),
                                       "sep": d[every - 1::every].tolist()}
+        if args.reference:
+            from tests.reference.adaptive import evaluate, evaluate_reference
+
+            a = evaluate(r, u, fs, v_stat, cfg)  # type: ignore[arg-type]
+            b = evaluate_reference(r, u, fs, v_stat, cfg)  # type: ignore[arg-type]
+            worst = max(float(np.max(np.abs(getattr(a, k) - getattr(b, k))
+                                     / max(float(np.ptp(getattr(b, k))), 1e-300)))
+                        for k in ("r_tilde", "v_dyn", "r_rms", "v_rms"))
+            print(f"{name:24s} kernel against the reference: {worst:.2e} of the range")
         print(f"  ({time.perf_counter() - t0:.1f} s)", file=sys.stderr)
     if args.json:
         args.json.write_text(json.dumps(out))
