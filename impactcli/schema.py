@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -29,15 +30,39 @@ def load_schema(name: str) -> dict[str, Any]:
 def validate(doc: Any, name: str, error: type[ImpactError], where: str) -> None:
     """Validate ``doc`` against schema ``name``; raise ``error`` with one line naming ``where``.
 
-    The message names the JSON path of the first (best-matching) violation.
+    The message names the JSON path of the first (best-matching) violation. A NaN anywhere
+    is refused first (JSON Schema's number bounds let it through, and no writer of the tool
+    puts one in a file).
     """
     import jsonschema
+
+    nan = _nan_path(doc)
+    if nan is not None:
+        raise error(f"{where}: {'/'.join(nan) or '(top level)'}: nan is not a number this "
+                    "field can take")
 
     validator = jsonschema.Draft202012Validator(load_schema(name))
     best = jsonschema.exceptions.best_match(validator.iter_errors(doc))
     if best is not None:
         loc = "/".join(str(p) for p in best.absolute_path) or "(top level)"
         raise error(f"{where}: {loc}: {best.message}")
+
+
+def _nan_path(doc: Any, path: tuple[str, ...] = ()) -> tuple[str, ...] | None:
+    """The path of the first NaN in ``doc`` (mappings and lists, depth first), or None."""
+    if isinstance(doc, float):
+        return path if math.isnan(doc) else None
+    if isinstance(doc, dict):
+        items: Any = doc.items()
+    elif isinstance(doc, list | tuple):
+        items = enumerate(doc)
+    else:
+        return None
+    for k, v in items:
+        found = _nan_path(v, (*path, str(k)))
+        if found is not None:
+            return found
+    return None
 
 
 def omit_nulls(doc: Any) -> Any:

@@ -202,3 +202,28 @@ def test_threshold_joints_must_match_the_embedded_model(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match=r"typo\.json: thresholds/vL: .*unknown: \['shulder'\]"
                                           r".*missing: \['shoulder'\]"):
         load_config(bad)
+
+
+@pytest.mark.parametrize("key", ["regularization", "forgetting_factor", "p0", "tanh_slope"])
+def test_a_nan_in_a_config_is_one_line_exit_3_naming_the_field(
+        tmp_path: Path, key: str) -> None:
+    """TOML's ``nan`` passes JSON Schema's number bounds; it is refused before any replay
+    (it was an internal error, exit 70, with a traceback), and nothing is written."""
+    from click.testing import CliRunner
+
+    from impactcli.cli import main
+
+    repo = Path(__file__).resolve().parents[1]
+    lines = (repo / "sample_logs" / "assist_like.config.toml").read_text().splitlines()
+    cfg = tmp_path / "c.toml"
+    cfg.write_text("\n".join(f"{key} = nan" if ln.startswith(f"{key} = ") else ln
+                             for ln in lines) + "\n")
+    out = tmp_path / "out"
+    r = CliRunner().invoke(main, ["detect", str(repo / "sample_logs/csv/assist_free_p2p.csv.gz"),
+                                  "--config", str(cfg), "-o", str(out)])
+    assert r.exit_code == 3, r.output
+    errors = [ln for ln in r.stderr.splitlines() if ln.startswith("impactcli: error:")]
+    assert errors == [f"impactcli: error: {cfg}: adaptive/{key}: nan is not a number this "
+                      "field can take"]
+    assert "Traceback" not in r.output
+    assert not out.exists() or not any(out.iterdir())
