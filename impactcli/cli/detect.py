@@ -60,11 +60,16 @@ def preload(robot: str | Path | None, model: str | Path | None,
     return out
 
 
-def _fmt_row(s: dict[str, Any], lasting: int) -> str:
+def _shown(log: str) -> str:
+    """A log's name as the terminal shows it: its file name (or URL's), on one line."""
     from ..logs.urls import url_name
 
+    return one_line(url_name(log))
+
+
+def _fmt_row(s: dict[str, Any], lasting: int) -> str:
     cal = "yes" if s["calibrated"] else "no"
-    return (f"{one_line(url_name(s['log'])):<36} {s['duration_s']:>9.1f} {cal:>10} "
+    return (f"{_shown(s['log']):<36} {s['duration_s']:>9.1f} {cal:>10} "
             f"{s['warmup_end_s']:>7.2f} {s.get('incidents', 0):>9} {lasting:>7} | "
             f"{s['adaptive']:>8} {s['static_loading']:>8} {s['static_baseline']:>8}")
 
@@ -265,8 +270,6 @@ def _finish(outcomes: list[Any], paths: list[str], choice: Any,
 def _over_force(outcome: Any, limit: float) -> str | None:
     """One line naming the log's first incident whose force exceeds ``limit`` (and how many
     do), or None when none does."""
-    from ..logs.urls import url_name
-
     over = [i for i in outcome.summary.get("incident_list", [])
             if i["force_n"] is not None and i["force_n"] > limit]
     if not over:
@@ -274,21 +277,19 @@ def _over_force(outcome: Any, limit: float) -> str | None:
     inc = over[0]
     link = f"link {inc['link']}" if inc["link"] is not None else "an unknown link"
     more = f" ({len(over)} incidents above it)" if len(over) > 1 else ""
-    name = one_line(url_name(outcome.log_path))
+    name = _shown(outcome.log_path)
     return (f"impactcli: {name}: the incident at {inc['t_start']:.3f} s "
             f"on {link}, ~{inc['force_n']:.3g} N, exceeds --fail-on-force {limit:g} N{more}")
 
 
 def _load_over(outcome: Any, loads: list[dict[str, Any]], limit: float) -> str | None:
     """One line naming the log's first lasting load whose force exceeds ``limit``."""
-    from ..logs.urls import url_name
-
     over = [x for x in loads if x.get("force_n") is not None and x["force_n"] > limit]
     if not over:
         return None
     x = over[0]
     link = f"link {x['link']}" if x.get("link") is not None else "an unknown link"
-    return (f"impactcli: {one_line(url_name(outcome.log_path))}: the lasting load from "
+    return (f"impactcli: {_shown(outcome.log_path)}: the lasting load from "
             f"{x['t_start']:.3f} s on {link}, ~{x['force_n']:.3g} N, exceeds "
             f"--fail-on-force {limit:g} N")
 
@@ -296,9 +297,7 @@ def _load_over(outcome: Any, loads: list[dict[str, Any]], limit: float) -> str |
 def _echo_outcome(outcome: Any, debug: bool, single: bool) -> None:
     """Warnings and the error of one finished log, on stderr; its traceback with --debug,
     or for a bug (``internal``) in a one-log run."""
-    from ..logs.urls import url_name
-
-    name = one_line(url_name(outcome.log_path))
+    name = _shown(outcome.log_path)
     for w in outcome.warnings:
         click.echo(one_line(f"impactcli: warning: {w}" if name in w
                             else f"impactcli: warning: {name}: {w}"),
@@ -326,8 +325,6 @@ def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str,
                 loads: dict[str, list[dict[str, Any]]]) -> None:
     """Per-log rows (at most MAX_ROWS) and the batch totals, on stdout; ``loads``: each
     log's counted lasting loads."""
-    from ..logs.urls import url_name
-
     ok = [o for o in outcomes if o.ok]
     if ok:
         click.echo(f"{'log':<36} {'duration_s':>9} {'calibrated':>10} {'warmup':>7} "
@@ -342,7 +339,7 @@ def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str,
             click.echo("residual generator: " + _generators_line(ok[0].summary))
         else:
             for o in ok[:MAX_ROWS]:
-                click.echo(f"residual generator of {one_line(url_name(o.log_path))}: "
+                click.echo(f"residual generator of {_shown(o.log_path)}: "
                            + _generators_line(o.summary))
         click.echo(f"(incidents, lasting loads and events per detector after warm-up; an "
                    f"incident is one contact, made of the adaptive and loading events; a "
@@ -350,7 +347,7 @@ def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str,
                    f"{out_dir})")
         if len(ok) == 1 and ok[0].summary.get("incident_list"):
             lst = ok[0].summary["incident_list"]
-            first = one_line(url_name(ok[0].log_path))
+            first = _shown(ok[0].log_path)
             click.echo(f"incidents of {first}:  #  start       link      "
                        "force  contact      detectors")
             # the counted incidents in time order: k is the incident's number (the report's)
@@ -359,7 +356,7 @@ def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str,
             if len(lst) > MAX_INCIDENTS_LISTED:
                 click.echo(f"  ... {len(lst) - MAX_INCIDENTS_LISTED} more (in the timeline)")
         if len(ok) == 1 and loads[ok[0].log_path]:
-            first = one_line(url_name(ok[0].log_path))
+            first = _shown(ok[0].log_path)
             click.echo(f"lasting loads of {first} (an unknown payload, a "
                        "clamp, or a model that no longer fits):")
             for k, x in enumerate(loads[ok[0].log_path], 1):
