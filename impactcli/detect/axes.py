@@ -51,7 +51,7 @@ def _evaluate_axis(
 ) -> tuple[int, int]:
     """One axis over one chunk: ``r`` (n,) is its residual, ``u`` (m, n, J) every axis's
     inputs; the outputs are this axis's (n,) rows. The state (``th`` (nu,), ``P_state`` (nu, nu)
-    lower triangle, ``r_lag`` (eta,), ``v_lag`` (p,), ``filt`` (2,), ``ring_r`` (N1,),
+    exactly symmetric, ``r_lag`` (eta,), ``v_lag`` (p,), ``filt`` (2,), ``ring_r`` (N1,),
     ``ring_v`` (N2,), ``sums`` (2,)) is read at the start and written back at the end, in
     place; ``u_lag`` (m, rho_max, J) is only read (shared by the axes; the caller advances
     it); ``pos1``, ``pos2`` are the ring positions (samples so far mod N1, N2);
@@ -78,6 +78,7 @@ def _evaluate_axis(
     w = np.empty(nu)
     th_old = np.empty(nu)
     pc = np.empty(nu)
+    gw = np.empty(nu)
     inv_n1 = 1.0 / n1
     inv_n2 = 1.0 / n2
     prev_r = filt[0]
@@ -102,7 +103,7 @@ def _evaluate_axis(
                 th_old[i] = th[i]
         cc = reg_c if pos_reg % every == 0 else 0.0
         e, rs, cp = rls_update_inplace(th, P, phi, r[k], lam, max_diag, p0, h, w,
-                                       pos_reg // every, cc, theta0, pc)
+                                       pos_reg // every, cc, theta0, pc, gw)
         pos_reg += 1
         if pos_reg == nu * every:
             pos_reg = 0
@@ -186,7 +187,7 @@ class EvaluatorState:
 
     Attributes:
         theta: (J, nu) theta(k0-1) (eq. 38).
-        P: (J, nu, nu) P(k0-1), LOWER triangle authoritative (:mod:`impactcli.detect.rls`).
+        P: (J, nu, nu) P(k0-1), exactly symmetric (:mod:`impactcli.detect.rls`).
         r_lags: (J, eta) r_j(k0-eta) .. r_j(k0-1), oldest first (phi's first block, eq. 51).
         v_lags: (J, p) v_dyn_j(k0-p) .. v_dyn_j(k0-1), oldest first (pseudo-linear block).
         u_lags: (m, rho_max, J) u_{i,l}(k0-rho_max) .. u_{i,l}(k0-1), oldest first; shared

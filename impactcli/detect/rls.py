@@ -17,8 +17,10 @@ P ≤ ~I / delta and two replays of a sample log started 1e-12 apart stay within
 statistic's range instead of separating (the diagnosis and the choice of delta:
 docs/method.md §3).
 
-P is symmetric by construction: :func:`rls_update_inplace` stores and updates only its
-lower triangle (which also halves the work). Wind-up guard: after eq. 39 every diagonal
+P is exactly symmetric by construction: :func:`rls_update_inplace` keeps the whole matrix
+and makes each element of P(k) from products symmetric in (i, j) (eq. 39 as P − g g^T with
+g = P phi sqrt(c), c = 1 / (lambda + phi^T P phi)), compiled without re-association
+(:data:`SYMMETRIC`); P phi is then one vectorised dot product per row. Wind-up guard: after eq. 39 every diagonal
 element of P is capped at ``max_trace / nu`` by a congruence ``P <- W P W``,
 ``w_i = min(1, sqrt(cap / P[i, i]))``: a coordinate at the cap stops being forgotten, the
 others keep lambda, and where the capped regressor entries are exactly 0 (a still joint's
@@ -38,9 +40,65 @@ import numpy as np
 
 #: LLVM fast-math flags of the kernels: re-association (vectorised dot products), FMA
 #: contraction, no signed zeros, reciprocal arithmetic — but NOT no-NaN/no-Inf, so the
-#: positive-definiteness checks below keep working. Symmetry does not depend on rounding:
-#: only one triangle is stored.
+#: positive-definiteness checks below keep working. The covariance pass drops
+#: re-association (:data:`SYMMETRIC`) so that P stays exactly symmetric.
 FASTMATH = {"reassoc", "contract", "nsz", "arcp"}
+
+
+#: Flags of the covariance update: FASTMATH without re-association, so every element is
+#: computed as written — from products symmetric in (i, j) — and P stays exactly symmetric.
+SYMMETRIC = {"contract", "nsz", "arcp"}
+
+
+@nb.njit(cache=True, nogil=True, fastmath=SYMMETRIC)
+def _covariance_row(P: np.ndarray, q: int, g: np.ndarray, w: np.ndarray, inv_lam: float,
+                    out: np.ndarray) -> None:
+    """Row ``q`` of eq. 39's P(k) after the guard, as :func:`_covariance_update` makes it."""
+    wq = w[q]
+    gq = g[q]
+    for j in range(P.shape[0]):
+        out[j] = ((P[q, j] - gq * g[j]) * (wq * w[j])) * inv_lam
+
+
+@nb.njit(cache=True, nogil=True, fastmath=SYMMETRIC)
+def _covariance_update(P: np.ndarray, g: np.ndarray, w: np.ndarray, inv_lam: float,
+                       capped: int, pr: np.ndarray, reg: bool) -> bool:
+    """P <- (P − g g^T) ∘ w w^T / lambda − pr pr^T (eq. 39, the guard's congruence, the
+    regulariser's rank-one term; w is all ones when ``capped`` is 0, pr only when ``reg``),
+    over the whole matrix. Each element is a function of symmetric products (g_i g_j,
+    w_i w_j, pr_i pr_j), evaluated as written (:data:`SYMMETRIC`), so P(k) is exactly
+    symmetric when P(k−1) is. Returns False when a diagonal element is not > 0."""
+    nu = P.shape[0]
+    ok = True
+    if capped == 0 and not reg:
+        for i in range(nu):
+            gi = g[i]
+            for j in range(nu):
+                P[i, j] = (P[i, j] - gi * g[j]) * inv_lam
+            ok = ok and P[i, i] > 0.0
+    elif capped == 0:
+        for i in range(nu):
+            gi = g[i]
+            ri = pr[i]
+            for j in range(nu):
+                P[i, j] = (P[i, j] - gi * g[j]) * inv_lam - ri * pr[j]
+            ok = ok and P[i, i] > 0.0
+    elif not reg:
+        for i in range(nu):
+            gi = g[i]
+            wi = w[i]
+            for j in range(nu):
+                P[i, j] = ((P[i, j] - gi * g[j]) * (wi * w[j])) * inv_lam
+            ok = ok and P[i, i] > 0.0
+    else:
+        for i in range(nu):
+            gi = g[i]
+            wi = w[i]
+            ri = pr[i]
+            for j in range(nu):
+                P[i, j] = ((P[i, j] - gi * g[j]) * (wi * w[j])) * inv_lam - ri * pr[j]
+            ok = ok and P[i, i] > 0.0
+    return ok
 
 
 @nb.njit(cache=True, nogil=True, inline="always", fastmath=FASTMATH)
@@ -48,6 +106,7 @@ def rls_update_inplace(
     theta: np.ndarray, P: np.ndarray, phi: np.ndarray, y: float,
     forgetting_factor: float, max_diag: float, p0: float, h: np.ndarray, w: np.ndarray,
     q: int = 0, c_reg: float = 0.0, theta0: float = 0.0, pc: np.ndarray | None = None,
+    g: np.ndarray | None = None,
 ) -> tuple[float, int, int]:
     """One RLS step (eq. 38–40) in place on ``theta`` (nu,) and ``P`` (nu, nu), then the
     wind-up guard: each diagonal element of P(k) capped at ``max_diag``, then the
@@ -58,14 +117,15 @@ def rls_update_inplace(
         theta <- theta + p_q c_reg (theta0 − theta_q) / (1 + c_reg P(k)_qq)
         P     <- P(k) − c_reg p_q p_q^T / (1 + c_reg P(k)_qq)
 
-    fused into eq. 39's pass over P (p_q is made from P(k−1) and h first).
+    in the same pass over P as eq. 39 (p_q is made from P(k−1) and h first).
 
-    ``P`` holds the symmetric covariance in its LOWER triangle (``P[i, j]``, j ≤ i); the
-    strict upper triangle is neither read nor written.
+    ``P`` is the whole symmetric covariance, kept exactly symmetric: eq. 39 is applied as
+    P − g g^T with g = h sqrt(c) and the regulariser's term as pr pr^T, products symmetric
+    in (i, j) (:func:`_covariance_update`).
 
     Args:
         theta: (nu,) estimate theta(k-1), overwritten with theta(k).
-        P: (nu, nu) covariance P(k-1) (lower triangle), overwritten with P(k).
+        P: (nu, nu) covariance P(k-1) (symmetric), overwritten with P(k).
         phi: (nu,) regressor phi(k).
         y: measurement y(k).
         forgetting_factor: lambda in (0, 1].
@@ -74,22 +134,21 @@ def rls_update_inplace(
         h, w: (nu,) work arrays.
         q, c_reg, theta0: the regulariser's coordinate, weight and target; ``pc`` (nu,) its
             work array (needed when ``c_reg`` > 0).
+        g: (nu,) work array (None: one is allocated).
 
     Returns:
         (eps0, reset, capped) — the a priori error eq. 40; 1 if P had to be reset, else 0;
         1 if a cap scaled P this step, else 0.
     """
     nu = theta.shape[0]
-    # h = P phi from the lower triangle: row j gives P[j, :j] (axpy) and its dot with phi
-    for i in range(nu):
-        h[i] = 0.0
+    if g is None:
+        g = np.empty(nu)
+    # h = P phi, row by row
     for j in range(nu):
-        pj = phi[j]
         acc = 0.0
-        for i in range(j):
-            h[i] += P[j, i] * pj
+        for i in range(nu):
             acc += P[j, i] * phi[i]
-        h[j] += acc + P[j, j] * pj
+        h[j] = acc
     s = 0.0
     e = y
     for i in range(nu):
@@ -98,7 +157,7 @@ def rls_update_inplace(
     reset = 0
     if not (s >= 0.0):  # P lost positive definiteness (or NaN): restart from p0 I
         for i in range(nu):
-            for j in range(i + 1):
+            for j in range(nu):
                 P[i, j] = 0.0
             P[i, i] = p0
             h[i] = p0 * phi[i]
@@ -110,62 +169,36 @@ def rls_update_inplace(
     c = 1.0 / (lam + s)
     inv_lam = 1.0 / lam
     ec = e * c
+    sc = np.sqrt(c)
     for i in range(nu):
         theta[i] += h[i] * ec
+        g[i] = h[i] * sc
     # wind-up guard: w[i] = sqrt(max_diag / P(k)[i, i]) where eq. 39's diagonal would exceed
     # max_diag, else 1; P(k) <- W P(k) W (a congruence: positive definite stays so)
     capped = 0
     for i in range(nu):
-        d = (P[i, i] - h[i] * h[i] * c) * inv_lam
+        d = (P[i, i] - g[i] * g[i]) * inv_lam
         if d > max_diag:
             w[i] = np.sqrt(max_diag / d)
             capped = 1
         else:
             w[i] = 1.0
-    # the regulariser: column q of P(k) (eq. 39 and the guard's W, from P(k-1) and h), then
-    # theta's update; P's own is fused into eq. 39's pass below (g_i p_q[j])
-    cd = 0.0
-    if c_reg > 0.0 and pc is not None:
-        hqc = h[q] * c
-        wq = w[q] * inv_lam
-        for j in range(nu):
-            pjq = P[q, j] if j <= q else P[j, q]
-            pc[j] = (pjq - hqc * h[j]) * (wq * w[j])
+    # the regulariser: row q of P(k) (eq. 39 and the guard's W, from P(k-1) and g), then
+    # theta's update; P's own is the rank-one term pr pr^T, pr = p_q sqrt(c_reg / (1 + ...))
+    reg = c_reg > 0.0 and pc is not None
+    if reg:
+        assert pc is not None
+        _covariance_row(P, q, g, w, inv_lam, pc)
         den = 1.0 / (1.0 + c_reg * pc[q])
         f = c_reg * (theta0 - theta[q]) * den
+        sr = np.sqrt(c_reg * den)
         for i in range(nu):
             theta[i] += pc[i] * f
-        cd = c_reg * den
-    bad = False
-    if cd == 0.0:
-        if capped == 0:
-            for i in range(nu):
-                hic = h[i] * c
-                for j in range(i + 1):
-                    P[i, j] = (P[i, j] - hic * h[j]) * inv_lam
-                if not (P[i, i] > 0.0):
-                    bad = True
-        else:
-            for i in range(nu):
-                hic = h[i] * c
-                wi = w[i] * inv_lam
-                for j in range(i + 1):
-                    P[i, j] = (P[i, j] - hic * h[j]) * (wi * w[j])
-                if not (P[i, i] > 0.0):
-                    bad = True
-    else:
-        assert pc is not None
+            pc[i] = pc[i] * sr
+    ok = _covariance_update(P, g, w, inv_lam, capped, pc if reg else g, reg)
+    if not ok:
         for i in range(nu):
-            hic = h[i] * c
-            wi = w[i] * inv_lam
-            gi = cd * pc[i]
-            for j in range(i + 1):
-                P[i, j] = (P[i, j] - hic * h[j]) * (wi * w[j]) - gi * pc[j]
-            if not (P[i, i] > 0.0):
-                bad = True
-    if bad:
-        for i in range(nu):
-            for j in range(i + 1):
+            for j in range(nu):
                 P[i, j] = 0.0
             P[i, i] = p0
         reset = 1

@@ -69,9 +69,7 @@ def trace(r: np.ndarray, u: np.ndarray, fs: float, v_stat: np.ndarray, cfg: obje
         for j in range(J):
             a_coef = -st.theta[j, eta:eta + p]
             pj.append(float(np.max(np.abs(np.roots(np.r_[1.0, a_coef])))) if p else 0.0)
-            low = np.tril(st.P[j])
-            full = low + low.T - np.diag(np.diag(low))
-            cj.append(float(np.linalg.cond(full)))
+            cj.append(float(np.linalg.cond(st.P[j])))  # the kernel keeps P whole
         poles.append(pj)
         conds.append(cj)
         t_at.append(b / fs)

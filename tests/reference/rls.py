@@ -21,10 +21,11 @@ from impactcli.detect.rls import (
 )
 
 
-def symmetrize(P: np.ndarray) -> np.ndarray:
-    """Full symmetric matrix from the lower triangle the kernels maintain."""
-    low = np.tril(P)
-    return low + np.tril(low, -1).T
+def checked_symmetric(P: np.ndarray) -> np.ndarray:
+    """A copy of the kernel's P, which it keeps whole and exactly symmetric (every element
+    from products symmetric in (i, j)): asserted bit for bit."""
+    assert np.array_equal(P, P.T), "the kernel's P is not exactly symmetric"
+    return np.array(P)
 
 
 @nb.njit(cache=True, nogil=True, fastmath=FASTMATH)
@@ -102,7 +103,7 @@ def rls_run(
         Phi, y, theta, P, float(forgetting_factor), max_diag_of(nu, p0, max_trace),
         float(p0), bool(keep_history),
     )
-    return RlsRun(theta, symmetrize(P), eps, hist, int(resets), int(capped))
+    return RlsRun(theta, checked_symmetric(P), eps, hist, int(resets), int(capped))
 
 
 def rls_step(
@@ -125,7 +126,7 @@ def rls_step(
         th, PP, ph, float(y), float(forgetting_factor), max_diag_of(th.shape[0], p0, max_trace),
         float(p0), np.empty(th.shape[0]), np.empty(th.shape[0]),
     )
-    return th, symmetrize(PP), float(e)
+    return th, checked_symmetric(PP), float(e)
 
 
 class RecursiveLeastSquares:
@@ -155,7 +156,7 @@ class RecursiveLeastSquares:
         self.theta = np.array(
             np.broadcast_to(np.asarray(theta0, dtype=np.float64), (self.n_params,))
         )
-        self._P = self.p0 * np.eye(self.n_params)  # lower triangle is authoritative
+        self._P = self.p0 * np.eye(self.n_params)
         self.n_resets = 0
         self.n_capped = 0
         self._h = np.empty(self.n_params)
@@ -164,7 +165,7 @@ class RecursiveLeastSquares:
     @property
     def P(self) -> np.ndarray:
         """(nu, nu) covariance P(k), symmetric (a copy)."""
-        return symmetrize(self._P)
+        return checked_symmetric(self._P)
 
     def update(self, phi: np.ndarray, y: float) -> float:
         """Absorb one sample; return the a priori error eps0(k) (eq. 40)."""
