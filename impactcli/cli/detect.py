@@ -161,6 +161,10 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     (| head). Run into a folder it wrote before, it redoes every log and removes the
     temporary .part files a killed run left there.
     """
+    from ..logs.paths import prefetch_sha256
+
+    if (jobs or 1) == 1 and scheduler is None:  # this process reads the first log next:
+        prefetch_sha256(logs[0])  # its hash overlaps the start-up (a local file only)
     from ..logs.urls import expand_inputs
     from ..run.batch import DetectJob, Timer, check_unique_stems, run_batch
 

@@ -122,8 +122,9 @@ class MotionSketch:
             for counts, length in ((self.counts, self.lag), (self.counts_long, self.long)):
                 # windows ending in q: starting from its first row − length on
                 first = max(self.tail.shape[0] - length, 0)
-                starts = np.arange(first, max(both.shape[0] - length, first))
-                starts = starts[(base + starts) % self.lag == 0]
+                # the starts from `first` on whose sample (base + start) is a multiple of lag
+                starts = np.arange(first + (-(base + first)) % self.lag,
+                                   max(both.shape[0] - length, first), self.lag)
                 if starts.size:
                     self._count(counts, np.abs(both[starts + length] - both[starts])
                                 / (self.span_s * length / self.lag))
