@@ -18,6 +18,10 @@ EXIT_DETECTED = 1
 EXIT_USAGE = 2
 EXIT_DATA = 3
 EXIT_BATCH = 4
+#: A gate (``--fail-on-detect``, ``--fail-on-force``) could not judge what it was asked to:
+#: no time after warm-up analysed, or an incident without a force estimate. A judged
+#: failure (1) wins over it; a batch's 4 keeps its priority.
+EXIT_UNJUDGED = 5
 #: The machine cannot do what was asked (no display for the viewer): sysexits.h
 #: EX_UNAVAILABLE. Not the input's fault.
 EXIT_UNAVAILABLE = 69

@@ -162,3 +162,68 @@ def test_a_lost_worker_is_70() -> None:
     out = batch.lost_outcome(job, "its worker process died", "worker-lost")
     assert (out.exit_code, out.error_class) == (70, "worker-lost")
     assert batch.EXIT_CRASH == 70
+
+
+# ------------------------------------------------------------------ gates fail closed
+IMPACTS = REPO / "sample_logs" / "csv" / "assist_impacts.csv.gz"
+
+
+def test_a_log_that_is_all_warm_up_is_not_judged_by_fail_on_detect() -> None:
+    """A log whose warm-up covers all of it (its ``warmup_end_s`` past its duration:
+    nothing after warm-up analysed) is named as not judged — exit 5 — not passed as "no
+    incident"; one sample after warm-up is judged. (The CLI refuses logs shorter than
+    ``warmup.min_s`` up front, exit 3; this is the gate's own rule for any other way.)"""
+    from types import SimpleNamespace
+
+    from impactcli.cli.detect import _not_analysed
+
+    def outcome(warmup_end_s: float, duration_s: float) -> Any:
+        return SimpleNamespace(log_path="/data/run7.csv", summary={
+            "warmup_end_s": warmup_end_s, "duration_s": duration_s})
+
+    line = _not_analysed(outcome(3.004, 3.0))
+    assert line is not None and "run7.csv: --fail-on-detect could not judge it" in line
+    assert "no time after warm-up was analysed" in line and "exit 5" in line
+    assert _not_analysed(outcome(3.0, 3.0)) is None  # its last sample is after warm-up
+
+
+def _config_without_kinematics(tmp_path: Path) -> Path:
+    """The sample config with its robot's kinematics cut out: incidents get no force."""
+    text = CONFIG.read_text(encoding="utf-8")
+    a = text.index("[model.robot.kinematics]")
+    b = text.index("\n[", a + 1)
+    path = tmp_path / "nokin.config.toml"
+    path.write_text(text[:a] + text[b + 1:], encoding="utf-8")
+    return path
+
+
+def test_fail_on_force_without_kinematics_is_5_and_a_judged_failure_wins(
+        tmp_path: Path) -> None:
+    """Incidents without a force estimate (a model without kinematics): --fail-on-force
+    cannot judge them (5, the log and the first such incident named); with
+    --fail-on-detect beside it the incidents are judged (1 wins); with the kinematics the
+    forces are known and judged (1 below them, 0 above)."""
+    out = str(tmp_path / "out")
+    nokin = str(_config_without_kinematics(tmp_path))
+    code, _, err = _run("detect", str(IMPACTS), "--config", nokin,
+                        "--fail-on-force", "20", "-o", out)
+    assert code == 5, err
+    assert "assist_impacts.csv.gz: --fail-on-force 20 N could not judge" in err
+    assert "no force estimate" in err
+    code, _, err = _run("detect", str(IMPACTS), "--config", nokin,
+                        "--fail-on-force", "20", "--fail-on-detect", "-o", out)
+    assert code == 1, err
+    assert "--fail-on-detect:" in err and "incidents after warm-up" in err
+    code, _, err = _run("detect", str(IMPACTS), "--config", str(CONFIG),
+                        "--fail-on-force", "1", "-o", out)
+    assert code == 1, err
+    code, _, err = _run("detect", str(IMPACTS), "--config", str(CONFIG),
+                        "--fail-on-force", "1e6", "-o", out)
+    assert code == 0, err
+
+
+def test_exit_5_is_documented() -> None:
+    code, out, _ = _run("--help")
+    assert "5 a gate could not judge" in " ".join(out.split())
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    assert "| 5 | a gate could not judge" in readme

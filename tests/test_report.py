@@ -590,3 +590,12 @@ def test_evaluation_of_incidents_is_rendered_as_it_comes() -> None:
     assert "{&quot;a&quot;: 1}" in text
     assert "Incidents against labels" not in report.quality.quality_html(
         {**q, "evaluation": {"incidents": None}})
+
+
+def test_a_log_that_is_all_warm_up_is_not_judged() -> None:
+    """Nothing after warm-up analysed: the verdict says "not judged", never "no incident"
+    (the report's wording for what the detect gate exits 5 on)."""
+    assert verdict_text([], analysed_s=0.0).startswith("Not judged: the adaptive detector's "
+                                                       "warm-up covers the whole log")
+    assert verdict_text([], analysed_s=2.5) == "No incident after warm-up."
+    assert verdict_text([]) == "No incident after warm-up."

@@ -11,7 +11,7 @@ from typing import Any
 import click
 
 from ..detect.events import LONG_EVENT_S
-from ..errors import EXIT_BATCH, EXIT_DETECTED, Interrupted, one_line
+from ..errors import EXIT_BATCH, EXIT_DETECTED, EXIT_UNJUDGED, Interrupted, one_line
 from .options import (
     executor_options,
     fail_usage,
@@ -122,11 +122,12 @@ MAX_ROWS = 50
                    "(offline only; e.g. an unknown payload).")
 @click.option("--fail-on-detect", is_flag=True,
               help="Exit 1 when an incident (a contact found by adaptive or static_loading) "
-                   "or a lasting load (an alarm of 10 s or more) lies after warm-up.")
+                   "or a lasting load (an alarm of 10 s or more) lies after warm-up; exit 5 "
+                   "(could not judge) when a log's warm-up covers all of it.")
 @click.option("--fail-on-force", type=click.FloatRange(min=0), default=None, metavar="N",
               help="Exit 1 when an incident's or a lasting load's estimated contact force "
-                   "exceeds N newtons (those without an estimate are not judged by it; a "
-                   "warning says so).")
+                   "exceeds N newtons; exit 5 (could not judge) when one has no force "
+                   "estimate and none exceeds N.")
 @generator_option
 @click.option("--allow-slow", is_flag=True,
               help="Run a replay estimated slower than real time or above 2 GiB of "
@@ -155,7 +156,9 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     whether or not collisions are found (unless --fail-on-detect or --fail-on-force: 1,
     with the incident or lasting load above the force named on stderr); 2 when an output
     cannot be written (a full disk: the output named); 3 on a bad input; 4 when some logs
-    of a batch failed (the others' outputs are written); 70 on an internal error (a bug,
+    of a batch failed (the others' outputs are written); 5 when a gate could not judge (a
+    log all warm-up with --fail-on-detect, an incident without a force estimate with
+    --fail-on-force; 1 wins over 5); 70 on an internal error (a bug,
     with its traceback) — never 1; 130 on SIGINT (Ctrl-C) and 143 on SIGTERM (the logs
     finished are listed, their outputs kept); 141 when stdout's reader closed early
     (| head). Run into a folder it wrote before, it redoes every log and removes the
@@ -227,24 +230,67 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
             click.echo(f"impactcli: {len(failed)} of {len(outcomes)} logs failed", err=True)
         # some failed: 4; every one failed: the (first) failure's own code, as `report` does
         ctx.exit(EXIT_BATCH if ok else failed[0].exit_code)
-    if fail_on_detect and any(o.summary.get("incidents", 0) > 0 or loads[o.log_path]
-                              for o in ok):
-        ctx.exit(EXIT_DETECTED)
+    failing: list[str] = []   # judged: exit 1, each line saying why
+    unjudged: list[str] = []  # asked to judge and could not: exit 5
+    if fail_on_detect:
+        failing += [f"impactcli: {_shown(o.log_path)}: --fail-on-detect: "
+                    f"{_found(o, loads[o.log_path])} after warm-up" for o in ok
+                    if o.summary.get("incidents", 0) > 0 or loads[o.log_path]]
+        unjudged += [line for o in ok if (line := _not_analysed(o)) is not None]
     if fail_on_force is not None:
-        incs = [i for o in ok for i in o.summary.get("incident_list", [])]
-        unknown = [i for i in incs if i["force_n"] is None]
-        if unknown:
-            click.echo(f"impactcli: warning: --fail-on-force: {len(unknown)} incident(s) "
-                       "have no force estimate (no kinematics, or the link could not be "
-                       "told) and are not judged by it", err=True)
-        over = [line for o in ok
-                if (line := _over_force(o, fail_on_force) or _load_over(o, loads[o.log_path],
-                                                                       fail_on_force))]
-        for line in over:  # why exit 1: which incident, per log
-            click.echo(line, err=True)
-        if over:
-            ctx.exit(EXIT_DETECTED)
+        failing += [line for o in ok
+                    if (line := _over_force(o, fail_on_force) or _load_over(o, loads[o.log_path],
+                                                                         fail_on_force))]
+        unjudged += [line for o in ok
+                     if (line := _force_unknown(o, loads[o.log_path], fail_on_force))]
+    for line in failing + unjudged:  # why the exit code, per log
+        click.echo(line, err=True)
+    if failing:
+        ctx.exit(EXIT_DETECTED)
+    if unjudged:
+        ctx.exit(EXIT_UNJUDGED)
 
+
+def _found(outcome: Any, loads: list[dict[str, Any]]) -> str:
+    """"3 incidents and 1 lasting load" of one log (the counted ones)."""
+    parts = []
+    n = int(outcome.summary.get("incidents", 0))
+    if n:
+        parts.append(f"{n} incident{'s' if n != 1 else ''}")
+    if loads:
+        parts.append(f"{len(loads)} lasting load{'s' if len(loads) != 1 else ''}")
+    return " and ".join(parts)
+
+
+def _not_analysed(outcome: Any) -> str | None:
+    """The line of a log whose warm-up covers all of it (nothing after warm-up was
+    analysed, so --fail-on-detect cannot judge it), or None."""
+    wu = outcome.summary.get("warmup_end_s")
+    dur = outcome.summary.get("duration_s")
+    if wu is None or dur is None or not wu > dur:
+        return None
+    return (f"impactcli: {_shown(outcome.log_path)}: --fail-on-detect could not judge it: "
+            f"the adaptive detector's warm-up covers the whole log ({dur:.3f} s), so no "
+            "time after warm-up was analysed (exit 5; a longer log, or one that starts at "
+            "rest, is judged)")
+
+
+def _force_unknown(outcome: Any, loads: list[dict[str, Any]], limit: float) -> str | None:
+    """The line of a log with incidents or lasting loads that have no force estimate
+    (--fail-on-force cannot judge them), or None."""
+    incs = [i for i in outcome.summary.get("incident_list", []) if i["force_n"] is None]
+    lds = [x for x in loads if x.get("force_n") is None]
+    if not incs and not lds:
+        return None
+    what = []
+    if incs:
+        what.append(f"{len(incs)} incident{'s' if len(incs) != 1 else ''} (the first at "
+                    f"{incs[0]['t_start']:.3f} s)")
+    if lds:
+        what.append(f"{len(lds)} lasting load{'s' if len(lds) != 1 else ''}")
+    return (f"impactcli: {_shown(outcome.log_path)}: --fail-on-force {limit:g} N could not "
+            f"judge {' and '.join(what)}: no force estimate (no kinematics — give --robot "
+            "with a URDF or a named robot — or the link could not be told); exit 5")
 
 def _finish(outcomes: list[Any], paths: list[str], choice: Any,
             inputs: dict[str, dict[str, str]], wall: float, out_dir: str,

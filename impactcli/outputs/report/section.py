@@ -69,7 +69,9 @@ def log_section(result: DetectionResult, labels: Labels | None,
     counted_alarms = sum(1 for ev in events if ev["detector"] in ("adaptive", "static_loading")
                          and not ev["in_warmup"])
     sec["verdict"] = verdict_text(incidents, known=known, alarms_counted=counted_alarms,
-                                  lasting_loads=tl["lasting_loads"])
+                                  lasting_loads=tl["lasting_loads"],
+                                  analysed_s=max(result.log.duration_s + period
+                                                 - result.warmup_end_s, 0.0))
     sec["could_not_see"] = could_not_see(result, incidents, known=known, origin=origin,
                                          samples=samples)
     sec["false_alarm_margin"] = false_alarm_margins(result, labels, samples=samples)

@@ -130,7 +130,8 @@ def _how_hard(group: Sequence[dict[str, Any]], clock: tuple[str, bool] | None) -
 
 def verdict_text(incidents: Sequence[dict[str, Any]], *, known: bool = True,
                  alarms_counted: int = 0,
-                 lasting_loads: Sequence[dict[str, Any]] = ()) -> str:
+                 lasting_loads: Sequence[dict[str, Any]] = (),
+                 analysed_s: float | None = None) -> str:
     """The log's answer in one line, e.g. ``3 incidents: 2 transient on link 2, ~25 N and
     ~40 N; 1 quasi-static on link 1, ~60 N.`` — clock times when the log's clock is an
     epoch; ``No incident after warm-up.`` when none counts; the counted lasting loads
@@ -141,6 +142,8 @@ def verdict_text(incidents: Sequence[dict[str, Any]], *, known: bool = True,
         known: False for a run that records no incidents though its product detectors
             fired (made before incidents existed); ``alarms_counted`` then says how many.
         lasting_loads: the log's lasting loads (timeline dicts).
+        analysed_s: the time after warm-up analysed [s] (None: not known); 0 with
+            nothing counted is "not judged", not "no incident".
     """
     if not known:
         s = "" if alarms_counted == 1 else "s"
@@ -151,6 +154,9 @@ def verdict_text(incidents: Sequence[dict[str, Any]], *, known: bool = True,
     warm = len(incidents) - len(counted)
     tail = f" (+{warm} in the warm-up, not counted)" if warm else ""
     loads = lasting_text([x for x in lasting_loads if not x.get("in_warmup")])
+    if not counted and analysed_s is not None and analysed_s <= 0.0:
+        return ("Not judged: the adaptive detector's warm-up covers the whole log, so no "
+                f"time after warm-up was analysed{tail}.")
     if not counted:
         if loads:
             return f"{loads[0].upper()}{loads[1:]}; no incident after warm-up{tail}."

@@ -164,6 +164,13 @@ def _envelope(result: DetectionResult, incidents: list[dict[str, Any]]) -> list[
     env = result.motion_envelope
     if env is None:
         return []
+    analysed = result.log.duration_s + result.log.sample_period_s - result.warmup_end_s
+    if analysed <= 0.0:
+        return [{"code": "motion-envelope", "short": "nothing analysed after warm-up",
+                 "data": dict(env),
+                 "text": ("The warm-up covers the whole log: no time after it was analysed, "
+                          "so neither the motion envelope nor the thresholds' stated "
+                          "false-alarm rate says anything of this log.")}]
     if not env.get("outside"):
         rated = bool((result.config.get("calibration") or {}).get("false_alarm_rate"))
         return [{"code": "motion-envelope", "short": "inside the calibrated motion",
