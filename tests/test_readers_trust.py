@@ -109,13 +109,21 @@ def test_time_columns_by_their_common_names_with_the_unit_of_their_suffix(
     np.testing.assert_array_equal(log.position, canonical.position)
 
 
-def test_a_unit_given_against_the_name_is_refused_and_one_the_name_lacks_applies(
+def test_a_unit_given_against_the_name_wins_warned_and_one_the_name_lacks_applies(
         tmp_path: Path) -> None:
+    """The user's --time-unit wins over the column's name (a column named time_ms that
+    holds microseconds), with a warning naming what it replaced; a wrong one is then
+    caught by the rate check, naming the unit that fits."""
+    us = _with_time(tmp_path / "us.csv", "time_ms", "us")  # mislabelled: us, named ms
+    code, out, err = _run("inspect", str(us), "--json", "--time-unit", "us")
+    assert code == 0, err
+    assert json.loads(out)["sample_rate_hz"] == 250.0
+    assert (f"impactcli: warning: {us}: --time-unit us given: column 'time_ms' is read in "
+            "us, not in ms as its name says") in err
     ms = _with_time(tmp_path / "ms.csv", "time_ms", "ms")
     code, _, err = _run("inspect", str(ms), "--time-unit", "us")
     assert code == 3
-    assert _errors(err) == [f"impactcli: error: {ms}: --time-unit us does not apply: column "
-                            "'time_ms' is in ms by its name"]
+    assert "read in us, it looks like ms (250 Hz)" in _errors(err)[0]
     stamp = _with_time(tmp_path / "stamp.csv", "Stamp", "ms")
     assert _inspect(stamp, "--time-unit", "ms")["sample_rate_hz"] == 250.0
 
@@ -228,24 +236,20 @@ def test_a_bad_cell_in_a_log_read_with_rate_is_one_line(tmp_path: Path) -> None:
         f"impactcli: error: {log}: column 'j1.torque', row 2 (line 3): non-numeric value 'abc'"]
 
 
-def test_rate_is_refused_where_it_does_not_apply(tmp_path: Path) -> None:
-    timed = _with_time(tmp_path / "timed.csv", "Time")
-    code, _, err = _run("inspect", str(timed), "--rate", "250")
-    assert code == 3
-    assert _errors(err) == [f"impactcli: error: {timed}: --rate is for a log without a time "
-                            "column, and column 'Time' is one: leave --rate out"]
+def test_rate_wins_over_a_time_column_warned(tmp_path: Path) -> None:
+    """--rate on a log that has a time column places sample i at i / rate (the user's
+    option wins), warned, naming the column not read as the clock; with --time-unit it
+    stays a usage error (they contradict each other)."""
+    timed = _with_time(tmp_path / "timed.csv", "Time")  # 250 Hz by its column
+    code, out, err = _run("inspect", str(timed), "--json", "--rate", "500")
+    assert code == 0, err
+    assert json.loads(out)["sample_rate_hz"] == 500.0
+    assert (f"impactcli: warning: {timed}: --rate 500 given: sample i is placed at i / 500 s "
+            "and the time column 'Time' is not read as the log's clock") in err
     code, _, err = _run("inspect", str(timed), "--rate", "250", "--time-unit", "ms")
     assert code == 2
-    assert "--rate is for a log without a time column: it excludes --time-unit and " \
+    assert "--rate places sample i at i / rate: it excludes --time-unit and " \
            "--time-column" in err
-    code, _, err = _run("inspect", str(timed), "--rate", "0")
-    assert code == 2 and "--rate" in err
-    mcap = REPO / "sample_logs" / "mcap" / "assist_free_p2p.mcap"
-    code, _, err = _run("inspect", str(mcap), "--rate", "250")
-    assert code == 3
-    assert _errors(err) == [f"impactcli: error: {mcap}: --rate applies to CSV and .npz logs "
-                            "only (MCAP and bag stamps are ns)"]
-
 
 def test_rate_reads_an_npz_whose_map_names_no_time(tmp_path: Path, canonical: RobotLog) -> None:
     npz = tmp_path / "ident.npz"
@@ -385,13 +389,12 @@ def test_a_headerless_map_finds_a_semicolon_separator(tmp_path: Path) -> None:
 def test_a_map_for_a_log_without_time_with_rate_and_a_map_with_time_without(
         tmp_path: Path) -> None:
     path = _rtde_export(tmp_path / "e.csv", " ")
-    code, _, err = _run("inspect", str(path), "--channel-map", "ur_rtde_example", "--rate",
-                        "500")
-    assert code == 3
-    assert _errors(err)[0].startswith(
-        f"impactcli: error: {path}: --rate is for a log without a time column, and channel "
-        "map ")
-    assert "names one (timestamp)" in _errors(err)[0]
+    code, out, err = _run("inspect", str(path), "--json", "--channel-map", "ur_rtde_example",
+                          "--rate", "500")
+    assert code == 0, err  # the user's rate wins over the map's time, warned
+    assert json.loads(out)["sample_rate_hz"] == 500.0
+    assert f"impactcli: warning: {path}: --rate 500 given: sample i is placed at i / 500 s" \
+        in err and "(timestamp) is not read as the log's clock" in err
 
 
 def test_time_column_replaces_a_maps_time(tmp_path: Path) -> None:
@@ -412,3 +415,22 @@ def test_the_read_option_errors_of_the_api_are_log_format_errors(tmp_path: Path)
         _read(path, rate=250.0, time_column="time")
     with pytest.raises(LogFormatError, match="unknown position unit 'grad'"):
         _read(path, position_unit="grad")
+
+
+def test_ros_effort_columns_read_as_torque_and_a_torque_column_wins(tmp_path: Path) -> None:
+    """ROS JointState's ``<joint>.effort`` is the joint's torque when it has no
+    ``.torque``; with both, ``.torque`` is read and the effort column is named, warned."""
+    header, rows = _sample()
+    canonical = _read(_write(tmp_path / "c.csv", list(header), [list(r) for r in rows]))
+    effort = [h.removesuffix(".torque") + ".effort" if h.endswith(".torque") else h
+              for h in header]
+    log = _read(_write(tmp_path / "e.csv", effort, [list(r) for r in rows]))
+    np.testing.assert_array_equal(log.torque, canonical.torque)
+    torque_cols = [i for i, h in enumerate(header) if h.endswith(".torque")]
+    both = [*header, *(effort[i] for i in torque_cols)]
+    doubled = [[*r, *("999" for _ in torque_cols)] for r in rows]
+    path = _write(tmp_path / "b.csv", both, doubled)
+    with pytest.warns(ImpactWarning, match=r"has both '\w+\.torque' and '\w+\.effort': "
+                                           r"'\w+\.torque' is read as its torque"):
+        log = read_log(path)
+    np.testing.assert_array_equal(log.torque, canonical.torque)

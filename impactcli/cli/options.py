@@ -157,7 +157,7 @@ def read_options_from(channel_map: str | None, topic: str | None, reference_topi
     ctx_opts = {k: given.get(k) for k in CONTEXT_READ_OPTIONS}
     if ctx_opts["rate"] is not None and (ctx_opts["time_unit"] is not None
                                          or ctx_opts["time_column"] is not None):
-        raise click.UsageError("--rate is for a log without a time column: it excludes "
+        raise click.UsageError("--rate places sample i at i / rate: it excludes "
                                "--time-unit and --time-column")
     ctx_opts["repair_order"] = True if ctx_opts["repair_order"] else None
     opts = {"channel_map": channel_map, "topic": topic, "reference_topic": reference_topic,

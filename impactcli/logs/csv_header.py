@@ -15,7 +15,9 @@ without any time column is read with ``--rate HZ`` (sample i at i / HZ s).
 
 from __future__ import annotations
 
-from ..errors import LogFormatError
+import warnings
+
+from ..errors import ImpactWarning, LogFormatError
 from .channel_map import SIGNALS, TIME_UNITS, ChannelMap, ChannelRef, TimeSpec
 
 #: Separators a CSV's header is split at, tried in this order.
@@ -30,6 +32,8 @@ UNIT_SUFFIXES: dict[str, str] = {"_ns": "ns", "_us": "us", "_ms": "ms", "_s": "s
 #: Recognised time columns (lower case), by preference: ``time_ns`` … ``time``, ``__time``…
 TIME_COLUMNS: tuple[str, ...] = tuple(
     base + suffix for base in TIME_NAMES for suffix in (*UNIT_SUFFIXES, ""))
+#: A joint's column read as its torque when it has no ``.torque``: ROS JointState's name.
+EFFORT = "effort"
 #: How messages list the recognised time columns.
 TIME_COLUMNS_TEXT = ("time, timestamp, stamp, t or PlotJuggler's __time, any case, with an "
                      "optional unit suffix _s, _ms, _us or _ns")
@@ -132,16 +136,20 @@ def canonical_map(header: list[str], path: str, time_unit: str | None = None, *,
 
     Args:
         header: the column names.  path: the file, for messages.
-        time_unit: the unit of a time column whose name says none (``s``, ``ms``, ``us``,
-            ``ns``; None: s).
+        time_unit: ``--time-unit``: the time column's unit (``s``, ``ms``, ``us``, ``ns``);
+            None: the unit its name says (``time_ms``), else s. Given, it wins over the
+            name (warned).
         time_column: ``--time-column``: the time column's name (else recognised by name,
             :func:`find_time_column`).
-        rate: ``--rate`` [Hz]: the log has no time column (the map's ``time`` is None).
+        rate: ``--rate`` [Hz]: sample i is at i / rate (the map's ``time`` is None); a time
+            column is then not read as the clock (warned).
+
+    A joint's ``.effort`` column (ROS JointState's name) is its torque when it has no
+    ``.torque`` (with both, ``.torque`` wins, warned).
 
     Raises:
-        LogFormatError: no time column (without ``rate``), a time column with ``rate``, no
-            joint with a position, a ``time_unit`` for a column whose unit its name says
-            (``time_ns``, PlotJuggler's ``__time``), a ``time_column`` not in the header.
+        LogFormatError: no time column (without ``rate``), no joint with a position, a
+            ``time_column`` not in the header.
     """
     if time_unit is not None and time_unit not in TIME_UNITS:
         raise LogFormatError(f"{path}: unknown time unit {time_unit!r} (s, ms, us or ns)")
@@ -151,10 +159,11 @@ def canonical_map(header: list[str], path: str, time_unit: str | None = None, *,
         tcol = find_time_column(header)
     time: TimeSpec | None = None
     if rate is not None:
-        if tcol is not None:
-            raise LogFormatError(
-                f"{path}: --rate is for a log without a time column, and column {tcol!r} "
-                "is one: leave --rate out")
+        if tcol is not None:  # the user's rate wins: the column is not the clock
+            warnings.warn(
+                f"{path}: --rate {rate:g} given: sample i is placed at i / {rate:g} s and "
+                f"the time column {tcol!r} is not read as the log's clock", ImpactWarning,
+                stacklevel=2)
     elif tcol is None:
         raise LogFormatError(
             f"{path}: no time column (recognised: {TIME_COLUMNS_TEXT}): name yours with "
@@ -163,19 +172,32 @@ def canonical_map(header: list[str], path: str, time_unit: str | None = None, *,
     else:
         named = name_unit(tcol)
         if time_unit is not None and named is not None and time_unit != named:
-            raise LogFormatError(f"{path}: --time-unit {time_unit} does not apply: column "
-                                 f"{tcol!r} is in {named} by its name")
+            warnings.warn(f"{path}: --time-unit {time_unit} given: column {tcol!r} is read "
+                          f"in {time_unit}, not in {named} as its name says", ImpactWarning,
+                          stacklevel=2)
         time = TimeSpec(ChannelRef(tcol), unit=time_unit or named or "s")
     joints: dict[str, dict[str, ChannelRef]] = {}
     ignored: list[str] = []
+    efforts: dict[str, str] = {}  # joint → its ROS-style `.effort` column
     for col in header:
         if col == tcol:
             continue
         joint, dot, sig = col.partition(".")
         if dot and joint and sig in SIGNALS:
             joints.setdefault(joint, {})[sig] = ChannelRef(source=col)
+        elif dot and joint and sig == EFFORT:
+            efforts[joint] = col
         else:
             ignored.append(col)
+    for joint, col in efforts.items():  # ROS's JointState effort: the joint's torque
+        sigs = joints.setdefault(joint, {})
+        if "torque" in sigs:
+            ignored.append(col)
+            warnings.warn(f"{path}: joint {joint!r} has both {sigs['torque'].source!r} and "
+                          f"{col!r}: {sigs['torque'].source!r} is read as its torque, "
+                          f"{col!r} ignored", ImpactWarning, stacklevel=2)
+        else:
+            sigs["torque"] = ChannelRef(source=col)
     # a "joint" without a position is not a joint: its columns are ignored
     for j in [j for j, sigs in joints.items() if "position" not in sigs]:
         ignored += [f"{j}.{s}" for s in joints.pop(j)]

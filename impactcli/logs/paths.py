@@ -216,8 +216,8 @@ def check_time_options(where: str, time_unit: str | None, time_column: str | Non
     if not (math.isfinite(hz) and hz > 0):
         raise LogFormatError(f"{where}: --rate {rate!r} must be a positive number of Hz")
     if time_unit is not None or time_column is not None:
-        raise LogFormatError(f"{where}: --rate is for a log without a time column: it "
-                             "excludes --time-unit and --time-column")
+        raise LogFormatError(f"{where}: --rate places sample i at i / rate: it excludes "
+                             "--time-unit and --time-column")
     return hz
 
 
@@ -225,17 +225,23 @@ def _map_time(cmap: Any, where: str, time_unit: str | None, time_column: str | N
               rate: float | None) -> Any:
     """A CSV or .npz channel map with ``--time-column`` / ``--time-unit`` applied to its
     time (``--time-column`` replaces its column or key, in the unit ``--time-unit``, else
-    the unit its name says, else the map's); with ``--rate``, the map must name no time."""
+    the unit its name says, else the map's); with ``--rate``, the map's time is not read
+    (warned when it names one)."""
     from .channel_map import ChannelRef, TimeSpec
     from .csv_header import name_unit
 
     mapname = cmap.path or cmap.name
     if rate is not None:
-        if cmap.time is not None:
-            raise LogFormatError(
-                f"{where}: --rate is for a log without a time column, and channel map "
-                f"{mapname} names one ({cmap.time.ref.label()}): leave --rate out, or the "
-                "map's 'time'")
+        if cmap.time is not None:  # the user's rate wins over the map's clock, warned
+            import warnings
+
+            from ..errors import ImpactWarning
+
+            warnings.warn(
+                f"{where}: --rate {rate:g} given: sample i is placed at i / {rate:g} s and "
+                f"the time channel map {mapname} names ({cmap.time.ref.label()}) is not read "
+                "as the log's clock", ImpactWarning, stacklevel=2)
+            return dataclasses.replace(cmap, time=None)
         return cmap
     if time_column is not None:
         src: str | int = time_column
