@@ -506,6 +506,9 @@ class DetectionResult:
         motion_envelope: the share of the log after warm-up that moved outside the
             calibration's motion envelope (:meth:`impactcli.detect.envelope.EnvelopeShare.
             to_dict`); None when the config recorded none.
+        detection_floor: the smallest contact the run could have seen
+            (:mod:`impactcli.detect.floor`): per joint the torque, per link the force (with
+            kinematics), median and worst tenth after warm-up; None when not made.
         joints_left_out: ``{name, reason}`` of each logged joint left out of detection
             (:mod:`impactcli.logs.screen`; not in the model or config; left out at
             calibration).
@@ -548,6 +551,7 @@ class DetectionResult:
     incidents: tuple[Any, ...] = ()
     lasting_loads: tuple[Any, ...] = ()
     motion_envelope: dict[str, Any] | None = None
+    detection_floor: dict[str, Any] | None = None
 
     @property
     def online_equivalent(self) -> bool:

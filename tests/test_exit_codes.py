@@ -223,7 +223,7 @@ def test_fail_on_force_without_kinematics_is_5_and_a_judged_failure_wins(
 
 
 def test_exit_5_is_documented() -> None:
-    code, out, _ = _run("--help")
+    _, out, _ = _run("--help")
     assert "5 a gate could not judge" in " ".join(out.split())
     readme = (REPO / "README.md").read_text(encoding="utf-8")
     assert "| 5 | a gate could not judge" in readme

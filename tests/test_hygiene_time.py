@@ -322,7 +322,7 @@ def test_a_rate_above_100_khz_and_time_unit_misuse(tmp_path: Path) -> None:
     # the user's unit wins over the name, warned; read in ms, the rate check refuses it
     with pytest.warns(ImpactWarning, match="--time-unit ms given: column 'time_ns' is read "
                                            "in ms, not in ns as its name says"), \
-            pytest.raises(LogFormatError, match="the sample rate is 0.00025 Hz"):
+            pytest.raises(LogFormatError, match=r"the sample rate is 0\.00025 Hz"):
         read_log(ns, time_unit="ms")
     mcap = tmp_path / "x.mcap"
     write_log(_sample(), mcap)

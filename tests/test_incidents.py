@@ -141,10 +141,12 @@ def test_cli_counts_incidents_and_gates_on_force(tmp_path: Path) -> None:
                                   str(tmp_path / "d"), "--fail-on-detect"])
     assert r.exit_code == 1, r.output
     doc = json.loads((tmp_path / "d" / "assist_pushes.timeline.json").read_text())
-    assert doc["schema_version"] == "2.1" and len(doc["incidents"]) >= 9
+    assert doc["schema_version"] == "2.2" and len(doc["incidents"]) >= 9
 
 
-def test_fail_on_force_without_kinematics_warns(tmp_path: Path) -> None:
+def test_fail_on_force_without_kinematics_could_not_judge(tmp_path: Path) -> None:
+    """A push found with no kinematics has no force estimate: --fail-on-force cannot judge
+    it and exits 5 (could not judge), naming the incident, never 0."""
     import dataclasses
 
     from impactcli.logs import write_log
@@ -158,8 +160,9 @@ def test_fail_on_force_without_kinematics_warns(tmp_path: Path) -> None:
     write_log(dataclasses.replace(log, torque=tau), tmp_path / "x.csv")
     r = CliRunner().invoke(main, ["detect", str(tmp_path / "x.csv"), "-o", str(tmp_path),
                                   "--fail-on-force", "1"])
-    assert "--fail-on-force: " in r.output and "have no force estimate" in r.output
-    assert r.exit_code == 0, r.output
+    assert "--fail-on-force 1 N could not judge 1 incident (the first at 22." in r.output
+    assert "no force estimate" in r.output
+    assert r.exit_code == 5, r.output
 
 
 def test_urdf_link_end_jacobian_matches_finite_differences() -> None:

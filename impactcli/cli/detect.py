@@ -405,6 +405,17 @@ def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str,
                 click.echo(_incident_line(k, inc))
             if len(lst) > MAX_INCIDENTS_LISTED:
                 click.echo(f"  ... {len(lst) - MAX_INCIDENTS_LISTED} more (in the timeline)")
+        if len(ok) == 1 and ok[0].summary.get("detection_floor"):
+            click.echo(f"detection floor of {_shown(ok[0].log_path)}: "
+                       f"{ok[0].summary['detection_floor']} (median over the log after "
+                       "warm-up; a step for the loading detector, a 100 ms blow for the "
+                       "adaptive one; the timeline's detection_floor has both, per joint)")
+        by_column = [o for o in ok if o.summary.get("links") == "column_order"
+                     and (o.summary.get("incident_list") or loads[o.log_path])]
+        if by_column:
+            which = "" if len(ok) == 1 else f" of {len(by_column)} log(s)"
+            click.echo(f"links{which} are numbered in the log's column order (joint k's link "
+                       "is k): no robot description says the chain; --robot gives it")
         if len(ok) == 1 and loads[ok[0].log_path]:
             first = _shown(ok[0].log_path)
             click.echo(f"lasting loads of {first} (an unknown payload, a "

@@ -108,6 +108,7 @@ class IncidentContext:
             ``capacity_source``, what it is (:func:`torque_capacity`).
         link_lengths: a planar arm's link lengths [m] (a joint's reach to a link's end is
             their sum, whatever the posture); None otherwise.
+        chain: the chain's joint names, base first (link i ends at chain joint i).
     """
 
     joints: tuple[str, ...]
@@ -122,6 +123,7 @@ class IncidentContext:
     capacity: np.ndarray | None = None
     capacity_source: str = ""
     link_lengths: tuple[float, ...] | None = None
+    chain: tuple[str, ...] = ()
 
     def reach(self, chain_pos: int, link: int, est: ForceEstimate) -> float:
         """Chain joint ``chain_pos``'s longest lever arm to the end of ``link`` [m]: the sum
@@ -214,7 +216,7 @@ def incident_context(
     cap, source = torque_capacity(urdf_efforts(model, tuple(joints)), torque_peak)
     return IncidentContext(tuple(joints), index, cols, jac, np.asarray(vl, dtype=np.float64),
                            float(dt), int(t0_ns), int(n_samples), float(merge_gap_s),
-                           cap, source, lengths)
+                           cap, source, lengths, tuple(chain))
 
 
 @dataclass(frozen=True)

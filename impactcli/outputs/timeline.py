@@ -18,10 +18,10 @@ from .. import TOOL_NAME, __version__
 from ..files import atomic_write_text
 from ..types import DetectionResult
 
-SCHEMA_VERSION = "2.1"
+SCHEMA_VERSION = "2.2"
 #: Timeline versions ``report`` and ``evaluate`` read (2.x adds optional fields only; 2.1:
 #: ``lasting_loads``, ``counts``, each incident's ``number`` and force check).
-READABLE_VERSIONS: tuple[str, ...] = ("1.0", "2.0", "2.1")
+READABLE_VERSIONS: tuple[str, ...] = ("1.0", "2.0", "2.1", "2.2")
 
 
 def _clean(x: Any) -> Any:
@@ -92,6 +92,8 @@ def timeline_dict(result: DetectionResult) -> dict[str, Any]:
         "lasting_loads": [x.to_dict() for x in result.lasting_loads],
         **({} if result.motion_envelope is None
            else {"motion_envelope": result.motion_envelope}),
+        **({} if result.detection_floor is None
+           else {"detection_floor": result.detection_floor}),
         "counts": result.counts(),
         "summary": result.summary(),
         "warnings": list(result.warnings),

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..detect.floor import floor_line
 from ..errors import (
     EXIT_DATA,
     EXIT_SOFTWARE,
@@ -263,6 +264,8 @@ def _summary(job: DetectJob, result: Any) -> dict[str, Any]:
         "duration_s": log.duration_s,
         "joints": len(log.joint_names),
         "calibrated": result.calibrated,
+        "links": "robot" if (result.model or {}).get("robot") else "column_order",
+        "detection_floor": floor_line(result.detection_floor),
         "warmup_end_s": result.warmup_end_s,
         "generators": {j: g["generator"] for j, g in result.generators.items()},
         "incidents": len(result.counted_incidents()),

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -33,6 +34,7 @@ from ..config import CalibrationRecord, DetectorConfig
 from ..detect.adaptive import AdaptiveResult, default_threads
 from ..detect.envelope import EnvelopeCheck, MotionEnvelope, outside_share_text
 from ..detect.events import extract_events
+from ..detect.floor import FloorAccumulator, pulse_gain
 from ..detect.incident_builder import (
     IncidentContext,
     build_findings,
@@ -238,8 +240,8 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         joints = plan.joints
         given = calibrated_thresholds(cfg, joints)
         since = caught.mark()
-        rp, thr, margins, islands, envelope = _detect_passes(feed, plan, given, on_chunk,
-                                                             passes)
+        rp, thr, margins, islands, envelope, floor_acc = _detect_passes(
+            feed, plan, given, on_chunk, passes)
         stack.callback(islands.close)
         warn_replayed(caught, since, plan, feed, rp)
         if given is None:
@@ -265,6 +267,11 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
                          for i in incidents]
             warn_outside_envelope(where, outside_share_text(share), share.outside,
                                   sum(1 for i in incidents if i.outside_envelope))
+        rates = rp.last.rates
+        floor = floor_acc.finish(
+            rp.warmup.index, rp.warmup.end_index,
+            pulse_gain(rp.last.theta[:, :rp.last.eta], rates.fs_hz, rates.a1, rates.n1),
+            joints, ctx.chain, ctx.index, ctx.chain_cols, ctx.jac)
         header = LogHeader(joints, scan.source, scan.n_samples, scan.t0_ns, scan.duration_s,
                            scan.sample_rate_hz, scan.sample_period_s)
     caught.raise_again()
@@ -287,6 +294,7 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         generators=choices_dict(plan.choices, cfg.residual.logged_correction),
         joints_left_out=tuple(x.to_dict() for x in plan.left_out),
         incidents=tuple(incidents), lasting_loads=tuple(loads), motion_envelope=outside,
+        detection_floor=floor,
         warnings=tuple(dict.fromkeys((*scan.warnings, *caught.messages()))),  # scan's first
     )
 
@@ -295,17 +303,18 @@ def _detect_passes(
     feed: ChunkFeed, plan: RunPlan, given: dict[str, np.ndarray] | None,
     on_chunk: Callable[[SignalsChunk], None] | None, passes: Passes,
 ) -> tuple[Replayed, dict[str, np.ndarray], dict[str, np.ndarray], Islands,
-           EnvelopeCheck | None]:
+           EnvelopeCheck | None, FloorAccumulator]:
     """The replay and the comparison (module docstring): with thresholds ``given``, one
     pass that compares as it goes; without, a pass that spills, the thresholds from what it
     spilled, then the comparison over the spill. Returns the replay, the thresholds, their
-    margins (uncalibrated), the islands (the caller closes them) and the motion envelope's
-    check (None without one)."""
+    margins (uncalibrated), the islands (the caller closes them), the motion envelope's
+    check (None without one) and the detection floor's accumulator."""
     made: list[_Compare] = []   # the comparison, once made (its islands closed on failure)
 
     def compare(thr: dict[str, np.ndarray]) -> _Compare:
         made.append(_Compare(thr, plan.cfg, on_chunk, plan.joints, feed.scan.sample_period_s,
-                             envelope_check(plan.cfg, plan.joints, feed.scan.sample_rate_hz)))
+                             envelope_check(plan.cfg, plan.joints, feed.scan.sample_rate_hz),
+                             feed.scan.n_samples))
         return made[-1]
 
     margins: dict[str, np.ndarray] = {}
@@ -332,7 +341,7 @@ def _detect_passes(
         for c in made:
             c.islands.close()
         raise
-    return rp, thr, margins, comparing.islands, comparing.envelope
+    return rp, thr, margins, comparing.islands, comparing.envelope, comparing.floor
 
 
 def envelope_check(cfg: DetectorConfig, joints: tuple[str, ...], sample_rate_hz: float
@@ -387,9 +396,13 @@ class _Compare:
     def __init__(self, thr: dict[str, np.ndarray], cfg: DetectorConfig,
                  on_chunk: Callable[[SignalsChunk], None] | None,
                  joints: tuple[str, ...], dt: float,
-                 envelope: EnvelopeCheck | None = None) -> None:
+                 envelope: EnvelopeCheck | None = None, n_samples: int = 0) -> None:
         self.thr, self.on_chunk, self.joints = thr, on_chunk, joints
         self.envelope = envelope
+        # the detection floor; the warm-up ends by warmup.max_s (its samples held till then)
+        self.floor = FloorAccumulator(len(joints), n_samples,
+                                      math.ceil(cfg.warmup.max_s / dt) + 1,
+                                      thr["static_loading"])
         self.islands = Islands(cfg.events.merge_gap_s)
         self.pressing_at = BRIDGE_FRACTION * np.maximum(thr["static_loading"], 1e-12)
         self.noise = ResidualNoise(len(joints), dt)
@@ -401,6 +414,7 @@ class _Compare:
         any_d = np.asarray(dec["adaptive"].any(axis=1) | dec["static_loading"].any(axis=1)
                            | dec["static_baseline"].any(axis=1))
         pressing = np.any(st.loading >= self.pressing_at[None, :], axis=1)
+        self.floor.update(st.loading, st.r_rms, thr_ad, st.q_full)
         level, noise = self.noise.update(st.r)
         if self.envelope is not None and st.position is not None:
             self.envelope.update_arrays(t, st.position, st.position_ref, k0)

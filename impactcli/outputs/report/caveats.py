@@ -87,6 +87,12 @@ def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]
     out: list[dict[str, str]] = []
     cfg = result.config or {}
     calib = cfg.get("calibration") or {}
+    if not (result.model or {}).get("robot") and (result.incidents or result.lasting_loads):
+        out.append({"code": "links-column-order",
+                    "text": ("No robot description: the incidents' links are numbered in the "
+                             "log's column order (joint k's link is k), which need not be the "
+                             "arm's chain from its base; give --robot to number them along "
+                             "it.")})
     if not result.calibrated:
         out.append(
             {

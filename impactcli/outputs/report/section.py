@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from ...detect.floor import floor_line
 from ...detect.tail import per_hour_text
 from ...types import DETECTORS, DetectionResult, Labels
 from ..timeline import timeline_dict
@@ -71,7 +72,8 @@ def log_section(result: DetectionResult, labels: Labels | None,
     sec["verdict"] = verdict_text(incidents, known=known, alarms_counted=counted_alarms,
                                   lasting_loads=tl["lasting_loads"],
                                   analysed_s=max(result.log.duration_s + period
-                                                 - result.warmup_end_s, 0.0))
+                                                 - result.warmup_end_s, 0.0),
+                                  floor=floor_line(result.detection_floor))
     sec["could_not_see"] = could_not_see(result, incidents, known=known, origin=origin,
                                          samples=samples)
     sec["false_alarm_margin"] = false_alarm_margins(result, labels, samples=samples)

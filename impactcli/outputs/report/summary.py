@@ -131,7 +131,7 @@ def _how_hard(group: Sequence[dict[str, Any]], clock: tuple[str, bool] | None) -
 def verdict_text(incidents: Sequence[dict[str, Any]], *, known: bool = True,
                  alarms_counted: int = 0,
                  lasting_loads: Sequence[dict[str, Any]] = (),
-                 analysed_s: float | None = None) -> str:
+                 analysed_s: float | None = None, floor: str | None = None) -> str:
     """The log's answer in one line, e.g. ``3 incidents: 2 transient on link 2, ~25 N and
     ~40 N; 1 quasi-static on link 1, ~60 N.`` — clock times when the log's clock is an
     epoch; ``No incident after warm-up.`` when none counts; the counted lasting loads
@@ -144,6 +144,8 @@ def verdict_text(incidents: Sequence[dict[str, Any]], *, known: bool = True,
         lasting_loads: the log's lasting loads (timeline dicts).
         analysed_s: the time after warm-up analysed [s] (None: not known); 0 with
             nothing counted is "not judged", not "no incident".
+        floor: the run's detection floor in words (:func:`impactcli.detect.floor.
+            floor_line`), said after "No incident" (what "none" could not have seen).
     """
     if not known:
         s = "" if alarms_counted == 1 else "s"
@@ -160,7 +162,7 @@ def verdict_text(incidents: Sequence[dict[str, Any]], *, known: bool = True,
     if not counted:
         if loads:
             return f"{loads[0].upper()}{loads[1:]}; no incident after warm-up{tail}."
-        return f"No incident after warm-up{tail}."
+        return f"No incident after warm-up{tail}" + (f"; {floor}." if floor else ".")
     clock = _clock(counted)
     groups: dict[tuple[str, int | None], list[dict[str, Any]]] = {}
     for i in counted:

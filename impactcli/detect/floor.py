@@ -1,0 +1,277 @@
+"""The detection floor: the smallest contact a run could have seen (docs/method.md §5b,
+"The detection floor").
+
+Per joint j and sample k after j's warm-up, the torque a contact must ADD to the residual
+for a product detector to cross its threshold there, for two reference contacts:
+
+* a **step** (a lasting push) for the static-loading detector: the low-passed residual
+  settles at LP(r) + tau, so it crosses vL once |tau| >= vL − |LP(r)(k)| (the favourable
+  sign; 0 where it already alarms);
+* a **half-sine of 100 ms** (a blow) for the adaptive detector: the statistic r_rms
+  (eq. 41 of G_hat r through F1) responds to a unit half-sine with a peak ``g_j``
+  (:func:`pulse_gain`, with the run's final G_hat, eq. 29), and RMS is subadditive, so
+  the statistic cannot cross the dynamic threshold (eq. 42) unless
+  A >= (threshold(k) − r_rms(k)) / g_j.
+
+Both are lower bounds under their assumptions (linear filters, the contact's torque on
+this joint alone, G_hat as at the log's end): a smaller contact of that shape was not
+seen. The floor varies along the log (the residual's level, the dynamic threshold): the
+run states its median and its worst tenth (the 90th percentile), from log-spaced
+histograms (bounded memory; each quantile is its bin's LOWER edge, within 5 % below the
+true one — "below ~X not seen" stays true). With a link-end Jacobian, the floor of
+joint i becomes a force at the end of link i (the direction that turns joint i most:
+force = tau / |J_i|, :func:`impactcli.detect.incidents.smallest_caught_force`) over up to
+:data:`MAX_POSTURES` postures spread along the log: the median force with the median
+torque, and the worst tenth over postures with the worst-tenth torque.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from .incidents import JacobianFn, smallest_caught_force
+
+#: The adaptive detector's reference contact: a half-sine of this duration [s].
+HALF_SINE_S = 0.1
+#: Histogram bins per decade of torque, and its range [N·m] (below: the "0" bin).
+BINS_PER_DECADE = 50
+LOG10_LO, LOG10_HI = -9, 9
+_EDGES = 10.0 ** (np.arange(LOG10_LO * BINS_PER_DECADE, LOG10_HI * BINS_PER_DECADE + 1)
+                  / BINS_PER_DECADE)
+#: After the warm-up's longest possible end, every SAMPLE_EVERY-th sample goes into the
+#: histograms (the quantiles of a log's floor do not need every sample; the cost stays a
+#: small share of the replay's).
+SAMPLE_EVERY = 4
+#: Postures kept along the log for the link forces.
+MAX_POSTURES = 256
+#: The quantiles stated: the median and the worst tenth.
+QUANTILES = {"median": 0.5, "worst_tenth": 0.9}
+DETECTORS = ("static_loading", "adaptive")
+REFERENCE_CONTACTS = {
+    "static_loading": "a step (a lasting push), through the low-pass of the loading detector",
+    "adaptive": f"a half-sine of {HALF_SINE_S * 1000:g} ms (a blow), through G_hat, F1 and "
+                "the RMS window of the adaptive detector",
+}
+
+
+def pulse_gain(theta_g: np.ndarray, fs_hz: float, a1: float, n1: int,
+               duration_s: float = HALF_SINE_S) -> np.ndarray:
+    """(J,) the peak of r_rms (eq. 41: RMS over the N1 samples before k of F1's output)
+    for a unit half-sine of ``duration_s`` added to the residual, through
+    G(z) = 1 − sum_d theta_G[d−1] z^−d (eq. 29; ``theta_g`` (J, eta)) and F1 (pole a1)."""
+    th = np.atleast_2d(np.asarray(theta_g, dtype=np.float64))
+    m = max(1, round(duration_s * fs_hz))
+    n = m + n1 + max(1, round(5.0 / max(1.0 - a1, 1e-12))) + 1  # the pulse, the window, F1's decay
+    x = np.zeros(n)
+    x[:m] = np.sin(np.pi * (np.arange(m) + 0.5) / m)
+    out = np.zeros(th.shape[0])
+    for j, t in enumerate(th):
+        g = x.copy()
+        for d, c in enumerate(t, start=1):
+            g[d:] -= c * x[:-d]
+        y = np.empty(n)
+        prev = 0.0
+        for k in range(n):
+            prev = a1 * prev + (1.0 - a1) * g[k]
+            y[k] = prev
+        sq = np.concatenate(([0.0], np.cumsum(y * y)))
+        win = sq[n1:n] - sq[: n - n1]  # the window k−N1 .. k−1, for k = N1 .. n−1
+        out[j] = math.sqrt(max(float(win.max(initial=0.0)), 0.0) / n1)
+    return out
+
+
+def _bins(x: np.ndarray) -> np.ndarray:
+    """The histogram bin of each margin x ≥ 0: k ≥ 1 holds [_EDGES[k−1], _EDGES[k]) (from
+    the edges' log spacing), 0 below 10^LOG10_LO (an alarm's 0 included)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k = np.floor((np.log10(x) - LOG10_LO) * BINS_PER_DECADE) + 1.0
+    return np.clip(np.nan_to_num(k, nan=0.0, neginf=0.0, posinf=_EDGES.size),
+                   0, _EDGES.size).astype(np.intp)
+
+
+def _quantile(counts: np.ndarray, q: float) -> float | None:
+    """The lower edge of the bin holding the q-quantile (None without samples)."""
+    total = int(counts.sum())
+    if total == 0:
+        return None
+    k = int(np.searchsorted(np.cumsum(counts), q * total))
+    return 0.0 if k == 0 else float(_EDGES[k - 1])
+
+
+class FloorAccumulator:
+    """The floor's margins, fed chunk by chunk in order (the streamed replay): histograms
+    of the samples after ``hold`` samples, the first ``hold`` kept (the warm-up is known
+    only at the end; it ends by ``warmup.max_s``), and postures every ``stride`` samples.
+
+    Args:
+        n_joints: J.  n_samples: the log's length.  hold: samples kept before the
+            histograms (≥ the latest a warm-up may end).
+        v_l: (J,) the static-loading thresholds [N·m].
+    """
+
+    def __init__(self, n_joints: int, n_samples: int, hold: int, v_l: np.ndarray) -> None:
+        self.J = n_joints
+        self.hold = max(0, min(hold, n_samples))
+        self.v_l = np.asarray(v_l, dtype=np.float64)
+        nb = _EDGES.size + 1
+        self.counts = {d: np.zeros((n_joints, nb), dtype=np.int64) for d in DETECTORS}
+        self.head = {d: np.zeros((self.hold, n_joints)) for d in DETECTORS}
+        self.stride = max(1, n_samples // MAX_POSTURES)
+        self.post_k: list[int] = []
+        self.post_q: list[np.ndarray] = []
+        self.k = 0
+
+    def update(self, loading: np.ndarray, r_rms: np.ndarray, threshold: np.ndarray,
+               q_full: np.ndarray | None) -> None:
+        """Feed one chunk: (n, J) |LP(r)|, r_rms and the adaptive threshold; ``q_full``
+        (n, C) the log's positions (for the postures), or None."""
+        n = loading.shape[0]
+        if n == 0:
+            return
+        with np.errstate(invalid="ignore"):
+            margins = {"static_loading": np.maximum(self.v_l[None, :] - np.abs(loading), 0.0),
+                       "adaptive": np.maximum(threshold - r_rms, 0.0)}
+        k0, k1 = self.k, self.k + n
+        nb = _EDGES.size + 1
+        offset = nb * np.arange(self.J)
+        for d, m in margins.items():
+            if k0 < self.hold:
+                take = min(k1, self.hold) - k0
+                self.head[d][k0:k0 + take] = m[:take]
+            # after the held samples: every SAMPLE_EVERY-th sample of the log
+            first = max(self.hold, k0)
+            first += (-first) % SAMPLE_EVERY
+            rows = m[first - k0::SAMPLE_EVERY]
+            if rows.size:
+                fin = np.isfinite(rows)
+                flat = (_bins(np.where(fin, rows, 0.0)) + offset[None, :])[fin]
+                self.counts[d] += np.bincount(flat, minlength=nb * self.J).reshape(self.J, nb)
+        if q_full is not None:
+            first = (-k0) % self.stride
+            for i in range(first, n, self.stride):
+                self.post_k.append(k0 + i)
+                self.post_q.append(np.array(q_full[i], dtype=np.float64))
+        self.k = k1
+
+    def finish(self, warmup_index: Sequence[int] | np.ndarray, warmup_end: int,
+               gain: np.ndarray,
+               joints: Sequence[str], chain: Sequence[str] | None = None,
+               index: Sequence[int] | None = None,
+               chain_cols: Sequence[int | None] | None = None,
+               jac: JacobianFn | None = None) -> dict[str, Any]:
+        """The floor (module docstring) as the timeline's ``detection_floor`` mapping.
+
+        Args:
+            warmup_index: (J,) each joint's first sample after warm-up.  warmup_end: the
+                latest (postures before it are dropped).
+            gain: (J,) :func:`pulse_gain` of each joint.
+            joints: the detected joints.  chain, index, chain_cols, jac: the robot's chain,
+                each joint's 1-based link number in it, each chain joint's column in the
+                log's positions (None: held at 0) and the link-end Jacobian (None: no forces).
+        """
+        counts = {d: c.copy() for d, c in self.counts.items()}
+        for d in DETECTORS:
+            for j in range(self.J):
+                m = self.head[d][int(warmup_index[j]):self.k, j][::SAMPLE_EVERY]
+                m = m[np.isfinite(m)]
+                counts[d][j] += np.bincount(_bins(m), minlength=counts[d].shape[1])
+        per_joint: dict[str, Any] = {}
+        torque = {d: {qn: np.full(self.J, np.nan) for qn in QUANTILES} for d in DETECTORS}
+        for j, name in enumerate(joints):
+            row: dict[str, Any] = {}
+            for d in DETECTORS:
+                scale = 1.0 if d == "static_loading" else (
+                    1.0 / gain[j] if gain[j] > 0 else math.inf)
+                vals = {}
+                for qn, q in QUANTILES.items():
+                    v = _quantile(counts[d][j], q)
+                    vals[f"{qn}_nm"] = None if v is None or not math.isfinite(v * scale) \
+                        else v * scale
+                    if vals[f"{qn}_nm"] is not None:
+                        torque[d][qn][j] = vals[f"{qn}_nm"]
+                row[d] = vals
+            per_joint[name] = row
+        out: dict[str, Any] = {
+            "reference_contacts": dict(REFERENCE_CONTACTS),
+            "half_sine_s": HALF_SINE_S,
+            "pulse_gain": {n: float(g) for n, g in zip(joints, gain, strict=True)},
+            "per_joint": per_joint,
+            "per_link": None,
+        }
+        keep = [i for i, k in enumerate(self.post_k) if k >= warmup_end]
+        if jac is None or chain is None or index is None or chain_cols is None or not keep:
+            return out
+        links: list[dict[str, Any]] = []
+        postures = []
+        for i in keep:
+            pose = np.zeros(len(chain))
+            for c, col in enumerate(chain_cols):
+                if col is not None:
+                    pose[c] = self.post_q[i][col]
+            postures.append(pose)
+        for d in DETECTORS:
+            for qn in QUANTILES:
+                tau: list[float | None] = [None] * len(chain)
+                for j in range(self.J):
+                    v = torque[d][qn][j]
+                    tau[index[j] - 1] = float(v) if math.isfinite(v) else None
+                forces = np.full((len(postures), len(chain)), np.nan)
+                for p, pose in enumerate(postures):
+                    for r in smallest_caught_force(tau, pose, jac):
+                        if r["own_force_n"] is not None:
+                            forces[p, r["link"] - 1] = r["own_force_n"]
+                over = 0.5 if qn == "median" else 0.9
+                for c in range(len(chain)):
+                    col = forces[:, c][np.isfinite(forces[:, c])]
+                    while len(links) <= c:
+                        links.append({"link": len(links) + 1, "joint": chain[len(links)]})
+                    links[c].setdefault(d, {})[f"{qn}_n"] = (
+                        float(np.quantile(col, over)) if col.size else None)
+        out["per_link"] = links
+        out["postures"] = len(postures)
+        return out
+
+
+def floor_line(floor: dict[str, Any] | None) -> str | None:
+    """The run's floor in one phrase for the terminal and the verdict, e.g. ``a contact
+    below ~45 N on link 2 (~60 N in the worst tenth of the log) would not have been seen``
+    — per link with forces, else per joint with torques; the smallest over the two
+    reference contacts; None without a floor."""
+    if not floor:
+        return None
+    parts = []
+    if floor.get("per_link"):
+        for row in floor["per_link"]:
+            m = _smallest(row, "median_n")
+            w = _smallest(row, "worst_tenth_n")
+            if m is not None:
+                parts.append(f"~{_approx(m)} N on link {row['link']}"
+                             + (f" (~{_approx(w)} N in the worst tenth)" if w is not None
+                                and w > 1.05 * m else ""))
+        head = "a contact below"
+    else:
+        for name, row in floor.get("per_joint", {}).items():
+            m = _smallest(row, "median_nm")
+            w = _smallest(row, "worst_tenth_nm")
+            if m is not None:
+                parts.append(f"~{_approx(m)} N·m on {name}"
+                             + (f" (~{_approx(w)} N·m in the worst tenth)" if w is not None
+                                and w > 1.05 * m else ""))
+        head = "a contact adding less than"
+    if not parts:
+        return None
+    return f"{head} {', '.join(parts)} would not have been seen"
+
+
+def _smallest(row: dict[str, Any], key: str) -> float | None:
+    vals = [row[d][key] for d in DETECTORS if isinstance(row.get(d), dict)
+            and row[d].get(key) is not None]
+    return min(vals) if vals else None
+
+
+def _approx(x: float) -> str:
+    return f"{x:.2g}" if x < 100 else f"{x:.0f}"

@@ -1,0 +1,135 @@
+"""The answer states its own limits: what the tool could not ground is said, not implied.
+Here: link numbers made without a robot description (the log's column order), and the
+detection floor (the smallest contact a run could have seen)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from impactcli.cli import main
+
+REPO = Path(__file__).resolve().parents[1]
+IMPACTS = REPO / "sample_logs" / "csv" / "assist_impacts.csv.gz"
+CONFIG = REPO / "sample_logs" / "assist_like.config.toml"
+NOTE = "are numbered in the log's column order"
+
+
+def _without_robot(tmp_path: Path) -> Path:
+    """The sample config with its model's robot description cut out (every
+    ``[model.robot…]`` table): the incidents' links can only follow the columns."""
+    lines = CONFIG.read_text(encoding="utf-8").splitlines(keepends=True)
+    out, skip = [], False
+    for line in lines:
+        if line.startswith("["):
+            skip = line.startswith("[model.robot")
+        if not skip:
+            out.append(line)
+    path = tmp_path / "norobot.config.toml"
+    path.write_text("".join(out), encoding="utf-8")
+    return path
+
+
+def test_links_by_column_order_are_said_in_the_terminal_summary_and_report(
+        tmp_path: Path) -> None:
+    cfg = _without_robot(tmp_path)
+    out = tmp_path / "out"
+    r = CliRunner().invoke(main, ["detect", str(IMPACTS), "--config", str(cfg), "-o", str(out),
+                                  "--summary", str(tmp_path / "s.json")])
+    assert r.exit_code == 0, r.stderr
+    assert f"links {NOTE} (joint k's link is k)" in r.stdout
+    summary = json.loads((tmp_path / "s.json").read_text(encoding="utf-8"))
+    assert summary["results"][0]["links"] == "column_order"
+    assert summary["results"][0]["incidents"] > 0
+    rep = tmp_path / "r.json"
+    r = CliRunner().invoke(main, ["report", str(IMPACTS), "--config", str(cfg),
+                                  "-o", str(tmp_path / "r.html"), "--json", str(rep)])
+    assert r.exit_code == 0, r.stderr
+    caveats = json.loads(rep.read_text(encoding="utf-8"))["logs"][0]["caveats"]
+    assert any(c["code"] == "links-column-order" for c in caveats)
+    # with the description: the chain is the robot's, and nothing is said
+    r = CliRunner().invoke(main, ["detect", str(IMPACTS), "--config", str(CONFIG), "-o",
+                                  str(out), "--summary", str(tmp_path / "s2.json")])
+    assert r.exit_code == 0 and NOTE not in r.stdout
+    summary = json.loads((tmp_path / "s2.json").read_text(encoding="utf-8"))
+    assert summary["results"][0]["links"] == "robot"
+
+
+# ------------------------------------------------------------------ the detection floor
+def test_pulse_gain_against_closed_forms() -> None:
+    """Without G_hat (theta_G = 0) and F1 (a1 = 0), r_rms over one sample peaks at the
+    half-sine's peak (1), and over a window as long as the pulse at its RMS (1/sqrt 2); a
+    differencing G_hat (theta_G = [1, 0]) passes a slow pulse far less."""
+    import numpy as np
+
+    from impactcli.detect.floor import pulse_gain
+
+    fs = 1000.0
+    # 100 samples at mid-sample phases: the largest is cos(pi / 200)
+    assert pulse_gain(np.zeros((1, 2)), fs, 0.0, 1)[0] == pytest.approx(np.cos(np.pi / 200))
+    assert pulse_gain(np.zeros((1, 2)), fs, 0.0, 100)[0] == pytest.approx(2 ** -0.5, rel=1e-3)
+    diff = pulse_gain(np.array([[1.0, 0.0]]), fs, 0.0, 1)[0]
+    assert diff == pytest.approx(np.sin(np.pi / 100), rel=0.05)  # |x(k) − x(k−1)| at most
+
+
+def test_floor_accumulator_knows_its_margins_and_skips_the_warm_up() -> None:
+    """Known margins: loading 0.3 under vL 1.0 (a step needs 0.7), the adaptive threshold
+    0.5 over r_rms 0.1 with a pulse gain of 0.8 (a blow needs 0.5); the warm-up's samples
+    (huge margins) are left out; each quantile is a lower bound within one bin (12 %)."""
+    import numpy as np
+
+    from impactcli.detect.floor import FloorAccumulator
+
+    n, J = 5000, 2
+    acc = FloorAccumulator(J, n, hold=2000, v_l=np.array([1.0, 1.0]))
+    loading = np.full((n, J), 0.3)
+    r_rms = np.full((n, J), 0.1)
+    thr = np.full((n, J), 0.5)
+    loading[:700] = -50.0  # |LP(r)| over vL: margin 0 in the warm-up ...
+    thr[:700] = 1e6        # ... and a huge adaptive one
+    for a in range(0, n, 333):  # chunks of any size
+        acc.update(loading[a:a + 333], r_rms[a:a + 333], thr[a:a + 333], None)
+    floor = acc.finish([700, 700], 700, np.array([0.8, 0.8]), ("a", "b"))
+    for j in ("a", "b"):
+        st, ad = floor["per_joint"][j]["static_loading"], floor["per_joint"][j]["adaptive"]
+        for v, true in ((st["median_nm"], 0.7), (st["worst_tenth_nm"], 0.7),
+                        (ad["median_nm"], 0.5), (ad["worst_tenth_nm"], 0.5)):
+            assert true / 1.13 <= v <= true
+    assert floor["per_link"] is None
+
+
+def test_the_run_states_its_floor_and_the_link_forces_follow_the_link_lengths(
+        tmp_path: Path) -> None:
+    """A calibrated run on a free log states its floor (terminal, timeline, summary,
+    report verdict); per joint it lies between 0 and the threshold, and on the planar
+    sample arm each link's force is its joint's torque over the link's length (|J_i| of
+    the link's own joint), whatever the posture."""
+    free = REPO / "sample_logs" / "csv" / "assist_free_p2p.csv.gz"
+    out = tmp_path / "out"
+    r = CliRunner().invoke(main, ["detect", str(free), "--config", str(CONFIG), "-o", str(out),
+                                  "--summary", str(tmp_path / "s.json")])
+    assert r.exit_code == 0, r.stderr
+    assert "detection floor of assist_free_p2p.csv.gz: a contact below ~" in r.stdout
+    assert "would not have been seen" in r.stdout
+    tl = json.loads((out / "assist_free_p2p.timeline.json").read_text(encoding="utf-8"))
+    floor = tl["detection_floor"]
+    lengths = (0.4, 0.4)  # the sample arm's link lengths (its robot description)
+    for j, row in floor["per_joint"].items():
+        vl = tl["thresholds"][j]["vL"]
+        st = row["static_loading"]
+        assert 0 <= st["median_nm"] <= st["worst_tenth_nm"] <= vl
+        assert row["adaptive"]["median_nm"] > 0
+        link = next(x for x in floor["per_link"] if x["joint"] == j)
+        assert link["static_loading"]["median_n"] == pytest.approx(
+            st["median_nm"] / lengths[link["link"] - 1], rel=1e-9)
+    summary = json.loads((tmp_path / "s.json").read_text(encoding="utf-8"))
+    assert summary["results"][0]["detection_floor"].startswith("a contact below ~")
+    rep = tmp_path / "r.json"
+    r = CliRunner().invoke(main, ["report", str(free), "--config", str(CONFIG),
+                                  "-o", str(tmp_path / "r.html"), "--json", str(rep)])
+    assert r.exit_code == 0, r.stderr
+    verdict = json.loads(rep.read_text(encoding="utf-8"))["logs"][0]["verdict"]
+    assert verdict.startswith("No incident after warm-up; a contact below ~")
