@@ -11,7 +11,7 @@ import pytest
 
 from impactcli.detect.rls import default_max_trace, rls_update_inplace
 
-from .reference.rls import RecursiveLeastSquares, rls_run, rls_step, checked_symmetric
+from .reference.rls import RecursiveLeastSquares, checked_symmetric, rls_run, rls_step
 
 
 def _data(n: int, nu: int, seed: int = 0, noise: float = 0.1):
@@ -86,8 +86,8 @@ def _drive(theta, P, pool, theta_true, n_steps, seed):
 
 def test_stays_symmetric_positive_definite_over_5e6_steps() -> None:
     """nu = 34, lambda = 0.999 (Table I), guard off: 5e6 steps (a compiled driver, 1e6 per
-    chunk); P (exactly symmetric, checked bit for bit) Cholesky-factorisable after every chunk, no reset,
-    estimate right at the end."""
+    chunk); P (exactly symmetric, checked bit for bit) Cholesky-factorisable after every
+    chunk, no reset, estimate right at the end."""
     nu = 34
     rng = np.random.default_rng(3)
     theta_true = rng.standard_normal(nu)

@@ -20,13 +20,13 @@ docs/method.md §3).
 P is exactly symmetric by construction: :func:`rls_update_inplace` keeps the whole matrix
 and makes each element of P(k) from products symmetric in (i, j) (eq. 39 as P − g g^T with
 g = P phi sqrt(c), c = 1 / (lambda + phi^T P phi)), compiled without re-association
-(:data:`SYMMETRIC`); P phi is then one vectorised dot product per row. Wind-up guard: after eq. 39 every diagonal
-element of P is capped at ``max_trace / nu`` by a congruence ``P <- W P W``,
-``w_i = min(1, sqrt(cap / P[i, i]))``: a coordinate at the cap stops being forgotten, the
-others keep lambda, and where the capped regressor entries are exactly 0 (a still joint's
-inputs) the step equals plain eq. 39 bit for bit. A non-positive pivot resets P to p0 I
-(counted). Why this guard, its level (:data:`DEFAULT_TRACE_FACTOR`) and what was measured:
-docs/method.md §3, "The wind-up guard".
+(:data:`SYMMETRIC`); P phi is then one vectorised dot product per row. Wind-up guard:
+after eq. 39 every diagonal element of P is capped at ``max_trace / nu`` by a congruence
+``P <- W P W``, ``w_i = min(1, sqrt(cap / P[i, i]))``: a coordinate at the cap stops
+being forgotten, the others keep lambda, and where the capped regressor entries are
+exactly 0 (a still joint's inputs) the step equals plain eq. 39 bit for bit. A
+non-positive pivot resets P to p0 I (counted). Why this guard, its level
+(:data:`DEFAULT_TRACE_FACTOR`) and what was measured: docs/method.md §3, "The wind-up guard".
 
 The product runs this kernel inside the evaluator's per-axis loop
 (:mod:`impactcli.detect.axes`); the batch, stateful and pure forms the tests check it with
@@ -195,7 +195,7 @@ def rls_update_inplace(
         for i in range(nu):
             theta[i] += pc[i] * f
             pc[i] = pc[i] * sr
-    ok = _covariance_update(P, g, w, inv_lam, capped, pc if reg else g, reg)
+    ok = _covariance_update(P, g, w, inv_lam, capped, pc if reg and pc is not None else g, reg)
     if not ok:
         for i in range(nu):
             for j in range(nu):
