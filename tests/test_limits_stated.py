@@ -133,3 +133,26 @@ def test_the_run_states_its_floor_and_the_link_forces_follow_the_link_lengths(
     assert r.exit_code == 0, r.stderr
     verdict = json.loads(rep.read_text(encoding="utf-8"))["logs"][0]["verdict"]
     assert verdict.startswith("No incident after warm-up; a contact below ~")
+
+
+# ------------------------------------------------------------------ data defects
+def test_recordings_one_after_another_are_refused_naming_them(tmp_path: Path) -> None:
+    """Three recordings concatenated (the time starts again at 0 twice) are not one log:
+    exit 3 naming the rows where each starts, with or without --repair-order (which does
+    not merge recordings into one interleaved log)."""
+    from impactcli.logs import read_log, write_log
+
+    one = tmp_path / "one.csv"
+    write_log(read_log(REPO / "sample_logs" / "csv" / "assist_free_p2p.csv.gz").slice(0, 2000),
+              one)
+    lines = one.read_text(encoding="utf-8").splitlines(keepends=True)
+    path = tmp_path / "three.csv"
+    path.write_text(lines[0] + "".join(lines[1:]) * 3, encoding="utf-8")
+    for extra in ([], ["--repair-order"]):
+        r = CliRunner().invoke(main, ["detect", str(path), "-o", str(tmp_path / "o"), *extra])
+        assert r.exit_code == 3, r.output
+        err = [ln for ln in r.stderr.splitlines() if ln.startswith("impactcli: error:")]
+        assert len(err) == 1, r.stderr
+        assert "time starts again 2 time(s), at row 2001 (line 2002), row 4001 (line 4002)" \
+            in err[0], err[0]
+        assert "the file holds 3 recordings one after another" in err[0]

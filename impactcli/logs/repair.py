@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..errors import LogFormatError
 from ..types import CONTROLLER_CHANNELS
 
 if TYPE_CHECKING:
@@ -37,6 +38,37 @@ if TYPE_CHECKING:
 MAX_GAP_SAMPLES = 5
 #: Largest magnitude of a value read (any channel, in its logged unit); beyond is an error.
 MAX_ABS_VALUE = 1e12
+#: A step back in time of more than this many of the log's typical steps is a recording
+#: starting again (files concatenated), not rows written out of order: refused, naming the
+#: recordings; --repair-order does not merge them.
+RESTART_STEPS = 50
+#: Positive time steps kept to estimate the typical step.
+PERIOD_STEPS = 1000
+
+
+def restart_message(where: str, time_name: str, rows: list[str]) -> str:
+    """The error for a file whose time restarts at ``rows`` (their labels)."""
+    shown = ", ".join(rows[:5]) + (f" and {len(rows) - 5} more" if len(rows) > 5 else "")
+    return (f"{where}: column {time_name!r}: time starts again {len(rows)} time(s), at "
+            f"{shown}: the file holds {len(rows) + 1} recordings one after another, not one "
+            "log; split it at those rows and analyse each (--repair-order does not merge "
+            "recordings)")
+
+
+def restart_rows(t: np.ndarray, typical: float | None = None) -> np.ndarray:
+    """Indices k where a recording starts again: t[k] lies more than :data:`RESTART_STEPS`
+    typical steps before t[k − 1], and the next row goes on from it (t[k] < t[k + 1] <
+    t[k − 1]) — one row far out of order is not a restart. The typical step: ``typical``,
+    else the median of the first positive steps."""
+    d = np.diff(t)
+    if typical is None:
+        pos = d[d > 0][:PERIOD_STEPS]
+        if pos.size == 0:
+            return np.zeros(0, dtype=np.int64)
+        typical = float(np.median(pos))
+    k = np.flatnonzero(d < -RESTART_STEPS * typical) + 1
+    k = k[k + 1 < t.shape[0]]
+    return k[(t[k + 1] > t[k]) & (t[k + 1] < t[k - 1])]
 #: Implied sample rates outside [MIN_RATE_HZ, MAX_RATE_HZ] are an error (docs/formats.md).
 MIN_RATE_HZ = 20.0
 MAX_RATE_HZ = 100_000.0
@@ -93,14 +125,23 @@ def order_message(t: np.ndarray, k: int, orig: np.ndarray, where: str, time_name
 
 
 def increasing_run(t: np.ndarray, orig: np.ndarray, where: str,
-                   row_label: Callable[[int], str]) -> tuple[np.ndarray, str]:
+                   row_label: Callable[[int], str], time_name: str = "time"
+                   ) -> tuple[np.ndarray, str]:
     """``--repair-order``: the rows kept (the longest strictly increasing run of stamps,
     :func:`longest_increasing`) and the repair's message.
 
     Args:
         t: (N,) int64 the stamps after dropping exact duplicates (some out of order).
         orig: (N,) int64 their rows in the file (for the message).
+
+    Raises:
+        LogFormatError: the time starts again (:func:`restart_rows`): recordings one after
+            another are not merged.
     """
+    restarts = restart_rows(t)
+    if restarts.size:
+        raise LogFormatError(restart_message(where, time_name, [row_label(int(orig[k]))
+                                                                for k in restarts]))
     keep = longest_increasing(t)
     mask = np.zeros(t.shape[0], dtype=bool)
     mask[keep] = True
@@ -324,6 +365,8 @@ class Repairer:
         self.dup_first = -1
         self.order_error: str | None = None
         self.mag_error: str | None = None
+        self.steps: list[int] = []  # the first positive time steps (the typical step)
+        self.restarts: list[int] = []  # rows of the file where the time starts again
         # rows held back: kept indices n_kept − held … n_kept − 1
         self.held_t = np.zeros(0, dtype=np.int64)
         self.held_m = np.zeros((0, c))
@@ -344,7 +387,8 @@ class Repairer:
     @property
     def failed(self) -> bool:
         """Whether an order or magnitude error was found (rows are no longer given out)."""
-        return self.order_error is not None or self.mag_error is not None
+        return (self.order_error is not None or self.mag_error is not None
+                or bool(self.restarts))
 
     def deduplicated(self, raw: RawRows) -> tuple[np.ndarray, np.ndarray]:
         """A block's rows after dropping exact duplicates: their stamps and rows in the
@@ -356,6 +400,10 @@ class Repairer:
     def push(self, raw: RawRows) -> tuple[np.ndarray, np.ndarray] | None:
         """Repair the next batch; the rows that are final: ``(t, mat)`` or None."""
         if self.order_error is not None:
+            return None
+        if self.restarts:  # the file is refused: only the other restarts are counted
+            orig = np.arange(raw.row0, raw.row0 + raw.t.shape[0], dtype=np.int64)
+            self._check_order(raw.t, orig)
             return None
         n = raw.t.shape[0]
         orig = np.arange(raw.row0, raw.row0 + n, dtype=np.int64)
@@ -427,8 +475,21 @@ class Repairer:
     def _check_order(self, t: np.ndarray, orig: np.ndarray) -> None:
         tt = t if self.last_t is None else np.concatenate(([self.last_t], t))
         oo = orig if self.last_t is None else np.concatenate(([self.last_orig], orig))
-        bad = np.flatnonzero(np.diff(tt) <= 0)
+        d = np.diff(tt)
+        if len(self.steps) < PERIOD_STEPS:
+            self.steps += d[d > 0][:PERIOD_STEPS - len(self.steps)].tolist()
+        bad = np.flatnonzero(d <= 0)
+        if self.restarts:
+            self.last_t, self.last_orig = int(tt[-1]), int(oo[-1])
         if bad.size == 0:
+            return
+        typical = float(np.median(self.steps)) if self.steps else np.inf
+        big = restart_rows(tt, typical) - 1  # the steps into a recording starting again
+        if big.size and (self.restarts or big[0] == bad[0]):
+            self.restarts += [int(oo[k + 1]) for k in big]
+            self.last_t, self.last_orig = int(tt[-1]), int(oo[-1])
+            return
+        if self.restarts:
             return
         if self.ctx.repair_order:
             raise RepairOrderNeeded
@@ -526,6 +587,9 @@ class Repairer:
         value beyond 1e12, a run of non-finite values (the first column's)."""
         if self.order_error is not None:
             return self.order_error
+        if self.restarts:
+            return restart_message(self.ctx.where, self.ctx.time_name,
+                                   [self.label(r) for r in self.restarts])
         if self.mag_error is not None:
             return self.mag_error
         for c, v in enumerate(self.violation):

@@ -171,7 +171,7 @@ def _order_pass(ctx: StreamLayout) -> tuple[np.ndarray, str]:
             break
     t_all = np.concatenate(ts) if ts else np.zeros(0, np.int64)
     o_all = np.concatenate(origs) if origs else np.zeros(0, np.int64)
-    keep, msg = increasing_run(t_all, o_all, ctx.where, ctx.label)
+    keep, msg = increasing_run(t_all, o_all, ctx.where, ctx.label, ctx.time_name)
     mask = np.zeros(n, dtype=bool)
     mask[o_all[keep]] = True
     return mask, msg
