@@ -156,3 +156,49 @@ def test_recordings_one_after_another_are_refused_naming_them(tmp_path: Path) ->
         assert "time starts again 2 time(s), at row 2001 (line 2002), row 4001 (line 4002)" \
             in err[0], err[0]
         assert "the file holds 3 recordings one after another" in err[0]
+
+
+# ------------------------------------------------------------------ cost before work
+def _many_joints_csv(path: Path, joints: int, rows: int) -> Path:
+    import numpy as np
+
+    t = np.arange(rows) / 500.0
+    rng = np.random.default_rng(0)
+    cols = {"time": t}
+    for j in range(joints):
+        q = 0.5 * np.sin(2 * np.pi * (0.2 + 0.01 * j) * t + j)
+        cols[f"j{j}.position"] = q
+        cols[f"j{j}.torque"] = 2.0 * np.cos(q) + 0.1 * rng.standard_normal(rows)
+    text = ",".join(cols) + "\n" + "\n".join(
+        ",".join(f"{cols[k][i]:.6f}" for k in cols) for i in range(rows)) + "\n"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def test_sixty_joints_identify_in_bounded_memory(tmp_path: Path) -> None:
+    """A 60-joint log: the coupled model's regressor (J × J(5J+1) numbers a row) would need
+    gigabytes, so the model choice falls back to the decoupled model, warned — under a
+    2 GiB address-space limit, in a subprocess (it used to allocate 17 GB)."""
+    import subprocess
+    import sys
+
+    log = _many_joints_csv(tmp_path / "j60.csv", 60, 2000)
+    code = ("import resource, sys; resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30)); "
+            "from impactcli.cli import main; sys.argv = sys.argv[1:]; main()")
+    p = subprocess.run([sys.executable, "-c", code, "impactcli", "identify", str(log),
+                        "-o", str(tmp_path / "m.json")], capture_output=True, text=True,
+                       timeout=600)
+    assert p.returncode == 0, p.stderr[-2000:]
+    assert "the coupled candidate was not tried — 60 joints make its regressor about" \
+        in p.stderr
+    model = json.loads((tmp_path / "m.json").read_text(encoding="utf-8"))
+    assert model["kind"] == "decoupled"
+
+
+def test_the_coupled_candidate_is_kept_where_it_fits() -> None:
+    from impactcli.model import IdentifyOptions
+    from impactcli.model.selection import coupled_too_big
+
+    assert coupled_too_big(7, 10**6, IdentifyOptions(), "x") is None
+    msg = coupled_too_big(20, 10**6, IdentifyOptions(), "x")
+    assert msg is not None and "20 joints" in msg and "coupled_max_mb = 256 MB" in msg

@@ -236,35 +236,44 @@ class FloorAccumulator:
         return out
 
 
+#: Links or joints a floor's sentence names at most (the largest floors).
+MAX_LISTED = 6
+
+
 def floor_line(floor: dict[str, Any] | None) -> str | None:
     """The run's floor in one phrase for the terminal and the verdict, e.g. ``a contact
     below ~45 N on link 2 (~60 N in the worst tenth of the log) would not have been seen``
     — per link with forces, else per joint with torques; the smallest over the two
-    reference contacts; None without a floor."""
+    reference contacts; at most :data:`MAX_LISTED` (the largest); None without a floor."""
     if not floor:
         return None
-    parts = []
+    parts: list[tuple[float, str]] = []
     if floor.get("per_link"):
         for row in floor["per_link"]:
             m = _smallest(row, "median_n")
             w = _smallest(row, "worst_tenth_n")
             if m is not None:
-                parts.append(f"~{_approx(m)} N on link {row['link']}"
-                             + (f" (~{_approx(w)} N in the worst tenth)" if w is not None
-                                and w > 1.05 * m else ""))
+                parts.append((m, f"~{_approx(m)} N on link {row['link']}"
+                              + (f" (~{_approx(w)} N in the worst tenth)" if w is not None
+                                 and w > 1.05 * m else "")))
         head = "a contact below"
     else:
         for name, row in floor.get("per_joint", {}).items():
             m = _smallest(row, "median_nm")
             w = _smallest(row, "worst_tenth_nm")
             if m is not None:
-                parts.append(f"~{_approx(m)} N·m on {name}"
-                             + (f" (~{_approx(w)} N·m in the worst tenth)" if w is not None
-                                and w > 1.05 * m else ""))
+                parts.append((m, f"~{_approx(m)} N·m on {name}"
+                              + (f" (~{_approx(w)} N·m in the worst tenth)" if w is not None
+                                 and w > 1.05 * m else "")))
         head = "a contact adding less than"
     if not parts:
         return None
-    return f"{head} {', '.join(parts)} would not have been seen"
+    shown = [p for _, p in parts]
+    if len(parts) > MAX_LISTED:  # the least sensitive ones: where contacts go unseen
+        top = sorted(range(len(parts)), key=lambda i: -parts[i][0])[:MAX_LISTED]
+        shown = [parts[i][1] for i in sorted(top)]
+        shown.append(f"and less on the {len(parts) - MAX_LISTED} others (in the timeline)")
+    return f"{head} {', '.join(shown)} would not have been seen"
 
 
 def _smallest(row: dict[str, Any], key: str) -> float | None:

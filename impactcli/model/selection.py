@@ -43,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import ImpactWarning
 from ..types import RobotDescription, RobotLog
 from . import structures
 from .fit import robust_lstsq, solve_normal
@@ -51,6 +52,7 @@ from .identification import (
     default_kind,
     fit_rows,
     frozen_params,
+    identify_many,
     many_sha256,
     prepare_rows,
 )
@@ -357,6 +359,25 @@ def _chosen_model(choice: Choice, rows: Mapping[str, Sequence[Rows]], paths: Seq
     return dataclasses.replace(model, fit=dict(model.fit, selection=choice.record))
 
 
+#: Rows the coupled candidate is fitted on at least (:class:`impactcli.model.rows.RowsPlan`).
+COUPLED_MIN_ROWS = 1000
+
+
+def coupled_too_big(n_joints: int, n_samples: int, options: IdentifyOptions,
+                    where: str) -> str | None:
+    """The warning when the coupled candidate cannot be held within
+    ``options.coupled_max_mb`` even at the rows it needs (J × J(5J+1) numbers a row: the
+    memory grows with the cube of the joint count), else None: then the choice is the
+    decoupled model, the coupled one not tried."""
+    rows = min(COUPLED_MIN_ROWS, max(int(n_samples), 1))
+    mb = rows * 8.0 * n_joints * n_joints * (5 * n_joints + 1) / 2**20
+    if mb <= options.coupled_max_mb:
+        return None
+    return (f"{where}: model kind decoupled: the coupled candidate was not tried — "
+            f"{n_joints} joints make its regressor about {mb / 1024:.3g} GiB at the "
+            f"{rows} rows it needs, above coupled_max_mb = {options.coupled_max_mb:g} MB")
+
+
 def select_model(logs: Sequence[RobotLog], *, robot: RobotDescription | None = None,
                  options: IdentifyOptions = IdentifyOptions()) -> RigidModel:
     """The model of the kind (and coupled penalty) that predicts best held back (module
@@ -365,6 +386,11 @@ def select_model(logs: Sequence[RobotLog], *, robot: RobotDescription | None = N
     when the user names no model kind."""
     paths = [lg.source.path for lg in logs]
     named = default_kind(robot)
+    big = coupled_too_big(len(logs[0].joint_names), sum(lg.n_samples for lg in logs),
+                          options, ", ".join(paths)) if named == "decoupled" else None
+    if big is not None:
+        warnings.warn(big, ImpactWarning, stacklevel=2)
+        return identify_many(logs, robot=robot, kind="decoupled", options=options)
     rows: dict[str, list[Rows]] = {}
     rows[named] = [prepare_rows(lg, robot, named, options) for lg in logs]
     with warnings.catch_warnings():  # the same warnings as the rows above: said once
