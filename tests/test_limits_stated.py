@@ -202,3 +202,17 @@ def test_the_coupled_candidate_is_kept_where_it_fits() -> None:
     assert coupled_too_big(7, 10**6, IdentifyOptions(), "x") is None
     msg = coupled_too_big(20, 10**6, IdentifyOptions(), "x")
     assert msg is not None and "20 joints" in msg and "coupled_max_mb = 256 MB" in msg
+
+
+# ------------------------------------------------------------------ rate and time
+def test_a_wrong_rate_is_named_with_the_rate_the_logged_velocity_implies() -> None:
+    """A 250 Hz log carrying its joints' velocity, read with --rate 1000: warned with the
+    rate the velocity implies (its |v| over the positions' steps); read right: silent."""
+    free = REPO / "sample_logs" / "csv" / "assist_free_p2p.csv.gz"
+    r = CliRunner().invoke(main, ["inspect", str(free), "--rate", "1000"])
+    assert r.exit_code == 0, r.stderr
+    assert ("the logged velocity implies a sample rate of about 250 Hz (its |v| over the "
+            "positions' steps, 2 moving joint(s)), the log's clock 1e+03 Hz: check --rate"
+            in " ".join(r.stderr.split()))
+    r = CliRunner().invoke(main, ["inspect", str(free)])
+    assert r.exit_code == 0 and "velocity implies" not in r.stderr

@@ -40,6 +40,12 @@ from .screen import ColumnScreen, ScreenAccumulator
 #: The first pass keeps the steps longer than this fraction of 1.5 provisional periods as
 #: gap candidates (exact while the final threshold is above; else a second pass).
 FLOOR_FRACTION = 0.8
+#: The logged velocity against the positions' steps: a joint counts where |v| is at least
+#: MOVING_RAD_S [rad/s], over at least MIN_MOVING_SAMPLES samples; the rate it implies is
+#: warned of when off the clock's by more than RATE_FACTOR (and the joints agree within it).
+MOVING_RAD_S = 0.05
+MIN_MOVING_SAMPLES = 100
+RATE_FACTOR = 1.5
 
 
 class ScanReader(Protocol):
@@ -313,6 +319,12 @@ class _ScanAcc:
         self.bad_row: dict[str, np.ndarray] = {}  # signal → (J,) first non-finite sample
         self.sketch: MotionSketch | None = None  # the positions' travel and speeds
         self.sketch_wait: list[np.ndarray] = []  # positions before the period is known
+        # the logged velocity against the positions' steps, where a joint moves: per joint
+        # the sums of |v| and |Δq| (the rate the velocity implies, :func:`velocity_rate`)
+        self.v_sum = np.zeros(j)
+        self.dq_sum = np.zeros(j)
+        self.v_n = np.zeros(j, dtype=np.int64)
+        self.q_last: np.ndarray | None = None
 
     def _first_bad(self, signal: str, a: np.ndarray) -> None:
         """Note each column's first non-finite sample (RobotLog refuses it)."""
@@ -357,6 +369,8 @@ class _ScanAcc:
                          for s, a in arrays.items()}
         self.pos_finite |= column_any(np.isfinite(arrays["position"]))
         self._sketch(arrays["position"])
+        if arrays.get("velocity") is not None:
+            self._velocity(arrays["position"], arrays["velocity"])
         self.torque_finite |= column_any(np.isfinite(arrays["torque"]))
         for s in self.ctx.plan.optional:
             fin = column_any(np.isfinite(arrays[s]))
@@ -373,6 +387,35 @@ class _ScanAcc:
                 if s in self.ranges:
                     lo, hi = np.fmin(self.ranges[s][0], lo), np.fmax(self.ranges[s][1], hi)
                 self.ranges[s] = (lo, hi)
+
+    def _velocity(self, q: np.ndarray, v: np.ndarray) -> None:
+        """Sum |v| and |Δq| over the samples where the logged velocity says the joint
+        moves (|v| ≥ :data:`MOVING_RAD_S`; Δq from the sample before, across blocks)."""
+        prev = q[:1] if self.q_last is None else self.q_last[None, :]
+        dq = np.abs(np.diff(np.concatenate((prev, q)), axis=0))
+        with np.errstate(invalid="ignore"):
+            use = (np.abs(v) >= MOVING_RAD_S) & np.isfinite(dq) & np.isfinite(v)
+        self.v_sum += np.where(use, np.abs(v), 0.0).sum(axis=0)
+        self.dq_sum += np.where(use, dq, 0.0).sum(axis=0)
+        self.v_n += use.sum(axis=0)
+        self.q_last = q[-1].copy()
+
+    def velocity_rate(self, keep: list[int], rate_hz: float) -> str | None:
+        """The warning when the logged velocity implies another sample rate than the
+        log's clock (or ``--rate``): per moving joint sum|v| / sum|Δq| [Hz], their median,
+        when it is off by more than :data:`RATE_FACTOR` and the joints agree; else None."""
+        k = [c for c in keep if self.v_n[c] >= MIN_MOVING_SAMPLES and self.dq_sum[c] > 0]
+        if not k or not rate_hz > 0:
+            return None
+        implied = self.v_sum[k] / self.dq_sum[k]
+        med = float(np.median(implied))
+        agree = float(np.max(implied) / np.min(implied)) <= RATE_FACTOR
+        if agree and not 1.0 / RATE_FACTOR <= med / rate_hz <= RATE_FACTOR:
+            return (f"{self.ctx.where}: the logged velocity implies a sample rate of about "
+                    f"{med:.3g} Hz (its |v| over the positions' steps, {len(k)} moving "
+                    f"joint(s)), the log's clock {rate_hz:.3g} Hz: check --rate or the time "
+                    "unit (or that .velocity is in rad/s, per s of the positions' unit)")
+        return None
 
     def _sketch(self, q: np.ndarray) -> None:
         """Feed (n, J) positions [rad] to the motion sketch (made once the provisional
@@ -449,9 +492,11 @@ class _ScanAcc:
         if verdict.kind == "refuse" and not given and not describing_only():
             raise LogFormatError(verdict.message)
         said = [verdict.message] if verdict.kind != "ok" else []
+        clock = self.hist.clock()
+        vel = self.velocity_rate(keep, clock.rate_hz)
+        said += [vel] if vel is not None else []
         for msg in (*said, *limit_msgs):
             warnings.warn(msg, ImpactWarning, stacklevel=3)
-        clock = self.hist.clock()
         optional = tuple(s for s in OPTIONAL if getattr(log, s) is not None)
         ps = ScanPass(ctx, allbad, keep, optional, shift, self.n, rep.order_keep,
                       cache if cache is not None and cache.usable else None,
