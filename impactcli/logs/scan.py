@@ -33,7 +33,7 @@ from .plausibility import (
     position_unit_verdict,
     robot_joint_limits,
 )
-from .repair import Repairer, RepairOrderNeeded, increasing_run
+from .repair import MAX_RATE_HZ, MIN_RATE_HZ, Repairer, RepairOrderNeeded, increasing_run
 from .row_cache import RowCache
 from .screen import ColumnScreen, ScreenAccumulator
 
@@ -403,12 +403,16 @@ class _ScanAcc:
     def velocity_rate(self, keep: list[int], rate_hz: float) -> str | None:
         """The warning when the logged velocity implies another sample rate than the
         log's clock (or ``--rate``): per moving joint sum|v| / sum|Δq| [Hz], their median,
-        when it is off by more than :data:`RATE_FACTOR` and the joints agree; else None."""
+        when it is off by more than :data:`RATE_FACTOR`, the joints agree and it is a rate
+        a log can have (20 Hz – 100 kHz: else the velocity is not these positions'
+        derivative, and says nothing of the rate); else None."""
         k = [c for c in keep if self.v_n[c] >= MIN_MOVING_SAMPLES and self.dq_sum[c] > 0]
         if not k or not rate_hz > 0:
             return None
         implied = self.v_sum[k] / self.dq_sum[k]
         med = float(np.median(implied))
+        if not MIN_RATE_HZ <= med <= MAX_RATE_HZ:  # not these positions' derivative at all
+            return None
         agree = float(np.max(implied) / np.min(implied)) <= RATE_FACTOR
         if agree and not 1.0 / RATE_FACTOR <= med / rate_hz <= RATE_FACTOR:
             return (f"{self.ctx.where}: the logged velocity implies a sample rate of about "
