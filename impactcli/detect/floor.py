@@ -247,25 +247,20 @@ def floor_line(floor: dict[str, Any] | None) -> str | None:
     reference contacts; at most :data:`MAX_LISTED` (the largest); None without a floor."""
     if not floor:
         return None
-    parts: list[tuple[float, str]] = []
     if floor.get("per_link"):
-        for row in floor["per_link"]:
-            m = _smallest(row, "median_n")
-            w = _smallest(row, "worst_tenth_n")
-            if m is not None:
-                parts.append((m, f"~{_approx(m)} N on link {row['link']}"
-                              + (f" (~{_approx(w)} N in the worst tenth)" if w is not None
-                                 and w > 1.05 * m else "")))
-        head = "a contact below"
+        items = [(f"link {row['link']}", row) for row in floor["per_link"]]
+        key, unit, head = "_n", "N", "a contact below"
     else:
-        for name, row in floor.get("per_joint", {}).items():
-            m = _smallest(row, "median_nm")
-            w = _smallest(row, "worst_tenth_nm")
-            if m is not None:
-                parts.append((m, f"~{_approx(m)} N·m on {name}"
-                              + (f" (~{_approx(w)} N·m in the worst tenth)" if w is not None
-                                 and w > 1.05 * m else "")))
-        head = "a contact adding less than"
+        items = list(floor.get("per_joint", {}).items())
+        key, unit, head = "_nm", "N·m", "a contact adding less than"
+    parts: list[tuple[float, str]] = []
+    for where, row in items:
+        m = _smallest(row, "median" + key)
+        w = _smallest(row, "worst_tenth" + key)
+        if m is not None:
+            parts.append((m, f"~{_approx(m)} {unit} on {where}"
+                          + (f" (~{_approx(w)} {unit} in the worst tenth)" if w is not None
+                             and w > 1.05 * m else "")))
     if not parts:
         return None
     shown = [p for _, p in parts]
