@@ -216,3 +216,43 @@ def test_a_wrong_rate_is_named_with_the_rate_the_logged_velocity_implies() -> No
             in " ".join(r.stderr.split()))
     r = CliRunner().invoke(main, ["inspect", str(free)])
     assert r.exit_code == 0 and "velocity implies" not in r.stderr
+
+
+# ------------------------------------------------------------------ unchecked joints
+def test_a_joint_that_moves_but_is_not_checked_is_named(tmp_path: Path) -> None:
+    """A third joint the config does not know, moving 1.2 rad: left out of detection, and
+    said so — the terminal's warning, the timeline (travel_rad, motion_envelope.unchecked)
+    and the report's verdict ("Not checked, though they moved"); a still one is not named."""
+    import numpy as np
+
+    from impactcli.logs import read_log, write_log
+
+    log = read_log(IMPACTS).slice(0, 5000)
+    n = log.n_samples
+    t = np.asarray(log.time_s)
+    path = tmp_path / "three.csv"
+    write_log(log, path)
+    lines = path.read_text(encoding="utf-8").splitlines()
+    wrist = 0.6 * np.sin(2 * np.pi * 0.1 * t)
+    still = np.full(n, 0.2)
+    rows = [lines[0] + ",wrist.position,wrist.torque,still.position,still.torque"]
+    rows += [f"{ln},{wrist[i]:.6f},{0.1 * np.cos(wrist[i]):.6f},{still[i]:.6f},0.05"
+             for i, ln in enumerate(lines[1:])]
+    path.write_text("\n".join(rows) + "\n", encoding="utf-8")
+    out = tmp_path / "out"
+    r = CliRunner().invoke(main, ["detect", str(path), "--config", str(CONFIG), "-o", str(out)])
+    assert r.exit_code == 0, r.stderr
+    text = " ".join(r.stderr.split())
+    assert "joint(s) moved but were not checked" in text and "wrist (travels 1.2 rad;" in text
+    assert "still (travels" not in text
+    tl = json.loads((out / "three.timeline.json").read_text(encoding="utf-8"))
+    left = {x["name"]: x for x in tl["input"]["joints_left_out"]}
+    assert left["wrist"]["travel_rad"] == pytest.approx(1.2, rel=0.01)
+    assert "travel_rad" not in left["still"]
+    assert "wrist" in tl["motion_envelope"]["unchecked"]
+    rep = tmp_path / "r.json"
+    r = CliRunner().invoke(main, ["report", str(path), "--config", str(CONFIG),
+                                  "-o", str(tmp_path / "r.html"), "--json", str(rep)])
+    assert r.exit_code == 0, r.stderr
+    verdict = json.loads(rep.read_text(encoding="utf-8"))["logs"][0]["verdict"]
+    assert "Not checked, though they moved: wrist (1.2 rad;" in verdict

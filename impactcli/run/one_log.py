@@ -24,7 +24,8 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import math
-from collections.abc import Callable
+import warnings
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -45,8 +46,9 @@ from ..detect.incidents import BRIDGE_FRACTION, Incident, LastingLoad
 from ..detect.link_evidence import ResidualNoise
 from ..detect.thresholds import compare_to_thresholds
 from ..detect.warmup import Warmup, WarmupTracker
-from ..errors import ConfigError
+from ..errors import ConfigError, ImpactWarning
 from ..logs.reader import LogReader
+from ..logs.screen import LeftOut
 from ..model.generators import choices_dict, summary_name
 from ..model.rigid import RigidModel
 from ..types import DETECTORS, DetectionResult, Event, LogHeader, RobotDescription, SignalsChunk
@@ -272,6 +274,14 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
             rp.warmup.index, rp.warmup.end_index,
             pulse_gain(rp.last.theta[:, :rp.last.eta], rates.fs_hz, rates.a1, rates.n1),
             joints, ctx.chain, ctx.index, ctx.chain_cols, ctx.jac)
+        left_out = moved_unchecked(plan.left_out, scan.log.joint_names,
+                                   scan.ranges.get("position"))
+        moved = [x for x in left_out if "travel_rad" in x]
+        if moved:
+            warnings.warn(unchecked_message(where, moved), ImpactWarning, stacklevel=2)
+            if outside is not None:
+                outside["unchecked"] = sorted({*outside.get("unchecked", ()),
+                                               *(x["name"] for x in moved)})
         header = LogHeader(joints, scan.source, scan.n_samples, scan.t0_ns, scan.duration_s,
                            scan.sample_rate_hz, scan.sample_period_s)
     caught.raise_again()
@@ -292,11 +302,41 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
                      "gain": {j: [float(g) for g in gain[k]] for k, j in enumerate(joints)}},
         residual_generator=summary_name(plan.choices), read_options=dict(setup.read_options),
         generators=choices_dict(plan.choices, cfg.residual.logged_correction),
-        joints_left_out=tuple(x.to_dict() for x in plan.left_out),
+        joints_left_out=tuple(left_out),
         incidents=tuple(incidents), lasting_loads=tuple(loads), motion_envelope=outside,
         detection_floor=floor,
         warnings=tuple(dict.fromkeys((*scan.warnings, *caught.messages()))),  # scan's first
     )
+
+
+#: A joint left out of detection whose positions span more than this [rad] moved in the
+#: log: it is named as not checked (terminal, verdict, motion_envelope.unchecked).
+MOVED_RAD = 0.05
+
+
+def moved_unchecked(left_out: Sequence[LeftOut], names: Sequence[str],
+                    position_range: tuple[np.ndarray, np.ndarray] | None,
+                    ) -> list[dict[str, Any]]:
+    """The joints left out of detection as timeline items, each with ``travel_rad`` when
+    its positions in the log span more than :data:`MOVED_RAD`."""
+    out = []
+    for x in left_out:
+        d: dict[str, Any] = x.to_dict()
+        if position_range is not None and x.name in names:
+            k = list(names).index(x.name)
+            travel = float(position_range[1][k] - position_range[0][k])
+            if math.isfinite(travel) and travel > MOVED_RAD:
+                d["travel_rad"] = travel
+        out.append(d)
+    return out
+
+
+def unchecked_message(where: str, moved: Sequence[dict[str, Any]]) -> str:
+    """The warning naming the joints that moved but were not checked."""
+    each = "; ".join(f"{x['name']} (travels {x['travel_rad']:.3g} rad; {x['reason']})"
+                     for x in moved)
+    return (f"{where}: joint(s) moved but were not checked — no contact on them or the "
+            f"links they carry alone can be seen: {each}")
 
 
 def _detect_passes(

@@ -73,7 +73,9 @@ def log_section(result: DetectionResult, labels: Labels | None,
                                   lasting_loads=tl["lasting_loads"],
                                   analysed_s=max(result.log.duration_s + period
                                                  - result.warmup_end_s, 0.0),
-                                  floor=floor_line(result.detection_floor))
+                                  floor=floor_line(result.detection_floor),
+                                  unchecked=[x for x in tl["input"]["joints_left_out"]
+                                             if "travel_rad" in x])
     sec["could_not_see"] = could_not_see(result, incidents, known=known, origin=origin,
                                          samples=samples)
     sec["false_alarm_margin"] = false_alarm_margins(result, labels, samples=samples)

@@ -131,7 +131,8 @@ def _how_hard(group: Sequence[dict[str, Any]], clock: tuple[str, bool] | None) -
 def verdict_text(incidents: Sequence[dict[str, Any]], *, known: bool = True,
                  alarms_counted: int = 0,
                  lasting_loads: Sequence[dict[str, Any]] = (),
-                 analysed_s: float | None = None, floor: str | None = None) -> str:
+                 analysed_s: float | None = None, floor: str | None = None,
+                 unchecked: Sequence[dict[str, Any]] = ()) -> str:
     """The log's answer in one line, e.g. ``3 incidents: 2 transient on link 2, ~25 N and
     ~40 N; 1 quasi-static on link 1, ~60 N.`` — clock times when the log's clock is an
     epoch; ``No incident after warm-up.`` when none counts; the counted lasting loads
@@ -146,7 +147,19 @@ def verdict_text(incidents: Sequence[dict[str, Any]], *, known: bool = True,
             nothing counted is "not judged", not "no incident".
         floor: the run's detection floor in words (:func:`impactcli.detect.floor.
             floor_line`), said after "No incident" (what "none" could not have seen).
+        unchecked: the joints that moved but were left out of detection (timeline
+            ``input.joints_left_out`` items with ``travel_rad``), named at the end.
     """
+    return _verdict(incidents, known, alarms_counted, lasting_loads, analysed_s, floor) + (
+        "" if not unchecked else " Not checked, though they moved: " + "; ".join(
+            f"{x['name']} ({x['travel_rad']:.2g} rad; {x['reason']})" for x in unchecked)
+        + ".")
+
+
+def _verdict(incidents: Sequence[dict[str, Any]], known: bool, alarms_counted: int,
+             lasting_loads: Sequence[dict[str, Any]], analysed_s: float | None,
+             floor: str | None) -> str:
+    """:func:`verdict_text` but the unchecked joints."""
     if not known:
         s = "" if alarms_counted == 1 else "s"
         return (f"{alarms_counted} alarm{s} of the product's detectors after warm-up; this "
