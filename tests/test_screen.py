@@ -85,8 +85,13 @@ def test_logged_joint_outside_the_config_is_left_out() -> None:
     cfg = calibrate([make_log(n=2500, seed=s) for s in (1, 2)])  # j1, j2
     res = detect_in_memory(three_joint_log(seed=3), config=cfg)[0]
     assert res.log.joint_names == ("j1", "j2")
-    assert res.joints_left_out == ({"name": "j3",
-                                    "reason": "not in the model or the calibrated config"},)
+    (left,) = res.joints_left_out
+    assert {k: left[k] for k in ("name", "reason")} == {
+        "name": "j3", "reason": "not in the model or the calibrated config"}
+    # it moves (its sine spans about 1 rad): said as not checked, with its travel
+    q = np.asarray(three_joint_log(seed=3).position)[:, 2]
+    assert left["travel_rad"] == pytest.approx(float(q.max() - q.min()))
+    assert any("moved but were not checked" in w and "j3 (travels" in w for w in res.warnings)
 
 
 def test_flat_controller_channel_is_read_as_not_logged() -> None:
