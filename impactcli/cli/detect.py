@@ -251,15 +251,16 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
         ctx.exit(EXIT_UNJUDGED)
 
 
+def _count(n: int, what: str) -> str:
+    """``1 incident``, ``3 incidents``."""
+    return f"{n} {what}{'s' if n != 1 else ''}"
+
+
 def _found(outcome: Any, loads: list[dict[str, Any]]) -> str:
     """"3 incidents and 1 lasting load" of one log (the counted ones)."""
-    parts = []
     n = int(outcome.summary.get("incidents", 0))
-    if n:
-        parts.append(f"{n} incident{'s' if n != 1 else ''}")
-    if loads:
-        parts.append(f"{len(loads)} lasting load{'s' if len(loads) != 1 else ''}")
-    return " and ".join(parts)
+    return " and ".join(([_count(n, "incident")] if n else [])
+                        + ([_count(len(loads), "lasting load")] if loads else []))
 
 
 def _not_analysed(outcome: Any) -> str | None:
@@ -282,12 +283,8 @@ def _force_unknown(outcome: Any, loads: list[dict[str, Any]], limit: float) -> s
     lds = [x for x in loads if x.get("force_n") is None]
     if not incs and not lds:
         return None
-    what = []
-    if incs:
-        what.append(f"{len(incs)} incident{'s' if len(incs) != 1 else ''} (the first at "
-                    f"{incs[0]['t_start']:.3f} s)")
-    if lds:
-        what.append(f"{len(lds)} lasting load{'s' if len(lds) != 1 else ''}")
+    what = ([f"{_count(len(incs), 'incident')} (the first at {incs[0]['t_start']:.3f} s)"]
+            if incs else []) + ([_count(len(lds), "lasting load")] if lds else [])
     return (f"impactcli: {_shown(outcome.log_path)}: --fail-on-force {limit:g} N could not "
             f"judge {' and '.join(what)}: no force estimate (no kinematics — give --robot "
             "with a URDF or a named robot — or the link could not be told); exit 5")

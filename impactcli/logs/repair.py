@@ -44,6 +44,15 @@ MAX_ABS_VALUE = 1e12
 RESTART_STEPS = 50
 #: Positive time steps kept to estimate the typical step.
 PERIOD_STEPS = 1000
+#: Implied sample rates outside [MIN_RATE_HZ, MAX_RATE_HZ] are an error (docs/formats.md).
+MIN_RATE_HZ = 20.0
+MAX_RATE_HZ = 100_000.0
+#: Signals whose column may hold no finite value (passed on as NaN): a position or torque
+#: (or current, the torque source) column leaves its joint out of the log; an optional
+#: signal's column (velocity, current not the torque source, references) leaves that
+#: signal out of the log (:func:`impactcli.logs.channels.drop_empty_signals`).
+DROPPABLE_SIGNALS = ("position", "torque", "current", "velocity", "position_ref",
+                     "velocity_ref", "acceleration_ref")
 
 
 def restart_message(where: str, time_name: str, rows: list[str]) -> str:
@@ -69,15 +78,7 @@ def restart_rows(t: np.ndarray, typical: float | None = None) -> np.ndarray:
     k = np.flatnonzero(d < -RESTART_STEPS * typical) + 1
     k = k[k + 1 < t.shape[0]]
     return k[(t[k + 1] > t[k]) & (t[k + 1] < t[k - 1])]
-#: Implied sample rates outside [MIN_RATE_HZ, MAX_RATE_HZ] are an error (docs/formats.md).
-MIN_RATE_HZ = 20.0
-MAX_RATE_HZ = 100_000.0
-#: Signals whose column may hold no finite value (passed on as NaN): a position or torque
-#: (or current, the torque source) column leaves its joint out of the log; an optional
-#: signal's column (velocity, current not the torque source, references) leaves that
-#: signal out of the log (:func:`impactcli.logs.channels.drop_empty_signals`).
-DROPPABLE_SIGNALS = ("position", "torque", "current", "velocity", "position_ref",
-                     "velocity_ref", "acceleration_ref")
+
 
 def longest_increasing(t: np.ndarray) -> np.ndarray:
     """Indices of a longest strictly increasing subsequence of ``t`` (patience sorting,
@@ -479,17 +480,15 @@ class Repairer:
         if len(self.steps) < PERIOD_STEPS:
             self.steps += d[d > 0][:PERIOD_STEPS - len(self.steps)].tolist()
         bad = np.flatnonzero(d <= 0)
-        if self.restarts:
+        if bad.size:
+            typical = float(np.median(self.steps)) if self.steps else np.inf
+            big = restart_rows(tt, typical) - 1  # the steps into a recording starting again
+            if big.size and (self.restarts or big[0] == bad[0]):
+                self.restarts += [int(oo[k + 1]) for k in big]
+        if self.restarts:  # refused: the next block's order is checked from this one's end
             self.last_t, self.last_orig = int(tt[-1]), int(oo[-1])
+            return
         if bad.size == 0:
-            return
-        typical = float(np.median(self.steps)) if self.steps else np.inf
-        big = restart_rows(tt, typical) - 1  # the steps into a recording starting again
-        if big.size and (self.restarts or big[0] == bad[0]):
-            self.restarts += [int(oo[k + 1]) for k in big]
-            self.last_t, self.last_orig = int(tt[-1]), int(oo[-1])
-            return
-        if self.restarts:
             return
         if self.ctx.repair_order:
             raise RepairOrderNeeded

@@ -39,6 +39,10 @@ WINDOW = 65_536
 ROW_WINDOW = 20_000
 #: The filter's start-up transient left at the edge of a window's margin, relative.
 DECAY = 1e-20
+#: Rows the coupled model is fitted on at least, whatever ``coupled_max_mb`` says
+#: (:func:`impactcli.model.selection.coupled_too_big` leaves the candidate out where even
+#: these exceed it).
+COUPLED_MIN_ROWS = 1000
 
 
 def decay_margin(fs: float, cutoff: float, order: int) -> int:
@@ -134,8 +138,8 @@ class RowsPlan:
         # a long log: fit on every k2-th filtered sample (the rows are strongly correlated)
         max_rows = options.max_fit_samples
         if kind == "coupled":  # its regressor has J × J(5J+1) numbers per sample
-            max_rows = min(max_rows, max(1000, int(options.coupled_max_mb * 2**20
-                                                   / (8 * n_joints * n_params))))
+            cap = int(options.coupled_max_mb * 2**20 / (8 * n_joints * n_params))
+            max_rows = min(max_rows, max(COUPLED_MIN_ROWS, cap))
         k2 = max(1, int(np.ceil((fit_idx.size + hold_idx.size) / max_rows)))
         return cls(n, fs, cutoff, k1, nd, edge, split, use_holdout, k2, fit_idx[::k2],
                    hold_idx[::k2])

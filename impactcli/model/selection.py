@@ -58,7 +58,7 @@ from .identification import (
 )
 from .identify_options import IdentifyOptions
 from .rigid import RigidModel
-from .rows import Rows
+from .rows import COUPLED_MIN_ROWS, Rows
 
 _HUGE = 1e300
 
@@ -359,10 +359,6 @@ def _chosen_model(choice: Choice, rows: Mapping[str, Sequence[Rows]], paths: Seq
     return dataclasses.replace(model, fit=dict(model.fit, selection=choice.record))
 
 
-#: Rows the coupled candidate is fitted on at least (:class:`impactcli.model.rows.RowsPlan`).
-COUPLED_MIN_ROWS = 1000
-
-
 def coupled_too_big(n_joints: int, n_samples: int, options: IdentifyOptions,
                     where: str) -> str | None:
     """The warning when the coupled candidate cannot be held within
@@ -416,11 +412,15 @@ class SelectStream:
               robot: RobotDescription | None = None,
               options: IdentifyOptions = IdentifyOptions(), where: str = "log",
               input_sha256: str = "") -> SelectStream:
-        """Plan it (raises what :meth:`IdentifyStream.start` raises)."""
+        """Plan it (raises what :meth:`IdentifyStream.start` raises); the decoupled model
+        alone, warned, where the coupled one cannot be held (:func:`coupled_too_big`)."""
+        big = coupled_too_big(len(joint_names), n, options, where)
+        if big is not None:
+            warnings.warn(big, ImpactWarning, stacklevel=2)
         return cls({k: IdentifyStream.start(joint_names, n, fs, duration_s, robot=robot,
                                             kind=k, options=options, where=where,
                                             input_sha256=input_sha256)
-                    for k in ("decoupled", "coupled")})
+                    for k in (("decoupled",) if big else ("decoupled", "coupled"))})
 
     def feed(self, t: np.ndarray, q: np.ndarray, tau: np.ndarray) -> None:
         """The next samples, as :meth:`IdentifyStream.feed`."""
@@ -430,6 +430,8 @@ class SelectStream:
     def finish(self) -> RigidModel:
         """The chosen model, fitted on the whole log."""
         dec = self.streams["decoupled"]
+        if "coupled" not in self.streams:  # too big to try (:meth:`start`)
+            return dec.finish()
         rows: dict[str, list[Rows]] = {"decoupled": [dec.rows()]}
         with warnings.catch_warnings():  # the same warnings as the rows above: said once
             warnings.simplefilter("ignore")

@@ -320,16 +320,11 @@ def identify_from_chunks(feed: ChunkFeed, cfg: DetectorConfig,
     docs/models.md, "Choosing the model"); a correction keeps the decoupled model."""
     from ..model import IdentifyOptions, default_kind
     from ..model.identification import IdentifyStream
-    from ..model.selection import SelectStream, coupled_too_big
+    from ..model.selection import SelectStream
 
     scan = feed.scan
     options = IdentifyOptions(allow_still_joints=True, check_sanity=sanity)
     ident: IdentifyStream | SelectStream
-    big = (coupled_too_big(len(feed.keep), scan.n_samples, options, scan.source.path)
-           if kind is None and sanity and default_kind(robot) == "decoupled" else None)
-    if big is not None:  # the decoupled model: the coupled one cannot be held in memory
-        warnings.warn(big, ImpactWarning, stacklevel=2)
-        kind = "decoupled"
     if kind is None and sanity and default_kind(robot) == "decoupled":
         ident = SelectStream.start(
             feed.keep, scan.n_samples, scan.sample_rate_hz, scan.duration_s, robot=robot,
