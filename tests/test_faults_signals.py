@@ -209,3 +209,20 @@ def test_a_rerun_after_a_kill_gives_a_clean_runs_timelines(
     for log in batch:
         name = f"{log.stem}.timeline.json"
         assert (out / name).read_bytes() == (clean / name).read_bytes(), name
+
+
+def test_a_log_finished_as_the_stop_came_is_counted(tmp_path: Path) -> None:
+    """A worker may write a log's timeline just before the stop while its outcome has not
+    reached the main process: the stop's count finds it by its timeline, written during
+    this run (an older one, from an earlier run into the folder, is not counted)."""
+    from impactcli.run.batch import DetectJob, written_since
+
+    jobs = [DetectJob(f"/logs/l{k}.csv", str(tmp_path)) for k in range(4)]
+    started = time.time()
+    (tmp_path / "l0.timeline.json").write_text("{}")  # its outcome arrived: in done
+    (tmp_path / "l1.timeline.json").write_text("{}")  # finished as the stop came
+    old = tmp_path / "l2.timeline.json"                # from an earlier run
+    old.write_text("{}")
+    os.utime(old, (started - 3600, started - 3600))
+    assert written_since(jobs, {"/logs/l0.csv"}, started) == ["/logs/l1.csv"]
+    assert written_since([DetectJob("/logs/l1.csv", "s3://bucket/out")], set(), started) == []

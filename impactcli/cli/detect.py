@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -169,7 +170,7 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     if (jobs or 1) == 1 and scheduler is None:  # this process reads the first log next:
         prefetch_sha256(logs[0])  # its hash overlaps the start-up (a local file only)
     from ..logs.urls import expand_inputs
-    from ..run.batch import DetectJob, Timer, check_unique_stems, run_batch
+    from ..run.batch import DetectJob, Timer, check_unique_stems, run_batch, written_since
 
     paths = expand_inputs(logs)
     try:
@@ -203,7 +204,7 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
         from ..files import remove_stale_parts
 
         remove_stale_parts(local_out)  # of a run killed before: a rerun redoes every log
-    timer = Timer()
+    timer, started = Timer(), time.time()
     outcomes: list[Any] = []
     stream = run_batch(job_list, n_jobs=jobs, scheduler=scheduler)
     try:
@@ -217,8 +218,12 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     except Interrupted:  # stopped: nothing more dispatched, the running logs abandoned
         stream.close()   # (their temporary files removed); what finished is listed
         _finish(outcomes, paths, choice, inputs, timer.elapsed(), out_dir, summary_path)
-        click.echo(f"impactcli: {len(outcomes)} of {len(paths)} logs finished before the "
-                   "stop; run the same command again to redo the batch", err=True)
+        late = written_since(job_list, {o.log_path for o in outcomes}, started)
+        click.echo(f"impactcli: {len(outcomes) + len(late)} of {len(paths)} logs finished "
+                   "before the stop; run the same command again to redo the batch", err=True)
+        if late:
+            click.echo(f"impactcli: {', '.join(map(_shown, late))}: finished as the stop came; "
+                       "its outputs are written but not in the table", err=True)
         raise
     _, loads = _finish(outcomes, paths, choice, inputs, timer.elapsed(), out_dir,
                        summary_path)

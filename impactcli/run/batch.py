@@ -27,6 +27,7 @@ A crash exits 70 (``EX_SOFTWARE``), never 1: exit 1 means "incidents found" to a
 
 from __future__ import annotations
 
+import contextlib
 import tempfile
 import time
 import traceback
@@ -119,6 +120,24 @@ def check_unique_stems(paths: Sequence[str]) -> None:
             raise ValueError(f"{seen[s]} and {p} would both write {s}.timeline.json; "
                              "put them in separate runs or rename one")
         seen[s] = p
+
+
+def written_since(jobs: Sequence[DetectJob], done: set[str], since: float) -> list[str]:
+    """The logs not in ``done`` whose timeline a local output folder holds, written at or
+    after ``since`` (``time.time()``): after a stop, the logs a worker finished while the
+    stop came, before its outcome reached the main process. A timeline is written last, so
+    the log's other outputs are in place too."""
+    found = []
+    for job in jobs:
+        if job.log_path in done or "://" in job.out_dir.removeprefix("file://"):
+            continue
+        timeline = Path(job.out_dir.removeprefix("file://")) / \
+            f"{output_stem(job.log_path)}.timeline.json"
+        with contextlib.suppress(OSError):
+            # the file clock is the kernel's coarse one: up to a tick behind time.time()
+            if timeline.stat().st_mtime >= since - 0.05:
+                found.append(job.log_path)
+    return found
 
 
 def run_detect_job(job: DetectJob) -> JobOutcome:
