@@ -552,6 +552,8 @@ class DetectionResult:
     lasting_loads: tuple[Any, ...] = ()
     motion_envelope: dict[str, Any] | None = None
     detection_floor: dict[str, Any] | None = None
+    data_defects: dict[str, Any] | None = None
+    torque_scale: dict[str, Any] | None = None
 
     @property
     def online_equivalent(self) -> bool:
@@ -564,9 +566,15 @@ class DetectionResult:
         return [e for e in self.events if e.detector == detector and not e.in_warmup]
 
     def counted_incidents(self) -> list[Any]:
-        """Incidents after warm-up (the ones summaries count; an incident never spans the
-        warm-up's end)."""
-        return [i for i in self.incidents if not i.in_warmup]
+        """Incidents after warm-up that are not at a data defect (the ones summaries count;
+        an incident never spans the warm-up's end)."""
+        return [i for i in self.incidents
+                if not i.in_warmup and getattr(i, "data_defect", None) is None]
+
+    def defect_incidents(self) -> list[Any]:
+        """Incidents after warm-up that start at a data defect (counted apart)."""
+        return [i for i in self.incidents
+                if not i.in_warmup and getattr(i, "data_defect", None) is not None]
 
     def counted_lasting_loads(self) -> list[Any]:
         """Lasting loads after warm-up (counted, like incidents, by the summaries and the
@@ -578,7 +586,9 @@ class DetectionResult:
         timeline's ``counts``)."""
         return {
             "incidents": {"counted": len(self.counted_incidents()),
-                          "in_warmup": len(self.incidents) - len(self.counted_incidents())},
+                          "in_warmup": sum(1 for i in self.incidents if i.in_warmup),
+                          **({"data_defect": n} if (n := len(self.defect_incidents()))
+                             else {})},
             "lasting_loads": {"counted": len(self.counted_lasting_loads()),
                               "in_warmup": len(self.lasting_loads)
                               - len(self.counted_lasting_loads())},

@@ -248,6 +248,7 @@ def test_ur_rtde_example_map(tmp_path: Path) -> None:
               "target_qdd", "target_moment")
     cols = [f"{f}_{i}" for f in fields for i in range(6)]
     data = rng.standard_normal((n, len(cols)))
+    data[:, :6] = np.cumsum(0.002 * data[:, 6:12], axis=0)  # actual_q moves at actual_qd
     t = 1234.5 + np.arange(n) * 0.002
     lines = [" ".join(["timestamp", *cols, "robot_mode"])]
     lines += [" ".join([f"{t[k]:.3f}", *(repr(float(x)) for x in data[k]), "7"])
@@ -289,6 +290,7 @@ def test_kuka_lbr_fri_example_map(tmp_path: Path) -> None:
     n = 200
     rng = np.random.default_rng(1)
     q, tau, ext, ipo = (rng.standard_normal((n, 7)) for _ in range(4))
+    q = np.cumsum(1e-3 * q, axis=0)  # positions that move, sample to sample
     z = np.zeros(7)
     p = tmp_path / "lbr.mcap"
     with open(p, "wb") as f:

@@ -27,7 +27,7 @@ def test_headerless_csv_by_index_with_scale_offset_and_ms(tmp_path: Path) -> Non
     rng = np.random.default_rng(0)
     n = 50
     t_ms = 5000 + np.arange(n) * 4  # controller clock in ms
-    q = rng.normal(size=(n, 2))
+    q = np.cumsum(rng.normal(scale=1e-3, size=(n, 2)), axis=0)  # a motion, not noise
     cur_ma = rng.normal(size=(n, 2)) * 1000
     junk = rng.normal(size=n)
     rows = np.column_stack([t_ms, q[:, 0], cur_ma[:, 0], junk, q[:, 1], cur_ma[:, 1]])
@@ -97,7 +97,7 @@ def test_npz_by_key_and_column(tmp_path: Path) -> None:
     rng = np.random.default_rng(1)
     n = 40
     t = 1.46e9 + np.arange(n) * 0.005
-    q, tau = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+    q, tau = np.cumsum(rng.normal(scale=1e-3, size=(n, 3)), axis=0), rng.normal(size=(n, 3))
     p = tmp_path / "m.npz"
     np.savez(p, times=t, positions=q, torques=tau, extra=np.zeros(n))
     cmap = tmp_path / "m.json"

@@ -58,6 +58,7 @@ def _random_msgs(
     rng = np.random.default_rng(seed)
     t = 1_000_000_000 + np.arange(n, dtype=np.int64) * 2_000_000
     truth = {s: rng.normal(size=(n, 3)) for s in ("position", "velocity", "effort")}
+    truth["position"] = np.cumsum(0.002 * truth["velocity"], axis=0)  # moves at its velocity
     msgs = []
     for i in range(n):
         order = rng.permutation(3) if shuffle and i % 7 == 3 else np.arange(3)
@@ -178,7 +179,7 @@ def test_reference_sample_and_hold_is_causal(tmp_path: Path) -> None:
     n = 200
     t = 10_000_000 + np.arange(n, dtype=np.int64) * 1_000_000  # 1 kHz state
     tr = 12_500_000 + np.arange(50, dtype=np.int64) * 4_000_000  # 250 Hz reference, late start
-    q = rng.normal(size=(n, 3))
+    q = np.cumsum(rng.normal(scale=1e-3, size=(n, 3)), axis=0)  # a motion, not noise
     qr = rng.normal(size=(50, 3))
     msgs = [{"t": int(t[i]), "stamp": int(t[i]), "name": list(NAMES), "position": q[i].tolist(),
              "velocity": [], "effort": q[i].tolist()} for i in range(n)]
@@ -253,7 +254,7 @@ def test_json_samples_matched_by_name_and_stamp_fallback(tmp_path: Path) -> None
     import json
 
     rng = np.random.default_rng(8)
-    q, tau = rng.normal(size=(30, 3)), rng.normal(size=(30, 3))
+    q, tau = np.cumsum(rng.normal(scale=1e-3, size=(30, 3)), axis=0), rng.normal(size=(30, 3))
     path = tmp_path / "j.mcap"
     with open(path, "wb") as f:
         w = McapWriter(f)

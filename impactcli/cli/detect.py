@@ -242,6 +242,8 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
                     f"{_found(o, loads[o.log_path])} after warm-up" for o in ok
                     if o.summary.get("incidents", 0) > 0 or loads[o.log_path]]
         unjudged += [line for o in ok if (line := _not_analysed(o)) is not None]
+        unjudged += [line for o in ok if o.summary.get("incidents", 0) == 0
+                     and not loads[o.log_path] and (line := _only_defects(o)) is not None]
     if fail_on_force is not None:
         failing += [line for o in ok
                     if (line := _over_force(o, fail_on_force) or _load_over(o, loads[o.log_path],
@@ -266,6 +268,18 @@ def _found(outcome: Any, loads: list[dict[str, Any]]) -> str:
     n = int(outcome.summary.get("incidents", 0))
     return " and ".join(([_count(n, "incident")] if n else [])
                         + ([_count(len(loads), "lasting load")] if loads else []))
+
+
+def _only_defects(outcome: Any) -> str | None:
+    """The line of a log whose only incidents start at data defects (--fail-on-detect
+    cannot tell whether a contact hides there), or None."""
+    marked = outcome.summary.get("defect_incident_list") or []
+    if not marked:
+        return None
+    return (f"impactcli: {_shown(outcome.log_path)}: --fail-on-detect could not judge "
+            f"{_count(len(marked), 'incident')} at data defects (the first at "
+            f"{marked[0]['t_start']:.3f} s, a {marked[0]['kind']}): the residual there shows "
+            "the defect; exit 5")
 
 
 def _not_analysed(outcome: Any) -> str | None:
@@ -317,6 +331,27 @@ def _finish(outcomes: list[Any], paths: list[str], choice: Any,
         write_text_to(summary_path, json.dumps(summary, indent=1, sort_keys=True,
                                                allow_nan=False) + "\n")
     return summary, loads
+
+
+#: Why a run's torque scale was not checked (the summary's ``torque_scale``).
+UNVERIFIED = {
+    "no_description": "no robot description with masses (--robot) to compare the log's "
+                      "torque with the gravity torque they predict",
+    "unverified": "the log's slow poses do not load a joint enough to compare its torque "
+                  "with the description's gravity torque, or the description gives no "
+                  "masses (input.torque_scale in the timeline)",
+}
+
+
+def _defect_line(name: str, marked: list[dict[str, Any]]) -> str:
+    """The terminal line of the incidents at a data defect (not counted as contacts)."""
+    listed = ", ".join(f"{i['t_start']:.3f} s (a {i['kind']} at {i['defect_t_start']:.3f} s)"
+                       for i in marked[:MAX_INCIDENTS_LISTED])
+    more = (f" and {len(marked) - MAX_INCIDENTS_LISTED} more"
+            if len(marked) > MAX_INCIDENTS_LISTED else "")
+    return (f"not counted, at a data defect of {name}: {_count(len(marked), 'incident')} "
+            f"at {listed}{more} (the residual shows the defect, not a force; data_defect "
+            "in the timeline)")
 
 
 def _over_force(outcome: Any, limit: float) -> str | None:
@@ -407,6 +442,14 @@ def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str,
                 click.echo(_incident_line(k, inc))
             if len(lst) > MAX_INCIDENTS_LISTED:
                 click.echo(f"  ... {len(lst) - MAX_INCIDENTS_LISTED} more (in the timeline)")
+        if (len(ok) == 1 and ok[0].summary.get("incident_list")
+                and ok[0].summary.get("torque_scale") in UNVERIFIED):
+            click.echo(f"torques and forces of {_shown(ok[0].log_path)} are in the log's "
+                       f"units, not checked against physics: "
+                       f"{UNVERIFIED[ok[0].summary['torque_scale']]}")
+        if len(ok) == 1 and ok[0].summary.get("defect_incident_list"):
+            click.echo(_defect_line(_shown(ok[0].log_path),
+                                    ok[0].summary["defect_incident_list"]))
         if len(ok) == 1 and ok[0].summary.get("detection_floor"):
             click.echo(f"detection floor of {_shown(ok[0].log_path)}: "
                        f"{ok[0].summary['detection_floor']} (median over the log after "

@@ -169,13 +169,26 @@ def urdf_efforts(model: dict[str, Any] | None, joints: tuple[str, ...]) -> np.nd
     return out
 
 
+#: A joint's motor holds at least its largest gravity torque with margin: its capacity,
+#: when a description's masses say that torque, is this many times it.
+HOLD_FACTOR = 2.0
+
+
 def torque_capacity(efforts: np.ndarray, torque_peak: np.ndarray | None,
-                    ) -> tuple[np.ndarray, str]:
+                    gravity_hold: np.ndarray | None = None) -> tuple[np.ndarray, str]:
     """Each joint's torque capacity [N·m] for the force plausibility check
-    (docs/incidents.md, "The rules"): the URDF's effort limit where it gives one, else the
-    largest |torque| logged on that joint over the log (what its motor demonstrably
-    produced); NaN where neither is known. Returns (capacity, what it is in words)."""
+    (docs/incidents.md, "The rules"): the URDF's effort limit where it gives one; else
+    :data:`HOLD_FACTOR` × the largest gravity torque the description's masses say the joint
+    holds over the log's poses (``gravity_hold``, where it is at least 1 % of the largest
+    joint's: a joint gravity does not load says nothing); else the largest |torque| logged on
+    it (the log's own scale, unverified: said so); NaN where none is known. Returns
+    (capacity, what it is in words)."""
     cap = np.asarray(efforts, dtype=np.float64).copy()
+    hold = (np.full(cap.shape, np.nan) if gravity_hold is None
+            else np.asarray(gravity_hold, dtype=np.float64))
+    top = float(np.nanmax(hold)) if np.isfinite(hold).any() else 0.0
+    use_hold = ~np.isfinite(cap) & np.isfinite(hold) & (hold > 0.01 * top) & (top > 0)
+    cap[use_hold] = HOLD_FACTOR * hold[use_hold]
     peak = (np.full(cap.shape, np.nan) if torque_peak is None
             else np.asarray(torque_peak, dtype=np.float64))
     use_peak = ~np.isfinite(cap) & np.isfinite(peak) & (peak > 1e-9)
@@ -183,8 +196,12 @@ def torque_capacity(efforts: np.ndarray, torque_peak: np.ndarray | None,
     kinds = []
     if np.isfinite(efforts).any():
         kinds.append("the URDF's effort limit")
+    if use_hold.any():
+        kinds.append(f"{HOLD_FACTOR:g}× the largest gravity torque the description's masses "
+                     "put on the joint")
     if use_peak.any():
-        kinds.append("the largest torque logged on the joint")
+        kinds.append("the largest torque logged on the joint: the log's own scale, "
+                     "not verified against physics")
     return cap, " or ".join(kinds)
 
 
@@ -192,10 +209,13 @@ def incident_context(
     joints: tuple[str, ...], full_joints: tuple[str, ...], robot: RobotDescription | None,
     model: dict[str, Any] | None, vl: np.ndarray, dt: float, t0_ns: int, n_samples: int,
     merge_gap_s: float, where: str = "", torque_peak: np.ndarray | None = None,
+    gravity_hold: np.ndarray | None = None,
 ) -> IncidentContext:
     """The :class:`IncidentContext` of a log: ``joints`` detected, ``full_joints`` as
     logged (positions of joints left out of detection still place the links);
-    ``torque_peak``: (J,) the largest |torque| logged per detected joint [N·m]."""
+    ``torque_peak``: (J,) the largest |torque| logged per detected joint [N·m];
+    ``gravity_hold``: (J,) the largest gravity torque the description's masses put on each
+    over the log's poses [N·m] (:func:`torque_capacity`)."""
     chain, kin = robot_chain(full_joints, robot, model, joints)
     if not set(joints) <= set(chain):
         chain, kin = full_joints, None
@@ -213,7 +233,8 @@ def incident_context(
         except (ImpactError, RuntimeError, ValueError) as err:  # no Jacobian: no force
             warnings.warn(f"{where}: no link Jacobian from the URDF ({err}): "
                           "incidents without a force estimate", ImpactWarning, stacklevel=3)
-    cap, source = torque_capacity(urdf_efforts(model, tuple(joints)), torque_peak)
+    cap, source = torque_capacity(urdf_efforts(model, tuple(joints)), torque_peak,
+                                  gravity_hold)
     return IncidentContext(tuple(joints), index, cols, jac, np.asarray(vl, dtype=np.float64),
                            float(dt), int(t0_ns), int(n_samples), float(merge_gap_s),
                            cap, source, lengths, tuple(chain))
@@ -363,12 +384,13 @@ def build_findings(
 
 def number_incidents(incidents: list[Incident]) -> list[Incident]:
     """The log's incidents with their ``number``: 1, 2, … in time order for those counted
-    (after warm-up), None in the warm-up — the number the terminal and the report show."""
+    (after warm-up, not at a data defect), None for the others — the number the terminal
+    and the report show."""
     import dataclasses
 
     out, n = [], 0
     for inc in incidents:
-        if inc.in_warmup:
+        if inc.in_warmup or inc.data_defect is not None:
             out.append(dataclasses.replace(inc, number=None))
         else:
             n += 1

@@ -19,6 +19,10 @@ docs/incidents.md).
 - **How hard**: with kinematics, the force at the isolated link's end that best explains
   the residuals of joints 1..i through the Jacobian, in least squares (small singular
   values dropped); without, None and the peak residual torques.
+- **Not a contact** (:func:`mark_defects`): an incident that starts at a data defect of the
+  log — a time gap, a jump no motion explains — or within the detectors' settling time
+  after it (:func:`settle_s`) is marked with it and counted apart: the residual there shows
+  the defect, not a force.
 - **What kind** (:func:`contact_type`, ISO/TS 15066): quasi-static when the arm kept
   pressing while it stood nearly still, or pressed for :data:`QS_MIN_PRESS_S` or longer;
   transient otherwise; unknown when the incident runs to the end of the log.
@@ -29,7 +33,7 @@ Pure functions of arrays; the replay applies them to each stretch of the log nea
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -92,10 +96,12 @@ class Incident:
     force_ceiling_n: float | None = None
     force_check: str = ""
     outside_envelope: bool | None = None
+    data_defect: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (timeline ``incidents`` item); ``outside_envelope`` only when
-        the config recorded a motion envelope (:mod:`impactcli.detect.envelope`)."""
+        the config recorded a motion envelope (:mod:`impactcli.detect.envelope`),
+        ``data_defect`` only when the incident starts at one (:func:`mark_defects`)."""
         return {
             "t_start": self.t_start, "t_end": self.t_end, "t_start_utc": self.t_start_utc,
             "detectors": list(self.detectors), "joints": list(self.joints), "link": self.link,
@@ -108,6 +114,7 @@ class Incident:
             "force_check": self.force_check,
             **({} if self.outside_envelope is None
                else {"outside_envelope": self.outside_envelope}),
+            **({} if self.data_defect is None else {"data_defect": self.data_defect}),
         }
 
 
@@ -151,6 +158,52 @@ class LastingLoad:
             "force_method": self.force_method, "force_plausible": self.force_plausible,
             "force_ceiling_n": self.force_ceiling_n, "force_check": self.force_check,
         }
+
+
+@dataclass(frozen=True)
+class DataDefect:
+    """A stretch of the log that is not the arm's motion: a time ``gap`` (from its last
+    sample before to the first after) or a ``jump`` of the positions no motion explains
+    (:mod:`impactcli.logs.defects`; the step into the sample at ``t_end``). ``size``: a gap's
+    length [s], a jump's largest step [rad]; ``joints``: a jump's joints."""
+
+    kind: str
+    t_start: float
+    t_end: float
+    size: float
+    joints: tuple[str, ...] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready mapping (timeline ``data_defects.listed`` item)."""
+        return {"kind": self.kind, "t_start": self.t_start, "t_end": self.t_end,
+                "size": self.size, "joints": list(self.joints)}
+
+
+def settle_s(loading_cutoff_hz: float, threshold_window_s: float) -> float:
+    """How long after a data defect the detectors still show it [s]: five time constants
+    of the static-loading low-pass (its memory) plus the adaptive threshold's RMS window
+    (eq. 42's N2): 0.56 s with the defaults (2 Hz, 0.16 s)."""
+    return 5.0 / (2.0 * np.pi * loading_cutoff_hz) + threshold_window_s
+
+
+def mark_defects(incidents: Sequence[Incident], defects: Sequence[DataDefect],
+                 settle: float) -> list[Incident]:
+    """The incidents, each that starts within a defect or ``settle`` seconds after it
+    marked with it (its kind and times; the first such defect)."""
+    if not defects:
+        return list(incidents)
+    starts = np.array([d.t_start for d in defects])
+    ends = np.array([d.t_end for d in defects])
+    out = []
+    for inc in incidents:
+        hit = np.flatnonzero((starts - 1e-9 <= inc.t_start) & (inc.t_start <= ends + settle))
+        if hit.size:
+            d = defects[int(hit[0])]
+            out.append(replace(inc, data_defect={"kind": d.kind, "t_start": d.t_start,
+                                                 "t_end": d.t_end}))
+        else:
+            out.append(inc)
+    return out
 
 
 def lasting(events: Sequence[Event]) -> list[int]:

@@ -212,6 +212,7 @@ class ScanPass:
     # read again
     cache: Any = field(default=None)
     order_repair: str | None = None  # --repair-order: the repair's message
+    wraps: tuple[Any, ...] = ()  # whole turns removed from the positions (logs.defects.Wrap)
 
     def arrays(self, t: np.ndarray, mat: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """Repaired rows as the log's times and (n, J) arrays of the kept joints."""

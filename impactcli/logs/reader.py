@@ -187,7 +187,15 @@ class MemoryReader(LogReader):
             log = self.log
             screens = {s: ColumnScreen.of(getattr(log, s))
                        for s in ("torque", *CONTROLLER_CHANNELS) if getattr(log, s) is not None}
+            from .defects import DefectScan
+            from .poses import PoseSample
+
             idx, lengths = time_gaps(log)
+            found = DefectScan(len(log.joint_names))  # its jumps (a log in memory is
+            found.add(log.t_ns, log.position)         # taken as it is: no turn removed)
+            found.finish()
+            poses = PoseSample(len(log.joint_names))
+            poses.add(log.t_ns, log.position, log.torque)
             ranges = {}
             for s in ("position", "torque", *OPTIONAL):
                 a = getattr(log, s)
@@ -198,7 +206,8 @@ class MemoryReader(LogReader):
                 log=log.slice(0, 2), n_samples=log.n_samples, t0_ns=log.t0_ns,
                 t_last_ns=int(log.t_ns[-1]), clock=log.sample_clock, gaps=idx,
                 gap_lengths_s=lengths, torque_screen=screens["torque"].unusable(),
-                screens=screens, options=self.options, reader=self, ranges=ranges)
+                screens=screens, options=self.options, reader=self, ranges=ranges,
+                jumps=tuple(found.jumps), n_jumps=found.n_jumps, poses=poses)
         return self._scan
 
     def chunks(self, rows: int) -> Iterator[LogChunk]:

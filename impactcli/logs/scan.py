@@ -14,6 +14,7 @@ unit's, the plan's.
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -25,6 +26,7 @@ from ..clock import GAP_FACTOR, MAX_STATS_STEPS, GapStream, SampleClock, StepHis
 from ..columns import column_all, column_any, column_range
 from ..errors import ImpactWarning, LogFormatError
 from ..types import CONTROLLER_CHANNELS, LogSource, RobotLog
+from .defects import SHUFFLED_STEP_SHARE, DefectScan, Jump, Wrap, unwrap_positions
 from .layout import OPTIONAL, LogChunk, ScanPass, StreamLayout, chunked
 from .plausibility import (
     MotionSketch,
@@ -33,6 +35,7 @@ from .plausibility import (
     position_unit_verdict,
     robot_joint_limits,
 )
+from .poses import PoseSample
 from .repair import MAX_RATE_HZ, MIN_RATE_HZ, Repairer, RepairOrderNeeded, increasing_run
 from .row_cache import RowCache
 from .screen import ColumnScreen, ScreenAccumulator
@@ -81,7 +84,11 @@ class LogScan:
             (:func:`~impactcli.logs.plausibility.position_unit_verdict` of the motion; None
             for a log in memory).
         warnings: what the scan warned of besides the repairs (the position unit, positions
-            far outside a URDF's limits), in order.
+            far outside a URDF's limits, whole turns unwrapped), in order.
+        jumps: the position steps no motion explains (:mod:`impactcli.logs.defects`; the
+            first :data:`~impactcli.logs.defects.MAX_KEPT`, ``joint`` among the log's
+            joints), and ``n_jumps`` how many there are.
+        poses: a bounded sample of the log's poses (:mod:`impactcli.logs.poses`).
     """
 
     log: RobotLog
@@ -99,6 +106,9 @@ class LogScan:
                                                               repr=False, compare=False)
     position_unit: UnitVerdict | None = field(default=None, compare=False)
     warnings: tuple[str, ...] = field(default=(), compare=False)
+    jumps: tuple[Jump, ...] = field(default=(), compare=False)
+    n_jumps: int = 0
+    poses: PoseSample | None = field(default=None, repr=False, compare=False)
 
     def close(self) -> None:
         """Close the reader the scan was made by (its cache of the repaired rows, a URL's
@@ -325,6 +335,8 @@ class _ScanAcc:
         self.dq_sum = np.zeros(j)
         self.v_n = np.zeros(j, dtype=np.int64)
         self.q_last: np.ndarray | None = None
+        self.defects = DefectScan(j)  # whole-turn steps unwrapped, jumps (splices) found
+        self.poses = PoseSample(j)  # strided poses: the torque scale against physics
 
     def _first_bad(self, signal: str, a: np.ndarray) -> None:
         """Note each column's first non-finite sample (RobotLog refuses it)."""
@@ -362,6 +374,8 @@ class _ScanAcc:
         if isinstance(self.ctx.plan, LogFormatError):
             return
         arrays = assemble(self.ctx.plan, self.ctx.channels(t, mat))
+        arrays["position"] = self.defects.add(t, arrays["position"])
+        self.poses.add(t, arrays["position"], arrays["torque"])
         if self.head_t.size < 2:
             k = 2 - self.head_t.size
             self.head_t = np.concatenate((self.head_t, t[:k]))
@@ -491,11 +505,20 @@ class _ScanAcc:
                 if s not in gone}
         log = RobotLog(t_ns=self.head_t - shift, joint_names=kept, source=source, **head)
         self.check_finite(keep, gone)
+        found = self.defects
+        found.finish()
+        if found.shuffled:
+            raise LogFormatError(shuffled_message(ctx.where, found, joints))
+        wraps = tuple(dataclasses.replace(w, t_ns=w.t_ns - shift) for w in found.wraps
+                      if w.joint in keep)
+        jumps = tuple(dataclasses.replace(x, joint=keep.index(x.joint), t_ns=x.t_ns - shift)
+                      for x in found.jumps if x.joint in keep)
         verdict, limit_msgs = self.unit_verdict(keep, kept, options)
         given = options.get("position_unit") is not None
         if verdict.kind == "refuse" and not given and not describing_only():
             raise LogFormatError(verdict.message)
         said = [verdict.message] if verdict.kind != "ok" else []
+        said += [wrap_message(ctx.where, wraps, joints)] if wraps else []
         clock = self.hist.clock()
         vel = self.velocity_rate(keep, clock.rate_hz)
         said += [vel] if vel is not None else []
@@ -504,7 +527,7 @@ class _ScanAcc:
         optional = tuple(s for s in OPTIONAL if getattr(log, s) is not None)
         ps = ScanPass(ctx, allbad, keep, optional, shift, self.n, rep.order_keep,
                       cache if cache is not None and cache.usable else None,
-                      rep.order_repair)
+                      rep.order_repair, wraps)
         self.gaps.add(np.zeros(0, dtype=np.int64), self.floor, last=True)
         if not self.gaps.exact_for(clock):  # the rate moved: a second pass at the threshold
             self.gaps = _gap_pass(ps, clock)
@@ -518,7 +541,8 @@ class _ScanAcc:
                        gap_lengths_s=lengths, torque_screen=screens["torque"].unusable(),
                        screens=screens, options=dict(options), reader=reader,
                        ranges={s: ranges[s] for s in _arrays_of(log)},
-                       position_unit=verdict, warnings=(*said, *limit_msgs))
+                       position_unit=verdict, warnings=(*said, *limit_msgs), jumps=jumps,
+                       n_jumps=found.n_jumps, poses=self.poses.select(keep))
         return scan, ps
 
 
@@ -575,5 +599,33 @@ def pass_chunks(ps: ScanPass, chunk_rows: int) -> Iterator[LogChunk]:
     from . import row_cache as stream_cache
 
     if ps.cache is not None and ps.cache.usable:
-        return stream_cache.chunks(ps, ps.cache, chunk_rows)
-    return chunked((ps.arrays(t, mat) for t, mat in _repaired(ps)), chunk_rows)
+        chunks = stream_cache.chunks(ps, ps.cache, chunk_rows)
+    else:
+        chunks = chunked((ps.arrays(t, mat) for t, mat in _repaired(ps)), chunk_rows)
+    return _unwrapped(chunks, ps.wraps, ps.keep) if ps.wraps else chunks
+
+
+def _unwrapped(chunks: Iterator[LogChunk], wraps: tuple[Wrap, ...],
+               keep: list[int]) -> Iterator[LogChunk]:
+    """The chunks with the scan's whole turns removed from their positions
+    (:mod:`impactcli.logs.defects`)."""
+    for ch in chunks:
+        yield dataclasses.replace(ch, position=unwrap_positions(ch.position, ch.start, wraps,
+                                                                keep))
+
+
+def wrap_message(where: str, wraps: tuple[Wrap, ...], joints: tuple[str, ...]) -> str:
+    """The warning that the positions were unwrapped (``wraps`` on the layout's joints)."""
+    names = sorted({joints[w.joint] for w in wraps}, key=joints.index)
+    first = wraps[0]
+    return (f"{where}: joint(s) {', '.join(names)} step by a whole turn ({len(wraps)} "
+            f"step(s), the first on {joints[first.joint]} at sample {first.i}, "
+            f"{first.t_ns * 1e-9:.3f} s): unwrapped, as an angle logged modulo 2π")
+
+
+def shuffled_message(where: str, found: DefectScan, joints: tuple[str, ...]) -> str:
+    """The refusal of rows that cannot be consecutive."""
+    return (f"{where}: rows that cannot be consecutive: the joints move, in the median, by "
+            f"more than {SHUFFLED_STEP_SHARE:g} of their range from one sample to the next "
+            f"({found.describe(joints)}); the rows are shuffled or several recordings "
+            "interleaved: sort them by time, or split the recordings into separate logs")

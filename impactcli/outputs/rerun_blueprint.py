@@ -150,15 +150,19 @@ def event_text(e: Any) -> str:
 
 def incident_names(incs: Sequence[Any]) -> list[str]:
     """Each incident's name, as the terminal and the report give it: its ``number`` (1, 2,
-    … over the counted incidents), ``w1``, ``w2``, … in the warm-up; incidents made
-    without numbers (before timeline 2.1) keep their place in the list (1, 2, …)."""
+    … over the counted incidents), ``w1``, ``w2``, … in the warm-up, ``d1``, ``d2``, … at a
+    data defect; incidents made without numbers (before timeline 2.1) keep their place in
+    the list (1, 2, …)."""
     if not any(getattr(i, "number", None) is not None for i in incs):
         return [str(k) for k in range(1, len(incs) + 1)]
-    out, warm = [], 0
+    out, warm, marked = [], 0, 0
     for i in incs:
         if i.in_warmup:
             warm += 1
             out.append(f"w{warm}")
+        elif getattr(i, "data_defect", None) is not None:
+            marked += 1
+            out.append(f"d{marked}")
         else:
             out.append(str(i.number))
     return out
@@ -169,7 +173,8 @@ def incident_label(k: int | str, inc: Any) -> str:
     ``#k link L · F N · type``."""
     link = f"link {inc.link}" if inc.link is not None else "link ?"
     force = f"{inc.force_n:.3g} N" if inc.force_n is not None else "force ?"
-    return f"#{k} {link} · {force} · {inc.contact}" + (" (warm-up)" if inc.in_warmup else "")
+    return f"#{k} {link} · {force} · {inc.contact}" + (" (warm-up)" if inc.in_warmup else "") \
+        + _defect_note(inc, " ({kind}: not counted)")
 
 
 def incident_text(k: int | str, inc: Any) -> str:
@@ -180,7 +185,14 @@ def incident_text(k: int | str, inc: Any) -> str:
     text = (f"incident #{k}: {link}, {force}, {inc.contact} contact; "
             f"{', '.join(inc.detectors)} on {', '.join(inc.joints)} "
             f"({inc.t_start:.3f}–{inc.t_end:.3f} s)")
-    return text + (" [in warm-up]" if inc.in_warmup else "")
+    return text + (" [in warm-up]" if inc.in_warmup else "") + _defect_note(
+        inc, " [at a data defect, a {kind} at {t:.3f} s: not counted]")
+
+
+def _defect_note(inc: Any, form: str) -> str:
+    """``form`` filled with the incident's data defect (kind, t), or "" when it has none."""
+    d = getattr(inc, "data_defect", None)
+    return "" if d is None else form.format(kind=d["kind"], t=d["t_start"])
 
 
 def whole_log_range(duration_s: float) -> tuple[Any, Any]:

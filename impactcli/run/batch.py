@@ -284,6 +284,7 @@ def _summary(job: DetectJob, result: Any) -> dict[str, Any]:
         "joints": len(log.joint_names),
         "calibrated": result.calibrated,
         "links": "robot" if (result.model or {}).get("robot") else "column_order",
+        "torque_scale": (result.torque_scale or {}).get("verdict", "no_description"),
         "detection_floor": floor_line(result.detection_floor),
         "warmup_end_s": result.warmup_end_s,
         "generators": {j: g["generator"] for j, g in result.generators.items()},
@@ -291,6 +292,9 @@ def _summary(job: DetectJob, result: Any) -> dict[str, Any]:
         "incident_list": [
             {"t_start": i.t_start, "link": i.link, "force_n": i.force_n, "contact": i.contact,
              "detectors": list(i.detectors)} for i in result.counted_incidents()],
+        "defect_incident_list": [
+            {"t_start": i.t_start, "kind": i.data_defect["kind"],
+             "defect_t_start": i.data_defect["t_start"]} for i in result.defect_incidents()],
         "lasting_load_list": [x.to_dict() for x in result.counted_lasting_loads()],
         "generator_reasons": {j: g["reason"] for j, g in result.generators.items()},
         **{d: v["events"] for d, v in result.summary().items()},

@@ -42,7 +42,14 @@ from ..detect.incident_builder import (
     incident_context,
     number_incidents,
 )
-from ..detect.incidents import BRIDGE_FRACTION, Incident, LastingLoad
+from ..detect.incidents import (
+    BRIDGE_FRACTION,
+    DataDefect,
+    Incident,
+    LastingLoad,
+    mark_defects,
+    settle_s,
+)
 from ..detect.link_evidence import ResidualNoise
 from ..detect.thresholds import compare_to_thresholds
 from ..detect.warmup import Warmup, WarmupTracker
@@ -56,6 +63,7 @@ from .plan import ChunkFeed, Passes, RunPlan, calibrated_thresholds, plan_run, w
 from .replay import ChunkReplay, Replayer, ReplaySetup, ReplayState
 from .run_warnings import (
     CaughtWarnings,
+    warn_defect_incidents,
     warn_events_after_gaps,
     warn_gaps,
     warn_implausible_forces,
@@ -253,12 +261,18 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         ctx = incident_context(joints, plan.full_joints, setup.robot,
                                None if plan.model is None else plan.model.to_dict(),
                                thr["static_loading"], scan.sample_period_s, scan.t0_ns,
-                               scan.n_samples, cfg.events.merge_gap_s, where, rp.torque_peak)
+                               scan.n_samples, cfg.events.merge_gap_s, where, rp.torque_peak,
+                               plan.gravity_hold)
         ctx_msgs = caught.cut(since)
         events, incidents, loads = _events_and_incidents(islands, rp.warmup, joints, cfg, ctx)
+        defects = data_defects(scan, rp.gap_times)
+        settle = settle_s(cfg.static_loading.cutoff_hz, cfg.adaptive.n2_s)
+        incidents = number_incidents(mark_defects(incidents, defects, settle))
         warn_events_after_gaps(where, rp.gap_times[:, 1], events)
         warn_long_events(where, events)
-        warn_implausible_forces(where, [*incidents, *loads])
+        warn_implausible_forces(where, [i for i in (*incidents, *loads)
+                                        if getattr(i, "data_defect", None) is None])
+        warn_defect_incidents(where, defects, incidents, settle)
         caught.paste(ctx_msgs)
         outside = None
         if envelope is not None:  # the motion the thresholds' rate was not measured on
@@ -305,8 +319,42 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         joints_left_out=tuple(left_out),
         incidents=tuple(incidents), lasting_loads=tuple(loads), motion_envelope=outside,
         detection_floor=floor,
+        data_defects=defects_dict(defects, settle, scan.n_jumps) if defects else None,
+        torque_scale=None if plan.torque_scale is None else plan.torque_scale.to_dict(),
         warnings=tuple(dict.fromkeys((*scan.warnings, *caught.messages()))),  # scan's first
     )
+
+
+#: At most this many data defects are listed in the timeline (all are counted).
+MAX_LISTED_DEFECTS = 1000
+
+
+def data_defects(scan: Any, gap_times: np.ndarray) -> list[DataDefect]:
+    """The log's time gaps (``gap_times``: (G, 2) the samples before and after each [s])
+    and its position jumps (the scan's, one per step with the joints that jump), in time
+    order."""
+    out = [DataDefect("gap", float(a), float(b), float(length))
+           for (a, b), length in zip(gap_times, scan.gap_lengths_s, strict=True)
+           if np.isfinite(a) and np.isfinite(b)]
+    names = scan.log.joint_names
+    by_step: dict[int, list[Any]] = {}
+    for x in scan.jumps:
+        by_step.setdefault(x.i, []).append(x)
+    period = scan.sample_period_s
+    for xs in by_step.values():
+        t = (xs[0].t_ns - scan.t0_ns) * 1e-9
+        out.append(DataDefect("jump", max(t - period, 0.0), t, max(x.size for x in xs),
+                              tuple(names[x.joint] for x in xs)))
+    return sorted(out, key=lambda d: (d.t_start, d.kind))
+
+
+def defects_dict(defects: Sequence[DataDefect], settle: float, n_jumps: int
+                 ) -> dict[str, Any]:
+    """The timeline's ``data_defects``: counts, the settling time, the first listed."""
+    return {"gaps": sum(1 for d in defects if d.kind == "gap"),
+            "jumps": sum(1 for d in defects if d.kind == "jump"),
+            "jump_samples": n_jumps, "settle_s": settle,
+            "listed": [d.to_dict() for d in defects[:MAX_LISTED_DEFECTS]]}
 
 
 #: A joint left out of detection whose positions span more than this [rad] moved in the

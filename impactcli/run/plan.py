@@ -20,7 +20,7 @@ import numpy as np
 from ..clock import check_calibrated_rate
 from ..config import PLAIN_FORMULATION, DetectorConfig
 from ..detect.adaptive import check_scale
-from ..errors import ConfigError, ImpactWarning, LogFormatError, ModelError
+from ..errors import ConfigError, ImpactError, ImpactWarning, LogFormatError, ModelError
 from ..logs.reader import LogChunk, LogReader, LogScan
 from ..logs.screen import LeftOut
 from ..model.generators import (
@@ -30,6 +30,7 @@ from ..model.generators import (
     target_torque,
     uses_correction,
 )
+from ..model.gravity import ScaleVerdict
 from ..model.identification import check_shares_joints
 from ..model.rigid import RigidModel
 from ..types import CONTROLLER_CHANNELS, LogSource, RobotDescription, RobotLog
@@ -429,6 +430,10 @@ class RunPlan:
             from (:func:`resolve_model`).
         left_out: the logged joints left out of detection, with why (by the reader, the
             screen, the model).
+        torque_scale: the log's torque scale against the description's gravity
+            (:func:`check_torque_scale`); gravity_hold: (J,) per replayed joint the largest
+            gravity torque the description says it holds over the log's poses [N·m] (NaN
+            where not known; None without masses).
     """
 
     cfg: DetectorConfig
@@ -439,6 +444,8 @@ class RunPlan:
     model: RigidModel | None
     model_source: str
     left_out: tuple[LeftOut, ...]
+    torque_scale: ScaleVerdict | None = None
+    gravity_hold: np.ndarray | None = None
 
 
 def plan_run(reader: LogReader, cfg: DetectorConfig, *, model: RigidModel | None,
@@ -456,6 +463,7 @@ def plan_run(reader: LogReader, cfg: DetectorConfig, *, model: RigidModel | None
     calibrated_on = cfg.calibration.formulation or PLAIN_FORMULATION
     if cfg.calibration.calibrated and calibrated_on != cfg.adaptive.formulation:
         warn_formulation(where, config_where, calibrated_on, cfg.adaptive.formulation)
+    scale, hold = check_torque_scale(scan, robot or description_of(model, cfg))
     sc = screen_scan(scan, known_joints(model, cfg), cfg.calibration.joints_left_out)
     check_replayable(where, len(sc.keep), scan.sample_rate_hz, scan.n_samples,
                      scan.duration_s, cfg, allow_slow)
@@ -469,6 +477,53 @@ def plan_run(reader: LogReader, cfg: DetectorConfig, *, model: RigidModel | None
         sc.keep, scan.source, sc.logged, model, cfg, model_from_log, robot, identify)
     left_out = (tuple(LeftOut(j, why) for j, why in scan.source.joints_dropped)
                 + sc.left_out + extra)
+    held = None if hold is None else np.array(
+        [hold.get(j, np.nan) for j in joints], dtype=np.float64)
     return RunPlan(cfg, where, feed.full_joints, joints, choices, rig, model_source,
-                   left_out), feed
+                   left_out, scale, held), feed
+
+
+def description_of(model: RigidModel | None, cfg: DetectorConfig) -> RobotDescription | None:
+    """The robot description a model (``--model``, else the config's) was made with."""
+    from ..logs.robot_files import robot_from_dict
+
+    d = model.robot if model is not None else (cfg.model or {}).get("robot")
+    if not isinstance(d, dict):
+        return None
+    try:
+        return robot_from_dict(d)
+    except ImpactError:
+        return None
+
+
+def check_torque_scale(scan: LogScan, robot: RobotDescription | None
+                       ) -> tuple[ScaleVerdict | None, dict[str, float] | None]:
+    """The log's torque scale against the description's gravity torque over the scan's
+    poses (:mod:`impactcli.model.gravity`): raises LogFormatError (exit 3) when it is off by
+    a clean unit factor, warns when it is off otherwise. Returns the verdict (None without
+    a description) and per joint the largest |gravity torque| over the poses [N·m] (None
+    without masses)."""
+    from ..model.gravity import nominal_gravity, scale_check
+
+    poses, where = scan.poses, scan.source.path
+    if robot is None or poses is None or not len(poses.idx):
+        return None, None
+    joints = scan.log.joint_names
+    g = nominal_gravity(robot, joints, poses.q)
+    if g is None:
+        return ScaleVerdict("unverified", message=(
+            f"{where}: the torque scale is not verified: the robot description gives no "
+            "masses (robot JSON nominal.link_masses, or a URDF's inertials) to compare the "
+            "log's torque with")), None
+    ratios = {j.name: j.gear_ratio for j in robot.joints}
+    verdict = scale_check(where, joints, g, poses.tau, np.abs(poses.qd),
+                          [ratios.get(j, 1.0) for j in joints])
+    if verdict.kind == "refuse":
+        raise LogFormatError(verdict.message)
+    if verdict.kind == "warn":
+        warnings.warn(verdict.message, ImpactWarning, stacklevel=3)
+    with np.errstate(invalid="ignore"):
+        peak = np.nanmax(np.abs(g), axis=0) if len(g) else np.full(len(joints), np.nan)
+    return verdict, {j: float(v) for j, v in zip(joints, peak, strict=True)
+                     if np.isfinite(v)}
 

@@ -155,6 +155,29 @@ def warn_events_after_gaps(where: str, after_s: np.ndarray, events: Sequence[Eve
                       ImpactWarning, stacklevel=3)
 
 
+def warn_defect_incidents(where: str, defects: Sequence[Any], incidents: Sequence[Any],
+                          settle_s: float) -> None:
+    """Warn of the incidents that start at a data defect (``data_defect``): not counted as
+    contacts; and of the position jumps (a recording splice, a glitch) whether or not an
+    incident follows."""
+    jumps = [d for d in defects if d.kind == "jump"]
+    if jumps:
+        d = jumps[0]
+        warnings.warn(
+            f"{where}: the positions jump at {len(jumps)} sample(s) further than the "
+            f"samples around them move (the first at {d.t_end:.3f} s: "
+            f"{', '.join(d.joints)}, up to {d.size:.3g} rad): a recording splice or a "
+            "glitch, not a motion", ImpactWarning, stacklevel=3)
+    marked = [i for i in incidents if getattr(i, "data_defect", None) is not None]
+    if marked:
+        listed = ", ".join(f"{i.t_start:.3f} s ({i.data_defect['kind']})" for i in marked[:5])
+        more = f" and {len(marked) - 5} more" if len(marked) > 5 else ""
+        warnings.warn(
+            f"{where}: {len(marked)} incident(s) start at a data defect or within "
+            f"{settle_s:.2g} s after it ({listed}{more}): marked data_defect in the "
+            "timeline and not counted as contacts", ImpactWarning, stacklevel=3)
+
+
 def warn_implausible_forces(where: str, findings: Sequence[Any]) -> None:
     """Warn once, naming the largest, when estimated forces (incidents' or lasting loads')
     are beyond what the arm can exert (``force_plausible`` false: docs/incidents.md)."""

@@ -93,6 +93,15 @@ def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]
                              "log's column order (joint k's link is k), which need not be the "
                              "arm's chain from its base; give --robot to number them along "
                              "it.")})
+    scale = getattr(result, "torque_scale", None) or {}
+    if scale.get("verdict") != "ok" and (result.incidents or result.lasting_loads):
+        why = (scale.get("message") or "").split(": ", 1)[-1] or (
+            "no robot description with masses (--robot) predicts the gravity torque to "
+            "compare the log's torque with")
+        out.append({"code": "torque-scale",
+                    "text": ("The torques and forces are in the log's units, not checked "
+                             f"against physics: {why}." if scale.get("verdict") != "warn"
+                             else f"The log's torque scale looks wrong: {why}.")})
     if not result.calibrated:
         out.append(
             {

@@ -27,17 +27,21 @@ CONTACT_ORDER = ("transient", "quasi_static", "unknown")
 def incident_rows(tl: dict[str, Any], period_s: float) -> list[dict[str, Any]]:
     """The timeline's incidents, each with ``number`` (1, 2, … over the counted incidents in
     time order — the timeline's own, or counted here for a timeline before 2.1 — None in the
-    warm-up), ``label`` (the number, or ``w1``, ``w2``, … in the warm-up), ``duration_s``,
+    warm-up or at a data defect), ``label`` (the number, or ``w1``, ``w2``, … in the warm-up,
+    ``d1``, ``d2``, … at a data defect), ``duration_s``,
     ``peak_ratio`` and ``peak_ratio_detector`` (over its events)."""
     events = tl.get("events") or []
     out = []
-    counted = warm = 0
+    counted = warm = marked = 0
     for inc in tl.get("incidents") or []:
         evs = [events[k] for k in inc.get("events") or [] if 0 <= k < len(events)]
         top = max(evs, key=lambda x: x["peak_ratio"], default=None)
         if inc.get("in_warmup"):
             warm += 1
             number, label = None, f"w{warm}"
+        elif inc.get("data_defect"):
+            marked += 1
+            number, label = None, f"d{marked}"
         else:
             counted += 1
             number = inc.get("number") or counted
@@ -165,9 +169,13 @@ def _verdict(incidents: Sequence[dict[str, Any]], known: bool, alarms_counted: i
         return (f"{alarms_counted} alarm{s} of the product's detectors after warm-up; this "
                 "run records no incidents (made before incidents existed), so which link, "
                 "how hard and what kind are not known.")
-    counted = [i for i in incidents if not i.get("in_warmup")]
-    warm = len(incidents) - len(counted)
-    tail = f" (+{warm} in the warm-up, not counted)" if warm else ""
+    counted = [i for i in incidents if counts_as_contact(i)]
+    warm = sum(1 for i in incidents if i.get("in_warmup"))
+    marked = sum(1 for i in incidents if not i.get("in_warmup") and i.get("data_defect"))
+    tail = "".join([f" (+{warm} in the warm-up, not counted)" if warm else "",
+                    f" (+{marked} at a data defect — a time gap or a position jump — not "
+                    "counted: the residual there shows the defect, not a force)"
+                    if marked else ""])
     loads = lasting_text([x for x in lasting_loads if not x.get("in_warmup")])
     if not counted and analysed_s is not None and analysed_s <= 0.0:
         return ("Not judged: the adaptive detector's warm-up covers the whole log, so no "
@@ -206,16 +214,23 @@ def _verdict(incidents: Sequence[dict[str, Any]], known: bool, alarms_counted: i
     return f"{head}: {'; '.join(parts)}{tail}{also}.{units}"
 
 
+def counts_as_contact(incident: dict[str, Any]) -> bool:
+    """Whether a timeline incident is counted: after warm-up and not at a data defect."""
+    return not incident.get("in_warmup") and not incident.get("data_defect")
+
+
 def incident_counts(incidents: Sequence[dict[str, Any]],
                     lasting_loads: Sequence[dict[str, Any]] = ()) -> dict[str, Any]:
     """Counted incidents, in warm-up, per contact type, the largest force [N] (or None),
     and the counted lasting loads."""
-    counted = [i for i in incidents if not i.get("in_warmup")]
+    counted = [i for i in incidents if counts_as_contact(i)]
     forces = [i["force_n"] for i in counted if i.get("force_n") is not None]
     by: dict[str, int] = {}
     for i in counted:
         by[i.get("contact") or "unknown"] = by.get(i.get("contact") or "unknown", 0) + 1
-    return {"counted": len(counted), "in_warmup": len(incidents) - len(counted),
+    marked = sum(1 for i in incidents if not i.get("in_warmup") and i.get("data_defect"))
+    return {"counted": len(counted), "in_warmup": sum(1 for i in incidents if i.get("in_warmup")),
+            **({"data_defect": marked} if marked else {}),
             "by_contact": by, "max_force_n": max(forces, default=None),
             "lasting_loads": sum(1 for x in lasting_loads if not x.get("in_warmup"))}
 
@@ -243,6 +258,10 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
             when = f'{t:%Y-%m-%d %H:%M:%S}.{ms:03d} UTC <span class="note">({when})</span>'
         if r.get("in_warmup"):
             when += ' <span class="note">warm-up: not counted</span>'
+        elif r.get("data_defect"):
+            d = r["data_defect"]
+            when += (f' <span class="bad">at a data defect (a {e(d["kind"])} at '
+                     f'{d["t_start"]:.3f} s): not counted</span>')
         force = (f'<b>~{approx(r["force_n"])} N</b>' if r.get("force_n") is not None
                  else '<span class="muted">no force estimate</span>')
         if r.get("force_plausible") is False:
@@ -256,7 +275,7 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
         ratio = ("—" if r.get("peak_ratio") is None else
                  f'{r["peak_ratio"]:.1f}× <span class="note">{e(r["peak_ratio_detector"])}</span>')
         plot = f'<a href="#{anchor}-inc{n}">plot</a>' if pos <= plotted else ""
-        cls = ' class="warmup"' if r.get("in_warmup") else ""
+        cls = ' class="warmup"' if r.get("in_warmup") or r.get("data_defect") else ""
         body.append(
             f'<tr{cls} id="{anchor}-row{n}"><td class="num">{n}</td><td class="num">{when}</td>'
             f'<td class="num">{r["duration_s"]:.2f}</td><td><b>{link}</b></td>'

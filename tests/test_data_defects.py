@@ -1,0 +1,258 @@
+"""Data defects are not contacts (issue "The answer states its own limits", item 2): a
+time gap, a position jump no motion explains (a recording splice), a whole-turn step and
+rows that cannot be consecutive, each planted in a collision-free sample log and run
+through the CLI; and the finder itself (impactcli.logs.defects) against planted truth,
+whatever the blocks the log arrives in."""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from impactcli.cli import main
+from impactcli.logs import read_log, write_log
+from impactcli.logs.defects import JUMP_RAD, DefectScan, unwrap_positions
+from impactcli.types import RobotLog
+
+REPO = Path(__file__).resolve().parents[1]
+FREE = REPO / "sample_logs" / "csv" / "assist_free_p2p.csv.gz"
+CONFIG = REPO / "sample_logs" / "assist_like.config.toml"
+ROBOT = REPO / "sample_logs" / "csv" / "assist_free_p2p.robot.json"
+
+
+@pytest.fixture(scope="module")
+def free() -> RobotLog:
+    """The first 20 s of a collision-free sample log (0 incidents with the sample config)."""
+    log = read_log(FREE)
+    return log.slice(0, round(20.0 * log.sample_rate_hz))
+
+
+def _with(log: RobotLog, **arrays: np.ndarray) -> RobotLog:
+    return dataclasses.replace(log, **arrays)
+
+
+def _gap(log: RobotLog, at_s: float, samples: int) -> RobotLog:
+    """``samples`` rows removed from ``at_s`` on (the times of the rest kept)."""
+    i = round(at_s * log.sample_rate_hz)
+    keep = np.r_[0:i, i + samples:log.n_samples]
+    return dataclasses.replace(log, t_ns=log.t_ns[keep], **{
+        s: getattr(log, s)[keep] for s in ("position", "torque", "velocity", "current",
+                                           "position_ref", "velocity_ref",
+                                           "acceleration_ref", "torque_model", "torque_ext")
+        if getattr(log, s) is not None})
+
+
+def _step(log: RobotLog, at_s: float, by: np.ndarray) -> RobotLog:
+    """Every position from ``at_s`` on shifted by ``by`` (J,) [rad]: a splice (the logged
+    velocity and the controller's channels go on unchanged)."""
+    i = round(at_s * log.sample_rate_hz)
+    q = log.position.copy()
+    q[i:] += by
+    return _with(log, position=q)
+
+
+def _detect(log: RobotLog, tmp_path: Path, *extra: str) -> tuple[int, str, str, dict]:
+    src = tmp_path / "log.csv"
+    write_log(log, src)
+    out = tmp_path / "out"
+    r = CliRunner().invoke(main, ["detect", str(src), "--config", str(CONFIG), "--robot",
+                                  str(ROBOT), "-o", str(out), *extra])
+    tl = out / "log.timeline.json"
+    doc = json.loads(tl.read_text(encoding="utf-8")) if tl.exists() else {}
+    return r.exit_code, r.stdout, r.stderr, doc
+
+
+def test_the_clean_log_has_no_incident_and_no_defect(free: RobotLog, tmp_path: Path) -> None:
+    code, _, err, doc = _detect(free, tmp_path, "--fail-on-detect")
+    assert code == 0, err
+    assert doc["counts"]["incidents"] == {"counted": 0, "in_warmup": 0}
+    assert "data_defects" not in doc and not doc["incidents"]
+
+
+def test_a_gap_is_a_data_defect_not_a_contact(free: RobotLog, tmp_path: Path) -> None:
+    log = _gap(free, 12.0, 50)  # 200 ms missing: the residual jumps at the gap
+    code, out, err, doc = _detect(log, tmp_path)
+    assert code == 0, err
+    assert doc["counts"]["incidents"]["counted"] == 0
+    marked = [i for i in doc["incidents"] if "data_defect" in i]
+    assert marked and marked == doc["incidents"]
+    assert doc["counts"]["incidents"]["data_defect"] == len(marked)
+    d = marked[0]["data_defect"]
+    assert d["kind"] == "gap" and d["t_start"] == pytest.approx(11.996, abs=1e-6)
+    assert doc["data_defects"]["gaps"] == 1 and doc["data_defects"]["jumps"] == 0
+    gap = doc["data_defects"]["listed"][0]
+    assert gap["size"] == pytest.approx(0.204, abs=1e-6)
+    assert "not counted, at a data defect of log.csv: 1 incident at" in out
+    assert "marked data_defect in the timeline and not counted as contacts" in err
+    # asked to judge: the only incidents are at a defect, so it could not (exit 5)
+    code, _, err, _ = _detect(log, tmp_path, "--fail-on-detect")
+    assert code == 5
+    assert "--fail-on-detect could not judge 1 incident at data defects" in err
+
+
+def test_a_splice_is_named_and_its_incident_marked(free: RobotLog, tmp_path: Path) -> None:
+    log = _step(free, 12.0, np.array([0.03, -0.02]))  # every joint, one sample, v = as is
+    code, _, err, doc = _detect(log, tmp_path)
+    assert code == 0, err
+    jumps = [d for d in doc["data_defects"]["listed"] if d["kind"] == "jump"]
+    assert len(jumps) == 1 and jumps[0]["t_end"] == pytest.approx(12.0, abs=1e-9)
+    assert jumps[0]["joints"] == list(log.joint_names)
+    assert jumps[0]["size"] == pytest.approx(0.03, rel=0.1)
+    assert "the positions jump at 1 sample(s) further than the samples around them move " \
+           "(the first at 12.000 s" in err
+    assert doc["counts"]["incidents"]["counted"] == 0
+    assert all(i["data_defect"]["kind"] == "jump" for i in doc["incidents"])
+
+
+def test_a_whole_turn_is_unwrapped_and_said(free: RobotLog, tmp_path: Path) -> None:
+    turn = np.array([0.0, -2.0 * np.pi])
+    code, _, err, doc = _detect(_step(free, 12.0, turn), tmp_path)
+    assert code == 0, err
+    assert "joint(s) elbow step by a whole turn (1 step(s), the first on elbow at sample " \
+           "3000, 12.000 s): unwrapped, as an angle logged modulo 2π" in err
+    assert doc["counts"]["incidents"] == {"counted": 0, "in_warmup": 0}
+    assert not doc["incidents"] and "data_defects" not in doc
+
+
+def test_rows_that_cannot_be_consecutive_are_refused(free: RobotLog, tmp_path: Path) -> None:
+    rng = np.random.default_rng(3)
+    perm = rng.permutation(free.n_samples)  # the rows' contents shuffled, the times kept
+    log = _with(free, position=free.position[perm], torque=free.torque[perm])
+    src = tmp_path / "shuffled.csv"
+    write_log(log, src)
+    r = CliRunner().invoke(main, ["detect", str(src), "--config", str(CONFIG), "-o",
+                                  str(tmp_path / "out")])
+    assert r.exit_code == 3
+    line = r.stderr.strip().splitlines()[-1]
+    assert line.startswith(f"impactcli: error: {src}: rows that cannot be consecutive: ")
+    assert "Traceback" not in r.stderr and not (tmp_path / "out").exists()
+
+
+@settings(max_examples=6, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(kind=st.sampled_from(["gap", "jump", "wrap"]),
+       at_s=st.floats(6.0, 18.0),
+       size=st.floats(0.0, 1.0),
+       joint=st.integers(0, 1))
+def test_planted_defects_never_make_an_unmarked_contact(
+        free: RobotLog, tmp_path: Path, kind: str, at_s: float, size: float,
+        joint: int) -> None:
+    """A gap of 2–100 samples, a jump of 0.02–0.2 rad on one joint or all, or a turn of
+    ±1–3 on one joint, anywhere after the warm-up of a collision-free log: no counted
+    incident, and every incident marked with its defect."""
+    if kind == "gap":
+        log = _gap(free, at_s, 2 + int(size * 98))
+    elif kind == "jump":
+        by = np.full(2, 0.02 + 0.18 * size) * (1 if joint else -1)
+        by[joint] *= 0.5
+        log = _step(free, at_s, by)
+    else:
+        turns = np.zeros(2)
+        turns[joint] = [-3, -1, 1, 2][int(size * 3.999)]
+        log = _step(free, at_s, 2.0 * np.pi * turns)
+    code, _, err, doc = _detect(log, tmp_path)
+    assert code == 0, err
+    assert doc["counts"]["incidents"]["counted"] == 0, doc["incidents"]
+    assert all(i.get("data_defect", {}).get("kind") == kind for i in doc["incidents"])
+
+
+# ------------------------------------------------------------------ the finder itself
+
+
+def _walk(n: int, j: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    t = np.arange(n, dtype=np.int64) * 4_000_000  # 250 Hz
+    k = np.arange(n)[:, None]
+    q = 0.8 * np.sin(2 * np.pi * 0.3 * k * 0.004 * (1 + np.arange(j))) \
+        + np.cumsum(rng.normal(0.0, 1e-5, (n, j)), axis=0)
+    return t, q
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**16), jump_at=st.integers(5, 1990),
+       jump=st.floats(3 * JUMP_RAD, 0.5), wrap_at=st.integers(5, 1990),
+       turns=st.sampled_from([-2, -1, 1, 3]),
+       cuts=st.lists(st.integers(1, 1999), max_size=6))
+def test_the_finder_finds_what_was_planted_in_any_blocks(
+        seed: int, jump_at: int, jump: float, wrap_at: int, turns: int,
+        cuts: list[int]) -> None:
+    n, j = 2000, 3
+    t, q = _walk(n, j, seed)
+    raw = q.copy()
+    raw[jump_at:, 0] += jump
+    raw[wrap_at:, 2] += 2 * np.pi * turns
+    found = DefectScan(j)
+    bounds = [0, *sorted(set(cuts)), n]
+    out = np.concatenate([found.add(t[a:b], raw[a:b]) for a, b in itertools.pairwise(bounds)
+                          if b > a])
+    found.finish()
+    assert [(x.i, x.joint) for x in found.jumps] == [(jump_at, 0)]
+    assert found.jumps[0].size == pytest.approx(jump, abs=0.01)
+    assert [(w.i, w.joint, w.turns) for w in found.wraps] == [(wrap_at, 2, turns)]
+    expect = raw.copy()
+    expect[wrap_at:, 2] -= 2 * np.pi * turns
+    assert np.array_equal(out, expect)  # unwrapped exactly, the jump left as logged
+    # a later pass removes the same turns from any chunk
+    for a in (0, wrap_at - 1, wrap_at, 1500):
+        chunk = unwrap_positions(raw[a:a + 300], a, found.wraps, [0, 1, 2])
+        assert np.array_equal(chunk, expect[a:a + 300])
+    assert not found.shuffled
+
+
+def test_noise_is_not_a_jump_and_shuffled_rows_are_told() -> None:
+    """Positions with 0.006 rad of noise (a log in degrees read as radians) make no jump;
+    a splice of 0.2 rad on them still does; the same rows shuffled cannot be consecutive."""
+    t, q = _walk(4000, 2, 7)
+    rng = np.random.default_rng(1)
+    noisy = q + 0.006 * rng.standard_normal(q.shape)
+    noisy[2500:, 1] += 0.2
+    found = DefectScan(2)
+    found.add(t, noisy)
+    found.finish()
+    assert [(x.i, x.joint) for x in found.jumps] == [(2500, 1)] and not found.shuffled
+    mixed = DefectScan(2)
+    mixed.add(t, q[rng.permutation(len(q))])
+    mixed.finish()
+    assert mixed.shuffled
+    assert "j0" in mixed.describe(("j0", "j1"))
+
+
+def test_the_finder_leaves_a_smooth_fast_motion_alone() -> None:
+    """A joint at up to 3 rad/s, sampled at 125 Hz (0.024 rad a step), braking at 200
+    rad/s² in one step: no jump (the step stays within its neighbours' and the
+    acceleration bound)."""
+    dt = 0.008
+    v = np.r_[np.full(300, 3.0), np.full(300, 3.0 - 200 * dt), np.zeros(300)]
+    q = np.cumsum(v * dt)[:, None]
+    t = (np.arange(len(q)) * dt * 1e9).astype(np.int64)
+    found = DefectScan(1)
+    found.add(t, q)
+    found.finish()
+    assert found.jumps == [] and found.wraps == [] and found.steps == len(q) - 3  # not the ends
+
+
+def test_contacts_away_from_a_defect_are_counted_as_before(tmp_path: Path) -> None:
+    """Impacts stay incidents, numbered 1, 2, … without a hole, when a gap lies between two
+    of them; only what starts at the gap is marked."""
+    log = read_log(REPO / "sample_logs" / "csv" / "assist_impacts.csv.gz")
+    _, _, err, clean = _detect(log, tmp_path / "clean")
+    assert "data_defects" not in clean, err
+    code, _, err, doc = _detect(_gap(log, 14.5, 25), tmp_path / "gap")  # 100 ms at 14.5 s
+    assert code == 0, err
+    counted = [i for i in doc["incidents"] if not i["in_warmup"] and "data_defect" not in i]
+    assert [i["number"] for i in counted] == list(range(1, len(counted) + 1))
+    assert all(i["number"] is None for i in doc["incidents"] if "data_defect" in i)
+    at_gap = [i for i in doc["incidents"] if "data_defect" in i]
+    assert all(14.49 <= i["t_start"] <= 14.5 + doc["data_defects"]["settle_s"] for i in at_gap)
+    # every contact of the clean run is there, at the same time (within a sample)
+    before = [i["t_start"] for i in clean["incidents"] if not i["in_warmup"]]
+    assert len(counted) == len(before)
+    assert np.allclose([i["t_start"] for i in counted], before, atol=0.0041)

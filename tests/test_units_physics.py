@@ -1,0 +1,191 @@
+"""Units and scales against physics (issue "The answer states its own limits", item 1): the
+description's gravity torque against an independent Newton–Euler of the same arm, the
+scale verdict over the whole value space of scales, and through the CLI a log whose torque
+is off by a unit factor (refused, exit 3), off otherwise (warned, recorded), or with no
+masses to check it against (said to be unverified)."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from impactcli.cli import main
+from impactcli.detect.incident_builder import HOLD_FACTOR, torque_capacity
+from impactcli.logs import read_log, write_log
+from impactcli.logs.robot_files import read_robot, robot_from_dict
+from impactcli.model.gravity import (
+    CERTAIN_FACTOR,
+    WARN_FACTOR,
+    clean_factors,
+    nominal_gravity,
+    scale_check,
+)
+from impactcli.sim import kernel as kern
+
+REPO = Path(__file__).resolve().parents[1]
+CSV = REPO / "sample_logs" / "csv"
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_planar_gravity_is_the_newton_euler_gravity_of_the_arm(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    n = 3
+    lengths, masses = rng.uniform(0.2, 0.8, n), rng.uniform(0.5, 5.0, n)
+    frac = rng.uniform(0.2, 0.8, n)
+    grav = rng.normal(0.0, 9.81, 2)
+    robot = robot_from_dict({
+        "joints": [{"name": f"j{k}"} for k in range(n)],
+        "kinematics": {"type": "planar", "link_lengths": lengths.tolist(),
+                       "gravity": grav.tolist()},
+        "nominal": {"link_masses": masses.tolist(), "com_fractions": frac.tolist()}})
+    q = rng.uniform(-math.pi, math.pi, (20, n))
+    names = ("j2", "j0", "j1")  # the log's column order need not be the chain's
+    got = nominal_gravity(robot, names, q[:, [2, 0, 1]])
+    assert got is not None
+    want = np.empty((20, n))
+    for k in range(20):
+        kern.rnea(q[k], np.zeros(n), np.zeros(n), lengths, masses, frac * lengths,
+                  np.zeros(n), float(grav[0]), float(grav[1]), want[k])
+    np.testing.assert_allclose(got, want[:, [2, 0, 1]], rtol=1e-10, atol=1e-10)
+
+
+def test_no_masses_no_gravity() -> None:
+    robot = read_robot(CSV / "assist_free_p2p.robot.json")
+    d = robot.to_dict()
+    assert d.pop("nominal")["link_masses"]
+    assert nominal_gravity(robot, robot.joint_names, np.zeros((3, 2))) is not None
+    assert nominal_gravity(robot_from_dict(d), robot.joint_names, np.zeros((3, 2))) is None
+
+
+@pytest.fixture(scope="module")
+def poses() -> tuple[tuple[str, ...], np.ndarray, np.ndarray, np.ndarray, list[float]]:
+    """A collision-free sample log's poses: joints, gravity, torque, speed, gear ratios."""
+    log = read_log(CSV / "heavy_free_p2p.csv.gz")
+    robot = read_robot(CSV / "heavy_free_p2p.robot.json")
+    q, tau = log.position[::10], log.torque[::10]
+    speed = np.abs(np.gradient(log.position, log.sample_period_s, axis=0)[::10])
+    g = nominal_gravity(robot, log.joint_names, q)
+    assert g is not None
+    return log.joint_names, g, tau, speed, [j.gear_ratio for j in robot.joints]
+
+
+def test_the_true_scale_is_about_one(poses: tuple) -> None:
+    joints, g, tau, speed, ratios = poses
+    v = scale_check("log", joints, g, tau, speed, ratios)
+    assert v.kind == "ok" and v.scale == pytest.approx(1.0, abs=0.1)
+    assert len(v.per_joint) >= 1
+
+
+@settings(max_examples=80, deadline=None)
+@given(log10_scale=st.floats(-4.0, 4.0))
+def test_the_verdict_follows_the_scale(poses: tuple, log10_scale: float) -> None:
+    """A torque scaled by s: refused near a clean unit factor (naming its cause), warned
+    when off otherwise, accepted near 1 (s multiplies the log's own ~1 scale; within 10 %
+    of a boundary either side is allowed)."""
+    joints, g, tau, speed, ratios = poses
+    s = 10.0 ** log10_scale
+    v = scale_check("log", joints, g, tau * s, speed, ratios)
+    base = scale_check("log", joints, g, tau, speed, ratios).scale
+    k = s * base
+    near = [f for f, _ in clean_factors(ratios)
+            if 1.0 / CERTAIN_FACTOR <= k / f <= CERTAIN_FACTOR]
+    edges = [f * c for f, _ in clean_factors(ratios) for c in (CERTAIN_FACTOR,
+                                                               1 / CERTAIN_FACTOR)]
+    edges += [WARN_FACTOR, 1 / WARN_FACTOR]
+    if any(abs(math.log(k / e)) < 0.1 for e in edges):
+        return  # on a boundary
+    assert v.scale == pytest.approx(k, rel=1e-9)
+    if near:
+        assert v.kind == "refuse", v
+    elif not 1 / WARN_FACTOR <= k <= WARN_FACTOR:
+        assert v.kind == "warn", v
+    else:
+        assert v.kind == "ok", v
+
+
+def test_a_still_log_is_not_verified(poses: tuple) -> None:
+    joints, g, tau, speed, ratios = poses
+    v = scale_check("log", joints, g, tau, speed + 10.0, ratios)  # never slow
+    assert v.kind == "unverified" and "not verified" in v.message
+
+
+def test_capacity_from_the_masses_before_the_logs_own_torque() -> None:
+    efforts = np.array([np.nan, 50.0, np.nan, np.nan])
+    peak = np.array([7.0, 7.0, 7.0, np.nan])
+    hold = np.array([10.0, 10.0, 0.001, np.nan])  # joint 3: gravity does not load it
+    cap, source = torque_capacity(efforts, peak, hold)
+    np.testing.assert_array_equal(cap, [HOLD_FACTOR * 10.0, 50.0, 7.0, np.nan])
+    assert "URDF's effort limit" in source and "description's masses" in source
+    assert "not verified against physics" in source
+
+
+def _run(tmp_path: Path, log_name: str, scale: float, column: str, *extra: str
+         ) -> tuple[int, str, dict]:
+    log = read_log(CSV / f"{log_name}.csv.gz")
+    log = log.slice(0, round(30 * log.sample_rate_hz))
+    arrays = {column: getattr(log, column) * scale}
+    import dataclasses
+
+    src = tmp_path / "log.csv"
+    write_log(dataclasses.replace(log, **arrays), src)
+    out = tmp_path / "out"
+    r = CliRunner().invoke(main, ["detect", str(src), "-o", str(out), *extra])
+    tl = out / "log.timeline.json"
+    return r.exit_code, r.stderr, (json.loads(tl.read_text(encoding="utf-8"))
+                                   if tl.exists() else {})
+
+
+def test_currents_in_ma_are_refused_naming_the_cause(tmp_path: Path) -> None:
+    robot = CSV / "heavy_free_p2p.robot.json"
+    code, err, doc = _run(tmp_path, "heavy_free_p2p", 1000.0, "current", "--robot",
+                          str(robot), "--torque-source", "current")
+    assert code == 3 and not doc
+    line = err.strip().splitlines()[-1]
+    assert line.startswith(f"impactcli: error: {tmp_path / 'log.csv'}: the torque is off by ~")
+    assert "mA logged as A" in line and "Traceback" not in err
+
+
+def test_a_motor_side_torque_is_refused_naming_the_gear_ratio(tmp_path: Path) -> None:
+    robot = read_robot(CSV / "heavy_free_p2p.robot.json")
+    n = robot.joints[0].gear_ratio
+    assert all(j.gear_ratio == n for j in robot.joints)
+    code, err, _ = _run(tmp_path, "heavy_free_p2p", 1.0 / n, "torque", "--robot",
+                        str(CSV / "heavy_free_p2p.robot.json"))
+    assert code == 3
+    assert f"motor-side (÷ the gear ratio {n:g})" in err
+
+
+def test_an_odd_scale_is_warned_and_recorded(tmp_path: Path) -> None:
+    code, err, doc = _run(tmp_path, "heavy_free_p2p", 4.0, "torque", "--robot",
+                          str(CSV / "heavy_free_p2p.robot.json"))
+    assert code == 0, err
+    ts = doc["input"]["torque_scale"]
+    assert ts["verdict"] == "warn" and ts["scale"] == pytest.approx(4.0, rel=0.15)
+    assert "the torque may be off by ~" in err
+
+
+def test_the_right_scale_is_recorded_as_checked(tmp_path: Path) -> None:
+    code, err, doc = _run(tmp_path, "heavy_free_p2p", 1.0, "torque", "--robot",
+                          str(CSV / "heavy_free_p2p.robot.json"))
+    assert code == 0, err
+    assert doc["input"]["torque_scale"]["verdict"] == "ok"
+    assert "torque may be off" not in err
+
+
+def test_without_masses_the_scale_is_said_to_be_unverified(tmp_path: Path) -> None:
+    robot = read_robot(CSV / "heavy_free_p2p.robot.json").to_dict()
+    robot.pop("nominal", None)
+    path = tmp_path / "bare.robot.json"
+    path.write_text(json.dumps(robot), encoding="utf-8")
+    code, err, doc = _run(tmp_path, "heavy_free_p2p", 1000.0, "torque", "--robot", str(path))
+    assert code == 0, err
+    ts = doc["input"]["torque_scale"]
+    assert ts["verdict"] == "unverified" and ts["scale"] is None
+    assert "gives no masses" in ts["message"]
