@@ -256,3 +256,92 @@ def test_a_joint_that_moves_but_is_not_checked_is_named(tmp_path: Path) -> None:
     assert r.exit_code == 0, r.stderr
     verdict = json.loads(rep.read_text(encoding="utf-8"))["logs"][0]["verdict"]
     assert "Not checked, though they moved: wrist (1.2 rad;" in verdict
+
+
+def _wrist_log(tmp_path: Path, noise: bool) -> tuple[Path, Path]:
+    """The heavy arm's free log with its wrist (j3) held still: its torque is either the
+    gravity the description predicts there (moving with the other joints' poses), scaled to
+    a light wrist and quantised to 0.02 N·m — a few dozen values, under 1 % of the
+    shoulder's range — or three values of noise around zero (a channel not measured)."""
+    import dataclasses
+
+    import numpy as np
+
+    from impactcli.logs import read_log, write_log
+    from impactcli.logs.robot_files import read_robot
+    from impactcli.model.gravity import nominal_gravity
+
+    csv = REPO / "sample_logs" / "csv"
+    log = read_log(csv / "heavy_free_p2p.csv.gz")
+    robot = read_robot(csv / "heavy_free_p2p.robot.json")
+    q = log.position.copy()
+    q[:, 2] = 0.3
+    tau = log.torque.copy()
+    if noise:
+        tau[:, 2] = np.random.default_rng(0).choice([-0.02, 0.0, 0.02], log.n_samples)
+    else:
+        g = nominal_gravity(robot, log.joint_names, q)
+        assert g is not None
+        tau[:, 2] = np.round(0.3 * g[:, 2] / 0.02) * 0.02
+        assert 3 < len(np.unique(tau[:, 2])) < 64
+        assert np.ptp(tau[:, 2]) < 0.01 * np.ptp(tau[:, 0])
+    path = tmp_path / ("noise.csv" if noise else "wrist.csv")
+    write_log(dataclasses.replace(log, position=q, torque=tau, velocity=None,
+                                  position_ref=None, velocity_ref=None,
+                                  acceleration_ref=None), path)
+    return path, csv / "heavy_free_p2p.robot.json"
+
+
+@pytest.mark.parametrize("noise", [False, True], ids=["gravity", "noise"])
+def test_a_still_joints_torque_is_judged_by_its_own_signal(tmp_path: Path,
+                                                          noise: bool) -> None:
+    """Few values and a small range beside the shoulder's: measured when they move with the
+    arm's poses (kept), not when they are noise (left out as unmeasured)."""
+    path, _ = _wrist_log(tmp_path, noise)
+    out = tmp_path / "out"
+    r = CliRunner().invoke(main, ["detect", str(path), "-o", str(out)])
+    assert r.exit_code == 0, r.stderr
+    doc = json.loads((out / f"{path.stem}.timeline.json").read_text(encoding="utf-8"))
+    left = {x["name"]: x["reason"] for x in doc["input"]["joints_left_out"]}
+    if noise:
+        assert left["j3"].startswith("torque unmeasured: 3 distinct values")
+    else:
+        assert "j3" not in left and "j3" in doc["thresholds"]
+
+
+def test_calibration_keeps_a_joint_measured_in_one_of_its_logs(tmp_path: Path) -> None:
+    """Two calibration logs: the wrist's torque is noise-like in one (it stands still and
+    its channel shows three values) and measured in the other: kept, said per log."""
+    still, robot = _wrist_log(tmp_path, noise=True)
+    moving = REPO / "sample_logs" / "csv" / "heavy_free_multisine.csv.gz"
+    cfg = tmp_path / "c.toml"
+    r = CliRunner().invoke(main, ["calibrate", str(still), str(moving), "--robot", str(robot),
+                                  "-o", str(cfg)])
+    assert r.exit_code == 0, r.stderr
+    assert (f"{still}: joint 'j3': its torque unmeasured: 3 distinct values"
+            in r.stderr) and "but it is measured in another calibration log: kept" in r.stderr
+    import tomllib
+
+    doc = tomllib.loads(cfg.read_text(encoding="utf-8"))
+    assert "j3" in doc["thresholds"]["v_stat"]
+    assert not [x for x in doc["calibration"].get("joints_left_out", []) if x["name"] == "j3"]
+
+
+def test_an_explicit_coupled_model_too_wide_is_refused_before_work(tmp_path: Path) -> None:
+    """``--kind coupled`` on 60 joints: refused (exit 2) naming the memory and the way out,
+    under a 3 GiB address-space limit (it used to die of a MemoryError, exit 70)."""
+    import subprocess
+    import sys
+
+    log = _many_joints_csv(tmp_path / "j60.csv", 60, 400)
+    code = ("import resource, sys; resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30)); "
+            "from impactcli.cli import main; sys.argv = sys.argv[1:]; main()")
+    p = subprocess.run([sys.executable, "-c", code, "impactcli", "identify", str(log),
+                        "--kind", "coupled", "-o", str(tmp_path / "m.json")],
+                       capture_output=True, text=True, timeout=600, check=False)
+    assert p.returncode == 2, p.stderr[-2000:]
+    assert p.stderr.strip().splitlines()[-1] == (
+        f"impactcli: error: {log}: a coupled model of 60 joints needs a regressor of about "
+        "8.07 GiB at the 1000 rows it needs (J × J(5J+1) numbers a row), above "
+        "coupled_max_mb = 256 MB: use --kind decoupled (a model per joint)")
+    assert not (tmp_path / "m.json").exists()

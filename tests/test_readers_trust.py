@@ -194,8 +194,8 @@ def test_rate_reads_a_log_without_time_and_is_recorded_and_read_again(
     code, _, err = _run("detect", str(path), "--rate", "250", "--config", str(CONFIG),
                         "-o", str(tmp_path / "out"))
     assert code == 0, err
-    note = (f"{path}: no time column: sample i is at i / 250 Hz (--rate 250); the times are "
-            "not logged, so gaps and jitter cannot be seen")
+    note = (f"{path}: sample i is at i / 250 Hz (--rate 250), not at a logged time, so gaps "
+            "and jitter cannot be seen")
     assert f"impactcli: warning: {note}" in err.splitlines()
     tl = json.loads((tmp_path / "out" / "norate.timeline.json").read_text())
     assert tl["input"]["read_options"] == {"rate": 250.0}

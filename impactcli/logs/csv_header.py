@@ -155,6 +155,11 @@ def canonical_map(header: list[str], path: str, time_unit: str | None = None, *,
         raise LogFormatError(f"{path}: unknown time unit {time_unit!r} (s, ms, us or ns)")
     if time_column is not None:
         tcol: str | None = pick_column(header, time_column, path, "--time-column")
+        named_col = find_time_column(header)
+        if named_col is not None and named_col != tcol:
+            warnings.warn(f"{path}: --time-column {tcol!r} given: the column {named_col!r}, "
+                          "a time column by its name, is not read as the log's clock",
+                          ImpactWarning, stacklevel=2)
     else:
         tcol = find_time_column(header)
     time: TimeSpec | None = None

@@ -152,11 +152,8 @@ class DefectScan:
             return q
         u = self._unwrap(t_ns, q)
         self._jumps(t_ns, u)
-        with np.errstate(invalid="ignore"):
-            self._lo = np.fmin(self._lo, np.nanmin(u, axis=0) if np.isfinite(u).any()
-                               else self._lo)
-            self._hi = np.fmax(self._hi, np.nanmax(u, axis=0) if np.isfinite(u).any()
-                               else self._hi)
+        self._lo = np.fmin(self._lo, np.fmin.reduce(u, axis=0))  # NaN: not logged
+        self._hi = np.fmax(self._hi, np.fmax.reduce(u, axis=0))
         self.n += len(t_ns)
         return u
 

@@ -39,7 +39,7 @@ def joints_left_out(scan: LogScan) -> list[dict[str, str]]:
     against the largest peak-to-peak among its joints (:mod:`impactcli.logs.screen`).
     Joints a model or a calibrated config does not cover are left out by ``detect`` too;
     ``inspect`` knows of neither."""
-    why = scan.screens["torque"].unusable(scan.torque_ptp)
+    why = scan.screens["torque"].unusable(scan.torque_ptp, scan.torque_posed)
     return [{"name": j, "reason": f"torque {w}"}
             for j, w in zip(scan.joint_names, why, strict=True) if w is not None]
 

@@ -119,8 +119,8 @@ def rate_times(row0: int, n: int, rate_hz: float) -> np.ndarray:
 def rate_note(where: str, rate_hz: float) -> str:
     """The log's provenance when read with ``--rate`` (warned, and recorded in its repairs):
     its times are the rate's, not logged."""
-    return (f"{where}: no time column: sample i is at i / {rate_hz:g} Hz (--rate {rate_hz:g}); "
-            "the times are not logged, so gaps and jitter cannot be seen")
+    return (f"{where}: sample i is at i / {rate_hz:g} Hz (--rate {rate_hz:g}), not at a logged "
+            "time, so gaps and jitter cannot be seen")
 
 
 def plan_of(layout: StreamLayout, options: dict[str, Any]) -> Any:

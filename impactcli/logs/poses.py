@@ -66,3 +66,44 @@ class PoseSample:
         out.idx = self.idx
         out.q, out.tau, out.qd = self.q[:, columns], self.tau[:, columns], self.qd[:, columns]
         return out
+
+
+#: A torque channel varies with the arm's poses when pose features explain at least this
+#: share of its variance over the sampled poses (:func:`pose_explained`) ...
+EXPLAINED_R2 = 0.5
+#: ... judged over at least this many poses.
+MIN_EXPLAINED_POSES = 50
+
+
+def pose_features(q: np.ndarray) -> np.ndarray:
+    """(n, 1 + 4J) features a gravity torque is a combination of: 1, sin and cos of each
+    joint's angle and of each cumulative sum of them (a chain of parallel axes)."""
+    c = np.cumsum(q, axis=1)
+    return np.column_stack((np.ones(len(q)), np.sin(q), np.cos(q), np.sin(c), np.cos(c)))
+
+
+def pose_explained(poses: PoseSample) -> np.ndarray:
+    """(J,) whether each joint's torque varies with the arm's poses (module docstring): the
+    least squares of it on :func:`pose_features` of every joint's angle explains at least
+    :data:`EXPLAINED_R2` of its variance. A still joint still carries gravity torque that
+    moves with the others' poses, so its channel is measured however few values it shows;
+    a channel stuck near zero with a few values of noise is not."""
+    out = np.zeros(poses.n_joints, dtype=bool)
+    ok = np.all(np.isfinite(poses.q), axis=1)
+    if int(ok.sum()) < MIN_EXPLAINED_POSES:
+        return out
+    a = pose_features(poses.q[ok])
+    if a.shape[1] >= int(ok.sum()) // 2:
+        return out
+    for j in range(poses.n_joints):
+        y = poses.tau[ok, j]
+        fin = np.isfinite(y)
+        if int(fin.sum()) < MIN_EXPLAINED_POSES:
+            continue
+        y, aj = y[fin], a[fin]
+        var = float(np.sum((y - y.mean()) ** 2))
+        if var <= 0.0:
+            continue
+        coef, *_ = np.linalg.lstsq(aj, y, rcond=None)
+        out[j] = 1.0 - float(np.sum((y - aj @ coef) ** 2)) / var >= EXPLAINED_R2
+    return out

@@ -188,7 +188,7 @@ class MemoryReader(LogReader):
             screens = {s: ColumnScreen.of(getattr(log, s))
                        for s in ("torque", *CONTROLLER_CHANNELS) if getattr(log, s) is not None}
             from .defects import DefectScan
-            from .poses import PoseSample
+            from .poses import PoseSample, pose_explained
 
             idx, lengths = time_gaps(log)
             found = DefectScan(len(log.joint_names))  # its jumps (a log in memory is
@@ -205,9 +205,11 @@ class MemoryReader(LogReader):
             self._scan = LogScan(
                 log=log.slice(0, 2), n_samples=log.n_samples, t0_ns=log.t0_ns,
                 t_last_ns=int(log.t_ns[-1]), clock=log.sample_clock, gaps=idx,
-                gap_lengths_s=lengths, torque_screen=screens["torque"].unusable(),
+                gap_lengths_s=lengths,
+                torque_screen=screens["torque"].unusable(posed=pose_explained(poses)),
                 screens=screens, options=self.options, reader=self, ranges=ranges,
-                jumps=tuple(found.jumps), n_jumps=found.n_jumps, poses=poses)
+                jumps=tuple(found.jumps), n_jumps=found.n_jumps, poses=poses,
+                torque_posed=pose_explained(poses))
         return self._scan
 
     def chunks(self, rows: int) -> Iterator[LogChunk]:

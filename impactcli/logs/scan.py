@@ -35,7 +35,7 @@ from .plausibility import (
     position_unit_verdict,
     robot_joint_limits,
 )
-from .poses import PoseSample
+from .poses import PoseSample, pose_explained
 from .repair import MAX_RATE_HZ, MIN_RATE_HZ, Repairer, RepairOrderNeeded, increasing_run
 from .row_cache import RowCache
 from .screen import ColumnScreen, ScreenAccumulator
@@ -88,7 +88,9 @@ class LogScan:
         jumps: the position steps no motion explains (:mod:`impactcli.logs.defects`; the
             first :data:`~impactcli.logs.defects.MAX_KEPT`, ``joint`` among the log's
             joints), and ``n_jumps`` how many there are.
-        poses: a bounded sample of the log's poses (:mod:`impactcli.logs.poses`).
+        poses: a bounded sample of the log's poses (:mod:`impactcli.logs.poses`), and
+            ``torque_posed`` (J,) whether each joint's torque varies with them (a measured
+            channel, :func:`~impactcli.logs.poses.pose_explained`).
     """
 
     log: RobotLog
@@ -109,6 +111,7 @@ class LogScan:
     jumps: tuple[Jump, ...] = field(default=(), compare=False)
     n_jumps: int = 0
     poses: PoseSample | None = field(default=None, repr=False, compare=False)
+    torque_posed: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def close(self) -> None:
         """Close the reader the scan was made by (its cache of the repaired rows, a URL's
@@ -534,15 +537,18 @@ class _ScanAcc:
         idx, lengths = self.gaps.gaps(clock)
         screens = {s: self.screens[s].result().select(keep) for s in self.screens
                    if getattr(log, s) is not None}
+        poses = self.poses.select(keep)
+        posed = pose_explained(poses)
         ranges = {s: (lo[keep], hi[keep]) for s, (lo, hi) in self.ranges.items()}
         ranges.update({s: (sc.lo, sc.hi) for s, sc in screens.items()})
         scan = LogScan(log=log, n_samples=self.n, t0_ns=int(self.head_t[0]) - shift,
                        t_last_ns=int(self.hist.last or 0) - shift, clock=clock, gaps=idx,
-                       gap_lengths_s=lengths, torque_screen=screens["torque"].unusable(),
+                       gap_lengths_s=lengths,
+                       torque_screen=screens["torque"].unusable(posed=posed),
                        screens=screens, options=dict(options), reader=reader,
                        ranges={s: ranges[s] for s in _arrays_of(log)},
                        position_unit=verdict, warnings=(*said, *limit_msgs), jumps=jumps,
-                       n_jumps=found.n_jumps, poses=self.poses.select(keep))
+                       n_jumps=found.n_jumps, poses=poses, torque_posed=posed)
         return scan, ps
 
 

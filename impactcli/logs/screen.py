@@ -11,7 +11,10 @@ timeline (``input.joints_left_out``):
 * flat — its torque takes one value only (peak-to-peak ≤ :data:`FLAT_NM`);
 * unmeasured — fewer than :data:`FEW_VALUES` distinct values *and* a peak-to-peak below
   :data:`SMALL_FRACTION` of the largest peak-to-peak among the log's torque channels (a
-  quantised but real channel has either many values or a comparable range).
+  quantised but real channel has either many values or a comparable range) *and*, for the
+  torque of a log whose poses the scan sampled, no variation with the arm's poses (its own
+  signal: a still joint still carries a gravity torque that moves with the other joints'
+  poses, :func:`impactcli.logs.poses.pose_explained`).
 
 The controller's channels (``torque_model``, ``torque_ext``) are screened the same way; a
 flat or unmeasured one is read as not logged for that joint. Per column the screen needs
@@ -83,9 +86,13 @@ class ColumnScreen:
     lo: np.ndarray
     hi: np.ndarray
 
-    def unusable(self, reference_ptp: float | None = None) -> list[str | None]:
+    def unusable(self, reference_ptp: float | None = None,
+                 posed: np.ndarray | None = None) -> list[str | None]:
         """Per column None, or why it is not usable (module docstring); against
-        ``reference_ptp``, by default the largest peak-to-peak among these columns."""
+        ``reference_ptp``, by default the largest peak-to-peak among these columns.
+        ``posed``: (J,) whether each column varies with the arm's poses
+        (:func:`impactcli.logs.poses.pose_explained`): such a column is measured, however
+        few values it shows and however small its range beside the other joints'."""
         logged = self.logged
         ref = float(np.max(self.ptp[logged])) if reference_ptp is None and logged.any() else (
             reference_ptp or 0.0)
@@ -96,8 +103,9 @@ class ColumnScreen:
                 out.append(None)
             elif ptp <= FLAT_NM:
                 out.append(f"flat: its torque is constant ({float(self.first[j]):.6g} N·m)")
-            elif not (ref > 0 and ptp < SMALL_FRACTION * ref):
-                out.append(None)
+            elif not (ref > 0 and ptp < SMALL_FRACTION * ref) or (
+                    posed is not None and posed[j]):  # a range of its own, or it moves
+                out.append(None)                      # with the arm's poses: measured
             elif self.n_distinct[j] < FEW_VALUES:
                 out.append(f"unmeasured: {int(self.n_distinct[j])} distinct values spanning "
                            f"{ptp:.3g} N·m, under {SMALL_FRACTION:.0%} of the largest "

@@ -209,6 +209,22 @@ def check_motion(
     return []
 
 
+def check_coupled_size(n_joints: int, options: IdentifyOptions, where: str) -> None:
+    """Refuse (ScaleLimitError, exit 2) a coupled model whose regressor cannot be held within
+    ``options.coupled_max_mb`` even at the rows it needs: J × J(5J+1) numbers a row, so its
+    memory grows with the cube of the joint count (20 joints: 0.3 GB at 1,000 rows)."""
+    from ..errors import ScaleLimitError
+    from .rows import COUPLED_MIN_ROWS
+
+    mb = COUPLED_MIN_ROWS * 8.0 * n_joints * n_joints * (5 * n_joints + 1) / 2**20
+    if mb > options.coupled_max_mb:
+        raise ScaleLimitError(
+            f"{where}: a coupled model of {n_joints} joints needs a regressor of about "
+            f"{mb / 1024:.3g} GiB at the {COUPLED_MIN_ROWS} rows it needs (J × J(5J+1) numbers "
+            f"a row), above coupled_max_mb = {options.coupled_max_mb:g} MB: use --kind "
+            "decoupled (a model per joint)")
+
+
 def _structure_for(
     kind: str, robot: RobotDescription | None, joints: tuple[str, ...],
     options: IdentifyOptions, where: str,
@@ -221,6 +237,7 @@ def _structure_for(
     if kind == "decoupled":
         return base
     if kind == "coupled":
+        check_coupled_size(len(joints), options, where)
         base["velocity_products"] = options.coupled_velocity_products
         return base
     kin = robot.kinematics if robot is not None else None

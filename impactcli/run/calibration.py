@@ -525,23 +525,39 @@ def _segments(
 def _screen_calibration_logs(
     scans: list[LogScan], model: RigidModel | None, cfg: DetectorConfig,
 ) -> tuple[list[Screened], tuple[LeftOut, ...]]:
-    """Every calibration log screened (:func:`impactcli.run.plan.screen_scan`); a joint left
-    out of any log is left out of all (a threshold needs every log), with the first reason
-    found."""
+    """Every calibration log screened (:func:`impactcli.run.plan.screen_scan`). A joint whose
+    torque is measured in some log is kept in every log (a joint that stands still in one
+    run shows a flat or few-valued torque there, and moves in another); a joint left out of
+    a log for any other reason, or unmeasured in all, is left out of all (a threshold needs
+    every log), with the first reason found. Only the final screen warns."""
     known = known_joints(model, cfg)
-    per = [screen_scan(scan, known) for scan in scans]
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always", ImpactWarning)
+        per = [screen_scan(scan, known) for scan in scans]
+    measured = frozenset(j for sc in per for j in sc.keep)
     reasons: dict[str, str] = {}
+    rescued: set[tuple[str, str]] = set()  # (log, joint) kept: measured in another log
     for scan, sc in zip(scans, per, strict=True):
         for x in sc.left_out:
+            if x.reason.startswith("torque ") and x.name in measured:
+                rescued.add((scan.source.path, x.name))
+                warnings.warn(f"{scan.source.path}: joint {x.name!r}: its {x.reason} here, "
+                              "but it is measured in another calibration log: kept",
+                              ImpactWarning, stacklevel=3)
+                continue
             reasons.setdefault(x.name, f"{x.reason}, in {scan.source.path}")
-    if not reasons:
-        return per, ()
+    for w in said:  # the first screen's warnings, but of the joints kept after all
+        if not any(str(w.message).startswith(f"{p}: joint {j!r} left out") for p, j in rescued):
+            warnings.warn(w.message, stacklevel=3)
     out = []
     for scan in scans:
         keep = tuple(j for j in scan.joint_names if j not in reasons)
         if not keep:
             raise LogFormatError(f"{scan.source.path}: no joint left to calibrate")
-        out.append(screen_scan(scan, None, joints=keep))
+        with warnings.catch_warnings():  # said above, once
+            warnings.simplefilter("ignore", ImpactWarning)
+            out.append(screen_scan(scan, None if reasons else known, joints=keep,
+                                   measured=measured))
     return out, tuple(LeftOut(j, r) for j, r in reasons.items())
 
 

@@ -123,16 +123,21 @@ class Screened:
 
 def screen_scan(scan: LogScan, known: tuple[str, ...] | None,
                 recorded: tuple[dict[str, str], ...] = (),
-                joints: tuple[str, ...] | None = None) -> Screened:
+                joints: tuple[str, ...] | None = None,
+                measured: frozenset[str] = frozenset()) -> Screened:
     """:func:`screen_plan` of a log's scan (``joints``: only these of its joints, as if the
-    log held no others; None: all)."""
+    log held no others; None: all; ``measured``: joints whose torque is taken as measured
+    whatever its screen says here — calibration: measured in another of its logs)."""
     full = tuple(scan.joint_names)
     joints = full if joints is None else joints
     cols = [full.index(j) for j in joints]
     torque = scan.screens["torque"].select(cols)
     ref = float(np.max(torque.ptp)) if torque.ptp.size else 0.0
+    torque_why = [None if j in measured else why for j, why in zip(
+        joints, torque.unusable(ref, None if scan.torque_posed is None
+                                else scan.torque_posed[cols]), strict=True)]
     keep, left, unlogged = screen_plan(
-        scan.source.path, joints, known, recorded, torque.unusable(ref),
+        scan.source.path, joints, known, recorded, torque_why,
         lambda ch, kept: scan.screens[ch].select([cols[k] for k in kept]).unusable(ref)
         if ch in scan.screens else None)
     logged = {ch: scan.screens[ch].select([full.index(j) for j in keep]).logged
@@ -522,8 +527,8 @@ def check_torque_scale(scan: LogScan, robot: RobotDescription | None
         raise LogFormatError(verdict.message)
     if verdict.kind == "warn":
         warnings.warn(verdict.message, ImpactWarning, stacklevel=3)
-    with np.errstate(invalid="ignore"):
-        peak = np.nanmax(np.abs(g), axis=0) if len(g) else np.full(len(joints), np.nan)
+    peak = (np.where(np.isfinite(g), np.abs(g), -np.inf).max(axis=0) if len(g)
+            else np.full(len(joints), -np.inf))  # -inf: a joint the description lacks
     return verdict, {j: float(v) for j, v in zip(joints, peak, strict=True)
                      if np.isfinite(v)}
 
