@@ -32,8 +32,10 @@ every :data:`STATS_EVERY`-th step (within a tenth of a decade).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
+import numba as nb
 import numpy as np
 
 from ..clock import GAP_FACTOR
@@ -56,7 +58,7 @@ MOVING_RANGE_RAD = 0.1
 SHUFFLED_STEP_SHARE = 0.2
 #: The medians are taken over every STATS_EVERY-th step (cost), in bins of a tenth of a
 #: decade from 1e-10 rad.
-STATS_EVERY = 8
+STATS_EVERY = 16
 BINS_PER_DECADE = 10
 LOWEST_LOG10 = -10.0
 N_BINS = 130
@@ -87,18 +89,57 @@ class Wrap:
     t_ns: int = 0
 
 
-def _histogram(x: np.ndarray) -> np.ndarray:
-    """(J, N_BINS) counts of (m, J) non-negative values in log-spaced bins (bin 0: below
-    1e-10, NaN left out)."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        b = np.floor((np.log10(x) - LOWEST_LOG10) * BINS_PER_DECADE) + 1
-    b = np.clip(np.where(np.isfinite(b), b, 0), 0, N_BINS - 1).astype(np.int64)
-    b[~np.isfinite(x)] = -1
-    out = np.zeros((x.shape[1], N_BINS), dtype=np.int64)
-    for j in range(x.shape[1]):
-        col = b[:, j]
-        out[j] = np.bincount(col[col >= 0], minlength=N_BINS)
-    return out
+@nb.njit(cache=True, error_model="numpy")
+def _bin(x: float) -> int:  # pragma: no cover - compiled
+    """The histogram bin of a value ≥ 0 (module docstring), -1 for NaN."""
+    if math.isnan(x):
+        return -1
+    if x < 10.0 ** LOWEST_LOG10:
+        return 0
+    return min(int((math.log10(x) - LOWEST_LOG10) * BINS_PER_DECADE) + 1, N_BINS - 1)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _judge(dd: np.ndarray, dts: np.ndarray, lo: int, off: int, apart: np.ndarray,
+           h_apart: np.ndarray, h_step: np.ndarray) -> np.ndarray:  # pragma: no cover
+    """One pass over the steps ``dd`` (m, J) [rad] of lengths ``dts`` (m,) [s]: for each step
+    i in lo .. m − 2 and joint, how far it is from the nearer of its neighbours; every
+    STATS_EVERY-th step from ``lo + off`` counted in ``h_apart`` and (its size) ``h_step``;
+    the steps with a jump (module docstring) returned, ``apart`` holding their size where a
+    joint jumps and NaN elsewhere."""
+    m, nj = dd.shape
+    out = np.empty(max(m, 0), dtype=np.int64)
+    n_out = 0
+    for i in range(lo, m - 1):
+        span = dts[i]
+        limit = max(JUMP_RAD, MAX_ACCEL_RAD_S2 * span * span)
+        regular = span <= GAP_FACTOR * min(dts[i - 1], dts[i + 1])
+        counted = (i - lo - off) % STATS_EVERY == 0
+        hit = False
+        for j in range(nj):
+            x = dd[i, j]
+            a = abs(x - dd[i - 1, j])
+            b = abs(x - dd[i + 1, j])
+            d = a if a < b else b  # NaN neighbours: no comparison holds, never a jump
+            hit |= d > limit and not math.isnan(a) and not math.isnan(b)
+            if counted:
+                k = _bin(d if not (math.isnan(a) or math.isnan(b)) else np.nan)
+                if k >= 0:
+                    h_apart[j, k] += 1
+                k = _bin(abs(x))
+                if k >= 0:
+                    h_step[j, k] += 1
+        if hit and regular:
+            for j in range(nj):  # the row of the step that jumps: each joint's size or NaN
+                x = dd[i, j]
+                a = abs(x - dd[i - 1, j])
+                b = abs(x - dd[i + 1, j])
+                d = a if a < b else b
+                apart[i, j] = d if d > limit and not (math.isnan(a) or math.isnan(b)) \
+                    else np.nan
+            out[n_out] = i
+            n_out += 1
+    return out[:n_out]
 
 
 def _median(h: np.ndarray, q: float = 0.5) -> np.ndarray:
@@ -127,9 +168,11 @@ class DefectScan:
     jumps: list[Jump] = field(default_factory=list)
     wraps: list[Wrap] = field(default_factory=list)
     offset: np.ndarray = field(init=False)  # (J,) turns removed so far [rad]
-    _tail_q: np.ndarray = field(init=False)  # the last raw sample (wrap steps)
-    _tail_u: np.ndarray = field(init=False)  # the last 3 unwrapped samples
-    _tail_t: np.ndarray = field(init=False)
+    _last_q: np.ndarray | None = field(default=None, init=False)  # the last raw sample
+    _last_t: int = field(default=0, init=False)
+    _tail_d: np.ndarray = field(init=False)  # the last 2 (unwrapped) steps, not yet judged
+    _tail_dt: np.ndarray = field(init=False)  # their lengths [s]
+    _tail_t: np.ndarray = field(init=False)  # the times of the samples they lead to [ns]
     _h_apart: np.ndarray = field(init=False)  # (J, bins) the step differences' histogram
     _h_step: np.ndarray = field(init=False)  # (J, bins) the |steps|' histogram
     _lo: np.ndarray = field(init=False)  # (J,) the unwrapped positions' range
@@ -138,8 +181,8 @@ class DefectScan:
     def __post_init__(self) -> None:
         j = self.n_joints
         self.offset = np.zeros(j)
-        self._tail_q = np.zeros((0, j))
-        self._tail_u = np.zeros((0, j))
+        self._tail_d = np.zeros((0, j))
+        self._tail_dt = np.zeros(0)
         self._tail_t = np.zeros(0, dtype=np.int64)
         self._h_apart = np.zeros((j, N_BINS), dtype=np.int64)
         self._h_step = np.zeros((j, N_BINS), dtype=np.int64)
@@ -148,73 +191,69 @@ class DefectScan:
     def add(self, t_ns: np.ndarray, q: np.ndarray) -> np.ndarray:
         """Judge the next (n,) times [ns] and (n, J) positions [rad]; return them
         unwrapped (a new array when a turn was removed, else ``q``)."""
-        if not len(t_ns):
+        n = len(t_ns)
+        if not n:
             return q
-        u = self._unwrap(t_ns, q)
-        self._jumps(t_ns, u)
-        self._lo = np.fmin(self._lo, np.fmin.reduce(u, axis=0))  # NaN: not logged
-        self._hi = np.fmax(self._hi, np.fmax.reduce(u, axis=0))
-        self.n += len(t_ns)
+        last = self._last_q
+        first = last is None
+        d = np.empty(q.shape)  # d[k]: the step into the block's sample k
+        dt = np.empty(n)
+        with np.errstate(invalid="ignore"):
+            np.subtract(q[1:], q[:-1], out=d[1:])
+            if last is None:
+                d[0], dt[0] = np.nan, np.nan
+            else:
+                np.subtract(q[0], last, out=d[0])
+                dt[0] = (int(t_ns[0]) - self._last_t) * 1e-9
+        dt[1:] = np.diff(t_ns) * 1e-9
+        self._last_q, self._last_t = q[-1].copy(), int(t_ns[-1])
+        u = self._unwrap(t_ns, q, d)
+        self._jumps(t_ns, d, dt, first)
+        every = u[(-self.n) % STATS_EVERY::STATS_EVERY]  # the range, on the strided samples
+        if len(every):
+            self._lo = np.fmin(self._lo, np.fmin.reduce(every, axis=0))  # NaN: not logged
+            self._hi = np.fmax(self._hi, np.fmax.reduce(every, axis=0))
+        self.n += n
         return u
 
-    def _unwrap(self, t_ns: np.ndarray, q: np.ndarray) -> np.ndarray:
-        both = np.concatenate((self._tail_q, q))
-        self._tail_q = q[-1:].copy()
+    def _unwrap(self, t_ns: np.ndarray, q: np.ndarray, d: np.ndarray) -> np.ndarray:
+        """``q`` with the turns so far and this block's removed; ``d`` unwrapped in place."""
         with np.errstate(invalid="ignore"):
-            d = np.diff(both, axis=0)
-            turns = np.rint(d / (2.0 * np.pi))
-            wrap = (turns != 0) & (np.abs(d - 2.0 * np.pi * turns) < WRAP_TOL_RAD)
-        if not wrap.any() and not self.offset.any():
-            return q
-        shift = np.zeros_like(q)
-        if wrap.any():
-            first = len(both) - len(q)  # index in `both` of q's first sample
-            steps = np.where(wrap, turns, 0.0)
-            for s, j in zip(*np.nonzero(wrap), strict=True):
-                self.wraps.append(Wrap(int(self.n + s + 1 - first), int(j), int(turns[s, j]),
-                                       int(t_ns[s + 1 - first])))
-            cum = np.cumsum(steps, axis=0)
-            if len(cum) < len(q):  # the log's first sample: no step into it
-                cum = np.concatenate((np.zeros((1, q.shape[1])), cum))
-            shift = cum * (2.0 * np.pi)
+            big = np.abs(d) >= 2.0 * np.pi - WRAP_TOL_RAD
+        if not big.any():  # no step near a turn (the common case)
+            return q if not self.offset.any() else q - self.offset
+        with np.errstate(invalid="ignore"):
+            turns = np.where(big, np.rint(d / (2.0 * np.pi)), 0.0)
+            wrap = big & (np.abs(d - 2.0 * np.pi * turns) < WRAP_TOL_RAD)
+        turns = np.where(wrap, turns, 0.0)
+        for k, j in zip(*np.nonzero(wrap), strict=True):
+            self.wraps.append(Wrap(self.n + int(k), int(j), int(turns[k, j]), int(t_ns[k])))
+        d -= 2.0 * np.pi * turns
+        shift = np.cumsum(turns, axis=0) * (2.0 * np.pi)
         out = q - self.offset - shift
         self.offset = self.offset + shift[-1]
         return out
 
-    def _jumps(self, t_ns: np.ndarray, u: np.ndarray) -> None:
-        uu = np.concatenate((self._tail_u, u))
+    def _jumps(self, t_ns: np.ndarray, d: np.ndarray, dt: np.ndarray, first: bool) -> None:
+        dd = np.concatenate((self._tail_d, d))
+        dts = np.concatenate((self._tail_dt, dt))
         tt = np.concatenate((self._tail_t, t_ns))
-        base = self.n - len(self._tail_u)  # the log's index of uu[0]
-        self._tail_u, self._tail_t = uu[-3:].copy(), tt[-3:].copy()
-        if len(uu) < 3:
+        base = self.n - len(self._tail_d)  # the sample dd[0] leads to
+        self._tail_d, self._tail_dt, self._tail_t = dd[-2:].copy(), dts[-2:].copy(), tt[-2:]
+        # judge the steps with both neighbours known: dd[lo .. -2]; the log's first two steps
+        # (into samples 0 and 1) have no step before them
+        lo = 2 if base == 0 else 1
+        if len(dd) - 1 <= lo:
             return
-        with np.errstate(invalid="ignore"):
-            d = np.diff(uu, axis=0)
-        dt = np.diff(tt).astype(np.float64) * 1e-9
-        # judge steps 1 .. len(d) - 2 (both neighbours known); step 0 was judged with the
-        # block before, or is the log's first step (no neighbour before it)
-        lo = 1
-        mid = d[lo:-1]
-        if not len(mid):
-            return
-        with np.errstate(invalid="ignore"):
-            apart = np.minimum(np.abs(mid - d[lo - 1:-2]), np.abs(mid - d[lo + 1:]))
-        every = slice((-(base + lo)) % STATS_EVERY, None, STATS_EVERY)  # the log's strides
-        self._h_apart += _histogram(apart[every])
-        self._h_step += _histogram(np.abs(mid[every]))
-        dts = dt[lo:-1]
-        limit = np.maximum(JUMP_RAD, MAX_ACCEL_RAD_S2 * dts ** 2)[:, None]
-        regular = dts <= GAP_FACTOR * np.minimum(dt[lo - 1:-2], dt[lo + 1:])
-        with np.errstate(invalid="ignore"):
-            bad = (apart > limit) & regular[:, None]
-        self.steps += len(mid)
-        if not bad.any():
-            return
-        for s in np.flatnonzero(bad.any(axis=1)):
-            for j in np.flatnonzero(bad[s]):
+        apart = np.full(dd.shape, np.nan)
+        found = _judge(dd, dts, lo, (-(base + lo)) % STATS_EVERY, apart, self._h_apart,
+                       self._h_step)
+        self.steps += len(dd) - 1 - lo
+        for i in found:
+            for j in np.flatnonzero(np.isfinite(apart[i])):
                 if len(self.jumps) < MAX_KEPT:
-                    self.jumps.append(Jump(base + lo + int(s) + 1, int(j), float(apart[s, j]),
-                                           int(tt[lo + s + 1])))
+                    self.jumps.append(Jump(base + int(i), int(j), float(apart[i, j]),
+                                           int(tt[i])))
 
     def finish(self) -> None:
         """Keep the jumps that stand out of their joint's noise (module docstring)."""
