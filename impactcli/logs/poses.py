@@ -38,21 +38,23 @@ class PoseSample:
         n = len(t_ns)
         if not n:
             return
-        if self._last is None:
-            tq, qq = np.concatenate((t_ns[:1], t_ns)), np.concatenate((q[:1], q))
-        else:
-            tq = np.concatenate(([self._last[0]], t_ns))
-            qq = np.concatenate((self._last[1][None, :], q))
+        first = (-self.n) % self.stride  # the block's first row on the stride
+        pick = np.arange(first, n, self.stride)
+        prev_q = np.empty((len(pick), q.shape[1]))
+        prev_t = np.empty(len(pick), dtype=np.int64)
+        inner = pick > 0
+        prev_q[inner], prev_t[inner] = q[pick[inner] - 1], t_ns[pick[inner] - 1]
+        if len(pick) and pick[0] == 0:  # the block's first row: the step from the last one
+            last_t, last_q = self._last if self._last is not None else (int(t_ns[0]), q[0])
+            prev_q[0], prev_t[0] = last_q, last_t  # (the log's first row: no speed, NaN)
         self._last = (int(t_ns[-1]), q[-1].copy())
-        dt = np.diff(tq).astype(np.float64) * 1e-9
+        dt = (t_ns[pick] - prev_t).astype(np.float64) * 1e-9
         with np.errstate(invalid="ignore", divide="ignore"):
-            qd = np.diff(qq, axis=0) / np.where(dt > 0, dt, np.nan)[:, None]
-        rows = np.arange(self.n, self.n + n)
-        pick = rows % self.stride == 0
-        self.idx = np.concatenate((self.idx, rows[pick]))
+            qd = (q[pick] - prev_q) / np.where(dt > 0, dt, np.nan)[:, None]
+        self.idx = np.concatenate((self.idx, self.n + pick))
         self.q = np.concatenate((self.q, q[pick]))
         self.tau = np.concatenate((self.tau, tau[pick]))
-        self.qd = np.concatenate((self.qd, qd[pick]))
+        self.qd = np.concatenate((self.qd, qd))
         self.n += n
         while len(self.idx) > MAX_POSES:
             self.stride *= 2
