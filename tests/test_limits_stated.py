@@ -4,6 +4,7 @@ detection floor (the smallest contact a run could have seen)."""
 
 from __future__ import annotations
 
+import gzip
 import json
 from pathlib import Path
 
@@ -345,3 +346,42 @@ def test_an_explicit_coupled_model_too_wide_is_refused_before_work(tmp_path: Pat
         "8.07 GiB at the 1000 rows it needs (J × J(5J+1) numbers a row), above "
         "coupled_max_mb = 256 MB: use --kind decoupled (a model per joint)")
     assert not (tmp_path / "m.json").exists()
+
+
+def test_rate_given_over_a_time_column_is_checked_against_it(tmp_path: Path) -> None:
+    """--rate wins over a time column, which is then only compared: a column rounded to
+    10 ms at 250 Hz agrees on average (silent), one at half the rate is named with the rate
+    it implies; --time-column names the time column by name it overrides."""
+    import numpy as np
+
+    free = REPO / "sample_logs" / "csv" / "assist_free_p2p.csv.gz"
+    lines = gzip.decompress(free.read_bytes()).decode("utf-8").splitlines()[:3001]
+    head, rows = lines[0], [ln.split(",", 1) for ln in lines[1:]]
+    t = np.arange(len(rows)) / 250.0
+
+    def write(name: str, times: np.ndarray, header: str = head) -> Path:
+        path = tmp_path / name
+        path.write_text(header + "\n" + "\n".join(f"{x:.6f},{r[1]}" for x, r in
+                                                  zip(times, rows, strict=True)) + "\n",
+                        encoding="utf-8")
+        return path
+
+    def warned(*args: str) -> list[str]:
+        r = CliRunner().invoke(main, ["inspect", *args])
+        assert r.exit_code == 0, r.stderr
+        return [ln for ln in r.stderr.splitlines() if "check the rate" in ln]
+
+    assert warned(str(write("rounded.csv", np.round(t, 2))), "--rate", "250") == []
+    slow = write("slow.csv", 2 * t)
+    assert warned(str(slow), "--rate", "250") == [
+        f"impactcli: warning: {slow}: --rate 250: the time column 'time' (not used) steps by "
+        "0.008 s on average over its first 2000 rows (125 Hz), not the 1/250 s --rate gives: "
+        "check the rate"]
+    both = tmp_path / "both.csv"
+    both.write_text(head.replace("time,", "time,stamp_s,", 1) + "\n" + "\n".join(
+        f"{2 * x:.6f},{x:.6f},{r[1]}" for x, r in zip(t, rows, strict=True)) + "\n",
+        encoding="utf-8")
+    r = CliRunner().invoke(main, ["inspect", str(both), "--time-column", "stamp_s"])
+    assert r.exit_code == 0, r.stderr
+    assert (f"impactcli: warning: {both}: --time-column 'stamp_s' given: the column 'time', a "
+            "time column by its name, is not read as the log's clock") in r.stderr.splitlines()

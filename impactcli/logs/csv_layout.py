@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import gzip
 import re
+import warnings
 from collections import deque
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -31,8 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ChannelMapError, LogFormatError
-from .channel_map import ChannelMap, ChannelRef, TimeSpec, require_time
+from ..errors import ChannelMapError, ImpactWarning, LogFormatError
+from .channel_map import TIME_UNITS, ChannelMap, ChannelRef, TimeSpec, require_time
 from .csv_header import canonical_map, header_names, mapped_separator, separator
 from .repair import GIVE_UNIT, unit_hint
 
@@ -63,6 +64,48 @@ def _lines(path: Path, skip: int, count: int) -> list[str]:
             return [str(f.readline()) for _ in range(count)]
     except (OSError, EOFError, ValueError) as err:
         raise LogFormatError(f"{path}: cannot read: {err}") from err
+
+
+#: ``--rate`` against a time column: its first rows, and the factor beyond which their
+#: average step disagrees with 1 / rate (warned).
+RATE_CHECK_ROWS = 2000
+RATE_CHECK_FACTOR = 1.5
+
+
+def warn_rate_against_column(path: Path, where: str, names: list[str], delim: str,
+                             decimal: str, time_column: str | None, time_unit: str | None,
+                             rate: float) -> None:
+    """With ``--rate`` on a CSV that has a time column (``--time-column``, else one named as
+    a time), the column is not the clock; warn when its median step over the first
+    :data:`RATE_CHECK_ROWS` rows, on average (a rounded clock's too; in ``--time-unit``,
+    else its name's unit, else s), implies a rate off ``rate`` by more than
+    :data:`RATE_CHECK_FACTOR` (another clock, or a wrong ``--rate``). Stamps that are not
+    numbers (ISO 8601) are not checked."""
+    from .csv_header import find_time_column, name_unit
+
+    tcol = time_column if time_column in names else find_time_column(names)
+    if tcol is None:
+        return
+    k = names.index(tcol)
+    vals = []
+    for line in _lines(path, 1, RATE_CHECK_ROWS):
+        cells = line.rstrip("\r\n").split(delim)
+        if not line or len(cells) <= k:  # past the end
+            break
+        try:
+            vals.append(float(cells[k].strip().replace(decimal, ".")))
+        except ValueError:
+            return
+    t = np.asarray(vals, dtype=np.float64)
+    if t.size < 10 or not np.isfinite(t[[0, -1]]).all():
+        return
+    unit = time_unit or name_unit(tcol) or "s"
+    step_s = float(t[-1] - t[0]) / (t.size - 1) * TIME_UNITS[unit] * 1e-9  # a rounded clock's
+    if step_s > 0 and not 1.0 / RATE_CHECK_FACTOR <= 1.0 / step_s / rate <= RATE_CHECK_FACTOR:
+        warnings.warn(f"{where}: --rate {rate:g}: the time column {tcol!r} (not used) steps by "
+                      f"{step_s:.3g} s on average over its first {t.size} rows "
+                      f"({1.0 / step_s:.3g} Hz), not the 1/{rate:g} s --rate gives: check "
+                      "the rate", ImpactWarning, stacklevel=3)
 
 
 def check_text(path: Path, where: str) -> None:
@@ -259,6 +302,9 @@ def csv_layout(path: Path, cmap: ChannelMap | None, *, time_unit: str | None = N
         cmap, ignored_extra = canonical_map(names, where, time_unit, time_column=time_column,
                                             rate=rate)
         fmt = "csv"
+        if rate is not None:
+            warn_rate_against_column(path, where, names, delim, decimal, time_column,
+                                     time_unit, rate)
     else:
         fmt = "csv-mapped"
     the_map = cmap
