@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from impactcli.cli import main
@@ -189,3 +189,38 @@ def test_without_masses_the_scale_is_said_to_be_unverified(tmp_path: Path) -> No
     ts = doc["input"]["torque_scale"]
     assert ts["verdict"] == "unverified" and ts["scale"] is None
     assert "gives no masses" in ts["message"]
+
+
+@settings(max_examples=6, deadline=None)
+@given(log10_scale=st.floats(-3.5, 3.5))
+@example(log10_scale=0.0)
+@example(log10_scale=0.6)  # 4x: warned
+@example(log10_scale=3.0)  # 1000x: refused
+def test_a_scaled_torque_never_gives_an_unflagged_force(tmp_path_factory: pytest.TempPathFactory,
+                                                        log10_scale: float) -> None:
+    """A contact log with its torque scaled by s, with its description: refused (exit 3),
+    or its scale judged ok and near 1, or warned and every force flagged implausible."""
+    import dataclasses
+
+    tmp = tmp_path_factory.mktemp("scaled")
+    log = read_log(CSV / "heavy_impacts.csv.gz")
+    log = log.slice(0, round(30 * log.sample_rate_hz))
+    s = 10.0 ** log10_scale
+    src = tmp / "log.csv"
+    write_log(dataclasses.replace(log, torque=log.torque * s), src)
+    r = CliRunner().invoke(main, ["detect", str(src), "--robot",
+                                  str(CSV / "heavy_impacts.robot.json"), "-o", str(tmp / "o")])
+    if r.exit_code == 3:
+        assert "the torque is off by ~" in r.stderr
+        return
+    assert r.exit_code == 0, r.stderr
+    doc = json.loads((tmp / "o" / "log.timeline.json").read_text(encoding="utf-8"))
+    ts = doc["input"]["torque_scale"]
+    assert ts["verdict"] in ("ok", "warn")
+    forces = [x for x in doc["incidents"] + doc["lasting_loads"] if x["force_n"] is not None]
+    if ts["verdict"] == "ok":
+        assert 1 / WARN_FACTOR <= s <= WARN_FACTOR * 1.1
+    else:
+        assert forces or s < 1  # a contact log: a scale above 1 still leaves its incidents
+        assert all(x["force_plausible"] is False and "off the description's gravity torque"
+                   in x["force_check"] for x in forces)

@@ -268,10 +268,14 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         defects = data_defects(scan, rp.gap_times)
         settle = settle_s(cfg.static_loading.cutoff_hz, cfg.adaptive.n2_s)
         incidents = number_incidents(mark_defects(incidents, defects, settle))
+        if plan.torque_scale is not None and plan.torque_scale.kind == "warn":
+            incidents = off_scale(incidents, plan.torque_scale.scale)
+            loads = off_scale(loads, plan.torque_scale.scale)
         warn_events_after_gaps(where, rp.gap_times[:, 1], events)
         warn_long_events(where, events)
-        warn_implausible_forces(where, [i for i in (*incidents, *loads)
-                                        if getattr(i, "data_defect", None) is None])
+        if plan.torque_scale is None or plan.torque_scale.kind != "warn":  # said already
+            warn_implausible_forces(where, [i for i in (*incidents, *loads)
+                                            if getattr(i, "data_defect", None) is None])
         warn_defect_incidents(where, defects, incidents, settle)
         caught.paste(ctx_msgs)
         outside = None
@@ -323,6 +327,15 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         torque_scale=None if plan.torque_scale is None else plan.torque_scale.to_dict(),
         warnings=tuple(dict.fromkeys((*scan.warnings, *caught.messages()))),  # scan's first
     )
+
+
+def off_scale(findings: Sequence[Any], scale: float | None) -> list[Any]:
+    """Incidents or lasting loads of a log whose torque scale is off (the run warned,
+    :mod:`impactcli.model.gravity`): each force is flagged implausible, saying why."""
+    why = (f"the log's torque is off the description's gravity torque by ~{scale:.3g}× "
+           "(input.torque_scale): no force from it can be trusted")
+    return [x if x.force_n is None else dataclasses.replace(
+        x, force_plausible=False, force_check=why) for x in findings]
 
 
 #: At most this many data defects are listed in the timeline (all are counted).
