@@ -385,3 +385,20 @@ def test_rate_given_over_a_time_column_is_checked_against_it(tmp_path: Path) -> 
     assert r.exit_code == 0, r.stderr
     assert (f"impactcli: warning: {both}: --time-column 'stamp_s' given: the column 'time', a "
             "time column by its name, is not read as the log's clock") in r.stderr.splitlines()
+
+
+def test_identification_cost_is_checked_before_work() -> None:
+    """The estimate of identifying the model from the log: far under real time for the arms
+    of the field (7 joints at 1 kHz: ~0.02 s per s for a URDF), refused (exit 2) for a URDF
+    chain of 50 joints at 1 kHz; the estimate follows the measured rows of IDENTIFY_COST."""
+    from impactcli.errors import ScaleLimitError
+    from impactcli.model.identification import identification_cost
+    from impactcli.run.plan import check_identification
+
+    assert identification_cost("urdf", 7, 1000.0) == pytest.approx(19.6 / 800, rel=0.1)
+    assert identification_cost("decoupled", 7, 1000.0) == pytest.approx(5.4 / 800, rel=0.1)
+    check_identification("x", "urdf", 7, 1000.0)
+    check_identification("x", "decoupled", 200, 1000.0)
+    with pytest.raises(ScaleLimitError) as err:
+        check_identification("x", "urdf", 50, 1000.0)
+    assert "identifying a urdf model from the log is estimated at 1.25 s" in str(err.value)

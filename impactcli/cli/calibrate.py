@@ -266,11 +266,16 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
     read = [read_log(p, robot=robot_d, **ropts) for p in logs]
     if not allow_slow:  # before identification and replay: the cost is the joints', not time's
+        from ..config import DetectorConfig
         from ..detect.adaptive import check_scale
+        from ..run.plan import check_identification, identified_kind
 
+        kind = identified_kind(model_m, cfg or DetectorConfig(), robot_d, False)
         for log in read:
             check_scale(log.n_joints, log.sample_rate_hz, cfg.adaptive if cfg else None,
                         log.source.path)
+            if kind is not None:
+                check_identification(log.source.path, kind, log.n_joints, log.sample_rate_hz)
     labels = _labels_for(logs, labels_paths)
     for p, lab in zip(logs, labels, strict=True):
         if lab is not None and lab.events:

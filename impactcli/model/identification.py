@@ -209,6 +209,22 @@ def check_motion(
     return []
 
 
+#: Identification's compute per second of a 1 kHz log [s], per kind, as a * J**b (J joints):
+#: measured with impactcli.model.identify on 7- and 12-joint logs of 200 and 800 s (2-vCPU
+#: x86_64, 2026-11-29): decoupled 5.4 s, coupled 4.3 s, urdf (panda) 19.6 s for 800 s at 7
+#: joints; the urdf regressor grows with J squared, the others about linearly (rows capped).
+IDENTIFY_COST = {"decoupled": (1.0e-3, 1.0), "coupled": (1.0e-3, 1.0),
+                 "planar": (5.0e-4, 2.0), "urdf": (5.0e-4, 2.0)}
+
+
+def identification_cost(kind: str, n_joints: int, sample_rate_hz: float) -> float:
+    """Estimated compute of identifying a ``kind`` model [s per second of log]
+    (:data:`IDENTIFY_COST`, linear in the sample rate: the filtering pass reads every
+    sample)."""
+    a, b = IDENTIFY_COST.get(kind, IDENTIFY_COST["urdf"])
+    return a * float(n_joints) ** b * sample_rate_hz / 1000.0
+
+
 def check_coupled_size(n_joints: int, options: IdentifyOptions, where: str) -> None:
     """Refuse (ScaleLimitError, exit 2) a coupled model whose regressor cannot be held within
     ``options.coupled_max_mb`` even at the rows it needs: J × J(5J+1) numbers a row, so its

@@ -214,16 +214,51 @@ def calibrated_thresholds(
 
 
 def check_replayable(where: str, n_joints: int, sample_rate_hz: float, n_samples: int,
-                     duration_s: float, cfg: DetectorConfig, allow_slow: bool) -> None:
-    """Before any work: the replay's cost (it depends on the joints, not the duration;
+                     duration_s: float, cfg: DetectorConfig, allow_slow: bool,
+                     identify_kind: str | None = None) -> None:
+    """Before any work: the replay's cost and, when a model of ``identify_kind`` must be
+    identified from the log, identification's (both depend on the joints, not the duration;
     refused above the limit unless ``allow_slow``), then a log longer than the warm-up."""
     if not allow_slow:
         check_scale(n_joints, sample_rate_hz, cfg.adaptive, where)
+        if identify_kind is not None:
+            check_identification(where, identify_kind, n_joints, sample_rate_hz)
     if duration_s < cfg.warmup.min_s:
         raise LogFormatError(
             f"{where}: {n_samples} samples ({duration_s:.3g} s), shorter than "
             f"the detectors' warm-up (warmup.min_s = {cfg.warmup.min_s:g} s): nothing after it "
             "could be detected")
+
+
+def identified_kind(model: RigidModel | None, cfg: DetectorConfig,
+                    robot: RobotDescription | None, model_from_log: bool) -> str | None:
+    """The kind of model a run will identify from its log (None: it is given)."""
+    from ..model import default_kind
+
+    if model is not None or (cfg.model is not None and not model_from_log):
+        return None
+    if model_from_log and cfg.model is not None:
+        return str(cfg.model.get("kind") or default_kind(robot))
+    return default_kind(robot)
+
+
+def check_identification(where: str, kind: str, n_joints: int, sample_rate_hz: float
+                         ) -> None:
+    """ScaleLimitError (exit 2) when identifying a ``kind`` model from the log is estimated
+    slower than real time (:func:`impactcli.model.identification.identification_cost`); its
+    memory is bounded by the row caps and, for a coupled model, refused where it cannot be
+    held (:func:`impactcli.model.identification.check_coupled_size`)."""
+    from ..detect.adaptive import MAX_COST_PER_LOG_SECOND
+    from ..errors import ScaleLimitError
+    from ..model.identification import identification_cost
+
+    cost = identification_cost(kind, n_joints, sample_rate_hz)
+    if cost > MAX_COST_PER_LOG_SECOND:
+        raise ScaleLimitError(
+            f"{where}: {n_joints} joints at {sample_rate_hz:.4g} Hz: identifying a {kind} model "
+            f"from the log is estimated at {cost:.3g} s of compute per second of log, above "
+            f"the limit of {MAX_COST_PER_LOG_SECOND:g} s: give a model (--model, or a config "
+            "with one), or --allow-slow to run it anyway")
 
 
 def from_log_structure(cfg: DetectorConfig, robot: RobotDescription | None,
@@ -471,7 +506,8 @@ def plan_run(reader: LogReader, cfg: DetectorConfig, *, model: RigidModel | None
     scale, hold = check_torque_scale(scan, robot or description_of(model, cfg))
     sc = screen_scan(scan, known_joints(model, cfg), cfg.calibration.joints_left_out)
     check_replayable(where, len(sc.keep), scan.sample_rate_hz, scan.n_samples,
-                     scan.duration_s, cfg, allow_slow)
+                     scan.duration_s, cfg, allow_slow, identified_kind(model, cfg, robot,
+                                                                       model_from_log))
     feed = ChunkFeed(reader, chunk_rows, sc.keep, sc.unlogged)
 
     def identify(choices: tuple[GeneratorChoice, ...], kind: str | None,
