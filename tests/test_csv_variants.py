@@ -323,7 +323,8 @@ def test_a_mapped_npz_optional_array_without_a_value_is_read_as_not_logged(
     qd = rng.normal(size=(n, 2))
     qd[:, 1] = np.nan
     p = tmp_path / "m.npz"
-    np.savez(p, times=np.arange(n) * 0.004, positions=rng.normal(size=(n, 2)),
+    q = np.cumsum(0.004 * rng.normal(size=(n, 2)), axis=0)  # a motion, at about its speed
+    np.savez(p, times=np.arange(n) * 0.004, positions=q,
              torques=rng.normal(size=(n, 2)), velocities=qd)
     cmap = tmp_path / "m.json"
     cmap.write_text(json.dumps({

@@ -402,3 +402,39 @@ def test_identification_cost_is_checked_before_work() -> None:
     with pytest.raises(ScaleLimitError) as err:
         check_identification("x", "urdf", 50, 1000.0)
     assert "identifying a urdf model from the log is estimated at 1.25 s" in str(err.value)
+
+
+def test_rate_given_over_a_maps_time_is_checked_against_it(tmp_path: Path) -> None:
+    """A channel map's time (a mapped CSV's column, an archive's array) under --rate: not
+    the clock, compared with it — named with the rate it implies when they disagree."""
+    import numpy as np
+
+    n = 3000
+    t_ms, q = np.arange(n) * 8.0, 0.3 * np.sin(np.arange(n) * 0.004)
+    csv = tmp_path / "mapped.csv"
+    csv.write_text("t,pa,ta\n" + "".join(f"{a:g},{b:.6f},{np.cos(b):.6f}\n"
+                                         for a, b in zip(t_ms, q, strict=True)),
+                   encoding="utf-8")
+    cmap = tmp_path / "m.json"
+    cmap.write_text(json.dumps({"format": "csv", "time": {"column": "t", "unit": "ms"},
+                                "joints": [{"name": "a", "position": "pa", "torque": "ta"}]}),
+                    encoding="utf-8")
+    npz = tmp_path / "m.npz"
+    import numpy
+
+    numpy.savez(npz, times=t_ms / 1000.0, positions=q[:, None], torques=np.cos(q)[:, None])
+    nmap = tmp_path / "n.json"
+    nmap.write_text(json.dumps({"format": "npz", "time": {"key": "times", "unit": "s"},
+                                "joints": [{"name": "a",
+                                            "position": {"key": "positions", "index": 0},
+                                            "torque": {"key": "torques", "index": 0}}]}),
+                    encoding="utf-8")
+    for log, m, what in ((csv, cmap, "column 't'"), (npz, nmap, "array 'times'")):
+        for rate, said in (("250", True), ("125", False)):
+            r = CliRunner().invoke(main, ["inspect", str(log), "--channel-map", str(m),
+                                          "--rate", rate])
+            assert r.exit_code == 0, r.stderr
+            line = (f"impactcli: warning: {log}: --rate 250: the time {what} (not used) steps "
+                    "by 0.008 s on average over its first 2000 rows (125 Hz), not the 1/250 s "
+                    "--rate gives: check the rate")
+            assert (line in r.stderr.splitlines()) is said, r.stderr

@@ -72,37 +72,38 @@ RATE_CHECK_ROWS = 2000
 RATE_CHECK_FACTOR = 1.5
 
 
-def warn_rate_against_column(path: Path, where: str, names: list[str], delim: str,
-                             decimal: str, time_column: str | None, time_unit: str | None,
-                             rate: float) -> None:
-    """With ``--rate`` on a CSV that has a time column (``--time-column``, else one named as
-    a time), the column is not the clock; warn when its median step over the first
-    :data:`RATE_CHECK_ROWS` rows, on average (a rounded clock's too; in ``--time-unit``,
-    else its name's unit, else s), implies a rate off ``rate`` by more than
-    :data:`RATE_CHECK_FACTOR` (another clock, or a wrong ``--rate``). Stamps that are not
-    numbers (ISO 8601) are not checked."""
+def time_column_of(names: list[str], time_column: str | None,
+                   time_unit: str | None) -> tuple[str, str] | None:
+    """A canonical CSV's time column read with ``--rate`` (``--time-column``, else one
+    named as a time) and its unit (``--time-unit``, else its name's, else s); None: none."""
     from .csv_header import find_time_column, name_unit
 
     tcol = time_column if time_column in names else find_time_column(names)
-    if tcol is None:
-        return
-    k = names.index(tcol)
+    return None if tcol is None else (tcol, time_unit or name_unit(tcol) or "s")
+
+
+def warn_rate_against_column(path: Path, where: str, column: int, label: str, unit: str,
+                             skip: int, delim: str, decimal: str, rate: float) -> None:
+    """With ``--rate`` on a CSV that has a time column (``column``, 0-based, after ``skip``
+    lines, in ``unit``), the column is not the clock; warn when its average step over the
+    first :data:`RATE_CHECK_ROWS` rows (a rounded clock's too) implies a rate off ``rate``
+    by more than :data:`RATE_CHECK_FACTOR` (another clock, or a wrong ``--rate``). Stamps
+    that are not numbers (ISO 8601) are not checked."""
     vals = []
-    for line in _lines(path, 1, RATE_CHECK_ROWS):
+    for line in _lines(path, skip, RATE_CHECK_ROWS):
         cells = line.rstrip("\r\n").split(delim)
-        if not line or len(cells) <= k:  # past the end
+        if not line or len(cells) <= column:  # past the end
             break
         try:
-            vals.append(float(cells[k].strip().replace(decimal, ".")))
+            vals.append(float(cells[column].strip().replace(decimal, ".")))
         except ValueError:
             return
     t = np.asarray(vals, dtype=np.float64)
     if t.size < 10 or not np.isfinite(t[[0, -1]]).all():
         return
-    unit = time_unit or name_unit(tcol) or "s"
     step_s = float(t[-1] - t[0]) / (t.size - 1) * TIME_UNITS[unit] * 1e-9  # a rounded clock's
     if step_s > 0 and not 1.0 / RATE_CHECK_FACTOR <= 1.0 / step_s / rate <= RATE_CHECK_FACTOR:
-        warnings.warn(f"{where}: --rate {rate:g}: the time column {tcol!r} (not used) steps by "
+        warnings.warn(f"{where}: --rate {rate:g}: the time column {label} (not used) steps by "
                       f"{step_s:.3g} s on average over its first {t.size} rows "
                       f"({1.0 / step_s:.3g} Hz), not the 1/{rate:g} s --rate gives: check "
                       "the rate", ImpactWarning, stacklevel=3)
@@ -302,9 +303,10 @@ def csv_layout(path: Path, cmap: ChannelMap | None, *, time_unit: str | None = N
         cmap, ignored_extra = canonical_map(names, where, time_unit, time_column=time_column,
                                             rate=rate)
         fmt = "csv"
-        if rate is not None:
-            warn_rate_against_column(path, where, names, delim, decimal, time_column,
-                                     time_unit, rate)
+        found = time_column_of(names, time_column, time_unit) if rate is not None else None
+        if rate is not None and found is not None:
+            warn_rate_against_column(path, where, names.index(found[0]), repr(found[0]),
+                                     found[1], skip + 1, delim, decimal, rate)
     else:
         fmt = "csv-mapped"
     the_map = cmap
@@ -328,6 +330,12 @@ def csv_layout(path: Path, cmap: ChannelMap | None, *, time_unit: str | None = N
 
     tspec = None if rate is not None else require_time(cmap, where)
     tname = None if tspec is None else colname(tspec.ref, "time")
+    if rate is not None and fmt == "csv-mapped" and cmap.time is not None:
+        col = colname(cmap.time.ref, "time")  # the map's time: compared, not the clock
+        warn_rate_against_column(path, where, names.index(col),
+                                 repr(col) if header else f"column {names.index(col)}",
+                                 cmap.time.unit, skip + (1 if header else 0), delim, decimal,
+                                 rate)
     columns = {(sig, j): colname(ref, f"{cmap.joints[j]}.{sig}") for sig, j, ref in cmap.refs()}
     used = {*columns.values(), *([tname] if tname is not None else [])}
     # a column named twice could be read as either: refused when a channel is one of them

@@ -34,6 +34,36 @@ BLOCK_ROWS = 65_536
 READ_ERRORS = (ValueError, zipfile.BadZipFile, zlib.error, EOFError, OSError)
 
 
+
+def warn_rate_against_array(path: Any, where: str, tspec: Any, rate: float) -> None:
+    """With ``--rate`` on an archive whose map names a time array: warn when its first
+    rows' average step implies a rate off ``rate`` (as a CSV's time column,
+    :func:`impactcli.logs.csv_layout.warn_rate_against_column`)."""
+    import warnings
+
+    from ..errors import ImpactWarning
+    from .channel_map import TIME_UNITS
+    from .csv_layout import RATE_CHECK_FACTOR, RATE_CHECK_ROWS
+
+    try:
+        with np.load(path, allow_pickle=False) as archive:
+            a = np.asarray(archive[str(tspec.ref.source)])
+    except (KeyError, *READ_ERRORS):
+        return
+    if a.ndim == 2 and tspec.ref.index is not None:
+        a = a[:, tspec.ref.index]
+    if a.ndim != 1 or a.dtype.kind not in "iuf":
+        return
+    t = a[:RATE_CHECK_ROWS].astype(np.float64)
+    if t.size < 10 or not np.isfinite(t[[0, -1]]).all():
+        return
+    step_s = float(t[-1] - t[0]) / (t.size - 1) * TIME_UNITS[tspec.unit] * 1e-9
+    if step_s > 0 and not 1.0 / RATE_CHECK_FACTOR <= 1.0 / step_s / rate <= RATE_CHECK_FACTOR:
+        warnings.warn(f"{where}: --rate {rate:g}: the time array {tspec.ref.label()!r} (not "
+                      f"used) steps by {step_s:.3g} s on average over its first {t.size} rows "
+                      f"({1.0 / step_s:.3g} Hz), not the 1/{rate:g} s --rate gives: check "
+                      "the rate", ImpactWarning, stacklevel=3)
+
 class _Whole(Exception):
     """A member read whole (a ``.npy`` version or order the blocks do not read)."""
 
@@ -75,9 +105,11 @@ class NpzLayout(MappedLayout):
             self.unit, self.unit_ns = tspec.unit, TIME_UNITS[tspec.unit]
             self.offset_ns = round(tspec.offset * self.unit_ns) if tspec.offset else 0
             self.start_at_zero = bool(tspec.start_at_zero)
-        else:  # --rate: no time array
+        else:  # --rate: no time array read as the clock; the map's, if any, compared
             self.tref, self.tkey, self.time_name = None, None, "--rate"
             self.unit, self.unit_ns, self.offset_ns = "s", 10**9, 0
+            if cmap.time is not None:
+                warn_rate_against_array(p, where, cmap.time, self.rate_hz)
         # the columns: (signal, joint) → label, label → (array key, column index or None)
         self.keys = {}
         self.cols: dict[str, tuple[str, int | None]] = {}

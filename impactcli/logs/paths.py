@@ -225,8 +225,8 @@ def _map_time(cmap: Any, where: str, time_unit: str | None, time_column: str | N
               rate: float | None) -> Any:
     """A CSV or .npz channel map with ``--time-column`` / ``--time-unit`` applied to its
     time (``--time-column`` replaces its column or key, in the unit ``--time-unit``, else
-    the unit its name says, else the map's); with ``--rate``, the map's time is not read
-    (warned when it names one)."""
+    the unit its name says, else the map's); with ``--rate``, the map's time is not read as
+    the clock (warned when it names one; the layout compares it with the rate)."""
     from .channel_map import ChannelRef, TimeSpec
     from .csv_header import name_unit
 
@@ -240,9 +240,8 @@ def _map_time(cmap: Any, where: str, time_unit: str | None, time_column: str | N
             warnings.warn(
                 f"{where}: --rate {rate:g} given: sample i is placed at i / {rate:g} s and "
                 f"the time channel map {mapname} names ({cmap.time.ref.label()}) is not read "
-                "as the log's clock", ImpactWarning, stacklevel=2)
-            return dataclasses.replace(cmap, time=None)
-        return cmap
+                "as the log's clock (only compared with it)", ImpactWarning, stacklevel=2)
+        return cmap  # the layouts read no clock under --rate; they compare the map's time
     if time_column is not None:
         src: str | int = time_column
         if cmap.format != "npz" and not cmap.header and str(time_column).isdigit():
