@@ -96,6 +96,12 @@ def test_a_gap_is_a_data_defect_not_a_contact(free: RobotLog, tmp_path: Path) ->
     code, _, err, _ = _detect(log, tmp_path, "--fail-on-detect")
     assert code == 5
     assert "--fail-on-detect could not judge 1 incident at data defects" in err
+    code, _, err, _ = _detect(log, tmp_path, "--fail-on-force", "1")
+    assert code == 5
+    assert "--fail-on-force 1 N could not judge 1 incident at data defects (the first at " \
+           "12.200 s, a gap, ~" in err
+    code, _, err, _ = _detect(log, tmp_path, "--fail-on-force", "100000")  # below any limit
+    assert code == 0, err
 
 
 def test_a_splice_is_named_and_its_incident_marked(free: RobotLog, tmp_path: Path) -> None:
@@ -120,6 +126,22 @@ def test_a_whole_turn_is_unwrapped_and_said(free: RobotLog, tmp_path: Path) -> N
            "3000, 12.000 s): unwrapped, as an angle logged modulo 2π" in err
     assert doc["counts"]["incidents"] == {"counted": 0, "in_warmup": 0}
     assert not doc["incidents"] and "data_defects" not in doc
+
+
+def test_a_reference_that_wraps_is_unwrapped_too(free: RobotLog, tmp_path: Path) -> None:
+    """The elbow's position and its reference both logged modulo a turn from 12 s on:
+    both unwrapped and said; the run is the clean one's (no incident, the envelope calm)."""
+    i = round(12.0 * free.sample_rate_hz)
+    q, r = free.position.copy(), free.position_ref.copy()
+    q[i:, 1] -= 2 * np.pi
+    r[i + 3:, 1] -= 2 * np.pi  # the reference turns a few samples apart
+    code, _, err, doc = _detect(_with(free, position=q, position_ref=r), tmp_path)
+    assert code == 0, err
+    assert "the reference of joint(s) elbow step by a whole turn (1 step(s)" in err
+    assert "joint(s) elbow step by a whole turn (1 step(s), the first on elbow at sample " \
+           "3000" in err
+    assert doc["counts"]["incidents"] == {"counted": 0, "in_warmup": 0}
+    assert "outside the calibration's motion envelope" not in err
 
 
 def test_rows_that_cannot_be_consecutive_are_refused(free: RobotLog, tmp_path: Path) -> None:
@@ -225,6 +247,22 @@ def test_noise_is_not_a_jump_and_shuffled_rows_are_told() -> None:
     assert "j0" in mixed.describe(("j0", "j1"))
 
 
+def test_a_noisy_joint_does_not_crowd_out_anothers_splice() -> None:
+    """60,000 samples of a joint whose position is 0.02 rad of noise (its candidates fill
+    any shared list) beside a clean joint spliced by 0.5 rad at sample 50,000."""
+    n = 60_000
+    t = np.arange(n, dtype=np.int64) * 1_000_000
+    q = np.zeros((n, 2))
+    q[:, 0] = 0.02 * np.random.default_rng(2).standard_normal(n)
+    q[:, 1] = 0.5 * np.sin(np.arange(n) * 1e-4)
+    q[50_000:, 1] += 0.5
+    found = DefectScan(2)
+    for a in range(0, n, 4096):
+        found.add(t[a:a + 4096], q[a:a + 4096])
+    found.finish()
+    assert [(x.i, x.joint) for x in found.jumps] == [(50_000, 1)]
+
+
 def test_the_finder_leaves_a_smooth_fast_motion_alone() -> None:
     """A joint at up to 3 rad/s, sampled at 125 Hz (0.024 rad a step), braking at 200
     rad/s² in one step: no jump (the step stays within its neighbours' and the
@@ -237,6 +275,18 @@ def test_the_finder_leaves_a_smooth_fast_motion_alone() -> None:
     found.add(t, q)
     found.finish()
     assert found.jumps == [] and found.wraps == [] and found.steps == len(q) - 3  # not the ends
+
+
+def test_one_dropped_sample_is_no_defect(tmp_path: Path) -> None:
+    """A single sample missing just before an impact (a step of two periods, as a network
+    drops one): a gap warned of, not a data defect; the impact stays counted."""
+    log = read_log(REPO / "sample_logs" / "csv" / "assist_impacts.csv.gz")
+    _, _, _, clean = _detect(log, tmp_path / "clean")
+    code, _, err, doc = _detect(_gap(log, 11.9, 1), tmp_path / "gap")
+    assert code == 0, err
+    assert "1 time gap(s) longer than 1.5 sample periods" in err
+    assert "data_defects" not in doc
+    assert doc["counts"]["incidents"] == clean["counts"]["incidents"]
 
 
 def test_contacts_away_from_a_defect_are_counted_as_before(tmp_path: Path) -> None:

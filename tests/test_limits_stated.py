@@ -375,8 +375,8 @@ def test_rate_given_over_a_time_column_is_checked_against_it(tmp_path: Path) -> 
     slow = write("slow.csv", 2 * t)
     assert warned(str(slow), "--rate", "250") == [
         f"impactcli: warning: {slow}: --rate 250: the time column 'time' (not used) steps by "
-        "0.008 s on average over its first 2000 rows (125 Hz), not the 1/250 s --rate gives: "
-        "check the rate"]
+        "0.008 s on average over its first 2000 rows (125 Hz, read in s), not the 1/250 s "
+        "--rate gives: check the rate (or the column's unit)"]
     both = tmp_path / "both.csv"
     both.write_text(head.replace("time,", "time,stamp_s,", 1) + "\n" + "\n".join(
         f"{2 * x:.6f},{x:.6f},{r[1]}" for x, r in zip(t, rows, strict=True)) + "\n",
@@ -429,12 +429,13 @@ def test_rate_given_over_a_maps_time_is_checked_against_it(tmp_path: Path) -> No
                                             "position": {"key": "positions", "index": 0},
                                             "torque": {"key": "torques", "index": 0}}]}),
                     encoding="utf-8")
-    for log, m, what in ((csv, cmap, "column 't'"), (npz, nmap, "array 'times'")):
+    for log, m, what, unit, kind in ((csv, cmap, "column 't'", "ms", "column"),
+                                     (npz, nmap, "array 'times'", "s", "array")):
         for rate, said in (("250", True), ("125", False)):
             r = CliRunner().invoke(main, ["inspect", str(log), "--channel-map", str(m),
                                           "--rate", rate])
             assert r.exit_code == 0, r.stderr
             line = (f"impactcli: warning: {log}: --rate 250: the time {what} (not used) steps "
-                    "by 0.008 s on average over its first 2000 rows (125 Hz), not the 1/250 s "
-                    "--rate gives: check the rate")
+                    f"by 0.008 s on average over its first 2000 rows (125 Hz, read in {unit}), "
+                    f"not the 1/250 s --rate gives: check the rate (or the {kind}'s unit)")
             assert (line in r.stderr.splitlines()) is said, r.stderr

@@ -224,3 +224,41 @@ def test_a_scaled_torque_never_gives_an_unflagged_force(tmp_path_factory: pytest
         assert forces or s < 1  # a contact log: a scale above 1 still leaves its incidents
         assert all(x["force_plausible"] is False and "off the description's gravity torque"
                    in x["force_check"] for x in forces)
+
+
+@pytest.mark.parametrize("name", ["kinova", "panda"])
+def test_urdf_gravity_is_the_gradient_of_the_arms_potential_energy(name: str) -> None:
+    """A shipped URDF's gravity torque at random poses equals the numerical gradient of the
+    arm's potential energy (Pinocchio's, each pose built by angle: revolute joints as they
+    are, continuous ones — the Kinova's — as (cos, sin))."""
+    pin = pytest.importorskip("pinocchio", reason="the urdf extra (pinocchio) is not installed")
+    from impactcli.logs.robot_files import shipped_robot
+    from impactcli.logs.urdf import reduced_model
+    from impactcli.model.identification import urdf_source
+
+    robot = shipped_robot(name)
+    joints = robot.joint_names
+    g_of = robot.kinematics or {}
+    xml, label, _ = urdf_source(g_of)
+    model = reduced_model(xml, tuple(joints), label)
+    data = model.createData()
+
+    def energy(qq: np.ndarray) -> float:
+        x = pin.neutral(model)
+        for c, j in enumerate(joints):
+            jt = model.joints[model.getJointId(j)]
+            if jt.nq == 1:
+                x[jt.idx_q] = qq[c]
+            else:
+                x[jt.idx_q], x[jt.idx_q + 1] = math.cos(qq[c]), math.sin(qq[c])
+        return float(pin.computePotentialEnergy(model, data, x))
+
+    rng = np.random.default_rng(0)
+    q = rng.uniform(-1.5, 1.5, (5, len(joints)))
+    g = nominal_gravity(robot, joints, q)
+    assert g is not None
+    h = 1e-6
+    for k in range(len(q)):
+        grad = [(energy(q[k] + h * e) - energy(q[k] - h * e)) / (2 * h)
+                for e in np.eye(len(joints))]
+        np.testing.assert_allclose(g[k], grad, atol=1e-4, rtol=1e-5)

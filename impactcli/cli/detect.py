@@ -250,6 +250,7 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
                                                                          fail_on_force))]
         unjudged += [line for o in ok
                      if (line := _force_unknown(o, loads[o.log_path], fail_on_force))]
+        unjudged += [line for o in ok if (line := _defect_force(o, fail_on_force))]
     for line in failing + unjudged:  # why the exit code, per log
         click.echo(line, err=True)
     if failing:
@@ -279,6 +280,21 @@ def _only_defects(outcome: Any) -> str | None:
     return (f"impactcli: {_shown(outcome.log_path)}: --fail-on-detect could not judge "
             f"{_count(len(marked), 'incident')} at data defects (the first at "
             f"{marked[0]['t_start']:.3f} s, a {marked[0]['kind']}): the residual there shows "
+            "the defect; exit 5")
+
+
+def _defect_force(outcome: Any, limit: float) -> str | None:
+    """The line of a log with incidents at data defects whose force is above ``limit`` or
+    unknown (--fail-on-force cannot tell a contact there from the defect), or None."""
+    marked = [i for i in outcome.summary.get("defect_incident_list") or []
+              if i.get("force_n") is None or i["force_n"] > limit]
+    if not marked:
+        return None
+    first = marked[0]
+    force = "no force" if first.get("force_n") is None else f"~{first['force_n']:.3g} N"
+    return (f"impactcli: {_shown(outcome.log_path)}: --fail-on-force {limit:g} N could not "
+            f"judge {_count(len(marked), 'incident')} at data defects (the first at "
+            f"{first['t_start']:.3f} s, a {first['kind']}, {force}): the residual there shows "
             "the defect; exit 5")
 
 

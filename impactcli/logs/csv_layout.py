@@ -105,8 +105,9 @@ def warn_rate_against_column(path: Path, where: str, column: int, label: str, un
     if step_s > 0 and not 1.0 / RATE_CHECK_FACTOR <= 1.0 / step_s / rate <= RATE_CHECK_FACTOR:
         warnings.warn(f"{where}: --rate {rate:g}: the time column {label} (not used) steps by "
                       f"{step_s:.3g} s on average over its first {t.size} rows "
-                      f"({1.0 / step_s:.3g} Hz), not the 1/{rate:g} s --rate gives: check "
-                      "the rate", ImpactWarning, stacklevel=3)
+                      f"({1.0 / step_s:.3g} Hz, read in {unit}), not the 1/{rate:g} s --rate "
+                      "gives: check the rate (or the column's unit)", ImpactWarning,
+                      stacklevel=3)
 
 
 def check_text(path: Path, where: str) -> None:
@@ -330,7 +331,10 @@ def csv_layout(path: Path, cmap: ChannelMap | None, *, time_unit: str | None = N
 
     tspec = None if rate is not None else require_time(cmap, where)
     tname = None if tspec is None else colname(tspec.ref, "time")
-    if rate is not None and fmt == "csv-mapped" and cmap.time is not None:
+    src = None if cmap.time is None else cmap.time.ref.source
+    present = (isinstance(src, int) and src < len(names)) or (isinstance(src, str)
+                                                               and src in names)
+    if rate is not None and fmt == "csv-mapped" and cmap.time is not None and present:
         col = colname(cmap.time.ref, "time")  # the map's time: compared, not the clock
         warn_rate_against_column(path, where, names.index(col),
                                  repr(col) if header else f"column {names.index(col)}",

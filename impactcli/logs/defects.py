@@ -62,8 +62,9 @@ STATS_EVERY = 16
 BINS_PER_DECADE = 10
 LOWEST_LOG10 = -10.0
 N_BINS = 130
-#: At most this many jump candidates are kept with their place.
-MAX_KEPT = 10_000
+#: At most this many jump candidates are kept per joint, the largest (a noisy joint's
+#: candidates never crowd out another joint's splice).
+MAX_KEPT = 2_000
 
 
 @dataclass(frozen=True)
@@ -94,6 +95,8 @@ def _bin(x: float) -> int:  # pragma: no cover - compiled
     """The histogram bin of a value ≥ 0 (module docstring), -1 for NaN."""
     if math.isnan(x):
         return -1
+    if math.isinf(x):
+        return N_BINS - 1
     if x < 10.0 ** LOWEST_LOG10:
         return 0
     return min(int((math.log10(x) - LOWEST_LOG10) * BINS_PER_DECADE) + 1, N_BINS - 1)
@@ -161,6 +164,7 @@ class DefectScan:
     in order (it returns them unwrapped), then :meth:`finish`."""
 
     n_joints: int
+    unwrap_only: bool = False  # True: find the turns only (a reference's angles)
     n: int = 0  # samples seen
     steps: int = 0  # steps judged
     n_jumps: int = 0  # (step, joint) jumps (after finish)
@@ -173,6 +177,7 @@ class DefectScan:
     _tail_d: np.ndarray = field(init=False)  # the last 2 (unwrapped) steps, not yet judged
     _tail_dt: np.ndarray = field(init=False)  # their lengths [s]
     _tail_t: np.ndarray = field(init=False)  # the times of the samples they lead to [ns]
+    _kept: list[list[Jump]] = field(init=False)  # per joint, the largest candidates
     _h_apart: np.ndarray = field(init=False)  # (J, bins) the step differences' histogram
     _h_step: np.ndarray = field(init=False)  # (J, bins) the |steps|' histogram
     _lo: np.ndarray = field(init=False)  # (J,) the unwrapped positions' range
@@ -184,6 +189,7 @@ class DefectScan:
         self._tail_d = np.zeros((0, j))
         self._tail_dt = np.zeros(0)
         self._tail_t = np.zeros(0, dtype=np.int64)
+        self._kept = [[] for _ in range(j)]
         self._h_apart = np.zeros((j, N_BINS), dtype=np.int64)
         self._h_step = np.zeros((j, N_BINS), dtype=np.int64)
         self._lo, self._hi = np.full(j, np.inf), np.full(j, -np.inf)
@@ -208,6 +214,9 @@ class DefectScan:
         dt[1:] = np.diff(t_ns) * 1e-9
         self._last_q, self._last_t = q[-1].copy(), int(t_ns[-1])
         u = self._unwrap(t_ns, q, d)
+        if self.unwrap_only:  # a reference's angle: its turns removed, nothing judged
+            self.n += n
+            return u
         self._jumps(t_ns, d, dt, first)
         every = u[(-self.n) % STATS_EVERY::STATS_EVERY]  # the range, on the strided samples
         if len(every):
@@ -251,16 +260,20 @@ class DefectScan:
         self.steps += len(dd) - 1 - lo
         for i in found:
             for j in np.flatnonzero(np.isfinite(apart[i])):
-                if len(self.jumps) < MAX_KEPT:
-                    self.jumps.append(Jump(base + int(i), int(j), float(apart[i, j]),
-                                           int(tt[i])))
+                kept = self._kept[int(j)]
+                kept.append(Jump(base + int(i), int(j), float(apart[i, j]), int(tt[i])))
+                if len(kept) > 2 * MAX_KEPT:
+                    kept.sort(key=lambda x: -x.size)
+                    del kept[MAX_KEPT:]
 
     def finish(self) -> None:
         """Keep the jumps that stand out of their joint's noise (module docstring)."""
         floor = np.nan_to_num(np.maximum(NOISE_FACTOR * _median(self._h_apart),
                                          TAIL_FACTOR * _median(self._h_apart, TAIL_Q)),
                               nan=0.0)
-        self.jumps = [x for x in self.jumps if x.size > floor[x.joint]]
+        kept = [x for per in self._kept for x in sorted(per, key=lambda y: -y.size)[:MAX_KEPT]]
+        self.jumps = sorted((x for x in kept if x.size > floor[x.joint]),
+                            key=lambda x: (x.i, x.joint))
         self.n_jumps = len(self.jumps)
         self.jump_steps = len({x.i for x in self.jumps})
 

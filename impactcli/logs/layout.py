@@ -213,6 +213,7 @@ class ScanPass:
     cache: Any = field(default=None)
     order_repair: str | None = None  # --repair-order: the repair's message
     wraps: tuple[Any, ...] = ()  # whole turns removed from the positions (logs.defects.Wrap)
+    ref_wraps: tuple[Any, ...] = ()  # ... and from the references
 
     def arrays(self, t: np.ndarray, mat: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """Repaired rows as the log's times and (n, J) arrays of the kept joints."""

@@ -47,8 +47,10 @@ def warn_rate_against_array(path: Any, where: str, tspec: Any, rate: float) -> N
 
     try:
         with np.load(path, allow_pickle=False) as archive:
-            a = np.asarray(archive[str(tspec.ref.source)])
-    except (KeyError, *READ_ERRORS):
+            if str(tspec.ref.source) not in archive.files:
+                return
+            a = np.asarray(archive[str(tspec.ref.source)])  # (a time array: 8 bytes a row)
+    except READ_ERRORS:
         return
     if a.ndim == 2 and tspec.ref.index is not None:
         a = a[:, tspec.ref.index]
@@ -61,8 +63,9 @@ def warn_rate_against_array(path: Any, where: str, tspec: Any, rate: float) -> N
     if step_s > 0 and not 1.0 / RATE_CHECK_FACTOR <= 1.0 / step_s / rate <= RATE_CHECK_FACTOR:
         warnings.warn(f"{where}: --rate {rate:g}: the time array {tspec.ref.label()!r} (not "
                       f"used) steps by {step_s:.3g} s on average over its first {t.size} rows "
-                      f"({1.0 / step_s:.3g} Hz), not the 1/{rate:g} s --rate gives: check "
-                      "the rate", ImpactWarning, stacklevel=3)
+                      f"({1.0 / step_s:.3g} Hz, read in {tspec.unit}), not the 1/{rate:g} s "
+                      "--rate gives: check the rate (or the array's unit)", ImpactWarning,
+                      stacklevel=3)
 
 class _Whole(Exception):
     """A member read whole (a ``.npy`` version or order the blocks do not read)."""

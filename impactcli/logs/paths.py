@@ -240,7 +240,8 @@ def _map_time(cmap: Any, where: str, time_unit: str | None, time_column: str | N
             warnings.warn(
                 f"{where}: --rate {rate:g} given: sample i is placed at i / {rate:g} s and "
                 f"the time channel map {mapname} names ({cmap.time.ref.label()}) is not read "
-                "as the log's clock (only compared with it)", ImpactWarning, stacklevel=2)
+                "as the log's clock (compared with it, where the file has it)", ImpactWarning,
+                stacklevel=2)
         return cmap  # the layouts read no clock under --rate; they compare the map's time
     if time_column is not None:
         src: str | int = time_column

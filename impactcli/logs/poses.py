@@ -95,7 +95,7 @@ def pose_explained(poses: PoseSample) -> np.ndarray:
     if int(ok.sum()) < MIN_EXPLAINED_POSES:
         return out
     a = pose_features(poses.q[ok])
-    if a.shape[1] >= int(ok.sum()) // 2:
+    if int(ok.sum()) < 5 * a.shape[1]:  # too few poses: noise would fit
         return out
     for j in range(poses.n_joints):
         y = poses.tau[ok, j]

@@ -339,6 +339,7 @@ class _ScanAcc:
         self.v_n = np.zeros(j, dtype=np.int64)
         self.q_last: np.ndarray | None = None
         self.defects = DefectScan(j)  # whole-turn steps unwrapped, jumps (splices) found
+        self.ref_turns = DefectScan(j, unwrap_only=True)  # the reference's whole turns
         self.poses = PoseSample(j)  # strided poses: the torque scale against physics
 
     def _first_bad(self, signal: str, a: np.ndarray) -> None:
@@ -378,6 +379,8 @@ class _ScanAcc:
             return
         arrays = assemble(self.ctx.plan, self.ctx.channels(t, mat))
         arrays["position"] = self.defects.add(t, arrays["position"])
+        if arrays.get("position_ref") is not None:  # the reference's turns too
+            arrays["position_ref"] = self.ref_turns.add(t, arrays["position_ref"])
         self.poses.add(t, arrays["position"], arrays["torque"])
         if self.head_t.size < 2:
             k = 2 - self.head_t.size
@@ -514,6 +517,8 @@ class _ScanAcc:
             raise LogFormatError(shuffled_message(ctx.where, found, joints))
         wraps = tuple(dataclasses.replace(w, t_ns=w.t_ns - shift) for w in found.wraps
                       if w.joint in keep)
+        ref_wraps = tuple(dataclasses.replace(w, t_ns=w.t_ns - shift)
+                          for w in self.ref_turns.wraps if w.joint in keep)
         jumps = tuple(dataclasses.replace(x, joint=keep.index(x.joint), t_ns=x.t_ns - shift)
                       for x in found.jumps if x.joint in keep)
         verdict, limit_msgs = self.unit_verdict(keep, kept, options)
@@ -522,6 +527,8 @@ class _ScanAcc:
             raise LogFormatError(verdict.message)
         said = [verdict.message] if verdict.kind != "ok" else []
         said += [wrap_message(ctx.where, wraps, joints)] if wraps else []
+        said += ([wrap_message(ctx.where, ref_wraps, joints, "the reference of ")]
+                 if ref_wraps else [])
         clock = self.hist.clock()
         vel = self.velocity_rate(keep, clock.rate_hz)
         said += [vel] if vel is not None else []
@@ -530,7 +537,7 @@ class _ScanAcc:
         optional = tuple(s for s in OPTIONAL if getattr(log, s) is not None)
         ps = ScanPass(ctx, allbad, keep, optional, shift, self.n, rep.order_keep,
                       cache if cache is not None and cache.usable else None,
-                      rep.order_repair, wraps)
+                      rep.order_repair, wraps, ref_wraps)
         self.gaps.add(np.zeros(0, dtype=np.int64), self.floor, last=True)
         if not self.gaps.exact_for(clock):  # the rate moved: a second pass at the threshold
             self.gaps = _gap_pass(ps, clock)
@@ -548,7 +555,7 @@ class _ScanAcc:
                        screens=screens, options=dict(options), reader=reader,
                        ranges={s: ranges[s] for s in _arrays_of(log)},
                        position_unit=verdict, warnings=(*said, *limit_msgs), jumps=jumps,
-                       n_jumps=found.n_jumps, poses=poses, torque_posed=posed)
+                       n_jumps=len(jumps), poses=poses, torque_posed=posed)
         return scan, ps
 
 
@@ -608,23 +615,30 @@ def pass_chunks(ps: ScanPass, chunk_rows: int) -> Iterator[LogChunk]:
         chunks = stream_cache.chunks(ps, ps.cache, chunk_rows)
     else:
         chunks = chunked((ps.arrays(t, mat) for t, mat in _repaired(ps)), chunk_rows)
-    return _unwrapped(chunks, ps.wraps, ps.keep) if ps.wraps else chunks
+    if not ps.wraps and not ps.ref_wraps:
+        return chunks
+    return _unwrapped(chunks, ps.wraps, ps.ref_wraps, ps.keep)
 
 
 def _unwrapped(chunks: Iterator[LogChunk], wraps: tuple[Wrap, ...],
-               keep: list[int]) -> Iterator[LogChunk]:
-    """The chunks with the scan's whole turns removed from their positions
+               ref_wraps: tuple[Wrap, ...], keep: list[int]) -> Iterator[LogChunk]:
+    """The chunks with the scan's whole turns removed from their positions and references
     (:mod:`impactcli.logs.defects`)."""
     for ch in chunks:
-        yield dataclasses.replace(ch, position=unwrap_positions(ch.position, ch.start, wraps,
-                                                                keep))
+        ref = ch.position_ref
+        yield dataclasses.replace(
+            ch, position=unwrap_positions(ch.position, ch.start, wraps, keep),
+            position_ref=None if ref is None else unwrap_positions(ref, ch.start, ref_wraps,
+                                                                   keep))
 
 
-def wrap_message(where: str, wraps: tuple[Wrap, ...], joints: tuple[str, ...]) -> str:
-    """The warning that the positions were unwrapped (``wraps`` on the layout's joints)."""
+def wrap_message(where: str, wraps: tuple[Wrap, ...], joints: tuple[str, ...],
+                 what: str = "") -> str:
+    """The warning that the positions (``what``: the reference's) were unwrapped
+    (``wraps`` on the layout's joints)."""
     names = sorted({joints[w.joint] for w in wraps}, key=joints.index)
     first = wraps[0]
-    return (f"{where}: joint(s) {', '.join(names)} step by a whole turn ({len(wraps)} "
+    return (f"{where}: {what}joint(s) {', '.join(names)} step by a whole turn ({len(wraps)} "
             f"step(s), the first on {joints[first.joint]} at sample {first.i}, "
             f"{first.t_ns * 1e-9:.3f} s): unwrapped, as an angle logged modulo 2π")
 

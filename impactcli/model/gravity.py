@@ -18,7 +18,8 @@ agree within a factor of :data:`AGREE_FACTOR`):
 
 - **refuse** (exit 3) when k sits within a factor of :data:`CERTAIN_FACTOR` of a clean unit
   factor — 1000 or 1/1000 (A vs mA, N·m vs N·mm), a joint's gear ratio or its inverse
-  (motor- vs joint-side) — and that factor is at least 5 away from 1;
+  (motor- vs joint-side), a gear ratio counting only above :data:`CERTAIN_FACTOR` ×
+  :data:`WARN_FACTOR` = 6 (nearer 1, a payload or rough masses could make it);
 - **warn** when k is off 1 by more than :data:`WARN_FACTOR` otherwise;
 - **ok** else. Without masses, or with no joint to judge, the scale is **unverified**, and
   the run says so.
@@ -84,7 +85,8 @@ def _planar_gravity(robot: RobotDescription, joints: Sequence[str],
     ends = np.cumsum(lengths[None, :, None] * u, axis=1)
     starts = np.concatenate((np.zeros_like(ends[:, :1]), ends[:, :-1]), axis=1)
     com = starts + (frac * lengths)[None, :, None] * u
-    # τ_j = −∂U/∂q_j with U = −Σ m_i g·p_ci: τ_j = −Σ_{i≥j} m_i g·(ẑ × (p_ci − p_j))
+    # the torque that holds the arm, τ_j = ∂U/∂q_j with U = −Σ m_i g·p_ci:
+    # τ_j = −Σ_{i≥j} m_i g·(ẑ × (p_ci − p_j))
     out = np.full(q.shape, np.nan)
     for jj, name in enumerate(chain):
         r = com[:, jj:, :] - starts[:, jj:jj + 1, :]  # (n, L−j, 2)
@@ -111,14 +113,18 @@ def _urdf_gravity(robot: RobotDescription, joints: Sequence[str],
         return None
     data = model.createData()
     ids = [model.getJointId(str(jm.get(j, j))) for j in logged]
-    iq = [model.joints[i].idx_q for i in ids]
     iv = [model.joints[i].idx_v for i in ids]
     cols = [list(joints).index(j) for j in logged]
+    qv = np.tile(pin.neutral(model), (q.shape[0], 1))
+    for c, i in zip(cols, ids, strict=True):
+        a = model.joints[i].idx_q
+        if model.joints[i].nq == 1:
+            qv[:, a] = q[:, c]
+        else:  # a continuous joint: (cos, sin)
+            qv[:, a], qv[:, a + 1] = np.cos(q[:, c]), np.sin(q[:, c])
     out = np.full(q.shape, np.nan)
-    qf = pin.neutral(model)
     for k in range(q.shape[0]):
-        qf[iq] = q[k, cols]
-        out[k, cols] = pin.computeGeneralizedGravity(model, data, qf)[iv]
+        out[k, cols] = pin.computeGeneralizedGravity(model, data, qv[k])[iv]
     return out
 
 
@@ -144,7 +150,9 @@ def clean_factors(gear_ratios: Sequence[float]) -> list[tuple[float, str]]:
     out = [(1000.0, "the torque or current is 1000× too large: mA logged as A, or N·mm "
                     "as N·m"),
            (1e-3, "the torque or current is 1000× too small: A logged as mA, or kN·m")]
-    for n in sorted({float(r) for r in gear_ratios if r and abs(float(r)) >= 5.0}):
+    # a factor is told from a payload or rough masses only well beyond the warned band
+    for n in sorted({float(r) for r in gear_ratios
+                     if r and abs(float(r)) > CERTAIN_FACTOR * WARN_FACTOR}):
         out.append((n, f"the torque is {n:g}× too large: the gear ratio applied twice, or a "
                        "motor-side value multiplied by it"))
         out.append((1.0 / n, f"the torque is motor-side (÷ the gear ratio {n:g}): give "

@@ -28,6 +28,7 @@ def urdf_link_end_jacobian(
     ids = [model.getJointId(j) for j in ujoints]
     idx_v = [model.joints[i].idx_v for i in ids]
     idx_q = [model.joints[i].idx_q for i in ids]
+    nq = [model.joints[i].nq for i in ids]
     tip_frame = None
     robot = structure.get("urdf_robot")
     if robot:
@@ -43,7 +44,10 @@ def urdf_link_end_jacobian(
             return None
         x = pin.neutral(model)
         for k, iq in enumerate(idx_q):
-            x[iq] = q[k]
+            if nq[k] == 1:
+                x[iq] = q[k]
+            else:  # a continuous joint: (cos, sin)
+                x[iq], x[iq + 1] = np.cos(q[k]), np.sin(q[k])
         pin.forwardKinematics(model, data, x)
         pin.updateFramePlacements(model, data)
         full = pin.computeJointJacobians(model, data, x)

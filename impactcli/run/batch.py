@@ -294,7 +294,8 @@ def _summary(job: DetectJob, result: Any) -> dict[str, Any]:
              "detectors": list(i.detectors)} for i in result.counted_incidents()],
         "defect_incident_list": [
             {"t_start": i.t_start, "kind": i.data_defect["kind"],
-             "defect_t_start": i.data_defect["t_start"]} for i in result.defect_incidents()],
+             "defect_t_start": i.data_defect["t_start"], "force_n": i.force_n}
+            for i in result.defect_incidents()],
         "lasting_load_list": [x.to_dict() for x in result.counted_lasting_loads()],
         "generator_reasons": {j: g["reason"] for j, g in result.generators.items()},
         **{d: v["events"] for d, v in result.summary().items()},

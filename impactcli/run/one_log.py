@@ -338,17 +338,23 @@ def off_scale(findings: Sequence[Any], scale: float | None) -> list[Any]:
         x, force_plausible=False, force_check=why) for x in findings]
 
 
+#: A time gap is a data defect from this many sample periods on: two samples missing or
+#: more (one dropped sample — a step of two periods, common over a network — disturbs the
+#: detectors little and would blank the settling time after it every time; it is still
+#: warned of as a gap).
+MIN_DEFECT_GAP_PERIODS = 2.5
 #: At most this many data defects are listed in the timeline (all are counted).
 MAX_LISTED_DEFECTS = 1000
 
 
 def data_defects(scan: Any, gap_times: np.ndarray) -> list[DataDefect]:
-    """The log's time gaps (``gap_times``: (G, 2) the samples before and after each [s])
-    and its position jumps (the scan's, one per step with the joints that jump), in time
-    order."""
+    """The log's time gaps of :data:`MIN_DEFECT_GAP_PERIODS` periods or more (``gap_times``:
+    (G, 2) the samples before and after each [s]) and its position jumps (the scan's, one
+    per step with the joints that jump), in time order."""
+    shortest = MIN_DEFECT_GAP_PERIODS * scan.sample_period_s
     out = [DataDefect("gap", float(a), float(b), float(length))
            for (a, b), length in zip(gap_times, scan.gap_lengths_s, strict=True)
-           if np.isfinite(a) and np.isfinite(b)]
+           if np.isfinite(a) and np.isfinite(b) and length >= shortest]
     names = scan.log.joint_names
     by_step: dict[int, list[Any]] = {}
     for x in scan.jumps:

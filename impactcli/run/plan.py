@@ -503,8 +503,8 @@ def plan_run(reader: LogReader, cfg: DetectorConfig, *, model: RigidModel | None
     calibrated_on = cfg.calibration.formulation or PLAIN_FORMULATION
     if cfg.calibration.calibrated and calibrated_on != cfg.adaptive.formulation:
         warn_formulation(where, config_where, calibrated_on, cfg.adaptive.formulation)
-    scale, hold = check_torque_scale(scan, robot or description_of(model, cfg))
     sc = screen_scan(scan, known_joints(model, cfg), cfg.calibration.joints_left_out)
+    scale, hold = check_torque_scale(scan, robot or description_of(model, cfg), sc.keep)
     check_replayable(where, len(sc.keep), scan.sample_rate_hz, scan.n_samples,
                      scan.duration_s, cfg, allow_slow, identified_kind(model, cfg, robot,
                                                                        model_from_log))
@@ -537,13 +537,15 @@ def description_of(model: RigidModel | None, cfg: DetectorConfig) -> RobotDescri
         return None
 
 
-def check_torque_scale(scan: LogScan, robot: RobotDescription | None
+def check_torque_scale(scan: LogScan, robot: RobotDescription | None,
+                       kept: tuple[str, ...] | None = None,
                        ) -> tuple[ScaleVerdict | None, dict[str, float] | None]:
     """The log's torque scale against the description's gravity torque over the scan's
     poses (:mod:`impactcli.model.gravity`): raises LogFormatError (exit 3) when it is off by
     a clean unit factor, warns when it is off otherwise. Returns the verdict (None without
     a description) and per joint the largest |gravity torque| over the poses [N·m] (None
-    without masses)."""
+    without masses). Only the joints ``kept`` by the screen are judged (None: all): a flat
+    or unmeasured torque says nothing of the scale."""
     from ..model.gravity import nominal_gravity, scale_check
 
     poses, where = scan.poses, scan.source.path
@@ -553,12 +555,15 @@ def check_torque_scale(scan: LogScan, robot: RobotDescription | None
     g = nominal_gravity(robot, joints, poses.q)
     if g is None:
         return ScaleVerdict("unverified", message=(
-            f"{where}: the torque scale is not verified: the robot description gives no "
-            "masses (robot JSON nominal.link_masses, or a URDF's inertials) to compare the "
-            "log's torque with")), None
+            f"{where}: the torque scale is not verified: no gravity torque from the robot "
+            "description to compare the log's torque with (it gives no masses — robot JSON "
+            "nominal.link_masses, a URDF's inertials — or a chain joint is not logged, or "
+            "its URDF could not be loaded: the urdf extra)")), None
     ratios = {j.name: j.gear_ratio for j in robot.joints}
-    verdict = scale_check(where, joints, g, poses.tau, np.abs(poses.qd),
-                          [ratios.get(j, 1.0) for j in joints])
+    cols = [k for k, j in enumerate(joints) if kept is None or j in kept]
+    judged = tuple(joints[k] for k in cols)
+    verdict = scale_check(where, judged, g[:, cols], poses.tau[:, cols],
+                          np.abs(poses.qd[:, cols]), [ratios.get(j, 1.0) for j in judged])
     if verdict.kind == "refuse":
         raise LogFormatError(verdict.message)
     if verdict.kind == "warn":
