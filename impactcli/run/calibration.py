@@ -526,10 +526,11 @@ def _screen_calibration_logs(
     scans: list[LogScan], model: RigidModel | None, cfg: DetectorConfig,
 ) -> tuple[list[Screened], tuple[LeftOut, ...]]:
     """Every calibration log screened (:func:`impactcli.run.plan.screen_scan`). A joint whose
-    torque is measured in some log is kept in every log (a joint that stands still in one
-    run shows a flat or few-valued torque there, and moves in another); a joint left out of
-    a log for any other reason, or unmeasured in all, is left out of all (a threshold needs
-    every log), with the first reason found. Only the final screen warns."""
+    torque is measured in some log is kept in a log where it stands still (its positions
+    span :data:`STILL_RAD` or less: a still joint shows a flat or few-valued torque there,
+    and moves in another); a joint left out of a log for any other reason — a flat torque
+    while it moves is a channel that failed — or unmeasured in all, is left out of all (a
+    threshold needs every log), with the first reason found. Only the final screen warns."""
     known = known_joints(model, cfg)
     with warnings.catch_warnings(record=True) as said:
         warnings.simplefilter("always", ImpactWarning)
@@ -539,7 +540,7 @@ def _screen_calibration_logs(
     rescued: set[tuple[str, str]] = set()  # (log, joint) kept: measured in another log
     for scan, sc in zip(scans, per, strict=True):
         for x in sc.left_out:
-            if x.reason.startswith("torque ") and x.name in measured:
+            if x.reason.startswith("torque ") and x.name in measured and _still(scan, x.name):
                 rescued.add((scan.source.path, x.name))
                 warnings.warn(f"{scan.source.path}: joint {x.name!r}: its {x.reason} here, "
                               "but it is measured in another calibration log: kept",
@@ -559,6 +560,20 @@ def _screen_calibration_logs(
             out.append(screen_scan(scan, None if reasons else known, joints=keep,
                                    measured=measured))
     return out, tuple(LeftOut(j, r) for j, r in reasons.items())
+
+
+#: A joint whose positions span this much or less in a log stands still there [rad].
+STILL_RAD = 0.05
+
+
+def _still(scan: LogScan, joint: str) -> bool:
+    """Whether ``joint`` stands still in the scanned log (:data:`STILL_RAD`)."""
+    rng = scan.ranges.get("position")
+    if rng is None or joint not in scan.joint_names:
+        return False
+    k = scan.joint_names.index(joint)
+    span = float(rng[1][k] - rng[0][k])
+    return bool(np.isfinite(span) and span <= STILL_RAD)
 
 
 #: The order ``auto`` prefers, best first.
