@@ -194,7 +194,7 @@ def test_without_masses_the_scale_is_said_to_be_unverified(tmp_path: Path) -> No
 @settings(max_examples=6, deadline=None)
 @given(log10_scale=st.floats(-3.5, 3.5))
 @example(log10_scale=0.0)
-@example(log10_scale=0.6)  # 4x: warned
+@example(log10_scale=0.6)  # 4x: warned, its incidents' forces flagged
 @example(log10_scale=3.0)  # 1000x: refused
 def test_a_scaled_torque_never_gives_an_unflagged_force(tmp_path_factory: pytest.TempPathFactory,
                                                         log10_scale: float) -> None:
@@ -221,7 +221,6 @@ def test_a_scaled_torque_never_gives_an_unflagged_force(tmp_path_factory: pytest
     if ts["verdict"] == "ok":
         assert 1 / WARN_FACTOR <= s <= WARN_FACTOR * 1.1
     else:
-        assert forces or s < 1  # a contact log: a scale above 1 still leaves its incidents
         assert all(x["force_plausible"] is False and "off the description's gravity torque"
                    in x["force_check"] for x in forces)
 
@@ -262,3 +261,16 @@ def test_urdf_gravity_is_the_gradient_of_the_arms_potential_energy(name: str) ->
         grad = [(energy(q[k] + h * e) - energy(q[k] - h * e)) / (2 * h)
                 for e in np.eye(len(joints))]
         np.testing.assert_allclose(g[k], grad, atol=1e-4, rtol=1e-5)
+
+
+def test_a_torque_four_times_too_large_flags_its_forces(tmp_path: Path) -> None:
+    """The contact log's torque ×4, with its description: warned, recorded, and each of its
+    incidents' forces flagged implausible, naming the scale."""
+    code, err, doc = _run(tmp_path, "heavy_impacts", 4.0, "torque", "--robot",
+                          str(CSV / "heavy_impacts.robot.json"))
+    assert code == 0, err
+    assert doc["input"]["torque_scale"]["verdict"] == "warn"
+    forces = [x for x in doc["incidents"] if x["force_n"] is not None]
+    assert forces
+    assert all(x["force_plausible"] is False and "off the description's gravity torque by ~3."
+               in x["force_check"] for x in forces)
