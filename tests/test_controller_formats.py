@@ -291,6 +291,7 @@ def test_kuka_lbr_fri_example_map(tmp_path: Path) -> None:
     rng = np.random.default_rng(1)
     q, tau, ext, ipo = (rng.standard_normal((n, 7)) for _ in range(4))
     q = np.cumsum(1e-3 * q, axis=0)  # positions that move, sample to sample
+    ipo = q + 1e-4 * ipo  # the interpolated reference follows them
     z = np.zeros(7)
     p = tmp_path / "lbr.mcap"
     with open(p, "wb") as f:
