@@ -274,3 +274,9 @@ def test_a_torque_four_times_too_large_flags_its_forces(tmp_path: Path) -> None:
     assert forces
     assert all(x["force_plausible"] is False and "off the description's gravity torque by ~3."
                in x["force_check"] for x in forces)
+    out = CliRunner().invoke(main, [
+        "detect", str(tmp_path / "log.csv"), "--robot", str(CSV / "heavy_impacts.robot.json"),
+        "-o", str(tmp_path / "again")]).stdout
+    # said where the answer is read: beside the detection floor's figures on stdout
+    assert "torques and forces of log.csv are in the log's units, not checked against " \
+           "physics: the log's torque is off the gravity torque" in out

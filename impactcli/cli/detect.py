@@ -80,8 +80,10 @@ def _incident_line(k: int, inc: dict[str, Any]) -> str:
     the incident's number (the report's: 1, 2, … over the counted incidents)."""
     link = f"link {inc['link']}" if inc["link"] is not None else "link ?"
     force = f"~{inc['force_n']:.3g} N" if inc["force_n"] is not None else "force ?"
+    flag = ("  force not plausible (force_check in the timeline)"
+            if inc.get("force_plausible") is False else "")
     return (f"  {k:>3}  {inc['t_start']:>9.3f} s  {link:<7} {force:>9}  {inc['contact']:<12} "
-            f"({', '.join(inc['detectors'])})")
+            f"({', '.join(inc['detectors'])}){flag}")
 
 
 def _lasting_line(k: int, x: dict[str, Any]) -> str:
@@ -353,6 +355,8 @@ def _finish(outcomes: list[Any], paths: list[str], choice: Any,
 UNVERIFIED = {
     "no_description": "no robot description with masses (--robot) to compare the log's "
                       "torque with the gravity torque they predict",
+    "warn": "the log's torque is off the gravity torque the robot description's masses "
+            "predict (input.torque_scale in the timeline; warned above)",
     "unverified": "the log's slow poses do not load a joint enough to compare its torque "
                   "with the description's gravity torque, or the description gives no "
                   "masses (input.torque_scale in the timeline)",
@@ -458,8 +462,9 @@ def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str,
                 click.echo(_incident_line(k, inc))
             if len(lst) > MAX_INCIDENTS_LISTED:
                 click.echo(f"  ... {len(lst) - MAX_INCIDENTS_LISTED} more (in the timeline)")
-        if (len(ok) == 1 and ok[0].summary.get("incident_list")
-                and ok[0].summary.get("torque_scale") in UNVERIFIED):
+        if (len(ok) == 1 and ok[0].summary.get("torque_scale") in UNVERIFIED
+                and (ok[0].summary.get("incident_list") or ok[0].summary.get("detection_floor")
+                     or loads[ok[0].log_path])):  # forces and the floor's N or N·m
             click.echo(f"torques and forces of {_shown(ok[0].log_path)} are in the log's "
                        f"units, not checked against physics: "
                        f"{UNVERIFIED[ok[0].summary['torque_scale']]}")

@@ -291,7 +291,8 @@ def _summary(job: DetectJob, result: Any) -> dict[str, Any]:
         "incidents": len(result.counted_incidents()),
         "incident_list": [
             {"t_start": i.t_start, "link": i.link, "force_n": i.force_n, "contact": i.contact,
-             "detectors": list(i.detectors)} for i in result.counted_incidents()],
+             "detectors": list(i.detectors), "force_plausible": i.force_plausible}
+            for i in result.counted_incidents()],
         "defect_incident_list": [
             {"t_start": i.t_start, "kind": i.data_defect["kind"],
              "defect_t_start": i.data_defect["t_start"], "force_n": i.force_n}
