@@ -98,16 +98,24 @@ def warn_rate_against_column(path: Path, where: str, column: int, label: str, un
             vals.append(float(cells[column].strip().replace(decimal, ".")))
         except ValueError:
             return
-    t = np.asarray(vals, dtype=np.float64)
+    warn_rate_against_times(np.asarray(vals, dtype=np.float64), unit, rate, where,
+                            f"column {label}", "column")
+
+
+def warn_rate_against_times(t: np.ndarray, unit: str, rate: float, where: str, what: str,
+                            kind: str) -> None:
+    """Warn when the times ``t`` (in ``unit``; a log's first rows) step, on average (a
+    rounded clock's too), at a rate off ``rate`` by more than :data:`RATE_CHECK_FACTOR`:
+    the comparison of ``--rate`` with a time column or array it overrides (``what``)."""
     if t.size < 10 or not np.isfinite(t[[0, -1]]).all():
         return
-    step_s = float(t[-1] - t[0]) / (t.size - 1) * TIME_UNITS[unit] * 1e-9  # a rounded clock's
+    step_s = float(t[-1] - t[0]) / (t.size - 1) * TIME_UNITS[unit] * 1e-9
     if step_s > 0 and not 1.0 / RATE_CHECK_FACTOR <= 1.0 / step_s / rate <= RATE_CHECK_FACTOR:
-        warnings.warn(f"{where}: --rate {rate:g}: the time column {label} (not used) steps by "
+        warnings.warn(f"{where}: --rate {rate:g}: the time {what} (not used) steps by "
                       f"{step_s:.3g} s on average over its first {t.size} rows "
                       f"({1.0 / step_s:.3g} Hz, read in {unit}), not the 1/{rate:g} s --rate "
-                      "gives: check the rate (or the column's unit)", ImpactWarning,
-                      stacklevel=3)
+                      f"gives: check the rate (or the {kind}'s unit)", ImpactWarning,
+                      stacklevel=4)
 
 
 def check_text(path: Path, where: str) -> None:

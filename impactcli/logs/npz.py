@@ -39,11 +39,7 @@ def warn_rate_against_array(path: Any, where: str, tspec: Any, rate: float) -> N
     """With ``--rate`` on an archive whose map names a time array: warn when its first
     rows' average step implies a rate off ``rate`` (as a CSV's time column,
     :func:`impactcli.logs.csv_layout.warn_rate_against_column`)."""
-    import warnings
-
-    from ..errors import ImpactWarning
-    from .channel_map import TIME_UNITS
-    from .csv_layout import RATE_CHECK_FACTOR, RATE_CHECK_ROWS
+    from .csv_layout import RATE_CHECK_ROWS, warn_rate_against_times
 
     try:
         with np.load(path, allow_pickle=False) as archive:
@@ -56,16 +52,8 @@ def warn_rate_against_array(path: Any, where: str, tspec: Any, rate: float) -> N
         a = a[:, tspec.ref.index]
     if a.ndim != 1 or a.dtype.kind not in "iuf":
         return
-    t = a[:RATE_CHECK_ROWS].astype(np.float64)
-    if t.size < 10 or not np.isfinite(t[[0, -1]]).all():
-        return
-    step_s = float(t[-1] - t[0]) / (t.size - 1) * TIME_UNITS[tspec.unit] * 1e-9
-    if step_s > 0 and not 1.0 / RATE_CHECK_FACTOR <= 1.0 / step_s / rate <= RATE_CHECK_FACTOR:
-        warnings.warn(f"{where}: --rate {rate:g}: the time array {tspec.ref.label()!r} (not "
-                      f"used) steps by {step_s:.3g} s on average over its first {t.size} rows "
-                      f"({1.0 / step_s:.3g} Hz, read in {tspec.unit}), not the 1/{rate:g} s "
-                      "--rate gives: check the rate (or the array's unit)", ImpactWarning,
-                      stacklevel=3)
+    warn_rate_against_times(a[:RATE_CHECK_ROWS].astype(np.float64), tspec.unit, rate, where,
+                            f"array {tspec.ref.label()!r}", "array")
 
 class _Whole(Exception):
     """A member read whole (a ``.npy`` version or order the blocks do not read)."""

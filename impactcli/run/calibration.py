@@ -48,7 +48,7 @@ from ..model import IdentifyOptions, RigidModel
 from ..model.generators import GeneratorChoice, target_log, uses_correction
 from ..types import DETECTORS, Labels, RobotDescription, RobotLog
 from .collect import StatsCollector
-from .one_log import ReplayStep, replay_passes, warn_replayed
+from .one_log import MOVED_RAD, ReplayStep, replay_passes, warn_replayed
 from .plan import (
     ChunkFeed,
     RunPlan,
@@ -527,10 +527,11 @@ def _screen_calibration_logs(
 ) -> tuple[list[Screened], tuple[LeftOut, ...]]:
     """Every calibration log screened (:func:`impactcli.run.plan.screen_scan`). A joint whose
     torque is measured in some log is kept in a log where it stands still (its positions
-    span :data:`STILL_RAD` or less: a still joint shows a flat or few-valued torque there,
-    and moves in another); a joint left out of a log for any other reason — a flat torque
-    while it moves is a channel that failed — or unmeasured in all, is left out of all (a
-    threshold needs every log), with the first reason found. Only the final screen warns."""
+    span :data:`~impactcli.run.one_log.MOVED_RAD` or less: a still joint shows a flat or
+    few-valued torque there, and moves in another); a joint left out of a log for any other
+    reason — a flat torque while it moves is a channel that failed — or unmeasured in all,
+    is left out of all (a threshold needs every log), with the first reason found. Only the
+    final screen warns."""
     known = known_joints(model, cfg)
     with warnings.catch_warnings(record=True) as said:
         warnings.simplefilter("always", ImpactWarning)
@@ -562,18 +563,15 @@ def _screen_calibration_logs(
     return out, tuple(LeftOut(j, r) for j, r in reasons.items())
 
 
-#: A joint whose positions span this much or less in a log stands still there [rad].
-STILL_RAD = 0.05
-
-
 def _still(scan: LogScan, joint: str) -> bool:
-    """Whether ``joint`` stands still in the scanned log (:data:`STILL_RAD`)."""
+    """Whether ``joint`` stands still in the scanned log: its positions span no more than
+    :data:`~impactcli.run.one_log.MOVED_RAD`, what moving means for a joint left out."""
     rng = scan.ranges.get("position")
     if rng is None or joint not in scan.joint_names:
         return False
     k = scan.joint_names.index(joint)
     span = float(rng[1][k] - rng[0][k])
-    return bool(np.isfinite(span) and span <= STILL_RAD)
+    return bool(np.isfinite(span) and span <= MOVED_RAD)
 
 
 #: The order ``auto`` prefers, best first.
