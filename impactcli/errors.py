@@ -82,6 +82,18 @@ class ScaleLimitError(ImpactError):
     exit_code = EXIT_USAGE
 
 
+class UsageProblem(ImpactError):
+    """A bad option or combination of options found below the CLI (exit 2): the CLI shows it
+    as click shows its own usage errors — for ``param_hint`` (e.g. ``'--labels'``) as a bad
+    value of that option."""
+
+    exit_code = EXIT_USAGE
+
+    def __init__(self, message: str, param_hint: str | None = None) -> None:
+        super().__init__(message)
+        self.param_hint = param_hint
+
+
 class UnavailableError(ImpactError):
     """This machine cannot do it — the viewer needs a display (exit 69): not the input's
     fault, and the message says what works instead."""

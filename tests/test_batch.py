@@ -155,7 +155,7 @@ def test_local_path_and_names() -> None:
     assert urls.local_path("file:///data/a%20b.csv") == Path("/data/a b.csv")
     assert urls.local_path("s3://bucket/a.csv") is None
     assert urls.local_path("rel/a.csv") == Path("rel/a.csv")
-    assert batch.output_stem("s3://bucket/day1/run7.csv.gz") == "run7"
+    assert batch.log_stem("s3://bucket/day1/run7.csv.gz") == "run7"
     assert urls.join_url("s3://b/out/", "x.json") == "s3://b/out/x.json"
 
 

@@ -12,6 +12,7 @@ import pytest
 from click.testing import CliRunner
 
 import impactcli.cli.evaluate as cli_eval
+import impactcli.run.evaluate_run as evaluate_run
 from impactcli.cli import main
 from impactcli.errors import LabelsError
 from impactcli.outputs.timeline import write_timeline
@@ -298,7 +299,7 @@ def test_sweep_from_a_log(tmp_path, monkeypatch):
                      "residual": r["static_baseline"]}))
         return result, col.finish(result)
 
-    monkeypatch.setattr(cli_eval, "replay_log", fake_replay_log)
+    monkeypatch.setattr(evaluate_run, "replay_log", fake_replay_log)
     log = tmp_path / "arm.csv"
     log.write_text("time\n0\n")
     lab = write(tmp_path, "labels.json", SWEEP_LABELS.to_dict())

@@ -11,9 +11,9 @@ import pytest
 from click.testing import CliRunner
 
 from impactcli.cli import main
-from impactcli.cli.labels import stretches
 from impactcli.errors import LabelsError
 from impactcli.logs import write_log
+from impactcli.logs.channel_labels import stretches
 from impactcli.schema import validate
 
 from .conftest import make_log

@@ -1,5 +1,6 @@
 """The package's layout holds (docs/development.md): imports go down the layers only, no
-module imports itself back through others, no private name crosses a module, no module is
+module imports itself back through others, no private name crosses a module, no CLI verb
+imports another verb's module (only the shared options and formatting), no module is
 over 700 lines, no two modules share a file name, and every file the code and docs cite is
 in the repo. Read from the source with ``ast`` (function-local and TYPE_CHECKING imports
 count too)."""
@@ -145,6 +146,20 @@ def test_no_private_name_crosses_a_module() -> None:
     bad = [f"{MODULES[a].relative_to(ROOT)}:{line} imports {b}.{n}"
            for a, rows in EDGES.items() for b, n, line in rows
            if b != a and (_private(n) or _private(b.rsplit(".", 1)[-1]))]
+    assert not bad, "\n".join(bad)
+
+
+#: The cli modules that hold shared options or formatting helpers, which a verb may import;
+#: every other cli module is a verb, whose logic no other verb imports (it lives in run/).
+CLI_SHARED = ("impactcli.cli", "impactcli.cli.options", "impactcli.cli.fit_table")
+
+
+def test_no_cli_verb_imports_another_verbs_logic() -> None:
+    bad = [f"{MODULES[a].relative_to(ROOT)}:{line} imports {b}"
+           for a, rows in EDGES.items() if _unit(a) == "impactcli.cli"
+           for b, _, line in rows
+           if _unit(b) == "impactcli.cli" and b != a and b not in CLI_SHARED
+           and a != "impactcli.cli"]
     assert not bad, "\n".join(bad)
 
 

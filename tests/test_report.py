@@ -7,15 +7,16 @@ import json
 import re
 from pathlib import Path
 
-import click
 import jsonschema
 import numpy as np
 import pytest
 
-from impactcli.cli.report import auto_labels, pair_labels
 from impactcli.detect.incidents import planar_jacobian, smallest_caught_force
+from impactcli.errors import UsageProblem
+from impactcli.logs import log_stem
 from impactcli.outputs import report, svgplot
-from impactcli.outputs.report import GUARD_S, log_stem, verdict_text
+from impactcli.outputs.report import GUARD_S, verdict_text
+from impactcli.run.report_inputs import auto_labels, pair_labels
 from impactcli.schema import load_schema
 from impactcli.types import ContactLabel, DetectionResult, Event, Labels, LogSource
 
@@ -297,6 +298,7 @@ def test_log_stem() -> None:
     assert log_stem("/a/b/run1.csv.gz") == "run1"
     assert log_stem("run1.timeline.json") == "run1"
     assert log_stem("x.mcap") == "x" and log_stem("x.npz") == "x" and log_stem("x.CSV") == "x"
+    assert log_stem("s3://bucket/day/run2.csv.gz") == "run2" and log_stem("bag/run3/") == "run3"
 
 
 def test_pair_labels_rule(tmp_path: Path) -> None:
@@ -306,7 +308,7 @@ def test_pair_labels_rule(tmp_path: Path) -> None:
     x, y = tmp_path / "x.json", tmp_path / "y.json"
     assert pair_labels([a, b], [x, y]) == [x, y]  # in order
     assert pair_labels([a, b], [lb]) == [None, lb]  # one, by stem
-    with pytest.raises(click.BadParameter):
+    with pytest.raises(UsageProblem, match="2 input"):
         pair_labels([a, b], [x])
     assert auto_labels(a, a) is None
     la.write_text("{}")

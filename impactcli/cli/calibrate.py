@@ -148,7 +148,7 @@ def _labels_for(logs: tuple[Path, ...], given: tuple[Path, ...]) -> list:  # typ
     """Labels per log: ``--labels`` paired as ``report`` pairs them, else
     ``<stem>.labels.json`` beside the log when present, else None."""
     from ..logs.robot_files import read_labels
-    from .report import auto_labels, pair_labels
+    from ..run.report_inputs import auto_labels, pair_labels
 
     paths = pair_labels(list(logs), list(given)) if given else [
         auto_labels(p, None) for p in logs]

@@ -5,8 +5,6 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 import click
@@ -25,40 +23,10 @@ from .options import (
     resolve_executor,
 )
 
-__all__ = ["PRODUCT_DETECTORS", "detect_cmd", "preload"]
+__all__ = ["PRODUCT_DETECTORS", "detect_cmd"]
 
 #: the product's detectors: what --fail-on-detect counts (static_baseline is for comparison)
 PRODUCT_DETECTORS = ("adaptive", "static_loading")
-
-
-def preload(robot: str | Path | None, model: str | Path | None,
-            config: str | Path | None) -> dict[str, dict[str, str]]:
-    """Read robot, model and config once up front: a bad one stops the run before any work.
-
-    Returns ``{"robot"|"model"|"config": {"path", "sha256"}}`` for those given (the batch
-    summary's provenance).
-    """
-    from ..config import load_config
-    from ..files import sha256_file
-    from ..logs.robot_files import named_robot_sha256, read_robot
-    from ..logs.urls import load_by_url
-    from ..model import read_model
-
-    out: dict[str, dict[str, str]] = {}
-    if robot is not None and (named := named_robot_sha256(str(robot))) is not None:
-        read_robot(str(robot))  # a shipped robot's name: its URDF's sha256 is the provenance
-        out["robot"] = {"path": str(robot), "sha256": named}
-        robot = None
-    for key, path, loader, what in (("robot", robot, read_robot, "robot description"),
-                                    ("model", model, read_model, "model"),
-                                    ("config", config, load_config, "config")):
-        if path is not None:
-            def load(lp: Path, loader: Callable[[Path], Any] = loader) -> str:
-                loader(lp)
-                return sha256_file(lp)
-
-            out[key] = {"path": str(path), "sha256": load_by_url(str(path), load, what)}
-    return out
 
 
 def _shown(log: str) -> str:
@@ -173,6 +141,7 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
         prefetch_sha256(logs[0])  # its hash overlaps the start-up (a local file only)
     from ..logs.urls import expand_inputs
     from ..run.batch import DetectJob, Timer, check_unique_stems, run_batch, written_since
+    from ..run.job import load_inputs
 
     paths = expand_inputs(logs)
     try:
@@ -196,7 +165,7 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
 
         prepare_output(summary_path)  # a bad --summary stops the batch before any work
     choice = resolve_executor(jobs, scheduler)
-    inputs = preload(robot, model, config)
+    inputs = load_inputs(robot, model, config).provenance  # a bad one stops the run here
     ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
     serial = (jobs or 1) == 1 and scheduler is None
     job_list = [DetectJob(p, out_dir, ropts, robot, model, config, signals, rerun,

@@ -22,6 +22,7 @@ from ..errors import (
     ImpactError,
     ImpactWarning,
     LogFormatError,
+    UsageProblem,
     one_line,
 )
 
@@ -70,6 +71,10 @@ def handle_errors(func: F) -> F:
                 warnings.simplefilter("always", ImpactWarning)
                 warnings.showwarning = _show_warning  # type: ignore[assignment]
                 return func(*args, **kwargs)
+        except UsageProblem as err:  # as click's own usage errors
+            if err.param_hint is not None:
+                raise click.BadParameter(str(err), param_hint=err.param_hint) from None
+            raise click.UsageError(str(err)) from None
         except ImpactError as err:
             if debug:
                 click.echo(traceback.format_exc().rstrip(), err=True)
@@ -100,13 +105,6 @@ def progress(items: Iterable[T], total: int | None = None, desc: str = "") -> It
     n = total if total is not None else len(seq)  # type: ignore[arg-type]
     disable = n < 2 or not sys.stderr.isatty()
     yield from tqdm(seq, total=n, desc=desc, disable=disable, file=sys.stderr, leave=False)
-
-
-def is_log_path(path: Path) -> bool:
-    """Whether ``path`` can be a local log: a file, or a rosbag2 folder (``metadata.yaml``)."""
-    from ..logs.paths import is_rosbag2_folder
-
-    return path.is_file() or is_rosbag2_folder(path)
 
 
 def not_found(path: Path | str, what: str = "log file") -> LogFormatError:

@@ -57,17 +57,32 @@ def log_suffix(path: Path) -> str | None:
     return next((s for s in LOG_SUFFIXES if name.endswith(s)), None)
 
 
+#: What a detection timeline's (or another JSON output's) name ends with, longest first.
+JSON_SUFFIXES: tuple[str, ...] = (".timeline.json", ".json")
+
+
 def log_stem(path: str | os.PathLike[str]) -> str:
-    """File name without its format extension (``.csv``, ``.csv.gz``, ``.mcap``, ``.npz``,
-    ``.bag``, ``.db3``); a rosbag2 folder's own name (``run/`` → ``run``)."""
-    p = Path(path)
-    s = log_suffix(p)
-    return p.name[: -len(s)] if s else p.name
+    """The stem every output is named by — the one stem function of the package: the file
+    name (of a path or a URL, ``s3://b/x/run.csv.gz`` → ``run``) without its format
+    extension (``.csv``, ``.csv.gz``, ``.mcap``, ``.npz``, ``.bag``, ``.db3``), a rosbag2
+    folder's own name (``run/`` → ``run``), a timeline's (``x.timeline.json`` → ``x``)."""
+    name = os.path.basename(str(path).rstrip("/\\")) or str(path)
+    lower = name.lower()
+    for ext in JSON_SUFFIXES:
+        if lower.endswith(ext):
+            return name[: -len(ext)]
+    s = log_suffix(Path(name))
+    return name[: -len(s)] if s else name
 
 
 def is_rosbag2_folder(path: Path) -> bool:
     """Whether ``path`` is a folder holding a rosbag2 ``metadata.yaml``."""
     return path.is_dir() and (path / ROSBAG2_METADATA).is_file()
+
+
+def is_log_path(path: Path) -> bool:
+    """Whether ``path`` can be a local log: a file, or a rosbag2 folder (``metadata.yaml``)."""
+    return path.is_file() or is_rosbag2_folder(path)
 
 
 def folder_logs(path: Path) -> list[Path]:

@@ -47,8 +47,9 @@ from ..errors import (
     OutputError,
 )
 from ..files import OUTPUT_ERRNOS
+from ..logs.paths import log_stem
 from ..types import DETECTORS
-from .job import output_stem, run_log_from_paths
+from .job import run_log_from_paths
 
 SUMMARY_SCHEMA_VERSION = "1.0"
 #: Exit code a one-log run gives for a lost worker or a bug (EX_SOFTWARE; never 1, which
@@ -115,7 +116,7 @@ def check_unique_stems(paths: Sequence[str]) -> None:
     "Detection timeline")."""
     seen: dict[str, str] = {}
     for p in paths:
-        s = output_stem(p)
+        s = log_stem(p)
         if s in seen:
             raise ValueError(f"{seen[s]} and {p} would both write {s}.timeline.json; "
                              "put them in separate runs or rename one")
@@ -132,7 +133,7 @@ def written_since(jobs: Sequence[DetectJob], done: set[str], since: float) -> li
         if job.log_path in done or "://" in job.out_dir.removeprefix("file://"):
             continue
         timeline = Path(job.out_dir.removeprefix("file://")) / \
-            f"{output_stem(job.log_path)}.timeline.json"
+            f"{log_stem(job.log_path)}.timeline.json"
         with contextlib.suppress(OSError):
             # the file clock is the kernel's coarse one: up to a tick behind time.time()
             if timeline.stat().st_mtime >= since - 0.05:
@@ -207,7 +208,7 @@ def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ..
     from ..logs.urls import local_path
 
     local_out = local_path(job.out_dir)
-    stem = output_stem(job.log_path)
+    stem = log_stem(job.log_path)
     if local_out is not None:
         result, outputs = _run_streamed(job, local_out, stem)
     else:

@@ -12,34 +12,57 @@ from __future__ import annotations
 from collections.abc import Callable
 from contextlib import ExitStack
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
+from ..logs.paths import log_stem
 from ..logs.reader import open_log
 from ..types import SignalsChunk
 from .one_log import RunSetup, detect_log
 
 
-def output_stem(path: str) -> str:
-    """Stem outputs are named by: the file name without its format extension."""
-    from ..logs import log_stem
-    from ..logs.urls import url_name
+class Inputs(NamedTuple):
+    """The robot description, model and config of a run (None when not given), and their
+    provenance: ``{"robot"|"model"|"config": {"path", "sha256"}}`` for those given."""
 
-    return str(log_stem(url_name(path)))
+    robot: Any
+    model: Any
+    config: Any
+    provenance: dict[str, dict[str, str]]
 
 
 def load_inputs(robot_path: str | None, model_path: str | None, config_path: str | None
-                ) -> tuple[Any, Any, Any]:
-    """The robot description, model and config (paths or URLs; None when not given), each
-    read once and named in its error: what every replay of a log starts from."""
+                ) -> Inputs:
+    """The one loader of ``--robot``, ``--model`` and ``--config`` (paths or URLs; a shipped
+    robot's name): each read once, in that order, and named in its error — what every
+    replay of a log starts from, and what a batch reads up front so that a bad one stops the
+    run before any work. A shipped robot's provenance is its URDF's sha256."""
     from ..config import load_config
-    from ..logs.robot_files import read_robot
+    from ..files import sha256_file
+    from ..logs.robot_files import named_robot_sha256, read_robot
     from ..logs.urls import load_by_url
     from ..model import read_model
 
-    robot = load_by_url(robot_path, read_robot, "robot description") if robot_path else None
-    model = load_by_url(model_path, read_model, "model") if model_path else None
-    config = load_by_url(config_path, load_config, "config") if config_path else None
-    return robot, model, config
+    provenance: dict[str, dict[str, str]] = {}
+
+    def load(key: str, path: str | None, loader: Callable[[Path], Any], what: str) -> Any:
+        if path is None:
+            return None
+        path = str(path)
+        if key == "robot" and (named := named_robot_sha256(path)) is not None:
+            provenance[key] = {"path": path, "sha256": named}
+            return read_robot(path)
+
+        def read(lp: Path) -> tuple[Any, str]:
+            return loader(lp), sha256_file(lp)
+
+        obj, sha = load_by_url(path, read, what)
+        provenance[key] = {"path": path, "sha256": sha}
+        return obj
+
+    robot = load("robot", robot_path, read_robot, "robot description")
+    model = load("model", model_path, read_model, "model")
+    config = load("config", config_path, load_config, "config")
+    return Inputs(robot, model, config, provenance)
 
 
 def progress_bar(log_path: str, show: bool, what: str, unit: str) -> Any:
@@ -51,7 +74,7 @@ def progress_bar(log_path: str, show: bool, what: str, unit: str) -> Any:
 
     from tqdm import tqdm
 
-    return tqdm(total=0, desc=f"{output_stem(log_path)}: {what}", unit=unit,
+    return tqdm(total=0, desc=f"{log_stem(log_path)}: {what}", unit=unit,
                 file=sys.stderr, leave=False, disable=not sys.stderr.isatty())
 
 
@@ -62,7 +85,7 @@ def run_log_from_paths(
     """:func:`run_log` with the robot description, model and config read from these
     paths or URLs (:func:`load_inputs`; the config's path named in messages).
     ``options``: :func:`run_log`'s."""
-    robot, model, config = load_inputs(robot_path, model_path, config_path)
+    robot, model, config, _ = load_inputs(robot_path, model_path, config_path)
     return run_log(log_path, robot=robot, model=model, config=config,
                    config_where=config_path or "config", **options)
 

@@ -37,7 +37,6 @@ from .common import (
     STAT_NAME,
     WHOLE_LOG_BUCKETS,
     event_duration_s,
-    log_stem,
 )
 from .margins import false_alarm_margins
 from .page import (
@@ -84,7 +83,6 @@ __all__ = [
     "false_alarm_margins",
     "incident_rows",
     "log_section",
-    "log_stem",
     "render_html",
     "render_log",
     "report_dict",

@@ -11,7 +11,6 @@ import datetime as dt
 import html
 import json
 import math
-import os
 from collections.abc import Sequence
 from typing import Any
 
@@ -82,19 +81,6 @@ def to_mapping(obj: Any) -> Any:
     if isinstance(obj, list | tuple):
         return [to_mapping(v) for v in obj]
     return obj
-
-
-def log_stem(path: str) -> str:
-    """The stem ``detect`` names its outputs by (:func:`impactcli.logs.log_stem`: the file
-    name without its format extension — ``.csv``, ``.csv.gz``, ``.mcap``, ``.npz``, ``.bag``,
-    ``.db3`` — or a rosbag2 folder's own name), and a timeline's (``x.timeline.json`` → x)."""
-    from ...logs import log_stem as io_log_stem
-
-    name = os.path.basename(str(path).rstrip("/\\")) or str(path)
-    for ext in (".timeline.json", ".json"):
-        if name.lower().endswith(ext):
-            return name[: -len(ext)]
-    return str(io_log_stem(name))
 
 
 def event_duration_s(e: Event, period_s: float) -> float:

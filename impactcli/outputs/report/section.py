@@ -17,6 +17,7 @@ from typing import Any
 
 from ...detect.floor import floor_line
 from ...detect.tail import per_hour_text
+from ...logs.paths import log_stem
 from ...types import DETECTORS, DetectionResult, Labels
 from ..timeline import timeline_dict
 from .analysed import analysed_html, with_what_html
@@ -28,7 +29,6 @@ from .common import (
     clean,
     e,
     event_duration_s,
-    log_stem,
     ratio_cell,
 )
 from .margins import false_alarm_margins
