@@ -1,7 +1,9 @@
-"""Shared fixtures: small logs built in code, the real-log folder (skipped when absent)."""
+"""Shared fixtures: small logs built in code, the real-log folder (skipped when absent:
+:data:`REAL_LOGS`)."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -10,14 +12,19 @@ import pytest
 from impactcli.types import LogSource, RobotLog
 
 REPO = Path(__file__).resolve().parents[1]
-REAL_LOGS = REPO.parent / "shared" / "real_logs"
+#: The public real recordings (a UR arm's ``ur_ext_observer/``, a KUKA LWR4's
+#: ``kuka_lwr4/``), which the repository does not ship: ``IMPACTCLI_REAL_LOGS``, else
+#: ``shared/real_logs`` beside the repository (the developers' machines).
+REAL_LOGS = Path(os.environ.get("IMPACTCLI_REAL_LOGS", REPO.parent / "shared" / "real_logs"))
+REAL_LOGS_ABSENT = ("the real robot recordings (UR, KUKA LWR4) are not on this machine: set "
+                    "IMPACTCLI_REAL_LOGS to their folder to run this test")
 
 
 @pytest.fixture
 def real_logs() -> Path:
-    """The folder of real robot logs next to the repo; skips the test when absent."""
+    """The folder of real robot logs (:data:`REAL_LOGS`); skips the test when absent."""
     if not REAL_LOGS.is_dir():
-        pytest.skip("../shared/real_logs is absent (a user's clone has no shared/)")
+        pytest.skip(REAL_LOGS_ABSENT)
     return REAL_LOGS
 
 

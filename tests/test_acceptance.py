@@ -25,7 +25,7 @@ from impactcli.config import DetectorConfig, load_config
 from impactcli.quality.evaluation import evaluate_events
 from impactcli.quality.match import PRODUCT
 
-from .benchmarks import sample_quality as sq
+from . import sample_criteria as sq
 
 if not (sq.CSV / "assist_impacts.csv.gz").exists():  # pragma: no cover - a trimmed checkout
     pytest.skip("sample_logs/csv is absent", allow_module_level=True)

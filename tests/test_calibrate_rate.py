@@ -21,6 +21,8 @@ from click.testing import CliRunner
 from impactcli.cli import main
 from impactcli.config import load_config
 
+from .cli_run import invoke
+
 REPO = Path(__file__).resolve().parents[1]
 CSV = REPO / "sample_logs" / "csv"
 MCAP = REPO / "sample_logs" / "mcap"
@@ -31,15 +33,12 @@ def free(arm: str, folder: Path = CSV, suffix: str = ".csv.gz") -> list[str]:
     return [str(folder / f"{arm}_free_{m}{suffix}") for m in FAMILIES]
 
 
-def run(*args: str) -> object:
-    return CliRunner().invoke(main, [*args], catch_exceptions=False)
-
-
 @pytest.fixture(scope="module")
 def assist(tmp_path_factory: pytest.TempPathFactory) -> tuple[object, Path]:
     out = tmp_path_factory.mktemp("rate") / "assist.toml"
-    r = run("calibrate", *free("assist"), "--robot", str(CSV / "assist_free_triangle.robot.json"),
-            "--false-alarms-per-hour", "1", "-o", str(out))
+    r = invoke("calibrate", *free("assist"), "--robot",
+               str(CSV / "assist_free_triangle.robot.json"),
+               "--false-alarms-per-hour", "1", "-o", str(out))
     return r, out
 
 
@@ -112,7 +111,7 @@ def test_config_records_rate_fit_support_and_envelope(assist: tuple) -> None:
 def test_free_logs_raise_no_alarm_with_their_rate_thresholds(assist: tuple,
                                                               tmp_path: Path) -> None:
     _, cfg = assist
-    r = run("detect", *free("assist"), "--config", str(cfg), "-o", str(tmp_path))
+    r = invoke("detect", *free("assist"), "--config", str(cfg), "-o", str(tmp_path))
     assert r.exit_code == 0, r.output
     for p in free("assist"):
         stem = Path(p).name.removesuffix(".csv.gz")
@@ -126,8 +125,8 @@ def test_report_states_the_rate_and_that_it_is_not_supported(assist: tuple,
                                                               tmp_path: Path) -> None:
     _, cfg = assist
     html = tmp_path / "r.html"
-    r = run("report", str(CSV / "assist_pushes.csv.gz"), "--config", str(cfg), "-o", str(html),
-            "--json", str(tmp_path / "r.json"))
+    r = invoke("report", str(CSV / "assist_pushes.csv.gz"), "--config", str(cfg), "-o", str(html),
+               "--json", str(tmp_path / "r.json"))
     assert r.exit_code == 0, r.output
     doc = json.loads((tmp_path / "r.json").read_text())
     cav = {c["code"]: c["text"] for c in doc["logs"][0]["caveats"]}
@@ -146,9 +145,9 @@ def test_report_states_the_rate_and_that_it_is_not_supported(assist: tuple,
 def test_mcap_gives_the_csv_thresholds(assist: tuple, tmp_path: Path) -> None:
     _, csv_cfg = assist
     out = tmp_path / "m.json"
-    r = run("calibrate", *free("assist", MCAP, ".mcap"), "--robot",
-            str(MCAP / "assist_free_triangle.robot.json"), "--false-alarms-per-hour", "1",
-            "-o", str(out))
+    r = invoke("calibrate", *free("assist", MCAP, ".mcap"), "--robot",
+               str(MCAP / "assist_free_triangle.robot.json"), "--false-alarms-per-hour", "1",
+               "-o", str(out))
     assert r.exit_code == 0, r.output
     a, b = load_config(csv_cfg), load_config(out)
     assert b.calibration.threshold_rule == "false-alarm-rate"
@@ -163,8 +162,8 @@ def test_mcap_gives_the_csv_thresholds(assist: tuple, tmp_path: Path) -> None:
 
 def test_a_supported_rate_says_so_and_confidence_is_recorded(tmp_path: Path) -> None:
     out = tmp_path / "c.yaml"
-    r = run("calibrate", *free("assist"), "--false-alarms-per-hour", "20", "--confidence",
-            "0.95", "-o", str(out))
+    r = invoke("calibrate", *free("assist"), "--false-alarms-per-hour", "20", "--confidence",
+               "0.95", "-o", str(out))
     assert r.exit_code == 0, r.output
     assert re.search(r"supports at best [0-9.]+ false alarms per hour at 95 % confidence; "
                      r"20 per hour is within it$", r.stdout, re.M), r.stdout
@@ -179,11 +178,11 @@ def test_every_model_kind(tmp_path: Path, kind: str) -> None:
     """The heavy arm (no controller channels: the tool's own model) with a model of each
     kind identify makes without a URDF, given with --model."""
     model = tmp_path / f"{kind}.json"
-    r = run("identify", str(CSV / "heavy_free_p2p.csv.gz"), "--kind", kind, "-o", str(model))
+    r = invoke("identify", str(CSV / "heavy_free_p2p.csv.gz"), "--kind", kind, "-o", str(model))
     assert r.exit_code == 0, r.output
     out = tmp_path / "h.toml"
-    r = run("calibrate", *free("heavy"), "--model", str(model), "--false-alarms-per-hour", "1",
-            "-o", str(out))
+    r = invoke("calibrate", *free("heavy"), "--model", str(model), "--false-alarms-per-hour", "1",
+               "-o", str(out))
     assert r.exit_code == 0, r.output
     assert f"model {kind} (given)" in r.stdout
     cfg = load_config(out)
@@ -197,8 +196,9 @@ def test_default_is_leave_one_out_with_its_predicted_rate(tmp_path: Path) -> Non
     """No rate asked: the committed sample config's thresholds (leave-one-out), and the
     rate the same tail fits predict for them, recorded and printed."""
     out = tmp_path / "loo.toml"
-    r = run("calibrate", *free("assist"), "--robot", str(CSV / "assist_free_triangle.robot.json"),
-            "-o", str(out))
+    r = invoke("calibrate", *free("assist"), "--robot",
+               str(CSV / "assist_free_triangle.robot.json"),
+               "-o", str(out))
     assert r.exit_code == 0, r.output
     got, want = load_config(out), load_config(REPO / "sample_logs" / "assist_like.config.toml")
     assert got.thresholds == want.thresholds
@@ -234,15 +234,15 @@ def test_default_is_leave_one_out_with_its_predicted_rate(tmp_path: Path) -> Non
 
 def test_rule_without_a_rate_takes_the_audit_default(tmp_path: Path) -> None:
     out = tmp_path / "r.toml"
-    r = run("calibrate", *free("assist"), "--threshold-rule", "false-alarm-rate", "-o", str(out))
+    r = invoke("calibrate", *free("assist"), "--threshold-rule", "false-alarm-rate", "-o", str(out))
     assert r.exit_code == 0, r.output
     fa = load_config(out).calibration.false_alarm_rate
     assert fa is not None and fa["per_hour"] == 1.0
 
 
 def test_one_free_log_has_no_leave_one_log_out(tmp_path: Path) -> None:
-    r = run("calibrate", free("assist")[1], "--false-alarms-per-hour", "1",
-            "-o", str(tmp_path / "one.toml"))
+    r = invoke("calibrate", free("assist")[1], "--false-alarms-per-hour", "1",
+               "-o", str(tmp_path / "one.toml"))
     assert r.exit_code == 0, r.output
     assert "leave-one-log-out" not in r.stdout
     fa = load_config(tmp_path / "one.toml").calibration.false_alarm_rate
@@ -291,8 +291,8 @@ def test_the_order_of_the_logs_does_not_change_the_config(tmp_path: Path) -> Non
     """The committed config was made with the logs as triangle, p2p, multisine; given in
     reverse, the same logs give the same model and thresholds to the last bit."""
     out = tmp_path / "rev.toml"
-    r = run("calibrate", *reversed(free("assist")), "--robot",
-            str(CSV / "assist_free_triangle.robot.json"), "-o", str(out))
+    r = invoke("calibrate", *reversed(free("assist")), "--robot",
+               str(CSV / "assist_free_triangle.robot.json"), "-o", str(out))
     assert r.exit_code == 0, r.output
     got, want = load_config(out), load_config(REPO / "sample_logs" / "assist_like.config.toml")
     assert got.thresholds == want.thresholds

@@ -10,13 +10,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from click.testing import CliRunner, Result
+from click.testing import Result
 
-from impactcli.cli import main
 from impactcli.logs import log_sha256, log_stem
 from impactcli.logs.write import write_rosbag1, write_rosbag2
 from impactcli.types import RobotLog
 
+from .cli_run import invoke
 from .conftest import make_log
 
 RATE = 250.0
@@ -77,10 +77,6 @@ def bags(tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict[str, Path]]
     return out
 
 
-def run(*args: object) -> Result:
-    return CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=False)
-
-
 def ok(r: Result) -> Result:
     assert r.exit_code == 0, (r.exit_code, r.output, r.stderr)
     return r
@@ -96,17 +92,17 @@ def test_the_bags_are_what_the_tests_think(bags: dict[str, dict[str, Path]]) -> 
 @pytest.mark.parametrize("kind", KINDS)
 def test_inspect_a_bag(bags: dict[str, dict[str, Path]], kind: str) -> None:
     p = bags[kind]["log"]
-    d = json.loads(ok(run("inspect", p, "--json")).stdout)
+    d = json.loads(ok(invoke("inspect", p, "--json")).stdout)
     assert d["format"] == ("rosbag1" if kind == "bag" else "rosbag2")
     assert d["joints"] == ["j1", "j2"]
-    text = ok(run("inspect", p)).stdout
+    text = ok(invoke("inspect", p)).stdout
     assert "rosbag" in text
 
 
 @pytest.mark.parametrize("kind", KINDS)
 def test_identify_a_bag(bags: dict[str, dict[str, Path]], kind: str, tmp_path: Path) -> None:
     out = tmp_path / "model.json"
-    r = ok(run("identify", bags[kind]["log"], "-o", out))
+    r = ok(invoke("identify", bags[kind]["log"], "-o", out))
     assert out.is_file() and f"wrote {out}" in r.stdout
 
 
@@ -114,7 +110,7 @@ def test_identify_a_bag(bags: dict[str, dict[str, Path]], kind: str, tmp_path: P
 def test_calibrate_on_two_bags(bags: dict[str, dict[str, Path]], kind: str,
                                tmp_path: Path) -> None:
     out = tmp_path / "config.toml"
-    r = ok(run("calibrate", bags[kind]["free1"], bags[kind]["free2"], "-o", out))
+    r = ok(invoke("calibrate", bags[kind]["free1"], bags[kind]["free2"], "-o", out))
     assert out.is_file() and "calibrated on 2 log(s)" in r.stdout
     text = out.read_text("utf-8")
     for key in ("free1", "free2"):  # the logs it was calibrated on, by sha256
@@ -127,7 +123,7 @@ def test_detect_evaluate_report_view_on_a_bag(bags: dict[str, dict[str, Path]], 
     log = bags[kind]["log"]
     stem = f"run_{kind}"
     out = tmp_path / "out"
-    ok(run("detect", log, "-o", out, "--signals"))
+    ok(invoke("detect", log, "-o", out, "--signals"))
     tl = out / f"{stem}.timeline.json"
     assert sorted(p.name for p in out.iterdir()) == [f"{stem}.signals.parquet", tl.name]
     doc = json.loads(tl.read_text("utf-8"))
@@ -136,15 +132,15 @@ def test_detect_evaluate_report_view_on_a_bag(bags: dict[str, dict[str, Path]], 
     # evaluate: the log (labels beside it) and the timeline (labels beside its log)
     labels = str(log.with_name(f"{stem}.labels.json"))
     for src in (log, tl):
-        ev = json.loads(ok(run("evaluate", src, "--json")).stdout)
+        ev = json.loads(ok(invoke("evaluate", src, "--json")).stdout)
         assert ev["input"] == str(src) and ev["labels"] == labels
         assert ev["n_contacts"]["counted"] == 1
-    ok(run("evaluate", tl, "--sweep", "--scales", "0.5,1,2"))
+    ok(invoke("evaluate", tl, "--sweep", "--scales", "0.5,1,2"))
 
     # report: the log and the timeline (re-run from the folder/file it records)
     for src, name in ((log, "log"), (tl, "tl")):
         html, js = tmp_path / f"{name}.html", tmp_path / f"{name}.json"
-        ok(run("report", src, "-o", html, "--json", js))
+        ok(invoke("report", src, "-o", html, "--json", js))
         rep = json.loads(js.read_text("utf-8"))
         (sec,) = rep["logs"]
         assert sec["stem"] == stem
@@ -153,7 +149,7 @@ def test_detect_evaluate_report_view_on_a_bag(bags: dict[str, dict[str, Path]], 
 
     # view: detect on the log and keep the recording
     rrd = tmp_path / f"{stem}.rrd"
-    r = ok(run("view", log, "--no-open", "--save", rrd))
+    r = ok(invoke("view", log, "--no-open", "--save", rrd))
     assert rrd.is_file() and str(rrd) in r.stdout
 
 
@@ -168,14 +164,14 @@ def test_a_timeline_finds_its_moved_folder_and_labels(bags: dict[str, dict[str, 
     shutil.copytree(bags["folder"]["log"], work / name)
     (work / f"{name}.labels.json").write_text(json.dumps(LABELS), "utf-8")
     monkeypatch.chdir(work)
-    ok(run("detect", f"{name}/", "-o", "."))  # a trailing slash names the same folder
+    ok(invoke("detect", f"{name}/", "-o", "."))  # a trailing slash names the same folder
     tl = work / f"{name}.timeline.json"
     assert json.loads(tl.read_text("utf-8"))["input"]["sha256"] == log_sha256(work / name)
     monkeypatch.chdir(tmp_path)  # "rosbag2_…" no longer resolves from here
-    ev = json.loads(ok(run("evaluate", tl, "--json")).stdout)
+    ev = json.loads(ok(invoke("evaluate", tl, "--json")).stdout)
     assert ev["labels"] == str(work / f"{name}.labels.json") and ev["n_contacts"]["counted"] == 1
     js = tmp_path / "r.json"
-    ok(run("report", tl, "-o", tmp_path / "r.html", "--json", js))
+    ok(invoke("report", tl, "-o", tmp_path / "r.html", "--json", js))
     (sec,) = json.loads(js.read_text("utf-8"))["logs"]
     assert sec["stem"] == name and sec["labels"]["path"] == str(work / f"{name}.labels.json")
 
@@ -187,10 +183,10 @@ def test_a_folder_recorded_by_a_timeline_must_still_be_a_bag(bags: dict[str, dic
     log = tmp_path / "run"
     shutil.copytree(bags["folder"]["log"], log)
     out = tmp_path / "out"
-    ok(run("detect", log, "-o", out))
+    ok(invoke("detect", log, "-o", out))
     tl = out / "run.timeline.json"
     (log / "metadata.yaml").unlink()
-    r = run("report", tl, "-o", tmp_path / "r.html")
+    r = invoke("report", tl, "-o", tmp_path / "r.html")
     assert r.exit_code == 3
     assert f"the log it records, {log}, is not found" in r.stderr
 
@@ -219,7 +215,7 @@ def _plain_args(verb: str, d: Path, tmp: Path, bags: dict[str, dict[str, Path]])
 def test_a_plain_folder_is_a_data_error_in_every_verb(bags: dict[str, dict[str, Path]],
                                                       verb: str, tmp_path: Path) -> None:
     d = bags["plain"]["log"]
-    r = run(*_plain_args(verb, d, tmp_path, bags))
+    r = invoke(*_plain_args(verb, d, tmp_path, bags))
     assert r.exit_code == 3, (r.output, r.stderr)
     # a folder that is not a bag stands for the logs in it (tests/test_log_folders.py)
     assert r.stderr == (f"impactcli: error: {d}: a folder without any log (looked for "

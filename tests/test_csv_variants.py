@@ -12,12 +12,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from impactcli.cli import main
 from impactcli.errors import ImpactWarning, LogFormatError
 from impactcli.logs import read_log
 from impactcli.types import RobotLog
+
+from .cli_run import cli
 
 N = 300
 PERIOD_NS = 4_000_000  # 250 Hz
@@ -60,11 +60,6 @@ def _same(a: RobotLog, b: RobotLog) -> None:
     np.testing.assert_array_equal(a.torque, b.torque)
 
 
-def _run(*args: str) -> tuple[int, str, str]:
-    r = CliRunner().invoke(main, list(args))
-    return r.exit_code, r.stdout, r.stderr
-
-
 @pytest.fixture
 def canonical(tmp_path: Path) -> RobotLog:
     path = tmp_path / "canonical.csv"
@@ -79,7 +74,7 @@ def test_utf8_bom_excel_export(tmp_path: Path, canonical: RobotLog) -> None:
     gz = tmp_path / "bom.csv.gz"
     gz.write_bytes(gzip.compress(b"\xef\xbb\xbf" + _text().encode()))
     _same(_read(gz), canonical)
-    code, out, err = _run("inspect", str(path), "--json")
+    code, out, err = cli("inspect", str(path), "--json")
     assert code == 0, err
     assert json.loads(out)["joints"] == ["j1", "j2"]
 
@@ -92,7 +87,7 @@ def test_semicolon_and_tab_separators_with_a_decimal_comma(
     if dec == ",":
         assert "0,004;" in path.read_text() or "0,004\t" in path.read_text()
     _same(_read(path), canonical)
-    code, out, err = _run("inspect", str(path), "--json")
+    code, out, err = cli("inspect", str(path), "--json")
     assert code == 0, err
     assert json.loads(out)["sample_rate_hz"] == 250.0
 
@@ -116,14 +111,14 @@ def test_iso_8601_time_stamps_are_epoch_ns(tmp_path: Path, canonical: RobotLog) 
     naive = [s.replace("T", " ").rstrip("Z") for s in z]
     path.write_text(_text(times=naive), encoding="utf-8")
     assert _read(path).t0_ns == t0_ns
-    code, out, err = _run("inspect", str(path), "--json")
+    code, out, err = cli("inspect", str(path), "--json")
     assert code == 0, err
     assert json.loads(out)["t0_ns"] == t0_ns
     # a bad stamp names the row; --time-unit does not apply to stamps
     bad = list(z)
     bad[7] = "2024-05-01T12:00:99.000Z"
     path.write_text(_text(times=bad), encoding="utf-8")
-    code, _, err = _run("inspect", str(path))
+    code, _, err = cli("inspect", str(path))
     assert code == 3
     assert err.splitlines()[-1] == (
         f"impactcli: error: {path}: column 'time', row 8 (line 9): "
@@ -144,7 +139,7 @@ def test_binary_content_is_not_a_text_csv(tmp_path: Path, garbage: str) -> None:
             "nul": _text().encode()[:500] + b"\x00\x00\x00" + _text().encode()[500:],
             "png": b"\x89PNG\r\n\x1a\n" + bytes(range(1, 256)) * 8}[garbage]
     path.write_bytes(data)
-    code, _, err = _run("inspect", str(path))
+    code, _, err = cli("inspect", str(path))
     assert code == 3
     line = err.splitlines()[-1]
     assert line.startswith(f"impactcli: error: {path}: not a text CSV (binary content")
@@ -188,7 +183,7 @@ def test_a_joint_without_any_value_is_left_out_with_a_warning(
     assert log.source.joints_dropped == (("j2", f"its {what} column holds no finite value "
                                                 "(not logged?)"),)
     np.testing.assert_array_equal(log.torque[:, 0], canonical.torque[:, 0])
-    code, out, err = _run("inspect", str(path), "--json")
+    code, out, err = cli("inspect", str(path), "--json")
     assert code == 0
     assert f"impactcli: warning: {msg}" in err.splitlines()
     assert json.loads(out)["joints_dropped"] == [
@@ -202,7 +197,7 @@ def test_no_joint_left_is_an_error(tmp_path: Path) -> None:
     vals[:, 2] = np.nan
     path = tmp_path / "none.csv"
     path.write_text(_text(cells=vals), encoding="utf-8")
-    code, _, err = _run("inspect", str(path))
+    code, _, err = cli("inspect", str(path))
     assert code == 3
     assert err.splitlines()[-1] == (
         f"impactcli: error: {path}: no joint has a finite position and torque: j1: its "
@@ -265,16 +260,16 @@ def test_an_optional_column_without_any_value_is_read_as_not_logged(
     assert getattr(log, sig) is None and log.joint_names == ("shoulder", "elbow", "wrist")
     assert log.source.ignored_channels == (f"shoulder.{sig}", f"wrist.{sig}")
     assert log.source.repairs == (msg,)
-    code, out, err = _run("inspect", str(path), "--json")
+    code, out, err = cli("inspect", str(path), "--json")
     assert code == 0, err
     assert err.splitlines() == [f"impactcli: warning: {msg}"]
     d = json.loads(out)
     assert sig not in d["signals"] and d["repairs"] == [msg]
     assert d["channels"]["ignored"] == [f"shoulder.{sig}", f"wrist.{sig}"]
-    code, out, err = _run("inspect", str(path))
+    code, out, err = cli("inspect", str(path))
     assert code == 0, err
     assert f"repair: {msg}" in out
-    code, out, err = _run("detect", str(path), "-o", str(tmp_path / "out"))
+    code, out, err = cli("detect", str(path), "-o", str(tmp_path / "out"))
     assert code == 0, err
     assert f"impactcli: warning: {msg}" in err.splitlines()
 

@@ -382,17 +382,12 @@ def test_sample_impacts_log_gives_plain_eq39_bitwise() -> None:
         np.testing.assert_array_equal(getattr(g, name), getattr(p, name), err_msg=name)
 
 
-REAL = Path(__file__).resolve().parents[1].parent / "shared" / "real_logs"
-
-
 @pytest.mark.real_logs
-def test_real_kuka_7_joints_at_200_hz() -> None:
+def test_real_kuka_7_joints_at_200_hz(real_logs: Path) -> None:
     """KUKA LWR4+ (7 joints, 200 Hz, no contact): a crude per-joint LS residual; the
     evaluator stays finite without covariance resets, warms up within the cap, and G is
     high-pass (method.md §7)."""
-    path = REAL / "kuka_lwr4" / "measurements_1.npz"
-    if not path.is_file():
-        pytest.skip("real logs absent")
+    path = real_logs / "kuka_lwr4" / "measurements_1.npz"
     d = np.load(path)
     t = d["times"] - d["times"][0]
     q, v, a, tau = d["positions"], d["velocities"], d["accelerations"], d["torques"]

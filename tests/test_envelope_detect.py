@@ -1,4 +1,4 @@
-"""detect against the calibration's motion envelope (issue 23 item 3): a log that moves
+"""detect against the calibration's motion envelope: a log that moves
 faster than the calibration logs did has its share outside in the timeline, a warning
 naming it, and the incidents there marked; a log inside it has share 0 and no warning."""
 

@@ -12,11 +12,11 @@ import pytest
 from click.testing import CliRunner
 
 import impactcli.cli.evaluate as cli_eval
-import impactcli.run.evaluate_run as evaluate_run
 from impactcli.cli import main
 from impactcli.errors import LabelsError
 from impactcli.outputs.timeline import write_timeline
 from impactcli.quality.sweep import DEFAULT_SWEEP_SCALES, ratios_from_signals, sweep_ratios
+from impactcli.run import evaluate_run
 from impactcli.schema import validate
 
 from .fakes import fake_result, write_fake_signals

@@ -10,22 +10,17 @@ from typing import Any
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from impactcli.cli import main
 from impactcli.errors import EXIT_SOFTWARE, LogFormatError
 from impactcli.logs import describe as io_inspect
 from impactcli.logs import read_log, write_log
 from impactcli.run import batch
 
+from .cli_run import cli
+
 REPO = Path(__file__).resolve().parents[1]
 LOG = REPO / "sample_logs" / "csv" / "assist_free_p2p.csv.gz"
 CONFIG = REPO / "sample_logs" / "assist_like.config.toml"
-
-
-def _run(*args: str) -> tuple[int, str, str]:
-    r = CliRunner().invoke(main, list(args))
-    return r.exit_code, r.stdout, r.stderr
 
 
 def _small_csv(tmp_path: Path, name: str = "x.csv") -> tuple[Path, list[str]]:
@@ -43,10 +38,10 @@ def _set_cell(lines: list[str], row: int, column: str, value: str) -> None:
 
 
 def test_exit_70_is_documented_in_help() -> None:
-    code, out, _ = _run("--help")
+    code, out, _ = cli("--help")
     assert code == 0
     assert "70 an internal error (a bug; its traceback is printed)" in " ".join(out.split())
-    code, out, _ = _run("detect", "--help")
+    code, out, _ = cli("detect", "--help")
     assert "70 on an internal error (a bug, with its traceback) — never 1" in " ".join(
         out.split())
 
@@ -56,7 +51,7 @@ def test_a_huge_torque_cell_is_a_data_error_naming_it(tmp_path: Path, value: str
     path, lines = _small_csv(tmp_path)
     _set_cell(lines, 1234, "elbow.torque", value)
     path.write_text("".join(lines), encoding="utf-8")
-    code, _, err = _run("detect", str(path), "--fail-on-detect", "-o", str(tmp_path / "out"))
+    code, _, err = cli("detect", str(path), "--fail-on-detect", "-o", str(tmp_path / "out"))
     assert code == 3
     assert err.splitlines() == [
         f"impactcli: error: {path}: column 'elbow.torque', row 1235 (line 1236): value "
@@ -85,7 +80,7 @@ def test_the_short_nan_repair_stays(tmp_path: Path) -> None:
     for r in (500, 501):
         _set_cell(lines, r, "shoulder.torque", "nan")
     path.write_text("".join(lines), encoding="utf-8")
-    code, out, err = _run("inspect", str(path), "--json")
+    code, out, err = cli("inspect", str(path), "--json")
     assert code == 0, err
     assert json.loads(out)["repairs"] == [
         f"{path}: column 'shoulder.torque': interpolated 2 non-finite value(s) in 1 gap(s) "
@@ -101,7 +96,7 @@ def test_a_bug_in_a_one_log_run_exits_70_with_its_traceback(
     from impactcli.run import job
 
     monkeypatch.setattr(job, "detect_log", _boom)   # the replay detect runs
-    code, _, err = _run("detect", str(LOG), "--fail-on-detect", "-o", str(tmp_path / "out"))
+    code, _, err = cli("detect", str(LOG), "--fail-on-detect", "-o", str(tmp_path / "out"))
     assert code == EXIT_SOFTWARE == 70
     lines = err.splitlines()
     assert f"impactcli: error: {LOG}: internal error (a bug): RuntimeError: boom" in lines
@@ -112,7 +107,7 @@ def test_a_bug_in_a_verb_exits_70_with_its_traceback(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(io_inspect, "describe_log", _boom)
     for debug in ([], ["--debug"]):
-        code, out, err = _run(*debug, "inspect", str(LOG))
+        code, out, err = cli(*debug, "inspect", str(LOG))
         assert code == 70 and out == ""
         lines = err.splitlines()
         assert lines[0] == "impactcli: error: internal error (a bug): RuntimeError: boom"
@@ -123,7 +118,7 @@ def test_a_bug_in_a_verb_exits_70_with_its_traceback(
 def test_a_data_error_with_debug_keeps_its_exit_code(tmp_path: Path) -> None:
     bad = tmp_path / "bad.csv"
     bad.write_text("time,j.position,j.torque\n0,1,2\n", encoding="utf-8")
-    code, _, err = _run("--debug", "inspect", str(bad))
+    code, _, err = cli("--debug", "inspect", str(bad))
     assert code == 3
     assert "Traceback (most recent call last):" in err
     assert err.splitlines()[-1] == (f"impactcli: error: {bad}: holds 1 data row(s); at least "
@@ -145,15 +140,15 @@ def test_a_bug_in_a_batch_is_70_in_the_summary_and_4_for_the_batch(
 
     monkeypatch.setattr(job, "detect_log", flaky)
     summary = tmp_path / "summary.json"
-    code, _, err = _run("detect", str(LOG), str(other), "--config", str(CONFIG), "-o",
-                        str(tmp_path / "out"), "--summary", str(summary))
+    code, _, err = cli("detect", str(LOG), str(other), "--config", str(CONFIG), "-o",
+                       str(tmp_path / "out"), "--summary", str(summary))
     assert code == 4, err
     fail = json.loads(summary.read_text())["failures"]
     assert fail == [{"file": str(other), "attempts": 1, "class": "internal", "exit_code": 70,
                      "reason": f"{other}: internal error (a bug): ZeroDivisionError: division "
                                "by zero"}]
     # every log failed: the failure's own code, 70 (never 1)
-    code, _, _ = _run("detect", str(other), "--config", str(CONFIG), "-o", str(tmp_path / "o"))
+    code, _, _ = cli("detect", str(other), "--config", str(CONFIG), "-o", str(tmp_path / "o"))
     assert code == 70
 
 
@@ -205,25 +200,25 @@ def test_fail_on_force_without_kinematics_is_5_and_a_judged_failure_wins(
     forces are known and judged (1 below them, 0 above)."""
     out = str(tmp_path / "out")
     nokin = str(_config_without_kinematics(tmp_path))
-    code, _, err = _run("detect", str(IMPACTS), "--config", nokin,
-                        "--fail-on-force", "20", "-o", out)
+    code, _, err = cli("detect", str(IMPACTS), "--config", nokin,
+                       "--fail-on-force", "20", "-o", out)
     assert code == 5, err
     assert "assist_impacts.csv.gz: --fail-on-force 20 N could not judge" in err
     assert "no force estimate" in err
-    code, _, err = _run("detect", str(IMPACTS), "--config", nokin,
-                        "--fail-on-force", "20", "--fail-on-detect", "-o", out)
+    code, _, err = cli("detect", str(IMPACTS), "--config", nokin,
+                       "--fail-on-force", "20", "--fail-on-detect", "-o", out)
     assert code == 1, err
     assert "--fail-on-detect:" in err and "incidents after warm-up" in err
-    code, _, err = _run("detect", str(IMPACTS), "--config", str(CONFIG),
-                        "--fail-on-force", "1", "-o", out)
+    code, _, err = cli("detect", str(IMPACTS), "--config", str(CONFIG),
+                       "--fail-on-force", "1", "-o", out)
     assert code == 1, err
-    code, _, err = _run("detect", str(IMPACTS), "--config", str(CONFIG),
-                        "--fail-on-force", "1e6", "-o", out)
+    code, _, err = cli("detect", str(IMPACTS), "--config", str(CONFIG),
+                       "--fail-on-force", "1e6", "-o", out)
     assert code == 0, err
 
 
 def test_exit_5_is_documented() -> None:
-    _, out, _ = _run("--help")
+    _, out, _ = cli("--help")
     assert "5 a gate could not judge" in " ".join(out.split())
     readme = (REPO / "README.md").read_text(encoding="utf-8")
     assert "| 5 | a gate could not judge" in readme

@@ -14,12 +14,12 @@ import sys
 from pathlib import Path
 
 import pytest
-from click.testing import CliRunner
 
 from impactcli import files
-from impactcli.cli import main
 from impactcli.files import part_path, process_running, remove_stale_parts
 from impactcli.logs import read_log, write_log
+
+from .cli_run import cli
 
 REPO = Path(__file__).resolve().parents[1]
 LOG = REPO / "sample_logs" / "csv" / "assist_free_p2p.csv.gz"
@@ -33,11 +33,6 @@ def small_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
     path = tmp_path_factory.mktemp("logs") / "x.csv"
     write_log(read_log(LOG).slice(0, 3000), path)
     return path
-
-
-def _run(*args: str) -> tuple[int, str, str]:
-    r = CliRunner().invoke(main, list(args))
-    return r.exit_code, r.stdout, r.stderr
 
 
 def _full_disk_for(monkeypatch: pytest.MonkeyPatch, *suffixes: str) -> list[str]:
@@ -68,8 +63,8 @@ def test_a_full_disk_is_exit_2_naming_the_output_and_leaves_nothing(
         full: list[str], named: str) -> None:
     hit = _full_disk_for(monkeypatch, *full)
     out = tmp_path / "out"
-    code, _, err = _run("detect", str(small_log), "--config", str(CONFIG), *flags,
-                        "-o", str(out))
+    code, _, err = cli("detect", str(small_log), "--config", str(CONFIG), *flags,
+                       "-o", str(out))
     assert hit, "the writer never reached the seam"
     assert code == 2
     assert err.splitlines() == [
@@ -85,8 +80,8 @@ def test_a_full_disk_under_the_report_is_exit_2_naming_it(
         monkeypatch: pytest.MonkeyPatch, tmp_path: Path, small_log: Path) -> None:
     _full_disk_for(monkeypatch, ".html")
     out = tmp_path / "rep"
-    code, _, err = _run("report", str(small_log), "--config", str(CONFIG),
-                        "-o", str(out / "r.html"), "--json", str(out / "r.json"))
+    code, _, err = cli("report", str(small_log), "--config", str(CONFIG),
+                       "-o", str(out / "r.html"), "--json", str(out / "r.json"))
     assert code == 2
     assert err.splitlines()[-1] == (
         f"impactcli: error: cannot write {out / 'r.html'}: No space left on device")
@@ -118,8 +113,8 @@ def test_a_truncated_output_is_never_moved_into_place(
         suffix: str, why: str) -> None:
     _truncating(monkeypatch, suffix, cut=7)
     out = tmp_path / "out"
-    code, _, err = _run("detect", str(small_log), "--config", str(CONFIG), *flags,
-                        "-o", str(out))
+    code, _, err = cli("detect", str(small_log), "--config", str(CONFIG), *flags,
+                       "-o", str(out))
     assert code == 2
     [line] = err.splitlines()
     assert line.startswith(f"impactcli: error: cannot write {out}/x{suffix}: ")
@@ -173,7 +168,7 @@ def test_an_oserror_without_a_file_name_does_not_blame_the_log(
 
     monkeypatch.setattr(timeline, "atomic_write_text", no_space)
     out = tmp_path / "out"
-    code, _, err = _run("detect", str(small_log), "--config", str(CONFIG), "-o", str(out))
+    code, _, err = cli("detect", str(small_log), "--config", str(CONFIG), "-o", str(out))
     assert code == 2
     assert err.splitlines() == [f"impactcli: error: {small_log}: cannot write its outputs "
                                 f"in {out}: No space left on device"]
@@ -182,7 +177,7 @@ def test_an_oserror_without_a_file_name_does_not_blame_the_log(
         raise OSError(errno.EINVAL, os.strerror(errno.EINVAL))
 
     monkeypatch.setattr(timeline, "atomic_write_text", einval)
-    code, _, err = _run("detect", str(small_log), "--config", str(CONFIG), "-o", str(out))
+    code, _, err = cli("detect", str(small_log), "--config", str(CONFIG), "-o", str(out))
     assert code == 3
     assert err.splitlines() == [f"impactcli: error: {small_log}: I/O error: Invalid argument"]
 
@@ -193,8 +188,8 @@ def test_a_full_disk_in_a_batch_names_each_log(
     second = tmp_path / "y.csv"
     shutil.copy(small_log, second)
     out = tmp_path / "out"
-    code, _, err = _run("detect", str(small_log), str(second), "--config", str(CONFIG),
-                        "--rerun", "-o", str(out))
+    code, _, err = cli("detect", str(small_log), str(second), "--config", str(CONFIG),
+                       "--rerun", "-o", str(out))
     assert code == 2
     assert [ln for ln in err.splitlines() if ln.startswith("impactcli: error: ")] == [
         f"impactcli: error: {log}: cannot write {out / log.stem}.rrd: No space left on device"
@@ -211,8 +206,8 @@ def test_a_full_tmpdir_in_a_batch_names_each_log(
     monkeypatch.setattr(column_spill.ColumnSpill, "append", full)
     second = tmp_path / "y.csv"
     shutil.copy(small_log, second)
-    code, _, err = _run("detect", str(small_log), str(second), "--config", str(CONFIG),
-                        "--rerun", "-o", str(tmp_path / "out"))
+    code, _, err = cli("detect", str(small_log), str(second), "--config", str(CONFIG),
+                       "--rerun", "-o", str(tmp_path / "out"))
     assert code == 2  # every log failed: the failure's own code
     lines = [ln for ln in err.splitlines() if ln.startswith("impactcli: error: ")]
     assert len(lines) == 2
@@ -224,7 +219,7 @@ def test_a_full_tmpdir_in_a_batch_names_each_log(
 def test_a_newline_in_a_name_stays_one_line(tmp_path: Path) -> None:
     bad = tmp_path / "a\nb.csv"
     bad.write_text("not,a\nlog\n", encoding="utf-8")
-    code, _, err = _run("detect", str(bad), "-o", str(tmp_path / "out"))
+    code, _, err = cli("detect", str(bad), "-o", str(tmp_path / "out"))
     assert code == 3
     [line] = err.splitlines()
     assert f"{tmp_path}/a\\nb.csv: " in line
@@ -308,8 +303,8 @@ def test_a_sink_that_never_finishes_is_given_up_on(
     out = tmp_path / "out"
     t0 = time.monotonic()
     try:
-        code, _, err = _run("detect", str(small_log), "--config", str(CONFIG), "--rerun",
-                            "-o", str(out))
+        code, _, err = cli("detect", str(small_log), "--config", str(CONFIG), "--rerun",
+                           "-o", str(out))
     finally:
         release.set()
     assert time.monotonic() - t0 < 15
@@ -324,7 +319,7 @@ def test_a_newline_in_a_log_name_stays_one_line_in_the_table(
         tmp_path: Path, small_log: Path) -> None:
     odd = tmp_path / "odd\nname.csv"
     shutil.copy(small_log, odd)
-    code, out, _ = _run("detect", str(odd), "--config", str(CONFIG), "-o", str(tmp_path / "o"))
+    code, out, _ = cli("detect", str(odd), "--config", str(CONFIG), "-o", str(tmp_path / "o"))
     assert code == 0
     rows = [ln for ln in out.splitlines() if ln.startswith("odd")]
     assert len(rows) == 1 and rows[0].startswith("odd\\nname.csv ")

@@ -19,9 +19,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from click.testing import CliRunner, Result
+from click.testing import Result
 
-from impactcli.cli import main
 from impactcli.errors import ImpactError
 from impactcli.run.executors import (
     DaskMissingError,
@@ -33,14 +32,12 @@ from impactcli.run.executors import (
 )
 from impactcli.schema import validate
 
+from .cli_run import invoke
+
 distributed = pytest.importorskip("distributed")  # CI installs the dask extra
 
 N_LOGS = 4
 DURATION_S = 5.0
-
-
-def run(args: list[str]) -> Result:
-    return CliRunner().invoke(main, args, catch_exceptions=False)
 
 
 def _msg(res: Result) -> str:
@@ -76,7 +73,7 @@ def fleet(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     bad.parent.mkdir()
     bad.write_bytes(names[1].read_bytes()[:300])  # a gzip stream cut short
     model = root / "model.json"
-    r = run(["identify", str(names[1]), "-o", str(model)])
+    r = invoke(["identify", str(names[1]), "-o", str(model)])
     assert r.exit_code == 0, _msg(r)
     return {"root": root, "logs": names, "bad": bad, "model": model}
 
@@ -85,7 +82,7 @@ def _detect(fleet: dict[str, Any], out: Path, *extra: str,
             inputs: list[str] | None = None) -> Result:
     args = ["detect", *(inputs or [str(p) for p in fleet["logs"]]), "-o", str(out),
             "--model", str(fleet["model"]), *extra]
-    return run(args)
+    return invoke(args)
 
 
 def _timelines(out: Path) -> dict[str, bytes]:
@@ -268,7 +265,7 @@ def test_remote_url_in_and_url_prefix_out(fleet: dict[str, Any], tmp_path: Path)
     fs.pipe("/bucket/in/run2.csv.gz", src.read_bytes())
     fs.pipe("/bucket/cfg/model.json", fleet["model"].read_bytes())
     summary = "memory://bucket/out/summary.json"
-    r = run(["detect", "memory://bucket/in/*.csv.gz", "-o", "memory://bucket/out",
+    r = invoke(["detect", "memory://bucket/in/*.csv.gz", "-o", "memory://bucket/out",
              "--model", "memory://bucket/cfg/model.json", "--summary", summary])
     try:
         assert r.exit_code == 0, _msg(r)
@@ -287,7 +284,7 @@ def test_remote_url_in_and_url_prefix_out(fleet: dict[str, Any], tmp_path: Path)
         assert doc["inputs"] == {"model": {"path": "memory://bucket/cfg/model.json",
                                            "sha256": _sha(fleet["model"])}}
         assert doc["results"][0]["model_source"] == "given"
-        missing = run(["detect", "memory://bucket/in/none.csv.gz", "-o", str(tmp_path / "o")])
+        missing = invoke(["detect", "memory://bucket/in/none.csv.gz", "-o", str(tmp_path / "o")])
         assert missing.exit_code == 3, _msg(missing)
         assert "memory://bucket/in/none.csv.gz: log file not found" in missing.stderr
     finally:
@@ -302,7 +299,7 @@ def test_fleet_report_from_batch_timelines_is_the_same_on_a_cluster(
     timelines = sorted(str(p) for p in out.glob("*.timeline.json"))
     docs = {}
     for name, extra in [("serial", []), ("dask", ["--scheduler", cluster.scheduler.address])]:
-        r = run(["report", *timelines, str(fleet["bad"]), "-o", str(tmp_path / f"{name}.html"),
+        r = invoke(["report", *timelines, str(fleet["bad"]), "-o", str(tmp_path / f"{name}.html"),
                  "--json", str(tmp_path / f"{name}.json"), *extra])
         assert r.exit_code == 4, _msg(r)  # the corrupt log is listed, the others reported
         docs[name] = (tmp_path / f"{name}.json").read_bytes()

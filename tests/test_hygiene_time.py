@@ -13,23 +13,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from click.testing import CliRunner
 
-from impactcli.cli import main
 from impactcli.clock import check_calibrated_rate, gap_steps, sample_clock
 from impactcli.errors import ConfigError, ImpactWarning, LogFormatError
 from impactcli.logs import read_log, write_log
 from impactcli.logs.repair import longest_increasing
 
+from .cli_run import cli
+
 REPO = Path(__file__).resolve().parents[1]
 SAMPLES = REPO / "sample_logs" / "csv"
 CONFIG = REPO / "sample_logs" / "assist_like.config.toml"
 MS = 1_000_000
-
-
-def _run(*args: str) -> tuple[int, str, str]:
-    r = CliRunner().invoke(main, list(args))
-    return r.exit_code, r.stdout, r.stderr
 
 
 def _errors(stderr: str) -> list[str]:
@@ -153,15 +148,15 @@ def _host_stamped(tmp_path: Path) -> tuple[Path, np.ndarray]:
 def test_host_stamped_log_reads_at_its_rate_without_gaps(tmp_path: Path) -> None:
     path, t = _host_stamped(tmp_path)
     assert _old_gaps(t) > 900  # what inspect and detect said before
-    code, out, err = _run("inspect", str(path), "--json")
+    code, out, err = cli("inspect", str(path), "--json")
     assert code == 0, err
     d = json.loads(out)
     assert d["sample_rate_hz"] == 250.0 and d["sample_period_s"] == 0.004
     assert d["gaps"]["count"] == 0 and d["gaps"]["listed"] == []
     assert d["gaps"]["threshold_s"] == pytest.approx(3 * 0.004, rel=1e-2)
     assert any("exact duplicate sample(s)" in r for r in d["repairs"])
-    code, out, err = _run("detect", str(path), "--config", str(CONFIG), "-o",
-                          str(tmp_path / "out"))
+    code, out, err = cli("detect", str(path), "--config", str(CONFIG), "-o",
+                         str(tmp_path / "out"))
     assert code == 0, err
     assert "time gap" not in err
     tl = json.loads((tmp_path / "out" / "host.timeline.json").read_text())
@@ -182,7 +177,7 @@ def test_rows_out_of_order_are_an_error_naming_the_row_and_the_option(tmp_path: 
     # line numbers are 1-based with the header on line 1: data row r is line r + 1
     lines[101], lines[102] = lines[102], lines[101]
     path.write_text("".join(lines), encoding="utf-8")
-    code, _, err = _run("detect", str(path), "-o", str(tmp_path / "out"))
+    code, _, err = cli("detect", str(path), "-o", str(tmp_path / "out"))
     assert code == 3
     assert _errors(err) == [
         f"impactcli: error: {path}: column 'time', row 102 (line 103): time is decreasing "
@@ -208,8 +203,8 @@ def test_repair_order_keeps_the_longest_increasing_run(tmp_path: Path) -> None:
     assert log.n_samples == n - 2 and log.source.repairs == (want,)
     assert np.all(np.diff(log.t_ns) > 0) and 2_000_000_000 not in log.t_ns
     # the same through the command line; the option is recorded in the timeline
-    code, _, err = _run("detect", str(path), "--repair-order", "--config", str(CONFIG),
-                        "-o", str(tmp_path / "out"))
+    code, _, err = cli("detect", str(path), "--repair-order", "--config", str(CONFIG),
+                       "-o", str(tmp_path / "out"))
     assert code == 0, err
     assert f"impactcli: warning: {want}" in err.splitlines()
     tl = json.loads((tmp_path / "out" / "order.timeline.json").read_text())
@@ -221,7 +216,7 @@ def test_a_repeated_stamp_with_other_values(tmp_path: Path) -> None:
     stamp = lines[200].split(",", 1)[0]
     lines[201] = stamp + "," + lines[201].split(",", 1)[1]  # row 200 stamped like row 199
     path.write_text("".join(lines), encoding="utf-8")
-    code, _, err = _run("detect", str(path), "-o", str(tmp_path / "out"))
+    code, _, err = cli("detect", str(path), "-o", str(tmp_path / "out"))
     assert code == 3
     assert _errors(err) == [
         f"impactcli: error: {path}: column 'time', row 201 (line 202): time is repeated "
@@ -266,14 +261,14 @@ def _time_csv(tmp_path: Path, name: str, values: list[str], n: int | None = None
 def test_time_in_ms_is_an_error_naming_the_rate_and_the_option(tmp_path: Path) -> None:
     k = np.arange(10_001)
     path = _time_csv(tmp_path, "ms.csv", [f"{4 * i}" for i in k])
-    code, _, err = _run("inspect", str(path))
+    code, _, err = cli("inspect", str(path))
     assert code == 3
     assert _errors(err) == [
         f"impactcli: error: {path}: column 'time': the implied sample rate is 0.25 Hz, "
         "outside 20 Hz – 100 kHz; read in s, it looks like ms (250 Hz): give the time unit "
         "with --time-unit s|ms|us|ns (or 'unit' under 'time' in a channel map)"]
-    code, _, err = _run("detect", str(path), "--time-unit", "ms", "--config", str(CONFIG),
-                        "-o", str(tmp_path / "out"))
+    code, _, err = cli("detect", str(path), "--time-unit", "ms", "--config", str(CONFIG),
+                       "-o", str(tmp_path / "out"))
     assert code == 0, err
     tl = json.loads((tmp_path / "out" / "ms.timeline.json").read_text())
     assert tl["input"]["sample_rate_hz"] == 250.0 and tl["input"]["duration_s"] == 40.0
@@ -285,7 +280,7 @@ def test_time_in_ns_read_as_seconds(tmp_path: Path) -> None:
     """Short: the rate says ns; long: the time overflows the ns clock first (it used to
     wrap round to a negative duration)."""
     short = _time_csv(tmp_path, "ns.csv", [str(4_000_000 * i) for i in range(1000)], n=1000)
-    code, _, err = _run("inspect", str(short))
+    code, _, err = cli("inspect", str(short))
     assert code == 3
     assert _errors(err) == [
         f"impactcli: error: {short}: column 'time': the implied sample rate is 2.5e-07 Hz, "
@@ -293,7 +288,7 @@ def test_time_in_ns_read_as_seconds(tmp_path: Path) -> None:
         "with --time-unit s|ms|us|ns (or 'unit' under 'time' in a channel map)"]
     assert read_log(short, time_unit="ns").sample_rate_hz == 250.0
     long = _time_csv(tmp_path, "nslong.csv", [str(4_000_000 * i) for i in range(10_001)])
-    code, _, err = _run("detect", str(long), "-o", str(tmp_path / "out"))
+    code, _, err = cli("detect", str(long), "-o", str(tmp_path / "out"))
     assert code == 3
     assert _errors(err) == [
         f"impactcli: error: {long}: column 'time', row 2307 (line 2308): time 9.224e+09 s is "
@@ -304,14 +299,14 @@ def test_time_in_ns_read_as_seconds(tmp_path: Path) -> None:
 
 def test_a_rate_above_100_khz_and_time_unit_misuse(tmp_path: Path) -> None:
     path = _time_csv(tmp_path, "us.csv", [f"{4e-6 * i:.9f}" for i in range(3000)], n=3000)
-    code, _, err = _run("inspect", str(path))
+    code, _, err = cli("inspect", str(path))
     assert code == 3
     assert _errors(err) == [
         f"impactcli: error: {path}: column 'time': the implied sample rate is 250 kHz, "
         "outside 20 Hz – 100 kHz; read in s: give the time unit with --time-unit s|ms|us|ns "
         "(or 'unit' under 'time' in a channel map)"]
     ms = _time_csv(tmp_path, "ms.csv", [str(4 * i) for i in range(3000)], n=3000)
-    code, _, err = _run("detect", str(ms), "--time-unit", "us", "-o", str(tmp_path / "o"))
+    code, _, err = cli("detect", str(ms), "--time-unit", "us", "-o", str(tmp_path / "o"))
     assert code == 3
     assert _errors(err) == [
         f"impactcli: error: {ms}: column 'time': the implied sample rate is 250 kHz, outside "
@@ -326,7 +321,7 @@ def test_a_rate_above_100_khz_and_time_unit_misuse(tmp_path: Path) -> None:
         read_log(ns, time_unit="ms")
     mcap = tmp_path / "x.mcap"
     write_log(_sample(), mcap)
-    code, _, err = _run("detect", str(mcap), "--time-unit", "ms", "-o", str(tmp_path / "o"))
+    code, _, err = cli("detect", str(mcap), "--time-unit", "ms", "-o", str(tmp_path / "o"))
     assert code == 3
     assert _errors(err) == [f"impactcli: error: {mcap}: --time-unit applies to CSV and .npz "
                             "logs only (MCAP and bag stamps are ns)"]
@@ -354,8 +349,8 @@ def test_calibrate_records_the_rate_and_detect_refuses_another(tmp_path: Path) -
     """Thresholds belong to the rate they were calibrated at: a log at another rate is a
     data error naming both rates and what to do, in detect and report alike."""
     cfg = tmp_path / "cal.yaml"
-    code, _, err = _run("calibrate", str(SAMPLES / "assist_free_p2p.csv.gz"), "--generator",
-                        "logged_external", "-o", str(cfg))
+    code, _, err = cli("calibrate", str(SAMPLES / "assist_free_p2p.csv.gz"), "--generator",
+                       "logged_external", "-o", str(cfg))
     assert code == 0, err
     doc = yaml.safe_load(cfg.read_text())
     assert doc["calibration"]["sample_rate_hz"] == 250.0
@@ -367,14 +362,14 @@ def test_calibrate_records_the_rate_and_detect_refuses_another(tmp_path: Path) -
     expected = (f"impactcli: error: {path}: sampled at 125 Hz, but its config ({cfg}) was "
                 "calibrated at 250 Hz (tolerance ±10%): its thresholds belong to that rate; "
                 "calibrate on logs at 125 Hz, or run without --config (uncalibrated)\n")
-    code, out, err = _run("detect", str(path), "--config", str(cfg), "-o", str(tmp_path / "o"))
+    code, out, err = cli("detect", str(path), "--config", str(cfg), "-o", str(tmp_path / "o"))
     assert (code, err) == (3, expected), out
     assert not (tmp_path / "o" / "slow.timeline.json").exists()
-    code, _, err = _run("report", str(path), "--config", str(cfg), "-o",
-                        str(tmp_path / "r.html"))
+    code, _, err = cli("report", str(path), "--config", str(cfg), "-o",
+                       str(tmp_path / "r.html"))
     assert code == 3 and "calibrated at 250 Hz" in err, err
-    code, _, err = _run("detect", str(SAMPLES / "assist_free_multisine.csv.gz"), "--config",
-                        str(cfg), "-o", str(tmp_path / "o2"))
+    code, _, err = cli("detect", str(SAMPLES / "assist_free_multisine.csv.gz"), "--config",
+                       str(cfg), "-o", str(tmp_path / "o2"))
     assert code == 0 and "calibrated at" not in err
 
 
@@ -391,15 +386,15 @@ def test_check_calibrated_rate_tolerance() -> None:
 
 # ----------------------------------------------------------- labels against the log's time
 def test_labels_before_the_log_are_warned_about(tmp_path: Path) -> None:
-    code, _, err = _run("detect", str(SAMPLES / "assist_impacts.csv.gz"), "--config",
-                        str(CONFIG), "-o", str(tmp_path / "out"))
+    code, _, err = cli("detect", str(SAMPLES / "assist_impacts.csv.gz"), "--config",
+                       str(CONFIG), "-o", str(tmp_path / "out"))
     assert code == 0, err
     labels = json.loads((SAMPLES / "assist_impacts.labels.json").read_text())
     labels["events"] = [dict(labels["events"][0], start=-3.5, end=-2.0), *labels["events"]]
     lab = tmp_path / "shifted.labels.json"
     lab.write_text(json.dumps(labels))
-    code, _, err = _run("evaluate", str(tmp_path / "out" / "assist_impacts.timeline.json"),
-                        "--labels", str(lab))
+    code, _, err = cli("evaluate", str(tmp_path / "out" / "assist_impacts.timeline.json"),
+                       "--labels", str(lab))
     assert code == 0, err
     assert (f"impactcli: warning: {lab}: 1 contact(s) start before the log's first sample, "
             "first at -3.5 s: in its warm-up, not counted (labels of another log?)"

@@ -10,15 +10,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from impactcli.cli import main
 from impactcli.cli.fit_table import format_fit_table
 from impactcli.errors import ImpactWarning, ModelError, RobotDescriptionError
 from impactcli.logs import read_log, write_log
 from impactcli.model import IdentifyOptions, identify, read_model
 from impactcli.types import JointSpec, LogSource, RobotDescription, RobotLog
 
+from .cli_run import cli
 from .reference.two_link_arm import TwoLinkArm, multisine
 
 JOINTS = ("shoulder", "elbow")
@@ -42,11 +41,6 @@ def arm_log(n: int = 3000, still: tuple[int, ...] = (),
 def robot(joints: tuple[str, ...] = JOINTS, kin: dict | None = None) -> RobotDescription:  # type: ignore[type-arg]
     return RobotDescription(joints=tuple(JointSpec(j) for j in joints), kinematics=kin,
                             path="robot.json")
-
-
-def run(args: list[str]) -> tuple[int, str, str]:
-    res = CliRunner().invoke(main, args)
-    return res.exit_code, res.stdout, res.stderr
 
 
 @pytest.fixture
@@ -91,7 +85,7 @@ def test_default_kind_follows_the_robot() -> None:
 def test_cli_writes_a_model_and_prints_the_fit_table(files: dict[str, Path],
                                                      tmp_path: Path) -> None:
     out = tmp_path / "model.json"
-    code, stdout, stderr = run(["identify", str(files["log"]), "--robot", str(files["robot"]),
+    code, stdout, stderr = cli(["identify", str(files["log"]), "--robot", str(files["robot"]),
                                 "-o", str(out)])
     assert code == 0, (stdout, stderr)
     m = read_model(out)
@@ -114,7 +108,7 @@ def _assert_one_line_error(code: int, stdout: str, stderr: str, *needles: str) -
 def test_cli_still_log_exit_3(tmp_path: Path) -> None:
     p = tmp_path / "still.csv"
     write_log(arm_log(still=(0, 1)), p)
-    _assert_one_line_error(*run(["identify", str(p), "-o", str(tmp_path / "m.json")]),
+    _assert_one_line_error(*cli(["identify", str(p), "-o", str(tmp_path / "m.json")]),
                            "still.csv", "no motion")
     assert not (tmp_path / "m.json").exists()
 
@@ -122,7 +116,7 @@ def test_cli_still_log_exit_3(tmp_path: Path) -> None:
 def test_cli_constant_joint_exit_3_when_still_joints_are_not_allowed(tmp_path: Path) -> None:
     p = tmp_path / "const.csv"
     write_log(arm_log(still=(0,)), p)
-    _assert_one_line_error(*run(["identify", str(p), "--no-allow-still-joints",
+    _assert_one_line_error(*cli(["identify", str(p), "--no-allow-still-joints",
                                  "-o", str(tmp_path / "m.json")]), "const.csv", "shoulder")
 
 
@@ -132,7 +126,7 @@ def test_cli_still_joint_is_allowed_by_default_as_in_calibrate(tmp_path: Path) -
     p = tmp_path / "const.csv"
     write_log(arm_log(still=(0,)), p)
     out = tmp_path / "m.json"
-    code, stdout, stderr = run(["identify", str(p), "-o", str(out)])
+    code, stdout, stderr = cli(["identify", str(p), "-o", str(out)])
     assert code == 0, (stdout, stderr)
     assert (f"impactcli: warning: {p}: joint(s) stay constant (shoulder 0 rad): only their "
             "constant torque is modelled") in stderr.splitlines()
@@ -147,7 +141,7 @@ def test_cli_mismatched_robot_exit_3(files: dict[str, Path], tmp_path: Path) -> 
     bad = tmp_path / "other.json"
     bad.write_text(json.dumps({**ROBOT, "joints": [{"name": "a"}, {"name": "b"}],
                                "kinematics": None}))
-    _assert_one_line_error(*run(["identify", str(files["log"]), "--robot", str(bad),
+    _assert_one_line_error(*cli(["identify", str(files["log"]), "--robot", str(bad),
                                  "-o", str(tmp_path / "m.json")]), "does not match")
 
 
@@ -157,7 +151,7 @@ def test_cli_unparsable_urdf_exit_3(files: dict[str, Path], tmp_path: Path) -> N
     (tmp_path / "arm.urdf").write_text("<robot name='x'><link name='a'>")
     desc = tmp_path / "urdf_robot.json"
     desc.write_text(json.dumps({**ROBOT, "kinematics": {"type": "urdf", "path": "arm.urdf"}}))
-    code, stdout, stderr = run(["identify", str(files["log"]), "--robot", str(desc),
+    code, stdout, stderr = cli(["identify", str(files["log"]), "--robot", str(desc),
                                 "-o", str(tmp_path / "m.json")])
     _assert_one_line_error(code, stdout, stderr, "arm.urdf", "does not parse")
 
@@ -169,7 +163,7 @@ def test_cli_urdf_model(files: dict[str, Path], tmp_path: Path) -> None:
     desc = tmp_path / "urdf_robot.json"
     desc.write_text(json.dumps({**ROBOT, "kinematics": {"type": "urdf", "path": "arm.urdf"}}))
     out = tmp_path / "m.json"
-    code, stdout, stderr = run(["identify", str(files["log"]), "--robot", str(desc),
+    code, stdout, stderr = cli(["identify", str(files["log"]), "--robot", str(desc),
                                 "-o", str(out)])
     assert code == 0, (stdout, stderr)
     m = read_model(out)
@@ -178,7 +172,7 @@ def test_cli_urdf_model(files: dict[str, Path], tmp_path: Path) -> None:
 
 
 def test_cli_bad_option_is_usage_error(files: dict[str, Path], tmp_path: Path) -> None:
-    code, _, stderr = run(["identify", str(files["log"]), "--cutoff", "-1", "-o",
+    code, _, stderr = cli(["identify", str(files["log"]), "--cutoff", "-1", "-o",
                            str(tmp_path / "m.json")])
     assert code == 2, stderr
 
@@ -289,7 +283,7 @@ def test_negative_friction_warning_through_the_cli(tmp_path: Path) -> None:
     (exit 0): a warning, not an error."""
     path = tmp_path / "reversed.csv"
     write_log(_sanity_log(friction_flip=1), path)
-    code, out, err = run(["identify", str(path), "-o", str(tmp_path / "m.json")])
+    code, out, err = cli(["identify", str(path), "-o", str(tmp_path / "m.json")])
     assert code == 0, err
     lines = [ln for ln in err.splitlines() if "negative" in ln]
     assert len(lines) == 1, err
@@ -363,12 +357,12 @@ def test_one_joint_still_in_the_held_back_part_is_named() -> None:
 def test_calibrate_prints_the_fit_table_identify_prints(files: dict[str, Path],
                                                         tmp_path: Path) -> None:
     out = tmp_path / "m.json"
-    code, ident, stderr = run(["identify", str(files["log"]), "--robot", str(files["robot"]),
+    code, ident, stderr = cli(["identify", str(files["log"]), "--robot", str(files["robot"]),
                                "-o", str(out)])
     assert code == 0, stderr
     table = ident.split("\nmodel kind: ")[0]  # the selection's lines follow the table
     assert "model kind: planar: the robot's kinematics (--robot), used as named" in ident
-    code, cal, stderr = run(["calibrate", str(files["log"]), "--model", str(out),
+    code, cal, stderr = cli(["calibrate", str(files["log"]), "--model", str(out),
                              "--generator", "inverse_dynamics", "-o", str(tmp_path / "c.toml")])
     assert code == 0, (cal, stderr)
     assert table in cal

@@ -1,4 +1,4 @@
-"""Issue 21, items 3a and 6b through the CLI: a robot that shares no joint with the log is
+"""Through the CLI: a robot that shares no joint with the log is
 exit 3 with a config as without one; a log without motion says what works instead."""
 
 from __future__ import annotations
@@ -8,24 +8,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from impactcli.cli import main
 from impactcli.logs import robot_catalogue as robots
 from impactcli.logs import write_log
 from impactcli.types import LogSource, RobotLog
 
+from .cli_run import cli
 from .reference.two_link_arm import TwoLinkArm, multisine
 
 REPO = Path(__file__).resolve().parents[1]
 P2P = REPO / "sample_logs" / "csv" / "assist_free_p2p.csv.gz"
 CONFIG = REPO / "sample_logs" / "assist_like.config.toml"
 ARM = TwoLinkArm()
-
-
-def run(args: list[str]) -> tuple[int, str, str]:
-    res = CliRunner().invoke(main, args)
-    return res.exit_code, res.stdout, res.stderr
 
 
 def one_error_line(err: str) -> str:
@@ -45,7 +39,7 @@ needs_robots = pytest.mark.skipif(robots.data_dir() is None,
 def test_panda_on_a_two_joint_log_is_exit_3_with_or_without_a_config(
         tmp_path: Path, with_config: bool) -> None:
     cfg = ["--config", str(CONFIG)] if with_config else []
-    code, _, err = run(["detect", str(P2P), "--robot", "panda", *cfg,
+    code, _, err = cli(["detect", str(P2P), "--robot", "panda", *cfg,
                         "-o", str(tmp_path / "out")])
     assert code == 3, err
     line = one_error_line(err)
@@ -57,7 +51,7 @@ def test_panda_on_a_two_joint_log_is_exit_3_with_or_without_a_config(
 
 @needs_robots
 def test_calibrate_with_a_robot_sharing_no_joint_is_exit_3(tmp_path: Path) -> None:
-    code, _, err = run(["calibrate", str(P2P), "--robot", "panda",
+    code, _, err = cli(["calibrate", str(P2P), "--robot", "panda",
                         "-o", str(tmp_path / "c.toml")])
     assert code == 3, err
     assert "robot 'panda'" in one_error_line(err)
@@ -70,7 +64,7 @@ def test_a_robot_file_sharing_no_joint_is_exit_3_with_or_without_a_config(
     robot = tmp_path / "other.robot.json"
     robot.write_text(json.dumps({"name": "other", "joints": [{"name": "a1"}, {"name": "a2"}]}))
     cfg = ["--config", str(CONFIG)] if with_config else []
-    code, _, err = run(["detect", str(P2P), "--robot", str(robot), *cfg,
+    code, _, err = cli(["detect", str(P2P), "--robot", str(robot), *cfg,
                         "-o", str(tmp_path / "out")])
     assert code == 3, err
     line = one_error_line(err)
@@ -80,7 +74,7 @@ def test_a_robot_file_sharing_no_joint_is_exit_3_with_or_without_a_config(
 
 def test_a_robot_file_sharing_the_log_joints_still_runs_with_a_config(tmp_path: Path) -> None:
     robot = P2P.with_name("assist_free_p2p.robot.json")
-    code, out, err = run(["detect", str(P2P), "--robot", str(robot), "--config", str(CONFIG),
+    code, out, err = cli(["detect", str(P2P), "--robot", str(robot), "--config", str(CONFIG),
                           "-o", str(tmp_path / "out")])
     assert code == 0, err
     assert "assist_free_p2p.csv.gz" in out
@@ -107,7 +101,7 @@ def test_a_still_arm_without_config_says_what_works(tmp_path: Path, verb: str) -
     still = tmp_path / "still.csv"
     write_log(arm_log(still=True), still)
     out = ["-o", str(tmp_path / ("out" if verb == "detect" else "m.json"))]
-    code, _, err = run([verb, str(still), *out])
+    code, _, err = cli([verb, str(still), *out])
     assert code == 3, err
     line = one_error_line(err)
     assert f"{still}: the log has no motion" in line
@@ -120,9 +114,9 @@ def test_what_the_still_arm_message_says_works(tmp_path: Path) -> None:
     moving, still = tmp_path / "moving.csv", tmp_path / "still.csv"
     write_log(arm_log(still=False), moving)
     write_log(arm_log(still=True), still)
-    code, _, err = run(["identify", str(moving), "-o", str(tmp_path / "m.json")])
+    code, _, err = cli(["identify", str(moving), "-o", str(tmp_path / "m.json")])
     assert code == 0, err
-    code, _out, err = run(["detect", str(still), "--model", str(tmp_path / "m.json"),
+    code, _out, err = cli(["detect", str(still), "--model", str(tmp_path / "m.json"),
                           "-o", str(tmp_path / "out")])
     assert code == 0, err
     assert (tmp_path / "out" / "still.timeline.json").is_file()

@@ -1,4 +1,4 @@
-"""Incidents that tell the truth (issue 21 item 2, issue 23 item 5, issue 21 item 4):
+"""Incidents that tell the truth:
 
 - no alarm after warm-up disappears: an incident never spans the warm-up's end, and a
   lasting load (an alarm of 10 s or more) is a finding of its own, counted by the terminal,
@@ -20,9 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from impactcli.cli import main
 from impactcli.config import save_config
 from impactcli.detect.events import LONG_EVENT_S, extract_events
 from impactcli.detect.incident_builder import build_findings, incident_context, number_incidents
@@ -33,15 +31,13 @@ from impactcli.logs.robot_files import write_labels, write_robot
 from impactcli.schema import validate
 from impactcli.types import Event
 
+from .cli_run import invoke
+
 REPO = Path(__file__).resolve().parents[1]
 CSV = REPO / "sample_logs" / "csv"
 CONFIG = REPO / "sample_logs" / "assist_like.config.toml"
 #: The wording the verdict gives a lasting load.
 WHY = "an unknown payload, a clamp, or a model that no longer fits"
-
-
-def run(*args: str) -> object:
-    return CliRunner().invoke(main, list(args))
 
 
 # ------------------------------------------------------------------------ the warm-up's end
@@ -127,10 +123,10 @@ def payload_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_payload_alarms_after_warmup_are_counted_everywhere(payload_log: Path,
                                                             tmp_path: Path) -> None:
-    """Issue 21 item 2: the terminal, the timeline, the report's verdict and
+    """The terminal, the timeline, the report's verdict and
     --fail-on-detect all count the lasting load and the two pushes during it."""
     out = tmp_path / "det"
-    r = run("detect", str(payload_log), "--config", str(CONFIG), "-o", str(out))
+    r = invoke("detect", str(payload_log), "--config", str(CONFIG), "-o", str(out))
     assert r.exit_code == 0, r.output
     row = next(line for line in r.stdout.splitlines() if line.startswith("payload.csv.gz"))
     assert row.split()[4:7] == ["2", "1", "|"]  # 2 incidents, 1 lasting load
@@ -163,13 +159,13 @@ def test_payload_alarms_after_warmup_are_counted_everywhere(payload_log: Path,
     owned = sorted([k for i in tl["incidents"] for k in i["events"]] + [load["event"]])
     assert owned == product
     # the gate
-    r = run("detect", str(payload_log), "--config", str(CONFIG), "-o", str(tmp_path / "g"),
-            "--fail-on-detect")
+    r = invoke("detect", str(payload_log), "--config", str(CONFIG), "-o", str(tmp_path / "g"),
+               "--fail-on-detect")
     assert r.exit_code == 1, r.output
     # the report: the verdict names the lasting load, the numbers are the terminal's
     js = tmp_path / "r.json"
-    r = run("report", str(payload_log), "--config", str(CONFIG), "-o",
-            str(tmp_path / "r.html"), "--json", str(js))
+    r = invoke("report", str(payload_log), "--config", str(CONFIG), "-o",
+               str(tmp_path / "r.html"), "--json", str(js))
     assert r.exit_code == 0, r.output
     doc = json.loads(js.read_text())
     validate(doc, "report", AssertionError, "report")
@@ -190,19 +186,19 @@ def test_a_lasting_load_alone_is_no_longer_hidden(tmp_path: Path) -> None:
     else; before, 0 incidents, "No incident after warm-up" and exit 0 under
     --fail-on-detect."""
     log = str(CSV / "assist_payload.csv.gz")
-    r = run("detect", log, "--config", str(CONFIG), "-o", str(tmp_path / "a"),
-            "--fail-on-detect")
+    r = invoke("detect", log, "--config", str(CONFIG), "-o", str(tmp_path / "a"),
+               "--fail-on-detect")
     assert r.exit_code == 1, r.output
     row = next(line for line in r.stdout.splitlines() if line.startswith("assist_payload"))
     assert row.split()[4:7] == ["0", "1", "|"]
-    r = run("detect", log, "--config", str(CONFIG), "-o", str(tmp_path / "b"),
-            "--fail-on-force", "1")
+    r = invoke("detect", log, "--config", str(CONFIG), "-o", str(tmp_path / "b"),
+               "--fail-on-force", "1")
     assert r.exit_code == 1, r.output
     assert re.search(r"impactcli: assist_payload\.csv\.gz: the lasting load from 3\.000 s "
                      r"on link \d, ~[\d.]+ N, exceeds --fail-on-force 1 N", r.stderr), r.stderr
     js = tmp_path / "r.json"
-    r = run("report", log, "--config", str(CONFIG), "-o", str(tmp_path / "r.html"),
-            "--json", str(js))
+    r = invoke("report", log, "--config", str(CONFIG), "-o", str(tmp_path / "r.html"),
+               "--json", str(js))
     assert r.exit_code == 0, r.output
     verdict = json.loads(js.read_text())["logs"][0]["verdict"]
     assert verdict.startswith("Lasting load from 3.0 s (to the log's end) on joints ")
@@ -254,7 +250,7 @@ def test_a_silent_joint_whose_residual_stands_out_gives_the_link() -> None:
 
 @pytest.mark.slow
 def test_link2_at_35_percent_is_put_on_link2(tmp_path: Path) -> None:
-    """Issue 23 item 5: on a held-out heavy arm (robot 306), pushes on link 2 at 35 % of
+    """On a held-out heavy arm (robot 306), pushes on link 2 at 35 % of
     its length during frequency-modulated triangles, with joint 2's thresholds set high by
     its calibration (tripled: its detectors stay silent) — the link from which detector
     fired put 2 of the 12 on link 2; the residuals against their own noise put ≥ 10."""
@@ -277,16 +273,16 @@ def test_link2_at_35_percent_is_put_on_link2(tmp_path: Path) -> None:
         free.append(str(tmp_path / f"{name}.csv.gz"))
     robot = s.robot
     write_robot(robot, tmp_path / "arm.robot.json")
-    r = run("calibrate", *free, "--robot", str(tmp_path / "arm.robot.json"), "--generator",
-            "inverse_dynamics", "--threshold-rule", "leave-one-out",  # as measured
-            "-o", str(tmp_path / "c.toml"))
+    r = invoke("calibrate", *free, "--robot", str(tmp_path / "arm.robot.json"), "--generator",
+               "inverse_dynamics", "--threshold-rule", "leave-one-out",  # as measured
+               "-o", str(tmp_path / "c.toml"))
     assert r.exit_code == 0, r.output
     save_config(raised(load_config(tmp_path / "c.toml"), robot.joints[1].name, 3.0),
                 tmp_path / "c3.toml")
     contact = sim(link2_at_35("heavy_geared"), 31)
     write_log(contact.log, tmp_path / "fm.csv.gz")
-    r = run("detect", str(tmp_path / "fm.csv.gz"), "--config", str(tmp_path / "c3.toml"),
-            "--robot", str(tmp_path / "arm.robot.json"), "-o", str(tmp_path / "o"))
+    r = invoke("detect", str(tmp_path / "fm.csv.gz"), "--config", str(tmp_path / "c3.toml"),
+               "--robot", str(tmp_path / "arm.robot.json"), "-o", str(tmp_path / "o"))
     assert r.exit_code == 0, r.output
     tl = json.loads((tmp_path / "o" / "fm.timeline.json").read_text())
     counted = [i for i in tl["incidents"] if not i["in_warmup"]]
@@ -313,12 +309,12 @@ def test_forces_beyond_what_the_arm_can_exert_are_marked(tmp_path: Path) -> None
     write_log(dataclasses.replace(log, torque_model=None, torque_ext=None, **deg),
               tmp_path / "deg.csv.gz")
     robot = str(CSV / "assist_pushes.robot.json")
-    r = run("detect", str(tmp_path / "deg.csv.gz"), "--robot", robot, "-o",
-            str(tmp_path / "o"))
+    r = invoke("detect", str(tmp_path / "deg.csv.gz"), "--robot", robot, "-o",
+               str(tmp_path / "o"))
     assert r.exit_code == 3 and "positions look like degrees" in r.stderr  # the reader's
     # check; told they are radians, the forces are what is left to catch it
-    r = run("detect", str(tmp_path / "deg.csv.gz"), "--robot", robot, "--position-unit",
-            "rad", "-o", str(tmp_path / "o"))
+    r = invoke("detect", str(tmp_path / "deg.csv.gz"), "--robot", robot, "--position-unit",
+               "rad", "-o", str(tmp_path / "o"))
     assert r.exit_code == 0, r.output
     warned = [x for x in r.stderr.splitlines() if "beyond what the arm can exert" in x]
     assert len(warned) == 1, r.stderr
@@ -330,15 +326,15 @@ def test_forces_beyond_what_the_arm_can_exert_are_marked(tmp_path: Path) -> None
     assert bad and all(i["force_n"] > i["force_ceiling_n"] for i in bad)
     assert all("positions in degrees?" in i["force_check"] for i in bad)
     # the same log in radians: every force plausible, no warning
-    r = run("detect", str(CSV / "assist_pushes.csv.gz"), "--config", str(CONFIG), "-o",
-            str(tmp_path / "ok"))
+    r = invoke("detect", str(CSV / "assist_pushes.csv.gz"), "--config", str(CONFIG), "-o",
+               str(tmp_path / "ok"))
     assert "beyond what the arm can exert" not in r.stderr
     tl = json.loads((tmp_path / "ok" / "assist_pushes.timeline.json").read_text())
     assert all(i["force_plausible"] for i in tl["incidents"] if i["force_n"] is not None)
     # the report
     js = tmp_path / "r.json"
-    r = run("report", str(tmp_path / "deg.csv.gz"), "--robot", robot, "--position-unit",
-            "rad", "-o", str(tmp_path / "r.html"), "--json", str(js))
+    r = invoke("report", str(tmp_path / "deg.csv.gz"), "--robot", robot, "--position-unit",
+               "rad", "-o", str(tmp_path / "r.html"), "--json", str(js))
     assert r.exit_code == 0, r.output
     verdict = json.loads(js.read_text())["logs"][0]["verdict"]
     assert "beyond what the arm can exert: positions in degrees?" in verdict

@@ -8,14 +8,13 @@ from typing import Any
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from impactcli.cli import main
 from impactcli.errors import LabelsError
 from impactcli.logs import write_log
 from impactcli.logs.channel_labels import stretches
 from impactcli.schema import validate
 
+from .cli_run import invoke
 from .conftest import make_log
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
@@ -23,10 +22,6 @@ SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
 #: 4.0–4.5 s, 6.0–6.004 s (two samples), 6.04–6.1 s (a bounce 36 ms later), 8.0–8.3 s
 STRETCHES = [(500, 550), (1000, 1125), (1500, 1501), (1510, 1525), (2000, 2075)]
 PEAKS = [12.0, 20.0, 3.0, 4.0, 35.0]
-
-
-def invoke(*args: str) -> Any:
-    return CliRunner().invoke(main, list(args), catch_exceptions=False)
 
 
 def info(r: Any) -> str:

@@ -163,6 +163,16 @@ def test_no_cli_verb_imports_another_verbs_logic() -> None:
     assert not bad, "\n".join(bad)
 
 
+def test_no_test_imports_a_benchmark() -> None:
+    """Benchmarks are scripts that measure; what a test and a benchmark share lives in a
+    test helper module (tests/sample_criteria.py, tests/incident_criteria.py)."""
+    pattern = re.compile(r"^\s*(from\s+(\.|tests\.)benchmarks\b|import\s+tests\.benchmarks\b"
+                         r"|from\s+\.\s+import\s+benchmarks\b)", re.M)
+    bad = [f.name for f in sorted((ROOT / "tests").glob("*.py"))
+           if pattern.search(f.read_text("utf-8"))]
+    assert not bad, bad
+
+
 def test_no_module_over_700_lines() -> None:
     long = {m: n for m, p in MODULES.items()
             if (n := len(p.read_text().splitlines())) > MAX_LINES}
@@ -181,6 +191,17 @@ def test_no_test_only_code_in_the_package() -> None:
     bad = [m for m, p in MODULES.items()
            if re.search(r"^\s*(from|import) tests\b", p.read_text(), re.M)]
     assert not bad
+
+
+def test_no_issue_numbers_in_code_docs_or_tests() -> None:
+    """The repo explains itself: a reader has no issue tracker, so nothing says "issue 21"."""
+    cites = re.compile(r"\bissues? #?\d|\(#\d+\)", re.I)
+    texts = [*PKG.rglob("*.py"), *(ROOT / "docs").glob("*.md"), ROOT / "README.md",
+             *(ROOT / "tests").rglob("*.py")]
+    bad = [f"{f.relative_to(ROOT)}:{n}" for f in texts if f.name != "test_layout.py"
+           for n, line in enumerate(f.read_text("utf-8").splitlines(), 1)
+           if cites.search(line)]
+    assert not bad, bad
 
 
 #: ``docs/x.md`` (or ``schemas/x.json``, ``sample_logs/...``) cited in code or docs.

@@ -1,4 +1,4 @@
-"""A folder that is not a rosbag2 bag stands for the logs in it (issue 21, item 6c): every
+"""A folder that is not a rosbag2 bag stands for the logs in it: every
 log of it for the verbs that take many (``detect``, ``report``), its one log for the verbs
 that read one; several logs for those are a usage error (exit 2) listing them, a folder
 without a log a data error (exit 3) naming what was looked for."""
@@ -10,11 +10,11 @@ import shutil
 from pathlib import Path
 
 import pytest
-from click.testing import CliRunner
 
-from impactcli.cli import main
 from impactcli.logs.paths import LOG_SUFFIXES
 from impactcli.logs.urls import expand_inputs
+
+from .cli_run import cli
 
 REPO = Path(__file__).resolve().parents[1]
 SAMPLES = REPO / "sample_logs"
@@ -23,11 +23,6 @@ P2P = SAMPLES / "csv" / "assist_free_p2p.csv.gz"
 MCAP = SAMPLES / "mcap" / "assist_free_triangle.mcap"
 LOOKED_FOR = (f"{', '.join(LOG_SUFFIXES)} files or rosbag2 folders (with metadata.yaml), "
               "directly inside it")
-
-
-def _run(*args: object) -> tuple[int, str, str]:
-    r = CliRunner().invoke(main, [str(a) for a in args])
-    return r.exit_code, r.stdout, r.stderr
 
 
 def _errors(stderr: str) -> list[str]:
@@ -61,13 +56,13 @@ def test_the_logs_of_a_folder_sorted_and_not_recursive(two_logs: Path) -> None:
 
 def test_detect_and_report_read_every_log_of_a_folder(two_logs: Path, tmp_path: Path) -> None:
     out = tmp_path / "out"
-    code, stdout, err = _run("detect", two_logs, "--config", CONFIG, "-o", out)
+    code, stdout, err = cli("detect", two_logs, "--config", CONFIG, "-o", out)
     assert code == 0, err
     assert sorted(p.name for p in out.iterdir()) == ["a_triangle.timeline.json",
                                                      "b_p2p.timeline.json"]
     assert "batch: 2 done, 0 failed of 2 logs" in stdout
-    code, _, err = _run("report", two_logs, "--config", CONFIG, "-o", tmp_path / "r.html",
-                        "--json", tmp_path / "r.json")
+    code, _, err = cli("report", two_logs, "--config", CONFIG, "-o", tmp_path / "r.html",
+                       "--json", tmp_path / "r.json")
     assert code == 0, err
     rep = json.loads((tmp_path / "r.json").read_text())
     assert [Path(x["input"]["path"]).name for x in rep["logs"]] == ["a_triangle.mcap",
@@ -79,15 +74,15 @@ def test_a_verb_reading_one_log_reads_a_folders_one_log(tmp_path: Path) -> None:
     d.mkdir()
     shutil.copy(P2P, d / "run.csv.gz")
     (d / "README.md").write_text("free motion\n")
-    code, out, err = _run("inspect", d, "--json")
+    code, out, err = cli("inspect", d, "--json")
     assert code == 0, err
     assert json.loads(out)["path"] == str(d / "run.csv.gz")
-    code, out, err = _run("labels", d, "--from-channel", "shoulder.torque_ext", "--above", "5",
-                          "--link", "1", "-o", tmp_path / "l.json")
+    code, out, err = cli("labels", d, "--from-channel", "shoulder.torque_ext", "--above", "5",
+                         "--link", "1", "-o", tmp_path / "l.json")
     assert code == 0, err
     assert json.loads((tmp_path / "l.json").read_text())["source"]["log"] == str(
         d / "run.csv.gz")
-    code, _, err = _run("identify", d, "-o", tmp_path / "m.json")
+    code, _, err = cli("identify", d, "-o", tmp_path / "m.json")
     assert code == 0, err
 
 
@@ -103,14 +98,14 @@ def test_a_folder_of_several_logs_for_a_verb_reading_one_is_a_usage_error(
     for verb in (["inspect"], ["identify", "-o", tmp_path / "m.json"],
                  ["labels", "--from-channel", "x", "--above", "1", "--link", "1", "-o",
                   tmp_path / "l.json"]):
-        code, _, err = _run(verb[0], d, *verb[1:])
+        code, _, err = cli(verb[0], d, *verb[1:])
         assert code == 2, (verb, err)
         assert _errors(err) == [want], verb
     two = tmp_path / "two"
     two.mkdir()
     shutil.copy(P2P, two / "a.csv.gz")
     shutil.copy(MCAP, two / "b.mcap")
-    code, _, err = _run("inspect", two)
+    code, _, err = cli("inspect", two)
     assert code == 2
     assert _errors(err) == [f"impactcli: error: {two}: a folder of 2 logs (a.csv.gz, b.mcap), "
                             "and this verb reads one: name the log (detect and report read "
@@ -127,7 +122,7 @@ def test_a_folder_without_a_log_is_a_data_error_naming_what_was_looked_for(
         (d / "arm.robot.json").write_text("{}\n")
     want = f"impactcli: error: {d}: a folder without any log (looked for {LOOKED_FOR})"
     for verb in (["inspect"], ["detect", "-o", tmp_path / "o"]):
-        code, _, err = _run(verb[0], d, *verb[1:])
+        code, _, err = cli(verb[0], d, *verb[1:])
         assert code == 3, (verb, err)
         assert _errors(err) == [want], verb
 
@@ -140,7 +135,7 @@ def test_a_rosbag2_folder_inside_a_folder_is_one_of_its_logs(tmp_path: Path) -> 
     d.mkdir()
     write_rosbag2(read_log(P2P), d / "bag")  # a rosbag2 folder
     assert (d / "bag" / "metadata.yaml").is_file()
-    code, out, err = _run("inspect", d, "--json")
+    code, out, err = cli("inspect", d, "--json")
     assert code == 0, err
     assert json.loads(out)["format"] == "rosbag2"
     assert expand_inputs([str(d)]) == [str(d / "bag")]

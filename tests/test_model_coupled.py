@@ -1,5 +1,5 @@
 """The ``coupled`` model kind: structure, exact recovery, simulated planar arms, the product's
-verbs with it, and the real logs (skipped when ``../shared/real_logs`` is absent)."""
+verbs with it, and the real logs (skipped when they are not on the machine: tests/conftest.py)."""
 
 from __future__ import annotations
 

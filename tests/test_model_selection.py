@@ -10,9 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from impactcli.cli import main
 from impactcli.config import DetectorConfig, load_config, save_config
 from impactcli.logs import read_log, write_log
 from impactcli.model import IdentifyOptions, identify, read_model
@@ -20,6 +18,7 @@ from impactcli.model.identification import fit_rows, prepare_rows
 from impactcli.model.selection import folds_of, one_se, select_model
 from impactcli.types import LogSource, RobotLog
 
+from .cli_run import cli
 from .reference.two_link_arm import TwoLinkArm, multisine
 
 JOINTS = ("shoulder", "elbow")
@@ -210,15 +209,10 @@ def test_the_record_survives_the_model_file_and_a_config(tmp_path: Path, suffix:
 
 
 # ------------------------------------------------------------------ through the CLI
-def run(args: list[str]) -> tuple[int, str, str]:
-    res = CliRunner().invoke(main, args)
-    return res.exit_code, res.stdout, res.stderr
-
-
 def test_identify_without_kind_prints_the_choice_and_records_it(tmp_path: Path) -> None:
     log = tmp_path / "arm.csv"
     write_log(arm_logs(1, 5000)[0], log)
-    code, out, err = run(["identify", str(log), "-o", str(tmp_path / "m.json")])
+    code, out, err = cli(["identify", str(log), "-o", str(tmp_path / "m.json")])
     assert code == 0, err
     assert "model kind: coupled: held-back error " in out
     assert "of 5 held-back stretches" in out
@@ -230,7 +224,7 @@ def test_identify_without_kind_prints_the_choice_and_records_it(tmp_path: Path) 
 def test_identify_with_kind_uses_it_as_named(tmp_path: Path) -> None:
     log = tmp_path / "arm.csv"
     write_log(arm_logs(1, 5000)[0], log)
-    code, out, err = run(["identify", str(log), "--kind", "decoupled",
+    code, out, err = cli(["identify", str(log), "--kind", "decoupled",
                           "-o", str(tmp_path / "m.json")])
     assert code == 0, err
     assert "model kind:" not in out
@@ -241,7 +235,7 @@ def test_identify_with_kind_uses_it_as_named(tmp_path: Path) -> None:
 def test_detect_without_config_uses_the_kind_that_predicts_best(tmp_path: Path) -> None:
     log = tmp_path / "arm.csv"
     write_log(arm_logs(1, 5000)[0], log)
-    code, _out, err = run(["detect", str(log), "-o", str(tmp_path / "out")])
+    code, _out, err = cli(["detect", str(log), "-o", str(tmp_path / "out")])
     assert code == 0, err
     tl = json.loads((tmp_path / "out" / "arm.timeline.json").read_text())
     model = tl["model"]["model"]
@@ -262,7 +256,7 @@ def test_detect_without_config_on_an_uncoupled_arm_keeps_decoupled(tmp_path: Pat
     tau = decoupled_truth(q, qd, qdd) + np.random.default_rng(1).normal(0, 0.02, (5000, 2))
     log = tmp_path / "free.csv"
     write_log(_log(q, tau, "free.csv"), log)
-    code, _, err = run(["detect", str(log), "-o", str(tmp_path / "out")])
+    code, _, err = cli(["detect", str(log), "-o", str(tmp_path / "out")])
     assert code == 0, err
     model = json.loads((tmp_path / "out" / "free.timeline.json").read_text())["model"]["model"]
     assert model["kind"] == "decoupled"
@@ -320,7 +314,7 @@ def test_calibrate_with_the_chosen_model_then_detect(tmp_path: Path) -> None:
     t = np.arange(4000) * 0.004
     q, qd, qdd = multisine(t, 2, seed=99)
     write_log(_log(q, ARM.torque(q, qd, qdd), "other.csv"), other)
-    code, _, err = run(["detect", str(other), "--config", str(tmp_path / "c.toml"),
+    code, _, err = cli(["detect", str(other), "--config", str(tmp_path / "c.toml"),
                         "-o", str(tmp_path / "out")])
     assert code == 0, err
     tl = json.loads((tmp_path / "out" / "other.timeline.json").read_text())

@@ -1,4 +1,4 @@
-"""Position units that cannot be right (issue 21, item 4), through the command line: a log
+"""Position units that cannot be right, through the command line: a log
 whose positions are degrees is refused by name unless ``--position-unit`` says the unit
 (degrees are then read as radians, with the references and velocities), a merely
 suspicious joint is warned of, ``inspect`` shows the verdict, and positions far outside a
@@ -13,13 +13,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from impactcli.cli import main
 from impactcli.errors import ImpactError, ImpactWarning
 from impactcli.logs import read_log, write_log
 from impactcli.schema import validate
 from impactcli.types import LogSource, RobotLog
+
+from .cli_run import cli
 
 JOINTS = ("shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3")
 RATE = 250.0
@@ -56,11 +56,6 @@ def _scaled(log: RobotLog, joints: list[int], factor: float) -> RobotLog:
                     source=log.source, **out)
 
 
-def _run(*args: object) -> tuple[int, str, str]:
-    r = CliRunner().invoke(main, [str(a) for a in args])
-    return r.exit_code, r.stdout, r.stderr
-
-
 def _errors(stderr: str) -> list[str]:
     return [ln for ln in stderr.splitlines() if ln.startswith("impactcli: error:")]
 
@@ -84,7 +79,7 @@ def degrees(arm: RobotLog, tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_a_log_in_degrees_is_refused_naming_the_option(degrees: Path, tmp_path: Path) -> None:
     for verb in (["detect", "-o", tmp_path / "o"], ["identify", "-o", tmp_path / "m.json"],
                  ["calibrate", "-o", tmp_path / "c.toml"]):
-        code, _, err = _run(verb[0], degrees, *verb[1:])
+        code, _, err = cli(verb[0], degrees, *verb[1:])
         assert code == 3, (verb, err)
         (line,) = _errors(err)
         assert line.startswith(f"impactcli: error: {degrees}: positions look like degrees: "
@@ -106,7 +101,7 @@ def test_position_unit_deg_reads_degrees_as_radians(arm: RobotLog, degrees: Path
                                    err_msg=s)
         np.testing.assert_array_equal(getattr(log, s), getattr(as_read, s) * (math.pi / 180))
     np.testing.assert_array_equal(log.torque, as_read.torque)
-    code, _, err = _run("detect", degrees, "--position-unit", "deg", "-o", tmp_path / "o")
+    code, _, err = cli("detect", degrees, "--position-unit", "deg", "-o", tmp_path / "o")
     assert code == 0, err
     tl = json.loads((tmp_path / "o" / "arm_deg.timeline.json").read_text())
     assert tl["input"]["read_options"] == {"position_unit": "deg"}
@@ -114,14 +109,14 @@ def test_position_unit_deg_reads_degrees_as_radians(arm: RobotLog, degrees: Path
 
 
 def test_position_unit_rad_overrides_the_refusal_with_a_warning(degrees: Path) -> None:
-    code, _, err = _run("inspect", degrees, "--position-unit", "rad")
+    code, _, err = cli("inspect", degrees, "--position-unit", "rad")
     assert code == 0, err
     assert any("positions look like degrees" in w for w in _warnings(err))
 
 
 def test_inspect_shows_the_verdict_and_the_ranges(degrees: Path, arm: RobotLog,
                                                   tmp_path: Path) -> None:
-    code, out, err = _run("inspect", degrees, "--json")
+    code, out, err = cli("inspect", degrees, "--json")
     assert code == 0, err
     d = json.loads(out)
     validate(d, "inspect", ImpactError, "inspect --json")
@@ -131,13 +126,13 @@ def test_inspect_shows_the_verdict_and_the_ranges(degrees: Path, arm: RobotLog,
     lo, hi = d["ranges"]["position"]["elbow"]
     assert lo == pytest.approx(float(np.min(arm.position[:, 2])) * DEG, rel=1e-5)
     assert hi == pytest.approx(float(np.max(arm.position[:, 2])) * DEG, rel=1e-5)
-    code, out, _ = _run("inspect", degrees)
+    code, out, _ = cli("inspect", degrees)
     assert code == 0
     assert any(ln.startswith("position unit    cannot be radians: ")
                for ln in out.splitlines())
     rad = tmp_path / "arm.csv"
     write_log(arm, rad)
-    code, out, err = _run("inspect", rad, "--json")
+    code, out, err = cli("inspect", rad, "--json")
     assert code == 0, err
     d = json.loads(out)
     validate(d, "inspect", ImpactError, "inspect --json")
@@ -149,7 +144,7 @@ def test_one_joint_beyond_an_arm_is_warned_of_not_refused(arm: RobotLog,
                                                           tmp_path: Path) -> None:
     path = tmp_path / "wrist.csv"
     write_log(_scaled(arm, [5], 40.0), path)  # one joint's scale is off (a gear ratio?)
-    code, out, err = _run("inspect", path, "--json")
+    code, out, err = cli("inspect", path, "--json")
     assert code == 0, err
     (w,) = _warnings(err)
     assert w.startswith(f"impactcli: warning: {path}: joint(s) wrist_3 travels ")
@@ -160,10 +155,10 @@ def test_one_joint_beyond_an_arm_is_warned_of_not_refused(arm: RobotLog,
 def test_an_mcap_in_degrees_is_refused_as_well(arm: RobotLog, tmp_path: Path) -> None:
     path = tmp_path / "arm_deg.mcap"
     write_log(_scaled(arm, list(range(6)), DEG), path, mcap_encoding="ros2")
-    code, _, err = _run("detect", path, "-o", tmp_path / "o")
+    code, _, err = cli("detect", path, "-o", tmp_path / "o")
     assert code == 3
     assert _errors(err)[0].startswith(f"impactcli: error: {path}: positions look like degrees")
-    code, _, err = _run("inspect", path, "--position-unit", "deg")
+    code, _, err = cli("inspect", path, "--position-unit", "deg")
     assert code == 0, err
 
 
@@ -191,12 +186,12 @@ def test_positions_far_outside_a_urdfs_limits_are_warned_of_by_joint(tmp_path: P
     robot.write_text(json.dumps({"name": "two", "joints": [{"name": "a"}, {"name": "b"}],
                                  "joint_map": {"a": "j1", "b": "j2"},
                                  "kinematics": {"type": "urdf", "path": "two.urdf"}}))
-    code, out, err = _run("inspect", path, "--robot", robot, "--json")
+    code, out, err = cli("inspect", path, "--robot", robot, "--json")
     assert code == 0, err
     want = (f"{path}: joint a's positions 2.2…2.8 rad lie far outside its URDF limits -1…1 "
             "rad: check the position unit (--position-unit deg|rad), the joint's offset and "
             "sign, and the joint map")
     assert _warnings(err) == [f"impactcli: warning: {want}"]  # b is continuous: no limits
     assert json.loads(out)["warnings"] == [want]
-    code, _, err = _run("inspect", path)  # without the robot: nothing to compare with
+    code, _, err = cli("inspect", path)  # without the robot: nothing to compare with
     assert code == 0 and _warnings(err) == []

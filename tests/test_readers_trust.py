@@ -1,4 +1,4 @@
-"""Logs as loggers write them (issue 21, items 5, 6a and 7), through the command line: time
+"""Logs as loggers write them, through the command line: time
 columns by their common names (their unit from the name), blanks around separators,
 ``--time-column`` and ``--rate`` through the one read-option path (recorded in the
 timeline, read again by ``report``), the separator of a mapped CSV detected, and a low
@@ -21,6 +21,8 @@ from impactcli.errors import ImpactWarning, LogFormatError
 from impactcli.logs import read_log
 from impactcli.logs.repair import rate_message
 from impactcli.types import RobotLog
+
+from .cli_run import cli
 
 REPO = Path(__file__).resolve().parents[1]
 SAMPLE = REPO / "sample_logs" / "csv" / "assist_free_p2p.csv.gz"  # 40 s, 250 Hz, 2 joints
@@ -65,17 +67,12 @@ def _with_time(path: Path, name: str | None, unit: str = "s", sep: str = ",") ->
                                                                         strict=True)], sep)
 
 
-def _run(*args: str) -> tuple[int, str, str]:
-    r = CliRunner().invoke(main, [str(a) for a in args])
-    return r.exit_code, r.stdout, r.stderr
-
-
 def _errors(stderr: str) -> list[str]:
     return [ln for ln in stderr.splitlines() if ln.startswith("impactcli: error:")]
 
 
 def _inspect(path: Path, *opts: str) -> dict[str, object]:
-    code, out, err = _run("inspect", str(path), "--json", *opts)
+    code, out, err = cli("inspect", str(path), "--json", *opts)
     assert code == 0, err
     d: dict[str, object] = json.loads(out)
     return d
@@ -115,13 +112,13 @@ def test_a_unit_given_against_the_name_wins_warned_and_one_the_name_lacks_applie
     holds microseconds), with a warning naming what it replaced; a wrong one is then
     caught by the rate check, naming the unit that fits."""
     us = _with_time(tmp_path / "us.csv", "time_ms", "us")  # mislabelled: us, named ms
-    code, out, err = _run("inspect", str(us), "--json", "--time-unit", "us")
+    code, out, err = cli("inspect", str(us), "--json", "--time-unit", "us")
     assert code == 0, err
     assert json.loads(out)["sample_rate_hz"] == 250.0
     assert (f"impactcli: warning: {us}: --time-unit us given: column 'time_ms' is read in "
             "us, not in ms as its name says") in err
     ms = _with_time(tmp_path / "ms.csv", "time_ms", "ms")
-    code, _, err = _run("inspect", str(ms), "--time-unit", "us")
+    code, _, err = cli("inspect", str(ms), "--time-unit", "us")
     assert code == 3
     assert "read in us, it looks like ms (250 Hz)" in _errors(err)[0]
     stamp = _with_time(tmp_path / "stamp.csv", "Stamp", "ms")
@@ -130,7 +127,7 @@ def test_a_unit_given_against_the_name_wins_warned_and_one_the_name_lacks_applie
 
 def test_no_time_column_names_the_ways_out(tmp_path: Path) -> None:
     path = _with_time(tmp_path / "elapsed.csv", "elapsed")
-    code, _, err = _run("detect", str(path), "--config", str(CONFIG), "-o", str(tmp_path / "o"))
+    code, _, err = cli("detect", str(path), "--config", str(CONFIG), "-o", str(tmp_path / "o"))
     assert code == 3
     assert _errors(err) == [
         f"impactcli: error: {path}: no time column (recognised: time, timestamp, stamp, t or "
@@ -146,7 +143,7 @@ def test_time_column_option_names_any_column(tmp_path: Path, canonical: RobotLog
     np.testing.assert_array_equal(_read(path, time_column="elapsed").t_ns, canonical.t_ns)
     ms = _with_time(tmp_path / "elapsed_ms.csv", "Elapsed_ms", "ms")  # the unit of its suffix
     assert _inspect(ms, "--time-column", "elapsed_ms")["duration_s"] == 40.0
-    code, _, err = _run("inspect", str(path), "--time-column", "clock")
+    code, _, err = cli("inspect", str(path), "--time-column", "clock")
     assert code == 3
     assert _errors(err) == [
         f"impactcli: error: {path}: --time-column 'clock' is not a column of the file (its "
@@ -165,8 +162,8 @@ def test_blanks_around_separators_are_not_part_of_names_or_cells(
     assert log.joint_names == canonical.joint_names
     np.testing.assert_array_equal(log.t_ns, canonical.t_ns)
     np.testing.assert_array_equal(log.torque, canonical.torque)
-    code, _, err = _run("labels", str(path), "--from-channel", "elbow.torque", "--above",
-                        "1e9", "--link", "2", "-o", str(tmp_path / "l.json"))
+    code, _, err = cli("labels", str(path), "--from-channel", "elbow.torque", "--above",
+                       "1e9", "--link", "2", "-o", str(tmp_path / "l.json"))
     assert code == 0, err
 
 
@@ -178,8 +175,8 @@ def test_a_printf_log_is_detected_as_the_plain_one(tmp_path: Path) -> None:
                       + "".join(", ".join(r) + "\n" for r in rows), encoding="utf-8")
     tls = {}
     for path in (plain, quoted):
-        code, _, err = _run("detect", str(path), "--config", str(CONFIG), "-o",
-                            str(tmp_path / "out"))
+        code, _, err = cli("detect", str(path), "--config", str(CONFIG), "-o",
+                           str(tmp_path / "out"))
         assert code == 0, err
         tls[path.stem] = json.loads((tmp_path / "out" / f"{path.stem}.timeline.json")
                                     .read_text())
@@ -191,8 +188,8 @@ def test_a_printf_log_is_detected_as_the_plain_one(tmp_path: Path) -> None:
 def test_rate_reads_a_log_without_time_and_is_recorded_and_read_again(
         tmp_path: Path, canonical: RobotLog) -> None:
     path = _with_time(tmp_path / "norate.csv", None)
-    code, _, err = _run("detect", str(path), "--rate", "250", "--config", str(CONFIG),
-                        "-o", str(tmp_path / "out"))
+    code, _, err = cli("detect", str(path), "--rate", "250", "--config", str(CONFIG),
+                       "-o", str(tmp_path / "out"))
     assert code == 0, err
     note = (f"{path}: sample i is at i / 250 Hz (--rate 250), not at a logged time, so gaps "
             "and jitter cannot be seen")
@@ -204,8 +201,8 @@ def test_rate_reads_a_log_without_time_and_is_recorded_and_read_again(
     np.testing.assert_array_equal(_read(path, rate=250).t_ns, canonical.t_ns)
     # the report reads the log again with the timeline's read options
     tl_path = tmp_path / "out" / "norate.timeline.json"
-    code, _, err = _run("report", str(tl_path), "-o", str(tmp_path / "r.html"), "--json",
-                        str(tmp_path / "r.json"))
+    code, _, err = cli("report", str(tl_path), "-o", str(tmp_path / "r.html"), "--json",
+                       str(tmp_path / "r.json"))
     assert code == 0, err
     assert (tmp_path / "r.json").is_file()
 
@@ -213,13 +210,13 @@ def test_rate_reads_a_log_without_time_and_is_recorded_and_read_again(
 def test_time_column_is_recorded_and_report_reads_the_log_again_with_it(
         tmp_path: Path) -> None:
     path = _with_time(tmp_path / "elapsed.csv", "elapsed")
-    code, _, err = _run("detect", str(path), "--time-column", "elapsed", "--config",
-                        str(CONFIG), "-o", str(tmp_path / "out"))
+    code, _, err = cli("detect", str(path), "--time-column", "elapsed", "--config",
+                       str(CONFIG), "-o", str(tmp_path / "out"))
     assert code == 0, err
     tl_path = tmp_path / "out" / "elapsed.timeline.json"
     assert json.loads(tl_path.read_text())["input"]["read_options"] == {
         "time_column": "elapsed"}
-    code, _, err = _run("report", str(tl_path), "-o", str(tmp_path / "r.html"))
+    code, _, err = cli("report", str(tl_path), "-o", str(tmp_path / "r.html"))
     assert code == 0, err
 
 
@@ -241,12 +238,12 @@ def test_rate_wins_over_a_time_column_warned(tmp_path: Path) -> None:
     option wins), warned, naming the column not read as the clock; with --time-unit it
     stays a usage error (they contradict each other)."""
     timed = _with_time(tmp_path / "timed.csv", "Time")  # 250 Hz by its column
-    code, out, err = _run("inspect", str(timed), "--json", "--rate", "500")
+    code, out, err = cli("inspect", str(timed), "--json", "--rate", "500")
     assert code == 0, err
     assert json.loads(out)["sample_rate_hz"] == 500.0
     assert (f"impactcli: warning: {timed}: --rate 500 given: sample i is placed at i / 500 s "
             "and the time column 'Time' is not read as the log's clock") in err
-    code, _, err = _run("inspect", str(timed), "--rate", "250", "--time-unit", "ms")
+    code, _, err = cli("inspect", str(timed), "--rate", "250", "--time-unit", "ms")
     assert code == 2
     assert "--rate places sample i at i / rate: it excludes --time-unit and " \
            "--time-column" in err
@@ -260,7 +257,7 @@ def test_rate_reads_an_npz_whose_map_names_no_time(tmp_path: Path, canonical: Ro
                     "torque: {key: tau, index: 0}}\n"
                     "  - {name: elbow, position: {key: q, index: 1}, "
                     "torque: {key: tau, index: 1}}\n")
-    code, _, err = _run("inspect", str(npz), "--channel-map", str(cmap))
+    code, _, err = cli("inspect", str(npz), "--channel-map", str(cmap))
     assert code == 3
     assert _errors(err) == [f"impactcli: error: {npz}: channel map {cmap} has no time channel: "
                             "give --rate HZ for a log without one, or --time-column NAME"]
@@ -287,14 +284,14 @@ def test_a_low_rate_log_read_right_is_told_its_rate_is_too_low_not_another_unit(
     gave a 26 ms log. Read in seconds it is a plausible 26 s log at a rate too low."""
     path = _low_rate_csv(tmp_path / "rtde10.csv")
     for verb in (["inspect"], ["detect", "-o", str(tmp_path / "o")]):
-        code, _, err = _run(verb[0], str(path), *verb[1:])
+        code, _, err = cli(verb[0], str(path), *verb[1:])
         assert code == 3
         assert _errors(err) == [
             f"impactcli: error: {path}: column 'timestamp': the sample rate is 10 Hz (a log "
             "of 25.9 s, read in s): too low for impact detection, which needs at least "
             "100 Hz (twice the detector's band-pass corner w2 = 50 Hz): record the arm at "
             "100 Hz or more; if the time column is not in s, give --time-unit s|ms|us|ns"]
-    code, _, err = _run("inspect", str(_with_time(tmp_path / "n.csv", None)), "--rate", "10")
+    code, _, err = cli("inspect", str(_with_time(tmp_path / "n.csv", None)), "--rate", "10")
     assert code == 3
     assert _errors(err) == [
         f"impactcli: error: {tmp_path / 'n.csv'}: --rate: the rate given is 10 Hz: too low "
@@ -305,7 +302,7 @@ def test_a_low_rate_log_read_right_is_told_its_rate_is_too_low_not_another_unit(
 def test_a_time_in_ms_read_as_seconds_is_still_told_its_unit(tmp_path: Path) -> None:
     """1 kHz stamps in ms read as s: 1 Hz over 16 h, while ms gives 1 kHz over a minute."""
     path = _low_rate_csv(tmp_path / "ms.csv", n=60_000, step_s=1.0, t0=0.0)
-    code, _, err = _run("inspect", str(path))
+    code, _, err = cli("inspect", str(path))
     assert code == 3
     assert _errors(err) == [
         f"impactcli: error: {path}: column 'timestamp': the implied sample rate is 1 Hz, "
@@ -351,7 +348,7 @@ def test_the_ur_rtde_map_reads_its_columns_whatever_the_separator(
         tmp_path: Path, sep: str) -> None:
     space = _read(_rtde_export(tmp_path / "space.csv", " "), channel_map="ur_rtde_example")
     path = _rtde_export(tmp_path / "export.csv", sep)
-    code, out, err = _run("inspect", str(path), "--channel-map", "ur_rtde_example", "--json")
+    code, out, err = cli("inspect", str(path), "--channel-map", "ur_rtde_example", "--json")
     assert code == 0, err
     assert json.loads(out)["n_samples"] == 1000
     log = _read(path, channel_map="ur_rtde_example")
@@ -366,7 +363,7 @@ def test_a_map_may_still_force_its_separator(tmp_path: Path) -> None:
     forced.write_text("format: csv\ncsv: {header: true, delimiter: ';'}\n"
                       "time: {column: timestamp}\n"
                       "joints:\n  - {name: a, position: actual_q_0, torque: target_moment_0}\n")
-    code, _, err = _run("inspect", str(path), "--channel-map", str(forced))
+    code, _, err = cli("inspect", str(path), "--channel-map", str(forced))
     assert code == 3
     assert _errors(err)[0].startswith(
         f"impactcli: error: {path}: channel map {forced}: time points at column 'timestamp', "
@@ -389,8 +386,8 @@ def test_a_headerless_map_finds_a_semicolon_separator(tmp_path: Path) -> None:
 def test_a_map_for_a_log_without_time_with_rate_and_a_map_with_time_without(
         tmp_path: Path) -> None:
     path = _rtde_export(tmp_path / "e.csv", " ")
-    code, out, err = _run("inspect", str(path), "--json", "--channel-map", "ur_rtde_example",
-                          "--rate", "500")
+    code, out, err = cli("inspect", str(path), "--json", "--channel-map", "ur_rtde_example",
+                         "--rate", "500")
     assert code == 0, err  # the user's rate wins over the map's time, warned
     assert json.loads(out)["sample_rate_hz"] == 500.0
     assert f"impactcli: warning: {path}: --rate 500 given: sample i is placed at i / 500 s" \

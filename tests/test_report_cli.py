@@ -27,14 +27,11 @@ from impactcli.outputs.timeline import write_timeline
 from impactcli.schema import load_schema
 from impactcli.types import ContactLabel, Labels
 
+from .cli_run import invoke
 from .conftest import make_log
 from .fakes import collect, fake_result
 
 N = 2500  # fake_result's length: its log is make_log(N)
-
-
-def run(args: list[str]) -> Result:
-    return CliRunner().invoke(main, args, catch_exceptions=False)
 
 
 def show(res: Result) -> str:
@@ -77,7 +74,7 @@ def test_report_on_logs_with_labels_and_json(tmp_path: Path, fake_pipeline: list
     truth = Labels((ContactLabel(3.99, 4.12, 12.0, "impact", 2),), 250.0)
     write_labels(truth, sub / "arm_b.labels.json")
     out, js = tmp_path / "out" / "report.html", tmp_path / "out" / "report.json"
-    res = run(["report", str(a), str(b), "-o", str(out), "--json", str(js)])
+    res = invoke(["report", str(a), str(b), "-o", str(out), "--json", str(js)])
     assert res.exit_code == 0, show(res)
     html = out.read_text("utf-8")
     doc = json.loads(js.read_text("utf-8"))
@@ -90,11 +87,12 @@ def test_report_on_logs_with_labels_and_json(tmp_path: Path, fake_pipeline: list
     assert len(fake_pipeline) == 2
     # same command again: byte-identical JSON and HTML
     out2, js2 = tmp_path / "r2.html", tmp_path / "r2.json"
-    assert run(["report", str(a), str(b), "-o", str(out2), "--json", str(js2)]).exit_code == 0
+    assert invoke(["report", str(a), str(b), "-o", str(out2), "--json", str(js2)]).exit_code == 0
     assert js2.read_bytes() == js.read_bytes()
     assert out2.read_bytes() == out.read_bytes()
     # --no-auto-labels drops the discovered file
-    res = run(["report", str(a), str(b), "-o", str(out2), "--json", str(js2), "--no-auto-labels"])
+    res = invoke(["report", str(a), str(b), "-o", str(out2), "--json", str(js2),
+                  "--no-auto-labels"])
     assert json.loads(js2.read_text())["logs"][1]["labels"] is None, show(res)
 
 
@@ -102,7 +100,7 @@ def test_labels_count_mismatch_is_a_usage_error(tmp_path: Path, fake_pipeline: l
     a, b = write_log(tmp_path / "a.csv"), write_log(tmp_path / "b.csv")
     lab = tmp_path / "truth.json"
     write_labels(Labels((), 250.0), lab)
-    res = run(["report", str(a), str(b), "-o", str(tmp_path / "r.html"), "--labels", str(lab)])
+    res = invoke(["report", str(a), str(b), "-o", str(tmp_path / "r.html"), "--labels", str(lab)])
     assert res.exit_code == 2, show(res)
     assert "--labels" in res.stderr
     assert not fake_pipeline  # refused before any work
@@ -124,7 +122,7 @@ def test_batch_with_a_failing_input_exits_4(tmp_path: Path, fake_pipeline: list,
 
     monkeypatch.setattr(impactcli.run.job, "run_log", stream_log)
     out, js = tmp_path / "r.html", tmp_path / "r.json"
-    res = run(["report", str(good), str(bad), "-o", str(out), "--json", str(js)])
+    res = invoke(["report", str(good), str(bad), "-o", str(out), "--json", str(js)])
     assert res.exit_code == 4, show(res)
     assert "column 'j1.torque' missing" in res.stderr
     doc = json.loads(js.read_text())
@@ -132,7 +130,7 @@ def test_batch_with_a_failing_input_exits_4(tmp_path: Path, fake_pipeline: list,
     assert doc["failed"][0]["path"].endswith("bad.csv")
     assert "could not be analysed" in out.read_text()
     # every input failing: the first error, exit 3, nothing written
-    res = run(["report", str(bad), "-o", str(tmp_path / "none.html")])
+    res = invoke(["report", str(bad), "-o", str(tmp_path / "none.html")])
     assert res.exit_code == 3, show(res)
     assert not (tmp_path / "none.html").exists()
 
@@ -145,7 +143,7 @@ def test_report_on_a_timeline_reruns_it(tmp_path: Path, fake_pipeline: list) -> 
     tl.parent.mkdir()
     write_timeline(first, tl)
     out, js = tmp_path / "r.html", tmp_path / "r.json"
-    res = run(["report", str(tl), "-o", str(out), "--json", str(js)])
+    res = invoke(["report", str(tl), "-o", str(out), "--json", str(js)])
     assert res.exit_code == 0, show(res)
     assert "warning" not in res.stderr, show(res)  # the re-run matches the recorded events
     doc = json.loads(js.read_text())
@@ -155,14 +153,14 @@ def test_report_on_a_timeline_reruns_it(tmp_path: Path, fake_pipeline: list) -> 
     assert [(e["t_start"], e["detector"]) for e in doc["logs"][0]["events"]] == \
         [(e["t_start"], e["detector"]) for e in recorded]
     assert fake_pipeline[-1]["config"] is not None  # the recorded config was used
-    res = run(["report", str(tl), "-o", str(out), "--channel-map", "kuka_lwr4"])
+    res = invoke(["report", str(tl), "-o", str(out), "--channel-map", "kuka_lwr4"])
     assert res.exit_code == 0, show(res)
     assert "--channel-map apply to LOG inputs only" in res.stderr
     assert fake_pipeline[-1]["read_options"] == {}  # as recorded, not the command line's
     # the log changed since detection: refused, exit 3
     with log_path.open("a") as f:
         f.write("\n")
-    res = run(["report", str(tl), "-o", str(out)])
+    res = invoke(["report", str(tl), "-o", str(out)])
     assert res.exit_code == 3, show(res)
     assert re.search(r"changed since detection", res.stderr), show(res)
 
@@ -219,7 +217,7 @@ def test_report_on_a_1_0_timeline_says_what_it_cannot_tell(tmp_path: Path,
     doc["replay"].pop("generator", None)
     tl.write_text(json.dumps(doc))
     out, js = tmp_path / "r.html", tmp_path / "r.json"
-    res = run(["report", str(tl), "-o", str(out), "--json", str(js)])
+    res = invoke(["report", str(tl), "-o", str(out), "--json", str(js)])
     assert res.exit_code == 0, show(res)
     sec = json.loads(js.read_text())["logs"][0]
     assert sec["origin"]["timeline_schema_version"] == "1.0"

@@ -16,9 +16,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from impactcli.cli import main
 from impactcli.errors import RobotDescriptionError
 from impactcli.logs import robot_catalogue as robots
 from impactcli.logs import write_log
@@ -26,6 +24,8 @@ from impactcli.logs.robot_files import read_robot, robot_from_dict
 from impactcli.model import read_model
 from impactcli.schema import validate
 from impactcli.types import LogSource, RobotLog
+
+from .cli_run import cli
 
 pin = pytest.importorskip("pinocchio", reason="the urdf extra (pinocchio) is not installed")
 pytestmark = pytest.mark.urdf
@@ -39,11 +39,6 @@ needs_extra = pytest.mark.skipif(
 ALL = [r.name for r in robots.CATALOGUE]
 FS = 200.0
 DURATION_S = 12.0  # >= 10 s: identification holds back its last 20 % (at least 2 s)
-
-
-def run(args: list[str]) -> tuple[int, str, str]:
-    res = CliRunner().invoke(main, args)
-    return res.exit_code, res.stdout, res.stderr
 
 
 def full_model(name: str) -> Any:
@@ -115,7 +110,7 @@ def synthetic_log(name: str, joints: tuple[str, ...] | None = None, *,
 
 
 def listed() -> dict[str, dict[str, Any]]:
-    code, out, err = run(["robots", "--json"])
+    code, out, err = cli(["robots", "--json"])
     assert code == 0, err
     return {r["name"]: r for r in json.loads(out)["robots"]}
 
@@ -144,14 +139,14 @@ def test_robots_lists_only_loading_urdfs_with_pinocchios_joint_names() -> None:
         assert all(model.joints[i].nv == 1 for i in ids)
     assert robots_listed["panda"]["joints"] == [f"panda_joint{k}" for k in range(1, 8)]
     assert robots_listed["tiago"]["joints"] == [f"arm_{k}_joint" for k in range(1, 8)]
-    code, out, _ = run(["robots"])
+    code, out, _ = cli(["robots"])
     assert code == 0
     assert "panda_description/urdf/panda.urdf" in out and "panda_joint7" in out
 
 
 def test_robots_without_the_extra_says_how_to_install(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(robots, "data_dir", lambda: None)
-    code, out, err = run(["robots"])
+    code, out, err = cli(["robots"])
     assert code == 2
     assert out == ""
     assert err.count("\n") == 1 and "pip install 'impactcli[robots]'" in err
@@ -165,7 +160,7 @@ def test_robot_by_name_identifies_and_detects(name: str, tmp_path: Path) -> None
         pytest.skip(f"{name}: its URDF does not load here")
     log = tmp_path / f"{name}.csv"
     write_log(synthetic_log(name), log)
-    code, _, err = run(["identify", str(log), "--robot", name, "-o", str(tmp_path / "m.json")])
+    code, _, err = cli(["identify", str(log), "--robot", name, "-o", str(tmp_path / "m.json")])
     assert code == 0, err
     model = read_model(tmp_path / "m.json")
     assert model.kind == "urdf"
@@ -176,7 +171,7 @@ def test_robot_by_name_identifies_and_detects(name: str, tmp_path: Path) -> None
     assert str(robots.data_dir()) not in json.dumps(model.to_dict()), "no path of this machine"
     errs = holdout_errors(tmp_path / "m.json")
     assert max(errs.values()) < 0.03, errs
-    code, _, err = run(["detect", str(log), "--robot", name, "-o", str(tmp_path / "out")])
+    code, _, err = cli(["detect", str(log), "--robot", name, "-o", str(tmp_path / "out")])
     assert code == 0, err
     tl = json.loads((tmp_path / "out" / f"{name}.timeline.json").read_text())
     assert tl["model"]["model"]["kind"] == "urdf"
@@ -187,7 +182,7 @@ def test_robot_by_name_identifies_and_detects(name: str, tmp_path: Path) -> None
 def test_logged_joint_not_in_the_urdf_is_left_out(tmp_path: Path) -> None:
     log = tmp_path / "panda.csv"
     write_log(synthetic_log("panda", extra="gripper_width"), log)
-    code, _, err = run(["detect", str(log), "--robot", "panda", "-o", str(tmp_path / "out")])
+    code, _, err = cli(["detect", str(log), "--robot", "panda", "-o", str(tmp_path / "out")])
     assert code == 0, err
     tl = json.loads((tmp_path / "out" / "panda.timeline.json").read_text())
     left = tl["input"]["joints_left_out"]
@@ -201,13 +196,13 @@ def test_logged_joint_not_in_the_urdf_is_left_out(tmp_path: Path) -> None:
 def test_urdf_joint_not_in_the_log_is_held_at_zero(tmp_path: Path) -> None:
     log = tmp_path / "panda.csv"
     write_log(synthetic_log("panda", drop="panda_joint7"), log)
-    code, _, err = run(["identify", str(log), "--robot", "panda", "-o", str(tmp_path / "m.json")])
+    code, _, err = cli(["identify", str(log), "--robot", "panda", "-o", str(tmp_path / "m.json")])
     assert code == 0, err
     held = [ln for ln in err.splitlines() if "held at zero" in ln]
     assert len(held) == 1 and "panda_joint7" in held[0], err
     model = read_model(tmp_path / "m.json")
     assert model.joint_names == tuple(f"panda_joint{k}" for k in range(1, 7))
-    code, _, err = run(["detect", str(log), "--robot", "panda", "-o", str(tmp_path / "out")])
+    code, _, err = cli(["detect", str(log), "--robot", "panda", "-o", str(tmp_path / "out")])
     assert code == 0, err
     assert sum("held at zero" in ln for ln in err.splitlines()) == 1, err
 
@@ -224,7 +219,7 @@ def test_robot_file_naming_a_shipped_robot_with_a_joint_map(tmp_path: Path) -> N
     robot = tmp_path / "robot.json"
     robot.write_text(json.dumps(desc))
     validate(desc, "robot", RobotDescriptionError, str(robot))
-    code, _, err = run(["identify", str(log), "--robot", str(robot), "-o",
+    code, _, err = cli(["identify", str(log), "--robot", str(robot), "-o",
                         str(tmp_path / "m.json")])
     assert code == 0, err
     assert "held at zero" not in err and "left out" not in err, err
@@ -233,7 +228,7 @@ def test_robot_file_naming_a_shipped_robot_with_a_joint_map(tmp_path: Path) -> N
     assert all(p.split(".")[0] in model.joint_names for p in model.param_names)
     assert model.structure["urdf_joint_map"] == desc["joint_map"]
     assert max(holdout_errors(tmp_path / "m.json").values()) < 0.03
-    code, _, err = run(["detect", str(log), "--robot", str(robot), "-o", str(tmp_path / "out")])
+    code, _, err = cli(["detect", str(log), "--robot", str(robot), "-o", str(tmp_path / "out")])
     assert code == 0, err
 
 
@@ -251,7 +246,7 @@ def test_unknown_name_is_one_line_listing_the_shipped_robots(tmp_path: Path) -> 
     log.write_text("time,a.position,a.torque\n0,0,0\n0.01,0,0\n")
     for verb in (["identify", str(log), "-o", str(tmp_path / "m.json")],
                  ["detect", str(log), "-o", str(tmp_path / "out")]):
-        code, _, err = run([*verb, "--robot", "pandaa"])
+        code, _, err = cli([*verb, "--robot", "pandaa"])
         assert code == 3, err
         assert err.count("\n") == 1, err
         assert "pandaa" in err and "not found" in err
@@ -263,13 +258,13 @@ def test_a_config_from_a_named_robot_resolves_the_name_again(tmp_path: Path) -> 
     log = tmp_path / "ur5.csv"
     write_log(synthetic_log("ur5"), log)
     cfg = tmp_path / "ur5.config.json"
-    code, _, err = run(["calibrate", str(log), "--robot", "ur5", "-o", str(cfg)])
+    code, _, err = cli(["calibrate", str(log), "--robot", "ur5", "-o", str(cfg)])
     assert code == 0, err
     model = json.loads(cfg.read_text())["model"]
     assert model["robot"]["kinematics"] == {"type": "urdf", "robot": "ur5"}
     assert str(robots.data_dir()) not in cfg.read_text(), "no path of this machine"
     for extra in ([], ["--model-from-log"]):  # the latter resolves "ur5" again
-        code, _, err = run(["detect", str(log), "--config", str(cfg), *extra,
+        code, _, err = cli(["detect", str(log), "--config", str(cfg), *extra,
                             "-o", str(tmp_path / f"out{len(extra)}")])
         assert code == 0, err
 
@@ -313,7 +308,7 @@ def test_a_name_without_the_extra_says_how_to_install(tmp_path: Path,
     log.write_text("time,a.position,a.torque\n0,0,0\n0.01,0,0\n")
     for verb in (["identify", str(log), "-o", str(tmp_path / "m.json")],
                  ["detect", str(log), "-o", str(tmp_path / "out")]):
-        code, _, err = run([*verb, "--robot", "panda"])
+        code, _, err = cli([*verb, "--robot", "panda"])
         assert code == 2, err
         assert err.count("\n") == 1 and "pip install 'impactcli[robots]'" in err, err
     robots.arm_joints.cache_clear()

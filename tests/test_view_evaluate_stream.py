@@ -14,19 +14,13 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from click.testing import CliRunner, Result
 
-from impactcli.cli import main
-
+from .cli_run import invoke
 from .test_rerun import rrd_rows
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
 ASSIST = SAMPLES / "assist_like.config.toml"
 HEAVY = SAMPLES / "heavy_geared.config.toml"
-
-
-def _run(args: list[str]) -> Result:
-    return CliRunner().invoke(main, args, catch_exceptions=False)
 
 
 def _replayed(path: Path, cfg: Path | None, on_chunk: Any, rows: int = 997) -> Any:
@@ -86,7 +80,7 @@ def test_view_streams_the_recording(tmp_path: Path, private_tmp: Path,
         w.write(ref, tmp_path / "ref.rrd", max_points=1500, event_window_s=0.3)
     with monkeypatch.context() as m:
         _forbid_whole_log(m)
-        r2 = _run(["view", str(path), *opts, "--save", str(tmp_path / "stream.rrd")])
+        r2 = invoke(["view", str(path), *opts, "--save", str(tmp_path / "stream.rrd")])
         assert r2.exit_code == 0, r2.output
     assert r2.stdout == f"{tmp_path / 'stream.rrd'}\n"
     assert r2.stderr == _warned(ref)  # the run's warnings
@@ -141,9 +135,9 @@ def test_evaluate_streams_the_evaluation(tmp_path: Path, private_tmp: Path,
     want_text = format_evaluation(ev) + "\n" + format_sweep(rows)
     with monkeypatch.context() as m:
         _forbid_whole_log(m)
-        got = _run(args)
-        got_text = _run([a for a in args if a != "--json"])
-        plain = _run([a for a in args if a != "--sweep"])
+        got = invoke(args)
+        got_text = invoke([a for a in args if a != "--json"])
+        plain = invoke([a for a in args if a != "--sweep"])
     assert got.exit_code == 0, got.output
     doc = json.loads(got.stdout)
     assert doc["sweep"]["rows"] and doc["n_contacts"]["counted"] > 0
@@ -168,11 +162,11 @@ def test_a_log_bad_midway_leaves_nothing(tmp_path: Path, private_tmp: Path) -> N
     bad = tmp_path / "bad.csv"
     bad.write_text("".join(lines))
     out = tmp_path / "bad.rrd"
-    r = _run(["view", str(bad), "--config", str(ASSIST), "--no-open", "--save", str(out)])
+    r = invoke(["view", str(bad), "--config", str(ASSIST), "--no-open", "--save", str(out)])
     assert r.exit_code == 3, r.output
     assert "bad.csv" in r.stderr and "Traceback" not in r.stderr
     assert not out.exists() and not list(tmp_path.glob("*.rrd*"))
-    r = _run(["evaluate", str(bad), "--config", str(ASSIST), "--sweep", "--labels",
+    r = invoke(["evaluate", str(bad), "--config", str(ASSIST), "--sweep", "--labels",
               str(SAMPLES / "csv" / "assist_impacts.labels.json")])
     assert r.exit_code == 3, r.output
     assert not list(private_tmp.glob("impactcli-*"))

@@ -170,7 +170,7 @@ def match_urdf_joints(
 
 MOTION_PARAMS: tuple[str, ...] = ("inertia", "gcos", "gsin", "Ia", "fv", "fc")
 
-#: What works on a log without motion (issue 21, 6b): a model or thresholds made on other
+#: What works on a log without motion: a model or thresholds made on other
 #: logs of the same robot.
 STILL_HINT = ("a config or a model from other logs of the same robot, with motion, works: "
               "--config CONFIG (from `impactcli calibrate` on logs with motion) or --model "

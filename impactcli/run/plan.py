@@ -408,7 +408,7 @@ def resolve_model(
     Without a model needed, the joints keep the log's order, or the calibrated config's.
     """
     where = source.path
-    check_shares_joints(keep, robot, where)  # with a config as without one (issue 21, 3a)
+    check_shares_joints(keep, robot, where)  # with a config as without one
     choices = generator_choices(keep, logged, source, cfg)
     extra_left: tuple[LeftOut, ...] = ()
     rig: RigidModel | None = None

@@ -54,7 +54,8 @@ from impactcli.study.arms import the_robot
 from impactcli.types import LogSource, RobotLog
 
 REPO = Path(__file__).resolve().parents[2]
-REAL = REPO.parent / "shared" / "real_logs"
+#: the real recordings: IMPACTCLI_REAL_LOGS, else shared/real_logs beside the repository
+REAL = Path(os.environ.get("IMPACTCLI_REAL_LOGS", REPO.parent / "shared" / "real_logs"))
 KINDS3 = ("planar", "coupled", "decoupled")
 
 

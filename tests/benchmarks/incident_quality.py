@@ -31,10 +31,8 @@ import platform
 import sys
 import time
 import warnings
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
-
-import numpy as np
 
 from impactcli.config import DetectorConfig, load_config
 from impactcli.logs import read_log
@@ -42,28 +40,10 @@ from impactcli.logs.robot_files import read_labels, read_robot
 from impactcli.run.calibration import calibrate
 from impactcli.run.collect import detect_in_memory
 from impactcli.sim import scenario, simulate
-from impactcli.types import DetectionResult, Labels
 
 REPO = Path(__file__).resolve().parents[2]
-KIND = {"impact": "transient", "push": "transient", "clamp": "quasi_static"}
-MIN_FORCE_N = 10.0
-MATCH = (0.02, 0.25)  # an incident starting within [start - 0.02, end + 0.25] s
-
-
-@dataclass
-class Row:
-    """One scored contact."""
-
-    source: str
-    kind: str
-    label_link: int
-    last_link: bool
-    peak_n: float
-    detected: bool
-    n_incidents: int = 0
-    link: int | None = None
-    contact: str = ""
-    force_n: float | None = None
+sys.path.insert(0, str(REPO))  # the targets, shared with tests/test_incident_criteria.py
+from tests.incident_criteria import Row, report, score, verdict  # noqa: E402
 
 
 def every_link_pushes(arm_name: str, duration_s: float = 60.0):  # type: ignore[no-untyped-def]
@@ -80,23 +60,6 @@ def every_link_clamps(arm_name: str, duration_s: float = 84.0):  # type: ignore[
     n = base.arm.n_joints
     cs = tuple(replace(c, link=n - k % n) for k, c in enumerate(base.clamps))
     return replace(base, clamps=cs)
-
-
-def score(source: str, res: DetectionResult, labels: Labels) -> list[Row]:
-    """One row per labelled contact ≥ MIN_FORCE_N after warm-up."""
-    n_links = len(res.log.joint_names) + len(res.joints_left_out)
-    rows = []
-    for lab in labels.events:
-        if lab.peak_force < MIN_FORCE_N or lab.start < res.warmup_end_s:
-            continue
-        inc = [i for i in res.counted_incidents()
-               if lab.start - MATCH[0] <= i.t_start <= lab.end + MATCH[1]]
-        row = Row(source, lab.kind, lab.link, lab.link == n_links, lab.peak_force, bool(inc),
-                  len(inc))
-        if inc:
-            row.link, row.contact, row.force_n = inc[0].link, inc[0].contact, inc[0].force_n
-        rows.append(row)
-    return rows
 
 
 def simulated(arm: str, robot_seed: int) -> list[Row]:
@@ -134,60 +97,6 @@ def samples() -> list[Row]:
     return rows
 
 
-def _pct(a: int, b: int) -> str:
-    return f"{a}/{b} ({100 * a / b:.0f} %)" if b else "—"
-
-
-def report(rows: list[Row], title: str) -> list[tuple[str, bool]]:
-    """Print the scores of ``rows``; return (criterion, passed)."""
-    det = [r for r in rows if r.detected]
-    one = [r for r in det if r.n_incidents == 1]
-    link_ok = [r for r in det if r.link == r.label_link]
-    inner = [r for r in det if not r.last_link]
-    inner_ok = [r for r in inner if r.link == r.label_link]
-    type_ok = [r for r in det if r.contact == KIND[r.kind]]
-    errs = [abs(r.force_n - r.peak_n) / r.peak_n for r in det if r.force_n is not None]
-    med = float(np.median(errs)) if errs else float("nan")
-    print(f"\n### {title}\n")
-    print(f"- contacts ≥ {MIN_FORCE_N:g} N after warm-up: {len(rows)}, detected {len(det)}")
-    print(f"- detected contacts in exactly one incident: {_pct(len(one), len(det))}")
-    print(f"- link right: {_pct(len(link_ok), len(det))}; not on the last link: "
-          f"{_pct(len(inner_ok), len(inner))}")
-    by_type = {}
-    for t in ("transient", "quasi_static"):
-        of = [r for r in det if KIND[r.kind] == t]
-        ok = [r for r in of if r.contact == t]
-        by_type[t] = (len(ok), len(of))
-    print(f"- contact type right: {_pct(len(type_ok), len(det))}; "
-          + "; ".join(f"{t} {_pct(*v)}" for t, v in by_type.items()))
-    ratio = [r.force_n / r.peak_n for r in det if r.force_n]
-    print(f"- force: median relative error {100 * med:.0f} % over {len(errs)} estimates"
-          + (f" (estimate / truth: median {np.median(ratio):.2f})" if errs else ""))
-    print("\n| link | detected | link right | force median error | transient right | "
-          "quasi-static right |\n|---|---|---|---|---|---|")
-    for link in sorted({r.label_link for r in det}):
-        of = [r for r in det if r.label_link == link]
-        e = [abs(r.force_n - r.peak_n) / r.peak_n for r in of if r.force_n is not None]
-        cells = []
-        for t in ("transient", "quasi_static"):
-            o = [r for r in of if KIND[r.kind] == t]
-            cells.append(_pct(sum(r.contact == t for r in o), len(o)))
-        print(f"| {link} | {len(of)} | {_pct(sum(r.link == link for r in of), len(of))} | "
-              f"{100 * float(np.median(e)):.0f} % | " + " | ".join(cells) + " |")
-    def frac(a: list[Row], b: list[Row]) -> float:
-        return len(a) / len(b) if b else 1.0
-
-    return [
-        ("one incident per detected contact", len(one) == len(det)),
-        ("link right ≥ 90 %", frac(link_ok, det) >= 0.9),
-        ("link right ≥ 75 % off the last link", frac(inner_ok, inner) >= 0.75),
-        ("type right ≥ 90 %", frac(type_ok, det) >= 0.9),
-        ("type right ≥ 75 % per type", all(v[1] == 0 or v[0] / v[1] >= 0.75
-                                          for v in by_type.values())),
-        ("median force error ≤ 30 %", bool(errs) and med <= 0.30),
-    ]
-
-
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", type=int, default=2, help="robots per arm")
@@ -205,16 +114,10 @@ def main(argv: list[str] | None = None) -> int:
                          f"{args.first_seed}–{args.first_seed + args.seeds - 1})")
     sample = report(samples(), "sample logs, committed configs")
     print()
-    failed = 0
-    for label, crit in (("fresh", fresh), ("samples", sample)):
-        for name, ok in crit:
-            print(f"{'PASS' if ok else 'FAIL'}  {name} [{label}]")
-            failed += not ok
+    code = verdict({"fresh": fresh, "samples": sample})
     print(f"\nmachine: {platform.platform()}, {os.cpu_count()} CPUs; python "
           f"{sys.version.split()[0]}; total {time.perf_counter() - t0:.1f} s")
-    if failed:
-        print(f"{failed} target(s) FAIL", file=sys.stderr)
-    return 1 if failed else 0
+    return code
 
 
 if __name__ == "__main__":

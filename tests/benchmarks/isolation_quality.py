@@ -15,7 +15,7 @@ family the calibration never saw):
   three times that on the heavy one; 0.03-0.2 s), with the calibrated thresholds, and with
   joint 2's thresholds tripled — a joint whose thresholds its calibration's worst motion
   set high, so that its detectors stay silent while its residual carries the contact's
-  moment (issue 23, item 5);
+  moment;
 - ``random``: 2 × 12 pushes on random links, at 20-90 % of the link, 0.03-0.3 s, in six
   directions;
 - and the contact logs of tests/benchmarks/incident_quality.py (impacts, pushes on every

@@ -44,8 +44,11 @@ from impactcli.types import DetectionResult, RobotLog
 
 REPO = Path(__file__).resolve().parents[2]
 #: ``../shared/real_logs`` beside the checkout (or beside a folder of worktrees above it).
-REAL = next((p / "shared" / "real_logs" for p in REPO.parents
-             if (p / "shared" / "real_logs").is_dir()), REPO.parent / "shared" / "real_logs")
+#: the real recordings: IMPACTCLI_REAL_LOGS, else shared/real_logs beside the repository
+#: (or beside a folder above it: a worktree)
+REAL = Path(os.environ.get("IMPACTCLI_REAL_LOGS") or next(
+    (p / "shared" / "real_logs" for p in REPO.parents if (p / "shared" / "real_logs").is_dir()),
+    REPO.parent / "shared" / "real_logs"))
 RULES = (("before", MARGIN_RULE), ("after", RATE_RULE))
 KINDS = ("decoupled", "coupled", "urdf")
 GENERATORS = ("inverse_dynamics", "momentum_observer")
