@@ -22,8 +22,6 @@ from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import IO, Any
 
-import numpy as np
-
 from .errors import ImpactError, OutputError, TempSpaceError
 
 
@@ -298,8 +296,3 @@ def temp_space() -> Iterator[None]:
     except OSError as err:
         raise temp_space_error(err) from err
 
-
-def write_spill(f: Any, v: np.ndarray) -> None:
-    """Append ``v``'s bytes to a spill file (:func:`temp_space`)."""
-    with temp_space():
-        f.write(np.ascontiguousarray(v).tobytes())

@@ -198,12 +198,14 @@ def test_a_full_disk_in_a_batch_names_each_log(
 
 def test_a_full_tmpdir_in_a_batch_names_each_log(
         monkeypatch: pytest.MonkeyPatch, tmp_path: Path, small_log: Path) -> None:
-    from impactcli.outputs import column_spill
+    from impactcli.spill import ColumnFiles
 
     def full(*a: object, **k: object) -> None:
-        raise files.temp_space_error(OSError(errno.ENOSPC, os.strerror(errno.ENOSPC)))
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
-    monkeypatch.setattr(column_spill.ColumnSpill, "append", full)
+    # every write of the temporary store fails: the scan's cache gives itself up (the file
+    # is read again), the replay's first spill stops the log with exit 2
+    monkeypatch.setattr(ColumnFiles, "_write", staticmethod(full))
     second = tmp_path / "y.csv"
     shutil.copy(small_log, second)
     code, _, err = cli("detect", str(small_log), str(second), "--config", str(CONFIG),

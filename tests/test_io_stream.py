@@ -15,10 +15,10 @@ from typing import Any
 import numpy as np
 import pytest
 
+from impactcli import spill
 from impactcli.errors import ImpactWarning, LogFormatError
 from impactcli.logs import csv as csv_reader
 from impactcli.logs import read_log, write_log
-from impactcli.logs import row_cache as stream_cache
 from impactcli.logs import scan as scan_module
 from impactcli.logs.describe import time_gaps
 from impactcli.logs.layout import OPTIONAL
@@ -487,7 +487,7 @@ def test_the_passes_after_the_scan_read_its_cache_or_the_file(
     import tempfile
 
     if cached == "disk full":
-        monkeypatch.setattr(stream_cache, "MIN_FREE_BYTES", float("inf"))
+        monkeypatch.setattr(spill, "MIN_FREE_BYTES", float("inf"))
     elif cached == "no temporary folder":
         monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "missing"))
     scan = _assert_same(_inf_controller(tmp_path))

@@ -18,7 +18,8 @@ PKG = ROOT / "impactcli"
 #: Layers, low to high: a module may import its own layer and the ones below.
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("impactcli", "impactcli.errors"),
-    ("impactcli.clock", "impactcli.columns", "impactcli.files", "impactcli.schema"),
+    ("impactcli.clock", "impactcli.columns", "impactcli.files", "impactcli.schema",
+     "impactcli.spill"),
     ("impactcli.types", "impactcli.config"),
     ("impactcli.logs",),
     ("impactcli.model", "impactcli.sim"),
@@ -171,6 +172,32 @@ def test_no_test_imports_a_benchmark() -> None:
     bad = [f.name for f in sorted((ROOT / "tests").glob("*.py"))
            if pattern.search(f.read_text("utf-8"))]
     assert not bad, bad
+
+
+#: The modules that may make temporary files or folders other than through the one
+#: temporary store (impactcli/spill.py), and why: none of them keeps per-sample columns.
+TEMP_ALLOWED = {
+    "impactcli.spill": "the one temporary store",
+    "impactcli.files": "atomic outputs: a temporary file beside the output, then renamed",
+    "impactcli.logs.write": "atomic logs written by `simulate` and the tests' writers",
+    "impactcli.logs.urls": "a remote log or file downloaded before it is read",
+    "impactcli.logs.urdf": "a URDF rewritten for Pinocchio's parser",
+    "impactcli.run.batch": "a remote output prefix: the outputs made locally, then uploaded",
+    "impactcli.cli.view": "the recording the viewer opens",
+}
+
+
+def test_one_temporary_store() -> None:
+    """Per-sample columns spill through impactcli/spill.py only: no other module makes
+    temporary files (beyond :data:`TEMP_ALLOWED`) or judges free disk space."""
+    made = re.compile(r"tempfile\.(mkdtemp|mkstemp|TemporaryFile|TemporaryDirectory|"
+                      r"NamedTemporaryFile|SpooledTemporaryFile)\b|disk_usage\(")
+    bad = [m for m, p in MODULES.items()
+           if m not in TEMP_ALLOWED and made.search(p.read_text("utf-8"))]
+    assert not bad, bad
+    judged = [m for m, p in MODULES.items() if m != "impactcli.spill"
+              and re.search(r"disk_usage\(|MIN_FREE_BYTES\s*=", p.read_text("utf-8"))]
+    assert not judged, judged
 
 
 def test_no_module_over_700_lines() -> None:

@@ -187,9 +187,9 @@ def test_spilled_median_is_numpys(m: int, monkeypatch: pytest.MonkeyPatch) -> No
     600 decades, subnormals, adjacent floats, heavy tails)."""
     import tempfile
 
-    from impactcli.detect import warmup
+    from impactcli import spill
 
-    monkeypatch.setattr(warmup, "SELECT_IN_MEMORY", 1000)
+    monkeypatch.setattr(spill, "SELECT_IN_MEMORY", 1000)
     rng = np.random.default_rng(m)
     wide = rng.normal(size=m) * 10.0 ** rng.integers(-300, 300, m)  # bins of every scale
     tiny = rng.uniform(0, 1, m) * 5e-324 * rng.integers(1, 4, m)    # subnormals, zeros
@@ -199,7 +199,7 @@ def test_spilled_median_is_numpys(m: int, monkeypatch: pytest.MonkeyPatch) -> No
         with tempfile.TemporaryFile() as f:
             f.write(x.tobytes())
             f.flush()
-            assert warmup.spilled_median(f, m) == float(np.median(x))
+            assert spill.spilled_median(f, m) == float(np.median(x))
 
 
 def _pipelined(setup: ReplaySetup, log, bounds: list[int], ahead: int

@@ -485,11 +485,9 @@ def test_a_full_disk_reads_the_file_again(tmp_path: Path, monkeypatch: pytest.Mo
                                           ) -> None:
     """Without the scan's cache of the repaired rows every pass reads the archive again,
     and a message log's spill of decoded messages is kept in memory: the same arrays."""
-    from impactcli.logs import message_merge
-    from impactcli.logs import row_cache as stream_cache
+    from impactcli import spill
 
-    monkeypatch.setattr(stream_cache, "MIN_FREE_BYTES", float("inf"))
-    monkeypatch.setattr(message_merge, "MIN_FREE_BYTES", float("inf"))
+    monkeypatch.setattr(spill, "MIN_FREE_BYTES", float("inf"))  # the caches' one policy
     monkeypatch.setattr(stream_npz, "BLOCK_ROWS", 101)
     t, v = _signals()
     t, v = _repairs(v, t)

@@ -16,7 +16,6 @@ alarms for the report and is not part of the causal detection.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -44,13 +43,13 @@ class WarmupTracker:
     Carried: the running sum of squares eps0² (summed in the same order as the whole-log
     ``cumsum``) and its last ``window`` values; kept: the trailing RMS up to the cap
     (``max_s``: the warm-up cannot end later) in memory, and the later half's trailing RMS —
-    whose median is each joint's settled level — spilled to a temporary file per joint (8 bytes per
-    joint and sample of the log's later half, on disk, not in memory).
+    whose median is each joint's settled level — spilled to the temporary store, a column per joint
+    (8 bytes per joint and sample of the log's later half, on disk, not in memory).
     """
 
     def __init__(self, n: int, t_first_s: float, t_last_s: float, n_joints: int,
                  cfg: WarmupConfig | None = None) -> None:
-        import tempfile
+        from ..spill import ColumnFiles
 
         self.cfg = cfg = cfg or WarmupConfig()
         self.n, self.J = int(n), int(n_joints)
@@ -65,8 +64,7 @@ class WarmupTracker:
         self.head: list[np.ndarray] = []     # rms rows before the cap (or all, until known)
         self.head_t: list[np.ndarray] = []
         self.head_n = 0
-        self.spill = [tempfile.TemporaryFile()  # noqa: SIM115 (closed by finish())
-                      for _ in range(self.J)]
+        self.spill = ColumnFiles("impactcli-warmup-")  # a column per joint (closed by finish)
         self.spill_start: int | None = None
         self.spilled = 0
         self.t_tail = np.zeros(0)
@@ -107,11 +105,8 @@ class WarmupTracker:
             start = (self.k_min + self.n) // 2
             self.spill_start = start
             a = max(0, start - self.k)
-            if a < m:
-                from ..files import write_spill
-
-                for j, f in enumerate(self.spill):  # one file per joint: read alone later
-                    write_spill(f, rms[a:, j])
+            if a < m:  # one column per joint: read alone later
+                self.spill.append({str(j): rms[a:, j] for j in range(self.J)})
                 self.spilled += m - a
         self.t_tail = np.concatenate([self.t_tail, t])[-2:]
         self.k += m
@@ -119,8 +114,7 @@ class WarmupTracker:
     def close(self) -> None:
         """Close (and so remove) the spill files; :meth:`finish` does it, a run that fails
         on the way calls it."""
-        for f in self.spill:
-            f.close()
+        self.spill.close()
 
     def times_at(self, index: np.ndarray) -> list[float]:
         """Each joint's warm-up end time [s since the first sample] (``index`` from
@@ -143,8 +137,7 @@ class WarmupTracker:
             if k_min >= n or not self.spilled:
                 idx[j] = n
                 continue
-            self.spill[j].flush()
-            level = spilled_median(self.spill[j], self.spilled)
+            level = self.spill.median(str(j))
             ok = np.flatnonzero(head[k_min:, j] <= (1.0 + self.cfg.tolerance) * level)
             k = k_min + int(ok[0]) if ok.size else n
             idx[j] = min(k, max(k_cap, 0), n)
@@ -155,63 +148,3 @@ class WarmupTracker:
             float(self.t_tail[-1] - self.t_tail[-2]) if n > 1 else 0.0)
         self._end_s = end_s
         return Warmup(idx, end, end_s)
-
-
-#: Rows of a spilled (M, J) float64 matrix read at a time by :func:`spilled_median`.
-SPILL_BLOCK_ROWS = 1 << 16
-#: :func:`spilled_median` selects among at most this many values in memory (32 MB: the
-#: later half of 2.3 hours at 1 kHz in one selection).
-SELECT_IN_MEMORY = 1 << 22
-
-
-def spilled_median(f: Any, m: int) -> float:
-    """``np.median`` of the m float64 values written to the file ``f``, exactly, in bounded
-    memory: the values are narrowed to the ranks wanted by counting them into value bins
-    (one pass over the file per narrowing) until at most :data:`SELECT_IN_MEMORY` remain,
-    which are then read and selected. NaN-free input."""
-    ranks = sorted({(m - 1) // 2, m // 2})
-    vals = [_select_rank(f, m, r) for r in ranks]
-    return float(vals[0]) if len(vals) == 1 else float(np.mean(np.array(vals)))
-
-
-def _blocks(f: Any, m: int) -> Any:
-    f.seek(0)
-    for a in range(0, m, SPILL_BLOCK_ROWS):
-        yield np.fromfile(f, dtype=np.float64, count=min(SPILL_BLOCK_ROWS, m - a))
-
-
-def _select_rank(f: Any, m: int, rank: int) -> float:
-    """The value of rank ``rank`` (0-based, ascending) of the file's values (see above)."""
-    lo, hi = -np.inf, np.inf          # the value lies in [lo, hi]
-    below = 0                         # values < lo
-    while True:
-        count = 0
-        vmin, vmax = np.inf, -np.inf
-        for block in _blocks(f, m):
-            c = block[(block >= lo) & (block <= hi)]
-            count += c.size
-            if c.size:
-                vmin, vmax = min(vmin, float(c.min())), max(vmax, float(c.max()))
-        if vmin == vmax:
-            return vmin
-        if count <= SELECT_IN_MEMORY:
-            inside = np.concatenate([c[(c >= lo) & (c <= hi)] for c in _blocks(f, m)])
-            return float(np.partition(inside, rank - below)[rank - below])
-        edges = np.linspace(vmin, vmax, 4097)
-        counts = np.zeros(4096, dtype=np.int64)
-        # bin i holds edges[i] <= v < edges[i + 1] (the last one v == vmax too): NumPy's
-        # uniform-bin histogram (its indices checked against these same edges), or a search
-        # of the edges where the range is too narrow or too wide for it
-        fast = bool(np.isfinite(vmax - vmin)) and np.unique(edges).size == edges.size
-        for block in _blocks(f, m):
-            c = block[(block >= lo) & (block <= hi)]
-            if fast:
-                counts += np.histogram(c, bins=4096, range=(vmin, vmax))[0]
-            else:
-                k = np.clip(np.searchsorted(edges, c, side="right") - 1, 0, 4095)
-                counts += np.bincount(k, minlength=4096)
-        cum = below + np.cumsum(counts)
-        b = int(np.searchsorted(cum, rank, side="right"))
-        below = int(cum[b - 1]) if b > 0 else below
-        lo = float(edges[b]) if b > 0 else vmin
-        hi = float(np.nextafter(edges[b + 1], -np.inf)) if b < 4095 else vmax

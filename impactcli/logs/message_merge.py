@@ -16,63 +16,25 @@ topic written out of order are sorted by a stable argsort kept in memory, 8 byte
 message) and, for each other topic, its latest message at or before each sample
 (causal sample-and-hold); the state samples before a held topic's first message are
 dropped. Memory holds a block of rows; the disk the decoded columns (no more than the
-file decompressed). Without a temporary folder, or with its disk nearly full, the spill is
-kept in memory instead.
+file decompressed). The spill is a cache of the one temporary store (:mod:`impactcli.spill`,
+its folder and disk-full policy): without a temporary folder, or with its disk nearly full,
+it is kept in memory instead.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
-import shutil
-import tempfile
-import weakref
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import IO, Any
 
 import numpy as np
 
-#: The spill is kept in memory when its file system has less free space than this.
-MIN_FREE_BYTES = 2 * 1024**3
-#: Free space is checked again after this many bytes written.
-CHECK_EVERY_BYTES = 64 * 1024**2
+from ..spill import SpillFolder
+
 #: State samples merged at a time.
 MERGE_ROWS = 65_536
-
-
-class SpillFolder:
-    """The temporary folder of a reader's spills (deleted by :meth:`close`, or when the
-    folder object is garbage collected, or at exit); None-like when it cannot be made."""
-
-    def __init__(self) -> None:
-        self.path: str | None = None
-        self._unchecked = CHECK_EVERY_BYTES
-        self.full = False
-        try:
-            self.path = tempfile.mkdtemp(prefix="impactcli-spill-")
-        except OSError:
-            return
-        self._remove = weakref.finalize(self, shutil.rmtree, self.path, ignore_errors=True)
-
-    def room(self, nbytes: int) -> bool:
-        """Whether ``nbytes`` more may be written (the free space is checked now and
-        then; once short, never again)."""
-        if self.path is None or self.full:
-            return False
-        self._unchecked += nbytes
-        if self._unchecked >= CHECK_EVERY_BYTES:
-            self._unchecked = 0
-            try:
-                self.full = shutil.disk_usage(self.path).free < MIN_FREE_BYTES
-            except OSError:
-                self.full = True
-        return not self.full
-
-    def close(self) -> None:
-        if self.path is not None:
-            self._remove()
-            self.path = None
 
 
 _FILL = {np.dtype(np.float64): np.nan, np.dtype(np.int64): 0, np.dtype(np.bool_): False}

@@ -28,11 +28,12 @@ from typing import Any
 import numpy as np
 
 from ..errors import ChannelMapError, ImpactError, LogFormatError
+from ..spill import SpillFolder
 from .channel_map import SIGNALS, ChannelMap, ChannelRef
 from .channels import JointChannels
 from .fields import FieldPath, check_ros_path, parse_field_path
 from .layout import RawRows, StreamLayout
-from .message_merge import Part, SpillFolder, TopicSpill, merged_rows
+from .message_merge import Part, TopicSpill, merged_rows
 from .message_source import JOINT_SAMPLE, JOINT_STATE, MessageSource, TopicData
 from .ros2_cdr import TopicArrays, arrays_from_messages, decode_batches, parse_jointstate
 
@@ -389,7 +390,7 @@ class MessageLayout(StreamLayout):
         self.source_kind = kind  # mcap, rosbag2, rosbag1
         self.options = options
         self.repair_order = bool(options.get("repair_order", False))
-        self.folder = SpillFolder()
+        self.folder = SpillFolder(required=False)
         self.readers: dict[str, TopicReader] = {}
         self.parts: list[Part] = []
         self.perm: np.ndarray | None = None

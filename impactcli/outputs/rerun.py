@@ -30,9 +30,9 @@ import numpy as np
 
 from ..errors import OutputError
 from ..files import finish_output, part_path, prepare_output
+from ..spill import ColumnFiles
 from ..types import DETECTORS
 from . import rerun_blueprint as look
-from .column_spill import ColumnSpill
 from .decimate import DEFAULT_EVENT_WINDOW_S, DEFAULT_MAX_POINTS, EnvelopeStream
 
 #: (plot, its series as (name, spill column)) — the reference position, when logged, is
@@ -73,7 +73,7 @@ class RerunWriter:
     """
 
     def __init__(self) -> None:
-        self.spill = ColumnSpill(prefix="impactcli-rrd-")
+        self.spill = ColumnFiles("impactcli-rrd-")
 
     def __call__(self, chunk: Any) -> None:
         """One chunk of the replay."""
@@ -108,7 +108,7 @@ class RerunWriter:
         self.close()
 
 
-def write_recording(result: Any, spill: ColumnSpill, path: str | os.PathLike[str], *,
+def write_recording(result: Any, spill: ColumnFiles, path: str | os.PathLike[str], *,
                     max_points: int = DEFAULT_MAX_POINTS,
                     event_window_s: float = DEFAULT_EVENT_WINDOW_S,
                     recording_id: str | None = None) -> None:
@@ -117,7 +117,7 @@ def write_recording(result: Any, spill: ColumnSpill, path: str | os.PathLike[str
 
     spill.finish()
     joints = tuple(result.log.joint_names)
-    n = int(sum(spill.rows))
+    n = spill.rows
     t0 = int(result.log.t0_ns)
     pad = round(event_window_s * 1e9)
     # first pass: the times the events and incidents stand at, the warm-up ends, the counts
@@ -159,7 +159,7 @@ def write_recording(result: Any, spill: ColumnSpill, path: str | os.PathLike[str
     def at_samples(sel: Any) -> list[Any]:
         return at_times(np.array([times[int(i)] for i in np.atleast_1d(sel)], dtype=np.int64))
 
-    has_reference = any(c.endswith(".position_ref") for c in spill.columns)
+    has_reference = any(c.endswith(".position_ref") for c in spill.layout)
     with open_recording(path, result, has_reference, recording_id) as rec:
         _write_samples(rec, result, spill, n, has_reference, windows, fired, max_points,
                        at_times)
@@ -309,7 +309,7 @@ def open_recording(path: str | os.PathLike[str], result: Any, has_reference: boo
         raise
 
 
-def _write_samples(rec: Any, result: Any, spill: ColumnSpill, n: int, has_reference: bool,
+def _write_samples(rec: Any, result: Any, spill: ColumnFiles, n: int, has_reference: bool,
                    windows: list[tuple[int, int]], fired: dict[Any, int], max_points: int,
                    at_times: Callable[[np.ndarray], list[Any]]) -> None:
     """The plots, the markers and the lanes, one row group at a time."""

@@ -58,7 +58,9 @@ from ..logs.reader import LogReader
 from ..logs.screen import LeftOut
 from ..model.generators import choices_dict, summary_name
 from ..model.rigid import RigidModel
+from ..spill import ColumnFiles
 from ..types import DETECTORS, DetectionResult, Event, LogHeader, RobotDescription, SignalsChunk
+from .islands import Islands
 from .plan import ChunkFeed, Passes, RunPlan, calibrated_thresholds, plan_run, with_generator
 from .replay import ChunkReplay, Replayer, ReplaySetup, ReplayState
 from .run_warnings import (
@@ -73,7 +75,6 @@ from .run_warnings import (
     warn_uncalibrated,
     warn_warmup,
 )
-from .spill import ChunkSpill, Islands
 
 #: Samples per chunk of a log read from a file (about 40 MB of signals for 7 joints): the
 #: signals Parquet gets one row group per chunk.
@@ -432,14 +433,14 @@ def _detect_passes(
             rp = replay_passes(feed, plan, comparing.update, passes)
         else:
             keys = _NEEDED + (_FOR_WRITERS if on_chunk is not None else ())
-            with contextlib.closing(ChunkSpill()) as spill:
-                rp = replay_passes(feed, plan, lambda st: spill.write(
+            with contextlib.closing(ColumnFiles()) as spill:
+                rp = replay_passes(feed, plan, lambda st: spill.append(
                     {k: v for k in keys if (v := getattr(st, k)) is not None}), passes)
                 scan = feed.scan
                 thr, margins = _thresholds_from_spill(spill, rp.warmup, scan.n_samples,
                                                       scan.sample_rate_hz)
                 comparing = compare(thr)
-                for k0, arrays in spill.read_chunks():
+                for k0, arrays in spill.chunks():
                     comparing.update(ReplayStep(k0, **arrays))
                     passes.at(float(arrays["t"][-1]))
                 passes.next()
@@ -461,7 +462,7 @@ def envelope_check(cfg: DetectorConfig, joints: tuple[str, ...], sample_rate_hz:
     return EnvelopeCheck(MotionEnvelope.from_dict(env), sample_rate_hz, joints)
 
 
-def _thresholds_from_spill(spill: ChunkSpill, wu: Warmup, n: int, fs: float,
+def _thresholds_from_spill(spill: ColumnFiles, wu: Warmup, n: int, fs: float,
                            ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
     """The uncalibrated rule's thresholds and margins per detector
     (:func:`impactcli.detect.thresholds.thresholds_from_maxima`) from the statistics after
@@ -471,7 +472,7 @@ def _thresholds_from_spill(spill: ChunkSpill, wu: Warmup, n: int, fs: float,
     start = wu.end_index if wu.end_index < n - 10 else 0
     block = uncalibrated_block(n - start, fs)
     bms = {d: BlockMaxima(start, block) for d in DETECTORS}
-    for k0, a in spill.read_chunks(("r", "loading", "r_rms", "v_rms")):
+    for k0, a in spill.chunks(("r", "loading", "r_rms", "v_rms")):
         if k0 + a["r"].shape[0] <= start:
             continue
         bms["adaptive"].update(k0, a["r_rms"] - a["v_rms"])

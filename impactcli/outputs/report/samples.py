@@ -12,7 +12,7 @@ the adaptive threshold, the loading statistic, |r|, the position and the detecto
 :meth:`ReportCollector.finish` gives the :class:`Samples`, which answer from the spill what
 is known only at the end: a window's rows found as ``np.searchsorted`` finds them on the
 whole log (an index of each row group's first and last time), the margin in one pass, the
-exact median posture (:func:`impactcli.detect.warmup.spilled_median`), the sweep
+exact median posture (:func:`impactcli.spill.spilled_median`), the sweep
 (:class:`impactcli.quality.sweep.ThresholdSweep`) row group by row group. Memory: one row
 group and the envelope slots (4 J + 1 series × the buckets); disk up to 8 J + 1 float64 per
 sample, compressed, removed by :meth:`Samples.close`.
@@ -20,8 +20,7 @@ sample, compressed, removed by :meth:`Samples.close`.
 
 from __future__ import annotations
 
-import os
-import tempfile
+import contextlib
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -30,8 +29,8 @@ import numpy as np
 
 from ...detect.thresholds import detector_ratios
 from ...quality.sweep import SweepRow, ThresholdSweep, event_settings
+from ...spill import ColumnFiles
 from ...types import DETECTORS, Labels
-from ..column_spill import ColumnSpill
 from ..svgplot import EnvelopeAccumulator
 from .common import WHOLE_LOG_BUCKETS
 
@@ -78,7 +77,7 @@ class ReportCollector:
         self.groups: list[tuple[int, int, float, float]] = []  # (k0, rows, t first, t last)
         self.k0 = 0
         self.has_ratios = False  # the chunks carry their ratios (else rebuilt from the spill)
-        self.spill = ColumnSpill(prefix="impactcli-report-")
+        self.spill = ColumnFiles("impactcli-report-")
 
     def __call__(self, c: Any) -> None:
         """Absorb one chunk of the replay (``joints``, ``time_s``, ``signals``,
@@ -257,29 +256,20 @@ class Samples:
 
     def posture(self, after_s: float) -> np.ndarray:
         """(J,) each joint's median position after ``after_s`` (all samples when none)."""
-        from ...detect.warmup import spilled_median
-        from ...files import temp_space
-
         n_j = len(self.joints)
         any_after = self.index_at(after_s, "left") < self.col.n
         out = np.zeros(n_j)
-        with temp_space(), tempfile.TemporaryDirectory(prefix="impactcli-report-q-") as tmp:
-            files = [open(os.path.join(tmp, str(k)), "w+b") for k in range(n_j)]  # noqa: SIM115
-            try:
-                counts, nan = [0] * n_j, [False] * n_j
-                for got in self.col.spill.groups(["t", *[f"{k}.q" for k in range(n_j)]]):
-                    sel = got["t"] >= after_s if any_after else slice(None)
-                    for k in range(n_j):
-                        q = np.ascontiguousarray(got[f"{k}.q"][sel], dtype=np.float64)
-                        nan[k] |= bool(np.isnan(q).any())
-                        files[k].write(q.tobytes())
-                        counts[k] += q.size
-                for k, f in enumerate(files):
-                    f.flush()
-                    out[k] = np.nan if nan[k] else spilled_median(f, counts[k])
-            finally:
-                for f in files:
-                    f.close()
+        nan = [False] * n_j
+        with contextlib.closing(ColumnFiles("impactcli-report-q-")) as store:
+            for got in self.col.spill.groups(["t", *[f"{k}.q" for k in range(n_j)]]):
+                sel = got["t"] >= after_s if any_after else slice(None)
+                qs = {str(k): np.asarray(got[f"{k}.q"][sel], dtype=np.float64)
+                      for k in range(n_j)}
+                for k in range(n_j):
+                    nan[k] |= bool(np.isnan(qs[str(k)]).any())
+                store.append(qs)
+            for k in range(n_j):
+                out[k] = np.nan if nan[k] else store.median(str(k))
         return out
 
     def sweep(self, result: Any, labels: Labels, scales: Sequence[float],

@@ -1,79 +1,15 @@
-"""Temporary files of a replay (:mod:`impactcli.run.one_log`): the samples near an
-alarm (:class:`Islands`) and a pass's per-sample arrays (:class:`ChunkSpill`), so that
-memory holds only where things lie, whatever the log's length.
+"""The samples near an alarm of a replay (:mod:`impactcli.run.one_log`), kept in the one
+temporary store (:class:`impactcli.spill.ColumnFiles`) so that memory holds only where they
+lie, whatever the log's length.
 """
 
 from __future__ import annotations
 
-import os
-import tempfile
-from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
-from ..files import temp_space, write_spill
-
-
-class ColumnFiles:
-    """Arrays appended row by row to a temporary file per name (memory holds only their
-    layout), read back by rows: the one store of a replay's spills.
-
-    Args:
-        prefix: the temporary folder's name prefix.
-    """
-
-    def __init__(self, prefix: str) -> None:
-        self.dir = tempfile.TemporaryDirectory(prefix=prefix)
-        self.files: dict[str, Any] = {}
-        self.layout: dict[str, tuple[np.dtype[Any], tuple[int, ...]]] = {}
-        self.rows = 0
-
-    def append(self, arrays: dict[str, np.ndarray]) -> None:
-        """Append rows: name → (m, ...) array (the same m, and each name's dtype and row
-        shape the same each time)."""
-        m = 0
-        for key, v in arrays.items():
-            f = self.files.get(key)
-            if f is None:
-                f = self.files[key] = open(os.path.join(self.dir.name, key), "wb")  # noqa: SIM115
-                self.layout[key] = (v.dtype, v.shape[1:])
-            write_spill(f, v)
-            m = int(v.shape[0])
-        self.rows += m
-
-    def flush(self) -> None:
-        """What the write buffers hold to disk (:func:`temp_space`), the files kept open."""
-        with temp_space():
-            for f in self.files.values():
-                f.flush()
-
-    def finish(self) -> None:
-        """Close the files for writing (:func:`temp_space`); their rows stay readable."""
-        with temp_space():
-            for f in self.files.values():
-                f.close()
-
-    def read(self, row_from: int, row_to: int, keys: tuple[str, ...] | None = None,
-             ) -> dict[str, np.ndarray]:
-        """Rows [row_from, row_to) of every array (``keys``: of these), written to disk
-        (:meth:`flush` or :meth:`finish`)."""
-        out = {}
-        for key in (tuple(self.layout) if keys is None else keys):
-            dtype, shape = self.layout[key]
-            width = int(np.prod(shape)) if shape else 1
-            with open(os.path.join(self.dir.name, key), "rb") as f:
-                f.seek(row_from * dtype.itemsize * width)
-                a = np.fromfile(f, dtype=dtype, count=(row_to - row_from) * width)
-            out[key] = a.reshape((-1, *shape))
-        return out
-
-    def close(self) -> None:
-        """Remove the files."""
-        for f in self.files.values():
-            f.close()
-        self.dir.cleanup()
+from ..spill import ColumnFiles
 
 
 @dataclass
@@ -155,26 +91,3 @@ class Islands:
     def close(self) -> None:
         """Remove the spill files."""
         self.store.close()
-
-
-class ChunkSpill(ColumnFiles):
-    """Per-sample arrays of a pass, chunk by chunk, in a temporary file per array
-    (:class:`ColumnFiles`), read back later chunk by chunk (the same chunks, in order)."""
-
-    def __init__(self) -> None:
-        super().__init__("impactcli-spill-")
-        self.lengths: list[int] = []
-
-    def write(self, arrays: dict[str, np.ndarray]) -> None:
-        """Append one chunk: name → (m, ...) array (the same names and shapes each time)."""
-        self.append(arrays)
-        self.lengths.append(int(next(iter(arrays.values())).shape[0]))
-
-    def read_chunks(self, keys: tuple[str, ...] | None = None,
-                    ) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
-        """(first sample, arrays) per chunk as written; ``keys`` only these arrays."""
-        self.flush()
-        k0 = 0
-        for m in self.lengths:
-            yield k0, self.read(k0, k0 + m, keys)
-            k0 += m
