@@ -2,7 +2,7 @@
 replayed, so that memory holds only their layout, whatever the log's length.
 
 Every stage that spills uses it — the scan's repaired rows (:mod:`impactcli.logs.row_cache`),
-the message reader's decoded topics (:mod:`impactcli.logs.message_merge`, its folder and
+the message reader's decoded topics (:mod:`impactcli.logs.messages.message_merge`, its folder and
 policy), the warm-up's trailing RMS (:mod:`impactcli.detect.warmup`), the replay's islands
 and passes (:mod:`impactcli.run.one_log`), the Rerun and report writers' columns
 (:mod:`impactcli.outputs.rerun`, :mod:`impactcli.outputs.report.samples`).

@@ -18,7 +18,7 @@ import pytest
 import yaml
 
 from impactcli.logs import read_log, write_log
-from impactcli.logs.ros2_cdr import JOINT_STATE, JOINT_STATE_DEF, encode_jointstates
+from impactcli.logs.messages.ros2_cdr import JOINT_STATE, JOINT_STATE_DEF, encode_jointstates
 from impactcli.run.calibration import calibrate
 from impactcli.run.collect import detect_in_memory
 from impactcli.types import DetectionResult, RobotLog

@@ -125,7 +125,7 @@ def _bag_with_topics(path: Path, topics: list[tuple[str, str]], n: int = 20) -> 
     """A rosbag2 .db3 folder file with JointState and String topics (n messages each)."""
     from rosbags.rosbag2 import Writer
 
-    from impactcli.logs.ros2_cdr import encode_jointstates
+    from impactcli.logs.messages.ros2_cdr import encode_jointstates
 
     store = store_with(base="ros2")
     String = store.types["std_msgs/msg/String"]

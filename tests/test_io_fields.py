@@ -23,8 +23,8 @@ from mcap.writer import Writer as McapWriter
 from impactcli.cli import main
 from impactcli.errors import ChannelMapError, ImpactError, ImpactWarning, LogFormatError
 from impactcli.logs import inspect_log, read_log, write_log
-from impactcli.logs.ros2_cdr import JOINT_STATE, JOINT_STATE_DEF, decode_topic_official
-from impactcli.logs.ros2_cdr import encode_jointstates as encode_js
+from impactcli.logs.messages.ros2_cdr import JOINT_STATE, JOINT_STATE_DEF, decode_topic_official
+from impactcli.logs.messages.ros2_cdr import encode_jointstates as encode_js
 from impactcli.schema import validate
 from impactcli.types import RobotLog
 
@@ -632,9 +632,9 @@ def _odd_file(tmp: Path, n: int = 300, short_at: int | None = None) -> tuple[Pat
 
 
 def _odd_fields(p: Path) -> tuple[np.ndarray, np.ndarray | None]:
-    from impactcli.logs.field_read import read_fields
-    from impactcli.logs.fields import FieldPath
-    from impactcli.logs.mcap import McapSource, scan_mcap
+    from impactcli.logs.messages.field_read import read_fields
+    from impactcli.logs.messages.fields import FieldPath
+    from impactcli.logs.messages.mcap import McapSource, scan_mcap
 
     src = McapSource(scan_mcap(p), str(p))
     td = src.load(["/odd"])["/odd"]
@@ -650,7 +650,7 @@ def _odd_fields(p: Path) -> tuple[np.ndarray, np.ndarray | None]:
 def test_bulk_field_reading_equals_the_truth_and_the_one_by_one_decoder(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    import impactcli.logs.field_read as fr
+    import impactcli.logs.messages.field_read as fr
 
     p, truth = _odd_file(tmp_path)
     want = np.c_[truth["tau1"], truth["pt2x"], truth["pt2y"], truth["b"], truth["small"],

@@ -14,8 +14,8 @@ from mcap.writer import Writer as McapWriter
 
 from impactcli.errors import ImpactWarning, LogFormatError
 from impactcli.logs import read_log, write_log
-from impactcli.logs.mcap import scan_mcap
-from impactcli.logs.ros2_cdr import (
+from impactcli.logs.messages.mcap import scan_mcap
+from impactcli.logs.messages.ros2_cdr import (
     JOINT_STATE,
     JOINT_STATE_DEF,
     decode_topic,
@@ -299,7 +299,7 @@ def test_write_log_ros2_readable_by_official_reader(tmp_path: Path) -> None:
 def test_unsupported_files_fall_back_to_the_official_reader(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import impactcli.logs.mcap as scan_mod
+    import impactcli.logs.messages.mcap as scan_mod
 
     log = _log(ref=True)
     path = tmp_path / "f.mcap"

@@ -17,9 +17,9 @@ import pytest
 
 from impactcli import spill
 from impactcli.errors import ImpactWarning, LogFormatError
-from impactcli.logs import csv as csv_reader
 from impactcli.logs import read_log, write_log
 from impactcli.logs import scan as scan_module
+from impactcli.logs.csv import csv_read as csv_reader
 from impactcli.logs.describe import time_gaps
 from impactcli.logs.layout import OPTIONAL
 from impactcli.logs.reader import LogScan, iter_chunks, scan_log
@@ -418,8 +418,8 @@ def test_the_fast_decimal_time_is_decimal_text_to_ns() -> None:
     import pyarrow as pa
     import pyarrow.compute as pc
 
-    from impactcli.logs.csv_layout import decimal_text_to_ns
-    from impactcli.logs.csv_layout import decimal_to_ns as _decimal_ns
+    from impactcli.logs.csv.csv_layout import decimal_text_to_ns
+    from impactcli.logs.csv.csv_layout import decimal_to_ns as _decimal_ns
 
     rng = np.random.default_rng(4)
     ns = rng.integers(-10**18, 9 * 10**18, 2000)
@@ -542,8 +542,8 @@ def test_parsed_ranges_are_the_whole_files_rows(tmp_path: Path, block: int) -> N
     import pyarrow as pa
     import pyarrow.csv as pacsv
 
-    from impactcli.logs.csv import parsed_ranges
-    from impactcli.logs.csv_layout import csv_layout
+    from impactcli.logs.csv.csv_layout import csv_layout
+    from impactcli.logs.csv.csv_read import parsed_ranges
 
     cols = {k: v[:300] for k, v in _table().items()}
     path = _write(tmp_path / "crlf.csv", cols)

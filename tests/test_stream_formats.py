@@ -17,8 +17,8 @@ import pytest
 from impactcli.errors import ChannelMapError, ImpactWarning, LogFormatError
 from impactcli.logs import npz as stream_npz
 from impactcli.logs import read_log, write_log
+from impactcli.logs.messages.ros2_cdr import encode_jointstates
 from impactcli.logs.reader import iter_chunks, scan_log
-from impactcli.logs.ros2_cdr import encode_jointstates
 from impactcli.logs.write import ros2_writer
 from impactcli.types import LogSource, RobotLog
 
@@ -159,7 +159,7 @@ def test_the_chunk_walker_equals_the_official_reader(tmp_path: Path) -> None:
     """Chunks of interleaved topics (record sizes repeating with a period, or not: the
     duplicates and the late reference break it) are located as the official reader reads
     them."""
-    from impactcli.logs.mcap import scan_mcap, scan_mcap_official
+    from impactcli.logs.messages.mcap import scan_mcap, scan_mcap_official
 
     t, v = _signals(600)
     for k, msgs in enumerate((_topics(t, v), _topics(*_repairs(v, t)),
@@ -229,8 +229,8 @@ def test_a_message_decoded_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch)
     """Reading an MCAP (the scan, then every chunk collected) decompresses each MCAP chunk
     once and decodes each topic's messages of a chunk once: one decode call per chunk
     and topic read."""
-    from impactcli.logs import mcap as mcap_scan
-    from impactcli.logs import messages
+    from impactcli.logs.messages import mcap as mcap_scan
+    from impactcli.logs.messages import message_read as messages
 
     t, v = _signals()
     path = _write_ros2(tmp_path / "r.mcap", _topics(t, v), chunk_size=8192)

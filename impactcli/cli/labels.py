@@ -6,7 +6,7 @@ The channel is read through the log's own reader, whatever the log's channels ma
 a CSV column by name (one the reader ignores) or, headerless, by 0-based index, read with
 the log's time column and repairs; an ``.npz`` array (``key`` or ``key[i]``) with the map's
 time; in an MCAP file or a ROS bag, a message field ``/topic/field/sub[i]`` or
-``/topic/array[joint]`` (:mod:`impactcli.logs.fields`), stamped as the log's samples are.
+``/topic/array[joint]`` (:mod:`impactcli.logs.messages.fields`), stamped as the log's samples are.
 
 Contiguous stretches where the channel is above X become contacts (``start``/``end`` the
 first and last sample above, seconds since the log's first sample), merged when closer

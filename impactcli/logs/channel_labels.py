@@ -6,7 +6,7 @@ The channel is read through the log's own reader, whatever the log's channels ma
 a CSV column by name (one the reader ignores) or, headerless, by 0-based index, read with
 the log's time column and repairs; an ``.npz`` array (``key`` or ``key[i]``) with the map's
 time; in an MCAP file or a ROS bag, a message field ``/topic/field/sub[i]`` or
-``/topic/array[joint]`` (:mod:`impactcli.logs.fields`), stamped as the log's samples are.
+``/topic/array[joint]`` (:mod:`impactcli.logs.messages.fields`), stamped as the log's samples are.
 
 Contiguous stretches where the channel is above X become contacts (``start``/``end`` the
 first and last sample above, seconds since the log's first sample), merged when closer
@@ -96,7 +96,7 @@ def _csv_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Chan
     """A CSV column, read by the CSV reader with the log's own time (its layout as the log
     was read: separator, header, time column and unit, or ``--rate``)."""
     from .channel_map import ChannelMap, ChannelRef
-    from .csv_layout import csv_layout
+    from .csv.csv_layout import csv_layout
     from .paths import open_log_options
     from .reader import read_columns
 
@@ -171,7 +171,7 @@ def _npz_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Chan
 
 def _message_channel(path: Path, name: str, log: Any) -> Channel:
     """A message field, stamped like the log's samples, through the message reader."""
-    from .message_plan import field_channel
+    from .messages.message_plan import field_channel
 
     text, joint = name, None
     m = _JOINT_PICK.match(name)

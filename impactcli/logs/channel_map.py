@@ -11,7 +11,7 @@ fields, PlotJuggler-style: a bare string ``/topic/field/sub[i]`` or
 ``{field: /topic/field, joint: NAME, scale: ..., offset: ...}`` where ``joint`` picks a
 JointState-like array by joint name (default: the map's joint name). ``position`` is optional
 per joint: without it the positions come from the JointState state topic
-(:mod:`impactcli.logs.messages`, :mod:`impactcli.logs.fields`).
+(:mod:`impactcli.logs.messages.message_read`, :mod:`impactcli.logs.messages.fields`).
 
 A ``current`` signal *with* a ``scale`` in the map is converted to torque by that scale
 (N·m per logged unit: gear ratio × torque constant × any unit factor); a ``current`` without
@@ -107,7 +107,7 @@ class ChannelMap:
             the log's suffix, CSV or .npz).
         header: whether the CSV has a header line.
         delimiter: CSV delimiter (None: detected,
-            :func:`impactcli.logs.csv_header.mapped_separator`).
+            :func:`impactcli.logs.csv.csv_header.mapped_separator`).
         skip_rows: lines to skip before the header (or first data line).
         time: the time channel (``None`` for ``messages`` maps: the state topic's times).
         joints: joint names, in order.

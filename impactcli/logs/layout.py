@@ -10,9 +10,9 @@ run of repaired rows becomes the log's arrays (:meth:`StreamLayout.channels` and
 not a number, a time that is not finite) it records as :attr:`StreamLayout.read_error`:
 the scan raises it before the repairs' errors, as the whole file would be refused.
 
-Layouts: :class:`~impactcli.logs.csv.CsvReaderLayout` (CSV),
+Layouts: :class:`~impactcli.logs.csv.csv_read.CsvReaderLayout` (CSV),
 :class:`~impactcli.logs.npz.NpzLayout` (``.npz``),
-:class:`~impactcli.logs.messages.MessageLayout` (MCAP and ROS bags).
+:class:`~impactcli.logs.messages.message_read.MessageLayout` (MCAP and ROS bags).
 """
 
 from __future__ import annotations

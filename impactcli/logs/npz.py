@@ -38,8 +38,8 @@ READ_ERRORS = (ValueError, zipfile.BadZipFile, zlib.error, EOFError, OSError)
 def warn_rate_against_array(path: Any, where: str, tspec: Any, rate: float) -> None:
     """With ``--rate`` on an archive whose map names a time array: warn when its first
     rows' average step implies a rate off ``rate`` (as a CSV's time column,
-    :func:`impactcli.logs.csv_layout.warn_rate_against_column`)."""
-    from .csv_layout import RATE_CHECK_ROWS, warn_rate_against_times
+    :func:`impactcli.logs.csv.csv_layout.warn_rate_against_column`)."""
+    from .csv.csv_layout import RATE_CHECK_ROWS, warn_rate_against_times
 
     try:
         with np.load(path, allow_pickle=False) as archive:

@@ -243,7 +243,7 @@ def _map_time(cmap: Any, where: str, time_unit: str | None, time_column: str | N
     the unit its name says, else the map's); with ``--rate``, the map's time is not read as
     the clock (warned when it names one; the layout compares it with the rate)."""
     from .channel_map import ChannelRef, TimeSpec
-    from .csv_header import name_unit
+    from .csv.csv_header import name_unit
 
     mapname = cmap.path or cmap.name
     if rate is not None:

@@ -17,7 +17,7 @@ gives the file's rows in blocks, which are repaired across block boundaries
 (:mod:`impactcli.logs.row_cache`) that the chunks are read from. Memory holds a few
 blocks whatever the log's length, but for ``--repair-order`` (the stamps of the file,
 :func:`~impactcli.logs.repair.increasing_run`) and message stamps out of order in the file
-(:mod:`impactcli.logs.messages`).
+(:mod:`impactcli.logs.messages.message_read`).
 """
 
 from __future__ import annotations
@@ -292,14 +292,14 @@ def layout_of(path: str | os.PathLike[str], options: dict[str, Any]) -> StreamLa
     opts = {k: v for k, v in options.items() if k not in ("robot", "repair_order")}
     p, where, suffix, _folder, cmap = open_log_options(path, **opts)
     if suffix in (".csv", ".csv.gz"):
-        from .csv import csv_reader_layout
+        from .csv.csv_read import csv_reader_layout
 
         return csv_reader_layout(p, where, cmap, options)
     if suffix == ".npz":
         from .npz import npz_layout
 
         return npz_layout(p, where, cmap, options)
-    from .message_plan import message_layout
+    from .messages.message_plan import message_layout
 
     return message_layout(p, where, suffix, cmap, options)
 

@@ -28,9 +28,9 @@ import numpy as np
 from ..errors import LogFormatError, OutputError
 from ..types import CONTROLLER_CHANNELS, RobotLog
 from .channel_map import SIGNALS
-from .message_source import JOINT_SAMPLE
+from .messages.message_source import JOINT_SAMPLE
+from .messages.ros2_cdr import JOINT_STATE, JOINT_STATE_DEF
 from .paths import ROSBAG2_METADATA, log_suffix
-from .ros2_cdr import JOINT_STATE, JOINT_STATE_DEF
 
 JSON_TOPIC = "/joint_samples"
 ROS2_TOPIC = "/joint_states"
@@ -232,7 +232,7 @@ def jointstate_topics(log: RobotLog, state_topic: str) -> list[tuple[str, np.nda
         a reference, ``_model`` / ``_ext`` (effort = torque_model / torque_ext, naming only
         the joints that log it) when the log has the channel.
     """
-    from .ros2_cdr import encode_jointstates
+    from .messages.ros2_cdr import encode_jointstates
 
     out = [(state_topic, encode_jointstates(log.t_ns, log.joint_names, log.position,
                                             log.velocity, log.torque))]

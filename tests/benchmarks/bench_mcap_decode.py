@@ -32,8 +32,8 @@ from pathlib import Path
 path, n = Path(sys.argv[1]), int(sys.argv[2])
 try:
     from impactcli.logs import read_log
-    from impactcli.logs.ros2_cdr import decode_topic
-    from impactcli.logs.mcap import scan_mcap
+    from impactcli.logs.messages.ros2_cdr import decode_topic
+    from impactcli.logs.messages.mcap import scan_mcap
 except ImportError:  # a release before the layout of docs/development.md
     from impactcli.io import read_log
     from impactcli.io.mcap_ros2 import decode_topic

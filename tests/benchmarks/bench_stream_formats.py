@@ -87,7 +87,7 @@ def _block(a: int, b: int) -> tuple[np.ndarray, dict[str, np.ndarray]]:
 
 def write_mcap(n: int, path: Path) -> None:
     """The ROS 2 MCAP log of ``n`` samples (module docstring)."""
-    from impactcli.logs.ros2_cdr import encode_jointstates
+    from impactcli.logs.messages.ros2_cdr import encode_jointstates
     from impactcli.logs.write import ros2_writer
 
     with open(path, "wb") as f:
@@ -113,7 +113,7 @@ def write_rosbag2(n: int, path: Path) -> None:
     by block."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
-    from impactcli.logs.ros2_cdr import JOINT_STATE, encode_jointstates
+    from impactcli.logs.messages.ros2_cdr import JOINT_STATE, encode_jointstates
     from impactcli.logs.write import ros2_typestore
 
     with Writer(path, version=9, storage_plugin=StoragePlugin.SQLITE3) as w:

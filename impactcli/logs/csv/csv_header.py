@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import warnings
 
-from ..errors import ImpactWarning, LogFormatError
-from .channel_map import SIGNALS, TIME_UNITS, ChannelMap, ChannelRef, TimeSpec
+from ...errors import ImpactWarning, LogFormatError
+from ..channel_map import SIGNALS, TIME_UNITS, ChannelMap, ChannelRef, TimeSpec
 
 #: Separators a CSV's header is split at, tried in this order.
 SEPARATORS: tuple[str, ...] = (",", ";", "\t", " ")

@@ -14,7 +14,7 @@ whole column would be (exact decimal text → int64 ns; the float conversion tha
 of decimals below 1e6 s takes is checked to agree). A file that holds anything else is
 read again (:meth:`CsvReaderLayout.pass_again`): a first pass of the ranges infers each
 column's type as pyarrow does over the whole file, the second converts each range with
-those types (:mod:`impactcli.logs.csv_exact`). Errors (a cell that is not a number, an empty
+those types (:mod:`impactcli.logs.csv.csv_exact`). Errors (a cell that is not a number, an empty
 time...) are found range by range and the first one in the whole file's order is raised
 by the scan.
 """
@@ -28,7 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import LogFormatError
+from ...errors import LogFormatError
+from ..layout import MappedLayout, RawRows, plan_of, rate_times
 from .csv_exact import Exact, exact_rows, infer
 from .csv_layout import (
     ISO_RE,
@@ -44,7 +45,6 @@ from .csv_layout import (
     numbers,
     parsed_ranges,
 )
-from .layout import MappedLayout, RawRows, plan_of, rate_times
 
 #: Bytes of CSV text parsed at a time (one range: a 7-joint log's row is ~430 bytes).
 BLOCK_SIZE = 1 << 20
@@ -131,8 +131,8 @@ class CsvReaderLayout(MappedLayout):
 
     def __init__(self, lay: CsvLayout, options: dict[str, Any], file_names: list[str] | None,
                  header_error: str | None) -> None:
-        from .channel_map import TIME_UNITS
-        from .repair import DROPPABLE_SIGNALS
+        from ..channel_map import TIME_UNITS
+        from ..repair import DROPPABLE_SIGNALS
 
         self.lay = lay
         self.path, self.where, self.fmt = lay.path, lay.where, lay.fmt
@@ -179,7 +179,7 @@ class CsvReaderLayout(MappedLayout):
         return str(self._label(i))
 
     def rate_error(self, rate_hz: float, duration_s: float | None = None) -> str | None:
-        from .repair import rate_message
+        from ..repair import rate_message
 
         if self.rate_hz is not None:
             return rate_message(self.rate_hz, self.where, "--rate", None, duration_s)

@@ -1,4 +1,4 @@
-"""The exact passes of the CSV reader (:mod:`impactcli.logs.csv`), for a file whose first
+"""The exact passes of the CSV reader (:mod:`impactcli.logs.csv.csv_read`), for a file whose first
 pass met cells it does not read as the whole file is read.
 
 pyarrow gives each column of a CSV one type, inferred over the whole file: the first of
@@ -21,7 +21,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import LogFormatError
+from ...errors import LogFormatError
+from ..layout import RawRows, rate_times
 from .csv_layout import (
     ISO_RE,
     beyond_clock,
@@ -33,7 +34,6 @@ from .csv_layout import (
     median_step,
     numbers,
 )
-from .layout import RawRows, rate_times
 
 #: pyarrow's type inference, in the order it tries types (each accepts the values of
 #: every earlier one but where :func:`_fits` says otherwise).

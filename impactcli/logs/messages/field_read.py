@@ -1,8 +1,9 @@
 """Reading field paths from the raw messages of one topic, in bulk where the layout allows.
 
-:func:`read_fields` returns the values of :class:`~impactcli.logs.fields.FieldPath` s (and the
-header stamps) of every message. JSON messages are decoded one by one
-(:func:`impactcli.logs.fields.extract`). ROS messages (CDR or ROS 1) are read in bulk:
+:func:`read_fields` returns the values of
+:class:`~impactcli.logs.messages.fields.FieldPath` s (and the header stamps) of every
+message. JSON messages are decoded one by one
+(:func:`impactcli.logs.messages.fields.extract`). ROS messages (CDR or ROS 1) are read in bulk:
 
 1. Messages of one batch with the same length form a group. The first is walked field by
    field over its type definition (:class:`_Locator`: CDR alignment relative to the byte
@@ -229,7 +230,7 @@ def read_fields(src: MessageSource, td: TopicData, paths: list[FieldPath],
         ``(values (n, len(paths)) float64, header (n,) int64 [ns] or None without header)``.
 
     Raises:
-        LogFormatError, ChannelMapError: as :func:`impactcli.logs.fields.extract` (from the
+        LogFormatError, ChannelMapError: as :func:`impactcli.logs.messages.fields.extract` (from the
             one-by-one decoder, which names the message).
     """
     if td.encoding not in ("cdr", "ros1"):

@@ -10,7 +10,7 @@ the unit that would fit (:func:`clock_message`).
 
 Common variants of the canonical layout are read as well: a UTF-8 byte-order mark before
 the header (Excel), ``;``, tab or space separators — the one with which the header names a
-time column (:mod:`impactcli.logs.csv_header`; for a mapped CSV, the map's columns) — and
+time column (:mod:`impactcli.logs.csv.csv_header`; for a mapped CSV, the map's columns) — and
 with those a decimal comma (``0,004``), detected on the first data line; blanks around
 separators (``time, q``) are not part of names or cells. A log read with ``--rate`` has no
 time column (``tname`` None): its times are the rows' indices at the rate.
@@ -32,10 +32,10 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ChannelMapError, ImpactWarning, LogFormatError
-from .channel_map import TIME_UNITS, ChannelMap, ChannelRef, TimeSpec, require_time
+from ...errors import ChannelMapError, ImpactWarning, LogFormatError
+from ..channel_map import TIME_UNITS, ChannelMap, ChannelRef, TimeSpec, require_time
+from ..repair import GIVE_UNIT, unit_hint
 from .csv_header import canonical_map, header_names, mapped_separator, separator
-from .repair import GIVE_UNIT, unit_hint
 
 #: Bytes looked at to tell a text CSV from binary content.
 SNIFF_BYTES = 1 << 16
@@ -281,7 +281,7 @@ def csv_layout(path: Path, cmap: ChannelMap | None, *, time_unit: str | None = N
     Args:
         path: the file.  cmap: its channel map (None: the canonical layout).
         time_unit, time_column, rate: ``--time-unit``, ``--time-column`` and ``--rate``
-            of a canonical CSV (:func:`~impactcli.logs.csv_header.canonical_map`; a map's
+            of a canonical CSV (:func:`~impactcli.logs.csv.csv_header.canonical_map`; a map's
             own time has them applied already).
 
     Raises:

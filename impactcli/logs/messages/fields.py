@@ -18,8 +18,8 @@ where the path does not fit. Indices past a sequence's length and joints missing
 message's ``name[]`` are found while reading (a LogFormatError naming the message).
 
 :func:`extract` reads every path of one topic with one decode per message
-(:func:`impactcli.logs.message_source.MessageSource.decode`); numbers are float64 (booleans 0/1,
-JSON null is NaN).
+(:func:`impactcli.logs.messages.message_source.MessageSource.decode`); numbers are float64
+(booleans 0/1, JSON null is NaN).
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ChannelMapError, LogFormatError
+from ...errors import ChannelMapError, LogFormatError
 
 _STEP = re.compile(r"^([^/\[\]]+)(?:\[(\d+)\])?$")
 #: rosbags base types that are numbers (``string`` and ``wstring`` are not)

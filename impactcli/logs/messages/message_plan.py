@@ -1,10 +1,10 @@
 """The reader of a message log (:func:`message_layout`) and what the log is made of
-(:mod:`impactcli.logs.messages`): the topics to read
+(:mod:`impactcli.logs.messages.message_read`): the topics to read
 (:func:`selection`, from the topics and the channel map, before the pass over the file),
 then from their counts (:func:`decide`, after it) the state topic's joints, signals and
 time source, the companion and map topics held onto it and their columns, the ignored
 channels — and, for a log that does not fit, the first error in the order the module
-docstring of :mod:`impactcli.logs.messages` gives.
+docstring of :mod:`impactcli.logs.messages.message_read` gives.
 """
 
 from __future__ import annotations
@@ -15,12 +15,12 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ChannelMapError, ImpactError, LogFormatError
-from .channel_map import SIGNALS
-from .channels import TIME_SOURCES
-from .layout import plan_of
+from ...errors import ChannelMapError, ImpactError, LogFormatError
+from ..channel_map import SIGNALS
+from ..channels import TIME_SOURCES
+from ..layout import plan_of
 from .message_merge import Part
-from .messages import (
+from .message_read import (
     COMPANIONS,
     MapField,
     MessageLayout,
@@ -328,7 +328,7 @@ def _held_companions(lay: MessageLayout, sel: Selection, joints: tuple[str, ...]
 
 def _columns(lay: MessageLayout, sel: Selection) -> None:
     """The layout's column names and keys, repairs' droppable columns, current scale."""
-    from .repair import DROPPABLE_SIGNALS
+    from ..repair import DROPPABLE_SIGNALS
 
     cols = [c for part in lay.parts for c in part.cols]
     lay.names = [f"{lay.joints[j]}.{s}" for s, j in cols]
@@ -437,7 +437,7 @@ def field_channel(p: Path, name: str, text: str, joint: str | None, time_source:
         LogFormatError, ChannelMapError: no such topic or field, a field that cannot be
             read (naming ``name`` and what the file has; ``hint``: the log's own channels).
     """
-    from .channel_map import ChannelRef
+    from ..channel_map import ChannelRef
     from .fields import check_ros_path, parse_field_path
 
     lay = _source_layout(p, str(p))

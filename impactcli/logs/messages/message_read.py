@@ -12,8 +12,8 @@ message at or before each), the samples before its first message dropped (a repa
 
 One pass over the file's blocks (:meth:`MessageLayout.read`) decodes each block once,
 counts every topic the log may use and spills its decoded columns
-(:mod:`impactcli.logs.message_merge`, which merges them into rows); what the log is made of
-is decided from the counts (:mod:`impactcli.logs.message_plan`), a log that does not fit
+(:mod:`impactcli.logs.messages.message_merge`, which merges them into rows); what the log is made of
+is decided from the counts (:mod:`impactcli.logs.messages.message_plan`), a log that does not fit
 refused with the first error in that order.
 """
 
@@ -27,12 +27,12 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ChannelMapError, ImpactError, LogFormatError
-from ..spill import SpillFolder
-from .channel_map import SIGNALS, ChannelMap, ChannelRef
-from .channels import JointChannels
+from ...errors import ChannelMapError, ImpactError, LogFormatError
+from ...spill import SpillFolder
+from ..channel_map import SIGNALS, ChannelMap, ChannelRef
+from ..channels import JointChannels
+from ..layout import RawRows, StreamLayout
 from .fields import FieldPath, check_ros_path, parse_field_path
-from .layout import RawRows, StreamLayout
 from .message_merge import Part, TopicSpill, merged_rows
 from .message_source import JOINT_SAMPLE, JOINT_STATE, MessageSource, TopicData
 from .ros2_cdr import TopicArrays, arrays_from_messages, decode_batches, parse_jointstate
@@ -411,7 +411,7 @@ class MessageLayout(StreamLayout):
     def rate_error(self, rate_hz: float, duration_s: float | None = None) -> str | None:
         """A rate below :data:`~impactcli.logs.repair.MIN_RATE_HZ` is too low for impact
         detection (stamps in ns leave no unit to doubt; no upper bound)."""
-        from .repair import MIN_RATE_HZ, rate_message
+        from ..repair import MIN_RATE_HZ, rate_message
 
         if not rate_hz < MIN_RATE_HZ:
             return None

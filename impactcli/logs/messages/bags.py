@@ -3,7 +3,7 @@ folder with ``metadata.yaml`` — its split files, SQLite ``.db3`` or MCAP stora
 one log in time order — or a ``.db3`` file alone; messages in ROS 2 CDR) and ROS 1
 ``.bag`` files.
 
-They are read exactly as MCAP logs (:mod:`impactcli.logs.messages`), :data:`BAG_BLOCK`
+They are read exactly as MCAP logs (:mod:`impactcli.logs.messages.message_read`), :data:`BAG_BLOCK`
 messages a block (:class:`BagBlocks`). A bag stores one time per message, the recorder's
 receive time: it is the ``log`` time, and ``publish`` time is the same. Message types are
 decoded with the definitions stored in the bag; a bag without any (old rosbag2 databases)
@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import LogFormatError
+from ...errors import LogFormatError
 from .message_source import Batch, MessageSource, TopicData, normalize_type
 
 
@@ -127,7 +127,7 @@ BAG_BLOCK = 8192
 
 class BagBlocks:
     """A ROS bag's messages (:class:`BagSource`), :data:`BAG_BLOCK` at a time, in the
-    bag's order: blocks ``{topic: [Batch]}`` as :class:`~impactcli.logs.mcap.McapBlocks`
+    bag's order: blocks ``{topic: [Batch]}`` as :class:`~impactcli.logs.messages.mcap.McapBlocks`
     gives them."""
 
     kind = "bag"

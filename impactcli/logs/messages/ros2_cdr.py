@@ -1,7 +1,7 @@
 """MCAP with ROS 2 ``sensor_msgs/msg/JointState`` (CDR): bulk decoder, encoder (docs/formats.md).
 
 Decoding (:func:`decode_batches`, a block's messages of one topic as
-:class:`~impactcli.logs.mcap.McapBlocks` locates them): messages of one batch with the
+:class:`~impactcli.logs.messages.mcap.McapBlocks` locates them): messages of one batch with the
 same size are decoded together: the first is parsed field by field to learn its layout
 (offsets of the stamp and of the position/velocity/effort float64 arrays, its joint
 names), every other message of the group is checked to have the same bytes everywhere
@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import LogFormatError
+from ...errors import LogFormatError
 from .message_source import Batch
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
@@ -250,7 +250,7 @@ def decode_topic(
     joints: tuple[str, ...] | None = None,
 ) -> TopicArrays:
     """Decode every JointState message of ``channel_ids`` of an
-    :class:`~impactcli.logs.mcap.McapScan` into :class:`TopicArrays` (file order)."""
+    :class:`~impactcli.logs.messages.mcap.McapScan` into :class:`TopicArrays` (file order)."""
     batches = [b for c in channel_ids for b in scan.batches.get(c, [])]
     return decode_batches(batches, where, topic, joints)
 

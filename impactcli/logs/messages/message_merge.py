@@ -1,6 +1,6 @@
 """The decoded messages of a log's topics kept on disk (:class:`TopicSpill`), and their
 merge into the log's rows (:func:`merged_rows`): the second half of the message reader
-(:mod:`impactcli.logs.messages`).
+(:mod:`impactcli.logs.messages.message_read`).
 
 Why: a message log is read in one pass over its blocks (MCAP chunks, bag messages), each
 block decompressed and decoded once; what the log is made of (the state topic, its
@@ -31,7 +31,7 @@ from typing import IO, Any
 
 import numpy as np
 
-from ..spill import SpillFolder
+from ...spill import SpillFolder
 
 #: State samples merged at a time.
 MERGE_ROWS = 65_536

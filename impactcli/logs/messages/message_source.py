@@ -3,17 +3,17 @@
 A :class:`MessageSource` lists its topics with their message type and encoding (``cdr``:
 ROS 2; ``ros1``: ROS 1; ``json``); the messages of a block come as :class:`TopicData` —
 file order, log and publish times [ns], and each message's bytes in :class:`Batch` es —, so
-the vectorised JointState decoder of :mod:`impactcli.logs.ros2_cdr` reads MCAP and rosbag2
+the vectorised JointState decoder of :mod:`impactcli.logs.messages.ros2_cdr` reads MCAP and rosbag2
 alike. :meth:`MessageSource.decode_all` decodes messages of any type with the definitions
 stored in the file (rosbags' ``Typestore``: ``ros2msg``/``ros1msg``, ``ros2idl``; types a
 definition refers to but does not carry come from rosbags' latest ROS 2 store) or
 ``json.loads``. rosbags' deserialiser is used because it accepts ROS 1 field names (such as
 ``tau_J``) that ``mcap_ros2``'s refuses; it is called on the message body directly, so
 trailing CDR padding (docs/formats.md, "MCAP") is ignored. Fields are read in bulk where
-the layout allows (:mod:`impactcli.logs.field_read`), checked against this decoder.
+the layout allows (:mod:`impactcli.logs.messages.field_read`), checked against this decoder.
 
-Sources: :class:`~impactcli.logs.mcap.McapSource` and
-:class:`~impactcli.logs.bags.BagSource` (rosbags' ``AnyReader``).
+Sources: :class:`~impactcli.logs.messages.mcap.McapSource` and
+:class:`~impactcli.logs.messages.bags.BagSource` (rosbags' ``AnyReader``).
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import LogFormatError
+from ...errors import LogFormatError
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 JOINT_SAMPLE = "impactcli/JointSample"

@@ -1,6 +1,6 @@
 """MCAP files read record by record, chunk by chunk (:class:`McapBlocks`): schemas,
 channels and the messages of each chunk located in bulk, for the message reader
-(:mod:`impactcli.logs.messages`).
+(:mod:`impactcli.logs.messages.message_read`).
 
 The official ``mcap`` reader yields one Python object per message. This walker reads the
 file's records in order, decompresses each chunk once (zstd, lz4 or none) and locates its
@@ -9,8 +9,8 @@ same size (one channel, fixed-size messages — the common case for JointState),
 sizes repeat with a short period (a state topic and its companions written in turn), is
 viewed as a NumPy structured array; any other is walked record by record. A *block* is the
 messages of one chunk (or of a run of records outside chunks), by topic, as
-:class:`~impactcli.logs.message_source.Batch` es: bytes, times and each message's index in the
-file's order. Files with a compression the walker does not know are read through the
+:class:`~impactcli.logs.messages.message_source.Batch` es: bytes, times and each message's
+index in the file's order. Files with a compression the walker does not know are read through the
 official reader (:class:`OfficialBlocks`, the same blocks).
 
 Truncation: a file with a valid magic whose records stop early (no DataEnd/Footer, or a
@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import LogFormatError
+from ...errors import LogFormatError
 from .message_source import Batch, MessageSource, TopicData, normalize_type
 
 MAGIC = b"\x89MCAP0\r\n"
