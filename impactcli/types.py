@@ -52,9 +52,62 @@ class LogSource:
     notes: tuple[str, ...] = ()
 
 
-#: The controller's own channels (docs/formats.md, "Canonical wide CSV"): a joint that
-#: lacks one holds NaN in its column.
-CONTROLLER_CHANNELS: tuple[str, ...] = ("torque_model", "torque_ext")
+@dataclass(frozen=True)
+class ChannelSpec:
+    """One per-joint channel of a sample (docs/formats.md, "Canonical wide CSV").
+
+    Attributes:
+        name: the field of :class:`RobotLog` (and of the chunks the readers and the replay
+            pass), and the ``<joint>.<name>`` of a canonical CSV column.
+        unit: its unit once read (after a channel map's scale and offset).
+        role: ``measured`` (the robot's sensors), ``reference`` (the controller's
+            commanded motion) or ``controller`` (the controller's own model torques: a
+            joint that lacks one holds NaN in its column).
+        optional: a log may lack it (only position and torque are required).
+        droppable: a joint whose column of it holds no finite value is left out of the
+            log (a controller channel's missing column is NaN instead).
+        angular: an angle or its derivative (a position unit's scale applies to it).
+        replayed: the replay reads it, chunk by chunk.
+    """
+
+    name: str
+    unit: str
+    role: str
+    optional: bool
+    droppable: bool
+    angular: bool
+    replayed: bool
+
+
+#: The channels of a sample, declared once: the name tuples below, the readers' and the
+#: replay's chunks and :class:`RobotLog` derive from it (tests/test_layout.py checks the
+#: dataclasses' fields against it).
+CHANNELS: tuple[ChannelSpec, ...] = (
+    ChannelSpec("position", "rad", "measured", False, True, True, True),
+    ChannelSpec("velocity", "rad/s", "measured", True, True, True, False),
+    ChannelSpec("torque", "N·m", "measured", False, True, False, True),
+    ChannelSpec("current", "A", "measured", True, True, False, False),
+    ChannelSpec("position_ref", "rad", "reference", True, True, True, True),
+    ChannelSpec("velocity_ref", "rad/s", "reference", True, True, True, True),
+    ChannelSpec("acceleration_ref", "rad/s²", "reference", True, True, True, True),
+    ChannelSpec("torque_model", "N·m", "controller", True, False, False, True),
+    ChannelSpec("torque_ext", "N·m", "controller", True, False, False, True),
+)
+#: Every channel's name, in declaration order.
+CHANNEL_NAMES: tuple[str, ...] = tuple(c.name for c in CHANNELS)
+#: The channels every log has (position, torque).
+REQUIRED_CHANNELS: tuple[str, ...] = tuple(c.name for c in CHANNELS if not c.optional)
+#: The channels a log may lack, in :class:`RobotLog`'s order.
+OPTIONAL_CHANNELS: tuple[str, ...] = tuple(c.name for c in CHANNELS if c.optional)
+#: The channels whose all-NaN column drops its joint (:class:`ChannelSpec`).
+DROPPABLE_CHANNELS: tuple[str, ...] = tuple(c.name for c in CHANNELS if c.droppable)
+#: The angular channels (a position unit's scale applies to them).
+ANGULAR_CHANNELS: tuple[str, ...] = tuple(c.name for c in CHANNELS if c.angular)
+#: The channels the replay reads per chunk.
+REPLAYED_CHANNELS: tuple[str, ...] = tuple(c.name for c in CHANNELS if c.replayed)
+#: The controller's own channels: a joint that lacks one holds NaN in its column.
+CONTROLLER_CHANNELS: tuple[str, ...] = tuple(c.name for c in CHANNELS
+                                             if c.role == "controller")
 
 
 def _as_matrix(name: str, a: Any, n: int, j: int, where: str) -> np.ndarray:
@@ -140,10 +193,9 @@ class RobotLog:
                 raise LogFormatError(f"{where}: invalid joint name {s!r} (empty or with a dot)")
         object.__setattr__(self, "joint_names", names)
         j = len(names)
-        for name in ("position", "torque"):
+        for name in REQUIRED_CHANNELS:
             object.__setattr__(self, name, _as_matrix(name, getattr(self, name), n, j, where))
-        for name in ("velocity", "current", "position_ref", "velocity_ref", "acceleration_ref",
-                     *CONTROLLER_CHANNELS):
+        for name in OPTIONAL_CHANNELS:
             value = getattr(self, name)
             if value is not None:
                 object.__setattr__(self, name, _as_matrix(name, value, n, j, where))

@@ -174,6 +174,31 @@ def test_no_test_imports_a_benchmark() -> None:
     assert not bad, bad
 
 
+def test_the_channels_are_declared_once() -> None:
+    """The channels of a sample are declared once (impactcli.types.CHANNELS): the log, the
+    readers' chunks and the replay's arrays carry exactly those fields, and no other module
+    declares a list of channel names (a constant: a test of membership in a few is not
+    one)."""
+    import dataclasses
+
+    from impactcli.logs.layout import LogChunk
+    from impactcli.run.replay import ChunkArrays
+    from impactcli.types import CHANNEL_NAMES, REPLAYED_CHANNELS, RobotLog
+
+    def channel_fields(cls: type) -> tuple[str, ...]:
+        return tuple(f.name for f in dataclasses.fields(cls) if f.name in CHANNEL_NAMES
+                     or f.type in ("np.ndarray", "np.ndarray | None"))
+
+    assert set(channel_fields(RobotLog)) - {"t_ns"} == set(CHANNEL_NAMES)
+    assert set(channel_fields(LogChunk)) - {"t_ns"} == set(CHANNEL_NAMES)
+    assert set(channel_fields(ChunkArrays)) - {"time_s"} == set(REPLAYED_CHANNELS)
+    names = "|".join(CHANNEL_NAMES)  # a module-level name bound to a list of them
+    spelled = re.compile(rf"^\w+(:[^=]+)?\s*=\s*[(\[{{]?\s*(\"({names})\",\s*){{2,}}", re.M)
+    bad = [m for m, p in MODULES.items()
+           if m != "impactcli.types" and spelled.search(p.read_text("utf-8"))]
+    assert not bad, bad
+
+
 #: The modules that may make temporary files or folders other than through the one
 #: temporary store (impactcli/spill.py), and why: none of them keeps per-sample columns.
 TEMP_ALLOWED = {

@@ -33,13 +33,10 @@ from typing import Any
 
 from ..errors import ChannelMapError
 from ..files import load_mapping
+from ..types import CHANNEL_NAMES
 
 #: Per-joint signals a log may carry, in RobotLog field names.
-SIGNALS: tuple[str, ...] = (
-    "position", "velocity", "torque", "current",
-    "position_ref", "velocity_ref", "acceleration_ref",
-    "torque_model", "torque_ext",
-)
+SIGNALS: tuple[str, ...] = CHANNEL_NAMES
 
 #: Time units and their size in ns.
 TIME_UNITS: dict[str, int] = {"s": 10**9, "ms": 10**6, "us": 10**3, "ns": 1}

@@ -28,12 +28,12 @@ from typing import Any
 import numpy as np
 
 from ..errors import ImpactWarning, LogFormatError
-from ..types import CONTROLLER_CHANNELS, RobotDescription
+from ..types import ANGULAR_CHANNELS, CONTROLLER_CHANNELS, OPTIONAL_CHANNELS, RobotDescription
 
 TORQUE_SOURCES = ("torque", "current")
 #: The signals in the positions' unit (or it per second, per second²): converted by
 #: ``--position-unit``.
-ANGULAR_SIGNALS = ("position", "velocity", "position_ref", "velocity_ref", "acceleration_ref")
+ANGULAR_SIGNALS = ANGULAR_CHANNELS
 TIME_SOURCES = ("log", "publish", "header")
 
 
@@ -161,8 +161,8 @@ def plan_log(ch: JointChannels, *, path: str, robot: RobotDescription | None,
     scale: np.ndarray | None = None
     if src == "current":
         scale = _current_scale(ch, path, robot, notes)
-    optional = [s for s in ("velocity", "current", "position_ref", "velocity_ref",
-                            "acceleration_ref") if s in ch.signals and not ch.missing.get(s)]
+    optional = [s for s in OPTIONAL_CHANNELS if s not in CONTROLLER_CHANNELS
+                and s in ch.signals and not ch.missing.get(s)]
     controller = tuple(s for s in CONTROLLER_CHANNELS if s in ch.signals)
     # a signal present for some joints only is not usable: list it as ignored
     ignored = list(ch.ignored)

@@ -25,11 +25,11 @@ from typing import Any
 import numpy as np
 
 from ..errors import LogFormatError
+from ..types import OPTIONAL_CHANNELS, REQUIRED_CHANNELS
 from .channels import JointChannels
 
 #: The log's optional arrays, in :class:`~impactcli.types.RobotLog`'s order.
-OPTIONAL = ("velocity", "current", "position_ref", "velocity_ref", "acceleration_ref",
-            "torque_model", "torque_ext")
+OPTIONAL = OPTIONAL_CHANNELS
 
 
 @dataclass
@@ -222,7 +222,7 @@ class ScanPass:
         arrays = assemble(self.layout.plan, self.layout.channels(t, mat))
         every = self.keep == list(range(len(self.layout.joints)))
         out = {s: arrays[s] if every else arrays[s][:, self.keep]
-               for s in ("position", "torque", *self.optional)}
+               for s in (*REQUIRED_CHANNELS, *self.optional)}
         return (t - self.t_shift if self.t_shift else t), out
 
 

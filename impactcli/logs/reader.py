@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from ..types import CONTROLLER_CHANNELS, RobotLog
+from ..types import CONTROLLER_CHANNELS, REQUIRED_CHANNELS, RobotLog
 from .layout import OPTIONAL, LogChunk, ScanPass, StreamLayout
 from .scan import LogScan, RowsKept, pass_chunks, passes, raise_read_errors, scan_layout
 from .screen import ColumnScreen
@@ -197,7 +197,7 @@ class MemoryReader(LogReader):
             poses = PoseSample(len(log.joint_names))
             poses.add(log.t_ns, log.position, log.torque)
             ranges = {}
-            for s in ("position", "torque", *OPTIONAL):
+            for s in (*REQUIRED_CHANNELS, *OPTIONAL):
                 a = getattr(log, s)
                 if a is not None:
                     r = screens.get(s) or ColumnScreen.of(a)
@@ -241,7 +241,7 @@ def collect(reader: LogReader) -> RobotLog:
     scan = reader.scan()
     n, j = scan.n_samples, len(scan.joint_names)
     t = np.empty(n, dtype=np.int64)
-    arrays = {s: np.empty((n, j)) for s in ("position", "torque", *scan.channels)}
+    arrays = {s: np.empty((n, j)) for s in (*REQUIRED_CHANNELS, *scan.channels)}
     for ch in reader.chunks(COLLECT_ROWS):
         t[ch.start:ch.stop] = ch.t_ns
         for s, a in arrays.items():

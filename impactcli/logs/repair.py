@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import LogFormatError
-from ..types import CONTROLLER_CHANNELS
+from ..types import CONTROLLER_CHANNELS, DROPPABLE_CHANNELS
 
 if TYPE_CHECKING:
     from .layout import RawRows, StreamLayout
@@ -51,8 +51,7 @@ MAX_RATE_HZ = 100_000.0
 #: (or current, the torque source) column leaves its joint out of the log; an optional
 #: signal's column (velocity, current not the torque source, references) leaves that
 #: signal out of the log (:func:`impactcli.logs.channels.drop_empty_signals`).
-DROPPABLE_SIGNALS = ("position", "torque", "current", "velocity", "position_ref",
-                     "velocity_ref", "acceleration_ref")
+DROPPABLE_SIGNALS = DROPPABLE_CHANNELS
 
 
 def restart_message(where: str, time_name: str, rows: list[str]) -> str:

@@ -25,7 +25,7 @@ import numpy as np
 from ..clock import GAP_FACTOR, MAX_STATS_STEPS, GapStream, SampleClock, StepHistogram
 from ..columns import column_all, column_any, column_range
 from ..errors import ImpactWarning, LogFormatError
-from ..types import CONTROLLER_CHANNELS, LogSource, RobotLog
+from ..types import CONTROLLER_CHANNELS, REQUIRED_CHANNELS, LogSource, RobotLog
 from .defects import SHUFFLED_STEP_SHARE, DefectScan, Jump, Wrap, unwrap_positions
 from .layout import OPTIONAL, LogChunk, ScanPass, StreamLayout, chunked
 from .plausibility import (
@@ -354,7 +354,7 @@ class _ScanAcc:
     def check_finite(self, keep: list[int], gone: list[str]) -> None:
         """RobotLog's error for a non-finite value left in a kept joint's column (a value
         scaled out of range); the signals ``gone`` are not in the log."""
-        for s in ("position", "torque", *OPTIONAL):
+        for s in (*REQUIRED_CHANNELS, *OPTIONAL):
             rows = self.bad_row.get(s) if s not in gone else None
             if rows is None or not (rows[keep] >= 0).any():
                 continue
@@ -561,7 +561,7 @@ class _ScanAcc:
 
 def _arrays_of(log: RobotLog) -> list[str]:
     """The arrays a log has, in :class:`~impactcli.types.RobotLog`'s order."""
-    return [s for s in ("position", "torque", *OPTIONAL) if getattr(log, s) is not None]
+    return [s for s in (*REQUIRED_CHANNELS, *OPTIONAL) if getattr(log, s) is not None]
 
 
 def _nan_where_empty(a: np.ndarray, signal: str, ctx: StreamLayout,

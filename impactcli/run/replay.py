@@ -49,6 +49,7 @@ from ..model.generators import (
 )
 from ..model.residual import ResidualOptions, causal_velocity, residual_chunk
 from ..model.rigid import RigidModel
+from ..types import REPLAYED_CHANNELS
 
 #: Cut-off of the joints' causal velocity used for the incidents' contact type [Hz]
 #: (at most 0.2 × the sample rate).
@@ -62,10 +63,7 @@ PART_SAMPLES = 65_536
 AHEAD = 2
 
 #: The chunk's arrays a replay reads (optional ones may be None).
-CHUNK_ARRAYS: tuple[str, ...] = (
-    "position", "torque", "position_ref", "velocity_ref", "acceleration_ref",
-    "torque_model", "torque_ext",
-)
+CHUNK_ARRAYS: tuple[str, ...] = REPLAYED_CHANNELS
 
 
 @dataclass(frozen=True)

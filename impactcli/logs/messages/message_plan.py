@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import ChannelMapError, ImpactError, LogFormatError
+from ...types import CHANNELS
 from ..channel_map import SIGNALS
 from ..channels import TIME_SOURCES
 from ..layout import plan_of
@@ -32,6 +33,10 @@ from .message_read import (
 )
 
 _ROS = ("ros2", "ros1")
+
+#: The channels a JointState message carries (position, velocity, and effort as torque).
+JOINT_STATE_SIGNALS: tuple[str, ...] = tuple(c.name for c in CHANNELS
+                                             if c.name in {"position", "velocity", "torque"})
 
 
 @dataclass
@@ -261,7 +266,7 @@ def _joint_state(lay: MessageLayout, sel: Selection, r: TopicReader
     if k is not None:
         raise LogFormatError(f"{where}: topic {state!r}, message {k} lacks some of the joints "
                              f"{', '.join(joints)}")
-    signals = SIGNALS if kind == "json" else ("position", "velocity", "torque")
+    signals = SIGNALS if kind == "json" else JOINT_STATE_SIGNALS
     used: list[str] = []
     ignored: list[str] = []
     for s in SIGNALS:
