@@ -7,6 +7,7 @@ trust what it is given.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -50,6 +51,41 @@ class LogSource:
     repairs: tuple[str, ...] = ()
     joints_dropped: tuple[tuple[str, str], ...] = ()
     notes: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class ReadOptions:
+    """How to read a log, as the command line gives it (docs/formats.md): the one typed
+    record the CLI hands to the readers (``--robot`` is given apart, as the description
+    itself). None (or False) where not given.
+
+    Attributes:
+        channel_map: a channel map's path or shipped name (foreign CSV, ``.npz``, messages).
+        topic, reference_topic: a message log's state and reference topics.
+        time_source: which clock stamps a message log's samples (log, publish, header).
+        torque_source: ``torque`` or ``current`` (× gear ratio × torque constant).
+        time_unit, time_column: a CSV's or ``.npz``'s time column and its unit.
+        rate: [Hz] sample i at i / rate (excludes ``time_unit`` and ``time_column``).
+        position_unit: ``rad`` or ``deg``. repair_order: keep the longest increasing run of
+            stamps instead of refusing rows out of order.
+    """
+
+    channel_map: str | None = None
+    topic: str | None = None
+    reference_topic: str | None = None
+    time_source: str | None = None
+    torque_source: str | None = None
+    time_unit: str | None = None
+    time_column: str | None = None
+    rate: float | None = None
+    position_unit: str | None = None
+    repair_order: bool = False
+
+    def as_dict(self) -> dict[str, Any]:
+        """The readers' keyword arguments (and a timeline's ``input.read_options``): the
+        options given."""
+        return {f.name: v for f in dataclasses.fields(self)
+                if (v := getattr(self, f.name)) is not None and v is not False}
 
 
 @dataclass(frozen=True)

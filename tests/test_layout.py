@@ -155,6 +155,14 @@ def test_no_private_name_crosses_a_module() -> None:
 CLI_SHARED = ("impactcli.cli", "impactcli.cli.options", "impactcli.cli.fit_table")
 
 
+def test_no_side_channel_through_the_click_context() -> None:
+    """Options reach a verb as its parameters (the read options as one ReadOptions), never
+    through the click context's ``meta``."""
+    meta = re.compile(r"\bctx\.meta\b|\.meta\.(get|setdefault)\(|\.meta\[")
+    bad = [m for m, p in MODULES.items() if meta.search(p.read_text("utf-8"))]
+    assert not bad, bad
+
+
 def test_no_cli_verb_imports_another_verbs_logic() -> None:
     bad = [f"{MODULES[a].relative_to(ROOT)}:{line} imports {b}"
            for a, rows in EDGES.items() if _unit(a) == "impactcli.cli"

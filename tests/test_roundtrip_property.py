@@ -26,6 +26,7 @@ from impactcli.cli import main
 from impactcli.config import DetectorConfig, dumps_config, load_config, save_config
 from impactcli.errors import ConfigError, LabelsError, ModelError, RobotDescriptionError
 from impactcli.logs import read_log, write_log
+from impactcli.logs.paths import RECORDED_READ_OPTIONS
 from impactcli.logs.robot_files import (
     labels_from_dict,
     read_labels,
@@ -37,6 +38,7 @@ from impactcli.logs.robot_files import (
 from impactcli.model import RigidModel, read_model, structures, write_model
 from impactcli.outputs.timeline import dumps_timeline, read_timeline
 from impactcli.schema import load_schema
+from impactcli.types import ReadOptions
 from tests.schema_strategies import from_schema
 
 PROPERTY = settings(max_examples=60, derandomize=True, deadline=None,
@@ -189,6 +191,30 @@ def test_timeline_round_trip(doc: dict[str, Any]) -> None:
     back = read_timeline(path)
     assert back == doc
     assert dumps_timeline(back) == text
+
+
+_TEXT = st.text(min_size=1, max_size=12)
+_READ_OPTIONS = st.builds(
+    ReadOptions, channel_map=st.none() | _TEXT, topic=st.none() | _TEXT,
+    reference_topic=st.none() | _TEXT,
+    time_source=st.none() | st.sampled_from(["log", "publish", "header"]),
+    torque_source=st.none() | st.sampled_from(["torque", "current"]),
+    time_unit=st.none() | st.sampled_from(["s", "ms", "us", "ns"]),
+    time_column=st.none() | _TEXT,
+    rate=st.none() | st.floats(min_value=1e-3, max_value=1e6, allow_nan=False),
+    position_unit=st.none() | st.sampled_from(["rad", "deg"]), repair_order=st.booleans())
+
+
+@PROPERTY
+@given(opts=_READ_OPTIONS)
+def test_read_options_round_trip(opts: ReadOptions) -> None:
+    """The read options a timeline records (``input.read_options``) read back as the same
+    options, through the JSON the timeline is written as."""
+    import json
+
+    recorded = json.loads(json.dumps(opts.as_dict(), allow_nan=False))
+    assert ReadOptions(**recorded) == opts
+    assert set(recorded) <= set(RECORDED_READ_OPTIONS)
 
 
 @pytest.mark.parametrize("suffix", [".toml", ".json"])

@@ -13,9 +13,11 @@ from .options import (
     generator_option,
     handle_errors,
     log_read_options,
-    read_options_from,
     robot_help,
 )
+
+if TYPE_CHECKING:
+    from ..types import ReadOptions
 
 if TYPE_CHECKING:
     from ..config import DetectorConfig
@@ -203,9 +205,8 @@ def _labels_for(logs: tuple[Path, ...], given: tuple[Path, ...]) -> list:  # typ
 def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, model: Path | None,
                   base_config: Path | None, labels_paths: tuple[Path, ...], fa_rate: float | None,
                   confidence: float, threshold_rule: str | None, keep_suspect: bool,
-                  generator: str | None, channel_map: str | None,
-                  topic: str | None, reference_topic: str | None, time_source: str | None,
-                  torque_source: str | None, allow_slow: bool = False) -> None:
+                  generator: str | None, read_options: ReadOptions,
+                  allow_slow: bool = False) -> None:
     """Set v_stat, vL and v0 per joint from the collision-free LOGS.
 
     Every threshold by default, and v0 always: the margin over the statistic's maximum
@@ -263,7 +264,7 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     robot_d = read_robot(robot) if robot else None
     model_m = read_model(model) if model else None
     cfg = load_config(base_config) if base_config else None
-    ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
+    ropts = read_options.as_dict()
     read = [read_log(p, robot=robot_d, **ropts) for p in logs]
     if not allow_slow:  # before identification and replay: the cost is the joints', not time's
         from ..config import DetectorConfig

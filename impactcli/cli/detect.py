@@ -5,7 +5,7 @@
 from __future__ import annotations
 
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
@@ -19,9 +19,11 @@ from .options import (
     log_read_options,
     model_url_options,
     progress,
-    read_options_from,
     resolve_executor,
 )
+
+if TYPE_CHECKING:
+    from ..types import ReadOptions
 
 __all__ = ["PRODUCT_DETECTORS", "detect_cmd"]
 
@@ -110,11 +112,9 @@ MAX_ROWS = 50
                    "hours analysed, throughput, one row per log, failures.")
 @handle_errors
 def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: str | None,
-               config: str | None, channel_map: str | None, topic: str | None,
-               reference_topic: str | None, time_source: str | None, torque_source: str | None,
-               signals: bool, rerun: bool, model_from_log: bool, fail_on_detect: bool,
-               fail_on_force: float | None, generator: str | None, allow_slow: bool,
-               jobs: int | None,
+               config: str | None, read_options: ReadOptions, signals: bool, rerun: bool,
+               model_from_log: bool, fail_on_detect: bool, fail_on_force: float | None,
+               generator: str | None, allow_slow: bool, jobs: int | None,
                scheduler: str | None, summary_path: str | None) -> None:
     """Replay the adaptive impact detector (Makarov et al. 2014) and the static detectors
     over LOGS, exactly as the robot would have run them online, and write one
@@ -166,7 +166,7 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
         prepare_output(summary_path)  # a bad --summary stops the batch before any work
     choice = resolve_executor(jobs, scheduler)
     inputs = load_inputs(robot, model, config).provenance  # a bad one stops the run here
-    ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
+    ropts = read_options.as_dict()
     serial = (jobs or 1) == 1 and scheduler is None
     job_list = [DetectJob(p, out_dir, ropts, robot, model, config, signals, rerun,
                           model_from_log, generator, allow_slow, serial) for p in paths]

@@ -26,6 +26,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
@@ -36,8 +37,10 @@ from .options import (
     log_read_options,
     model_options,
     not_found,
-    read_options_from,
 )
+
+if TYPE_CHECKING:
+    from ..types import ReadOptions
 
 #: impactcli.quality.sweep.DEFAULT_SWEEP_SCALES: 0.2 … 5 in 5 % steps (66 scales).
 DEFAULT_SCALES = "0.2:5:x1.05"
@@ -113,9 +116,8 @@ def _scales_option(ctx: click.Context, param: click.Parameter, value: str) -> tu
 @handle_errors
 def evaluate_cmd(source: Path, labels_path: Path | None, as_json: bool, sweep: bool,
                  scales: tuple[float, ...], pre_s: float, post_s: float, robot: Path | None,
-                 model: Path | None, config: Path | None, channel_map: str | None,
-                 topic: str | None, reference_topic: str | None, time_source: str | None,
-                 torque_source: str | None, allow_slow: bool = False) -> None:
+                 model: Path | None, config: Path | None, read_options: ReadOptions,
+                 allow_slow: bool = False) -> None:
     """Measure detection quality of a timeline (or a log, detected first) against labels.
 
     An event matches a contact when it starts within [start - PRE, end + POST]. Events in
@@ -131,9 +133,8 @@ def evaluate_cmd(source: Path, labels_path: Path | None, as_json: bool, sweep: b
 
     tolerance = MatchTolerance(pre_s=pre_s, post_s=post_s)
     is_timeline = source.name.lower().endswith(".json")
-    read_options = read_options_from(channel_map, topic, reference_topic, time_source,
-                                     torque_source)
-    if is_timeline and (read_options or any(v is not None for v in (model, config, robot))):
+    ropts = read_options.as_dict()
+    if is_timeline and (ropts or any(v is not None for v in (model, config, robot))):
         raise click.UsageError("--robot, --model, --config and the log-reading options apply "
                                "to a LOG, not to a timeline")
     # say so before looking for labels beside it
@@ -144,7 +145,7 @@ def evaluate_cmd(source: Path, labels_path: Path | None, as_json: bool, sweep: b
         source = check_log_path(source)  # a file, a rosbag2 folder, a folder's one log
     done = evaluate_source(
         source, labels_path, is_timeline=is_timeline, tolerance=tolerance, sweep=sweep,
-        scales=scales, robot=robot, model=model, config=config, read_options=read_options,
+        scales=scales, robot=robot, model=model, config=config, read_options=ropts,
         allow_slow=allow_slow, say=lambda m: click.echo(f"impactcli: warning: {m}", err=True))
     ev, rows = done.evaluation, done.sweep_rows
     if as_json:

@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import click
 
 from .fit_table import format_fit_table
-from .options import ROBOT_METAVAR, handle_errors, log_read_options, read_options_from, robot_help
+from .options import ROBOT_METAVAR, handle_errors, log_read_options, robot_help
+
+if TYPE_CHECKING:
+    from ..types import ReadOptions
 
 __all__ = ["format_fit_table", "identify_cmd"]
 
@@ -41,10 +46,9 @@ __all__ = ["format_fit_table", "identify_cmd"]
                    "an error.")
 @handle_errors
 def identify_cmd(
-    log: str, output: str, robot: str | None, kind: str | None, channel_map: str | None,
-    topic: str | None, reference_topic: str | None, time_source: str | None,
-    torque_source: str | None, cutoff_hz: float, holdout_fraction: float, robust: str,
-    coulomb_slope: float, allow_still: bool,
+    log: str, output: str, robot: str | None, kind: str | None, read_options: ReadOptions,
+    cutoff_hz: float, holdout_fraction: float, robust: str, coulomb_slope: float,
+    allow_still: bool,
 ) -> None:
     """Identify a rough rigid model (tau = Y(q, q', q'') theta) from LOG and write it.
 
@@ -64,7 +68,7 @@ def identify_cmd(
 
     prepare_output(output)  # a bad -o stops the run before any work
     desc = read_robot(robot) if robot else None
-    ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
+    ropts = read_options.as_dict()
     data = read_log(log, robot=desc, **ropts)
     options = IdentifyOptions(cutoff_hz=cutoff_hz, holdout_fraction=holdout_fraction,
                               robust=robust, coulomb_slope_rad_s=coulomb_slope,

@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import json
+from typing import TYPE_CHECKING
 
 import click
 
-from .options import ROBOT_METAVAR, handle_errors, log_read_options, read_options_from, robot_help
+from .options import ROBOT_METAVAR, handle_errors, log_read_options, robot_help
+
+if TYPE_CHECKING:
+    from ..types import ReadOptions
 
 
 @click.command("inspect")
@@ -16,9 +20,7 @@ from .options import ROBOT_METAVAR, handle_errors, log_read_options, read_option
 @log_read_options
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 @handle_errors
-def inspect_cmd(log: str, channel_map: str | None, robot: str | None, topic: str | None,
-                reference_topic: str | None, time_source: str | None,
-                torque_source: str | None, as_json: bool) -> None:
+def inspect_cmd(log: str, robot: str | None, read_options: ReadOptions, as_json: bool) -> None:
     """Show what LOG holds: joints, channels used and ignored, torque and time source,
     duration, sample rate and jitter, gaps and repairs — and what it still needs (a current
     without gear ratio and torque constant is shown in A, and said)."""
@@ -27,7 +29,7 @@ def inspect_cmd(log: str, channel_map: str | None, robot: str | None, topic: str
     from ..logs.robot_files import read_robot
 
     desc = read_robot(robot) if robot else None
-    opts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
+    opts = read_options.as_dict()
     d = inspect_log(log, robot=desc, **opts)  # a folder's one log, as every verb reads one
     if as_json:
         click.echo(json.dumps(d, separators=(",", ":")))

@@ -21,7 +21,7 @@ read (one line naming the file and what it has).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 import numpy as np
@@ -31,9 +31,11 @@ from .options import (
     check_log_path,
     handle_errors,
     log_read_options,
-    read_options_from,
     robot_help,
 )
+
+if TYPE_CHECKING:
+    from ..types import ReadOptions
 
 #: How a channel's contacts are labelled (:func:`impactcli.logs.channel_labels.labels_doc`).
 CHANNEL_KINDS: tuple[str, ...] = ("auto", "force", "switch")
@@ -86,8 +88,7 @@ class _ExplainedOption(click.Option):
 @handle_errors
 def labels_cmd(log: Path, channel: str, above: float, link: int, kind: str, channel_is: str,
                min_duration: float, merge_gap: float, output: Path, robot: Path | None,
-               channel_map: str | None, topic: str | None, reference_topic: str | None,
-               time_source: str | None, torque_source: str | None) -> None:
+               read_options: ReadOptions) -> None:
     """Make ground-truth labels from a logged switch or force channel.
 
     Contiguous stretches where the channel is above X become contacts (start and end in
@@ -103,7 +104,7 @@ def labels_cmd(log: Path, channel: str, above: float, link: int, kind: str, chan
         raise click.BadParameter(f"{above!r} is not a finite number", param_hint="'--above'")
     prepare_output(output)
     log = check_log_path(log)  # a folder's one log
-    ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
+    ropts = read_options.as_dict()
     desc = read_robot(robot) if robot is not None else None
     doc, labels, ch = make_labels(log, channel, above=above, kind=kind, link=link,
                                   channel_is=channel_is, merge_gap_s=merge_gap,

@@ -12,7 +12,7 @@ import traceback
 import warnings
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
@@ -25,6 +25,9 @@ from ..errors import (
     UsageProblem,
     one_line,
 )
+
+if TYPE_CHECKING:
+    from ..types import ReadOptions
 
 F = TypeVar("F", bound=Callable[..., Any])
 T = TypeVar("T")
@@ -130,45 +133,21 @@ def check_log_path(path: Path) -> Path:
     return one_log_in(path)
 
 
-#: click context ``meta`` key under which the read options verbs do not take as
-#: parameters are kept (:data:`CONTEXT_READ_OPTIONS`).
-_READ_META = "impactcli.read_options"
-#: The read options :func:`log_read_options` keeps in the click context (not passed to
-#: the verbs): ``--time-unit``, ``--time-column``, ``--rate``, ``--position-unit``,
-#: ``--repair-order``.
-CONTEXT_READ_OPTIONS = ("time_unit", "time_column", "rate", "position_unit", "repair_order")
+#: The options :func:`log_read_options` gathers into the verb's ``read_options``.
+READ_OPTION_PARAMS = ("channel_map", "topic", "reference_topic", "time_source", "torque_source",
+                      "time_unit", "time_column", "rate", "position_unit", "repair_order")
 
 
-def read_options_from(channel_map: str | None, topic: str | None, reference_topic: str | None,
-                      time_source: str | None, torque_source: str | None) -> dict[str, Any]:
-    """The read_log keyword arguments given on the command line (None values dropped):
-    the verb's own parameters, and :data:`CONTEXT_READ_OPTIONS` from the running command
-    (:func:`log_read_options` keeps them in the click context, so verbs need not take them
-    as parameters); ``repair_order`` is kept
-    only when true. ``--rate`` with ``--time-unit`` or ``--time-column`` is a usage error
-    (exit 2).
-    """
-    from ..logs.paths import READ_OPTIONS
+def read_options_of(values: dict[str, Any]) -> ReadOptions:
+    """The :class:`~impactcli.types.ReadOptions` of the options given on the command line;
+    ``--rate`` with ``--time-unit`` or ``--time-column`` is a usage error (exit 2)."""
+    from ..types import ReadOptions  # here: `impactcli --help` stays fast
 
-    ctx = click.get_current_context(silent=True)
-    given = dict(ctx.meta.get(_READ_META, {})) if ctx is not None else {}
-    ctx_opts = {k: given.get(k) for k in CONTEXT_READ_OPTIONS}
-    if ctx_opts["rate"] is not None and (ctx_opts["time_unit"] is not None
-                                         or ctx_opts["time_column"] is not None):
+    if values.get("rate") is not None and (values.get("time_unit") is not None
+                                           or values.get("time_column") is not None):
         raise click.UsageError("--rate places sample i at i / rate: it excludes "
                                "--time-unit and --time-column")
-    ctx_opts["repair_order"] = True if ctx_opts["repair_order"] else None
-    opts = {"channel_map": channel_map, "topic": topic, "reference_topic": reference_topic,
-            "time_source": time_source, "torque_source": torque_source, **ctx_opts}
-    return {k: opts[k] for k in READ_OPTIONS if opts.get(k) is not None}
-
-
-def _keep_read_option(ctx: click.Context, param: click.Parameter, value: Any) -> Any:
-    """Keep a read option of :data:`CONTEXT_READ_OPTIONS` in the context for
-    :func:`read_options_from`."""
-    if value is not None and param.name is not None:
-        ctx.meta.setdefault(_READ_META, {})[param.name] = value
-    return value
+    return ReadOptions(**{k: v for k, v in values.items() if v is not None})
 
 
 def check_channel_map(ctx: click.Context, param: click.Parameter, value: str | None
@@ -189,12 +168,15 @@ def check_channel_map(ctx: click.Context, param: click.Parameter, value: str | N
 
 
 def log_read_options(func: Callable[..., Any]) -> Callable[..., Any]:
-    """The options that say how to read a log (shared by the verbs that read logs).
+    """The options that say how to read a log (shared by the verbs that read logs), given
+    to the command as one ``read_options`` (:class:`~impactcli.types.ReadOptions`)."""
 
-    ``--time-unit``, ``--time-column``, ``--rate``, ``--position-unit`` and
-    ``--repair-order`` are not passed to the command: they reach :func:`read_options_from`
-    through the click context (:data:`CONTEXT_READ_OPTIONS`).
-    """
+    @functools.wraps(func)
+    def with_read_options(*args: Any, **kwargs: Any) -> Any:
+        values = {k: kwargs.pop(k, None) for k in READ_OPTION_PARAMS}
+        return func(*args, read_options=read_options_of(values), **kwargs)
+
+    wrapped: Callable[..., Any] = with_read_options
     for opt in reversed([
         click.option("--channel-map", metavar="MAP", callback=check_channel_map,
                      help="Channel map (path, or a shipped name) for foreign CSV / .npz logs."),
@@ -205,34 +187,29 @@ def log_read_options(func: Callable[..., Any]) -> Callable[..., Any]:
         click.option("--torque-source", type=click.Choice(["current", "torque"]),
                      help="Use logged torque or current × gear ratio × torque constant."),
         click.option("--time-unit", type=click.Choice(["s", "ms", "us", "ns"]),
-                     expose_value=False, callback=_keep_read_option,
                      help="CSV / .npz: the unit of the time column [default: the unit its "
                           "name says (time_ms, stamp_us, ...), else s, or the channel "
                           "map's]. A time implying a rate outside 20 Hz – 100 kHz is an "
                           "error."),
-        click.option("--time-column", metavar="NAME", expose_value=False,
-                     callback=_keep_read_option,
+        click.option("--time-column", metavar="NAME",
                      help="CSV / .npz: the time column (or array) [default: one named time, "
                           "timestamp, stamp, t or __time, any case, with an optional unit "
                           "suffix _s/_ms/_us/_ns; or the channel map's]."),
         click.option("--rate", metavar="HZ", type=click.FloatRange(min=0, min_open=True),
-                     expose_value=False, callback=_keep_read_option,
                      help="CSV / .npz without a time column: sample i is at i / HZ seconds "
                           "(recorded in the log's repairs and the timeline)."),
         click.option("--position-unit", type=click.Choice(["rad", "deg"]),
-                     expose_value=False, callback=_keep_read_option,
                      help="The unit of the logged positions (and their references, "
                           "velocities and accelerations, per second), converted to rad as "
                           "they are read [default: rad; a log whose positions cannot be "
                           "radians is refused, naming this option]."),
-        click.option("--repair-order", is_flag=True, default=None, expose_value=False,
-                     callback=_keep_read_option,
+        click.option("--repair-order", is_flag=True, default=None,
                      help="Rows out of time order or sharing a stamp: keep the longest "
                           "increasing run of stamps and drop the others, warned [default: "
                           "an error naming the row]."),
     ]):
-        func = opt(func)
-    return func
+        wrapped = opt(wrapped)
+    return wrapped
 
 
 def generator_option(func: Callable[..., Any]) -> Callable[..., Any]:

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import warnings
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
@@ -33,9 +33,11 @@ from .options import (
     log_read_options,
     model_options,
     progress,
-    read_options_from,
     resolve_executor,
 )
+
+if TYPE_CHECKING:
+    from ..types import ReadOptions
 
 
 @click.command("report")
@@ -60,9 +62,8 @@ from .options import (
 @handle_errors
 def report_cmd(*, inputs: tuple[str, ...], html_path: Path, json_path: Path | None,
                labels: tuple[Path, ...], no_auto_labels: bool, robot: Path | None,
-               model: Path | None, config: Path | None, channel_map: str | None,
-               topic: str | None, reference_topic: str | None, time_source: str | None,
-               torque_source: str | None, allow_slow: bool = False, jobs: int | None = None,
+               model: Path | None, config: Path | None, read_options: ReadOptions,
+               allow_slow: bool = False, jobs: int | None = None,
                scheduler: str | None = None) -> None:
     """Write a safety-audit report: one self-contained HTML file (and --json) over LOGs or
     TIMELINEs — per log a verdict and the incidents (when, where, how hard, what kind),
@@ -96,7 +97,7 @@ def report_cmd(*, inputs: tuple[str, ...], html_path: Path, json_path: Path | No
     resolve_executor(jobs, scheduler)
     rob, mod, cfg = (None if p is None else str(p) for p in (robot, model, config))
     load_inputs(rob, mod, cfg)  # a bad one stops the run before any work
-    ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
+    ropts = read_options.as_dict()
     log_only = [n for n, v in (("--model", model), ("--config", config)) if v is not None]
     log_only += [f"--{k.replace('_', '-')}" for k in ropts]
     if log_only and any(is_timeline(p) for p in paths):

@@ -22,7 +22,10 @@ import click
 
 from ..errors import LogFormatError, UnavailableError
 from ..outputs.decimate import DEFAULT_EVENT_WINDOW_S, DEFAULT_MAX_POINTS
-from .options import handle_errors, log_read_options, model_options, not_found, read_options_from
+from .options import handle_errors, log_read_options, model_options, not_found
+
+if TYPE_CHECKING:
+    from ..types import ReadOptions
 
 if TYPE_CHECKING:
     from ..types import DetectionResult
@@ -120,8 +123,7 @@ def record_log(source: Path, rrd: Path, *, robot: Path | None, model: Path | Non
               show_default=True, help="Full-rate window kept around each event [s].")
 @handle_errors
 def view_cmd(source: Path, robot: Path | None, model: Path | None,
-             config: Path | None, channel_map: str | None, topic: str | None,
-             reference_topic: str | None, time_source: str | None, torque_source: str | None,
+             config: Path | None, read_options: ReadOptions,
              save_path: Path | None, no_open: bool, max_points: int,
              event_window: float) -> None:
     """Open a run (RUN.rrd) or a log (detected first) in the Rerun viewer.
@@ -151,7 +153,7 @@ def view_cmd(source: Path, robot: Path | None, model: Path | None,
     if no_open and save_path is None:
         raise click.UsageError("--no-open on a LOG needs --save PATH (else nothing is kept)")
 
-    ropts = read_options_from(channel_map, topic, reference_topic, time_source, torque_source)
+    ropts = read_options.as_dict()
     if not no_open:
         check_display()  # before the replay's work
 

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import EXIT_USAGE, ImpactError, LogFormatError
+from ..types import ReadOptions
 
 #: Recognised log suffixes (lower case), longest first.
 LOG_SUFFIXES: tuple[str, ...] = (".csv.gz", ".csv", ".mcap", ".npz", ".bag", ".db3")
@@ -27,9 +28,7 @@ MESSAGE_SUFFIXES: tuple[str, ...] = (".mcap", ".bag", ".db3")
 #: The file that makes a folder a rosbag2.
 ROSBAG2_METADATA = "metadata.yaml"
 #: The read options a log reader takes (``read_log``'s keyword arguments).
-READ_OPTIONS: tuple[str, ...] = ("channel_map", "robot", "topic", "reference_topic",
-                                 "time_source", "torque_source", "time_unit", "time_column",
-                                 "rate", "position_unit", "repair_order")
+READ_OPTIONS: tuple[str, ...] = ("robot", *(f.name for f in dataclasses.fields(ReadOptions)))
 #: The read options a timeline records (``input.read_options``) and ``report`` reads a
 #: timeline's log again with: all but the robot (``--robot``, given as itself).
 RECORDED_READ_OPTIONS: tuple[str, ...] = tuple(k for k in READ_OPTIONS if k != "robot")
