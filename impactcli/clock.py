@@ -70,7 +70,7 @@ class SampleClock:
     n_repeated: int = 0
 
     @property
-    def rate_hz(self) -> float:
+    def sample_rate_hz(self) -> float:
         """1 / period [Hz]."""
         return 1.0 / self.period_s if self.period_s > 0 else float("nan")
 
@@ -501,24 +501,24 @@ class GapStream:
 RATE_TOLERANCE = 0.1
 
 
-def check_calibrated_rate(rate_hz: float, calibrated_hz: float | None, where: str,
+def check_calibrated_rate(sample_rate_hz: float, calibrated_hz: float | None, where: str,
                           config_where: str = "config") -> None:
     """Refuse (ConfigError, exit 3) a log whose rate differs from the rate its config was
     calibrated at by more than :data:`RATE_TOLERANCE`: the thresholds belong to that rate
     (filters, RMS windows and the statistics they were set on are per sample).
 
     Args:
-        rate_hz: the log's rate [Hz].  calibrated_hz: the config's
+        sample_rate_hz: the log's rate [Hz].  calibrated_hz: the config's
             ``calibration.sample_rate_hz`` (None: not recorded, nothing to check).
         where: the log, config_where: the config, for the message.
     """
     from .errors import ConfigError
 
-    if calibrated_hz is None or not (calibrated_hz > 0 and rate_hz > 0):
+    if calibrated_hz is None or not (calibrated_hz > 0 and sample_rate_hz > 0):
         return
-    if abs(rate_hz - calibrated_hz) > RATE_TOLERANCE * calibrated_hz:
+    if abs(sample_rate_hz - calibrated_hz) > RATE_TOLERANCE * calibrated_hz:
         raise ConfigError(
-            f"{where}: sampled at {rate_hz:.4g} Hz, but {config_where} was calibrated at "
+            f"{where}: sampled at {sample_rate_hz:.4g} Hz, but {config_where} was calibrated at "
             f"{calibrated_hz:.4g} Hz (tolerance ±{RATE_TOLERANCE:.0%}): its thresholds belong "
-            f"to that rate; calibrate on logs at {rate_hz:.4g} Hz, or run without --config "
+            f"to that rate; calibrate on logs at {sample_rate_hz:.4g} Hz, or run without --config "
             "(uncalibrated)")

@@ -52,7 +52,7 @@ def test_clean_grid_is_exact() -> None:
         assert c.gap_threshold_s == pytest.approx(1.5 * period_ns * 1e-9)
     # stamps rounded to the ns: the mean of the steps, not one of the two step lengths
     c = sample_clock(np.round(k * 1e9 / 300).astype(np.int64))
-    assert c.rate_hz == pytest.approx(300.0, rel=1e-9)
+    assert c.sample_rate_hz == pytest.approx(300.0, rel=1e-9)
 
 
 def test_jitter_dropped_samples_and_late_stamps_do_not_move_the_rate() -> None:
@@ -61,21 +61,21 @@ def test_jitter_dropped_samples_and_late_stamps_do_not_move_the_rate() -> None:
     grid = np.arange(n) * MS  # 1 kHz
     # host-clock jitter: the median step moved, the estimate does not
     jit = np.sort(grid + rng.normal(0, 0.12 * MS, n).astype(np.int64))
-    assert sample_clock(jit).rate_hz == pytest.approx(1000.0, rel=2e-3)
+    assert sample_clock(jit).sample_rate_hz == pytest.approx(1000.0, rel=2e-3)
     assert gap_steps(jit)[0].size == 0
     assert _old_gaps(jit) > 0
     # 6 % of the samples dropped (2 ms steps) with the jitter: the median step is 1.5 % off
     drop = rng.random(n) < 0.06
     t = jit[~drop]
     assert 1e9 / np.median(np.diff(t)) == pytest.approx(985, abs=10)
-    assert sample_clock(t).rate_hz == pytest.approx(1000.0, rel=2e-3)
+    assert sample_clock(t).sample_rate_hz == pytest.approx(1000.0, rel=2e-3)
     # a late sample delivered with the next one (8 - 0.02 ms, then 0.02 ms) is jitter
     t = grid.copy()
     late = np.flatnonzero(rng.random(n) < 0.06)
     late = late[late < n - 1]
     t[late] = t[late + 1] - 20_000
     c = sample_clock(t)
-    assert c.rate_hz == 1000.0 and gap_steps(t, c)[0].size == 0
+    assert c.sample_rate_hz == 1000.0 and gap_steps(t, c)[0].size == 0
     assert _old_gaps(t) > 1000  # each was a "gap" before
     # ... also when rare (the step is not given back: rule (c))
     t = grid.copy()
@@ -89,7 +89,7 @@ def test_steps_that_alternate_or_run_long_give_the_mean_spacing() -> None:
     log's pattern) samples at 1 / mean spacing."""
     k = np.arange(10_000)
     t = np.cumsum(np.where(k % 2 == 0, 900_000, 1_100_000))
-    assert sample_clock(t).rate_hz == pytest.approx(1000.0, rel=1e-4)
+    assert sample_clock(t).sample_rate_hz == pytest.approx(1000.0, rel=1e-4)
     steps = np.where(np.random.default_rng(2).random(5000) < 0.2, 12 * MS, 10 * MS)
     t = np.concatenate(([0], np.cumsum(steps)))
     assert sample_clock(t).period_s == pytest.approx(steps.mean() * 1e-9, rel=1e-12)
@@ -111,7 +111,7 @@ def test_gaps_are_long_steps_beyond_the_jitter() -> None:
     t = grid[~(rng.random(k.size) < 0.06)]
     t = np.concatenate([t[:3000], t[3000:] + 50 * MS])
     c = sample_clock(t)
-    assert c.rate_hz == 1000.0 and c.gap_threshold_s == pytest.approx(0.003)
+    assert c.sample_rate_hz == 1000.0 and c.gap_threshold_s == pytest.approx(0.003)
     idx, _ = gap_steps(t, c)
     assert 2999 in idx.tolist() and all(np.diff(t)[idx] >= 3 * MS)
     assert _old_gaps(t) > 300

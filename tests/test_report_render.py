@@ -9,9 +9,11 @@ from __future__ import annotations
 import dataclasses
 import html
 import json
+import os
 import re
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -144,7 +146,8 @@ def test_the_first_screen_answers_on_the_sample_logs(tmp_path: Path) -> None:
 def test_report_renders_on_screen_and_in_print(tmp_path: Path) -> None:
     chromium()
     res = subprocess.run(["bash", str(SCRIPT), "", str(tmp_path)], capture_output=True, text=True,
-                         timeout=180, check=False)
+                         timeout=180, check=False,
+                         env={**os.environ, "PYTHON": sys.executable})  # this test's Python
     assert res.returncode == 0, res.stdout + res.stderr
     shot, pdf = tmp_path / "screen.png", tmp_path / "print.pdf"
     assert shot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and shot.stat().st_size > 50_000

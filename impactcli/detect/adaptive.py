@@ -62,8 +62,8 @@ class ThresholdInputs:
     detail: str = ""
 
 
-def _butter(fc_hz: float, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
-    b, a = butter_lowpass(2, fc_hz / (0.5 * fs_hz))
+def _butter(fc_hz: float, sample_rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    b, a = butter_lowpass(2, fc_hz / (0.5 * sample_rate_hz))
     return np.asarray(b), np.asarray(a)
 
 
@@ -114,9 +114,8 @@ def inputs_chunk(
                 "inputs come from the causally filtered measured position",
                 ImpactWarning, stacklevel=2,
             )
-        fs = sample_rate_hz
-        fc = clip_cutoff(cfg.measured_input_cutoff_hz, fs, "measured-input filter")
-        b, a = _butter(fc, fs)
+        fc = clip_cutoff(cfg.measured_input_cutoff_hz, sample_rate_hz, "measured-input filter")
+        b, a = _butter(fc, sample_rate_hz)
         qf = carry.lfilter("q_meas", b, a, np.asarray(chunk.position), "steady")
         v = carry.lfilter("v_meas", b, a, carry.backward_difference("qf", qf, dt), "steady")
         acc = carry.backward_difference("v", v, dt)
@@ -177,19 +176,19 @@ class AdaptiveResult:
         Returns (freqs (F,), gain (J, F)); default frequencies 1, 2, 5, 10, 20 Hz and fs/4.
         """
         if freqs_hz is None:
-            freqs_hz = [f for f in GAIN_FREQUENCIES_HZ if f < 0.5 * self.rates.fs_hz]
-            freqs_hz.append(0.25 * self.rates.fs_hz)
+            freqs_hz = [f for f in GAIN_FREQUENCIES_HZ if f < 0.5 * self.rates.sample_rate_hz]
+            freqs_hz.append(0.25 * self.rates.sample_rate_hz)
         f = np.asarray(freqs_hz, dtype=np.float64)
-        return f, g_gain(self.theta[:, : self.eta], f, self.rates.fs_hz)
+        return f, g_gain(self.theta[:, : self.eta], f, self.rates.sample_rate_hz)
 
 
-def g_gain(theta_g: np.ndarray, freqs_hz: np.ndarray, fs_hz: float) -> np.ndarray:
+def g_gain(theta_g: np.ndarray, freqs_hz: np.ndarray, sample_rate_hz: float) -> np.ndarray:
     """|G(e^{jωTs})| with G(z) = 1 − sum_d theta_G[d-1] z^-d (eq. 29, theta_G = −gamma).
 
-    Args: theta_g (J, eta); freqs_hz (F,); fs_hz. Returns (J, F).
+    Args: theta_g (J, eta); freqs_hz (F,); sample_rate_hz. Returns (J, F).
     """
     th = np.atleast_2d(theta_g)
-    w = 2.0 * np.pi * np.asarray(freqs_hz, dtype=np.float64) / fs_hz
+    w = 2.0 * np.pi * np.asarray(freqs_hz, dtype=np.float64) / sample_rate_hz
     d = np.arange(1, th.shape[1] + 1)
     zd = np.exp(-1j * np.outer(w, d))  # (F, eta): e^{-jωTs d}
     g = 1.0 - th @ zd.T
@@ -242,9 +241,9 @@ def evaluate_chunk(
     cfg = state.cfg if cfg is None else cfg
     if cfg != state.cfg:
         raise ValueError("cfg differs from the one the evaluator state was made with")
-    if float(sample_rate_hz) != state.rates.fs_hz:
+    if float(sample_rate_hz) != state.rates.sample_rate_hz:
         raise ValueError(f"sample rate {sample_rate_hz} Hz differs from the state's "
-                         f"{state.rates.fs_hz} Hz")
+                         f"{state.rates.sample_rate_hz} Hz")
     r = np.ascontiguousarray(residual_chunk, dtype=np.float64)
     u = np.ascontiguousarray(inputs_chunk, dtype=np.float64)
     vs = np.ascontiguousarray(v_stat, dtype=np.float64)

@@ -58,13 +58,13 @@ REFERENCE_CONTACTS = {
 }
 
 
-def pulse_gain(theta_g: np.ndarray, fs_hz: float, a1: float, n1: int,
+def pulse_gain(theta_g: np.ndarray, sample_rate_hz: float, a1: float, n1: int,
                duration_s: float = HALF_SINE_S) -> np.ndarray:
     """(J,) the peak of r_rms (eq. 41: RMS over the N1 samples before k of F1's output)
     for a unit half-sine of ``duration_s`` added to the residual, through
     G(z) = 1 − sum_d theta_G[d−1] z^−d (eq. 29; ``theta_g`` (J, eta)) and F1 (pole a1)."""
     th = np.atleast_2d(np.asarray(theta_g, dtype=np.float64))
-    m = max(1, round(duration_s * fs_hz))
+    m = max(1, round(duration_s * sample_rate_hz))
     n = m + n1 + max(1, round(5.0 / max(1.0 - a1, 1e-12))) + 1  # the pulse, the window, F1's decay
     x = np.zeros(n)
     x[:m] = np.sin(np.pi * (np.arange(m) + 0.5) / m)

@@ -24,18 +24,18 @@ from ..model.iir import butter_lowpass
 from .rates import clip_cutoff, lowpass_pole
 
 
-def causal_lowpass(x: np.ndarray, cutoff_hz: float, fs_hz: float, order: int = 1,
+def causal_lowpass(x: np.ndarray, cutoff_hz: float, sample_rate_hz: float, order: int = 1,
                    carry: Carry | None = None) -> np.ndarray:
     """Causal unit-DC-gain low-pass of (N, J) ``x`` along time, started at rest on x(0)
     (steady state on the first sample), continued from ``carry`` (:mod:`impactcli.model.causal`)
     when ``x`` is a chunk after the first."""
     x = np.asarray(x, dtype=np.float64)
-    fc = clip_cutoff(cutoff_hz, fs_hz, "static-loading low-pass")
+    fc = clip_cutoff(cutoff_hz, sample_rate_hz, "static-loading low-pass")
     if order == 1:
-        a = lowpass_pole(fc, fs_hz)
+        a = lowpass_pole(fc, sample_rate_hz)
         b_, a_ = np.array([1.0 - a]), np.array([1.0, -a])
     elif order == 2:
-        b_, a_ = butter_lowpass(2, fc / (0.5 * fs_hz))
+        b_, a_ = butter_lowpass(2, fc / (0.5 * sample_rate_hz))
     else:
         raise ValueError(f"static-loading low-pass order must be 1 or 2, got {order}")
     return (carry if carry is not None else Carry()).lfilter("loading", b_, a_, x, "steady")

@@ -53,8 +53,8 @@ class WarmupTracker:
 
         self.cfg = cfg = cfg or WarmupConfig()
         self.n, self.J = int(n), int(n_joints)
-        fs = (n - 1) / (t_last_s - t_first_s) if n > 1 and t_last_s > t_first_s else 1.0
-        self.w = max(1, round(cfg.window_s * fs))
+        sample_rate_hz = (n - 1) / (t_last_s - t_first_s) if n > 1 and t_last_s > t_first_s else 1.0
+        self.w = max(1, round(cfg.window_s * sample_rate_hz))
         self.t_first = t_first_s
         self.k = 0
         self.k_min: int | None = None

@@ -88,7 +88,7 @@ def describe_log(scan: LogScan, t_ns: np.ndarray) -> dict[str, Any]:
         "n_samples": scan.n_samples,
         "t0_ns": scan.t0_ns,
         "duration_s": scan.duration_s,
-        "sample_rate_hz": clock.rate_hz,
+        "sample_rate_hz": clock.sample_rate_hz,
         "sample_period_s": period,
         "jitter": {
             "dt_std_s": float(np.std(dt)),

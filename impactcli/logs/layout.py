@@ -87,7 +87,7 @@ class StreamLayout:
         """Repaired rows ``t`` (n,), ``mat`` (n, C) as the reader's channels."""
         raise NotImplementedError
 
-    def rate_error(self, rate_hz: float, duration_s: float | None = None) -> str | None:
+    def rate_error(self, sample_rate_hz: float, duration_s: float | None = None) -> str | None:
         """The time-unit check on the first steps' rate (None: fine, or not checked);
         ``duration_s``: the log's duration as read [s], when known."""
         return None
@@ -110,17 +110,18 @@ class StreamLayout:
         """Release what the layout holds (a spill of the scan's)."""
 
 
-def rate_times(row0: int, n: int, rate_hz: float) -> np.ndarray:
+def rate_times(row0: int, n: int, sample_rate_hz: float) -> np.ndarray:
     """The times [ns] of rows ``row0`` … ``row0 + n − 1`` of a log read with ``--rate``:
     row i at round(i × 1e9 / rate) ns (the same for any blocks)."""
-    return np.round((row0 + np.arange(n, dtype=np.float64)) * (1e9 / rate_hz)).astype(np.int64)
+    rows = row0 + np.arange(n, dtype=np.float64)
+    return np.round(rows * (1e9 / sample_rate_hz)).astype(np.int64)
 
 
-def rate_note(where: str, rate_hz: float) -> str:
+def rate_note(where: str, sample_rate_hz: float) -> str:
     """The log's provenance when read with ``--rate`` (warned, and recorded in its repairs):
     its times are the rate's, not logged."""
-    return (f"{where}: sample i is at i / {rate_hz:g} Hz (--rate {rate_hz:g}), not at a logged "
-            "time, so gaps and jitter cannot be seen")
+    return (f"{where}: sample i is at i / {sample_rate_hz:g} Hz (--rate {sample_rate_hz:g}), "
+            "not at a logged time, so gaps and jitter cannot be seen")
 
 
 def plan_of(layout: StreamLayout, options: dict[str, Any]) -> Any:
@@ -144,10 +145,10 @@ class MappedLayout(StreamLayout):
 
     cmap: Any
     ignored: list[str]
-    rate_hz: float | None  # --rate: no time column, sample i at i / rate_hz
+    sample_rate_hz: float | None  # --rate: no time column, sample i at i / sample_rate_hz
 
     def pre_repairs(self) -> list[str]:
-        return [] if self.rate_hz is None else [rate_note(self.where, self.rate_hz)]
+        return [] if self.sample_rate_hz is None else [rate_note(self.where, self.sample_rate_hz)]
 
     def channels(self, t: np.ndarray, mat: np.ndarray) -> JointChannels:
         from .channels import channels_from_columns

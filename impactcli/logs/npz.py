@@ -87,8 +87,8 @@ class NpzLayout(MappedLayout):
         except READ_ERRORS as err:
             raise LogFormatError(f"{where}: not a readable .npz archive: {err}") from err
         rate = options.get("rate")
-        self.rate_hz = None if rate is None else float(rate)
-        if self.rate_hz is None:
+        self.sample_rate_hz = None if rate is None else float(rate)
+        if self.sample_rate_hz is None:
             tspec = require_time(cmap, where)
             self.tref: Any = tspec.ref
             self.tkey: str | None = str(tspec.ref.source)
@@ -100,7 +100,7 @@ class NpzLayout(MappedLayout):
             self.tref, self.tkey, self.time_name = None, None, "--rate"
             self.unit, self.unit_ns, self.offset_ns = "s", 10**9, 0
             if cmap.time is not None:
-                warn_rate_against_array(p, where, cmap.time, self.rate_hz)
+                warn_rate_against_array(p, where, cmap.time, self.sample_rate_hz)
         # the columns: (signal, joint) → label, label → (array key, column index or None)
         self.keys = {}
         self.cols: dict[str, tuple[str, int | None]] = {}
@@ -241,12 +241,12 @@ class NpzLayout(MappedLayout):
         self.read_order = read
         return int(n)
 
-    def rate_error(self, rate_hz: float, duration_s: float | None = None) -> str | None:
+    def rate_error(self, sample_rate_hz: float, duration_s: float | None = None) -> str | None:
         from .repair import rate_message
 
-        if self.rate_hz is not None:
-            return rate_message(self.rate_hz, self.where, "--rate", None, duration_s)
-        return rate_message(rate_hz, self.where, f"array {self.tkey!r}", self.unit,
+        if self.sample_rate_hz is not None:
+            return rate_message(self.sample_rate_hz, self.where, "--rate", None, duration_s)
+        return rate_message(sample_rate_hz, self.where, f"array {self.tkey!r}", self.unit,
                             duration_s)
 
     def _time(self, raw: np.ndarray, row0: int) -> np.ndarray:
@@ -294,7 +294,7 @@ class NpzLayout(MappedLayout):
                             a = block[key]
                             mat[:, c] = a if idx is None else a[:, idx]
                         if self.tkey is None:  # --rate
-                            t = rate_times(r0, k, self.rate_hz or 1.0)
+                            t = rate_times(r0, k, self.sample_rate_hz or 1.0)
                         else:
                             tb = block[self.tkey]
                             t = self._time(tb if tidx is None else tb[:, tidx], r0)

@@ -329,7 +329,7 @@ def read_columns(path: str | os.PathLike[str], options: dict[str, Any], *,
         kept = rows[-1]
         t = np.concatenate(kept.t) if kept.t else np.zeros(0, np.int64)
         dur = float(t[-1] - t[0]) * 1e-9 if t.size else None
-        rate = ctx.rate_error(kept.rate.clock().rate_hz, dur) if check_rate else None
+        rate = ctx.rate_error(kept.rate.clock().sample_rate_hz, dur) if check_rate else None
         raise_read_errors(ctx, rep, rate)
         mat = np.concatenate(kept.mat) if kept.mat else np.zeros((0, len(ctx.names)))
         if ctx.start_at_zero and t.size:

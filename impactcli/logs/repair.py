@@ -290,14 +290,14 @@ GIVE_UNIT = ("give the time unit with --time-unit s|ms|us|ns (or 'unit' under 't
              "channel map)")
 
 
-def unit_hint(rate_hz: float, unit: str | None) -> str:
+def unit_hint(sample_rate_hz: float, unit: str | None) -> str:
     """``; read in s, it looks like ms (250 Hz)``: the unit in which a time column read in
-    ``unit`` at ``rate_hz`` would give a rate in the accepted range ("" without a unit)."""
+    ``unit`` at ``sample_rate_hz`` would give a rate in the accepted range ("" without a unit)."""
     from .channel_map import TIME_UNITS
 
-    if unit is None or not rate_hz > 0:
+    if unit is None or not sample_rate_hz > 0:
         return ""
-    fits = [(u, rate_hz * TIME_UNITS[unit] / TIME_UNITS[u]) for u in TIME_UNITS if u != unit]
+    fits = [(u, sample_rate_hz * TIME_UNITS[unit] / TIME_UNITS[u]) for u in TIME_UNITS if u != unit]
     fits = [(u, r) for u, r in fits if MIN_RATE_HZ <= r <= MAX_RATE_HZ]
     return (f"; read in {unit}, it looks like {fits[0][0]} ({_hz(fits[0][1])})" if fits
             else f"; read in {unit}")

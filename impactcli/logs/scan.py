@@ -420,24 +420,24 @@ class _ScanAcc:
         self.v_n += use.sum(axis=0)
         self.q_last = q[-1].copy()
 
-    def velocity_rate(self, keep: list[int], rate_hz: float) -> str | None:
+    def velocity_rate(self, keep: list[int], sample_rate_hz: float) -> str | None:
         """The warning when the logged velocity implies another sample rate than the
         log's clock (or ``--rate``): per moving joint sum|v| / sum|Δq| [Hz], their median,
         when it is off by more than :data:`RATE_FACTOR`, the joints agree and it is a rate
         a log can have (20 Hz – 100 kHz: else the velocity is not these positions'
         derivative, and says nothing of the rate); else None."""
         k = [c for c in keep if self.v_n[c] >= MIN_MOVING_SAMPLES and self.dq_sum[c] > 0]
-        if not k or not rate_hz > 0:
+        if not k or not sample_rate_hz > 0:
             return None
         implied = self.v_sum[k] / self.dq_sum[k]
         med = float(np.median(implied))
         if not MIN_RATE_HZ <= med <= MAX_RATE_HZ:  # not these positions' derivative at all
             return None
         agree = float(np.max(implied) / np.min(implied)) <= RATE_FACTOR
-        if agree and not 1.0 / RATE_FACTOR <= med / rate_hz <= RATE_FACTOR:
+        if agree and not 1.0 / RATE_FACTOR <= med / sample_rate_hz <= RATE_FACTOR:
             return (f"{self.ctx.where}: the logged velocity implies a sample rate of about "
                     f"{med:.3g} Hz (its |v| over the positions' steps, {len(k)} moving "
-                    f"joint(s)), the log's clock {rate_hz:.3g} Hz: check --rate or the time "
+                    f"joint(s)), the log's clock {sample_rate_hz:.3g} Hz: check --rate or the time "
                     "unit (or that .velocity is in rad/s, per s of the positions' unit)")
         return None
 
@@ -471,7 +471,7 @@ class _ScanAcc:
         """The time-unit check on the first steps, with the duration read."""
         dur = (float(self.hist.last - self.head_t[0]) * 1e-9
                if self.head_t.size and self.hist.last is not None else None)
-        return self.ctx.rate_error(self.rate.clock().rate_hz, dur)
+        return self.ctx.rate_error(self.rate.clock().sample_rate_hz, dur)
 
     def finish(self, rep: Repairer, sha256: str, options: dict[str, Any],
                cache: RowCache | None, reader: ScanReader) -> tuple[LogScan, ScanPass]:
@@ -530,7 +530,7 @@ class _ScanAcc:
         said += ([wrap_message(ctx.where, ref_wraps, joints, "the reference of ")]
                  if ref_wraps else [])
         clock = self.hist.clock()
-        vel = self.velocity_rate(keep, clock.rate_hz)
+        vel = self.velocity_rate(keep, clock.sample_rate_hz)
         said += [vel] if vel is not None else []
         for msg in (*said, *limit_msgs):
             warnings.warn(msg, ImpactWarning, stacklevel=3)

@@ -34,17 +34,17 @@ from .iir import bilinear
 MAX_CUTOFF_FRACTION = 0.4
 
 
-def clip_cutoff(cutoff_hz: float, fs_hz: float, what: str = "cut-off") -> float:
-    """Return ``cutoff_hz`` clipped below 0.4 × ``fs_hz`` (warns when it clips).
+def clip_cutoff(cutoff_hz: float, sample_rate_hz: float, what: str = "cut-off") -> float:
+    """Return ``cutoff_hz`` clipped below 0.4 × ``sample_rate_hz`` (warns when it clips).
 
     Raises ModelError if the cut-off is not positive.
     """
     if not (cutoff_hz > 0 and np.isfinite(cutoff_hz)):
         raise ModelError(f"{what} must be a positive frequency in Hz, got {cutoff_hz!r}")
-    limit = MAX_CUTOFF_FRACTION * fs_hz
+    limit = MAX_CUTOFF_FRACTION * sample_rate_hz
     if cutoff_hz > limit:
         warnings.warn(
-            f"{what} {cutoff_hz:g} Hz is above 0.4 × the sample rate ({fs_hz:g} Hz); "
+            f"{what} {cutoff_hz:g} Hz is above 0.4 × the sample rate ({sample_rate_hz:g} Hz); "
             f"clipped to {limit:g} Hz", ImpactWarning, stacklevel=3,
         )
         return float(limit)
@@ -60,20 +60,21 @@ def _as_2d(x: np.ndarray) -> tuple[np.ndarray, bool]:
     return a, False
 
 
-def zero_phase_lowpass(x: np.ndarray, fs_hz: float, cutoff_hz: float, order: int = 4) -> np.ndarray:
+def zero_phase_lowpass(x: np.ndarray, sample_rate_hz: float, cutoff_hz: float,
+                       order: int = 4) -> np.ndarray:
     """Zero-phase Butterworth low-pass (``filtfilt``) along axis 0.
 
     Args:
         x: (N,) or (N, J) signal (any unit; returned in the same unit and shape).
-        fs_hz: sample rate [Hz].
+        sample_rate_hz: sample rate [Hz].
         cutoff_hz: -3 dB cut-off of the one-way filter [Hz] (clipped below 0.4 fs).
         order: Butterworth order of the one-way filter (the magnitude is squared).
     """
     a2, flat = _as_2d(x)
-    wc = clip_cutoff(cutoff_hz, fs_hz, "identification cut-off")
+    wc = clip_cutoff(cutoff_hz, sample_rate_hz, "identification cut-off")
     from scipy import signal  # identification only (1.5 s to import)
 
-    sos = signal.butter(order, wc, fs=fs_hz, output="sos")
+    sos = signal.butter(order, wc, fs=sample_rate_hz, output="sos")
     n = a2.shape[0]
     padlen = min(n - 1, 4 * 3 * (2 * len(sos) + 1))  # 4× scipy's default: calmer edges
     y = np.asarray(signal.sosfiltfilt(sos, a2, axis=0, padtype="odd", padlen=padlen))
@@ -100,8 +101,8 @@ def zero_phase_derivatives(
         raise ModelError(
             f"need matching times and positions with >= 3 samples, got {t.shape}, {q2.shape}"
         )
-    fs = 1.0 / float(np.median(np.diff(t)))
-    qf = zero_phase_lowpass(q2, fs, cutoff_hz, order)
+    sample_rate_hz = 1.0 / float(np.median(np.diff(t)))
+    qf = zero_phase_lowpass(q2, sample_rate_hz, cutoff_hz, order)
     qd = np.gradient(qf, t, axis=0)
     qdd = np.gradient(qd, t, axis=0)
     if flat:
@@ -112,21 +113,21 @@ def zero_phase_derivatives(
 def svf_coefficients(dt: float, cutoff_hz: float) -> list[tuple[np.ndarray, np.ndarray]]:
     """Discrete (b, a) of G, sG, s²G for the 2nd-order Butterworth state-variable filter
     (the cut-off clipped, and warned about, on every call; the design cached)."""
-    fs = 1.0 / dt
-    wc = clip_cutoff(cutoff_hz, fs, "derivative cut-off")
-    return list(_svf_design(fs, wc))
+    sample_rate_hz = 1.0 / dt
+    wc = clip_cutoff(cutoff_hz, sample_rate_hz, "derivative cut-off")
+    return list(_svf_design(sample_rate_hz, wc))
 
 
 @functools.lru_cache(maxsize=64)
-def _svf_design(fs: float, wc: float) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+def _svf_design(sample_rate_hz: float, wc: float) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
     """:func:`svf_coefficients` for a clipped cut-off: a bilinear design costs ~2 ms and a
     streamed replay asks for it several times per chunk (read-only arrays: shared)."""
-    w = 2.0 * fs * np.tan(np.pi * wc / fs)  # prewarped [rad/s]
+    w = 2.0 * sample_rate_hz * np.tan(np.pi * wc / sample_rate_hz)  # prewarped [rad/s]
     den = np.array([1.0, np.sqrt(2.0) * w, w * w])
     nums = [np.array([0.0, 0.0, w * w]), np.array([0.0, w * w, 0.0]), np.array([w * w, 0.0, 0.0])]
     out = []
     for num in nums:
-        b, a = bilinear(num, den, fs)
+        b, a = bilinear(num, den, sample_rate_hz)
         b, a = np.array(b, dtype=np.float64), np.array(a, dtype=np.float64)
         b.setflags(write=False)
         a.setflags(write=False)

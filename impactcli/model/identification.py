@@ -488,25 +488,25 @@ class IdentifyStream:
     input_sha256: str
 
     @classmethod
-    def start(cls, joint_names: Sequence[str], n: int, fs: float, duration_s: float, *,
+    def start(cls, joint_names: Sequence[str], n: int, sample_rate_hz: float, duration_s: float, *,
               robot: RobotDescription | None = None, kind: str | None = None,
               options: IdentifyOptions = IdentifyOptions(), where: str = "log",
               input_sha256: str = "") -> IdentifyStream:
-        """Plan the identification of a log of ``n`` samples at ``fs`` [Hz] whose columns
-        are ``joint_names`` (raises what :func:`identify` raises before any sample)."""
+        """Plan the identification of a log of ``n`` samples at ``sample_rate_hz`` [Hz] whose
+        columns are ``joint_names`` (raises what :func:`identify` raises before any sample)."""
         kind = kind or default_kind(robot)
         if kind not in structures.KINDS:
             raise ModelError(
                 f"unknown model kind {kind!r} (choose from {', '.join(structures.KINDS)})")
         cols = match_joints(tuple(joint_names), robot, where, kind)
         joints = tuple(joint_names[c] for c in cols)
-        cutoff = clip_cutoff(options.cutoff_hz, fs, "identification cut-off")
-        if n < 4 * int(np.ceil(fs / cutoff)) + 20:
+        cutoff = clip_cutoff(options.cutoff_hz, sample_rate_hz, "identification cut-off")
+        if n < 4 * int(np.ceil(sample_rate_hz / cutoff)) + 20:
             raise ModelError(
                 f"{where}: log too short to identify a model ({n} samples, {duration_s:.3g} s)"
             )
         structure = _structure_for(kind, robot, joints, options, where)
-        plan = RowsPlan.make(n, fs, cutoff, options, kind, len(joints),
+        plan = RowsPlan.make(n, sample_rate_hz, cutoff, options, kind, len(joints),
                              len(structures.param_names(kind, joints, structure)))
         builder = RowsBuilder(plan, kind, joints, structure, options.filter_order,
                               options.filter_regressor)
@@ -527,7 +527,7 @@ class IdentifyStream:
                       "differences"
                       + ("; regressor columns filtered alike" if o.filter_regressor else ""),
             "cutoff_hz": p.cutoff, "order": o.filter_order,
-            "sample_rate_hz": p.fs, "edge_trim_samples": p.edge * p.k1,
+            "sample_rate_hz": p.sample_rate_hz, "edge_trim_samples": p.edge * p.k1,
             "decimation": {"filtered_signals": p.k1, "fit_rows": p.k2},
         }
         return b.finish(still, info, o, _still_fraction, _poses)

@@ -45,12 +45,12 @@ DECAY = 1e-20
 COUPLED_MIN_ROWS = 1000
 
 
-def decay_margin(fs: float, cutoff: float, order: int) -> int:
+def decay_margin(sample_rate_hz: float, cutoff: float, order: int) -> int:
     """Samples after which the zero-phase Butterworth's slowest pole has decayed below
     :data:`DECAY` (a window's margin on each side)."""
     from scipy import signal  # identification only (1.5 s to import)
 
-    _, p, _ = signal.butter(order, cutoff, fs=fs, output="zpk")
+    _, p, _ = signal.butter(order, cutoff, fs=sample_rate_hz, output="zpk")
     rho = float(np.max(np.abs(p)))
     return max(8, int(np.ceil(np.log(DECAY) / np.log(rho)))) if rho > 0 else 8
 
@@ -110,7 +110,7 @@ class RowsPlan:
     held-back part's first row ``split``."""
 
     n: int
-    fs: float
+    sample_rate_hz: float
     cutoff: float
     k1: int
     nd: int
@@ -122,12 +122,12 @@ class RowsPlan:
     hold_idx: np.ndarray
 
     @classmethod
-    def make(cls, n: int, fs: float, cutoff: float, options: Any, kind: str,
+    def make(cls, n: int, sample_rate_hz: float, cutoff: float, options: Any, kind: str,
              n_joints: int, n_params: int) -> RowsPlan:
         """The plan of :func:`impactcli.model.identification.identify` (its module doc)."""
-        k1 = max(1, int(fs // (10.0 * cutoff)))
+        k1 = max(1, int(sample_rate_hz // (10.0 * cutoff)))
         nd = len(range(0, n, k1))
-        fs_d = fs / k1
+        fs_d = sample_rate_hz / k1
         edge = int(np.ceil(fs_d / cutoff))
         n_hold = round(options.holdout_fraction * nd)
         use_holdout = (n_hold > 0 and n_hold / fs_d >= options.min_holdout_s
@@ -141,7 +141,7 @@ class RowsPlan:
             cap = int(options.coupled_max_mb * 2**20 / (8 * n_joints * n_params))
             max_rows = min(max_rows, max(COUPLED_MIN_ROWS, cap))
         k2 = max(1, int(np.ceil((fit_idx.size + hold_idx.size) / max_rows)))
-        return cls(n, fs, cutoff, k1, nd, edge, split, use_holdout, k2, fit_idx[::k2],
+        return cls(n, sample_rate_hz, cutoff, k1, nd, edge, split, use_holdout, k2, fit_idx[::k2],
                    hold_idx[::k2])
 
 
@@ -182,7 +182,7 @@ class RowsBuilder:
         self.sel = (plan.fit_idx, plan.hold_idx)
         self.out: list[dict[str, list[np.ndarray]]] = [
             {k: [] for k in ("y", "tau", "q", "qd", "qdd")} for _ in self.sel]
-        self.stage1 = Windows(plan.n, WINDOW, decay_margin(plan.fs, plan.cutoff, order),
+        self.stage1 = Windows(plan.n, WINDOW, decay_margin(plan.sample_rate_hz, plan.cutoff, order),
                               self._filter)
         margin2 = 4 * plan.edge if filter_regressor else 0
         self.stage2 = Windows(plan.nd, ROW_WINDOW, margin2, self._rows)
@@ -206,10 +206,10 @@ class RowsBuilder:
     def _filter(self, a: int, s: int, e: int, t: np.ndarray, q: np.ndarray,
                 tau: np.ndarray) -> None:
         p = self.plan
-        qf = zero_phase_lowpass(q, p.fs, p.cutoff, self.order)
+        qf = zero_phase_lowpass(q, p.sample_rate_hz, p.cutoff, self.order)
         qd = np.gradient(qf, t, axis=0)
         qdd = np.gradient(qd, t, axis=0)
-        tau_f = zero_phase_lowpass(tau, p.fs, p.cutoff, self.order)
+        tau_f = zero_phase_lowpass(tau, p.sample_rate_hz, p.cutoff, self.order)
         idx = np.arange(s + (-s) % p.k1, e, p.k1) - a
         self.stage2.feed(t[idx], qf[idx], qd[idx], qdd[idx], tau_f[idx])
 
@@ -221,7 +221,7 @@ class RowsBuilder:
         wanted = [sel[(sel >= s) & (sel < e)] - a for sel in self.sel]
         if not any(w.size for w in wanted):
             return
-        fs_d = p.fs / p.k1
+        fs_d = p.sample_rate_hz / p.k1
         if self.kind == "coupled":  # filter the shared functions of the motion, then lay out
             f = structures.coupled_features(qf, qd, qdd, self.structure)
             if self.filter_regressor:

@@ -408,7 +408,7 @@ class SelectStream:
         self.streams = streams
 
     @classmethod
-    def start(cls, joint_names: Sequence[str], n: int, fs: float, duration_s: float, *,
+    def start(cls, joint_names: Sequence[str], n: int, sample_rate_hz: float, duration_s: float, *,
               robot: RobotDescription | None = None,
               options: IdentifyOptions = IdentifyOptions(), where: str = "log",
               input_sha256: str = "") -> SelectStream:
@@ -417,7 +417,7 @@ class SelectStream:
         big = coupled_too_big(len(joint_names), n, options, where)
         if big is not None:
             warnings.warn(big, ImpactWarning, stacklevel=2)
-        return cls({k: IdentifyStream.start(joint_names, n, fs, duration_s, robot=robot,
+        return cls({k: IdentifyStream.start(joint_names, n, sample_rate_hz, duration_s, robot=robot,
                                             kind=k, options=options, where=where,
                                             input_sha256=input_sha256)
                     for k in (("decoupled",) if big else ("decoupled", "coupled"))})

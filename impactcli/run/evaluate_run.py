@@ -75,11 +75,11 @@ def events_settings(config: Any) -> dict[str, float]:
     return ev if isinstance(ev, dict) else {}
 
 
-def check_rate(labels: Any, rate_hz: float, where: str) -> None:
-    if rate_hz > 0 and abs(labels.sample_rate - rate_hz) > 0.05 * rate_hz:
+def check_rate(labels: Any, sample_rate_hz: float, where: str) -> None:
+    if sample_rate_hz > 0 and abs(labels.sample_rate - sample_rate_hz) > 0.05 * sample_rate_hz:
         warnings.warn(
             f"{labels.path}: labels say {labels.sample_rate:g} Hz but {where} runs at "
-            f"{rate_hz:g} Hz: are they the labels of this log?", ImpactWarning, stacklevel=2)
+            f"{sample_rate_hz:g} Hz: are they the labels of this log?", ImpactWarning, stacklevel=2)
 
 
 def replay_log(path: Path, *, robot: Path | None, model: Path | None, config: Path | None,

@@ -291,7 +291,7 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         rates = rp.last.rates
         floor = floor_acc.finish(
             rp.warmup.index, rp.warmup.end_index,
-            pulse_gain(rp.last.theta[:, :rp.last.eta], rates.fs_hz, rates.a1, rates.n1),
+            pulse_gain(rp.last.theta[:, :rp.last.eta], rates.sample_rate_hz, rates.a1, rates.n1),
             joints, ctx.chain, ctx.index, ctx.chain_cols, ctx.jac)
         left_out = moved_unchecked(plan.left_out, scan.log.joint_names,
                                    scan.ranges.get("position"))
@@ -462,7 +462,7 @@ def envelope_check(cfg: DetectorConfig, joints: tuple[str, ...], sample_rate_hz:
     return EnvelopeCheck(MotionEnvelope.from_dict(env), sample_rate_hz, joints)
 
 
-def _thresholds_from_spill(spill: ColumnFiles, wu: Warmup, n: int, fs: float,
+def _thresholds_from_spill(spill: ColumnFiles, wu: Warmup, n: int, sample_rate_hz: float,
                            ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
     """The uncalibrated rule's thresholds and margins per detector
     (:func:`impactcli.detect.thresholds.thresholds_from_maxima`) from the statistics after
@@ -470,7 +470,7 @@ def _thresholds_from_spill(spill: ColumnFiles, wu: Warmup, n: int, fs: float,
     from ..detect.thresholds import BlockMaxima, thresholds_from_maxima, uncalibrated_block
 
     start = wu.end_index if wu.end_index < n - 10 else 0
-    block = uncalibrated_block(n - start, fs)
+    block = uncalibrated_block(n - start, sample_rate_hz)
     bms = {d: BlockMaxima(start, block) for d in DETECTORS}
     for k0, a in spill.chunks(("r", "loading", "r_rms", "v_rms")):
         if k0 + a["r"].shape[0] <= start:

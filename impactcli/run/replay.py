@@ -256,18 +256,18 @@ class Replayer:
         """Start replaying ``chunk`` (``tag`` comes back with its replay); returns the
         chunks done so far, oldest first."""
         setup, carry = self.setup, self._st.carry
-        cfg, fs, dt = setup.cfg, setup.sample_rate_hz, setup.sample_period_s
+        cfg, sample_rate_hz, dt = setup.cfg, setup.sample_rate_hz, setup.sample_period_s
         n = chunk.n_samples
         out: list[tuple[Any, ChunkReplay]] = []
         for a in range(0, max(n, 1), PART_SAMPLES):
             part = _part(chunk, a, min(a + PART_SAMPLES, n)) if n > PART_SAMPLES else chunk
             r = residual_columns(setup, part, carry.scoped("residual."), self.where)
-            inputs = inputs_chunk(part, part.time_s, fs, cfg.adaptive, carry.scoped("inputs."),
-                                  self.where)
+            inputs = inputs_chunk(part, part.time_s, sample_rate_hz, cfg.adaptive,
+                                  carry.scoped("inputs."), self.where)
             job = self._runner.submit(np.ascontiguousarray(r, dtype=np.float64),
                                       np.ascontiguousarray(inputs.u, dtype=np.float64))
             sl = cfg.static_loading  # while the axes run
-            loading = np.abs(loading_lowpass(r, sl.cutoff_hz, fs, sl.order,
+            loading = np.abs(loading_lowpass(r, sl.cutoff_hz, sample_rate_hz, sl.order,
                                              carry.scoped("static.")))
             qd = causal_velocity(dt, part.position, min(SPEED_CUTOFF_HZ, 0.2 / dt),
                                  carry.scoped("speed."), "q")

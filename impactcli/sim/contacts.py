@@ -111,14 +111,14 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 def label_contacts(time_s: np.ndarray, src_force: np.ndarray, *, kinds: list[str],
                    links: list[int], extras: list[dict[str, float]],
-                   sample_rate: float) -> Labels:
+                   sample_rate_hz: float) -> Labels:
     """Ground-truth labels from sampled per-source contact forces.
 
     time_s (N,) [s since the first sample]; src_force (N, S) force magnitude per source
     [N]; kinds, links (1-based) and extras (merged into each event) per source.
     Events are sorted by start time.
     """
-    gap = max(1, round(LABEL_MERGE_GAP_S * sample_rate))
+    gap = max(1, round(LABEL_MERGE_GAP_S * sample_rate_hz))
     events: list[ContactLabel] = []
     for k in range(src_force.shape[1]):
         f = src_force[:, k]
@@ -136,4 +136,4 @@ def label_contacts(time_s: np.ndarray, src_force: np.ndarray, *, kinds: list[str
                 extra={"source": k, **extras[k]},
             ))
     events.sort(key=lambda e: (e.start, e.extra["source"]))
-    return Labels(events=tuple(events), sample_rate=sample_rate)
+    return Labels(events=tuple(events), sample_rate=sample_rate_hz)  # the labels' own name

@@ -152,10 +152,10 @@ def choose_substeps(p: dict[str, np.ndarray], arm: ArmParams, surfaces: np.ndarr
     """
     lam = _min_link_inertia(p)
     v_eps = arm.coulomb_velocity_eps
-    fs = friction_max_scale
+    sample_rate_hz = friction_max_scale
     w2 = p["stiff"] * (1 / p["i_mot"] + 1 / lam)
-    rate_m = (p["damp"] + fs * (p["fv_m"] + p["fc_m"] / v_eps)) / p["i_mot"]
-    rate_a = (p["damp"] + fs * (p["fv_a"] + p["fc_a"] / v_eps)) / lam
+    rate_m = (p["damp"] + sample_rate_hz * (p["fv_m"] + p["fc_m"] / v_eps)) / p["i_mot"]
+    rate_a = (p["damp"] + sample_rate_hz * (p["fv_a"] + p["fc_a"] / v_eps)) / lam
     reach = float(np.sum(p["lengths"]))
     w2_c = 0.0
     rate_c = 0.0
@@ -296,7 +296,7 @@ def simulate(scenario: Scenario, *, seed: int = 0) -> SimResult:
     extras += [{"duration_s": x.duration_s} for x in scenario.pushes]
     extras += [{"rise_s": x.rise_s, "hold_s": x.hold_s} for x in scenario.clamps]
     labels = label_contacts(t, o_src, kinds=kinds, links=links, extras=extras,
-                            sample_rate=1.0 / ts)
+                            sample_rate_hz=1.0 / ts)
     # impact speed: end-effector speed at the first labelled sample
     tip_v = np.gradient(o_tip, ts, axis=0)
     evs = []

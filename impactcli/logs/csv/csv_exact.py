@@ -236,7 +236,7 @@ def exact_rows(ctx: Any) -> Iterator[RawRows]:
             return
         t, terr, mat, verr = got
         if t is None:
-            t = rate_times(row0, mat.shape[0], ctx.rate_hz)
+            t = rate_times(row0, mat.shape[0], ctx.sample_rate_hz)
         for kind, (i, what) in terr.items():
             time_err.setdefault(kind, (row0 + i, what))
         for c, (i, v) in verr.items():

@@ -240,7 +240,7 @@ class CsvLayout:
             a header).
         ignored_extra: a canonical CSV's columns that are not channels.
         tname: the time column.  tspec: the time's spec (unit, offset, start at zero).
-            Both None for a log read with ``--rate`` (``rate_hz``).
+            Both None for a log read with ``--rate`` (``sample_rate_hz``).
         columns: (signal, joint index) → the column holding it, for every ref of ``cmap``.
     """
 
@@ -257,7 +257,7 @@ class CsvLayout:
     tname: str | None
     tspec: TimeSpec | None
     columns: dict[tuple[str, int], str]
-    rate_hz: float | None = None
+    sample_rate_hz: float | None = None
 
     @property
     def used(self) -> set[str]:
@@ -357,7 +357,7 @@ def csv_layout(path: Path, cmap: ChannelMap | None, *, time_unit: str | None = N
                                  "in the header: name each column once")
     return CsvLayout(path=path, where=where, cmap=cmap, fmt=fmt, header=header, skip=skip,
                      delim=delim, decimal=decimal, names=names, ignored_extra=ignored_extra,
-                     tname=tname, tspec=tspec, columns=columns, rate_hz=rate)
+                     tname=tname, tspec=tspec, columns=columns, sample_rate_hz=rate)
 
 
 def csv_read_options(lay: CsvLayout, block_size: int = 1 << 24) -> tuple[Any, Any]:

@@ -155,7 +155,7 @@ class CsvReaderLayout(MappedLayout):
         self.ignored = (lay.ignored_extra if lay.fmt == "csv"
                         else [lay.disp(c) for c in lay.names if c not in lay.used])
         tspec = lay.tspec
-        self.rate_hz = lay.rate_hz
+        self.sample_rate_hz = lay.sample_rate_hz
         if tspec is None or lay.tname is None:  # --rate: no time column
             self.unit_ns, self.offset_ns = 1, 0
             self.tcol = self.time_name = "--rate"
@@ -178,13 +178,13 @@ class CsvReaderLayout(MappedLayout):
     def label(self, i: int) -> str:
         return str(self._label(i))
 
-    def rate_error(self, rate_hz: float, duration_s: float | None = None) -> str | None:
+    def rate_error(self, sample_rate_hz: float, duration_s: float | None = None) -> str | None:
         from ..repair import rate_message
 
-        if self.rate_hz is not None:
-            return rate_message(self.rate_hz, self.where, "--rate", None, duration_s)
+        if self.sample_rate_hz is not None:
+            return rate_message(self.sample_rate_hz, self.where, "--rate", None, duration_s)
         assert self.lay.tspec is not None
-        return rate_message(rate_hz, self.where, self.tcol,
+        return rate_message(sample_rate_hz, self.where, self.tcol,
                             None if self.iso else self.lay.tspec.unit, duration_s)
 
     def ranges(self, work: Callable[[Callable[[Any], Any], bool], Any]) -> Iterator[Any]:
@@ -272,7 +272,7 @@ class CsvReaderLayout(MappedLayout):
                 return
             t, facts, mat = got
             if t is None:
-                t = rate_times(row0, mat.shape[0], self.rate_hz or 1.0)
+                t = rate_times(row0, mat.shape[0], self.sample_rate_hz or 1.0)
             isos.add(facts.iso)
             if len(isos) > 1:
                 yield from self._go_exact()

@@ -408,14 +408,14 @@ class MessageLayout(StreamLayout):
             r.spill.close()
         self.folder.close()
 
-    def rate_error(self, rate_hz: float, duration_s: float | None = None) -> str | None:
+    def rate_error(self, sample_rate_hz: float, duration_s: float | None = None) -> str | None:
         """A rate below :data:`~impactcli.logs.repair.MIN_RATE_HZ` is too low for impact
         detection (stamps in ns leave no unit to doubt; no upper bound)."""
         from ..repair import MIN_RATE_HZ, rate_message
 
-        if not rate_hz < MIN_RATE_HZ:
+        if not sample_rate_hz < MIN_RATE_HZ:
             return None
-        return rate_message(rate_hz, self.where, f"topic {self.state!r} ({self.time_name})",
+        return rate_message(sample_rate_hz, self.where, f"topic {self.state!r} ({self.time_name})",
                             None, duration_s)
 
     def release(self) -> None:
