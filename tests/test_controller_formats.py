@@ -18,7 +18,12 @@ import pytest
 import yaml
 
 from impactcli.logs import read_log, write_log
-from impactcli.logs.messages.ros2_cdr import JOINT_STATE, JOINT_STATE_DEF, encode_jointstates
+from impactcli.logs.messages.ros2_cdr import (
+    HEADER_DEFS,
+    JOINT_STATE,
+    JOINT_STATE_DEF,
+    encode_jointstates,
+)
 from impactcli.run.calibration import calibrate
 from impactcli.run.collect import detect_in_memory
 from impactcli.types import DetectionResult, RobotLog
@@ -35,15 +40,6 @@ float64[] ddq_d
 float64[] tau
 float64[] tau_model
 float64[] tau_ext
-"""
-HEADER_DEFS = """================================================================================
-MSG: std_msgs/Header
-builtin_interfaces/Time stamp
-string frame_id
-================================================================================
-MSG: builtin_interfaces/Time
-int32 sec
-uint32 nanosec
 """
 T0 = 1_763_900_000_000_000_000  # an epoch clock, as ROS stamps are
 TOPIC = "/arm/state"

@@ -23,7 +23,12 @@ from mcap.writer import Writer as McapWriter
 from impactcli.cli import main
 from impactcli.errors import ChannelMapError, ImpactError, ImpactWarning, LogFormatError
 from impactcli.logs import inspect_log, read_log, write_log
-from impactcli.logs.messages.ros2_cdr import JOINT_STATE, JOINT_STATE_DEF, decode_topic_official
+from impactcli.logs.messages.ros2_cdr import (
+    HEADER_DEFS,
+    JOINT_STATE,
+    JOINT_STATE_DEF,
+    decode_topic_official,
+)
 from impactcli.logs.messages.ros2_cdr import encode_jointstates as encode_js
 from impactcli.schema import validate
 from impactcli.types import RobotLog
@@ -36,15 +41,6 @@ T0 = 1_700_000_000_123_456_789
 ALL = ("position", "torque", "velocity", "current", "position_ref", "velocity_ref",
        "acceleration_ref", "torque_model", "torque_ext")
 
-HEADER_DEFS = """================================================================================
-MSG: std_msgs/Header
-builtin_interfaces/Time stamp
-string frame_id
-================================================================================
-MSG: builtin_interfaces/Time
-int32 sec
-uint32 nanosec
-"""
 ARM = "my_msgs/msg/ArmState"
 #: a custom state message: all a controller knows about 3 joints (ROS 1 style field names)
 ARM_BODY = """std_msgs/Header header

@@ -1,21 +1,11 @@
 """``impactcli labels LOG --from-channel NAME --above X --link N -o labels.json``: ground-truth
 labels from a logged switch or force sensor (docs/formats.md, "Ground-truth labels").
 
-The channel is read through the log's own reader, whatever the log's channels make of it:
-``<joint>.<signal>`` of a joint the log has (its values after the map's scale and offset);
-a CSV column by name (one the reader ignores) or, headerless, by 0-based index, read with
-the log's time column and repairs; an ``.npz`` array (``key`` or ``key[i]``) with the map's
-time; in an MCAP file or a ROS bag, a message field ``/topic/field/sub[i]`` or
-``/topic/array[joint]`` (:mod:`impactcli.logs.messages.fields`), stamped as the log's samples are.
-
-Contiguous stretches where the channel is above X become contacts (``start``/``end`` the
-first and last sample above, seconds since the log's first sample), merged when closer
-than ``--merge-gap``, dropped when shorter than ``--min-duration``. ``peak_force`` is the
-channel's peak for a force; a *switch* (two values, or ``--channel-kind switch``) knows no
-force (``peak_force`` 0, ``peak_force_known`` false). ``--link`` is required: a label names
-the link touched (1-based). The file (schemas/labels.schema.json, validated) is written
-atomically with its ``source``. Exit 0; 2 bad options; 3 a log or channel that cannot be
-read (one line naming the file and what it has).
+What a channel name may be and how its stretches above X become contacts:
+:mod:`impactcli.logs.channel_labels`. ``--link`` is required: a label names the link
+touched (1-based). The file (schemas/labels.schema.json, validated) is written atomically
+with its ``source``. Exit 0; 2 bad options; 3 a log or channel that cannot be read (one line
+naming the file and what it has).
 """
 
 from __future__ import annotations

@@ -26,6 +26,7 @@ from ..layout import RawRows, rate_times
 from .csv_layout import (
     ISO_RE,
     beyond_clock,
+    cells_as_floats,
     clock_message,
     csv_parse_error,
     decimal_text_to_ns,
@@ -405,13 +406,6 @@ def _values(arr: Any) -> tuple[np.ndarray, tuple[int, Any] | None]:
         return numbers(arr.cast(pa.float64())), None
     if pa.types.is_null(arr.type):
         return np.full(len(arr), np.nan), None
-    vals = arr.to_pylist()
-    out = np.empty(len(vals))
-    for i, v in enumerate(vals):
-        try:
-            out[i] = np.nan if v is None else float(v)
-        except (TypeError, ValueError):
-            return out, (i, v)
-    return out, None
+    return cells_as_floats(arr)
 
 

@@ -387,17 +387,26 @@ def first_valid(arr: Any) -> str:
     return str(v[0].as_py()) if len(v) else ""
 
 
-def floats(arr: Any, where: str, what: str, label: Any) -> np.ndarray:
-    """A pyarrow string array of numbers as float64 (empty cells NaN), or the error naming
-    the first cell that is not a number."""
+def cells_as_floats(arr: Any) -> tuple[np.ndarray, tuple[int, Any] | None]:
+    """A pyarrow array's cells as float64 by Python's float of each (nulls NaN), and its
+    first cell that is not a number ``(index, value)`` (None when all are: the values after
+    it are not converted)."""
     vals = arr.to_pylist()
     out = np.empty(len(vals))
     for i, v in enumerate(vals):
         try:
             out[i] = np.nan if v is None else float(v)
         except (TypeError, ValueError):
-            raise LogFormatError(f"{where}: {what}, {label(i)}: non-numeric value {v!r}"
-                                 ) from None
+            return out, (i, v)
+    return out, None
+
+
+def floats(arr: Any, where: str, what: str, label: Any) -> np.ndarray:
+    """A pyarrow string array of numbers as float64 (empty cells NaN), or the error naming
+    the first cell that is not a number."""
+    out, bad = cells_as_floats(arr)
+    if bad is not None:
+        raise LogFormatError(f"{where}: {what}, {label(bad[0])}: non-numeric value {bad[1]!r}")
     return out
 
 

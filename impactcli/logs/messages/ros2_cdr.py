@@ -31,12 +31,8 @@ from ...errors import LogFormatError
 from .message_source import Batch
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
-JOINT_STATE_DEF = """std_msgs/Header header
-string[] name
-float64[] position
-float64[] velocity
-float64[] effort
-================================================================================
+#: The definitions a ROS 2 message with a ``std_msgs/Header`` appends to its own (ros2msg).
+HEADER_DEFS = """================================================================================
 MSG: std_msgs/Header
 builtin_interfaces/Time stamp
 string frame_id
@@ -45,6 +41,12 @@ MSG: builtin_interfaces/Time
 int32 sec
 uint32 nanosec
 """
+JOINT_STATE_DEF = """std_msgs/Header header
+string[] name
+float64[] position
+float64[] velocity
+float64[] effort
+""" + HEADER_DEFS
 
 
 @dataclass(frozen=True)
