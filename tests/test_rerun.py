@@ -18,6 +18,7 @@ from impactcli.types import DETECTORS, DetectionResult
 
 from .fakes import fake_result
 from .fakes import write_fake_rrd as write_rrd
+from .helpers import rrd_rows
 
 rr = pytest.importorskip("rerun")
 
@@ -383,20 +384,6 @@ def test_no_half_written_file_on_failure(tmp_path: Path) -> None:
         write_rrd(broken, path)
     assert not path.exists()
     assert list(path.parent.iterdir()) == []
-
-
-def rrd_rows(path: Path) -> dict[str, list[tuple[str, ...]]]:
-    """Every entity's rows (static ones apart; the blueprint's and properties' left out),
-    each row the repr of its values, sorted: what a recording holds, whatever its chunks."""
-    out: dict[str, list[tuple[str, ...]]] = {}
-    for ch in rr.chunk.RrdReader(path).store().stream():
-        cols = ch.to_record_batch().to_pydict()
-        names = sorted(k for k in cols if "rowid" not in k.lower().replace("_", ""))
-        rows = out.setdefault(("static " if ch.is_static else "") + ch.entity_path, [])
-        for i in range(len(cols[names[0]]) if names else 0):
-            rows.append(tuple(repr(cols[k][i]) for k in names))
-    return {k: sorted(v) for k, v in out.items()
-            if not k.startswith("static /__properties") and "blueprint" not in k}
 
 
 def test_the_recording_whatever_the_chunks(tmp_path: Path) -> None:

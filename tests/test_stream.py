@@ -27,6 +27,8 @@ from impactcli.run.collect import detect_in_memory
 from impactcli.run.one_log import RunSetup, detect_log
 from impactcli.types import DetectionResult, LogHeader, SignalsChunk
 
+from .helpers import bad_midway_csv, rrd_rows
+
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
 ASSIST = SAMPLES / "assist_like.config.toml"
 HEAVY = SAMPLES / "heavy_geared.config.toml"
@@ -146,34 +148,13 @@ def test_detect_writes_the_timeline_and_signals_of_the_replay(tmp_path: Path) ->
 
 def test_a_log_bad_midway_leaves_no_output(tmp_path: Path) -> None:
     """A cell that is not a number far into the file: one line, exit 3, no file written."""
-    with gzip.open(SAMPLES / "csv" / "assist_impacts.csv.gz", "rt") as f:
-        lines = f.read().splitlines(keepends=True)
-    cells = lines[15000].split(",")
-    cells[2] = "oops"
-    lines[15000] = ",".join(cells)
-    bad = tmp_path / "bad.csv"
-    bad.write_text("".join(lines))
+    bad = bad_midway_csv(tmp_path)
     out = tmp_path / "out"
     r = CliRunner().invoke(main, ["detect", str(bad), "--config", str(ASSIST), "--signals",
                                   "-o", str(out)])
     assert r.exit_code == 3, r.output
     assert "bad.csv" in r.output and "Traceback" not in r.output
     assert not list(out.glob("*")) if out.exists() else True
-
-
-def _rrd_rows(path: Path) -> dict[str, list[tuple[Any, ...]]]:
-    """Non-static rows per entity as sorted tuples (time and every value), and the static
-    entities' contents."""
-    import rerun as rr
-
-    out: dict[str, list[tuple[Any, ...]]] = {}
-    for ch in rr.chunk.RrdReader(path).store().stream():
-        cols = ch.to_record_batch().to_pydict()
-        names = sorted(k for k in cols if "rowid" not in k.lower().replace("_", ""))
-        rows = out.setdefault(("static " if ch.is_static else "") + ch.entity_path, [])
-        for i in range(len(cols[names[0]]) if names else 0):
-            rows.append(tuple(repr(cols[k][i]) for k in names))
-    return {k: sorted(v) for k, v in out.items()}
 
 
 def _recording(path: Path, rows: int, out: Path) -> DetectionResult:
@@ -194,7 +175,7 @@ def test_chunked_rerun_holds_the_one_chunk_recordings_samples(tmp_path: Path,
     path = SAMPLES / "csv" / "assist_impacts.csv.gz"
     one = _recording(path, 10**7, tmp_path / "one.rrd")
     _recording(path, rows, tmp_path / "chunks.rrd")
-    a, b = _rrd_rows(tmp_path / "one.rrd"), _rrd_rows(tmp_path / "chunks.rrd")
+    a, b = (rrd_rows(tmp_path / f"{x}.rrd", everything=True) for x in ("one", "chunks"))
     assert a.keys() == b.keys()
     assert one.incidents and "/incidents" in a
     decimated = [k for k, v in a.items() if "/rms" in k and not k.startswith("static")]

@@ -6,7 +6,6 @@ file behind, and writes nothing when the log turns bad midway."""
 
 from __future__ import annotations
 
-import gzip
 import json
 import tempfile
 import warnings
@@ -16,7 +15,7 @@ from typing import Any
 import pytest
 
 from .cli_run import invoke
-from .test_rerun import rrd_rows
+from .helpers import bad_midway_csv, rrd_rows
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
 ASSIST = SAMPLES / "assist_like.config.toml"
@@ -154,13 +153,7 @@ def test_evaluate_streams_the_evaluation(tmp_path: Path, private_tmp: Path,
 def test_a_log_bad_midway_leaves_nothing(tmp_path: Path, private_tmp: Path) -> None:
     """A cell that is not a number far into the file: one line, exit 3, no recording kept
     and no spill file left (view --save; evaluate --sweep)."""
-    with gzip.open(SAMPLES / "csv" / "assist_impacts.csv.gz", "rt") as f:
-        lines = f.read().splitlines(keepends=True)
-    cells = lines[15000].split(",")
-    cells[2] = "oops"
-    lines[15000] = ",".join(cells)
-    bad = tmp_path / "bad.csv"
-    bad.write_text("".join(lines))
+    bad = bad_midway_csv(tmp_path)
     out = tmp_path / "bad.rrd"
     r = invoke(["view", str(bad), "--config", str(ASSIST), "--no-open", "--save", str(out)])
     assert r.exit_code == 3, r.output
