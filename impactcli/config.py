@@ -111,6 +111,13 @@ class AdaptiveConfig:
         return FORMULATION if active else PLAIN_FORMULATION
 
 
+#: Each detector's threshold under its name in the files (a config's ``[thresholds]``, a
+#: timeline's ``thresholds``: the paper's symbols) — the one translation between the two
+#: vocabularies; inside the package thresholds go by detector.
+THRESHOLD_KEYS: dict[str, str] = {"adaptive": "v_stat", "static_loading": "vL",
+                                  "static_baseline": "v0"}
+
+
 @dataclass(frozen=True)
 class ThresholdsConfig:
     """Per-joint thresholds [N·m]; empty mapping = not calibrated (robust rule used).
@@ -124,6 +131,11 @@ class ThresholdsConfig:
     v_stat: dict[str, float] = field(default_factory=dict)
     v0: dict[str, float] = field(default_factory=dict)
     vL: dict[str, float] = field(default_factory=dict)
+
+    def of(self, detector: str) -> dict[str, float]:
+        """The per-joint thresholds of ``detector`` (:data:`THRESHOLD_KEYS`)."""
+        table: dict[str, float] = getattr(self, THRESHOLD_KEYS[detector])
+        return table
 
     def vector(self, kind: str, joint_names: Sequence[str], where: str = "config") -> (
             np.ndarray | None):

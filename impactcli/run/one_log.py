@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from ..config import CalibrationRecord, DetectorConfig
+from ..config import THRESHOLD_KEYS, CalibrationRecord, DetectorConfig
 from ..detect.adaptive import AdaptiveResult, default_threads
 from ..detect.envelope import EnvelopeCheck, MotionEnvelope, outside_share_text
 from ..detect.events import extract_events
@@ -305,8 +305,8 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
                            scan.sample_rate_hz, scan.sample_period_s)
     caught.raise_again()
     freqs, gain = rp.last.g_gain()
-    thresholds = {j: {"v_stat": float(thr["adaptive"][k]), "v0": float(thr["static_baseline"][k]),
-                      "vL": float(thr["static_loading"][k])} for k, j in enumerate(joints)}
+    thresholds = {j: {key: float(thr[det][k]) for det, key in THRESHOLD_KEYS.items()}
+                  for k, j in enumerate(joints)}
     rig = plan.model
     return DetectionResult(
         log=header, model=None if rig is None else rig.to_dict(),

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..clock import check_calibrated_rate
-from ..config import PLAIN_FORMULATION, DetectorConfig
+from ..config import PLAIN_FORMULATION, THRESHOLD_KEYS, DetectorConfig
 from ..detect.adaptive import check_scale
 from ..errors import ConfigError, ImpactError, ImpactWarning, LogFormatError, ModelError
 from ..logs.reader import LogChunk, LogReader, LogScan
@@ -204,8 +204,8 @@ def calibrated_thresholds(
     if not cfg.calibration.calibrated:
         return None
     out = {}
-    pairs = (("adaptive", th.v_stat), ("static_loading", th.vL), ("static_baseline", th.v0))
-    for det, table in pairs:
+    for det in THRESHOLD_KEYS:
+        table = th.of(det)
         missing = [j for j in joints if j not in table]
         if missing:
             raise ConfigError(f"calibrated config has no {det} threshold for joint(s) {missing}")
