@@ -87,11 +87,13 @@ def test_job_retries_transient_errors(monkeypatch: pytest.MonkeyPatch, tmp_path:
         calls.append(1)
         if len(calls) < 3:
             raise LogFormatError(f"{job.log_path}: cannot fetch") from TimeoutError("slow")
-        return ("a.timeline.json",), summary, ()
+        return ("a.timeline.json",), summary, (), findings
 
+    findings = batch.Findings("x", 7200.0, 1.0, (), (), ())
     monkeypatch.setattr(batch, "_run", run)
     out = run_detect_job(_job(tmp_path))
     assert out.ok and out.attempts == 3 and out.summary == summary
+    assert out.findings == findings
 
 
 def test_job_failure_classes(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:

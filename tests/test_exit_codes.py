@@ -168,18 +168,16 @@ def test_a_log_that_is_all_warm_up_is_not_judged_by_fail_on_detect() -> None:
     nothing after warm-up analysed) is named as not judged — exit 5 — not passed as "no
     incident"; one sample after warm-up is judged. (The CLI refuses logs shorter than
     ``warmup.min_s`` up front, exit 3; this is the gate's own rule for any other way.)"""
-    from types import SimpleNamespace
+    from impactcli.run.gates import Findings, judge
 
-    from impactcli.cli.detect import _not_analysed
+    def lines(warmup_end_s: float, duration_s: float) -> tuple[list[str], list[str]]:
+        f = Findings("/data/run7.csv", duration_s, warmup_end_s, (), (), ())
+        return judge([f], fail_on_detect=True, fail_on_force=None)
 
-    def outcome(warmup_end_s: float, duration_s: float) -> Any:
-        return SimpleNamespace(log_path="/data/run7.csv", summary={
-            "warmup_end_s": warmup_end_s, "duration_s": duration_s})
-
-    line = _not_analysed(outcome(3.004, 3.0))
-    assert line is not None and "run7.csv: --fail-on-detect could not judge it" in line
+    failing, [line] = lines(3.004, 3.0)
+    assert not failing and "run7.csv: --fail-on-detect could not judge it" in line
     assert "no time after warm-up was analysed" in line and "exit 5" in line
-    assert _not_analysed(outcome(3.0, 3.0)) is None  # its last sample is after warm-up
+    assert lines(3.0, 3.0) == ([], [])  # its last sample is after warm-up
 
 
 def _config_without_kinematics(tmp_path: Path) -> Path:

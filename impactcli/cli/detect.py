@@ -11,6 +11,7 @@ import click
 
 from ..detect.events import LONG_EVENT_S
 from ..errors import EXIT_BATCH, EXIT_DETECTED, EXIT_UNJUDGED, Interrupted, one_line
+from ..run.gates import count, shown
 from .options import (
     executor_options,
     fail_usage,
@@ -31,16 +32,9 @@ __all__ = ["PRODUCT_DETECTORS", "detect_cmd"]
 PRODUCT_DETECTORS = ("adaptive", "static_loading")
 
 
-def _shown(log: str) -> str:
-    """A log's name as the terminal shows it: its file name (or URL's), on one line."""
-    from ..logs.urls import url_name
-
-    return one_line(url_name(log))
-
-
 def _fmt_row(s: dict[str, Any], lasting: int) -> str:
     cal = "yes" if s["calibrated"] else "no"
-    return (f"{_shown(s['log']):<36} {s['duration_s']:>9.1f} {cal:>10} "
+    return (f"{shown(s['log']):<36} {s['duration_s']:>9.1f} {cal:>10} "
             f"{s['warmup_end_s']:>7.2f} {s.get('incidents', 0):>9} {lasting:>7} | "
             f"{s['adaptive']:>8} {s['static_loading']:>8} {s['static_baseline']:>8}")
 
@@ -141,6 +135,7 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
         prefetch_sha256(logs[0])  # its hash overlaps the start-up (a local file only)
     from ..logs.urls import expand_inputs
     from ..run.batch import DetectJob, Timer, check_unique_stems, run_batch, written_since
+    from ..run.gates import judge
     from ..run.job import load_inputs
 
     paths = expand_inputs(logs)
@@ -193,11 +188,10 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
         click.echo(f"impactcli: {len(outcomes) + len(late)} of {len(paths)} logs finished "
                    "before the stop; run the same command again to redo the batch", err=True)
         if late:
-            click.echo(f"impactcli: {', '.join(map(_shown, late))}: finished as the stop came; "
+            click.echo(f"impactcli: {', '.join(map(shown, late))}: finished as the stop came; "
                        "its outputs are written but not in the table", err=True)
         raise
-    _, loads = _finish(outcomes, paths, choice, inputs, timer.elapsed(), out_dir,
-                       summary_path)
+    _finish(outcomes, paths, choice, inputs, timer.elapsed(), out_dir, summary_path)
     failed = [o for o in outcomes if not o.ok]
     ok = [o for o in outcomes if o.ok]
     ctx = click.get_current_context()
@@ -206,22 +200,9 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
             click.echo(f"impactcli: {len(failed)} of {len(outcomes)} logs failed", err=True)
         # some failed: 4; every one failed: the (first) failure's own code, as `report` does
         ctx.exit(EXIT_BATCH if ok else failed[0].exit_code)
-    failing: list[str] = []   # judged: exit 1, each line saying why
-    unjudged: list[str] = []  # asked to judge and could not: exit 5
-    if fail_on_detect:
-        failing += [f"impactcli: {_shown(o.log_path)}: --fail-on-detect: "
-                    f"{_found(o, loads[o.log_path])} after warm-up" for o in ok
-                    if o.summary.get("incidents", 0) > 0 or loads[o.log_path]]
-        unjudged += [line for o in ok if (line := _not_analysed(o)) is not None]
-        unjudged += [line for o in ok if o.summary.get("incidents", 0) == 0
-                     and not loads[o.log_path] and (line := _only_defects(o)) is not None]
-    if fail_on_force is not None:
-        failing += [line for o in ok
-                    if (line := _over_force(o, fail_on_force) or _load_over(o, loads[o.log_path],
-                                                                         fail_on_force))]
-        unjudged += [line for o in ok
-                     if (line := _force_unknown(o, loads[o.log_path], fail_on_force))]
-        unjudged += [line for o in ok if (line := _defect_force(o, fail_on_force))]
+    # judged: exit 1, each line saying why; asked to judge and could not: exit 5
+    failing, unjudged = judge([o.findings for o in ok if o.findings is not None],
+                              fail_on_detect=fail_on_detect, fail_on_force=fail_on_force)
     for line in failing + unjudged:  # why the exit code, per log
         click.echo(line, err=True)
     if failing:
@@ -230,77 +211,11 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
         ctx.exit(EXIT_UNJUDGED)
 
 
-def _count(n: int, what: str) -> str:
-    """``1 incident``, ``3 incidents``."""
-    return f"{n} {what}{'s' if n != 1 else ''}"
-
-
-def _found(outcome: Any, loads: list[dict[str, Any]]) -> str:
-    """"3 incidents and 1 lasting load" of one log (the counted ones)."""
-    n = int(outcome.summary.get("incidents", 0))
-    return " and ".join(([_count(n, "incident")] if n else [])
-                        + ([_count(len(loads), "lasting load")] if loads else []))
-
-
-def _only_defects(outcome: Any) -> str | None:
-    """The line of a log whose only incidents start at data defects (--fail-on-detect
-    cannot tell whether a contact hides there), or None."""
-    marked = outcome.summary.get("defect_incident_list") or []
-    if not marked:
-        return None
-    return (f"impactcli: {_shown(outcome.log_path)}: --fail-on-detect could not judge "
-            f"{_count(len(marked), 'incident')} at data defects (the first at "
-            f"{marked[0]['t_start']:.3f} s, a {marked[0]['kind']}): the residual there shows "
-            "the defect; exit 5")
-
-
-def _defect_force(outcome: Any, limit: float) -> str | None:
-    """The line of a log with incidents at data defects whose force is above ``limit`` or
-    unknown (--fail-on-force cannot tell a contact there from the defect), or None."""
-    marked = [i for i in outcome.summary.get("defect_incident_list") or []
-              if i.get("force_n") is None or i["force_n"] > limit]
-    if not marked:
-        return None
-    first = marked[0]
-    force = "no force" if first.get("force_n") is None else f"~{first['force_n']:.3g} N"
-    return (f"impactcli: {_shown(outcome.log_path)}: --fail-on-force {limit:g} N could not "
-            f"judge {_count(len(marked), 'incident')} at data defects (the first at "
-            f"{first['t_start']:.3f} s, a {first['kind']}, {force}): the residual there shows "
-            "the defect; exit 5")
-
-
-def _not_analysed(outcome: Any) -> str | None:
-    """The line of a log whose warm-up covers all of it (nothing after warm-up was
-    analysed, so --fail-on-detect cannot judge it), or None."""
-    wu = outcome.summary.get("warmup_end_s")
-    dur = outcome.summary.get("duration_s")
-    if wu is None or dur is None or not wu > dur:
-        return None
-    return (f"impactcli: {_shown(outcome.log_path)}: --fail-on-detect could not judge it: "
-            f"the adaptive detector's warm-up covers the whole log ({dur:.3f} s), so no "
-            "time after warm-up was analysed (exit 5; a longer log, or one that starts at "
-            "rest, is judged)")
-
-
-def _force_unknown(outcome: Any, loads: list[dict[str, Any]], limit: float) -> str | None:
-    """The line of a log with incidents or lasting loads that have no force estimate
-    (--fail-on-force cannot judge them), or None."""
-    incs = [i for i in outcome.summary.get("incident_list", []) if i["force_n"] is None]
-    lds = [x for x in loads if x.get("force_n") is None]
-    if not incs and not lds:
-        return None
-    what = ([f"{_count(len(incs), 'incident')} (the first at {incs[0]['t_start']:.3f} s)"]
-            if incs else []) + ([_count(len(lds), "lasting load")] if lds else [])
-    return (f"impactcli: {_shown(outcome.log_path)}: --fail-on-force {limit:g} N could not "
-            f"judge {' and '.join(what)}: no force estimate (no kinematics — give --robot "
-            "with a URDF or a named robot — or the link could not be told); exit 5")
-
 def _finish(outcomes: list[Any], paths: list[str], choice: Any,
             inputs: dict[str, dict[str, str]], wall: float, out_dir: str,
-            summary_path: str | None) -> tuple[dict[str, Any], dict[str, Any]]:
+            summary_path: str | None) -> None:
     """The table of the logs finished (in input order) and the ``--summary`` file: after
-    the batch, or after a stop (then it lists what finished). Returns the summary and each
-    finished log's lasting loads."""
+    the batch, or after a stop (then it lists what finished)."""
     from ..run.batch import batch_summary
 
     order = {p: i for i, p in enumerate(paths)}
@@ -317,7 +232,6 @@ def _finish(outcomes: list[Any], paths: list[str], choice: Any,
 
         write_text_to(summary_path, json.dumps(summary, indent=1, sort_keys=True,
                                                allow_nan=False) + "\n")
-    return summary, loads
 
 
 #: Why a run's torque scale was not checked (the summary's ``torque_scale``).
@@ -338,42 +252,15 @@ def _defect_line(name: str, marked: list[dict[str, Any]]) -> str:
                        for i in marked[:MAX_INCIDENTS_LISTED])
     more = (f" and {len(marked) - MAX_INCIDENTS_LISTED} more"
             if len(marked) > MAX_INCIDENTS_LISTED else "")
-    return (f"not counted, at a data defect of {name}: {_count(len(marked), 'incident')} "
+    return (f"not counted, at a data defect of {name}: {count(len(marked), 'incident')} "
             f"at {listed}{more} (the residual shows the defect, not a force; data_defect "
             "in the timeline)")
-
-
-def _over_force(outcome: Any, limit: float) -> str | None:
-    """One line naming the log's first incident whose force exceeds ``limit`` (and how many
-    do), or None when none does."""
-    over = [i for i in outcome.summary.get("incident_list", [])
-            if i["force_n"] is not None and i["force_n"] > limit]
-    if not over:
-        return None
-    inc = over[0]
-    link = f"link {inc['link']}" if inc["link"] is not None else "an unknown link"
-    more = f" ({len(over)} incidents above it)" if len(over) > 1 else ""
-    name = _shown(outcome.log_path)
-    return (f"impactcli: {name}: the incident at {inc['t_start']:.3f} s "
-            f"on {link}, ~{inc['force_n']:.3g} N, exceeds --fail-on-force {limit:g} N{more}")
-
-
-def _load_over(outcome: Any, loads: list[dict[str, Any]], limit: float) -> str | None:
-    """One line naming the log's first lasting load whose force exceeds ``limit``."""
-    over = [x for x in loads if x.get("force_n") is not None and x["force_n"] > limit]
-    if not over:
-        return None
-    x = over[0]
-    link = f"link {x['link']}" if x.get("link") is not None else "an unknown link"
-    return (f"impactcli: {_shown(outcome.log_path)}: the lasting load from "
-            f"{x['t_start']:.3f} s on {link}, ~{x['force_n']:.3g} N, exceeds "
-            f"--fail-on-force {limit:g} N")
 
 
 def _echo_outcome(outcome: Any, debug: bool, single: bool) -> None:
     """Warnings and the error of one finished log, on stderr; its traceback with --debug,
     or for a bug (``internal``) in a one-log run."""
-    name = _shown(outcome.log_path)
+    name = shown(outcome.log_path)
     for w in outcome.warnings:
         click.echo(one_line(f"impactcli: warning: {w}" if name in w
                             else f"impactcli: warning: {name}: {w}"),
@@ -415,7 +302,7 @@ def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str,
             click.echo("residual generator: " + _generators_line(ok[0].summary))
         else:
             for o in ok[:MAX_ROWS]:
-                click.echo(f"residual generator of {_shown(o.log_path)}: "
+                click.echo(f"residual generator of {shown(o.log_path)}: "
                            + _generators_line(o.summary))
         click.echo(f"(incidents, lasting loads and events per detector after warm-up; an "
                    f"incident is one contact, made of the adaptive and loading events; a "
@@ -423,7 +310,7 @@ def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str,
                    f"{out_dir})")
         if len(ok) == 1 and ok[0].summary.get("incident_list"):
             lst = ok[0].summary["incident_list"]
-            first = _shown(ok[0].log_path)
+            first = shown(ok[0].log_path)
             click.echo(f"incidents of {first}:  #  start       link      "
                        "force  contact      detectors")
             # the counted incidents in time order: k is the incident's number (the report's)
@@ -434,14 +321,14 @@ def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str,
         if (len(ok) == 1 and ok[0].summary.get("torque_scale") in UNVERIFIED
                 and (ok[0].summary.get("incident_list") or ok[0].summary.get("detection_floor")
                      or loads[ok[0].log_path])):  # forces and the floor's N or N·m
-            click.echo(f"torques and forces of {_shown(ok[0].log_path)} are in the log's "
+            click.echo(f"torques and forces of {shown(ok[0].log_path)} are in the log's "
                        f"units, not checked against physics: "
                        f"{UNVERIFIED[ok[0].summary['torque_scale']]}")
         if len(ok) == 1 and ok[0].summary.get("defect_incident_list"):
-            click.echo(_defect_line(_shown(ok[0].log_path),
+            click.echo(_defect_line(shown(ok[0].log_path),
                                     ok[0].summary["defect_incident_list"]))
         if len(ok) == 1 and ok[0].summary.get("detection_floor"):
-            click.echo(f"detection floor of {_shown(ok[0].log_path)}: "
+            click.echo(f"detection floor of {shown(ok[0].log_path)}: "
                        f"{ok[0].summary['detection_floor']} (median over the log after "
                        "warm-up; a step for the loading detector, a 100 ms blow for the "
                        "adaptive one; the timeline's detection_floor has both, per joint)")
@@ -452,7 +339,7 @@ def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str,
             click.echo(f"links{which} are numbered in the log's column order (joint k's link "
                        "is k): no robot description says the chain; --robot gives it")
         if len(ok) == 1 and loads[ok[0].log_path]:
-            first = _shown(ok[0].log_path)
+            first = shown(ok[0].log_path)
             click.echo(f"lasting loads of {first} (an unknown payload, a "
                        "clamp, or a model that no longer fits):")
             for k, x in enumerate(loads[ok[0].log_path], 1):

@@ -49,6 +49,7 @@ from ..errors import (
 from ..files import OUTPUT_ERRNOS
 from ..logs.paths import log_stem
 from ..types import DETECTORS
+from .gates import Findings
 from .job import run_log_from_paths
 
 SUMMARY_SCHEMA_VERSION = "1.0"
@@ -97,6 +98,7 @@ class JobOutcome:
         attempts: tries made (> 1 after transient I/O errors).
         traceback: of the error (printed for ``internal`` errors, for the others with
             ``--debug``; never in the batch summary).
+        findings: what the gates judge (ok jobs): the typed incidents and lasting loads.
     """
 
     log_path: str
@@ -109,6 +111,7 @@ class JobOutcome:
     error_class: str = ""
     attempts: int = 1
     traceback: str = ""
+    findings: Findings | None = None
 
 
 def check_unique_stems(paths: Sequence[str]) -> None:
@@ -147,7 +150,7 @@ def run_detect_job(job: DetectJob) -> JobOutcome:
 
     attempts = 0
 
-    def attempt() -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ...]]:
+    def attempt() -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ...], Findings]:
         nonlocal attempts
         attempts += 1
         return _run(job)
@@ -155,7 +158,7 @@ def run_detect_job(job: DetectJob) -> JobOutcome:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ImpactWarning)
         try:
-            outputs, summary, extra = retry_transient(attempt)
+            outputs, summary, extra, findings = retry_transient(attempt)
         except ImpactError as err:
             transient = is_transient(err)
             cls = ("output" if isinstance(err, OutputError) else
@@ -187,7 +190,8 @@ def run_detect_job(job: DetectJob) -> JobOutcome:
                               exit_code=EXIT_CRASH, error_class="internal",
                               warnings=_msgs(caught), attempts=attempts, traceback=tb)
     return JobOutcome(job.log_path, True, summary=summary, outputs=outputs,
-                      warnings=tuple(dict.fromkeys(_msgs(caught) + extra)), attempts=attempts)
+                      warnings=tuple(dict.fromkeys(_msgs(caught) + extra)), attempts=attempts,
+                      findings=findings)
 
 
 def _with_tries(msg: str, transient: bool) -> str:
@@ -204,7 +208,7 @@ def _msgs(caught: list[warnings.WarningMessage]) -> tuple[str, ...]:
     return tuple(str(w.message) for w in caught if issubclass(w.category, ImpactWarning))
 
 
-def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ...]]:
+def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ...], Findings]:
     from ..logs.urls import local_path
 
     local_out = local_path(job.out_dir)
@@ -214,7 +218,7 @@ def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ..
     else:
         result, outputs = _run_remote(job, job.out_dir, stem)
     summary = _summary(job, result)
-    return outputs, summary, result.warnings
+    return outputs, summary, result.warnings, Findings.of(job.log_path, result)
 
 
 def _run_remote(job: DetectJob, prefix: str, stem: str) -> tuple[Any, tuple[str, ...]]:

@@ -1,0 +1,160 @@
+"""The CI gates of ``detect`` (``--fail-on-detect``, ``--fail-on-force N``), judged from each
+finished log's typed findings (:class:`Findings`, carried by its batch outcome).
+
+A log *fails* a gate (exit 1) when it has a counted incident or lasting load after warm-up
+(``--fail-on-detect``), or one whose force estimate exceeds N (``--fail-on-force``). A gate
+*could not judge* a log (exit 5, when none failed) when its warm-up covers all of it, when
+its only incidents start at data defects, or when an incident or lasting load has no force
+estimate (``--fail-on-force``). Each verdict is one line naming the log and why
+(docs/formats.md, "Exit codes").
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from ..errors import one_line
+
+
+@dataclass(frozen=True)
+class Findings:
+    """What the gates judge of one finished log.
+
+    Attributes:
+        log_path: the log as given. duration_s, warmup_end_s: [s].
+        incidents: the counted incidents (after warm-up, not at a data defect).
+        defect_incidents: the incidents after warm-up that start at a data defect.
+        lasting_loads: the counted lasting loads (after warm-up).
+    """
+
+    log_path: str
+    duration_s: float
+    warmup_end_s: float
+    incidents: tuple[Any, ...]
+    defect_incidents: tuple[Any, ...]
+    lasting_loads: tuple[Any, ...]
+
+    @classmethod
+    def of(cls, log_path: str, result: Any) -> Findings:
+        """The findings of ``result`` (a :class:`~impactcli.types.DetectionResult`)."""
+        return cls(log_path, float(result.log.duration_s), float(result.warmup_end_s),
+                   tuple(result.counted_incidents()), tuple(result.defect_incidents()),
+                   tuple(result.counted_lasting_loads()))
+
+
+def shown(log: str) -> str:
+    """A log's name as the terminal shows it: its file name (or URL's), on one line."""
+    from ..logs.urls import url_name
+
+    return one_line(url_name(log))
+
+
+def count(n: int, what: str) -> str:
+    """``1 incident``, ``3 incidents``."""
+    return f"{n} {what}{'s' if n != 1 else ''}"
+
+
+def judge(findings: Sequence[Findings], *, fail_on_detect: bool,
+          fail_on_force: float | None) -> tuple[list[str], list[str]]:
+    """(the lines of the logs that fail a gate — exit 1 —, the lines of those a gate could
+    not judge — exit 5), in the order of ``findings``, failing ones first per gate."""
+    failing: list[str] = []
+    unjudged: list[str] = []
+    if fail_on_detect:
+        failing += [f"impactcli: {shown(f.log_path)}: --fail-on-detect: {_found(f)} after "
+                    "warm-up" for f in findings if f.incidents or f.lasting_loads]
+        unjudged += [line for f in findings if (line := _not_analysed(f)) is not None]
+        unjudged += [line for f in findings if not f.incidents and not f.lasting_loads
+                     and (line := _only_defects(f)) is not None]
+    if fail_on_force is not None:
+        limit = fail_on_force
+        failing += [line for f in findings
+                    if (line := _over_force(f, limit) or _load_over(f, limit))]
+        unjudged += [line for f in findings if (line := _force_unknown(f, limit))]
+        unjudged += [line for f in findings if (line := _defect_force(f, limit))]
+    return failing, unjudged
+
+
+def _found(f: Findings) -> str:
+    """"3 incidents and 1 lasting load" of one log (the counted ones)."""
+    n, m = len(f.incidents), len(f.lasting_loads)
+    return " and ".join(([count(n, "incident")] if n else [])
+                        + ([count(m, "lasting load")] if m else []))
+
+
+def _only_defects(f: Findings) -> str | None:
+    """The line of a log whose only incidents start at data defects (--fail-on-detect
+    cannot tell whether a contact hides there), or None."""
+    if not f.defect_incidents:
+        return None
+    first = f.defect_incidents[0]
+    return (f"impactcli: {shown(f.log_path)}: --fail-on-detect could not judge "
+            f"{count(len(f.defect_incidents), 'incident')} at data defects (the first at "
+            f"{first.t_start:.3f} s, a {first.data_defect['kind']}): the residual there "
+            "shows the defect; exit 5")
+
+
+def _defect_force(f: Findings, limit: float) -> str | None:
+    """The line of a log with incidents at data defects whose force is above ``limit`` or
+    unknown (--fail-on-force cannot tell a contact there from the defect), or None."""
+    marked = [i for i in f.defect_incidents if i.force_n is None or i.force_n > limit]
+    if not marked:
+        return None
+    first = marked[0]
+    force = "no force" if first.force_n is None else f"~{first.force_n:.3g} N"
+    return (f"impactcli: {shown(f.log_path)}: --fail-on-force {limit:g} N could not "
+            f"judge {count(len(marked), 'incident')} at data defects (the first at "
+            f"{first.t_start:.3f} s, a {first.data_defect['kind']}, {force}): the residual "
+            "there shows the defect; exit 5")
+
+
+def _not_analysed(f: Findings) -> str | None:
+    """The line of a log whose warm-up covers all of it (nothing after warm-up was
+    analysed, so --fail-on-detect cannot judge it), or None."""
+    if not f.warmup_end_s > f.duration_s:
+        return None
+    return (f"impactcli: {shown(f.log_path)}: --fail-on-detect could not judge it: "
+            f"the adaptive detector's warm-up covers the whole log ({f.duration_s:.3f} s), "
+            "so no time after warm-up was analysed (exit 5; a longer log, or one that starts "
+            "at rest, is judged)")
+
+
+def _force_unknown(f: Findings, limit: float) -> str | None:
+    """The line of a log with incidents or lasting loads that have no force estimate
+    (--fail-on-force cannot judge them), or None."""
+    incs = [i for i in f.incidents if i.force_n is None]
+    lds = [x for x in f.lasting_loads if x.force_n is None]
+    if not incs and not lds:
+        return None
+    what = ([f"{count(len(incs), 'incident')} (the first at {incs[0].t_start:.3f} s)"]
+            if incs else []) + ([count(len(lds), "lasting load")] if lds else [])
+    return (f"impactcli: {shown(f.log_path)}: --fail-on-force {limit:g} N could not "
+            f"judge {' and '.join(what)}: no force estimate (no kinematics — give --robot "
+            "with a URDF or a named robot — or the link could not be told); exit 5")
+
+
+def _over_force(f: Findings, limit: float) -> str | None:
+    """One line naming the log's first incident whose force exceeds ``limit`` (and how many
+    do), or None when none does."""
+    over = [i for i in f.incidents if i.force_n is not None and i.force_n > limit]
+    if not over:
+        return None
+    inc = over[0]
+    link = f"link {inc.link}" if inc.link is not None else "an unknown link"
+    more = f" ({len(over)} incidents above it)" if len(over) > 1 else ""
+    return (f"impactcli: {shown(f.log_path)}: the incident at {inc.t_start:.3f} s "
+            f"on {link}, ~{inc.force_n:.3g} N, exceeds --fail-on-force {limit:g} N{more}")
+
+
+def _load_over(f: Findings, limit: float) -> str | None:
+    """One line naming the log's first lasting load whose force exceeds ``limit``."""
+    over = [x for x in f.lasting_loads if x.force_n is not None and x.force_n > limit]
+    if not over:
+        return None
+    x = over[0]
+    link = f"link {x.link}" if x.link is not None else "an unknown link"
+    return (f"impactcli: {shown(f.log_path)}: the lasting load from "
+            f"{x.t_start:.3f} s on {link}, ~{x.force_n:.3g} N, exceeds "
+            f"--fail-on-force {limit:g} N")
