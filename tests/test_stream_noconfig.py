@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from impactcli import files
 from impactcli.cli import main
 from impactcli.config import DetectorConfig, load_config
 from impactcli.detect.thresholds import BlockMaxima, block_maxima
@@ -161,21 +162,14 @@ def test_a_full_temporary_folder_is_one_line_exit_2(tmp_path: Path, verb: str,
     import errno
     import tempfile
 
-    from impactcli.run import spill
+    from impactcli.spill import ColumnFiles
 
-    class _Full:
-        def __init__(self, name: str, mode: str = "rb") -> None:
-            self.name = name
+    def full(f: object, v: object) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
 
-        def write(self, b: bytes) -> int:
-            raise OSError(errno.ENOSPC, "No space left on device")
-
-        def close(self) -> None:
-            pass
-
-        flush = close
-
-    monkeypatch.setattr(spill, "open", _Full, raising=False)   # the spill module's files
+    # every write of the one temporary store fails: the scan's cache gives itself up, the
+    # first spill stops the run
+    monkeypatch.setattr(ColumnFiles, "_write", staticmethod(full))
     monkeypatch.setenv("TMPDIR", str(tmp_path))
     monkeypatch.setattr(tempfile, "tempdir", None)               # read TMPDIR again
     out = tmp_path / "out"
@@ -194,18 +188,23 @@ def test_a_full_temporary_folder_is_one_line_exit_2(tmp_path: Path, verb: str,
     assert not [p.name for p in tmp_path.iterdir() if p.name.startswith("impactcli-")]
 
 
-def test_a_full_temporary_folder_under_the_parquet_spill(tmp_path: Path,
-                                                        monkeypatch: pytest.MonkeyPatch) -> None:
-    """The report's and --rerun's Parquet spill on a full TMPDIR: the same one line."""
+def test_a_full_temporary_folder_under_the_reports_spill(tmp_path: Path,
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """Only the report's own columns find no room (the replay's spills did): the same one
+    line, and no report."""
     import errno
     import tempfile
 
-    import pyarrow.parquet as pq
+    from impactcli.spill import ColumnFiles
 
-    def full(self: object, table: object, *a: object, **k: object) -> None:
-        raise OSError(errno.ENOSPC, "No space left on device")
+    real = ColumnFiles.append
 
-    monkeypatch.setattr(pq.ParquetWriter, "write_table", full)
+    def append(self: ColumnFiles, arrays: dict[str, object]) -> None:
+        if "impactcli-report-" in str(self.folder.path):
+            raise files.temp_space_error(OSError(errno.ENOSPC, "No space left on device"))
+        real(self, arrays)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(ColumnFiles, "append", append)
     monkeypatch.setenv("TMPDIR", str(tmp_path))
     monkeypatch.setattr(tempfile, "tempdir", None)
     html = tmp_path / "r.html"
