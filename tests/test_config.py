@@ -184,7 +184,7 @@ def test_an_empty_config_file_is_an_error(tmp_path: Path) -> None:
 
 def test_a_model_given_as_config_and_a_config_as_model_say_so(tmp_path: Path) -> None:
     from impactcli.errors import ModelError
-    from impactcli.model import read_model
+    from impactcli.run.model_files import read_model
 
     with pytest.raises(ConfigError, match=r"model\.example\.json: this is a model .* --model"):
         load_config(MODEL)

@@ -14,7 +14,8 @@ import pytest
 from impactcli.cli.fit_table import format_fit_table
 from impactcli.errors import ImpactWarning, ModelError, RobotDescriptionError
 from impactcli.logs import read_log, write_log
-from impactcli.model import IdentifyOptions, identify, read_model
+from impactcli.model import IdentifyOptions, identify
+from impactcli.run.model_files import read_model
 from impactcli.types import JointSpec, LogSource, RobotDescription, RobotLog
 
 from .cli_run import cli

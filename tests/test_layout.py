@@ -163,6 +163,22 @@ def test_no_side_channel_through_the_click_context() -> None:
     assert not bad, bad
 
 
+#: The one file the maths layers may read, and why.
+MATHS_READS = {"impactcli.model.identification": "a robot description's URDF given by path, "
+                                                  "when it does not carry its text"}
+
+
+def test_model_detect_and_quality_never_open_a_file() -> None:
+    """The maths layers (model/, detect/, quality/) never open, read or write a file: the
+    readers, the store and the writers do (MATHS_READS names the one exception)."""
+    io = re.compile(r"\bopen\(|\.read_text\(|\.write_text\(|\.read_bytes\(|np\.(load|save)\w*\(|"
+                    r"atomic_write")
+    bad = [m for m, p in MODULES.items()
+           if _unit(m) in ("impactcli.model", "impactcli.detect", "impactcli.quality")
+           and m not in MATHS_READS and io.search(p.read_text("utf-8"))]
+    assert not bad, bad
+
+
 def test_no_cli_verb_imports_another_verbs_logic() -> None:
     bad = [f"{MODULES[a].relative_to(ROOT)}:{line} imports {b}"
            for a, rows in EDGES.items() if _unit(a) == "impactcli.cli"

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from impactcli.errors import ModelError
-from impactcli.model import RigidModel, identify_signals, read_model, write_model
+from impactcli.model import RigidModel, identify_signals
+from impactcli.run.model_files import read_model, write_model
 from impactcli.schema import schema_dir, validate
 from impactcli.types import JointSpec, RobotDescription
 

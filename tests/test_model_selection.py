@@ -13,9 +13,10 @@ import pytest
 
 from impactcli.config import DetectorConfig, load_config, save_config
 from impactcli.logs import read_log, write_log
-from impactcli.model import IdentifyOptions, identify, read_model
+from impactcli.model import IdentifyOptions, identify
 from impactcli.model.identification import fit_rows, prepare_rows
 from impactcli.model.selection import folds_of, one_se, select_model
+from impactcli.run.model_files import read_model
 from impactcli.types import LogSource, RobotLog
 
 from .cli_run import cli
@@ -198,7 +199,7 @@ def test_kinematics_name_the_kind_and_its_held_back_error_is_shown() -> None:
 @pytest.mark.parametrize("suffix", [".toml", ".json"])
 def test_the_record_survives_the_model_file_and_a_config(tmp_path: Path, suffix: str) -> None:
     m = select_model(arm_logs(2), options=OPTS)
-    from impactcli.model import write_model
+    from impactcli.run.model_files import write_model
 
     write_model(m, tmp_path / "m.json")
     back = read_model(tmp_path / "m.json")

@@ -21,7 +21,7 @@ from impactcli.errors import RobotDescriptionError
 from impactcli.logs import robot_catalogue as robots
 from impactcli.logs import write_log
 from impactcli.logs.robot_files import read_robot, robot_from_dict
-from impactcli.model import read_model
+from impactcli.run.model_files import read_model
 from impactcli.schema import validate
 from impactcli.types import LogSource, RobotLog
 

@@ -35,8 +35,9 @@ from impactcli.logs.robot_files import (
     write_labels,
     write_robot,
 )
-from impactcli.model import RigidModel, read_model, structures, write_model
+from impactcli.model import RigidModel, structures
 from impactcli.outputs.timeline import dumps_timeline, read_timeline
+from impactcli.run.model_files import read_model, write_model
 from impactcli.schema import load_schema
 from impactcli.types import ReadOptions
 from tests.schema_strategies import from_schema

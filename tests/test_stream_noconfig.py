@@ -80,8 +80,9 @@ def test_everything_streams_but_model_with_model_from_log(tmp_path: Path) -> Non
     read: a ConfigError (exit 3) from the library and a batch job, a usage error (exit 2)
     from the command line."""
     from impactcli.errors import ConfigError
-    from impactcli.model import identify, write_model
+    from impactcli.model import identify
     from impactcli.run.batch import DetectJob, run_detect_job
+    from impactcli.run.model_files import write_model
 
     log = SAMPLES / "csv" / "assist_impacts.csv.gz"
     with warnings.catch_warnings():

@@ -240,9 +240,9 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     from ..files import prepare_output
     from ..logs import read_log
     from ..logs.robot_files import read_robot
-    from ..model import read_model
     from ..run import calibration
     from ..run.calibration import MARGIN_RULE, RATE_RULE
+    from ..run.model_files import read_model
 
     if out_path.suffix.lower() not in (".toml", ".yaml", ".yml", ".json"):
         raise click.BadParameter(f"{str(out_path)!r}: a config is written as .toml, .yaml or "

@@ -63,8 +63,9 @@ def identify_cmd(
     from ..files import prepare_output
     from ..logs import read_log
     from ..logs.robot_files import read_robot
-    from ..model import IdentifyOptions, identify, write_model
+    from ..model import IdentifyOptions, identify
     from ..model.selection import describe, select_model
+    from ..run.model_files import write_model
 
     prepare_output(output)  # a bad -o stops the run before any work
     desc = read_robot(robot) if robot else None

@@ -1,7 +1,8 @@
 """The rough rigid model (docs/method.md §2): structures, derivatives, identification, residuals.
 
 Pure maths: nothing here prints; the only file read is the URDF a robot description
-points at (and :func:`read_model` / :func:`write_model`, the model file's edge).
+points at when it does not carry its text. The model file is read and written at the edge
+(:mod:`impactcli.run.model_files`).
 """
 
 from .derivatives import (
@@ -13,7 +14,7 @@ from .derivatives import (
 from .identification import default_kind, identify, identify_many, identify_signals
 from .identify_options import IdentifyOptions
 from .residual import ResidualOptions, ResidualResult, compute_residual, momentum_observer
-from .rigid import RigidModel, read_model, write_model
+from .rigid import RigidModel
 from .structures import KINDS
 
 __all__ = [
@@ -30,8 +31,6 @@ __all__ = [
     "identify_many",
     "identify_signals",
     "momentum_observer",
-    "read_model",
-    "write_model",
     "zero_phase_derivatives",
     "zero_phase_lowpass",
 ]

@@ -9,9 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -174,27 +172,3 @@ def _jsonable(x: Any) -> Any:  # noqa: PLR0911 (one return per JSON type)
     if isinstance(x, np.bool_):
         return bool(x)
     return x
-
-
-def write_model(model: RigidModel, path: str | os.PathLike[str]) -> None:
-    """Write ``model`` as indented JSON, atomically."""
-    from ..files import atomic_write_text
-
-    atomic_write_text(path, json.dumps(model.to_dict(), indent=2, allow_nan=False) + "\n")
-
-
-def read_model(path: str | os.PathLike[str]) -> RigidModel:
-    """Read and validate a model file; ModelError naming the file on any problem."""
-    p = Path(path)
-    if not p.is_file():
-        raise ModelError(f"{p}: model file not found")
-    if p.suffix.lower() in (".toml", ".yaml", ".yml"):
-        raise ModelError(f"{p}: a model is the JSON file `impactcli identify` writes; a "
-                         f"{p.suffix} file is a detector config — give it with --config")
-    try:
-        d = json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
-        raise ModelError(f"{p}: model does not parse: {err}") from err
-    if not isinstance(d, dict):
-        raise ModelError(f"{p}: model must be a JSON object")
-    return RigidModel.from_dict(d, str(p))

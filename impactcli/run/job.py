@@ -40,7 +40,7 @@ def load_inputs(robot_path: str | None, model_path: str | None, config_path: str
     from ..files import sha256_file
     from ..logs.robot_files import named_robot_sha256, read_robot
     from ..logs.urls import load_by_url
-    from ..model import read_model
+    from .model_files import read_model
 
     provenance: dict[str, dict[str, str]] = {}
 
