@@ -6,7 +6,7 @@ A log *fails* a gate (exit 1) when it has a counted incident or lasting load aft
 *could not judge* a log (exit 5, when none failed) when its warm-up covers all of it, when
 its only incidents start at data defects, or when an incident or lasting load has no force
 estimate (``--fail-on-force``). Each verdict is one line naming the log and why
-(docs/formats.md, "Exit codes").
+(docs/formats.md, "Command line").
 """
 
 from __future__ import annotations
