@@ -23,9 +23,9 @@ from impactcli.model import (
     compute_residual,
     identify,
     identify_signals,
-    read_model,
 )
 from impactcli.model import structures as st
+from impactcli.run.model_files import read_model
 from impactcli.schema import validate
 from impactcli.types import LogSource, RobotLog
 
