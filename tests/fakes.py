@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -17,7 +17,14 @@ from impactcli.outputs.report.margins import false_alarm_margins
 from impactcli.outputs.report.samples import ReportCollector, Samples
 from impactcli.outputs.rerun import RerunWriter
 from impactcli.outputs.signals import SignalsWriter
-from impactcli.types import DETECTORS, SIGNAL_NAMES, DetectionResult, Event, Labels
+from impactcli.types import (
+    DETECTORS,
+    SIGNAL_NAMES,
+    ContactLabel,
+    DetectionResult,
+    Event,
+    Labels,
+)
 
 from .conftest import make_log
 
@@ -228,3 +235,45 @@ def write_fake_signals(result: DetectionResult, path: str | os.PathLike[str],
         for c in fake_chunks(result, rows):
             w(c)
     return -(-log.n_samples // rows)
+
+
+def contact(start: float, end: float, force: float = 10.0, kind: str = "impact") -> ContactLabel:
+    """A labelled contact on link 2."""
+    return ContactLabel(start, end, force, kind, 2)
+
+
+def labels(*cs: ContactLabel) -> Labels:
+    """Labels of the contacts ``cs`` at 250 Hz."""
+    return Labels(events=tuple(cs), sample_rate=250.0, path="<test labels>")
+
+
+def sweep_result(adaptive_delay: float = 0.0):
+    """10 s at 4 ms, warm-up 1 s; contacts at 4.0 s (3 N) and 8.0 s (1.5 N).
+
+    adaptive ratio: 0.5 floor, 2.0 at the first contact (from onset + adaptive_delay), a
+    1.5 false bump at 6.0 s, 1.2 at the second contact. static_loading: 0.3 floor, 1.4 from
+    4.048 s (delay 48 ms), a 1.1 false bump at 2.0 s. static_baseline: 0.2 everywhere.
+    """
+    base = fake_result()
+    t = base.log.time_s
+    n, J = len(t), 2
+
+    def box(a: float, b: float) -> np.ndarray:
+        return (t >= a - 1e-9) & (t <= b + 1e-9)
+
+    ad = np.full((n, J), 0.5)
+    ad[box(4.0 + adaptive_delay, 4.1 + adaptive_delay), 1] = 2.0
+    ad[box(6.0, 6.05), 0] = 1.5
+    ad[box(8.0, 8.1), 1] = 1.2
+    sl = np.full((n, J), 0.3)
+    sl[box(4.048, 4.3), 0] = 1.4
+    sl[box(2.0, 2.2), 0] = 1.1
+    ratios = {"adaptive": ad, "static_loading": sl, "static_baseline": np.full((n, J), 0.2)}
+    return replace(
+        base, ratios=ratios, decisions={d: r > 1 for d, r in ratios.items()},
+        config={"events": {"merge_gap_s": 0.02, "min_duration_s": 0.0}},
+    )
+
+
+#: The contacts :func:`sweep_result`'s ratios are built around.
+SWEEP_LABELS = labels(contact(4.0, 4.1, 3.0), contact(8.0, 8.1, 1.5))

@@ -52,6 +52,17 @@ def bad_midway_csv(folder: Path, row: int = 15000) -> Path:
     return bad
 
 
+def csv_with_gap(src: Path, dst: Path, drop: slice) -> int:
+    """The CSV ``src`` (gzip) written to ``dst`` without the rows of ``drop`` (a time gap);
+    returns the gap's first row."""
+    with gzip.open(src, "rt") as f:
+        lines = f.read().splitlines(keepends=True)
+    body = lines[1:]
+    del body[drop]
+    dst.write_text(lines[0] + "".join(body))
+    return int(drop.start)
+
+
 def rrd_rows(path: Path, *, everything: bool = False) -> dict[str, list[tuple[str, ...]]]:
     """Every entity's rows in a Rerun recording (static ones apart, named ``static …``),
     each row the repr of its values, sorted: what a recording holds, whatever its chunks.

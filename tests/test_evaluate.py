@@ -32,7 +32,7 @@ from impactcli.quality.verdict import (
 from impactcli.schema import validate
 from impactcli.types import ContactLabel, Event, Labels
 
-from .fakes import fake_result
+from .fakes import SWEEP_LABELS, contact, labels, sweep_result
 
 H = 3600.0
 
@@ -40,14 +40,6 @@ H = 3600.0
 def ev(det: str, t0: float, t1: float | None = None, warm: bool = False) -> Event:
     t1 = t0 + 0.05 if t1 is None else t1
     return Event(det, t0, t1, 0, 0, ("j1",), 1.5, {"j1": 1.0}, warm)
-
-
-def contact(start: float, end: float, force: float = 10.0, kind: str = "impact") -> ContactLabel:
-    return ContactLabel(start, end, force, kind, 2)
-
-
-def labels(*cs: ContactLabel) -> Labels:
-    return Labels(events=tuple(cs), sample_rate=250.0, path="<test labels>")
 
 
 def run(events, lab, duration=10.0, warmup=1.0, **kw):
@@ -226,35 +218,6 @@ def test_bad_event_dict_is_a_data_error():
 # --- threshold sweep ------------------------------------------------------------------
 
 
-def sweep_result(adaptive_delay: float = 0.0):
-    """10 s at 4 ms, warm-up 1 s; contacts at 4.0 s (3 N) and 8.0 s (1.5 N).
-
-    adaptive ratio: 0.5 floor, 2.0 at the first contact (from onset + adaptive_delay), a
-    1.5 false bump at 6.0 s, 1.2 at the second contact. static_loading: 0.3 floor, 1.4 from
-    4.048 s (delay 48 ms), a 1.1 false bump at 2.0 s. static_baseline: 0.2 everywhere.
-    """
-    base = fake_result()
-    t = base.log.time_s
-    n, J = len(t), 2
-
-    def box(a: float, b: float) -> np.ndarray:
-        return (t >= a - 1e-9) & (t <= b + 1e-9)
-
-    ad = np.full((n, J), 0.5)
-    ad[box(4.0 + adaptive_delay, 4.1 + adaptive_delay), 1] = 2.0
-    ad[box(6.0, 6.05), 0] = 1.5
-    ad[box(8.0, 8.1), 1] = 1.2
-    sl = np.full((n, J), 0.3)
-    sl[box(4.048, 4.3), 0] = 1.4
-    sl[box(2.0, 2.2), 0] = 1.1
-    ratios = {"adaptive": ad, "static_loading": sl, "static_baseline": np.full((n, J), 0.2)}
-    return dataclasses.replace(
-        base, ratios=ratios, decisions={d: r > 1 for d, r in ratios.items()},
-        config={"events": {"merge_gap_s": 0.02, "min_duration_s": 0.0}},
-    )
-
-
-SWEEP_LABELS = labels(contact(4.0, 4.1, 3.0), contact(8.0, 8.1, 1.5))
 
 
 def sweep_thresholds(res, lab, scales, *, merge_gap_s=None, min_duration_s=None, **kw):

@@ -19,8 +19,7 @@ from impactcli.quality.sweep import DEFAULT_SWEEP_SCALES, ratios_from_signals, s
 from impactcli.run import evaluate_run
 from impactcli.schema import validate
 
-from .fakes import fake_result, write_fake_signals
-from .test_evaluate import SWEEP_LABELS, sweep_result
+from .fakes import SWEEP_LABELS, fake_result, sweep_result, write_fake_signals
 
 H = 3600.0
 

@@ -22,7 +22,7 @@ from impactcli.logs.write import write_rosbag1, write_rosbag2
 from impactcli.schema import validate
 from impactcli.types import RobotLog
 
-from .test_io_fields import (
+from .message_logs import (
     ALL,
     ARM,
     ARM_BODY,

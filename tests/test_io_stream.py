@@ -10,23 +10,25 @@ import json
 import warnings
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
 
 from impactcli import spill
 from impactcli.errors import ImpactWarning, LogFormatError
-from impactcli.logs import read_log, write_log
 from impactcli.logs import scan as scan_module
+from impactcli.logs import write_log
 from impactcli.logs.csv import csv_read as csv_reader
-from impactcli.logs.describe import time_gaps
-from impactcli.logs.layout import OPTIONAL
-from impactcli.logs.reader import LogScan, iter_chunks, scan_log
-from impactcli.logs.screen import unusable_columns
+from impactcli.logs.reader import iter_chunks, scan_log
 from impactcli.types import JointSpec, RobotDescription
 
-CHUNKS = (1, 2, 7, 1000, 65536)
+from .stream_invariants import (
+    assert_streams_exactly,
+    read_error,
+    read_warned,
+    scan_warned,
+)
+
 N = 3000
 
 
@@ -66,77 +68,10 @@ def _write(path: Path, cols: dict[str, list[str]], sep: str = ",") -> Path:
     return path
 
 
-def _read(path: Path, **opts: Any) -> tuple[Any, list[str]]:
-    with warnings.catch_warnings(record=True) as w:
-        warnings.simplefilter("always")
-        log = read_log(path, **opts)
-    return log, [str(x.message) for x in w if issubclass(x.category, ImpactWarning)]
-
-
-def _scan(path: Path, **opts: Any) -> tuple[LogScan, list[str]]:
-    with warnings.catch_warnings(record=True) as w:
-        warnings.simplefilter("always")
-        scan = scan_log(path, **opts)
-    return scan, [str(x.message) for x in w if issubclass(x.category, ImpactWarning)]
-
-
-def _assert_same(path: Path, chunks: tuple[int, ...] = CHUNKS, **opts: Any) -> LogScan:
-    """The invariants: the chunks are the same arrays for every chunk size, the scan's
-    clock, gaps and screens those of the whole log's arrays, its warnings read_log's."""
-    log, warned = _read(path, **opts)
-    scan, scan_warned = _scan(path, **opts)
-    assert scan_warned == warned
-    assert scan.log.source == log.source
-    assert scan.joint_names == log.joint_names
-    assert scan.n_samples == log.n_samples
-    assert (scan.t0_ns, scan.t_last_ns) == (log.t0_ns, int(log.t_ns[-1]))
-    assert scan.clock == log.sample_clock
-    assert scan.sample_rate_hz == log.sample_rate_hz
-    idx, lengths = time_gaps(log)
-    assert np.array_equal(scan.gaps, idx) and np.array_equal(scan.gap_lengths_s, lengths)
-    assert scan.torque_screen == unusable_columns(log.torque)
-    ref = float(np.max(np.ptp(log.torque, axis=0)))
-    assert scan.torque_ptp == ref
-    for ch in ("torque_model", "torque_ext"):
-        a = getattr(log, ch)
-        assert (ch in scan.screens) == (a is not None)
-        if a is not None:
-            assert scan.screens[ch].unusable(ref) == unusable_columns(a, ref)
-            assert np.array_equal(scan.screens[ch].logged, log.has_channel(ch))
-    assert scan.channels == tuple(s for s in OPTIONAL if getattr(log, s) is not None)
-    for size in (*chunks, log.n_samples + 5):
-        with warnings.catch_warnings():
-            warnings.simplefilter("error", ImpactWarning)  # repairs are warned by the scan
-            got = list(iter_chunks(path, scan, size, **opts))
-        assert [c.start for c in got] == list(range(0, log.n_samples, size))
-        assert all(1 <= c.n_samples <= size for c in got)
-        assert np.array_equal(np.concatenate([c.t_ns for c in got]), log.t_ns), size
-        for s in ("position", "torque", *OPTIONAL):
-            a = getattr(log, s)
-            if a is None:
-                assert all(getattr(c, s) is None for c in got)
-                continue
-            b = np.concatenate([getattr(c, s) for c in got])
-            assert b.dtype == np.float64 and np.array_equal(b, a, equal_nan=True), (s, size)
-    return scan
-
-
-def _error(path: Path, **opts: Any) -> str:
-    """read_log's error, which the scan raises (nothing is read before it)."""
-    with pytest.raises(LogFormatError) as whole, warnings.catch_warnings():
-        warnings.simplefilter("ignore", ImpactWarning)
-        read_log(path, **opts)
-    with pytest.raises(LogFormatError) as scanned, warnings.catch_warnings():
-        warnings.simplefilter("ignore", ImpactWarning)
-        scan_log(path, **opts)
-    assert str(scanned.value) == str(whole.value)
-    return str(whole.value)
-
-
 # ------------------------------------------------------------------- clean files
 @pytest.mark.parametrize("name", ["plain.csv", "zipped.csv.gz"])
 def test_a_clean_log_streams_exactly(tmp_path: Path, name: str) -> None:
-    scan = _assert_same(_write(tmp_path / name, _table()))
+    scan = assert_streams_exactly(_write(tmp_path / name, _table()))
     assert scan.gaps.size == 1 and scan.log.n_samples == 2
     assert scan.source.ignored_channels == ("note",)
 
@@ -144,16 +79,16 @@ def test_a_clean_log_streams_exactly(tmp_path: Path, name: str) -> None:
 def test_epoch_times_and_the_default_block_size(tmp_path: Path,
                                                 monkeypatch: pytest.MonkeyPatch) -> None:
     path = _write(tmp_path / "epoch.csv", _table(epoch=True))
-    _assert_same(path, chunks=(7, 65536))
+    assert_streams_exactly(path, chunks=(7, 65536))
     monkeypatch.setattr(csv_reader, "BLOCK_SIZE", 1 << 24)
-    _assert_same(path, chunks=(1000,))
+    assert_streams_exactly(path, chunks=(1000,))
 
 
 def test_the_shipped_sample_logs(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(csv_reader, "BLOCK_SIZE", 1 << 16)
     root = Path(__file__).resolve().parents[1] / "sample_logs" / "csv"
     for name in ("assist_impacts", "heavy_free_p2p"):
-        _assert_same(root / f"{name}.csv.gz", chunks=(1000, 65536))
+        assert_streams_exactly(root / f"{name}.csv.gz", chunks=(1000, 65536))
 
 
 # ------------------------------------------------------------------------ repairs
@@ -188,7 +123,7 @@ def test_non_finite_runs_and_duplicates_across_batches(tmp_path: Path) -> None:
     for c in cols.values():
         c.insert(2001, c[2000])
     path = _write(tmp_path / "repaired.csv", cols)
-    scan = _assert_same(path)
+    scan = assert_streams_exactly(path)
     assert any("duplicate" in r for r in scan.source.repairs)
     assert sum("interpolated" in r for r in scan.source.repairs) >= 10
 
@@ -199,7 +134,7 @@ def test_channels_not_logged_and_joints_left_out(tmp_path: Path) -> None:
     cols["j3.position"] = ["nan"] * N  # a joint without position: left out
     cols["j3.torque"][5:8] = [""] * 3
     cols["j1.velocity"] = ["0.5"] * N  # a signal of one joint only: ignored
-    scan = _assert_same(_write(tmp_path / "partial.csv", cols))
+    scan = assert_streams_exactly(_write(tmp_path / "partial.csv", cols))
     assert scan.joint_names == ("j1", "j2")
     assert scan.source.joints_dropped and not scan.screens["torque_model"].logged[1]
 
@@ -217,7 +152,7 @@ def test_an_optional_signal_without_a_value_is_read_as_not_logged(tmp_path: Path
     cols["j2.velocity"] = [""] * N
     cols["j3.velocity_ref"] = ["NaN"] * N
     path = _write(tmp_path / "empty_optional.csv", cols)
-    scan = _assert_same(path)
+    scan = assert_streams_exactly(path)
     assert scan.channels == ("position_ref", "acceleration_ref", "torque_model")
     assert scan.source.ignored_channels == ("note", "j1.velocity", "j3.velocity",
                                             "j1.velocity_ref", "j2.velocity_ref")
@@ -228,7 +163,7 @@ def test_an_optional_signal_without_a_value_is_read_as_not_logged(tmp_path: Path
     assert [r for r in scan.source.repairs if "no finite value" in r] == msgs
     cols["j3.position"] = ["nan"] * N
     cols["j3.acceleration_ref"] = [""] * N
-    scan = _assert_same(_write(tmp_path / "empty_optional_dropped.csv", cols))
+    scan = assert_streams_exactly(_write(tmp_path / "empty_optional_dropped.csv", cols))
     assert scan.joint_names == ("j1", "j2")
     assert scan.channels == ("position_ref", "velocity_ref", "acceleration_ref",
                              "torque_model")
@@ -240,7 +175,7 @@ def test_flat_and_unmeasured_torque_is_screened(tmp_path: Path) -> None:
     rng = np.random.default_rng(2)
     cols["j3.torque"] = [repr(float(v)) for v in rng.integers(-3, 4, N) * 0.001]
     cols["j1.torque_model"] = [repr(float(v)) for v in rng.integers(-3, 4, N) * 0.001]
-    scan = _assert_same(_write(tmp_path / "screen.csv", cols))
+    scan = assert_streams_exactly(_write(tmp_path / "screen.csv", cols))
     assert scan.torque_screen[1] is not None and scan.torque_screen[1].startswith("flat")
     assert scan.torque_screen[2] is not None and "unmeasured" in scan.torque_screen[2]
     assert scan.screens["torque_model"].unusable(scan.torque_ptp)[0] is not None
@@ -250,10 +185,10 @@ def test_time_units_and_integer_stamps(tmp_path: Path) -> None:
     cols = _table()
     t_ns = [int(s.replace(".", "")) for s in cols["time"]]
     ms = dict(cols, time=[f"{v // 10**6}.{v % 10**6:06d}" for v in t_ns])
-    _assert_same(_write(tmp_path / "ms.csv", ms), chunks=(7, 65536), time_unit="ms")
+    assert_streams_exactly(_write(tmp_path / "ms.csv", ms), chunks=(7, 65536), time_unit="ms")
     ns = {"time_ns": [str(v + 10**18) for v in t_ns], **{k: v for k, v in cols.items()
                                                          if k != "time"}}
-    _assert_same(_write(tmp_path / "ns.csv", ns), chunks=(7, 65536))
+    assert_streams_exactly(_write(tmp_path / "ns.csv", ns), chunks=(7, 65536))
 
 
 def test_a_channel_mapped_csv_with_current(tmp_path: Path) -> None:
@@ -277,7 +212,7 @@ def test_a_channel_mapped_csv_with_current(tmp_path: Path) -> None:
             {"name": "b", "position": {"column": "q_b", "scale": -1}, "current": "i_b",
              "torque_model": "tm_b"}]}))
     robot = RobotDescription(joints=(JointSpec("b", 100.0, 0.05), JointSpec("a", 50.0, 0.1)))
-    scan = _assert_same(path, chunks=(7, 1000), channel_map=cmap, robot=robot)
+    scan = assert_streams_exactly(path, chunks=(7, 1000), channel_map=cmap, robot=robot)
     assert scan.source.format == "csv-mapped" and scan.t0_ns == 0
 
 
@@ -285,7 +220,7 @@ def test_a_channel_mapped_csv_with_current(tmp_path: Path) -> None:
 def _bad(tmp_path: Path, edit: Callable[[dict[str, list[str]]], None]) -> str:
     cols = _table()
     edit(cols)
-    return _error(_write(tmp_path / "bad.csv", cols))
+    return read_error(_write(tmp_path / "bad.csv", cols))
 
 
 def _set(col: str, i: int, v: str) -> Callable[[dict[str, list[str]]], None]:
@@ -322,14 +257,14 @@ def test_the_first_error_is_the_files_first_in_order(tmp_path: Path) -> None:
 def test_a_time_unit_that_does_not_fit(tmp_path: Path) -> None:
     cols = _table()
     cols["time"] = [str(1000 * i) for i in range(N)]
-    assert "implied sample rate" in _error(_write(tmp_path / "ms.csv", cols))
+    assert "implied sample rate" in read_error(_write(tmp_path / "ms.csv", cols))
 
 
 def test_the_scan_warns_once_and_checks_its_options(tmp_path: Path) -> None:
     cols = _table()
     cols["j1.torque"][7] = ""
     path = _write(tmp_path / "x.csv", cols)
-    scan, warned = _scan(path)
+    scan, warned = scan_warned(path)
     assert len(warned) == 1
     with pytest.raises(ValueError):
         next(iter_chunks(path, scan, 0))
@@ -348,11 +283,11 @@ def test_iso_8601_time_streams(tmp_path: Path) -> None:
         cols["time"] = [fmt.format(str(v)) for v in stamps]
         for c in cols.values():  # a duplicate row
             c.insert(1001, c[1000])
-        scan = _assert_same(_write(tmp_path / "iso.csv", cols), chunks=(7, 1000))
+        scan = assert_streams_exactly(_write(tmp_path / "iso.csv", cols), chunks=(7, 1000))
         assert scan.t0_ns > 10**18
-    assert "does not apply" in _error(tmp_path / "iso.csv", time_unit="ms")
+    assert "does not apply" in read_error(tmp_path / "iso.csv", time_unit="ms")
     cols["time"][2500] = "not a time"
-    assert "is not an ISO-8601 time" in _error(_write(tmp_path / "bad.csv", cols))
+    assert "is not an ISO-8601 time" in read_error(_write(tmp_path / "bad.csv", cols))
 
 
 def test_repair_order_keeps_the_longest_increasing_run(tmp_path: Path) -> None:
@@ -371,7 +306,7 @@ def test_repair_order_keeps_the_longest_increasing_run(tmp_path: Path) -> None:
     for c in cols.values():  # an exact duplicate
         c.insert(901, c[900])
     path = _write(tmp_path / "late.csv", cols)
-    scan = _assert_same(path, chunks=(7, 1000), repair_order=True)
+    scan = assert_streams_exactly(path, chunks=(7, 1000), repair_order=True)
     stamps = np.array([int(v.replace(".", "")) for v in cols["time"]])
     dedup = np.delete(stamps, 901)
     kept = dedup[longest_increasing(dedup)]
@@ -393,7 +328,7 @@ def test_a_decimal_comma_and_a_byte_order_mark_stream(tmp_path: Path) -> None:
     for c in cols.values():  # duplicates
         c.insert(2001, c[2000])
     semi = {k: [v.replace(".", ",") for v in c] for k, c in cols.items()}
-    _assert_same(_write(tmp_path / "semi.csv", semi, sep=";"), chunks=(7, 1000))
+    assert_streams_exactly(_write(tmp_path / "semi.csv", semi, sep=";"), chunks=(7, 1000))
     for name in ("bom.csv", "bom.csv.gz"):
         text = _write(tmp_path / "b.csv", cols).read_bytes()
         bom = _write(tmp_path / name, {"x": ["0"]})
@@ -401,17 +336,17 @@ def test_a_decimal_comma_and_a_byte_order_mark_stream(tmp_path: Path) -> None:
             bom.write_bytes(gzip.compress(b"\xef\xbb\xbf" + text))
         else:
             bom.write_bytes(b"\xef\xbb\xbf" + text)
-        _assert_same(bom, chunks=(7, 1000))
+        assert_streams_exactly(bom, chunks=(7, 1000))
     epoch = {k: [v.replace(".", ",") for v in c] for k, c in _table(epoch=True).items()}
-    _assert_same(_write(tmp_path / "epoch_semi.csv", epoch, sep=";"), chunks=(1000,))
+    assert_streams_exactly(_write(tmp_path / "epoch_semi.csv", epoch, sep=";"), chunks=(1000,))
 
 
 def test_message_logs_stream_too(tmp_path: Path) -> None:
     """MCAP and bags stream (tests/test_stream_formats.py has the cases)."""
-    log, _ = _read(_write(tmp_path / "a.csv", _table()))
+    log, _ = read_warned(_write(tmp_path / "a.csv", _table()))
     for name in ("a.mcap", "a.db3", "a.bag"):
         write_log(log, tmp_path / name)
-        _assert_same(tmp_path / name, chunks=(7, 1000))
+        assert_streams_exactly(tmp_path / name, chunks=(7, 1000))
 
 
 def test_the_fast_decimal_time_is_decimal_text_to_ns() -> None:
@@ -445,7 +380,7 @@ def test_a_rate_that_drops_after_the_start_takes_a_second_gap_pass(
     calls = []
     real = scan_module._gap_pass
     monkeypatch.setattr(scan_module, "_gap_pass", lambda *a: calls.append(1) or real(*a))
-    scan = _assert_same(_write(tmp_path / "drift.csv", cols), chunks=(1000,))
+    scan = assert_streams_exactly(_write(tmp_path / "drift.csv", cols), chunks=(1000,))
     assert calls and scan.gaps.size > 100
 
 
@@ -490,7 +425,7 @@ def test_the_passes_after_the_scan_read_its_cache_or_the_file(
         monkeypatch.setattr(spill, "MIN_FREE_BYTES", float("inf"))
     elif cached == "no temporary folder":
         monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "missing"))
-    scan = _assert_same(_inf_controller(tmp_path))
+    scan = assert_streams_exactly(_inf_controller(tmp_path))
     ps = scan.reader._pass  # type: ignore[union-attr]
     assert (ps is not None and ps.cache is not None) is (cached == "yes")
     assert len(_scan_dirs(_tmp_root)) == int(cached == "yes")
@@ -504,14 +439,14 @@ def test_the_cache_is_deleted_with_the_scan_and_on_errors(
     import gc
 
     path = _inf_controller(tmp_path)
-    with _scan(path)[0] as scan:
+    with scan_warned(path)[0] as scan:
         assert len(_scan_dirs(_tmp_root)) == 1
         first = list(iter_chunks(path, scan, 1000))
     assert not _scan_dirs(_tmp_root)
     after = list(iter_chunks(path, scan, 1000))  # closed: the file is parsed again
     for a, b in zip(first, after, strict=True):
         assert np.array_equal(a.torque, b.torque, equal_nan=True)
-    scan = _scan(path)[0]
+    scan = scan_warned(path)[0]
     it = iter_chunks(path, scan, 100)
     next(it)
     del scan, it
@@ -532,7 +467,7 @@ def test_line_ends_across_the_parsed_ranges(tmp_path: Path, end: str) -> None:
     cols = _table()
     path = _write(tmp_path / "ends.csv", cols)
     path.write_bytes(path.read_bytes().replace(b"\n", end.encode()))
-    _assert_same(path, chunks=(1000,))
+    assert_streams_exactly(path, chunks=(1000,))
 
 
 @pytest.mark.parametrize("block", [7, 61, 4096])

@@ -249,6 +249,16 @@ def test_one_temporary_store() -> None:
     assert not judged, judged
 
 
+def test_no_test_imports_another_test_module() -> None:
+    """What tests share lives in helper modules (tests/helpers.py, tests/message_logs.py,
+    tests/stream_invariants.py, tests/fakes.py, ...), never in another test file."""
+    pattern = re.compile(r"^\s*(from\s+(\.|tests\.)test_\w+\s+import|import\s+tests\.test_)",
+                         re.M)
+    bad = [f.name for f in sorted((ROOT / "tests").glob("*.py"))
+           if pattern.search(f.read_text("utf-8"))]
+    assert not bad, bad
+
+
 def test_no_module_over_700_lines() -> None:
     long = {m: n for m, p in MODULES.items()
             if (n := len(p.read_text().splitlines())) > MAX_LINES}

@@ -102,7 +102,7 @@ def test_report_and_evaluate_find_the_log_from_any_folder(tmp_path: Path,
 def test_identify_takes_the_topic_of_a_multi_arm_mcap(tmp_path: Path) -> None:
     from impactcli.logs.messages.ros2_cdr import JOINT_STATE
 
-    from .test_io_fields import jointstates, write_mcap
+    from .message_logs import jointstates, write_mcap
 
     log = make_log(n=2500, joints=("j1", "j2"))
     rows = jointstates(log.t_ns + 10**18, list(log.joint_names), np.asarray(log.position),

@@ -122,11 +122,11 @@ def test_the_sweeps_collector_keeps_only_the_ratios_and_sweeps_alike() -> None:
 
 def test_the_report_with_a_time_gap(tmp_path: Path) -> None:
     """The gaps listed (their times from the chunks) and a window across a gap."""
-    from tests.test_stream import _write_with_gap
+    from .helpers import csv_with_gap
 
     src = SAMPLES / "csv" / "assist_impacts.csv.gz"
     path = tmp_path / "gap.csv"
-    _write_with_gap(src, path, slice(6000, 6050))
+    csv_with_gap(src, path, slice(6000, 6050))
     one, many = _streamed(path, ASSIST, CLI_ROWS), _streamed(path, ASSIST, 2000)
     try:
         at, lengths = many[1].gaps()

@@ -7,7 +7,6 @@ leaves nothing half-written when the log turns bad midway.
 
 from __future__ import annotations
 
-import gzip
 import warnings
 from pathlib import Path
 from typing import Any
@@ -27,7 +26,7 @@ from impactcli.run.collect import detect_in_memory
 from impactcli.run.one_log import RunSetup, detect_log
 from impactcli.types import DetectionResult, LogHeader, SignalsChunk
 
-from .helpers import bad_midway_csv, rrd_rows
+from .helpers import bad_midway_csv, csv_with_gap, rrd_rows
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
 ASSIST = SAMPLES / "assist_like.config.toml"
@@ -105,20 +104,10 @@ def test_chunks_carry_their_ratios() -> None:
         assert np.array_equal(c.decisions["adaptive"], s["residual_rms"] > s["threshold"])
 
 
-def _write_with_gap(src: Path, dst: Path, drop: slice) -> int:
-    """The CSV without the rows of ``drop`` (a time gap); returns the gap's first row."""
-    with gzip.open(src, "rt") as f:
-        lines = f.read().splitlines(keepends=True)
-    body = lines[1:]
-    del body[drop]
-    dst.write_text(lines[0] + "".join(body))
-    return int(drop.start)
-
-
 def test_chunked_with_a_time_gap_at_a_chunk_boundary(tmp_path: Path) -> None:
     """A 0.4 s gap; chunks that end exactly at it and just after it."""
     path = tmp_path / "gap.csv"
-    k = _write_with_gap(SAMPLES / "csv" / "assist_impacts.csv.gz", path, slice(9000, 9100))
+    k = csv_with_gap(SAMPLES / "csv" / "assist_impacts.csv.gz", path, slice(9000, 9100))
     whole = _in_memory(path, ASSIST)
     assert any("time gap" in w for w in whole.warnings)
     for rows in (k, k + 1, k - 1):

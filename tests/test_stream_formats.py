@@ -22,7 +22,7 @@ from impactcli.logs.reader import iter_chunks, scan_log
 from impactcli.logs.write import ros2_writer
 from impactcli.types import LogSource, RobotLog
 
-from .test_io_stream import _assert_same, _error
+from .stream_invariants import assert_streams_exactly, read_error
 
 JOINTS = ("a", "b", "c")
 N = 2000
@@ -98,13 +98,14 @@ def _repairs(v: dict[str, np.ndarray], t: np.ndarray) -> tuple[np.ndarray, dict[
 def test_the_shipped_mcap_logs() -> None:
     root = Path(__file__).resolve().parents[1] / "sample_logs" / "mcap"
     for name in ("assist_impacts", "heavy_free_p2p"):  # ROS 2 with companions; JSON
-        _assert_same(root / f"{name}.mcap", chunks=(7, 1000))
+        assert_streams_exactly(root / f"{name}.mcap", chunks=(7, 1000))
 
 
 def test_ros2_with_companions_repairs_and_a_gap(tmp_path: Path) -> None:
     t, v = _signals()
     t, v = _repairs(v, t)
-    scan = _assert_same(_write_ros2(tmp_path / "r.mcap", _topics(t, v)), chunks=(1, 7, 1000))
+    scan = assert_streams_exactly(_write_ros2(tmp_path / "r.mcap", _topics(t, v)),
+                                  chunks=(1, 7, 1000))
     assert scan.source.repairs and scan.gaps.size == 1
     assert scan.source.time_source == "header" and scan.source.format == "mcap-ros2"
 
@@ -113,7 +114,8 @@ def test_companions_starting_late_and_written_late(tmp_path: Path) -> None:
     t, v = _signals()
     for kw in ({"ref_from": 30, "model_from": 55}, {"ref_delay": 9}, {"ref_delay": 700}):
         msgs = _topics(t, v, **kw)
-        scan = _assert_same(_write_ros2(tmp_path / "late.mcap", msgs), chunks=(1, 7, 1000))
+        scan = assert_streams_exactly(_write_ros2(tmp_path / "late.mcap", msgs),
+                                      chunks=(1, 7, 1000))
         if "ref_from" in kw:
             assert any("dropped the first 55 state" in r for r in scan.source.repairs)
 
@@ -122,15 +124,15 @@ def test_header_stamps_against_log_times(tmp_path: Path) -> None:
     t, v = _signals()
     rng = np.random.default_rng(3)
     log_t = t + rng.integers(0, 3_000_000, t.size)  # received late, out of stamp order
-    scan = _assert_same(_write_ros2(tmp_path / "h.mcap", _topics(t, v, log_t=log_t)),
-                        chunks=(7, 1000))
+    scan = assert_streams_exactly(_write_ros2(tmp_path / "h.mcap", _topics(t, v, log_t=log_t)),
+                                  chunks=(7, 1000))
     assert scan.source.time_source == "header"
     hdr = t.copy()
     hdr[500] = 0  # a zero stamp: log time for all
     msgs = _topics(t, v, log_t=np.sort(log_t), header=hdr)
-    scan = _assert_same(_write_ros2(tmp_path / "z.mcap", msgs), chunks=(7, 1000))
+    scan = assert_streams_exactly(_write_ros2(tmp_path / "z.mcap", msgs), chunks=(7, 1000))
     assert scan.source.time_source == "log"
-    _assert_same(tmp_path / "h.mcap", chunks=(1000,), time_source="log")
+    assert_streams_exactly(tmp_path / "h.mcap", chunks=(1000,), time_source="log")
 
 
 def test_json_samples_with_repairs(tmp_path: Path) -> None:
@@ -151,7 +153,7 @@ def test_json_samples_with_repairs(tmp_path: Path) -> None:
             w.add_message(cid, log_time=ti, publish_time=ti, sequence=i,
                           data=json.dumps(msg).encode())
         w.finish()  # type: ignore[no-untyped-call]
-    scan = _assert_same(path, chunks=(1, 1000))
+    scan = assert_streams_exactly(path, chunks=(1, 1000))
     assert scan.source.format == "mcap-json" and scan.source.repairs
 
 
@@ -186,7 +188,7 @@ def test_a_truncated_mcap(tmp_path: Path) -> None:
     full = _write_ros2(tmp_path / "full.mcap", _topics(t, v)).read_bytes()
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(full[: len(full) * 2 // 3])
-    scan = _assert_same(cut, chunks=(7, 1000))
+    scan = assert_streams_exactly(cut, chunks=(7, 1000))
     assert "truncated" in scan.source.repairs[0]
 
 
@@ -201,7 +203,7 @@ def test_state_stamps_out_of_order_are_sorted(tmp_path: Path) -> None:
     i, k = swapped.index(state[100]), swapped.index(state[101])
     swapped[i], swapped[k] = swapped[k], swapped[i]
     path = _write_ros2(tmp_path / "s.mcap", swapped)
-    scan = _assert_same(path, chunks=(7, 1000))
+    scan = assert_streams_exactly(path, chunks=(7, 1000))
     log = read_log(path)
     assert np.array_equal(log.t_ns, t) and np.array_equal(log.position, v["position"])
     assert np.array_equal(log.position_ref, v["position_ref"]) and scan.n_samples == t.size
@@ -211,8 +213,8 @@ def test_state_stamps_out_of_order_are_sorted(tmp_path: Path) -> None:
     st2 = [m for m in swapped2 if m[0] == "/joint_states"]
     i, k = swapped2.index(st2[100]), swapped2.index(st2[101])
     swapped2[i], swapped2[k] = swapped2[k], swapped2[i]
-    assert "message 400 of '/joint_states'" in _error(_write_ros2(tmp_path / "r.mcap",
-                                                                  swapped2))
+    assert "message 400 of '/joint_states'" in read_error(_write_ros2(tmp_path / "r.mcap",
+                                                                      swapped2))
 
 
 def test_topics_far_apart_in_the_file(tmp_path: Path) -> None:
@@ -220,7 +222,7 @@ def test_topics_far_apart_in_the_file(tmp_path: Path) -> None:
     file): each topic is read from its own spill, file order does not matter."""
     t, v = _signals()
     path = _write_ros2(tmp_path / "late.mcap", _topics(t, v, ref_delay=700))
-    _assert_same(path, chunks=(1000,))
+    assert_streams_exactly(path, chunks=(1000,))
     log = read_log(path)
     assert np.array_equal(log.position_ref, v["position_ref"])
 
@@ -256,19 +258,19 @@ def test_a_message_decoded_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch)
 def test_bad_message_logs_fail_as_read_log_does(tmp_path: Path) -> None:
     bad = tmp_path / "bad.mcap"
     bad.write_bytes(b"not an mcap at all")
-    assert "bad magic" in _error(bad)
+    assert "bad magic" in read_error(bad)
     t, v = _signals()
     path = _write_ros2(tmp_path / "r.mcap", _topics(t, v))
-    assert "not found" in _error(path, topic="/nope")
+    assert "not found" in read_error(path, topic="/nope")
     t2, v2 = _signals()
     v2["torque"][300:310, 1] = np.nan  # a run of 10: an error, named as read_log names it
     path = _write_ros2(tmp_path / "run.mcap", _topics(t2, v2))
-    assert "run of 10 non-finite" in _error(path)
+    assert "run of 10 non-finite" in read_error(path)
 
 
 # ------------------------------------------------------------- MCAP through channel maps
 def test_a_custom_state_message_through_a_map(tmp_path: Path) -> None:
-    from .test_io_fields import (
+    from .message_logs import (
         ARM,
         ARM_DEF,
         arm_map,
@@ -287,11 +289,11 @@ def test_a_custom_state_message_through_a_map(tmp_path: Path) -> None:
     cmap = arm_map(tmp_path / "arm.yaml")
     for tsrc in (None, "log", "publish"):
         opts = {} if tsrc is None else {"time_source": tsrc}
-        scan = _assert_same(p, chunks=(1, 7, 1000), channel_map=cmap, **opts)
+        scan = assert_streams_exactly(p, chunks=(1, 7, 1000), channel_map=cmap, **opts)
     assert scan.source.format == "mcap-ros2"
     cut = tmp_path / "cut.mcap"  # no summary section: its topics from a pass of their own
     cut.write_bytes(p.read_bytes()[: p.stat().st_size * 3 // 5])
-    scan = _assert_same(cut, chunks=(7, 1000), channel_map=cmap)
+    scan = assert_streams_exactly(cut, chunks=(7, 1000), channel_map=cmap)
     assert "truncated" in scan.source.repairs[0]
     bad = tmp_path / "bad.yaml"  # a field the message does not have: the map's error
     bad.write_text("format: messages\njoints:\n  - {name: shoulder, position: /arm/state/nope}\n")
@@ -303,10 +305,10 @@ def test_a_custom_state_message_through_a_map(tmp_path: Path) -> None:
 
 
 def test_maps_over_jointstate_and_other_topics(tmp_path: Path) -> None:
-    from .test_io_fields import JOINTS as FJ
-    from .test_io_fields import _two_topics, fixture_log
+    from .message_logs import JOINTS as FJ
+    from .message_logs import fixture_log, two_topics
 
-    p = _two_topics(tmp_path, ["wrist", "gripper", "elbow_joint", "shoulder"])[0]
+    p = two_topics(tmp_path, ["wrist", "gripper", "elbow_joint", "shoulder"])[0]
     m = tmp_path / "ext.json"
     ext = "/external_torque/effort"
     m.write_text(json.dumps({"format": "messages", "joints": [
@@ -316,21 +318,22 @@ def test_maps_over_jointstate_and_other_topics(tmp_path: Path) -> None:
         {"name": "wrist", "torque_ext": {"field": ext}}]}))
     for tsrc in (None, "log"):
         opts = {} if tsrc is None else {"time_source": tsrc}
-        _assert_same(p, chunks=(1, 7, 1000), channel_map=m, **opts)
+        assert_streams_exactly(p, chunks=(1, 7, 1000), channel_map=m, **opts)
     log = fixture_log(n=300)  # a map signal replaces the companion topic's
     write_log(log, tmp_path / "s.mcap", mcap_encoding="ros2")
     m2 = tmp_path / "m2.yaml"
     m2.write_text("format: messages\njoints:\n" + "".join(
         f"  - {{name: {j}, velocity_ref: {{field: /joint_states/velocity}}, "
         f"torque_ext: {{field: /joint_states_model/effort, scale: -1}}}}\n" for j in FJ[::-1]))
-    scan = _assert_same(tmp_path / "s.mcap", chunks=(7, 1000), channel_map=m2)
+    scan = assert_streams_exactly(tmp_path / "s.mcap", chunks=(7, 1000), channel_map=m2)
     assert scan.source.ignored_channels == ("/joint_states_ext",)
 
 
 def test_a_map_over_json_messages(tmp_path: Path) -> None:
-    from .test_io_fields import JOINT_STATE as JS
-    from .test_io_fields import JOINTS as FJ
-    from .test_io_fields import fixture_log, jointstates, write_mcap
+    from impactcli.logs.messages.ros2_cdr import JOINT_STATE as JS
+
+    from .message_logs import JOINTS as FJ
+    from .message_logs import fixture_log, jointstates, write_mcap
 
     log = fixture_log(n=400)
     rows = [(ti, ti, json.dumps({"stamp_ns": ti, "ext": log.torque_ext[i].tolist(),
@@ -346,7 +349,7 @@ def test_a_map_over_json_messages(tmp_path: Path) -> None:
     m.write_text("format: messages\njoints:\n" + "".join(
         f"  - {{name: {j}, torque_ext: '/controller/ext[{k}]', "
         f"torque_model: {{field: /controller/model/effort}}}}\n" for k, j in enumerate(FJ)))
-    _assert_same(p, chunks=(1, 1000), channel_map=m)
+    assert_streams_exactly(p, chunks=(1, 1000), channel_map=m)
 
 
 # ------------------------------------------------------------------------------- bags
@@ -362,11 +365,11 @@ def test_bags(tmp_path: Path) -> None:
     log = _log()
     for name in ("a.db3", "a.bag"):
         write_log(log, tmp_path / name)
-        _assert_same(tmp_path / name, chunks=(1, 7, 1000))
+        assert_streams_exactly(tmp_path / name, chunks=(1, 7, 1000))
     write_rosbag2(log, tmp_path / "folder", split=3)
-    _assert_same(tmp_path / "folder", chunks=(7, 1000))
+    assert_streams_exactly(tmp_path / "folder", chunks=(7, 1000))
     write_rosbag2(log, tmp_path / "mcap_folder", split=2, storage="mcap")
-    _assert_same(tmp_path / "mcap_folder", chunks=(7, 1000))
+    assert_streams_exactly(tmp_path / "mcap_folder", chunks=(7, 1000))
 
 
 # -------------------------------------------------------------------------------- npz
@@ -397,10 +400,10 @@ def test_npz_plain_and_compressed(tmp_path: Path) -> None:
     cmap = _npz_map(tmp_path)
     for save, name in ((np.savez, "a.npz"), (np.savez_compressed, "c.npz")):
         save(tmp_path / name, **arrays)
-        scan = _assert_same(tmp_path / name, chunks=(1, 7, 1000), channel_map=cmap)
+        scan = assert_streams_exactly(tmp_path / name, chunks=(1, 7, 1000), channel_map=cmap)
         assert scan.source.format == "npz" and scan.source.repairs
     np.savez(tmp_path / "i.npz", **{**arrays, "t": (t // 1000).astype(np.int32)})
-    _assert_same(tmp_path / "i.npz", chunks=(7,), channel_map=_npz_map(
+    assert_streams_exactly(tmp_path / "i.npz", chunks=(7,), channel_map=_npz_map(
         tmp_path, unit="us", start_at_zero=True))
 
 
@@ -409,11 +412,11 @@ def test_npz_errors_are_read_logs(tmp_path: Path) -> None:
     cmap = _npz_map(tmp_path)
     np.savez(tmp_path / "short.npz", t=t * 1e-9, q=v["position"][:-1], tm=v["torque_model"],
              **{f"tau_{j}": v["torque"][:, k] for k, j in enumerate(JOINTS)})
-    assert "mismatched channel lengths" in _error(tmp_path / "short.npz",
-                                                  channel_map=cmap)
+    assert "mismatched channel lengths" in read_error(tmp_path / "short.npz",
+                                                      channel_map=cmap)
     np.savez(tmp_path / "ms.npz", t=t * 1e-6, q=v["position"], tm=v["torque_model"],
              **{f"tau_{j}": v["torque"][:, k] for k, j in enumerate(JOINTS)})
-    assert "implied sample rate" in _error(tmp_path / "ms.npz", channel_map=cmap)
+    assert "implied sample rate" in read_error(tmp_path / "ms.npz", channel_map=cmap)
 
 
 def test_a_corrupt_npz_member_is_one_line_exit_3(tmp_path: Path) -> None:
@@ -450,7 +453,7 @@ def test_urls_stream_a_local_copy(tmp_path: Path) -> None:
     t, v = _signals()
     path = _write_ros2(tmp_path / "r.mcap", _topics(t, v))
     url = path.as_uri()
-    scan = _assert_same(path, chunks=(1000,))
+    scan = assert_streams_exactly(path, chunks=(1000,))
     with fsspec.open("memory://logs/r.mcap", "wb") as f:
         f.write(path.read_bytes())
     for u in (url, "memory://logs/r.mcap"):
@@ -496,7 +499,7 @@ def test_a_full_disk_reads_the_file_again(tmp_path: Path, monkeypatch: pytest.Mo
               **{f"tau_{j}": v["torque"][:, k] for k, j in enumerate(JOINTS)}}
     np.savez_compressed(tmp_path / "a.npz", **arrays)
     for path, opts in ((mcap, {}), (tmp_path / "a.npz", {"channel_map": _npz_map(tmp_path)})):
-        scan = _assert_same(path, chunks=(7, 1000), **opts)
+        scan = assert_streams_exactly(path, chunks=(7, 1000), **opts)
         ps = scan.reader._pass  # type: ignore[union-attr]
         assert ps.cache is None
         assert all(not r.spill.on_disk for r in getattr(ps.layout, "readers", {}).values())
