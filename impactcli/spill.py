@@ -99,7 +99,6 @@ class ColumnFiles:
 
     def __init__(self, prefix: str = "impactcli-spill-", *, required: bool = True) -> None:
         self.folder = SpillFolder(prefix, required=required)
-        self.required = required
         self.files: dict[str, IO[bytes]] = {}
         self.layout: dict[str, tuple[np.dtype[Any], tuple[int, ...]]] = {}
         self.rows = 0
@@ -113,7 +112,7 @@ class ColumnFiles:
             return
         vals = {k: np.ascontiguousarray(v) for k, v in arrays.items()}
         if not self.folder.room(sum(v.nbytes for v in vals.values())):
-            self.give_up()
+            self.close()  # a cache short of room gives itself up
             return
         m = 0
         try:
@@ -154,9 +153,9 @@ class ColumnFiles:
     def _failed(self, err: OSError) -> None:
         """A write failed: a spill stops the run (exit 2, naming ``TMPDIR``), a cache gives
         itself up."""
-        if self.required:
+        if self.folder.required:
             raise temp_space_error(err) from err
-        self.give_up()
+        self.close()
 
     def read(self, row_from: int, row_to: int, keys: Sequence[str] | None = None,
              ) -> dict[str, np.ndarray]:
@@ -200,10 +199,6 @@ class ColumnFiles:
         self.flush()
         with open(self.folder.file(key), "rb") as f:
             return spilled_median(f, self.rows)
-
-    def give_up(self) -> None:
-        """A cache is short of room: its files deleted, nothing more stored."""
-        self.close()
 
     def close(self) -> None:
         """Delete the files (the store is no longer usable)."""

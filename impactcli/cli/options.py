@@ -133,11 +133,6 @@ def check_log_path(path: Path) -> Path:
     return one_log_in(path)
 
 
-#: The options :func:`log_read_options` gathers into the verb's ``read_options``.
-READ_OPTION_PARAMS = ("channel_map", "topic", "reference_topic", "time_source", "torque_source",
-                      "time_unit", "time_column", "rate", "position_unit", "repair_order")
-
-
 def read_options_of(values: dict[str, Any]) -> ReadOptions:
     """The :class:`~impactcli.types.ReadOptions` of the options given on the command line;
     ``--rate`` with ``--time-unit`` or ``--time-column`` is a usage error (exit 2)."""
@@ -173,7 +168,11 @@ def log_read_options(func: Callable[..., Any]) -> Callable[..., Any]:
 
     @functools.wraps(func)
     def with_read_options(*args: Any, **kwargs: Any) -> Any:
-        values = {k: kwargs.pop(k, None) for k in READ_OPTION_PARAMS}
+        import dataclasses
+
+        from ..types import ReadOptions  # here: `impactcli --help` stays fast
+
+        values = {f.name: kwargs.pop(f.name, None) for f in dataclasses.fields(ReadOptions)}
         return func(*args, read_options=read_options_of(values), **kwargs)
 
     wrapped: Callable[..., Any] = with_read_options

@@ -66,7 +66,6 @@ class WarmupTracker:
         self.head_n = 0
         self.spill = ColumnFiles("impactcli-warmup-")  # a column per joint (closed by finish)
         self.spill_start: int | None = None
-        self.spilled = 0
         self.t_tail = np.zeros(0)
         self._end_s = float("nan")
 
@@ -107,7 +106,6 @@ class WarmupTracker:
             a = max(0, start - self.k)
             if a < m:  # one column per joint: read alone later
                 self.spill.append({str(j): rms[a:, j] for j in range(self.J)})
-                self.spilled += m - a
         self.t_tail = np.concatenate([self.t_tail, t])[-2:]
         self.k += m
 
@@ -134,7 +132,7 @@ class WarmupTracker:
         head_t = np.concatenate(self.head_t) if self.head_t else np.zeros(0)
         idx = np.empty(J, dtype=np.int64)
         for j in range(J):
-            if k_min >= n or not self.spilled:
+            if k_min >= n or not self.spill.rows:
                 idx[j] = n
                 continue
             level = self.spill.median(str(j))

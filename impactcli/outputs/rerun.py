@@ -1,9 +1,10 @@
 """The Rerun recording of a run (``detect --rerun``, ``view``), written from its chunks.
 
 :class:`RerunWriter` is a run's ``on_chunk``: per chunk it appends what the recording
-plots (the signals, the positions, the decisions) to a temporary Parquet file; once the
-answer is known (events, incidents, warm-up) :meth:`RerunWriter.write` reads it back row
-group by row group and writes the recording, atomically. Memory: one row group and the
+plots (the signals, the positions, the decisions) to the temporary store
+(:class:`impactcli.spill.ColumnFiles`); once the answer is known (events, incidents,
+warm-up) :meth:`RerunWriter.write` reads it back chunk by chunk and writes the recording,
+atomically. Memory: one chunk's rows and the
 open bucket of each series' envelope. The recording holds, per joint, the statistics
 against their thresholds, the residuals and positions, the detectors' markers and state
 lanes, the events, incidents and warm-up (docs/formats.md, "Rerun recording"; its look:

@@ -7,7 +7,8 @@ threshold sweep. :class:`ReportCollector` is the run's ``on_chunk``: per chunk i
 whole-log envelopes (:class:`~impactcli.outputs.svgplot.EnvelopeAccumulator`, buckets fixed
 by the scan's sample count; the constant static thresholds as one series of zeros, whose
 points depend on the sample count alone, the value put in at the end), notes the times at
-the scan's gaps and spills (one row group a chunk) the time and per joint the residual RMS,
+the scan's gaps and spills to the temporary store (:mod:`impactcli.spill`; one row group a
+chunk) the time and per joint the residual RMS,
 the adaptive threshold, the loading statistic, |r|, the position and the detectors' ratios.
 :meth:`ReportCollector.finish` gives the :class:`Samples`, which answer from the spill what
 is known only at the end: a window's rows found as ``np.searchsorted`` finds them on the
@@ -15,7 +16,7 @@ whole log (an index of each row group's first and last time), the margin in one 
 exact median posture (:func:`impactcli.spill.spilled_median`), the sweep
 (:class:`impactcli.quality.sweep.ThresholdSweep`) row group by row group. Memory: one row
 group and the envelope slots (4 J + 1 series × the buckets); disk up to 8 J + 1 float64 per
-sample, compressed, removed by :meth:`Samples.close`.
+sample, uncompressed, removed by :meth:`Samples.close`.
 """
 
 from __future__ import annotations
