@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -86,6 +87,12 @@ class ReadOptions:
         options given."""
         return {f.name: v for f in dataclasses.fields(self)
                 if (v := getattr(self, f.name)) is not None and v is not False}
+
+    @classmethod
+    def of(cls, options: Mapping[str, Any] | None) -> ReadOptions:
+        """The options of a mapping of them (:meth:`as_dict`'s, a timeline's
+        ``input.read_options``); None values are not given. TypeError on an unknown key."""
+        return cls(**{k: v for k, v in (options or {}).items() if v is not None})
 
 
 @dataclass(frozen=True)
@@ -633,7 +640,7 @@ class DetectionResult:
     residual_generator: str = "inverse_dynamics"
     warnings: tuple[str, ...] = ()
     threshold_inputs: str = ""
-    read_options: dict[str, Any] = field(default_factory=dict)
+    read_options: ReadOptions = field(default_factory=ReadOptions)
     generators: dict[str, dict[str, str]] = field(default_factory=dict)
     joints_left_out: tuple[dict[str, str], ...] = ()
     incidents: tuple[Any, ...] = ()

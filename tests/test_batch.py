@@ -12,7 +12,7 @@ import pytest
 from impactcli.errors import LogFormatError
 from impactcli.logs import urls
 from impactcli.run import batch
-from impactcli.run.batch import DetectJob, JobOutcome, batch_summary, run_detect_job
+from impactcli.run.batch import DetectJob, JobOutcome, SummaryRow, batch_summary, run_detect_job
 
 
 @pytest.fixture(autouse=True)
@@ -80,8 +80,7 @@ def _job(tmp_path: Path) -> DetectJob:
 
 def test_job_retries_transient_errors(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     calls: list[int] = []
-    summary = {"log": "x", "duration_s": 7200.0, "adaptive": 1, "static_loading": 0,
-               "static_baseline": 2}
+    summary = _row("x", 7200.0, 0, 1, 0, 2)
 
     def run(job: DetectJob) -> Any:
         calls.append(1)
@@ -121,15 +120,26 @@ def test_a_missing_log_is_a_data_error(tmp_path: Path) -> None:
     assert out.error == f"{tmp_path / 'x.csv'}: log file not found"
 
 
+def _row(log: str, duration_s: float, incidents: int, adaptive: int, loading: int,
+         baseline: int) -> SummaryRow:
+    """A finished log's summary row with these counts (the rest as for a quiet log)."""
+    return {"log": log, "sha256": "0" * 64, "model_source": "given", "model_sha256": None,
+            "duration_s": duration_s, "joints": 2, "calibrated": True, "links": "robot",
+            "torque_scale": "ok", "detection_floor": None, "warmup_end_s": 1.0,
+            "generators": {}, "generator_reasons": {}, "incidents": incidents,
+            "incident_list": [], "defect_incident_list": [], "lasting_load_list": [],
+            "adaptive": adaptive, "static_loading": loading, "static_baseline": baseline}
+
+
 def test_batch_summary_totals() -> None:
-    rows = [JobOutcome("a.csv", True, {"log": "a.csv", "duration_s": 1800.0, "adaptive": 2,
-                                       "static_loading": 1, "static_baseline": 0}),
-            JobOutcome("b.csv", True, {"log": "b.csv", "duration_s": 5400.0, "adaptive": 0,
-                                       "static_loading": 3, "static_baseline": 4}),
+    rows = [JobOutcome("a.csv", True, _row("a.csv", 1800.0, 1, 2, 1, 0)),
+            JobOutcome("b.csv", True, _row("b.csv", 5400.0, 2, 0, 3, 4)),
             JobOutcome("c.csv", False, error="c.csv: corrupt", exit_code=3, error_class="data")]
     doc = batch_summary(rows, wall_s=4.0)
     assert doc["logs"] == {"total": 3, "done": 2, "failed": 1}
     assert doc["events"] == {"adaptive": 2, "static_loading": 4, "static_baseline": 4}
+    assert doc["incidents"] == 3
+    assert [r["log"] for r in doc["results"]] == ["a.csv", "b.csv"]
     assert doc["hours_analysed"] == pytest.approx(2.0)
     assert doc["throughput"] == {"logs_per_s": 0.5, "log_hours_per_s": 0.5}
     assert doc["failures"] == [{"file": "c.csv", "reason": "c.csv: corrupt", "exit_code": 3,
@@ -325,3 +335,18 @@ def test_a_failed_remote_upload_leaves_no_outputs(monkeypatch: pytest.MonkeyPatc
     out = run_detect_job(job)
     assert not out.ok and "store went away" in (out.error or "")
     assert not fs.exists("/failing/out") or fs.ls("/failing/out", detail=False) == []
+
+
+def test_summary_row_is_the_schema_row() -> None:
+    """The typed row the batch passes holds exactly the schema's per-log fields (but the
+    two the batch adds), and a row of them validates."""
+    import typing
+
+    from impactcli.schema import load_schema, validate
+
+    item = load_schema("batch_summary")["properties"]["results"]["items"]
+    keys = set(typing.get_type_hints(SummaryRow))
+    assert keys | {"outputs", "attempts"} == set(item["properties"])
+    doc = batch_summary([JobOutcome("a.csv", True, _row("a.csv", 60.0, 0, 0, 0, 0))],
+                        wall_s=1.0)
+    validate(doc, "batch_summary", LogFormatError, "summary")

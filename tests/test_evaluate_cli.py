@@ -18,6 +18,7 @@ from impactcli.outputs.timeline import write_timeline
 from impactcli.quality.sweep import DEFAULT_SWEEP_SCALES, ratios_from_signals, sweep_ratios
 from impactcli.run import evaluate_run
 from impactcli.schema import validate
+from impactcli.types import ReadOptions
 
 from .fakes import SWEEP_LABELS, fake_result, sweep_result, write_fake_signals
 
@@ -305,7 +306,8 @@ def test_sweep_from_a_log(tmp_path, monkeypatch):
     r = invoke(str(log), "--labels", str(lab), "--json", "--sweep", "--scales", "1,1.3,1.6,2.5",
                "--channel-map", "ur_ext_observer")
     assert r.exit_code == 0, info(r)
-    assert seen["read_options"] == {"channel_map": "ur_ext_observer"} and seen["path"] == log
+    assert seen["read_options"] == ReadOptions(channel_map="ur_ext_observer")
+    assert seen["path"] == log
     doc = json.loads(r.stdout)
     validate(doc, "evaluation", LabelsError, "evaluate --json --sweep")
     zero = doc["sweep"]["at_zero_false_alarms"]

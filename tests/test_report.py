@@ -601,3 +601,18 @@ def test_a_log_that_is_all_warm_up_is_not_judged() -> None:
                                                        "warm-up covers the whole log")
     assert verdict_text([], analysed_s=2.5) == "No incident after warm-up."
     assert verdict_text([]) == "No incident after warm-up."
+
+
+def test_a_section_holds_every_field_of_its_timeline() -> None:
+    """A log's section carries the timeline's fields (all but its schema_version and tool,
+    which the report has its own of) and only the fields its typed record declares."""
+    from impactcli.outputs.report.common import LogSection
+    from impactcli.outputs.timeline import timeline_dict
+
+    for result in (fake_result(), with_incidents(fake_result())):
+        tl = timeline_dict(result)
+        sec = render(result).section
+        assert set(tl) - {"schema_version", "tool"} <= set(sec)
+        assert set(sec) <= set(LogSection.__annotations__)
+        assert (sec["input"], sec["thresholds"], sec["summary"]) == (
+            tl["input"], tl["thresholds"], tl["summary"])

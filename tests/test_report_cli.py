@@ -25,7 +25,7 @@ from impactcli.logs.robot_files import write_labels
 from impactcli.logs.write import write_csv
 from impactcli.outputs.timeline import write_timeline
 from impactcli.schema import load_schema
-from impactcli.types import ContactLabel, Labels
+from impactcli.types import ContactLabel, Labels, ReadOptions
 
 from .cli_run import invoke
 from .conftest import make_log
@@ -46,9 +46,9 @@ def fake_pipeline(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
     calls: list[dict[str, Any]] = []
 
     def stream_log(log_path: str, *, robot: Any = None, model: Any = None, config: Any = None,
-                   read_options: dict[str, Any] | None = None, allow_slow: bool = False,
+                   read_options: ReadOptions | None = None, allow_slow: bool = False,
                    check: Any = None, **kw: Any) -> Any:
-        log = read_log(Path(log_path), robot=robot, **(read_options or {}))
+        log = read_log(Path(log_path), robot=robot, **(read_options or ReadOptions()).as_dict())
         if check is not None:
             check(types.SimpleNamespace(source=log.source))
         calls.append({"log": log, "model": model, "config": config, "robot": robot,
@@ -156,7 +156,7 @@ def test_report_on_a_timeline_reruns_it(tmp_path: Path, fake_pipeline: list) -> 
     res = invoke(["report", str(tl), "-o", str(out), "--channel-map", "kuka_lwr4"])
     assert res.exit_code == 0, show(res)
     assert "--channel-map apply to LOG inputs only" in res.stderr
-    assert fake_pipeline[-1]["read_options"] == {}  # as recorded, not the command line's
+    assert fake_pipeline[-1]["read_options"] == ReadOptions()  # as recorded, not the command line's
     # the log changed since detection: refused, exit 3
     with log_path.open("a") as f:
         f.write("\n")

@@ -330,7 +330,7 @@ def test_sample_log_view_covers_every_incident(tmp_path: Path) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res, _ = stream_file(str(log), config_path=str(root / "assist_like.config.toml"),
-                             read_options={}, rrd_path=path)
+                             rrd_path=path)
     assert len(res.counted_incidents()) == 15
     assert_whole_log_in_view(path, res.log.duration_s)
     rows = read_entities(path)["/incidents"]

@@ -11,6 +11,7 @@ from click.testing import CliRunner, Result
 
 from impactcli.cli import main
 from impactcli.cli import view as view_mod
+from impactcli.types import ReadOptions
 
 from .conftest import make_log
 from .fakes import fake_result
@@ -125,7 +126,7 @@ def test_log_is_detected_then_written_and_opened(tmp_path: Path, monkeypatch: py
     r = run(str(log), "--no-open", "--save", str(out), "--channel-map", "kuka_lwr4")
     assert r.exit_code == 0, explain(r)
     assert seen["path"] == log
-    assert seen["kw"]["read_options"] == {"channel_map": "kuka_lwr4"}
+    assert seen["kw"]["read_options"] == ReadOptions(channel_map="kuka_lwr4")
     reader = rr.chunk.RrdReader(out)
     assert len(reader.recordings()) == 1 and len(reader.blueprints()) == 1
     assert not fake_viewer.exists()

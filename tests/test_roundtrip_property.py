@@ -214,7 +214,7 @@ def test_read_options_round_trip(opts: ReadOptions) -> None:
     import json
 
     recorded = json.loads(json.dumps(opts.as_dict(), allow_nan=False))
-    assert ReadOptions(**recorded) == opts
+    assert ReadOptions.of(recorded) == opts
     assert set(recorded) <= set(RECORDED_READ_OPTIONS)
 
 

@@ -24,6 +24,7 @@ from .options import (
 )
 
 if TYPE_CHECKING:
+    from ..run.batch import DefectIncidentRow, IncidentRow, JobOutcome, SummaryRow
     from ..types import ReadOptions
 
 __all__ = ["PRODUCT_DETECTORS", "detect_cmd"]
@@ -32,20 +33,20 @@ __all__ = ["PRODUCT_DETECTORS", "detect_cmd"]
 PRODUCT_DETECTORS = ("adaptive", "static_loading")
 
 
-def _fmt_row(s: dict[str, Any], lasting: int) -> str:
+def _fmt_row(s: SummaryRow, lasting: int) -> str:
     cal = "yes" if s["calibrated"] else "no"
     return (f"{shown(s['log']):<36} {s['duration_s']:>9.1f} {cal:>10} "
-            f"{s['warmup_end_s']:>7.2f} {s.get('incidents', 0):>9} {lasting:>7} | "
+            f"{s['warmup_end_s']:>7.2f} {s['incidents']:>9} {lasting:>7} | "
             f"{s['adaptive']:>8} {s['static_loading']:>8} {s['static_baseline']:>8}")
 
 
-def _incident_line(k: int, inc: dict[str, Any]) -> str:
+def _incident_line(k: int, inc: IncidentRow) -> str:
     """``  1  12.040 s  link 2  ~14.5 N  transient  (adaptive, static_loading)``; ``k`` is
     the incident's number (the report's: 1, 2, … over the counted incidents)."""
     link = f"link {inc['link']}" if inc["link"] is not None else "link ?"
     force = f"~{inc['force_n']:.3g} N" if inc["force_n"] is not None else "force ?"
     flag = ("  force not plausible (force_check in the timeline)"
-            if inc.get("force_plausible") is False else "")
+            if inc["force_plausible"] is False else "")
     return (f"  {k:>3}  {inc['t_start']:>9.3f} s  {link:<7} {force:>9}  {inc['contact']:<12} "
             f"({', '.join(inc['detectors'])}){flag}")
 
@@ -61,10 +62,10 @@ def _lasting_line(k: int, x: dict[str, Any]) -> str:
             f"{', '.join(x['joints'])}, up to {x['peak_ratio']:.3g}× its threshold{force}")
 
 
-def lasting_loads_of(outcome: Any) -> list[dict[str, Any]]:
-    """The counted lasting loads of a finished log (timeline ``lasting_loads`` items after
-    warm-up), from its batch summary row (which lists only those)."""
-    return list(outcome.summary.get("lasting_load_list") or [])
+def lasting_loads_of(outcome: JobOutcome) -> list[dict[str, Any]]:
+    """The counted lasting loads of a log (timeline ``lasting_loads`` items after warm-up),
+    from its batch summary row (which lists only those); none for a failed log."""
+    return [] if outcome.summary is None else list(outcome.summary["lasting_load_list"])
 
 
 #: incidents listed per log when one log is analysed (all of them are in the timeline)
@@ -161,9 +162,8 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
         prepare_output(summary_path)  # a bad --summary stops the batch before any work
     choice = resolve_executor(jobs, scheduler)
     inputs = load_inputs(robot, model, config).provenance  # a bad one stops the run here
-    ropts = read_options.as_dict()
     serial = (jobs or 1) == 1 and scheduler is None
-    job_list = [DetectJob(p, out_dir, ropts, robot, model, config, signals, rerun,
+    job_list = [DetectJob(p, out_dir, read_options, robot, model, config, signals, rerun,
                           model_from_log, generator, allow_slow, serial) for p in paths]
     debug = bool((click.get_current_context().find_root().obj or {}).get("debug"))
     if "://" not in local_out:
@@ -171,7 +171,7 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
 
         remove_stale_parts(local_out)  # of a run killed before: a rerun redoes every log
     timer, started = Timer(), time.time()
-    outcomes: list[Any] = []
+    outcomes: list[JobOutcome] = []
     stream = run_batch(job_list, n_jobs=jobs, scheduler=scheduler)
     try:
         for outcome in progress(stream, total=len(job_list), desc="detect"):
@@ -211,7 +211,7 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
         ctx.exit(EXIT_UNJUDGED)
 
 
-def _finish(outcomes: list[Any], paths: list[str], choice: Any,
+def _finish(outcomes: list[JobOutcome], paths: list[str], choice: Any,
             inputs: dict[str, dict[str, str]], wall: float, out_dir: str,
             summary_path: str | None) -> None:
     """The table of the logs finished (in input order) and the ``--summary`` file: after
@@ -246,7 +246,7 @@ UNVERIFIED = {
 }
 
 
-def _defect_line(name: str, marked: list[dict[str, Any]]) -> str:
+def _defect_line(name: str, marked: list[DefectIncidentRow]) -> str:
     """The terminal line of the incidents at a data defect (not counted as contacts)."""
     listed = ", ".join(f"{i['t_start']:.3f} s (a {i['kind']} at {i['defect_t_start']:.3f} s)"
                        for i in marked[:MAX_INCIDENTS_LISTED])
@@ -257,7 +257,7 @@ def _defect_line(name: str, marked: list[dict[str, Any]]) -> str:
             "in the timeline)")
 
 
-def _echo_outcome(outcome: Any, debug: bool, single: bool) -> None:
+def _echo_outcome(outcome: JobOutcome, debug: bool, single: bool) -> None:
     """Warnings and the error of one finished log, on stderr; its traceback with --debug,
     or for a bug (``internal``) in a one-log run."""
     name = shown(outcome.log_path)
@@ -274,76 +274,24 @@ def _echo_outcome(outcome: Any, debug: bool, single: bool) -> None:
             click.echo(outcome.traceback.rstrip(), err=True)
 
 
-def _generators_line(row: dict[str, Any]) -> str:
+def _generators_line(row: SummaryRow) -> str:
     """``logged_external (all joints)`` or ``j1 logged_external, j2 inverse_dynamics``."""
-    g = row.get("generators", {})
-    why = row.get("generator_reasons", {})
+    g = row["generators"]
+    why = row["generator_reasons"]
     if len(set(g.values())) == 1 and len(set(why.values())) <= 1:
         reason = f"; {next(iter(why.values()))}" if why else ""
         return f"{next(iter(g.values()))} (all joints{reason})"
     return ", ".join(f"{j} {x} ({why.get(j, '')})" for j, x in g.items())
 
 
-def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str,
+def _echo_table(outcomes: list[JobOutcome], summary: dict[str, Any], out_dir: str,
                 loads: dict[str, list[dict[str, Any]]]) -> None:
     """Per-log rows (at most MAX_ROWS) and the batch totals, on stdout; ``loads``: each
     log's counted lasting loads."""
-    ok = [o for o in outcomes if o.ok]
+    ok = [o for o in outcomes if o.summary is not None]
+    rows = {o.log_path: o.summary for o in ok if o.summary is not None}
     if ok:
-        click.echo(f"{'log':<36} {'duration_s':>9} {'calibrated':>10} {'warmup':>7} "
-                   f"{'incidents':>9} {'lasting':>7} | {'adaptive':>8} {'loading':>8} "
-                   f"{'baseline':>8}")
-        for o in ok[:MAX_ROWS]:
-            click.echo(_fmt_row(o.summary, len(loads[o.log_path])))
-        if len(ok) > MAX_ROWS:
-            click.echo(f"... {len(ok) - MAX_ROWS} more logs (all of them in --summary)")
-        gens = {tuple(sorted(o.summary.get("generators", {}).items())) for o in ok}
-        if len(gens) == 1:
-            click.echo("residual generator: " + _generators_line(ok[0].summary))
-        else:
-            for o in ok[:MAX_ROWS]:
-                click.echo(f"residual generator of {shown(o.log_path)}: "
-                           + _generators_line(o.summary))
-        click.echo(f"(incidents, lasting loads and events per detector after warm-up; an "
-                   f"incident is one contact, made of the adaptive and loading events; a "
-                   f"lasting load an alarm of {LONG_EVENT_S:g} s or more; timelines in "
-                   f"{out_dir})")
-        if len(ok) == 1 and ok[0].summary.get("incident_list"):
-            lst = ok[0].summary["incident_list"]
-            first = shown(ok[0].log_path)
-            click.echo(f"incidents of {first}:  #  start       link      "
-                       "force  contact      detectors")
-            # the counted incidents in time order: k is the incident's number (the report's)
-            for k, inc in enumerate(lst[:MAX_INCIDENTS_LISTED], 1):
-                click.echo(_incident_line(k, inc))
-            if len(lst) > MAX_INCIDENTS_LISTED:
-                click.echo(f"  ... {len(lst) - MAX_INCIDENTS_LISTED} more (in the timeline)")
-        if (len(ok) == 1 and ok[0].summary.get("torque_scale") in UNVERIFIED
-                and (ok[0].summary.get("incident_list") or ok[0].summary.get("detection_floor")
-                     or loads[ok[0].log_path])):  # forces and the floor's N or N·m
-            click.echo(f"torques and forces of {shown(ok[0].log_path)} are in the log's "
-                       f"units, not checked against physics: "
-                       f"{UNVERIFIED[ok[0].summary['torque_scale']]}")
-        if len(ok) == 1 and ok[0].summary.get("defect_incident_list"):
-            click.echo(_defect_line(shown(ok[0].log_path),
-                                    ok[0].summary["defect_incident_list"]))
-        if len(ok) == 1 and ok[0].summary.get("detection_floor"):
-            click.echo(f"detection floor of {shown(ok[0].log_path)}: "
-                       f"{ok[0].summary['detection_floor']} (median over the log after "
-                       "warm-up; a step for the loading detector, a 100 ms blow for the "
-                       "adaptive one; the timeline's detection_floor has both, per joint)")
-        by_column = [o for o in ok if o.summary.get("links") == "column_order"
-                     and (o.summary.get("incident_list") or loads[o.log_path])]
-        if by_column:
-            which = "" if len(ok) == 1 else f" of {len(by_column)} log(s)"
-            click.echo(f"links{which} are numbered in the log's column order (joint k's link "
-                       "is k): no robot description says the chain; --robot gives it")
-        if len(ok) == 1 and loads[ok[0].log_path]:
-            first = shown(ok[0].log_path)
-            click.echo(f"lasting loads of {first} (an unknown payload, a "
-                       "clamp, or a model that no longer fits):")
-            for k, x in enumerate(loads[ok[0].log_path], 1):
-                click.echo(_lasting_line(k, x))
+        _echo_rows(ok, rows, out_dir, loads)
     if len(outcomes) > 1:
         n, ev, tp = summary["logs"], summary["events"], summary["throughput"]
         lps = tp["logs_per_s"] or 0.0
@@ -355,3 +303,63 @@ def _echo_table(outcomes: list[Any], summary: dict[str, Any], out_dir: str,
         n_loads = sum(len(v) for v in loads.values())
         click.echo(f"incidents: {summary['incidents']}; lasting loads: {n_loads}; events: "
                    + ", ".join(f"{d} {ev[d]}" for d in ev))
+
+
+def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
+               loads: dict[str, list[dict[str, Any]]]) -> None:
+    """The finished logs' rows (at most MAX_ROWS), their residual generators and, for one
+    log, its incidents, lasting loads and what their figures rest on."""
+    one = rows[ok[0].log_path]  # the first log's row
+    click.echo(f"{'log':<36} {'duration_s':>9} {'calibrated':>10} {'warmup':>7} "
+               f"{'incidents':>9} {'lasting':>7} | {'adaptive':>8} {'loading':>8} "
+               f"{'baseline':>8}")
+    for o in ok[:MAX_ROWS]:
+        click.echo(_fmt_row(rows[o.log_path], len(loads[o.log_path])))
+    if len(ok) > MAX_ROWS:
+        click.echo(f"... {len(ok) - MAX_ROWS} more logs (all of them in --summary)")
+    gens = {tuple(sorted(rows[o.log_path]["generators"].items())) for o in ok}
+    if len(gens) == 1:
+        click.echo("residual generator: " + _generators_line(one))
+    else:
+        for o in ok[:MAX_ROWS]:
+            click.echo(f"residual generator of {shown(o.log_path)}: "
+                       + _generators_line(rows[o.log_path]))
+    click.echo(f"(incidents, lasting loads and events per detector after warm-up; an "
+               f"incident is one contact, made of the adaptive and loading events; a "
+               f"lasting load an alarm of {LONG_EVENT_S:g} s or more; timelines in "
+               f"{out_dir})")
+    if len(ok) == 1 and one["incident_list"]:
+        lst = one["incident_list"]
+        first = shown(ok[0].log_path)
+        click.echo(f"incidents of {first}:  #  start       link      "
+                   "force  contact      detectors")
+        # the counted incidents in time order: k is the incident's number (the report's)
+        for k, inc in enumerate(lst[:MAX_INCIDENTS_LISTED], 1):
+            click.echo(_incident_line(k, inc))
+        if len(lst) > MAX_INCIDENTS_LISTED:
+            click.echo(f"  ... {len(lst) - MAX_INCIDENTS_LISTED} more (in the timeline)")
+    if (len(ok) == 1 and one["torque_scale"] in UNVERIFIED
+            and (one["incident_list"] or one["detection_floor"]
+                 or loads[ok[0].log_path])):  # forces and the floor's N or N·m
+        click.echo(f"torques and forces of {shown(ok[0].log_path)} are in the log's "
+                   f"units, not checked against physics: "
+                   f"{UNVERIFIED[one['torque_scale']]}")
+    if len(ok) == 1 and one["defect_incident_list"]:
+        click.echo(_defect_line(shown(ok[0].log_path), one["defect_incident_list"]))
+    if len(ok) == 1 and one["detection_floor"]:
+        click.echo(f"detection floor of {shown(ok[0].log_path)}: "
+                   f"{one['detection_floor']} (median over the log after warm-up; a step "
+                   "for the loading detector, a 100 ms blow for the adaptive one; the "
+                   "timeline's detection_floor has both, per joint)")
+    by_column = [o for o in ok if rows[o.log_path]["links"] == "column_order"
+                 and (rows[o.log_path]["incident_list"] or loads[o.log_path])]
+    if by_column:
+        which = "" if len(ok) == 1 else f" of {len(by_column)} log(s)"
+        click.echo(f"links{which} are numbered in the log's column order (joint k's link "
+                   "is k): no robot description says the chain; --robot gives it")
+    if len(ok) == 1 and loads[ok[0].log_path]:
+        first = shown(ok[0].log_path)
+        click.echo(f"lasting loads of {first} (an unknown payload, a "
+                   "clamp, or a model that no longer fits):")
+        for k, x in enumerate(loads[ok[0].log_path], 1):
+            click.echo(_lasting_line(k, x))

@@ -133,8 +133,8 @@ def evaluate_cmd(source: Path, labels_path: Path | None, as_json: bool, sweep: b
 
     tolerance = MatchTolerance(pre_s=pre_s, post_s=post_s)
     is_timeline = source.name.lower().endswith(".json")
-    ropts = read_options.as_dict()
-    if is_timeline and (ropts or any(v is not None for v in (model, config, robot))):
+    log_only = (read_options.as_dict(), model, config, robot)
+    if is_timeline and (log_only[0] or any(v is not None for v in log_only[1:])):
         raise click.UsageError("--robot, --model, --config and the log-reading options apply "
                                "to a LOG, not to a timeline")
     # say so before looking for labels beside it
@@ -145,7 +145,7 @@ def evaluate_cmd(source: Path, labels_path: Path | None, as_json: bool, sweep: b
         source = check_log_path(source)  # a file, a rosbag2 folder, a folder's one log
     done = evaluate_source(
         source, labels_path, is_timeline=is_timeline, tolerance=tolerance, sweep=sweep,
-        scales=scales, robot=robot, model=model, config=config, read_options=ropts,
+        scales=scales, robot=robot, model=model, config=config, read_options=read_options,
         allow_slow=allow_slow, say=lambda m: click.echo(f"impactcli: warning: {m}", err=True))
     ev, rows = done.evaluation, done.sweep_rows
     if as_json:

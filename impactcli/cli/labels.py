@@ -94,12 +94,11 @@ def labels_cmd(log: Path, channel: str, above: float, link: int, kind: str, chan
         raise click.BadParameter(f"{above!r} is not a finite number", param_hint="'--above'")
     prepare_output(output)
     log = check_log_path(log)  # a folder's one log
-    ropts = read_options.as_dict()
     desc = read_robot(robot) if robot is not None else None
     doc, labels, ch = make_labels(log, channel, above=above, kind=kind, link=link,
                                   channel_is=channel_is, merge_gap_s=merge_gap,
-                                  min_duration_s=min_duration, robot=desc, read_options=ropts,
-                                  output=output)
+                                  min_duration_s=min_duration, robot=desc,
+                                  read_options=read_options, output=output)
     write_labels(labels, output)
     src = doc["source"]
     click.echo(f"{len(doc['events'])} contact(s) where {channel} > {above:g} "

@@ -97,15 +97,14 @@ def report_cmd(*, inputs: tuple[str, ...], html_path: Path, json_path: Path | No
     resolve_executor(jobs, scheduler)
     rob, mod, cfg = (None if p is None else str(p) for p in (robot, model, config))
     load_inputs(rob, mod, cfg)  # a bad one stops the run before any work
-    ropts = read_options.as_dict()
     log_only = [n for n, v in (("--model", model), ("--config", config)) if v is not None]
-    log_only += [f"--{k.replace('_', '-')}" for k in ropts]
+    log_only += [f"--{k.replace('_', '-')}" for k in read_options.as_dict()]
     if log_only and any(is_timeline(p) for p in paths):
         warnings.warn(f"{', '.join(log_only)} apply to LOG inputs only: a TIMELINE is re-run "
                       "with the read options, model and config it records", ImpactWarning,
                       stacklevel=2)
     tasks = [ReportTask(str(inp), str(lab) if lab is not None else None, not no_auto_labels,
-                        rob, mod, cfg, ropts, k, allow_slow,
+                        rob, mod, cfg, read_options, k, allow_slow,
                         (jobs or 1) == 1 and scheduler is None)
              for k, (inp, lab) in enumerate(zip(paths, explicit, strict=True))]
     done: dict[int, Any] = {}

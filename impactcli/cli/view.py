@@ -88,7 +88,7 @@ def open_viewer(path: Path) -> None:
 
 
 def record_log(source: Path, rrd: Path, *, robot: Path | None, model: Path | None,
-               config: Path | None, read_options: dict[str, Any], max_points: int,
+               config: Path | None, read_options: ReadOptions, max_points: int,
                event_window_s: float) -> DetectionResult:
     """Replay the detectors on the log ``source`` and write its Rerun recording to ``rrd``
     (atomically); returns the run.
@@ -153,13 +153,12 @@ def view_cmd(source: Path, robot: Path | None, model: Path | None,
     if no_open and save_path is None:
         raise click.UsageError("--no-open on a LOG needs --save PATH (else nothing is kept)")
 
-    ropts = read_options.as_dict()
     if not no_open:
         check_display()  # before the replay's work
 
     def record(rrd: Path) -> None:
         result = record_log(source, rrd, robot=robot, model=model, config=config,
-                            read_options=ropts, max_points=max_points,
+                            read_options=read_options, max_points=max_points,
                             event_window_s=event_window)
         for msg in result.warnings:
             click.echo(f"impactcli: warning: {msg}", err=True)

@@ -18,6 +18,7 @@ the channel and returns the validated labels.
 
 from __future__ import annotations
 
+import dataclasses
 import re
 import warnings
 from dataclasses import dataclass
@@ -27,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ImpactWarning, LabelsError, LogFormatError
+from ..types import ReadOptions
 from .paths import MESSAGE_SUFFIXES, log_stem
 
 #: Tolerance of time comparisons [s] (sample times are float sums of periods).
@@ -51,7 +53,7 @@ class Channel:
     values: np.ndarray
 
 
-def read_channel(path: Path, name: str, log: Any, read_options: dict[str, Any]) -> Channel:
+def read_channel(path: Path, name: str, log: Any, read_options: ReadOptions) -> Channel:
     """The channel ``name`` of the log at ``path`` (module docstring), timed on ``log``'s
     clock (``log`` is the log as :func:`impactcli.logs.read_log` reads it).
 
@@ -92,7 +94,13 @@ def _joint_channels_hint(log: Any) -> str:
     return ", ".join(have)
 
 
-def _csv_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Channel:
+def _locating(ropts: ReadOptions) -> dict[str, Any]:
+    """The read options that locate a channel's columns and time (not the repairs and the
+    unit the log's own samples are read with)."""
+    return dataclasses.replace(ropts, repair_order=False, position_unit=None).as_dict()
+
+
+def _csv_channel(path: Path, name: str, log: Any, ropts: ReadOptions) -> Channel:
     """A CSV column, read by the CSV reader with the log's own time (its layout as the log
     was read: separator, header, time column and unit, or ``--rate``)."""
     from .channel_map import ChannelMap, ChannelRef
@@ -100,13 +108,12 @@ def _csv_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Chan
     from .paths import open_log_options
     from .reader import read_columns
 
-    opts = {k: v for k, v in ropts.items()
-            if k not in ("robot", "repair_order", "position_unit")}
+    opts = _locating(ropts)
     _p, _where, _suffix, _folder, cmap = open_log_options(path, **opts)
     canonical = cmap is None
     lay = csv_layout(path, cmap, time_unit=opts.get("time_unit") if canonical else None,
                      time_column=opts.get("time_column") if canonical else None,
-                     rate=ropts.get("rate"))
+                     rate=ropts.rate)
     header = lay.header
     names = lay.names if header else [str(i) for i in range(len(lay.names))]
     source: str | int
@@ -124,9 +131,9 @@ def _csv_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Chan
         signals={"position": (ChannelRef(source),)}, path=cmap.path if cmap else "",
         format="csv", header=header, delimiter=lay.delim, skip_rows=lay.skip,
     )
-    read = {"channel_map": one, "repair_order": bool(ropts.get("repair_order"))}
-    if ropts.get("rate") is not None:
-        read["rate"] = ropts["rate"]
+    read = {"channel_map": one, "repair_order": ropts.repair_order}
+    if ropts.rate is not None:
+        read["rate"] = ropts.rate
     with warnings.catch_warnings():
         # the log's own repairs were warned about when it was read
         warnings.simplefilter("ignore", ImpactWarning)
@@ -136,16 +143,14 @@ def _csv_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Chan
                    np.asarray(values[:, 0], dtype=np.float64))
 
 
-def _npz_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Channel:
+def _npz_channel(path: Path, name: str, log: Any, ropts: ReadOptions) -> Channel:
     """An ``.npz`` array (``key`` or ``key[i]``) with the channel map's time (with
     ``--time-unit`` / ``--time-column`` applied), or ``--rate``'s."""
     from .channel_map import ChannelMap, ChannelRef
     from .paths import open_log_options
     from .reader import read_columns
 
-    opts = {k: v for k, v in ropts.items()
-            if k not in ("robot", "repair_order", "position_unit")}
-    cmap = open_log_options(path, **opts)[4] if ropts.get("channel_map") else None
+    cmap = open_log_options(path, **_locating(ropts))[4] if ropts.channel_map else None
     if cmap is None:
         raise LogFormatError(f"{path}: an .npz log needs a channel map (--channel-map)")
     with np.load(path, allow_pickle=False) as archive:
@@ -163,7 +168,7 @@ def _npz_channel(path: Path, name: str, log: Any, ropts: dict[str, Any]) -> Chan
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ImpactWarning)
         t_ns, values = read_columns(path, {"channel_map": one, **(
-            {"rate": ropts["rate"]} if ropts.get("rate") is not None else {})},
+            {"rate": ropts.rate} if ropts.rate is not None else {})},
             check_rate=False)
     return Channel(name, f"array {name}", _relative(t_ns, log),
                    np.asarray(values[:, 0], dtype=np.float64))
@@ -244,7 +249,7 @@ def labels_doc(ch: Channel, *, above: float, kind: str, link: int, channel_is: s
 
 def make_labels(log: Path, channel: str, *, above: float, kind: str, link: int,
                 channel_is: str, merge_gap_s: float, min_duration_s: float,
-                robot: Any, read_options: dict[str, Any], output: Path
+                robot: Any, read_options: ReadOptions, output: Path
                 ) -> tuple[dict[str, Any], Any, Channel]:
     """(the labels mapping, the :class:`~impactcli.types.Labels` it reads back as, the
     channel) for the stretches of ``channel`` above ``above`` in the log ``log`` (read with
@@ -258,7 +263,7 @@ def make_labels(log: Path, channel: str, *, above: float, kind: str, link: int,
     from . import read_log
     from .robot_files import labels_from_dict
 
-    data = read_log(log, robot=robot, **read_options)
+    data = read_log(log, robot=robot, **read_options.as_dict())
     ch = read_channel(log, channel, data, read_options)
     if ch.t_s.size == 0:
         raise LogFormatError(f"{log}: channel {channel!r} holds no samples")

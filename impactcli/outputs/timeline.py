@@ -66,7 +66,7 @@ def timeline_dict(result: DetectionResult) -> dict[str, Any]:
             "t0_ns": log.t0_ns,
             "torque_source": src.torque_source,
             "time_source": src.time_source,
-            "read_options": result.read_options,
+            "read_options": result.read_options.as_dict(),
             "repairs": list(src.repairs),
             "joints_left_out": list(result.joints_left_out),
             **({} if result.torque_scale is None else {"torque_scale": result.torque_scale}),

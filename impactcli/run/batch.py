@@ -35,7 +35,7 @@ import warnings
 from collections.abc import Generator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict
 
 from ..detect.floor import floor_line
 from ..errors import (
@@ -48,7 +48,7 @@ from ..errors import (
 )
 from ..files import OUTPUT_ERRNOS
 from ..logs.paths import log_stem
-from ..types import DETECTORS
+from ..types import DETECTORS, DetectionResult, ReadOptions
 from .gates import Findings
 from .job import run_log_from_paths
 
@@ -68,7 +68,7 @@ class DetectJob:
 
     log_path: str
     out_dir: str
-    read_options: dict[str, Any] = field(default_factory=dict)
+    read_options: ReadOptions = field(default_factory=ReadOptions)
     robot_path: str | None = None
     model_path: str | None = None
     config_path: str | None = None
@@ -80,6 +80,54 @@ class DetectJob:
     show_progress: bool = False
 
 
+class IncidentRow(TypedDict):
+    """A counted incident in a summary row (the timeline's ``incidents`` item, shortened)."""
+
+    t_start: float
+    link: int | None
+    force_n: float | None
+    contact: str
+    detectors: list[str]
+    force_plausible: bool | None
+
+
+class DefectIncidentRow(TypedDict):
+    """An incident at a data defect (not counted): when, the defect's kind and start."""
+
+    t_start: float
+    kind: str
+    defect_t_start: float
+    force_n: float | None
+
+
+class SummaryRow(TypedDict):
+    """One finished log's row of the batch summary (``schemas/batch_summary.schema.json``,
+    ``results`` items, without ``outputs`` and ``attempts``): what the terminal table and the
+    ``--summary`` file show of it. The three detectors' keys are the events each counted
+    after warm-up."""
+
+    log: str
+    sha256: str
+    model_source: str
+    model_sha256: str | None
+    duration_s: float
+    joints: int
+    calibrated: bool
+    links: str
+    torque_scale: str
+    detection_floor: str | None
+    warmup_end_s: float
+    generators: dict[str, str]
+    generator_reasons: dict[str, str]
+    incidents: int
+    incident_list: list[IncidentRow]
+    defect_incident_list: list[DefectIncidentRow]
+    lasting_load_list: list[dict[str, Any]]
+    adaptive: int
+    static_loading: int
+    static_baseline: int
+
+
 @dataclass(frozen=True)
 class JobOutcome:
     """The result of one job: a summary row, or the error that stopped it.
@@ -87,9 +135,7 @@ class JobOutcome:
     Attributes:
         log_path: the log as given (path or URL).
         ok: whether the outputs were written.
-        summary: ``log``, ``sha256``, ``model_source``, ``model_sha256``, ``duration_s``,
-            ``joints``, ``calibrated``, ``warmup_end_s`` and
-            the events after warm-up per detector (ok jobs).
+        summary: the log's summary row (ok jobs).
         outputs: files (or URLs) written.
         warnings: the run's warnings (ImpactWarning messages, deduplicated).
         error: one line naming the file and the problem (failed jobs).
@@ -103,7 +149,7 @@ class JobOutcome:
 
     log_path: str
     ok: bool
-    summary: dict[str, Any] = field(default_factory=dict)
+    summary: SummaryRow | None = None
     outputs: tuple[str, ...] = ()
     warnings: tuple[str, ...] = ()
     error: str = ""
@@ -150,7 +196,7 @@ def run_detect_job(job: DetectJob) -> JobOutcome:
 
     attempts = 0
 
-    def attempt() -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ...], Findings]:
+    def attempt() -> tuple[tuple[str, ...], SummaryRow, tuple[str, ...], Findings]:
         nonlocal attempts
         attempts += 1
         return _run(job)
@@ -208,7 +254,7 @@ def _msgs(caught: list[warnings.WarningMessage]) -> tuple[str, ...]:
     return tuple(str(w.message) for w in caught if issubclass(w.category, ImpactWarning))
 
 
-def _run(job: DetectJob) -> tuple[tuple[str, ...], dict[str, Any], tuple[str, ...], Findings]:
+def _run(job: DetectJob) -> tuple[tuple[str, ...], SummaryRow, tuple[str, ...], Findings]:
     from ..logs.urls import local_path
 
     local_out = local_path(job.out_dir)
@@ -277,9 +323,10 @@ def _run_streamed(job: DetectJob, out: Path, stem: str) -> tuple[Any, tuple[str,
     return result, tuple(str(p) for p in written)
 
 
-def _summary(job: DetectJob, result: Any) -> dict[str, Any]:
+def _summary(job: DetectJob, result: DetectionResult) -> SummaryRow:
     """The batch summary's row of one log."""
     log = result.log
+    counted = result.summary()
     return {
         "log": job.log_path,
         "sha256": log.source.sha256,
@@ -304,8 +351,16 @@ def _summary(job: DetectJob, result: Any) -> dict[str, Any]:
             for i in result.defect_incidents()],
         "lasting_load_list": [x.to_dict() for x in result.counted_lasting_loads()],
         "generator_reasons": {j: g["reason"] for j, g in result.generators.items()},
-        **{d: v["events"] for d, v in result.summary().items()},
+        "adaptive": counted["adaptive"]["events"],
+        "static_loading": counted["static_loading"]["events"],
+        "static_baseline": counted["static_baseline"]["events"],
     }
+
+
+def events_of(row: SummaryRow) -> dict[str, int]:
+    """The events each detector counted after warm-up, by detector."""
+    return {"adaptive": row["adaptive"], "static_loading": row["static_loading"],
+            "static_baseline": row["static_baseline"]}
 
 
 def lost_outcome(job: DetectJob, reason: str, kind: str, tb: str = "") -> JobOutcome:
@@ -354,9 +409,9 @@ def batch_summary(outcomes: Sequence[JobOutcome], *, wall_s: float,
     """
     from .. import TOOL_NAME, __version__
 
-    ok = [o for o in outcomes if o.ok]
+    ok = [(o, o.summary) for o in outcomes if o.summary is not None]
     failed = [o for o in outcomes if not o.ok]
-    hours = sum(float(o.summary.get("duration_s", 0.0)) for o in ok) / 3600.0
+    hours = sum(row["duration_s"] for _, row in ok) / 3600.0
 
     def rate(x: float) -> float | None:
         return x / wall_s if wall_s > 0 else None
@@ -367,13 +422,13 @@ def batch_summary(outcomes: Sequence[JobOutcome], *, wall_s: float,
         "executor": executor or {"kind": "serial"},
         "inputs": inputs or {},
         "logs": {"total": len(outcomes), "done": len(ok), "failed": len(failed)},
-        "events": {d: sum(int(o.summary.get(d, 0)) for o in ok) for d in DETECTORS},
-        "incidents": sum(int(o.summary.get("incidents", 0)) for o in ok),
+        "events": {d: sum(events_of(row)[d] for _, row in ok) for d in DETECTORS},
+        "incidents": sum(row["incidents"] for _, row in ok),
         "hours_analysed": hours,
         "wall_s": wall_s,
         "throughput": {"logs_per_s": rate(len(ok)), "log_hours_per_s": rate(hours)},
-        "results": [{**o.summary, "outputs": list(o.outputs), "attempts": o.attempts}
-                    for o in ok],
+        "results": [{**row, "outputs": list(o.outputs), "attempts": o.attempts}
+                    for o, row in ok],
         "failures": [{"file": o.log_path, "reason": o.error, "exit_code": o.exit_code,
                       "class": o.error_class, "attempts": o.attempts} for o in failed],
     }

@@ -114,9 +114,10 @@ def detect_in_memory(log: RobotLog, **setup: Any) -> tuple[DetectionResult, Sign
     per-sample arrays. ``setup``: :class:`~impactcli.run.one_log.RunSetup`'s fields
     (``chunk_rows`` defaults to the log's length)."""
     setup.setdefault("chunk_rows", max(log.n_samples, 1))
+    run = RunSetup(**setup)
     collector = SignalsCollector()
-    with MemoryReader(log, setup.get("read_options")) as reader:
-        result = detect_log(reader, RunSetup(**setup), on_chunk=collector)
+    with MemoryReader(log, run.read_options.as_dict()) as reader:
+        result = detect_log(reader, run, on_chunk=collector)
     return result, collector.signals()
 
 
@@ -129,7 +130,7 @@ def stats_in_memory(log: RobotLog, **setup: Any) -> tuple[ReplayStats, Replayed,
     cfg = with_generator(run.config or DetectorConfig(), run.generator, run.config_where)
     caught = CaughtWarnings()
     try:
-        with MemoryReader(log, run.read_options) as reader, caught:
+        with MemoryReader(log, run.read_options.as_dict()) as reader, caught:
             plan, feed = plan_run(reader, cfg, model=run.model, robot=run.robot,
                                   model_from_log=run.model_from_log,
                                   allow_slow=run.allow_slow, config_where=run.config_where,

@@ -23,6 +23,7 @@ import numpy as np
 
 from ..errors import ImpactWarning, LogFormatError, UsageProblem
 from ..logs.paths import log_stem
+from ..types import ReadOptions
 from .job import run_log_from_paths
 from .report_inputs import timeline_log_path
 
@@ -83,7 +84,7 @@ def check_rate(labels: Any, sample_rate_hz: float, where: str) -> None:
 
 
 def replay_log(path: Path, *, robot: Path | None, model: Path | None, config: Path | None,
-               read_options: dict[str, Any], allow_slow: bool = False, sweep: bool = False
+               read_options: ReadOptions, allow_slow: bool = False, sweep: bool = False
                ) -> tuple[Any, Any]:
     """Replay the detectors on the log ``path`` for its evaluation: (result, samples).
 
@@ -176,7 +177,7 @@ def timeline_sweep(source: Path, doc: dict[str, Any], labels: Any, scales: tuple
 def evaluate_source(source: Path, labels_path: Path | None, *, is_timeline: bool,
                     tolerance: Any, sweep: bool, scales: tuple[float, ...],
                     robot: Path | None, model: Path | None, config: Path | None,
-                    read_options: dict[str, Any], allow_slow: bool,
+                    read_options: ReadOptions, allow_slow: bool,
                     say: Callable[[str], None]) -> Evaluated:
     """Score a timeline (or a log, replayed first) against its labels (``labels_path``, else
     the ones beside it); ``say`` gets the replay's own warnings as they are known."""

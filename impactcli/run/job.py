@@ -14,9 +14,11 @@ from contextlib import ExitStack
 from pathlib import Path
 from typing import Any, NamedTuple
 
+from ..config import DetectorConfig
 from ..logs.paths import log_stem
 from ..logs.reader import open_log
-from ..types import SignalsChunk
+from ..model.rigid import RigidModel
+from ..types import ReadOptions, RobotDescription, SignalsChunk
 from .one_log import RunSetup, detect_log
 
 
@@ -24,9 +26,9 @@ class Inputs(NamedTuple):
     """The robot description, model and config of a run (None when not given), and their
     provenance: ``{"robot"|"model"|"config": {"path", "sha256"}}`` for those given."""
 
-    robot: Any
-    model: Any
-    config: Any
+    robot: RobotDescription | None
+    model: RigidModel | None
+    config: DetectorConfig | None
     provenance: dict[str, dict[str, str]]
 
 
@@ -91,8 +93,9 @@ def run_log_from_paths(
 
 
 def run_log(
-    log_path: str, *, robot: Any, model: Any, config: Any,
-    read_options: dict[str, Any] | None = None, model_from_log: bool = False,
+    log_path: str, *, robot: RobotDescription | None, model: RigidModel | None,
+    config: DetectorConfig | None, read_options: ReadOptions | None = None,
+    model_from_log: bool = False,
     generator: str | None = None, config_where: str = "config", allow_slow: bool = False,
     show_progress: bool = False, signals_path: Path | None = None,
     rrd_path: Path | None = None, rrd_options: dict[str, Any] | None = None,
@@ -118,8 +121,8 @@ def run_log(
     """
     from ..outputs.signals import SignalsWriter
 
-    opts = dict(read_options or {})
-    read_kw = dict(opts, robot=robot) if robot is not None else dict(opts)
+    opts = read_options or ReadOptions()
+    read_kw = opts.as_dict() if robot is None else dict(opts.as_dict(), robot=robot)
     reader = open_log(log_path, **read_kw)
     bar = None
     collector = None

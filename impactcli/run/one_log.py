@@ -59,7 +59,15 @@ from ..logs.screen import LeftOut
 from ..model.generators import choices_dict, summary_name
 from ..model.rigid import RigidModel
 from ..spill import ColumnFiles
-from ..types import DETECTORS, DetectionResult, Event, LogHeader, RobotDescription, SignalsChunk
+from ..types import (
+    DETECTORS,
+    DetectionResult,
+    Event,
+    LogHeader,
+    ReadOptions,
+    RobotDescription,
+    SignalsChunk,
+)
 from .islands import Islands
 from .plan import ChunkFeed, Passes, RunPlan, calibrated_thresholds, plan_run, with_generator
 from .replay import ChunkReplay, Replayer, ReplaySetup, ReplayState
@@ -107,7 +115,7 @@ class RunSetup:
     model_from_log: bool = False
     allow_slow: bool = False
     config_where: str = "config"
-    read_options: dict[str, Any] = field(default_factory=dict)
+    read_options: ReadOptions = field(default_factory=ReadOptions)
     chunk_rows: int = CHUNK_ROWS
 
 
@@ -319,7 +327,7 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
                                                                   strict=True)),
         filter_gain={"frequencies_hz": [float(f) for f in freqs],
                      "gain": {j: [float(g) for g in gain[k]] for k, j in enumerate(joints)}},
-        residual_generator=summary_name(plan.choices), read_options=dict(setup.read_options),
+        residual_generator=summary_name(plan.choices), read_options=setup.read_options,
         generators=choices_dict(plan.choices, cfg.residual.logged_correction),
         joints_left_out=tuple(left_out),
         incidents=tuple(incidents), lasting_loads=tuple(loads), motion_envelope=outside,

@@ -27,6 +27,7 @@ from typing import Any
 
 from ..errors import ImpactError, ImpactWarning, LogFormatError, UsageProblem
 from ..logs.paths import is_log_path, log_stem
+from ..types import ReadOptions
 from .job import load_inputs
 
 TIMELINE_SUFFIX = ".timeline.json"
@@ -72,7 +73,7 @@ def _timeline_plan(tl_path: Path, robot: Any) -> dict[str, Any]:
     if unknown:
         warnings.warn(f"{tl_path}: read options {unknown} not understood by report; ignored",
                       ImpactWarning, stacklevel=3)
-    kwargs = {k: opts[k] for k in RECORDED_READ_OPTIONS if opts.get(k) is not None}
+    recorded = ReadOptions.of({k: opts.get(k) for k in RECORDED_READ_OPTIONS})
     tl_model = tl["model"] or {"source": "none", "model": {}}
     recorded_model = tl_model["model"] or {}
     if robot is None and isinstance(recorded_model.get("robot"), dict):
@@ -83,7 +84,7 @@ def _timeline_plan(tl_path: Path, robot: Any) -> dict[str, Any]:
         model = RigidModel.from_dict(recorded_model, where=f"{tl_path}: model")
     # a config's thresholds with a model identified from the log (detect --model-from-log)
     from_log = tl_model["source"] == "identified-from-log" and config.model is not None
-    return {"tl": tl, "log_path": log_path, "read_options": kwargs, "config": config,
+    return {"tl": tl, "log_path": log_path, "read_options": recorded, "config": config,
             "model": model, "model_from_log": from_log, "robot": robot}
 
 
@@ -206,7 +207,7 @@ class ReportTask:
     robot: str | None
     model: str | None
     config: str | None
-    read_options: dict[str, Any]
+    read_options: ReadOptions
     key: int = 0
     allow_slow: bool = False
     show_progress: bool = False

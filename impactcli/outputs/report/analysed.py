@@ -11,7 +11,7 @@ from typing import Any
 
 from ... import TOOL_NAME, __version__
 from ...detect.tail import minutes_text
-from .common import e, epoch_text, f, g, json_pre, kv_table
+from .common import LogSection, e, epoch_text, f, g, json_pre, kv_table
 
 
 def settings_table(cfg: dict[str, Any]) -> str:
@@ -161,7 +161,7 @@ def generic_fit_table(fit: dict[str, Any], joints: Sequence[str]) -> str:
 
 
 
-def analysed_html(sec: dict[str, Any]) -> str:
+def analysed_html(sec: LogSection) -> str:
     """The input, as read."""
     inp = sec["input"]
     return "<h3>What was analysed</h3>" + kv_table([
@@ -183,7 +183,7 @@ def analysed_html(sec: dict[str, Any]) -> str:
     ])
 
 
-def with_what_html(sec: dict[str, Any]) -> str:
+def with_what_html(sec: LogSection) -> str:
     """The tool, calibration, model, generators, thresholds and the full configuration."""
     joints = list(sec["input"]["joints"])
     model = sec["model"] or {"source": "none", "sha256": None, "model": {}}
@@ -325,7 +325,7 @@ def envelope_html(env: dict[str, Any]) -> str:
             f"</tr>{rows}</table>")
 
 
-def thresholds_table(sec: dict[str, Any], joints: Sequence[str]) -> str:
+def thresholds_table(sec: LogSection, joints: Sequence[str]) -> str:
     """v_stat, v0, vL, warm-up end and |G| per joint."""
     fg = sec.get("filter_gain") or {}
     freqs = list(fg.get("frequencies_hz") or [])

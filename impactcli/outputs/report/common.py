@@ -12,7 +12,7 @@ import html
 import json
 import math
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NotRequired, TypedDict
 
 import numpy as np
 
@@ -55,6 +55,41 @@ STAT_NAME = {
     "static_baseline": ("|r|", "v0"),
 }
 CONTACT_TEXT = {"transient": "transient", "quasi_static": "quasi-static", "unknown": "unknown-kind"}
+
+
+class LogSection(TypedDict):
+    """One log's JSON facts in a report (``schemas/report.schema.json``, ``logs`` items): the
+    timeline's fields but ``schema_version`` and ``tool`` (the ``NotRequired`` ones only when
+    the timeline has them), then what the report adds. Values are JSON-ready."""
+
+    input: dict[str, Any]
+    config: dict[str, Any]
+    calibrated: bool
+    model: dict[str, Any] | None
+    replay: dict[str, Any]
+    warmup_end_s: float
+    warmup_per_joint_s: dict[str, float]
+    thresholds: dict[str, Any]
+    filter_gain: dict[str, Any]
+    events: list[dict[str, Any]]
+    incidents: list[dict[str, Any]]
+    lasting_loads: list[dict[str, Any]]
+    motion_envelope: NotRequired[Any]
+    detection_floor: NotRequired[Any]
+    data_defects: NotRequired[Any]
+    counts: dict[str, Any]
+    summary: dict[str, dict[str, int]]
+    warnings: list[str]
+    stem: str
+    timeline_schema_version: str
+    origin: dict[str, Any] | None
+    incidents_known: bool
+    verdict: str
+    could_not_see: list[dict[str, Any]]
+    false_alarm_margin: dict[str, Any]
+    caveats: list[dict[str, Any]]
+    labels: dict[str, Any] | None
+    quality: dict[str, Any] | None
 
 
 def clean(x: Any) -> Any:

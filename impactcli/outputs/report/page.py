@@ -26,6 +26,7 @@ from .common import (
     SCHEMA_VERSION,
     WHOLE_LOG_BUCKETS,
     Ids,
+    LogSection,
     clean,
     e,
 )
@@ -114,7 +115,7 @@ def _quality_summary(q: dict[str, Any] | None) -> dict[str, Any] | None:
             "false_alarms": sc["false_alarms"]}
 
 
-def summary_row(sec: dict[str, Any]) -> dict[str, Any]:
+def summary_row(sec: LogSection) -> dict[str, Any]:
     """One row of the fleet summary from a log section."""
     inp = sec["input"]
     return {
@@ -134,7 +135,7 @@ def summary_row(sec: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def report_dict(sections: Sequence[dict[str, Any]],
+def report_dict(sections: Sequence[LogSection],
                 failed: Sequence[tuple[str, str]] = ()) -> dict[str, Any]:
     """The report as a JSON-ready mapping (schemas/report.schema.json).
 
@@ -234,7 +235,7 @@ class RenderedLog:
     only these.
     """
 
-    section: dict[str, Any]
+    section: LogSection
     html: str
 
 

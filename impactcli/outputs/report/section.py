@@ -26,6 +26,7 @@ from .common import (
     DETECTOR_TITLE,
     MAX_EVENT_FIGURES,
     Ids,
+    LogSection,
     clean,
     e,
     event_duration_s,
@@ -46,7 +47,7 @@ from .unseen import chain_of, could_not_see, could_not_see_html
 
 
 def log_section(result: DetectionResult, labels: Labels | None,
-                origin: dict[str, Any] | None, samples: Samples) -> dict[str, Any]:
+                origin: dict[str, Any] | None, samples: Samples) -> LogSection:
     """The JSON facts of one log: the timeline's fields, plus the verdict, the incidents
     (with their peak ratio), what could not be seen, margins, caveats and evaluation.
 
@@ -58,35 +59,46 @@ def log_section(result: DetectionResult, labels: Labels | None,
     period = result.log.sample_period_s
     events = [{**d, "duration_s": event_duration_s(ev, period)}
               for ev, d in zip(result.events, tl["events"], strict=True)]
-    sec: dict[str, Any] = {k: v for k, v in tl.items() if k not in ("schema_version", "tool")}
-    sec["stem"] = log_stem(result.log.source.path)
-    sec["events"] = events
-    sec["timeline_schema_version"] = tl["schema_version"]
-    sec["origin"] = dict(origin) if origin else None
     known = incidents_known(len(result.incidents), events)
     incidents = incident_rows(tl, period)
-    sec["incidents"] = incidents
-    sec["incidents_known"] = known
     counted_alarms = sum(1 for ev in events if ev["detector"] in ("adaptive", "static_loading")
                          and not ev["in_warmup"])
-    sec["verdict"] = verdict_text(incidents, known=known, alarms_counted=counted_alarms,
-                                  lasting_loads=tl["lasting_loads"],
-                                  analysed_s=max(result.log.duration_s + period
-                                                 - result.warmup_end_s, 0.0),
-                                  floor=floor_line(result.detection_floor),
-                                  unchecked=[x for x in tl["input"]["joints_left_out"]
-                                             if "travel_rad" in x])
-    sec["could_not_see"] = could_not_see(result, incidents, known=known, origin=origin,
-                                         samples=samples)
-    sec["false_alarm_margin"] = false_alarm_margins(result, labels, samples=samples)
-    sec["caveats"] = caveats(result, tl)
-    sec["labels"] = (None if labels is None
-                     else {"path": labels.path, "n_events": len(labels.events)})
-    sec["quality"] = None if labels is None else evaluate(result, labels, samples)
+    verdict = verdict_text(incidents, known=known, alarms_counted=counted_alarms,
+                           lasting_loads=tl["lasting_loads"],
+                           analysed_s=max(result.log.duration_s + period
+                                          - result.warmup_end_s, 0.0),
+                           floor=floor_line(result.detection_floor),
+                           unchecked=[x for x in tl["input"]["joints_left_out"]
+                                      if "travel_rad" in x])
+    sec: LogSection = {
+        "input": tl["input"], "config": tl["config"], "calibrated": tl["calibrated"],
+        "model": tl["model"], "replay": tl["replay"], "warmup_end_s": tl["warmup_end_s"],
+        "warmup_per_joint_s": tl["warmup_per_joint_s"], "thresholds": tl["thresholds"],
+        "filter_gain": tl["filter_gain"], "events": events, "incidents": incidents,
+        "lasting_loads": tl["lasting_loads"], "counts": tl["counts"],
+        "summary": tl["summary"], "warnings": tl["warnings"],
+        "stem": log_stem(result.log.source.path),
+        "timeline_schema_version": tl["schema_version"],
+        "origin": dict(origin) if origin else None,
+        "incidents_known": known, "verdict": verdict,
+        "could_not_see": could_not_see(result, incidents, known=known, origin=origin,
+                                       samples=samples),
+        "false_alarm_margin": false_alarm_margins(result, labels, samples=samples),
+        "caveats": caveats(result, tl),
+        "labels": (None if labels is None
+                   else {"path": labels.path, "n_events": len(labels.events)}),
+        "quality": None if labels is None else evaluate(result, labels, samples),
+    }
+    if "motion_envelope" in tl:
+        sec["motion_envelope"] = tl["motion_envelope"]
+    if "detection_floor" in tl:
+        sec["detection_floor"] = tl["detection_floor"]
+    if "data_defects" in tl:
+        sec["data_defects"] = tl["data_defects"]
     return clean(sec)  # type: ignore[no-any-return]
 
 
-def _meta(sec: dict[str, Any], anchor: str) -> str:
+def _meta(sec: LogSection, anchor: str) -> str:
     inp = sec["input"]
     model = (sec.get("model") or {}).get("model") or {}
     calib = (sec.get("config") or {}).get("calibration") or {}
@@ -110,7 +122,7 @@ def _meta(sec: dict[str, Any], anchor: str) -> str:
             "analysed</a></p>")
 
 
-def _caveats_html(sec: dict[str, Any]) -> str:
+def _caveats_html(sec: LogSection) -> str:
     """The caveats (the warm-up one is under "could not see") and the run's warnings."""
     items = [c for c in sec["caveats"] if c["code"] != "warmup"]
     warnings = sec.get("warnings") or []
@@ -129,7 +141,7 @@ def _caveats_html(sec: dict[str, Any]) -> str:
     return "".join(p)
 
 
-def _events_html(sec: dict[str, Any], anchor: str, open_: bool) -> str:
+def _events_html(sec: LogSection, anchor: str, open_: bool) -> str:
     """Events per detector: counts and the full table, in a ``<details>``."""
     summ = sec["summary"]
     events = sec["events"]
@@ -163,7 +175,7 @@ def _events_html(sec: dict[str, Any], anchor: str, open_: bool) -> str:
             f"{table}{body}</details>")
 
 
-def _margins_html(sec: dict[str, Any]) -> str:
+def _margins_html(sec: LogSection) -> str:
     fam = sec["false_alarm_margin"]
     rule = fam["rule"]
     dets = [d for d in DETECTORS if d in fam["per_detector"]]
@@ -187,7 +199,7 @@ def _margins_html(sec: dict[str, Any]) -> str:
         f"<table><tr><th>joint</th>{head}<th>at time [s]</th></tr>{''.join(rows)}</table>")
 
 
-def section_html(num: str, result: DetectionResult, sec: dict[str, Any],
+def section_html(num: str, result: DetectionResult, sec: LogSection,
                  labels: Labels | None, ids: Ids, samples: Samples) -> str:
     """One log's section; ``num`` is its number in the report (or ``NUM_TOKEN``);
     ``samples`` as in :func:`log_section`."""
@@ -212,8 +224,8 @@ def section_html(num: str, result: DetectionResult, sec: dict[str, Any],
     else:
         gap = float(((sec.get("config") or {}).get("events") or {}).get("merge_gap_s") or 0.0)
         p.append(alarm_figures(result, gap, labels, ids, samples))
-    if sec.get("quality") is not None:
-        p.append(f'<div id="{anchor}-quality">{quality_html(sec["quality"])}</div>')
+    if (quality := sec["quality"]) is not None:
+        p.append(f'<div id="{anchor}-quality">{quality_html(quality)}</div>')
     p.append(whole_log_figures(result, labels, ids, samples))
     p.append(_margins_html(sec))
     p.append(f'<div id="{anchor}-analysed">{analysed_html(sec)}</div>')
