@@ -217,7 +217,7 @@ def test_a_plain_folder_is_a_data_error_in_every_verb(bags: dict[str, dict[str, 
     d = bags["plain"]["log"]
     r = invoke(*_plain_args(verb, d, tmp_path, bags))
     assert r.exit_code == 3, (r.output, r.stderr)
-    # a folder that is not a bag stands for the logs in it (tests/test_log_folders.py)
+    # a folder that is not a bag stands for the logs in it (tests/test_paths_folders.py)
     assert r.stderr == (f"impactcli: error: {d}: a folder without any log (looked for "
                         ".csv.gz, .csv, .mcap, .npz, .bag, .db3 files or rosbag2 folders "
                         "(with metadata.yaml), directly inside it)\n")

@@ -259,6 +259,30 @@ def test_no_test_imports_another_test_module() -> None:
     assert not bad, bad
 
 
+#: Test files whose subject is the whole tool, not one module: what each holds.
+ACROSS = {
+    "test_acceptance.py": "the sample logs against the acceptance criteria",
+    "test_golden.py": "every verb's outputs against the recorded goldens",
+    "test_readme.py": "the README's commands and the docs' citations",
+    "test_layout.py": "the package's structure",
+    "test_roundtrip_property.py": "every file the tool writes, read back",
+    "test_newcomer.py": "a new user's first commands, across verbs",
+    "test_limits_stated.py": "every answer stating its own limits, across stages",
+    "test_incident_criteria.py": "tests/incident_criteria.py, the incident benchmark's checks",
+}
+
+
+def test_every_test_file_is_named_after_what_it_tests() -> None:
+    """tests/test_<name>.py: <name> starts with a module's or subpackage's name of
+    impactcli (the verbs are cli's modules), or the file is one of ACROSS."""
+    names = {p.stem for p in PKG.rglob("*.py")} | {p.name for p in PKG.rglob("*")
+                                                     if p.is_dir()}
+    bad = [t.name for t in sorted((ROOT / "tests").glob("test_*.py"))
+           if t.name not in ACROSS
+           and not any(t.stem[5:] == n or t.stem[5:].startswith(n + "_") for n in names)]
+    assert not bad, f"test files not named after a module of impactcli: {bad}"
+
+
 def test_no_module_over_700_lines() -> None:
     long = {m: n for m, p in MODULES.items()
             if (n := len(p.read_text().splitlines())) > MAX_LINES}

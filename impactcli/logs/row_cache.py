@@ -6,7 +6,7 @@ the used columns, as :class:`~impactcli.logs.repair.Repairer` gives them out —
 files in a temporary directory; :func:`chunks` reads them back in blocks, sets the columns
 without any finite value (``allbad``) to NaN and converts the rows as a pass over the file
 does (:meth:`~impactcli.logs.layout.ScanPass.arrays`, elementwise): the same arrays
-bit for bit (``tests/test_io_stream.py``).
+bit for bit (``tests/test_reader_csv.py``).
 
 Bounded: memory holds one block of rows (``max(chunk_rows, MIN_READ_ROWS)``), the disk
 8·(1 + C) bytes per row. A cache of the one temporary store (:mod:`impactcli.spill`): given

@@ -1,6 +1,6 @@
 """The one reader (impactcli.logs.reader) on MCAP, ROS bags, .npz and URLs: for every chunk
 size the chunks are the same arrays, and the scan's clock, gaps and screens are the whole
-log's (``_assert_same`` of tests/test_io_stream.py); the variants (stamps out of order,
+log's (``_assert_same`` of tests/test_reader_csv.py); the variants (stamps out of order,
 topics far apart in the file) read through the same pass, each message decoded once."""
 
 from __future__ import annotations

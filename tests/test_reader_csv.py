@@ -342,7 +342,7 @@ def test_a_decimal_comma_and_a_byte_order_mark_stream(tmp_path: Path) -> None:
 
 
 def test_message_logs_stream_too(tmp_path: Path) -> None:
-    """MCAP and bags stream (tests/test_stream_formats.py has the cases)."""
+    """MCAP and bags stream (tests/test_reader_formats.py has the cases)."""
     log, _ = read_warned(_write(tmp_path / "a.csv", _table()))
     for name in ("a.mcap", "a.db3", "a.bag"):
         write_log(log, tmp_path / name)

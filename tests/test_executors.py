@@ -307,3 +307,4 @@ def test_fleet_report_from_batch_timelines_is_the_same_on_a_cluster(
     doc = json.loads(docs["serial"])
     assert [s["stem"] for s in doc["summary"]] == ["run0", "run1"]  # input order
     assert [Path(f["path"]).name for f in doc["failed"]] == ["corrupt.csv.gz"]
+
