@@ -308,3 +308,18 @@ def test_fleet_report_from_batch_timelines_is_the_same_on_a_cluster(
     assert [s["stem"] for s in doc["summary"]] == ["run0", "run1"]  # input order
     assert [Path(f["path"]).name for f in doc["failed"]] == ["corrupt.csv.gz"]
 
+
+def test_a_pool_runs_under_a_tmpdir_too_long_for_a_socket(tmp_path: Path) -> None:
+    """The fork server's socket would not fit a long TMPDIR's path (AF_UNIX: 107 bytes):
+    the pool still runs, and leaves nothing in TMPDIR."""
+    import subprocess
+
+    long = tmp_path / ("t" * 100)
+    long.mkdir()
+    code = ("import math; from impactcli.run.executors import run_tasks; "
+            "print(sorted(dict(run_tasks(math.factorial, [3, 4], jobs=2)).items()))")
+    r = subprocess.run([sys.executable, "-c", code], env={**os.environ, "TMPDIR": str(long)},
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "[(0, 6), (1, 24)]"
+    assert not list(long.iterdir())

@@ -145,6 +145,37 @@ POOL_PRELOAD = (
 )
 
 
+#: The longest path an AF_UNIX socket binds to (Linux: 108 bytes with the final NUL).
+SOCKET_PATH_MAX = 107
+#: What multiprocessing appends to TMPDIR for the fork server's socket:
+#: ``/pymp-XXXXXXXX/listener-XXXXXXXX``.
+SOCKET_SUFFIX_LEN = 32
+#: Where the fork server's socket goes when TMPDIR's path is too long for one.
+SHORT_TEMP_DIRS = ("/tmp", "/var/tmp")
+
+
+def socket_folder() -> str:
+    """Multiprocessing's temporary folder (made once per process), where the fork server
+    listens on a socket: in TMPDIR, unless TMPDIR's path is too long for a socket — then
+    every ``--jobs N`` run would fail ("AF_UNIX path too long") — when it is made in the
+    first of :data:`SHORT_TEMP_DIRS` that is writable (as Python 3.14 does). It holds the
+    socket only, and multiprocessing removes it when the process ends."""
+    import multiprocessing.util
+    import tempfile
+
+    here = tempfile.gettempdir()
+    short = next((d for d in SHORT_TEMP_DIRS
+                  if os.path.isdir(d) and os.access(d, os.W_OK | os.X_OK)), None)
+    if len(here) + SOCKET_SUFFIX_LEN <= SOCKET_PATH_MAX or short is None:
+        return multiprocessing.util.get_temp_dir()
+    saved = tempfile.tempdir
+    tempfile.tempdir = short  # get_temp_dir makes its folder in gettempdir(), once
+    try:
+        return multiprocessing.util.get_temp_dir()
+    finally:
+        tempfile.tempdir = saved
+
+
 def process_pool(workers: int) -> ProcessPoolExecutor:
     """A local pool whose workers are forked from a fork server (not from this process,
     which may run threads, e.g. a Dask client's) with the pipeline already imported; the
@@ -156,6 +187,7 @@ def process_pool(workers: int) -> ProcessPoolExecutor:
     ctx = mp.get_context(POOL_START_METHOD)
     if POOL_START_METHOD == "forkserver":
         ctx.set_forkserver_preload(list(POOL_PRELOAD))
+        socket_folder()
     return ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=worker_init,
                                initargs=(os.getpid(),))
 
