@@ -27,6 +27,14 @@ def load_schema(name: str) -> dict[str, Any]:
     return data
 
 
+@functools.cache
+def _validator(name: str) -> Any:
+    """The validator of schema ``name``, made once (it resolves its references as it goes)."""
+    import jsonschema
+
+    return jsonschema.Draft202012Validator(load_schema(name))
+
+
 def validate(doc: Any, name: str, error: type[ImpactError], where: str) -> None:
     """Validate ``doc`` against schema ``name``; raise ``error`` with one line naming ``where``.
 
@@ -41,8 +49,7 @@ def validate(doc: Any, name: str, error: type[ImpactError], where: str) -> None:
         raise error(f"{where}: {'/'.join(nan) or '(top level)'}: nan is not a number this "
                     "field can take")
 
-    validator = jsonschema.Draft202012Validator(load_schema(name))
-    best = jsonschema.exceptions.best_match(validator.iter_errors(doc))
+    best = jsonschema.exceptions.best_match(_validator(name).iter_errors(doc))
     if best is not None:
         loc = "/".join(str(p) for p in best.absolute_path) or "(top level)"
         raise error(f"{where}: {loc}: {best.message}")

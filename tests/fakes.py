@@ -24,6 +24,7 @@ from impactcli.types import (
     DetectionResult,
     Event,
     Labels,
+    SignalsChunk,
 )
 
 from .conftest import make_log
@@ -136,33 +137,19 @@ def with_incidents(result: DetectionResult, *, kinematics: bool = True,
     return dataclasses.replace(result, log=log, incidents=incs, model=model)
 
 
-@dataclass(frozen=True)
-class FakeChunk:
-    """One chunk as a replay hands it to its writers: the joints, (n,) times [s] and [ns],
-    name → (n, J) signals, detector → (n, J) decisions and ratios, (n, J) positions."""
-
-    joints: tuple[str, ...]
-    time_s: np.ndarray
-    t_ns: np.ndarray
-    signals: dict[str, np.ndarray]
-    decisions: dict[str, np.ndarray]
-    position: np.ndarray
-    position_ref: np.ndarray | None
-    ratios: dict[str, np.ndarray]
-
-
-def fake_chunks(result: DetectionResult, rows: int = CHUNK_ROWS) -> Iterator[FakeChunk]:
-    """The fake run's per-sample data in chunks of ``rows`` samples, in time order."""
+def fake_chunks(result: DetectionResult, rows: int = CHUNK_ROWS) -> Iterator[SignalsChunk]:
+    """The fake run's per-sample data in chunks of ``rows`` samples, in time order, as a
+    replay hands them to its writers."""
     log = result.log
     n = log.n_samples
     for a in range(0, n, rows):
         b = min(a + rows, n)
-        yield FakeChunk(
+        yield SignalsChunk(
             tuple(log.joint_names), log.time_s[a:b], np.asarray(log.t_ns)[a:b],
             {k: v[a:b] for k, v in result.signals.items()},
             {k: v[a:b] for k, v in result.decisions.items()}, np.asarray(log.position)[a:b],
             None if log.position_ref is None else np.asarray(log.position_ref)[a:b],
-            {k: v[a:b] for k, v in result.ratios.items()})
+            {k: v[a:b] for k, v in result.ratios.items()}, start=a)
 
 
 def collect(result: DetectionResult, rows: int = CHUNK_ROWS, plots: bool = True) -> Samples:

@@ -158,10 +158,18 @@ def _validator(name: str) -> jsonschema.Draft202012Validator:
 
 def from_schema(name: str, node: dict[str, Any] | None = None) -> st.SearchStrategy[Any]:
     """Documents valid against ``schemas/<name>.schema.json`` (or one of its sub-nodes,
-    ``node``, validated against the sub-node with the root's ``$defs``)."""
+    ``node``, validated against the sub-node with the root's ``$defs``). Built once per
+    schema node: a composite strategy draws from it again and again, and hypothesis would
+    otherwise analyse a fresh strategy at every draw."""
+    return _from_schema(name, None if node is None else json.dumps(node, sort_keys=True))
+
+
+@functools.cache
+def _from_schema(name: str, node_json: str | None) -> st.SearchStrategy[Any]:
     root = load_schema(name)
     drawer = _Drawer(root)
-    if node is None:
+    if node_json is None:
         return drawer.draw(root).filter(_validator(name).is_valid)
+    node = json.loads(node_json)
     checker = jsonschema.Draft202012Validator({**node, "$defs": root.get("$defs", {})})
     return drawer.draw(node).filter(checker.is_valid)

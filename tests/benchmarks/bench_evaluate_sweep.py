@@ -12,8 +12,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import subprocess
 import sys
 import tempfile
@@ -99,6 +97,9 @@ def _measure(tree: Path, minutes: float) -> dict[str, Any]:
 
 
 def main() -> None:
+    from machine import machine_line
+    from release_tree import release_tree
+
     ap = argparse.ArgumentParser()
     ap.add_argument("minutes", nargs="?", type=float, default=60.0)
     ap.add_argument("--release", default=None, help="also measure this git ref's code")
@@ -109,23 +110,12 @@ def main() -> None:
         child(args.minutes)
         return
     codes = [("this", ROOT)]
-    with tempfile.TemporaryDirectory() as tmp:
-        release = None
-        try:
-            if args.release is not None:
-                release = Path(tmp) / "release"
-                subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach",
-                                str(release), args.release], check=True, capture_output=True)
-                codes.append((args.release, release))
-            got = [(name, _measure(tree, args.minutes)) for name, tree in codes]
-        finally:
-            if release is not None:
-                subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force",
-                                str(release)], check=False, capture_output=True)
+    with release_tree(args.release) as release:
+        if release is not None and args.release is not None:
+            codes.append((args.release, release))
+        got = [(name, _measure(tree, args.minutes)) for name, tree in codes]
     first = got[0][1]
-    print(f"machine: {platform.platform()}, {platform.processor() or platform.machine()}, "
-          f"cpu_count={os.cpu_count()}, python {platform.python_version()}; load average "
-          f"{os.getloadavg()[0]:.1f}")
+    print(machine_line())
     print(f"log: {args.minutes:g} min, {first['samples']} samples, {first['joints']} joints, "
           f"{first['scales']} scales, {first['rows']} rows, at most {first['max_events']} "
           "events")

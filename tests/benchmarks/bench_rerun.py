@@ -14,8 +14,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import resource
 import subprocess
 import sys
@@ -120,14 +118,10 @@ def _measure(tree: Path, args: argparse.Namespace) -> dict[str, Any]:
     return dict(json.loads(p.stdout.splitlines()[-1]))
 
 
-def _worktree(ref: str, tmp: Path) -> Path:
-    where = tmp / "release"
-    subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(where), ref],
-                   check=True, capture_output=True)
-    return where
-
-
 def main() -> None:
+    from machine import machine_line
+    from release_tree import release_tree
+
     ap = argparse.ArgumentParser()
     ap.add_argument("--minutes", type=float, default=60.0)
     ap.add_argument("--full-rate", action="store_true", help="also write without decimation")
@@ -141,21 +135,12 @@ def main() -> None:
         child(args.minutes, not args.no_extra_events, args.full_rate)
         return
     codes = [("this", ROOT)]
-    with tempfile.TemporaryDirectory() as tmp:
-        release = None
-        try:
-            if args.release is not None:
-                release = _worktree(args.release, Path(tmp))
-                codes.append((args.release, release))
-            got = [(name, _measure(tree, args)) for name, tree in codes]
-        finally:
-            if release is not None:
-                subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force",
-                                str(release)], check=False, capture_output=True)
+    with release_tree(args.release) as release:
+        if release is not None and args.release is not None:
+            codes.append((args.release, release))
+        got = [(name, _measure(tree, args)) for name, tree in codes]
     first = got[0][1]
-    print(f"machine: {platform.platform()} {platform.processor() or platform.machine()}, "
-          f"{os.cpu_count()} CPUs, Python {platform.python_version()}; load average "
-          f"{os.getloadavg()[0]:.1f}")
+    print(machine_line())
     print(f"series: {first['samples']:,} samples × 2 joints, {first['events']} events, chunks "
           f"of {CHUNK_ROWS:,}; build {first['build_s']:.2f} s, import rerun, pyarrow, pandas "
           f"{first['import_rerun_s']:.2f} s")

@@ -26,8 +26,6 @@ incident it belongs to (exactly one: events are grouped so); its link against th
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 import sys
 import time
 import warnings
@@ -98,6 +96,8 @@ def samples() -> list[Row]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from machine import machine_line
+
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", type=int, default=2, help="robots per arm")
     ap.add_argument("--first-seed", type=int, default=303,
@@ -115,8 +115,7 @@ def main(argv: list[str] | None = None) -> int:
     sample = report(samples(), "sample logs, committed configs")
     print()
     code = verdict({"fresh": fresh, "samples": sample})
-    print(f"\nmachine: {platform.platform()}, {os.cpu_count()} CPUs; python "
-          f"{sys.version.split()[0]}; total {time.perf_counter() - t0:.1f} s")
+    print("\n" + machine_line(t0))
     return code
 
 

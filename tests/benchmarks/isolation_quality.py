@@ -31,8 +31,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import os
-import platform
 import sys
 import time
 import warnings
@@ -145,6 +143,8 @@ def run_both(log: object, cfg: DetectorConfig, robot: object, labels: object,
 
 
 def main(argv: list[str] | None = None) -> int:
+    from machine import machine_line
+
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", type=int, default=2, help="robots per arm")
     ap.add_argument("--first-seed", type=int, default=303,
@@ -188,8 +188,7 @@ def main(argv: list[str] | None = None) -> int:
     for name in sets:
         b, a = total[name]
         print(f"| {name} | {b.right}/{b.detected} | {a.text()} |")
-    print(f"\nmachine: {platform.platform()}, {os.cpu_count()} CPUs; python "
-          f"{sys.version.split()[0]}; total {time.perf_counter() - t0:.1f} s")
+    print("\n" + machine_line(t0))
     return 0
 
 

@@ -27,15 +27,12 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
-import sys
 import time
 import warnings
 from dataclasses import replace
 from pathlib import Path
 
 from impactcli.config import DetectorConfig
-from impactcli.logs import read_log
 from impactcli.model import IdentifyOptions, RigidModel, identify_many
 from impactcli.model.selection import select_model
 from impactcli.run.calibration import calibrate
@@ -117,26 +114,17 @@ def simulated(arm: str) -> None:
         print(f"| {when} | {model.kind} | " + " | ".join(cells) + f" | {fa} |")
 
 
-def split(log: RobotLog, frac: float = 0.6) -> tuple[RobotLog, RobotLog]:
-    k = int(frac * log.n_samples)
-    return log.slice(0, k), log.slice(k, log.n_samples)
-
-
 def real() -> None:
+    from real_logs import dev_cases
+
     if not REAL.is_dir():
         print(f"\n{REAL} is absent: no real logs measured")
         return
-    kuka = read_log(REAL / "kuka_lwr4" / "measurements_1.npz", channel_map="kuka_lwr4")
-    link4 = read_log(REAL / "ur_ext_observer" / "link4.csv", channel_map="ur_ext_observer")
-    static = read_log(REAL / "ur_ext_observer" / "ur-static.csv",
-                      channel_map="ur_ext_observer")
-    k_cal, k_test = split(kuka)
-    u_cal, u_test = split(link4)
     base = DetectorConfig()
     base = replace(base, residual=replace(base.residual, generator="inverse_dynamics"))
-    for name, cal, tests in (("KUKA LWR4+", k_cal, {"last 40 % (no contact)": k_test}),
-                             ("UR", u_cal, {"link4 last 40 %": u_test,
-                                            "ur-static (pushed by hand)": static})):
+    names = {"kuka": "KUKA LWR4+", "ur": "UR"}
+    for which, (cal, tests) in dev_cases(REAL).items():
+        name = names[which]
         print(f"\n### {name}: calibrated on the first 60 %\n")
         print("| model | kind | " + " | ".join(f"{t}: incidents (adaptive / static_loading "
                                                  "events)" for t in tests) + " |")
@@ -155,6 +143,8 @@ def real() -> None:
 
 
 def main() -> int:
+    from machine import machine_line
+
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--no-sim", action="store_true", help="the real logs only")
     args = ap.parse_args()
@@ -164,8 +154,7 @@ def main() -> int:
         for arm in ("assist_like", "heavy_geared"):
             simulated(arm)
     real()
-    print(f"\nmachine: {platform.platform()}, {os.cpu_count()} CPUs; python "
-          f"{sys.version.split()[0]}; total {time.perf_counter() - t0:.1f} s")
+    print("\n" + machine_line(t0))
     return 0
 
 

@@ -31,7 +31,6 @@ arm's free sample logs by each rule (``--labelled``; also run by default).
 from __future__ import annotations
 
 import os
-import platform
 import sys
 import time
 import warnings
@@ -60,6 +59,21 @@ def split(log: RobotLog, frac: float = CAL_FRACTION) -> tuple[RobotLog, RobotLog
     """The first ``frac`` of the samples and the rest."""
     k = int(frac * log.n_samples)
     return log.slice(0, k), log.slice(k, log.n_samples)
+
+
+def dev_cases(real: Path) -> dict[str, tuple[RobotLog, dict[str, RobotLog]]]:
+    """The real development logs below ``real``, arm → (calibration part, test parts): the
+    KUKA LWR4+ and UR link4 logs split at :data:`CAL_FRACTION`, and the UR pushed by hand."""
+    kuka = read_log(real / "kuka_lwr4" / "measurements_1.npz", channel_map="kuka_lwr4")
+    link4 = read_log(real / "ur_ext_observer" / "link4.csv", channel_map="ur_ext_observer")
+    static = read_log(real / "ur_ext_observer" / "ur-static.csv",
+                      channel_map="ur_ext_observer")
+    k_cal, k_test = split(kuka)
+    u_cal, u_test = split(link4)
+    return {
+        "kuka": (k_cal, {"last 40 % (no contact)": k_test}),
+        "ur": (u_cal, {"link4 last 40 %": u_test, "ur-static (pushed by hand)": static}),
+    }
 
 
 def _robot(kind: str, which: str) -> object | None:
@@ -159,6 +173,8 @@ def labelled() -> None:
 
 
 def main() -> int:
+    from machine import machine_line
+
     warnings.simplefilter("ignore")
     t0 = time.perf_counter()
     if "--labelled" in sys.argv[1:] or not REAL.is_dir():
@@ -166,16 +182,7 @@ def main() -> int:
             print(f"{REAL} is absent: the labelled sample logs only")
         labelled()
         return 0
-    kuka = read_log(REAL / "kuka_lwr4" / "measurements_1.npz", channel_map="kuka_lwr4")
-    link4 = read_log(REAL / "ur_ext_observer" / "link4.csv", channel_map="ur_ext_observer")
-    static = read_log(REAL / "ur_ext_observer" / "ur-static.csv",
-                      channel_map="ur_ext_observer")
-    k_cal, k_test = split(kuka)
-    u_cal, u_test = split(link4)
-    cases = {
-        "kuka": (k_cal, {"last 40 % (no contact)": k_test}),
-        "ur": (u_cal, {"link4 last 40 %": u_test, "ur-static (pushed by hand)": static}),
-    }
+    cases = dev_cases(REAL)
     print("| log | model | generator | held-back fit error (calibration part) | "
           "incidents after warm-up (per hour), before / after, test parts | |")
     print("|---|---|---|---|---|---|")
@@ -184,8 +191,7 @@ def main() -> int:
             for gen in GENERATORS:
                 print(run_case(which, kind, gen, cal, tests))
     labelled()
-    print(f"\nmachine: {platform.platform()}, {os.cpu_count()} CPUs; python "
-          f"{sys.version.split()[0]}; total {time.perf_counter() - t0:.1f} s")
+    print("\n" + machine_line(t0))
     return 0
 
 
