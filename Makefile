@@ -44,10 +44,13 @@ outputs: $(STAMP)
 	done
 
 # The tests, after the linters (ruff, mypy: 0 errors is the bar) — the README's test command.
+# TEST_WORKERS pytest processes (pytest-xdist) share the tests, each taking the next when
+# it is free; TEST_WORKERS=0 runs them in this process.
+TEST_WORKERS ?= 2
 test: $(STAMP)
 	$(BIN)/ruff check impactcli tests
 	$(BIN)/mypy impactcli
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal
 
 # Every benchmark of the README's performance section (about 10 minutes on 2 cores).
 bench: $(STAMP)
