@@ -15,6 +15,7 @@ from impactcli.config import load_config
 from impactcli.detect.incidents import (
     contact_type,
     estimate_force,
+    force_estimate,
     group_events,
     isolate,
     planar_jacobian,
@@ -214,3 +215,20 @@ def test_top_level_help_names_both_gates_of_exit_1() -> None:
     text = " ".join(r.stdout.split())
     assert ("Exit codes: 0 success; 1 events found with --fail-on-detect, or a contact force "
             "above N with detect --fail-on-force N; 2 usage error ") in text
+
+
+@pytest.mark.parametrize("link", [1, 2, 3])
+def test_the_batched_jacobian_gives_the_same_force_to_the_bit(link: int) -> None:
+    """A planar arm's Jacobians at all the strong samples at once give the force estimate,
+    its method and its lever arms of one Jacobian per sample, to the last bit (a timeline
+    does not depend on how they were computed)."""
+    rng = np.random.default_rng(link)
+    arm = planar_jacobian([0.45, 0.35, 0.2])
+    q = rng.uniform(-3.0, 3.0, (400, 3))
+    r = rng.normal(0.0, 5.0, (400, 3)) * np.hanning(400)[:, None]
+    batched = force_estimate(r, q, link, [1, 2, 3], arm)
+    def one_at_a_time(x: np.ndarray, i: int) -> np.ndarray | None:  # no .many
+        return arm(x, i)
+
+    one_by_one = force_estimate(r, q, link, [1, 2, 3], one_at_a_time)
+    assert batched == one_by_one and batched.force_n is not None and batched.force_n > 0

@@ -213,6 +213,8 @@ class FloorAccumulator:
                 if col is not None:
                     pose[c] = self.post_q[i][col]
             postures.append(pose)
+        # each posture's Jacobians once, for every detector and quantile
+        at_posture = [_remembered(jac) for _ in postures]
         for d in DETECTORS:
             for qn in QUANTILES:
                 tau: list[float | None] = [None] * len(chain)
@@ -221,7 +223,7 @@ class FloorAccumulator:
                     tau[index[j] - 1] = float(v) if math.isfinite(v) else None
                 forces = np.full((len(postures), len(chain)), np.nan)
                 for p, pose in enumerate(postures):
-                    for r in smallest_caught_force(tau, pose, jac):
+                    for r in smallest_caught_force(tau, pose, at_posture[p]):
                         if r["own_force_n"] is not None:
                             forces[p, r["link"] - 1] = r["own_force_n"]
                 over = 0.5 if qn == "median" else 0.9
@@ -279,3 +281,16 @@ def _smallest(row: dict[str, Any], key: str) -> float | None:
 
 def _approx(x: float) -> str:
     return f"{x:.2g}" if x < 100 else f"{x:.0f}"
+
+
+def _remembered(jac: JacobianFn) -> JacobianFn:
+    """``jac`` at one posture, each link's Jacobian computed once (the caller asks again at
+    the same posture for every detector and quantile)."""
+    seen: dict[int, np.ndarray | None] = {}
+
+    def at(q: np.ndarray, i: int) -> np.ndarray | None:
+        if i not in seen:
+            seen[i] = jac(q, i)
+        return seen[i]
+
+    return at

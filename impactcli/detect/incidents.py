@@ -267,24 +267,35 @@ def isolate(
 JacobianFn = Callable[[np.ndarray, int], np.ndarray | None]
 
 
-def planar_jacobian(link_lengths: Sequence[float]) -> JacobianFn:
+class PlanarJacobian:
     """(2, i) Jacobian of the end of link i of a planar serial arm: the first angle from the
     horizontal, each next one relative to the previous link (docs/formats.md,
-    "Robot description")."""
-    ll = np.asarray(link_lengths, dtype=np.float64)
+    "Robot description"). A :data:`JacobianFn`; :meth:`many` gives it at many postures at
+    once, with the same operations per posture (the same bits as one call each)."""
 
-    def jac(q: np.ndarray, i: int) -> np.ndarray | None:
-        if i < 1 or i > len(ll):
+    def __init__(self, link_lengths: Sequence[float]) -> None:
+        self.ll = np.asarray(link_lengths, dtype=np.float64)
+
+    def __call__(self, q: np.ndarray, i: int) -> np.ndarray | None:
+        got = self.many(np.asarray(q)[None, :], i)
+        return None if got is None else got[0]
+
+    def many(self, q: np.ndarray, i: int) -> np.ndarray | None:
+        """(n, 2, i) Jacobians at the (n, J) postures ``q``; None for no such link."""
+        if i < 1 or i > len(self.ll):
             return None
-        phi = np.cumsum(q[:i])
-        pts = np.zeros((i + 1, 2))
+        phi = np.cumsum(q[:, :i], axis=1)
+        pts = np.zeros((q.shape[0], i + 1, 2))
         for k in range(i):
-            pts[k + 1] = pts[k] + ll[k] * np.array([np.cos(phi[k]), np.sin(phi[k])])
-        tip = pts[i]
-        d = tip[None, :] - pts[:i]  # from each joint to the point
-        return np.stack([-d[:, 1], d[:, 0]])  # z × d: (2, i)
+            pts[:, k + 1] = pts[:, k] + self.ll[k] * np.stack(
+                (np.cos(phi[:, k]), np.sin(phi[:, k])), axis=1)
+        d = pts[:, i][:, None, :] - pts[:, :i]  # from each joint to the point
+        return np.stack((-d[:, :, 1], d[:, :, 0]), axis=1)  # z × d: (n, 2, i)
 
-    return jac
+
+def planar_jacobian(link_lengths: Sequence[float]) -> PlanarJacobian:
+    """The :class:`PlanarJacobian` of an arm with these link lengths [m]."""
+    return PlanarJacobian(link_lengths)
 
 
 @dataclass(frozen=True)
@@ -326,26 +337,33 @@ def force_estimate(
               else np.zeros(0, dtype=np.int64))
     if max_samples is not None and strong.size > max_samples:
         strong = strong[np.linspace(0, strong.size - 1, max_samples).round().astype(np.int64)]
-    for n in strong:
-        jac = jacobian(q[n], link)
+    many = getattr(jacobian, "many", None)  # every strong sample's at once, when it can
+    jacs = many(q[strong], link) if many is not None and strong.size else None
+    in_jac = [c - 1 for c in use]
+    one_equation = len(use) == 1 and link == 1
+    rows = 0  # the Jacobian's: 2 planar, 3 spatial
+    for k, n in enumerate(strong):
+        jac = jacobian(q[n], link) if jacs is None else jacs[k]
         if jac is None:
             return ForceEstimate(None, "no Jacobian for this link")
-        a = jac[:, [c - 1 for c in use]].T  # (m, d): r_m = a F
-        b = r[n, [cols[c] for c in use]]
-        if len(use) == 1 and link == 1:
+        rows = jac.shape[0]
+        a = jac[:, in_jac].T  # (m, d): r_m = a F
+        b = r[n, sel]
+        if one_equation:
             lever = float(np.linalg.norm(jac[:, 0]))
             f = abs(float(b[0])) / lever if lever > 0 else 0.0
-            method = ("force normal to link 1 at its end, from joint 1's residual (one "
-                      "equation)")
         else:
             sol, *_ = np.linalg.lstsq(a, b, rcond=RCOND)
             f = float(np.linalg.norm(sol))
-            method = (f"force at the end of link {link} explaining the residuals of joints "
-                      f"{', '.join(str(c) for c in use)} (least squares through the Jacobian"
-                      + (", minimum norm" if len(use) < a.shape[1] else "") + ")")
         arms = np.linalg.norm(a, axis=1)
         levers = {c: max(levers.get(c, 0.0), float(x)) for c, x in zip(use, arms, strict=True)}
         best = max(best, f)
+    if strong.size and one_equation:
+        method = "force normal to link 1 at its end, from joint 1's residual (one equation)"
+    elif strong.size:
+        method = (f"force at the end of link {link} explaining the residuals of joints "
+                  f"{', '.join(str(c) for c in use)} (least squares through the Jacobian"
+                  + (", minimum norm" if len(use) < rows else "") + ")")
     return ForceEstimate(best, method, levers)
 
 
