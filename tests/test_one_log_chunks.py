@@ -155,16 +155,26 @@ def _recording(path: Path, rows: int, out: Path) -> DetectionResult:
     return got
 
 
+@pytest.fixture(scope="module")
+def one_chunk_recording(tmp_path_factory: pytest.TempPathFactory
+                        ) -> tuple[DetectionResult, dict[str, Any]]:
+    """The sample log with impacts replayed in one chunk: its result and its recording's
+    rows per entity (made once for the chunk sizes compared with it)."""
+    out = tmp_path_factory.mktemp("one") / "one.rrd"
+    one = _recording(SAMPLES / "csv" / "assist_impacts.csv.gz", 10**7, out)
+    return one, rrd_rows(out, everything=True)
+
+
 @pytest.mark.parametrize("rows", [997, 4096])
-def test_chunked_rerun_holds_the_one_chunk_recordings_samples(tmp_path: Path,
-                                                              rows: int) -> None:
+def test_chunked_rerun_holds_the_one_chunk_recordings_samples(
+        tmp_path: Path, rows: int,
+        one_chunk_recording: tuple[DetectionResult, dict[str, Any]]) -> None:
     """The recording of a replay in chunks holds the same rows per entity as the one of a
     single chunk, decimated (buckets across chunk boundaries), with event windows,
     markers, lanes, events and incidents."""
-    path = SAMPLES / "csv" / "assist_impacts.csv.gz"
-    one = _recording(path, 10**7, tmp_path / "one.rrd")
-    _recording(path, rows, tmp_path / "chunks.rrd")
-    a, b = (rrd_rows(tmp_path / f"{x}.rrd", everything=True) for x in ("one", "chunks"))
+    one, a = one_chunk_recording
+    _recording(SAMPLES / "csv" / "assist_impacts.csv.gz", rows, tmp_path / "chunks.rrd")
+    b = rrd_rows(tmp_path / "chunks.rrd", everything=True)
     assert a.keys() == b.keys()
     assert one.incidents and "/incidents" in a
     decimated = [k for k, v in a.items() if "/rms" in k and not k.startswith("static")]

@@ -32,10 +32,24 @@ from .stream_invariants import (
 N = 3000
 
 
+#: Record batches of this many bytes: about 20 per 3000-row table, so that what a test
+#: plants falls across their boundaries.
+SMALL_BLOCK = 16384
+#: Batches of a few dozen rows, for the tests of what happens at their boundaries (every
+#: batch costs the scan its per-batch work: these tests are the slow ones).
+TINY_BLOCK = 4096
+
+
 @pytest.fixture(autouse=True)
 def _small_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Many record batches per file: runs and duplicates fall across their boundaries."""
-    monkeypatch.setattr(csv_reader, "BLOCK_SIZE", 4096)
+    """Many record batches per file: what a test plants falls across their boundaries."""
+    monkeypatch.setattr(csv_reader, "BLOCK_SIZE", SMALL_BLOCK)
+
+
+@pytest.fixture
+def tiny_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Batches of a few dozen rows: runs, duplicates and line ends at many boundaries."""
+    monkeypatch.setattr(csv_reader, "BLOCK_SIZE", TINY_BLOCK)
 
 
 def _table(n: int = N, seed: int = 0, epoch: bool = False) -> dict[str, list[str]]:
@@ -104,7 +118,8 @@ def _punch(cols: dict[str, list[str]], rng: np.random.Generator, what: str, n_ru
         cols[col][s:s + length] = [what] * length
 
 
-def test_non_finite_runs_and_duplicates_across_batches(tmp_path: Path) -> None:
+def test_non_finite_runs_and_duplicates_across_batches(tmp_path: Path,
+                                                        tiny_blocks: None) -> None:
     rng = np.random.default_rng(5)
     cols = _table()
     _punch(cols, rng, "", 60)
@@ -240,7 +255,8 @@ def test_errors_name_the_cell_as_read_log_does(tmp_path: Path) -> None:
     assert "not a finite number" in _bad(tmp_path, _set("time", 1500, "nan"))
 
 
-def test_the_first_error_is_the_files_first_in_order(tmp_path: Path) -> None:
+def test_the_first_error_is_the_files_first_in_order(tmp_path: Path,
+                                                      tiny_blocks: None) -> None:
     # a value too large early, rows out of order late: the order is checked first
     def both(cols: dict[str, list[str]]) -> None:
         cols["j1.torque"][10] = "5e12"
@@ -461,7 +477,8 @@ def test_the_cache_is_deleted_with_the_scan_and_on_errors(
 
 
 @pytest.mark.parametrize("end", ["\r\n", "\r"])
-def test_line_ends_across_the_parsed_ranges(tmp_path: Path, end: str) -> None:
+def test_line_ends_across_the_parsed_ranges(tmp_path: Path, end: str,
+                                            tiny_blocks: None) -> None:
     """The text is cut into ranges at line ends (io/csv.py, 4 KiB here): with
     CRLF and CR-only lines the rows are read_log's."""
     cols = _table()
