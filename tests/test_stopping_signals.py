@@ -11,6 +11,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -178,10 +179,12 @@ def test_kill_9_of_a_pool_batch_leaves_no_process(
 
 
 def test_a_rerun_after_a_kill_gives_a_clean_runs_timelines(
-        logs: list[Path], tmp_path: Path, reaper: list[subprocess.Popen[str]]) -> None:
-    """Killed mid-batch (kill -9: nothing of it runs, its temporary files stay), then the
-    same command into the same folder: every log redone, the killed run's ``.part`` files
-    gone, the timelines those of a clean run byte for byte."""
+        logs: list[Path], tmp_path: Path, reaper: list[subprocess.Popen[str]],
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Killed mid-batch (kill -9: nothing of it runs, its temporary files stay in its
+    TMPDIR), then the same command into the same folder: every log redone, the killed run's
+    ``.part`` files gone, nothing of the rerun left in its own TMPDIR, the timelines those
+    of a clean run byte for byte."""
     from click.testing import CliRunner
 
     from impactcli.cli import main
@@ -198,10 +201,13 @@ def test_a_rerun_after_a_kill_gives_a_clean_runs_timelines(
     # what a writer killed mid-file leaves (planted too: the kill may fall between files)
     stale = out / f".l00.timeline.json.{proc.pid}-0badc0de.part"
     stale.write_text('{"half": ', encoding="utf-8")
+    rerun_tmp = tmp_path / "rerun-tmp"  # the killed run's TMPDIR keeps what kill -9 left
+    rerun_tmp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(rerun_tmp))
     r = CliRunner().invoke(main, ["detect", *map(str, batch), "--config", str(CONFIG),
                                   "-o", str(out), *args])
     assert r.exit_code == 0, r.stderr
-    assert _check_outputs(out, tmpdir, extras=True) == len(batch)
+    assert _check_outputs(out, rerun_tmp, extras=True) == len(batch)
     clean = tmp_path / "clean"
     r = CliRunner().invoke(main, ["detect", *map(str, batch), "--config", str(CONFIG),
                                   "-o", str(clean)])
