@@ -18,7 +18,10 @@ from impactcli.detect.incidents import (
     force_estimate,
     group_events,
     isolate,
+    lstsq_many,
+    own_levers,
     planar_jacobian,
+    smallest_caught_force,
 )
 from impactcli.logs import read_log
 from impactcli.logs.robot_files import read_labels
@@ -207,6 +210,12 @@ def test_urdf_link_end_jacobian_matches_finite_differences() -> None:
     # 4 equations, 3 unknowns: recovered unless a direction is near-singular (then less)
     assert f == pytest.approx(25.0, rel=0.05) or f < 25.0
     assert "end of link 4" in method
+    # one kinematics pass serves every link at a posture: whatever was asked before, a
+    # link's Jacobian is that of a fresh function, to the bit
+    q2 = q[::-1].copy()
+    for i, x in ((3, q2), (7, q), (2, q2), (2, q), (5, q)):
+        fresh = urdf_link_end_jacobian(structure, joints)(x, i)
+        assert jac(x, i).tobytes() == fresh.tobytes(), i
 
 
 def test_top_level_help_names_both_gates_of_exit_1() -> None:
@@ -232,3 +241,38 @@ def test_the_batched_jacobian_gives_the_same_force_to_the_bit(link: int) -> None
 
     one_by_one = force_estimate(r, q, link, [1, 2, 3], one_at_a_time)
     assert batched == one_by_one and batched.force_n is not None and batched.force_n > 0
+
+
+def test_least_squares_of_many_systems_is_lstsq_of_each_to_the_bit() -> None:
+    """The force estimate solves all its samples' systems at once: each solution has the
+    bits of np.linalg.lstsq on that system alone, well posed, nearly rank-deficient (the
+    cut of RCOND acting) or tiny."""
+    rng = np.random.default_rng(7)
+    for trial in range(60):
+        n, m, d = int(rng.integers(1, 40)), int(rng.integers(1, 5)), int(rng.integers(2, 4))
+        a = rng.standard_normal((n, m, d))
+        if trial % 3 == 0:  # two nearly parallel columns
+            a[:, :, -1] = a[:, :, 0] * (1 + 1e-9 * rng.standard_normal((n, m)))
+        if trial % 5 == 0:
+            a[: n // 2] *= 1e-6
+        b = rng.standard_normal((n, m)) * 10 ** rng.uniform(-3, 3)
+        got = lstsq_many(a, b, 0.1)
+        want = np.array([np.linalg.lstsq(a[k], b[k], rcond=0.1)[0] for k in range(n)])
+        assert got.tobytes() == want.tobytes(), (n, m, d)
+
+
+def test_the_floors_lever_arms_are_the_caught_force_ones() -> None:
+    """own_levers (the detection floor's link forces) gives, at every posture, the lever
+    arm smallest_caught_force divides by, to the bit; NaN for a link without a Jacobian."""
+    rng = np.random.default_rng(3)
+    arm = planar_jacobian([0.45, 0.35, 0.2])
+    q = rng.uniform(-3.0, 3.0, (50, 3))
+    got = own_levers(q, 3, arm)
+    want = [[row["lever_m"] for row in smallest_caught_force([1.0] * 3, x, arm)] for x in q]
+    assert got.tobytes() == np.array(want).tobytes()
+
+    def two_links(x: np.ndarray, i: int) -> np.ndarray | None:  # no .many, no link 3
+        return arm(x, i) if i < 3 else None
+
+    part = own_levers(q, 3, two_links)
+    assert part[:, :2].tobytes() == got[:, :2].tobytes() and np.isnan(part[:, 2]).all()

@@ -20,7 +20,7 @@ run states its median and its worst tenth (the 90th percentile), from log-spaced
 histograms (bounded memory; each quantile is its bin's LOWER edge, within 5 % below the
 true one — "below ~X not seen" stays true). With a link-end Jacobian, the floor of
 joint i becomes a force at the end of link i (the direction that turns joint i most:
-force = tau / |J_i|, :func:`impactcli.detect.incidents.smallest_caught_force`) over up to
+force = tau / |J_i|, :func:`impactcli.detect.incidents.own_levers`) over up to
 :data:`MAX_POSTURES` postures spread along the log: the median force with the median
 torque, and the worst tenth over postures with the worst-tenth torque.
 """
@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from .incidents import JacobianFn, smallest_caught_force
+from .incidents import JacobianFn, own_levers
 
 #: The adaptive detector's reference contact: a half-sine of this duration [s].
 HALF_SINE_S = 0.1
@@ -206,26 +206,19 @@ class FloorAccumulator:
         if jac is None or chain is None or index is None or chain_cols is None or not keep:
             return out
         links: list[dict[str, Any]] = []
-        postures = []
-        for i in keep:
-            pose = np.zeros(len(chain))
+        postures = np.zeros((len(keep), len(chain)))
+        for p, i in enumerate(keep):
             for c, col in enumerate(chain_cols):
                 if col is not None:
-                    pose[c] = self.post_q[i][col]
-            postures.append(pose)
-        # each posture's Jacobians once, for every detector and quantile
-        at_posture = [_remembered(jac) for _ in postures]
+                    postures[p, c] = self.post_q[i][col]
+        levers = own_levers(postures, len(chain), jac)  # once, for every detector and quantile
         for d in DETECTORS:
             for qn in QUANTILES:
-                tau: list[float | None] = [None] * len(chain)
+                forces = np.full((len(postures), len(chain)), np.nan)
                 for j in range(self.J):
                     v = torque[d][qn][j]
-                    tau[index[j] - 1] = float(v) if math.isfinite(v) else None
-                forces = np.full((len(postures), len(chain)), np.nan)
-                for p, pose in enumerate(postures):
-                    for r in smallest_caught_force(tau, pose, at_posture[p]):
-                        if r["own_force_n"] is not None:
-                            forces[p, r["link"] - 1] = r["own_force_n"]
+                    if math.isfinite(v):  # the force that reaches joint j's own threshold
+                        forces[:, index[j] - 1] = float(v) / levers[:, index[j] - 1]
                 over = 0.5 if qn == "median" else 0.9
                 for c in range(len(chain)):
                     col = forces[:, c][np.isfinite(forces[:, c])]
@@ -281,16 +274,3 @@ def _smallest(row: dict[str, Any], key: str) -> float | None:
 
 def _approx(x: float) -> str:
     return f"{x:.2g}" if x < 100 else f"{x:.0f}"
-
-
-def _remembered(jac: JacobianFn) -> JacobianFn:
-    """``jac`` at one posture, each link's Jacobian computed once (the caller asks again at
-    the same posture for every detector and quantile)."""
-    seen: dict[int, np.ndarray | None] = {}
-
-    def at(q: np.ndarray, i: int) -> np.ndarray | None:
-        if i not in seen:
-            seen[i] = jac(q, i)
-        return seen[i]
-
-    return at

@@ -42,6 +42,12 @@ from ..types import Event
 from .events import LONG_EVENT_S
 from .link_evidence import decide_link
 
+try:  # numpy's stacked least-squares kernel, behind np.linalg.lstsq (lstsq_many)
+    from numpy.linalg import _umath_linalg
+    _LSTSQ: Any = _umath_linalg.lstsq
+except (ImportError, AttributeError):  # pragma: no cover - another numpy
+    _LSTSQ = None
+
 #: The product's detectors (what incidents are made of).
 PRODUCT_DETECTORS: tuple[str, ...] = ("adaptive", "static_loading")
 #: Two product events whose gap the static-loading statistic bridges at this fraction of
@@ -309,6 +315,30 @@ class ForceEstimate:
     levers: dict[int, float] = field(default_factory=dict)
 
 
+def lstsq_many(a: np.ndarray, b: np.ndarray, rcond: float) -> np.ndarray:
+    """(n, d) least-squares solutions of the n systems a[k] x = b[k] ((n, m, d), (n, m)),
+    minimum norm, singular values below ``rcond`` × the largest cut: the same bits as one
+    ``np.linalg.lstsq(a[k], b[k], rcond=rcond)`` each. It runs numpy's stacked kernel, the
+    one np.linalg.lstsq calls for a single matrix, over all n at once (one LAPACK gelsd
+    per system, without numpy's per-call overhead); without that kernel, a loop."""
+    n, m, d = a.shape
+    if _LSTSQ is None or n == 0 or m == 0:
+        out = np.zeros((n, d))
+        for k in range(n):
+            out[k] = np.linalg.lstsq(a[k], b[k], rcond=rcond)[0] if m else 0.0
+        return out
+
+    def failed(*_: object) -> None:
+        raise np.linalg.LinAlgError("SVD did not converge in Linear Least Squares")
+
+    with np.errstate(call=failed, invalid="call", over="ignore", divide="ignore",
+                     under="ignore"):
+        x, *_ = _LSTSQ(np.asarray(a, dtype=np.float64),
+                       np.asarray(b, dtype=np.float64)[..., None], rcond,
+                       signature="ddd->ddid")
+    return np.array(x[..., 0], dtype=np.float64)
+
+
 def force_estimate(
     r: np.ndarray, q: np.ndarray, link: int, chain_index: Sequence[int],
     jacobian: JacobianFn, max_samples: int | None = None,
@@ -337,27 +367,31 @@ def force_estimate(
               else np.zeros(0, dtype=np.int64))
     if max_samples is not None and strong.size > max_samples:
         strong = strong[np.linspace(0, strong.size - 1, max_samples).round().astype(np.int64)]
-    many = getattr(jacobian, "many", None)  # every strong sample's at once, when it can
-    jacs = many(q[strong], link) if many is not None and strong.size else None
     in_jac = [c - 1 for c in use]
     one_equation = len(use) == 1 and link == 1
     rows = 0  # the Jacobian's: 2 planar, 3 spatial
-    for k, n in enumerate(strong):
-        jac = jacobian(q[n], link) if jacs is None else jacs[k]
-        if jac is None:
-            return ForceEstimate(None, "no Jacobian for this link")
-        rows = jac.shape[0]
-        a = jac[:, in_jac].T  # (m, d): r_m = a F
-        b = r[n, sel]
-        if one_equation:
-            lever = float(np.linalg.norm(jac[:, 0]))
-            f = abs(float(b[0])) / lever if lever > 0 else 0.0
-        else:
-            sol, *_ = np.linalg.lstsq(a, b, rcond=RCOND)
-            f = float(np.linalg.norm(sol))
-        arms = np.linalg.norm(a, axis=1)
-        levers = {c: max(levers.get(c, 0.0), float(x)) for c, x in zip(use, arms, strict=True)}
-        best = max(best, f)
+    if strong.size:
+        many = getattr(jacobian, "many", None)  # every strong sample's at once, when it can
+        jacs = many(q[strong], link) if many is not None else None
+        if jacs is None:
+            each = [jacobian(q[n], link) for n in strong]
+            if any(j is None for j in each):
+                return ForceEstimate(None, "no Jacobian for this link")
+            jacs = np.stack([j for j in each if j is not None])
+        rows = jacs.shape[1]
+        a = jacs[:, :, in_jac].transpose(0, 2, 1)  # (n, m, d): r_m = a F at each sample
+        b = r[strong][:, sel]
+        sols = None if one_equation else lstsq_many(a, b, RCOND)
+        for k in range(strong.size):
+            if sols is None:
+                lever = float(np.linalg.norm(jacs[k][:, 0]))
+                f = abs(float(b[k, 0])) / lever if lever > 0 else 0.0
+            else:
+                f = float(np.linalg.norm(sols[k]))
+            arms = np.linalg.norm(a[k], axis=1)
+            levers = {c: max(levers.get(c, 0.0), float(x))
+                      for c, x in zip(use, arms, strict=True)}
+            best = max(best, f)
     if strong.size and one_equation:
         method = "force normal to link 1 at its end, from joint 1's residual (one equation)"
     elif strong.size:
@@ -396,6 +430,31 @@ def contact_type(
     return "transient"
 
 
+def own_lever(jac: np.ndarray, i: int) -> float:
+    """|J_i|: joint i's lever arm to the end of link i [m], from that link's (rows, i)
+    Jacobian ``jac`` (the distance from joint i to the link's end in a planar arm)."""
+    return float(np.linalg.norm(jac[:, i - 1]))
+
+
+def own_levers(postures: np.ndarray, n_links: int, jacobian: JacobianFn) -> np.ndarray:
+    """(P, n_links) :func:`own_lever` of every link at each of the (P, J_chain) postures,
+    NaN where the link has no Jacobian or a zero lever: what
+    :func:`smallest_caught_force`'s ``own_force_n`` divides by, the same bits. Each
+    link's Jacobians come at once when ``jacobian`` has a ``many``."""
+    out = np.full((len(postures), n_links), np.nan)
+    many = getattr(jacobian, "many", None)
+    for i in range(1, n_links + 1):
+        jacs = many(postures, i) if many is not None and len(postures) else None
+        for p in range(len(postures)):
+            jac = jacobian(postures[p], i) if jacs is None else jacs[p]
+            if jac is None:
+                continue
+            lever = own_lever(jac, i)
+            if lever > 0:
+                out[p, i - 1] = lever
+    return out
+
+
 def smallest_caught_force(
     vl: Sequence[float | None], q: np.ndarray, jacobian: JacobianFn,
 ) -> list[dict[str, Any]]:
@@ -431,7 +490,7 @@ def smallest_caught_force(
         if jac is None:
             out.append(row)
             continue
-        lever = float(np.linalg.norm(jac[:, i - 1]))
+        lever = own_lever(jac, i)
         row["lever_m"] = lever
         if lever <= 0:
             out.append(row)

@@ -39,30 +39,36 @@ def urdf_link_end_jacobian(
             tip_frame = model.getFrameId(e.tip, pin.FrameType.BODY)
     last_frames = [k for k, f in enumerate(model.frames) if f.parentJoint == ids[-1]]
 
+    last: dict[str, Any] = {}  # the posture asked last: every link at it costs one pass
+
+    def at(q: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
+        """The world-frame joint Jacobians and each link's end point at posture ``q``."""
+        key = np.asarray(q, dtype=np.float64).tobytes()
+        if last.get("key") != key:
+            x = pin.neutral(model)
+            for k, iq in enumerate(idx_q):
+                if nq[k] == 1:
+                    x[iq] = q[k]
+                else:  # a continuous joint: (cos, sin)
+                    x[iq], x[iq + 1] = np.cos(q[k]), np.sin(q[k])
+            pin.forwardKinematics(model, data, x)
+            pin.updateFramePlacements(model, data)
+            full = np.array(pin.computeJointJacobians(model, data, x))
+            ends = [np.array(data.oMi[ids[i]].translation) for i in range(1, len(ids))]
+            if tip_frame is not None:
+                ends.append(np.array(data.oMf[tip_frame].translation))
+            else:
+                o = np.array(data.oMi[ids[-1]].translation)
+                cands = [np.array(data.oMf[k].translation) for k in last_frames] or [o]
+                ends.append(max(cands, key=lambda c: float(np.linalg.norm(c - o))))
+            last.update(key=key, full=full, ends=ends)
+        return last["full"], last["ends"]
+
     def jac(q: np.ndarray, i: int) -> np.ndarray | None:
         if i < 1 or i > len(ids):
             return None
-        x = pin.neutral(model)
-        for k, iq in enumerate(idx_q):
-            if nq[k] == 1:
-                x[iq] = q[k]
-            else:  # a continuous joint: (cos, sin)
-                x[iq], x[iq + 1] = np.cos(q[k]), np.sin(q[k])
-        pin.forwardKinematics(model, data, x)
-        pin.updateFramePlacements(model, data)
-        full = pin.computeJointJacobians(model, data, x)
-        if i < len(ids):
-            p = np.array(data.oMi[ids[i]].translation)
-        elif tip_frame is not None:
-            p = np.array(data.oMf[tip_frame].translation)
-        else:
-            o = np.array(data.oMi[ids[-1]].translation)
-            cands = [np.array(data.oMf[k].translation) for k in last_frames] or [o]
-            p = max(cands, key=lambda c: float(np.linalg.norm(c - o)))
-        cols = []
-        for k in range(i):
-            col = full[:, idx_v[k]]
-            cols.append(col[:3] + np.cross(col[3:], p))
-        return np.column_stack(cols)
+        full, ends = at(q)
+        cols = full[:, idx_v[:i]]  # (6, i): linear over angular velocity of joints 1..i
+        return cols[:3] + np.cross(cols[3:].T, ends[i - 1]).T  # v + ω × p, column by column
 
     return jac
