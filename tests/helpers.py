@@ -63,19 +63,52 @@ def csv_with_gap(src: Path, dst: Path, drop: slice) -> int:
     return int(drop.start)
 
 
-def rrd_rows(path: Path, *, everything: bool = False) -> dict[str, list[tuple[str, ...]]]:
+def _cells(col: Any) -> list[Any]:
+    """Each row of an Arrow array as a value that tells any two rows apart: integers for
+    fixed-width numbers (a float's bits, so that NaN equals NaN), tuples of those for
+    lists, Python values otherwise; None for a null."""
+    import numpy as np
+    import pyarrow as pa
+
+    t = col.type
+    if pa.types.is_list(t) or pa.types.is_large_list(t):
+        inner = _cells(col.values)
+        offs = col.offsets.to_numpy().tolist()
+        nulls = col.is_null().to_numpy(zero_copy_only=False).tolist()
+        return [None if nulls[i] else tuple(inner[offs[i]:offs[i + 1]])
+                for i in range(len(col))]
+    if pa.types.is_timestamp(t) or pa.types.is_duration(t):
+        col = col.cast(pa.int64())
+        t = col.type
+    if col.null_count == 0 and (pa.types.is_integer(t) or pa.types.is_floating(t)):
+        v = col.to_numpy()
+        if v.dtype.kind == "f":
+            v = v.view(np.int64 if v.itemsize == 8 else np.int32)
+        return v.tolist()
+    return col.to_pylist()
+
+
+def rrd_rows(path: Path, *, everything: bool = False) -> dict[str, list[tuple[Any, ...]]]:
     """Every entity's rows in a Rerun recording (static ones apart, named ``static …``),
-    each row the repr of its values, sorted: what a recording holds, whatever its chunks.
-    The blueprint's and the recording's properties (its start time) are left out unless
-    ``everything``."""
+    each row its values in column order (:func:`_cells`: floats by their bits), sorted:
+    what a recording holds, whatever its chunks. The blueprint's and the recording's
+    properties (its start time) are left out unless ``everything``."""
     import rerun as rr
 
-    out: dict[str, list[tuple[str, ...]]] = {}
+    out: dict[str, list[tuple[Any, ...]]] = {}
     for ch in rr.chunk.RrdReader(path).store().stream():
-        cols = ch.to_record_batch().to_pydict()
-        names = sorted(k for k in cols if "rowid" not in k.lower().replace("_", ""))
+        batch = ch.to_record_batch()
+        names = sorted(k for k in batch.schema.names
+                       if "rowid" not in k.lower().replace("_", ""))
         rows = out.setdefault(("static " if ch.is_static else "") + ch.entity_path, [])
-        for i in range(len(cols[names[0]]) if names else 0):
-            rows.append(tuple(repr(cols[k][i]) for k in names))
-    return {k: sorted(v) for k, v in out.items()
+        cols = [_cells(batch.column(k)) for k in names]
+        rows.extend(zip(*cols, strict=True) if cols else [])
+    return {k: _sorted(v) for k, v in out.items()
             if everything or not (k.startswith("static /__properties") or "blueprint" in k)}
+
+
+def _sorted(rows: list[tuple[Any, ...]]) -> list[tuple[Any, ...]]:
+    try:
+        return sorted(rows)
+    except TypeError:  # a null beside a value in one column
+        return sorted(rows, key=repr)

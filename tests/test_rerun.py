@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pyarrow as pa
 import pytest
 
 from impactcli.outputs.rerun_blueprint import ELAPSED_TIMELINE, LOG_TIMELINE
@@ -32,18 +33,37 @@ def strict_rerun() -> Iterator[None]:
     rr.set_strict_mode(old)
 
 
+def test_rows_tell_recordings_apart(tmp_path: Path) -> None:
+    """rrd_rows, what the chunking tests compare: the same run gives the same rows (a NaN
+    sample equal to itself), one sample changed by one bit does not."""
+    res = fake_result(n=600)
+    res.signals["threshold"][100, 0] = np.nan
+    for name in ("a", "b"):
+        write_rrd(res, tmp_path / f"{name}.rrd", rows=97, max_points=10_000)
+    a = rrd_rows(tmp_path / "a.rrd")
+    assert a == rrd_rows(tmp_path / "b.rrd")
+    res.signals["threshold"][300, 1] = np.nextafter(0.3, 1.0)
+    write_rrd(res, tmp_path / "c.rrd", rows=97, max_points=10_000)
+    c = rrd_rows(tmp_path / "c.rrd")
+    assert a.keys() == c.keys()
+    assert [k for k in a if a[k] != c[k]] == ["/joints/j2/rms"]  # statistic and threshold
+
+
 def read_entities(path: Path) -> dict[str, dict[str, list[Any]]]:
-    """Non-static rows per entity: column name → values (chunks concatenated, time-sorted)."""
+    """Non-static rows per entity: column name → values (chunks concatenated, time-sorted;
+    the timelines as integer nanoseconds)."""
     out: dict[str, dict[str, list[Any]]] = {}
     for ch in rr.chunk.RrdReader(path).store().stream():
         if ch.is_static:
             continue
-        cols = ch.to_record_batch().to_pydict()
+        batch = ch.to_record_batch()
         dst = out.setdefault(ch.entity_path, {})
-        for name, values in cols.items():
-            dst.setdefault(name, []).extend(values)
+        for name, col in zip(batch.schema.names, batch.columns, strict=True):
+            timeline = pa.types.is_timestamp(col.type) or pa.types.is_duration(col.type)
+            values = col.cast(pa.int64()) if timeline else col  # the timelines in ns
+            dst.setdefault(name, []).extend(values.to_pylist())
     for cols in out.values():
-        order = np.argsort(np.array([int(v.value) for v in cols[ELAPSED_TIMELINE]]), kind="stable")
+        order = np.argsort(np.array(cols[ELAPSED_TIMELINE]), kind="stable")
         for name in cols:
             cols[name] = [cols[name][i] for i in order]
     return out
@@ -54,7 +74,7 @@ def static_entities(path: Path) -> set[str]:
 
 
 def elapsed_ns(cols: dict[str, list[Any]]) -> np.ndarray:
-    return np.array([int(v.value) for v in cols[ELAPSED_TIMELINE]], dtype=np.int64)
+    return np.array(cols[ELAPSED_TIMELINE], dtype=np.int64)
 
 
 def scalars(cols: dict[str, list[Any]]) -> np.ndarray:
@@ -83,7 +103,7 @@ def test_series_are_full_length_on_both_timelines(written: tuple[DetectionResult
     for j, joint in enumerate(res.log.joint_names):
         rms = ent[f"/joints/{joint}/rms"]
         np.testing.assert_array_equal(elapsed_ns(rms), t_ns - t_ns[0])
-        log_clock = np.array([int(v.value) for v in rms[LOG_TIMELINE]], dtype=np.int64)
+        log_clock = np.array(rms[LOG_TIMELINE], dtype=np.int64)
         np.testing.assert_array_equal(log_clock, t_ns)
         m = scalars(rms)
         assert m.shape == (n, 2)
