@@ -32,6 +32,7 @@ from impactcli.schema import validate
 from impactcli.types import Event
 
 from .cli_run import invoke
+from .isolation_cases import link2_at_35, raised
 
 REPO = Path(__file__).resolve().parents[1]
 CSV = REPO / "sample_logs" / "csv"
@@ -254,11 +255,6 @@ def test_link2_at_35_percent_is_put_on_link2(tmp_path: Path) -> None:
     its length during frequency-modulated triangles, with joint 2's thresholds set high by
     its calibration (tripled: its detectors stay silent) — the link from which detector
     fired put 2 of the 12 on link 2; the residuals against their own noise put ≥ 10."""
-    import sys
-
-    sys.path.insert(0, str(REPO / "tests" / "benchmarks"))
-    from isolation_quality import link2_at_35, raised
-
     from impactcli.config import load_config
     from impactcli.sim import scenario, simulate
 

@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the shared isolation case
 
 from incident_quality import every_link_clamps, every_link_pushes
 
@@ -50,6 +51,7 @@ from impactcli.run.calibration import calibrate
 from impactcli.run.collect import detect_in_memory
 from impactcli.sim import scenario, simulate
 from impactcli.sim.contacts import Push
+from tests.isolation_cases import link2_at_35, raised
 
 MATCH = (0.02, 0.25)  # an incident starting within [start - 0.02, end + 0.25] s
 
@@ -74,16 +76,6 @@ class Score:
                 f"{self.ambiguous}")
 
 
-def link2_at_35(arm: str) -> object:
-    """12 pushes on link 2 at 35 % of its length during frequency-modulated triangles."""
-    scale = 1.0 if arm == "assist_like" else 3.0
-    ps = tuple(Push(link=2, t0_s=8.0 + 4.0 * k,
-                    peak_n=scale * (10.0, 15.0, 20.0, 25.0, 30.0, 40.0)[k % 6],
-                    duration_s=(0.03, 0.1, 0.2)[k % 3], point=0.35,
-                    direction_deg=-90.0 if k % 2 else 90.0) for k in range(12))
-    return replace(scenario("free_fm_triangle", arm, 60.0), pushes=ps)
-
-
 def random_pushes(arm: str, seed: int) -> object:
     """12 pushes on random links, points, durations and directions (fm triangles)."""
     rng = np.random.default_rng(seed)
@@ -96,14 +88,6 @@ def random_pushes(arm: str, seed: int) -> object:
                     direction_deg=float(rng.choice([-90.0, 90.0, 0.0, 180.0, -45.0, 135.0])))
                for k in range(12))
     return replace(scenario("free_fm_triangle", arm, 60.0), pushes=ps)
-
-
-def raised(cfg: DetectorConfig, joint: str, factor: float) -> DetectorConfig:
-    """``cfg`` with ``joint``'s three thresholds times ``factor``."""
-    th = cfg.thresholds
-    up = {k: {**getattr(th, k), joint: getattr(th, k)[joint] * factor}
-          for k in ("v_stat", "v0", "vL")}
-    return replace(cfg, thresholds=replace(th, **up))
 
 
 def score(res: object, labels: object) -> Score:
