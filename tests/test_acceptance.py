@@ -2,7 +2,8 @@
 
 Thresholds: ``sample_logs/assist_like.config.toml`` — ``impactcli calibrate`` on the
 collision-free triangle, point-to-point and multi-sine logs (leave-one-out margins; the
-motion families of the contact logs). Criteria, ASSIST-like arm at 4 ms sampling:
+motion families of the contact logs; that calibrate makes it today, to the bit:
+tests/test_calibrate_rate.py). Criteria, ASSIST-like arm at 4 ms sampling:
 no product alarm between contacts after warm-up; every elastomer impact of ≥ 20 N caught
 by the product (adaptive OR static_loading) within 80 ms of onset; every push of ≥ 20 N
 while it lasts; every clamping ramp of ≥ 20 N by static_loading; the unknown-payload log
@@ -57,15 +58,6 @@ def test_committed_config_belongs_to_the_committed_free_logs(arm: str) -> None:
     for lg, name in zip(cal.logs, sq.CALIBRATION_LOGS[arm], strict=True):
         digest = hashlib.sha256(sq.log_path(name).read_bytes()).hexdigest()
         assert lg.sha256 == digest, f"{name} changed since the config was calibrated"
-
-
-def test_assist_config_is_what_calibrate_makes_today(config: DetectorConfig) -> None:
-    fresh = sq.calibrate_on(sq.CALIBRATION_LOGS[ASSIST])
-    for kind in ("v_stat", "vL", "v0"):
-        got, want = getattr(fresh.thresholds, kind), getattr(config.thresholds, kind)
-        assert got.keys() == want.keys()
-        for j in want:
-            assert got[j] == pytest.approx(want[j], rel=1e-6), (kind, j)
 
 
 @pytest.mark.parametrize("name", sq.CALIBRATION_LOGS[ASSIST])

@@ -8,6 +8,7 @@ count too)."""
 from __future__ import annotations
 
 import ast
+import functools
 import re
 from collections import defaultdict
 from pathlib import Path
@@ -73,7 +74,10 @@ def _imports(name: str, path: Path) -> list[tuple[str, str, int]]:
     return out
 
 
-EDGES = {m: _imports(m, p) for m, p in MODULES.items()}
+@functools.cache
+def edges() -> dict[str, list[tuple[str, str, int]]]:
+    """Every module's imports of impactcli (parsed once, when a test first asks)."""
+    return {m: _imports(m, p) for m, p in MODULES.items()}
 
 
 def _unit(mod: str) -> str:
@@ -99,13 +103,13 @@ def test_every_module_is_in_a_layer() -> None:
 
 def test_imports_go_down_the_layers_only() -> None:
     bad = [f"{MODULES[a].relative_to(ROOT)}:{line} imports {b}"
-           for a, rows in EDGES.items() for b, _, line in rows
+           for a, rows in edges().items() for b, _, line in rows
            if _layer(b) > _layer(a) or (_unit(a), _unit(b)) in APART]
     assert not bad, "\n".join(bad)
 
 
 def test_no_import_cycle() -> None:
-    graph = {a: {b for b, _, _ in rows if b in MODULES and b != a} for a, rows in EDGES.items()}
+    graph = {a: {b for b, _, _ in rows if b in MODULES and b != a} for a, rows in edges().items()}
     index: dict[str, int] = {}
     low: dict[str, int] = {}
     stack: list[str] = []
@@ -145,7 +149,7 @@ def _private(name: str) -> bool:
 
 def test_no_private_name_crosses_a_module() -> None:
     bad = [f"{MODULES[a].relative_to(ROOT)}:{line} imports {b}.{n}"
-           for a, rows in EDGES.items() for b, n, line in rows
+           for a, rows in edges().items() for b, n, line in rows
            if b != a and (_private(n) or _private(b.rsplit(".", 1)[-1]))]
     assert not bad, "\n".join(bad)
 
@@ -181,7 +185,7 @@ def test_model_detect_and_quality_never_open_a_file() -> None:
 
 def test_no_cli_verb_imports_another_verbs_logic() -> None:
     bad = [f"{MODULES[a].relative_to(ROOT)}:{line} imports {b}"
-           for a, rows in EDGES.items() if _unit(a) == "impactcli.cli"
+           for a, rows in edges().items() if _unit(a) == "impactcli.cli"
            for b, _, line in rows
            if _unit(b) == "impactcli.cli" and b != a and b not in CLI_SHARED
            and a != "impactcli.cli"]

@@ -183,7 +183,7 @@ def test_sixty_joints_identify_in_bounded_memory(tmp_path: Path) -> None:
     import subprocess
     import sys
 
-    log = _many_joints_csv(tmp_path / "j60.csv", 60, 2000)
+    log = _many_joints_csv(tmp_path / "j60.csv", 60, 800)  # its coupled regressor: 6.5 GiB
     code = ("import resource, sys; resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30)); "
             "from impactcli.cli import main; sys.argv = sys.argv[1:]; main()")
     p = subprocess.run([sys.executable, "-c", code, "impactcli", "identify", str(log),

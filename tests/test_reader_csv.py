@@ -5,6 +5,7 @@ in the scan with one message naming the cell."""
 
 from __future__ import annotations
 
+import functools
 import gzip
 import json
 import warnings
@@ -54,7 +55,12 @@ def tiny_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
 
 def _table(n: int = N, seed: int = 0, epoch: bool = False) -> dict[str, list[str]]:
     """A 3-joint canonical CSV as text columns: time (jittery), position, torque,
-    references, a controller torque."""
+    references, a controller torque (a fresh copy: the tests edit it)."""
+    return {k: list(v) for k, v in _made_table(n, seed, epoch).items()}
+
+
+@functools.cache
+def _made_table(n: int, seed: int, epoch: bool) -> dict[str, tuple[str, ...]]:
     rng = np.random.default_rng(seed)
     t_ns = np.cumsum(rng.integers(990_000, 1_010_000, n)) + (1_714_567_890 * 10**9 if epoch else 0)
     t_ns[n // 3:] += 40_000_000  # a gap
@@ -67,7 +73,7 @@ def _table(n: int = N, seed: int = 0, epoch: bool = False) -> dict[str, list[str
         cols[f"{j}.position_ref"] = [repr(float(v)) for v in q + 1e-4]
         cols[f"{j}.torque_model"] = [repr(float(v)) for v in rng.normal(0, 5, n)]
     cols["note"] = ["x"] * n
-    return cols
+    return {k: tuple(v) for k, v in cols.items()}
 
 
 def _write(path: Path, cols: dict[str, list[str]], sep: str = ",") -> Path:

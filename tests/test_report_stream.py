@@ -44,22 +44,38 @@ def _without_ratios(col: ReportCollector) -> Any:
     return feed
 
 
-def _streamed(path: Path, cfg: Path, rows: int, plots: bool = True, ratios: bool = True):
-    """(result, samples) of the replay in chunks of ``rows``; the chunks carry their
-    ratios (as the run computes them) unless ``ratios`` is False."""
+def _streamed_to(path: Path, cfg: Path, rows: int,
+                 kinds: tuple[tuple[bool, bool], ...]) -> tuple[Any, list[Any]]:
+    """(result, [samples]) of one replay in chunks of ``rows``, its chunks handed to one
+    collector per (plots, ratios) kind: with or without the plots' envelopes, and with
+    the ratios the run computed or without them (the collector rebuilds them)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         scan = scan_log(str(path))
         try:
-            col = ReportCollector(scan.n_samples, scan.gaps, scan.gap_lengths_s, plots=plots)
+            cols = [ReportCollector(scan.n_samples, scan.gaps, scan.gap_lengths_s, plots=plots)
+                    for plots, _ in kinds]
         finally:
             if hasattr(scan, "close"):
                 scan.close()
-        feed = col if ratios else _without_ratios(col)
+        feeds = [col if ratios else _without_ratios(col)
+                 for col, (_, ratios) in zip(cols, kinds, strict=True)]
+
+        def feed(c: Any) -> None:
+            for f in feeds:
+                f(c)
+
         with open_log(path) as reader:
             result = detect_log(reader, RunSetup(config=load_config(cfg), chunk_rows=rows),
                                 on_chunk=feed)
-        return result, col.finish(result)
+        return result, [col.finish(result) for col in cols]
+
+
+def _streamed(path: Path, cfg: Path, rows: int, plots: bool = True, ratios: bool = True):
+    """(result, samples) of the replay in chunks of ``rows``; the chunks carry their
+    ratios (as the run computes them) unless ``ratios`` is False."""
+    result, (samples,) = _streamed_to(path, cfg, rows, ((plots, ratios),))
+    return result, samples
 
 
 @pytest.mark.parametrize(("log", "cfg", "rows"), [
@@ -70,19 +86,20 @@ def _streamed(path: Path, cfg: Path, rows: int, plots: bool = True, ratios: bool
 def test_the_report_whatever_the_chunks(log: str, cfg: Path, rows: int) -> None:
     path = SAMPLES / "csv" / f"{log}.csv.gz"
     labels = read_labels(SAMPLES / "csv" / f"{log}.labels.json")
-    runs = [_streamed(path, cfg, CLI_ROWS), _streamed(path, cfg, rows, ratios=False),
-            _streamed(path, cfg, rows)]
+    one = _streamed(path, cfg, CLI_ROWS)
+    chunked, (rebuilt, carried) = _streamed_to(path, cfg, rows, ((True, False), (True, True)))
+    runs = [one, (chunked, rebuilt), (chunked, carried)]  # one replay in chunks, two reports
     try:
         assert runs[0][0].incidents and runs[0][1].col.groups[0][1] == runs[0][1].col.n
         assert not runs[1][1].col.has_ratios and runs[2][1].col.has_ratios
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             want = _report(runs[0][0], labels, runs[0][1])
+            # without labels too (no sweep; the margin's spans are the events alone)
+            want_unlabelled = _report(runs[0][0], None, runs[0][1])
             for result, samples in runs[1:]:
                 assert _report(result, labels, samples) == want
-                # without labels too (no sweep; the margin's spans are the events alone)
-                assert _report(result, None, samples) == _report(runs[0][0], None,
-                                                                 runs[0][1])
+                assert _report(result, None, samples) == want_unlabelled
     finally:
         folders = [s.col.spill.folder.path for _, s in runs]
         for _, samples in runs:
@@ -97,9 +114,8 @@ def test_the_sweeps_collector_keeps_only_the_ratios_and_sweeps_alike() -> None:
     ratios it keeps only those."""
     path = SAMPLES / "csv" / "assist_impacts.csv.gz"
     labels = read_labels(SAMPLES / "csv" / "assist_impacts.labels.json")
-    full = _streamed(path, ASSIST, 997)
-    lean = _streamed(path, ASSIST, 997, plots=False, ratios=False)
-    leaner = _streamed(path, ASSIST, 997, plots=False)
+    result, got = _streamed_to(path, ASSIST, 997, ((True, True), (False, False), (False, True)))
+    full, lean, leaner = ((result, samples) for samples in got)  # one replay, three collectors
     try:
         assert not lean[1].col.env and full[1].col.env
         names = list(lean[1].col.spill.layout)
