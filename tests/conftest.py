@@ -1,9 +1,12 @@
 """Shared fixtures: small logs built in code, the real-log folder (skipped when absent:
-:data:`REAL_LOGS`)."""
+:data:`REAL_LOGS`); with pytest-xdist, the numba kernels compiled once before the workers
+start (tests/jit_warmup.py)."""
 
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +21,31 @@ REPO = Path(__file__).resolve().parents[1]
 REAL_LOGS = Path(os.environ.get("IMPACTCLI_REAL_LOGS", REPO.parent / "shared" / "real_logs"))
 REAL_LOGS_ABSENT = ("the real robot recordings (UR, KUKA LWR4) are not on this machine: set "
                     "IMPACTCLI_REAL_LOGS to their folder to run this test")
+
+
+@pytest.hookimpl(trylast=True)  # after the terminal reporter is there
+def pytest_configure(config: pytest.Config) -> None:
+    """In pytest-xdist's controlling process (``-n N``), before its workers start: the
+    numba kernels compiled into numba's cache by two processes side by side, so that the
+    workers load them instead of each compiling them again (tests/jit_warmup.py). A
+    warm-up that fails changes nothing: the tests compile what they need."""
+    if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None):
+        return
+    from .jit_warmup import PARTS
+
+    reporter = config.pluginmanager.get_plugin("terminalreporter")
+    if reporter is not None:
+        reporter.write_line("compiling the numba kernels once for the workers "
+                            "(tests/jit_warmup.py; under a second when numba's cache has them)")
+    procs = [subprocess.Popen([sys.executable, "-m", "tests.jit_warmup", part], cwd=REPO,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+             for part in PARTS]
+    for p in procs:
+        try:
+            p.wait(timeout=600)
+        except subprocess.TimeoutExpired:  # pragma: no cover - a machine far slower
+            p.kill()
+            p.wait()
 
 
 @pytest.fixture
