@@ -32,6 +32,8 @@ from .job import load_inputs
 
 TIMELINE_SUFFIX = ".timeline.json"
 LABELS_SUFFIX = ".labels.json"
+
+
 def is_timeline(path: Path) -> bool:
     """Whether ``path`` names a detection timeline (``*.timeline.json``)."""
     return path.name.lower().endswith(TIMELINE_SUFFIX)
@@ -55,10 +57,33 @@ def timeline_log_path(tl_path: Path, recorded: str, absolute: str | None = None)
     )
 
 
-def _timeline_plan(tl_path: Path, robot: Any) -> dict[str, Any]:
-    """What a timeline records for a re-run (see :func:`analyze_for_report`): the timeline,
-    its log, read options, config, model, whether the model comes from the log, and the
-    robot."""
+@dataclass(frozen=True)
+class TimelineRerun:
+    """What a timeline records for its re-run (:func:`analyze_for_report`): the timeline
+    as read, its log, the read options, the config, the model when it was given (None:
+    the config's, or identified from the log again), whether the config's thresholds go
+    with a model identified from the log, and the robot (given, else the recorded one)."""
+
+    timeline: dict[str, Any]
+    log_path: Path
+    read_options: ReadOptions
+    config: Any
+    model: Any
+    model_from_log: bool
+    robot: Any
+
+    def check_log(self, tl_path: Path, sha256: str | None) -> None:
+        """The log must be the one the timeline was made from (its recorded sha256)."""
+        rec = self.timeline["input"].get("sha256")
+        if rec and sha256 and sha256 != rec:
+            raise LogFormatError(
+                f"{tl_path}: its log {self.log_path} changed since detection "
+                f"(sha256 {sha256[:12]}…, recorded {rec[:12]}…)"
+            )
+
+
+def timeline_rerun(tl_path: Path, robot: Any) -> TimelineRerun:
+    """The :class:`TimelineRerun` of the timeline ``tl_path`` (``robot``: given, or None)."""
     from ..config import DetectorConfig
     from ..logs.paths import RECORDED_READ_OPTIONS  # what input.read_options may carry
     from ..logs.robot_files import robot_from_dict
@@ -84,18 +109,7 @@ def _timeline_plan(tl_path: Path, robot: Any) -> dict[str, Any]:
         model = RigidModel.from_dict(recorded_model, where=f"{tl_path}: model")
     # a config's thresholds with a model identified from the log (detect --model-from-log)
     from_log = tl_model["source"] == "identified-from-log" and config.model is not None
-    return {"tl": tl, "log_path": log_path, "read_options": recorded, "config": config,
-            "model": model, "model_from_log": from_log, "robot": robot}
-
-
-def _check_sha(tl_path: Path, plan: dict[str, Any], sha256: str | None) -> None:
-    """The log must be the one the timeline was made from."""
-    rec = plan["tl"]["input"].get("sha256")
-    if rec and sha256 and sha256 != rec:
-        raise LogFormatError(
-            f"{tl_path}: its log {plan['log_path']} changed since detection "
-            f"(sha256 {sha256[:12]}…, recorded {rec[:12]}…)"
-        )
+    return TimelineRerun(tl, log_path, recorded, config, model, from_log, robot)
 
 
 def _compare_events(tl_path: Path, tl: dict[str, Any], result: Any) -> None:
@@ -128,20 +142,19 @@ def analyze_for_report(task: ReportTask, robot: Any, model: Any, config: Any
 
     inp = Path(task.inp)
     if is_timeline(inp):
-        plan = _timeline_plan(inp, robot)
+        plan = timeline_rerun(inp, robot)
         origin = timeline_origin(inp)
         result, samples = run_log(
-            str(plan["log_path"]), robot=plan["robot"], model=plan["model"],
-            config=plan["config"], read_options=plan["read_options"],
-            allow_slow=task.allow_slow, show_progress=task.show_progress,
-            model_from_log=plan["model_from_log"], samples="report",
-            check=lambda scan: _check_sha(inp, plan, scan.source.sha256))
+            str(plan.log_path), robot=plan.robot, model=plan.model, config=plan.config,
+            read_options=plan.read_options, allow_slow=task.allow_slow,
+            show_progress=task.show_progress, model_from_log=plan.model_from_log,
+            samples="report", check=lambda scan: plan.check_log(inp, scan.source.sha256))
         try:
-            _compare_events(inp, plan["tl"], result)
+            _compare_events(inp, plan.timeline, result)
         except BaseException:
             samples.close()
             raise
-        return result, plan["log_path"], samples, origin
+        return result, plan.log_path, samples, origin
     result, samples = run_log(str(inp), robot=robot, model=model, config=config,
                                  read_options=task.read_options, allow_slow=task.allow_slow,
                                  show_progress=task.show_progress, samples="report")
