@@ -60,10 +60,12 @@ def timeline_log_path(tl_path: Path, recorded: str, absolute: str | None = None)
 @dataclass(frozen=True)
 class TimelineRerun:
     """What a timeline records for its re-run (:func:`analyze_for_report`): the timeline
-    as read, its log, the read options, the config, the model when it was given (None:
-    the config's, or identified from the log again), whether the config's thresholds go
-    with a model identified from the log, and the robot (given, else the recorded one)."""
+    (its path and its contents, read once), its log, the read options, the config, the
+    model when it was given (None: the config's, or identified from the log again),
+    whether the config's thresholds go with a model identified from the log, and the robot
+    (given, else the recorded one)."""
 
+    path: Path
     timeline: dict[str, Any]
     log_path: Path
     read_options: ReadOptions
@@ -72,14 +74,24 @@ class TimelineRerun:
     model_from_log: bool
     robot: Any
 
-    def check_log(self, tl_path: Path, sha256: str | None) -> None:
+    def check_log(self, sha256: str | None) -> None:
         """The log must be the one the timeline was made from (its recorded sha256)."""
         rec = self.timeline["input"].get("sha256")
         if rec and sha256 and sha256 != rec:
             raise LogFormatError(
-                f"{tl_path}: its log {self.log_path} changed since detection "
+                f"{self.path}: its log {self.log_path} changed since detection "
                 f"(sha256 {sha256[:12]}…, recorded {rec[:12]}…)"
             )
+
+    def origin(self) -> dict[str, Any]:
+        """Where the re-run came from, for the report: the timeline, its schema version and
+        the tool that wrote it (a "1.0" timeline records no incidents; the report says so)."""
+        tl = self.timeline
+        tool = tl.get("tool") or {}
+        incidents = tl.get("incidents")
+        return {"timeline": str(self.path), "timeline_schema_version": str(tl["schema_version"]),
+                "recorded_by": f"{tool.get('name', '?')} {tool.get('version', '?')}",
+                "recorded_incidents": len(incidents) if isinstance(incidents, list) else None}
 
 
 def timeline_rerun(tl_path: Path, robot: Any) -> TimelineRerun:
@@ -109,7 +121,7 @@ def timeline_rerun(tl_path: Path, robot: Any) -> TimelineRerun:
         model = RigidModel.from_dict(recorded_model, where=f"{tl_path}: model")
     # a config's thresholds with a model identified from the log (detect --model-from-log)
     from_log = tl_model["source"] == "identified-from-log" and config.model is not None
-    return TimelineRerun(tl, log_path, recorded, config, model, from_log, robot)
+    return TimelineRerun(tl_path, tl, log_path, recorded, config, model, from_log, robot)
 
 
 def _compare_events(tl_path: Path, tl: dict[str, Any], result: Any) -> None:
@@ -143,35 +155,21 @@ def analyze_for_report(task: ReportTask, robot: Any, model: Any, config: Any
     inp = Path(task.inp)
     if is_timeline(inp):
         plan = timeline_rerun(inp, robot)
-        origin = timeline_origin(inp)
         result, samples = run_log(
             str(plan.log_path), robot=plan.robot, model=plan.model, config=plan.config,
             read_options=plan.read_options, allow_slow=task.allow_slow,
             show_progress=task.show_progress, model_from_log=plan.model_from_log,
-            samples="report", check=lambda scan: plan.check_log(inp, scan.source.sha256))
+            samples="report", check=lambda scan: plan.check_log(scan.source.sha256))
         try:
             _compare_events(inp, plan.timeline, result)
         except BaseException:
             samples.close()
             raise
-        return result, plan.log_path, samples, origin
+        return result, plan.log_path, samples, plan.origin()
     result, samples = run_log(str(inp), robot=robot, model=model, config=config,
                                  read_options=task.read_options, allow_slow=task.allow_slow,
                                  show_progress=task.show_progress, samples="report")
     return result, inp, samples, None
-
-
-def timeline_origin(tl_path: Path) -> dict[str, Any]:
-    """Where a re-run came from, for the report: the timeline, its schema version and the
-    tool that wrote it (a "1.0" timeline records no incidents; the report says so)."""
-    from ..outputs.timeline import read_timeline
-
-    tl = read_timeline(tl_path)
-    tool = tl.get("tool") or {}
-    return {"timeline": str(tl_path), "timeline_schema_version": str(tl["schema_version"]),
-            "recorded_by": f"{tool.get('name', '?')} {tool.get('version', '?')}",
-            "recorded_incidents": (len(tl["incidents"]) if isinstance(tl.get("incidents"), list)
-                                   else None)}
 
 
 def pair_labels(inputs: Sequence[Path], labels: Sequence[Path]) -> list[Path | None]:
