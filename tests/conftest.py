@@ -29,7 +29,8 @@ def pytest_configure(config: pytest.Config) -> None:
     numba kernels compiled into numba's cache by two processes side by side, so that the
     workers load them instead of each compiling them again (tests/jit_warmup.py). A
     warm-up that fails changes nothing: the tests compile what they need."""
-    if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None):
+    if (hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None)
+            or config.option.collectonly):
         return
     from .jit_warmup import PARTS
 
