@@ -17,6 +17,7 @@ import numpy as np
 
 from .clock import SampleClock, sample_clock
 from .errors import LabelsError, LogFormatError, RobotDescriptionError
+from .sample_channels import CONTROLLER_CHANNELS, OPTIONAL_CHANNELS, REQUIRED_CHANNELS, Channels
 
 TorqueSource = Literal["torque", "current"]
 TimeSource = Literal["column", "log", "publish", "header"]
@@ -95,64 +96,6 @@ class ReadOptions:
         return cls(**{k: v for k, v in (options or {}).items() if v is not None})
 
 
-@dataclass(frozen=True)
-class ChannelSpec:
-    """One per-joint channel of a sample (docs/formats.md, "Canonical wide CSV").
-
-    Attributes:
-        name: the field of :class:`RobotLog` (and of the chunks the readers and the replay
-            pass), and the ``<joint>.<name>`` of a canonical CSV column.
-        unit: its unit once read (after a channel map's scale and offset).
-        role: ``measured`` (the robot's sensors), ``reference`` (the controller's
-            commanded motion) or ``controller`` (the controller's own model torques: a
-            joint that lacks one holds NaN in its column).
-        optional: a log may lack it (only position and torque are required).
-        droppable: a joint whose column of it holds no finite value is left out of the
-            log (a controller channel's missing column is NaN instead).
-        angular: an angle or its derivative (a position unit's scale applies to it).
-        replayed: the replay reads it, chunk by chunk.
-    """
-
-    name: str
-    unit: str
-    role: str
-    optional: bool
-    droppable: bool
-    angular: bool
-    replayed: bool
-
-
-#: The channels of a sample, declared once: the name tuples below, the readers' and the
-#: replay's chunks and :class:`RobotLog` derive from it (tests/test_layout.py checks the
-#: dataclasses' fields against it).
-CHANNELS: tuple[ChannelSpec, ...] = (
-    ChannelSpec("position", "rad", "measured", False, True, True, True),
-    ChannelSpec("velocity", "rad/s", "measured", True, True, True, False),
-    ChannelSpec("torque", "N·m", "measured", False, True, False, True),
-    ChannelSpec("current", "A", "measured", True, True, False, False),
-    ChannelSpec("position_ref", "rad", "reference", True, True, True, True),
-    ChannelSpec("velocity_ref", "rad/s", "reference", True, True, True, True),
-    ChannelSpec("acceleration_ref", "rad/s²", "reference", True, True, True, True),
-    ChannelSpec("torque_model", "N·m", "controller", True, False, False, True),
-    ChannelSpec("torque_ext", "N·m", "controller", True, False, False, True),
-)
-#: Every channel's name, in declaration order.
-CHANNEL_NAMES: tuple[str, ...] = tuple(c.name for c in CHANNELS)
-#: The channels every log has (position, torque).
-REQUIRED_CHANNELS: tuple[str, ...] = tuple(c.name for c in CHANNELS if not c.optional)
-#: The channels a log may lack, in :class:`RobotLog`'s order.
-OPTIONAL_CHANNELS: tuple[str, ...] = tuple(c.name for c in CHANNELS if c.optional)
-#: The channels whose all-NaN column drops its joint (:class:`ChannelSpec`).
-DROPPABLE_CHANNELS: tuple[str, ...] = tuple(c.name for c in CHANNELS if c.droppable)
-#: The angular channels (a position unit's scale applies to them).
-ANGULAR_CHANNELS: tuple[str, ...] = tuple(c.name for c in CHANNELS if c.angular)
-#: The channels the replay reads per chunk.
-REPLAYED_CHANNELS: tuple[str, ...] = tuple(c.name for c in CHANNELS if c.replayed)
-#: The controller's own channels: a joint that lacks one holds NaN in its column.
-CONTROLLER_CHANNELS: tuple[str, ...] = tuple(c.name for c in CHANNELS
-                                             if c.role == "controller")
-
-
 def _as_matrix(name: str, a: Any, n: int, j: int, where: str) -> np.ndarray:
     arr = np.ascontiguousarray(a, dtype=np.float64)
     if arr.shape != (n, j):
@@ -171,38 +114,18 @@ def _as_matrix(name: str, a: Any, n: int, j: int, where: str) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class RobotLog:
-    """One robot recording, in memory, validated.
+class RobotLog(Channels):
+    """One robot recording, in memory, validated: N samples of J joints, the per-joint
+    channels of :class:`~impactcli.sample_channels.Channels` (n = N) and these.
 
     Attributes:
         t_ns: (N,) int64, sample times in ns on the log's own clock, strictly increasing.
         joint_names: J joint names (no dots, unique).
-        position: (N, J) motor position after reduction [rad] (x1 in the paper).
-        torque: (N, J) motor torque after reduction [N·m] (tau, eq. 7).
-        velocity: optional (N, J) measured velocity [rad/s].
-        current: optional (N, J) measured motor current [A].
-        position_ref: optional (N, J) reference position x1_ref [rad].
-        velocity_ref: optional (N, J) reference velocity [rad/s].
-        acceleration_ref: optional (N, J) reference acceleration [rad/s²].
-        torque_model: optional (N, J) the controller's model torque for the measured motion,
-            without contact [N·m] (docs/formats.md, "Canonical wide CSV"); an all-NaN
-            column: not logged for that joint.
-        torque_ext: optional (N, J) the controller's own external-torque estimate [N·m];
-            an all-NaN column: not logged for that joint.
         source: provenance (path, sha256, format, torque/time source, repairs).
     """
 
     t_ns: np.ndarray
     joint_names: tuple[str, ...]
-    position: np.ndarray
-    torque: np.ndarray
-    velocity: np.ndarray | None = None
-    current: np.ndarray | None = None
-    position_ref: np.ndarray | None = None
-    velocity_ref: np.ndarray | None = None
-    acceleration_ref: np.ndarray | None = None
-    torque_model: np.ndarray | None = None
-    torque_ext: np.ndarray | None = None
     source: LogSource = field(default_factory=lambda: LogSource("<memory>", "", "memory"))
 
     def __post_init__(self) -> None:
@@ -308,33 +231,17 @@ class RobotLog:
 
     def slice(self, start: int, stop: int) -> RobotLog:
         """Samples ``start:stop`` as a new log with the same provenance."""
-        def cut(a: np.ndarray | None) -> np.ndarray | None:
-            return None if a is None else a[start:stop]
-
-        return RobotLog(
-            t_ns=self.t_ns[start:stop], joint_names=self.joint_names,
-            position=self.position[start:stop], torque=self.torque[start:stop],
-            velocity=cut(self.velocity), current=cut(self.current),
-            position_ref=cut(self.position_ref), velocity_ref=cut(self.velocity_ref),
-            acceleration_ref=cut(self.acceleration_ref), torque_model=cut(self.torque_model),
-            torque_ext=cut(self.torque_ext), source=self.source,
-        )
+        cut: dict[str, Any] = {name: None if a is None else a[start:stop]
+                               for name, a in self.channels().items()}
+        return RobotLog(t_ns=self.t_ns[start:stop], joint_names=self.joint_names,
+                        source=self.source, **cut)
 
     def select(self, joints: tuple[str, ...]) -> RobotLog:
         """The log with only ``joints``, in that order (each must be in the log)."""
         idx = [self.joint_names.index(j) for j in joints]
-
-        def pick(a: np.ndarray | None) -> np.ndarray | None:
-            return None if a is None else a[:, idx]
-
-        return RobotLog(
-            t_ns=self.t_ns, joint_names=joints, position=self.position[:, idx],
-            torque=self.torque[:, idx], velocity=pick(self.velocity),
-            current=pick(self.current), position_ref=pick(self.position_ref),
-            velocity_ref=pick(self.velocity_ref), acceleration_ref=pick(self.acceleration_ref),
-            torque_model=pick(self.torque_model), torque_ext=pick(self.torque_ext),
-            source=self.source,
-        )
+        picked: dict[str, Any] = {name: None if a is None else a[:, idx]
+                                  for name, a in self.channels().items()}
+        return RobotLog(t_ns=self.t_ns, joint_names=joints, source=self.source, **picked)
 
 
 @dataclass(frozen=True)

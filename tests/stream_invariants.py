@@ -14,9 +14,9 @@ import pytest
 from impactcli.errors import ImpactWarning, LogFormatError
 from impactcli.logs import read_log
 from impactcli.logs.describe import time_gaps
-from impactcli.logs.layout import OPTIONAL
 from impactcli.logs.reader import LogScan, iter_chunks, scan_log
 from impactcli.logs.screen import unusable_columns
+from impactcli.sample_channels import OPTIONAL_CHANNELS
 
 #: Chunk sizes every streamed read is checked at.
 CHUNKS = (1, 2, 7, 1000, 65536)
@@ -59,7 +59,7 @@ def assert_streams_exactly(path: Path, chunks: tuple[int, ...] = CHUNKS, **opts:
         if a is not None:
             assert scan.screens[ch].unusable(ref) == unusable_columns(a, ref)
             assert np.array_equal(scan.screens[ch].logged, log.has_channel(ch))
-    assert scan.channels == tuple(s for s in OPTIONAL if getattr(log, s) is not None)
+    assert scan.channels == tuple(s for s in OPTIONAL_CHANNELS if getattr(log, s) is not None)
     for size in (*chunks, log.n_samples + 5):
         with warnings.catch_warnings():
             warnings.simplefilter("error", ImpactWarning)  # repairs are warned by the scan
@@ -67,7 +67,7 @@ def assert_streams_exactly(path: Path, chunks: tuple[int, ...] = CHUNKS, **opts:
         assert [c.start for c in got] == list(range(0, log.n_samples, size))
         assert all(1 <= c.n_samples <= size for c in got)
         assert np.array_equal(np.concatenate([c.t_ns for c in got]), log.t_ns), size
-        for s in ("position", "torque", *OPTIONAL):
+        for s in ("position", "torque", *OPTIONAL_CHANNELS):
             a = getattr(log, s)
             if a is None:
                 assert all(getattr(c, s) is None for c in got)

@@ -21,7 +21,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("impactcli", "impactcli.errors"),
     ("impactcli.clock", "impactcli.columns", "impactcli.files", "impactcli.schema",
      "impactcli.spill"),
-    ("impactcli.types", "impactcli.config"),
+    ("impactcli.sample_channels", "impactcli.types", "impactcli.config"),
     ("impactcli.logs",),
     ("impactcli.model", "impactcli.sim"),
     ("impactcli.detect",),
@@ -205,27 +205,41 @@ def test_no_test_imports_a_benchmark() -> None:
 
 
 def test_the_channels_are_declared_once() -> None:
-    """The channels of a sample are declared once (impactcli.types.CHANNELS): the log, the
-    readers' chunks and the replay's arrays carry exactly those fields, and no other module
-    declares a list of channel names (a constant: a test of membership in a few is not
-    one)."""
+    """The channels of a sample are declared once, as the fields of
+    impactcli.sample_channels.Channels: the log, the readers' chunks and the replay's arrays are
+    Channels; no other class declares more than three of them (a record of the few it
+    uses — the motion check's velocity and position, a JointState message's fields, the
+    writers' torque, position and reference in a replay step — is not the channel set
+    again); no other module lists channel names or renames channels.py's tuples of
+    them (a test of membership in a few is not a list)."""
+    import ast
     import dataclasses
 
     from impactcli.logs.layout import LogChunk
     from impactcli.run.replay import ChunkArrays
-    from impactcli.types import CHANNEL_NAMES, REPLAYED_CHANNELS, RobotLog
+    from impactcli.sample_channels import CHANNEL_NAMES, CHANNELS, Channels
+    from impactcli.types import RobotLog
 
-    def channel_fields(cls: type) -> tuple[str, ...]:
-        return tuple(f.name for f in dataclasses.fields(cls) if f.name in CHANNEL_NAMES
-                     or f.type in ("np.ndarray", "np.ndarray | None"))
-
-    assert set(channel_fields(RobotLog)) - {"t_ns"} == set(CHANNEL_NAMES)
-    assert set(channel_fields(LogChunk)) - {"t_ns"} == set(CHANNEL_NAMES)
-    assert set(channel_fields(ChunkArrays)) - {"time_s"} == set(REPLAYED_CHANNELS)
-    names = "|".join(CHANNEL_NAMES)  # a module-level name bound to a list of them
+    assert tuple(f.name for f in dataclasses.fields(Channels)) == CHANNEL_NAMES
+    assert tuple(c.name for c in CHANNELS) == CHANNEL_NAMES
+    for cls in (RobotLog, LogChunk, ChunkArrays):
+        assert issubclass(cls, Channels), cls
+    names = "|".join(CHANNEL_NAMES)
     spelled = re.compile(rf"^\w+(:[^=]+)?\s*=\s*[(\[{{]?\s*(\"({names})\",\s*){{2,}}", re.M)
-    bad = [m for m, p in MODULES.items()
-           if m != "impactcli.types" and spelled.search(p.read_text("utf-8"))]
+    renamed = re.compile(r"^\w+(:[^=]+)?\s*=\s*\w*CHANNEL(S|_NAMES)\s*$", re.M)
+    bad = []
+    for m, p in MODULES.items():
+        if m == "impactcli.sample_channels":
+            continue
+        text = p.read_text("utf-8")
+        bad += [(m, "lists or renames channel names") for pattern in (spelled, renamed)
+                if pattern.search(text)]
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, ast.ClassDef):
+                own = [a.target.id for a in node.body if isinstance(a, ast.AnnAssign)
+                       and isinstance(a.target, ast.Name) and a.target.id in CHANNEL_NAMES]
+                if len(own) > 3:
+                    bad.append((m, f"class {node.name} declares {own}"))
     assert not bad, bad
 
 

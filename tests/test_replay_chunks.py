@@ -18,6 +18,7 @@ import pytest
 
 from impactcli.config import DetectorConfig, load_config
 from impactcli.logs import read_log
+from impactcli.logs.layout import LogChunk
 from impactcli.model import RigidModel, identify
 from impactcli.model.generators import choose_generators
 from impactcli.run.replay import (
@@ -63,18 +64,10 @@ def _run(setup: ReplaySetup, log, bounds: list[int]) -> tuple[list[ChunkReplay],
     return outs, state
 
 
-class _Rows:
-    """A chunk of fewer than 2 samples (a RobotLog needs 2)."""
-
-    def __init__(self, log, a: int, b: int) -> None:
-        for name in ("position", "torque", "position_ref", "velocity_ref",
-                     "acceleration_ref", "torque_model", "torque_ext"):
-            v = getattr(log, name)
-            setattr(self, name, None if v is None else v[a:b])
-
-
-def _one(log, a, b):
-    return _Rows(log, a, b)
+def _one(log, a: int, b: int) -> LogChunk:
+    """Samples a:b of a log as a reader's chunk (a RobotLog needs 2 samples)."""
+    return LogChunk(start=a, t_ns=log.t_ns[a:b],
+                    **{name: None if v is None else v[a:b] for name, v in log.channels().items()})
 
 
 def _cat(outs: list[ChunkReplay], name: str) -> np.ndarray:

@@ -58,7 +58,8 @@ def test_log_rejects_bad_arrays(change: dict, message: str) -> None:
 
 def test_log_needs_two_samples() -> None:
     with pytest.raises(LogFormatError, match="at least 2"):
-        RobotLog(np.array([0], dtype=np.int64), ("a",), np.zeros((1, 1)), np.zeros((1, 1)))
+        RobotLog(np.array([0], dtype=np.int64), ("a",), position=np.zeros((1, 1)),
+                 torque=np.zeros((1, 1)))
 
 
 def test_make_log_is_deterministic() -> None:

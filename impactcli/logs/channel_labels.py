@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ImpactWarning, LabelsError, LogFormatError
+from ..sample_channels import CHANNEL_NAMES
 from ..types import ReadOptions
 from .paths import MESSAGE_SUFFIXES, log_stem
 
@@ -61,10 +62,8 @@ def read_channel(path: Path, name: str, log: Any, read_options: ReadOptions) -> 
         LogFormatError: no such channel (one line naming the file and listing what it has),
             or a channel that cannot be read.
     """
-    from .channel_map import SIGNALS
-
     joint, dot, sig = name.partition(".")
-    if dot and joint in log.joint_names and sig in SIGNALS:
+    if dot and joint in log.joint_names and sig in CHANNEL_NAMES:
         arr = getattr(log, sig)
         j = log.joint_names.index(joint)
         if arr is None or not bool(log.has_channel(sig)[j]):
@@ -87,9 +86,7 @@ def _relative(t_ns: np.ndarray, log: Any) -> np.ndarray:
 
 
 def _joint_channels_hint(log: Any) -> str:
-    from .channel_map import SIGNALS
-
-    have = [f"{j}.{s}" for s in SIGNALS if getattr(log, s) is not None
+    have = [f"{j}.{s}" for s in CHANNEL_NAMES if getattr(log, s) is not None
             for j, ok in zip(log.joint_names, log.has_channel(s), strict=True) if ok]
     return ", ".join(have)
 

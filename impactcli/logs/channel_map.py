@@ -33,10 +33,7 @@ from typing import Any
 
 from ..errors import ChannelMapError
 from ..files import load_mapping
-from ..types import CHANNEL_NAMES
-
-#: Per-joint signals a log may carry, in RobotLog field names.
-SIGNALS: tuple[str, ...] = CHANNEL_NAMES
+from ..sample_channels import CHANNEL_NAMES
 
 #: Time units and their size in ns.
 TIME_UNITS: dict[str, int] = {"s": 10**9, "ms": 10**6, "us": 10**3, "ns": 1}
@@ -220,7 +217,7 @@ def _explain_kind(d: dict[str, Any], where: str) -> None:
             )
     joints = d.get("joints")
     for i, jd in enumerate(joints if isinstance(joints, list) else []):
-        for s in SIGNALS:
+        for s in CHANNEL_NAMES:
             v = jd.get(s) if isinstance(jd, dict) else None
             if messages and ((isinstance(v, dict) and "field" not in v) or isinstance(v, int)):
                 raise ChannelMapError(
@@ -250,10 +247,10 @@ def channel_map_from_dict(d: dict[str, Any], where: str = "channel map") -> Chan
         start_at_zero=bool(t.get("start_at_zero", False)) if isinstance(t, dict) else False,
     )
     joints: list[str] = []
-    per_signal: dict[str, list[ChannelRef | None]] = {s: [] for s in SIGNALS}
+    per_signal: dict[str, list[ChannelRef | None]] = {s: [] for s in CHANNEL_NAMES}
     for i, jd in enumerate(d["joints"]):
         joints.append(jd["name"])
-        for s in SIGNALS:
+        for s in CHANNEL_NAMES:
             per_signal[s].append(
                 _ref(jd[s], where, f"joints[{i}].{s}", messages) if s in jd else None
             )

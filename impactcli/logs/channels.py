@@ -28,12 +28,10 @@ from typing import Any
 import numpy as np
 
 from ..errors import ImpactWarning, LogFormatError
-from ..types import ANGULAR_CHANNELS, CONTROLLER_CHANNELS, OPTIONAL_CHANNELS, RobotDescription
+from ..sample_channels import ANGULAR_CHANNELS, CONTROLLER_CHANNELS, OPTIONAL_CHANNELS
+from ..types import RobotDescription
 
 TORQUE_SOURCES = ("torque", "current")
-#: The signals in the positions' unit (or it per second, per second²): converted by
-#: ``--position-unit``.
-ANGULAR_SIGNALS = ANGULAR_CHANNELS
 TIME_SOURCES = ("log", "publish", "header")
 
 
@@ -106,7 +104,7 @@ class LogPlan:
         controller: the controller channels there are (``torque_model``, ``torque_ext``).
         ignored: channels present in the file but not used.
         notes: what could not be made of the channels (:func:`describing` only).
-        angle_scale: rad per logged unit of the angular signals (:data:`ANGULAR_SIGNALS`:
+        angle_scale: rad per logged unit of the angular signals (:data:`ANGULAR_CHANNELS`:
             ``--position-unit deg`` → π/180), None when they are radians.
     """
 
@@ -225,7 +223,7 @@ def assemble(plan: LogPlan, ch: JointChannels) -> dict[str, np.ndarray]:
     for s in plan.optional:
         out[s] = ch.signals[s]
     if plan.angle_scale is not None:
-        for s in ANGULAR_SIGNALS:
+        for s in ANGULAR_CHANNELS:
             if s in out:
                 out[s] = out[s] * plan.angle_scale
     # the controller's channels are per joint: a joint without one holds NaN (docs/formats.md)

@@ -11,8 +11,8 @@ import numpy as np
 from .. import TOOL_NAME, __version__
 from ..clock import GAP_FACTOR as _GAP_FACTOR
 from ..clock import gap_steps
+from ..sample_channels import CHANNEL_NAMES
 from ..types import RobotLog
-from .channel_map import SIGNALS
 from .scan import LogScan
 
 #: A step longer than this many periods may be a gap (:mod:`impactcli.clock`, rule (a)).
@@ -75,7 +75,7 @@ def describe_log(scan: LogScan, t_ns: np.ndarray) -> dict[str, Any]:
     gap_idx = scan.gaps
     listed = gap_idx[:MAX_GAPS_LISTED]
     src = log.source
-    present = [s for s in SIGNALS if getattr(log, s) is not None]
+    present = [s for s in CHANNEL_NAMES if getattr(log, s) is not None]
     used = [f"{j}.{s}" for j in log.joint_names for s in present]
     return {
         "schema_version": "1.0",

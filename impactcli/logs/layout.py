@@ -25,11 +25,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import LogFormatError
-from ..types import OPTIONAL_CHANNELS, REQUIRED_CHANNELS
+from ..sample_channels import REQUIRED_CHANNELS, Channels
 from .channels import JointChannels
-
-#: The log's optional arrays, in :class:`~impactcli.types.RobotLog`'s order.
-OPTIONAL = OPTIONAL_CHANNELS
 
 
 @dataclass
@@ -160,29 +157,19 @@ class MappedLayout(StreamLayout):
 # --------------------------------------------------------------------------- chunks
 
 @dataclass(frozen=True)
-class LogChunk:
-    """Consecutive samples of a log, as :class:`~impactcli.types.RobotLog` holds them.
+class LogChunk(Channels):
+    """Consecutive samples of a log, as :class:`~impactcli.types.RobotLog` holds them: the
+    channels of :class:`~impactcli.sample_channels.Channels` (n ≥ 1 samples, as in the log, None
+    when the log has none) and these.
 
     Attributes:
         start: index of the chunk's first sample in the whole log.
         t_ns: (n,) int64 sample times [ns] on the log's clock (absolute, as
-            ``RobotLog.t_ns``), n ≥ 1.
-        position, torque: (n, J) float64 [rad], [N·m].
-        velocity, current, position_ref, velocity_ref, acceleration_ref, torque_model,
-            torque_ext: (n, J) float64 as in the log, None when the log has none.
+            ``RobotLog.t_ns``).
     """
 
     start: int
     t_ns: np.ndarray
-    position: np.ndarray
-    torque: np.ndarray
-    velocity: np.ndarray | None = None
-    current: np.ndarray | None = None
-    position_ref: np.ndarray | None = None
-    velocity_ref: np.ndarray | None = None
-    acceleration_ref: np.ndarray | None = None
-    torque_model: np.ndarray | None = None
-    torque_ext: np.ndarray | None = None
 
     @property
     def n_samples(self) -> int:

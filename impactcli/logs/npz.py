@@ -26,6 +26,7 @@ from typing import IO, Any
 import numpy as np
 
 from ..errors import ChannelMapError, LogFormatError
+from ..sample_channels import DROPPABLE_CHANNELS
 from .layout import MappedLayout, RawRows, plan_of, rate_times
 
 #: Rows read from each array at a time.
@@ -76,7 +77,6 @@ class NpzLayout(MappedLayout):
 
     def __init__(self, p: Path, where: str, cmap: Any, options: dict[str, Any]) -> None:
         from .channel_map import TIME_UNITS, require_time
-        from .repair import DROPPABLE_SIGNALS
 
         self.path, self.where, self.fmt, self.cmap = p, where, "npz", cmap
         self.joints = tuple(cmap.joints)
@@ -108,7 +108,7 @@ class NpzLayout(MappedLayout):
             self.keys[(sig, j)] = ref.label()
             self.cols.setdefault(ref.label(), (str(ref.source), ref.index))
         self.names = list(self.cols)
-        self.droppable = {lab for (sig, _), lab in self.keys.items() if sig in DROPPABLE_SIGNALS}
+        self.droppable = {lab for (sig, _), lab in self.keys.items() if sig in DROPPABLE_CHANNELS}
         used = {str(r.source) for _, _, r in cmap.refs()} | (
             {self.tkey} if self.tkey is not None else set())
         self.ignored = [k for k in keys if k not in used]

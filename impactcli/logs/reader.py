@@ -28,8 +28,9 @@ from typing import Any
 
 import numpy as np
 
-from ..types import CONTROLLER_CHANNELS, REQUIRED_CHANNELS, RobotLog
-from .layout import OPTIONAL, LogChunk, ScanPass, StreamLayout
+from ..sample_channels import CONTROLLER_CHANNELS, OPTIONAL_CHANNELS, REQUIRED_CHANNELS
+from ..types import RobotLog
+from .layout import LogChunk, ScanPass, StreamLayout
 from .scan import LogScan, RowsKept, pass_chunks, passes, raise_read_errors, scan_layout
 from .screen import ColumnScreen
 
@@ -197,7 +198,7 @@ class MemoryReader(LogReader):
             poses = PoseSample(len(log.joint_names))
             poses.add(log.t_ns, log.position, log.torque)
             ranges = {}
-            for s in (*REQUIRED_CHANNELS, *OPTIONAL):
+            for s in (*REQUIRED_CHANNELS, *OPTIONAL_CHANNELS):
                 a = getattr(log, s)
                 if a is not None:
                     r = screens.get(s) or ColumnScreen.of(a)
@@ -219,7 +220,7 @@ class MemoryReader(LogReader):
         for a in range(0, log.n_samples, rows):
             b = min(a + rows, log.n_samples)
             opt = {s: None if getattr(log, s) is None else getattr(log, s)[a:b]
-                   for s in OPTIONAL}
+                   for s in OPTIONAL_CHANNELS}
             yield LogChunk(start=a, t_ns=log.t_ns[a:b], position=log.position[a:b],
                            torque=log.torque[a:b], **opt)
 

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import LogFormatError
-from ..types import CONTROLLER_CHANNELS, DROPPABLE_CHANNELS
+from ..sample_channels import CONTROLLER_CHANNELS
 
 if TYPE_CHECKING:
     from .layout import RawRows, StreamLayout
@@ -47,12 +47,6 @@ PERIOD_STEPS = 1000
 #: Implied sample rates outside [MIN_RATE_HZ, MAX_RATE_HZ] are an error (docs/formats.md).
 MIN_RATE_HZ = 20.0
 MAX_RATE_HZ = 100_000.0
-#: Signals whose column may hold no finite value (passed on as NaN): a position or torque
-#: (or current, the torque source) column leaves its joint out of the log; an optional
-#: signal's column (velocity, current not the torque source, references) leaves that
-#: signal out of the log (:func:`impactcli.logs.channels.drop_empty_signals`).
-DROPPABLE_SIGNALS = DROPPABLE_CHANNELS
-
 
 def restart_message(where: str, time_name: str, rows: list[str]) -> str:
     """The error for a file whose time restarts at ``rows`` (their labels)."""

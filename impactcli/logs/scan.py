@@ -25,9 +25,10 @@ import numpy as np
 from ..clock import GAP_FACTOR, MAX_STATS_STEPS, GapStream, SampleClock, StepHistogram
 from ..columns import column_all, column_any, column_range
 from ..errors import ImpactWarning, LogFormatError
-from ..types import CONTROLLER_CHANNELS, REQUIRED_CHANNELS, LogSource, RobotLog
+from ..sample_channels import CONTROLLER_CHANNELS, OPTIONAL_CHANNELS, REQUIRED_CHANNELS
+from ..types import LogSource, RobotLog
 from .defects import SHUFFLED_STEP_SHARE, DefectScan, Jump, Wrap, unwrap_positions
-from .layout import OPTIONAL, LogChunk, ScanPass, StreamLayout, chunked
+from .layout import LogChunk, ScanPass, StreamLayout, chunked
 from .plausibility import (
     MotionSketch,
     UnitVerdict,
@@ -137,8 +138,8 @@ class LogScan:
 
     @property
     def channels(self) -> tuple[str, ...]:
-        """The optional arrays the log has (names of :data:`OPTIONAL`)."""
-        return tuple(s for s in OPTIONAL if getattr(self.log, s) is not None)
+        """The optional arrays the log has (names of :data:`OPTIONAL_CHANNELS`)."""
+        return tuple(s for s in OPTIONAL_CHANNELS if getattr(self.log, s) is not None)
 
     @property
     def sample_period_s(self) -> float:
@@ -354,7 +355,7 @@ class _ScanAcc:
     def check_finite(self, keep: list[int], gone: list[str]) -> None:
         """RobotLog's error for a non-finite value left in a kept joint's column (a value
         scaled out of range); the signals ``gone`` are not in the log."""
-        for s in (*REQUIRED_CHANNELS, *OPTIONAL):
+        for s in (*REQUIRED_CHANNELS, *OPTIONAL_CHANNELS):
             rows = self.bad_row.get(s) if s not in gone else None
             if rows is None or not (rows[keep] >= 0).any():
                 continue
@@ -534,7 +535,7 @@ class _ScanAcc:
         said += [vel] if vel is not None else []
         for msg in (*said, *limit_msgs):
             warnings.warn(msg, ImpactWarning, stacklevel=3)
-        optional = tuple(s for s in OPTIONAL if getattr(log, s) is not None)
+        optional = tuple(s for s in OPTIONAL_CHANNELS if getattr(log, s) is not None)
         ps = ScanPass(ctx, allbad, keep, optional, shift, self.n, rep.order_keep,
                       cache if cache is not None and cache.usable else None,
                       rep.order_repair, wraps, ref_wraps)
@@ -561,7 +562,7 @@ class _ScanAcc:
 
 def _arrays_of(log: RobotLog) -> list[str]:
     """The arrays a log has, in :class:`~impactcli.types.RobotLog`'s order."""
-    return [s for s in (*REQUIRED_CHANNELS, *OPTIONAL) if getattr(log, s) is not None]
+    return [s for s in (*REQUIRED_CHANNELS, *OPTIONAL_CHANNELS) if getattr(log, s) is not None]
 
 
 def _nan_where_empty(a: np.ndarray, signal: str, ctx: StreamLayout,

@@ -26,8 +26,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import LogFormatError, OutputError
-from ..types import CONTROLLER_CHANNELS, RobotLog
-from .channel_map import SIGNALS
+from ..sample_channels import CHANNEL_NAMES, CONTROLLER_CHANNELS
+from ..types import RobotLog
 from .messages.message_source import JOINT_SAMPLE
 from .messages.ros2_cdr import JOINT_STATE, JOINT_STATE_DEF
 from .paths import ROSBAG2_METADATA, log_suffix
@@ -95,7 +95,7 @@ def canonical_columns(log: RobotLog) -> list[tuple[str, np.ndarray]]:
     """The canonical CSV's value columns: (name, (N,) values) in file order."""
     out: list[tuple[str, np.ndarray]] = []
     for j, name in enumerate(log.joint_names):
-        for sig in SIGNALS:
+        for sig in CHANNEL_NAMES:
             arr = getattr(log, sig)
             if arr is not None and log.has_channel(sig)[j]:
                 out.append((f"{name}.{sig}", arr[:, j]))
@@ -159,7 +159,7 @@ def write_mcap_json(log: RobotLog, path: str | os.PathLike[str]) -> None:
 
     p = Path(path)
     _check_times(log, p)
-    sigs = [(s, getattr(log, s)) for s in SIGNALS if getattr(log, s) is not None]
+    sigs = [(s, getattr(log, s)) for s in CHANNEL_NAMES if getattr(log, s) is not None]
     names = list(log.joint_names)
     lists = {s: _nan_as_none(a) if s in CONTROLLER_CHANNELS else a.tolist() for s, a in sigs}
     with atomic_output(p, "wb") as f:

@@ -33,7 +33,8 @@ from ..model.generators import (
 from ..model.gravity import ScaleVerdict
 from ..model.identification import check_shares_joints
 from ..model.rigid import RigidModel
-from ..types import CONTROLLER_CHANNELS, LogSource, RobotDescription, RobotLog
+from ..sample_channels import CONTROLLER_CHANNELS
+from ..types import LogSource, RobotDescription, RobotLog
 from .replay import ChunkArrays, chunk_arrays
 from .run_warnings import warn_formulation
 

@@ -49,7 +49,7 @@ from ..model.generators import (
 )
 from ..model.residual import ResidualOptions, causal_velocity, residual_chunk
 from ..model.rigid import RigidModel
-from ..types import REPLAYED_CHANNELS
+from ..sample_channels import REPLAYED_CHANNELS, Channels
 
 #: Cut-off of the joints' causal velocity used for the incidents' contact type [Hz]
 #: (at most 0.2 × the sample rate).
@@ -62,41 +62,32 @@ PART_SAMPLES = 65_536
 #: about 50 MB at 65,536 samples of 7 joints); 0: one part at a time.
 AHEAD = 2
 
-#: The chunk's arrays a replay reads (optional ones may be None).
-CHUNK_ARRAYS: tuple[str, ...] = REPLAYED_CHANNELS
-
-
 @dataclass(frozen=True)
-class ChunkArrays:
-    """n consecutive samples of a log, in the replay's joint order: (n, J) arrays like
-    :class:`~impactcli.types.RobotLog`'s (optional ones None) and ``time_s`` (n,) [s since
-    the log's first sample]."""
+class ChunkArrays(Channels):
+    """n consecutive samples of a log, in the replay's joint order: the channels of
+    :class:`~impactcli.sample_channels.Channels` it reads
+    (:data:`~impactcli.sample_channels.REPLAYED_CHANNELS`; the others and those the log
+    lacks are None) and ``time_s`` (n,) [s since the log's first sample]."""
 
     time_s: np.ndarray
-    position: np.ndarray
-    torque: np.ndarray
-    position_ref: np.ndarray | None = None
-    velocity_ref: np.ndarray | None = None
-    acceleration_ref: np.ndarray | None = None
-    torque_model: np.ndarray | None = None
-    torque_ext: np.ndarray | None = None
 
     @property
     def n_samples(self) -> int:
         return int(self.time_s.shape[0])
 
 
-def chunk_arrays(chunk: Any, time_s: np.ndarray, columns: list[int] | None = None
+def chunk_arrays(chunk: Channels, time_s: np.ndarray, columns: list[int] | None = None
                  ) -> ChunkArrays:
-    """:class:`ChunkArrays` of a RobotLog or a reader's chunk (anything with the arrays of
-    :data:`CHUNK_ARRAYS`), its joints picked and ordered by ``columns`` (None: all)."""
+    """:class:`ChunkArrays` of a RobotLog or a reader's chunk (any
+    :class:`~impactcli.sample_channels.Channels`), its joints picked and ordered by ``columns``
+    (None: all)."""
     def pick(a: np.ndarray | None) -> np.ndarray | None:
         if a is None:
             return None
         a = np.asarray(a)
         return a if columns is None else a[:, columns]
 
-    arrays = {name: pick(getattr(chunk, name, None)) for name in CHUNK_ARRAYS}
+    arrays = {name: pick(getattr(chunk, name)) for name in REPLAYED_CHANNELS}
     return ChunkArrays(time_s=np.asarray(time_s, dtype=np.float64), **arrays)  # type: ignore[arg-type]
 
 

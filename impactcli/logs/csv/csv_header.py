@@ -18,7 +18,8 @@ from __future__ import annotations
 import warnings
 
 from ...errors import ImpactWarning, LogFormatError
-from ..channel_map import SIGNALS, TIME_UNITS, ChannelMap, ChannelRef, TimeSpec
+from ...sample_channels import CHANNEL_NAMES
+from ..channel_map import TIME_UNITS, ChannelMap, ChannelRef, TimeSpec
 
 #: Separators a CSV's header is split at, tried in this order.
 SEPARATORS: tuple[str, ...] = (",", ";", "\t", " ")
@@ -188,7 +189,7 @@ def canonical_map(header: list[str], path: str, time_unit: str | None = None, *,
         if col == tcol:
             continue
         joint, dot, sig = col.partition(".")
-        if dot and joint and sig in SIGNALS:
+        if dot and joint and sig in CHANNEL_NAMES:
             joints.setdefault(joint, {})[sig] = ChannelRef(source=col)
         elif dot and joint and sig == EFFORT:
             efforts[joint] = col
@@ -214,7 +215,7 @@ def canonical_map(header: list[str], path: str, time_unit: str | None = None, *,
     names = tuple(joints)
     signals = {
         s: tuple(joints[j].get(s) for j in names)
-        for s in SIGNALS
+        for s in CHANNEL_NAMES
         if any(s in joints[j] for j in names)
     }
     cmap = ChannelMap(name="canonical", time=time, joints=names, signals=signals, path="",

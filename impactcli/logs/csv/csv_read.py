@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import LogFormatError
+from ...sample_channels import DROPPABLE_CHANNELS
 from ..layout import MappedLayout, RawRows, plan_of, rate_times
 from .csv_exact import Exact, exact_rows, infer
 from .csv_layout import (
@@ -132,7 +133,6 @@ class CsvReaderLayout(MappedLayout):
     def __init__(self, lay: CsvLayout, options: dict[str, Any], file_names: list[str] | None,
                  header_error: str | None) -> None:
         from ..channel_map import TIME_UNITS
-        from ..repair import DROPPABLE_SIGNALS
 
         self.lay = lay
         self.path, self.where, self.fmt = lay.path, lay.where, lay.fmt
@@ -151,7 +151,7 @@ class CsvReaderLayout(MappedLayout):
             self.keys[(sig, j)] = key
             self.key_cols.setdefault(key, col)
         self.names = list(self.key_cols)
-        self.droppable = {k for (sig, _), k in self.keys.items() if sig in DROPPABLE_SIGNALS}
+        self.droppable = {k for (sig, _), k in self.keys.items() if sig in DROPPABLE_CHANNELS}
         self.ignored = (lay.ignored_extra if lay.fmt == "csv"
                         else [lay.disp(c) for c in lay.names if c not in lay.used])
         tspec = lay.tspec

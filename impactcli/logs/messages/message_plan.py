@@ -16,8 +16,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import ChannelMapError, ImpactError, LogFormatError
-from ...types import CHANNELS
-from ..channel_map import SIGNALS
+from ...sample_channels import CHANNEL_NAMES, CHANNELS, DROPPABLE_CHANNELS
 from ..channels import TIME_SOURCES
 from ..layout import plan_of
 from .message_merge import Part
@@ -266,10 +265,10 @@ def _joint_state(lay: MessageLayout, sel: Selection, r: TopicReader
     if k is not None:
         raise LogFormatError(f"{where}: topic {state!r}, message {k} lacks some of the joints "
                              f"{', '.join(joints)}")
-    signals = SIGNALS if kind == "json" else JOINT_STATE_SIGNALS
+    signals = CHANNEL_NAMES if kind == "json" else JOINT_STATE_SIGNALS
     used: list[str] = []
     ignored: list[str] = []
-    for s in SIGNALS:
+    for s in CHANNEL_NAMES:
         if s not in signals or s in sel.mapped:
             continue
         every, some, miss = _flags(r, f"has:{s}")
@@ -333,12 +332,11 @@ def _held_companions(lay: MessageLayout, sel: Selection, joints: tuple[str, ...]
 
 def _columns(lay: MessageLayout, sel: Selection) -> None:
     """The layout's column names and keys, repairs' droppable columns, current scale."""
-    from ..repair import DROPPABLE_SIGNALS
 
     cols = [c for part in lay.parts for c in part.cols]
     lay.names = [f"{lay.joints[j]}.{s}" for s, j in cols]
     lay.keys = {(s, j): f"{lay.joints[j]}.{s}" for s, j in cols}
-    lay.droppable = {nm for nm in lay.names if nm.rsplit(".", 1)[-1] in DROPPABLE_SIGNALS}
+    lay.droppable = {nm for nm in lay.names if nm.rsplit(".", 1)[-1] in DROPPABLE_CHANNELS}
     lay.time_name = f"{lay.time_source} time"
     scale = np.full(len(lay.joints), np.nan)
     for f in sel.fields:

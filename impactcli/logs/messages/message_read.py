@@ -28,8 +28,9 @@ from typing import Any
 import numpy as np
 
 from ...errors import ChannelMapError, ImpactError, LogFormatError
+from ...sample_channels import CHANNEL_NAMES
 from ...spill import SpillFolder
-from ..channel_map import SIGNALS, ChannelMap, ChannelRef
+from ..channel_map import ChannelMap, ChannelRef
 from ..channels import JointChannels
 from ..layout import RawRows, StreamLayout
 from .fields import FieldPath, check_ros_path, parse_field_path
@@ -135,8 +136,8 @@ def json_topic_arrays(src: MessageSource, td: TopicData,
         joints = tuple(str(s) for s in msgs[0]["name"])
     jidx = {nm: i for i, nm in enumerate(joints)}
     n, jn = len(msgs), len(joints)
-    vals = {s: np.full((n, jn), np.nan) for s in SIGNALS}
-    has = {s: np.zeros(n, dtype=bool) for s in SIGNALS}
+    vals = {s: np.full((n, jn), np.nan) for s in CHANNEL_NAMES}
+    has = {s: np.zeros(n, dtype=bool) for s in CHANNEL_NAMES}
     named = np.zeros((n, jn), dtype=bool)
     header = np.zeros(n, dtype=np.int64)
     extra: set[str] = set()
@@ -146,7 +147,7 @@ def json_topic_arrays(src: MessageSource, td: TopicData,
         extra.update(nm for nm in names if nm not in jidx)
         named[i, [c for c in cols if c >= 0]] = True
         header[i] = int(m.get("stamp_ns", 0) or 0)
-        for s in SIGNALS:
+        for s in CHANNEL_NAMES:
             v = m.get(s)
             if isinstance(v, list) and len(v) == len(names) and v:
                 has[s][i] = True
