@@ -385,19 +385,15 @@ DETECTORS: tuple[str, ...] = ("adaptive", "static_loading", "static_baseline")
 
 
 @dataclass(frozen=True)
-class Event:
-    """One detection event (docs/formats.md, "Detection timeline").
+class AlarmSpan:
+    """Where one detector alarmed: the fields an event and a lasting load share.
 
     Attributes:
         detector: ``adaptive``, ``static_loading`` or ``static_baseline``.
         t_start, t_end: first and last sample whose decision is 1, both inclusive
             [s since the log's first sample].
         i_start, i_end: the same as sample indices (inclusive).
-        joints: names of the joints that fired during the event, first to fire first.
-        peak_ratio: max over those joints and samples of statistic / threshold [-].
-        peak_residual: per joint that fired, the residual r of largest magnitude during
-            the event (signed) [N·m] — the contact-torque estimate.
-        in_warmup: the event starts before the warm-up ends (listed, never counted).
+        joints: names of the joints that fired, first to fire first.
     """
 
     detector: str
@@ -406,6 +402,20 @@ class Event:
     i_start: int
     i_end: int
     joints: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Event(AlarmSpan):
+    """One detection event (docs/formats.md, "Detection timeline"): an
+    :class:`AlarmSpan` and these.
+
+    Attributes:
+        peak_ratio: max over those joints and samples of statistic / threshold [-].
+        peak_residual: per joint that fired, the residual r of largest magnitude during
+            the event (signed) [N·m] — the contact-torque estimate.
+        in_warmup: the event starts before the warm-up ends (listed, never counted).
+    """
+
     peak_ratio: float
     peak_residual: dict[str, float]
     in_warmup: bool

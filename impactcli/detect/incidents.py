@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from ..types import Event
+from ..types import AlarmSpan, Event
 from .events import LONG_EVENT_S
 from .link_evidence import decide_link
 
@@ -125,8 +125,9 @@ class Incident:
 
 
 @dataclass(frozen=True)
-class LastingLoad:
-    """A product alarm of :data:`~impactcli.detect.events.LONG_EVENT_S` or more: a load
+class LastingLoad(AlarmSpan):
+    """A product alarm (an :class:`~impactcli.types.AlarmSpan`) of
+    :data:`~impactcli.detect.events.LONG_EVENT_S` or more: a load
     that persists — an unknown payload, a clamp, or a model that no longer fits the log
     (docs/incidents.md, "The rules"; timeline ``lasting_loads``).
 
@@ -135,12 +136,6 @@ class LastingLoad:
     incident, over its own samples (the peak).
     """
 
-    detector: str
-    t_start: float
-    t_end: float
-    i_start: int
-    i_end: int
-    joints: tuple[str, ...]
     peak_ratio: float
     in_warmup: bool
     event: int
