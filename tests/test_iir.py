@@ -60,11 +60,13 @@ def test_lfilter_zi_is_scipys() -> None:
 @pytest.mark.parametrize("shape", [(1,), (7,), (1000,), (500, 3), (64, 2, 2)])
 def test_lfilter_is_scipys(shape: tuple[int, ...]) -> None:
     """Bit for bit, continued over consecutive chunks, for the replay's filters (2nd-order
-    Butterworths, the SVF designs, first-order poles) and b and a of unequal lengths."""
+    Butterworths, the SVF designs, first-order poles) and b and a of unequal lengths: the
+    kernels of orders 1-3 and the general one (a 4th-order Butterworth)."""
     rng = np.random.default_rng(sum(shape))
     x = rng.normal(size=shape) * 10.0 ** rng.integers(-6, 6)
     w = 2.0 * 1000.0 * np.tan(np.pi * 20.0 / 1000.0)
     designs = [signal.butter(2, 0.004), signal.butter(2, 0.6), signal.butter(3, 0.1),
+               signal.butter(4, 0.2),
                signal.bilinear([0.0, w * w, 0.0], [1.0, np.sqrt(2.0) * w, w * w], fs=1000.0),
                (np.array([0.05]), np.array([1.0, -0.95])),
                (np.array([0.5, 0.2, 0.1, 0.05]), np.array([2.0, -0.3])),
