@@ -325,6 +325,13 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
             from ..model.selection import describe
 
             click.echo("\n".join(describe(fitted.fit["selection"])))
+    from ..run.torque_sources import judge_sources
+
+    sources = judge_sources(read, robot_d, read_options)  # both .torque and .current logged
+    if sources is not None:
+        click.echo("\n".join(sources.lines()))
+        if (advice := sources.advice()) is not None:
+            click.echo(f"impactcli: warning: {advice}", err=True)
     click.echo("\n".join(threshold_lines(out)))
     for line in rate_warnings(c.false_alarm_rate):
         click.echo(f"impactcli: warning: {line}", err=True)

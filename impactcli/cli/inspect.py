@@ -23,15 +23,27 @@ if TYPE_CHECKING:
 def inspect_cmd(log: str, robot: str | None, read_options: ReadOptions, as_json: bool) -> None:
     """Show what LOG holds: joints, channels used and ignored, torque and time source,
     duration, sample rate and jitter, gaps and repairs — and what it still needs (a current
-    without gear ratio and torque constant is shown in A, and said)."""
+    without gear ratio and torque constant is shown in A, and said).
+
+    When LOG carries both .torque and .current, each is fitted by the same rigid model and
+    its held-back error shown; --torque-source is named when the other source predicts
+    clearly better (docs/formats.md, "Torque: .torque or .current")."""
     from ..logs import inspect_log
     from ..logs.describe import format_table
     from ..logs.robot_files import read_robot
+    from ..run.torque_sources import inspect_sources
 
     desc = read_robot(robot) if robot else None
     opts = read_options.as_dict()
     d = inspect_log(log, robot=desc, **opts)  # a folder's one log, as every verb reads one
+    sources = inspect_sources(d, desc, read_options)
+    if sources is not None:
+        d["torque_sources"] = sources.as_dict()
     if as_json:
         click.echo(json.dumps(d, separators=(",", ":")))
-    else:
-        click.echo(format_table(d))
+        return
+    click.echo(format_table(d))
+    if sources is not None:
+        click.echo("\n".join(sources.lines()))
+        if (advice := sources.advice()) is not None:
+            click.echo(f"impactcli: warning: {d['path']}: {advice}", err=True)

@@ -254,7 +254,7 @@ def choose(coupled: Sequence[Rows], names: Sequence[str], options: IdentifyOptio
     }
     if named is not None:
         nk = named[0].kind
-        nerr = _named_errors(named, names, options)
+        nerr = named_errors(named, names, options)
         record["candidates"][nk] = {"parameters": len(structures.param_names(
             nk, named[0].joints, named[0].structure))}
         for jn, e in zip(joints, nerr, strict=True):
@@ -266,7 +266,7 @@ def choose(coupled: Sequence[Rows], names: Sequence[str], options: IdentifyOptio
     return Choice(kind, tuple(lambdas), record)
 
 
-def _named_errors(rows: Sequence[Rows], names: Sequence[str],
+def named_errors(rows: Sequence[Rows], names: Sequence[str],
                   options: IdentifyOptions) -> list[dict[str, Any]]:
     """Per joint, the held-back error of a kind fitted as a whole (planar, urdf: columns
     shared between joints' rows), with the robust weights of its fit on all rows."""

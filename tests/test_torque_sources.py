@@ -1,0 +1,111 @@
+"""Both torque sources judged alike (impactcli/run/torque_sources.py), through ``inspect``
+and ``calibrate``: a log whose ``.torque`` is worse than its ``.current`` names
+``--torque-source current``; one whose two sources differ only by what the model holds
+(a torque sensor after the motor's friction) names nothing; one whose ``.torque`` is the
+converted current says so and fits nothing."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import jsonschema
+import numpy as np
+import pyarrow.csv as pacsv
+import pytest
+
+from .cli_run import cli
+
+REPO = Path(__file__).resolve().parents[1]
+LOG = REPO / "sample_logs" / "csv" / "assist_free_multisine.csv.gz"
+ROBOT = REPO / "sample_logs" / "csv" / "assist_free_multisine.robot.json"
+JOINTS = ("shoulder", "elbow")
+
+
+def _variant(tmp_path: Path, name: str, change) -> Path:
+    """The sample log with its ``.torque`` columns changed by ``change(table, joint)``."""
+    table = pacsv.read_csv(LOG).to_pandas()
+    for j in JOINTS:
+        table[f"{j}.torque"] = change(table, j)
+    out = tmp_path / f"{name}.csv"
+    table.to_csv(out, index=False)
+    return out
+
+
+def _sources(log: Path, *extra: object) -> tuple[dict, str]:
+    code, out, err = cli("inspect", log, "--robot", ROBOT, "--json", *extra)
+    assert code == 0, err
+    d = json.loads(out)
+    jsonschema.validate(d, json.loads((REPO / "schemas" / "inspect.schema.json").read_text()))
+    return d["torque_sources"], err
+
+
+@pytest.fixture(scope="module")
+def noisy(tmp_path_factory) -> Path:
+    """``.torque`` = the converted current plus white noise of 2 N·m: a worse sensor."""
+    rng = np.random.default_rng(7)
+    return _variant(tmp_path_factory.mktemp("noisy"), "noisy", lambda t, j: t[f"{j}.torque"]
+                    + rng.normal(0.0, 2.0, len(t)))
+
+
+def test_a_worse_torque_names_the_current(noisy: Path) -> None:
+    s, _ = _sources(noisy)
+    assert (s["in_use"], s["other"], s["same"], s["reason"]) == ("torque", "current", False,
+                                                                 None)
+    assert set(s["joints"]) == set(JOINTS)
+    for e in s["joints"].values():
+        assert e["other_clearly_better"] and e["other_rms_nm"] < e["in_use_rms_nm"] / 5
+    code, out, err = cli("inspect", noisy, "--robot", ROBOT)
+    assert code == 0 and "--torque-source current" in err and ".current clearly better" in out
+
+
+def test_reading_the_better_source_names_nothing(noisy: Path) -> None:
+    s, err = _sources(noisy, "--torque-source", "current")
+    assert (s["in_use"], s["other"]) == ("current", "torque")
+    assert not any(e["other_clearly_better"] for e in s["joints"].values())
+    assert "--torque-source" not in err
+
+
+def test_calibrate_says_it_beside_its_fit(noisy: Path, tmp_path: Path) -> None:
+    code, out, err = cli("calibrate", noisy, "--robot", ROBOT, "-o", tmp_path / "c.toml")
+    assert code == 0, err
+    assert "torque sources: .torque and .current are both logged" in out
+    assert "consider --torque-source current" in err
+
+
+def test_a_sensor_after_the_friction_is_not_judged_worse(tmp_path: Path) -> None:
+    """A link-side sensor: the motor torque less a viscous and Coulomb friction of the
+    model's own form (on the logged velocity, where the model uses its own estimate) —
+    what the rigid model identifies either way, up to that difference; neither source is
+    clearly better, read from either."""
+    def link_side(t, j):
+        qd = t[f"{j}.velocity"]
+        return t[f"{j}.torque"] - 0.4 * qd - 0.3 * np.tanh(qd / 0.01)
+
+    log = _variant(tmp_path, "link_side", link_side)
+    for source in ("torque", "current"):
+        s, err = _sources(log, "--torque-source", source)
+        assert not s["same"] and s["reason"] is None
+        assert not any(e["other_clearly_better"] for e in s["joints"].values()), s
+        assert "--torque-source" not in err
+
+
+def test_one_source_fits_nothing() -> None:
+    s, _ = _sources(LOG)
+    assert s["same"] and s["joints"] == {} and s["kind"] is None
+
+
+def test_without_a_robot_it_says_what_is_needed() -> None:
+    code, out, err = cli("inspect", LOG, "--json")
+    assert code == 0, err
+    reason = json.loads(out)["torque_sources"]["reason"]
+    assert "--robot" in reason and "torque_constant" in reason
+
+
+def test_a_log_with_one_source_says_nothing(tmp_path: Path) -> None:
+    table = pacsv.read_csv(LOG).to_pandas()
+    log = tmp_path / "torque_only.csv"
+    table.drop(columns=[f"{j}.current" for j in JOINTS]).to_csv(log, index=False)
+    code, out, err = cli("inspect", log, "--robot", ROBOT, "--json")
+    assert code == 0, err
+    assert "torque_sources" not in json.loads(out)
