@@ -160,6 +160,25 @@ def test_channels_not_logged_and_joints_left_out(tmp_path: Path) -> None:
     assert scan.source.joints_dropped and not scan.screens["torque_model"].logged[1]
 
 
+def test_an_empty_torque_column_does_not_touch_a_torque_read_from_current(
+        tmp_path: Path) -> None:
+    """With --torque-source current, a joint whose .torque column holds no finite value (a
+    dead sensor) keeps its torque from .current: the scan's first rows and the chunks
+    alike (the scan once set them NaN and refused the log)."""
+    cols = _table()
+    rng = np.random.default_rng(4)
+    for j in ("j1", "j2", "j3"):
+        cols[f"{j}.current"] = [repr(float(v)) for v in rng.normal(0, 2, N)]
+    cols["j2.torque"] = ["nan"] * N
+    robot = RobotDescription(joints=tuple(JointSpec(j, 50.0, 0.1) for j in ("j1", "j2", "j3")))
+    path = _write(tmp_path / "dead_sensor.csv", cols)
+    scan = assert_streams_exactly(path, torque_source="current", robot=robot)
+    assert scan.joint_names == ("j1", "j2", "j3")
+    head = scan.log.torque[:, 1]  # the scan's first rows (the chunks equal them: above)
+    current = np.array([float(v) for v in cols["j2.current"][:head.size]])
+    np.testing.assert_allclose(head, current * 50.0 * 0.1, rtol=1e-12)
+
+
 def test_an_optional_signal_without_a_value_is_read_as_not_logged(tmp_path: Path) -> None:
     """An all-empty j2.velocity and an all-NaN j3.velocity_ref (the other joints' finite):
     both signals are left out for every joint, with read_log's warning; j1's velocity and

@@ -59,11 +59,19 @@ def test_a_worse_torque_names_the_current(noisy: Path) -> None:
     assert code == 0 and "--torque-source current" in err and ".current clearly better" in out
 
 
+def _advice(log: Path, *extra: object) -> str:
+    """inspect's stderr (its warnings) without --json."""
+    code, _, err = cli("inspect", log, "--robot", ROBOT, *extra)
+    assert code == 0, err
+    return err
+
+
 def test_reading_the_better_source_names_nothing(noisy: Path) -> None:
-    s, err = _sources(noisy, "--torque-source", "current")
+    s, _ = _sources(noisy, "--torque-source", "current")
     assert (s["in_use"], s["other"]) == ("current", "torque")
+    assert set(s["joints"]) == set(JOINTS)
     assert not any(e["other_clearly_better"] for e in s["joints"].values())
-    assert "--torque-source" not in err
+    assert "--torque-source" not in _advice(noisy, "--torque-source", "current")
 
 
 def test_calibrate_says_it_beside_its_fit(noisy: Path, tmp_path: Path) -> None:
@@ -84,10 +92,10 @@ def test_a_sensor_after_the_friction_is_not_judged_worse(tmp_path: Path) -> None
 
     log = _variant(tmp_path, "link_side", link_side)
     for source in ("torque", "current"):
-        s, err = _sources(log, "--torque-source", source)
-        assert not s["same"] and s["reason"] is None
+        s, _ = _sources(log, "--torque-source", source)
+        assert not s["same"] and s["reason"] is None and set(s["joints"]) == set(JOINTS)
         assert not any(e["other_clearly_better"] for e in s["joints"].values()), s
-        assert "--torque-source" not in err
+        assert "--torque-source" not in _advice(log, "--torque-source", source)
 
 
 def test_one_source_fits_nothing() -> None:
@@ -100,6 +108,25 @@ def test_without_a_robot_it_says_what_is_needed() -> None:
     assert code == 0, err
     reason = json.loads(out)["torque_sources"]["reason"]
     assert "--robot" in reason and "torque_constant" in reason
+
+
+def test_a_joint_one_source_lacks_is_said_not_misread(tmp_path: Path) -> None:
+    """A dead torque sensor (an all-NaN ``.torque`` column) drops its joint from the
+    ``.torque`` read but not from the ``.current`` one: said, not fitted."""
+    table = pacsv.read_csv(LOG).to_pandas()
+    table["elbow.torque"] = np.nan
+    log = tmp_path / "dead_sensor.csv"
+    table.to_csv(log, index=False)
+    s, _ = _sources(log)
+    assert s["joints"] == {} and "a joint one source does not log" in s["reason"]
+
+
+def test_a_long_log_is_not_read_whole_by_inspect(monkeypatch) -> None:
+    from impactcli.run import torque_sources
+
+    monkeypatch.setattr(torque_sources, "INSPECT_MAX_VALUES", 1000)
+    s, _ = _sources(LOG)
+    assert s["joints"] == {} and "too long to compare here" in s["reason"]
 
 
 def test_a_log_with_one_source_says_nothing(tmp_path: Path) -> None:

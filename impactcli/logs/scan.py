@@ -568,12 +568,14 @@ def _arrays_of(log: RobotLog) -> list[str]:
 def _nan_where_empty(a: np.ndarray, signal: str, ctx: StreamLayout,
                      allbad: frozenset[int]) -> np.ndarray:
     """``a`` with NaN in the columns of joints whose column holds no finite value (such a
-    column is NaN in the log; a ±inf would survive in the first rows)."""
+    column is NaN in the log; a ±inf would survive in the first rows). The log's torque
+    comes from the torque source's column: an empty ``.torque`` column does not touch a
+    torque read from ``.current``."""
     names = ctx.names
+    column = ctx.plan.torque_source if signal == "torque" else signal
     out = np.array(a, dtype=np.float64)
     for (sig, j), key in ctx.keys.items():
-        if names.index(key) in allbad and (sig == signal or (
-                signal == "torque" and sig == ctx.plan.torque_source)):
+        if names.index(key) in allbad and sig == column:
             out[:, j] = np.nan
     return out
 

@@ -18,11 +18,11 @@ other source predicts clearly better:
   (:func:`impactcli.model.selection.named_errors`: leave-one-log-out with two logs or
   more, stretches of one log otherwise).
 * Per joint, the other source is **clearly better** when the one-standard-error rule over
-  the parts' held-back mean squared errors [N·m²] picks it over the source in use and it
-  cuts the held-back RMS error by at least :data:`~impactcli.model.selection.MIN_GAIN`
-  (25 %) — the rule by which a richer model kind must beat a simpler one
-  (:func:`impactcli.model.selection.one_se`, the source in use first): better on average
-  is not enough.
+  the parts' held-back mean squared errors [N·m²] (absolute: both sources are torques)
+  picks it over the source in use and it cuts the held-back RMS error by at least
+  :data:`~impactcli.model.selection.MIN_GAIN` (25 %, the least gain a richer model kind
+  must also show; :func:`impactcli.model.selection.one_se`, the source in use first):
+  better on average is not enough.
 """
 
 from __future__ import annotations
@@ -31,18 +31,26 @@ import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..errors import ImpactError
 from ..types import ReadOptions, RobotDescription, RobotLog
 
+if TYPE_CHECKING:
+    from ..model.rows import Rows
+
 #: The converted current and the logged torque are one source when they differ by less
 #: than this fraction of the torque's RMS on every joint (a CSV's printed digits).
 SAME_FRACTION = 1e-4
 
 SOURCES = ("torque", "current")
+
+#: ``inspect`` reads the log's samples (both sources) only up to this many samples × joints
+#: (about 12 minutes of a 7-joint 1 kHz log: 360 MB a read); ``inspect`` itself holds its
+#: times only.
+INSPECT_MAX_VALUES = 5_000_000
 
 
 @dataclass(frozen=True)
@@ -85,19 +93,19 @@ class SourceComparison:
         if self.reason is not None:
             return [f"{head}; not compared: {self.reason}"]
         w = max(5, *(len(j) for j in self.rms_nm))
-        out = [f"{head}; held-back RMS error of the {self.kind} model on each "
-               f"({self.held_back}) [N·m]:",
-               f"  {'joint':<{w}}  {'.' + self.in_use:>10}  {'.' + self.other:>10}"]
+        out = [f"{head}; the {self.kind} model fitted on each",
+               f"  held back: {self.held_back}; rule: the other source is named when it is "
+               "better by more than one standard error and by 25 % of the RMS error",
+               f"  {'joint':<{w}}  {'.' + self.in_use:>10}  {'.' + self.other:>10}  "
+               "[held-back RMS error, N·m]"]
         for j, (a, b) in self.rms_nm.items():
             mark = f"  .{self.other} clearly better" if j in self.clearly_better else ""
             out.append(f"  {j:<{w}}  {a:>10.3g}  {b:>10.3g}{mark}")
         if self.clearly_better:
-            out.append(f"  .{self.other} predicts {', '.join(self.clearly_better)} clearly "
-                       f"better held back (one standard error, and 25 % less RMS error): "
-                       f"consider --torque-source {self.other}")
+            out.append(f"  consider --torque-source {self.other} "
+                       f"({', '.join(self.clearly_better)})")
         else:
-            out.append(f"  .{self.other} predicts no joint clearly better held back: keep "
-                       f".{self.in_use}")
+            out.append(f"  .{self.other} predicts no joint clearly better: keep .{self.in_use}")
         return out
 
     def advice(self) -> str | None:
@@ -115,6 +123,12 @@ def inspect_sources(described: dict[str, Any], robot: RobotDescription | None,
     in_use = described["torque_source"]
     if in_use == "torque" and "current" not in described["signals"]:
         return None
+    values = int(described["n_samples"]) * int(described["n_joints"])
+    if values > INSPECT_MAX_VALUES:
+        return SourceComparison(in_use, SOURCES[1 - SOURCES.index(in_use)], None, None, {}, (),
+                                reason=f"the log is too long to compare here ({values:,} "
+                                f"samples × joints, over {INSPECT_MAX_VALUES:,}: each source "
+                                "is read whole); calibrate compares them on its logs")
     c = compare_torque_sources([described["path"]], robot, read_options, in_use)
     return None if in_use == "current" and c.reason is not None else c
 
@@ -139,48 +153,76 @@ def compare_torque_sources(paths: Sequence[str | Path], robot: RobotDescription 
     reads; ``read``: the logs as the verb read them from it (None: read here). A source
     that cannot be read (a current without gear ratio or torque constant) gives a
     comparison with its ``reason``."""
-    from ..logs import read_log
-    from ..model.identification import default_kind, prepare_rows
-    from ..model.identify_options import IdentifyOptions
-    from ..model.selection import MIN_GAIN, folds_of, named_errors, one_se, stacked
-
     other = SOURCES[1 - SOURCES.index(in_use)]
+    logs = _read_both(paths, robot, read_options, in_use, read)
+    if isinstance(logs, str):
+        return SourceComparison(in_use, other, None, None, {}, (), reason=logs)
+    if all(_same(x, y) for x, y in zip(logs["torque"], logs["current"], strict=True)):
+        return SourceComparison(in_use, other, None, None, {}, (), same=True)
+    return _fit_both(logs, robot, [str(p) for p in paths], in_use, other)
+
+
+def _read_both(paths: Sequence[str | Path], robot: RobotDescription | None,
+               read_options: ReadOptions, in_use: str, read: Sequence[RobotLog] | None
+               ) -> dict[str, list[RobotLog]] | str:
+    """Each source's logs (``read``: the source in use's, as the verb read them), or why
+    they cannot be had: a current without its conversion, a read error, a joint one
+    source lacks."""
+    from ..logs import read_log
+
     base = {k: v for k, v in read_options.as_dict().items() if k != "torque_source"}
+    if robot is None and "channel_map" not in base:  # before any read
+        return ("turning .current into torque needs a robot description (--robot) with each "
+                "joint's gear_ratio and torque_constant")
     logs: dict[str, list[RobotLog]] = {} if read is None else {in_use: list(read)}
     for s in SOURCES:
         if s in logs:
             continue
-        if s == "current" and robot is None and "channel_map" not in base:
-            return SourceComparison(in_use, other, None, None, {}, (), reason=(
-                "turning .current into torque needs a robot description (--robot) with "
-                "each joint's gear_ratio and torque_constant"))
         try:
             with warnings.catch_warnings():  # the verb's own read has said them
                 warnings.simplefilter("ignore")
                 logs[s] = [read_log(p, robot=robot, torque_source=s, **base) for p in paths]
         except ImpactError as e:
-            return SourceComparison(in_use, other, None, None, {}, (),
-                                    reason=f"reading .{s}: {e}")
-    if all(_same(a, b) for a, b in zip(logs["torque"], logs["current"], strict=True)):
-        return SourceComparison(in_use, other, None, None, {}, (), same=True)
+            return f"reading .{s}: {e}"
+    for x, y in zip(logs["torque"], logs["current"], strict=True):
+        if x.joint_names != y.joint_names or x.n_samples != y.n_samples:
+            return (f"{x.source.path}: read from .torque and from .current, the log has "
+                    f"joints {', '.join(x.joint_names)} and {', '.join(y.joint_names)} "
+                    f"({x.n_samples} and {y.n_samples} samples): a joint one source does not "
+                    "log")
+    return logs
+
+
+def _fit_both(logs: dict[str, list[RobotLog]], robot: RobotDescription | None,
+              names: list[str], in_use: str, other: str) -> SourceComparison:
+    """The robot description's model kind fitted on each source and judged on the same
+    held-back parts (module doc)."""
+    from ..model.identification import default_kind, prepare_rows
+    from ..model.identify_options import IdentifyOptions
+    from ..model.selection import MIN_GAIN, folds_of, named_errors, one_se, stacked
+
     kind = default_kind(robot)
     options = IdentifyOptions()
-    names = [str(p) for p in paths]
-    errors: dict[str, list[dict[str, Any]]] = {}
+    errors: dict[str, dict[str, dict[str, Any]]] = {}
+    rows: dict[str, list[Rows]] = {}
     try:
         with warnings.catch_warnings():  # identification's warnings belong to the fit
             warnings.simplefilter("ignore")
             for s in (in_use, other):
-                rows = [prepare_rows(lg, robot, kind, options) for lg in logs[s]]
-                errors[s] = named_errors(rows, names, options)
+                rows[s] = [prepare_rows(lg, robot, kind, options) for lg in logs[s]]
+                errors[s] = dict(zip(rows[s][0].joints, named_errors(rows[s], names, options),
+                                     strict=True))
     except ImpactError as e:
         return SourceComparison(in_use, other, kind, None, {}, (), reason=str(e))
-    joints = rows[0].joints
-    held = folds_of(stacked(rows)[2], names, max(r.cv_gap for r in rows))[1]
+    mine = rows[in_use]
+    held = folds_of(stacked(mine)[2], names, max(r.cv_gap for r in mine))[1]
     rms: dict[str, tuple[float, float]] = {}
     better: list[str] = []
-    for j, jn in enumerate(joints):
-        a, b = errors[in_use][j], errors[other][j]
+    for jn in mine[0].joints:
+        a, b = errors[in_use][jn], errors[other].get(jn)
+        if b is None or len(b["parts_rms_nm"]) != len(a["parts_rms_nm"]):
+            return SourceComparison(in_use, other, kind, None, {}, (), reason=(
+                f"the two sources' fits hold different joints or parts ({jn})"))
         rms[jn] = (a["rms_nm"], b["rms_nm"])
         mse = np.square([a["parts_rms_nm"], b["parts_rms_nm"]])
         if one_se(mse, np.array(rms[jn]), MIN_GAIN)[0] == 1:
