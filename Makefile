@@ -46,12 +46,14 @@ outputs: $(STAMP)
 # The linters (ruff, mypy: 0 errors is the bar) and the tests — the README's test command.
 # TEST_WORKERS pytest processes (pytest-xdist) share the tests, each taking the next when
 # it is free; TEST_WORKERS=0 runs them in this process. mypy (one core, about 35 s on a
-# cold cache) runs beside the tests; its report follows theirs; either failing fails make.
+# cold cache) runs beside the tests; its report follows theirs; either failing fails make;
+# Ctrl-C or a TERM stops it too (exit 130, 143).
 TEST_WORKERS ?= 2
 test: $(STAMP)
 	$(BIN)/ruff check impactcli tests
 	@echo "$(BIN)/mypy impactcli  (beside the tests; its report follows theirs)"
 	@$(BIN)/mypy impactcli > $(VENV)/mypy.out 2>&1 & mypy=$$!; tests=0; \
+	trap 'kill $$mypy 2>/dev/null; exit 130' INT; trap 'kill $$mypy 2>/dev/null; exit 143' TERM; \
 	echo "$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal"; \
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal || tests=$$?; \
 	lint=0; wait $$mypy || lint=$$?; \
