@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from impactcli.cli import main
@@ -164,6 +164,7 @@ def test_rows_that_cannot_be_consecutive_are_refused(free: RobotLog, tmp_path: P
        at_s=st.floats(6.0, 18.0),
        size=st.floats(0.0, 1.0),
        joint=st.integers(0, 1))
+@example(kind="jump", at_s=6.0, size=1.0, joint=1)  # an adaptive alarm 2.2 s after the splice
 def test_planted_defects_never_make_an_unmarked_contact(
         free: RobotLog, tmp_path: Path, kind: str, at_s: float, size: float,
         joint: int) -> None:
@@ -306,3 +307,28 @@ def test_contacts_away_from_a_defect_are_counted_as_before(tmp_path: Path) -> No
     before = [i["t_start"] for i in clean["incidents"] if not i["in_warmup"]]
     assert len(counted) == len(before)
     assert np.allclose([i["t_start"] for i in counted], before, atol=0.0041)
+
+
+def test_the_adaptive_detectors_memory_of_a_defect() -> None:
+    """An incident the adaptive detector raised alone is marked while the evaluator still
+    remembers the defect (three time constants of its forgetting); one the static
+    detector shares, only within the settling time; neither after."""
+    import dataclasses
+
+    from impactcli.detect.incidents import (
+        DataDefect,
+        Incident,
+        adaptive_memory_s,
+        mark_defects,
+    )
+
+    memory = adaptive_memory_s(0.999, 250.0)
+    assert memory == pytest.approx(12.0) and adaptive_memory_s(1.0, 250.0) == 0.0
+    jump = DataDefect("jump", 5.996, 6.0, 0.2, ("elbow",))
+    base = Incident(0.0, 0.1, 0, 25, ("adaptive",), ("elbow",), 2, None, "none", "transient",
+                    {"elbow": 1.0}, False)
+    incs = [dataclasses.replace(base, t_start=t, t_end=t + 0.1, detectors=d)
+            for t, d in ((8.2, ("adaptive",)), (8.2, ("static_loading", "adaptive")),
+                         (6.3, ("static_loading",)), (18.5, ("adaptive",)))]
+    marked = [i.data_defect is not None for i in mark_defects(incs, [jump], 0.56, memory)]
+    assert marked == [True, False, True, False]

@@ -187,17 +187,29 @@ def settle_s(loading_cutoff_hz: float, threshold_window_s: float) -> float:
     return 5.0 / (2.0 * np.pi * loading_cutoff_hz) + threshold_window_s
 
 
+def adaptive_memory_s(forgetting_factor: float, sample_rate_hz: float) -> float:
+    """How long the adaptive evaluator remembers a data defect [s]: three time constants
+    1 / (1 − λ) of eq. 37–39's forgetting (the RLS estimates a splice disturbed have then
+    forgotten 95 % of it): 12 s at λ = 0.999 and 250 Hz; 0 without forgetting (λ = 1)."""
+    if forgetting_factor >= 1.0:
+        return 0.0
+    return 3.0 / ((1.0 - forgetting_factor) * sample_rate_hz)
+
+
 def mark_defects(incidents: Sequence[Incident], defects: Sequence[DataDefect],
-                 settle: float) -> list[Incident]:
+                 settle: float, adaptive_settle: float = 0.0) -> list[Incident]:
     """The incidents, each that starts within a defect or ``settle`` seconds after it
-    marked with it (its kind and times; the first such defect)."""
+    marked with it (its kind and times; the first such defect) — or, raised by the
+    adaptive detector alone, ``adaptive_settle`` seconds after it (the evaluator's memory,
+    :func:`adaptive_memory_s`: its estimates are still re-converging from the defect)."""
     if not defects:
         return list(incidents)
     starts = np.array([d.t_start for d in defects])
     ends = np.array([d.t_end for d in defects])
     out = []
     for inc in incidents:
-        hit = np.flatnonzero((starts - 1e-9 <= inc.t_start) & (inc.t_start <= ends + settle))
+        after = max(settle, adaptive_settle) if set(inc.detectors) == {"adaptive"} else settle
+        hit = np.flatnonzero((starts - 1e-9 <= inc.t_start) & (inc.t_start <= ends + after))
         if hit.size:
             d = defects[int(hit[0])]
             out.append(replace(inc, data_defect={"kind": d.kind, "t_start": d.t_start,

@@ -47,6 +47,7 @@ from ..detect.incidents import (
     DataDefect,
     Incident,
     LastingLoad,
+    adaptive_memory_s,
     mark_defects,
     settle_s,
 )
@@ -276,7 +277,9 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         events, incidents, loads = _events_and_incidents(islands, rp.warmup, joints, cfg, ctx)
         defects = data_defects(scan, rp.gap_times)
         settle = settle_s(cfg.static_loading.cutoff_hz, cfg.adaptive.n2_s)
-        incidents = number_incidents(mark_defects(incidents, defects, settle))
+        incidents = number_incidents(mark_defects(
+            incidents, defects, settle,
+            adaptive_memory_s(cfg.adaptive.forgetting_factor, scan.sample_rate_hz)))
         if plan.torque_scale is not None and plan.torque_scale.kind == "warn":
             incidents = off_scale(incidents, plan.torque_scale.scale)
             loads = off_scale(loads, plan.torque_scale.scale)

@@ -174,8 +174,9 @@ def warn_defect_incidents(where: str, defects: Sequence[Any], incidents: Sequenc
         more = f" and {len(marked) - 5} more" if len(marked) > 5 else ""
         warnings.warn(
             f"{where}: {len(marked)} incident(s) start at a data defect or within "
-            f"{settle_s:.2g} s after it ({listed}{more}): marked data_defect in the "
-            "timeline and not counted as contacts", ImpactWarning, stacklevel=3)
+            f"{settle_s:.2g} s after it (the adaptive detector's alone: within its memory; "
+            f"{listed}{more}): marked data_defect in the timeline and not counted as "
+            "contacts", ImpactWarning, stacklevel=3)
 
 
 def warn_implausible_forces(where: str, findings: Sequence[Any]) -> None:
