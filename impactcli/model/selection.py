@@ -109,6 +109,12 @@ def folds_of(sizes: Sequence[int], names: Sequence[str], gap: int,
                  f"(margin {gap} row(s))")
 
 
+def row_counts(rows: Sequence[Rows]) -> list[int]:
+    """Each log's fitted and held-back rows (:func:`stacked`'s sizes, without stacking)."""
+    return [r.y_fit.shape[0] + (0 if r.y_hold is None else r.y_hold[0].shape[0])
+            for r in rows]
+
+
 def stacked(rows: Sequence[Rows]) -> tuple[np.ndarray, np.ndarray, list[int]]:
     """(N, J, P) regressor and (N, J) torques of every log's fitted and held-back rows, in
     time order, log after log; the rows per log."""

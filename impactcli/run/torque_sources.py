@@ -199,7 +199,7 @@ def _fit_both(logs: dict[str, list[RobotLog]], robot: RobotDescription | None,
     held-back parts (module doc)."""
     from ..model.identification import default_kind, prepare_rows
     from ..model.identify_options import IdentifyOptions
-    from ..model.selection import MIN_GAIN, folds_of, named_errors, one_se, stacked
+    from ..model.selection import MIN_GAIN, folds_of, named_errors, one_se, row_counts
 
     kind = default_kind(robot)
     options = IdentifyOptions()
@@ -215,7 +215,7 @@ def _fit_both(logs: dict[str, list[RobotLog]], robot: RobotDescription | None,
     except ImpactError as e:
         return SourceComparison(in_use, other, kind, None, {}, (), reason=str(e))
     mine = rows[in_use]
-    held = folds_of(stacked(mine)[2], names, max(r.cv_gap for r in mine))[1]
+    held = folds_of(row_counts(mine), names, max(r.cv_gap for r in mine))[1]
     rms: dict[str, tuple[float, float]] = {}
     better: list[str] = []
     for jn in mine[0].joints:
