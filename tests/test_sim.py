@@ -299,3 +299,24 @@ def test_friction_drift_is_slow_and_bounded():
     np.testing.assert_allclose(fs[0], 1.0)
     assert np.all((fs > 0.7) & (fs < 1.1))
     assert np.max(np.abs(np.diff(fs, axis=0))) < 1e-4
+
+
+def test_a_payload_picked_mid_run_changes_the_arm_from_then_on() -> None:
+    """``Scenario.payload_changes``: the run is the payload-free run bit for bit up to the
+    pick; after it the servos hold the load (the shoulder's torque rises by about its
+    gravity torque, m g times the horizontal reach of the tip)."""
+    from dataclasses import replace
+
+    from impactcli.sim import scenario, simulate
+
+    base = scenario("free_multisine", duration_s=8.0, robot_seed=3)
+    picked = replace(base, payload_changes=((4.0, 1.5),))
+    a, b = simulate(base, seed=1), simulate(picked, seed=1)
+    k = round(4.0 / base.arm.sample_period_s)
+    np.testing.assert_array_equal(a.log.torque[:k], b.log.torque[:k])
+    np.testing.assert_array_equal(a.log.position[:k], b.log.position[:k])
+    late = slice(k + 250, None)  # a second after the pick, the servos hold the load
+    extra = b.log.torque[late, 0] - a.log.torque[late, 0]
+    reach = b.truth["tip"][late, 0]  # horizontal distance of the tip from the base [m]
+    expected = 1.5 * 9.81 * reach
+    assert abs(np.median(extra / expected) - 1.0) < 0.15

@@ -11,7 +11,7 @@ from .options import handle_errors
 FORMATS = {"csv": ".csv", "csv.gz": ".csv.gz", "mcap-json": ".mcap", "mcap-ros2": ".mcap"}
 ARMS = ("assist_like", "heavy_geared")
 SCENARIO_NAMES = ("free_triangle", "free_fm_triangle", "free_p2p", "free_multisine",
-                  "impacts", "pushes", "clamps", "payload")
+                  "impacts", "pushes", "clamps", "payload", "pick_and_place")
 
 
 @click.command("simulate")

@@ -20,6 +20,7 @@ random stream are the same with the flag on or off).
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -28,7 +29,7 @@ import numpy as np
 
 from ..types import Labels, LogSource, RobotDescription, RobotLog
 from . import kernel as kern
-from .arm import ArmParams, nominal_parameters, true_parameters
+from .arm import ArmParams, nominal_parameters, true_parameters, with_payload
 from .contacts import Clamp, Push, Surface, label_contacts, tables
 from .controller import quantise, simulate_channels
 from .reference import Reference
@@ -45,6 +46,9 @@ class Scenario:
         reference: the motor-position reference x1_ref (:mod:`impactcli.sim.reference`).
         surfaces, pushes, clamps: contacts (:mod:`impactcli.sim.contacts`).
         payload_kg: unknown point mass at the end effector [kg] (not in the description).
+        payload_changes: (time [s], payload [kg] from then on) pairs in time order: a
+            payload picked or released mid-run (a point mass at the end effector, merged
+            into the last link from the first sample at or after that time).
         uncertainty: relative spread of the true parameters around nominal [-].
         friction_drift: largest warm-up decrease of friction [-] (0 disables the drift).
         friction: False removes all friction (energy checks).
@@ -75,6 +79,7 @@ class Scenario:
     pushes: tuple[Push, ...] = ()
     clamps: tuple[Clamp, ...] = ()
     payload_kg: float = 0.0
+    payload_changes: tuple[tuple[float, float], ...] = ()
     uncertainty: float = 0.2
     friction_drift: float = 0.15
     friction: bool = True
@@ -203,6 +208,21 @@ def _static_link_position(x1: np.ndarray, p: dict[str, np.ndarray], g: tuple[flo
     return x2
 
 
+def _payload_segments(p: dict[str, np.ndarray], bare: dict[str, np.ndarray],
+                      scenario: Scenario, n_samples: int, ts: float,
+                      ) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
+    """(first sample, masses, centres of mass, inertias) of the links in each stretch of
+    constant payload: ``p``'s (with ``scenario.payload_kg``) first, then one per payload
+    change, merged into ``bare`` (the same robot without a payload): a point mass at the
+    end effector in the last link."""
+    out = [(0, p["mass"], p["com"], p["inertia"])]
+    for t_s, kg in scenario.payload_changes:
+        k = min(n_samples, max(1, math.ceil(t_s / ts - 1e-9)))
+        m, c, i = with_payload(bare["mass"], bare["com"], bare["inertia"], bare["lengths"], kg)
+        out.append((k, m, c, i))
+    return out
+
+
 def simulate(scenario: Scenario, *, seed: int = 0) -> SimResult:
     """Run ``scenario`` with the random ``seed`` (deterministic for a seed).
 
@@ -220,7 +240,10 @@ def simulate(scenario: Scenario, *, seed: int = 0) -> SimResult:
     if scenario.robot_seed is not None:  # the same robot across runs
         r_par = np.random.default_rng(np.random.SeedSequence(scenario.robot_seed))
 
+    r_bare = copy.deepcopy(r_par)  # the same draws: the same robot without a payload
     p = true_parameters(arm, r_par, scenario.uncertainty, scenario.payload_kg)
+    segments = _payload_segments(
+        p, true_parameters(arm, r_bare, scenario.uncertainty, 0.0), scenario, n_samples, ts)
     if not scenario.friction:
         for key in ("fv_m", "fc_m", "fv_a", "fc_a"):
             p[key] = np.zeros(n)
@@ -231,7 +254,9 @@ def simulate(scenario: Scenario, *, seed: int = 0) -> SimResult:
     if not scenario.noise:
         cur_noise[:] = 0.0
     surf, forces = tables(scenario.surfaces, scenario.pushes, scenario.clamps)
-    n_sub = scenario.substeps or choose_substeps(p, arm, surf, float(fscale.max()))
+    n_sub = scenario.substeps or max(choose_substeps(dict(p, mass=m, com=c, inertia=i), arm,
+                                                     surf, float(fscale.max()))
+                                     for _, m, c, i in segments)
 
     x1_0 = ref_pos[0].copy()
     x2_0 = _static_link_position(x1_0, p, arm.gravity)
@@ -250,8 +275,11 @@ def simulate(scenario: Scenario, *, seed: int = 0) -> SimResult:
     o_pen = np.empty((n_samples, surf.shape[0]))
     o_tip = np.empty((n_samples, 2))
     alpha = 1.0 - math.exp(-2 * math.pi * arm.velocity_cutoff_hz * ts)
+    seg_start = np.array([seg[0] for seg in segments], dtype=np.int64)
+    seg_mass, seg_com, seg_inertia = (np.ascontiguousarray(np.array([seg[i] for seg in segments]))
+                                      for i in (1, 2, 3))
     kern.run(
-        s0, ts, n_sub, n_samples, p["lengths"], p["mass"], p["com"], p["inertia"],
+        s0, ts, n_sub, n_samples, p["lengths"], seg_mass, seg_com, seg_inertia, seg_start,
         float(arm.gravity[0]), float(arm.gravity[1]), p["i_mot"], p["stiff"], p["damp"],
         p["fv_m"], p["fc_m"], p["fv_a"], p["fc_a"], float(arm.coulomb_velocity_eps), fscale,
         surf, forces, bool(scenario.control), np.asarray(arm.kp, dtype=np.float64),

@@ -326,7 +326,8 @@ def derivative(t: float, s: np.ndarray, u: np.ndarray, lengths: np.ndarray,
 
 @njit(cache=True, error_model="numpy")
 def run(s0: np.ndarray, ts: float, n_sub: int, n_samples: int,
-        lengths: np.ndarray, mass: np.ndarray, com: np.ndarray, inertia: np.ndarray,
+        lengths: np.ndarray, masses: np.ndarray, coms: np.ndarray, inertias: np.ndarray,
+        seg_start: np.ndarray,
         gx: float, gy: float, i_mot: np.ndarray, stiff: np.ndarray, damp: np.ndarray,
         fv_m: np.ndarray, fc_m: np.ndarray, fv_a: np.ndarray, fc_a: np.ndarray,
         v_eps: float, fscale: np.ndarray,
@@ -349,6 +350,9 @@ def run(s0: np.ndarray, ts: float, n_sub: int, n_samples: int,
     fscale (N, n) friction scale per sample; cur_noise (N, n) [A] pre-drawn.
     Outputs (N rows each): o_state (4n), o_u, o_pos, o_vel, o_cur, o_tau_ext (n),
     o_src (S + P) force magnitudes [N], o_pen (S) [m], o_tip (2) end-effector [m].
+    The links' masses, centres of mass and inertias are rows of ``masses``, ``coms``,
+    ``inertias`` (G, n): row g from sample ``seg_start[g]`` on (``seg_start[0]`` = 0; a
+    payload picked or released mid-run).
     """
     n = lengths.shape[0]
     dim = 4 * n
@@ -371,8 +375,17 @@ def run(s0: np.ndarray, ts: float, n_sub: int, n_samples: int,
     prev = np.empty(n)
     vest = np.zeros(n)
     h = ts / n_sub
+    g = 0
+    mass = masses[0]
+    com = coms[0]
+    inertia = inertias[0]
     for k in range(n_samples):
         t = k * ts
+        while g + 1 < seg_start.shape[0] and k >= seg_start[g + 1]:
+            g += 1
+            mass = masses[g]
+            com = coms[g]
+            inertia = inertias[g]
         # record the true state and contact quantities at the sample instant
         kin_w(s, n, n, lengths, w)
         external(t, n, s, 3 * n, lengths, w, surfaces, forces, tau_ext, src, pen)

@@ -16,6 +16,9 @@ Names (see :data:`SCENARIOS`):
 * ``clamps`` — slow clamping ramps (20–40 N over 3–4 s, held, released) during slow motion.
 * ``payload`` — ``free_multisine`` with an unknown end-effector payload (0.5 kg on
   assist_like, 2 kg on heavy_geared).
+* ``pick_and_place`` — ``free_multisine`` that picks a payload at a third of the run and
+  releases it at two thirds (``Scenario.payload_changes``), with pushes before, while
+  carrying it and after.
 """
 
 from __future__ import annotations
@@ -82,6 +85,26 @@ def payload(arm: ArmParams, duration_s: float) -> Scenario:
     kg = 0.5 if arm.name == "assist_like" else 2.0
     return replace(base, name="payload", payload_kg=kg,
                    description=f"collision-free multi-sine with an unknown {kg} kg payload")
+
+
+def pick_and_place(arm: ArmParams, duration_s: float) -> Scenario:
+    """``free_multisine`` that picks a payload at a third of the run and releases it at two
+    thirds (1.0 kg on assist_like, 2 kg on heavy_geared), with half-sine pushes of 20 and
+    30 N before, while carrying it (two) and after."""
+    base = free_multisine(arm, duration_s)
+    kg = 1.0 if arm.name == "assist_like" else 2.0
+    pick, place = duration_s / 3.0, 2.0 * duration_s / 3.0
+    n = arm.n_joints
+    at = (pick / 2.0, pick + (place - pick) * 0.4, pick + (place - pick) * 0.75,
+          place + (duration_s - place) * 0.5)
+    ps = tuple(Push(link=n if i % 2 == 0 else max(1, n - 1), t0_s=t, peak_n=(30.0, 20.0)[i % 2],
+                    duration_s=0.3, point=0.7, direction_deg=-90.0 if i % 2 else 90.0)
+               for i, t in enumerate(at))
+    return replace(base, name="pick_and_place", pushes=ps,
+                   payload_changes=((pick, kg), (place, 0.0)),
+                   description=f"multi-sine motion picking a {kg:g} kg payload at {pick:.3g} s "
+                   f"and releasing it at {place:.3g} s, pushes of 20–30 N before, while "
+                   "carrying it and after")
 
 
 def impacts(arm: ArmParams, duration_s: float | None,
@@ -185,6 +208,7 @@ SCENARIOS: dict[str, Callable[..., Scenario]] = {
     "pushes": pushes,
     "clamps": clamps,
     "payload": payload,
+    "pick_and_place": pick_and_place,
 }
 
 #: Default durations [s] (``impacts``: its natural length, ≈ 60 s).
