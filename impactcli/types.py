@@ -566,6 +566,8 @@ class DetectionResult:
     detection_floor: dict[str, Any] | None = None
     data_defects: dict[str, Any] | None = None
     torque_scale: dict[str, Any] | None = None
+    payload: dict[str, Any] | None = None
+    payload_changes: tuple[dict[str, Any], ...] | None = None
 
     @property
     def online_equivalent(self) -> bool:
@@ -578,10 +580,16 @@ class DetectionResult:
         return [e for e in self.events if e.detector == detector and not e.in_warmup]
 
     def counted_incidents(self) -> list[Any]:
-        """Incidents after warm-up that are not at a data defect (the ones summaries count;
-        an incident never spans the warm-up's end)."""
+        """Incidents after warm-up that are not at a data defect nor a payload change (the
+        ones summaries count; an incident never spans the warm-up's end)."""
         return [i for i in self.incidents
-                if not i.in_warmup and getattr(i, "data_defect", None) is None]
+                if not i.in_warmup and getattr(i, "data_defect", None) is None
+                and getattr(i, "payload_change", None) is None]
+
+    def payload_incidents(self) -> list[Any]:
+        """Incidents after warm-up that were a payload change (counted apart)."""
+        return [i for i in self.incidents
+                if not i.in_warmup and getattr(i, "payload_change", None) is not None]
 
     def defect_incidents(self) -> list[Any]:
         """Incidents after warm-up that start at a data defect (counted apart)."""
@@ -600,6 +608,8 @@ class DetectionResult:
             "incidents": {"counted": len(self.counted_incidents()),
                           "in_warmup": sum(1 for i in self.incidents if i.in_warmup),
                           **({"data_defect": n} if (n := len(self.defect_incidents()))
+                             else {}),
+                          **({"payload_change": n} if (n := len(self.payload_incidents()))
                              else {})},
             "lasting_loads": {"counted": len(self.counted_lasting_loads()),
                               "in_warmup": len(self.lasting_loads)

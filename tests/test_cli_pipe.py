@@ -94,4 +94,4 @@ def test_help_documents_141() -> None:
 
 def test_readme_documents_141() -> None:
     readme = (REPO / "README.md").read_text(encoding="utf-8")
-    assert "| 141 | stdout's reader closed before the CLI finished printing" in readme
+    assert "| 141 | stdout's reader closed early" in readme

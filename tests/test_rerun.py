@@ -457,3 +457,21 @@ def test_no_reference_and_no_events(tmp_path: Path) -> None:
         np.testing.assert_allclose(pos[:, 0], res.log.position[:, j])
         lane = ent[f"/detections/{joint}/adaptive"]["StateChange:state"]
         assert [s[0] for s in lane] == ["clear"]
+
+
+def test_payload_changes_are_rows_at_their_onset_and_classification(tmp_path: Path) -> None:
+    res = fake_result()
+    change = {"t_start": 2.0, "t_classified": 5.0, "mass_kg": 1.25, "mass_se_kg": 0.01,
+              "values": {"m": 1.25}, "explained": 0.97, "mass_after_kg": 1.25}
+    res = dataclasses.replace(res, payload_changes=(change,))
+    path = tmp_path / "payload.rrd"
+    write_rrd(res, path)
+    rows = read_entities(path)["/payload_changes"]
+    texts = [x[0] for x in rows["TextLog:text"]]
+    assert len(texts) == 2 and "+1.25 kg" in texts[0] and "97.0 %" in texts[0]
+    assert "classified" in texts[1] and "+1.25 kg" in texts[1]
+    np.testing.assert_array_equal(elapsed_ns(rows), [2_000_000_000, 5_000_000_000])
+    info = next(ch.to_record_batch().to_pydict()["TextDocument:text"][0][0]
+                for ch in rr.chunk.RrdReader(path).store().stream()
+                if ch.entity_path == "/run/info")
+    assert "| P1 | 2.000 | +1.25 ± 0.01 | 97.0 % | 5.000 |" in info

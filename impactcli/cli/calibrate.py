@@ -325,6 +325,10 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
             from ..model.selection import describe
 
             click.echo("\n".join(describe(fitted.fit["selection"])))
+        from ..model.payload import differ_warning
+
+        if (differ := differ_warning(fitted)) is not None:
+            click.echo(f"impactcli: warning: {differ}", err=True)
     from ..run.torque_sources import judge_sources
 
     sources = judge_sources(read, robot_d, read_options)  # both .torque and .current logged

@@ -62,6 +62,14 @@ def _lasting_line(k: int, x: dict[str, Any]) -> str:
             f"{', '.join(x['joints'])}, up to {x['peak_ratio']:.3g}× its threshold{force}")
 
 
+def payload_change_line(k: int, c: dict[str, Any]) -> str:
+    """``  P1   20.092 s  +0.994 kg (± 0.004; 99.7 % of the step a mass), classified at
+    23.092 s``."""
+    return (f"  P{k:<2} {c['t_start']:>9.3f} s  {c['mass_kg']:+.3g} kg (± "
+            f"{c['mass_se_kg']:.2g}; {100 * c['explained']:.1f} % of the step a mass), "
+            f"classified at {c['t_classified']:.3f} s")
+
+
 def lasting_loads_of(outcome: JobOutcome) -> list[dict[str, Any]]:
     """The counted lasting loads of a log (timeline ``lasting_loads`` items after warm-up),
     from its batch summary row (which lists only those); none for a failed log."""
@@ -357,6 +365,12 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
         which = "" if len(ok) == 1 else f" of {len(by_column)} log(s)"
         click.echo(f"links{which} are numbered in the log's column order (joint k's link "
                    "is k): no robot description says the chain; --robot gives it")
+    if len(ok) == 1 and one["payload_change_list"]:
+        click.echo(f"payload changes of {shown(ok[0].log_path)} (a load picked or released: "
+                   "not incidents, not gated; the residual takes the new load from the "
+                   "classification on):")
+        for k, c in enumerate(one["payload_change_list"], 1):
+            click.echo(payload_change_line(k, c))
     if len(ok) == 1 and loads[ok[0].log_path]:
         first = shown(ok[0].log_path)
         click.echo(f"lasting loads of {first} (an unknown payload, a "

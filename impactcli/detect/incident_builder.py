@@ -384,13 +384,13 @@ def build_findings(
 
 def number_incidents(incidents: list[Incident]) -> list[Incident]:
     """The log's incidents with their ``number``: 1, 2, … in time order for those counted
-    (after warm-up, not at a data defect), None for the others — the number the terminal
-    and the report show."""
+    (after warm-up, not at a data defect nor a payload change), None for the others — the
+    number the terminal and the report show."""
     import dataclasses
 
     out, n = [], 0
     for inc in incidents:
-        if inc.in_warmup or inc.data_defect is not None:
+        if inc.in_warmup or inc.data_defect is not None or inc.payload_change is not None:
             out.append(dataclasses.replace(inc, number=None))
         else:
             n += 1

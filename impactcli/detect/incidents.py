@@ -103,11 +103,14 @@ class Incident:
     force_check: str = ""
     outside_envelope: bool | None = None
     data_defect: dict[str, Any] | None = None
+    payload_change: int | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (timeline ``incidents`` item); ``outside_envelope`` only when
         the config recorded a motion envelope (:mod:`impactcli.detect.envelope`),
-        ``data_defect`` only when the incident starts at one (:func:`mark_defects`)."""
+        ``data_defect`` only when the incident starts at one (:func:`mark_defects`),
+        ``payload_change`` (its 1-based number) only when it is one
+        (:func:`mark_payload_changes`)."""
         return {
             "t_start": self.t_start, "t_end": self.t_end, "t_start_utc": self.t_start_utc,
             "detectors": list(self.detectors), "joints": list(self.joints), "link": self.link,
@@ -121,6 +124,7 @@ class Incident:
             **({} if self.outside_envelope is None
                else {"outside_envelope": self.outside_envelope}),
             **({} if self.data_defect is None else {"data_defect": self.data_defect}),
+            **({} if self.payload_change is None else {"payload_change": self.payload_change}),
         }
 
 
@@ -214,6 +218,27 @@ def mark_defects(incidents: Sequence[Incident], defects: Sequence[DataDefect],
             d = defects[int(hit[0])]
             out.append(replace(inc, data_defect={"kind": d.kind, "t_start": d.t_start,
                                                  "t_end": d.t_end}))
+        else:
+            out.append(inc)
+    return out
+
+
+def mark_payload_changes(incidents: Sequence[Incident], changes: Sequence[Any],
+                         settle: float) -> list[Incident]:
+    """The incidents, each that starts from a payload change's onset to ``settle`` seconds
+    after its classification, marked with the change's number (1-based): the alarm was the
+    load, not a contact (:mod:`impactcli.detect.payload_change`). Unlike after a data
+    defect, the adaptive evaluator's memory is not added: a blow the adaptive detector
+    alone sees while the load is carried must count. Incidents marked already are left
+    alone."""
+    if not changes:
+        return list(incidents)
+    out = []
+    for inc in incidents:
+        hit = [k for k, c in enumerate(changes, 1)
+               if c.t_start - 1e-9 <= inc.t_start <= c.t_classified + settle]
+        if hit and inc.data_defect is None and not inc.in_warmup:
+            out.append(replace(inc, payload_change=hit[0]))
         else:
             out.append(inc)
     return out

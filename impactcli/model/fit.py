@@ -25,6 +25,7 @@ def _robust_scale(res: np.ndarray, floor: np.ndarray) -> np.ndarray:
 def robust_lstsq(
     y_reg: np.ndarray, tau: np.ndarray, options: IdentifyOptions,
     ridge: np.ndarray | None = None, separable: bool = False,
+    prior: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     """Robust least squares tau ≈ Y theta over all samples and joints.
 
@@ -35,6 +36,9 @@ def robust_lstsq(
             column's weighted energy (0: not penalised).
         separable: no column is non-zero in two joints' rows (decoupled, coupled): the
             normal equations are solved joint by joint (the same solution, less work).
+        prior: optional (N, J) weights of the rows before the robust ones, e.g. each log's
+            own noise level (:func:`impactcli.model.payload.log_weights`); the robust scale
+            and weights judge the residuals scaled by their square roots.
     Returns:
         theta (P,), weights (N, J) in [0, 1], info (iterations, stage).
     """
@@ -70,7 +74,10 @@ def robust_lstsq(
         return _scaled_solve(g, h, ridge)
 
     scale0 = np.maximum(trms, floor)
-    theta = wls(np.broadcast_to(1.0 / scale0**2, (n, nj)))
+    pw = np.ones((n, nj)) if prior is None else np.asarray(prior, dtype=np.float64)
+    sq = None if prior is None else np.sqrt(pw)
+    theta = wls(pw / scale0**2 if prior is not None
+                else np.broadcast_to(1.0 / scale0**2, (n, nj)))
     w = np.ones((n, nj))
     iters = {"huber": 0, "bisquare": 0}
     if options.robust == "none":
@@ -81,6 +88,8 @@ def robust_lstsq(
             break
         for _ in range(options.max_iter):
             res = tau - predict(theta)
+            if sq is not None:
+                res = res * sq
             if stage == "huber":
                 sigma = _robust_scale(res, floor)
             u = np.abs(res) / sigma
@@ -89,13 +98,33 @@ def robust_lstsq(
             else:
                 c = options.bisquare_c
                 w = np.where(u < c, (1.0 - (u / c) ** 2) ** 2, 0.0)
-            new = wls(w / sigma**2)
+            new = wls(w / sigma**2 if prior is None else pw * w / sigma**2)
             iters[stage] += 1
             done = bool(np.linalg.norm(new - theta) <= 1e-7 * np.linalg.norm(theta))
             theta = new
             if done:
                 break
     return theta, w, {"iterations": iters, "robust_scale_nm": sigma.tolist()}
+
+
+def column_errors(a: np.ndarray, res: np.ndarray, nj: int, theta: np.ndarray,
+                  keep: np.ndarray, p_own: int, names: Sequence[str]) -> dict[str, Any]:
+    """The values and standard errors of the columns ``p_own`` onwards (``names``) of a fit
+    (``a`` the (N·J, P) stacked regressor, ``res`` its (N, J) residual, ``keep`` the columns
+    fitted): least squares with each joint's rows scaled by its residual RMS, the rows
+    taken as independent (a column not kept: error None)."""
+    rms = np.sqrt(np.mean(res**2, axis=0))
+    rms = np.maximum(rms, 1e-9 * max(float(rms.max()), 1e-12))
+    cols = np.flatnonzero(keep)
+    ak = a[:, cols] / np.tile(rms, a.shape[0] // nj)[:, None]
+    norms = np.maximum(np.linalg.norm(ak, axis=0), 1e-300)
+    cov = np.linalg.pinv((ak / norms).T @ (ak / norms)) / np.outer(norms, norms)
+    dof = max(a.shape[0] - cols.size, 1)
+    s2 = float(np.sum((res / rms) ** 2)) / dof
+    se: dict[int, float] = {int(c): float(np.sqrt(max(s2 * cov[i, i], 0.0)))
+                            for i, c in enumerate(cols)}
+    return {"names": list(names), "values": [float(v) for v in theta[p_own:]],
+            "se": [se.get(p_own + i) for i in range(len(names))]}
 
 
 def _scaled_solve(g: np.ndarray, h: np.ndarray, ridge: np.ndarray | None) -> np.ndarray:

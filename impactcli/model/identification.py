@@ -26,9 +26,9 @@ import numpy as np
 from ..errors import ImpactWarning, ModelError, RobotDescriptionError
 from ..logs.urdf import urdf_joint_names
 from ..types import RobotDescription, RobotLog
-from . import structures
+from . import payload, structures
 from .derivatives import clip_cutoff
-from .fit import fit_ridge, joint_stats, robust_lstsq
+from .fit import column_errors, fit_ridge, joint_stats, robust_lstsq
 from .identify_options import IdentifyOptions
 from .rigid import RigidModel
 from .rows import Rows, RowsBuilder, RowsPlan
@@ -347,7 +347,8 @@ def _fit(
     filter_info: dict[str, Any], input_sha256: str, still: list[str] | None = None,
     hold_still_fraction: np.ndarray | None = None, poses: np.ndarray | None = None,
     acc_rms: np.ndarray | None = None, cv_gap: int = 1,
-    lambdas: Sequence[float] | None = None,
+    lambdas: Sequence[float] | None = None, extra_names: Sequence[str] = (),
+    prior: np.ndarray | None = None,
 ) -> RigidModel:
     """Excitation check, robust fit, statistics and sanity on a stacked regressor (N, J, P).
 
@@ -357,9 +358,14 @@ def _fit(
     ``poses``: a few positions of the log and ``acc_rms`` (J,) its RMS accelerations
     (the urdf sanity check of M(q));
     ``cv_gap``: rows left out on each side of a cross-validation stretch (coupled);
-    ``lambdas``: (J,) coupled ridge penalties chosen elsewhere (None: chosen here).
+    ``lambdas``: (J,) coupled ridge penalties chosen elsewhere (None: chosen here);
+    ``extra_names``: the last columns of the regressor beyond the model's own (the logs'
+    payloads, :mod:`impactcli.model.payload`): fitted with it, their values and standard
+    errors in ``fit["extra"]``, left out of the model's parameters and of its sanity;
+    ``prior``: (N, J) weights of the rows (:func:`impactcli.model.fit.robust_lstsq`).
     """
-    names = structures.param_names(kind, joints, structure)
+    names = structures.param_names(kind, joints, structure) + list(extra_names)
+    p_own = len(names) - len(extra_names)
     still = list(still or [])
     frozen = frozen_params(kind, joints, names, still)
     n, nj, p = y_reg.shape
@@ -417,7 +423,7 @@ def _fit(
         th_k, w, info, ridge_info, keep = fit_ridge(
             y_reg, tau, keep, pen, joints, names, options, cv_gap, fixed=lambdas)
     else:
-        th_k, w, info = robust_lstsq(y_reg[:, :, keep], tau, options)
+        th_k, w, info = robust_lstsq(y_reg[:, :, keep], tau, options, prior=prior)
     theta[keep] = th_k
     if "robust_scale_nm" in info:  # per joint: a table keyed by joint name
         info = info | {"robust_scale_nm": dict(zip(joints, info["robust_scale_nm"],
@@ -451,6 +457,10 @@ def _fit(
         fit["n_samples_holdout"] = int(yh.shape[0])
         fit["joints"]["holdout"] = joint_stats(
             np.asarray(yh @ theta) - htau, htau, joints, hold_still)
+    if extra_names:
+        fit["extra"] = column_errors(a, res, nj, theta, keep, p_own, extra_names)
+        tau = tau - np.einsum("njp,p->nj", y_reg[:, :, p_own:], theta[p_own:])
+        y_reg, theta, names = y_reg[:, :, :p_own], theta[:p_own], names[:p_own]
     fit["sanity"] = fit_sanity(
         kind, joints, names, theta, y_reg, tau, fit, still, hold_still,
         hold_still_fraction, poses, acc_rms, structure, options, where
@@ -549,11 +559,15 @@ def prepare_rows(
 def fit_rows(
     rows: Sequence[Rows], paths: Sequence[str], *, robot: RobotDescription | None,
     options: IdentifyOptions, input_sha256: str, lambdas: Sequence[float] | None = None,
+    payloads: bool = False,
 ) -> RigidModel:
     """The model fitted on the rows of one or more logs (``paths``: their names), stacked:
     each log's fitted rows into one robust fit, each log's held-back tail into the
     validation set. One log: exactly :meth:`IdentifyStream.finish`. ``lambdas``: the coupled
-    ridge penalties per joint chosen elsewhere (:mod:`impactcli.model.selection`)."""
+    ridge penalties per joint chosen elsewhere (:mod:`impactcli.model.selection`).
+    ``payloads`` (two or more logs of a kind with kinematics): a payload per log fitted
+    jointly with the arm (:mod:`impactcli.model.payload`), recorded in
+    ``fit["payloads"]``; the model's parameters carry the lightest log's load."""
     if len(rows) == 1:
         r = rows[0]
         return _fit(r.y_fit, r.tau_fit, r.y_hold, kind=r.kind, joints=r.joints,
@@ -567,17 +581,30 @@ def fit_rows(
         if r.joints != first.joints or r.kind != first.kind:
             raise ModelError(f"{path}: joints {list(r.joints)} differ from "
                              f"{paths[0]}'s {list(first.joints)}")
-    y_fit = np.concatenate([r.y_fit for r in rows])
+    pay = payload.basis(first.kind, first.joints, first.structure) if payloads else None
+    extra: list[str] = []
+    prior = None
+    if pay is None:
+        y_fit = np.concatenate([r.y_fit for r in rows])
+        y_holds = [r.y_hold[0] for r in rows if r.y_hold is not None]
+    else:
+        extra = [f"payload{k}.{nm}" for k in range(1, len(rows)) for nm in pay[1]]
+        ys = payload.augment([r.y_fit for r in rows], pay[0])
+        prior = payload.log_weights(ys, [r.tau_fit for r in rows], options)
+        y_fit = np.concatenate(ys)
+        y_holds = [y for r, y in zip(rows, payload.augment(
+            [r.y_hold[0] if r.y_hold is not None else r.y_fit[:0] for r in rows], pay[0]),
+            strict=True) if r.y_hold is not None]
     tau_fit = np.concatenate([r.tau_fit for r in rows])
     holds = [r.y_hold for r in rows if r.y_hold is not None]
-    y_hold = ((np.concatenate([h[0] for h in holds]), np.concatenate([h[1] for h in holds]))
+    y_hold = ((np.concatenate(y_holds), np.concatenate([h[1] for h in holds]))
               if holds else None)
     info = dict(first.filter_info, logs=list(paths))
     fracs = [(r.hold_still_fraction, r.y_hold[0].shape[0]) for r in rows
              if r.hold_still_fraction is not None and r.y_hold is not None]
     poses = [r.poses for r in rows if r.poses is not None]
     accs = [r.acc_rms for r in rows if r.acc_rms is not None]
-    return _fit(y_fit, tau_fit, y_hold, kind=first.kind, joints=first.joints,
+    model = _fit(y_fit, tau_fit, y_hold, kind=first.kind, joints=first.joints,
                 structure=first.structure, robot=robot, options=options,
                 where=", ".join(paths), filter_info=info,
                 input_sha256=input_sha256, still=first.still,
@@ -586,7 +613,11 @@ def fit_rows(
                                      if fracs else None),
                 poses=np.concatenate(poses) if poses else None,
                 acc_rms=np.max(accs, axis=0) if accs else None,
-                cv_gap=max(r.cv_gap for r in rows), lambdas=lambdas)
+                cv_gap=max(r.cv_gap for r in rows), lambdas=lambdas, extra_names=extra,
+                prior=prior)
+    if pay is None:
+        return model
+    return payload.with_log_payloads(model, pay[0], pay[1], paths)
 
 
 def many_sha256(logs: Sequence[RobotLog]) -> str:

@@ -59,6 +59,9 @@ class IdentifyOptions:
             stiction, any torque within it, so no model predicts its torque there. A
             joint that stands still in more than half of the held-back part gets no
             relative held-back error. 0.01 rad/s: the Coulomb term's v_s.
+        payload_per_log: with planar or URDF kinematics and two or more logs, weigh a
+            payload per log against one load for all and fit it when clearly better
+            held out (:func:`impactcli.model.selection.payload_errors`); False: one load.
     """
 
     cutoff_hz: float = 10.0
@@ -86,6 +89,7 @@ class IdentifyOptions:
     sanity_share: float = 0.02
     check_sanity: bool = True
     still_speed_rad_s: float = 0.01
+    payload_per_log: bool = True
 
     def __post_init__(self) -> None:
         if self.robust not in ("bisquare", "huber", "none"):

@@ -168,6 +168,7 @@ def write_recording(result: Any, spill: ColumnFiles, path: str | os.PathLike[str
             write_warmup_lane(rec, j, i_warm[j], n, at_samples)
         write_events(rec, result, n, at_samples, i_warm)
         write_incidents(rec, result, n, at_samples)
+        write_payload_changes(rec, result, at_times)
 
 
 #: How long the Rerun SDK may take to set up, flush and close a recording's file sink [s]
@@ -426,6 +427,28 @@ def write_events(rec: Any, result: Any, n: int, at_samples: Callable[[Any], list
                          columns=rr.TextLog.columns(text=texts,
                                                     level=[rr.TextLogLevel.INFO] * len(texts)),
                          strict=True)
+
+
+def write_payload_changes(rec: Any, result: Any, at_times: Callable[[np.ndarray], Any]
+                          ) -> None:
+    """The payload changes (docs/method.md §5c): a text row at each one's onset and one at
+    its classification, on ``/payload_changes``."""
+    import rerun as rr
+
+    changes = list(result.payload_changes or ())
+    if not changes:
+        return
+    t0 = int(result.log.t0_ns)
+    rows = sorted([(c["t_start"], f"payload change P{k}: {c['mass_kg']:+.3g} kg (± "
+                    f"{c['mass_se_kg']:.2g}; {100 * c['explained']:.1f} % of the step a mass), "
+                    f"classified at {c['t_classified']:.3f} s") for k, c in
+                   enumerate(changes, 1)]
+                  + [(c["t_classified"], f"payload change P{k} classified: the residual now "
+                      f"carries {c['mass_after_kg']:+.3g} kg beyond the model's load")
+                     for k, c in enumerate(changes, 1)])
+    at = np.array([t0 + round(t * 1e9) for t, _ in rows], dtype=np.int64)
+    rec.send_columns("/payload_changes", indexes=at_times(at), columns=rr.TextLog.columns(
+        text=[txt for _, txt in rows], level=[rr.TextLogLevel.INFO] * len(rows)))
 
 
 def write_incidents(rec: Any, result: Any, n: int,

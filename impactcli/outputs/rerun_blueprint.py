@@ -132,6 +132,16 @@ def markdown_summary(result: Any) -> str:
             lines.append(f"| L{k}{' (warm-up)' if x.in_warmup else ''} | {x.t_start:.3f} | "
                          f"{x.t_end:.3f} | {x.detector} | {', '.join(x.joints)} | "
                          f"{x.peak_ratio:.3g} |")
+    changes = list(result.payload_changes or ())
+    if changes:
+        lines += ["", "Payload changes (a load picked or released: not incidents; the residual "
+                  "carries the new load from the classification on):", "",
+                  "| # | at [s] | mass [kg] | of the step a mass | classified at [s] |",
+                  "|---|---|---|---|---|"]
+        for k, c in enumerate(changes, 1):
+            lines.append(f"| P{k} | {c['t_start']:.3f} | {c['mass_kg']:+.3g} ± "
+                         f"{c['mass_se_kg']:.2g} | {100 * c['explained']:.1f} % | "
+                         f"{c['t_classified']:.3f} |")
     lines += ["", "| joint | v_stat | v0 | vL |", "|---|---|---|---|"]
     for joint in log.joint_names:
         th = result.thresholds.get(joint, {})
@@ -244,7 +254,8 @@ def default_blueprint(joint_names: Sequence[str], has_reference: bool = True, *,
     joints_box = rrb.Horizontal(*columns) if len(columns) <= 4 else rrb.Tabs(*columns)
     bottom = rrb.Tabs(
         rrb.TextLogView(
-            origin="/", contents=["/incidents", "/events/**", "/run/log/**"],
+            origin="/", contents=["/incidents", "/payload_changes", "/events/**",
+                                  "/run/log/**"],
             name="events and incidents",
             columns=rrb.TextLogColumns(timeline_columns=[ELAPSED_TIMELINE],
                                        text_log_columns=["loglevel", "entitypath", "body"]),

@@ -18,10 +18,10 @@ from .. import TOOL_NAME, __version__
 from ..files import atomic_write_text
 from ..types import DetectionResult
 
-SCHEMA_VERSION = "2.3"
+SCHEMA_VERSION = "2.4"
 #: Timeline versions ``report`` and ``evaluate`` read (2.x adds optional fields only; 2.1:
 #: ``lasting_loads``, ``counts``, each incident's ``number`` and force check).
-READABLE_VERSIONS: tuple[str, ...] = ("1.0", "2.0", "2.1", "2.2", "2.3")
+READABLE_VERSIONS: tuple[str, ...] = ("1.0", "2.0", "2.1", "2.2", "2.3", "2.4")
 
 
 def _clean(x: Any) -> Any:
@@ -70,6 +70,7 @@ def timeline_dict(result: DetectionResult) -> dict[str, Any]:
             "repairs": list(src.repairs),
             "joints_left_out": list(result.joints_left_out),
             **({} if result.torque_scale is None else {"torque_scale": result.torque_scale}),
+            **({} if result.payload is None else {"payload": result.payload}),
         },
         "config": result.config,
         "calibrated": result.calibrated,
@@ -96,6 +97,8 @@ def timeline_dict(result: DetectionResult) -> dict[str, Any]:
         **({} if result.detection_floor is None
            else {"detection_floor": result.detection_floor}),
         **({} if result.data_defects is None else {"data_defects": result.data_defects}),
+        **({} if result.payload_changes is None
+           else {"payload_changes": list(result.payload_changes)}),
         "counts": result.counts(),
         "summary": result.summary(),
         "warnings": list(result.warnings),

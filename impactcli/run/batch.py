@@ -123,6 +123,8 @@ class SummaryRow(TypedDict):
     incident_list: list[IncidentRow]
     defect_incident_list: list[DefectIncidentRow]
     lasting_load_list: list[dict[str, Any]]
+    payload_change_list: list[dict[str, Any]]
+    start_load: str | None
     adaptive: int
     static_loading: int
     static_baseline: int
@@ -350,6 +352,9 @@ def _summary(job: DetectJob, result: DetectionResult) -> SummaryRow:
              "defect_t_start": i.data_defect["t_start"], "force_n": i.force_n}
             for i in result.defect_incidents()],
         "lasting_load_list": [x.to_dict() for x in result.counted_lasting_loads()],
+        "payload_change_list": list(result.payload_changes or ()),
+        "start_load": (None if result.payload is None or result.payload["verdict"] != "used"
+                       else result.payload["message"]),
         "generator_reasons": {j: g["reason"] for j, g in result.generators.items()},
         "adaptive": counted["adaptive"]["events"],
         "static_loading": counted["static_loading"]["events"],

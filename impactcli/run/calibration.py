@@ -46,6 +46,7 @@ from ..logs.reader import LogScan, MemoryReader
 from ..logs.screen import LeftOut
 from ..model import IdentifyOptions, RigidModel
 from ..model.generators import GeneratorChoice, target_log, uses_correction
+from ..model.payload import own_load
 from ..types import DETECTORS, Labels, RobotDescription, RobotLog
 from .collect import StatsCollector
 from .one_log import MOVED_RAD, ReplayStep, replay_passes, warn_replayed
@@ -105,6 +106,7 @@ def calibrate_run(
     drop_suspect: bool = True, allow_slow: bool = False,
     threshold_rule: str = MARGIN_RULE,
     false_alarms_per_hour: float = DEFAULT_FALSE_ALARMS_PER_HOUR, confidence: float = CONF,
+    payload_per_log: bool = True,
 ) -> Calibrated:
     """Thresholds v_stat, vL, v0 per joint from collision-free logs (docs/method.md §5b).
 
@@ -128,6 +130,8 @@ def calibrate_run(
       vL are predicted to give (:func:`impactcli.detect.tail.rates_for_thresholds`), with
       the leave-one-log-out rows as above.
 
+    With planar or URDF kinematics the identified model weighs a payload per log
+    (``payload_per_log``; docs/models.md, "Payloads") and each log is replayed with its own.
     The motion envelope of the kept samples is recorded either way
     (:mod:`impactcli.detect.envelope`). Returns the config (every parameter, the
     thresholds, the calibration record, the embedded model) and what ``calibrate`` prints.
@@ -168,13 +172,15 @@ def calibrate_run(
                 [target_log(logs[i].select(screens[i].keep), choices[i],
                             cfg.residual.logged_correction) for i in order],
                 robot=robot, options=IdentifyOptions(allow_still_joints=True,
-                                                     check_sanity=not correction))
+                                                     check_sanity=not correction,
+                                                     payload_per_log=payload_per_log))
     else:
         model = None
     joints = tuple(model.joint_names) if model is not None else tuple(frozen)
     excluded: list[dict[str, Any]] = []
-    replays = [_replay(reader, sc, model, cfg, robot, allow_slow)
-               for reader, sc in zip(readers, screens, strict=True)]
+    # each log replayed with the load its fit found on it (docs/method.md §2, "Payloads")
+    replays = [_replay(reader, sc, own_load(model, reader.scan().source.path), cfg, robot,
+                       allow_slow) for reader, sc in zip(readers, screens, strict=True)]
     keeps = [_calibration_mask(rp, labels[i] if labels is not None and i < len(labels)
                                else None, excluded) for i, rp in enumerate(replays)]
     if drop_suspect:

@@ -49,6 +49,7 @@ from ..detect.incidents import (
     LastingLoad,
     adaptive_memory_s,
     mark_defects,
+    mark_payload_changes,
     settle_s,
 )
 from ..detect.link_evidence import ResidualNoise
@@ -70,6 +71,7 @@ from ..types import (
     SignalsChunk,
 )
 from .islands import Islands
+from .loads import monitor_for, unseen_loads
 from .plan import ChunkFeed, Passes, RunPlan, calibrated_thresholds, plan_run, with_generator
 from .replay import ChunkReplay, Replayer, ReplaySetup, ReplayState
 from .run_warnings import (
@@ -164,13 +166,14 @@ class Replayed:
 
 
 def replay_passes(feed: ChunkFeed, plan: RunPlan, on_step: Callable[[ReplayStep], None],
-                  passes: Passes | None = None) -> Replayed:
+                  passes: Passes | None = None, monitor: Any = None) -> Replayed:
     """One threshold-free replay pass over the log's chunks (module docstring): each
-    chunk's :class:`ReplayStep` to ``on_step``, in order; the warm-up tracked."""
+    chunk's :class:`ReplayStep` to ``on_step``, in order; the warm-up tracked; ``monitor``
+    the payload-change monitor (:func:`impactcli.run.loads.monitor_for`) or None."""
     scan = feed.scan
     n = scan.n_samples
     setup = ReplaySetup(plan.joints, plan.choices, plan.model, plan.cfg, scan.sample_rate_hz,
-                        scan.sample_period_s, threads=default_threads(n))
+                        scan.sample_period_s, threads=default_threads(n), monitor=monitor)
     tracker = WarmupTracker(n, 0.0, scan.duration_s, len(plan.joints), plan.cfg.warmup)
     gaps = np.asarray(scan.gaps, dtype=np.int64)
     gap_times = np.full((gaps.size, 2), np.nan)
@@ -260,8 +263,9 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         joints = plan.joints
         given = calibrated_thresholds(cfg, joints)
         since = caught.mark()
+        monitor = monitor_for(plan, given, scan.sample_rate_hz)
         rp, thr, margins, islands, envelope, floor_acc = _detect_passes(
-            feed, plan, given, on_chunk, passes)
+            feed, plan, given, on_chunk, passes, monitor)
         stack.callback(islands.close)
         warn_replayed(caught, since, plan, feed, rp)
         if given is None:
@@ -277,9 +281,12 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         events, incidents, loads = _events_and_incidents(islands, rp.warmup, joints, cfg, ctx)
         defects = data_defects(scan, rp.gap_times)
         settle = settle_s(cfg.static_loading.cutoff_hz, cfg.adaptive.n2_s)
-        incidents = number_incidents(mark_defects(
-            incidents, defects, settle,
-            adaptive_memory_s(cfg.adaptive.forgetting_factor, scan.sample_rate_hz)))
+        memory = adaptive_memory_s(cfg.adaptive.forgetting_factor, scan.sample_rate_hz)
+        changes = [] if monitor is None else monitor.changes
+        if (unseen := unseen_loads(where, plan.model, changes)) is not None:
+            warnings.warn(unseen, ImpactWarning, stacklevel=2)
+        incidents = number_incidents(mark_payload_changes(
+            mark_defects(incidents, defects, settle, memory), changes, settle))
         if plan.torque_scale is not None and plan.torque_scale.kind == "warn":
             incidents = off_scale(incidents, plan.torque_scale.scale)
             loads = off_scale(loads, plan.torque_scale.scale)
@@ -337,6 +344,9 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         detection_floor=floor,
         data_defects=defects_dict(defects, settle, scan.n_jumps) if defects else None,
         torque_scale=None if plan.torque_scale is None else plan.torque_scale.to_dict(),
+        payload=None if plan.start_load is None else plan.start_load.to_dict(),
+        payload_changes=(None if monitor is None
+                         else tuple(c.to_dict() for c in changes)),
         warnings=tuple(dict.fromkeys((*scan.warnings, *caught.messages()))),  # scan's first
     )
 
@@ -420,7 +430,7 @@ def unchecked_message(where: str, moved: Sequence[dict[str, Any]]) -> str:
 
 def _detect_passes(
     feed: ChunkFeed, plan: RunPlan, given: dict[str, np.ndarray] | None,
-    on_chunk: Callable[[SignalsChunk], None] | None, passes: Passes,
+    on_chunk: Callable[[SignalsChunk], None] | None, passes: Passes, monitor: Any = None,
 ) -> tuple[Replayed, dict[str, np.ndarray], dict[str, np.ndarray], Islands,
            EnvelopeCheck | None, FloorAccumulator]:
     """The replay and the comparison (module docstring): with thresholds ``given``, one
@@ -441,7 +451,7 @@ def _detect_passes(
         if given is not None:
             thr = given
             comparing = compare(thr)
-            rp = replay_passes(feed, plan, comparing.update, passes)
+            rp = replay_passes(feed, plan, comparing.update, passes, monitor)
         else:
             keys = _NEEDED + (_FOR_WRITERS if on_chunk is not None else ())
             with contextlib.closing(ColumnFiles()) as spill:

@@ -14,6 +14,7 @@ import dataclasses
 import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -37,6 +38,9 @@ from ..sample_channels import CONTROLLER_CHANNELS
 from ..types import LogSource, RobotDescription, RobotLog
 from .replay import ChunkArrays, chunk_arrays
 from .run_warnings import warn_formulation
+
+if TYPE_CHECKING:
+    from .loads import StartLoad
 
 
 def known_joints(model: RigidModel | None, cfg: DetectorConfig) -> tuple[str, ...] | None:
@@ -475,6 +479,9 @@ class RunPlan:
             (:func:`check_torque_scale`); gravity_hold: (J,) per replayed joint the largest
             gravity torque the description says it holds over the log's poses [N·m] (NaN
             where not known; None without masses).
+        start_load: the load the log starts with, weighed on its first seconds
+            (:mod:`impactcli.run.loads`; None: not weighed); ``model`` carries it
+            when its verdict is ``used``.
     """
 
     cfg: DetectorConfig
@@ -487,6 +494,7 @@ class RunPlan:
     left_out: tuple[LeftOut, ...]
     torque_scale: ScaleVerdict | None = None
     gravity_hold: np.ndarray | None = None
+    start_load: StartLoad | None = None
 
 
 def plan_run(reader: LogReader, cfg: DetectorConfig, *, model: RigidModel | None,
@@ -517,12 +525,19 @@ def plan_run(reader: LogReader, cfg: DetectorConfig, *, model: RigidModel | None
 
     joints, choices, rig, model_source, extra = resolve_model(
         sc.keep, scan.source, sc.logged, model, cfg, model_from_log, robot, identify)
+    start = None
+    if rig is not None and model_source in ("config", "given"):  # fitted on other logs
+        from .loads import weigh_start
+
+        rig, start = weigh_start(feed, rig, choices, cfg)
+        if start is not None and start.verdict != "same":
+            warnings.warn(start.message, ImpactWarning, stacklevel=2)
     left_out = (tuple(LeftOut(j, why) for j, why in scan.source.joints_dropped)
                 + sc.left_out + extra)
     held = None if hold is None else np.array(
         [hold.get(j, np.nan) for j in joints], dtype=np.float64)
     return RunPlan(cfg, where, feed.full_joints, joints, choices, rig, model_source,
-                   left_out, scale, held), feed
+                   left_out, scale, held, start), feed
 
 
 def description_of(model: RigidModel | None, cfg: DetectorConfig) -> RobotDescription | None:

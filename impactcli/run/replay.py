@@ -102,6 +102,9 @@ class ReplaySetup:
         cfg: the detector config.
         sample_rate_hz, sample_period_s: the whole log's (:mod:`impactcli.clock`).
         threads: the adaptive evaluator's threads (results do not depend on it).
+        monitor: the payload-change monitor
+            (:class:`~impactcli.detect.payload_change.PayloadMonitor`), fed each part's
+            residual on the calling thread, in order; None: none.
     """
 
     joint_names: tuple[str, ...]
@@ -111,6 +114,7 @@ class ReplaySetup:
     sample_rate_hz: float
     sample_period_s: float
     threads: int = 1
+    monitor: Any = None
 
     def residual_options(self, generator: str | None = None) -> ResidualOptions:
         """The own-model generator's options (``inverse_dynamics`` for the logged ones)."""
@@ -242,6 +246,7 @@ class Replayer:
         self._done: list[_Part] = []  # finished parts of a chunk not finished yet
         self._inputs = (self._st.reference, self._st.threshold_inputs)
         self._closed = False
+        self._k = self._st.n_samples  # the next part's first sample (the monitor's clock)
 
     def feed(self, tag: Any, chunk: ChunkArrays) -> list[tuple[Any, ChunkReplay]]:
         """Start replaying ``chunk`` (``tag`` comes back with its replay); returns the
@@ -253,6 +258,9 @@ class Replayer:
         for a in range(0, max(n, 1), PART_SAMPLES):
             part = _part(chunk, a, min(a + PART_SAMPLES, n)) if n > PART_SAMPLES else chunk
             r = residual_columns(setup, part, carry.scoped("residual."), self.where)
+            if setup.monitor is not None:  # a payload change: the residual takes the load
+                r = setup.monitor.process(self._k, part.time_s, part.position, r)
+            self._k += part.n_samples
             inputs = inputs_chunk(part, part.time_s, sample_rate_hz, cfg.adaptive,
                                   carry.scoped("inputs."), self.where)
             job = self._runner.submit(np.ascontiguousarray(r, dtype=np.float64),

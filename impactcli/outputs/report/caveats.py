@@ -93,6 +93,10 @@ def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]
                              "log's column order (joint k's link is k), which need not be the "
                              "arm's chain from its base; give --robot to number them along "
                              "it.")})
+    load = getattr(result, "payload", None) or {}
+    if load.get("verdict") in ("used", "unsupported"):
+        out.append({"code": "start-load",
+                    "text": (load["message"].split(": ", 1)[-1] + ".").replace("..", ".")})
     scale = getattr(result, "torque_scale", None) or {}
     if scale.get("verdict") != "ok" and (result.incidents or result.lasting_loads):
         why = (scale.get("message") or "").split(": ", 1)[-1] or (

@@ -77,6 +77,7 @@ class LogSection(TypedDict):
     motion_envelope: NotRequired[Any]
     detection_floor: NotRequired[Any]
     data_defects: NotRequired[Any]
+    payload_changes: NotRequired[Any]
     counts: dict[str, Any]
     summary: dict[str, dict[str, int]]
     warnings: list[str]

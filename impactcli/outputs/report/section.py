@@ -41,6 +41,7 @@ from .summary import (
     incident_table_html,
     incidents_known,
     lasting_table_html,
+    payload_table_html,
     verdict_text,
 )
 from .unseen import chain_of, could_not_see, could_not_see_html
@@ -69,7 +70,8 @@ def log_section(result: DetectionResult, labels: Labels | None,
                                           - result.warmup_end_s, 0.0),
                            floor=floor_line(result.detection_floor),
                            unchecked=[x for x in tl["input"]["joints_left_out"]
-                                      if "travel_rad" in x])
+                                      if "travel_rad" in x],
+                           payload_changes=tl.get("payload_changes") or ())
     sec: LogSection = {
         "input": tl["input"], "config": tl["config"], "calibrated": tl["calibrated"],
         "model": tl["model"], "replay": tl["replay"], "warmup_end_s": tl["warmup_end_s"],
@@ -95,6 +97,8 @@ def log_section(result: DetectionResult, labels: Labels | None,
         sec["detection_floor"] = tl["detection_floor"]
     if "data_defects" in tl:
         sec["data_defects"] = tl["data_defects"]
+    if "payload_changes" in tl:
+        sec["payload_changes"] = tl["payload_changes"]
     return clean(sec)  # type: ignore[no-any-return]
 
 
@@ -215,6 +219,7 @@ def section_html(num: str, result: DetectionResult, sec: LogSection,
                  "see the caveats below before relying on this answer.</p>")
     if incidents:
         p.append(incident_table_html(incidents, anchor, MAX_EVENT_FIGURES))
+    p.append(payload_table_html(sec.get("payload_changes") or [], anchor))
     p.append(lasting_table_html(sec.get("lasting_loads") or [], anchor))
     p.append(_events_html(sec, anchor, open_=not known))
     p.append(could_not_see_html(sec["could_not_see"], anchor))

@@ -32,7 +32,7 @@ def incident_rows(tl: dict[str, Any], period_s: float) -> list[dict[str, Any]]:
     ``peak_ratio`` and ``peak_ratio_detector`` (over its events)."""
     events = tl.get("events") or []
     out = []
-    counted = warm = marked = 0
+    counted = warm = marked = carried = 0
     for inc in tl.get("incidents") or []:
         evs = [events[k] for k in inc.get("events") or [] if 0 <= k < len(events)]
         top = max(evs, key=lambda x: x["peak_ratio"], default=None)
@@ -42,6 +42,9 @@ def incident_rows(tl: dict[str, Any], period_s: float) -> list[dict[str, Any]]:
         elif inc.get("data_defect"):
             marked += 1
             number, label = None, f"d{marked}"
+        elif inc.get("payload_change"):
+            carried += 1
+            number, label = None, f"p{carried}"
         else:
             counted += 1
             number = inc.get("number") or counted
@@ -136,7 +139,8 @@ def verdict_text(incidents: Sequence[dict[str, Any]], *, known: bool = True,
                  alarms_counted: int = 0,
                  lasting_loads: Sequence[dict[str, Any]] = (),
                  analysed_s: float | None = None, floor: str | None = None,
-                 unchecked: Sequence[dict[str, Any]] = ()) -> str:
+                 unchecked: Sequence[dict[str, Any]] = (),
+                 payload_changes: Sequence[dict[str, Any]] = ()) -> str:
     """The log's answer in one line, e.g. ``3 incidents: 2 transient on link 2, ~25 N and
     ~40 N; 1 quasi-static on link 1, ~60 N.`` — clock times when the log's clock is an
     epoch; ``No incident after warm-up.`` when none counts; the counted lasting loads
@@ -153,8 +157,10 @@ def verdict_text(incidents: Sequence[dict[str, Any]], *, known: bool = True,
             floor_line`), said after "No incident" (what "none" could not have seen).
         unchecked: the joints that moved but were left out of detection (timeline
             ``input.joints_left_out`` items with ``travel_rad``), named at the end.
+        payload_changes: the timeline's ``payload_changes``: said, not counted.
     """
-    return _verdict(incidents, known, alarms_counted, lasting_loads, analysed_s, floor) + (
+    return _verdict(incidents, known, alarms_counted, lasting_loads, analysed_s, floor,
+                    payload_changes) + (
         "" if not unchecked else " Not checked, though they moved: " + "; ".join(
             f"{x['name']} ({x['travel_rad']:.2g} rad; {x['reason']})" for x in unchecked)
         + ".")
@@ -162,7 +168,7 @@ def verdict_text(incidents: Sequence[dict[str, Any]], *, known: bool = True,
 
 def _verdict(incidents: Sequence[dict[str, Any]], known: bool, alarms_counted: int,
              lasting_loads: Sequence[dict[str, Any]], analysed_s: float | None,
-             floor: str | None) -> str:
+             floor: str | None, payload_changes: Sequence[dict[str, Any]] = ()) -> str:
     """:func:`verdict_text` but the unchecked joints."""
     if not known:
         s = "" if alarms_counted == 1 else "s"
@@ -175,7 +181,8 @@ def _verdict(incidents: Sequence[dict[str, Any]], known: bool, alarms_counted: i
     tail = "".join([f" (+{warm} in the warm-up, not counted)" if warm else "",
                     f" (+{marked} at a data defect — a time gap or a position jump — not "
                     "counted: the residual there shows the defect, not a force)"
-                    if marked else ""])
+                    if marked else "",
+                    f" ({payload})" if (payload := payload_text(payload_changes)) else ""])
     loads = lasting_text([x for x in lasting_loads if not x.get("in_warmup")])
     if not counted and analysed_s is not None and analysed_s <= 0.0:
         return ("Not judged: the adaptive detector's warm-up covers the whole log, so no "
@@ -215,8 +222,20 @@ def _verdict(incidents: Sequence[dict[str, Any]], known: bool, alarms_counted: i
 
 
 def counts_as_contact(incident: dict[str, Any]) -> bool:
-    """Whether a timeline incident is counted: after warm-up and not at a data defect."""
-    return not incident.get("in_warmup") and not incident.get("data_defect")
+    """Whether a timeline incident is counted: after warm-up, not at a data defect, not a
+    payload change."""
+    return (not incident.get("in_warmup") and not incident.get("data_defect")
+            and not incident.get("payload_change"))
+
+
+def payload_text(changes: Sequence[dict[str, Any]]) -> str:
+    """The verdict's words for the payload changes, e.g. ``2 payload changes (not counted):
+    +0.99 kg at 20.092 s, −0.99 kg at 40.024 s``; "" when none."""
+    if not changes:
+        return ""
+    s = "" if len(changes) == 1 else "s"
+    return (f"{len(changes)} payload change{s} (a load picked or released, not counted): "
+            + ", ".join(f"{c['mass_kg']:+.2g} kg at {c['t_start']:.3f} s" for c in changes))
 
 
 def incident_counts(incidents: Sequence[dict[str, Any]],
@@ -229,8 +248,10 @@ def incident_counts(incidents: Sequence[dict[str, Any]],
     for i in counted:
         by[i.get("contact") or "unknown"] = by.get(i.get("contact") or "unknown", 0) + 1
     marked = sum(1 for i in incidents if not i.get("in_warmup") and i.get("data_defect"))
+    loads = sum(1 for i in incidents if not i.get("in_warmup") and i.get("payload_change"))
     return {"counted": len(counted), "in_warmup": sum(1 for i in incidents if i.get("in_warmup")),
             **({"data_defect": marked} if marked else {}),
+            **({"payload_change": loads} if loads else {}),
             "by_contact": by, "max_force_n": max(forces, default=None),
             "lasting_loads": sum(1 for x in lasting_loads if not x.get("in_warmup"))}
 
@@ -262,6 +283,9 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
             d = r["data_defect"]
             when += (f' <span class="bad">at a data defect (a {e(d["kind"])} at '
                      f'{d["t_start"]:.3f} s): not counted</span>')
+        elif r.get("payload_change"):
+            when += (f' <span class="note">payload change P{r["payload_change"]}: not '
+                     "counted</span>")
         force = (f'<b>~{approx(r["force_n"])} N</b>' if r.get("force_n") is not None
                  else '<span class="muted">no force estimate</span>')
         if r.get("force_plausible") is False:
@@ -275,7 +299,8 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
         ratio = ("—" if r.get("peak_ratio") is None else
                  f'{r["peak_ratio"]:.1f}× <span class="note">{e(r["peak_ratio_detector"])}</span>')
         plot = f'<a href="#{anchor}-inc{n}">plot</a>' if pos <= plotted else ""
-        cls = ' class="warmup"' if r.get("in_warmup") or r.get("data_defect") else ""
+        cls = (' class="warmup"' if r.get("in_warmup") or r.get("data_defect")
+               or r.get("payload_change") else "")
         body.append(
             f'<tr{cls} id="{anchor}-row{n}"><td class="num">{n}</td><td class="num">{when}</td>'
             f'<td class="num">{r["duration_s"]:.2f}</td><td><b>{link}</b></td>'
@@ -300,6 +325,29 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
         "contact point is assumed (a contact nearer the joint is under-estimated by the "
         "lever-arm ratio); in brackets the peak residual torque of each joint that fired. "
         f'<ul class="tight">{notes}</ul></div>')
+
+
+def payload_table_html(changes: Sequence[dict[str, Any]], anchor: str) -> str:
+    """The payload changes (docs/method.md §5c): when, the mass change, its confidence and
+    when it was classified; "" when none."""
+    if not changes:
+        return ""
+    body = "".join(
+        f'<tr id="{anchor}-payload{k}"><td class="num">P{k}</td>'
+        f'<td class="num">{c["t_start"]:.3f} s</td><td class="num"><b>{c["mass_kg"]:+.3g} kg'
+        f'</b> ± {c["mass_se_kg"]:.2g}</td><td class="num">{100 * c["explained"]:.1f} %</td>'
+        f'<td class="num">{c["t_classified"]:.3f} s</td>'
+        f'<td class="num">{c["mass_after_kg"]:+.3g} kg</td></tr>'
+        for k, c in enumerate(changes, 1))
+    return (
+        f'<div class="wide"><table class="incidents" id="{anchor}-payloads"><thead><tr>'
+        '<th class="num">#</th><th class="num">payload change at</th><th class="num">mass'
+        '</th><th class="num">of the step a mass</th><th class="num">classified at</th>'
+        f'<th class="num">load then</th></tr></thead>{body}</table></div>'
+        '<div class="small muted">A payload change is a step in the residual that behaves as '
+        "a mass at the flange over the poses that follow it: a load picked or released. It "
+        "is not an incident and trips no gate; from its classification on, the residual "
+        "carries the new load. Loads are stated beyond the model's own.</div>")
 
 
 def lasting_table_html(loads: Sequence[dict[str, Any]], anchor: str) -> str:

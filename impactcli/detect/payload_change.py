@@ -1,0 +1,243 @@
+"""Payload changes told from contacts, causally, as the replay runs (docs/method.md §5c).
+
+A payload picked or released mid-log is a step in the residual that the static-loading
+detector alarms on. Its signature across the poses that follow is that of a mass at the
+flange: the torque Y(q, q', q'') B π of :mod:`impactcli.model.payload`, which follows the
+Jacobian transpose of gravity as the arm moves. A contact — a blow, a push, a clamp — does
+not behave as a mass: it ends, or it holds the arm still, or it pushes another way.
+
+:class:`PayloadMonitor` watches the residual on the replay's calling thread, part by part:
+
+1. **Onset.** The static-loading statistic |LP(r)| (the detector's own filter and
+   thresholds vL) rises above vL on some joint, after the warm-up's least length (the load
+   at the start is weighed there: :mod:`impactcli.run.loads`).
+2. **Weighing.** When :data:`WINDOW_S` seconds have passed (the classification time, as
+   online), the change is weighed (:func:`impactcli.model.payload.weigh`) on the window
+   from the onset plus ``settle_s`` (the loading filter and the step's transient) to the
+   classification time, through the replay's own causal filters (the inverse-dynamics
+   residual is linear in θ).
+3. **The test.** A payload change when (a) the window's poses determine the mass and centre
+   of mass and the mass is :data:`~impactcli.model.payload.WEIGH_SIGMAS` standard errors
+   from zero, (b) the centre of mass lies within the arm's reach, and (c) the mass explains
+   the step: its torque accounts for at least :data:`EXPLAINED` of the window's residual
+   energy. Otherwise, while the alarm has lasted without a break since its onset, the next
+   window is weighed (a push in the first window after a pick hides the mass there); once
+   it broke, the alarm stays what the detectors make of it — a contact or a lasting load —
+   and the next onset starts afresh.
+4. **From then on** the residual carries the new load: the torque Y B π of every load
+   changed so far is added to the residual from the classification time, whatever the
+   chunking (the same sum per row, r + Y B π with π every load changed so far, in whichever
+   part the row falls). The monitor then waits for the alarm to end before it looks for the
+   next onset.
+
+Only the inverse-dynamics generator is corrected so (the momentum observer's state holds
+the old load); the replay says so when another generator runs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..model import payload
+from ..model.causal import Carry
+from ..model.derivatives import causal_derivatives
+from ..model.rigid import RigidModel
+from ..model.structures import predict
+from .static import causal_lowpass
+
+#: Seconds after the onset at which a change is weighed and classified.
+WINDOW_S = payload.START_S
+#: A mass explains a step when its torque accounts for at least this share of the window's
+#: residual energy (the change's confidence).
+EXPLAINED = payload.EXPLAINED
+
+
+@dataclass(frozen=True)
+class PayloadChange:
+    """A payload change (module docstring): ``t_start`` the alarm's onset, ``t_classified``
+    when it was classified and the residual took the new load [s since the log's first
+    sample]; the mass change [kg] and its standard error; ``values`` the load's parameters
+    (:func:`impactcli.model.payload.basis`' names, SI); ``explained`` the share of the
+    window's residual energy the mass explains (its confidence, 0–1); ``mass_after_kg`` the
+    load then carried beyond the config's model's (the lightest calibration log's)."""
+
+    t_start: float
+    t_classified: float
+    mass_kg: float
+    mass_se_kg: float
+    values: dict[str, float]
+    explained: float
+    mass_after_kg: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready mapping (the timeline's ``payload_changes`` item)."""
+        return {"t_start": self.t_start, "t_classified": self.t_classified,
+                "mass_kg": self.mass_kg, "mass_se_kg": self.mass_se_kg,
+                "values": dict(self.values), "explained": self.explained,
+                "mass_after_kg": self.mass_after_kg}
+
+
+@dataclass
+class PayloadMonitor:
+    """The monitor's settings and state (module docstring); :meth:`process` each part of
+    the residual in order.
+
+    Args:
+        model: the replay's model (its kind has kinematics); b, names: the payload basis.
+        v_loading: (J,) the static-loading thresholds vL [N·m].
+        sample_rate_hz, cutoff_hz: the log's rate and the residual's derivative cut-off.
+        loading_cutoff_hz, loading_order: the static-loading low-pass.
+        start_s: onsets before this time are not watched (the warm-up's least length).
+        settle_s: the window starts this long after the onset.
+        reach_m: a centre of mass farther from the last joint is not a load.
+        base_kg: the load the replay's model carries beyond the config's model (the load
+            the log started with) [kg]: ``mass_after_kg`` counts from the config's.
+    """
+
+    model: RigidModel
+    b: np.ndarray
+    names: tuple[str, ...]
+    v_loading: np.ndarray
+    sample_rate_hz: float
+    cutoff_hz: float
+    loading_cutoff_hz: float
+    loading_order: int
+    start_s: float
+    settle_s: float
+    reach_m: float
+    base_kg: float = 0.0
+    changes: list[PayloadChange] = field(default_factory=list)
+    _pi: np.ndarray | None = None
+    _carry: Carry = field(default_factory=Carry)
+    _buf: dict[str, np.ndarray] = field(default_factory=dict)
+    _state: str = "idle"
+    _onset: tuple[int, float] | None = None
+    _due: int = 0
+    _ended: bool = False
+
+    def __post_init__(self) -> None:
+        self._pi = np.zeros(len(self.names))
+
+    @property
+    def window(self) -> int:
+        """Samples from the onset to the classification."""
+        return max(1, round(WINDOW_S * self.sample_rate_hz))
+
+    def process(self, k0: int, t: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """The part's residual (n, J) [N·m] carrying every load classified so far; ``k0``
+        its first sample's index, ``t`` (n,) its times [s], ``q`` (n, J) its positions."""
+        if r.shape[0] == 0:
+            return np.asarray(r, dtype=np.float64)
+        dt = 1.0 / self.sample_rate_hz
+        qf, qd, qdd = causal_derivatives(dt, q, self.cutoff_hz, self._carry.scoped("q."), "q")
+        r0 = np.asarray(r, dtype=np.float64)
+        r = np.array(r0)
+        assert self._pi is not None
+        if np.any(self._pi):
+            r += self._torque(qf, qd, qdd, self._pi)
+        n = r.shape[0]
+        pos = 0
+        while pos < n:
+            saved = self._carry.copy()
+            lp = np.abs(causal_lowpass(r[pos:], self.loading_cutoff_hz, self.sample_rate_hz,
+                                       self.loading_order, self._carry.scoped("lp.")))
+            cut = self._scan(k0 + pos, t[pos:], lp)
+            if cut is None:
+                break
+            still = not self._ended
+            # a change classified at sample pos + cut: the filter state up to there, then
+            # the residual from there carries the new load
+            self._carry = saved
+            causal_lowpass(r[pos:pos + cut], self.loading_cutoff_hz, self.sample_rate_hz,
+                           self.loading_order, self._carry.scoped("lp."))
+            self._keep(qf[pos:pos + cut], qd[pos:pos + cut], qdd[pos:pos + cut],
+                       r[pos:pos + cut])
+            change = self._classify(k0 + pos + cut, float(t[pos + cut]), still)
+            pos += cut
+            if change is not None:  # the same sum per row as a later part's: r0 + Y B π
+                r[pos:] = r0[pos:] + self._torque(qf[pos:], qd[pos:], qdd[pos:], self._pi)
+        self._keep(qf[pos:], qd[pos:], qdd[pos:], r[pos:])
+        return r
+
+    def _scan(self, k0: int, t: np.ndarray, lp: np.ndarray) -> int | None:
+        """Walk the states over the part's loading statistic from sample ``k0``; the offset
+        of a classification time within it, else None (the whole part walked)."""
+        above = np.any(lp > self.v_loading[None, :], axis=1)
+        i = 0
+        n = lp.shape[0]
+        while i < n:
+            if self._state == "idle":
+                hits = np.flatnonzero(above[i:] & (t[i:] >= self.start_s))
+                if not hits.size:
+                    return None
+                i += int(hits[0])
+                self._onset = (k0 + i, float(t[i]))
+                self._due = k0 + i + self.window
+                self._ended = False
+                self._state = "pending"
+            if self._state == "pending":
+                at = self._due - k0
+                if not self._ended and np.any(~above[i:min(at, n)]):
+                    self._ended = True  # the alarm fell silent since its onset
+                if at < n:
+                    return max(at, 0)
+                return None
+            if self._state == "cooldown":
+                below = np.flatnonzero(~above[i:])
+                if not below.size:
+                    return None
+                i += int(below[0])
+                self._state = "idle"
+        return None
+
+    def _keep(self, qf: np.ndarray, qd: np.ndarray, qdd: np.ndarray, r: np.ndarray) -> None:
+        """Keep the last two windows of the filtered motion and the residual."""
+        keep = 2 * self.window + 1
+        for key, v in (("qf", qf), ("qd", qd), ("qdd", qdd), ("r", r)):
+            old = self._buf.get(key)
+            cat = v if old is None else np.concatenate([old, v])
+            self._buf[key] = cat[-keep:]
+
+    def _classify(self, k_c: int, t_c: float, still: bool) -> np.ndarray | None:
+        """Weigh the change whose onset is pending on the window that ends at sample ``k_c``
+        (the buffer ends just before it); the load π when it is a payload change. Else,
+        when the alarm is ``still`` on (without a break since its onset), the next window
+        is due."""
+        assert self._onset is not None and self._pi is not None
+        t_a = self._onset[1]
+        buf = self._buf
+        n = buf["r"].shape[0]
+        w0 = max(0, n - self.window + round(self.settle_s * self.sample_rate_hz))
+        w = None
+        if n - w0 >= 10:
+            y = self.model.regressor(buf["qf"][w0:], buf["qd"][w0:], buf["qdd"][w0:]) @ self.b
+            left = -buf["r"][w0:]  # the torque beyond the model's: r = τ̂ − τ
+            w = payload.weigh(y, left, self.names)
+            explained = payload.explained(left, y, w.pi)
+            c = np.array([w.pi[self.names.index(f"m{ax}")] if f"m{ax}" in self.names
+                          else 0.0 for ax in "xyz"]) / (w.mass_kg if w.mass_kg else 1.0)
+        if w is None or not (w.weighed and np.linalg.norm(c) <= self.reach_m
+                             and explained >= EXPLAINED):
+            if still:  # the alarm goes on: weigh the next window
+                self._due = k_c + self.window
+                return None
+            self._state = "idle"
+            return None
+        self._state = "cooldown"
+        self._pi = self._pi + w.pi
+        self.changes.append(PayloadChange(
+            t_a, t_c, w.mass_kg, w.mass_se_kg,
+            {nm: float(v) for nm, v in zip(self.names, w.pi, strict=True)},
+            explained, self.base_kg + float(self._pi[0])))
+        return w.pi
+
+    def _torque(self, qf: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+                pi: np.ndarray) -> np.ndarray:
+        """(n, J) the torque Y B π of the load π on the part's filtered motion [N·m]."""
+        if qf.shape[0] == 0:
+            return np.zeros_like(qf)
+        m = self.model
+        return predict(m.kind, m.joint_names, m.structure, qf, qd, qdd, self.b @ pi)

@@ -1,0 +1,378 @@
+"""Payloads at the flange (docs/models.md, "Payloads"; docs/method.md §2, "Payloads"): a
+load as a shift of the base parameters, a load per calibration log, a load weighed on a
+stretch of motion.
+
+A payload is a rigid body fixed to the last link. Its inertial parameters π enter the rigid
+model (eq. 7) linearly and, in the base parameters of the kinematic kinds, as a shift of
+the arm's own: the torque of the arm carrying π is Y(q, q', q'') (θ + B π), exactly,
+because a body's columns of the full rigid regressor are combinations of the base columns.
+
+* ``planar`` — π = (``m``, ``mx``, ``my``, ``J``): the mass [kg], its first moments about
+  the last joint in the last link's frame [kg·m] and its inertia about the last joint's
+  axis [kg·m²]. The regrouping of the base parameters gives B: a mass m on the last link
+  adds m l_k² to ZZR_k and m l_k to MXR_k of every earlier link k, ``mx`` to MXR_n, ``my``
+  to MYR_n and ``J`` to ZZR_n.
+* ``urdf`` — π = the last body's ten inertial parameters (Pinocchio's order: ``m``,
+  ``mx``, ``my``, ``mz``, then the inertia at the joint frame). B is the least-squares map
+  of those full columns onto the base columns over random states (:func:`basis`; exact to
+  rounding, checked).
+* ``decoupled``, ``coupled`` — no kinematics: a load at the flange is not a shift of their
+  parameters that the motion could tell from the arm's own; logs with different loads are
+  not told apart (:data:`NO_KINEMATICS`).
+
+Only differences of load are seen by the motion: the arm's own last link and a payload
+carried in every log are one body. So the calibration fits θ and one π per log but the
+first (:func:`augment`), and then states every log's load relative to the lightest, whose
+load the model's θ holds (:func:`rereference`). A load on a short stretch — a log's start,
+a step mid-log — is weighed through gravity (:func:`weigh`): its mass and first moments,
+its inertia that of a point mass.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from . import structures
+
+#: The payload a log starts with is estimated on its first this many seconds [s]: the
+#: warm-up's least length (``[warmup] min_s``), in which detection is off.
+START_S = 3.0
+
+#: Parameters of a planar payload and their units.
+PLANAR_PARAMS: tuple[str, ...] = ("m", "mx", "my", "J")
+UNITS: dict[str, str] = {"m": "kg", "mx": "kg·m", "my": "kg·m", "mz": "kg·m", "J": "kg·m²",
+                         "Ixx": "kg·m²", "Ixy": "kg·m²", "Iyy": "kg·m²", "Ixz": "kg·m²",
+                         "Iyz": "kg·m²", "Izz": "kg·m²"}
+
+NO_KINEMATICS = ("the model has no kinematics (a robot description with planar or URDF "
+                 "kinematics gives them): a load at the flange cannot be told from the arm's "
+                 "own parameters, so logs that carry different loads are not told apart")
+
+#: The relative residual of the URDF basis's least squares beyond which it is refused.
+BASIS_TOLERANCE = 1e-6
+
+
+def basis(kind: str, joints: tuple[str, ...],
+          structure: dict[str, Any]) -> tuple[np.ndarray, tuple[str, ...]] | None:
+    """(P, m) map B of a payload's m parameters onto the P base parameters of ``kind``, and
+    the parameters' names; None for a kind without kinematics. Only parameters whose
+    shifts are independent are kept (a URDF's last body has inertia terms no motion of
+    the chain tells apart), in their order."""
+    if kind == "planar":
+        b, names = _planar_basis(joints, structure), PLANAR_PARAMS
+    elif kind == "urdf":
+        b, names = _urdf_basis(joints, structure), structures.PIN_PARAMS
+    else:
+        return None
+    norms = np.linalg.norm(b, axis=0)
+    live = np.flatnonzero(norms > 0)
+    from scipy.linalg import qr  # identification only
+
+    _, r, piv = qr(b[:, live] / norms[live], mode="economic", pivoting=True)
+    d = np.abs(np.diag(r))
+    kept = np.sort(live[piv[:int(np.sum(d > 1e-8 * d[0]))]])
+    if not kept.size or kept[0] != 0:  # no mass the motion could weigh
+        return None
+    return b[:, kept], tuple(names[i] for i in kept)
+
+
+def _planar_basis(joints: tuple[str, ...], structure: dict[str, Any]) -> np.ndarray:
+    names = structures.planar_names(joints, structure)
+    at = {nm: i for i, nm in enumerate(names)}
+    ll = [float(v) for v in structure["link_lengths"]]
+    b = np.zeros((len(names), len(PLANAR_PARAMS)))
+    for k, jn in enumerate(joints[:-1]):  # the mass, regrouped into every earlier link
+        b[at[f"{jn}.ZZR"], 0] += ll[k] ** 2
+        b[at[f"{jn}.MXR"], 0] += ll[k]
+    last = joints[-1]
+    b[at[f"{last}.MXR"], 1] = 1.0
+    b[at[f"{last}.MYR"], 2] = 1.0
+    b[at[f"{last}.ZZR"], 3] = 1.0
+    return b
+
+
+def _urdf_basis(joints: tuple[str, ...], structure: dict[str, Any],
+                n_states: int = 40) -> np.ndarray:
+    from ..errors import ModelError
+
+    full = structures.urdf_full_names(joints, structure)
+    first = full.index(f"{joints[-1]}.{structures.PIN_PARAMS[0]}")
+    cols = list(range(first, first + len(structures.PIN_PARAMS)))
+    base = list(structure["base_columns"])
+    rng = np.random.default_rng(54321)  # fixed: the same basis on every run
+    n = len(joints)
+    q = rng.uniform(-np.pi, np.pi, (n_states, n))
+    qd = rng.normal(0, 1.0, (n_states, n))
+    qdd = rng.normal(0, 3.0, (n_states, n))
+    y = structures.urdf_full_regressor(q, qd, qdd, joints, structure).reshape(n_states * n, -1)
+    b, *_ = np.linalg.lstsq(y[:, base], y[:, cols], rcond=None)
+    err = float(np.linalg.norm(y[:, base] @ b - y[:, cols])) / max(
+        float(np.linalg.norm(y[:, cols])), 1e-300)
+    if err > BASIS_TOLERANCE:
+        raise ModelError(f"the last body's columns are not combinations of the base columns "
+                         f"(relative residual {err:.2g}): no payload basis")
+    b[np.abs(b) < 1e-9 * max(float(np.abs(b).max()), 1e-300)] = 0.0
+    return np.asarray(b)
+
+
+def augment(ys: Sequence[np.ndarray], b: np.ndarray) -> list[np.ndarray]:
+    """Each log's (N_k, J, P) rows with one payload block per log but the first appended:
+    (N_k, J, P + (L − 1) m), log k ≥ 1's own block Y_k B, the others zero."""
+    nlog, m = len(ys), b.shape[1]
+    out = []
+    for k, y in enumerate(ys):
+        extra = np.zeros((*y.shape[:2], (nlog - 1) * m))
+        if k >= 1:
+            extra[:, :, (k - 1) * m:k * m] = y @ b
+        out.append(np.concatenate([y, extra], axis=-1))
+    return out
+
+
+def rereference(theta: np.ndarray, pis: np.ndarray, b: np.ndarray,
+                mass: int = 0) -> tuple[np.ndarray, np.ndarray, int]:
+    """The arm's θ and every log's π (L, m; the first log's 0) restated relative to the
+    lightest log (least ``pis[:, mass]``): θ + B π_lightest and π − π_lightest; and that
+    log's index."""
+    light = int(np.argmin(pis[:, mass]))
+    return theta + b @ pis[light], pis - pis[light], light
+
+
+def shifted_theta(theta: np.ndarray, b: np.ndarray, pi: np.ndarray) -> np.ndarray:
+    """θ + B π: the arm's parameters carrying the payload π beyond the model's own."""
+    return np.asarray(theta + b @ np.asarray(pi, dtype=np.float64))
+
+
+def estimate(y_pay: np.ndarray, r: np.ndarray,
+             tol: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
+    """The payload π (m,) that explains the torque ``r`` (n, J) [N·m] the model leaves out,
+    through ``y_pay`` (n, J, m) = Y B, and its standard errors (m,): least squares with
+    each joint's rows scaled by its residual RMS, on the columns the rows determine (a
+    column whose pivot is below ``tol`` of the largest stays 0, its error infinite). The
+    errors take the rows as independent."""
+    n, nj, m = y_pay.shape
+    pi, se = np.zeros(m), np.full(m, np.inf)
+    if n == 0:
+        return pi, se
+    scale = np.sqrt(np.mean(r**2, axis=0))
+    scale = np.maximum(scale, 1e-9 * max(float(scale.max()), 1e-12))
+    a = (y_pay / scale[None, :, None]).reshape(n * nj, m)
+    t = (r / scale[None, :]).reshape(n * nj)
+    norms = np.linalg.norm(a, axis=0)
+    live = np.flatnonzero(norms > 1e-12 * max(float(norms.max()), 1e-300))
+    if live.size == 0:
+        return pi, se
+    from scipy.linalg import qr  # identification only
+
+    an = a[:, live] / norms[live]
+    _, rr, piv = qr(an, mode="economic", pivoting=True)
+    d = np.abs(np.diag(rr))
+    keep = live[np.sort(piv[:int(np.sum(d > tol * d[0]))])]
+    ak = a[:, keep] / norms[keep]
+    sol, *_ = np.linalg.lstsq(ak, t, rcond=None)
+    res = ak @ sol - t
+    dof = max(ak.shape[0] - keep.size, 1)
+    s2 = float(res @ res) / dof
+    cov = s2 * np.linalg.pinv(ak.T @ ak)
+    pi[keep] = sol / norms[keep]
+    se[keep] = np.sqrt(np.maximum(np.diag(cov), 0.0)) / norms[keep]
+    return pi, se
+
+
+#: The payload's parameters a stretch of motion weighs: its mass and first moments (its
+#: inertia is then that of a point mass at its centre of mass, :func:`weigh`).
+STATIC: tuple[str, ...] = ("m", "mx", "my", "mz")
+#: A load change is weighed when its mass is this many standard errors from zero.
+WEIGH_SIGMAS = 3.0
+
+
+@dataclass(frozen=True)
+class Weighed:
+    """A load weighed on a stretch of motion (:func:`weigh`): ``pi`` in the basis' order,
+    its mass [kg] and standard error, whether the motion determines its mass and centre of
+    mass (``supported``) and whether the mass differs from zero by :data:`WEIGH_SIGMAS`
+    standard errors (``weighed``)."""
+
+    pi: np.ndarray
+    mass_kg: float
+    mass_se_kg: float
+    supported: bool
+    weighed: bool
+
+
+def weigh(y_pay: np.ndarray, r: np.ndarray, names: Sequence[str]) -> Weighed:
+    """The load change that explains the torque ``r`` (n, J) [N·m] the model leaves out
+    through ``y_pay`` (n, J, m) = Y B over a stretch of motion: its mass and first moments
+    by :func:`estimate` (a short stretch weighs a load through gravity, it does not spin
+    it), its inertia that of a point mass at its centre of mass — for a mass change
+    weighed; a change within :data:`WEIGH_SIGMAS` standard errors of zero keeps no
+    inertia."""
+    st = [i for i, nm in enumerate(names) if nm in STATIC]
+    inert = [i for i, nm in enumerate(names) if nm not in STATIC]
+    pi = np.zeros(len(names))
+    for _ in range(POINT_ITERATIONS):  # the moments, then the inertia they imply, in turn
+        pi_s, se_s = estimate(y_pay[:, :, st], r - y_pay[:, :, inert] @ pi[inert])
+        pi[st] = pi_s
+        supported = bool(np.all(np.isfinite(se_s)))
+        m, se_m = float(pi_s[0]), float(se_s[0])
+        weighed = supported and abs(m) > WEIGH_SIGMAS * se_m
+        if not weighed:
+            pi[inert] = 0.0
+            break
+        pi[inert] = _point_inertia(m, {nm: pi[i] for i, nm in enumerate(names)},
+                                   [names[i] for i in inert])
+    return Weighed(pi, m, se_m, supported, weighed)
+
+
+#: Rounds of :func:`weigh`'s moments and point-mass inertia.
+POINT_ITERATIONS = 4
+
+
+def _point_inertia(m: float, pi: dict[str, float], names: Sequence[str]) -> np.ndarray:
+    """The inertia parameters ``names`` of a point mass m [kg] at the centre of mass its
+    first moments in ``pi`` give, about the last joint's frame."""
+    c = {ax: pi.get(f"m{ax}", 0.0) / m for ax in "xyz"}
+    point = {"J": m * (c["x"] ** 2 + c["y"] ** 2),
+             "Ixx": m * (c["y"] ** 2 + c["z"] ** 2), "Iyy": m * (c["x"] ** 2 + c["z"] ** 2),
+             "Izz": m * (c["x"] ** 2 + c["y"] ** 2), "Ixy": -m * c["x"] * c["y"],
+             "Ixz": -m * c["x"] * c["z"], "Iyz": -m * c["y"] * c["z"]}
+    return np.array([point[nm] for nm in names])
+
+
+#: A load explains a stretch's residual when its torque accounts for at least this share
+#: of the residual's energy there (the load's confidence).
+EXPLAINED = 0.9
+
+
+def explained(left: np.ndarray, y_pay: np.ndarray, pi: np.ndarray) -> float:
+    """The share (≤ 1; 0 for no residual) of the energy of ``left`` (n, J) [N·m], the torque
+    the model leaves out, that the load π accounts for through ``y_pay`` (n, J, m)."""
+    energy = float(np.sum(left**2))
+    if energy <= 0:
+        return 0.0
+    return max(0.0, 1.0 - float(np.sum((left - y_pay @ pi) ** 2)) / energy)
+
+
+def start_rows(filter_info: dict[str, Any], n_rows: int, seconds: float = START_S) -> int:
+    """How many of a log's first fitted rows (:class:`impactcli.model.rows.Rows`) lie in
+    its first ``seconds``."""
+    fs = float(filter_info["sample_rate_hz"])
+    dec = filter_info.get("decimation") or {}
+    k1, k2 = int(dec.get("filtered_signals", 1)), int(dec.get("fit_rows", 1))
+    first = float(filter_info.get("edge_trim_samples", 0)) / fs
+    step = k1 * k2 / fs
+    return int(min(n_rows, max(0, np.ceil((seconds - first) / step))))
+
+
+def with_log_payloads(model: Any, b: np.ndarray, names: Sequence[str],
+                      paths: Sequence[str]) -> Any:
+    """The model fitted with a payload per log but the first (``fit["extra"]``, in
+    :func:`augment`'s order) restated relative to the lightest log (:func:`rereference`),
+    the loads recorded in ``fit["payloads"]``."""
+    import dataclasses
+
+    fit = dict(model.fit)
+    ex = fit.pop("extra")
+    m = len(names)
+    vals = np.zeros((len(paths), m))
+    ses = np.zeros((len(paths), m))
+    vals[1:] = np.asarray(ex["values"], dtype=np.float64).reshape(-1, m)
+    ses[1:] = np.array([np.inf if v is None else v for v in ex["se"]]).reshape(-1, m)
+    theta, rel, light = rereference(model.theta, vals, b)
+    se = np.sqrt(ses**2 + ses[light] ** 2)
+    se[light] = 0.0
+    fit["payloads"] = {
+        "parameters": list(names), "units": [UNITS[nm] for nm in names],
+        "relative_to": paths[light],
+        "logs": [{"log": p, "values": dict(zip(names, (float(v) for v in rel[k]), strict=True)),
+                  "se": {nm: float(v) for nm, v in zip(names, se[k], strict=True)
+                         if np.isfinite(v)}}  # a parameter the logs do not determine: none
+                 for k, p in enumerate(paths)],
+    }
+    return dataclasses.replace(model, theta=theta, fit=fit)
+
+
+def log_payload(model: Any, path: str) -> np.ndarray | None:
+    """The payload π the model's fit found on the calibration log ``path`` (relative to the
+    lightest), None when it fitted no payload per log or not on that log."""
+    rec = (getattr(model, "fit", None) or {}).get("payloads")
+    if not rec:
+        return None
+    for e in rec["logs"]:
+        if e["log"] == path:
+            return np.array([e["values"][nm] for nm in rec["parameters"]], dtype=np.float64)
+    return None
+
+
+def carrying(model: Any, pi: np.ndarray) -> Any:
+    """The model of the arm carrying π beyond the model's own load (θ + B π); the model
+    itself when π is zero."""
+    import dataclasses
+
+    pi = np.asarray(pi, dtype=np.float64)
+    if not np.any(pi):
+        return model
+    bb = basis(model.kind, model.joint_names, model.structure)
+    assert bb is not None, "a payload needs a kind with kinematics"
+    return dataclasses.replace(model, theta=shifted_theta(model.theta, bb[0], pi))
+
+
+def own_load(model: Any, path: str) -> Any:
+    """The model carrying the load its fit found on the calibration log ``path``
+    (:func:`log_payload`); the model itself where it found none."""
+    pi = log_payload(model, path)
+    return model if pi is None else carrying(model, pi)
+
+
+def describe(model: Any) -> list[str]:
+    """Lines for the terminal: each calibration log's payload, beyond the lightest's."""
+    rec = (model.fit or {}).get("payloads")
+    if not rec:
+        return []
+    lines = [f"payload per log (the motion tells only differences of load: beyond "
+             f"{rec['relative_to']}'s, which the model's parameters carry)"]
+    w = max(len(e["log"]) for e in rec["logs"])
+    for e in rec["logs"]:
+        m, s = e["values"]["m"], e["se"].get("m")
+        cells = "  ".join(f"{nm} {e['values'][nm]:+.3g}" for nm in rec["parameters"][1:])
+        err = "" if s is None or s == 0 else f" ± {s:.2g}"
+        lines.append(f"  {e['log']:<{w}}  {m:+7.3g} kg{err}   ({cells})")
+    return lines
+
+
+def differ_warning(model: Any) -> str | None:
+    """The warning when the calibration logs carried different loads, else None."""
+    rec = (model.fit or {}).get("payloads")
+    if not rec:
+        return None
+    heavier = [f"{e['log']} {e['values']['m']:+.3g} kg" for e in rec["logs"]
+               if e["log"] != rec["relative_to"]]
+    return (f"the calibration logs carry different loads ({', '.join(heavier)} beyond "
+            f"{rec['relative_to']}): each log's residual used its own load; the config's "
+            f"model carries {rec['relative_to']}'s")
+
+
+def log_weights(ys: Sequence[np.ndarray], taus: Sequence[np.ndarray],
+                options: Any) -> np.ndarray:
+    """(ΣN_k, J) prior weights of the stacked rows of logs fitted with a payload each
+    (:func:`augment`'s rows ``ys``, torques ``taus``): each log's rows weighted by its own
+    noise, 1 / s_kj², s_kj the robust scale (1.4826 × MAD) of log k's residual on joint j
+    under a first robust fit of them all, normalised to a mean of 1 per joint. A heavier
+    load brings larger errors the rigid model does not hold (a flexible joint's
+    deflection grows with it): weighted alike, its log would pull the arm's parameters
+    from the lighter logs'."""
+    from .fit import robust_lstsq
+
+    y, t = np.concatenate(ys), np.concatenate(taus)
+    th, _, _ = robust_lstsq(y, t, options, ridge=np.full(y.shape[2], 1e-10))
+    parts = []
+    for yk, tk in zip(ys, taus, strict=True):
+        r = yk @ th - tk
+        s = 1.4826 * np.median(np.abs(r - np.median(r, axis=0)), axis=0)
+        floor = 1e-9 * max(float(np.sqrt(np.mean(tk**2))), 1e-12)
+        parts.append(np.broadcast_to(1.0 / np.maximum(s, floor) ** 2, tk.shape))
+    w = np.concatenate(parts)
+    return np.asarray(w / np.mean(w, axis=0))

@@ -1,0 +1,276 @@
+"""The loads a log carries (docs/models.md, "Payloads"): the one it starts with, weighed
+on its first seconds with the model's parameters held before the replay's first sample
+(:func:`weigh_start`), and the monitor of its changes mid-log (:func:`monitor_for`,
+:mod:`impactcli.detect.payload_change`). Both run for the tool's own model's generators
+(:data:`OWN`; the monitor for ``inverse_dynamics`` alone).
+
+The stretch weighed lies within the warm-up (its least length, ``[warmup] min_s``, and at
+most :data:`impactcli.model.payload.START_S`), where detection is off: the load found
+there is the one the replay uses from the first sample, and every decision after the
+warm-up still depends only on samples before it. The stretch passes through the replay's
+own causal filters (the inverse-dynamics residual, whatever the generator: a load is a
+mass, not a filter) and the load is weighed by :func:`impactcli.model.payload.weigh`. It
+is used when the motion determines it (mass and centre of mass), its mass is three
+standard errors from the model's own, its torque over the stretch exceeds the model's own
+held-back error on some joint and stays within :data:`HOLD_FACTOR` times the largest
+torque the joints exerted there (a load no motor held is not one), its centre of mass lies
+within the arm's reach, and it accounts for at least 90 % of what the model leaves out
+there (a model error is not a mass); otherwise it is said, not used.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..config import DetectorConfig
+from ..model import RigidModel, payload
+from ..model.generators import GeneratorChoice, target_torque
+
+#: The generators whose residual is the tool's own model's (eq. 7–8, the observer): a load
+#: is weighed for them only (the controller's channels pass a load through the
+#: controller's own observer, and its model carries the load or misses it).
+OWN = ("inverse_dynamics", "momentum_observer")
+
+#: A load whose torque over the stretch exceeds this many times the largest torque the
+#: joints exerted there is one no motor held: not a load.
+HOLD_FACTOR = 3.0
+
+#: A centre of mass farther than this from the last joint is not a load [m] (a URDF arm;
+#: a planar arm's reach is the sum of its link lengths).
+REACH_M = 2.0
+
+
+@dataclass(frozen=True)
+class StartLoad:
+    """The load a log starts with, beyond the model's own (module docstring).
+
+    Attributes:
+        verdict: ``used`` (the residual carries it), ``same`` (within what the model
+            tells), ``unsupported`` (the stretch does not determine it: not used).
+        seconds: the stretch weighed [s from the log's first sample].
+        mass_kg, mass_se_kg: its mass beyond the model's load and standard error (None:
+            not determined).
+        values: its parameters (:func:`impactcli.model.payload.basis`' names, SI).
+        relative_to: the calibration log whose load the model carries (None: the model
+            was fitted with one load).
+        calibrated: the calibration logs' masses beyond ``relative_to`` [kg].
+        message: the sentence the run says.
+        explained: the share of what the model leaves out over the stretch that the load
+            accounts for (None: not weighed); used only from
+            :data:`impactcli.model.payload.EXPLAINED` on.
+    """
+
+    verdict: str
+    seconds: float
+    mass_kg: float | None
+    mass_se_kg: float | None
+    values: dict[str, float]
+    relative_to: str | None
+    calibrated: dict[str, float]
+    message: str
+    explained: float | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready mapping (the timeline's ``input.payload``); absent values left out."""
+        d = dataclasses.asdict(self)
+        return {k: v for k, v in d.items() if v is not None}
+
+
+def weigh_start(feed: Any, model: RigidModel, choices: tuple[GeneratorChoice, ...],
+                cfg: DetectorConfig) -> tuple[RigidModel, StartLoad | None]:
+    """The model carrying the load the log starts with, and what was found (None: a model
+    without kinematics, or a warm-up too short to weigh in)."""
+    bb = payload.basis(model.kind, model.joint_names, model.structure)
+    seconds = min(payload.START_S, float(cfg.warmup.min_s))
+    if bb is None or seconds <= 0 or any(c.generator not in OWN for c in choices):
+        return model, None
+    b, names = bb
+    scan = feed.scan
+    fs = float(scan.sample_rate_hz)
+    n_want = int(np.floor(seconds * fs))
+    q_parts, tau_parts = [], []
+    got = 0
+    for _, t, a in feed.chunks(model.joint_names):
+        k = min(t.shape[0], n_want - got)
+        q_parts.append(np.asarray(a.position)[:k])
+        tau_parts.append(target_torque(a, choices, cfg.residual.logged_correction)[:k])
+        got += k
+        if got >= n_want:
+            break
+    rel, cal = _calibration(model)
+    rows = _rows(model, np.concatenate(q_parts), np.concatenate(tau_parts), fs,
+                 cfg) if got else None
+    if rows is None:
+        return model, StartLoad("unsupported", seconds, None, None, {}, rel, cal, (
+            f"{scan.source.path}: the load the log starts with was not weighed: its first "
+            f"{seconds:g} s are too short for the residual's filters; the residual "
+            f"assumes the model's load{_whose(rel)}"))
+    y, left, tau = rows
+    yb = y @ b
+    w = payload.weigh(yb, left, names)
+    values = {nm: float(v) for nm, v in zip(names, w.pi, strict=True)}
+    where = scan.source.path
+    mass = f"{w.mass_kg:+.3g} ± {w.mass_se_kg:.2g} kg"
+    torque = np.sqrt(np.mean((yb @ w.pi) ** 2, axis=0))
+    own = _model_error(model)
+    felt = own is not None and bool(np.any(torque > own))
+    share = payload.explained(left, yb, w.pi)
+    held = float(np.max(np.abs(yb @ w.pi)))
+    top = float(np.max(np.abs(tau))) if tau.size else 0.0
+    same = not w.weighed or not felt or share < payload.EXPLAINED
+    why = None
+    if not w.supported:
+        why = "do not move the arm through poses that tell its mass from its centre of mass"
+    elif w.weighed and held > HOLD_FACTOR * top:  # a load no motor held: not a load
+        why = (f"give a load ({mass}) whose torque, up to {held:.3g} N·m, is beyond "
+               f"{HOLD_FACTOR:g}× the largest the joints exerted there ({top:.3g} N·m)")
+    elif not same and not _within_reach(model, values, w.mass_kg):
+        why = f"give a centre of mass beyond the arm's reach ({mass})"
+    if why is not None:
+        return model, StartLoad("unsupported", seconds, None, None, {}, rel, cal, (
+            f"{where}: the load the log starts with is not known: its first {seconds:g} s "
+            f"{why}; the residual assumes the model's load{_whose(rel)}"))
+    if same:
+        why = ("within what the model tells" if not w.weighed or not felt else
+               f"it explains {100 * share:.0f} % of what the model leaves out there, under "
+               f"{100 * payload.EXPLAINED:.0f} %: not a load")
+        return model, StartLoad("same", seconds, w.mass_kg, w.mass_se_kg, values, rel, cal, (
+            f"{where}: starts with the model's load{_whose(rel)} ({mass} beyond it, "
+            f"weighed on its first {seconds:g} s: {why})"), share)
+    loads = list(cal.values()) or [0.0]
+    tol = payload.WEIGH_SIGMAS * w.mass_se_kg  # beyond every calibration log's load
+    unseen = not min(loads) - tol <= w.mass_kg <= max(loads) + tol
+    return payload.carrying(model, w.pi), StartLoad(
+        "used", seconds, w.mass_kg, w.mass_se_kg, values, rel, cal, (
+            f"{where}: carrying ~{w.mass_kg:+.3g} kg (± {w.mass_se_kg:.2g}; it explains "
+            f"{100 * share:.0f} % of what the model leaves out) beyond the "
+            f"model's load{_whose(rel)}{_calibrated_with(cal)}, weighed on its first "
+            f"{seconds:g} s: the residual uses it"
+            + ("; no calibration log carried a load like it, so the thresholds' false-alarm "
+               "rate was not measured with it (a heavier load brings larger errors the "
+               "rigid model does not hold): calibrate with a log that carries it" if unseen
+               else "")), share)
+
+
+def _rows(model: RigidModel, q: np.ndarray, tau: np.ndarray, fs: float,
+          cfg: DetectorConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The stretch's regressor (n, J, P), the torque the model leaves out and the torque
+    (n, J) [N·m],
+    through the replay's own causal filters (the inverse-dynamics residual, eq. 7–8, is
+    linear in θ: the load π changes it by Y B π), without the filters' first
+    :data:`SETTLE_PERIODS` periods of the derivative cut-off; None when the stretch is too
+    short."""
+    from ..model.causal import Carry
+    from ..model.residual import ResidualOptions, residual_chunk
+
+    rc = cfg.residual
+    skip = int(np.ceil(SETTLE_PERIODS * fs / rc.derivative_cutoff_hz))
+    if q.shape[0] < skip + MIN_ROWS:
+        return None
+    res = residual_chunk(model, q, tau, 1.0 / fs, ResidualOptions(
+        cutoff_hz=rc.derivative_cutoff_hz, filter_torque=rc.filter_torque,
+        generator="inverse_dynamics"), Carry())
+    y = model.regressor(res.q_f[skip:], res.qd[skip:], res.qdd[skip:])
+    # r = τ̂ − τ: the torque beyond the model is −r
+    return y, -np.asarray(res.r[skip:]), np.asarray(res.tau_used[skip:])
+
+
+#: The derivative filter's start is left out for this many periods of its cut-off.
+SETTLE_PERIODS = 5.0
+#: Samples the weighed stretch needs at least beyond that.
+MIN_ROWS = 100
+
+
+def _calibration(model: RigidModel) -> tuple[str | None, dict[str, float]]:
+    rec = (model.fit or {}).get("payloads")
+    if not rec:
+        return None, {}
+    return rec["relative_to"], {e["log"]: float(e["values"]["m"]) for e in rec["logs"]}
+
+
+def _whose(rel: str | None) -> str:
+    return "" if rel is None else f" ({rel}'s)"
+
+
+def _calibrated_with(cal: dict[str, float]) -> str:
+    if len(cal) < 2:
+        return ""
+    return "; calibrated with " + ", ".join(f"{m:+.3g} kg ({log})" for log, m in cal.items())
+
+
+def _within_reach(model: RigidModel, values: dict[str, float], mass: float) -> bool:
+    """The centre of mass the first moments give lies within the arm's reach."""
+    if mass == 0:
+        return True
+    c = np.array([values.get(f"m{ax}", 0.0) for ax in "xyz"]) / mass
+    reach = (float(np.sum(model.structure["link_lengths"])) if model.kind == "planar"
+             else REACH_M)
+    return bool(np.linalg.norm(c) <= reach)
+
+
+def _model_error(model: RigidModel) -> np.ndarray | None:
+    """(J,) the model's own held-back RMS error per joint [N·m] (its fit's when nothing was
+    held back), None when the model records neither."""
+    joints = ((model.fit or {}).get("joints") or {})
+    part = joints.get("holdout") or joints.get("fit")
+    if not part:
+        return None
+    try:
+        return np.array([float(part[j]["rms_nm"]) for j in model.joint_names])
+    except (KeyError, TypeError, ValueError):
+        return None
+
+
+def monitor_for(plan: Any, given: dict[str, np.ndarray] | None,
+                sample_rate_hz: float) -> Any:
+    """The payload-change monitor of a replay (:class:`~impactcli.detect.payload_change.
+    PayloadMonitor`), None where it cannot run: no thresholds calibrated, a model without
+    kinematics, a joint whose generator is not ``inverse_dynamics`` (the tool's own
+    model's eq. 7–8; the observer's state holds the old load, the controller's channels
+    hold no model of ours)."""
+    from ..detect.incidents import settle_s
+    from ..detect.payload_change import PayloadMonitor
+
+    model, cfg = plan.model, plan.cfg
+    if given is None or model is None:
+        return None
+    if any(c.generator != "inverse_dynamics" for c in plan.choices):
+        return None
+    bb = payload.basis(model.kind, model.joint_names, model.structure)
+    if bb is None:
+        return None
+    reach = (float(np.sum(model.structure["link_lengths"])) if model.kind == "planar"
+             else REACH_M)
+    return PayloadMonitor(
+        model, bb[0], bb[1], np.asarray(given["static_loading"], dtype=np.float64),
+        sample_rate_hz, cfg.residual.derivative_cutoff_hz, cfg.static_loading.cutoff_hz,
+        cfg.static_loading.order, float(cfg.warmup.min_s),
+        settle_s(cfg.static_loading.cutoff_hz, cfg.adaptive.n2_s),
+        reach, base_kg=(plan.start_load.mass_kg if plan.start_load is not None
+                 and plan.start_load.verdict == "used" and plan.start_load.mass_kg is not None
+                 else 0.0))
+
+
+def unseen_loads(where: str, model: RigidModel | None, changes: Any) -> str | None:
+    """The warning when a payload change left the arm carrying a load no calibration log
+    carried (beyond every one by three standard errors; ``mass_after_kg`` counts the load
+    the log started with), else None: the thresholds' false-alarm rate was not measured
+    with it."""
+    if model is None or not changes:
+        return None
+    _, cal = _calibration(model)
+    loads = list(cal.values()) or [0.0]
+    out = [c for c in changes if not min(loads) - payload.WEIGH_SIGMAS * c.mass_se_kg
+           <= c.mass_after_kg <= max(loads) + payload.WEIGH_SIGMAS * c.mass_se_kg]
+    if not out:
+        return None
+    what = ", ".join(f"{c.mass_after_kg:+.3g} kg from {c.t_classified:.3f} s" for c in out)
+    return (f"{where}: after its payload changes the arm carried loads no calibration log "
+            f"carried ({what}, beyond the model's load): the thresholds' false-alarm rate "
+            "was not measured with them (a heavier load brings larger errors the rigid "
+            "model does not hold; incidents while carrying them may be such errors): "
+            "calibrate with a log that carries each load")

@@ -1,0 +1,315 @@
+"""Payloads at the flange (impactcli/model/payload.py; docs/models.md, "Payloads").
+
+The basis B that turns a payload into a shift of the base parameters is checked against
+physics built another way: a planar arm carrying a body is the same arm with one more
+link locked at zero (the planar regressor of n + 1 links: the body's own parameters about
+that joint are independent of B, its mass's regrouping into the earlier links is the
+base-parameter rule itself), and a URDF arm carrying it is Pinocchio's inverse dynamics
+with the body added to the last link (wholly independent). The per-log fit is
+checked through the CLI on the simulator's arm: two calibration logs with different loads
+give each log's load, and a model that predicts a held-out log as well as two logs with
+one load do.
+"""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from impactcli.cli import main
+from impactcli.model import IdentifyOptions, RigidModel, payload, structures
+from impactcli.model.identification import prepare_rows
+from impactcli.model.selection import stacked
+
+
+def _planar(n: int, lengths: list[float]) -> dict:
+    return {"coulomb_slope_rad_s": 0.01, "offset": True, "motor_inertia": True,
+            "link_lengths": lengths, "gravity": [0.0, -9.81]}
+
+
+@pytest.mark.parametrize("n", [2, 3])
+def test_planar_payload_is_one_more_link_locked_at_zero(n: int) -> None:
+    rng = np.random.default_rng(n)
+    ll = list(rng.uniform(0.2, 0.6, n))
+    joints = tuple(f"j{i}" for i in range(n))
+    s = _planar(n, ll)
+    theta = rng.normal(0, 1, len(structures.param_names("planar", joints, s)))
+    m, cx, cy, ic = 1.7, 0.12, -0.05, 0.004  # a body at (cx, cy) in the last link's frame
+    b, names = payload.basis("planar", joints, s)
+    assert names == ("m", "mx", "my", "J")
+    pi = np.array([m, m * cx, m * cy, ic + m * (cx**2 + cy**2)])
+    q, qd, qdd = (rng.normal(0, 1.5, (40, n)) for _ in range(3))
+    carried = structures.predict("planar", joints, s, q, qd, qdd, theta + b @ pi)
+    # the same body as link n+1, its joint at the end of link n, locked at 0
+    joints1 = (*joints, "lock")
+    s1 = _planar(n + 1, [*ll, 1.0])
+    names1 = structures.param_names("planar", joints1, s1)
+    th1 = np.zeros(len(names1))
+    at = {nm: i for i, nm in enumerate(names1)}
+    for nm, v in zip(structures.param_names("planar", joints, s), theta, strict=True):
+        th1[at[nm]] = v
+    ln = ll[-1]
+    for k, jn in enumerate(joints):  # its mass regrouped into every link before it
+        th1[at[f"{jn}.ZZR"]] += m * ll[k] ** 2
+        th1[at[f"{jn}.MXR"]] += m * ll[k]
+    th1[at["lock.ZZR"]] = ic + m * ((cx - ln) ** 2 + cy**2)
+    th1[at["lock.MXR"]] = m * (cx - ln)
+    th1[at["lock.MYR"]] = m * cy
+    z = np.zeros((40, 1))
+    locked = structures.predict("planar", joints1, s1, np.hstack([q, z]), np.hstack([qd, z]),
+                                np.hstack([qdd, z]), th1)[:, :n]
+    np.testing.assert_allclose(carried, locked, atol=1e-9)
+
+
+def test_urdf_payload_is_pinocchio_with_the_body_added() -> None:
+    pin = pytest.importorskip("pinocchio")
+    from impactcli.logs.robot_files import read_robot
+    from impactcli.logs.urdf import reduced_model, urdf_joint_order
+    from impactcli.model.identification import _structure_for
+
+    robot = read_robot("ur5")
+    joints = tuple(j.name for j in robot.joints)
+    s = _structure_for("urdf", robot, joints, IdentifyOptions(), "ur5")
+    b, names = payload.basis("urdf", joints, s)
+    full = payload._urdf_basis(joints, s)
+    assert np.linalg.matrix_rank(b) == np.linalg.matrix_rank(full) == len(names)
+    model = reduced_model(s["urdf_xml"], urdf_joint_order(joints, s), "ur5")
+    data = model.createData()
+    body = pin.Inertia(2.5, np.array([0.01, -0.02, 0.09]), np.diag([0.01, 0.012, 0.006]))
+    pi10 = body.toDynamicParameters()  # about the last joint's frame, as Pinocchio's columns
+    loaded = model.copy()
+    loaded.inertias[model.njoints - 1] = model.inertias[model.njoints - 1] + body
+    ldata = loaded.createData()
+    rng = np.random.default_rng(3)
+    fnames = structures.urdf_full_names(joints, s)
+    th_full = np.zeros(len(fnames))
+    for i in range(1, model.njoints):
+        th_full[10 * (i - 1):10 * i] = model.inertias[i].toDynamicParameters()
+    q, qd, qdd = (rng.normal(0, 1, (25, 6)) for _ in range(3))
+    theta, *_ = np.linalg.lstsq(  # the arm's base parameters from its full ones
+        structures.regressor("urdf", joints, s, q, qd, qdd).reshape(-1, len(s["base_columns"])),
+        (structures.urdf_full_regressor(q, qd, qdd, joints, s) @ th_full).reshape(-1),
+        rcond=None)
+    pred = structures.predict("urdf", joints, s, q, qd, qdd, theta + full @ pi10)
+    truth = np.array([pin.rnea(loaded, ldata, q[k], qd[k], qdd[k]) for k in range(25)])
+    np.testing.assert_allclose(pred, truth, atol=1e-8)
+    bare = np.array([pin.rnea(model, data, q[k], qd[k], qdd[k]) for k in range(25)])
+    assert np.abs(truth - bare).max() > 1.0  # the body is felt
+
+
+def _weigh_case(seed: int, still: bool) -> tuple[payload.Weighed, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    joints = ("a", "b")
+    s = _planar(2, [0.4, 0.35])
+    b, names = payload.basis("planar", joints, s)
+    t = np.arange(750) / 250.0
+    q = (np.zeros((750, 2)) + 0.3 if still else
+         np.column_stack([0.8 * np.sin(1.3 * t), 1.1 * np.sin(0.9 * t + 1)]))
+    qd, qdd = np.gradient(q, t, axis=0), np.gradient(np.gradient(q, t, axis=0), t, axis=0)
+    y = structures.regressor("planar", joints, s, q, qd, qdd) @ b
+    m, c = 1.2, np.array([0.35, 0.02])
+    pi = np.array([m, m * c[0], m * c[1], m * c @ c])
+    return payload.weigh(y, y @ pi + rng.normal(0, 0.02, (750, 2)), names), pi
+
+
+def test_weigh_finds_a_point_mass_from_moving_poses() -> None:
+    w, pi = _weigh_case(0, still=False)
+    assert w.supported and w.weighed
+    assert abs(w.mass_kg - pi[0]) < 0.02 * pi[0]
+    np.testing.assert_allclose(w.pi, pi, rtol=0.05, atol=0.01)
+
+
+def test_weigh_says_one_pose_does_not_determine_a_load() -> None:
+    w, _ = _weigh_case(0, still=True)
+    assert not w.supported and not w.weighed
+
+
+def _sim(out: Path, name: str, seed: int, kg: float) -> Path:
+    r = CliRunner().invoke(main, [
+        "simulate", "--scenario", "free_multisine", "--duration", "40", "--seed", str(seed),
+        "--robot-seed", "7", "--payload-kg", str(kg), "--no-controller-channels",
+        "-o", str(out), "--name", name])
+    assert r.exit_code == 0, r.output
+    return out / f"{name}.csv.gz"
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    out = tmp_path_factory.mktemp("payload")
+    return {"light": _sim(out, "light", 1, 0.0), "heavy": _sim(out, "heavy", 2, 1.2),
+            "light2": _sim(out, "light2", 3, 0.0), "held_out": _sim(out, "held_out", 4, 0.0),
+            "robot": out / "light.robot.json"}
+
+
+def _calibrate(logs: dict[str, Path], a: str, b: str, tmp: Path) -> tuple[dict, str, str]:
+    out = tmp / f"{a}_{b}.toml"
+    r = CliRunner().invoke(main, ["calibrate", str(logs[a]), str(logs[b]), "--robot",
+                                  str(logs["robot"]), "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    return tomllib.loads(out.read_text("utf-8")), r.stdout, r.stderr
+
+
+def test_calibration_logs_with_different_loads_give_each_its_payload(
+        logs: dict[str, Path], tmp_path: Path) -> None:
+    cfg, out, err = _calibrate(logs, "light", "heavy", tmp_path)
+    rec = cfg["model"]["fit"]["payloads"]
+    assert rec["relative_to"] == str(logs["light"])
+    heavy = next(e for e in rec["logs"] if e["log"] == str(logs["heavy"]))
+    assert abs(heavy["values"]["m"] - 1.2) < 0.05 * 1.2
+    # the body sits at the end of the last link (0.4 m): its first moment m × 0.4
+    assert abs(heavy["values"]["mx"] - 1.2 * 0.4) < 0.1 * 1.2 * 0.4
+    assert "payload per log" in out and "+1.2" in out
+    assert "carry different loads" in err
+    sel = cfg["model"]["fit"]["selection"]["payload"]
+    assert sel["chosen"] is True
+    for e in sel["joints"].values():  # the held-out error falls many-fold
+        assert e["per_log_rms_nm"] < 0.2 * e["one_load_rms_nm"]
+
+
+def test_one_load_is_fitted_as_before(logs: dict[str, Path], tmp_path: Path) -> None:
+    cfg, out, err = _calibrate(logs, "light", "light2", tmp_path)
+    assert "payloads" not in cfg["model"]["fit"]
+    assert cfg["model"]["fit"]["selection"]["payload"]["chosen"] is False
+    assert "payload per log (" not in out and "carry different loads" not in err
+
+
+def test_different_loads_give_the_same_model_held_out(logs: dict[str, Path],
+                                                      tmp_path: Path) -> None:
+    """The model of a light and a heavy log predicts a held-out light log as well as the
+    model of two light logs: its RMS error within one standard error over five stretches
+    of the held-out log (the issue's "same model held out")."""
+    from impactcli.logs import read_log
+    from impactcli.logs.robot_files import read_robot
+
+    robot = read_robot(str(logs["robot"]))
+    rows = prepare_rows(read_log(str(logs["held_out"]), robot=robot), robot, "planar",
+                        IdentifyOptions())
+    y, tau, _ = stacked([rows])
+    parts = np.array_split(np.arange(y.shape[0]), 5)
+    rms = {}
+    for a, b in (("light", "light2"), ("light", "heavy")):
+        cfg, _, _ = _calibrate(logs, a, b, tmp_path)
+        model = RigidModel.from_dict(json.loads(json.dumps(cfg["model"])))
+        e = y @ model.theta - tau
+        rms[b] = np.array([np.sqrt(np.mean(e[p] ** 2, axis=0)) for p in parts])
+    one = rms["light2"]
+    se = one.std(axis=0, ddof=1) / np.sqrt(len(parts))
+    assert np.all(rms["heavy"].mean(axis=0) <= one.mean(axis=0) + se), (rms, se)
+
+
+@pytest.fixture(scope="module")
+def two_loads(logs: dict[str, Path], tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The config calibrated on a light and a heavy log (a payload per log)."""
+    out = tmp_path_factory.mktemp("two_loads") / "cfg.toml"
+    r = CliRunner().invoke(main, ["calibrate", str(logs["light"]), str(logs["heavy"]),
+                                  "--robot", str(logs["robot"]), "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    return out
+
+
+def _detect(log: Path, cfg: Path, out: Path, *extra: str) -> tuple[dict, CliRunner, object]:
+    r = CliRunner().invoke(main, ["detect", str(log), "--config", str(cfg), "-o", str(out),
+                                  *extra])
+    tl = json.loads((out / (log.name.split(".")[0] + ".timeline.json")).read_text("utf-8"))
+    return tl, r.exit_code, r
+
+
+def test_the_load_a_log_starts_with_is_weighed_and_used(
+        logs: dict[str, Path], two_loads: Path, tmp_path: Path) -> None:
+    heavy = _sim(tmp_path, "heavy_run", 9, 1.2)
+    tl, code, r = _detect(heavy, two_loads, tmp_path / "h")
+    assert code == 0, r.output  # type: ignore[attr-defined]
+    load = tl["input"]["payload"]
+    assert load["verdict"] == "used" and abs(load["mass_kg"] - 1.2) < 0.1 * 1.2
+    assert "carrying ~+1.1" in r.stderr or "carrying ~+1.2" in r.stderr  # type: ignore[attr-defined]
+    assert tl["counts"]["incidents"]["counted"] == 0  # free motion: no false alarm
+    light, _, _ = _detect(logs["held_out"], two_loads, tmp_path / "l")
+    assert light["input"]["payload"]["verdict"] == "same"
+    assert light["model"]["sha256"] == light["config"]["calibration"]["model_sha256"]
+
+
+def _pick_and_place(out: Path, pushes: bool) -> tuple[Path, Any, Any]:
+    """The simulator's pick-and-place log (45 s, the robot of the calibration logs) written
+    as CSV, its scenario and its labels."""
+    from dataclasses import replace
+
+    from impactcli.logs import write_log
+    from impactcli.sim import scenario, simulate
+
+    sc = scenario("pick_and_place", duration_s=45.0, robot_seed=7)
+    if not pushes:
+        sc = replace(sc, pushes=())
+    res = simulate(sc, seed=21)
+    path = out / ("pnp.csv.gz" if pushes else "pnp_quiet.csv.gz")
+    write_log(res.log, path)
+    return path, sc, res.labels
+
+
+def test_a_pick_and_a_release_are_payload_changes_not_contacts(
+        two_loads: Path, tmp_path: Path) -> None:
+    """The issue's case: both changes reported (time within 1 s, mass within 25 %), no
+    incident counted for either, the pushes made while carrying the load still caught."""
+    log, sc, labels = _pick_and_place(tmp_path, pushes=True)
+    (pick, kg), (place, _) = sc.payload_changes
+    tl, code, r = _detect(log, two_loads, tmp_path / "out")
+    assert code == 0, r.output  # type: ignore[attr-defined]
+    ch = tl["payload_changes"]
+    assert len(ch) == 2, ch
+    assert abs(ch[0]["t_start"] - pick) < 1.0 and abs(ch[1]["t_start"] - place) < 1.0
+    assert abs(ch[0]["mass_kg"] - kg) < 0.25 * kg and abs(ch[1]["mass_kg"] + kg) < 0.25 * kg
+    assert "payload changes of" in r.stdout  # type: ignore[attr-defined]
+    counted = [i for i in tl["incidents"] if i["number"] is not None]
+    for c in ch:  # no counted incident starts from a change's onset to its classification
+        assert not [i for i in counted if c["t_start"] - 0.05 <= i["t_start"]
+                    <= c["t_classified"]]
+    carrying = [p for p in labels.events if pick < p.start < place]
+    assert carrying
+    for p in carrying:
+        assert any(p.start - 0.02 <= i["t_start"] <= p.end + 0.25 for i in counted), p
+
+
+def test_payload_changes_trip_no_gate(two_loads: Path, tmp_path: Path) -> None:
+    log, _, _ = _pick_and_place(tmp_path, pushes=False)
+    tl, code, r = _detect(log, two_loads, tmp_path / "out", "--fail-on-detect")
+    assert len(tl["payload_changes"]) == 2
+    assert tl["counts"]["incidents"]["counted"] == 0 and code == 0, r.output  # type: ignore
+
+
+def test_a_clamp_is_not_a_payload_change(two_loads: Path, tmp_path: Path) -> None:
+    r = CliRunner().invoke(main, [
+        "simulate", "--scenario", "clamps", "--duration", "40", "--seed", "31",
+        "--robot-seed", "7", "--no-controller-channels", "-o", str(tmp_path), "--name", "cl"])
+    assert r.exit_code == 0, r.output
+    tl, _, _ = _detect(tmp_path / "cl.csv.gz", two_loads, tmp_path / "out")
+    assert tl["payload_changes"] == []
+    assert tl["counts"]["incidents"]["counted"] >= 2
+
+
+def test_a_replay_with_payload_changes_is_the_same_in_chunks_of_any_size(
+        two_loads: Path, tmp_path: Path) -> None:
+    """The monitor keeps the replay's guarantee: the pick-and-place, whole or in chunks of
+    997 or 4096 samples, gives the same residual and statistics bit for bit, and the same
+    two payload changes (after two changes a row's residual is r + Y B π in whichever
+    chunk it falls)."""
+    from impactcli.config import load_config
+    from impactcli.logs import read_log
+    from impactcli.run.collect import detect_in_memory
+
+    log, _, _ = _pick_and_place(tmp_path, pushes=True)
+    data = read_log(str(log))
+    cfg = load_config(two_loads)
+    runs = [detect_in_memory(data, config=cfg, chunk_rows=rows)
+            for rows in (data.n_samples, 997, 4096)]
+    first, sig = runs[0]
+    assert len(first.payload_changes or ()) == 2
+    for res, s in runs[1:]:
+        assert res.payload_changes == first.payload_changes
+        for name, a in sig.signals.items():
+            np.testing.assert_array_equal(s.signals[name], a, err_msg=name)
+        assert [i.to_dict() for i in res.incidents] == [i.to_dict() for i in first.incidents]
