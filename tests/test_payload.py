@@ -155,9 +155,20 @@ def _calibrate(logs: dict[str, Path], a: str, b: str, tmp: Path) -> tuple[dict, 
     return tomllib.loads(out.read_text("utf-8")), r.stdout, r.stderr
 
 
+@pytest.fixture(scope="module")
+def calibrated(logs: dict[str, Path], tmp_path_factory: pytest.TempPathFactory
+               ) -> dict[str, Any]:
+    """``calibrate`` on a light and a heavy log (``heavy``) and on two light logs
+    (``light2``): (config, stdout, stderr) each, once for the module; ``dir`` the folder
+    of their files (``light_heavy.toml``, ``light_light2.toml``)."""
+    tmp = tmp_path_factory.mktemp("calibrated")
+    return {"heavy": _calibrate(logs, "light", "heavy", tmp),
+            "light2": _calibrate(logs, "light", "light2", tmp), "dir": tmp}
+
+
 def test_calibration_logs_with_different_loads_give_each_its_payload(
-        logs: dict[str, Path], tmp_path: Path) -> None:
-    cfg, out, err = _calibrate(logs, "light", "heavy", tmp_path)
+        logs: dict[str, Path], calibrated: dict[str, Any]) -> None:
+    cfg, out, err = calibrated["heavy"]
     rec = cfg["model"]["fit"]["payloads"]
     assert rec["relative_to"] == str(logs["light"])
     heavy = next(e for e in rec["logs"] if e["log"] == str(logs["heavy"]))
@@ -172,15 +183,15 @@ def test_calibration_logs_with_different_loads_give_each_its_payload(
         assert e["per_log_rms_nm"] < 0.2 * e["one_load_rms_nm"]
 
 
-def test_one_load_is_fitted_as_before(logs: dict[str, Path], tmp_path: Path) -> None:
-    cfg, out, err = _calibrate(logs, "light", "light2", tmp_path)
+def test_one_load_is_fitted_as_before(calibrated: dict[str, Any]) -> None:
+    cfg, out, err = calibrated["light2"]
     assert "payloads" not in cfg["model"]["fit"]
     assert cfg["model"]["fit"]["selection"]["payload"]["chosen"] is False
     assert "payload per log (" not in out and "carry different loads" not in err
 
 
 def test_different_loads_give_the_same_model_held_out(logs: dict[str, Path],
-                                                      tmp_path: Path) -> None:
+                                                      calibrated: dict[str, Any]) -> None:
     """The model of a light and a heavy log predicts a held-out light log as well as the
     model of two light logs: its RMS error within one standard error over five stretches
     of the held-out log (the issue's "same model held out")."""
@@ -193,8 +204,8 @@ def test_different_loads_give_the_same_model_held_out(logs: dict[str, Path],
     y, tau, _ = stacked([rows])
     parts = np.array_split(np.arange(y.shape[0]), 5)
     rms = {}
-    for a, b in (("light", "light2"), ("light", "heavy")):
-        cfg, _, _ = _calibrate(logs, a, b, tmp_path)
+    for b in ("light2", "heavy"):
+        cfg = calibrated[b][0]
         model = RigidModel.from_dict(json.loads(json.dumps(cfg["model"])))
         e = y @ model.theta - tau
         rms[b] = np.array([np.sqrt(np.mean(e[p] ** 2, axis=0)) for p in parts])
@@ -204,13 +215,9 @@ def test_different_loads_give_the_same_model_held_out(logs: dict[str, Path],
 
 
 @pytest.fixture(scope="module")
-def two_loads(logs: dict[str, Path], tmp_path_factory: pytest.TempPathFactory) -> Path:
+def two_loads(calibrated: dict[str, Any]) -> Path:
     """The config calibrated on a light and a heavy log (a payload per log)."""
-    out = tmp_path_factory.mktemp("two_loads") / "cfg.toml"
-    r = CliRunner().invoke(main, ["calibrate", str(logs["light"]), str(logs["heavy"]),
-                                  "--robot", str(logs["robot"]), "-o", str(out)])
-    assert r.exit_code == 0, r.output
-    return out
+    return Path(calibrated["dir"]) / "light_heavy.toml"
 
 
 def _detect(log: Path, cfg: Path, out: Path, *extra: str) -> tuple[dict, CliRunner, object]:
