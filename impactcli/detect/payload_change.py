@@ -217,9 +217,7 @@ class PayloadMonitor:
             left = -buf["r"][w0:]  # the torque beyond the model's: r = τ̂ − τ
             w = payload.weigh(y, left, self.names)
             explained = payload.explained(left, y, w.pi)
-            c = np.array([w.pi[self.names.index(f"m{ax}")] if f"m{ax}" in self.names
-                          else 0.0 for ax in "xyz"]) / (w.mass_kg if w.mass_kg else 1.0)
-        if w is None or not (w.weighed and np.linalg.norm(c) <= self.reach_m
+        if w is None or not (w.weighed and payload.within_reach(self.names, w.pi, self.reach_m)
                              and explained >= EXPLAINED):
             if still:  # the alarm goes on: weigh the next window
                 self._due = k_c + self.window

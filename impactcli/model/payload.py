@@ -52,6 +52,10 @@ NO_KINEMATICS = ("the model has no kinematics (a robot description with planar o
                  "kinematics gives them): a load at the flange cannot be told from the arm's "
                  "own parameters, so logs that carry different loads are not told apart")
 
+#: A centre of mass farther than this from the last joint is not a load [m] (a URDF arm;
+#: a planar arm's reach is the sum of its link lengths).
+REACH_M = 2.0
+
 #: The relative residual of the URDF basis's least squares beyond which it is refused.
 BASIS_TOLERANCE = 1e-6
 
@@ -254,6 +258,25 @@ def explained(left: np.ndarray, y_pay: np.ndarray, pi: np.ndarray) -> float:
     if energy <= 0:
         return 0.0
     return max(0.0, 1.0 - float(np.sum((left - y_pay @ pi) ** 2)) / energy)
+
+
+def reach_m(model: Any) -> float:
+    """How far from the last joint a load's centre of mass may lie [m]: a planar arm's
+    link lengths summed, else :data:`REACH_M`."""
+    if model.kind == "planar":
+        return float(np.sum(model.structure["link_lengths"]))
+    return REACH_M
+
+
+def within_reach(names: Sequence[str], pi: np.ndarray, reach: float) -> bool:
+    """The centre of mass the first moments of the load π (``names``' order) give lies
+    within ``reach`` [m] (a load without mass: yes)."""
+    m = float(pi[0])
+    if m == 0:
+        return True
+    c = np.array([pi[names.index(f"m{ax}")] if f"m{ax}" in names else 0.0
+                  for ax in "xyz"]) / m
+    return bool(np.linalg.norm(c) <= reach)
 
 
 def start_rows(filter_info: dict[str, Any], n_rows: int, seconds: float = START_S) -> int:

@@ -39,10 +39,6 @@ OWN = ("inverse_dynamics", "momentum_observer")
 #: joints exerted there is one no motor held: not a load.
 HOLD_FACTOR = 3.0
 
-#: A centre of mass farther than this from the last joint is not a load [m] (a URDF arm;
-#: a planar arm's reach is the sum of its link lengths).
-REACH_M = 2.0
-
 
 @dataclass(frozen=True)
 class StartLoad:
@@ -115,11 +111,11 @@ def weigh_start(feed: Any, model: RigidModel, choices: tuple[GeneratorChoice, ..
     values = {nm: float(v) for nm, v in zip(names, w.pi, strict=True)}
     where = scan.source.path
     mass = f"{w.mass_kg:+.3g} ± {w.mass_se_kg:.2g} kg"
-    torque = np.sqrt(np.mean((yb @ w.pi) ** 2, axis=0))
+    carried = yb @ w.pi  # (n, J) the load's torque over the stretch [N·m]
     own = _model_error(model)
-    felt = own is not None and bool(np.any(torque > own))
+    felt = own is not None and bool(np.any(np.sqrt(np.mean(carried**2, axis=0)) > own))
     share = payload.explained(left, yb, w.pi)
-    held = float(np.max(np.abs(yb @ w.pi)))
+    held = float(np.max(np.abs(carried)))
     top = float(np.max(np.abs(tau))) if tau.size else 0.0
     same = not w.weighed or not felt or share < payload.EXPLAINED
     why = None
@@ -128,7 +124,7 @@ def weigh_start(feed: Any, model: RigidModel, choices: tuple[GeneratorChoice, ..
     elif w.weighed and held > HOLD_FACTOR * top:  # a load no motor held: not a load
         why = (f"give a load ({mass}) whose torque, up to {held:.3g} N·m, is beyond "
                f"{HOLD_FACTOR:g}× the largest the joints exerted there ({top:.3g} N·m)")
-    elif not same and not _within_reach(model, values, w.mass_kg):
+    elif not same and not payload.within_reach(names, w.pi, payload.reach_m(model)):
         why = f"give a centre of mass beyond the arm's reach ({mass})"
     if why is not None:
         return model, StartLoad("unsupported", seconds, None, None, {}, rel, cal, (
@@ -141,9 +137,7 @@ def weigh_start(feed: Any, model: RigidModel, choices: tuple[GeneratorChoice, ..
         return model, StartLoad("same", seconds, w.mass_kg, w.mass_se_kg, values, rel, cal, (
             f"{where}: starts with the model's load{_whose(rel)} ({mass} beyond it, "
             f"weighed on its first {seconds:g} s: {why})"), share)
-    loads = list(cal.values()) or [0.0]
-    tol = payload.WEIGH_SIGMAS * w.mass_se_kg  # beyond every calibration log's load
-    unseen = not min(loads) - tol <= w.mass_kg <= max(loads) + tol
+    unseen = _unseen(cal, w.mass_kg, w.mass_se_kg)
     return payload.carrying(model, w.pi), StartLoad(
         "used", seconds, w.mass_kg, w.mass_se_kg, values, rel, cal, (
             f"{where}: carrying ~{w.mass_kg:+.3g} kg (± {w.mass_se_kg:.2g}; it explains "
@@ -202,14 +196,13 @@ def _calibrated_with(cal: dict[str, float]) -> str:
     return "; calibrated with " + ", ".join(f"{m:+.3g} kg ({log})" for log, m in cal.items())
 
 
-def _within_reach(model: RigidModel, values: dict[str, float], mass: float) -> bool:
-    """The centre of mass the first moments give lies within the arm's reach."""
-    if mass == 0:
-        return True
-    c = np.array([values.get(f"m{ax}", 0.0) for ax in "xyz"]) / mass
-    reach = (float(np.sum(model.structure["link_lengths"])) if model.kind == "planar"
-             else REACH_M)
-    return bool(np.linalg.norm(c) <= reach)
+def _unseen(cal: dict[str, float], mass_kg: float, se_kg: float) -> bool:
+    """A load [kg, beyond the model's] that no calibration log carried (``cal``: their
+    masses beyond the model's; none: the model's own, 0): beyond every one by
+    :data:`~impactcli.model.payload.WEIGH_SIGMAS` standard errors."""
+    loads = list(cal.values()) or [0.0]
+    tol = payload.WEIGH_SIGMAS * se_kg
+    return not min(loads) - tol <= mass_kg <= max(loads) + tol
 
 
 def _model_error(model: RigidModel) -> np.ndarray | None:
@@ -243,16 +236,14 @@ def monitor_for(plan: Any, given: dict[str, np.ndarray] | None,
     bb = payload.basis(model.kind, model.joint_names, model.structure)
     if bb is None:
         return None
-    reach = (float(np.sum(model.structure["link_lengths"])) if model.kind == "planar"
-             else REACH_M)
+    start = plan.start_load  # a used start load always has its mass
+    base = start.mass_kg if start is not None and start.verdict == "used" else None
     return PayloadMonitor(
         model, bb[0], bb[1], np.asarray(given["static_loading"], dtype=np.float64),
         sample_rate_hz, cfg.residual.derivative_cutoff_hz, cfg.static_loading.cutoff_hz,
         cfg.static_loading.order, float(cfg.warmup.min_s),
         settle_s(cfg.static_loading.cutoff_hz, cfg.adaptive.n2_s),
-        reach, base_kg=(plan.start_load.mass_kg if plan.start_load is not None
-                 and plan.start_load.verdict == "used" and plan.start_load.mass_kg is not None
-                 else 0.0))
+        payload.reach_m(model), base_kg=0.0 if base is None else base)
 
 
 def unseen_loads(where: str, model: RigidModel | None, changes: Any) -> str | None:
@@ -263,9 +254,7 @@ def unseen_loads(where: str, model: RigidModel | None, changes: Any) -> str | No
     if model is None or not changes:
         return None
     _, cal = _calibration(model)
-    loads = list(cal.values()) or [0.0]
-    out = [c for c in changes if not min(loads) - payload.WEIGH_SIGMAS * c.mass_se_kg
-           <= c.mass_after_kg <= max(loads) + payload.WEIGH_SIGMAS * c.mass_se_kg]
+    out = [c for c in changes if _unseen(cal, c.mass_after_kg, c.mass_se_kg)]
     if not out:
         return None
     what = ", ".join(f"{c.mass_after_kg:+.3g} kg from {c.t_classified:.3f} s" for c in out)
