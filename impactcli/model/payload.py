@@ -356,7 +356,8 @@ def describe(model: Any) -> list[str]:
     if not rec:
         return []
     lines = [f"payload per log (the motion tells only differences of load: beyond "
-             f"{rec['relative_to']}'s, which the model's parameters carry)"]
+             f"{rec['relative_to']}'s, which the model's parameters carry; ± counts the "
+             "rows as independent: a lower bound)"]
     w = max(len(e["log"]) for e in rec["logs"])
     for e in rec["logs"]:
         m, s = e["values"]["m"], e["se"].get("m")
