@@ -102,6 +102,34 @@ def test_floor_accumulator_knows_its_margins_and_skips_the_warm_up() -> None:
     assert floor["per_link"] is None
 
 
+def test_a_link_ending_on_its_joints_axis_has_no_force_floor() -> None:
+    """Link 2 ends on joint 2's axis (as a UR's wrist links do): its lever is a rounding
+    error (1e-17 m), and a floor of torque / lever would read 1e16 N. It is stated as the
+    joint's torque instead (no_lever), while link 1 (lever 0.5 m) keeps its force."""
+    import numpy as np
+
+    from impactcli.detect.floor import FloorAccumulator, floor_line
+
+    def jac(q: np.ndarray, i: int) -> np.ndarray:
+        c = np.array([[0.0], [0.5]]) if i == 1 else np.array([[0.0, 1e-17], [0.8, 0.0]])
+        return c
+
+    n, J = 3000, 2
+    acc = FloorAccumulator(J, n, hold=500, v_l=np.array([1.0, 2.0]))
+    q = np.zeros((n, J))
+    acc.update(np.zeros((n, J)), np.zeros((n, J)), np.full((n, J), 1e6), q)
+    floor = acc.finish([500, 500], 500, np.array([0.0, 0.0]), ("a", "b"), ("a", "b"),
+                       [1, 2], [0, 1], jac)
+    link1, link2 = floor["per_link"]
+    assert 1.0 / 0.5 / 1.13 <= link1["static_loading"]["median_n"] <= 1.0 / 0.5
+    assert "no_lever" not in link1
+    assert link2["no_lever"] is True and link2["joint"] == "b"
+    assert all(v is None for d in ("static_loading", "adaptive") for v in link2[d].values())
+    line = floor_line(floor)
+    assert line is not None and "~2 N on link 1" in line, line
+    assert "a torque below ~2 N·m on b (its link ends on the joint's axis" in line, line
+
+
 def test_the_run_states_its_floor_and_the_link_forces_follow_the_link_lengths(
         tmp_path: Path) -> None:
     """A calibrated run on a free log states its floor (terminal, timeline, summary,

@@ -212,6 +212,7 @@ class FloorAccumulator:
                 if col is not None:
                     postures[p, c] = self.post_q[i][col]
         levers = own_levers(postures, len(chain), jac)  # once, for every detector and quantile
+        link_joint = {index[j] - 1: j for j in range(self.J)}
         for d in DETECTORS:
             for qn in QUANTILES:
                 forces = np.full((len(postures), len(chain)), np.nan)
@@ -226,6 +227,11 @@ class FloorAccumulator:
                         links.append({"link": len(links) + 1, "joint": chain[len(links)]})
                     links[c].setdefault(d, {})[f"{qn}_n"] = (
                         float(np.quantile(col, over)) if col.size else None)
+        for c, row in enumerate(links):  # a link ending on its joint's axis: no force
+            if (c in link_joint and np.isnan(levers[:, c]).all()
+                    and jac(postures[0], c + 1) is not None):
+                row["no_lever"] = True
+                row["joint"] = joints[link_joint[c]]  # the name per_joint states it under
         out["per_link"] = links
         out["postures"] = len(postures)
         return out
@@ -242,13 +248,15 @@ def floor_line(floor: dict[str, Any] | None) -> str | None:
     reference contacts; at most :data:`MAX_LISTED` (the largest); None without a floor."""
     if not floor:
         return None
+    per_joint = floor.get("per_joint", {})
     if floor.get("per_link"):
         items = [(f"link {row['link']}", row) for row in floor["per_link"]]
         key, unit, head = "_n", "N", "a contact below"
     else:
-        items = list(floor.get("per_joint", {}).items())
+        items = list(per_joint.items())
         key, unit, head = "_nm", "N·m", "a contact adding less than"
     parts: list[tuple[float, str]] = []
+    axial: list[str] = []  # links that end on their joint's axis: stated as torques
     for where, row in items:
         m = _smallest(row, "median" + key)
         w = _smallest(row, "worst_tenth" + key)
@@ -256,13 +264,22 @@ def floor_line(floor: dict[str, Any] | None) -> str | None:
             parts.append((m, f"~{_approx(m)} {unit} on {where}"
                           + (f" (~{_approx(w)} {unit} in the worst tenth)" if w is not None
                              and w > 1.05 * m else "")))
-    if not parts:
+        elif row.get("no_lever") and isinstance(per_joint.get(row.get("joint")), dict):
+            t = _smallest(per_joint[row["joint"]], "median_nm")
+            if t is not None:
+                axial.append(f"~{_approx(t)} N·m on {row['joint']}")
+    if not parts and not axial:
         return None
     shown = [p for _, p in parts]
     if len(parts) > MAX_LISTED:  # the least sensitive ones: where contacts go unseen
         top = sorted(range(len(parts)), key=lambda i: -parts[i][0])[:MAX_LISTED]
         shown = [parts[i][1] for i in sorted(top)]
         shown.append(f"and less on the {len(parts) - MAX_LISTED} others (in the timeline)")
+    if axial:  # always said: these links' floors are no force at all
+        shown.append(f"{'and ' if shown else ''}a torque below {', '.join(axial)} "
+                     + ("(its link ends on the joint's axis: no force there turns it)"
+                        if len(axial) == 1 else
+                        "(their links end on the joints' axes: no force there turns them)"))
     return f"{head} {', '.join(shown)} would not have been seen"
 
 

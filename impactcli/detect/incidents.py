@@ -61,6 +61,10 @@ STRONG_FRACTION = 0.5
 #: force along those directions cannot be seen in the joint torques: the minimum-norm
 #: solution leaves it out, an under-estimate rather than a blow-up near singularities).
 RCOND = 0.1
+#: A joint's lever arm to a link's end shorter than this [m] is none: that point lies on the
+#: joint's axis (a UR's wrist links end on their own joints' axes), so no force there turns
+#: the joint and a force divided by it would be a rounding error's (1e17 N).
+MIN_LEVER_M = 1e-3
 #: An estimated force is implausible — beyond what the arm can exert — above this many times
 #: the largest force one of the joints 1..i holds at the link's end with its longest lever:
 #: its torque capacity (the URDF's effort limit, else the largest torque logged on it) over
@@ -417,7 +421,7 @@ def force_estimate(
         for k in range(strong.size):
             if sols is None:
                 lever = float(np.linalg.norm(jacs[k][:, 0]))
-                f = abs(float(b[k, 0])) / lever if lever > 0 else 0.0
+                f = abs(float(b[k, 0])) / lever if lever >= MIN_LEVER_M else 0.0
             else:
                 f = float(np.linalg.norm(sols[k]))
             arms = np.linalg.norm(a[k], axis=1)
@@ -470,7 +474,7 @@ def own_lever(jac: np.ndarray, i: int) -> float:
 
 def own_levers(postures: np.ndarray, n_links: int, jacobian: JacobianFn) -> np.ndarray:
     """(P, n_links) :func:`own_lever` of every link at each of the (P, J_chain) postures,
-    NaN where the link has no Jacobian or a zero lever: what
+    NaN where the link has no Jacobian or no lever (below :data:`MIN_LEVER_M`): what
     :func:`smallest_caught_force`'s ``own_force_n`` divides by, the same bits. Each
     link's Jacobians come at once when ``jacobian`` has a ``many``."""
     out = np.full((len(postures), n_links), np.nan)
@@ -482,7 +486,7 @@ def own_levers(postures: np.ndarray, n_links: int, jacobian: JacobianFn) -> np.n
             if jac is None:
                 continue
             lever = own_lever(jac, i)
-            if lever > 0:
+            if lever >= MIN_LEVER_M:
                 out[p, i - 1] = lever
     return out
 
@@ -524,7 +528,7 @@ def smallest_caught_force(
             continue
         lever = own_lever(jac, i)
         row["lever_m"] = lever
-        if lever <= 0:
+        if lever < MIN_LEVER_M:
             out.append(row)
             continue
         n = jac[:, i - 1] / lever
