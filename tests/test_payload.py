@@ -67,19 +67,20 @@ def test_planar_payload_is_one_more_link_locked_at_zero(n: int) -> None:
     np.testing.assert_allclose(carried, locked, atol=1e-9)
 
 
-def test_urdf_payload_is_pinocchio_with_the_body_added() -> None:
+@pytest.mark.parametrize("name", ["ur5", "ur10e"])  # a package's URDF; one built here
+def test_urdf_payload_is_pinocchio_with_the_body_added(name: str) -> None:
     pin = pytest.importorskip("pinocchio")
     from impactcli.logs.robot_files import read_robot
     from impactcli.logs.urdf import reduced_model, urdf_joint_order
     from impactcli.model.identification import _structure_for
 
-    robot = read_robot("ur5")
+    robot = read_robot(name)
     joints = tuple(j.name for j in robot.joints)
-    s = _structure_for("urdf", robot, joints, IdentifyOptions(), "ur5")
+    s = _structure_for("urdf", robot, joints, IdentifyOptions(), name)
     b, names = payload.basis("urdf", joints, s)
     full = payload._urdf_basis(joints, s)
     assert np.linalg.matrix_rank(b) == np.linalg.matrix_rank(full) == len(names)
-    model = reduced_model(s["urdf_xml"], urdf_joint_order(joints, s), "ur5")
+    model = reduced_model(s["urdf_xml"], urdf_joint_order(joints, s), name)
     data = model.createData()
     body = pin.Inertia(2.5, np.array([0.01, -0.02, 0.09]), np.diag([0.01, 0.012, 0.006]))
     pi10 = body.toDynamicParameters()  # about the last joint's frame, as Pinocchio's columns

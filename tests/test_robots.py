@@ -2,9 +2,8 @@
 ``--robot NAME`` end to end on every listed robot, a robot file naming a shipped robot with
 a ``joint_map``, and what happens to joints the URDF and the log do not share.
 
-Each robot's log is synthetic: smooth sinusoids within the joint limits, the torque from
-Pinocchio's RNEA on the URDF's own inertials (every other URDF joint at zero) plus noise,
-with the reference logged.
+Each robot's log is synthetic (tests/robot_logs.py): smooth sinusoids within the joint
+limits, the torque from Pinocchio's RNEA on the URDF's own inertials plus noise.
 """
 
 from __future__ import annotations
@@ -14,7 +13,6 @@ import json
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pytest
 
 from impactcli.errors import RobotDescriptionError
@@ -23,9 +21,9 @@ from impactcli.logs import write_log
 from impactcli.logs.robot_files import read_robot, robot_from_dict
 from impactcli.run.model_files import read_model
 from impactcli.schema import validate
-from impactcli.types import LogSource, RobotLog
 
 from .cli_run import cli
+from .robot_logs import synthetic_log
 
 pin = pytest.importorskip("pinocchio", reason="the urdf extra (pinocchio) is not installed")
 pytestmark = pytest.mark.urdf
@@ -37,76 +35,6 @@ needs_extra = pytest.mark.skipif(
 
 #: Every name the tool knows; the listed ones are checked against the URDFs themselves.
 ALL = [r.name for r in robots.CATALOGUE]
-FS = 200.0
-DURATION_S = 12.0  # >= 10 s: identification holds back its last 20 % (at least 2 s)
-
-
-def full_model(name: str) -> Any:
-    return pin.buildModelFromXML(robots.urdf_text(name))
-
-
-def synthetic_log(name: str, joints: tuple[str, ...] | None = None, *,
-                  rename: dict[str, str] | None = None, extra: str | None = None,
-                  drop: str | None = None, seed: int = 0) -> RobotLog:
-    """A log of shipped robot ``name``'s arm joints (or ``joints``, URDF names): q(t) smooth
-    sinusoids within the joint limits, tau = RNEA of the URDF (other joints at zero) plus
-    noise, references logged. ``rename`` {URDF: log name}; ``extra``: one more logged joint
-    the URDF lacks; ``drop``: a URDF joint left out of the log."""
-    model = full_model(name)
-    data = model.createData()
-    arm = tuple(joints or robots.arm_joints(name))
-    rng = np.random.default_rng(seed)
-    t = np.arange(int(DURATION_S * FS)) / FS
-    n, nj = t.size, len(arm)
-    q = np.zeros((n, nj))
-    qd = np.zeros((n, nj))
-    qdd = np.zeros((n, nj))
-    for c, jn in enumerate(arm):
-        jm = model.joints[model.getJointId(jn)]
-        if jm.nq == 1:
-            lo = float(model.lowerPositionLimit[jm.idx_q])
-            hi = float(model.upperPositionLimit[jm.idx_q])
-        else:  # continuous: the limits are on (cos, sin)
-            lo, hi = -np.pi, np.pi
-        mid, amp = 0.5 * (lo + hi), min(0.3 * (hi - lo), 1.0)
-        for k, f in enumerate((0.13 + 0.041 * c, 0.37 + 0.053 * c, 0.71 + 0.029 * c)):
-            a = amp / (1.6 * (k + 1))
-            w, ph = 2 * np.pi * f, rng.uniform(0, 2 * np.pi)
-            q[:, c] += a * np.sin(w * t + ph)
-            qd[:, c] += a * w * np.cos(w * t + ph)
-            qdd[:, c] -= a * w * w * np.sin(w * t + ph)
-        q[:, c] += mid
-    tau = np.zeros((n, nj))
-    q0 = pin.neutral(model)
-    jms = [model.joints[model.getJointId(j)] for j in arm]
-    for k in range(n):
-        qf, vf, af = q0.copy(), np.zeros(model.nv), np.zeros(model.nv)
-        for c, jm in enumerate(jms):
-            if jm.nq == 1:
-                qf[jm.idx_q] = q[k, c]
-            else:
-                qf[jm.idx_q], qf[jm.idx_q + 1] = np.cos(q[k, c]), np.sin(q[k, c])
-            vf[jm.idx_v], af[jm.idx_v] = qd[k, c], qdd[k, c]
-        tau[k] = pin.rnea(model, data, qf, vf, af)[[jm.idx_v for jm in jms]]
-    tau += rng.normal(0.0, 1.0, tau.shape) * (0.003 * np.ptp(tau, axis=0) + 1e-5)
-    names = [(rename or {}).get(j, j) for j in arm]
-    cols = list(range(nj))
-    if drop is not None:
-        cols.remove(arm.index(drop))
-    names = [names[c] for c in cols]
-    pos, trq, ref_q, ref_v, ref_a = (x[:, cols] for x in (q, tau, q, qd, qdd))
-    pos = pos + rng.normal(0.0, 1e-5, pos.shape)
-    if extra is not None:  # a logged joint the URDF lacks (e.g. a gripper channel)
-        e = 0.02 * np.sin(2 * np.pi * 0.3 * t)[:, None]
-        names.append(extra)
-        pos, ref_q = np.hstack([pos, e]), np.hstack([ref_q, e])
-        ref_v = np.hstack([ref_v, np.gradient(e[:, 0], t)[:, None]])
-        ref_a = np.hstack([ref_a, np.gradient(ref_v[:, -1], t)[:, None]])
-        trq = np.hstack([trq, 0.05 * np.sin(2 * np.pi * 0.3 * t)[:, None]
-                         + rng.normal(0, 1e-3, (n, 1))])
-    return RobotLog(t_ns=np.round(t * 1e9).astype(np.int64), joint_names=tuple(names),
-                    position=pos, torque=trq, position_ref=ref_q, velocity_ref=ref_v,
-                    acceleration_ref=ref_a, source=LogSource(f"{name}.csv", "", "memory"))
 
 
 def listed() -> dict[str, dict[str, Any]]:
@@ -129,7 +57,10 @@ def test_robots_lists_only_loading_urdfs_with_pinocchios_joint_names() -> None:
     base = robots.data_dir()
     assert base is not None
     for name, r in robots_listed.items():
-        model = pin.buildModelFromUrdf(str(base / r["urdf"]))  # meshes are never needed
+        if r["urdf"] is None:  # built from a published table (tests/test_published_arms.py)
+            model = pin.buildModelFromXML(robots.urdf_text(name))
+        else:
+            model = pin.buildModelFromUrdf(str(base / r["urdf"]))  # meshes are never needed
         names = list(model.names)[1:]
         assert set(r["joints"]) <= set(names), name
         # chain order: each joint is a descendant of the one before it
@@ -144,8 +75,11 @@ def test_robots_lists_only_loading_urdfs_with_pinocchios_joint_names() -> None:
     assert "panda_description/urdf/panda.urdf" in out and "panda_joint7" in out
 
 
-def test_robots_without_the_extra_says_how_to_install(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(robots, "data_dir", lambda: None)
+def test_robots_without_pinocchio_says_how_to_install(monkeypatch: pytest.MonkeyPatch) -> None:
+    def missing() -> None:
+        raise robots._missing("the shipped robots (Pinocchio, PyPI 'pin')")
+
+    monkeypatch.setattr(robots, "_require_pinocchio", missing)
     code, out, err = cli(["robots"])
     assert code == 2
     assert out == ""

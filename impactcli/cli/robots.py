@@ -18,10 +18,12 @@ from .options import handle_errors
 def robots_cmd(as_json: bool) -> None:
     """List the robots --robot NAME takes: name, URDF, arm joints in chain order.
 
-    They come with the robots extra (pip install 'impactcli[robots]'); only those whose
-    URDF is installed and loads are listed. Meshes are never needed.
+    Most come with the robots extra (pip install 'impactcli[robots]'); the arms built from
+    their manufacturer's published table need only Pinocchio. Only those whose URDF is
+    installed and loads are listed. Meshes are never needed.
     """
     from ..errors import EXIT_USAGE, one_line
+    from ..logs import published_arms
     from ..logs import robot_catalogue as robots
 
     try:
@@ -32,7 +34,10 @@ def robots_cmd(as_json: bool) -> None:
         return
     doc: dict[str, Any] = {
         "package": robots.DIST, "version": robots.data_version(),
-        "robots": [{"name": e.name, "urdf": e.urdf, "title": e.title, "joints": list(j)}
+        "robots": [{"name": e.name, "urdf": None if e.built else e.urdf,
+                    "source": (published_arms.SOURCE if e.built
+                               else f"{robots.DIST} {robots.data_version()}"),
+                    "title": e.title, "joints": list(j)}
                    for e, j in ok],
     }
     if bad:
@@ -40,11 +45,14 @@ def robots_cmd(as_json: bool) -> None:
     if as_json:
         click.echo(json.dumps(doc, separators=(",", ":")))
         return
-    click.echo(f"Robots shipped with the robots extra ({robots.DIST} {doc['version']}); "
-               "use --robot NAME:")
+    click.echo("Robots --robot NAME takes (URDF, or where a built arm's numbers come from; "
+               "arm joints):")
     wn = max(len(e.name) for e, _ in ok) if ok else 4
     wu = max(len(e.urdf) for e, _ in ok) if ok else 4
     for e, joints in ok:
         click.echo(f"  {e.name:<{wn}}  {e.urdf:<{wu}}  {', '.join(joints)}")
-    for name, why in bad:
-        click.echo(f"impactcli: warning: {name} not listed: {why}", err=True)
+    by_reason: dict[str, list[str]] = {}
+    for name, why in bad:  # one line per reason: a missing extra is said once
+        by_reason.setdefault(why, []).append(name)
+    for why, names in by_reason.items():
+        click.echo(f"impactcli: warning: {', '.join(names)} not listed: {why}", err=True)

@@ -1,7 +1,10 @@
-"""The robots the tool ships: URDFs of the ``robots`` extra (PyPI ``example-robot-data``).
+"""The robots the tool ships: URDFs of the ``robots`` extra (PyPI ``example-robot-data``),
+and arms built from their manufacturer's published table (:mod:`.published_arms`).
 
 ``impactcli robots`` lists them; ``--robot NAME`` and a robot description's kinematics
 ``{"type": "urdf", "robot": NAME}`` name them (docs/formats.md, "Robot description").
+A built arm needs only Pinocchio (the ``urdf`` extra); the others need the ``robots``
+extra's URDFs too.
 
 Each entry names one URDF of the package and the links its arm chain runs between; the
 arm's joints are the movable joints on that chain, in chain order, with the URDF's own
@@ -23,11 +26,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import EXIT_USAGE, ImpactError, RobotDescriptionError
+from . import published_arms
 
 __all__ = [
     "CATALOGUE", "DIST", "INSTALL_HINT", "PINNED", "RobotsExtraMissing", "ShippedRobot",
     "arm_joints", "available", "available_names", "data_dir", "data_version", "entry",
-    "urdf_label", "urdf_path", "urdf_text",
+    "urdf_label", "urdf_path", "urdf_sha256", "urdf_text",
 ]
 
 #: The PyPI distribution that holds the URDFs.
@@ -46,7 +50,8 @@ class ShippedRobot:
 
     Attributes:
         name: the name ``--robot`` takes (lower case).
-        urdf: the URDF, relative to the package's robots folder.
+        urdf: the URDF, relative to the package's robots folder; for a built arm, where
+            its numbers come from.
         tip: the link the arm chain ends at (a hand or flange, fixed to the last arm joint).
         base: the link the arm chain starts from; None: the URDF's root.
         title: what the robot is, for listings.
@@ -57,9 +62,12 @@ class ShippedRobot:
     tip: str
     base: str | None = None
     title: str = ""
+    #: The published table the URDF is built from; None: a URDF of the package.
+    built: published_arms.PublishedArm | None = None
 
 
-#: Robots whose URDF the package's current release (6.0.0) holds and Pinocchio loads.
+#: Robots whose URDF the package's current release (6.0.0) holds and Pinocchio loads, then
+#: the arms built from their manufacturer's table (:data:`.published_arms.ARMS`).
 #: Grippers and other branches (fingers, head, wheels, a torso lift) are not arm joints:
 #: when they are not logged they are held at zero.
 CATALOGUE: tuple[ShippedRobot, ...] = (
@@ -84,6 +92,8 @@ CATALOGUE: tuple[ShippedRobot, ...] = (
                  title="Kinova Jaco2 j2s6s200 (6 dof, three continuous joints)"),
     ShippedRobot("z1", "z1_description/urdf/z1.urdf", "gripperStator",
                  title="Unitree Z1 (6 dof; gripper not an arm joint)"),
+    *(ShippedRobot(a.name, published_arms.SHORT, a.tip, title=a.title, built=a)
+      for a in published_arms.ARMS),
 )
 _BY_NAME = {r.name: r for r in CATALOGUE}
 
@@ -133,6 +143,9 @@ def urdf_path(name: str) -> Path:
     if e is None:
         raise RobotDescriptionError(f"{name}: not a shipped robot (shipped: "
                                     f"{', '.join(r.name for r in CATALOGUE)})")
+    if e.built is not None:
+        raise RobotDescriptionError(f"{e.name}: built from {published_arms.SOURCE}, not a "
+                                    "file (urdf_text gives its URDF)")
     d = data_dir()
     if d is None:
         raise _missing(f"{e.name}: the shipped robots")
@@ -148,16 +161,33 @@ def urdf_label(name: str) -> str:
     """How messages and models name the URDF of a shipped robot (no path of this machine)."""
     e = entry(name)
     assert e is not None
+    if e.built is not None:
+        return f"robot {e.name!r} (built from {published_arms.SOURCE})"
     return f"robot {e.name!r} ({e.urdf} of {DIST} {data_version() or '?'})"
 
 
 def urdf_text(name: str) -> str:
-    """The URDF text of shipped robot ``name`` (errors as :func:`urdf_path`)."""
+    """The URDF text of shipped robot ``name``: a built arm's, built here; else the
+    package's file (errors as :func:`urdf_path`)."""
+    e = entry(name)
+    if e is not None and e.built is not None:
+        return published_arms.urdf_xml(e.built)
     p = urdf_path(name)
     try:
         return p.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as err:
         raise RobotDescriptionError(f"{urdf_label(name)}: cannot read URDF: {err}") from err
+
+
+def urdf_sha256(name: str) -> str:
+    """The sha256 of shipped robot ``name``'s URDF: the file's bytes, or a built arm's text
+    (UTF-8) — the provenance a robot file's sha256 gives (errors as :func:`urdf_path`)."""
+    import hashlib
+
+    e = entry(name)
+    if e is not None and e.built is not None:
+        return hashlib.sha256(urdf_text(e.name).encode("utf-8")).hexdigest()
+    return hashlib.sha256(urdf_path(name).read_bytes()).hexdigest()
 
 
 @functools.lru_cache(maxsize=32)
@@ -184,17 +214,20 @@ def _require_pinocchio() -> None:
 
 def available() -> tuple[list[tuple[ShippedRobot, tuple[str, ...]]], list[tuple[str, str]]]:
     """The shipped robots whose URDF is installed and loads, each with its arm joints,
-    and those that do not (name, why).
+    and those that do not (name, why). Without the ``robots`` extra's URDFs, only the built
+    arms load; the others are listed as not loaded, with how to install them.
 
     Raises:
-        RobotsExtraMissing: the extra (the URDFs or Pinocchio) is not installed.
+        RobotsExtraMissing: Pinocchio is not installed.
     """
-    if data_dir() is None:
-        raise _missing("the shipped robots")
     _require_pinocchio()
+    have_data = data_dir() is not None
     ok: list[tuple[ShippedRobot, tuple[str, ...]]] = []
     bad: list[tuple[str, str]] = []
     for e in CATALOGUE:
+        if e.built is None and not have_data:
+            bad.append((e.name, f"its URDF needs the robots extra: {INSTALL_HINT}"))
+            continue
         try:
             ok.append((e, arm_joints(e.name)))
         except ImpactError as err:

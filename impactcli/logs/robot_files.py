@@ -144,11 +144,9 @@ def shipped_robot(name: str) -> RobotDescription:
 def named_robot_sha256(spec: str | os.PathLike[str]) -> str | None:
     """For ``--robot`` given as a shipped robot's name (no such path exists): the sha256 of
     its URDF (the provenance a file's sha256 gives); None when ``spec`` is not one."""
-    import hashlib
-
     if Path(spec).exists() or robots.entry(str(spec)) is None:
         return None
-    return hashlib.sha256(robots.urdf_path(str(spec)).read_bytes()).hexdigest()
+    return robots.urdf_sha256(str(spec))
 
 
 def read_robot(path: str | os.PathLike[str]) -> RobotDescription:

@@ -80,16 +80,18 @@ def _robot(kind: str, which: str) -> object | None:
     """A robot description for ``urdf`` (a shipped robot), else None."""
     if kind != "urdf":
         return None
-    name = {"ur": "ur5", "kuka": None}[which]
+    # the UR arm is a UR10e: held still, its controller's model torque is the gravity of
+    # the UR10e's published table (tests/test_published_arms.py)
+    name = {"ur": "ur10e", "kuka": None}[which]
     if name is None:
         raise LookupError("no shipped URDF of the KUKA LWR4")
     from impactcli.logs.robot_files import robot_from_dict
 
     # the log names the UR joints shoulder_pan ... wrist_3; the URDF's are <name>_joint
     ur = ("shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3")
-    return robot_from_dict({"name": "ur (ur5 URDF)", "kinematics": {"type": "urdf",
-                                                                     "robot": name},
-                            "joint_map": {j: f"{j}_joint" for j in ur}}, "ur5 robot file")
+    return robot_from_dict({"name": f"ur ({name})", "kinematics": {"type": "urdf",
+                                                                    "robot": name},
+                            "joint_map": {j: f"{j}_joint" for j in ur}}, f"{name} robot file")
 
 
 def incidents_per_hour(res: DetectionResult) -> tuple[int, float]:
@@ -153,7 +155,7 @@ def labelled() -> None:
     by each rule, calibrated on their arm's three free sample logs."""
     sys.path.insert(0, str(REPO))
     from impactcli.quality.match import PRODUCT
-    from tests.benchmarks import sample_quality as sq
+    from tests import sample_criteria as sq
 
     print("\n| arm | rule | " + " | ".join(
         f"{n}: caught / contacts, false alarms" for n in ("impacts", "pushes", "clamps"))
