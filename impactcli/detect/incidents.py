@@ -228,19 +228,22 @@ def mark_defects(incidents: Sequence[Incident], defects: Sequence[DataDefect],
 
 
 def mark_payload_changes(incidents: Sequence[Incident], changes: Sequence[Any],
-                         settle: float) -> list[Incident]:
+                         settle: float, merge_gap_s: float = 0.1) -> list[Incident]:
     """The incidents, each that starts from a payload change's onset to ``settle`` seconds
     after its classification, marked with the change's number (1-based): the alarm was the
-    load, not a contact (:mod:`impactcli.detect.payload_change`). Unlike after a data
-    defect, the adaptive evaluator's memory is not added: a blow the adaptive detector
-    alone sees while the load is carried must count. Incidents marked already are left
-    alone."""
+    load, not a contact (:mod:`impactcli.detect.payload_change`). So is one still going at
+    the onset that started at most ``merge_gap_s`` (the events' merge gap) before it: the
+    adaptive detector sees the step a few milliseconds before the static-loading onset,
+    and those are one alarm. Unlike after a data defect, the adaptive evaluator's memory is
+    not added: a blow the adaptive detector alone sees while the load is carried must
+    count. Incidents marked already are left alone."""
     if not changes:
         return list(incidents)
     out = []
     for inc in incidents:
         hit = [k for k, c in enumerate(changes, 1)
-               if c.t_start - 1e-9 <= inc.t_start <= c.t_classified + settle]
+               if c.t_start - 1e-9 <= inc.t_start <= c.t_classified + settle
+               or c.t_start - merge_gap_s - 1e-9 <= inc.t_start <= c.t_start <= inc.t_end]
         if hit and inc.data_defect is None and not inc.in_warmup:
             out.append(replace(inc, payload_change=hit[0]))
         else:

@@ -24,7 +24,13 @@ not behave as a mass: it ends, or it holds the arm still, or it pushes another w
    window is weighed (a push in the first window after a pick hides the mass there); once
    it broke, the alarm stays what the detectors make of it — a contact or a lasting load —
    and the next onset starts afresh.
-4. **From then on** the residual carries the new load: the torque Y B π of every load
+4. **A load it knows.** When the load then carried is one a calibration log carried (its
+   mass within :data:`~impactcli.model.payload.WEIGH_SIGMAS` standard errors of the
+   step's, and the step to it explains the window as well, from :data:`EXPLAINED` on), it
+   is that log's fitted load, known from a whole log rather than a few seconds (above all
+   its inertia): the step is taken to it (``as_log``). So is a release back to the
+   model's own load.
+5. **From then on** the residual carries the new load: the torque Y B π of every load
    changed so far is added to the residual from the classification time, whatever the
    chunking (the same sum per row, r + Y B π with π every load changed so far, in whichever
    part the row falls). The monitor then waits for the alarm to end before it looks for the
@@ -62,7 +68,9 @@ class PayloadChange:
     sample]; the mass change [kg] and its standard error; ``values`` the load's parameters
     (:func:`impactcli.model.payload.basis`' names, SI); ``explained`` the share of the
     window's residual energy the mass explains (its confidence, 0–1); ``mass_after_kg`` the
-    load then carried beyond the config's model's (the lightest calibration log's)."""
+    load then carried beyond the config's model's (the lightest calibration log's);
+    ``as_log`` the calibration log whose fitted load that is (module docstring, step 4;
+    None: the weighed step is taken as it is)."""
 
     t_start: float
     t_classified: float
@@ -71,13 +79,17 @@ class PayloadChange:
     values: dict[str, float]
     explained: float
     mass_after_kg: float
+    as_log: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (the timeline's ``payload_changes`` item)."""
-        return {"t_start": self.t_start, "t_classified": self.t_classified,
-                "mass_kg": self.mass_kg, "mass_se_kg": self.mass_se_kg,
-                "values": dict(self.values), "explained": self.explained,
-                "mass_after_kg": self.mass_after_kg}
+        d = {"t_start": self.t_start, "t_classified": self.t_classified,
+             "mass_kg": self.mass_kg, "mass_se_kg": self.mass_se_kg,
+             "values": dict(self.values), "explained": self.explained,
+             "mass_after_kg": self.mass_after_kg}
+        if self.as_log is not None:
+            d["as_log"] = self.as_log
+        return d
 
 
 @dataclass
@@ -95,6 +107,8 @@ class PayloadMonitor:
         reach_m: a centre of mass farther from the last joint is not a load.
         base_kg: the load the replay's model carries beyond the config's model (the load
             the log started with) [kg]: ``mass_after_kg`` counts from the config's.
+        known: the loads the calibration logs carried, each (log, π relative to the
+            replay's model) (module docstring, step 4).
     """
 
     model: RigidModel
@@ -109,6 +123,7 @@ class PayloadMonitor:
     settle_s: float
     reach_m: float
     base_kg: float = 0.0
+    known: tuple[tuple[str, np.ndarray], ...] = ()
     changes: list[PayloadChange] = field(default_factory=list)
     _pi: np.ndarray | None = None
     _carry: Carry = field(default_factory=Carry)
@@ -225,12 +240,30 @@ class PayloadMonitor:
             self._state = "idle"
             return None
         self._state = "cooldown"
-        self._pi = self._pi + w.pi
+        step, as_log = self._known_step(w, y, left)
+        self._pi = self._pi + step
         self.changes.append(PayloadChange(
             t_a, t_c, w.mass_kg, w.mass_se_kg,
             {nm: float(v) for nm, v in zip(self.names, w.pi, strict=True)},
-            explained, self.base_kg + float(self._pi[0])))
-        return w.pi
+            explained, self.base_kg + float(self._pi[self.names.index("m")]), as_log))
+        return step
+
+    def _known_step(self, w: payload.Weighed, y: np.ndarray, left: np.ndarray,
+                    ) -> tuple[np.ndarray, str | None]:
+        """The step to take: to a known load (module docstring, step 4) and its log, the
+        one whose step explains the window most; else the weighed step and None."""
+        assert self._pi is not None
+        m = self.names.index("m")
+        after = self._pi + w.pi
+        best: tuple[float, np.ndarray, str] | None = None
+        for log, pi in self.known:
+            if abs(float(pi[m] - after[m])) > payload.WEIGH_SIGMAS * w.mass_se_kg:
+                continue
+            step = pi - self._pi
+            share = payload.explained(left, y, step)
+            if share >= EXPLAINED and (best is None or share > best[0]):
+                best = (share, step, log)
+        return (w.pi, None) if best is None else (best[1], best[2])
 
     def _torque(self, qf: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
                 pi: np.ndarray) -> np.ndarray:

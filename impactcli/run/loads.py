@@ -58,6 +58,9 @@ class StartLoad:
         explained: the share of what the model leaves out over the stretch that the load
             accounts for (None: not weighed); used only from
             :data:`impactcli.model.payload.EXPLAINED` on.
+        as_log: the calibration log whose load it is (:func:`_as_calibrated`): the
+            residual carries that log's fitted load, not the stretch's (None: the
+            stretch's, or not used).
     """
 
     verdict: str
@@ -69,6 +72,7 @@ class StartLoad:
     calibrated: dict[str, float]
     message: str
     explained: float | None = None
+    as_log: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (the timeline's ``input.payload``); absent values left out."""
@@ -138,16 +142,44 @@ def weigh_start(feed: Any, model: RigidModel, choices: tuple[GeneratorChoice, ..
             f"{where}: starts with the model's load{_whose(rel)} ({mass} beyond it, "
             f"weighed on its first {seconds:g} s: {why})"), share)
     unseen = _unseen(cal, w.mass_kg, w.mass_se_kg)
-    return payload.carrying(model, w.pi), StartLoad(
+    known = _as_calibrated(model, yb, left, w)
+    pi = w.pi if known is None else known[1]
+    return payload.carrying(model, pi), StartLoad(
         "used", seconds, w.mass_kg, w.mass_se_kg, values, rel, cal, (
             f"{where}: carrying ~{w.mass_kg:+.3g} kg (± {w.mass_se_kg:.2g}; it explains "
             f"{100 * share:.0f} % of what the model leaves out) beyond the "
             f"model's load{_whose(rel)}{_calibrated_with(cal)}, weighed on its first "
-            f"{seconds:g} s: the residual uses it"
+            f"{seconds:g} s: "
+            + ("the residual uses it" if known is None else
+               f"it is {known[0]}'s load, and the residual uses that log's fit of it")
             + ("; no calibration log carried a load like it, so the thresholds' false-alarm "
                "rate was not measured with it (a heavier load brings larger errors the "
                "rigid model does not hold): calibrate with a log that carries it" if unseen
-               else "")), share)
+               else "")), share, None if known is None else known[0])
+
+
+def _as_calibrated(model: RigidModel, yb: np.ndarray, left: np.ndarray,
+                   w: payload.Weighed) -> tuple[str, np.ndarray] | None:
+    """The calibration log (and its fitted load π) whose load the weighed one is: its mass
+    within :data:`~impactcli.model.payload.WEIGH_SIGMAS` standard errors of the weighed
+    mass, and it explains at least :data:`~impactcli.model.payload.EXPLAINED` of what the
+    model leaves out over the stretch — of those, the one that explains most. None when
+    none is, or the model fitted one load. A load fitted on a whole calibration log is
+    known far better than one weighed on a few seconds (its inertia, above all), so the
+    residual carries it."""
+    rec = (model.fit or {}).get("payloads")
+    if not rec:
+        return None
+    best: tuple[float, str, np.ndarray] | None = None
+    for e in rec["logs"]:
+        pi = np.array([e["values"][nm] for nm in rec["parameters"]], dtype=np.float64)
+        mass = float(e["values"]["m"])
+        if not np.any(pi) or abs(mass - w.mass_kg) > payload.WEIGH_SIGMAS * w.mass_se_kg:
+            continue
+        share = payload.explained(left, yb, pi)
+        if share >= payload.EXPLAINED and (best is None or share > best[0]):
+            best = (share, str(e["log"]), pi)
+    return None if best is None else (best[1], best[2])
 
 
 def _rows(model: RigidModel, q: np.ndarray, tau: np.ndarray, fs: float,
@@ -236,14 +268,45 @@ def monitor_for(plan: Any, given: dict[str, np.ndarray] | None,
     bb = payload.basis(model.kind, model.joint_names, model.structure)
     if bb is None:
         return None
-    start = plan.start_load  # a used start load always has its mass
-    base = start.mass_kg if start is not None and start.verdict == "used" else None
+    start = plan.start_load
+    used = start if start is not None and start.verdict == "used" else None
+    pi0 = start_pi(model, bb[1], used)
     return PayloadMonitor(
         model, bb[0], bb[1], np.asarray(given["static_loading"], dtype=np.float64),
         sample_rate_hz, cfg.residual.derivative_cutoff_hz, cfg.static_loading.cutoff_hz,
         cfg.static_loading.order, float(cfg.warmup.min_s),
         settle_s(cfg.static_loading.cutoff_hz, cfg.adaptive.n2_s),
-        payload.reach_m(model), base_kg=0.0 if base is None else base)
+        payload.reach_m(model), base_kg=float(pi0[bb[1].index("m")]),
+        known=known_loads(model, bb[1], pi0))
+
+
+#: How a load-change names the model's own load when its fit has one load for all logs.
+OWN_LOAD = "the model's own"
+
+
+def start_pi(model: RigidModel, names: tuple[str, ...], start: StartLoad | None,
+             ) -> np.ndarray:
+    """The load π the replay's model carries beyond the config's: a used start load's —
+    its calibration log's fit (``as_log``) or the weighed one — else none (zeros)."""
+    if start is None:
+        return np.zeros(len(names))
+    fitted = None if start.as_log is None else payload.log_payload(model, start.as_log)
+    return fitted if fitted is not None else np.array([start.values[n] for n in names])
+
+
+def known_loads(model: RigidModel, names: tuple[str, ...], pi0: np.ndarray,
+                ) -> tuple[tuple[str, np.ndarray], ...]:
+    """The loads the calibration logs carried — each (log, π) relative to the replay's
+    model, which carries ``pi0`` beyond the config's (:func:`start_pi`) — or, for a model
+    fitted with one load, that load (:data:`OWN_LOAD`, π = 0 beyond the config's)."""
+    rec = (model.fit or {}).get("payloads")
+    if not rec:
+        return ((OWN_LOAD, -pi0),)
+    out = []
+    for e in rec["logs"]:
+        pi = np.array([e["values"][n] for n in names], dtype=np.float64)
+        out.append((str(e["log"]), pi - pi0))
+    return tuple(out)
 
 
 def unseen_loads(where: str, model: RigidModel | None, changes: Any) -> str | None:

@@ -286,7 +286,8 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         if (unseen := unseen_loads(where, plan.model, changes)) is not None:
             warnings.warn(unseen, ImpactWarning, stacklevel=2)
         incidents = number_incidents(mark_payload_changes(
-            mark_defects(incidents, defects, settle, memory), changes, settle))
+            mark_defects(incidents, defects, settle, memory), changes, settle,
+            cfg.events.merge_gap_s))
         if plan.torque_scale is not None and plan.torque_scale.kind == "warn":
             incidents = off_scale(incidents, plan.torque_scale.scale)
             loads = off_scale(loads, plan.torque_scale.scale)

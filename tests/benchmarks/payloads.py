@@ -1,6 +1,6 @@
 """Payloads on the simulator's arms, measured (docs/models.md, "Measured: payloads").
 
-    python tests/benchmarks/payloads.py            # both arms
+    python tests/benchmarks/payloads.py            # every arm
     python tests/benchmarks/payloads.py --arm assist_like
 
 Per arm (ASSIST-like, 2 joints, 1.2 kg; heavy geared, 3 joints, 2 kg; robot seed 411, one
@@ -20,13 +20,22 @@ kinematics):
   pick-and-place (a load picked at 20 s and released at 40 s, pushes of 20–30 N before,
   while carrying and after): labelled contacts caught by a counted incident, counted
   incidents matching no contact (false), and the payload changes found.
+
+And a spatial arm, ``ur10e`` (the tool's URDF built from Universal Robots' published
+table; ``--arm ur10e``): the same tables from motor-side torques that Pinocchio's inverse
+dynamics gives, with Coulomb and viscous friction and noise (tests/robot_logs.py,
+``carrying_log``): multi-sine runs of 60 s about a bent-arm pose, a 5 kg load with its
+centre of mass 10 cm out along the flange's axis, pushes of 80 N at the flange (0.3 s
+half-sines every 10 s) and a pick-and-place of the load at 20 s and 40 s.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
@@ -40,7 +49,11 @@ from impactcli.sim import scenario, simulate
 from impactcli.types import DetectionResult, Labels, LogSource, RobotLog
 
 ROBOT_SEED = 411
-KG = {"assist_like": 1.2, "heavy_geared": 2.0}
+KG = {"assist_like": 1.2, "heavy_geared": 2.0, "ur10e": 5.0}
+#: The spatial arm's load: its centre of mass in the flange's frame [m].
+SPATIAL_COM = (0.0, 0.0, 0.10)
+#: The spatial arm's pushes [s] (0.3 s each, 80 N at the flange).
+SPATIAL_PUSHES = (10.0, 30.0, 50.0)
 #: The smooth motion families: with the triangles' velocity steps too, the heavy runs'
 #: residual spikes at every reversal set thresholds 10-50x higher (vL 15 N·m on the
 #: ASSIST-like shoulder, measured 2026-11-29), whatever the payload fit.
@@ -50,11 +63,35 @@ MATCH = (0.02, 0.25)  # an incident starting within [start - 0.02, end + 0.25] s
 
 def run(arm: str, name: str, seed: int, kg: float = 0.0) -> tuple[RobotLog, Labels, object]:
     """A simulated run of scenario ``name``, its labels and its nominal robot description."""
+    if arm == "ur10e":
+        return spatial_run(name, seed, kg)
     sc = scenario(name, arm=arm, duration_s=60.0, robot_seed=ROBOT_SEED, payload_kg=kg)
     res = simulate(sc, seed=seed)
     log = replace(res.log, source=LogSource(f"{name}-{seed}", f"{arm}-{name}-{seed}",
                                             "memory"))
     return log, res.labels, res.robot
+
+
+def spatial_run(name: str, seed: int, kg: float) -> tuple[RobotLog, Labels, object]:
+    """A run of the spatial arm (module docstring): free (``free_*``: carrying ``kg`` all
+    along), ``pushes`` (carrying ``kg``) or ``pick_and_place`` (KG's load from 20 to 40 s),
+    its labels and the robot description (the built ``ur10e``)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+    from impactcli.logs.robot_files import read_robot
+    from impactcli.types import ContactLabel
+    from tests.robot_logs import carrying_log
+
+    pushes: tuple[float, ...] = ()
+    load = (0.0, 1e9, kg, SPATIAL_COM) if kg else None
+    if name == "pushes":
+        pushes = SPATIAL_PUSHES
+    elif name == "pick_and_place":
+        pushes, load = SPATIAL_PUSHES, (20.0, 40.0, KG["ur10e"], SPATIAL_COM)
+    log = carrying_log("ur10e", seed, 60.0, load=load,
+                       pushes=tuple((t, t + 0.3, 80.0) for t in pushes))
+    log = replace(log, source=LogSource(f"{name}-{seed}", f"ur10e-{name}-{seed}", "memory"))
+    labels = Labels(tuple(ContactLabel(t, t + 0.3, 80.0, "push", 6) for t in pushes), 250.0)
+    return log, labels, read_robot("ur10e")
 
 
 def caught(res: DetectionResult, labels: Labels) -> tuple[int, int, int]:
@@ -72,7 +109,7 @@ def caught(res: DetectionResult, labels: Labels) -> tuple[int, int, int]:
 def held_out(model: RigidModel, log: RobotLog, robot: object) -> tuple[np.ndarray, np.ndarray]:
     """(J,) RMS error [N·m] on the log's identification rows and its standard error over 5
     stretches."""
-    rows = prepare_rows(log, robot, "planar", IdentifyOptions())  # type: ignore[arg-type]
+    rows = prepare_rows(log, robot, model.kind, IdentifyOptions())  # type: ignore[arg-type]
     y, tau, _ = stacked([rows])
     e = y @ model.theta - tau
     parts = np.array_split(np.arange(e.shape[0]), 5)

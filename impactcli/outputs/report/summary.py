@@ -337,7 +337,9 @@ def payload_table_html(changes: Sequence[dict[str, Any]], anchor: str) -> str:
         f'<td class="num">{c["t_start"]:.3f} s</td><td class="num"><b>{c["mass_kg"]:+.3g} kg'
         f'</b> ± {c["mass_se_kg"]:.2g}</td><td class="num">{100 * c["explained"]:.1f} %</td>'
         f'<td class="num">{c["t_classified"]:.3f} s</td>'
-        f'<td class="num">{c["mass_after_kg"]:+.3g} kg</td></tr>'
+        f'<td class="num">{c["mass_after_kg"]:+.3g} kg'
+        + (f' ({e(str(c["as_log"]))}\'s)' if c.get("as_log") else "")
+        + '</td></tr>'
         for k, c in enumerate(changes, 1))
     return (
         f'<div class="wide"><table class="incidents" id="{anchor}-payloads"><thead><tr>'
