@@ -102,10 +102,11 @@ def test_floor_accumulator_knows_its_margins_and_skips_the_warm_up() -> None:
     assert floor["per_link"] is None
 
 
-def test_a_link_ending_on_its_joints_axis_has_no_force_floor() -> None:
+def test_a_link_ending_on_its_joints_axis_has_no_force_floor_of_its_own() -> None:
     """Link 2 ends on joint 2's axis (as a UR's wrist links do): its lever is a rounding
-    error (1e-17 m), and a floor of torque / lever would read 1e16 N. It is stated as the
-    joint's torque instead (no_lever), while link 1 (lever 0.5 m) keeps its force."""
+    error (1e-17 m), and a floor of torque / lever would read 1e17 N. Its floor is what
+    joint 1 sees at its end (torque 1 / lever 0.8 m); link 1 (lever 0.5 m) keeps its own.
+    A link ending on its joint's axis with no joint before it has its torque stated."""
     import numpy as np
 
     from impactcli.detect.floor import FloorAccumulator, floor_line
@@ -123,11 +124,23 @@ def test_a_link_ending_on_its_joints_axis_has_no_force_floor() -> None:
     link1, link2 = floor["per_link"]
     assert 1.0 / 0.5 / 1.13 <= link1["static_loading"]["median_n"] <= 1.0 / 0.5
     assert "no_lever" not in link1
-    assert link2["no_lever"] is True and link2["joint"] == "b"
-    assert all(v is None for d in ("static_loading", "adaptive") for v in link2[d].values())
+    assert link2["no_lever"] is True and link2["own_joint"] == "b"
+    assert 1.0 / 0.8 / 1.13 <= link2["static_loading"]["median_n"] <= 1.0 / 0.8
     line = floor_line(floor)
-    assert line is not None and "~2 N on link 1" in line, line
-    assert "a torque below ~2 N·m on b (its link ends on the joint's axis" in line, line
+    assert line is not None and "~2 N on link 1" in line and "N on link 2" in line, line
+    assert line.endswith("(link 2 ends on its own joint's axis: the force there is what "
+                         "the joints before see)"), line
+
+    def axial(q: np.ndarray, i: int) -> np.ndarray:  # link 1 itself ends on joint 1's axis
+        return np.array([[1e-17], [0.0]]) if i == 1 else np.array([[0.0, 0.0], [0.7, 0.3]])
+
+    floor = acc.finish([500, 500], 500, np.array([0.0, 0.0]), ("a", "b"), ("a", "b"),
+                       [1, 2], [0, 1], axial)
+    assert floor["per_link"][0]["no_lever"] is True
+    assert floor["per_link"][0]["static_loading"]["median_n"] is None
+    line = floor_line(floor)
+    assert line is not None and "a torque below ~1 N·m on a (its link ends on the " \
+        "joint's axis" in line, line
 
 
 def test_the_run_states_its_floor_and_the_link_forces_follow_the_link_lengths(

@@ -75,15 +75,27 @@ def test_robots_lists_only_loading_urdfs_with_pinocchios_joint_names() -> None:
     assert "panda_description/urdf/panda.urdf" in out and "panda_joint7" in out
 
 
-def test_robots_without_pinocchio_says_how_to_install(monkeypatch: pytest.MonkeyPatch) -> None:
-    def missing() -> None:
-        raise robots._missing("the shipped robots (Pinocchio, PyPI 'pin')")
+def test_without_pinocchio_each_robot_says_what_to_install(
+        monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """No Pinocchio (its import fails): ``robots`` and a package robot name the robots
+    extra; a built arm, which needs only Pinocchio, names the urdf extra."""
+    import sys
 
-    monkeypatch.setattr(robots, "_require_pinocchio", missing)
-    code, out, err = cli(["robots"])
-    assert code == 2
-    assert out == ""
-    assert err.count("\n") == 1 and "pip install 'impactcli[robots]'" in err
+    monkeypatch.setitem(sys.modules, "pinocchio", None)  # import pinocchio: ImportError
+    robots.arm_joints.cache_clear()
+    try:
+        code, out, err = cli(["robots"])
+        assert code == 2 and out == ""
+        assert err.count("\n") == 1 and "pip install 'impactcli[robots]'" in err, err
+        log = tmp_path / "a.csv"
+        log.write_text("time,a.position,a.torque\n0,0,0\n0.01,0,0\n")
+        for name, extra in (("ur10e", "urdf"), ("ur10", "robots")):
+            code, _, err = cli(["identify", str(log), "--robot", name,
+                                "-o", str(tmp_path / "m.json")])
+            assert code == 2, err
+            assert err.count("\n") == 1 and f"pip install 'impactcli[{extra}]'" in err, err
+    finally:
+        robots.arm_joints.cache_clear()
 
 
 # ---------------------------------------------------------------- every robot, end to end

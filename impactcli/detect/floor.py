@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from .incidents import JacobianFn, own_levers
+from .incidents import MIN_LEVER_M, JacobianFn, own_levers
 
 #: The adaptive detector's reference contact: a half-sine of this duration [s].
 HALF_SINE_S = 0.1
@@ -213,6 +213,10 @@ class FloorAccumulator:
                     postures[p, c] = self.post_q[i][col]
         levers = own_levers(postures, len(chain), jac)  # once, for every detector and quantile
         link_joint = {index[j] - 1: j for j in range(self.J)}
+        # a link that ends on its own joint's axis: the joints before it see a force there
+        # (|tau_k| <= |J_k| |F|: below min_k threshold_k / |J_k| no joint's is reached)
+        axial = {c: _inner_levers(postures, c, jac) for c in link_joint
+                 if np.isnan(levers[:, c]).all() and jac(postures[0], c + 1) is not None}
         for d in DETECTORS:
             for qn in QUANTILES:
                 forces = np.full((len(postures), len(chain)), np.nan)
@@ -220,6 +224,14 @@ class FloorAccumulator:
                     v = torque[d][qn][j]
                     if math.isfinite(v):  # the force that reaches joint j's own threshold
                         forces[:, index[j] - 1] = float(v) / levers[:, index[j] - 1]
+                for c, arms in axial.items():
+                    for j in range(self.J):
+                        v, k = torque[d][qn][j], index[j] - 1
+                        if k < c and math.isfinite(v):
+                            with np.errstate(divide="ignore", invalid="ignore"):
+                                f = np.where(arms[:, k] >= MIN_LEVER_M, float(v) / arms[:, k],
+                                             np.nan)
+                            forces[:, c] = np.fmin(forces[:, c], f)
                 over = 0.5 if qn == "median" else 0.9
                 for c in range(len(chain)):
                     col = forces[:, c][np.isfinite(forces[:, c])]
@@ -227,14 +239,22 @@ class FloorAccumulator:
                         links.append({"link": len(links) + 1, "joint": chain[len(links)]})
                     links[c].setdefault(d, {})[f"{qn}_n"] = (
                         float(np.quantile(col, over)) if col.size else None)
-        for c, row in enumerate(links):  # a link ending on its joint's axis: no force
-            if (c in link_joint and np.isnan(levers[:, c]).all()
-                    and jac(postures[0], c + 1) is not None):
-                row["no_lever"] = True
-                row["joint"] = joints[link_joint[c]]  # the name per_joint states it under
+        for c in axial:
+            links[c]["no_lever"] = True
+            links[c]["own_joint"] = joints[link_joint[c]]  # its name in per_joint
         out["per_link"] = links
         out["postures"] = len(postures)
         return out
+
+
+def _inner_levers(postures: np.ndarray, c: int, jac: JacobianFn) -> np.ndarray:
+    """(P, c + 1) each joint k <= c's lever |J_k| to the end of link c + 1 (0-based c) at
+    each posture."""
+    many = getattr(jac, "many", None)
+    jacs = many(postures, c + 1) if many is not None else None
+    if jacs is None:
+        jacs = np.stack([np.asarray(jac(p, c + 1)) for p in postures])
+    return np.asarray(np.linalg.norm(jacs, axis=1))
 
 
 #: Links or joints a floor's sentence names at most (the largest floors).
@@ -256,7 +276,8 @@ def floor_line(floor: dict[str, Any] | None) -> str | None:
         items = list(per_joint.items())
         key, unit, head = "_nm", "N·m", "a contact adding less than"
     parts: list[tuple[float, str]] = []
-    axial: list[str] = []  # links that end on their joint's axis: stated as torques
+    axial: list[str] = []  # links ending on their joint's axis, no joint before: torques
+    inner: list[str] = []  # links ending on their joint's axis: seen by the joints before
     for where, row in items:
         m = _smallest(row, "median" + key)
         w = _smallest(row, "worst_tenth" + key)
@@ -264,10 +285,12 @@ def floor_line(floor: dict[str, Any] | None) -> str | None:
             parts.append((m, f"~{_approx(m)} {unit} on {where}"
                           + (f" (~{_approx(w)} {unit} in the worst tenth)" if w is not None
                              and w > 1.05 * m else "")))
-        elif row.get("no_lever") and isinstance(per_joint.get(row.get("joint")), dict):
-            t = _smallest(per_joint[row["joint"]], "median_nm")
+            if row.get("no_lever"):
+                inner.append(str(row["link"]))
+        elif row.get("no_lever") and isinstance(per_joint.get(row.get("own_joint")), dict):
+            t = _smallest(per_joint[row["own_joint"]], "median_nm")
             if t is not None:
-                axial.append(f"~{_approx(t)} N·m on {row['joint']}")
+                axial.append(f"~{_approx(t)} N·m on {row['own_joint']}")
     if not parts and not axial:
         return None
     shown = [p for _, p in parts]
@@ -275,12 +298,17 @@ def floor_line(floor: dict[str, Any] | None) -> str | None:
         top = sorted(range(len(parts)), key=lambda i: -parts[i][0])[:MAX_LISTED]
         shown = [parts[i][1] for i in sorted(top)]
         shown.append(f"and less on the {len(parts) - MAX_LISTED} others (in the timeline)")
-    if axial:  # always said: these links' floors are no force at all
+    if axial:  # always said: these floors are no force at all
         shown.append(f"{'and ' if shown else ''}a torque below {', '.join(axial)} "
                      + ("(its link ends on the joint's axis: no force there turns it)"
                         if len(axial) == 1 else
                         "(their links end on the joints' axes: no force there turns them)"))
-    return f"{head} {', '.join(shown)} would not have been seen"
+    note = ""
+    if inner:
+        note = (f" (links {', '.join(inner)} end on their own joints' axes"
+                if len(inner) > 1 else f" (link {inner[0]} ends on its own joint's axis")
+        note += ": the force there is what the joints before see)"
+    return f"{head} {', '.join(shown)} would not have been seen{note}"
 
 
 def _smallest(row: dict[str, Any], key: str) -> float | None:

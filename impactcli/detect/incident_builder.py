@@ -23,6 +23,7 @@ from ..types import Event, RobotDescription
 from .incidents import (
     BRIDGE_FRACTION,
     FORCE_CEILING_FACTOR,
+    MIN_LEVER_M,
     ForceEstimate,
     Incident,
     JacobianFn,
@@ -263,7 +264,7 @@ def check_force(ctx: IncidentContext, est: ForceEstimate, link: int | None) -> F
     for c in est.levers:
         k = ctx.index.index(c)
         cap, lever = float(ctx.capacity[k]), ctx.reach(c, link, est)
-        if np.isfinite(cap) and cap > 0 and lever > 0 and cap / lever > best:
+        if np.isfinite(cap) and cap > 0 and lever >= MIN_LEVER_M and cap / lever > best:
             best, at, arm = cap / lever, k, lever
     if at < 0:
         return ForceCheck(None, None, "no torque capacity known for the joints up to the link")

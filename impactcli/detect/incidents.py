@@ -421,6 +421,9 @@ def force_estimate(
         a = jacs[:, :, in_jac].transpose(0, 2, 1)  # (n, m, d): r_m = a F at each sample
         b = r[strong][:, sel]
         sols = None if one_equation else lstsq_many(a, b, RCOND)
+        if one_equation and not np.any(np.linalg.norm(jacs[:, :, 0], axis=1) >= MIN_LEVER_M):
+            return ForceEstimate(None, "link 1 ends on joint 1's axis: no force at its end "
+                                       "turns joint 1 (its residual is the answer, in N·m)")
         for k in range(strong.size):
             if sols is None:
                 lever = float(np.linalg.norm(jacs[k][:, 0]))

@@ -59,6 +59,8 @@ WINDOW_S = payload.START_S
 #: A mass explains a step when its torque accounts for at least this share of the window's
 #: residual energy (the change's confidence).
 EXPLAINED = payload.EXPLAINED
+#: How ``as_log`` names the model's own load when its fit has one load for all logs.
+OWN_LOAD = "the model's own"
 
 
 @dataclass(frozen=True)
@@ -173,7 +175,8 @@ class PayloadMonitor:
             change = self._classify(k0 + pos + cut, float(t[pos + cut]), still)
             pos += cut
             if change is not None:  # the same sum per row as a later part's: r0 + Y B π
-                r[pos:] = r0[pos:] + self._torque(qf[pos:], qd[pos:], qdd[pos:], self._pi)
+                r[pos:] = (r0[pos:] + self._torque(qf[pos:], qd[pos:], qdd[pos:], self._pi)
+                           if np.any(self._pi) else r0[pos:])
         self._keep(qf[pos:], qd[pos:], qdd[pos:], r[pos:])
         return r
 
@@ -240,18 +243,19 @@ class PayloadMonitor:
             self._state = "idle"
             return None
         self._state = "cooldown"
-        step, as_log = self._known_step(w, y, left)
-        self._pi = self._pi + step
+        target, as_log = self._known_load(w, y, left)
+        step = w.pi if target is None else target - self._pi
+        self._pi = self._pi + w.pi if target is None else np.array(target)
         self.changes.append(PayloadChange(
             t_a, t_c, w.mass_kg, w.mass_se_kg,
             {nm: float(v) for nm, v in zip(self.names, w.pi, strict=True)},
             explained, self.base_kg + float(self._pi[self.names.index("m")]), as_log))
         return step
 
-    def _known_step(self, w: payload.Weighed, y: np.ndarray, left: np.ndarray,
-                    ) -> tuple[np.ndarray, str | None]:
-        """The step to take: to a known load (module docstring, step 4) and its log, the
-        one whose step explains the window most; else the weighed step and None."""
+    def _known_load(self, w: payload.Weighed, y: np.ndarray, left: np.ndarray,
+                    ) -> tuple[np.ndarray | None, str | None]:
+        """The known load the step goes to (module docstring, step 4) and its log — the one
+        whose step explains the window most; (None, None) when none is."""
         assert self._pi is not None
         m = self.names.index("m")
         after = self._pi + w.pi
@@ -259,11 +263,10 @@ class PayloadMonitor:
         for log, pi in self.known:
             if abs(float(pi[m] - after[m])) > payload.WEIGH_SIGMAS * w.mass_se_kg:
                 continue
-            step = pi - self._pi
-            share = payload.explained(left, y, step)
+            share = payload.explained(left, y, pi - self._pi)
             if share >= EXPLAINED and (best is None or share > best[0]):
-                best = (share, step, log)
-        return (w.pi, None) if best is None else (best[1], best[2])
+                best = (share, pi, log)
+        return (None, None) if best is None else (best[1], best[2])
 
     def _torque(self, qf: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
                 pi: np.ndarray) -> np.ndarray:

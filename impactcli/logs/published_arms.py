@@ -31,7 +31,7 @@ What UR do not publish, and what stands in for it:
 The tables were checked against physics: on a real UR10e held still (the ``ur-static``
 recording that tests/test_published_arms.py reads when it is present), the gravity torque
 of the built URDF at the arm's pose matches the controller's own model torque, logged
-beside the currents, to 0.2 % on the loaded joints.
+beside the currents, to 0.1 % on the loaded joints.
 """
 
 from __future__ import annotations

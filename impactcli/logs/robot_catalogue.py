@@ -201,14 +201,19 @@ def arm_joints(name: str) -> tuple[str, ...]:
         urdf_path(name)  # raises, naming the shipped robots
         raise AssertionError("unreachable")  # pragma: no cover
     xml = urdf_text(e.name)
-    _require_pinocchio()
+    _require_pinocchio(e.built is not None)
     return urdf_chain(xml, e.tip, e.base, urdf_label(e.name))
 
 
-def _require_pinocchio() -> None:
+def _require_pinocchio(built: bool = False) -> None:
+    """RobotsExtraMissing unless Pinocchio imports; a built arm needs only the ``urdf``
+    extra, so its message names that one."""
     try:
         import pinocchio  # noqa: F401
     except ImportError:
+        if built:
+            raise RobotsExtraMissing("the arms built from a published table need Pinocchio: "
+                                     "pip install 'impactcli[urdf]'") from None
         raise _missing("the shipped robots (Pinocchio, PyPI 'pin')") from None
 
 

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from ..config import DetectorConfig
+from ..detect.payload_change import OWN_LOAD
 from ..model import RigidModel, payload
 from ..model.generators import GeneratorChoice, target_torque
 
@@ -278,10 +279,6 @@ def monitor_for(plan: Any, given: dict[str, np.ndarray] | None,
         settle_s(cfg.static_loading.cutoff_hz, cfg.adaptive.n2_s),
         payload.reach_m(model), base_kg=float(pi0[bb[1].index("m")]),
         known=known_loads(model, bb[1], pi0))
-
-
-#: How a load-change names the model's own load when its fit has one load for all logs.
-OWN_LOAD = "the model's own"
 
 
 def start_pi(model: RigidModel, names: tuple[str, ...], start: StartLoad | None,

@@ -327,6 +327,13 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
         f'<ul class="tight">{notes}</ul></div>')
 
 
+def _whose(as_log: str) -> str:
+    """Whose load a payload change's ``as_log`` names, for the table's "load then"."""
+    from ...detect.payload_change import OWN_LOAD
+
+    return "the model's own" if as_log == OWN_LOAD else f"{as_log}'s, as fitted"
+
+
 def payload_table_html(changes: Sequence[dict[str, Any]], anchor: str) -> str:
     """The payload changes (docs/method.md §5c): when, the mass change, its confidence and
     when it was classified; "" when none."""
@@ -338,7 +345,7 @@ def payload_table_html(changes: Sequence[dict[str, Any]], anchor: str) -> str:
         f'</b> ± {c["mass_se_kg"]:.2g}</td><td class="num">{100 * c["explained"]:.1f} %</td>'
         f'<td class="num">{c["t_classified"]:.3f} s</td>'
         f'<td class="num">{c["mass_after_kg"]:+.3g} kg'
-        + (f' ({e(str(c["as_log"]))}\'s)' if c.get("as_log") else "")
+        + (f' ({e(_whose(str(c["as_log"])))})' if c.get("as_log") else "")
         + '</td></tr>'
         for k, c in enumerate(changes, 1))
     return (
