@@ -241,6 +241,26 @@ def incident_context(
                            cap, source, lengths, tuple(chain))
 
 
+def blind_beyond(where: LinkDecision, jac: JacobianFn, q: np.ndarray,
+                 n_links: int) -> LinkDecision:
+    """``where`` with its candidates extended by the links beyond its link whose end no
+    joint beyond it has a lever to (each under :data:`MIN_LEVER_M` at posture ``q``): a
+    contact at such a link's end turns only the joints the contact on ``where.link`` turns,
+    so the residuals cannot tell the two apart (a UR's flange lies on its wrist 3 axis: a
+    push there is seen as on link 5)."""
+    if where.link is None:
+        return where
+    extra = []
+    for m in range(where.link + 1, n_links + 1):
+        j = jac(q, m)
+        if j is None or np.any(np.linalg.norm(j[:, where.link:m], axis=0) >= MIN_LEVER_M):
+            break
+        extra.append(m)
+    if not extra:
+        return where
+    return LinkDecision(where.link, tuple(sorted({*where.candidates, *extra})))
+
+
 @dataclass(frozen=True)
 class ForceCheck:
     """Whether an estimated force is one the arm could exert (docs/incidents.md, "The
@@ -331,6 +351,8 @@ def build_findings(
         est = ForceEstimate(None, "no kinematics: the peak residual torques are the answer")
         if link is not None and ctx.jac is not None:
             est = force_estimate(r[win], q_chain[win], link, index, ctx.jac, max_samples)
+            where = blind_beyond(where, ctx.jac, q_chain[(win.start + win.stop) // 2],
+                                 len(ctx.chain_cols))
         elif link is None:
             est = ForceEstimate(None, "the residuals cannot say which link: no force estimate")
         return where, est
