@@ -65,11 +65,10 @@ def _lasting_line(k: int, x: dict[str, Any]) -> str:
 def payload_change_line(k: int, c: dict[str, Any]) -> str:
     """``  P1   20.092 s  +0.994 kg (± 0.004; 99.7 % of the step a mass), classified at
     23.092 s``."""
-    from ..detect.payload_change import OWN_LOAD
+    from ..detect.payload_change import whose_load
 
     known = c.get("as_log")
-    whose = None if known is None else (
-        "the model's own load" if known == OWN_LOAD else f"{known}'s load, as fitted")
+    whose = None if known is None else whose_load(str(known))
     return (f"  P{k:<2} {c['t_start']:>9.3f} s  {c['mass_kg']:+.3g} kg (± "
             f"{c['mass_se_kg']:.2g}; {100 * c['explained']:.1f} % of the step a mass), "
             f"classified at {c['t_classified']:.3f} s"

@@ -63,6 +63,11 @@ EXPLAINED = payload.EXPLAINED
 OWN_LOAD = "the model's own"
 
 
+def whose_load(as_log: str) -> str:
+    """Whose load a change's ``as_log`` names, as every output says it."""
+    return "the model's own load" if as_log == OWN_LOAD else f"{as_log}'s load, as fitted"
+
+
 @dataclass(frozen=True)
 class PayloadChange:
     """A payload change (module docstring): ``t_start`` the alarm's onset, ``t_classified``

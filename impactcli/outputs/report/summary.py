@@ -328,10 +328,9 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
 
 
 def _whose(as_log: str) -> str:
-    """Whose load a payload change's ``as_log`` names, for the table's "load then"."""
-    from ...detect.payload_change import OWN_LOAD
+    from ...detect.payload_change import whose_load  # the one wording, imported when used
 
-    return "the model's own" if as_log == OWN_LOAD else f"{as_log}'s, as fitted"
+    return whose_load(as_log)
 
 
 def payload_table_html(changes: Sequence[dict[str, Any]], anchor: str) -> str:
