@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from .incidents import MIN_LEVER_M, JacobianFn, own_levers
+from .incidents import MIN_LEVER_M, JacobianFn, link_jacobians, own_levers
 
 #: The adaptive detector's reference contact: a half-sine of this duration [s].
 HALF_SINE_S = 0.1
@@ -250,10 +250,7 @@ class FloorAccumulator:
 def _inner_levers(postures: np.ndarray, c: int, jac: JacobianFn) -> np.ndarray:
     """(P, c + 1) each joint k <= c's lever |J_k| to the end of link c + 1 (0-based c) at
     each posture."""
-    many = getattr(jac, "many", None)
-    jacs = many(postures, c + 1) if many is not None else None
-    if jacs is None:
-        jacs = np.stack([np.asarray(jac(p, c + 1)) for p in postures])
+    jacs = np.stack([np.asarray(j) for j in link_jacobians(postures, c + 1, jac)])
     return np.asarray(np.linalg.norm(jacs, axis=1))
 
 

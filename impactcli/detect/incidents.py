@@ -484,17 +484,23 @@ def own_levers(postures: np.ndarray, n_links: int, jacobian: JacobianFn) -> np.n
     :func:`smallest_caught_force`'s ``own_force_n`` divides by, the same bits. Each
     link's Jacobians come at once when ``jacobian`` has a ``many``."""
     out = np.full((len(postures), n_links), np.nan)
-    many = getattr(jacobian, "many", None)
     for i in range(1, n_links + 1):
-        jacs = many(postures, i) if many is not None and len(postures) else None
-        for p in range(len(postures)):
-            jac = jacobian(postures[p], i) if jacs is None else jacs[p]
+        for p, jac in enumerate(link_jacobians(postures, i, jacobian)):
             if jac is None:
                 continue
             lever = own_lever(jac, i)
             if lever >= MIN_LEVER_M:
                 out[p, i - 1] = lever
     return out
+
+
+def link_jacobians(postures: np.ndarray, i: int, jacobian: JacobianFn,
+                   ) -> Sequence[np.ndarray | None]:
+    """Link i's end-point Jacobian at each of the (P, J_chain) postures (None where the
+    link has none), all at once when ``jacobian`` has a ``many``."""
+    many = getattr(jacobian, "many", None)
+    jacs = many(postures, i) if many is not None and len(postures) else None
+    return [jacobian(p, i) for p in postures] if jacs is None else list(jacs)
 
 
 def smallest_caught_force(

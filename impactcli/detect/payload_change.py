@@ -226,7 +226,8 @@ class PayloadMonitor:
 
     def _classify(self, k_c: int, t_c: float, still: bool) -> np.ndarray | None:
         """Weigh the change whose onset is pending on the window that ends at sample ``k_c``
-        (the buffer ends just before it); the load π when it is a payload change. Else,
+        (the buffer ends just before it); the load then carried (π of every change so far)
+        when it is a payload change. Else,
         when the alarm is ``still`` on (without a break since its onset), the next window
         is due."""
         assert self._onset is not None and self._pi is not None
@@ -248,30 +249,15 @@ class PayloadMonitor:
             self._state = "idle"
             return None
         self._state = "cooldown"
-        target, as_log = self._known_load(w, y, left)
-        step = w.pi if target is None else target - self._pi
-        self._pi = self._pi + w.pi if target is None else np.array(target)
+        known = payload.known_load(self.known, self._pi, w.pi, w.mass_se_kg, y, left,
+                                   self.names)
+        self._pi = self._pi + w.pi if known is None else np.array(known[1])
         self.changes.append(PayloadChange(
             t_a, t_c, w.mass_kg, w.mass_se_kg,
             {nm: float(v) for nm, v in zip(self.names, w.pi, strict=True)},
-            explained, self.base_kg + float(self._pi[self.names.index("m")]), as_log))
-        return step
-
-    def _known_load(self, w: payload.Weighed, y: np.ndarray, left: np.ndarray,
-                    ) -> tuple[np.ndarray | None, str | None]:
-        """The known load the step goes to (module docstring, step 4) and its log — the one
-        whose step explains the window most; (None, None) when none is."""
-        assert self._pi is not None
-        m = self.names.index("m")
-        after = self._pi + w.pi
-        best: tuple[float, np.ndarray, str] | None = None
-        for log, pi in self.known:
-            if abs(float(pi[m] - after[m])) > payload.WEIGH_SIGMAS * w.mass_se_kg:
-                continue
-            share = payload.explained(left, y, pi - self._pi)
-            if share >= EXPLAINED and (best is None or share > best[0]):
-                best = (share, pi, log)
-        return (None, None) if best is None else (best[1], best[2])
+            explained, self.base_kg + float(self._pi[self.names.index("m")]),
+            None if known is None else known[0]))
+        return self._pi
 
     def _torque(self, qf: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
                 pi: np.ndarray) -> np.ndarray:

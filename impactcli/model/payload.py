@@ -318,16 +318,45 @@ def with_log_payloads(model: Any, b: np.ndarray, names: Sequence[str],
     return dataclasses.replace(model, theta=theta, fit=fit)
 
 
+def calibration_loads(model: Any, names: Sequence[str] | None = None,
+                      ) -> tuple[tuple[str, np.ndarray], ...]:
+    """Each calibration log's payload π as the model's fit found it (relative to the
+    lightest), in ``names``' order (default: the fit's); none when it fitted no payload per
+    log."""
+    rec = (getattr(model, "fit", None) or {}).get("payloads")
+    if not rec:
+        return ()
+    order = list(rec["parameters"] if names is None else names)
+    return tuple((str(e["log"]), np.array([e["values"][nm] for nm in order],
+                                          dtype=np.float64)) for e in rec["logs"])
+
+
 def log_payload(model: Any, path: str) -> np.ndarray | None:
     """The payload π the model's fit found on the calibration log ``path`` (relative to the
     lightest), None when it fitted no payload per log or not on that log."""
-    rec = (getattr(model, "fit", None) or {}).get("payloads")
-    if not rec:
-        return None
-    for e in rec["logs"]:
-        if e["log"] == path:
-            return np.array([e["values"][nm] for nm in rec["parameters"]], dtype=np.float64)
-    return None
+    return next((pi for log, pi in calibration_loads(model) if log == path), None)
+
+
+def known_load(known: Sequence[tuple[str, np.ndarray]], base: np.ndarray, step: np.ndarray,
+               se_kg: float, y_pay: np.ndarray, left: np.ndarray, names: Sequence[str],
+               ) -> tuple[str, np.ndarray] | None:
+    """Of the ``known`` loads (log, π), the one the arm carries after the weighed ``step``
+    from the load ``base`` (π, all relative to one model): its mass within
+    :data:`WEIGH_SIGMAS` standard errors (``se_kg``) of the mass after the step, and the
+    step to it accounting for at least :data:`EXPLAINED` of ``left`` (n, J), the torque
+    the model leaves out, through ``y_pay`` (n, J, m) — of those, the one that explains
+    most. None when none is. A load fitted on a whole calibration log is known far better
+    than one weighed on a few seconds (its inertia above all): it is the one to carry."""
+    m = list(names).index("m")
+    after = base + step
+    best: tuple[float, str, np.ndarray] | None = None
+    for log, pi in known:
+        if abs(float(pi[m] - after[m])) > WEIGH_SIGMAS * se_kg:
+            continue
+        share = explained(left, y_pay, pi - base)
+        if share >= EXPLAINED and (best is None or share > best[0]):
+            best = (share, log, pi)
+    return None if best is None else (best[1], best[2])
 
 
 def carrying(model: Any, pi: np.ndarray) -> Any:

@@ -59,9 +59,9 @@ class StartLoad:
         explained: the share of what the model leaves out over the stretch that the load
             accounts for (None: not weighed); used only from
             :data:`impactcli.model.payload.EXPLAINED` on.
-        as_log: the calibration log whose load it is (:func:`_as_calibrated`): the
-            residual carries that log's fitted load, not the stretch's (None: the
-            stretch's, or not used).
+        as_log: the calibration log whose load it is
+            (:func:`impactcli.model.payload.known_load`): the residual carries that log's
+            fitted load, not the stretch's (None: the stretch's, or not used).
     """
 
     verdict: str
@@ -143,7 +143,9 @@ def weigh_start(feed: Any, model: RigidModel, choices: tuple[GeneratorChoice, ..
             f"{where}: starts with the model's load{_whose(rel)} ({mass} beyond it, "
             f"weighed on its first {seconds:g} s: {why})"), share)
     unseen = _unseen(cal, w.mass_kg, w.mass_se_kg)
-    known = _as_calibrated(model, yb, left, w)
+    # the model carries the lightest calibration log's load: a known load is relative to it
+    known = payload.known_load(payload.calibration_loads(model, names), np.zeros_like(w.pi),
+                               w.pi, w.mass_se_kg, yb, left, names)
     pi = w.pi if known is None else known[1]
     return payload.carrying(model, pi), StartLoad(
         "used", seconds, w.mass_kg, w.mass_se_kg, values, rel, cal, (
@@ -157,30 +159,6 @@ def weigh_start(feed: Any, model: RigidModel, choices: tuple[GeneratorChoice, ..
                "rate was not measured with it (a heavier load brings larger errors the "
                "rigid model does not hold): calibrate with a log that carries it" if unseen
                else "")), share, None if known is None else known[0])
-
-
-def _as_calibrated(model: RigidModel, yb: np.ndarray, left: np.ndarray,
-                   w: payload.Weighed) -> tuple[str, np.ndarray] | None:
-    """The calibration log (and its fitted load π) whose load the weighed one is: its mass
-    within :data:`~impactcli.model.payload.WEIGH_SIGMAS` standard errors of the weighed
-    mass, and it explains at least :data:`~impactcli.model.payload.EXPLAINED` of what the
-    model leaves out over the stretch — of those, the one that explains most. None when
-    none is, or the model fitted one load. A load fitted on a whole calibration log is
-    known far better than one weighed on a few seconds (its inertia, above all), so the
-    residual carries it."""
-    rec = (model.fit or {}).get("payloads")
-    if not rec:
-        return None
-    best: tuple[float, str, np.ndarray] | None = None
-    for e in rec["logs"]:
-        pi = np.array([e["values"][nm] for nm in rec["parameters"]], dtype=np.float64)
-        mass = float(e["values"]["m"])
-        if not np.any(pi) or abs(mass - w.mass_kg) > payload.WEIGH_SIGMAS * w.mass_se_kg:
-            continue
-        share = payload.explained(left, yb, pi)
-        if share >= payload.EXPLAINED and (best is None or share > best[0]):
-            best = (share, str(e["log"]), pi)
-    return None if best is None else (best[1], best[2])
 
 
 def _rows(model: RigidModel, q: np.ndarray, tau: np.ndarray, fs: float,
@@ -296,14 +274,10 @@ def known_loads(model: RigidModel, names: tuple[str, ...], pi0: np.ndarray,
     """The loads the calibration logs carried — each (log, π) relative to the replay's
     model, which carries ``pi0`` beyond the config's (:func:`start_pi`) — or, for a model
     fitted with one load, that load (:data:`OWN_LOAD`, π = 0 beyond the config's)."""
-    rec = (model.fit or {}).get("payloads")
-    if not rec:
+    cal = payload.calibration_loads(model, names)
+    if not cal:
         return ((OWN_LOAD, -pi0),)
-    out = []
-    for e in rec["logs"]:
-        pi = np.array([e["values"][n] for n in names], dtype=np.float64)
-        out.append((str(e["log"]), pi - pi0))
-    return tuple(out)
+    return tuple((log, pi - pi0) for log, pi in cal)
 
 
 def unseen_loads(where: str, model: RigidModel | None, changes: Any) -> str | None:
