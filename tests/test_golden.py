@@ -1,6 +1,9 @@
-"""The CLI answers on the sample logs what it answered before the one-path refactor, byte for
-byte: timelines, signals Parquet (sha256), report JSON, calibrated configs, identified models,
-``inspect --json``, and the exit code and message of refused inputs.
+"""The CLI answers on the sample logs what it answered before the one-path refactor:
+timelines, signals Parquet, report JSON and HTML, calibrated configs, identified models,
+``inspect --json``, and the exit code and message of refused inputs. On the machine that made
+the goldens, byte for byte; on another CPU, where NumPy's and OpenBLAS's SIMD kernels round
+differently, every integer, string and shape the same and every float within a stated
+tolerance (make_golden.py: ``RTOL``; ``IMPACTCLI_GOLDEN_EXACT=1`` asks for the bytes).
 
 Each case of tests/golden/make_golden.py (which made the goldens at tag ``base-onepath``, one
 fresh process per case) runs here in this process (CliRunner, in the case's working folder),
@@ -22,27 +25,32 @@ the goldens with the change that explains them.
 
 from __future__ import annotations
 
+import json
 import os
 import traceback
 from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
 from impactcli.cli import main
 
+from .golden import make_golden
 from .golden.make_golden import (
     GOLDEN,
     OUTPUT_DIRS,
     RESULTS,
     SAMPLES,
     Case,
+    agree,
     all_cases,
     build_fixtures,
     differences,
     load_records,
     run_case,
+    signals_summary,
 )
 
 FULL = os.environ.get("IMPACTCLI_GOLDEN") == "all"
@@ -104,3 +112,65 @@ def test_calibrate_golden_is_the_shipped_sample_config(name: str) -> None:
     """docs/validation.md: the sample configs are `calibrate`'s output byte for byte."""
     golden = (GOLDEN / "calibrate" / f"{name}.config.toml").read_bytes()
     assert golden == (SAMPLES / f"{name}.config.toml").read_bytes()
+
+
+def test_agreement_is_beyond_a_floats_last_bits_only(monkeypatch: pytest.MonkeyPatch) -> None:
+    """What another CPU may change in an answer: a float within RTOL (model selection's
+    cross-validation figures within RTOL_LOOSE) and an identified model's sha256; never an
+    integer, a string, a key or a float beyond it, and nothing at all with
+    IMPACTCLI_GOLDEN_EXACT=1."""
+    sha, sha2 = "a" * 64, "b" * 64
+    base = {"i_end": 3374, "force_n": 18.777419742862428, "model_sha256": sha,
+            "fit": {"selection": {"rms_nm": 0.06038938}, "rms_nm": 0.06038938},
+            "detectors": ["adaptive"]}
+
+    def with_(**kw: object) -> str:
+        return json.dumps({**base, **kw})
+
+    old = json.dumps(base)
+    assert agree("t.json", old, with_(force_n=18.77741974286243, model_sha256=sha2))
+    assert agree("t.json", old, with_(fit={"selection": {"rms_nm": 0.06038072},
+                                           "rms_nm": 0.06038938}))
+    for bad in (with_(i_end=3375), with_(force_n=18.7775),
+                with_(fit={"selection": {"rms_nm": 0.0605}, "rms_nm": 0.06038938}),
+                with_(fit={"selection": {"rms_nm": 0.06038938}, "rms_nm": 0.06038072}),
+                with_(detectors=["static_loading"]), with_(model_sha256="other"),
+                with_(extra=1)):
+        assert not agree("t.json", old, bad), bad
+    assert agree("c.toml", "x = 0.1\nn = 3\n", "x = 0.10000000001\nn = 3\n")
+    assert not agree("c.toml", "x = 0.1\nn = 3\n", "x = 0.1\nn = 4\n")
+    assert agree("-", "link 2 ~4.8712345 N", "link 2 ~4.87123450001 N")
+    assert not agree("-", "link 2 ~4.87 N", "link 2 ~4.88 N")
+    assert not agree("-", "link 2 ~4.87 N", "link 3 ~4.87 N")
+    monkeypatch.setattr(make_golden, "EXACT", True)
+    assert not agree("t.json", old, with_(force_n=18.77741974286243))
+    assert agree("t.json", old, old)
+
+
+def test_a_signals_summary_sees_a_flipped_decision_not_a_last_bit(tmp_path: Path) -> None:
+    """Two Parquets of signals agree when each residual sample moved by its last bit, and
+    differ when one decision sample flipped or one residual sample moved by 0.01 of its
+    standard deviation (Σ|x| by 6e-6 of itself: a column's summary is five numbers, so its
+    grain is a sum's RTOL; the timeline's goldens hold the answers drawn from it)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    rng = np.random.default_rng(3)
+    r = rng.normal(size=2000)
+    d = (np.abs(r) > 2).astype(np.uint8)
+
+    def summary(res: np.ndarray, dec: np.ndarray) -> dict[str, object]:
+        path = tmp_path / "s.parquet"
+        pq.write_table(pa.table({"j.residual": res, "j.adaptive": dec}), path)
+        return signals_summary(path.read_bytes())
+
+    want = summary(r, d)
+    rec = {"exit_code": 0, "sha256": {"s": "x"}, "content": {"s": want}}
+    flipped = d.copy()
+    flipped[7] ^= 1
+    moved = r.copy()
+    moved[11] += 1e-2
+    for res, dec, same in ((np.nextafter(r, np.inf), d, True), (r, flipped, False),
+                           (moved, d, False)):
+        got = {"exit_code": 0, "sha256": {"s": "y"}, "content": {"s": summary(res, dec)}}
+        assert make_golden._record_agrees(rec, got) is same
