@@ -119,6 +119,7 @@ def test_agreement_is_beyond_a_floats_last_bits_only(monkeypatch: pytest.MonkeyP
     cross-validation figures within RTOL_LOOSE) and an identified model's sha256; never an
     integer, a string, a key or a float beyond it, and nothing at all with
     IMPACTCLI_GOLDEN_EXACT=1."""
+    monkeypatch.setattr(make_golden, "EXACT", False)
     sha, sha2 = "a" * 64, "b" * 64
     base = {"i_end": 3374, "force_n": 18.777419742862428, "model_sha256": sha,
             "fit": {"selection": {"rms_nm": 0.06038938}, "rms_nm": 0.06038938},
@@ -147,7 +148,8 @@ def test_agreement_is_beyond_a_floats_last_bits_only(monkeypatch: pytest.MonkeyP
     assert agree("t.json", old, old)
 
 
-def test_a_signals_summary_sees_a_flipped_decision_not_a_last_bit(tmp_path: Path) -> None:
+def test_a_signals_summary_sees_a_flipped_decision_not_a_last_bit(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Two Parquets of signals agree when each residual sample moved by its last bit, and
     differ when one decision sample flipped or one residual sample moved by 0.01 of its
     standard deviation (Σ|x| by 6e-6 of itself: a column's summary is five numbers, so its
@@ -155,6 +157,7 @@ def test_a_signals_summary_sees_a_flipped_decision_not_a_last_bit(tmp_path: Path
     import pyarrow as pa
     import pyarrow.parquet as pq
 
+    monkeypatch.setattr(make_golden, "EXACT", False)
     rng = np.random.default_rng(3)
     r = rng.normal(size=2000)
     d = (np.abs(r) > 2).astype(np.uint8)
