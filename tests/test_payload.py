@@ -384,3 +384,8 @@ def test_a_spatial_arm_picks_and_places_on_its_own_model(tmp_path: Path) -> None
             assert hit, (t0, counted)
             # at the flange, on wrist 3's axis: no wrist-3 torque, so link 6 stays possible
             assert 6 in hit[0]["link_candidates"], hit[0]
+            # ... and the terminal's incident table says both, not link 5 alone
+            row = next(ln for ln in r.stdout.splitlines()  # type: ignore[attr-defined]
+                       if f"{hit[0]['t_start']:>9.3f} s  link" in ln)
+            assert f"link {hit[0]['link']} or 6 " in row, row
+        assert "cannot tell which of those links" in r.stdout  # type: ignore[attr-defined]

@@ -565,6 +565,21 @@ def test_the_incident_list_in_html_and_json() -> None:
         < html.index("Caveats — read before the numbers")
 
 
+def test_links_the_residuals_cannot_tell_apart_are_named_together() -> None:
+    """An incident whose evidence leaves links 1 and 2 (``link_candidates``) is "on link 1 or
+    2" in the verdict and the table, never "link 1" alone."""
+    r = with_incidents(fake_result())
+    incs = list(r.incidents)
+    incs[2] = dataclasses.replace(incs[2], link_candidates=(1, 2))
+    html, doc = build_report([dataclasses.replace(r, incidents=tuple(incs))])
+    validate(doc)
+    assert "1 quasi-static on link 1 or 2, ~30 N" in doc["logs"][0]["verdict"]
+    row = re.search(r'<tr id="log1-row2">(.*?)</tr>', html)
+    assert row and "link 1 or 2" in row.group(1), row
+    assert "the residuals cannot tell which" in row.group(1)
+    assert "link 2 or" not in html and "on link 1," not in doc["logs"][0]["verdict"]
+
+
 def test_sweep_table_is_short_and_its_plot_logarithmic() -> None:
     r = with_incidents(result_named("run.csv", "9" * 64, config=EVENTS_CFG))
     lab = Labels((ContactLabel(3.99, 4.12, 12.0, "impact", 2),

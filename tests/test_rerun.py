@@ -462,7 +462,8 @@ def test_no_reference_and_no_events(tmp_path: Path) -> None:
 def test_payload_changes_are_rows_at_their_onset_and_classification(tmp_path: Path) -> None:
     res = fake_result()
     change = {"t_start": 2.0, "t_classified": 5.0, "mass_kg": 1.25, "mass_se_kg": 0.01,
-              "values": {"m": 1.25}, "explained": 0.97, "mass_after_kg": 1.25}
+              "values": {"m": 1.25}, "explained": 0.97, "mass_after_kg": 1.25,
+              "as_log": "heavy.csv"}
     res = dataclasses.replace(res, payload_changes=(change,))
     path = tmp_path / "payload.rrd"
     write_rrd(res, path)
@@ -474,4 +475,5 @@ def test_payload_changes_are_rows_at_their_onset_and_classification(tmp_path: Pa
     info = next(ch.to_record_batch().to_pydict()["TextDocument:text"][0][0]
                 for ch in rr.chunk.RrdReader(path).store().stream()
                 if ch.entity_path == "/run/info")
-    assert "| P1 | 2.000 | +1.25 ± 0.01 | 97.0 % | 5.000 |" in info
+    assert ("| P1 | 2.000 | +1.25 ± 0.01 | 97.0 % | 5.000 | +1.25 kg: heavy.csv's load, as "
+            "fitted |") in info

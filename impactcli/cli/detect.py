@@ -40,15 +40,23 @@ def _fmt_row(s: SummaryRow, lasting: int) -> str:
             f"{s['adaptive']:>8} {s['static_loading']:>8} {s['static_baseline']:>8}")
 
 
-def _incident_line(k: int, inc: IncidentRow) -> str:
+def _link_cell(inc: IncidentRow) -> str:
+    """``link 2``, ``link 5 or 6`` (the residuals cannot tell), ``link ?``."""
+    from ..detect.incidents import link_words
+
+    return link_words(inc["link"], inc["link_candidates"], unknown="link ?")
+
+
+def _incident_line(k: int, inc: IncidentRow, link_width: int = 7) -> str:
     """``  1  12.040 s  link 2  ~14.5 N  transient  (adaptive, static_loading)``; ``k`` is
-    the incident's number (the report's: 1, 2, … over the counted incidents)."""
-    link = f"link {inc['link']}" if inc["link"] is not None else "link ?"
+    the incident's number (the report's: 1, 2, … over the counted incidents), ``link_width``
+    the link column's (``link 5 or 6`` when the residuals cannot tell)."""
+    link = _link_cell(inc)
     force = f"~{inc['force_n']:.3g} N" if inc["force_n"] is not None else "force ?"
     flag = ("  force not plausible (force_check in the timeline)"
             if inc["force_plausible"] is False else "")
-    return (f"  {k:>3}  {inc['t_start']:>9.3f} s  {link:<7} {force:>9}  {inc['contact']:<12} "
-            f"({', '.join(inc['detectors'])}){flag}")
+    return (f"  {k:>3}  {inc['t_start']:>9.3f} s  {link:<{link_width}} {force:>9}  "
+            f"{inc['contact']:<12} ({', '.join(inc['detectors'])}){flag}")
 
 
 def _lasting_line(k: int, x: dict[str, Any]) -> str:
@@ -348,10 +356,14 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
         click.echo(f"incidents of {first}:  #  start       link      "
                    "force  contact      detectors")
         # the counted incidents in time order: k is the incident's number (the report's)
+        width = max(len(_link_cell(inc)) for inc in lst[:MAX_INCIDENTS_LISTED])
         for k, inc in enumerate(lst[:MAX_INCIDENTS_LISTED], 1):
-            click.echo(_incident_line(k, inc))
+            click.echo(_incident_line(k, inc, max(7, width)))
         if len(lst) > MAX_INCIDENTS_LISTED:
             click.echo(f"  ... {len(lst) - MAX_INCIDENTS_LISTED} more (in the timeline)")
+        if any(len(inc["link_candidates"]) > 1 for inc in lst[:MAX_INCIDENTS_LISTED]):
+            click.echo("  (link A or B: the joints' residuals cannot tell which of those "
+                       "links was touched; link_candidates in the timeline)")
     if (len(ok) == 1 and one["torque_scale"] in UNVERIFIED
             and (one["incident_list"] or one["detection_floor"]
                  or loads[ok[0].log_path])):  # forces and the floor's N or N·m

@@ -188,6 +188,17 @@ class DataDefect:
                 "size": self.size, "joints": list(self.joints)}
 
 
+def link_words(link: int | None, candidates: Sequence[int] | None = (),
+               unknown: str = "link unknown") -> str:
+    """How an answer names an incident's link: ``link 5``, or ``link 5 or 6`` when the
+    residuals cannot tell those links apart (``link_candidates``, :mod:`.link_evidence`);
+    ``unknown`` when no link was isolated."""
+    if link is None:
+        return unknown
+    others = [str(c) for c in candidates or () if c != link]
+    return f"link {link}" + "".join(f" or {c}" for c in others)
+
+
 def settle_s(loading_cutoff_hz: float, threshold_window_s: float) -> float:
     """How long after a data defect the detectors still show it [s]: five time constants
     of the static-loading low-pass (its memory) plus the adaptive threshold's RMS window

@@ -15,6 +15,8 @@ from collections.abc import Sequence
 from typing import Any
 
 from .. import __version__
+from ..detect.incidents import link_words
+from ..detect.payload_change import whose_load
 
 #: Timeline on the log's own clock (a timestamp), as Rerun's MCAP import names it.
 LOG_TIMELINE = "message_log_time"
@@ -119,7 +121,8 @@ def markdown_summary(result: Any) -> str:
                   "|---|---|---|---|---|---|---|"]
         for name, inc in zip(names, incs, strict=True):
             force = f"{inc.force_n:.3g}" if inc.force_n is not None else "–"
-            link = str(inc.link) if inc.link is not None else "–"
+            link = ("–" if inc.link is None
+                    else link_words(inc.link, inc.link_candidates).removeprefix("link "))
             lines.append(f"| {name}{' (warm-up)' if inc.in_warmup else ''} | "
                          f"{inc.t_start:.3f} | {inc.t_end:.3f} | {link} | {force} | "
                          f"{inc.contact} | {', '.join(inc.detectors)} |")
@@ -136,12 +139,16 @@ def markdown_summary(result: Any) -> str:
     if changes:
         lines += ["", "Payload changes (a load picked or released: not incidents; the residual "
                   "carries the new load from the classification on):", "",
-                  "| # | at [s] | mass [kg] | of the step a mass | classified at [s] |",
-                  "|---|---|---|---|---|"]
+                  "| # | at [s] | mass [kg] | of the step a mass | classified at [s] | "
+                  "then carrying |",
+                  "|---|---|---|---|---|---|"]
         for k, c in enumerate(changes, 1):
+            known = c.get("as_log")
+            carrying = (f"{c['mass_after_kg']:+.3g} kg"
+                        + ("" if known is None else f": {whose_load(str(known))}"))
             lines.append(f"| P{k} | {c['t_start']:.3f} | {c['mass_kg']:+.3g} ± "
                          f"{c['mass_se_kg']:.2g} | {100 * c['explained']:.1f} % | "
-                         f"{c['t_classified']:.3f} |")
+                         f"{c['t_classified']:.3f} | {carrying} |")
     lines += ["", "| joint | v_stat | v0 | vL |", "|---|---|---|---|"]
     for joint in log.joint_names:
         th = result.thresholds.get(joint, {})
@@ -181,7 +188,7 @@ def incident_names(incs: Sequence[Any]) -> list[str]:
 def incident_label(k: int | str, inc: Any) -> str:
     """The span label of the incident named ``k`` (:func:`incident_names`):
     ``#k link L · F N · type``."""
-    link = f"link {inc.link}" if inc.link is not None else "link ?"
+    link = link_words(inc.link, inc.link_candidates, unknown="link ?")
     force = f"{inc.force_n:.3g} N" if inc.force_n is not None else "force ?"
     return f"#{k} {link} · {force} · {inc.contact}" + (" (warm-up)" if inc.in_warmup else "") \
         + _defect_note(inc, " ({kind}: not counted)")
@@ -189,7 +196,7 @@ def incident_label(k: int | str, inc: Any) -> str:
 
 def incident_text(k: int | str, inc: Any) -> str:
     """The text-log line of the incident named ``k`` (:func:`incident_names`)."""
-    link = f"link {inc.link}" if inc.link is not None else "link unknown"
+    link = link_words(inc.link, inc.link_candidates)
     force = (f"~{inc.force_n:.3g} N ({inc.force_method})" if inc.force_n is not None
              else "force unknown (no kinematics)")
     text = (f"incident #{k}: {link}, {force}, {inc.contact} contact; "

@@ -85,6 +85,7 @@ class IncidentRow(TypedDict):
 
     t_start: float
     link: int | None
+    link_candidates: list[int]
     force_n: float | None
     contact: str
     detectors: list[str]
@@ -344,7 +345,8 @@ def _summary(job: DetectJob, result: DetectionResult) -> SummaryRow:
         "generators": {j: g["generator"] for j, g in result.generators.items()},
         "incidents": len(result.counted_incidents()),
         "incident_list": [
-            {"t_start": i.t_start, "link": i.link, "force_n": i.force_n, "contact": i.contact,
+            {"t_start": i.t_start, "link": i.link, "link_candidates": list(i.link_candidates),
+             "force_n": i.force_n, "contact": i.contact,
              "detectors": list(i.detectors), "force_plausible": i.force_plausible}
             for i in result.counted_incidents()],
         "defect_incident_list": [

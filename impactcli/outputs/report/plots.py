@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ...detect.incidents import group_events
+from ...detect.incidents import group_events, link_words
 from ...types import DETECTORS, DetectionResult, Labels
 from .. import svgplot
 from .common import (
@@ -120,7 +120,7 @@ def incident_figures(result: DetectionResult, incidents: Sequence[dict[str, Any]
         joints = _plot_joints(result, inc.get("joints") or [], inc.get("link"), chain)
         how = (f"~{approx(inc['force_n'])} N" if inc.get("force_n") is not None
                else "no force estimate")
-        where = f"link {inc['link']}" if inc.get("link") is not None else "link unknown"
+        where = link_words(inc.get("link"), inc.get("link_candidates"))
         evs = ", ".join(f"#{k + 1}" for k in inc.get("events") or [])
         fig = _figure(result, samples, joints, inc["t_start"] - EVENT_WINDOW_S,
                       inc["t_end"] + EVENT_WINDOW_S, labels, ids)

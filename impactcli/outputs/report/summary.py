@@ -19,6 +19,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+from ...detect.incidents import link_words
 from .common import CONTACT_TEXT, PRODUCT_DETECTORS, approx, e, ratio_cell, utc
 
 CONTACT_ORDER = ("transient", "quasi_static", "unknown")
@@ -192,20 +193,24 @@ def _verdict(incidents: Sequence[dict[str, Any]], known: bool, alarms_counted: i
             return f"{loads[0].upper()}{loads[1:]}; no incident after warm-up{tail}."
         return f"No incident after warm-up{tail}" + (f"; {floor}." if floor else ".")
     clock = _clock(counted)
-    groups: dict[tuple[str, int | None], list[dict[str, Any]]] = {}
+    # one group per kind and link; "link 5 or 6" (the residuals cannot tell) is its own
+    Group = tuple[str, int | None, tuple[int, ...]]
+    groups: dict[Group, list[dict[str, Any]]] = {}
     for i in counted:
-        groups.setdefault((i.get("contact") or "unknown", i.get("link")), []).append(i)
+        others = tuple(c for c in i.get("link_candidates") or () if c != i.get("link"))
+        groups.setdefault((i.get("contact") or "unknown", i.get("link"), others),
+                          []).append(i)
 
-    def order(kv: tuple[tuple[str, int | None], list[dict[str, Any]]]) -> tuple[Any, ...]:
-        (kind, link), items = kv
+    def order(kv: tuple[Group, list[dict[str, Any]]]) -> tuple[Any, ...]:
+        (kind, link, cands), items = kv
         rank = CONTACT_ORDER.index(kind) if kind in CONTACT_ORDER else len(CONTACT_ORDER)
-        return (-len(items), rank, link if link is not None else 10**6)
+        return (-len(items), rank, link if link is not None else 10**6, cands)
 
     parts = []
-    for (kind, link), items in sorted(groups.items(), key=order):
+    for (kind, link, cands), items in sorted(groups.items(), key=order):
         what = (f"{len(items)} of unknown kind" if kind == "unknown"
                 else f"{len(items)} {CONTACT_TEXT.get(kind, kind)}")
-        where = f"on link {link}" if link is not None else "on a link the residuals cannot say"
+        where = "on " + link_words(link, cands, unknown="a link the residuals cannot say")
         parts.append(f"{what} {where}, {_how_hard(items, clock)}")
     n = len(counted)
     head = f"{n} incident{'s' if n != 1 else ''}"
@@ -291,11 +296,9 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
         if r.get("force_plausible") is False:
             force += (' <span class="bad">implausible: '
                       f'{e(r.get("force_check") or "beyond what the arm can exert")}</span>')
-        link = f'link {r["link"]}' if r.get("link") is not None else "link unknown"
+        link = e(link_words(r.get("link"), r.get("link_candidates")))
         if r.get("link_candidates") and len(r["link_candidates"]) > 1:
-            link += (' <span class="note">(or link '
-                     + " or ".join(str(c) for c in r["link_candidates"] if c != r.get("link"))
-                     + ": the residuals cannot tell)</span>")
+            link += ' <span class="note">(the residuals cannot tell which)</span>'
         ratio = ("—" if r.get("peak_ratio") is None else
                  f'{r["peak_ratio"]:.1f}× <span class="note">{e(r["peak_ratio_detector"])}</span>')
         plot = f'<a href="#{anchor}-inc{n}">plot</a>' if pos <= plotted else ""
