@@ -286,6 +286,25 @@ def test_a_pick_and_a_release_are_payload_changes_not_contacts(
         assert any(p.start - 0.02 <= i["t_start"] <= p.end + 0.25 for i in counted), p
 
 
+def test_an_uncalibrated_run_says_it_does_not_tell_loads_from_contacts(
+        logs: dict[str, Path], tmp_path: Path) -> None:
+    """Without a config the model and thresholds come from the log itself, whatever it
+    carries: no payload change is classified, and the run says that a load picked or placed
+    may show as an incident — where its model could weigh one (kinematics), not where it
+    could not anyway (a payload without kinematics stays a lasting load)."""
+    log, _, _ = _pick_and_place(tmp_path, pushes=False)
+    said = "a load picked or placed mid-log may show as an incident"
+    for extra, says in ((["--robot", str(logs["robot"])], True), ([], False)):
+        out = tmp_path / f"out{len(extra)}"
+        r = CliRunner().invoke(main, ["detect", str(log), "-o", str(out), *extra])
+        assert r.exit_code == 0, r.output
+        tl = json.loads((out / "pnp_quiet.timeline.json").read_text("utf-8"))
+        assert "payload_changes" not in tl  # not looked for (a config's run lists them)
+        assert "uncalibrated run" in r.stderr
+        assert (said in r.stderr) is says, r.stderr
+        assert any(said in w for w in tl["warnings"]) is says
+
+
 def test_payload_changes_trip_no_gate(two_loads: Path, tmp_path: Path) -> None:
     log, _, _ = _pick_and_place(tmp_path, pushes=False)
     tl, code, r = _detect(log, two_loads, tmp_path / "out", "--fail-on-detect")

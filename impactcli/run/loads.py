@@ -229,24 +229,30 @@ def _model_error(model: RigidModel) -> np.ndarray | None:
         return None
 
 
+def weighs_loads(plan: Any) -> bool:
+    """Whether a replay's model can weigh a payload and its residual carry it: kinematics
+    (a payload basis) and every joint on ``inverse_dynamics`` (the tool's own model's
+    eq. 7–8; the observer's state holds the old load, the controller's channels hold no
+    model of ours)."""
+    model = plan.model
+    return (model is not None
+            and all(c.generator == "inverse_dynamics" for c in plan.choices)
+            and payload.basis(model.kind, model.joint_names, model.structure) is not None)
+
+
 def monitor_for(plan: Any, given: dict[str, np.ndarray] | None,
                 sample_rate_hz: float) -> Any:
     """The payload-change monitor of a replay (:class:`~impactcli.detect.payload_change.
-    PayloadMonitor`), None where it cannot run: no thresholds calibrated, a model without
-    kinematics, a joint whose generator is not ``inverse_dynamics`` (the tool's own
-    model's eq. 7–8; the observer's state holds the old load, the controller's channels
-    hold no model of ours)."""
+    PayloadMonitor`), None where it cannot run: no thresholds calibrated, or a model that
+    cannot weigh a load (:func:`weighs_loads`)."""
     from ..detect.incidents import settle_s
     from ..detect.payload_change import PayloadMonitor
 
     model, cfg = plan.model, plan.cfg
-    if given is None or model is None:
-        return None
-    if any(c.generator != "inverse_dynamics" for c in plan.choices):
+    if given is None or not weighs_loads(plan):
         return None
     bb = payload.basis(model.kind, model.joint_names, model.structure)
-    if bb is None:
-        return None
+    assert bb is not None  # weighs_loads
     start = plan.start_load
     used = start if start is not None and start.verdict == "used" else None
     pi0 = start_pi(model, bb[1], used)

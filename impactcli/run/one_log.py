@@ -71,7 +71,7 @@ from ..types import (
     SignalsChunk,
 )
 from .islands import Islands
-from .loads import monitor_for, unseen_loads
+from .loads import monitor_for, unseen_loads, weighs_loads
 from .plan import ChunkFeed, Passes, RunPlan, calibrated_thresholds, plan_run, with_generator
 from .replay import ChunkReplay, Replayer, ReplaySetup, ReplayState
 from .run_warnings import (
@@ -270,7 +270,7 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         warn_replayed(caught, since, plan, feed, rp)
         if given is None:
             cfg = uncalibrated_config(cfg, joints, margins)
-            warn_uncalibrated(where)
+            warn_uncalibrated(where, weighs_loads(plan))
         since = caught.mark()  # the incidents' warnings follow the events' (as ever)
         ctx = incident_context(joints, plan.full_joints, setup.robot,
                                None if plan.model is None else plan.model.to_dict(),

@@ -76,13 +76,18 @@ class CaughtWarnings:
                 warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 
 
-def warn_uncalibrated(where: str) -> None:
-    """The warning of a run whose thresholds come from the log itself."""
+def warn_uncalibrated(where: str, weighs_loads: bool = False) -> None:
+    """The warning of a run whose thresholds come from the log itself; ``weighs_loads``:
+    its model could weigh a payload (kinematics, the tool's own residual), which a config
+    would have it tell from a contact (docs/method.md §5c) and this run does not."""
+    loads = (", and a load picked or placed mid-log may show as an incident (payload "
+             "changes are told from contacts only against a config's model and thresholds, "
+             "not ones taken from a log that may carry the load)" if weighs_loads else "")
     warnings.warn(
         f"{where}: uncalibrated run — thresholds set from this log's own "
         f"statistics ({UNCALIBRATED_MARGIN:g} × the {UNCALIBRATED_QUANTILE:g}-quantile of "
         f"its {UNCALIBRATED_BLOCK_S:g} s maxima after warm-up): only contacts that stand "
-        "out well above its motion are found; calibrate on collision-free logs "
+        f"out well above its motion are found{loads}; calibrate on collision-free logs "
         "(impactcli calibrate) for sensitivity and a replay the robot could have run",
         ImpactWarning, stacklevel=3,
     )
