@@ -143,6 +143,14 @@ def test_agreement_is_beyond_a_floats_last_bits_only(monkeypatch: pytest.MonkeyP
     assert agree("-", "link 2 ~4.8712345 N", "link 2 ~4.87123450001 N")
     assert not agree("-", "link 2 ~4.87 N", "link 2 ~4.88 N")
     assert not agree("-", "link 2 ~4.87 N", "link 3 ~4.87 N")
+    assert not agree("-", "n 3", "n 3.0") and not agree("t.json", '{"x": 3}', '{"x": 3.0}')
+    for a, b in (("Infinity", "3.0"), ("Infinity", "-Infinity"), ("NaN", "1.0")):
+        assert not agree("t.json", f'{{"x": {a}}}', f'{{"x": {b}}}'), (a, b)
+    assert agree("t.json", '{"x": NaN}', '{"x": NaN}')
+    # a report's HTML: its skeleton's sha256 must be the same, its bytes' need not
+    rec = {"exit_code": 0, "sha256": {"r.html": sha}, "content": {"r.html": sha}}
+    assert make_golden._record_agrees(rec, {**rec, "sha256": {"r.html": sha2}})
+    assert not make_golden._record_agrees(rec, {**rec, "content": {"r.html": sha2}})
     monkeypatch.setattr(make_golden, "EXACT", True)
     assert not agree("t.json", old, with_(force_n=18.77741974286243))
     assert agree("t.json", old, old)
@@ -151,9 +159,10 @@ def test_agreement_is_beyond_a_floats_last_bits_only(monkeypatch: pytest.MonkeyP
 def test_a_signals_summary_sees_a_flipped_decision_not_a_last_bit(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Two Parquets of signals agree when each residual sample moved by its last bit, and
-    differ when one decision sample flipped or one residual sample moved by 0.01 of its
-    standard deviation (Σ|x| by 6e-6 of itself: a column's summary is five numbers, so its
-    grain is a sum's RTOL; the timeline's goldens hold the answers drawn from it)."""
+    differ when one decision sample flipped, the decisions moved by 5 samples, or one
+    residual sample moved by 0.01 of its standard deviation (Σ|x| by 6e-6 of itself: a
+    column's summary is six numbers, so its grain is a sum's RTOL; the timeline's goldens
+    hold the answers drawn from it)."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -174,6 +183,6 @@ def test_a_signals_summary_sees_a_flipped_decision_not_a_last_bit(
     moved = r.copy()
     moved[11] += 1e-2
     for res, dec, same in ((np.nextafter(r, np.inf), d, True), (r, flipped, False),
-                           (moved, d, False)):
+                           (r, np.roll(d, 5), False), (moved, d, False)):
         got = {"exit_code": 0, "sha256": {"s": "y"}, "content": {"s": summary(res, dec)}}
         assert make_golden._record_agrees(rec, got) is same
