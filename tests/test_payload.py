@@ -385,7 +385,8 @@ def test_a_spatial_arm_picks_and_places_on_its_own_model(tmp_path: Path) -> None
             assert abs(c["t_start"] - t) < 1.0 and abs(c["mass_kg"] - m) < 0.25 * kg, c
             assert abs(c["values"]["mz"] / c["mass_kg"] - com[2]) < 0.01, c["values"]
             assert c["as_log"].endswith(log), c
-        assert f"now carrying +0 kg: {ch[-1]['as_log']}'s load, as fitted" in \
+        assert (f"now carrying +0 kg beyond the model's load: {ch[-1]['as_log']}'s load, "
+                "as fitted") in \
             r.stdout, r.stdout  # type: ignore[attr-defined]
         start = tl["input"]["payload"]
         if name == "place":  # it starts carrying the heavy log's load: that fit is used

@@ -475,5 +475,7 @@ def test_payload_changes_are_rows_at_their_onset_and_classification(tmp_path: Pa
     info = next(ch.to_record_batch().to_pydict()["TextDocument:text"][0][0]
                 for ch in rr.chunk.RrdReader(path).store().stream()
                 if ch.entity_path == "/run/info")
-    assert ("| P1 | 2.000 | +1.25 ± 0.01 | 97.0 % | 5.000 | +1.25 kg: heavy.csv's load, as "
-            "fitted |") in info
+    assert ("| P1 | 2.000 | +1.25 ± 0.01 | 97.0 % | 5.000 | +1.25 kg beyond the model's "
+            "load: heavy.csv's load, as fitted |") in info
+    assert "the residual now carries +1.25 kg beyond the model's load: heavy.csv's load" \
+        in texts[1]

@@ -73,15 +73,11 @@ def _lasting_line(k: int, x: dict[str, Any]) -> str:
 def payload_change_line(k: int, c: dict[str, Any]) -> str:
     """``  P1   20.092 s  +0.994 kg (± 0.004; 99.7 % of the step a mass), classified at
     23.092 s``."""
-    from ..detect.payload_change import whose_load
+    from ..detect.payload_change import carrying_text
 
-    known = c.get("as_log")
-    whose = None if known is None else whose_load(str(known))
     return (f"  P{k:<2} {c['t_start']:>9.3f} s  {c['mass_kg']:+.3g} kg (± "
             f"{c['mass_se_kg']:.2g}; {100 * c['explained']:.1f} % of the step a mass), "
-            f"classified at {c['t_classified']:.3f} s"
-            + ("" if whose is None else
-               f"; now carrying {c['mass_after_kg']:+.3g} kg: {whose}"))
+            f"classified at {c['t_classified']:.3f} s; now carrying {carrying_text(c)}")
 
 
 def lasting_loads_of(outcome: JobOutcome) -> list[dict[str, Any]]:
@@ -353,15 +349,16 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
     if len(ok) == 1 and one["incident_list"]:
         lst = one["incident_list"]
         first = shown(ok[0].log_path)
-        click.echo(f"incidents of {first}:  #  start       link      "
+        cells = [_link_cell(inc) for inc in lst[:MAX_INCIDENTS_LISTED]]
+        width = max(7, *(len(c) for c in cells))
+        click.echo(f"incidents of {first}:  #  start       {'link':<{width}}   "
                    "force  contact      detectors")
         # the counted incidents in time order: k is the incident's number (the report's)
-        width = max(len(_link_cell(inc)) for inc in lst[:MAX_INCIDENTS_LISTED])
         for k, inc in enumerate(lst[:MAX_INCIDENTS_LISTED], 1):
-            click.echo(_incident_line(k, inc, max(7, width)))
+            click.echo(_incident_line(k, inc, width))
         if len(lst) > MAX_INCIDENTS_LISTED:
             click.echo(f"  ... {len(lst) - MAX_INCIDENTS_LISTED} more (in the timeline)")
-        if any(len(inc["link_candidates"]) > 1 for inc in lst[:MAX_INCIDENTS_LISTED]):
+        if any(" or " in c for c in cells):
             click.echo("  (link A or B: the joints' residuals cannot tell which of those "
                        "links was touched; link_candidates in the timeline)")
     if (len(ok) == 1 and one["torque_scale"] in UNVERIFIED

@@ -190,13 +190,14 @@ class DataDefect:
 
 def link_words(link: int | None, candidates: Sequence[int] | None = (),
                unknown: str = "link unknown") -> str:
-    """How an answer names an incident's link: ``link 5``, or ``link 5 or 6`` when the
-    residuals cannot tell those links apart (``link_candidates``, :mod:`.link_evidence`);
-    ``unknown`` when no link was isolated."""
+    """How an answer names an incident's link: ``link 5``, or ``link 5 or 6`` (``link 2, 3
+    or 4``) when the residuals cannot tell those links apart (``link_candidates``,
+    :mod:`.link_evidence`), ascending; ``unknown`` when no link was isolated."""
     if link is None:
         return unknown
-    others = [str(c) for c in candidates or () if c != link]
-    return f"link {link}" + "".join(f" or {c}" for c in others)
+    links = [str(c) for c in sorted({link, *(candidates or ())})]
+    return "link " + (links[0] if len(links) == 1 else
+                      f"{', '.join(links[:-1])} or {links[-1]}")
 
 
 def settle_s(loading_cutoff_hz: float, threshold_window_s: float) -> float:

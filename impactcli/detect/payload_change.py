@@ -68,6 +68,17 @@ def whose_load(as_log: str) -> str:
     return "the model's own load" if as_log == OWN_LOAD else f"{as_log}'s load, as fitted"
 
 
+def carrying_text(change: dict[str, Any]) -> str:
+    """The load a change (its ``to_dict``) leaves the arm carrying, as every output says
+    it: ``+3 kg beyond the model's load``, ``… : heavy.csv's load, as fitted`` when it is a
+    calibration log's (``as_log``), or ``the model's own load``."""
+    known = change.get("as_log")
+    if known == OWN_LOAD:
+        return whose_load(OWN_LOAD)
+    return (f"{change['mass_after_kg']:+.3g} kg beyond the model's load"
+            + ("" if known is None else f": {whose_load(str(known))}"))
+
+
 @dataclass(frozen=True)
 class PayloadChange:
     """A payload change (module docstring): ``t_start`` the alarm's onset, ``t_classified``

@@ -435,7 +435,7 @@ def write_payload_changes(rec: Any, result: Any, at_times: Callable[[np.ndarray]
     its classification, on ``/payload_changes``."""
     import rerun as rr
 
-    from ..detect.payload_change import whose_load
+    from ..detect.payload_change import carrying_text
 
     changes = list(result.payload_changes or ())
     if not changes:
@@ -446,9 +446,7 @@ def write_payload_changes(rec: Any, result: Any, at_times: Callable[[np.ndarray]
                     f"classified at {c['t_classified']:.3f} s") for k, c in
                    enumerate(changes, 1)]
                   + [(c["t_classified"], f"payload change P{k} classified: the residual now "
-                      f"carries {c['mass_after_kg']:+.3g} kg beyond the model's load"
-                      + (f" ({whose_load(str(c['as_log']))})" if c.get("as_log") else ""))
-                     for k, c in enumerate(changes, 1)])
+                      f"carries {carrying_text(c)}") for k, c in enumerate(changes, 1)])
     at = np.array([t0 + round(t * 1e9) for t, _ in rows], dtype=np.int64)
     rec.send_columns("/payload_changes", indexes=at_times(at), columns=rr.TextLog.columns(
         text=[txt for _, txt in rows], level=[rr.TextLogLevel.INFO] * len(rows)))

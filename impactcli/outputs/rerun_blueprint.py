@@ -16,7 +16,7 @@ from typing import Any
 
 from .. import __version__
 from ..detect.incidents import link_words
-from ..detect.payload_change import whose_load
+from ..detect.payload_change import carrying_text
 
 #: Timeline on the log's own clock (a timestamp), as Rerun's MCAP import names it.
 LOG_TIMELINE = "message_log_time"
@@ -143,12 +143,9 @@ def markdown_summary(result: Any) -> str:
                   "then carrying |",
                   "|---|---|---|---|---|---|"]
         for k, c in enumerate(changes, 1):
-            known = c.get("as_log")
-            carrying = (f"{c['mass_after_kg']:+.3g} kg"
-                        + ("" if known is None else f": {whose_load(str(known))}"))
             lines.append(f"| P{k} | {c['t_start']:.3f} | {c['mass_kg']:+.3g} ± "
                          f"{c['mass_se_kg']:.2g} | {100 * c['explained']:.1f} % | "
-                         f"{c['t_classified']:.3f} | {carrying} |")
+                         f"{c['t_classified']:.3f} | {carrying_text(c)} |")
     lines += ["", "| joint | v_stat | v0 | vL |", "|---|---|---|---|"]
     for joint in log.joint_names:
         th = result.thresholds.get(joint, {})

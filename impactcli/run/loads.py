@@ -229,15 +229,20 @@ def _model_error(model: RigidModel) -> np.ndarray | None:
         return None
 
 
-def weighs_loads(plan: Any) -> bool:
-    """Whether a replay's model can weigh a payload and its residual carry it: kinematics
-    (a payload basis) and every joint on ``inverse_dynamics`` (the tool's own model's
-    eq. 7–8; the observer's state holds the old load, the controller's channels hold no
-    model of ours)."""
+def load_basis(plan: Any) -> tuple[np.ndarray, tuple[str, ...]] | None:
+    """The payload basis (B, names) of a replay whose model can weigh a payload and whose
+    residual can carry it — kinematics, and every joint on ``inverse_dynamics`` (the tool's
+    own model's eq. 7–8; the observer's state holds the old load, the controller's channels
+    hold no model of ours) — else None."""
     model = plan.model
-    return (model is not None
-            and all(c.generator == "inverse_dynamics" for c in plan.choices)
-            and payload.basis(model.kind, model.joint_names, model.structure) is not None)
+    if model is None or any(c.generator != "inverse_dynamics" for c in plan.choices):
+        return None
+    return payload.basis(model.kind, model.joint_names, model.structure)
+
+
+def weighs_loads(plan: Any) -> bool:
+    """Whether a replay's model can weigh a payload (:func:`load_basis`)."""
+    return load_basis(plan) is not None
 
 
 def monitor_for(plan: Any, given: dict[str, np.ndarray] | None,
@@ -249,10 +254,9 @@ def monitor_for(plan: Any, given: dict[str, np.ndarray] | None,
     from ..detect.payload_change import PayloadMonitor
 
     model, cfg = plan.model, plan.cfg
-    if given is None or not weighs_loads(plan):
+    bb = load_basis(plan)
+    if given is None or bb is None:
         return None
-    bb = payload.basis(model.kind, model.joint_names, model.structure)
-    assert bb is not None  # weighs_loads
     start = plan.start_load
     used = start if start is not None and start.verdict == "used" else None
     pi0 = start_pi(model, bb[1], used)

@@ -296,9 +296,9 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
         if r.get("force_plausible") is False:
             force += (' <span class="bad">implausible: '
                       f'{e(r.get("force_check") or "beyond what the arm can exert")}</span>')
-        link = e(link_words(r.get("link"), r.get("link_candidates")))
-        if r.get("link_candidates") and len(r["link_candidates"]) > 1:
-            link += ' <span class="note">(the residuals cannot tell which)</span>'
+        words = link_words(r.get("link"), r.get("link_candidates"))
+        link = e(words) + (' <span class="note">(the residuals cannot tell which)</span>'
+                           if " or " in words else "")
         ratio = ("—" if r.get("peak_ratio") is None else
                  f'{r["peak_ratio"]:.1f}× <span class="note">{e(r["peak_ratio_detector"])}</span>')
         plot = f'<a href="#{anchor}-inc{n}">plot</a>' if pos <= plotted else ""
@@ -330,10 +330,10 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
         f'<ul class="tight">{notes}</ul></div>')
 
 
-def _whose(as_log: str) -> str:
-    from ...detect.payload_change import whose_load  # the one wording, imported when used
+def _carrying(change: dict[str, Any]) -> str:
+    from ...detect.payload_change import carrying_text  # the one wording, imported when used
 
-    return whose_load(as_log)
+    return carrying_text(change)
 
 
 def payload_table_html(changes: Sequence[dict[str, Any]], anchor: str) -> str:
@@ -346,9 +346,7 @@ def payload_table_html(changes: Sequence[dict[str, Any]], anchor: str) -> str:
         f'<td class="num">{c["t_start"]:.3f} s</td><td class="num"><b>{c["mass_kg"]:+.3g} kg'
         f'</b> ± {c["mass_se_kg"]:.2g}</td><td class="num">{100 * c["explained"]:.1f} %</td>'
         f'<td class="num">{c["t_classified"]:.3f} s</td>'
-        f'<td class="num">{c["mass_after_kg"]:+.3g} kg'
-        + (f' ({e(_whose(str(c["as_log"])))})' if c.get("as_log") else "")
-        + '</td></tr>'
+        f'<td class="num">{e(_carrying(c))}</td></tr>'
         for k, c in enumerate(changes, 1))
     return (
         f'<div class="wide"><table class="incidents" id="{anchor}-payloads"><thead><tr>'
