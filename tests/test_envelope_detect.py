@@ -86,6 +86,45 @@ def test_the_report_says_what_moved_outside(tmp_path: Path) -> None:
         assert (items[0]["data"]["share"] > 0.1) is outside
 
 
+def test_a_log_at_other_poses_says_its_posture_left_the_calibrated_range(
+        tmp_path: Path) -> None:
+    """The same motion with the shoulder turned beyond every pose the calibration logs
+    held: velocity and acceleration stay inside the envelope (nothing counted outside), but
+    the posture is named — in the timeline, the warning and the report, which then does not
+    say that the stated false-alarm rate applies."""
+    from impactcli.config import load_config
+
+    env = load_config(CONFIG).calibration.motion_envelope
+    assert env is not None
+    _, hi = env["joints"]["shoulder"]["position"]
+    log = read_log(LOG)
+    shift = np.zeros(log.position.shape[1])
+    j = log.joint_names.index("shoulder")
+    lowest = min(float(log.position[:, j].min()),
+                 float(np.nanmin(log.position[:, j] if log.position_ref is None
+                                 else log.position_ref[:, j])))
+    shift[j] = hi - lowest + 0.2
+    turned = dataclasses.replace(
+        log, position=log.position + shift,
+        position_ref=None if log.position_ref is None else log.position_ref + shift)
+    path = tmp_path / "turned.csv"
+    write_log(turned, path)
+    doc, err = _detect(path, tmp_path / "o")
+    me = doc["motion_envelope"]
+    assert me["outside"] == 0 and me["posture_outside"] == {"shoulder": 1.0}, me
+    assert "its posture left the calibration logs' position range on shoulder (100 %)" in err
+    inside, _ = _detect(LOG, tmp_path / "o2")
+    assert "posture_outside" not in inside["motion_envelope"]
+    out = tmp_path / "r.json"
+    r = CliRunner().invoke(main, ["report", str(path), "--config", str(CONFIG), "-o",
+                                  str(tmp_path / "r.html"), "--json", str(out)])
+    assert r.exit_code == 0, r.output
+    item = next(i for i in _walk(json.loads(out.read_text())) if isinstance(i, dict)
+                and i.get("code") == "motion-envelope")
+    assert "posture left the calibration logs' position range on shoulder" in item["text"]
+    assert "rate applies" not in item["text"]
+
+
 def _larger_motion(log: RobotLog, path: Path) -> Path:
     """``log`` with 2.5× its motion about its mean posture, at its own rate, written to
     ``path``."""

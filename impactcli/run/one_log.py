@@ -33,7 +33,12 @@ import numpy as np
 
 from ..config import THRESHOLD_KEYS, CalibrationRecord, DetectorConfig
 from ..detect.adaptive import AdaptiveResult, default_threads
-from ..detect.envelope import EnvelopeCheck, MotionEnvelope, outside_share_text
+from ..detect.envelope import (
+    EnvelopeCheck,
+    MotionEnvelope,
+    outside_share_text,
+    posture_text,
+)
 from ..detect.events import extract_events
 from ..detect.floor import FloorAccumulator, pulse_gain
 from ..detect.incident_builder import (
@@ -306,7 +311,8 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
                                                                               i.t_end))
                          for i in incidents]
             warn_outside_envelope(where, outside_share_text(share), share.outside,
-                                  sum(1 for i in incidents if i.outside_envelope))
+                                  sum(1 for i in incidents if i.outside_envelope),
+                                  posture_text(share))
         rates = rp.last.rates
         floor = floor_acc.finish(
             rp.warmup.index, rp.warmup.end_index,

@@ -212,12 +212,17 @@ def warn_long_events(where: str, events: Sequence[Any]) -> None:
             ImpactWarning, stacklevel=3)
 
 
-def warn_outside_envelope(where: str, text: str, outside: int, touching: int) -> None:
+def warn_outside_envelope(where: str, text: str, outside: int, touching: int,
+                          posture: str = "") -> None:
     """The log moved outside the calibration's motion envelope after warm-up
     (:func:`impactcli.detect.envelope.outside_share_text`): the thresholds' stated
-    false-alarm rate does not hold there (docs/validation.md)."""
+    false-alarm rate does not hold there (docs/validation.md); ``posture``: its poses left
+    the calibration's (:func:`impactcli.detect.envelope.posture_text`), "" if not."""
     if outside > 0:
         tail = (f"; {touching} incident(s) touch it (outside_envelope in the timeline)"
                 if touching else "")
         warnings.warn(f"{where}: {text}: the thresholds' stated false-alarm rate was not "
                       f"measured on such motion{tail}", ImpactWarning, stacklevel=2)
+    if posture:
+        warnings.warn(f"{where}: {posture} (motion_envelope.posture_outside in the timeline)",
+                      ImpactWarning, stacklevel=2)
