@@ -341,3 +341,35 @@ def test_a_rate_config_without_its_rate_is_refused(assist: tuple, tmp_path: Path
     assert "edited.toml" in r.stderr and "calibration/false_alarm_rate" in r.stderr
     assert "'per_hour' is a required property" in r.stderr and "Traceback" not in r.output
     assert not (tmp_path / "out" / "assist_pushes.timeline.json").exists()
+
+
+def test_a_threshold_above_its_joints_effort_limit_is_said() -> None:
+    """A UR10e's shoulder_lift holds 330 N·m (the URDF's effort limit): a static_loading
+    threshold of 734 N·m there checks the joint in name only, and calibrate says so, naming
+    joint, detector and both figures; thresholds within the limits, or a model without
+    effort limits, say nothing."""
+    import warnings
+
+    from impactcli.config import DetectorConfig, ThresholdsConfig
+    from impactcli.errors import ImpactWarning
+    from impactcli.logs.published_arms import arm, urdf_xml
+    from impactcli.run.calibration import warn_beyond_effort
+
+    ur10e = arm("ur10e")
+    assert ur10e is not None
+    joints = ("shoulder_pan_joint", "shoulder_lift_joint")
+    model = {"kind": "urdf", "structure": {"urdf_xml": urdf_xml(ur10e)}}
+
+    def cfg(vl: float, m: dict | None = model) -> DetectorConfig:
+        small = {j: 1.0 for j in joints}
+        return DetectorConfig(model=m, thresholds=ThresholdsConfig(
+            v_stat=small, v0=small, vL={"shoulder_pan_joint": 1.0,
+                                        "shoulder_lift_joint": vl}))
+
+    with pytest.warns(ImpactWarning, match=r"shoulder_lift_joint static_loading 733\.8 > 330"
+                      r": a contact would have to load the joint beyond"):
+        warn_beyond_effort(cfg(733.8), joints)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        warn_beyond_effort(cfg(329.0), joints)
+        warn_beyond_effort(cfg(733.8, {"kind": "planar", "structure": {}}), joints)

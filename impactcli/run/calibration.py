@@ -242,7 +242,27 @@ def calibrate_run(
                                     vL=table["static_loading"]),
         calibration=record, model=None if model is None else model.to_dict(),
     )
+    warn_beyond_effort(out, joints)
     return Calibrated(out, rate)
+
+
+def warn_beyond_effort(cfg: DetectorConfig, joints: Sequence[str]) -> None:
+    """A warning per threshold above its joint's effort limit (a URDF's ``<limit
+    effort>``): a contact would have to load that joint beyond what its motor exerts to be
+    seen by that detector there — a joint checked in name only."""
+    from ..detect.incident_builder import urdf_efforts
+
+    effort = urdf_efforts(cfg.model, tuple(joints))
+    over = [f"{j} {d} {cfg.thresholds.of(d)[j]:.4g} > {effort[k]:.4g}"
+            for k, j in enumerate(joints) if np.isfinite(effort[k])
+            for d in DETECTORS if cfg.thresholds.of(d).get(j, 0.0) > effort[k]]
+    if over:
+        warnings.warn(
+            f"thresholds above their joint's effort limit (the URDF's, N·m): {', '.join(over)}"
+            ": a contact would have to load the joint beyond what its motor exerts to be "
+            "seen there — the calibration logs' residual on it is that large (a wrong unit "
+            "or torque constant, a model that does not fit them, or too little free motion "
+            "for the rate asked)", ImpactWarning, stacklevel=3)
 
 
 def _rate_logs(replays: list[_Replayed], excluded: list[dict[str, Any]], warn: bool = True
