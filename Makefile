@@ -28,7 +28,7 @@ demo: $(STAMP)
 	@echo "Next:"
 	@echo "  $(BIN)/impactcli report sample_logs/csv/assist_impacts.csv.gz --config sample_logs/assist_like.config.toml -o out/report.html   # the safety-audit report"
 	@echo "  $(BIN)/impactcli evaluate out/demo/assist_impacts.timeline.json   # against the log's labels"
-	@echo "  $(BIN)/rerun out/demo/assist_impacts.rrd   # residuals against thresholds in the Rerun viewer"
+	@echo "  $(BIN)/impactcli view out/demo/assist_impacts.rrd   # residuals against thresholds in the Rerun viewer (needs a display: elsewhere, rerun FILE.rrd)"
 
 # Timeline, Rerun recording and one audit report (HTML + JSON) for every sample log, CSV
 # and MCAP copies in separate folders (their stems collide), each arm with its own config.
