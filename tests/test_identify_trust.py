@@ -49,6 +49,32 @@ def test_panda_on_a_two_joint_log_is_exit_3_with_or_without_a_config(
     assert not (tmp_path / "out" / "assist_free_p2p.timeline.json").exists()
 
 
+def test_a_log_naming_joints_otherwise_is_shown_the_joint_map(tmp_path: Path) -> None:
+    """A log whose joints are the built UR10e's but named without ``_joint`` (as the
+    ur_ext_observer channel map names them): exit 3, and the one line spells out the robot
+    file's joint_map that names them; a log whose names match nothing gets the pointer
+    alone."""
+    from impactcli.model.identification import joint_map_hint
+
+    pytest.importorskip("pinocchio", reason="a built UR needs the urdf extra (pinocchio)")
+    log = tmp_path / "ur.csv"
+    joints = ("shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3")
+    t = np.arange(1500) / 250.0
+    q = np.stack([0.3 * np.sin(0.5 * t + k) for k in range(6)], axis=1)
+    write_log(RobotLog(t_ns=np.round(t * 1e9).astype(np.int64), joint_names=joints,
+                       position=q, torque=np.random.default_rng(1).normal(size=q.shape),
+                       source=LogSource("ur.csv", "", "memory")), log)
+    code, _, err = cli(["detect", str(log), "--robot", "ur10e", "-o", str(tmp_path / "o")])
+    assert code == 3, err
+    line = one_error_line(err)
+    assert ('e.g. {"kinematics": {"type": "urdf", "robot": "ur10e"}, "joint_map": '
+            '{"shoulder_pan": "shoulder_pan_joint", "shoulder_lift": "shoulder_lift_joint", '
+            '"elbow": "elbow_joint"') in line, line
+    hint = joint_map_hint(("a", "b"), ("panda_joint1", "panda_joint2"), "panda")
+    assert hint == "map the log's joint names onto the URDF's with a robot file's " \
+        "joint_map (docs/robots.md)"
+
+
 @needs_robots
 def test_calibrate_with_a_robot_sharing_no_joint_is_exit_3(tmp_path: Path) -> None:
     code, _, err = cli(["calibrate", str(P2P), "--robot", "panda",
