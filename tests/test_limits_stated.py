@@ -102,6 +102,44 @@ def test_floor_accumulator_knows_its_margins_and_skips_the_warm_up() -> None:
     assert floor["per_link"] is None
 
 
+def test_a_joint_already_alarming_states_no_floor_but_the_share() -> None:
+    """Joint b's loading statistic is over vL for the whole log (a lasting load) and its
+    adaptive one for 70 %: a contact there joins an alarm already on, so its floor is no
+    "~0 N" but the share in alarm; its link's force floor comes from joint a alone, and the
+    terminal's sentence names b. Joint a, loading over vL 40 % of the time, keeps a median
+    (and its in_alarm share is said only where a quantile falls in the alarm)."""
+    import numpy as np
+
+    from impactcli.detect.floor import FloorAccumulator, floor_line
+
+    def jac(q: np.ndarray, i: int) -> np.ndarray:
+        return np.array([[0.0], [0.5]]) if i == 1 else np.array([[0.0, 0.3], [0.8, 0.0]])
+
+    n, J = 4000, 2
+    acc = FloorAccumulator(J, n, hold=500, v_l=np.array([1.0, 1.0]))
+    loading = np.zeros((n, J))
+    loading[:, 1] = 5.0
+    loading[: int(0.4 * n), 0] = 5.0
+    r_rms, thr = np.zeros((n, J)), np.full((n, J), 1.0)
+    r_rms[: int(0.7 * n), 1] = 2.0
+    acc.update(loading, r_rms, thr, np.zeros((n, J)))
+    floor = acc.finish([0, 0], 0, np.array([1.0, 1.0]), ("a", "b"), ("a", "b"), [1, 2],
+                       [0, 1], jac)
+    b = floor["per_joint"]["b"]
+    assert b["static_loading"] == {"median_nm": None, "worst_tenth_nm": None,
+                                   "in_alarm": 1.0}
+    assert b["adaptive"]["median_nm"] is None and b["adaptive"]["worst_tenth_nm"] > 0
+    assert abs(b["adaptive"]["in_alarm"] - 0.7) < 0.01
+    a = floor["per_joint"]["a"]
+    assert a["static_loading"]["median_nm"] > 0.9 and "in_alarm" not in a["adaptive"]
+    assert a["static_loading"]["worst_tenth_nm"] > 0.9
+    link2 = floor["per_link"][1]
+    assert link2["static_loading"]["median_n"] is None  # b's own: none; a reaches not link 2's
+    line = floor_line(floor)
+    assert line is not None and "~0 N" not in line, line
+    assert "b (100 %) had a detector already alarming for most of the log" in line, line
+
+
 def test_a_link_ending_on_its_joints_axis_has_no_force_floor_of_its_own() -> None:
     """Link 2 ends on joint 2's axis (as a UR's wrist links do): its lever is a rounding
     error (1e-17 m), and a floor of torque / lever would read 1e17 N. Its floor is what

@@ -6,7 +6,9 @@ for a product detector to cross its threshold there, for two reference contacts:
 
 * a **step** (a lasting push) for the static-loading detector: the low-passed residual
   settles at LP(r) + tau, so it crosses vL once |tau| >= vL − |LP(r)(k)| (the favourable
-  sign; 0 where it already alarms);
+  sign; 0 where it already alarms: there a contact joins the alarm that is on, and when a
+  quantile falls on such samples the floor states no figure but the share of them,
+  ``in_alarm`` — a joint in a lasting load for most of the log sees no new contact);
 * a **half-sine of 100 ms** (a blow) for the adaptive detector: the statistic r_rms
   (eq. 41 of G_hat r through F1) responds to a unit half-sine with a peak ``g_j``
   (:func:`pulse_gain`, with the run's final G_hat, eq. 29), and RMS is subadditive, so
@@ -186,13 +188,19 @@ class FloorAccumulator:
             for d in DETECTORS:
                 scale = 1.0 if d == "static_loading" else (
                     1.0 / gain[j] if gain[j] > 0 else math.inf)
-                vals = {}
+                vals: dict[str, Any] = {}
+                total = int(counts[d][j].sum())
+                alarming = int(counts[d][j][0]) / total if total else 0.0
                 for qn, q in QUANTILES.items():
                     v = _quantile(counts[d][j], q)
-                    vals[f"{qn}_nm"] = None if v is None or not math.isfinite(v * scale) \
-                        else v * scale
+                    # 0: the detector already alarms there, so a contact joins that alarm
+                    # and is not seen as one of its own: no floor, the share said instead
+                    vals[f"{qn}_nm"] = None if v is None or v == 0.0 or not math.isfinite(
+                        v * scale) else v * scale
                     if vals[f"{qn}_nm"] is not None:
                         torque[d][qn][j] = vals[f"{qn}_nm"]
+                    elif v == 0.0:
+                        vals["in_alarm"] = alarming
                 row[d] = vals
             per_joint[name] = row
         out: dict[str, Any] = {
@@ -288,7 +296,12 @@ def floor_line(floor: dict[str, Any] | None) -> str | None:
             t = _smallest(per_joint[row["own_joint"]], "median_nm")
             if t is not None:
                 axial.append(f"~{_approx(t)} N·m on {row['own_joint']}")
-    if not parts and not axial:
+    # joints with no median from either detector, one of them already alarming there
+    alarming = [f"{name} ({100 * a:.3g} %)" for name, row in per_joint.items()
+                if _smallest(row, "median_nm") is None
+                and (a := max((row[d].get("in_alarm", 0.0) for d in DETECTORS
+                               if isinstance(row.get(d), dict)), default=0.0)) >= 0.5]
+    if not parts and not axial and not alarming:
         return None
     shown = [p for _, p in parts]
     if len(parts) > MAX_LISTED:  # the least sensitive ones: where contacts go unseen
@@ -305,7 +318,13 @@ def floor_line(floor: dict[str, Any] | None) -> str | None:
         note = (f" (links {', '.join(inner)} end on their own joints' axes"
                 if len(inner) > 1 else f" (link {inner[0]} ends on its own joint's axis")
         note += ": the force there is what the joints before see)"
-    return f"{head} {', '.join(shown)} would not have been seen{note}"
+    busy = ("" if not alarming else
+            f"{', '.join(alarming)} had a detector already alarming for most of the log after "
+            "warm-up: a contact there joins that alarm, so no floor is stated for them")
+    if not shown:
+        return busy
+    return (f"{head} {', '.join(shown)} would not have been seen{note}"
+            + (f"; {busy}" if busy else ""))
 
 
 def _smallest(row: dict[str, Any], key: str) -> float | None:
