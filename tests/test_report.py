@@ -521,6 +521,16 @@ def test_could_not_see_gaps_left_out_joints_and_no_kinematics() -> None:
     sf = items["smallest-force"]
     assert sf["data"]["links"] == [] and "no kinematics are known" in sf["text"]
     assert "j1 0.5 N·m, j2 0.5 N·m" in sf["text"]
+    assert "Detection floor" not in sf["text"]  # this run states none
+    # a run with a floor: the report states it first, as detect prints it
+    floor = {"per_joint": {j: {"static_loading": {"median_nm": m, "worst_tenth_nm": m},
+                               "adaptive": {"median_nm": None, "worst_tenth_nm": None}}
+                           for j, m in (("j1", 0.42), ("j2", 0.21))}, "per_link": None}
+    _, doc2 = build_report([dataclasses.replace(r, detection_floor=floor)])
+    sf2 = unseen(doc2)["smallest-force"]
+    assert sf2["text"].startswith(
+        "Detection floor (as detect states it, over the log after warm-up): a contact adding "
+        "less than ~0.42 N·m on j1, ~0.21 N·m on j2 would not have been seen. "), sf2["text"]
     assert doc["logs"][0]["verdict"] == (
         "2 incidents: 1 transient on link 2, ~3.0 N·m peak residual; 1 quasi-static on "
         "link 1, ~1.2 N·m peak residual (+1 in the warm-up, not counted).")

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from ...detect.floor import floor_line
 from ...detect.incidents import planar_jacobian, smallest_caught_force
 from ...types import DetectionResult
 from .common import approx, e, share
@@ -91,11 +92,16 @@ def _smallest_force(result: DetectionResult, chain: tuple[str, ...],
     vl_nm = {j: result.thresholds.get(j, {}).get("vL") for j in log.joint_names}
     torques = ", ".join(f"{j} {approx(v)} N·m" for j, v in vl_nm.items() if v is not None)
     data: dict[str, Any] = {"kinematics": (kin or {}).get("type"), "vL_nm": vl_nm}
+    # the run's detection floor, as detect prints it (over the whole log, both detectors)
+    floor = floor_line(result.detection_floor)
+    said = ("" if floor is None else
+            f"Detection floor (as detect states it, over the log after warm-up): {floor}. ")
     if not kin or kin.get("type") != "planar" or not kin.get("link_lengths"):
         why = ("no kinematics are known" if not kin else
                f"the report computes it for planar arms only (this robot: {kin.get('type')})")
         return {"code": "smallest-force", "short": "", "data": {**data, "links": []},
-                "text": (f"Smallest force caught: not stated — {why}. The static-loading "
+                "text": (f"{said}Smallest force the static-loading thresholds alone catch "
+                         f"at one posture: not stated — {why}. The static-loading "
                          f"thresholds as torques: {torques}.")}
     medians = samples.posture(result.warmup_end_s)
     q = np.zeros(len(chain))
@@ -130,7 +136,8 @@ def _smallest_force(result: DetectionResult, chain: tuple[str, ...],
     return {"code": "smallest-force", "short": short,
             "data": {**data, "links": rows, "posture_rad": posture,
                      "posture_rule": "median after warm-up", "assumption": assumption},
-            "text": (f"Smallest force the thresholds catch: {'; '.join(parts)}. Assumed: "
+            "text": (f"{said}Smallest force the static-loading thresholds alone catch: "
+                     f"{'; '.join(parts)}. Assumed: "
                      f"{assumption}. A contact nearer the joint needs more (force × distance "
                      "to the joint = vL); a short impact may also trip the adaptive detector, "
                      "whose threshold follows the motion.")}
