@@ -22,6 +22,7 @@ from impactcli.logs import read_log, write_log
 from impactcli.logs.robot_files import read_robot, robot_from_dict
 from impactcli.model.gravity import (
     CERTAIN_FACTOR,
+    CLOSE_FACTOR,
     WARN_FACTOR,
     clean_factors,
     nominal_gravity,
@@ -87,8 +88,9 @@ def test_the_true_scale_is_about_one(poses: tuple) -> None:
 @given(log10_scale=st.floats(-4.0, 4.0))
 def test_the_verdict_follows_the_scale(poses: tuple, log10_scale: float) -> None:
     """A torque scaled by s: refused near a clean unit factor (naming its cause), warned
-    when off otherwise, accepted near 1 (s multiplies the log's own ~1 scale; within 10 %
-    of a boundary either side is allowed)."""
+    when off otherwise, accepted near 1 — said to agree within CLOSE_FACTOR, to be of one
+    order only beyond it (s multiplies the log's own ~1 scale; within 10 % of a boundary
+    either side is allowed)."""
     joints, g, tau, speed, ratios = poses
     s = 10.0 ** log10_scale
     v = scale_check("log", joints, g, tau * s, speed, ratios)
@@ -98,7 +100,7 @@ def test_the_verdict_follows_the_scale(poses: tuple, log10_scale: float) -> None
             if 1.0 / CERTAIN_FACTOR <= k / f <= CERTAIN_FACTOR]
     edges = [f * c for f, _ in clean_factors(ratios) for c in (CERTAIN_FACTOR,
                                                                1 / CERTAIN_FACTOR)]
-    edges += [WARN_FACTOR, 1 / WARN_FACTOR]
+    edges += [WARN_FACTOR, 1 / WARN_FACTOR, CLOSE_FACTOR, 1 / CLOSE_FACTOR]
     if any(abs(math.log(k / e)) < 0.1 for e in edges):
         return  # on a boundary
     assert v.scale == pytest.approx(k, rel=1e-9)
@@ -108,6 +110,8 @@ def test_the_verdict_follows_the_scale(poses: tuple, log10_scale: float) -> None
         assert v.kind == "warn", v
     else:
         assert v.kind == "ok", v
+        assert ("agrees with" in v.message) is (1 / CLOSE_FACTOR <= k <= CLOSE_FACTOR), v
+        assert ("not an agreement" in v.message) is not (1 / CLOSE_FACTOR <= k <= CLOSE_FACTOR)
 
 
 def test_a_still_log_is_not_verified(poses: tuple) -> None:

@@ -44,6 +44,9 @@ MIN_POSES = 50
 LOADED_SHARE = 0.3
 #: The judged joints' scales must agree within this factor for a verdict.
 AGREE_FACTOR = 2.0
+#: The log's torque and the description's gravity torque agree when within this factor;
+#: beyond it, within WARN_FACTOR, they are of one order only (said so).
+CLOSE_FACTOR = 1.25
 #: A scale within this factor of a clean unit factor is certain: refused.
 CERTAIN_FACTOR = 2.0
 #: A scale off 1 by more than this factor (and no clean unit factor) is warned of.
@@ -202,6 +205,11 @@ def scale_check(where: str, joints: Sequence[str], g: np.ndarray, tau: np.ndarra
         return ScaleVerdict("warn", med, per, (
             f"{where}: the torque may be off by ~{med:.3g}× ({what}): forces and "
             f"thresholds in N·m may be wrong{fix}"))
+    close = 1.0 / CLOSE_FACTOR <= med <= CLOSE_FACTOR
     return ScaleVerdict("ok", med, per, (
         f"{where}: the torque scale agrees with the description's gravity torque "
-        f"(~{med:.2g}×; {text})"))
+        f"(~{med:.2g}×; {text})" if close else
+        f"{where}: the torque scale is of the order of the description's gravity torque "
+        f"(~{med:.2g}×; {text}): within the {WARN_FACTOR:g}× this check tells a unit error "
+        "from, not an agreement — another arm's description, a payload or rough masses "
+        "differ by that much, and forces in N are as good as that ratio"))
