@@ -62,9 +62,15 @@ def rate_lines(rate: dict[str, Any], margin_rule: str = "leave-one-out") -> list
     pct = f"{100 * conf:.0f} %"
     asked = (f"asked {rate['per_hour']:g}" if "per_hour" in rate
              else f"not asked (thresholds by {margin_rule})")
+    sup = rate.get("supported_per_hour")
+    # a bound below what the free minutes support is the tail fits' extrapolation only
+    beyond = ("" if sup is None or sup <= rate["upper_per_hour"] else
+              f" by the tail fits alone — the free motion supports at best {ph(sup)}, so "
+              "neither is promised (below)")
     lines = [f"false alarms per hour: {asked}; predicted "
              f"{ph(rate['predicted_per_hour'])}, upper bound {ph(rate['upper_per_hour'])} at "
-             f"{pct} confidence, on {minutes_text(rate['free_minutes'])} min of free motion"]
+             f"{pct} confidence{beyond}, on {minutes_text(rate['free_minutes'])} min of free "
+             "motion"]
     floor = " (log-start floor)" if "per_hour" in rate else " (below log-start floor)"
     for det, per in rate.get("channels", {}).items():
         for j, ch in per.items():
