@@ -322,7 +322,7 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
         f'<div class="wide"><table class="incidents" id="{anchor}-incidents"><thead><tr>'
         '<th class="num">#</th><th class="num">when (since log start)</th>'
         '<th class="num">lasting [s]</th><th>where</th><th>how hard (peak)</th><th>kind</th>'
-        '<th>detectors (first first)</th><th class="num">peak / threshold</th><th></th>'
+        '<th>detectors (the first to fire first)</th><th class="num">peak / threshold</th><th></th>'
         f'</tr></thead>{"".join(body)}</table></div>'
         '<div class="small muted">How hard: the force at the end of the link, where the '
         "contact point is assumed (a contact nearer the joint is under-estimated by the "
