@@ -54,7 +54,7 @@ def test_a_log_naming_joints_otherwise_is_shown_the_joint_map(tmp_path: Path) ->
     ur_ext_observer channel map names them): exit 3, and the one line spells out the robot
     file's joint_map that names them; a log whose names match nothing gets the pointer
     alone."""
-    from impactcli.model.identification import joint_map_hint
+    from impactcli.logs.robot_files import joint_map_hint
 
     pytest.importorskip("pinocchio", reason="a built UR needs the urdf extra (pinocchio)")
     log = tmp_path / "ur.csv"

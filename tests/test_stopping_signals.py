@@ -232,3 +232,39 @@ def test_a_log_finished_as_the_stop_came_is_counted(tmp_path: Path) -> None:
     os.utime(old, (started - 3600, started - 3600))
     assert written_since(jobs, {"/logs/l0.csv"}, started) == ["/logs/l1.csv"]
     assert written_since([DetectJob("/logs/l1.csv", "s3://bucket/out")], set(), started) == []
+
+
+def test_a_signal_inside_a_c_callback_is_sent_again_not_raised_there(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A stop signal whose handler runs inside llvmlite's object-cache callback (numba
+    compiling a kernel) would raise where the exception is printed with its traceback and
+    dropped: the handler raises nothing there and sends the signal again DEFER_S later;
+    anywhere else it raises Interrupted at once."""
+    import threading
+
+    from impactcli.errors import Interrupted
+    from impactcli.run import stopping
+
+    code = compile("import sys\nframe = sys._getframe()",
+                   "/venv/site-packages/llvmlite/binding/executionengine.py", "exec")
+    ns: dict = {}
+    exec(code, ns)
+    sent = threading.Event()
+    calls: list[tuple[int, int]] = []
+
+    def kill(pid: int, sig: int) -> None:
+        calls.append((pid, sig))
+        sent.set()
+
+    monkeypatch.setattr(stopping.os, "kill", kill)
+    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        stopping._raise_interrupted(signal.SIGTERM, ns["frame"])  # no raise
+        assert signal.getsignal(signal.SIGTERM) == old[signal.SIGTERM]  # still armed
+        assert sent.wait(10 * stopping.DEFER_S)
+        assert calls == [(os.getpid(), signal.SIGTERM)]
+        with pytest.raises(Interrupted):
+            stopping._raise_interrupted(signal.SIGTERM, sys._getframe())
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -229,3 +230,22 @@ def write_labels(labels: Labels, path: str | os.PathLike[str]) -> None:
     from ..files import atomic_write_text
 
     atomic_write_text(path, json.dumps(labels.to_dict(), indent=2) + "\n")
+
+
+def joint_map_hint(log_joints: Sequence[str], urdf_joints: Sequence[str],
+                   shipped: str | None) -> str:
+    """How to name a log's joints onto a URDF's (``shipped``: the robot's name, None for a
+    URDF file): a robot file's ``joint_map`` (docs/robots.md), spelled out when each logged
+    joint is the start or the end of exactly one URDF joint's name (``shoulder_pan`` →
+    ``shoulder_pan_joint``)."""
+    pairs = {}
+    for j in log_joints:
+        hits = [u for u in urdf_joints if u != j and (u.startswith(j) or u.endswith(j))]
+        if len(hits) == 1:
+            pairs[j] = hits[0]
+    how = "map the log's joint names onto the URDF's with a robot file's joint_map"
+    if pairs and len(set(pairs.values())) == len(pairs) == len(log_joints):
+        robot = f'"robot": "{shipped}"' if shipped else '"path": "PATH"'
+        return (f'{how}, e.g. {{"kinematics": {{"type": "urdf", {robot}}}, "joint_map": '
+                + json.dumps(pairs) + "} (docs/robots.md)")
+    return f"{how} (docs/robots.md)"

@@ -15,7 +15,6 @@ chunks of any size gives the rows, and the model, of the log fed whole. Settings
 from __future__ import annotations
 
 import hashlib
-import json
 import warnings
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
@@ -25,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ImpactWarning, ModelError, RobotDescriptionError
+from ..logs.robot_files import joint_map_hint
 from ..logs.urdf import urdf_joint_names
 from ..types import RobotDescription, RobotLog
 from . import payload, structures
@@ -112,25 +112,6 @@ def _urdf_joints(log_joints: tuple[str, ...], robot: RobotDescription, where: st
             f"{list(log_joints)}; robot description: {[jm.get(j, j) for j in modelled]}): "
             + joint_map_hint(log_joints, [jm.get(j, j) for j in modelled], shipped))
     return modelled, used, label, shipped
-
-
-def joint_map_hint(log_joints: Sequence[str], urdf_joints: Sequence[str],
-                   shipped: str | None) -> str:
-    """How to name a log's joints onto a URDF's (``shipped``: the robot's name, None for a
-    URDF file): a robot file's ``joint_map`` (docs/robots.md), spelled out when each logged
-    joint is the start or the end of exactly one URDF joint's name (``shoulder_pan`` →
-    ``shoulder_pan_joint``)."""
-    pairs = {}
-    for j in log_joints:
-        hits = [u for u in urdf_joints if u != j and (u.startswith(j) or u.endswith(j))]
-        if len(hits) == 1:
-            pairs[j] = hits[0]
-    how = "map the log's joint names onto the URDF's with a robot file's joint_map"
-    if pairs and len(set(pairs.values())) == len(pairs) == len(log_joints):
-        robot = f'"robot": "{shipped}"' if shipped else '"path": "PATH"'
-        return (f'{how}, e.g. {{"kinematics": {{"type": "urdf", {robot}}}, "joint_map": '
-                + json.dumps(pairs) + "} (docs/robots.md)")
-    return f"{how} (docs/robots.md)"
 
 
 def check_shares_joints(log_joints: tuple[str, ...], robot: RobotDescription | None,

@@ -5,7 +5,9 @@ Main process (:func:`stop_on_signals`): SIGINT (Ctrl-C) and SIGTERM raise
 :class:`~impactcli.errors.Interrupted` where the main thread stands, so every ``with`` and
 ``finally`` on the way out runs: temporary files are removed, outputs already moved into
 place stay. The CLI exits 128 + the signal's number (130, 143). A second signal while the
-run stops is ignored: the stop is bounded (:data:`STOP_GRACE_S`).
+run stops is ignored: the stop is bounded (:data:`STOP_GRACE_S`). A signal that lands in a
+C library's callback (numba compiling: :data:`CALLBACK_MODULES`), where a raised exception
+would be printed with its traceback and dropped, is sent again once it has returned.
 
 A pool's workers (:func:`worker_init`, run in each worker; :func:`run_in_worker` around
 each task) ignore SIGINT — a Ctrl-C reaches the whole process group, and the main process
@@ -56,7 +58,37 @@ PR_SET_PDEATHSIG = 1
 _STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
+#: Python run by a C library's callback, where an exception is printed ("Exception ignored
+#: in ...", with its traceback) and dropped instead of propagated: llvmlite's object cache
+#: while numba compiles a kernel. A stop signal that lands there is sent again this much
+#: later [s], once the callback has returned.
+CALLBACK_MODULES = ("llvmlite",)
+DEFER_S = 0.05
+
+
+def in_native_callback(frame: Any) -> bool:
+    """Whether ``frame`` (a signal handler's) runs inside :data:`CALLBACK_MODULES`."""
+    while frame is not None:
+        if any(m in frame.f_code.co_filename for m in CALLBACK_MODULES):
+            return True
+        frame = frame.f_back
+    return False
+
+
+def deferred(signum: int, frame: Any) -> bool:
+    """When ``frame`` is inside a C library's callback, send ``signum`` to this process
+    again :data:`DEFER_S` later and return True: the handler must not raise there."""
+    if not in_native_callback(frame):
+        return False
+    t = threading.Timer(DEFER_S, os.kill, (os.getpid(), signum))
+    t.daemon = True
+    t.start()
+    return True
+
+
 def _raise_interrupted(signum: int, frame: Any) -> None:
+    if deferred(signum, frame):
+        return
     for sig in _STOP_SIGNALS:  # the stop is under way: a second signal does not cut it short
         signal.signal(sig, signal.SIG_IGN)
     raise Interrupted(signum, signal.Signals(signum).name)
@@ -98,6 +130,8 @@ _running = [False]
 
 
 def _worker_sigterm(signum: int, frame: Any) -> None:
+    if deferred(signum, frame):
+        return
     if _running[0]:  # unwind the task (its temporary files go), then exit: run_in_worker
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
         raise Interrupted(signum, signal.Signals(signum).name)
