@@ -115,6 +115,18 @@ def test_a_log_at_other_poses_says_its_posture_left_the_calibrated_range(
     assert "its posture left the calibration logs' position range on shoulder (100 %)" in err
     inside, _ = _detect(LOG, tmp_path / "o2")
     assert "posture_outside" not in inside["motion_envelope"]
+    # a few hundredths of a radian past the calibrated range is within its margin
+    from impactcli.detect.envelope import POSTURE_MARGIN_RAD
+
+    highest = max(float(log.position[:, j].max()), float(np.nanmax(
+        log.position[:, j] if log.position_ref is None else log.position_ref[:, j])))
+    nudge = np.zeros_like(shift)
+    nudge[j] = hi - highest + 0.6 * POSTURE_MARGIN_RAD
+    near = tmp_path / "near.csv"
+    write_log(dataclasses.replace(
+        log, position=log.position + nudge,
+        position_ref=None if log.position_ref is None else log.position_ref + nudge), near)
+    assert "posture_outside" not in _detect(near, tmp_path / "o3")[0]["motion_envelope"]
     out = tmp_path / "r.json"
     r = CliRunner().invoke(main, ["report", str(path), "--config", str(CONFIG), "-o",
                                   str(tmp_path / "r.html"), "--json", str(out)])

@@ -265,6 +265,35 @@ def test_a_signal_inside_a_c_callback_is_sent_again_not_raised_there(
         assert calls == [(os.getpid(), signal.SIGTERM)]
         with pytest.raises(Interrupted):
             stopping._raise_interrupted(signal.SIGTERM, sys._getframe())
+        for s, h in old.items():
+            signal.signal(s, h)
+        # a folder merely named like it is no callback
+        other = compile("import sys\nframe = sys._getframe()", "/home/u/llvmlite-notes/run.py",
+                        "exec")
+        exec(other, ns)
+        with pytest.raises(Interrupted):
+            stopping._raise_interrupted(signal.SIGTERM, ns["frame"])
+        for s, h in old.items():
+            signal.signal(s, h)
+        # deferred at most MAX_DEFERRALS times in a row: then the stop raises where it is
+        monkeypatch.setattr(stopping.threading, "Timer", lambda *a, **k: _NoTimer())
+        for _ in range(stopping.MAX_DEFERRALS):
+            stopping._raise_interrupted(signal.SIGTERM, ns_frame(ns, code))
+        with pytest.raises(Interrupted):
+            stopping._raise_interrupted(signal.SIGTERM, ns_frame(ns, code))
     finally:
         for s, h in old.items():
             signal.signal(s, h)
+
+
+class _NoTimer:
+    daemon = False
+
+    def start(self) -> None:
+        pass
+
+
+def ns_frame(ns: dict, code: object) -> object:
+    """A fresh frame of ``code`` (run in ``ns``)."""
+    exec(code, ns)  # type: ignore[arg-type]
+    return ns["frame"]

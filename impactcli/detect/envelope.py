@@ -45,6 +45,9 @@ LEAD_S = 0.2
 #: Outside stretches closer than this merge into one (as alarms merge) [s] (the share
 #: counts only the samples outside).
 MERGE_S = 0.1
+#: A pose is outside the calibration's when a joint's position lies beyond its recorded
+#: range by more than this [rad] (~3°: a rigid model's fit does not turn over that).
+POSTURE_MARGIN_RAD = 0.05
 
 
 @dataclass(frozen=True)
@@ -190,10 +193,10 @@ class EnvelopeShare:
             does not have.
         source: the motion's source in this log; note: a mismatch with the calibration's.
         posture: joint → share of the checked samples whose position lay outside the
-            calibration logs' position range (not part of ``outside``: the simulated hours
-            show no false alarm from posture alone, but a rigid model identified on some
-            poses is only known there, so the stated rate is not either), joints with none
-            left out.
+            calibration logs' position range by more than :data:`POSTURE_MARGIN_RAD` (not
+            part of ``outside``: no measurement here shows posture alone making false alarms,
+            but a rigid model identified on some poses is only known there, so the stated
+            rate is not either), joints with none left out.
     """
 
     samples: int
@@ -286,8 +289,10 @@ class EnvelopeCheck:
         self.pose_cols = [c for c, j in zip(self.cols, self.names, strict=True)
                           if "position" in envelope.joints[j]]
         self.pose_bounds = (
-            np.array([envelope.joints[self.joints[c]]["position"][0] for c in self.pose_cols]),
-            np.array([envelope.joints[self.joints[c]]["position"][1] for c in self.pose_cols]))
+            np.array([envelope.joints[self.joints[c]]["position"][0] for c in self.pose_cols])
+            - POSTURE_MARGIN_RAD,
+            np.array([envelope.joints[self.joints[c]]["position"][1] for c in self.pose_cols])
+            + POSTURE_MARGIN_RAD)
         self.n = 0
         self.any = _Runs()
         self.each = [_Runs() for _ in self.cols]
@@ -347,12 +352,13 @@ class EnvelopeCheck:
             posture)
 
 
-def posture_text(share: EnvelopeShare) -> str:
-    """One sentence on the poses outside the calibration's position range, "" when none."""
-    if not share.posture:
+def posture_text(posture: Mapping[str, float]) -> str:
+    """One phrase on the poses outside the calibration's position range
+    (:attr:`EnvelopeShare.posture`, or a timeline's ``posture_outside``), "" when none."""
+    if not posture:
         return ""
     parts = ", ".join(f"{j} ({100 * v:.3g} %)" for j, v in
-                      sorted(share.posture.items(), key=lambda kv: -kv[1]))
+                      sorted(posture.items(), key=lambda kv: -kv[1]))
     return (f"its posture left the calibration logs' position range on {parts} of the log "
             "after warm-up: the model was identified and the thresholds' false-alarm rate "
             "measured on other poses, where a rigid model's error is not known")

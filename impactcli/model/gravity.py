@@ -205,7 +205,7 @@ def scale_check(where: str, joints: Sequence[str], g: np.ndarray, tau: np.ndarra
         return ScaleVerdict("warn", med, per, (
             f"{where}: the torque may be off by ~{med:.3g}× ({what}): forces and "
             f"thresholds in N·m may be wrong{fix}"))
-    close = 1.0 / CLOSE_FACTOR <= med <= CLOSE_FACTOR
+    close = bool(np.all((ks >= 1.0 / CLOSE_FACTOR) & (ks <= CLOSE_FACTOR)))
     return ScaleVerdict("ok", med, per, (
         f"{where}: the torque scale agrees with the description's gravity torque "
         f"(~{med:.2g}×; {text})" if close else

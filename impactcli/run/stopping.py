@@ -64,12 +64,17 @@ _STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 #: later [s], once the callback has returned.
 CALLBACK_MODULES = ("llvmlite",)
 DEFER_S = 0.05
+#: Deferred this many times in a row, the stop raises wherever it lands (bounded stop).
+MAX_DEFERRALS = 20
+_deferrals = [0]
 
 
 def in_native_callback(frame: Any) -> bool:
-    """Whether ``frame`` (a signal handler's) runs inside :data:`CALLBACK_MODULES`."""
+    """Whether ``frame`` (a signal handler's) runs inside a package of
+    :data:`CALLBACK_MODULES` (a path component of its file, not any name containing it)."""
+    parts = tuple(f"{os.sep}{m}{os.sep}" for m in CALLBACK_MODULES)
     while frame is not None:
-        if any(m in frame.f_code.co_filename for m in CALLBACK_MODULES):
+        if any(p in frame.f_code.co_filename for p in parts):
             return True
         frame = frame.f_back
     return False
@@ -77,10 +82,19 @@ def in_native_callback(frame: Any) -> bool:
 
 def deferred(signum: int, frame: Any) -> bool:
     """When ``frame`` is inside a C library's callback, send ``signum`` to this process
-    again :data:`DEFER_S` later and return True: the handler must not raise there."""
-    if not in_native_callback(frame):
+    again :data:`DEFER_S` later — if the same handler still stands then — and return True:
+    the handler must not raise there. At most :data:`MAX_DEFERRALS` times in a row."""
+    if not in_native_callback(frame) or _deferrals[0] >= MAX_DEFERRALS:
+        _deferrals[0] = 0
         return False
-    t = threading.Timer(DEFER_S, os.kill, (os.getpid(), signum))
+    _deferrals[0] += 1
+    handler = signal.getsignal(signum)
+
+    def again() -> None:
+        if signal.getsignal(signum) is handler:
+            os.kill(os.getpid(), signum)
+
+    t = threading.Timer(DEFER_S, again)
     t.daemon = True
     t.start()
     return True

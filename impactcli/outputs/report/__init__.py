@@ -9,7 +9,7 @@ Parts, by what the reader sees:
 
 - :mod:`.summary` — the verdict line, the incident list, the fleet summary;
 - :mod:`.unseen` — what the audit could not see (warm-up, gaps, joints left out, the
-  smallest force caught, what an older timeline cannot tell);
+  detection floor and the smallest force caught, what an older timeline cannot tell);
 - :mod:`.section` — one log's section, in reading order (answer first);
 - :mod:`.plots` — every plot (on :mod:`impactcli.outputs.svgplot`);
 - :mod:`.quality` — detection quality against labels, the threshold sweep;

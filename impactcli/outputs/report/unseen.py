@@ -1,6 +1,6 @@
 """What the audit could not see, per log: the warm-up, gaps in the log's clock, joints left
-out of detection, the smallest force each link's thresholds catch, and what an older
-timeline cannot tell.
+out of detection, the run's detection floor and the smallest force each link's
+static-loading thresholds catch at one posture, and what an older timeline cannot tell.
 
 Each item is ``{"code", "short", "text", "data"}``: ``short`` for the fleet table, ``text``
 as printed, ``data`` the numbers behind it.
@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from ...detect.envelope import posture_text
 from ...detect.floor import floor_line
 from ...detect.incidents import planar_jacobian, smallest_caught_force
 from ...types import DetectionResult
@@ -179,12 +180,7 @@ def _envelope(result: DetectionResult, incidents: list[dict[str, Any]]) -> list[
                           "so neither the motion envelope nor the thresholds' stated "
                           "false-alarm rate says anything of this log.")}]
     posture = env.get("posture_outside") or {}
-    away = (", ".join(f"{j} ({100 * v:.3g} %)" for j, v in
-                      sorted(posture.items(), key=lambda kv: -kv[1])))
-    poses = ("; but its posture left the calibration logs' position range on "
-             f"{away} of it: the model was identified and the thresholds' false-alarm rate "
-             "measured on other poses, where a rigid model's error is not known"
-             if posture else "")
+    poses = f"; but {posture_text(posture)}" if posture else ""
     if not env.get("outside"):
         rated = bool((result.config.get("calibration") or {}).get("false_alarm_rate"))
         return [{"code": "motion-envelope",
