@@ -377,3 +377,17 @@ def test_a_threshold_above_its_joints_effort_limit_is_said() -> None:
         warnings.simplefilter("error")
         warn_beyond_effort(cfg(329.0), joints)
         warn_beyond_effort(cfg(733.8, {"kind": "planar", "structure": {}}), joints)
+    # a model without kinematics (--kind decoupled) of a robot whose description is the
+    # UR10e's URDF, its joints renamed by joint_map: the description's limits are used
+    from impactcli.types import JointSpec, RobotDescription
+
+    logged = ("pan", "lift")
+    robot = RobotDescription(tuple(JointSpec(j) for j in logged),
+                             kinematics={"type": "urdf", "robot": "ur10e"},
+                             joint_map=dict(zip(logged, joints, strict=True)))
+    renamed = DetectorConfig(model={"kind": "decoupled", "structure": {}},
+                             thresholds=ThresholdsConfig(v_stat={"pan": 1.0, "lift": 1.0},
+                                                         v0={"pan": 1.0, "lift": 1.0},
+                                                         vL={"pan": 1.0, "lift": 733.8}))
+    with pytest.warns(ImpactWarning, match=r"lift static_loading 733\.8 > 330"):
+        warn_beyond_effort(renamed, logged, robot)

@@ -41,7 +41,7 @@ from ..detect.tail import (
 )
 from ..detect.tail import DETECTORS as TAIL_DETECTORS
 from ..detect.warmup import Warmup
-from ..errors import ConfigError, ImpactWarning, LogFormatError
+from ..errors import ConfigError, ImpactError, ImpactWarning, LogFormatError
 from ..logs.reader import LogScan, MemoryReader
 from ..logs.screen import LeftOut
 from ..model import IdentifyOptions, RigidModel
@@ -242,17 +242,32 @@ def calibrate_run(
                                     vL=table["static_loading"]),
         calibration=record, model=None if model is None else model.to_dict(),
     )
-    warn_beyond_effort(out, joints)
+    warn_beyond_effort(out, joints, robot)
     return Calibrated(out, rate)
 
 
-def warn_beyond_effort(cfg: DetectorConfig, joints: Sequence[str]) -> None:
+def warn_beyond_effort(cfg: DetectorConfig, joints: Sequence[str],
+                       robot: RobotDescription | None = None) -> None:
     """A warning per threshold above its joint's effort limit (a URDF's ``<limit
-    effort>``): a contact would have to load that joint beyond what its motor exerts to be
-    seen by that detector there — a joint checked in name only."""
+    effort>``: the model's, else the robot description's when its kinematics are a URDF):
+    a contact would have to load that joint beyond what its motor exerts to be seen by that
+    detector there — a joint checked in name only."""
     from ..detect.incident_builder import urdf_efforts
 
     effort = urdf_efforts(cfg.model, tuple(joints))
+    kin = None if robot is None else robot.kinematics
+    if (robot is not None and kin is not None and kin.get("type") == "urdf"
+            and not np.isfinite(effort).any()):
+        from ..model.identification import urdf_source
+
+        try:
+            xml = urdf_source(kin)[0]
+        except (ImpactError, OSError):
+            xml = None
+        if xml:
+            effort = urdf_efforts({"kind": "urdf", "structure": {
+                "urdf_xml": xml, "urdf_joint_map": dict(robot.joint_map or {})}},
+                tuple(joints))
     over = [f"{j} {d} {cfg.thresholds.of(d)[j]:.4g} > {effort[k]:.4g}"
             for k, j in enumerate(joints) if np.isfinite(effort[k])
             for d in DETECTORS if cfg.thresholds.of(d).get(j, 0.0) > effort[k]]
