@@ -144,11 +144,17 @@ class IncidentContext:
 def urdf_efforts(model: dict[str, Any] | None, joints: tuple[str, ...]) -> np.ndarray:
     """(J,) each joint's effort limit [N·m] from a URDF model's ``<limit effort>`` (NaN
     where the model is not a URDF or gives none)."""
-    out = np.full(len(joints), np.nan)
     structure = (model or {}).get("structure") if (model or {}).get("kind") == "urdf" else None
     xml = (structure or {}).get("urdf_xml") if isinstance(structure, dict) else None
     if not xml:
-        return out
+        return np.full(len(joints), np.nan)
+    return effort_limits(str(xml), (structure or {}).get("urdf_joint_map") or {}, joints)
+
+
+def effort_limits(xml: str, joint_map: dict[str, str], joints: tuple[str, ...]) -> np.ndarray:
+    """(J,) each joint's ``<limit effort>`` [N·m] in URDF text ``xml``, the log's joint names
+    renamed through ``joint_map`` (NaN where the URDF gives none, or cannot be read)."""
+    out = np.full(len(joints), np.nan)
     import xml.etree.ElementTree as ET
 
     try:
@@ -163,9 +169,8 @@ def urdf_efforts(model: dict[str, Any] | None, joints: tuple[str, ...]) -> np.nd
         except ValueError:
             eff = np.nan
         limits[str(jt.get("name"))] = eff
-    jm = (structure or {}).get("urdf_joint_map") or {}
     for k, j in enumerate(joints):
-        v = limits.get(str(jm.get(j, j)), np.nan)
+        v = limits.get(str(joint_map.get(j, j)), np.nan)
         out[k] = v if np.isfinite(v) and v > 0 else np.nan
     return out
 

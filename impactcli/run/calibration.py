@@ -252,7 +252,7 @@ def warn_beyond_effort(cfg: DetectorConfig, joints: Sequence[str],
     effort>``: the model's, else the robot description's when its kinematics are a URDF):
     a contact would have to load that joint beyond what its motor exerts to be seen by that
     detector there — a joint checked in name only."""
-    from ..detect.incident_builder import urdf_efforts
+    from ..detect.incident_builder import effort_limits, urdf_efforts
 
     effort = urdf_efforts(cfg.model, tuple(joints))
     kin = None if robot is None else robot.kinematics
@@ -265,9 +265,7 @@ def warn_beyond_effort(cfg: DetectorConfig, joints: Sequence[str],
         except (ImpactError, OSError):
             xml = None
         if xml:
-            effort = urdf_efforts({"kind": "urdf", "structure": {
-                "urdf_xml": xml, "urdf_joint_map": dict(robot.joint_map or {})}},
-                tuple(joints))
+            effort = effort_limits(xml, dict(robot.joint_map or {}), tuple(joints))
     over = [f"{j} {d} {cfg.thresholds.of(d)[j]:.4g} > {effort[k]:.4g}"
             for k, j in enumerate(joints) if np.isfinite(effort[k])
             for d in DETECTORS if cfg.thresholds.of(d).get(j, 0.0) > effort[k]]
