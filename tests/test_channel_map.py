@@ -197,3 +197,20 @@ def test_repairs_are_warned_and_recorded(tmp_path: Path) -> None:
     assert log.n_samples == n
     np.testing.assert_allclose(log.position[:, 0], y, rtol=1e-12)  # linear in time: exact
     np.testing.assert_allclose(log.torque[:, 0], -y, rtol=1e-12)
+
+
+def test_a_ragged_line_of_a_headerless_csv_is_measured_against_the_first_line(
+        tmp_path: Path) -> None:
+    rows = [f"{0.01 * i},{0.1 * i},{0.5 + i}\n" for i in range(20)]
+    rows[7] = "1,2\n"
+    log_path = tmp_path / "dump.csv"
+    log_path.write_text("".join(rows))
+    cmap = _yaml(tmp_path, """
+csv: {header: false}
+time: {column: 0, unit: s}
+joints:
+  - {name: a, position: {column: 1}, torque: {column: 2}}
+""")
+    with pytest.raises(LogFormatError, match="line 8: 2 fields where the first line has 3") as e:
+        read_log(log_path, channel_map=cmap)
+    assert "header" not in str(e.value).split("dump.csv", 1)[1]

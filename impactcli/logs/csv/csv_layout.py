@@ -376,7 +376,8 @@ def csv_parse_error(lay: CsvLayout, err: BaseException) -> LogFormatError:
     if m:
         at = ragged_line(lay.path, lay.skip, lay.delim, int(m.group(1)))
         if at is not None:
-            msg = (f"line {at}: {m.group(2)} fields where the header has "
+            first = "the header has" if lay.header else "the first line has"
+            msg = (f"line {at}: {m.group(2)} fields where {first} "
                    f"{m.group(1)}" + msg[m.end():])
     return LogFormatError(f"{lay.where}: cannot parse CSV: {msg}")
 
