@@ -118,6 +118,14 @@ def test_free_logs_raise_no_alarm_with_their_rate_thresholds(assist: tuple,
     _, cfg = assist
     r = invoke("detect", *free("assist"), "--config", str(cfg), "-o", str(tmp_path))
     assert r.exit_code == 0, r.output
+    # the terminal says once what the thresholds promise, and that this one is not promised
+    said = [ln for ln in r.stdout.splitlines() if ln.startswith("thresholds of assist.toml: ")]
+    assert len(said) == 1, r.stdout
+    assert re.match(r"thresholds of assist.toml: set for 1 false alarm\(s\) per hour "
+                    r"\(predicted [0-9.]+ false alarm\(s\) per hour, ≤ 1 at 90 %, on motion "
+                    r"like the calibration logs'\), not supported by its free motion "
+                    r"\([0-9.]+ min of free motion supports at best .*\); weak: the "
+                    r"leave-one-out margin hit its cap of 3× on static_baseline$", said[0]), said
     for p in free("assist"):
         stem = Path(p).name.removesuffix(".csv.gz")
         tl = json.loads((tmp_path / f"{stem}.timeline.json").read_text())
@@ -143,6 +151,11 @@ def test_report_states_the_rate_and_that_it_is_not_supported(assist: tuple,
     assert "(static_baseline)" in cav["weak-calibration"]
     text = html.read_text()
     assert "Thresholds for a false-alarm rate" in text
+    # the header's calibration says what detect's terminal says (one phrase)
+    assert re.search(r"calibrated \(set for 1 false alarm\(s\) per hour \(predicted [0-9.]+ "
+                     r"false alarm\(s\) per hour, ≤ 1 at 90 %, on motion like the calibration "
+                     r"logs(&#x27;|')\), not supported by its free motion \(.*\); weak: the "
+                     r"leave-one-out margin hit its cap of 3× on static_baseline\)", text)
     assert "The calibration&#x27;s motion envelope" in text or \
         "The calibration's motion envelope" in text
 

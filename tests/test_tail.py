@@ -14,7 +14,8 @@ from impactcli.detect import tail
 from impactcli.detect import tail_fit as tf
 from impactcli.detect.events import extract_events
 from impactcli.detect.incidents import PRODUCT_DETECTORS, group_events
-from impactcli.detect.thresholds import MIN_THRESHOLD
+from impactcli.detect.tail import calibration_text, capped_detectors
+from impactcli.detect.thresholds import MAX_MARGIN, MIN_THRESHOLD
 
 
 # ----------------------------------------------------------------------- the merge rule
@@ -314,3 +315,35 @@ def test_rates_and_minutes_as_printed() -> None:
         "60.0", "1.4", "1.0", "0.15", "0.037"]
     assert tail.support_statement(0.0366 / 60, None).startswith(
         "0.037 min of free motion supports at best 126 false alarms per hour")  # 2.3026·2/0.0366
+
+
+def test_calibration_text_says_what_each_kind_of_threshold_promises() -> None:
+    rated = {"per_hour": 1.0, "confidence": 0.9, "predicted_per_hour": 0.42,
+             "upper_per_hour": 1.0, "supported": True, "statement": "60 min ..."}
+    assert calibration_text({"margin_rule": "leave-one-out", "false_alarm_rate": rated}) == (
+        "set for 1 false alarm(s) per hour (predicted 0.42 false alarm(s) per hour, ≤ 1 at "
+        "90 %, on motion like the calibration logs')")
+    short = {**rated, "supported": False, "statement": "1.4 min supports at best 3.4"}
+    assert calibration_text({"false_alarm_rate": short}).endswith(
+        "), not supported by its free motion (1.4 min supports at best 3.4)")
+    loo = {"confidence": 0.95, "predicted_per_hour": 161.4, "upper_per_hour": 409.4,
+           "supported_per_hour": 3.4, "statement": "s"}
+    assert calibration_text({"margin_rule": "leave-one-out", "false_alarm_rate": loo}) == (
+        "leave-one-out, predicted 161 false alarm(s) per hour, ≤ 409 at 95 %, on motion like "
+        "the calibration logs'")
+    # a bound below what the free minutes support is the tail fit's extrapolation alone
+    tiny = {**loo, "predicted_per_hour": 0.01, "upper_per_hour": 0.1}
+    assert calibration_text({"margin_rule": "leave-one-out", "false_alarm_rate": tiny}
+                            ).endswith("not supported by its free motion (s)")
+    assert calibration_text({"margin_rule": "leave-one-out"}) == (
+        "leave-one-out, no false-alarm rate recorded")
+    # weak: one log, or a margin at its cap; under a rate the product's detectors are not
+    # set by the margin, so only the others' caps count
+    capped = {"adaptive": {"a": MAX_MARGIN}, "static_baseline": {"a": 1.0, "b": MAX_MARGIN}}
+    assert calibration_text({"margin_rule": "fixed-single-log", "weak": True}).endswith(
+        "; weak: one calibration log, a fixed 1.5× margin")
+    assert calibration_text({"margin_rule": "leave-one-out", "weak": True, "margins": capped}
+                            ).endswith("cap of 3× on adaptive, static_baseline")
+    assert capped_detectors({"margins": capped, "false_alarm_rate": rated}) == [
+        "static_baseline"]
+    assert capped_detectors({"margins": {"adaptive": {"a": 2.99}}}) == []

@@ -179,7 +179,8 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
 
         prepare_output(summary_path)  # a bad --summary stops the batch before any work
     choice = resolve_executor(jobs, scheduler)
-    inputs = load_inputs(robot, model, config).provenance  # a bad one stops the run here
+    loaded = load_inputs(robot, model, config)  # a bad one stops the run here
+    inputs, thresholds = loaded.provenance, _thresholds_line(config, loaded.config)
     serial = (jobs or 1) == 1 and scheduler is None
     job_list = [DetectJob(p, out_dir, read_options, robot, model, config, signals, rerun,
                           model_from_log, generator, allow_slow, serial) for p in paths]
@@ -201,7 +202,8 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
         fail_usage(f"cannot use {choice.describe()}: {err}")
     except Interrupted:  # stopped: nothing more dispatched, the running logs abandoned
         stream.close()   # (their temporary files removed); what finished is listed
-        _finish(outcomes, paths, choice, inputs, timer.elapsed(), out_dir, summary_path)
+        _finish(outcomes, paths, choice, inputs, timer.elapsed(), out_dir, summary_path,
+                thresholds)
         late = written_since(job_list, {o.log_path for o in outcomes}, started)
         click.echo(f"impactcli: {len(outcomes) + len(late)} of {len(paths)} logs finished "
                    "before the stop; run the same command again to redo the batch", err=True)
@@ -209,7 +211,8 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
             click.echo(f"impactcli: {', '.join(map(shown, late))}: finished as the stop came; "
                        "its outputs are written but not in the table", err=True)
         raise
-    _finish(outcomes, paths, choice, inputs, timer.elapsed(), out_dir, summary_path)
+    _finish(outcomes, paths, choice, inputs, timer.elapsed(), out_dir, summary_path,
+            thresholds)
     failed = [o for o in outcomes if not o.ok]
     ok = [o for o in outcomes if o.ok]
     ctx = click.get_current_context()
@@ -231,9 +234,10 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
 
 def _finish(outcomes: list[JobOutcome], paths: list[str], choice: Any,
             inputs: dict[str, dict[str, str]], wall: float, out_dir: str,
-            summary_path: str | None) -> None:
+            summary_path: str | None, thresholds: str | None) -> None:
     """The table of the logs finished (in input order) and the ``--summary`` file: after
-    the batch, or after a stop (then it lists what finished)."""
+    the batch, or after a stop (then it lists what finished); ``thresholds``: the line on
+    the config's thresholds (:func:`_thresholds_line`)."""
     from ..run.batch import batch_summary
 
     order = {p: i for i, p in enumerate(paths)}
@@ -242,7 +246,7 @@ def _finish(outcomes: list[JobOutcome], paths: list[str], choice: Any,
                             executor={**choice.to_dict(), "description": choice.describe()},
                             inputs=inputs)
     loads = {o.log_path: lasting_loads_of(o) for o in outcomes if o.ok}
-    _echo_table(outcomes, summary, out_dir, loads)
+    _echo_table(outcomes, summary, out_dir, loads, thresholds)
     if summary_path is not None:
         import json
 
@@ -302,14 +306,28 @@ def _generators_line(row: SummaryRow) -> str:
     return ", ".join(f"{j} {x} ({why.get(j, '')})" for j, x in g.items())
 
 
+def _thresholds_line(path: str | None, config: Any) -> str | None:
+    """What a calibrated config's thresholds promise, said once for the batch
+    (:func:`impactcli.detect.tail.calibration_text`); None without one (an uncalibrated
+    run warns of its own)."""
+    if path is None or config is None or not config.calibration.calibrated:
+        return None
+    import dataclasses
+
+    from ..detect.tail import calibration_text
+
+    return (f"thresholds of {shown(path)}: "
+            + calibration_text(dataclasses.asdict(config.calibration)))
+
+
 def _echo_table(outcomes: list[JobOutcome], summary: dict[str, Any], out_dir: str,
-                loads: dict[str, list[dict[str, Any]]]) -> None:
+                loads: dict[str, list[dict[str, Any]]], thresholds: str | None) -> None:
     """Per-log rows (at most MAX_ROWS) and the batch totals, on stdout; ``loads``: each
-    log's counted lasting loads."""
+    log's counted lasting loads; ``thresholds``: the config's line, after the rows."""
     ok = [o for o in outcomes if o.summary is not None]
     rows = {o.log_path: o.summary for o in ok if o.summary is not None}
     if ok:
-        _echo_rows(ok, rows, out_dir, loads)
+        _echo_rows(ok, rows, out_dir, loads, thresholds)
     if len(outcomes) > 1:
         n, ev, tp = summary["logs"], summary["events"], summary["throughput"]
         lps = tp["logs_per_s"] or 0.0
@@ -324,9 +342,10 @@ def _echo_table(outcomes: list[JobOutcome], summary: dict[str, Any], out_dir: st
 
 
 def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
-               loads: dict[str, list[dict[str, Any]]]) -> None:
-    """The finished logs' rows (at most MAX_ROWS), their residual generators and, for one
-    log, its incidents, lasting loads and what their figures rest on."""
+               loads: dict[str, list[dict[str, Any]]], thresholds: str | None) -> None:
+    """The finished logs' rows (at most MAX_ROWS), their residual generators, the config's
+    ``thresholds`` line and, for one log, its incidents, lasting loads and what their
+    figures rest on."""
     one = rows[ok[0].log_path]  # the first log's row
     click.echo(f"{'log':<36} {'duration_s':>9} {'calibrated':>10} {'warmup':>7} "
                f"{'incidents':>9} {'lasting':>7} | {'adaptive':>8} {'loading':>8} "
@@ -342,6 +361,8 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
         for o in ok[:MAX_ROWS]:
             click.echo(f"residual generator of {shown(o.log_path)}: "
                        + _generators_line(rows[o.log_path]))
+    if thresholds is not None:
+        click.echo(thresholds)
     click.echo(f"(incidents, lasting loads and events per detector after warm-up; an "
                f"incident is one contact, made of the adaptive and loading events; a "
                f"lasting load an alarm of {LONG_EVENT_S:g} s or more; timelines in "

@@ -40,11 +40,12 @@ from .tail_fit import (
     sigma_upper,
     threshold_upper,
 )
-from .thresholds import MIN_THRESHOLD  # the smallest threshold returned [N·m]
+from .thresholds import MAX_MARGIN, MIN_THRESHOLD  # MIN_THRESHOLD: the smallest returned [N·m]
 
 __all__ = [
     "CONF", "CONFIG_KEYS", "DEFAULT_FALSE_ALARMS_PER_HOUR", "DETECTORS", "ChannelFits",
-    "Clusters", "LoloRow", "RateCalibration", "TailFit", "calibrate_rate", "clusters",
+    "Clusters", "LoloRow", "RateCalibration", "TailFit", "calibrate_rate", "calibration_text",
+    "capped_detectors", "clusters",
     "count_incidents", "fit_channel", "fit_channels", "leave_one_log_out", "minutes_needed",
     "minutes_text", "per_hour_text", "poisson_interval", "rate_at", "rate_upper",
     "rates_for_thresholds", "split_settle", "stack_detectors", "support",
@@ -209,6 +210,52 @@ def per_hour_text(rate: float) -> str:
     """A rate [1/h] as the terminal and report print it: 2 significant digits, whole
     numbers from 100 on (``200``, not ``2e+02``)."""
     return f"{rate:.0f}" if rate >= 100 else f"{rate:.2g}"
+
+
+def capped_detectors(calib: Mapping[str, object]) -> list[str]:
+    """The detectors of a config's calibration record (its mapping) whose leave-one-out
+    margin hit its cap (:data:`~impactcli.detect.thresholds.MAX_MARGIN`) on some joint: the
+    calibration logs disagreed, so a log like the most different one may still alarm. Under
+    a stated rate the product's detectors (:data:`DETECTORS`) are set by the rate, not the
+    margin, and are not listed."""
+    margins = calib.get("margins") or {}
+    rate = calib.get("false_alarm_rate")
+    rated = isinstance(rate, Mapping) and "per_hour" in rate
+    return sorted(d for d, m in (margins.items() if isinstance(margins, Mapping) else ())
+                  if isinstance(m, Mapping) and max(m.values(), default=0) >= MAX_MARGIN
+                  and not (rated and d in DETECTORS))
+
+
+def calibration_text(calib: Mapping[str, object]) -> str:
+    """How a calibrated config's thresholds were set and what that promises, in one phrase
+    (detect's terminal, the report's header): the rate asked or the margin rule, the rate
+    they are predicted to give and its bound, whether the free motion supports it, and a
+    weak calibration's reason (one log; a capped margin, :func:`capped_detectors`)."""
+    rate = calib.get("false_alarm_rate")
+    rate = rate if isinstance(rate, Mapping) else {}
+    rule = str(calib.get("margin_rule") or "rule not recorded")
+    pct = f" at {100 * float(rate['confidence']):.0f} %" if "confidence" in rate else ""
+    bound = (f"predicted {per_hour_text(float(rate['predicted_per_hour']))} false alarm(s) "
+             f"per hour, ≤ {per_hour_text(float(rate['upper_per_hour']))}{pct}, on motion "
+             "like the calibration logs'"
+             if "predicted_per_hour" in rate and "upper_per_hour" in rate else "")
+    if "per_hour" in rate:
+        text = f"set for {float(rate['per_hour']):g} false alarm(s) per hour"
+        text += f" ({bound})" if bound else ""
+    else:
+        text = f"{rule}, " + (bound or "no false-alarm rate recorded")
+    if rate.get("supported") is False or ("per_hour" not in rate and "supported_per_hour"
+                                          in rate and float(rate["supported_per_hour"])
+                                          > float(rate.get("upper_per_hour", 0.0))):
+        text += f", not supported by its free motion ({rate.get('statement', '')})"
+    if calib.get("weak"):
+        capped = capped_detectors(calib)
+        if rule == "fixed-single-log":
+            text += "; weak: one calibration log, a fixed 1.5× margin"
+        elif capped:
+            text += (f"; weak: the leave-one-out margin hit its cap of {MAX_MARGIN:g}× on "
+                     f"{', '.join(capped)}")
+    return text
 
 
 # -------------------------------------------------------------------------- log starts

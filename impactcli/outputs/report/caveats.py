@@ -9,7 +9,7 @@ from __future__ import annotations
 from typing import Any
 
 from ...detect.events import LONG_EVENT_S
-from ...detect.tail import per_hour_text
+from ...detect.tail import capped_detectors, per_hour_text
 from ...detect.thresholds import (
     MAX_MARGIN,
     UNCALIBRATED_BLOCK_S,
@@ -123,10 +123,8 @@ def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]
         )
     elif calib.get("weak"):
         rule = calib.get("margin_rule") or "unknown rule"
-        margins = calib.get("margins") or {}
         rated = "per_hour" in (calib.get("false_alarm_rate") or {})
-        capped = sorted({d for d, m in margins.items() if max(m.values(), default=0) >= MAX_MARGIN
-                         and not (rated and d in ("adaptive", "static_loading"))})
+        capped = capped_detectors(calib)
         single = rule == "fixed-single-log"
         if single or capped or not rated:  # else the rate's own caveat below says why
             why = ("the thresholds come from a single collision-free log with a fixed 1.5× "

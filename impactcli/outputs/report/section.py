@@ -16,7 +16,7 @@ from __future__ import annotations
 from typing import Any
 
 from ...detect.floor import floor_line
-from ...detect.tail import per_hour_text
+from ...detect.tail import calibration_text
 from ...logs.paths import log_stem
 from ...types import DETECTORS, DetectionResult, Labels
 from ..timeline import timeline_dict
@@ -106,14 +106,7 @@ def _meta(sec: LogSection, anchor: str) -> str:
     inp = sec["input"]
     model = (sec.get("model") or {}).get("model") or {}
     calib = (sec.get("config") or {}).get("calibration") or {}
-    fa = calib.get("false_alarm_rate") or {}
-    unsupported = ", not supported by its free motion" if fa.get("supported") is False else ""
-    rule = (f'{fa["per_hour"]:g} false alarm(s) per hour{unsupported}' if fa.get("per_hour")
-            else (calib.get("margin_rule") or "rule not recorded") + (
-                f', predicted {per_hour_text(fa["predicted_per_hour"])} false alarm(s) per '
-                f'hour, ≤ {per_hour_text(fa["upper_per_hour"])}'
-                if fa.get("upper_per_hour") is not None
-                and fa.get("predicted_per_hour") is not None else ""))
+    rule = calibration_text(calib)
     cal = (f'calibrated ({e(rule)})' if sec["calibrated"]
            else '<span class="bad">UNCALIBRATED</span>')
     ev = ((sec.get("quality") or {}).get("evaluation") or {})
