@@ -370,7 +370,7 @@ def test_a_threshold_above_its_joints_effort_limit_is_said() -> None:
     from impactcli.config import DetectorConfig, ThresholdsConfig
     from impactcli.errors import ImpactWarning
     from impactcli.logs.published_arms import arm, urdf_xml
-    from impactcli.run.calibration import warn_beyond_effort
+    from impactcli.run.run_warnings import warn_beyond_effort
 
     ur10e = arm("ur10e")
     assert ur10e is not None

@@ -258,3 +258,27 @@ def test_a_name_without_the_extra_says_how_to_install(tmp_path: Path,
         assert code == 2, err
         assert err.count("\n") == 1 and "pip install 'impactcli[robots]'" in err, err
     robots.arm_joints.cache_clear()
+
+
+def test_detect_names_a_threshold_above_its_joints_effort_limit(tmp_path: Path) -> None:
+    """A config whose loading threshold on the UR10e's shoulder_lift (effort limit 330 N·m)
+    is 500 N·m checks that joint in name only: detect says so, naming joint, detector and
+    both figures, on stderr and in the timeline; the config as calibrated says nothing."""
+    log = tmp_path / "ur10e.csv"
+    write_log(synthetic_log("ur10e"), log)
+    cfg = tmp_path / "ur10e.config.json"
+    code, _, err = cli(["calibrate", str(log), "--robot", "ur10e", "-o", str(cfg)])
+    assert code == 0, err
+    assert "effort limit" not in err
+    d = json.loads(cfg.read_text())
+    d["thresholds"]["vL"]["shoulder_lift_joint"] = 500.0
+    high = tmp_path / "high.config.json"
+    high.write_text(json.dumps(d))
+    said = ("the config's thresholds above their joint's effort limit (the URDF's, N·m): "
+            "shoulder_lift_joint static_loading 500 > 330: a contact would have to load")
+    for c, out, warned in ((cfg, "a", False), (high, "b", True)):
+        code, _, err = cli(["detect", str(log), "--config", str(c), "-o", str(tmp_path / out)])
+        assert code == 0, err
+        assert (said in err) is warned, err
+        tl = json.loads((tmp_path / out / "ur10e.timeline.json").read_text())
+        assert any(said in w for w in tl["warnings"]) is warned

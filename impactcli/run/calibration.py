@@ -41,7 +41,7 @@ from ..detect.tail import (
 )
 from ..detect.tail import DETECTORS as TAIL_DETECTORS
 from ..detect.warmup import Warmup
-from ..errors import ConfigError, ImpactError, ImpactWarning, LogFormatError
+from ..errors import ConfigError, ImpactWarning, LogFormatError
 from ..logs.reader import LogScan, MemoryReader
 from ..logs.screen import LeftOut
 from ..model import IdentifyOptions, RigidModel
@@ -62,7 +62,7 @@ from .plan import (
     resolve_model,
     screen_scan,
 )
-from .run_warnings import CaughtWarnings
+from .run_warnings import CaughtWarnings, warn_beyond_effort
 
 #: ``calibrate``'s threshold rules for the product's detectors (adaptive, static_loading):
 #: thresholds for a false-alarm rate the user asks for, or the leave-one-out margin over
@@ -244,38 +244,6 @@ def calibrate_run(
     )
     warn_beyond_effort(out, joints, robot)
     return Calibrated(out, rate)
-
-
-def warn_beyond_effort(cfg: DetectorConfig, joints: Sequence[str],
-                       robot: RobotDescription | None = None) -> None:
-    """A warning per threshold above its joint's effort limit (a URDF's ``<limit
-    effort>``: the model's, else the robot description's when its kinematics are a URDF):
-    a contact would have to load that joint beyond what its motor exerts to be seen by that
-    detector there — a joint checked in name only."""
-    from ..detect.incident_builder import effort_limits, urdf_efforts
-
-    effort = urdf_efforts(cfg.model, tuple(joints))
-    kin = None if robot is None else robot.kinematics
-    if (robot is not None and kin is not None and kin.get("type") == "urdf"
-            and not np.isfinite(effort).any()):
-        from ..model.identification import urdf_source
-
-        try:
-            xml = urdf_source(kin)[0]
-        except (ImpactError, OSError):
-            xml = None
-        if xml:
-            effort = effort_limits(xml, dict(robot.joint_map or {}), tuple(joints))
-    over = [f"{j} {d} {cfg.thresholds.of(d)[j]:.4g} > {effort[k]:.4g}"
-            for k, j in enumerate(joints) if np.isfinite(effort[k])
-            for d in DETECTORS if cfg.thresholds.of(d).get(j, 0.0) > effort[k]]
-    if over:
-        warnings.warn(
-            f"thresholds above their joint's effort limit (the URDF's, N·m): {', '.join(over)}"
-            ": a contact would have to load the joint beyond what its motor exerts to be "
-            "seen there — the calibration logs' residual on it is that large (a wrong unit "
-            "or torque constant, a model that does not fit them, or too little free motion "
-            "for the rate asked)", ImpactWarning, stacklevel=3)
 
 
 def _rate_logs(replays: list[_Replayed], excluded: list[dict[str, Any]], warn: bool = True

@@ -81,6 +81,7 @@ from .plan import ChunkFeed, Passes, RunPlan, calibrated_thresholds, plan_run, w
 from .replay import ChunkReplay, Replayer, ReplaySetup, ReplayState
 from .run_warnings import (
     CaughtWarnings,
+    warn_beyond_effort,
     warn_defect_incidents,
     warn_events_after_gaps,
     warn_gaps,
@@ -267,6 +268,8 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
                               chunk_rows=setup.chunk_rows, passes=passes)
         joints = plan.joints
         given = calibrated_thresholds(cfg, joints)
+        if given is not None:  # a joint a detector checks in name only
+            warn_beyond_effort(cfg, joints, setup.robot, where)
         since = caught.mark()
         monitor = monitor_for(plan, given, scan.sample_rate_hz)
         rp, thr, margins, islands, envelope, floor_acc = _detect_passes(

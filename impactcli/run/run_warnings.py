@@ -21,8 +21,8 @@ from ..config import PLAIN_FORMULATION, DetectorConfig
 from ..detect.events import LONG_EVENT_S
 from ..detect.thresholds import UNCALIBRATED_BLOCK_S, UNCALIBRATED_MARGIN, UNCALIBRATED_QUANTILE
 from ..detect.warmup import Warmup
-from ..errors import ImpactWarning
-from ..types import Event
+from ..errors import ImpactError, ImpactWarning
+from ..types import DETECTORS, Event, RobotDescription
 
 #: Events starting this long after a time gap are named in a warning [s].
 GAP_SETTLE_S = 0.5
@@ -226,3 +226,42 @@ def warn_outside_envelope(where: str, text: str, outside: int, touching: int,
     if posture:
         warnings.warn(f"{where}: {posture} (motion_envelope.posture_outside in the timeline)",
                       ImpactWarning, stacklevel=2)
+
+
+def warn_beyond_effort(cfg: DetectorConfig, joints: Sequence[str],
+                       robot: RobotDescription | None = None, where: str | None = None,
+                       ) -> None:
+    """One warning naming each threshold above its joint's effort limit (a URDF's ``<limit
+    effort>``: the model's, else the robot description's when its kinematics are a URDF):
+    a contact would have to load that joint beyond what its motor exerts to be seen by that
+    detector there — a joint checked in name only. ``where``: None at calibrate (the
+    calibration logs' residual is why), else the log a detect run replays with ``cfg``."""
+    from ..detect.incident_builder import effort_limits, urdf_efforts
+    from ..model.identification import urdf_source
+
+    effort = urdf_efforts(cfg.model, tuple(joints))
+    kin = None if robot is None else robot.kinematics
+    if (robot is not None and kin is not None and kin.get("type") == "urdf"
+            and not np.isfinite(effort).any()):
+        try:
+            xml = urdf_source(kin)[0]
+        except (ImpactError, OSError):
+            xml = None
+        if xml:
+            effort = effort_limits(xml, dict(robot.joint_map or {}), tuple(joints))
+    over = [f"{j} {d} {cfg.thresholds.of(d)[j]:.4g} > {effort[k]:.4g}"
+            for k, j in enumerate(joints) if np.isfinite(effort[k])
+            for d in DETECTORS if cfg.thresholds.of(d).get(j, 0.0) > effort[k]]
+    if not over:
+        return
+    said = (f"thresholds above their joint's effort limit (the URDF's, N·m): {', '.join(over)}"
+            ": a contact would have to load the joint beyond what its motor exerts to be "
+            "seen there")
+    if where is None:
+        said += (" — the calibration logs' residual on it is that large (a wrong unit or "
+                 "torque constant, a model that does not fit them, or too little free motion "
+                 "for the rate asked)")
+    else:
+        said = (f"{where}: the config's {said}: that detector checks the joint in name only "
+                "(the detection floor's figure on it says how large a contact it needs)")
+    warnings.warn(said, ImpactWarning, stacklevel=3)
