@@ -562,3 +562,27 @@ def test_without_incidents_the_evaluation_says_so():
     assert d["summary"] == [["incidents", "arm.timeline.json is a 1.0 timeline: no incidents"]]
     assert "Incidents: arm.timeline.json is a 1.0 timeline" in format_evaluation(e)
     validate(e.to_dict(), "evaluation", LabelsError, "evaluation")
+
+
+def test_the_alarm_of_a_payload_change_is_not_a_false_alarm():
+    """The false incident at 9.5 s of answer_case, marked as a payload change's alarm (a
+    load picked: detect neither counts nor gates it), is no false alarm of any detector
+    and no counted incident; it is listed as such. The counts are otherwise the same."""
+    lab, events, incs = answer_case()
+    before = run(events, lab, incidents=incs)
+    incs[4] = {**incs[4], "payload_change": 1}
+    e = run(events, lab, incidents=incs)
+    for d in ("adaptive", "product"):
+        assert before.scores[d].false_alarms == 1
+        assert e.scores[d].false_alarms == 0, d
+        assert e.scores[d].payload_change_events == ((9.5, 9.55),)
+        assert e.scores[d].detected == before.scores[d].detected
+    ie = e.incidents
+    assert (ie.n_incidents, ie.n_payload_changes, ie.unmatched) == (3, 1, ())
+    doc = e.to_dict()
+    validate(doc, "evaluation", LabelsError, "evaluation")
+    assert doc["detectors"]["product"]["payload_change_events"] == [[9.5, 9.55]]
+    assert "payload_change_events" not in before.to_dict()["detectors"]["product"]  # if any
+    text = format_evaluation(e)
+    assert "not false alarms: the alarms of payload changes" in text
+    assert "1 the alarm of a payload change (not counted)" in text

@@ -107,6 +107,9 @@ class DetectorScore:
         by_kind: the same per contact kind present among counted contacts.
         false_alarm_times: (t_start, t_end) of each false alarm [s].
         warmup_events: (t_start, t_end) of each event in warm-up [s].
+        payload_change_events: (t_start, t_end) of each counted event inside a payload
+            change's alarm that matches no contact [s]: a load picked or released, not a
+            false alarm (the run's incidents say which: ``payload_change``).
     """
 
     detector: str
@@ -123,6 +126,7 @@ class DetectorScore:
     by_kind: tuple[KindScore, ...] = ()
     false_alarm_times: tuple[tuple[float, float], ...] = ()
     warmup_events: tuple[tuple[float, float], ...] = ()
+    payload_change_events: tuple[tuple[float, float], ...] = ()
 
     @property
     def missed(self) -> int:
@@ -193,6 +197,9 @@ class Evaluation:
                 },
                 "false_alarm_times": [[rounded(a), rounded(b)] for a, b in s.false_alarm_times],
                 "warmup_events": [[rounded(a), rounded(b)] for a, b in s.warmup_events],
+                **({"payload_change_events": [[rounded(a), rounded(b)] for a, b in
+                                              s.payload_change_events]}
+                   if s.payload_change_events else {}),
             }
 
         return {
@@ -320,6 +327,7 @@ def evaluate_events(
         if d not in EVALUATED:
             raise ConfigError(f"evaluation: unknown detector {d!r} (expected one of {EVALUATED})")
     evs = [scored_event(e, warmup_end_s, i) for i, e in enumerate(events)]
+    loads = payload_spans(incidents or ())
     by_det: dict[str, list[ScoredEvent]] = {d: [e for e in evs if e.detector == d]
                                             for d in DETECTORS}
     by_det[PRODUCT] = product_events(evs, warmup_end_s, product_merge_gap_s)
@@ -391,7 +399,9 @@ def evaluate_events(
         counted = [e for e in d_evs if not e.in_warmup]
         warm = [e for e in d_evs if e.in_warmup]
         first_match, first_any, matched = matches[d]
-        false_alarms = [e for e, m in zip(d_evs, matched, strict=True) if not m and not e.in_warmup]
+        no_match = [e for e, m in zip(d_evs, matched, strict=True) if not m and not e.in_warmup]
+        false_alarms = [e for e in no_match if not _in_any(e, loads)]
+        picked = [e for e in no_match if _in_any(e, loads)]
         c_start = np.array([e.t_start for e in counted])
         c_end = np.array([e.t_end for e in counted])
         det_k, del_k, on_k = [], [], []
@@ -425,6 +435,7 @@ def evaluate_events(
             min_detected_force=min_f, max_missed_force=max_miss, by_kind=tuple(by_kind),
             false_alarm_times=tuple((e.t_start, e.t_end) for e in false_alarms),
             warmup_events=tuple((e.t_start, e.t_end) for e in warm),
+            payload_change_events=tuple((e.t_start, e.t_end) for e in picked),
         )
 
     outcomes = tuple(
@@ -458,3 +469,20 @@ def evaluate_result(
     return evaluate_events(result.events, labels, duration_s=result.log.duration_s,
                            warmup_end_s=result.warmup_end_s, tolerance=tolerance,
                            product_merge_gap_s=gap, incidents=list(result.incidents))
+
+
+def payload_spans(incidents: Sequence[Any]) -> list[tuple[float, float]]:
+    """(t_start, t_end) [s] of the incidents after warm-up that are a payload change's
+    alarm (``payload_change``; :class:`~impactcli.detect.incidents.Incident` s or timeline
+    dicts): a load picked or released, which detect neither counts nor gates."""
+    out = []
+    for x in incidents:
+        d = x if isinstance(x, Mapping) else vars(x)
+        if d.get("payload_change") is not None and not d.get("in_warmup", False):
+            out.append((float(d["t_start"]), float(d["t_end"])))
+    return out
+
+
+def _in_any(e: Any, spans: Sequence[tuple[float, float]]) -> bool:
+    """Whether the event ``e`` overlaps one of ``spans``."""
+    return any(e.t_start <= b + EPS_S and e.t_end >= a - EPS_S for a, b in spans)

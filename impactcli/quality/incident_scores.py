@@ -54,6 +54,7 @@ class _Inc:
     contact: str
     in_warmup: bool
     events: tuple[int, ...] | None
+    payload_change: bool = False
 
 
 def _as_inc(x: Any, warmup_end_s: float, i: int) -> _Inc:
@@ -70,7 +71,8 @@ def _as_inc(x: Any, warmup_end_s: float, i: int) -> _Inc:
         return _Inc(t0, t1, None if link is None else int(link),
                     None if force is None else float(force), str(get("contact", "unknown")),
                     bool(get("in_warmup", False)) or t0 < warmup_end_s,
-                    None if not evs else tuple(int(k) for k in evs))
+                    None if not evs else tuple(int(k) for k in evs),
+                    get("payload_change") is not None)
     except (KeyError, TypeError, ValueError) as err:
         raise LogFormatError(f"incidents[{i}]: missing or bad field: {err}") from None
 
@@ -195,6 +197,8 @@ class IncidentEvaluation:
         overall: over counted contacts; per_link: by labelled link; per_type: by the
             contact type the label's kind calls for.
         n_incidents, n_incidents_in_warmup: counted incidents and those in warm-up.
+        n_payload_changes: the alarms of payload changes (not contacts, not counted:
+            :func:`impactcli.detect.incidents.mark_payload_changes`).
         unmatched: counted incidents starting in no contact's window (false incidents).
         detected: counted contacts the product detected (one of its counted alarms starts
             in the window) — the ones that must each be exactly one incident.
@@ -211,6 +215,7 @@ class IncidentEvaluation:
     per_type: dict[str, AnswerScore] = field(default_factory=dict)
     n_incidents: int = 0
     n_incidents_in_warmup: int = 0
+    n_payload_changes: int = 0
     unmatched: tuple[int, ...] = ()
     detected: int = 0
     split: tuple[int, ...] = ()
@@ -236,7 +241,9 @@ class IncidentEvaluation:
                 f" ({len(self.unmatched)} matching no labelled contact)" if self.unmatched
                 else " (each matches a labelled contact)" if self.n_incidents else "")
              + (f"; {self.n_incidents_in_warmup} in warm-up (not counted)"
-                if self.n_incidents_in_warmup else "")],
+                if self.n_incidents_in_warmup else "")
+             + (f"; {self.n_payload_changes} the alarm of a payload change (not counted)"
+                if self.n_payload_changes else "")],
             ["link right", _frac(o.link_right, o.matched)],
             ["contact type right", _frac(o.contact_right, o.matched)],
             ["force error (median |F − F_label| / F_label)", _pct(o.force_rel_error_median)
@@ -278,6 +285,7 @@ class IncidentEvaluation:
             "matched": o.matched,
             "n_incidents": self.n_incidents,
             "n_incidents_in_warmup": self.n_incidents_in_warmup,
+            "n_payload_changes": self.n_payload_changes,
             "unmatched_incidents": list(self.unmatched),
             "link_accuracy": rounded(o.link_accuracy, 6),
             "contact_accuracy": rounded(o.contact_accuracy, 6),
@@ -336,7 +344,7 @@ def evaluate_incidents(
     """
     incs = [_as_inc(x, warmup_end_s, i) for i, x in enumerate(incidents)]
     order = sorted(range(len(incs)), key=lambda k: (incs[k].t_start, incs[k].t_end))
-    counted_inc = [k for k in order if not incs[k].in_warmup]
+    counted_inc = [k for k in order if not incs[k].in_warmup and not incs[k].payload_change]
     # product alarm k → the incidents holding it
     holder: dict[int, set[int]] = {}
     with_events = bool(incs) and all(i.events is not None for i in incs)
@@ -400,7 +408,8 @@ def evaluate_incidents(
     return IncidentEvaluation(
         available=True, contacts=tuple(rows), overall=_answer_score(counted_rows),
         per_link=per_link, per_type=per_type, n_incidents=len(counted_inc),
-        n_incidents_in_warmup=len(incs) - len(counted_inc),
+        n_incidents_in_warmup=sum(1 for i in incs if i.in_warmup),
+        n_payload_changes=sum(1 for i in incs if i.payload_change and not i.in_warmup),
         unmatched=tuple(sorted(k for k in counted_inc
                                if not _starts_in_any(incs[k], contacts, tolerance))),
         detected=detected, split=tuple(split), not_in_incident=tuple(none_),

@@ -55,6 +55,11 @@ def format_evaluation(ev: Evaluation) -> str:
             fmt_n(s.max_missed_force), str(s.n_events_in_warmup),
         ))
     lines += text_table(rows)
+    picked = {d: len(s.payload_change_events) for d, s in ev.scores.items()
+              if s.payload_change_events}
+    if picked:
+        lines.append("not false alarms: the alarms of payload changes (a load picked or "
+                     "released) — " + ", ".join(f"{d} {n}" for d, n in picked.items()))
     kind_rows: list[tuple[str, ...]] = [("detector", "kind", "detected", "delay med",
                                          "min detected F", "max missed F")]
     for d, s in ev.scores.items():
