@@ -463,19 +463,34 @@ def test_payload_changes_are_rows_at_their_onset_and_classification(tmp_path: Pa
     res = fake_result()
     change = {"t_start": 2.0, "t_classified": 5.0, "mass_kg": 1.25, "mass_se_kg": 0.01,
               "values": {"m": 1.25}, "explained": 0.97, "mass_after_kg": 1.25,
-              "as_log": "heavy.csv"}
-    res = dataclasses.replace(res, payload_changes=(change,))
+              "as_log": "heavy.csv", "drift": 0.012, "inertia": "shows"}
+    # the alarm of the change (the 7.0 s loading event) is the payload change's, not counted
+    warm, one, carried = make_incidents(res)
+    incs = (warm, dataclasses.replace(one, number=1), dataclasses.replace(carried,
+                                                                          payload_change=1))
+    res = dataclasses.replace(res, payload_changes=(change,), incidents=incs)
     path = tmp_path / "payload.rrd"
     write_rrd(res, path)
-    rows = read_entities(path)["/payload_changes"]
+    ent = read_entities(path)
+    rows = ent["/payload_changes"]
     texts = [x[0] for x in rows["TextLog:text"]]
-    assert len(texts) == 2 and "+1.25 kg" in texts[0] and "97.0 %" in texts[0]
+    assert len(texts) == 2 and "+1.25 kg (s.e. ≥ 0.01 kg; 97.0 % of the step a mass, steady " \
+        "within 1.2 %, its inertia shows)" in texts[0], texts
+    # named as the report names it (p1), not a contact: INFO, "not counted"
+    inc_rows = ent["/incidents"]
+    assert [x[0] for x in inc_rows["TextLog:level"]] == ["INFO", "WARN", "INFO"]
+    said = [x[0] for x in inc_rows["TextLog:text"]]
+    assert said[2].startswith("incident #p1: ") and "payload change P1" in said[2]
+    assert "None" not in " ".join(said)
+    states = [x[0] for x in ent["/incidents/contact"]["StateChange:state"]]
+    assert "#p1 link 1 · force ? · quasi_static (payload change P1: not counted)" in states
     assert "classified" in texts[1] and "+1.25 kg" in texts[1]
     np.testing.assert_array_equal(elapsed_ns(rows), [2_000_000_000, 5_000_000_000])
     info = next(ch.to_record_batch().to_pydict()["TextDocument:text"][0][0]
                 for ch in rr.chunk.RrdReader(path).store().stream()
                 if ch.entity_path == "/run/info")
-    assert ("| P1 | 2.000 | +1.25 ± 0.01 | 97.0 % | 5.000 | +1.25 kg beyond the model's "
-            "load: heavy.csv's load, as fitted |") in info
+    assert ("| P1 | 2.000 | +1.25 (s.e. ≥ 0.01) | 97.0 % of the step a mass, steady within "
+            "1.2 %, its inertia shows | 5.000 | +1.25 kg beyond the model's load: heavy.csv's "
+            "load, as fitted |") in info
     assert "the residual now carries +1.25 kg beyond the model's load: heavy.csv's load" \
         in texts[1]

@@ -18,12 +18,16 @@ not behave as a mass: it ends, or it holds the arm still, or it pushes another w
    residual is linear in θ).
 3. **The test.** A payload change when (a) the window's poses determine the mass and centre
    of mass and the mass is :data:`~impactcli.model.payload.WEIGH_SIGMAS` standard errors
-   from zero, (b) the centre of mass lies within the arm's reach, and (c) the mass explains
+   from zero, (b) the centre of mass lies within the arm's reach, (c) the mass explains
    the step: its torque accounts for at least :data:`EXPLAINED` of the window's residual
-   energy. Otherwise, while the alarm has lasted without a break since its onset, the next
-   window is weighed (a push in the first window after a pick hides the mass there); once
-   it broke, the alarm stays what the detectors make of it — a contact or a lasting load —
-   and the next onset starts afresh.
+   energy, (d) the mass is steady: it drifts by at most :data:`STEADY` of itself across
+   the window (:func:`~impactcli.model.payload.drift`; a clamp that builds up does not
+   keep a mass), and (e) its inertia does not side with a steady force along gravity
+   (:func:`~impactcli.model.payload.inertia`; ``unseen`` where the motion is too slow to
+   tell them apart, and every output says so). Otherwise, while the alarm has lasted
+   without a break since its onset, the next window is weighed (a push in the first
+   window after a pick hides the mass there); once it broke, the alarm stays what the
+   detectors make of it — a contact or a lasting load — and the next onset starts afresh.
 4. **A load it knows.** When the load then carried is one a calibration log carried (its
    mass within :data:`~impactcli.model.payload.WEIGH_SIGMAS` standard errors of the
    step's, and the step to it explains the window as well, from :data:`EXPLAINED` on), it
@@ -59,6 +63,8 @@ WINDOW_S = payload.START_S
 #: A mass explains a step when its torque accounts for at least this share of the window's
 #: residual energy (the change's confidence).
 EXPLAINED = payload.EXPLAINED
+#: A change is steady when its mass drifts by at most this share across the window.
+STEADY = payload.STEADY
 #: How ``as_log`` names the model's own load when its fit has one load for all logs.
 OWN_LOAD = "the model's own"
 
@@ -66,6 +72,29 @@ OWN_LOAD = "the model's own"
 def whose_load(as_log: str) -> str:
     """Whose load a change's ``as_log`` names, as every output says it."""
     return "the model's own load" if as_log == OWN_LOAD else f"{as_log}'s load, as fitted"
+
+
+def tested_text(change: dict[str, Any]) -> str:
+    """What a change's tests found (its ``to_dict``), as every output says it: ``99.7 % of
+    the step a mass, steady within 1.7 %, its inertia shows`` — or ``… its inertia not seen
+    (a steady press along gravity would look the same)``; a timeline from before the drift
+    and inertia were written gives the share only."""
+    parts = [f"{100 * change['explained']:.1f} % of the step a mass"]
+    if "drift" in change:
+        parts.append(f"steady within {100 * change['drift']:.2g} %")
+    if change.get("inertia") == "shows":
+        parts.append("its inertia shows")
+    elif change.get("inertia") == "unseen":
+        parts.append("its inertia not seen (a steady press along gravity would look the same)")
+    return ", ".join(parts)
+
+
+def change_text(change: dict[str, Any]) -> str:
+    """A change's mass and what its tests found, as every output says it: ``+0.994 kg
+    (s.e. ≥ 0.0044 kg; 99.7 % of the step a mass, …)`` — the standard error counts the
+    window's rows as independent, so it is a lower bound."""
+    return (f"{change['mass_kg']:+.3g} kg (s.e. ≥ {change['mass_se_kg']:.2g} kg; "
+            f"{tested_text(change)})")
 
 
 def carrying_text(change: dict[str, Any]) -> str:
@@ -98,13 +127,16 @@ class PayloadChange:
     explained: float
     mass_after_kg: float
     as_log: str | None = None
+    drift: float = 0.0
+    inertia: str = "unseen"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (the timeline's ``payload_changes`` item)."""
         d = {"t_start": self.t_start, "t_classified": self.t_classified,
              "mass_kg": self.mass_kg, "mass_se_kg": self.mass_se_kg,
              "values": dict(self.values), "explained": self.explained,
-             "mass_after_kg": self.mass_after_kg}
+             "mass_after_kg": self.mass_after_kg, "drift": self.drift,
+             "inertia": self.inertia}
         if self.as_log is not None:
             d["as_log"] = self.as_log
         return d
@@ -246,14 +278,22 @@ class PayloadMonitor:
         buf = self._buf
         n = buf["r"].shape[0]
         w0 = max(0, n - self.window + round(self.settle_s * self.sample_rate_hz))
-        w = None
+        w, drift, shows = None, float("inf"), "unseen"
         if n - w0 >= 10:
             y = self.model.regressor(buf["qf"][w0:], buf["qd"][w0:], buf["qdd"][w0:]) @ self.b
             left = -buf["r"][w0:]  # the torque beyond the model's: r = τ̂ − τ
             w = payload.weigh(y, left, self.names)
             explained = payload.explained(left, y, w.pi)
+            if w.weighed and payload.within_reach(self.names, w.pi, self.reach_m) \
+                    and explained >= EXPLAINED:
+                drift = payload.drift(y, left, self.names, w)
+                zero = np.zeros_like(buf["qd"][w0:])
+                shows, _ = payload.inertia(
+                    y, self.model.regressor(buf["qf"][w0:], zero, zero) @ self.b, left,
+                    self.names, w)
         if w is None or not (w.weighed and payload.within_reach(self.names, w.pi, self.reach_m)
-                             and explained >= EXPLAINED):
+                             and explained >= EXPLAINED and drift <= STEADY
+                             and shows != "contradicts"):
             if still:  # the alarm goes on: weigh the next window
                 self._due = k_c + self.window
                 return None
@@ -267,7 +307,7 @@ class PayloadMonitor:
             t_a, t_c, w.mass_kg, w.mass_se_kg,
             {nm: float(v) for nm, v in zip(self.names, w.pi, strict=True)},
             explained, self.base_kg + float(self._pi[self.names.index("m")]),
-            None if known is None else known[0]))
+            None if known is None else known[0], drift, shows))
         return self._pi
 
     def _torque(self, qf: np.ndarray, qd: np.ndarray, qdd: np.ndarray,

@@ -235,6 +235,29 @@ def weigh(y_pay: np.ndarray, r: np.ndarray, names: Sequence[str]) -> Weighed:
 POINT_ITERATIONS = 4
 
 
+def drift(y_pay: np.ndarray, r: np.ndarray, names: Sequence[str], weighed: Weighed,
+          ) -> float:
+    """How much the weighed load changes across the stretch, as a share of its mass: the
+    change of mass from the stretch's first to its last row when its mass and first moments
+    may drift linearly in time (``Y B (π + (t − t̄)/T π̇)``, by :func:`estimate`), over
+    ``weighed``'s mass. A payload keeps its mass as the arm moves; a clamp or a press that
+    builds up, eases off or follows the arm does not (its "mass" drifts, docs/method.md
+    §5c). ``inf`` when the stretch does not determine the drift."""
+    st = [i for i, nm in enumerate(names) if nm in STATIC]
+    inert = [i for i, nm in enumerate(names) if nm not in STATIC]
+    n = y_pay.shape[0]
+    if n < 2 or weighed.mass_kg == 0.0:
+        return float("inf")
+    tau = (np.arange(n) - 0.5 * (n - 1)) / (n - 1)  # −½ … ½ over the stretch
+    ys = y_pay[:, :, st]
+    pi, se = estimate(np.concatenate([ys, ys * tau[:, None, None]], axis=2),
+                      r - y_pay[:, :, inert] @ weighed.pi[inert])
+    dm = float(pi[len(st)])  # the mass term's drift: first row to last
+    if not np.isfinite(se[len(st)]):
+        return float("inf")
+    return abs(dm) / abs(weighed.mass_kg)
+
+
 def _point_inertia(m: float, pi: dict[str, float], names: Sequence[str]) -> np.ndarray:
     """The inertia parameters ``names`` of a point mass m [kg] at the centre of mass its
     first moments in ``pi`` give, about the last joint's frame."""
@@ -244,6 +267,45 @@ def _point_inertia(m: float, pi: dict[str, float], names: Sequence[str]) -> np.n
              "Izz": m * (c["x"] ** 2 + c["y"] ** 2), "Ixy": -m * c["x"] * c["y"],
              "Ixz": -m * c["x"] * c["z"], "Iyz": -m * c["y"] * c["z"]}
     return np.array([point[nm] for nm in names])
+
+
+#: A weighed load is steady when its mass changes by at most this share of itself across
+#: the stretch (:func:`drift`): a payload keeps its mass; a clamp that builds up does not.
+STEADY = 0.25
+#: A load's inertia is visible when the torque by which a mass and a steady force differ
+#: (:func:`inertia`) is at least this many times what the better of the two fits leaves.
+INERTIA_VISIBLE = 2.0
+
+
+def inertia(y_pay: np.ndarray, y_still: np.ndarray, r: np.ndarray, names: Sequence[str],
+            weighed: Weighed) -> tuple[str, float]:
+    """Whether the stretch's torque ``r`` (n, J) [N·m] carries the inertia of the weighed
+    mass — the one thing a mass has that a steady force along gravity at its centre of mass
+    has not (the same torque at rest: ``y_still`` (n, J, m), the payload rows with
+    q' = q'' = 0). Both are fitted (the force by :func:`weigh` on ``y_still``); the torque
+    by which the mass's motion differs from what any steady force can mimic is the part of
+    (``y_pay`` − ``y_still``) π the still rows cannot fit. Returns ``"shows"`` when that
+    torque stands out (:data:`INERTIA_VISIBLE` × what the better fit leaves) and the mass
+    fits the stretch better than the force, ``"contradicts"`` when it stands out and the
+    force fits better (a press, not a mass), ``"unseen"`` when it does not stand out (the
+    motion too slow to tell them apart); and the share of that torque the data side with
+    (+1 a mass, −1 a steady force; scaled per joint as :func:`estimate` scales)."""
+    st = [i for i, nm in enumerate(names) if nm in STATIC]
+    scale = np.sqrt(np.mean(r**2, axis=0))
+    scale = np.maximum(scale, 1e-9 * max(float(scale.max()), 1e-12))[None, :]
+    still = weigh(y_still, r, names)
+    rd = float(np.sum(((r - y_pay @ weighed.pi) / scale) ** 2))
+    rs = float(np.sum(((r - y_still @ still.pi) / scale) ** 2))
+    d = (((y_pay - y_still) @ weighed.pi) / scale).reshape(-1)
+    a = (y_still[:, :, st] / scale[:, :, None]).reshape(d.size, len(st))
+    coef, *_ = np.linalg.lstsq(a, d, rcond=None)
+    e = float(np.sum((d - a @ coef) ** 2))
+    if e <= 0.0:
+        return "unseen", 0.0
+    gain = (rs - rd) / e
+    if e < INERTIA_VISIBLE * min(rd, rs):
+        return "unseen", gain
+    return ("shows" if gain > 0 else "contradicts"), gain
 
 
 #: A load explains a stretch's residual when its torque accounts for at least this share

@@ -435,15 +435,14 @@ def write_payload_changes(rec: Any, result: Any, at_times: Callable[[np.ndarray]
     its classification, on ``/payload_changes``."""
     import rerun as rr
 
-    from ..detect.payload_change import carrying_text
+    from ..detect.payload_change import carrying_text, change_text
 
     changes = list(result.payload_changes or ())
     if not changes:
         return
     t0 = int(result.log.t0_ns)
-    rows = sorted([(c["t_start"], f"payload change P{k}: {c['mass_kg']:+.3g} kg (± "
-                    f"{c['mass_se_kg']:.2g}; {100 * c['explained']:.1f} % of the step a mass), "
-                    f"classified at {c['t_classified']:.3f} s") for k, c in
+    rows = sorted([(c["t_start"], f"payload change P{k}: {change_text(c)}, classified at "
+                    f"{c['t_classified']:.3f} s") for k, c in
                    enumerate(changes, 1)]
                   + [(c["t_classified"], f"payload change P{k} classified: the residual now "
                       f"carries {carrying_text(c)}") for k, c in enumerate(changes, 1)])
@@ -478,7 +477,9 @@ def write_incidents(rec: Any, result: Any, n: int,
     # one row per incident: its text-log line and its fields, in one chunk
     text = rr.TextLog.columns(
         text=[look.incident_text(k, i) for k, i in zip(names, incs, strict=True)],
-        level=[rr.TextLogLevel.INFO if i.in_warmup else rr.TextLogLevel.WARN for i in incs])
+        level=[rr.TextLogLevel.INFO if i.in_warmup or getattr(i, "payload_change", None)
+               is not None or getattr(i, "data_defect", None) is not None
+               else rr.TextLogLevel.WARN for i in incs])
     fields = rr.AnyValues.columns(
         index=pa.array(range(1, len(incs) + 1), pa.int64()),
         link=pa.array([i.link for i in incs], pa.int64()),

@@ -16,7 +16,7 @@ from typing import Any
 
 from .. import __version__
 from ..detect.incidents import link_words
-from ..detect.payload_change import carrying_text
+from ..detect.payload_change import carrying_text, tested_text
 
 #: Timeline on the log's own clock (a timestamp), as Rerun's MCAP import names it.
 LOG_TIMELINE = "message_log_time"
@@ -139,12 +139,11 @@ def markdown_summary(result: Any) -> str:
     if changes:
         lines += ["", "Payload changes (a load picked or released: not incidents; the residual "
                   "carries the new load from the classification on):", "",
-                  "| # | at [s] | mass [kg] | of the step a mass | classified at [s] | "
-                  "then carrying |",
+                  "| # | at [s] | mass [kg] | tests | classified at [s] | then carrying |",
                   "|---|---|---|---|---|---|"]
         for k, c in enumerate(changes, 1):
-            lines.append(f"| P{k} | {c['t_start']:.3f} | {c['mass_kg']:+.3g} ± "
-                         f"{c['mass_se_kg']:.2g} | {100 * c['explained']:.1f} % | "
+            lines.append(f"| P{k} | {c['t_start']:.3f} | {c['mass_kg']:+.3g} (s.e. ≥ "
+                         f"{c['mass_se_kg']:.2g}) | {tested_text(c)} | "
                          f"{c['t_classified']:.3f} | {carrying_text(c)} |")
     lines += ["", "| joint | v_stat | v0 | vL |", "|---|---|---|---|"]
     for joint in log.joint_names:
@@ -165,11 +164,11 @@ def event_text(e: Any) -> str:
 def incident_names(incs: Sequence[Any]) -> list[str]:
     """Each incident's name, as the terminal and the report give it: its ``number`` (1, 2,
     … over the counted incidents), ``w1``, ``w2``, … in the warm-up, ``d1``, ``d2``, … at a
-    data defect; incidents made without numbers (before timeline 2.1) keep their place in
-    the list (1, 2, …)."""
+    data defect, ``p1``, ``p2``, … at a payload change; incidents made without numbers
+    (before timeline 2.1) keep their place in the list (1, 2, …)."""
     if not any(getattr(i, "number", None) is not None for i in incs):
         return [str(k) for k in range(1, len(incs) + 1)]
-    out, warm, marked = [], 0, 0
+    out, warm, marked, carried = [], 0, 0, 0
     for i in incs:
         if i.in_warmup:
             warm += 1
@@ -177,6 +176,9 @@ def incident_names(incs: Sequence[Any]) -> list[str]:
         elif getattr(i, "data_defect", None) is not None:
             marked += 1
             out.append(f"d{marked}")
+        elif getattr(i, "payload_change", None) is not None:
+            carried += 1
+            out.append(f"p{carried}")
         else:
             out.append(str(i.number))
     return out
@@ -188,7 +190,8 @@ def incident_label(k: int | str, inc: Any) -> str:
     link = link_words(inc.link, inc.link_candidates, unknown="link ?")
     force = f"{inc.force_n:.3g} N" if inc.force_n is not None else "force ?"
     return f"#{k} {link} · {force} · {inc.contact}" + (" (warm-up)" if inc.in_warmup else "") \
-        + _defect_note(inc, " ({kind}: not counted)")
+        + _defect_note(inc, " ({kind}: not counted)") + _payload_note(
+            inc, " (payload change P{p}: not counted)")
 
 
 def incident_text(k: int | str, inc: Any) -> str:
@@ -200,7 +203,14 @@ def incident_text(k: int | str, inc: Any) -> str:
             f"{', '.join(inc.detectors)} on {', '.join(inc.joints)} "
             f"({inc.t_start:.3f}–{inc.t_end:.3f} s)")
     return text + (" [in warm-up]" if inc.in_warmup else "") + _defect_note(
-        inc, " [at a data defect, a {kind} at {t:.3f} s: not counted]")
+        inc, " [at a data defect, a {kind} at {t:.3f} s: not counted]") + _payload_note(
+        inc, " [the alarm of payload change P{p}, a load picked or released: not counted]")
+
+
+def _payload_note(inc: Any, form: str) -> str:
+    """``form`` filled with the payload change the incident is (p), or "" when none."""
+    p = getattr(inc, "payload_change", None)
+    return "" if p is None else form.format(p=p)
 
 
 def _defect_note(inc: Any, form: str) -> str:

@@ -336,6 +336,12 @@ def _carrying(change: dict[str, Any]) -> str:
     return carrying_text(change)
 
 
+def _tested(change: dict[str, Any]) -> str:
+    from ...detect.payload_change import tested_text  # the one wording, imported when used
+
+    return tested_text(change)
+
+
 def payload_table_html(changes: Sequence[dict[str, Any]], anchor: str) -> str:
     """The payload changes (docs/method.md §5c): when, the mass change, its confidence and
     when it was classified; "" when none."""
@@ -344,19 +350,23 @@ def payload_table_html(changes: Sequence[dict[str, Any]], anchor: str) -> str:
     body = "".join(
         f'<tr id="{anchor}-payload{k}"><td class="num">P{k}</td>'
         f'<td class="num">{c["t_start"]:.3f} s</td><td class="num"><b>{c["mass_kg"]:+.3g} kg'
-        f'</b> ± {c["mass_se_kg"]:.2g}</td><td class="num">{100 * c["explained"]:.1f} %</td>'
+        f'</b> (s.e. ≥ {c["mass_se_kg"]:.2g})</td><td>{e(_tested(c))}</td>'
         f'<td class="num">{c["t_classified"]:.3f} s</td>'
         f'<td class="num">{e(_carrying(c))}</td></tr>'
         for k, c in enumerate(changes, 1))
     return (
         f'<div class="wide"><table class="incidents" id="{anchor}-payloads"><thead><tr>'
         '<th class="num">#</th><th class="num">payload change at</th><th class="num">mass'
-        '</th><th class="num">of the step a mass</th><th class="num">classified at</th>'
+        '</th><th>a mass, not a press?</th><th class="num">classified at</th>'
         f'<th class="num">load then</th></tr></thead>{body}</table></div>'
         '<div class="small muted">A payload change is a step in the residual that behaves as '
         "a mass at the flange over the poses that follow it: a load picked or released. It "
         "is not an incident and trips no gate; from its classification on, the residual "
-        "carries the new load. Loads are stated beyond the model's own.</div>")
+        "carries the new load. Loads are stated beyond the model's own. A mass keeps its "
+        "weight as the arm moves (steady) and carries inertia; a steady press along gravity "
+        "does neither, and where the motion is too slow for the inertia to show the two are "
+        "not told apart. The standard error counts the window's samples as independent: a "
+        "lower bound.</div>")
 
 
 def lasting_table_html(loads: Sequence[dict[str, Any]], anchor: str) -> str:
