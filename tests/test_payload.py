@@ -346,6 +346,24 @@ def test_an_uncalibrated_run_says_it_does_not_tell_loads_from_contacts(
         assert any(said in w for w in tl["warnings"]) is says
 
 
+def test_a_replay_that_cannot_weigh_loads_says_so(two_loads: Path, tmp_path: Path) -> None:
+    """A config on the controller's residual (the sample ASSIST-like config) cannot weigh
+    the load the sample payload log carries, nor watch for changes: detect says so, and
+    why; a config on the tool's own model with kinematics says nothing of the kind."""
+    repo = Path(__file__).resolve().parents[1]
+    log = repo / "sample_logs" / "csv" / "assist_payload.csv.gz"
+    tl, code, r = _detect(log, repo / "sample_logs" / "assist_like.config.toml", tmp_path / "a")
+    assert code == 0, r.output  # type: ignore[attr-defined]
+    said = ("payloads are not weighed — the residual of every joint is the controller's "
+            "external-torque estimate, not the tool's inverse-dynamics model")
+    assert said in r.stderr  # type: ignore[attr-defined]
+    assert any(said in w for w in tl["warnings"])
+    assert "payload_changes" not in tl
+    own, _, r = _detect(_pick_and_place(tmp_path, pushes=False)[0], two_loads, tmp_path / "b")
+    assert len(own["payload_changes"]) == 2
+    assert "not weighed" not in r.stderr and "not looked for" not in r.stderr  # type: ignore
+
+
 def test_payload_changes_trip_no_gate(two_loads: Path, tmp_path: Path) -> None:
     log, _, _ = _pick_and_place(tmp_path, pushes=False)
     tl, code, r = _detect(log, two_loads, tmp_path / "out", "--fail-on-detect")

@@ -335,6 +335,14 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
 
         if (differ := differ_warning(fitted)) is not None:
             click.echo(f"impactcli: warning: {differ}", err=True)
+    own = {"inverse_dynamics", "momentum_observer"}
+    elsewhere = sorted({g for g in out.residual.generators.values() if g not in own})
+    if elsewhere and len(read) > 1:  # the residual is the controller's: no load to fit
+        click.echo(f"  payload per log: not fitted: the residual is the controller's "
+                   f"({', '.join(elsewhere)}), not the tool's model: logs that carry "
+                   "different loads are not told apart, and their difference widens the "
+                   "thresholds (--generator inverse_dynamics with a robot description with "
+                   "kinematics fits a payload per log)")
     from ..run.torque_sources import judge_sources
 
     sources = judge_sources(read, robot_d, read_options)  # both .torque and .current logged

@@ -240,6 +240,30 @@ def load_basis(plan: Any) -> tuple[np.ndarray, tuple[str, ...]] | None:
     return payload.basis(model.kind, model.joint_names, model.structure)
 
 
+#: What each generator's residual is, as the note on an unwatched replay says it.
+_RESIDUAL_OF = {"logged_external": "the controller's external-torque estimate",
+                "logged_model": "the log's torque less the controller's model torque",
+                "momentum_observer": "the momentum observer's, whose state holds the old load"}
+
+
+def unwatched_reason(plan: Any) -> str | None:
+    """Why a replay's payload changes are not looked for (:func:`load_basis` is None), in
+    words; None when they are."""
+    if load_basis(plan) is not None:
+        return None
+    other = [c for c in plan.choices if c.generator != "inverse_dynamics"]
+    if other:
+        gens = sorted({c.generator for c in other})
+        whose = ", ".join(c.joint for c in other) if len(other) < len(plan.choices) \
+            else "every joint"
+        return (f"the residual of {whose} is {' and '.join(_RESIDUAL_OF.get(g, g) for g in gens)}"
+                ", not the tool's inverse-dynamics model, which takes a load (calibrate with "
+                "--generator inverse_dynamics and a robot description with kinematics)")
+    kind = "none" if plan.model is None else plan.model.kind
+    return (f"the model (kind {kind}) has no kinematics to weigh a load with (a robot "
+            "description with planar or URDF kinematics gives them)")
+
+
 def weighs_loads(plan: Any) -> bool:
     """Whether a replay's model can weigh a payload (:func:`load_basis`)."""
     return load_basis(plan) is not None

@@ -76,7 +76,7 @@ from ..types import (
     SignalsChunk,
 )
 from .islands import Islands
-from .loads import monitor_for, unseen_loads, weighs_loads
+from .loads import monitor_for, unseen_loads, unwatched_reason, weighs_loads
 from .plan import ChunkFeed, Passes, RunPlan, calibrated_thresholds, plan_run, with_generator
 from .replay import ChunkReplay, Replayer, ReplaySetup, ReplayState
 from .run_warnings import (
@@ -90,6 +90,7 @@ from .run_warnings import (
     warn_measured_inputs,
     warn_outside_envelope,
     warn_uncalibrated,
+    warn_unwatched_loads,
     warn_warmup,
 )
 
@@ -272,6 +273,8 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
             warn_beyond_effort(cfg, joints, setup.robot, where)
         since = caught.mark()
         monitor = monitor_for(plan, given, scan.sample_rate_hz)
+        if given is not None and (why := unwatched_reason(plan)) is not None:
+            warn_unwatched_loads(where, why, plan.start_load is not None)
         rp, thr, margins, islands, envelope, floor_acc = _detect_passes(
             feed, plan, given, on_chunk, passes, monitor)
         stack.callback(islands.close)

@@ -93,6 +93,19 @@ def warn_uncalibrated(where: str, weighs_loads: bool = False) -> None:
     )
 
 
+def warn_unwatched_loads(where: str, reason: str, start_weighed: bool) -> None:
+    """The warning of a calibrated replay that does not look for payload changes
+    (:func:`impactcli.run.loads.unwatched_reason` says why), nor, unless ``start_weighed``,
+    weigh the load it starts with: such a load shows as a contact or a lasting load
+    (docs/method.md §5c)."""
+    what, loads = (("payload changes are not looked for", "a load picked or placed mid-log")
+                   if start_weighed else
+                   ("payloads are not weighed", "a load carried from the start, picked or "
+                    "placed"))
+    warnings.warn(f"{where}: {what} — {reason}: {loads} shows as an incident or a lasting "
+                  "load", ImpactWarning, stacklevel=3)
+
+
 def warn_formulation(where: str, config_where: str, calibrated_on: str, runs: str) -> None:
     """The warning of a config calibrated on another formulation of the adaptive evaluator
     than the one its settings run (:attr:`impactcli.config.AdaptiveConfig.formulation`)."""
