@@ -14,6 +14,7 @@ one load do.
 from __future__ import annotations
 
 import json
+import re
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -283,6 +284,26 @@ def test_the_load_a_log_starts_with_is_weighed_and_used(
     assert light["model"]["sha256"] == light["config"]["calibration"]["model_sha256"]
 
 
+def test_the_torque_scale_is_judged_without_the_load_the_log_starts_with(
+        two_loads: Path, tmp_path: Path) -> None:
+    """A free run carrying 3 kg, more than any calibration log: its torque is ~3.5× the
+    gravity torque the description's masses (the arm's, not the load's) predict, which
+    read as a wrong unit and made every force untrusted. Weighed and used, the load is
+    taken off before the scale is judged: the scale agrees, and it says why."""
+    heavy = _sim(tmp_path, "heavy3", 10, 3.0)
+    tl, code, r = _detect(heavy, two_loads, tmp_path / "h")
+    assert code == 0, r.output  # type: ignore[attr-defined]
+    assert tl["input"]["payload"]["verdict"] == "used"
+    assert abs(tl["input"]["payload"]["mass_kg"] - 3.0) < 0.1 * 3.0
+    scale = tl["input"]["torque_scale"]
+    assert scale["verdict"] == "ok" and abs(scale["scale"] - 1.0) < 0.5, scale  # masses rough
+    m = re.search(r"; judged without the load the log starts with \(\+[\d.]+ kg, weighed\), "
+                  r"which the description's masses do not hold: with it the scale read "
+                  r"~([\d.]+)×$", scale["message"])
+    assert m and float(m.group(1)) > 2.0, scale["message"]
+    assert "fix the unit" not in r.stderr and "torque may be off" not in r.stderr  # type: ignore
+
+
 def _pick_and_place(out: Path, pushes: bool) -> tuple[Path, Any, Any]:
     """The simulator's pick-and-place log (45 s, the robot of the calibration logs) written
     as CSV, its scenario and its labels."""
@@ -325,6 +346,32 @@ def test_a_pick_and_a_release_are_payload_changes_not_contacts(
     assert carrying
     for p in carrying:
         assert any(p.start - 0.02 <= i["t_start"] <= p.end + 0.25 for i in counted), p
+
+
+def test_a_pick_in_the_warm_up_is_not_weighed_as_the_start_load(
+        two_loads: Path, tmp_path: Path) -> None:
+    """A 1 kg pick at 1.5 s, inside the stretch the start load is weighed on: no steady load
+    explains that stretch, so the start load is not known (said, not taken as the model's);
+    the change is found when the watch begins and says it may be earlier."""
+    from dataclasses import replace
+
+    from impactcli.logs import write_log
+    from impactcli.sim import scenario, simulate
+
+    sc = scenario("pick_and_place", duration_s=45.0, robot_seed=7)
+    res = simulate(replace(sc, pushes=(), payload_changes=((1.5, 1.0), (30.0, 0.0))), seed=23)
+    log = tmp_path / "warm.csv.gz"
+    write_log(res.log, log)
+    tl, code, r = _detect(log, two_loads, tmp_path / "out")
+    assert code == 0, r.output  # type: ignore[attr-defined]
+    start = tl["input"]["payload"]
+    assert start["verdict"] == "unsupported", start
+    assert "a load picked, or a contact, in them?" in start["message"]
+    assert "the load the log starts with is not known" in r.stderr  # type: ignore[attr-defined]
+    first = tl["payload_changes"][0]
+    assert first["at_watch_start"] is True and abs(first["mass_kg"] - 1.0) < 0.25
+    assert "the change may be earlier, in the warm-up" in r.stdout  # type: ignore[attr-defined]
+    assert "at_watch_start" not in tl["payload_changes"][1]
 
 
 def test_an_uncalibrated_run_says_it_does_not_tell_loads_from_contacts(
@@ -518,3 +565,14 @@ def test_a_spatial_arm_picks_and_places_on_its_own_model(tmp_path: Path) -> None
                        if f"{hit[0]['t_start']:>9.3f} s  link" in ln)
             assert f"link {hit[0]['link']} or 6 " in row, row
         assert "cannot tell which of those links" in r.stdout  # type: ignore[attr-defined]
+
+
+def test_a_load_lighter_than_the_models_is_said_as_such() -> None:
+    """A release below the model's load (a model fitted on a loaded log) is "less than",
+    not a negative mass carried; a load beyond it keeps its sign."""
+    from impactcli.detect.payload_change import carrying_text
+
+    assert carrying_text({"mass_after_kg": -1.2}) == "1.2 kg less than the model's load"
+    assert carrying_text({"mass_after_kg": 0.996}) == "+0.996 kg beyond the model's load"
+    assert carrying_text({"mass_after_kg": 0.0, "as_log": "a.csv"}) == (
+        "+0 kg beyond the model's load: a.csv's load, as fitted")

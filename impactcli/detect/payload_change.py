@@ -92,19 +92,25 @@ def tested_text(change: dict[str, Any]) -> str:
 def change_text(change: dict[str, Any]) -> str:
     """A change's mass and what its tests found, as every output says it: ``+0.994 kg
     (s.e. ≥ 0.0044 kg; 99.7 % of the step a mass, …)`` — the standard error counts the
-    window's rows as independent, so it is a lower bound."""
+    window's rows as independent, so it is a lower bound — and, for an alarm already on
+    when the watch began, that the change may be earlier."""
+    early = ("; the alarm was on when the watch began: the change may be earlier, in the "
+             "warm-up" if change.get("at_watch_start") else "")
     return (f"{change['mass_kg']:+.3g} kg (s.e. ≥ {change['mass_se_kg']:.2g} kg; "
-            f"{tested_text(change)})")
+            f"{tested_text(change)}{early})")
 
 
 def carrying_text(change: dict[str, Any]) -> str:
     """The load a change (its ``to_dict``) leaves the arm carrying, as every output says
-    it: ``+3 kg beyond the model's load``, ``… : heavy.csv's load, as fitted`` when it is a
-    calibration log's (``as_log``), or ``the model's own load``."""
+    it: ``+3 kg beyond the model's load`` (``1.2 kg less than …`` for a lighter one),
+    ``… : heavy.csv's load, as fitted`` when it is a calibration log's (``as_log``), or
+    ``the model's own load``."""
     known = change.get("as_log")
     if known == OWN_LOAD:
         return whose_load(OWN_LOAD)
-    return (f"{change['mass_after_kg']:+.3g} kg beyond the model's load"
+    after = float(change["mass_after_kg"])
+    return ((f"{after:+.3g} kg beyond" if after >= 0 else f"{-after:.3g} kg less than")
+            + " the model's load"
             + ("" if known is None else f": {whose_load(str(known))}"))
 
 
@@ -117,7 +123,9 @@ class PayloadChange:
     window's residual energy the mass explains (its confidence, 0–1); ``mass_after_kg`` the
     load then carried beyond the config's model's (the lightest calibration log's);
     ``as_log`` the calibration log whose fitted load that is (module docstring, step 4;
-    None: the weighed step is taken as it is)."""
+    None: the weighed step is taken as it is); ``drift`` and ``inertia`` what the tests
+    (d) and (e) found; ``at_watch_start``: the alarm was on when the watch began (the
+    warm-up's least length), so the change may have come earlier, in the warm-up."""
 
     t_start: float
     t_classified: float
@@ -129,6 +137,7 @@ class PayloadChange:
     as_log: str | None = None
     drift: float = 0.0
     inertia: str = "unseen"
+    at_watch_start: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (the timeline's ``payload_changes`` item)."""
@@ -139,6 +148,8 @@ class PayloadChange:
              "inertia": self.inertia}
         if self.as_log is not None:
             d["as_log"] = self.as_log
+        if self.at_watch_start:
+            d["at_watch_start"] = True
         return d
 
 
@@ -307,7 +318,8 @@ class PayloadMonitor:
             t_a, t_c, w.mass_kg, w.mass_se_kg,
             {nm: float(v) for nm, v in zip(self.names, w.pi, strict=True)},
             explained, self.base_kg + float(self._pi[self.names.index("m")]),
-            None if known is None else known[0], drift, shows))
+            None if known is None else known[0], drift, shows,
+            t_a - self.start_s < 1.5 / self.sample_rate_hz))
         return self._pi
 
     def _torque(self, qf: np.ndarray, qd: np.ndarray, qdd: np.ndarray,

@@ -41,6 +41,13 @@ OWN = ("inverse_dynamics", "momentum_observer")
 HOLD_FACTOR = 3.0
 
 
+#: A load weighed on a log's start that explains at least this share of what the model
+#: leaves out there, but not :data:`~impactcli.model.payload.EXPLAINED`, is partly a load:
+#: a step in the stretch (a load picked, a contact) — not known. Below it, what the model
+#: leaves out is its own error, and the log starts with the model's load.
+PARTLY = 0.25
+
+
 @dataclass(frozen=True)
 class StartLoad:
     """The load a log starts with, beyond the model's own (module docstring).
@@ -131,14 +138,17 @@ def weigh_start(feed: Any, model: RigidModel, choices: tuple[GeneratorChoice, ..
                f"{HOLD_FACTOR:g}× the largest the joints exerted there ({top:.3g} N·m)")
     elif not same and not payload.within_reach(names, w.pi, payload.reach_m(model)):
         why = f"give a centre of mass beyond the arm's reach ({mass})"
+    elif w.weighed and felt and PARTLY <= share < payload.EXPLAINED:  # partly a load
+        why = (f"hold a torque the model does not explain, of which a steady load ({mass}) "
+               f"explains only {100 * share:.0f} % (a load picked, or a contact, in them?)")
     if why is not None:
         return model, StartLoad("unsupported", seconds, None, None, {}, rel, cal, (
             f"{where}: the load the log starts with is not known: its first {seconds:g} s "
             f"{why}; the residual assumes the model's load{_whose(rel)}"))
     if same:
         why = ("within what the model tells" if not w.weighed or not felt else
-               f"it explains {100 * share:.0f} % of what the model leaves out there, under "
-               f"{100 * payload.EXPLAINED:.0f} %: not a load")
+               f"it explains {100 * share:.0f} % of what the model leaves out there: the "
+               "model's own error, not a load")
         return model, StartLoad("same", seconds, w.mass_kg, w.mass_se_kg, values, rel, cal, (
             f"{where}: starts with the model's load{_whose(rel)} ({mass} beyond it, "
             f"weighed on its first {seconds:g} s: {why})"), share)
@@ -149,15 +159,18 @@ def weigh_start(feed: Any, model: RigidModel, choices: tuple[GeneratorChoice, ..
     pi = w.pi if known is None else known[1]
     return payload.carrying(model, pi), StartLoad(
         "used", seconds, w.mass_kg, w.mass_se_kg, values, rel, cal, (
-            f"{where}: carrying ~{w.mass_kg:+.3g} kg (± {w.mass_se_kg:.2g}; it explains "
-            f"{100 * share:.0f} % of what the model leaves out) beyond the "
-            f"model's load{_whose(rel)}{_calibrated_with(cal)}, weighed on its first "
+            f"{where}: carrying ~"
+            + (f"{w.mass_kg:+.3g}" if w.mass_kg >= 0 else f"{-w.mass_kg:.3g}")
+            + f" kg (± {w.mass_se_kg:.2g}; it explains {100 * share:.0f} % of what the model "
+            f"leaves out) {'beyond' if w.mass_kg >= 0 else 'less than'} the model's "
+            f"load{_whose(rel)}{_calibrated_with(cal)}, weighed on its first "
             f"{seconds:g} s: "
             + ("the residual uses it" if known is None else
                f"it is {known[0]}'s load, and the residual uses that log's fit of it")
             + ("; no calibration log carried a load like it, so the thresholds' false-alarm "
-               "rate was not measured with it (a heavier load brings larger errors the "
-               "rigid model does not hold): calibrate with a log that carries it" if unseen
+               "rate was not measured with it (a load unlike theirs brings errors the "
+               "rigid model was not calibrated with): calibrate with a log that carries it"
+               if unseen
                else "")), share, None if known is None else known[0])
 
 
@@ -328,6 +341,7 @@ def unseen_loads(where: str, model: RigidModel | None, changes: Any) -> str | No
     what = ", ".join(f"{c.mass_after_kg:+.3g} kg from {c.t_classified:.3f} s" for c in out)
     return (f"{where}: after its payload changes the arm carried loads no calibration log "
             f"carried ({what}, beyond the model's load): the thresholds' false-alarm rate "
-            "was not measured with them (a heavier load brings larger errors the rigid "
-            "model does not hold; incidents while carrying them may be such errors): "
+            "was not measured with them (a load unlike theirs brings errors the rigid "
+            "model was not calibrated with; incidents while carrying them may be such "
+            "errors): "
             "calibrate with a log that carries each load")

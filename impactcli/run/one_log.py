@@ -305,8 +305,10 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         warn_events_after_gaps(where, rp.gap_times[:, 1], events)
         warn_long_events(where, events)
         if plan.torque_scale is None or plan.torque_scale.kind != "warn":  # said already
+            # the counted ones: not a data defect's, not the warm-up's (filters starting)
             warn_implausible_forces(where, [i for i in (*incidents, *loads)
-                                            if getattr(i, "data_defect", None) is None])
+                                            if getattr(i, "data_defect", None) is None
+                                            and not getattr(i, "in_warmup", False)])
         warn_defect_incidents(where, defects, incidents, settle)
         caught.paste(ctx_msgs)
         outside = None

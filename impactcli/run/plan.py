@@ -14,7 +14,7 @@ import dataclasses
 import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -513,7 +513,8 @@ def plan_run(reader: LogReader, cfg: DetectorConfig, *, model: RigidModel | None
     if cfg.calibration.calibrated and calibrated_on != cfg.adaptive.formulation:
         warn_formulation(where, config_where, calibrated_on, cfg.adaptive.formulation)
     sc = screen_scan(scan, known_joints(model, cfg), cfg.calibration.joints_left_out)
-    scale, hold = check_torque_scale(scan, robot or description_of(model, cfg), sc.keep)
+    described = robot or description_of(model, cfg)
+    scale, hold = check_torque_scale(scan, described, sc.keep, warn=False)  # warned below
     check_replayable(where, len(sc.keep), scan.sample_rate_hz, scan.n_samples,
                      scan.duration_s, cfg, allow_slow, identified_kind(model, cfg, robot,
                                                                        model_from_log))
@@ -532,12 +533,46 @@ def plan_run(reader: LogReader, cfg: DetectorConfig, *, model: RigidModel | None
         rig, start = weigh_start(feed, rig, choices, cfg)
         if start is not None and start.verdict != "same":
             warnings.warn(start.message, ImpactWarning, stacklevel=2)
+    if scale is not None and scale.kind == "warn":
+        scale = _unloaded_scale(scan, described, sc.keep, scale, rig, start)
+        if scale.kind == "warn":
+            warnings.warn(scale.message, ImpactWarning, stacklevel=2)
     left_out = (tuple(LeftOut(j, why) for j, why in scan.source.joints_dropped)
                 + sc.left_out + extra)
     held = None if hold is None else np.array(
         [hold.get(j, np.nan) for j in joints], dtype=np.float64)
     return RunPlan(cfg, where, feed.full_joints, joints, choices, rig, model_source,
                    left_out, scale, held, start), feed
+
+
+def _unloaded_scale(scan: LogScan, robot: RobotDescription | None, kept: tuple[str, ...],
+                    scale: ScaleVerdict, rig: RigidModel | None, start: Any,
+                    ) -> ScaleVerdict:
+    """A torque scale off the description's gravity torque, judged again with the load the
+    log starts with taken off the log's torque, when that load was weighed and used: the
+    description holds the arm, not its load. The verdict then, if it is no longer off
+    (its message saying so), else ``scale`` as it was."""
+    from ..model import payload
+    from .loads import start_pi
+
+    if rig is None or start is None or start.verdict != "used" or scan.poses is None:
+        return scale
+    bb = payload.basis(rig.kind, rig.joint_names, rig.structure)
+    joints = scan.log.joint_names
+    if bb is None or not set(rig.joint_names) <= set(joints):
+        return scale
+    cols = [joints.index(j) for j in rig.joint_names]
+    q = np.asarray(scan.poses.q, dtype=np.float64)[:, cols]
+    zero = np.zeros_like(q)
+    less = np.zeros_like(np.asarray(scan.poses.tau, dtype=np.float64))
+    less[:, cols] = rig.regressor(q, zero, zero) @ bb[0] @ start_pi(rig, bb[1], start)
+    again, _ = check_torque_scale(scan, robot, kept, warn=False, less=less)
+    if again is None or again.kind != "ok":
+        return scale
+    return dataclasses.replace(again, message=(
+        f"{again.message}; judged without the load the log starts with "
+        f"({start.mass_kg:+.3g} kg, weighed), which the description's masses do not hold: "
+        f"with it the scale read ~{scale.scale:.3g}×"))
 
 
 def description_of(model: RigidModel | None, cfg: DetectorConfig) -> RobotDescription | None:
@@ -554,14 +589,16 @@ def description_of(model: RigidModel | None, cfg: DetectorConfig) -> RobotDescri
 
 
 def check_torque_scale(scan: LogScan, robot: RobotDescription | None,
-                       kept: tuple[str, ...] | None = None,
+                       kept: tuple[str, ...] | None = None, *, warn: bool = True,
+                       less: np.ndarray | None = None,
                        ) -> tuple[ScaleVerdict | None, dict[str, float] | None]:
     """The log's torque scale against the description's gravity torque over the scan's
     poses (:mod:`impactcli.model.gravity`): raises LogFormatError (exit 3) when it is off by
-    a clean unit factor, warns when it is off otherwise. Returns the verdict (None without
-    a description) and per joint the largest |gravity torque| over the poses [N·m] (None
-    without masses). Only the joints ``kept`` by the screen are judged (None: all): a flat
-    or unmeasured torque says nothing of the scale."""
+    a clean unit factor, warns (when ``warn``) when it is off otherwise. Returns the verdict
+    (None without a description) and per joint the largest |gravity torque| over the poses
+    [N·m] (None without masses). Only the joints ``kept`` by the screen are judged (None:
+    all): a flat or unmeasured torque says nothing of the scale. ``less``: (n, J) a torque
+    taken off the log's at the poses first (a weighed load's, :func:`_unloaded_scale`)."""
     from ..model.gravity import nominal_gravity, scale_check
 
     poses, where = scan.poses, scan.source.path
@@ -578,11 +615,12 @@ def check_torque_scale(scan: LogScan, robot: RobotDescription | None,
     ratios = {j.name: j.gear_ratio for j in robot.joints}
     cols = [k for k, j in enumerate(joints) if kept is None or j in kept]
     judged = tuple(joints[k] for k in cols)
-    verdict = scale_check(where, judged, g[:, cols], poses.tau[:, cols],
+    tau = poses.tau if less is None else poses.tau - less
+    verdict = scale_check(where, judged, g[:, cols], tau[:, cols],
                           np.abs(poses.qd[:, cols]), [ratios.get(j, 1.0) for j in judged])
     if verdict.kind == "refuse":
         raise LogFormatError(verdict.message)
-    if verdict.kind == "warn":
+    if verdict.kind == "warn" and warn:
         warnings.warn(verdict.message, ImpactWarning, stacklevel=3)
     peak = (np.where(np.isfinite(g), np.abs(g), -np.inf).max(axis=0) if len(g)
             else np.full(len(joints), -np.inf))  # -inf: a joint the description lacks
