@@ -199,7 +199,14 @@ def _fit_both(logs: dict[str, list[RobotLog]], robot: RobotDescription | None,
     held-back parts (module doc)."""
     from ..model.identification import default_kind, prepare_rows
     from ..model.identify_options import IdentifyOptions
-    from ..model.selection import MIN_GAIN, folds_of, named_errors, one_se, row_counts
+    from ..model.selection import (
+        MIN_GAIN,
+        folds_of,
+        named_errors,
+        one_se,
+        payload_errors,
+        row_counts,
+    )
 
     kind = default_kind(robot)
     options = IdentifyOptions()
@@ -216,6 +223,16 @@ def _fit_both(logs: dict[str, list[RobotLog]], robot: RobotDescription | None,
         return SourceComparison(in_use, other, kind, None, {}, (), reason=str(e))
     mine = rows[in_use]
     held = folds_of(row_counts(mine), names, max(r.cv_gap for r in mine))[1]
+    # logs with kinematics: a payload per log, as calibrate fits them — else logs that
+    # carry different loads hide each source's error under the one load's
+    mine_pl, other_pl = (payload_errors(rows[s], names, options) for s in (in_use, other))
+    if mine_pl is not None and other_pl is not None:
+        errors = {s: {jn: {"rms_nm": e["per_log_rms_nm"],
+                           "parts_rms_nm": e["parts_per_log_rms_nm"]}
+                      for jn, e in pl["joints"].items()}
+                  for s, pl in ((in_use, mine_pl), (other, other_pl))}
+        held = (f"each log held out in turn, a payload per log (its own weighed on its first "
+                f"{mine_pl['start_s']:g} s)")
     rms: dict[str, tuple[float, float]] = {}
     better: list[str] = []
     for jn in mine[0].joints:
