@@ -66,8 +66,10 @@ def _lasting_line(k: int, x: dict[str, Any]) -> str:
              else "")
     if x.get("force_plausible") is False:
         force += " (beyond what the arm can exert)"
+    test = f"; {x['payload_test']}" if x.get("payload_test") else ""
     return (f"  L{k:<2} {x['t_start']:>9.3f}–{x['t_end']:.3f} s{end}  {x['detector']} on "
-            f"{', '.join(x['joints'])}, up to {x['peak_ratio']:.3g}× its threshold{force}")
+            f"{', '.join(x['joints'])}, up to {x['peak_ratio']:.3g}× its threshold{force}"
+            f"{test}")
 
 
 def payload_change_line(k: int, c: dict[str, Any]) -> str:

@@ -108,13 +108,16 @@ class Incident:
     outside_envelope: bool | None = None
     data_defect: dict[str, Any] | None = None
     payload_change: int | None = None
+    payload_test: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (timeline ``incidents`` item); ``outside_envelope`` only when
         the config recorded a motion envelope (:mod:`impactcli.detect.envelope`),
         ``data_defect`` only when the incident starts at one (:func:`mark_defects`),
         ``payload_change`` (its 1-based number) only when it is one
-        (:func:`mark_payload_changes`)."""
+        (:func:`mark_payload_changes`), ``payload_test`` only when the payload monitor
+        weighed its alarm and found no payload change (why:
+        :func:`impactcli.detect.payload_change.mark_tried`)."""
         return {
             "t_start": self.t_start, "t_end": self.t_end, "t_start_utc": self.t_start_utc,
             "detectors": list(self.detectors), "joints": list(self.joints), "link": self.link,
@@ -129,6 +132,7 @@ class Incident:
                else {"outside_envelope": self.outside_envelope}),
             **({} if self.data_defect is None else {"data_defect": self.data_defect}),
             **({} if self.payload_change is None else {"payload_change": self.payload_change}),
+            **({} if self.payload_test is None else {"payload_test": self.payload_test}),
         }
 
 
@@ -155,9 +159,11 @@ class LastingLoad(AlarmSpan):
     force_plausible: bool | None = None
     force_ceiling_n: float | None = None
     force_check: str = ""
+    payload_test: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready mapping (timeline ``lasting_loads`` item)."""
+        """JSON-ready mapping (timeline ``lasting_loads`` item); ``payload_test`` as an
+        incident's."""
         return {
             "detector": self.detector, "t_start": self.t_start, "t_end": self.t_end,
             "t_start_utc": self.t_start_utc, "i_start": self.i_start, "i_end": self.i_end,
@@ -166,6 +172,7 @@ class LastingLoad(AlarmSpan):
             "ends_with_log": self.ends_with_log, "link": self.link, "force_n": self.force_n,
             "force_method": self.force_method, "force_plausible": self.force_plausible,
             "force_ceiling_n": self.force_ceiling_n, "force_check": self.force_check,
+            **({} if self.payload_test is None else {"payload_test": self.payload_test}),
         }
 
 

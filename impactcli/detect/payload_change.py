@@ -46,7 +46,8 @@ the old load); the replay says so when another generator runs.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -112,6 +113,37 @@ def carrying_text(change: dict[str, Any]) -> str:
     return ((f"{after:+.3g} kg beyond" if after >= 0 else f"{-after:.3g} kg less than")
             + " the model's load"
             + ("" if known is None else f": {whose_load(str(known))}"))
+
+
+def not_a_load(w: payload.Weighed, explained: float, within_reach: bool) -> str | None:
+    """Why a weighed step is not a payload change by the tests (a)–(c) (module docstring),
+    in words; None when it passes them."""
+    if not w.supported:
+        return "the poses after it do not determine a mass (the arm moved too little)"
+    if not w.weighed:
+        return (f"it weighs no mass clearly ({w.mass_kg:+.2g} ± {w.mass_se_kg:.2g} kg: within "
+                "three standard errors of none)")
+    if not within_reach:
+        return "its centre of mass lies beyond the arm's reach"
+    if explained < EXPLAINED:
+        return f"a mass explains only {100 * explained:.0f} % of it"
+    return None
+
+
+def mark_tried(findings: Sequence[Any], tried: dict[float, str],
+               merge_gap_s: float = 0.1) -> list[Any]:
+    """The incidents or lasting loads, each that holds an onset the monitor weighed and
+    found no payload change (``tried``: onset → why) given that answer
+    (``payload_test``): what the alarm is not, for the reader to rule out."""
+    if not tried:
+        return list(findings)
+    out = []
+    for x in findings:
+        why = [w for t, w in tried.items()
+               if x.t_start - merge_gap_s - 1e-9 <= t <= x.t_end + 1e-9]
+        out.append(replace(x, payload_test=f"not a payload change: {why[0]}") if why
+                   and getattr(x, "payload_change", None) is None else x)
+    return out
 
 
 @dataclass(frozen=True)
@@ -186,6 +218,9 @@ class PayloadMonitor:
     base_kg: float = 0.0
     known: tuple[tuple[str, np.ndarray], ...] = ()
     changes: list[PayloadChange] = field(default_factory=list)
+    #: onset [s] → why its alarm, lasting through the first window (it could have been a
+    #: load), was not a payload change there (later windows, while it lasts, are retries)
+    tried: dict[float, str] = field(default_factory=dict)
     _pi: np.ndarray | None = None
     _carry: Carry = field(default_factory=Carry)
     _buf: dict[str, np.ndarray] = field(default_factory=dict)
@@ -290,26 +325,34 @@ class PayloadMonitor:
         n = buf["r"].shape[0]
         w0 = max(0, n - self.window + round(self.settle_s * self.sample_rate_hz))
         w, drift, shows = None, float("inf"), "unseen"
+        why: str | None = "too short a window to weigh"
         if n - w0 >= 10:
             y = self.model.regressor(buf["qf"][w0:], buf["qd"][w0:], buf["qdd"][w0:]) @ self.b
             left = -buf["r"][w0:]  # the torque beyond the model's: r = τ̂ − τ
             w = payload.weigh(y, left, self.names)
             explained = payload.explained(left, y, w.pi)
-            if w.weighed and payload.within_reach(self.names, w.pi, self.reach_m) \
-                    and explained >= EXPLAINED:
+            why = not_a_load(w, explained, payload.within_reach(self.names, w.pi,
+                                                                self.reach_m))
+            if why is None:
                 drift = payload.drift(y, left, self.names, w)
                 zero = np.zeros_like(buf["qd"][w0:])
                 shows, _ = payload.inertia(
                     y, self.model.regressor(buf["qf"][w0:], zero, zero) @ self.b, left,
                     self.names, w)
-        if w is None or not (w.weighed and payload.within_reach(self.names, w.pi, self.reach_m)
-                             and explained >= EXPLAINED and drift <= STEADY
-                             and shows != "contradicts"):
-            if still:  # the alarm goes on: weigh the next window
+                if drift > STEADY:
+                    why = (f"its mass drifted by {100 * drift:.0f} % across the window (a "
+                           "press that builds up or eases off?)")
+                elif shows == "contradicts":
+                    why = "it sides with a steady force, not with a mass's inertia (a press?)"
+        if why is not None:
+            if still:  # the alarm goes on (could be a load): the first answer, then retries
+                self.tried.setdefault(t_a, why)
                 self._due = k_c + self.window
                 return None
             self._state = "idle"
             return None
+        assert w is not None
+        self.tried.pop(t_a, None)
         self._state = "cooldown"
         known = payload.known_load(self.known, self._pi, w.pi, w.mass_se_kg, y, left,
                                    self.names)

@@ -58,6 +58,7 @@ from ..detect.incidents import (
     settle_s,
 )
 from ..detect.link_evidence import ResidualNoise
+from ..detect.payload_change import mark_tried
 from ..detect.thresholds import compare_to_thresholds
 from ..detect.warmup import Warmup, WarmupTracker
 from ..errors import ConfigError, ImpactWarning
@@ -299,6 +300,9 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         incidents = number_incidents(mark_payload_changes(
             mark_defects(incidents, defects, settle, memory), changes, settle,
             cfg.events.merge_gap_s))
+        if monitor is not None:  # what the alarms the monitor weighed are not
+            incidents = mark_tried(incidents, monitor.tried, cfg.events.merge_gap_s)
+            loads = mark_tried(loads, monitor.tried, cfg.events.merge_gap_s)
         if plan.torque_scale is not None and plan.torque_scale.kind == "warn":
             incidents = off_scale(incidents, plan.torque_scale.scale)
             loads = off_scale(loads, plan.torque_scale.scale)

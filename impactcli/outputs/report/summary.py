@@ -291,6 +291,8 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
         elif r.get("payload_change"):
             when += (f' <span class="note">payload change P{r["payload_change"]}: not '
                      "counted</span>")
+        if r.get("payload_test"):
+            when += f' <span class="note">{e(r["payload_test"])}</span>'
         force = (f'<b>~{approx(r["force_n"])} N</b>' if r.get("force_n") is not None
                  else '<span class="muted">no force estimate</span>')
         if r.get("force_plausible") is False:
@@ -385,9 +387,11 @@ def lasting_table_html(loads: Sequence[dict[str, Any]], anchor: str) -> str:
             force += (' <span class="bad">implausible: '
                       f'{e(x.get("force_check") or "beyond what the arm can exert")}</span>')
         cls = ' class="warmup"' if x.get("in_warmup") else ""
+        test = (f' <span class="note">{e(x["payload_test"])}</span>' if x.get("payload_test")
+                else "")
         body.append(
             f'<tr{cls} id="{anchor}-load{k}"><td class="num">L{k}</td>'
-            f'<td class="num">{x["t_start"]:.3f} s to {end}{warm}</td>'
+            f'<td class="num">{x["t_start"]:.3f} s to {end}{warm}{test}</td>'
             f'<td>{e(x["detector"])} on {e(", ".join(x["joints"]))}</td>'
             f'<td class="num">{x["peak_ratio"]:.1f}×</td><td><b>{link}</b></td>'
             f"<td>{force}</td></tr>")
