@@ -586,3 +586,19 @@ def test_the_alarm_of_a_payload_change_is_not_a_false_alarm():
     text = format_evaluation(e)
     assert "not false alarms: the alarms of payload changes" in text
     assert "1 the alarm of a payload change (not counted)" in text
+
+
+def test_only_the_events_a_payload_change_holds_are_excused():
+    """A payload change whose incident holds only its own loading event (9.0–9.9 s): the
+    adaptive 9.5 s event inside that span but in no such incident is still a false alarm
+    (membership, not time overlap); the loading event is the change's."""
+    lab, events, incs = answer_case()
+    events = [*events, ev("static_loading", 9.0, 9.9)]
+    incs[4] = {**incs[4], "t_start": 9.0, "t_end": 9.9, "events": [6], "payload_change": 1}
+    e = run(events, lab, incidents=incs)
+    assert e.scores["adaptive"].false_alarms == 1
+    assert e.scores["adaptive"].payload_change_events == ()
+    assert e.scores["static_loading"].payload_change_events == ((9.0, 9.9),)
+    assert e.scores["static_loading"].false_alarms == 0
+    # the product alarm 9.0–9.9 holds the adaptive 9.5 s part too: not all the change's
+    assert e.scores["product"].false_alarms == 1

@@ -167,8 +167,8 @@ class PayloadChange:
     explained: float
     mass_after_kg: float
     as_log: str | None = None
-    drift: float = 0.0
-    inertia: str = "unseen"
+    drift: float | None = None
+    inertia: str | None = None
     at_watch_start: bool = False
 
     def to_dict(self) -> dict[str, Any]:
@@ -176,8 +176,9 @@ class PayloadChange:
         d = {"t_start": self.t_start, "t_classified": self.t_classified,
              "mass_kg": self.mass_kg, "mass_se_kg": self.mass_se_kg,
              "values": dict(self.values), "explained": self.explained,
-             "mass_after_kg": self.mass_after_kg, "drift": self.drift,
-             "inertia": self.inertia}
+             "mass_after_kg": self.mass_after_kg,
+             **({} if self.drift is None else {"drift": self.drift}),
+             **({} if self.inertia is None else {"inertia": self.inertia})}
         if self.as_log is not None:
             d["as_log"] = self.as_log
         if self.at_watch_start:
@@ -334,11 +335,14 @@ class PayloadMonitor:
             why = not_a_load(w, explained, payload.within_reach(self.names, w.pi,
                                                                 self.reach_m))
             if why is None:
-                drift = payload.drift(y, left, self.names, w)
                 zero = np.zeros_like(buf["qd"][w0:])
-                shows, _ = payload.inertia(
-                    y, self.model.regressor(buf["qf"][w0:], zero, zero) @ self.b, left,
-                    self.names, w)
+                y0 = self.model.regressor(buf["qf"][w0:], zero, zero) @ self.b
+                shows, _ = payload.inertia(y, y0, left, self.names, w)
+                drift = payload.drift(y, left, self.names, w)
+                if shows != "shows":  # steady as a steady force too: a press's ramp hides
+                    pressed = payload.weigh(y0, left, self.names)  # in a mass's inertia
+                    if pressed.weighed:
+                        drift = max(drift, payload.drift(y0, left, self.names, pressed))
                 if drift > STEADY:
                     why = (f"its mass drifted by {100 * drift:.0f} % across the window (a "
                            "press that builds up or eases off?)")

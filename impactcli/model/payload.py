@@ -275,6 +275,11 @@ STEADY = 0.25
 #: A load's inertia is visible when the torque by which a mass and a steady force differ
 #: (:func:`inertia`) is at least this many times what the better of the two fits leaves.
 INERTIA_VISIBLE = 2.0
+#: Visible or not, a step is no mass when the steady force's fit leaves less than the
+#: mass's by this many standard deviations of that difference under white noise (the
+#: rows taken as independent, so a strict test): a press that builds up slowly hides its
+#: want of inertia in what both fits leave, yet the data still side against a mass.
+INERTIA_AGAINST_Z = 3.0
 
 
 def inertia(y_pay: np.ndarray, y_still: np.ndarray, r: np.ndarray, names: Sequence[str],
@@ -287,9 +292,12 @@ def inertia(y_pay: np.ndarray, y_still: np.ndarray, r: np.ndarray, names: Sequen
     (``y_pay`` − ``y_still``) π the still rows cannot fit. Returns ``"shows"`` when that
     torque stands out (:data:`INERTIA_VISIBLE` × what the better fit leaves) and the mass
     fits the stretch better than the force, ``"contradicts"`` when it stands out and the
-    force fits better (a press, not a mass), ``"unseen"`` when it does not stand out (the
-    motion too slow to tell them apart); and the share of that torque the data side with
-    (+1 a mass, −1 a steady force; scaled per joint as :func:`estimate` scales)."""
+    force fits better — or, stand out or not, the force fits better by
+    :data:`INERTIA_AGAINST_Z` standard deviations (a press, not a mass) — ``"unseen"`` when
+    it does not
+    stand out (the motion too slow to tell them apart); and the ratio (rs − rd) / e of
+    how much better the mass fits to that torque (+1 a mass, −1 a steady force without
+    noise, beyond ±1 with it; scaled per joint as :func:`estimate` scales)."""
     st = [i for i, nm in enumerate(names) if nm in STATIC]
     scale = np.sqrt(np.mean(r**2, axis=0))
     scale = np.maximum(scale, 1e-9 * max(float(scale.max()), 1e-12))[None, :]
@@ -303,6 +311,10 @@ def inertia(y_pay: np.ndarray, y_still: np.ndarray, r: np.ndarray, names: Sequen
     if e <= 0.0:
         return "unseen", 0.0
     gain = (rs - rd) / e
+    # rs − rd under white noise σ² per row: ± 2 σ √e about its mean (+e a mass, −e a force)
+    noise = 2.0 * np.sqrt(min(rd, rs) / d.size * e)
+    if rs - rd < -INERTIA_AGAINST_Z * noise:  # the force fits clearly better, seen or not
+        return "contradicts", gain
     if e < INERTIA_VISIBLE * min(rd, rs):
         return "unseen", gain
     return ("shows" if gain > 0 else "contradicts"), gain

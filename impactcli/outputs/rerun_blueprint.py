@@ -164,11 +164,11 @@ def event_text(e: Any) -> str:
 def incident_names(incs: Sequence[Any]) -> list[str]:
     """Each incident's name, as the terminal and the report give it: its ``number`` (1, 2,
     … over the counted incidents), ``w1``, ``w2``, … in the warm-up, ``d1``, ``d2``, … at a
-    data defect, ``p1``, ``p2``, … at a payload change; incidents made without numbers
+    data defect, ``pK`` for the alarm of payload change ``PK``; incidents made without numbers
     (before timeline 2.1) keep their place in the list (1, 2, …)."""
     if not any(getattr(i, "number", None) is not None for i in incs):
         return [str(k) for k in range(1, len(incs) + 1)]
-    out, warm, marked, carried = [], 0, 0, 0
+    out, warm, marked = [], 0, 0
     for i in incs:
         if i.in_warmup:
             warm += 1
@@ -176,9 +176,8 @@ def incident_names(incs: Sequence[Any]) -> list[str]:
         elif getattr(i, "data_defect", None) is not None:
             marked += 1
             out.append(f"d{marked}")
-        elif getattr(i, "payload_change", None) is not None:
-            carried += 1
-            out.append(f"p{carried}")
+        elif getattr(i, "payload_change", None) is not None:  # the change's own number
+            out.append(f"p{i.payload_change}")
         else:
             out.append(str(i.number))
     return out

@@ -327,7 +327,18 @@ def evaluate_events(
         if d not in EVALUATED:
             raise ConfigError(f"evaluation: unknown detector {d!r} (expected one of {EVALUATED})")
     evs = [scored_event(e, warmup_end_s, i) for i, e in enumerate(events)]
-    loads = payload_spans(incidents or ())
+    held, spans = payload_alarms(incidents or (), evs)
+    parts = [e for e in evs if e.detector in PRODUCT_PARTS]
+
+    def picked_up(e: ScoredEvent) -> bool:  # the alarm of a payload change (not a contact)
+        if id(e) in held:
+            return True
+        if e.detector == PRODUCT and held:  # a merged alarm: every part a change's
+            inside = [p for p in parts if p.t_start <= e.t_end + EPS_S
+                      and p.t_end >= e.t_start - EPS_S]
+            if inside and all(id(p) in held for p in inside):
+                return True
+        return _in_any(e, spans)
     by_det: dict[str, list[ScoredEvent]] = {d: [e for e in evs if e.detector == d]
                                             for d in DETECTORS}
     by_det[PRODUCT] = product_events(evs, warmup_end_s, product_merge_gap_s)
@@ -400,8 +411,8 @@ def evaluate_events(
         warm = [e for e in d_evs if e.in_warmup]
         first_match, first_any, matched = matches[d]
         no_match = [e for e, m in zip(d_evs, matched, strict=True) if not m and not e.in_warmup]
-        false_alarms = [e for e in no_match if not _in_any(e, loads)]
-        picked = [e for e in no_match if _in_any(e, loads)]
+        false_alarms = [e for e in no_match if not picked_up(e)]
+        picked = [e for e in no_match if picked_up(e)]
         c_start = np.array([e.t_start for e in counted])
         c_end = np.array([e.t_end for e in counted])
         det_k, del_k, on_k = [], [], []
@@ -471,16 +482,25 @@ def evaluate_result(
                            product_merge_gap_s=gap, incidents=list(result.incidents))
 
 
-def payload_spans(incidents: Sequence[Any]) -> list[tuple[float, float]]:
-    """(t_start, t_end) [s] of the incidents after warm-up that are a payload change's
-    alarm (``payload_change``; :class:`~impactcli.detect.incidents.Incident` s or timeline
-    dicts): a load picked or released, which detect neither counts nor gates."""
-    out = []
+def payload_alarms(incidents: Sequence[Any], evs: Sequence[ScoredEvent],
+                   ) -> tuple[set[int], list[tuple[float, float]]]:
+    """The alarms of payload changes (incidents after warm-up marked ``payload_change``;
+    :class:`~impactcli.detect.incidents.Incident` s or timeline dicts): a load picked or
+    released, which detect neither counts nor gates. Returns the ``id`` s of the events
+    ``evs`` they hold (their ``events``) and, for incidents that do not list their events
+    (older timelines), their (t_start, t_end) [s]."""
+    held: set[int] = set()
+    spans = []
     for x in incidents:
         d = x if isinstance(x, Mapping) else vars(x)
-        if d.get("payload_change") is not None and not d.get("in_warmup", False):
-            out.append((float(d["t_start"]), float(d["t_end"])))
-    return out
+        if d.get("payload_change") is None or d.get("in_warmup", False):
+            continue
+        ks = [int(k) for k in d.get("events") or () if 0 <= int(k) < len(evs)]
+        if ks:
+            held |= {id(evs[k]) for k in ks}
+        else:
+            spans.append((float(d["t_start"]), float(d["t_end"])))
+    return held, spans
 
 
 def _in_any(e: Any, spans: Sequence[tuple[float, float]]) -> bool:

@@ -152,7 +152,7 @@ def weigh_start(feed: Any, model: RigidModel, choices: tuple[GeneratorChoice, ..
         return model, StartLoad("same", seconds, w.mass_kg, w.mass_se_kg, values, rel, cal, (
             f"{where}: starts with the model's load{_whose(rel)} ({mass} beyond it, "
             f"weighed on its first {seconds:g} s: {why})"), share)
-    unseen = _unseen(cal, w.mass_kg, w.mass_se_kg)
+    unseen = beyond_calibrated(cal, w.mass_kg, w.mass_se_kg)
     # the model carries the lightest calibration log's load: a known load is relative to it
     known = payload.known_load(payload.calibration_loads(model, names), np.zeros_like(w.pi),
                                w.pi, w.mass_se_kg, yb, left, names)
@@ -220,7 +220,7 @@ def _calibrated_with(cal: dict[str, float]) -> str:
     return "; calibrated with " + ", ".join(f"{m:+.3g} kg ({log})" for log, m in cal.items())
 
 
-def _unseen(cal: dict[str, float], mass_kg: float, se_kg: float) -> bool:
+def beyond_calibrated(cal: dict[str, float], mass_kg: float, se_kg: float) -> bool:
     """A load [kg, beyond the model's] that no calibration log carried (``cal``: their
     masses beyond the model's; none: the model's own, 0): beyond every one by
     :data:`~impactcli.model.payload.WEIGH_SIGMAS` standard errors."""
@@ -335,7 +335,7 @@ def unseen_loads(where: str, model: RigidModel | None, changes: Any) -> str | No
     if model is None or not changes:
         return None
     _, cal = _calibration(model)
-    out = [c for c in changes if _unseen(cal, c.mass_after_kg, c.mass_se_kg)]
+    out = [c for c in changes if beyond_calibrated(cal, c.mass_after_kg, c.mass_se_kg)]
     if not out:
         return None
     what = ", ".join(f"{c.mass_after_kg:+.3g} kg from {c.t_classified:.3f} s" for c in out)

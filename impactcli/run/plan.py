@@ -551,9 +551,11 @@ def _unloaded_scale(scan: LogScan, robot: RobotDescription | None, kept: tuple[s
     """A torque scale off the description's gravity torque, judged again with the load the
     log starts with taken off the log's torque, when that load was weighed and used: the
     description holds the arm, not its load. The verdict then, if it is no longer off
-    (its message saying so), else ``scale`` as it was."""
+    (its message saying so) and the load is one the calibration logs carried (their
+    range, or one of theirs); ``scale`` still off, saying both explanations, when the
+    load is beyond theirs (a wrong unit weighs as a load too); else ``scale`` as it was."""
     from ..model import payload
-    from .loads import start_pi
+    from .loads import beyond_calibrated, start_pi
 
     if rig is None or start is None or start.verdict != "used" or scan.poses is None:
         return scale
@@ -569,6 +571,15 @@ def _unloaded_scale(scan: LogScan, robot: RobotDescription | None, kept: tuple[s
     again, _ = check_torque_scale(scan, robot, kept, warn=False, less=less)
     if again is None or again.kind != "ok":
         return scale
+    if start.as_log is None and beyond_calibrated(start.calibrated, float(start.mass_kg),
+                                                  float(start.mass_se_kg)):
+        # a load no calibration log carried may be a unit error weighed as a load (a ×4
+        # torque weighs as +6 kg): both are said, neither is taken
+        return dataclasses.replace(scale, message=(
+            f"{scale.message}; or the log starts with a load no calibration log carried "
+            f"({start.mass_kg:+.3g} kg, weighed): without it the scale reads "
+            f"~{again.scale:.3g}× — a wrong unit or that load, which the tool cannot tell "
+            "apart"))
     return dataclasses.replace(again, message=(
         f"{again.message}; judged without the load the log starts with "
         f"({start.mass_kg:+.3g} kg, weighed), which the description's masses do not hold: "

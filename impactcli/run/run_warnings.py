@@ -102,8 +102,8 @@ def warn_unwatched_loads(where: str, reason: str, start_weighed: bool) -> None:
                    if start_weighed else
                    ("payloads are not weighed", "a load carried from the start, picked or "
                     "placed"))
-    warnings.warn(f"{where}: {what} — {reason}: {loads} shows as an incident or a lasting "
-                  "load", ImpactWarning, stacklevel=3)
+    warnings.warn(f"{where}: {what} — {reason}: {loads} may show as an incident or a "
+                  "lasting load", ImpactWarning, stacklevel=3)
 
 
 def warn_formulation(where: str, config_where: str, calibrated_on: str, runs: str) -> None:

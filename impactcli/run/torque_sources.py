@@ -223,10 +223,11 @@ def _fit_both(logs: dict[str, list[RobotLog]], robot: RobotDescription | None,
         return SourceComparison(in_use, other, kind, None, {}, (), reason=str(e))
     mine = rows[in_use]
     held = folds_of(row_counts(mine), names, max(r.cv_gap for r in mine))[1]
-    # logs with kinematics: a payload per log, as calibrate fits them — else logs that
-    # carry different loads hide each source's error under the one load's
+    # logs with kinematics whose fit takes a payload per log (as calibrate then fits them):
+    # so judged — else logs that carry different loads hide each source's error under the
+    # one load's
     mine_pl, other_pl = (payload_errors(rows[s], names, options) for s in (in_use, other))
-    if mine_pl is not None and other_pl is not None:
+    if mine_pl is not None and other_pl is not None and mine_pl["chosen"]:
         errors = {s: {jn: {"rms_nm": e["per_log_rms_nm"],
                            "parts_rms_nm": e["parts_per_log_rms_nm"]}
                       for jn, e in pl["joints"].items()}

@@ -33,7 +33,7 @@ def incident_rows(tl: dict[str, Any], period_s: float) -> list[dict[str, Any]]:
     ``peak_ratio`` and ``peak_ratio_detector`` (over its events)."""
     events = tl.get("events") or []
     out = []
-    counted = warm = marked = carried = 0
+    counted = warm = marked = 0
     for inc in tl.get("incidents") or []:
         evs = [events[k] for k in inc.get("events") or [] if 0 <= k < len(events)]
         top = max(evs, key=lambda x: x["peak_ratio"], default=None)
@@ -43,9 +43,8 @@ def incident_rows(tl: dict[str, Any], period_s: float) -> list[dict[str, Any]]:
         elif inc.get("data_defect"):
             marked += 1
             number, label = None, f"d{marked}"
-        elif inc.get("payload_change"):
-            carried += 1
-            number, label = None, f"p{carried}"
+        elif inc.get("payload_change"):  # named by its change (P1's alarm: p1)
+            number, label = None, f"p{inc['payload_change']}"
         else:
             counted += 1
             number = inc.get("number") or counted
@@ -365,10 +364,10 @@ def payload_table_html(changes: Sequence[dict[str, Any]], anchor: str) -> str:
         "a mass at the flange over the poses that follow it: a load picked or released. It "
         "is not an incident and trips no gate; from its classification on, the residual "
         "carries the new load. Loads are stated beyond the model's own. A mass keeps its "
-        "weight as the arm moves (steady) and carries inertia; a steady press along gravity "
-        "does neither, and where the motion is too slow for the inertia to show the two are "
-        "not told apart. The standard error counts the window's samples as independent: a "
-        "lower bound.</div>")
+        "weight as the arm moves (steady) and carries inertia; a press that builds up is not "
+        "steady, and a steady press along gravity has no inertia — where the motion is too "
+        "slow for inertia to show, the two are not told apart. The standard error counts the "
+        "window's samples as independent: a lower bound.</div>")
 
 
 def lasting_table_html(loads: Sequence[dict[str, Any]], anchor: str) -> str:
