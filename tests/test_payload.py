@@ -447,8 +447,10 @@ def test_an_uncalibrated_run_says_it_does_not_tell_loads_from_contacts(
 
 def test_a_replay_that_cannot_weigh_loads_says_so(two_loads: Path, tmp_path: Path) -> None:
     """A config on the controller's residual (the sample ASSIST-like config) cannot weigh
-    the load the sample payload log carries, nor watch for changes: detect says so, and
-    why; a config on the tool's own model with kinematics says nothing of the kind."""
+    the load the sample payload log carries, nor watch for changes: with the lasting load
+    that load makes, detect says so, and why (without one it says nothing: the sample
+    runs' stderr stays empty, tests/test_cli_pipe.py); a config on the tool's own model
+    with kinematics says nothing of the kind."""
     repo = Path(__file__).resolve().parents[1]
     log = repo / "sample_logs" / "csv" / "assist_payload.csv.gz"
     tl, code, r = _detect(log, repo / "sample_logs" / "assist_like.config.toml", tmp_path / "a")

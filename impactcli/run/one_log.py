@@ -274,8 +274,6 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
             warn_beyond_effort(cfg, joints, setup.robot, where)
         since = caught.mark()
         monitor = monitor_for(plan, given, scan.sample_rate_hz)
-        if given is not None and (why := unwatched_reason(plan)) is not None:
-            warn_unwatched_loads(where, why, plan.start_load is not None)
         rp, thr, margins, islands, envelope, floor_acc = _detect_passes(
             feed, plan, given, on_chunk, passes, monitor)
         stack.callback(islands.close)
@@ -291,6 +289,9 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
                                plan.gravity_hold)
         ctx_msgs = caught.cut(since)
         events, incidents, loads = _events_and_incidents(islands, rp.warmup, joints, cfg, ctx)
+        if (given is not None and any(not x.in_warmup for x in loads)
+                and (why := unwatched_reason(plan)) is not None):  # a load, unweighed?
+            warn_unwatched_loads(where, why, plan.start_load is not None)
         defects = data_defects(scan, rp.gap_times)
         settle = settle_s(cfg.static_loading.cutoff_hz, cfg.adaptive.n2_s)
         memory = adaptive_memory_s(cfg.adaptive.forgetting_factor, scan.sample_rate_hz)

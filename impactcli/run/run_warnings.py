@@ -94,16 +94,15 @@ def warn_uncalibrated(where: str, weighs_loads: bool = False) -> None:
 
 
 def warn_unwatched_loads(where: str, reason: str, start_weighed: bool) -> None:
-    """The warning of a calibrated replay that does not look for payload changes
-    (:func:`impactcli.run.loads.unwatched_reason` says why), nor, unless ``start_weighed``,
-    weigh the load it starts with: such a load shows as a contact or a lasting load
+    """The warning of a calibrated replay with a lasting load that does not look for
+    payload changes (:func:`impactcli.run.loads.unwatched_reason` says why), nor, unless
+    ``start_weighed``, weigh the load it starts with: the lasting load may be such a load
     (docs/method.md §5c)."""
-    what, loads = (("payload changes are not looked for", "a load picked or placed mid-log")
-                   if start_weighed else
-                   ("payloads are not weighed", "a load carried from the start, picked or "
-                    "placed"))
-    warnings.warn(f"{where}: {what} — {reason}: {loads} may show as an incident or a "
-                  "lasting load", ImpactWarning, stacklevel=3)
+    what, loads = (("payload changes are not looked for", "picked mid-log") if start_weighed
+                   else ("payloads are not weighed", "carried from the start or picked "
+                         "mid-log"))
+    warnings.warn(f"{where}: {what} — {reason}: its lasting loads may be a load {loads}",
+                  ImpactWarning, stacklevel=3)
 
 
 def warn_formulation(where: str, config_where: str, calibrated_on: str, runs: str) -> None:
