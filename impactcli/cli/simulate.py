@@ -27,7 +27,9 @@ SCENARIO_NAMES = ("free_triangle", "free_fm_triangle", "free_p2p", "free_multisi
               help="Seed of the true robot alone: runs with the same --robot-seed simulate "
                    "the same physical robot [default: drawn from --seed].")
 @click.option("--payload-kg", type=click.FloatRange(min=0.0), default=None,
-              help="Unknown end-effector payload [kg] (default: the scenario's).")
+              help="Unknown end-effector payload carried from the start [kg] (default: the "
+                   "scenario's); pick_and_place then sets the load it picks, and 0 kg at the "
+                   "release, whatever this is.")
 @click.option("--uncertainty", type=click.FloatRange(0.0, 0.9), default=None,
               help="Relative spread of the true parameters around nominal (default 0.2).")
 @click.option("-o", "--output", "--out", "outdir", type=click.Path(file_okay=False, path_type=Path),
