@@ -665,3 +665,20 @@ def test_torque_sources_are_judged_with_a_payload_per_log(logs: dict[str, Path],
     assert r.exit_code == 0, r.output
     assert "held back: each log held out in turn, a payload per log" in r.stdout
     assert "consider --torque-source current (shoulder, elbow)" in r.stdout, r.stdout
+
+
+def test_loads_within_noise_of_the_lightest_are_not_called_different() -> None:
+    """A calibration log whose load is within three standard errors of the lightest's
+    (+0.0048 ± 0.0047 kg) carries the same load: named as such, not as a different one;
+    with no other log, no warning."""
+    from types import SimpleNamespace
+
+    def model(*logs: tuple[str, float, float]) -> SimpleNamespace:
+        return SimpleNamespace(fit={"payloads": {"relative_to": "a", "logs": [
+            {"log": lg, "values": {"m": m}, "se": {"m": se}} for lg, m, se in logs]}})
+
+    light, near = ("a", 0.0, 0.004), ("b", 0.00484, 0.0047)
+    said = payload.differ_warning(model(light, near, ("c", 1.2, 0.003)))
+    assert said is not None and "(c +1.2 kg beyond a; b within three standard errors of " \
+        "it)" in said, said
+    assert payload.differ_warning(model(light, near)) is None

@@ -475,11 +475,22 @@ def differ_warning(model: Any) -> str | None:
     rec = (model.fit or {}).get("payloads")
     if not rec:
         return None
-    heavier = [f"{e['log']} {e['values']['m']:+.3g} kg" for e in rec["logs"]
-               if e["log"] != rec["relative_to"]]
+    rel = rec["relative_to"]
+    others = [e for e in rec["logs"] if e["log"] != rel]
+
+    def alike(e: dict[str, Any]) -> bool:  # the lightest's load within 3 standard errors
+        se = (e.get("se") or {}).get("m")
+        return se is not None and abs(e["values"]["m"]) <= WEIGH_SIGMAS * float(se)
+
+    heavier = [f"{e['log']} {e['values']['m']:+.3g} kg" for e in others if not alike(e)]
+    if not heavier:
+        return None
+    same = [e["log"] for e in others if alike(e)]
     return (f"the calibration logs carry different loads ({', '.join(heavier)} beyond "
-            f"{rec['relative_to']}): each log's residual used its own load; the config's "
-            f"model carries {rec['relative_to']}'s")
+            f"{rel}" + (f"; {', '.join(same)} within three standard errors of it" if same
+                        else "")
+            + f"): each log's residual used its own load; the config's model carries "
+            f"{rel}'s")
 
 
 def log_weights(ys: Sequence[np.ndarray], taus: Sequence[np.ndarray],
