@@ -602,3 +602,21 @@ def test_only_the_events_a_payload_change_holds_are_excused():
     assert e.scores["static_loading"].false_alarms == 0
     # the product alarm 9.0–9.9 holds the adaptive 9.5 s part too: not all the change's
     assert e.scores["product"].false_alarms == 1
+
+
+def test_the_sweep_does_not_count_a_payload_changes_alarm():
+    """sweep_result's false adaptive bump at 6.0 s, were it a payload change's alarm (onset
+    5.95 s, classified 6.2 s), is no false alarm at any scale; the loading bump at 2.0 s
+    still is."""
+    scales = [1.0, 1.3, 1.6]
+    plain = sweep_thresholds(sweep_result(), SWEEP_LABELS, scales)
+    carried = sweep_thresholds(sweep_result(), SWEEP_LABELS, scales,
+                               changes=[{"t_start": 5.95, "t_classified": 6.2}])
+    fa = {(r.detector, r.scale): r.false_alarms for r in plain}
+    fb = {(r.detector, r.scale): r.false_alarms for r in carried}
+    assert (fa[("adaptive", 1.0)], fb[("adaptive", 1.0)]) == (1, 0)
+    assert (fa[("adaptive", 1.3)], fb[("adaptive", 1.3)]) == (1, 0)
+    assert fb[("static_loading", 1.0)] == fa[("static_loading", 1.0)] == 1
+    assert fb[("product", 1.0)] == fa[("product", 1.0)] - 1
+    assert {(r.detector, r.scale): r.detected for r in carried} == {
+        (r.detector, r.scale): r.detected for r in plain}

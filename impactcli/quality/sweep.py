@@ -273,9 +273,15 @@ class ThresholdSweep:
             for s in self.scales:
                 self.iv[(d, s)].update(t, top > s)
 
-    def rows(self, labels: Labels, tolerance: MatchTolerance | None = None) -> list[SweepRow]:
+    def rows(self, labels: Labels, tolerance: MatchTolerance | None = None,
+             changes: Sequence[Mapping[str, Any]] = ()) -> list[SweepRow]:
         """One :class:`SweepRow` per (detector, scale): detectors in :data:`EVALUATED`
-        order, scales ascending. Call once, after the last chunk."""
+        order, scales ascending. Call once, after the last chunk. ``changes``: the run's
+        payload changes (timeline ``payload_changes`` items): an event at any scale from a
+        change's onset to its classification is its alarm, not a false alarm (as
+        ``evaluate`` has it)."""
+        loads = [{"t_start": float(c["t_start"]), "t_end": float(c["t_classified"]),
+                  "payload_change": k} for k, c in enumerate(changes, 1)]
         tol = tolerance if tolerance is not None else MatchTolerance()
         wu = self.warmup_end_s
         duration_s = 0.0 if math.isnan(self.t_first) else self.t_last - self.t_first
@@ -289,7 +295,7 @@ class ThresholdSweep:
                        for a, b in zip(found[(d, s)][1].tolist(), found[(d, s)][3].tolist(),
                                        strict=True)]
                 add_rows(rows_of, s, evs, labels, duration_s=duration_s, warmup_end_s=wu,
-                         tolerance=tol, merge_gap_s=self.merge_gap_s)
+                         tolerance=tol, merge_gap_s=self.merge_gap_s, loads=loads)
         warn_late_labels(labels, duration_s, wu, tol)
         return [r for rows in rows_of.values() for r in rows]
 
@@ -305,8 +311,10 @@ def sweep_ratios(
     min_duration_s: float,
     tolerance: MatchTolerance | None = None,
     detectors: Sequence[str] = EVALUATED,
+    changes: Sequence[Mapping[str, Any]] = (),
 ) -> list[SweepRow]:
-    """The sweep of a run's arrays, one chunk of :class:`ThresholdSweep`.
+    """The sweep of a run's arrays, one chunk of :class:`ThresholdSweep`; ``changes`` its
+    payload changes (:meth:`ThresholdSweep.rows`).
 
     Args:
         ratios: detector → (N, J) statistic / threshold [-] (decision at scale s: ratio > s).
@@ -318,17 +326,20 @@ def sweep_ratios(
     sweep = ThresholdSweep(scales, warmup_end_s=warmup_end_s, merge_gap_s=merge_gap_s,
                            min_duration_s=min_duration_s, detectors=detectors)
     sweep.update(time_s, ratios)
-    return sweep.rows(labels, tolerance)
+    return sweep.rows(labels, tolerance, changes)
 
 
 def add_rows(rows_of: dict[str, list[SweepRow]], scale: float, evs: list[ScoredEvent],
              labels: Labels, *, duration_s: float, warmup_end_s: float,
-             tolerance: MatchTolerance, merge_gap_s: float) -> None:
+             tolerance: MatchTolerance, merge_gap_s: float,
+             loads: Sequence[Mapping[str, Any]] = ()) -> None:
     """Score one scale's events against the labels; one :class:`SweepRow` per detector of
-    ``rows_of``."""
+    ``rows_of``; ``loads``: the payload changes' alarms as spans (incident-like mappings,
+    :meth:`ThresholdSweep.rows`)."""
     ev = evaluate_events(
         evs, labels, duration_s=duration_s, warmup_end_s=warmup_end_s, tolerance=tolerance,
         product_merge_gap_s=merge_gap_s, detectors=list(rows_of),
+        incidents=list(loads) or None,
     )
     for d, sc in ev.scores.items():
         per_contact = tuple(

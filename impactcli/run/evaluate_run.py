@@ -171,7 +171,7 @@ def timeline_sweep(source: Path, doc: dict[str, Any], labels: Any, scales: tuple
     if sweep is None:
         raise LogFormatError(f"{source}: config.events needs merge_gap_s and min_duration_s "
                              "to re-extract events for --sweep")
-    return sweep.rows(labels, tolerance)
+    return sweep.rows(labels, tolerance, list(doc.get("payload_changes") or ()))
 
 
 def evaluate_source(source: Path, labels_path: Path | None, *, is_timeline: bool,

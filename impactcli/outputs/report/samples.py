@@ -282,4 +282,4 @@ class Samples:
                                min_duration_s=min_dur)
         for t, per in self._ratio_groups():
             sweep.update(t, {d: np.column_stack([p[d] for p in per]) for d in DETECTORS})
-        return sweep.rows(labels, tolerance)
+        return sweep.rows(labels, tolerance, list(result.payload_changes or ()))
