@@ -110,8 +110,9 @@ def rate_lines(rate: dict[str, Any], margin_rule: str = "leave-one-out") -> list
                          f"{r['observed'] / hours:>10.3g} {f'{lo:.3g}–{hi:.3g}':>17} "
                          f"{r['predicted_per_hour']:>9.3g} {r['upper_per_hour']:>7.3g}")
         lines += [f"  {name}: observed above its bound (the interval's low end {k:.3g}× it): "
-                  "its motion is not in the other logs' envelope — thresholds made without "
-                  "it false-alarm on such motion" for name, k in above.items()]
+                  "what it holds is not in the other logs — its motion, or a load the "
+                  "model fits worse with that motion — and thresholds made without it "
+                  "false-alarm on such a log" for name, k in above.items()]
         if not above:
             lines.append("  (every log left out within its bound)")
     return lines
