@@ -400,6 +400,34 @@ def test_a_pick_and_a_release_are_payload_changes_not_contacts(
         assert any(p.start - 0.02 <= i["t_start"] <= p.end + 0.25 for i in counted), p
 
 
+def test_a_release_inside_another_alarms_window_is_found_at_its_step(
+        two_loads: Path, tmp_path: Path) -> None:
+    """A slow pick-and-place (60 s, multi-sine up to 0.06 Hz): a push's aftermath alarm
+    at ~38.3 s is weighed on its window to ~41.3 s, which holds the release at 40 s. The
+    release was then found only when the watch resumed (41.3 s) while its step, from
+    40.02 s, stood as a counted 31 N "quasi-static" incident that tripped
+    --fail-on-force 30. The change now starts at its alarm's run (the step), and no
+    incident is counted for it."""
+    from dataclasses import replace
+
+    from impactcli.logs import write_log
+    from impactcli.sim import scenario, simulate
+
+    sc = scenario("pick_and_place", "assist_like", 60.0, controller_channels=False,
+                  robot_seed=7)
+    sc = replace(sc, reference=replace(sc.reference, f_min=0.01, f_max=0.06))
+    res = simulate(sc, seed=3)
+    log = tmp_path / "slow.csv.gz"
+    write_log(res.log, log)
+    _, (place, _) = sc.payload_changes
+    tl, code, r = _detect(log, two_loads, tmp_path / "out", "--fail-on-force", "30")
+    assert code == 0, r.output  # type: ignore[attr-defined]
+    ch = tl["payload_changes"]
+    assert len(ch) == 2 and abs(ch[1]["t_start"] - place) < 0.2, ch
+    counted = [i for i in tl["incidents"] if i["number"] is not None]
+    assert not [i for i in counted if place - 0.5 <= i["t_start"] <= place + 1.0], counted
+
+
 def test_a_pick_in_the_warm_up_is_not_weighed_as_the_start_load(
         two_loads: Path, tmp_path: Path) -> None:
     """A 1 kg pick at 1.5 s, inside the stretch the start load is weighed on: no steady load

@@ -218,6 +218,7 @@ class PayloadMonitor:
     reach_m: float
     base_kg: float = 0.0
     known: tuple[tuple[str, np.ndarray], ...] = ()
+    merge_gap_s: float = 0.0
     changes: list[PayloadChange] = field(default_factory=list)
     #: onset [s] → why its alarm, lasting through the first window (it could have been a
     #: load), was not a payload change there (later windows, while it lasts, are retries)
@@ -229,6 +230,9 @@ class PayloadMonitor:
     _onset: tuple[int, float] | None = None
     _due: int = 0
     _ended: bool = False
+    _below: int = 0
+    _prev_above: bool = False
+    _run_start: tuple[int, float] | None = None
 
     def __post_init__(self) -> None:
         self._pi = np.zeros(len(self.names))
@@ -279,32 +283,63 @@ class PayloadMonitor:
         """Walk the states over the part's loading statistic from sample ``k0``; the offset
         of a classification time within it, else None (the whole part walked)."""
         above = np.any(lp > self.v_loading[None, :], axis=1)
-        i = 0
         n = lp.shape[0]
+        # where the alarm's runs begin (the run ongoing at the part's start carried in)
+        starts = np.flatnonzero(above & ~np.concatenate([[self._prev_above], above[:-1]]))
+
+        def walked(upto: int) -> int:  # the runs as of sample ``upto`` (exclusive)
+            if upto > 0:
+                self._prev_above = bool(above[upto - 1])
+                s = starts[starts < upto]
+                if s.size:
+                    self._run_start = (k0 + int(s[-1]), float(t[s[-1]]))
+            return upto
+
+        i = 0
         while i < n:
             if self._state == "idle":
                 hits = np.flatnonzero(above[i:] & (t[i:] >= self.start_s))
                 if not hits.size:
+                    walked(n)
                     return None
                 i += int(hits[0])
-                self._onset = (k0 + i, float(t[i]))
-                self._due = k0 + i + self.window
+                s = starts[starts <= i]
+                run = (k0 + int(s[-1]), float(t[s[-1]])) if s.size else self._run_start
+                # an alarm already on when the watch resumed began at its run's start
+                # (a step inside the window of an alarm that was no load)
+                self._onset = (run if run is not None and run[1] >= self.start_s
+                               and run[0] <= k0 + i else (k0 + i, float(t[i])))
+                self._due = self._onset[0] + self.window
                 self._ended = False
+                self._below = 0
                 self._state = "pending"
             if self._state == "pending":
                 at = self._due - k0
-                if not self._ended and np.any(~above[i:min(at, n)]):
-                    self._ended = True  # the alarm fell silent since its onset
+                if not self._ended:  # silent longer than the events' merge gap: it ended
+                    self._ended = self._silent(~above[i:min(at, n)])
                 if at < n:
-                    return max(at, 0)
+                    return walked(max(at, 0))
+                walked(n)
                 return None
             if self._state == "cooldown":
                 below = np.flatnonzero(~above[i:])
                 if not below.size:
+                    walked(n)
                     return None
                 i += int(below[0])
                 self._state = "idle"
+        walked(n)
         return None
+
+    def _silent(self, below: np.ndarray) -> bool:
+        """Whether the alarm fell silent for longer than the events' merge gap within
+        ``below`` (the samples under every vL, in order), counting the run it ended the last
+        part with: a dip the events would merge over is one alarm, as for the detectors."""
+        runs = np.concatenate([[self._below], np.zeros(below.size, dtype=np.int64)])
+        for k, b in enumerate(below):  # run lengths, carried in
+            runs[k + 1] = runs[k] + 1 if b else 0
+        self._below = int(runs[-1])
+        return bool(runs.max() > self.merge_gap_s * self.sample_rate_hz)
 
     def _keep(self, qf: np.ndarray, qd: np.ndarray, qdd: np.ndarray, r: np.ndarray) -> None:
         """Keep the last two windows of the filtered motion and the residual."""

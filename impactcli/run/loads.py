@@ -303,7 +303,7 @@ def monitor_for(plan: Any, given: dict[str, np.ndarray] | None,
         cfg.static_loading.order, float(cfg.warmup.min_s),
         settle_s(cfg.static_loading.cutoff_hz, cfg.adaptive.n2_s),
         payload.reach_m(model), base_kg=float(pi0[bb[1].index("m")]),
-        known=known_loads(model, bb[1], pi0))
+        known=known_loads(model, bb[1], pi0), merge_gap_s=float(cfg.events.merge_gap_s))
 
 
 def start_pi(model: RigidModel, names: tuple[str, ...], start: StartLoad | None,
