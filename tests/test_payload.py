@@ -488,8 +488,15 @@ def test_a_replay_that_cannot_weigh_loads_says_so(two_loads: Path, tmp_path: Pat
     assert said in r.stderr  # type: ignore[attr-defined]
     assert any(said in w for w in tl["warnings"])
     assert "payload_changes" not in tl
+    # said on the terminal whether or not a lasting load asks (a pick among short alarms)
+    line = "payloads: not weighed — the residual is the controller's (logged_external)"
+    assert line in r.stdout  # type: ignore[attr-defined]
+    _, _, clean = _detect(repo / "sample_logs" / "csv" / "assist_pushes.csv.gz",
+                          repo / "sample_logs" / "assist_like.config.toml", tmp_path / "c")
+    assert line in clean.stdout and not clean.stderr  # type: ignore[attr-defined]
     own, _, r = _detect(_pick_and_place(tmp_path, pushes=False)[0], two_loads, tmp_path / "b")
     assert len(own["payload_changes"]) == 2
+    assert "not weighed" not in r.stdout  # type: ignore[attr-defined]
     assert "not weighed" not in r.stderr and "not looked for" not in r.stderr  # type: ignore
 
 

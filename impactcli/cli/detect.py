@@ -364,6 +364,13 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
                        + _generators_line(rows[o.log_path]))
     if thresholds is not None:
         click.echo(thresholds)
+    controller = sorted({g for o in ok for g in rows[o.log_path]["generators"].values()
+                         if g not in ("inverse_dynamics", "momentum_observer")})
+    if controller:  # the residual holds no model of the tool's to add a load to
+        click.echo(f"payloads: not weighed — the residual is the controller's "
+                   f"({', '.join(controller)}): a load carried, picked or placed may show among "
+                   "the incidents and lasting loads (--generator inverse_dynamics with "
+                   "kinematics weighs them)")
     click.echo(f"(incidents, lasting loads and events per detector after warm-up; an "
                f"incident is one contact, made of the adaptive and loading events; a "
                f"lasting load an alarm of {LONG_EVENT_S:g} s or more; timelines in "
