@@ -10,7 +10,9 @@ not behave as a mass: it ends, or it holds the arm still, or it pushes another w
 
 1. **Onset.** The static-loading statistic |LP(r)| (the detector's own filter and
    thresholds vL) rises above vL on some joint, after the warm-up's least length (the load
-   at the start is weighed there: :mod:`impactcli.run.loads`).
+   at the start is weighed there: :mod:`impactcli.run.loads`). An alarm already on when
+   the watch resumes (after a window that was no load) dates from its run's start; an
+   alarm ends after a dip below vL longer than the events' merge gap.
 2. **Weighing.** When :data:`WINDOW_S` seconds have passed (the classification time, as
    online), the change is weighed (:func:`impactcli.model.payload.weigh`) on the window
    from the onset plus ``settle_s`` (the loading filter and the step's transient) to the
