@@ -336,8 +336,9 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
 
         if (differ := differ_warning(fitted)) is not None:
             click.echo(f"impactcli: warning: {differ}", err=True)
-    own = {"inverse_dynamics", "momentum_observer"}
-    elsewhere = sorted({g for g in out.residual.generators.values() if g not in own})
+    from ..model.generators import OWN_MODEL
+
+    elsewhere = sorted({g for g in out.residual.generators.values() if g not in OWN_MODEL})
     if elsewhere and len(read) > 1:  # the residual is the controller's: no load to fit
         click.echo(f"  payload per log: not fitted: the residual is the controller's "
                    f"({', '.join(elsewhere)}), not the tool's model: logs that carry "

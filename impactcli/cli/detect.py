@@ -364,8 +364,10 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
                        + _generators_line(rows[o.log_path]))
     if thresholds is not None:
         click.echo(thresholds)
+    from ..model.generators import OWN_MODEL
+
     controller = sorted({g for o in ok for g in rows[o.log_path]["generators"].values()
-                         if g not in ("inverse_dynamics", "momentum_observer")})
+                         if g not in OWN_MODEL})
     if controller:  # the residual holds no model of the tool's to add a load to
         click.echo(f"payloads: not weighed — the residual is the controller's "
                    f"({', '.join(controller)}): a load carried, picked or placed may show among "

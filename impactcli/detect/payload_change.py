@@ -103,6 +103,13 @@ def change_text(change: dict[str, Any]) -> str:
             f"{tested_text(change)}{early})")
 
 
+def beyond_words(mass_kg: float) -> tuple[str, str]:
+    """A load's mass against the model's, as every output says it: (``+3``, ``beyond``)
+    or, for a lighter one, (``1.2``, ``less than``) — never a negative mass carried."""
+    return ((f"{mass_kg:+.3g}", "beyond") if mass_kg >= 0 else
+            (f"{-mass_kg:.3g}", "less than"))
+
+
 def carrying_text(change: dict[str, Any]) -> str:
     """The load a change (its ``to_dict``) leaves the arm carrying, as every output says
     it: ``+3 kg beyond the model's load`` (``1.2 kg less than …`` for a lighter one),
@@ -111,9 +118,8 @@ def carrying_text(change: dict[str, Any]) -> str:
     known = change.get("as_log")
     if known == OWN_LOAD:
         return whose_load(OWN_LOAD)
-    after = float(change["mass_after_kg"])
-    return ((f"{after:+.3g} kg beyond" if after >= 0 else f"{-after:.3g} kg less than")
-            + " the model's load"
+    kg, side = beyond_words(float(change["mass_after_kg"]))
+    return (f"{kg} kg {side} the model's load"
             + ("" if known is None else f": {whose_load(str(known))}"))
 
 

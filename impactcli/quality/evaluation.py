@@ -411,8 +411,9 @@ def evaluate_events(
         warm = [e for e in d_evs if e.in_warmup]
         first_match, first_any, matched = matches[d]
         no_match = [e for e, m in zip(d_evs, matched, strict=True) if not m and not e.in_warmup]
-        false_alarms = [e for e in no_match if not picked_up(e)]
-        picked = [e for e in no_match if picked_up(e)]
+        excused = [picked_up(e) for e in no_match]
+        false_alarms = [e for e, x in zip(no_match, excused, strict=True) if not x]
+        picked = [e for e, x in zip(no_match, excused, strict=True) if x]
         c_start = np.array([e.t_start for e in counted])
         c_end = np.array([e.t_end for e in counted])
         det_k, del_k, on_k = [], [], []

@@ -27,14 +27,14 @@ from typing import Any
 import numpy as np
 
 from ..config import DetectorConfig
-from ..detect.payload_change import OWN_LOAD
+from ..detect.payload_change import OWN_LOAD, beyond_words
 from ..model import RigidModel, payload
-from ..model.generators import GeneratorChoice, target_torque
+from ..model.generators import OWN_MODEL, GeneratorChoice, target_torque
 
 #: The generators whose residual is the tool's own model's (eq. 7–8, the observer): a load
 #: is weighed for them only (the controller's channels pass a load through the
 #: controller's own observer, and its model carries the load or misses it).
-OWN = ("inverse_dynamics", "momentum_observer")
+OWN = OWN_MODEL
 
 #: A load whose torque over the stretch exceeds this many times the largest torque the
 #: joints exerted there is one no motor held: not a load.
@@ -157,12 +157,11 @@ def weigh_start(feed: Any, model: RigidModel, choices: tuple[GeneratorChoice, ..
     known = payload.known_load(payload.calibration_loads(model, names), np.zeros_like(w.pi),
                                w.pi, w.mass_se_kg, yb, left, names)
     pi = w.pi if known is None else known[1]
+    kg, side = beyond_words(w.mass_kg)
     return payload.carrying(model, pi), StartLoad(
         "used", seconds, w.mass_kg, w.mass_se_kg, values, rel, cal, (
-            f"{where}: carrying ~"
-            + (f"{w.mass_kg:+.3g}" if w.mass_kg >= 0 else f"{-w.mass_kg:.3g}")
-            + f" kg (± {w.mass_se_kg:.2g}; it explains {100 * share:.0f} % of what the model "
-            f"leaves out) {'beyond' if w.mass_kg >= 0 else 'less than'} the model's "
+            f"{where}: carrying ~{kg} kg (± {w.mass_se_kg:.2g}; it explains "
+            f"{100 * share:.0f} % of what the model leaves out) {side} the model's "
             f"load{_whose(rel)}{_calibrated_with(cal)}, weighed on its first "
             f"{seconds:g} s: "
             + ("the residual uses it" if known is None else

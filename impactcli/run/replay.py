@@ -42,6 +42,7 @@ from ..errors import ModelError
 from ..model.causal import Carry
 from ..model.generators import (
     LOGGED,
+    OWN_MODEL,
     GeneratorChoice,
     plain_residual,
     target_torque,
@@ -120,7 +121,7 @@ class ReplaySetup:
         """The own-model generator's options (``inverse_dynamics`` for the logged ones)."""
         rc = self.cfg.residual
         g = generator or rc.generator
-        if g not in ("inverse_dynamics", "momentum_observer"):
+        if g not in OWN_MODEL:
             g = "inverse_dynamics"
         return ResidualOptions(cutoff_hz=rc.derivative_cutoff_hz,
                                filter_torque=rc.filter_torque, generator=g,

@@ -212,28 +212,34 @@ def _fit_both(logs: dict[str, list[RobotLog]], robot: RobotDescription | None,
     options = IdentifyOptions()
     errors: dict[str, dict[str, dict[str, Any]]] = {}
     rows: dict[str, list[Rows]] = {}
+    held: str | None = None
     try:
         with warnings.catch_warnings():  # identification's warnings belong to the fit
             warnings.simplefilter("ignore")
             for s in (in_use, other):
                 rows[s] = [prepare_rows(lg, robot, kind, options) for lg in logs[s]]
-                errors[s] = dict(zip(rows[s][0].joints, named_errors(rows[s], names, options),
-                                     strict=True))
+            # logs with kinematics whose fit takes a payload per log (as calibrate then
+            # fits them): so judged — else logs that carry different loads hide each
+            # source's error under the one load's
+            mine_pl = payload_errors(rows[in_use], names, options)
+            other_pl = (payload_errors(rows[other], names, options)
+                        if mine_pl is not None and mine_pl["chosen"] else None)
+            if mine_pl is not None and other_pl is not None:
+                errors = {s: {jn: {"rms_nm": e["per_log_rms_nm"],
+                                   "parts_rms_nm": e["parts_per_log_rms_nm"]}
+                              for jn, e in pl["joints"].items()}
+                          for s, pl in ((in_use, mine_pl), (other, other_pl))}
+                held = (f"each log held out in turn, a payload per log (its own weighed on "
+                        f"its first {mine_pl['start_s']:g} s)")
+            else:
+                for s in (in_use, other):
+                    errors[s] = dict(zip(rows[s][0].joints,
+                                         named_errors(rows[s], names, options), strict=True))
     except ImpactError as e:
         return SourceComparison(in_use, other, kind, None, {}, (), reason=str(e))
     mine = rows[in_use]
-    held = folds_of(row_counts(mine), names, max(r.cv_gap for r in mine))[1]
-    # logs with kinematics whose fit takes a payload per log (as calibrate then fits them):
-    # so judged — else logs that carry different loads hide each source's error under the
-    # one load's
-    mine_pl, other_pl = (payload_errors(rows[s], names, options) for s in (in_use, other))
-    if mine_pl is not None and other_pl is not None and mine_pl["chosen"]:
-        errors = {s: {jn: {"rms_nm": e["per_log_rms_nm"],
-                           "parts_rms_nm": e["parts_per_log_rms_nm"]}
-                      for jn, e in pl["joints"].items()}
-                  for s, pl in ((in_use, mine_pl), (other, other_pl))}
-        held = (f"each log held out in turn, a payload per log (its own weighed on its first "
-                f"{mine_pl['start_s']:g} s)")
+    if held is None:
+        held = folds_of(row_counts(mine), names, max(r.cv_gap for r in mine))[1]
     rms: dict[str, tuple[float, float]] = {}
     better: list[str] = []
     for jn in mine[0].joints:
