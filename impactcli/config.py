@@ -280,7 +280,8 @@ class CalibrationRecord:
             short for a tail fit.
         motion_envelope: the calibration's motion envelope
             (:meth:`impactcli.detect.envelope.MotionEnvelope.to_dict`): per joint the
-            ranges of velocity, acceleration and position of the free motion.
+            ranges of velocity, acceleration and position of the free motion, and its
+            longest slow stretch.
         formulation: the adaptive evaluator's formulation the thresholds were calibrated
             on (:data:`FORMULATION`); None: before formulations were recorded (the plain
             eq. 39 of releases up to 2026-11-27). Another than the running one is warned

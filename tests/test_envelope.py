@@ -1,6 +1,7 @@
 """The calibration's motion envelope (impactcli.detect.envelope) against known motion:
 sinusoids whose velocity and acceleration ranges are known in closed form, chunk splits
-that must not change a bit, and a check that finds exactly the faster stretch."""
+that must not change a bit, a check that finds exactly the faster stretch, and the slow
+clock against piecewise-constant velocities whose slow time is known."""
 
 from __future__ import annotations
 
@@ -10,11 +11,14 @@ import numpy as np
 import pytest
 
 from impactcli.detect.envelope import (
+    HELD_RAD_S,
+    SLOW_RAD_S,
     EnvelopeAccumulator,
     EnvelopeCheck,
     MotionEnvelope,
     MotionTrace,
     outside_share_text,
+    slow_text,
 )
 
 FS = 500.0
@@ -148,3 +152,88 @@ def test_a_log_without_reference_is_compared_across_sources() -> None:
     chk.update_arrays(t, q, None)
     res = chk.finish(round(5.0 * FS))
     assert res.source == "position" and "across sources" in res.note
+
+
+def ramps(pieces: list[tuple[float, float]]) -> tuple[np.ndarray, np.ndarray]:
+    """Times and a position whose velocity is ``v`` [rad/s] for ``s`` seconds per piece."""
+    v = np.concatenate([np.full(round(sec * FS), vel) for sec, vel in pieces])
+    t = np.arange(v.size) / FS
+    return t, np.cumsum(v) / FS
+
+
+#: 0–5 s fast; 5–7 s slow (2 s); 7–10 s at rest (not counted, not ending it); 10–11 s slow
+#: (3 s in all); 11–15 s fast (reset); 15–15.5 s slow; 15.5–20 s fast.
+PIECES = [(5.0, 0.5), (2.0, 0.01), (3.0, 0.0), (1.0, -0.01), (4.0, 0.5), (0.5, 0.01),
+          (4.5, 0.5)]
+
+
+def test_slow_clock_counts_slow_time_pauses_at_rest_and_resets_when_fast() -> None:
+    assert HELD_RAD_S < 0.01 < SLOW_RAD_S < 0.5
+    t, q = ramps(PIECES)
+    clock = MotionTrace(FS).update(t, q[:, None], q[:, None]).slow[:, 0]
+    at = {s: clock[round(s * FS) - 1] for s in (7.0, 7.5, 10.0, 11.0, 14.0, 15.5, 20.0)}
+    lag = 0.15  # the 10 Hz low-pass takes ~0.1 s to bring 0.5 rad/s under SLOW_RAD_S
+    assert at[7.0] == pytest.approx(2.0, abs=lag)
+    assert at[10.0] == at[7.5] > at[7.0]  # at rest (once the filter has settled): paused
+    assert at[11.0] == pytest.approx(3.0, abs=lag)
+    assert at[14.0] == 0.0  # fast again: reset
+    assert at[15.5] == pytest.approx(0.5, abs=lag)
+    assert at[20.0] == 0.0 and clock.max() == pytest.approx(3.0, abs=lag)
+    # whatever the chunks, bit for bit
+    rng = np.random.default_rng(5)
+    cuts = sorted(rng.choice(np.arange(1, t.size), 9, replace=False).tolist())
+    tr = MotionTrace(FS)
+    parts = [tr.update(t[a:b], q[a:b, None], q[a:b, None]).slow[:, 0]
+             for a, b in zip([0, *cuts], [*cuts, t.size], strict=True)]
+    assert np.array_equal(np.concatenate(parts), clock)
+
+
+def test_a_gap_adds_at_most_two_sample_periods() -> None:
+    t, q = ramps([(2.0, 0.5), (2.0, 0.01)])
+    t = t.copy()
+    t[round(3.0 * FS):] += 60.0  # a minute missing inside the slow stretch
+    clock = MotionTrace(FS).update(t, q[:, None], q[:, None]).slow[:, 0]
+    assert clock[-1] == pytest.approx(2.0, abs=0.15)
+
+
+def test_envelope_records_the_longest_slow_stretch_after_warm_up_and_check_flags_longer(
+        ) -> None:
+    t, q = ramps(PIECES)
+    tr = MotionTrace(FS)
+    acc = EnvelopeAccumulator(["j"], "position_ref")
+    acc.add(tr.update(t, q[:, None], q[:, None]), t >= 1.0, round(1.0 * FS))
+    env = acc.finish()
+    dwell = env.slow_dwell_s["j"] if env is not None else 0.0
+    assert env is not None and dwell == pytest.approx(3.0, abs=0.15)
+    assert f"slower than 0.02 rad/s for at most {dwell:.3g} s at a stretch" in env.lines()[0]
+    assert MotionEnvelope.from_dict(env.to_dict()) == env
+    # only samples after ``from_index`` count: a slow stretch that ends before it is not
+    acc2 = EnvelopeAccumulator(["j"], "position_ref")
+    acc2.add(MotionTrace(FS).update(t, q[:, None], q[:, None]), None, round(12.0 * FS))
+    env2 = acc2.finish()
+    assert env2 is not None and env2.slow_dwell_s["j"] == pytest.approx(0.5, abs=0.15)
+    # the same motion is inside; a slow stretch of 5 s is outside for its last 2 s
+    same = EnvelopeCheck(env, FS, ["j"])
+    same.update_arrays(t, q[:, None], q[:, None])
+    assert same.finish(round(1.0 * FS)).outside == 0
+    t2, q2 = ramps([(5.0, 0.5), (5.0, 0.01), (5.0, 0.5)])  # steps the calibration had
+    chk = EnvelopeCheck(env, FS, ["j"])
+    chk.update_arrays(t2, q2[:, None], q2[:, None])
+    out = chk.finish(round(1.0 * FS))
+    assert out.outside / FS == pytest.approx(2.0, abs=0.1)
+    assert out.slow == {"j": pytest.approx(out.share)}
+    assert out.slow_dwell_s == {"j": env.slow_dwell_s["j"]}
+    assert out.stretches.shape == (1, 2)
+    assert out.stretches[0, 0] == pytest.approx(5.0 + 0.1 + dwell, abs=0.1)
+    assert out.stretches[0, 1] == pytest.approx(10.0, abs=0.1)
+    assert out.touches(8.5, 9.0) and not out.touches(5.0, 7.5)
+    text = outside_share_text(out)
+    assert slow_text(out.slow, out.slow_dwell_s) in text
+    assert "velocity or acceleration beyond" not in text  # the ranges held
+    assert outside_share_text(out.to_dict()) == text
+    # a config written before the slow clock was recorded: slow motion is not checked
+    old = MotionEnvelope(env.joints, env.source, env.samples, env.cutoff_hz)
+    assert "slow_dwell_s" not in old.to_dict()
+    chk_old = EnvelopeCheck(old, FS, ["j"])
+    chk_old.update_arrays(t2, q2[:, None], q2[:, None])
+    assert chk_old.finish(round(1.0 * FS)).outside == 0

@@ -1,6 +1,8 @@
 """detect against the calibration's motion envelope: a log that moves
 faster than the calibration logs did has its share outside in the timeline, a warning
-naming it, and the incidents there marked; a log inside it has share 0 and no warning."""
+naming it, and the incidents there marked; a log inside it has share 0 and no warning; a
+slower log, inside every range, is outside where it moved slowly for longer than the
+calibration logs ever did."""
 
 from __future__ import annotations
 
@@ -12,6 +14,7 @@ import numpy as np
 from click.testing import CliRunner
 
 from impactcli.cli import main
+from impactcli.config import load_config
 from impactcli.logs import read_log, write_log
 from impactcli.schema import validate
 from impactcli.types import RobotLog
@@ -92,8 +95,6 @@ def test_a_log_at_other_poses_says_its_posture_left_the_calibrated_range(
     held: velocity and acceleration stay inside the envelope (nothing counted outside), but
     the posture is named — in the timeline, the warning and the report, which then does not
     say that the stated false-alarm rate applies."""
-    from impactcli.config import load_config
-
     env = load_config(CONFIG).calibration.motion_envelope
     assert env is not None
     _, hi = env["joints"]["shoulder"]["position"]
@@ -135,6 +136,42 @@ def test_a_log_at_other_poses_says_its_posture_left_the_calibrated_range(
                 and i.get("code") == "motion-envelope")
     assert "posture left the calibration logs' position range on shoulder" in item["text"]
     assert "rate applies" not in item["text"]
+
+
+def test_a_slower_log_is_outside_only_through_its_slow_stretches(tmp_path: Path) -> None:
+    """The calibration's multi-sine at a third of its frequencies, on the sample arm: its
+    velocity and acceleration stay within the calibrated ranges (a third and a ninth of
+    the calibration's), but each reversal keeps a joint below 0.02 rad/s about three times
+    as long as any calibration log did. Those stretches, and only they, are outside: in
+    the timeline, the warning and the report; the calibration's own log stays inside."""
+    from impactcli.sim import scenario, simulate
+    from impactcli.sim.sample_logs import ROBOT_SEEDS
+
+    sc = scenario("free_multisine", "assist_like", 30.0, controller_channels=True,
+                  robot_seed=ROBOT_SEEDS["assist_like"])
+    ref = sc.reference
+    sc = dataclasses.replace(sc, reference=dataclasses.replace(
+        ref, f_min=ref.f_min / 3.0, f_max=ref.f_max / 3.0))
+    path = tmp_path / "slow.csv.gz"
+    write_log(simulate(sc, seed=303).log, path)
+    doc, err = _detect(path, tmp_path / "o")
+    me = doc["motion_envelope"]
+    assert me["outside"] > 0 and me["slow_outside"], me
+    assert me["per_joint"] == {j: me["slow_outside"].get(j, 0.0) for j in me["per_joint"]}
+    cal = load_config(CONFIG).calibration.motion_envelope
+    assert cal is not None
+    assert me["slow_dwell_s"] == {j: cal["slow_dwell_s"][j] for j in me["slow_outside"]}
+    assert "slower than 0.02 rad/s for longer at a stretch than in the calibration" in err
+    assert "velocity or acceleration beyond" not in err
+    out = tmp_path / "r.json"
+    r = CliRunner().invoke(main, ["report", str(path), "--config", str(CONFIG), "-o",
+                                  str(tmp_path / "r.html"), "--json", str(out)])
+    assert r.exit_code == 0, r.output
+    item = next(i for i in _walk(json.loads(out.read_text())) if isinstance(i, dict)
+                and i.get("code") == "motion-envelope")
+    assert "slower than 0.02 rad/s" in item["text"] and "rate applies" not in item["text"]
+    own, _ = _detect(SAMPLES / "csv" / "assist_free_multisine.csv.gz", tmp_path / "o2")
+    assert own["motion_envelope"]["outside"] == 0
 
 
 def _larger_motion(log: RobotLog, path: Path) -> Path:

@@ -127,7 +127,8 @@ def test_cli_counts_incidents_and_gates_on_force(tmp_path: Path) -> None:
     r = CliRunner().invoke(main, ["detect", log, "--config", str(CONFIG), "-o",
                                   str(tmp_path / "b"), "--fail-on-force", "100"])
     assert r.exit_code == 0, r.output
-    assert r.stderr == ""
+    # nothing but the slow stretches the log has beyond the calibration's
+    assert [ln for ln in r.stderr.splitlines() if "motion envelope" not in ln] == []
     for n, out in (("25", "c"), ("10", "c10")):
         r = CliRunner().invoke(main, ["detect", log, "--config", str(CONFIG), "-o",
                                       str(tmp_path / out), "--fail-on-force", n])
@@ -137,7 +138,8 @@ def test_cli_counts_incidents_and_gates_on_force(tmp_path: Path) -> None:
         over = [i for i in tl["incidents"] if not i["in_warmup"] and i["force_n"] > float(n)]
         assert len(over) == (1 if n == "25" else 6)
         more = f" ({len(over)} incidents above it)" if len(over) > 1 else ""
-        assert r.stderr == (
+        gate = [ln + "\n" for ln in r.stderr.splitlines() if "motion envelope" not in ln]
+        assert "".join(gate) == (
             f"impactcli: assist_pushes.csv.gz: the incident at {over[0]['t_start']:.3f} s on "
             f"link {over[0]['link']}, ~{over[0]['force_n']:.3g} N, exceeds --fail-on-force "
             f"{n} N{more}\n")

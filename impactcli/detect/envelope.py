@@ -14,6 +14,19 @@ differences — the path of the adaptive detector's threshold inputs without a r
 (:func:`impactcli.detect.adaptive.inputs_chunk`), so calibrate and detect compute the same
 quantity from the same log, chunk by chunk, bit for bit whatever the split
 (:mod:`impactcli.model.causal`). Velocity [rad/s], acceleration [rad/s²], position [rad].
+
+Slow motion lies inside those ranges and is not like the calibration's for all that: the
+model's friction turns over with the velocity below a few hundredths of a rad/s (its smooth
+sign, docs/method.md §2), and a drive's stiction lies there too. A slow reversal keeps a
+joint there for seconds where the calibration's motion crossed it in a fraction of one,
+and there the ranges alone call the motion inside: a heavy-geared arm's slow free runs gave
+303 false alarms per hour against a stated bound of 162 with 0 % of their time outside the
+ranges (docs/validation.md, "Slow motion"). So each joint also carries a clock
+(:attr:`Motion.slow_s`): the time it has spent moving slower than :data:`SLOW_RAD_S` since
+it last moved faster — time at rest (below :data:`HELD_RAD_S`) neither adds to it nor ends
+it. ``calibrate`` records each joint's longest such time after warm-up
+(:attr:`MotionEnvelope.slow_dwell_s`); ``detect`` counts a sample outside while a clock is
+beyond it.
 """
 
 from __future__ import annotations
@@ -29,9 +42,9 @@ from ..model.causal import Carry
 from ..model.derivatives import MAX_CUTOFF_FRACTION
 from ..model.iir import butter_lowpass
 
-__all__ = ["CHECKED", "CUTOFF_HZ", "LEAD_S", "QUANTITIES", "EnvelopeAccumulator",
-           "EnvelopeCheck", "EnvelopeShare", "Motion", "MotionEnvelope", "MotionTrace",
-           "outside_share_text", "posture_text"]
+__all__ = ["CHECKED", "CUTOFF_HZ", "HELD_RAD_S", "LEAD_S", "QUANTITIES", "SLOW_RAD_S",
+           "EnvelopeAccumulator", "EnvelopeCheck", "EnvelopeShare", "Motion",
+           "MotionEnvelope", "MotionTrace", "outside_share_text", "posture_text", "slow_text"]
 
 #: Low-pass of the position before each difference [Hz] (the adaptive inputs' measured path).
 CUTOFF_HZ = 10.0
@@ -48,15 +61,32 @@ MERGE_S = 0.1
 #: A pose is outside the calibration's when a joint's position lies beyond its recorded
 #: range by more than this [rad] (~3°: a rigid model's fit does not turn over that).
 POSTURE_MARGIN_RAD = 0.05
+#: A joint moves slowly below this speed [rad/s]: twice the model's Coulomb velocity scale
+#: (``coulomb_slope_rad_s``, 0.01 rad/s: its smooth sign tanh(q'/v_s) is below 96 % of the
+#: full friction there, so the friction the model predicts turns with the velocity).
+SLOW_RAD_S = 0.02
+#: ... and is at rest below this one [rad/s] (a real encoder's noise at rest stays under it:
+#: ~0.2 mrad/s median on the UR arm of docs/validation.md's real logs). Time at rest is not
+#: slow motion: the simulated arms' held joints raise no false alarm (the sample impact
+#: logs hold a joint all along), and a real drive's stiction at rest is not measured here.
+HELD_RAD_S = 1e-3
 
 
 @dataclass(frozen=True)
 class Motion:
-    """One chunk's motion, (n, J) each: velocity, acceleration, position."""
+    """One chunk's motion, (n, J) each: velocity, acceleration, position, and the slow
+    clock [s] (module docstring; zeros when not traced)."""
 
     velocity: np.ndarray
     acceleration: np.ndarray
     position: np.ndarray
+    slow_s: np.ndarray | None = None
+
+    @property
+    def slow(self) -> np.ndarray:
+        """(n, J) :attr:`slow_s`, zeros when absent."""
+        return (np.zeros_like(self.velocity) if self.slow_s is None
+                else np.asarray(self.slow_s))
 
     def get(self, quantity: str) -> np.ndarray:
         """The (n, J) array of ``quantity`` (one of :data:`QUANTITIES`)."""
@@ -72,10 +102,13 @@ class MotionTrace:
         cutoff_hz: the low-pass [Hz].
     """
 
-    def __init__(self, sample_rate_hz: float, cutoff_hz: float = CUTOFF_HZ) -> None:
+    def __init__(self, sample_rate_hz: float, cutoff_hz: float = CUTOFF_HZ,
+                 slow_rad_s: float = SLOW_RAD_S, held_rad_s: float = HELD_RAD_S) -> None:
+        self.slow_rad_s, self.held_rad_s = float(slow_rad_s), float(held_rad_s)
         fc = min(float(cutoff_hz), MAX_CUTOFF_FRACTION * float(sample_rate_hz))
         b, a = butter_lowpass(2, fc / (0.5 * float(sample_rate_hz)))
         self.b, self.a = np.asarray(b), np.asarray(a)
+        self.period_s = 1.0 / float(sample_rate_hz)
         self.carry = Carry()
         self.source: str | None = None
 
@@ -93,7 +126,27 @@ class MotionTrace:
         v = self.carry.lfilter("v", self.b, self.a,
                                self.carry.backward_difference("qf", qf, dt), "steady")
         acc = self.carry.backward_difference("vf", v, dt)
-        return Motion(v, acc, qf)
+        return Motion(v, acc, qf, self._slow_clock(v, dt))
+
+    def _slow_clock(self, v: np.ndarray, dt: np.ndarray) -> np.ndarray:
+        """(n, J) time [s] each joint has spent with held ≤ |v| < slow since |v| last
+        reached slow (:data:`HELD_RAD_S`, :data:`SLOW_RAD_S` by default; a step longer
+        than two sample periods, a gap, adds two), carried across chunks: the same sums in
+        the same order whatever the split."""
+        speed = np.abs(v)
+        if speed.shape[0] == 0:
+            return speed.copy()
+        step = np.nan_to_num(np.minimum(dt, 2.0 * self.period_s), nan=0.0)
+        inc = np.where((speed >= self.held_rad_s) & (speed < self.slow_rad_s),
+                       step[:, None], 0.0)
+        zero = np.zeros(speed.shape[1:])
+        total0 = self.carry.state.get("slow_total", zero)
+        base0 = self.carry.state.get("slow_base", zero)
+        total = np.cumsum(np.vstack([total0[None], inc]), axis=0)[1:]
+        marks = np.where(speed >= self.slow_rad_s, total, -np.inf)
+        base = np.maximum.accumulate(np.vstack([base0[None], marks]), axis=0)[1:]
+        self.carry.state["slow_total"], self.carry.state["slow_base"] = total[-1], base[-1]
+        return np.asarray(total - base)
 
 
 def _range(lo_hi: Sequence[float]) -> tuple[float, float]:
@@ -110,17 +163,27 @@ class MotionEnvelope:
         source: ``position_ref`` (the logs' reference) or ``position`` (measured).
         samples: samples the ranges were taken over (after warm-up, contacts cut out).
         cutoff_hz: the low-pass the motion went through [Hz].
+        slow_dwell_s: joint → the longest time [s] the joint moved slowly at a stretch
+            after warm-up (the slow clock's maximum, module docstring); empty in configs
+            written before it was recorded (then slow motion is not checked).
+        slow_rad_s, held_rad_s: the speeds the slow clock was read with [rad/s].
     """
 
     joints: dict[str, dict[str, tuple[float, float]]]
     source: str
     samples: int
     cutoff_hz: float = CUTOFF_HZ
+    slow_dwell_s: dict[str, float] = field(default_factory=dict)
+    slow_rad_s: float = SLOW_RAD_S
+    held_rad_s: float = HELD_RAD_S
 
     def to_dict(self) -> dict[str, Any]:
         """The config's ``calibration.motion_envelope`` table (no null: TOML)."""
+        slow = {} if not self.slow_dwell_s else {
+            "slow_rad_s": float(self.slow_rad_s), "held_rad_s": float(self.held_rad_s),
+            "slow_dwell_s": {j: float(v) for j, v in self.slow_dwell_s.items()}}
         return {"source": self.source, "samples": int(self.samples),
-                "cutoff_hz": float(self.cutoff_hz),
+                "cutoff_hz": float(self.cutoff_hz), **slow,
                 "joints": {j: {k: [float(lo), float(hi)] for k, (lo, hi) in q.items()}
                            for j, q in self.joints.items()}}
 
@@ -129,15 +192,22 @@ class MotionEnvelope:
         """The envelope a config records (:meth:`to_dict`'s mapping)."""
         return cls({str(j): {str(k): _range(v) for k, v in q.items()}
                     for j, q in dict(d["joints"]).items()},
-                   str(d["source"]), int(d["samples"]), float(d.get("cutoff_hz", CUTOFF_HZ)))
+                   str(d["source"]), int(d["samples"]), float(d.get("cutoff_hz", CUTOFF_HZ)),
+                   {str(j): float(v) for j, v in dict(d.get("slow_dwell_s", {})).items()},
+                   float(d.get("slow_rad_s", SLOW_RAD_S)),
+                   float(d.get("held_rad_s", HELD_RAD_S)))
 
     def lines(self) -> list[str]:
         """One line per joint, as ``calibrate`` prints it."""
         unit = {"velocity": "rad/s", "acceleration": "rad/s²", "position": "rad"}
         out = []
         for j, q in self.joints.items():
+            slow = (f"; slower than {self.slow_rad_s:g} rad/s for at most "
+                    f"{self.slow_dwell_s[j]:.3g} s at a stretch"
+                    if j in self.slow_dwell_s else "")
             out.append(f"  {j:16s} " + "; ".join(
-                f"{k} {lo:.3g} … {hi:.3g} {unit.get(k, '')}" for k, (lo, hi) in q.items()))
+                f"{k} {lo:.3g} … {hi:.3g} {unit.get(k, '')}" for k, (lo, hi) in q.items())
+                + slow)
         return out
 
 
@@ -155,10 +225,22 @@ class EnvelopeAccumulator:
         self.source, self.cutoff_hz = source, float(cutoff_hz)
         self.lo: dict[str, np.ndarray] = {}
         self.hi: dict[str, np.ndarray] = {}
+        self.dwell: np.ndarray | None = None
         self.samples = 0
 
-    def add(self, motion: Motion, keep: np.ndarray | None = None) -> None:
-        """Absorb a chunk's motion (n, J), its samples where ``keep`` (n,) is True."""
+    def add(self, motion: Motion, keep: np.ndarray | None = None,
+            from_index: int | None = None) -> None:
+        """Absorb a log's motion (n, J): its ranges over the samples where ``keep`` (n,)
+        is True, its slow clock's maximum from sample ``from_index`` on (the warm-up's end,
+        whatever ``keep`` cut out: ``detect`` reads the clock on every sample after
+        warm-up; default: the first kept sample)."""
+        clock = motion.slow
+        if from_index is None:
+            kept = np.flatnonzero(keep) if keep is not None else np.arange(clock.shape[0])
+            from_index = int(kept[0]) if kept.size else clock.shape[0]
+        if clock.shape[0] > from_index:
+            most = clock[from_index:].max(axis=0)
+            self.dwell = most if self.dwell is None else np.maximum(self.dwell, most)
         for k in QUANTITIES:
             x = motion.get(k)
             if keep is not None:
@@ -175,10 +257,12 @@ class EnvelopeAccumulator:
         """The envelope; None when no sample was kept."""
         if not self.samples or not self.lo:
             return None
+        dwell = {} if self.dwell is None else {
+            j: float(self.dwell[c]) for c, j in enumerate(self.joints)}
         return MotionEnvelope({j: {k: (float(self.lo[k][c]), float(self.hi[k][c]))
                                    for k in QUANTITIES}
                                for c, j in enumerate(self.joints)},
-                              self.source, self.samples, self.cutoff_hz)
+                              self.source, self.samples, self.cutoff_hz, dwell)
 
 
 @dataclass(frozen=True)
@@ -197,6 +281,10 @@ class EnvelopeShare:
             part of ``outside``: no measurement here shows posture alone making false alarms,
             but a rigid model identified on some poses is only known there, so the stated
             rate is not either), joints with none left out.
+        slow: joint → share of the checked samples outside because the joint had moved
+            slowly for longer than the calibration's longest stretch (part of ``outside``),
+            joints with none left out; slow_dwell_s: that longest stretch [s], per joint of
+            ``slow``.
     """
 
     samples: int
@@ -207,6 +295,8 @@ class EnvelopeShare:
     source: str = "position"
     note: str = ""
     posture: dict[str, float] = field(default_factory=dict)
+    slow: dict[str, float] = field(default_factory=dict)
+    slow_dwell_s: dict[str, float] = field(default_factory=dict)
 
     @property
     def share(self) -> float:
@@ -227,7 +317,9 @@ class EnvelopeShare:
                 "per_joint": dict(self.per_joint), "source": self.source,
                 "stretches_s": self.stretches.tolist(), "unchecked": list(self.unchecked),
                 **({"note": self.note} if self.note else {}),
-                **({"posture_outside": dict(self.posture)} if self.posture else {})}
+                **({"posture_outside": dict(self.posture)} if self.posture else {}),
+                **({"slow_outside": dict(self.slow), "slow_dwell_s": dict(self.slow_dwell_s)}
+                   if self.slow else {})}
 
 
 def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -268,7 +360,9 @@ class EnvelopeCheck:
     :meth:`update_arrays`), returns the chunk's (n,) outside mask; :meth:`finish` once,
     with the warm-up's end, gives the :class:`EnvelopeShare`. A sample is outside when, on
     any joint the envelope has, a quantity of :data:`CHECKED` leaves [lo − m, hi + m] with
-    m = ``margin`` × (hi − lo). Holds only the runs of outside samples, not the samples.
+    m = ``margin`` × (hi − lo), or its slow clock exceeds the envelope's longest slow
+    stretch × (1 + ``margin``) (where the envelope records one). Holds only the runs of
+    outside samples, not the samples.
     """
 
     def __init__(self, envelope: MotionEnvelope, sample_rate_hz: float,
@@ -278,7 +372,10 @@ class EnvelopeCheck:
         self.cols = [c for c, j in enumerate(self.joints) if j in envelope.joints]
         self.names = [self.joints[c] for c in self.cols]
         self.unchecked = tuple(j for j in self.joints if j not in envelope.joints)
-        self.trace = MotionTrace(sample_rate_hz, envelope.cutoff_hz)
+        self.trace = MotionTrace(sample_rate_hz, envelope.cutoff_hz, envelope.slow_rad_s,
+                                 envelope.held_rad_s)
+        self.dwell = np.array([envelope.slow_dwell_s.get(j, np.inf) for j in self.names]
+                              ) * (1.0 + margin)
         self.bounds: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         for k in CHECKED:
             lo = np.array([envelope.joints[j][k][0] for j in self.names])
@@ -297,6 +394,7 @@ class EnvelopeCheck:
         self.any = _Runs()
         self.each = [_Runs() for _ in self.cols]
         self.pose_each = [_Runs() for _ in self.pose_cols]
+        self.slow_each = [_Runs() for _ in self.cols]
 
     def update_arrays(self, time_s: np.ndarray, position: np.ndarray,
                       position_ref: np.ndarray | None = None, start: int | None = None
@@ -310,11 +408,15 @@ class EnvelopeCheck:
         for k, (lo, hi) in self.bounds.items():
             x = mot.get(k)[:, self.cols]
             out_j |= (x < lo) | (x > hi)
+        slow = mot.slow[:, self.cols] > self.dwell
+        out_j |= slow
         mask: np.ndarray = (np.asarray(out_j.any(axis=1)) if self.cols
                             else np.zeros(n, dtype=bool))
         self.any.add(k0, t, mask)
         for c, runs in enumerate(self.each):
             runs.add(k0, t, out_j[:, c])
+        for c, runs in enumerate(self.slow_each):
+            runs.add(k0, t, slow[:, c])
         if self.pose_cols:
             x = mot.position[:, self.pose_cols]
             away = (x < self.pose_bounds[0]) | (x > self.pose_bounds[1])
@@ -344,12 +446,15 @@ class EnvelopeCheck:
         posture = {self.joints[c]: r.count_from(start) / checked
                    for c, r in zip(self.pose_cols, self.pose_each, strict=True)
                    if checked and r.count_from(start)}
+        slow = {j: r.count_from(start) / checked
+                for j, r in zip(self.names, self.slow_each, strict=True)
+                if checked and r.count_from(start)}
         return EnvelopeShare(
             checked, self.any.count_from(start),
             {j: (r.count_from(start) / checked if checked else 0.0)
              for j, r in zip(self.names, self.each, strict=True)},
             np.array(stretches, dtype=np.float64).reshape(-1, 2), self.unchecked, src, note,
-            posture)
+            posture, slow, {j: self.envelope.slow_dwell_s[j] for j in slow})
 
 
 def posture_text(posture: Mapping[str, float]) -> str:
@@ -364,16 +469,33 @@ def posture_text(posture: Mapping[str, float]) -> str:
             "measured on other poses, where a rigid model's error is not known")
 
 
-def outside_share_text(share: EnvelopeShare) -> str:
-    """One sentence for a report or terminal (detect's wiring may use it)."""
-    if not share.samples:
+def outside_share_text(share: EnvelopeShare | Mapping[str, Any]) -> str:
+    """One sentence for a report or terminal: of an :class:`EnvelopeShare` or of its
+    mapping (a timeline's ``motion_envelope``)."""
+    d = share.to_dict() if isinstance(share, EnvelopeShare) else share
+    if not d.get("samples"):
         return "motion envelope: nothing checked"
-    worst = max(share.per_joint.items(), key=lambda kv: kv[1], default=("", 0.0))
-    pct = 100.0 * share.share
-    txt = (f"{pct:.3g} % of the log after warm-up moved outside the calibration's motion "
-           "envelope (velocity or acceleration beyond the ranges calibrated on)")
+    per_joint: Mapping[str, float] = d.get("per_joint") or {}
+    slow: Mapping[str, float] = d.get("slow_outside") or {}
+    worst = max(per_joint.items(), key=lambda kv: kv[1], default=("", 0.0))
+    ranges = any(v > slow.get(j, 0.0) for j, v in per_joint.items())
+    why = "; ".join(([] if not ranges and slow else
+                     ["velocity or acceleration beyond the ranges calibrated on"])
+                    + ([slow_text(slow, d.get("slow_dwell_s") or {})] if slow else []))
+    txt = (f"{100.0 * float(d['share']):.3g} % of the log after warm-up moved outside the "
+           f"calibration's motion envelope ({why})")
     if worst[0] and worst[1] > 0:
         txt += f"; most on {worst[0]} ({100 * worst[1]:.3g} %)"
-    if share.note:
-        txt += f"; {share.note}"
+    if d.get("note"):
+        txt += f"; {d['note']}"
     return txt
+
+
+def slow_text(slow: Mapping[str, float], dwell_s: Mapping[str, float]) -> str:
+    """One phrase on the slow stretches longer than the calibration's
+    (:attr:`EnvelopeShare.slow`, or a timeline's ``slow_outside`` and ``slow_dwell_s``)."""
+    parts = ", ".join(f"{j} {100 * v:.3g} % (calibrated: ≤ "
+                      f"{dwell_s.get(j, float('nan')):.2g} s)"
+                      for j, v in sorted(slow.items(), key=lambda kv: -kv[1]))
+    return (f"slower than {SLOW_RAD_S:g} rad/s for longer at a stretch than in the "
+            f"calibration logs, where the model's friction turns with the velocity: {parts}")

@@ -314,13 +314,14 @@ def _rate_thresholds(replays: list[_Replayed], keeps: list[np.ndarray],
 
 def _envelope(replays: list[_Replayed], keeps: list[np.ndarray], joints: tuple[str, ...]
               ) -> MotionEnvelope | None:
-    """The motion envelope of every log's kept samples."""
+    """The motion envelope of every log's kept samples (its slow stretches: of every
+    sample after warm-up)."""
     sources = {rp.motion_source for rp in replays}
     src = "position_ref" if sources == {"position_ref"} else "position"
     acc = EnvelopeAccumulator(joints, src)
     for rp, keep in zip(replays, keeps, strict=True):
         if rp.motion is not None and rp.motion_source == src:
-            acc.add(rp.motion, keep)
+            acc.add(rp.motion, keep, rp.warmup.end_index)
     return acc.finish()
 
 
@@ -416,7 +417,8 @@ def _replay(reader: MemoryReader, sc: Screened, model: RigidModel | None,
         caught.raise_again(impact=True)
     st = collected.stats()
     motion = Motion(*(np.concatenate([getattr(m, k) for m in moved])
-                      for k in ("velocity", "acceleration", "position"))) if moved else None
+                      for k in ("velocity", "acceleration", "position", "slow"))
+                    ) if moved else None
     return _Replayed(where, st.time_s, scan.sample_rate_hz, rp.warmup, st.stats, motion,
                      trace.source or "position")
 

@@ -10,8 +10,10 @@ saw. Every incident there is a false alarm. Printed per arm, set and R: the hour
 incidents inside the set's motion families and outside them, the observed rate and its
 two-sided 90 % Garwood interval against the rate the config states (predicted, upper
 bound), the share of time outside the calibration's motion envelope, and how many
-incidents touched it; the leave-one-out rule (``calibrate``'s default) on the same logs,
-with the rate the tail fits predict for its thresholds;
+incidents touched it (inside and outside the families, and how many touched it only
+through its slow stretches, :data:`impactcli.detect.envelope.SLOW_RAD_S`); the leave-one-out
+rule (``calibrate``'s default) on the same logs, with the rate the tail fits predict for its
+thresholds;
 and per set and rule, the contacts of the arm's sample contact logs the product catches
 (``--contacts-only``: only those).
 
@@ -156,6 +158,12 @@ def run_set(data: Path, arm: str, set_name: str, n_short: int, rates: list[float
         chk = EnvelopeCheck(env, log.sample_rate_hz, log.joint_names)
         chk.update_arrays(log.time_s, log.position, log.position_ref)
         share = chk.finish(w)
+        # the same envelope without its slow stretches: what the ranges alone flag
+        plain = EnvelopeCheck(MotionEnvelope(env.joints, env.source, env.samples,
+                                             env.cutoff_hz), log.sample_rate_hz,
+                              log.joint_names)
+        plain.update_arrays(log.time_s, log.position, log.position_ref)
+        ranges = plain.finish(w)
         where = "in" if name.split("_")[0] in fams else "out"
         time_out[where][0] += share.outside
         time_out[where][1] += share.samples
@@ -164,10 +172,13 @@ def run_set(data: Path, arm: str, set_name: str, n_short: int, rates: list[float
             c = clusters(x[w:], rule["thr"], dt)
             touching = sum(share.touches(float(t[a]), float(t[b]))
                            for a, b in zip(c.starts, c.ends, strict=True))
-            g = counts[k].setdefault(where, [0.0, 0.0, 0.0])
+            by_ranges = sum(ranges.touches(float(t[a]), float(t[b]))
+                            for a, b in zip(c.starts, c.ends, strict=True))
+            g = counts[k].setdefault(where, [0.0, 0.0, 0.0, 0.0])
             g[0] += c.starts.size
             g[1] += hours
             g[2] += touching
+            g[3] += touching - by_ranges
     return {"arm": arm, "set": set_name, "families": sorted(fams), "rules": {
         k: {kk: (vv.tolist() if isinstance(vv, np.ndarray) else vv) for kk, vv in r.items()}
         for k, r in rules.items()}, "counts": counts, "time_outside": time_out,
@@ -179,13 +190,14 @@ def table(results: list[dict[str, Any]]) -> str:
 
     head = ("| arm | set (families) | rule | free min | stated: predicted / bound [1/h] | "
             "inside: incidents / h | observed [1/h] (90 % interval) | within bound | "
-            "outside: incidents / h | touching the envelope's outside |")
-    out = [head, "|" + "---|" * 10]
+            "outside: incidents / h | touching the envelope's outside | "
+            "touching it inside / through slow motion alone (inside, outside) |")
+    out = [head, "|" + "---|" * 11]
     for r in results:
         for k, rule in r["rules"].items():
             c = r["counts"][k]
-            n_in, h_in, _ = c.get("in", [0, 0, 0])
-            n_out, h_out, t_out = c.get("out", [0, 0, 0])
+            n_in, h_in, t_in, s_in = c.get("in", [0, 0, 0, 0])
+            n_out, h_out, t_out, s_out = c.get("out", [0, 0, 0, 0])
             lo, hi = poisson_interval(int(n_in), h_in, CONF) if h_in else (0, 0)
             if "upper" not in rule:
                 stated, within, mins = "none", "—", "—"
@@ -198,7 +210,8 @@ def table(results: list[dict[str, Any]]) -> str:
                 f"| {r['arm']} | {r['set']} ({','.join(r['families'])}) | {k} | {mins} | "
                 f"{stated} | {int(n_in)} / {h_in:.1f} | {n_in / h_in if h_in else 0:.3g} "
                 f"({lo:.3g}–{hi:.3g}) | {within} | {int(n_out)} / {h_out:.1f} | "
-                f"{int(t_out)}/{int(n_out)} |")
+                f"{int(t_out)}/{int(n_out)} | {int(t_in)}/{int(n_in)} / "
+                f"{int(s_in)}, {int(s_out)} |")
     return "\n".join(out)
 
 

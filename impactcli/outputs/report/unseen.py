@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ...detect.envelope import posture_text
+from ...detect.envelope import outside_share_text, posture_text
 from ...detect.floor import floor_line
 from ...detect.incidents import planar_jacobian, smallest_caught_force
 from ...types import DetectionResult
@@ -182,27 +182,27 @@ def _envelope(result: DetectionResult, incidents: list[dict[str, Any]]) -> list[
     posture = env.get("posture_outside") or {}
     poses = f"; but {posture_text(posture)}" if posture else ""
     if not env.get("outside"):
-        rated = bool((result.config.get("calibration") or {}).get("false_alarm_rate"))
+        calibration = result.config.get("calibration") or {}
+        rated = bool(calibration.get("false_alarm_rate"))
+        slow_checked = bool((calibration.get("motion_envelope") or {}).get("slow_dwell_s"))
         return [{"code": "motion-envelope",
                  "short": ("inside the calibrated motion, not its poses" if posture
                            else "inside the calibrated motion"),
                  "data": dict(env),
                  "text": ("The log after warm-up moved inside the calibration's motion "
                           "envelope (each joint's velocity and acceleration within the "
-                          "ranges calibrated on)" + poses
+                          "ranges calibrated on"
+                          + (", and no slow stretch longer" if slow_checked else "")
+                          + ")" + poses
                           + (": the thresholds' stated false-alarm rate applies."
                              if rated and not posture else "."))}]
-    worst = max(env["per_joint"].items(), key=lambda kv: kv[1], default=("", 0.0))
     there = sum(1 for i in incidents if i.get("outside_envelope"))
     return [{"code": "motion-envelope",
              "short": f"{100 * env['share']:.2g} % outside the calibrated motion",
              "data": dict(env),
-             "text": (f"{100 * env['share']:.3g} % of the log after warm-up moved outside the "
-                      "calibration's motion envelope (velocity or acceleration beyond the "
-                      f"ranges calibrated on; most on {worst[0]}, {100 * worst[1]:.3g} %): "
-                      "the thresholds' stated false-alarm rate was not measured on such "
-                      f"motion; {there} incident(s) touch it (marked in the timeline)"
-                      f"{poses}.")}]
+             "text": (f"{outside_share_text(env)}: the thresholds' stated false-alarm rate "
+                      f"was not measured on such motion; {there} incident(s) touch it "
+                      f"(marked in the timeline){poses}.")}]
 
 
 def could_not_see(result: DetectionResult, incidents: list[dict[str, Any]], *,
