@@ -400,6 +400,49 @@ def test_a_pick_and_a_release_are_payload_changes_not_contacts(
         assert any(p.start - 0.02 <= i["t_start"] <= p.end + 0.25 for i in counted), p
 
 
+def test_a_push_while_the_load_is_released_is_counted_not_hidden_in_the_change(
+        two_loads: Path, tmp_path: Path) -> None:
+    """A 30 N push 0.5 s after the release, inside the release's alarm: the change is still
+    found (its mass from a later window), but the torque the mass leaves unexplained in the
+    alarm passes the loading threshold — a contact beside the change. Before, the change's
+    alarm was not counted and the push was nowhere: no incident, --fail-on-detect exit 0.
+    Now the alarm counts from the contact's onset, in the push's window, and the gate
+    judges it; the same log without the push has no contact beside either change."""
+    from dataclasses import replace
+
+    from impactcli.logs import write_log
+    from impactcli.logs.robot_files import write_labels
+    from impactcli.sim import scenario, simulate
+
+    sc = scenario("pick_and_place", duration_s=45.0, robot_seed=7)
+    (_, _), (place, _) = sc.payload_changes
+    sc = replace(sc, pushes=(replace(sc.pushes[0], t0_s=place + 0.5, peak_n=30.0),))
+    res = simulate(sc, seed=21)
+    log = tmp_path / "push_at_release.csv.gz"
+    write_log(res.log, log)
+    write_labels(res.labels, tmp_path / "push_at_release.labels.json")
+    (push,) = res.labels.events
+    tl, code, r = _detect(log, two_loads, tmp_path / "o", "--fail-on-detect")
+    assert code == 1, r.output  # type: ignore[attr-defined]
+    ch = tl["payload_changes"]
+    assert len(ch) == 2 and abs(ch[1]["t_start"] - place) < 1.0, ch
+    seen = ch[1]["contact"]
+    assert push.start <= seen["t_s"] <= push.end + 0.25 and seen["peak"] > 1.0
+    assert "contact" not in ch[0]
+    counted = [i for i in tl["incidents"] if i["number"] is not None]
+    held = [i for i in counted if "beside payload change P2" in i.get("payload_test", "")]
+    assert len(held) == 1 and held[0]["t_start"] == seen["t_s"], counted
+    assert "a contact in its window that the mass does not explain" in r.stdout  # type: ignore[attr-defined]
+    ev = CliRunner().invoke(main, ["evaluate", str(tmp_path / "o" / "push_at_release"
+                                                   ".timeline.json")])
+    assert ev.exit_code == 0, ev.output
+    assert "counted contacts matched by an incident         1/1" in ev.output
+    quiet, code, r = _detect(_pick_and_place(tmp_path, pushes=False)[0], two_loads,
+                             tmp_path / "q", "--fail-on-detect")
+    assert code == 0 and len(quiet["payload_changes"]) == 2, r.output  # type: ignore
+    assert not [c for c in quiet["payload_changes"] if "contact" in c]
+
+
 def test_a_release_inside_another_alarms_window_is_found_at_its_step(
         two_loads: Path, tmp_path: Path) -> None:
     """A slow pick-and-place (60 s, multi-sine up to 0.06 Hz): a push's aftermath alarm

@@ -255,7 +255,11 @@ def mark_payload_changes(incidents: Sequence[Incident], changes: Sequence[Any],
     adaptive detector sees the step a few milliseconds before the static-loading onset,
     and those are one alarm. Unlike after a data defect, the adaptive evaluator's memory is
     not added: a blow the adaptive detector alone sees while the load is carried must
-    count. Incidents marked already are left alone."""
+    count. Incidents marked already are left alone.
+
+    A change that found a contact in its window (its ``contact``) leaves the incident
+    holding that contact's onset counted, from that onset (``t_start`` moved to it,
+    ``payload_test`` saying why): the alarm was the load and a contact."""
     if not changes:
         return list(incidents)
     out = []
@@ -263,11 +267,35 @@ def mark_payload_changes(incidents: Sequence[Incident], changes: Sequence[Any],
         hit = [k for k, c in enumerate(changes, 1)
                if c.t_start - 1e-9 <= inc.t_start <= c.t_classified + settle
                or c.t_start - merge_gap_s - 1e-9 <= inc.t_start <= c.t_start <= inc.t_end]
-        if hit and inc.data_defect is None and not inc.in_warmup:
-            out.append(replace(inc, payload_change=hit[0]))
-        else:
+        if not hit or inc.data_defect is not None or inc.in_warmup:
             out.append(inc)
+            continue
+        seen = getattr(changes[hit[0] - 1], "contact", None)
+        if seen is not None and inc.t_start - 1e-9 <= seen["t_s"] <= inc.t_end + 1e-9:
+            out.append(_from_contact(inc, hit[0], seen))
+        else:
+            out.append(replace(inc, payload_change=hit[0]))
     return out
+
+
+def _from_contact(inc: Incident, k: int, seen: dict[str, Any]) -> Incident:
+    """``inc``, the alarm of payload change ``k`` that holds a contact (``seen``: the
+    change's ``contact``), counted from the contact's onset."""
+    import datetime as dt
+
+    shift = float(seen["t_s"]) - inc.t_start
+    utc = inc.t_start_utc
+    if utc is not None:
+        at = dt.datetime.fromisoformat(utc.replace("Z", "+00:00")) + dt.timedelta(
+            seconds=shift)
+        utc = at.isoformat(timespec="milliseconds").replace("+00:00", "Z")
+    return replace(inc, t_start=float(seen["t_s"]), i_start=int(seen["i"]), t_start_utc=utc,
+                   payload_test=(f"a contact beside payload change P{k}: its alarm held the "
+                                 f"load and, from {seen['t_s']:.3f} s, a torque on "
+                                 f"{seen['joint']} the load does not explain "
+                                 f"({seen['peak']:.2g}× its loading threshold); its force "
+                                 "and contact type are the whole alarm's, the load's step "
+                                 "with it"))
 
 
 def lasting(events: Sequence[Event]) -> list[int]:
