@@ -432,7 +432,10 @@ def test_a_push_while_the_load_is_released_is_counted_not_hidden_in_the_change(
     counted = [i for i in tl["incidents"] if i["number"] is not None]
     held = [i for i in counted if "beside payload change P2" in i.get("payload_test", "")]
     assert len(held) == 1 and held[0]["t_start"] == seen["t_s"], counted
-    assert "a contact in its window that the mass does not explain" in r.stdout  # type: ignore[attr-defined]
+    out = r.stdout  # type: ignore[attr-defined]
+    assert "a contact in its window that the mass does not explain" in out
+    row = next(ln for ln in out.splitlines() if f"{seen['t_s']:>9.3f} s" in ln)
+    assert row.endswith("a contact beside payload change P2 (payload_test in the timeline)")
     ev = CliRunner().invoke(main, ["evaluate", str(tmp_path / "o" / "push_at_release"
                                                    ".timeline.json")])
     assert ev.exit_code == 0, ev.output

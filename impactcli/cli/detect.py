@@ -55,6 +55,8 @@ def _incident_line(k: int, inc: IncidentRow, link_width: int = 7) -> str:
     force = f"~{inc['force_n']:.3g} N" if inc["force_n"] is not None else "force ?"
     flag = ("  force not plausible (force_check in the timeline)"
             if inc["force_plausible"] is False else "")
+    if inc.get("payload_test"):  # "a contact beside payload change P2", "not a payload …"
+        flag += f"  {inc['payload_test'].split(':')[0]} (payload_test in the timeline)"
     return (f"  {k:>3}  {inc['t_start']:>9.3f} s  {link:<{link_width}} {force:>9}  "
             f"{inc['contact']:<12} ({', '.join(inc['detectors'])}){flag}")
 

@@ -35,7 +35,7 @@ import warnings
 from collections.abc import Generator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, TypedDict
+from typing import Any, NotRequired, TypedDict
 
 from ..detect.floor import floor_line
 from ..errors import (
@@ -90,6 +90,17 @@ class IncidentRow(TypedDict):
     contact: str
     detectors: list[str]
     force_plausible: bool | None
+    payload_test: NotRequired[str]
+
+
+def _incident_row(i: Any) -> IncidentRow:
+    """A counted incident (:class:`~impactcli.detect.incidents.Incident`) as a summary row."""
+    row = IncidentRow(t_start=i.t_start, link=i.link, link_candidates=list(i.link_candidates),
+                      force_n=i.force_n, contact=i.contact, detectors=list(i.detectors),
+                      force_plausible=i.force_plausible)
+    if i.payload_test:
+        row["payload_test"] = i.payload_test
+    return row
 
 
 class DefectIncidentRow(TypedDict):
@@ -344,11 +355,7 @@ def _summary(job: DetectJob, result: DetectionResult) -> SummaryRow:
         "warmup_end_s": result.warmup_end_s,
         "generators": {j: g["generator"] for j, g in result.generators.items()},
         "incidents": len(result.counted_incidents()),
-        "incident_list": [
-            {"t_start": i.t_start, "link": i.link, "link_candidates": list(i.link_candidates),
-             "force_n": i.force_n, "contact": i.contact,
-             "detectors": list(i.detectors), "force_plausible": i.force_plausible}
-            for i in result.counted_incidents()],
+        "incident_list": [_incident_row(i) for i in result.counted_incidents()],
         "defect_incident_list": [
             {"t_start": i.t_start, "kind": i.data_defect["kind"],
              "defect_t_start": i.data_defect["t_start"], "force_n": i.force_n}
