@@ -206,9 +206,18 @@ def minutes_text(minutes: float) -> str:
     return f"{minutes:.1f}" if minutes >= 1 else f"{minutes:.2g}"
 
 
+#: Rates below this [1/h] print as "< 0.001": one false alarm in six weeks of running, far
+#: beyond what minutes of free motion show; a tail fit's "2.9e-07" is an extrapolation, and
+#: its digits would read as a measurement.
+SMALLEST_RATE = 1e-3
+
+
 def per_hour_text(rate: float) -> str:
     """A rate [1/h] as the terminal and report print it: 2 significant digits, whole
-    numbers from 100 on (``200``, not ``2e+02``)."""
+    numbers from 100 on (``200``, not ``2e+02``), ``< 0.001`` below :data:`SMALLEST_RATE`
+    (0 as ``0``)."""
+    if 0.0 < rate < SMALLEST_RATE:
+        return f"< {SMALLEST_RATE:g}"
     return f"{rate:.0f}" if rate >= 100 else f"{rate:.2g}"
 
 
