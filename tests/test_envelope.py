@@ -237,3 +237,24 @@ def test_envelope_records_the_longest_slow_stretch_after_warm_up_and_check_flags
     chk_old = EnvelopeCheck(old, FS, ["j"])
     chk_old.update_arrays(t2, q2[:, None], q2[:, None])
     assert chk_old.finish(round(1.0 * FS)).outside == 0
+
+
+def test_slow_stretches_are_read_on_the_reference_only() -> None:
+    """A measured position's noise at rest reads as slow motion through the low-pass, so
+    neither an envelope of measured motion records slow stretches nor a log without a
+    reference is checked for them (its ranges still are)."""
+    t, q = ramps(PIECES)
+    measured = EnvelopeAccumulator(["j"], "position")
+    measured.add(MotionTrace(FS).update(t, q[:, None], None), None, round(1.0 * FS))
+    got = measured.finish()
+    assert got is not None and got.slow_dwell_s == {} and "slow_dwell_s" not in got.to_dict()
+    acc = EnvelopeAccumulator(["j"], "position_ref")
+    acc.add(MotionTrace(FS).update(t, q[:, None], q[:, None]), None, round(1.0 * FS))
+    env = acc.finish()
+    assert env is not None and env.slow_dwell_s
+    t2, q2 = ramps([(5.0, 0.5), (5.0, 0.01), (5.0, 0.5)])
+    for ref, outside in ((q2[:, None], True), (None, False)):
+        chk = EnvelopeCheck(env, FS, ["j"])
+        chk.update_arrays(t2, q2[:, None], ref)
+        res = chk.finish(round(1.0 * FS))
+        assert bool(res.slow) is outside and (res.outside > 0) is outside

@@ -278,3 +278,38 @@ def test_the_floors_lever_arms_are_the_caught_force_ones() -> None:
 
     part = own_levers(q, 3, two_links)
     assert part[:, :2].tobytes() == got[:, :2].tobytes() and np.isnan(part[:, 2]).all()
+
+
+def test_a_change_with_a_contact_beside_it_counts_the_alarm_holding_it() -> None:
+    """mark_payload_changes: of a change's alarms, the one holding its contact's onset is
+    counted from that onset (t_start, i_start, t_start_utc moved, payload_test saying why),
+    the others stay the change's; with no alarm holding the onset the nearest counts, as it
+    is; a change whose alarm is no incident has its contact marked uncounted."""
+    from impactcli.detect.incidents import Incident, mark_payload_changes, uncounted_contacts
+    from impactcli.detect.payload_change import PayloadChange
+
+    def alarm(t0: float, t1: float) -> Incident:
+        return Incident(t0, t1, round(t0 * 500), round(t1 * 500), ("static_loading",),
+                        ("elbow",), 2, 10.0, "residual", "transient", {"elbow": 1.0}, False,
+                        t_start_utc="2026-11-30T00:00:10.000Z" if t0 == 10.0 else None)
+
+    def change(t0: float, t_c: float, contact: dict | None) -> PayloadChange:
+        return PayloadChange(t0, t_c, 1.0, 0.01, {"m": 1.0}, 0.99, 1.0, contact=contact)
+
+    seen = {"i": 5250, "t_s": 10.5, "joint": "elbow", "peak": 5.0}
+    incs = [alarm(10.0, 11.0), alarm(12.0, 12.2), alarm(30.0, 30.5)]
+    out = mark_payload_changes(incs, [change(10.0, 13.0, seen), change(30.0, 33.0, None)],
+                               0.56)
+    assert out[0].payload_change is None and out[0].t_start == 10.5
+    assert out[0].i_start == 5250 and out[0].t_start_utc == "2026-11-30T00:00:10.500Z"
+    assert (out[0].payload_test or "").startswith("a contact beside payload change P1:")
+    assert out[1].payload_change == 1 and out[2].payload_change == 2
+    # no alarm holds the onset: the nearest of the change's counts, from its own start
+    late = dict(seen, t_s=11.5)
+    out = mark_payload_changes(incs[:2], [change(10.0, 13.0, late)], 0.56)
+    assert out[0].payload_change is None and out[0].t_start == 10.0
+    assert out[1].payload_change == 1
+    # a change no incident holds (its alarm a lasting load): its contact is not counted
+    changes = uncounted_contacts([change(20.0, 23.0, seen)], incs)
+    assert changes[0].contact["counted"] is False
+    assert "counted" not in uncounted_contacts([change(10.0, 13.0, late)], out)[0].contact

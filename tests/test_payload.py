@@ -431,7 +431,8 @@ def test_a_push_while_the_load_is_released_is_counted_not_hidden_in_the_change(
     assert "contact" not in ch[0]
     counted = [i for i in tl["incidents"] if i["number"] is not None]
     held = [i for i in counted if "beside payload change P2" in i.get("payload_test", "")]
-    assert len(held) == 1 and held[0]["t_start"] == seen["t_s"], counted
+    assert len(held) == 1, counted
+    assert push.start - 0.02 <= held[0]["t_start"] <= push.end + 0.25  # the push's window
     out = r.stdout  # type: ignore[attr-defined]
     assert "a contact in its window that the mass does not explain" in out
     row = next(ln for ln in out.splitlines() if f"{seen['t_s']:>9.3f} s" in ln)

@@ -312,6 +312,7 @@ def test_rates_and_minutes_as_printed() -> None:
     assert [tail.per_hour_text(x) for x in (197.6, 100.0, 62.4, 3.42, 0.047, 0.00123,
                                             9.9e-4, 1.7e-13, 0.0)] == [
         "198", "100", "62", "3.4", "0.047", "0.0012", "< 0.001", "< 0.001", "0"]
+    assert [tail.at_most_text(x) for x in (2.94, 5e-5)] == ["≤ 2.9", "≤ 0.001"]
     assert [tail.minutes_text(x) for x in (60.0, 1.35, 1.0, 0.15, 0.0366)] == [
         "60.0", "1.4", "1.0", "0.15", "0.037"]
     assert tail.support_statement(0.0366 / 60, None).startswith(

@@ -130,6 +130,7 @@ def rate_warnings(rate: dict[str, Any] | None) -> list[str]:
     seen), and default thresholds stated to false-alarm often."""
     if not rate:
         return []
+    from ..detect.tail import at_most_text
     from ..detect.tail import per_hour_text as ph
 
     out = []
@@ -147,9 +148,9 @@ def rate_warnings(rate: dict[str, Any] | None) -> list[str]:
                                "--confidence narrows it")
     elif float(rate.get("upper_per_hour", 0.0)) > HIGH_STATED_RATE:
         out.append(f"these thresholds are predicted to give {ph(rate['predicted_per_hour'])} "
-                   f"false alarm(s) per hour (≤ {ph(rate['upper_per_hour'])}) on motion like "
-                   "the free logs': calibrate on more of the robot's free motion, or set "
-                   "them for a rate (--false-alarms-per-hour R)")
+                   f"false alarm(s) per hour ({at_most_text(rate['upper_per_hour'])}) on "
+                   "motion like the free logs': calibrate on more of the robot's free "
+                   "motion, or set them for a rate (--false-alarms-per-hour R)")
     return out
 
 

@@ -32,6 +32,7 @@ Pure functions of arrays; the replay applies them to each stretch of the log nea
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -117,7 +118,8 @@ class Incident:
         ``payload_change`` (its 1-based number) only when it is one
         (:func:`mark_payload_changes`), ``payload_test`` only when the payload monitor
         weighed its alarm and found no payload change (why:
-        :func:`impactcli.detect.payload_change.mark_tried`)."""
+        :func:`impactcli.detect.payload_change.mark_tried`) or a payload change with a
+        contact beside it (:func:`mark_payload_changes`)."""
         return {
             "t_start": self.t_start, "t_end": self.t_end, "t_start_utc": self.t_start_utc,
             "detectors": list(self.detectors), "joints": list(self.joints), "link": self.link,
@@ -258,24 +260,40 @@ def mark_payload_changes(incidents: Sequence[Incident], changes: Sequence[Any],
     count. Incidents marked already are left alone.
 
     A change that found a contact in its window (its ``contact``) leaves the incident
-    holding that contact's onset counted, from that onset (``t_start`` moved to it,
-    ``payload_test`` saying why): the alarm was the load and a contact."""
+    holding that contact's onset (else the nearest of the change's) counted, from that
+    onset (``t_start`` moved to it, ``payload_test`` saying why): the alarm was the load
+    and a contact. A change whose alarm is no incident (a lasting load) counts none."""
     if not changes:
         return list(incidents)
-    out = []
-    for inc in incidents:
+    hits: dict[int, int] = {}  # incident → the change (1-based) whose alarm it is
+    for n, inc in enumerate(incidents):
         hit = [k for k, c in enumerate(changes, 1)
                if c.t_start - 1e-9 <= inc.t_start <= c.t_classified + settle
                or c.t_start - merge_gap_s - 1e-9 <= inc.t_start <= c.t_start <= inc.t_end]
-        if not hit or inc.data_defect is not None or inc.in_warmup:
-            out.append(inc)
-            continue
-        seen = getattr(changes[hit[0] - 1], "contact", None)
-        if seen is not None and inc.t_start - 1e-9 <= seen["t_s"] <= inc.t_end + 1e-9:
-            out.append(_from_contact(inc, hit[0], seen))
-        else:
-            out.append(replace(inc, payload_change=hit[0]))
-    return out
+        if hit and inc.data_defect is None and not inc.in_warmup:
+            hits[n] = hit[0]
+    beside: dict[int, dict[str, Any]] = {}  # incident → the contact it holds (or is nearest)
+    for k, c in enumerate(changes, 1):
+        seen = getattr(c, "contact", None)
+        mine = [n for n, kk in hits.items() if kk == k]
+        if seen is not None and mine:
+            t = float(seen["t_s"])
+            beside[min(mine, key=lambda n: max(0.0, incidents[n].t_start - t,
+                                               t - incidents[n].t_end))] = seen
+    return [_from_contact(inc, hits[n], beside[n]) if n in beside
+            else replace(inc, payload_change=hits[n]) if n in hits else inc
+            for n, inc in enumerate(incidents)]
+
+
+def uncounted_contacts(changes: Sequence[Any], incidents: Sequence[Incident]) -> list[Any]:
+    """The payload changes, each whose ``contact`` no incident was counted for
+    (:func:`mark_payload_changes`: its alarm was a lasting load, or no incident's) marked
+    ``counted: false`` in it, so that no output says it counts."""
+    counted = {int(m.group(1)) for i in incidents if i.payload_test
+               and (m := re.match(r"a contact beside payload change P(\d+):", i.payload_test))}
+    return [replace(c, contact={**c.contact, "counted": False})
+            if getattr(c, "contact", None) is not None and k not in counted else c
+            for k, c in enumerate(changes, 1)]
 
 
 def _from_contact(inc: Incident, k: int, seen: dict[str, Any]) -> Incident:
@@ -283,13 +301,17 @@ def _from_contact(inc: Incident, k: int, seen: dict[str, Any]) -> Incident:
     change's ``contact``), counted from the contact's onset."""
     import datetime as dt
 
-    shift = float(seen["t_s"]) - inc.t_start
+    t = float(seen["t_s"])
+    if not inc.t_start <= t <= inc.t_end:  # the nearest of the change's alarms: as it is
+        t = inc.t_start
+    shift = t - inc.t_start
     utc = inc.t_start_utc
     if utc is not None:
         at = dt.datetime.fromisoformat(utc.replace("Z", "+00:00")) + dt.timedelta(
             seconds=shift)
         utc = at.isoformat(timespec="milliseconds").replace("+00:00", "Z")
-    return replace(inc, t_start=float(seen["t_s"]), i_start=int(seen["i"]), t_start_utc=utc,
+    return replace(inc, t_start=t, i_start=int(seen["i"]) if shift else inc.i_start,
+                   t_start_utc=utc,
                    payload_test=(f"a contact beside payload change P{k}: its alarm held the "
                                  f"load and, from {seen['t_s']:.3f} s, a torque on "
                                  f"{seen['joint']} the load does not explain "

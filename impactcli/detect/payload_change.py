@@ -108,7 +108,8 @@ def tested_text(change: dict[str, Any]) -> str:
     if seen:
         parts.append(f"and a contact in its window that the mass does not explain (from "
                      f"{seen['t_s']:.3f} s, {seen['joint']} at {seen['peak']:.2g}× its loading "
-                     "threshold): counted as an incident")
+                     "threshold): " + ("counted as an incident" if seen.get("counted", True)
+                                       else "no incident holds it (see the lasting loads)"))
     return ", ".join(parts)
 
 
@@ -170,7 +171,8 @@ def mark_tried(findings: Sequence[Any], tried: dict[float, str],
         why = [w for t, w in tried.items()
                if x.t_start - merge_gap_s - 1e-9 <= t <= x.t_end + 1e-9]
         out.append(replace(x, payload_test=f"not a payload change: {why[0]}") if why
-                   and getattr(x, "payload_change", None) is None else x)
+                   and getattr(x, "payload_change", None) is None
+                   and not getattr(x, "payload_test", None) else x)
     return out
 
 
@@ -187,8 +189,11 @@ class PayloadChange:
     (d) and (e) found; ``at_watch_start``: the alarm was on when the watch began (the
     warm-up's least length), so the change may have come earlier, in the warm-up;
     ``contact``: a contact in the window beside the mass (module docstring, step 5): the
-    sample index ``i`` and time ``t_s`` [s] where the static-loading statistic of the torque
-    the mass leaves first passed vL, the ``joint`` and its ``peak`` over vL; None: none."""
+    sample index ``i`` and time ``t_s`` [s] where the excursion of the static-loading
+    statistic of the torque the mass leaves, above vL, that holds its peak began (the
+    alarm's onset when it began before what the monitor keeps), the ``joint`` and its
+    ``peak`` over vL, and ``counted: False`` when no incident holds it
+    (:func:`impactcli.detect.incidents.uncounted_contacts`); None: none."""
 
     t_start: float
     t_classified: float
@@ -437,6 +442,7 @@ class PayloadMonitor:
         s0 = n - first
         ys = (y if s0 == w0 else self.model.regressor(
             buf["qf"][s0:], buf["qd"][s0:], buf["qdd"][s0:]) @ self.b)
+        clipped = k_c - self._onset[0] - settle > n  # the alarm began before the buffer
         self.changes.append(PayloadChange(
             t_a, t_c, w.mass_kg, w.mass_se_kg,
             {nm: float(v) for nm, v in zip(self.names, w.pi, strict=True)},
@@ -444,16 +450,17 @@ class PayloadMonitor:
             None if known is None else known[0], drift, shows,
             t_a - self.start_s < 1.5 / self.sample_rate_hz,
             self._beside(-buf["r"][s0:] - ys @ w.pi, k_c - first,
-                         t_c - first / self.sample_rate_hz)))
+                         t_c - first / self.sample_rate_hz, clipped)))
         return self._pi
 
-    def _beside(self, leftover: np.ndarray, k_first: int, t_first: float
-                ) -> dict[str, Any] | None:
+    def _beside(self, leftover: np.ndarray, k_first: int, t_first: float,
+                clipped: bool = False) -> dict[str, Any] | None:
         """A contact beside the mass (module docstring, step 5): when the static-loading
         statistic of the window's ``leftover`` (n, J) [N·m], the torque the mass leaves,
         peaks above :data:`BESIDE` × vL — the onset of its run above vL (sample, time), the
         joint and the peak over vL; None otherwise. ``k_first``, ``t_first``: the window's
-        first sample and its time."""
+        first sample and its time; ``clipped``: the alarm began before it (the buffer keeps
+        two windows), so an excursion already on there dates from the alarm's onset."""
         lp = np.abs(causal_lowpass(leftover, self.loading_cutoff_hz, self.sample_rate_hz,
                                    self.loading_order))
         vl = np.where(self.v_loading > 0, self.v_loading, np.inf)
@@ -464,6 +471,9 @@ class PayloadMonitor:
         above = np.any(ratio > 1.0, axis=1)
         below = np.flatnonzero(~above[:top])
         i = int(below[-1]) + 1 if below.size else 0  # the run above vL that holds the peak
+        if i == 0 and clipped and self._onset is not None:
+            return {"i": self._onset[0], "t_s": self._onset[1],
+                    "joint": self.model.joint_names[int(j)], "peak": float(ratio[top, j])}
         return {"i": k_first + i, "t_s": t_first + i / self.sample_rate_hz,
                 "joint": self.model.joint_names[int(j)], "peak": float(ratio[top, j])}
 

@@ -221,6 +221,11 @@ def per_hour_text(rate: float) -> str:
     return f"{rate:.0f}" if rate >= 100 else f"{rate:.2g}"
 
 
+def at_most_text(rate: float) -> str:
+    """An upper bound [1/h] as printed: ``≤ 2.9``, ``≤ 0.001`` below :data:`SMALLEST_RATE`."""
+    return f"≤ {SMALLEST_RATE:g}" if 0.0 < rate < SMALLEST_RATE else f"≤ {per_hour_text(rate)}"
+
+
 def capped_detectors(calib: Mapping[str, object]) -> list[str]:
     """The detectors of a config's calibration record (its mapping) whose leave-one-out
     margin hit its cap (:data:`~impactcli.detect.thresholds.MAX_MARGIN`) on some joint: the
@@ -245,7 +250,7 @@ def calibration_text(calib: Mapping[str, object]) -> str:
     rule = str(calib.get("margin_rule") or "rule not recorded")
     pct = f" at {100 * float(rate['confidence']):.0f} %" if "confidence" in rate else ""
     bound = (f"predicted {per_hour_text(float(rate['predicted_per_hour']))} false alarm(s) "
-             f"per hour, ≤ {per_hour_text(float(rate['upper_per_hour']))}{pct}, on motion "
+             f"per hour, {at_most_text(float(rate['upper_per_hour']))}{pct}, on motion "
              "like the calibration logs'"
              if "predicted_per_hour" in rate and "upper_per_hour" in rate else "")
     if "per_hour" in rate:

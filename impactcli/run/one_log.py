@@ -56,6 +56,7 @@ from ..detect.incidents import (
     mark_defects,
     mark_payload_changes,
     settle_s,
+    uncounted_contacts,
 )
 from ..detect.link_evidence import ResidualNoise
 from ..detect.payload_change import mark_tried
@@ -301,6 +302,7 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         incidents = number_incidents(mark_payload_changes(
             mark_defects(incidents, defects, settle, memory), changes, settle,
             cfg.events.merge_gap_s))
+        changes = uncounted_contacts(changes, incidents)
         if monitor is not None:  # what the alarms the monitor weighed are not
             incidents = mark_tried(incidents, monitor.tried, cfg.events.merge_gap_s)
             loads = mark_tried(loads, monitor.tried, cfg.events.merge_gap_s)
