@@ -128,12 +128,7 @@ def test_a_log_at_other_poses_says_its_posture_left_the_calibrated_range(
         log, position=log.position + nudge,
         position_ref=None if log.position_ref is None else log.position_ref + nudge), near)
     assert "posture_outside" not in _detect(near, tmp_path / "o3")[0]["motion_envelope"]
-    out = tmp_path / "r.json"
-    r = CliRunner().invoke(main, ["report", str(path), "--config", str(CONFIG), "-o",
-                                  str(tmp_path / "r.html"), "--json", str(out)])
-    assert r.exit_code == 0, r.output
-    item = next(i for i in _walk(json.loads(out.read_text())) if isinstance(i, dict)
-                and i.get("code") == "motion-envelope")
+    item = _report_item(path, tmp_path)
     assert "posture left the calibration logs' position range on shoulder" in item["text"]
     assert "rate applies" not in item["text"]
 
@@ -163,15 +158,20 @@ def test_a_slower_log_is_outside_only_through_its_slow_stretches(tmp_path: Path)
     assert me["slow_dwell_s"] == {j: cal["slow_dwell_s"][j] for j in me["slow_outside"]}
     assert "slower than 0.02 rad/s for longer at a stretch than in the calibration" in err
     assert "velocity or acceleration beyond" not in err
-    out = tmp_path / "r.json"
-    r = CliRunner().invoke(main, ["report", str(path), "--config", str(CONFIG), "-o",
-                                  str(tmp_path / "r.html"), "--json", str(out)])
-    assert r.exit_code == 0, r.output
-    item = next(i for i in _walk(json.loads(out.read_text())) if isinstance(i, dict)
-                and i.get("code") == "motion-envelope")
+    item = _report_item(path, tmp_path)
     assert "slower than 0.02 rad/s" in item["text"] and "rate applies" not in item["text"]
     own, _ = _detect(SAMPLES / "csv" / "assist_free_multisine.csv.gz", tmp_path / "o2")
     assert own["motion_envelope"]["outside"] == 0
+
+
+def _report_item(log: Path, tmp_path: Path) -> dict:
+    """The report's "motion-envelope" item of ``log`` with the sample config."""
+    out = tmp_path / "r.json"
+    r = CliRunner().invoke(main, ["report", str(log), "--config", str(CONFIG), "-o",
+                                  str(tmp_path / "r.html"), "--json", str(out)])
+    assert r.exit_code == 0, r.output
+    return next(i for i in _walk(json.loads(out.read_text())) if isinstance(i, dict)
+                and i.get("code") == "motion-envelope")
 
 
 def _larger_motion(log: RobotLog, path: Path) -> Path:
