@@ -258,3 +258,5 @@ def test_slow_stretches_are_read_on_the_reference_only() -> None:
         chk.update_arrays(t2, q2[:, None], ref)
         res = chk.finish(round(1.0 * FS))
         assert bool(res.slow) is outside and (res.outside > 0) is outside
+        assert ("slow stretches not checked: this log has no reference" in res.note) is (
+            not outside)

@@ -164,6 +164,28 @@ def test_a_slower_log_is_outside_only_through_its_slow_stretches(tmp_path: Path)
     assert own["motion_envelope"]["outside"] == 0
 
 
+def test_a_log_without_a_reference_says_its_slow_stretches_were_not_checked(
+        tmp_path: Path) -> None:
+    """The sample config records slow stretches of its logs' reference; a log without a
+    reference cannot be checked for them (a measured position's noise at rest reads as slow
+    motion): detect warns so even with nothing outside, the timeline's note says it, and
+    the report does not say that the stated rate applies."""
+    log = read_log(LOG)
+    bare = dataclasses.replace(log, position_ref=None, velocity_ref=None,
+                               acceleration_ref=None)
+    path = tmp_path / "bare.csv"
+    write_log(bare, path)
+    doc, err = _detect(path, tmp_path / "o")
+    me = doc["motion_envelope"]
+    assert me["source"] == "position" and "slow_outside" not in me
+    assert "slow stretches not checked: this log has no reference position" in me["note"]
+    assert "slow stretches not checked" in err
+    item = _report_item(path, tmp_path)
+    assert "slow stretches not checked" in item["text"]
+    assert "no slow stretch longer" not in item["text"]
+    assert "rate applies" not in item["text"]
+
+
 def _report_item(log: Path, tmp_path: Path) -> dict:
     """The report's "motion-envelope" item of ``log`` with the sample config."""
     out = tmp_path / "r.json"

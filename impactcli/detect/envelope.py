@@ -448,6 +448,10 @@ class EnvelopeCheck:
         if src != self.envelope.source:
             note = (f"the calibration's motion is of its logs' {self.envelope.source}, "
                     f"this log's of its {src}: ranges compared across sources")
+        if self.envelope.slow_dwell_s and src != "position_ref":
+            note += (("; " if note else "") + "slow stretches not checked: this log has no "
+                     "reference position (a measured position's noise at rest reads as slow "
+                     "motion)")
         posture = {self.joints[c]: r.count_from(start) / checked
                    for c, r in zip(self.pose_cols, self.pose_each, strict=True)
                    if checked and r.count_from(start)}

@@ -327,7 +327,7 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
                          for i in incidents]
             warn_outside_envelope(where, outside_share_text(share), share.outside,
                                   sum(1 for i in incidents if i.outside_envelope),
-                                  posture_text(share.posture))
+                                  posture_text(share.posture), share.note)
         rates = rp.last.rates
         floor = floor_acc.finish(
             rp.warmup.index, rp.warmup.end_index,

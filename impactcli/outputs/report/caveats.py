@@ -60,8 +60,8 @@ def rate_caveats(calib: dict[str, Any]) -> list[dict[str, str]]:
             f"at {pct} % confidence "
             f"({rate.get('statement', '')}). For a rate you choose: calibrate "
             "--false-alarms-per-hour R. Where this log moves faster or accelerates harder "
-            "than the calibration logs did (the motion envelope in the config), false alarms "
-            "are not bounded by it.")}]
+            "than the calibration logs did, or moves slowly for longer (the motion envelope "
+            "in the config), false alarms are not bounded by it.")}]
     if rate.get("supported") is False:
         widened = [f"{j}/{d}" for d, per in (rate.get("channels") or {}).items()
                    for j, c in per.items() if c.get("widened")]
@@ -78,7 +78,8 @@ def rate_caveats(calib: dict[str, Any]) -> list[dict[str, str]]:
         f"{per_hour_text(rate.get('upper_per_hour', 0.0))} at {pct} % confidence) holds for "
         "motion like "
         "the calibration logs': where this log moves faster or accelerates harder than they "
-        "did (the motion envelope in the config), false alarms are not bounded by it.")})
+        "did, or moves slowly for longer (the motion envelope in the config), false alarms "
+        "are not bounded by it.")})
     return out
 
 

@@ -184,7 +184,9 @@ def _envelope(result: DetectionResult, incidents: list[dict[str, Any]]) -> list[
     if not env.get("outside"):
         calibration = result.config.get("calibration") or {}
         rated = bool(calibration.get("false_alarm_rate"))
-        slow_checked = bool((calibration.get("motion_envelope") or {}).get("slow_dwell_s"))
+        slow_checked = (bool((calibration.get("motion_envelope") or {}).get("slow_dwell_s"))
+                        and env.get("source") == "position_ref")
+        note = f"; {env['note']}" if env.get("note") else ""
         return [{"code": "motion-envelope",
                  "short": ("inside the calibrated motion, not its poses" if posture
                            else "inside the calibrated motion"),
@@ -193,9 +195,9 @@ def _envelope(result: DetectionResult, incidents: list[dict[str, Any]]) -> list[
                           "envelope (each joint's velocity and acceleration within the "
                           "ranges calibrated on"
                           + (", and no slow stretch longer" if slow_checked else "")
-                          + ")" + poses
+                          + ")" + note + poses
                           + (": the thresholds' stated false-alarm rate applies."
-                             if rated and not posture else "."))}]
+                             if rated and not posture and not note else "."))}]
     there = sum(1 for i in incidents if i.get("outside_envelope"))
     return [{"code": "motion-envelope",
              "short": f"{100 * env['share']:.2g} % outside the calibrated motion",
