@@ -231,6 +231,16 @@ def test_envelope_records_the_longest_slow_stretch_after_warm_up_and_check_flags
     assert slow_text(out.slow, out.slow_dwell_s) in text
     assert "velocity or acceleration beyond" not in text  # the ranges held
     assert outside_share_text(out.to_dict()) == text
+    # faster than calibrated, then slow for longer: each reason with its own share
+    t3, q3 = ramps([(5.0, 0.9), (5.0, 0.01), (5.0, 0.5)])
+    mixed = EnvelopeCheck(env, FS, ["j"])
+    mixed.update_arrays(t3, q3[:, None], q3[:, None])
+    both = mixed.finish(round(1.0 * FS))
+    assert both.ranges["j"] > 0.1 and both.slow["j"] > 0.05
+    assert both.per_joint["j"] == pytest.approx(both.ranges["j"] + both.slow["j"], abs=0.02)
+    said = outside_share_text(both)
+    assert f"beyond the ranges calibrated on: j {100 * both.ranges['j']:.3g} %" in said
+    assert slow_text(both.slow, both.slow_dwell_s) in said
     # a config written before the slow clock was recorded: slow motion is not checked
     old = MotionEnvelope(env.joints, env.source, env.samples, env.cutoff_hz)
     assert "slow_dwell_s" not in old.to_dict()

@@ -288,7 +288,9 @@ class EnvelopeShare:
         slow: joint → share of the checked samples outside because the joint had moved
             slowly for longer than the calibration's longest stretch (part of ``outside``),
             joints with none left out; slow_dwell_s: that longest stretch [s], per joint of
-            ``slow``.
+            ``slow``; ranges: joint → share outside its velocity or acceleration range
+            (joints with none left out; in the mapping only beside ``slow``, where
+            ``per_joint`` mixes the two).
     """
 
     samples: int
@@ -301,6 +303,7 @@ class EnvelopeShare:
     posture: dict[str, float] = field(default_factory=dict)
     slow: dict[str, float] = field(default_factory=dict)
     slow_dwell_s: dict[str, float] = field(default_factory=dict)
+    ranges: dict[str, float] = field(default_factory=dict)
 
     @property
     def share(self) -> float:
@@ -322,8 +325,8 @@ class EnvelopeShare:
                 "stretches_s": self.stretches.tolist(), "unchecked": list(self.unchecked),
                 **({"note": self.note} if self.note else {}),
                 **({"posture_outside": dict(self.posture)} if self.posture else {}),
-                **({"slow_outside": dict(self.slow), "slow_dwell_s": dict(self.slow_dwell_s)}
-                   if self.slow else {})}
+                **({"slow_outside": dict(self.slow), "slow_dwell_s": dict(self.slow_dwell_s),
+                    "ranges_outside": dict(self.ranges)} if self.slow else {})}
 
 
 def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -399,6 +402,7 @@ class EnvelopeCheck:
         self.each = [_Runs() for _ in self.cols]
         self.pose_each = [_Runs() for _ in self.pose_cols]
         self.slow_each = [_Runs() for _ in self.cols]
+        self.range_each = [_Runs() for _ in self.cols]
 
     def update_arrays(self, time_s: np.ndarray, position: np.ndarray,
                       position_ref: np.ndarray | None = None, start: int | None = None
@@ -414,6 +418,8 @@ class EnvelopeCheck:
             out_j |= (x < lo) | (x > hi)
         slow = ((mot.slow[:, self.cols] > self.dwell) if self.trace.source == "position_ref"
                 else np.zeros_like(out_j))  # a measured position's noise at rest reads slow
+        for c, runs in enumerate(self.range_each):
+            runs.add(k0, t, out_j[:, c])
         out_j |= slow
         mask: np.ndarray = (np.asarray(out_j.any(axis=1)) if self.cols
                             else np.zeros(n, dtype=bool))
@@ -458,12 +464,15 @@ class EnvelopeCheck:
         slow = {j: r.count_from(start) / checked
                 for j, r in zip(self.names, self.slow_each, strict=True)
                 if checked and r.count_from(start)}
+        ranges = {j: r.count_from(start) / checked
+                  for j, r in zip(self.names, self.range_each, strict=True)
+                  if checked and r.count_from(start)}
         return EnvelopeShare(
             checked, self.any.count_from(start),
             {j: (r.count_from(start) / checked if checked else 0.0)
              for j, r in zip(self.names, self.each, strict=True)},
             np.array(stretches, dtype=np.float64).reshape(-1, 2), self.unchecked, src, note,
-            posture, slow, {j: self.envelope.slow_dwell_s[j] for j in slow})
+            posture, slow, {j: self.envelope.slow_dwell_s[j] for j in slow}, ranges)
 
 
 def posture_text(posture: Mapping[str, float]) -> str:
@@ -487,9 +496,12 @@ def outside_share_text(share: EnvelopeShare | Mapping[str, Any]) -> str:
     per_joint: Mapping[str, float] = d.get("per_joint") or {}
     slow: Mapping[str, float] = d.get("slow_outside") or {}
     worst = max(per_joint.items(), key=lambda kv: kv[1], default=("", 0.0))
-    ranges = any(v > slow.get(j, 0.0) for j, v in per_joint.items())
-    why = "; ".join(([] if not ranges and slow else
-                     ["velocity or acceleration beyond the ranges calibrated on"])
+    ranges: Mapping[str, float] = (d.get("ranges_outside") or {}) if slow else per_joint
+    beyond = "velocity or acceleration beyond the ranges calibrated on"
+    if slow and ranges:  # say which joint left which, the two shares apart
+        beyond += ": " + ", ".join(f"{j} {100 * v:.3g} %" for j, v in
+                                   sorted(ranges.items(), key=lambda kv: -kv[1]))
+    why = "; ".join(([] if slow and not any(ranges.values()) else [beyond])
                     + ([slow_text(slow, d.get("slow_dwell_s") or {})] if slow else []))
     txt = (f"{100.0 * float(d['share']):.3g} % of the log after warm-up moved outside the "
            f"calibration's motion envelope ({why})")
