@@ -57,6 +57,8 @@ def _incident_line(k: int, inc: IncidentRow, link_width: int = 7) -> str:
             if inc["force_plausible"] is False else "")
     if inc.get("payload_test"):  # "a contact beside payload change P2", "not a payload …"
         flag += f"  {inc['payload_test'].split(':')[0]} (payload_test in the timeline)"
+    if inc.get("outside_envelope"):
+        flag += "  outside the calibrated motion (outside_envelope in the timeline)"
     return (f"  {k:>3}  {inc['t_start']:>9.3f} s  {link:<{link_width}} {force:>9}  "
             f"{inc['contact']:<12} ({', '.join(inc['detectors'])}){flag}")
 

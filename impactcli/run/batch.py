@@ -91,6 +91,7 @@ class IncidentRow(TypedDict):
     detectors: list[str]
     force_plausible: bool | None
     payload_test: NotRequired[str]
+    outside_envelope: NotRequired[bool]
 
 
 def _incident_row(i: Any) -> IncidentRow:
@@ -100,6 +101,8 @@ def _incident_row(i: Any) -> IncidentRow:
                       force_plausible=i.force_plausible)
     if i.payload_test:
         row["payload_test"] = i.payload_test
+    if i.outside_envelope:
+        row["outside_envelope"] = True
     return row
 
 
