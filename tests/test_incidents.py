@@ -285,7 +285,7 @@ def test_a_change_with_a_contact_beside_it_counts_the_alarm_holding_it() -> None
     counted from that onset (t_start, i_start, t_start_utc moved, payload_test saying why),
     the others stay the change's; with no alarm holding the onset the nearest counts, as it
     is; a change whose alarm is no incident has its contact marked uncounted."""
-    from impactcli.detect.incidents import Incident, mark_payload_changes, uncounted_contacts
+    from impactcli.detect.incidents import Incident, mark_payload_changes
     from impactcli.detect.payload_change import PayloadChange
 
     def alarm(t0: float, t1: float) -> Incident:
@@ -298,18 +298,18 @@ def test_a_change_with_a_contact_beside_it_counts_the_alarm_holding_it() -> None
 
     seen = {"i": 5250, "t_s": 10.5, "joint": "elbow", "peak": 5.0}
     incs = [alarm(10.0, 11.0), alarm(12.0, 12.2), alarm(30.0, 30.5)]
-    out = mark_payload_changes(incs, [change(10.0, 13.0, seen), change(30.0, 33.0, None)],
-                               0.56)
+    out, _ = mark_payload_changes(incs, [change(10.0, 13.0, seen), change(30.0, 33.0, None)],
+                                  0.56)
     assert out[0].payload_change is None and out[0].t_start == 10.5
     assert out[0].i_start == 5250 and out[0].t_start_utc == "2026-11-30T00:00:10.500Z"
     assert (out[0].payload_test or "").startswith("a contact beside payload change P1:")
     assert out[1].payload_change == 1 and out[2].payload_change == 2
     # no alarm holds the onset: the nearest of the change's counts, from its own start
     late = dict(seen, t_s=11.5)
-    out = mark_payload_changes(incs[:2], [change(10.0, 13.0, late)], 0.56)
+    out, held = mark_payload_changes(incs[:2], [change(10.0, 13.0, late)], 0.56)
     assert out[0].payload_change is None and out[0].t_start == 10.0
     assert out[1].payload_change == 1
     # a change no incident holds (its alarm a lasting load): its contact is not counted
-    changes = uncounted_contacts([change(20.0, 23.0, seen)], incs)
+    _, changes = mark_payload_changes(incs, [change(20.0, 23.0, seen)], 0.56)
     assert changes[0].contact["counted"] is False
-    assert "counted" not in uncounted_contacts([change(10.0, 13.0, late)], out)[0].contact
+    assert "counted" not in held[0].contact

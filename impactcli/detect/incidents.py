@@ -32,7 +32,6 @@ Pure functions of arrays; the replay applies them to each stretch of the log nea
 
 from __future__ import annotations
 
-import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -249,7 +248,8 @@ def mark_defects(incidents: Sequence[Incident], defects: Sequence[DataDefect],
 
 
 def mark_payload_changes(incidents: Sequence[Incident], changes: Sequence[Any],
-                         settle: float, merge_gap_s: float = 0.1) -> list[Incident]:
+                         settle: float, merge_gap_s: float = 0.1
+                         ) -> tuple[list[Incident], list[Any]]:
     """The incidents, each that starts from a payload change's onset to ``settle`` seconds
     after its classification, marked with the change's number (1-based): the alarm was the
     load, not a contact (:mod:`impactcli.detect.payload_change`). So is one still going at
@@ -262,9 +262,13 @@ def mark_payload_changes(incidents: Sequence[Incident], changes: Sequence[Any],
     A change that found a contact in its window (its ``contact``) leaves the incident
     holding that contact's onset (else the nearest of the change's) counted, from that
     onset (``t_start`` moved to it, ``payload_test`` saying why): the alarm was the load
-    and a contact. A change whose alarm is no incident (a lasting load) counts none."""
+    and a contact. A change whose alarm is no incident (a lasting load) counts none: its
+    ``contact`` is marked ``counted: false``, so that no output says it counts.
+
+    Returns:
+        the incidents, and the changes (those with a contact no incident holds marked)."""
     if not changes:
-        return list(incidents)
+        return list(incidents), list(changes)
     hits: dict[int, int] = {}  # incident → the change (1-based) whose alarm it is
     for n, inc in enumerate(incidents):
         hit = [k for k, c in enumerate(changes, 1)
@@ -280,20 +284,13 @@ def mark_payload_changes(incidents: Sequence[Incident], changes: Sequence[Any],
             t = float(seen["t_s"])
             beside[min(mine, key=lambda n: max(0.0, incidents[n].t_start - t,
                                                t - incidents[n].t_end))] = seen
-    return [_from_contact(inc, hits[n], beside[n]) if n in beside
-            else replace(inc, payload_change=hits[n]) if n in hits else inc
-            for n, inc in enumerate(incidents)]
-
-
-def uncounted_contacts(changes: Sequence[Any], incidents: Sequence[Incident]) -> list[Any]:
-    """The payload changes, each whose ``contact`` no incident was counted for
-    (:func:`mark_payload_changes`: its alarm was a lasting load, or no incident's) marked
-    ``counted: false`` in it, so that no output says it counts."""
-    counted = {int(m.group(1)) for i in incidents if i.payload_test
-               and (m := re.match(r"a contact beside payload change P(\d+):", i.payload_test))}
-    return [replace(c, contact={**c.contact, "counted": False})
-            if getattr(c, "contact", None) is not None and k not in counted else c
-            for k, c in enumerate(changes, 1)]
+    counted = {hits[n] for n in beside}
+    return ([_from_contact(inc, hits[n], beside[n]) if n in beside
+             else replace(inc, payload_change=hits[n]) if n in hits else inc
+             for n, inc in enumerate(incidents)],
+            [replace(c, contact={**c.contact, "counted": False})
+             if getattr(c, "contact", None) is not None and k not in counted else c
+             for k, c in enumerate(changes, 1)])
 
 
 def _from_contact(inc: Incident, k: int, seen: dict[str, Any]) -> Incident:

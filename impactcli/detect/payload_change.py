@@ -193,7 +193,7 @@ class PayloadChange:
     statistic of the torque the mass leaves, above vL, that holds its peak began (the
     alarm's onset when it began before what the monitor keeps), the ``joint`` and its
     ``peak`` over vL, and ``counted: False`` when no incident holds it
-    (:func:`impactcli.detect.incidents.uncounted_contacts`); None: none."""
+    (:func:`impactcli.detect.incidents.mark_payload_changes`); None: none."""
 
     t_start: float
     t_classified: float

@@ -56,7 +56,6 @@ from ..detect.incidents import (
     mark_defects,
     mark_payload_changes,
     settle_s,
-    uncounted_contacts,
 )
 from ..detect.link_evidence import ResidualNoise
 from ..detect.payload_change import mark_tried
@@ -299,10 +298,10 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         changes = [] if monitor is None else monitor.changes
         if (unseen := unseen_loads(where, plan.model, changes)) is not None:
             warnings.warn(unseen, ImpactWarning, stacklevel=2)
-        incidents = number_incidents(mark_payload_changes(
+        marked, changes = mark_payload_changes(
             mark_defects(incidents, defects, settle, memory), changes, settle,
-            cfg.events.merge_gap_s))
-        changes = uncounted_contacts(changes, incidents)
+            cfg.events.merge_gap_s)
+        incidents = number_incidents(marked)
         if monitor is not None:  # what the alarms the monitor weighed are not
             incidents = mark_tried(incidents, monitor.tried, cfg.events.merge_gap_s)
             loads = mark_tried(loads, monitor.tried, cfg.events.merge_gap_s)
