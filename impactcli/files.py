@@ -14,7 +14,10 @@ import hashlib
 import json
 import os
 import secrets
+import shutil
+import signal
 import tempfile
+import threading
 import time
 import tomllib
 from collections.abc import Callable, Iterator
@@ -22,7 +25,7 @@ from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import IO, Any
 
-from .errors import ImpactError, OutputError, TempSpaceError
+from .errors import ImpactError, Interrupted, OutputError, TempSpaceError
 
 
 def sha256_file(path: str | os.PathLike[str], chunk: int = 1 << 20) -> str:
@@ -117,16 +120,19 @@ def atomic_output(path: str | os.PathLike[str], mode: str = "wb",
     """
     target = Path(path)
     prepare_output(target)
-    tmp = part_path(target)
+    tmp: Path | None = None
     try:
+        with whole():  # a stop signal cannot fall between the file and its removal below
+            tmp = part_path(target)
         encoding = None if "b" in mode else "utf-8"
         with open(tmp, mode, encoding=encoding) as f:
             yield f
             f.flush()
             written = f.tell() if "b" in mode else f.buffer.tell()  # type: ignore[attr-defined]
     except BaseException as err:
-        with suppress(FileNotFoundError):
-            os.unlink(tmp)
+        if tmp is not None:
+            with suppress(FileNotFoundError):
+                os.unlink(tmp)
         if isinstance(err, OSError) and err.errno in OUTPUT_ERRNOS:
             raise output_error(path, err) from err
         raise
@@ -296,3 +302,54 @@ def temp_space() -> Iterator[None]:
     except OSError as err:
         raise temp_space_error(err) from err
 
+
+
+#: A stop signal held by :func:`whole`: ``[depth of the blocks open, the signal held or 0]``
+#: (the main thread's only: signal handlers run there).
+_whole = [0, 0]
+
+
+@contextmanager
+def whole() -> Iterator[None]:
+    """Run the block whole: a stop signal (SIGINT, SIGTERM: :mod:`impactcli.run.stopping`)
+    that arrives in it is held and raised as :class:`~impactcli.errors.Interrupted` when
+    the block ends. For file operations a stop must not cut in half — a temporary folder
+    made and its removal registered, a folder removed file by file — which would otherwise
+    leave a folder behind. In the main thread only (elsewhere the block runs as it is)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    _whole[0] += 1
+    try:
+        yield
+    finally:
+        _whole[0] -= 1
+        signum, _whole[1] = (_whole[1], 0) if _whole[0] == 0 else (0, _whole[1])
+        if signum:
+            raise Interrupted(signum, signal.Signals(signum).name)
+
+
+def hold_stop(signum: int) -> bool:
+    """Called by a stop signal's handler: True when a :func:`whole` block runs (the stop is
+    held until it ends; the handler must not raise), else False."""
+    if _whole[0] == 0:
+        return False
+    _whole[1] = _whole[1] or signum
+    return True
+
+
+@contextmanager
+def temporary_folder(prefix: str, folder: str | os.PathLike[str] | None = None
+                     ) -> Iterator[Path]:
+    """A new temporary folder (``tempfile.mkdtemp(prefix=prefix, dir=folder)``) for the
+    block, removed with everything in it when the block ends; made and removed
+    :func:`whole`, so a stop signal cannot leave it behind."""
+    path: Path | None = None
+    try:
+        with whole():
+            path = Path(tempfile.mkdtemp(prefix=prefix, dir=folder))
+        yield path
+    finally:
+        if path is not None:
+            with whole():
+                shutil.rmtree(path, ignore_errors=True)

@@ -34,7 +34,7 @@ from typing import IO, Any
 
 import numpy as np
 
-from .files import temp_space_error
+from .files import temp_space_error, whole
 
 #: A cache gives itself up when its file system has less free space than this [bytes].
 MIN_FREE_BYTES = 2 * 1024**3
@@ -51,13 +51,14 @@ class SpillFolder:
         self.required = required
         self.full = False
         self._unchecked = CHECK_EVERY_BYTES  # check the free space before the first write
-        try:
-            self.path = tempfile.mkdtemp(prefix=prefix)
-        except OSError as err:
-            if required:
-                raise temp_space_error(err) from err
-            return
-        self._remove = weakref.finalize(self, shutil.rmtree, self.path, ignore_errors=True)
+        with whole():  # a stop signal cannot fall between the folder and its removal
+            try:
+                self.path = tempfile.mkdtemp(prefix=prefix)
+            except OSError as err:
+                if required:
+                    raise temp_space_error(err) from err
+                return
+            self._remove = weakref.finalize(self, shutil.rmtree, self.path, ignore_errors=True)
 
     def file(self, name: str) -> str:
         """The path of the file ``name`` in the folder."""
@@ -83,8 +84,9 @@ class SpillFolder:
     def close(self) -> None:
         """Delete the folder and its files."""
         if self.path is not None:
-            self._remove()
-            self.path = None
+            with whole():  # removed whole: a stop signal raises once it is gone
+                self._remove()
+                self.path = None
 
 
 class ColumnFiles:

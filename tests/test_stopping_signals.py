@@ -297,3 +297,83 @@ def ns_frame(ns: dict, code: object) -> object:
     """A fresh frame of ``code`` (run in ``ns``)."""
     exec(code, ns)  # type: ignore[arg-type]
     return ns["frame"]
+
+
+def test_a_stop_inside_a_whole_block_is_raised_as_the_block_ends() -> None:
+    """A stop signal that lands in a file operation that must not be cut in half
+    (:func:`impactcli.files.whole`) is held until the block has run to its end, then
+    raised; outside such a block it is raised at once."""
+    from impactcli.errors import Interrupted
+    from impactcli.files import whole
+    from impactcli.run.stopping import stop_on_signals
+
+    steps: list[str] = []
+    with stop_on_signals(), pytest.raises(Interrupted) as got, whole():
+        os.kill(os.getpid(), signal.SIGINT)
+        with whole():  # nested: held until the outer block ends
+            steps.append("inner")
+        steps.append("outer")
+    assert steps == ["inner", "outer"] and got.value.signum == signal.SIGINT
+    steps.clear()
+    with stop_on_signals(), pytest.raises(Interrupted):
+        os.kill(os.getpid(), signal.SIGTERM)
+        steps.append("after")
+    assert steps == []
+
+
+def test_a_stop_during_a_temporary_folders_removal_or_making_leaves_nothing(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The signal lands while the folder is removed (a spill's close) or just after it is
+    made (before its removal is registered): the run stops, the folder is gone."""
+    from impactcli.errors import Interrupted
+    from impactcli.files import temporary_folder
+    from impactcli.run.stopping import stop_on_signals
+    from impactcli.spill import SpillFolder
+
+    real_rmtree, real_mkdtemp = shutil.rmtree, tempfile.mkdtemp
+
+    def rmtree(path: str, *args: object, **kwargs: object) -> None:
+        os.kill(os.getpid(), signal.SIGINT)  # its handler runs before the removal starts
+        real_rmtree(path, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    monkeypatch.setattr(shutil, "rmtree", rmtree)
+    folder = SpillFolder("impactcli-spill-")
+    assert folder.path is not None
+    Path(folder.path, "values").write_bytes(b"\0" * 64)
+    with stop_on_signals(), pytest.raises(Interrupted):
+        folder.close()
+    monkeypatch.setattr(shutil, "rmtree", real_rmtree)
+    made: list[str] = []
+
+    def mkdtemp(*args: object, **kwargs: object) -> str:
+        made.append(real_mkdtemp(*args, **kwargs))  # type: ignore[call-overload]
+        os.kill(os.getpid(), signal.SIGTERM)
+        return made[-1]
+
+    monkeypatch.setattr(tempfile, "mkdtemp", mkdtemp)
+    entered: list[Path] = []
+    with stop_on_signals(), pytest.raises(Interrupted), \
+            temporary_folder("impactcli-out-") as tmp:
+        entered.append(tmp)
+    assert len(made) == 1 and entered == []
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_stopped_pools_manager_thread_is_gone_when_stop_workers_returns() -> None:
+    """CPython's pool manager thread closes the pool's wake-up pipe as it ends, and the
+    interpreter's exit writes to that pipe unguarded: stop_workers waits for the thread,
+    so a stopped run's exit cannot print "Bad file descriptor"."""
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor
+
+    from impactcli.run.stopping import stop_workers
+
+    ex = ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context("fork"))
+    ex.submit(time.sleep, 30)
+    manager = ex._executor_manager_thread  # type: ignore[attr-defined]
+    assert manager is not None and manager.is_alive()
+    t0 = time.monotonic()
+    stop_workers(ex, grace_s=2.0)
+    assert not manager.is_alive()
+    assert time.monotonic() - t0 < 5.0

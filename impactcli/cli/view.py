@@ -13,7 +13,6 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-import tempfile
 import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
@@ -169,8 +168,10 @@ def view_cmd(source: Path, robot: Path | None, model: Path | None,
         if not no_open:
             open_viewer(save_path)
         return
-    with tempfile.TemporaryDirectory(prefix="impactcli-view-") as tmp:
-        from ..logs import log_stem
+    from ..files import temporary_folder
+    from ..logs import log_stem
+
+    with temporary_folder("impactcli-view-") as tmp:
 
         rrd = Path(tmp) / f"{log_stem(source)}.rrd"
         record(rrd)

@@ -30,7 +30,6 @@ import glob as _glob
 import os
 import re
 import shutil
-import tempfile
 import time
 import uuid
 from collections.abc import Callable, Iterator, Sequence
@@ -41,6 +40,7 @@ from typing import Any, TypeVar
 from urllib.parse import unquote, urlsplit
 
 from ..errors import ImpactError, LogFormatError
+from ..files import temporary_folder
 
 __all__ = [
     "BACKOFF_S", "IO_RETRIES", "expand_inputs", "fetched", "is_transient", "is_url", "join_url",
@@ -171,13 +171,10 @@ def local_copy(path: str | os.PathLike[str]) -> Iterator[Path]:
         return
     url = str(path)
     fs, p = _fs(url)
-    tmpdir = tempfile.mkdtemp(prefix="impactcli-url-")
-    try:
-        target = Path(tmpdir) / (url_name(p) or "download")
+    with temporary_folder("impactcli-url-") as tmpdir:
+        target = tmpdir / (url_name(p) or "download")
         fs.get_file(p, str(target))
         yield target
-    finally:
-        shutil.rmtree(tmpdir, ignore_errors=True)
 
 
 def _renamed(err: ImpactError, old: str, new: str) -> ImpactError:

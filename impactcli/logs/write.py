@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import LogFormatError, OutputError
+from ..files import temporary_folder, whole
 from ..sample_channels import CHANNEL_NAMES, CONTROLLER_CHANNELS
 from ..types import RobotLog
 from .messages.message_source import JOINT_SAMPLE
@@ -274,8 +275,7 @@ def _write_rosbag2_folder(log: RobotLog, folder: Path, parts: list[slice],
     store = ros2_typestore()
     plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
     t = log.t_ns.tolist()
-    tmp = Path(tempfile.mkdtemp(prefix=".rosbag2-", dir=folder.parent))
-    try:
+    with temporary_folder(".rosbag2-", folder.parent) as tmp:
         metas = []
         subs = []
         for k, part in enumerate(parts):
@@ -327,8 +327,6 @@ def _write_rosbag2_folder(log: RobotLog, folder: Path, parts: list[slice],
             with open(out / ROSBAG2_METADATA, "w", encoding="utf-8") as mf:
                 yaml.dump({"rosbag2_bagfile_information": info}, mf)
         out.rename(folder)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def write_rosbag2(log: RobotLog, path: str | os.PathLike[str], *, split: int = 1,
@@ -362,15 +360,12 @@ def write_rosbag2(log: RobotLog, path: str | os.PathLike[str], *, split: int = 1
                                  "split or to use MCAP storage")
         from ..files import atomic_output
 
-        with atomic_output(p, "wb") as f:  # checks the target; the .db3 is moved onto it
-            tmp = Path(tempfile.mkdtemp(prefix=".rosbag2-", dir=p.parent))
-            try:
-                _write_rosbag2_folder(log, tmp / "bag", parts, storage)
-                db = next((tmp / "bag").glob("*.db3"))
-                with open(db, "rb") as src:
-                    shutil.copyfileobj(src, f, 1 << 20)
-            finally:
-                shutil.rmtree(tmp, ignore_errors=True)
+        # atomic_output checks the target; the .db3 is copied onto it
+        with atomic_output(p, "wb") as f, temporary_folder(".rosbag2-", p.parent) as tmp:
+            _write_rosbag2_folder(log, tmp / "bag", parts, storage)
+            db = next((tmp / "bag").glob("*.db3"))
+            with open(db, "rb") as src:
+                shutil.copyfileobj(src, f, 1 << 20)
         return
     if p.exists():
         raise OutputError(f"cannot write {p}: it exists (a rosbag2 folder is never overwritten)")
@@ -409,10 +404,12 @@ def write_rosbag1(log: RobotLog, path: str | os.PathLike[str]) -> None:
                            [nm for nm, h in zip(log.joint_names, has, strict=True) if h],
                            [None, None, np.ascontiguousarray(arr[:, has])]))
     with atomic_output(p, "wb") as f:
-        fd, tmpname = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp.bag", dir=p.parent)
-        os.close(fd)
-        tmp = Path(tmpname)
-        tmp.unlink()  # rosbags' writer makes the file itself
+        with whole():  # a free name: rosbags' writer makes the file itself
+            fd, tmpname = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp.bag",
+                                           dir=p.parent)
+            os.close(fd)
+            tmp = Path(tmpname)
+            tmp.unlink()
         try:
             with Writer(tmp) as w:
                 conns = [w.add_connection(tn, name, typestore=store) for tn, _, _ in topics]

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import OutputError
-from ..files import finish_output, part_path, prepare_output
+from ..files import finish_output, part_path, prepare_output, whole
 from ..spill import ColumnFiles
 from ..types import DETECTORS
 from . import rerun_blueprint as look
@@ -278,7 +278,6 @@ def open_recording(path: str | os.PathLike[str], result: Any, has_reference: boo
     log = result.log
     target = Path(path)
     prepare_output(target)
-    tmp = part_path(target)
     rec = rr.RecordingStream(look.APPLICATION_ID, recording_id=recording_id)
 
     def finish() -> None:
@@ -286,7 +285,10 @@ def open_recording(path: str | os.PathLike[str], result: Any, has_reference: boo
         rec.disconnect()
 
     open_sink = True
+    tmp: Path | None = None
     try:
+        with whole():  # a stop signal cannot fall between the file and its removal below
+            tmp = part_path(target)
         try:
             sink_call(lambda: rec.save(str(tmp), default_blueprint=look.default_blueprint(
                 log.joint_names, has_reference, duration_s=log.duration_s)), target, "open")
@@ -306,8 +308,9 @@ def open_recording(path: str | os.PathLike[str], result: Any, has_reference: boo
         if open_sink:
             with contextlib.suppress(Exception):
                 sink_call(rec.disconnect, target, "close", timeout_s=5.0)
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
+        if tmp is not None:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(tmp)
         raise
 
 

@@ -28,7 +28,6 @@ A crash exits 70 (``EX_SOFTWARE``), never 1: exit 1 means "incidents found" to a
 from __future__ import annotations
 
 import contextlib
-import tempfile
 import time
 import traceback
 import warnings
@@ -46,7 +45,7 @@ from ..errors import (
     ImpactWarning,
     OutputError,
 )
-from ..files import OUTPUT_ERRNOS
+from ..files import OUTPUT_ERRNOS, temporary_folder
 from ..logs.paths import log_stem
 from ..types import DETECTORS, DetectionResult, ReadOptions
 from .gates import Findings
@@ -290,7 +289,7 @@ def _run_remote(job: DetectJob, prefix: str, stem: str) -> tuple[Any, tuple[str,
     ``prefix``."""
     from ..logs.urls import join_url, put_file_atomic
 
-    with tempfile.TemporaryDirectory(prefix="impactcli-out-") as tmp:
+    with temporary_folder("impactcli-out-") as tmp:
         result, written = _run_streamed(job, Path(tmp), stem)
         # the timeline last: its presence says the run's outputs are all there
         order = [*written[1:], written[0]]
@@ -460,7 +459,7 @@ def write_text_to(target: str, text: str) -> None:
     if lp is not None:
         atomic_write_text(lp, text)
         return
-    with tempfile.TemporaryDirectory(prefix="impactcli-out-") as tmp:
+    with temporary_folder("impactcli-out-") as tmp:
         p = Path(tmp) / url_name(target)
         p.write_text(text, "utf-8")
         put_file_atomic(p, target)

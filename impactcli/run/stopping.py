@@ -6,6 +6,8 @@ Main process (:func:`stop_on_signals`): SIGINT (Ctrl-C) and SIGTERM raise
 ``finally`` on the way out runs: temporary files are removed, outputs already moved into
 place stay. The CLI exits 128 + the signal's number (130, 143). A second signal while the
 run stops is ignored: the stop is bounded (:data:`STOP_GRACE_S`). A signal that lands in a
+file operation that must not be cut in half (a temporary folder made or removed:
+:func:`impactcli.files.whole`) is raised as that operation ends. A signal that lands in a
 C library's callback (numba compiling: :data:`CALLBACK_MODULES`), where a raised exception
 would be printed with its traceback and dropped, is sent again once it has returned.
 
@@ -41,7 +43,7 @@ from collections.abc import Callable, Iterator
 from typing import Any, TypeVar
 
 from ..errors import Interrupted
-from ..files import process_running
+from ..files import hold_stop, process_running
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -105,6 +107,8 @@ def _raise_interrupted(signum: int, frame: Any) -> None:
         return
     for sig in _STOP_SIGNALS:  # the stop is under way: a second signal does not cut it short
         signal.signal(sig, signal.SIG_IGN)
+    if hold_stop(signum):  # raised as the file operation under way ends
+        return
     raise Interrupted(signum, signal.Signals(signum).name)
 
 
@@ -148,6 +152,8 @@ def _worker_sigterm(signum: int, frame: Any) -> None:
         return
     if _running[0]:  # unwind the task (its temporary files go), then exit: run_in_worker
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        if hold_stop(signum):
+            return
         raise Interrupted(signum, signal.Signals(signum).name)
     os._exit(128 + signum)  # idle: nothing to clean
 
@@ -203,6 +209,11 @@ def stop_workers(executor: Any, grace_s: float = STOP_GRACE_S) -> None:
     import multiprocessing as mp
 
     procs = list(mp.active_children())
+    # CPython's thread that manages the pool: it closes the pool's wake-up pipe once the
+    # workers are gone, and at exit the interpreter writes to that pipe without a lock
+    # (3.11's concurrent.futures.process._python_exit): the thread is waited for here, so
+    # the two never meet ("OSError: Bad file descriptor" printed as the process ends)
+    manager = getattr(executor, "_executor_manager_thread", None)
     executor.shutdown(wait=False, cancel_futures=True)
     for p in procs:
         with contextlib.suppress(OSError, ValueError):
@@ -215,3 +226,5 @@ def stop_workers(executor: Any, grace_s: float = STOP_GRACE_S) -> None:
             with contextlib.suppress(OSError, ValueError):
                 p.kill()
             p.join(1.0)
+    if isinstance(manager, threading.Thread) and manager.is_alive():
+        manager.join(max(deadline - time.monotonic(), 1.0))
