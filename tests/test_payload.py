@@ -447,6 +447,58 @@ def test_a_push_while_the_load_is_released_is_counted_not_hidden_in_the_change(
     assert not [c for c in quiet["payload_changes"] if "contact" in c]
 
 
+def test_a_push_just_after_a_pick_dates_the_change_from_the_pick(
+        two_loads: Path, tmp_path: Path) -> None:
+    """A 30 N push 0.7 s after the pick spoils the pick's first window, and the alarm dips
+    under its threshold after the push: the same load's next onset, ~1.8 s later, is the
+    one weighed a payload change. Before, the change was dated from there, the pick's step
+    and the push stood as a counted incident from the step and evaluate called it false
+    and the push missed. Now the change is dated from the pick's onset — the mass explains
+    the residual from there — and the push is the contact beside it, counted in its own
+    window."""
+    from dataclasses import replace
+
+    from impactcli.logs import write_log
+    from impactcli.logs.robot_files import write_labels
+    from impactcli.sim import scenario, simulate
+
+    sc = scenario("pick_and_place", duration_s=45.0, robot_seed=7, controller_channels=False)
+    (pick, kg), _ = sc.payload_changes
+    sc = replace(sc, pushes=(replace(sc.pushes[0], t0_s=pick + 0.7, peak_n=30.0),))
+    res = simulate(sc, seed=21)
+    log = tmp_path / "push_after_pick.csv.gz"
+    write_log(res.log, log)
+    write_labels(res.labels, tmp_path / "push_after_pick.labels.json")
+    (push,) = res.labels.events
+    tl, code, r = _detect(log, two_loads, tmp_path / "o", "--fail-on-detect")
+    assert code == 1, r.output  # type: ignore[attr-defined]
+    ch = tl["payload_changes"]
+    assert len(ch) == 2 and pick <= ch[0]["t_start"] < push.start, ch
+    assert abs(ch[0]["mass_kg"] - kg) < 0.25 * kg
+    seen = ch[0]["contact"]
+    assert push.start <= seen["t_s"] <= push.end + 0.25 and seen.get("counted", True)
+    counted = [i for i in tl["incidents"] if i["number"] is not None]
+    assert len(counted) == 1, counted
+    assert push.start - 0.02 <= counted[0]["t_start"] <= push.end + 0.25
+    assert "beside payload change P1" in counted[0]["payload_test"]
+    ev = CliRunner().invoke(main, ["evaluate", str(tmp_path / "o" / "push_after_pick"
+                                                   ".timeline.json")])
+    assert ev.exit_code == 0, ev.output
+    assert "counted contacts matched by an incident         1/1" in ev.output
+    assert "1 matching no labelled contact" not in ev.output
+    # in chunks (one ends inside the pick's first window): the same changes and incidents
+    from impactcli.config import load_config
+    from impactcli.logs import read_log
+    from impactcli.run.collect import detect_in_memory
+
+    data, cfg = read_log(str(log)), load_config(two_loads)
+    whole, _ = detect_in_memory(data, config=cfg)
+    for rows in (997, 4096):
+        part, _ = detect_in_memory(data, config=cfg, chunk_rows=rows)
+        assert part.payload_changes == whole.payload_changes
+        assert [i.to_dict() for i in part.incidents] == [i.to_dict() for i in whole.incidents]
+
+
 def test_a_release_inside_another_alarms_window_is_found_at_its_step(
         two_loads: Path, tmp_path: Path) -> None:
     """A slow pick-and-place (60 s, multi-sine up to 0.06 Hz): a push's aftermath alarm

@@ -30,6 +30,10 @@ not behave as a mass: it ends, or it holds the arm still, or it pushes another w
    without a break since its onset, the next window is weighed (a push in the first
    window after a pick hides the mass there); once it broke, the alarm stays what the
    detectors make of it — a contact or a lasting load — and the next onset starts afresh.
+   A change found at a later onset is dated from the earliest onset that failed since the
+   last change, within the windows kept, from which its mass explains the residual
+   (:meth:`PayloadMonitor._earlier_onset`): a push that spoiled the pick's first window
+   and broke its alarm does not move the change to the load's next onset.
 4. **A load it knows.** When the load then carried is one a calibration log carried (its
    mass within :data:`~impactcli.model.payload.WEIGH_SIGMAS` standard errors of the
    step's, and the step to it explains the window as well, from :data:`EXPLAINED` on), it
@@ -38,7 +42,7 @@ not behave as a mass: it ends, or it holds the arm still, or it pushes another w
    model's own load.
 5. **A contact in the window.** The torque that the mass leaves unexplained, from the
    onset plus ``settle_s`` to the classification (every window weighed, as far as the
-   monitor keeps: two windows), goes through the static-loading statistic (the detector's
+   monitor keeps: :data:`KEPT` windows), goes through the static-loading statistic (the detector's
    low-pass against vL): where it passes :data:`BESIDE` × vL, a contact happened beside
    the change (a push while the load was released), and the change's alarm is counted
    from the onset of that excursion (:attr:`PayloadChange.contact`,
@@ -83,6 +87,15 @@ STEADY = payload.STEADY
 #: at 2 × none, and the benchmark's figures are those without the test. A 30 N push
 #: 0.5 s after a release leaves 17 × (tests/test_payload.py).
 BESIDE = 2.0
+#: A change is dated from an earlier onset that failed its test when, from there to its
+#: own onset, the median squared residual the mass leaves is at most this share of the
+#: median squared residual (:meth:`PayloadMonitor._earlier_onset`): the mass explains
+#: three quarters of the typical sample's residual there.
+EARLIER = 0.25
+#: The monitor keeps this many windows of the motion and the residual: an onset that
+#: failed its first window, then the next onset of the same load weighed on its own first
+#: window, fit (:meth:`PayloadMonitor._earlier_onset`).
+KEPT = 3
 #: How ``as_log`` names the model's own load when its fit has one load for all logs.
 OWN_LOAD = "the model's own"
 
@@ -272,6 +285,9 @@ class PayloadMonitor:
     _below: int = 0
     _prev_above: bool = False
     _run_start: tuple[int, float] | None = None
+    #: onset [s] → its sample index, for every onset weighed and found no load (ended or
+    #: not) since the last change: the step may have begun there (:meth:`_earlier_onset`)
+    _failed: dict[float, int] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self._pi = np.zeros(len(self.names))
@@ -381,8 +397,8 @@ class PayloadMonitor:
         return bool(runs.max() > self.merge_gap_s * self.sample_rate_hz)
 
     def _keep(self, qf: np.ndarray, qd: np.ndarray, qdd: np.ndarray, r: np.ndarray) -> None:
-        """Keep the last two windows of the filtered motion and the residual."""
-        keep = 2 * self.window + 1
+        """Keep the last :data:`KEPT` windows of the filtered motion and the residual."""
+        keep = KEPT * self.window + 1
         for key, v in (("qf", qf), ("qd", qd), ("qdd", qdd), ("r", r)):
             old = self._buf.get(key)
             cat = v if old is None else np.concatenate([old, v])
@@ -423,6 +439,9 @@ class PayloadMonitor:
                 elif shows == "contradicts":
                     why = "it sides with a steady force, not with a mass's inertia (a press?)"
         if why is not None:
+            self._failed = {t: k for t, k in self._failed.items()  # those still kept
+                            if k >= k_c - KEPT * self.window}
+            self._failed.setdefault(t_a, self._onset[0])
             if still:  # the alarm goes on (could be a load): the first answer, then retries
                 self.tried.setdefault(t_a, why)
                 self._due = k_c + self.window
@@ -430,7 +449,13 @@ class PayloadMonitor:
             self._state = "idle"
             return None
         assert w is not None
-        self.tried.pop(t_a, None)
+        earlier = self._earlier_onset(k_c, w.pi)
+        if earlier is not None:  # the step began at an alarm that failed its test
+            self._onset = earlier
+            t_a = earlier[1]
+        for t in [t for t in self.tried if t >= t_a - 1e-9]:  # those alarms were the load
+            del self.tried[t]
+        self._failed.clear()
         self._state = "cooldown"
         known = payload.known_load(self.known, self._pi, w.pi, w.mass_se_kg, y, left,
                                    self.names)
@@ -453,6 +478,31 @@ class PayloadMonitor:
                          t_c - first / self.sample_rate_hz, clipped)))
         return self._pi
 
+    def _earlier_onset(self, k_c: int, pi: np.ndarray) -> tuple[int, float] | None:
+        """The earliest onset weighed before this change's and found no load (``_failed``),
+        within the buffer, from which the load ``pi`` was already there: over the samples
+        from it to this change's onset, the mass explains the typical sample — the median
+        of the squared residual it leaves is at most :data:`EARLIER` of the median of the
+        squared residual (a contact in the first window spoils the mean, not the median).
+        (sample, time), or None. A step the alarm's first window could not weigh (a push
+        0.7 s after a pick) is so dated from the pick, not from a later onset of the same
+        load, and the contact in between is found beside it (module docstring, steps 3
+        and 5)."""
+        assert self._onset is not None
+        buf, k_a = self._buf, self._onset[0]
+        n = buf["r"].shape[0]
+        for t, k in sorted(self._failed.items()):
+            j0, j1 = n - (k_c - k), n - (k_c - k_a)
+            if j0 < 0 or j1 - j0 < 10:
+                continue
+            y = self.model.regressor(buf["qf"][j0:j1], buf["qd"][j0:j1],
+                                     buf["qdd"][j0:j1]) @ self.b
+            left = -buf["r"][j0:j1]
+            rest = np.sum((left - y @ pi) ** 2, axis=1)
+            if np.median(rest) <= EARLIER * np.median(np.sum(left ** 2, axis=1)):
+                return k, t
+        return None
+
     def _beside(self, leftover: np.ndarray, k_first: int, t_first: float,
                 clipped: bool = False) -> dict[str, Any] | None:
         """A contact beside the mass (module docstring, step 5): when the static-loading
@@ -460,7 +510,7 @@ class PayloadMonitor:
         peaks above :data:`BESIDE` × vL — the onset of its run above vL (sample, time), the
         joint and the peak over vL; None otherwise. ``k_first``, ``t_first``: the window's
         first sample and its time; ``clipped``: the alarm began before it (the buffer keeps
-        two windows), so an excursion already on there dates from the alarm's onset."""
+        :data:`KEPT` windows), so an excursion already on there dates from the alarm's onset."""
         lp = np.abs(causal_lowpass(leftover, self.loading_cutoff_hz, self.sample_rate_hz,
                                    self.loading_order))
         vl = np.where(self.v_loading > 0, self.v_loading, np.inf)
