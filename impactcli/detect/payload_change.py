@@ -46,7 +46,10 @@ not behave as a mass: it ends, or it holds the arm still, or it pushes another w
    low-pass against vL): where it passes :data:`BESIDE` × vL, a contact happened beside
    the change (a push while the load was released), and the change's alarm is counted
    from the onset of that excursion (:attr:`PayloadChange.contact`,
-   :func:`impactcli.detect.incidents.mark_payload_changes`): the gates judge it.
+   :func:`impactcli.detect.incidents.mark_payload_changes`): the gates judge it. The mass
+   is weighed again without the excursion's rows (from ``settle_s`` before it to its end)
+   when they fall in the window it was weighed on and half the window is left: a contact
+   in that window biases the mass, and the residual would carry the error from then on.
 6. **From then on** the residual carries the new load: the torque Y B π of every load
    changed so far is added to the residual from the classification time, whatever the
    chunking (the same sum per row, r + Y B π with π every load changed so far, in whichever
@@ -457,9 +460,6 @@ class PayloadMonitor:
             del self.tried[t]
         self._failed.clear()
         self._state = "cooldown"
-        known = payload.known_load(self.known, self._pi, w.pi, w.mass_se_kg, y, left,
-                                   self.names)
-        self._pi = self._pi + w.pi if known is None else np.array(known[1])
         # the alarm from its onset (after the settle) to the classification, through every
         # window weighed (a contact spoils the first; the mass is weighed on a later one)
         settle = round(self.settle_s * self.sample_rate_hz)
@@ -468,14 +468,25 @@ class PayloadMonitor:
         ys = (y if s0 == w0 else self.model.regressor(
             buf["qf"][s0:], buf["qd"][s0:], buf["qdd"][s0:]) @ self.b)
         clipped = k_c - self._onset[0] - settle > n  # the alarm began before the buffer
+        seen, run = self._beside(-buf["r"][s0:] - ys @ w.pi, k_c - first,
+                                 t_c - first / self.sample_rate_hz, clipped)
+        if run is not None:  # the contact's rows out of the weighing (module docstring, 5)
+            keep = np.ones(n - w0, dtype=bool)
+            keep[max(s0 + run[0] - settle - w0, 0):max(s0 + run[1] - w0, 0)] = False
+            again = (payload.weigh(y[keep], left[keep], self.names)
+                     if keep.sum() >= keep.size // 2 else None)
+            if again is not None and again.weighed:
+                w, y, left = again, y[keep], left[keep]
+                explained = payload.explained(left, y, w.pi)
+        known = payload.known_load(self.known, self._pi, w.pi, w.mass_se_kg, y, left,
+                                   self.names)
+        self._pi = self._pi + w.pi if known is None else np.array(known[1])
         self.changes.append(PayloadChange(
             t_a, t_c, w.mass_kg, w.mass_se_kg,
             {nm: float(v) for nm, v in zip(self.names, w.pi, strict=True)},
             explained, self.base_kg + float(self._pi[self.names.index("m")]),
             None if known is None else known[0], drift, shows,
-            t_a - self.start_s < 1.5 / self.sample_rate_hz,
-            self._beside(-buf["r"][s0:] - ys @ w.pi, k_c - first,
-                         t_c - first / self.sample_rate_hz, clipped)))
+            t_a - self.start_s < 1.5 / self.sample_rate_hz, seen))
         return self._pi
 
     def _earlier_onset(self, k_c: int, pi: np.ndarray) -> tuple[int, float] | None:
@@ -504,28 +515,31 @@ class PayloadMonitor:
         return None
 
     def _beside(self, leftover: np.ndarray, k_first: int, t_first: float,
-                clipped: bool = False) -> dict[str, Any] | None:
+                clipped: bool = False
+                ) -> tuple[dict[str, Any] | None, tuple[int, int] | None]:
         """A contact beside the mass (module docstring, step 5): when the static-loading
         statistic of the window's ``leftover`` (n, J) [N·m], the torque the mass leaves,
         peaks above :data:`BESIDE` × vL — the onset of its run above vL (sample, time), the
-        joint and the peak over vL; None otherwise. ``k_first``, ``t_first``: the window's
-        first sample and its time; ``clipped``: the alarm began before it (the buffer keeps
-        :data:`KEPT` windows), so an excursion already on there dates from the alarm's onset."""
+        joint and the peak over vL, and the run's rows in ``leftover`` (first, end); None,
+        None otherwise. ``k_first``, ``t_first``: the window's first sample and its time;
+        ``clipped``: the alarm began before it (the buffer keeps :data:`KEPT` windows), so
+        an excursion already on there dates from the alarm's onset."""
         lp = np.abs(causal_lowpass(leftover, self.loading_cutoff_hz, self.sample_rate_hz,
                                    self.loading_order))
         vl = np.where(self.v_loading > 0, self.v_loading, np.inf)
         ratio = lp / vl[None, :]
         if ratio.size == 0 or not ratio.max() > BESIDE:
-            return None
+            return None, None
         top, j = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
         above = np.any(ratio > 1.0, axis=1)
         below = np.flatnonzero(~above[:top])
         i = int(below[-1]) + 1 if below.size else 0  # the run above vL that holds the peak
+        after = np.flatnonzero(~above[top:])
+        run = (i, int(top) + (int(after[0]) if after.size else above.size - int(top)))
+        seen = {"joint": self.model.joint_names[int(j)], "peak": float(ratio[top, j])}
         if i == 0 and clipped and self._onset is not None:
-            return {"i": self._onset[0], "t_s": self._onset[1],
-                    "joint": self.model.joint_names[int(j)], "peak": float(ratio[top, j])}
-        return {"i": k_first + i, "t_s": t_first + i / self.sample_rate_hz,
-                "joint": self.model.joint_names[int(j)], "peak": float(ratio[top, j])}
+            return {"i": self._onset[0], "t_s": self._onset[1], **seen}, run
+        return {"i": k_first + i, "t_s": t_first + i / self.sample_rate_hz, **seen}, run
 
     def _torque(self, qf: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
                 pi: np.ndarray) -> np.ndarray:
