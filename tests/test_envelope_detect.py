@@ -146,16 +146,7 @@ def test_a_slower_log_is_outside_only_through_its_slow_stretches(tmp_path: Path)
     the calibration's), but each reversal keeps a joint below 0.02 rad/s about three times
     as long as any calibration log did. Those stretches, and only they, are outside: in
     the timeline, the warning and the report; the calibration's own log stays inside."""
-    from impactcli.sim import scenario, simulate
-    from impactcli.sim.sample_logs import ROBOT_SEEDS
-
-    sc = scenario("free_multisine", "assist_like", 30.0, controller_channels=True,
-                  robot_seed=ROBOT_SEEDS["assist_like"])
-    ref = sc.reference
-    sc = dataclasses.replace(sc, reference=dataclasses.replace(
-        ref, f_min=ref.f_min / 3.0, f_max=ref.f_max / 3.0))
-    path = tmp_path / "slow.csv.gz"
-    write_log(simulate(sc, seed=303).log, path)
+    path = _slow_log(tmp_path)
     doc, err = _detect(path, tmp_path / "o")
     me = doc["motion_envelope"]
     assert me["outside"] > 0 and me["slow_outside"], me
@@ -169,6 +160,50 @@ def test_a_slower_log_is_outside_only_through_its_slow_stretches(tmp_path: Path)
     assert "slower than 0.02 rad/s" in item["text"] and "rate applies" not in item["text"]
     own, _ = _detect(SAMPLES / "csv" / "assist_free_multisine.csv.gz", tmp_path / "o2")
     assert own["motion_envelope"]["outside"] == 0
+
+
+def _slow_log(tmp_path: Path) -> Path:
+    """The sample arm's multi-sine at a third of its frequencies (30 s)."""
+    from impactcli.sim import scenario, simulate
+    from impactcli.sim.sample_logs import ROBOT_SEEDS
+
+    sc = scenario("free_multisine", "assist_like", 30.0, controller_channels=True,
+                  robot_seed=ROBOT_SEEDS["assist_like"])
+    ref = sc.reference
+    sc = dataclasses.replace(sc, reference=dataclasses.replace(
+        ref, f_min=ref.f_min / 3.0, f_max=ref.f_max / 3.0))
+    path = tmp_path / "slow.csv.gz"
+    write_log(simulate(sc, seed=303).log, path)
+    return path
+
+
+def test_the_slow_speed_follows_the_models_coulomb_scale(tmp_path: Path) -> None:
+    """A model identified with a Coulomb scale of 0.05 rad/s turns its friction below
+    ~0.1 rad/s, not 0.02: calibrate records slow stretches below twice its scale, says so,
+    and detect reads the slow clock there and names that speed in its warning and the
+    timeline."""
+    csv = SAMPLES / "csv"
+    robot = str(csv / "assist_free_multisine.robot.json")
+    model, cfg = tmp_path / "m.json", tmp_path / "c.toml"
+    r = CliRunner().invoke(main, ["identify", str(csv / "assist_free_multisine.csv.gz"),
+                                  "--robot", robot, "--coulomb-slope", "0.05", "-o",
+                                  str(model)])
+    assert r.exit_code == 0, r.output
+    r = CliRunner().invoke(main, ["calibrate", str(csv / "assist_free_multisine.csv.gz"),
+                                  str(csv / "assist_free_p2p.csv.gz"), "--model", str(model),
+                                  "--robot", robot, "-o", str(cfg)])
+    assert r.exit_code == 0, r.output
+    env = load_config(cfg).calibration.motion_envelope
+    assert env is not None and env["slow_rad_s"] == 0.1 and env["slow_dwell_s"]
+    assert "slower than 0.1 rad/s for at most" in r.stdout
+    out = tmp_path / "o"
+    r = CliRunner().invoke(main, ["detect", str(_slow_log(tmp_path)), "--config", str(cfg),
+                                  "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    me = json.loads((out / "slow.timeline.json").read_text())["motion_envelope"]
+    assert me["slow_outside"] and me["slow_rad_s"] == 0.1, me
+    assert "slower than 0.1 rad/s for longer at a stretch" in r.stderr
+    assert "0.02 rad/s" not in r.stderr
 
 
 def test_a_log_without_a_reference_says_its_slow_stretches_were_not_checked(

@@ -67,7 +67,8 @@ MERGE_S = 0.1
 POSTURE_MARGIN_RAD = 0.05
 #: A joint moves slowly below this speed [rad/s]: twice the model's Coulomb velocity scale
 #: (``coulomb_slope_rad_s``, 0.01 rad/s: its smooth sign tanh(q'/v_s) is below 96 % of the
-#: full friction there, so the friction the model predicts turns with the velocity).
+#: full friction there, so the friction the model predicts turns with the velocity). A
+#: model with another scale gets twice its own (:func:`slow_speed`).
 SLOW_RAD_S = 0.02
 #: ... and is at rest below this one [rad/s] (a reference held still reads 0). Time at rest
 #: is not slow motion: the simulated arms' held joints raise no false alarm (the sample
@@ -215,18 +216,28 @@ class MotionEnvelope:
         return out
 
 
+def slow_speed(model: Any | None) -> float:
+    """The speed below which a joint moves slowly for ``model`` (a
+    :class:`~impactcli.model.rigid.RigidModel`, or None) [rad/s]: twice its Coulomb velocity
+    scale ``coulomb_slope_rad_s``; :data:`SLOW_RAD_S` for a model without one, or none."""
+    vs = (getattr(model, "structure", None) or {}).get("coulomb_slope_rad_s")
+    return 2.0 * float(vs) if vs else SLOW_RAD_S
+
+
 class EnvelopeAccumulator:
     """The envelope of the motions :meth:`add` is given (only their ``keep`` samples).
 
     Args:
         joints: the J joints, in the motions' column order.
         source: what the motion was made of (:attr:`MotionTrace.source`).
+        slow_rad_s: the speed the motions' slow clocks were read with [rad/s].
     """
 
     def __init__(self, joints: Sequence[str], source: str = "position",
-                 cutoff_hz: float = CUTOFF_HZ) -> None:
+                 cutoff_hz: float = CUTOFF_HZ, slow_rad_s: float = SLOW_RAD_S) -> None:
         self.joints = tuple(joints)
         self.source, self.cutoff_hz = source, float(cutoff_hz)
+        self.slow_rad_s = float(slow_rad_s)
         self.lo: dict[str, np.ndarray] = {}
         self.hi: dict[str, np.ndarray] = {}
         self.dwell: np.ndarray | None = None
@@ -266,7 +277,8 @@ class EnvelopeAccumulator:
         return MotionEnvelope({j: {k: (float(self.lo[k][c]), float(self.hi[k][c]))
                                    for k in QUANTITIES}
                                for c, j in enumerate(self.joints)},
-                              self.source, self.samples, self.cutoff_hz, dwell)
+                              self.source, self.samples, self.cutoff_hz, dwell,
+                              self.slow_rad_s)
 
 
 @dataclass(frozen=True)
@@ -290,7 +302,8 @@ class EnvelopeShare:
             joints with none left out; slow_dwell_s: that longest stretch [s], per joint of
             ``slow``; ranges: joint → share outside its velocity or acceleration range
             (joints with none left out; in the mapping only beside ``slow``, where
-            ``per_joint`` mixes the two).
+            ``per_joint`` mixes the two); slow_rad_s: the speed below which a joint moved
+            slowly [rad/s] (the envelope's; in the mapping only beside ``slow``).
     """
 
     samples: int
@@ -304,6 +317,7 @@ class EnvelopeShare:
     slow: dict[str, float] = field(default_factory=dict)
     slow_dwell_s: dict[str, float] = field(default_factory=dict)
     ranges: dict[str, float] = field(default_factory=dict)
+    slow_rad_s: float = SLOW_RAD_S
 
     @property
     def share(self) -> float:
@@ -326,7 +340,8 @@ class EnvelopeShare:
                 **({"note": self.note} if self.note else {}),
                 **({"posture_outside": dict(self.posture)} if self.posture else {}),
                 **({"slow_outside": dict(self.slow), "slow_dwell_s": dict(self.slow_dwell_s),
-                    "ranges_outside": dict(self.ranges)} if self.slow else {})}
+                    "ranges_outside": dict(self.ranges), "slow_rad_s": self.slow_rad_s}
+                   if self.slow else {})}
 
 
 def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -472,7 +487,8 @@ class EnvelopeCheck:
             {j: (r.count_from(start) / checked if checked else 0.0)
              for j, r in zip(self.names, self.each, strict=True)},
             np.array(stretches, dtype=np.float64).reshape(-1, 2), self.unchecked, src, note,
-            posture, slow, {j: self.envelope.slow_dwell_s[j] for j in slow}, ranges)
+            posture, slow, {j: self.envelope.slow_dwell_s[j] for j in slow}, ranges,
+            self.envelope.slow_rad_s)
 
 
 def posture_text(posture: Mapping[str, float]) -> str:
@@ -502,7 +518,8 @@ def outside_share_text(share: EnvelopeShare | Mapping[str, Any]) -> str:
         beyond += ": " + ", ".join(f"{j} {100 * v:.3g} %" for j, v in
                                    sorted(ranges.items(), key=lambda kv: -kv[1]))
     why = "; ".join(([] if slow and not any(ranges.values()) else [beyond])
-                    + ([slow_text(slow, d.get("slow_dwell_s") or {})] if slow else []))
+                    + ([slow_text(slow, d.get("slow_dwell_s") or {},
+                                  float(d.get("slow_rad_s") or SLOW_RAD_S))] if slow else []))
     txt = (f"{100.0 * float(d['share']):.3g} % of the log after warm-up moved outside the "
            f"calibration's motion envelope ({why})")
     if worst[0] and worst[1] > 0:
@@ -512,11 +529,13 @@ def outside_share_text(share: EnvelopeShare | Mapping[str, Any]) -> str:
     return txt
 
 
-def slow_text(slow: Mapping[str, float], dwell_s: Mapping[str, float]) -> str:
+def slow_text(slow: Mapping[str, float], dwell_s: Mapping[str, float],
+              slow_rad_s: float = SLOW_RAD_S) -> str:
     """One phrase on the slow stretches longer than the calibration's
-    (:attr:`EnvelopeShare.slow`, or a timeline's ``slow_outside`` and ``slow_dwell_s``)."""
+    (:attr:`EnvelopeShare.slow`, or a timeline's ``slow_outside`` and ``slow_dwell_s``),
+    read below ``slow_rad_s`` [rad/s]."""
     parts = ", ".join(f"{j} {100 * v:.3g} % (calibrated: ≤ "
                       f"{dwell_s.get(j, float('nan')):.2g} s)"
                       for j, v in sorted(slow.items(), key=lambda kv: -kv[1]))
-    return (f"slower than {SLOW_RAD_S:g} rad/s for longer at a stretch than in the "
+    return (f"slower than {slow_rad_s:g} rad/s for longer at a stretch than in the "
             f"calibration logs, where the model's friction turns with the velocity: {parts}")

@@ -26,7 +26,14 @@ from typing import Any
 import numpy as np
 
 from ..config import DetectorConfig
-from ..detect.envelope import EnvelopeAccumulator, Motion, MotionEnvelope, MotionTrace
+from ..detect.envelope import (
+    SLOW_RAD_S,
+    EnvelopeAccumulator,
+    Motion,
+    MotionEnvelope,
+    MotionTrace,
+    slow_speed,
+)
 from ..detect.tail import (
     CONF,
     DEFAULT_FALSE_ALARMS_PER_HOUR,
@@ -318,7 +325,8 @@ def _envelope(replays: list[_Replayed], keeps: list[np.ndarray], joints: tuple[s
     sample after warm-up)."""
     sources = {rp.motion_source for rp in replays}
     src = "position_ref" if sources == {"position_ref"} else "position"
-    acc = EnvelopeAccumulator(joints, src)
+    acc = EnvelopeAccumulator(joints, src, slow_rad_s=max(
+        (rp.slow_rad_s for rp in replays), default=SLOW_RAD_S))  # one model: one speed
     for rp, keep in zip(replays, keeps, strict=True):
         if rp.motion is not None and rp.motion_source == src:
             acc.add(rp.motion, keep, rp.warmup.end_index)
@@ -365,7 +373,8 @@ def rate_record(cal: RateCalibration, joints: Sequence[str], lolo: Sequence[Lolo
 class _Replayed:
     """A calibration log replayed: its path, (N,) times [s], sample rate [Hz], warm-up,
     detector → (N, J) statistic (:class:`impactcli.run.collect.ReplayStats`), and its
-    motion (:class:`impactcli.detect.envelope.MotionTrace`) and what it was made of."""
+    motion (:class:`impactcli.detect.envelope.MotionTrace`), what it was made of and the
+    speed its slow clock was read with [rad/s] (twice the model's Coulomb scale)."""
 
     path: str
     time_s: np.ndarray
@@ -374,6 +383,7 @@ class _Replayed:
     stats: dict[str, np.ndarray]
     motion: Motion | None = None
     motion_source: str = "position"
+    slow_rad_s: float = SLOW_RAD_S
 
     @property
     def n_samples(self) -> int:
@@ -403,7 +413,7 @@ def _replay(reader: MemoryReader, sc: Screened, model: RigidModel | None,
             plan = RunPlan(cfg, where, feed.full_joints, joints, choices, rig, source, extra)
             since = caught.mark()
             collected = StatsCollector()
-            trace = MotionTrace(scan.sample_rate_hz)
+            trace = MotionTrace(scan.sample_rate_hz, slow_rad_s=slow_speed(plan.model))
             moved: list[Motion] = []
 
             def on_step(step: ReplayStep) -> None:
@@ -420,7 +430,7 @@ def _replay(reader: MemoryReader, sc: Screened, model: RigidModel | None,
                       for k in ("velocity", "acceleration", "position", "slow"))
                     ) if moved else None
     return _Replayed(where, st.time_s, scan.sample_rate_hz, rp.warmup, st.stats, motion,
-                     trace.source or "position")
+                     trace.source or "position", trace.slow_rad_s)
 
 
 #: Labelled contacts are cut out of a calibration log's statistic from this long before
