@@ -309,12 +309,11 @@ def _from_contact(inc: Incident, k: int, seen: dict[str, Any]) -> Incident:
         utc = at.isoformat(timespec="milliseconds").replace("+00:00", "Z")
     return replace(inc, t_start=t, i_start=int(seen["i"]) if shift else inc.i_start,
                    t_start_utc=utc,
-                   payload_test=(f"a contact beside payload change P{k}: its alarm held the "
-                                 f"load and, from {seen['t_s']:.3f} s, a torque on "
-                                 f"{seen['joint']} the load does not explain "
-                                 f"({seen['peak']:.2g}× its loading threshold); its force "
-                                 "and contact type are the whole alarm's, the load's step "
-                                 "with it"))
+                   payload_test=(f"a contact beside payload change P{k}, its force and "
+                                 "contact type the whole alarm's, the load's step with it: "
+                                 f"its alarm held the load and, from {seen['t_s']:.3f} s, a "
+                                 f"torque on {seen['joint']} the load does not explain "
+                                 f"({seen['peak']:.2g}× its loading threshold)"))
 
 
 def lasting(events: Sequence[Event]) -> list[int]:
