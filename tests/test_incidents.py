@@ -304,11 +304,16 @@ def test_a_change_with_a_contact_beside_it_counts_the_alarm_holding_it() -> None
     assert out[0].i_start == 5250 and out[0].t_start_utc == "2026-11-30T00:00:10.500Z"
     assert (out[0].payload_test or "").startswith("a contact beside payload change P1, its force")
     assert out[1].payload_change == 1 and out[2].payload_change == 2
-    # no alarm holds the onset: the nearest of the change's counts, from its own start
-    late = dict(seen, t_s=11.5)
+    # no alarm holds the onset: the nearest of the change's counts, from its end when it
+    # ended before the onset, from its start when it began after it
+    late = dict(seen, i=5700, t_s=11.4)
     out, held = mark_payload_changes(incs[:2], [change(10.0, 13.0, late)], 0.56)
-    assert out[0].payload_change is None and out[0].t_start == 10.0
-    assert out[1].payload_change == 1
+    assert out[0].payload_change is None and (out[0].t_start, out[0].i_start) == (11.0, 5500)
+    assert out[0].t_start_utc == "2026-11-30T00:00:11.000Z" and out[1].payload_change == 1
+    early = dict(seen, i=5900, t_s=11.8)
+    out, _ = mark_payload_changes(incs[:2], [change(10.0, 13.0, early)], 0.56)
+    assert out[0].payload_change == 1 and out[1].payload_change is None
+    assert (out[1].t_start, out[1].i_start) == (12.0, 6000)
     # a change no incident holds (its alarm a lasting load): its contact is not counted
     _, changes = mark_payload_changes(incs, [change(20.0, 23.0, seen)], 0.56)
     assert changes[0].contact["counted"] is False

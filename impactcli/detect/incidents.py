@@ -261,8 +261,10 @@ def mark_payload_changes(incidents: Sequence[Incident], changes: Sequence[Any],
 
     A change that found a contact in its window (its ``contact``) leaves the incident
     holding that contact's onset (else the nearest of the change's) counted, from that
-    onset (``t_start`` moved to it, ``payload_test`` saying why): the alarm was the load
-    and a contact. A change whose alarm is no incident (a lasting load) counts none: its
+    onset (``t_start`` moved to it, ``payload_test`` saying why; the nearest alarm from its
+    end when it ended before the onset — a contact dated where the monitor's scan began
+    may have begun earlier, in it — else from its start): the alarm was the load and a
+    contact. A change whose alarm is no incident (a lasting load) counts none: its
     ``contact`` is marked ``counted: false``, so that no output says it counts.
 
     Returns:
@@ -298,16 +300,18 @@ def _from_contact(inc: Incident, k: int, seen: dict[str, Any]) -> Incident:
     change's ``contact``), counted from the contact's onset."""
     import datetime as dt
 
-    t = float(seen["t_s"])
-    if not inc.t_start <= t <= inc.t_end:  # the nearest of the change's alarms: as it is
-        t = inc.t_start
+    t, i = float(seen["t_s"]), int(seen["i"])
+    if t > inc.t_end:  # the nearest of the change's alarms ended before it: from its end
+        t, i = inc.t_end, inc.i_end
+    elif t < inc.t_start:  # ... began after it: as it is
+        t, i = inc.t_start, inc.i_start
     shift = t - inc.t_start
     utc = inc.t_start_utc
     if utc is not None:
         at = dt.datetime.fromisoformat(utc.replace("Z", "+00:00")) + dt.timedelta(
             seconds=shift)
         utc = at.isoformat(timespec="milliseconds").replace("+00:00", "Z")
-    return replace(inc, t_start=t, i_start=int(seen["i"]) if shift else inc.i_start,
+    return replace(inc, t_start=t, i_start=i if shift else inc.i_start,
                    t_start_utc=utc,
                    payload_test=(f"a contact beside payload change P{k}, its force and "
                                  "contact type the whole alarm's, the load's step with it: "
