@@ -371,6 +371,28 @@ def _pick_and_place(out: Path, pushes: bool) -> tuple[Path, Any, Any]:
     return path, sc, res.labels
 
 
+def _one_push(out: Path, name: str, change: int, after_s: float, arm: str = "assist_like",
+              robot_seed: int = 7, **kw: Any) -> tuple[Path, Any, Any]:
+    """The simulator's 45 s pick-and-place with one 30 N push ``after_s`` seconds after its
+    payload change ``change`` (0 the pick, 1 the release), written as CSV with its labels:
+    the log, the scenario and the push's label."""
+    from dataclasses import replace
+
+    from impactcli.logs import write_log
+    from impactcli.logs.robot_files import write_labels
+    from impactcli.sim import scenario, simulate
+
+    sc = scenario("pick_and_place", arm, 45.0, robot_seed=robot_seed, **kw)
+    t0 = sc.payload_changes[change][0] + after_s
+    sc = replace(sc, pushes=(replace(sc.pushes[0], t0_s=t0, peak_n=30.0),))
+    res = simulate(sc, seed=21)
+    log = out / f"{name}.csv.gz"
+    write_log(res.log, log)
+    write_labels(res.labels, out / f"{name}.labels.json")
+    (push,) = res.labels.events
+    return log, sc, push
+
+
 def test_a_pick_and_a_release_are_payload_changes_not_contacts(
         two_loads: Path, tmp_path: Path) -> None:
     """The issue's case: both changes reported (time within 1 s, mass within 25 %), no
@@ -408,20 +430,8 @@ def test_a_push_while_the_load_is_released_is_counted_not_hidden_in_the_change(
     alarm was not counted and the push was nowhere: no incident, --fail-on-detect exit 0.
     Now the alarm counts from the contact's onset, in the push's window, and the gate
     judges it; the same log without the push has no contact beside either change."""
-    from dataclasses import replace
-
-    from impactcli.logs import write_log
-    from impactcli.logs.robot_files import write_labels
-    from impactcli.sim import scenario, simulate
-
-    sc = scenario("pick_and_place", duration_s=45.0, robot_seed=7)
+    log, sc, push = _one_push(tmp_path, "push_at_release", 1, 0.5)
     (_, _), (place, _) = sc.payload_changes
-    sc = replace(sc, pushes=(replace(sc.pushes[0], t0_s=place + 0.5, peak_n=30.0),))
-    res = simulate(sc, seed=21)
-    log = tmp_path / "push_at_release.csv.gz"
-    write_log(res.log, log)
-    write_labels(res.labels, tmp_path / "push_at_release.labels.json")
-    (push,) = res.labels.events
     tl, code, r = _detect(log, two_loads, tmp_path / "o", "--fail-on-detect")
     assert code == 1, r.output  # type: ignore[attr-defined]
     ch = tl["payload_changes"]
@@ -457,20 +467,8 @@ def test_a_push_just_after_a_pick_dates_the_change_from_the_pick(
     and the push missed. Now the change is dated from the pick's onset — the mass explains
     the residual from there — and the push is the contact beside it, counted in its own
     window."""
-    from dataclasses import replace
-
-    from impactcli.logs import write_log
-    from impactcli.logs.robot_files import write_labels
-    from impactcli.sim import scenario, simulate
-
-    sc = scenario("pick_and_place", duration_s=45.0, robot_seed=7, controller_channels=False)
+    log, sc, push = _one_push(tmp_path, "push_after_pick", 0, 0.7, controller_channels=False)
     (pick, kg), _ = sc.payload_changes
-    sc = replace(sc, pushes=(replace(sc.pushes[0], t0_s=pick + 0.7, peak_n=30.0),))
-    res = simulate(sc, seed=21)
-    log = tmp_path / "push_after_pick.csv.gz"
-    write_log(res.log, log)
-    write_labels(res.labels, tmp_path / "push_after_pick.labels.json")
-    (push,) = res.labels.events
     tl, code, r = _detect(log, two_loads, tmp_path / "o", "--fail-on-detect")
     assert code == 1, r.output  # type: ignore[attr-defined]
     ch = tl["payload_changes"]
@@ -506,12 +504,6 @@ def test_a_push_in_the_weighing_window_does_not_bias_the_mass(tmp_path: Path) ->
     it and was weighed −2.22 kg; the residual then carried 0.22 kg too little and raised
     three false incidents later. The contact's rows are now left out of the weighing:
     within 5 % of −2 kg, and the push is the only incident counted after the release."""
-    from dataclasses import replace
-
-    from impactcli.logs import write_log
-    from impactcli.logs.robot_files import write_labels
-    from impactcli.sim import scenario, simulate
-
     logs = {"robot": tmp_path / "light.robot.json"}
     for name, seed, kg in (("light", 1, 0.0), ("heavy", 2, 2.0)):
         r = CliRunner().invoke(main, [
@@ -521,15 +513,9 @@ def test_a_push_in_the_weighing_window_does_not_bias_the_mass(tmp_path: Path) ->
         assert r.exit_code == 0, r.output
         logs[name] = tmp_path / f"{name}.csv.gz"
     _calibrate(logs, "light", "heavy", tmp_path)
-    sc = scenario("pick_and_place", "heavy_geared", 45.0, robot_seed=411,
-                  controller_channels=False)
+    log, sc, push = _one_push(tmp_path, "push_in_window", 1, 1.5, "heavy_geared", 411,
+                              controller_channels=False)
     (_, kg), (place, _) = sc.payload_changes
-    sc = replace(sc, pushes=(replace(sc.pushes[0], t0_s=place + 1.5, peak_n=30.0),))
-    res = simulate(sc, seed=21)
-    log = tmp_path / "push_in_window.csv.gz"
-    write_log(res.log, log)
-    write_labels(res.labels, tmp_path / "push_in_window.labels.json")
-    (push,) = res.labels.events
     tl, code, r = _detect(log, tmp_path / "light_heavy.toml", tmp_path / "o")
     assert code == 0, r.output  # type: ignore[attr-defined]
     release = tl["payload_changes"][1]
