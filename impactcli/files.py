@@ -68,6 +68,25 @@ def part_path(target: str | os.PathLike[str]) -> Path:
     raise OutputError(f"cannot write {target}: no free temporary name beside it")
 
 
+def discard(path: str | os.PathLike[str], folder: bool = False) -> None:
+    """Remove a temporary file (or, with ``folder``, a folder and everything in it); nothing
+    when it is gone. All of it even when a stop signal lands as it runs: the removal is then
+    done again and the stop raised (:mod:`impactcli.run.stopping` ignores further signals
+    once a stop is under way, so the second removal runs to its end)."""
+    def remove() -> None:
+        if folder:
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            with suppress(FileNotFoundError):
+                os.unlink(path)
+
+    try:
+        remove()
+    except Interrupted:
+        remove()
+        raise
+
+
 def sync_output(tmp: str | os.PathLike[str]) -> None:
     """Flush a finished temporary output to the disk (``fsync``): a full disk or a failed
     device that the writes did not report shows here. Every output goes through it
@@ -91,8 +110,7 @@ def finish_output(tmp: str | os.PathLike[str], target: str | os.PathLike[str],
             verify(Path(tmp))
         os.replace(tmp, target)
     except BaseException as err:
-        with suppress(FileNotFoundError):
-            os.unlink(tmp)
+        discard(tmp)
         if isinstance(err, OSError | ValueError):
             raise output_error(target, err) from err
         raise
@@ -129,21 +147,20 @@ def atomic_output(path: str | os.PathLike[str], mode: str = "wb",
             yield f
             f.flush()
             written = f.tell() if "b" in mode else f.buffer.tell()  # type: ignore[attr-defined]
+        size_ok = check_size(written)
+
+        def checks(p: Path) -> None:
+            size_ok(p)
+            if verify is not None:
+                verify(p)
+
+        finish_output(tmp, target, checks)
     except BaseException as err:
         if tmp is not None:
-            with suppress(FileNotFoundError):
-                os.unlink(tmp)
+            discard(tmp)
         if isinstance(err, OSError) and err.errno in OUTPUT_ERRNOS:
             raise output_error(path, err) from err
         raise
-    size_ok = check_size(written)
-
-    def checks(p: Path) -> None:
-        size_ok(p)
-        if verify is not None:
-            verify(p)
-
-    finish_output(tmp, target, checks)
 
 
 def remove_stale_parts(folder: str | os.PathLike[str]) -> list[Path]:
@@ -311,11 +328,13 @@ _whole = [0, 0]
 
 @contextmanager
 def whole() -> Iterator[None]:
-    """Run the block whole: a stop signal (SIGINT, SIGTERM: :mod:`impactcli.run.stopping`)
-    that arrives in it is held and raised as :class:`~impactcli.errors.Interrupted` when
-    the block ends. For file operations a stop must not cut in half — a temporary folder
-    made and its removal registered, a folder removed file by file — which would otherwise
-    leave a folder behind. In the main thread only (elsewhere the block runs as it is)."""
+    """Run the block whole: a stop signal that arrives in it is held and raised as
+    :class:`~impactcli.errors.Interrupted` when the block ends — SIGINT and SIGTERM while
+    :func:`impactcli.run.stopping.stop_on_signals` (or a pool worker's handler) stands;
+    under Python's default handlers a Ctrl-C raises at once, as ever. For file operations a
+    stop must not cut in half: a temporary file or folder made and its removal registered.
+    (A removal is made whole by :func:`discard`.) In the main thread only (elsewhere the
+    block runs as it is: signal handlers run in the main thread)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -342,8 +361,8 @@ def hold_stop(signum: int) -> bool:
 def temporary_folder(prefix: str, folder: str | os.PathLike[str] | None = None
                      ) -> Iterator[Path]:
     """A new temporary folder (``tempfile.mkdtemp(prefix=prefix, dir=folder)``) for the
-    block, removed with everything in it when the block ends; made and removed
-    :func:`whole`, so a stop signal cannot leave it behind."""
+    block, removed with everything in it when the block ends; made :func:`whole` and
+    removed by :func:`discard`, so a stop signal cannot leave it behind."""
     path: Path | None = None
     try:
         with whole():
@@ -351,5 +370,4 @@ def temporary_folder(prefix: str, folder: str | os.PathLike[str] | None = None
         yield path
     finally:
         if path is not None:
-            with whole():
-                shutil.rmtree(path, ignore_errors=True)
+            discard(path, folder=True)

@@ -34,7 +34,7 @@ from typing import IO, Any
 
 import numpy as np
 
-from .files import temp_space_error, whole
+from .files import discard, temp_space_error, whole
 
 #: A cache gives itself up when its file system has less free space than this [bytes].
 MIN_FREE_BYTES = 2 * 1024**3
@@ -84,8 +84,10 @@ class SpillFolder:
     def close(self) -> None:
         """Delete the folder and its files."""
         if self.path is not None:
-            with whole():  # removed whole: a stop signal raises once it is gone
-                self._remove()
+            try:
+                discard(self.path, folder=True)  # all of it, even when a stop signal lands
+            finally:
+                self._remove.detach()
                 self.path = None
 
 

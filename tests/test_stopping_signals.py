@@ -360,6 +360,28 @@ def test_a_stop_during_a_temporary_folders_removal_or_making_leaves_nothing(
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_stop_as_an_output_is_checked_leaves_no_part_file(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The signal lands after the output was written, as its size is checked before the
+    move into place: the run stops, no ``.part`` file is left and the target is not
+    written."""
+    from impactcli import files
+    from impactcli.errors import Interrupted
+    from impactcli.run.stopping import stop_on_signals
+
+    real = files.check_size
+
+    def check_size(expected: int) -> object:
+        os.kill(os.getpid(), signal.SIGINT)
+        return real(expected)
+
+    monkeypatch.setattr(files, "check_size", check_size)
+    with stop_on_signals(), pytest.raises(Interrupted), \
+            files.atomic_output(tmp_path / "out.bin") as f:
+        f.write(b"abc")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_stopped_pools_manager_thread_is_gone_when_stop_workers_returns() -> None:
     """CPython's pool manager thread closes the pool's wake-up pipe as it ends, and the
     interpreter's exit writes to that pipe unguarded: stop_workers waits for the thread,

@@ -55,7 +55,7 @@ def _incident_line(k: int, inc: IncidentRow, link_width: int = 7) -> str:
     force = f"~{inc['force_n']:.3g} N" if inc["force_n"] is not None else "force ?"
     flag = ("  force not plausible (force_check in the timeline)"
             if inc["force_plausible"] is False else "")
-    if inc.get("payload_test"):  # "a contact beside payload change P2", "not a payload …"
+    if inc.get("payload_test"):  # up to its colon: "a contact beside payload change P2, …"
         flag += f"  {inc['payload_test'].split(':')[0]} (payload_test in the timeline)"
     if inc.get("outside_envelope"):
         flag += "  outside the calibrated motion (outside_envelope in the timeline)"

@@ -172,7 +172,6 @@ def view_cmd(source: Path, robot: Path | None, model: Path | None,
     from ..logs import log_stem
 
     with temporary_folder("impactcli-view-") as tmp:
-
         rrd = Path(tmp) / f"{log_stem(source)}.rrd"
         record(rrd)
         open_viewer(rrd)

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import OutputError
-from ..files import finish_output, part_path, prepare_output, whole
+from ..files import discard, finish_output, part_path, prepare_output, whole
 from ..spill import ColumnFiles
 from ..types import DETECTORS
 from . import rerun_blueprint as look
@@ -309,8 +309,7 @@ def open_recording(path: str | os.PathLike[str], result: Any, has_reference: boo
             with contextlib.suppress(Exception):
                 sink_call(rec.disconnect, target, "close", timeout_s=5.0)
         if tmp is not None:
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(tmp)
+            discard(tmp)
         raise
 
 
