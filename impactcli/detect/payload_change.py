@@ -47,9 +47,10 @@ not behave as a mass: it ends, or it holds the arm still, or it pushes another w
    the change (a push while the load was released), and the change's alarm is counted
    from the onset of that excursion (:attr:`PayloadChange.contact`,
    :func:`impactcli.detect.incidents.mark_payload_changes`): the gates judge it. The mass
-   is weighed again without the excursion's rows (from ``settle_s`` before it to its end)
-   when they fall in the window it was weighed on and half the window is left: a contact
-   in that window biases the mass, and the residual would carry the error from then on.
+   is weighed and tested again without the excursion's rows (from ``settle_s`` before it
+   to its end) when they fall in the window it was weighed on and half the window is left,
+   and taken so when it passes the tests there: a contact in that window biases the mass,
+   and the residual would carry the error from then on.
 6. **From then on** the residual carries the new load: the torque Y B π of every load
    changed so far is added to the residual from the classification time, whatever the
    chunking (the same sum per row, r + Y B π with π every load changed so far, in whichever
@@ -190,6 +191,19 @@ def mark_tried(findings: Sequence[Any], tried: dict[float, str],
                    and getattr(x, "payload_change", None) is None
                    and not getattr(x, "payload_test", None) else x)
     return out
+
+
+@dataclass(frozen=True)
+class Judged:
+    """What the tests (a)–(e) of the module docstring found on a window: the weighing, the
+    share of the window's residual energy it explains, why it is no payload change (None:
+    it is one), and the drift and inertia (tests d, e; unset when (a)–(c) failed)."""
+
+    w: payload.Weighed
+    explained: float
+    why: str | None
+    drift: float = float("inf")
+    shows: str = "unseen"
 
 
 @dataclass(frozen=True)
@@ -418,29 +432,13 @@ class PayloadMonitor:
         buf = self._buf
         n = buf["r"].shape[0]
         w0 = max(0, n - self.window + round(self.settle_s * self.sample_rate_hz))
-        w, drift, shows = None, float("inf"), "unseen"
+        judged = None
         why: str | None = "too short a window to weigh"
         if n - w0 >= 10:
             y = self.model.regressor(buf["qf"][w0:], buf["qd"][w0:], buf["qdd"][w0:]) @ self.b
             left = -buf["r"][w0:]  # the torque beyond the model's: r = τ̂ − τ
-            w = payload.weigh(y, left, self.names)
-            explained = payload.explained(left, y, w.pi)
-            why = not_a_load(w, explained, payload.within_reach(self.names, w.pi,
-                                                                self.reach_m))
-            if why is None:
-                zero = np.zeros_like(buf["qd"][w0:])
-                y0 = self.model.regressor(buf["qf"][w0:], zero, zero) @ self.b
-                shows, _ = payload.inertia(y, y0, left, self.names, w)
-                drift = payload.drift(y, left, self.names, w)
-                if shows != "shows":  # steady as a steady force too: a press's ramp hides
-                    pressed = payload.weigh(y0, left, self.names)  # in a mass's inertia
-                    if pressed.weighed:
-                        drift = max(drift, payload.drift(y0, left, self.names, pressed))
-                if drift > STEADY:
-                    why = (f"its mass drifted by {100 * drift:.0f} % across the window (a "
-                           "press that builds up or eases off?)")
-                elif shows == "contradicts":
-                    why = "it sides with a steady force, not with a mass's inertia (a press?)"
+            judged = self._judge(y, left, buf["qf"][w0:])
+            why = judged.why
         if why is not None:
             self._failed = {t: k for t, k in self._failed.items()  # those still kept
                             if k >= k_c - KEPT * self.window}
@@ -451,7 +449,8 @@ class PayloadMonitor:
                 return None
             self._state = "idle"
             return None
-        assert w is not None
+        assert judged is not None
+        w = judged.w
         earlier = self._earlier_onset(k_c, w.pi)
         if earlier is not None:  # the step began at an alarm that failed its test
             self._onset = earlier
@@ -473,21 +472,48 @@ class PayloadMonitor:
         if run is not None:  # the contact's rows out of the weighing (module docstring, 5)
             keep = np.ones(n - w0, dtype=bool)
             keep[max(s0 + run[0] - settle - w0, 0):max(s0 + run[1] - w0, 0)] = False
-            again = (payload.weigh(y[keep], left[keep], self.names)
-                     if keep.sum() >= keep.size // 2 else None)
-            if again is not None and again.weighed:
-                w, y, left = again, y[keep], left[keep]
-                explained = payload.explained(left, y, w.pi)
+            if not keep.all() and keep.sum() >= keep.size // 2:
+                again = self._judge(y[keep], left[keep], buf["qf"][w0:][keep],
+                                    np.flatnonzero(keep))
+                if again.why is None:  # the tests passed without the contact's rows too
+                    judged, y, left = again, y[keep], left[keep]
+        w = judged.w
         known = payload.known_load(self.known, self._pi, w.pi, w.mass_se_kg, y, left,
                                    self.names)
         self._pi = self._pi + w.pi if known is None else np.array(known[1])
         self.changes.append(PayloadChange(
             t_a, t_c, w.mass_kg, w.mass_se_kg,
             {nm: float(v) for nm, v in zip(self.names, w.pi, strict=True)},
-            explained, self.base_kg + float(self._pi[self.names.index("m")]),
-            None if known is None else known[0], drift, shows,
+            judged.explained, self.base_kg + float(self._pi[self.names.index("m")]),
+            None if known is None else known[0], judged.drift, judged.shows,
             t_a - self.start_s < 1.5 / self.sample_rate_hz, seen))
         return self._pi
+
+    def _judge(self, y: np.ndarray, left: np.ndarray, qf: np.ndarray,
+               at: np.ndarray | None = None) -> Judged:
+        """The tests (a)–(e) of the module docstring on a window: ``y`` (n, J, m) its payload
+        rows, ``left`` (n, J) the torque beyond the model's [N·m], ``qf`` (n, J) its
+        filtered positions (the rows at rest, for the inertia test), ``at`` the rows'
+        sample positions (default evenly spaced; for a window with rows left out)."""
+        w = payload.weigh(y, left, self.names)
+        explained = payload.explained(left, y, w.pi)
+        why = not_a_load(w, explained, payload.within_reach(self.names, w.pi, self.reach_m))
+        if why is not None:
+            return Judged(w, explained, why)
+        zero = np.zeros_like(qf)
+        y0 = self.model.regressor(qf, zero, zero) @ self.b
+        shows, _ = payload.inertia(y, y0, left, self.names, w)
+        drift = payload.drift(y, left, self.names, w, at)
+        if shows != "shows":  # steady as a steady force too: a press's ramp hides in a
+            pressed = payload.weigh(y0, left, self.names)  # mass's inertia
+            if pressed.weighed:
+                drift = max(drift, payload.drift(y0, left, self.names, pressed, at))
+        if drift > STEADY:
+            why = (f"its mass drifted by {100 * drift:.0f} % across the window (a press "
+                   "that builds up or eases off?)")
+        elif shows == "contradicts":
+            why = "it sides with a steady force, not with a mass's inertia (a press?)"
+        return Judged(w, explained, why, drift, shows)
 
     def _earlier_onset(self, k_c: int, pi: np.ndarray) -> tuple[int, float] | None:
         """The earliest onset weighed before this change's and found no load (``_failed``),

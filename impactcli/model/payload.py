@@ -236,19 +236,24 @@ POINT_ITERATIONS = 4
 
 
 def drift(y_pay: np.ndarray, r: np.ndarray, names: Sequence[str], weighed: Weighed,
-          ) -> float:
+          at: np.ndarray | None = None) -> float:
     """How much the weighed load changes across the stretch, as a share of its mass: the
     change of mass from the stretch's first to its last row when its mass and first moments
     may drift linearly in time (``Y B (π + (t − t̄)/T π̇)``, by :func:`estimate`), over
     ``weighed``'s mass. A payload keeps its mass as the arm moves; a clamp or a press that
     builds up, eases off or follows the arm does not (its "mass" drifts, docs/method.md
-    §5c). ``inf`` when the stretch does not determine the drift."""
+    §5c). ``inf`` when the stretch does not determine the drift. ``at``: the rows' times
+    (any unit; default evenly spaced), for a stretch with rows left out."""
     st = [i for i, nm in enumerate(names) if nm in STATIC]
     inert = [i for i, nm in enumerate(names) if nm not in STATIC]
     n = y_pay.shape[0]
     if n < 2 or weighed.mass_kg == 0.0:
         return float("inf")
-    tau = (np.arange(n) - 0.5 * (n - 1)) / (n - 1)  # −½ … ½ over the stretch
+    x = np.arange(n, dtype=np.float64) if at is None else np.asarray(at, dtype=np.float64)
+    span = float(x[-1] - x[0])
+    if not span > 0:
+        return float("inf")
+    tau = (x - 0.5 * (x[0] + x[-1])) / span  # −½ … ½ over the stretch
     ys = y_pay[:, :, st]
     pi, se = estimate(np.concatenate([ys, ys * tau[:, None, None]], axis=2),
                       r - y_pay[:, :, inert] @ weighed.pi[inert])

@@ -322,14 +322,17 @@ def _rate_thresholds(replays: list[_Replayed], keeps: list[np.ndarray],
 def _envelope(replays: list[_Replayed], keeps: list[np.ndarray], joints: tuple[str, ...]
               ) -> MotionEnvelope | None:
     """The motion envelope of every log's kept samples (its slow stretches: of every
-    sample after warm-up)."""
+    sample after warm-up, read at the model's slow speed; a log whose slow clock was read
+    at another, one replayed without the model, adds its ranges only)."""
     sources = {rp.motion_source for rp in replays}
     src = "position_ref" if sources == {"position_ref"} else "position"
-    acc = EnvelopeAccumulator(joints, src, slow_rad_s=max(
-        (rp.slow_rad_s for rp in replays), default=SLOW_RAD_S))  # one model: one speed
+    speed = max((rp.slow_rad_s for rp in replays), default=SLOW_RAD_S)
+    acc = EnvelopeAccumulator(joints, src, slow_rad_s=speed)
     for rp, keep in zip(replays, keeps, strict=True):
         if rp.motion is not None and rp.motion_source == src:
-            acc.add(rp.motion, keep, rp.warmup.end_index)
+            slow_from = (rp.warmup.end_index if rp.slow_rad_s == speed
+                         else rp.motion.slow.shape[0])
+            acc.add(rp.motion, keep, slow_from)
     return acc.finish()
 
 
@@ -413,7 +416,8 @@ def _replay(reader: MemoryReader, sc: Screened, model: RigidModel | None,
             plan = RunPlan(cfg, where, feed.full_joints, joints, choices, rig, source, extra)
             since = caught.mark()
             collected = StatsCollector()
-            trace = MotionTrace(scan.sample_rate_hz, slow_rad_s=slow_speed(plan.model))
+            trace = MotionTrace(scan.sample_rate_hz, slow_rad_s=slow_speed(
+                plan.model if plan.model is not None else model))
             moved: list[Motion] = []
 
             def on_step(step: ReplayStep) -> None:
