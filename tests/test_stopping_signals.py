@@ -399,3 +399,35 @@ def test_a_stopped_pools_manager_thread_is_gone_when_stop_workers_returns() -> N
     stop_workers(ex, grace_s=2.0)
     assert not manager.is_alive()
     assert time.monotonic() - t0 < 5.0
+
+
+def _task_holding_a_store(folder: str) -> None:
+    """A pool task stopped while it holds a spill store no ``try`` closes yet."""
+    import tempfile as tf
+
+    from impactcli.errors import Interrupted
+    from impactcli.spill import SpillFolder
+
+    tf.tempdir = folder
+    store = SpillFolder("impactcli-scan-")
+    assert store.path is not None
+    raise Interrupted(signal.SIGTERM, "SIGTERM")
+
+
+def _worker(folder: str) -> None:
+    from impactcli.run.stopping import run_in_worker
+
+    run_in_worker(_task_holding_a_store, folder)
+
+
+def test_a_stopped_worker_removes_the_stores_its_task_held(tmp_path: Path) -> None:
+    """A worker stopped by SIGTERM exits with os._exit, which runs no exit hook: a store
+    its task made as the stop came, before a ``try`` would close it, is left to its
+    finalizer — run before the exit (the task's frames collected), not skipped."""
+    import multiprocessing as mp
+
+    p = mp.get_context("fork").Process(target=_worker, args=(str(tmp_path),))
+    p.start()
+    p.join(30)
+    assert p.exitcode == 128 + signal.SIGTERM
+    assert list(tmp_path.iterdir()) == []

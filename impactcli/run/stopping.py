@@ -169,14 +169,21 @@ def worker_init(main_pid: int) -> None:
 
 def run_in_worker(fn: Callable[[T], R], item: T) -> R:
     """``fn(item)`` in a pool worker; stopped by SIGTERM, the task unwinds and the worker
-    exits (the pool sees it gone; the main process is stopping anyway)."""
+    exits (the pool sees it gone; the main process is stopping anyway). Before the exit,
+    which runs no exit hook, what the task's frames held is collected, so that the
+    temporary folders left to their finalizers (a store made as the stop came, before a
+    ``try`` would close it) are removed."""
+    import gc
+
     _running[0] = True
     try:
         return fn(item)
     except Interrupted as stop:
-        os._exit(stop.exit_code)
+        code = stop.exit_code
     finally:
         _running[0] = False
+    gc.collect()  # the exception and its frames are gone: their objects are finalized
+    os._exit(code)
 
 
 def watch_process(pid: int) -> threading.Thread:
