@@ -452,6 +452,8 @@ def test_a_push_while_the_load_is_released_is_counted_not_hidden_in_the_change(
                                                    ".timeline.json")])
     assert ev.exit_code == 0, ev.output
     assert "counted contacts matched by an incident         1/1" in ev.output
+    # the events too are scored from the contact: the push detected, no false alarm
+    assert re.search(r"^product +1/1 +0 +0 ", ev.output, re.M), ev.output
     quiet, code, r = _detect(_pick_and_place(tmp_path, pushes=False)[0], two_loads,
                              tmp_path / "q", "--fail-on-detect")
     assert code == 0 and len(quiet["payload_changes"]) == 2, r.output  # type: ignore

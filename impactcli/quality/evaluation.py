@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -326,8 +326,10 @@ def evaluate_events(
     for d in detectors:
         if d not in EVALUATED:
             raise ConfigError(f"evaluation: unknown detector {d!r} (expected one of {EVALUATED})")
-    evs = [scored_event(e, warmup_end_s, i) for i, e in enumerate(events)]
+    evs, steps = from_contacts(
+        [scored_event(e, warmup_end_s, i) for i, e in enumerate(events)], incidents or ())
     held, spans = payload_alarms(incidents or (), evs)
+    held |= steps
     parts = [e for e in evs if e.detector in PRODUCT_PARTS]
 
     def picked_up(e: ScoredEvent) -> bool:  # the alarm of a payload change (not a contact)
@@ -502,6 +504,29 @@ def payload_alarms(incidents: Sequence[Any], evs: Sequence[ScoredEvent],
         else:
             spans.append((float(d["t_start"]), float(d["t_end"])))
     return held, spans
+
+
+def from_contacts(evs: list[ScoredEvent], incidents: Sequence[Any]
+                  ) -> tuple[list[ScoredEvent], set[int]]:
+    """The events ``evs`` of a counted incident that starts after them: one counted from a
+    contact beside a payload change, the alarm's part before it the load's step
+    (:func:`impactcli.detect.incidents.mark_payload_changes`). Each such event still on at
+    the incident's start is scored from there, as the incident is; the ``id`` s of those
+    that ended before it (the step's alone) are returned as the change's alarms."""
+    out, steps = list(evs), set()
+    for x in incidents:
+        d = x if isinstance(x, Mapping) else vars(x)
+        if d.get("payload_change") is not None or d.get("in_warmup", False):
+            continue
+        t0 = float(d["t_start"])
+        for k in (int(k) for k in d.get("events") or ()):
+            if not (0 <= k < len(out) and out[k].t_start < t0 - EPS_S):
+                continue
+            if out[k].t_end >= t0 - EPS_S:
+                out[k] = replace(out[k], t_start=t0)
+            else:
+                steps.add(id(out[k]))
+    return out, steps
 
 
 def _in_any(e: Any, spans: Sequence[tuple[float, float]]) -> bool:
