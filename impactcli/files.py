@@ -320,7 +320,6 @@ def temp_space() -> Iterator[None]:
         raise temp_space_error(err) from err
 
 
-
 #: A stop signal held by :func:`whole`: ``[depth of the blocks open, the signal held or 0]``
 #: (the main thread's only: signal handlers run there).
 _whole = [0, 0]

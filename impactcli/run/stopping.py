@@ -5,9 +5,10 @@ Main process (:func:`stop_on_signals`): SIGINT (Ctrl-C) and SIGTERM raise
 :class:`~impactcli.errors.Interrupted` where the main thread stands, so every ``with`` and
 ``finally`` on the way out runs: temporary files are removed, outputs already moved into
 place stay. The CLI exits 128 + the signal's number (130, 143). A second signal while the
-run stops is ignored: the stop is bounded (:data:`STOP_GRACE_S`). A signal that lands in a
-file operation that must not be cut in half (a temporary folder made or removed:
-:func:`impactcli.files.whole`) is raised as that operation ends. A signal that lands in a
+run stops is ignored: the stop is bounded (:data:`STOP_GRACE_S`). A signal that lands
+while a temporary file or folder is made is raised once its removal is registered
+(:func:`impactcli.files.whole`); one that lands in a removal is raised once it is done
+(:func:`impactcli.files.discard`). A signal that lands in a
 C library's callback (numba compiling: :data:`CALLBACK_MODULES`), where a raised exception
 would be printed with its traceback and dropped, is sent again once it has returned.
 
