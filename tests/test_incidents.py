@@ -302,7 +302,8 @@ def test_a_change_with_a_contact_beside_it_counts_the_alarm_holding_it() -> None
                                   0.56)
     assert out[0].payload_change is None and out[0].t_start == 10.5
     assert out[0].i_start == 5250 and out[0].t_start_utc == "2026-11-30T00:00:10.500Z"
-    assert (out[0].payload_test or "").startswith("a contact beside payload change P1, its force")
+    assert (out[0].payload_test or "").startswith(
+        "a contact beside payload change P1, its link, force")
     assert out[1].payload_change == 1 and out[2].payload_change == 2
     # no alarm holds the onset: the nearest of the change's counts, from its end when it
     # ended before the onset, from its start when it began after it

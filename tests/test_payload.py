@@ -446,8 +446,8 @@ def test_a_push_while_the_load_is_released_is_counted_not_hidden_in_the_change(
     out = r.stdout  # type: ignore[attr-defined]
     assert "a contact in its window that the mass does not explain" in out
     row = next(ln for ln in out.splitlines() if f"{seen['t_s']:>9.3f} s" in ln)
-    assert ("  a contact beside payload change P2, its force and contact type the whole "
-            "alarm's, the load's step with it (payload_test in the timeline)") in row
+    assert ("  a contact beside payload change P2, its link, force and contact type the "
+            "whole alarm's, the load's step with it (payload_test in the timeline)") in row
     ev = CliRunner().invoke(main, ["evaluate", str(tmp_path / "o" / "push_at_release"
                                                    ".timeline.json")])
     assert ev.exit_code == 0, ev.output

@@ -313,8 +313,9 @@ def _from_contact(inc: Incident, k: int, seen: dict[str, Any]) -> Incident:
         utc = at.isoformat(timespec="milliseconds").replace("+00:00", "Z")
     return replace(inc, t_start=t, i_start=i if shift else inc.i_start,
                    t_start_utc=utc,
-                   payload_test=(f"a contact beside payload change P{k}, its force and "
-                                 "contact type the whole alarm's, the load's step with it: "
+                   payload_test=(f"a contact beside payload change P{k}, its link, force "
+                                 "and contact type the whole alarm's, the load's step with "
+                                 "it: "
                                  f"its alarm held the load and, from {seen['t_s']:.3f} s, a "
                                  f"torque on {seen['joint']} the load does not explain "
                                  f"({seen['peak']:.2g}× its loading threshold)"))
