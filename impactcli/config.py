@@ -286,6 +286,10 @@ class CalibrationRecord:
             on (:data:`FORMULATION`); None: before formulations were recorded (the plain
             eq. 39 of releases up to 2026-11-27). Another than the running one is warned
             about at detect.
+        settings_sha256: the fingerprint of the detector settings the thresholds were set
+            with (:func:`settings_sha256`); None: not recorded (configs before
+            2026-11-30). A config whose settings differ (edited after ``calibrate``) is
+            warned about at detect, and its stated rate is said not to apply.
     """
 
     calibrated: bool = False
@@ -302,6 +306,47 @@ class CalibrationRecord:
     false_alarm_rate: dict[str, Any] | None = None
     motion_envelope: dict[str, Any] | None = None
     formulation: str | None = None
+    settings_sha256: str | None = None
+
+
+#: The config's sections a calibration's thresholds depend on (:func:`settings_sha256`):
+#: all but the thresholds, the calibration record and the embedded model (its own sha256,
+#: ``calibration.model_sha256``); of ``residual``, all but the generator choice (checked on
+#: its own: :func:`impactcli.run.plan.with_generator`).
+SETTINGS_SECTIONS = ("adaptive", "static_loading", "residual", "events", "warmup")
+
+
+def settings_sha256(config: DetectorConfig | dict[str, Any]) -> str:
+    """The sha256 of the detector settings of a config (or of its mapping, as a timeline
+    records it): :data:`SETTINGS_SECTIONS` as canonical JSON, numbers as floats (a TOML
+    ``2`` and a JSON ``2.0`` are one setting)."""
+    import hashlib
+
+    d = config.to_dict() if isinstance(config, DetectorConfig) else config
+
+    def canon(v: Any) -> Any:
+        if isinstance(v, dict):
+            return {str(k): canon(x) for k, x in v.items()}
+        if isinstance(v, list | tuple):
+            return [canon(x) for x in v]
+        if isinstance(v, int | float) and not isinstance(v, bool):
+            return float(v)
+        return v
+
+    settings = {k: dict(d.get(k) or {}) for k in SETTINGS_SECTIONS}
+    for k in ("generator", "generators"):
+        settings["residual"].pop(k, None)
+    text = json.dumps(canon(settings), sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def settings_changed(config: DetectorConfig | dict[str, Any]) -> bool:
+    """Whether a calibrated config's detector settings differ from those its thresholds
+    were set with (a recorded :func:`settings_sha256` that does not match)."""
+    d = config.to_dict() if isinstance(config, DetectorConfig) else config
+    recorded = (d.get("calibration") or {}).get("settings_sha256")
+    return bool((d.get("calibration") or {}).get("calibrated")) and recorded is not None \
+        and recorded != settings_sha256(d)
 
 
 @dataclass(frozen=True)

@@ -319,10 +319,12 @@ def _thresholds_line(path: str | None, config: Any) -> str | None:
         return None
     import dataclasses
 
+    from ..config import settings_changed
     from ..detect.tail import calibration_text
 
     return (f"thresholds of {shown(path)}: "
-            + calibration_text(dataclasses.asdict(config.calibration)))
+            + calibration_text(dataclasses.asdict(config.calibration),
+                               settings_changed(config)))
 
 
 def _echo_table(outcomes: list[JobOutcome], summary: dict[str, Any], out_dir: str,

@@ -240,11 +240,12 @@ def capped_detectors(calib: Mapping[str, object]) -> list[str]:
                   and not (rated and d in DETECTORS))
 
 
-def calibration_text(calib: Mapping[str, object]) -> str:
+def calibration_text(calib: Mapping[str, object], settings_changed: bool = False) -> str:
     """How a calibrated config's thresholds were set and what that promises, in one phrase
     (detect's terminal, the report's header): the rate asked or the margin rule, the rate
-    they are predicted to give and its bound, whether the free motion supports it, and a
-    weak calibration's reason (one log; a capped margin, :func:`capped_detectors`)."""
+    they are predicted to give and its bound, whether the free motion supports it, a
+    weak calibration's reason (one log; a capped margin, :func:`capped_detectors`), and,
+    with ``settings_changed``, that none of it holds for the config's edited settings."""
     rate = calib.get("false_alarm_rate")
     rate = rate if isinstance(rate, Mapping) else {}
     rule = str(calib.get("margin_rule") or "rule not recorded")
@@ -269,6 +270,9 @@ def calibration_text(calib: Mapping[str, object]) -> str:
         elif capped:
             text += (f"; weak: the leave-one-out margin hit its cap of {MAX_MARGIN:g}× on "
                      f"{', '.join(capped)}")
+    if settings_changed:
+        text = ("NOT for these settings (edited after calibrate: calibrate again); as "
+                f"calibrated: {text}")
     return text
 
 

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from ..config import DetectorConfig
+from ..config import DetectorConfig, settings_sha256
 from ..detect.envelope import (
     SLOW_RAD_S,
     EnvelopeAccumulator,
@@ -249,6 +249,8 @@ def calibrate_run(
                                     vL=table["static_loading"]),
         calibration=record, model=None if model is None else model.to_dict(),
     )
+    out = dataclasses.replace(out, calibration=dataclasses.replace(  # the settings as written
+        record, settings_sha256=settings_sha256(out)))
     warn_beyond_effort(out, joints, robot)
     return Calibrated(out, rate)
 

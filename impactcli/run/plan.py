@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..clock import check_calibrated_rate
-from ..config import PLAIN_FORMULATION, THRESHOLD_KEYS, DetectorConfig
+from ..config import PLAIN_FORMULATION, THRESHOLD_KEYS, DetectorConfig, settings_changed
 from ..detect.adaptive import check_scale
 from ..errors import ConfigError, ImpactError, ImpactWarning, LogFormatError, ModelError
 from ..logs.reader import LogChunk, LogReader, LogScan
@@ -37,7 +37,7 @@ from ..model.rigid import RigidModel
 from ..sample_channels import CONTROLLER_CHANNELS
 from ..types import LogSource, RobotDescription, RobotLog
 from .replay import ChunkArrays, chunk_arrays
-from .run_warnings import warn_formulation
+from .run_warnings import warn_formulation, warn_settings
 
 if TYPE_CHECKING:
     from .loads import StartLoad
@@ -512,6 +512,8 @@ def plan_run(reader: LogReader, cfg: DetectorConfig, *, model: RigidModel | None
     calibrated_on = cfg.calibration.formulation or PLAIN_FORMULATION
     if cfg.calibration.calibrated and calibrated_on != cfg.adaptive.formulation:
         warn_formulation(where, config_where, calibrated_on, cfg.adaptive.formulation)
+    if settings_changed(cfg):
+        warn_settings(where, config_where)
     sc = screen_scan(scan, known_joints(model, cfg), cfg.calibration.joints_left_out)
     described = robot or description_of(model, cfg)
     scale, hold = check_torque_scale(scan, described, sc.keep, warn=False)  # warned below

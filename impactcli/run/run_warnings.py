@@ -121,6 +121,17 @@ def warn_formulation(where: str, config_where: str, calibrated_on: str, runs: st
     )
 
 
+def warn_settings(where: str, config_where: str) -> None:
+    """The warning of a calibrated config whose detector settings were edited after
+    ``calibrate`` (:func:`impactcli.config.settings_changed`)."""
+    warnings.warn(
+        f"{where}: its config ({config_where}) has detector settings other than those its "
+        "thresholds were calibrated with (calibration.settings_sha256 does not match: a "
+        "setting was edited after calibrate): the thresholds were not set for them, and "
+        "their stated false-alarm rate does not apply; calibrate again (impactcli "
+        "calibrate)", ImpactWarning, stacklevel=3)
+
+
 def warn_gaps(where: str, lengths_s: np.ndarray, starts_s: np.ndarray) -> None:
     """The time-gap warning: (G,) gap lengths [s] and the times of the samples before them."""
     if not len(lengths_s):

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from ...config import settings_changed
 from ...detect.events import LONG_EVENT_S
 from ...detect.tail import capped_detectors, per_hour_text
 from ...detect.thresholds import (
@@ -135,6 +136,12 @@ def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]
                    "like the most different one may still raise alarms.")
             out.append({"code": "weak-calibration",
                         "text": f"Weak calibration ({rule}): {why}"})
+    if settings_changed(cfg):
+        out.append({"code": "settings-changed", "text": (
+            "The config's detector settings were edited after calibrate "
+            "(calibration.settings_sha256 does not match them): its thresholds were not set "
+            "for these settings, and no false-alarm rate stated here applies to them. "
+            "Calibrate again.")})
     out += rate_caveats(calib)
     if result.model_source == "identified-from-log":
         out.append(

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from ...config import settings_changed
 from ...detect.floor import floor_line
 from ...detect.tail import calibration_text
 from ...logs.paths import log_stem
@@ -106,7 +107,7 @@ def _meta(sec: LogSection, anchor: str) -> str:
     inp = sec["input"]
     model = (sec.get("model") or {}).get("model") or {}
     calib = (sec.get("config") or {}).get("calibration") or {}
-    rule = calibration_text(calib)
+    rule = calibration_text(calib, settings_changed(sec.get("config") or {}))
     cal = (f'calibrated ({e(rule)})' if sec["calibrated"]
            else '<span class="bad">UNCALIBRATED</span>')
     ev = ((sec.get("quality") or {}).get("evaluation") or {})

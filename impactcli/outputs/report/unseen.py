@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from ...config import settings_changed
 from ...detect.envelope import outside_share_text, posture_text
 from ...detect.floor import floor_line
 from ...detect.incidents import planar_jacobian, smallest_caught_force
@@ -183,7 +184,8 @@ def _envelope(result: DetectionResult, incidents: list[dict[str, Any]]) -> list[
     poses = f"; but {posture_text(posture)}" if posture else ""
     if not env.get("outside"):
         calibration = result.config.get("calibration") or {}
-        rated = bool(calibration.get("false_alarm_rate"))
+        rated = (bool(calibration.get("false_alarm_rate"))
+                 and not settings_changed(result.config))
         slow_checked = (bool((calibration.get("motion_envelope") or {}).get("slow_dwell_s"))
                         and env.get("source") == "position_ref")
         note = f"; {env['note']}" if env.get("note") else ""
