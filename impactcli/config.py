@@ -17,6 +17,7 @@ simulations only; it is never applied to a real robot silently.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import os
 from collections.abc import Sequence
@@ -320,8 +321,6 @@ def settings_sha256(config: DetectorConfig | dict[str, Any]) -> str:
     """The sha256 of the detector settings of a config (or of its mapping, as a timeline
     records it): :data:`SETTINGS_SECTIONS` as canonical JSON, numbers as floats (a TOML
     ``2`` and a JSON ``2.0`` are one setting)."""
-    import hashlib
-
     d = config.to_dict() if isinstance(config, DetectorConfig) else config
 
     def canon(v: Any) -> Any:
@@ -344,8 +343,9 @@ def settings_changed(config: DetectorConfig | dict[str, Any]) -> bool:
     """Whether a calibrated config's detector settings differ from those its thresholds
     were set with (a recorded :func:`settings_sha256` that does not match)."""
     d = config.to_dict() if isinstance(config, DetectorConfig) else config
-    recorded = (d.get("calibration") or {}).get("settings_sha256")
-    return bool((d.get("calibration") or {}).get("calibrated")) and recorded is not None \
+    cal = d.get("calibration") or {}
+    recorded = cal.get("settings_sha256")
+    return bool(cal.get("calibrated")) and recorded is not None \
         and recorded != settings_sha256(d)
 
 
