@@ -76,6 +76,8 @@ def test_audit_rate_prints_fit_support_and_leave_one_log_out(assist: tuple) -> N
     assert any(ln.startswith("motion envelope (reference, ") for ln in lines)
     env = [ln for ln in lines if re.match(r"  (shoulder|elbow) +velocity .* rad/s; "
                                           r"acceleration .* rad/s²; position .* rad; "
+                                          r"measured velocity .* rad/s; measured "
+                                          r"acceleration .* rad/s²; "
                                           r"slower than 0.02 rad/s for at most .* s at a "
                                           r"stretch$", ln)]
     assert len(env) == 2

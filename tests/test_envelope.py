@@ -5,6 +5,7 @@ clock against piecewise-constant velocities whose slow time is known."""
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -15,6 +16,7 @@ from impactcli.detect.envelope import (
     SLOW_RAD_S,
     EnvelopeAccumulator,
     EnvelopeCheck,
+    Motion,
     MotionEnvelope,
     MotionTrace,
     outside_share_text,
@@ -270,3 +272,79 @@ def test_slow_stretches_are_read_on_the_reference_only() -> None:
         assert bool(res.slow) is outside and (res.outside > 0) is outside
         assert ("slow stretches not checked: this log has no reference" in res.note) is (
             not outside)
+
+
+def ringing(t: np.ndarray, t0: float, amp: float, hz: float, tau: float) -> np.ndarray:
+    """A decaying oscillation from ``t0``: amp·e^(−(t−t0)/τ)·sin(2πf(t−t0)), 0 before."""
+    s = np.clip(t - t0, 0.0, None)
+    return np.where(t >= t0, amp * np.exp(-s / tau) * np.sin(2 * math.pi * hz * s), 0.0)
+
+
+def test_the_measured_motion_is_traced_beside_the_reference_bit_for_bit() -> None:
+    """With a reference, the measured position goes through the same low-pass and
+    differences: equal, bit for bit, to the motion a log without a reference gives, and
+    the same whatever the chunks; without a reference it is not traced (it is the motion)."""
+    t, a = sine(0.4, 0.5, 20.0)
+    ref = np.stack([a, 0.5 * a], axis=1)
+    meas = ref + np.stack([ringing(t, 8.0, 0.05, 2.0, 0.8), np.zeros(t.size)], axis=1)
+    whole = MotionTrace(FS).update(t, meas, ref)
+    alone = MotionTrace(FS).update(t, meas, None)
+    assert whole.measured_velocity is not None and whole.measured_acceleration is not None
+    assert np.array_equal(whole.measured_velocity, alone.velocity)
+    assert np.array_equal(whole.measured_acceleration, alone.acceleration)
+    assert alone.measured_velocity is None and alone.measured_acceleration is None
+    tr = MotionTrace(FS)
+    cuts = [0, 1, 777, 4000, 4001, t.size]
+    parts = [tr.update(t[i:j], meas[i:j], ref[i:j]) for i, j in itertools.pairwise(cuts)]
+    joined = Motion.joined(parts)
+    for k in ("velocity", "acceleration", "measured_velocity", "measured_acceleration"):
+        assert np.array_equal(joined.get(k), whole.get(k)), k
+
+
+def test_the_measured_ranges_are_recorded_and_their_stretches_kept_apart() -> None:
+    """The calibration records the measured motion's ranges beside the reference's; a log
+    whose arm rings under the same calm reference stays inside the envelope (share 0) while
+    its measured stretches date the ringing, each with its farthest sample — the same
+    whatever the chunks."""
+    t, a = sine(0.4, 0.5, 40.0)
+    ref = np.stack([a, 0.5 * a], axis=1)
+    tr = MotionTrace(FS)
+    acc = EnvelopeAccumulator(["j1", "j2"], "position_ref")
+    acc.add(tr.update(t, ref, ref), t >= 5.0)
+    env = acc.finish()
+    assert env is not None
+    w = 2 * math.pi * 0.5
+    lo, hi = env.joints["j1"]["measured_acceleration"]
+    assert hi == pytest.approx(0.4 * w * w, rel=5e-3) and lo == pytest.approx(-hi, rel=5e-3)
+    assert MotionEnvelope.from_dict(env.to_dict()) == env
+    assert "measured acceleration" in env.lines()[0]
+    # 2 Hz ringing of 0.05 rad on j1 from 20 s: its acceleration (2π·2)²·0.05 ≈ 7.9 rad/s²
+    # against 0.99 calibrated, decaying below it after ~2 s (τ = 1 s)
+    meas = ref + np.stack([ringing(t, 20.0, 0.05, 2.0, 1.0), np.zeros(t.size)], axis=1)
+    found = []
+    for step in (t.size, 997):
+        chk = EnvelopeCheck(env, FS, ["j1", "j2"])
+        for i in range(0, t.size, step):
+            chk.update_arrays(t[i:i + step], meas[i:i + step], ref[i:i + step], start=i)
+        found.append(chk.finish(round(5.0 * FS)))
+    res = found[0]
+    assert res.outside == 0 and res.share == 0.0  # the reference stayed inside
+    assert res.measured == found[1].measured
+    # over the whole log: the filters' start (in any warm-up) aside, only the ringing
+    ring = [m for m in res.measured if m.t_end > 1.0]
+    assert ring and all(m.t_start < 1.0 for m in res.measured if m not in ring)
+    first, last = ring[0], ring[-1]
+    assert 20.0 <= first.t_start < 20.2 and last.t_end < 24.0
+    assert all(m.joint == "j1" for m in ring)
+    far = max(ring, key=lambda m: m.score)
+    assert far.quantity == "measured_acceleration"
+    # the ringing's peak (2π·2)²·0.05 = 7.9 rad/s², and its onset's velocity step through
+    # the low-pass: within twice that
+    peak = (2 * math.pi * 2.0) ** 2 * 0.05
+    assert 0.9 * peak < abs(far.value) < 2.0 * peak and far.hi == pytest.approx(hi)
+    assert res.to_dict()["measured_stretches"][len(res.measured) - len(ring)] == first.to_dict()
+    # a log without a reference: not checked (None), said by the mapping's absence
+    chk = EnvelopeCheck(env, FS, ["j1", "j2"])
+    chk.update_arrays(t, meas, None)
+    none = chk.finish(round(5.0 * FS))
+    assert none.measured is None and "measured_stretches" not in none.to_dict()

@@ -59,6 +59,8 @@ def _incident_line(k: int, inc: IncidentRow, link_width: int = 7) -> str:
         flag += f"  {inc['payload_test'].split(':')[0]} (payload_test in the timeline)"
     if inc.get("outside_envelope"):
         flag += "  outside the calibrated motion (outside_envelope in the timeline)"
+    if inc.get("aftermath"):  # up to its colon: "in the aftermath of incident 5 at 35.048 s"
+        flag += f"  {inc['aftermath'].split(':')[0]} (aftermath in the timeline)"
     return (f"  {k:>3}  {inc['t_start']:>9.3f} s  {link:<{link_width}} {force:>9}  "
             f"{inc['contact']:<12} ({', '.join(inc['detectors'])}){flag}")
 

@@ -31,6 +31,17 @@ through the low-pass, sits in the slow band (the simulated elbow held still in
 ``assist_impacts``: 28 % of its samples between 1 and 20 mrad/s), so without a reference in
 the calibration logs or the log no slow stretch is recorded or checked, and the envelope's
 ranges are all there is.
+
+Where the log has a reference, the arm's *measured* motion is traced beside it (the same
+low-pass and differences of the measured position): ``calibrate`` records the ranges of its
+velocity and acceleration too (:data:`MEASURED`), and ``detect`` keeps the stretches where
+the measured motion left them while the joint's reference motion stayed inside its own
+(:attr:`EnvelopeShare.measured`). They are not part of the share outside — a contact itself
+throws the measured motion out of the calibration's ranges, by construction — but they say
+when the arm had not settled after an incident: a 30 N push sets a compliant arm ringing
+for seconds under a calm reference, and each velocity reversal of the ringing turns the
+model's friction where the calibration's motion never did
+(:mod:`impactcli.detect.aftermath`).
 """
 
 from __future__ import annotations
@@ -45,8 +56,11 @@ from ..columns import column_range
 from ..model.causal import Carry
 from ..model.derivatives import MAX_CUTOFF_FRACTION
 from ..model.iir import butter_lowpass
+from .aftermath import MeasuredStretch, PeakRuns
+from .aftermath import runs as _runs
 
-__all__ = ["CHECKED", "CUTOFF_HZ", "HELD_RAD_S", "LEAD_S", "QUANTITIES", "SLOW_RAD_S",
+__all__ = ["CHECKED", "CUTOFF_HZ", "HELD_RAD_S", "LEAD_S", "MEASURED", "QUANTITIES",
+           "SLOW_RAD_S",
            "EnvelopeAccumulator", "EnvelopeCheck", "EnvelopeShare", "Motion",
            "MotionEnvelope", "MotionTrace", "outside_share_text", "posture_text", "slow_text"]
 
@@ -56,12 +70,22 @@ CUTOFF_HZ = 10.0
 #: for the reader: no measurement yet shows that posture alone makes false alarms).
 QUANTITIES: tuple[str, ...] = ("velocity", "acceleration", "position")
 CHECKED: tuple[str, ...] = ("velocity", "acceleration")
+#: The measured motion's quantities, recorded and checked where the motion is the
+#: reference's (module docstring): kept apart from the share outside.
+MEASURED: tuple[str, ...] = ("measured_velocity", "measured_acceleration")
 #: An incident touches the outside when a sample from LEAD_S before its start to its end
 #: is outside (the residual's filters lag the motion that causes it) [s].
 LEAD_S = 0.2
 #: Outside stretches closer than this merge into one (as alarms merge) [s] (the share
 #: counts only the samples outside).
 MERGE_S = 0.1
+#: The measured motion leaves its calibrated range when it passes it by more than this
+#: share of the range's width (:data:`MEASURED`): a range is the extreme of a few minutes of
+#: free motion, and the same motion passes its own extremes by rounding (a repeat of a
+#: calibration log's motion, by 1e-8 rad/s²) — each such sample would be a stretch; the
+#: free stretches of the simulated pick-and-place passed theirs by up to 13 % of the width,
+#: a push's ringing by 20–130 % (docs/incidents.md, "A contact's aftermath").
+MEASURED_MARGIN = 0.1
 #: A pose is outside the calibration's when a joint's position lies beyond its recorded
 #: range by more than this [rad] (~3°: a rigid model's fit does not turn over that).
 POSTURE_MARGIN_RAD = 0.05
@@ -79,13 +103,16 @@ HELD_RAD_S = 1e-3
 
 @dataclass(frozen=True)
 class Motion:
-    """One chunk's motion, (n, J) each: velocity, acceleration, position, and the slow
-    clock [s] (module docstring; zeros when not traced)."""
+    """One chunk's motion, (n, J) each: velocity, acceleration, position, the slow
+    clock [s] (module docstring; zeros when not traced), and the measured motion's velocity
+    and acceleration where the motion is the reference's (else None)."""
 
     velocity: np.ndarray
     acceleration: np.ndarray
     position: np.ndarray
     slow_s: np.ndarray | None = None
+    measured_velocity: np.ndarray | None = None
+    measured_acceleration: np.ndarray | None = None
 
     @property
     def slow(self) -> np.ndarray:
@@ -94,8 +121,26 @@ class Motion:
                 else np.asarray(self.slow_s))
 
     def get(self, quantity: str) -> np.ndarray:
-        """The (n, J) array of ``quantity`` (one of :data:`QUANTITIES`)."""
+        """The (n, J) array of ``quantity`` (one of :data:`QUANTITIES`, or of
+        :data:`MEASURED` when traced)."""
         return np.asarray(getattr(self, quantity))
+
+    @classmethod
+    def joined(cls, chunks: Sequence[Motion]) -> Motion:
+        """The motion of consecutive ``chunks`` (one or more) as one."""
+        def cat(k: str) -> np.ndarray | None:
+            xs = [getattr(m, k) for m in chunks]
+            return None if any(x is None for x in xs) else np.concatenate(xs)
+
+        return cls(np.concatenate([m.velocity for m in chunks]),
+                   np.concatenate([m.acceleration for m in chunks]),
+                   np.concatenate([m.position for m in chunks]),
+                   np.concatenate([m.slow for m in chunks]),
+                   cat("measured_velocity"), cat("measured_acceleration"))
+
+    def has(self, quantity: str) -> bool:
+        """Whether ``quantity`` was traced."""
+        return getattr(self, quantity) is not None
 
 
 class MotionTrace:
@@ -120,8 +165,9 @@ class MotionTrace:
     def update(self, time_s: np.ndarray, position: np.ndarray,
                position_ref: np.ndarray | None = None) -> Motion:
         """The motion of (n,) ``time_s`` [s since the log's first sample] and (n, J)
-        positions [rad]: of ``position_ref`` when given, else of ``position``. The source
-        is fixed by the first chunk (a log has a reference or not)."""
+        positions [rad]: of ``position_ref`` when given, else of ``position``, and with a
+        reference the measured motion's velocity and acceleration beside it. The source is
+        fixed by the first chunk (a log has a reference or not)."""
         if self.source is None:
             self.source = "position_ref" if position_ref is not None else "position"
         q = np.asarray(position_ref if self.source == "position_ref" and
@@ -131,7 +177,14 @@ class MotionTrace:
         v = self.carry.lfilter("v", self.b, self.a,
                                self.carry.backward_difference("qf", qf, dt), "steady")
         acc = self.carry.backward_difference("vf", v, dt)
-        return Motion(v, acc, qf, self._slow_clock(v, dt))
+        mv = ma = None
+        if self.source == "position_ref":
+            mq = self.carry.lfilter("mq", self.b, self.a,
+                                    np.asarray(position, dtype=np.float64), "steady")
+            mv = self.carry.lfilter("mv", self.b, self.a,
+                                    self.carry.backward_difference("mqf", mq, dt), "steady")
+            ma = self.carry.backward_difference("mvf", mv, dt)
+        return Motion(v, acc, qf, self._slow_clock(v, dt), mv, ma)
 
     def _slow_clock(self, v: np.ndarray, dt: np.ndarray) -> np.ndarray:
         """(n, J) time [s] each joint has spent with held ≤ |v| < slow since |v| last
@@ -164,7 +217,8 @@ class MotionEnvelope:
     """Per joint, the [min, max] of each quantity over the calibration's free motion.
 
     Attributes:
-        joints: joint → quantity → (min, max) (:data:`QUANTITIES`; units in the module doc).
+        joints: joint → quantity → (min, max) (:data:`QUANTITIES`, and :data:`MEASURED`
+            where the calibration logs had a reference; units in the module doc).
         source: ``position_ref`` (the logs' reference) or ``position`` (measured).
         samples: samples the ranges were taken over (after warm-up, contacts cut out).
         cutoff_hz: the low-pass the motion went through [Hz].
@@ -204,14 +258,16 @@ class MotionEnvelope:
 
     def lines(self) -> list[str]:
         """One line per joint, as ``calibrate`` prints it."""
-        unit = {"velocity": "rad/s", "acceleration": "rad/s²", "position": "rad"}
+        unit = {"velocity": "rad/s", "acceleration": "rad/s²", "position": "rad",
+                "measured_velocity": "rad/s", "measured_acceleration": "rad/s²"}
         out = []
         for j, q in self.joints.items():
             slow = (f"; slower than {self.slow_rad_s:g} rad/s for at most "
                     f"{self.slow_dwell_s[j]:.3g} s at a stretch"
                     if j in self.slow_dwell_s else "")
             out.append(f"  {j:16s} " + "; ".join(
-                f"{k} {lo:.3g} … {hi:.3g} {unit.get(k, '')}" for k, (lo, hi) in q.items())
+                f"{k.replace('_', ' ')} {lo:.3g} … {hi:.3g} {unit.get(k, '')}"
+                for k, (lo, hi) in q.items())
                 + slow)
         return out
 
@@ -242,11 +298,13 @@ class EnvelopeAccumulator:
         self.hi: dict[str, np.ndarray] = {}
         self.dwell: np.ndarray | None = None
         self.samples = 0
+        self.untraced = False  # a motion without the measured quantities was added
 
     def add(self, motion: Motion, keep: np.ndarray | None = None,
             from_index: int | None = None) -> None:
         """Absorb a log's motion (n, J): its ranges over the samples where ``keep`` (n,)
-        is True, its slow clock's maximum from sample ``from_index`` on (the warm-up's end,
+        is True (of the measured motion too, when every log given traced it), its slow
+        clock's maximum from sample ``from_index`` on (the warm-up's end,
         whatever ``keep`` cut out: ``detect`` reads the clock on every sample after
         warm-up; default: the first kept sample)."""
         clock = motion.slow
@@ -256,7 +314,9 @@ class EnvelopeAccumulator:
         if clock.shape[0] > from_index:
             most = clock[from_index:].max(axis=0)
             self.dwell = most if self.dwell is None else np.maximum(self.dwell, most)
-        for k in QUANTITIES:
+        for k in QUANTITIES + MEASURED:
+            if not motion.has(k):
+                continue
             x = motion.get(k)
             if keep is not None:
                 x = x[np.asarray(keep, dtype=bool)]
@@ -267,6 +327,8 @@ class EnvelopeAccumulator:
             self.hi[k] = hi if k not in self.hi else np.maximum(self.hi[k], hi)
         n = motion.velocity.shape[0] if keep is None else int(np.count_nonzero(keep))
         self.samples += n
+        if not all(motion.has(k) for k in MEASURED):
+            self.untraced = True
 
     def finish(self) -> MotionEnvelope | None:
         """The envelope; None when no sample was kept."""
@@ -274,8 +336,10 @@ class EnvelopeAccumulator:
             return None
         dwell = {} if self.dwell is None or self.source != "position_ref" else {
             j: float(self.dwell[c]) for c, j in enumerate(self.joints)}
+        traced = [k for k in QUANTITIES + MEASURED if k in self.lo
+                  and not (self.untraced and k in MEASURED)]
         return MotionEnvelope({j: {k: (float(self.lo[k][c]), float(self.hi[k][c]))
-                                   for k in QUANTITIES}
+                                   for k in traced}
                                for c, j in enumerate(self.joints)},
                               self.source, self.samples, self.cutoff_hz, dwell,
                               self.slow_rad_s)
@@ -304,6 +368,10 @@ class EnvelopeShare:
             (joints with none left out; in the mapping only beside ``slow``, where
             ``per_joint`` mixes the two); slow_rad_s: the speed below which a joint moved
             slowly [rad/s] (the envelope's; in the mapping only beside ``slow``).
+        measured: the stretches where the measured motion left the calibration's measured
+            ranges (:class:`MeasuredStretch`, over the whole log, runs merged over
+            MERGE_S), in order; None when it was not checked (no reference in the log or
+            in the calibration logs, or a config written before it was recorded).
     """
 
     samples: int
@@ -318,6 +386,7 @@ class EnvelopeShare:
     slow_dwell_s: dict[str, float] = field(default_factory=dict)
     ranges: dict[str, float] = field(default_factory=dict)
     slow_rad_s: float = SLOW_RAD_S
+    measured: tuple[MeasuredStretch, ...] | None = None
 
     @property
     def share(self) -> float:
@@ -341,17 +410,9 @@ class EnvelopeShare:
                 **({"posture_outside": dict(self.posture)} if self.posture else {}),
                 **({"slow_outside": dict(self.slow), "slow_dwell_s": dict(self.slow_dwell_s),
                     "ranges_outside": dict(self.ranges), "slow_rad_s": self.slow_rad_s}
-                   if self.slow else {})}
-
-
-def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """First and last index of each run of True in (n,) ``mask``."""
-    idx = np.flatnonzero(mask)
-    if idx.size == 0:
-        z = np.zeros(0, dtype=np.int64)
-        return z, z
-    brk = np.flatnonzero(np.diff(idx) > 1)
-    return (np.concatenate([idx[:1], idx[brk + 1]]), np.concatenate([idx[brk], idx[-1:]]))
+                   if self.slow else {}),
+                **({} if self.measured is None
+                   else {"measured_stretches": [m.to_dict() for m in self.measured]})}
 
 
 class _Runs:
@@ -412,6 +473,15 @@ class EnvelopeCheck:
             - POSTURE_MARGIN_RAD,
             np.array([envelope.joints[self.joints[c]]["position"][1] for c in self.pose_cols])
             + POSTURE_MARGIN_RAD)
+        # the measured motion's ranges, on the joints the envelope records them for
+        self.m_cols = [c for c, j in zip(self.cols, self.names, strict=True)
+                       if all(k in envelope.joints[j] for k in MEASURED)]
+        self.m_bounds = [(np.array([envelope.joints[self.joints[c]][k][0]
+                                    for c in self.m_cols]),
+                          np.array([envelope.joints[self.joints[c]][k][1]
+                                    for c in self.m_cols])) for k in MEASURED]
+        self.m_at = [self.cols.index(c) for c in self.m_cols]  # their place in cols
+        self.measured = PeakRuns(MERGE_S)
         self.n = 0
         self.any = _Runs()
         self.each = [_Runs() for _ in self.cols]
@@ -435,6 +505,8 @@ class EnvelopeCheck:
                 else np.zeros_like(out_j))  # a measured position's noise at rest reads slow
         for c, runs in enumerate(self.range_each):
             runs.add(k0, t, out_j[:, c])
+        if self.m_cols and all(mot.has(k) for k in MEASURED):
+            self._measured(k0, t, mot, out_j[:, self.m_at])
         out_j |= slow
         mask: np.ndarray = (np.asarray(out_j.any(axis=1)) if self.cols
                             else np.zeros(n, dtype=bool))
@@ -450,6 +522,26 @@ class EnvelopeCheck:
                 runs.add(k0, t, away[:, c])
         self.n = k0 + n
         return mask
+
+    def _measured(self, k0: int, t: np.ndarray, mot: Motion, commanded: np.ndarray
+                  ) -> None:
+        """The chunk's samples against the measured ranges: how far out each lies beyond
+        :data:`MEASURED_MARGIN`, as a share of its range's width (0 inside, and where the
+        joint's reference motion itself left its ranges, ``commanded`` (n, M): a motion
+        commanded beyond the calibration's is the envelope's finding, not an arm that did
+        not settle), its farthest joint and quantity."""
+        n, m = t.shape[0], len(self.m_cols)
+        score = np.zeros((n, len(MEASURED) * m))
+        value = np.zeros_like(score)
+        for q, (k, (lo, hi)) in enumerate(zip(MEASURED, self.m_bounds, strict=True)):
+            x = mot.get(k)[:, self.m_cols]
+            width = np.where(hi > lo, hi - lo, 1.0)
+            score[:, q * m:(q + 1) * m] = np.where(commanded, 0.0, np.maximum(
+                np.maximum(x - hi, lo - x) / width - MEASURED_MARGIN, 0.0))
+            value[:, q * m:(q + 1) * m] = x
+        far = np.argmax(score, axis=1) if n else np.zeros(0, dtype=np.int64)
+        rows = np.arange(n)
+        self.measured.add(k0, t, score[rows, far], far % m, far // m, value[rows, far])
 
     def finish(self, start: int = 0) -> EnvelopeShare:
         """The share outside from sample ``start`` on (the warm-up's end index; samples
@@ -488,7 +580,16 @@ class EnvelopeCheck:
              for j, r in zip(self.names, self.each, strict=True)},
             np.array(stretches, dtype=np.float64).reshape(-1, 2), self.unchecked, src, note,
             posture, slow, {j: self.envelope.slow_dwell_s[j] for j in slow}, ranges,
-            self.envelope.slow_rad_s)
+            self.envelope.slow_rad_s, self._stretches() if self.m_cols and
+            src == "position_ref" else None)
+
+    def _stretches(self) -> tuple[MeasuredStretch, ...]:
+        out = []
+        for t0, t1, _, c, q, v in self.measured.runs:
+            lo, hi = self.m_bounds[q][0][c], self.m_bounds[q][1][c]
+            out.append(MeasuredStretch(t0, t1, self.joints[self.m_cols[c]], MEASURED[q],
+                                       v, float(lo), float(hi)))
+        return tuple(out)
 
 
 def posture_text(posture: Mapping[str, float]) -> str:

@@ -109,6 +109,7 @@ class Incident:
     data_defect: dict[str, Any] | None = None
     payload_change: int | None = None
     payload_test: str | None = None
+    aftermath: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (timeline ``incidents`` item); ``outside_envelope`` only when
@@ -118,7 +119,9 @@ class Incident:
         (:func:`mark_payload_changes`), ``payload_test`` only when the payload monitor
         weighed its alarm and found no payload change (why:
         :func:`impactcli.detect.payload_change.mark_tried`) or a payload change with a
-        contact beside it (:func:`mark_payload_changes`)."""
+        contact beside it (:func:`mark_payload_changes`), ``aftermath`` only when it starts
+        while the arm had not settled after an earlier incident
+        (:func:`impactcli.detect.aftermath.aftermath_of`, with its ``text``)."""
         return {
             "t_start": self.t_start, "t_end": self.t_end, "t_start_utc": self.t_start_utc,
             "detectors": list(self.detectors), "joints": list(self.joints), "link": self.link,
@@ -134,6 +137,7 @@ class Incident:
             **({} if self.data_defect is None else {"data_defect": self.data_defect}),
             **({} if self.payload_change is None else {"payload_change": self.payload_change}),
             **({} if self.payload_test is None else {"payload_test": self.payload_test}),
+            **({} if self.aftermath is None else {"aftermath": self.aftermath}),
         }
 
 
@@ -161,6 +165,7 @@ class LastingLoad(AlarmSpan):
     force_ceiling_n: float | None = None
     force_check: str = ""
     payload_test: str | None = None
+    aftermath: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (timeline ``lasting_loads`` item); ``payload_test`` as an
@@ -174,6 +179,7 @@ class LastingLoad(AlarmSpan):
             "force_method": self.force_method, "force_plausible": self.force_plausible,
             "force_ceiling_n": self.force_ceiling_n, "force_check": self.force_check,
             **({} if self.payload_test is None else {"payload_test": self.payload_test}),
+            **({} if self.aftermath is None else {"aftermath": self.aftermath}),
         }
 
 

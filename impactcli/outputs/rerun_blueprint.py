@@ -203,7 +203,8 @@ def incident_text(k: int | str, inc: Any) -> str:
             f"({inc.t_start:.3f}–{inc.t_end:.3f} s)")
     return text + (" [in warm-up]" if inc.in_warmup else "") + _defect_note(
         inc, " [at a data defect, a {kind} at {t:.3f} s: not counted]") + _payload_note(
-        inc, " [the alarm of payload change P{p}, a load picked or released: not counted]")
+        inc, " [the alarm of payload change P{p}, a load picked or released: not counted]"
+    ) + ("" if getattr(inc, "aftermath", None) is None else f" [{inc.aftermath['text']}]")
 
 
 def _payload_note(inc: Any, form: str) -> str:

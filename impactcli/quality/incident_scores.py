@@ -55,6 +55,7 @@ class _Inc:
     in_warmup: bool
     events: tuple[int, ...] | None
     payload_change: bool = False
+    aftermath: bool = False
 
 
 def _as_inc(x: Any, warmup_end_s: float, i: int) -> _Inc:
@@ -72,7 +73,7 @@ def _as_inc(x: Any, warmup_end_s: float, i: int) -> _Inc:
                     None if force is None else float(force), str(get("contact", "unknown")),
                     bool(get("in_warmup", False)) or t0 < warmup_end_s,
                     None if not evs else tuple(int(k) for k in evs),
-                    get("payload_change") is not None)
+                    get("payload_change") is not None, get("aftermath") is not None)
     except (KeyError, TypeError, ValueError) as err:
         raise LogFormatError(f"incidents[{i}]: missing or bad field: {err}") from None
 
@@ -200,6 +201,9 @@ class IncidentEvaluation:
         n_payload_changes: the alarms of payload changes (not contacts, not counted:
             :func:`impactcli.detect.incidents.mark_payload_changes`).
         unmatched: counted incidents starting in no contact's window (false incidents).
+        unmatched_aftermath: of them, those the run marked in an earlier incident's
+            aftermath (:mod:`impactcli.detect.aftermath`: the arm had not settled; still
+            counted, said apart).
         detected: counted contacts the product detected (one of its counted alarms starts
             in the window) — the ones that must each be exactly one incident.
         split: those whose alarms belong to several incidents (label indices).
@@ -217,6 +221,7 @@ class IncidentEvaluation:
     n_incidents_in_warmup: int = 0
     n_payload_changes: int = 0
     unmatched: tuple[int, ...] = ()
+    unmatched_aftermath: tuple[int, ...] = ()
     detected: int = 0
     split: tuple[int, ...] = ()
     not_in_incident: tuple[int, ...] = ()
@@ -238,7 +243,10 @@ class IncidentEvaluation:
         rows = [
             ["counted contacts matched by an incident", _frac(o.matched, o.n_contacts)],
             ["incidents after warm-up", f"{self.n_incidents}" + (
-                f" ({len(self.unmatched)} matching no labelled contact)" if self.unmatched
+                f" ({len(self.unmatched)} matching no labelled contact"
+                + (f", {len(self.unmatched_aftermath)} of them in an earlier incident's "
+                   "aftermath, the arm not settled" if self.unmatched_aftermath else "")
+                + ")" if self.unmatched
                 else " (each matches a labelled contact)" if self.n_incidents else "")
              + (f"; {self.n_incidents_in_warmup} in warm-up (not counted)"
                 if self.n_incidents_in_warmup else "")
@@ -287,6 +295,7 @@ class IncidentEvaluation:
             "n_incidents_in_warmup": self.n_incidents_in_warmup,
             "n_payload_changes": self.n_payload_changes,
             "unmatched_incidents": list(self.unmatched),
+            "unmatched_in_aftermath": list(self.unmatched_aftermath),
             "link_accuracy": rounded(o.link_accuracy, 6),
             "contact_accuracy": rounded(o.contact_accuracy, 6),
             "force_rel_error_median": rounded(o.force_rel_error_median, 6),
@@ -405,13 +414,15 @@ def evaluate_incidents(
     per_type = {t: _answer_score([r for r in counted_rows if r.expected_contact == t])
                 for t in (*CONTACT_TYPES, "unknown")
                 if any(r.expected_contact == t for r in counted_rows)}
+    unmatched = tuple(sorted(k for k in counted_inc
+                             if not _starts_in_any(incs[k], contacts, tolerance)))
     return IncidentEvaluation(
         available=True, contacts=tuple(rows), overall=_answer_score(counted_rows),
         per_link=per_link, per_type=per_type, n_incidents=len(counted_inc),
         n_incidents_in_warmup=sum(1 for i in incs if i.in_warmup),
         n_payload_changes=sum(1 for i in incs if i.payload_change and not i.in_warmup),
-        unmatched=tuple(sorted(k for k in counted_inc
-                               if not _starts_in_any(incs[k], contacts, tolerance))),
+        unmatched=unmatched,
+        unmatched_aftermath=tuple(k for k in unmatched if incs[k].aftermath),
         detected=detected, split=tuple(split), not_in_incident=tuple(none_),
         shared=tuple(sorted(k for k, cs in inc_contacts.items() if len(cs) > 1)),
     )

@@ -91,6 +91,7 @@ class IncidentRow(TypedDict):
     force_plausible: bool | None
     payload_test: NotRequired[str]
     outside_envelope: NotRequired[bool]
+    aftermath: NotRequired[str]
 
 
 def _incident_row(i: Any) -> IncidentRow:
@@ -102,6 +103,8 @@ def _incident_row(i: Any) -> IncidentRow:
         row["payload_test"] = i.payload_test
     if i.outside_envelope:
         row["outside_envelope"] = True
+    if i.aftermath:
+        row["aftermath"] = i.aftermath["text"]
     return row
 
 

@@ -432,9 +432,7 @@ def _replay(reader: MemoryReader, sc: Screened, model: RigidModel | None,
     finally:
         caught.raise_again(impact=True)
     st = collected.stats()
-    motion = Motion(*(np.concatenate([getattr(m, k) for m in moved])
-                      for k in ("velocity", "acceleration", "position", "slow"))
-                    ) if moved else None
+    motion = Motion.joined(moved) if moved else None
     return _Replayed(where, st.time_s, scan.sample_rate_hz, rp.warmup, st.stats, motion,
                      trace.source or "position", trace.slow_rad_s)
 

@@ -33,6 +33,7 @@ import numpy as np
 
 from ..config import THRESHOLD_KEYS, CalibrationRecord, DetectorConfig
 from ..detect.adaptive import AdaptiveResult, default_threads
+from ..detect.aftermath import mark_aftermath
 from ..detect.envelope import (
     EnvelopeCheck,
     MotionEnvelope,
@@ -324,6 +325,8 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
             incidents = [dataclasses.replace(i, outside_envelope=share.touches(i.t_start,
                                                                               i.t_end))
                          for i in incidents]
+            if share.measured is not None:  # alarms while the arm had not settled
+                incidents = mark_aftermath(incidents, share.measured, settle)
             warn_outside_envelope(where, outside_share_text(share), share.outside,
                                   sum(1 for i in incidents if i.outside_envelope),
                                   posture_text(share.posture), share.note)

@@ -292,6 +292,8 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
                      "counted</span>")
         if r.get("payload_test"):
             when += f' <span class="note">{e(r["payload_test"])}</span>'
+        if r.get("aftermath"):
+            when += f' <span class="note">{e(r["aftermath"]["text"])}</span>'
         force = (f'<b>~{approx(r["force_n"])} N</b>' if r.get("force_n") is not None
                  else '<span class="muted">no force estimate</span>')
         if r.get("force_plausible") is False:

@@ -1,0 +1,133 @@
+"""A contact's aftermath (impactcli.detect.aftermath) on incidents and measured stretches
+whose times are chosen, so the rule's every edge is known: which span an incident threw, the
+settling time that joins stretches and ends a span, the incident that starts the span never
+in its own aftermath, one that starts while its cause is still on never either."""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from impactcli.detect.aftermath import (
+    LEAD_S,
+    MeasuredStretch,
+    PeakRuns,
+    aftermath_of,
+    aftermath_text,
+    mark_aftermath,
+)
+
+SETTLE = 0.56
+
+
+@dataclass(frozen=True)
+class Inc:
+    t_start: float
+    t_end: float
+    number: int | None
+    aftermath: dict | None = None
+
+
+def out(t0: float, t1: float, value: float = 9.0) -> MeasuredStretch:
+    return MeasuredStretch(t0, t1, "elbow", "measured_acceleration", value, -5.0, 5.0)
+
+
+def test_alarms_while_the_arm_rings_after_a_push_are_its_aftermath() -> None:
+    push = Inc(35.05, 35.86, 5)
+    ring = [Inc(35.99, 36.24, 6), Inc(36.38, 36.57, 7), Inc(37.15, 37.18, 8)]
+    later = Inc(40.0, 40.3, 9)   # after the span and its settling time: a contact again
+    # the push throws the arm out (from 35.07); excursions 0.1–0.5 s apart until 37.0 s
+    stretches = [out(35.07, 36.61, 13.5), out(36.74, 36.96), out(39.0, 39.05)]
+    marks = aftermath_of([push, *ring, later], stretches, SETTLE)
+    assert marks[0] is None and marks[4] is None
+    for m in marks[1:4]:
+        assert m is not None and m["incident"] == 5 and m["t_start"] == 35.05
+        assert m["until_s"] == 36.96  # 39.0 lies 2 s further: another span
+        assert m["measured"]["value"] == 13.5  # the span's farthest stretch so far
+    text = aftermath_text(marks[1])
+    assert text.startswith("in the aftermath of incident 5 at 35.050 s: the arm had not "
+                           "settled (measured elbow acceleration 13.5 rad/s²")
+    assert "may be its ringing, not a new contact" in text
+    # the settling time bounds it: an incident 0.5 s after the span's end is in it, 0.6 s not
+    near, far = Inc(36.96 + 0.5, 37.6, 10), Inc(36.96 + 0.6, 37.7, 11)
+    m_near, m_far = aftermath_of([push, near, far], stretches[:2], SETTLE)[1:]
+    assert m_near is not None and m_far is None
+
+
+def test_a_span_no_incident_threw_marks_nothing() -> None:
+    """Motion that left the measured ranges before any incident (a fast reference, an unseen
+    bump) is not an incident's aftermath: the first incident in it is not its cause."""
+    a, b = Inc(10.5, 10.8, 1), Inc(11.2, 11.4, 2)
+    assert aftermath_of([a, b], [out(10.0, 11.3)], SETTLE) == [None, None]
+    # from LEAD_S before an incident's start it is the incident's (the residual lags)
+    early = [out(10.5 - LEAD_S + 0.01, 11.3)]
+    assert aftermath_of([a, b], early, SETTLE)[1] is not None
+    late = [out(10.5 - LEAD_S - 0.01, 11.3)]
+    assert aftermath_of([a, b], late, SETTLE)[1] is None
+
+
+def test_an_incident_that_starts_while_its_cause_is_on_is_not_its_aftermath() -> None:
+    a, b = Inc(10.0, 11.0, 1), Inc(10.9, 11.5, 2)
+    assert aftermath_of([a, b], [out(10.1, 12.0)], SETTLE) == [None, None]
+
+
+def test_stretches_farther_apart_than_the_settling_time_are_two_spans() -> None:
+    a, b = Inc(10.0, 10.3, 1), Inc(11.6, 11.8, 2)
+    gap = 11.0 - 10.4  # > SETTLE
+    assert gap > SETTLE
+    assert aftermath_of([a, b], [out(10.1, 10.4), out(11.0, 11.7)], SETTLE) == [None, None]
+    assert aftermath_of([a, b], [out(10.1, 10.4), out(10.9, 11.7)], SETTLE)[1] is not None
+
+
+def test_no_stretch_no_mark_and_unordered_input_keeps_its_order() -> None:
+    a, b = Inc(10.0, 10.3, 1), Inc(10.6, 10.8, 2)
+    assert aftermath_of([a, b], [], SETTLE) == [None, None]
+    marks = aftermath_of([b, a], [out(10.1, 10.9)], SETTLE)
+    assert marks[1] is None and marks[0] is not None and marks[0]["incident"] == 1
+    # an incident without a number (warm-up, a payload change) is named by its time
+    warm = Inc(1.0, 1.2, None)
+    (m,) = aftermath_of([warm, Inc(1.5, 1.6, 1)], [out(1.1, 1.5)], SETTLE)[1:]
+    assert m is not None and aftermath_text(m).startswith(
+        "in the aftermath of the incident at 1.000 s")
+    marked = mark_aftermath([a, b], [out(10.1, 10.9)], SETTLE)
+    assert marked[0] is a and marked[1].aftermath["text"] == aftermath_text(
+        marked[1].aftermath)
+
+
+def test_a_stretch_round_trips_through_its_mapping() -> None:
+    s = out(1.0, 2.0, -7.5)
+    assert MeasuredStretch.from_dict(s.to_dict()) == s
+    assert s.score == pytest.approx(0.25)
+    assert out(1.0, 2.0, 4.0).score == 0.0
+
+
+@given(st.lists(st.integers(1, 400), min_size=1, max_size=6), st.integers(0, 2 ** 31 - 1))
+def test_peak_runs_are_the_same_whatever_the_chunks(cuts: list[int], seed: int) -> None:
+    """Runs joined across chunk boundaries and over the merge gap, each with its farthest
+    sample: the same for any split of the same samples."""
+    rng = np.random.default_rng(seed)
+    n = 1200
+    t = np.arange(n) * 0.004
+    score = np.where(rng.random(n) < 0.05, rng.random(n), 0.0)
+    score[300:360] = np.linspace(0.1, 2.0, 60)
+    col = rng.integers(0, 2, n)
+    qty = rng.integers(0, 2, n)
+    val = rng.normal(size=n)
+
+    def run(bounds: list[int]) -> list[list[float]]:
+        pr = PeakRuns(0.1)
+        for a, b in zip([0, *bounds], [*bounds, n], strict=True):
+            pr.add(a, t[a:b], score[a:b], col[a:b], qty[a:b], val[a:b])
+        return pr.runs
+
+    whole = run([])
+    assert run(sorted(set(c % n for c in cuts) - {0})) == whole
+    # gaps ≤ 0.1 s merged: consecutive runs lie more than 0.1 s apart
+    assert all(b[0] - a[1] > 0.1 for a, b in itertools.pairwise(whole))
+    top = max(whole, key=lambda r: r[2])
+    assert top[2] == pytest.approx(2.0) and top[5] == val[359]
