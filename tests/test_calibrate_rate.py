@@ -20,6 +20,7 @@ from click.testing import CliRunner
 
 from impactcli.cli import main
 from impactcli.config import load_config
+from impactcli.schema import validate
 
 from .cli_run import invoke
 from .golden.make_golden import RTOL
@@ -128,8 +129,12 @@ def test_free_logs_raise_no_alarm_with_their_rate_thresholds(assist: tuple,
     assert re.match(r"thresholds of assist.toml: set for 1 false alarm\(s\) per hour "
                     r"\(predicted [0-9.]+ false alarm\(s\) per hour, ≤ 1 at 90 %, on motion "
                     r"like the calibration logs'\), not supported by its free motion "
-                    r"\([0-9.]+ min of free motion supports at best .*\); weak: the "
-                    r"leave-one-out margin hit its cap of 3× on static_baseline$", said[0]), said
+                    r"\([0-9.]+ min of free motion supports at best .*?\); but 1 of the "
+                    r"calibration logs, left out, false-alarmed above the others' bound "
+                    r"\(assist_free_triangle.csv.gz: [0-9.]+/h against [0-9.]+/h\): a log "
+                    r"unlike the calibration logs may false-alarm far above the prediction; "
+                    r"weak: the leave-one-out margin hit its cap of 3× on static_baseline$",
+                    said[0]), said
     for p in free("assist"):
         stem = Path(p).name.removesuffix(".csv.gz")
         tl = json.loads((tmp_path / f"{stem}.timeline.json").read_text())
@@ -158,8 +163,12 @@ def test_report_states_the_rate_and_that_it_is_not_supported(assist: tuple,
     # the header's calibration says what detect's terminal says (one phrase)
     assert re.search(r"calibrated \(set for 1 false alarm\(s\) per hour \(predicted [0-9.]+ "
                      r"false alarm\(s\) per hour, ≤ 1 at 90 %, on motion like the calibration "
-                     r"logs(&#x27;|')\), not supported by its free motion \(.*\); weak: the "
-                     r"leave-one-out margin hit its cap of 3× on static_baseline\)", text)
+                     r"logs(&#x27;|')\), not supported by its free motion \(.*?\); but 1 "
+                     r"of the calibration logs, left out, false-alarmed above the others(&#x27;|')"
+                     r" bound \(assist_free_triangle.csv.gz: [0-9.]+/h against [0-9.]+/h\): a "
+                     r"log unlike the calibration logs may false-alarm far above the "
+                     r"prediction; weak: the leave-one-out margin hit its cap of 3× on "
+                     r"static_baseline\)", text)
     assert "The calibration&#x27;s motion envelope" in text or \
         "The calibration's motion envelope" in text
 
@@ -411,3 +420,49 @@ def test_a_threshold_above_its_joints_effort_limit_is_said() -> None:
                                                          vL={"pan": 1.0, "lift": 733.8}))
     with pytest.warns(ImpactWarning, match=r"lift static_loading 733\.8 > 330"):
         warn_beyond_effort(renamed, logged, robot)
+
+
+def test_a_log_left_out_above_its_bound_is_named_where_the_rate_is_stated(
+        tmp_path: Path) -> None:
+    """Known truth from the Garwood interval: 8 alarms in 0.6167 min (778 per hour) has
+    its 90 % low end at χ²(0.05; 16)/2 / hours = 387 per hour, 12.9× the bound of 30 the
+    other logs gave; 0 alarms is below any bound. The committed sample config's triangle
+    log is such a log: detect's thresholds line and the report (a ``rate-left-out``
+    caveat, in a report that validates) say so beside the predicted rate."""
+    from scipy import stats
+
+    from impactcli.detect.tail import left_out_above
+
+    hours = 0.6167333333333332 / 60.0
+    rows = [{"log": "a/tri.csv", "minutes": 0.6167333333333332, "per_hour": 30.0,
+             "observed": 8, "predicted_per_hour": 3.6, "upper_per_hour": 30.0},
+            {"log": "a/tri.csv", "minutes": 0.6167333333333332, "per_hour": 300.0,
+             "observed": 20, "predicted_per_hour": 80.0, "upper_per_hour": 284.7},
+            {"log": "a/p2p.csv", "minutes": 0.6167333333333332, "per_hour": 30.0,
+             "observed": 0, "predicted_per_hour": 3.6, "upper_per_hour": 30.0}]
+    (x,) = left_out_above({"confidence": 0.9, "leave_one_log_out": rows})
+    low = stats.chi2.ppf(0.05, 16) / 2 / hours
+    assert x["log"] == "a/tri.csv" and x["per_hour"] == 30.0  # the worse of its two rows
+    assert x["low"] == pytest.approx(low) and x["ratio"] == pytest.approx(low / 30.0)
+    assert x["observed_per_hour"] == pytest.approx(8 / hours)
+    assert left_out_above({"confidence": 0.9, "leave_one_log_out": rows[2:]}) == []
+    # the sample config: its triangle log, left out, at 778 per hour against 30
+    cfg = REPO / "sample_logs" / "assist_like.config.toml"
+    log = CSV / "assist_pushes.csv.gz"
+    r = CliRunner().invoke(main, ["detect", str(log), "--config", str(cfg), "-o",
+                                  str(tmp_path / "o")])
+    assert r.exit_code == 0, r.output
+    line = next(ln for ln in r.stdout.splitlines() if ln.startswith("thresholds of"))
+    assert ("; but 1 of the calibration logs, left out, false-alarmed above the others' "
+            "bound (assist_free_triangle.csv.gz: 778/h against 30/h): a log unlike the "
+            "calibration logs may false-alarm far above the prediction") in line, line
+    r = CliRunner().invoke(main, ["report", str(log), "--config", str(cfg), "-o",
+                                  str(tmp_path / "r.html"), "--json", str(tmp_path / "r.json")])
+    assert r.exit_code == 0, r.output
+    doc = json.loads((tmp_path / "r.json").read_text())
+    validate(doc, "report", AssertionError, "report")
+    cav = {c["code"]: c["text"] for c in doc["logs"][0]["caveats"]}
+    assert cav["rate-left-out"].startswith(
+        "Left out of the calibration in turn, 1 of its logs false-alarmed above the bound "
+        "the other logs' fit gave (assist_free_triangle.csv.gz at 778 per hour (at least "
+        "387) against 30)")

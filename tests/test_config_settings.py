@@ -21,6 +21,7 @@ from impactcli.config import (
     settings_changed,
     settings_sha256,
 )
+from impactcli.schema import validate
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
 CONFIG = SAMPLES / "assist_like.config.toml"
@@ -72,6 +73,7 @@ def test_a_config_edited_after_calibrate_says_its_rate_does_not_apply(tmp_path: 
                                       str(rep)])
         assert r.exit_code == 0, r.output
         doc = json.loads(rep.read_text("utf-8"))
+        validate(doc, "report", AssertionError, "report")  # its caveat is the schema's
         codes = json.dumps(doc)
         assert ('"settings-changed"' in codes) is changed
         if changed:

@@ -641,3 +641,18 @@ def test_a_section_holds_every_field_of_its_timeline() -> None:
         assert set(sec) <= set(LogSection.__annotations__)
         assert (sec["input"], sec["thresholds"], sec["summary"]) == (
             tl["input"], tl["thresholds"], tl["summary"])
+
+
+def test_every_code_the_report_writes_is_in_its_schema() -> None:
+    """Each caveat and "could not see" code written in the report's modules is one its
+    schema's enums allows (a report with an edited config once wrote 'settings-changed',
+    which the schema did not know)."""
+    src = Path(report.__file__).parent
+    schema = load_schema("report")["$defs"]
+    for module, enum in (("caveats.py", schema["caveat"]["properties"]["code"]["enum"]),
+                         ("unseen.py", next(v["properties"]["code"]["enum"]
+                                            for v in schema.values()
+                                            if "gaps" in v.get("properties", {}).get(
+                                                "code", {}).get("enum", ())))):
+        codes = set(re.findall(r'"code": "([a-z-]+)"', (src / module).read_text()))
+        assert codes and codes <= set(enum), (module, codes - set(enum))

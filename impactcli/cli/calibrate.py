@@ -91,20 +91,16 @@ def rate_lines(rate: dict[str, Any], margin_rule: str = "leave-one-out") -> list
     lines += [f"  note: {n}" for n in rate.get("notes", [])]
     rows = rate.get("leave_one_log_out") or []
     if rows:
-        from ..detect.tail import poisson_interval
+        from ..detect.tail import left_out_above, poisson_interval
 
         lines.append("leave-one-log-out (thresholds set for R on the other logs, R a rate "
                      "a few minutes can show; each log left out counted against them):")
         lines.append(f"  {'log':<40} {'min':>5} {'R [1/h]':>8} {'observed':>9} "
                      f"{'obs. [1/h]':>10} {pct + ' interval':>17} {'predicted':>9} "
                      f"{'bound':>7}")
-        above: dict[str, float] = {}
         for r in rows:
             hours = r["minutes"] / 60.0
             lo, hi = poisson_interval(int(r["observed"]), hours, conf)
-            if lo > r["upper_per_hour"]:
-                name = Path(r["log"]).name
-                above[name] = max(above.get(name, 0.0), lo / r["upper_per_hour"])
             lines.append(f"  {Path(r['log']).name:<40.40} {r['minutes']:>5.2f} "
                          f"{r['per_hour']:>8g} {r['observed']:>9d} "
                          f"{r['observed'] / hours:>10.3g} {f'{lo:.3g}–{hi:.3g}':>17} "
@@ -112,8 +108,10 @@ def rate_lines(rate: dict[str, Any], margin_rule: str = "leave-one-out") -> list
         lines += [f"  {name}: observed above its bound (the interval's low end {k:.3g}× it): "
                   "what it holds is not in the other logs — its motion, or a load the "
                   "model fits worse with that motion — and thresholds made without it "
-                  "false-alarm on such a log" for name, k in above.items()]
-        if not above:
+                  "false-alarm on such a log"
+                  for name, k in ((Path(x["log"]).name, x["ratio"])
+                                  for x in left_out_above(rate))]
+        if not left_out_above(rate):
             lines.append("  (every log left out within its bound)")
     return lines
 

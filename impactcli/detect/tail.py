@@ -25,7 +25,8 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import NamedTuple
+from pathlib import Path
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -43,13 +44,37 @@ from .tail_fit import (
 from .thresholds import MAX_MARGIN, MIN_THRESHOLD  # MIN_THRESHOLD: the smallest returned [N·m]
 
 __all__ = [
-    "CONF", "CONFIG_KEYS", "DEFAULT_FALSE_ALARMS_PER_HOUR", "DETECTORS", "ChannelFits",
-    "Clusters", "LoloRow", "RateCalibration", "TailFit", "calibrate_rate", "calibration_text",
-    "capped_detectors", "clusters",
-    "count_incidents", "fit_channel", "fit_channels", "leave_one_log_out", "minutes_needed",
-    "minutes_text", "per_hour_text", "poisson_interval", "rate_at", "rate_upper",
-    "rates_for_thresholds", "split_settle", "stack_detectors", "support",
-    "support_statement", "threshold_upper", "thresholds_for_rate",
+    "CONF",
+    "CONFIG_KEYS",
+    "DEFAULT_FALSE_ALARMS_PER_HOUR",
+    "DETECTORS",
+    "ChannelFits",
+    "Clusters",
+    "LoloRow",
+    "RateCalibration",
+    "TailFit",
+    "calibrate_rate",
+    "calibration_text",
+    "capped_detectors",
+    "clusters",
+    "count_incidents",
+    "fit_channel",
+    "fit_channels",
+    "leave_one_log_out",
+    "left_out_above",
+    "minutes_needed",
+    "minutes_text",
+    "per_hour_text",
+    "poisson_interval",
+    "rate_at",
+    "rate_upper",
+    "rates_for_thresholds",
+    "split_settle",
+    "stack_detectors",
+    "support",
+    "support_statement",
+    "threshold_upper",
+    "thresholds_for_rate",
 ]
 
 #: The audit's rate [incidents per hour] (``calibrate --threshold-rule false-alarm-rate``
@@ -240,6 +265,29 @@ def capped_detectors(calib: Mapping[str, object]) -> list[str]:
                   and not (rated and d in DETECTORS))
 
 
+def left_out_above(rate: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """The calibration logs that, left out, false-alarmed above the bound the others' fit
+    gave (a rate record's ``leave_one_log_out`` rows: the low end of the observed rate's
+    interval, at the record's confidence, above ``upper_per_hour``), each with its worst
+    row: ``log``, ``per_hour`` (R), ``observed_per_hour``, ``low`` (that low end),
+    ``upper_per_hour`` and ``ratio`` (low / upper), in the rows' order of logs."""
+    conf = float(rate.get("confidence", CONF))
+    worst: dict[str, dict[str, Any]] = {}
+    for r in rate.get("leave_one_log_out") or ():
+        hours = float(r["minutes"]) / 60.0
+        if hours <= 0.0:
+            continue
+        low, _ = poisson_interval(int(r["observed"]), hours, conf)
+        upper = float(r["upper_per_hour"])
+        if upper > 0.0 and low > upper:
+            log = str(r["log"])
+            if low / upper > worst.get(log, {}).get("ratio", 0.0):
+                worst[log] = {"log": log, "per_hour": float(r["per_hour"]),
+                              "observed_per_hour": int(r["observed"]) / hours, "low": low,
+                              "upper_per_hour": upper, "ratio": low / upper}
+    return list(worst.values())
+
+
 def calibration_text(calib: Mapping[str, object], settings_changed: bool = False) -> str:
     """How a calibrated config's thresholds were set and what that promises, in one phrase
     (detect's terminal, the report's header): the rate asked or the margin rule, the rate
@@ -263,6 +311,12 @@ def calibration_text(calib: Mapping[str, object], settings_changed: bool = False
                                           in rate and float(rate["supported_per_hour"])
                                           > float(rate.get("upper_per_hour", 0.0))):
         text += f", not supported by its free motion ({rate.get('statement', '')})"
+    if above := left_out_above(rate):  # the prediction did not hold for a log left out
+        w = max(above, key=lambda x: x["ratio"])
+        text += (f"; but {len(above)} of the calibration logs, left out, false-alarmed above "
+                 f"the others' bound ({Path(w['log']).name}: {w['observed_per_hour']:.3g}/h "
+                 f"against {w['upper_per_hour']:.3g}/h): a log unlike the calibration logs "
+                 "may false-alarm far above the prediction")
     if calib.get("weak"):
         capped = capped_detectors(calib)
         if rule == "fixed-single-log":

@@ -6,11 +6,12 @@ contacts, a long event, repairs of the input.
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from ...config import settings_changed
 from ...detect.events import LONG_EVENT_S
-from ...detect.tail import capped_detectors, per_hour_text
+from ...detect.tail import capped_detectors, left_out_above, per_hour_text
 from ...detect.thresholds import (
     MAX_MARGIN,
     UNCALIBRATED_BLOCK_S,
@@ -40,20 +41,40 @@ def _poor_fit(result: DetectionResult) -> list[tuple[str, float, str]]:
 #: A counted event of adaptive or static_loading at least this long gets a caveat [s].
 
 
+def _left_out(rate: dict[str, Any]) -> list[dict[str, str]]:
+    """``rate-left-out``: the calibration logs that, left out, false-alarmed above the bound
+    the others' fit gave (:func:`~impactcli.detect.tail.left_out_above`), none when none."""
+    above = left_out_above(rate)
+    if not above:
+        return []
+    each = "; ".join(f"{Path(x['log']).name} at {x['observed_per_hour']:.3g} per hour "
+                     f"(at least {x['low']:.3g}) against {x['upper_per_hour']:.3g}"
+                     for x in above)
+    return [{"code": "rate-left-out", "text": (
+        f"Left out of the calibration in turn, {len(above)} of its logs false-alarmed above "
+        f"the bound the other logs' fit gave ({each}): what such a log holds — its motion, "
+        "or a load the model fits worse with that motion — is in no other calibration log, "
+        "so the predicted rate rests on motion the logs do not share, and a log unlike "
+        "them may false-alarm far above it. Calibrate on more of the robot's free motion, "
+        "of each kind it runs.")}]
+
+
 def rate_caveats(calib: dict[str, Any]) -> list[dict[str, str]]:
     """The false-alarm rate the thresholds were set for, when the free motion does not
     support it (``rate-not-supported``: what it supports and how much more it needs), and
-    that the rate holds only for motion like the calibration's (``rate-envelope``). Without
+    that the rate holds only for motion like the calibration's (``rate-envelope``), and the
+    calibration logs that false-alarmed above the others' bound when left out
+    (``rate-left-out``). Without
     R (leave-one-out thresholds): one ``rate-envelope`` with the rate they are predicted to
     give and how to ask for one."""
     rate = calib.get("false_alarm_rate")
     if not isinstance(rate, dict):
         return []
-    out = []
+    out = _left_out(rate)
     r, conf = rate.get("per_hour"), rate.get("confidence")
     pct = "—" if conf is None else f"{100 * conf:.0f}"
     if r is None:  # leave-one-out thresholds: the rate they are predicted to give
-        return [{"code": "rate-envelope", "text": (
+        return [*out, {"code": "rate-envelope", "text": (
             f"The thresholds were set by {calib.get('margin_rule') or 'a margin rule'}, not "
             "for a false-alarm rate; on motion like the calibration logs' they are "
             f"predicted to give {per_hour_text(rate.get('predicted_per_hour', 0.0))} false "
