@@ -193,12 +193,30 @@ def test_a_mass_shows_its_inertia_and_a_steady_press_does_not() -> None:
     assert _mass_or_press(0.02, "press")[0] == "unseen"
     _, _, drift = _mass_or_press(1.0, "ramp")
     assert drift > payload.STEADY
-    # a press that builds up is no payload: briskly its want of inertia shows, slowly its
-    # ramp (judged as a steady force's too)
-    verdict, _, _ = _mass_or_press(1.0, "press_ramp")
-    assert verdict == "contradicts"
-    verdict, _, drift = _mass_or_press(0.02, "press_ramp")
-    assert verdict != "shows" and drift > payload.STEADY, (verdict, drift)
+    # a press that builds up is no payload: its ramp drifts (judged as a steady force's
+    # too), briskly or slowly. Its want of inertia does not decide it: what the mass leaves
+    # of a ramp is smooth (correlated over ~90 rows here), and counted as such the force's
+    # better fit (12.6 deviations with the rows taken as independent) is 1.3 — within what
+    # a smooth misfit makes by chance, as a rigid model's misfit of a genuine mass is
+    for speed in (1.0, 0.02):
+        verdict, _, drift = _mass_or_press(speed, "press_ramp")
+        assert verdict != "shows" and drift > payload.STEADY, (speed, verdict, drift)
+
+
+def test_the_inertia_test_counts_correlated_rows_as_fewer() -> None:
+    """Known truth: white rows count one each; a moving average of m white rows is
+    correlated over m rows (its integrated autocorrelation time is m); a constant
+    column adds nothing."""
+    rng = np.random.default_rng(5)
+    white = rng.normal(size=(20000, 2))
+    assert payload.correlated_rows(white) == pytest.approx(1.0, abs=0.1)
+    m = 10
+    smooth = np.column_stack([np.convolve(white[:, k], np.ones(m) / m, "valid")
+                              for k in range(2)])
+    assert payload.correlated_rows(smooth) == pytest.approx(m, rel=0.15)
+    assert payload.correlated_rows(np.column_stack([smooth[:, 0], np.ones(len(smooth))])
+                                   ) == pytest.approx(m, rel=0.15)
+    assert payload.correlated_rows(white[:3]) == 1.0
 
 
 def _sim(out: Path, name: str, seed: int, kg: float, robot_seed: int = 7) -> Path:
@@ -528,6 +546,39 @@ def test_a_push_in_the_weighing_window_does_not_bias_the_mass(tmp_path: Path) ->
     assert release["drift"] < 0.05 and release["explained"] >= 0.9, release
     after = [i for i in tl["incidents"] if i["number"] is not None and i["t_start"] > place]
     assert len(after) == 1 and push.start - 0.02 <= after[0]["t_start"] <= push.end + 0.25
+
+
+def test_a_pick_on_the_heavy_arm_is_weighed_on_its_next_window_and_a_push_caught(
+        tmp_path: Path) -> None:
+    """Heavy geared arm (robot seed 7), a 30 N push 1 s after the 2 kg pick: the push spoils
+    the pick's first window, and the next two sided "with a steady force, not with a mass's
+    inertia" at 4–12 deviations counted over independent rows — rows of a residual through
+    the replay's filters, correlated over 20–90 rows. The pick was then classified 12 s
+    late, its alarm a lasting load that held the push unseen. Counted over the rows that are
+    independent, the inertia does not side against the mass: classified on the second
+    window, the mass within 5 %, the push a counted incident."""
+    from impactcli.detect.payload_change import WINDOW_S
+
+    logs = {"robot": tmp_path / "light.robot.json"}
+    for name, seed, kg in (("light", 1, 0.0), ("heavy", 2, 2.0)):
+        r = CliRunner().invoke(main, [
+            "simulate", "--arm", "heavy_geared", "--scenario", "free_multisine",
+            "--duration", "40", "--seed", str(seed), "--robot-seed", "7", "--payload-kg",
+            str(kg), "--no-controller-channels", "-o", str(tmp_path), "--name", name])
+        assert r.exit_code == 0, r.output
+        logs[name] = tmp_path / f"{name}.csv.gz"
+    _calibrate(logs, "light", "heavy", tmp_path)
+    log, sc, push = _one_push(tmp_path, "push_after_pick", 0, 1.0, "heavy_geared", 7,
+                              controller_channels=False)
+    (pick, kg), _ = sc.payload_changes
+    tl, code, r = _detect(log, tmp_path / "light_heavy.toml", tmp_path / "o")
+    assert code == 0, r.output  # type: ignore[attr-defined]
+    change = tl["payload_changes"][0]
+    assert abs(change["t_start"] - pick) < 0.1, change
+    assert change["t_classified"] <= change["t_start"] + 2 * WINDOW_S + 0.01, change
+    assert abs(change["mass_kg"] - kg) < 0.05 * kg, change
+    counted = [i for i in tl["incidents"] if i["number"] is not None]
+    assert any(push.start - 0.02 <= i["t_start"] <= push.end + 0.25 for i in counted), counted
 
 
 def test_a_release_inside_another_alarms_window_is_found_at_its_step(
