@@ -465,7 +465,13 @@ def test_a_push_while_the_load_is_released_is_counted_not_hidden_in_the_change(
     assert "a contact in its window that the mass does not explain" in out
     row = next(ln for ln in out.splitlines() if f"{seen['t_s']:>9.3f} s" in ln)
     assert ("  a contact beside payload change P2, its link, force and contact type the "
-            "whole alarm's, the load's step with it (payload_test in the timeline)") in row
+            "contact's own, the load's torque taken out (payload_test in the timeline)") in row
+    # the contact's own figures, the load's torque taken out of the alarm: the push's link
+    # and a force of a 30 N push at 70 % of the link read at its end (a push away from any
+    # change reads 24-26 N there); the whole alarm, with the release's step, read ~47 N
+    assert held[0]["link"] == push.link and held[0]["contact"] == "transient", held[0]
+    assert 0.6 * push.peak_force <= held[0]["force_n"] <= 1.1 * push.peak_force, held[0]
+    assert held[0]["force_method"].endswith("(the torque the load leaves)")
     ev = CliRunner().invoke(main, ["evaluate", str(tmp_path / "o" / "push_at_release"
                                                    ".timeline.json")])
     assert ev.exit_code == 0, ev.output

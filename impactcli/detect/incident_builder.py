@@ -13,7 +13,7 @@ gives its incidents and lasting loads.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -408,6 +408,52 @@ def build_findings(
             force_plausible=chk.plausible, force_ceiling_n=chk.ceiling_n,
             force_check=chk.why))
     return out, loads
+
+
+def beside(ctx: IncidentContext, inc: Incident, part: Any) -> Incident | None:
+    """``inc``, a contact beside a payload change, placed and sized by the contact itself:
+    its link, force and contact type from ``part`` (a
+    :class:`~impactcli.detect.payload_change.ContactPart`: the residual with the load's
+    torque taken out, over the contact's excursion) by the rules of :func:`build_findings`
+    (the link from the detectors' evidence, the residual's noise not known there). None
+    when the part cannot place it: a joint of the chain logged but not in the replay (its
+    posture unknown there), or joints that are not the context's."""
+    names = tuple(part.joints)
+    if set(names) != set(ctx.joints) or part.r.shape[0] == 0:
+        return None
+    order = [names.index(j) for j in ctx.joints]  # the part's columns in the context's order
+    r, ratio = part.r[:, order], part.ratio[:, order]
+    q_chain = np.zeros((r.shape[0], len(ctx.chain_cols)))
+    for c, name in enumerate(ctx.chain):
+        if name in names:
+            q_chain[:, c] = part.q[:, names.index(name)]
+        elif ctx.chain_cols[c] is not None:
+            return None
+    where = decide_link(ratio, np.zeros(ratio.shape, dtype=bool), ctx.index, r, None, None,
+                        ctx.vl)
+    link = where.link
+    est = ForceEstimate(None, "no kinematics: the peak residual torques are the answer")
+    if link is not None and ctx.jac is not None:
+        est = force_estimate(r, q_chain, link, ctx.index, ctx.jac)
+        where = blind_beyond(where, ctx.jac, q_chain[r.shape[0] // 2], len(ctx.chain_cols))
+    elif link is None:
+        est = ForceEstimate(None, "the residuals cannot say which link: no force estimate")
+    if part.began_before and est.force_n is not None:  # its end only: no peak to give
+        est = ForceEstimate(None, (
+            "no force estimate: the contact began before the torque the load leaves could "
+            "be read apart from the load's step (within the change's settling time); after "
+            f"that, at least ~{est.force_n:.3g} N at the end of link {link}"), est.levers)
+    chk = check_force(ctx, est, link)
+    cols = [k for k, c in enumerate(ctx.index) if link is None or c <= link]
+    speed = np.max(np.abs(part.qd[:, order][:, cols]), axis=1)
+    kind = contact_type(np.asarray((ratio > 1.0).any(axis=1)), speed, part.dt)
+    peak = {j: float(r[np.argmax(np.abs(r[:, k])), k]) for k, j in enumerate(ctx.joints)
+            if j in inc.joints}
+    return replace(inc, link=link, link_candidates=where.candidates, force_n=est.force_n,
+                   force_method=est.method + ("" if est.force_n is None
+                                              else " (the torque the load leaves)"),
+                   force_plausible=chk.plausible, force_ceiling_n=chk.ceiling_n,
+                   force_check=chk.why, contact=kind, peak_residual=peak)
 
 
 def number_incidents(incidents: list[Incident]) -> list[Incident]:

@@ -254,7 +254,8 @@ def mark_defects(incidents: Sequence[Incident], defects: Sequence[DataDefect],
 
 
 def mark_payload_changes(incidents: Sequence[Incident], changes: Sequence[Any],
-                         settle: float, merge_gap_s: float = 0.1
+                         settle: float, merge_gap_s: float = 0.1,
+                         place: Callable[[Incident, Any], Incident | None] | None = None,
                          ) -> tuple[list[Incident], list[Any]]:
     """The incidents, each that starts from a payload change's onset to ``settle`` seconds
     after its classification, marked with the change's number (1-based): the alarm was the
@@ -270,7 +271,10 @@ def mark_payload_changes(incidents: Sequence[Incident], changes: Sequence[Any],
     onset (``t_start`` moved to it, ``payload_test`` saying why; the nearest alarm from its
     end when it ended before the onset — a contact dated where the monitor's scan began
     may have begun earlier, in it — else from its start): the alarm was the load and a
-    contact. A change whose alarm is no incident (a lasting load) counts none: its
+    contact. ``place`` (incident, change) gives that incident's link, force and contact
+    type from the contact apart from the load
+    (:func:`impactcli.detect.incident_builder.beside`), or None, when the whole alarm's
+    stand, said so. A change whose alarm is no incident (a lasting load) counts none: its
     ``contact`` is marked ``counted: false``, so that no output says it counts.
 
     Returns:
@@ -293,7 +297,8 @@ def mark_payload_changes(incidents: Sequence[Incident], changes: Sequence[Any],
             beside[min(mine, key=lambda n: max(0.0, incidents[n].t_start - t,
                                                t - incidents[n].t_end))] = seen
     counted = {hits[n] for n in beside}
-    return ([_from_contact(inc, hits[n], beside[n]) if n in beside
+    return ([_from_contact(inc, hits[n], beside[n], None if place is None
+                           else place(inc, changes[hits[n] - 1])) if n in beside
              else replace(inc, payload_change=hits[n]) if n in hits else inc
              for n, inc in enumerate(incidents)],
             [replace(c, contact={**c.contact, "counted": False})
@@ -301,9 +306,12 @@ def mark_payload_changes(incidents: Sequence[Incident], changes: Sequence[Any],
              for k, c in enumerate(changes, 1)])
 
 
-def _from_contact(inc: Incident, k: int, seen: dict[str, Any]) -> Incident:
+def _from_contact(inc: Incident, k: int, seen: dict[str, Any],
+                  placed: Incident | None = None) -> Incident:
     """``inc``, the alarm of payload change ``k`` that holds a contact (``seen``: the
-    change's ``contact``), counted from the contact's onset."""
+    change's ``contact``), counted from the contact's onset; with the link, force and
+    contact type of ``placed`` (``inc`` placed by the contact apart from the load) when
+    given, else its own, the whole alarm's."""
     import datetime as dt
 
     t, i = float(seen["t_s"]), int(seen["i"])
@@ -317,11 +325,12 @@ def _from_contact(inc: Incident, k: int, seen: dict[str, Any]) -> Incident:
         at = dt.datetime.fromisoformat(utc.replace("Z", "+00:00")) + dt.timedelta(
             seconds=shift)
         utc = at.isoformat(timespec="milliseconds").replace("+00:00", "Z")
-    return replace(inc, t_start=t, i_start=i if shift else inc.i_start,
+    whose = ("its link, force and contact type the contact's own, the load's torque "
+             "taken out" if placed is not None else
+             "its link, force and contact type the whole alarm's, the load's step with it")
+    return replace(placed or inc, t_start=t, i_start=i if shift else inc.i_start,
                    t_start_utc=utc,
-                   payload_test=(f"a contact beside payload change P{k}, its link, force "
-                                 "and contact type the whole alarm's, the load's step with "
-                                 "it: "
+                   payload_test=(f"a contact beside payload change P{k}, {whose}: "
                                  f"its alarm held the load and, from {seen['t_s']:.3f} s, a "
                                  f"torque on {seen['joint']} the load does not explain "
                                  f"({seen['peak']:.2g}× its loading threshold)"))

@@ -207,6 +207,26 @@ class Judged:
 
 
 @dataclass(frozen=True)
+class ContactPart:
+    """A contact beside a payload change, apart from the load (module docstring, step 5):
+    over the rows of its excursion, ``r`` (n, J) the residual with the load's torque taken
+    out (r + Y B π) [N·m], ``ratio`` (n, J) its static-loading statistic over vL, ``q``
+    and ``qd`` (n, J) the filtered positions [rad] and velocities [rad/s] of ``joints``
+    (the replay's), and the sample period ``dt`` [s]: what the incident builder needs to
+    place and size the contact itself (:func:`impactcli.detect.incident_builder.beside`);
+    ``began_before``: the excursion was already on where the torque the load leaves is
+    first read (the onset plus ``settle_s``), so its rows hold the contact's end only."""
+
+    joints: tuple[str, ...]
+    r: np.ndarray
+    ratio: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    dt: float
+    began_before: bool = False
+
+
+@dataclass(frozen=True)
 class PayloadChange:
     """A payload change (module docstring): ``t_start`` the alarm's onset, ``t_classified``
     when it was classified and the residual took the new load [s since the log's first
@@ -237,6 +257,7 @@ class PayloadChange:
     inertia: str | None = None
     at_watch_start: bool = False
     contact: dict[str, Any] | None = None
+    part: ContactPart | None = field(default=None, repr=False, compare=False)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (the timeline's ``payload_changes`` item)."""
@@ -478,6 +499,19 @@ class PayloadMonitor:
                 if again.why is None:  # the tests passed without the contact's rows too
                     judged, y, left = again, y[keep], left[keep]
         w = judged.w
+        part = None
+        if run is not None:  # the contact apart from the load, with the mass as taken
+            # already on where the scan began: from the onset, when the buffer holds it
+            a0 = n - (k_c - self._onset[0]) if run[0] == 0 else s0 + run[0]
+            began_before = run[0] == 0 and a0 < 0
+            a0 = max(a0, 0) if not began_before else s0
+            z = s0 + run[1]
+            yp = self.model.regressor(buf["qf"][a0:z], buf["qd"][a0:z],
+                                      buf["qdd"][a0:z]) @ self.b
+            rc = buf["r"][a0:z] + yp @ w.pi
+            part = ContactPart(tuple(self.model.joint_names), rc, self._loading(-rc),
+                               buf["qf"][a0:z], buf["qd"][a0:z], 1.0 / self.sample_rate_hz,
+                               began_before)
         known = payload.known_load(self.known, self._pi, w.pi, w.mass_se_kg, y, left,
                                    self.names)
         self._pi = self._pi + w.pi if known is None else np.array(known[1])
@@ -486,7 +520,7 @@ class PayloadMonitor:
             {nm: float(v) for nm, v in zip(self.names, w.pi, strict=True)},
             judged.explained, self.base_kg + float(self._pi[self.names.index("m")]),
             None if known is None else known[0], judged.drift, judged.shows,
-            t_a - self.start_s < 1.5 / self.sample_rate_hz, seen))
+            t_a - self.start_s < 1.5 / self.sample_rate_hz, seen, part))
         return self._pi
 
     def _judge(self, y: np.ndarray, left: np.ndarray, qf: np.ndarray,
@@ -550,10 +584,7 @@ class PayloadMonitor:
         None otherwise. ``k_first``, ``t_first``: the window's first sample and its time;
         ``clipped``: the alarm began before it (the buffer keeps :data:`KEPT` windows), so
         an excursion already on there dates from the alarm's onset."""
-        lp = np.abs(causal_lowpass(leftover, self.loading_cutoff_hz, self.sample_rate_hz,
-                                   self.loading_order))
-        vl = np.where(self.v_loading > 0, self.v_loading, np.inf)
-        ratio = lp / vl[None, :]
+        ratio = self._loading(leftover)
         if ratio.size == 0 or not ratio.max() > BESIDE:
             return None, None
         top, j = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
@@ -566,6 +597,14 @@ class PayloadMonitor:
         if i == 0 and clipped and self._onset is not None:
             return {"i": self._onset[0], "t_s": self._onset[1], **seen}, run
         return {"i": k_first + i, "t_s": t_first + i / self.sample_rate_hz, **seen}, run
+
+    def _loading(self, leftover: np.ndarray) -> np.ndarray:
+        """The static-loading statistic |LP(·)| of (n, J) ``leftover`` [N·m] (the
+        detector's own low-pass, started afresh) over vL."""
+        lp = np.abs(causal_lowpass(leftover, self.loading_cutoff_hz, self.sample_rate_hz,
+                                   self.loading_order))
+        vl = np.where(self.v_loading > 0, self.v_loading, np.inf)
+        return np.asarray(lp / vl[None, :])
 
     def _torque(self, qf: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
                 pi: np.ndarray) -> np.ndarray:

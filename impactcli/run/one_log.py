@@ -44,6 +44,7 @@ from ..detect.events import extract_events
 from ..detect.floor import FloorAccumulator, pulse_gain
 from ..detect.incident_builder import (
     IncidentContext,
+    beside,
     build_findings,
     incident_context,
     number_incidents,
@@ -301,7 +302,8 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
             warnings.warn(unseen, ImpactWarning, stacklevel=2)
         marked, changes = mark_payload_changes(
             mark_defects(incidents, defects, settle, memory), changes, settle,
-            cfg.events.merge_gap_s)
+            cfg.events.merge_gap_s,
+            lambda inc, change: None if change.part is None else beside(ctx, inc, change.part))
         incidents = number_incidents(marked)
         if monitor is not None:  # what the alarms the monitor weighed are not
             incidents = mark_tried(incidents, monitor.tried, cfg.events.merge_gap_s)

@@ -18,6 +18,9 @@ from __future__ import annotations
 import time
 import warnings
 from dataclasses import replace
+from typing import Any
+
+import numpy as np
 
 from impactcli.run.calibration import calibrate_run
 from impactcli.run.collect import detect_in_memory
@@ -44,9 +47,11 @@ def free_run(arm: str, robot_seed: int, seed: int, kg: float) -> tuple[object, o
 def main() -> None:
     warnings.simplefilter("ignore")
     t0 = time.perf_counter()
-    total = {"caught": 0, "runs": 0, "false": 0}
-    print("| arm | robot | push after | caught | false | changes found (steps) |")
-    print("|---|---|---|---|---|---|")
+    total: dict[str, Any] = {"caught": 0, "runs": 0, "false": 0, "link_right": 0,
+                             "force": []}
+    print("| arm | robot | push after | caught | its link (push's), force | false | "
+          "changes found (steps) |")
+    print("|---|---|---|---|---|---|---|")
     for arm, rs in ((a, r) for a in ARMS for r in ROBOT_SEEDS):
         light, robot = free_run(arm, rs, 1, 0.0)
         heavy, _ = free_run(arm, rs, 2, KG[arm])
@@ -63,8 +68,17 @@ def main() -> None:
                 out, _ = detect_in_memory(log, config=cfg)
                 (push,) = res.labels.events
                 counted = out.counted_incidents()
-                hit = any(push.start - MATCH[0] <= i.t_start <= push.end + MATCH[1]
-                          for i in counted)
+                match = [i for i in counted
+                         if push.start - MATCH[0] <= i.t_start <= push.end + MATCH[1]]
+                hit = bool(match)
+                where = "-"
+                if match:  # the answer: its link, and its force against the push's
+                    m = match[0]
+                    total["link_right"] += m.link == push.link
+                    force = "force ?" if m.force_n is None else f"{m.force_n:.3g} N"
+                    if m.force_n is not None:
+                        total["force"].append(m.force_n / push.peak_force)
+                    where = f"link {m.link} ({push.link}), {force}"
                 false = sum(not push.start - MATCH[0] <= i.t_start <= push.end + MATCH[1]
                             for i in counted)
                 steps = " ".join(f"{t:g}" for t, _ in sc.payload_changes)
@@ -72,10 +86,17 @@ def main() -> None:
                 total["caught"] += hit
                 total["runs"] += 1
                 total["false"] += false
-                print(f"| {arm} | {rs} | {which} + {dt:g} s | {'yes' if hit else 'no'} | {false} | "
-                      f"{found} s ({steps} s) |", flush=True)
+                print(f"| {arm} | {rs} | {which} + {dt:g} s | {'yes' if hit else 'no'} | "
+                      f"{where} | {false} | {found} s ({steps} s) |", flush=True)
+    ratios = np.array(total["force"])
     print(f"\n{total['caught']}/{total['runs']} pushes caught, {total['false']} false "
-          f"incident(s); {time.perf_counter() - t0:.0f} s")
+          f"incident(s); of those caught, {total['link_right']} on the push's link, "
+          f"{ratios.size} with a force, its ratio to the push's peak median "
+          f"{np.median(ratios) if ratios.size else float('nan'):.2f} "
+          f"(range {ratios.min() if ratios.size else float('nan'):.2f}–"
+          f"{ratios.max() if ratios.size else float('nan'):.2f}; the push at 70 % of its "
+          f"link, read at the link's end: below 1 by the lever arms); "
+          f"{time.perf_counter() - t0:.0f} s")
 
 
 if __name__ == "__main__":
