@@ -2,7 +2,8 @@
 
 A contact does not end when its force does. A 30 N push on a compliant simulated arm sets it
 ringing for seconds under a calm reference: its tracking error swings to 0.19 rad against
-0.10 in the calibration logs, its measured acceleration to 16 rad/s² against 5.1. Each
+0.10 in the calibration logs, its measured shoulder acceleration to −13.5 rad/s² against
+−3.89 … 3.65. Each
 velocity reversal of the ringing turns the model's friction (its smooth sign, docs/method.md
 §2) faster than the calibration's motion ever did, and the static-loading detector fired on
 four of them, 1.0–2.1 s after the push began, as 3–5 N "contacts" at a 0.39 s rhythm
@@ -96,7 +97,7 @@ class MeasuredStretch:
                    str(d["quantity"]), float(d["value"]), lo, hi)
 
     def text(self) -> str:
-        """``measured elbow acceleration 16.5 rad/s² (calibration logs: -5.07 … 4.8)``."""
+        """``measured shoulder acceleration -13.5 rad/s² (calibration logs: -3.89 … 3.65)``."""
         what, unit = (("velocity", "rad/s") if self.quantity.endswith("velocity")
                       else ("acceleration", "rad/s²"))
         return (f"measured {self.joint} {what} {self.value:.3g} {unit} (calibration logs: "
@@ -149,9 +150,9 @@ def aftermath_of(incidents: Sequence[Any], stretches: Sequence[MeasuredStretch],
     whose aftermath it starts in (module docstring), or None.
 
     Each mark is a mapping: ``incident`` (the first incident's number, None when it has none:
-    in warm-up, a payload change), ``t_start`` of that incident [s], ``until_s`` (the span's
-    last sample outside), and the farthest measured stretch of the span up to the incident's
-    end (``measured``, :meth:`MeasuredStretch.to_dict`)."""
+    in warm-up, at a data defect, a payload change), ``t_start`` of that incident [s],
+    ``until_s`` (the span's last sample outside), and the farthest measured stretch of the
+    span up to the incident's end (``measured``, :meth:`MeasuredStretch.to_dict`)."""
     spans = _spans(stretches, settle_s)
     order = sorted(range(len(incidents)), key=lambda k: (float(incidents[k].t_start),
                                                          float(incidents[k].t_end)))

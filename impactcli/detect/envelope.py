@@ -539,6 +539,7 @@ class EnvelopeCheck:
             score[:, q * m:(q + 1) * m] = np.where(commanded, 0.0, np.maximum(
                 np.maximum(x - hi, lo - x) / width - MEASURED_MARGIN, 0.0))
             value[:, q * m:(q + 1) * m] = x
+        score = np.nan_to_num(score, nan=0.0)  # a NaN sample hides no other joint's
         far = np.argmax(score, axis=1) if n else np.zeros(0, dtype=np.int64)
         rows = np.arange(n)
         self.measured.add(k0, t, score[rows, far], far % m, far // m, value[rows, far])

@@ -165,7 +165,6 @@ class LastingLoad(AlarmSpan):
     force_ceiling_n: float | None = None
     force_check: str = ""
     payload_test: str | None = None
-    aftermath: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (timeline ``lasting_loads`` item); ``payload_test`` as an
@@ -179,7 +178,6 @@ class LastingLoad(AlarmSpan):
             "force_method": self.force_method, "force_plausible": self.force_plausible,
             "force_ceiling_n": self.force_ceiling_n, "force_check": self.force_check,
             **({} if self.payload_test is None else {"payload_test": self.payload_test}),
-            **({} if self.aftermath is None else {"aftermath": self.aftermath}),
         }
 
 

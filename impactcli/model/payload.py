@@ -281,14 +281,15 @@ STEADY = 0.25
 #: (:func:`inertia`) is at least this many times what the better of the two fits leaves.
 INERTIA_VISIBLE = 2.0
 #: Visible or not, a step is no mass when the steady force's fit leaves less than the
-#: mass's by this many standard deviations of that difference: a press that builds up
-#: slowly hides its want of inertia in what both fits leave, yet the data still side
-#: against a mass. The deviation counts the rows as independent only as far as what the
-#: mass leaves is (:func:`correlated_rows`): a residual through the replay's filters is
-#: correlated over tens of rows, and counted as white it made a genuine 2 kg pick on the
-#: simulated heavy-geared arm side "against a mass" at 4–12 deviations in the windows after
-#: it (its inertia 7–12 % of what the fits leave: not visible), which dated the pick 12 s
-#: late and hid a push made meanwhile (docs/method.md §5c).
+#: mass's by this many standard deviations of that difference: a steady press hides its
+#: want of inertia in what both fits leave when the motion is slow, yet the data still side
+#: against a mass. The deviation counts the rows as independent only as far as the noise is
+#: (:func:`correlated_rows` of what the mass and the force fitted together leave: what
+#: either alone leaves holds the other's want, a smooth misfit): a residual through the
+#: replay's filters is correlated over tens of rows, and counted as white it made a genuine
+#: 2 kg pick on the simulated heavy-geared arm side "against a mass" at 4–12 deviations in
+#: the windows after it (its inertia 7–12 % of what the fits leave: not visible), which
+#: dated the pick 12 s late and hid a push made meanwhile (docs/method.md §5c).
 INERTIA_AGAINST_Z = 3.0
 #: The autocorrelation of what a fit leaves is summed up to this share of its rows.
 MAX_LAG_SHARE = 0.25
@@ -296,9 +297,10 @@ MAX_LAG_SHARE = 0.25
 
 def correlated_rows(x: np.ndarray) -> float:
     """How many consecutive rows of ``x`` (n, J) count as one independent row: the
-    integrated autocorrelation time 1 + 2 Σ ρ_k of each column, summed over its initial
-    positive sequence (the lags up to the first ρ_k ≤ 0, at most :data:`MAX_LAG_SHARE` of
-    the rows), averaged over the columns; 1 for white rows (≥ 1)."""
+    integrated autocorrelation time 1 + 2 Σ ρ_k of each column, summed over the lags
+    before its first ρ_k ≤ 0 (at most :data:`MAX_LAG_SHARE` of the rows), averaged over the
+    columns (unweighted: the columns are scaled alike where it is used); 1 for white rows
+    (≥ 1)."""
     x = np.asarray(x, dtype=np.float64)
     n = x.shape[0]
     if n < 4:
@@ -311,7 +313,7 @@ def correlated_rows(x: np.ndarray) -> float:
     for j in range(x.shape[1]):
         if acov[0, j] <= 0.0:
             continue
-        rho = acov[1:max(2, int(MAX_LAG_SHARE * n)), j] / acov[0, j]
+        rho = acov[1:max(1, int(MAX_LAG_SHARE * n)) + 1, j] / acov[0, j]
         stop = np.flatnonzero(rho <= 0.0)
         taus.append(1.0 + 2.0 * float(np.sum(rho[:stop[0] if stop.size else rho.size])))
     return max(1.0, float(np.mean(taus))) if taus else 1.0
@@ -347,8 +349,11 @@ def inertia(y_pay: np.ndarray, y_still: np.ndarray, r: np.ndarray, names: Sequen
         return "unseen", 0.0
     gain = (rs - rd) / e
     # rs − rd under white noise σ² per row: ± 2 σ √e about its mean (+e a mass, −e a force),
-    # σ² over the rows that count as independent (what the mass leaves is correlated)
-    tau = correlated_rows((r - y_pay @ weighed.pi) / scale)
+    # the rows counted as independent only as far as the noise is: what the mass and the
+    # force together leave (what either alone leaves holds the other's want, smooth)
+    both = np.concatenate([y_pay, y_still[:, :, st]], axis=2) / scale[:, :, None]
+    x, *_ = np.linalg.lstsq(both.reshape(d.size, -1), (r / scale).reshape(-1), rcond=None)
+    tau = correlated_rows(r / scale - both @ x)
     noise = 2.0 * np.sqrt(min(rd, rs) / d.size * e * tau)
     if rs - rd < -INERTIA_AGAINST_Z * noise:  # the force fits clearly better, seen or not
         return "contradicts", gain
