@@ -429,6 +429,11 @@ def _build(d: dict[str, Any], where: str) -> DetectorConfig:
     c["margins"] = {
         k: {str(j): float(v) for j, v in m.items()} for k, m in c.get("margins", {}).items()
     }
+    for j, q in ((c.get("motion_envelope") or {}).get("joints") or {}).items():
+        for k, rng in q.items():  # a range is [min, max]: reversed, every sample is out
+            if not float(rng[0]) <= float(rng[1]):
+                raise ConfigError(f"{where}: calibration/motion_envelope/joints/{j}/{k}: "
+                                  f"[{rng[0]}, {rng[1]}] is not [min, max]")
     residual = dict(d.get("residual", {}))
     residual["generators"] = {str(j): str(g) for j, g in residual.get("generators", {}).items()}
     if "generator" in residual:

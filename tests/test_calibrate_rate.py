@@ -131,7 +131,8 @@ def test_free_logs_raise_no_alarm_with_their_rate_thresholds(assist: tuple,
                     r"like the calibration logs'\), not supported by its free motion "
                     r"\([0-9.]+ min of free motion supports at best .*?\); but 1 of the "
                     r"calibration logs, left out, false-alarmed above the others' bound "
-                    r"\(assist_free_triangle.csv.gz: [0-9.]+/h against [0-9.]+/h\): a log "
+                    r"\(assist_free_triangle.csv.gz: [0-9.]+/h against [0-9.]+/h, thresholds "
+                    r"set on the others for [0-9.]+/h\): a log "
                     r"unlike the calibration logs may false-alarm far above the prediction; "
                     r"weak: the leave-one-out margin hit its cap of 3× on static_baseline$",
                     said[0]), said
@@ -165,7 +166,8 @@ def test_report_states_the_rate_and_that_it_is_not_supported(assist: tuple,
                      r"false alarm\(s\) per hour, ≤ 1 at 90 %, on motion like the calibration "
                      r"logs(&#x27;|')\), not supported by its free motion \(.*?\); but 1 "
                      r"of the calibration logs, left out, false-alarmed above the others(&#x27;|')"
-                     r" bound \(assist_free_triangle.csv.gz: [0-9.]+/h against [0-9.]+/h\): a "
+                     r" bound \(assist_free_triangle.csv.gz: [0-9.]+/h against [0-9.]+/h, "
+                     r"thresholds set on the others for [0-9.]+/h\): a "
                      r"log unlike the calibration logs may false-alarm far above the "
                      r"prediction; weak: the leave-one-out margin hit its cap of 3× on "
                      r"static_baseline\)", text)
@@ -454,7 +456,8 @@ def test_a_log_left_out_above_its_bound_is_named_where_the_rate_is_stated(
     assert r.exit_code == 0, r.output
     line = next(ln for ln in r.stdout.splitlines() if ln.startswith("thresholds of"))
     assert ("; but 1 of the calibration logs, left out, false-alarmed above the others' "
-            "bound (assist_free_triangle.csv.gz: 778/h against 30/h): a log unlike the "
+            "bound (assist_free_triangle.csv.gz: 778/h against 30/h, thresholds set on the "
+            "others for 30/h): a log unlike the "
             "calibration logs may false-alarm far above the prediction") in line, line
     r = CliRunner().invoke(main, ["report", str(log), "--config", str(cfg), "-o",
                                   str(tmp_path / "r.html"), "--json", str(tmp_path / "r.json")])

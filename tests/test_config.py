@@ -135,6 +135,10 @@ BAD = [
     ("calibration", "logs", [{"path": "a.csv", "sha256": "xyz"}], "calibration/logs/0/sha256"),
     ("calibration", "model_sha256", "abc", "calibration/model_sha256"),
     ("calibration", "margins", {"adaptive": {"j1": 0}}, "calibration/margins/adaptive/j1"),
+    ("calibration", "motion_envelope",  # a reversed range: every sample would be out
+     {"source": "position_ref", "samples": 10,
+      "joints": {"j1": {"measured_acceleration": [3.6, -4.0]}}},
+     "calibration/motion_envelope/joints/j1/measured_acceleration"),
 ]
 
 

@@ -348,3 +348,22 @@ def test_the_measured_ranges_are_recorded_and_their_stretches_kept_apart() -> No
     chk.update_arrays(t, meas, None)
     none = chk.finish(round(5.0 * FS))
     assert none.measured is None and "measured_stretches" not in none.to_dict()
+
+
+def test_a_joint_without_measured_ranges_is_said_unchecked() -> None:
+    """A config whose envelope lacks one joint's measured ranges (edited out) checks the
+    others' and says which joint it could not."""
+    t, a = sine(0.4, 0.5, 20.0)
+    q = np.stack([a, 0.5 * a], axis=1)
+    env = envelope_of(t, q)
+    joints = {j: dict(r) for j, r in env.joints.items()}
+    for k in ("measured_velocity", "measured_acceleration"):
+        del joints["j2"][k]
+    chk = EnvelopeCheck(MotionEnvelope(joints, env.source, env.samples), FS, ["j1", "j2"])
+    chk.update_arrays(t, q, q)
+    res = chk.finish(round(5.0 * FS))
+    assert res.measured is not None  # j1's checked
+    assert "measured motion not checked on j2" in res.note
+    full = EnvelopeCheck(env, FS, ["j1", "j2"])
+    full.update_arrays(t, q, q)
+    assert "measured motion" not in full.finish(round(5.0 * FS)).note

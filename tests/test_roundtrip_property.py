@@ -98,6 +98,10 @@ def config_docs(draw: st.DrawFn) -> dict[str, Any]:
     threshold tables of a config with a model name the model's joints (the config's rule)."""
     doc: dict[str, Any] = draw(from_schema("config"))
     doc.pop("model", None)
+    env = (doc.get("calibration") or {}).get("motion_envelope") or {}
+    for q in (env.get("joints") or {}).values():  # a range is [min, max] (a cross-field rule)
+        for k, rng in q.items():
+            q[k] = sorted(rng)
     if draw(st.booleans()):
         model = draw(model_docs())
         doc["model"] = model

@@ -566,6 +566,11 @@ class EnvelopeCheck:
             note += (("; " if note else "") + "slow stretches not checked: this log has no "
                      "reference position (a measured position's noise at rest reads as slow "
                      "motion)")
+        bare = [self.joints[c] for c in self.cols if c not in self.m_cols]
+        if self.m_cols and bare and src == "position_ref":  # some joints' measured ranges
+            note += (("; " if note else "") + "measured motion not checked on "
+                     f"{', '.join(bare)} (the config records no measured ranges for it): "
+                     "an incident in a contact's aftermath there is not marked")
         posture = {self.joints[c]: r.count_from(start) / checked
                    for c, r in zip(self.pose_cols, self.pose_each, strict=True)
                    if checked and r.count_from(start)}

@@ -315,8 +315,9 @@ def calibration_text(calib: Mapping[str, object], settings_changed: bool = False
         w = max(above, key=lambda x: x["ratio"])
         text += (f"; but {len(above)} of the calibration logs, left out, false-alarmed above "
                  f"the others' bound ({Path(w['log']).name}: {w['observed_per_hour']:.3g}/h "
-                 f"against {w['upper_per_hour']:.3g}/h): a log unlike the calibration logs "
-                 "may false-alarm far above the prediction")
+                 f"against {w['upper_per_hour']:.3g}/h, thresholds set on the others for "
+                 f"{w['per_hour']:g}/h): a log unlike the calibration logs may false-alarm "
+                 "far above the prediction")
     if calib.get("weak"):
         capped = capped_detectors(calib)
         if rule == "fixed-single-log":
