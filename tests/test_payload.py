@@ -530,21 +530,29 @@ def test_a_push_just_after_a_pick_dates_the_change_from_the_pick(
         assert [i.to_dict() for i in part.incidents] == [i.to_dict() for i in whole.incidents]
 
 
+def _heavy_calibrated(out: Path, robot_seed: int) -> Path:
+    """A light and a 2 kg free run of the heavy geared arm (robot ``robot_seed``),
+    calibrated: the config ``out``/light_heavy.toml."""
+    logs = {"robot": out / "light.robot.json"}
+    for name, seed, kg in (("light", 1, 0.0), ("heavy", 2, 2.0)):
+        r = CliRunner().invoke(main, [
+            "simulate", "--arm", "heavy_geared", "--scenario", "free_multisine",
+            "--duration", "40", "--seed", str(seed), "--robot-seed", str(robot_seed),
+            "--payload-kg", str(kg), "--no-controller-channels", "-o", str(out),
+            "--name", name])
+        assert r.exit_code == 0, r.output
+        logs[name] = out / f"{name}.csv.gz"
+    _calibrate(logs, "light", "heavy", out)
+    return out / "light_heavy.toml"
+
+
 def test_a_push_in_the_weighing_window_does_not_bias_the_mass(tmp_path: Path) -> None:
     """Heavy geared arm (robot seed 411), a 30 N push 1.5 s after the 2 kg release, inside
     the window that weighs it: the mass explained the window above 90 % with the push in
     it and was weighed −2.22 kg; the residual then carried 0.22 kg too little and raised
     three false incidents later. The contact's rows are now left out of the weighing:
     within 5 % of −2 kg, and the push is the only incident counted after the release."""
-    logs = {"robot": tmp_path / "light.robot.json"}
-    for name, seed, kg in (("light", 1, 0.0), ("heavy", 2, 2.0)):
-        r = CliRunner().invoke(main, [
-            "simulate", "--arm", "heavy_geared", "--scenario", "free_multisine",
-            "--duration", "40", "--seed", str(seed), "--robot-seed", "411", "--payload-kg",
-            str(kg), "--no-controller-channels", "-o", str(tmp_path), "--name", name])
-        assert r.exit_code == 0, r.output
-        logs[name] = tmp_path / f"{name}.csv.gz"
-    _calibrate(logs, "light", "heavy", tmp_path)
+    _heavy_calibrated(tmp_path, 411)
     log, sc, push = _one_push(tmp_path, "push_in_window", 1, 1.5, "heavy_geared", 411,
                               controller_channels=False)
     (_, kg), (place, _) = sc.payload_changes
@@ -571,15 +579,7 @@ def test_a_pick_on_the_heavy_arm_is_weighed_on_its_next_window_and_a_push_caught
     window, the mass within 5 %, the push a counted incident."""
     from impactcli.detect.payload_change import WINDOW_S
 
-    logs = {"robot": tmp_path / "light.robot.json"}
-    for name, seed, kg in (("light", 1, 0.0), ("heavy", 2, 2.0)):
-        r = CliRunner().invoke(main, [
-            "simulate", "--arm", "heavy_geared", "--scenario", "free_multisine",
-            "--duration", "40", "--seed", str(seed), "--robot-seed", "7", "--payload-kg",
-            str(kg), "--no-controller-channels", "-o", str(tmp_path), "--name", name])
-        assert r.exit_code == 0, r.output
-        logs[name] = tmp_path / f"{name}.csv.gz"
-    _calibrate(logs, "light", "heavy", tmp_path)
+    _heavy_calibrated(tmp_path, 7)
     log, sc, push = _one_push(tmp_path, "push_after_pick", 0, 1.0, "heavy_geared", 7,
                               controller_channels=False)
     (pick, kg), _ = sc.payload_changes
