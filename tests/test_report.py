@@ -656,3 +656,23 @@ def test_every_code_the_report_writes_is_in_its_schema() -> None:
                                                 "code", {}).get("enum", ())))):
         codes = set(re.findall(r'"code": "([a-z-]+)"', (src / module).read_text()))
         assert codes and codes <= set(enum), (module, codes - set(enum))
+
+
+def test_a_contact_beside_a_payload_change_says_its_ratio_holds_the_loads_step() -> None:
+    """The "× threshold" cell is taken over the incident's events: for a contact beside a
+    payload change they hold the load's step (a trial read 28× beside a text of 2.3×), and
+    the cell says so; another incident's cell does not."""
+    import dataclasses
+
+    r = with_incidents(fake_result())
+    incs = list(r.incidents)
+    incs[1] = dataclasses.replace(incs[1], payload_test=(
+        "a contact beside payload change P1, its link, force and contact type the contact's "
+        "own, the load's torque taken out: its alarm held the load and, from 4.000 s, a "
+        "torque on j2 the load does not explain (2.3× its loading threshold)"))
+    html, doc = build_report([dataclasses.replace(r, incidents=tuple(incs))])
+    validate(doc)
+    beside_row = re.search(r'<tr id="log1-row1">(.*?)</tr>', html)
+    other_row = re.search(r'<tr id="log1-row2">(.*?)</tr>', html)
+    assert beside_row and "the load&#x27;s step in it" in beside_row.group(1)
+    assert other_row and "step in it" not in other_row.group(1)

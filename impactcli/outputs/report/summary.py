@@ -304,6 +304,10 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
                            if " or " in words else "")
         ratio = ("—" if r.get("peak_ratio") is None else
                  f'{r["peak_ratio"]:.1f}× <span class="note">{e(r["peak_ratio_detector"])}</span>')
+        if r.get("peak_ratio") is not None and str(r.get("payload_test") or "").startswith(
+                "a contact beside payload change"):  # its events hold the load's step
+            ratio += ' <span class="note">the whole alarm&#x27;s, the load&#x27;s step in it</span>'
+
         plot = f'<a href="#{anchor}-inc{n}">plot</a>' if pos <= plotted else ""
         cls = (' class="warmup"' if r.get("in_warmup") or r.get("data_defect")
                or r.get("payload_change") else "")
