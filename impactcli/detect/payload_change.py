@@ -502,9 +502,9 @@ class PayloadMonitor:
         part = None
         if run is not None:  # the contact apart from the load, with the mass as taken
             # already on where the scan began: from the onset, when the buffer holds it
-            a0 = n - (k_c - self._onset[0]) if run[0] == 0 else s0 + run[0]
-            began_before = run[0] == 0 and a0 < 0
-            a0 = max(a0, 0) if not began_before else s0
+            held = k_c - self._onset[0] <= n
+            began_before = run[0] == 0 and not held
+            a0 = n - (k_c - self._onset[0]) if run[0] == 0 and held else s0 + run[0]
             z = s0 + run[1]
             yp = self.model.regressor(buf["qf"][a0:z], buf["qd"][a0:z],
                                       buf["qdd"][a0:z]) @ self.b
