@@ -11,7 +11,7 @@ import click
 
 from ..detect.events import LONG_EVENT_S
 from ..errors import EXIT_BATCH, EXIT_DETECTED, EXIT_UNJUDGED, Interrupted, one_line
-from ..run.gates import count, shown
+from ..run.gates import count, gate_notes, shown
 from .options import (
     executor_options,
     fail_usage,
@@ -233,6 +233,9 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
                               fail_on_detect=fail_on_detect, fail_on_force=fail_on_force)
     for line in failing + unjudged:  # why the exit code, per log
         click.echo(line, err=True)
+    for line in gate_notes([o.findings for o in ok if o.findings is not None],
+                           fail_on_detect=fail_on_detect, fail_on_force=fail_on_force):
+        click.echo(line, err=True)  # what the exit code does not speak for
     if failing:
         ctx.exit(EXIT_DETECTED)
     if unjudged:

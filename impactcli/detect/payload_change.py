@@ -109,6 +109,31 @@ def whose_load(as_log: str) -> str:
     return "the model's own load" if as_log == OWN_LOAD else f"{as_log}'s load, as fitted"
 
 
+def contact_watch(t_start: float, scanned_from: float, t_classified: float,
+                  settle_s: float) -> dict[str, Any]:
+    """How a contact in a change's alarm was judged (the timeline's ``contact_watch``):
+    ``unjudged_s`` the stretches [s] where one joins the change's alarm, not counted — from
+    the onset to where the scan for a contact beside the load began (module docstring, step
+    5: the loading filter and the step settle), and from the classification for
+    ``settle_s`` (an alarm that starts there is the change's:
+    :func:`impactcli.detect.incidents.mark_payload_changes`) —; ``above_s`` the stretch
+    scanned, where one is told apart when the torque the mass leaves passes
+    ``above_times_vl`` × vL (:data:`BESIDE`)."""
+    return {"unjudged_s": [[t_start, scanned_from], [t_classified, t_classified + settle_s]],
+            "above_s": [scanned_from, t_classified], "above_times_vl": BESIDE}
+
+
+def watch_text(watch: dict[str, Any]) -> str:
+    """A change's ``contact_watch`` in words, as every output says it: ``a contact in its
+    alarm not told from the load 20.044–20.604 s and 23.044–23.604 s, and 20.604–23.044 s
+    only above 2× the loading thresholds``."""
+    (a, b), (c, d) = watch["unjudged_s"]
+    lo, hi = watch["above_s"]
+    return (f"a contact in its alarm not told from the load {a:.3f}–{b:.3f} s and "
+            f"{c:.3f}–{d:.3f} s, and {lo:.3f}–{hi:.3f} s only above "
+            f"{watch['above_times_vl']:g}× the loading thresholds")
+
+
 def tested_text(change: dict[str, Any]) -> str:
     """What a change's tests found (its ``to_dict``), as every output says it: ``99.7 % of
     the step a mass, steady within 1.7 %, its inertia shows`` — or ``… its inertia not seen
@@ -127,7 +152,9 @@ def tested_text(change: dict[str, Any]) -> str:
                      f"{seen['t_s']:.3f} s, {seen['joint']} at {seen['peak']:.2g}× its loading "
                      "threshold): " + ("counted as an incident" if seen.get("counted", True)
                                        else "no incident holds it (see the lasting loads)"))
-    return ", ".join(parts)
+    text = ", ".join(parts)
+    watch = change.get("contact_watch")
+    return text if not watch else f"{text}; {watch_text(watch)}"
 
 
 def change_text(change: dict[str, Any]) -> str:
@@ -243,7 +270,9 @@ class PayloadChange:
     statistic of the torque the mass leaves, above vL, that holds its peak began (the
     alarm's onset when it began before what the monitor keeps), the ``joint`` and its
     ``peak`` over vL, and ``counted: False`` when no incident holds it
-    (:func:`impactcli.detect.incidents.mark_payload_changes`); None: none."""
+    (:func:`impactcli.detect.incidents.mark_payload_changes`); None: none.
+    ``scanned_from`` [s]: where that scan began (the onset plus ``settle_s``, or the
+    oldest row the monitor kept), for :func:`contact_watch`; None: not recorded."""
 
     t_start: float
     t_classified: float
@@ -258,6 +287,8 @@ class PayloadChange:
     at_watch_start: bool = False
     contact: dict[str, Any] | None = None
     part: ContactPart | None = field(default=None, repr=False, compare=False)
+    scanned_from: float | None = None
+    settle_s: float = 0.0
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (the timeline's ``payload_changes`` item)."""
@@ -273,6 +304,9 @@ class PayloadChange:
             d["at_watch_start"] = True
         if self.contact is not None:
             d["contact"] = dict(self.contact)
+        if self.scanned_from is not None:
+            d["contact_watch"] = contact_watch(self.t_start, self.scanned_from,
+                                               self.t_classified, self.settle_s)
         return d
 
 
@@ -520,7 +554,8 @@ class PayloadMonitor:
             {nm: float(v) for nm, v in zip(self.names, w.pi, strict=True)},
             judged.explained, self.base_kg + float(self._pi[self.names.index("m")]),
             None if known is None else known[0], judged.drift, judged.shows,
-            t_a - self.start_s < 1.5 / self.sample_rate_hz, seen, part))
+            t_a - self.start_s < 1.5 / self.sample_rate_hz, seen, part,
+            max(t_a, t_c - first / self.sample_rate_hz), self.settle_s))
         return self._pi
 
     def _judge(self, y: np.ndarray, left: np.ndarray, qf: np.ndarray,

@@ -6,7 +6,9 @@ A log *fails* a gate (exit 1) when it has a counted incident or lasting load aft
 *could not judge* a log (exit 5, when none failed) when its warm-up covers all of it, when
 its only incidents start at data defects, or when an incident or lasting load has no force
 estimate (``--fail-on-force``). Each verdict is one line naming the log and why
-(docs/formats.md, "Command line").
+(docs/formats.md, "Command line"). Payload changes trip no gate; with a gate asked, a log
+with some gets a line saying how long a contact would have joined their alarms uncounted
+(:func:`gate_notes`), the exit code unchanged.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ class Findings:
         incidents: the counted incidents (after warm-up, not at a data defect).
         defect_incidents: the incidents after warm-up that start at a data defect.
         lasting_loads: the counted lasting loads (after warm-up).
+        payload_changes: the payload changes found (timeline items): not gated.
     """
 
     log_path: str
@@ -35,13 +38,15 @@ class Findings:
     incidents: tuple[Any, ...]
     defect_incidents: tuple[Any, ...]
     lasting_loads: tuple[Any, ...]
+    payload_changes: tuple[dict[str, Any], ...] = ()
 
     @classmethod
     def of(cls, log_path: str, result: Any) -> Findings:
         """The findings of ``result`` (a :class:`~impactcli.types.DetectionResult`)."""
         return cls(log_path, float(result.log.duration_s), float(result.warmup_end_s),
                    tuple(result.counted_incidents()), tuple(result.defect_incidents()),
-                   tuple(result.counted_lasting_loads()))
+                   tuple(result.counted_lasting_loads()),
+                   tuple(result.payload_changes or ()))
 
 
 def shown(log: str) -> str:
@@ -75,6 +80,31 @@ def judge(findings: Sequence[Findings], *, fail_on_detect: bool,
         unjudged += [line for f in findings if (line := _force_unknown(f, limit))]
         unjudged += [line for f in findings if (line := _defect_force(f, limit))]
     return failing, unjudged
+
+
+def gate_notes(findings: Sequence[Findings], *, fail_on_detect: bool,
+               fail_on_force: float | None) -> list[str]:
+    """With a gate asked, a line per log with payload changes: they are not gated (a load
+    picked or released is normal work), and a contact in their alarms was judged only as
+    each one's ``contact_watch`` says — so the exit code does not speak for that time."""
+    if not fail_on_detect and fail_on_force is None:
+        return []
+    gate = "--fail-on-detect" if fail_on_detect else f"--fail-on-force {fail_on_force:g} N"
+    out = []
+    for f in findings:
+        if not f.payload_changes:
+            continue
+        watched = [c["contact_watch"] for c in f.payload_changes if c.get("contact_watch")]
+        blind = sum(b - a for w in watched for a, b in w["unjudged_s"])
+        told = (f"; a contact in their alarms joined them uncounted for {blind:.2g} s in "
+                "all, and was told apart in the rest of their windows only above "
+                f"{max(w['above_times_vl'] for w in watched):g}× the loading thresholds"
+                if watched else "")
+        n = len(f.payload_changes)
+        out.append(f"impactcli: {shown(f.log_path)}: {gate}: {count(n, 'payload change')} "
+                   f"(a load picked or released) {'is' if n == 1 else 'are'} not gated"
+                   f"{told} (payload_changes in the timeline)")
+    return out
 
 
 def _found(f: Findings) -> str:
