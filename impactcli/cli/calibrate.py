@@ -91,10 +91,12 @@ def rate_lines(rate: dict[str, Any], margin_rule: str = "leave-one-out") -> list
     lines += [f"  note: {n}" for n in rate.get("notes", [])]
     rows = rate.get("leave_one_log_out") or []
     if rows:
-        from ..detect.tail import left_out_above, poisson_interval
+        from ..detect.tail import SETTLE_S, left_out_above, poisson_interval
 
         lines.append("leave-one-log-out (thresholds set for R on the other logs, R a rate "
-                     "a few minutes can show; each log left out counted against them):")
+                     "a few minutes can show; each log left out counted against them, its "
+                     "min the whole log after warm-up, where the tails above leave out each "
+                     f"log's first {SETTLE_S:g} s, held to the log-start floor):")
         lines.append(f"  {'log':<40} {'min':>5} {'R [1/h]':>8} {'observed':>9} "
                      f"{'obs. [1/h]':>10} {pct + ' interval':>17} {'predicted':>9} "
                      f"{'bound':>7}")

@@ -10,7 +10,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from ... import TOOL_NAME, __version__
-from ...detect.tail import minutes_text
+from ...detect.tail import SETTLE_S, minutes_text
 from .common import LogSection, e, epoch_text, f, g, json_pre, kv_table
 
 
@@ -300,7 +300,9 @@ def rate_html(rate: dict[str, Any]) -> str:
             f"<td class=\"num\">{g(r.get('upper_per_hour'))}</td></tr>" for r in lolo)
         out += ('<p class="small">Leave-one-log-out: each free log against the thresholds of '
                 "the others, at rates its minutes can show (a log above its bound moves "
-                "unlike the others).</p><div class=\"wide\"><table><tr><th>log left out</th>"
+                "unlike the others); its minutes are the whole log after warm-up, where the "
+                f"tail fits leave out each log's first {SETTLE_S:g} s, held to the log-start "
+                "floor.</p><div class=\"wide\"><table><tr><th>log left out</th>"
                 '<th class="num">min</th><th class="num">R [1/h]</th>'
                 '<th class="num">incidents seen</th><th class="num">predicted [1/h]</th>'
                 '<th class="num">upper bound [1/h]</th></tr>' + body + "</table></div>")
