@@ -94,6 +94,12 @@ def test_the_report_says_what_moved_outside(tmp_path: Path) -> None:
         assert len(items) == 1
         assert ("outside the calibration's motion envelope" in items[0]["text"]) is outside
         assert (items[0]["data"]["share"] > 0.1) is outside
+        # 2.5× the motion about its mean leaves the calibrated poses too: said as a second
+        # finding ("and"), not against the first ("but", a new user's trial)
+        assert bool(items[0]["data"].get("posture_outside")) is outside
+        assert ("; and its posture left the calibration logs' position range"
+                in items[0]["text"]) is outside
+        assert "; but" not in items[0]["text"]
 
 
 def test_a_log_at_other_poses_says_its_posture_left_the_calibrated_range(

@@ -181,7 +181,7 @@ def _envelope(result: DetectionResult, incidents: list[dict[str, Any]]) -> list[
                           "so neither the motion envelope nor the thresholds' stated "
                           "false-alarm rate says anything of this log.")}]
     posture = env.get("posture_outside") or {}
-    poses = f"; but {posture_text(posture)}" if posture else ""
+    poses = f"; but {posture_text(posture)}" if posture else ""  # against "inside"
     if not env.get("outside"):
         calibration = result.config.get("calibration") or {}
         rated = (bool(calibration.get("false_alarm_rate"))
@@ -206,7 +206,8 @@ def _envelope(result: DetectionResult, incidents: list[dict[str, Any]]) -> list[
              "data": dict(env),
              "text": (f"{outside_share_text(env)}: the thresholds' stated false-alarm rate "
                       f"was not measured on such motion; {there} incident(s) touch it "
-                      f"(marked in the timeline){poses}.")}]
+                      "(marked in the timeline)"
+                      + (f"; and {posture_text(posture)}" if posture else "") + ".")}]
 
 
 def could_not_see(result: DetectionResult, incidents: list[dict[str, Any]], *,
