@@ -127,6 +127,38 @@ def test_weigh_finds_a_point_mass_from_moving_poses() -> None:
     np.testing.assert_allclose(w.pi, pi, rtol=0.05, atol=0.01)
 
 
+def test_the_mass_error_counts_correlated_rows() -> None:
+    """Known truth: the weighed mass's spread over many draws of the noise. With the noise
+    white, the standard error matches it; with the same noise smoothed over 25 rows (as
+    the replay's filters smooth the residual), the rows taken as independent understate it
+    ~5×; counted as correlated, the standard error is within 30 % of the spread."""
+    joints = ("a", "b")
+    s = _planar(2, [0.4, 0.35])
+    b, names = payload.basis("planar", joints, s)
+    n = 1500
+    t = np.arange(n) / 250.0
+    q = np.column_stack([0.8 * np.sin(1.3 * t), 1.1 * np.sin(0.9 * t + 1)])
+    qd, qdd = np.gradient(q, t, axis=0), np.gradient(np.gradient(q, t, axis=0), t, axis=0)
+    y = structures.regressor("planar", joints, s, q, qd, qdd) @ b
+    pi = np.array([1.2, 1.2 * 0.35, 1.2 * 0.02, 1.2 * (0.35**2 + 0.02**2)])
+    rng = np.random.default_rng(3)
+    kernel = np.ones(25) / np.sqrt(25)  # the same variance per row, correlated over 25
+    for smooth in (False, True):
+        masses, ses = [], []
+        for _ in range(200):
+            e = rng.normal(0, 0.05, (n + 24, 2))
+            noise = (np.column_stack([np.convolve(e[:, k], kernel, "valid") for k in range(2)])
+                     if smooth else e[:n])
+            w = payload.weigh(y, y @ pi + noise, names)
+            masses.append(w.mass_kg)
+            ses.append(w.mass_se_kg)
+        spread, se = float(np.std(masses)), float(np.median(ses))
+        assert se == pytest.approx(spread, rel=0.3), (smooth, se, spread)
+        if smooth:  # the rows as independent: far too small
+            _, naive = payload.estimate(y[:, :, :3], y @ pi + noise - y[:, :, 3:] @ pi[3:])
+            assert naive[0] < 0.4 * spread, (naive[0], spread)
+
+
 def test_weigh_says_one_pose_does_not_determine_a_load() -> None:
     w, _ = _weigh_case(0, still=True)
     assert not w.supported and not w.weighed

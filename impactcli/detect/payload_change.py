@@ -160,7 +160,8 @@ def tested_text(change: dict[str, Any]) -> str:
 def change_text(change: dict[str, Any]) -> str:
     """A change's mass and what its tests found, as every output says it: ``+0.994 kg
     (s.e. ≥ 0.0044 kg; 99.7 % of the step a mass, …)`` — the standard error counts the
-    window's rows as independent, so it is a lower bound — and, for an alarm already on
+    window's noise and its rows' correlation, not the model's own error, so it is a lower
+    bound (:func:`impactcli.model.payload.estimate`) — and, for an alarm already on
     when the watch began, that the change may be earlier."""
     early = ("; the alarm was on when the watch began: the change may be earlier, in the "
              "warm-up" if change.get("at_watch_start") else "")

@@ -150,13 +150,17 @@ def shifted_theta(theta: np.ndarray, b: np.ndarray, pi: np.ndarray) -> np.ndarra
     return np.asarray(theta + b @ np.asarray(pi, dtype=np.float64))
 
 
-def estimate(y_pay: np.ndarray, r: np.ndarray,
-             tol: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
+def estimate(y_pay: np.ndarray, r: np.ndarray, tol: float = 1e-3,
+             correlated: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """The payload π (m,) that explains the torque ``r`` (n, J) [N·m] the model leaves out,
     through ``y_pay`` (n, J, m) = Y B, and its standard errors (m,): least squares with
     each joint's rows scaled by its residual RMS, on the columns the rows determine (a
     column whose pivot is below ``tol`` of the largest stays 0, its error infinite). The
-    errors take the rows as independent."""
+    errors take each joint's own noise — the variance of what the fit leaves on it (a
+    sandwich: the rows are scaled by the torque, not by the noise) — and its rows as
+    independent, or, ``correlated``, as independent only every :func:`correlated_rows` of
+    what the fit leaves on it (rows of a residual through the replay's filters are
+    correlated over tens of rows)."""
     n, nj, m = y_pay.shape
     pi, se = np.zeros(m), np.full(m, np.inf)
     if n == 0:
@@ -177,10 +181,17 @@ def estimate(y_pay: np.ndarray, r: np.ndarray,
     keep = live[np.sort(piv[:int(np.sum(d > tol * d[0]))])]
     ak = a[:, keep] / norms[keep]
     sol, *_ = np.linalg.lstsq(ak, t, rcond=None)
-    res = ak @ sol - t
+    res = (ak @ sol - t).reshape(n, nj)
     dof = max(ak.shape[0] - keep.size, 1)
-    s2 = float(res @ res) / dof
-    cov = s2 * np.linalg.pinv(ak.T @ ak)
+    per = ak.reshape(n, nj, keep.size)
+    meat = np.zeros((keep.size, keep.size))
+    for j in range(nj):  # each joint's rows with its own noise (and correlation)
+        s2 = float(res[:, j] @ res[:, j]) / dof * nj
+        if correlated:
+            s2 *= correlated_rows(res[:, j:j + 1])
+        meat += s2 * (per[:, j].T @ per[:, j])
+    bread = np.linalg.pinv(ak.T @ ak)
+    cov = bread @ meat @ bread
     pi[keep] = sol / norms[keep]
     se[keep] = np.sqrt(np.maximum(np.diag(cov), 0.0)) / norms[keep]
     return pi, se
@@ -218,7 +229,8 @@ def weigh(y_pay: np.ndarray, r: np.ndarray, names: Sequence[str]) -> Weighed:
     inert = [i for i, nm in enumerate(names) if nm not in STATIC]
     pi = np.zeros(len(names))
     for _ in range(POINT_ITERATIONS):  # the moments, then the inertia they imply, in turn
-        pi_s, se_s = estimate(y_pay[:, :, st], r - y_pay[:, :, inert] @ pi[inert])
+        pi_s, se_s = estimate(y_pay[:, :, st], r - y_pay[:, :, inert] @ pi[inert],
+                              correlated=True)
         pi[st] = pi_s
         supported = bool(np.all(np.isfinite(se_s)))
         m, se_m = float(pi_s[0]), float(se_s[0])

@@ -138,7 +138,9 @@ def weigh_start(feed: Any, model: RigidModel, choices: tuple[GeneratorChoice, ..
                f"{HOLD_FACTOR:g}× the largest the joints exerted there ({top:.3g} N·m)")
     elif not same and not payload.within_reach(names, w.pi, payload.reach_m(model)):
         why = f"give a centre of mass beyond the arm's reach ({mass})"
-    elif w.weighed and felt and PARTLY <= share < payload.EXPLAINED:  # partly a load
+    elif felt and PARTLY <= share < payload.EXPLAINED:  # partly a load (a step in the
+        # stretch is a misfit over many rows: its mass's error counts them as few, and may
+        # not tell it from none)
         why = (f"hold a torque the model does not explain, of which a steady load ({mass}) "
                f"explains only {100 * share:.0f} % (a load picked, or a contact, in them?)")
     if why is not None:
