@@ -180,6 +180,23 @@ def test_a_log_that_is_all_warm_up_is_not_judged_by_fail_on_detect() -> None:
     assert lines(3.0, 3.0) == ([], [])  # its last sample is after warm-up
 
 
+def test_fail_on_force_says_when_no_single_force_fits() -> None:
+    """An incident whose torques are no single force at its link's end has no force:
+    --fail-on-force cannot judge it (exit 5), and its line says that reason beside the
+    others (docs/incidents.md, "One force at the link's end?")."""
+    from types import SimpleNamespace
+
+    from impactcli.detect.incidents import NO_SINGLE_FORCE
+    from impactcli.run.gates import Findings, judge
+
+    unfit = SimpleNamespace(t_start=11.938, force_n=None,
+                            force_method=f"{NO_SINGLE_FORCE} 3 gives the residuals: …")
+    f = Findings("/data/run7.csv", 60.0, 3.0, (unfit,), (), ())
+    failing, [line] = judge([f], fail_on_detect=False, fail_on_force=20.0)
+    assert not failing and "could not judge 1 incident (the first at 11.938 s)" in line
+    assert "for 1, no single force at the link's end gives the residuals" in line, line
+
+
 def _config_without_kinematics(tmp_path: Path) -> Path:
     """The sample config with its robot's kinematics cut out: incidents get no force."""
     text = CONFIG.read_text(encoding="utf-8")

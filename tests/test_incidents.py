@@ -83,6 +83,54 @@ def test_planar_jacobian_matches_finite_differences_and_force_is_recovered() -> 
     assert f1 == pytest.approx(2.0 / 0.4) and "one equation" in m1
 
 
+def test_a_force_is_stated_only_where_one_force_at_the_links_end_gives_the_torques() -> None:
+    """Known truth, a planar arm of 0.4, 0.35 and 0.2 m: a 30 N push normal to link 3 at
+    70 % of its length gives τ = J_cᵀ F (J_c the contact point's Jacobian: link 3's with
+    its last length 0.14 m); the force at the link's end that best explains it is stated,
+    within the lever ratio of 30 N. A torque on joint 3 alone — the model's own error
+    there, none on joints 1–2 — is no force at the link's end: the force that fits the
+    three best gives torques where there are none and misses most of joint 3's; no force
+    is stated, and the method says how little it explains. Link 2 (two torques, two force
+    parts: always one force) keeps its estimate."""
+    from impactcli.detect.incidents import FIT_SHARE, NO_SINGLE_FORCE, force_estimate
+
+    jac = planar_jacobian([0.4, 0.35, 0.2])
+    at70 = planar_jacobian([0.4, 0.35, 0.14])
+    q = np.tile([0.3, -0.7, 1.1], (5, 1))
+    phi = float(np.sum(q[0]))
+    push = 30.0 * np.array([-np.sin(phi), np.cos(phi)])  # normal to link 3
+    r = np.tile(at70(q[0], 3).T @ push, (5, 1))
+    est = force_estimate(r, q, 3, [1, 2, 3], jac)
+    assert est.force_n is not None and 0.7 * 30.0 <= est.force_n <= 1.05 * 30.0, est
+    f_end = np.linalg.lstsq(jac(q[0], 3).T, r[0], rcond=None)[0]
+    share = 1 - np.sum((jac(q[0], 3).T @ f_end - r[0]) ** 2) / np.sum(r[0] ** 2)
+    assert share >= 0.99 > FIT_SHARE  # the offset (0.06 m × 30 N) is a small share of it
+    alone = np.tile([0.0, 0.0, 1.1], (5, 1))
+    f_end = np.linalg.lstsq(jac(q[0], 3).T, alone[0], rcond=None)[0]
+    share = 1 - np.sum((jac(q[0], 3).T @ f_end - alone[0]) ** 2) / 1.1**2
+    assert share < FIT_SHARE
+    est = force_estimate(alone, q, 3, [1, 2, 3], jac)
+    assert est.force_n is None and est.method.startswith(NO_SINGLE_FORCE), est
+    assert f"accounts for {100 * share:.0f} % of their torque" in est.method, est.method
+    two = force_estimate(alone[:, :2] + [0.0, 1.1], q, 2, [1, 2, 3], jac)
+    assert two.force_n is not None and two.force_n > 0
+
+
+def test_an_incident_without_a_single_force_says_so_on_its_row() -> None:
+    """The terminal's row of such an incident: ``force ?`` and why, up to its colon."""
+    from impactcli.cli.detect import _incident_line
+    from impactcli.detect.incidents import NO_SINGLE_FORCE
+
+    why = f"{NO_SINGLE_FORCE} 3 gives the residuals: the force … accounts for 23 % of it"
+    line = _incident_line(2, {"t_start": 11.938, "link": 3, "link_candidates": [3],
+                              "force_n": None, "contact": "transient",
+                              "detectors": ["static_loading"], "force_plausible": None,
+                              "no_force": why})
+    assert "force ?" in line and line.endswith(
+        "no single force at the end of link 3 gives the residuals (force_method in the "
+        "timeline)"), line
+
+
 def test_contact_type_rule() -> None:
     dt = 0.004
     still = np.zeros(300)
@@ -236,7 +284,11 @@ def test_the_batched_jacobian_gives_the_same_force_to_the_bit(link: int) -> None
     rng = np.random.default_rng(link)
     arm = planar_jacobian([0.45, 0.35, 0.2])
     q = rng.uniform(-3.0, 3.0, (400, 3))
-    r = rng.normal(0.0, 5.0, (400, 3)) * np.hanning(400)[:, None]
+    force = rng.normal(0.0, 20.0, (400, 2)) * np.hanning(400)[:, None]
+    r = np.zeros((400, 3))  # the torques of a force at the link's end, and noise
+    for k in range(400):
+        r[k, :link] = arm(q[k], link).T @ force[k]
+    r += rng.normal(0.0, 0.05, r.shape)
     batched = force_estimate(r, q, link, [1, 2, 3], arm)
     def one_at_a_time(x: np.ndarray, i: int) -> np.ndarray | None:  # no .many
         return arm(x, i)

@@ -37,6 +37,7 @@ from pathlib import Path
 from typing import Any, NotRequired, TypedDict
 
 from ..detect.floor import floor_line
+from ..detect.incidents import NO_SINGLE_FORCE
 from ..errors import (
     EXIT_DATA,
     EXIT_SOFTWARE,
@@ -92,10 +93,12 @@ class IncidentRow(TypedDict):
     payload_test: NotRequired[str]
     outside_envelope: NotRequired[bool]
     aftermath: NotRequired[str]
+    no_force: NotRequired[str]
 
 
 def _incident_row(i: Any) -> IncidentRow:
-    """A counted incident (:class:`~impactcli.detect.incidents.Incident`) as a summary row."""
+    """A counted incident (:class:`~impactcli.detect.incidents.Incident`) as a summary row
+    (``no_force``: why it has no force, when no single force at its link's end fits)."""
     row = IncidentRow(t_start=i.t_start, link=i.link, link_candidates=list(i.link_candidates),
                       force_n=i.force_n, contact=i.contact, detectors=list(i.detectors),
                       force_plausible=i.force_plausible)
@@ -105,6 +108,8 @@ def _incident_row(i: Any) -> IncidentRow:
         row["outside_envelope"] = True
     if i.aftermath:
         row["aftermath"] = i.aftermath["text"]
+    if i.force_n is None and i.force_method.startswith(NO_SINGLE_FORCE):
+        row["no_force"] = i.force_method
     return row
 
 

@@ -160,9 +160,14 @@ def _force_unknown(f: Findings, limit: float) -> str | None:
         return None
     what = ([f"{count(len(incs), 'incident')} (the first at {incs[0].t_start:.3f} s)"]
             if incs else []) + ([count(len(lds), "lasting load")] if lds else [])
+    from ..detect.incidents import NO_SINGLE_FORCE
+
+    unfit = sum(1 for x in (*incs, *lds) if x.force_method.startswith(NO_SINGLE_FORCE))
+    why = ("no kinematics — give --robot with a URDF or a named robot — or the link could "
+           "not be told" + (f"; for {unfit}, no single force at the link's end gives the "
+                            "residuals: force_method in the timeline" if unfit else ""))
     return (f"impactcli: {shown(f.log_path)}: --fail-on-force {limit:g} N could not "
-            f"judge {' and '.join(what)}: no force estimate (no kinematics — give --robot "
-            "with a URDF or a named robot — or the link could not be told); exit 5")
+            f"judge {' and '.join(what)}: no force estimate ({why}); exit 5")
 
 
 def _over_force(f: Findings, limit: float) -> str | None:
