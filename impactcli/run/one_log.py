@@ -330,7 +330,8 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
             if share.measured is not None:  # alarms while the arm had not settled
                 incidents = mark_aftermath(incidents, share.measured, settle)
             warn_outside_envelope(where, outside_share_text(share), share.outside,
-                                  sum(1 for i in incidents if i.outside_envelope),
+                                  sum(1 for i in incidents  # the counted ones
+                                      if i.outside_envelope and i.number is not None),
                                   posture_text(share.posture), share.note)
         rates = rp.last.rates
         floor = floor_acc.finish(

@@ -239,12 +239,14 @@ def warn_outside_envelope(where: str, text: str, outside: int, touching: int,
                           posture: str = "", note: str = "") -> None:
     """The log moved outside the calibration's motion envelope after warm-up
     (:func:`impactcli.detect.envelope.outside_share_text`): the thresholds' stated
-    false-alarm rate does not hold there (docs/validation.md); ``posture``: its poses left
+    false-alarm rate does not hold there (docs/validation.md); ``touching``: the counted
+    incidents that touch it; ``posture``: its poses left
     the calibration's (:func:`impactcli.detect.envelope.posture_text`), "" if not;
     ``note``: what the check could not compare (said here when nothing was outside: the
     outside's text carries it otherwise)."""
     if outside > 0:
-        tail = (f"; {touching} incident(s) touch it (outside_envelope in the timeline)"
+        tail = (f"; {touching} counted incident(s) touch it (outside_envelope in the "
+                "timeline)"
                 if touching else "")
         warnings.warn(f"{where}: {text}: the thresholds' stated false-alarm rate was not "
                       f"measured on such motion{tail}", ImpactWarning, stacklevel=2)

@@ -200,12 +200,13 @@ def _envelope(result: DetectionResult, incidents: list[dict[str, Any]]) -> list[
                           + ")" + note + poses
                           + (": the thresholds' stated false-alarm rate applies."
                              if rated and not posture and not note else "."))}]
-    there = sum(1 for i in incidents if i.get("outside_envelope"))
+    there = sum(1 for i in incidents if i.get("outside_envelope") and i.get("number"))
     return [{"code": "motion-envelope",
              "short": f"{100 * env['share']:.2g} % outside the calibrated motion",
              "data": dict(env),
              "text": (f"{outside_share_text(env)}: the thresholds' stated false-alarm rate "
-                      f"was not measured on such motion; {there} incident(s) touch it "
+                      f"was not measured on such motion; {there} counted incident(s) "
+                      "touch it "
                       "(marked in the timeline)"
                       + (f"; and {posture_text(posture)}" if posture else "") + ".")}]
 
