@@ -54,14 +54,15 @@ def test_audit_rate_prints_fit_support_and_leave_one_log_out(assist: tuple) -> N
     assert len(head) == 1 and "at 90 % confidence" in head[0]
     # ~1.3 min support no rate below ~3.4 per hour: the fits' bound of 1 is not promised
     assert re.search(r"upper bound [0-9.]+ at 90 % confidence by the tail fits alone — the "
-                     r"free motion supports at best [0-9.]+, so neither is promised \(below\), "
+                     r"free motion bounds no rate below [0-9.]+, so neither is promised \(below\), "
                      r"on [0-9.]+ min of free motion$", head[0]), head[0]
     for ch in ("shoulder/adaptive", "elbow/adaptive", "shoulder/static_loading",
                "elbow/static_loading"):
         row = [ln for ln in lines if ln.strip().startswith(ch)]
         assert len(row) == 1 and re.search(r"threshold [0-9.e+-]+.*clusters.*rate .*/h, "
                                            r"bound .*/h$", row[0]), row
-    support = [ln for ln in lines if "min of free motion supports at best" in ln]
+    support = [ln for ln in lines
+               if "min of free motion bound a false-alarm rate no lower than" in ln]
     assert len(support) == 1
     # ~1.3 min after warm-up and settling: R = 1 is below what it supports (widened)
     assert re.search(r"log ≥ [0-9]+ min of the robot's motions for 1 per hour "
@@ -129,8 +130,9 @@ def test_free_logs_raise_no_alarm_with_their_rate_thresholds(assist: tuple,
     assert re.match(r"thresholds of assist.toml: set for 1 false alarm\(s\) per hour "
                     r"\(predicted [0-9.]+ false alarm\(s\) per hour, ≤ 1 at 90 %, on motion "
                     r"like the calibration logs'\), not supported by its free motion "
-                    r"\([0-9.]+ min of free motion supports at best .*?\); but 1 of the "
-                    r"calibration logs, left out, false-alarmed above the others' bound "
+                    r"\([0-9.]+ min of free motion bound a false-alarm rate no lower "
+                    r"than .*?\)\); but 1 of the calibration logs, left out, "
+                    r"false-alarmed above the others' bound "
                     r"\(assist_free_triangle.csv.gz: [0-9.]+/h against [0-9.]+/h, thresholds "
                     r"set on the others for [0-9.]+/h\): a log "
                     r"unlike the calibration logs may false-alarm far above the prediction; "
@@ -155,7 +157,7 @@ def test_report_states_the_rate_and_that_it_is_not_supported(assist: tuple,
     cav = {c["code"]: c["text"] for c in doc["logs"][0]["caveats"]}
     assert cav["rate-not-supported"].startswith("The thresholds were set for 1 false alarm(s) "
                                                 "per hour, but the ")
-    assert "supports at best" in cav["rate-not-supported"]
+    assert "bound a false-alarm rate no lower than" in cav["rate-not-supported"]
     assert "holds for motion like the calibration logs'" in cav["rate-envelope"]
     assert "weak-calibration" in cav  # v0's leave-one-out margin hit its cap
     assert "(static_baseline)" in cav["weak-calibration"]
@@ -198,7 +200,9 @@ def test_a_supported_rate_says_so_and_confidence_is_recorded(tmp_path: Path) -> 
     r = invoke("calibrate", *free("assist"), "--false-alarms-per-hour", "20", "--confidence",
                "0.95", "-o", str(out))
     assert r.exit_code == 0, r.output
-    assert re.search(r"supports at best [0-9.]+ false alarms per hour at 95 % confidence; "
+    assert re.search(r"no lower than [0-9.]+ per hour at 95 % confidence \(with no alarm "
+                     r"in them, [0-9.]+ per hour; the tail fits reach at most 30× below "
+                     r"that\); "
                      r"20 per hour is within it$", r.stdout, re.M), r.stdout
     fa = load_config(out).calibration.false_alarm_rate
     assert fa is not None and fa["supported"] is True and fa["confidence"] == 0.95

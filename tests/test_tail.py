@@ -242,12 +242,14 @@ def test_support_statement_for_a_known_duration() -> None:
     assert tail.support(h) == pytest.approx(1.8421, rel=1e-4)
     assert tail.minutes_needed(0.1) == pytest.approx(46.05, rel=1e-3)
     assert tail.support_statement(h, 0.1) == (
-        "2.5 min of free motion supports at best 1.8 false alarms per hour at 90 % "
-        "confidence; log ≥ 47 min of the robot's motions for 0.1 per hour (until then "
-        "not promised; each threshold at least its widened value)")
+        "2.5 min of free motion bound a false-alarm rate no lower than 1.8 per hour at "
+        "90 % confidence (with no alarm in them, 55 per hour; the tail fits reach at most "
+        "30× below that); log ≥ 47 min of the robot's motions for 0.1 per hour (until then "
+        "not promised; each threshold at least its widened value)")  # −ln(0.1)·60/2.5 = 55
     assert tail.support_statement(1.0, 0.1) == (
-        "60.0 min of free motion supports at best 1 false alarm per ~13 h at 90 % "
-        "confidence; 0.1 per hour is within it")
+        "60.0 min of free motion bound a false-alarm rate no lower than 1 per ~13 h at "
+        "90 % confidence (with no alarm in them, 2.3 per hour; the tail fits reach at most "
+        "30× below that); 0.1 per hour is within it")
 
 
 def test_widening_below_support_only() -> None:
@@ -286,7 +288,7 @@ def test_table_gives_the_configs_thresholds_per_detector_and_joint() -> None:
                                       "elbow": cal.thresholds[3]}}
     assert tab["static_loading"]["elbow"] > tab["adaptive"]["elbow"]   # σ 1.0 vs 0.3
     text = "\n".join(cal.lines())
-    assert "elbow/static_loading" in text and "min of free motion supports" in text
+    assert "elbow/static_loading" in text and "min of free motion bound a false-alarm rate" in text
 
 
 # ----------------------------------------------------------------- leave-one-log-out
@@ -316,7 +318,7 @@ def test_rates_and_minutes_as_printed() -> None:
     assert [tail.minutes_text(x) for x in (60.0, 1.35, 1.0, 0.15, 0.0366)] == [
         "60.0", "1.4", "1.0", "0.15", "0.037"]
     assert tail.support_statement(0.0366 / 60, None).startswith(
-        "0.037 min of free motion supports at best 126 false alarms per hour")  # 2.3026·2/0.0366
+        "0.037 min of free motion bound a false-alarm rate no lower than 126 per hour")
 
 
 def test_calibration_text_says_what_each_kind_of_threshold_promises() -> None:

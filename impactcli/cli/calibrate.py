@@ -65,7 +65,7 @@ def rate_lines(rate: dict[str, Any], margin_rule: str = "leave-one-out") -> list
     sup = rate.get("supported_per_hour")
     # a bound below what the free minutes support is the tail fits' extrapolation only
     beyond = ("" if sup is None or sup <= rate["upper_per_hour"] else
-              f" by the tail fits alone — the free motion supports at best {ph(sup)}, so "
+              f" by the tail fits alone — the free motion bounds no rate below {ph(sup)}, so "
               "neither is promised (below)")
     lines = [f"false alarms per hour: {asked}; predicted "
              f"{ph(rate['predicted_per_hour'])}, upper bound {ph(rate['upper_per_hour'])} at "

@@ -209,13 +209,16 @@ def minutes_needed(rate: float, conf: float = CONF) -> float:
 
 
 def support_statement(hours: float, rate: float | None, conf: float = CONF) -> str:
-    """What ``hours`` of free motion support, and what ``rate`` [1/h] would need (None:
-    no rate asked)."""
+    """What ``hours`` of free motion support — the lowest rate they can bound, and the
+    zero-count bound it extrapolates from — and what ``rate`` [1/h] would need (None: no
+    rate asked)."""
     rs = support(hours, conf)
-    per = (f"1 false alarm per ~{1 / rs:.2g} h" if rs < 1
-           else f"{per_hour_text(rs)} false alarms per hour")
-    s = (f"{minutes_text(hours * 60)} min of free motion supports at best {per} at "
-         f"{conf * 100:.0f} % confidence")
+    per = f"1 per ~{1 / rs:.2g} h" if rs < 1 else f"{per_hour_text(rs)} per hour"
+    zero = rs * MAX_EXTRAPOLATION  # what no alarm in them bounds, without a tail fit
+    s = (f"{minutes_text(hours * 60)} min of free motion bound a false-alarm rate no lower "
+         f"than {per} at {conf * 100:.0f} % confidence (with no alarm in them, "
+         f"{per_hour_text(zero)} per hour; the tail fits reach at most "
+         f"{MAX_EXTRAPOLATION:g}× below that)")
     if rate is None:
         return s
     if rate < rs:
