@@ -84,6 +84,10 @@ def test_report_on_logs_with_labels_and_json(tmp_path: Path, fake_pipeline: list
     assert doc["logs"][1]["labels"]["path"].endswith("arm_b.labels.json")
     for log in doc["logs"]:
         assert log["input"]["sha256"] in html and len(log["input"]["sha256"]) == 64
+    # the header's false alarms are alarm events, said as such (the incidents group them)
+    prod = doc["logs"][1]["quality"]["evaluation"]["detectors"]["product"]
+    assert (f'{prod["detected"]}/{prod["n_contacts"]} hit, {prod["false_alarms"]} '
+            "false-alarm events (alarm events matching no contact") in html
     assert len(fake_pipeline) == 2
     # same command again: byte-identical JSON and HTML
     out2, js2 = tmp_path / "r2.html", tmp_path / "r2.json"

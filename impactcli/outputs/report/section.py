@@ -113,7 +113,8 @@ def _meta(sec: LogSection, anchor: str) -> str:
     ev = ((sec.get("quality") or {}).get("evaluation") or {})
     prod = (ev.get("detectors") or {}).get("product")
     labels = (f' · <a href="#{anchor}-quality">vs labels</a> (product): {prod["detected"]}/'
-              f'{prod["n_contacts"]} hit, {prod["false_alarms"]} FA' if prod else "")
+              f'{prod["n_contacts"]} hit, {prod["false_alarms"]} false-alarm events (alarm '
+              "events matching no contact; the incidents below group them)" if prod else "")
     return (f'<p class="meta"><code>{e(inp["path"])}</code> · {inp["duration_s"]:.1f} s at '
             f'{inp["sample_rate_hz"]:.0f} Hz · {len(inp["joints"])} joints · {cal} · model '
             f'{e(model.get("kind", "none"))}{labels} · <a href="#{anchor}-analysed">what was '

@@ -437,7 +437,7 @@ def fleet_table_html(doc: dict[str, Any]) -> str:
         qcell = "" if not with_q else (
             '<td class="muted">no labels</td>' if not qs else
             f'<td class="num">{qs["detected"]}/{qs["n_contacts"]} hit, '
-            f'{qs["false_alarms"]} FA</td>')
+            f'{qs["false_alarms"]} false-alarm events</td>')
         unseen = "; ".join(c["short"] for c in sec.get("could_not_see") or [] if c.get("short"))
         calib = ('<span class="good">yes</span>' if r["calibrated"]
                  else '<span class="bad">no</span>')
