@@ -567,6 +567,10 @@ def test_the_incident_list_in_html_and_json() -> None:
     assert "2026-01-01 00:00:04.000 UTC" in row.group(1) and "2.0×" in row.group(1)
     assert re.search(r'<tr class="warmup" id="log1-roww1">.*?warm-up: not counted', html)
     assert "quasi-static" in re.search(r'<tr id="log1-row2">(.*?)</tr>', html).group(1)
+    captions = re.findall(r"<figcaption><b>Incident (.*?)</figcaption>", html)
+    assert any("quasi-static" in c for c in captions), captions  # as the rows say it
+    assert not any("quasi_static" in c for c in captions), captions
+    assert any(c.startswith("w1<") and "in warm-up (not counted)" in c for c in captions)
     summ = doc["summary"][0]["incidents"]
     assert summ == {"counted": 2, "in_warmup": 1, "by_contact": {"transient": 1,
                                                                 "quasi_static": 1},

@@ -19,6 +19,7 @@ from ...types import DETECTORS, DetectionResult, Labels
 from .. import svgplot
 from .common import (
     CLIP_FACTOR,
+    CONTACT_TEXT,
     DETECTOR_TITLE,
     EVENT_BUCKETS,
     EVENT_WINDOW_S,
@@ -127,8 +128,12 @@ def incident_figures(result: DetectionResult, incidents: Sequence[dict[str, Any]
         p.append(
             f'<figure id="{anchor}-inc{inc["label"]}"><figcaption><b>Incident '
             f'{inc["label"]}</b>: {inc["t_start"]:.3f}–{inc["t_end"]:.3f} s, {e(where)}, '
-            f'{e(how)}, {e(inc.get("contact"))}'
-            + (", in warm-up (not counted)" if inc.get("in_warmup") else "")
+            f'{e(how)}, '
+            f'{e(CONTACT_TEXT.get(inc.get("contact") or "unknown", inc.get("contact")))}'
+            + (", in warm-up (not counted)" if inc.get("in_warmup") else
+               f", the alarm of payload change P{inc['payload_change']} (not counted)"
+               if inc.get("payload_change") else
+               ", at a data defect (not counted)" if inc.get("data_defect") else "")
             + f"; events {e(evs)} of the event table.</figcaption>"
             f'<div class="grid2">{fig}</div></figure>')
     if len(incidents) > MAX_EVENT_FIGURES:
