@@ -678,6 +678,43 @@ def test_a_push_the_change_could_not_judge_is_where_it_says_and_the_gate_says_so
     assert m is not None or "incident(s) touch it" not in out, out
     assert said == sum(1 for i in touch if i["number"] is not None) < len(touch), out
     assert "outside the calibration's motion envelope" in out
+    # the simulator's labels list the pick and the release; evaluate scores them
+    labels = json.loads((tmp_path / "push_in_settle.labels.json").read_text("utf-8"))
+    assert [(c["t_s"], c["mass_kg"]) for c in labels["payload_changes"]] == [
+        (15.0, 2.0), (30.0, -2.0)]
+    timeline = tmp_path / "o" / "push_in_settle.timeline.json"
+    ev = CliRunner().invoke(main, ["evaluate", str(timeline), "--json"])
+    assert ev.exit_code == 0, ev.output
+    from impactcli.schema import validate
+
+    validate(json.loads(ev.stdout), "evaluation", AssertionError, "evaluation")
+    scored = json.loads(ev.stdout)["payload_changes"]
+    assert scored["labelled"] == 2 and scored["right"] == 2 and not scored["unlabelled"]
+    assert all(abs(m["dt_s"]) < 0.1 for m in scored["matched"]), scored
+    text = CliRunner().invoke(main, ["evaluate", str(timeline)]).stdout
+    assert "payload changes: 2/2 found and right (onset within 1 s, mass within 25 %)" in text
+
+
+def test_payload_changes_are_scored_against_the_labelled_ones() -> None:
+    """Known truth: a found change matches the nearest labelled step of its sign within
+    1 s of its onset, once; right when its mass is within 25 %; the rest missed or
+    unlabelled; a labelled step of no mass is nothing to find."""
+    from impactcli.quality.payload_scores import payload_text, score_payload_changes
+
+    labelled = [{"t_s": 20.0, "mass_kg": 2.0}, {"t_s": 40.0, "mass_kg": -2.0},
+                {"t_s": 50.0, "mass_kg": 1.0}, {"t_s": 55.0, "mass_kg": 0.0}]
+    found = [{"t_start": 20.05, "mass_kg": 2.04}, {"t_start": 40.9, "mass_kg": -1.4},
+             {"t_start": 49.8, "mass_kg": -1.0},  # the wrong sign: not the pick at 50 s
+             {"t_start": 62.0, "mass_kg": 0.5}]
+    sc = score_payload_changes(found, labelled)
+    assert (sc["labelled"], sc["found"], sc["right"]) == (3, 4, 1)
+    assert [(m["t_s"], round(m["dt_s"], 3), round(m["mass_error"], 3), m["right"])
+            for m in sc["matched"]] == [(20.0, 0.05, 0.02, True), (40.0, 0.9, 0.3, False)]
+    assert sc["missed"] == [{"t_s": 50.0, "mass_kg": 1.0}]
+    assert [u["t_start"] for u in sc["unlabelled"]] == [49.8, 62.0]
+    assert payload_text(sc).startswith("payload changes: 1/3 found and right (onset within "
+                                       "1 s, mass within 25 %): +2.04 kg at 20.05 s for +2 kg")
+    assert "(mass off)" in payload_text(sc) and payload_text(sc).endswith("; 2 unlabelled")
 
 
 def test_a_release_inside_another_alarms_window_is_found_at_its_step(

@@ -153,6 +153,9 @@ class Evaluation:
         product_merge_gap_s: gap below which adaptive and static-loading events merge [s].
         incidents: the incidents (the answer: link, force, contact type) scored against
             the labels (:func:`evaluate_incidents`); ``available`` False without them.
+        payload_changes: the payload changes found scored against the labelled ones
+            (:func:`impactcli.quality.payload_scores.score_payload_changes`); None when the
+            labels list none and the run looked for none.
     """
 
     tolerance: MatchTolerance
@@ -165,6 +168,7 @@ class Evaluation:
     product_merge_gap_s: float = 0.0
     # a frozen dataclass (an immutable default), defined in incidents.py
     incidents: IncidentEvaluation = IncidentEvaluation(False, "no incidents given")  # noqa: RUF009
+    payload_changes: dict[str, Any] | None = None
 
     def contacts_with_status(self, status: str) -> list[ContactOutcome]:
         """Contacts of one status (``counted``, ``in_warmup``, ``outside_log``)."""
@@ -229,7 +233,31 @@ class Evaluation:
                 for c in self.contacts
             ],
             "incidents": self.incidents.to_dict(),
+            **({} if self.payload_changes is None
+               else {"payload_changes": _rounded_tree(self.payload_changes)}),
         }
+
+
+def _rounded_tree(x: Any) -> Any:
+    """``x`` with every float :func:`rounded` (the evaluation's JSON is deterministic)."""
+    if isinstance(x, dict):
+        return {k: _rounded_tree(v) for k, v in x.items()}
+    if isinstance(x, list):
+        return [_rounded_tree(v) for v in x]
+    return rounded(x) if isinstance(x, float) else x
+
+
+def with_payload_changes(ev: Evaluation, labels: Labels,
+                         found: Sequence[dict[str, Any]] | None) -> Evaluation:
+    """``ev`` with its payload changes scored (:mod:`impactcli.quality.payload_scores`)
+    when the labels list some (``payload_changes``) or the run found some."""
+    from .payload_scores import score_payload_changes
+
+    labelled = labels.extra.get("payload_changes")
+    if not labelled and not found:
+        return ev
+    return replace(ev, payload_changes=score_payload_changes(list(found or ()),
+                                                             list(labelled or ())))
 
 
 def _union_length(intervals: Iterable[tuple[float, float]], lo: float, hi: float) -> float:

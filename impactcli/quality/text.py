@@ -76,6 +76,10 @@ def format_evaluation(ev: Evaluation) -> str:
             lines.append(f"  #{c.index} {c.label.kind} at {c.label.start:.3f} s, "
                          f"{c.label.peak_force:.3g} N: alarm by {', '.join(by) if by else 'none'}")
     lines += ["", *format_incident_evaluation(ev.incidents)]
+    if ev.payload_changes is not None:
+        from .payload_scores import payload_text
+
+        lines += ["", payload_text(ev.payload_changes)]
     return "\n".join(lines) + "\n"
 
 

@@ -183,7 +183,7 @@ def evaluate_source(source: Path, labels_path: Path | None, *, is_timeline: bool
     the ones beside it); ``say`` gets the replay's own warnings as they are known."""
     from ..logs.robot_files import read_labels
     from ..outputs.timeline import read_timeline
-    from ..quality.evaluation import evaluate_events, evaluate_result
+    from ..quality.evaluation import evaluate_events, evaluate_result, with_payload_changes
 
     if labels_path is None:
         labels_path = labels_beside(source)
@@ -201,6 +201,7 @@ def evaluate_source(source: Path, labels_path: Path | None, *, is_timeline: bool
                              warmup_end_s=float(doc["warmup_end_s"]), tolerance=tolerance,
                              product_merge_gap_s=gap, incidents=incidents,
                              incidents_note=note)
+        ev = with_payload_changes(ev, labels, doc.get("payload_changes"))
         if sweep:
             rows = timeline_sweep(source, doc, labels, scales, tolerance)
         return Evaluated(ev, rows)
@@ -211,7 +212,8 @@ def evaluate_source(source: Path, labels_path: Path | None, *, is_timeline: bool
         for msg in result.warnings:
             say(msg)
         check_rate(labels, result.log.sample_rate_hz, str(source))
-        ev = evaluate_result(result, labels, tolerance=tolerance)
+        ev = with_payload_changes(evaluate_result(result, labels, tolerance=tolerance),
+                                  labels, result.payload_changes)
         if samples is not None:  # --sweep
             rows = samples.sweep(result, labels, scales, tolerance=tolerance)
     finally:

@@ -336,7 +336,13 @@ def simulate(scenario: Scenario, *, seed: int = 0) -> SimResult:
                                {**e.extra, "tip_speed_m_s": round(speed, 4)}))
         else:
             evs.append(e)
-    labels = Labels(events=tuple(evs), sample_rate=labels.sample_rate)
+    # the loads picked and released: the change of the load carried at each step
+    steps, kg_before = [], float(scenario.payload_kg)
+    for t_s, kg in scenario.payload_changes:
+        steps.append({"t_s": float(t_s), "mass_kg": float(kg) - kg_before})
+        kg_before = float(kg)
+    labels = Labels(events=tuple(evs), sample_rate=labels.sample_rate,
+                    extra={"payload_changes": steps} if steps else {})
 
     truth = {
         "time_s": t,
