@@ -4,6 +4,8 @@ force come back; a part whose posture cannot be known gives nothing."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -71,3 +73,62 @@ def test_a_chain_joint_logged_but_not_replayed_leaves_the_whole_alarms_figures()
     other = ContactPart(("a", "x"), *[getattr(_part(30.0), k) for k in
                                       ("r", "ratio", "q", "qd", "dt")])
     assert beside(ctx, _incident(), other) is None
+
+
+def test_a_model_torque_beyond_what_the_joint_exerted_states_no_force() -> None:
+    """Known truth: τ̂ = r + τ is the model's torque. A 20 N·m residual on joint a whose
+    logged torque never passed 5 N·m (a still arm's model predicting 25 N·m) is the
+    model's extrapolation: no force, and why. The same residual where the joint exerted
+    12 N·m (τ̂ within 3× of it), or below vL beyond it, is left to the force estimate."""
+    from dataclasses import replace
+
+    from impactcli.detect.incident_builder import MODEL_BEYOND, beyond_logged
+    from impactcli.detect.incidents import BEYOND_LOGGED
+
+    ctx = replace(_ctx([0, 1]), torque_peak=np.array([5.0, 3.0]))
+    r = np.column_stack([np.linspace(0.0, 20.0, 50), np.zeros(50)])
+    tau = np.full((50, 2), 5.0)  # τ̂ on a: 5 … 25 N·m, beyond 3 × 5
+    est = beyond_logged(ctx, r, tau, [0, 1])
+    assert est is not None and est.force_n is None
+    assert est.method.startswith(f"{BEYOND_LOGGED} a reached 25 N·m, more than "
+                                 f"{MODEL_BEYOND:g}× the most it exerted anywhere in the "
+                                 "log (5 N·m)"), est.method
+    assert beyond_logged(replace(ctx, torque_peak=np.array([12.0, 3.0])), r, tau, [0, 1]) \
+        is None  # 25 ≤ 3 × 12
+    assert beyond_logged(ctx, r, tau, [1]) is None  # joint b's model stays within
+    small = replace(ctx, torque_peak=np.array([0.1, 3.0]), vl=np.array([30.0, 0.3]))
+    assert beyond_logged(small, r, tau, [0, 1]) is None  # beyond 3×, but by less than vL
+    assert beyond_logged(replace(ctx, torque_peak=None), r, tau, [0, 1]) is None
+
+
+def test_a_still_arms_model_gives_no_force_where_it_predicts_what_the_joint_never_did(
+        real_logs: Path, tmp_path: Path) -> None:
+    """The real UR arm held still and pushed by hand (ur-static.csv), modelled as a UR10e
+    from the log itself: the log barely moves it, so the model is poorly determined (the
+    run warns so). At 30.97 s it predicted 106 N·m on shoulder_pan, whose logged torque
+    never passed ~33 N·m; the incident read ~250 N (a new user's trial). It now states no
+    force there, and says why; the incidents whose model stays within what the joints
+    exerted keep theirs."""
+    import json
+
+    from click.testing import CliRunner
+
+    from impactcli.cli import main
+    from impactcli.detect.incidents import BEYOND_LOGGED
+
+    robot = tmp_path / "ur10e.robot.json"
+    robot.write_text(json.dumps({"kinematics": {"type": "urdf", "robot": "ur10e"},
+                                 "joint_map": {j: f"{j}_joint" for j in (
+                                     "shoulder_pan", "shoulder_lift", "elbow", "wrist_1",
+                                     "wrist_2", "wrist_3")}}), encoding="utf-8")
+    r = CliRunner().invoke(main, ["detect", str(real_logs / "ur_ext_observer" / "ur-static.csv"),
+                                  "--channel-map", "ur_ext_observer", "--robot", str(robot),
+                                  "-o", str(tmp_path / "out")])
+    assert r.exit_code == 0, r.output
+    tl = json.loads((tmp_path / "out" / "ur-static.timeline.json").read_text("utf-8"))
+    counted = [i for i in tl["incidents"] if i["number"] is not None]
+    beyond = [i for i in counted if i["force_method"].startswith(BEYOND_LOGGED)]
+    assert beyond and all(i["force_n"] is None for i in beyond), counted
+    assert any(abs(i["t_start"] - 30.97) < 0.1 for i in beyond), beyond
+    assert "the model's torque on shoulder_pan reached" in r.stdout
+    assert any(i["force_n"] is not None for i in counted)  # the others keep their force

@@ -55,8 +55,9 @@ def _incident_line(k: int, inc: IncidentRow, link_width: int = 7) -> str:
     force = f"~{inc['force_n']:.3g} N" if inc["force_n"] is not None else "force ?"
     flag = ("  force not plausible (force_check in the timeline)"
             if inc["force_plausible"] is False else "")
-    if inc.get("no_force"):  # up to its colon
-        flag += f"  {inc['no_force'].split(':')[0]} (force_method in the timeline)"
+    if inc.get("no_force"):  # up to its colon, or its first comma
+        flag += (f"  {inc['no_force'].split(':')[0].split(', more than')[0]} (force_method "
+                 "in the timeline)")
     if inc.get("payload_test"):  # up to its colon: "a contact beside payload change P2, …"
         flag += f"  {inc['payload_test'].split(':')[0]} (payload_test in the timeline)"
     if inc.get("outside_envelope"):

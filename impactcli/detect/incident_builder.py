@@ -21,6 +21,7 @@ import numpy as np
 from ..errors import ImpactError, ImpactWarning
 from ..types import Event, RobotDescription
 from .incidents import (
+    BEYOND_LOGGED,
     BRIDGE_FRACTION,
     FORCE_CEILING_FACTOR,
     MIN_LEVER_M,
@@ -110,6 +111,8 @@ class IncidentContext:
         link_lengths: a planar arm's link lengths [m] (a joint's reach to a link's end is
             their sum, whatever the posture); None otherwise.
         chain: the chain's joint names, base first (link i ends at chain joint i).
+        torque_peak: (J,) the largest |torque| logged on each detected joint [N·m] (None:
+            unknown): what the model's torque is checked against (:func:`beyond_logged`).
     """
 
     joints: tuple[str, ...]
@@ -125,6 +128,7 @@ class IncidentContext:
     capacity_source: str = ""
     link_lengths: tuple[float, ...] | None = None
     chain: tuple[str, ...] = ()
+    torque_peak: np.ndarray | None = None
 
     def reach(self, chain_pos: int, link: int, est: ForceEstimate) -> float:
         """Chain joint ``chain_pos``'s longest lever arm to the end of ``link`` [m]: the sum
@@ -243,7 +247,42 @@ def incident_context(
                                   gravity_hold)
     return IncidentContext(tuple(joints), index, cols, jac, np.asarray(vl, dtype=np.float64),
                            float(dt), int(t0_ns), int(n_samples), float(merge_gap_s),
-                           cap, source, lengths, tuple(chain))
+                           cap, source, lengths, tuple(chain),
+                           None if torque_peak is None
+                           else np.asarray(torque_peak, dtype=np.float64))
+
+
+#: A model whose torque on a joint, during an incident, passes this many times the largest
+#: torque logged on that joint anywhere in the log predicts what the joint never did: its
+#: residual there is the model's extrapolation, not a contact's torque.
+MODEL_BEYOND = 3.0
+
+
+def beyond_logged(ctx: IncidentContext, r: np.ndarray, tau: np.ndarray | None,
+                  cols: list[int]) -> ForceEstimate | None:
+    """The incident's force as not stated (None) with why, when the model's torque
+    τ̂ = r + τ on one of ``cols`` (the detected joints up to the link) passed
+    :data:`MODEL_BEYOND` × the largest |τ| logged on it, by more than its vL: a model the
+    log does not determine (a still arm, a joint it barely moves) predicting torques no
+    motion of the log needed — its residual is no contact's (docs/incidents.md, "The
+    rules"); None when the model stays within what the joints exerted."""
+    if tau is None or ctx.torque_peak is None or not cols:
+        return None
+    hat = np.abs(r[:, cols] + tau[:, cols])
+    if not np.all(np.isfinite(hat)) or hat.size == 0:
+        return None
+    peak_hat = hat.max(axis=0)
+    logged = ctx.torque_peak[cols]
+    over = (peak_hat > MODEL_BEYOND * logged) & (peak_hat - logged > ctx.vl[cols])
+    if not np.any(over):
+        return None
+    k = int(np.argmax(np.where(over, peak_hat / np.maximum(logged, 1e-12), -np.inf)))
+    name = ctx.joints[cols[k]]
+    return ForceEstimate(None, (
+        f"{BEYOND_LOGGED} {name} reached {peak_hat[k]:.3g} N·m, more than "
+        f"{MODEL_BEYOND:g}× the most it exerted anywhere in the log ({logged[k]:.3g} N·m): "
+        "the residual there is the model's extrapolation, not a contact's torque (a model "
+        "the log does not determine: see the run's warnings); no force stated"))
 
 
 def blind_beyond(where: LinkDecision, jac: JacobianFn, q: np.ndarray,
@@ -311,6 +350,7 @@ def build_findings(
     loading: np.ndarray, adaptive_d: np.ndarray, loading_d: np.ndarray,
     q_full: np.ndarray, qd: np.ndarray, offset: int = 0, event_offset: int = 0,
     level: np.ndarray | None = None, noise: np.ndarray | None = None,
+    tau: np.ndarray | None = None,
 ) -> tuple[list[Incident], list[LastingLoad]]:
     """The incidents and lasting loads of a stretch of the log holding whole incidents.
 
@@ -327,6 +367,8 @@ def build_findings(
         level, noise: (n, J) each joint's residual level and noise before each sample
             (:class:`impactcli.detect.link_evidence.ResidualNoise`; None: the link from the
             detectors' evidence alone).
+        tau: (n, J) the torque the residual compares the model's with [N·m]
+            (:func:`beyond_logged`; None: not checked).
     Returns:
         Incidents (numbered later, by :func:`number_incidents`) and lasting loads, with
         indices in the log (``i_start``, ``i_end``, ``events``/``event``).
@@ -358,6 +400,8 @@ def build_findings(
             est = force_estimate(r[win], q_chain[win], link, index, ctx.jac, max_samples)
             where = blind_beyond(where, ctx.jac, q_chain[(win.start + win.stop) // 2],
                                  len(ctx.chain_cols))
+            up_to = [k for k, c in enumerate(index) if c <= link]
+            est = beyond_logged(ctx, r[win], None if tau is None else tau[win], up_to) or est
         elif link is None:
             est = ForceEstimate(None, "the residuals cannot say which link: no force estimate")
         return where, est

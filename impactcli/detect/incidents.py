@@ -73,6 +73,11 @@ RCOND = 0.1
 FIT_SHARE = 0.8
 #: How ``force_method`` begins when no single force at the link's end gives the torques.
 NO_SINGLE_FORCE = "no single force at the end of link"
+#: ... and when the model's torque passed what the joint exerted in the log
+#: (:func:`impactcli.detect.incident_builder.beyond_logged`).
+BEYOND_LOGGED = "the model's torque on"
+#: The ``force_method`` beginnings of a force the physics checks leave unstated.
+FORCE_NOT_STATED = (NO_SINGLE_FORCE, BEYOND_LOGGED)
 #: A joint's lever arm to a link's end shorter than this [m] is none: that point lies on the
 #: joint's axis (a UR's wrist links end on their own joints' axes), so no force there turns
 #: the joint and a force divided by it would be a rounding error's (1e17 N).

@@ -37,7 +37,7 @@ from pathlib import Path
 from typing import Any, NotRequired, TypedDict
 
 from ..detect.floor import floor_line
-from ..detect.incidents import NO_SINGLE_FORCE
+from ..detect.incidents import FORCE_NOT_STATED
 from ..errors import (
     EXIT_DATA,
     EXIT_SOFTWARE,
@@ -108,7 +108,7 @@ def _incident_row(i: Any) -> IncidentRow:
         row["outside_envelope"] = True
     if i.aftermath:
         row["aftermath"] = i.aftermath["text"]
-    if i.force_n is None and i.force_method.startswith(NO_SINGLE_FORCE):
+    if i.force_n is None and i.force_method.startswith(FORCE_NOT_STATED):
         row["no_force"] = i.force_method
     return row
 

@@ -160,12 +160,13 @@ def _force_unknown(f: Findings, limit: float) -> str | None:
         return None
     what = ([f"{count(len(incs), 'incident')} (the first at {incs[0].t_start:.3f} s)"]
             if incs else []) + ([count(len(lds), "lasting load")] if lds else [])
-    from ..detect.incidents import NO_SINGLE_FORCE
+    from ..detect.incidents import FORCE_NOT_STATED
 
-    unfit = sum(1 for x in (*incs, *lds) if x.force_method.startswith(NO_SINGLE_FORCE))
+    unfit = sum(1 for x in (*incs, *lds) if x.force_method.startswith(FORCE_NOT_STATED))
     why = ("no kinematics — give --robot with a URDF or a named robot — or the link could "
            "not be told" + (f"; for {unfit}, no single force at the link's end gives the "
-                            "residuals: force_method in the timeline" if unfit else ""))
+                            "residuals, or the model's torque passed what the joint "
+                            "exerted: force_method in the timeline" if unfit else ""))
     return (f"impactcli: {shown(f.log_path)}: --fail-on-force {limit:g} N could not "
             f"judge {' and '.join(what)}: no force estimate ({why}); exit 5")
 

@@ -66,7 +66,7 @@ from ..detect.warmup import Warmup, WarmupTracker
 from ..errors import ConfigError, ImpactWarning
 from ..logs.reader import LogReader
 from ..logs.screen import LeftOut
-from ..model.generators import choices_dict, summary_name
+from ..model.generators import choices_dict, summary_name, uses_correction
 from ..model.rigid import RigidModel
 from ..spill import ColumnFiles
 from ..types import (
@@ -155,8 +155,8 @@ class ReplayStep:
 
 
 #: What a step needs for the events and incidents; the rest only for ``on_chunk``.
-_NEEDED = ("t", "t_ns", "q_full", "r", "loading", "qd", "r_rms", "v_rms")
-_FOR_WRITERS = ("r_tilde", "v_dyn", "torque", "position", "position_ref")
+_NEEDED = ("t", "t_ns", "q_full", "r", "loading", "qd", "r_rms", "v_rms", "torque")
+_FOR_WRITERS = ("r_tilde", "v_dyn", "position", "position_ref")
 
 
 @dataclass
@@ -289,6 +289,9 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
                                thr["static_loading"], scan.sample_period_s, scan.t0_ns,
                                scan.n_samples, cfg.events.merge_gap_s, where, rp.torque_peak,
                                plan.gravity_hold)
+        if (uses_correction(plan.choices, cfg.residual.logged_correction)
+                or any(c.generator != "inverse_dynamics" for c in plan.choices)):
+            ctx = dataclasses.replace(ctx, torque_peak=None)  # r is not τ̂ − τ: no check
         ctx_msgs = caught.cut(since)
         events, incidents, loads = _events_and_incidents(islands, rp.warmup, joints, cfg, ctx)
         if (given is not None and any(not x.in_warmup for x in loads)
@@ -577,6 +580,7 @@ class _Compare:
         self.islands.update(k0, t, any_d, pressing, {
             "t": t, "r": st.r, "loading": st.loading, "qd": st.qd, "q_full": st.q_full,
             "r_level": level, "r_noise": noise,
+            "tau": st.torque if st.torque is not None else np.full_like(st.r, np.nan),
             **{f"d.{d}": dec[d] for d in DETECTORS}, **{f"x.{d}": ratios[d] for d in DETECTORS}})
         if self.on_chunk is not None:
             assert st.torque is not None and st.r_tilde is not None and st.v_dyn is not None
@@ -608,7 +612,7 @@ def _events_and_incidents(islands: Islands, wu: Warmup, joints: tuple[str, ...],
         incs, lds = build_findings(ctx, local, a["t"], a["r"], a["loading"], a["d.adaptive"],
                                    a["d.static_loading"], a["q_full"], a["qd"],
                                    offset=isl.start, event_offset=len(events),
-                                   level=a["r_level"], noise=a["r_noise"])
+                                   level=a["r_level"], noise=a["r_noise"], tau=a["tau"])
         incidents += incs
         loads += lds
         events += [dataclasses.replace(e, i_start=e.i_start + isl.start,

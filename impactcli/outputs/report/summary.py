@@ -19,7 +19,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from ...detect.incidents import NO_SINGLE_FORCE, link_words
+from ...detect.incidents import FORCE_NOT_STATED, link_words
 from .common import CONTACT_TEXT, PRODUCT_DETECTORS, approx, e, ratio_cell, utc
 
 CONTACT_ORDER = ("transient", "quasi_static", "unknown")
@@ -297,7 +297,7 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
         force = (f'<b>~{approx(r["force_n"])} N</b>' if r.get("force_n") is not None
                  else '<span class="muted">no force estimate</span>')
         if r.get("force_n") is None and str(r.get("force_method") or "").startswith(
-                NO_SINGLE_FORCE):  # why not: the torques are no single force there
+                FORCE_NOT_STATED):  # why not: the physics checks left it unstated
             force += f' <span class="note">{e(r["force_method"])}</span>'
         if r.get("force_plausible") is False:
             force += (' <span class="bad">implausible: '
