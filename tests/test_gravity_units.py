@@ -114,6 +114,7 @@ def test_the_verdict_follows_the_scale(poses: tuple, log10_scale: float) -> None
         close = all(1 / CLOSE_FACTOR <= x <= CLOSE_FACTOR for x in v.per_joint.values())
         assert ("agrees with" in v.message) is close, v
         assert ("not an agreement" in v.message) is not close, v
+        assert v.order_only is not close, v  # said on the terminal too (the plan warns)
 
 
 def test_a_still_log_is_not_verified(poses: tuple) -> None:
@@ -177,12 +178,24 @@ def test_an_odd_scale_is_warned_and_recorded(tmp_path: Path) -> None:
     assert "the torque may be off by ~" in err
 
 
+def test_a_scale_of_one_order_only_is_said_on_the_terminal(tmp_path: Path) -> None:
+    """1.8× the log's torque: no unit error, not an agreement either — forces are as good
+    as that ratio, and the run says so where the user reads (a new user's trial saw it in
+    the timeline only, with the wrong UR model's ~2.2× forces printed as they were)."""
+    code, err, doc = _run(tmp_path, "heavy_free_p2p", 1.8, "torque", "--robot",
+                          str(CSV / "heavy_free_p2p.robot.json"))
+    assert code == 0, err
+    ts = doc["input"]["torque_scale"]
+    assert ts["verdict"] == "ok" and ts["scale"] == pytest.approx(1.8, rel=0.15)
+    assert "not an agreement" in err and "forces in N are as good as that ratio" in err
+
+
 def test_the_right_scale_is_recorded_as_checked(tmp_path: Path) -> None:
     code, err, doc = _run(tmp_path, "heavy_free_p2p", 1.0, "torque", "--robot",
                           str(CSV / "heavy_free_p2p.robot.json"))
     assert code == 0, err
     assert doc["input"]["torque_scale"]["verdict"] == "ok"
-    assert "torque may be off" not in err
+    assert "torque may be off" not in err and "not an agreement" not in err
 
 
 def test_without_masses_the_scale_is_said_to_be_unverified(tmp_path: Path) -> None:

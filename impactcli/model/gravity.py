@@ -142,6 +142,13 @@ class ScaleVerdict:
     per_joint: dict[str, float] = field(default_factory=dict)
     message: str = ""
 
+    @property
+    def order_only(self) -> bool:
+        """``ok`` but of one order only: some joint's k beyond :data:`CLOSE_FACTOR` of 1,
+        within :data:`WARN_FACTOR` (forces are as good as that ratio: the run says so)."""
+        return self.kind == "ok" and any(not 1.0 / CLOSE_FACTOR <= k <= CLOSE_FACTOR
+                                         for k in self.per_joint.values())
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (timeline ``input.torque_scale``)."""
         return {"verdict": self.kind, "scale": self.scale, "per_joint": dict(self.per_joint),

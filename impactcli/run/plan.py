@@ -539,6 +539,8 @@ def plan_run(reader: LogReader, cfg: DetectorConfig, *, model: RigidModel | None
         scale = _unloaded_scale(scan, described, sc.keep, scale, rig, start)
         if scale.kind == "warn":
             warnings.warn(scale.message, ImpactWarning, stacklevel=2)
+    if scale is not None and scale.order_only:  # not a unit error, not an agreement
+        warnings.warn(scale.message, ImpactWarning, stacklevel=2)
     left_out = (tuple(LeftOut(j, why) for j, why in scan.source.joints_dropped)
                 + sc.left_out + extra)
     held = None if hold is None else np.array(
