@@ -229,12 +229,17 @@ class FloorAccumulator:
             for qn in QUANTILES:
                 forces = np.full((len(postures), len(chain)), np.nan)
                 for j in range(self.J):
-                    v = torque[d][qn][j]
+                    # a joint whose median is none (alarming for most of the log: a contact
+                    # there joins its alarm) gives no link its floor at either quantile, so
+                    # that the worst tenth never falls below the median
+                    v = torque[d][qn][j] if math.isfinite(torque[d]["median"][j]) else math.nan
                     if math.isfinite(v):  # the force that reaches joint j's own threshold
                         forces[:, index[j] - 1] = float(v) / levers[:, index[j] - 1]
                 for c, arms in axial.items():
                     for j in range(self.J):
                         v, k = torque[d][qn][j], index[j] - 1
+                        if not math.isfinite(torque[d]["median"][j]):
+                            continue  # as above
                         if k < c and math.isfinite(v):
                             with np.errstate(divide="ignore", invalid="ignore"):
                                 f = np.where(arms[:, k] >= MIN_LEVER_M, float(v) / arms[:, k],
