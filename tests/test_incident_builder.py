@@ -132,3 +132,21 @@ def test_a_still_arms_model_gives_no_force_where_it_predicts_what_the_joint_neve
     assert any(abs(i["t_start"] - 30.97) < 0.1 for i in beyond), beyond
     assert "the model's torque on shoulder_pan reached" in r.stdout
     assert any(i["force_n"] is not None for i in counted)  # the others keep their force
+
+
+def test_the_force_check_names_the_joint_that_holds_the_most_force_at_the_links_end() -> None:
+    """Known truth on the planar arm (0.4 m, 0.35 m): at link 2's end, joint a (10 N·m over
+    0.75 m) holds 13.3 N and joint b (5 N·m over 0.35 m) 14.3 N — b, the weaker joint,
+    holds the more force there; the check says so (a trial read "its strongest joint" of
+    a 56 N·m wrist beside 330 N·m shoulders)."""
+    from dataclasses import replace
+
+    from impactcli.detect.incident_builder import check_force
+    from impactcli.detect.incidents import FORCE_CEILING_FACTOR, ForceEstimate
+
+    ctx = replace(_ctx([0, 1]), capacity=np.array([10.0, 5.0]), capacity_source="rated")
+    chk = check_force(ctx, ForceEstimate(12.0, "m", {1: 0.75, 2: 0.35}), 2)
+    assert chk.plausible is True
+    assert chk.ceiling_n == pytest.approx(FORCE_CEILING_FACTOR * 5.0 / 0.35)
+    assert "of the joints up to the link, b holds the most force at its end, ~14 N: " \
+        "5 N·m (rated) over a 0.35 m lever arm" in chk.why, chk.why

@@ -334,7 +334,8 @@ def check_force(ctx: IncidentContext, est: ForceEstimate, link: int | None) -> F
         return ForceCheck(None, None, "no torque capacity known for the joints up to the link")
     ceiling = FORCE_CEILING_FACTOR * best
     name = ctx.joints[at]
-    hold = (f"its strongest joint there, {name}, holds ~{best:,.0f} N: "
+    hold = (f"of the joints up to the link, {name} holds the most force at its end, "
+            f"~{best:,.0f} N: "
             f"{float(ctx.capacity[at]):.3g} N·m ({ctx.capacity_source}) over a "
             f"{arm:.3g} m lever arm")
     if est.force_n > ceiling:
