@@ -72,6 +72,13 @@ def test_audit_rate_prints_fit_support_and_leave_one_log_out(assist: tuple) -> N
     lolo = [ln for ln in lines if re.match(r"  assist_free_\w+\.csv\.gz +[0-9.]+ +(30|100|300) ",
                                            ln)]
     assert len(lolo) == 9  # 3 logs × 3 rates
+    # its minutes are the whole logs after warm-up: more than the tails' (each log's first
+    # 10 s left out), and the header says so (a trial read them against the tails' total)
+    head_min = float(re.search(r"on ([0-9.]+) min of free motion$", head[0]).group(1))
+    row_min = sum(float(ln.split()[1]) for ln in lolo) / 3  # each log's rows: one per rate
+    assert row_min > head_min + 3 * 10 / 60 - 0.05, (row_min, head_min)
+    assert any("its min the whole log after warm-up, where the tails above leave out each "
+               "log's first 10 s, held to the log-start floor" in ln for ln in lines)
     # the triangles, left out, show ~1000 per hour against bounds of 30-169: named
     assert [ln.split(":")[0].strip() for ln in lines
             if "observed above its bound" in ln] == ["assist_free_triangle.csv.gz"]
