@@ -150,3 +150,18 @@ def test_the_force_check_names_the_joint_that_holds_the_most_force_at_the_links_
     assert chk.ceiling_n == pytest.approx(FORCE_CEILING_FACTOR * 5.0 / 0.35)
     assert "of the joints up to the link, b holds the most force at its end, ~14 N: " \
         "5 N·m (rated) over a 0.35 m lever arm" in chk.why, chk.why
+
+
+def test_only_a_poorly_determined_models_torque_is_held_against_the_logged_one() -> None:
+    """A model whose identification warned (condition number above its level, parameters
+    not excited, joints standing still) — and only such a one — is checked by
+    beyond_logged: a well-determined model's torque passes the logged peak where a hard
+    impact truly decelerates the arm (a review's point), and that force must stand."""
+    from impactcli.detect.incident_builder import poorly_determined
+
+    fit = {"condition_number": 120.0, "options": {"condition_warn": 1000.0},
+           "unexcited_parameters": [], "still_joints": []}
+    assert not poorly_determined({"fit": fit}) and not poorly_determined(None)
+    assert poorly_determined({"fit": {**fit, "condition_number": 3.2e4}})
+    assert poorly_determined({"fit": {**fit, "unexcited_parameters": ["j1.Izz"]}})
+    assert poorly_determined({"fit": {**fit, "still_joints": ["shoulder_pan"]}})

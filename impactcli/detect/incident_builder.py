@@ -258,6 +258,20 @@ def incident_context(
 MODEL_BEYOND = 3.0
 
 
+def poorly_determined(model: dict[str, Any] | None) -> bool:
+    """Whether a model's identification said the log determines it poorly: a condition
+    number above its warning level, parameters the log did not excite, or joints that
+    stood still (its ``fit``; the run warned of each). Only such a model's torque is held
+    against what the joints exerted (:func:`beyond_logged`): a well-determined model's
+    torque passes the logged peak only where the arm truly accelerated — a hard impact
+    decelerating it, whose force must stand."""
+    fit = (model or {}).get("fit") or {}
+    cond = fit.get("condition_number")
+    warn = ((fit.get("options") or {}).get("condition_warn")) or 1000.0
+    return bool((isinstance(cond, (int, float)) and cond > float(warn))
+                or fit.get("unexcited_parameters") or fit.get("still_joints"))
+
+
 def beyond_logged(ctx: IncidentContext, r: np.ndarray, tau: np.ndarray | None,
                   cols: list[int]) -> ForceEstimate | None:
     """The incident's force as not stated (None) with why, when the model's torque

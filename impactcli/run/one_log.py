@@ -48,6 +48,7 @@ from ..detect.incident_builder import (
     build_findings,
     incident_context,
     number_incidents,
+    poorly_determined,
 )
 from ..detect.incidents import (
     BRIDGE_FRACTION,
@@ -290,8 +291,11 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
                                scan.n_samples, cfg.events.merge_gap_s, where, rp.torque_peak,
                                plan.gravity_hold)
         if (uses_correction(plan.choices, cfg.residual.logged_correction)
-                or any(c.generator != "inverse_dynamics" for c in plan.choices)):
-            ctx = dataclasses.replace(ctx, torque_peak=None)  # r is not τ̂ − τ: no check
+                or any(c.generator != "inverse_dynamics" for c in plan.choices)
+                or not poorly_determined(None if plan.model is None
+                                         else plan.model.to_dict())):
+            ctx = dataclasses.replace(ctx, torque_peak=None)  # r is not τ̂ − τ, or the
+            # model is determined: its torque is not held against the logged one
         ctx_msgs = caught.cut(since)
         events, incidents, loads = _events_and_incidents(islands, rp.warmup, joints, cfg, ctx)
         if (given is not None and any(not x.in_warmup for x in loads)
