@@ -641,6 +641,22 @@ def test_a_contact_watch_says_what_a_change_judged() -> None:
     assert "not told" not in tested_text({"explained": 0.99})  # a timeline from before
 
 
+def test_the_gate_note_counts_overlapping_unjudged_stretches_once() -> None:
+    """Two changes whose unjudged stretches overlap (a release within a pick's settling
+    after its classification): their union, not their sum."""
+    from impactcli.run.gates import Findings, gate_notes
+
+    w1 = {"unjudged_s": [[10.0, 10.5], [13.0, 13.5]], "above_s": [10.5, 13.0],
+          "above_times_vl": 2.0}
+    w2 = {"unjudged_s": [[13.2, 13.7], [16.2, 16.7]], "above_s": [13.7, 16.2],
+          "above_times_vl": 2.0}
+    f = Findings("/d/pnp.csv", 60.0, 3.0, (), (), (),
+                 ({"contact_watch": w1}, {"contact_watch": w2}))
+    (line,) = gate_notes([f], fail_on_detect=True, fail_on_force=None)
+    assert "uncounted for 1.7 s in all" in line, line  # 0.5 + 0.7 (13.0–13.7) + 0.5
+    assert gate_notes([f], fail_on_detect=False, fail_on_force=None) == []
+
+
 def test_a_push_the_change_could_not_judge_is_where_it_says_and_the_gate_says_so(
         tmp_path: Path) -> None:
     """Heavy geared arm (robot seed 7), a 30 N push 0.3 s after the 2 kg release: the push
@@ -662,7 +678,9 @@ def test_a_push_the_change_could_not_judge_is_where_it_says_and_the_gate_says_so
     assert a <= push.start <= b, release
     settle = settle_s(tl["config"]["static_loading"]["cutoff_hz"],
                       tl["config"]["adaptive"]["n2_s"])
-    assert b - a == pytest.approx(settle, abs=0.002), release
+    gap = tl["config"]["events"]["merge_gap_s"]  # an alarm just before the onset is its
+    assert a == pytest.approx(release["t_start"] - gap)  # step's (mark_payload_changes)
+    assert b - release["t_start"] == pytest.approx(settle, abs=0.002), release
     assert c == release["t_classified"] and d - c == pytest.approx(settle), release
     assert release["contact_watch"]["above_s"] == [b, c]
     counted = [i for i in tl["incidents"] if i["number"] is not None]
@@ -689,6 +707,7 @@ def test_a_push_the_change_could_not_judge_is_where_it_says_and_the_gate_says_so
 
     validate(json.loads(ev.stdout), "evaluation", AssertionError, "evaluation")
     scored = json.loads(ev.stdout)["payload_changes"]
+    assert scored["watched"] is True
     assert scored["labelled"] == 2 and scored["right"] == 2 and not scored["unlabelled"]
     assert all(abs(m["dt_s"]) < 0.1 for m in scored["matched"]), scored
     text = CliRunner().invoke(main, ["evaluate", str(timeline)]).stdout
@@ -715,6 +734,33 @@ def test_payload_changes_are_scored_against_the_labelled_ones() -> None:
     assert payload_text(sc).startswith("payload changes: 1/3 found and right (onset within "
                                        "1 s, mass within 25 %): +2.04 kg at 20.05 s for +2 kg")
     assert "(mass off)" in payload_text(sc) and payload_text(sc).endswith("; 2 unlabelled")
+
+
+def test_a_run_that_did_not_look_for_loads_misses_none(tmp_path: Path) -> None:
+    """The sample config's controller channels (logged_external): no payload monitor, the
+    timeline has no payload_changes. Labels listing a pick and a release are then not
+    scored as missed (a review read "0/2 found … missed"): evaluate says the run did not
+    look, and counts them."""
+    from impactcli.schema import validate
+
+    repo = Path(__file__).resolve().parent.parent
+    log = repo / "sample_logs" / "csv" / "assist_impacts.csv.gz"
+    tl, code, r = _detect(log, repo / "sample_logs" / "assist_like.config.toml", tmp_path / "o")
+    assert code == 0 and "payload_changes" not in tl, r.output  # type: ignore[attr-defined]
+    labels = json.loads((repo / "sample_logs" / "csv" / "assist_impacts.labels.json")
+                        .read_text("utf-8"))
+    labels["payload_changes"] = [{"t_s": 15.0, "mass_kg": 2.0}, {"t_s": 30.0, "mass_kg": -2.0}]
+    lab = tmp_path / "with_loads.labels.json"
+    lab.write_text(json.dumps(labels), encoding="utf-8")
+    timeline = tmp_path / "o" / "assist_impacts.timeline.json"
+    ev = CliRunner().invoke(main, ["evaluate", str(timeline), "--labels", str(lab), "--json"])
+    assert ev.exit_code == 0, ev.output
+    doc = json.loads(ev.stdout)
+    validate(doc, "evaluation", AssertionError, "evaluation")
+    assert doc["payload_changes"] == {"watched": False, "labelled": 2}
+    text = CliRunner().invoke(main, ["evaluate", str(timeline), "--labels", str(lab)]).stdout
+    assert "payload changes: 2 labelled, not scored: this run did not look for loads" in text
+    assert "missed" not in text.split("payload changes:")[1]
 
 
 def test_a_release_inside_another_alarms_window_is_found_at_its_step(

@@ -110,16 +110,18 @@ def whose_load(as_log: str) -> str:
 
 
 def contact_watch(t_start: float, scanned_from: float, t_classified: float,
-                  settle_s: float) -> dict[str, Any]:
+                  settle_s: float, lead_s: float = 0.0) -> dict[str, Any]:
     """How a contact in a change's alarm was judged (the timeline's ``contact_watch``):
     ``unjudged_s`` the stretches [s] where one joins the change's alarm, not counted — from
     the onset to where the scan for a contact beside the load began (module docstring, step
     5: the loading filter and the step settle), and from the classification for
     ``settle_s`` (an alarm that starts there is the change's:
-    :func:`impactcli.detect.incidents.mark_payload_changes`) —; ``above_s`` the stretch
-    scanned, where one is told apart when the torque the mass leaves passes
-    ``above_times_vl`` × vL (:data:`BESIDE`)."""
-    return {"unjudged_s": [[t_start, scanned_from], [t_classified, t_classified + settle_s]],
+    :func:`impactcli.detect.incidents.mark_payload_changes`, which also takes an alarm
+    begun up to ``lead_s``, the events' merge gap, before the onset and still on at it) —;
+    ``above_s`` the stretch scanned, where one is told apart when the torque the mass
+    leaves passes ``above_times_vl`` × vL (:data:`BESIDE`)."""
+    return {"unjudged_s": [[t_start - lead_s, scanned_from],
+                           [t_classified, t_classified + settle_s]],
             "above_s": [scanned_from, t_classified], "above_times_vl": BESIDE}
 
 
@@ -273,7 +275,8 @@ class PayloadChange:
     ``peak`` over vL, and ``counted: False`` when no incident holds it
     (:func:`impactcli.detect.incidents.mark_payload_changes`); None: none.
     ``scanned_from`` [s]: where that scan began (the onset plus ``settle_s``, or the
-    oldest row the monitor kept), for :func:`contact_watch`; None: not recorded."""
+    oldest row the monitor kept), for :func:`contact_watch` (with ``settle_s`` and the
+    events' merge gap ``lead_s``); None: not recorded."""
 
     t_start: float
     t_classified: float
@@ -290,6 +293,7 @@ class PayloadChange:
     part: ContactPart | None = field(default=None, repr=False, compare=False)
     scanned_from: float | None = None
     settle_s: float = 0.0
+    lead_s: float = 0.0
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (the timeline's ``payload_changes`` item)."""
@@ -307,7 +311,7 @@ class PayloadChange:
             d["contact"] = dict(self.contact)
         if self.scanned_from is not None:
             d["contact_watch"] = contact_watch(self.t_start, self.scanned_from,
-                                               self.t_classified, self.settle_s)
+                                               self.t_classified, self.settle_s, self.lead_s)
         return d
 
 
@@ -556,7 +560,7 @@ class PayloadMonitor:
             judged.explained, self.base_kg + float(self._pi[self.names.index("m")]),
             None if known is None else known[0], judged.drift, judged.shows,
             t_a - self.start_s < 1.5 / self.sample_rate_hz, seen, part,
-            max(t_a, t_c - first / self.sample_rate_hz), self.settle_s))
+            max(t_a, t_c - first / self.sample_rate_hz), self.settle_s, self.merge_gap_s))
         return self._pi
 
     def _judge(self, y: np.ndarray, left: np.ndarray, qf: np.ndarray,

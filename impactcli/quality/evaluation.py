@@ -250,14 +250,19 @@ def _rounded_tree(x: Any) -> Any:
 def with_payload_changes(ev: Evaluation, labels: Labels,
                          found: Sequence[dict[str, Any]] | None) -> Evaluation:
     """``ev`` with its payload changes scored (:mod:`impactcli.quality.payload_scores`)
-    when the labels list some (``payload_changes``) or the run found some."""
+    when the labels list some (``payload_changes``) or the run found some; ``found`` None:
+    the run did not look for loads (its timeline has no ``payload_changes``), said as
+    ``watched: false``, not as misses."""
     from .payload_scores import score_payload_changes
 
     labelled = labels.extra.get("payload_changes")
     if not labelled and not found:
         return ev
-    return replace(ev, payload_changes=score_payload_changes(list(found or ()),
-                                                             list(labelled or ())))
+    if found is None:  # the run did not look for loads (no monitor): nothing was missed
+        steps = [x for x in labelled or () if float(x["mass_kg"]) != 0.0]
+        return replace(ev, payload_changes={"watched": False, "labelled": len(steps)})
+    return replace(ev, payload_changes={"watched": True, **score_payload_changes(
+        list(found), list(labelled or ()))})
 
 
 def _union_length(intervals: Iterable[tuple[float, float]], lo: float, hi: float) -> float:

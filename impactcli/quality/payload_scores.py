@@ -55,7 +55,12 @@ def score_payload_changes(found: Sequence[dict[str, Any]],
 
 def payload_text(score: dict[str, Any]) -> str:
     """One line for ``evaluate``: ``payload changes: 2/2 found and right (onset within 1 s,
-    mass within 25 %): +2 kg at 20.05 s for +2 kg at 20 s, …; 0 unlabelled``."""
+    mass within 25 %): +2 kg at 20.05 s for +2 kg at 20 s, …; 0 unlabelled`` — or, for a
+    run that did not look for loads (``watched`` false), that it did not."""
+    if score.get("watched") is False:
+        return (f"payload changes: {score['labelled']} labelled, not scored: this run did "
+                "not look for loads (a calibrated config, a model with kinematics and the "
+                "inverse_dynamics generator on every joint: docs/method.md §5c)")
     rows = [f"{m['found_mass_kg']:+.3g} kg at {m['t_start']:.2f} s for {m['mass_kg']:+.3g} kg "
             f"at {m['t_s']:g} s" + ("" if m["right"] else " (mass off)")
             for m in score["matched"]]

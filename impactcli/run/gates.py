@@ -95,7 +95,10 @@ def gate_notes(findings: Sequence[Findings], *, fail_on_detect: bool,
         if not f.payload_changes:
             continue
         watched = [c["contact_watch"] for c in f.payload_changes if c.get("contact_watch")]
-        blind = sum(b - a for w in watched for a, b in w["unjudged_s"])
+        blind, end = 0.0, -float("inf")  # the stretches' union: one change's may hold
+        for a, b in sorted(tuple(x) for w in watched for x in w["unjudged_s"]):  # the next's
+            blind += max(0.0, b - max(a, end))
+            end = max(end, b)
         told = (f"; a contact in their alarms joined them uncounted for {blind:.2g} s in "
                 "all, and was told apart in the rest of their windows only above "
                 f"{max(w['above_times_vl'] for w in watched):g}× the loading thresholds"
