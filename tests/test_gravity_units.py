@@ -190,6 +190,30 @@ def test_a_scale_of_one_order_only_is_said_on_the_terminal(tmp_path: Path) -> No
     assert "not an agreement" in err and "forces in N are as good as that ratio" in err
 
 
+def test_the_report_says_forces_are_as_good_as_a_scale_of_one_order_only(
+        tmp_path: Path) -> None:
+    """The sample payload log under the sample config: its torque scale is ~1.5× the
+    description's gravity torque (its unknown load), no unit error and no agreement. Its
+    report caveats say the forces are as good as that (before, "ok" gave no caveat), and
+    a log whose scale agrees gets none."""
+    from impactcli.schema import validate
+
+    cfg = REPO / "sample_logs" / "assist_like.config.toml"
+    for name, order in (("assist_payload", True), ("assist_pushes", False)):
+        out = tmp_path / f"{name}.json"
+        r = CliRunner().invoke(main, ["report", str(CSV / f"{name}.csv.gz"), "--config",
+                                      str(cfg), "-o", str(tmp_path / f"{name}.html"),
+                                      "--json", str(out)])
+        assert r.exit_code == 0, r.output
+        doc = json.loads(out.read_text("utf-8"))
+        validate(doc, "report", AssertionError, "report")
+        said = [c["text"] for c in doc["logs"][0]["caveats"] if c["code"] == "torque-scale"]
+        assert bool(said) is order, said
+        if order:
+            assert said[0].startswith("The forces are as good as the log's torque scale")
+            assert "~1.5×" in said[0] and "not an agreement" in said[0]
+
+
 def test_the_right_scale_is_recorded_as_checked(tmp_path: Path) -> None:
     code, err, doc = _run(tmp_path, "heavy_free_p2p", 1.0, "torque", "--robot",
                           str(CSV / "heavy_free_p2p.robot.json"))

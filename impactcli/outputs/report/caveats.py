@@ -18,6 +18,7 @@ from ...detect.thresholds import (
     UNCALIBRATED_MARGIN,
     UNCALIBRATED_QUANTILE,
 )
+from ...model.gravity import CLOSE_FACTOR
 from ...types import DetectionResult
 from .common import LOW_GAIN, POOR_FIT, share
 
@@ -121,7 +122,15 @@ def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]
         out.append({"code": "start-load",
                     "text": (load["message"].split(": ", 1)[-1] + ".").replace("..", ".")})
     scale = getattr(result, "torque_scale", None) or {}
-    if scale.get("verdict") != "ok" and (result.incidents or result.lasting_loads):
+    order_only = scale.get("verdict") == "ok" and any(
+        not 1.0 / CLOSE_FACTOR <= float(k) <= CLOSE_FACTOR
+        for k in (scale.get("per_joint") or {}).values())
+    if order_only and (result.incidents or result.lasting_loads):
+        out.append({"code": "torque-scale",
+                    "text": ("The forces are as good as the log's torque scale against the "
+                             "gravity torque of the robot description's masses: "
+                             f"{(scale.get('message') or '').split(': ', 1)[-1]}.")})
+    elif scale.get("verdict") != "ok" and (result.incidents or result.lasting_loads):
         why = (scale.get("message") or "").split(": ", 1)[-1] or (
             "no robot description with masses (--robot) predicts the gravity torque to "
             "compare the log's torque with")
