@@ -253,14 +253,14 @@ def with_payload_changes(ev: Evaluation, labels: Labels,
     when the labels list some (``payload_changes``) or the run found some; ``found`` None:
     the run did not look for loads (its timeline has no ``payload_changes``), said as
     ``watched: false``, not as misses."""
-    from .payload_scores import score_payload_changes
+    from .payload_scores import labelled_steps, score_payload_changes
 
     labelled = labels.extra.get("payload_changes")
     if not labelled and not found:
         return ev
     if found is None:  # the run did not look for loads (no monitor): nothing was missed
-        steps = [x for x in labelled or () if float(x["mass_kg"]) != 0.0]
-        return replace(ev, payload_changes={"watched": False, "labelled": len(steps)})
+        return replace(ev, payload_changes={"watched": False,
+                                            "labelled": len(labelled_steps(labelled or ()))})
     return replace(ev, payload_changes={"watched": True, **score_payload_changes(
         list(found), list(labelled or ()))})
 

@@ -21,6 +21,11 @@ TIME_S = 1.0
 MASS_SHARE = 0.25
 
 
+def labelled_steps(labelled: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The labelled changes there is something to find in (a change of no mass is none)."""
+    return [x for x in labelled if float(x["mass_kg"]) != 0.0]
+
+
 def score_payload_changes(found: Sequence[dict[str, Any]],
                           labelled: Sequence[dict[str, Any]]) -> dict[str, Any]:
     """The evaluation's ``payload_changes`` mapping (module docstring): ``labelled`` and
@@ -30,7 +35,7 @@ def score_payload_changes(found: Sequence[dict[str, Any]],
     found onsets, ``right`` (how many), and the bars ``time_s`` and ``mass_share``."""
     free = list(range(len(found)))
     matched, missed = [], []
-    steps = [x for x in labelled if float(x["mass_kg"]) != 0.0]  # no change: nothing to find
+    steps = labelled_steps(labelled)
     for lab in sorted(steps, key=lambda x: float(x["t_s"])):
         t, kg = float(lab["t_s"]), float(lab["mass_kg"])
         near = [k for k in free if abs(float(found[k]["t_start"]) - t) <= TIME_S

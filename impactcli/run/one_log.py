@@ -285,15 +285,14 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
             cfg = uncalibrated_config(cfg, joints, margins)
             warn_uncalibrated(where, weighs_loads(plan))
         since = caught.mark()  # the incidents' warnings follow the events' (as ever)
-        ctx = incident_context(joints, plan.full_joints, setup.robot,
-                               None if plan.model is None else plan.model.to_dict(),
+        model_doc = None if plan.model is None else plan.model.to_dict()
+        ctx = incident_context(joints, plan.full_joints, setup.robot, model_doc,
                                thr["static_loading"], scan.sample_period_s, scan.t0_ns,
                                scan.n_samples, cfg.events.merge_gap_s, where, rp.torque_peak,
                                plan.gravity_hold)
         if (uses_correction(plan.choices, cfg.residual.logged_correction)
                 or any(c.generator != "inverse_dynamics" for c in plan.choices)
-                or not poorly_determined(None if plan.model is None
-                                         else plan.model.to_dict())):
+                or not poorly_determined(model_doc)):
             ctx = dataclasses.replace(ctx, torque_peak=None)  # r is not τ̂ − τ, or the
             # model is determined: its torque is not held against the logged one
         ctx_msgs = caught.cut(since)
