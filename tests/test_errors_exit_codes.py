@@ -186,7 +186,7 @@ def test_fail_on_force_says_when_no_single_force_fits() -> None:
     others (docs/incidents.md, "One force at the link's end?")."""
     from types import SimpleNamespace
 
-    from impactcli.detect.incidents import NO_SINGLE_FORCE
+    from impactcli.detect.force import NO_SINGLE_FORCE
     from impactcli.run.gates import Findings, judge
 
     unfit = SimpleNamespace(t_start=11.938, force_n=None,

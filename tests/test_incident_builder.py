@@ -9,8 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from impactcli.detect.force import planar_jacobian
 from impactcli.detect.incident_builder import IncidentContext, beside
-from impactcli.detect.incidents import Incident, planar_jacobian
+from impactcli.detect.incidents import Incident
 from impactcli.detect.payload_change import ContactPart
 
 LENGTHS = (0.4, 0.35)
@@ -82,8 +83,8 @@ def test_a_model_torque_beyond_what_the_joint_exerted_states_no_force() -> None:
     12 N·m (τ̂ within 3× of it), or below vL beyond it, is left to the force estimate."""
     from dataclasses import replace
 
+    from impactcli.detect.force import BEYOND_LOGGED
     from impactcli.detect.incident_builder import MODEL_BEYOND, beyond_logged
-    from impactcli.detect.incidents import BEYOND_LOGGED
 
     ctx = replace(_ctx([0, 1]), torque_peak=np.array([5.0, 3.0]))
     r = np.column_stack([np.linspace(0.0, 20.0, 50), np.zeros(50)])
@@ -114,7 +115,7 @@ def test_a_still_arms_model_gives_no_force_where_it_predicts_what_the_joint_neve
     from click.testing import CliRunner
 
     from impactcli.cli import main
-    from impactcli.detect.incidents import BEYOND_LOGGED
+    from impactcli.detect.force import BEYOND_LOGGED
 
     robot = tmp_path / "ur10e.robot.json"
     robot.write_text(json.dumps({"kinematics": {"type": "urdf", "robot": "ur10e"},
@@ -141,8 +142,8 @@ def test_the_force_check_names_the_joint_that_holds_the_most_force_at_the_links_
     a 56 N·m wrist beside 330 N·m shoulders)."""
     from dataclasses import replace
 
+    from impactcli.detect.force import FORCE_CEILING_FACTOR, ForceEstimate
     from impactcli.detect.incident_builder import check_force
-    from impactcli.detect.incidents import FORCE_CEILING_FACTOR, ForceEstimate
 
     ctx = replace(_ctx([0, 1]), capacity=np.array([10.0, 5.0]), capacity_source="rated")
     chk = check_force(ctx, ForceEstimate(12.0, "m", {1: 0.75, 2: 0.35}), 2)

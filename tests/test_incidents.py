@@ -12,17 +12,15 @@ from click.testing import CliRunner
 
 from impactcli.cli import main
 from impactcli.config import load_config
-from impactcli.detect.incidents import (
-    contact_type,
+from impactcli.detect.force import (
     estimate_force,
     force_estimate,
-    group_events,
-    isolate,
     lstsq_many,
     own_levers,
     planar_jacobian,
     smallest_caught_force,
 )
+from impactcli.detect.incidents import contact_type, group_events, isolate
 from impactcli.logs import read_log
 from impactcli.logs.robot_files import read_labels
 from impactcli.outputs.timeline import timeline_dict
@@ -92,7 +90,7 @@ def test_a_force_is_stated_only_where_one_force_at_the_links_end_gives_the_torqu
     three best gives torques where there are none and misses most of joint 3's; no force
     is stated, and the method says how little it explains. Link 2 (two torques, two force
     parts: always one force) keeps its estimate."""
-    from impactcli.detect.incidents import FIT_SHARE, NO_SINGLE_FORCE, force_estimate
+    from impactcli.detect.force import FIT_SHARE, NO_SINGLE_FORCE, force_estimate
 
     jac = planar_jacobian([0.4, 0.35, 0.2])
     at70 = planar_jacobian([0.4, 0.35, 0.14])
@@ -126,7 +124,7 @@ def test_a_force_is_stated_only_where_one_force_at_the_links_end_gives_the_torqu
 def test_an_incident_without_a_single_force_says_so_on_its_row() -> None:
     """The terminal's row of such an incident: ``force ?`` and why, up to its colon."""
     from impactcli.cli.detect import _incident_line
-    from impactcli.detect.incidents import NO_SINGLE_FORCE
+    from impactcli.detect.force import NO_SINGLE_FORCE
 
     why = f"{NO_SINGLE_FORCE} 3 gives the residuals: the force … accounts for 23 % of it"
     line = _incident_line(2, {"t_start": 11.938, "link": 3, "link_candidates": [3],
@@ -182,8 +180,20 @@ def test_cli_counts_incidents_and_gates_on_force(tmp_path: Path) -> None:
     r = CliRunner().invoke(main, ["detect", log, "--config", str(CONFIG), "-o",
                                   str(tmp_path / "b"), "--fail-on-force", "100"])
     assert r.exit_code == 0, r.output
-    # nothing but the slow stretches the log has beyond the calibration's
-    assert [ln for ln in r.stderr.splitlines() if "motion envelope" not in ln] == []
+    # nothing but the slow stretches the log has beyond the calibration's, and that the
+    # forces it passed are lower bounds (the arm pushed near stretched; link 1's one
+    # equation)
+    tl = json.loads((tmp_path / "b" / "assist_pushes.timeline.json").read_text())
+    counted = [i for i in tl["incidents"] if i["number"] is not None]
+    assert all(i["force_at_least"] for i in counted)
+    fs = sorted(i["force_n"] for i in counted)
+    assert [ln for ln in r.stderr.splitlines() if "motion envelope" not in ln] == [
+        f"impactcli: assist_pushes.csv.gz: --fail-on-force 100 N: the forces of "
+        f"{len(counted)} incidents (≥{fs[0]:.3g} to ≥{fs[-1]:.3g} N) are lower bounds: at "
+        "their postures part of a force at the link's end turns none of the joints up to "
+        "it, so the gate passed them as far as the joints tell (force_method in the "
+        "timeline)"]
+    assert f"≥{counted[0]['force_n']:.3g} N" in r.output
     for n, out in (("25", "c"), ("10", "c10")):
         r = CliRunner().invoke(main, ["detect", log, "--config", str(CONFIG), "-o",
                                       str(tmp_path / out), "--fail-on-force", n])
@@ -196,13 +206,14 @@ def test_cli_counts_incidents_and_gates_on_force(tmp_path: Path) -> None:
         gate = [ln + "\n" for ln in r.stderr.splitlines() if "motion envelope" not in ln]
         assert "".join(gate) == (
             f"impactcli: assist_pushes.csv.gz: the incident at {over[0]['t_start']:.3f} s on "
-            f"link {over[0]['link']}, ~{over[0]['force_n']:.3g} N, exceeds --fail-on-force "
-            f"{n} N{more}\n")
+            f"link {over[0]['link']}, ≥{over[0]['force_n']:.3g} N, exceeds --fail-on-force "
+            f"{n} N{more}\n" + "".join(gate[1:]))
+        assert len(gate) == 2  # and the lower bounds under N
     r = CliRunner().invoke(main, ["detect", log, "--config", str(CONFIG), "-o",
                                   str(tmp_path / "d"), "--fail-on-detect"])
     assert r.exit_code == 1, r.output
     doc = json.loads((tmp_path / "d" / "assist_pushes.timeline.json").read_text())
-    assert doc["schema_version"] == "2.4" and len(doc["incidents"]) >= 9
+    assert doc["schema_version"] == "2.5" and len(doc["incidents"]) >= 9
 
 
 def test_fail_on_force_without_kinematics_could_not_judge(tmp_path: Path) -> None:

@@ -141,7 +141,7 @@ def test_payload_alarms_after_warmup_are_counted_everywhere(payload_log: Path,
                      r"shoulder, elbow, up to [\d.]+× its threshold", r.stdout), r.stdout
     tl = json.loads((out / "payload.timeline.json").read_text())
     validate(tl, "timeline", AssertionError, "timeline")
-    assert tl["schema_version"] == "2.4"
+    assert tl["schema_version"] == "2.5"
     assert tl["counts"] == {"incidents": {"counted": 2, "in_warmup": 1},
                             "lasting_loads": {"counted": 1, "in_warmup": 0}}
     (load,) = tl["lasting_loads"]
@@ -196,7 +196,7 @@ def test_a_lasting_load_alone_is_no_longer_hidden(tmp_path: Path) -> None:
                "--fail-on-force", "1")
     assert r.exit_code == 1, r.output
     assert re.search(r"impactcli: assist_payload\.csv\.gz: the lasting load from 3\.000 s "
-                     r"on link \d, ~[\d.]+ N, exceeds --fail-on-force 1 N", r.stderr), r.stderr
+                     r"on link \d, ≥[\d.]+ N, exceeds --fail-on-force 1 N", r.stderr), r.stderr
     js = tmp_path / "r.json"
     r = invoke("report", log, "--config", str(CONFIG), "-o", str(tmp_path / "r.html"),
                "--json", str(js))

@@ -509,7 +509,7 @@ def test_a_push_while_the_load_is_released_is_counted_not_hidden_in_the_change(
     # change reads 24-26 N there); the whole alarm, with the release's step, read ~47 N
     assert held[0]["link"] == push.link and held[0]["contact"] == "transient", held[0]
     assert 0.6 * push.peak_force <= held[0]["force_n"] <= 1.1 * push.peak_force, held[0]
-    assert held[0]["force_method"].endswith("(the torque the load leaves)")
+    assert "(the torque the load leaves)" in held[0]["force_method"]
     ev = CliRunner().invoke(main, ["evaluate", str(tmp_path / "o" / "push_at_release"
                                                    ".timeline.json")])
     assert ev.exit_code == 0, ev.output

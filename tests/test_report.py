@@ -11,7 +11,7 @@ import jsonschema
 import numpy as np
 import pytest
 
-from impactcli.detect.incidents import planar_jacobian, smallest_caught_force
+from impactcli.detect.force import planar_jacobian, smallest_caught_force
 from impactcli.errors import UsageProblem
 from impactcli.logs import log_stem
 from impactcli.outputs import report, svgplot

@@ -277,7 +277,7 @@ def test_plot_colours_tell_statistic_threshold_and_detectors_apart(
 
 def make_incidents(res: DetectionResult) -> tuple[Any, ...]:
     """Incidents on fake_result's events: one in warm-up (no link, no force), the 4.0 s
-    adaptive event (link 2, 12.5 N, transient), the 7.0 s loading event (link 1,
+    adaptive event (link 2, at least 12.5 N, transient), the 7.0 s loading event (link 1,
     quasi-static, no force)."""
     from impactcli.detect.incidents import Incident
 
@@ -285,7 +285,8 @@ def make_incidents(res: DetectionResult) -> tuple[Any, ...]:
     def inc(e: Any, link: int | None, force: float | None, contact: str, k: int) -> Incident:
         return Incident(e.t_start, e.t_end, e.i_start, e.i_end, (e.detector,), e.joints, link,
                         force, "test", contact, dict(e.peak_residual), e.in_warmup, None, (k,))
-    return (inc(ev[0], None, None, "unknown", 0), inc(ev[1], 2, 12.5, "transient", 1),
+    return (inc(ev[0], None, None, "unknown", 0),
+            dataclasses.replace(inc(ev[1], 2, 12.5, "transient", 1), force_at_least=True),
             inc(ev[2], 1, None, "quasi_static", 2))
 
 
@@ -302,20 +303,21 @@ def test_incident_track_holds_one_entry_per_incident(tmp_path: Path) -> None:
     assert [int(x[0]) for x in rows["index"]] == [1, 2, 3]
     assert [x[0] for x in rows["link"]] == [i.link for i in res.incidents]
     assert [x[0] for x in rows["force_n"]] == [i.force_n for i in res.incidents]
+    assert [x[0] for x in rows["force_at_least"]] == [False, True, False]
     assert [x[0] for x in rows["contact"]] == [i.contact for i in res.incidents]
     assert [x[0] for x in rows["in_warmup"]] == [True, False, False]
     np.testing.assert_allclose([x[0] for x in rows["t_end_s"]], [i.t_end for i in res.incidents])
     np.testing.assert_array_equal(elapsed_ns(rows),
                                   [res.log.t_ns[i.i_start] - t0 for i in res.incidents])
     texts = [x[0] for x in rows["TextLog:text"]]
-    assert "link 2" in texts[1] and "12.5 N" in texts[1] and "transient" in texts[1]
+    assert "link 2" in texts[1] and "≥12.5 N" in texts[1] and "transient" in texts[1]
     assert "link unknown" in texts[0] and "force unknown" in texts[0]
     assert [x[0] for x in rows["TextLog:level"]] == ["INFO", "WARN", "WARN"]
     # the annotated spans: each incident labelled from its first to after its last sample
     lane = ent["/incidents/contact"]
     states = [s[0] for s in lane["StateChange:state"]]
     assert states == ["no contact", "#1 link ? · force ? · unknown (warm-up)", "no contact",
-                      "#2 link 2 · 12.5 N · transient", "no contact",
+                      "#2 link 2 · ≥12.5 N · transient", "no contact",
                       "#3 link 1 · force ? · quasi_static", "no contact"]
     t = elapsed_ns(lane)
     for k, inc in enumerate(res.incidents):

@@ -51,8 +51,11 @@ def _incident_line(k: int, inc: IncidentRow, link_width: int = 7) -> str:
     """``  1  12.040 s  link 2  ~14.5 N  transient  (adaptive, static_loading)``; ``k`` is
     the incident's number (the report's: 1, 2, … over the counted incidents), ``link_width``
     the link column's (``link 5 or 6`` when the residuals cannot tell)."""
+    from ..detect.force import force_mark
+
     link = _link_cell(inc)
-    force = f"~{inc['force_n']:.3g} N" if inc["force_n"] is not None else "force ?"
+    force = (f"{force_mark(inc)}{inc['force_n']:.3g} N" if inc["force_n"] is not None
+             else "force ?")
     flag = ("  force not plausible (force_check in the timeline)"
             if inc["force_plausible"] is False else "")
     if inc.get("no_force"):  # up to its colon, or its first comma
@@ -70,9 +73,11 @@ def _incident_line(k: int, inc: IncidentRow, link_width: int = 7) -> str:
 
 def _lasting_line(k: int, x: dict[str, Any]) -> str:
     """``  L1   6.500–40.000 s (to the log's end) static_loading on j2, j3, up to 14× …``."""
+    from ..detect.force import force_mark
+
     end = " (to the log's end)" if x.get("ends_with_log") else ""
-    force = (f", ~{x['force_n']:.3g} N at link {x['link']}" if x.get("force_n") is not None
-             else "")
+    force = (f", {force_mark(x)}{x['force_n']:.3g} N at link {x['link']}"
+             if x.get("force_n") is not None else "")
     if x.get("force_plausible") is False:
         force += " (beyond what the arm can exert)"
     test = f"; {x['payload_test']}" if x.get("payload_test") else ""

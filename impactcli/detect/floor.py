@@ -22,7 +22,7 @@ run states its median and its worst tenth (the 90th percentile), from log-spaced
 histograms (bounded memory; each quantile is its bin's LOWER edge, within 5 % below the
 true one — "below ~X not seen" stays true). With a link-end Jacobian, the floor of
 joint i becomes a force at the end of link i (the direction that turns joint i most:
-force = tau / |J_i|, :func:`impactcli.detect.incidents.own_levers`) over up to
+force = tau / |J_i|, :func:`impactcli.detect.force.own_levers`) over up to
 :data:`MAX_POSTURES` postures spread along the log: the median force with the median
 torque, and the worst tenth over postures with the worst-tenth torque.
 """
@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from .incidents import MIN_LEVER_M, JacobianFn, link_jacobians, own_levers
+from .force import MIN_LEVER_M, JacobianFn, link_jacobians, own_levers
 
 #: The adaptive detector's reference contact: a half-sine of this duration [s].
 HALF_SINE_S = 0.1

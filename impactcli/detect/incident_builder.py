@@ -20,21 +20,16 @@ import numpy as np
 
 from ..errors import ImpactError, ImpactWarning
 from ..types import Event, RobotDescription
-from .incidents import (
+from .force import (
     BEYOND_LOGGED,
-    BRIDGE_FRACTION,
     FORCE_CEILING_FACTOR,
     MIN_LEVER_M,
     ForceEstimate,
-    Incident,
     JacobianFn,
-    LastingLoad,
-    contact_type,
     force_estimate,
-    group_events,
-    lasting,
     planar_jacobian,
 )
+from .incidents import BRIDGE_FRACTION, Incident, LastingLoad, contact_type, group_events, lasting
 from .link_evidence import LinkDecision, decide_link
 
 #: A lasting load's force is solved at this many of its samples at most (evenly spread).
@@ -102,7 +97,7 @@ class IncidentContext:
         index: (J,) each detected joint's 1-based link number in the robot's chain.
         chain_cols: per chain joint, its column in the log's full position matrix (None:
             not logged, held at zero).
-        jac: the link-end Jacobian (:data:`impactcli.detect.incidents.JacobianFn`) or None.
+        jac: the link-end Jacobian (:data:`impactcli.detect.force.JacobianFn`) or None.
         vl: (J,) the static-loading thresholds [N·m].
         dt: the sample period [s]. t0_ns: the log's first sample [ns].
         n_samples: the log's length. merge_gap_s: events.merge_gap_s [s].
@@ -323,7 +318,7 @@ def blind_beyond(where: LinkDecision, jac: JacobianFn, q: np.ndarray,
 class ForceCheck:
     """Whether an estimated force is one the arm could exert (docs/incidents.md, "The
     rules"): ``plausible`` (None: not checked — no force, or no capacity known),
-    ``ceiling_n`` :data:`~impactcli.detect.incidents.FORCE_CEILING_FACTOR` × the largest
+    ``ceiling_n`` :data:`~impactcli.detect.force.FORCE_CEILING_FACTOR` × the largest
     force one of the joints up to the link holds at its end with its longest lever [N], and
     ``why`` in words."""
 
@@ -445,8 +440,9 @@ def build_findings(
             i_end=int(b + offset),
             detectors=tuple(dict.fromkeys(e.detector for e in sorted(evs,
                                                                      key=lambda e: e.t_start))),
-            joints=joints, link=link, force_n=est.force_n, force_method=est.method,
-            contact=kind, peak_residual=peak, in_warmup=bool(first.in_warmup),
+            joints=joints, link=link, force_n=est.force_n, force_method=est.stated,
+            force_at_least=bool(est.at_least), contact=kind, peak_residual=peak,
+            in_warmup=bool(first.in_warmup),
             t_start_utc=utc(ctx.t0_ns + round(t[a] * 1e9)),
             events=tuple(k + event_offset for k in g), force_plausible=chk.plausible,
             force_ceiling_n=chk.ceiling_n, force_check=chk.why,
@@ -462,7 +458,7 @@ def build_findings(
             i_start=e.i_start + offset, i_end=e.i_end + offset, joints=e.joints,
             peak_ratio=e.peak_ratio, in_warmup=e.in_warmup, event=k + event_offset,
             ends_with_log=offset + e.i_end >= ctx.n_samples - 1, link=link,
-            force_n=est.force_n, force_method=est.method,
+            force_n=est.force_n, force_method=est.stated, force_at_least=bool(est.at_least),
             t_start_utc=utc(ctx.t0_ns + round(e.t_start * 1e9)),
             force_plausible=chk.plausible, force_ceiling_n=chk.ceiling_n,
             force_check=chk.why))
@@ -510,7 +506,8 @@ def beside(ctx: IncidentContext, inc: Incident, part: Any) -> Incident | None:
             if j in inc.joints}
     return replace(inc, link=link, link_candidates=where.candidates, force_n=est.force_n,
                    force_method=est.method + ("" if est.force_n is None
-                                              else " (the torque the load leaves)"),
+                                              else " (the torque the load leaves)")
+                   + est.at_least, force_at_least=bool(est.at_least),
                    force_plausible=chk.plausible, force_ceiling_n=chk.ceiling_n,
                    force_check=chk.why, contact=kind, peak_residual=peak)
 

@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from .. import __version__
+from ..detect.force import force_mark
 from ..detect.incidents import link_words
 from ..detect.payload_change import carrying_text, tested_text
 
@@ -120,7 +121,8 @@ def markdown_summary(result: Any) -> str:
         lines += ["", "| # | start [s] | end [s] | link | force [N] | contact | detectors |",
                   "|---|---|---|---|---|---|---|"]
         for name, inc in zip(names, incs, strict=True):
-            force = f"{inc.force_n:.3g}" if inc.force_n is not None else "–"
+            force = (f"{force_mark(inc)}{inc.force_n:.3g}" if inc.force_n is not None
+                     else "–")
             link = ("–" if inc.link is None
                     else link_words(inc.link, inc.link_candidates).removeprefix("link "))
             lines.append(f"| {name}{' (warm-up)' if inc.in_warmup else ''} | "
@@ -187,7 +189,7 @@ def incident_label(k: int | str, inc: Any) -> str:
     """The span label of the incident named ``k`` (:func:`incident_names`):
     ``#k link L · F N · type``."""
     link = link_words(inc.link, inc.link_candidates, unknown="link ?")
-    force = f"{inc.force_n:.3g} N" if inc.force_n is not None else "force ?"
+    force = f"{force_mark(inc)}{inc.force_n:.3g} N" if inc.force_n is not None else "force ?"
     return f"#{k} {link} · {force} · {inc.contact}" + (" (warm-up)" if inc.in_warmup else "") \
         + _defect_note(inc, " ({kind}: not counted)") + _payload_note(
             inc, " (payload change P{p}: not counted)")
@@ -196,7 +198,8 @@ def incident_label(k: int | str, inc: Any) -> str:
 def incident_text(k: int | str, inc: Any) -> str:
     """The text-log line of the incident named ``k`` (:func:`incident_names`)."""
     link = link_words(inc.link, inc.link_candidates)
-    force = (f"~{inc.force_n:.3g} N ({inc.force_method})" if inc.force_n is not None
+    force = (f"{force_mark(inc)}{inc.force_n:.3g} N ({inc.force_method})"
+             if inc.force_n is not None
              else "force unknown (no kinematics)")
     text = (f"incident #{k}: {link}, {force}, {inc.contact} contact; "
             f"{', '.join(inc.detectors)} on {', '.join(inc.joints)} "

@@ -56,6 +56,7 @@ class _Inc:
     events: tuple[int, ...] | None
     payload_change: bool = False
     aftermath: bool = False
+    force_at_least: bool = False
 
 
 def _as_inc(x: Any, warmup_end_s: float, i: int) -> _Inc:
@@ -73,7 +74,8 @@ def _as_inc(x: Any, warmup_end_s: float, i: int) -> _Inc:
                     None if force is None else float(force), str(get("contact", "unknown")),
                     bool(get("in_warmup", False)) or t0 < warmup_end_s,
                     None if not evs else tuple(int(k) for k in evs),
-                    get("payload_change") is not None, get("aftermath") is not None)
+                    get("payload_change") is not None, get("aftermath") is not None,
+                    bool(get("force_at_least", False)))
     except (KeyError, TypeError, ValueError) as err:
         raise LogFormatError(f"incidents[{i}]: missing or bad field: {err}") from None
 
@@ -98,6 +100,7 @@ class IncidentOutcome:
         contact: the incident's contact type.
         link_right, contact_right: None without a matching incident.
         incident_t_start: the matching incident's start [s], or None.
+        force_at_least: the incident's force is a lower bound (its ``force_at_least``).
     """
 
     label_index: int
@@ -115,6 +118,7 @@ class IncidentOutcome:
     link_right: bool | None
     contact_right: bool | None
     incident_t_start: float | None = None
+    force_at_least: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (evaluation ``incidents.contacts`` item)."""
@@ -127,6 +131,7 @@ class IncidentOutcome:
             "contact_right": self.contact_right, "expected_contact": self.expected_contact,
             "status": self.status, "n_incidents": self.n_incidents,
             "incident_t_start": rounded(self.incident_t_start),
+            **({"force_at_least": True} if self.force_at_least else {}),
         }
 
 
@@ -407,6 +412,7 @@ def evaluate_incidents(
             link_right=None if ans is None else ans.link == c.link,
             contact_right=None if ans is None else ans.contact == expected,
             incident_t_start=None if ans is None else ans.t_start,
+            force_at_least=ans is not None and ans.force_n is not None and ans.force_at_least,
         ))
     counted_rows = [r for r in rows if r.status == "counted"]
     per_link = {link: _answer_score([r for r in counted_rows if r.link_label == link])

@@ -100,7 +100,8 @@ def format_incident_evaluation(ie: IncidentEvaluation) -> list[str]:
         def mark(ok: bool | None) -> str:
             return "" if ok is None else (" ok" if ok else " WRONG")
         f_lab = "switch" if c.force_label_n is None else f"{c.force_label_n:.3g} N"
-        f_inc = "-" if c.force_n is None else f"{c.force_n:.3g} N"
+        f_inc = ("-" if c.force_n is None
+                 else f"{'≥' if c.force_at_least else ''}{c.force_n:.3g} N")
         table.append((
             f"#{c.label_index}" + ("" if c.status == "counted" else f" ({c.status})"),
             c.kind,

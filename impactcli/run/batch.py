@@ -37,7 +37,7 @@ from pathlib import Path
 from typing import Any, NotRequired, TypedDict
 
 from ..detect.floor import floor_line
-from ..detect.incidents import FORCE_NOT_STATED
+from ..detect.force import FORCE_NOT_STATED
 from ..errors import (
     EXIT_DATA,
     EXIT_SOFTWARE,
@@ -94,11 +94,13 @@ class IncidentRow(TypedDict):
     outside_envelope: NotRequired[bool]
     aftermath: NotRequired[str]
     no_force: NotRequired[str]
+    force_at_least: NotRequired[bool]
 
 
 def _incident_row(i: Any) -> IncidentRow:
     """A counted incident (:class:`~impactcli.detect.incidents.Incident`) as a summary row
-    (``no_force``: why it has no force, when no single force at its link's end fits)."""
+    (``no_force``: why it has no force, when no single force at its link's end fits;
+    ``force_at_least`` when its force is a lower bound)."""
     row = IncidentRow(t_start=i.t_start, link=i.link, link_candidates=list(i.link_candidates),
                       force_n=i.force_n, contact=i.contact, detectors=list(i.detectors),
                       force_plausible=i.force_plausible)
@@ -110,6 +112,8 @@ def _incident_row(i: Any) -> IncidentRow:
         row["aftermath"] = i.aftermath["text"]
     if i.force_n is None and i.force_method.startswith(FORCE_NOT_STATED):
         row["no_force"] = i.force_method
+    if i.force_at_least:
+        row["force_at_least"] = True
     return row
 
 

@@ -7,7 +7,8 @@ A log *fails* a gate (exit 1) when it has a counted incident or lasting load aft
 its only incidents start at data defects, or when an incident or lasting load has no force
 estimate (``--fail-on-force``). Each verdict is one line naming the log and why
 (docs/formats.md, "Command line"). Payload changes trip no gate; with a gate asked, a log
-with some gets a line saying how long a contact would have joined their alarms uncounted
+with some gets a line saying how long a contact would have joined their alarms uncounted,
+and with ``--fail-on-force`` a log whose passing forces are lower bounds a line saying so
 (:func:`gate_notes`), the exit code unchanged.
 """
 
@@ -17,6 +18,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from ..detect.force import FORCE_NOT_STATED, force_mark
 from ..errors import one_line
 
 
@@ -86,12 +88,16 @@ def gate_notes(findings: Sequence[Findings], *, fail_on_detect: bool,
                fail_on_force: float | None) -> list[str]:
     """With a gate asked, a line per log with payload changes: they are not gated (a load
     picked or released is normal work), and a contact in their alarms was judged only as
-    each one's ``contact_watch`` says — so the exit code does not speak for that time."""
+    each one's ``contact_watch`` says — so the exit code does not speak for that time; with
+    ``--fail-on-force``, a line per log whose findings under the limit have a force that
+    is a lower bound (:func:`_at_least`)."""
     if not fail_on_detect and fail_on_force is None:
         return []
     gate = "--fail-on-detect" if fail_on_detect else f"--fail-on-force {fail_on_force:g} N"
     out = []
     for f in findings:
+        if fail_on_force is not None and (line := _at_least(f, fail_on_force)):
+            out.append(line)
         if not f.payload_changes:
             continue
         watched = [c["contact_watch"] for c in f.payload_changes if c.get("contact_watch")]
@@ -108,6 +114,31 @@ def gate_notes(findings: Sequence[Findings], *, fail_on_detect: bool,
                    f"(a load picked or released) {'is' if n == 1 else 'are'} not gated"
                    f"{told} (payload_changes in the timeline)")
     return out
+
+
+def _at_least(f: Findings, limit: float) -> str | None:
+    """The line of a log whose incidents or lasting loads under ``limit`` have a force that
+    is a lower bound (part of a force at the link's end not seen in the joints' torques:
+    ``force_at_least``), or None: --fail-on-force passed them as far as the joints tell."""
+    low = [x for x in (*f.incidents, *f.lasting_loads)
+           if x.force_n is not None and x.force_n <= limit and x.force_at_least]
+    if not low:
+        return None
+    forces = sorted(x.force_n for x in low)
+    span = (f"≥{forces[0]:.3g} N" if len(forces) == 1
+            else f"≥{forces[0]:.3g} to ≥{forces[-1]:.3g} N")
+    n_inc = sum(1 for x in f.incidents if x in low)
+    what = " and ".join(([count(n_inc, "incident")] if n_inc else [])
+                        + ([count(len(low) - n_inc, "lasting load")] if len(low) > n_inc
+                           else []))
+    one = len(low) == 1
+    are = "is a lower bound" if one else "are lower bounds"
+    return (f"impactcli: {shown(f.log_path)}: --fail-on-force {limit:g} N: the force"
+            f"{'' if one else 's'} of {what} ({span}) {are}"
+            f": at {'its' if one else 'their'} posture{'' if one else 's'} part of a force at "
+            "the link's end turns none of the joints up to it, so the gate passed "
+            f"{'it' if one else 'them'} as far as the joints tell (force_method in the "
+            "timeline)")
 
 
 def _found(f: Findings) -> str:
@@ -136,7 +167,8 @@ def _defect_force(f: Findings, limit: float) -> str | None:
     if not marked:
         return None
     first = marked[0]
-    force = "no force" if first.force_n is None else f"~{first.force_n:.3g} N"
+    force = ("no force" if first.force_n is None
+             else f"{force_mark(first)}{first.force_n:.3g} N")
     return (f"impactcli: {shown(f.log_path)}: --fail-on-force {limit:g} N could not "
             f"judge {count(len(marked), 'incident')} at data defects (the first at "
             f"{first.t_start:.3f} s, a {first.data_defect['kind']}, {force}): the residual "
@@ -163,8 +195,6 @@ def _force_unknown(f: Findings, limit: float) -> str | None:
         return None
     what = ([f"{count(len(incs), 'incident')} (the first at {incs[0].t_start:.3f} s)"]
             if incs else []) + ([count(len(lds), "lasting load")] if lds else [])
-    from ..detect.incidents import FORCE_NOT_STATED
-
     unfit = sum(1 for x in (*incs, *lds) if x.force_method.startswith(FORCE_NOT_STATED))
     why = ("no kinematics — give --robot with a URDF or a named robot — or the link could "
            "not be told" + (f"; for {unfit}, no single force at the link's end gives the "
@@ -184,7 +214,8 @@ def _over_force(f: Findings, limit: float) -> str | None:
     link = f"link {inc.link}" if inc.link is not None else "an unknown link"
     more = f" ({len(over)} incidents above it)" if len(over) > 1 else ""
     return (f"impactcli: {shown(f.log_path)}: the incident at {inc.t_start:.3f} s "
-            f"on {link}, ~{inc.force_n:.3g} N, exceeds --fail-on-force {limit:g} N{more}")
+            f"on {link}, {force_mark(inc)}{inc.force_n:.3g} N, exceeds --fail-on-force "
+            f"{limit:g} N{more}")
 
 
 def _load_over(f: Findings, limit: float) -> str | None:
@@ -195,5 +226,5 @@ def _load_over(f: Findings, limit: float) -> str | None:
     x = over[0]
     link = f"link {x.link}" if x.link is not None else "an unknown link"
     return (f"impactcli: {shown(f.log_path)}: the lasting load from "
-            f"{x.t_start:.3f} s on {link}, ~{x.force_n:.3g} N, exceeds "
+            f"{x.t_start:.3f} s on {link}, {force_mark(x)}{x.force_n:.3g} N, exceeds "
             f"--fail-on-force {limit:g} N")

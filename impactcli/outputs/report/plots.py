@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from ...detect.force import force_mark
 from ...detect.incidents import group_events, link_words
 from ...types import DETECTORS, DetectionResult, Labels
 from .. import svgplot
@@ -119,7 +120,7 @@ def incident_figures(result: DetectionResult, incidents: Sequence[dict[str, Any]
     p = [f"<h3>Around each incident (±{EVENT_WINDOW_S:g} s)</h3>", legend_html(labels)]
     for inc in incidents[:MAX_EVENT_FIGURES]:
         joints = _plot_joints(result, inc.get("joints") or [], inc.get("link"), chain)
-        how = (f"~{approx(inc['force_n'])} N" if inc.get("force_n") is not None
+        how = (f"{force_mark(inc)}{approx(inc['force_n'])} N" if inc.get("force_n") is not None
                else "no force estimate")
         where = link_words(inc.get("link"), inc.get("link_candidates"))
         evs = ", ".join(f"#{k + 1}" for k in inc.get("events") or [])

@@ -19,7 +19,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from ...detect.incidents import FORCE_NOT_STATED, link_words
+from ...detect.force import FORCE_NOT_STATED, force_mark
+from ...detect.incidents import link_words
 from .common import CONTACT_TEXT, PRODUCT_DETECTORS, approx, e, ratio_cell, utc
 
 CONTACT_ORDER = ("transient", "quasi_static", "unknown")
@@ -67,7 +68,7 @@ def lasting_text(loads: Sequence[dict[str, Any]]) -> str:
     for x in loads:
         end = (" (to the log's end)" if x.get("ends_with_log")
                else f" to {x['t_end']:.1f} s")
-        force = (f", ~{approx(x['force_n'])} N at link {x['link']}"
+        force = (f", {force_mark(x)}{approx(x['force_n'])} N at link {x['link']}"
                  if x.get("force_n") is not None and x.get("force_plausible") is not False
                  else "")
         parts.append(f"from {x['t_start']:.1f} s{end} on joints {', '.join(x['joints'])}, "
@@ -117,14 +118,16 @@ def _how_hard(group: Sequence[dict[str, Any]], clock: tuple[str, bool] | None) -
     if len(group) <= 3:
         parts = []
         for i in group:
-            v = (f"~{approx(i['force_n'])} N" if i.get("force_n") is not None
+            v = (f"{force_mark(i)}{approx(i['force_n'])} N" if i.get("force_n") is not None
                  else f"~{approx(peak_torque(i))} N·m peak residual")
             when = _when(i, clock[1]) if clock else ""
             parts.append(f"{v} ({when})" if when else v)
         return _and(parts)
     if with_f:
-        fs = [i["force_n"] for i in with_f]
-        text = f"~{approx(min(fs))} to ~{approx(max(fs))} N"
+        lo = min(with_f, key=lambda i: i["force_n"])
+        hi = max(with_f, key=lambda i: i["force_n"])
+        text = (f"{force_mark(lo)}{approx(lo['force_n'])} to "
+                f"{force_mark(hi)}{approx(hi['force_n'])} N")
         if len(with_f) < len(group):
             text += f" ({len(group) - len(with_f)} without a force estimate)"
     else:
@@ -294,7 +297,7 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
             when += f' <span class="note">{e(r["payload_test"])}</span>'
         if r.get("aftermath"):
             when += f' <span class="note">{e(r["aftermath"]["text"])}</span>'
-        force = (f'<b>~{approx(r["force_n"])} N</b>' if r.get("force_n") is not None
+        force = (f'<b>{force_mark(r)}{approx(r["force_n"])} N</b>' if r.get("force_n") is not None
                  else '<span class="muted">no force estimate</span>')
         if r.get("force_n") is None and str(r.get("force_method") or "").startswith(
                 FORCE_NOT_STATED):  # why not: the physics checks left it unstated
@@ -389,7 +392,7 @@ def lasting_table_html(loads: Sequence[dict[str, Any]], anchor: str) -> str:
         end = "the log's end" if x.get("ends_with_log") else f'{x["t_end"]:.3f} s'
         warm = ' <span class="note">warm-up: not counted</span>' if x.get("in_warmup") else ""
         link = f'link {x["link"]}' if x.get("link") is not None else "link unknown"
-        force = (f'~{approx(x["force_n"])} N' if x.get("force_n") is not None
+        force = (f'{force_mark(x)}{approx(x["force_n"])} N' if x.get("force_n") is not None
                  else '<span class="muted">no force estimate</span>')
         if x.get("force_plausible") is False:
             force += (' <span class="bad">implausible: '

@@ -5,7 +5,7 @@ static-loading thresholds catch at one posture, and what an older timeline canno
 Each item is ``{"code", "short", "text", "data"}``: ``short`` for the fleet table, ``text``
 as printed, ``data`` the numbers behind it.
 
-**Smallest caught force** (:func:`impactcli.detect.incidents.smallest_caught_force`), with
+**Smallest caught force** (:func:`impactcli.detect.force.smallest_caught_force`), with
 planar kinematics: for link i, the static force at the end of link i, in the direction that
 turns joint i most (normal to the link), that just reaches joint i's static-loading
 threshold: vL_i / (lever arm of joint i to the end of link i); and the smallest force that
@@ -21,7 +21,7 @@ import numpy as np
 from ...config import settings_changed
 from ...detect.envelope import outside_share_text, posture_text
 from ...detect.floor import floor_line
-from ...detect.incidents import planar_jacobian, smallest_caught_force
+from ...detect.force import planar_jacobian, smallest_caught_force
 from ...types import DetectionResult
 from .common import approx, e, share
 from .samples import Samples
