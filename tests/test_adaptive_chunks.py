@@ -207,3 +207,31 @@ def test_state_mismatch_is_refused() -> None:
         evaluate_chunk(st, r, u, FS, vs, AdaptiveConfig(p=10))
     with pytest.raises(ValueError, match="joints"):
         evaluate_chunk(st, r[:, :2], u[:, :, :2], FS, vs[:2])
+
+
+def test_g_hat_is_kept_every_sixteenth_sample_whatever_the_chunks() -> None:
+    """The evaluator's snapshots of theta_G (the detection floor's G_hat as it stood): at
+    the log's samples 0, 16, 32, …, theta_G as G_hat used it there — a posteriori the
+    state's theta after that sample, a priori the one before it (known truth: chunks of one
+    sample, the state read after each) — and bit for bit the same for any chunking."""
+    from impactcli.detect.axes import SNAP_EVERY
+
+    assert SNAP_EVERY == 16
+    r, u, _ = synthetic(seed=2, n_s=4.0)
+    n = len(r)
+    vs = np.full(3, 0.1)
+    for est in ("a_posteriori", "a_priori"):
+        cfg = AdaptiveConfig(estimate=est)
+        whole, _ = whole_log_state(r, u, FS, vs, cfg)
+        assert whole.theta_g.shape == (-(-n // 16), 3, cfg.eta)
+        st = EvaluatorState.initial(3, cfg, FS)
+        truth = []
+        for k in range(n):
+            before = st.theta[:, :cfg.eta].copy()
+            _, st = evaluate_chunk(st, r[k:k + 1], u[:, k:k + 1], FS, vs, cfg)
+            if k % 16 == 0:
+                truth.append(st.theta[:, :cfg.eta].copy() if est == "a_posteriori" else before)
+        assert np.array_equal(whole.theta_g, np.stack(truth)), est
+        for size in (1, 7, 16, 100, 333):
+            got, _ = run_chunks(r, u, FS, vs, cfg, bounds_of(n, size))
+            assert np.array_equal(got.theta_g, whole.theta_g), (est, size)

@@ -421,10 +421,10 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
         click.echo(_defect_line(shown(ok[0].log_path), one["defect_incident_list"]))
     if len(ok) == 1 and one["detection_floor"]:
         click.echo(f"detection floor of {shown(ok[0].log_path)}: "
-                   f"{one['detection_floor']} (for half the log after warm-up: the "
-                   "median; where the residual stood near its threshold, smaller ones "
-                   "could be; a step for the loading detector, a 100 ms blow for the "
-                   "adaptive one; the timeline's detection_floor has both, per joint)")
+                   f"{one['detection_floor']} — the median over the log after warm-up, "
+                   "the smaller of a step for the loading detector and a 100 ms blow for "
+                   "the adaptive one (the timeline's detection_floor has both, per joint, "
+                   "and the worst tenth); evaluate with labels measures what is caught")
     by_column = [o for o in ok if rows[o.log_path]["links"] == "column_order"
                  and (rows[o.log_path]["incident_list"] or loads[o.log_path])]
     if by_column:

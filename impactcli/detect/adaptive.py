@@ -141,6 +141,9 @@ class AdaptiveResult:
         eta: degree of G (theta[:, :eta] is theta_G).
         n_capped: (J,) samples at which the RLS wind-up guard scaled P
             (:mod:`impactcli.detect.rls`).
+        theta_g: (S, J, eta) theta_G as G_hat used it (eq. 26) at the samples whose index
+            in the log is a multiple of :data:`impactcli.detect.axes.SNAP_EVERY`, in order
+            (the detection floor's blow through G_hat as it stood).
     """
 
     r_tilde: np.ndarray
@@ -158,6 +161,7 @@ class AdaptiveResult:
     nu: int
     eta: int
     n_capped: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    theta_g: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0)))
 
     @property
     def statistic(self) -> np.ndarray:
@@ -262,7 +266,7 @@ def result_of(job: AxisJob, state: EvaluatorState) -> AdaptiveResult:
     rt, vd, rf, vf, rr, vr, thr, dec, eps = job.out
     return AdaptiveResult(rt, vd, rf, vf, rr, vr, thr, dec, eps, job.theta, job.resets,
                           rates=state.rates, nu=state.nu, eta=state.cfg.eta,
-                          n_capped=job.capped)
+                          n_capped=job.capped, theta_g=job.theta_g)
 
 
 def join_chunks(results: Sequence[AdaptiveResult]) -> AdaptiveResult:
@@ -274,7 +278,8 @@ def join_chunks(results: Sequence[AdaptiveResult]) -> AdaptiveResult:
     rt, vd, rf, vf, rr, vr, thr, dec, eps = (
         np.concatenate([getattr(x, name) for x in results], axis=0) for name in SIGNALS)
     return AdaptiveResult(rt, vd, rf, vf, rr, vr, thr, dec, eps, last.theta, last.n_resets,
-                          rates=last.rates, nu=last.nu, eta=last.eta, n_capped=last.n_capped)
+                          rates=last.rates, nu=last.nu, eta=last.eta, n_capped=last.n_capped,
+                          theta_g=np.concatenate([x.theta_g for x in results], axis=0))
 
 
 #: The (N, J) signals of an :class:`AdaptiveResult` (concatenated over chunks).

@@ -25,6 +25,7 @@ import numba as nb
 import numpy as np
 
 from ..config import AdaptiveConfig
+from .floor import GAIN_EVERY
 from .rates import Rates, resolve_rates
 from .rls import (
     FASTMATH,
@@ -37,6 +38,10 @@ from .rls import (
 #: The kernel's (n,) outputs per axis, in :data:`impactcli.detect.adaptive.SIGNALS` order.
 N_OUTPUTS = 9
 DECISION = 7  # the boolean one
+#: theta_G is kept at the log's samples whose index is a multiple of this: the detection
+#: floor takes the blow's gain through G_hat as it stood there
+#: (:data:`impactcli.detect.floor.GAIN_EVERY`).
+SNAP_EVERY = GAIN_EVERY
 
 @nb.njit(cache=True, nogil=True, fastmath=FASTMATH)
 def _evaluate_axis(
@@ -48,6 +53,7 @@ def _evaluate_axis(
     th: np.ndarray, P_state: np.ndarray, r_lag: np.ndarray, v_lag: np.ndarray, u_lag: np.ndarray,
     filt: np.ndarray, ring_r: np.ndarray, ring_v: np.ndarray, sums: np.ndarray,
     pos1: int, pos2: int, reg_c: float, theta0: float, pos_reg: int, every: int,
+    th_snap: np.ndarray, snap_off: int, snap_every: int,
 ) -> tuple[int, int]:
     """One axis over one chunk: ``r`` (n,) is its residual, ``u`` (m, n, J) every axis's
     inputs; the outputs are this axis's (n,) rows. The state (``th`` (nu,), ``P_state`` (nu, nu)
@@ -58,6 +64,8 @@ def _evaluate_axis(
     ``pos_reg`` the regulariser's phase (samples so far mod nu · ``every``): at every
     ``every``-th sample it regularises coordinate pos_reg // every with weight ``reg_c``
     (0: none, plain eq. 39) toward ``theta0`` (:func:`impactcli.detect.rls.rls_update_inplace`).
+    ``th_snap`` (n_snap, eta) receives theta_G as G_hat used it (eq. 26) at samples
+    ``snap_off``, ``snap_off`` + ``snap_every``, … of the chunk (the detection floor's).
 
     Axes are independent (eq. 34–35 per axis; only the inputs u are shared), so axes can
     run on separate threads (the kernel releases the GIL). Returns the covariance resets
@@ -83,6 +91,8 @@ def _evaluate_axis(
     inv_n2 = 1.0 / n2
     prev_r = filt[0]
     prev_v = filt[1]
+    sn = 0
+    snap_next = snap_off
     sum_r = sums[0]
     sum_v = sums[1]
     for k in range(n):
@@ -119,6 +129,11 @@ def _evaluate_axis(
             v += phi[i] * tv[i]
         x = r[k] - g
         rt[k] = x
+        if k == snap_next:
+            for i in range(eta):
+                th_snap[sn, i] = tv[i]
+            sn += 1
+            snap_next += snap_every
         vd[k] = v
         # F1 / F2 (from rest)
         prev_r = a1 * prev_r + (1.0 - a1) * x
@@ -257,14 +272,16 @@ class EvaluatorState:
 # ----------------------------------------------------------------------------- threads
 @dataclass
 class AxisJob:
-    """One submitted chunk: its (n, J) outputs (filled by the axes) and, per axis, the
-    state's theta and counters at the chunk's end."""
+    """One submitted chunk: its (n, J) outputs (filled by the axes), per axis the state's
+    theta and counters at the chunk's end, and theta_G as G_hat used it at the chunk's
+    samples whose index in the log is a multiple of :data:`SNAP_EVERY`."""
 
     n: int
     out: list[np.ndarray]  # N_OUTPUTS arrays (n, J)
     theta: np.ndarray  # (J, nu)
     resets: np.ndarray  # (J,) totals since the first chunk
     capped: np.ndarray  # (J,)
+    theta_g: np.ndarray  # (n_snap, J, eta) theta_G at the log's samples k ≡ 0 mod SNAP_EVERY
     futures: list[Future[None]] = dataclasses.field(default_factory=list)
 
     def wait(self, progress: Callable[[int, int], None] | None = None) -> None:
@@ -317,20 +334,25 @@ class AxisRunner:
         if L and n:  # the shared input lags: the last rho_max samples of [u_lags, u]
             st.u_lags[:] = (u[:, n - L:, :] if n >= L
                             else np.concatenate([st.u_lags[:, n:, :], u], axis=1))
+        snap_off = (-self.n_samples) % SNAP_EVERY
+        n_snap = max(0, -(-(n - snap_off) // SNAP_EVERY))
         self.n_samples += n
         rows = np.ascontiguousarray(r.T)
+        eta = st.cfg.eta
         job = AxisJob(n, [np.empty((n, J), dtype=np.bool_ if i == DECISION else np.float64)
                           for i in range(N_OUTPUTS)],
                       np.empty_like(st.theta), np.empty(J, dtype=np.int64),
-                      np.empty(J, dtype=np.int64))
+                      np.empty(J, dtype=np.int64), np.empty((n_snap, J, eta)))
 
         def axis(j: int) -> None:
             out = [np.empty(n, dtype=x.dtype) for x in job.out]
+            snap = np.empty((n_snap, eta))
             rs, cp = _evaluate_axis(  # type: ignore[call-arg]
                 rows[j], u, *self._args, float(self.v_stat[j]), *out,  # type: ignore[arg-type]
                 st.theta[j], st.P[j], st.r_lags[j], st.v_lags[j], u_lag, st.filters[j],
                 st.ring_r[j], st.ring_v[j], st.sums[j], pos1, pos2, *self._reg, pos_reg,
-                self._every)
+                self._every, snap, snap_off, SNAP_EVERY)
+            job.theta_g[:, j, :] = snap
             for x, y in zip(job.out, out, strict=True):
                 x[:, j] = y  # on this axis's thread, not the caller's after all axes
             st.n_resets[j] += rs

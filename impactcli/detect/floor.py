@@ -10,14 +10,20 @@ for a product detector to cross its threshold there, for two reference contacts:
   quantile falls on such samples the floor states no figure but the share of them,
   ``in_alarm`` — a joint in a lasting load for most of the log sees no new contact);
 * a **half-sine of 100 ms** (a blow) for the adaptive detector: the statistic r_rms
-  (eq. 41 of G_hat r through F1) responds to a unit half-sine with a peak ``g_j``
-  (:func:`pulse_gain`, with the run's final G_hat, eq. 29), and RMS is subadditive, so
-  the statistic cannot cross the dynamic threshold (eq. 42) unless
-  A >= (threshold(k) − r_rms(k)) / g_j.
+  (eq. 41 of G_hat r through F1) responds to a unit half-sine with a peak ``g_j(k)``
+  (:func:`pulse_gain`, with G_hat as it stood at sample k, eq. 29: the evaluator keeps
+  theta_G at every :data:`GAIN_EVERY`-th sample, :func:`gain_per_sample`), and RMS is
+  subadditive, so the statistic cannot cross the dynamic threshold (eq. 42) unless
+  A >= (threshold(k) − r_rms(k)) / g_j(k). G_hat whitens the residual: while the arm
+  moves it passes a slow blow less than at rest (a new user's probe: a median gain of
+  0.52 on the shoulder where the log's last, resting G_hat gave 0.94; the floor taken with
+  that one was half as large). The blows themselves came through at ~0.18: the RLS adapts
+  to a blow while it lasts, which this bound leaves out.
 
 Both are lower bounds under their assumptions (linear filters, the contact's torque on
-this joint alone, G_hat as at the log's end): a smaller contact of that shape was not
-seen. The floor varies along the log (the residual's level, the dynamic threshold): the
+this joint alone, G_hat frozen over the blow — the RLS adapting to it only passes it
+less): a smaller contact of that shape was not seen; a larger one is not promised.
+The floor varies along the log (the residual's level, the dynamic threshold): the
 run states its median and its worst tenth (the 90th percentile), from log-spaced
 histograms (bounded memory; each quantile is its bin's LOWER edge, within 5 % below the
 true one — "below ~X not seen" stays true). With a link-end Jacobian, the floor of
@@ -48,6 +54,10 @@ _EDGES = 10.0 ** (np.arange(LOG10_LO * BINS_PER_DECADE, LOG10_HI * BINS_PER_DECA
 #: histograms (the quantiles of a log's floor do not need every sample; the cost stays a
 #: small share of the replay's).
 SAMPLE_EVERY = 4
+#: The blow's gain through G_hat is taken with G_hat as it stood at every GAIN_EVERY-th
+#: sample of the log (the evaluator keeps theta_G there; the samples between take the last
+#: one: G_hat forgets over 1 / (1 − lambda) = 1000 samples by default).
+GAIN_EVERY = 16
 #: Postures kept along the log for the link forces.
 MAX_POSTURES = 256
 #: The quantiles stated: the median and the worst tenth.
@@ -62,28 +72,70 @@ REFERENCE_CONTACTS = {
 
 def pulse_gain(theta_g: np.ndarray, sample_rate_hz: float, a1: float, n1: int,
                duration_s: float = HALF_SINE_S) -> np.ndarray:
-    """(J,) the peak of r_rms (eq. 41: RMS over the N1 samples before k of F1's output)
+    """(...) the peak of r_rms (eq. 41: RMS over the N1 samples before k of F1's output)
     for a unit half-sine of ``duration_s`` added to the residual, through
-    G(z) = 1 − sum_d theta_G[d−1] z^−d (eq. 29; ``theta_g`` (J, eta)) and F1 (pole a1)."""
-    th = np.atleast_2d(np.asarray(theta_g, dtype=np.float64))
+    G(z) = 1 − sum_d theta_G[d−1] z^−d (eq. 29; ``theta_g`` (..., eta), one G per leading
+    index) and F1 (pole a1).
+
+    G and F1 are linear and time-invariant, so F1(G x) = c · b(k) with c = (1, −theta_G)
+    and b(k) = F1(x) and its delays by 1..eta at k; the window's sum of squares is then the
+    quadratic form c W_k cᵀ, W_k = sum over the window of b bᵀ (precomputed once): one
+    matrix product per block of G's."""
+    th = np.asarray(theta_g, dtype=np.float64)
+    lead, eta = th.shape[:-1], th.shape[-1]
     m = max(1, round(duration_s * sample_rate_hz))
     n = m + n1 + max(1, round(5.0 / max(1.0 - a1, 1e-12))) + 1  # the pulse, the window, F1's decay
     x = np.zeros(n)
     x[:m] = np.sin(np.pi * (np.arange(m) + 0.5) / m)
-    out = np.zeros(th.shape[0])
-    for j, t in enumerate(th):
-        g = x.copy()
-        for d, c in enumerate(t, start=1):
-            g[d:] -= c * x[:-d]
-        y = np.empty(n)
-        prev = 0.0
-        for k in range(n):
-            prev = a1 * prev + (1.0 - a1) * g[k]
-            y[k] = prev
-        sq = np.concatenate(([0.0], np.cumsum(y * y)))
-        win = sq[n1:n] - sq[: n - n1]  # the window k−N1 .. k−1, for k = N1 .. n−1
-        out[j] = math.sqrt(max(float(win.max(initial=0.0)), 0.0) / n1)
-    return out
+    y0 = np.empty(n)
+    prev = 0.0
+    for k in range(n):
+        prev = a1 * prev + (1.0 - a1) * x[k]
+        y0[k] = prev
+    e = eta + 1
+    basis = np.zeros((e, n))  # F1(x) and its delays by 1..eta samples
+    basis[0] = y0
+    for d in range(1, eta + 1):
+        basis[d, d:] = y0[:-d]
+    iu, ju = np.triu_indices(e)
+    prod = basis[iu] * basis[ju]  # (pairs, n): b_i b_j at each sample
+    cum = np.concatenate((np.zeros((len(iu), 1)), np.cumsum(prod, axis=1)), axis=1)
+    win = cum[:, n1:n] - cum[:, : n - n1]  # W_k's entries, the window k−N1 .. k−1
+    twice = np.where(iu == ju, 1.0, 2.0)
+    flat = th.reshape(-1, eta)
+    out = np.empty(flat.shape[0])
+    for a in range(0, flat.shape[0], _GAIN_BLOCK):  # bounded memory: a block of G's at once
+        c = np.concatenate((np.ones((min(_GAIN_BLOCK, flat.shape[0] - a), 1)),
+                            -flat[a:a + _GAIN_BLOCK]), axis=1)
+        peak = ((c[:, iu] * c[:, ju] * twice) @ win).max(axis=1, initial=0.0)
+        out[a:a + _GAIN_BLOCK] = np.sqrt(np.maximum(peak, 0.0) / n1)
+    return out.reshape(lead)
+
+
+#: G_hat's taken at once by :func:`pulse_gain` (its memory: this × the response's length).
+_GAIN_BLOCK = 2048
+
+
+def gain_per_sample(theta_g: np.ndarray, n: int, k0: int, sample_rate_hz: float, a1: float,
+                    n1: int, before: np.ndarray | None = None) -> np.ndarray:
+    """(n, J) each sample's :func:`pulse_gain` of a chunk of n samples from the log's
+    sample ``k0``, with G_hat as it stood at the last sample at or before it whose index is
+    a multiple of :data:`GAIN_EVERY` (``theta_g`` (S, J, eta): the evaluator's
+    snapshots there, :attr:`impactcli.detect.adaptive.AdaptiveResult.theta_g`); the
+    samples before the chunk's first snapshot take ``before`` (J,) (the previous chunk's
+    last gain; None: the first snapshot's)."""
+    th = np.asarray(theta_g, dtype=np.float64)
+    if th.shape[0] == 0:
+        if before is None:
+            raise ValueError("a chunk without a snapshot of G_hat and no gain before it")
+        return np.broadcast_to(np.asarray(before, dtype=np.float64), (n, before.shape[0]))
+    g = pulse_gain(th, sample_rate_hz, a1, n1)  # (S, J)
+    off = (-k0) % GAIN_EVERY
+    idx = (np.arange(n) - off) // GAIN_EVERY
+    out = g[np.clip(idx, 0, g.shape[0] - 1)]
+    if before is not None and off:
+        out[:off] = before
+    return np.asarray(out)
 
 
 def _bins(x: np.ndarray) -> np.ndarray:
@@ -125,18 +177,23 @@ class FloorAccumulator:
         self.stride = max(1, n_samples // MAX_POSTURES)
         self.post_k: list[int] = []
         self.post_q: list[np.ndarray] = []
+        self.gain_k: list[int] = []
+        self.gain_g: list[np.ndarray] = []
         self.k = 0
 
     def update(self, loading: np.ndarray, r_rms: np.ndarray, threshold: np.ndarray,
-               q_full: np.ndarray | None) -> None:
-        """Feed one chunk: (n, J) |LP(r)|, r_rms and the adaptive threshold; ``q_full``
-        (n, C) the log's positions (for the postures), or None."""
+               q_full: np.ndarray | None, gain: np.ndarray) -> None:
+        """Feed one chunk: (n, J) |LP(r)|, r_rms, the adaptive threshold and each sample's
+        :func:`pulse_gain` (:func:`gain_per_sample`); ``q_full`` (n, C) the log's
+        positions (for the postures), or None."""
         n = loading.shape[0]
         if n == 0:
             return
-        with np.errstate(invalid="ignore"):
+        gain = np.broadcast_to(np.asarray(gain, dtype=np.float64), loading.shape)
+        with np.errstate(invalid="ignore", divide="ignore"):
             margins = {"static_loading": np.maximum(self.v_l[None, :] - np.abs(loading), 0.0),
-                       "adaptive": np.maximum(threshold - r_rms, 0.0)}
+                       "adaptive": np.where(gain > 0, np.maximum(threshold - r_rms, 0.0)
+                                            / gain, np.inf)}
         k0, k1 = self.k, self.k + n
         nb = _EDGES.size + 1
         offset = nb * np.arange(self.J)
@@ -157,10 +214,13 @@ class FloorAccumulator:
             for i in range(first, n, self.stride):
                 self.post_k.append(k0 + i)
                 self.post_q.append(np.array(q_full[i], dtype=np.float64))
+        first = (-k0) % self.stride  # the gains there, for the median stated
+        for i in range(first, n, self.stride):
+            self.gain_k.append(k0 + i)
+            self.gain_g.append(np.array(gain[i], dtype=np.float64))
         self.k = k1
 
     def finish(self, warmup_index: Sequence[int] | np.ndarray, warmup_end: int,
-               gain: np.ndarray,
                joints: Sequence[str], chain: Sequence[str] | None = None,
                index: Sequence[int] | None = None,
                chain_cols: Sequence[int | None] | None = None,
@@ -170,7 +230,6 @@ class FloorAccumulator:
         Args:
             warmup_index: (J,) each joint's first sample after warm-up.  warmup_end: the
                 latest (postures before it are dropped).
-            gain: (J,) :func:`pulse_gain` of each joint.
             joints: the detected joints.  chain, index, chain_cols, jac: the robot's chain,
                 each joint's 1-based link number in it, each chain joint's column in the
                 log's positions (None: held at 0) and the link-end Jacobian (None: no forces).
@@ -186,8 +245,6 @@ class FloorAccumulator:
         for j, name in enumerate(joints):
             row: dict[str, Any] = {}
             for d in DETECTORS:
-                scale = 1.0 if d == "static_loading" else (
-                    1.0 / gain[j] if gain[j] > 0 else math.inf)
                 vals: dict[str, Any] = {}
                 total = int(counts[d][j].sum())
                 alarming = int(counts[d][j][0]) / total if total else 0.0
@@ -195,8 +252,7 @@ class FloorAccumulator:
                     v = _quantile(counts[d][j], q)
                     # 0: the detector already alarms there, so a contact joins that alarm
                     # and is not seen as one of its own: no floor, the share said instead
-                    vals[f"{qn}_nm"] = None if v is None or v == 0.0 or not math.isfinite(
-                        v * scale) else v * scale
+                    vals[f"{qn}_nm"] = None if v is None or v == 0.0 else v
                     if vals[f"{qn}_nm"] is not None:
                         torque[d][qn][j] = vals[f"{qn}_nm"]
                     elif v == 0.0:
@@ -206,7 +262,7 @@ class FloorAccumulator:
         out: dict[str, Any] = {
             "reference_contacts": dict(REFERENCE_CONTACTS),
             "half_sine_s": HALF_SINE_S,
-            "pulse_gain": {n: float(g) for n, g in zip(joints, gain, strict=True)},
+            "pulse_gain": self._median_gain(warmup_index, joints),
             "per_joint": per_joint,
             "per_link": None,
         }
@@ -260,6 +316,18 @@ class FloorAccumulator:
         return out
 
 
+    def _median_gain(self, warmup_index: Sequence[int] | np.ndarray,
+                     joints: Sequence[str]) -> dict[str, float | None]:
+        """Each joint's median :func:`pulse_gain` over the log after its warm-up (at the
+        samples the postures are kept at; None where none is)."""
+        out: dict[str, float | None] = {}
+        for j, name in enumerate(joints):
+            g = [x[j] for k, x in zip(self.gain_k, self.gain_g, strict=True)
+                 if k >= int(warmup_index[j]) and np.isfinite(x[j])]
+            out[name] = float(np.median(g)) if g else None
+        return out
+
+
 def _inner_levers(postures: np.ndarray, c: int, jac: JacobianFn) -> np.ndarray:
     """(P, c + 1) each joint k <= c's lever |J_k| to the end of link c + 1 (0-based c) at
     each posture."""
@@ -267,6 +335,8 @@ def _inner_levers(postures: np.ndarray, c: int, jac: JacobianFn) -> np.ndarray:
     return np.asarray(np.linalg.norm(jacs, axis=1))
 
 
+#: What a floor's sentence says it is.
+LOWER_BOUND = "a lower bound, not a promise that a larger one was seen"
 #: Links or joints a floor's sentence names at most (the largest floors).
 MAX_LISTED = 6
 
@@ -328,7 +398,7 @@ def floor_line(floor: dict[str, Any] | None) -> str | None:
             "warm-up: a contact there joins that alarm, so no floor is stated for them")
     if not shown:
         return busy
-    return (f"{head} {', '.join(shown)} would not have been seen{note}"
+    return (f"{head} {', '.join(shown)} would not have been seen{note}; {LOWER_BOUND}"
             + (f"; {busy}" if busy else ""))
 
 

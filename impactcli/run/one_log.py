@@ -41,7 +41,7 @@ from ..detect.envelope import (
     posture_text,
 )
 from ..detect.events import extract_events
-from ..detect.floor import FloorAccumulator, pulse_gain
+from ..detect.floor import FloorAccumulator, gain_per_sample
 from ..detect.incident_builder import (
     IncidentContext,
     beside,
@@ -137,7 +137,9 @@ class RunSetup:
 class ReplayStep:
     """One chunk replayed: its first sample, (n,) times [s since the first sample] and
     [ns], the log's (n, J_all) positions, and the replay's (n, J) arrays
-    (:class:`impactcli.run.replay.ChunkReplay`); the writers' arrays None where not kept."""
+    (:class:`impactcli.run.replay.ChunkReplay`; ``gain``: a blow's gain through G_hat as it
+    stood, :func:`impactcli.detect.floor.gain_per_sample`); the writers' arrays None where
+    not kept."""
 
     start: int
     t: np.ndarray
@@ -148,6 +150,7 @@ class ReplayStep:
     qd: np.ndarray
     r_rms: np.ndarray
     v_rms: np.ndarray
+    gain: np.ndarray
     r_tilde: np.ndarray | None = None
     v_dyn: np.ndarray | None = None
     torque: np.ndarray | None = None
@@ -156,7 +159,7 @@ class ReplayStep:
 
 
 #: What a step needs for the events and incidents; the rest only for ``on_chunk``.
-_NEEDED = ("t", "t_ns", "q_full", "r", "loading", "qd", "r_rms", "v_rms", "torque")
+_NEEDED = ("t", "t_ns", "q_full", "r", "loading", "qd", "r_rms", "v_rms", "gain", "torque")
 _FOR_WRITERS = ("r_tilde", "v_dyn", "position", "position_ref")
 
 
@@ -190,6 +193,7 @@ def replay_passes(feed: ChunkFeed, plan: RunPlan, on_step: Callable[[ReplayStep]
     gap_times = np.full((gaps.size, 2), np.nan)
     last: list[Any] = [None, "", ""]
     peak = np.full(len(plan.joints), np.nan)
+    gain_before: list[np.ndarray | None] = [None]  # the last sample's, for the next chunk
     rp = Replayer(setup, ReplayState.initial(setup), where=plan.where, consume=True)
 
     def steps(done: list[tuple[Any, ChunkReplay]]) -> None:
@@ -204,10 +208,14 @@ def replay_passes(feed: ChunkFeed, plan: RunPlan, on_step: Callable[[ReplayStep]
             for col, off in ((0, 0), (1, 1)):
                 hit = (gaps + off >= k0) & (gaps + off < k0 + t.shape[0])
                 gap_times[hit, col] = t[gaps[hit] + off - k0]
+            gain = gain_per_sample(ad.theta_g, t.shape[0], k0, ad.rates.sample_rate_hz,
+                                   ad.rates.a1, ad.rates.n1, gain_before[0])
+            if gain.shape[0]:
+                gain_before[0] = np.array(gain[-1])
             on_step(ReplayStep(k0, t, np.asarray(ch.t_ns, dtype=np.int64),
                                np.asarray(ch.position, dtype=np.float64), out.r, out.loading,
-                               out.qd, ad.r_rms, ad.v_rms, ad.r_tilde, ad.v_dyn, a.torque,
-                               a.position, a.position_ref))
+                               out.qd, ad.r_rms, ad.v_rms, gain, ad.r_tilde, ad.v_dyn,
+                               a.torque, a.position, a.position_ref))
             if passes is not None:
                 passes.at(float(t[-1]))
 
@@ -339,11 +347,8 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
                                   sum(1 for i in incidents  # the counted ones
                                       if i.outside_envelope and i.number is not None),
                                   posture_text(share.posture), share.note)
-        rates = rp.last.rates
-        floor = floor_acc.finish(
-            rp.warmup.index, rp.warmup.end_index,
-            pulse_gain(rp.last.theta[:, :rp.last.eta], rates.sample_rate_hz, rates.a1, rates.n1),
-            joints, ctx.chain, ctx.index, ctx.chain_cols, ctx.jac)
+        floor = floor_acc.finish(rp.warmup.index, rp.warmup.end_index, joints, ctx.chain,
+                                 ctx.index, ctx.chain_cols, ctx.jac)
         left_out = moved_unchecked(plan.left_out, scan.log.joint_names,
                                    scan.ranges.get("position"))
         moved = [x for x in left_out if "travel_rad" in x]
@@ -576,7 +581,7 @@ class _Compare:
         any_d = np.asarray(dec["adaptive"].any(axis=1) | dec["static_loading"].any(axis=1)
                            | dec["static_baseline"].any(axis=1))
         pressing = np.any(st.loading >= self.pressing_at[None, :], axis=1)
-        self.floor.update(st.loading, st.r_rms, thr_ad, st.q_full)
+        self.floor.update(st.loading, st.r_rms, thr_ad, st.q_full, st.gain)
         level, noise = self.noise.update(st.r)
         if self.envelope is not None and st.position is not None:
             self.envelope.update_arrays(t, st.position, st.position_ref, k0)

@@ -102,8 +102,9 @@ def _smallest_force(result: DetectionResult, chain: tuple[str, ...],
         why = ("no kinematics are known" if not kin else
                f"the report computes it for planar arms only (this robot: {kin.get('type')})")
         return {"code": "smallest-force", "short": "", "data": {**data, "links": []},
-                "text": (f"{said}Smallest force the static-loading thresholds alone catch "
-                         f"at one posture: not stated — {why}. The static-loading "
+                "text": (f"{said}Smallest static force the static-loading thresholds "
+                         f"alone could catch at one posture: not stated — {why}. The "
+                         "static-loading "
                          f"thresholds as torques: {torques}.")}
     medians = samples.posture(result.warmup_end_s)
     q = np.zeros(len(chain))
@@ -133,16 +134,18 @@ def _smallest_force(result: DetectionResult, chain: tuple[str, ...],
             p += (f" (joint {chain[r['any_joint'] - 1]} already alarms at "
                   f"~{approx(r['any_force_n'])} N, isolated to an inner link)")
         parts.append(p)
-    short = ", ".join(f"link {r['link']} ≥ {approx(r['own_force_n'])} N" for r in rows
-                      if r["own_force_n"] is not None)
+    short = ", ".join(f"under ~{approx(r['own_force_n'])} N on link {r['link']} unseen"
+                      for r in rows if r["own_force_n"] is not None)
     return {"code": "smallest-force", "short": short,
             "data": {**data, "links": rows, "posture_rad": posture,
                      "posture_rule": "median after warm-up", "assumption": assumption},
-            "text": (f"{said}Smallest force the static-loading thresholds alone catch: "
+            "text": (f"{said}Smallest static force the static-loading thresholds alone "
+                     f"could catch — a lower bound, no promise that a larger one was caught: "
                      f"{'; '.join(parts)}. Assumed: "
                      f"{assumption}. A contact nearer the joint needs more (force × distance "
-                     "to the joint = vL); a short impact may also trip the adaptive detector, "
-                     "whose threshold follows the motion.")}
+                     "to the joint = vL), and so does one shorter than the low-pass takes to "
+                     "settle; a short impact may also trip the adaptive detector, whose "
+                     "threshold follows the motion.")}
 
 
 def _older(origin: dict[str, Any] | None, known: bool) -> list[dict[str, Any]]:
