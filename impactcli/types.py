@@ -42,6 +42,8 @@ class LogSource:
         joints_dropped: ``(name, reason)`` of the logged joints the reader left out of the
             log (a position or torque column without a finite value), each warned about;
             the pipeline records them with the joints it leaves out of detection.
+        truncated: the file ends before its recording did (an MCAP whose records stop
+            early): the log is what came before the cut (also a repair, warned about).
     """
 
     path: str
@@ -53,6 +55,7 @@ class LogSource:
     repairs: tuple[str, ...] = ()
     joints_dropped: tuple[tuple[str, str], ...] = ()
     notes: tuple[str, ...] = ()
+    truncated: bool = False
 
 
 @dataclass(frozen=True)

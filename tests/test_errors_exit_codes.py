@@ -237,3 +237,43 @@ def test_exit_5_is_documented() -> None:
     assert "5 a gate could not judge" in " ".join(out.split())
     readme = (REPO / "README.md").read_text(encoding="utf-8")
     assert "| 5 | a gate could not judge" in readme
+
+
+def test_a_truncated_recording_is_judged_up_to_its_cut_and_said(tmp_path: Path) -> None:
+    """A sample MCAP cut in half (a recorder killed): detect reads what came before the cut
+    and warns; the timeline says ``input.truncated``; a gate could not judge what the file
+    does not hold (exit 5, one line naming the cut); the report's verdict and its "could
+    not see" list say so. The whole file says none of it."""
+    from click.testing import CliRunner
+
+    from impactcli.cli import main
+
+    repo = Path(__file__).resolve().parents[1]
+    full = repo / "sample_logs" / "mcap" / "assist_free_p2p.mcap"
+    config = repo / "sample_logs" / "assist_like.config.toml"
+    cut = tmp_path / "cut.mcap"
+    data = full.read_bytes()
+    cut.write_bytes(data[: len(data) * 2 // 3])
+    r = CliRunner().invoke(main, ["detect", str(cut), "--config", str(config), "-o",
+                                  str(tmp_path / "o"), "--fail-on-detect"])
+    tl = json.loads((tmp_path / "o" / "cut.timeline.json").read_text())
+    end = tl["input"]["duration_s"]
+    assert tl["input"]["truncated"] is True and tl["counts"]["incidents"]["counted"] == 0
+    assert r.exit_code == 5, r.output
+    assert (f"impactcli: cut.mcap: --fail-on-detect could not judge the recording after "
+            f"{end:.3f} s: the file is truncated (its records end early), so what was "
+            "recorded after that is not in it; exit 5") in r.stderr.splitlines()
+    r = CliRunner().invoke(main, ["report", str(tmp_path / "o" / "cut.timeline.json"), "-o",
+                                  str(tmp_path / "r.html"), "--json", str(tmp_path / "r.json")])
+    assert r.exit_code == 0, r.output
+    one = json.loads((tmp_path / "r.json").read_text())["logs"][0]
+    assert one["verdict"].endswith(
+        f"The file is truncated: its recording went on after {end:.1f} s, and what it held "
+        "after that is not in it, so was not analysed.")
+    assert [u["short"] for u in one["could_not_see"] if u["code"] == "truncated"] == [
+        f"file cut at {end:.1f} s"]
+    r = CliRunner().invoke(main, ["detect", str(full), "--config", str(config), "-o",
+                                  str(tmp_path / "w"), "--fail-on-detect"])
+    assert r.exit_code == 0, r.output
+    whole = json.loads((tmp_path / "w" / "assist_free_p2p.timeline.json").read_text())
+    assert "truncated" not in whole["input"] and "truncated" not in r.stderr

@@ -140,6 +140,7 @@ def test_truncated_file_yields_what_was_recorded_with_a_warning(tmp_path: Path) 
     np.testing.assert_array_equal(back.t_ns, log.t_ns[:k])
     np.testing.assert_array_equal(back.position, log.position[:k])
     assert any("truncated" in r for r in back.source.repairs)
+    assert back.source.truncated and not read_log(path).source.truncated
     # the official reader recovers the same messages before the cut
     official = decode_topic_official(cut, "/joint_states", str(cut))
     assert official.position.shape[0] == k

@@ -99,6 +99,10 @@ class StreamLayout:
         """Repairs the reader makes before the repair policy's (given first)."""
         return []
 
+    def cut_short(self) -> bool:
+        """Whether the file ends before its recording did (read up to the cut)."""
+        return False
+
     def release(self) -> None:
         """The scan keeps a cache of the rows: what the layout holds to read them again
         (a spill) may go."""

@@ -507,7 +507,8 @@ class _ScanAcc:
                            time_source=ctx.time_source,  # type: ignore[arg-type]
                            ignored_channels=plan.ignored + tuple(ignored),
                            repairs=tuple(repairs) + tuple(msgs),
-                           notes=plan.notes, joints_dropped=tuple(dropped))
+                           notes=plan.notes, joints_dropped=tuple(dropped),
+                           truncated=ctx.cut_short())
         head = {s: _nan_where_empty(a, s, ctx, allbad)[:, keep] for s, a in self.head.items()
                 if s not in gone}
         log = RobotLog(t_ns=self.head_t - shift, joint_names=kept, source=source, **head)

@@ -68,6 +68,7 @@ def timeline_dict(result: DetectionResult) -> dict[str, Any]:
             "time_source": src.time_source,
             "read_options": result.read_options.as_dict(),
             "repairs": list(src.repairs),
+            **({"truncated": True} if src.truncated else {}),
             "joints_left_out": list(result.joints_left_out),
             **({} if result.torque_scale is None else {"torque_scale": result.torque_scale}),
             **({} if result.payload is None else {"payload": result.payload}),

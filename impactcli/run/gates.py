@@ -4,8 +4,9 @@ finished log's typed findings (:class:`Findings`, carried by its batch outcome).
 A log *fails* a gate (exit 1) when it has a counted incident or lasting load after warm-up
 (``--fail-on-detect``), or one whose force estimate exceeds N (``--fail-on-force``). A gate
 *could not judge* a log (exit 5, when none failed) when its warm-up covers all of it, when
-its only incidents start at data defects, or when an incident or lasting load has no force
-estimate (``--fail-on-force``). Each verdict is one line naming the log and why
+its only incidents start at data defects, when its file is truncated (the recording went on
+after the cut), or when an incident or lasting load has no force estimate
+(``--fail-on-force``). Each verdict is one line naming the log and why
 (docs/formats.md, "Command line"). Payload changes trip no gate; with a gate asked, a log
 with some gets a line saying how long a contact would have joined their alarms uncounted,
 and with ``--fail-on-force`` a log whose passing forces are lower bounds a line saying so
@@ -32,6 +33,7 @@ class Findings:
         defect_incidents: the incidents after warm-up that start at a data defect.
         lasting_loads: the counted lasting loads (after warm-up).
         payload_changes: the payload changes found (timeline items): not gated.
+        truncated: the file ends before its recording did (read up to the cut).
     """
 
     log_path: str
@@ -41,6 +43,7 @@ class Findings:
     defect_incidents: tuple[Any, ...]
     lasting_loads: tuple[Any, ...]
     payload_changes: tuple[dict[str, Any], ...] = ()
+    truncated: bool = False
 
     @classmethod
     def of(cls, log_path: str, result: Any) -> Findings:
@@ -48,7 +51,7 @@ class Findings:
         return cls(log_path, float(result.log.duration_s), float(result.warmup_end_s),
                    tuple(result.counted_incidents()), tuple(result.defect_incidents()),
                    tuple(result.counted_lasting_loads()),
-                   tuple(result.payload_changes or ()))
+                   tuple(result.payload_changes or ()), bool(result.log.source.truncated))
 
 
 def shown(log: str) -> str:
@@ -81,7 +84,18 @@ def judge(findings: Sequence[Findings], *, fail_on_detect: bool,
                     if (line := _over_force(f, limit) or _load_over(f, limit))]
         unjudged += [line for f in findings if (line := _force_unknown(f, limit))]
         unjudged += [line for f in findings if (line := _defect_force(f, limit))]
+    if fail_on_detect or fail_on_force is not None:
+        gate = "--fail-on-detect" if fail_on_detect else f"--fail-on-force {fail_on_force:g} N"
+        unjudged += [_cut(f, gate) for f in findings if f.truncated]
     return failing, unjudged
+
+
+def _cut(f: Findings, gate: str) -> str:
+    """The line of a log whose file ends before its recording did: the gate judged what
+    came before the cut only."""
+    return (f"impactcli: {shown(f.log_path)}: {gate} could not judge the recording after "
+            f"{f.duration_s:.3f} s: the file is truncated (its records end early), so what "
+            "was recorded after that is not in it; exit 5")
 
 
 def gate_notes(findings: Sequence[Findings], *, fail_on_detect: bool,

@@ -434,6 +434,9 @@ class MessageLayout(StreamLayout):
         return JointChannels(t_ns=t, joints=self.joints, signals=signals, missing=missing,
                              current_scale=self.current_scale, ignored=list(self.ignored))
 
+    def cut_short(self) -> bool:
+        return bool(self.truncated)
+
     def pre_repairs(self) -> list[str]:
         out = list(self.truncated)
         lead = max(self.lead_counts, default=0)

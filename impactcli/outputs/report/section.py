@@ -43,6 +43,7 @@ from .summary import (
     incidents_known,
     lasting_table_html,
     payload_table_html,
+    truncated_text,
     verdict_text,
 )
 from .unseen import chain_of, could_not_see, could_not_see_html
@@ -73,6 +74,8 @@ def log_section(result: DetectionResult, labels: Labels | None,
                            unchecked=[x for x in tl["input"]["joints_left_out"]
                                       if "travel_rad" in x],
                            payload_changes=tl.get("payload_changes") or ())
+    if result.log.source.truncated:
+        verdict += " " + truncated_text(result.log.duration_s)
     sec: LogSection = {
         "input": tl["input"], "config": tl["config"], "calibrated": tl["calibrated"],
         "model": tl["model"], "replay": tl["replay"], "warmup_end_s": tl["warmup_end_s"],

@@ -79,6 +79,12 @@ def lasting_text(loads: Sequence[dict[str, Any]]) -> str:
     return head + "; ".join(parts) + f": {LASTING_WHY}"
 
 
+def truncated_text(duration_s: float) -> str:
+    """What a log cut short could not answer (``input.truncated``), in the verdict's words."""
+    return (f"The file is truncated: its recording went on after {duration_s:.1f} s, and "
+            "what it held after that is not in it, so was not analysed.")
+
+
 def incidents_known(result_incidents: int, events: Sequence[dict[str, Any]]) -> bool:
     """Whether the run records incidents: it does when it has any, or when no event of the
     product's detectors exists (then there is none to record). A run made before incidents

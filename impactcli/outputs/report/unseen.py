@@ -74,6 +74,19 @@ def _gaps(samples: Samples) -> dict[str, Any]:
                      "there, so a contact then was not seen.")}
 
 
+def _cut(result: DetectionResult) -> list[dict[str, Any]]:
+    """The end of a recording the file does not hold (a truncated MCAP), else nothing."""
+    if not result.log.source.truncated:
+        return []
+    end = result.log.duration_s
+    return [{"code": "truncated", "short": f"file cut at {end:.1f} s",
+             "data": {"analysed_to_s": end},
+             "text": (f"Truncated: the file's records end early, at {end:.3f} s of the "
+                      "recording; what was recorded after that is not in the file, so a "
+                      "contact then was not seen (and the length of what is missing is not "
+                      "known).")}]
+
+
 def _left_out(result: DetectionResult, chain: tuple[str, ...]) -> dict[str, Any]:
     items = [dict(x) for x in result.joints_left_out]
     if not items:
@@ -220,8 +233,8 @@ def could_not_see(result: DetectionResult, incidents: list[dict[str, Any]], *,
     """The items of "what the audit could not see" for one log (module docstring);
     ``samples``: where the gaps and the posture are read."""
     chain, kin = chain_of(result)
-    return [*_older(origin, known), _warmup(result, incidents), _gaps(samples),
-            _left_out(result, chain), *_envelope(result, incidents),
+    return [*_older(origin, known), _warmup(result, incidents), *_cut(result),
+            _gaps(samples), _left_out(result, chain), *_envelope(result, incidents),
             _smallest_force(result, chain, kin, samples)]
 
 
