@@ -321,8 +321,8 @@ def test_a_torque_four_times_too_large_flags_its_forces(tmp_path: Path) -> None:
         "detect", str(tmp_path / "log.csv"), "--robot", str(CSV / "heavy_impacts.robot.json"),
         "-o", str(tmp_path / "again")]).stdout
     # said where the answer is read: beside the detection floor's figures on stdout
-    assert "torques and forces of log.csv are in the log's units, not checked against " \
-           "physics: the log's torque is off the gravity torque" in out
+    assert "torques and forces of log.csv cannot be trusted: the log's torque is off the " \
+           "gravity torque" in out
 
 
 def test_joints_that_disagree_are_not_said_to_agree() -> None:

@@ -362,6 +362,11 @@ def test_the_load_a_log_starts_with_is_weighed_and_used(
     load = tl["input"]["payload"]
     assert load["verdict"] == "used" and abs(load["mass_kg"] - 1.2) < 0.1 * 1.2
     assert "carrying ~+1.1" in r.stderr or "carrying ~+1.2" in r.stderr  # type: ignore[attr-defined]
+    # its error a lower bound, and what else acts as a mass (a new user read "± 0.0031" for
+    # a 0.21 kg "load" that was another unit's model)
+    assert "kg, the model's own error not counted; it explains" in load["message"]
+    assert "a load, or a model error that acts as one: another unit of the arm" \
+        in load["message"]
     assert tl["counts"]["incidents"]["counted"] == 0  # free motion: no false alarm
     light, _, _ = _detect(logs["held_out"], two_loads, tmp_path / "l")
     assert light["input"]["payload"]["verdict"] == "same"

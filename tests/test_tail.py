@@ -351,3 +351,19 @@ def test_calibration_text_says_what_each_kind_of_threshold_promises() -> None:
     assert capped_detectors({"margins": capped, "false_alarm_rate": rated}) == [
         "static_baseline"]
     assert capped_detectors({"margins": {"adaptive": {"a": 2.99}}}) == []
+
+
+def test_a_bound_only_the_tail_fits_give_is_said_to_be_one() -> None:
+    """Known truth: 3 min of free motion with no alarm bound −ln(0.1) / 0.05 h = 46 per
+    hour at 90 %; an upper bound of 7.4 per hour rests on the tail fits (noted, with both
+    figures), one of 50 does not (no note)."""
+    import math
+
+    from impactcli.detect.tail import extrapolated_note
+
+    zero = -math.log(0.1) / 0.05
+    assert zero == pytest.approx(46.05, abs=0.01)
+    note = extrapolated_note(7.4, 0.05, 0.9)
+    assert note == ("the upper bound 7.4 per hour rests on the tail fits' extrapolation: "
+                    "3.0 min of free motion with no alarm bound 46 per hour by themselves")
+    assert extrapolated_note(50.0, 0.05, 0.9) is None

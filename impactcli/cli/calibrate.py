@@ -313,10 +313,16 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     from ..detect.tail import per_hour_text as ph
 
     fa = c.false_alarm_rate or {}
+    from ..detect.tail import MAX_EXTRAPOLATION
+
+    tail = ("" if not fa or fa["upper_per_hour"] >= (zero := fa["supported_per_hour"]
+                                                     * MAX_EXTRAPOLATION) else
+            f": the tail fits' extrapolation, where the free motion with no alarm bounds "
+            f"{ph(zero)} by itself")
     rule = (f"v_stat and vL for {fa['per_hour']:g} false alarm(s) per hour, v0 by "
             f"{c.margin_rule}" if "per_hour" in fa else f"rule {c.margin_rule}" + (
                 f" (predicted {ph(fa['predicted_per_hour'])} false alarm(s) per hour, upper "
-                f"bound {ph(fa['upper_per_hour'])})" if fa else ""))
+                f"bound {ph(fa['upper_per_hour'])}{tail})" if fa else ""))
     click.echo(f"calibrated on {len(read)} log(s) ({c.segments} stretch(es) of collision-free "
                f"motion), {rule}{weak}; {what}")
     if kind == "decoupled" and robot_d is None and model_m is None and out.model is not None:

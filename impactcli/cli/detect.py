@@ -412,11 +412,14 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
             click.echo("  (link A or B: the joints' residuals cannot tell which of those "
                        "links was touched; link_candidates in the timeline)")
     if (len(ok) == 1 and one["torque_scale"] in UNVERIFIED
-            and (one["incident_list"] or one["detection_floor"]
-                 or loads[ok[0].log_path])):  # forces and the floor's N or N·m
-        click.echo(f"torques and forces of {shown(ok[0].log_path)} are in the log's "
-                   f"units, not checked against physics: "
-                   f"{UNVERIFIED[one['torque_scale']]}")
+            and (one["incident_list"] or one["detection_floor"] or loads[ok[0].log_path]
+                 or one["payload_change_list"])):  # forces, the floor's N or N·m, masses
+        what = ("torques, forces and masses" if one["payload_change_list"]
+                else "torques and forces")
+        click.echo(f"{what} of {shown(ok[0].log_path)} "
+                   + ("cannot be trusted: " if one["torque_scale"] == "warn" else
+                      "are in the log's units, not checked against physics: ")
+                   + UNVERIFIED[one["torque_scale"]])
     if len(ok) == 1 and one["defect_incident_list"]:
         click.echo(_defect_line(shown(ok[0].log_path), one["defect_incident_list"]))
     if len(ok) == 1 and one["detection_floor"]:

@@ -228,6 +228,17 @@ def support_statement(hours: float, rate: float | None, conf: float = CONF) -> s
     return s + f"; {rate:g} per hour is within it"
 
 
+def extrapolated_note(upper: float, hours: float, conf: float = CONF) -> str | None:
+    """The note of a bound ``upper`` [1/h] that only the tail fits give: below what
+    ``hours`` of free motion with no alarm bound by themselves (None when it is not)."""
+    zero = support(hours, conf) * MAX_EXTRAPOLATION
+    if not upper < zero:
+        return None
+    return (f"the upper bound {per_hour_text(upper)} per hour rests on the tail fits' "
+            f"extrapolation: {minutes_text(hours * 60)} min of free motion with no alarm "
+            f"bound {per_hour_text(zero)} per hour by themselves")
+
+
 def minutes_text(minutes: float) -> str:
     """Free-motion minutes as printed: one decimal from 1 min on, else 2 significant
     digits (``0.037``, not ``0.0``)."""
@@ -547,6 +558,8 @@ def thresholds_for_rate(channels: ChannelFits, rate: float = DEFAULT_FALSE_ALARM
     for c in np.flatnonzero(~held):
         upper[c] = rate_upper(fits[c], float(thr[c]), conf) if math.isfinite(thr[c]) else 0.0
     pred = np.array([f.rate(float(t)) for f, t in zip(fits, thr, strict=True)])
+    if (note := extrapolated_note(float(np.sum(upper)), hours, conf)) is not None:
+        notes.append(note)
     return RateCalibration(tuple(f.name for f in fits), thr, pred, upper, wid, held, fits,
                            float(rate), conf, hours, rs, tuple(notes))
 
@@ -573,6 +586,8 @@ def rates_for_thresholds(channels: ChannelFits, thresholds: np.ndarray, *,
     if float(np.sum(upper)) < rs:
         notes.append(f"the fits' bound {float(np.sum(upper)):.2g} per hour is below what the "
                      f"free motion supports; stated as {rs:.2g}")
+    elif (note := extrapolated_note(float(np.sum(upper)), channels.hours, conf)) is not None:
+        notes.append(note)
     return RateCalibration(tuple(f.name for f in fits), thr, pred, upper,
                            np.zeros(thr.size, dtype=bool), below, fits, None, conf,
                            channels.hours, rs, tuple(notes))

@@ -162,8 +162,10 @@ def weigh_start(feed: Any, model: RigidModel, choices: tuple[GeneratorChoice, ..
     kg, side = beyond_words(w.mass_kg)
     return payload.carrying(model, pi), StartLoad(
         "used", seconds, w.mass_kg, w.mass_se_kg, values, rel, cal, (
-            f"{where}: carrying ~{kg} kg (± {w.mass_se_kg:.2g}; it explains "
-            f"{100 * share:.0f} % of what the model leaves out) {side} the model's "
+            f"{where}: carrying ~{kg} kg (s.e. ≥ {w.mass_se_kg:.2g} kg, the model's own "
+            f"error not counted; it explains {100 * share:.0f} % of what the model leaves "
+            f"out — a load, or a model error that acts as one: another unit of the arm, "
+            f"a tool changed) {side} the model's "
             f"load{_whose(rel)}{_calibrated_with(cal)}, weighed on its first "
             f"{seconds:g} s: "
             + ("the residual uses it" if known is None else
