@@ -111,7 +111,8 @@ def inputs_chunk(
         if "q_meas" not in carry.state:
             warnings.warn(
                 f"{where}: no reference trajectory logged; the dynamic threshold's "
-                "inputs come from the causally filtered measured position",
+                "inputs come from the causally filtered measured position (no "
+                "anticipation of the motion)",
                 ImpactWarning, stacklevel=2,
             )
         fc = clip_cutoff(cfg.measured_input_cutoff_hz, sample_rate_hz, "measured-input filter")

@@ -531,7 +531,8 @@ def describe(record: dict[str, Any]) -> list[str]:
     kinds = [k for k in ("decoupled", "coupled", "planar", "urdf") if k in record["candidates"]]
     lines = [f"model kind: {record['reason']}",
              f"  held back: {record['held_back']}; rule: the simplest candidate within one "
-             "standard error of the least held-back error"]
+             "standard error of the least held-back error (these choose the kind; the fit "
+             "table's held columns are the final fit's own held-back part, another figure)"]
     w = max(5, *(len(j) for j in record["joints"]))
     lines.append(f"  {'joint':<{w}}  " + "  ".join(f"{k:>14}" for k in kinds)
                  + "  chosen   [held-back RMS error, N·m]")

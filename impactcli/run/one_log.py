@@ -91,7 +91,6 @@ from .run_warnings import (
     warn_gaps,
     warn_implausible_forces,
     warn_long_events,
-    warn_measured_inputs,
     warn_outside_envelope,
     warn_uncalibrated,
     warn_unwatched_loads,
@@ -244,8 +243,6 @@ def warn_replayed(caught: CaughtWarnings, since: int, plan: RunPlan, feed: Chunk
     moved = caught.cut(since)
     warn_gaps(plan.where, np.asarray(scan.gap_lengths_s), rp.gap_times[:, 0])
     caught.paste(moved)
-    if rp.reference == "measured":
-        warn_measured_inputs(plan.where)
     warn_warmup(plan.where, rp.warmup, rp.warmup_times, plan.joints, scan.n_samples,
                 scan.duration_s, plan.cfg)
 

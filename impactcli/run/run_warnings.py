@@ -144,12 +144,6 @@ def warn_gaps(where: str, lengths_s: np.ndarray, starts_s: np.ndarray) -> None:
         "so alarms just after a gap may be artefacts of it", ImpactWarning, stacklevel=3)
 
 
-def warn_measured_inputs(where: str) -> None:
-    """The warning of a replay whose threshold inputs come from the measured position."""
-    warnings.warn(f"{where}: no reference logged: threshold inputs from the measured "
-                  "position (no anticipation)", ImpactWarning, stacklevel=3)
-
-
 def warn_warmup(where: str, wu: Warmup, times_s: Sequence[float], joints: tuple[str, ...],
                 n_samples: int, duration_s: float, cfg: DetectorConfig) -> None:
     """The warm-up warnings: it covers the whole log, or it reached its cap on some joints

@@ -308,6 +308,9 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
         if r.get("force_n") is None and str(r.get("force_method") or "").startswith(
                 FORCE_NOT_STATED):  # why not: the physics checks left it unstated
             force += f' <span class="note">{e(r["force_method"])}</span>'
+        if r.get("in_warmup") and r.get("force_n") is not None:  # the filters starting
+            force += (' <span class="note">in the warm-up: it may be the filters settling '
+                      "from the log's start, not a contact</span>")
         if r.get("force_plausible") is False:
             force += (' <span class="bad">implausible: '
                       f'{e(r.get("force_check") or "beyond what the arm can exert")}</span>')
@@ -339,11 +342,13 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
         for m, ps in methods.items())
     return (
         f'<div class="wide"><table class="incidents" id="{anchor}-incidents"><thead><tr>'
-        '<th class="num">#</th><th class="num">when (since log start)</th>'
+        '<th class="num">#</th><th class="num">first alarm (since log start)</th>'
         '<th class="num">lasting [s]</th><th>where</th><th>how hard (peak)</th><th>kind</th>'
         '<th>detectors (the first to fire first)</th><th class="num">peak / threshold</th><th></th>'
         f'</tr></thead>{"".join(body)}</table></div>'
-        '<div class="small muted">How hard: the force at the end of the link, where the '
+        '<div class="small muted">When: the incident\'s first alarm; the contact began '
+        "before it, by the detectors' delay (`evaluate` measures it against labels). "
+        "How hard: the force at the end of the link, where the "
         "contact point is assumed (a contact nearer the joint is under-estimated by the "
         "lever-arm ratio); in brackets the peak residual torque of each joint that fired. "
         f'<ul class="tight">{notes}</ul></div>')
