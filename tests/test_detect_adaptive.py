@@ -379,3 +379,30 @@ def test_real_kuka_7_joints_at_200_hz(real_logs: Path) -> None:
     f, g = res.g_gain()
     assert f[-1] == pytest.approx(fs / 4)
     assert np.all(g[:, 0] < g[:, -1])
+
+
+def test_a_log_without_a_reference_is_warned_of_once(tmp_path) -> None:
+    """detect on a log without reference channels: one warning says the threshold inputs
+    come from the measured position (there were two, nearly the same)."""
+    import dataclasses
+    from pathlib import Path
+
+    from click.testing import CliRunner
+
+    from impactcli.cli import main
+    from impactcli.logs import read_log, write_log
+
+    repo = Path(__file__).resolve().parents[1]
+    log = read_log(repo / "sample_logs" / "csv" / "assist_impacts.csv.gz")
+    bare = dataclasses.replace(log, position_ref=None, velocity_ref=None,
+                               acceleration_ref=None)
+    write_log(bare, tmp_path / "bare.csv")
+    r = CliRunner().invoke(main, ["detect", str(tmp_path / "bare.csv"), "--config",
+                                  str(repo / "sample_logs" / "assist_like.config.toml"),
+                                  "-o", str(tmp_path / "o")])
+    assert r.exit_code == 0, r.output
+    said = [ln for ln in r.stderr.splitlines() if "no reference trajectory" in ln
+            or "no reference logged" in ln]
+    assert len(said) == 1 and said[0].endswith(
+        "no reference trajectory logged; the dynamic threshold's inputs come from the "
+        "causally filtered measured position (no anticipation of the motion)"), said

@@ -240,10 +240,10 @@ def test_exit_5_is_documented() -> None:
 
 
 def test_a_truncated_recording_is_judged_up_to_its_cut_and_said(tmp_path: Path) -> None:
-    """A sample MCAP cut in half (a recorder killed): detect reads what came before the cut
-    and warns; the timeline says ``input.truncated``; a gate could not judge what the file
-    does not hold (exit 5, one line naming the cut); the report's verdict and its "could
-    not see" list say so. The whole file says none of it."""
+    """A sample MCAP cut at two thirds (a recorder killed): detect reads what came before
+    the cut and warns; the timeline says ``input.truncated``; a gate could not judge what
+    the file does not hold (exit 5, one line naming the cut); the report's verdict and its
+    "could not see" list say so. The whole file says none of it."""
     from click.testing import CliRunner
 
     from impactcli.cli import main

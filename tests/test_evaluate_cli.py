@@ -429,3 +429,25 @@ def test_end_to_end_log_and_timeline_agree(tmp_path):
     # both score the run's incidents (the log's from the run, the timeline's from its JSON)
     assert from_log["incidents"]["available"] is True
     assert from_log["incidents"]["n_contacts"] == 5
+
+
+def test_a_lower_bound_force_is_scored_and_shown_as_one(tmp_path: Path) -> None:
+    """The sample pushes (their forces all lower bounds: the arm near stretched) through
+    detect, then evaluate: each matched contact's force carries ``force_at_least`` in the
+    JSON and '≥' in the text table, where a contact without it would read plain."""
+    repo = Path(__file__).resolve().parents[1]
+    log = repo / "sample_logs" / "csv" / "assist_pushes.csv.gz"
+    r = CliRunner().invoke(main, ["detect", str(log), "--config",
+                                  str(repo / "sample_logs" / "assist_like.config.toml"),
+                                  "-o", str(tmp_path)])
+    assert r.exit_code == 0, r.output
+    tl = tmp_path / "assist_pushes.timeline.json"
+    labels = str(log).replace(".csv.gz", ".labels.json")
+    r = CliRunner().invoke(main, ["evaluate", str(tl), "--labels", labels, "--json"])
+    assert r.exit_code == 0, r.output
+    contacts = json.loads(r.stdout)["incidents"]["contacts"]
+    forced = [c for c in contacts if c["force_n"] is not None]
+    assert forced and all(c.get("force_at_least") is True for c in forced)
+    assert all("force_at_least" not in c for c in contacts if c["force_n"] is None)
+    text = CliRunner().invoke(main, ["evaluate", str(tl), "--labels", labels]).stdout
+    assert f"/ ≥{forced[0]['force_n']:.3g} N" in text, text

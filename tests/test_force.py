@@ -115,9 +115,9 @@ def test_the_force_gate_says_it_passed_lower_bounds() -> None:
     notes = gate_notes([low], fail_on_detect=False, fail_on_force=100.0)
     assert notes == ["impactcli: a.csv: --fail-on-force 100 N: the forces of 2 incidents "
                      "(≥3.33 to ≥30.1 N) are lower bounds: at their postures part of a "
-                     "force at the link's end turns none of the joints up to it, so the "
-                     "gate passed them as far as the joints tell (force_method in the "
-                     "timeline)"]
+                     "force at the link's end turns none of the joints up to it, or too "
+                     "little to be solved for, so the gate passed them as far as the "
+                     "joints tell (force_method in the timeline)"]
     failing, unjudged = judge([low], fail_on_detect=False, fail_on_force=25.0)
     assert failing == ["impactcli: a.csv: the incident at 12.100 s on link 1, ≥30.1 N, "
                        "exceeds --fail-on-force 25 N"] and unjudged == []

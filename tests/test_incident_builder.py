@@ -61,7 +61,7 @@ def test_the_contact_apart_from_the_load_gives_its_own_link_and_force() -> None:
 def test_a_part_that_holds_only_the_contacts_end_gives_no_force() -> None:
     got = beside(_ctx([0, 1]), _incident(), _part(30.0, began_before=True))
     assert got is not None and got.link == 2 and got.force_n is None
-    assert "at least ~30 N at the end of link 2" in got.force_method
+    assert "at least 30 N at the end of link 2" in got.force_method
     assert got.force_plausible is None
 
 

@@ -157,7 +157,7 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     cannot be written (a full disk: the output named); 3 on a bad input; 4 when some logs
     of a batch failed (the others' outputs are written); 5 when a gate could not judge (a
     log all warm-up with --fail-on-detect, an incident without a force estimate with
-    --fail-on-force; 1 wins over 5); 70 on an internal error (a bug,
+    --fail-on-force, a truncated file with either; 1 wins over 5); 70 on an internal error (a bug,
     with its traceback) — never 1; 130 on SIGINT (Ctrl-C) and 143 on SIGTERM (the logs
     finished are listed, their outputs kept); 141 when stdout's reader closed early
     (| head). Run into a folder it wrote before, it redoes every log and removes the

@@ -15,10 +15,10 @@ for a product detector to cross its threshold there, for two reference contacts:
   theta_G at every :data:`GAIN_EVERY`-th sample, :func:`gain_per_sample`), and RMS is
   subadditive, so the statistic cannot cross the dynamic threshold (eq. 42) unless
   A >= (threshold(k) − r_rms(k)) / g_j(k). G_hat whitens the residual: while the arm
-  moves it passes a slow blow less than at rest (a new user's probe: a median gain of
-  0.52 on the shoulder where the log's last, resting G_hat gave 0.94; the floor taken with
-  that one was half as large). The blows themselves came through at ~0.18: the RLS adapts
-  to a blow while it lasts, which this bound leaves out.
+  moves it passes a slow blow less than at rest (measured once, on a new user's probe: a
+  median gain of 0.52 on the shoulder where the log's last, resting G_hat gave 0.94; the
+  floor taken with that one was half as large). The RLS adapts to a blow while it lasts
+  and passes it less still, which this bound leaves out (tests/test_floor.py).
 
 Both are lower bounds under their assumptions (linear filters, the contact's torque on
 this joint alone, G_hat frozen over the blow — the RLS adapting to it only passes it
@@ -206,7 +206,8 @@ class FloorAccumulator:
             first += (-first) % SAMPLE_EVERY
             rows = m[first - k0::SAMPLE_EVERY]
             if rows.size:
-                fin = np.isfinite(rows)
+                # +inf (a blow G_hat does not pass: no size is seen) counts in the top bin
+                fin = ~np.isnan(rows)
                 flat = (_bins(np.where(fin, rows, 0.0)) + offset[None, :])[fin]
                 self.counts[d] += np.bincount(flat, minlength=nb * self.J).reshape(self.J, nb)
         if q_full is not None:
@@ -238,7 +239,7 @@ class FloorAccumulator:
         for d in DETECTORS:
             for j in range(self.J):
                 m = self.head[d][int(warmup_index[j]):self.k, j][::SAMPLE_EVERY]
-                m = m[np.isfinite(m)]
+                m = m[~np.isnan(m)]
                 counts[d][j] += np.bincount(_bins(m), minlength=counts[d].shape[1])
         per_joint: dict[str, Any] = {}
         torque = {d: {qn: np.full(self.J, np.nan) for qn in QUANTILES} for d in DETECTORS}
@@ -252,7 +253,9 @@ class FloorAccumulator:
                     v = _quantile(counts[d][j], q)
                     # 0: the detector already alarms there, so a contact joins that alarm
                     # and is not seen as one of its own: no floor, the share said instead
-                    vals[f"{qn}_nm"] = None if v is None or v == 0.0 else v
+                    # none above the top bin: no size of contact was seen there
+                    vals[f"{qn}_nm"] = (None if v is None or v == 0.0 or v >= _EDGES[-1]
+                                        else v)
                     if vals[f"{qn}_nm"] is not None:
                         torque[d][qn][j] = vals[f"{qn}_nm"]
                     elif v == 0.0:

@@ -169,7 +169,8 @@ def unseen_part(a: np.ndarray) -> np.ndarray:
     force, two for a spatial one (the force's part along the null space turns none of
     them) — or a singular value below :data:`RCOND` × the largest (near a singular posture:
     the solve drops that part rather than blow noise up). There the stated force is the
-    smallest at the link's end that gives the torques: a lower bound."""
+    force projected onto what the joints feel, never longer than it: a lower bound (where
+    the residual is the contact's torque and the contact is at or inside the link's end)."""
     n, m, d = a.shape
     if n == 0:
         return np.zeros(0, dtype=bool)

@@ -497,7 +497,7 @@ def beside(ctx: IncidentContext, inc: Incident, part: Any) -> Incident | None:
         est = ForceEstimate(None, (
             "no force estimate: the contact began before the torque the load leaves could "
             "be read apart from the load's step (within the change's settling time); after "
-            f"that, at least ~{est.force_n:.3g} N at the end of link {link}"), est.levers)
+            f"that, at least {est.force_n:.3g} N at the end of link {link}"), est.levers)
     chk = check_force(ctx, est, link)
     cols = [k for k, c in enumerate(ctx.index) if link is None or c <= link]
     speed = np.max(np.abs(part.qd[:, order][:, cols]), axis=1)

@@ -150,7 +150,8 @@ def _at_least(f: Findings, limit: float) -> str | None:
     return (f"impactcli: {shown(f.log_path)}: --fail-on-force {limit:g} N: the force"
             f"{'' if one else 's'} of {what} ({span}) {are}"
             f": at {'its' if one else 'their'} posture{'' if one else 's'} part of a force at "
-            "the link's end turns none of the joints up to it, so the gate passed "
+            "the link's end turns none of the joints up to it, or too little to be solved "
+            "for, so the gate passed "
             f"{'it' if one else 'them'} as far as the joints tell (force_method in the "
             "timeline)")
 

@@ -349,8 +349,9 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
         '<div class="small muted">When: the incident\'s first alarm; the contact began '
         "before it, by the detectors' delay (`evaluate` measures it against labels). "
         "How hard: the force at the end of the link, where the "
-        "contact point is assumed (a contact nearer the joint is under-estimated by the "
-        "lever-arm ratio); in brackets the peak residual torque of each joint that fired. "
+        "contact point is assumed (a contact nearer the joint is usually under-estimated, "
+        "on link 1 by the lever-arm ratio); in brackets the peak residual torque of each "
+        "joint that fired. "
         f'<ul class="tight">{notes}</ul></div>')
 
 

@@ -115,8 +115,8 @@ def _smallest_force(result: DetectionResult, chain: tuple[str, ...],
         why = ("no kinematics are known" if not kin else
                f"the report computes it for planar arms only (this robot: {kin.get('type')})")
         return {"code": "smallest-force", "short": "", "data": {**data, "links": []},
-                "text": (f"{said}Smallest static force the static-loading thresholds "
-                         f"alone could catch at one posture: not stated — {why}. The "
+                "text": (f"{said}Static force the static-loading thresholds alone need "
+                         f"at one posture: not stated — {why}. The "
                          "static-loading "
                          f"thresholds as torques: {torques}.")}
     medians = samples.posture(result.warmup_end_s)
@@ -147,15 +147,15 @@ def _smallest_force(result: DetectionResult, chain: tuple[str, ...],
             p += (f" (joint {chain[r['any_joint'] - 1]} already alarms at "
                   f"~{approx(r['any_force_n'])} N, isolated to an inner link)")
         parts.append(p)
-    short = ", ".join(f"under ~{approx(r['own_force_n'])} N on link {r['link']} unseen"
+    short = ", ".join(f"static push ~{approx(r['own_force_n'])} N on link {r['link']}"
                       for r in rows if r["own_force_n"] is not None)
     return {"code": "smallest-force", "short": short,
             "data": {**data, "links": rows, "posture_rad": posture,
                      "posture_rule": "median after warm-up", "assumption": assumption},
-            "text": (f"{said}Smallest static force the static-loading thresholds alone "
-                     f"could catch — a lower bound, no promise that a larger one was caught: "
-                     f"{'; '.join(parts)}. Assumed: "
-                     f"{assumption}. A contact nearer the joint needs more (force × distance "
+            "text": (f"{said}Static force the static-loading thresholds alone need at one "
+                     f"posture, with the residual at zero: {'; '.join(parts)}. Assumed: "
+                     f"{assumption}. Where the residual already stands near its threshold "
+                     "less is needed; a contact nearer the joint needs more (force × distance "
                      "to the joint = vL), and so does one shorter than the low-pass takes to "
                      "settle; a short impact may also trip the adaptive detector, whose "
                      "threshold follows the motion.")}
