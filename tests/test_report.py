@@ -498,6 +498,10 @@ def test_could_not_see_on_a_planar_arm() -> None:
     assert sf["data"]["posture_rule"] == "median after warm-up"
     assert sf["data"]["posture_rad"]["j2"] == pytest.approx(q2)
     assert "link 1 (j1) ~1.0 N; link 2 (j2) ~2.0 N (joint j1 already alarms at" in sf["text"]
+    # what it is: the push the thresholds need with the residual at zero, not a lower bound
+    # of what went unseen (a new user read "link 1 ≥ 10 N" as one)
+    assert sf["short"] == "static push ~1.0 N on link 1, static push ~2.0 N on link 2"
+    assert "need at one posture, with the residual at zero" in sf["text"]
     assert "median posture after warm-up (j1 " in sf["text"]
     assert doc["summary"][0]["could_not_see"] == list(items)
 
