@@ -112,3 +112,18 @@ def _sorted(rows: list[tuple[Any, ...]]) -> list[tuple[Any, ...]]:
         return sorted(rows)
     except TypeError:  # a null beside a value in one column
         return sorted(rows, key=repr)
+
+
+def motion_residual(pos: Any, fs: float, rng: Any) -> tuple[Any, Any]:
+    """(r, u) of a synthetic arm moving along ``pos`` (n, J) [rad] at ``fs`` [Hz]: the
+    evaluator's inputs u = (tanh(50 q'), q'') by backward differences, and a residual of
+    Coulomb-like and inertial model error, white noise (``rng``) and an offset."""
+    import numpy as np
+
+    v = np.zeros_like(pos)
+    v[1:] = np.diff(pos, axis=0) * fs
+    acc = np.zeros_like(v)
+    acc[1:] = np.diff(v, axis=0) * fs
+    u = np.stack([np.tanh(50 * v), acc])
+    r = 0.3 * np.tanh(50 * v) + 0.002 * acc + 0.03 * rng.standard_normal(pos.shape) + 0.2
+    return r, u

@@ -17,7 +17,7 @@ from impactcli.config import AdaptiveConfig
 from impactcli.detect.adaptive import SIGNALS, AdaptiveResult, evaluate_chunk, join_chunks
 from impactcli.detect.axes import EvaluatorState
 
-from .helpers import SAMPLES, assist_impacts_pass
+from .helpers import SAMPLES, assist_impacts_pass, motion_residual
 from .reference.adaptive import evaluate
 
 FS = 250.0
@@ -124,12 +124,7 @@ def synthetic(seed: int = 0, n_s: float = 60.0, joints: int = 3):
     still = (t >= 10.0) & (t < 40.0)
     if still.any():
         pos[still, 1] = pos[np.flatnonzero(still)[0] - 1, 1]
-    v = np.zeros_like(pos)
-    v[1:] = np.diff(pos, axis=0) * FS
-    acc = np.zeros_like(v)
-    acc[1:] = np.diff(v, axis=0) * FS
-    u = np.stack([np.tanh(50 * v), acc])
-    r = 0.3 * np.tanh(50 * v) + 0.002 * acc + 0.03 * rng.standard_normal(pos.shape) + 0.2
+    r, u = motion_residual(pos, FS, rng)
     pulses = []
     for tp in (20.0, 50.0):
         m = (t >= tp) & (t < tp + 0.08)

@@ -9,6 +9,8 @@ import pytest
 
 from impactcli.detect.floor import FloorAccumulator
 
+from .helpers import motion_residual
+
 
 def _jac(q: np.ndarray, i: int) -> np.ndarray:
     """Constant link-end Jacobians: joints a and b turn every link; link 3 ends on joint c's
@@ -122,12 +124,7 @@ def test_a_blow_passes_the_adapting_filter_no_more_than_the_frozen_one() -> None
     n = int(40 * fs)
     t = np.arange(n) / fs
     pos = np.stack([0.8 * signal.sawtooth(2 * np.pi * t / p, 0.5) for p in (2.0, 2.6)], 1)
-    v = np.zeros_like(pos)
-    v[1:] = np.diff(pos, axis=0) * fs
-    acc = np.zeros_like(v)
-    acc[1:] = np.diff(v, axis=0) * fs
-    u = np.stack([np.tanh(50 * v), acc])
-    r = 0.3 * np.tanh(50 * v) + 0.002 * acc + 0.03 * rng.standard_normal(pos.shape) + 0.2
+    r, u = motion_residual(pos, fs, rng)
     cfg, vs = AdaptiveConfig(), np.full(2, 0.1)
     base, _ = evaluate_chunk(EvaluatorState.initial(2, cfg, fs), r, u, fs, vs, cfg)
     rates = base.rates
