@@ -81,8 +81,9 @@ def test_each_sample_takes_the_gain_of_g_hat_as_it_stood() -> None:
 
     assert GAIN_EVERY == 16
     th = np.array([[[0.0, 0.0]], [[1.0, 0.0]], [[0.5, 0.2]]])  # (S=3, J=1, eta=2)
-    g = pulse_gain(th[:, 0, :], 500.0, 0.9, 25)
+    g = pulse_gain(th[:, 0, :], 500.0, 0.9, 25).astype(np.float32).tolist()  # kept as float32
     out = gain_per_sample(th, 39, 10, 500.0, 0.9, 25, before=np.array([7.0]))
+    assert out.dtype == np.float32
     assert out[:, 0].tolist() == [7.0] * 6 + [g[0]] * 16 + [g[1]] * 16 + [g[2]]
     assert gain_per_sample(th[:0], 3, 1, 500.0, 0.9, 25, np.array([2.0]))[:, 0].tolist() \
         == [2.0, 2.0, 2.0]

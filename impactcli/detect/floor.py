@@ -123,13 +123,14 @@ def gain_per_sample(theta_g: np.ndarray, n: int, k0: int, sample_rate_hz: float,
     a multiple of :data:`GAIN_EVERY` (``theta_g`` (S, J, eta): the evaluator's
     snapshots there, :attr:`impactcli.detect.adaptive.AdaptiveResult.theta_g`); the
     samples before the chunk's first snapshot take ``before`` (J,) (the previous chunk's
-    last gain; None: the first snapshot's)."""
+    last gain; None: the first snapshot's). float32: the floor's bins are 5 % wide, and
+    the replay spills it with every sample when it has no thresholds yet."""
     th = np.asarray(theta_g, dtype=np.float64)
     if th.shape[0] == 0:
         if before is None:
             raise ValueError("a chunk without a snapshot of G_hat and no gain before it")
-        return np.broadcast_to(np.asarray(before, dtype=np.float64), (n, before.shape[0]))
-    g = pulse_gain(th, sample_rate_hz, a1, n1)  # (S, J)
+        return np.broadcast_to(np.asarray(before, dtype=np.float32), (n, before.shape[0]))
+    g = pulse_gain(th, sample_rate_hz, a1, n1).astype(np.float32)  # (S, J)
     off = (-k0) % GAIN_EVERY
     idx = (np.arange(n) - off) // GAIN_EVERY
     out = g[np.clip(idx, 0, g.shape[0] - 1)]
