@@ -277,3 +277,14 @@ def test_a_truncated_recording_is_judged_up_to_its_cut_and_said(tmp_path: Path) 
     assert r.exit_code == 0, r.output
     whole = json.loads((tmp_path / "w" / "assist_free_p2p.timeline.json").read_text())
     assert "truncated" not in whole["input"] and "truncated" not in r.stderr
+    # a log with contacts before its cut fails the gate: exit 1, and the cut's line says
+    # that a judged failure wins (it read "exit 5" beside exit 1)
+    hits = tmp_path / "hits.mcap"
+    data = (repo / "sample_logs" / "mcap" / "assist_impacts.mcap").read_bytes()
+    hits.write_bytes(data[: len(data) * 2 // 3])
+    r = CliRunner().invoke(main, ["detect", str(hits), "--config", str(config), "-o",
+                                  str(tmp_path / "h"), "--fail-on-detect"])
+    assert r.exit_code == 1, r.output
+    cut_line = [ln for ln in r.stderr.splitlines() if "could not judge the recording" in ln]
+    assert len(cut_line) == 1 and cut_line[0].endswith(
+        "; exit 5 — a judged failure wins: exit 1"), cut_line

@@ -239,8 +239,10 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     # judged: exit 1, each line saying why; asked to judge and could not: exit 5
     failing, unjudged = judge([o.findings for o in ok if o.findings is not None],
                               fail_on_detect=fail_on_detect, fail_on_force=fail_on_force)
-    for line in failing + unjudged:  # why the exit code, per log
+    for line in failing:  # why the exit code, per log
         click.echo(line, err=True)
+    for line in unjudged:  # a judged failure wins over "could not judge"
+        click.echo(line + (" — a judged failure wins: exit 1" if failing else ""), err=True)
     for line in gate_notes([o.findings for o in ok if o.findings is not None],
                            fail_on_detect=fail_on_detect, fail_on_force=fail_on_force):
         click.echo(line, err=True)  # what the exit code does not speak for
