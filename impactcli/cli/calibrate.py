@@ -313,10 +313,10 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     from ..detect.tail import per_hour_text as ph
 
     fa = c.false_alarm_rate or {}
-    from ..detect.tail import MAX_EXTRAPOLATION
+    from ..detect.tail import zero_count_bound
 
-    tail = ("" if not fa or fa["upper_per_hour"] >= (zero := fa["supported_per_hour"]
-                                                     * MAX_EXTRAPOLATION) else
+    tail = ("" if not fa or fa["upper_per_hour"] >= (zero := zero_count_bound(
+        fa["free_minutes"] / 60.0, fa["confidence"])) else
             f": the tail fits' extrapolation, where the free motion with no alarm bounds "
             f"{ph(zero)} by itself")
     rule = (f"v_stat and vL for {fa['per_hour']:g} false alarm(s) per hour, v0 by "

@@ -197,10 +197,16 @@ def rate_at(fit: TailFit, t: float, conf: float = CONF) -> tuple[float, float]:
 
 
 # ----------------------------------------------------------------------------- support
+def zero_count_bound(hours: float, conf: float = CONF) -> float:
+    """The rate [1/h] that ``hours`` of free motion with no alarm bound by themselves, at
+    ``conf``: −ln(1 − conf) / hours (no tail fit)."""
+    return -math.log(1.0 - conf) / hours
+
+
 def support(hours: float, conf: float = CONF) -> float:
     """The lowest rate [1/h] that ``hours`` of free motion support at ``conf``: the
     zero-count bound −ln(1 − conf) / hours, extrapolated at most MAX_EXTRAPOLATION×."""
-    return -math.log(1.0 - conf) / hours / MAX_EXTRAPOLATION
+    return zero_count_bound(hours, conf) / MAX_EXTRAPOLATION
 
 
 def minutes_needed(rate: float, conf: float = CONF) -> float:
@@ -214,7 +220,7 @@ def support_statement(hours: float, rate: float | None, conf: float = CONF) -> s
     rate asked)."""
     rs = support(hours, conf)
     per = f"1 per ~{1 / rs:.2g} h" if rs < 1 else f"{per_hour_text(rs)} per hour"
-    zero = rs * MAX_EXTRAPOLATION  # what no alarm in them bounds, without a tail fit
+    zero = zero_count_bound(hours, conf)  # what no alarm in them bounds, without a tail fit
     s = (f"{minutes_text(hours * 60)} min of free motion bound a false-alarm rate no lower "
          f"than {per} at {conf * 100:.0f} % confidence (with no alarm in them, "
          f"{per_hour_text(zero)} per hour; the tail fits reach at most "
@@ -231,7 +237,7 @@ def support_statement(hours: float, rate: float | None, conf: float = CONF) -> s
 def extrapolated_note(upper: float, hours: float, conf: float = CONF) -> str | None:
     """The note of a bound ``upper`` [1/h] that only the tail fits give: below what
     ``hours`` of free motion with no alarm bound by themselves (None when it is not)."""
-    zero = support(hours, conf) * MAX_EXTRAPOLATION
+    zero = zero_count_bound(hours, conf)
     if not upper < zero:
         return None
     return (f"the upper bound {per_hour_text(upper)} per hour rests on the tail fits' "
