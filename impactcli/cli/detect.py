@@ -430,6 +430,9 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
                    "the smaller of a step for the loading detector and a 100 ms blow for "
                    "the adaptive one (the timeline's detection_floor has both, per joint, "
                    "and the worst tenth); evaluate with labels measures what is caught")
+    if len(ok) == 1 and one.get("detection_floor_measured"):
+        click.echo(f"detection floor of {shown(ok[0].log_path)}, measured: "
+                   f"{one['detection_floor_measured']}")
     by_column = [o for o in ok if rows[o.log_path]["links"] == "column_order"
                  and (rows[o.log_path]["incident_list"] or loads[o.log_path])]
     if by_column:

@@ -270,6 +270,11 @@ class EvaluatorState:
 
 
 # ----------------------------------------------------------------------------- threads
+#: The state's arrays each axis advances on its own thread (axis first).
+_PER_AXIS = ("theta", "P", "r_lags", "v_lags", "filters", "ring_r", "ring_v", "sums",
+             "n_resets", "n_capped")
+
+
 @dataclass
 class AxisJob:
     """One submitted chunk: its (n, J) outputs (filled by the axes), per axis the state's
@@ -367,6 +372,34 @@ class AxisRunner:
         else:
             job.futures = [pool.submit(axis, j) for j, pool in enumerate(self._pools)]
         return job
+
+    def snapshot(self) -> Callable[[], EvaluatorState]:
+        """The state after every chunk submitted so far, without waiting for the axes: a
+        copy of each axis's rows is queued on that axis's thread behind its chunks (on the
+        calling thread when the axes run there), and the input lags are copied now (the
+        runner advanced them at submission). Returns a function that waits for the copies
+        and gives the state: the same bits as the state a replay stopped here would carry
+        (:mod:`impactcli.detect.probe`)."""
+        st = self.state
+        snap = dataclasses.replace(st, u_lags=st.u_lags.copy(), n_samples=self.n_samples,
+                                   **{k: np.empty_like(getattr(st, k)) for k in _PER_AXIS})
+
+        def axis(j: int) -> None:
+            for k in _PER_AXIS:
+                getattr(snap, k)[j] = getattr(st, k)[j]
+
+        if self._pools is None:
+            for j in range(st.n_joints):
+                axis(j)
+            return lambda: snap
+        futures = [pool.submit(axis, j) for j, pool in enumerate(self._pools)]
+
+        def wait() -> EvaluatorState:
+            for f in futures:
+                f.result()
+            return snap
+
+        return wait
 
     def close(self) -> None:
         """End the threads (after the jobs submitted)."""

@@ -406,6 +406,55 @@ def floor_line(floor: dict[str, Any] | None) -> str | None:
             + (f"; {busy}" if busy else ""))
 
 
+def probed_line(floor: dict[str, Any] | None) -> str | None:
+    """The measured floor (``floor["probed"]``, :mod:`impactcli.detect.probe`) in one
+    phrase, e.g. ``a 100 ms blow was caught from ~5.5 N on link 1 (~7.3 N at nine moments
+    in ten) — the median over 32 moments after warm-up, …`` — per link with forces, else
+    per joint with torques; at most :data:`MAX_LISTED` (the largest); None without it."""
+    probed = (floor or {}).get("probed")
+    if not probed:
+        return None
+    links = probed.get("per_link")
+    items = ([(f"link {row['link']}", row) for row in links] if links
+             else list(probed["per_joint"].items()))
+    key, unit = ("_n", "N") if links else ("_nm", "N·m")
+    parts: list[tuple[float, str]] = []
+    busy: list[str] = []
+    for where, row in items:
+        m, w = row.get("median" + key), row.get("worst_tenth" + key)
+        if m is not None:
+            parts.append((m, f"~{_approx(m)} {unit} on {where}" + (
+                "" if w is None and not row.get("uncaught") else
+                f" (~{_approx(w)} {unit} at nine moments in ten)" if w is not None
+                else f" (not caught at {row['uncaught']} of {row['probes']} moments)")))
+        elif row.get("probes", 0) and row.get("uncaught", 0) * 2 >= row["probes"]:
+            busy.append(f"{where} not caught at {row['uncaught']} of {row['probes']} "
+                        "moments, however large")
+        elif row.get("in_alarm"):
+            busy.append(f"{where} already alarming at {row['in_alarm']} of "
+                        f"{probed['probes']} moments (a blow joins that alarm)")
+    if not parts and not busy:
+        return None
+    shown = [p for _, p in parts]
+    if len(parts) > MAX_LISTED:
+        top = sorted(range(len(parts)), key=lambda i: -parts[i][0])[:MAX_LISTED]
+        shown = [parts[i][1] for i in sorted(top)]
+        shown.append(f"and less on the {len(parts) - MAX_LISTED} others (in the timeline)")
+    ms = 1000 * float((floor or {}).get("half_sine_s", HALF_SINE_S))
+    head = f"a {ms:g} ms blow was caught from " + ", ".join(shown) if shown else ""
+    return ("; ".join(x for x in (head, ", ".join(busy)) if x)
+            + f" — the median over {probed['probes']} moments after warm-up, each replayed "
+            "through both detectors from their own state there with the blow added to the "
+            "residual (detection_floor.probed in the timeline)")
+
+
+def floor_words(floor: dict[str, Any] | None) -> str | None:
+    """The floor as the report says it: :func:`floor_line`, then the measured one
+    (:func:`probed_line`) after "measured:"."""
+    parts = [x for x in (floor_line(floor), probed_line(floor)) if x]
+    return "; measured: ".join(parts) if parts else None
+
+
 def _smallest(row: dict[str, Any], key: str) -> float | None:
     vals = [row[d][key] for d in DETECTORS if isinstance(row.get(d), dict)
             and row[d].get(key) is not None]

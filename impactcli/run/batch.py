@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NotRequired, TypedDict
 
-from ..detect.floor import floor_line
+from ..detect.floor import floor_line, probed_line
 from ..detect.force import FORCE_NOT_STATED
 from ..errors import (
     EXIT_DATA,
@@ -142,6 +142,7 @@ class SummaryRow(TypedDict):
     links: str
     torque_scale: str
     detection_floor: str | None
+    detection_floor_measured: str | None
     warmup_end_s: float
     generators: dict[str, str]
     generator_reasons: dict[str, str]
@@ -366,6 +367,7 @@ def _summary(job: DetectJob, result: DetectionResult) -> SummaryRow:
         "links": "robot" if (result.model or {}).get("robot") else "column_order",
         "torque_scale": (result.torque_scale or {}).get("verdict", "no_description"),
         "detection_floor": floor_line(result.detection_floor),
+        "detection_floor_measured": probed_line(result.detection_floor),
         "warmup_end_s": result.warmup_end_s,
         "generators": {j: g["generator"] for j, g in result.generators.items()},
         "incidents": len(result.counted_incidents()),

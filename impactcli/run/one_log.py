@@ -62,6 +62,15 @@ from ..detect.incidents import (
 )
 from ..detect.link_evidence import ResidualNoise
 from ..detect.payload_change import mark_tried
+from ..detect.probe import (
+    MAX_STATE_BYTES,
+    PROBES,
+    ProbeRecorder,
+    probe_indices,
+    probe_window,
+    probed_floor,
+)
+from ..detect.rates import resolve_rates
 from ..detect.thresholds import compare_to_thresholds
 from ..detect.warmup import Warmup, WarmupTracker
 from ..errors import ConfigError, ImpactWarning
@@ -167,7 +176,8 @@ class Replayed:
     """What a replay pass leaves: the warm-up and each joint's warm-up end [s], the (G, 2)
     times [s] of the samples at and just after each gap, the last chunk's evaluator result
     (its final filter), the threshold inputs' source and how they were made, and (J,) the
-    largest |torque| logged per joint [N·m] (NaN where none is finite)."""
+    largest |torque| logged per joint [N·m] (NaN where none is finite), and the probes of
+    the measured floor (:mod:`impactcli.detect.probe`)."""
 
     warmup: Warmup
     warmup_times: list[float]
@@ -176,6 +186,20 @@ class Replayed:
     reference: str
     detail: str
     torque_peak: np.ndarray
+    probes: ProbeRecorder | None = None
+
+
+def probe_recorder(plan: RunPlan, n_samples: int, sample_rate_hz: float) -> ProbeRecorder:
+    """The measured floor's probes (:mod:`impactcli.detect.probe`): after the warm-up's
+    earliest possible end (``warmup.min_s``; those that fall before the end found are
+    dropped, :func:`detect_log`), as many as the kept states' bytes allow."""
+    cfg = plan.cfg
+    rates = resolve_rates(cfg.adaptive, sample_rate_hz)
+    window = probe_window(sample_rate_hz, rates.n1, rates.a1)
+    hold = math.ceil(cfg.warmup.min_s * sample_rate_hz) + 1
+    nu = cfg.adaptive.n_params(len(plan.joints))
+    count = min(PROBES, MAX_STATE_BYTES // max(1, 8 * len(plan.joints) * nu * nu))
+    return ProbeRecorder(probe_indices(n_samples, hold, window, count), window)
 
 
 def replay_passes(feed: ChunkFeed, plan: RunPlan, on_step: Callable[[ReplayStep], None],
@@ -193,13 +217,16 @@ def replay_passes(feed: ChunkFeed, plan: RunPlan, on_step: Callable[[ReplayStep]
     last: list[Any] = [None, "", ""]
     peak = np.full(len(plan.joints), np.nan)
     gain_before: list[np.ndarray | None] = [None]  # the last sample's, for the next chunk
-    rp = Replayer(setup, ReplayState.initial(setup), where=plan.where, consume=True)
+    probes = probe_recorder(plan, n, scan.sample_rate_hz)
+    rp = Replayer(setup, ReplayState.initial(setup), where=plan.where, consume=True,
+                  probes=probes)
 
     def steps(done: list[tuple[Any, ChunkReplay]]) -> None:
         for (ch, t, a), out in done:
             ad = out.adaptive
             last[:] = [ad, out.inputs_source, out.inputs_detail]
             k0 = ch.start
+            probes.posture(k0, np.asarray(ch.position))
             tracker.update(ad.prediction_error, t)
             tau = np.abs(np.asarray(a.torque, dtype=np.float64))
             if tau.size:
@@ -232,7 +259,8 @@ def replay_passes(feed: ChunkFeed, plan: RunPlan, on_step: Callable[[ReplayStep]
         passes.next()
     assert last[0] is not None
     peak[~np.isfinite(peak)] = np.nan
-    return Replayed(wu, tracker.times_at(wu.index), gap_times, last[0], last[1], last[2], peak)
+    return Replayed(wu, tracker.times_at(wu.index), gap_times, last[0], last[1], last[2], peak,
+                    probes)
 
 
 def warn_replayed(caught: CaughtWarnings, since: int, plan: RunPlan, feed: ChunkFeed,
@@ -346,6 +374,14 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
                                   posture_text(share.posture), share.note)
         floor = floor_acc.finish(rp.warmup.index, rp.warmup.end_index, joints, ctx.chain,
                                  ctx.index, ctx.chain_cols, ctx.jac)
+        if rp.probes is not None and (probed := probed_floor(
+                [p for p in rp.probes.done() if p.k >= rp.warmup.end_index],
+                thr["adaptive"], thr["static_loading"],
+                scan.sample_rate_hz,
+                (cfg.static_loading.cutoff_hz, cfg.static_loading.order), joints,
+                math.ceil(cfg.events.min_duration_s * scan.sample_rate_hz - 1e-9) + 1,
+                ctx.chain, ctx.index, ctx.chain_cols, ctx.jac)) is not None:
+            floor = {**floor, "probed": probed}
         left_out = moved_unchecked(plan.left_out, scan.log.joint_names,
                                    scan.ranges.get("position"))
         moved = [x for x in left_out if "travel_rad" in x]

@@ -37,6 +37,7 @@ from ..detect.adaptive import (
     result_of,
 )
 from ..detect.axes import AxisJob, AxisRunner
+from ..detect.probe import ProbeRecorder
 from ..detect.static import causal_lowpass as loading_lowpass
 from ..errors import ModelError
 from ..model.causal import Carry
@@ -238,8 +239,10 @@ class Replayer:
 
     def __init__(self, setup: ReplaySetup, state: ReplayState, *, where: str = "",
                  consume: bool = False, ahead: int = AHEAD,
-                 progress: Callable[[int, int], None] | None = None) -> None:
+                 progress: Callable[[int, int], None] | None = None,
+                 probes: ProbeRecorder | None = None) -> None:
         self.setup, self.where, self.ahead, self.progress = setup, where, ahead, progress
+        self.probes = probes
         self._st = state if consume else state.copy()
         self._runner = AxisRunner(self._st.evaluator, np.zeros(len(setup.joint_names)),
                                   setup.threads)
@@ -256,24 +259,32 @@ class Replayer:
         cfg, sample_rate_hz, dt = setup.cfg, setup.sample_rate_hz, setup.sample_period_s
         n = chunk.n_samples
         out: list[tuple[Any, ChunkReplay]] = []
-        for a in range(0, max(n, 1), PART_SAMPLES):
-            part = _part(chunk, a, min(a + PART_SAMPLES, n)) if n > PART_SAMPLES else chunk
+        cuts = sorted({*range(0, max(n, 1), PART_SAMPLES), *(
+            [] if self.probes is None else
+            [k - self._k for k in self.probes.cuts(self._k, self._k + n)])})
+        for a, b in zip(cuts, [*cuts[1:], n], strict=True):
+            part = _part(chunk, a, b) if (a, b) != (0, n) else chunk
+            if self.probes is not None:  # the evaluator's state before a probed sample
+                self.probes.take(self._k, self._runner.snapshot())
             r = residual_columns(setup, part, carry.scoped("residual."), self.where)
             if setup.monitor is not None:  # a payload change: the residual takes the load
                 r = setup.monitor.process(self._k, part.time_s, part.position, r)
+            k_part = self._k
             self._k += part.n_samples
             inputs = inputs_chunk(part, part.time_s, sample_rate_hz, cfg.adaptive,
                                   carry.scoped("inputs."), self.where)
             job = self._runner.submit(np.ascontiguousarray(r, dtype=np.float64),
                                       np.ascontiguousarray(inputs.u, dtype=np.float64))
             sl = cfg.static_loading  # while the axes run
-            loading = np.abs(loading_lowpass(r, sl.cutoff_hz, sample_rate_hz, sl.order,
-                                             carry.scoped("static.")))
+            lp = loading_lowpass(r, sl.cutoff_hz, sample_rate_hz, sl.order,
+                                 carry.scoped("static."))
+            loading = np.abs(lp)
+            if self.probes is not None:
+                self.probes.feed(k_part, r, inputs.u, lp)
             qd = causal_velocity(dt, part.position, min(SPEED_CUTOFF_HZ, 0.2 / dt),
                                  carry.scoped("speed."), "q")
             self._inputs = (inputs.source, inputs.detail)
-            self._pending.append(_Part(tag, a + PART_SAMPLES >= n, r, inputs, loading, qd,
-                                       job))
+            self._pending.append(_Part(tag, b >= n, r, inputs, loading, qd, job))
             while len(self._pending) > self.ahead:
                 out += self._collect()
         return out

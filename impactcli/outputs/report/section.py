@@ -16,7 +16,7 @@ from __future__ import annotations
 from typing import Any
 
 from ...config import settings_changed
-from ...detect.floor import floor_line
+from ...detect.floor import floor_words
 from ...detect.tail import calibration_text
 from ...logs.paths import log_stem
 from ...types import DETECTORS, DetectionResult, Labels
@@ -70,7 +70,7 @@ def log_section(result: DetectionResult, labels: Labels | None,
                            lasting_loads=tl["lasting_loads"],
                            analysed_s=max(result.log.duration_s + period
                                           - result.warmup_end_s, 0.0),
-                           floor=floor_line(result.detection_floor),
+                           floor=floor_words(result.detection_floor),
                            unchecked=[x for x in tl["input"]["joints_left_out"]
                                       if "travel_rad" in x],
                            payload_changes=tl.get("payload_changes") or ())

@@ -163,7 +163,8 @@ def verdict_text(incidents: Sequence[dict[str, Any]], *, known: bool = True,
         analysed_s: the time after warm-up analysed [s] (None: not known); 0 with
             nothing counted is "not judged", not "no incident".
         floor: the run's detection floor in words (:func:`impactcli.detect.floor.
-            floor_line`), said after "No incident" (what "none" could not have seen).
+            floor_words`: the lower bound, then the measured one), said after "No incident"
+            (what "none" could not have seen).
         unchecked: the joints that moved but were left out of detection (timeline
             ``input.joints_left_out`` items with ``travel_rad``), named at the end.
         payload_changes: the timeline's ``payload_changes``: said, not counted.

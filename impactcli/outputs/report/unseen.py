@@ -20,7 +20,7 @@ import numpy as np
 
 from ...config import settings_changed
 from ...detect.envelope import outside_share_text, posture_text
-from ...detect.floor import floor_line
+from ...detect.floor import floor_words
 from ...detect.force import planar_jacobian, smallest_caught_force
 from ...types import DetectionResult
 from .common import approx, e, share
@@ -108,7 +108,7 @@ def _smallest_force(result: DetectionResult, chain: tuple[str, ...],
     torques = ", ".join(f"{j} {approx(v)} N·m" for j, v in vl_nm.items() if v is not None)
     data: dict[str, Any] = {"kinematics": (kin or {}).get("type"), "vL_nm": vl_nm}
     # the run's detection floor, as detect prints it (over the whole log, both detectors)
-    floor = floor_line(result.detection_floor)
+    floor = floor_words(result.detection_floor)
     said = ("" if floor is None else
             f"Detection floor (as detect states it, over the log after warm-up): {floor}. ")
     if not kin or kin.get("type") != "planar" or not kin.get("link_lengths"):
