@@ -241,7 +241,8 @@ def test_exit_5_is_documented() -> None:
 
 def test_a_truncated_recording_is_judged_up_to_its_cut_and_said(tmp_path: Path) -> None:
     """A sample MCAP cut at two thirds (a recorder killed): detect reads what came before
-    the cut and warns; the timeline says ``input.truncated``; a gate could not judge what
+    the cut and warns; the timeline says ``input.truncated`` and the terminal's table row
+    ``cut`` beside the duration; a gate could not judge what
     the file does not hold (exit 5, one line naming the cut); the report's verdict and its
     "could not see" list say so. The whole file says none of it."""
     from click.testing import CliRunner
@@ -260,6 +261,9 @@ def test_a_truncated_recording_is_judged_up_to_its_cut_and_said(tmp_path: Path) 
     end = tl["input"]["duration_s"]
     assert tl["input"]["truncated"] is True and tl["counts"]["incidents"]["counted"] == 0
     assert r.exit_code == 5, r.output
+    row = [ln for ln in r.stdout.splitlines() if ln.startswith("cut.mcap ")]
+    assert len(row) == 1 and f"{end:.1f} cut" in row[0], r.stdout  # the table's row says it
+    assert "(cut: the file is truncated — its recording went on after that;" in r.stdout
     assert (f"impactcli: cut.mcap: --fail-on-detect could not judge the recording after "
             f"{end:.3f} s: the file is truncated (its records end early), so what was "
             "recorded after that is not in it; exit 5") in r.stderr.splitlines()
@@ -277,6 +281,7 @@ def test_a_truncated_recording_is_judged_up_to_its_cut_and_said(tmp_path: Path) 
     assert r.exit_code == 0, r.output
     whole = json.loads((tmp_path / "w" / "assist_free_p2p.timeline.json").read_text())
     assert "truncated" not in whole["input"] and "truncated" not in r.stderr
+    assert "(cut:" not in r.stdout
     # a log with contacts before its cut fails the gate: exit 1, and the cut's line says
     # that a judged failure wins (it read "exit 5" beside exit 1)
     hits = tmp_path / "hits.mcap"

@@ -35,7 +35,8 @@ PRODUCT_DETECTORS = ("adaptive", "static_loading")
 
 def _fmt_row(s: SummaryRow, lasting: int) -> str:
     cal = "yes" if s["calibrated"] else "no"
-    return (f"{shown(s['log']):<36} {s['duration_s']:>9.1f} {cal:>10} "
+    dur = f"{s['duration_s']:.1f}" + (" cut" if s.get("truncated") else "")
+    return (f"{shown(s['log']):<36} {dur:>9} {cal:>10} "
             f"{s['warmup_end_s']:>7.2f} {s['incidents']:>9} {lasting:>7} | "
             f"{s['adaptive']:>8} {s['static_loading']:>8} {s['static_baseline']:>8}")
 
@@ -376,6 +377,9 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
         click.echo(_fmt_row(rows[o.log_path], len(loads[o.log_path])))
     if len(ok) > MAX_ROWS:
         click.echo(f"... {len(ok) - MAX_ROWS} more logs (all of them in --summary)")
+    if any(rows[o.log_path].get("truncated") for o in ok[:MAX_ROWS]):
+        click.echo("(cut: the file is truncated — its recording went on after that; what "
+                   "came before is analysed, the gates could not judge the rest)")
     gens = {tuple(sorted(rows[o.log_path]["generators"].items())) for o in ok}
     if len(gens) == 1:
         click.echo("residual generator: " + _generators_line(one))

@@ -137,6 +137,7 @@ class SummaryRow(TypedDict):
     model_source: str
     model_sha256: str | None
     duration_s: float
+    truncated: NotRequired[bool]
     joints: int
     calibrated: bool
     links: str
@@ -356,7 +357,7 @@ def _summary(job: DetectJob, result: DetectionResult) -> SummaryRow:
     """The batch summary's row of one log."""
     log = result.log
     counted = result.summary()
-    return {
+    row: SummaryRow = {
         "log": job.log_path,
         "sha256": log.source.sha256,
         "model_source": result.model_source,
@@ -385,6 +386,9 @@ def _summary(job: DetectJob, result: DetectionResult) -> SummaryRow:
         "static_loading": counted["static_loading"]["events"],
         "static_baseline": counted["static_baseline"]["events"],
     }
+    if log.source.truncated:
+        row["truncated"] = True
+    return row
 
 
 def events_of(row: SummaryRow) -> dict[str, int]:
