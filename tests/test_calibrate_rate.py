@@ -480,3 +480,31 @@ def test_a_log_left_out_above_its_bound_is_named_where_the_rate_is_stated(
         "Left out of the calibration in turn, 1 of its logs false-alarmed above the bound "
         "the other logs' fit gave (assist_free_triangle.csv.gz at 778 per hour (at least "
         "387) against 30)")
+
+
+def test_an_upper_bound_only_the_tail_fits_give_is_said_so(tmp_path: Path) -> None:
+    """One short free log (0.45 min after warm-up) under the leave-one-out margin rule: the
+    fits' upper bound (39 per hour) lies below what that free motion with no alarm bounds
+    by itself (−ln(0.1) / hours ≈ 307 per hour), so it rests on the tail fits'
+    extrapolation. Said on calibrate's first line, in a note under the rate line, and in
+    the config it writes (read back); the numbers are the config's own."""
+    out = tmp_path / "one.toml"
+    r = invoke("calibrate", str(CSV / "assist_free_p2p.csv.gz"), "--robot",
+               str(CSV / "assist_free_p2p.robot.json"), "-o", str(out))
+    assert r.exit_code == 0, r.output
+    rate = load_config(out).calibration.false_alarm_rate
+    hours = rate["free_minutes"] / 60.0
+    zero = -math.log(1.0 - rate["confidence"]) / hours
+    upper = rate["upper_per_hour"]
+    assert upper < zero
+    lines = r.stdout.splitlines()
+    first = re.search(r"upper bound ([0-9.]+): the tail fits' extrapolation, where the free "
+                      r"motion with no alarm bounds ([0-9.]+) by itself", lines[0])
+    assert first is not None, lines[0]
+    assert float(first.group(1)) == pytest.approx(upper, rel=0.05)
+    assert float(first.group(2)) == pytest.approx(zero, rel=0.01)
+    note = (f"the upper bound {first.group(1)} per hour rests on the tail fits' extrapolation: "
+            f"{rate['free_minutes']:.2f} min of free motion with no alarm bound "
+            f"{first.group(2)} per hour by themselves")
+    assert f"  note: {note}" in lines
+    assert rate["notes"] == [note]
