@@ -471,6 +471,7 @@ def test_a_pick_and_a_release_are_payload_changes_not_contacts(
     # (1 kg) is no calibration log's (1.2 kg): the weighed step is taken as it is
     assert "as_log" not in ch[0] and ch[0]["mass_after_kg"] == ch[0]["mass_kg"]
     assert ch[1]["as_log"].endswith("light.csv.gz") and ch[1]["mass_after_kg"] == 0.0
+    assert not [c for c in ch if "mass_check" in c]  # it released what it picked
     counted = [i for i in tl["incidents"] if i["number"] is not None]
     for c in ch:  # no counted incident starts from a change's onset to its classification
         assert not [i for i in counted if c["t_start"] - 0.05 <= i["t_start"]
@@ -1043,6 +1044,31 @@ def test_a_load_lighter_than_the_models_is_said_as_such() -> None:
     assert carrying_text({"mass_after_kg": 0.996}) == "+0.996 kg beyond the model's load"
     assert carrying_text({"mass_after_kg": 0.0, "as_log": "a.csv"}) == (
         "+0 kg beyond the model's load: a.csv's load, as fitted")
+
+
+def test_a_release_of_more_than_was_seen_carried_is_said() -> None:
+    """Known truth by bookkeeping: the load an arm carries cannot fall below what it was
+    seen with unless the model's own load held it. A 1 kg release back to the model's
+    load (after −0.1 kg, within a quarter of the step) and a release to the start's own
+    light load are not flagged; the new user's −4.06 kg release on an arm that started
+    at the model's load is, with why, and differently when the start was not weighed."""
+    from impactcli.detect.payload_change import carrying_text, mass_check
+
+    assert mass_check(-1.0, 0.01, 0.0, -0.1) is None
+    assert mass_check(-1.0, 0.01, -1.2, -1.25) is None  # the start was lighter: seen
+    assert mass_check(+1.0, 0.01, 0.0, -3.0) is None  # a pick takes nothing off
+    assert mass_check(-4.06, 0.5, 0.0, -0.3) is None  # 0.3 kg short: within a quarter
+    words = mass_check(-4.06, 0.05, 0.0, -4.06)
+    assert words is not None and words.startswith(
+        "released 4.06 kg, 4.06 kg more than the log was seen to carry (the least load it "
+        "was seen with: +0 kg beyond the model's) — possible only if the calibration's "
+        "lightest log carried that much")
+    assert words.endswith("this mass cannot be trusted")
+    assert mass_check(-1.0, 0.5, 0.0, -1.0) is None  # 1 kg under 3 s.e. of 0.5 kg
+    unweighed = mass_check(-4.06, 0.05, 0.0, -4.06, start_weighed=False)
+    assert unweighed is not None and "the load the log started with was not weighed" in unweighed
+    assert carrying_text({"mass_after_kg": -4.06, "mass_check": words}) == (
+        f"4.06 kg less than the model's load ({words})")
 
 
 def test_torque_sources_are_judged_with_a_payload_per_log(logs: dict[str, Path],

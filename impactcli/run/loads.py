@@ -306,7 +306,8 @@ def monitor_for(plan: Any, given: dict[str, np.ndarray] | None,
         cfg.static_loading.order, float(cfg.warmup.min_s),
         settle_s(cfg.static_loading.cutoff_hz, cfg.adaptive.n2_s),
         payload.reach_m(model), base_kg=float(pi0[bb[1].index("m")]),
-        known=known_loads(model, bb[1], pi0), merge_gap_s=float(cfg.events.merge_gap_s))
+        known=known_loads(model, bb[1], pi0), merge_gap_s=float(cfg.events.merge_gap_s),
+        start_weighed=start is not None and start.verdict in ("used", "same"))
 
 
 def start_pi(model: RigidModel, names: tuple[str, ...], start: StartLoad | None,
