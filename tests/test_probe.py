@@ -105,6 +105,8 @@ def test_probes_spread_after_the_warm_up_and_fit_in_the_log() -> None:
     assert k.size == 32 and k[0] >= 1_000 and k[-1] + 200 <= 10_000
     assert np.all(np.diff(k) > 200)
     assert probe_indices(1_300, 1_000, 200).size == 0  # no room after the warm-up
+    few = probe_indices(2 * 58 + 100, 100, 58)  # a short log: fewer, a window apart
+    assert few.size == 1
 
 
 def test_the_amplitude_found_is_what_a_whole_log_replay_catches() -> None:
@@ -183,22 +185,64 @@ def test_a_blow_adds_its_own_response_to_the_loading_statistic() -> None:
 
 
 def test_the_words_say_what_was_measured_and_what_was_not_judged() -> None:
+    """The line says a median is where half the moments judged caught the blow, how many
+    moments were judged of those probed, and what was not judged; a link ending on its
+    joint's axis by its joint's torque."""
     row = {"median_n": 5.46, "worst_tenth_n": 7.33, "probes": 31, "in_alarm": 1,
            "uncaught": 0}
     floor = {"half_sine_s": 0.1, "probed": {
-        "probes": 32, "window_s": 0.2, "per_joint": {},
+        "probes": 32, "window_s": 0.2,
+        "per_joint": {"c": {"median_nm": 0.93, "worst_tenth_nm": 1.1, "probes": 32,
+                            "in_alarm": 0, "uncaught": 0}},
         "per_link": [{"link": 1, "joint": "a", **row},
                      {"link": 2, "joint": "b", "median_n": None, "worst_tenth_n": None,
-                      "probes": 30, "in_alarm": 2, "uncaught": 20}]}}
+                      "probes": 30, "in_alarm": 2, "uncaught": 20},
+                     {"link": 3, "joint": "c", "median_n": None, "worst_tenth_n": None,
+                      "probes": 0, "in_alarm": 0, "uncaught": 0, "no_lever": True,
+                      "own_joint": "c"}]}}
     line = probed_line(floor)
     assert line is not None
-    assert line.startswith("a 100 ms blow was caught from ~5.5 N on link 1 (~7.3 N at nine "
-                           "moments in ten)")
-    assert "link 2 not caught at 20 of 30 moments, however large" in line
-    assert "the median over 32 moments after warm-up" in line
+    assert line.startswith("a 100 ms blow was caught at half the moments judged from ~5.5 N "
+                           "on link 1 (at nine in ten from ~7.3 N; 31 of 32 judged), ~0.93 "
+                           "N·m on c (link 3 ends on its axis) (at nine in ten from ~1.1 N·m)"
+                           "; on link 2, no blow however large was caught at 20 of 30 "
+                           "moments judged — 32 moments probed after warm-up"), line
+    assert "one where a detector was already alarming is not judged" in line
     per_joint = {"probes": 32, "window_s": 0.2, "per_link": None, "per_joint": {
         "a": {"median_nm": None, "worst_tenth_nm": None, "probes": 0, "in_alarm": 32,
               "uncaught": 0}}}
-    assert probed_line({"half_sine_s": 0.1, "probed": per_joint}).startswith(
-        "a already alarming at 32 of 32 moments (a blow joins that alarm)")
+    assert probed_line({"half_sine_s": 0.1, "probed": per_joint}).startswith(  # type: ignore[union-attr]
+        "on a, a detector was already alarming at 32 of 32 moments (none judged) — ")
     assert probed_line({"half_sine_s": 0.1}) is None
+
+
+def test_a_probe_is_caught_as_the_events_make_an_event() -> None:
+    """With a least duration, a blow is caught where the events would make an event of the
+    joint's decision (runs merged across the merge gap, lasting the least duration): the
+    same answer as extract_events on random decisions."""
+    from impactcli.detect.events import extract_events
+    from impactcli.detect.probe import _caught
+
+    rng = np.random.default_rng(5)
+    t = np.arange(120) / 1000.0
+    for _ in range(300):
+        d = rng.random((120, 1)) < rng.uniform(0.02, 0.3)
+        gap, least = float(rng.choice([0.0, 0.002, 0.005])), float(rng.choice([0.003, 0.008]))
+        ev = extract_events("adaptive", d, d.astype(float), d.astype(float), t, ("a",), 0.0,
+                            gap, least)
+        assert bool(_caught(d, 1000.0, (gap, least))[0]) is bool(ev), (gap, least)
+
+
+def test_a_joint_no_adaptive_threshold_checks_is_judged_by_the_loading_one() -> None:
+    """A joint with an infinite v_stat has no adaptive figure and is not "in alarm": its
+    blows are judged by the static-loading detector alone."""
+    cfg = AdaptiveConfig()
+    r, u = _moving()
+    v_stat, v_l = _thresholds(r, u, cfg)
+    base, _ = evaluate_chunk(EvaluatorState.initial(2, cfg, FS), r, u, FS, v_stat, cfg)
+    window = probe_window(FS, base.rates.n1, base.rates.a1)
+    ans = probe_amplitudes(_probe(r, u, cfg, int(30 * FS), window),
+                           np.array([v_stat[0], np.inf]), v_l, FS, LOADING)
+    assert np.isfinite(ans.adaptive[0]) and np.isnan(ans.adaptive[1])
+    assert not ans.product_alarm.any() and not ans.adaptive_alarm.any()
+    assert np.isfinite(ans.product[1]) and ans.product[1] > 0

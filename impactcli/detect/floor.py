@@ -408,31 +408,45 @@ def floor_line(floor: dict[str, Any] | None) -> str | None:
 
 def probed_line(floor: dict[str, Any] | None) -> str | None:
     """The measured floor (``floor["probed"]``, :mod:`impactcli.detect.probe`) in one
-    phrase, e.g. ``a 100 ms blow was caught from ~5.5 N on link 1 (~7.3 N at nine moments
-    in ten) — the median over 32 moments after warm-up, …`` — per link with forces, else
-    per joint with torques; at most :data:`MAX_LISTED` (the largest); None without it."""
+    phrase, e.g. ``a 100 ms blow was caught at half the moments judged from ~5.5 N on link
+    1 (at nine in ten from ~7.3 N; 31 of 32 judged) … — 32 moments probed after warm-up,
+    …`` — per link with forces (a link ending on its joint's axis by that joint's torque),
+    else per joint with torques; at most :data:`MAX_LISTED` (the largest); None without
+    it. A median is what about half the blows of its size reach, not a size from which all
+    are caught, and the moments where a detector already alarmed are not judged: both
+    are said."""
     probed = (floor or {}).get("probed")
     if not probed:
         return None
+    total = int(probed["probes"])
+    per_joint = probed.get("per_joint", {})
     links = probed.get("per_link")
-    items = ([(f"link {row['link']}", row) for row in links] if links
-             else list(probed["per_joint"].items()))
-    key, unit = ("_n", "N") if links else ("_nm", "N·m")
+    items: list[tuple[str, dict[str, Any], str]] = []
+    for row in links or ():
+        if row.get("no_lever") and isinstance(per_joint.get(row.get("own_joint")), dict):
+            items.append((f"{row['own_joint']} (link {row['link']} ends on its axis)",
+                          per_joint[row["own_joint"]], "_nm"))
+        elif not row.get("no_lever"):
+            items.append((f"link {row['link']}", row, "_n"))
+    if not links:
+        items = [(name, row, "_nm") for name, row in per_joint.items()]
     parts: list[tuple[float, str]] = []
     busy: list[str] = []
-    for where, row in items:
+    for where, row, key in items:
+        unit = "N" if key == "_n" else "N·m"
         m, w = row.get("median" + key), row.get("worst_tenth" + key)
+        judged = int(row.get("probes", 0))
+        of = "" if judged == total else f"; {judged} of {total} judged"
         if m is not None:
-            parts.append((m, f"~{_approx(m)} {unit} on {where}" + (
-                "" if w is None and not row.get("uncaught") else
-                f" (~{_approx(w)} {unit} at nine moments in ten)" if w is not None
-                else f" (not caught at {row['uncaught']} of {row['probes']} moments)")))
-        elif row.get("probes", 0) and row.get("uncaught", 0) * 2 >= row["probes"]:
-            busy.append(f"{where} not caught at {row['uncaught']} of {row['probes']} "
-                        "moments, however large")
+            nine = (f"at nine in ten from ~{_approx(w)} {unit}" if w is not None else
+                    f"not caught at {row.get('uncaught', 0)} of {judged} however large")
+            parts.append((m, f"~{_approx(m)} {unit} on {where} ({nine}{of})"))
+        elif judged and row.get("uncaught", 0) * 2 >= judged:
+            busy.append(f"on {where}, no blow however large was caught at "
+                        f"{row['uncaught']} of {judged} moments judged")
         elif row.get("in_alarm"):
-            busy.append(f"{where} already alarming at {row['in_alarm']} of "
-                        f"{probed['probes']} moments (a blow joins that alarm)")
+            busy.append(f"on {where}, a detector was already alarming at "
+                        f"{row['in_alarm']} of {total} moments (none judged)")
     if not parts and not busy:
         return None
     shown = [p for _, p in parts]
@@ -441,11 +455,13 @@ def probed_line(floor: dict[str, Any] | None) -> str | None:
         shown = [parts[i][1] for i in sorted(top)]
         shown.append(f"and less on the {len(parts) - MAX_LISTED} others (in the timeline)")
     ms = 1000 * float((floor or {}).get("half_sine_s", HALF_SINE_S))
-    head = f"a {ms:g} ms blow was caught from " + ", ".join(shown) if shown else ""
-    return ("; ".join(x for x in (head, ", ".join(busy)) if x)
-            + f" — the median over {probed['probes']} moments after warm-up, each replayed "
-            "through both detectors from their own state there with the blow added to the "
-            "residual (detection_floor.probed in the timeline)")
+    said = ([f"a {ms:g} ms blow was caught at half the moments judged from "
+             + ", ".join(shown)] if shown else []) + busy
+    return ("; ".join(said) + f" — {total} moments probed after warm-up, each replayed "
+            f"with a {ms:g} ms blow added to the residual through both detectors from "
+            "their own state, and judged within its window; one where a detector was "
+            "already alarming is not judged (a blow there joins that alarm); "
+            "detection_floor.probed in the timeline")
 
 
 def floor_words(floor: dict[str, Any] | None) -> str | None:

@@ -10,33 +10,42 @@ is done, are dropped):
 
 1. **The state.** The replay keeps the evaluator's state as it stood before each probed
    sample k (:meth:`impactcli.detect.axes.AxisRunner.snapshot`: the same bits the log's
-   own replay carries there), and the residual r and threshold inputs u of the
-   :func:`probe_window` samples from k.
+   own replay carries there), and the residual r, threshold inputs u and signed
+   static-loading low-pass LP(r) of the :func:`probe_window` samples from k.
 2. **The blow.** A half-sine of :data:`~impactcli.detect.floor.HALF_SINE_S` with amplitude
    A_j [N·m] is added to each joint's residual from k (every joint at once: the axes are
    independent, eq. 34–35), with the sign alternating from one probe to the next, and the
    window is replayed from the state through the whole evaluator — the RLS adapting, G_hat,
    F1, F2, the RMS windows and the dynamic threshold (eq. 26–42) — against the run's own
-   v_stat. The blow is **caught** on joint j when the adaptive decision (eq. 42) is on
-   within the window for at least the events' least duration.
+   v_stat; for the static-loading detector LP(r) + A_j h, h the low-pass's response to
+   the pulse from rest (exact: the filter is linear), against vL. The blow is **caught**
+   by a detector on joint j when its decision makes an event within the window as the
+   events make them (runs merged across the merge gap, lasting the least duration:
+   :func:`_caught`) — within the window only: an alarm the blow's mark on the RLS raises
+   later is not counted.
 3. **The amplitude.** Per joint, from the frozen-G_hat bound at k, the amplitude is
-   doubled until the blow is caught (halved until it is missed, when the bound is caught
-   already; up to :data:`MAX_DOUBLINGS` times), then bisected
+   doubled until the adaptive detector catches the blow (halved until it misses it, when
+   the bound is caught already; up to :data:`MAX_DOUBLINGS` times), then bisected
    :data:`BISECTIONS` times on a log scale between the last amplitude missed and the first
-   caught: ``caught_nm`` is the smallest amplitude found caught (within 2^(1/2^BISECTIONS)
-   of the crossing), an upper figure at that moment. A joint whose decision is already on
-   in the window without a blow is ``in_alarm`` at that probe (a blow joins that alarm);
-   one never caught up to the last doubling is ``uncaught``.
+   caught: the smallest amplitude found caught (within 2^(1/2^BISECTIONS) of the
+   crossing). The static-loading detector's, on a grid as fine from its own bound. Either
+   detector's is the smaller. A joint where a detector's decision is already on in the
+   window without a blow is ``in_alarm`` at that probe (a blow joins that alarm: not
+   judged); one never caught up to the last step is ``uncaught``; a joint with no finite
+   v_stat is judged by the static-loading detector alone.
 4. **The figures.** Per joint, over the probes that were judged, the median and the worst
    tenth (the 90th percentile, the probes' own values; an uncaught probe counts above
-   every caught one), and per link with a link-end Jacobian the force A / |J_i| at the
-   probe's posture (:func:`impactcli.detect.force.own_levers`), the same quantiles.
+   every caught one), for either detector and for the adaptive one alone, and per link
+   with a link-end Jacobian the force A / |J_i| at the probe's posture
+   (:func:`impactcli.detect.force.own_levers`), the same quantiles; a link ending on its
+   own joint's axis has no force, and the joint's torque is its floor.
 
-What this leaves out, and every output says so: the blow is added to the residual, not
-to the arm (the residual generator's own filtering of a contact is not replayed), it is
-the adaptive detector's floor only (the static-loading one, a step through a linear
-low-pass, is exact as :mod:`.floor` states it), and a few dozen moments sample the log:
-the figures carry the probes' count.
+A median is what about half the blows of its size reach at the moments judged, not a size
+from which every blow is caught. What this leaves out, and every output says so: the blow
+is added to the residual, not to the arm (the residual generator's own filtering of a
+contact, an elastic joint and the payload monitor's answer to a blow are not replayed),
+the moments where a detector already alarms are not judged (the figures are the quiet
+moments'), and a few dozen moments sample the log: the figures carry the count judged.
 """
 
 from __future__ import annotations
@@ -78,10 +87,11 @@ def probe_window(sample_rate_hz: float, n1: int, a1: float) -> int:
 def probe_indices(n_samples: int, hold: int, window: int, count: int = PROBES) -> np.ndarray:
     """(P,) the probed samples: ``count`` spread evenly (each in the middle of its share)
     over [hold, n_samples − window], the samples after ``hold`` (the warm-up's shortest
-    possible length) whose window fits in the log; none when fewer than ``window``
-    samples are there."""
+    possible length) whose window fits in the log — fewer where they would fall less than
+    a window apart; none when fewer than ``window`` samples are there."""
     span = n_samples - window - hold
-    if count <= 0 or span < window:
+    count = min(count, span // max(window, 1))  # moments a window apart at least
+    if count <= 0:
         return np.zeros(0, dtype=np.int64)
     k = hold + np.floor((np.arange(count) + 0.5) * span / count).astype(np.int64)
     return np.unique(k)
@@ -122,6 +132,7 @@ class ProbeRecorder:
 
     def __init__(self, indices: Sequence[int] | np.ndarray, window: int) -> None:
         self.indices = [int(k) for k in indices]
+        self._wanted = set(self.indices)
         self.window = int(window)
         self.probes: list[Probe] = []
         self._open: list[Probe] = []
@@ -130,9 +141,13 @@ class ProbeRecorder:
         """The probed samples strictly inside [k0, k1): where a part must start."""
         return [k for k in self.indices if k0 < k < k1]
 
+    def wants(self, k: int) -> bool:
+        """Whether sample ``k`` is probed (its state is to be taken)."""
+        return k in self._wanted
+
     def take(self, k: int, state: Callable[[], EvaluatorState]) -> None:
         """The snapshot before sample ``k``, when it is probed."""
-        if k in self.indices:
+        if k in self._wanted:
             p = Probe(k, state)
             self.probes.append(p)
             self._open.append(p)
@@ -164,18 +179,34 @@ class ProbeRecorder:
         return [p for p in self.probes if p.held() >= self.window]
 
 
-def _caught(decision: np.ndarray, min_run: int) -> np.ndarray:
-    """(J,) whether each joint's (W, J) decision holds a run of at least ``min_run``
-    samples (at least 1)."""
-    need = max(1, int(min_run))
-    if need == 1:
+def _caught(decision: np.ndarray, sample_rate_hz: float,
+            events: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
+    """(J,) whether each joint's (W, J) decision holds an event as the events make them
+    (:func:`impactcli.detect.events.extract_events`): runs of it merged across gaps of at
+    most ``events[0]`` seconds (the merge gap), and one of them lasting at least
+    ``events[1]`` seconds (the least duration; 0: any sample). Within the window only: an
+    event the window's end cuts short may last longer in the log."""
+    merge_gap_s, min_duration_s = events
+    if min_duration_s <= 0.0:
         return np.asarray(decision.any(axis=0))
-    run = np.zeros(decision.shape[1], dtype=np.int64)
-    best = np.zeros_like(run)
-    for row in decision:
-        run = np.where(row, run + 1, 0)
-        best = np.maximum(best, run)
-    return np.asarray(best >= need)
+    dt, eps = 1.0 / sample_rate_hz, 1e-9
+    out = np.zeros(decision.shape[1], dtype=bool)
+    for j in range(decision.shape[1]):
+        idx = np.flatnonzero(decision[:, j])
+        if idx.size == 0:
+            continue
+        breaks = np.flatnonzero(np.diff(idx) > 1)
+        starts = np.concatenate([[idx[0]], idx[breaks + 1]])
+        ends = np.concatenate([idx[breaks], [idx[-1]]])
+        a, b = int(starts[0]), int(ends[0])
+        for s, e in zip(starts[1:], ends[1:], strict=True):
+            if (s - b) * dt <= merge_gap_s + eps:
+                b = int(e)
+                continue
+            out[j] |= (b - a) * dt >= min_duration_s - eps
+            a, b = int(s), int(e)
+        out[j] |= (b - a) * dt >= min_duration_s - eps
+    return out
 
 
 @dataclass(frozen=True)
@@ -202,16 +233,23 @@ def loading_response(window: int, sample_rate_hz: float, cutoff_hz: float,
 
 
 def _static_caught(lp: np.ndarray, h: np.ndarray, v_l: np.ndarray, amps: np.ndarray,
-                   min_run: int) -> np.ndarray:
-    """(J,) whether |LP(r) + A_j h| passes vL_j for ``min_run`` samples in the window."""
-    return _caught(np.abs(lp + h[:, None] * amps[None, :]) > v_l[None, :], min_run)
+                   sample_rate_hz: float, events: tuple[float, float]) -> np.ndarray:
+    """(J,) whether |LP(r) + A_j h| passes vL_j in the window as an event (:func:`_caught`)."""
+    return _caught(np.abs(lp + h[:, None] * amps[None, :]) > v_l[None, :], sample_rate_hz,
+                   events)
 
 
-def _static_amplitude(lp: np.ndarray, h: np.ndarray, v_l: np.ndarray,
-                      min_run: int) -> np.ndarray:
-    """(J,) the smallest amplitude on a grid of 2^(1/8) steps, from the bound
-    (vL − max|LP(r)|) / max|h| up, at which the static-loading detector catches the blow
-    (:func:`_static_caught`); +inf where none up to 2^20 × the bound."""
+#: The static-loading amplitude's grid: steps of 2^(1 / STATIC_STEPS), as fine as the
+#: adaptive one's bisection (2^(1/2^BISECTIONS)), over 2^STATIC_OCTAVES from its bound.
+STATIC_STEPS, STATIC_OCTAVES = 32, 20
+
+
+def _static_amplitude(lp: np.ndarray, h: np.ndarray, v_l: np.ndarray, sample_rate_hz: float,
+                      events: tuple[float, float]) -> np.ndarray:
+    """(J,) the smallest amplitude on a grid of 2^(1/:data:`STATIC_STEPS`) steps, from the
+    bound (vL − max|LP(r)|) / max|h| up, at which the static-loading detector catches the
+    blow (:func:`_static_caught`); +inf where none up to 2^:data:`STATIC_OCTAVES` × the
+    bound or vL is not finite."""
     top = float(np.max(np.abs(h))) if h.size else 0.0
     J = lp.shape[1]
     out = np.full(J, np.inf)
@@ -220,12 +258,12 @@ def _static_amplitude(lp: np.ndarray, h: np.ndarray, v_l: np.ndarray,
     todo = np.isfinite(v_l)
     vl = np.where(todo, v_l, 0.0)
     lo = np.maximum(vl - np.max(np.abs(lp), axis=0), 1e-12 * np.maximum(vl, 1e-12)) / top
-    for i in range(8 * 20 + 1):
+    for i in range(STATIC_STEPS * STATIC_OCTAVES + 1):
         if not todo.any():
             break
-        a = lo * 2.0 ** (i / 8)
+        a = lo * 2.0 ** (i / STATIC_STEPS)
         got = todo & _static_caught(lp, h, np.where(todo, v_l, np.inf), np.where(todo, a, 0.0),
-                                    min_run)
+                                    sample_rate_hz, events)
         out[got] = a[got]
         todo &= ~got
     return out
@@ -233,9 +271,12 @@ def _static_amplitude(lp: np.ndarray, h: np.ndarray, v_l: np.ndarray,
 
 def probe_amplitudes(probe: Probe, v_stat: np.ndarray, v_l: np.ndarray,
                      sample_rate_hz: float, loading: tuple[float, int],
-                     min_run: int = 1, sign: float = 1.0) -> ProbeAnswer:
+                     events: tuple[float, float] = (0.0, 0.0),
+                     sign: float = 1.0) -> ProbeAnswer:
     """One probe's answer (module docstring, steps 2–3); ``loading`` the static-loading
-    low-pass's (cutoff [Hz], order)."""
+    low-pass's (cutoff [Hz], order); ``events`` the events' (merge gap, least duration)
+    [s]. A joint with no finite v_stat has no adaptive figure and is judged by the
+    static-loading detector alone."""
     state = probe.state()
     r = np.concatenate(probe.r)
     u = np.concatenate(probe.u, axis=1)
@@ -249,10 +290,12 @@ def probe_amplitudes(probe: Probe, v_stat: np.ndarray, v_l: np.ndarray,
     def hit(a: np.ndarray) -> np.ndarray:
         res, _ = evaluate_chunk(state, r + pulse[:, None] * a[None, :], u, sample_rate_hz,
                                 finite)
-        return _caught(res.decision, min_run)
+        return _caught(res.decision, sample_rate_hz, events)
 
     base, _ = evaluate_chunk(state, r, u, sample_rate_hz, finite)
-    alarm = _caught(base.decision, min_run) | ~np.isfinite(vs)
+    checked = np.isfinite(vs)
+    on = _caught(base.decision, sample_rate_hz, events) & checked  # alarming without a blow
+    alarm = on | ~checked
     rates = state.rates
     g = pulse_gain(state.theta[:, :state.cfg.eta], sample_rate_hz, rates.a1, rates.n1)
     margin = np.min(np.abs(finite[None, :] + base.v_rms) - base.r_rms, axis=0)
@@ -284,24 +327,25 @@ def probe_amplitudes(probe: Probe, v_stat: np.ndarray, v_l: np.ndarray,
         missed = np.where(found & ~got, mid, missed)
     adaptive = np.where(alarm, np.nan, hi)
     h = sign * loading_response(r.shape[0], sample_rate_hz, *loading)
-    sl_alarm = _static_caught(lp, h, np.where(np.isfinite(vl), vl, np.inf), np.zeros(J),
-                              min_run)
-    static = _static_amplitude(lp, h, vl, min_run)
-    both = alarm | sl_alarm
-    return ProbeAnswer(adaptive, np.where(both, np.nan, np.fmin(hi, static)),
-                       alarm & np.isfinite(vs), both & (np.isfinite(vs) | np.isfinite(vl)))
+    sl_on = _static_caught(lp, h, np.where(np.isfinite(vl), vl, np.inf), np.zeros(J),
+                           sample_rate_hz, events)
+    static = _static_amplitude(lp, h, vl, sample_rate_hz, events)
+    both = on | sl_on  # a detector alarming without a blow: the blow joins that alarm
+    either = np.fmin(np.where(checked, hi, np.inf), static)
+    none = ~checked & ~np.isfinite(vl)  # no detector checks the joint
+    return ProbeAnswer(adaptive, np.where(both | none, np.nan, either), on, both)
 
 
 def probed_floor(probes: Sequence[Probe], v_stat: np.ndarray, v_l: np.ndarray,
                  sample_rate_hz: float, loading: tuple[float, int],
-                 joints: Sequence[str], min_run: int = 1,
+                 joints: Sequence[str], events: tuple[float, float] = (0.0, 0.0),
                  chain: Sequence[str] | None = None, index: Sequence[int] | None = None,
                  chain_cols: Sequence[int | None] | None = None,
                  jac: JacobianFn | None = None) -> dict[str, Any] | None:
     """The timeline's ``detection_floor.probed`` (module docstring, step 4) from the
     probes whose window is whole; None without one. ``v_stat``, ``v_l``: (J,) the run's
     adaptive and static-loading thresholds [N·m]; ``loading``: the static-loading
-    low-pass's (cutoff [Hz], order); ``min_run``: the events' least duration [samples];
+    low-pass's (cutoff [Hz], order); ``events``: the events' (merge gap, least duration) [s];
     ``chain``, ``index``, ``chain_cols``, ``jac`` as for
     :meth:`impactcli.detect.floor.FloorAccumulator.finish` (forces per link)."""
     if not probes:
@@ -311,7 +355,7 @@ def probed_floor(probes: Sequence[Probe], v_stat: np.ndarray, v_l: np.ndarray,
     amps = {"product": np.full(shape, np.nan), "adaptive": np.full(shape, np.nan)}
     alarms = {"product": np.zeros(shape, dtype=bool), "adaptive": np.zeros(shape, dtype=bool)}
     def one(i: int) -> ProbeAnswer:
-        return probe_amplitudes(probes[i], v_stat, v_l, sample_rate_hz, loading, min_run,
+        return probe_amplitudes(probes[i], v_stat, v_l, sample_rate_hz, loading, events,
                                 1.0 if i % 2 == 0 else -1.0)
 
     # the probes are independent and the kernel releases the GIL: one per core at once
@@ -349,8 +393,12 @@ def probed_floor(probes: Sequence[Probe], v_stat: np.ndarray, v_l: np.ndarray,
     links = []
     for j in range(J):
         c = index[j] - 1
-        if not np.isfinite(levers[:, c]).any():
-            continue  # a link with no lever of its own (the torque floor says it)
+        if not np.isfinite(levers[:, c]).any():  # its end on its own joint's axis: no
+            none = judged(np.zeros(0), np.zeros(0, dtype=bool), "_n")  # force there turns
+            links.append({"link": c + 1, "joint": chain[c], **none,  # it; the joint's
+                          "adaptive": dict(none), "no_lever": True,  # torque says it
+                          "own_joint": joints[j]})
+            continue
         with np.errstate(invalid="ignore"):
             f = {d: a[:, j] / levers[:, c] for d, a in amps.items()}
         links.append({"link": c + 1, "joint": chain[c],

@@ -203,10 +203,12 @@ def probe_recorder(plan: RunPlan, n_samples: int, sample_rate_hz: float) -> Prob
 
 
 def replay_passes(feed: ChunkFeed, plan: RunPlan, on_step: Callable[[ReplayStep], None],
-                  passes: Passes | None = None, monitor: Any = None) -> Replayed:
+                  passes: Passes | None = None, monitor: Any = None,
+                  probe: bool = False) -> Replayed:
     """One threshold-free replay pass over the log's chunks (module docstring): each
     chunk's :class:`ReplayStep` to ``on_step``, in order; the warm-up tracked; ``monitor``
-    the payload-change monitor (:func:`impactcli.run.loads.monitor_for`) or None."""
+    the payload-change monitor (:func:`impactcli.run.loads.monitor_for`) or None;
+    ``probe``: keep what the measured floor needs (:func:`probe_recorder`)."""
     scan = feed.scan
     n = scan.n_samples
     setup = ReplaySetup(plan.joints, plan.choices, plan.model, plan.cfg, scan.sample_rate_hz,
@@ -217,7 +219,7 @@ def replay_passes(feed: ChunkFeed, plan: RunPlan, on_step: Callable[[ReplayStep]
     last: list[Any] = [None, "", ""]
     peak = np.full(len(plan.joints), np.nan)
     gain_before: list[np.ndarray | None] = [None]  # the last sample's, for the next chunk
-    probes = probe_recorder(plan, n, scan.sample_rate_hz)
+    probes = probe_recorder(plan, n, scan.sample_rate_hz) if probe else None
     rp = Replayer(setup, ReplayState.initial(setup), where=plan.where, consume=True,
                   probes=probes)
 
@@ -226,7 +228,8 @@ def replay_passes(feed: ChunkFeed, plan: RunPlan, on_step: Callable[[ReplayStep]
             ad = out.adaptive
             last[:] = [ad, out.inputs_source, out.inputs_detail]
             k0 = ch.start
-            probes.posture(k0, np.asarray(ch.position))
+            if probes is not None:
+                probes.posture(k0, np.asarray(ch.position))
             tracker.update(ad.prediction_error, t)
             tau = np.abs(np.asarray(a.torque, dtype=np.float64))
             if tau.size:
@@ -379,7 +382,7 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
                 thr["adaptive"], thr["static_loading"],
                 scan.sample_rate_hz,
                 (cfg.static_loading.cutoff_hz, cfg.static_loading.order), joints,
-                math.ceil(cfg.events.min_duration_s * scan.sample_rate_hz - 1e-9) + 1,
+                (cfg.events.merge_gap_s, cfg.events.min_duration_s),
                 ctx.chain, ctx.index, ctx.chain_cols, ctx.jac)) is not None:
             floor = {**floor, "probed": probed}
         left_out = moved_unchecked(plan.left_out, scan.log.joint_names,
@@ -522,12 +525,13 @@ def _detect_passes(
         if given is not None:
             thr = given
             comparing = compare(thr)
-            rp = replay_passes(feed, plan, comparing.update, passes, monitor)
+            rp = replay_passes(feed, plan, comparing.update, passes, monitor, probe=True)
         else:
             keys = _NEEDED + (_FOR_WRITERS if on_chunk is not None else ())
             with contextlib.closing(ColumnFiles()) as spill:
                 rp = replay_passes(feed, plan, lambda st: spill.append(
-                    {k: v for k in keys if (v := getattr(st, k)) is not None}), passes)
+                    {k: v for k in keys if (v := getattr(st, k)) is not None}), passes,
+                    probe=True)
                 scan = feed.scan
                 thr, margins = _thresholds_from_spill(spill, rp.warmup, scan.n_samples,
                                                       scan.sample_rate_hz)

@@ -264,8 +264,8 @@ class Replayer:
             [k - self._k for k in self.probes.cuts(self._k, self._k + n)])})
         for a, b in zip(cuts, [*cuts[1:], n], strict=True):
             part = _part(chunk, a, b) if (a, b) != (0, n) else chunk
-            if self.probes is not None:  # the evaluator's state before a probed sample
-                self.probes.take(self._k, self._runner.snapshot())
+            if self.probes is not None and self.probes.wants(self._k):
+                self.probes.take(self._k, self._runner.snapshot())  # the state before it
             r = residual_columns(setup, part, carry.scoped("residual."), self.where)
             if setup.monitor is not None:  # a payload change: the residual takes the load
                 r = setup.monitor.process(self._k, part.time_s, part.position, r)
