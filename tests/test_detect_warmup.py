@@ -37,3 +37,52 @@ def test_warmup_longer_than_log() -> None:
     t = np.arange(100) / 250.0
     w = warmup_end(np.ones((100, 1)), t, WarmupConfig(min_s=3.0))
     assert w.end_index == 100 and w.end_s == 100 / 250.0
+
+
+def test_a_contact_in_a_warm_up_past_its_least_length_is_said_and_not_judged() -> None:
+    """A new user's case, known truth by the simulator's labels: the heavy arm carrying
+    2 kg from the log's first sample (a pick-and-place run cut at 22 s), a config fitted
+    with a payload per log. The warm-up runs on to 11 s while the prediction error
+    settles, and the labelled 20 N push 6 s into the log falls in it: not counted. It is
+    now said (a warning naming it) and a gate could not judge it (exit 5), where before
+    the run said nothing and the gates passed; alarms in the warm-up's first 3 s (the
+    filters starting) stay as they were."""
+    import warnings
+    from dataclasses import replace
+
+    from impactcli.run.calibration import calibrate_run
+    from impactcli.run.collect import detect_in_memory
+    from impactcli.run.gates import Findings, judge
+    from impactcli.sim import scenario, simulate
+    from impactcli.types import LogSource
+
+    def run(name: str, seed: int, kg: float) -> tuple[object, object]:
+        sc = scenario(name, "heavy_geared", 60.0, robot_seed=7, controller_channels=False,
+                      payload_kg=kg)
+        res = simulate(sc, seed=seed)
+        return res, replace(res.log, source=LogSource(f"{name}{seed}", "x", "memory"))
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        free, light = run("free_multisine", 1, 0.0)
+        cfg = calibrate_run([light, run("free_multisine", 2, 2.0)[1]],
+                            robot=free.robot).config  # type: ignore[attr-defined]
+        pnp, log = run("pick_and_place", 3, 2.0)
+        k = int(22.0 * log.sample_rate_hz)  # type: ignore[attr-defined]
+        cut = replace(log.slice(k, log.n_samples),  # type: ignore[attr-defined]
+                      source=LogSource("cut.csv", "x", "memory"))
+        out, _ = detect_in_memory(cut, config=cfg)
+    push = [e for e in pnp.labels.events if 22.0 < e.start < 33.0]  # type: ignore[attr-defined]
+    assert [round(p.start - 22.0, 1) for p in push] == [6.0]
+    assert out.warmup_end_s > 9.0  # the warm-up ran on past its least 3 s
+    late = [i for i in out.incidents if i.in_warmup and i.t_start >= 3.0]
+    assert any(abs(i.t_start - 6.0) < 0.3 for i in late), late  # the push, in the warm-up
+    said = [w for w in out.warnings if "alarm(s) in it after 3 s are not counted and not "
+            "judged" in w]
+    assert len(said) == 1 and f"{late[0].t_start:.3f} s" in said[0], out.warnings
+    _, unjudged = judge([Findings.of("cut.csv", out)], fail_on_detect=True,
+                        fail_on_force=None)
+    line = [u for u in unjudged if "in the warm-up after its least 3 s" in u]
+    assert len(line) == 1 and line[0].endswith("alarms in it are not counted; exit 5"), unjudged
+    early = [i for i in out.incidents if i.in_warmup and i.t_start < 3.0]
+    assert early and not any(f"{i.t_start:.3f} s" in said[0] for i in early)

@@ -698,3 +698,23 @@ def test_a_warm_up_force_is_said_to_maybe_be_the_filters_settling() -> None:
     assert rows and all(note in r for r in rows if "~0.4 N" in r or "≥0.4 N" in r)
     assert any("~0.4 N" in r or "≥0.4 N" in r for r in rows)
     assert html.count(note) == 1
+
+
+def test_an_alarm_in_a_warm_up_past_its_least_length_is_not_called_the_filters_settling(
+        ) -> None:
+    """An incident in the warm-up within its least length (the filters starting) keeps the
+    note that it may be their settling; one after it (a warm-up that ran on while the
+    prediction error settled) is said to be unjudged and maybe a contact."""
+    from impactcli.outputs.report.summary import incident_table_html
+
+    def row(label: str, t: float) -> dict[str, object]:
+        return {"label": label, "t_start": t, "duration_s": 0.2, "in_warmup": True,
+                "force_n": 20.0, "link": 2, "contact_type": "transient",
+                "detectors": ["adaptive"], "peak_ratio": 2.0, "peak_ratio_detector": "adaptive",
+                "peak_residual": {}}
+
+    html = incident_table_html([row("w1", 0.5), row("w2", 6.1)], "log1", 0, settled_s=3.0)
+    first, second = html.split("w2", 1)
+    assert "it may be the filters settling" in first and "not judged" not in first
+    assert "ran on past its least 3 s" in second and "it may be a contact" in second
+    assert "filters settling" not in second

@@ -317,6 +317,10 @@ def probe_amplitudes(probe: Probe, v_stat: np.ndarray, v_l: np.ndarray,
         missed = np.where((up | down) & ~got, cur, missed)
         up &= ~got
         down &= got
+    # still caught 2^MAX_DOUBLINGS below the bound: the decision is on for any blow, so the
+    # moment is as good as alarming (no size to state)
+    on |= down
+    alarm |= down
     found = np.isfinite(hi) & (missed > 0)
     for _ in range(BISECTIONS):  # between the last missed and the first caught
         if not found.any():

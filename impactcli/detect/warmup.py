@@ -15,7 +15,9 @@ alarms for the report and is not part of the causal detection.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -146,3 +148,21 @@ class WarmupTracker:
             float(self.t_tail[-1] - self.t_tail[-2]) if n > 1 else 0.0)
         self._end_s = end_s
         return Warmup(idx, end, end_s)
+
+
+def least_s(config: dict[str, Any] | None) -> float | None:
+    """The warm-up's least length ``warmup.min_s`` [s] of a run's recorded config (its
+    ``to_dict``), None when it records none."""
+    value = ((config or {}).get("warmup") or {}).get("min_s")
+    return None if value is None else float(value)
+
+
+def past_least(findings: Sequence[Any], least: float | None) -> list[Any]:
+    """The incidents (or lasting loads) in the warm-up that start at or after its least
+    length ``least`` [s]: the warm-up ran on there because the evaluator's prediction
+    error had not settled (condition (b)), not because the filters were starting, so an
+    alarm there may be a contact that no figure of the run judges."""
+    if least is None:
+        return []
+    return [x for x in findings if getattr(x, "in_warmup", False)
+            and float(x.t_start) >= least - 1e-9]

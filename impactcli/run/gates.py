@@ -5,8 +5,9 @@ A log *fails* a gate (exit 1) when it has a counted incident or lasting load aft
 (``--fail-on-detect``), or one whose force estimate exceeds N (``--fail-on-force``). A gate
 *could not judge* a log (exit 5, when none failed) when its warm-up covers all of it, when
 its only incidents start at data defects, when its file is truncated (the recording went on
-after the cut), or when an incident or lasting load has no force estimate
-(``--fail-on-force``). Each verdict is one line naming the log and why
+after the cut), when its warm-up ran on past its least length with alarms there (the
+evaluator had not settled: not counted, not judged), or when an incident or lasting load
+has no force estimate (``--fail-on-force``). Each verdict is one line naming the log and why
 (docs/formats.md, "Command line"). Payload changes trip no gate; with a gate asked, a log
 with some gets a line saying how long a contact would have joined their alarms uncounted,
 and with ``--fail-on-force`` a log whose passing forces are lower bounds a line saying so
@@ -20,6 +21,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..detect.force import FORCE_NOT_STATED, force_mark
+from ..detect.warmup import least_s, past_least
 from ..errors import one_line
 
 
@@ -34,6 +36,9 @@ class Findings:
         lasting_loads: the counted lasting loads (after warm-up).
         payload_changes: the payload changes found (timeline items): not gated.
         truncated: the file ends before its recording did (read up to the cut).
+        late_warmup: the incidents in the warm-up from its least length on
+            (:func:`impactcli.detect.warmup.past_least`): not counted, not judged.
+        least_s: the warm-up's least length [s] (None: not recorded).
     """
 
     log_path: str
@@ -44,14 +49,18 @@ class Findings:
     lasting_loads: tuple[Any, ...]
     payload_changes: tuple[dict[str, Any], ...] = ()
     truncated: bool = False
+    late_warmup: tuple[Any, ...] = ()
+    least_s: float | None = None
 
     @classmethod
     def of(cls, log_path: str, result: Any) -> Findings:
         """The findings of ``result`` (a :class:`~impactcli.types.DetectionResult`)."""
+        least = least_s(result.config)
         return cls(log_path, float(result.log.duration_s), float(result.warmup_end_s),
                    tuple(result.counted_incidents()), tuple(result.defect_incidents()),
                    tuple(result.counted_lasting_loads()),
-                   tuple(result.payload_changes or ()), bool(result.log.source.truncated))
+                   tuple(result.payload_changes or ()), bool(result.log.source.truncated),
+                   tuple(past_least(result.incidents, least)), least)
 
 
 def shown(log: str) -> str:
@@ -87,7 +96,22 @@ def judge(findings: Sequence[Findings], *, fail_on_detect: bool,
     if fail_on_detect or fail_on_force is not None:
         gate = "--fail-on-detect" if fail_on_detect else f"--fail-on-force {fail_on_force:g} N"
         unjudged += [_cut(f, gate) for f in findings if f.truncated]
+        unjudged += [_late(f, gate) for f in findings if f.late_warmup]
     return failing, unjudged
+
+
+def _late(f: Findings, gate: str) -> str:
+    """The line of a log with alarms in a warm-up that ran on past its least length: the
+    evaluator had not settled there, so they are neither counted nor judged."""
+    first = f.late_warmup[0]
+    force = ("" if getattr(first, "force_n", None) is None
+             else f", {force_mark(first)}{first.force_n:.3g} N")
+    n = len(f.late_warmup)
+    return (f"impactcli: {shown(f.log_path)}: {gate} could not judge {count(n, 'alarm')} in "
+            f"the warm-up after its least {f.least_s:g} s (the first at {first.t_start:.3f} s"
+            f"{force}): the warm-up ran to {f.warmup_end_s:.3f} s "
+            f"({100 * f.warmup_end_s / max(f.duration_s, 1e-9):.0f} % of the log) while the "
+            "evaluator's prediction error settled, and alarms in it are not counted; exit 5")
 
 
 def _cut(f: Findings, gate: str) -> str:

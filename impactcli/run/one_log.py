@@ -72,7 +72,7 @@ from ..detect.probe import (
 )
 from ..detect.rates import resolve_rates
 from ..detect.thresholds import compare_to_thresholds
-from ..detect.warmup import Warmup, WarmupTracker
+from ..detect.warmup import Warmup, WarmupTracker, past_least
 from ..errors import ConfigError, ImpactWarning
 from ..logs.reader import LogReader
 from ..logs.screen import LeftOut
@@ -99,6 +99,7 @@ from .run_warnings import (
     warn_events_after_gaps,
     warn_gaps,
     warn_implausible_forces,
+    warn_late_warmup,
     warn_long_events,
     warn_outside_envelope,
     warn_uncalibrated,
@@ -361,6 +362,8 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
                                             if getattr(i, "data_defect", None) is None
                                             and not getattr(i, "in_warmup", False)])
         warn_defect_incidents(where, defects, incidents, settle)
+        warn_late_warmup(where, past_least(incidents, cfg.warmup.min_s), cfg.warmup.min_s,
+                         rp.warmup.end_s, scan.duration_s)
         caught.paste(ctx_msgs)
         outside = None
         if envelope is not None:  # the motion the thresholds' rate was not measured on

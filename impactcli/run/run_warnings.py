@@ -19,6 +19,7 @@ import numpy as np
 from ..clock import GAP_FACTOR
 from ..config import PLAIN_FORMULATION, DetectorConfig
 from ..detect.events import LONG_EVENT_S
+from ..detect.force import force_mark
 from ..detect.thresholds import UNCALIBRATED_BLOCK_S, UNCALIBRATED_MARGIN, UNCALIBRATED_QUANTILE
 from ..detect.warmup import Warmup
 from ..errors import ImpactError, ImpactWarning
@@ -160,6 +161,26 @@ def warn_warmup(where: str, wu: Warmup, times_s: Sequence[float], joints: tuple[
             f"{cfg.warmup.max_s:g} s) on joint(s) {', '.join(capped)}: the adaptive "
             "filter's prediction error had not settled; alarms soon after it may be "
             "artefacts", ImpactWarning, stacklevel=3)
+
+
+def warn_late_warmup(where: str, late: Sequence[Any], least: float, end_s: float,
+                     duration_s: float) -> None:
+    """Warn of the incidents in a warm-up that ran on past its least length ``least`` [s]
+    (:func:`impactcli.detect.warmup.past_least`): not counted, and not judged — the
+    evaluator's prediction error had not settled, so no figure of the run speaks for them;
+    a gate says it could not judge them."""
+    if not late:
+        return
+    listed = ", ".join(f"{x.t_start:.3f} s" + ("" if x.force_n is None else
+                                               f" {force_mark(x)}{x.force_n:.3g} N")
+                       for x in late[:5])
+    more = f" and {len(late) - 5} more" if len(late) > 5 else ""
+    warnings.warn(
+        f"{where}: the warm-up ran to {end_s:.1f} s ({100 * end_s / max(duration_s, 1e-9):.0f} "
+        f"% of the log; its least is {least:g} s) while the adaptive filter's prediction "
+        f"error settled: {len(late)} alarm(s) in it after {least:g} s are not counted and not "
+        f"judged (at {listed}{more}) — a contact there may be among them; a gate exits 5",
+        ImpactWarning, stacklevel=3)
 
 
 def warn_events_after_gaps(where: str, after_s: np.ndarray, events: Sequence[Event]) -> None:

@@ -18,6 +18,7 @@ from typing import Any
 from ...config import settings_changed
 from ...detect.floor import floor_words
 from ...detect.tail import calibration_text
+from ...detect.warmup import least_s
 from ...logs.paths import log_stem
 from ...types import DETECTORS, DetectionResult, Labels
 from ..timeline import timeline_dict
@@ -216,7 +217,8 @@ def section_html(num: str, result: DetectionResult, sec: LogSection,
         p.append('<p class="bad small">Thresholds UNCALIBRATED (set from this log itself): '
                  "see the caveats below before relying on this answer.</p>")
     if incidents:
-        p.append(incident_table_html(incidents, anchor, MAX_EVENT_FIGURES))
+        p.append(incident_table_html(incidents, anchor, MAX_EVENT_FIGURES,
+                                     least_s(result.config)))
     p.append(payload_table_html(sec.get("payload_changes") or [], anchor))
     p.append(lasting_table_html(sec.get("lasting_loads") or [], anchor))
     p.append(_events_html(sec, anchor, open_=not known))

@@ -278,10 +278,13 @@ def _torques(inc: dict[str, Any]) -> str:
     return " · ".join(f"{e(j)} {approx(v)}" for j, v in pr.items()) + " N·m" if pr else "—"
 
 
-def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: int) -> str:
+def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: int,
+                        settled_s: float | None = None) -> str:
     """The incident list: when, where, how hard, what kind, which detectors, how far above
     threshold; each row links to its plots (the first ``plotted`` incidents have one). Rows
-    are named by ``label``: the counted incidents' numbers, ``w1``… in the warm-up."""
+    are named by ``label``: the counted incidents' numbers, ``w1``… in the warm-up; one in
+    the warm-up from ``settled_s`` on (its least length, ``warmup.min_s``) is said to be
+    unjudged, not the filters settling from the log's start."""
     clock = any(r.get("t_start_utc") for r in rows)
     body = []
     for pos, r in enumerate(rows, 1):
@@ -309,7 +312,11 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
         if r.get("force_n") is None and str(r.get("force_method") or "").startswith(
                 FORCE_NOT_STATED):  # why not: the physics checks left it unstated
             force += f' <span class="note">{e(r["force_method"])}</span>'
-        if r.get("in_warmup") and r.get("force_n") is not None:  # the filters starting
+        if r.get("in_warmup") and settled_s is not None and r["t_start"] >= settled_s:
+            force += (' <span class="bad">in a warm-up that ran on past its least '
+                      f"{settled_s:g} s (the evaluator had not settled): not judged — it may "
+                      "be a contact</span>")
+        elif r.get("in_warmup") and r.get("force_n") is not None:  # the filters starting
             force += (' <span class="note">in the warm-up: it may be the filters settling '
                       "from the log's start, not a contact</span>")
         if r.get("force_plausible") is False:
