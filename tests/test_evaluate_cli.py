@@ -434,7 +434,7 @@ def test_end_to_end_log_and_timeline_agree(tmp_path):
 def test_a_lower_bound_force_is_scored_and_shown_as_one(tmp_path: Path) -> None:
     """The sample pushes (their forces all lower bounds: the arm near stretched) through
     detect, then evaluate: each matched contact's force carries ``force_at_least`` in the
-    JSON and '≥' in the text table, where a contact without it would read plain."""
+    JSON and '≳' in the text table, where a contact without it would read plain."""
     repo = Path(__file__).resolve().parents[1]
     log = repo / "sample_logs" / "csv" / "assist_pushes.csv.gz"
     r = CliRunner().invoke(main, ["detect", str(log), "--config",
@@ -450,4 +450,4 @@ def test_a_lower_bound_force_is_scored_and_shown_as_one(tmp_path: Path) -> None:
     assert forced and all(c.get("force_at_least") is True for c in forced)
     assert all("force_at_least" not in c for c in contacts if c["force_n"] is None)
     text = CliRunner().invoke(main, ["evaluate", str(tl), "--labels", labels]).stdout
-    assert f"/ ≥{forced[0]['force_n']:.3g} N" in text, text
+    assert f"/ ≳{forced[0]['force_n']:.3g} N" in text, text

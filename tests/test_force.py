@@ -85,18 +85,19 @@ def test_which_forces_are_lower_bounds_and_why() -> None:
 
 
 def test_the_mark_says_which() -> None:
-    """``≥`` for a lower bound, ``~`` for an estimate; a timeline item or an object."""
+    """``≳`` (at least about) for a force with a part unseen, ``~`` for an estimate; a
+    timeline item or an object."""
     class Load:
         force_at_least = True
 
-    assert force_mark({"force_at_least": True}) == "≥"
+    assert force_mark({"force_at_least": True}) == "≳"
     assert force_mark({"force_at_least": False}) == "~" == force_mark({})
-    assert force_mark(Load()) == "≥"
+    assert force_mark(Load()) == "≳"
 
 
 def test_the_force_gate_says_it_passed_lower_bounds() -> None:
     """--fail-on-force N passes a lower bound under N and says so in one line (the exit
-    code unchanged); a lower bound above N fails the gate, printed with ≥; an estimate under
+    code unchanged); one above N fails the gate, printed with ≳; an estimate under
     N gets no line."""
     from dataclasses import dataclass
 
@@ -114,16 +115,17 @@ def test_the_force_gate_says_it_passed_lower_bounds() -> None:
                                         Inc(20.0, 2, 9.0, False)), (), ())
     notes = gate_notes([low], fail_on_detect=False, fail_on_force=100.0)
     assert notes == ["impactcli: a.csv: --fail-on-force 100 N: the forces of 2 incidents "
-                     "(≥3.33 to ≥30.1 N) are lower bounds: at their postures part of a "
-                     "force at the link's end turns none of the joints up to it, or too "
-                     "little to be solved for, so the gate passed them as far as the "
-                     "joints tell (force_method in the timeline)"]
+                     "(≳3.33 to ≳30.1 N) leave out part of the force: at their postures "
+                     "part of a force at the link's end turns none of the joints up to it, "
+                     "or too little to be solved for, so the force may be larger and the "
+                     "gate passed them as far as the joints tell (force_method in the "
+                     "timeline)"]
     failing, unjudged = judge([low], fail_on_detect=False, fail_on_force=25.0)
-    assert failing == ["impactcli: a.csv: the incident at 12.100 s on link 1, ≥30.1 N, "
+    assert failing == ["impactcli: a.csv: the incident at 12.100 s on link 1, ≳30.1 N, "
                        "exceeds --fail-on-force 25 N"] and unjudged == []
     assert gate_notes([low], fail_on_detect=False, fail_on_force=25.0)[0].startswith(
-        "impactcli: a.csv: --fail-on-force 25 N: the force of 1 incident (≥3.33 N) is a "
-        "lower bound: at its posture")
+        "impactcli: a.csv: --fail-on-force 25 N: the force of 1 incident (≳3.33 N) leaves "
+        "out part of the force: at its posture")
     est = Findings("b.csv", 40.0, 3.0, (Inc(20.0, 2, 9.0, False),), (), ())
     assert gate_notes([est], fail_on_detect=False, fail_on_force=100.0) == []
     assert gate_notes([low], fail_on_detect=True, fail_on_force=None) == []

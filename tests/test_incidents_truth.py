@@ -196,7 +196,7 @@ def test_a_lasting_load_alone_is_no_longer_hidden(tmp_path: Path) -> None:
                "--fail-on-force", "1")
     assert r.exit_code == 1, r.output
     assert re.search(r"impactcli: assist_payload\.csv\.gz: the lasting load from 3\.000 s "
-                     r"on link \d, ≥[\d.]+ N, exceeds --fail-on-force 1 N", r.stderr), r.stderr
+                     r"on link \d, ≳[\d.]+ N, exceeds --fail-on-force 1 N", r.stderr), r.stderr
     js = tmp_path / "r.json"
     r = invoke("report", log, "--config", str(CONFIG), "-o", str(tmp_path / "r.html"),
                "--json", str(js))

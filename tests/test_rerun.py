@@ -310,14 +310,14 @@ def test_incident_track_holds_one_entry_per_incident(tmp_path: Path) -> None:
     np.testing.assert_array_equal(elapsed_ns(rows),
                                   [res.log.t_ns[i.i_start] - t0 for i in res.incidents])
     texts = [x[0] for x in rows["TextLog:text"]]
-    assert "link 2" in texts[1] and "≥12.5 N" in texts[1] and "transient" in texts[1]
+    assert "link 2" in texts[1] and "≳12.5 N" in texts[1] and "transient" in texts[1]
     assert "link unknown" in texts[0] and "force unknown" in texts[0]
     assert [x[0] for x in rows["TextLog:level"]] == ["INFO", "WARN", "WARN"]
     # the annotated spans: each incident labelled from its first to after its last sample
     lane = ent["/incidents/contact"]
     states = [s[0] for s in lane["StateChange:state"]]
     assert states == ["no contact", "#1 link ? · force ? · unknown (warm-up)", "no contact",
-                      "#2 link 2 · ≥12.5 N · transient", "no contact",
+                      "#2 link 2 · ≳12.5 N · transient", "no contact",
                       "#3 link 1 · force ? · quasi_static", "no contact"]
     t = elapsed_ns(lane)
     for k, inc in enumerate(res.incidents):

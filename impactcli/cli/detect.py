@@ -417,6 +417,10 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
         if any(" or " in c for c in cells):
             click.echo("  (link A or B: the joints' residuals cannot tell which of those "
                        "links was touched; link_candidates in the timeline)")
+        if any(inc.get("force_at_least") for inc in lst[:MAX_INCIDENTS_LISTED]):
+            from ..detect.force import AT_LEAST_TEXT
+
+            click.echo(f"  ({AT_LEAST_TEXT})")
     if (len(ok) == 1 and one["torque_scale"] in UNVERIFIED
             and (one["incident_list"] or one["detection_floor"] or loads[ok[0].log_path]
                  or one["payload_change_list"])):  # forces, the floor's N or N·m, masses

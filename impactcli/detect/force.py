@@ -9,8 +9,11 @@ joints 1..i through that point's Jacobian, in least squares (:func:`force_estima
   singular posture the part of the force the joints barely feel is left out rather than
   blown up from noise. There, and wherever the joints give fewer torques than the force
   has parts (one equation on link 1, minimum norm on a spatial arm's first links), part of
-  a force is not seen: the stated force is a lower bound (``force_at_least``,
-  :func:`unseen_part`), printed "≥" (:func:`force_mark`).
+  a force is not seen: the stated force leaves that part out (``force_at_least``,
+  :func:`unseen_part`), printed "≳" (:func:`force_mark`) — at least about this: the
+  projection is never longer than the true force, but the estimate it is made of errs as
+  any (the filters, the model's own error: a new user's heavy-arm impacts read 14 of 15
+  above their labelled force, median +34 %), so it is no strict lower bound.
 - On a planar arm, where the joints give more torques than the force has parts and it
   accounts for less than :data:`FIT_SHARE` of them, no single force at the link's end gives
   the torques (the model's own error, or a contact elsewhere): no force is stated, and
@@ -73,13 +76,23 @@ MIN_LEVER_M = 1e-3
 FORCE_CEILING_FACTOR = 3.0
 
 
+#: The mark of a force that leaves out a part the joints do not feel: at least about this
+#: (module docstring). Said under every table that shows one (:data:`AT_LEAST_TEXT`).
+AT_LEAST = "≳"
+#: What :data:`AT_LEAST` means, in the words every output gives it.
+AT_LEAST_TEXT = ("≳: the joints up to the link do not feel part of that force (on link 1, "
+                 "near a singular posture, a spatial arm's first links), so the force may be "
+                 "larger; like every force here it is an estimate at the link's end, not a "
+                 "strict bound (docs/incidents.md)")
+
+
 def force_mark(x: Any) -> str:
-    """``≥`` before a force that is a lower bound (``force_at_least`` of a timeline item or
-    of an incident or lasting load: part of it is not seen in the joints' torques,
+    """:data:`AT_LEAST` before a force that leaves out a part the joints do not feel
+    (``force_at_least`` of a timeline item or of an incident or lasting load,
     :func:`unseen_part`), ``~`` before an estimate."""
     at_least = (x.get("force_at_least") if isinstance(x, Mapping)
                 else getattr(x, "force_at_least", False))
-    return "≥" if at_least else "~"
+    return AT_LEAST if at_least else "~"
 
 
 #: A function giving, for a posture q (chain order, (J_chain,)) and a 1-based link i, the

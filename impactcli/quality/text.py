@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from ..detect.force import AT_LEAST
 from .evaluation import Evaluation
 from .incident_scores import IncidentEvaluation
 
@@ -101,7 +102,7 @@ def format_incident_evaluation(ie: IncidentEvaluation) -> list[str]:
             return "" if ok is None else (" ok" if ok else " WRONG")
         f_lab = "switch" if c.force_label_n is None else f"{c.force_label_n:.3g} N"
         f_inc = ("-" if c.force_n is None
-                 else f"{'≥' if c.force_at_least else ''}{c.force_n:.3g} N")
+                 else f"{AT_LEAST if c.force_at_least else ''}{c.force_n:.3g} N")
         table.append((
             f"#{c.label_index}" + ("" if c.status == "counted" else f" ({c.status})"),
             c.kind,

@@ -10,7 +10,7 @@ evaluator had not settled: not counted, not judged), or when an incident or last
 has no force estimate (``--fail-on-force``). Each verdict is one line naming the log and why
 (docs/formats.md, "Command line"). Payload changes trip no gate; with a gate asked, a log
 with some gets a line saying how long a contact would have joined their alarms uncounted,
-and with ``--fail-on-force`` a log whose passing forces are lower bounds a line saying so
+and with ``--fail-on-force`` a log whose passing forces leave out a part a line saying so
 (:func:`gate_notes`), the exit code unchanged.
 """
 
@@ -20,7 +20,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from ..detect.force import FORCE_NOT_STATED, force_mark
+from ..detect.force import AT_LEAST, FORCE_NOT_STATED, force_mark
 from ..detect.warmup import least_s, past_least
 from ..errors import one_line
 
@@ -128,7 +128,7 @@ def gate_notes(findings: Sequence[Findings], *, fail_on_detect: bool,
     picked or released is normal work), and a contact in their alarms was judged only as
     each one's ``contact_watch`` says — so the exit code does not speak for that time; with
     ``--fail-on-force``, a line per log whose findings under the limit have a force that
-    is a lower bound (:func:`_at_least`)."""
+    leaves out a part the joints do not feel (:func:`_at_least`)."""
     if not fail_on_detect and fail_on_force is None:
         return []
     gate = "--fail-on-detect" if fail_on_detect else f"--fail-on-force {fail_on_force:g} N"
@@ -156,28 +156,27 @@ def gate_notes(findings: Sequence[Findings], *, fail_on_detect: bool,
 
 def _at_least(f: Findings, limit: float) -> str | None:
     """The line of a log whose incidents or lasting loads under ``limit`` have a force that
-    is a lower bound (part of a force at the link's end not seen in the joints' torques:
+    leaves out a part (of a force at the link's end, not seen in the joints' torques:
     ``force_at_least``), or None: --fail-on-force passed them as far as the joints tell."""
     low = [x for x in (*f.incidents, *f.lasting_loads)
            if x.force_n is not None and x.force_n <= limit and x.force_at_least]
     if not low:
         return None
     forces = sorted(x.force_n for x in low)
-    span = (f"≥{forces[0]:.3g} N" if len(forces) == 1
-            else f"≥{forces[0]:.3g} to ≥{forces[-1]:.3g} N")
+    span = (f"{AT_LEAST}{forces[0]:.3g} N" if len(forces) == 1
+            else f"{AT_LEAST}{forces[0]:.3g} to {AT_LEAST}{forces[-1]:.3g} N")
     n_inc = sum(1 for x in f.incidents if x in low)
     what = " and ".join(([count(n_inc, "incident")] if n_inc else [])
                         + ([count(len(low) - n_inc, "lasting load")] if len(low) > n_inc
                            else []))
     one = len(low) == 1
-    are = "is a lower bound" if one else "are lower bounds"
+    are = "leaves out" if one else "leave out"
     return (f"impactcli: {shown(f.log_path)}: --fail-on-force {limit:g} N: the force"
-            f"{'' if one else 's'} of {what} ({span}) {are}"
+            f"{'' if one else 's'} of {what} ({span}) {are} part of the force"
             f": at {'its' if one else 'their'} posture{'' if one else 's'} part of a force at "
             "the link's end turns none of the joints up to it, or too little to be solved "
-            "for, so the gate passed "
-            f"{'it' if one else 'them'} as far as the joints tell (force_method in the "
-            "timeline)")
+            f"for, so the force may be larger and the gate passed {'it' if one else 'them'} "
+            "as far as the joints tell (force_method in the timeline)")
 
 
 def _found(f: Findings) -> str:

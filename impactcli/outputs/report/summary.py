@@ -19,7 +19,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from ...detect.force import FORCE_NOT_STATED, force_mark
+from ...detect.force import AT_LEAST_TEXT, FORCE_NOT_STATED, force_mark
 from ...detect.incidents import link_words
 from .common import CONTACT_TEXT, PRODUCT_DETECTORS, approx, e, ratio_cell, utc
 
@@ -360,7 +360,8 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
         "contact point is assumed (a contact nearer the joint is usually under-estimated, "
         "on link 1 by the lever-arm ratio); in brackets the peak residual torque of each "
         "joint that fired. "
-        f'<ul class="tight">{notes}</ul></div>')
+        + (f"{e(AT_LEAST_TEXT)}. " if any(r.get("force_at_least") for r in rows) else "")
+        + f'<ul class="tight">{notes}</ul></div>')
 
 
 def _carrying(change: dict[str, Any]) -> str:
