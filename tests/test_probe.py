@@ -214,6 +214,24 @@ def test_the_words_say_what_was_measured_and_what_was_not_judged() -> None:
     assert probed_line({"half_sine_s": 0.1, "probed": per_joint}).startswith(  # type: ignore[union-attr]
         "on a, a detector was already alarming at 32 of 32 moments (none judged) — ")
     assert probed_line({"half_sine_s": 0.1}) is None
+    # too few moments judged for a figure: none stated, and said (a new user read "nine
+    # in ten" taken over 7 moments)
+    from impactcli.detect.probe import _quantiles
+
+    assert _quantiles(np.array([1.0, 2.0, 3.0, 4.0]), "_nm") == {
+        "median_nm": None, "worst_tenth_nm": None}
+    assert _quantiles(np.arange(1.0, 8.0), "_nm") == {"median_nm": 4.0,
+                                                      "worst_tenth_nm": None}
+    few = {"probes": 17, "window_s": 0.2, "per_link": None, "per_joint": {
+        "a": {"median_nm": None, "worst_tenth_nm": None, "probes": 3, "in_alarm": 14,
+              "uncaught": 0},
+        "b": {"median_nm": 0.77, "worst_tenth_nm": None, "probes": 7, "in_alarm": 10,
+              "uncaught": 0}}}
+    line = probed_line({"half_sine_s": 0.1, "probed": few})
+    assert line is not None and line.startswith(
+        "a 100 ms blow was caught at half the moments judged from ~0.77 N·m on b (too few "
+        "judged for nine in ten; 7 of 17 judged); on a, only 3 of 17 moments judged (a "
+        "detector already alarming at the rest): too few for a figure — "), line
 
 
 def test_a_probe_is_caught_as_the_events_make_an_event() -> None:

@@ -439,8 +439,12 @@ def probed_line(floor: dict[str, Any] | None) -> str | None:
         of = "" if judged == total else f"; {judged} of {total} judged"
         if m is not None:
             nine = (f"at nine in ten from ~{_approx(w)} {unit}" if w is not None else
+                    "too few judged for nine in ten" if judged < 10 else
                     f"not caught at {row.get('uncaught', 0)} of {judged} however large")
             parts.append((m, f"~{_approx(m)} {unit} on {where} ({nine}{of})"))
+        elif 0 < judged < 5 and row.get("uncaught", 0) * 2 < judged:
+            busy.append(f"on {where}, only {judged} of {total} moments judged (a detector "
+                        "already alarming at the rest): too few for a figure")
         elif judged and row.get("uncaught", 0) * 2 >= judged:
             busy.append(f"on {where}, no blow however large was caught at "
                         f"{row['uncaught']} of {judged} moments judged")

@@ -4,7 +4,8 @@
 The floor of :mod:`impactcli.detect.floor` is a lower bound for a blow: it holds G_hat
 frozen over the blow, while the RLS (eq. 38–40) adapts to the blow as it lasts and passes
 it less (measured in tests/test_floor.py: 0.29–0.79 of the frozen gain). So the run also
-MEASURES what a blow needs, at up to :data:`PROBES` moments spread over the log after the
+MEASURES what a blow needs, at up to :data:`PROBES` moments spread over the log (at least
+the RLS's memory, 1 / (1 − lambda) samples, apart: closer ones share their state) after the
 warm-up's shortest possible length (those that fall before its end, known when the replay
 is done, are dropped):
 
@@ -84,13 +85,15 @@ def probe_window(sample_rate_hz: float, n1: int, a1: float) -> int:
     return m + n1 + max(1, round(5.0 / max(1.0 - a1, 1e-12))) + 1
 
 
-def probe_indices(n_samples: int, hold: int, window: int, count: int = PROBES) -> np.ndarray:
+def probe_indices(n_samples: int, hold: int, window: int, count: int = PROBES,
+                  spacing: int = 0) -> np.ndarray:
     """(P,) the probed samples: ``count`` spread evenly (each in the middle of its share)
     over [hold, n_samples − window], the samples after ``hold`` (the warm-up's shortest
     possible length) whose window fits in the log — fewer where they would fall less than
-    a window apart; none when fewer than ``window`` samples are there."""
+    a window, or ``spacing`` samples (the RLS's memory: moments closer share their state),
+    apart; none when fewer than ``window`` samples are there."""
     span = n_samples - window - hold
-    count = min(count, span // max(window, 1))  # moments a window apart at least
+    count = min(count, span // max(window, spacing, 1))  # a window, a spacing apart at least
     if count <= 0:
         return np.zeros(0, dtype=np.int64)
     k = hold + np.floor((np.arange(count) + 0.5) * span / count).astype(np.int64)
@@ -412,11 +415,18 @@ def probed_floor(probes: Sequence[Probe], v_stat: np.ndarray, v_l: np.ndarray,
     return out
 
 
+#: The moments judged a quantile needs, at least: a median of fewer than 5 or a worst tenth
+#: of fewer than 10 is one moment's answer, not the log's (None, and the line says so).
+MIN_JUDGED = {"median": 5, "worst_tenth": 10}
+
+
 def _quantiles(x: np.ndarray, unit: str) -> dict[str, float | None]:
     """The median and the worst tenth of the probes' values (an observed value each;
-    None: none judged, or the quantile falls among the uncaught)."""
+    None: fewer judged than :data:`MIN_JUDGED`, or the quantile falls among the
+    uncaught)."""
     out: dict[str, float | None] = {}
     for qn, q in QUANTILES.items():
-        v = (float(np.quantile(x, q, method="inverted_cdf")) if x.size else math.nan)
+        v = (float(np.quantile(x, q, method="inverted_cdf")) if x.size >= MIN_JUDGED[qn]
+             else math.nan)
         out[f"{qn}{unit}"] = v if math.isfinite(v) else None
     return out

@@ -193,14 +193,16 @@ class Replayed:
 def probe_recorder(plan: RunPlan, n_samples: int, sample_rate_hz: float) -> ProbeRecorder:
     """The measured floor's probes (:mod:`impactcli.detect.probe`): after the warm-up's
     earliest possible end (``warmup.min_s``; those that fall before the end found are
-    dropped, :func:`detect_log`), as many as the kept states' bytes allow."""
+    dropped, :func:`detect_log`), at least the RLS's memory apart (1 / (1 − lambda)
+    samples), as many as the kept states' bytes allow."""
     cfg = plan.cfg
     rates = resolve_rates(cfg.adaptive, sample_rate_hz)
     window = probe_window(sample_rate_hz, rates.n1, rates.a1)
     hold = math.ceil(cfg.warmup.min_s * sample_rate_hz) + 1
     nu = cfg.adaptive.n_params(len(plan.joints))
     count = min(PROBES, MAX_STATE_BYTES // max(1, 8 * len(plan.joints) * nu * nu))
-    return ProbeRecorder(probe_indices(n_samples, hold, window, count), window)
+    memory = round(1.0 / max(1.0 - cfg.adaptive.forgetting_factor, 1e-12))
+    return ProbeRecorder(probe_indices(n_samples, hold, window, count, memory), window)
 
 
 def replay_passes(feed: ChunkFeed, plan: RunPlan, on_step: Callable[[ReplayStep], None],
