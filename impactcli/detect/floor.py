@@ -382,11 +382,7 @@ def floor_line(floor: dict[str, Any] | None) -> str | None:
                                if isinstance(row.get(d), dict)), default=0.0)) >= 0.5]
     if not parts and not axial and not alarming:
         return None
-    shown = [p for _, p in parts]
-    if len(parts) > MAX_LISTED:  # the least sensitive ones: where contacts go unseen
-        top = sorted(range(len(parts)), key=lambda i: -parts[i][0])[:MAX_LISTED]
-        shown = [parts[i][1] for i in sorted(top)]
-        shown.append(f"and less on the {len(parts) - MAX_LISTED} others (in the timeline)")
+    shown = _largest(parts)
     if axial:  # always said: these floors are no force at all
         shown.append(f"{'and ' if shown else ''}a torque below {', '.join(axial)} "
                      + ("(its link ends on the joint's axis: no force there turns it)"
@@ -453,11 +449,7 @@ def probed_line(floor: dict[str, Any] | None) -> str | None:
                         f"{row['in_alarm']} of {total} moments (none judged)")
     if not parts and not busy:
         return None
-    shown = [p for _, p in parts]
-    if len(parts) > MAX_LISTED:
-        top = sorted(range(len(parts)), key=lambda i: -parts[i][0])[:MAX_LISTED]
-        shown = [parts[i][1] for i in sorted(top)]
-        shown.append(f"and less on the {len(parts) - MAX_LISTED} others (in the timeline)")
+    shown = _largest(parts)
     ms = 1000 * float((floor or {}).get("half_sine_s", HALF_SINE_S))
     said = ([f"a {ms:g} ms blow was caught at half the moments judged from "
              + ", ".join(shown)] if shown else []) + busy
@@ -473,6 +465,17 @@ def floor_words(floor: dict[str, Any] | None) -> str | None:
     (:func:`probed_line`) after "measured:"."""
     parts = [x for x in (floor_line(floor), probed_line(floor)) if x]
     return "; measured: ".join(parts) if parts else None
+
+
+def _largest(parts: list[tuple[float, str]]) -> list[str]:
+    """The phrases of ``parts`` (figure, phrase) in order, at most :data:`MAX_LISTED` — the
+    largest figures: the least sensitive places, where contacts go unseen — and how many
+    others the timeline holds."""
+    if len(parts) <= MAX_LISTED:
+        return [p for _, p in parts]
+    top = sorted(range(len(parts)), key=lambda i: -parts[i][0])[:MAX_LISTED]
+    return ([parts[i][1] for i in sorted(top)]
+            + [f"and less on the {len(parts) - MAX_LISTED} others (in the timeline)"])
 
 
 def _smallest(row: dict[str, Any], key: str) -> float | None:
