@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import dataclasses
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -113,8 +115,11 @@ def config_docs(draw: st.DrawFn) -> dict[str, Any]:
     return doc
 
 
-def _tmp() -> Path:
-    return Path(tempfile.mkdtemp(prefix="impactcli-roundtrip-"))
+@contextmanager
+def _tmp() -> Iterator[Path]:
+    """A folder for one drawn example, removed after it (hundreds are drawn per run)."""
+    with tempfile.TemporaryDirectory(prefix="impactcli-roundtrip-") as folder:
+        yield Path(folder)
 
 
 @pytest.mark.parametrize("suffix", [".toml", ".yaml", ".json"])
@@ -126,12 +131,13 @@ def test_config_round_trip(suffix: str, doc: dict[str, Any]) -> None:
     except ConfigError:
         assume(False)  # refused with the one-line error: a cross-field rule
         return
-    path = _tmp() / f"config{suffix}"
-    save_config(cfg, path)
-    text = path.read_text("utf-8")
-    back = load_config(path)
-    assert back.to_dict() == cfg.to_dict()
-    assert dumps_config(back, suffix) == text
+    with _tmp() as folder:
+        path = folder / f"config{suffix}"
+        save_config(cfg, path)
+        text = path.read_text("utf-8")
+        back = load_config(path)
+        assert back.to_dict() == cfg.to_dict()
+        assert dumps_config(back, suffix) == text
 
 
 @PROPERTY
@@ -142,14 +148,15 @@ def test_model_round_trip(doc: dict[str, Any]) -> None:
     except ModelError:
         assume(False)
         return
-    path = _tmp() / "model.json"
-    write_model(model, path)
-    text = path.read_text("utf-8")
-    back = read_model(path)
-    assert back.to_dict() == model.to_dict()
-    assert back.sha256 == model.sha256
-    write_model(back, path)
-    assert path.read_text("utf-8") == text
+    with _tmp() as folder:
+        path = folder / "model.json"
+        write_model(model, path)
+        text = path.read_text("utf-8")
+        back = read_model(path)
+        assert back.to_dict() == model.to_dict()
+        assert back.sha256 == model.sha256
+        write_model(back, path)
+        assert path.read_text("utf-8") == text
 
 
 @PROPERTY
@@ -160,13 +167,14 @@ def test_labels_round_trip(doc: dict[str, Any]) -> None:
     except LabelsError:
         assume(False)  # an end before its start
         return
-    path = _tmp() / "x.labels.json"
-    write_labels(labels, path)
-    text = path.read_text("utf-8")
-    back = read_labels(path)
-    assert back.to_dict() == labels.to_dict()
-    write_labels(back, path)
-    assert path.read_text("utf-8") == text
+    with _tmp() as folder:
+        path = folder / "x.labels.json"
+        write_labels(labels, path)
+        text = path.read_text("utf-8")
+        back = read_labels(path)
+        assert back.to_dict() == labels.to_dict()
+        write_labels(back, path)
+        assert path.read_text("utf-8") == text
 
 
 @PROPERTY
@@ -177,25 +185,26 @@ def test_robot_round_trip(doc: dict[str, Any]) -> None:
     except RobotDescriptionError:
         assume(False)  # e.g. planar link lengths that do not match the joints
         return
-    folder = _tmp()
-    path = folder / "sub" / "x.robot.json"
-    path.parent.mkdir()
-    write_robot(robot, path)
-    text = path.read_text("utf-8")
-    back = read_robot(path)
-    write_robot(back, path)
-    assert path.read_text("utf-8") == text
+    with _tmp() as folder:
+        path = folder / "sub" / "x.robot.json"
+        path.parent.mkdir()
+        write_robot(robot, path)
+        text = path.read_text("utf-8")
+        back = read_robot(path)
+        write_robot(back, path)
+        assert path.read_text("utf-8") == text
 
 
 @PROPERTY
 @given(doc=from_schema("timeline"))
 def test_timeline_round_trip(doc: dict[str, Any]) -> None:
-    path = _tmp() / "x.timeline.json"
-    text = dumps_timeline(doc)
-    path.write_text(text, "utf-8")
-    back = read_timeline(path)
-    assert back == doc
-    assert dumps_timeline(back) == text
+    with _tmp() as folder:
+        path = folder / "x.timeline.json"
+        text = dumps_timeline(doc)
+        path.write_text(text, "utf-8")
+        back = read_timeline(path)
+        assert back == doc
+        assert dumps_timeline(back) == text
 
 
 _TEXT = st.text(min_size=1, max_size=12)
