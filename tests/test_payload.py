@@ -635,7 +635,8 @@ def test_a_contact_watch_says_what_a_change_judged() -> None:
     """The stretches of a change's alarm, as the monitor scanned it: unjudged from the onset
     to the scan's start and for the settling time after the classification, the scan
     between them judged above BESIDE × vL; every output says the same words."""
-    from impactcli.detect.payload_change import BESIDE, contact_watch, tested_text
+    from impactcli.detect.payload_change import BESIDE, contact_watch
+    from impactcli.detect.payload_words import tested_text
 
     w = contact_watch(20.0, 20.56, 23.0, 0.56)
     assert w == {"unjudged_s": [[20.0, 20.56], [23.0, 23.56]], "above_s": [20.56, 23.0],
@@ -1038,7 +1039,7 @@ def test_a_spatial_arm_picks_and_places_on_its_own_model(tmp_path: Path) -> None
 def test_a_load_lighter_than_the_models_is_said_as_such() -> None:
     """A release below the model's load (a model fitted on a loaded log) is "less than",
     not a negative mass carried; a load beyond it keeps its sign."""
-    from impactcli.detect.payload_change import carrying_text
+    from impactcli.detect.payload_words import carrying_text
 
     assert carrying_text({"mass_after_kg": -1.2}) == "1.2 kg less than the model's load"
     assert carrying_text({"mass_after_kg": 0.996}) == "+0.996 kg beyond the model's load"
@@ -1052,7 +1053,8 @@ def test_a_release_of_more_than_was_seen_carried_is_said() -> None:
     load (after −0.1 kg, within a quarter of the step) and a release to the start's own
     light load are not flagged; the new user's −4.06 kg release on an arm that started
     at the model's load is, with why, and differently when the start was not weighed."""
-    from impactcli.detect.payload_change import carrying_text, mass_check
+    from impactcli.detect.payload_change import mass_check
+    from impactcli.detect.payload_words import carrying_text
 
     assert mass_check(-1.0, 0.01, 0.0, -0.1) is None
     assert mass_check(-1.0, 0.01, -1.2, -1.25) is None  # the start was lighter: seen

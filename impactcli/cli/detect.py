@@ -90,7 +90,7 @@ def _lasting_line(k: int, x: dict[str, Any]) -> str:
 def payload_change_line(k: int, c: dict[str, Any]) -> str:
     """``  P1   20.092 s  +0.994 kg (s.e. ≥ 0.004 kg; 99.7 % of the step a mass, …),
     classified at 23.092 s; now carrying …``."""
-    from ..detect.payload_change import carrying_text, change_text
+    from ..detect.payload_words import carrying_text, change_text
 
     return (f"  P{k:<2} {c['t_start']:>9.3f} s  {change_text(c)}, classified at "
             f"{c['t_classified']:.3f} s; now carrying {carrying_text(c)}")

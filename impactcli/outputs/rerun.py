@@ -437,7 +437,7 @@ def write_payload_changes(rec: Any, result: Any, at_times: Callable[[np.ndarray]
     its classification, on ``/payload_changes``."""
     import rerun as rr
 
-    from ..detect.payload_change import carrying_text, change_text
+    from ..detect.payload_words import carrying_text, change_text
 
     changes = list(result.payload_changes or ())
     if not changes:

@@ -17,7 +17,7 @@ from typing import Any
 from .. import __version__
 from ..detect.force import force_mark
 from ..detect.incidents import link_words
-from ..detect.payload_change import carrying_text, tested_text
+from ..detect.payload_words import carrying_text, tested_text
 
 #: Timeline on the log's own clock (a timestamp), as Rerun's MCAP import names it.
 LOG_TIMELINE = "message_log_time"

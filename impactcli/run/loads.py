@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from ..config import DetectorConfig
-from ..detect.payload_change import OWN_LOAD, beyond_words
+from ..detect.payload_words import OWN_LOAD, beyond_words
 from ..model import RigidModel, payload
 from ..model.generators import OWN_MODEL, GeneratorChoice, target_torque
 

@@ -365,13 +365,13 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
 
 
 def _carrying(change: dict[str, Any]) -> str:
-    from ...detect.payload_change import carrying_text  # the one wording, imported when used
+    from ...detect.payload_words import carrying_text  # the one wording, imported when used
 
     return carrying_text(change)
 
 
 def _tested(change: dict[str, Any]) -> str:
-    from ...detect.payload_change import tested_text  # the one wording, imported when used
+    from ...detect.payload_words import tested_text  # the one wording, imported when used
 
     return tested_text(change)
 
