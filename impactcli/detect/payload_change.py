@@ -310,6 +310,9 @@ class PayloadMonitor:
     known: tuple[tuple[str, np.ndarray], ...] = ()
     start_weighed: bool = True
     merge_gap_s: float = 0.0
+    #: the standard error of ``base_kg`` when the stretch weighed it [kg] (0: a calibration
+    #: log's fit, or none): the load carried after a change is known to it and the step's
+    base_se_kg: float = 0.0
     changes: list[PayloadChange] = field(default_factory=list)
     #: onset [s] → why its alarm, lasting through the first window (it could have been a
     #: load), was not a payload change there (later windows, while it lasts, are retries)
@@ -327,9 +330,11 @@ class PayloadMonitor:
     #: onset [s] → its sample index, for every onset weighed and found no load (ended or
     #: not) since the last change: the step may have begun there (:meth:`_earlier_onset`)
     _failed: dict[float, int] = field(default_factory=dict)
+    _carried_se: float = 0.0  # the standard error of the load carried now [kg]
 
     def __post_init__(self) -> None:
         self._pi = np.zeros(len(self.names))
+        self._carried_se = float(self.base_se_kg)
 
     @property
     def window(self) -> int:
@@ -473,8 +478,10 @@ class PayloadMonitor:
             return None
         assert judged is not None
         w = judged.w
-        earlier = self._earlier_onset(k_c, w.pi)
-        if earlier is not None:  # the step began at an alarm that failed its test
+        earlier = (self._earlier_onset(k_c, w.pi)
+                   or self._later_onset(k_c, t_c, w0, w.pi))
+        if earlier is not None:  # the step began at an alarm that failed its test, or
+            # later in the alarm than its onset (a model error's alarm ran into it)
             self._onset = earlier
             t_a = earlier[1]
         for t in [t for t in self.tried if t >= t_a - 1e-9]:  # those alarms were the load
@@ -513,9 +520,10 @@ class PayloadMonitor:
             part = ContactPart(tuple(self.model.joint_names), rc, self._loading(-rc),
                                buf["qf"][a0:z], buf["qd"][a0:z], 1.0 / self.sample_rate_hz,
                                began_before)
-        known = payload.known_load(self.known, self._pi, w.pi, w.mass_se_kg, y, left,
-                                   self.names)
+        se_after = float(np.hypot(self._carried_se, w.mass_se_kg))  # the load then carried
+        known = payload.known_load(self.known, self._pi, w.pi, se_after, y, left, self.names)
         self._pi = self._pi + w.pi if known is None else np.array(known[1])
+        self._carried_se = se_after if known is None else 0.0
         after = self.base_kg + float(self._pi[self.names.index("m")])
         lowest = min(0.0, self.base_kg, *(c.mass_after_kg for c in self.changes))
         self.changes.append(PayloadChange(
@@ -578,6 +586,32 @@ class PayloadMonitor:
             if np.median(rest) <= EARLIER * np.median(np.sum(left ** 2, axis=1)):
                 return k, t
         return None
+
+    def _later_onset(self, k_c: int, t_c: float, w0: int,
+                     pi: np.ndarray) -> tuple[int, float] | None:
+        """A change weighed on a later window of its alarm than the first (the alarm
+        lasted): where the step of the load ``pi`` began between the alarm's onset (or the
+        oldest row kept) and the window weighed, at row ``w0`` of the buffer — the
+        least-squares change point of its torque (:func:`impactcli.model.payload.step_onset`)
+        — when the rows before it are not the load's: there the mass leaves the typical
+        sample a larger residual than none (an alarm of a model error, say a load unlike
+        the calibration's, that ran into a release). (sample, time), or None: the alarm's
+        onset stands (a push that spoiled the first window after a pick)."""
+        assert self._onset is not None
+        buf = self._buf
+        n = buf["r"].shape[0]
+        a = max(0, n - (k_c - self._onset[0]))
+        if w0 - a < self.window:  # weighed on the alarm's first window
+            return None
+        left = -buf["r"][a:w0]
+        d = (self.model.regressor(buf["qf"][a:w0], buf["qd"][a:w0], buf["qdd"][a:w0])
+             @ self.b @ pi)
+        tau = payload.step_onset(left, d)
+        if tau < 10 or (np.median(np.sum((left[:tau] - d[:tau]) ** 2, axis=1))
+                        <= np.median(np.sum(left[:tau] ** 2, axis=1))):
+            return None
+        back = n - a - tau
+        return k_c - back, t_c - back / self.sample_rate_hz
 
     def _beside(self, leftover: np.ndarray, k_first: int, t_first: float,
                 clipped: bool = False

@@ -118,8 +118,14 @@ def weigh_start(feed: Any, model: RigidModel, choices: tuple[GeneratorChoice, ..
             f"{seconds:g} s are too short for the residual's filters; the residual "
             f"assumes the model's load{_whose(rel)}"))
     y, left, tau = rows
-    yb = y @ b
-    w = payload.weigh(yb, left, names)
+    w, keep = payload.weigh_trimmed(y @ b, left, names)
+    yb, left, tau = (y @ b)[keep], left[keep], tau[keep]
+    if not keep.all():  # a transient no load explains (the arm settling, the filters)
+        seconds_words = (f"{seconds:g} s ({_left_out(keep, fs)} left out: a transient no "
+                         f"load explains, beyond {payload.OUTLIER_SIGMAS:g} robust standard "
+                         "deviations of what the load leaves)")
+    else:
+        seconds_words = f"{seconds:g} s"
     values = {nm: float(v) for nm, v in zip(names, w.pi, strict=True)}
     where = scan.source.path
     mass = f"{w.mass_kg:+.3g} ± {w.mass_se_kg:.2g} kg"
@@ -153,7 +159,7 @@ def weigh_start(feed: Any, model: RigidModel, choices: tuple[GeneratorChoice, ..
                "model's own error, not a load")
         return model, StartLoad("same", seconds, w.mass_kg, w.mass_se_kg, values, rel, cal, (
             f"{where}: starts with the model's load{_whose(rel)} ({mass} beyond it, "
-            f"weighed on its first {seconds:g} s: {why})"), share)
+            f"weighed on its first {seconds_words}: {why})"), share)
     unseen = beyond_calibrated(cal, w.mass_kg, w.mass_se_kg)
     # the model carries the lightest calibration log's load: a known load is relative to it
     known = payload.known_load(payload.calibration_loads(model, names), np.zeros_like(w.pi),
@@ -167,7 +173,7 @@ def weigh_start(feed: Any, model: RigidModel, choices: tuple[GeneratorChoice, ..
             f"out — a load, or a model error that acts as one: another unit of the arm, "
             f"a tool changed) {side} the model's "
             f"load{_whose(rel)}{_calibrated_with(cal)}, weighed on its first "
-            f"{seconds:g} s: "
+            f"{seconds_words}: "
             + ("the residual uses it" if known is None else
                f"it is {known[0]}'s load, and the residual uses that log's fit of it")
             + ("; no calibration log carried a load like it, so the thresholds' false-alarm "
@@ -198,6 +204,14 @@ def _rows(model: RigidModel, q: np.ndarray, tau: np.ndarray, fs: float,
     y = model.regressor(res.q_f[skip:], res.qd[skip:], res.qdd[skip:])
     # r = τ̂ − τ: the torque beyond the model is −r
     return y, -np.asarray(res.r[skip:]), np.asarray(res.tau_used[skip:])
+
+
+def _left_out(keep: np.ndarray, fs: float) -> str:
+    """How much of a stretch :func:`impactcli.model.payload.weigh_trimmed` left out, and
+    where: "0.21 s of them, within its first 0.4 s"."""
+    out = np.flatnonzero(~keep)
+    return (f"{out.size / fs:.2g} s of them, within its first "
+            f"{(out[-1] + 1) / fs:.2g} s of rows weighed")
 
 
 #: The derivative filter's start is left out for this many periods of its cut-off.
@@ -307,7 +321,9 @@ def monitor_for(plan: Any, given: dict[str, np.ndarray] | None,
         settle_s(cfg.static_loading.cutoff_hz, cfg.adaptive.n2_s),
         payload.reach_m(model), base_kg=float(pi0[bb[1].index("m")]),
         known=known_loads(model, bb[1], pi0), merge_gap_s=float(cfg.events.merge_gap_s),
-        start_weighed=start is not None and start.verdict in ("used", "same"))
+        start_weighed=start is not None and start.verdict in ("used", "same"),
+        base_se_kg=(float(used.mass_se_kg or 0.0)
+                    if used is not None and used.as_log is None else 0.0))
 
 
 def start_pi(model: RigidModel, names: tuple[str, ...], start: StartLoad | None,
