@@ -9,7 +9,7 @@ STAMP  := $(VENV)/.installed
 .PHONY: setup demo test bench samples outputs lint clean
 
 $(STAMP): pyproject.toml requirements.lock
-	@echo "impactcli: setting up $(VENV) with the pinned versions of requirements.lock (first time: 1-2 minutes)"
+	@echo "impactcli: setting up $(VENV) with the pinned versions of requirements.lock (first time: under 3 minutes on 2 vCPUs)"
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --disable-pip-version-check --progress-bar off -c requirements.lock -e '.[dev,urdf,dask,robots]' \
 	    | grep --line-buffered -E '^(Collecting|Successfully installed)' | cut -c1-100
