@@ -508,3 +508,29 @@ def test_an_upper_bound_only_the_tail_fits_give_is_said_so(tmp_path: Path) -> No
             f"{first.group(2)} per hour by themselves")
     assert f"  note: {note}" in lines
     assert rate["notes"] == [note]
+
+
+def test_a_log_left_out_above_its_bound_but_within_its_interval_is_not_called_within() -> None:
+    """Known truth from the Garwood interval: 1 alarm in 0.48 min (125 per hour) has its
+    90 % interval 6.4–590 per hour, which reaches down to a bound of 30: not clearly above
+    it, yet not "within its bound" either (a new user read the two as a contradiction);
+    0 alarms are within it."""
+    from scipy import stats
+
+    from impactcli.cli.calibrate import rate_lines
+
+    row = {"log": "a/free1.csv", "minutes": 0.48, "per_hour": 30.0, "observed": 1,
+           "predicted_per_hour": 3.0, "upper_per_hour": 30.0}
+    quiet = dict(row, log="a/free2.csv", observed=0)
+    base = {"confidence": 0.9, "predicted_per_hour": 3.0, "upper_per_hour": 30.0,
+            "free_minutes": 4.0, "per_hour": 30.0}
+    text = "\n".join(rate_lines(dict(base, leave_one_log_out=[row, quiet])))
+    hours = 0.48 / 60.0
+    lo, hi = stats.chi2.ppf(0.05, 2) / 2 / hours, stats.chi2.ppf(0.95, 4) / 2 / hours
+    assert "every log left out within its bound" not in text
+    assert "no log left out false-alarmed clearly above its bound: free1.csv observed " \
+        "125/h in 0.48 min against 30/h" in text
+    assert f"its 90 % interval {lo:.3g}–{hi:.3g}/h" in text and "free2.csv" not in \
+        text.split("no log left out")[1]
+    text = "\n".join(rate_lines(dict(base, leave_one_log_out=[quiet])))
+    assert "(every log left out within its bound)" in text

@@ -114,8 +114,30 @@ def rate_lines(rate: dict[str, Any], margin_rule: str = "leave-one-out") -> list
                   for name, k in ((Path(x["log"]).name, x["ratio"])
                                   for x in left_out_above(rate))]
         if not left_out_above(rate):
-            lines.append("  (every log left out within its bound)")
+            lines.append(_within_bound_line(rows, conf))
     return lines
+
+
+def _within_bound_line(rows: list[dict[str, Any]], conf: float) -> str:
+    """The line under a leave-one-log-out table none of whose logs false-alarmed clearly
+    above its bound: when a log's observed rate is above its bound but its interval reaches
+    down to it (a few events in a few minutes), say so rather than "within its bound"."""
+    from ..detect.tail import per_hour_text as ph
+    from ..detect.tail import poisson_interval
+
+    over = []
+    for r in rows:
+        hours = r["minutes"] / 60.0
+        if hours > 0 and r["observed"] / hours > r["upper_per_hour"]:
+            lo, hi = poisson_interval(int(r["observed"]), hours, conf)
+            over.append(f"{Path(r['log']).name} observed {ph(r['observed'] / hours)}/h in "
+                        f"{r['minutes']:.2g} min against {ph(r['upper_per_hour'])}/h, its "
+                        f"{100 * conf:.0f} % interval {lo:.3g}–{hi:.3g}/h")
+    if not over:
+        return "  (every log left out within its bound)"
+    return ("  (no log left out false-alarmed clearly above its bound: " + "; ".join(over)
+            + " — above it, but its interval reaches down to the bound: too few minutes to "
+            "tell)")
 
 
 #: A threshold this many times its free motion's maximum is warned about.
