@@ -293,3 +293,41 @@ def test_a_truncated_recording_is_judged_up_to_its_cut_and_said(tmp_path: Path) 
     cut_line = [ln for ln in r.stderr.splitlines() if "could not judge the recording" in ln]
     assert len(cut_line) == 1 and cut_line[0].endswith(
         "; exit 5 — a judged failure wins: exit 1"), cut_line
+
+
+def test_evaluate_says_labels_after_a_cut_are_the_cut_s(tmp_path: Path) -> None:
+    """A cut MCAP's labels after its end are the recording the file lost, not another
+    log's: evaluate's warning says the file is truncated (it asked "labels of another
+    log?"); the whole file's labels, shifted past its end, still ask."""
+    from click.testing import CliRunner
+
+    from impactcli.cli import main
+
+    repo = Path(__file__).resolve().parents[1]
+    mcap = repo / "sample_logs" / "mcap"
+    config = repo / "sample_logs" / "assist_like.config.toml"
+    hits = tmp_path / "hits.mcap"
+    data = (mcap / "assist_impacts.mcap").read_bytes()
+    hits.write_bytes(data[: len(data) * 2 // 3])
+    labels = mcap / "assist_impacts.labels.json"
+    r = CliRunner().invoke(main, ["detect", str(hits), "--config", str(config), "-o",
+                                  str(tmp_path / "h")])
+    timeline = tmp_path / "h" / "hits.timeline.json"
+    r = CliRunner().invoke(main, ["evaluate", str(timeline), "--labels", str(labels)])
+    assert r.exit_code == 0, r.output
+    line = [ln for ln in r.stderr.splitlines() if "start after the log's end" in ln]
+    assert len(line) == 1 and line[0].endswith(
+        "not counted (the file is truncated: its recording went on after its end, and the "
+        "file does not hold those contacts)"), r.stderr
+    doc = json.loads(labels.read_text("utf-8"))
+    for e in doc["events"]:
+        e["start"] += 1000.0
+        e["end"] += 1000.0
+    moved = tmp_path / "moved.labels.json"
+    moved.write_text(json.dumps(doc), "utf-8")
+    whole = CliRunner().invoke(main, ["detect", str(mcap / "assist_impacts.mcap"), "--config",
+                                      str(config), "-o", str(tmp_path / "w")])
+    assert whole.exit_code == 0, whole.output
+    r = CliRunner().invoke(main, ["evaluate", str(tmp_path / "w" / "assist_impacts.timeline.json"),
+                                  "--labels", str(moved)])
+    assert "(labels of another log?)" in r.stderr and "truncated" not in r.stderr, r.stderr

@@ -331,6 +331,7 @@ def evaluate_events(
     detectors: Sequence[str] = EVALUATED,
     incidents: Sequence[Any] | None = None,
     incidents_note: str = "",
+    truncated: bool = False,
 ) -> Evaluation:
     """Score detection events against labelled contacts (rules in the module docstring).
 
@@ -348,6 +349,8 @@ def evaluate_events(
         incidents: the run's incidents (:class:`~impactcli.detect.incidents.Incident` s or
             timeline ``incidents`` dicts; their ``events`` index ``events``), scored by
             :func:`evaluate_incidents`; None: not available (``incidents_note`` says why).
+        truncated: the file is cut (its recording went on after ``duration_s``): contacts
+            after its end are the cut's, not another log's, and the warning says so.
 
     Returns:
         The :class:`Evaluation`. Contacts with onset after ``duration_s`` are warned about.
@@ -395,7 +398,9 @@ def evaluate_events(
         where = labels.path or "labels"
         warnings.warn(
             f"{where}: {len(outside)} contact(s) start after the log's end ({duration_s:g} s), "
-            f"first at {contacts[outside[0]].start:g} s: not counted (labels of another log?)",
+            f"first at {contacts[outside[0]].start:g} s: not counted "
+            + ("(the file is truncated: its recording went on after its end, and the file "
+               "does not hold those contacts)" if truncated else "(labels of another log?)"),
             ImpactWarning, stacklevel=2,
         )
     before = [i for i, c in enumerate(contacts) if c.start < 0]
@@ -515,7 +520,8 @@ def evaluate_result(
     gap = float(ev_cfg.get("merge_gap_s", 0.0)) if isinstance(ev_cfg, Mapping) else 0.0
     return evaluate_events(result.events, labels, duration_s=result.log.duration_s,
                            warmup_end_s=result.warmup_end_s, tolerance=tolerance,
-                           product_merge_gap_s=gap, incidents=list(result.incidents))
+                           product_merge_gap_s=gap, incidents=list(result.incidents),
+                           truncated=bool(result.log.source.truncated))
 
 
 def payload_alarms(incidents: Sequence[Any], evs: Sequence[ScoredEvent],

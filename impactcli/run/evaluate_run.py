@@ -200,7 +200,8 @@ def evaluate_source(source: Path, labels_path: Path | None, *, is_timeline: bool
         ev = evaluate_events(doc["events"], labels, duration_s=float(doc["input"]["duration_s"]),
                              warmup_end_s=float(doc["warmup_end_s"]), tolerance=tolerance,
                              product_merge_gap_s=gap, incidents=incidents,
-                             incidents_note=note)
+                             incidents_note=note,
+                             truncated=bool(doc["input"].get("truncated", False)))
         ev = with_payload_changes(ev, labels, doc.get("payload_changes"))
         if sweep:
             rows = timeline_sweep(source, doc, labels, scales, tolerance)
