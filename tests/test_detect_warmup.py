@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 
 from impactcli.config import WarmupConfig
@@ -39,7 +42,8 @@ def test_warmup_longer_than_log() -> None:
     assert w.end_index == 100 and w.end_s == 100 / 250.0
 
 
-def test_a_contact_in_a_warm_up_past_its_least_length_is_said_and_not_judged() -> None:
+def test_a_contact_in_a_warm_up_past_its_least_length_is_said_and_not_judged(
+        tmp_path: Path) -> None:
     """A new user's case, known truth by the simulator's labels: the heavy arm carrying
     2 kg from the log's first sample (a pick-and-place run cut at 22 s), a config fitted
     with a payload per log. The warm-up runs on to 11 s while the prediction error
@@ -60,7 +64,7 @@ def test_a_contact_in_a_warm_up_past_its_least_length_is_said_and_not_judged() -
         sc = scenario(name, "heavy_geared", 60.0, robot_seed=7, controller_channels=False,
                       payload_kg=kg)
         res = simulate(sc, seed=seed)
-        return res, replace(res.log, source=LogSource(f"{name}{seed}", "x", "memory"))
+        return res, replace(res.log, source=LogSource(f"{name}{seed}", f"{seed:064x}", "memory"))
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -86,3 +90,26 @@ def test_a_contact_in_a_warm_up_past_its_least_length_is_said_and_not_judged() -
     assert len(line) == 1 and line[0].endswith("alarms in it are not counted; exit 5"), unjudged
     early = [i for i in out.incidents if i.in_warmup and i.t_start < 3.0]
     assert early and not any(f"{i.t_start:.3f} s" in said[0] for i in early)
+    # through the CLI: the table's row marks the warm-up, a line under it says why, and
+    # the batch summary's row carries it (a new user saw only the warm-up's length there)
+    from click.testing import CliRunner
+
+    from impactcli.cli import main
+    from impactcli.config import save_config
+    from impactcli.logs import write_log
+
+    write_log(replace(cut, source=LogSource("cut.csv.gz", "x", "memory")),
+              tmp_path / "cut.csv.gz")
+    save_config(cfg, tmp_path / "cfg.toml")  # type: ignore[arg-type]
+    r = CliRunner().invoke(main, ["detect", str(tmp_path / "cut.csv.gz"), "--config",
+                                  str(tmp_path / "cfg.toml"), "-o", str(tmp_path / "o"),
+                                  "--summary", str(tmp_path / "s.json")])
+    assert r.exit_code == 0, r.output
+    (row,) = [ln for ln in r.stdout.splitlines() if ln.startswith("cut.csv.gz ")]
+    assert f"{out.warmup_end_s:.2f}*" in row.split()
+    n = len(late)
+    assert (f"(*: the warm-up ran on past its least length (3 s) while the evaluator's "
+            f"prediction error settled: {n} alarm(s) in it after that are neither counted "
+            "nor judged") in r.stdout
+    (res,) = json.loads((tmp_path / "s.json").read_text("utf-8"))["results"]
+    assert res["late_warmup"] == {"least_s": 3.0, "alarms": n}

@@ -36,8 +36,9 @@ PRODUCT_DETECTORS = ("adaptive", "static_loading")
 def _fmt_row(s: SummaryRow, lasting: int) -> str:
     cal = "yes" if s["calibrated"] else "no"
     dur = f"{s['duration_s']:.1f}" + (" cut" if s.get("truncated") else "")
+    warm = f"{s['warmup_end_s']:.2f}" + ("*" if s.get("late_warmup") else "")
     return (f"{shown(s['log']):<36} {dur:>9} {cal:>10} "
-            f"{s['warmup_end_s']:>7.2f} {s['incidents']:>9} {lasting:>7} | "
+            f"{warm:>7} {s['incidents']:>9} {lasting:>7} | "
             f"{s['adaptive']:>8} {s['static_loading']:>8} {s['static_baseline']:>8}")
 
 
@@ -377,6 +378,15 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
         click.echo(_fmt_row(rows[o.log_path], len(loads[o.log_path])))
     if len(ok) > MAX_ROWS:
         click.echo(f"... {len(ok) - MAX_ROWS} more logs (all of them in --summary)")
+    late = [rows[o.log_path]["late_warmup"] for o in ok[:MAX_ROWS]
+            if rows[o.log_path].get("late_warmup")]
+    if late:
+        n = sum(int(x["alarms"]) for x in late)
+        least = sorted({f"{x['least_s']:g}" for x in late})
+        click.echo(f"(*: the warm-up ran on past its least length ({' or '.join(least)} s) "
+                   f"while the evaluator's prediction error settled: {n} alarm(s) in it after "
+                   "that are neither counted nor judged — a contact may be among them; the "
+                   "warning names them, and a gate exits 5)")
     if any(rows[o.log_path].get("truncated") for o in ok[:MAX_ROWS]):
         click.echo("(cut: the file is truncated — its recording went on after that; what "
                    "came before is analysed, the gates could not judge the rest)")

@@ -145,6 +145,7 @@ class SummaryRow(TypedDict):
     detection_floor: str | None
     detection_floor_measured: str | None
     warmup_end_s: float
+    late_warmup: NotRequired[dict[str, float]]
     generators: dict[str, str]
     generator_reasons: dict[str, str]
     incidents: int
@@ -388,6 +389,11 @@ def _summary(job: DetectJob, result: DetectionResult) -> SummaryRow:
     }
     if log.source.truncated:
         row["truncated"] = True
+    from ..detect.warmup import least_s, past_least
+
+    least = least_s(result.config)
+    if late := past_least(result.incidents, least):  # not counted, not judged
+        row["late_warmup"] = {"least_s": float(least or 0.0), "alarms": len(late)}
     return row
 
 
