@@ -540,6 +540,25 @@ def test_a_contact_split_over_incidents_or_sharing_one():
     assert [c.incident_index for c in ie2.contacts] == [0, None]  # an incident on at onset
 
 
+def test_a_contact_held_by_an_incident_begun_before_it_is_said_beside_the_matched():
+    """A contact whose alarm joined an incident that began with an earlier alarm (0.3 s
+    before its window) is detected and exactly one incident, but no incident starts in
+    its window: "matched 0/1" beside "yes (1/1)" read as a contradiction to a new user;
+    the matched row now names it."""
+    lab = labels(ContactLabel(2.0, 2.1, 5.0, "impact", 1))
+    events = [ev("adaptive", 1.7, 1.8), ev("adaptive", 2.01, 2.1)]
+    e = run(events, lab, incidents=[inc(1.7, 2.1, 1, 5.0, "transient", (0, 1))]).incidents
+    rows = dict(e.summary())
+    assert (e.overall.matched, e.detected, e.one_incident_each) == (0, 1, True)
+    assert rows["every detected contact is exactly one incident"] == "yes (1/1)"
+    assert rows["counted contacts matched by an incident"] == (
+        "0/1 (0%); 1 more held by an incident that began before the contact's window (labels #0: "
+        "an earlier alarm it merged with began first, so its start, link and force are not "
+        "that contact's)")
+    e = run(events[1:], lab, incidents=[inc(2.01, 2.1, 1, 5.0, "transient", (0,))]).incidents
+    assert dict(e.summary())["counted contacts matched by an incident"] == "1/1 (100%)"
+
+
 def test_switch_labels_have_no_force_to_score():
     lab = Labels(events=(ContactLabel(2.0, 2.1, 0.0, "push", 1, {"peak_force_known": False}),
                          ContactLabel(4.0, 4.1, 0.0, "push", 1, {"peak_force_known": False})),

@@ -245,8 +245,14 @@ class IncidentEvaluation:
         if not self.available:
             return [["incidents", self.note or "not evaluated"]]
         o = self.overall
+        early = [c for c in self.contacts if c.status == "counted"
+                 and c.incident_index is None and c.n_incidents >= 1]
         rows = [
-            ["counted contacts matched by an incident", _frac(o.matched, o.n_contacts)],
+            ["counted contacts matched by an incident", _frac(o.matched, o.n_contacts) + (
+                f"; {len(early)} more held by an incident that began before the contact's "
+                f"window (labels {_idx(tuple(c.label_index for c in early))}: an earlier "
+                "alarm it merged with began first, so its start, link and force are not "
+                "that contact's)" if early else "")],
             ["incidents after warm-up", f"{self.n_incidents}" + (
                 f" ({len(self.unmatched)} matching no labelled contact"
                 + (f", {len(self.unmatched_aftermath)} of them in an earlier incident's "
