@@ -179,7 +179,8 @@ def test_cli_counts_incidents_and_gates_on_force(tmp_path: Path) -> None:
     assert "incidents of assist_pushes.csv.gz" in r.output
     # the time is the first alarm's, not the contact's start (a new user read it as that)
     assert ("#  alarm at    link" in r.output
-            and "detectors  (the contact began before its alarm)" in r.output)
+            and "detectors  (a contact begins before its alarm, unless the incident "
+            "merged an earlier alarm)" in r.output)
     r = CliRunner().invoke(main, ["detect", log, "--config", str(CONFIG), "-o",
                                   str(tmp_path / "b"), "--fail-on-force", "100"])
     assert r.exit_code == 0, r.output

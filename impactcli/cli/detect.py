@@ -418,7 +418,8 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
         cells = [_link_cell(inc) for inc in lst[:MAX_INCIDENTS_LISTED]]
         width = max(7, *(len(c) for c in cells))
         click.echo(f"incidents of {first}:  #  alarm at    {'link':<{width}}   "
-                   "force  contact      detectors  (the contact began before its alarm)")
+                   "force  contact      detectors  (a contact begins before its alarm, "
+                   "unless the incident merged an earlier alarm)")
         # the counted incidents in time order: k is the incident's number (the report's)
         for k, inc in enumerate(lst[:MAX_INCIDENTS_LISTED], 1):
             click.echo(_incident_line(k, inc, width))
