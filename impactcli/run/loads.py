@@ -121,8 +121,8 @@ def weigh_start(feed: Any, model: RigidModel, choices: tuple[GeneratorChoice, ..
     w, keep = payload.weigh_trimmed(y @ b, left, names)
     yb, left, tau = (y @ b)[keep], left[keep], tau[keep]
     if not keep.all():  # a transient no load explains (the arm settling, the filters)
-        seconds_words = (f"{seconds:g} s ({_left_out(keep, fs)} left out: a transient no "
-                         f"load explains, beyond {payload.OUTLIER_SIGMAS:g} robust standard "
+        seconds_words = (f"{seconds:g} s ({_left_out(keep, fs)}: a transient no load "
+                         f"explains, beyond {payload.OUTLIER_SIGMAS:g} robust standard "
                          "deviations of what the load leaves)")
     else:
         seconds_words = f"{seconds:g} s"
@@ -208,10 +208,10 @@ def _rows(model: RigidModel, q: np.ndarray, tau: np.ndarray, fs: float,
 
 def _left_out(keep: np.ndarray, fs: float) -> str:
     """How much of a stretch :func:`impactcli.model.payload.weigh_trimmed` left out, and
-    where: "0.21 s of them, within its first 0.4 s"."""
+    where: "0.17 s of its rows left out, all within the first 0.2 s weighed"."""
     out = np.flatnonzero(~keep)
-    return (f"{out.size / fs:.2g} s of them, within its first "
-            f"{(out[-1] + 1) / fs:.2g} s of rows weighed")
+    return (f"{out.size / fs:.2g} s of its rows left out, all within the first "
+            f"{(out[-1] + 1) / fs:.2g} s weighed")
 
 
 #: The derivative filter's start is left out for this many periods of its cut-off.
