@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -122,6 +122,20 @@ def _tmp() -> Iterator[Path]:
         yield Path(folder)
 
 
+def _writes_back(obj: Any, write: Callable[[Any, Path], Any], read: Callable[[Path], Any],
+                 name: str) -> Any:
+    """``obj`` written to a file ``name``, read back, and written again to the same bytes;
+    what was read back."""
+    with _tmp() as folder:
+        path = folder / name
+        write(obj, path)
+        text = path.read_text("utf-8")
+        back = read(path)
+        write(back, path)
+        assert path.read_text("utf-8") == text
+    return back
+
+
 @pytest.mark.parametrize("suffix", [".toml", ".yaml", ".json"])
 @PROPERTY
 @given(doc=config_docs())
@@ -148,15 +162,9 @@ def test_model_round_trip(doc: dict[str, Any]) -> None:
     except ModelError:
         assume(False)
         return
-    with _tmp() as folder:
-        path = folder / "model.json"
-        write_model(model, path)
-        text = path.read_text("utf-8")
-        back = read_model(path)
-        assert back.to_dict() == model.to_dict()
-        assert back.sha256 == model.sha256
-        write_model(back, path)
-        assert path.read_text("utf-8") == text
+    back = _writes_back(model, write_model, read_model, "model.json")
+    assert back.to_dict() == model.to_dict()
+    assert back.sha256 == model.sha256
 
 
 @PROPERTY
@@ -167,14 +175,8 @@ def test_labels_round_trip(doc: dict[str, Any]) -> None:
     except LabelsError:
         assume(False)  # an end before its start
         return
-    with _tmp() as folder:
-        path = folder / "x.labels.json"
-        write_labels(labels, path)
-        text = path.read_text("utf-8")
-        back = read_labels(path)
-        assert back.to_dict() == labels.to_dict()
-        write_labels(back, path)
-        assert path.read_text("utf-8") == text
+    back = _writes_back(labels, write_labels, read_labels, "x.labels.json")
+    assert back.to_dict() == labels.to_dict()
 
 
 @PROPERTY
