@@ -220,6 +220,25 @@ def test_cluster_survives_a_killed_worker(cluster: Any, tmp_path: Path) -> None:
     assert dict(run_tasks(_square, [3, 4], client=cluster)) == {0: 9, 1: 16}
 
 
+def _threads(_: int) -> tuple[int, int]:
+    from impactcli.cores import cores
+    from impactcli.detect.adaptive import default_threads
+
+    return cores(), default_threads(200_000)
+
+
+def test_pool_workers_share_the_cores() -> None:
+    """Known truth: two pool workers each take half the cores for their own threads (the
+    evaluator's axes, the floor's probes), where each took all of them (two workers on
+    two cores ran four threads); the main process keeps every core."""
+    from impactcli.cores import cores
+
+    got = dict(run_tasks(_threads, [0, 1], jobs=2))
+    share = max(1, (os.cpu_count() or 1) // 2)
+    assert got == {0: (share, share), 1: (share, share)}
+    assert cores() == (os.cpu_count() or 1)
+
+
 def test_a_task_that_raises_becomes_a_failure_record() -> None:
     got = dict(run_tasks(_square, [2, "x"]))  # type: ignore[list-item]
     assert got[0] == 4

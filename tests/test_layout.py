@@ -19,8 +19,8 @@ PKG = ROOT / "impactcli"
 #: Layers, low to high: a module may import its own layer and the ones below.
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("impactcli", "impactcli.errors"),
-    ("impactcli.clock", "impactcli.columns", "impactcli.files", "impactcli.schema",
-     "impactcli.spill"),
+    ("impactcli.clock", "impactcli.columns", "impactcli.cores", "impactcli.files",
+     "impactcli.schema", "impactcli.spill"),
     ("impactcli.sample_channels", "impactcli.types", "impactcli.config"),
     ("impactcli.logs",),
     ("impactcli.model", "impactcli.sim"),

@@ -24,7 +24,6 @@ compare the kernel against is ``tests/reference/adaptive.py``.
 from __future__ import annotations
 
 import dataclasses
-import os
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -33,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from ..config import AdaptiveConfig
+from ..cores import cores
 from ..errors import ImpactWarning
 from ..model.causal import Carry
 from ..model.iir import butter_lowpass
@@ -213,8 +213,9 @@ def _check(r: np.ndarray, u: np.ndarray, v_stat: np.ndarray, cfg: AdaptiveConfig
 
 
 def default_threads(n_samples: int) -> int:
-    """One thread per core from 100k samples (below, a thread's start costs more), else 1."""
-    return (os.cpu_count() or 1) if n_samples >= 100_000 else 1
+    """One thread per core this process may use (:func:`impactcli.cores.cores`: its share
+    in a pool worker) from 100k samples (below, a thread's start costs more), else 1."""
+    return cores() if n_samples >= 100_000 else 1
 
 
 def evaluate_chunk(

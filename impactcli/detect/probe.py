@@ -52,7 +52,6 @@ moments'), and a few dozen moments sample the log: the figures carry the count j
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -60,6 +59,7 @@ from typing import Any
 
 import numpy as np
 
+from ..cores import cores
 from .adaptive import evaluate_chunk
 from .axes import EvaluatorState
 from .floor import HALF_SINE_S, QUANTILES, pulse_gain
@@ -366,8 +366,9 @@ def probed_floor(probes: Sequence[Probe], v_stat: np.ndarray, v_l: np.ndarray,
                                 1.0 if i % 2 == 0 else -1.0)
 
     # the probes are independent and the kernel releases the GIL: one per core at once
+    # (the process's share of the cores in a pool worker: impactcli.cores)
     # (each answer depends on its probe alone, so the figures do not depend on it)
-    with ThreadPoolExecutor(max(1, min(os.cpu_count() or 1, len(probes)))) as pool:
+    with ThreadPoolExecutor(max(1, min(cores(), len(probes)))) as pool:
         answers = list(pool.map(one, range(len(probes))))
     for i, ans in enumerate(answers):
         for d, a in amps.items():

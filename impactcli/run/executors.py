@@ -189,7 +189,7 @@ def process_pool(workers: int) -> ProcessPoolExecutor:
         ctx.set_forkserver_preload(list(POOL_PRELOAD))
         socket_folder()
     return ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=worker_init,
-                               initargs=(os.getpid(),))
+                               initargs=(os.getpid(), workers))
 
 
 @contextmanager

@@ -159,9 +159,13 @@ def _worker_sigterm(signum: int, frame: Any) -> None:
     os._exit(128 + signum)  # idle: nothing to clean
 
 
-def worker_init(main_pid: int) -> None:
+def worker_init(main_pid: int, workers: int = 1) -> None:
     """A pool worker's start (``ProcessPoolExecutor(initializer=...)``): SIGINT ignored,
-    SIGTERM stops it (module docstring), and it stops when ``main_pid`` is gone."""
+    SIGTERM stops it (module docstring), it stops when ``main_pid`` is gone, and its own
+    threads take its share of the cores, one of ``workers`` (:mod:`impactcli.cores`)."""
+    from ..cores import set_workers
+
+    set_workers(workers)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _worker_sigterm)
     die_with_parent(signal.SIGTERM)
