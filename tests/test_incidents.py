@@ -394,3 +394,27 @@ def test_a_change_with_a_contact_beside_it_counts_the_alarm_holding_it() -> None
     _, changes = mark_payload_changes(incs, [change(20.0, 23.0, seen)], 0.56)
     assert changes[0].contact["counted"] is False
     assert "counted" not in held[0].contact
+
+
+def test_an_alarm_already_on_at_a_change_s_onset_is_the_change_s() -> None:
+    """mark_payload_changes: an incident running across a change's onset that began up to
+    ``lead_s`` before it is the change's alarm (the run passes settle_s, 0.56 s: the
+    static-loading low-pass lags the step, or was already above vL from a misfit the step
+    ran into — a new user's 1 kg release, whose alarm began 0.28 s before the change's
+    onset, was counted as a 22 N contact and tripped --fail-on-force); one that began
+    earlier stays counted, and so does one that ended before the onset."""
+    from impactcli.detect.incidents import Incident, mark_payload_changes
+    from impactcli.detect.payload_change import PayloadChange
+
+    def alarm(t0: float, t1: float) -> Incident:
+        return Incident(t0, t1, round(t0 * 500), round(t1 * 500), ("static_loading",),
+                        ("elbow",), 2, 22.0, "residual", "quasi_static", {"elbow": 1.0}, False)
+
+    change = PayloadChange(40.012, 43.012, -1.0, 0.01, {"m": -1.0}, 0.99, 0.0)
+    incs = [alarm(39.736, 43.244), alarm(39.0, 43.0), alarm(39.7, 39.9)]
+    out, _ = mark_payload_changes(incs[:1], [change], 0.56, 0.56)
+    assert out[0].payload_change == 1
+    out, _ = mark_payload_changes(incs[:1], [change], 0.56, 0.1)  # the merge gap, as before
+    assert out[0].payload_change is None
+    out, _ = mark_payload_changes(incs[1:], [change], 0.56, 0.56)
+    assert [i.payload_change for i in out] == [None, None]

@@ -832,6 +832,35 @@ def test_a_start_load_no_calibration_log_carried_and_its_release(
     assert not tl["lasting_loads"]
 
 
+def test_a_release_whose_alarm_began_before_its_onset_trips_no_gate(tmp_path: Path) -> None:
+    """A new user's trial (robot seed 5, calibrated on three free logs): the 1 kg release at
+    40 s was dated 40.316 s, when the static-loading low-pass crossed vL, while its alarm
+    began at the step (40.016 s): that incident was counted as a ≳29 N quasi-static
+    contact and tripped --fail-on-force 25 (the README: a payload change trips neither
+    gate). Now the change is dated at its step and its alarm is the change's."""
+    out = tmp_path
+    for name, scen, seed in (("m1", "free_multisine", 1), ("m2", "free_multisine", 2),
+                             ("p1", "free_p2p", 1), ("pnp", "pick_and_place", 11)):
+        r = CliRunner().invoke(main, [
+            "simulate", "--scenario", scen, "--seed", str(seed), "--robot-seed", "5",
+            "--no-controller-channels", "-o", str(out), "--name", name])
+        assert r.exit_code == 0, r.output
+    r = CliRunner().invoke(main, ["calibrate", *(str(out / f"{n}.csv.gz") for n in
+                                                 ("m1", "m2", "p1")),
+                                  "--robot", str(out / "m1.robot.json"), "-o",
+                                  str(out / "cfg.toml")])
+    assert r.exit_code == 0, r.output
+    tl, code, r = _detect(out / "pnp.csv.gz", out / "cfg.toml", out / "o",
+                          "--fail-on-force", "25")
+    assert code == 0, r.output  # type: ignore[attr-defined]
+    truth = json.loads((out / "pnp.labels.json").read_text("utf-8"))["payload_changes"]
+    ch = tl["payload_changes"]
+    assert len(ch) == 2 and all(abs(c["t_start"] - p["t_s"]) < 0.1
+                                for c, p in zip(ch, truth, strict=True)), ch
+    counted = [i for i in tl["incidents"] if i["number"] is not None]
+    assert not [i for i in counted if 39.4 <= i["t_start"] <= 43.4], counted
+
+
 def test_a_pick_in_the_warm_up_is_not_weighed_as_the_start_load(
         two_loads: Path, tmp_path: Path) -> None:
     """A 1 kg pick at 1.5 s, inside the stretch the start load is weighed on: no steady load

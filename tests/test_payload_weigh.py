@@ -140,3 +140,34 @@ def test_a_release_inside_a_lasting_alarm_is_dated_at_its_step(
     assert min(mon.tried) < 8.1  # the model error's alarm: tried, no load
     monkeypatch.setattr(PayloadMonitor, "_later_onset", lambda *a, **k: None)
     assert run().changes[0].t_start < 8.1  # what the change was dated at before
+
+
+def test_a_change_is_dated_at_its_step_not_at_the_loading_lag(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Known truth: a 1 kg release at 18 s whose torque is 1.1× vL: the static-loading
+    low-pass crosses vL 0.17 s after the step. The change is dated at the step (18.0 s):
+    an incident the adaptive detector starts at the step then falls within the change
+    (the release of a new user's trial was dated 0.3 s after the step, and its incident
+    counted as a 29 N contact)."""
+    t, q, y = _rows(30.0, swing=1.5)
+    names_p = structures.planar_names(JOINTS, STRUCTURE)
+    model = RigidModel("planar", JOINTS, tuple(names_p), np.zeros(len(names_p)), STRUCTURE)
+    b, names = payload.basis("planar", JOINTS, STRUCTURE)
+    d = y @ _point(-1.0, (0.35, 0.02))
+    r = np.random.default_rng(0).normal(0, 0.01, (t.size, 2))
+    r[t >= 18.0] -= d[t >= 18.0]
+    k = int(18.0 * FS)
+    v_l = 0.9 * np.abs(d[k:k + 50]).mean(axis=0)
+
+    def onset() -> float:
+        mon = PayloadMonitor(model, b, names, v_l, FS, 15.0, 2.0, 1, 3.0, 0.56, 1.5,
+                             merge_gap_s=0.1)
+        for k0 in range(0, t.size, 1000):
+            mon.process(k0, t[k0:k0 + 1000], q[k0:k0 + 1000], r[k0:k0 + 1000])
+        (change,) = mon.changes
+        assert abs(change.mass_kg + 1.0) < 0.01
+        return change.t_start
+
+    assert abs(onset() - 18.0) < 0.01
+    monkeypatch.setattr(PayloadMonitor, "_step_back", lambda *a, **k: None)
+    assert onset() > 18.15  # the low-pass's crossing, as before

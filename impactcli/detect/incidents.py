@@ -232,17 +232,20 @@ def mark_defects(incidents: Sequence[Incident], defects: Sequence[DataDefect],
 
 
 def mark_payload_changes(incidents: Sequence[Incident], changes: Sequence[Any],
-                         settle: float, merge_gap_s: float = 0.1,
+                         settle: float, lead_s: float = 0.1,
                          place: Callable[[Incident, Any], Incident | None] | None = None,
                          ) -> tuple[list[Incident], list[Any]]:
     """The incidents, each that starts from a payload change's onset to ``settle`` seconds
     after its classification, marked with the change's number (1-based): the alarm was the
     load, not a contact (:mod:`impactcli.detect.payload_change`). So is one still going at
-    the onset that started at most ``merge_gap_s`` (the events' merge gap) before it: the
-    adaptive detector sees the step a few milliseconds before the static-loading onset,
-    and those are one alarm. Unlike after a data defect, the adaptive evaluator's memory is
-    not added: a blow the adaptive detector alone sees while the load is carried must
-    count. Incidents marked already are left alone.
+    the onset that started at most ``lead_s`` before it (the run passes ``settle``): the
+    adaptive detector sees the step at once, and the static-loading low-pass crosses vL up
+    to its settling time after it, or was already above it there from a misfit that the
+    step ran into — one alarm (a 1 kg release on the simulated soft arm, a new user's
+    trial: its incident began 0.28 s before the change's onset, was counted as a 22 N
+    quasi-static contact and tripped --fail-on-force). Unlike after a data defect, the
+    adaptive evaluator's memory is not added: a blow the adaptive detector alone sees while
+    the load is carried must count. Incidents marked already are left alone.
 
     A change that found a contact in its window (its ``contact``) leaves the incident
     holding that contact's onset (else the nearest of the change's) counted, from that
@@ -263,7 +266,7 @@ def mark_payload_changes(incidents: Sequence[Incident], changes: Sequence[Any],
     for n, inc in enumerate(incidents):
         hit = [k for k, c in enumerate(changes, 1)
                if c.t_start - 1e-9 <= inc.t_start <= c.t_classified + settle
-               or c.t_start - merge_gap_s - 1e-9 <= inc.t_start <= c.t_start <= inc.t_end]
+               or c.t_start - lead_s - 1e-9 <= inc.t_start <= c.t_start <= inc.t_end]
         if hit and inc.data_defect is None and not inc.in_warmup:
             hits[n] = hit[0]
     beside: dict[int, dict[str, Any]] = {}  # incident → the contact it holds (or is nearest)

@@ -115,7 +115,7 @@ def contact_watch(t_start: float, scanned_from: float, t_classified: float,
     5: the loading filter and the step settle), and from the classification for
     ``settle_s`` (an alarm that starts there is the change's:
     :func:`impactcli.detect.incidents.mark_payload_changes`, which also takes an alarm
-    begun up to ``lead_s``, the events' merge gap, before the onset and still on at it) —;
+    begun up to ``lead_s`` (``settle_s``) before the onset and still on at it) —;
     ``above_s`` the stretch scanned, where one is told apart when the torque the mass
     leaves passes ``above_times_vl`` × vL (:data:`BESIDE`)."""
     return {"unjudged_s": [[t_start - lead_s, scanned_from],
@@ -230,7 +230,8 @@ class PayloadChange:
     (:func:`impactcli.detect.incidents.mark_payload_changes`); None: none.
     ``scanned_from`` [s]: where that scan began (the onset plus ``settle_s``, or the
     oldest row the monitor kept), for :func:`contact_watch` (with ``settle_s`` and the
-    events' merge gap ``lead_s``); None: not recorded. ``mass_check``: the words of a
+    lead ``lead_s``, :func:`impactcli.detect.incidents.mark_payload_changes`); None: not
+    recorded. ``mass_check``: the words of a
     release that took off more than the log was seen to carry (:func:`mass_check`), None
     when it did not."""
 
@@ -478,10 +479,11 @@ class PayloadMonitor:
             return None
         assert judged is not None
         w = judged.w
-        earlier = (self._earlier_onset(k_c, w.pi)
-                   or self._later_onset(k_c, t_c, w0, w.pi))
-        if earlier is not None:  # the step began at an alarm that failed its test, or
-            # later in the alarm than its onset (a model error's alarm ran into it)
+        earlier = (self._earlier_onset(k_c, w.pi) or self._later_onset(k_c, t_c, w0, w.pi)
+                   or self._step_back(k_c, w0, w.pi))
+        if earlier is not None:  # the step began at an alarm that failed its test, later
+            # in the alarm than its onset (a model error's alarm ran into it), or before
+            # the onset by the static-loading low-pass's lag
             self._onset = earlier
             t_a = earlier[1]
         for t in [t for t in self.tried if t >= t_a - 1e-9]:  # those alarms were the load
@@ -532,7 +534,7 @@ class PayloadMonitor:
             judged.explained, after,
             None if known is None else known[0], judged.drift, judged.shows,
             t_a - self.start_s < 1.5 / self.sample_rate_hz, seen, part,
-            max(t_a, t_c - first / self.sample_rate_hz), self.settle_s, self.merge_gap_s,
+            max(t_a, t_c - first / self.sample_rate_hz), self.settle_s, self.settle_s,
             mass_check(w.mass_kg, w.mass_se_kg, lowest, after, self.start_weighed)))
         return self._pi
 
@@ -612,6 +614,31 @@ class PayloadMonitor:
             return None
         back = n - a - tau
         return k_c - back, t_c - back / self.sample_rate_hz
+
+    def _step_back(self, k_c: int, w0: int, pi: np.ndarray) -> tuple[int, float] | None:
+        """The step's own start when it lies before the onset: the static-loading
+        low-pass crosses vL up to ``settle_s`` after a step that the adaptive detector sees
+        at once (a 1 kg release on the soft simulated arm: 0.3 s). The least-squares change
+        point of the load's torque (:func:`impactcli.model.payload.step_onset`) over the
+        rows from ``settle_s`` before the onset (not before the watch began) to the window
+        weighed, at row ``w0``, when it is before the onset. (sample, time), or None."""
+        assert self._onset is not None
+        buf, (k_a, t_a) = self._buf, self._onset
+        n = buf["r"].shape[0]
+        j_a = n - (k_c - k_a)  # the onset's row
+        back = min(round(self.settle_s * self.sample_rate_hz),
+                   int(np.floor((t_a - self.start_s) * self.sample_rate_hz)))
+        a = max(0, j_a - back)
+        if j_a - a < 2 or w0 <= j_a:
+            return None
+        left = -buf["r"][a:w0]
+        d = (self.model.regressor(buf["qf"][a:w0], buf["qd"][a:w0], buf["qdd"][a:w0])
+             @ self.b @ pi)
+        tau = payload.step_onset(left, d)
+        if tau >= j_a - a:
+            return None
+        early = j_a - a - tau
+        return k_a - early, t_a - early / self.sample_rate_hz
 
     def _beside(self, leftover: np.ndarray, k_first: int, t_first: float,
                 clipped: bool = False

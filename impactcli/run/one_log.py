@@ -346,8 +346,7 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         if (unseen := unseen_loads(where, plan.model, changes)) is not None:
             warnings.warn(unseen, ImpactWarning, stacklevel=2)
         marked, changes = mark_payload_changes(
-            mark_defects(incidents, defects, settle, memory), changes, settle,
-            cfg.events.merge_gap_s,
+            mark_defects(incidents, defects, settle, memory), changes, settle, settle,
             lambda inc, change: None if change.part is None else beside(ctx, inc, change.part))
         incidents = number_incidents(marked)
         if monitor is not None:  # what the alarms the monitor weighed are not
