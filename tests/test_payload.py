@@ -628,7 +628,9 @@ def test_a_pick_on_the_heavy_arm_is_weighed_on_its_next_window_and_a_push_caught
     assert code == 0, r.output  # type: ignore[attr-defined]
     change = tl["payload_changes"][0]
     assert abs(change["t_start"] - pick) < 0.1, change
-    assert change["t_classified"] <= change["t_start"] + 2 * WINDOW_S + 0.01, change
+    # on the second window after the loading alarm's onset (within 0.1 s of the pick;
+    # the change itself is dated at the step, before that onset)
+    assert change["t_classified"] <= pick + 2 * WINDOW_S + 0.1, change
     assert abs(change["mass_kg"] - kg) < 0.05 * kg, change
     counted = [i for i in tl["incidents"] if i["number"] is not None]
     assert any(push.start - 0.02 <= i["t_start"] <= push.end + 0.25 for i in counted), counted
@@ -670,11 +672,14 @@ def test_the_gate_note_counts_overlapping_unjudged_stretches_once() -> None:
 def test_a_push_the_change_could_not_judge_is_where_it_says_and_the_gate_says_so(
         tmp_path: Path) -> None:
     """Heavy geared arm (robot seed 7), a 30 N push 0.3 s after the 2 kg release: the push
-    falls within the loading filter's settling after the step, before the scan for a
-    contact beside the load begins, and is not told from the release
-    (tests/benchmarks/push_beside_change.py measures how often). The
-    change says so: the push's start lies in its first unjudged stretch, which is the
-    settling time long, the gate's note names the change, and the terminal row says it."""
+    starts within the loading filter's settling after the step, before the scan for a
+    contact beside the load begins (tests/benchmarks/push_beside_change.py measures how
+    often such a push is missed). The change says so: the push's start lies in its first
+    unjudged stretch, which runs from the settling time before the onset to the settling
+    time after it; the gate's note names the change, and the terminal row says it. Since
+    the change is dated at its step (2026-11-30), the scan begins 0.3 s earlier and this
+    push, still pressing there, is found beside the load: counted from where the scan
+    began, with its own force (30 N labelled), where before it was not told at all."""
     from impactcli.detect.incidents import settle_s
 
     cfg = _heavy_calibrated(tmp_path, 7)
@@ -688,13 +693,17 @@ def test_a_push_the_change_could_not_judge_is_where_it_says_and_the_gate_says_so
     assert a <= push.start <= b, release
     settle = settle_s(tl["config"]["static_loading"]["cutoff_hz"],
                       tl["config"]["adaptive"]["n2_s"])
-    gap = tl["config"]["events"]["merge_gap_s"]  # an alarm just before the onset is its
-    assert a == pytest.approx(release["t_start"] - gap)  # step's (mark_payload_changes)
+    # an alarm up to the settling time before the onset is the step's (the loading
+    # low-pass lags it: mark_payload_changes), so a contact there is not told either
+    assert a == pytest.approx(release["t_start"] - settle)
     assert b - release["t_start"] == pytest.approx(settle, abs=0.002), release
     assert c == release["t_classified"] and d - c == pytest.approx(settle), release
     assert release["contact_watch"]["above_s"] == [b, c]
     counted = [i for i in tl["incidents"] if i["number"] is not None]
-    assert not any(push.start - 0.02 <= i["t_start"] <= push.end + 0.25 for i in counted)
+    (found,) = [i for i in counted if push.start - 0.02 <= i["t_start"] <= push.end + 0.25]
+    assert found["t_start"] == pytest.approx(b) and "a contact beside payload change P2" \
+        in found["payload_test"]
+    assert abs(found["force_n"] - push.peak_force) < 0.15 * push.peak_force, found
     assert "--fail-on-detect: 2 payload changes (a load picked or released) are not gated; "\
         "a contact in their alarms joined them uncounted for" in out, out
     assert f"{a:.3f}–{b:.3f} s" in out and "not told from the load" in out, out
