@@ -362,7 +362,7 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
             warn_implausible_forces(where, [i for i in (*incidents, *loads)
                                             if getattr(i, "data_defect", None) is None
                                             and not getattr(i, "in_warmup", False)])
-        warn_defect_incidents(where, defects, incidents, settle)
+        warn_defect_incidents(where, defects, incidents, settle, memory)
         warn_late_warmup(where, past_least(incidents, cfg.warmup.min_s), cfg.warmup.min_s,
                          rp.warmup.end_s, scan.duration_s)
         caught.paste(ctx_msgs)

@@ -171,10 +171,16 @@ def warn_late_warmup(where: str, late: Sequence[Any], least: float, end_s: float
     a gate says it could not judge them."""
     if not late:
         return
-    listed = ", ".join(f"{x.t_start:.3f} s" + ("" if x.force_n is None else
-                                               f" {force_mark(x)}{x.force_n:.3g} N")
-                       for x in late[:5])
+    def said(x: Any) -> str:
+        return f"{x.t_start:.3f} s" + ("" if x.force_n is None else
+                                       f" {force_mark(x)}{x.force_n:.3g} N")
+
+    listed = ", ".join(said(x) for x in late[:5])
     more = f" and {len(late) - 5} more" if len(late) > 5 else ""
+    forced = [x for x in late if x.force_n is not None]
+    top = max(forced, key=lambda x: float(x.force_n)) if forced else None
+    if top is not None and all(top is not x for x in late[:5]):  # the largest, said
+        more += f"; the largest at {said(top)}"
     warnings.warn(
         f"{where}: the warm-up ran to {end_s:.1f} s ({100 * end_s / max(duration_s, 1e-9):.0f} "
         f"% of the log; its least is {least:g} s) while the adaptive filter's prediction "
@@ -199,10 +205,12 @@ def warn_events_after_gaps(where: str, after_s: np.ndarray, events: Sequence[Eve
 
 
 def warn_defect_incidents(where: str, defects: Sequence[Any], incidents: Sequence[Any],
-                          settle_s: float) -> None:
+                          settle_s: float, memory_s: float | None = None) -> None:
     """Warn of the incidents that start at a data defect (``data_defect``): not counted as
     contacts; and of the position jumps (a recording splice, a glitch) whether or not an
-    incident follows."""
+    incident follows. ``memory_s``: the adaptive evaluator's memory [s], within which its
+    alarms alone are the defect's (said in seconds: a new user read "within 0.56 s" beside
+    incidents 4.5 s after a jump)."""
     jumps = [d for d in defects if d.kind == "jump"]
     if jumps:
         d = jumps[0]
@@ -217,7 +225,8 @@ def warn_defect_incidents(where: str, defects: Sequence[Any], incidents: Sequenc
         more = f" and {len(marked) - 5} more" if len(marked) > 5 else ""
         warnings.warn(
             f"{where}: {len(marked)} incident(s) start at a data defect or within "
-            f"{settle_s:.2g} s after it (the adaptive detector's alone: within its memory; "
+            f"{settle_s:.2g} s after it (the adaptive detector's alone: within its memory"
+            + ("" if memory_s is None else f", {memory_s:.2g} s") + "; "
             f"{listed}{more}): marked data_defect in the timeline and not counted as "
             "contacts", ImpactWarning, stacklevel=3)
 
