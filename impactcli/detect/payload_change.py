@@ -332,6 +332,7 @@ class PayloadMonitor:
     #: not) since the last change: the step may have begun there (:meth:`_earlier_onset`)
     _failed: dict[float, int] = field(default_factory=dict)
     _carried_se: float = 0.0  # the standard error of the load carried now [kg]
+    _last_k: int = -1  # the sample at which the last change was classified
 
     def __post_init__(self) -> None:
         self._pi = np.zeros(len(self.names))
@@ -525,6 +526,7 @@ class PayloadMonitor:
         se_after = float(np.hypot(self._carried_se, w.mass_se_kg))  # the load then carried
         known = payload.known_load(self.known, self._pi, w.pi, se_after, y, left, self.names)
         self._pi = self._pi + w.pi if known is None else np.array(known[1])
+        self._last_k = k_c
         self._carried_se = se_after if known is None else 0.0
         after = self.base_kg + float(self._pi[self.names.index("m")])
         lowest = min(0.0, self.base_kg, *(c.mass_after_kg for c in self.changes))
@@ -617,17 +619,23 @@ class PayloadMonitor:
 
     def _step_back(self, k_c: int, w0: int, pi: np.ndarray) -> tuple[int, float] | None:
         """The step's own start when it lies before the onset: the static-loading
-        low-pass crosses vL up to ``settle_s`` after a step that the adaptive detector sees
-        at once (a 1 kg release on the soft simulated arm: 0.3 s). The least-squares change
-        point of the load's torque (:func:`impactcli.model.payload.step_onset`) over the
-        rows from ``settle_s`` before the onset (not before the watch began) to the window
-        weighed, at row ``w0``, when it is before the onset. (sample, time), or None."""
+        low-pass crosses vL up to ``settle_s`` after a step the adaptive detector sees at
+        once (a 1 kg release on the soft simulated arm: 0.3 s), and a step whose torque
+        stays under vL crosses it only when the motion makes it larger (a 0.5 kg release
+        on the heavy arm: 4.2 s later). The least-squares change point of the load's torque
+        (:func:`impactcli.model.payload.step_onset`) over the rows the monitor keeps before
+        the window weighed, at row ``w0`` — not before the watch began nor before the last
+        change's classification — when it is before the onset; beyond ``settle_s`` before
+        it, only when the mass explains the rows from there to the onset as
+        :meth:`_earlier_onset` asks (the median squared residual it leaves at most
+        :data:`EARLIER` of the median squared residual) and leaves those before it a larger
+        residual than none. (sample, time), or None."""
         assert self._onset is not None
         buf, (k_a, t_a) = self._buf, self._onset
         n = buf["r"].shape[0]
         j_a = n - (k_c - k_a)  # the onset's row
-        back = min(round(self.settle_s * self.sample_rate_hz),
-                   int(np.floor((t_a - self.start_s) * self.sample_rate_hz)))
+        back = min(int(np.floor((t_a - self.start_s) * self.sample_rate_hz)),
+                   k_a - self._last_k - 1 if self._last_k >= 0 else k_a)
         a = max(0, j_a - back)
         if j_a - a < 2 or w0 <= j_a:
             return None
@@ -638,6 +646,13 @@ class PayloadMonitor:
         if tau >= j_a - a:
             return None
         early = j_a - a - tau
+        if early > round(self.settle_s * self.sample_rate_hz):  # beyond the low-pass's lag
+            on, pre = slice(tau, j_a - a), slice(0, tau)
+            if (np.median(np.sum((left[on] - d[on]) ** 2, axis=1))
+                    > EARLIER * np.median(np.sum(left[on] ** 2, axis=1))
+                    or tau < 10 or np.median(np.sum((left[pre] - d[pre]) ** 2, axis=1))
+                    <= np.median(np.sum(left[pre] ** 2, axis=1))):
+                return None
         return k_a - early, t_a - early / self.sample_rate_hz
 
     def _beside(self, leftover: np.ndarray, k_first: int, t_first: float,
