@@ -4,6 +4,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pytest
 
@@ -111,6 +113,34 @@ def test_the_step_onset_is_the_change_point_of_its_signature(misfit: float) -> N
     assert payload.step_onset(rng.normal(0, 0.05, d.shape), d) >= d.shape[0] - 5
 
 
+def _release_run(kg: float, error_nm: float = 0.0, lag_vl: float | None = None
+                 ) -> tuple[Callable[[], PayloadMonitor], np.ndarray]:
+    """A 30 s planar run releasing ``kg`` (negative) at 18 s, with ``error_nm`` on the first
+    joint's residual from 8 s (a model error no mass explains); vL 0.1 N·m, or
+    ``lag_vl`` × the step's mean torque over its first 0.2 s. A function that runs the
+    monitor over it in parts of 1000 samples, and vL."""
+    t, q, y = _rows(30.0, swing=1.5)
+    names_p = structures.planar_names(JOINTS, STRUCTURE)
+    model = RigidModel("planar", JOINTS, tuple(names_p), np.zeros(len(names_p)), STRUCTURE)
+    b, names = payload.basis("planar", JOINTS, STRUCTURE)
+    d = y @ _point(kg, (0.35, 0.02))
+    r = np.random.default_rng(0).normal(0, 0.01, (t.size, 2))
+    r[t >= 18.0] -= d[t >= 18.0]  # r = τ̂ − τ
+    r[t >= 8.0, 0] += error_nm
+    k = int(18.0 * FS)
+    v_l = (np.array([0.1, 0.1]) if lag_vl is None
+           else lag_vl * np.abs(d[k:k + 50]).mean(axis=0))
+
+    def run() -> PayloadMonitor:
+        mon = PayloadMonitor(model, b, names, v_l, FS, 15.0, 2.0, 1, 3.0, 0.56, 1.5,
+                             merge_gap_s=0.1)
+        for k0 in range(0, t.size, 1000):
+            mon.process(k0, t[k0:k0 + 1000], q[k0:k0 + 1000], r[k0:k0 + 1000])
+        return mon
+
+    return run, v_l
+
+
 def test_a_release_inside_a_lasting_alarm_is_dated_at_its_step(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """Known truth: a model error no mass explains (0.5 N·m on the first joint) keeps the
@@ -118,21 +148,7 @@ def test_a_release_inside_a_lasting_alarm_is_dated_at_its_step(
     weighs the alarm's windows in turn and the one after the release passes: the change
     is dated at its step (18.0 s), not at the alarm's onset (8 s, as before
     ``_later_onset``), and the onset at 8 s stays one that was no load."""
-    t, q, y = _rows(30.0, swing=1.5)
-    names_p = structures.planar_names(JOINTS, STRUCTURE)
-    model = RigidModel("planar", JOINTS, tuple(names_p), np.zeros(len(names_p)), STRUCTURE)
-    b, names = payload.basis("planar", JOINTS, STRUCTURE)
-    r = np.random.default_rng(0).normal(0, 0.01, (t.size, 2))
-    r[t >= 18.0] -= (y @ _point(-1.5, (0.35, 0.02)))[t >= 18.0]  # r = τ̂ − τ
-    r[t >= 8.0, 0] += 0.5
-
-    def run() -> PayloadMonitor:
-        mon = PayloadMonitor(model, b, names, np.array([0.1, 0.1]), FS, 15.0, 2.0, 1, 3.0,
-                             0.25, 1.5, merge_gap_s=0.1)
-        for k0 in range(0, t.size, 1000):
-            mon.process(k0, t[k0:k0 + 1000], q[k0:k0 + 1000], r[k0:k0 + 1000])
-        return mon
-
+    run, _ = _release_run(-1.5, error_nm=0.5)
     mon = run()
     (change,) = mon.changes
     assert abs(change.t_start - 18.0) < 0.05 and change.t_classified > 20.0
@@ -142,63 +158,23 @@ def test_a_release_inside_a_lasting_alarm_is_dated_at_its_step(
     assert run().changes[0].t_start < 8.1  # what the change was dated at before
 
 
-def test_a_change_is_dated_at_its_step_not_at_the_loading_lag(
-        monkeypatch: pytest.MonkeyPatch) -> None:
-    """Known truth: a 1 kg release at 18 s whose torque is 1.1× vL: the static-loading
-    low-pass crosses vL 0.17 s after the step. The change is dated at the step (18.0 s):
-    an incident the adaptive detector starts at the step then falls within the change
-    (the release of a new user's trial was dated 0.3 s after the step, and its incident
-    counted as a 29 N contact)."""
-    t, q, y = _rows(30.0, swing=1.5)
-    names_p = structures.planar_names(JOINTS, STRUCTURE)
-    model = RigidModel("planar", JOINTS, tuple(names_p), np.zeros(len(names_p)), STRUCTURE)
-    b, names = payload.basis("planar", JOINTS, STRUCTURE)
-    d = y @ _point(-1.0, (0.35, 0.02))
-    r = np.random.default_rng(0).normal(0, 0.01, (t.size, 2))
-    r[t >= 18.0] -= d[t >= 18.0]
-    k = int(18.0 * FS)
-    v_l = 0.9 * np.abs(d[k:k + 50]).mean(axis=0)
-
-    def onset() -> float:
-        mon = PayloadMonitor(model, b, names, v_l, FS, 15.0, 2.0, 1, 3.0, 0.56, 1.5,
-                             merge_gap_s=0.1)
-        for k0 in range(0, t.size, 1000):
-            mon.process(k0, t[k0:k0 + 1000], q[k0:k0 + 1000], r[k0:k0 + 1000])
-        (change,) = mon.changes
-        assert abs(change.mass_kg + 1.0) < 0.01
-        return change.t_start
-
-    assert abs(onset() - 18.0) < 0.01
-    monkeypatch.setattr(PayloadMonitor, "_step_back", lambda *a, **k: None)
-    assert onset() > 18.15  # the low-pass's crossing, as before
-
-
-def test_a_step_below_the_loading_threshold_is_dated_at_its_step(
-        monkeypatch: pytest.MonkeyPatch) -> None:
-    """Known truth: a 1 kg release at 18 s whose torque there is 0.6 of vL: the loading
-    statistic crosses vL only when the motion makes the torque larger, at 18.83 s. The
-    change is dated at its step, 18.0 s, where the mass explains the rows from there on and
-    not those before (a new user's 0.5 kg release on the heavy arm was dated 4.2 s late,
-    and the adaptive detector's alarm at the step counted as a 17 N contact)."""
-    t, q, y = _rows(30.0, swing=1.5)
-    names_p = structures.planar_names(JOINTS, STRUCTURE)
-    model = RigidModel("planar", JOINTS, tuple(names_p), np.zeros(len(names_p)), STRUCTURE)
-    b, names = payload.basis("planar", JOINTS, STRUCTURE)
-    d = y @ _point(-1.0, (0.35, 0.02))
-    r = np.random.default_rng(0).normal(0, 0.01, (t.size, 2))
-    r[t >= 18.0] -= d[t >= 18.0]
-    k = int(18.0 * FS)
-    v_l = 1.6 * np.abs(d[k:k + 50]).mean(axis=0)
+@pytest.mark.parametrize(("lag_vl", "crossed"), [(0.9, 18.15), (1.6, 18.8)])
+def test_a_change_is_dated_at_its_step_not_where_the_loading_crossed_vl(
+        monkeypatch: pytest.MonkeyPatch, lag_vl: float, crossed: float) -> None:
+    """Known truth: a 1 kg release at 18 s whose torque there is 1.1× vL (the low-pass
+    crosses vL 0.17 s after the step) or 0.6× vL (it crosses only when the motion makes
+    the torque larger, at 18.83 s). The change is dated at its step, 18.0 s — where the
+    mass explains the rows from there on and not those before — so an incident the
+    adaptive detector starts at the step falls within the change. A new user's releases
+    had been dated 0.3 s and 4.2 s late, and their steps counted as 29 N and 17 N
+    contacts."""
+    run, _ = _release_run(-1.0, lag_vl=lag_vl)
 
     def dated() -> float:
-        mon = PayloadMonitor(model, b, names, v_l, FS, 15.0, 2.0, 1, 3.0, 0.56, 1.5,
-                             merge_gap_s=0.1)
-        for k0 in range(0, t.size, 1000):
-            mon.process(k0, t[k0:k0 + 1000], q[k0:k0 + 1000], r[k0:k0 + 1000])
-        (change,) = mon.changes
-        assert abs(change.mass_kg + 1.0) < 0.01 and change.t_classified > 21.5
+        (change,) = run().changes
+        assert abs(change.mass_kg + 1.0) < 0.01
         return change.t_start
 
     assert abs(dated() - 18.0) < 0.01
     monkeypatch.setattr(PayloadMonitor, "_step_back", lambda *a, **k: None)
-    assert dated() > 18.8  # where the loading statistic crossed vL
+    assert dated() > crossed  # where the loading statistic crossed vL, as before
