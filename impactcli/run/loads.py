@@ -118,8 +118,9 @@ def weigh_start(feed: Any, model: RigidModel, choices: tuple[GeneratorChoice, ..
             f"{seconds:g} s are too short for the residual's filters; the residual "
             f"assumes the model's load{_whose(rel)}"))
     y, left, tau = rows
-    w, keep = payload.weigh_trimmed(y @ b, left, names)
-    yb, left, tau = (y @ b)[keep], left[keep], tau[keep]
+    yb = y @ b
+    w, keep = payload.weigh_trimmed(yb, left, names)
+    yb, left, tau = yb[keep], left[keep], tau[keep]
     if not keep.all():  # a transient no load explains (the arm settling, the filters)
         seconds_words = (f"{seconds:g} s ({_left_out(keep, fs)}: a transient no load "
                          f"explains, beyond {payload.OUTLIER_SIGMAS:g} robust standard "
