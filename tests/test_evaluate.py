@@ -559,6 +559,20 @@ def test_a_contact_held_by_an_incident_begun_before_it_is_said_beside_the_matche
     assert dict(e.summary())["counted contacts matched by an incident"] == "1/1 (100%)"
 
 
+def test_the_product_can_count_fewer_false_alarms_than_a_part_and_says_why():
+    """Known truth: two adaptive false alarms inside one static-loading false alarm are one
+    product alarm: adaptive 2, product 1 (a new user read 9 product against 37 adaptive
+    false alarms as a contradiction); the text says how the product's alarms merge."""
+    lab = labels(ContactLabel(2.0, 2.1, 5.0, "impact", 1))
+    events = [ev("adaptive", 2.01), ev("static_loading", 5.0, 8.0),
+              ev("adaptive", 5.5), ev("adaptive", 6.5)]
+    e = run(events, lab, product_merge_gap_s=0.1)
+    assert (e.scores["adaptive"].false_alarms, e.scores["product"].false_alarms) == (2, 1)
+    assert ("(the product's alarms are its parts' merged where they overlap or follow "
+            "within 0.1 s: one long alarm holds many of a part's, so the product can count "
+            "fewer false alarms than one of its parts)") in format_evaluation(e)
+
+
 def test_switch_labels_have_no_force_to_score():
     lab = Labels(events=(ContactLabel(2.0, 2.1, 0.0, "push", 1, {"peak_force_known": False}),
                          ContactLabel(4.0, 4.1, 0.0, "push", 1, {"peak_force_known": False})),

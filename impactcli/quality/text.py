@@ -43,6 +43,9 @@ def format_evaluation(ev: Evaluation) -> str:
         f"collision-free time {ev.collision_free_s:.3f} s",
         f"Match: an event starting within [contact start - {ev.tolerance.pre_s:g} s, "
         f"contact end + {ev.tolerance.post_s:g} s]; product = adaptive OR static_loading",
+        "(the product's alarms are its parts' merged where they overlap or follow within "
+        f"{ev.product_merge_gap_s:g} s: one long alarm holds many of a part's, so the "
+        "product can count fewer false alarms than one of its parts)",
         "",
     ]
     head = ("detector", "detected", "false alarms", "FA/h", "delay med", "delay max",
