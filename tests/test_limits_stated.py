@@ -195,7 +195,8 @@ def test_the_run_states_its_floor_and_the_link_forces_follow_the_link_lengths(
     assert "would not have been seen" in r.stdout
     # a lower bound, and a median (a new user read a 1.3 N incident against a 4.2 N
     # floor; another read "below ~4.8 N not seen" as "above it seen" and missed 20 N blows)
-    assert "would not have been seen; a lower bound, not a promise that a larger one was "\
+    assert "would not have been seen at the log's median moment (at quieter moments a "\
+        "smaller one can be); a lower bound, not a promise that a larger one was "\
         "seen — the median over the log after warm-up" in r.stdout
     tl = json.loads((out / "assist_free_p2p.timeline.json").read_text(encoding="utf-8"))
     floor = tl["detection_floor"]

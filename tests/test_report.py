@@ -534,7 +534,8 @@ def test_could_not_see_gaps_left_out_joints_and_no_kinematics() -> None:
     sf2 = unseen(doc2)["smallest-force"]
     assert sf2["text"].startswith(
         "Detection floor (as detect states it, over the log after warm-up): a contact adding "
-        "less than ~0.42 N·m on j1, ~0.21 N·m on j2 would not have been seen; a lower bound, "
+        "less than ~0.42 N·m on j1, ~0.21 N·m on j2 would not have been seen at the log's "
+        "median moment (at quieter moments a smaller one can be); a lower bound, "
         "not a promise that a larger one was seen. "), sf2["text"]
     assert doc["logs"][0]["verdict"] == (
         "2 incidents: 1 transient on link 2, ~3.0 N·m peak residual; 1 quasi-static on "

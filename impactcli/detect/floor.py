@@ -347,7 +347,9 @@ MAX_LISTED = 6
 
 def floor_line(floor: dict[str, Any] | None) -> str | None:
     """The run's floor in one phrase for the terminal and the verdict, e.g. ``a contact
-    below ~45 N on link 2 (~60 N in the worst tenth of the log) would not have been seen``
+    below ~45 N on link 2 (~60 N in the worst tenth of the log) would not have been seen at
+    the log's median moment (at quieter moments a smaller one can be)`` — a new user read
+    "would not have been seen" beside 5 N pushes caught under a ~10 N floor
     — per link with forces, else per joint with torques; the smallest over the two
     reference contacts; at most :data:`MAX_LISTED` (the largest); None without a floor."""
     if not floor:
@@ -398,7 +400,8 @@ def floor_line(floor: dict[str, Any] | None) -> str | None:
             "warm-up: a contact there joins that alarm, so no floor is stated for them")
     if not shown:
         return busy
-    return (f"{head} {', '.join(shown)} would not have been seen{note}; {LOWER_BOUND}"
+    return (f"{head} {', '.join(shown)} would not have been seen at the log's median "
+            f"moment (at quieter moments a smaller one can be){note}; {LOWER_BOUND}"
             + (f"; {busy}" if busy else ""))
 
 
