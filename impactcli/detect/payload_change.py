@@ -177,6 +177,14 @@ def mark_tried(findings: Sequence[Any], tried: dict[float, str],
     return out
 
 
+def _typical(left: np.ndarray, d: np.ndarray) -> tuple[float, float]:
+    """The typical row's squared residual over ``left`` (n, J) [N·m] with the load's torque
+    ``d`` (n, J) taken out, and without: the medians (a contact spoils the mean, not the
+    median)."""
+    return (float(np.median(np.sum((left - d) ** 2, axis=1))),
+            float(np.median(np.sum(left ** 2, axis=1))))
+
+
 @dataclass(frozen=True)
 class Judged:
     """What the tests (a)–(e) of the module docstring found on a window: the weighing, the
@@ -577,19 +585,22 @@ class PayloadMonitor:
         load, and the contact in between is found beside it (module docstring, steps 3
         and 5)."""
         assert self._onset is not None
-        buf, k_a = self._buf, self._onset[0]
-        n = buf["r"].shape[0]
+        k_a, n = self._onset[0], self._buf["r"].shape[0]
         for t, k in sorted(self._failed.items()):
             j0, j1 = n - (k_c - k), n - (k_c - k_a)
             if j0 < 0 or j1 - j0 < 10:
                 continue
-            y = self.model.regressor(buf["qf"][j0:j1], buf["qd"][j0:j1],
-                                     buf["qdd"][j0:j1]) @ self.b
-            left = -buf["r"][j0:j1]
-            rest = np.sum((left - y @ pi) ** 2, axis=1)
-            if np.median(rest) <= EARLIER * np.median(np.sum(left ** 2, axis=1)):
+            with_load, without = _typical(*self._rows(j0, j1, pi))
+            if with_load <= EARLIER * without:
                 return k, t
         return None
+
+    def _rows(self, a: int, z: int, pi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Over the buffer's rows ``a:z``: the torque beyond the model's (n, J) [N·m] and
+        the load ``pi``'s torque Y B π there."""
+        buf = self._buf
+        y = self.model.regressor(buf["qf"][a:z], buf["qd"][a:z], buf["qdd"][a:z]) @ self.b
+        return -buf["r"][a:z], y @ pi
 
     def _later_onset(self, k_c: int, t_c: float, w0: int,
                      pi: np.ndarray) -> tuple[int, float] | None:
@@ -602,17 +613,13 @@ class PayloadMonitor:
         the calibration's, that ran into a release). (sample, time), or None: the alarm's
         onset stands (a push that spoiled the first window after a pick)."""
         assert self._onset is not None
-        buf = self._buf
-        n = buf["r"].shape[0]
+        n = self._buf["r"].shape[0]
         a = max(0, n - (k_c - self._onset[0]))
         if w0 - a < self.window:  # weighed on the alarm's first window
             return None
-        left = -buf["r"][a:w0]
-        d = (self.model.regressor(buf["qf"][a:w0], buf["qd"][a:w0], buf["qdd"][a:w0])
-             @ self.b @ pi)
+        left, d = self._rows(a, w0, pi)
         tau = payload.step_onset(left, d)
-        if tau < 10 or (np.median(np.sum((left[:tau] - d[:tau]) ** 2, axis=1))
-                        <= np.median(np.sum(left[:tau] ** 2, axis=1))):
+        if tau < 10 or np.less_equal(*_typical(left[:tau], d[:tau])):
             return None
         back = n - a - tau
         return k_c - back, t_c - back / self.sample_rate_hz
@@ -631,27 +638,23 @@ class PayloadMonitor:
         :data:`EARLIER` of the median squared residual) and leaves those before it a larger
         residual than none. (sample, time), or None."""
         assert self._onset is not None
-        buf, (k_a, t_a) = self._buf, self._onset
-        n = buf["r"].shape[0]
+        k_a, t_a = self._onset
+        n = self._buf["r"].shape[0]
         j_a = n - (k_c - k_a)  # the onset's row
         back = min(int(np.floor((t_a - self.start_s) * self.sample_rate_hz)),
                    k_a - self._last_k - 1 if self._last_k >= 0 else k_a)
         a = max(0, j_a - back)
         if j_a - a < 2 or w0 <= j_a:
             return None
-        left = -buf["r"][a:w0]
-        d = (self.model.regressor(buf["qf"][a:w0], buf["qd"][a:w0], buf["qdd"][a:w0])
-             @ self.b @ pi)
+        left, d = self._rows(a, w0, pi)
         tau = payload.step_onset(left, d)
         if tau >= j_a - a:
             return None
         early = j_a - a - tau
         if early > round(self.settle_s * self.sample_rate_hz):  # beyond the low-pass's lag
-            on, pre = slice(tau, j_a - a), slice(0, tau)
-            if (np.median(np.sum((left[on] - d[on]) ** 2, axis=1))
-                    > EARLIER * np.median(np.sum(left[on] ** 2, axis=1))
-                    or tau < 10 or np.median(np.sum((left[pre] - d[pre]) ** 2, axis=1))
-                    <= np.median(np.sum(left[pre] ** 2, axis=1))):
+            with_load, without = _typical(left[tau:j_a - a], d[tau:j_a - a])
+            if (with_load > EARLIER * without or tau < 10
+                    or np.less_equal(*_typical(left[:tau], d[:tau]))):
                 return None
         return k_a - early, t_a - early / self.sample_rate_hz
 

@@ -320,7 +320,7 @@ def weigh_trimmed(y_pay: np.ndarray, r: np.ndarray,
     1.2 s into a 3 s stretch is not trimmed into a start load)."""
     n = y_pay.shape[0]
     keep = np.ones(n, dtype=bool)
-    w = weigh(y_pay, r, names)
+    w = every = weigh(y_pay, r, names)  # on every row: the answer when none is left out
     for _ in range(3):
         if not w.supported:
             break
@@ -330,7 +330,7 @@ def weigh_trimmed(y_pay: np.ndarray, r: np.ndarray,
         spread = np.maximum(spread, 1e-12 * max(float(spread.max()), 1e-300))
         new = np.max(np.abs(e - med) / spread, axis=1) <= OUTLIER_SIGMAS
         if new.sum() < (1.0 - TRIM_SHARE) * n:
-            return weigh(y_pay, r, names), np.ones(n, dtype=bool)
+            return every, np.ones(n, dtype=bool)
         if np.array_equal(new, keep):
             break
         keep = new
@@ -338,7 +338,7 @@ def weigh_trimmed(y_pay: np.ndarray, r: np.ndarray,
     out = np.flatnonzero(~keep)
     if out.size and not (w.weighed and out[-1] < TRIM_SHARE * n and drift(
             y_pay[keep], r[keep], names, w, np.flatnonzero(keep)) <= STEADY):
-        return weigh(y_pay, r, names), np.ones(n, dtype=bool)
+        return every, np.ones(n, dtype=bool)
     return w, keep
 
 
