@@ -1185,3 +1185,79 @@ def test_loads_within_noise_of_the_lightest_are_not_called_different() -> None:
     assert said is not None and "(c +1.2 kg beyond a; b within three standard errors of " \
         "it)" in said, said
     assert payload.differ_warning(model(light, near)) is None
+
+
+
+def test_incidents_under_a_load_no_calibration_log_carried_are_marked(
+        two_loads: Path, tmp_path: Path) -> None:
+    """A new user's trial: a log carrying 2 kg that no calibration log carried gave 36
+    incidents for 13 pushes under a header that predicted 2 false alarms per hour. The rate
+    was never measured under such a load: each incident that begins under it carries the
+    load (``unseen_load_kg``), the table marks the count (†) and says how many, the report
+    lists them; incidents before the pick and after the release are not marked. Known
+    truth: the simulator's load, 3 kg from 15 s to 30 s (the calibration carried 0 and
+    1.2 kg), pushes at 7.5 s and 37.5 s outside it."""
+    from dataclasses import replace
+
+    from impactcli.logs import write_log
+    from impactcli.sim import scenario, simulate
+
+    sc = scenario("pick_and_place", "assist_like", 45.0, robot_seed=7)
+    sc = replace(sc, payload_changes=((15.0, 3.0), (30.0, 0.0)))  # its pushes kept
+    log = tmp_path / "mid3.csv.gz"
+    write_log(simulate(sc, seed=5).log, log)
+    tl, code, r = _detect(log, two_loads, tmp_path / "out")
+    assert code == 0, r.output  # type: ignore[attr-defined]
+    pick, release = tl["payload_changes"]
+    assert abs(pick["t_start"] - 15.0) < 1.0 and abs(pick["mass_kg"] - 3.0) < 0.75, pick
+    assert abs(release["t_start"] - 30.0) < 1.0, release
+    counted = [i for i in tl["incidents"] if i["number"] is not None]
+    under = [i for i in counted if pick["t_start"] <= i["t_start"] < release["t_start"]]
+    rest = [i for i in counted if i not in under]
+    assert under and all(i["unseen_load_kg"] == pick["mass_after_kg"] for i in under), under
+    for push in (sc.pushes[0].t0_s, sc.pushes[-1].t0_s):  # caught outside the load
+        assert any(push - 0.05 <= i["t_start"] <= push + 0.5 for i in rest), (push, rest)
+    assert not any("unseen_load_kg" in i for i in rest), rest
+    out = r.stdout  # type: ignore[attr-defined]
+    assert f"{len(counted)}†" in out
+    assert (f"(†: {len(under)} counted incident(s) began while the arm carried a load no "
+            f"calibration log carried ({pick['mass_after_kg']:+.3g} kg") in out
+    assert out.count("under a load no calibration log carried (unseen_load_kg") == len(under)
+    rep = CliRunner().invoke(main, ["report", str(tmp_path / "out" / "mid3.timeline.json"),
+                                    "-o", str(tmp_path / "r.html"), "--json",
+                                    str(tmp_path / "r.json")])
+    assert rep.exit_code == 0, rep.output
+    doc = json.loads((tmp_path / "r.json").read_text("utf-8"))
+    items = [u for lg in doc["logs"] for u in lg["could_not_see"] if u["code"] == "unseen-load"]
+    assert [u["data"]["incidents"] for u in items] == [[i["number"] for i in under]]
+
+
+def test_the_stretches_under_a_load_no_calibration_log_carried() -> None:
+    """``unseen_spans``: from the start while its load is beyond every calibration log's
+    (three standard errors), from each change's onset to the next while the load after it
+    is; a start load that is a calibration log's (``as_log``) is not."""
+    import dataclasses
+    from types import SimpleNamespace as NS
+
+    from impactcli.run.loads import StartLoad, mark_unseen, unseen_spans
+
+    model = NS(fit={"payloads": {"relative_to": "a", "logs": [
+        {"log": "a", "values": {"m": 0.0}}, {"log": "b", "values": {"m": 1.2}}]}})
+    start = StartLoad("used", 3.0, 3.0, 0.05, {}, "a", {}, "")
+    changes = [NS(t_start=10.0, mass_after_kg=1.1, mass_se_kg=0.05),   # to b's: seen
+               NS(t_start=20.0, mass_after_kg=2.0, mass_se_kg=0.2),    # 2.0 > 1.2 + 0.6
+               NS(t_start=30.0, mass_after_kg=1.7, mass_se_kg=0.2)]    # 1.7 < 1.2 + 0.6
+    assert unseen_spans(model, start, changes, 40.0) == [(0.0, 10.0, 3.0), (20.0, 30.0, 2.0)]
+    known = StartLoad("used", 3.0, 3.0, 0.05, {}, "a", {}, "", as_log="b")
+    assert unseen_spans(model, known, changes[:1], 40.0) == []
+    assert unseen_spans(model, None, changes[1:2], 40.0) == [(20.0, 40.0, 2.0)]
+    assert unseen_spans(model, None, [], 40.0) == []
+
+    @dataclasses.dataclass(frozen=True)
+    class Inc:
+        t_start: float
+        unseen_load_kg: float | None = None
+
+    marked = mark_unseen([Inc(t) for t in (5.0, 10.0, 20.0, 29.9, 30.0)],
+                         [(0.0, 10.0, 3.0), (20.0, 30.0, 2.0)])
+    assert [i.unseen_load_kg for i in marked] == [3.0, None, 2.0, 2.0, None]

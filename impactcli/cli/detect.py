@@ -37,9 +37,30 @@ def _fmt_row(s: SummaryRow, lasting: int) -> str:
     cal = "yes" if s["calibrated"] else "no"
     dur = f"{s['duration_s']:.1f}" + (" cut" if s.get("truncated") else "")
     warm = f"{s['warmup_end_s']:.2f}" + ("*" if s.get("late_warmup") else "")
+    incs = f"{s['incidents']}" + ("†" if _unseen(s) else "")
     return (f"{shown(s['log']):<36} {dur:>9} {cal:>10} "
-            f"{warm:>7} {s['incidents']:>9} {lasting:>7} | "
+            f"{warm:>7} {incs:>9} {lasting:>7} | "
             f"{s['adaptive']:>8} {s['static_loading']:>8} {s['static_baseline']:>8}")
+
+
+def _unseen(s: SummaryRow) -> list[IncidentRow]:
+    """The counted incidents that began while the arm carried a load no calibration log
+    carried (``unseen_load_kg``)."""
+    return [i for i in s["incident_list"] if "unseen_load_kg" in i]
+
+
+def _unseen_note(rows: list[SummaryRow]) -> str | None:
+    """The † footnote of the logs' rows: how many counted incidents lie under loads no
+    calibration log carried, and what that leaves unknown (None: none do)."""
+    under = [i for s in rows for i in _unseen(s)]
+    if not under:
+        return None
+    kg = ", ".join(sorted({f"{i['unseen_load_kg']:+.3g}" for i in under}))
+    return (f"(†: {len(under)} counted incident(s) began while the arm carried a load no "
+            f"calibration log carried ({kg} kg beyond the model's): the thresholds' "
+            "false-alarm rate was not measured with it, so how many of them are the rigid "
+            "model's own error under that load is not known — calibrate with a log that "
+            "carries it; unseen_load_kg in the timeline)")
 
 
 def _link_cell(inc: IncidentRow) -> str:
@@ -49,7 +70,8 @@ def _link_cell(inc: IncidentRow) -> str:
     return link_words(inc["link"], inc["link_candidates"], unknown="link ?")
 
 
-def _incident_line(k: int, inc: IncidentRow, link_width: int = 7) -> str:
+def _incident_line(k: int, inc: IncidentRow, link_width: int = 7,
+                   unseen_flag: bool = True) -> str:
     """``  1  12.040 s  link 2  ~14.5 N  transient  (adaptive, static_loading)``; ``k`` is
     the incident's number (the report's: 1, 2, … over the counted incidents), ``link_width``
     the link column's (``link 5 or 6`` when the residuals cannot tell)."""
@@ -67,6 +89,8 @@ def _incident_line(k: int, inc: IncidentRow, link_width: int = 7) -> str:
         flag += f"  {inc['payload_test'].split(':')[0]} (payload_test in the timeline)"
     if inc.get("outside_envelope"):
         flag += "  outside the calibrated motion (outside_envelope in the timeline)"
+    if unseen_flag and "unseen_load_kg" in inc:  # said once above when all of them are
+        flag += "  under a load no calibration log carried (unseen_load_kg in the timeline)"
     if inc.get("aftermath"):  # up to its colon: "in the aftermath of incident 5 at 35.048 s"
         flag += f"  {inc['aftermath'].split(':')[0]} (aftermath in the timeline)"
     return (f"  {k:>3}  {inc['t_start']:>9.3f} s  {link:<{link_width}} {force:>9}  "
@@ -387,6 +411,8 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
                    f"while the evaluator's prediction error settled: {n} alarm(s) in it after "
                    "that are neither counted nor judged — a contact may be among them; the "
                    "warning names them, and a gate exits 5)")
+    if (note := _unseen_note([rows[o.log_path] for o in ok[:MAX_ROWS]])) is not None:
+        click.echo(note)
     if any(rows[o.log_path].get("truncated") for o in ok[:MAX_ROWS]):
         click.echo("(cut: the file is truncated — its recording went on after that; what "
                    "came before is analysed, the gates could not judge the rest)")
@@ -417,12 +443,13 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
         first = shown(ok[0].log_path)
         cells = [_link_cell(inc) for inc in lst[:MAX_INCIDENTS_LISTED]]
         width = max(7, *(len(c) for c in cells))
+        every_unseen = len(_unseen(one)) == len(lst)  # the † note says it of them all
         click.echo(f"incidents of {first}:  #  alarm at    {'link':<{width}}   "
                    "force  contact      detectors  (a contact begins before its alarm, "
                    "unless the incident merged an earlier alarm)")
         # the counted incidents in time order: k is the incident's number (the report's)
         for k, inc in enumerate(lst[:MAX_INCIDENTS_LISTED], 1):
-            click.echo(_incident_line(k, inc, width))
+            click.echo(_incident_line(k, inc, width, not every_unseen))
         if len(lst) > MAX_INCIDENTS_LISTED:
             click.echo(f"  ... {len(lst) - MAX_INCIDENTS_LISTED} more (in the timeline)")
         if any(" or " in c for c in cells):

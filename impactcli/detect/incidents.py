@@ -87,6 +87,7 @@ class Incident:
     payload_test: str | None = None
     aftermath: dict[str, Any] | None = None
     force_at_least: bool = False
+    unseen_load_kg: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (timeline ``incidents`` item); ``outside_envelope`` only when
@@ -98,7 +99,9 @@ class Incident:
         :func:`impactcli.detect.payload_change.mark_tried`) or a payload change with a
         contact beside it (:func:`mark_payload_changes`), ``aftermath`` only when it starts
         while the arm had not settled after an earlier incident
-        (:func:`impactcli.detect.aftermath.aftermath_of`, with its ``text``)."""
+        (:func:`impactcli.detect.aftermath.aftermath_of`, with its ``text``),
+        ``unseen_load_kg`` only when it starts while the arm carried a load no calibration
+        log carried (:func:`impactcli.run.loads.unseen_spans`)."""
         return {
             "t_start": self.t_start, "t_end": self.t_end, "t_start_utc": self.t_start_utc,
             "detectors": list(self.detectors), "joints": list(self.joints), "link": self.link,
@@ -116,6 +119,7 @@ class Incident:
             **({} if self.payload_change is None else {"payload_change": self.payload_change}),
             **({} if self.payload_test is None else {"payload_test": self.payload_test}),
             **({} if self.aftermath is None else {"aftermath": self.aftermath}),
+            **({} if self.unseen_load_kg is None else {"unseen_load_kg": self.unseen_load_kg}),
         }
 
 

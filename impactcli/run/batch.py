@@ -95,12 +95,14 @@ class IncidentRow(TypedDict):
     aftermath: NotRequired[str]
     no_force: NotRequired[str]
     force_at_least: NotRequired[bool]
+    unseen_load_kg: NotRequired[float]
 
 
 def _incident_row(i: Any) -> IncidentRow:
     """A counted incident (:class:`~impactcli.detect.incidents.Incident`) as a summary row
     (``no_force``: why it has no force, when no single force at its link's end fits;
-    ``force_at_least`` when its force is a lower bound)."""
+    ``force_at_least`` when its force is a lower bound; ``unseen_load_kg`` the load no
+    calibration log carried that the arm carried then)."""
     row = IncidentRow(t_start=i.t_start, link=i.link, link_candidates=list(i.link_candidates),
                       force_n=i.force_n, contact=i.contact, detectors=list(i.detectors),
                       force_plausible=i.force_plausible)
@@ -114,6 +116,8 @@ def _incident_row(i: Any) -> IncidentRow:
         row["no_force"] = i.force_method
     if i.force_at_least:
         row["force_at_least"] = True
+    if i.unseen_load_kg is not None:
+        row["unseen_load_kg"] = i.unseen_load_kg
     return row
 
 

@@ -348,6 +348,40 @@ def known_loads(model: RigidModel, names: tuple[str, ...], pi0: np.ndarray,
     return tuple((log, pi - pi0) for log, pi in cal)
 
 
+def unseen_spans(model: RigidModel | None, start: StartLoad | None, changes: Any,
+                 t_end: float) -> list[tuple[float, float, float]]:
+    """The stretches where the arm carried a load no calibration log carried
+    (:func:`beyond_calibrated`, the test of the start's and the changes' warnings): each
+    (from [s], to [s], the load beyond the model's [kg]) — from the log's start while it
+    carries such a start load, from a payload change's onset to the next one's (or
+    ``t_end``) while the load after it is such a load. The thresholds' false-alarm rate was
+    not measured there."""
+    if model is None:
+        return []
+    _, cal = _calibration(model)
+    marks: list[tuple[float, float | None]] = []  # (from, its load when unseen)
+    if start is not None and start.verdict == "used" and start.as_log is None and \
+            start.mass_kg is not None and beyond_calibrated(cal, start.mass_kg,
+                                                            float(start.mass_se_kg or 0.0)):
+        marks.append((0.0, float(start.mass_kg)))
+    for c in changes or ():
+        marks.append((float(c.t_start), float(c.mass_after_kg) if beyond_calibrated(
+            cal, c.mass_after_kg, c.mass_se_kg) else None))
+    if not marks:
+        return []
+    ends = [t for t, _ in marks[1:]] + [t_end]
+    return [(t, z, kg) for (t, kg), z in zip(marks, ends, strict=True) if kg is not None]
+
+
+def mark_unseen(incidents: list[Any], spans: list[tuple[float, float, float]]) -> list[Any]:
+    """The incidents that start within one of :func:`unseen_spans`, with its load
+    (``unseen_load_kg``); the others as they are."""
+    if not spans:
+        return incidents
+    return [next((dataclasses.replace(i, unseen_load_kg=kg) for a, z, kg in spans
+                  if a <= i.t_start < z), i) for i in incidents]
+
+
 def unseen_loads(where: str, model: RigidModel | None, changes: Any) -> str | None:
     """The warning when a payload change left the arm carrying a load no calibration log
     carried (beyond every one by three standard errors; ``mass_after_kg`` counts the load

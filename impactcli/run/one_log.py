@@ -89,7 +89,14 @@ from ..types import (
     SignalsChunk,
 )
 from .islands import Islands
-from .loads import monitor_for, unseen_loads, unwatched_reason, weighs_loads
+from .loads import (
+    mark_unseen,
+    monitor_for,
+    unseen_loads,
+    unseen_spans,
+    unwatched_reason,
+    weighs_loads,
+)
 from .plan import ChunkFeed, Passes, RunPlan, calibrated_thresholds, plan_run, with_generator
 from .replay import ChunkReplay, Replayer, ReplaySetup, ReplayState
 from .run_warnings import (
@@ -348,7 +355,8 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         marked, changes = mark_payload_changes(
             mark_defects(incidents, defects, settle, memory), changes, settle, settle,
             lambda inc, change: None if change.part is None else beside(ctx, inc, change.part))
-        incidents = number_incidents(marked)
+        incidents = mark_unseen(number_incidents(marked), unseen_spans(
+            plan.model, plan.start_load, changes, scan.duration_s + scan.sample_period_s))
         if monitor is not None:  # what the alarms the monitor weighed are not
             incidents = mark_tried(incidents, monitor.tried, cfg.events.merge_gap_s)
             loads = mark_tried(loads, monitor.tried, cfg.events.merge_gap_s)

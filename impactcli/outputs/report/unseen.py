@@ -227,6 +227,26 @@ def _envelope(result: DetectionResult, incidents: list[dict[str, Any]]) -> list[
                       + (f"; and {posture_text(posture)}" if posture else "") + ".")}]
 
 
+def _unseen_load(incidents: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The counted incidents that began while the arm carried a load no calibration log
+    carried (the timeline's ``unseen_load_kg``): the thresholds' false-alarm rate was not
+    measured there; nothing when none did."""
+    under = [i for i in incidents if i.get("unseen_load_kg") is not None and i.get("number")]
+    if not under:
+        return []
+    kg = sorted({round(float(i["unseen_load_kg"]), 3) for i in under})
+    return [{"code": "unseen-load",
+             "short": f"{len(under)} incident(s) under a load not calibrated with",
+             "data": {"incidents": [int(i["number"]) for i in under], "loads_kg": kg},
+             "text": (f"{len(under)} counted incident(s) began while the arm carried a load "
+                      "no calibration log carried ("
+                      + ", ".join(f"{m:+.3g}" for m in kg)
+                      + " kg beyond the model's): the thresholds' stated false-alarm rate "
+                      "was not measured with it, and the rigid model's error under a load "
+                      "it was not calibrated with can alarm, so how many of them are "
+                      "contacts is not known. Calibrate with a log that carries the load.")}]
+
+
 def could_not_see(result: DetectionResult, incidents: list[dict[str, Any]], *,
                   samples: Samples, known: bool = True,
                   origin: dict[str, Any] | None = None) -> list[dict[str, Any]]:
@@ -235,6 +255,7 @@ def could_not_see(result: DetectionResult, incidents: list[dict[str, Any]], *,
     chain, kin = chain_of(result)
     return [*_older(origin, known), _warmup(result, incidents), *_cut(result),
             _gaps(samples), _left_out(result, chain), *_envelope(result, incidents),
+            *_unseen_load(incidents),
             _smallest_force(result, chain, kin, samples)]
 
 
