@@ -50,6 +50,11 @@ def test_audit_rate_prints_fit_support_and_leave_one_log_out(assist: tuple) -> N
     lines = r.stdout.splitlines()
     assert any(ln.startswith("calibrated on 3 log(s)") and "v_stat and vL for 1 false "
                "alarm(s) per hour, v0 by leave-one-out" in ln for ln in lines)
+    # the triangle, left out, false-alarmed far above the others' bound: said in the
+    # headline beside the rate, not only 60 lines on (a trial read "2/h" there alone)
+    (headline,) = [ln for ln in lines if ln.startswith("calibrated on 3 log(s)")]
+    assert ("; but 1 of the calibration logs, left out, false-alarmed above the others' "
+            "bound (assist_free_triangle.csv.gz: ") in headline, headline
     head = [ln for ln in lines if ln.startswith("false alarms per hour: asked 1; predicted ")]
     assert len(head) == 1 and "at 90 % confidence" in head[0]
     # ~1.3 min support no rate below ~3.4 per hour: the fits' bound of 1 is not promised

@@ -152,7 +152,7 @@ def rate_warnings(rate: dict[str, Any] | None) -> list[str]:
     seen), and default thresholds stated to false-alarm often."""
     if not rate:
         return []
-    from ..detect.tail import at_most_text
+    from ..detect.tail import at_most_text, left_out_text
     from ..detect.tail import per_hour_text as ph
 
     out = []
@@ -169,9 +169,11 @@ def rate_warnings(rate: dict[str, Any] | None) -> list[str]:
                                "is not seen; more free motion, a higher R or a lower "
                                "--confidence narrows it")
     elif float(rate.get("upper_per_hour", 0.0)) > HIGH_STATED_RATE:
+        left = left_out_text(rate)
         out.append(f"these thresholds are predicted to give {ph(rate['predicted_per_hour'])} "
                    f"false alarm(s) per hour ({at_most_text(rate['upper_per_hour'])}) on "
-                   "motion like the free logs': calibrate on more of the robot's free "
+                   "motion like the free logs'" + (f"; {left}" if left else "")
+                   + ": calibrate on more of the robot's free "
                    "motion, or set them for a rate (--false-alarms-per-hour R)")
     return out
 
@@ -335,7 +337,7 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     from ..detect.tail import per_hour_text as ph
 
     fa = c.false_alarm_rate or {}
-    from ..detect.tail import zero_count_bound
+    from ..detect.tail import left_out_text, zero_count_bound
 
     tail = ("" if not fa or fa["upper_per_hour"] >= (zero := zero_count_bound(
         fa["free_minutes"] / 60.0, fa["confidence"])) else
@@ -345,6 +347,8 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
             f"{c.margin_rule}" if "per_hour" in fa else f"rule {c.margin_rule}" + (
                 f" (predicted {ph(fa['predicted_per_hour'])} false alarm(s) per hour, upper "
                 f"bound {ph(fa['upper_per_hour'])}{tail})" if fa else ""))
+    if fa and (left := left_out_text(fa)):  # said beside the prediction, not 60 lines on
+        rule += f"; {left}"
     click.echo(f"calibrated on {len(read)} log(s) ({c.segments} stretch(es) of collision-free "
                f"motion), {rule}{weak}; {what}")
     if kind == "decoupled" and robot_d is None and model_m is None and out.model is not None:

@@ -308,6 +308,21 @@ def left_out_above(rate: Mapping[str, Any]) -> list[dict[str, Any]]:
     return list(worst.values())
 
 
+def left_out_text(rate: Mapping[str, Any]) -> str:
+    """"but k of the calibration logs, left out, false-alarmed above the others' bound (…)":
+    the prediction that did not hold for a log left out (:func:`left_out_above`, the worst
+    named), "" when it held for each."""
+    above = left_out_above(rate)
+    if not above:
+        return ""
+    w = max(above, key=lambda x: x["ratio"])
+    return (f"but {len(above)} of the calibration logs, left out, false-alarmed above the "
+            f"others' bound ({Path(w['log']).name}: {w['observed_per_hour']:.3g}/h against "
+            f"{w['upper_per_hour']:.3g}/h, thresholds set on the others for "
+            f"{w['per_hour']:g}/h): a log unlike the calibration logs may false-alarm far "
+            "above the prediction")
+
+
 def calibration_text(calib: Mapping[str, object], settings_changed: bool = False) -> str:
     """How a calibrated config's thresholds were set and what that promises, in one phrase
     (detect's terminal, the report's header): the rate asked or the margin rule, the rate
@@ -331,13 +346,8 @@ def calibration_text(calib: Mapping[str, object], settings_changed: bool = False
                                           in rate and float(rate["supported_per_hour"])
                                           > float(rate.get("upper_per_hour", 0.0))):
         text += f", not supported by its free motion ({rate.get('statement', '')})"
-    if above := left_out_above(rate):  # the prediction did not hold for a log left out
-        w = max(above, key=lambda x: x["ratio"])
-        text += (f"; but {len(above)} of the calibration logs, left out, false-alarmed above "
-                 f"the others' bound ({Path(w['log']).name}: {w['observed_per_hour']:.3g}/h "
-                 f"against {w['upper_per_hour']:.3g}/h, thresholds set on the others for "
-                 f"{w['per_hour']:g}/h): a log unlike the calibration logs may false-alarm "
-                 "far above the prediction")
+    if above := left_out_text(rate):  # the prediction did not hold for a log left out
+        text += f"; {above}"
     if calib.get("weak"):
         capped = capped_detectors(calib)
         if rule == "fixed-single-log":
