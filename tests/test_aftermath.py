@@ -71,6 +71,27 @@ def test_a_span_no_incident_threw_marks_nothing() -> None:
     assert aftermath_of([a, b], late, SETTLE)[1] is None
 
 
+def test_the_filters_starting_throw_no_aftermath() -> None:
+    """A new user's heavy-arm log: the measured acceleration left its range at each corner
+    of the lead-in triangles, every 0.54 s (closer than the settling time: one span from
+    the first), and the span began within the warm-up's incident at the log's first sample
+    — the filters starting. Its 14 alarms were each called "in the aftermath of the incident
+    at 0.000 s". That incident is no contact: the span has no cause."""
+
+    @dataclass(frozen=True)
+    class At(Inc):
+        i_start: int = 1
+
+    corners = [out(0.092 + 0.54 * k, 0.142 + 0.54 * k) for k in range(20)]
+    start = At(0.0, 0.15, None, i_start=0)
+    alarms = [At(0.5 + 0.54 * k, 0.55 + 0.54 * k, k + 1, i_start=100 + k) for k in range(19)]
+    assert aftermath_of([start, *alarms], corners, SETTLE) == [None] * 20
+    # the same alarm 0.004 s in (its second sample) is a cause as before
+    second = At(0.004, 0.15, None, i_start=1)
+    marks = aftermath_of([second, *alarms], corners, SETTLE)
+    assert all(m is not None and m["t_start"] == 0.004 for m in marks[1:])
+
+
 def test_an_incident_that_starts_while_its_cause_is_on_is_not_its_aftermath() -> None:
     a, b = Inc(10.0, 11.0, 1), Inc(10.9, 11.5, 2)
     assert aftermath_of([a, b], [out(10.1, 12.0)], SETTLE) == [None, None]

@@ -24,7 +24,11 @@ of its ranges, by construction — but they date the disturbance a contact leave
   defaults; :func:`impactcli.detect.incidents.settle_s`) form one *unsettled span*: the
   detectors still show one when the next begins;
 - a span is an incident's when it begins while that incident is on (from
-  :data:`LEAD_S` before its start to its end): the contact threw the arm out;
+  :data:`LEAD_S` before its start to its end): the contact threw the arm out — but not an
+  incident that begins at the log's first sample (``i_start`` 0, in the warm-up): that is
+  the filters starting, not a contact (on a simulated heavy arm whose triangle corners
+  threw the measured acceleration out every 0.54 s, 14 false incidents were called "the
+  aftermath of the incident at 0.000 s");
 - an incident that starts after that incident ended, while the span lasts or within
   ``settle_s`` after it, is in the first one's *aftermath*.
 
@@ -146,8 +150,8 @@ def _spans(stretches: Sequence[MeasuredStretch], settle_s: float
 
 def aftermath_of(incidents: Sequence[Any], stretches: Sequence[MeasuredStretch],
                  settle_s: float) -> list[dict[str, Any] | None]:
-    """Per incident (anything with ``t_start``, ``t_end`` [s] and ``number``), the incident
-    whose aftermath it starts in (module docstring), or None.
+    """Per incident (anything with ``t_start``, ``t_end`` [s] and ``number``; ``i_start``
+    when known), the incident whose aftermath it starts in (module docstring), or None.
 
     Each mark is a mapping: ``incident`` (the first incident's number, None when it has none:
     in warm-up, at a data defect, a payload change), ``t_start`` of that incident [s],
@@ -160,7 +164,8 @@ def aftermath_of(incidents: Sequence[Any], stretches: Sequence[MeasuredStretch],
     for span in spans:
         s0, s1 = span[0].t_start, span[-1].t_end
         cause = next((k for k in order if float(incidents[k].t_start) - LEAD_S <= s0
-                      <= float(incidents[k].t_end)), None)
+                      <= float(incidents[k].t_end)
+                      and getattr(incidents[k], "i_start", None) != 0), None)
         if cause is None:
             continue
         p = incidents[cause]
