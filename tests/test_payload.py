@@ -1230,6 +1230,8 @@ def test_incidents_under_a_load_no_calibration_log_carried_are_marked(
     doc = json.loads((tmp_path / "r.json").read_text("utf-8"))
     items = [u for lg in doc["logs"] for u in lg["could_not_see"] if u["code"] == "unseen-load"]
     assert [u["data"]["incidents"] for u in items] == [[i["number"] for i in under]]
+    assert (f"{len(under)} of them began while the arm carried a load no calibration log "
+            "carried: the false-alarm rate there was not measured") in doc["logs"][0]["verdict"]
 
 
 def test_the_stretches_under_a_load_no_calibration_log_carried() -> None:

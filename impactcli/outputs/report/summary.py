@@ -232,7 +232,12 @@ def _verdict(incidents: Sequence[dict[str, Any]], known: bool, alarms_counted: i
              f" {'One estimated force is' if bad == 1 else f'{bad} estimated forces are'}"
              " beyond what the arm can exert: positions in degrees? a wrong gear ratio or "
              "torque constant?")
-    return f"{head}: {'; '.join(parts)}{tail}{also}.{units}"
+    under = sum(1 for i in counted if i.get("unseen_load_kg") is not None)
+    unseen = ("" if not under else
+              f" {'It' if n == 1 else ('All' if under == n else f'{under} of them')} began "
+              "while the arm carried a load no calibration log carried: the false-alarm "
+              "rate there was not measured, so how many are contacts is not known.")
+    return f"{head}: {'; '.join(parts)}{tail}{also}.{units}{unseen}"
 
 
 def counts_as_contact(incident: dict[str, Any]) -> bool:
