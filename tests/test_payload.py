@@ -1263,3 +1263,14 @@ def test_the_stretches_under_a_load_no_calibration_log_carried() -> None:
     marked = mark_unseen([Inc(t) for t in (5.0, 10.0, 20.0, 29.9, 30.0)],
                          [(0.0, 10.0, 3.0), (20.0, 30.0, 2.0)])
     assert [i.unseen_load_kg for i in marked] == [3.0, None, 2.0, 2.0, None]
+    # a lasting load is marked as an incident is, and says so in its timeline item and row
+    from impactcli.cli.detect import _lasting_line
+    from impactcli.detect.incidents import LastingLoad
+
+    load = LastingLoad("static_loading", 21.0, 33.0, 5250, 8250, ("elbow",), 26.6, False, 3,
+                       False, 2, 21.9, "")
+    (got,) = mark_unseen([load], [(20.0, 30.0, 2.0)])
+    assert got.to_dict()["unseen_load_kg"] == 2.0 and "unseen_load_kg" not in load.to_dict()
+    assert _lasting_line(1, got.to_dict()).endswith(
+        "; under a load no calibration log carried (+2 kg): the rigid model's error under it "
+        "alarms so too")

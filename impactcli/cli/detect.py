@@ -37,7 +37,8 @@ def _fmt_row(s: SummaryRow, lasting: int) -> str:
     cal = "yes" if s["calibrated"] else "no"
     dur = f"{s['duration_s']:.1f}" + (" cut" if s.get("truncated") else "")
     warm = f"{s['warmup_end_s']:.2f}" + ("*" if s.get("late_warmup") else "")
-    incs = f"{s['incidents']}" + ("†" if _unseen(s) else "")
+    incs = f"{s['incidents']}" + ("†" if _unseen(s) or any(
+        "unseen_load_kg" in x for x in s["lasting_load_list"]) else "")
     return (f"{shown(s['log']):<36} {dur:>9} {cal:>10} "
             f"{warm:>7} {incs:>9} {lasting:>7} | "
             f"{s['adaptive']:>8} {s['static_loading']:>8} {s['static_baseline']:>8}")
@@ -50,14 +51,16 @@ def _unseen(s: SummaryRow) -> list[IncidentRow]:
 
 
 def _unseen_note(rows: list[SummaryRow]) -> str | None:
-    """The † footnote of the logs' rows: how many counted incidents lie under loads no
-    calibration log carried, and what that leaves unknown (None: none do)."""
+    """The † footnote of the logs' rows: how many counted incidents (and lasting loads) lie
+    under loads no calibration log carried, and what that leaves unknown (None: none do)."""
     under = [i for s in rows for i in _unseen(s)]
-    if not under:
+    lasting = [x for s in rows for x in s["lasting_load_list"] if "unseen_load_kg" in x]
+    if not under and not lasting:
         return None
-    kg = ", ".join(sorted({f"{i['unseen_load_kg']:+.3g}" for i in under}))
-    return (f"(†: {len(under)} counted incident(s) began while the arm carried a load no "
-            f"calibration log carried ({kg} kg beyond the model's): the thresholds' "
+    kg = ", ".join(sorted({f"{x['unseen_load_kg']:+.3g}" for x in [*under, *lasting]}))
+    also = f" and {len(lasting)} lasting load(s)" if lasting else ""
+    return (f"(†: {len(under)} counted incident(s){also} began while the arm carried a load "
+            f"no calibration log carried ({kg} kg beyond the model's): the thresholds' "
             "false-alarm rate was not measured with it, so how many of them are the rigid "
             "model's own error under that load is not known — calibrate with a log that "
             "carries it; unseen_load_kg in the timeline)")
@@ -107,6 +110,9 @@ def _lasting_line(k: int, x: dict[str, Any]) -> str:
     if x.get("force_plausible") is False:
         force += " (beyond what the arm can exert)"
     test = f"; {x['payload_test']}" if x.get("payload_test") else ""
+    if x.get("unseen_load_kg") is not None:
+        test += (f"; under a load no calibration log carried ({x['unseen_load_kg']:+.3g} kg): "
+                 "the rigid model's error under it alarms so too")
     return (f"  L{k:<2} {x['t_start']:>9.3f}–{x['t_end']:.3f} s{end}  {x['detector']} on "
             f"{', '.join(x['joints'])}, up to {x['peak_ratio']:.3g}× its threshold{force}"
             f"{test}")

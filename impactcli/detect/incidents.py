@@ -148,10 +148,11 @@ class LastingLoad(AlarmSpan):
     force_check: str = ""
     payload_test: str | None = None
     force_at_least: bool = False
+    unseen_load_kg: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready mapping (timeline ``lasting_loads`` item); ``payload_test`` as an
-        incident's."""
+        """JSON-ready mapping (timeline ``lasting_loads`` item); ``payload_test`` and
+        ``unseen_load_kg`` as an incident's."""
         return {
             "detector": self.detector, "t_start": self.t_start, "t_end": self.t_end,
             "t_start_utc": self.t_start_utc, "i_start": self.i_start, "i_end": self.i_end,
@@ -162,6 +163,7 @@ class LastingLoad(AlarmSpan):
             "force_plausible": self.force_plausible,
             "force_ceiling_n": self.force_ceiling_n, "force_check": self.force_check,
             **({} if self.payload_test is None else {"payload_test": self.payload_test}),
+            **({} if self.unseen_load_kg is None else {"unseen_load_kg": self.unseen_load_kg}),
         }
 
 

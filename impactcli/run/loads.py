@@ -374,8 +374,8 @@ def unseen_spans(model: RigidModel | None, start: StartLoad | None, changes: Any
 
 
 def mark_unseen(incidents: list[Any], spans: list[tuple[float, float, float]]) -> list[Any]:
-    """The incidents that start within one of :func:`unseen_spans`, with its load
-    (``unseen_load_kg``); the others as they are."""
+    """The incidents (or lasting loads) that start within one of :func:`unseen_spans`, with
+    its load (``unseen_load_kg``); the others as they are."""
     if not spans:
         return incidents
     return [next((dataclasses.replace(i, unseen_load_kg=kg) for a, z, kg in spans

@@ -355,8 +355,10 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         marked, changes = mark_payload_changes(
             mark_defects(incidents, defects, settle, memory), changes, settle, settle,
             lambda inc, change: None if change.part is None else beside(ctx, inc, change.part))
-        incidents = mark_unseen(number_incidents(marked), unseen_spans(
-            plan.model, plan.start_load, changes, scan.duration_s + scan.sample_period_s))
+        uncalibrated = unseen_spans(plan.model, plan.start_load, changes,
+                                    scan.duration_s + scan.sample_period_s)
+        incidents = mark_unseen(number_incidents(marked), uncalibrated)
+        loads = mark_unseen(loads, uncalibrated)
         if monitor is not None:  # what the alarms the monitor weighed are not
             incidents = mark_tried(incidents, monitor.tried, cfg.events.merge_gap_s)
             loads = mark_tried(loads, monitor.tried, cfg.events.merge_gap_s)

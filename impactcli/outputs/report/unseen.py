@@ -227,19 +227,25 @@ def _envelope(result: DetectionResult, incidents: list[dict[str, Any]]) -> list[
                       + (f"; and {posture_text(posture)}" if posture else "") + ".")}]
 
 
-def _unseen_load(incidents: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """The counted incidents that began while the arm carried a load no calibration log
-    carried (the timeline's ``unseen_load_kg``): the thresholds' false-alarm rate was not
-    measured there; nothing when none did."""
+def _unseen_load(result: DetectionResult, incidents: list[dict[str, Any]]
+                 ) -> list[dict[str, Any]]:
+    """The counted incidents and lasting loads that began while the arm carried a load no
+    calibration log carried (the timeline's ``unseen_load_kg``): the thresholds'
+    false-alarm rate was not measured there; nothing when none did."""
     under = [i for i in incidents if i.get("unseen_load_kg") is not None and i.get("number")]
-    if not under:
+    lasting = [x for x in result.lasting_loads
+               if getattr(x, "unseen_load_kg", None) is not None and not x.in_warmup]
+    if not under and not lasting:
         return []
-    kg = sorted({round(float(i["unseen_load_kg"]), 3) for i in under})
+    kg = sorted({round(float(x), 3) for x in [*(i["unseen_load_kg"] for i in under),
+                                              *(x.unseen_load_kg for x in lasting)]})
+    also = f" and {len(lasting)} lasting load(s)" if lasting else ""
     return [{"code": "unseen-load",
-             "short": f"{len(under)} incident(s) under a load not calibrated with",
-             "data": {"incidents": [int(i["number"]) for i in under], "loads_kg": kg},
-             "text": (f"{len(under)} counted incident(s) began while the arm carried a load "
-                      "no calibration log carried ("
+             "short": f"{len(under)} incident(s){also} under a load not calibrated with",
+             "data": {"incidents": [int(i["number"]) for i in under],
+                      "lasting_loads": len(lasting), "loads_kg": kg},
+             "text": (f"{len(under)} counted incident(s){also} began while the arm carried "
+                      "a load no calibration log carried ("
                       + ", ".join(f"{m:+.3g}" for m in kg)
                       + " kg beyond the model's): the thresholds' stated false-alarm rate "
                       "was not measured with it, and the rigid model's error under a load "
@@ -255,7 +261,7 @@ def could_not_see(result: DetectionResult, incidents: list[dict[str, Any]], *,
     chain, kin = chain_of(result)
     return [*_older(origin, known), _warmup(result, incidents), *_cut(result),
             _gaps(samples), _left_out(result, chain), *_envelope(result, incidents),
-            *_unseen_load(incidents),
+            *_unseen_load(result, incidents),
             _smallest_force(result, chain, kin, samples)]
 
 
