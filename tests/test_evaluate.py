@@ -597,6 +597,24 @@ def test_without_incidents_the_evaluation_says_so():
     validate(e.to_dict(), "evaluation", LabelsError, "evaluation")
 
 
+def test_an_incident_at_a_data_defect_answers_no_contact():
+    """A new user's trial: detect took a labelled 5 N push out of the count as an incident
+    at a data defect, while evaluate matched it ("ok") and counted 14 incidents against
+    detect's 12. The incident evaluation follows detect: B's incident, marked at a jump,
+    answers no contact and is not counted; it is said apart."""
+    lab, events, incs = answer_case()
+    incs[2] = {**incs[2], "data_defect": {"kind": "jump", "t_start": 3.9, "t_end": 3.904}}
+    e = run(events, lab, incidents=incs)
+    ie = e.incidents
+    assert (ie.overall.matched, ie.n_incidents, ie.n_data_defects) == (2, 3, 1)
+    assert {c.label_index: c.incident_index for c in ie.contacts}[1] is None
+    doc = e.to_dict()
+    validate(doc, "evaluation", LabelsError, "evaluation")
+    assert doc["incidents"]["n_data_defects"] == 1
+    assert "1 at a data defect (not counted, as detect does not: a contact there is " \
+           "missed)" in format_evaluation(e)
+
+
 def test_the_alarm_of_a_payload_change_is_not_a_false_alarm():
     """The false incident at 9.5 s of answer_case, marked as a payload change's alarm (a
     load picked: detect neither counts nor gates it), is no false alarm of any detector

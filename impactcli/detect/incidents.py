@@ -215,18 +215,27 @@ def adaptive_memory_s(forgetting_factor: float, sample_rate_hz: float) -> float:
 
 
 def mark_defects(incidents: Sequence[Incident], defects: Sequence[DataDefect],
-                 settle: float, adaptive_settle: float = 0.0) -> list[Incident]:
+                 settle: float, adaptive_settle: float = 0.0,
+                 settled_s: float | None = None) -> list[Incident]:
     """The incidents, each that starts within a defect or ``settle`` seconds after it
     marked with it (its kind and times; the first such defect) — or, raised by the
     adaptive detector alone, ``adaptive_settle`` seconds after it (the evaluator's memory,
-    :func:`adaptive_memory_s`: its estimates are still re-converging from the defect)."""
+    :func:`adaptive_memory_s`: its estimates are still re-converging from the defect),
+    unless the defect ended before ``settled_s`` [s]: a warm-up that ended there (not at
+    its cap) ended because the evaluator's prediction error had settled, defect and all
+    (docs/method.md §5b; a new user's trial: a start transient at 0.012 s took a labelled
+    5 N push at 8.08 s out of the count)."""
     if not defects:
         return list(incidents)
     starts = np.array([d.t_start for d in defects])
     ends = np.array([d.t_end for d in defects])
+    memory = np.full(len(defects), adaptive_settle)
+    if settled_s is not None:
+        memory[ends < settled_s] = 0.0
     out = []
     for inc in incidents:
-        after = max(settle, adaptive_settle) if set(inc.detectors) == {"adaptive"} else settle
+        alone = set(inc.detectors) == {"adaptive"}
+        after = np.maximum(settle, memory) if alone else np.full(len(defects), settle)
         hit = np.flatnonzero((starts - 1e-9 <= inc.t_start) & (inc.t_start <= ends + after))
         if hit.size:
             d = defects[int(hit[0])]

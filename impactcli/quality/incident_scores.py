@@ -57,6 +57,7 @@ class _Inc:
     payload_change: bool = False
     aftermath: bool = False
     force_at_least: bool = False
+    data_defect: bool = False
 
 
 def _as_inc(x: Any, warmup_end_s: float, i: int) -> _Inc:
@@ -75,7 +76,7 @@ def _as_inc(x: Any, warmup_end_s: float, i: int) -> _Inc:
                     bool(get("in_warmup", False)) or t0 < warmup_end_s,
                     None if not evs else tuple(int(k) for k in evs),
                     get("payload_change") is not None, get("aftermath") is not None,
-                    bool(get("force_at_least", False)))
+                    bool(get("force_at_least", False)), get("data_defect") is not None)
     except (KeyError, TypeError, ValueError) as err:
         raise LogFormatError(f"incidents[{i}]: missing or bad field: {err}") from None
 
@@ -205,6 +206,8 @@ class IncidentEvaluation:
         n_incidents, n_incidents_in_warmup: counted incidents and those in warm-up.
         n_payload_changes: the alarms of payload changes (not contacts, not counted:
             :func:`impactcli.detect.incidents.mark_payload_changes`).
+        n_data_defects: the incidents at a data defect after warm-up (not counted, as
+            ``detect`` does not: :func:`impactcli.detect.incidents.mark_defects`).
         unmatched: counted incidents starting in no contact's window (false incidents).
         unmatched_aftermath: of them, those the run marked in an earlier incident's
             aftermath (:mod:`impactcli.detect.aftermath`: the arm had not settled; still
@@ -225,6 +228,7 @@ class IncidentEvaluation:
     n_incidents: int = 0
     n_incidents_in_warmup: int = 0
     n_payload_changes: int = 0
+    n_data_defects: int = 0
     unmatched: tuple[int, ...] = ()
     unmatched_aftermath: tuple[int, ...] = ()
     detected: int = 0
@@ -262,7 +266,9 @@ class IncidentEvaluation:
              + (f"; {self.n_incidents_in_warmup} in warm-up (not counted)"
                 if self.n_incidents_in_warmup else "")
              + (f"; {self.n_payload_changes} the alarm of a payload change (not counted)"
-                if self.n_payload_changes else "")],
+                if self.n_payload_changes else "")
+             + (f"; {self.n_data_defects} at a data defect (not counted, as detect does "
+                "not: a contact there is missed)" if self.n_data_defects else "")],
             ["link right", _frac(o.link_right, o.matched)],
             ["contact type right", _frac(o.contact_right, o.matched)],
             ["force error (median |F − F_label| / F_label)", _pct(o.force_rel_error_median)
@@ -305,6 +311,7 @@ class IncidentEvaluation:
             "n_incidents": self.n_incidents,
             "n_incidents_in_warmup": self.n_incidents_in_warmup,
             "n_payload_changes": self.n_payload_changes,
+            "n_data_defects": self.n_data_defects,
             "unmatched_incidents": list(self.unmatched),
             "unmatched_in_aftermath": list(self.unmatched_aftermath),
             "link_accuracy": rounded(o.link_accuracy, 6),
@@ -364,7 +371,8 @@ def evaluate_incidents(
     """
     incs = [_as_inc(x, warmup_end_s, i) for i, x in enumerate(incidents)]
     order = sorted(range(len(incs)), key=lambda k: (incs[k].t_start, incs[k].t_end))
-    counted_inc = [k for k in order if not incs[k].in_warmup and not incs[k].payload_change]
+    counted_inc = [k for k in order if not incs[k].in_warmup and not incs[k].payload_change
+                   and not incs[k].data_defect]  # detect's counted ones
     # product alarm k → the incidents holding it
     holder: dict[int, set[int]] = {}
     with_events = bool(incs) and all(i.events is not None for i in incs)
@@ -433,6 +441,7 @@ def evaluate_incidents(
         per_link=per_link, per_type=per_type, n_incidents=len(counted_inc),
         n_incidents_in_warmup=sum(1 for i in incs if i.in_warmup),
         n_payload_changes=sum(1 for i in incs if i.payload_change and not i.in_warmup),
+        n_data_defects=sum(1 for i in incs if i.data_defect and not i.in_warmup),
         unmatched=unmatched,
         unmatched_aftermath=tuple(k for k in unmatched if incs[k].aftermath),
         detected=detected, split=tuple(split), not_in_incident=tuple(none_),

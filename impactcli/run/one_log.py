@@ -349,11 +349,12 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         defects = data_defects(scan, rp.gap_times)
         settle = settle_s(cfg.static_loading.cutoff_hz, cfg.adaptive.n2_s)
         memory = adaptive_memory_s(cfg.adaptive.forgetting_factor, scan.sample_rate_hz)
+        settled = rp.warmup.end_s if rp.warmup.end_s < cfg.warmup.max_s else None  # not capped
         changes = [] if monitor is None else monitor.changes
         if (unseen := unseen_loads(where, plan.model, changes)) is not None:
             warnings.warn(unseen, ImpactWarning, stacklevel=2)
         marked, changes = mark_payload_changes(
-            mark_defects(incidents, defects, settle, memory), changes, settle, settle,
+            mark_defects(incidents, defects, settle, memory, settled), changes, settle, settle,
             lambda inc, change: None if change.part is None else beside(ctx, inc, change.part))
         uncalibrated = unseen_spans(plan.model, plan.start_load, changes,
                                     scan.duration_s + scan.sample_period_s)

@@ -23,6 +23,7 @@ from ..detect.force import force_mark
 from ..detect.thresholds import UNCALIBRATED_BLOCK_S, UNCALIBRATED_MARGIN, UNCALIBRATED_QUANTILE
 from ..detect.warmup import Warmup
 from ..errors import ImpactError, ImpactWarning
+from ..logs.defects import MAX_ACCEL_RAD_S2
 from ..types import DETECTORS, Event, RobotDescription
 
 #: Events starting this long after a time gap are named in a warning [s].
@@ -216,9 +217,10 @@ def warn_defect_incidents(where: str, defects: Sequence[Any], incidents: Sequenc
         d = jumps[0]
         warnings.warn(
             f"{where}: the positions jump at {len(jumps)} sample(s) further than the "
-            f"samples around them move (the first at {d.t_end:.3f} s: "
+            f"samples around them move (the first from {d.t_start:.3f} to {d.t_end:.3f} s: "
             f"{', '.join(d.joints)}, up to {d.size:.3g} rad): a recording splice or a "
-            "glitch, not a motion", ImpactWarning, stacklevel=3)
+            f"glitch, or a jolt harder than an arm's joint moves (over {MAX_ACCEL_RAD_S2:g} "
+            "rad/s² between samples)", ImpactWarning, stacklevel=3)
     marked = [i for i in incidents if getattr(i, "data_defect", None) is not None]
     if marked:
         listed = ", ".join(f"{i.t_start:.3f} s ({i.data_defect['kind']})" for i in marked[:5])
