@@ -323,6 +323,30 @@ def test_a_torque_four_times_too_large_flags_its_forces(tmp_path: Path) -> None:
     # said where the answer is read: beside the detection floor's figures on stdout
     assert "torques and forces of log.csv cannot be trusted: the log's torque is off the " \
            "gravity torque" in out
+    assert "force not plausible" not in out  # said once, below the table, not per row
+    # a gate cannot pass a force no one can trust: it could not judge (exit 5), and its
+    # note does not say it passed them; a force above the limit still fails (1 wins)
+    cfg = REPO / "sample_logs" / "heavy_geared.config.toml"
+    for limit, code_want in ((1e5, 5), (200.0, 1)):  # ≳114 and ≳332 N
+        r = CliRunner().invoke(main, [
+            "detect", str(tmp_path / "log.csv"), "--config", str(cfg), "--robot",
+            str(CSV / "heavy_impacts.robot.json"), "-o", str(tmp_path / "g"),
+            "--fail-on-force", f"{limit:g}"])
+        assert r.exit_code == code_want, r.stderr
+        line = next(ln for ln in r.stderr.splitlines() if " under the limit (the first" in ln)
+        assert line.startswith(f"impactcli: log.csv: --fail-on-force {limit:g} N could not "
+                               "judge ") and "the log's torque is off the description's " \
+            "gravity torque by ~3." in line, line
+        assert "the gate passed" not in r.stderr
+    # the report's verdict does not blame units for the capacity, it says why not trusted
+    r = CliRunner().invoke(main, ["report", str(tmp_path / "log.csv"), "--config", str(cfg),
+                                  "--robot", str(CSV / "heavy_impacts.robot.json"), "-o",
+                                  str(tmp_path / "r.html"), "--json", str(tmp_path / "r.json")])
+    assert r.exit_code == 0, r.stderr
+    verdict = json.loads((tmp_path / "r.json").read_text("utf-8"))["logs"][0]["verdict"]
+    assert "beyond what the arm can exert" not in verdict
+    assert "No force here can be trusted: the log's torque is off the description's " \
+           "gravity torque by ~3." in verdict
 
 
 def test_joints_that_disagree_are_not_said_to_agree() -> None:

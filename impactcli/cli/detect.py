@@ -83,8 +83,8 @@ def _incident_line(k: int, inc: IncidentRow, link_width: int = 7,
     link = _link_cell(inc)
     force = (f"{force_mark(inc)}{inc['force_n']:.3g} N" if inc["force_n"] is not None
              else "force ?")
-    flag = ("  force not plausible (force_check in the timeline)"
-            if inc["force_plausible"] is False else "")
+    flag = ("  force not plausible (force_check in the timeline)"  # off-scale: said below
+            if inc["force_plausible"] is False and not inc.get("off_scale") else "")
     if inc.get("no_force"):  # up to its colon, or its first comma
         flag += (f"  {inc['no_force'].split(':')[0].split(', more than')[0]} (force_method "
                  "in the timeline)")

@@ -74,6 +74,10 @@ MIN_LEVER_M = 1e-3
 #: log read wrongly (positions in degrees, a wrong gear ratio or torque constant). Genuine
 #: contacts of the sample and simulated sets reach at most 1.35 of that force.
 FORCE_CEILING_FACTOR = 3.0
+#: How ``force_check`` begins when no force of the log can be trusted because its torque
+#: scale is off the robot description's gravity torque (:mod:`impactcli.model.gravity`):
+#: the force is not beyond what the arm exerts, it is in units the tool cannot check.
+OFF_SCALE = "the log's torque is off the description's gravity torque"
 
 
 #: The mark of a force that leaves out a part the joints do not feel: at least about this

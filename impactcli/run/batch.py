@@ -37,7 +37,7 @@ from pathlib import Path
 from typing import Any, NotRequired, TypedDict
 
 from ..detect.floor import floor_line, probed_line
-from ..detect.force import FORCE_NOT_STATED
+from ..detect.force import FORCE_NOT_STATED, OFF_SCALE
 from ..errors import (
     EXIT_DATA,
     EXIT_SOFTWARE,
@@ -96,13 +96,15 @@ class IncidentRow(TypedDict):
     no_force: NotRequired[str]
     force_at_least: NotRequired[bool]
     unseen_load_kg: NotRequired[float]
+    off_scale: NotRequired[bool]
 
 
 def _incident_row(i: Any) -> IncidentRow:
     """A counted incident (:class:`~impactcli.detect.incidents.Incident`) as a summary row
     (``no_force``: why it has no force, when no single force at its link's end fits;
     ``force_at_least`` when its force is a lower bound; ``unseen_load_kg`` the load no
-    calibration log carried that the arm carried then)."""
+    calibration log carried that the arm carried then; ``off_scale`` when its force is
+    not trusted because the log's torque scale is off)."""
     row = IncidentRow(t_start=i.t_start, link=i.link, link_candidates=list(i.link_candidates),
                       force_n=i.force_n, contact=i.contact, detectors=list(i.detectors),
                       force_plausible=i.force_plausible)
@@ -118,6 +120,8 @@ def _incident_row(i: Any) -> IncidentRow:
         row["force_at_least"] = True
     if i.unseen_load_kg is not None:
         row["unseen_load_kg"] = i.unseen_load_kg
+    if i.force_check.startswith(OFF_SCALE):  # untrusted for the log's torque scale
+        row["off_scale"] = True
     return row
 
 

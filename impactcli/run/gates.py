@@ -7,11 +7,12 @@ A log *fails* a gate (exit 1) when it has a counted incident or lasting load aft
 its only incidents start at data defects, when its file is truncated (the recording went on
 after the cut), when its warm-up ran on past its least length with alarms there (the
 evaluator had not settled: not counted, not judged), or when an incident or lasting load
-has no force estimate (``--fail-on-force``). Each verdict is one line naming the log and why
-(docs/formats.md, "Command line"). Payload changes trip no gate; with a gate asked, a log
-with some gets a line saying how long a contact would have joined their alarms uncounted,
-and with ``--fail-on-force`` a log whose passing forces leave out a part a line saying so
-(:func:`gate_notes`), the exit code unchanged.
+has no force estimate, or one no one can trust because the log's torque scale is off the
+robot description's gravity torque (``--fail-on-force``). Each verdict is one line naming
+the log and why (docs/formats.md, "Command line"). Payload changes trip no gate; with a
+gate asked, a log with some gets a line saying how long a contact would have joined their
+alarms uncounted, and with ``--fail-on-force`` a log whose passing forces leave out a part
+a line saying so (:func:`gate_notes`), the exit code unchanged.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from ..detect.force import AT_LEAST, FORCE_NOT_STATED, force_mark
+from ..detect.force import AT_LEAST, FORCE_NOT_STATED, OFF_SCALE, force_mark
 from ..detect.warmup import least_s, past_least
 from ..errors import one_line
 
@@ -92,6 +93,7 @@ def judge(findings: Sequence[Findings], *, fail_on_detect: bool,
         failing += [line for f in findings
                     if (line := _over_force(f, limit) or _load_over(f, limit))]
         unjudged += [line for f in findings if (line := _force_unknown(f, limit))]
+        unjudged += [line for f in findings if (line := _scale_off(f, limit))]
         unjudged += [line for f in findings if (line := _defect_force(f, limit))]
     if fail_on_detect or fail_on_force is not None:
         gate = "--fail-on-detect" if fail_on_detect else f"--fail-on-force {fail_on_force:g} N"
@@ -143,11 +145,12 @@ def gate_notes(findings: Sequence[Findings], *, fail_on_detect: bool,
         for a, b in sorted(tuple(x) for w in watched for x in w["unjudged_s"]):  # the next's
             blind += max(0.0, b - max(a, end))
             end = max(end, b)
-        told = (f"; a contact in their alarms joined them uncounted for {blind:.2g} s in "
-                "all, and was told apart in the rest of their windows only above "
+        n = len(f.payload_changes)
+        their, them = ("their", "them") if n != 1 else ("its", "it")
+        told = (f"; a contact in {their} alarms joined {them} uncounted for {blind:.2g} s in "
+                f"all, and was told apart in the rest of {their} windows only above "
                 f"{max(w['above_times_vl'] for w in watched):g}× the loading thresholds"
                 if watched else "")
-        n = len(f.payload_changes)
         out.append(f"impactcli: {shown(f.log_path)}: {gate}: {count(n, 'payload change')} "
                    f"(a load picked or released) {'is' if n == 1 else 'are'} not gated"
                    f"{told} (payload_changes in the timeline)")
@@ -159,7 +162,8 @@ def _at_least(f: Findings, limit: float) -> str | None:
     leaves out a part (of a force at the link's end, not seen in the joints' torques:
     ``force_at_least``), or None: --fail-on-force passed them as far as the joints tell."""
     low = [x for x in (*f.incidents, *f.lasting_loads)
-           if x.force_n is not None and x.force_n <= limit and x.force_at_least]
+           if x.force_n is not None and x.force_n <= limit and x.force_at_least
+           and not x.force_check.startswith(OFF_SCALE)]  # those it could not judge
     if not low:
         return None
     forces = sorted(x.force_n for x in low)
@@ -240,6 +244,21 @@ def _force_unknown(f: Findings, limit: float) -> str | None:
                             "exerted: force_method in the timeline" if unfit else ""))
     return (f"impactcli: {shown(f.log_path)}: --fail-on-force {limit:g} N could not "
             f"judge {' and '.join(what)}: no force estimate ({why}); exit 5")
+
+
+def _scale_off(f: Findings, limit: float) -> str | None:
+    """The line of a log whose incidents or lasting loads under ``limit`` have a force no
+    one can trust (the log's torque scale is off the robot description's gravity torque:
+    ``force_check`` begins with :data:`~impactcli.detect.force.OFF_SCALE`), or None: the
+    gate cannot pass them."""
+    low = [x for x in (*f.incidents, *f.lasting_loads) if x.force_n is not None
+           and x.force_n <= limit and x.force_check.startswith(OFF_SCALE)]
+    if not low:
+        return None
+    return (f"impactcli: {shown(f.log_path)}: --fail-on-force {limit:g} N could not judge "
+            f"{count(len(low), 'finding')} under the limit (the first at "
+            f"{low[0].t_start:.3f} s, {force_mark(low[0])}{low[0].force_n:.3g} N): "
+            f"{low[0].force_check}; exit 5")
 
 
 def _over_force(f: Findings, limit: float) -> str | None:

@@ -42,6 +42,7 @@ from ..detect.envelope import (
 )
 from ..detect.events import extract_events
 from ..detect.floor import FloorAccumulator, gain_per_sample
+from ..detect.force import OFF_SCALE
 from ..detect.incident_builder import (
     IncidentContext,
     beside,
@@ -364,8 +365,9 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
             incidents = mark_tried(incidents, monitor.tried, cfg.events.merge_gap_s)
             loads = mark_tried(loads, monitor.tried, cfg.events.merge_gap_s)
         if plan.torque_scale is not None and plan.torque_scale.kind == "warn":
-            incidents = off_scale(incidents, plan.torque_scale.scale)
-            loads = off_scale(loads, plan.torque_scale.scale)
+            start_kg = next((kg for t0, _, kg in uncalibrated if t0 == 0.0), None)
+            incidents = off_scale(incidents, plan.torque_scale.scale, start_kg)
+            loads = off_scale(loads, plan.torque_scale.scale, start_kg)
         warn_events_after_gaps(where, rp.gap_times[:, 1], events)
         warn_long_events(where, events)
         if plan.torque_scale is None or plan.torque_scale.kind != "warn":  # said already
@@ -440,11 +442,17 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
     )
 
 
-def off_scale(findings: Sequence[Any], scale: float | None) -> list[Any]:
+def off_scale(findings: Sequence[Any], scale: float | None,
+              start_kg: float | None = None) -> list[Any]:
     """Incidents or lasting loads of a log whose torque scale is off (the run warned,
-    :mod:`impactcli.model.gravity`): each force is flagged implausible, saying why."""
-    why = (f"the log's torque is off the description's gravity torque by ~{scale:.3g}× "
-           "(input.torque_scale): no force from it can be trusted")
+    :mod:`impactcli.model.gravity`): each force is flagged implausible, saying why
+    (:data:`~impactcli.detect.force.OFF_SCALE`; ``start_kg``: a load the log starts with
+    that no calibration log carried, said as the other explanation)."""
+    load = ("" if start_kg is None else
+            f", or by the load it starts with that no calibration log carried "
+            f"({start_kg:+.3g} kg): the tool cannot tell the two apart")
+    why = (f"{OFF_SCALE} by ~{scale:.3g}×{load} (input.torque_scale): no force from it "
+           "can be trusted")
     return [x if x.force_n is None else dataclasses.replace(
         x, force_plausible=False, force_check=why) for x in findings]
 

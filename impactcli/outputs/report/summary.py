@@ -19,7 +19,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from ...detect.force import AT_LEAST_TEXT, FORCE_NOT_STATED, force_mark
+from ...detect.force import AT_LEAST_TEXT, FORCE_NOT_STATED, OFF_SCALE, force_mark
 from ...detect.incidents import link_words
 from .common import CONTACT_TEXT, PRODUCT_DETECTORS, approx, e, ratio_cell, utc
 
@@ -227,11 +227,13 @@ def _verdict(incidents: Sequence[dict[str, Any]], known: bool, alarms_counted: i
         head += f" on {clock[0]} (UTC)" if clock[1] else " (UTC)"
     also = f"; and a {loads}" if loads.startswith("lasting load ") else (
         f"; and {loads}" if loads else "")
-    bad = sum(1 for i in counted if i.get("force_plausible") is False)
+    off = [i for i in counted if str(i.get("force_check") or "").startswith(OFF_SCALE)]
+    bad = sum(1 for i in counted if i.get("force_plausible") is False and i not in off)
     units = ("" if not bad else
              f" {'One estimated force is' if bad == 1 else f'{bad} estimated forces are'}"
              " beyond what the arm can exert: positions in degrees? a wrong gear ratio or "
-             "torque constant?")
+             "torque constant?") + ("" if not off else
+                                    f" No force here can be trusted: {off[0]['force_check']}.")
     under = sum(1 for i in counted if i.get("unseen_load_kg") is not None)
     unseen = ("" if not under else
               f" {'It' if n == 1 else ('All' if under == n else f'{under} of them')} began "
@@ -325,7 +327,9 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
             force += (' <span class="note">in the warm-up: it may be the filters settling '
                       "from the log's start, not a contact</span>")
         if r.get("force_plausible") is False:
-            force += (' <span class="bad">implausible: '
+            word = ("not trusted" if str(r.get("force_check") or "").startswith(OFF_SCALE)
+                    else "implausible")
+            force += (f' <span class="bad">{word}: '
                       f'{e(r.get("force_check") or "beyond what the arm can exert")}</span>')
         words = link_words(r.get("link"), r.get("link_candidates"))
         link = e(words) + (' <span class="note">(the residuals cannot tell which)</span>'
