@@ -752,7 +752,17 @@ def test_payload_changes_are_scored_against_the_labelled_ones() -> None:
     assert [u["t_start"] for u in sc["unlabelled"]] == [49.8, 62.0]
     assert payload_text(sc).startswith("payload changes: 1/3 found and right (onset within "
                                        "1 s, mass within 25 %): +2.04 kg at 20.05 s for +2 kg")
-    assert "(mass off)" in payload_text(sc) and payload_text(sc).endswith("; 2 unlabelled")
+    # the ones found where none was labelled are false, and named (a new user read
+    # "0/0 found and right" as a pass beside a change that never happened)
+    assert "(mass off)" in payload_text(sc) and payload_text(sc).endswith(
+        "; 2 found where none was labelled: -1 kg at 49.80 s (false); +0.5 kg at 62.00 s "
+        "(false)")
+    late = score_payload_changes([{"t_start": 3.0, "mass_kg": 0.68, "start_unknown": True}],
+                                 [])
+    assert payload_text(late).endswith("+0.68 kg at 3.00 s (most likely the load the log "
+                                       "started with, which its start could not weigh)")
+    assert payload_text(score_payload_changes(found[:1], labelled[:1])).endswith(
+        "; none found where none was labelled")
 
 
 def test_a_run_that_did_not_look_for_loads_misses_none(tmp_path: Path) -> None:
@@ -1274,3 +1284,28 @@ def test_the_stretches_under_a_load_no_calibration_log_carried() -> None:
     assert _lasting_line(1, got.to_dict()).endswith(
         "; under a load no calibration log carried (+2 kg): the rigid model's error under it "
         "alarms so too")
+
+
+def test_a_change_at_the_watch_start_after_an_unweighed_start_is_that_load() -> None:
+    """A new user's trial: a log carrying 0.5 kg from its start, whose first 3 s could not
+    weigh it (a steady load explained 85 %), reported "P1 3.000 s +0.679 kg", a pick that
+    never happened. A change on an alarm already on when the watch began, after a start
+    that could not be weighed, is said to be most likely that load; after a weighed start
+    or at a later onset, it is not."""
+    from impactcli.detect.payload_change import PayloadChange
+    from impactcli.detect.payload_words import change_text
+    from impactcli.run.loads import StartLoad, start_unknown
+
+    at = PayloadChange(3.0, 6.0, 0.679, 0.05, {"m": 0.679}, 0.9, 0.679, at_watch_start=True)
+    later = PayloadChange(20.0, 23.0, 1.0, 0.01, {"m": 1.0}, 0.99, 1.68)
+    unweighed = StartLoad("unsupported", 3.0, None, None, {}, None, {}, "")
+    weighed = StartLoad("same", 3.0, 0.01, 0.02, {}, None, {}, "")
+    marked = start_unknown([at, later], unweighed)
+    assert [c.to_dict().get("start_unknown") for c in marked] == [True, None]
+    assert start_unknown([at, later], weighed) == [at, later]
+    assert start_unknown([at], None) == [at]
+    text = change_text(marked[0].to_dict())
+    assert text.endswith("the change may be earlier, in the warm-up — and the log's first "
+                         "seconds could not weigh the load it started with: most likely that "
+                         "load, carried from the start, not one picked)")
+    assert "not one picked" not in change_text(at.to_dict())

@@ -229,7 +229,8 @@ class PayloadChange:
     ``as_log`` the calibration log whose fitted load that is (module docstring, step 4;
     None: the weighed step is taken as it is); ``drift`` and ``inertia`` what the tests
     (d) and (e) found; ``at_watch_start``: the alarm was on when the watch began (the
-    warm-up's least length), so the change may have come earlier, in the warm-up;
+    warm-up's least length), so the change may have come earlier, in the warm-up (with
+    ``start_unknown``, the log's start could not weigh its load: most likely that load);
     ``contact``: a contact in the window beside the mass (module docstring, step 5): the
     sample index ``i`` and time ``t_s`` [s] where the excursion of the static-loading
     statistic of the torque the mass leaves, above vL, that holds its peak began (the
@@ -239,9 +240,8 @@ class PayloadChange:
     ``scanned_from`` [s]: where that scan began (the onset plus ``settle_s``, or the
     oldest row the monitor kept), for :func:`contact_watch` (with ``settle_s`` and the
     lead ``lead_s``, :func:`impactcli.detect.incidents.mark_payload_changes`); None: not
-    recorded. ``mass_check``: the words of a
-    release that took off more than the log was seen to carry (:func:`mass_check`), None
-    when it did not."""
+    recorded. ``mass_check``: the words of a release that took off more than the log was
+    seen to carry (:func:`mass_check`), None when it did not."""
 
     t_start: float
     t_classified: float
@@ -260,6 +260,7 @@ class PayloadChange:
     settle_s: float = 0.0
     lead_s: float = 0.0
     mass_check: str | None = None
+    start_unknown: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (the timeline's ``payload_changes`` item)."""
@@ -271,8 +272,8 @@ class PayloadChange:
              **({} if self.inertia is None else {"inertia": self.inertia})}
         if self.as_log is not None:
             d["as_log"] = self.as_log
-        if self.at_watch_start:
-            d["at_watch_start"] = True
+        d.update({k: True for k, on in (("at_watch_start", self.at_watch_start),
+                                        ("start_unknown", self.start_unknown)) if on})
         if self.contact is not None:
             d["contact"] = dict(self.contact)
         if self.scanned_from is not None:

@@ -56,9 +56,13 @@ def change_text(change: dict[str, Any]) -> str:
     (s.e. ≥ 0.0044 kg; 99.7 % of the step a mass, …)`` — the standard error counts the
     window's noise and its rows' correlation, not the model's own error, so it is a lower
     bound (:func:`impactcli.model.payload.estimate`) — and, for an alarm already on
-    when the watch began, that the change may be earlier."""
+    when the watch began, that the change may be earlier (and, when the log's start could
+    not weigh its load, that it is most likely that load)."""
     early = ("; the alarm was on when the watch began: the change may be earlier, in the "
              "warm-up" if change.get("at_watch_start") else "")
+    if change.get("start_unknown"):  # the start's own load, weighed late: not a pick
+        early += (" — and the log's first seconds could not weigh the load it started with: "
+                  "most likely that load, carried from the start, not one picked")
     return (f"{change['mass_kg']:+.3g} kg (s.e. ≥ {change['mass_se_kg']:.2g} kg; "
             f"{tested_text(change)}{early})")
 

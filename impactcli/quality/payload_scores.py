@@ -32,7 +32,8 @@ def score_payload_changes(found: Sequence[dict[str, Any]],
     ``found`` counts, ``matched`` rows (labelled ``t_s`` and ``mass_kg``, the found
     ``t_start`` and ``mass_kg``, ``dt_s`` = found − labelled, ``mass_error`` (found −
     labelled) / |labelled|, ``right``), the ``missed`` labelled steps, the ``unlabelled``
-    found onsets, ``right`` (how many), and the bars ``time_s`` and ``mass_share``."""
+    found onsets (``start_unknown`` when the run took one for the load the log started
+    with), ``right`` (how many), and the bars ``time_s`` and ``mass_share``."""
     free = list(range(len(found)))
     matched, missed = [], []
     steps = labelled_steps(labelled)
@@ -53,14 +54,18 @@ def score_payload_changes(found: Sequence[dict[str, Any]],
     return {"labelled": len(steps), "found": len(found), "matched": matched,
             "missed": missed,
             "unlabelled": [{"t_start": float(found[k]["t_start"]),
-                            "mass_kg": float(found[k]["mass_kg"])} for k in free],
+                            "mass_kg": float(found[k]["mass_kg"]),
+                            **({"start_unknown": True} if found[k].get("start_unknown")
+                               else {})} for k in free],
             "right": sum(1 for m in matched if m["right"]),
             "time_s": TIME_S, "mass_share": MASS_SHARE}
 
 
 def payload_text(score: dict[str, Any]) -> str:
     """One line for ``evaluate``: ``payload changes: 2/2 found and right (onset within 1 s,
-    mass within 25 %): +2 kg at 20.05 s for +2 kg at 20 s, …; 0 unlabelled`` — or, for a
+    mass within 25 %): +2 kg at 20.05 s for +2 kg at 20 s, …; none found where none was
+    labelled`` (else each one found so: false, or most likely the start's own load) — or,
+    for a
     run that did not look for loads (``watched`` false), that it did not."""
     if score.get("watched") is False:
         return (f"payload changes: {score['labelled']} labelled, not scored: this run did "
@@ -73,4 +78,9 @@ def payload_text(score: dict[str, Any]) -> str:
     return (f"payload changes: {score['right']}/{score['labelled']} found and right (onset "
             f"within {score['time_s']:g} s, mass within {100 * score['mass_share']:.0f} %)"
             + (f": {'; '.join(rows)}" if rows else "")
-            + f"; {len(score['unlabelled'])} unlabelled")
+            + ("; none found where none was labelled" if not score["unlabelled"] else
+               f"; {len(score['unlabelled'])} found where none was labelled: "
+               + "; ".join(f"{u['mass_kg']:+.3g} kg at {u['t_start']:.2f} s "
+                           + ("(most likely the load the log started with, which its start "
+                              "could not weigh)" if u.get("start_unknown") else "(false)")
+                           for u in score["unlabelled"])))

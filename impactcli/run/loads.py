@@ -382,6 +382,16 @@ def mark_unseen(incidents: list[Any], spans: list[tuple[float, float, float]]) -
                   if a <= i.t_start < z), i) for i in incidents]
 
 
+def start_unknown(changes: list[Any], start: StartLoad | None) -> list[Any]:
+    """The payload changes, one found on an alarm already on when the watch began
+    (``at_watch_start``) marked ``start_unknown`` when the log's start could not weigh the
+    load it started with (verdict ``unsupported``): most likely that load, not a pick."""
+    if start is None or start.verdict != "unsupported":
+        return changes
+    return [dataclasses.replace(c, start_unknown=True) if c.at_watch_start else c
+            for c in changes]
+
+
 def unseen_loads(where: str, model: RigidModel | None, changes: Any) -> str | None:
     """The warning when a payload change left the arm carrying a load no calibration log
     carried (beyond every one by three standard errors; ``mass_after_kg`` counts the load

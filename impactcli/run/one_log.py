@@ -93,6 +93,7 @@ from .islands import Islands
 from .loads import (
     mark_unseen,
     monitor_for,
+    start_unknown,
     unseen_loads,
     unseen_spans,
     unwatched_reason,
@@ -351,7 +352,7 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         settle = settle_s(cfg.static_loading.cutoff_hz, cfg.adaptive.n2_s)
         memory = adaptive_memory_s(cfg.adaptive.forgetting_factor, scan.sample_rate_hz)
         settled = rp.warmup.end_s if rp.warmup.end_s < cfg.warmup.max_s else None  # not capped
-        changes = [] if monitor is None else monitor.changes
+        changes = [] if monitor is None else start_unknown(monitor.changes, plan.start_load)
         if (unseen := unseen_loads(where, plan.model, changes)) is not None:
             warnings.warn(unseen, ImpactWarning, stacklevel=2)
         marked, changes = mark_payload_changes(
