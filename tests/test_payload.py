@@ -1242,6 +1242,13 @@ def test_incidents_under_a_load_no_calibration_log_carried_are_marked(
     assert [u["data"]["incidents"] for u in items] == [[i["number"] for i in under]]
     assert (f"{len(under)} of them began while the arm carried a load no calibration log "
             "carried: the false-alarm rate there was not measured") in doc["logs"][0]["verdict"]
+    # the warm-up's caveat and what the audit could not see give the same count (a new
+    # user read 3, 8 and 49 for one log's warm-up)
+    warm = sum(1 for i in tl["incidents"] if i["in_warmup"])
+    cav = {c["code"]: c["text"] for c in doc["logs"][0]["caveats"]}
+    unseen = {u["code"]: u for u in doc["logs"][0]["could_not_see"]}
+    assert warm and f"{warm} incident(s) (" in cav["warmup"], cav["warmup"]
+    assert unseen["warmup"]["data"]["incidents_in_warmup"] == warm
 
 
 def test_the_stretches_under_a_load_no_calibration_log_carried() -> None:

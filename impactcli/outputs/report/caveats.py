@@ -211,6 +211,7 @@ def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]
             }
         )
     n_warm = sum(1 for e in result.events if e.in_warmup)
+    n_inc = sum(1 for i in result.incidents if i.in_warmup)  # the figure the other lines give
     out.append(
         {
             "code": "warmup",
@@ -219,7 +220,8 @@ def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]
                 f"{share(result.warmup_end_s, result.log.duration_s)}) are the adaptive "
                 "estimator's convergence; a contact in that interval may go undetected. "
                 + (
-                    f"{n_warm} alarm(s) started in it: listed, not counted."
+                    f"{n_inc} incident(s) ({n_warm} event(s) of the three detectors, the "
+                    "static baseline's among them) started in it: listed, not counted."
                     if n_warm
                     else "No alarm started in it."
                 )
