@@ -28,8 +28,10 @@ SCENARIO_NAMES = ("free_triangle", "free_fm_triangle", "free_p2p", "free_multisi
                    "the same physical robot [default: drawn from --seed].")
 @click.option("--payload-kg", type=click.FloatRange(min=0.0), default=None,
               help="Unknown end-effector payload carried from the start [kg] (default: the "
-                   "scenario's); pick_and_place then sets the load it picks, and 0 kg at the "
-                   "release, whatever this is.")
+                   "scenario's). pick_and_place still sets the load to its own at the pick "
+                   "(1 kg on assist_like, 2 kg on heavy_geared) and to 0 kg at the release, "
+                   "whatever this is: with this above that, the 'pick' is a release (the "
+                   "labels' payload_changes say so).")
 @click.option("--uncertainty", type=click.FloatRange(0.0, 0.9), default=None,
               help="Relative spread of the true parameters around nominal (default 0.2).")
 @click.option("-o", "--output", "--out", "outdir", type=click.Path(file_okay=False, path_type=Path),
