@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from impactcli.config import WarmupConfig
 
@@ -36,6 +37,22 @@ def test_warmup_waits_for_min_time_and_settling_with_cap() -> None:
     assert w.end_index == int(20 * fs) and w.end_s == 20.0
 
 
+def test_the_level_is_the_start_loads_when_the_load_changed() -> None:
+    """Known truth: a prediction error that settles by 2 s at 0.5 (under the load the log
+    starts with) and drops to 0.2 at 40 s (the load released). Against the whole log's
+    later level (0.2) it never comes within 1.5×: the warm-up runs to its 20 s cap; against
+    the level before the change (0.5) it ends at its least length, 3 s."""
+    fs = 250.0
+    t = np.arange(int(60 * fs)) / fs
+    rng = np.random.default_rng(7)
+    e = rng.normal(size=(t.size, 1)) * np.where(t < 40.0, 0.5, 0.2)[:, None]
+    e[t < 2.0] *= 10.0  # the RLS converging
+    cfg = WarmupConfig(min_s=3.0, window_s=0.5, tolerance=0.5, max_s=20.0)
+    assert warmup_end(e, t, cfg).end_s == pytest.approx(20.0)
+    assert warmup_end(e, t, cfg, until_s=40.0).end_s == pytest.approx(3.0)
+    assert warmup_end(e, t, cfg, until_s=1.0).end_s == pytest.approx(20.0)  # before k_min
+
+
 def test_warmup_longer_than_log() -> None:
     t = np.arange(100) / 250.0
     w = warmup_end(np.ones((100, 1)), t, WarmupConfig(min_s=3.0))
@@ -43,14 +60,16 @@ def test_warmup_longer_than_log() -> None:
 
 
 def test_a_contact_in_a_warm_up_past_its_least_length_is_said_and_not_judged(
-        tmp_path: Path) -> None:
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """A new user's case, known truth by the simulator's labels: the heavy arm carrying
-    2 kg from the log's first sample (a pick-and-place run cut at 22 s), a config fitted
-    with a payload per log. The warm-up runs on to 11 s while the prediction error
-    settles, and the labelled 20 N push 6 s into the log falls in it: not counted. It is
-    now said (a warning naming it) and a gate could not judge it (exit 5), where before
-    the run said nothing and the gates passed; alarms in the warm-up's first 3 s (the
-    filters starting) stay as they were."""
+    2 kg from the log's first sample (a pick-and-place run cut at 22 s: the release comes
+    18 s in), a config fitted with a payload per log. Measured against the whole log's
+    later level — the prediction error's after the release, lower — the warm-up ran on to
+    11 s and the labelled 20 N push 6 s in fell in it; against the level before the
+    release it ends at its least 3 s and the push is counted. A warm-up that does run on
+    (here made to, by the whole log's level as before) with alarms in it says so (a
+    warning naming them) and a gate could not judge them (exit 5); alarms in the warm-up's
+    first 3 s (the filters starting) stay as they were."""
     import warnings
     from dataclasses import replace
 
@@ -75,9 +94,17 @@ def test_a_contact_in_a_warm_up_past_its_least_length_is_said_and_not_judged(
         k = int(22.0 * log.sample_rate_hz)  # type: ignore[attr-defined]
         cut = replace(log.slice(k, log.n_samples),  # type: ignore[attr-defined]
                       source=LogSource("cut.csv", "x", "memory"))
+        fixed, _ = detect_in_memory(cut, config=cfg)
+        from impactcli.detect.warmup import WarmupTracker
+
+        whole_level = WarmupTracker.finish
+        monkeypatch.setattr(WarmupTracker, "finish", lambda self, until_s=None:
+                            whole_level(self))  # the level as before: the whole log's
         out, _ = detect_in_memory(cut, config=cfg)
     push = [e for e in pnp.labels.events if 22.0 < e.start < 33.0]  # type: ignore[attr-defined]
     assert [round(p.start - 22.0, 1) for p in push] == [6.0]
+    assert fixed.warmup_end_s == pytest.approx(3.0, abs=0.01)  # the level before the release
+    assert any(abs(i.t_start - 6.0) < 0.3 for i in fixed.counted_incidents())  # the push
     assert out.warmup_end_s > 9.0  # the warm-up ran on past its least 3 s
     late = [i for i in out.incidents if i.in_warmup and i.t_start >= 3.0]
     assert any(abs(i.t_start - 6.0) < 0.3 for i in late), late  # the push, in the warm-up

@@ -161,16 +161,17 @@ def test_warmup_tracker_equals_whole_log(sizes: list[int]) -> None:
     e = rng.normal(size=(n, 3)) * (1.0 + 30.0 * np.exp(-t[:, None] / np.array([1.0, 4.0, 9.0])))
     e[9000:9100, 1] += 50.0
     for cfg in (WarmupConfig(), WarmupConfig(max_s=6.0), WarmupConfig(min_s=1.0, window_s=0.1)):
-        whole = warmup_end(e, t, cfg)
-        tr = WarmupTracker(n, float(t[0]), float(t[-1]), 3, cfg)
-        k, i = 0, 0
-        while k < n:
-            m = sizes[i % len(sizes)]
-            tr.update(e[k:k + m], t[k:k + m])
-            k, i = k + m, i + 1
-        got = tr.finish()
-        assert np.array_equal(got.index, whole.index) and got.end_index == whole.end_index
-        assert got.end_s == whole.end_s
+        for until in (None, 5.0, 11.0, 17.9, 2.0):  # a payload change's onset, or none
+            whole = warmup_end(e, t, cfg, until)
+            tr = WarmupTracker(n, float(t[0]), float(t[-1]), 3, cfg)
+            k, i = 0, 0
+            while k < n:
+                m = sizes[i % len(sizes)]
+                tr.update(e[k:k + m], t[k:k + m])
+                k, i = k + m, i + 1
+            got = tr.finish(until)
+            assert np.array_equal(got.index, whole.index) and got.end_index == whole.end_index
+            assert got.end_s == whole.end_s
 
 
 @pytest.mark.parametrize("m", [1, 2, 7, 1000, 250_001])

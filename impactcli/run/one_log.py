@@ -263,8 +263,8 @@ def replay_passes(feed: ChunkFeed, plan: RunPlan, on_step: Callable[[ReplayStep]
     try:
         for ch, t, a in feed.chunks(plan.joints):
             steps(rp.feed((ch, t, a), a))
-        steps(rp.finish())
-        wu = tracker.finish()
+        steps(rp.finish())  # the level under the start's load when it changed (warmup.py)
+        wu = tracker.finish(monitor.changes[0].t_start if monitor and monitor.changes else None)
     except BaseException:  # nothing left behind: the tracker's spill is a temporary file
         tracker.close()
         raise

@@ -20,6 +20,7 @@ def trailing_rms(x: np.ndarray, window: int) -> np.ndarray:
 
 def warmup_end(
     prediction_error: np.ndarray, time_s: np.ndarray, cfg: WarmupConfig | None = None,
+    until_s: float | None = None,
 ) -> Warmup:
     """Warm-up end per joint from the RLS a priori error.
 
@@ -27,6 +28,10 @@ def warmup_end(
         prediction_error: (N, J) eps0 (eq. 40) [N·m].
         time_s: (N,) sample times [s since the first sample].
         cfg: min_s, window_s, tolerance, max_s.
+        until_s: a payload change's onset [s]: the level is the median over the later half
+            of [k_min, its sample) of the rows the tracker keeps (up to the cap, and the
+            log's later half), when a window of them is kept there; its sample is the first
+            of every 64th at or after it (the tracker's sparse index).
     """
     cfg = cfg or WarmupConfig()
     e = np.asarray(prediction_error, dtype=np.float64)
@@ -43,6 +48,15 @@ def warmup_end(
             idx[j] = n
             continue
         level = float(np.median(rms[(k_min + n) // 2 :, j]))
+        if until_s is not None:
+            sparse = np.arange(0, n, 64)
+            i = int(np.searchsorted(t[sparse], t[0] + until_s - 1e-12))
+            until = int(sparse[i]) if i < sparse.size else n
+            k = np.arange(n)
+            kept = (k >= (k_min + until) // 2) & (k < until) & (
+                (k <= k_cap) | (k >= (k_min + n) // 2))
+            if until > k_min and kept.sum() >= w:
+                level = float(np.median(rms[kept, j]))
         ok = np.flatnonzero(rms[k_min:, j] <= (1.0 + cfg.tolerance) * level)
         k = k_min + int(ok[0]) if ok.size else n
         idx[j] = min(k, max(k_cap, 0), n)
