@@ -80,6 +80,14 @@ FORCE_CEILING_FACTOR = 3.0
 OFF_SCALE = "the log's torque is off the description's gravity torque"
 
 
+def off_scale(finding: Any) -> bool:
+    """Whether a finding's force (an incident's or lasting load's, or its timeline mapping)
+    is one no one can trust because the log's torque scale is off (:data:`OFF_SCALE`)."""
+    check = (finding.get("force_check") if isinstance(finding, dict)
+             else getattr(finding, "force_check", ""))
+    return str(check or "").startswith(OFF_SCALE)
+
+
 #: The mark of a force that leaves out a part the joints do not feel: at least about this
 #: (module docstring). Said under every table that shows one (:data:`AT_LEAST_TEXT`).
 AT_LEAST = "≳"

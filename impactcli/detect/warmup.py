@@ -170,12 +170,12 @@ class WarmupTracker:
         head = np.vstack(self.head) if self.head else np.zeros((0, J))
         head_t = np.concatenate(self.head_t) if self.head_t else np.zeros(0)
         idx = np.empty(J, dtype=np.int64)
+        until = None if until_s is None else self._index_of(until_s)
         for j in range(J):
             if k_min >= n or not self.spill.rows:
                 idx[j] = n
                 continue
-            before = (None if until_s is None else
-                      self._level_before(j, head, k_min, self._index_of(until_s)))
+            before = None if until is None else self._level_before(j, head, k_min, until)
             level = self.spill.median(str(j)) if before is None else before
             ok = np.flatnonzero(head[k_min:, j] <= (1.0 + self.cfg.tolerance) * level)
             k = k_min + int(ok[0]) if ok.size else n

@@ -65,8 +65,7 @@ def payload_text(score: dict[str, Any]) -> str:
     """One line for ``evaluate``: ``payload changes: 2/2 found and right (onset within 1 s,
     mass within 25 %): +2 kg at 20.05 s for +2 kg at 20 s, …; none found where none was
     labelled`` (else each one found so: false, or most likely the start's own load) — or,
-    for a
-    run that did not look for loads (``watched`` false), that it did not."""
+    for a run that did not look for loads (``watched`` false), that it did not."""
     if score.get("watched") is False:
         return (f"payload changes: {score['labelled']} labelled, not scored: this run did "
                 "not look for loads (a calibrated config, a model with kinematics and the "

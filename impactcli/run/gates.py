@@ -21,7 +21,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from ..detect.force import AT_LEAST, FORCE_NOT_STATED, OFF_SCALE, force_mark
+from ..detect.force import AT_LEAST, FORCE_NOT_STATED, force_mark, off_scale
 from ..detect.warmup import least_s, past_least
 from ..errors import one_line
 
@@ -163,7 +163,7 @@ def _at_least(f: Findings, limit: float) -> str | None:
     ``force_at_least``), or None: --fail-on-force passed them as far as the joints tell."""
     low = [x for x in (*f.incidents, *f.lasting_loads)
            if x.force_n is not None and x.force_n <= limit and x.force_at_least
-           and not _off_scale(x)]  # those it could not judge
+           and not off_scale(x)]  # those it could not judge
     if not low:
         return None
     forces = sorted(x.force_n for x in low)
@@ -246,18 +246,13 @@ def _force_unknown(f: Findings, limit: float) -> str | None:
             f"judge {' and '.join(what)}: no force estimate ({why}); exit 5")
 
 
-def _off_scale(x: Any) -> bool:
-    """Whether a finding's force is one no one can trust: the log's torque scale is off."""
-    return str(getattr(x, "force_check", "") or "").startswith(OFF_SCALE)
-
-
 def _scale_off(f: Findings, limit: float) -> str | None:
     """The line of a log whose incidents or lasting loads under ``limit`` have a force no
     one can trust (the log's torque scale is off the robot description's gravity torque:
     ``force_check`` begins with :data:`~impactcli.detect.force.OFF_SCALE`), or None: the
     gate cannot pass them."""
     low = [x for x in (*f.incidents, *f.lasting_loads) if x.force_n is not None
-           and x.force_n <= limit and _off_scale(x)]
+           and x.force_n <= limit and off_scale(x)]
     if not low:
         return None
     return (f"impactcli: {shown(f.log_path)}: --fail-on-force {limit:g} N could not judge "
