@@ -232,6 +232,14 @@ def test_the_words_say_what_was_measured_and_what_was_not_judged() -> None:
         "a 100 ms blow was caught at half the moments judged from ~0.77 N·m on b (too few "
         "judged for nine in ten; 7 of 17 judged); on a, only 3 of 17 moments judged (a "
         "detector already alarming at the rest): too few for a figure — "), line
+    # all of them judged, yet too few: no detector is said to have been alarming (a new
+    # user read "only 3 of 3 moments judged (a detector already alarming at the rest)")
+    all3 = {"probes": 3, "window_s": 0.2, "per_link": None, "per_joint": {
+        "a": {"median_nm": None, "worst_tenth_nm": None, "probes": 3, "in_alarm": 0,
+              "uncaught": 0}}}
+    line = probed_line({"half_sine_s": 0.1, "probed": all3})
+    assert line is not None and line.startswith(
+        "on a, only 3 moments judged: too few for a figure — "), line
 
 
 def test_a_probe_is_caught_as_the_events_make_an_event() -> None:

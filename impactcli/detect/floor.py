@@ -443,7 +443,9 @@ def probed_line(floor: dict[str, Any] | None) -> str | None:
             parts.append((m, f"~{_approx(m)} {unit} on {where} ({nine}{of})"))
         elif 0 < judged < 5 and row.get("uncaught", 0) * 2 < judged:
             busy.append(f"on {where}, only {judged} of {total} moments judged (a detector "
-                        "already alarming at the rest): too few for a figure")
+                        "already alarming at the rest): too few for a figure" if judged < total
+                        else f"on {where}, only {judged} moments judged: too few for a "
+                        "figure")
         elif judged and row.get("uncaught", 0) * 2 >= judged:
             busy.append(f"on {where}, no blow however large was caught at "
                         f"{row['uncaught']} of {judged} moments judged")
