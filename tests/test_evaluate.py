@@ -597,6 +597,27 @@ def test_without_incidents_the_evaluation_says_so():
     validate(e.to_dict(), "evaluation", LabelsError, "evaluation")
 
 
+def test_a_link_among_the_candidates_is_said_so_not_wrong():
+    """A new user's trial: an incident answered "link 2 or 3" for a push on link 3, and
+    evaluate printed "3 / 2 WRONG". B's incident (link 2 for a push on link 1) now says it
+    could not tell links 1 and 2 apart: the table reads "1 / 1 or 2 among", the summary
+    counts it beside the right ones, and "link right" still judges its link."""
+    lab, events, incs = answer_case()
+    incs[2] = {**incs[2], "link_candidates": [1, 2]}
+    e = run(events, lab, incidents=incs)
+    ie = e.incidents
+    rows = {c.label_index: c for c in ie.contacts}
+    assert rows[1].link_right is False and rows[1].among and not rows[0].among
+    assert ie.overall.link_right == 2  # unchanged: the incident's link is judged
+    text = format_evaluation(e)
+    assert "1 / 1 or 2 among" in text
+    assert "2/3 (67%); 1 more among the links the incident could not tell apart" in text
+    doc = e.to_dict()
+    validate(doc, "evaluation", LabelsError, "evaluation")
+    assert doc["incidents"]["contacts"][1]["link_candidates"] == [1, 2]
+    assert "link_candidates" not in doc["incidents"]["contacts"][0]
+
+
 def test_an_incident_at_a_data_defect_answers_no_contact():
     """A new user's trial: detect took a labelled 5 N push out of the count as an incident
     at a data defect, while evaluate matched it ("ok") and counted 14 incidents against

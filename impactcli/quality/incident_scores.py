@@ -58,6 +58,7 @@ class _Inc:
     aftermath: bool = False
     force_at_least: bool = False
     data_defect: bool = False
+    candidates: tuple[int, ...] = ()
 
 
 def _as_inc(x: Any, warmup_end_s: float, i: int) -> _Inc:
@@ -76,7 +77,8 @@ def _as_inc(x: Any, warmup_end_s: float, i: int) -> _Inc:
                     bool(get("in_warmup", False)) or t0 < warmup_end_s,
                     None if not evs else tuple(int(k) for k in evs),
                     get("payload_change") is not None, get("aftermath") is not None,
-                    bool(get("force_at_least", False)), get("data_defect") is not None)
+                    bool(get("force_at_least", False)), get("data_defect") is not None,
+                    tuple(int(c) for c in get("link_candidates") or ()))
     except (KeyError, TypeError, ValueError) as err:
         raise LogFormatError(f"incidents[{i}]: missing or bad field: {err}") from None
 
@@ -120,6 +122,13 @@ class IncidentOutcome:
     contact_right: bool | None
     incident_t_start: float | None = None
     force_at_least: bool = False
+    link_candidates: tuple[int, ...] = ()
+
+    @property
+    def among(self) -> bool:
+        """The labelled link is among the links the incident could not tell apart, though
+        not its link (an answer "link 2 or 3" for link 3 with link 2 first)."""
+        return self.link_right is False and self.link_label in self.link_candidates
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (evaluation ``incidents.contacts`` item)."""
@@ -133,6 +142,8 @@ class IncidentOutcome:
             "status": self.status, "n_incidents": self.n_incidents,
             "incident_t_start": rounded(self.incident_t_start),
             **({"force_at_least": True} if self.force_at_least else {}),
+            **({"link_candidates": list(self.link_candidates)}
+               if len(self.link_candidates) > 1 else {}),
         }
 
 
@@ -269,7 +280,10 @@ class IncidentEvaluation:
                 if self.n_payload_changes else "")
              + (f"; {self.n_data_defects} at a data defect (not counted, as detect does "
                 "not: a contact there is missed)" if self.n_data_defects else "")],
-            ["link right", _frac(o.link_right, o.matched)],
+            ["link right", _frac(o.link_right, o.matched) + (
+                f"; {among} more among the links the incident could not tell apart (link A "
+                "or B)" if (among := sum(1 for c in self.contacts if c.status == "counted"
+                                         and c.among)) else "")],
             ["contact type right", _frac(o.contact_right, o.matched)],
             ["force error (median |F − F_label| / F_label)", _pct(o.force_rel_error_median)
              + (f" over {len(o.force_rel_errors)} contact(s)" if o.force_rel_errors
@@ -427,6 +441,7 @@ def evaluate_incidents(
             contact_right=None if ans is None else ans.contact == expected,
             incident_t_start=None if ans is None else ans.t_start,
             force_at_least=ans is not None and ans.force_n is not None and ans.force_at_least,
+            link_candidates=() if ans is None else ans.candidates,
         ))
     counted_rows = [r for r in rows if r.status == "counted"]
     per_link = {link: _answer_score([r for r in counted_rows if r.link_label == link])

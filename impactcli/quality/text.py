@@ -110,7 +110,9 @@ def format_incident_evaluation(ie: IncidentEvaluation) -> list[str]:
             f"#{c.label_index}" + ("" if c.status == "counted" else f" ({c.status})"),
             c.kind,
             "none" if c.incident_t_start is None else f"{c.incident_t_start:.3f} s",
-            f"{c.link_label} / {'-' if c.link is None else c.link}{mark(c.link_right)}",
+            f"{c.link_label} / " + ("-" if c.link is None else " or ".join(
+                str(k) for k in c.link_candidates) if len(c.link_candidates) > 1
+                else str(c.link)) + (" among" if c.among else mark(c.link_right)),
             f"{f_lab} / {f_inc}",
             "-" if c.force_rel_error is None else f"{100 * c.force_rel_error:+.0f}%",
             f"{c.expected_contact} / {c.contact or '-'}{mark(c.contact_right)}",
