@@ -44,7 +44,7 @@ def test_a_stated_force_is_never_more_than_the_force_and_is_it_unless_said(
     size = float(np.linalg.norm(fa))
     assert est.force_n <= size * (1 + 1e-9) + 1e-9
     if est.at_least:
-        assert est.stated.endswith(est.at_least) and "at least this" in est.at_least
+        assert est.stated.endswith(est.at_least) and "it may be larger" in est.at_least
     else:
         assert est.force_n == pytest.approx(size, rel=1e-6)
 
@@ -58,7 +58,7 @@ def test_which_forces_are_lower_bounds_and_why() -> None:
     bent = np.array([0.3, 1.2, 0.0])
     est = force_estimate(_exact(bent, np.array([3.0, 4.0]), 1), np.tile(bent, (5, 1)), 1,
                          [1, 2, 3], jac)
-    assert est.at_least == (" — at least this: a force's part that turns none of joint 1 "
+    assert est.at_least == (" — it may be larger: a force's part that turns none of joint 1 "
                             "is not seen")
     est = force_estimate(_exact(bent, np.array([3.0, 4.0]), 2), np.tile(bent, (5, 1)), 2,
                          [1, 2, 3], jac)
@@ -70,7 +70,7 @@ def test_which_forces_are_lower_bounds_and_why() -> None:
     normal = np.array([-along[1], along[0]])
     est = force_estimate(_exact(straight, 20.0 * normal + 20.0 * along, 2),
                          np.tile(straight, (5, 1)), 2, [1, 2, 3], jac)
-    assert est.at_least.startswith(" — at least this: near a singular posture (5 of 5 "
+    assert est.at_least.startswith(" — it may be larger: near a singular posture (5 of 5 "
                                    "samples solved)"), est.at_least
     assert est.force_n is not None and est.force_n < 0.8 * np.hypot(20.0, 20.0)
 

@@ -286,9 +286,9 @@ def force_estimate(
     if unseen.any():
         joints = (f"joint {use[0]}" if len(use) == 1
                   else f"joints {', '.join(str(c) for c in use)}")
-        at_least = (f" — at least this: a force's part that turns none of {joints} is not "
+        at_least = (f" — it may be larger: a force's part that turns none of {joints} is not "
                     "seen" if len(use) < rows else
-                    f" — at least this: near a singular posture ({int(unseen.sum())} of "
+                    f" — it may be larger: near a singular posture ({int(unseen.sum())} of "
                     f"{unseen.size} samples solved), the part of the force {joints} barely "
                     "feel is left out")
     return ForceEstimate(best, method, levers, at_least)
