@@ -19,6 +19,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import math
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -341,12 +342,35 @@ def settings_sha256(config: DetectorConfig | dict[str, Any]) -> str:
 
 def settings_changed(config: DetectorConfig | dict[str, Any]) -> bool:
     """Whether a calibrated config's detector settings differ from those its thresholds
-    were set with (a recorded :func:`settings_sha256` that does not match)."""
+    were set with (a recorded :func:`settings_sha256` that does not match), or its
+    thresholds from those its calibration recorded (:func:`thresholds_edited`)."""
     d = config.to_dict() if isinstance(config, DetectorConfig) else config
     cal = d.get("calibration") or {}
     recorded = cal.get("settings_sha256")
-    return bool(cal.get("calibrated")) and recorded is not None \
-        and recorded != settings_sha256(d)
+    return bool(cal.get("calibrated")) and (
+        (recorded is not None and recorded != settings_sha256(d)) or bool(thresholds_edited(d)))
+
+
+#: The thresholds a calibration's rate record holds per channel: detector → key.
+RATED_THRESHOLDS = {"adaptive": "v_stat", "static_loading": "vL"}
+
+
+def thresholds_edited(config: DetectorConfig | dict[str, Any]) -> list[str]:
+    """The thresholds of a calibrated config that differ from those its calibration's rate
+    record set (``false_alarm_rate.channels``: the rate was stated for those), each as
+    ``shoulder v_stat 0 (calibrated 0.418)``; none when it records no channels."""
+    d = config.to_dict() if isinstance(config, DetectorConfig) else config
+    cal = d.get("calibration") or {}
+    channels = ((cal.get("false_alarm_rate") or {}).get("channels") or {})
+    out = []
+    for det, key in RATED_THRESHOLDS.items():
+        for joint, ch in (channels.get(det) or {}).items():
+            now = ((d.get("thresholds") or {}).get(key) or {}).get(joint)
+            was = ch.get("threshold") if isinstance(ch, dict) else None
+            if now is not None and was is not None and not math.isclose(
+                    float(now), float(was), rel_tol=1e-9, abs_tol=1e-12):
+                out.append(f"{joint} {key} {float(now):.4g} (calibrated {float(was):.4g})")
+    return out
 
 
 @dataclass(frozen=True)

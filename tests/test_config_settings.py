@@ -78,3 +78,35 @@ def test_a_config_edited_after_calibrate_says_its_rate_does_not_apply(tmp_path: 
         assert ('"settings-changed"' in codes) is changed
         if changed:
             assert "stated false-alarm rate applies" not in codes
+
+
+def test_a_threshold_edited_after_calibrate_says_its_rate_does_not_apply(
+        tmp_path: Path) -> None:
+    """A new user set one v_stat to 0 in a calibrated config: it ran, said "calibrated" and
+    the predicted rate, and raised 11 adaptive events. The thresholds its calibration set
+    are in its rate record: one that differs is said (which, and what it was), and the
+    thresholds line says they are not for these settings. The unedited config says none of
+    it, and a last-bit difference is no edit."""
+    from impactcli.config import thresholds_edited
+
+    cfg = load_config(CONFIG)
+    assert thresholds_edited(cfg) == [] and not settings_changed(cfg)
+    d = cfg.to_dict()
+    was = d["thresholds"]["v_stat"]["elbow"]
+    d["thresholds"]["v_stat"]["elbow"] = was * (1 + 1e-12)
+    assert thresholds_edited(d) == []
+    d["thresholds"]["v_stat"]["elbow"] = 0.0
+    assert thresholds_edited(d) == [f"elbow v_stat 0 (calibrated {was:.4g})"]
+    assert settings_changed(d)
+    text = CONFIG.read_text("utf-8")
+    line = next(ln for ln in text.splitlines() if ln.startswith("elbow = ")
+                and abs(float(ln.split("=")[1]) - was) < 1e-15)
+    edited = tmp_path / "zero.toml"
+    edited.write_text(text.replace(line, "elbow = 0.0", 1), "utf-8")
+    r = CliRunner().invoke(main, ["detect", str(LOG), "--config", str(edited), "-o",
+                                  str(tmp_path / "o")])
+    assert r.exit_code == 0, r.output
+    assert (f"has thresholds other than those its calibration set (elbow v_stat 0 "
+            f"(calibrated {was:.4g}): edited after calibrate)") in r.stderr, r.stderr
+    head = next(ln for ln in r.stdout.splitlines() if ln.startswith("thresholds of"))
+    assert "NOT for these settings" in head, head

@@ -19,7 +19,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..clock import check_calibrated_rate
-from ..config import PLAIN_FORMULATION, THRESHOLD_KEYS, DetectorConfig, settings_changed
+from ..config import (
+    PLAIN_FORMULATION,
+    THRESHOLD_KEYS,
+    DetectorConfig,
+    settings_changed,
+    thresholds_edited,
+)
 from ..detect.adaptive import check_scale
 from ..errors import ConfigError, ImpactError, ImpactWarning, LogFormatError, ModelError
 from ..logs.reader import LogChunk, LogReader, LogScan
@@ -513,7 +519,7 @@ def plan_run(reader: LogReader, cfg: DetectorConfig, *, model: RigidModel | None
     if cfg.calibration.calibrated and calibrated_on != cfg.adaptive.formulation:
         warn_formulation(where, config_where, calibrated_on, cfg.adaptive.formulation)
     if settings_changed(cfg):
-        warn_settings(where, config_where)
+        warn_settings(where, config_where, thresholds_edited(cfg))
     sc = screen_scan(scan, known_joints(model, cfg), cfg.calibration.joints_left_out)
     described = robot or description_of(model, cfg)
     scale, hold = check_torque_scale(scan, described, sc.keep, warn=False)  # warned below

@@ -123,15 +123,20 @@ def warn_formulation(where: str, config_where: str, calibrated_on: str, runs: st
     )
 
 
-def warn_settings(where: str, config_where: str) -> None:
-    """The warning of a calibrated config whose detector settings were edited after
+def warn_settings(where: str, config_where: str, edited: Sequence[str] = ()) -> None:
+    """The warning of a calibrated config whose detector settings, or thresholds
+    (``edited``: :func:`impactcli.config.thresholds_edited`), were edited after
     ``calibrate`` (:func:`impactcli.config.settings_changed`)."""
-    warnings.warn(
-        f"{where}: its config ({config_where}) has detector settings other than those its "
-        "thresholds were calibrated with (calibration.settings_sha256 does not match: a "
-        "setting was edited after calibrate): the thresholds were not set for them, and "
-        "their stated false-alarm rate does not apply; calibrate again (impactcli "
-        "calibrate)", ImpactWarning, stacklevel=3)
+    what = (f"thresholds other than those its calibration set ({', '.join(edited)}: edited "
+            "after calibrate): their stated false-alarm rate was measured for the others "
+            "and does not apply"
+            if edited else
+            "detector settings other than those its thresholds were calibrated with "
+            "(calibration.settings_sha256 does not match: a setting was edited after "
+            "calibrate): the thresholds were not set for them, and their stated false-alarm "
+            "rate does not apply")
+    warnings.warn(f"{where}: its config ({config_where}) has {what}; calibrate again "
+                  "(impactcli calibrate)", ImpactWarning, stacklevel=3)
 
 
 def warn_gaps(where: str, lengths_s: np.ndarray, starts_s: np.ndarray) -> None:
