@@ -501,6 +501,15 @@ def test_could_not_see_on_a_planar_arm() -> None:
     # what it is: the push the thresholds need with the residual at zero, not a lower bound
     # of what went unseen (a new user read "link 1 ≥ 10 N" as one)
     assert sf["short"] == "static push ~1.0 N on link 1, static push ~2.0 N on link 2"
+    # with a measured floor, the fleet table gives it (a new user read the static push,
+    # about half the measured floor, as what the run could see)
+    from impactcli.outputs.report.unseen import _measured_short
+
+    probed = {"probed": {"per_link": [{"link": 1, "median_n": 29.1},
+                                      {"link": 2, "median_n": None},
+                                      {"link": 3, "median_n": 13.2}]}}
+    assert _measured_short(probed) == "floor measured ~29 N on link 1, ~13 N on link 3"
+    assert _measured_short(None) == "" and _measured_short({"probed": {}}) == ""
     assert "need at one posture, with the residual at zero" in sf["text"]
     assert "median posture after warm-up (j1 " in sf["text"]
     assert doc["summary"][0]["could_not_see"] == list(items)

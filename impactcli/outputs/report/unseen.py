@@ -147,8 +147,9 @@ def _smallest_force(result: DetectionResult, chain: tuple[str, ...],
             p += (f" (joint {chain[r['any_joint'] - 1]} already alarms at "
                   f"~{approx(r['any_force_n'])} N, isolated to an inner link)")
         parts.append(p)
-    short = ", ".join(f"static push ~{approx(r['own_force_n'])} N on link {r['link']}"
-                      for r in rows if r["own_force_n"] is not None)
+    short = _measured_short(result.detection_floor) or ", ".join(
+        f"static push ~{approx(r['own_force_n'])} N on link {r['link']}"
+        for r in rows if r["own_force_n"] is not None)
     return {"code": "smallest-force", "short": short,
             "data": {**data, "links": rows, "posture_rad": posture,
                      "posture_rule": "median after warm-up", "assumption": assumption},
@@ -225,6 +226,17 @@ def _envelope(result: DetectionResult, incidents: list[dict[str, Any]]) -> list[
                       "touch it "
                       "(marked in the timeline)"
                       + (f"; and {posture_text(posture)}" if posture else "") + ".")}]
+
+
+def _measured_short(floor: dict[str, Any] | None) -> str:
+    """The fleet table's floor: the measured one per link (a 100 ms blow caught at half the
+    moments judged, :mod:`impactcli.detect.probe`), "" when none was measured — the
+    figure a contact must reach, where the static push at the median posture is the least
+    any could (a new user read the static push, about half the measured one, first)."""
+    rows = [r for r in ((floor or {}).get("probed") or {}).get("per_link") or ()
+            if r.get("median_n") is not None]
+    return ("" if not rows else "floor measured " + ", ".join(
+        f"~{approx(r['median_n'])} N on link {r['link']}" for r in rows))
 
 
 def _unseen_load(result: DetectionResult, incidents: list[dict[str, Any]]
