@@ -452,7 +452,11 @@ def test_verdict_many_incidents_and_no_kinematics() -> None:
     many = [inc(10.0 + k, 2, f) for k, f in enumerate([4.9, 37.4, 8.7, 15.1])]
     assert verdict_text(many) == "4 incidents: 4 transient on link 2, ~4.9 to ~37 N."
     nf = [inc(1.0, None, None, "unknown", peak={"j1": -3.14, "j2": 1.0})]
-    assert verdict_text(nf) == ("1 incident: 1 of unknown kind on a link the residuals "
+    # "unknown" is an incident running to the log's end: said where the answer is read
+    # (a new user read the KUKA log's last-0.3 s incident as a real event)
+    assert verdict_text(nf) == ("1 incident: 1 of unknown kind (running to the log's end: "
+                                "how long it pressed cannot be seen, nor whether it is a "
+                                "contact or the recording's end) on a link the residuals "
                                 "cannot say, ~3.1 N·m peak residual.")
 
 

@@ -217,7 +217,9 @@ def _verdict(incidents: Sequence[dict[str, Any]], known: bool, alarms_counted: i
 
     parts = []
     for (kind, link, cands), items in sorted(groups.items(), key=order):
-        what = (f"{len(items)} of unknown kind" if kind == "unknown"
+        what = (f"{len(items)} of unknown kind (running to the log's end: how long it "
+                "pressed cannot be seen, nor whether it is a contact or the recording's "
+                "end)" if kind == "unknown"
                 else f"{len(items)} {CONTACT_TEXT.get(kind, kind)}")
         where = "on " + link_words(link, cands, unknown="a link the residuals cannot say")
         parts.append(f"{what} {where}, {_how_hard(items, clock)}")
