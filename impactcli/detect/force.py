@@ -80,7 +80,7 @@ FORCE_CEILING_FACTOR = 3.0
 OFF_SCALE = "the log's torque is off the description's gravity torque"
 
 
-def off_scale(finding: Any) -> bool:
+def scale_untrusted(finding: Any) -> bool:
     """Whether a finding's force (an incident's or lasting load's, or its timeline mapping)
     is one no one can trust because the log's torque scale is off (:data:`OFF_SCALE`)."""
     check = (finding.get("force_check") if isinstance(finding, dict)

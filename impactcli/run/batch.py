@@ -37,7 +37,7 @@ from pathlib import Path
 from typing import Any, NotRequired, TypedDict
 
 from ..detect.floor import floor_line, probed_line
-from ..detect.force import FORCE_NOT_STATED, off_scale
+from ..detect.force import FORCE_NOT_STATED, scale_untrusted
 from ..errors import (
     EXIT_DATA,
     EXIT_SOFTWARE,
@@ -120,7 +120,7 @@ def _incident_row(i: Any) -> IncidentRow:
         row["force_at_least"] = True
     if i.unseen_load_kg is not None:
         row["unseen_load_kg"] = i.unseen_load_kg
-    if off_scale(i):  # untrusted for the log's torque scale
+    if scale_untrusted(i):  # untrusted for the log's torque scale
         row["off_scale"] = True
     return row
 

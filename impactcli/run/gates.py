@@ -21,7 +21,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from ..detect.force import AT_LEAST, FORCE_NOT_STATED, force_mark, off_scale
+from ..detect.force import AT_LEAST, FORCE_NOT_STATED, force_mark, scale_untrusted
 from ..detect.warmup import least_s, past_least
 from ..errors import one_line
 
@@ -163,7 +163,7 @@ def _at_least(f: Findings, limit: float) -> str | None:
     ``force_at_least``), or None: --fail-on-force passed them as far as the joints tell."""
     low = [x for x in (*f.incidents, *f.lasting_loads)
            if x.force_n is not None and x.force_n <= limit and x.force_at_least
-           and not off_scale(x)]  # those it could not judge
+           and not scale_untrusted(x)]  # those it could not judge
     if not low:
         return None
     forces = sorted(x.force_n for x in low)
@@ -252,7 +252,7 @@ def _scale_off(f: Findings, limit: float) -> str | None:
     ``force_check`` begins with :data:`~impactcli.detect.force.OFF_SCALE`), or None: the
     gate cannot pass them."""
     low = [x for x in (*f.incidents, *f.lasting_loads) if x.force_n is not None
-           and x.force_n <= limit and off_scale(x)]
+           and x.force_n <= limit and scale_untrusted(x)]
     if not low:
         return None
     return (f"impactcli: {shown(f.log_path)}: --fail-on-force {limit:g} N could not judge "

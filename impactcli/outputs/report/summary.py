@@ -19,7 +19,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from ...detect.force import AT_LEAST_TEXT, FORCE_NOT_STATED, force_mark, off_scale
+from ...detect.force import AT_LEAST_TEXT, FORCE_NOT_STATED, force_mark, scale_untrusted
 from ...detect.incidents import link_words
 from .common import CONTACT_TEXT, PRODUCT_DETECTORS, approx, e, ratio_cell, utc
 
@@ -229,7 +229,7 @@ def _verdict(incidents: Sequence[dict[str, Any]], known: bool, alarms_counted: i
         head += f" on {clock[0]} (UTC)" if clock[1] else " (UTC)"
     also = f"; and a {loads}" if loads.startswith("lasting load ") else (
         f"; and {loads}" if loads else "")
-    off = [i for i in counted if off_scale(i)]
+    off = [i for i in counted if scale_untrusted(i)]
     bad = sum(1 for i in counted if i.get("force_plausible") is False and i not in off)
     units = ("" if not bad else
              f" {'One estimated force is' if bad == 1 else f'{bad} estimated forces are'}"
@@ -329,7 +329,7 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
             force += (' <span class="note">in the warm-up: it may be the filters settling '
                       "from the log's start, not a contact</span>")
         if r.get("force_plausible") is False:
-            word = "not trusted" if off_scale(r) else "implausible"
+            word = "not trusted" if scale_untrusted(r) else "implausible"
             force += (f' <span class="bad">{word}: '
                       f'{e(r.get("force_check") or "beyond what the arm can exert")}</span>')
         words = link_words(r.get("link"), r.get("link_candidates"))
