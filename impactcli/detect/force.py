@@ -58,8 +58,8 @@ RCOND = 0.1
 FIT_SHARE = 0.8
 #: How ``force_method`` begins when no single force at the link's end gives the torques.
 NO_SINGLE_FORCE = "no single force at the end of link"
-#: ... and when the model's torque passed what the joint exerted in the log
-#: (:func:`impactcli.detect.incident_builder.beyond_logged`).
+#: ... and when the model's torque passed what the joint exerted in the log, or swung where
+#: the logged torque stayed (:func:`impactcli.detect.incident_builder.beyond_logged`).
 BEYOND_LOGGED = "the model's torque on"
 #: The ``force_method`` beginnings of a force the physics checks leave unstated.
 FORCE_NOT_STATED = (NO_SINGLE_FORCE, BEYOND_LOGGED)

@@ -270,28 +270,48 @@ def poorly_determined(model: dict[str, Any] | None) -> bool:
 def beyond_logged(ctx: IncidentContext, r: np.ndarray, tau: np.ndarray | None,
                   cols: list[int]) -> ForceEstimate | None:
     """The incident's force as not stated (None) with why, when the model's torque
-    τ̂ = r + τ on one of ``cols`` (the detected joints up to the link) passed
-    :data:`MODEL_BEYOND` × the largest |τ| logged on it, by more than its vL: a model the
-    log does not determine (a still arm, a joint it barely moves) predicting torques no
-    motion of the log needed — its residual is no contact's (docs/incidents.md, "The
-    rules"); None when the model stays within what the joints exerted."""
+    τ̂ = r + τ on one of ``cols`` (the detected joints up to the link) did what no motion of
+    the log asked of the joint — a model the log does not determine (a still arm, a joint it
+    barely moves) predicting torques of its own, whose residual is no contact's
+    (docs/incidents.md, "The rules"):
+
+    - it passed :data:`MODEL_BEYOND` × the largest |τ| logged on the joint, or
+    - within the incident it moved (max − min) :data:`MODEL_BEYOND` × as far as the logged
+      torque did: a contact's torque reaches the joint's motor, and a residual made of the
+      model's own swing is its response to the motion (a real UR arm held still, modelled
+      with a guessed UR5e's kinematics, swung 92 N·m on a joint whose logged torque moved
+      3 N·m).
+
+    Each by more than its vL. None when the model stays within what the joints did."""
     if tau is None or ctx.torque_peak is None or not cols:
         return None
-    hat = np.abs(r[:, cols] + tau[:, cols])
+    hat = r[:, cols] + tau[:, cols]
     if not np.all(np.isfinite(hat)) or hat.size == 0:
         return None
-    peak_hat = hat.max(axis=0)
+    vl = ctx.vl[cols]
+    peak_hat = np.abs(hat).max(axis=0)
     logged = ctx.torque_peak[cols]
-    over = (peak_hat > MODEL_BEYOND * logged) & (peak_hat - logged > ctx.vl[cols])
+    over = (peak_hat > MODEL_BEYOND * logged) & (peak_hat - logged > vl)
+    if np.any(over):
+        k = int(np.argmax(np.where(over, peak_hat / np.maximum(logged, 1e-12), -np.inf)))
+        return ForceEstimate(None, (
+            f"{BEYOND_LOGGED} {ctx.joints[cols[k]]} reached {peak_hat[k]:.3g} N·m, more "
+            f"than {MODEL_BEYOND:g}× the most it exerted anywhere in the log "
+            f"({logged[k]:.3g} N·m): the residual there is the model's extrapolation, not a "
+            "contact's torque (a model the log does not determine: see the run's warnings); "
+            "no force stated"))
+    swing_hat = np.ptp(hat, axis=0)
+    swing = np.ptp(tau[:, cols], axis=0)
+    over = (swing_hat > MODEL_BEYOND * swing) & (swing_hat - swing > vl)
     if not np.any(over):
         return None
-    k = int(np.argmax(np.where(over, peak_hat / np.maximum(logged, 1e-12), -np.inf)))
-    name = ctx.joints[cols[k]]
+    k = int(np.argmax(np.where(over, swing_hat / np.maximum(swing, 1e-12), -np.inf)))
     return ForceEstimate(None, (
-        f"{BEYOND_LOGGED} {name} reached {peak_hat[k]:.3g} N·m, more than "
-        f"{MODEL_BEYOND:g}× the most it exerted anywhere in the log ({logged[k]:.3g} N·m): "
-        "the residual there is the model's extrapolation, not a contact's torque (a model "
-        "the log does not determine: see the run's warnings); no force stated"))
+        f"{BEYOND_LOGGED} {ctx.joints[cols[k]]} moved {swing_hat[k]:.3g} N·m within the "
+        f"incident, more than {MODEL_BEYOND:g}× the logged torque did ({swing[k]:.3g} N·m): "
+        "a contact's torque reaches the joint's motor, so the residual there is the model's "
+        "response to the motion, not a contact's torque (a model the log does not "
+        "determine: see the run's warnings); no force stated"))
 
 
 def blind_beyond(where: LinkDecision, jac: JacobianFn, q: np.ndarray,
