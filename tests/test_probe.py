@@ -240,6 +240,19 @@ def test_the_words_say_what_was_measured_and_what_was_not_judged() -> None:
     line = probed_line({"half_sine_s": 0.1, "probed": all3})
     assert line is not None and line.startswith(
         "on a, only 3 moments judged: too few for a figure — "), line
+    # the same on every joint: said once, with why so few (a trial read six repeats of
+    # it on the real UR log, 45 s with 3 moments the RLS's memory apart)
+    b = dict(all3["per_joint"]["a"])
+    line = probed_line({"half_sine_s": 0.1, "probed": {**all3, "per_joint": {
+        "a": all3["per_joint"]["a"], "b": b}}})
+    assert line is not None and line.startswith(
+        "on every joint, only 3 moments judged: too few for a figure (the moments probed "
+        "lie at least the adaptive filter's memory apart: a longer log gives more) — "), line
+    busy2 = {**few, "per_joint": {k: {**few["per_joint"]["a"]} for k in ("a", "b")}}
+    line = probed_line({"half_sine_s": 0.1, "probed": busy2})
+    assert line is not None and line.startswith(
+        "on every joint, only 3 of 17 moments judged (a detector already alarming at the "
+        "rest): too few for a figure — "), line
 
 
 def test_a_probe_is_caught_as_the_events_make_an_event() -> None:

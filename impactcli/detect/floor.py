@@ -454,6 +454,13 @@ def probed_line(floor: dict[str, Any] | None) -> str | None:
                         f"{row['in_alarm']} of {total} moments (none judged)")
     if not parts and not busy:
         return None
+    tails = {b.split(", ", 1)[1] for b in busy}
+    if not parts and len(busy) > 1 and len(tails) == 1:  # the same on each: said once
+        tail = tails.pop()
+        hint = (" (the moments probed lie at least the adaptive filter's memory apart: a "
+                "longer log gives more)" if tail.endswith("moments judged: too few for a "
+                                                          "figure") else "")
+        busy = [f"on every {'link' if links else 'joint'}, {tail}{hint}"]
     shown = _largest(parts)
     ms = 1000 * float((floor or {}).get("half_sine_s", HALF_SINE_S))
     said = ([f"a {ms:g} ms blow was caught at half the moments judged from "
