@@ -19,7 +19,13 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from ...detect.force import AT_LEAST_TEXT, FORCE_NOT_STATED, force_mark, scale_untrusted
+from ...detect.force import (
+    AT_LEAST_TEXT,
+    BEYOND_LOGGED,
+    FORCE_NOT_STATED,
+    force_mark,
+    scale_untrusted,
+)
 from ...detect.incidents import link_words
 from .common import CONTACT_TEXT, PRODUCT_DETECTORS, approx, e, ratio_cell, utc
 
@@ -117,18 +123,33 @@ def _and(items: Sequence[str]) -> str:
     return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1]
 
 
+def model_made(inc: dict[str, Any]) -> bool:
+    """Whether an incident's residual is the model's own torque, not a contact's (its
+    force left unstated by :func:`impactcli.detect.incident_builder.beyond_logged`): its
+    peak residual is no measure of how hard."""
+    return inc.get("force_n") is None and str(inc.get("force_method") or "").startswith(
+        BEYOND_LOGGED)
+
+
+#: How hard, for an incident whose residual is the model's own torque (:func:`model_made`).
+MODEL_MADE_TEXT = "no force: the residual is the model's own torque"
+
+
 def _how_hard(group: Sequence[dict[str, Any]], clock: tuple[str, bool] | None) -> str:
     """``~25 N and ~40 N`` (≤ 3 incidents, with clock times), else ``~5 to ~37 N``; the
-    peak residual torque where no force is known."""
+    peak residual torque where no force is known — not where the residual is the model's
+    own torque (:func:`model_made`: no measure of the contact)."""
     with_f = [i for i in group if i.get("force_n") is not None]
     if len(group) <= 3:
         parts = []
         for i in group:
             v = (f"{force_mark(i)}{approx(i['force_n'])} N" if i.get("force_n") is not None
+                 else MODEL_MADE_TEXT if model_made(i)
                  else f"~{approx(peak_torque(i))} N·m peak residual")
             when = _when(i, clock[1]) if clock else ""
             parts.append(f"{v} ({when})" if when else v)
         return _and(parts)
+    made = sum(model_made(i) for i in group)
     if with_f:
         lo = min(with_f, key=lambda i: i["force_n"])
         hi = max(with_f, key=lambda i: i["force_n"])
@@ -136,9 +157,13 @@ def _how_hard(group: Sequence[dict[str, Any]], clock: tuple[str, bool] | None) -
                 f"{force_mark(hi)}{approx(hi['force_n'])} N")
         if len(with_f) < len(group):
             text += f" ({len(group) - len(with_f)} without a force estimate)"
-    else:
-        ts = [peak_torque(i) for i in group]
+    elif made < len(group):
+        ts = [peak_torque(i) for i in group if not model_made(i)]
         text = f"peak residual ~{approx(min(ts))} to ~{approx(max(ts))} N·m"
+        if made:
+            text += f" ({made} where the residual is the model's own torque)"
+    else:
+        text = f"{MODEL_MADE_TEXT}, in each"
     if clock:
         text += f", {_when(group[0], clock[1])} to {_when(group[-1], clock[1])}"
     return text
