@@ -248,6 +248,13 @@ def test_the_words_say_what_was_measured_and_what_was_not_judged() -> None:
     assert line is not None and line.startswith(
         "on every joint, only 3 moments judged: too few for a figure (the moments probed "
         "lie at least the adaptive filter's memory apart: a longer log gives more) — "), line
+    one = {**all3, "probes": 1, "per_joint": {k: {**all3["per_joint"]["a"], "probes": 1}
+                                              for k in ("a", "b")}}
+    line = probed_line({"half_sine_s": 0.1, "probed": one})
+    assert line is not None and line.startswith(
+        "on every joint, only 1 moment judged: too few for a figure (the moments probed lie "
+        "at least the adaptive filter's memory apart: a longer log gives more) — 1 moment "
+        "probed after warm-up"), line
     busy2 = {**few, "per_joint": {k: {**few["per_joint"]["a"]} for k in ("a", "b")}}
     line = probed_line({"half_sine_s": 0.1, "probed": busy2})
     assert line is not None and line.startswith(

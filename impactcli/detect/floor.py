@@ -444,7 +444,7 @@ def probed_line(floor: dict[str, Any] | None) -> str | None:
         elif 0 < judged < 5 and row.get("uncaught", 0) * 2 < judged:
             busy.append(f"on {where}, only {judged} of {total} moments judged (a detector "
                         "already alarming at the rest): too few for a figure" if judged < total
-                        else f"on {where}, only {judged} moments judged: too few for a "
+                        else f"on {where}, only {_moments(judged)} judged: too few for a "
                         "figure")
         elif judged and row.get("uncaught", 0) * 2 >= judged:
             busy.append(f"on {where}, no blow however large was caught at "
@@ -458,14 +458,14 @@ def probed_line(floor: dict[str, Any] | None) -> str | None:
     if not parts and len(busy) > 1 and len(tails) == 1:  # the same on each: said once
         tail = tails.pop()
         hint = (" (the moments probed lie at least the adaptive filter's memory apart: a "
-                "longer log gives more)" if tail.endswith("moments judged: too few for a "
-                                                          "figure") else "")
+                "longer log gives more)" if tail.endswith("judged: too few for a figure")
+                and "alarming" not in tail else "")
         busy = [f"on every {'link' if links else 'joint'}, {tail}{hint}"]
     shown = _largest(parts)
     ms = 1000 * float((floor or {}).get("half_sine_s", HALF_SINE_S))
     said = ([f"a {ms:g} ms blow was caught at half the moments judged from "
              + ", ".join(shown)] if shown else []) + busy
-    return ("; ".join(said) + f" — {total} moments probed after warm-up, each replayed "
+    return ("; ".join(said) + f" — {_moments(total)} probed after warm-up, each replayed "
             f"with a {ms:g} ms blow added to the residual through both detectors from "
             "their own state, and judged within its window; one where a detector was "
             "already alarming is not judged (a blow there joins that alarm); "
@@ -477,6 +477,11 @@ def floor_words(floor: dict[str, Any] | None) -> str | None:
     (:func:`probed_line`) after "measured:"."""
     parts = [x for x in (floor_line(floor), probed_line(floor)) if x]
     return "; measured: ".join(parts) if parts else None
+
+
+def _moments(n: int) -> str:
+    """``1 moment``, ``3 moments``."""
+    return f"{n} moment{'' if n == 1 else 's'}"
 
 
 def _largest(parts: list[tuple[float, str]]) -> list[str]:
