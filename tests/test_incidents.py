@@ -218,7 +218,7 @@ def test_cli_counts_incidents_and_gates_on_force(tmp_path: Path) -> None:
                                   str(tmp_path / "d"), "--fail-on-detect"])
     assert r.exit_code == 1, r.output
     doc = json.loads((tmp_path / "d" / "assist_pushes.timeline.json").read_text())
-    assert doc["schema_version"] == "2.7" and len(doc["incidents"]) >= 9
+    assert doc["schema_version"] == "2.8" and len(doc["incidents"]) >= 9
 
 
 def test_fail_on_force_without_kinematics_could_not_judge(tmp_path: Path) -> None:
@@ -418,3 +418,50 @@ def test_an_alarm_already_on_at_a_change_s_onset_is_the_change_s() -> None:
     assert out[0].payload_change is None
     out, _ = mark_payload_changes(incs[1:], [change], 0.56, 0.56)
     assert [i.payload_change for i in out] == [None, None]
+
+
+def test_a_lasting_load_on_when_the_warm_up_ended_is_marked() -> None:
+    """Known truth: an alarm that straddles the warm-up's end is split there (its part in
+    the warm-up ends on the sample before the counted part): the counted lasting load
+    began then or before, not at its t_start. One whose detector's warm-up event ended
+    earlier, or another detector's, began where it says."""
+    from impactcli.detect.incidents import LastingLoad, on_at_warmup_end
+
+    def ev(det: str, i0: int, i1: int, warm: bool) -> Event:
+        return Event(det, i0 / 100, i1 / 100, i0, i1, ("j1",), 2.0, {"j1": 1.0}, warm)
+
+    def load(i0: int, det: str = "static_loading") -> LastingLoad:
+        return LastingLoad(det, i0 / 100, 40.0, i0, 4000, ("j1",), 9.0, False, 1, False, 2,
+                           20.0, "")
+
+    split = [ev("static_loading", 120, 299, True), ev("static_loading", 300, 4000, False)]
+    assert [x.on_at_warmup_end for x in on_at_warmup_end([load(300)], split)] == [True]
+    assert load(300).to_dict().get("on_at_warmup_end") is None
+    assert on_at_warmup_end([load(300)], split)[0].to_dict()["on_at_warmup_end"] is True
+    apart = [ev("static_loading", 120, 250, True)]  # it stopped, then a new alarm
+    assert not on_at_warmup_end([load(300)], apart)[0].on_at_warmup_end
+    other = [ev("adaptive", 120, 299, True)]  # another detector's alarm
+    assert not on_at_warmup_end([load(300)], other)[0].on_at_warmup_end
+
+
+def test_what_a_lasting_load_leaves_unseen_is_said_over_its_union() -> None:
+    """Known truth: two lasting loads of different detectors, 8.7–40.2 s and 30–45 s, blind
+    their detectors for the union, 36.3 s (71 % of 51.3 s after warm-up); each leaves
+    the other detector to see a contact. A load in the warm-up is not counted."""
+    from impactcli.detect.incidents import blind_text
+
+    loads = [{"t_start": 8.7, "t_end": 40.2, "detector": "static_loading",
+              "joints": ["shoulder", "elbow"]},
+             {"t_start": 30.0, "t_end": 45.0, "detector": "adaptive", "joints": ["elbow"]},
+             {"t_start": 0.0, "t_end": 12.0, "detector": "adaptive", "joints": ["elbow"],
+              "in_warmup": True}]
+    assert blind_text(loads, 51.3) == (
+        "a lasting load's detector was already alarming on its joints for 36.3 s (71 % of "
+        "the log after warm-up; 8.7–40.2 s, static_loading on shoulder, elbow; 30.0–45.0 s, "
+        "adaptive on elbow): a contact there raised no event of that detector on them, only "
+        "the other (adaptive or static_loading) could see it, and the detection floor does "
+        "not hold there")
+    assert blind_text(loads[:1], listed=True).startswith(
+        "a lasting load's detector was already alarming on its joints for 31.5 s: a contact "
+        "there raised no event of that detector on them, only the other (adaptive) could")
+    assert blind_text(loads[2:]) == "" and blind_text([]) == ""

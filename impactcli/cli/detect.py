@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from ..detect.events import LONG_EVENT_S
+from ..detect.incidents import blind_text
 from ..errors import EXIT_BATCH, EXIT_DETECTED, EXIT_UNJUDGED, Interrupted, one_line
 from ..run.gates import count, gate_notes, shown
 from .options import (
@@ -104,7 +105,10 @@ def _lasting_line(k: int, x: dict[str, Any]) -> str:
     """``  L1   6.500–40.000 s (to the log's end) static_loading on j2, j3, up to 14× …``."""
     from ..detect.force import force_mark
 
-    end = " (to the log's end)" if x.get("ends_with_log") else ""
+    said = (["to the log's end"] if x.get("ends_with_log") else []) + (
+        ["on already when the warm-up ended: it began then or before"]
+        if x.get("on_at_warmup_end") else [])
+    end = f" ({'; '.join(said)})" if said else ""
     force = (f", {force_mark(x)}{x['force_n']:.3g} N at link {x['link']}"
              if x.get("force_n") is not None else "")
     if x.get("force_plausible") is False:
@@ -503,3 +507,4 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
                    "clamp, or a model that no longer fits):")
         for k, x in enumerate(loads[ok[0].log_path], 1):
             click.echo(_lasting_line(k, x))
+        click.echo(f"  ({blind_text(loads[ok[0].log_path], listed=True)})")

@@ -149,10 +149,13 @@ class LastingLoad(AlarmSpan):
     payload_test: str | None = None
     force_at_least: bool = False
     unseen_load_kg: float | None = None
+    on_at_warmup_end: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (timeline ``lasting_loads`` item); ``payload_test`` and
-        ``unseen_load_kg`` as an incident's."""
+        ``unseen_load_kg`` as an incident's; ``on_at_warmup_end`` only when true: the alarm
+        was on when the warm-up ended (:func:`on_at_warmup_end`), so its ``t_start`` is
+        the warm-up's end, not when the load began."""
         return {
             "detector": self.detector, "t_start": self.t_start, "t_end": self.t_end,
             "t_start_utc": self.t_start_utc, "i_start": self.i_start, "i_end": self.i_end,
@@ -164,7 +167,51 @@ class LastingLoad(AlarmSpan):
             "force_ceiling_n": self.force_ceiling_n, "force_check": self.force_check,
             **({} if self.payload_test is None else {"payload_test": self.payload_test}),
             **({} if self.unseen_load_kg is None else {"unseen_load_kg": self.unseen_load_kg}),
+            **({"on_at_warmup_end": True} if self.on_at_warmup_end else {}),
         }
+
+
+def on_at_warmup_end(loads: Sequence[LastingLoad], events: Sequence[Event]
+                     ) -> list[LastingLoad]:
+    """The lasting loads, those counted from the warm-up's end because their detector was
+    already alarming then marked ``on_at_warmup_end``: the part of the same alarm in the
+    warm-up (:func:`impactcli.detect.events.split_at_warmup`), an event of that detector
+    in the warm-up, ends on the sample before theirs. When such a load began is not
+    known — at the warm-up's end or before it (indices in the log, both)."""
+    return [replace(x, on_at_warmup_end=True) if not x.in_warmup and any(
+        e.in_warmup and e.detector == x.detector and e.i_end >= x.i_start - 1
+        for e in events) else x for x in loads]
+
+
+#: The other product detector, the one left to see a contact while a detector alarms.
+OTHER_DETECTOR = {"static_loading": "adaptive", "adaptive": "static_loading"}
+
+
+def blind_text(loads: Sequence[dict[str, Any]], analysed_s: float | None = None, *,
+               listed: bool = False) -> str:
+    """What the counted lasting loads (timeline dicts) leave unseen, in words ("" when
+    none): while one lasts its detector is already alarming on its joints, so a contact
+    there raises no event of that detector on them — only the other product detector can
+    see it, and the detection floor (a step or a blow from the detectors' own state) does
+    not hold there. ``analysed_s``: the log's time after warm-up [s], for the share;
+    ``listed``: the loads are listed just above (their spans not repeated)."""
+    counted = [x for x in loads if not x.get("in_warmup")]
+    if not counted:
+        return ""
+    total, end = 0.0, -np.inf
+    for a, b in sorted((float(x["t_start"]), float(x["t_end"])) for x in counted):
+        total += max(0.0, b - max(a, end))  # their union: two detectors' may overlap
+        end = max(end, b)
+    said = ([f"{100 * total / analysed_s:.0f} % of the log after warm-up"] if analysed_s
+            else []) + ([] if listed else [
+                f"{x['t_start']:.1f}–{x['t_end']:.1f} s, {x['detector']} on "
+                f"{', '.join(x['joints'])}" for x in counted])
+    others = sorted({OTHER_DETECTOR.get(x["detector"], "the other detector") for x in counted})
+    return (f"a lasting load's detector was already alarming on its joints for {total:.1f} s"
+            + (f" ({'; '.join(said)})" if said else "")
+            + ": a contact there raised no event of that detector on them, only the other "
+            f"({' or '.join(others)}) could see it, and the detection floor does not hold "
+            "there")
 
 
 @dataclass(frozen=True)

@@ -59,6 +59,7 @@ from ..detect.incidents import (
     adaptive_memory_s,
     mark_defects,
     mark_payload_changes,
+    on_at_warmup_end,
     settle_s,
 )
 from ..detect.link_evidence import ResidualNoise
@@ -686,4 +687,4 @@ def _events_and_incidents(islands: Islands, wu: Warmup, joints: tuple[str, ...],
         loads += lds
         events += [dataclasses.replace(e, i_start=e.i_start + isl.start,
                                        i_end=e.i_end + isl.start) for e in local]
-    return events, number_incidents(incidents), loads
+    return events, number_incidents(incidents), on_at_warmup_end(loads, events)

@@ -77,7 +77,9 @@ def lasting_text(loads: Sequence[dict[str, Any]]) -> str:
         force = (f", {force_mark(x)}{approx(x['force_n'])} N at link {x['link']}"
                  if x.get("force_n") is not None and x.get("force_plausible") is not False
                  else "")
-        parts.append(f"from {x['t_start']:.1f} s{end} on joints {', '.join(x['joints'])}, "
+        since = (f"from the warm-up's end at {x['t_start']:.1f} s or before"
+                 if x.get("on_at_warmup_end") else f"from {x['t_start']:.1f} s")
+        parts.append(f"{since}{end} on joints {', '.join(x['joints'])}, "
                      f"up to {approx(x['peak_ratio'])}× its threshold{force}")
     if not parts:
         return ""
@@ -446,7 +448,9 @@ def lasting_table_html(loads: Sequence[dict[str, Any]], anchor: str) -> str:
     body = []
     for k, x in enumerate(loads, 1):
         end = "the log's end" if x.get("ends_with_log") else f'{x["t_end"]:.3f} s'
-        warm = ' <span class="note">warm-up: not counted</span>' if x.get("in_warmup") else ""
+        warm = (' <span class="note">warm-up: not counted</span>' if x.get("in_warmup")
+                else ' <span class="note">on already when the warm-up ended: it began then '
+                'or before</span>' if x.get("on_at_warmup_end") else "")
         link = f'link {x["link"]}' if x.get("link") is not None else "link unknown"
         force = (f'{force_mark(x)}{approx(x["force_n"])} N' if x.get("force_n") is not None
                  else '<span class="muted">no force estimate</span>')
@@ -468,7 +472,9 @@ def lasting_table_html(loads: Sequence[dict[str, Any]], anchor: str) -> str:
         '<th class="num">peak / threshold</th><th>where</th><th>how hard (peak)</th>'
         f'</tr></thead>{"".join(body)}</table></div>'
         f'<div class="small muted">A lasting load is an alarm of 10 s or more: '
-        f"{LASTING_WHY}. It is counted beside the incidents and absorbs none of them.</div>")
+        f"{LASTING_WHY}. It is counted beside the incidents and absorbs none of them, but "
+        "while it lasts its detector is already alarming on its joints: a contact then is "
+        "seen only by the other detector (what the audit could not see).</div>")
 
 
 def _ranges(ps: Sequence[int], labels: Sequence[str]) -> str:

@@ -22,6 +22,7 @@ from ...config import settings_changed
 from ...detect.envelope import outside_share_text, posture_text
 from ...detect.floor import floor_words
 from ...detect.force import planar_jacobian, smallest_caught_force
+from ...detect.incidents import blind_text
 from ...types import DetectionResult
 from .common import approx, e, share
 from .samples import Samples
@@ -265,6 +266,24 @@ def _unseen_load(result: DetectionResult, incidents: list[dict[str, Any]]
                       "contacts is not known. Calibrate with a log that carries the load.")}]
 
 
+def _lasting(result: DetectionResult) -> list[dict[str, Any]]:
+    """The stretches where a counted lasting load's detector was already alarming
+    (:func:`impactcli.detect.incidents.blind_text`); nothing when there is none."""
+    loads = [x.to_dict() if hasattr(x, "to_dict") else dict(x) for x in result.lasting_loads]
+    counted = [x for x in loads if not x.get("in_warmup")]
+    if not counted:
+        return []
+    analysed = max(0.0, result.log.duration_s + result.log.sample_period_s
+                   - float(result.warmup_end_s))
+    text = blind_text(counted, analysed)
+    return [{"code": "lasting-load",
+             "short": f"{len(counted)} lasting load(s): a detector already alarming",
+             "data": {"spans": [{"t_start": x["t_start"], "t_end": x["t_end"],
+                                 "detector": x["detector"], "joints": list(x["joints"])}
+                                for x in counted]},
+             "text": text[:1].upper() + text[1:] + "."}]
+
+
 def could_not_see(result: DetectionResult, incidents: list[dict[str, Any]], *,
                   samples: Samples, known: bool = True,
                   origin: dict[str, Any] | None = None) -> list[dict[str, Any]]:
@@ -273,7 +292,7 @@ def could_not_see(result: DetectionResult, incidents: list[dict[str, Any]], *,
     chain, kin = chain_of(result)
     return [*_older(origin, known), _warmup(result, incidents), *_cut(result),
             _gaps(samples), _left_out(result, chain), *_envelope(result, incidents),
-            *_unseen_load(result, incidents),
+            *_unseen_load(result, incidents), *_lasting(result),
             _smallest_force(result, chain, kin, samples)]
 
 
