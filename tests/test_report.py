@@ -380,6 +380,18 @@ def test_poor_model_fit_is_a_caveat() -> None:
     assert "j2" not in cav[0]["text"]
     _, good = build_report([result_named("a.csv", "4" * 64, model=fit(0.3))])
     assert "model-poor-fit" not in {c["code"] for c in good["logs"][0]["caveats"]}
+    # on a controller's channel the model fits only a correction to it: its error against
+    # that small target says nothing of the measured torque (a trial read "56 % of the
+    # torque RMS" for a 0.036 N·m error), so no caveat for that joint
+    logged = {j: {"generator": "logged_external", "reason": "r", "residual": "x"}
+              for j in ("j1", "j2")}
+    _, ext = build_report([result_named("a.csv", "4" * 64, model=fit(1.03),
+                                        generators=logged)])
+    assert "model-poor-fit" not in {c["code"] for c in ext["logs"][0]["caveats"]}
+    own = {**logged, "j1": {**logged["j1"], "generator": "inverse_dynamics"}}
+    _, mixed = build_report([result_named("a.csv", "4" * 64, model=fit(1.03),
+                                          generators=own)])
+    assert [c for c in mixed["logs"][0]["caveats"] if c["code"] == "model-poor-fit"]
 
 
 def test_html_tags_are_balanced() -> None:
