@@ -187,6 +187,10 @@ def test_a_1_0_timeline_says_it_has_no_incidents(files):
     ({"events": []}, "sample_rate"),
     ({"sample_rate": 250.0, "events": [{"start": 2.0, "end": 1.0, "peak_force": 3,
                                         "kind": "push", "link": 1}]}, "ends before"),
+    # a link the 2-joint arm does not have (a trial's link 7 was scored "7 / 2 WRONG")
+    ({"sample_rate": 250.0, "events": [{"start": 1.0, "end": 2.0, "peak_force": 3,
+                                        "kind": "push", "link": 7}]},
+     "event 0 (from 0) is on link 7, but"),
 ])
 def test_bad_labels_exit_3_one_line(files, tmp_path, labels_doc, what):
     tl, _ = files

@@ -100,6 +100,20 @@ def test_report_on_logs_with_labels_and_json(tmp_path: Path, fake_pipeline: list
     assert json.loads(js2.read_text())["logs"][1]["labels"] is None, show(res)
 
 
+def test_labels_on_a_link_the_arm_lacks_are_bad_input(tmp_path: Path,
+                                                      fake_pipeline: list) -> None:
+    """A labelled contact on link 7 of the 2-joint arm: one line naming the labels file and
+    both counts, exit 3, no report written (the trial's "7 / 2 WRONG")."""
+    a = write_log(tmp_path / "arm_a.csv")
+    lab = tmp_path / "arm_a.labels.json"
+    write_labels(Labels((ContactLabel(3.99, 4.12, 12.0, "impact", 7),), 250.0), lab)
+    out = tmp_path / "r.html"
+    res = invoke(["report", str(a), "-o", str(out)])
+    assert res.exit_code == 3, show(res)
+    assert f"{lab}: event 0 (from 0) is on link 7, but {a}'s arm has 2 link(s)" in res.stderr
+    assert not out.exists()
+
+
 def test_labels_count_mismatch_is_a_usage_error(tmp_path: Path, fake_pipeline: list) -> None:
     a, b = write_log(tmp_path / "a.csv"), write_log(tmp_path / "b.csv")
     lab = tmp_path / "truth.json"

@@ -249,3 +249,16 @@ def joint_map_hint(log_joints: Sequence[str], urdf_joints: Sequence[str],
         return (f'{how}, e.g. {{"kinematics": {{"type": "urdf", {robot}}}, "joint_map": '
                 + json.dumps(pairs) + "} (docs/robots.md)")
     return f"{how} (docs/robots.md)"
+
+
+def check_label_links(labels: Labels, joints: Sequence[str], n_links: int, where: str) -> None:
+    """A labelled contact on a link the log's arm does not have (``n_links``, counted from 1
+    at the base; ``joints`` its joints, for the message) is a LabelsError naming the file,
+    the contact and both counts: the labels are of another arm, or the link is miscounted
+    (a trial's link 7 on a 2-link arm was scored "7 / 2 WRONG"). 0 links: not checked."""
+    for k, c in enumerate(labels.events):
+        if n_links and not 1 <= int(c.link) <= n_links:
+            raise LabelsError(
+                f"{labels.path}: event {k} (from 0) is on link {c.link}, but {where}'s arm "
+                f"has {n_links} link(s) ({', '.join(map(str, joints))}): are these the "
+                "labels of this log, its links counted from 1 at the base?")

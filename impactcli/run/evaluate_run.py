@@ -83,6 +83,18 @@ def check_rate(labels: Any, sample_rate_hz: float, where: str) -> None:
             f"{sample_rate_hz:g} Hz: are they the labels of this log?", ImpactWarning, stacklevel=2)
 
 
+def check_links(labels: Any, doc: dict[str, Any], where: str) -> None:
+    """:func:`impactcli.logs.robot_files.check_label_links` against a timeline's arm: its
+    logged joints, those left out of detection, and the links its detection floor lists."""
+    from ..logs.robot_files import check_label_links
+
+    inp = doc.get("input") or {}
+    names = [*inp.get("joints", ()), *(x.get("name") for x in inp.get("joints_left_out", ()))]
+    rows = ((doc.get("detection_floor") or {}).get("per_link")) or ()
+    check_label_links(labels, names, max([len(set(names)), *(int(r["link"]) for r in rows)]),
+                      where)
+
+
 def replay_log(path: Path, *, robot: Path | None, model: Path | None, config: Path | None,
                read_options: ReadOptions, allow_slow: bool = False, sweep: bool = False
                ) -> tuple[Any, Any]:
@@ -192,6 +204,7 @@ def evaluate_source(source: Path, labels_path: Path | None, *, is_timeline: bool
     if is_timeline:
         doc = read_timeline(source)
         check_rate(labels, float(doc["input"]["sample_rate_hz"]), str(source))
+        check_links(labels, doc, str(source))
         gap = float(events_settings(doc["config"]).get("merge_gap_s", 0.0))
         incidents = doc.get("incidents")
         note = "" if incidents is not None else (
@@ -213,6 +226,8 @@ def evaluate_source(source: Path, labels_path: Path | None, *, is_timeline: bool
         for msg in result.warnings:
             say(msg)
         check_rate(labels, result.log.sample_rate_hz, str(source))
+        check_links(labels, {"input": {"joints": list(result.log.joint_names)},
+                             "detection_floor": result.detection_floor}, str(source))
         ev = with_payload_changes(evaluate_result(result, labels, tolerance=tolerance),
                                   labels, result.payload_changes)
         if samples is not None:  # --sweep

@@ -251,7 +251,7 @@ def analyze_input(task: ReportTask) -> ReportPart:
     is rendered here (:func:`impactcli.outputs.report.render_log`), so only it travels back.
     Warnings raised on the way come back as messages; an ImpactError comes back as the error.
     """
-    from ..logs.robot_files import read_labels
+    from ..logs.robot_files import check_label_links, read_labels
     from ..outputs.report import render_log
 
     inp = Path(task.inp)
@@ -267,6 +267,10 @@ def analyze_input(task: ReportTask) -> ReportPart:
             if lab_path is None and task.auto_labels:
                 lab_path = auto_labels(inp, log_path)
             lab = read_labels(lab_path) if lab_path is not None else None
+            if lab is not None:
+                rows = (result.detection_floor or {}).get("per_link") or ()
+                check_label_links(lab, result.log.joint_names, max(
+                    [len(result.log.joint_names), *(int(r["link"]) for r in rows)]), str(inp))
             rendered = render_log(result, lab, task.key, origin=origin, samples=samples)
             run_warnings = result.warnings
         except ImpactError as e:
