@@ -555,6 +555,10 @@ def test_a_contact_held_by_an_incident_begun_before_it_is_said_beside_the_matche
         "0/1 (0%); 1 more held by an incident that began before the contact's window (labels #0: "
         "an earlier alarm it merged with began first, so its start, link and force are not "
         "that contact's)")
+    # ... and its own row says it, not "none" (a trial read "#0 push none" beside them)
+    row = next(x for x in format_evaluation(run(events, lab, incidents=[
+        inc(1.7, 2.1, 1, 5.0, "transient", (0, 1))])).splitlines() if x.startswith("#0 "))
+    assert "in an earlier one" in row and " none " not in row, row
     e = run(events[1:], lab, incidents=[inc(2.01, 2.1, 1, 5.0, "transient", (0,))]).incidents
     assert dict(e.summary())["counted contacts matched by an incident"] == "1/1 (100%)"
 

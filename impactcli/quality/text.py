@@ -109,7 +109,9 @@ def format_incident_evaluation(ie: IncidentEvaluation) -> list[str]:
         table.append((
             f"#{c.label_index}" + ("" if c.status == "counted" else f" ({c.status})"),
             c.kind,
-            "none" if c.incident_t_start is None else f"{c.incident_t_start:.3f} s",
+            (f"{c.incident_t_start:.3f} s" if c.incident_t_start is not None
+             else "in an earlier one" if c.status == "counted" and c.n_incidents >= 1
+             else "none"),
             f"{c.link_label} / " + ("-" if c.link is None else " or ".join(
                 str(k) for k in c.link_candidates) if len(c.link_candidates) > 1
                 else str(c.link)) + (" among" if c.among else mark(c.link_right)),
