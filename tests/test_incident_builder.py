@@ -12,7 +12,7 @@ import pytest
 from impactcli.detect.force import planar_jacobian
 from impactcli.detect.incident_builder import IncidentContext, beside
 from impactcli.detect.incidents import Incident
-from impactcli.detect.payload_change import ContactPart
+from impactcli.detect.payload_finding import ContactPart
 
 LENGTHS = (0.4, 0.35)
 

@@ -361,7 +361,7 @@ def test_a_change_with_a_contact_beside_it_counts_the_alarm_holding_it() -> None
     the others stay the change's; with no alarm holding the onset the nearest counts, as it
     is; a change whose alarm is no incident has its contact marked uncounted."""
     from impactcli.detect.incidents import Incident, mark_payload_changes
-    from impactcli.detect.payload_change import PayloadChange
+    from impactcli.detect.payload_finding import PayloadChange
 
     def alarm(t0: float, t1: float) -> Incident:
         return Incident(t0, t1, round(t0 * 500), round(t1 * 500), ("static_loading",),
@@ -404,7 +404,7 @@ def test_an_alarm_already_on_at_a_change_s_onset_is_the_change_s() -> None:
     onset, was counted as a 22 N contact and tripped --fail-on-force); one that began
     earlier stays counted, and so does one that ended before the onset."""
     from impactcli.detect.incidents import Incident, mark_payload_changes
-    from impactcli.detect.payload_change import PayloadChange
+    from impactcli.detect.payload_finding import PayloadChange
 
     def alarm(t0: float, t1: float) -> Incident:
         return Incident(t0, t1, round(t0 * 500), round(t1 * 500), ("static_loading",),

@@ -640,7 +640,7 @@ def test_a_contact_watch_says_what_a_change_judged() -> None:
     """The stretches of a change's alarm, as the monitor scanned it: unjudged from the onset
     to the scan's start and for the settling time after the classification, the scan
     between them judged above BESIDE × vL; every output says the same words."""
-    from impactcli.detect.payload_change import BESIDE, contact_watch
+    from impactcli.detect.payload_finding import BESIDE, contact_watch
     from impactcli.detect.payload_words import tested_text
 
     w = contact_watch(20.0, 20.56, 23.0, 0.56)
@@ -1135,7 +1135,7 @@ def test_a_release_of_more_than_was_seen_carried_is_said() -> None:
     load (after −0.1 kg, within a quarter of the step) and a release to the start's own
     light load are not flagged; the new user's −4.06 kg release on an arm that started
     at the model's load is, with why, and differently when the start was not weighed."""
-    from impactcli.detect.payload_change import mass_check
+    from impactcli.detect.payload_finding import mass_check
     from impactcli.detect.payload_words import carrying_text
 
     assert mass_check(-1.0, 0.01, 0.0, -0.1) is None
@@ -1299,7 +1299,7 @@ def test_a_change_at_the_watch_start_after_an_unweighed_start_is_that_load() -> 
     never happened. A change on an alarm already on when the watch began, after a start
     that could not be weighed, is said to be most likely that load; after a weighed start
     or at a later onset, it is not."""
-    from impactcli.detect.payload_change import PayloadChange
+    from impactcli.detect.payload_finding import PayloadChange
     from impactcli.detect.payload_words import change_text
     from impactcli.run.loads import StartLoad, start_unknown
 

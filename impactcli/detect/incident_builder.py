@@ -488,7 +488,7 @@ def build_findings(
 def beside(ctx: IncidentContext, inc: Incident, part: Any) -> Incident | None:
     """``inc``, a contact beside a payload change, placed and sized by the contact itself:
     its link, force and contact type from ``part`` (a
-    :class:`~impactcli.detect.payload_change.ContactPart`: the residual with the load's
+    :class:`~impactcli.detect.payload_finding.ContactPart`: the residual with the load's
     torque taken out, over the contact's excursion) by the rules of :func:`build_findings`
     (the link from the detectors' evidence, the residual's noise not known there). None
     when the part cannot place it: a joint of the chain logged but not in the replay (its

@@ -1,7 +1,7 @@
 """A payload change in words, as every output says it (the terminal, the report, the Rerun
 recording and the timeline's readers): its mass, what its tests found, how a contact in its
 alarm was judged, and the load it leaves the arm carrying. Pure functions of a change's
-``to_dict`` (:class:`impactcli.detect.payload_change.PayloadChange`); the monitor that finds
+``to_dict`` (:class:`impactcli.detect.payload_finding.PayloadChange`); the monitor that finds
 the changes is :mod:`impactcli.detect.payload_change` (docs/method.md §5c)."""
 
 from __future__ import annotations
