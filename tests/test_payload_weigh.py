@@ -178,3 +178,45 @@ def test_a_change_is_dated_at_its_step_not_where_the_loading_crossed_vl(
     assert abs(dated() - 18.0) < 0.01
     monkeypatch.setattr(PayloadMonitor, "_step_back", lambda *a, **k: None)
     assert dated() > crossed  # where the loading statistic crossed vL, as before
+
+
+def test_a_load_in_all_the_motion_kept_before_its_alarm_is_not_dated_at_the_alarm() -> None:
+    """Known truth: 1 kg picked at 5 s by the planar arm hanging down (its torque there
+    ~0.9 N·m), then raised from 10 s; with vL 2 N·m the static-loading alarm comes only at
+    ~13.3 s, when the raised arm makes the load's torque pass it — 8 s after the pick,
+    beyond the 9 s the monitor keeps around its 3 s window. The change is not said to be a
+    step there: the load is in every row kept before the onset (``carried_since_s``, at or
+    after the pick), and the words say so (a trial's pick at 20 s was printed as "+1.04 kg"
+    at a 30 N push's alarm at 35.1 s). With vL 1 N·m the alarm is the pick's own: dated at
+    5.0 s, and no such words."""
+    from impactcli.detect.payload_words import change_text
+
+    t = np.arange(int(30 * FS)) / FS
+    q = np.column_stack([-np.pi / 2 + 0.1 * np.sin(1.3 * t)
+                         + np.clip((t - 10.0) / 18.0, 0, 1) * 1.4, 0.6 * np.sin(0.9 * t + 1)])
+    qf, qd, qdd = causal_derivatives(1.0 / FS, q, 15.0, Carry(), "q")
+    b, names = payload.basis("planar", JOINTS, STRUCTURE)
+    d = structures.regressor("planar", JOINTS, STRUCTURE, qf, qd, qdd) @ b @ _point(
+        1.0, (0.35, 0.02))
+    names_p = structures.planar_names(JOINTS, STRUCTURE)
+    model = RigidModel("planar", JOINTS, tuple(names_p), np.zeros(len(names_p)), STRUCTURE)
+    r = np.random.default_rng(0).normal(0, 0.01, (t.size, 2))
+    r[t >= 5.0] -= d[t >= 5.0]  # r = τ̂ − τ
+
+    def change(vl: float) -> dict:
+        mon = PayloadMonitor(model, b, names, np.array([vl, vl]), FS, 15.0, 2.0, 1, 3.0,
+                             0.56, 1.5, merge_gap_s=0.1)
+        for k0 in range(0, t.size, 1000):
+            mon.process(k0, t[k0:k0 + 1000], q[k0:k0 + 1000], r[k0:k0 + 1000])
+        (c,) = mon.changes
+        assert abs(c.mass_kg - 1.0) < 0.01
+        return c.to_dict()
+
+    late = change(2.0)
+    assert late["t_start"] > 13.0 and 5.0 <= late["carried_since_s"] <= late["t_start"] - 6.0
+    assert (f"NOT a step at this time: the load is in all the motion kept before it, from "
+            f"{late['carried_since_s']:.3f} s, so it was picked or released then or before") \
+        in change_text(late)
+    own = change(1.0)
+    assert abs(own["t_start"] - 5.0) < 0.01 and "carried_since_s" not in own
+    assert "NOT a step" not in change_text(own)

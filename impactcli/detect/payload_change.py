@@ -204,6 +204,7 @@ class PayloadMonitor:
     _failed: dict[float, int] = field(default_factory=dict)
     _carried_se: float = 0.0  # the standard error of the load carried now [kg]
     _last_k: int = -1  # the sample at which the last change was classified
+    _kept_from: float | None = None  # the change's load is in all rows kept since [s]
 
     def __post_init__(self) -> None:
         self._pi = np.zeros(len(self.names))
@@ -408,7 +409,9 @@ class PayloadMonitor:
             None if known is None else known[0], judged.drift, judged.shows,
             t_a - self.start_s < 1.5 / self.sample_rate_hz, seen, part,
             max(t_a, t_c - first / self.sample_rate_hz), self.settle_s, self.settle_s,
-            mass_check(w.mass_kg, w.mass_se_kg, lowest, after, self.start_weighed)))
+            mass_check(w.mass_kg, w.mass_se_kg, lowest, after, self.start_weighed),
+            carried_since_s=self._kept_from))
+        self._kept_from = None
         return self._pi
 
     def _judge(self, y: np.ndarray, left: np.ndarray, qf: np.ndarray,
@@ -513,6 +516,11 @@ class PayloadMonitor:
         tau = payload.step_onset(left, d)
         if tau >= j_a - a:
             return None
+        if tau < 10 and a == 0 and j_a >= self.window:  # the load in every row kept
+            with_load, without = _typical(left[:j_a], d[:j_a])  # before the onset: it came
+            if with_load <= EARLIER * without:  # then or before (a step under vL); the
+                self._kept_from = t_a - j_a / self.sample_rate_hz  # onset stands (its alarm)
+                return None
         early = j_a - a - tau
         if early > round(self.settle_s * self.sample_rate_hz):  # beyond the low-pass's lag
             with_load, without = _typical(left[tau:j_a - a], d[tau:j_a - a])

@@ -109,7 +109,10 @@ class PayloadChange:
     oldest row the monitor kept), for :func:`contact_watch` (with ``settle_s`` and the
     lead ``lead_s``, :func:`impactcli.detect.incidents.mark_payload_changes`); None: not
     recorded. ``mass_check``: the words of a release that took off more than the log was
-    seen to carry (:func:`mass_check`), None when it did not."""
+    seen to carry (:func:`mass_check`), None when it did not. ``carried_since_s`` [s]: the
+    load is in all the motion the monitor keeps before the onset, from then on — its step
+    came then or before, under the thresholds until the motion grew its torque, so the
+    onset is not the step's (None: the step is the onset's, or no earlier one is kept)."""
 
     t_start: float
     t_classified: float
@@ -129,6 +132,7 @@ class PayloadChange:
     lead_s: float = 0.0
     mass_check: str | None = None
     start_unknown: bool = False
+    carried_since_s: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (the timeline's ``payload_changes`` item)."""
@@ -142,6 +146,8 @@ class PayloadChange:
             d["as_log"] = self.as_log
         d.update({k: True for k, on in (("at_watch_start", self.at_watch_start),
                                         ("start_unknown", self.start_unknown)) if on})
+        if self.carried_since_s is not None:
+            d["carried_since_s"] = self.carried_since_s
         if self.contact is not None:
             d["contact"] = dict(self.contact)
         if self.scanned_from is not None:

@@ -57,12 +57,18 @@ def change_text(change: dict[str, Any]) -> str:
     window's noise and its rows' correlation, not the model's own error, so it is a lower
     bound (:func:`impactcli.model.payload.estimate`) — and, for an alarm already on
     when the watch began, that the change may be earlier (and, when the log's start could
-    not weigh its load, that it is most likely that load)."""
+    not weigh its load, that it is most likely that load), and for a load already in all
+    the motion kept before its alarm (``carried_since_s``), that it came then or before."""
     early = ("; the alarm was on when the watch began: the change may be earlier, in the "
              "warm-up" if change.get("at_watch_start") else "")
     if change.get("start_unknown"):  # the start's own load, weighed late: not a pick
         early += (" — and the log's first seconds could not weigh the load it started with: "
                   "most likely that load, carried from the start, not one picked")
+    if (since := change.get("carried_since_s")) is not None:  # a step under vL
+        early += (f"; NOT a step at this time: the load is in all the motion kept before "
+                  f"it, from {since:.3f} s, so it was picked or released then or before and "
+                  "its torque passed the thresholds here as the motion grew it — or a contact "
+                  "did")
     return (f"{change['mass_kg']:+.3g} kg (s.e. ≥ {change['mass_se_kg']:.2g} kg; "
             f"{tested_text(change)}{early})")
 
