@@ -67,6 +67,9 @@ def test_a_config_edited_after_calibrate_says_its_rate_does_not_apply(tmp_path: 
         assert ("edited after calibrate" in r.stderr) is changed, r.stderr
         line = next(ln for ln in r.stdout.splitlines() if ln.startswith("thresholds of"))
         assert ("NOT for these settings" in line) is changed, line
+        # the table's calibrated column says it too (a trial read "calibrated yes" there)
+        row = next(ln for ln in r.stdout.splitlines() if ln.startswith(LOG.name))
+        assert row.split()[2] == ("edited" if changed else "yes"), row
         rep = tmp_path / f"r-{changed}.json"
         r = CliRunner().invoke(main, ["report", str(LOG), "--config", str(cfg), "-o",
                                       str(tmp_path / f"r-{changed}.html"), "--json",

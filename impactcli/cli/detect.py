@@ -35,7 +35,7 @@ PRODUCT_DETECTORS = ("adaptive", "static_loading")
 
 
 def _fmt_row(s: SummaryRow, lasting: int) -> str:
-    cal = "yes" if s["calibrated"] else "no"
+    cal = "edited" if s.get("settings_edited") else "yes" if s["calibrated"] else "no"
     dur = f"{s['duration_s']:.1f}" + (" cut" if s.get("truncated") else "")
     warm = f"{s['warmup_end_s']:.2f}" + ("*" if s.get("late_warmup") else "")
     incs = f"{s['incidents']}" + ("†" if _unseen(s) or any(

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NotRequired, TypedDict
 
+from ..config import settings_changed
 from ..detect.floor import floor_line, probed_line
 from ..detect.force import FORCE_NOT_STATED, scale_untrusted
 from ..errors import (
@@ -146,6 +147,7 @@ class SummaryRow(TypedDict):
     model_sha256: str | None
     duration_s: float
     truncated: NotRequired[bool]
+    settings_edited: NotRequired[bool]
     joints: int
     calibrated: bool
     links: str
@@ -397,6 +399,8 @@ def _summary(job: DetectJob, result: DetectionResult) -> SummaryRow:
     }
     if log.source.truncated:
         row["truncated"] = True
+    if result.calibrated and settings_changed(result.config):
+        row["settings_edited"] = True  # its calibration does not hold for them
     from ..detect.warmup import least_s, past_least
 
     least = least_s(result.config)
