@@ -465,3 +465,36 @@ def test_what_a_lasting_load_leaves_unseen_is_said_over_its_union() -> None:
         "a lasting load's detector was already alarming on its joints for 31.5 s: a contact "
         "there raised no event of that detector on them, only the other (adaptive) could")
     assert blind_text(loads[2:]) == "" and blind_text([]) == ""
+
+
+def test_an_alarm_just_after_a_lasting_load_ended_may_be_that_load_again() -> None:
+    """Known truth: a load held 20–40 s read as a lasting load to 36.044 s and, after a
+    0.132 s dip of its static-loading alarm, a 4 s quasi-static "contact" on the same
+    joints (a trial's). Within the low-pass's settling time (0.56 s) such an alarm is
+    marked as maybe that load again — still counted; one later, on other joints only, or
+    of the other detector only, is not."""
+    from impactcli.cli.detect import _incident_line
+    from impactcli.detect.incidents import Incident, LastingLoad, mark_resumed
+    from impactcli.run.batch import _incident_row
+
+    def alarm(t0: float, dets: tuple[str, ...] = ("static_loading", "adaptive"),
+              joints: tuple[str, ...] = ("elbow", "shoulder")) -> Incident:
+        return Incident(t0, t0 + 4.0, round(t0 * 250), round((t0 + 4) * 250), dets, joints,
+                        2, 18.7, "residual", "quasi_static", {"elbow": 1.0}, False, number=3)
+
+    load = LastingLoad("static_loading", 20.064, 36.044, 5016, 9011, ("elbow", "shoulder"),
+                       28.0, False, 4, False, 2, 26.2, "")
+    got = mark_resumed([alarm(36.176), alarm(36.7), alarm(36.176, joints=("wrist",)),
+                        alarm(36.176, dets=("adaptive",))], [load], 0.56)
+    mark = got[0].resumes_load
+    assert mark is not None and mark["gap_s"] == pytest.approx(0.132)
+    assert (mark["t_start"], mark["t_end"]) == (20.064, 36.044)
+    assert mark["text"] == (
+        "resumes the lasting load of 20.064–36.044 s after a 0.13 s dip: its static_loading "
+        "alarm on elbow, shoulder was under its threshold for less than its low-pass "
+        "settles, so this may be that load again, not a new contact")
+    assert [i.resumes_load is None for i in got[1:]] == [True, True, True]
+    assert got[0].to_dict()["resumes_load"] == mark and "resumes_load" not in got[1].to_dict()
+    line = _incident_line(3, _incident_row(got[0]))  # type: ignore[arg-type]
+    assert line.endswith("resumes the lasting load of 20.064–36.044 s after a 0.13 s dip "
+                         "(resumes_load in the timeline)"), line

@@ -98,6 +98,7 @@ class IncidentRow(TypedDict):
     force_at_least: NotRequired[bool]
     unseen_load_kg: NotRequired[float]
     off_scale: NotRequired[bool]
+    resumes_load: NotRequired[str]
 
 
 def _incident_row(i: Any) -> IncidentRow:
@@ -123,6 +124,8 @@ def _incident_row(i: Any) -> IncidentRow:
         row["unseen_load_kg"] = i.unseen_load_kg
     if scale_untrusted(i):  # untrusted for the log's torque scale
         row["off_scale"] = True
+    if i.resumes_load is not None:
+        row["resumes_load"] = i.resumes_load["text"]
     return row
 
 

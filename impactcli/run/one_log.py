@@ -59,6 +59,7 @@ from ..detect.incidents import (
     adaptive_memory_s,
     mark_defects,
     mark_payload_changes,
+    mark_resumed,
     on_at_warmup_end,
     settle_s,
 )
@@ -346,6 +347,8 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
             # model is determined: its torque is not held against the logged one
         ctx_msgs = caught.cut(since)
         events, incidents, loads = _events_and_incidents(islands, rp.warmup, joints, cfg, ctx)
+        incidents = mark_resumed(incidents, loads, settle_s(cfg.static_loading.cutoff_hz,
+                                                            cfg.adaptive.n2_s))
         if (given is not None and any(not x.in_warmup for x in loads)
                 and (why := unwatched_reason(plan)) is not None):  # a load, unweighed?
             warn_unwatched_loads(where, why, plan.start_load is not None)

@@ -343,6 +343,8 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
             when += f' <span class="note">{e(r["payload_test"])}</span>'
         if r.get("aftermath"):
             when += f' <span class="note">{e(r["aftermath"]["text"])}</span>'
+        if r.get("resumes_load"):
+            when += f' <span class="note">{e(r["resumes_load"]["text"])}</span>'
         force = (f'<b>{force_mark(r)}{approx(r["force_n"])} N</b>' if r.get("force_n") is not None
                  else '<span class="muted">no force estimate</span>')
         if r.get("force_n") is None and str(r.get("force_method") or "").startswith(
