@@ -138,7 +138,7 @@ def test_a_still_arms_model_gives_no_force_where_it_predicts_what_the_joint_neve
     At 30.97 s, as a UR10e, it predicted 106 N·m on shoulder_pan, whose logged torque
     never passed ~33 N·m; the incident read ~250 N (a new user's trial). As a UR5e (a
     later trial's guess) its torque there stayed within that, but swung 131 N·m in 54 ms
-    while the logged torque moved ~3 N·m; the incident read "~278 N", plausible. Both now
+    while the logged torque moved ~1.3 N·m; the incident read "~278 N", plausible. Both now
     state no force there, and say why; the incidents whose model stays within what the
     joints did keep theirs."""
     import json

@@ -279,8 +279,8 @@ def beyond_logged(ctx: IncidentContext, r: np.ndarray, tau: np.ndarray | None,
     - within the incident it moved (max − min) :data:`MODEL_BEYOND` × as far as the logged
       torque did: a contact's torque reaches the joint's motor, and a residual made of the
       model's own swing is its response to the motion (a real UR arm held still, modelled
-      with a guessed UR5e's kinematics, swung 92 N·m on a joint whose logged torque moved
-      3 N·m).
+      with a guessed UR5e's kinematics, swung 131 N·m on a joint whose logged torque moved
+      1.3 N·m).
 
     Each by more than its vL. None when the model stays within what the joints did."""
     if tau is None or ctx.torque_peak is None or not cols:

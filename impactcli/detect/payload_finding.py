@@ -2,7 +2,8 @@
 the change itself (:class:`PayloadChange`, the timeline's ``payload_changes`` item), a
 contact found beside it (:class:`ContactPart`), how a contact in its alarm was judged
 (:func:`contact_watch`) and a release that took off more than the log was seen to carry
-(:func:`mass_check`). Records and their words' numbers only: no state.
+(:func:`mass_check`). Records and their words' numbers only: no state. "The monitor's
+step N" is a step of :mod:`impactcli.detect.payload_change`'s docstring.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-#: A contact beside a change (module docstring, step 5) when the torque the mass leaves
+#: A contact beside a change (the monitor's step 5) when the torque the mass leaves
 #: passes this many times vL: the mass is weighed on those samples, so its leftover is not
 #: the free motion's residual vL was set on. Measured on the pick-and-place runs of
 #: tests/benchmarks/payloads.py (2026-11-30), whose changes hold no contact: at 1 × vL
@@ -25,7 +26,6 @@ BESIDE = 2.0
 #: mass and three of its standard errors: the weighing's own error (within 25 % on the
 #: simulator's pick-and-place runs, docs/models.md) does not make one.
 SHORTFALL = 0.25
-
 
 
 def contact_watch(t_start: float, scanned_from: float, t_classified: float,
@@ -68,7 +68,7 @@ def mass_check(mass_kg: float, mass_se_kg: float, lowest_kg: float, after_kg: fl
 
 @dataclass(frozen=True)
 class ContactPart:
-    """A contact beside a payload change, apart from the load (module docstring, step 5):
+    """A contact beside a payload change, apart from the load (the monitor's step 5):
     over the rows of its excursion, ``r`` (n, J) the residual with the load's torque taken
     out (r + Y B π) [N·m], ``ratio`` (n, J) its static-loading statistic over vL, ``q``
     and ``qd`` (n, J) the filtered positions [rad] and velocities [rad/s] of ``joints``
@@ -88,18 +88,18 @@ class ContactPart:
 
 @dataclass(frozen=True)
 class PayloadChange:
-    """A payload change (module docstring): ``t_start`` the alarm's onset, ``t_classified``
+    """A payload change (the monitor's): ``t_start`` the alarm's onset, ``t_classified``
     when it was classified and the residual took the new load [s since the log's first
     sample]; the mass change [kg] and its standard error; ``values`` the load's parameters
     (:func:`impactcli.model.payload.basis`' names, SI); ``explained`` the share of the
     window's residual energy the mass explains (its confidence, 0–1); ``mass_after_kg`` the
     load then carried beyond the config's model's (the lightest calibration log's);
-    ``as_log`` the calibration log whose fitted load that is (module docstring, step 4;
+    ``as_log`` the calibration log whose fitted load that is (the monitor's step 4;
     None: the weighed step is taken as it is); ``drift`` and ``inertia`` what the tests
     (d) and (e) found; ``at_watch_start``: the alarm was on when the watch began (the
     warm-up's least length), so the change may have come earlier, in the warm-up (with
     ``start_unknown``, the log's start could not weigh its load: most likely that load);
-    ``contact``: a contact in the window beside the mass (module docstring, step 5): the
+    ``contact``: a contact in the window beside the mass (the monitor's step 5): the
     sample index ``i`` and time ``t_s`` [s] where the excursion of the static-loading
     statistic of the torque the mass leaves, above vL, that holds its peak began (the
     alarm's onset when it began before what the monitor keeps), the ``joint`` and its
