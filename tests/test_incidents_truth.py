@@ -212,6 +212,13 @@ def test_a_lasting_load_alone_is_no_longer_hidden(tmp_path: Path) -> None:
     assert r.exit_code == 1, r.output
     assert re.search(r"impactcli: assist_payload\.csv\.gz: the lasting load from 3\.000 s "
                      r"on link \d, ≳[\d.]+ N, exceeds --fail-on-force 1 N", r.stderr), r.stderr
+    # under the limit it does not pass: while it lasts its detector is blind on its joints
+    r = invoke("detect", log, "--config", str(CONFIG), "-o", str(tmp_path / "c"),
+               "--fail-on-force", "100")
+    assert r.exit_code == 5, r.output
+    assert ("impactcli: assist_payload.csv.gz: --fail-on-force 100 N could not judge every "
+            "contact: a lasting load's detector was already alarming on its joints for 37.0 s "
+            "(3.0–40.0 s, static_loading on shoulder, elbow)") in r.stderr, r.stderr
     js = tmp_path / "r.json"
     r = invoke("report", log, "--config", str(CONFIG), "-o", str(tmp_path / "r.html"),
                "--json", str(js))

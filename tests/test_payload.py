@@ -813,7 +813,12 @@ def test_a_release_inside_another_alarms_window_is_found_at_its_step(
     write_log(res.log, log)
     _, (place, _) = sc.payload_changes
     tl, code, r = _detect(log, two_loads, tmp_path / "out", "--fail-on-force", "30")
-    assert code == 0, r.output  # type: ignore[attr-defined]
+    # nothing over 30 N (exit 1); the lasting load under it (26-44 s) left its detector
+    # blind on its joints, which the gate says it could not judge (exit 5)
+    assert code == 5, r.output  # type: ignore[attr-defined]
+    err = r.stderr  # type: ignore[attr-defined]
+    assert "exceeds --fail-on-force" not in err and "could not judge every contact: a " \
+        "lasting load's detector was already alarming" in err, err
     ch = tl["payload_changes"]
     assert len(ch) == 2 and abs(ch[1]["t_start"] - place) < 0.2, ch
     counted = [i for i in tl["incidents"] if i["number"] is not None]

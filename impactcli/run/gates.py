@@ -8,7 +8,8 @@ its only incidents start at data defects, when its file is truncated (the record
 after the cut), when its warm-up ran on past its least length with alarms there (the
 evaluator had not settled: not counted, not judged), or when an incident or lasting load
 has no force estimate, or one no one can trust because the log's torque scale is off the
-robot description's gravity torque (``--fail-on-force``). Each verdict is one line naming
+robot description's gravity torque, or when a lasting load under N kept its detector
+alarming, blind to a contact on its joints (``--fail-on-force``). Each verdict is one line naming
 the log and why (docs/formats.md, "Command line"). Payload changes trip no gate; with a
 gate asked, a log with some gets a line saying how long a contact would have joined their
 alarms uncounted, and with ``--fail-on-force`` a log whose passing forces leave out a part
@@ -95,6 +96,7 @@ def judge(findings: Sequence[Findings], *, fail_on_detect: bool,
         unjudged += [line for f in findings if (line := _force_unknown(f, limit))]
         unjudged += [line for f in findings if (line := _scale_off(f, limit))]
         unjudged += [line for f in findings if (line := _defect_force(f, limit))]
+        unjudged += [line for f in findings if (line := _blind(f, limit))]
     if fail_on_detect or fail_on_force is not None:
         gate = "--fail-on-detect" if fail_on_detect else f"--fail-on-force {fail_on_force:g} N"
         unjudged += [_cut(f, gate) for f in findings if f.truncated]
@@ -285,3 +287,17 @@ def _load_over(f: Findings, limit: float) -> str | None:
     return (f"impactcli: {shown(f.log_path)}: the lasting load from "
             f"{x.t_start:.3f} s on {link}, {force_mark(x)}{x.force_n:.3g} N, exceeds "
             f"--fail-on-force {limit:g} N")
+
+
+def _blind(f: Findings, limit: float) -> str | None:
+    """One line for a log whose lasting loads, none over ``limit``, kept their detector
+    alarming on their joints: a contact then raised no event of it there (a push under a
+    load held 20–40 s went unseen in a trial), so the gate could not judge that time."""
+    loads = [x for x in f.lasting_loads if x.force_n is not None and x.force_n <= limit]
+    if not loads or len(loads) < len(f.lasting_loads):  # one over: exit 1; no force: said
+        return None
+    from ..detect.incidents import blind_text
+
+    return (f"impactcli: {shown(f.log_path)}: --fail-on-force {limit:g} N could not judge "
+            f"every contact: {blind_text([x.to_dict() for x in loads])}; exit 5")
+
