@@ -122,6 +122,13 @@ def test_a_model_torque_that_swings_where_the_logged_one_stays_states_no_force()
     assert est.method.startswith(f"{BEYOND_LOGGED} a moved 18 N·m within the incident, more "
                                  f"than {MODEL_BEYOND:g}× the logged torque did (2 N·m)"), \
         est.method
+    # a joint that did not alarm is said to be one: its residual still enters the force
+    # (a trial took a wrist's model error for the whole incident's on a real UR braking)
+    named = beyond_logged(ctx, r, still, [0, 1], fired=("b",))
+    assert named is not None and named.method.startswith(
+        f"{BEYOND_LOGGED} a (which did not alarm; its residual enters the force at the "
+        "link's end) moved 18 N·m"), named.method
+    assert beyond_logged(ctx, r, still, [0, 1], fired=("a",)).method == est.method
     follows = np.column_stack([np.linspace(5.0, 13.0, 50), np.full(50, 1.0)])
     assert beyond_logged(ctx, r, follows, [0, 1]) is None  # τ̂ swings 12 ≤ 3 × 8
     wide = replace(ctx, vl=np.array([20.0, 0.3]))

@@ -482,15 +482,16 @@ def test_verdict_gives_no_measure_where_the_residual_is_the_models_own_torque() 
     made = {**inc(31.0, 3, None, peak={"j1": -86.0}),
             "force_method": f"{BEYOND_LOGGED} j1 moved 131 N·m within the incident"}
     v = verdict_text([inc(3.2, 5, 155.0, "quasi_static"), made])
-    assert v == ("2 incidents: 1 transient on link 3, no force: the residual is the "
+    assert v == ("2 incidents: 1 transient on link 3, no force: part of its residual is the "
                  "model's own torque; 1 quasi-static on link 5, ~155 N."), v
     plain = inc(40.0, 3, None, peak={"j1": 3.0})
     many = [made, {**made, "t_start": 32.0}, plain, {**plain, "t_start": 41.0}]
     assert verdict_text(many) == ("4 incidents: 4 transient on link 3, peak residual ~3.0 "
-                                  "to ~3.0 N·m (2 where the residual is the model's own "
-                                  "torque).")
-    assert verdict_text(many[:2] * 2) == ("4 incidents: 4 transient on link 3, no force: the "
-                                          "residual is the model's own torque, in each.")
+                                  "to ~3.0 N·m (2 where part of the residual is the model's "
+                                  "own torque).")
+    assert verdict_text(many[:2] * 2) == ("4 incidents: 4 transient on link 3, no force: part "
+                                          "of its residual is the model's own torque, in "
+                                          "each.")
 
 
 def test_smallest_caught_force_through_the_jacobian() -> None:

@@ -13,6 +13,7 @@ gives its incidents and lasting loads.
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -268,7 +269,7 @@ def poorly_determined(model: dict[str, Any] | None) -> bool:
 
 
 def beyond_logged(ctx: IncidentContext, r: np.ndarray, tau: np.ndarray | None,
-                  cols: list[int]) -> ForceEstimate | None:
+                  cols: list[int], fired: Sequence[str] = ()) -> ForceEstimate | None:
     """The incident's force as not stated (None) with why, when the model's torque
     τ̂ = r + τ on one of ``cols`` (the detected joints up to the link) did what no motion of
     the log asked of the joint — a model the log does not determine (a still arm, a joint it
@@ -282,7 +283,10 @@ def beyond_logged(ctx: IncidentContext, r: np.ndarray, tau: np.ndarray | None,
       with a guessed UR5e's kinematics, swung 131 N·m on a joint whose logged torque moved
       1.3 N·m).
 
-    Each by more than its vL. None when the model stays within what the joints did."""
+    Each by more than its vL. None when the model stays within what the joints did. A
+    joint not among ``fired`` (those that alarmed) is said to be one: its residual still
+    enters the force at the link's end (a real UR log's braking read "force ?" for a wrist
+    the log holds still, and a new user took the whole incident for the model's)."""
     if tau is None or ctx.torque_peak is None or not cols:
         return None
     hat = r[:, cols] + tau[:, cols]
@@ -295,7 +299,8 @@ def beyond_logged(ctx: IncidentContext, r: np.ndarray, tau: np.ndarray | None,
     if np.any(over):
         k = int(np.argmax(np.where(over, peak_hat / np.maximum(logged, 1e-12), -np.inf)))
         return ForceEstimate(None, (
-            f"{BEYOND_LOGGED} {ctx.joints[cols[k]]} reached {peak_hat[k]:.3g} N·m, more "
+            f"{BEYOND_LOGGED} {_named(ctx.joints[cols[k]], fired)} reached "
+            f"{peak_hat[k]:.3g} N·m, more "
             f"than {MODEL_BEYOND:g}× the most it exerted anywhere in the log "
             f"({logged[k]:.3g} N·m): the residual there is the model's extrapolation, not a "
             "contact's torque (a model the log does not determine: see the run's warnings); "
@@ -307,11 +312,19 @@ def beyond_logged(ctx: IncidentContext, r: np.ndarray, tau: np.ndarray | None,
         return None
     k = int(np.argmax(np.where(over, swing_hat / np.maximum(swing, 1e-12), -np.inf)))
     return ForceEstimate(None, (
-        f"{BEYOND_LOGGED} {ctx.joints[cols[k]]} moved {swing_hat[k]:.3g} N·m within the "
+        f"{BEYOND_LOGGED} {_named(ctx.joints[cols[k]], fired)} moved "
+        f"{swing_hat[k]:.3g} N·m within the "
         f"incident, more than {MODEL_BEYOND:g}× the logged torque did ({swing[k]:.3g} N·m): "
         "a contact's torque reaches the joint's motor, so the residual there is the model's "
         "response to the motion, not a contact's torque (a model the log does not "
         "determine: see the run's warnings); no force stated"))
+
+
+def _named(joint: str, fired: Sequence[str]) -> str:
+    """A joint as :func:`beyond_logged` names it: ``wrist_3 (which did not alarm; its
+    residual enters the force at the link's end)`` when it is not among ``fired``."""
+    return (joint if not fired or joint in fired else f"{joint} (which did not alarm; its "
+            "residual enters the force at the link's end)")
 
 
 def blind_beyond(where: LinkDecision, jac: JacobianFn, q: np.ndarray,
@@ -421,6 +434,8 @@ def build_findings(
     def where_and_force(win: slice, max_samples: int | None = None,
                         ) -> tuple[LinkDecision, ForceEstimate]:
         a0 = win.start
+        fired = tuple(j for k, j in enumerate(ctx.joints)  # the joints that alarmed in it
+                      if adaptive_d[win, k].any() or loading_d[win, k].any())
         where = decide_link(ratio[win], adaptive_d[win], index, r[win],
                             None if level is None else level[a0],
                             None if noise is None else noise[a0], ctx.vl)
@@ -431,7 +446,8 @@ def build_findings(
             where = blind_beyond(where, ctx.jac, q_chain[(win.start + win.stop) // 2],
                                  len(ctx.chain_cols))
             up_to = [k for k, c in enumerate(index) if c <= link]
-            est = beyond_logged(ctx, r[win], None if tau is None else tau[win], up_to) or est
+            est = beyond_logged(ctx, r[win], None if tau is None else tau[win], up_to,
+                                fired) or est
         elif link is None:
             est = ForceEstimate(None, "the residuals cannot say which link: no force estimate")
         return where, est

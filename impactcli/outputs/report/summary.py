@@ -134,7 +134,7 @@ def model_made(inc: dict[str, Any]) -> bool:
 
 
 #: How hard, for an incident whose residual is the model's own torque (:func:`model_made`).
-MODEL_MADE_TEXT = "no force: the residual is the model's own torque"
+MODEL_MADE_TEXT = "no force: part of its residual is the model's own torque"
 
 
 def _how_hard(group: Sequence[dict[str, Any]], clock: tuple[str, bool] | None) -> str:
@@ -163,7 +163,7 @@ def _how_hard(group: Sequence[dict[str, Any]], clock: tuple[str, bool] | None) -
         ts = [peak_torque(i) for i in group if not model_made(i)]
         text = f"peak residual ~{approx(min(ts))} to ~{approx(max(ts))} N·m"
         if made:
-            text += f" ({made} where the residual is the model's own torque)"
+            text += f" ({made} where part of the residual is the model's own torque)"
     else:
         text = f"{MODEL_MADE_TEXT}, in each"
     if clock:
