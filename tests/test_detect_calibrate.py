@@ -108,3 +108,31 @@ def test_uncalibrated_rule_on_short_logs() -> None:
 def test_block_maxima_keeps_a_short_last_block() -> None:
     s = np.array([[1.0], [5.0], [2.0], [0.0], [7.0]])
     assert block_maxima(s, 2)[:, 0].tolist() == [5.0, 2.0, 7.0]
+
+
+def test_a_short_logs_uncalibrated_warning_says_an_event_of_a_few_blocks_sets_its_own() -> None:
+    """Known truth: on 11 blocks the 0.9-quantile lies between the 2nd largest and the
+    largest block maximum, so an event filling 2 blocks sets the thresholds (3× itself)
+    and is not found: the real UR link4.csv's braking went so. The warning says it for 11
+    blocks (2) and 21 (3), not for 45 (6): the count as the rule takes it."""
+    import warnings as w
+
+    from impactcli.detect.thresholds import uncalibrated_blocks
+    from impactcli.run.run_warnings import warn_uncalibrated
+
+    s = _motion_like(11.0, 250.0, 6)
+    s[int(4.0 * 250):int(6.0 * 250)] += 50.0  # an event filling blocks 4 and 5
+    assert (uncalibrated_thresholds(s, 250.0).thresholds[0]
+            > s[int(4.0 * 250):int(6.0 * 250), 0].max())  # not found
+    assert uncalibrated_blocks(int(19.7 * 96), int(8.62 * 96), 96.0) == 11
+
+    def said(blocks: int) -> str:
+        with w.catch_warnings(record=True) as got:
+            w.simplefilter("always")
+            warn_uncalibrated("x.csv", False, blocks)
+        return str(got[0].message)
+
+    assert ("; this log gives 11 blocks after warm-up, so its 2 largest block maxima set the "
+            "quantile: an event that fills 2 blocks sets the thresholds at 3× itself and is "
+            "not found;") in said(11)
+    assert "its 3 largest block maxima" in said(21) and "blocks after warm-up" not in said(45)

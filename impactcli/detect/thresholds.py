@@ -138,6 +138,22 @@ def uncalibrated_block(n_after: int, sample_rate_hz: float, *,
     return min(max(1, round(block_s * sample_rate_hz)), n_after // min_blocks)
 
 
+def uncalibrated_span(n: int, warmup_end_index: int, sample_rate_hz: float
+                      ) -> tuple[int, int]:
+    """(first sample, samples per block) of the uncalibrated rule for a log of ``n``
+    samples whose warm-up ends at ``warmup_end_index``: the statistics after it (all of
+    them when the warm-up covers the log), in :func:`uncalibrated_block`'s blocks."""
+    start = warmup_end_index if warmup_end_index < n - 10 else 0
+    return start, uncalibrated_block(n - start, sample_rate_hz)
+
+
+def uncalibrated_blocks(n: int, warmup_end_index: int, sample_rate_hz: float) -> int:
+    """How many blocks the uncalibrated rule takes its quantile over
+    (:func:`uncalibrated_span`; 1: the maximum)."""
+    start, block = uncalibrated_span(n, warmup_end_index, sample_rate_hz)
+    return (n - start) // block if block >= 1 else 1
+
+
 class BlockMaxima:
     """:func:`block_maxima` of a statistic that arrives in chunks: blocks of ``block``
     samples from sample ``start`` of the log on (``block`` 0: one block, the maximum).

@@ -74,7 +74,7 @@ from ..detect.probe import (
     probed_floor,
 )
 from ..detect.rates import resolve_rates
-from ..detect.thresholds import compare_to_thresholds
+from ..detect.thresholds import compare_to_thresholds, uncalibrated_blocks
 from ..detect.warmup import Warmup, WarmupTracker, past_least
 from ..errors import ConfigError, ImpactWarning
 from ..logs.reader import LogReader
@@ -333,7 +333,8 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         warn_replayed(caught, since, plan, feed, rp)
         if given is None:
             cfg = uncalibrated_config(cfg, joints, margins)
-            warn_uncalibrated(where, weighs_loads(plan))
+            warn_uncalibrated(where, weighs_loads(plan), uncalibrated_blocks(
+                scan.n_samples, rp.warmup.end_index, scan.sample_rate_hz))
         since = caught.mark()  # the incidents' warnings follow the events' (as ever)
         model_doc = None if plan.model is None else plan.model.to_dict()
         ctx = incident_context(joints, plan.full_joints, setup.robot, model_doc,
@@ -591,10 +592,9 @@ def _thresholds_from_spill(spill: ColumnFiles, wu: Warmup, n: int, sample_rate_h
     """The uncalibrated rule's thresholds and margins per detector
     (:func:`impactcli.detect.thresholds.thresholds_from_maxima`) from the statistics after
     the warm-up's end (all of them if it covers the log), read back block by block."""
-    from ..detect.thresholds import BlockMaxima, thresholds_from_maxima, uncalibrated_block
+    from ..detect.thresholds import BlockMaxima, thresholds_from_maxima, uncalibrated_span
 
-    start = wu.end_index if wu.end_index < n - 10 else 0
-    block = uncalibrated_block(n - start, sample_rate_hz)
+    start, block = uncalibrated_span(n, wu.end_index, sample_rate_hz)
     bms = {d: BlockMaxima(start, block) for d in DETECTORS}
     for k0, a in spill.chunks(("r", "loading", "r_rms", "v_rms")):
         if k0 + a["r"].shape[0] <= start:

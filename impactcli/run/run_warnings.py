@@ -78,13 +78,22 @@ class CaughtWarnings:
                 warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 
 
-def warn_uncalibrated(where: str, weighs_loads: bool = False) -> None:
+def warn_uncalibrated(where: str, weighs_loads: bool = False, blocks: int = 0) -> None:
     """The warning of a run whose thresholds come from the log itself; ``weighs_loads``:
     its model could weigh a payload (kinematics, the tool's own residual), which a config
-    would have it tell from a contact (docs/method.md §5c) and this run does not."""
+    would have it tell from a contact (docs/method.md §5c) and this run does not;
+    ``blocks``: how many blocks the quantile was taken over — on a short log it is one of
+    its few largest block maxima, so an event that fills that many blocks sets the
+    thresholds itself (a real UR arm's braking, 11 blocks, went unfound)."""
     loads = (", and a load picked or placed mid-log may show as an incident (payload "
              "changes are told from contacts only against a config's model and thresholds, "
              "not ones taken from a log that may carry the load)" if weighs_loads else "")
+    # the linear quantile lies at or above its floor(q (B − 1))-th sorted block maximum
+    top = blocks - int(UNCALIBRATED_QUANTILE * (blocks - 1)) if blocks > 1 else 0
+    if 0 < top <= 3:  # a short log: an event of a few blocks sets its own thresholds
+        loads += (f"; this log gives {blocks} blocks after warm-up, so its {top} largest "
+                  f"block maxima set the quantile: an event that fills {top} blocks sets the "
+                  f"thresholds at {UNCALIBRATED_MARGIN:g}× itself and is not found")
     warnings.warn(
         f"{where}: uncalibrated run — thresholds set from this log's own "
         f"statistics ({UNCALIBRATED_MARGIN:g} × the {UNCALIBRATED_QUANTILE:g}-quantile of "
