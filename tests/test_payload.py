@@ -1276,6 +1276,14 @@ def test_the_stretches_under_a_load_no_calibration_log_carried() -> None:
     assert unseen_spans(model, known, changes[:1], 40.0) == []
     assert unseen_spans(model, None, changes[1:2], 40.0) == [(20.0, 40.0, 2.0)]
     assert unseen_spans(model, None, [], 40.0) == []
+    # the warning dates each such load as the marks do, from the change's onset (a trial
+    # read "from 32.530 s" in the warning beside t_start 26.118 in the timeline)
+    from impactcli.run.loads import unseen_loads
+
+    dated = [NS(**vars(c), t_classified=c.t_start + 3.0) for c in changes]
+    said = unseen_loads("x.csv", model, dated)  # type: ignore[arg-type]
+    assert said is not None and "(+2 kg from 20.000 s (classified at 23.000 s), beyond " \
+        "the model's load)" in said, said
 
     @dataclasses.dataclass(frozen=True)
     class Inc:

@@ -403,7 +403,8 @@ def unseen_loads(where: str, model: RigidModel | None, changes: Any) -> str | No
     out = [c for c in changes if beyond_calibrated(cal, c.mass_after_kg, c.mass_se_kg)]
     if not out:
         return None
-    what = ", ".join(f"{c.mass_after_kg:+.3g} kg from {c.t_classified:.3f} s" for c in out)
+    what = ", ".join(f"{c.mass_after_kg:+.3g} kg from {c.t_start:.3f} s (classified at "
+                     f"{c.t_classified:.3f} s)" for c in out)
     return (f"{where}: after its payload changes the arm carried loads no calibration log "
             f"carried ({what}, beyond the model's load): the thresholds' false-alarm rate "
             "was not measured with them (a load unlike theirs brings errors the rigid "
