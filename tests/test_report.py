@@ -494,6 +494,19 @@ def test_verdict_gives_no_measure_where_the_residual_is_the_models_own_torque() 
                                           "each.")
 
 
+def test_verdict_says_which_counted_incidents_may_be_no_new_contact() -> None:
+    """Incidents the run marked in an earlier one's aftermath, or just after a lasting load
+    ended, are still counted; the verdict says how many (a trial read 8 incidents for 4
+    pushes, 3 of them so marked only in the timeline). None marked: nothing said."""
+    after = {**inc(12.0, 2, 25.0), "aftermath": {"text": "in the aftermath of incident 1"}}
+    again = {**inc(20.0, 2, 19.0, "quasi_static"), "resumes_load": {"text": "resumes"}}
+    v = verdict_text([inc(10.0, 2, 30.0), after, again])
+    assert v.endswith(" Counted, though maybe no new contact: 1 began in an earlier "
+                      "incident's aftermath, the arm not settled (maybe its ringing) and 1 "
+                      "just after a lasting load ended (maybe that load again)."), v
+    assert "maybe no new contact" not in verdict_text([inc(10.0, 2, 30.0)])
+
+
 def test_smallest_caught_force_through_the_jacobian() -> None:
     jac = planar_jacobian([0.4, 0.4])
     q = np.array([0.3, 0.5])
