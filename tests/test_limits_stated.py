@@ -522,3 +522,24 @@ def test_rate_given_over_a_maps_time_is_checked_against_it(tmp_path: Path) -> No
                     f"by 0.008 s on average over its first 2000 rows (125 Hz, read in {unit}), "
                     f"not the 1/250 s --rate gives: check the rate (or the {kind}'s unit)")
             assert (line in r.stderr.splitlines()) is said, r.stderr
+
+
+def test_a_floor_far_below_the_push_a_link_needs_says_the_push_too() -> None:
+    """Known truth, one link: a 100 ms blow needs 49 N (adaptive), a push held until the
+    loading low-pass settles 225 N (static_loading): "~49 N" alone read as the floor of a
+    push on the real UR arm, where a 38 N·m push held 6 s went unseen. The push's figure is
+    said when it is more than twice the smallest; 1.5 times is not."""
+    from impactcli.detect.floor import floor_line
+
+    def floor(push: float) -> dict:
+        return {"per_joint": {}, "per_link": [{
+            "link": 2, "joint": "b",
+            "adaptive": {"median_n": 49.0, "worst_tenth_n": 56.0},
+            "static_loading": {"median_n": push, "worst_tenth_n": push}}]}
+
+    line = floor_line(floor(225.0))
+    assert line is not None and line.startswith(
+        "a contact below ~49 N on link 2 (~56 N in the worst tenth; held as a push: ~225 N) "
+        "would not have been seen"), line
+    line = floor_line(floor(73.5))
+    assert line is not None and "held as a push" not in line, line

@@ -339,6 +339,11 @@ def _inner_levers(postures: np.ndarray, c: int, jac: JacobianFn) -> np.ndarray:
     return np.asarray(np.linalg.norm(jacs, axis=1))
 
 
+#: A link's floor also gives the static-loading detector's own (a push held until its
+#: low-pass settles) when it is more than this many times the smallest: the adaptive
+#: detector's blow figure says nothing of a push it filters out (a trial read "~4.6 N·m"
+#: beside a 38 N·m push held 6 s and missed on a real UR arm, whose push figure was 98).
+PUSH_APART = 2.0
 #: What a floor's sentence says it is.
 LOWER_BOUND = "a lower bound, not a promise that a larger one was seen"
 #: Links or joints a floor's sentence names at most (the largest floors).
@@ -368,9 +373,13 @@ def floor_line(floor: dict[str, Any] | None) -> str | None:
         m = _smallest(row, "median" + key)
         w = _smallest(row, "worst_tenth" + key)
         if m is not None:
+            push = (row.get("static_loading") or {}).get("median" + key)
+            said = ([f"~{_approx(w)} {unit} in the worst tenth"] if w is not None
+                    and w > 1.05 * m else []) + (
+                [f"held as a push: ~{_approx(push)} {unit}"] if push is not None
+                and push > PUSH_APART * m else [])
             parts.append((m, f"~{_approx(m)} {unit} on {where}"
-                          + (f" (~{_approx(w)} {unit} in the worst tenth)" if w is not None
-                             and w > 1.05 * m else "")))
+                          + (f" ({'; '.join(said)})" if said else "")))
             if row.get("no_lever"):
                 inner.append(str(row["link"]))
         elif row.get("no_lever") and isinstance(per_joint.get(row.get("own_joint")), dict):
