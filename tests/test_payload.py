@@ -909,6 +909,24 @@ def test_a_pick_in_the_warm_up_is_not_weighed_as_the_start_load(
     assert first["at_watch_start"] is True and abs(first["mass_kg"] - 1.0) < 0.25
     assert "the change may be earlier, in the warm-up" in r.stdout  # type: ignore[attr-defined]
     assert "at_watch_start" not in tl["payload_changes"][1]
+    # with pushes, counted incidents: the start not weighed is said beside the answer, in
+    # the terminal and the report's verdict (not only on stderr), for they may be its load's
+    res = simulate(replace(sc, payload_changes=((1.5, 1.0), (30.0, 0.0))), seed=23)
+    log = tmp_path / "warm_pushed.csv.gz"
+    write_log(res.log, log)
+    tl, code, r = _detect(log, two_loads, tmp_path / "out2")
+    assert code == 0 and tl["input"]["payload"]["verdict"] == "unsupported", r.output  # type: ignore[attr-defined]
+    assert [i for i in tl["incidents"] if i["number"] is not None]
+    assert ("payloads: the load warm_pushed.csv.gz starts with could not be weighed, so its "
+            "incidents and lasting loads may be that load's, not contacts") in r.stdout  # type: ignore[attr-defined]
+    from impactcli.outputs.report.summary import verdict_text
+
+    said = verdict_text(tl["incidents"], lasting_loads=tl["lasting_loads"],
+                        start_load=tl["input"]["payload"])
+    assert said.endswith(" The load the log started with could not be weighed "
+                         "(input.payload): its incidents and lasting loads may be that "
+                         "load's, not contacts."), said
+    assert "could not be weighed" not in verdict_text(tl["incidents"])
 
 
 def test_an_uncalibrated_run_says_it_does_not_tell_loads_from_contacts(

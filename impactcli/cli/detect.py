@@ -446,6 +446,12 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
                    f"({', '.join(controller)}): a load carried, picked or placed may show among "
                    "the incidents and lasting loads (--generator inverse_dynamics with "
                    "kinematics weighs them)")
+    for o in ok[:MAX_ROWS]:  # said where the answer is read, not only on stderr
+        row = rows[o.log_path]
+        if row.get("start_load_unknown") and (row["incidents"] or row["lasting_load_list"]):
+            click.echo(f"payloads: the load {shown(o.log_path)} starts with could not be "
+                       "weighed, so its incidents and lasting loads may be that load's, not "
+                       "contacts (input.payload in the timeline; the warning says why)")
     click.echo(f"(incidents, lasting loads and events per detector after warm-up; an "
                f"incident is one contact, made of the adaptive and loading events; a "
                f"lasting load an alarm of {LONG_EVENT_S:g} s or more; timelines in "

@@ -151,6 +151,7 @@ class SummaryRow(TypedDict):
     duration_s: float
     truncated: NotRequired[bool]
     settings_edited: NotRequired[bool]
+    start_load_unknown: NotRequired[str]
     joints: int
     calibrated: bool
     links: str
@@ -402,6 +403,8 @@ def _summary(job: DetectJob, result: DetectionResult) -> SummaryRow:
     }
     if log.source.truncated:
         row["truncated"] = True
+    if result.payload is not None and result.payload["verdict"] == "unsupported":
+        row["start_load_unknown"] = result.payload["message"]  # its findings may be it
     if result.calibrated and settings_changed(result.config):
         row["settings_edited"] = True  # its calibration does not hold for them
     from ..detect.warmup import least_s, past_least

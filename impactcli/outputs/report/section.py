@@ -74,7 +74,8 @@ def log_section(result: DetectionResult, labels: Labels | None,
                            floor=floor_words(result.detection_floor),
                            unchecked=[x for x in tl["input"]["joints_left_out"]
                                       if "travel_rad" in x],
-                           payload_changes=tl.get("payload_changes") or ())
+                           payload_changes=tl.get("payload_changes") or (),
+                           start_load=tl["input"].get("payload"))
     if result.log.source.truncated:
         verdict += " " + truncated_text(result.log.duration_s)
     sec: LogSection = {

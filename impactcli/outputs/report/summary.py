@@ -176,7 +176,8 @@ def verdict_text(incidents: Sequence[dict[str, Any]], *, known: bool = True,
                  lasting_loads: Sequence[dict[str, Any]] = (),
                  analysed_s: float | None = None, floor: str | None = None,
                  unchecked: Sequence[dict[str, Any]] = (),
-                 payload_changes: Sequence[dict[str, Any]] = ()) -> str:
+                 payload_changes: Sequence[dict[str, Any]] = (),
+                 start_load: dict[str, Any] | None = None) -> str:
     """The log's answer in one line, e.g. ``3 incidents: 2 transient on link 2, ~25 N and
     ~40 N; 1 quasi-static on link 1, ~60 N.`` — clock times when the log's clock is an
     epoch; ``No incident after warm-up.`` when none counts; the counted lasting loads
@@ -195,9 +196,18 @@ def verdict_text(incidents: Sequence[dict[str, Any]], *, known: bool = True,
         unchecked: the joints that moved but were left out of detection (timeline
             ``input.joints_left_out`` items with ``travel_rad``), named at the end.
         payload_changes: the timeline's ``payload_changes``: said, not counted.
+        start_load: the timeline's ``input.payload``: when the load the log starts with
+            could not be weighed (verdict ``unsupported``) and something counts, said: its
+            incidents and lasting loads may be that load's (a trial's 3 kg start on the
+            heavy arm read as an 86 N quasi-static contact).
     """
+    weighed = (start_load or {}).get("verdict") != "unsupported" or not (
+        any(counts_as_contact(i) for i in incidents)
+        or any(not x.get("in_warmup") for x in lasting_loads))
     return _verdict(incidents, known, alarms_counted, lasting_loads, analysed_s, floor,
-                    payload_changes) + (
+                    payload_changes) + ("" if weighed else (
+        " The load the log started with could not be weighed (input.payload): its incidents "
+        "and lasting loads may be that load's, not contacts.")) + (
         "" if not unchecked else " Not checked, though they moved: " + "; ".join(
             f"{x['name']} ({x['travel_rad']:.2g} rad; {x['reason']})" for x in unchecked)
         + ".")
