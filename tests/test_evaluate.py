@@ -696,3 +696,22 @@ def test_the_sweep_does_not_count_a_payload_changes_alarm():
     assert fb[("product", 1.0)] == fa[("product", 1.0)] - 1
     assert {(r.detector, r.scale): r.detected for r in carried} == {
         (r.detector, r.scale): r.detected for r in plain}
+
+
+def test_false_incidents_the_run_marked_as_a_resumed_load_are_said_apart():
+    """Known truth: one contact at 2.0 s; incidents at 2.01 s (its), 5.0 s (false, marked
+    as maybe a lasting load resumed) and 7.0 s (false, unmarked). The unmatched ones are
+    the last two; the one marked is said apart, in the text and the JSON (the report's
+    verdict says the same since the trial that read 8 incidents for 4 pushes)."""
+    lab = labels(ContactLabel(2.0, 2.1, 5.0, "impact", 1))
+    events = [ev("adaptive", 2.01), ev("adaptive", 5.0), ev("adaptive", 7.0)]
+    resumed = {**inc(5.0, 5.05, 1, 4.0, "transient", (1,)),
+               "resumes_load": {"t_start": 1.0, "t_end": 4.8, "gap_s": 0.2, "text": "x"}}
+    e = run(events, lab, incidents=[inc(2.01, 2.06, 1, 5.0, "transient", (0,)), resumed,
+                                    inc(7.0, 7.05, 1, 3.0, "transient", (2,))])
+    ie = e.incidents
+    assert ie.unmatched == (1, 2) and ie.unmatched_resuming == (1,)
+    assert ie.to_dict()["unmatched_resuming_load"] == [1]
+    assert dict(ie.summary())["incidents after warm-up"].startswith(
+        "3 (2 matching no labelled contact, 1 of them just after a lasting load ended (maybe "
+        "that load again))"), ie.summary()

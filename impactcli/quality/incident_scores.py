@@ -59,6 +59,7 @@ class _Inc:
     force_at_least: bool = False
     data_defect: bool = False
     candidates: tuple[int, ...] = ()
+    resumes: bool = False
 
 
 def _as_inc(x: Any, warmup_end_s: float, i: int) -> _Inc:
@@ -78,7 +79,8 @@ def _as_inc(x: Any, warmup_end_s: float, i: int) -> _Inc:
                     None if not evs else tuple(int(k) for k in evs),
                     get("payload_change") is not None, get("aftermath") is not None,
                     bool(get("force_at_least", False)), get("data_defect") is not None,
-                    tuple(int(c) for c in get("link_candidates") or ()))
+                    tuple(int(c) for c in get("link_candidates") or ()),
+                    get("resumes_load") is not None)
     except (KeyError, TypeError, ValueError) as err:
         raise LogFormatError(f"incidents[{i}]: missing or bad field: {err}") from None
 
@@ -223,6 +225,8 @@ class IncidentEvaluation:
         unmatched_aftermath: of them, those the run marked in an earlier incident's
             aftermath (:mod:`impactcli.detect.aftermath`: the arm had not settled; still
             counted, said apart).
+        unmatched_resuming: of them, those the run marked as maybe a lasting load resumed
+            (:func:`impactcli.detect.incidents.mark_resumed`; still counted, said apart).
         detected: counted contacts the product detected (one of its counted alarms starts
             in the window) — the ones that must each be exactly one incident.
         split: those whose alarms belong to several incidents (label indices).
@@ -242,6 +246,7 @@ class IncidentEvaluation:
     n_data_defects: int = 0
     unmatched: tuple[int, ...] = ()
     unmatched_aftermath: tuple[int, ...] = ()
+    unmatched_resuming: tuple[int, ...] = ()
     detected: int = 0
     split: tuple[int, ...] = ()
     not_in_incident: tuple[int, ...] = ()
@@ -272,6 +277,8 @@ class IncidentEvaluation:
                 f" ({len(self.unmatched)} matching no labelled contact"
                 + (f", {len(self.unmatched_aftermath)} of them in an earlier incident's "
                    "aftermath, the arm not settled" if self.unmatched_aftermath else "")
+                + (f", {len(self.unmatched_resuming)} of them just after a lasting load "
+                   "ended (maybe that load again)" if self.unmatched_resuming else "")
                 + ")" if self.unmatched
                 else " (each matches a labelled contact)" if self.n_incidents else "")
              + (f"; {self.n_incidents_in_warmup} in warm-up (not counted)"
@@ -328,6 +335,7 @@ class IncidentEvaluation:
             "n_data_defects": self.n_data_defects,
             "unmatched_incidents": list(self.unmatched),
             "unmatched_in_aftermath": list(self.unmatched_aftermath),
+            "unmatched_resuming_load": list(self.unmatched_resuming),
             "link_accuracy": rounded(o.link_accuracy, 6),
             "contact_accuracy": rounded(o.contact_accuracy, 6),
             "force_rel_error_median": rounded(o.force_rel_error_median, 6),
@@ -459,6 +467,7 @@ def evaluate_incidents(
         n_data_defects=sum(1 for i in incs if i.data_defect and not i.in_warmup),
         unmatched=unmatched,
         unmatched_aftermath=tuple(k for k in unmatched if incs[k].aftermath),
+        unmatched_resuming=tuple(k for k in unmatched if incs[k].resumes),
         detected=detected, split=tuple(split), not_in_incident=tuple(none_),
         shared=tuple(sorted(k for k, cs in inc_contacts.items() if len(cs) > 1)),
     )
