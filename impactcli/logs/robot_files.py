@@ -251,11 +251,15 @@ def joint_map_hint(log_joints: Sequence[str], urdf_joints: Sequence[str],
     return f"{how} (docs/robots.md)"
 
 
-def check_label_links(labels: Labels, joints: Sequence[str], n_links: int, where: str) -> None:
-    """A labelled contact on a link the log's arm does not have (``n_links``, counted from 1
-    at the base; ``joints`` its joints, for the message) is a LabelsError naming the file,
-    the contact and both counts: the labels are of another arm, or the link is miscounted
-    (a trial's link 7 on a 2-link arm was scored "7 / 2 WRONG"). 0 links: not checked."""
+def check_label_links(labels: Labels, joints: Sequence[str], floor: dict[str, Any] | None,
+                      where: str) -> None:
+    """A labelled contact on a link the log's arm does not have — beyond its ``joints``
+    and the links its detection floor (``floor``, the timeline's) lists, counted from 1 at
+    the base — is a LabelsError naming the file, the contact and both counts: the labels
+    are of another arm, or the link is miscounted (a trial's link 7 on a 2-link arm was
+    scored "7 / 2 WRONG"). No joint and no floor: not checked."""
+    rows = (floor or {}).get("per_link") or ()
+    n_links = max([len(set(joints)), *(int(r["link"]) for r in rows)])
     for k, c in enumerate(labels.events):
         if n_links and not 1 <= int(c.link) <= n_links:
             raise LabelsError(

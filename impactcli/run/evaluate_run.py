@@ -90,9 +90,7 @@ def check_links(labels: Any, doc: dict[str, Any], where: str) -> None:
 
     inp = doc.get("input") or {}
     names = [*inp.get("joints", ()), *(x.get("name") for x in inp.get("joints_left_out", ()))]
-    rows = ((doc.get("detection_floor") or {}).get("per_link")) or ()
-    check_label_links(labels, names, max([len(set(names)), *(int(r["link"]) for r in rows)]),
-                      where)
+    check_label_links(labels, names, doc.get("detection_floor"), where)
 
 
 def replay_log(path: Path, *, robot: Path | None, model: Path | None, config: Path | None,

@@ -268,9 +268,8 @@ def analyze_input(task: ReportTask) -> ReportPart:
                 lab_path = auto_labels(inp, log_path)
             lab = read_labels(lab_path) if lab_path is not None else None
             if lab is not None:
-                rows = (result.detection_floor or {}).get("per_link") or ()
-                check_label_links(lab, result.log.joint_names, max(
-                    [len(result.log.joint_names), *(int(r["link"]) for r in rows)]), str(inp))
+                check_label_links(lab, result.log.joint_names, result.detection_floor,
+                                  str(inp))
             rendered = render_log(result, lab, task.key, origin=origin, samples=samples)
             run_warnings = result.warnings
         except ImpactError as e:
