@@ -269,8 +269,7 @@ def _unseen_load(result: DetectionResult, incidents: list[dict[str, Any]]
 def _lasting(result: DetectionResult) -> list[dict[str, Any]]:
     """The stretches where a counted lasting load's detector was already alarming
     (:func:`impactcli.detect.incidents.blind_text`); nothing when there is none."""
-    loads = [x.to_dict() if hasattr(x, "to_dict") else dict(x) for x in result.lasting_loads]
-    counted = [x for x in loads if not x.get("in_warmup")]
+    counted = [x.to_dict() for x in result.lasting_loads if not x.in_warmup]
     if not counted:
         return []
     analysed = max(0.0, result.log.duration_s + result.log.sample_period_s
