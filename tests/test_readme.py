@@ -111,3 +111,17 @@ def test_every_citation_resolves_inside_the_repo() -> None:
             if page.exists() and anchor not in {_slug(h) for h in _headings(page)}:
                 bad.append(f"{where}: {target}#{anchor}")
     assert not bad, "citations that do not resolve:\n" + "\n".join(bad)
+
+
+def test_the_timeline_version_the_readme_and_schema_name_is_the_one_written() -> None:
+    """README and schema annotation name the version `detect` writes (they had lagged)."""
+    import json
+
+    from impactcli.outputs.timeline import SCHEMA_VERSION
+
+    text = README.read_text(encoding="utf-8")
+    named = re.search(r"timeline\.schema\.json`, version ([0-9.]+)\)", text)
+    assert named is not None and named.group(1) == SCHEMA_VERSION
+    schema = json.loads((REPO / "schemas" / "timeline.schema.json").read_text())
+    assert schema["schema_version"] == SCHEMA_VERSION
+    assert SCHEMA_VERSION in schema["properties"]["schema_version"]["enum"]
