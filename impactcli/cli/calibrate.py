@@ -82,7 +82,9 @@ def rate_lines(rate: dict[str, Any], margin_rule: str = "leave-one-out") -> list
                          f"{ch.get('free_max', math.nan):.4g}, u {ch.get('level', math.nan):.4g}, "
                          f"{ch.get('clusters', 0)} clusters, {shape}, σ "
                          f"{ch.get('sigma', math.nan):.3g}; rate "
-                         f"{ph(ch['predicted_per_hour'])}/h, bound {ph(ch['upper_per_hour'])}/h")
+                         f"{ph(ch['predicted_per_hour'])}/h, bound {ph(ch['upper_per_hour'])}/h"
+                         + (" (tail fit alone)" if sup is not None
+                            and ch["upper_per_hour"] < sup else ""))
     if rate.get("statement"):
         lines.append("  " + rate["statement"])
     if "per_hour" not in rate:
