@@ -32,6 +32,7 @@ class Row:
     link: int | None = None
     contact: str = ""
     force_n: float | None = None
+    force_at_least: bool = False
 
 
 def score(source: str, res: DetectionResult, labels: Labels) -> list[Row]:
@@ -47,6 +48,7 @@ def score(source: str, res: DetectionResult, labels: Labels) -> list[Row]:
                   len(inc))
         if inc:
             row.link, row.contact, row.force_n = inc[0].link, inc[0].contact, inc[0].force_n
+            row.force_at_least = bool(inc[0].force_at_least)
         rows.append(row)
     return rows
 
@@ -92,6 +94,17 @@ def report(rows: list[Row], title: str) -> list[tuple[str, bool]]:
         err = f"{100 * float(np.median(e)):.0f} %" if e else "—"
         print(f"| {link} | {len(of)} | {pct(sum(r.link == link for r in of), len(of))} | "
               f"{err} | " + " | ".join(cells) + " |")
+    print("\n| source, kind | forces | marked ≳ | estimate / truth: median (range) | "
+          "above the truth |\n|---|---|---|---|---|")
+    for key in sorted({(r.source.split(" robot ")[0].replace("sample ", ""), r.kind)
+                       for r in det if r.force_n}):
+        of = [r for r in det if r.force_n and r.kind == key[1]
+              and r.source.split(" robot ")[0].replace("sample ", "") == key[0]]
+        q = np.array([r.force_n / r.peak_n for r in of if r.force_n])
+        print(f"| {key[0]}, {key[1]} | {len(of)} | {sum(r.force_at_least for r in of)} | "
+              f"{np.median(q):.2f} ({q.min():.2f}–{q.max():.2f}) | "
+              f"{pct(int(np.sum(q > 1.0)), len(q))} |")
+
     def frac(a: list[Row], b: list[Row]) -> float:
         return len(a) / len(b) if b else 1.0
 
