@@ -505,7 +505,7 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
                    "is k): no robot description says the chain; --robot gives it")
     if len(ok) == 1 and one["payload_change_list"]:
         click.echo(f"payload changes of {shown(ok[0].log_path)} (a load picked or released: "
-                   "not incidents, not gated; the residual takes the new load from the "
+                   "not incidents, failing no gate; the residual takes the new load from the "
                    "classification on):")
         for k, c in enumerate(one["payload_change_list"], 1):
             click.echo(payload_change_line(k, c))

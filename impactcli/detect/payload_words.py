@@ -94,3 +94,29 @@ def carrying_text(change: dict[str, Any]) -> str:
     return (f"{kg} kg {side} the model's load"
             + ("" if known is None else f": {whose_load(str(known))}")
             + ("" if not check else f" ({check})"))
+
+
+#: Standard gravity [m/s²]: the steady press a mass step's torque equals (|m| g).
+G_N_PER_KG = 9.81
+
+
+def press_text(change: dict[str, Any]) -> str | None:
+    """Why a change (its ``to_dict``) was not told from a contact, or None: its inertia did
+    not show — then a steady press of |m| g along gravity at its centre of mass gives the
+    same torque (a clamp pressing the arm down; for a release, its end, or one pressing up) —
+    or its release took off more than the log was seen to carry (``mass_check``: its mass
+    cannot be trusted). The gates could not judge such a change; the verdict says why."""
+    if change.get("inertia") == "unseen":
+        f = f"~{press_force_n(change):.2g} N"
+        return ("its inertia did not show, so " + (
+            f"a steady press of {f} down along gravity (a clamp) would look the same"
+            if change["mass_kg"] > 0 else f"the end of a steady press of {f} down along "
+            "gravity (a clamp released), or one up, would look the same"))
+    if change.get("mass_check"):
+        return "it released more than the log was seen to carry, so its mass cannot be trusted"
+    return None
+
+
+def press_force_n(change: dict[str, Any]) -> float:
+    """The steady press along gravity a change's mass step equals [N] (|m| g)."""
+    return G_N_PER_KG * abs(float(change["mass_kg"]))

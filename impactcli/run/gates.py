@@ -9,8 +9,11 @@ after the cut), when its warm-up ran on past its least length with alarms there 
 evaluator had not settled: not counted, not judged), or when an incident or lasting load
 has no force estimate, or one no one can trust because the log's torque scale is off the
 robot description's gravity torque, or when a lasting load under N kept its detector
-alarming, blind to a contact on its joints (``--fail-on-force``). Each verdict is one line naming
-the log and why (docs/formats.md, "Command line"). Payload changes trip no gate; with a
+alarming, blind to a contact on its joints (``--fail-on-force``), or when a payload change
+was not told from a contact (its inertia did not show, so a steady press along gravity would
+look the same; for ``--fail-on-force`` one whose press would pass N). Each verdict is one
+line naming the log and why (docs/formats.md, "Command line"). Payload changes trip no
+gate (exit 1); with a
 gate asked, a log with some gets a line saying how long a contact would have joined their
 alarms uncounted, and with ``--fail-on-force`` a log whose passing forces leave out a part
 a line saying so (:func:`gate_notes`), the exit code unchanged.
@@ -99,6 +102,8 @@ def judge(findings: Sequence[Findings], *, fail_on_detect: bool,
         unjudged += [line for f in findings if (line := _blind(f, limit))]
     if fail_on_detect or fail_on_force is not None:
         gate = "--fail-on-detect" if fail_on_detect else f"--fail-on-force {fail_on_force:g} N"
+        unjudged += [line for f in findings
+                     if (line := _press(f, gate, None if fail_on_detect else fail_on_force))]
         unjudged += [_cut(f, gate) for f in findings if f.truncated]
         unjudged += [_late(f, gate) for f in findings if f.late_warmup]
     return failing, unjudged
@@ -118,6 +123,27 @@ def _late(f: Findings, gate: str) -> str:
             "evaluator's prediction error settled, and alarms in it are not counted; exit 5")
 
 
+def _press(f: Findings, gate: str, limit: float | None) -> str | None:
+    """The line of a log with payload changes not told from a contact
+    (:func:`~impactcli.detect.payload_words.press_text`: their inertia did not show, so a
+    steady press along gravity would look the same; or their mass cannot be trusted) — for
+    ``--fail-on-force`` those whose press would pass ``limit`` —, or None: a gate passes no
+    clamp as a load it could not weigh (a trial's 20 N clamp on a slow arm was taken for a
+    2 kg pick, and both gates passed)."""
+    from ..detect.payload_words import press_force_n, press_text
+
+    hold = [(k, c, why) for k, c in enumerate(f.payload_changes, 1)
+            if (why := press_text(c)) is not None
+            and (limit is None or c.get("mass_check") or press_force_n(c) > limit)]
+    if not hold:
+        return None
+    k, c, why = hold[0]
+    more = f" (and {count(len(hold) - 1, 'other')})" if len(hold) > 1 else ""
+    return (f"impactcli: {shown(f.log_path)}: {gate} could not judge "
+            f"{count(len(hold), 'payload change')}: P{k} at {c['t_start']:.3f} s, "
+            f"{c['mass_kg']:+.3g} kg: {why}{more}; exit 5")
+
+
 def _cut(f: Findings, gate: str) -> str:
     """The line of a log whose file ends before its recording did: the gate judged what
     came before the cut only."""
@@ -128,7 +154,7 @@ def _cut(f: Findings, gate: str) -> str:
 
 def gate_notes(findings: Sequence[Findings], *, fail_on_detect: bool,
                fail_on_force: float | None) -> list[str]:
-    """With a gate asked, a line per log with payload changes: they are not gated (a load
+    """With a gate asked, a line per log with payload changes: they fail no gate (a load
     picked or released is normal work), and a contact in their alarms was judged only as
     each one's ``contact_watch`` says — so the exit code does not speak for that time; with
     ``--fail-on-force``, a line per log whose findings under the limit have a force that
@@ -154,7 +180,7 @@ def gate_notes(findings: Sequence[Findings], *, fail_on_detect: bool,
                 f"{max(w['above_times_vl'] for w in watched):g}× the loading thresholds"
                 if watched else "")
         out.append(f"impactcli: {shown(f.log_path)}: {gate}: {count(n, 'payload change')} "
-                   f"(a load picked or released) {'is' if n == 1 else 'are'} not gated"
+                   f"(a load picked or released) {'fails' if n == 1 else 'fail'} no gate"
                    f"{told} (payload_changes in the timeline)")
     return out
 

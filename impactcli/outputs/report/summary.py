@@ -27,6 +27,7 @@ from ...detect.force import (
     scale_untrusted,
 )
 from ...detect.incidents import link_words
+from ...detect.payload_words import press_text
 from .common import CONTACT_TEXT, PRODUCT_DETECTORS, approx, e, ratio_cell, utc
 
 CONTACT_ORDER = ("transient", "quasi_static", "unknown")
@@ -306,12 +307,15 @@ def counts_as_contact(incident: dict[str, Any]) -> bool:
 
 def payload_text(changes: Sequence[dict[str, Any]]) -> str:
     """The verdict's words for the payload changes, e.g. ``2 payload changes (not counted):
-    +0.99 kg at 20.092 s, −0.99 kg at 40.024 s``; "" when none."""
+    +0.99 kg at 20.092 s, −0.99 kg at 40.024 s``, each not told from a contact saying why
+    (:func:`~impactcli.detect.payload_words.press_text`); "" when none."""
     if not changes:
         return ""
     s = "" if len(changes) == 1 else "s"
     return (f"{len(changes)} payload change{s} (a load picked or released, not counted): "
-            + ", ".join(f"{c['mass_kg']:+.2g} kg at {c['t_start']:.3f} s" for c in changes))
+            + ", ".join(f"{c['mass_kg']:+.2g} kg at {c['t_start']:.3f} s"
+                        + ("" if (why := press_text(c)) is None else
+                           f" (not told from a contact: {why})") for c in changes))
 
 
 def incident_counts(incidents: Sequence[dict[str, Any]],
@@ -460,7 +464,8 @@ def payload_table_html(changes: Sequence[dict[str, Any]], anchor: str) -> str:
         f'<th class="num">load then</th></tr></thead>{body}</table></div>'
         '<div class="small muted">A payload change is a step in the residual that behaves as '
         "a mass at the flange over the poses that follow it: a load picked or released. It "
-        "is not an incident and trips no gate; from its classification on, the residual "
+        "is not an incident and fails no gate (one not told from a press: the gates could "
+        "not judge it, exit 5); from its classification on, the residual "
         "carries the new load. Loads are stated beyond the model's own. A mass keeps its "
         "weight as the arm moves (steady) and carries inertia; a press that builds up is not "
         "steady, and a steady press along gravity has no inertia — where the motion is too "
