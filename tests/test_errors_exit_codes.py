@@ -331,3 +331,22 @@ def test_evaluate_says_labels_after_a_cut_are_the_cut_s(tmp_path: Path) -> None:
     r = CliRunner().invoke(main, ["evaluate", str(tmp_path / "w" / "assist_impacts.timeline.json"),
                                   "--labels", str(moved)])
     assert "(labels of another log?)" in r.stderr and "truncated" not in r.stderr, r.stderr
+
+
+def test_a_batch_with_a_failed_log_still_says_the_gate_the_others_tripped(
+        tmp_path: Path) -> None:
+    """A trial's batch of a log with incidents and a missing file under --fail-on-detect:
+    exit 4 (a failed log wins), and before, stderr said only "1 of 2 logs failed" — not that
+    the other log tripped the gate. Its line is now said, naming the code that won."""
+    missing = tmp_path / "gone.csv"
+    log = LOG.with_name("assist_pushes.csv.gz")
+    code, _, err = cli("detect", str(log), str(missing), "--config", str(CONFIG), "-o",
+                       str(tmp_path / "out"), "--fail-on-detect")
+    assert code == 4, err
+    tl = json.loads((tmp_path / "out" / "assist_pushes.timeline.json")
+                    .read_text("utf-8"))
+    n = sum(1 for i in tl["incidents"] if i["number"] is not None)
+    assert n > 0
+    assert (f"impactcli: {log.name}: --fail-on-detect: {n} incident{'s' if n > 1 else ''} "
+            "after warm-up — a log that failed wins: exit 4") in err.splitlines(), err
+    assert "1 of 2 logs failed" in err

@@ -269,21 +269,24 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     failed = [o for o in outcomes if not o.ok]
     ok = [o for o in outcomes if o.ok]
     ctx = click.get_current_context()
+    # judged: exit 1, each line saying why; asked to judge and could not: exit 5 — the
+    # logs that finished are judged and said even when others failed (4 wins the code)
+    failing, unjudged = judge([o.findings for o in ok if o.findings is not None],
+                              fail_on_detect=fail_on_detect, fail_on_force=fail_on_force)
+    batch = " — a log that failed wins: exit 4" if failed else ""
+    for line in failing:  # why the exit code, per log
+        click.echo(line + batch, err=True)
+    for line in unjudged:  # a judged failure wins over "could not judge"
+        click.echo(line + (batch or (" — a judged failure wins: exit 1" if failing else "")),
+                   err=True)
+    for line in gate_notes([o.findings for o in ok if o.findings is not None],
+                           fail_on_detect=fail_on_detect, fail_on_force=fail_on_force):
+        click.echo(line, err=True)  # what the exit code does not speak for
     if failed:
         if len(outcomes) > 1:
             click.echo(f"impactcli: {len(failed)} of {len(outcomes)} logs failed", err=True)
         # some failed: 4; every one failed: the (first) failure's own code, as `report` does
         ctx.exit(EXIT_BATCH if ok else failed[0].exit_code)
-    # judged: exit 1, each line saying why; asked to judge and could not: exit 5
-    failing, unjudged = judge([o.findings for o in ok if o.findings is not None],
-                              fail_on_detect=fail_on_detect, fail_on_force=fail_on_force)
-    for line in failing:  # why the exit code, per log
-        click.echo(line, err=True)
-    for line in unjudged:  # a judged failure wins over "could not judge"
-        click.echo(line + (" — a judged failure wins: exit 1" if failing else ""), err=True)
-    for line in gate_notes([o.findings for o in ok if o.findings is not None],
-                           fail_on_detect=fail_on_detect, fail_on_force=fail_on_force):
-        click.echo(line, err=True)  # what the exit code does not speak for
     if failing:
         ctx.exit(EXIT_DETECTED)
     if unjudged:
