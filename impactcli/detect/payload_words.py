@@ -63,7 +63,9 @@ def change_text(change: dict[str, Any]) -> str:
              "warm-up" if change.get("at_watch_start") else "")
     if change.get("start_unknown"):  # the start's own load, weighed late: not a pick
         early += (" — and the log's first seconds could not weigh the load it started with: "
-                  "most likely that load, carried from the start, not one picked")
+                  if early else "; the log's first seconds could not weigh the load it "
+                  "started with, yet found about this mass in part: ") + (
+                      "most likely that load, carried from the start, not one picked")
     if (since := change.get("carried_since_s")) is not None:  # a step under vL
         early += (f"; NOT a step at this time: the load is in all the motion kept before "
                   f"it, from {since:.3f} s, so it was picked or released then or before and "

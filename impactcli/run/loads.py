@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from ..config import DetectorConfig
+from ..detect.payload_finding import SHORTFALL
 from ..detect.payload_words import OWN_LOAD, beyond_words
 from ..model import RigidModel, payload
 from ..model.generators import OWN_MODEL, GeneratorChoice, target_torque
@@ -150,6 +151,10 @@ def weigh_start(feed: Any, model: RigidModel, choices: tuple[GeneratorChoice, ..
         # not tell it from none)
         why = (f"hold a torque the model does not explain, of which a steady load ({mass}) "
                f"explains only {100 * share:.0f} % (a load picked, or a contact, in them?)")
+        return model, StartLoad(  # its weighing kept (not used): a change that weighs
+            "unsupported", seconds, w.mass_kg, w.mass_se_kg, {}, rel, cal, (  # the same
+            f"{where}: the load the log starts with is not known: its first {seconds:g} s "
+            f"{why}; the residual assumes the model's load{_whose(rel)}"), share)
     if why is not None:
         return model, StartLoad("unsupported", seconds, None, None, {}, rel, cal, (
             f"{where}: the load the log starts with is not known: its first {seconds:g} s "
@@ -383,13 +388,30 @@ def mark_unseen(incidents: list[Any], spans: list[tuple[float, float, float]]) -
 
 
 def start_unknown(changes: list[Any], start: StartLoad | None) -> list[Any]:
-    """The payload changes, one found on an alarm already on when the watch began
-    (``at_watch_start``) marked ``start_unknown`` when the log's start could not weigh the
-    load it started with (verdict ``unsupported``): most likely that load, not a pick."""
+    """The payload changes, marked ``start_unknown`` when the log's start could not weigh
+    the load it started with (verdict ``unsupported``) and the change is most likely that
+    load, not a pick: one found on an alarm already on when the watch began
+    (``at_watch_start``), or the first change, a gain, with its onset within as long again
+    as the stretch weighed after it, whose mass is the one the start's weighing found in
+    part (``mass_kg`` of a start that a steady load explained only partly: within
+    :data:`~impactcli.detect.payload_finding.SHORTFALL` of it or three standard errors) —
+    a load carried from the first sample whose torque the motion grew past the thresholds
+    (a trial: 0.5 kg from the start of the heavy arm's run, weighed +0.471 kg in part, then
+    "picked" at 3.944 s as +0.503 kg)."""
     if start is None or start.verdict != "unsupported":
         return changes
-    return [dataclasses.replace(c, start_unknown=True) if c.at_watch_start else c
-            for c in changes]
+
+    def same_as_start(k: int, c: Any) -> bool:
+        if k != 0 or start.mass_kg is None or not c.mass_kg > 0:
+            return False
+        if c.t_start - start.seconds > start.seconds:
+            return False
+        se = float(np.hypot(c.mass_se_kg, start.mass_se_kg or 0.0))
+        return abs(c.mass_kg - start.mass_kg) <= max(SHORTFALL * abs(c.mass_kg), 3.0 * se)
+
+    return [dataclasses.replace(c, start_unknown=True)
+            if c.at_watch_start or same_as_start(k, c) else c
+            for k, c in enumerate(changes)]
 
 
 def unseen_loads(where: str, model: RigidModel | None, changes: Any) -> str | None:
