@@ -244,3 +244,19 @@ def test_report_on_a_1_0_timeline_says_what_it_cannot_tell(tmp_path: Path,
     older = [c for c in sec["could_not_see"] if c["code"] == "older-timeline"]
     assert older and "records no incidents" in older[0]["text"]
     assert "This log came as a timeline of schema 1.0" in out.read_text()
+
+
+@pytest.mark.parametrize(("args", "named"), [
+    (["-o", "r.pdf"], "r.pdf: the report is HTML: name it .html"),
+    (["-o", "r.html", "--json", "r2.html"], "r2.html: --json writes JSON: name it .json"),
+])
+def test_an_output_named_for_another_format_is_a_usage_error_before_any_work(
+        tmp_path: Path, args: list[str], named: str) -> None:
+    """A trial's `report ... -o r.pdf` wrote HTML into a .pdf file, exit 0. Now exit 2,
+    one line naming the file, and nothing written."""
+    r = invoke("report", "sample_logs/csv/assist_pushes.csv.gz",
+               *[str(tmp_path / a) if a.endswith((".pdf", ".html")) else a for a in args])
+    assert r.exit_code == 2, r.output
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"impactcli: error: {tmp_path}/{named}")
+    assert list(tmp_path.iterdir()) == []

@@ -29,6 +29,7 @@ import click
 from ..errors import EXIT_BATCH, EXIT_SOFTWARE, ImpactError, ImpactWarning, one_line
 from .options import (
     executor_options,
+    fail_usage,
     handle_errors,
     log_read_options,
     model_options,
@@ -89,6 +90,11 @@ def report_cmd(*, inputs: tuple[str, ...], html_path: Path, json_path: Path | No
         pair_labels,
     )
 
+    if html_path.suffix.lower() not in (".html", ".htm"):  # a trial's -o r.pdf got HTML
+        fail_usage(f"{html_path}: the report is HTML: name it .html (for a PDF, print the "
+                   "HTML from a browser: one log per page)")
+    if json_path is not None and json_path.suffix.lower() in (".html", ".htm"):
+        fail_usage(f"{json_path}: --json writes JSON: name it .json")
     for out in (html_path, json_path):  # a bad -o/--json stops the run before any work
         if out is not None:
             prepare_output(out)
