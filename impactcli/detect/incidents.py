@@ -216,6 +216,17 @@ def mark_resumed(incidents: Sequence[Incident], loads: Sequence[LastingLoad],
 OTHER_DETECTOR = {"static_loading": "adaptive", "adaptive": "static_loading"}
 
 
+def blind_s(loads: Sequence[dict[str, Any]]) -> float:
+    """How long the counted lasting loads (timeline dicts) held their detectors alarming
+    [s]: the union of their spans (two detectors' may overlap)."""
+    total, end = 0.0, -np.inf
+    for a, b in sorted((float(x["t_start"]), float(x["t_end"])) for x in loads
+                       if not x.get("in_warmup")):
+        total += max(0.0, b - max(a, end))
+        end = max(end, b)
+    return total
+
+
 def blind_text(loads: Sequence[dict[str, Any]], analysed_s: float | None = None, *,
                listed: bool = False) -> str:
     """What the counted lasting loads (timeline dicts) leave unseen, in words ("" when
@@ -227,10 +238,7 @@ def blind_text(loads: Sequence[dict[str, Any]], analysed_s: float | None = None,
     counted = [x for x in loads if not x.get("in_warmup")]
     if not counted:
         return ""
-    total, end = 0.0, -np.inf
-    for a, b in sorted((float(x["t_start"]), float(x["t_end"])) for x in counted):
-        total += max(0.0, b - max(a, end))  # their union: two detectors' may overlap
-        end = max(end, b)
+    total = blind_s(counted)
     said = ([f"{100 * total / analysed_s:.0f} % of the log after warm-up"] if analysed_s
             else []) + ([] if listed else [
                 f"{x['t_start']:.1f}–{x['t_end']:.1f} s, {x['detector']} on "
