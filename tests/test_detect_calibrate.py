@@ -136,3 +136,26 @@ def test_a_short_logs_uncalibrated_warning_says_an_event_of_a_few_blocks_sets_it
             "quantile: an event that fills 2 blocks sets the thresholds at 3× itself and is "
             "not found;") in said(11)
     assert "its 3 largest block maxima" in said(21) and "blocks after warm-up" not in said(45)
+
+
+def test_an_uncalibrated_no_incident_verdict_says_what_it_rests_on() -> None:
+    """The report's verdict on a real UR log's braking (19.7 s, 96 Hz, warm-up to 8.62 s,
+    uncalibrated) read "No incident after warm-up", the reason far below in the caveats.
+    The verdict's added sentence says the thresholds are the log's own and, on its 11
+    blocks, that an event of 2 sets its own; on a log of 45 blocks only the first part."""
+    from types import SimpleNamespace
+
+    from impactcli.outputs.report.summary import uncalibrated_none
+
+    def result(seconds: float) -> SimpleNamespace:
+        log = SimpleNamespace(sample_period_s=1 / 96.0, n_samples=int(seconds * 96))
+        return SimpleNamespace(log=log, warmup_end_s=8.62)
+
+    short = uncalibrated_none(result(19.7))
+    assert short.startswith("Uncalibrated: its thresholds come from this log's own motion, "
+                            "so only a contact standing well above it would be found; this "
+                            "log gives 11 blocks after warm-up, so its 2 largest block maxima "
+                            "set the quantile")
+    assert short.endswith(" (calibrate on collision-free logs for an audit).")
+    long = uncalibrated_none(result(54.0))
+    assert "blocks after warm-up" not in long and long.startswith("Uncalibrated: ")

@@ -154,6 +154,26 @@ def uncalibrated_blocks(n: int, warmup_end_index: int, sample_rate_hz: float) ->
     return (n - start) // block if block >= 1 else 1
 
 
+def deciding_blocks(blocks: int) -> int:
+    """How many of the largest block maxima the uncalibrated rule's quantile rests on
+    (0 for one block, the maximum): the linear quantile lies at or above the
+    floor(q (B − 1))-th sorted maximum, so the B − that largest decide it — on a short log
+    an event that fills that many blocks sets its own thresholds."""
+    return blocks - int(UNCALIBRATED_QUANTILE * (blocks - 1)) if blocks > 1 else 0
+
+
+def self_set_text(blocks: int) -> str:
+    """The words of a short uncalibrated log (:func:`deciding_blocks` at most 3): ``this log
+    gives 11 blocks after warm-up, so its 2 largest block maxima set the quantile: an event
+    that fills 2 blocks sets the thresholds at 3× itself and is not found``; "" else."""
+    top = deciding_blocks(blocks)
+    if not 0 < top <= 3:
+        return ""
+    return (f"this log gives {blocks} blocks after warm-up, so its {top} largest block "
+            f"maxima set the quantile: an event that fills {top} blocks sets the thresholds "
+            f"at {UNCALIBRATED_MARGIN:g}× itself and is not found")
+
+
 class BlockMaxima:
     """:func:`block_maxima` of a statistic that arrives in chunks: blocks of ``block``
     samples from sample ``start`` of the log on (``block`` 0: one block, the maximum).

@@ -20,7 +20,12 @@ from ..clock import GAP_FACTOR
 from ..config import PLAIN_FORMULATION, DetectorConfig
 from ..detect.events import LONG_EVENT_S
 from ..detect.force import force_mark
-from ..detect.thresholds import UNCALIBRATED_BLOCK_S, UNCALIBRATED_MARGIN, UNCALIBRATED_QUANTILE
+from ..detect.thresholds import (
+    UNCALIBRATED_BLOCK_S,
+    UNCALIBRATED_MARGIN,
+    UNCALIBRATED_QUANTILE,
+    self_set_text,
+)
 from ..detect.warmup import Warmup
 from ..errors import ImpactError, ImpactWarning
 from ..logs.defects import MAX_ACCEL_RAD_S2
@@ -88,12 +93,8 @@ def warn_uncalibrated(where: str, weighs_loads: bool = False, blocks: int = 0) -
     loads = (", and a load picked or placed mid-log may show as an incident (payload "
              "changes are told from contacts only against a config's model and thresholds, "
              "not ones taken from a log that may carry the load)" if weighs_loads else "")
-    # the linear quantile lies at or above its floor(q (B − 1))-th sorted block maximum
-    top = blocks - int(UNCALIBRATED_QUANTILE * (blocks - 1)) if blocks > 1 else 0
-    if 0 < top <= 3:  # a short log: an event of a few blocks sets its own thresholds
-        loads += (f"; this log gives {blocks} blocks after warm-up, so its {top} largest "
-                  f"block maxima set the quantile: an event that fills {top} blocks sets the "
-                  f"thresholds at {UNCALIBRATED_MARGIN:g}× itself and is not found")
+    if short := self_set_text(blocks):  # an event of a few blocks sets its own thresholds
+        loads += f"; {short}"
     warnings.warn(
         f"{where}: uncalibrated run — thresholds set from this log's own "
         f"statistics ({UNCALIBRATED_MARGIN:g} × the {UNCALIBRATED_QUANTILE:g}-quantile of "

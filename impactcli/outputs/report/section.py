@@ -39,12 +39,14 @@ from .plots import alarm_figures, incident_figures, whole_log_figures
 from .quality import evaluate, quality_html
 from .samples import Samples
 from .summary import (
+    counts_as_contact,
     incident_rows,
     incident_table_html,
     incidents_known,
     lasting_table_html,
     payload_table_html,
     truncated_text,
+    uncalibrated_none,
     verdict_text,
 )
 from .unseen import chain_of, could_not_see, could_not_see_html
@@ -78,6 +80,8 @@ def log_section(result: DetectionResult, labels: Labels | None,
                            start_load=tl["input"].get("payload"))
     if result.log.source.truncated:
         verdict += " " + truncated_text(result.log.duration_s)
+    if not result.calibrated and not any(counts_as_contact(i) for i in incidents):
+        verdict += " " + uncalibrated_none(result)
     sec: LogSection = {
         "input": tl["input"], "config": tl["config"], "calibrated": tl["calibrated"],
         "model": tl["model"], "replay": tl["replay"], "warmup_end_s": tl["warmup_end_s"],

@@ -28,6 +28,7 @@ from ...detect.force import (
 )
 from ...detect.incidents import link_words
 from ...detect.payload_words import press_text
+from ...detect.thresholds import self_set_text
 from .common import CONTACT_TEXT, PRODUCT_DETECTORS, approx, e, ratio_cell, utc
 
 CONTACT_ORDER = ("transient", "quasi_static", "unknown")
@@ -92,6 +93,24 @@ def truncated_text(duration_s: float) -> str:
     """What a log cut short could not answer (``input.truncated``), in the verdict's words."""
     return (f"The file is truncated: its recording went on after {duration_s:.1f} s, and "
             "what it held after that is not in it, so was not analysed.")
+
+
+def uncalibrated_none(result: Any) -> str:
+    """What an uncalibrated run's "no incident" rests on, in the verdict's words: its
+    thresholds come from the log's own motion, so only a contact standing well above it is
+    found — and, on a short log, an event filling its few deciding blocks sets its own
+    thresholds (:func:`~impactcli.detect.thresholds.self_set_text`; a real UR arm's braking
+    read "No incident after warm-up" with the caveat far below)."""
+    from ...detect.thresholds import uncalibrated_blocks
+
+    period = float(result.log.sample_period_s)
+    blocks = uncalibrated_blocks(int(result.log.n_samples),
+                                 round(float(result.warmup_end_s) / period),
+                                 1.0 / period) if period > 0 else 0
+    short = self_set_text(blocks)
+    return ("Uncalibrated: its thresholds come from this log's own motion, so only a "
+            "contact standing well above it would be found" + (f"; {short}" if short else "")
+            + " (calibrate on collision-free logs for an audit).")
 
 
 def incidents_known(result_incidents: int, events: Sequence[dict[str, Any]]) -> bool:
