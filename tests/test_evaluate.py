@@ -715,3 +715,37 @@ def test_false_incidents_the_run_marked_as_a_resumed_load_are_said_apart():
     assert dict(ie.summary())["incidents after warm-up"].startswith(
         "3 (2 matching no labelled contact, 1 of them just after a lasting load ended (maybe "
         "that load again))"), ie.summary()
+
+
+def test_a_contact_held_only_by_payload_changes_alarms_is_said_taken_for_a_load() -> None:
+    """A trial's 20 N clamp (8.08–13.1 s) on the heavy arm was weighed a +1.96 kg pick at
+    9.806 s and a −1.84 kg release at 13.06 s: its alarms lie in the two changes' alarms,
+    no counted incident. evaluate said "1 more held by an incident that began before the
+    contact's window", "split over several incidents" and "in an earlier one". It now says
+    it was taken for a payload change — missed as a contact, in no counted incident."""
+    from impactcli.quality.incident_scores import evaluate_incidents
+    from impactcli.quality.match import MatchTolerance, ScoredEvent
+    from impactcli.types import ContactLabel
+
+    evs = [ScoredEvent("static_loading", 9.806, 12.9, False, ("j1",)),
+           ScoredEvent("static_loading", 13.06, 16.1, False, ("j1",)),
+           ScoredEvent("static_loading", 12.95, 13.0, False, ("j1",))]
+    load = {"link": 3, "force_n": None, "contact": "quasi_static", "payload_change": 1}
+    incs = [dict(load, t_start=9.806, t_end=12.9, events=[0]),
+            dict(load, t_start=13.06, t_end=16.1, events=[1, 2], payload_change=2)]
+    clamp = ContactLabel(8.076, 13.096, 20.0, "clamp", 3)
+    ev = evaluate_incidents(incs, evs, [clamp], ["counted"], MatchTolerance(), 3.0)
+    (c,) = ev.contacts
+    assert c.payload_change and c.incident_index is None and c.to_dict()["payload_change"]
+    assert ev.split == () and ev.not_in_incident == (0,)
+    rows = dict(ev.summary())
+    assert rows["counted contacts matched by an incident"] == (
+        "0/1 (0%); 1 taken for a payload change (labels #0: only payload changes' alarms, "
+        "not counted, hold it — missed as a contact)")
+    assert rows["every detected contact is exactly one incident"] == (
+        "no (0/1); in no counted incident: labels #0")
+    # a counted incident among its holders: not taken for a load
+    counted = [dict(incs[0]), dict(incs[1], payload_change=None)]
+    (c,) = evaluate_incidents(counted, evs, [clamp], ["counted"], MatchTolerance(),
+                              3.0).contacts
+    assert not c.payload_change and "payload_change" not in c.to_dict()

@@ -106,6 +106,8 @@ class IncidentOutcome:
         link_right, contact_right: None without a matching incident.
         incident_t_start: the matching incident's start [s], or None.
         force_at_least: the incident's force is a lower bound (its ``force_at_least``).
+        payload_change: the product's alarms on the contact are held by payload changes'
+            alarms only (not counted): the contact was taken for a load.
     """
 
     label_index: int
@@ -125,6 +127,7 @@ class IncidentOutcome:
     incident_t_start: float | None = None
     force_at_least: bool = False
     link_candidates: tuple[int, ...] = ()
+    payload_change: bool = False
 
     @property
     def among(self) -> bool:
@@ -146,6 +149,7 @@ class IncidentOutcome:
             **({"force_at_least": True} if self.force_at_least else {}),
             **({"link_candidates": list(self.link_candidates)}
                if len(self.link_candidates) > 1 else {}),
+            **({"payload_change": True} if self.payload_change else {}),
         }
 
 
@@ -230,7 +234,7 @@ class IncidentEvaluation:
         detected: counted contacts the product detected (one of its counted alarms starts
             in the window) — the ones that must each be exactly one incident.
         split: those whose alarms belong to several incidents (label indices).
-        not_in_incident: those whose alarms belong to no incident (label indices).
+        not_in_incident: those whose alarms belong to no counted incident (label indices).
         shared: incidents holding the alarms of several counted contacts (indices).
     """
 
@@ -265,14 +269,18 @@ class IncidentEvaluation:
         if not self.available:
             return [["incidents", self.note or "not evaluated"]]
         o = self.overall
-        early = [c for c in self.contacts if c.status == "counted"
+        early = [c for c in self.contacts if c.status == "counted" and not c.payload_change
                  and c.incident_index is None and c.n_incidents >= 1]
+        loads = [c for c in self.contacts if c.payload_change and c.incident_index is None]
         rows = [
             ["counted contacts matched by an incident", _frac(o.matched, o.n_contacts) + (
                 f"; {len(early)} more held by an incident that began before the contact's "
                 f"window (labels {_idx(tuple(c.label_index for c in early))}: an earlier "
                 "alarm it merged with began first, so its start, link and force are not "
-                "that contact's)" if early else "")],
+                "that contact's)" if early else "") + (
+                f"; {len(loads)} taken for a payload change (labels "
+                f"{_idx(tuple(c.label_index for c in loads))}: only payload changes' alarms, "
+                "not counted, hold it — missed as a contact)" if loads else "")],
             ["incidents after warm-up", f"{self.n_incidents}" + (
                 f" ({len(self.unmatched)} matching no labelled contact"
                 + (f", {len(self.unmatched_aftermath)} of them in an earlier incident's "
@@ -306,7 +314,7 @@ class IncidentEvaluation:
             if self.split:
                 txt += f"; split over several incidents: labels {_idx(self.split)}"
             if self.not_in_incident:
-                txt += f"; in no incident: labels {_idx(self.not_in_incident)}"
+                txt += f"; in no counted incident: labels {_idx(self.not_in_incident)}"
         if self.shared:
             txt += f"; incidents {_idx(self.shared)} each hold several contacts"
         rows.append(["every detected contact is exactly one incident", txt])
@@ -425,11 +433,12 @@ def evaluate_incidents(
                       and e.t_end - e.t_start < LONG_EVENT_S - EPS_S]
             held = set().union(*(holder.get(a, set()) for a in alarms)) if alarms else set()
             n_held = len(held)
+            as_load = bool(held) and all(incs[h].payload_change for h in held)
             if alarms:
                 detected += 1
-                if n_held > 1:
+                if n_held > 1 and not as_load:  # a load's pick and release: not a split
                     split.append(c_idx)
-                elif n_held == 0:
+                elif n_held == 0 or as_load:  # in no counted incident
                     none_.append(c_idx)
             for h in held:
                 inc_contacts.setdefault(h, set()).add(c_idx)
@@ -450,6 +459,7 @@ def evaluate_incidents(
             incident_t_start=None if ans is None else ans.t_start,
             force_at_least=ans is not None and ans.force_n is not None and ans.force_at_least,
             link_candidates=() if ans is None else ans.candidates,
+            payload_change=status[c_idx] == "counted" and as_load,
         ))
     counted_rows = [r for r in rows if r.status == "counted"]
     per_link = {link: _answer_score([r for r in counted_rows if r.link_label == link])

@@ -110,6 +110,7 @@ def format_incident_evaluation(ie: IncidentEvaluation) -> list[str]:
             f"#{c.label_index}" + ("" if c.status == "counted" else f" ({c.status})"),
             c.kind,
             (f"{c.incident_t_start:.3f} s" if c.incident_t_start is not None
+             else "a payload change" if c.payload_change
              else "in an earlier one" if c.status == "counted" and c.n_incidents >= 1
              else "none"),
             f"{c.link_label} / " + ("-" if c.link is None else " or ".join(
