@@ -40,6 +40,7 @@ from .poses import PoseSample, pose_explained
 from .repair import MAX_RATE_HZ, MIN_RATE_HZ, Repairer, RepairOrderNeeded, increasing_run
 from .row_cache import RowCache
 from .screen import ColumnScreen, ScreenAccumulator
+from .velocity_check import VelocityAgreement, disagreement_message
 
 #: The first pass keeps the steps longer than this fraction of 1.5 provisional periods as
 #: gap candidates (exact while the final threshold is above; else a second pass).
@@ -339,6 +340,7 @@ class _ScanAcc:
         self.dq_sum = np.zeros(j)
         self.v_n = np.zeros(j, dtype=np.int64)
         self.q_last: np.ndarray | None = None
+        self.agreement = VelocityAgreement(j)  # stretches where the two tell two motions
         self.defects = DefectScan(j)  # whole-turn steps unwrapped, jumps (splices) found
         self.ref_turns = DefectScan(j, unwrap_only=True)  # the reference's whole turns
         self.poses = PoseSample(j)  # strided poses: the torque scale against physics
@@ -392,6 +394,7 @@ class _ScanAcc:
         self._sketch(arrays["position"])
         if arrays.get("velocity") is not None:
             self._velocity(arrays["position"], arrays["velocity"])
+            self.agreement.add(t, arrays["position"], arrays["velocity"])
         self.torque_finite |= column_any(np.isfinite(arrays["torque"]))
         for s in self.ctx.plan.optional:
             fin = column_any(np.isfinite(arrays[s]))
@@ -534,6 +537,10 @@ class _ScanAcc:
         clock = self.hist.clock()
         vel = self.velocity_rate(keep, clock.sample_rate_hz)
         said += [vel] if vel is not None else []
+        if vel is None and self.v_n.any():  # the velocity is these positions' derivative
+            two = disagreement_message(ctx.where, self.agreement, keep, joints,
+                                       int(self.head_t[0]), int(self.hist.last or 0))
+            said += [two] if two is not None else []
         for msg in (*said, *limit_msgs):
             warnings.warn(msg, ImpactWarning, stacklevel=3)
         optional = tuple(s for s in OPTIONAL_CHANNELS if getattr(log, s) is not None)
