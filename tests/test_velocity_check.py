@@ -105,3 +105,20 @@ def test_inspect_warns_where_the_velocity_and_positions_tell_two_motions(
     assert "tell two motions" not in r.stderr, r.stderr
     r = invoke("inspect", str(write("deg.csv", frozen, np.degrees(v))))
     assert "tell two motions" not in r.stderr and "implies a sample rate" in r.stderr
+
+
+@pytest.mark.real_logs
+def test_the_real_kuka_logs_end_and_no_other_real_stretch(real_logs: Path) -> None:
+    """The real KUKA LWR4 log: its positions ease to a stop over the last 0.11 s while its
+    velocities go on (all 7 joints), where `detect` raises an incident; the real UR logs
+    (100 Hz, positions and velocities of the controller) agree throughout."""
+    r = invoke("inspect", str(real_logs / "kuka_lwr4" / "measurements_1.npz"),
+               "--channel-map", "kuka_lwr4")
+    assert r.exit_code == 0, r.output
+    (said,) = [ln for ln in r.stderr.splitlines() if "tell two motions" in ln]
+    assert "tell two motions at 25.014 s to the log's end (all 7 joints, up to 0.64 rad/s " \
+        "apart)" in said, said
+    for log in ("link4.csv", "ur-static.csv"):
+        r = invoke("inspect", str(real_logs / "ur_ext_observer" / log), "--channel-map",
+                   "ur_ext_observer")
+        assert r.exit_code == 0 and "tell two motions" not in r.stderr, r.stderr
