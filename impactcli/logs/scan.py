@@ -445,6 +445,16 @@ class _ScanAcc:
                     "unit (or that .velocity is in rad/s, per s of the positions' unit)")
         return None
 
+    def velocity_is_derivative(self, keep: list[int], sample_rate_hz: float) -> bool:
+        """Whether the logged velocity is these positions' derivative: on every moving
+        joint the rate it implies (:meth:`velocity_rate`) is within :data:`RATE_FACTOR` of
+        the clock's (then where the two disagree, they tell two motions)."""
+        k = [c for c in keep if self.v_n[c] >= MIN_MOVING_SAMPLES and self.dq_sum[c] > 0]
+        if not k or not sample_rate_hz > 0:
+            return False
+        ratio = self.v_sum[k] / self.dq_sum[k] / sample_rate_hz
+        return bool(np.all((ratio >= 1 / RATE_FACTOR) & (ratio <= RATE_FACTOR)))
+
     def _sketch(self, q: np.ndarray) -> None:
         """Feed (n, J) positions [rad] to the motion sketch (made once the provisional
         period is known: its speed window is in samples)."""
@@ -537,7 +547,7 @@ class _ScanAcc:
         clock = self.hist.clock()
         vel = self.velocity_rate(keep, clock.sample_rate_hz)
         said += [vel] if vel is not None else []
-        if vel is None and self.v_n.any():  # the velocity is these positions' derivative
+        if self.velocity_is_derivative(keep, clock.sample_rate_hz):
             two = disagreement_message(ctx.where, self.agreement, keep, joints,
                                        int(self.head_t[0]), int(self.hist.last or 0))
             said += [two] if two is not None else []

@@ -32,6 +32,8 @@ MISMATCH_SHARE = 0.5
 #: at its first sample, a 40 Hz estimate for 52 ms), two readings of two motions go on.
 MIN_STEPS = 10
 MIN_S = 0.08
+#: At most this many stretches are kept (all are counted).
+MAX_KEPT = 100
 
 
 @dataclass(frozen=True)
@@ -54,11 +56,13 @@ class VelocityAgreement:
 
     def __init__(self, n_joints: int) -> None:
         self.prev: tuple[int, np.ndarray, np.ndarray] | None = None  # t [ns], q, v
-        self.run: list[float] | None = None  # open run: t0, t1, steps, largest
+        self.open = False  # a run of disagreeing steps goes on at the last chunk's end
+        self.run_t = [0, 0]  # its first and last sample [ns]
+        self.run_steps = 0
+        self.run_largest = 0.0
         self.run_joints = np.zeros(n_joints, dtype=bool)
-        self.found: list[Disagreement] = []
-        self.steps = 0
-        self.bad_steps = 0
+        self.found: list[Disagreement] = []  # the first MAX_KEPT
+        self.n_found = 0
 
     def add(self, t_ns: np.ndarray, q: np.ndarray, v: np.ndarray) -> None:
         """Rows ``t_ns`` (n,) int64, positions ``q`` and velocities ``v`` (n, J) [rad,
@@ -82,9 +86,7 @@ class VelocityAgreement:
         bad &= np.isfinite(gap) & (dt[:, None] > 0)
         any_bad = bad.any(axis=1)
         n = int(any_bad.size)
-        self.steps += n
-        self.bad_steps += int(any_bad.sum())
-        if self.run is not None and not any_bad[0]:
+        if self.open and not any_bad[0]:
             self._close()
         edges = np.diff(np.concatenate(([0], any_bad.astype(np.int8), [0])))
         starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
@@ -92,27 +94,31 @@ class VelocityAgreement:
         for a, z in zip(starts, ends, strict=True):
             if z - a < MIN_STEPS and a > 0 and z < n:
                 continue
-            largest = float(np.max(np.where(bad[a:z], gap[a:z], 0.0)))
-            if self.run is None:
-                self.run = [float(t_ns[a]), 0.0, 0.0, 0.0]
-                self.run_joints[:] = False
-            self.run[1] = float(t_ns[z])
-            self.run[2] += float(z - a)
-            self.run[3] = max(self.run[3], largest)
+            if not self.open:
+                self.open, self.run_t[0], self.run_steps = True, int(t_ns[a]), 0
+                self.run_largest, self.run_joints[:] = 0.0, False
+            self.run_t[1] = int(t_ns[z])
+            self.run_steps += int(z - a)
+            self.run_largest = max(self.run_largest,
+                                   float(np.max(np.where(bad[a:z], gap[a:z], 0.0))))
             self.run_joints |= bad[a:z].any(axis=0)
             if z < n:
                 self._close()
 
     def _close(self) -> None:
-        if (self.run is not None and self.run[2] >= MIN_STEPS
-                and self.run[1] - self.run[0] >= MIN_S * 1e9):
-            self.found.append(Disagreement(
-                int(self.run[0]), int(self.run[1]), int(self.run[2]),
-                tuple(int(j) for j in np.flatnonzero(self.run_joints)), self.run[3]))
-        self.run = None
+        if (self.open and self.run_steps >= MIN_STEPS
+                and self.run_t[1] - self.run_t[0] >= MIN_S * 1e9):
+            self.n_found += 1
+            if len(self.found) < MAX_KEPT:
+                self.found.append(Disagreement(
+                    self.run_t[0], self.run_t[1], self.run_steps,
+                    tuple(int(j) for j in np.flatnonzero(self.run_joints)),
+                    self.run_largest))
+        self.open = False
 
     def finish(self) -> list[Disagreement]:
-        """The stretches found (a run still open at the log's end closed there)."""
+        """The first :data:`MAX_KEPT` stretches found (a run still open at the log's end
+        closed there); ``n_found`` counts them all."""
         self._close()
         return self.found
 
@@ -130,6 +136,7 @@ def disagreement_message(where: str, agreement: VelocityAgreement, keep: list[in
     found = [d for d in agreement.finish() if any(j in keep for j in d.joints)]
     if not found:
         return None
+    uncounted = agreement.n_found - len(agreement.found)  # beyond those kept
     def when(d: Disagreement) -> str:
         a = (d.t_start_ns - first_ns) * 1e-9
         end = ("the log's end" if d.t_end_ns >= last_ns
@@ -138,7 +145,8 @@ def disagreement_message(where: str, agreement: VelocityAgreement, keep: list[in
         on = (f"all {len(names)} joints" if len(names) == len(keep) and len(names) > 1
               else ", ".join(names))
         return f"{a:.3f} s to {end} ({on}, up to {d.largest_rad_s:.2g} rad/s apart)"
-    more = f" and {len(found) - MAX_NAMED} more" if len(found) > MAX_NAMED else ""
+    extra = len(found) - MAX_NAMED + uncounted
+    more = f" and {extra} more" if extra > 0 else ""
     return (f"{where}: the logged velocity and the positions' steps tell two motions at "
             + "; ".join(when(d) for d in found[:MAX_NAMED]) + more
             + ", where they agree elsewhere: one of them is not the arm's motion there (a "
