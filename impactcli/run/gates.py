@@ -12,11 +12,10 @@ robot description's gravity torque, or when a lasting load under N kept its dete
 alarming, blind to a contact on its joints (``--fail-on-force``), or when a payload change
 was not told from a contact (its inertia did not show, so a steady press along gravity would
 look the same; for ``--fail-on-force`` one whose press would pass N). Each verdict is one
-line naming the log and why (docs/formats.md, "Command line"). Payload changes trip no
-gate (exit 1); with a
-gate asked, a log with some gets a line saying how long a contact would have joined their
-alarms uncounted, and with ``--fail-on-force`` a log whose passing forces leave out a part
-a line saying so (:func:`gate_notes`), the exit code unchanged.
+line naming the log and why (docs/formats.md, "Command line"). Payload changes fail no
+gate (exit 1); with a gate asked, a log with some gets a line saying how long a contact
+would have joined their alarms uncounted, and with ``--fail-on-force`` a log whose passing
+forces leave out a part a line saying so (:func:`gate_notes`), the exit code unchanged.
 """
 
 from __future__ import annotations
@@ -26,6 +25,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..detect.force import AT_LEAST, FORCE_NOT_STATED, force_mark, scale_untrusted
+from ..detect.payload_words import press_force_n, press_text
 from ..detect.warmup import least_s, past_least
 from ..errors import one_line
 
@@ -130,8 +130,6 @@ def _press(f: Findings, gate: str, limit: float | None) -> str | None:
     ``--fail-on-force`` those whose press would pass ``limit`` —, or None: a gate passes no
     clamp as a load it could not weigh (a trial's 20 N clamp on a slow arm was taken for a
     2 kg pick, and both gates passed)."""
-    from ..detect.payload_words import press_force_n, press_text
-
     hold = [(k, c, why) for k, c in enumerate(f.payload_changes, 1)
             if (why := press_text(c)) is not None
             and (limit is None or c.get("mass_check") or press_force_n(c) > limit)]

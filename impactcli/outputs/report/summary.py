@@ -28,7 +28,7 @@ from ...detect.force import (
 )
 from ...detect.incidents import link_words
 from ...detect.payload_words import press_text
-from ...detect.thresholds import self_set_text
+from ...detect.thresholds import self_set_text, uncalibrated_blocks
 from .common import CONTACT_TEXT, PRODUCT_DETECTORS, approx, e, ratio_cell, utc
 
 CONTACT_ORDER = ("transient", "quasi_static", "unknown")
@@ -101,8 +101,6 @@ def uncalibrated_none(result: Any) -> str:
     found — and, on a short log, an event filling its few deciding blocks sets its own
     thresholds (:func:`~impactcli.detect.thresholds.self_set_text`; a real UR arm's braking
     read "No incident after warm-up" with the caveat far below)."""
-    from ...detect.thresholds import uncalibrated_blocks
-
     period = float(result.log.sample_period_s)
     blocks = uncalibrated_blocks(int(result.log.n_samples),
                                  round(float(result.warmup_end_s) / period),
