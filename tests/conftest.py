@@ -57,6 +57,17 @@ def real_logs() -> Path:
     return REAL_LOGS
 
 
+def read_kuka(real_logs: Path) -> RobotLog:
+    """The real KUKA LWR4 log through its shipped map; its one warning asserted: over its
+    last 0.11 s its positions stop while its velocities go on (logs/velocity_check.py)."""
+    from impactcli.errors import ImpactWarning
+    from impactcli.logs import read_log
+
+    with pytest.warns(ImpactWarning, match="tell two motions at 25.014 s to the log's end"):
+        return read_log(real_logs / "kuka_lwr4" / "measurements_1.npz",
+                        channel_map="kuka_lwr4")
+
+
 def make_log(n: int = 500, joints: tuple[str, ...] = ("j1", "j2"), dt: float = 0.004,
              with_ref: bool = True, seed: int = 0) -> RobotLog:
     """A small smooth log with references, for tests that need any valid RobotLog."""

@@ -16,6 +16,8 @@ from impactcli.logs.channel_map import load_channel_map, shipped_map_names
 from impactcli.schema import validate
 from impactcli.types import JointSpec, RobotDescription
 
+from .conftest import read_kuka
+
 
 def _yaml(tmp: Path, text: str, name: str = "map.yaml") -> Path:
     p = tmp / name
@@ -165,7 +167,7 @@ def test_real_ur_logs_through_shipped_map(real_logs: Path, name: str, n: int,
 @pytest.mark.real_logs
 def test_real_kuka_log_through_shipped_map(real_logs: Path) -> None:
     path = real_logs / "kuka_lwr4" / "measurements_1.npz"
-    log = read_log(path, channel_map="kuka_lwr4")
+    log = read_kuka(real_logs)
     d = np.load(path)
     assert log.n_joints == 7 and log.n_samples == 5027
     assert log.source.torque_source == "torque"

@@ -361,3 +361,27 @@ def test_joints_that_disagree_are_not_said_to_agree() -> None:
         assert v.kind == "ok" and len(v.per_joint) == 2, v
         assert ("agrees with" in v.message) is agrees, v
         assert ("not an agreement" in v.message) is not agrees, v
+
+
+@pytest.mark.parametrize("verb", ["calibrate", "identify"])
+def test_calibrate_and_identify_refuse_currents_in_ma_as_detect_does(tmp_path: Path,
+                                                                      verb: str) -> None:
+    """A trial's calibrate accepted currents logged in mA (torque RMS 7.1e4 N·m, a
+    "+1.5e+03 kg" load) and wrote a config; only detect, step 3, refused them. Now the
+    verbs that make a config or a model refuse them too: exit 3, one line, nothing
+    written."""
+    log = read_log(CSV / "heavy_free_p2p.csv.gz")
+    log = log.slice(0, round(30 * log.sample_rate_hz))
+    import dataclasses
+
+    src = tmp_path / "log.csv"
+    write_log(dataclasses.replace(log, current=log.current * 1000.0), src)
+    out = tmp_path / ("c.toml" if verb == "calibrate" else "m.json")
+    r = CliRunner().invoke(main, [verb, str(src), "--robot",
+                                  str(CSV / "heavy_free_p2p.robot.json"), "--torque-source",
+                                  "current", "-o", str(out)])
+    assert r.exit_code == 3, r.output
+    line = r.stderr.strip().splitlines()[-1]
+    assert line.startswith(f"impactcli: error: {src}: the torque is off by ~") and \
+        "mA logged as A" in line and "Traceback" not in r.stderr
+    assert not out.exists()

@@ -13,12 +13,13 @@ import pytest
 
 from impactcli.cli.fit_table import format_fit_table
 from impactcli.errors import ImpactWarning, ModelError, RobotDescriptionError
-from impactcli.logs import read_log, write_log
+from impactcli.logs import write_log
 from impactcli.model import IdentifyOptions, identify
 from impactcli.run.model_files import read_model
 from impactcli.types import JointSpec, LogSource, RobotDescription, RobotLog
 
 from .cli_run import cli
+from .conftest import read_kuka
 from .reference.two_link_arm import TwoLinkArm, multisine
 
 JOINTS = ("shoulder", "elbow")
@@ -189,7 +190,7 @@ def test_still_joint_allowed_keeps_only_its_constant_torque() -> None:
 
 @pytest.mark.real_logs
 def test_decoupled_fit_on_the_real_kuka_log(real_logs: Path) -> None:
-    log = read_log(real_logs / "kuka_lwr4" / "measurements_1.npz", channel_map="kuka_lwr4")
+    log = read_kuka(real_logs)
     with pytest.warns(ImpactWarning) as record:
         m = identify(log)
     # the per-joint model cannot describe the base joint's coupling: worse than zero there

@@ -29,6 +29,7 @@ from impactcli.run.model_files import read_model
 from impactcli.schema import validate
 from impactcli.types import LogSource, RobotLog
 
+from .conftest import read_kuka
 from .reference.two_link_arm import multisine
 
 REPO = Path(__file__).resolve().parents[1]
@@ -224,7 +225,8 @@ def test_momentum_observer_and_inverse_dynamics_work_with_a_coupled_model() -> N
 
 # ---------------------------------------------------------------- real logs
 def _real(real_logs: Path, rel: str, cmap: str, kind: str) -> RigidModel:
-    log = read_log(real_logs / rel, channel_map=cmap)
+    log = (read_kuka(real_logs) if cmap == "kuka_lwr4"
+           else read_log(real_logs / rel, channel_map=cmap))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ImpactWarning)
         return identify(log, kind=kind, options=IdentifyOptions(allow_still_joints=True))

@@ -20,6 +20,7 @@ from impactcli.run.model_files import read_model
 from impactcli.types import LogSource, RobotLog
 
 from .cli_run import cli
+from .conftest import read_kuka
 from .reference.two_link_arm import TwoLinkArm, multisine
 
 JOINTS = ("shoulder", "elbow")
@@ -271,7 +272,7 @@ def test_detect_without_config_on_an_uncoupled_arm_keeps_decoupled(tmp_path: Pat
 # ------------------------------------------------------------------ real arms
 def test_on_the_real_kuka_log_coupled_is_chosen_where_it_predicts_better(
         real_logs: Path) -> None:
-    log = read_log(real_logs / "kuka_lwr4" / "measurements_1.npz", channel_map="kuka_lwr4")
+    log = read_kuka(real_logs)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         m = select_model([log], options=OPTS)

@@ -71,6 +71,11 @@ def identify_cmd(
     desc = read_robot(robot) if robot else None
     ropts = read_options.as_dict()
     data = read_log(log, robot=desc, **ropts)
+    if desc is not None:  # a unit's factor off the description's gravity torque: exit 3
+        from ..logs.reader import MemoryReader
+        from ..run.plan import check_torque_scale
+
+        check_torque_scale(MemoryReader(data).scan(), desc)
     options = IdentifyOptions(cutoff_hz=cutoff_hz, holdout_fraction=holdout_fraction,
                               robust=robust, coulomb_slope_rad_s=coulomb_slope,
                               allow_still_joints=allow_still)

@@ -62,6 +62,8 @@ from .plan import (
     RunPlan,
     Screened,
     check_replayable,
+    check_torque_scale,
+    description_of,
     generator_choices,
     identify_from_chunks,
     known_joints,
@@ -157,6 +159,9 @@ def calibrate_run(
     readers = [MemoryReader(lg) for lg in logs]
     scans = [r.scan() for r in readers]
     screens, left_out = _screen_calibration_logs(scans, model, cfg)
+    described = robot or description_of(model, cfg)
+    for scan, sc in zip(scans, screens, strict=True):  # a unit's factor: exit 3, as detect
+        check_torque_scale(scan, described, sc.keep)   # (a trial's mA currents passed here)
     if generator is not None:  # a new calibration: choose afresh
         cfg = dataclasses.replace(cfg, residual=dataclasses.replace(
             cfg.residual, generator=generator, generators={}))
