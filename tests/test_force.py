@@ -95,10 +95,11 @@ def test_the_mark_says_which() -> None:
     assert force_mark(Load()) == "≳"
 
 
-def test_the_force_gate_says_it_passed_lower_bounds() -> None:
-    """--fail-on-force N passes a lower bound under N and says so in one line (the exit
-    code unchanged); one above N fails the gate, printed with ≳; an estimate under
-    N gets no line."""
+def test_the_force_gate_could_not_judge_a_force_that_leaves_out_a_part() -> None:
+    """--fail-on-force N could not judge a force under N marked ≳ (part of the force turns
+    no joint: unbounded) — exit 5, one line per log; before 2026-12-01 it passed it with a
+    note, and two trials' 30–35 N pushes read ≳24 N passed limits of 26 and 33 N. One
+    above N fails the gate, printed with ≳ (1 wins); an estimate under N is judged."""
     from dataclasses import dataclass
 
     from impactcli.run.gates import Findings, gate_notes, judge
@@ -113,19 +114,19 @@ def test_the_force_gate_says_it_passed_lower_bounds() -> None:
 
     low = Findings("a.csv", 40.0, 3.0, (Inc(8.06, 2, 3.33, True), Inc(12.1, 1, 30.1, True),
                                         Inc(20.0, 2, 9.0, False)), (), ())
-    notes = gate_notes([low], fail_on_detect=False, fail_on_force=100.0)
-    assert notes == ["impactcli: a.csv: --fail-on-force 100 N: the forces of 2 incidents "
-                     "(≳3.33 to ≳30.1 N) leave out part of the force: at their postures "
-                     "part of a force at the link's end turns none of the joints up to it, "
-                     "or too little to be solved for, so the force may be larger and the "
-                     "gate passed them as far as the joints tell (force_method in the "
-                     "timeline)"]
+    failing, unjudged = judge([low], fail_on_detect=False, fail_on_force=100.0)
+    assert failing == [] and unjudged == [
+        "impactcli: a.csv: --fail-on-force 100 N could not judge the forces of 2 incidents "
+        "(≳3.33 to ≳30.1 N), which leave out part of the force: at their postures part of "
+        "a force at the link's end turns none of the joints up to it, or too little to be "
+        "solved for, so the force may be larger than N (force_method in the timeline); "
+        "exit 5"]
     failing, unjudged = judge([low], fail_on_detect=False, fail_on_force=25.0)
     assert failing == ["impactcli: a.csv: the incident at 12.100 s on link 1, ≳30.1 N, "
-                       "exceeds --fail-on-force 25 N"] and unjudged == []
-    assert gate_notes([low], fail_on_detect=False, fail_on_force=25.0)[0].startswith(
-        "impactcli: a.csv: --fail-on-force 25 N: the force of 1 incident (≳3.33 N) leaves "
-        "out part of the force: at its posture")
+                       "exceeds --fail-on-force 25 N"]
+    assert len(unjudged) == 1 and unjudged[0].startswith(
+        "impactcli: a.csv: --fail-on-force 25 N could not judge the force of 1 incident "
+        "(≳3.33 N), which leaves out part of the force: at its posture")
     est = Findings("b.csv", 40.0, 3.0, (Inc(20.0, 2, 9.0, False),), (), ())
-    assert gate_notes([est], fail_on_detect=False, fail_on_force=100.0) == []
-    assert gate_notes([low], fail_on_detect=True, fail_on_force=None) == []
+    assert judge([est], fail_on_detect=False, fail_on_force=100.0) == ([], [])
+    assert gate_notes([low], fail_on_detect=False, fail_on_force=100.0) == []

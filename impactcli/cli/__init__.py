@@ -131,7 +131,8 @@ def main(ctx: click.Context, debug: bool) -> None:
     written, or no room in TMPDIR);
     3 bad input (log, config, model, labels); 4 a batch where some inputs failed;
     5 a gate could not judge (--fail-on-detect on a log that is all warm-up,
-    --fail-on-force with an incident that has no force estimate, a truncated file;
+    --fail-on-force with an incident that has no force estimate or one that may be larger
+    (≳) under N, a payload change not told from a steady press, a truncated file;
     1 wins over 5);
     69 this machine cannot do it (view without a display);
     70 an internal error (a bug; its traceback is printed); 130 stopped by SIGINT (Ctrl-C),

@@ -165,8 +165,9 @@ MAX_ROWS = 50
                    "(could not judge) when a log's warm-up covers all of it.")
 @click.option("--fail-on-force", type=click.FloatRange(min=0), default=None, metavar="N",
               help="Exit 1 when an incident's or a lasting load's estimated contact force "
-                   "exceeds N newtons; exit 5 (could not judge) when one has no force "
-                   "estimate and none exceeds N.")
+                   "exceeds N newtons; exit 5 (could not judge) when none exceeds N but "
+                   "one has no force estimate, or one marked ≳ (part of the force unseen) "
+                   "or a payload change not told from a steady press may exceed it.")
 @generator_option
 @click.option("--allow-slow", is_flag=True,
               help="Run a replay estimated slower than real time or above 2 GiB of "
@@ -194,8 +195,9 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     with the incident or lasting load above the force named on stderr); 2 when an output
     cannot be written (a full disk: the output named); 3 on a bad input; 4 when some logs
     of a batch failed (the others' outputs are written); 5 when a gate could not judge (a
-    log all warm-up with --fail-on-detect, an incident without a force estimate with
-    --fail-on-force, a truncated file with either; 1 wins over 5); 70 on an internal error (a bug,
+    log all warm-up with --fail-on-detect, an incident without a force estimate or with
+    one marked ≳ under N with --fail-on-force, a payload change not told from a steady
+    press or a truncated file with either; 1 wins over 5); 70 on an internal error (a bug,
     with its traceback) — never 1; 130 on SIGINT (Ctrl-C) and 143 on SIGTERM (the logs
     finished are listed, their outputs kept); 141 when stdout's reader closed early
     (| head). Run into a folder it wrote before, it redoes every log and removes the

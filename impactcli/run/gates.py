@@ -9,13 +9,13 @@ after the cut), when its warm-up ran on past its least length with alarms there 
 evaluator had not settled: not counted, not judged), or when an incident or lasting load
 has no force estimate, or one no one can trust because the log's torque scale is off the
 robot description's gravity torque, or when a lasting load under N kept its detector
-alarming, blind to a contact on its joints (``--fail-on-force``), or when a payload change
+alarming, blind to a contact on its joints, or when a force under N leaves out a part the
+joints do not feel (``--fail-on-force``), or when a payload change
 was not told from a contact (its inertia did not show, so a steady press along gravity would
 look the same; for ``--fail-on-force`` one whose press would pass N). Each verdict is one
 line naming the log and why (docs/formats.md, "Command line"). Payload changes fail no
 gate (exit 1); with a gate asked, a log with some gets a line saying how long a contact
-would have joined their alarms uncounted, and with ``--fail-on-force`` a log whose passing
-forces leave out a part a line saying so (:func:`gate_notes`), the exit code unchanged.
+would have joined their alarms uncounted (:func:`gate_notes`), the exit code unchanged.
 """
 
 from __future__ import annotations
@@ -100,6 +100,7 @@ def judge(findings: Sequence[Findings], *, fail_on_detect: bool,
         unjudged += [line for f in findings if (line := _scale_off(f, limit))]
         unjudged += [line for f in findings if (line := _defect_force(f, limit))]
         unjudged += [line for f in findings if (line := _blind(f, limit))]
+        unjudged += [line for f in findings if (line := _at_least(f, limit))]
     if fail_on_detect or fail_on_force is not None:
         gate = "--fail-on-detect" if fail_on_detect else f"--fail-on-force {fail_on_force:g} N"
         unjudged += [line for f in findings
@@ -154,16 +155,12 @@ def gate_notes(findings: Sequence[Findings], *, fail_on_detect: bool,
                fail_on_force: float | None) -> list[str]:
     """With a gate asked, a line per log with payload changes: they fail no gate (a load
     picked or released is normal work), and a contact in their alarms was judged only as
-    each one's ``contact_watch`` says — so the exit code does not speak for that time; with
-    ``--fail-on-force``, a line per log whose findings under the limit have a force that
-    leaves out a part the joints do not feel (:func:`_at_least`)."""
+    each one's ``contact_watch`` says — so the exit code does not speak for that time."""
     if not fail_on_detect and fail_on_force is None:
         return []
     gate = "--fail-on-detect" if fail_on_detect else f"--fail-on-force {fail_on_force:g} N"
     out = []
     for f in findings:
-        if fail_on_force is not None and (line := _at_least(f, fail_on_force)):
-            out.append(line)
         if not f.payload_changes:
             continue
         watched = [c["contact_watch"] for c in f.payload_changes if c.get("contact_watch")]
@@ -186,7 +183,9 @@ def gate_notes(findings: Sequence[Findings], *, fail_on_detect: bool,
 def _at_least(f: Findings, limit: float) -> str | None:
     """The line of a log whose incidents or lasting loads under ``limit`` have a force that
     leaves out a part (of a force at the link's end, not seen in the joints' torques:
-    ``force_at_least``), or None: --fail-on-force passed them as far as the joints tell."""
+    ``force_at_least``), or None: --fail-on-force could not judge them (exit 5) — the part
+    unseen has no bound (two trials' 30 and 35 N pushes, read ≳24 and ≳24 N, passed a
+    limit of 26 and 33 N with exit 0 and a note)."""
     low = [x for x in (*f.incidents, *f.lasting_loads)
            if x.force_n is not None and x.force_n <= limit and x.force_at_least
            and not scale_untrusted(x)]  # those it could not judge
@@ -201,12 +200,11 @@ def _at_least(f: Findings, limit: float) -> str | None:
                            else []))
     one = len(low) == 1
     are = "leaves out" if one else "leave out"
-    return (f"impactcli: {shown(f.log_path)}: --fail-on-force {limit:g} N: the force"
-            f"{'' if one else 's'} of {what} ({span}) {are} part of the force"
+    return (f"impactcli: {shown(f.log_path)}: --fail-on-force {limit:g} N could not judge "
+            f"the force{'' if one else 's'} of {what} ({span}), which {are} part of the force"
             f": at {'its' if one else 'their'} posture{'' if one else 's'} part of a force at "
             "the link's end turns none of the joints up to it, or too little to be solved "
-            f"for, so the force may be larger and the gate passed {'it' if one else 'them'} "
-            "as far as the joints tell (force_method in the timeline)")
+            "for, so the force may be larger than N (force_method in the timeline); exit 5")
 
 
 def _found(f: Findings) -> str:
