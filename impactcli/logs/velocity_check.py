@@ -34,6 +34,10 @@ MIN_STEPS = 10
 MIN_S = 0.08
 #: At most this many stretches are kept (all are counted).
 MAX_KEPT = 100
+#: The two agree elsewhere when they disagree on at most this share of all steps: else
+#: the velocity channel is not these positions' derivative (another quantity, a coarse
+#: estimate), and its stretches say nothing of the data.
+AGREE_SHARE = 0.05
 
 
 @dataclass(frozen=True)
@@ -63,6 +67,8 @@ class VelocityAgreement:
         self.run_joints = np.zeros(n_joints, dtype=bool)
         self.found: list[Disagreement] = []  # the first MAX_KEPT
         self.n_found = 0
+        self.steps = 0  # steps judged, and those where the two disagreed
+        self.bad_steps = 0
 
     def add(self, t_ns: np.ndarray, q: np.ndarray, v: np.ndarray) -> None:
         """Rows ``t_ns`` (n,) int64, positions ``q`` and velocities ``v`` (n, J) [rad,
@@ -86,6 +92,8 @@ class VelocityAgreement:
         bad &= np.isfinite(gap) & (dt[:, None] > 0)
         any_bad = bad.any(axis=1)
         n = int(any_bad.size)
+        self.steps += n
+        self.bad_steps += int(np.count_nonzero(any_bad))
         if self.open and not any_bad[0]:
             self._close()
         edges = np.diff(np.concatenate(([0], any_bad.astype(np.int8), [0])))
@@ -131,10 +139,10 @@ def disagreement_message(where: str, agreement: VelocityAgreement, keep: list[in
                          joints: tuple[str, ...], first_ns: int, last_ns: int) -> str | None:
     """The warning naming where the logged velocity and the positions tell two motions
     (on the kept joints; times in s since the log's first sample, ``first_ns``), or None.
-    Only for a velocity that is these positions' derivative elsewhere (the caller's test
-    of the rate it implies)."""
+    Only for a velocity that is these positions' derivative elsewhere: the caller's test of
+    the rate it implies, and disagreeing on at most :data:`AGREE_SHARE` of the steps."""
     found = [d for d in agreement.finish() if any(j in keep for j in d.joints)]
-    if not found:
+    if not found or agreement.bad_steps > AGREE_SHARE * agreement.steps:
         return None
     uncounted = agreement.n_found - len(agreement.found)  # beyond those kept
     def when(d: Disagreement) -> str:
