@@ -353,3 +353,30 @@ def test_a_batch_with_a_failed_log_still_says_the_gate_the_others_tripped(
     assert (f"impactcli: {log.name}: --fail-on-detect: {n} incident{'s' if n > 1 else ''} "
             "after warm-up — a log that failed wins: exit 4") in err.splitlines(), err
     assert "1 of 2 logs failed" in err
+
+
+def test_a_current_only_log_is_read_with_the_configs_robot(tmp_path: Path) -> None:
+    """A trial's current-only log, detected with its config as README step 3 writes it,
+    stopped with "joint 'j1' has only current; … needs a robot description (--robot)",
+    though the config's model holds the robot with its gear ratios and torque constants.
+    The model's robot now turns the current into torque: the same incidents as the log
+    with its torque (the sample logs' current × gear ratio × torque constant is their
+    torque)."""
+    import pandas as pd
+
+    src = tmp_path / "currents.csv"
+    frame = pd.read_csv(IMPACTS)
+    frame.drop(columns=[c for c in frame.columns if c.endswith(".torque")]).to_csv(
+        src, index=False)
+    code, _, err = cli("detect", str(src), "--config", str(CONFIG), "-o",
+                       str(tmp_path / "c"))
+    assert code == 0, err
+    code, _, err = cli("detect", str(IMPACTS), "--config", str(CONFIG), "-o",
+                       str(tmp_path / "t"))
+    assert code == 0, err
+    docs = [json.loads(p.read_text("utf-8")) for p in
+            (tmp_path / "c" / "currents.timeline.json",
+             tmp_path / "t" / "assist_impacts.timeline.json")]
+    assert docs[0]["input"]["torque_source"] == "current"
+    assert [round(i["t_start"], 3) for i in docs[0]["incidents"]] == \
+        [round(i["t_start"], 3) for i in docs[1]["incidents"]]

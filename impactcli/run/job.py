@@ -122,7 +122,15 @@ def run_log(
     from ..outputs.signals import SignalsWriter
 
     opts = read_options or ReadOptions()
-    read_kw = opts.as_dict() if robot is None else dict(opts.as_dict(), robot=robot)
+    from ..config import DetectorConfig
+    from .plan import description_of
+
+    # a current is turned into torque by --robot, else the model's robot (--model, else the
+    # config's): a trial's current-only log needed --robot again beside its config
+    described = robot if robot is not None else description_of(model,
+                                                                config or DetectorConfig())
+    read_kw = (opts.as_dict() if described is None
+               else dict(opts.as_dict(), robot=described))
     reader = open_log(log_path, **read_kw)
     bar = None
     collector = None
