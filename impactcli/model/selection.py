@@ -284,6 +284,8 @@ def choose(coupled: Sequence[Rows], names: Sequence[str], options: IdentifyOptio
     record["chosen"] = kind
     record["named"] = named is not None
     record["reason"] = _reason(kind, per_joint, len(folds), part, named is not None)
+    if named is not None and (odd := _named_misfit(kind, per_joint, names)) is not None:
+        warnings.warn(odd, ImpactWarning, stacklevel=2)
     return Choice(kind, tuple(lambdas), record,
                   payloads=bool(record.get("payload", {}).get("chosen")))
 
@@ -384,6 +386,32 @@ def named_errors(rows: Sequence[Rows], names: Sequence[str],
                     "rel_mse": float(np.mean(mse[:, j] / tms)),
                     "parts_rms_nm": [float(np.sqrt(v)) for v in mse[:, j]]})
     return out
+
+
+#: The robot's kinematics predict a joint's held-back torque this many times worse than a
+#: model without kinematics: the description is likely not this arm's (the sample arms'
+#: planar descriptions predict 0.75–0.9× the coupled model's error; a trial's swapped
+#: joint order, 1.85×).
+MISFIT_FACTOR = 1.5
+
+
+def _named_misfit(kind: str, per: dict[str, Any], names: Sequence[str]) -> str | None:
+    """The warning when the named kinematics predict some joint's held-back torque more
+    than :data:`MISFIT_FACTOR` times worse than the best model without them, else None."""
+    worse = {}
+    for j, e in per.items():
+        best = min(e[k]["rms_nm"] for k in ("decoupled", "coupled") if k in e)
+        if e[kind]["rms_nm"] > MISFIT_FACTOR * best:
+            worse[j] = (e[kind]["rms_nm"], best)
+    if not worse:
+        return None
+    j = max(worse, key=lambda x: worse[x][0] / worse[x][1])
+    a, b = worse[j]
+    return (f"{', '.join(names)}: the robot's {kind} kinematics predict the held-back torque "
+            f"of {', '.join(worse)} worse than a model without them ({j}: {a:.3g} against "
+            f"{b:.3g} N·m RMS): the description may not be this arm's — its joints in chain "
+            "order from the base, a planar arm's first angle from the horizontal, its link "
+            "lengths (docs/formats.md, 'Robot description'); forces and links follow it")
 
 
 def _joint_reason(jn: str, e: dict[str, Any], k: int, part: str) -> str:
