@@ -124,6 +124,23 @@ def test_the_real_kuka_logs_end_and_no_other_real_stretch(real_logs: Path) -> No
         assert r.exit_code == 0 and "tell two motions" not in r.stderr, r.stderr
 
 
+@pytest.mark.real_logs
+def test_the_real_kuka_logs_last_incident_is_marked(real_logs: Path, tmp_path: Path) -> None:
+    """detect on the real KUKA log (uncalibrated): its one counted incident, from 24.824 s
+    to the log's end, runs into the stretch — marked, still counted, said on its row."""
+    import json
+
+    r = invoke("detect", str(real_logs / "kuka_lwr4" / "measurements_1.npz"),
+               "--channel-map", "kuka_lwr4", "-o", str(tmp_path))
+    assert r.exit_code == 0, r.output
+    tl = json.loads((tmp_path / "measurements_1.timeline.json").read_text("utf-8"))
+    counted = [i for i in tl["incidents"] if i["number"] is not None]
+    assert len(counted) == 1 and counted[0]["velocity_disagrees"]["joints"] == [
+        f"a{k}" for k in range(1, 8)]
+    assert counted[0]["t_start"] < counted[0]["velocity_disagrees"]["t_start"]
+    assert "the logged velocity and positions disagree from 25.014 s" in r.stdout
+
+
 def test_many_stretches_are_all_counted_and_a_few_named() -> None:
     """A channel that disagrees again and again (120 stretches of 20 steps, 100 ms, in
     300 s: 4 % of the steps): MAX_KEPT kept, every one counted, MAX_NAMED named and the rest
@@ -145,3 +162,30 @@ def test_many_stretches_are_all_counted_and_a_few_named() -> None:
     agree.add(t, q, bad + np.where(np.arange(len(t)) % 7 == 0, 1.0, 0.0)[:, None])
     assert agree.bad_steps > 0.05 * agree.steps and disagreement_message(
         "x.csv", agree, [0, 1], ("a", "b"), int(t[0]), int(t[-1])) is None
+
+
+def test_an_incident_overlapping_a_stretch_is_marked_and_said() -> None:
+    """An incident whose span meets a stretch of two motions carries it (still counted);
+    one that ends before it, or begins after, does not; the terminal's row and the
+    report's verdict say it."""
+    from impactcli.cli.detect import _incident_line
+    from impactcli.detect.incidents import Incident, mark_disagreeing
+    from impactcli.outputs.report.summary import verdict_text
+
+    def inc(a: float, b: float) -> Incident:
+        return Incident(a, b, int(a * 200), int(b * 200), ("adaptive",), ("a2",), 2, None,
+                        "no kinematics", "transient", {"a2": -6.5}, False, number=1)
+
+    stretch = ((25.014, 25.129, ("a1", "a2")),)
+    marked = mark_disagreeing([inc(24.824, 25.129), inc(20.0, 24.9), inc(25.2, 25.3)],
+                              stretch)
+    assert marked[0].velocity_disagrees == {"t_start": 25.014, "t_end": 25.129,
+                                            "joints": ["a1", "a2"]}
+    assert [m.velocity_disagrees for m in marked[1:]] == [None, None]
+    assert mark_disagreeing([inc(24.824, 25.129)], ()) == [inc(24.824, 25.129)]
+    d = marked[0].to_dict()
+    assert "the logged velocity and positions disagree from 25.014 s (velocity_disagrees " \
+        "in the timeline)" in _incident_line(1, d)  # type: ignore[arg-type]
+    assert verdict_text([d]).endswith(" Counted, though maybe no new contact: 1 where the "
+                                      "log's velocity and positions tell two motions (maybe "
+                                      "the data's).")

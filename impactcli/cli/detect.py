@@ -95,6 +95,10 @@ def _incident_line(k: int, inc: IncidentRow, link_width: int = 7,
         flag += "  outside the calibrated motion (outside_envelope in the timeline)"
     if unseen_flag and "unseen_load_kg" in inc:  # said once above when all of them are
         flag += "  under a load no calibration log carried (unseen_load_kg in the timeline)"
+    if inc.get("velocity_disagrees"):  # the residual there may be the data's
+        flag += (f"  the logged velocity and positions disagree from "
+                 f"{inc['velocity_disagrees']['t_start']:.3f} s (velocity_disagrees in the "
+                 "timeline)")
     if inc.get("aftermath"):  # up to its colon: "in the aftermath of incident 5 at 35.048 s"
         flag += f"  {inc['aftermath'].split(':')[0]} (aftermath in the timeline)"
     if inc.get("resumes_load"):  # up to its colon: "resumes the lasting load of … dip"

@@ -89,6 +89,7 @@ class Incident:
     force_at_least: bool = False
     unseen_load_kg: float | None = None
     resumes_load: dict[str, Any] | None = None
+    velocity_disagrees: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (timeline ``incidents`` item); ``outside_envelope`` only when
@@ -102,7 +103,9 @@ class Incident:
         while the arm had not settled after an earlier incident
         (:func:`impactcli.detect.aftermath.aftermath_of`, with its ``text``),
         ``unseen_load_kg`` only when it starts while the arm carried a load no calibration
-        log carried (:func:`impactcli.run.loads.unseen_spans`)."""
+        log carried (:func:`impactcli.run.loads.unseen_spans`), ``velocity_disagrees`` only
+        when it overlaps a stretch where the logged velocity and positions tell two motions
+        (:func:`mark_disagreeing`)."""
         return {
             "t_start": self.t_start, "t_end": self.t_end, "t_start_utc": self.t_start_utc,
             "detectors": list(self.detectors), "joints": list(self.joints), "link": self.link,
@@ -122,7 +125,28 @@ class Incident:
             **({} if self.aftermath is None else {"aftermath": self.aftermath}),
             **({} if self.unseen_load_kg is None else {"unseen_load_kg": self.unseen_load_kg}),
             **({} if self.resumes_load is None else {"resumes_load": self.resumes_load}),
+            **({} if self.velocity_disagrees is None
+               else {"velocity_disagrees": self.velocity_disagrees}),
         }
+
+
+def mark_disagreeing(incidents: Sequence[Incident],
+                     stretches: Sequence[tuple[float, float, tuple[str, ...]]]
+                     ) -> list[Incident]:
+    """The incidents, one that overlaps a stretch where the logged velocity and the
+    positions tell two motions (``stretches``: (from [s], to [s], joints), the scan's:
+    :mod:`impactcli.logs.velocity_check`) marked with its first such stretch
+    (``velocity_disagrees``: ``t_start``, ``t_end``, ``joints``) — still counted: the
+    residual there may be the data's (the real KUKA log's last incident runs into it)."""
+    if not stretches:
+        return list(incidents)
+    out = []
+    for inc in incidents:
+        hit = next(((a, b, j) for a, b, j in stretches
+                    if a <= inc.t_end and inc.t_start <= b), None)
+        out.append(inc if hit is None else replace(inc, velocity_disagrees={
+            "t_start": hit[0], "t_end": hit[1], "joints": list(hit[2])}))
+    return out
 
 
 @dataclass(frozen=True)

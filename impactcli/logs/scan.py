@@ -40,7 +40,11 @@ from .poses import PoseSample, pose_explained
 from .repair import MAX_RATE_HZ, MIN_RATE_HZ, Repairer, RepairOrderNeeded, increasing_run
 from .row_cache import RowCache
 from .screen import ColumnScreen, ScreenAccumulator
-from .velocity_check import VelocityAgreement, disagreement_message
+from .velocity_check import (
+    VelocityAgreement,
+    disagreement_message,
+    disagreement_stretches,
+)
 
 #: The first pass keeps the steps longer than this fraction of 1.5 provisional periods as
 #: gap candidates (exact while the final threshold is above; else a second pass).
@@ -93,6 +97,9 @@ class LogScan:
         poses: a bounded sample of the log's poses (:mod:`impactcli.logs.poses`), and
             ``torque_posed`` (J,) whether each joint's torque varies with them (a measured
             channel, :func:`~impactcli.logs.poses.pose_explained`).
+        disagreements: where the logged velocity and the positions tell two motions
+            (:func:`~impactcli.logs.velocity_check.disagreement_stretches`: from, to [s],
+            joints).
     """
 
     log: RobotLog
@@ -114,6 +121,8 @@ class LogScan:
     n_jumps: int = 0
     poses: PoseSample | None = field(default=None, repr=False, compare=False)
     torque_posed: np.ndarray | None = field(default=None, repr=False, compare=False)
+    disagreements: tuple[tuple[float, float, tuple[str, ...]], ...] = field(
+        default=(), compare=False)
 
     def close(self) -> None:
         """Close the reader the scan was made by (its cache of the repaired rows, a URL's
@@ -547,10 +556,12 @@ class _ScanAcc:
         clock = self.hist.clock()
         vel = self.velocity_rate(keep, clock.sample_rate_hz)
         said += [vel] if vel is not None else []
+        two: tuple[tuple[float, float, tuple[str, ...]], ...] = ()
         if self.velocity_is_derivative(keep, clock.sample_rate_hz):
-            two = disagreement_message(ctx.where, self.agreement, keep, joints,
-                                       int(self.head_t[0]), int(self.hist.last or 0))
-            said += [two] if two is not None else []
+            told = disagreement_message(ctx.where, self.agreement, keep, joints,
+                                        int(self.head_t[0]), int(self.hist.last or 0))
+            said += [told] if told is not None else []
+            two = disagreement_stretches(self.agreement, keep, joints, int(self.head_t[0]))
         for msg in (*said, *limit_msgs):
             warnings.warn(msg, ImpactWarning, stacklevel=3)
         optional = tuple(s for s in OPTIONAL_CHANNELS if getattr(log, s) is not None)
@@ -574,7 +585,8 @@ class _ScanAcc:
                        screens=screens, options=dict(options), reader=reader,
                        ranges={s: ranges[s] for s in _arrays_of(log)},
                        position_unit=verdict, warnings=(*said, *limit_msgs), jumps=jumps,
-                       n_jumps=len(jumps), poses=poses, torque_posed=posed)
+                       n_jumps=len(jumps), poses=poses, torque_posed=posed,
+                       disagreements=two)
         return scan, ps
 
 

@@ -160,3 +160,17 @@ def disagreement_message(where: str, agreement: VelocityAgreement, keep: list[in
             + ", where they agree elsewhere: one of them is not the arm's motion there (a "
             "recording's end processed apart, a filter's edge, a frozen channel), so an "
             "incident there may be the data's, not a contact")
+
+
+def disagreement_stretches(agreement: VelocityAgreement, keep: list[int],
+                           joints: tuple[str, ...], first_ns: int
+                           ) -> tuple[tuple[float, float, tuple[str, ...]], ...]:
+    """The stretches :func:`disagreement_message` names, as (from [s], to [s], the kept
+    joints that disagreed) since the log's first sample (``first_ns``); () when it names
+    none. The incidents that overlap one are marked
+    (:func:`impactcli.detect.incidents.mark_disagreeing`)."""
+    found = [d for d in agreement.finish() if any(j in keep for j in d.joints)]
+    if not found or agreement.bad_steps > AGREE_SHARE * agreement.steps:
+        return ()
+    return tuple(((d.t_start_ns - first_ns) * 1e-9, (d.t_end_ns - first_ns) * 1e-9,
+                  tuple(joints[j] for j in d.joints if j in keep)) for d in found)

@@ -99,6 +99,7 @@ class IncidentRow(TypedDict):
     unseen_load_kg: NotRequired[float]
     off_scale: NotRequired[bool]
     resumes_load: NotRequired[str]
+    velocity_disagrees: NotRequired[dict[str, Any]]
 
 
 def _incident_row(i: Any) -> IncidentRow:
@@ -126,6 +127,8 @@ def _incident_row(i: Any) -> IncidentRow:
         row["off_scale"] = True
     if i.resumes_load is not None:
         row["resumes_load"] = i.resumes_load["text"]
+    if i.velocity_disagrees is not None:
+        row["velocity_disagrees"] = i.velocity_disagrees
     return row
 
 

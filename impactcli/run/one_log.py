@@ -58,6 +58,7 @@ from ..detect.incidents import (
     LastingLoad,
     adaptive_memory_s,
     mark_defects,
+    mark_disagreeing,
     mark_payload_changes,
     mark_resumed,
     on_at_warmup_end,
@@ -365,7 +366,8 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
             lambda inc, change: None if change.part is None else beside(ctx, inc, change.part))
         uncalibrated = unseen_spans(plan.model, plan.start_load, changes,
                                     scan.duration_s + scan.sample_period_s)
-        incidents = mark_unseen(number_incidents(marked), uncalibrated)
+        incidents = mark_disagreeing(mark_unseen(number_incidents(marked), uncalibrated),
+                                     scan.disagreements)  # the data's, maybe (velocity_check)
         loads = mark_unseen(loads, uncalibrated)
         if monitor is not None:  # what the alarms the monitor weighed are not
             incidents = mark_tried(incidents, monitor.tried, cfg.events.merge_gap_s)

@@ -307,9 +307,12 @@ def _maybe_not(counted: Sequence[dict[str, Any]]) -> str:
     3 of them so."""
     after = sum(1 for i in counted if i.get("aftermath"))
     again = sum(1 for i in counted if i.get("resumes_load"))
+    data = sum(1 for i in counted if i.get("velocity_disagrees"))
     said = ([f"{after} began in an earlier incident's aftermath, the arm not settled (maybe "
              "its ringing)"] if after else []) + (
-        [f"{again} just after a lasting load ended (maybe that load again)"] if again else [])
+        [f"{again} just after a lasting load ended (maybe that load again)"] if again else []
+    ) + ([f"{data} where the log's velocity and positions tell two motions (maybe the "
+          "data's)"] if data else [])
     if not said:
         return ""
     return (" Counted, though maybe no new contact: " + " and ".join(said) + ".")
