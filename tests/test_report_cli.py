@@ -260,3 +260,23 @@ def test_an_output_named_for_another_format_is_a_usage_error_before_any_work(
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"impactcli: error: {tmp_path}/{named}")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_report_reads_the_folder_detect_wrote(tmp_path: Path) -> None:
+    """A trial gave `report` the folder `detect -o` had written and read "a folder without
+    any log" (exit 3). A folder with no log stands for the timelines in it; an empty one
+    is still that error."""
+    out = tmp_path / "out"
+    r = invoke("detect", "sample_logs/csv/assist_pushes.csv.gz",
+               "sample_logs/csv/assist_clamps.csv.gz", "--config",
+               "sample_logs/assist_like.config.toml", "-o", str(out))
+    assert r.exit_code == 0, r.output
+    js = tmp_path / "r.json"
+    r = invoke("report", str(out), "-o", str(tmp_path / "r.html"), "--json", str(js))
+    assert r.exit_code == 0, r.output
+    doc = json.loads(js.read_text("utf-8"))
+    assert [x["stem"] for x in doc["logs"]] == ["assist_clamps", "assist_pushes"]
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    r = invoke("report", str(empty), "-o", str(tmp_path / "e.html"))
+    assert r.exit_code == 3 and "a folder without any log" in r.stderr, r.output

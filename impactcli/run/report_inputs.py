@@ -282,12 +282,20 @@ def analyze_input(task: ReportTask) -> ReportPart:
 
 
 def local_inputs(patterns: Sequence[str]) -> tuple[Path, ...]:
-    """Inputs as local paths: globs expanded, ``file://`` URLs resolved; a remote URL is a
-    usage error (download it first: the report reads its logs beside the timelines)."""
+    """Inputs as local paths: globs expanded, ``file://`` URLs resolved, a folder of no log
+    as the timelines in it (``detect -o``'s); a remote URL is a usage error (download it
+    first: the report reads its logs beside the timelines)."""
+    from ..logs.paths import folder_logs, is_rosbag2_folder
     from ..logs.urls import expand_inputs, local_path
 
+    def timelines(pat: str) -> list[str]:  # detect's -o folder: its timelines (a trial
+        p = Path(pat)                       # gave it and read "a folder without any log")
+        if not p.is_dir() or is_rosbag2_folder(p) or folder_logs(p):
+            return [pat]
+        return sorted(str(x) for x in p.glob("*.timeline.json")) or [pat]
+
     out = []
-    for item in expand_inputs(patterns):
+    for item in expand_inputs([x for pat in patterns for x in timelines(str(pat))]):
         local = local_path(item)
         if local is None:
             raise UsageProblem(f"{item}: report inputs must be local files or file:// URLs "
