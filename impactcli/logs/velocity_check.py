@@ -141,8 +141,8 @@ def disagreement_message(where: str, agreement: VelocityAgreement, keep: list[in
     (on the kept joints; times in s since the log's first sample, ``first_ns``), or None.
     Only for a velocity that is these positions' derivative elsewhere: the caller's test of
     the rate it implies, and disagreeing on at most :data:`AGREE_SHARE` of the steps."""
-    found = [d for d in agreement.finish() if any(j in keep for j in d.joints)]
-    if not found or agreement.bad_steps > AGREE_SHARE * agreement.steps:
+    found = _named(agreement, keep)
+    if not found:
         return None
     uncounted = agreement.n_found - len(agreement.found)  # beyond those kept
     def when(d: Disagreement) -> str:
@@ -165,12 +165,17 @@ def disagreement_message(where: str, agreement: VelocityAgreement, keep: list[in
 def disagreement_stretches(agreement: VelocityAgreement, keep: list[int],
                            joints: tuple[str, ...], first_ns: int
                            ) -> tuple[tuple[float, float, tuple[str, ...]], ...]:
-    """The stretches :func:`disagreement_message` names, as (from [s], to [s], the kept
-    joints that disagreed) since the log's first sample (``first_ns``); () when it names
+    """The stretches :func:`disagreement_message` is about, as (from [s], to [s], the kept
+    joints that disagreed) since the log's first sample (``first_ns``); () when it says
     none. The incidents that overlap one are marked
     (:func:`impactcli.detect.incidents.mark_disagreeing`)."""
-    found = [d for d in agreement.finish() if any(j in keep for j in d.joints)]
-    if not found or agreement.bad_steps > AGREE_SHARE * agreement.steps:
-        return ()
     return tuple(((d.t_start_ns - first_ns) * 1e-9, (d.t_end_ns - first_ns) * 1e-9,
-                  tuple(joints[j] for j in d.joints if j in keep)) for d in found)
+                  tuple(joints[j] for j in d.joints if j in keep))
+                 for d in _named(agreement, keep))
+
+
+def _named(agreement: VelocityAgreement, keep: list[int]) -> list[Disagreement]:
+    """The stretches on kept joints, where the two agree elsewhere (on all but at most
+    :data:`AGREE_SHARE` of the steps); [] else."""
+    found = [d for d in agreement.finish() if any(j in keep for j in d.joints)]
+    return found if agreement.bad_steps <= AGREE_SHARE * agreement.steps else []
