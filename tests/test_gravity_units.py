@@ -363,13 +363,13 @@ def test_joints_that_disagree_are_not_said_to_agree() -> None:
         assert ("not an agreement" in v.message) is not agrees, v
 
 
-@pytest.mark.parametrize("verb", ["calibrate", "identify"])
+@pytest.mark.parametrize("verb", ["calibrate", "identify", "inspect"])
 def test_calibrate_and_identify_refuse_currents_in_ma_as_detect_does(tmp_path: Path,
                                                                       verb: str) -> None:
     """A trial's calibrate accepted currents logged in mA (torque RMS 7.1e4 N·m, a
-    "+1.5e+03 kg" load) and wrote a config; only detect, step 3, refused them. Now the
-    verbs that make a config or a model refuse them too: exit 3, one line, nothing
-    written."""
+    "+1.5e+03 kg" load) and wrote a config, and inspect showed "j1 4.7e+04…8.5e+04" without
+    a word; only detect, step 3, refused them. Now inspect --robot and the verbs that make
+    a config or a model refuse them too: exit 3, one line, nothing written."""
     log = read_log(CSV / "heavy_free_p2p.csv.gz")
     log = log.slice(0, round(30 * log.sample_rate_hz))
     import dataclasses
@@ -379,7 +379,7 @@ def test_calibrate_and_identify_refuse_currents_in_ma_as_detect_does(tmp_path: P
     out = tmp_path / ("c.toml" if verb == "calibrate" else "m.json")
     r = CliRunner().invoke(main, [verb, str(src), "--robot",
                                   str(CSV / "heavy_free_p2p.robot.json"), "--torque-source",
-                                  "current", "-o", str(out)])
+                                  "current", *(["-o", str(out)] if verb != "inspect" else [])])
     assert r.exit_code == 3, r.output
     line = r.stderr.strip().splitlines()[-1]
     assert line.startswith(f"impactcli: error: {src}: the torque is off by ~") and \

@@ -101,10 +101,12 @@ def write_log(log: RobotLog, path: str | os.PathLike[str], *, mcap_encoding: str
     write(log, path, mcap_encoding=mcap_encoding)
 
 
-def inspect_log(path: str | os.PathLike[str], **kwargs: Any) -> dict[str, Any]:
+def inspect_log(path: str | os.PathLike[str], check: Any = None,
+                **kwargs: Any) -> dict[str, Any]:
     """Describe a log as a JSON-ready dict (``schemas/inspect.schema.json``) from its scan
     and its sample times (:func:`impactcli.logs.describe.describe_log`; 8 bytes a sample in
-    memory, not the samples).
+    memory, not the samples). ``check(scan)``, when given, is called on the scan first
+    (``inspect --robot``: the torque's scale against the description's gravity torque).
 
     Takes the same keyword arguments as :func:`read_log`.
     """
@@ -115,5 +117,7 @@ def inspect_log(path: str | os.PathLike[str], **kwargs: Any) -> dict[str, Any]:
 
     with describing(), open_log(path, **kwargs) as reader:  # a log it cannot convert yet
         scan = reader.scan()                                  # is still described
+        if check is not None:
+            check(scan)
         t_ns = np.concatenate(list(reader.times()))
         return inspect.describe_log(scan, t_ns)
