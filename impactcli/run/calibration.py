@@ -456,12 +456,13 @@ def _one_load_each(logs: list[RobotLog], labels: Sequence[Labels | None] | None,
     model weighs one load per log, and a log that carries two would be fitted with their
     mean and widen every threshold (a trial's pick-and-place log among the free logs: vL
     30× wider, every push of an audited log missed, "predicted 18 false alarms per hour")."""
+    from ..quality.payload_scores import labelled_steps
+
     out = []
     for i, lg in enumerate(logs):
         lab = labels[i] if labels is not None and i < len(labels) else None
-        steps = sorted(float(x["t_s"]) for x in (lab.extra.get("payload_changes") or ()
-                                                 if lab is not None else ())
-                       if float(x.get("mass_kg", 0.0)) != 0.0)
+        steps = sorted(float(x["t_s"]) for x in labelled_steps(
+            lab.extra.get("payload_changes") or () if lab is not None else ()))
         if not steps:
             out.append(lg)
             continue
