@@ -239,10 +239,14 @@ class WarmupConfig:
 
 @dataclass(frozen=True)
 class LogRecord:
-    """A log a config was calibrated on: path as given and sha256 of its bytes."""
+    """A log a config was calibrated on: path as given, sha256 of its bytes, and the
+    channel its torque was read from (``torque`` or ``current``; None: not recorded,
+    configs before 2026-12-01). detect warns when an audited log's differs
+    (:func:`impactcli.run.run_warnings.warn_torque_source`)."""
 
     path: str
     sha256: str
+    torque_source: str | None = None
 
 
 @dataclass(frozen=True)

@@ -136,3 +136,61 @@ def test_a_log_with_one_source_says_nothing(tmp_path: Path) -> None:
     code, out, err = cli("inspect", log, "--robot", ROBOT, "--json")
     assert code == 0, err
     assert "torque_sources" not in json.loads(out)
+
+
+HEAVY = REPO / "sample_logs" / "csv"
+
+
+@pytest.fixture(scope="module")
+def on_current(tmp_path_factory) -> Path:
+    """A config calibrated on the heavy arm's free logs read through ``.current`` (its
+    residual is the tool's own model, which reads the torque)."""
+    cfg = tmp_path_factory.mktemp("on_current") / "c.toml"
+    code, _, err = cli("calibrate", HEAVY / "heavy_free_p2p.csv.gz",
+                       HEAVY / "heavy_free_triangle.csv.gz", "--robot",
+                       HEAVY / "heavy_free_p2p.robot.json", "--torque-source", "current",
+                       "-o", cfg)
+    assert code == 0, err
+    return cfg
+
+
+def test_the_config_records_each_logs_torque_source(on_current: Path) -> None:
+    from impactcli.config import load_config
+
+    logs = load_config(on_current).calibration.logs
+    assert [lg.torque_source for lg in logs] == ["current", "current"]
+
+
+def test_detect_warns_of_a_log_read_from_another_source(on_current: Path,
+                                                        tmp_path: Path) -> None:
+    """The default rule reads the audited log's ``.torque``; its thresholds were set on
+    ``.current``: said, with the option that reads it as calibrated — and not said then."""
+    log = HEAVY / "heavy_impacts.csv.gz"
+    code, _, err = cli("detect", log, "--config", on_current, "-o", tmp_path / "a")
+    assert code == 0, err
+    said = [ln for ln in err.splitlines() if "calibrated on .current" in ln]
+    assert len(said) == 1 and "its torque is read from .torque" in said[0]
+    assert "both its calibration logs" in said[0] and "--torque-source current" in said[0]
+    timeline = json.loads((tmp_path / "a" / "heavy_impacts.timeline.json").read_text())
+    assert any("calibrated on .current" in w for w in timeline["warnings"])
+    code, _, err = cli("detect", log, "--config", on_current, "--torque-source", "current",
+                       "-o", tmp_path / "b")
+    assert code == 0, err
+    assert "calibrated on .current" not in err
+
+
+def test_calibration_logs_read_from_two_sources_are_warned_of() -> None:
+    import warnings
+
+    from impactcli.errors import ImpactWarning
+    from impactcli.run.run_warnings import warn_mixed_torque_sources
+
+    with warnings.catch_warnings(record=True) as got:
+        warnings.simplefilter("always")
+        warn_mixed_torque_sources([("a.csv", "torque"), ("b.csv", "torque")])
+        assert got == []
+        warn_mixed_torque_sources([("a.csv", "torque"), ("b.csv", "current"),
+                                   ("c.csv", "torque")])
+    assert len(got) == 1 and got[0].category is ImpactWarning
+    text = str(got[0].message)
+    assert ".current in b.csv; .torque in a.csv, c.csv" in text and "--torque-source" in text

@@ -71,7 +71,7 @@ from .plan import (
     resolve_model,
     screen_scan,
 )
-from .run_warnings import CaughtWarnings, warn_beyond_effort
+from .run_warnings import CaughtWarnings, warn_beyond_effort, warn_mixed_torque_sources
 
 #: ``calibrate``'s threshold rules for the product's detectors (adaptive, static_loading):
 #: thresholds for a false-alarm rate the user asks for, or the leave-one-out margin over
@@ -156,6 +156,7 @@ def calibrate_run(
         raise ValueError(f"threshold rule {threshold_rule!r}: one of {THRESHOLD_RULES}")
     cfg = config or DetectorConfig()
     logs = _one_load_each(logs, labels)
+    warn_mixed_torque_sources([(lg.source.path, lg.source.torque_source) for lg in logs])
     readers = [MemoryReader(lg) for lg in logs]
     scans = [r.scan() for r in readers]
     screens, left_out = _screen_calibration_logs(scans, model, cfg)
@@ -238,7 +239,8 @@ def calibrate_run(
     paths = tuple(lg.source.path for lg in logs)
     record = CalibrationRecord(
         calibrated=True, margin_rule=cal["adaptive"].rule, margins=margins,
-        logs=tuple(LogRecord(lg.source.path, lg.source.sha256) for lg in logs),
+        logs=tuple(LogRecord(lg.source.path, lg.source.sha256, lg.source.torque_source)
+                   for lg in logs),
         model_sha256=None if model is None else model.sha256,
         weak=weak,
         joints_left_out=tuple(x.to_dict() for x in left_out),

@@ -43,7 +43,7 @@ from ..model.rigid import RigidModel
 from ..sample_channels import CONTROLLER_CHANNELS
 from ..types import LogSource, RobotDescription, RobotLog
 from .replay import ChunkArrays, chunk_arrays
-from .run_warnings import warn_formulation, warn_settings
+from .run_warnings import warn_formulation, warn_settings, warn_torque_source
 
 if TYPE_CHECKING:
     from .loads import StartLoad
@@ -534,6 +534,7 @@ def plan_run(reader: LogReader, cfg: DetectorConfig, *, model: RigidModel | None
 
     joints, choices, rig, model_source, extra = resolve_model(
         sc.keep, scan.source, sc.logged, model, cfg, model_from_log, robot, identify)
+    _check_torque_source(cfg, scan.source.torque_source, choices, where, config_where)
     start = None
     if rig is not None and model_source in ("config", "given"):  # fitted on other logs
         from .loads import weigh_start
@@ -553,6 +554,19 @@ def plan_run(reader: LogReader, cfg: DetectorConfig, *, model: RigidModel | None
         [hold.get(j, np.nan) for j in joints], dtype=np.float64)
     return RunPlan(cfg, where, feed.full_joints, joints, choices, rig, model_source,
                    left_out, scale, held, start), feed
+
+
+def _check_torque_source(cfg: DetectorConfig, used: str, choices: tuple[GeneratorChoice, ...],
+                         where: str, config_where: str) -> None:
+    """Warn when the log's torque comes from another channel than every calibration log's
+    did (:attr:`impactcli.config.LogRecord.torque_source`) and a replayed joint's residual
+    reads it (all but ``logged_external``)."""
+    recorded = {lg.torque_source for lg in cfg.calibration.logs}
+    calibrated_on = recorded.pop() if len(recorded) == 1 else None
+    if (not cfg.calibration.calibrated or calibrated_on is None or calibrated_on == used
+            or all(c.generator == "logged_external" for c in choices)):
+        return
+    warn_torque_source(where, config_where, used, calibrated_on, len(cfg.calibration.logs))
 
 
 def _unloaded_scale(scan: LogScan, robot: RobotDescription | None, kept: tuple[str, ...],

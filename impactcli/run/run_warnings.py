@@ -149,6 +149,43 @@ def warn_settings(where: str, config_where: str, edited: Sequence[str] = ()) -> 
                   "(impactcli calibrate)", ImpactWarning, stacklevel=3)
 
 
+#: What each torque source is, for the warnings that name one (docs/formats.md).
+TORQUE_SOURCE_SIDE = {"torque": ".torque (the joint torque: a sensor's, link side, or the "
+                                "drive's, motor side)",
+                      "current": ".current (motor side, through the gear ratio and torque "
+                                 "constant)"}
+
+
+def warn_torque_source(where: str, config_where: str, used: str, calibrated: str,
+                       n_logs: int) -> None:
+    """The warning of a log whose torque is read from another channel (``used``) than the
+    one all ``n_logs`` calibration logs of its config were read from (``calibrated``): the
+    thresholds were set on another signal."""
+    logs = {1: "its calibration log", 2: "both its calibration logs"}.get(
+        n_logs, f"all {n_logs} of its calibration logs")
+    warnings.warn(
+        f"{where}: its torque is read from {TORQUE_SOURCE_SIDE[used]}, but its config "
+        f"({config_where}) was calibrated on {TORQUE_SOURCE_SIDE[calibrated]} in {logs}: the "
+        "thresholds "
+        "were set on another signal and their stated false-alarm rate does not apply; give "
+        f"--torque-source {calibrated} if the log has it, or calibrate on logs read as this "
+        "one is", ImpactWarning, stacklevel=3)
+
+
+def warn_mixed_torque_sources(sources: Sequence[tuple[str, str]]) -> None:
+    """The warning of calibration logs (``(path, torque source)``) whose torques were read
+    from different channels: one threshold per joint over two signals."""
+    kinds = sorted({s for _, s in sources})
+    if len(kinds) < 2:
+        return
+    said = "; ".join(f"{TORQUE_SOURCE_SIDE[k].split(' ')[0]} in "
+                     + ", ".join(p for p, s in sources if s == k) for k in kinds)
+    warnings.warn(
+        f"the calibration logs' torques are read from different channels ({said}): one "
+        "threshold per joint is set over two signals; give --torque-source to read them "
+        "all from one", ImpactWarning, stacklevel=3)
+
+
 def warn_gaps(where: str, lengths_s: np.ndarray, starts_s: np.ndarray) -> None:
     """The time-gap warning: (G,) gap lengths [s] and the times of the samples before them."""
     if not len(lengths_s):
