@@ -179,3 +179,22 @@ def test_beyond_a_urdfs_velocity_limit_is_warned_never_refused() -> None:
     v = _verdict(q, limits)
     assert v.kind == "warn" and set(v.joints) == set(JOINTS)
     assert "beyond the URDF's velocity limit or range" in v.message
+
+
+def test_degrees_against_calibration_bounds() -> None:
+    """Known truth at the bounds: a joint that travels 0.5 rad as logged against a 1 rad
+    calibration range is radians read as degrees (0.0087 rad, 0.87 %); one that travels
+    0.06 rad as degrees could be degrees (no word); one that would travel 4 rad as radians
+    is beyond the calibration either way (no word); one that barely moves tells nothing."""
+    from impactcli.logs.plausibility import DEG, degrees_against_calibration
+
+    cal = {"a": (-0.5, 0.5), "b": (0.0, 1.0)}
+    said = degrees_against_calibration("x.csv", ("a", "b"), np.array([0.5, 0.001]) * DEG,
+                                       cal)
+    assert said is not None and "x.csv" in said and "a 0.5 rad against 1" in said
+    assert "at most 0.87 %" in said and "b " not in said
+    assert degrees_against_calibration("x.csv", ("a", "b"), np.array([0.5 * DEG, 0.06]),
+                                       cal) is None
+    assert degrees_against_calibration("x.csv", ("a",), np.array([4.0 * DEG]), cal) is None
+    assert degrees_against_calibration("x.csv", ("b",), np.array([0.1 * DEG]), cal) is None
+    assert degrees_against_calibration("x.csv", ("c",), np.array([0.5 * DEG]), cal) is None

@@ -195,3 +195,35 @@ def test_positions_far_outside_a_urdfs_limits_are_warned_of_by_joint(tmp_path: P
     assert json.loads(out)["warnings"] == [want]
     code, _, err = cli("inspect", path)  # without the robot: nothing to compare with
     assert code == 0 and _warnings(err) == []
+
+
+SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
+
+
+def _detect_words(log: Path, tmp_path: Path) -> str:
+    code, _, err = cli("detect", log, "--config", SAMPLES / "heavy_geared.config.toml",
+                       "--position-unit", "deg", "-o", tmp_path / "out")
+    assert code in (0, 1), err
+    return err
+
+
+def test_radians_given_as_degrees_are_held_against_the_calibration(tmp_path: Path) -> None:
+    """The heavy arm's impacts log is in radians (j1 travels 0.190 rad; its config's
+    calibration logs span 0.758 rad of j1): read as degrees, it travels 0.44 % of that —
+    said, with the reading as radians; the same log written in degrees is not."""
+    err = _detect_words(SAMPLES / "csv" / "heavy_impacts.csv.gz", tmp_path)
+    said = [ln for ln in err.splitlines() if "reads its positions as degrees" in ln]
+    assert len(said) == 1, err
+    assert "at most 0.44 % of the calibration logs' range" in said[0]
+    assert "j1 0.19 rad against 0.758" in said[0] and "j2" not in said[0]  # j2 barely moves
+
+    import pyarrow.csv as pacsv
+
+    table = pacsv.read_csv(SAMPLES / "csv" / "heavy_impacts.csv.gz").to_pandas()
+    angular = [c for c in table.columns
+               if c.rsplit(".", 1)[-1] in ("position", "velocity", "position_ref",
+                                            "velocity_ref", "acceleration_ref")]
+    table[angular] = table[angular] * DEG
+    degrees = tmp_path / "heavy_impacts_deg.csv"
+    table.to_csv(degrees, index=False)
+    assert "reads its positions as degrees" not in _detect_words(degrees, tmp_path)

@@ -339,3 +339,45 @@ def limit_warnings(where: str, joints: Sequence[str], lo: np.ndarray, hi: np.nda
                        "the position unit (--position-unit deg|rad), the joint's offset and "
                        "sign, and the joint map")
     return out
+
+
+#: A joint whose travel, read as degrees, is below this share of the calibration logs'
+#: position range, and read as radians within :data:`AS_RADIANS_SHARE` of it, travels as the
+#: calibration's did in radians and barely at all in degrees.
+AS_DEGREES_SHARE = 0.05
+AS_RADIANS_SHARE = (0.2, 3.0)
+
+
+def degrees_against_calibration(where: str, joints: Sequence[str], travel: np.ndarray,
+                                calibrated: dict[str, Sequence[float]]) -> str | None:
+    """The warning of positions given as degrees (``--position-unit deg``) whose motion the
+    calibration's envelope says are radians: every joint that travels (``travel`` (J,) max −
+    min [rad], as converted from degrees) travels less than :data:`AS_DEGREES_SHARE` of the
+    calibration logs' position range (``calibrated``: joint → [min, max] rad) and, its
+    numbers as logged read as radians (× 180/π), at most the top of
+    :data:`AS_RADIANS_SHARE` of it; at least one joint's reach its bottom. None when the
+    calibration has no such range, a joint travels as degrees could, or none as radians
+    would travel as the calibration's did."""
+    rows = []
+    for j, tr in zip(joints, travel, strict=True):
+        rng = calibrated.get(j)
+        if rng is None or not np.isfinite(tr) or tr <= 0:
+            continue
+        width = float(rng[1]) - float(rng[0])
+        if width <= 0:
+            continue
+        raw = tr / DEG
+        lo, hi = AS_RADIANS_SHARE
+        if tr >= AS_DEGREES_SHARE * width or raw > hi * width:
+            return None  # one joint travels as degrees could, or as radians could not
+        if raw >= lo * width:  # (one that barely moves either way tells nothing)
+            rows.append((j, tr, raw, width))
+    if not rows:
+        return None
+    span = ", ".join(f"{j} {raw:.3g} rad against {w:.3g}" for j, _, raw, w in rows)
+    most = max(tr / w for _, tr, _, w in rows)
+    return (f"{where}: --position-unit deg reads its positions as degrees, so its joints "
+            f"travel at most {100 * most:.2g} % of the calibration logs' range; read as radians "
+            f"they travel as those did ({span}): check the position unit — a radians log "
+            "read as degrees gives the model, the forces and the envelope a nearly still "
+            "arm")

@@ -520,6 +520,7 @@ def plan_run(reader: LogReader, cfg: DetectorConfig, *, model: RigidModel | None
         warn_formulation(where, config_where, calibrated_on, cfg.adaptive.formulation)
     if settings_changed(cfg):
         warn_settings(where, config_where, thresholds_edited(cfg))
+    _check_degrees(scan, cfg, where)
     sc = screen_scan(scan, known_joints(model, cfg), cfg.calibration.joints_left_out)
     described = robot or description_of(model, cfg)
     scale, hold = check_torque_scale(scan, described, sc.keep, warn=False)  # warned below
@@ -554,6 +555,22 @@ def plan_run(reader: LogReader, cfg: DetectorConfig, *, model: RigidModel | None
         [hold.get(j, np.nan) for j in joints], dtype=np.float64)
     return RunPlan(cfg, where, feed.full_joints, joints, choices, rig, model_source,
                    left_out, scale, held, start), feed
+
+
+def _check_degrees(scan: LogScan, cfg: DetectorConfig, where: str) -> None:
+    """Warn when positions given as degrees travel as the calibration's radians did
+    (:func:`impactcli.logs.plausibility.degrees_against_calibration`)."""
+    env = cfg.calibration.motion_envelope
+    pos = scan.ranges.get("position")
+    if scan.options.get("position_unit") != "deg" or not env or pos is None:
+        return
+    from ..logs.plausibility import degrees_against_calibration
+
+    ranges = {j: q["position"] for j, q in (env.get("joints") or {}).items()
+              if "position" in q}
+    said = degrees_against_calibration(where, scan.log.joint_names, pos[1] - pos[0], ranges)
+    if said is not None:
+        warnings.warn(said, ImpactWarning, stacklevel=3)
 
 
 def _check_torque_source(cfg: DetectorConfig, used: str, choices: tuple[GeneratorChoice, ...],
