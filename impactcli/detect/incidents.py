@@ -514,3 +514,41 @@ def contact_type(
     if ends_with_log:
         return "unknown"
     return "transient"
+
+
+#: A time gap is a data defect from this many sample periods on: two samples missing or
+#: more (one dropped sample — a step of two periods, common over a network — disturbs the
+#: detectors little and would blank the settling time after it every time; it is still
+#: warned of as a gap).
+MIN_DEFECT_GAP_PERIODS = 2.5
+#: At most this many data defects are listed in the timeline (all are counted).
+MAX_LISTED_DEFECTS = 1000
+
+
+def data_defects(scan: Any, gap_times: np.ndarray) -> list[DataDefect]:
+    """The log's time gaps of :data:`MIN_DEFECT_GAP_PERIODS` periods or more (``gap_times``:
+    (G, 2) the samples before and after each [s]) and its position jumps (the scan's, one
+    per step with the joints that jump), in time order."""
+    shortest = MIN_DEFECT_GAP_PERIODS * scan.sample_period_s
+    out = [DataDefect("gap", float(a), float(b), float(length))
+           for (a, b), length in zip(gap_times, scan.gap_lengths_s, strict=True)
+           if np.isfinite(a) and np.isfinite(b) and length >= shortest]
+    names = scan.log.joint_names
+    by_step: dict[int, list[Any]] = {}
+    for x in scan.jumps:
+        by_step.setdefault(x.i, []).append(x)
+    period = scan.sample_period_s
+    for xs in by_step.values():
+        t = (xs[0].t_ns - scan.t0_ns) * 1e-9
+        out.append(DataDefect("jump", max(t - period, 0.0), t, max(x.size for x in xs),
+                              tuple(names[x.joint] for x in xs)))
+    return sorted(out, key=lambda d: (d.t_start, d.kind))
+
+
+def defects_dict(defects: Sequence[DataDefect], settle: float, n_jumps: int
+                 ) -> dict[str, Any]:
+    """The timeline's ``data_defects``: counts, the settling time, the first listed."""
+    return {"gaps": sum(1 for d in defects if d.kind == "gap"),
+            "jumps": sum(1 for d in defects if d.kind == "jump"),
+            "jump_samples": n_jumps, "settle_s": settle,
+            "listed": [d.to_dict() for d in defects[:MAX_LISTED_DEFECTS]]}

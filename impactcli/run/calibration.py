@@ -56,7 +56,7 @@ from ..model.generators import GeneratorChoice, target_log, uses_correction
 from ..model.payload import own_load
 from ..types import DETECTORS, Labels, RobotDescription, RobotLog
 from .collect import StatsCollector
-from .one_log import MOVED_RAD, ReplayStep, replay_passes, warn_replayed
+from .one_log import ReplayStep, replay_passes, warn_replayed
 from .plan import (
     ChunkFeed,
     RunPlan,
@@ -71,7 +71,12 @@ from .plan import (
     resolve_model,
     screen_scan,
 )
-from .run_warnings import CaughtWarnings, warn_beyond_effort, warn_mixed_torque_sources
+from .run_warnings import (
+    MOVED_RAD,
+    CaughtWarnings,
+    warn_beyond_effort,
+    warn_mixed_torque_sources,
+)
 
 #: ``calibrate``'s threshold rules for the product's detectors (adaptive, static_loading):
 #: thresholds for a false-alarm rate the user asks for, or the leave-one-out margin over
@@ -586,7 +591,7 @@ def _screen_calibration_logs(
 ) -> tuple[list[Screened], tuple[LeftOut, ...]]:
     """Every calibration log screened (:func:`impactcli.run.plan.screen_scan`). A joint whose
     torque is measured in some log is kept in a log where it stands still (its positions
-    span :data:`~impactcli.run.one_log.MOVED_RAD` or less: a still joint shows a flat or
+    span :data:`~impactcli.run.run_warnings.MOVED_RAD` or less: a still joint shows a flat or
     few-valued torque there, and moves in another); a joint left out of a log for any other
     reason — a flat torque while it moves is a channel that failed — or unmeasured in all,
     is left out of all (a threshold needs every log), with the first reason found. Only the
@@ -624,7 +629,7 @@ def _screen_calibration_logs(
 
 def _still(scan: LogScan, joint: str) -> bool:
     """Whether ``joint`` stands still in the scanned log: its positions span no more than
-    :data:`~impactcli.run.one_log.MOVED_RAD`, what moving means for a joint left out."""
+    :data:`~impactcli.run.run_warnings.MOVED_RAD`, what moving means for a joint left out."""
     rng = scan.ranges.get("position")
     if rng is None or joint not in scan.joint_names:
         return False

@@ -53,10 +53,11 @@ from ..detect.incident_builder import (
 )
 from ..detect.incidents import (
     BRIDGE_FRACTION,
-    DataDefect,
     Incident,
     LastingLoad,
     adaptive_memory_s,
+    data_defects,
+    defects_dict,
     mark_defects,
     mark_disagreeing,
     mark_payload_changes,
@@ -79,7 +80,6 @@ from ..detect.thresholds import compare_to_thresholds, uncalibrated_blocks
 from ..detect.warmup import Warmup, WarmupTracker, past_least
 from ..errors import ConfigError, ImpactWarning
 from ..logs.reader import LogReader
-from ..logs.screen import LeftOut
 from ..model.generators import choices_dict, summary_name, uses_correction
 from ..model.rigid import RigidModel
 from ..spill import ColumnFiles
@@ -106,6 +106,8 @@ from .plan import ChunkFeed, Passes, RunPlan, calibrated_thresholds, plan_run, w
 from .replay import ChunkReplay, Replayer, ReplaySetup, ReplayState
 from .run_warnings import (
     CaughtWarnings,
+    moved_unchecked,
+    unchecked_message,
     warn_beyond_effort,
     warn_defect_incidents,
     warn_events_after_gaps,
@@ -463,74 +465,6 @@ def off_scale(findings: Sequence[Any], scale: float | None,
            "can be trusted")
     return [x if x.force_n is None else dataclasses.replace(
         x, force_plausible=False, force_check=why) for x in findings]
-
-
-#: A time gap is a data defect from this many sample periods on: two samples missing or
-#: more (one dropped sample — a step of two periods, common over a network — disturbs the
-#: detectors little and would blank the settling time after it every time; it is still
-#: warned of as a gap).
-MIN_DEFECT_GAP_PERIODS = 2.5
-#: At most this many data defects are listed in the timeline (all are counted).
-MAX_LISTED_DEFECTS = 1000
-
-
-def data_defects(scan: Any, gap_times: np.ndarray) -> list[DataDefect]:
-    """The log's time gaps of :data:`MIN_DEFECT_GAP_PERIODS` periods or more (``gap_times``:
-    (G, 2) the samples before and after each [s]) and its position jumps (the scan's, one
-    per step with the joints that jump), in time order."""
-    shortest = MIN_DEFECT_GAP_PERIODS * scan.sample_period_s
-    out = [DataDefect("gap", float(a), float(b), float(length))
-           for (a, b), length in zip(gap_times, scan.gap_lengths_s, strict=True)
-           if np.isfinite(a) and np.isfinite(b) and length >= shortest]
-    names = scan.log.joint_names
-    by_step: dict[int, list[Any]] = {}
-    for x in scan.jumps:
-        by_step.setdefault(x.i, []).append(x)
-    period = scan.sample_period_s
-    for xs in by_step.values():
-        t = (xs[0].t_ns - scan.t0_ns) * 1e-9
-        out.append(DataDefect("jump", max(t - period, 0.0), t, max(x.size for x in xs),
-                              tuple(names[x.joint] for x in xs)))
-    return sorted(out, key=lambda d: (d.t_start, d.kind))
-
-
-def defects_dict(defects: Sequence[DataDefect], settle: float, n_jumps: int
-                 ) -> dict[str, Any]:
-    """The timeline's ``data_defects``: counts, the settling time, the first listed."""
-    return {"gaps": sum(1 for d in defects if d.kind == "gap"),
-            "jumps": sum(1 for d in defects if d.kind == "jump"),
-            "jump_samples": n_jumps, "settle_s": settle,
-            "listed": [d.to_dict() for d in defects[:MAX_LISTED_DEFECTS]]}
-
-
-#: A joint left out of detection whose positions span more than this [rad] moved in the
-#: log: it is named as not checked (terminal, verdict, motion_envelope.unchecked).
-MOVED_RAD = 0.05
-
-
-def moved_unchecked(left_out: Sequence[LeftOut], names: Sequence[str],
-                    position_range: tuple[np.ndarray, np.ndarray] | None,
-                    ) -> list[dict[str, Any]]:
-    """The joints left out of detection as timeline items, each with ``travel_rad`` when
-    its positions in the log span more than :data:`MOVED_RAD`."""
-    out = []
-    for x in left_out:
-        d: dict[str, Any] = x.to_dict()
-        if position_range is not None and x.name in names:
-            k = list(names).index(x.name)
-            travel = float(position_range[1][k] - position_range[0][k])
-            if math.isfinite(travel) and travel > MOVED_RAD:
-                d["travel_rad"] = travel
-        out.append(d)
-    return out
-
-
-def unchecked_message(where: str, moved: Sequence[dict[str, Any]]) -> str:
-    """The warning naming the joints that moved but were not checked."""
-    each = "; ".join(f"{x['name']} (travels {x['travel_rad']:.3g} rad; {x['reason']})"
-                     for x in moved)
-    return (f"{where}: joint(s) moved but were not checked — no contact on them or the "
-            f"links they carry alone can be seen: {each}")
 
 
 def _detect_passes(

@@ -9,6 +9,7 @@ categories are not ours to swallow: they are raised again.
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections.abc import Sequence
 from types import TracebackType
@@ -29,6 +30,7 @@ from ..detect.thresholds import (
 from ..detect.warmup import Warmup
 from ..errors import ImpactError, ImpactWarning
 from ..logs.defects import MAX_ACCEL_RAD_S2
+from ..logs.screen import LeftOut
 from ..types import DETECTORS, Event, RobotDescription
 
 #: Events starting this long after a time gap are named in a warning [s].
@@ -373,3 +375,33 @@ def warn_beyond_effort(cfg: DetectorConfig, joints: Sequence[str],
         said = (f"{where}: the config's {said}: that detector checks the joint in name only "
                 "(the detection floor's figure on it says how large a contact it needs)")
     warnings.warn(said, ImpactWarning, stacklevel=3)
+
+
+#: A joint left out of detection whose positions span more than this [rad] moved in the
+#: log: it is named as not checked (terminal, verdict, motion_envelope.unchecked).
+MOVED_RAD = 0.05
+
+
+def moved_unchecked(left_out: Sequence[LeftOut], names: Sequence[str],
+                    position_range: tuple[np.ndarray, np.ndarray] | None,
+                    ) -> list[dict[str, Any]]:
+    """The joints left out of detection as timeline items, each with ``travel_rad`` when
+    its positions in the log span more than :data:`MOVED_RAD`."""
+    out = []
+    for x in left_out:
+        d: dict[str, Any] = x.to_dict()
+        if position_range is not None and x.name in names:
+            k = list(names).index(x.name)
+            travel = float(position_range[1][k] - position_range[0][k])
+            if math.isfinite(travel) and travel > MOVED_RAD:
+                d["travel_rad"] = travel
+        out.append(d)
+    return out
+
+
+def unchecked_message(where: str, moved: Sequence[dict[str, Any]]) -> str:
+    """The warning naming the joints that moved but were not checked."""
+    each = "; ".join(f"{x['name']} (travels {x['travel_rad']:.3g} rad; {x['reason']})"
+                     for x in moved)
+    return (f"{where}: joint(s) moved but were not checked — no contact on them or the "
+            f"links they carry alone can be seen: {each}")
