@@ -385,3 +385,35 @@ def test_calibrate_and_identify_refuse_currents_in_ma_as_detect_does(tmp_path: P
     assert line.startswith(f"impactcli: error: {src}: the torque is off by ~") and \
         "mA logged as A" in line and "Traceback" not in r.stderr
     assert not out.exists()
+
+
+def test_a_load_taken_off_never_makes_a_valid_log_a_unit_error(tmp_path: Path) -> None:
+    """A trial's log (assist-like robot 41, pick-and-place starting with 2 kg; the
+    simulator's joint-side torque) read ~1.7× the description's gravity torque, of the
+    order. Judged again with its weighed start load taken off, it read ~0.036×, near
+    1/20, and detect refused it "motor-side (÷ the gear ratio 20)", exit 3. A judgement
+    made after taking a weighed load off cannot refuse what the log's own torque passed:
+    the log is audited, the load weighed (truth 2 kg) and the scale as logged stated."""
+    def sim(name: str, scenario: str, seed: int, *extra: str) -> Path:
+        r = CliRunner().invoke(main, [
+            "simulate", "--arm", "assist_like", "--robot-seed", "41", "--scenario",
+            scenario, "--seed", str(seed), "--no-controller-channels", "-o", str(tmp_path),
+            "--name", name, *extra])
+        assert r.exit_code == 0, r.output
+        return tmp_path / f"{name}.csv.gz"
+
+    free = [sim(f"f{s}", sc, s) for s, sc in ((1, "free_triangle"), (2, "free_p2p"),
+                                               (3, "free_multisine"))]
+    log = sim("pp", "pick_and_place", 16, "--payload-kg", "2")
+    cfg = tmp_path / "c.toml"
+    r = CliRunner().invoke(main, ["calibrate", *map(str, free), "--robot",
+                                  str(tmp_path / "f1.robot.json"), "-o", str(cfg)])
+    assert r.exit_code == 0, r.output
+    r = CliRunner().invoke(main, ["detect", str(log), "--config", str(cfg), "-o",
+                                  str(tmp_path / "out")])
+    assert r.exit_code in (0, 1) and "motor-side" not in r.stderr, r.output
+    tl = json.loads((tmp_path / "out" / "pp.timeline.json").read_text("utf-8"))
+    assert tl["input"]["payload"]["verdict"] == "used"
+    assert abs(tl["input"]["payload"]["mass_kg"] - 2.0) < 0.25 * 2.0
+    scale = tl["input"]["torque_scale"]
+    assert scale["verdict"] == "ok" and 1.2 < scale["scale"] < 2.5, scale
