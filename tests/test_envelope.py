@@ -367,3 +367,28 @@ def test_a_joint_without_measured_ranges_is_said_unchecked() -> None:
     full = EnvelopeCheck(env, FS, ["j1", "j2"])
     full.update_arrays(t, q, q)
     assert "measured motion" not in full.finish(round(5.0 * FS)).note
+
+
+def test_the_trace_dates_a_reversal_at_most_its_lag_late_and_touches_allows_for_it() -> None:
+    """Known truth: a triangle reference reverses at 10 s (its acceleration an impulse
+    there). The trace's acceleration first passes half its peak within ``lag_s`` after
+    10 s — later than the reversal, which the residual feels at once (a trial's 12 false
+    alarms on a heavy arm ended 8 ms before their outside stretch began and were said to
+    touch no outside motion). An incident ending at the reversal touches the stretch the
+    trace reports; one ending more than ``lag_s`` before that stretch does not."""
+    t = np.arange(round(20.0 * FS)) / FS
+    q = np.where(t < 10.0, 0.5 * t, 10.0 - 0.5 * t)[:, None]
+    tr = MotionTrace(FS)
+    acc = np.abs(tr.update(t, q, q).acceleration[:, 0])
+    first = float(t[np.flatnonzero(acc >= 0.5 * acc.max())[0]])
+    assert 10.0 < first <= 10.0 + tr.lag_s
+    # the envelope of the slow ramps, against the reversal: outside from about `first`
+    calm = np.zeros_like(t) + 0.5 * t
+    env = envelope_of(t, np.c_[calm, calm])
+    chk = EnvelopeCheck(env, FS, ["j1"])
+    chk.update_arrays(t, q, q)
+    out = chk.finish(round(5.0 * FS))
+    start = float(out.stretches[0, 0])
+    assert 10.0 < start <= 10.0 + tr.lag_s and out.lag_s == tr.lag_s
+    assert out.touches(9.99, 10.0)                     # ended at the reversal itself
+    assert not out.touches(9.0, start - tr.lag_s - 0.01)

@@ -46,6 +46,7 @@ model's friction where the calibration's motion never did
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -74,7 +75,11 @@ CHECKED: tuple[str, ...] = ("velocity", "acceleration")
 #: reference's (module docstring): kept apart from the share outside.
 MEASURED: tuple[str, ...] = ("measured_velocity", "measured_acceleration")
 #: An incident touches the outside when a sample from LEAD_S before its start to its end
-#: is outside (the residual's filters lag the motion that causes it) [s].
+#: is outside (the residual's filters lag the motion that causes it) [s] — its end pushed
+#: on by the motion trace's own lag (:attr:`MotionTrace.lag_s`): the trace dates an
+#: outside moment later than the residual feels it (a trial's heavy arm: its reference
+#: reversed at 4.334 s, the residual alarmed 4.352–4.364 s, the trace was outside from
+#: 4.372 s, and 12 false alarms were said to touch no outside motion).
 LEAD_S = 0.2
 #: Outside stretches closer than this merge into one (as alarms merge) [s] (the share
 #: counts only the samples outside).
@@ -161,6 +166,9 @@ class MotionTrace:
         self.period_s = 1.0 / float(sample_rate_hz)
         self.carry = Carry()
         self.source: str | None = None
+        # the velocity and the acceleration go through the low-pass twice (its DC group
+        # delay √2 / (2π fc) each) and two backward differences (half a period each)
+        self.lag_s = 2.0 * math.sqrt(2.0) / (2.0 * math.pi * fc) + self.period_s
 
     def update(self, time_s: np.ndarray, position: np.ndarray,
                position_ref: np.ndarray | None = None) -> Motion:
@@ -368,6 +376,8 @@ class EnvelopeShare:
             (joints with none left out; in the mapping only beside ``slow``, where
             ``per_joint`` mixes the two); slow_rad_s: the speed below which a joint moved
             slowly [rad/s] (the envelope's; in the mapping only beside ``slow``).
+        lag_s: how much later the motion trace dates the motion than it happened
+            (:attr:`MotionTrace.lag_s`; :meth:`touches`).
         measured: the stretches where the measured motion left the calibration's measured
             ranges (:class:`MeasuredStretch`, over the whole log, runs merged over
             MERGE_S), in order; None when it was not checked (no reference in the log or
@@ -387,6 +397,7 @@ class EnvelopeShare:
     ranges: dict[str, float] = field(default_factory=dict)
     slow_rad_s: float = SLOW_RAD_S
     measured: tuple[MeasuredStretch, ...] | None = None
+    lag_s: float = 0.0
 
     @property
     def share(self) -> float:
@@ -395,11 +406,13 @@ class EnvelopeShare:
 
     def touches(self, t_start: float, t_end: float, lead_s: float = LEAD_S) -> bool:
         """Whether an incident from ``t_start`` to ``t_end`` [s] touches an outside
-        stretch (from ``lead_s`` before its start)."""
+        stretch (from ``lead_s`` before its start to ``lag_s``, the motion trace's lag,
+        after its end: :data:`LEAD_S`)."""
         s = self.stretches
         if s.shape[0] == 0:
             return False
-        return bool(np.any((s[:, 0] <= t_end) & (s[:, 1] >= t_start - lead_s)))
+        return bool(np.any((s[:, 0] <= t_end + self.lag_s)
+                           & (s[:, 1] >= t_start - lead_s)))
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready mapping (for a timeline's 2.x optional field)."""
@@ -587,7 +600,7 @@ class EnvelopeCheck:
             np.array(stretches, dtype=np.float64).reshape(-1, 2), self.unchecked, src, note,
             posture, slow, {j: self.envelope.slow_dwell_s[j] for j in slow}, ranges,
             self.envelope.slow_rad_s, self._stretches() if self.m_cols and
-            src == "position_ref" else None)
+            src == "position_ref" else None, self.trace.lag_s)
 
     def _stretches(self) -> tuple[MeasuredStretch, ...]:
         out = []
