@@ -584,6 +584,8 @@ def test_could_not_see_gaps_left_out_joints_and_no_kinematics() -> None:
     assert "j3: not in the model" in items["joints-left-out"]["text"]
     sf = items["smallest-force"]
     assert sf["data"]["links"] == [] and "no kinematics are known" in sf["text"]
+    assert sf["short"] == "no force floor: no kinematics"  # a trial read "short": ""
+
     assert "j1 0.5 N·m, j2 0.5 N·m" in sf["text"]
     assert "Detection floor" not in sf["text"]  # this run states none
     # a run with a floor: the report states it first, as detect prints it

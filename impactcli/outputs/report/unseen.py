@@ -119,7 +119,10 @@ def _smallest_force(result: DetectionResult, chain: tuple[str, ...],
     if not kin or kin.get("type") != "planar" or not kin.get("link_lengths"):
         why = ("no kinematics are known" if not kin else
                f"the report computes it for planar arms only (this robot: {kin.get('type')})")
-        return {"code": "smallest-force", "short": "", "data": {**data, "links": []},
+        short = (_measured_short(result.detection_floor)
+                 or ("no force floor: no kinematics" if not kin else
+                     f"no force floor for {kin.get('type')} kinematics"))
+        return {"code": "smallest-force", "short": short, "data": {**data, "links": []},
                 "text": (f"{said}Static force the static-loading thresholds alone need "
                          f"at one posture: not stated — {why}. The "
                          "static-loading "
