@@ -498,3 +498,25 @@ def test_an_alarm_just_after_a_lasting_load_ended_may_be_that_load_again() -> No
     line = _incident_line(3, _incident_row(got[0]))  # type: ignore[arg-type]
     assert line.endswith("resumes the lasting load of 20.064–36.044 s after a 0.13 s dip "
                          "(resumes_load in the timeline)"), line
+
+
+def test_the_floor_holds_outside_a_lasting_load_or_nowhere_when_it_lasts_throughout() -> None:
+    """Known truth: loads holding 27 s of 40 s analysed leave the floor to the other 13 s;
+    loads holding 39.7 of 40 s (a sample and a merge gap short) leave no moment outside:
+    no floor is stated, and what could still see a contact is said."""
+    from impactcli.detect.incidents import ALL_HELD_SHARE, floor_apart
+
+    def load(a: float, b: float, det: str = "static_loading") -> dict:
+        return {"t_start": a, "t_end": b, "detector": det, "in_warmup": False}
+
+    assert floor_apart([], 40.0) == ("", False)
+    words, every = floor_apart([load(3.0, 30.0)], 40.0)
+    assert not every and words.startswith("outside the 27.0 s a lasting load held")
+    words, every = floor_apart([load(3.0, 20.0), load(18.0, 42.7)], 40.0)
+    assert ALL_HELD_SHARE * 40.0 <= 39.7 and every
+    assert words.startswith("a lasting load held static_loading alarming over all the "
+                            "40.0 s after warm-up: no moment lies outside it")
+    assert "only through adaptive, or through static_loading on a joint" in words
+    words, every = floor_apart([load(3.0, 43.0, "adaptive"), load(3.0, 43.0)], 40.0)
+    assert every and "held adaptive and static_loading alarming" in words
+    assert "only through adaptive or static_loading, or through" in words

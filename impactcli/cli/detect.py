@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from ..detect.events import LONG_EVENT_S
-from ..detect.incidents import blind_s, blind_text
+from ..detect.incidents import blind_text, floor_apart
 from ..errors import EXIT_BATCH, EXIT_DETECTED, EXIT_UNJUDGED, Interrupted, one_line
 from ..run.gates import count, gate_notes, shown
 from .options import (
@@ -498,10 +498,13 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
     if len(ok) == 1 and one["defect_incident_list"]:
         click.echo(_defect_line(shown(ok[0].log_path), one["defect_incident_list"]))
     # a lasting load's detector alarms throughout it: the floor holds only outside it
-    held = blind_s(loads[ok[0].log_path]) if len(ok) == 1 else 0.0
-    apart = (f" (outside the {held:.1f} s a lasting load held its detector alarming, "
-             "below: a contact then needed the other detector)" if held > 0 else "")
-    if len(ok) == 1 and one["detection_floor"]:
+    words, all_held = (floor_apart(loads[ok[0].log_path], one["duration_s"]
+                                   - one["warmup_end_s"]) if len(ok) == 1 else ("", False))
+    apart = f" ({words})" if words and not all_held else ""
+    if len(ok) == 1 and all_held:
+        click.echo(f"detection floor of {shown(ok[0].log_path)}: not stated — {words} "
+                   "(the timeline's detection_floor has what the detectors' state gave)")
+    elif len(ok) == 1 and one["detection_floor"]:
         click.echo(f"detection floor of {shown(ok[0].log_path)}{apart}: "
                    f"{one['detection_floor']} — the median over the log after warm-up, "
                    "the smaller of a step for the loading detector and a 100 ms blow for "

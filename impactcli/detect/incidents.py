@@ -275,6 +275,34 @@ def blind_text(loads: Sequence[dict[str, Any]], analysed_s: float | None = None,
             "there")
 
 
+#: A lasting load held its detector alarming over "all" the analysed time when it held
+#: this share of it or more (a sample or a merge gap short of it is still all).
+ALL_HELD_SHARE = 0.99
+
+
+def floor_apart(loads: Sequence[dict[str, Any]], analysed_s: float | None
+                ) -> tuple[str, bool]:
+    """How the detection floor's lines qualify themselves beside the counted lasting loads
+    (timeline dicts): ``(words, all_held)`` — ``words`` "" when none, else where the floor
+    holds ("outside the 31.0 s a lasting load held its detector alarming") or, when the
+    loads held it over all the ``analysed_s`` after warm-up (:data:`ALL_HELD_SHARE`), that
+    no moment lies outside them (a trial read a floor "outside the 56.7 s" of a log whose
+    56.7 s after warm-up were all a lasting load's); ``all_held`` then True."""
+    held = blind_s(loads)
+    if held <= 0:
+        return "", False
+    if analysed_s and held >= ALL_HELD_SHARE * analysed_s:
+        counted = [x for x in loads if not x.get("in_warmup")]
+        dets = sorted({x["detector"] for x in counted})
+        others = sorted({OTHER_DETECTOR.get(d, "the other detector") for d in dets})
+        return (f"a lasting load held {' and '.join(dets)} alarming over all the "
+                f"{analysed_s:.1f} s after warm-up: no moment lies outside it, so no floor "
+                f"holds — a contact could show only through {' or '.join(others)}, or "
+                f"through {' or '.join(dets)} on a joint the load left free"), True
+    return (f"outside the {held:.1f} s a lasting load held its detector alarming, below: a "
+            "contact then needed the other detector"), False
+
+
 @dataclass(frozen=True)
 class DataDefect:
     """A stretch of the log that is not the arm's motion: a time ``gap`` (from its last

@@ -22,7 +22,7 @@ from ...config import settings_changed
 from ...detect.envelope import outside_share_text, posture_text
 from ...detect.floor import floor_words
 from ...detect.force import planar_jacobian, smallest_caught_force
-from ...detect.incidents import blind_s, blind_text
+from ...detect.incidents import blind_s, blind_text, floor_apart
 from ...types import DetectionResult
 from .common import approx, e, share
 from .samples import Samples
@@ -110,10 +110,13 @@ def _smallest_force(result: DetectionResult, chain: tuple[str, ...],
     data: dict[str, Any] = {"kinematics": (kin or {}).get("type"), "vL_nm": vl_nm}
     # the run's detection floor, as detect prints it (over the whole log, both detectors)
     floor = floor_words(result.detection_floor)
-    blind = blind_s([x.to_dict() for x in result.lasting_loads])  # the floor holds outside
+    loads = [x.to_dict() for x in result.lasting_loads]
+    blind = blind_s(loads)  # the floor holds outside
+    words, all_held = floor_apart(loads, result.log.duration_s - result.warmup_end_s)
     apart = (f", outside the {blind:.1f} s a lasting load held its detector alarming (above)"
              if blind > 0 else "")
     said = ("" if floor is None else
+            f"Detection floor: not stated — {words}. " if all_held else
             f"Detection floor (as detect states it, over the log after warm-up{apart}): "
             f"{floor}. ")
     if not kin or kin.get("type") != "planar" or not kin.get("link_lengths"):
@@ -158,7 +161,9 @@ def _smallest_force(result: DetectionResult, chain: tuple[str, ...],
     short = _measured_short(result.detection_floor) or ", ".join(
         f"static push ~{approx(r['own_force_n'])} N on link {r['link']}"
         for r in rows if r["own_force_n"] is not None)
-    if short and blind > 0:
+    if all_held:
+        short = "no floor: a lasting load throughout"
+    elif short and blind > 0:
         short += f" (outside {blind:.0f} s of lasting load)"
     return {"code": "smallest-force", "short": short,
             "data": {**data, "links": rows, "posture_rad": posture,
