@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -159,3 +161,30 @@ def test_an_uncalibrated_no_incident_verdict_says_what_it_rests_on() -> None:
     assert short.endswith(" (calibrate on collision-free logs for an audit).")
     long = uncalibrated_none(result(54.0))
     assert "blocks after warm-up" not in long and long.startswith("Uncalibrated: ")
+
+
+def test_a_real_braking_only_the_baseline_saw_is_said_beside_no_incident(
+        real_logs: Path, tmp_path: Path) -> None:
+    """The real UR arm's braking (link4.csv, uncalibrated): the product's detectors raise
+    no incident after warm-up, the static baseline alarms at 16.970 s on shoulder_pan
+    (1.8× v0). A trial read "No incident after warm-up" and no word of it: the terminal
+    and the report's verdict now say it, not as an incident."""
+    import json
+
+    from .cli_run import cli
+
+    log = real_logs / "ur_ext_observer" / "link4.csv"
+    code, out, err = cli("detect", log, "--channel-map", "ur_ext_observer", "-o",
+                         tmp_path / "d")
+    assert code == 0, err
+    said = [ln for ln in out.splitlines() if ln.startswith("The static baseline alone")]
+    assert said == ["The static baseline alone alarmed after warm-up at 16.970 s "
+                    "(shoulder_pan, wrist_1; up to 1.8× its threshold v0): not an incident — "
+                    "neither product detector confirmed it, but a contact may have been "
+                    "there (events in the timeline) (link4.csv)"], out
+    code, _, err = cli("report", tmp_path / "d" / "link4.timeline.json", "-o",
+                       tmp_path / "r.html", "--json", tmp_path / "r.json")
+    assert code == 0, err
+    verdict = json.loads((tmp_path / "r.json").read_text())["logs"][0]["verdict"]
+    assert verdict.startswith("No incident after warm-up")
+    assert " The static baseline alone alarmed after warm-up at 16.970 s " in verdict

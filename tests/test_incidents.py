@@ -520,3 +520,32 @@ def test_the_floor_holds_outside_a_lasting_load_or_nowhere_when_it_lasts_through
     words, every = floor_apart([load(3.0, 43.0, "adaptive"), load(3.0, 43.0)], 40.0)
     assert every and "held adaptive and static_loading alarming" in words
     assert "only through adaptive or static_loading, or through" in words
+
+
+def test_a_baseline_alarm_no_incident_explains_is_said_and_one_that_leads_an_incident_not(
+) -> None:
+    """Known truth: baseline events at 5 s (alone), 9.8 s (0.2 s before the incident at
+    10 s: the incident's own, the plain comparison alarms first), 20 s (inside a lasting
+    load), 30 s (at an uncounted data-defect incident) and 1 s (warm-up). Only the 5 s one
+    is alone; its words give the time, joints and the largest ratio."""
+    from impactcli.detect.incidents import BASELINE_LEAD_S, baseline_alone, baseline_alone_text
+
+    def ev(t: float, warm: bool = False, det: str = "static_baseline") -> dict:
+        return {"detector": det, "t_start": t, "t_end": t + 0.05, "in_warmup": warm,
+                "joints": ["j2"], "peak_ratio": 1.8}
+
+    events = [ev(1.0, True), ev(5.0), ev(9.8), ev(20.0), ev(30.0), ev(40.0, det="adaptive")]
+    incidents = [{"t_start": 10.0, "t_end": 10.3, "in_warmup": False, "number": 1},
+                 {"t_start": 30.0, "t_end": 30.1, "in_warmup": False, "number": None}]
+    loads = [{"t_start": 15.0, "t_end": 25.0, "in_warmup": False}]
+    assert BASELINE_LEAD_S > 0.2
+    alone = baseline_alone(events, incidents, loads)
+    assert [e["t_start"] for e in alone] == [5.0]
+    assert baseline_alone_text(alone) == (
+        "the static baseline alone alarmed after warm-up at 5.000 s (j2; up to 1.8× its "
+        "threshold v0): not an incident — neither product detector confirmed it, but a "
+        "contact may have been there (events in the timeline)")
+    assert baseline_alone_text([]) == ""
+    two = baseline_alone([ev(5.0), ev(50.0)], [], [])
+    assert baseline_alone_text(two).startswith(
+        "the static baseline alone alarmed after warm-up 2 times (first at 5.000 s")

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from ..detect.events import LONG_EVENT_S
-from ..detect.incidents import blind_text, floor_apart
+from ..detect.incidents import baseline_alone_text, blind_text, floor_apart
 from ..errors import EXIT_BATCH, EXIT_DETECTED, EXIT_UNJUDGED, Interrupted, one_line
 from ..run.gates import count, gate_notes, shown
 from .options import (
@@ -495,6 +495,9 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
                    + ("cannot be trusted: " if one["torque_scale"] == "warn" else
                       "are in the log's units, not checked against physics: ")
                    + UNVERIFIED[one["torque_scale"]])
+    if len(ok) == 1 and one.get("baseline_alone"):
+        said = baseline_alone_text(one["baseline_alone"])
+        click.echo(f"{said[0].upper()}{said[1:]} ({shown(ok[0].log_path)})")
     if len(ok) == 1 and one["defect_incident_list"]:
         click.echo(_defect_line(shown(ok[0].log_path), one["defect_incident_list"]))
     # a lasting load's detector alarms throughout it: the floor holds only outside it

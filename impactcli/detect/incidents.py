@@ -275,6 +275,46 @@ def blind_text(loads: Sequence[dict[str, Any]], analysed_s: float | None = None,
             "there")
 
 
+#: The plain |r| > v0 comparison alarms at once where the product's detectors wait for
+#: their filters: a baseline alarm this long before an incident's start is that
+#: incident's (the heavy sample arm's impact at 26.5 s: baseline at 26.552 s, the
+#: incident from 26.61 s) [s] — about the static-loading low-pass's settling.
+BASELINE_LEAD_S = 0.5
+
+
+def baseline_alone(events: Sequence[dict[str, Any]], incidents: Sequence[dict[str, Any]],
+                   loads: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The static baseline's events after warm-up (timeline dicts) that no incident (counted
+    or not: one at a data defect or a payload change explains its alarm) or lasting load
+    after warm-up overlaps, from :data:`BASELINE_LEAD_S` before its start: alarms of the
+    plain |r| > v0 comparison the product's detectors did not confirm. Not incidents (the
+    product is adaptive and static_loading: docs/incidents.md), but a "no incident" must
+    not hide them (a trial's real UR log: a braking whose residual reached 1.8× v0 on
+    shoulder_pan, "No incident after warm-up" and no word of it)."""
+    spans = [(float(x["t_start"]) - BASELINE_LEAD_S, float(x["t_end"]))
+             for x in (*incidents, *loads)
+             if not x.get("in_warmup")]  # (one at a data defect or a payload change too)
+    return [e for e in events if e["detector"] == "static_baseline" and not e["in_warmup"]
+            and not any(a <= e["t_end"] and e["t_start"] <= b for a, b in spans)]
+
+
+def baseline_alone_text(alone: Sequence[dict[str, Any]]) -> str:
+    """:func:`baseline_alone`'s events in words ("" when none): ``the static baseline alone
+    alarmed after warm-up at 16.970 s (shoulder_pan, wrist_1; up to 1.8× its threshold
+    v0): not an incident — neither product detector confirmed it, but a contact may have
+    been there (events in the timeline)``."""
+    if not alone:
+        return ""
+    joints = sorted({j for e in alone for j in e["joints"]})
+    top = max(float(e["peak_ratio"]) for e in alone)
+    when = (f"at {alone[0]['t_start']:.3f} s" if len(alone) == 1 else
+            f"{len(alone)} times (first at {alone[0]['t_start']:.3f} s)")
+    return (f"the static baseline alone alarmed after warm-up {when} ({', '.join(joints)}; "
+            f"up to {top:.2g}× its threshold v0): not "
+            f"{'an incident' if len(alone) == 1 else 'incidents'} — neither product detector "
+            "confirmed it, but a contact may have been there (events in the timeline)")
+
+
 #: A lasting load held its detector alarming over "all" the analysed time when it held
 #: this share of it or more (a sample or a merge gap short of it is still all).
 ALL_HELD_SHARE = 0.99

@@ -39,6 +39,7 @@ from typing import Any, NotRequired, TypedDict
 from ..config import settings_changed
 from ..detect.floor import floor_line, probed_line
 from ..detect.force import FORCE_NOT_STATED, scale_untrusted
+from ..detect.incidents import baseline_alone
 from ..errors import (
     EXIT_DATA,
     EXIT_SOFTWARE,
@@ -163,6 +164,7 @@ class SummaryRow(TypedDict):
     detection_floor_measured: str | None
     warmup_end_s: float
     late_warmup: NotRequired[dict[str, float]]
+    baseline_alone: NotRequired[list[dict[str, Any]]]
     generators: dict[str, str]
     generator_reasons: dict[str, str]
     incidents: int
@@ -413,6 +415,12 @@ def _summary(job: DetectJob, result: DetectionResult) -> SummaryRow:
     from ..detect.warmup import least_s, past_least
 
     least = least_s(result.config)
+    tl_events = [e.to_dict() for e in result.events]
+    if alone := baseline_alone(tl_events, [i.to_dict() for i in result.incidents],
+                               [x.to_dict() for x in result.lasting_loads]):
+        row["baseline_alone"] = [{"t_start": e["t_start"], "t_end": e["t_end"],
+                                  "joints": list(e["joints"]),
+                                  "peak_ratio": e["peak_ratio"]} for e in alone]
     if late := past_least(result.incidents, least):  # not counted, not judged
         row["late_warmup"] = {"least_s": float(least or 0.0), "alarms": len(late)}
     return row

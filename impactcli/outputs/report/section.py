@@ -17,6 +17,7 @@ from typing import Any
 
 from ...config import settings_changed
 from ...detect.floor import floor_words
+from ...detect.incidents import baseline_alone, baseline_alone_text
 from ...detect.tail import calibration_text
 from ...detect.warmup import least_s
 from ...logs.paths import log_stem
@@ -78,6 +79,9 @@ def log_section(result: DetectionResult, labels: Labels | None,
                                       if "travel_rad" in x],
                            payload_changes=tl.get("payload_changes") or (),
                            start_load=tl["input"].get("payload"))
+    if alone := baseline_alone_text(baseline_alone(events, tl["incidents"],
+                                                   tl["lasting_loads"])):
+        verdict += f" {alone[0].upper()}{alone[1:]}."
     if result.log.source.truncated:
         verdict += " " + truncated_text(result.log.duration_s)
     if not result.calibrated and not any(counts_as_contact(i) for i in incidents):
