@@ -130,3 +130,24 @@ def test_the_force_gate_could_not_judge_a_force_that_leaves_out_a_part() -> None
     est = Findings("b.csv", 40.0, 3.0, (Inc(20.0, 2, 9.0, False),), (), ())
     assert judge([est], fail_on_detect=False, fail_on_force=100.0) == ([], [])
     assert gate_notes([low], fail_on_detect=False, fail_on_force=100.0) == []
+
+
+def test_the_at_least_legend_states_the_measured_spread_of_the_docs() -> None:
+    """The legend under a list with ≳ gives the estimate's measured spread: the smallest
+    and largest estimate/truth of docs/incidents.md's table (incident_quality.py
+    --seeds 3), so the two cannot drift apart (a trial read "may be larger" over an
+    estimate 1.53× the truth)."""
+    import re
+    from pathlib import Path
+
+    from impactcli.detect.force import AT_LEAST_TEXT
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "incidents.md").read_text("utf-8")
+    rows = [ln for ln in doc.splitlines()
+            if ln.startswith(("  | heavy geared |", "  | ASSIST-like |"))]
+    spans = [(float(a), float(b)) for ln in rows
+             for a, b in re.findall(r"\((\d\.\d+)–(\d\.\d+)\)", ln)]
+    assert len(spans) == 6, rows
+    lo, hi = min(a for a, _ in spans), max(b for _, b in spans)
+    assert f"{lo:.2g}–{hi:.2g}× the true force" in AT_LEAST_TEXT, (lo, hi)
+    assert f"from {lo:.2f} to {hi:.2f} × the truth" in doc

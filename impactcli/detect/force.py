@@ -94,8 +94,9 @@ AT_LEAST = "≳"
 #: What :data:`AT_LEAST` means, in the words every output gives it.
 AT_LEAST_TEXT = ("≳: the joints up to the link do not feel part of that force (on link 1, "
                  "near a singular posture, a spatial arm's first links), so the force may be "
-                 "larger; like every force here it is an estimate at the link's end, not a "
-                 "strict bound (docs/incidents.md)")
+                 "larger; like every force here it is an estimate at the link's end that errs "
+                 "both ways, not a bound (on simulated arms' contacts 0.34–1.7× the true "
+                 "force: docs/incidents.md)")
 
 
 def force_mark(x: Any) -> str:
