@@ -540,6 +540,7 @@ def test_a_floor_far_below_the_push_a_link_needs_says_the_push_too() -> None:
     line = floor_line(floor(225.0))
     assert line is not None and line.startswith(
         "a contact below ~49 N on link 2 (~56 N in the worst tenth; held as a push: ~225 N) "
-        "would not have been seen"), line
+        "(N: a force at the link's end, normal to it; one nearer its joint or aslant needs "
+        "more) would not have been seen"), line
     line = floor_line(floor(73.5))
     assert line is not None and "held as a push" not in line, line

@@ -205,8 +205,10 @@ def test_the_words_say_what_was_measured_and_what_was_not_judged() -> None:
     assert line.startswith("a 100 ms blow was caught at half the moments judged from ~5.5 N "
                            "on link 1 (at nine in ten from ~7.3 N; 31 of 32 judged), ~0.93 "
                            "N·m on c (link 3 ends on its axis) (at nine in ten from ~1.1 N·m)"
-                           "; on link 2, no blow however large was caught at 20 of 30 "
-                           "moments judged — 32 moments probed after warm-up"), line
+                           " (N: a force at the link's end, normal to it; one nearer its "
+                           "joint or aslant needs more); on link 2, no blow however large "
+                           "was caught at 20 of 30 moments judged — 32 moments probed after "
+                           "warm-up"), line
     assert "one where a detector was already alarming is not judged" in line
     per_joint = {"probes": 32, "window_s": 0.2, "per_link": None, "per_joint": {
         "a": {"median_nm": None, "worst_tenth_nm": None, "probes": 0, "in_alarm": 32,

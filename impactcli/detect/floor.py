@@ -348,6 +348,11 @@ PUSH_APART = 2.0
 LOWER_BOUND = "a lower bound, not a promise that a larger one was seen"
 #: Links or joints a floor's sentence names at most (the largest floors).
 MAX_LISTED = 6
+#: Where the floors in N act (the module docstring: a force at the link's end in the
+#: direction that turns its joint most), said beside them: a trial read "~14 N on link 1"
+#: as any 14 N contact, and a 25 N push there went unseen.
+FORCE_AT = ("N: a force at the link's end, normal to it; one nearer its joint or aslant "
+            "needs more")
 
 
 def floor_line(floor: dict[str, Any] | None) -> str | None:
@@ -409,7 +414,8 @@ def floor_line(floor: dict[str, Any] | None) -> str | None:
             "warm-up: a contact there joins that alarm, so no floor is stated for them")
     if not shown:
         return busy
-    return (f"{head} {', '.join(shown)} would not have been seen at the log's median "
+    at = f" ({FORCE_AT})" if unit == "N" and parts else ""
+    return (f"{head} {', '.join(shown)}{at} would not have been seen at the log's median "
             f"moment (at quieter moments a smaller one can be){note}; {LOWER_BOUND}"
             + (f"; {busy}" if busy else ""))
 
@@ -471,9 +477,10 @@ def probed_line(floor: dict[str, Any] | None) -> str | None:
                 and "alarming" not in tail else "")
         busy = [f"on every {'link' if links else 'joint'}, {tail}{hint}"]
     shown = _largest(parts)
+    at = f" ({FORCE_AT})" if any(key == "_n" for _, _, key in items) else ""
     ms = 1000 * float((floor or {}).get("half_sine_s", HALF_SINE_S))
     said = ([f"a {ms:g} ms blow was caught at half the moments judged from "
-             + ", ".join(shown)] if shown else []) + busy
+             + ", ".join(shown) + at] if shown else []) + busy
     return ("; ".join(said) + f" — {_moments(total)} probed after warm-up, each replayed "
             f"with a {ms:g} ms blow added to the residual through both detectors from "
             "their own state, and judged within its window; one where a detector was "
