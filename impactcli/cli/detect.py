@@ -101,6 +101,8 @@ def _incident_line(k: int, inc: IncidentRow, link_width: int = 7,
                  "timeline)")
     if inc.get("aftermath"):  # up to its colon: "in the aftermath of incident 5 at 35.048 s"
         flag += f"  {inc['aftermath'].split(':')[0]} (aftermath in the timeline)"
+    if inc.get("held_before"):  # up to its colon: "ended a load held since 11.909 s"
+        flag += f"  {inc['held_before'].split(':')[0]} (held_before in the timeline)"
     if inc.get("resumes_load"):  # up to its colon: "resumes the lasting load of … dip"
         flag += f"  {inc['resumes_load'].split(':')[0]} (resumes_load in the timeline)"
     return (f"  {k:>3}  {inc['t_start']:>9.3f} s  {link:<{link_width}} {force:>9}  "

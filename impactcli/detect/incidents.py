@@ -90,6 +90,7 @@ class Incident:
     unseen_load_kg: float | None = None
     resumes_load: dict[str, Any] | None = None
     velocity_disagrees: dict[str, Any] | None = None
+    held_before: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (timeline ``incidents`` item); ``outside_envelope`` only when
@@ -105,7 +106,8 @@ class Incident:
         ``unseen_load_kg`` only when it starts while the arm carried a load no calibration
         log carried (:func:`impactcli.run.loads.unseen_spans`), ``velocity_disagrees`` only
         when it overlaps a stretch where the logged velocity and positions tell two motions
-        (:func:`mark_disagreeing`)."""
+        (:func:`mark_disagreeing`), ``held_before`` only when its alarm ended a load held
+        before it (:func:`impactcli.detect.release.mark_held`)."""
         return {
             "t_start": self.t_start, "t_end": self.t_end, "t_start_utc": self.t_start_utc,
             "detectors": list(self.detectors), "joints": list(self.joints), "link": self.link,
@@ -127,6 +129,7 @@ class Incident:
             **({} if self.resumes_load is None else {"resumes_load": self.resumes_load}),
             **({} if self.velocity_disagrees is None
                else {"velocity_disagrees": self.velocity_disagrees}),
+            **({} if self.held_before is None else {"held_before": self.held_before}),
         }
 
 

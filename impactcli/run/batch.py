@@ -101,6 +101,7 @@ class IncidentRow(TypedDict):
     off_scale: NotRequired[bool]
     resumes_load: NotRequired[str]
     velocity_disagrees: NotRequired[dict[str, Any]]
+    held_before: NotRequired[str]
 
 
 def _incident_row(i: Any) -> IncidentRow:
@@ -130,6 +131,8 @@ def _incident_row(i: Any) -> IncidentRow:
         row["resumes_load"] = i.resumes_load["text"]
     if i.velocity_disagrees is not None:
         row["velocity_disagrees"] = i.velocity_disagrees
+    if i.held_before is not None:
+        row["held_before"] = i.held_before["text"]
     return row
 
 

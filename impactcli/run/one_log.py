@@ -76,6 +76,8 @@ from ..detect.probe import (
     probed_floor,
 )
 from ..detect.rates import resolve_rates
+from ..detect.release import BLOCK_S as RELEASE_BLOCK_S
+from ..detect.release import BlockTrace, mark_held
 from ..detect.thresholds import compare_to_thresholds, uncalibrated_blocks
 from ..detect.warmup import Warmup, WarmupTracker, past_least
 from ..errors import ConfigError, ImpactWarning
@@ -330,7 +332,7 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
             warn_beyond_effort(cfg, joints, setup.robot, where)
         since = caught.mark()
         monitor = monitor_for(plan, given, scan.sample_rate_hz)
-        rp, thr, margins, islands, envelope, floor_acc = _detect_passes(
+        rp, thr, margins, islands, envelope, floor_acc, trace = _detect_passes(
             feed, plan, given, on_chunk, passes, monitor)
         stack.callback(islands.close)
         warn_replayed(caught, since, plan, feed, rp)
@@ -370,6 +372,8 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
                                     scan.duration_s + scan.sample_period_s)
         incidents = mark_disagreeing(mark_unseen(number_incidents(marked), uncalibrated),
                                      scan.disagreements)  # the data's, maybe (velocity_check)
+        incidents = mark_held(incidents, trace.finish(), trace.per_block,
+                              scan.sample_period_s, joints, loads)  # a push released
         loads = mark_unseen(loads, uncalibrated)
         if monitor is not None:  # what the alarms the monitor weighed are not
             incidents = mark_tried(incidents, monitor.tried, cfg.events.merge_gap_s)
@@ -471,7 +475,7 @@ def _detect_passes(
     feed: ChunkFeed, plan: RunPlan, given: dict[str, np.ndarray] | None,
     on_chunk: Callable[[SignalsChunk], None] | None, passes: Passes, monitor: Any = None,
 ) -> tuple[Replayed, dict[str, np.ndarray], dict[str, np.ndarray], Islands,
-           EnvelopeCheck | None, FloorAccumulator]:
+           EnvelopeCheck | None, FloorAccumulator, BlockTrace]:
     """The replay and the comparison (module docstring): with thresholds ``given``, one
     pass that compares as it goes; without, a pass that spills, the thresholds from what it
     spilled, then the comparison over the spill. Returns the replay, the thresholds, their
@@ -510,7 +514,8 @@ def _detect_passes(
         for c in made:
             c.islands.close()
         raise
-    return rp, thr, margins, comparing.islands, comparing.envelope, comparing.floor
+    return rp, thr, margins, comparing.islands, comparing.envelope, comparing.floor, \
+        comparing.trace
 
 
 def envelope_check(cfg: DetectorConfig, joints: tuple[str, ...], sample_rate_hz: float
@@ -574,6 +579,7 @@ class _Compare:
         self.islands = Islands(cfg.events.merge_gap_s)
         self.pressing_at = BRIDGE_FRACTION * np.maximum(thr["static_loading"], 1e-12)
         self.noise = ResidualNoise(len(joints), dt)
+        self.trace = BlockTrace(len(joints), round(RELEASE_BLOCK_S / dt))  # a load released
 
     def update(self, st: ReplayStep) -> None:
         k0, t = st.start, st.t
@@ -584,6 +590,7 @@ class _Compare:
         pressing = np.any(st.loading >= self.pressing_at[None, :], axis=1)
         self.floor.update(st.loading, st.r_rms, thr_ad, st.q_full, st.gain)
         level, noise = self.noise.update(st.r)
+        self.trace.update(st.r)
         if self.envelope is not None and st.position is not None:
             self.envelope.update_arrays(t, st.position, st.position_ref, k0)
         self.islands.update(k0, t, any_d, pressing, {

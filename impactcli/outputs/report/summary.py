@@ -296,7 +296,8 @@ def _verdict(incidents: Sequence[dict[str, Any]], known: bool, alarms_counted: i
               f" {'It' if n == 1 else ('All' if under == n else f'{under} of them')} began "
               "while the arm carried a load no calibration log carried: the false-alarm "
               "rate there was not measured, so how many are contacts is not known.")
-    return f"{head}: {'; '.join(parts)}{tail}{also}.{units}{unseen}{_maybe_not(counted)}"
+    return (f"{head}: {'; '.join(parts)}{tail}{also}.{units}{unseen}{_maybe_not(counted)}"
+            f"{_held(counted)}")
 
 
 def _maybe_not(counted: Sequence[dict[str, Any]]) -> str:
@@ -316,6 +317,19 @@ def _maybe_not(counted: Sequence[dict[str, Any]]) -> str:
     if not said:
         return ""
     return (" Counted, though maybe no new contact: " + " and ".join(said) + ".")
+
+
+def _held(counted: Sequence[dict[str, Any]]) -> str:
+    """The verdict's words for the counted incidents whose alarm ended a load held before
+    it (``held_before``): dated and typed by the release, the contact began earlier; ""
+    when none."""
+    held = [i["held_before"] for i in counted if i.get("held_before")]
+    if not held:
+        return ""
+    since = ", ".join(f"{h['t_start']:.1f} s" for h in held)
+    return (f" {'One' if len(held) == 1 else len(held)} of them ended a load held since "
+            f"before its alarm (from {since}): the contact began then, its time, type and "
+            "force are the release's.")
 
 
 def counts_as_contact(incident: dict[str, Any]) -> bool:
