@@ -289,6 +289,19 @@ def test_a_silent_joint_whose_residual_stands_out_gives_the_link() -> None:
     assert d.link == 1 and d.candidates == (1,)
 
 
+def test_a_distal_joint_barely_past_half_its_threshold_is_a_candidate_not_sure() -> None:
+    """Known truth from a trial's heavy arm (its joints' peak |LP(r)| / vL): a 25 N push on
+    link 2 gave j1 1.63, j2 1.55 and j3 0.51 — past half its threshold, so link 3 — and
+    was called link 3 alone; its pushes on link 3 gave j3 0.71-0.96. Between half and
+    three quarters of vL the joint's link is said, with the link before it: "link 2 or 3";
+    from three quarters on it is sure; under half, link 2 with link 3 possible (as before)."""
+    fired = np.zeros((1, 3), dtype=bool)
+    for j3, link, cands in ((0.51, 3, (2, 3)), (0.71, 3, (2, 3)), (0.80, 3, (3,)),
+                            (0.96, 3, (3,)), (0.40, 2, (2, 3))):
+        d = decide_link(np.array([[1.63, 1.55, j3]]), fired, [1, 2, 3])
+        assert (d.link, d.candidates) == (link, cands), (j3, d)
+
+
 @pytest.mark.slow
 def test_link2_at_35_percent_is_put_on_link2(tmp_path: Path) -> None:
     """On a held-out heavy arm (robot 306), pushes on link 2 at 35 % of

@@ -19,8 +19,9 @@ outer joints through the arm's dynamic coupling (a small share of the inner join
   its thresholds (a contact near the joint, a joint whose calibration motion fitted badly).
 
 When the evidence cannot tell two links apart, :func:`decide_link` says which links remain
-(``link_candidates``): from the most distal joint whose evidence is sure (its detectors, or
-a residual :data:`Z_SURE` times its noise) to the most distal one whose evidence is only
+(``link_candidates``): from the most distal joint whose evidence is sure (its detectors
+fired, its statistic reached :data:`SURE_FRACTION` of vL, or a residual :data:`Z_SURE`
+times its noise) to the most distal one whose evidence is only
 possible (a residual :data:`Z_POSSIBLE` times its noise and :data:`DEV_COUPLING_POSSIBLE` of
 the inner deviation, or half the detectors' weak criteria). The values were chosen on
 simulated arms (robot seeds 301–302, tests/benchmarks/isolation_quality.py).
@@ -39,6 +40,11 @@ from ..model.iir import lfilter
 #: *and* COUPLING_FRACTION of the largest ratio among the joints nearer the base.
 WEAK_FRACTION = 0.5
 COUPLING_FRACTION = 0.25
+#: ... and sure evidence (no candidate nearer the base remains) from this fraction of vL
+#: on: nearer WEAK_FRACTION a joint's statistic may be the coupling of an inner contact
+#: (a trial's heavy arm, a 25 N push on link 2: joint 3 at 0.51 of its vL, link 3 said
+#: sure; its pushes on link 3 reached 0.71-0.96 there).
+SURE_FRACTION = 0.75
 #: Time constant of the residual's running level and noise (:class:`ResidualNoise`) [s].
 NOISE_TAU_S = 1.0
 #: The noise is at least this fraction of the joint's vL (a still arm's residual noise is
@@ -142,7 +148,8 @@ def decide_link(
         coupled = dev[j] >= DEV_COUPLING * inner_dev
         res_sig = z[j] >= Z_MIN and coupled
         sig[j] = sig[j] or weak or res_sig
-        sure[j] = sure[j] or weak or (z[j] >= Z_SURE and coupled)
+        sure[j] = sure[j] or (weak and peak[j] >= SURE_FRACTION) or (z[j] >= Z_SURE
+                                                                     and coupled)
         poss[j] = poss[j] or sig[j] or half or (
             z[j] >= Z_POSSIBLE and dev[j] >= DEV_COUPLING_POSSIBLE * inner_dev)
         inner_ratio = max(inner_ratio, float(peak[j]))
