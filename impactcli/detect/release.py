@@ -14,8 +14,10 @@ The residual's history tells, after the fact (a note on the answer, as
 :data:`BLOCK_S` (:class:`BlockTrace`: J numbers per block, whatever the log's length) give,
 per joint of the incident:
 
-- the level after it, P: the median of :data:`POST_BLOCKS` blocks from
-  :data:`SETTLE_BLOCKS` after its end;
+- the level after its alarm began, P: the median of :data:`POST_BLOCKS` blocks from
+  :data:`SETTLE_BLOCKS` after its start — a release's residual is back by then, while a
+  clamp that crossed its threshold at the alarm still holds it there (a trial's heavy-arm
+  clamp, alarming 2.3 s into its build-up, was first taken for a release of it);
 - the level held before it, H: the median of :data:`PRE_BLOCKS` blocks ending
   :data:`GUARD_BLOCKS` before its start;
 - the step H − P must stand out: at least :data:`STEP_SIGMA` × the residual's block noise
@@ -100,13 +102,13 @@ def block_noise(x: np.ndarray) -> np.ndarray:
     return 1.4826 * mad / np.sqrt(2.0)
 
 
-def held_level(x: np.ndarray, b0: int, b1: int, sigma: float, peak: float,
+def held_level(x: np.ndarray, b0: int, sigma: float, peak: float,
                min_blocks: int) -> tuple[int, float, float] | None:
-    """A hold of ``min_blocks`` blocks or more that an incident from block ``b0`` to ``b1``
-    (inclusive) ended on one joint's (B,) block means ``x`` (module docstring): (its first
-    block, the level held, the level after) or None."""
+    """A hold of ``min_blocks`` blocks or more that an incident's alarm at block ``b0``
+    ended on one joint's (B,) block means ``x`` (module docstring): (its first block, the
+    level held, the level after) or None."""
     n = x.shape[0]
-    a, z = b0 - GUARD_BLOCKS - PRE_BLOCKS, b1 + 1 + SETTLE_BLOCKS
+    a, z = b0 - GUARD_BLOCKS - PRE_BLOCKS, b0 + 1 + SETTLE_BLOCKS  # after its alarm began
     if a < 0 or z + POST_BLOCKS // 2 > n:
         return None
     held = float(np.median(x[a:b0 - GUARD_BLOCKS]))
@@ -150,12 +152,12 @@ def mark_held(incidents: Sequence[Any], means: np.ndarray, per_block: int,
         if inc.number is None or inc.in_warmup:
             out.append(inc)
             continue
-        b0, b1 = inc.i_start // per_block, inc.i_end // per_block
+        b0 = inc.i_start // per_block
         found: dict[str, dict[str, float]] = {}
         since: float | None = None
         for j in inc.joints:
             k = list(joints).index(j)
-            h = held_level(means[:, k], b0, b1, float(sigma[k]),
+            h = held_level(means[:, k], b0, float(sigma[k]),
                            float(inc.peak_residual.get(j, 0.0)), least)
             if h is None:
                 continue
