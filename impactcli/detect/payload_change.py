@@ -339,7 +339,7 @@ class PayloadMonitor:
             y = self.model.regressor(buf["qf"][w0:], buf["qd"][w0:], buf["qdd"][w0:]) @ self.b
             left = -buf["r"][w0:]  # the torque beyond the model's: r = τ̂ − τ
             judged = self._judge(y, left, buf["qf"][w0:])
-            why = judged.why
+            why = judged.why or self._a_press(judged)
         if why is not None:
             self._failed = {t: k for t, k in self._failed.items()  # those still kept
                             if k >= k_c - KEPT * self.window}
@@ -413,6 +413,23 @@ class PayloadMonitor:
             carried_since_s=self._kept_from))
         self._kept_from = None
         return self._pi
+
+    def _a_press(self, judged: Judged) -> str | None:
+        """Why a step that passed the tests is no payload change after all: a release of
+        more than the log was seen to carry (:func:`mass_check`, the load it started with
+        weighed) whose inertia did not show — a mass cannot be taken off that was not on,
+        and a steady press along gravity gives the same torque (a trial's heavy-arm clamp
+        of 25 N read "−2.34 kg", then "+2.34 kg" at its end, and left the count). None
+        when it may be one."""
+        w = judged.w
+        if judged.shows == "shows" or not self.start_weighed or self._pi is None:
+            return None
+        after = self.base_kg + float((self._pi + w.pi)[self.names.index("m")])
+        lowest = min(0.0, self.base_kg, *(c.mass_after_kg for c in self.changes))
+        if mass_check(w.mass_kg, w.mass_se_kg, lowest, after, True) is None:
+            return None
+        return (f"it would release {-w.mass_kg:.3g} kg, more than the log was seen to carry, "
+                "and its inertia did not show: a press along gravity (a clamp?), not a load")
 
     def _judge(self, y: np.ndarray, left: np.ndarray, qf: np.ndarray,
                at: np.ndarray | None = None) -> Judged:
