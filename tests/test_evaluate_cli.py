@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -342,6 +343,16 @@ def test_sweep_from_a_timeline_with_its_signals(tmp_path):
     zero = doc["sweep"]["at_zero_false_alarms"]
     assert zero["adaptive"]["scale"] == 1.6 and zero["static_loading"]["scale"] == 1.3
     assert zero["adaptive"]["min_detected_force"] == 3.0
+    # "zero false alarms" rests on this log's collision-free time: the rate it bounds at
+    # 90 % is ln(10) / hours (a trial took a 0-FA scale from 50 s of one log; it gave
+    # 4042 per hour on free motion)
+    free = doc["collision_free_s"]
+    assert 0 < free < 9.0 and doc["sweep"]["collision_free_s"] == pytest.approx(free)
+    assert doc["sweep"]["zero_bound_per_hour"] == pytest.approx(math.log(10) * 3600 / free)
+    assert doc["sweep"]["caveat"].startswith(
+        f"Zero false alarms here is over this log's {free:.3g} s of collision-free time")
+    r = invoke(str(tl), "--labels", str(lab), "--sweep", "--scales", "1,1.3,1.6,2.5")
+    assert r.exit_code == 0 and "not thresholds for an audit" in r.stdout, info(r)
 
 
 def test_timeline_sweep_reads_its_signals_one_row_group_at_a_time(tmp_path, monkeypatch):

@@ -64,6 +64,8 @@ class SweepRow:
         contact_delays_s: per labelled contact (labels order), its detection delay [s], or
             None when missed or not counted (warm-up, outside the log) — for paired
             comparisons between detectors.
+        collision_free_s: the time after warm-up outside every contact's window [s], over
+            which ``false_alarms`` were counted (not in :meth:`to_dict`: the sweep's own).
     """
 
     detector: str
@@ -76,6 +78,7 @@ class SweepRow:
     delay_median_s: float | None
     min_detected_force: float | None
     contact_delays_s: tuple[float | None, ...] = ()
+    collision_free_s: float | None = None
 
     def to_dict(self, *, per_contact: bool = False) -> dict[str, Any]:
         """JSON-ready mapping (``per_contact``: with ``contact_delays_s``)."""
@@ -348,7 +351,7 @@ def add_rows(rows_of: dict[str, list[SweepRow]], scale: float, evs: list[ScoredE
         rows_of[d].append(SweepRow(
             d, scale, sc.n_events, sc.n_contacts, sc.detected, sc.false_alarms,
             sc.false_alarms_per_hour, sc.delay_median_s, sc.min_detected_force,
-            per_contact))
+            per_contact, ev.collision_free_s))
 
 
 def warn_late_labels(labels: Labels, duration_s: float, warmup_end_s: float,

@@ -161,6 +161,8 @@ def sweep_html(sw: dict[str, Any]) -> str:
          "s ≈ 1 is this run). Cells: contacts detected / counted, false alarms.</p>"]
     if sw.get("verdict"):
         p.append(f"<p><b>Verdict:</b> {e(sw['verdict'])}</p>")
+        if sw.get("caveat"):
+            p.append(f"<p>{e(sw['caveat'])}</p>")
     if not rows:
         return "".join(p)
     dets = list(dict.fromkeys(r["detector"] for r in rows))
