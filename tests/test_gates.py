@@ -63,3 +63,29 @@ def test_fail_on_force_could_not_judge_only_a_press_that_would_pass_it(
     odd = findings(change(-0.5, "shows", mass_check="released 0.5 kg, ..."))
     _, unjudged = judge([odd], fail_on_detect=False, fail_on_force=100.0)
     assert len(unjudged) == 1 and "cannot be trusted" in unjudged[0]
+
+
+def test_an_incident_where_the_data_disagree_is_not_judged_by_either_gate() -> None:
+    """An incident overlapping a stretch where the logged velocity and the positions tell
+    two motions: both gates could not judge it (exit 5), where --fail-on-detect failed the
+    real KUKA log on it (exit 1); another incident in the same log is judged as ever."""
+    from types import SimpleNamespace
+
+    def inc(t: float, data: bool) -> SimpleNamespace:
+        return SimpleNamespace(t_start=t, force_n=50.0, force_at_least=False,
+                               force_plausible=True, force_check="", force_method="",
+                               velocity_disagrees={"t_start": 25.014, "t_end": 25.1,
+                                                   "joints": ["j1"]} if data else None)
+
+    only = Findings("/data/kuka.csv", 25.1, 3.0, (), (), (), disagreeing=(inc(24.8, True),))
+    for kw in ({"fail_on_detect": True, "fail_on_force": None},
+               {"fail_on_detect": False, "fail_on_force": 10.0}):
+        failing, unjudged = judge([only], **kw)
+        assert failing == [] and len(unjudged) == 1, (kw, failing, unjudged)
+        assert ("could not judge 1 incident where the log's velocity and positions tell two "
+                "motions (the first at 24.800 s, the stretch from 25.014 s)") in unjudged[0]
+    both = Findings("/data/kuka.csv", 25.1, 3.0, (inc(10.0, False),), (), (),
+                    disagreeing=(inc(24.8, True),))
+    failing, unjudged = judge([both], fail_on_detect=True, fail_on_force=None)
+    assert len(failing) == 1 and "1 incident after warm-up" in failing[0]
+    assert len(unjudged) == 1

@@ -139,6 +139,11 @@ def test_the_real_kuka_logs_last_incident_is_marked(real_logs: Path, tmp_path: P
         f"a{k}" for k in range(1, 8)]
     assert counted[0]["t_start"] < counted[0]["velocity_disagrees"]["t_start"]
     assert "the logged velocity and positions disagree from 25.014 s" in r.stdout
+    # a gate could not judge it (a trial's --fail-on-detect failed the log on it: exit 1)
+    r = invoke("detect", str(real_logs / "kuka_lwr4" / "measurements_1.npz"),
+               "--channel-map", "kuka_lwr4", "-o", str(tmp_path / "g"), "--fail-on-detect")
+    assert r.exit_code == 5 and "--fail-on-detect could not judge 1 incident where the " \
+        "log's velocity and positions tell two motions" in r.stderr, r.output
 
 
 def test_many_stretches_are_all_counted_and_a_few_named() -> None:

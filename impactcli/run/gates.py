@@ -44,6 +44,9 @@ class Findings:
         late_warmup: the incidents in the warm-up from its least length on
             (:func:`impactcli.detect.warmup.past_least`): not counted, not judged.
         least_s: the warm-up's least length [s] (None: not recorded).
+        disagreeing: the counted incidents that overlap a stretch where the logged velocity
+            and the positions tell two motions (``velocity_disagrees``): their residual may
+            be the data's, so neither gate judges them (not in ``incidents``).
     """
 
     log_path: str
@@ -56,16 +59,19 @@ class Findings:
     truncated: bool = False
     late_warmup: tuple[Any, ...] = ()
     least_s: float | None = None
+    disagreeing: tuple[Any, ...] = ()
 
     @classmethod
     def of(cls, log_path: str, result: Any) -> Findings:
         """The findings of ``result`` (a :class:`~impactcli.types.DetectionResult`)."""
         least = least_s(result.config)
+        counted = result.counted_incidents()
+        data = tuple(i for i in counted if getattr(i, "velocity_disagrees", None))
         return cls(log_path, float(result.log.duration_s), float(result.warmup_end_s),
-                   tuple(result.counted_incidents()), tuple(result.defect_incidents()),
-                   tuple(result.counted_lasting_loads()),
+                   tuple(i for i in counted if i not in data),
+                   tuple(result.defect_incidents()), tuple(result.counted_lasting_loads()),
                    tuple(result.payload_changes or ()), bool(result.log.source.truncated),
-                   tuple(past_least(result.incidents, least)), least)
+                   tuple(past_least(result.incidents, least)), least, data)
 
 
 def shown(log: str) -> str:
@@ -107,7 +113,21 @@ def judge(findings: Sequence[Findings], *, fail_on_detect: bool,
                      if (line := _press(f, gate, None if fail_on_detect else fail_on_force))]
         unjudged += [_cut(f, gate) for f in findings if f.truncated]
         unjudged += [_late(f, gate) for f in findings if f.late_warmup]
+        unjudged += [_disagreeing(f, gate) for f in findings if f.disagreeing]
     return failing, unjudged
+
+
+def _disagreeing(f: Findings, gate: str) -> str:
+    """The line of a log with incidents where its velocity and positions tell two motions:
+    their residual may be the data's, so the gate could not judge them (the real KUKA
+    log's only incident runs into such a stretch; --fail-on-detect failed it, exit 1)."""
+    first = f.disagreeing[0]
+    n = len(f.disagreeing)
+    return (f"impactcli: {shown(f.log_path)}: {gate} could not judge {count(n, 'incident')} "
+            f"where the log's velocity and positions tell two motions (the first at "
+            f"{first.t_start:.3f} s, the stretch from "
+            f"{first.velocity_disagrees['t_start']:.3f} s): the residual there may be the "
+            "data's (velocity_disagrees in the timeline); exit 5")
 
 
 def _late(f: Findings, gate: str) -> str:
