@@ -136,7 +136,7 @@ def test_batch_summary_totals() -> None:
             JobOutcome("b.csv", True, _row("b.csv", 5400.0, 2, 0, 3, 4)),
             JobOutcome("c.csv", False, error="c.csv: corrupt", exit_code=3, error_class="data")]
     doc = batch_summary(rows, wall_s=4.0)
-    assert doc["logs"] == {"total": 3, "done": 2, "failed": 1}
+    assert doc["logs"] == {"total": 3, "done": 2, "failed": 1, "not_run": 0}
     assert doc["events"] == {"adaptive": 2, "static_loading": 4, "static_baseline": 4}
     assert doc["incidents"] == 3
     assert [r["log"] for r in doc["results"]] == ["a.csv", "b.csv"]

@@ -15,6 +15,7 @@ from impactcli.errors import EXIT_SOFTWARE, LogFormatError
 from impactcli.logs import describe as io_inspect
 from impactcli.logs import read_log, write_log
 from impactcli.run import batch
+from impactcli.schema import validate
 
 from .cli_run import cli
 
@@ -343,9 +344,19 @@ def test_a_batch_with_a_failed_log_still_says_the_gate_the_others_tripped(
     the other log tripped the gate. Its line is now said, naming the code that won."""
     missing = tmp_path / "gone.csv"
     log = LOG.with_name("assist_pushes.csv.gz")
+    summary = tmp_path / "s.json"
     code, _, err = cli("detect", str(log), str(missing), "--config", str(CONFIG), "-o",
-                       str(tmp_path / "out"), "--fail-on-detect")
+                       str(tmp_path / "out"), "--fail-on-detect", "--summary", str(summary))
     assert code == 4, err
+    # the summary holds what the gates found and the code (a trial found neither there)
+    doc = json.loads(summary.read_text("utf-8"))
+    validate(doc, "batch_summary", AssertionError, "summary")
+    gates = doc["gates"]
+    assert (gates["exit_code"], gates["fail_on_detect"], gates["fail_on_force_n"]) == (
+        4, True, None)
+    assert len(gates["failing"]) == 1 and "--fail-on-detect" in gates["failing"][0]
+    assert doc["stopped"] is False and doc["logs"] == {"total": 2, "done": 1, "failed": 1,
+                                                        "not_run": 0}
     tl = json.loads((tmp_path / "out" / "assist_pushes.timeline.json")
                     .read_text("utf-8"))
     n = sum(1 for i in tl["incidents"] if i["number"] is not None)

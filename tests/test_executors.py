@@ -135,7 +135,7 @@ def test_serial_jobs_and_cluster_give_byte_identical_timelines(
         outs[name] = _timelines(out)
         doc = json.loads(summary.read_text())
         validate(doc, "batch_summary", ImpactError, str(summary))
-        assert doc["logs"] == {"total": N_LOGS, "done": N_LOGS, "failed": 0}
+        assert doc["logs"] == {"total": N_LOGS, "done": N_LOGS, "failed": 0, "not_run": 0}
         assert {Path(r["log"]).name: r["sha256"] for r in doc["results"]} == {
             p.name: _sha(p) for p in fleet["logs"]}
         assert doc["executor"]["kind"] == {"serial": "serial", "jobs2": "processes",
@@ -167,7 +167,7 @@ def test_a_corrupt_log_is_reported_while_the_others_complete(
     assert sorted(_timelines(out)) == ["run0.timeline.json", "run1.timeline.json"]
     doc = json.loads(summary.read_text())
     validate(doc, "batch_summary", ImpactError, str(summary))
-    assert doc["logs"] == {"total": 4, "done": 2, "failed": 2}
+    assert doc["logs"] == {"total": 4, "done": 2, "failed": 2, "not_run": 0}
     fails = {Path(f["file"]).name: f for f in doc["failures"]}
     assert set(fails) == {"corrupt.csv.gz", "missing.csv"}
     for f in fails.values():

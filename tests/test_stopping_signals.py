@@ -141,7 +141,8 @@ def test_a_signal_stops_the_batch_with_the_shell_code(
         logs: list[Path], tmp_path: Path, reaper: list[subprocess.Popen[str]], run: str,
         sig: signal.Signals) -> None:
     out, tmpdir = tmp_path / "out", tmp_path / "tmp"
-    proc = _start(logs, out, tmpdir, *RUNS[run])
+    summary = tmp_path / "summary.json"
+    proc = _start(logs, out, tmpdir, *RUNS[run], "--summary", str(summary))
     reaper.append(proc)
     _wait_for_output(proc, out)
     tree = _descendants(proc.pid)
@@ -161,6 +162,14 @@ def test_a_signal_stops_the_batch_with_the_shell_code(
     assert f"impactcli: {done} of {N_LOGS} logs finished before the stop; run the same " \
            "command again to redo the batch" in err.splitlines()
     assert not _wait_gone(tree, 5.0), "processes of the run left behind"
+    # the summary says the batch stopped, of how many (a trial's read "done 4, total 4" of
+    # 8, no word of the stop)
+    import json
+
+    doc = json.loads(summary.read_text("utf-8"))
+    n = doc["logs"]
+    assert doc["stopped"] is True and n["total"] == N_LOGS and n["done"] <= done
+    assert n["not_run"] == N_LOGS - n["done"] - n["failed"] >= 1 and "gates" not in doc
 
 
 def test_kill_9_of_a_pool_batch_leaves_no_process(

@@ -264,7 +264,7 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     except Interrupted:  # stopped: nothing more dispatched, the running logs abandoned
         stream.close()   # (their temporary files removed); what finished is listed
         _finish(outcomes, paths, choice, inputs, timer.elapsed(), out_dir, summary_path,
-                thresholds)
+                thresholds, stopped=True)
         late = written_since(job_list, {o.log_path for o in outcomes}, started)
         click.echo(f"impactcli: {len(outcomes) + len(late)} of {len(paths)} logs finished "
                    "before the stop; run the same command again to redo the batch", err=True)
@@ -272,8 +272,6 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
             click.echo(f"impactcli: {', '.join(map(shown, late))}: finished as the stop came; "
                        "its outputs are written but not in the table", err=True)
         raise
-    _finish(outcomes, paths, choice, inputs, timer.elapsed(), out_dir, summary_path,
-            thresholds)
     failed = [o for o in outcomes if not o.ok]
     ok = [o for o in outcomes if o.ok]
     ctx = click.get_current_context()
@@ -281,6 +279,13 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     # logs that finished are judged and said even when others failed (4 wins the code)
     failing, unjudged = judge([o.findings for o in ok if o.findings is not None],
                               fail_on_detect=fail_on_detect, fail_on_force=fail_on_force)
+    code = ((EXIT_BATCH if ok else failed[0].exit_code) if failed else
+            EXIT_DETECTED if failing else EXIT_UNJUDGED if unjudged else 0)
+    gates = (None if not fail_on_detect and fail_on_force is None else {
+        "fail_on_detect": bool(fail_on_detect), "fail_on_force_n": fail_on_force,
+        "failing": failing, "unjudged": unjudged, "exit_code": code})
+    _finish(outcomes, paths, choice, inputs, timer.elapsed(), out_dir, summary_path,
+            thresholds, gates=gates)
     batch = " — a log that failed wins: exit 4" if failed else ""
     for line in failing:  # why the exit code, per log
         click.echo(line + batch, err=True)
@@ -290,30 +295,28 @@ def detect_cmd(logs: tuple[str, ...], out_dir: str, robot: str | None, model: st
     for line in gate_notes([o.findings for o in ok if o.findings is not None],
                            fail_on_detect=fail_on_detect, fail_on_force=fail_on_force):
         click.echo(line, err=True)  # what the exit code does not speak for
-    if failed:
-        if len(outcomes) > 1:
-            click.echo(f"impactcli: {len(failed)} of {len(outcomes)} logs failed", err=True)
-        # some failed: 4; every one failed: the (first) failure's own code, as `report` does
-        ctx.exit(EXIT_BATCH if ok else failed[0].exit_code)
-    if failing:
-        ctx.exit(EXIT_DETECTED)
-    if unjudged:
-        ctx.exit(EXIT_UNJUDGED)
+    if failed and len(outcomes) > 1:
+        click.echo(f"impactcli: {len(failed)} of {len(outcomes)} logs failed", err=True)
+    # some failed: 4; every one failed: the (first) failure's own code, as `report` does
+    if code:
+        ctx.exit(code)
 
 
 def _finish(outcomes: list[JobOutcome], paths: list[str], choice: Any,
             inputs: dict[str, dict[str, str]], wall: float, out_dir: str,
-            summary_path: str | None, thresholds: str | None) -> None:
+            summary_path: str | None, thresholds: str | None, *, stopped: bool = False,
+            gates: dict[str, Any] | None = None) -> None:
     """The table of the logs finished (in input order) and the ``--summary`` file: after
-    the batch, or after a stop (then it lists what finished); ``thresholds``: the line on
-    the config's thresholds (:func:`_thresholds_line`)."""
+    the batch, or after a stop (``stopped``: then it lists what finished, of all the logs
+    given); ``thresholds``: the line on the config's thresholds (:func:`_thresholds_line`);
+    ``gates``: what the gates found and the exit code, for the summary."""
     from ..run.batch import batch_summary
 
     order = {p: i for i, p in enumerate(paths)}
     outcomes.sort(key=lambda o: order[o.log_path])
     summary = batch_summary(outcomes, wall_s=wall,
                             executor={**choice.to_dict(), "description": choice.describe()},
-                            inputs=inputs)
+                            inputs=inputs, n_inputs=len(paths), stopped=stopped, gates=gates)
     loads = {o.log_path: lasting_loads_of(o) for o in outcomes if o.ok}
     _echo_table(outcomes, summary, out_dir, loads, thresholds)
     if summary_path is not None:
@@ -399,11 +402,12 @@ def _echo_table(outcomes: list[JobOutcome], summary: dict[str, Any], out_dir: st
     rows = {o.log_path: o.summary for o in ok if o.summary is not None}
     if ok:
         _echo_rows(ok, rows, out_dir, loads, thresholds)
-    if len(outcomes) > 1:
+    if len(outcomes) > 1 or summary["logs"]["total"] > 1:
         n, ev, tp = summary["logs"], summary["events"], summary["throughput"]
         lps = tp["logs_per_s"] or 0.0
         hps = tp["log_hours_per_s"] or 0.0
-        click.echo(f"batch: {n['done']} done, {n['failed']} failed of {n['total']} logs; "
+        stop = f", stopped before {n['not_run']}" if summary.get("stopped") else ""
+        click.echo(f"batch: {n['done']} done, {n['failed']} failed of {n['total']} logs{stop}; "
                    f"{summary['hours_analysed']:.3f} h analysed in {summary['wall_s']:.1f} s "
                    f"({lps:.2f} logs/s, {hps * 3600:.0f} h of log per hour) on "
                    f"{summary['executor']['description']}")

@@ -54,7 +54,7 @@ from ..types import DETECTORS, DetectionResult, ReadOptions
 from .gates import Findings
 from .job import run_log_from_paths
 
-SUMMARY_SCHEMA_VERSION = "1.0"
+SUMMARY_SCHEMA_VERSION = "1.1"
 #: Exit code a one-log run gives for a lost worker or a bug (EX_SOFTWARE; never 1, which
 #: means "incidents found").
 EXIT_CRASH = EXIT_SOFTWARE
@@ -464,25 +464,33 @@ def run_batch(jobs: Sequence[DetectJob], *, n_jobs: int | None = None,
 
 def batch_summary(outcomes: Sequence[JobOutcome], *, wall_s: float,
                   executor: dict[str, Any] | None = None,
-                  inputs: dict[str, dict[str, str]] | None = None) -> dict[str, Any]:
+                  inputs: dict[str, dict[str, str]] | None = None,
+                  n_inputs: int | None = None, stopped: bool = False,
+                  gates: dict[str, Any] | None = None) -> dict[str, Any]:
     """The batch summary (``detect --summary``) as a JSON-ready mapping.
 
     Args:
-        outcomes: one per input, in input order.
+        outcomes: one per input that finished or failed, in input order.
         wall_s: wall-clock time of the batch [s].
         executor: :meth:`impactcli.run.executors.ExecutorChoice.to_dict` of where it ran.
         inputs: ``robot``/``model``/``config`` → {path, sha256}, those given.
+        n_inputs: the logs given (None: ``len(outcomes)``); stopped: the batch was stopped
+            before the rest (a trial's stopped batch read "done 4, failed 0, total 4" of 8).
+        gates: what the gates found and the exit code (:func:`impactcli.run.gates.judge`),
+            when one was asked.
     Returns:
         The mapping ``schemas/batch_summary.schema.json`` describes: ``schema_version``,
-        ``tool``, ``executor``, ``inputs``; ``logs`` {total, done, failed}; ``events`` per
-        detector (after warm-up, summed); ``hours_analysed`` [h of log]; ``wall_s``;
-        ``throughput`` {logs_per_s, log_hours_per_s}; ``results`` (per-log rows);
-        ``failures`` (file, reason, exit_code, class, attempts).
+        ``tool``, ``executor``, ``inputs``; ``logs`` {total, done, failed, not_run};
+        ``stopped``; ``gates``; ``events`` per detector (after warm-up, summed);
+        ``hours_analysed`` [h of log]; ``wall_s``; ``throughput`` {logs_per_s,
+        log_hours_per_s}; ``results`` (per-log rows); ``failures`` (file, reason,
+        exit_code, class, attempts).
     """
     from .. import TOOL_NAME, __version__
 
     ok = [(o, o.summary) for o in outcomes if o.summary is not None]
     failed = [o for o in outcomes if not o.ok]
+    total = len(outcomes) if n_inputs is None else max(n_inputs, len(outcomes))
     hours = sum(row["duration_s"] for _, row in ok) / 3600.0
 
     def rate(x: float) -> float | None:
@@ -493,7 +501,10 @@ def batch_summary(outcomes: Sequence[JobOutcome], *, wall_s: float,
         "tool": {"name": TOOL_NAME, "version": __version__},
         "executor": executor or {"kind": "serial"},
         "inputs": inputs or {},
-        "logs": {"total": len(outcomes), "done": len(ok), "failed": len(failed)},
+        "logs": {"total": total, "done": len(ok), "failed": len(failed),
+                 "not_run": total - len(ok) - len(failed)},
+        "stopped": stopped,
+        **({} if gates is None else {"gates": gates}),
         "events": {d: sum(events_of(row)[d] for _, row in ok) for d in DETECTORS},
         "incidents": sum(row["incidents"] for _, row in ok),
         "hours_analysed": hours,
