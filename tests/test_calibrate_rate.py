@@ -543,3 +543,19 @@ def test_a_log_left_out_above_its_bound_but_within_its_interval_is_not_called_wi
         text.split("no log left out")[1]
     text = "\n".join(rate_lines(dict(base, leave_one_log_out=[quiet])))
     assert "(every log left out within its bound)" in text
+
+
+def test_every_log_left_out_above_its_bound_is_named() -> None:
+    """Two logs above their bounds: the worse is given with its figures, the other named
+    (a trial read "2 of the calibration logs … false-alarmed" naming one)."""
+    from impactcli.detect.tail import left_out_text
+
+    def row(log: str, observed: int) -> dict:
+        return {"log": log, "minutes": 0.6, "per_hour": 30.0, "observed": observed,
+                "predicted_per_hour": 3.6, "upper_per_hour": 30.0}
+
+    text = left_out_text({"confidence": 0.9, "leave_one_log_out": [
+        row("a/tri.csv", 8), row("a/p2p.mcap", 12), row("a/ms.csv", 0)]})
+    assert text.startswith("but 2 of the calibration logs, left out, false-alarmed above "
+                           "the others' bound (p2p.mcap: 1.2e+03/h against 30/h")
+    assert "; also tri.csv)" in text and "ms.csv" not in text

@@ -316,11 +316,14 @@ def left_out_text(rate: Mapping[str, Any]) -> str:
     if not above:
         return ""
     w = max(above, key=lambda x: x["ratio"])
+    others = [Path(x["log"]).name for x in above if x is not w]
+    also = (f"; also {', '.join(others)}" if len(others) <= 3 else
+            f"; also {', '.join(others[:3])} and {len(others) - 3} more")
     return (f"but {len(above)} of the calibration logs, left out, false-alarmed above the "
             f"others' bound ({Path(w['log']).name}: {w['observed_per_hour']:.3g}/h against "
             f"{w['upper_per_hour']:.3g}/h, thresholds set on the others for "
-            f"{w['per_hour']:g}/h): a log unlike the calibration logs may false-alarm far "
-            "above the prediction")
+            f"{w['per_hour']:g}/h{also if others else ''}): a log unlike the calibration "
+            "logs may false-alarm far above the prediction")
 
 
 def calibration_text(calib: Mapping[str, object], settings_changed: bool = False) -> str:
