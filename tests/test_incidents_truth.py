@@ -153,6 +153,11 @@ def test_payload_alarms_after_warmup_are_counted_everywhere(payload_log: Path,
                             "lasting_loads": {"counted": 1, "in_warmup": 0}}
     (load,) = tl["lasting_loads"]
     assert load["detector"] == "static_loading" and load["t_start"] == pytest.approx(3.0)
+    # its force is the load's own level, m g at link 2's end (the flange), not the peak of
+    # the 40 N push inside it (a trial's 1 kg load read "≳29 N", a push's peak)
+    assert load["link"] == 2 and abs(load["force_n"] - 0.5 * 9.81) < 0.15 * 0.5 * 9.81
+    assert "its median over the span (the load's own level; at its peak " \
+        in load["force_method"]
     assert load["ends_with_log"] and not load["in_warmup"] and load["on_at_warmup_end"]
     assert tl["events"][load["event"]]["t_start"] == load["t_start"]
     counted = [i for i in tl["incidents"] if not i["in_warmup"]]

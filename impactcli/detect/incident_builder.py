@@ -431,7 +431,7 @@ def build_findings(
     ratio = loading / np.maximum(ctx.vl, 1e-12)[None, :]
     index = ctx.index
 
-    def where_and_force(win: slice, max_samples: int | None = None,
+    def where_and_force(win: slice, max_samples: int | None = None, typical: bool = False,
                         ) -> tuple[LinkDecision, ForceEstimate]:
         a0 = win.start
         fired = tuple(j for k, j in enumerate(ctx.joints)  # the joints that alarmed in it
@@ -442,7 +442,8 @@ def build_findings(
         link = where.link
         est = ForceEstimate(None, "no kinematics: the peak residual torques are the answer")
         if link is not None and ctx.jac is not None:
-            est = force_estimate(r[win], q_chain[win], link, index, ctx.jac, max_samples)
+            est = force_estimate(r[win], q_chain[win], link, index, ctx.jac, max_samples,
+                                 typical)
             where = blind_beyond(where, ctx.jac, q_chain[(win.start + win.stop) // 2],
                                  len(ctx.chain_cols))
             up_to = [k for k, c in enumerate(index) if c <= link]
@@ -486,7 +487,8 @@ def build_findings(
     loads = []
     for k in long_:
         e = events[k]
-        where, est = where_and_force(slice(e.i_start, e.i_end + 1), LASTING_FORCE_SAMPLES)
+        where, est = where_and_force(slice(e.i_start, e.i_end + 1), LASTING_FORCE_SAMPLES,
+                                     typical=True)  # the load's level, not a push's peak
         link = where.link
         chk = check_force(ctx, est, link)
         loads.append(LastingLoad(
