@@ -1410,3 +1410,19 @@ def test_a_start_load_that_puts_the_scale_of_one_order_only_is_taken_off_first(
     assert m and 1.5 < float(m.group(1)) < 3.0, scale["message"]
     assert "of the order of the description's gravity torque" not in \
         r.stderr  # type: ignore[attr-defined]
+
+
+def test_a_changes_line_says_its_mass_is_not_trusted_first() -> None:
+    """A trial read a 717-character P1 line whose "this mass cannot be trusted" began
+    after 450 characters: the line now says it first, the why stays at its end."""
+    from impactcli.cli.detect import payload_change_line
+
+    c = {"t_start": 45.288, "t_classified": 48.576, "mass_kg": -2.34, "mass_se_kg": 0.11,
+         "explained": 0.99, "drift": 0.2, "inertia": "unseen", "mass_after_kg": -2.34,
+         "mass_check": "released 2.34 kg, 2.34 kg more than the log was seen to carry"}
+    line = payload_change_line(1, c)
+    assert line.startswith("  P1     45.288 s  its mass cannot be trusted (why: at the end) "
+                           "— -2.34 kg"), line
+    assert line.endswith("more than the log was seen to carry") or \
+        "more than the log was seen to carry" in line[-200:], line
+    assert "cannot be trusted" not in payload_change_line(1, {**c, "mass_check": None})

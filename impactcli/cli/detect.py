@@ -135,7 +135,8 @@ def payload_change_line(k: int, c: dict[str, Any]) -> str:
     classified at 23.092 s; now carrying …``."""
     from ..detect.payload_words import carrying_text, change_text
 
-    return (f"  P{k:<2} {c['t_start']:>9.3f} s  {change_text(c)}, classified at "
+    doubt = "its mass cannot be trusted (why: at the end) — " if c.get("mass_check") else ""
+    return (f"  P{k:<2} {c['t_start']:>9.3f} s  {doubt}{change_text(c)}, classified at "
             f"{c['t_classified']:.3f} s; now carrying {carrying_text(c)}")
 
 
