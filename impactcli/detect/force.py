@@ -157,6 +157,7 @@ class ForceEstimate:
     method: str
     levers: dict[int, float] = field(default_factory=dict)
     at_least: str = ""
+    peak_n: float | None = None  # with ``typical``: the peak beside the median
 
     @property
     def stated(self) -> str:
@@ -303,7 +304,8 @@ def force_estimate(
                     f" — it may be larger: near a singular posture ({int(unseen.sum())} of "
                     f"{unseen.size} samples solved), the part of the force {joints} barely "
                     "feel is left out")
-    return ForceEstimate(best, method, levers, at_least)
+    return ForceEstimate(best, method, levers, at_least,
+                         max(each_f) if typical and each_f else None)
 
 
 def estimate_force(

@@ -499,7 +499,7 @@ def build_findings(
             force_n=est.force_n, force_method=est.stated, force_at_least=bool(est.at_least),
             t_start_utc=utc(ctx.t0_ns + round(e.t_start * 1e9)),
             force_plausible=chk.plausible, force_ceiling_n=chk.ceiling_n,
-            force_check=chk.why))
+            force_check=chk.why, peak_force_n=est.peak_n if est.force_n is not None else None))
     return out, loads
 
 

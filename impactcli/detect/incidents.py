@@ -161,7 +161,9 @@ class LastingLoad(AlarmSpan):
 
     ``event`` is its index in the log's events; ``ends_with_log``: it lasts to the log's
     last sample (how long it lasts is not known). ``link`` and ``force_n`` as for an
-    incident, over its own samples (the peak).
+    incident, over its own samples — the median over its span, the load's own level
+    (``peak_force_n`` the peak: a contact inside it, or the load's motion, which the gates
+    judge).
     """
 
     peak_ratio: float
@@ -179,6 +181,7 @@ class LastingLoad(AlarmSpan):
     force_at_least: bool = False
     unseen_load_kg: float | None = None
     on_at_warmup_end: bool = False
+    peak_force_n: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (timeline ``lasting_loads`` item); ``payload_test`` and
@@ -197,6 +200,7 @@ class LastingLoad(AlarmSpan):
             **({} if self.payload_test is None else {"payload_test": self.payload_test}),
             **({} if self.unseen_load_kg is None else {"unseen_load_kg": self.unseen_load_kg}),
             **({"on_at_warmup_end": True} if self.on_at_warmup_end else {}),
+            **({} if self.peak_force_n is None else {"peak_force_n": self.peak_force_n}),
         }
 
 

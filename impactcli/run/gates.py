@@ -321,13 +321,18 @@ def _over_force(f: Findings, limit: float) -> str | None:
 
 def _load_over(f: Findings, limit: float) -> str | None:
     """One line naming the log's first lasting load whose force exceeds ``limit``."""
-    over = [x for x in f.lasting_loads if x.force_n is not None and x.force_n > limit]
+    def top(x: Any) -> float:  # its peak (a contact inside it, or its motion) is judged
+        return max(x.force_n, getattr(x, "peak_force_n", None) or 0.0)
+
+    over = [x for x in f.lasting_loads if x.force_n is not None and top(x) > limit]
     if not over:
         return None
     x = over[0]
     link = f"link {x.link}" if x.link is not None else "an unknown link"
+    peak = ("" if top(x) == x.force_n else
+            f" over its span and {force_mark(x)}{top(x):.3g} N at its peak")
     return (f"impactcli: {shown(f.log_path)}: the lasting load from "
-            f"{x.t_start:.3f} s on {link}, {force_mark(x)}{x.force_n:.3g} N, exceeds "
+            f"{x.t_start:.3f} s on {link}, {force_mark(x)}{x.force_n:.3g} N{peak}, exceeds "
             f"--fail-on-force {limit:g} N")
 
 
