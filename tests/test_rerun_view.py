@@ -105,6 +105,15 @@ def test_no_display_is_exit_69_before_any_work(rrd: Path, tmp_path: Path,
                             "(rerun PATH)\n")
     assert replayed == []
     assert run(str(rrd), "--no-open").exit_code == 0  # checking needs no display
+    # a timeline is no log nor recording: said as bad input whether or not a display is
+    # here (a trial got "no display", exit 69, and exit 3 with --no-open)
+    tl = tmp_path / "arm.timeline.json"
+    tl.write_text("{}")
+    for extra in ((), ("--no-open", "--save", str(tmp_path / "x.rrd"))):
+        r = run(str(tl), *extra)
+        assert r.exit_code == 3 and "a JSON file, not a log nor a Rerun recording" \
+            in r.stderr, explain(r)
+    assert not (tmp_path / "x.rrd").exists()
 
 
 def test_log_is_detected_then_written_and_opened(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,

@@ -149,6 +149,10 @@ def view_cmd(source: Path, robot: Path | None, model: Path | None,
         return
     if not source.exists():
         raise not_found(source)  # as every verb says it
+    if source.name.lower().endswith(".json"):  # a timeline or another output: said before
+        raise LogFormatError(                  # the display is asked for (a trial: exit 69)
+            f"{source}: a JSON file, not a log nor a Rerun recording: view the .rrd "
+            "`detect --rerun` writes beside a timeline, or the log itself")
     if no_open and save_path is None:
         raise click.UsageError("--no-open on a LOG needs --save PATH (else nothing is kept)")
 
