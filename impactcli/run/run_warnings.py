@@ -168,8 +168,8 @@ def warn_torque_source(where: str, config_where: str, used: str, calibrated: str
     warnings.warn(
         f"{where}: its torque is read from {TORQUE_SOURCE_SIDE[used]}, but its config "
         f"({config_where}) was calibrated on {TORQUE_SOURCE_SIDE[calibrated]} in {logs}: the "
-        "thresholds "
-        "were set on another signal and their stated false-alarm rate does not apply; give "
+        "thresholds were set on another signal and their stated false-alarm rate does not "
+        "apply; give "
         f"--torque-source {calibrated} if the log has it, or calibrate on logs read as this "
         "one is", ImpactWarning, stacklevel=3)
 
