@@ -16,11 +16,11 @@ printing.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from ..detect.tail import zero_count_bound
 from .match import EPS_S, PRODUCT_PARTS, median_or_none, rounded
 from .sweep import SweepRow
 from .text import fmt_ms, fmt_n, text_table
@@ -172,19 +172,16 @@ def verdict(zero: Mapping[str, SweepRow | None], *, smallest_scale: float | None
             f"contact detected, not earlier on shared contacts): {both}")
 
 
-#: A rate of no event in T hours is bounded at 90 % by −ln(0.1) / T (Poisson).
-ZERO_BOUND_90 = math.log(10.0)
-
-
 def zero_bound_text(rows: Sequence[SweepRow]) -> str:
     """What "zero false alarms" rests on: the log's collision-free time and the rate it
-    bounds at 90 % (a trial took a sweep's "0 FA" scale from 50 s of one log and found it
-    false-alarmed 4042 times per hour on free motion); "" when not known."""
+    bounds at 90 % (:func:`impactcli.detect.tail.zero_count_bound`, as calibrate's; a
+    trial took a sweep's "0 FA" scale from 50 s of one log and found it false-alarmed 4042
+    times per hour on free motion); "" when not known."""
     free = next((r.collision_free_s for r in rows if r.collision_free_s), None)
     if not free:
         return ""
     return (f"Zero false alarms here is over this log's {free:.3g} s of collision-free time: "
-            f"a rate up to {ZERO_BOUND_90 * 3600.0 / free:.3g} per hour at 90 % "
+            f"a rate up to {zero_count_bound(free / 3600.0):.3g} per hour at 90 % "
             "confidence — not thresholds for an audit (calibrate on collision-free logs; "
             "evaluate a scale on them too).")
 
@@ -203,7 +200,7 @@ def sweep_to_dict(rows: Sequence[SweepRow]) -> dict[str, Any]:
         "verdict": verdict(zero, smallest_scale=lo),
         **({} if free is None else {
             "collision_free_s": rounded(free),
-            "zero_bound_per_hour": rounded(ZERO_BOUND_90 * 3600.0 / free, 6),
+            "zero_bound_per_hour": rounded(zero_count_bound(free / 3600.0), 6),
             "caveat": zero_bound_text(rows)}),
     }
 
