@@ -401,7 +401,7 @@ class PayloadMonitor:
         self._last_k = k_c
         self._carried_se = se_after if known is None else 0.0
         after = self.base_kg + float(self._pi[self.names.index("m")])
-        lowest = min(0.0, self.base_kg, *(c.mass_after_kg for c in self.changes))
+        lowest = self._lowest_kg()
         self.changes.append(PayloadChange(
             t_a, t_c, w.mass_kg, w.mass_se_kg,
             {nm: float(v) for nm, v in zip(self.names, w.pi, strict=True)},
@@ -414,6 +414,11 @@ class PayloadMonitor:
         self._kept_from = None
         return self._pi
 
+    def _lowest_kg(self) -> float:
+        """The least load the log was seen with so far, beyond the model's: the model's
+        own (0), the start's, those after each change (:func:`mass_check`)."""
+        return min(0.0, self.base_kg, *(c.mass_after_kg for c in self.changes))
+
     def _a_press(self, judged: Judged) -> str | None:
         """Why a step that passed the tests is no payload change after all: a release of
         more than the log was seen to carry (:func:`mass_check`, the load it started with
@@ -425,7 +430,7 @@ class PayloadMonitor:
         if judged.shows == "shows" or not self.start_weighed or self._pi is None:
             return None
         after = self.base_kg + float((self._pi + w.pi)[self.names.index("m")])
-        lowest = min(0.0, self.base_kg, *(c.mass_after_kg for c in self.changes))
+        lowest = self._lowest_kg()
         if mass_check(w.mass_kg, w.mass_se_kg, lowest, after, True) is None:
             return None
         return (f"it would release {-w.mass_kg:.3g} kg, more than the log was seen to carry, "

@@ -162,7 +162,7 @@ def mark_held(incidents: Sequence[Any], means: np.ndarray, per_block: int,
             if h is None:
                 continue
             t = h[0] * block_s
-            if any(a < inc.t_start and b > t for a, b in spans if a < inc.t_start - 1e-9):
+            if any(a < inc.t_start - 1e-9 and b > t for a, b in spans):
                 continue  # an earlier finding overlaps the hold: its start was seen
             found[j] = {"held_nm": h[1], "after_nm": h[2]}
             since = t if since is None else min(since, t)
