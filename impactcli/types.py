@@ -542,6 +542,13 @@ class DetectionResult:
         filter_gain: ``{"frequencies_hz": [...], "gain": {joint: [...]}}`` of G_hat.
         warnings: one-line warnings raised during the run (also shown by the CLI).
         read_options: the options the log was read with (to re-run exactly).
+        payloads_unwatched: why the replay could not weigh a load (None: it could;
+            :func:`impactcli.run.loads.unwatched_reason`); not in the timeline, whose
+            ``input.payload`` and ``payload_changes`` are then absent.
+        robot: the robot description given to the run (``--robot``), as its mapping, or
+            None: with the model's own (``model["robot"]``) it says the links' chain and
+            kinematics where the model records none (a controller channel taken plain
+            replays no model); not in the timeline.
     """
 
     log: LogHeader
@@ -571,6 +578,8 @@ class DetectionResult:
     torque_scale: dict[str, Any] | None = None
     payload: dict[str, Any] | None = None
     payload_changes: tuple[dict[str, Any], ...] | None = None
+    payloads_unwatched: str | None = None
+    robot: dict[str, Any] | None = None
 
     @property
     def online_equivalent(self) -> bool:

@@ -771,16 +771,28 @@ def test_payload_changes_are_scored_against_the_labelled_ones() -> None:
         "; none found where none was labelled")
 
 
+def _plain_config(tmp: Path) -> Path:
+    """The sample ASSIST-like config with its controller channels taken plain
+    (``residual.logged_correction = false``: r = torque_ext, nothing to carry a load)."""
+    text = (Path(__file__).resolve().parents[1] / "sample_logs" / "assist_like.config.toml"
+            ).read_text("utf-8")
+    assert "logged_correction = true" in text
+    plain = tmp / "plain.toml"
+    plain.write_text(text.replace("logged_correction = true", "logged_correction = false"),
+                     "utf-8")
+    return plain
+
+
 def test_a_run_that_did_not_look_for_loads_misses_none(tmp_path: Path) -> None:
-    """The sample config's controller channels (logged_external): no payload monitor, the
-    timeline has no payload_changes. Labels listing a pick and a release are then not
-    scored as missed (a review read "0/2 found … missed"): evaluate says the run did not
-    look, and counts them."""
+    """The sample config's controller channels taken plain (logged_correction = false): no
+    payload monitor, the timeline has no payload_changes. Labels listing a pick and a
+    release are then not scored as missed (a review read "0/2 found … missed"): evaluate
+    says the run did not look, and counts them."""
     from impactcli.schema import validate
 
     repo = Path(__file__).resolve().parent.parent
     log = repo / "sample_logs" / "csv" / "assist_impacts.csv.gz"
-    tl, code, r = _detect(log, repo / "sample_logs" / "assist_like.config.toml", tmp_path / "o")
+    tl, code, r = _detect(log, _plain_config(tmp_path), tmp_path / "o")
     assert code == 0 and "payload_changes" not in tl, r.output  # type: ignore[attr-defined]
     labels = json.loads((repo / "sample_logs" / "csv" / "assist_impacts.labels.json")
                         .read_text("utf-8"))
@@ -959,30 +971,40 @@ def test_an_uncalibrated_run_says_it_does_not_tell_loads_from_contacts(
 
 
 def test_a_replay_that_cannot_weigh_loads_says_so(two_loads: Path, tmp_path: Path) -> None:
-    """A config on the controller's residual (the sample ASSIST-like config) cannot weigh
-    the load the sample payload log carries, nor watch for changes: with the lasting load
-    that load makes, detect says so, and why (without one it warns nothing of payloads,
-    tests/test_cli_pipe.py); a config on the tool's own model
-    with kinematics says nothing of the kind."""
+    """A config on the controller's residual taken plain (``residual.logged_correction =
+    false``: r = torque_ext, no model of the tool's to carry a load) cannot weigh the load
+    the sample payload log carries, nor watch for changes: with the lasting load that load
+    makes, detect says so, and why, and says it on the terminal with or without one (a pick
+    among short alarms); the batch summary records it. A config on the tool's own model
+    with kinematics says nothing of the kind (the corrected channel:
+    tests/test_payload_controller.py)."""
     repo = Path(__file__).resolve().parents[1]
+    plain = _plain_config(tmp_path)
     log = repo / "sample_logs" / "csv" / "assist_payload.csv.gz"
-    tl, code, r = _detect(log, repo / "sample_logs" / "assist_like.config.toml", tmp_path / "a")
+    summary = tmp_path / "summary.json"
+    tl, code, r = _detect(log, plain, tmp_path / "a", "--summary", str(summary))
     assert code == 0, r.output  # type: ignore[attr-defined]
-    said = ("payloads are not weighed — the residual of every joint is the controller's "
-            "external-torque estimate, not the tool's inverse-dynamics model")
+    why = ("the residual of every joint is the controller's external-torque estimate taken "
+           "plain, with no model of the tool's to carry a load (residual.logged_correction = "
+           "true in the config, or --generator inverse_dynamics")
+    said = "payloads are not weighed — " + why
+    assert tl["counts"]["lasting_loads"]["counted"] == 1  # the 0.5 kg, unweighed
     assert said in r.stderr  # type: ignore[attr-defined]
     assert any(said in w for w in tl["warnings"])
-    assert "payload_changes" not in tl
-    # said on the terminal whether or not a lasting load asks (a pick among short alarms)
-    line = "payloads: not weighed — the residual is the controller's (logged_external)"
+    assert "payload_changes" not in tl and "payload" not in tl["input"]
+    line = "payloads: not weighed — " + why
     assert line in r.stdout  # type: ignore[attr-defined]
-    _, _, clean = _detect(repo / "sample_logs" / "csv" / "assist_pushes.csv.gz",
-                          repo / "sample_logs" / "assist_like.config.toml", tmp_path / "c")
-    assert line in clean.stdout and "payload" not in clean.stderr  # type: ignore
-    own, _, r = _detect(_pick_and_place(tmp_path, pushes=False)[0], two_loads, tmp_path / "b")
+    row = json.loads(summary.read_text("utf-8"))["results"][0]
+    assert row["payloads_unwatched"].startswith(why)
+    _, _, clean = _detect(repo / "sample_logs" / "csv" / "assist_pushes.csv.gz", plain,
+                          tmp_path / "c")
+    assert line in clean.stdout and "payloads are not" not in clean.stderr  # type: ignore
+    own, _, r = _detect(_pick_and_place(tmp_path, pushes=False)[0], two_loads, tmp_path / "b",
+                        "--summary", str(summary))
     assert len(own["payload_changes"]) == 2
     assert "not weighed" not in r.stdout  # type: ignore[attr-defined]
     assert "not weighed" not in r.stderr and "not looked for" not in r.stderr  # type: ignore
+    assert "payloads_unwatched" not in json.loads(summary.read_text("utf-8"))["results"][0]
 
 
 def test_payload_changes_trip_no_gate(two_loads: Path, tmp_path: Path) -> None:

@@ -453,15 +453,10 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
                        + _generators_line(rows[o.log_path]))
     if thresholds is not None:
         click.echo(thresholds)
-    from ..model.generators import OWN_MODEL
-
-    controller = sorted({g for o in ok for g in rows[o.log_path]["generators"].values()
-                         if g not in OWN_MODEL})
-    if controller:  # the residual holds no model of the tool's to add a load to
-        click.echo(f"payloads: not weighed — the residual is the controller's "
-                   f"({', '.join(controller)}): a load carried, picked or placed may show among "
-                   "the incidents and lasting loads (--generator inverse_dynamics with "
-                   "kinematics weighs them)")
+    for why in dict.fromkeys(rows[o.log_path].get("payloads_unwatched") for o in ok):
+        if why is not None:  # said where the answer is read, not only with a lasting load
+            click.echo(f"payloads: not weighed — {why}: a load carried, picked or placed may "
+                       "show among the incidents and lasting loads")
     for o in ok[:MAX_ROWS]:  # said where the answer is read, not only on stderr
         row = rows[o.log_path]
         if row.get("start_load_unknown") and (row["incidents"] or row["lasting_load_list"]):

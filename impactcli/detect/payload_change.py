@@ -57,8 +57,10 @@ not behave as a mass: it ends, or it holds the arm still, or it pushes another w
    part the row falls). The monitor then waits for the alarm to end before it looks for the
    next onset.
 
-Only the inverse-dynamics generator is corrected so (the momentum observer's state holds
-the old load); the replay says so when another generator runs.
+The inverse-dynamics generator and the controller's channels corrected by the tool's model
+(r = Ŷθ − G(target), as linear in a load; :func:`impactcli.run.loads.weighable`) are
+corrected so; the momentum observer's state holds the old load, and a channel taken plain
+has no model to carry one: the replay says so when such a generator runs.
 """
 
 from __future__ import annotations

@@ -54,7 +54,7 @@ from ..types import DETECTORS, DetectionResult, ReadOptions
 from .gates import Findings
 from .job import run_log_from_paths
 
-SUMMARY_SCHEMA_VERSION = "1.1"
+SUMMARY_SCHEMA_VERSION = "1.2"
 #: Exit code a one-log run gives for a lost worker or a bug (EX_SOFTWARE; never 1, which
 #: means "incidents found").
 EXIT_CRASH = EXIT_SOFTWARE
@@ -159,6 +159,7 @@ class SummaryRow(TypedDict):
     truncated: NotRequired[bool]
     settings_edited: NotRequired[bool]
     start_load_unknown: NotRequired[str]
+    payloads_unwatched: NotRequired[str]
     joints: int
     calibrated: bool
     links: str
@@ -388,7 +389,8 @@ def _summary(job: DetectJob, result: DetectionResult) -> SummaryRow:
         "duration_s": log.duration_s,
         "joints": len(log.joint_names),
         "calibrated": result.calibrated,
-        "links": "robot" if (result.model or {}).get("robot") else "column_order",
+        "links": ("robot" if result.robot or (result.model or {}).get("robot")
+                  else "column_order"),
         "torque_scale": (result.torque_scale or {}).get("verdict", "no_description"),
         "detection_floor": floor_line(result.detection_floor),
         "detection_floor_measured": probed_line(result.detection_floor),
@@ -411,6 +413,8 @@ def _summary(job: DetectJob, result: DetectionResult) -> SummaryRow:
     }
     if log.source.truncated:
         row["truncated"] = True
+    if result.payloads_unwatched is not None:
+        row["payloads_unwatched"] = result.payloads_unwatched
     if result.payload is not None and result.payload["verdict"] == "unsupported":
         row["start_load_unknown"] = result.payload["message"]  # its findings may be it
     if result.calibrated and settings_changed(result.config):

@@ -2,7 +2,8 @@
 on its first seconds with the model's parameters held before the replay's first sample
 (:func:`weigh_start`), and the monitor of its changes mid-log (:func:`monitor_for`,
 :mod:`impactcli.detect.payload_change`). Both run for the tool's own model's generators
-(:data:`OWN`; the monitor for ``inverse_dynamics`` alone).
+(:data:`OWN`; the monitor for ``inverse_dynamics`` alone) and for the controller's channels
+corrected by the tool's model (:func:`weighable`).
 
 The stretch weighed lies within the warm-up (its least length, ``[warmup] min_s``, and at
 most :data:`impactcli.model.payload.START_S`), where detection is off: the load found
@@ -30,11 +31,9 @@ from ..config import DetectorConfig
 from ..detect.payload_finding import SHORTFALL
 from ..detect.payload_words import OWN_LOAD, beyond_words
 from ..model import RigidModel, payload
-from ..model.generators import OWN_MODEL, GeneratorChoice, target_torque
+from ..model.generators import LOGGED, OWN_MODEL, GeneratorChoice, target_torque
 
-#: The generators whose residual is the tool's own model's (eq. 7–8, the observer): a load
-#: is weighed for them only (the controller's channels pass a load through the
-#: controller's own observer, and its model carries the load or misses it).
+#: The generators whose residual is the tool's own model's (eq. 7–8, the observer).
 OWN = OWN_MODEL
 
 #: A load whose torque over the stretch exceeds this many times the largest torque the
@@ -89,13 +88,26 @@ class StartLoad:
         return {k: v for k, v in d.items() if v is not None}
 
 
+def weighable(choices: tuple[GeneratorChoice, ...], logged_correction: bool,
+              own: tuple[str, ...] = OWN) -> bool:
+    """Whether every joint's residual can weigh and carry a load: one of ``own``'s
+    generators (the tool's model), or a controller's channel corrected by the tool's model
+    (``logged_correction``: r = Ŷθ − G(target), :mod:`impactcli.model.generators`, as linear
+    in a load at the flange as eq. 7–8 is). A load the controller's model does not know
+    shows in its channel as the torque of that mass, which is what is weighed; one it knows
+    (a payload set in the controller) shows nothing, and nothing is found. A channel taken
+    plain (r = torque_ext) has no model of the tool's to carry a load."""
+    return all(c.generator in own or (logged_correction and c.generator in LOGGED)
+               for c in choices)
+
+
 def weigh_start(feed: Any, model: RigidModel, choices: tuple[GeneratorChoice, ...],
                 cfg: DetectorConfig) -> tuple[RigidModel, StartLoad | None]:
     """The model carrying the load the log starts with, and what was found (None: a model
     without kinematics, or a warm-up too short to weigh in)."""
     bb = payload.basis(model.kind, model.joint_names, model.structure)
     seconds = min(payload.START_S, float(cfg.warmup.min_s))
-    if bb is None or seconds <= 0 or any(c.generator not in OWN for c in choices):
+    if bb is None or seconds <= 0 or not weighable(choices, cfg.residual.logged_correction):
         return model, None
     b, names = bb
     scan = feed.scan
@@ -268,17 +280,19 @@ def _model_error(model: RigidModel) -> np.ndarray | None:
 def load_basis(plan: Any) -> tuple[np.ndarray, tuple[str, ...]] | None:
     """The payload basis (B, names) of a replay whose model can weigh a payload and whose
     residual can carry it — kinematics, and every joint on ``inverse_dynamics`` (the tool's
-    own model's eq. 7–8; the observer's state holds the old load, the controller's channels
-    hold no model of ours) — else None."""
+    own model's eq. 7–8; the observer's state holds the old load) or on a controller's
+    channel corrected by that model (:func:`weighable`) — else None."""
     model = plan.model
-    if model is None or any(c.generator != "inverse_dynamics" for c in plan.choices):
+    if model is None or not weighable(plan.choices, plan.cfg.residual.logged_correction,
+                                      ("inverse_dynamics",)):
         return None
     return payload.basis(model.kind, model.joint_names, model.structure)
 
 
 #: What each generator's residual is, as the note on an unwatched replay says it.
-_RESIDUAL_OF = {"logged_external": "the controller's external-torque estimate",
-                "logged_model": "the log's torque less the controller's model torque",
+_RESIDUAL_OF = {"logged_external": "the controller's external-torque estimate taken plain",
+                "logged_model": "the log's torque less the controller's model torque, taken "
+                                "plain",
                 "momentum_observer": "the momentum observer's, whose state holds the old load"}
 
 
@@ -287,14 +301,18 @@ def unwatched_reason(plan: Any) -> str | None:
     words; None when they are."""
     if load_basis(plan) is not None:
         return None
-    other = [c for c in plan.choices if c.generator != "inverse_dynamics"]
+    correct = plan.cfg.residual.logged_correction
+    other = [c for c in plan.choices if not weighable((c,), correct, ("inverse_dynamics",))]
     if other:
         gens = sorted({c.generator for c in other})
         whose = ", ".join(c.joint for c in other) if len(other) < len(plan.choices) \
             else "every joint"
+        mend = ("residual.logged_correction = true in the config, or --generator "
+                "inverse_dynamics" if any(c.generator in LOGGED for c in other)
+                else "--generator inverse_dynamics")
         return (f"the residual of {whose} is {' and '.join(_RESIDUAL_OF.get(g, g) for g in gens)}"
-                ", not the tool's inverse-dynamics model, which takes a load (calibrate with "
-                "--generator inverse_dynamics and a robot description with kinematics)")
+                f", with no model of the tool's to carry a load ({mend}, with a robot "
+                "description with kinematics, weighs them)")
     kind = "none" if plan.model is None else plan.model.kind
     return (f"the model (kind {kind}) has no kinematics to weigh a load with (a robot "
             "description with planar or URDF kinematics gives them)")

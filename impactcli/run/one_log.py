@@ -452,6 +452,8 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         payload=None if plan.start_load is None else plan.start_load.to_dict(),
         payload_changes=(None if monitor is None
                          else tuple(c.to_dict() for c in changes)),
+        payloads_unwatched=unwatched_reason(plan),
+        robot=None if setup.robot is None else setup.robot.to_dict(),
         warnings=tuple(dict.fromkeys((*scan.warnings, *caught.messages()))),  # scan's first
     )
 

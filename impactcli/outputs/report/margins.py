@@ -79,7 +79,9 @@ def false_alarm_margins(
             + (" and every labelled contact" if labels is not None else "")
             + f", each widened by {guard_s} s on both sides",
             "considered_s": considered,
-            "considered_fraction": considered / after_warmup if after_warmup > 0 else 0.0,
+            # a share: the two sums' rounding can put a whole log at 1 + 2e-16
+            "considered_fraction": (min(1.0, considered / after_warmup) if after_warmup > 0
+                                    else 0.0),
         },
         "per_detector": per,
         "worst": worst,

@@ -33,9 +33,10 @@ MAX_GAPS_LISTED = 50
 
 def chain_of(result: DetectionResult) -> tuple[tuple[str, ...], dict[str, Any] | None]:
     """The robot's joint chain (base first) and its kinematics, from the robot description
-    the model records (as :func:`impactcli.detect.incident_builder.robot_chain` reads it);
-    the analysed joints without kinematics when the model records none."""
-    desc = (result.model or {}).get("robot")
+    given to the run, else the one the model records (as
+    :func:`impactcli.detect.incident_builder.robot_chain` reads them, whose link numbers
+    the incidents carry); the analysed joints without kinematics when neither is known."""
+    desc = result.robot or (result.model or {}).get("robot")
     joints = result.log.joint_names
     if isinstance(desc, dict) and desc.get("joints"):
         inverse = {v: k for k, v in dict(desc.get("joint_map") or {}).items()}
