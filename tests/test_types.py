@@ -84,6 +84,11 @@ def test_robot_description_roundtrip(tmp_path) -> None:
     ("d", "message"),
     [
         ({"joints": []}, "non-empty list"),
+        # a trial's robot file: a URDF by path with joint_map and no joints (only a named
+        # robot lists its arm joints); the message says what to write
+        ({"kinematics": {"type": "urdf", "path": "arm.urdf"}, "joint_map": {"a": "j1"}},
+         "non-empty list — a URDF given by 'path' does not say which of its joints are the "
+         "arm's: list the log's joints, base first"),
         ({"joints": [{"name": "a", "gear_ratio": -1}]}, "gear_ratio must be positive"),
         ({"joints": [{"name": "a"}], "kinematics": {"type": "planar", "link_lengths": [1, 2]}},
          "one link length per joint"),

@@ -78,7 +78,13 @@ def robot_from_dict(d: dict[str, Any], where: str = "robot description") -> Robo
         back = {u: j for j, u in (joint_map or {}).items()}
         joints_raw = [{"name": back.get(u, u)} for u in robots.arm_joints(shipped)]
     if not isinstance(joints_raw, list) or not joints_raw:
-        raise RobotDescriptionError(f"{where}: 'joints' must be a non-empty list")
+        by_path = isinstance(kin0, dict) and kin0.get("type") == "urdf" and "path" in kin0
+        raise RobotDescriptionError(
+            f"{where}: 'joints' must be a non-empty list" + (
+                " — a URDF given by 'path' does not say which of its joints are the arm's: "
+                "list the log's joints, base first, each {\"name\": ...} with its "
+                "gear_ratio (and torque_constant for currents) (docs/robots.md)"
+                if by_path and joints_raw is None else ""))
     joints = []
     for i, jd in enumerate(joints_raw):
         if not isinstance(jd, dict) or not isinstance(jd.get("name"), str):
