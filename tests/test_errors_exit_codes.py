@@ -334,6 +334,19 @@ def test_evaluate_says_labels_after_a_cut_are_the_cut_s(tmp_path: Path) -> None:
     assert whole.exit_code == 0, whole.output
     r = CliRunner().invoke(main, ["evaluate", str(tmp_path / "w" / "assist_impacts.timeline.json"),
                                   "--labels", str(moved)])
+    # every contact after the log's end: nothing to score, bad input (a trial's labels in
+    # milliseconds passed as "0 counted", exit 0); one contact inside: the others warned of
+    assert r.exit_code == 3, r.output
+    assert r.stderr.strip().splitlines()[-1] == (
+        f"impactcli: error: {moved}: every one of its 15 contact(s) starts after the log's "
+        "end (72.7 s), first at 1012 s: the labels of another log, or times not in "
+        "seconds since the log's first sample (milliseconds?) — nothing to score"), r.stderr
+    doc["events"][0]["start"] -= 1000.0
+    doc["events"][0]["end"] -= 1000.0
+    moved.write_text(json.dumps(doc), "utf-8")
+    r = CliRunner().invoke(main, ["evaluate", str(tmp_path / "w" / "assist_impacts.timeline.json"),
+                                  "--labels", str(moved)])
+    assert r.exit_code == 0, r.output
     assert "(labels of another log?)" in r.stderr and "truncated" not in r.stderr, r.stderr
 
 

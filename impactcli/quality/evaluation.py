@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..errors import ConfigError, ImpactWarning, LogFormatError
+from ..errors import ConfigError, ImpactWarning, LabelsError, LogFormatError
 from ..types import DETECTORS, ContactLabel, Event, Labels
 from .incident_scores import IncidentEvaluation, evaluate_incidents
 from .match import (
@@ -394,6 +394,13 @@ def evaluate_events(
             status.append("in_warmup")
         else:
             status.append("counted")
+    if outside and len(outside) == len(contacts) and not truncated:
+        raise LabelsError(
+            f"{labels.path or 'labels'}: every one of its {len(contacts)} contact(s) starts "
+            f"after the log's end ({duration_s:g} s), first at "
+            f"{min(c.start for c in contacts):g} s: the labels of another log, or times not "
+            "in seconds since the log's first sample "
+            "(milliseconds?) — nothing to score")
     if outside:
         where = labels.path or "labels"
         warnings.warn(
