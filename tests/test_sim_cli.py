@@ -133,3 +133,17 @@ def test_simulate_controller_channels_default_mirrors_the_sample_logs():
     off = [a for a in ARMS if a not in CONTROLLER_CHANNEL_ARMS]
     assert on == ["assist_like"] and off == ["heavy_geared"]
     assert "[default: on for assist_like, off for heavy_geared, as in the sample logs]" in text
+
+
+def test_simulate_into_a_folder_it_cannot_make_is_a_usage_error(tmp_path):
+    """A trial's ``-o <file>/x`` gave a traceback and exit 70: now one line naming the
+    output, exit 2 (README), before any simulation, and nothing written."""
+    blocker = tmp_path / "afile"
+    blocker.write_text("x", "utf-8")
+    res, msg = _run(["simulate", "--scenario", "free_p2p", "--duration", "1", "-o",
+                     str(blocker / "x")])
+    assert res.exit_code == 2, msg
+    assert res.stderr.strip().splitlines() == [
+        f"impactcli: error: cannot write {blocker / 'x' / 'free_p2p.csv.gz'}: a part of its "
+        "folder path is a file, not a folder"], msg
+    assert "Traceback" not in res.output and sorted(tmp_path.iterdir()) == [blocker]

@@ -74,17 +74,20 @@ def simulate_cmd(arm: str, scenario_name: str, duration: float | None, seed: int
         overrides["payload_kg"] = payload_kg
     if uncertainty is not None:
         overrides["uncertainty"] = uncertainty
-    sc = scenario(scenario_name, arm, duration, **overrides)
-    result = simulate(sc, seed=seed)
+    from ..files import prepare_output
+
     stem = name or scenario_name
-    outdir.mkdir(parents=True, exist_ok=True)
-    written = []
-    for fmt in dict.fromkeys(formats):
-        path = outdir / f"{stem}{FORMATS[fmt]}"
-        write_log(result.log, path, mcap_encoding="ros2" if fmt == "mcap-ros2" else "json")
-        written.append(path)
+    logs = {fmt: outdir / f"{stem}{FORMATS[fmt]}" for fmt in dict.fromkeys(formats)}
     labels_path = outdir / f"{stem}.labels.json"
     robot_path = outdir / f"{stem}.robot.json"
+    for path in (*logs.values(), labels_path, robot_path):  # before the work: exit 2
+        prepare_output(path)
+    sc = scenario(scenario_name, arm, duration, **overrides)
+    result = simulate(sc, seed=seed)
+    written = []
+    for fmt, path in logs.items():
+        write_log(result.log, path, mcap_encoding="ros2" if fmt == "mcap-ros2" else "json")
+        written.append(path)
     write_labels(result.labels, labels_path)
     write_robot(result.robot, robot_path)
     written += [labels_path, robot_path]
