@@ -744,6 +744,13 @@ def test_a_contact_held_only_by_payload_changes_alarms_is_said_taken_for_a_load(
         "not counted, hold it — missed as a contact)")
     assert rows["every detected contact is exactly one incident"] == (
         "no (0/1); in no counted incident: labels #0")
+    # the report's headline beside the product's hits (a trial's said "3/4 hit" only)
+    from impactcli.outputs.report.common import incident_score, incident_score_text
+
+    score = incident_score({"incidents": ev.to_dict()})
+    assert score == {"as_incidents": 0, "taken_for_payload": 1}
+    assert incident_score_text(score, 1) == (
+        "; as incidents 0/1 (1 taken for a payload change, not counted)")
     # a counted incident among its holders: not taken for a load
     counted = [dict(incs[0]), dict(incs[1], payload_change=None)]
     (c,) = evaluate_incidents(counted, evs, [clamp], ["counted"], MatchTolerance(),

@@ -224,6 +224,9 @@ def test_labels_give_the_quality_section() -> None:
         "detected": 2,
         "n_contacts": 3,
         "false_alarms": 0,
+        # this made-up result lists events but no incidents: none matched as an incident
+        "as_incidents": 0,
+        "taken_for_payload": 0,
     }
     assert q["sweep"] is not None and q["sweep"]["verdict"]
     assert "Detection quality against labels" in html and "run.labels.json" in html

@@ -93,6 +93,29 @@ class LogSection(TypedDict):
     quality: dict[str, Any] | None
 
 
+def incident_score(evaluation: dict[str, Any]) -> dict[str, int] | None:
+    """The labelled contacts an evaluation's incidents matched (``as_incidents``) and those
+    only payload changes' alarms held (``taken_for_payload``: not counted, missed as
+    contacts); None without an incident-level score. Beside the product alarm's hits, which
+    count an alarm a payload change took as a hit (a trial's report said "3/4 hit" where 2
+    of 4 clamps were incidents)."""
+    inc = evaluation.get("incidents") or {}
+    if not inc.get("available"):
+        return None
+    return {"as_incidents": int(inc["matched"]),
+            "taken_for_payload": sum(1 for c in inc.get("contacts") or ()
+                                     if c.get("payload_change"))}
+
+
+def incident_score_text(score: dict[str, int] | None, n_contacts: int) -> str:
+    """"; as incidents 2/4 (1 taken for a payload change, not counted)", or ""."""
+    if score is None:
+        return ""
+    k = score.get("taken_for_payload", 0)
+    return (f"; as incidents {score['as_incidents']}/{n_contacts}"
+            + (f" ({k} taken for a payload change, not counted)" if k else ""))
+
+
 def clean(x: Any) -> Any:
     """JSON-safe copy: numpy scalars → Python, non-finite floats → None, tuples → lists."""
     if isinstance(x, dict):

@@ -29,6 +29,7 @@ from .common import (
     LogSection,
     clean,
     e,
+    incident_score,
 )
 from .samples import Samples
 from .section import log_section, section_html
@@ -112,7 +113,8 @@ def _quality_summary(q: dict[str, Any] | None) -> dict[str, Any] | None:
     if not sc:
         return None
     return {"detector": "product", "detected": sc["detected"], "n_contacts": sc["n_contacts"],
-            "false_alarms": sc["false_alarms"]}
+            "false_alarms": sc["false_alarms"],
+            **(incident_score(q["evaluation"]) or {})}
 
 
 def summary_row(sec: LogSection) -> dict[str, Any]:

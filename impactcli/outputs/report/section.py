@@ -33,6 +33,8 @@ from .common import (
     clean,
     e,
     event_duration_s,
+    incident_score,
+    incident_score_text,
     ratio_cell,
 )
 from .margins import false_alarm_margins
@@ -127,7 +129,9 @@ def _meta(sec: LogSection, anchor: str) -> str:
     prod = (ev.get("detectors") or {}).get("product")
     labels = (f' · <a href="#{anchor}-quality">vs labels</a> (product): {prod["detected"]}/'
               f'{prod["n_contacts"]} hit, {prod["false_alarms"]} false-alarm events (alarm '
-              "events matching no contact; the incidents below group them)" if prod else "")
+              "events matching no contact; the incidents below group them)"
+              + e(incident_score_text(incident_score(ev), prod["n_contacts"]))
+              if prod else "")
     return (f'<p class="meta"><code>{e(inp["path"])}</code> · {inp["duration_s"]:.1f} s at '
             f'{inp["sample_rate_hz"]:.0f} Hz · {len(inp["joints"])} joints · {cal} · model '
             f'{e(model.get("kind", "none"))}{labels} · <a href="#{anchor}-analysed">what was '

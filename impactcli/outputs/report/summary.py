@@ -29,7 +29,15 @@ from ...detect.force import (
 from ...detect.incidents import link_words
 from ...detect.payload_words import press_text
 from ...detect.thresholds import self_set_text, uncalibrated_blocks
-from .common import CONTACT_TEXT, PRODUCT_DETECTORS, approx, e, ratio_cell, utc
+from .common import (
+    CONTACT_TEXT,
+    PRODUCT_DETECTORS,
+    approx,
+    e,
+    incident_score_text,
+    ratio_cell,
+    utc,
+)
 
 CONTACT_ORDER = ("transient", "quasi_static", "unknown")
 
@@ -569,7 +577,9 @@ def fleet_table_html(doc: dict[str, Any]) -> str:
         qcell = "" if not with_q else (
             '<td class="muted">no labels</td>' if not qs else
             f'<td class="num">{qs["detected"]}/{qs["n_contacts"]} hit, '
-            f'{qs["false_alarms"]} false-alarm events</td>')
+            f'{qs["false_alarms"]} false-alarm events'
+            f'{e(incident_score_text(qs if "as_incidents" in qs else None, qs["n_contacts"]))}'
+            '</td>')
         unseen = "; ".join(c["short"] for c in sec.get("could_not_see") or [] if c.get("short"))
         calib = ('<span class="good">yes</span>' if r["calibrated"]
                  else '<span class="bad">no</span>')
