@@ -67,7 +67,13 @@ def rate_lines(rate: dict[str, Any], margin_rule: str = "leave-one-out") -> list
     beyond = ("" if sup is None or sup <= rate["upper_per_hour"] else
               f" by the tail fits alone — the free motion bounds no rate below {ph(sup)}, so "
               "neither is promised (below)")
-    lines = [f"false alarms per hour: {asked}; predicted "
+    from ..detect.tail import left_out_above
+
+    n_above = len(left_out_above(rate))
+    lines = [f"false alarms per hour: {asked}; "
+             + (f"NOT borne out: {n_above} calibration log(s), left out, false-alarmed above "
+                "the others' bound (leave-one-log-out, below); " if n_above else "")
+             + "predicted "
              f"{ph(rate['predicted_per_hour'])}, upper bound {ph(rate['upper_per_hour'])} at "
              f"{pct} confidence{beyond}, on {minutes_text(rate['free_minutes'])} min of free "
              "motion"]
@@ -345,12 +351,16 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
         fa["free_minutes"] / 60.0, fa["confidence"])) else
             f": the tail fits' extrapolation, where the free motion with no alarm bounds "
             f"{ph(zero)} by itself")
-    rule = (f"v_stat and vL for {fa['per_hour']:g} false alarm(s) per hour, v0 by "
-            f"{c.margin_rule}" if "per_hour" in fa else f"rule {c.margin_rule}" + (
-                f" (predicted {ph(fa['predicted_per_hour'])} false alarm(s) per hour, upper "
-                f"bound {ph(fa['upper_per_hour'])}{tail})" if fa else ""))
-    if fa and (left := left_out_text(fa)):  # said beside the prediction, not 60 lines on
-        rule += f"; {left}"
+    # a log left out that false-alarmed above the others' bound is said before the
+    # prediction it contradicts, not after it (nor 60 lines on)
+    left = left_out_text(fa) if fa else ""
+    lead = f": NOT borne out — {left.removeprefix('but ')}" if left else ""
+    pred = (f"predicted {ph(fa['predicted_per_hour'])} false alarm(s) per hour, upper "
+            f"bound {ph(fa['upper_per_hour'])}{tail}" if fa else "")
+    rule = (f"v_stat and vL for {fa['per_hour']:g} false alarm(s) per hour{lead}"
+            f"{';' if lead else ','} v0 by {c.margin_rule}" if "per_hour" in fa
+            else f"rule {c.margin_rule}" + (f"{lead}; {pred}" if lead and pred
+                                              else f" ({pred})" if pred else lead))
     click.echo(f"calibrated on {len(read)} log(s) ({c.segments} stretch(es) of collision-free "
                f"motion), {rule}{weak}; {what}")
     if kind == "decoupled" and robot_d is None and model_m is None and out.model is not None:

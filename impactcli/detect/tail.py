@@ -340,17 +340,20 @@ def calibration_text(calib: Mapping[str, object], settings_changed: bool = False
              f"per hour, {at_most_text(float(rate['upper_per_hour']))}{pct}, on motion "
              "like the calibration logs'"
              if "predicted_per_hour" in rate and "upper_per_hour" in rate else "")
+    # a prediction a log left out contradicted is said after the contradiction, not before
+    # it (a trial read "predicted 0.0056 per hour, ≤ 1.5" first, a 4.8e3/h log left out after)
+    above = left_out_text(rate)
+    lead = f"NOT borne out — {above.removeprefix('but ')}; " if above else ""
     if "per_hour" in rate:
         text = f"set for {float(rate['per_hour']):g} false alarm(s) per hour"
-        text += f" ({bound})" if bound else ""
+        text += (f": {lead}{bound}" if lead and bound else f" ({bound})" if bound
+                 else f": {lead.removesuffix('; ')}" if lead else "")
     else:
-        text = f"{rule}, " + (bound or "no false-alarm rate recorded")
+        text = f"{rule}, " + lead + (bound or "no false-alarm rate recorded")
     if rate.get("supported") is False or ("per_hour" not in rate and "supported_per_hour"
                                           in rate and float(rate["supported_per_hour"])
                                           > float(rate.get("upper_per_hour", 0.0))):
         text += f", not supported by its free motion ({rate.get('statement', '')})"
-    if above := left_out_text(rate):  # the prediction did not hold for a log left out
-        text += f"; {above}"
     if calib.get("weak"):
         capped = capped_detectors(calib)
         if rule == "fixed-single-log":

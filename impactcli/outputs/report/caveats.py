@@ -80,10 +80,12 @@ def rate_caveats(calib: dict[str, Any]) -> list[dict[str, str]]:
     out = _left_out(rate)
     r, conf = rate.get("per_hour"), rate.get("confidence")
     pct = "—" if conf is None else f"{100 * conf:.0f}"
+    unborne = (" — not borne out: a calibration log left out false-alarmed above the others' "
+               "bound (above)" if out else "")
     if r is None:  # leave-one-out thresholds: the rate they are predicted to give
         return [*out, {"code": "rate-envelope", "text": (
             f"The thresholds were set by {calib.get('margin_rule') or 'a margin rule'}, not "
-            "for a false-alarm rate; on motion like the calibration logs' they are "
+            f"for a false-alarm rate{unborne}; on motion like the calibration logs' they are "
             f"predicted to give {per_hour_text(rate.get('predicted_per_hour', 0.0))} false "
             f"alarm(s) per hour, upper bound {per_hour_text(rate.get('upper_per_hour', 0.0))} "
             f"at {pct} % confidence "
@@ -102,7 +104,7 @@ def rate_caveats(calib: dict[str, Any]) -> list[dict[str, str]]:
                "The fits' own bounds were wider than the widening. ")
             + "The stated rate is not promised; calibrate on more of the robot's free motion.")})
     out.append({"code": "rate-envelope", "text": (
-        f"The false-alarm rate ({r:g} per hour asked; predicted "
+        f"The false-alarm rate{unborne} ({r:g} per hour asked; predicted "
         f"{per_hour_text(rate.get('predicted_per_hour', 0.0))}, upper bound "
         f"{per_hour_text(rate.get('upper_per_hour', 0.0))} at {pct} % confidence) holds for "
         "motion like "
