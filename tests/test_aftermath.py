@@ -5,6 +5,7 @@ in its own aftermath, one that starts while its cause is still on never either."
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 from dataclasses import dataclass
 
@@ -55,8 +56,43 @@ def test_alarms_while_the_arm_rings_after_a_push_are_its_aftermath() -> None:
     assert "may be its ringing, not a new contact" in text
     # the settling time bounds it: an incident 0.5 s after the span's end is in it, 0.6 s not
     near, far = Inc(36.96 + 0.5, 37.6, 10), Inc(36.96 + 0.6, 37.7, 11)
-    m_near, m_far = aftermath_of([push, near, far], stretches[:2], SETTLE)[1:]
-    assert m_near is not None and m_far is None
+    (m_near,) = aftermath_of([push, near], stretches[:2], SETTLE)[1:]
+    (m_far,) = aftermath_of([push, far], stretches[:2], SETTLE)[1:]
+    assert m_near is not None and m_far is None and "follows" not in m_near
+
+
+@dataclass(frozen=True)
+class Forced(Inc):
+    force_n: float | None = None
+
+
+def test_ringing_that_outlasts_the_measured_span_follows_the_last_marked_alarm() -> None:
+    """A trial's 30 N push (robot 67): the adaptive detector rang at 0.38 s intervals, and
+    the measured motion was back in its ranges before the last ring, 0.60 s after it — read
+    as a new 12 N contact. An alarm within the settling time after the end of one already
+    in the aftermath, no stronger than its cause, follows it; a stronger one, or one after
+    a longer quiet, is a contact again (and ends the chain)."""
+    push = Forced(35.43, 35.66, 6, force_n=27.3)
+    rings = [Forced(35.81, 36.02, 7, force_n=21.5), Forced(36.21, 36.35, 8, force_n=18.7),
+             Forced(36.58, 36.65, 9, force_n=11.9), Forced(37.0, 37.1, 10, force_n=8.0)]
+    stretches = [out(35.42, 35.98, -2.27)]
+    marks = aftermath_of([push, *rings], stretches, SETTLE)
+    assert marks[0] is None
+    assert [m is not None and m.get("follows") for m in marks[1:]] == [None, None, 8, 9]
+    assert all(m["incident"] == 6 and m["until_s"] == 35.98 for m in marks[1:])
+    text = aftermath_text(marks[3])
+    assert ("out until 35.980 s); it follows incident 8, itself in that aftermath, within the "
+            "detectors' settling time, so this alarm may be its ringing") in text
+    # a stronger alarm is a contact, and nothing after it follows
+    strong = [*rings[:2], Forced(36.58, 36.65, 9, force_n=40.0), rings[3]]
+    assert [m is None for m in aftermath_of([push, *strong], stretches, SETTLE)[1:]] == [
+        False, False, True, True]
+    # a quiet longer than the settling time ends the chain
+    late = [*rings[:2], Forced(36.35 + SETTLE + 0.05, 37.0, 9, force_n=5.0)]
+    assert aftermath_of([push, *late], stretches, SETTLE)[3] is None
+    # unknown forces do not stop it
+    blind = [dataclasses.replace(x, force_n=None) for x in rings]
+    assert all(m is not None for m in aftermath_of([push, *blind], stretches, SETTLE)[1:])
 
 
 def test_a_span_no_incident_threw_marks_nothing() -> None:

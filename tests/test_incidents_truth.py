@@ -178,7 +178,7 @@ def test_payload_alarms_after_warmup_are_counted_everywhere(payload_log: Path, p
         in r.stdout, r.stdout
     tl = json.loads((out / "payload.timeline.json").read_text())
     validate(tl, "timeline", AssertionError, "timeline")
-    assert tl["schema_version"] == "2.10"
+    assert tl["schema_version"] == "2.11"
     assert tl["counts"] == {"incidents": {"counted": 5, "in_warmup": 1},
                             "lasting_loads": {"counted": 1, "in_warmup": 0}}
     (load,) = tl["lasting_loads"]
