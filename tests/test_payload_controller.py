@@ -89,3 +89,36 @@ def test_contacts_while_carrying_are_still_caught(pick_and_place: dict[str, Any]
     counted = [i for i in tl["incidents"] if i.get("number") is not None]
     for e in carried:
         assert [i for i in counted if e["start"] - 0.02 <= i["t_start"] <= e["end"] + 0.25], e
+
+
+def test_no_payload_change_found_says_how_large_one_it_could_have_seen(
+        tmp_path: Path) -> None:
+    """A run that watched for payload changes and found none says the least load it could
+    have seen: a load whose weight (m g) is under the last link's step floor for the
+    loading detector crosses no threshold (a trial's 1 kg pick and release passed in
+    silence under a ~21 N floor). The sample pushes log (no load changes) on the sample
+    config; the figure is the timeline's floor over g."""
+    from impactcli.detect.floor import G_N_PER_KG, payload_floor
+
+    log = REPO / "sample_logs" / "csv" / "assist_pushes.csv.gz"
+    summary = tmp_path / "s.json"
+    r = _cli("detect", str(log), "--config", str(REPO / "sample_logs" / "assist_like.config.toml"),
+             "-o", str(tmp_path), "--summary", str(summary))
+    tl = _timeline(tmp_path, "assist_pushes")
+    assert tl["payload_changes"] == []
+    last = max(tl["detection_floor"]["per_link"], key=lambda x: x["link"])
+    kg = last["static_loading"]["median_n"] / G_N_PER_KG
+    assert payload_floor(tl["detection_floor"]) == pytest.approx(
+        (kg, 2, last["static_loading"]["median_n"]))
+    (line,) = [ln for ln in r.stdout.splitlines() if ln.startswith("payload changes of")]
+    assert line == (
+        f"payload changes of assist_pushes.csv.gz: none found — a load under ~{kg:.2g} kg "
+        "picked or released at the flange would not have crossed the loading thresholds "
+        f"(its weight under link 2's step floor, ~{kg * G_N_PER_KG:.2g} N at the log's median "
+        "moment); a lower bound, not a promise that a heavier one was seen")
+    row = json.loads(summary.read_text("utf-8"))["results"][0]
+    assert row["payload_floor"] == pytest.approx(
+        {"kg": kg, "link": 2, "force_n": last["static_loading"]["median_n"]})
+    # no floor for the last link (it ends on its joint's axis), or no per-link floor: none
+    assert payload_floor({"per_link": [dict(last, no_lever=True)]}) is None
+    assert payload_floor({"per_joint": {}}) is None and payload_floor(None) is None

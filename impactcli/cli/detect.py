@@ -524,6 +524,14 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
         which = "" if len(ok) == 1 else f" of {len(by_column)} log(s)"
         click.echo(f"links{which} are numbered in the log's column order (joint k's link "
                    "is k): no robot description says the chain; --robot gives it")
+    if (len(ok) == 1 and not one["payload_change_list"] and not all_held  # the floor holds
+            and (lightest := one.get("payload_floor"))):  # outside a lasting load only
+        click.echo(f"payload changes of {shown(ok[0].log_path)}: none found — a load under "
+                   f"~{lightest['kg']:.2g} kg picked or released at the flange would not "
+                   "have crossed the loading thresholds (its weight under link "
+                   f"{lightest['link']}'s step floor, ~{lightest['force_n']:.2g} N at the log's "
+                   "median moment); a lower bound, not a promise that a heavier one was "
+                   "seen")
     if len(ok) == 1 and one["payload_change_list"]:
         click.echo(f"payload changes of {shown(ok[0].log_path)} (a load picked or released: "
                    "not incidents, failing no gate; the residual takes the new load from the "

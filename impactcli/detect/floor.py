@@ -488,6 +488,29 @@ def probed_line(floor: dict[str, Any] | None) -> str | None:
             "detection_floor.probed in the timeline")
 
 
+#: Standard gravity [m/s²]: a load's weight per kilogram.
+G_N_PER_KG = 9.80665
+
+
+def payload_floor(floor: dict[str, Any] | None) -> tuple[float, int, float] | None:
+    """The least load (kg) a payload change needs to be seen at all, with the link and the
+    force it rests on: a load picked or released at the flange starts a payload change only
+    when its step crosses the loading threshold vL, and its weight's component normal to
+    the last link's end turns the joints no more than a force of that weight there would.
+    So a load whose weight is under that link's step floor for the loading detector (the
+    median moment) is not seen: (kg, link, N), a lower bound like the floor itself — not a
+    promise that a heavier one is. None without a per-link floor for the last link (no
+    kinematics; a last link that ends on its joint's axis)."""
+    rows = (floor or {}).get("per_link") or []
+    if not rows:
+        return None
+    last = max(rows, key=lambda r: int(r["link"]))
+    step = (last.get("static_loading") or {}).get("median_n")
+    if step is None or last.get("no_lever"):
+        return None
+    return float(step) / G_N_PER_KG, int(last["link"]), float(step)
+
+
 def floor_words(floor: dict[str, Any] | None) -> str | None:
     """The floor as the report says it: :func:`floor_line`, then the measured one
     (:func:`probed_line`) after "measured:"."""

@@ -37,7 +37,7 @@ from pathlib import Path
 from typing import Any, NotRequired, TypedDict
 
 from ..config import settings_changed
-from ..detect.floor import floor_line, probed_line
+from ..detect.floor import floor_line, payload_floor, probed_line
 from ..detect.force import FORCE_NOT_STATED, scale_untrusted
 from ..detect.incidents import baseline_alone
 from ..errors import (
@@ -160,6 +160,7 @@ class SummaryRow(TypedDict):
     settings_edited: NotRequired[bool]
     start_load_unknown: NotRequired[str]
     payloads_unwatched: NotRequired[str]
+    payload_floor: NotRequired[dict[str, float]]
     joints: int
     calibrated: bool
     links: str
@@ -415,6 +416,10 @@ def _summary(job: DetectJob, result: DetectionResult) -> SummaryRow:
         row["truncated"] = True
     if result.payloads_unwatched is not None:
         row["payloads_unwatched"] = result.payloads_unwatched
+    elif result.payload_changes is not None and (
+            lightest := payload_floor(result.detection_floor)) is not None:
+        row["payload_floor"] = {"kg": lightest[0], "link": lightest[1],
+                                "force_n": lightest[2]}
     if result.payload is not None and result.payload["verdict"] == "unsupported":
         row["start_load_unknown"] = result.payload["message"]  # its findings may be it
     if result.calibrated and settings_changed(result.config):
