@@ -289,9 +289,10 @@ def test_default_is_leave_one_out_with_its_predicted_rate(loo: tuple) -> None:
             "(leave-one-log-out, below); predicted ") in r.stdout
     assert "--false-alarms-per-hour R sets v_stat and vL for R false alarms per hour " \
         "instead" in r.stdout
-    # the controller's residual: no payload per log, said
-    assert "payload per log: not fitted: the residual is the controller's (logged_external)" \
-        in r.stdout
+    # the controller's residual: a payload per log tried, one load chosen, said
+    assert ("payload per log: one load for all logs — the residual is the controller's "
+            "(logged_external) corrected by the tool's planar model, and a payload per log "
+            "predicted no better held out") in r.stdout
     # stated at 62 per hour (≤ 198) on 1.3 min: warned, not only printed
     assert re.search(r"impactcli: warning: these thresholds are predicted to give [0-9.]+ "
                      r"false alarm\(s\) per hour \(≤ [0-9.]+\)", r.stderr), r.stderr

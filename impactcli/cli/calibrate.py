@@ -186,6 +186,35 @@ def rate_warnings(rate: dict[str, Any] | None) -> list[str]:
     return out
 
 
+def _channel_payload_line(out: Any, generators: list[str]) -> str:
+    """What calibrate says of payloads per log when the residual is the controller's
+    channel: corrected by the tool's model with kinematics, a payload per log is fitted
+    where it predicts clearly better held out (:func:`impactcli.model.selection.
+    identify_correction`), else one load for all logs; taken plain, or without kinematics,
+    logs that carry different loads are not told apart."""
+    from ..model import RigidModel, payload
+
+    model = out.model or {}
+    choice = (model.get("fit") or {}).get("payload_choice")
+    if choice is not None:
+        from ..model.selection import payload_lines
+
+        return "\n".join(payload_lines(choice))
+    which = ", ".join(generators)
+    rig = RigidModel.from_dict(model) if model else None
+    if (out.residual.logged_correction and rig is not None
+            and payload.basis(rig.kind, rig.joint_names, rig.structure) is not None):
+        return (f"  payload per log: one load for all logs — the residual is the controller's "
+                f"({which}) corrected by the tool's {model['kind']} model, and a payload per "
+                "log predicted no better held out")
+    return (f"  payload per log: not fitted: the residual is the controller's ({which}) "
+            + ("taken plain" if not out.residual.logged_correction else
+               "corrected by a model without kinematics")
+            + ": logs that carry different loads are not told apart, and their difference "
+            "widens the thresholds (a robot description with kinematics fits a payload per "
+            "log)")
+
+
 def _labels_for(logs: tuple[Path, ...], given: tuple[Path, ...]) -> list:  # type: ignore[type-arg]
     """Labels per log: ``--labels`` paired as ``report`` pairs them, else
     ``<stem>.labels.json`` beside the log when present, else None."""
@@ -384,12 +413,8 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     from ..model.generators import OWN_MODEL
 
     elsewhere = sorted({g for g in out.residual.generators.values() if g not in OWN_MODEL})
-    if elsewhere and len(read) > 1:  # the residual is the controller's: no load to fit
-        click.echo(f"  payload per log: not fitted: the residual is the controller's "
-                   f"({', '.join(elsewhere)}), not the tool's model: logs that carry "
-                   "different loads are not told apart, and their difference widens the "
-                   "thresholds (--generator inverse_dynamics with a robot description with "
-                   "kinematics fits a payload per log)")
+    if elsewhere and len(read) > 1:  # the controller's channel: a payload per log too?
+        click.echo(_channel_payload_line(out, elsewhere))
     from ..run.torque_sources import judge_sources
 
     sources = judge_sources(read, robot_d, read_options)  # both .torque and .current logged

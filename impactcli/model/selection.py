@@ -511,6 +511,28 @@ def select_model(logs: Sequence[RobotLog], *, robot: RobotDescription | None = N
     return _chosen_model(choice, rows, paths, robot, options, many_sha256(logs))
 
 
+def identify_correction(logs: Sequence[RobotLog], *, robot: RobotDescription | None = None,
+                        options: IdentifyOptions = IdentifyOptions()) -> RigidModel:
+    """The correction model of the controller's channels (:mod:`impactcli.model.generators`:
+    identified on what the channel leaves out) over several calibration logs:
+    :func:`identify_many`'s fit of the robot's kind, with a payload per log where the kind
+    has kinematics and a payload per log predicts clearly better held out
+    (:func:`payload_errors`; recorded under ``fit["payload_choice"]``). A load the
+    controller's model does not know shows in its channel as that mass's torque, so logs
+    that carry different loads are told apart as with the tool's own model. When one load
+    for all logs is as good, the model is :func:`identify_many`'s to the last bit."""
+    if not options.payload_per_log or len(logs) < 2:
+        return identify_many(logs, robot=robot, options=options)
+    rows = [prepare_rows(lg, robot, None, options) for lg in logs]
+    paths = [lg.source.path for lg in logs]
+    pay = payload_errors(rows, paths, options)
+    chosen = pay is not None and pay["chosen"]
+    model = fit_rows(rows, paths, robot=robot, options=options,
+                     input_sha256=many_sha256(logs), payloads=chosen)
+    return (dataclasses.replace(model, fit=dict(model.fit, payload_choice=pay)) if chosen
+            else model)
+
+
 class SelectStream:
     """:func:`select_model` on one log fed in chunks (the detect of a log without a
     config): the decoupled and the coupled rows built in the same pass, the choice made
@@ -594,6 +616,11 @@ def _payload_lines(record: dict[str, Any]) -> list[str]:
                 record["held_back"].startswith("leave-one-log"):
             return [f"  payload per log: not fitted: {_payload.NO_KINEMATICS}"]
         return []
+    return payload_lines(pay)
+
+
+def payload_lines(pay: dict[str, Any]) -> list[str]:
+    """:func:`payload_errors`' comparison in one line."""
     cells = ", ".join(f"{jn} {e['one_load_rms_nm']:.3g} → {e['per_log_rms_nm']:.3g}"
                       for jn, e in pay["joints"].items())
     verdict = ("a payload per log (clearly better held out)" if pay["chosen"]

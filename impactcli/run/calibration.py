@@ -125,7 +125,9 @@ def calibrate_run(
     """Thresholds v_stat, vL, v0 per joint from collision-free logs (docs/method.md §5b).
 
     The model is ``model``, else the config's, else identified from the logs
-    (:func:`impactcli.model.identify_many` over all of them). Each log is replayed with it;
+    (:func:`impactcli.model.selection.select_model` over all of them; for the controller's
+    channels :func:`~impactcli.model.selection.identify_correction`). Each log is replayed
+    with it;
     its statistics after warm-up, without the stretches ``labels`` mark as contacts (and,
     without labels, stretches that alone would set a product detector's threshold: warned
     about as likely contacts and, with ``drop_suspect``, left out) give the thresholds:
@@ -154,8 +156,7 @@ def calibrate_run(
 
     from ..config import CalibrationRecord, LogRecord, ThresholdsConfig
     from ..detect.thresholds import calibrate_thresholds
-    from ..model import identify_many
-    from ..model.selection import select_model
+    from ..model.selection import identify_correction, select_model
 
     if threshold_rule not in THRESHOLD_RULES:
         raise ValueError(f"threshold rule {threshold_rule!r}: one of {THRESHOLD_RULES}")
@@ -179,9 +180,10 @@ def calibrate_run(
     if needs_model(choices[0], cfg):
         if model is None:
             # the tool's own model: its kind and ridge chosen by held-back error
-            # (docs/models.md, "Choosing the model"); a correction model stays decoupled
+            # (docs/models.md, "Choosing the model"); a correction model is the robot's
+            # kind, with a payload per log where that predicts clearly better held out
             correction = uses_correction(choices[0], cfg.residual.logged_correction)
-            fit = identify_many if correction else select_model
+            fit = identify_correction if correction else select_model
             # in the order of the logs' contents, not of the command line: the same logs
             # give the same model to the last bit (a least-squares fit's sums depend on
             # the row order, and the adaptive replay magnifies the difference)
