@@ -379,7 +379,25 @@ def csv_parse_error(lay: CsvLayout, err: BaseException) -> LogFormatError:
             first = "the header has" if lay.header else "the first line has"
             msg = (f"line {at}: {m.group(2)} fields where {first} "
                    f"{m.group(1)}" + msg[m.end():])
+            if cut_last_line(lay.path, at):  # a recording stopped mid-write
+                msg += (" — it is the file's last line, cut short with no line end: the "
+                        "recording stopped while writing it? Remove that line to read the "
+                        "rest")
     return LogFormatError(f"{lay.where}: cannot parse CSV: {msg}")
+
+
+def cut_last_line(path: Path, line: int) -> bool:
+    """Whether 1-based ``line`` is ``path``'s last line and the file ends without a line
+    end (a writer killed mid-line); False when the file cannot be read to its end."""
+    opener: Any = gzip.open if is_gz(path) else open
+    try:
+        with opener(path, "rb") as f:
+            n, last = 0, b""
+            for raw in f:
+                n, last = n + 1, raw
+    except (OSError, EOFError):
+        return False
+    return n == line and not last.endswith((b"\n", b"\r"))
 
 
 def first_valid(arr: Any) -> str:
