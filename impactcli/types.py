@@ -542,9 +542,10 @@ class DetectionResult:
         filter_gain: ``{"frequencies_hz": [...], "gain": {joint: [...]}}`` of G_hat.
         warnings: one-line warnings raised during the run (also shown by the CLI).
         read_options: the options the log was read with (to re-run exactly).
-        payloads_unwatched: why the replay could not weigh a load (None: it could;
-            :func:`impactcli.run.loads.unwatched_reason`); not in the timeline, whose
-            ``input.payload`` and ``payload_changes`` are then absent.
+        payloads_unwatched: why the replay weighed no load at all, neither the start's
+            nor changes (None: it weighed one; :func:`impactcli.run.loads.unweighed_reason`);
+            not in the timeline, whose ``input.payload`` and ``payload_changes`` are then
+            absent.
         robot: the robot description given to the run (``--robot``), as its mapping, or
             None: with the model's own (``model["robot"]``) it says the links' chain and
             kinematics where the model records none (a controller channel taken plain

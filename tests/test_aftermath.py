@@ -93,6 +93,16 @@ def test_ringing_that_outlasts_the_measured_span_follows_the_last_marked_alarm()
     # unknown forces do not stop it
     blind = [dataclasses.replace(x, force_n=None) for x in rings]
     assert all(m is not None for m in aftermath_of([push, *blind], stretches, SETTLE)[1:])
+    # an alarm that starts while the ring before it is still on follows it too
+    overlap = [*rings[:2], Forced(36.50, 36.70, 9, force_n=11.9),
+               Forced(36.60, 36.80, 10, force_n=8.0)]  # 36.60: past the span's 36.54
+    marks = aftermath_of([push, *overlap], stretches, SETTLE)
+    assert "follows" not in marks[3] and marks[4]["follows"] == 9
+    # a ring not counted (no number) is followed all the same, and the row says so
+    uncounted = [*rings[:1], dataclasses.replace(rings[1], number=None), rings[2]]
+    m = aftermath_of([push, *uncounted], stretches, SETTLE)[3]
+    assert m is not None and m["follows"] is None
+    assert "; it follows an earlier alarm, itself in that aftermath" in aftermath_text(m)
 
 
 def test_a_span_no_incident_threw_marks_nothing() -> None:

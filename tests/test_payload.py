@@ -985,8 +985,9 @@ def test_a_replay_that_cannot_weigh_loads_says_so(two_loads: Path, tmp_path: Pat
     tl, code, r = _detect(log, plain, tmp_path / "a", "--summary", str(summary))
     assert code == 0, r.output  # type: ignore[attr-defined]
     why = ("the residual of every joint is the controller's external-torque estimate taken "
-           "plain, with no model of the tool's to carry a load (residual.logged_correction = "
-           "true in the config, or --generator inverse_dynamics")
+           "plain, with no model of the tool's to carry a load (calibrate with "
+           "residual.logged_correction = true (the default), or with --generator "
+           "inverse_dynamics, and a robot description with kinematics, to weigh them)")
     said = "payloads are not weighed — " + why
     assert tl["counts"]["lasting_loads"]["counted"] == 1  # the 0.5 kg, unweighed
     assert said in r.stderr  # type: ignore[attr-defined]

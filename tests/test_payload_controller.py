@@ -94,10 +94,12 @@ def test_contacts_while_carrying_are_still_caught(pick_and_place: dict[str, Any]
 def test_no_payload_change_found_says_how_large_one_it_could_have_seen(
         tmp_path: Path) -> None:
     """A run that watched for payload changes and found none says the least load it could
-    have seen: a load whose weight (m g) is under the last link's step floor for the
-    loading detector crosses no threshold (a trial's 1 kg pick and release passed in
-    silence under a ~21 N floor). The sample pushes log (no load changes) on the sample
-    config; the figure is the timeline's floor over g."""
+    have seen: a weight at the flange turns joint k by at most |J_k| times itself, so one
+    under min_k vL_k / |J_k| reaches no loading threshold (a trial's 1 kg pick and release
+    passed in silence under a ~21 N floor). The sample pushes log (no load changes) on the
+    sample config. Physics bounds the figure: no larger than the last link's own step
+    floor (the elbow alone), no smaller than the least vL over the arm's reach (the longest
+    lever any joint has to the flange)."""
     from impactcli.detect.floor import G_N_PER_KG, payload_floor
 
     log = REPO / "sample_logs" / "csv" / "assist_pushes.csv.gz"
@@ -106,22 +108,29 @@ def test_no_payload_change_found_says_how_large_one_it_could_have_seen(
              "-o", str(tmp_path), "--summary", str(summary))
     tl = _timeline(tmp_path, "assist_pushes")
     assert tl["payload_changes"] == []
-    last = max(tl["detection_floor"]["per_link"], key=lambda x: x["link"])
-    kg = last["static_loading"]["median_n"] / G_N_PER_KG
-    assert payload_floor(tl["detection_floor"]) == pytest.approx(
-        (kg, 2, last["static_loading"]["median_n"]))
+    floor = tl["detection_floor"]
+    step = floor["payload_step"]
+    assert step["kg"] == pytest.approx(step["force_n"] / G_N_PER_KG)
+    last = max(floor["per_link"], key=lambda x: x["link"])
+    assert step["force_n"] <= last["static_loading"]["median_n"] * (1 + 1e-9)
+    robot = json.loads((REPO / "sample_logs" / "csv" / "assist_pushes.robot.json")
+                       .read_text("utf-8"))
+    reach = sum(robot["kinematics"]["link_lengths"])
+    least_vl = min(v["static_loading"]["median_nm"] for v in floor["per_joint"].values())
+    assert step["force_n"] >= least_vl / reach
+    kg, link, force = payload_floor(floor)  # type: ignore[misc]
+    assert (kg, link, force) == (step["kg"], 2, step["force_n"])
     (line,) = [ln for ln in r.stdout.splitlines() if ln.startswith("payload changes of")]
     assert line == (
         f"payload changes of assist_pushes.csv.gz: none found — a load under ~{kg:.2g} kg "
-        "picked or released at the flange would not have crossed the loading thresholds "
-        f"(its weight under link 2's step floor, ~{kg * G_N_PER_KG:.2g} N at the log's median "
-        "moment); a lower bound, not a promise that a heavier one was seen")
+        "picked or released at the flange (the end of link 2) would not have crossed the "
+        f"loading thresholds (its weight, under ~{force:.2g} N, turns no joint to its "
+        "threshold at the log's median moment); a lower bound, not a promise that a heavier "
+        "one was seen")
     row = json.loads(summary.read_text("utf-8"))["results"][0]
-    assert row["payload_floor"] == pytest.approx(
-        {"kg": kg, "link": 2, "force_n": last["static_loading"]["median_n"]})
-    # no floor for the last link (it ends on its joint's axis), or no per-link floor: none
-    assert payload_floor({"per_link": [dict(last, no_lever=True)]}) is None
-    assert payload_floor({"per_joint": {}}) is None and payload_floor(None) is None
+    assert row["payload_floor"] == pytest.approx({"kg": kg, "link": 2, "force_n": force})
+    # no payload step (no kinematics, no lever to the flange), or no floor: none
+    assert payload_floor({"per_link": floor["per_link"]}) is None and payload_floor(None) is None
 
 
 def test_calibration_logs_with_different_loads_get_a_payload_each_on_the_channel(

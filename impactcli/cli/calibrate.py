@@ -177,10 +177,11 @@ def rate_warnings(rate: dict[str, Any] | None) -> list[str]:
                                "is not seen; more free motion, a higher R or a lower "
                                "--confidence narrows it")
     elif float(rate.get("upper_per_hour", 0.0)) > HIGH_STATED_RATE:
-        left = left_out_text(rate)
-        out.append(f"these thresholds are predicted to give {ph(rate['predicted_per_hour'])} "
+        left = left_out_text(rate)  # the contradiction first, the prediction after
+        out.append((f"{left.removeprefix('but ')}; and " if left else "")
+                   + f"these thresholds are predicted to give {ph(rate['predicted_per_hour'])} "
                    f"false alarm(s) per hour ({at_most_text(rate['upper_per_hour'])}) on "
-                   "motion like the free logs'" + (f"; {left}" if left else "")
+                   "motion like the free logs'"
                    + ": calibrate on more of the robot's free "
                    "motion, or set them for a rate (--false-alarms-per-hour R)")
     return out
@@ -188,10 +189,11 @@ def rate_warnings(rate: dict[str, Any] | None) -> list[str]:
 
 def _channel_payload_line(out: Any, generators: list[str]) -> str:
     """What calibrate says of payloads per log when the residual is the controller's
-    channel: corrected by the tool's model with kinematics, a payload per log is fitted
-    where it predicts clearly better held out (:func:`impactcli.model.selection.
-    identify_correction`), else one load for all logs; taken plain, or without kinematics,
-    logs that carry different loads are not told apart."""
+    channel and the model was identified in this run from two or more logs: corrected by
+    the tool's model with kinematics, a payload per log is fitted where it predicts clearly
+    better held out (:func:`impactcli.model.selection.identify_correction`), else one load
+    for all logs; taken plain, or without kinematics, logs that carry different loads are
+    not told apart."""
     from ..model import RigidModel, payload
 
     model = out.model or {}
@@ -211,8 +213,8 @@ def _channel_payload_line(out: Any, generators: list[str]) -> str:
             + ("taken plain" if not out.residual.logged_correction else
                "corrected by a model without kinematics")
             + ": logs that carry different loads are not told apart, and their difference "
-            "widens the thresholds (a robot description with kinematics fits a payload per "
-            "log)")
+            "widens the thresholds (residual.logged_correction = true, the default, and a "
+            "robot description with kinematics fit a payload per log)")
 
 
 def _labels_for(logs: tuple[Path, ...], given: tuple[Path, ...]) -> list:  # type: ignore[type-arg]
@@ -413,7 +415,8 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
     from ..model.generators import OWN_MODEL
 
     elsewhere = sorted({g for g in out.residual.generators.values() if g not in OWN_MODEL})
-    if elsewhere and len(read) > 1:  # the controller's channel: a payload per log too?
+    identified = model_m is None and not (cfg and cfg.model)  # in this run, not given
+    if elsewhere and len(read) > 1 and identified:  # the controller's channel: per log too?
         click.echo(_channel_payload_line(out, elsewhere))
     from ..run.torque_sources import judge_sources
 

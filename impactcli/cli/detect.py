@@ -492,7 +492,7 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
             and (one["incident_list"] or one["detection_floor"] or loads[ok[0].log_path]
                  or one["payload_change_list"])):  # forces, the floor's N or N·m, masses
         what = ("torques, forces and masses" if one["payload_change_list"]
-                else "torques and forces")
+                or one.get("payload_floor") else "torques and forces")
         click.echo(f"{what} of {shown(ok[0].log_path)} "
                    + ("cannot be trusted: " if one["torque_scale"] == "warn" else
                       "are in the log's units, not checked against physics: ")
@@ -526,12 +526,12 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
                    "is k): no robot description says the chain; --robot gives it")
     if (len(ok) == 1 and not one["payload_change_list"] and not all_held  # the floor holds
             and (lightest := one.get("payload_floor"))):  # outside a lasting load only
-        click.echo(f"payload changes of {shown(ok[0].log_path)}: none found — a load under "
-                   f"~{lightest['kg']:.2g} kg picked or released at the flange would not "
-                   "have crossed the loading thresholds (its weight under link "
-                   f"{lightest['link']}'s step floor, ~{lightest['force_n']:.2g} N at the log's "
-                   "median moment); a lower bound, not a promise that a heavier one was "
-                   "seen")
+        click.echo(f"payload changes of {shown(ok[0].log_path)}{apart}: none found — a load "
+                   f"under ~{lightest['kg']:.2g} kg picked or released at the flange (the end "
+                   f"of link {lightest['link']}) would not have crossed the loading "
+                   f"thresholds (its weight, under ~{lightest['force_n']:.2g} N, turns no "
+                   "joint to its threshold at the log's median moment); a lower bound, not a "
+                   "promise that a heavier one was seen")
     if len(ok) == 1 and one["payload_change_list"]:
         click.echo(f"payload changes of {shown(ok[0].log_path)} (a load picked or released: "
                    "not incidents, failing no gate; the residual takes the new load from the "

@@ -185,10 +185,10 @@ def aftermath_of(incidents: Sequence[Any], stretches: Sequence[MeasuredStretch],
                           "measured": max(seen, key=lambda s: s.score).to_dict()}
                 marked.append(k)
                 continue
-            before = [j for j in marked if float(incidents[j].t_end) < t0]
+            before = [j for j in marked if float(incidents[j].t_start) < t0]
             last = max(before, key=lambda j: float(incidents[j].t_end), default=None)
             if (last is None or t0 - float(incidents[last].t_end) > settle_s + 1e-9
-                    or not _no_larger(incidents[k], p)):
+                    or not _no_larger(incidents[k], p)):  # (a ring still on: gap < 0)
                 break  # the chain ends: a later alarm is a contact again
             prev = out[last]
             assert prev is not None
@@ -208,9 +208,11 @@ def aftermath_text(mark: dict[str, Any]) -> str:
     who = (f"incident {mark['incident']}" if mark.get("incident") is not None
            else "the incident")
     far = MeasuredStretch.from_dict(mark["measured"])
-    then = ("" if mark.get("follows") is None else
-            f"; it follows incident {mark['follows']}, itself in that aftermath, within the "
-            "detectors' settling time")
+    after = ("an earlier alarm" if mark.get("follows") is None
+             else f"incident {mark['follows']}")
+    then = ("" if "follows" not in mark else
+            f"; it follows {after}, itself in that aftermath, within the detectors' settling "
+            "time")
     return (f"in the aftermath of {who} at {float(mark['t_start']):.3f} s: the arm had not "
             f"settled ({far.text()}, out until {float(mark['until_s']):.3f} s){then}, so this "
             "alarm may be its ringing, not a new contact")

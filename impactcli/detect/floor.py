@@ -43,6 +43,9 @@ import numpy as np
 
 from .force import MIN_LEVER_M, JacobianFn, link_jacobians, own_levers
 
+#: Standard gravity [m/s²]: a load's weight per kilogram.
+G_N_PER_KG = 9.80665
+
 #: The adaptive detector's reference contact: a half-sine of this duration [s].
 HALF_SINE_S = 0.1
 #: Histogram bins per decade of torque, and its range [N·m] (below: the "0" bin).
@@ -317,6 +320,9 @@ class FloorAccumulator:
             links[c]["own_joint"] = joints[link_joint[c]]  # its name in per_joint
         out["per_link"] = links
         out["postures"] = len(postures)
+        if (step := _weight_step(postures, len(chain) - 1, jac, index,
+                                 torque["static_loading"]["median"])) is not None:
+            out["payload_step"] = step
         return out
 
 
@@ -330,6 +336,28 @@ class FloorAccumulator:
                  if k >= int(warmup_index[j]) and np.isfinite(x[j])]
             out[name] = float(np.median(g)) if g else None
         return out
+
+
+def _weight_step(postures: np.ndarray, c: int, jac: JacobianFn, index: Sequence[int],
+                 median_nm: np.ndarray) -> dict[str, Any] | None:
+    """The least weight at the end of the chain's last link (0-based ``c``: the flange)
+    whose step reaches some joint's static-loading threshold at the log's median moment:
+    per posture min over the joints k up to it of vL_k / |J_k| (|tau_k| <= |J_k| |F|, any
+    direction, gravity's too), the median over postures; as ``{"force_n", "kg"}``
+    (kg = force / g). None where no joint has a lever there."""
+    arms = _inner_levers(postures, c, jac)
+    best = np.full(len(postures), np.nan)
+    for j, v in enumerate(np.asarray(median_nm, dtype=np.float64)):
+        k = int(index[j]) - 1
+        if k <= c and math.isfinite(float(v)):
+            with np.errstate(divide="ignore", invalid="ignore"):
+                f = np.where(arms[:, k] >= MIN_LEVER_M, float(v) / arms[:, k], np.nan)
+            best = np.fmin(best, f)
+    col = best[np.isfinite(best)]
+    if not col.size:
+        return None
+    force = float(np.median(col))
+    return {"force_n": force, "kg": force / G_N_PER_KG}
 
 
 def _inner_levers(postures: np.ndarray, c: int, jac: JacobianFn) -> np.ndarray:
@@ -488,27 +516,19 @@ def probed_line(floor: dict[str, Any] | None) -> str | None:
             "detection_floor.probed in the timeline")
 
 
-#: Standard gravity [m/s²]: a load's weight per kilogram.
-G_N_PER_KG = 9.80665
-
-
 def payload_floor(floor: dict[str, Any] | None) -> tuple[float, int, float] | None:
-    """The least load (kg) a payload change needs to be seen at all, with the link and the
-    force it rests on: a load picked or released at the flange starts a payload change only
-    when its step crosses the loading threshold vL, and its weight's component normal to
-    the last link's end turns the joints no more than a force of that weight there would.
-    So a load whose weight is under that link's step floor for the loading detector (the
-    median moment) is not seen: (kg, link, N), a lower bound like the floor itself — not a
-    promise that a heavier one is. None without a per-link floor for the last link (no
-    kinematics; a last link that ends on its joint's axis)."""
+    """The least load (kg) a payload change needs to be seen at all at the log's median
+    moment, with the link it is at and its weight (N): a load picked or released at the
+    flange starts a payload change only when its step crosses a loading threshold vL, and
+    its weight turns each joint k no more than |J_k| times itself (the floor's
+    ``payload_step``: per posture the least vL_k / |J_k| over the joints up to the flange,
+    the median over postures). A lower bound like the floor itself — not a promise that a
+    heavier one is seen. None without kinematics or a lever to the flange."""
+    step = (floor or {}).get("payload_step")
     rows = (floor or {}).get("per_link") or []
-    if not rows:
+    if not step or not rows:
         return None
-    last = max(rows, key=lambda r: int(r["link"]))
-    step = (last.get("static_loading") or {}).get("median_n")
-    if step is None or last.get("no_lever"):
-        return None
-    return float(step) / G_N_PER_KG, int(last["link"]), float(step)
+    return float(step["kg"]), max(int(r["link"]) for r in rows), float(step["force_n"])
 
 
 def floor_words(floor: dict[str, Any] | None) -> str | None:

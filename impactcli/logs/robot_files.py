@@ -78,7 +78,8 @@ def robot_from_dict(d: dict[str, Any], where: str = "robot description") -> Robo
         back = {u: j for j, u in (joint_map or {}).items()}
         joints_raw = [{"name": back.get(u, u)} for u in robots.arm_joints(shipped)]
     if not isinstance(joints_raw, list) or not joints_raw:
-        by_path = isinstance(kin0, dict) and kin0.get("type") == "urdf" and "path" in kin0
+        by_path = (isinstance(kin0, dict) and kin0.get("type") == "urdf"
+                   and bool(kin0.get("path")) and kin0.get("robot") is None)
         raise RobotDescriptionError(
             f"{where}: 'joints' must be a non-empty list" + (
                 " — a URDF given by 'path' does not say which of its joints are the arm's: "

@@ -39,7 +39,7 @@ from typing import Any, NotRequired, TypedDict
 from ..config import settings_changed
 from ..detect.floor import floor_line, payload_floor, probed_line
 from ..detect.force import FORCE_NOT_STATED, scale_untrusted
-from ..detect.incidents import baseline_alone
+from ..detect.incidents import baseline_alone, floor_apart
 from ..errors import (
     EXIT_DATA,
     EXIT_SOFTWARE,
@@ -416,7 +416,9 @@ def _summary(job: DetectJob, result: DetectionResult) -> SummaryRow:
         row["truncated"] = True
     if result.payloads_unwatched is not None:
         row["payloads_unwatched"] = result.payloads_unwatched
-    elif result.payload_changes is not None and (
+    elif result.payload_changes is not None and not floor_apart(
+            [x.to_dict() for x in result.counted_lasting_loads()],
+            result.log.duration_s - result.warmup_end_s)[1] and (  # a floor outside them
             lightest := payload_floor(result.detection_floor)) is not None:
         row["payload_floor"] = {"kg": lightest[0], "link": lightest[1],
                                 "force_n": lightest[2]}

@@ -290,10 +290,13 @@ def load_basis(plan: Any) -> tuple[np.ndarray, tuple[str, ...]] | None:
 
 
 #: What each generator's residual is, as the note on an unwatched replay says it.
-_RESIDUAL_OF = {"logged_external": "the controller's external-torque estimate taken plain",
-                "logged_model": "the log's torque less the controller's model torque, taken "
-                                "plain",
-                "momentum_observer": "the momentum observer's, whose state holds the old load"}
+_RESIDUAL_OF = {"logged_external": "the controller's external-torque estimate taken plain, "
+                                   "with no model of the tool's to carry a load",
+                "logged_model": "the log's torque less the controller's model torque taken "
+                                "plain, with no model of the tool's to carry a load",
+                "momentum_observer": "the momentum observer's, whose state holds the old load "
+                                     "(the load a log starts with is weighed; a change is "
+                                     "not carried)"}
 
 
 def unwatched_reason(plan: Any) -> str | None:
@@ -307,15 +310,26 @@ def unwatched_reason(plan: Any) -> str | None:
         gens = sorted({c.generator for c in other})
         whose = ", ".join(c.joint for c in other) if len(other) < len(plan.choices) \
             else "every joint"
-        mend = ("residual.logged_correction = true in the config, or --generator "
-                "inverse_dynamics" if any(c.generator in LOGGED for c in other)
-                else "--generator inverse_dynamics")
+        mend = ("calibrate with residual.logged_correction = true (the default), or with "
+                "--generator inverse_dynamics" if any(c.generator in LOGGED for c in other)
+                else "calibrate with --generator inverse_dynamics")
         return (f"the residual of {whose} is {' and '.join(_RESIDUAL_OF.get(g, g) for g in gens)}"
-                f", with no model of the tool's to carry a load ({mend}, with a robot "
-                "description with kinematics, weighs them)")
+                f" ({mend}, and a robot description with kinematics, to weigh them)")
     kind = "none" if plan.model is None else plan.model.kind
     return (f"the model (kind {kind}) has no kinematics to weigh a load with (a robot "
             "description with planar or URDF kinematics gives them)")
+
+
+def unweighed_reason(plan: Any) -> str | None:
+    """Why a replay weighs no load at all — neither the one the log starts with
+    (:func:`weigh_start`) nor its changes — in words (:func:`unwatched_reason`); None when
+    it weighs one (the momentum observer weighs the start's but watches no change: the
+    replay's warning on a lasting load says that)."""
+    model = plan.model
+    if (model is not None and weighable(plan.choices, plan.cfg.residual.logged_correction)
+            and payload.basis(model.kind, model.joint_names, model.structure) is not None):
+        return None
+    return unwatched_reason(plan)
 
 
 def weighs_loads(plan: Any) -> bool:

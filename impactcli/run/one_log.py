@@ -102,6 +102,7 @@ from .loads import (
     unseen_loads,
     unseen_spans,
     unwatched_reason,
+    unweighed_reason,
     weighs_loads,
 )
 from .plan import ChunkFeed, Passes, RunPlan, calibrated_thresholds, plan_run, with_generator
@@ -452,7 +453,7 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
         payload=None if plan.start_load is None else plan.start_load.to_dict(),
         payload_changes=(None if monitor is None
                          else tuple(c.to_dict() for c in changes)),
-        payloads_unwatched=unwatched_reason(plan),
+        payloads_unwatched=unweighed_reason(plan),
         robot=None if setup.robot is None else setup.robot.to_dict(),
         warnings=tuple(dict.fromkeys((*scan.warnings, *caught.messages()))),  # scan's first
     )

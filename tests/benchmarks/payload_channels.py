@@ -58,9 +58,15 @@ def main() -> None:
             steps = [(t, loads[k + 1] - loads[k]) for k, (t, _) in
                      enumerate(sc.payload_changes)]
             found = list(out.payload_changes or ())
-            right = sum(1 for c in found for t, dm in [
-                min(steps, key=lambda s: abs(s[0] - c["t_start"]))]
-                if abs(c["t_start"] - t) <= 1.0 and abs(c["mass_kg"] - dm) <= 0.25 * abs(dm))
+            right = 0  # each labelled step matched once: the nearest change of its sign
+            free = list(found)
+            for t, dm in steps:
+                near = [c for c in free if abs(c["t_start"] - t) <= 1.0
+                        and (c["mass_kg"] > 0) == (dm > 0)]
+                if near:
+                    c = min(near, key=lambda x: abs(x["t_start"] - t))
+                    free.remove(c)
+                    right += abs(c["mass_kg"] - dm) <= 0.25 * abs(dm)
             n_false = len(out.counted_incidents())
             n_lasting = len(out.counted_lasting_loads())
             tot["runs"] += 1

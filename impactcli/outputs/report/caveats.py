@@ -80,12 +80,14 @@ def rate_caveats(calib: dict[str, Any]) -> list[dict[str, str]]:
     out = _left_out(rate)
     r, conf = rate.get("per_hour"), rate.get("confidence")
     pct = "—" if conf is None else f"{100 * conf:.0f}"
-    unborne = (" — not borne out: a calibration log left out false-alarmed above the others' "
-               "bound (above)" if out else "")
+    # the prediction a log left out contradicted: said first, as its own sentence
+    unborne = ("Not borne out by leave-one-log-out: calibration logs left out false-alarmed "
+               "above the others' bound (above). " if out else "")
     if r is None:  # leave-one-out thresholds: the rate they are predicted to give
         return [*out, {"code": "rate-envelope", "text": (
-            f"The thresholds were set by {calib.get('margin_rule') or 'a margin rule'}, not "
-            f"for a false-alarm rate{unborne}; on motion like the calibration logs' they are "
+            f"{unborne}The thresholds were set by "
+            f"{calib.get('margin_rule') or 'a margin rule'}, not "
+            "for a false-alarm rate; on motion like the calibration logs' they are "
             f"predicted to give {per_hour_text(rate.get('predicted_per_hour', 0.0))} false "
             f"alarm(s) per hour, upper bound {per_hour_text(rate.get('upper_per_hour', 0.0))} "
             f"at {pct} % confidence "
@@ -104,7 +106,7 @@ def rate_caveats(calib: dict[str, Any]) -> list[dict[str, str]]:
                "The fits' own bounds were wider than the widening. ")
             + "The stated rate is not promised; calibrate on more of the robot's free motion.")})
     out.append({"code": "rate-envelope", "text": (
-        f"The false-alarm rate{unborne} ({r:g} per hour asked; predicted "
+        f"{unborne}The false-alarm rate ({r:g} per hour asked; predicted "
         f"{per_hour_text(rate.get('predicted_per_hour', 0.0))}, upper bound "
         f"{per_hour_text(rate.get('upper_per_hour', 0.0))} at {pct} % confidence) holds for "
         "motion like "
@@ -119,7 +121,8 @@ def caveats(result: DetectionResult, tl: dict[str, Any]) -> list[dict[str, str]]
     out: list[dict[str, str]] = []
     cfg = result.config or {}
     calib = cfg.get("calibration") or {}
-    if not (result.model or {}).get("robot") and (result.incidents or result.lasting_loads):
+    if (not (result.robot or (result.model or {}).get("robot"))
+            and (result.incidents or result.lasting_loads)):
         out.append({"code": "links-column-order",
                     "text": ("No robot description: the incidents' links are numbered in the "
                              "log's column order (joint k's link is k), which need not be the "
