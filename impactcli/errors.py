@@ -20,7 +20,7 @@ EXIT_DATA = 3
 EXIT_BATCH = 4
 #: A gate (``--fail-on-detect``, ``--fail-on-force``) could not judge what it was asked to:
 #: no time after warm-up analysed, an incident without a force estimate, or a recording
-#: the file holds only up to a cut (a truncated MCAP). A judged
+#: the file holds only up to a cut (a truncated MCAP or CSV). A judged
 #: failure (1) wins over it; a batch's 4 keeps its priority.
 EXIT_UNJUDGED = 5
 #: The machine cannot do what was asked (no display for the viewer): sysexits.h

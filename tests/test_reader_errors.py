@@ -168,13 +168,6 @@ def _case_ragged_line(tmp: Path) -> tuple[Path, dict[str, object]]:
     return _csv(tmp, "".join(r[:4]) + "garbage,line,here\n" + "".join(r[4:])), {}
 
 
-def _case_cut_last_line(tmp: Path) -> tuple[Path, dict[str, object]]:
-    """A writer killed mid-line: the last line cut short, no line end (a trial's
-    ``head -c``): the error says so and how to read the rest."""
-    text = _fmt(_rows(10))
-    return _csv(tmp, text[: text.rstrip("\n").rfind(",") - 2]), {}
-
-
 CASES: dict[str, tuple[Callable[[Path], tuple[Path, dict[str, object]]], str]] = {
     "missing file": (_case_missing, "not found"),
     "unknown format": (_case_unknown, "unknown log format"),
@@ -199,10 +192,6 @@ CASES: dict[str, tuple[Callable[[Path], tuple[Path, dict[str, object]]], str]] =
     "ragged line": (_case_ragged_line,
                     r"cannot parse CSV: line 6: 3 fields where the header has 5: garbage"
                     r"[^—]*$"),
-    "cut last line": (_case_cut_last_line,
-                      r"cannot parse CSV: line 11: 4 fields where the header has 5: .* — it "
-                      r"is the file's last line, cut short with no line end: the recording "
-                      r"stopped while writing it\? Remove that line to read the rest$"),
     "npz without map": (_case_npz_without_map, "needs a channel map"),
 }
 

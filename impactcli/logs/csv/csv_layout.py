@@ -20,6 +20,7 @@ A file with binary content (a NUL byte, or mostly control or non-UTF-8 bytes in 
 
 from __future__ import annotations
 
+import csv
 import gzip
 import re
 import warnings
@@ -379,25 +380,7 @@ def csv_parse_error(lay: CsvLayout, err: BaseException) -> LogFormatError:
             first = "the header has" if lay.header else "the first line has"
             msg = (f"line {at}: {m.group(2)} fields where {first} "
                    f"{m.group(1)}" + msg[m.end():])
-            if cut_last_line(lay.path, at):  # a recording stopped mid-write
-                msg += (" — it is the file's last line, cut short with no line end: the "
-                        "recording stopped while writing it? Remove that line to read the "
-                        "rest")
     return LogFormatError(f"{lay.where}: cannot parse CSV: {msg}")
-
-
-def cut_last_line(path: Path, line: int) -> bool:
-    """Whether 1-based ``line`` is ``path``'s last line and the file ends without a line
-    end (a writer killed mid-line); False when the file cannot be read to its end."""
-    opener: Any = gzip.open if is_gz(path) else open
-    try:
-        with opener(path, "rb") as f:
-            n, last = 0, b""
-            for raw in f:
-                n, last = n + 1, raw
-    except (OSError, EOFError):
-        return False
-    return n == line and not last.endswith((b"\n", b"\r"))
 
 
 def first_valid(arr: Any) -> str:
@@ -486,15 +469,98 @@ def iso_to_ns(arr: Any, where: str, what: str, label: Any) -> np.ndarray:
     return np.asarray(ns.to_numpy(), dtype=np.int64)
 
 
+class _Source:
+    """The file's bytes (a ``.gz`` decompressed) read ``block`` at a time; a gzip stream
+    that ends early is read up to its cut through Python's gzip (``cut``), where pyarrow's
+    stream would lose the block it was decompressing."""
+
+    def __init__(self, path: Path) -> None:
+        import pyarrow as pa
+
+        self.path, self.read_so_far, self.cut = path, 0, False
+        self._src = pa.input_stream(str(path))
+        self._rest: Iterator[bytes] | None = None
+
+    def read(self, block: int) -> bytes:
+        if self._rest is None:
+            try:
+                data = self._src.read(block)
+            except OSError as err:  # pyarrow: "Truncated compressed stream"
+                if not (is_gz(self.path) and "runcated" in str(err)):
+                    raise
+                self._rest = self._after(self.read_so_far, block)
+                return self.read(block)
+        else:
+            data = next(self._rest, b"")
+        self.read_so_far += len(data)
+        return data
+
+    def _after(self, skip: int, block: int) -> Iterator[bytes]:
+        """The decompressed bytes after the first ``skip``, up to the stream's cut."""
+        with gzip.open(self.path, "rb") as f:
+            try:
+                while skip > 0:
+                    skip -= len(f.read1(min(skip, block)))
+                while True:
+                    data = f.read1(block)
+                    if not data:
+                        return
+                    yield data
+            except EOFError:
+                self.cut = True
+
+    def close(self) -> None:
+        self._src.close()
+
+
+def first_bytes(path: Path, size: int) -> bytes:
+    """The file's first ``size`` bytes or more (whole blocks, up to the last line end), a
+    gzip stream cut short read up to its cut."""
+    src, parts, n = _Source(path), [], 0
+    try:
+        while n < size and (data := src.read(size)):
+            parts.append(data)
+            n += len(data)
+    finally:
+        src.close()
+    text = b"".join(parts)
+    end = max(text.rfind(b"\n"), text.rfind(b"\r")) + 1
+    return text[:end] if end else text
+
+
+def _drop_cut_line(lay: CsvLayout, text: bytes, stream_cut: bool) -> tuple[bytes, str | None]:
+    """The last range's ``text`` without its last line when that line is cut: the file
+    (or its gzip stream) ends inside it, with no line end, and it holds fewer fields than
+    the header (a gzip stream that ends early: always) — with the note saying so."""
+    if not text or text.endswith((b"\n", b"\r")):
+        return text, None
+    start = max(text.rfind(b"\n"), text.rfind(b"\r")) + 1
+    line = text[start:].decode("utf-8", errors="replace")
+    fields = len(next(csv.reader([line], delimiter=lay.delim), [""]))
+    if stream_cut:
+        why = "its gzip stream ends early, inside its last line"
+    elif fields < len(lay.names):
+        why = (f"its last line ends after {fields} of {len(lay.names)} fields, with no "
+               "line end")
+    else:
+        return text, None
+    return text[:start], (f"{lay.where}: the file is cut short ({why}: the recording "
+                          "stopped while writing it?); read the complete lines before the "
+                          "cut")
+
+
 def parsed_ranges(lay: CsvLayout, names: list[str] | None, block_size: int,
-                  work: Callable[[Callable[[Any], Any], bool], Any]) -> Iterator[Any]:
+                  work: Callable[[Callable[[Any], Any], bool], Any],
+                  cut_notes: list[str] | None = None) -> Iterator[Any]:
     """``work(parse, first)`` of every range of the CSV ``lay``, in order, computed on
     threads: ``parse(convert_options)`` parses the range into a pyarrow table (the first
     range with the layout's skipped lines and header, the others with the column
     ``names``; None: pyarrow's own names, for a parse that looks at no column). Lines end
     at ``\\n``, ``\\r\\n`` or ``\\r`` as pyarrow reads them (a cut between ``\\r`` and
     ``\\n`` leaves an empty line, which pyarrow skips), and values never hold a line break
-    (``newlines_in_values`` is off). Raises what pyarrow raises and what ``work`` raises."""
+    (``newlines_in_values`` is off). A file cut short (:func:`_drop_cut_line`) is read up
+    to its cut, and the note saying so is put in ``cut_notes`` (once). Raises what pyarrow raises
+    and what ``work`` raises."""
     import pyarrow as pa
     import pyarrow.csv as pacsv
 
@@ -521,7 +587,8 @@ def parsed_ranges(lay: CsvLayout, names: list[str] | None, block_size: int,
         return work(parse, first)
 
     pending: deque[Future[Any]] = deque()
-    with pa.input_stream(str(lay.path)) as src, ThreadPoolExecutor(THREADS) as pool:
+    src = _Source(lay.path)
+    with ThreadPoolExecutor(THREADS) as pool:
         try:
             rest = b""
             first = True
@@ -532,6 +599,10 @@ def parsed_ranges(lay: CsvLayout, names: list[str] | None, block_size: int,
                 buf = rest + data
                 if eof:
                     text, rest = buf, b""
+                    if not first or _BREAK.search(text):  # not the header alone
+                        text, note = _drop_cut_line(lay, text, src.cut)
+                        if note is not None and cut_notes is not None and note not in cut_notes:
+                            cut_notes.append(note)
                 else:
                     cut = max(buf.rfind(b"\n"), buf.rfind(b"\r")) + 1
                     if cut == 0 or (first and len(_BREAK.findall(buf, 0, cut)) < head_lines):
@@ -546,6 +617,7 @@ def parsed_ranges(lay: CsvLayout, names: list[str] | None, block_size: int,
         finally:
             for f in pending:
                 f.cancel()
+            src.close()
 
 
 def numbers(arr: Any) -> np.ndarray:

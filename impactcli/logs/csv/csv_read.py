@@ -40,7 +40,9 @@ from .csv_layout import (
     csv_parse_error,
     csv_read_options,
     decimal_to_ns,
+    first_bytes,
     guarded,
+    is_gz,
     is_parse_error,
     iso_to_ns,
     numbers,
@@ -173,6 +175,7 @@ class CsvReaderLayout(MappedLayout):
         self.exact: Exact | None = None  # the exact passes' plan, once the first fails
         self._again = False
         self.iso = False
+        self.truncated: list[str] = []  # the note of a file cut short, read up to the cut
         self.plan = plan_of(self, options)
 
     def label(self, i: int) -> str:
@@ -190,7 +193,14 @@ class CsvReaderLayout(MappedLayout):
     def ranges(self, work: Callable[[Callable[[Any], Any], bool], Any]) -> Iterator[Any]:
         """``work`` of every range of the file (:func:`parsed_ranges`), an error reading
         the file given as a result."""
-        return guarded(parsed_ranges(self.lay, self.file_names, BLOCK_SIZE, work))
+        return guarded(parsed_ranges(self.lay, self.file_names, BLOCK_SIZE, work,
+                                     self.truncated))
+
+    def cut_short(self) -> bool:
+        return bool(self.truncated)
+
+    def pre_repairs(self) -> list[str]:
+        return [*self.truncated, *super().pre_repairs()]
 
     def pass_again(self) -> bool:
         again, self._again = self._again, False
@@ -198,6 +208,7 @@ class CsvReaderLayout(MappedLayout):
 
     def raw_batches(self) -> Iterator[RawRows]:
         self.read_error = None
+        self.truncated.clear()
         if self.header_error is not None or self.file_names is None:
             yield from self._parse_only()
         elif self.exact is None:
@@ -300,6 +311,23 @@ class CsvReaderLayout(MappedLayout):
         yield from ()
 
 # ------------------------------------------------------------------------- the layout
+def _header_reader(lay: CsvLayout, ropts: Any, popts: Any) -> Any:
+    """pyarrow's streaming reader of the CSV's first block, which names its columns; a
+    gzip stream cut inside that block is read up to the cut (:func:`first_bytes`)."""
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+
+    copts = pacsv.ConvertOptions(column_types={}, include_columns=[])
+    try:
+        return pacsv.open_csv(lay.path, read_options=ropts, parse_options=popts,
+                              convert_options=copts)
+    except OSError as err:
+        if not (is_gz(lay.path) and "runcated" in str(err)):
+            raise
+    return pacsv.open_csv(pa.BufferReader(first_bytes(lay.path, BLOCK_SIZE)),
+                          read_options=ropts, parse_options=popts, convert_options=copts)
+
+
 def csv_reader_layout(p: Path, where: str, cmap: Any, options: dict[str, Any]
                       ) -> CsvReaderLayout:
     """The reader of a local canonical or mapped CSV (module docstring).
@@ -309,7 +337,6 @@ def csv_reader_layout(p: Path, where: str, cmap: Any, options: dict[str, Any]
         ChannelMapError: a map pointing at a column the file does not have.
     """
     import pyarrow as pa
-    import pyarrow.csv as pacsv
 
     if cmap is not None and cmap.format == "npz":
         raise LogFormatError(f"{where}: channel map {cmap.path} is for .npz archives")
@@ -321,9 +348,7 @@ def csv_reader_layout(p: Path, where: str, cmap: Any, options: dict[str, Any]
     names: list[str] | None = None
     header_error = None
     try:
-        reader = pacsv.open_csv(lay.path, read_options=ropts, parse_options=popts,
-                                convert_options=pacsv.ConvertOptions(
-                                    column_types={}, include_columns=[]))
+        reader = _header_reader(lay, ropts, popts)
         try:
             names = list(reader.schema.names)
         except UnicodeDecodeError:

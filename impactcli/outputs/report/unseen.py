@@ -77,7 +77,7 @@ def _gaps(samples: Samples) -> dict[str, Any]:
 
 
 def _cut(result: DetectionResult) -> list[dict[str, Any]]:
-    """The end of a recording the file does not hold (a truncated MCAP), else nothing."""
+    """The end of a recording the file does not hold (a truncated MCAP or CSV), else nothing."""
     if not result.log.source.truncated:
         return []
     end = result.log.duration_s
