@@ -19,6 +19,10 @@ from .clock import SampleClock, sample_clock
 from .errors import LabelsError, LogFormatError, RobotDescriptionError
 from .sample_channels import CONTROLLER_CHANNELS, OPTIONAL_CHANNELS, REQUIRED_CHANNELS, Channels
 
+#: Gravity [m/s²]: a robot description's when it gives none, the simulator's arms', and a
+#: load's weight per kilogram wherever a mass is turned into a force (|m| g) or back.
+GRAVITY_M_S2 = 9.81
+
 TorqueSource = Literal["torque", "current"]
 TimeSource = Literal["column", "log", "publish", "header"]
 

@@ -100,7 +100,8 @@ def test_no_payload_change_found_says_how_large_one_it_could_have_seen(
     sample config. Physics bounds the figure: no larger than the last link's own step
     floor (the elbow alone), no smaller than the least vL over the arm's reach (the longest
     lever any joint has to the flange)."""
-    from impactcli.detect.floor import G_N_PER_KG, payload_floor
+    from impactcli.detect.floor import payload_floor
+    from impactcli.types import GRAVITY_M_S2
 
     log = REPO / "sample_logs" / "csv" / "assist_pushes.csv.gz"
     summary = tmp_path / "s.json"
@@ -110,7 +111,7 @@ def test_no_payload_change_found_says_how_large_one_it_could_have_seen(
     assert tl["payload_changes"] == []
     floor = tl["detection_floor"]
     step = floor["payload_step"]
-    assert step["kg"] == pytest.approx(step["force_n"] / G_N_PER_KG)
+    assert step["kg"] == pytest.approx(step["force_n"] / GRAVITY_M_S2)
     last = max(floor["per_link"], key=lambda x: x["link"])
     assert step["force_n"] <= last["static_loading"]["median_n"] * (1 + 1e-9)
     robot = json.loads((REPO / "sample_logs" / "csv" / "assist_pushes.robot.json")

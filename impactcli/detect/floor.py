@@ -41,10 +41,8 @@ from typing import Any
 
 import numpy as np
 
+from ..types import GRAVITY_M_S2
 from .force import MIN_LEVER_M, JacobianFn, link_jacobians, own_levers
-
-#: Standard gravity [m/s²]: a load's weight per kilogram.
-G_N_PER_KG = 9.80665
 
 #: The adaptive detector's reference contact: a half-sine of this duration [s].
 HALF_SINE_S = 0.1
@@ -357,7 +355,7 @@ def _weight_step(postures: np.ndarray, c: int, jac: JacobianFn, index: Sequence[
     if not col.size:
         return None
     force = float(np.median(col))
-    return {"force_n": force, "kg": force / G_N_PER_KG}
+    return {"force_n": force, "kg": force / GRAVITY_M_S2}
 
 
 def _inner_levers(postures: np.ndarray, c: int, jac: JacobianFn) -> np.ndarray:

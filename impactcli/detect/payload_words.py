@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from ..types import GRAVITY_M_S2
+
 #: How ``as_log`` names the model's own load when its fit has one load for all logs.
 OWN_LOAD = "the model's own"
 
@@ -98,10 +100,6 @@ def carrying_text(change: dict[str, Any]) -> str:
             + ("" if not check else f" ({check})"))
 
 
-#: Standard gravity [m/s²]: the steady press a mass step's torque equals (|m| g).
-G_N_PER_KG = 9.81
-
-
 def press_text(change: dict[str, Any]) -> str | None:
     """Why a change (its ``to_dict``) was not told from a contact, or None: its inertia did
     not show — then a steady press of |m| g along gravity at its centre of mass gives the
@@ -121,4 +119,4 @@ def press_text(change: dict[str, Any]) -> str | None:
 
 def press_force_n(change: dict[str, Any]) -> float:
     """The steady press along gravity a change's mass step equals [N] (|m| g)."""
-    return G_N_PER_KG * abs(float(change["mass_kg"]))
+    return GRAVITY_M_S2 * abs(float(change["mass_kg"]))

@@ -18,7 +18,7 @@ from typing import Any
 
 from ..errors import LabelsError, RobotDescriptionError
 from ..files import load_mapping
-from ..types import ContactLabel, JointSpec, Labels, RobotDescription
+from ..types import GRAVITY_M_S2, ContactLabel, JointSpec, Labels, RobotDescription
 from . import robot_catalogue as robots
 
 
@@ -109,7 +109,7 @@ def robot_from_dict(d: dict[str, Any], where: str = "robot description") -> Robo
                 )
             for k, v in enumerate(ll):
                 _num(v, where, f"kinematics.link_lengths[{k}]")
-            g = kin.get("gravity", [0.0, -9.81])
+            g = kin.get("gravity", [0.0, -GRAVITY_M_S2])
             if not isinstance(g, list) or len(g) != 2:
                 raise RobotDescriptionError(f"{where}: kinematics.gravity must be [gx, gy]")
             kin = {"type": "planar", "link_lengths": [float(v) for v in ll],

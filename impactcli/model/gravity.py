@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from ..types import RobotDescription
+from ..types import GRAVITY_M_S2, RobotDescription
 
 #: A pose is slow when every joint moves slower than this [rad/s].
 SLOW_RAD_S = 0.3
@@ -81,7 +81,7 @@ def _planar_gravity(robot: RobotDescription, joints: Sequence[str],
         return None
     m = np.asarray(masses, dtype=np.float64)
     frac = np.asarray(nominal.get("com_fractions") or [0.5] * len(chain), dtype=np.float64)
-    grav = np.asarray(kin.get("gravity") or [0.0, -9.81], dtype=np.float64)
+    grav = np.asarray(kin.get("gravity") or [0.0, -GRAVITY_M_S2], dtype=np.float64)
     qc = q[:, [list(joints).index(j) for j in chain]]
     phi = np.cumsum(qc, axis=1)  # (n, L) absolute link angles
     u = np.stack((np.cos(phi), np.sin(phi)), axis=-1)  # (n, L, 2)

@@ -26,7 +26,7 @@ import numpy as np
 from ..errors import ImpactWarning, ModelError, RobotDescriptionError
 from ..logs.robot_files import joint_map_hint
 from ..logs.urdf import urdf_joint_names
-from ..types import RobotDescription, RobotLog
+from ..types import GRAVITY_M_S2, RobotDescription, RobotLog
 from . import payload, structures
 from .derivatives import clip_cutoff
 from .fit import column_errors, fit_ridge, joint_stats, robust_lstsq
@@ -266,7 +266,7 @@ def _structure_for(
         )
     if kind == "planar":
         base["link_lengths"] = [float(v) for v in kin["link_lengths"]]
-        base["gravity"] = [float(v) for v in kin.get("gravity", [0.0, -9.81])]
+        base["gravity"] = [float(v) for v in kin.get("gravity", [0.0, -GRAVITY_M_S2])]
         return base
     if kind == "urdf":
         xml, label, shipped = urdf_source(kin)

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from ..types import JointSpec, RobotDescription
+from ..types import GRAVITY_M_S2, JointSpec, RobotDescription
 
 #: Velocity scale of the smoothed Coulomb friction tanh(v / v_eps) [rad/s]: the smooth sign
 #: reaches 0.76 at 5 mrad/s (0.3 deg/s); its slope at 0 is Fc / v_eps.
@@ -79,7 +79,7 @@ class ArmParams:
     sample_period_s: float
     home: tuple[float, ...]
     joint_ranges: tuple[tuple[float, float], ...]
-    gravity: tuple[float, float] = (0.0, -9.81)
+    gravity: tuple[float, float] = (0.0, -GRAVITY_M_S2)
     coulomb_velocity_eps: float = COULOMB_VELOCITY_EPS
     observer_gain: float = 50.0
     torque_ext_cutoff_hz: float = 20.0

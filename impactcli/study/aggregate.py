@@ -18,10 +18,10 @@ from typing import Any
 import numpy as np
 
 from ..quality.match import EVALUATED
+from ..types import GRAVITY_M_S2
 from .arms import amplitudes
 from .spec import (
     ARM_GEOMETRY,
-    G_N_PER_KG,
     PAPER_ADAPTIVE_N,
     PAPER_STATIC_N,
     SCHEMA_VERSION,
@@ -67,7 +67,7 @@ def _cell(contacts: Sequence[ContactRecord], det: str, i: int) -> dict[str, Any]
     return {
         "n_contacts": len(contacts), "detected": len(hit),
         "min_detected_force_n": _r(fmin, 3),
-        "equivalent_mass_kg": _r(fmin / G_N_PER_KG, 3) if fmin is not None else None,
+        "equivalent_mass_kg": _r(fmin / GRAVITY_M_S2, 3) if fmin is not None else None,
         "all_detected_above_n": _r(max((c.peak_force for c in miss), default=None), 3),
         "delay_median_s": _r(statistics.median(c.delays[det][i] for c in hit) if hit else None,
                              4),

@@ -16,7 +16,6 @@ from ..quality.match import MatchTolerance
 from ..quality.sweep import geometric_scales
 
 SCHEMA_VERSION = "1.0"
-G_N_PER_KG = 9.81
 #: The paper's Table II: minimal detected force [N] of the proposed method per stiffness
 #: [N/mm]; the static threshold v0 needs > 20 N at every stiffness.
 PAPER_ADAPTIVE_N: dict[float, float] = {10.12: 4.44, 5.93: 5.61, 2.12: 5.87}
