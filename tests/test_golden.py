@@ -162,7 +162,8 @@ def test_a_signals_summary_sees_a_flipped_decision_not_a_last_bit(
     differ when one decision sample flipped, the decisions moved by 5 samples, or one
     residual sample moved by 0.01 of its standard deviation (Σ|x| by 6e-6 of itself: a
     column's summary is six numbers, so its grain is a sum's RTOL; the timeline's goldens
-    hold the answers drawn from it)."""
+    hold the answers drawn from it). A column's min and max agree to RTOL of the larger of
+    their magnitudes."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -186,3 +187,13 @@ def test_a_signals_summary_sees_a_flipped_decision_not_a_last_bit(
                            (r, np.roll(d, 5), False), (moved, d, False)):
         got = {"exit_code": 0, "sha256": {"s": "y"}, "content": {"s": summary(res, dec)}}
         assert make_golden._record_agrees(rec, got) is same
+    # a statistic at rest: its min near 0 holds the precision of a column that reaches
+    # thousands (another machine moved a 2.7e-6 min by 2e-6 of itself), not its own
+    stat = np.abs(r) * 1000.0
+    stat[5] = 2.698916367005396e-06
+    base = {"exit_code": 0, "sha256": {"s": "x"}, "content": {"s": summary(stat, d)}}
+    for at_rest, same in ((2.6989220112795743e-06, True), (0.5, False)):
+        other = stat.copy()
+        other[5] = at_rest
+        got = {"exit_code": 0, "sha256": {"s": "y"}, "content": {"s": summary(other, d)}}
+        assert make_golden._record_agrees(base, got) is same
