@@ -20,7 +20,9 @@ from impactcli.detect.aftermath import (
     PeakRuns,
     aftermath_of,
     aftermath_text,
+    close_behind,
     mark_aftermath,
+    ringing_text,
 )
 
 SETTLE = 0.56
@@ -32,6 +34,7 @@ class Inc:
     t_end: float
     number: int | None
     aftermath: dict | None = None
+    close_behind: dict | None = None
 
 
 def out(t0: float, t1: float, value: float = 9.0) -> MeasuredStretch:
@@ -103,6 +106,85 @@ def test_ringing_that_outlasts_the_measured_span_follows_the_last_marked_alarm()
     m = aftermath_of([push, *uncounted], stretches, SETTLE)[3]
     assert m is not None and m["follows"] is None
     assert "; it follows an earlier alarm, itself in that aftermath" in aftermath_text(m)
+
+
+def test_a_chain_of_weaker_alarms_close_behind_a_push_is_marked_on_timing_alone() -> None:
+    """A trial's robot 53 carrying 1 kg: a 30 N push (21.2 N read) rang as five
+    static-loading alarms of 3.6 → 1.8 N, 0.11–0.28 s apart, while the measured motion
+    never left its (wide) ranges. Each is close behind the push (the chain's first), the
+    first one by the push itself, the later ones through the one before; the push and an
+    alarm after a longer quiet are not; a stronger alarm starts a chain of its own."""
+    push = Forced(35.048, 36.032, 3, force_n=21.19)
+    rings = [Forced(36.144, 36.416, 4, force_n=3.59), Forced(36.544, 36.768, 5, force_n=3.02),
+             Forced(36.948, 37.108, 6, force_n=2.21), Forced(37.328, 37.472, 7, force_n=2.04),
+             Forced(37.752, 37.816, 8, force_n=1.76)]
+    later = Forced(50.096, 50.428, 9, force_n=13.8)
+    got = close_behind([push, *rings, later], SETTLE, measured_checked=True)
+    assert got[0] is push and got[-1] is later
+    marks = [g.close_behind for g in got[1:-1]]
+    assert [m["incident"] for m in marks] == [3] * 5
+    assert [m["after"] for m in marks] == [3, 4, 5, 6, 7]
+    assert [round(m["gap_s"], 3) for m in marks] == [0.112, 0.128, 0.18, 0.22, 0.28]
+    assert marks[0]["text"] == (
+        "close behind incident 3 (21.2 N at 35.048 s): it began 0.112 s after that alarm "
+        "ended, within the detectors' settling time (0.56 s), and is no stronger, so this "
+        "alarm may be that contact's ringing, not a new contact (the measured motion stayed "
+        "within the calibration's ranges, so only the timing tells)")
+    assert "after incident 4, itself close behind it, ended" in marks[1]["text"]
+    assert ringing_text(got[2]) == marks[1]["text"] and ringing_text(push) is None
+    unchecked = close_behind([push, rings[0]], SETTLE, measured_checked=False)[1]
+    assert "the measured motion was not held against the calibration's ranges" in (
+        unchecked.close_behind["text"])
+    # the settling time bounds each link: 0.55 s after the end is close, 0.57 s is not
+    for gap, marked in ((0.55, True), (0.57, False)):
+        x = Forced(36.032 + gap, 36.9, 4, force_n=2.0)
+        assert (close_behind([push, x], SETTLE, True)[1].close_behind is not None) is marked
+    # a stronger alarm is a contact and heads its own chain; weaker ones follow it
+    strong = Forced(36.3, 36.5, 4, force_n=30.0)
+    after_strong = Forced(36.6, 36.7, 5, force_n=25.0)
+    got = close_behind([push, strong, after_strong], SETTLE, True)
+    assert got[1].close_behind is None and got[2].close_behind["incident"] == 4
+    # an alarm that starts before the last one ended (overlap), one not counted, and one
+    # already in a measured aftermath are not marked, and the last two break the chain
+    overlap = Forced(36.0, 36.3, 4, force_n=2.0)
+    assert close_behind([push, overlap], SETTLE, True)[1].close_behind is None
+    uncounted = Forced(36.144, 36.416, None, force_n=3.59)
+    got = close_behind([push, uncounted, rings[1]], SETTLE, True)
+    assert got[1].close_behind is None and got[2].close_behind is None
+    in_after = dataclasses.replace(rings[0], aftermath={"text": "x"})
+    got = close_behind([push, in_after, rings[1]], SETTLE, True)
+    assert got[1].close_behind is None and got[2].close_behind is None
+    assert ringing_text(in_after) == "x"
+    # unknown forces do not stop it; the input's order is kept
+    blind = [dataclasses.replace(x, force_n=None) for x in rings]
+    got = close_behind([*reversed(blind), push], SETTLE, True)
+    assert got[-1].close_behind is None and all(g.close_behind for g in got[:-1])
+    assert "close behind incident 3 (21.2 N at" in got[-2].close_behind["text"]
+
+
+@given(gaps=st.lists(st.floats(0.01, 1.2), min_size=1, max_size=8),
+       forces=st.lists(st.floats(0.5, 40.0), min_size=9, max_size=9))
+def test_close_behind_marks_exactly_the_chains(gaps: list[float], forces: list[float]) -> None:
+    """Against the rule written out: an incident is marked iff it starts within the settling
+    time after the one before and is no stronger than the first of the chain it continues;
+    a mark names that first incident."""
+    incs, t = [], 10.0
+    for k, gap in enumerate([0.0, *gaps]):
+        t += gap
+        incs.append(Forced(t, t + 0.2, k + 1, force_n=forces[k]))
+        t += 0.2
+    got = close_behind(incs, SETTLE, True)
+    head = incs[0]
+    assert got[0].close_behind is None
+    for k in range(1, len(incs)):
+        ok = incs[k].t_start - incs[k - 1].t_end <= SETTLE + 1e-9 and (
+            incs[k].force_n <= head.force_n)
+        mark = got[k].close_behind
+        assert (mark is not None) is ok
+        if ok:
+            assert mark["incident"] == head.number and mark["after"] == k
+        else:
+            head = incs[k]
 
 
 def test_a_span_no_incident_threw_marks_nothing() -> None:

@@ -100,7 +100,7 @@ def test_plain_logged_external_residual_is_the_logged_estimate_and_needs_no_mode
     np.testing.assert_array_equal(sig.signals["residual"], log.torque_ext)
     doc = timeline_dict(res)
     validate(doc, "timeline", AssertionError, "timeline")
-    assert doc["schema_version"] == "2.11" and doc["model"] is None
+    assert doc["schema_version"] == "2.12" and doc["model"] is None
     assert doc["replay"]["generator"]["elbow"]["generator"] == "logged_external"
 
 

@@ -218,7 +218,7 @@ def test_cli_counts_incidents_and_gates_on_force(tmp_path: Path) -> None:
                                   str(tmp_path / "d"), "--fail-on-detect"])
     assert r.exit_code == 1, r.output
     doc = json.loads((tmp_path / "d" / "assist_pushes.timeline.json").read_text())
-    assert doc["schema_version"] == "2.11" and len(doc["incidents"]) >= 9
+    assert doc["schema_version"] == "2.12" and len(doc["incidents"]) >= 9
 
 
 def test_fail_on_force_without_kinematics_could_not_judge(tmp_path: Path) -> None:

@@ -167,18 +167,22 @@ def test_payload_alarms_after_warmup_are_counted_everywhere(payload_log: Path, p
     assert all("in the aftermath of incident" in lines[k + j] for j in (2, 4, 5))
     assert "lasting loads of payload.csv.gz (an unknown payload, a clamp, or a model" \
         in r.stdout
-    assert re.search(r"L1\s+3\.840–30\.000 s \(to the log's end; on already when the "
+    # on from the warm-up's end (3.84 s on one machine, 3.852 on another: the evaluator's
+    # settling is a threshold crossing)
+    tl = json.loads((out / "payload.timeline.json").read_text())
+    w = tl["warmup_end_s"]
+    assert 3.7 < w < 4.0
+    assert re.search(rf"L1\s+{w:.3f}–30\.000 s \(to the log's end; on already when the "
                      r"warm-up ended: it began then or before\)\s+static_loading on "
                      r"shoulder, elbow, up to [\d.]+× its threshold", r.stdout), r.stdout
     # while it lasts, its detector is blind on its joints: said (a trial missed a 20 N
     # push under a 16 s lasting load that the report said "absorbs none" of the incidents)
-    assert ("(a lasting load's detector was already alarming on its joints for 26.2 s: a "
-            "contact there raised no event of that detector on them, only the other "
-            "(adaptive) could see it, and the detection floor does not hold there)") \
-        in r.stdout, r.stdout
-    tl = json.loads((out / "payload.timeline.json").read_text())
+    assert (f"(a lasting load's detector was already alarming on its joints for "
+            f"{30.0 - w:.1f} s: a contact there raised no event of that detector on them, "
+            "only the other (adaptive) could see it, and the detection floor does not hold "
+            "there)") in r.stdout, r.stdout
     validate(tl, "timeline", AssertionError, "timeline")
-    assert tl["schema_version"] == "2.11"
+    assert tl["schema_version"] == "2.12"
     assert tl["counts"] == {"incidents": {"counted": 5, "in_warmup": 1},
                             "lasting_loads": {"counted": 1, "in_warmup": 0}}
     (load,) = tl["lasting_loads"]
@@ -215,11 +219,12 @@ def test_payload_alarms_after_warmup_are_counted_everywhere(payload_log: Path, p
     floors = [ln for ln in r.stdout.splitlines() if ln.startswith("detection floor of")]
     assert floors[0] == (
         f"detection floor of {payload_log.name}: not stated — a lasting load held "
-        "static_loading alarming over all the 26.2 s after warm-up: no moment lies outside "
+        f"static_loading alarming over all the {30.0 - w:.1f} s after warm-up: no moment lies "
+        "outside "
         "it, so no floor holds — a contact could show only through adaptive, or through "
         "static_loading on a joint the load left free (the timeline's detection_floor has "
         "what the detectors' state gave)"), floors
-    assert all("outside the 26.2 s" not in ln for ln in floors), floors
+    assert all(f"outside the {30.0 - w:.1f} s" not in ln for ln in floors), floors
     # the report: the verdict names the lasting load, the numbers are the terminal's
     js = tmp_path / "r.json"
     r = invoke("report", str(payload_log), *_plain(plain, payload_log), "-o",
@@ -229,8 +234,8 @@ def test_payload_alarms_after_warmup_are_counted_everywhere(payload_log: Path, p
     validate(doc, "report", AssertionError, "report")
     sec = doc["logs"][0]
     assert sec["verdict"].startswith("5 incidents: 5 transient on link 2, ")
-    assert ("; and a lasting load from the warm-up's end at 3.8 s or before (to the log's "
-            "end) on joints shoulder, elbow, up to ") in sec["verdict"] \
+    assert (f"; and a lasting load from the warm-up's end at {w:.1f} s or before (to the "
+            "log's end) on joints shoulder, elbow, up to ") in sec["verdict"] \
         and f": {WHY}." in sec["verdict"]
     assert sec["verdict"].endswith("3 began in an earlier incident's aftermath, the arm not "
                                    "settled (maybe its ringing).")
@@ -239,12 +244,13 @@ def test_payload_alarms_after_warmup_are_counted_everywhere(payload_log: Path, p
                                        "detector": "static_loading",
                                        "joints": ["shoulder", "elbow"]}]
     assert blind["text"].startswith("A lasting load's detector was already alarming on its "
-                                    "joints for 26.2 s (100 % of the log after warm-up; "
-                                    "3.8–30.0 s, static_loading on shoulder, elbow)"), blind
+                                    f"joints for {30.0 - w:.1f} s (100 % of the log after "
+                                    f"warm-up; {w:.1f}–30.0 s, static_loading on shoulder, "
+                                    "elbow)"), blind
     (floor,) = [u for u in sec["could_not_see"] if u["code"] == "smallest-force"]
     assert floor["short"] == "no floor: a lasting load throughout", floor
     assert floor["text"].startswith("Detection floor: not stated — a lasting load held "
-                                    "static_loading alarming over all the 26.2 s after "
+                                    f"static_loading alarming over all the {30.0 - w:.1f} s after "
                                     "warm-up: no moment lies outside it"), floor
     assert [(i["label"], round(i["t_start"])) for i in sec["incidents"]] == [
         ("w1", 0), ("1", 24), ("2", 25), ("3", 26), ("4", 27), ("5", 27)]

@@ -503,10 +503,13 @@ def test_verdict_says_which_counted_incidents_may_be_no_new_contact() -> None:
     pushes, 3 of them so marked only in the timeline). None marked: nothing said."""
     after = {**inc(12.0, 2, 25.0), "aftermath": {"text": "in the aftermath of incident 1"}}
     again = {**inc(20.0, 2, 19.0, "quasi_static"), "resumes_load": {"text": "resumes"}}
-    v = verdict_text([inc(10.0, 2, 30.0), after, again])
+    close = {**inc(12.5, 2, 3.0), "close_behind": {"text": "close behind incident 1"}}
+    v = verdict_text([inc(10.0, 2, 30.0), after, again, close])
     assert v.endswith(" Counted, though maybe no new contact: 1 began in an earlier "
                       "incident's aftermath, the arm not settled (maybe its ringing) and 1 "
-                      "just after a lasting load ended (maybe that load again)."), v
+                      "close behind an earlier, stronger one, within the detectors' settling "
+                      "time (maybe its ringing) and 1 just after a lasting load ended (maybe "
+                      "that load again)."), v
     assert "maybe no new contact" not in verdict_text([inc(10.0, 2, 30.0)])
 
 

@@ -212,7 +212,7 @@ def test_report_end_to_end_with_the_pipeline(tmp_path: Path) -> None:
     doc2 = json.loads(js2.read_text())
     assert doc["logs"][0]["origin"] is None
     origin = doc2["logs"][0].pop("origin")
-    assert origin["timeline_schema_version"] == "2.11" and origin["timeline"].endswith(
+    assert origin["timeline_schema_version"] == "2.12" and origin["timeline"].endswith(
         "e2e.timeline.json")
     doc["logs"][0].pop("origin")
     assert doc2 == doc

@@ -101,6 +101,9 @@ def _incident_line(k: int, inc: IncidentRow, link_width: int = 7,
                  "timeline)")
     if inc.get("aftermath"):  # up to its colon: "in the aftermath of incident 5 at 35.048 s"
         flag += f"  {inc['aftermath'].split(':')[0]} (aftermath in the timeline)"
+    if inc.get("close_behind"):  # up to its colon: "close behind incident 3 (21.2 N at …)"
+        flag += (f"  {inc['close_behind'].split(':')[0]}, maybe its ringing (close_behind in "
+                 "the timeline)")
     if inc.get("held_before"):  # up to its colon: "ended a load held since 11.909 s"
         flag += f"  {inc['held_before'].split(':')[0]} (held_before in the timeline)"
     if inc.get("resumes_load"):  # up to its colon: "resumes the lasting load of … dip"

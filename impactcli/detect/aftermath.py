@@ -37,6 +37,15 @@ of its ranges, by construction — but they date the disturbance a contact leave
   A trial's 30 N push rang as five alarms 0.38 s apart; the measured motion was back in
   its ranges before the last, which read as a new 12 N contact.
 
+Where the measured motion never left its ranges — a calibration whose measured motion was
+wide (point-to-point moves beside a pick-and-place), or one without measured ranges — a
+ringing arm still raises alarms in a chain: a 30 N push on a compliant arm carrying 1 kg
+rang as five static-loading alarms of 3.6 → 1.8 N, 0.11–0.28 s apart, after the push's own
+(a trial's robot seed 53; on its robot seed 91 the same chain was marked by the measured
+motion). So an incident that starts within ``settle_s`` after the end of a counted one,
+no stronger than the first of the chain, is *close behind* it (:func:`close_behind`): the
+same caveat on the timing's evidence alone, said as such.
+
 The mark is a caveat, not a verdict: the incident stays counted and gated — a second blow
 while the arm rings is a contact too — but its row says that the arm had not settled, with
 the measured quantity that had left its range, so a 3 N "contact" half a second after a
@@ -54,7 +63,7 @@ from typing import Any
 import numpy as np
 
 __all__ = ["LEAD_S", "MeasuredStretch", "PeakRuns", "aftermath_of", "aftermath_text",
-           "mark_aftermath", "runs"]
+           "close_behind", "mark_aftermath", "ringing_text", "runs"]
 
 #: A span is an incident's when it begins from this long before the incident's start (the
 #: residual's filters lag the motion, as :data:`impactcli.detect.envelope.LEAD_S`) [s].
@@ -227,3 +236,64 @@ def mark_aftermath(incidents: Sequence[Any], stretches: Sequence[MeasuredStretch
     marks = aftermath_of(incidents, stretches, settle_s)
     return [i if m is None else replace(i, aftermath={**m, "text": aftermath_text(m)})
             for i, m in zip(incidents, marks, strict=True)]
+
+
+def close_behind(incidents: Sequence[Any], settle_s: float, measured_checked: bool
+                 ) -> list[Any]:
+    """The incidents, each counted one (``number`` set) without an ``aftermath`` mark that
+    starts within ``settle_s`` after the end of the counted one before it, its force no larger
+    than the first of that chain's, marked ``close_behind`` (module docstring): ``incident``
+    (the chain's first: its number, ``t_start`` [s], ``force_n``), ``after`` (the one it
+    follows: its number, ``gap_s`` from that one's end) and ``text``. An aftermath-marked
+    incident, one not counted or a stronger one starts a chain anew (or none).
+    ``measured_checked``: whether the measured motion was held against the calibration's
+    ranges (the text says that it stayed inside them)."""
+    from dataclasses import replace
+
+    order = sorted(range(len(incidents)), key=lambda k: (float(incidents[k].t_start),
+                                                         float(incidents[k].t_end)))
+    out = list(incidents)
+    head = prev = None
+    for k in order:
+        inc = incidents[k]
+        if inc.number is None or getattr(inc, "aftermath", None) is not None:
+            head = prev = None
+            continue
+        gap: float | None = None if prev is None else float(inc.t_start) - float(prev.t_end)
+        if (head is None or prev is None or gap is None or not 0 < gap <= settle_s + 1e-9
+                or not _no_larger(inc, head)):
+            head = prev = inc
+            continue
+        mark = {"incident": head.number, "t_start": float(head.t_start),
+                "force_n": getattr(head, "force_n", None), "after": prev.number,
+                "gap_s": gap, "settle_s": float(settle_s)}
+        out[k] = replace(inc, close_behind={**mark, "text": _close_text(mark,
+                                                                         measured_checked)})
+        prev = inc
+    return out
+
+
+def _close_text(mark: dict[str, Any], measured_checked: bool) -> str:
+    """The incident row's caveat for a :func:`close_behind` mark."""
+    f = mark.get("force_n")
+    first = (f"incident {mark['incident']} ("
+             + ("" if f is None else f"{float(f):.3g} N ") + f"at {mark['t_start']:.3f} s)")
+    via = ("that alarm" if mark["after"] == mark["incident"]
+           else f"incident {mark['after']}, itself close behind it,")
+    why = ("the measured motion stayed within the calibration's ranges, so only the timing "
+           "tells" if measured_checked else "the measured motion was not held against the "
+           "calibration's ranges, so only the timing tells")
+    return (f"close behind {first}: it began {mark['gap_s']:.3f} s after {via} ended, "
+            f"within the detectors' settling time ({mark['settle_s']:.2f} s), and is no "
+            f"stronger, so this alarm may be that contact's ringing, not a new contact ({why})")
+
+
+def ringing_text(inc: Any) -> str | None:
+    """An incident's (an Incident or its timeline mapping) maybe-ringing caveat: its
+    ``aftermath`` or ``close_behind`` text, or None."""
+    get = inc.get if isinstance(inc, dict) else (lambda key: getattr(inc, key, None))
+    for key in ("aftermath", "close_behind"):
+        mark = get(key)
+        if mark:
+            return str(mark["text"]) if isinstance(mark, dict) else str(mark)
+    return None

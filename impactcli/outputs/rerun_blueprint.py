@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from .. import __version__
+from ..detect.aftermath import ringing_text
 from ..detect.force import force_mark
 from ..detect.incidents import link_words
 from ..detect.payload_words import carrying_text, tested_text
@@ -207,7 +208,7 @@ def incident_text(k: int | str, inc: Any) -> str:
     return text + (" [in warm-up]" if inc.in_warmup else "") + _defect_note(
         inc, " [at a data defect, a {kind} at {t:.3f} s: not counted]") + _payload_note(
         inc, " [the alarm of payload change P{p}, a load picked or released: not counted]"
-    ) + ("" if getattr(inc, "aftermath", None) is None else f" [{inc.aftermath['text']}]")
+    ) + ("" if (ringing := ringing_text(inc)) is None else f" [{ringing}]")
 
 
 def _payload_note(inc: Any, form: str) -> str:

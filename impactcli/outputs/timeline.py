@@ -18,11 +18,11 @@ from .. import TOOL_NAME, __version__
 from ..files import atomic_write_text
 from ..types import DetectionResult
 
-SCHEMA_VERSION = "2.11"
+SCHEMA_VERSION = "2.12"
 #: Timeline versions ``report`` and ``evaluate`` read (2.x adds optional fields only; 2.1:
 #: ``lasting_loads``, ``counts``, each incident's ``number`` and force check).
 READABLE_VERSIONS: tuple[str, ...] = ("1.0", "2.0", "2.1", "2.2", "2.3", "2.4", "2.5", "2.6",
-                                      "2.7", "2.8", "2.9", "2.10", "2.11")
+                                      "2.7", "2.8", "2.9", "2.10", "2.11", "2.12")
 
 
 def _clean(x: Any) -> Any:

@@ -77,7 +77,8 @@ def _as_inc(x: Any, warmup_end_s: float, i: int) -> _Inc:
                     None if force is None else float(force), str(get("contact", "unknown")),
                     bool(get("in_warmup", False)) or t0 < warmup_end_s,
                     None if not evs else tuple(int(k) for k in evs),
-                    get("payload_change") is not None, get("aftermath") is not None,
+                    get("payload_change") is not None, (get("aftermath") is not None
+                     or get("close_behind") is not None),
                     bool(get("force_at_least", False)), get("data_defect") is not None,
                     tuple(int(c) for c in get("link_candidates") or ()),
                     get("resumes_load") is not None)
@@ -227,8 +228,8 @@ class IncidentEvaluation:
             ``detect`` does not: :func:`impactcli.detect.incidents.mark_defects`).
         unmatched: counted incidents starting in no contact's window (false incidents).
         unmatched_aftermath: of them, those the run marked in an earlier incident's
-            aftermath (:mod:`impactcli.detect.aftermath`: the arm had not settled; still
-            counted, said apart).
+            aftermath or close behind it (:mod:`impactcli.detect.aftermath`: the arm had not
+            settled, or maybe not; still counted, said apart).
         unmatched_resuming: of them, those the run marked as maybe a lasting load resumed
             (:func:`impactcli.detect.incidents.mark_resumed`; still counted, said apart).
         detected: counted contacts the product detected (one of its counted alarms starts
@@ -283,8 +284,9 @@ class IncidentEvaluation:
                 "not counted, hold it — missed as a contact)" if loads else "")],
             ["incidents after warm-up", f"{self.n_incidents}" + (
                 f" ({len(self.unmatched)} matching no labelled contact"
-                + (f", {len(self.unmatched_aftermath)} of them in an earlier incident's "
-                   "aftermath, the arm not settled" if self.unmatched_aftermath else "")
+                + (f", {len(self.unmatched_aftermath)} of them maybe an earlier incident's "
+                   "ringing (in its aftermath or close behind it)"
+                   if self.unmatched_aftermath else "")
                 + (f", {len(self.unmatched_resuming)} of them just after a lasting load "
                    "ended (maybe that load again)" if self.unmatched_resuming else "")
                 + ")" if self.unmatched

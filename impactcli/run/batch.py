@@ -54,7 +54,7 @@ from ..types import DETECTORS, DetectionResult, ReadOptions
 from .gates import Findings
 from .job import run_log_from_paths
 
-SUMMARY_SCHEMA_VERSION = "1.2"
+SUMMARY_SCHEMA_VERSION = "1.3"
 #: Exit code a one-log run gives for a lost worker or a bug (EX_SOFTWARE; never 1, which
 #: means "incidents found").
 EXIT_CRASH = EXIT_SOFTWARE
@@ -95,6 +95,7 @@ class IncidentRow(TypedDict):
     payload_test: NotRequired[str]
     outside_envelope: NotRequired[bool]
     aftermath: NotRequired[str]
+    close_behind: NotRequired[str]
     no_force: NotRequired[str]
     force_at_least: NotRequired[bool]
     unseen_load_kg: NotRequired[float]
@@ -119,6 +120,8 @@ def _incident_row(i: Any) -> IncidentRow:
         row["outside_envelope"] = True
     if i.aftermath:
         row["aftermath"] = i.aftermath["text"]
+    if i.close_behind:
+        row["close_behind"] = i.close_behind["text"]
     if i.force_n is None and i.force_method.startswith(FORCE_NOT_STATED):
         row["no_force"] = i.force_method
     if i.force_at_least:

@@ -33,7 +33,7 @@ import numpy as np
 
 from ..config import THRESHOLD_KEYS, CalibrationRecord, DetectorConfig
 from ..detect.adaptive import AdaptiveResult, default_threads
-from ..detect.aftermath import mark_aftermath
+from ..detect.aftermath import close_behind, mark_aftermath
 from ..detect.envelope import (
     EnvelopeCheck,
     MotionEnvelope,
@@ -395,6 +395,7 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
                          rp.warmup.end_s, scan.duration_s)
         caught.paste(ctx_msgs)
         outside = None
+        measured_checked = False
         if envelope is not None:  # the motion the thresholds' rate was not measured on
             share = envelope.finish(rp.warmup.end_index)
             outside = share.to_dict()
@@ -403,10 +404,12 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
                          for i in incidents]
             if share.measured is not None:  # alarms while the arm had not settled
                 incidents = mark_aftermath(incidents, share.measured, settle)
+                measured_checked = True
             warn_outside_envelope(where, outside_share_text(share), share.outside,
                                   sum(1 for i in incidents  # the counted ones
                                       if i.outside_envelope and i.number is not None),
                                   posture_text(share.posture), share.note)
+        incidents = close_behind(incidents, settle, measured_checked)
         floor = floor_acc.finish(rp.warmup.index, rp.warmup.end_index, joints, ctx.chain,
                                  ctx.index, ctx.chain_cols, ctx.jac)
         if rp.probes is not None and (probed := probed_floor(

@@ -19,6 +19,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+from ...detect.aftermath import ringing_text
 from ...detect.force import (
     AT_LEAST_TEXT,
     BEYOND_LOGGED,
@@ -315,10 +316,13 @@ def _maybe_not(counted: Sequence[dict[str, Any]]) -> str:
     when none. A trial read a verdict of 8 incidents for 4 pushes whose timeline marked
     3 of them so."""
     after = sum(1 for i in counted if i.get("aftermath"))
+    close = sum(1 for i in counted if i.get("close_behind"))
     again = sum(1 for i in counted if i.get("resumes_load"))
     data = sum(1 for i in counted if i.get("velocity_disagrees"))
     said = ([f"{after} began in an earlier incident's aftermath, the arm not settled (maybe "
              "its ringing)"] if after else []) + (
+        [f"{close} close behind an earlier, stronger one, within the detectors' settling time "
+         "(maybe its ringing)"] if close else []) + (
         [f"{again} just after a lasting load ended (maybe that load again)"] if again else []
     ) + ([f"{data} where the log's velocity and positions tell two motions (maybe the "
           "data's)"] if data else [])
@@ -413,8 +417,8 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
                      "counted</span>")
         if r.get("payload_test"):
             when += f' <span class="note">{e(r["payload_test"])}</span>'
-        if r.get("aftermath"):
-            when += f' <span class="note">{e(r["aftermath"]["text"])}</span>'
+        if (ringing := ringing_text(r)) is not None:
+            when += f' <span class="note">{e(ringing)}</span>'
         if r.get("resumes_load"):
             when += f' <span class="note">{e(r["resumes_load"]["text"])}</span>'
         force = (f'<b>{force_mark(r)}{approx(r["force_n"])} N</b>' if r.get("force_n") is not None
