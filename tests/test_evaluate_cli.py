@@ -466,3 +466,48 @@ def test_a_lower_bound_force_is_scored_and_shown_as_one(tmp_path: Path) -> None:
     assert all("force_at_least" not in c for c in contacts if c["force_n"] is None)
     text = CliRunner().invoke(main, ["evaluate", str(tl), "--labels", labels]).stdout
     assert f"/ ≳{forced[0]['force_n']:.3g} N" in text, text
+
+
+@pytest.fixture(scope="module")
+def pushes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    """The sample pushes log through detect (its timeline) and its labels."""
+    d = tmp_path_factory.mktemp("pushes")
+    repo = Path(__file__).resolve().parents[1]
+    log = repo / "sample_logs" / "csv" / "assist_pushes.csv.gz"
+    r = CliRunner().invoke(main, ["detect", str(log), "--config",
+                                  str(repo / "sample_logs" / "assist_like.config.toml"),
+                                  "-o", str(d)])
+    assert r.exit_code == 0, r.output
+    labels = json.loads(Path(str(log).replace(".csv.gz", ".labels.json")).read_text())
+    return {"dir": d, "timeline": d / "assist_pushes.timeline.json", "labels": labels}
+
+
+@pytest.mark.parametrize(("factor", "unit"), [(1000.0, "kN"), (9.80665, "kgf"),
+                                              (4.4482216, "lbf"), (0.001, "mN"),
+                                              (40.0, None), (1.0, "")])
+def test_labels_forces_in_another_unit_are_said_against_physics(
+        pushes: dict[str, Any], factor: float, unit: str | None) -> None:
+    """A trial's labels in kN (peak forces ÷ 1000) were scored silently ("min detected F
+    0.005 N", "force error 73749 %"). The incidents' forces (a contact set's median within
+    0.79–1.44× the truth on simulated arms) against labels divided by a unit's factor: the
+    warning names the unit (no unit within 2×: another log's labels?); the labels in N: no
+    warning."""
+    doc = json.loads(json.dumps(pushes["labels"]))
+    for ev in doc["events"]:
+        ev["peak_force"] = ev["peak_force"] / factor
+    lab = write(pushes["dir"], f"labels_{factor:g}.json", doc)
+    r = CliRunner().invoke(main, ["evaluate", str(pushes["timeline"]), "--labels", str(lab)])
+    assert r.exit_code == 0, info(r)
+    said = [ln for ln in r.stderr.splitlines() if "the incidents' forces are a median" in ln]
+    if unit == "":
+        assert said == [], r.stderr
+        return
+    assert len(said) == 1, r.stderr
+    assert said[0].startswith(f"impactcli: warning: {lab}: the incidents' forces are a median ")
+    assert ("where on simulated arms a contact set's median lay within 0.79–1.44× the "
+            "truth: " in said[0])
+    if unit is None:
+        assert said[0].endswith("labels of another log? The force errors below compare "
+                                "across that factor")
+    else:
+        assert f"peak_force written in {unit} rather than N (×{factor:g})?" in said[0]
