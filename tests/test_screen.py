@@ -142,3 +142,34 @@ def test_terminal_says_warmup_cap_and_lasting_alarm(tmp_path: Path) -> None:
     res = detect_in_memory(make_log(n=2500, seed=4), config=short)[0]
     assert any("the warm-up reached its cap (warmup.max_s = 3.5 s) on joint(s) j1, j2" in w
                for w in res.warnings), res.warnings
+
+
+def test_a_joint_a_config_model_needs_left_out_says_why_and_what_to_do(tmp_path: Path
+                                                                      ) -> None:
+    """A trial: the elbow's torque held constant in a log detected with a calibrated config
+    read "joints ['shoulder'] do not match the model's ['shoulder', 'elbow'] (missing
+    ['elbow'])", though the elbow is in the log. The error now names why the joint was left
+    out and that the model needs it; without the config the log's own model checks the
+    joints left."""
+    cal = tmp_path / "cal.toml"
+    for s in (1, 2):
+        write_log(three_joint_log(seed=s), tmp_path / f"free{s}.csv")
+    r = CliRunner().invoke(main, ["calibrate", str(tmp_path / "free1.csv"),
+                                  str(tmp_path / "free2.csv"), "-o", str(cal)])
+    assert r.exit_code == 0, r.output
+    write_log(three_joint_log(seed=3, wrist="flat"), tmp_path / "w.csv")
+    r = CliRunner().invoke(main, ["detect", str(tmp_path / "w.csv"), "--config", str(cal),
+                                  "-o", str(tmp_path / "o")])
+    assert r.exit_code == 3, r.output
+    (err,) = [ln for ln in r.stderr.splitlines() if "error" in ln]
+    assert err == (f"impactcli: error: {tmp_path / 'w.csv'}: joint 'j3' was left out (torque "
+                   "flat: its torque is constant (0 N·m)), but the config model's residual "
+                   "needs every joint it was identified with (['j1', 'j2', 'j3']), so with it "
+                   "no joint can be checked: mend the channel, or detect without the model "
+                   "(no --config or --model: the log's own model on the joints left)"), err
+    assert not (tmp_path / "o" / "w.timeline.json").exists()
+    r = CliRunner().invoke(main, ["detect", str(tmp_path / "w.csv"), "-o",
+                                  str(tmp_path / "o")])
+    assert r.exit_code == 0, r.output
+    doc = json.loads((tmp_path / "o" / "w.timeline.json").read_text())
+    assert doc["input"]["joints"] == ["j1", "j2"]

@@ -429,7 +429,8 @@ def _replay(reader: MemoryReader, sc: Screened, model: RigidModel | None,
                 return identify_from_chunks(feed, cfg, choices, kind, rbt, sanity)
 
             joints, choices, rig, source, extra = resolve_model(
-                sc.keep, scan.source, sc.logged, model, cfg, False, robot, identify)
+                sc.keep, scan.source, sc.logged, model, cfg, False, robot, identify,
+                sc.left_out)
             plan = RunPlan(cfg, where, feed.full_joints, joints, choices, rig, source, extra)
             since = caught.mark()
             collected = StatsCollector()

@@ -405,7 +405,7 @@ Identify = Callable[[tuple[GeneratorChoice, ...], str | None, RobotDescription |
 def resolve_model(
     keep: tuple[str, ...], source: LogSource, logged: dict[str, np.ndarray],
     model: RigidModel | None, cfg: DetectorConfig, model_from_log: bool,
-    robot: RobotDescription | None, identify: Identify,
+    robot: RobotDescription | None, identify: Identify, left_out: tuple[LeftOut, ...] = (),
 ) -> tuple[tuple[str, ...], tuple[GeneratorChoice, ...], RigidModel | None, str,
            tuple[LeftOut, ...]]:
     """The replayed joints and their order, their generators, the model and where it came
@@ -417,6 +417,7 @@ def resolve_model(
     thresholds: offline only, for a robot whose dynamics changed since calibration (an
     unknown payload) — the identification absorbs the change for the static detectors.
     Without a model needed, the joints keep the log's order, or the calibrated config's.
+    ``left_out``: the joints the screen left out, with why (named when the model needs one).
     """
     where = source.path
     check_shares_joints(keep, robot, where)  # with a config as without one
@@ -452,6 +453,15 @@ def resolve_model(
         present = tuple(j for j in keep if j not in {x.name for x in extra_left})
         missing = [j for j in rig.joint_names if j not in present]
         other = [j for j in present if j not in rig.joint_names]
+        why = {x.name: x.reason for x in left_out}
+        if missing and all(j in why for j in missing) and not other:
+            raise ModelError(
+                f"{where}: " + "; ".join(f"joint {j!r} was left out ({why[j]})"
+                                         for j in missing)
+                + f", but the {source_name} model's residual needs every joint it was "
+                f"identified with ({list(rig.joint_names)}), so with it no joint can be "
+                "checked: mend the channel, or detect without the model (no --config or "
+                "--model: the log's own model on the joints left)")
         if missing or other:
             raise ModelError(
                 f"{where}: joints {list(present)} do not match the model's "
@@ -534,7 +544,8 @@ def plan_run(reader: LogReader, cfg: DetectorConfig, *, model: RigidModel | None
         return identify_from_chunks(feed, cfg, choices, kind, rbt, sanity, passes)
 
     joints, choices, rig, model_source, extra = resolve_model(
-        sc.keep, scan.source, sc.logged, model, cfg, model_from_log, robot, identify)
+        sc.keep, scan.source, sc.logged, model, cfg, model_from_log, robot, identify,
+        sc.left_out)
     _check_torque_source(cfg, scan.source.torque_source, choices, where, config_where)
     start = None
     if rig is not None and model_source in ("config", "given"):  # fitted on other logs
