@@ -440,3 +440,31 @@ def test_a_stopped_worker_removes_the_stores_its_task_held(tmp_path: Path) -> No
     p.join(30)
     assert p.exitcode == 128 + signal.SIGTERM
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_after_the_run_finished_is_said_and_ignored(tmp_path: Path, sig: int
+                                                             ) -> None:
+    """A trial's Ctrl-C landed 0.3 s after a finished run's last line, in the interpreter's
+    teardown: exit 130 over a finished run, outputs complete, no "stopped" line. The signal
+    is sent from the program's last ``atexit`` handler (the teardown, after the verb's exit
+    code was decided): the exit code stays the run's — 0 for a clean log, 1 for one with
+    contacts under --fail-on-detect — and one line says it was ignored."""
+    hook = ("import atexit, os, signal, sys, time\n"
+            "def late():\n"
+            f"    os.kill(os.getpid(), {int(sig)}); time.sleep(0.2)\n"
+            "atexit.register(late)\n"
+            "sys.argv[0] = 'impactcli'\n"
+            "from impactcli.cli import run\n"
+            "run()\n")
+    name = signal.Signals(sig).name
+    for log, want in ((LOG, 0), (REPO / "sample_logs" / "csv" / "assist_impacts.csv.gz", 1)):
+        p = subprocess.run([sys.executable, "-c", hook, "detect", str(log), "--config",
+                            str(CONFIG), "-o", str(tmp_path / log.name), "--fail-on-detect"],
+                           capture_output=True, text=True, timeout=300, check=False)
+        assert p.returncode == want, p.stderr
+        assert p.stderr.splitlines()[-1] == (f"impactcli: {name} after the run had finished: "
+                                             "ignored — its outputs and exit code stand")
+        assert "Traceback" not in p.stderr and "stopped by" not in p.stderr
+        stem = log.name.split(".")[0]
+        assert read_timeline(tmp_path / log.name / f"{stem}.timeline.json")

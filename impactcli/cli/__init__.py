@@ -119,6 +119,17 @@ class LazyGroup(click.Group):
                 formatter.write_dl(rows)
 
 
+def run() -> None:
+    """The ``impactcli`` program: :func:`main`, then a stop signal during the process's
+    teardown is said and ignored (:func:`impactcli.run.stopping.after_finish`)."""
+    from ..run.stopping import after_finish
+
+    try:
+        main(prog_name="impactcli")
+    finally:
+        after_finish()
+
+
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="impactcli")
 @click.option("--debug", is_flag=True, help="Show tracebacks for data errors.")
