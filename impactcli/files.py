@@ -13,6 +13,7 @@ import errno
 import hashlib
 import json
 import os
+import re
 import secrets
 import shutil
 import signal
@@ -184,6 +185,50 @@ def remove_stale_parts(folder: str | os.PathLike[str]) -> list[Path]:
         except OSError:  # gone meanwhile, or not ours to remove: left alone
             continue
     return gone
+
+
+#: The temporary folders this tool makes in TMPDIR: ``impactcli-<what>-<pid>-<8 random>``
+#: (:func:`temp_prefix`; ``tempfile.mkdtemp``'s 8 characters).
+_TEMP_NAME = re.compile(r"impactcli-[a-z]+-(?:(\d+)-)?[a-z0-9_]{8}")
+
+
+def temp_prefix(prefix: str) -> str:
+    """A temporary folder's name prefix (``impactcli-<what>-``) with this process's id, by
+    which a later run tells a killed run's folder (:func:`remove_stale_temp`)."""
+    return f"{prefix}{os.getpid()}-" if prefix.startswith("impactcli-") else prefix
+
+
+def remove_stale_temp(folder: str | os.PathLike[str] | None = None) -> tuple[int, int]:
+    """Remove the temporary folders (:data:`_TEMP_NAME`) in ``folder`` (TMPDIR) whose process
+    no longer runs — what a run killed with ``kill -9`` (or a power cut) left — and those
+    without one (older versions) older than :data:`LEGACY_PART_AGE_S`; return how many and
+    their bytes. A running process's (another run on this machine) are kept; one that cannot
+    be removed is left alone."""
+    d = Path(folder if folder is not None else tempfile.gettempdir())
+    count = size = 0
+    try:
+        names = [p for p in d.iterdir() if p.name.startswith("impactcli-")]
+    except OSError:
+        return 0, 0
+    now = time.time()
+    for p in names:
+        m = _TEMP_NAME.fullmatch(p.name)
+        try:
+            if m is None or p.is_symlink() or not p.is_dir() or (
+                    process_running(int(m[1])) if m[1] is not None
+                    else now - p.stat().st_mtime <= LEGACY_PART_AGE_S):
+                continue
+        except OSError:  # gone meanwhile
+            continue
+        held = 0
+        for root, _, files in os.walk(p):
+            for f in files:
+                with suppress(OSError):
+                    held += os.lstat(os.path.join(root, f)).st_size
+        shutil.rmtree(p, ignore_errors=True)
+        if not p.exists():
+            count, size = count + 1, size + held
+    return count, size
 
 
 def _part_pid(name: str) -> int | None:
@@ -365,7 +410,7 @@ def temporary_folder(prefix: str, folder: str | os.PathLike[str] | None = None
     path: Path | None = None
     try:
         with whole():
-            path = Path(tempfile.mkdtemp(prefix=prefix, dir=folder))
+            path = Path(tempfile.mkdtemp(prefix=temp_prefix(prefix), dir=folder))
         yield path
     finally:
         if path is not None:

@@ -34,7 +34,7 @@ from typing import IO, Any
 
 import numpy as np
 
-from .files import discard, temp_space_error, whole
+from .files import discard, temp_prefix, temp_space_error, whole
 
 #: A cache gives itself up when its file system has less free space than this [bytes].
 MIN_FREE_BYTES = 2 * 1024**3
@@ -53,7 +53,7 @@ class SpillFolder:
         self._unchecked = CHECK_EVERY_BYTES  # check the free space before the first write
         with whole():  # a stop signal cannot fall between the folder and its removal
             try:
-                self.path = tempfile.mkdtemp(prefix=prefix)
+                self.path = tempfile.mkdtemp(prefix=temp_prefix(prefix))
             except OSError as err:
                 if required:
                     raise temp_space_error(err) from err

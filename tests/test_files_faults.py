@@ -245,6 +245,49 @@ def test_stale_parts_of_dead_writers_are_removed_and_live_ones_kept(tmp_path: Pa
     assert mine.exists() and new_legacy.exists()
 
 
+def test_temporary_folders_of_killed_runs_are_removed_and_said(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A trial's ``kill -9`` left ~60 MB in /tmp/impactcli-{scan,rrd,warmup,islands}-*,
+    which no rerun removed. The folders now carry their process's id; a run's first step
+    removes those whose process is gone, and older versions' (no id) after an hour, and
+    says so; a running process's stay, and so does anything else in TMPDIR."""
+    import tempfile
+
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True)
+    dead_pid = int(dead.stdout)
+    assert not process_running(dead_pid)
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp))
+    killed = [tmp / f"impactcli-{w}-{dead_pid}-{r}" for w, r in (("scan", "j0wnakl6"),
+                                                                ("rrd", "a_b1c2d3"))]
+    for k, d in enumerate(killed):
+        (d / "sub").mkdir(parents=True)
+        (d / "sub" / "x.bin").write_bytes(b"\0" * (1000 * (k + 1)))
+    old = tmp / "impactcli-warmup-u0_acegt"  # an older version's, two hours old
+    old.mkdir()
+    (old / "y").write_bytes(b"\0" * 500)
+    os.utime(old, (0, 0))
+    keep = [tmp / f"impactcli-scan-{os.getpid()}-abcdefgh",  # this (running) process's
+            tmp / "impactcli-islands-k3j4h5g6",            # an older version's, just made
+            tmp / f"impactcli-scan-{dead_pid}-abc",         # not a name of ours
+            tmp / "other-tool-xyz"]
+    for d in keep:
+        d.mkdir()
+    code, _, err = cli("inspect", str(LOG))
+    assert code == 0, err
+    said = [ln for ln in err.splitlines() if "temporary folder" in ln]
+    assert said == [f"impactcli: removed 3 temporary folder(s) (0.0035 MB) that runs since "
+                    f"killed had left in {tmp}"], err
+    assert not any(d.exists() for d in [*killed, old])
+    assert all(d.exists() for d in keep)
+    assert files.remove_stale_temp(tmp) == (0, 0)
+    # this process's folders carry its id
+    with files.temporary_folder("impactcli-url-") as made:
+        assert made.name.startswith(f"impactcli-url-{os.getpid()}-") and made.parent == tmp
+
+
 needs_root_mount = pytest.mark.skipif(
     not sys.platform.startswith("linux") or os.geteuid() != 0 or shutil.which("mount") is None,
     reason="mounting a tmpfs needs root on Linux (the injected-ENOSPC tests cover the rest)")

@@ -97,6 +97,7 @@ class LazyGroup(click.Group):
         try:
             try:
                 with stop_on_signals():
+                    _remove_stale_temp()
                     return super().invoke(ctx)
             finally:  # a pipe broken under still-buffered output shows here, not at exit
                 sys.stdout.flush()
@@ -117,6 +118,19 @@ class LazyGroup(click.Group):
         if rows:
             with formatter.section("Commands"):
                 formatter.write_dl(rows)
+
+
+def _remove_stale_temp() -> None:
+    """Before a verb: the temporary folders killed runs left in TMPDIR go, said in one line
+    (:func:`impactcli.files.remove_stale_temp`)."""
+    import tempfile
+
+    from ..files import remove_stale_temp
+
+    count, size = remove_stale_temp()
+    if count:
+        click.echo(f"impactcli: removed {count} temporary folder(s) ({size / 1e6:.3g} MB) "
+                   f"that runs since killed had left in {tempfile.gettempdir()}", err=True)
 
 
 def run() -> None:
