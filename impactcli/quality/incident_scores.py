@@ -291,12 +291,13 @@ class IncidentEvaluation:
                    "ended (maybe that load again)" if self.unmatched_resuming else "")
                 + ")" if self.unmatched
                 else " (each matches a labelled contact)" if self.n_incidents else "")
-             + (f"; {self.n_incidents_in_warmup} in warm-up (not counted)"
-                if self.n_incidents_in_warmup else "")
-             + (f"; {self.n_payload_changes} the alarm of a payload change (not counted)"
-                if self.n_payload_changes else "")
-             + (f"; {self.n_data_defects} at a data defect (not counted, as detect does "
-                "not: a contact there is missed)" if self.n_data_defects else "")],
+             + (f"; besides them, not counted: {'; '.join(besides)}" if (besides := [
+                 *([f"{self.n_incidents_in_warmup} in warm-up"]
+                   if self.n_incidents_in_warmup else []),
+                 *([f"{self.n_payload_changes} the alarm of a payload change"]
+                   if self.n_payload_changes else []),
+                 *([f"{self.n_data_defects} at a data defect (as detect does not: a "
+                    "contact there is missed)"] if self.n_data_defects else [])]) else "")],
             ["link right", _frac(o.link_right, o.matched) + (
                 f"; {among} more among the links the incident could not tell apart (link A "
                 "or B)" if (among := sum(1 for c in self.contacts if c.status == "counted"
