@@ -787,3 +787,28 @@ def test_an_alarm_in_a_warm_up_past_its_least_length_is_not_called_the_filters_s
     assert "it may be the filters settling" in first and "not judged" not in first
     assert "ran on past its least 3 s" in second and "it may be a contact" in second
     assert "filters settling" not in second
+
+
+def test_the_alarm_of_a_payload_change_shows_the_mass_not_a_force() -> None:
+    """A trial's report listed P2, releasing 1 kg (~9.8 N), as "≳25 N quasi-static" at
+    40.020 s while the payload table said 40.016 s: a row that is a payload change's alarm
+    now shows the change's mass, weight and onset, and no contact type; a counted incident's
+    row keeps its force."""
+    from impactcli.outputs.report.summary import incident_table_html
+
+    def row(label: str, **kw: object) -> dict[str, object]:
+        return {"label": label, "t_start": 40.02, "duration_s": 3.2, "force_n": 25.0,
+                "force_at_least": True, "link": 2, "contact": "quasi_static",
+                "detectors": ["adaptive"], "peak_ratio": 13.7,
+                "peak_ratio_detector": "static_loading", "peak_residual": {}, **kw}
+
+    changes = [{"t_start": 20.052, "mass_kg": 0.955}, {"t_start": 40.016, "mass_kg": -1.008}]
+    html = incident_table_html([row("p2", payload_change=2), row("3", number=3)], "log1", 0,
+                               payload_changes=changes)
+    p2, counted = html.split('id="log1-row3"', 1)
+    assert ("<b>-1.01 kg</b> <span class=\"note\">a load released from 40.016 s (its weight "
+            "~9.9 N), not a contact force</span>") in p2
+    assert "25 N" not in p2 and "quasi-static" not in p2
+    assert "≳25 N" in counted and "quasi-static" in counted
+    # without the timeline's payload changes (an older timeline) the row is as before
+    assert "≳25 N" in incident_table_html([row("p2", payload_change=2)], "log1", 0)

@@ -231,7 +231,8 @@ def section_html(num: str, result: DetectionResult, sec: LogSection,
                  "see the caveats below before relying on this answer.</p>")
     if incidents:
         p.append(incident_table_html(incidents, anchor, MAX_EVENT_FIGURES,
-                                     least_s(result.config)))
+                                     least_s(result.config),
+                                     sec.get("payload_changes") or []))
     p.append(payload_table_html(sec.get("payload_changes") or [], anchor))
     p.append(lasting_table_html(sec.get("lasting_loads") or [], anchor))
     p.append(_events_html(sec, anchor, open_=not known))

@@ -28,7 +28,7 @@ from ...detect.force import (
     scale_untrusted,
 )
 from ...detect.incidents import link_words
-from ...detect.payload_words import press_text
+from ...detect.payload_words import press_force_n, press_text
 from ...detect.thresholds import self_set_text, uncalibrated_blocks
 from .common import (
     CONTACT_TEXT,
@@ -390,13 +390,26 @@ def _torques(inc: dict[str, Any]) -> str:
     return " · ".join(f"{e(j)} {approx(v)}" for j, v in pr.items()) + " N·m" if pr else "—"
 
 
+def _change_of(row: dict[str, Any], changes: Sequence[dict[str, Any]]
+               ) -> dict[str, Any] | None:
+    """The payload change (the timeline's, 1-based ``payload_change``) a row is the alarm
+    of, or None."""
+    k = row.get("payload_change")
+    if not k or not 0 < int(k) <= len(changes):
+        return None
+    c = changes[int(k) - 1]
+    return c if c.get("mass_kg") is not None and c.get("t_start") is not None else None
+
+
 def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: int,
-                        settled_s: float | None = None) -> str:
+                        settled_s: float | None = None,
+                        payload_changes: Sequence[dict[str, Any]] = ()) -> str:
     """The incident list: when, where, how hard, what kind, which detectors, how far above
     threshold; each row links to its plots (the first ``plotted`` incidents have one). Rows
     are named by ``label``: the counted incidents' numbers, ``w1``… in the warm-up; one in
     the warm-up from ``settled_s`` on (its least length, ``warmup.min_s``) is said to be
-    unjudged, not the filters settling from the log's start."""
+    unjudged, not the filters settling from the log's start. The alarm of a payload change
+    (``payload_changes``: the timeline's) shows the change's mass and onset, not a force."""
     clock = any(r.get("t_start_utc") for r in rows)
     body = []
     for pos, r in enumerate(rows, 1):
@@ -423,6 +436,12 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
             when += f' <span class="note">{e(r["resumes_load"]["text"])}</span>'
         force = (f'<b>{force_mark(r)}{approx(r["force_n"])} N</b>' if r.get("force_n") is not None
                  else '<span class="muted">no force estimate</span>')
+        change = _change_of(r, payload_changes)
+        if change is not None:  # a load, not a contact: its mass, not the alarm's "force"
+            force = (f'<b>{change["mass_kg"]:+.3g} kg</b> <span class="note">a load '
+                     f'{"picked" if change["mass_kg"] > 0 else "released"} from '
+                     f'{change["t_start"]:.3f} s (its weight ~{press_force_n(change):.2g} N), '
+                     "not a contact force</span>")
         if r.get("force_n") is None and str(r.get("force_method") or "").startswith(
                 FORCE_NOT_STATED):  # why not: the physics checks left it unstated
             force += f' <span class="note">{e(r["force_method"])}</span>'
@@ -446,6 +465,8 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
                 "a contact beside payload change"):  # its events hold the load's step
             ratio += ' <span class="note">the whole alarm&#x27;s, the load&#x27;s step in it</span>'
 
+        kind = ("—" if change is not None else
+                e(CONTACT_TEXT.get(r.get("contact") or "unknown", r.get("contact"))))
         plot = f'<a href="#{anchor}-inc{n}">plot</a>' if pos <= plotted else ""
         cls = (' class="warmup"' if r.get("in_warmup") or r.get("data_defect")
                or r.get("payload_change") else "")
@@ -453,7 +474,7 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
             f'<tr{cls} id="{anchor}-row{n}"><td class="num">{n}</td><td class="num">{when}</td>'
             f'<td class="num">{r["duration_s"]:.2f}</td><td><b>{link}</b></td>'
             f'<td>{force} <span class="small">({_torques(r)})</span></td>'
-            f'<td>{e(CONTACT_TEXT.get(r.get("contact") or "unknown", r.get("contact")))}</td>'
+            f"<td>{kind}</td>"
             f'<td>{e(", ".join(r.get("detectors") or []))}</td><td class="num">{ratio}</td>'
             f"<td>{plot}</td></tr>")
     methods: dict[str, list[int]] = {}
