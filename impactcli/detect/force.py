@@ -301,9 +301,9 @@ def force_estimate(
                   else f"joints {', '.join(str(c) for c in use)}")
         at_least = (f" — it may be larger: a force's part that turns none of {joints} is not "
                     "seen" if len(use) < rows else
-                    f" — it may be larger: near a singular posture ({int(unseen.sum())} of "
-                    f"{unseen.size} samples solved), the part of the force {joints} barely "
-                    "feel is left out")
+                    f" — it may be larger: near a singular posture at {int(unseen.sum())} of "
+                    f"the {unseen.size} samples solved, the part of the force {joints} "
+                    "barely feel is left out")
     return ForceEstimate(best, method, levers, at_least,
                          max(each_f) if typical and each_f else None)
 
