@@ -340,3 +340,55 @@ def test_the_adaptive_detectors_memory_of_a_defect() -> None:
     assert mark_defects([push], [early], 0.56, memory)[0].data_defect is not None
     assert mark_defects([push], [early], 0.56, memory, settled_s=3.0)[0].data_defect is None
     assert mark_defects(incs, [jump], 0.56, memory, settled_s=3.0)[0].data_defect is not None
+
+
+def test_the_time_a_defect_blinds_is_said_and_exact(free: RobotLog, tmp_path: Path) -> None:
+    """A trial's splice: the labelled 5 N push 8 ms after it was "not counted, at a data
+    defect", while the floor lines did not say that the time after a defect is blind. The
+    splice at 12.000 s (one step, from 11.996 s) blinds the detectors for the settling time
+    after it — for the adaptive detector alone its evaluator's memory, 12 s at λ = 0.999
+    and 250 Hz, cut at the log's end; the timeline, the terminal and the report say so."""
+    log = _step(free, 12.0, np.array([0.03, -0.02]))
+    code, out, err, doc = _detect(log, tmp_path)
+    assert code == 0, err
+    dd = doc["data_defects"]
+    settle, end = dd["settle_s"], doc["input"]["duration_s"]
+    assert dd["adaptive_settle_s"] == pytest.approx(3.0 / (1.0 - 0.999) / 250.0)
+    assert dd["blind_s"] == pytest.approx(12.0 + settle - 11.996, abs=1e-9)
+    assert dd["adaptive_blind_s"] == pytest.approx(min(12.0 + 12.0, end) - 11.996, abs=1e-9)
+    (line,) = [ln for ln in out.splitlines() if ln.startswith("blind at data defects of")]
+    assert line == (
+        f"blind at data defects of log.csv: an alarm starting within {settle:.2g} s after "
+        f"one of its 1 defect is taken for the defect's and not counted, so a contact starting "
+        f"there is missed: {dd['blind_s']:.3g} s of the log after warm-up "
+        f"({dd['adaptive_blind_s']:.3g} s for a contact only the adaptive detector sees: its "
+        "evaluator remembers a defect 12 s); the detection floor does not hold there"), line
+    r = CliRunner().invoke(main, ["report", str(tmp_path / "out" / "log.timeline.json"), "-o",
+                                  str(tmp_path / "r.html"), "--json", str(tmp_path / "r.json")])
+    assert r.exit_code == 0, r.output
+    rep = json.loads((tmp_path / "r.json").read_text())
+    (item,) = [u for u in rep["logs"][0]["could_not_see"] if u["code"] == "data-defects"]
+    assert item["data"]["blind_s"] == dd["blind_s"]
+    assert "a contact starting there was missed" in item["text"]
+    # a clean log says none of it
+    code, out, _, doc = _detect(free, tmp_path / "clean")
+    assert "data_defects" not in doc and "blind at data defects" not in out
+
+
+@given(spans=st.lists(st.tuples(st.floats(0.0, 20.0), st.floats(0.0, 1.0),
+                                st.floats(0.0, 3.0)), min_size=1, max_size=6),
+       t0=st.floats(0.0, 5.0))
+def test_defect_blind_time_is_the_union_of_the_windows(
+        spans: list[tuple[float, float, float]], t0: float) -> None:
+    """Against the windows drawn on a fine grid: [start, end + after] per defect, their
+    union within [t0, t1]."""
+    from impactcli.detect.incidents import DataDefect, defect_blind_s
+
+    t1 = 20.0
+    defects = [DataDefect("gap", a, a + d, d, ()) for a, d, _ in spans]
+    got = defect_blind_s(defects, [x for *_, x in spans], t0, t1)
+    grid = np.linspace(t0, t1, 200_001)
+    inside = np.zeros(grid.size, dtype=bool)
+    for a, d, x in spans:
+        inside |= (grid >= a) & (grid <= a + d + x)
+    assert got == pytest.approx(inside.mean() * (t1 - t0), abs=2e-4 * 6 + 1e-9)

@@ -625,10 +625,42 @@ def data_defects(scan: Any, gap_times: np.ndarray) -> list[DataDefect]:
     return sorted(out, key=lambda d: (d.t_start, d.kind))
 
 
-def defects_dict(defects: Sequence[DataDefect], settle: float, n_jumps: int
-                 ) -> dict[str, Any]:
-    """The timeline's ``data_defects``: counts, the settling time, the first listed."""
+def defect_blind_s(defects: Sequence[DataDefect], after_s: Sequence[float] | np.ndarray,
+                   t0: float, t1: float) -> float:
+    """How long [s] of ``t0`` … ``t1`` (the log after warm-up) lies within a defect or the
+    ``after_s`` (one per defect) that follow it — where :func:`mark_defects` takes an alarm
+    that starts for the defect's, not counted: a contact starting there is missed."""
+    spans = sorted((max(d.t_start, t0), min(d.t_end + float(a), t1))
+                   for d, a in zip(defects, after_s, strict=True))
+    total, end = 0.0, t0
+    for a, b in spans:
+        lo = max(a, end)
+        if b > lo:
+            total, end = total + (b - lo), b
+    return total
+
+
+def blind_of(defects: Sequence[DataDefect], settle: float, adaptive_settle: float,
+             settled_s: float | None, t0: float, t1: float) -> tuple[float, float, float]:
+    """``(adaptive_settle, blind, adaptive_blind)`` [s] of :func:`defects_dict`: as
+    :func:`mark_defects` marks — ``settle`` after each defect, the adaptive detector's
+    memory (at least ``settle``) for its alarms alone, none for a defect that ended before
+    ``settled_s`` — over the log after warm-up (``t0`` … ``t1``)."""
+    memory = [0.0 if settled_s is not None and d.t_end < settled_s else adaptive_settle
+              for d in defects]
+    return (adaptive_settle, defect_blind_s(defects, [settle] * len(defects), t0, t1),
+            defect_blind_s(defects, np.maximum(settle, memory), t0, t1))
+
+
+def defects_dict(defects: Sequence[DataDefect], settle: float, n_jumps: int,
+                 blind: tuple[float, float, float] | None = None) -> dict[str, Any]:
+    """The timeline's ``data_defects``: counts, the settling time, the first listed, and
+    (``blind``: the adaptive detector's memory of a defect [s], then
+    :func:`defect_blind_s` with ``settle``, and with the memory for the adaptive detector
+    alone) how long after warm-up an alarm was taken for a defect's."""
     return {"gaps": sum(1 for d in defects if d.kind == "gap"),
             "jumps": sum(1 for d in defects if d.kind == "jump"),
             "jump_samples": n_jumps, "settle_s": settle,
+            **({} if blind is None else {"adaptive_settle_s": blind[0], "blind_s": blind[1],
+                                         "adaptive_blind_s": blind[2]}),
             "listed": [d.to_dict() for d in defects[:MAX_LISTED_DEFECTS]]}

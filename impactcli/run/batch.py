@@ -160,6 +160,7 @@ class SummaryRow(TypedDict):
     model_sha256: str | None
     duration_s: float
     truncated: NotRequired[bool]
+    defect_blind: NotRequired[dict[str, Any]]
     settings_edited: NotRequired[bool]
     start_load_unknown: NotRequired[str]
     payloads_unwatched: NotRequired[str]
@@ -417,6 +418,12 @@ def _summary(job: DetectJob, result: DetectionResult) -> SummaryRow:
     }
     if log.source.truncated:
         row["truncated"] = True
+    dd = result.data_defects
+    if dd and "blind_s" in dd:
+        row["defect_blind"] = {"defects": int(dd["gaps"]) + int(dd["jumps"]),
+                               "settle_s": dd["settle_s"], "blind_s": dd["blind_s"],
+                               "adaptive_settle_s": dd["adaptive_settle_s"],
+                               "adaptive_blind_s": dd["adaptive_blind_s"]}
     if result.payloads_unwatched is not None:
         row["payloads_unwatched"] = result.payloads_unwatched
     elif result.payload_changes is not None and not floor_apart(

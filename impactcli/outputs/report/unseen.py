@@ -89,6 +89,26 @@ def _cut(result: DetectionResult) -> list[dict[str, Any]]:
                       "known).")}]
 
 
+def _defects(result: DetectionResult) -> list[dict[str, Any]]:
+    """The time after the log's data defects where an alarm was taken for a defect's (not
+    counted: a contact starting there was missed), else nothing."""
+    dd = result.data_defects or {}
+    if not dd.get("blind_s"):
+        return []
+    n = int(dd["gaps"]) + int(dd["jumps"])
+    alone = (f" ({dd['adaptive_blind_s']:.3g} s for a contact only the adaptive detector "
+             f"sees: its evaluator remembers a defect {dd['adaptive_settle_s']:.3g} s)"
+             if dd["adaptive_blind_s"] > dd["blind_s"] + 1e-9 else "")
+    return [{"code": "data-defects", "short": f"{dd['blind_s']:.2g} s at data defects",
+             "data": {k: dd[k] for k in ("gaps", "jumps", "settle_s", "blind_s",
+                                         "adaptive_settle_s", "adaptive_blind_s")},
+             "text": (f"Data defects: {n} (gaps in the clock, jumps of the positions no "
+                      f"motion explains); an alarm starting within {dd['settle_s']:.2g} s "
+                      "after one was taken for the defect's and not counted, so a contact "
+                      f"starting there was missed: {dd['blind_s']:.3g} s of the log after "
+                      f"warm-up{alone}. The detection floor does not hold there.")}]
+
+
 def _left_out(result: DetectionResult, chain: tuple[str, ...]) -> dict[str, Any]:
     items = [dict(x) for x in result.joints_left_out]
     if not items:
@@ -305,8 +325,8 @@ def could_not_see(result: DetectionResult, incidents: list[dict[str, Any]], *,
     ``samples``: where the gaps and the posture are read."""
     chain, kin = chain_of(result)
     return [*_older(origin, known), _warmup(result, incidents), *_cut(result),
-            _gaps(samples), _left_out(result, chain), *_envelope(result, incidents),
-            *_unseen_load(result, incidents), *_lasting(result),
+            _gaps(samples), *_defects(result), _left_out(result, chain),
+            *_envelope(result, incidents), *_unseen_load(result, incidents), *_lasting(result),
             _smallest_force(result, chain, kin, samples)]
 
 
