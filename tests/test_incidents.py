@@ -459,8 +459,8 @@ def test_what_a_lasting_load_leaves_unseen_is_said_over_its_union() -> None:
         "a lasting load's detector was already alarming on its joints for 36.3 s (71 % of "
         "the log after warm-up; 8.7–40.2 s, static_loading on shoulder, elbow; 30.0–45.0 s, "
         "adaptive on elbow): a contact there raised no event of that detector on them, only "
-        "the other (adaptive or static_loading) could see it, and the detection floor does "
-        "not hold there")
+        "the other (adaptive or static_loading) could see it — one it did not see was missed "
+        "— and the detection floor does not hold there")
     assert blind_text(loads[:1], listed=True).startswith(
         "a lasting load's detector was already alarming on its joints for 31.5 s: a contact "
         "there raised no event of that detector on them, only the other (adaptive) could")

@@ -179,8 +179,8 @@ def test_payload_alarms_after_warmup_are_counted_everywhere(payload_log: Path, p
     # push under a 16 s lasting load that the report said "absorbs none" of the incidents)
     assert (f"(a lasting load's detector was already alarming on its joints for "
             f"{30.0 - w:.1f} s: a contact there raised no event of that detector on them, "
-            "only the other (adaptive) could see it, and the detection floor does not hold "
-            "there)") in r.stdout, r.stdout
+            "only the other (adaptive) could see it — one it did not see was missed — and the "
+            "detection floor does not hold there)") in r.stdout, r.stdout
     validate(tl, "timeline", AssertionError, "timeline")
     assert tl["schema_version"] == "2.12"
     assert tl["counts"] == {"incidents": {"counted": 5, "in_warmup": 1},

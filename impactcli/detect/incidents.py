@@ -283,8 +283,8 @@ def blind_text(loads: Sequence[dict[str, Any]], analysed_s: float | None = None,
     return (f"a lasting load's detector was already alarming on its joints for {total:.1f} s"
             + (f" ({'; '.join(said)})" if said else "")
             + ": a contact there raised no event of that detector on them, only the other "
-            f"({' or '.join(others)}) could see it, and the detection floor does not hold "
-            "there")
+            f"({' or '.join(others)}) could see it — one it did not see was missed — and the "
+            "detection floor does not hold there")
 
 
 #: The plain |r| > v0 comparison alarms at once where the product's detectors wait for
