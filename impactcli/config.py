@@ -292,6 +292,10 @@ class CalibrationRecord:
             on (:data:`FORMULATION`); None: before formulations were recorded (the plain
             eq. 39 of releases up to 2026-11-27). Another than the running one is warned
             about at detect.
+        load_envelopes: when the calibration logs carried different loads, per log whose
+            load differs from the model's: ``{log, mass_kg, envelope}`` — that load beyond
+            the model's and the motion envelope of that log alone (the motion the
+            thresholds' rate was measured on under that load); None otherwise.
         settings_sha256: the fingerprint of the detector settings the thresholds were set
             with (:func:`settings_sha256`); None: not recorded (configs before
             2026-11-30). A config whose settings differ (edited after ``calibrate``) is
@@ -313,6 +317,7 @@ class CalibrationRecord:
     motion_envelope: dict[str, Any] | None = None
     formulation: str | None = None
     settings_sha256: str | None = None
+    load_envelopes: tuple[dict[str, Any], ...] | None = None
 
 
 #: The config's sections a calibration's thresholds depend on (:func:`settings_sha256`):
@@ -457,11 +462,17 @@ def _build(d: dict[str, Any], where: str) -> DetectorConfig:
     c["margins"] = {
         k: {str(j): float(v) for j, v in m.items()} for k, m in c.get("margins", {}).items()
     }
-    for j, q in ((c.get("motion_envelope") or {}).get("joints") or {}).items():
-        for k, rng in q.items():  # a range is [min, max]: reversed, every sample is out
-            if not float(rng[0]) <= float(rng[1]):
-                raise ConfigError(f"{where}: calibration/motion_envelope/joints/{j}/{k}: "
-                                  f"[{rng[0]}, {rng[1]}] is not [min, max]")
+    if c.get("load_envelopes") is not None:
+        c["load_envelopes"] = tuple(dict(x) for x in c["load_envelopes"])
+    envelopes = [("calibration/motion_envelope", c.get("motion_envelope"))] + [
+        (f"calibration/load_envelopes/{i}/envelope", x["envelope"])
+        for i, x in enumerate(c.get("load_envelopes") or ())]
+    for at, env in envelopes:
+        for j, q in ((env or {}).get("joints") or {}).items():
+            for k, rng in q.items():  # a range is [min, max]: reversed, every sample is out
+                if not float(rng[0]) <= float(rng[1]):
+                    raise ConfigError(f"{where}: {at}/joints/{j}/{k}: "
+                                      f"[{rng[0]}, {rng[1]}] is not [min, max]")
     residual = dict(d.get("residual", {}))
     residual["generators"] = {str(j): str(g) for j, g in residual.get("generators", {}).items()}
     if "generator" in residual:

@@ -462,8 +462,14 @@ class EnvelopeCheck:
     """
 
     def __init__(self, envelope: MotionEnvelope, sample_rate_hz: float,
-                 joints: Sequence[str], *, margin: float = 0.0) -> None:
+                 joints: Sequence[str], *, margin: float = 0.0,
+                 loads: Sequence[dict[str, Any]] = ()) -> None:
         self.envelope = envelope
+        # per calibration log with its own load, that log's envelope checked beside
+        # (:mod:`impactcli.detect.load_motion`): (its config entry, its check)
+        self.loads = [(e, EnvelopeCheck(MotionEnvelope.from_dict(e["envelope"]),
+                                        sample_rate_hz, joints, margin=margin))
+                      for e in loads]
         self.joints = tuple(joints)
         self.cols = [c for c, j in enumerate(self.joints) if j in envelope.joints]
         self.names = [self.joints[c] for c in self.cols]
@@ -508,6 +514,8 @@ class EnvelopeCheck:
         """The chunk of samples ``start`` … (default: right after the last) as arrays."""
         k0 = self.n if start is None else int(start)
         t = np.asarray(time_s, dtype=np.float64)
+        for _, check in self.loads:
+            check.update_arrays(t, position, position_ref, k0)
         mot = self.trace.update(t, position, position_ref)
         n = t.shape[0]
         out_j = np.zeros((n, len(self.cols)), dtype=bool)

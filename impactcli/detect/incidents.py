@@ -87,6 +87,7 @@ class Incident:
     payload_test: str | None = None
     aftermath: dict[str, Any] | None = None
     close_behind: dict[str, Any] | None = None
+    load_motion: dict[str, Any] | None = None
     force_at_least: bool = False
     unseen_load_kg: float | None = None
     resumes_load: dict[str, Any] | None = None
@@ -106,7 +107,9 @@ class Incident:
         (:func:`impactcli.detect.aftermath.aftermath_of`, with its ``text``),
         ``close_behind`` only when it starts, no stronger, within the detectors' settling
         time after a counted one and no aftermath tells (:func:`~impactcli.detect.aftermath.
-        close_behind`),
+        close_behind`), ``load_motion`` only when it starts while the arm carried a
+        calibration log's load on motion that log did not cover
+        (:func:`impactcli.detect.load_motion.mark_load_motion`),
         ``unseen_load_kg`` only when it starts while the arm carried a load no calibration
         log carried (:func:`impactcli.run.loads.unseen_spans`), ``velocity_disagrees`` only
         when it overlaps a stretch where the logged velocity and positions tell two motions
@@ -130,6 +133,7 @@ class Incident:
             **({} if self.payload_test is None else {"payload_test": self.payload_test}),
             **({} if self.aftermath is None else {"aftermath": self.aftermath}),
             **({} if self.close_behind is None else {"close_behind": self.close_behind}),
+            **({} if self.load_motion is None else {"load_motion": self.load_motion}),
             **({} if self.unseen_load_kg is None else {"unseen_load_kg": self.unseen_load_kg}),
             **({} if self.resumes_load is None else {"resumes_load": self.resumes_load}),
             **({} if self.velocity_disagrees is None

@@ -631,6 +631,22 @@ def describe(model: Any) -> list[str]:
     return lines
 
 
+def alike(e: dict[str, Any]) -> bool:
+    """Whether a log's fitted load (an item of ``fit.payloads.logs``) is the reference's
+    within three standard errors."""
+    se = (e.get("se") or {}).get("m")
+    return se is not None and abs(e["values"]["m"]) <= WEIGH_SIGMAS * float(se)
+
+
+def loaded_logs(model: Any) -> list[dict[str, Any]]:
+    """The items of ``fit.payloads.logs`` whose load differs from the reference's (the one
+    the model's parameters carry): [] when the fit has one load."""
+    rec = (model.fit or {}).get("payloads") if model is not None else None
+    if not rec:
+        return []
+    return [e for e in rec["logs"] if e["log"] != rec["relative_to"] and not alike(e)]
+
+
 def differ_warning(model: Any) -> str | None:
     """The warning when the calibration logs carried different loads, else None."""
     rec = (model.fit or {}).get("payloads")
@@ -638,10 +654,6 @@ def differ_warning(model: Any) -> str | None:
         return None
     rel = rec["relative_to"]
     others = [e for e in rec["logs"] if e["log"] != rel]
-
-    def alike(e: dict[str, Any]) -> bool:  # the lightest's load within 3 standard errors
-        se = (e.get("se") or {}).get("m")
-        return se is not None and abs(e["values"]["m"]) <= WEIGH_SIGMAS * float(se)
 
     heavier = [f"{e['log']} {e['values']['m']:+.3g} kg" for e in others if not alike(e)]
     if not heavier:

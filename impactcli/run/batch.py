@@ -96,6 +96,7 @@ class IncidentRow(TypedDict):
     outside_envelope: NotRequired[bool]
     aftermath: NotRequired[str]
     close_behind: NotRequired[str]
+    load_motion: NotRequired[str]
     no_force: NotRequired[str]
     force_at_least: NotRequired[bool]
     unseen_load_kg: NotRequired[float]
@@ -122,6 +123,8 @@ def _incident_row(i: Any) -> IncidentRow:
         row["aftermath"] = i.aftermath["text"]
     if i.close_behind:
         row["close_behind"] = i.close_behind["text"]
+    if i.load_motion:
+        row["load_motion"] = i.load_motion["text"]
     if i.force_n is None and i.force_method.startswith(FORCE_NOT_STATED):
         row["no_force"] = i.force_method
     if i.force_at_least:

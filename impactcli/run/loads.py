@@ -22,6 +22,7 @@ there (a model error is not a mass); otherwise it is said, not used.
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -30,6 +31,7 @@ import numpy as np
 from ..config import DetectorConfig
 from ..detect.payload_finding import SHORTFALL
 from ..detect.payload_words import OWN_LOAD, beyond_words
+from ..errors import ImpactWarning
 from ..model import RigidModel, payload
 from ..model.generators import LOGGED, OWN_MODEL, GeneratorChoice, target_torque
 
@@ -465,3 +467,35 @@ def unseen_loads(where: str, model: RigidModel | None, changes: Any) -> str | No
             "model was not calibrated with; incidents while carrying them may be such "
             "errors): "
             "calibrate with a log that carries each load")
+
+
+def start_as_log(plan: Any) -> str | None:
+    """The calibration log whose load the log starts with (its weighing used it), else
+    None (the model's own load, or none weighed)."""
+    start = getattr(plan, "start_load", None)
+    return start.as_log if start is not None and start.verdict == "used" else None
+
+
+def load_motion(where: str, envelope: Any, incidents: list[Any], start_index: int,
+                spans: list[tuple[float, float, str]]) -> list[Any]:
+    """The incidents marked where the arm carried a calibration log's load on motion that
+    log did not cover (:func:`impactcli.detect.load_motion.mark_load_motion`; ``envelope``:
+    the :class:`~impactcli.detect.envelope.EnvelopeCheck` with its ``loads``, finished
+    from ``start_index``, the warm-up's end), warned of once with their count."""
+    from ..detect.load_motion import mark_load_motion
+
+    if not spans:
+        return incidents
+    shares = {e["log"]: check.finish(start_index) for e, check in envelope.loads}
+    masses = {e["log"]: float(e["mass_kg"]) for e, _ in envelope.loads}
+    marked = mark_load_motion(incidents, spans, shares, masses)
+    n = sum(1 for i in marked if i.load_motion is not None)
+    if n:
+        logs = "; ".join(sorted({i.load_motion["log"] + "'s" for i in marked
+                                 if i.load_motion is not None}))
+        warnings.warn(f"{where}: {n} counted incident(s) came while the arm carried a "
+                      f"calibration log's load ({logs}) on motion "
+                      "that log did not cover: the thresholds' false-alarm rate was measured "
+                      "for that load on that log's motion only (load_motion in the timeline)",
+                      ImpactWarning, stacklevel=2)
+    return marked

@@ -67,6 +67,7 @@ from ..detect.incidents import (
     settle_s,
 )
 from ..detect.link_evidence import ResidualNoise
+from ..detect.load_motion import carried_spans
 from ..detect.payload_change import mark_tried
 from ..detect.probe import (
     MAX_STATE_BYTES,
@@ -97,8 +98,10 @@ from ..types import (
 )
 from .islands import Islands
 from .loads import (
+    load_motion,
     mark_unseen,
     monitor_for,
+    start_as_log,
     start_unknown,
     unseen_loads,
     unseen_spans,
@@ -410,6 +413,10 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
                                   sum(1 for i in incidents  # the counted ones
                                       if i.outside_envelope and i.number is not None),
                                   posture_text(share.posture), share.note)
+        if envelope is not None and envelope.loads:  # a load on motion its log lacked
+            incidents = load_motion(where, envelope, incidents, rp.warmup.end_index,
+                                    carried_spans(start_as_log(plan), changes,
+                                                  scan.duration_s + scan.sample_period_s))
         incidents = close_behind(incidents, settle, measured_checked)
         floor = floor_acc.finish(rp.warmup.index, rp.warmup.end_index, joints, ctx.chain,
                                  ctx.index, ctx.chain_cols, ctx.jac)
@@ -535,7 +542,8 @@ def envelope_check(cfg: DetectorConfig, joints: tuple[str, ...], sample_rate_hz:
     env = cfg.calibration.motion_envelope
     if not env:
         return None
-    return EnvelopeCheck(MotionEnvelope.from_dict(env), sample_rate_hz, joints)
+    return EnvelopeCheck(MotionEnvelope.from_dict(env), sample_rate_hz, joints,
+                         loads=cfg.calibration.load_envelopes or ())
 
 
 def _thresholds_from_spill(spill: ColumnFiles, wu: Warmup, n: int, sample_rate_hz: float,

@@ -434,6 +434,8 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
             when += f' <span class="note">{e(ringing)}</span>'
         if r.get("resumes_load"):
             when += f' <span class="note">{e(r["resumes_load"]["text"])}</span>'
+        if r.get("load_motion"):
+            when += f' <span class="note">{e(r["load_motion"]["text"])}</span>'
         force = (f'<b>{force_mark(r)}{approx(r["force_n"])} N</b>' if r.get("force_n") is not None
                  else '<span class="muted">no force estimate</span>')
         change = _change_of(r, payload_changes)

@@ -109,6 +109,22 @@ def _defects(result: DetectionResult) -> list[dict[str, Any]]:
                       f"warm-up{alone}. The detection floor does not hold there.")}]
 
 
+def _load_motion(incidents: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The counted incidents that came while the arm carried a calibration log's load on
+    motion that log did not cover (``load_motion``), else nothing."""
+    there = [i for i in incidents if i.get("load_motion") and i.get("number")]
+    if not there:
+        return []
+    logs = sorted({str(i["load_motion"]["log"]) for i in there})
+    return [{"code": "load-motion", "short": f"{len(there)} under a load, unlike motion",
+             "data": {"incidents": len(there), "logs": logs},
+             "text": (f"A load on unlike motion: {len(there)} counted incident(s) came while "
+                      f"the arm carried a calibration log's load ({'; '.join(logs)}) on "
+                      "motion that log did not cover; the thresholds' false-alarm rate was "
+                      "measured for that load on that log's motion only, so how many of them "
+                      "are contacts is not known.")}]
+
+
 def _left_out(result: DetectionResult, chain: tuple[str, ...]) -> dict[str, Any]:
     items = [dict(x) for x in result.joints_left_out]
     if not items:
@@ -326,7 +342,8 @@ def could_not_see(result: DetectionResult, incidents: list[dict[str, Any]], *,
     chain, kin = chain_of(result)
     return [*_older(origin, known), _warmup(result, incidents), *_cut(result),
             _gaps(samples), *_defects(result), _left_out(result, chain),
-            *_envelope(result, incidents), *_unseen_load(result, incidents), *_lasting(result),
+            *_envelope(result, incidents), *_load_motion(incidents),
+            *_unseen_load(result, incidents), *_lasting(result),
             _smallest_force(result, chain, kin, samples)]
 
 

@@ -1,0 +1,144 @@
+"""A carried load on motion its calibration log did not cover (impactcli.detect.load_motion):
+the rule on chosen spans and stretches, then through the CLI against the simulator's truth —
+a simulated arm (robot 7) calibrated on an unloaded multi-sine, unloaded point-to-point
+moves and a multi-sine carrying 1 kg, then run free carrying that 1 kg in point-to-point
+moves: every incident is false, and those the load's own envelope does not cover say so."""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+from click.testing import CliRunner
+
+from impactcli.cli import main
+from impactcli.detect.load_motion import carried_spans, mark_load_motion
+from impactcli.schema import validate
+
+
+@dataclass(frozen=True)
+class Inc:
+    t_start: float
+    t_end: float
+    number: int | None
+    load_motion: dict[str, Any] | None = None
+
+
+@dataclass(frozen=True)
+class Change:
+    t_start: float
+    as_log: str | None
+
+
+@dataclass(frozen=True)
+class Share:
+    stretches: list[tuple[float, float]]
+
+    def touches(self, t0: float, t1: float) -> bool:
+        return any(a <= t1 and b >= t0 for a, b in self.stretches)
+
+
+def test_spans_follow_the_start_and_the_changes_loads() -> None:
+    assert carried_spans("a.csv", [], 60.0) == [(0.0, 60.0, "a.csv")]
+    assert carried_spans(None, [Change(20.0, "a.csv"), Change(40.0, None)], 60.0) == [
+        (20.0, 40.0, "a.csv")]
+    assert carried_spans("b.csv", [Change(20.0, None), Change(40.0, "a.csv")], 60.0) == [
+        (0.0, 20.0, "b.csv"), (40.0, 60.0, "a.csv")]
+    assert carried_spans(None, [], 60.0) == []
+
+
+def test_an_incident_is_marked_only_under_that_logs_load_on_motion_outside_it() -> None:
+    spans = [(20.0, 40.0, "a.csv")]
+    shares = {"a.csv": Share([(30.0, 31.0)])}
+    incs = [Inc(30.5, 30.7, 1), Inc(25.0, 25.2, 2),   # outside the load's motion; inside
+            Inc(45.0, 45.2, 3), Inc(30.2, 30.4, None)]  # after the load; not counted
+    got = mark_load_motion(incs, spans, shares, {"a.csv": 1.0})
+    assert [g.load_motion is not None for g in got] == [True, False, False, False]
+    assert got[0].load_motion == {
+        "log": "a.csv", "mass_kg": 1.0,
+        "text": "while the arm carried +1 kg beyond the model's load (a.csv's, as calibrated) "
+                "on motion that log did not cover: the thresholds' false-alarm rate was not "
+                "measured for that load on such motion"}
+    assert got[1] is incs[1] and got[2] is incs[2] and got[3] is incs[3]
+    # a log without a recorded envelope marks nothing
+    assert mark_load_motion(incs, [(20.0, 40.0, "b.csv")], shares, {"a.csv": 1.0}) == incs
+
+
+@pytest.fixture(scope="module")
+def carried(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    from impactcli.logs import write_log
+    from impactcli.logs.robot_files import write_robot
+    from impactcli.sim import scenario, simulate
+
+    d = tmp_path_factory.mktemp("carried")
+    for name, scen, kw, seed in (("ms", "free_multisine", {}, 1), ("p2p", "free_p2p", {}, 2),
+                                 ("ms_pl", "free_multisine", {"payload_kg": 1.0}, 3),
+                                 ("p2p_pl", "free_p2p", {"payload_kg": 1.0}, 4),
+                                 ("ms_pl2", "free_multisine", {"payload_kg": 1.0}, 5)):
+        res = simulate(scenario(scen, "assist_like", 60.0, robot_seed=7, **kw), seed=seed)
+        write_log(res.log, d / f"{name}.csv.gz")
+        write_robot(res.robot, d / "robot.json")
+    r = CliRunner().invoke(main, ["calibrate", *(str(d / f"{n}.csv.gz") for n in
+                                                 ("ms", "p2p", "ms_pl")),
+                                  "--robot", str(d / "robot.json"), "-o", str(d / "cal.toml")])
+    assert r.exit_code == 0, r.output
+    return {"dir": d}
+
+
+def _detect(d: Path, name: str) -> tuple[Any, dict[str, Any]]:
+    r = CliRunner().invoke(main, ["detect", str(d / f"{name}.csv.gz"), "--config",
+                                  str(d / "cal.toml"), "-o", str(d / name)])
+    assert r.exit_code == 0, r.output
+    tl = json.loads((d / name / f"{name}.timeline.json").read_text())
+    validate(tl, "timeline", AssertionError, "timeline")
+    return r, tl
+
+
+def test_the_loaded_logs_envelope_is_recorded_and_marks_its_load_on_unlike_motion(
+        carried: dict[str, Any]) -> None:
+    d = carried["dir"]
+    cfg = tomllib.loads((d / "cal.toml").read_text())
+    (entry,) = cfg["calibration"]["load_envelopes"]
+    assert entry["log"].endswith("ms_pl.csv.gz") and entry["mass_kg"] == pytest.approx(1.0,
+                                                                                       rel=0.05)
+    union = cfg["calibration"]["motion_envelope"]["joints"]
+    own = entry["envelope"]["joints"]
+    for j, q in own.items():  # one log's ranges lie within the union of all
+        for k, (lo, hi) in q.items():
+            assert union[j][k][0] <= lo <= hi <= union[j][k][1]
+    # the loaded log's load on point-to-point moves: every incident false (a free log)
+    r, tl = _detect(d, "p2p_pl")
+    counted = [i for i in tl["incidents"] if i["number"] is not None]
+    marked = [i for i in counted if "load_motion" in i]
+    assert len(counted) >= 10  # the case: the rate was not measured there
+    assert len(marked) >= 0.6 * len(counted), (len(marked), len(counted))
+    assert all(i["load_motion"]["log"] == entry["log"] for i in marked)
+    assert tl["input"]["payload"]["as_log"] == entry["log"]
+    (warned,) = [ln for ln in r.stderr.splitlines() if "(load_motion in the timeline)" in ln]
+    assert f"{len(marked)} counted incident(s) came while the arm carried a calibration " \
+           f"log's load ({entry['log']}'s) on motion that log did not cover" in warned
+    rows = [ln for ln in r.stdout.splitlines() if "(load_motion in the timeline)" in ln]
+    assert len(rows) == sum(1 for i in counted[:20] if "load_motion" in i)  # 20 listed
+    # the same load on the loaded log's own kind of motion: no incident at all
+    _, tl = _detect(d, "ms_pl2")
+    assert [i for i in tl["incidents"] if i["number"] is not None] == []
+    # the report says it among what the audit could not see
+    r = CliRunner().invoke(main, ["report", str(d / "p2p_pl" / "p2p_pl.timeline.json"), "-o",
+                                  str(d / "r.html"), "--json", str(d / "r.json")])
+    assert r.exit_code == 0, r.output
+    rep = json.loads((d / "r.json").read_text())
+    (item,) = [u for u in rep["logs"][0]["could_not_see"] if u["code"] == "load-motion"]
+    assert item["data"] == {"incidents": len(marked), "logs": [entry["log"]]}
+
+
+def test_one_load_writes_no_load_envelopes(carried: dict[str, Any], tmp_path: Path) -> None:
+    d = carried["dir"]
+    r = CliRunner().invoke(main, ["calibrate", str(d / "ms.csv.gz"), str(d / "p2p.csv.gz"),
+                                  "--robot", str(d / "robot.json"), "-o",
+                                  str(tmp_path / "one.toml")])
+    assert r.exit_code == 0, r.output
+    assert "load_envelopes" not in (tmp_path / "one.toml").read_text()
