@@ -28,9 +28,7 @@ import numpy as np
 from ..config import DetectorConfig, settings_sha256
 from ..detect.envelope import (
     SLOW_RAD_S,
-    EnvelopeAccumulator,
     Motion,
-    MotionEnvelope,
     MotionTrace,
     slow_speed,
 )
@@ -56,6 +54,7 @@ from ..model.generators import GeneratorChoice, target_log, uses_correction
 from ..model.payload import own_load
 from ..types import DETECTORS, Labels, RobotDescription, RobotLog
 from .collect import StatsCollector
+from .load_envelopes import load_envelopes_of, union_envelope
 from .one_log import ReplayStep, replay_passes, warn_replayed
 from .plan import (
     ChunkFeed,
@@ -217,7 +216,7 @@ def calibrate_run(
     table = {d: {j: float(cal[d].thresholds[k]) for k, j in enumerate(joints)} for d in DETECTORS}
     margins = {d: {j: float(cal[d].margins[k]) for k, j in enumerate(joints)} for d in DETECTORS}
     weak = any(c.weak for c in cal.values())
-    envelope = _envelope(replays, keeps, joints)
+    envelope = union_envelope(replays, keeps, joints)
     rated = threshold_rule == RATE_RULE
     use = _rate_logs(replays, excluded, warn=rated)
     given = None if rated else np.array([table[d][j] for d in TAIL_DETECTORS for j in joints])
@@ -244,7 +243,8 @@ def calibrate_run(
                           if top[k] > 0 and table[d][j] / top[k] > 0}
         weak = cal["static_baseline"].weak or rate.below_support
     paths = tuple(lg.source.path for lg in logs)
-    load_envelopes = _load_envelopes(model, replays, keeps, joints, table["static_loading"])
+    load_envelopes = load_envelopes_of(model, replays, keeps, joints,
+                                       table["static_loading"])
     record = CalibrationRecord(
         calibrated=True, margin_rule=cal["adaptive"].rule, margins=margins,
         logs=tuple(LogRecord(lg.source.path, lg.source.sha256, lg.source.torque_source)
@@ -336,60 +336,6 @@ def _rate_thresholds(replays: list[_Replayed], keeps: list[np.ndarray],
         lolo = leave_one_log_out(stats, dts, LOLO_RATES, conf=conf, merge_gap_s=gap,
                                  log_start=starts, groups=groups)
     return cal, lolo
-
-
-def _envelope(replays: list[_Replayed], keeps: list[np.ndarray], joints: tuple[str, ...]
-              ) -> MotionEnvelope | None:
-    """The motion envelope of every log's kept samples (its slow stretches: of every
-    sample after warm-up, read at the model's slow speed; a log whose slow clock was read
-    at another, one replayed without the model, adds its ranges only)."""
-    sources = {rp.motion_source for rp in replays}
-    src = "position_ref" if sources == {"position_ref"} else "position"
-    speed = max((rp.slow_rad_s for rp in replays), default=SLOW_RAD_S)
-    acc = EnvelopeAccumulator(joints, src, slow_rad_s=speed)
-    for rp, keep in zip(replays, keeps, strict=True):
-        if rp.motion is not None and rp.motion_source == src:
-            slow_from = (rp.warmup.end_index if rp.slow_rad_s == speed
-                         else rp.motion.slow.shape[0])
-            acc.add(rp.motion, keep, slow_from)
-    return acc.finish()
-
-
-#: A calibration log's load is another than the model's (for its motion envelope) only where
-#: its torque in that log reaches this share of some joint's loading threshold: a fit's
-#: 2.6 g, 3.7 standard errors from none, turned no joint past 2 % of it; 0.5 kg, 4×.
-LOAD_TORQUE_SHARE = 0.1
-
-
-def _load_envelopes(model: RigidModel | None, replays: list[_Replayed],
-                    keeps: list[np.ndarray], joints: tuple[str, ...],
-                    v_l: dict[str, float]) -> tuple[dict[str, Any], ...] | None:
-    """Per calibration log whose load differs from the model's (:func:`~impactcli.model.
-    payload.loaded_logs`) and turns some joint, over that log's motion, to at least
-    :data:`LOAD_TORQUE_SHARE` of its loading threshold (``v_l``): ``{log, mass_kg,
-    envelope}``, the motion envelope of that log's kept samples alone — the motion the
-    thresholds' rate was measured on under that load; None when none does."""
-    from ..model.payload import carrying, loaded_logs, log_payload
-
-    out = []
-    floor = np.array([LOAD_TORQUE_SHARE * v_l[j] for j in joints])
-    for e in loaded_logs(model):
-        at = [k for k, rp in enumerate(replays) if rp.path == e["log"]]
-        pi = log_payload(model, e["log"])
-        mots = [m for k in at if (m := replays[k].motion) is not None]
-        if pi is None or not mots or model is None:
-            continue
-        heavy = carrying(model, pi)
-        turns = max(np.max(np.abs(heavy.predict(m.position, m.velocity, m.acceleration)
-                                  - model.predict(m.position, m.velocity, m.acceleration)),
-                           axis=0) for m in mots)
-        if not np.any(turns >= floor):
-            continue
-        env = _envelope([replays[k] for k in at], [keeps[k] for k in at], joints)
-        if env is not None:
-            out.append({"log": e["log"], "mass_kg": float(e["values"]["m"]),
-                        "envelope": env.to_dict()})
-    return tuple(out) or None
 
 
 def rate_record(cal: RateCalibration, joints: Sequence[str], lolo: Sequence[LoloRow],

@@ -469,26 +469,27 @@ def unseen_loads(where: str, model: RigidModel | None, changes: Any) -> str | No
             "calibrate with a log that carries each load")
 
 
-def start_as_log(plan: Any) -> str | None:
-    """The calibration log whose load the log starts with (its weighing used it), else
-    None (the model's own load, or none weighed)."""
-    start = getattr(plan, "start_load", None)
-    return start.as_log if start is not None and start.verdict == "used" else None
-
-
-def load_motion(where: str, envelope: Any, incidents: list[Any], start_index: int,
-                spans: list[tuple[float, float, str]]) -> list[Any]:
+def load_motion(where: str, plan: Any, envelope: Any, incidents: list[Any],
+                start_index: int, changes: Any, t_end: float) -> list[Any]:
     """The incidents marked where the arm carried a calibration log's load on motion that
-    log did not cover (:func:`impactcli.detect.load_motion.mark_load_motion`; ``envelope``:
-    the :class:`~impactcli.detect.envelope.EnvelopeCheck` with its ``loads``, finished
-    from ``start_index``, the warm-up's end), warned of once with their count."""
-    from ..detect.load_motion import mark_load_motion
+    log's load did not cover (:func:`impactcli.detect.load_motion.mark_load_motion`: the
+    load the log starts with, when its weighing used one, and after each payload change
+    (``changes``) up to ``t_end``; ``envelope``: the
+    :class:`~impactcli.detect.envelope.EnvelopeCheck` with its ``loads``, finished from
+    ``start_index``, the warm-up's end), warned of once with their count."""
+    from ..detect.load_motion import carried_spans, mark_load_motion
 
+    start = getattr(plan, "start_load", None)
+    carried = ((start.as_log, start.mass_kg) if start is not None and start.verdict == "used"
+               else (None, None))
+    masses = {e["log"]: float(e["mass_kg"]) for e, _ in envelope.loads}
+    _, cal = _calibration(plan.model) if plan.model is not None else (None, {})
+    spans = carried_spans(carried, changes,
+                          t_end, masses, [m for log, m in cal.items() if log not in masses])
     if not spans:
         return incidents
     shares = {e["log"]: check.finish(start_index) for e, check in envelope.loads}
-    masses = {e["log"]: float(e["mass_kg"]) for e, _ in envelope.loads}
-    marked = mark_load_motion(incidents, spans, shares, masses)
+    marked = mark_load_motion(incidents, spans, shares)
     n = sum(1 for i in marked if i.load_motion is not None)
     if n:
         logs = "; ".join(sorted({i.load_motion["log"] + "'s" for i in marked

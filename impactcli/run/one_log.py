@@ -67,7 +67,6 @@ from ..detect.incidents import (
     settle_s,
 )
 from ..detect.link_evidence import ResidualNoise
-from ..detect.load_motion import carried_spans
 from ..detect.payload_change import mark_tried
 from ..detect.probe import (
     MAX_STATE_BYTES,
@@ -101,7 +100,6 @@ from .loads import (
     load_motion,
     mark_unseen,
     monitor_for,
-    start_as_log,
     start_unknown,
     unseen_loads,
     unseen_spans,
@@ -414,9 +412,8 @@ def detect_log(reader: LogReader, setup: RunSetup = RunSetup(), *,
                                       if i.outside_envelope and i.number is not None),
                                   posture_text(share.posture), share.note)
         if envelope is not None and envelope.loads:  # a load on motion its log lacked
-            incidents = load_motion(where, envelope, incidents, rp.warmup.end_index,
-                                    carried_spans(start_as_log(plan), changes,
-                                                  scan.duration_s + scan.sample_period_s))
+            incidents = load_motion(where, plan, envelope, incidents, rp.warmup.end_index,
+                                    changes, scan.duration_s + scan.sample_period_s)
         incidents = close_behind(incidents, settle, measured_checked)
         floor = floor_acc.finish(rp.warmup.index, rp.warmup.end_index, joints, ctx.chain,
                                  ctx.index, ctx.chain_cols, ctx.jac)
