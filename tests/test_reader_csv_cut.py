@@ -97,6 +97,25 @@ def test_a_gzip_stream_cut_anywhere_yields_its_complete_lines(tmp_path: Path,
         f.read()  # the file really is cut
 
 
+def test_a_gzip_stream_cut_at_a_line_end_keeps_that_line_and_is_marked(tmp_path: Path,
+                                                                       ) -> None:
+    """Known truth: a gzip stream flushed after line k and cut there decompresses to lines
+    up to k exactly, with no end of stream — the lines after it are lost."""
+    whole, data = _whole(tmp_path)
+    full = read_log(whole)
+    lines = data.split(b"\n")
+    keep = 1200  # the header and 1199 rows
+    z = zlib.compressobj(wbits=31)
+    cut = tmp_path / "cut.csv.gz"
+    cut.write_bytes(z.compress(b"\n".join(lines[:keep]) + b"\n") + z.flush(zlib.Z_SYNC_FLUSH))
+    log, warned = _read_cut(cut)
+    assert log.source.truncated and log.n_samples == keep - 1
+    np.testing.assert_array_equal(log.torque, full.torque[: keep - 1])
+    assert warned[0] == log.source.repairs[0] == (
+        f"{cut}: the file is cut short (its gzip stream ends early, at a line end: the "
+        "recording stopped while writing it?); read the complete lines before the cut")
+
+
 def test_a_cut_gzip_through_detect_is_judged_to_its_cut_and_gated(tmp_path: Path) -> None:
     """A sample log's gzip cut at half: detect warns in one line, the timeline says
     ``input.truncated`` with the duration of the complete lines, and the gate exits 5."""

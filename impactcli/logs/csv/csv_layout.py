@@ -531,9 +531,15 @@ def first_bytes(path: Path, size: int) -> bytes:
 def _drop_cut_line(lay: CsvLayout, text: bytes, stream_cut: bool) -> tuple[bytes, str | None]:
     """The last range's ``text`` without its last line when that line is cut: the file
     (or its gzip stream) ends inside it, with no line end, and it holds fewer fields than
-    the header (a gzip stream that ends early: always) — with the note saying so."""
+    the header (a gzip stream that ends early: always) — with the note saying so. A gzip
+    stream that ends early at a line end keeps its last line and is noted all the same:
+    what followed it is lost."""
     if not text or text.endswith((b"\n", b"\r")):
-        return text, None
+        if not stream_cut:
+            return text, None
+        return text, (f"{lay.where}: the file is cut short (its gzip stream ends early, at "
+                      "a line end: the recording stopped while writing it?); read the "
+                      "complete lines before the cut")
     start = max(text.rfind(b"\n"), text.rfind(b"\r")) + 1
     line = text[start:].decode("utf-8", errors="replace")
     fields = len(next(csv.reader([line], delimiter=lay.delim), [""]))
