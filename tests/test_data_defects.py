@@ -359,7 +359,7 @@ def test_the_time_a_defect_blinds_is_said_and_exact(free: RobotLog, tmp_path: Pa
     (line,) = [ln for ln in out.splitlines() if ln.startswith("blind at data defects of")]
     assert line == (
         f"blind at data defects of log.csv: an alarm starting within {settle:.2g} s after "
-        f"one of its 1 defect is taken for the defect's and not counted, so a contact starting "
+        f"its defect is taken for the defect's and not counted, so a contact starting "
         f"there is missed: {dd['blind_s']:.3g} s of the log after warm-up "
         f"({dd['adaptive_blind_s']:.3g} s for a contact only the adaptive detector sees: its "
         "evaluator remembers a defect 12 s); the detection floor does not hold there"), line
@@ -369,10 +369,30 @@ def test_the_time_a_defect_blinds_is_said_and_exact(free: RobotLog, tmp_path: Pa
     rep = json.loads((tmp_path / "r.json").read_text())
     (item,) = [u for u in rep["logs"][0]["could_not_see"] if u["code"] == "data-defects"]
     assert item["data"]["blind_s"] == dd["blind_s"]
-    assert "a contact starting there was missed" in item["text"]
+    assert "a contact starting there is missed" in item["text"]
     # a clean log says none of it
     code, out, _, doc = _detect(free, tmp_path / "clean")
     assert "data_defects" not in doc and "blind at data defects" not in out
+
+
+def test_a_blind_time_for_the_adaptive_detector_alone_is_said() -> None:
+    """A defect whose settling time ends in warm-up but whose evaluator memory runs past
+    it blinds the adaptive detector alone: said in the report, with the plural right."""
+    from types import SimpleNamespace
+
+    from impactcli.detect.incidents import defect_blind_words
+    from impactcli.outputs.report.unseen import _defects
+
+    dd = {"gaps": 1, "jumps": 1, "settle_s": 0.56, "blind_s": 0.0,
+          "adaptive_settle_s": 12.0, "adaptive_blind_s": 4.5}
+    assert defect_blind_words(dd) == (
+        "an alarm starting within 0.56 s after one of its 2 defects is taken for the "
+        "defect's and not counted, so a contact starting there is missed: 0 s of the log "
+        "after warm-up (4.5 s for a contact only the adaptive detector sees: its evaluator "
+        "remembers a defect 12 s); the detection floor does not hold there")
+    (item,) = _defects(SimpleNamespace(data_defects=dd))  # type: ignore[arg-type]
+    assert item["short"] == "4.5 s at data defects" and item["data"]["adaptive_blind_s"] == 4.5
+    assert _defects(SimpleNamespace(data_defects={**dd, "adaptive_blind_s": 0.0})) == []  # type: ignore[arg-type]
 
 
 @given(spans=st.lists(st.tuples(st.floats(0.0, 20.0), st.floats(0.0, 1.0),

@@ -10,7 +10,12 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from ..detect.events import LONG_EVENT_S
-from ..detect.incidents import baseline_alone_text, blind_text, floor_apart
+from ..detect.incidents import (
+    baseline_alone_text,
+    blind_text,
+    defect_blind_words,
+    floor_apart,
+)
 from ..errors import EXIT_BATCH, EXIT_DETECTED, EXIT_UNJUDGED, Interrupted, one_line
 from ..run.gates import count, gate_notes, shown
 from .options import (
@@ -346,17 +351,6 @@ UNVERIFIED = {
 }
 
 
-def defect_blind_text(blind: dict[str, Any]) -> str:
-    """What a log's data defects hid (a batch row's ``defect_blind``), in words."""
-    alone = (f" ({blind['adaptive_blind_s']:.3g} s for a contact only the adaptive detector "
-             f"sees: its evaluator remembers a defect {blind['adaptive_settle_s']:.3g} s)"
-             if blind["adaptive_blind_s"] > blind["blind_s"] + 1e-9 else "")
-    return (f"an alarm starting within {blind['settle_s']:.2g} s after one of its "
-            f"{count(int(blind['defects']), 'defect')} is taken for the defect's and not "
-            f"counted, so a contact starting there is missed: {blind['blind_s']:.3g} s of the "
-            f"log after warm-up{alone}; the detection floor does not hold there")
-
-
 def _defect_line(name: str, marked: list[DefectIncidentRow]) -> str:
     """The terminal line of the incidents at a data defect (not counted as contacts)."""
     listed = ", ".join(f"{i['t_start']:.3f} s (a {i['kind']} at {i['defect_t_start']:.3f} s)"
@@ -534,8 +528,9 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
     if len(ok) == 1 and one.get("detection_floor_measured"):
         click.echo(f"detection floor of {shown(ok[0].log_path)}, measured{apart}: "
                    f"{one['detection_floor_measured']}")
-    if len(ok) == 1 and (blind := one.get("defect_blind")) and blind["blind_s"] > 0:
-        click.echo(f"blind at data defects of {shown(ok[0].log_path)}: {defect_blind_text(blind)}")
+    if len(ok) == 1 and (blind := one.get("defect_blind")) and blind["adaptive_blind_s"] > 0:
+        click.echo(f"blind at data defects of {shown(ok[0].log_path)}: "
+                   f"{defect_blind_words(blind)}")
     by_column = [o for o in ok if rows[o.log_path]["links"] == "column_order"
                  and (rows[o.log_path]["incident_list"] or loads[o.log_path])]
     if by_column:

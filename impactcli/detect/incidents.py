@@ -668,3 +668,17 @@ def defects_dict(defects: Sequence[DataDefect], settle: float, n_jumps: int,
             **({} if blind is None else {"adaptive_settle_s": blind[0], "blind_s": blind[1],
                                          "adaptive_blind_s": blind[2]}),
             "listed": [d.to_dict() for d in defects[:MAX_LISTED_DEFECTS]]}
+
+
+def defect_blind_words(dd: dict[str, Any]) -> str:
+    """What a log's data defects hid (the timeline's ``data_defects`` with the blind times,
+    or a batch row's ``defect_blind``), in words: the terminal's and the report's."""
+    n = int(dd["defects"]) if "defects" in dd else int(dd["gaps"]) + int(dd["jumps"])
+    after = "after its defect" if n == 1 else f"after one of its {n} defects"
+    alone = (f" ({dd['adaptive_blind_s']:.3g} s for a contact only the adaptive detector "
+             f"sees: its evaluator remembers a defect {dd['adaptive_settle_s']:.3g} s)"
+             if dd["adaptive_blind_s"] > dd["blind_s"] + 1e-9 else "")
+    return (f"an alarm starting within {dd['settle_s']:.2g} s {after} is taken for the "
+            "defect's and not counted, so a contact starting there is missed: "
+            f"{dd['blind_s']:.3g} s of the log after warm-up{alone}; the detection floor "
+            "does not hold there")

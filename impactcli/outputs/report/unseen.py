@@ -22,7 +22,7 @@ from ...config import settings_changed
 from ...detect.envelope import outside_share_text, posture_text
 from ...detect.floor import floor_words
 from ...detect.force import planar_jacobian, smallest_caught_force
-from ...detect.incidents import blind_s, blind_text, floor_apart
+from ...detect.incidents import blind_s, blind_text, defect_blind_words, floor_apart
 from ...types import DetectionResult
 from .common import approx, e, share
 from .samples import Samples
@@ -93,20 +93,15 @@ def _defects(result: DetectionResult) -> list[dict[str, Any]]:
     """The time after the log's data defects where an alarm was taken for a defect's (not
     counted: a contact starting there was missed), else nothing."""
     dd = result.data_defects or {}
-    if not dd.get("blind_s"):
+    if not dd.get("adaptive_blind_s"):  # the adaptive detector's is never the shorter
         return []
     n = int(dd["gaps"]) + int(dd["jumps"])
-    alone = (f" ({dd['adaptive_blind_s']:.3g} s for a contact only the adaptive detector "
-             f"sees: its evaluator remembers a defect {dd['adaptive_settle_s']:.3g} s)"
-             if dd["adaptive_blind_s"] > dd["blind_s"] + 1e-9 else "")
-    return [{"code": "data-defects", "short": f"{dd['blind_s']:.2g} s at data defects",
+    return [{"code": "data-defects",
+             "short": f"{dd['adaptive_blind_s']:.2g} s at data defects",
              "data": {k: dd[k] for k in ("gaps", "jumps", "settle_s", "blind_s",
                                          "adaptive_settle_s", "adaptive_blind_s")},
              "text": (f"Data defects: {n} (gaps in the clock, jumps of the positions no "
-                      f"motion explains); an alarm starting within {dd['settle_s']:.2g} s "
-                      "after one was taken for the defect's and not counted, so a contact "
-                      f"starting there was missed: {dd['blind_s']:.3g} s of the log after "
-                      f"warm-up{alone}. The detection floor does not hold there.")}]
+                      f"motion explains); {defect_blind_words(dd)}.")}]
 
 
 def _load_motion(incidents: list[dict[str, Any]]) -> list[dict[str, Any]]:
