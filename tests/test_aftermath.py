@@ -67,6 +67,7 @@ def test_alarms_while_the_arm_rings_after_a_push_are_its_aftermath() -> None:
 @dataclass(frozen=True)
 class Forced(Inc):
     force_n: float | None = None
+    peak_residual: dict | None = None
 
 
 def test_ringing_that_outlasts_the_measured_span_follows_the_last_marked_alarm() -> None:
@@ -93,9 +94,12 @@ def test_ringing_that_outlasts_the_measured_span_follows_the_last_marked_alarm()
     # a quiet longer than the settling time ends the chain
     late = [*rings[:2], Forced(36.35 + SETTLE + 0.05, 37.0, 9, force_n=5.0)]
     assert aftermath_of([push, *late], stretches, SETTLE)[3] is None
-    # unknown forces do not stop it
-    blind = [dataclasses.replace(x, force_n=None) for x in rings]
-    assert all(m is not None for m in aftermath_of([push, *blind], stretches, SETTLE)[1:])
+    # unknown forces: the peak residuals tell, no larger on any joint than the cause's
+    blind = [dataclasses.replace(x, force_n=None, peak_residual={"elbow": 3.0}) for x in rings]
+    loud = dataclasses.replace(push, peak_residual={"elbow": 3.0})
+    assert all(m is not None for m in aftermath_of([loud, *blind], stretches, SETTLE)[1:])
+    louder = [*blind[:3], dataclasses.replace(blind[3], peak_residual={"elbow": 3.1})]
+    assert aftermath_of([loud, *louder], stretches, SETTLE)[4] is None
     # an alarm that starts while the ring before it is still on follows it too
     overlap = [*rings[:2], Forced(36.50, 36.70, 9, force_n=11.9),
                Forced(36.60, 36.80, 10, force_n=8.0)]  # 36.60: past the span's 36.54
@@ -155,11 +159,24 @@ def test_a_chain_of_weaker_alarms_close_behind_a_push_is_marked_on_timing_alone(
     got = close_behind([push, in_after, rings[1]], SETTLE, True)
     assert got[1].close_behind is None and got[2].close_behind is None
     assert ringing_text(in_after) == "x"
-    # unknown forces do not stop it; the input's order is kept
-    blind = [dataclasses.replace(x, force_n=None) for x in rings]
-    got = close_behind([*reversed(blind), push], SETTLE, True)
+    # unknown forces: the peak residuals tell (no larger on any joint); the input's order
+    # is kept
+    res = {"elbow": 4.0, "shoulder": 1.0}
+    head = dataclasses.replace(push, peak_residual=res)
+    blind = [dataclasses.replace(x, force_n=None, peak_residual={"elbow": 4.0 - k})
+             for k, x in enumerate(rings)]
+    got = close_behind([*reversed(blind), head], SETTLE, True)
     assert got[-1].close_behind is None and all(g.close_behind for g in got[:-1])
-    assert "close behind incident 3 (21.2 N at" in got[-2].close_behind["text"]
+    assert got[-2].close_behind["text"].startswith(
+        "close behind incident 3 (21.2 N at 35.048 s): it began 0.112 s after that alarm "
+        "ended, within the detectors' settling time (0.56 s), and is no stronger (its peak "
+        "residual no larger on any joint: the forces are not both known), so this alarm")
+    # one larger on a joint, or alarming on a joint the chain's first did not, is not
+    up = dataclasses.replace(blind[1], peak_residual={"elbow": 1.0, "shoulder": 1.5})
+    new = dataclasses.replace(blind[1], peak_residual={"wrist": 0.1})
+    for odd in (up, new):
+        got = close_behind([head, blind[0], odd], SETTLE, True)
+        assert got[1].close_behind and got[2].close_behind is None
 
 
 @given(gaps=st.lists(st.floats(0.01, 1.2), min_size=1, max_size=8),

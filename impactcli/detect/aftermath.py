@@ -207,9 +207,21 @@ def aftermath_of(incidents: Sequence[Any], stretches: Sequence[MeasuredStretch],
 
 
 def _no_larger(inc: Any, cause: Any) -> bool:
-    """Whether ``inc``'s force is no larger than ``cause``'s (True when either is unknown)."""
-    a, b = getattr(inc, "force_n", None), getattr(cause, "force_n", None)
-    return a is None or b is None or float(a) <= float(b)
+    """Whether ``inc`` is no stronger than ``cause``: its force no larger where both forces
+    are known (:func:`_by_force`), else its peak residual no larger on any joint it alarmed
+    on (a joint ``cause`` did not alarm on counts as larger)."""
+    if _by_force(inc, cause):
+        return float(inc.force_n) <= float(cause.force_n)
+    mine = getattr(inc, "peak_residual", None) or {}
+    theirs = getattr(cause, "peak_residual", None) or {}
+    return bool(mine) and all(abs(float(v)) <= abs(float(theirs.get(j, 0.0)))
+                              for j, v in mine.items())
+
+
+def _by_force(inc: Any, cause: Any) -> bool:
+    """Whether both incidents' forces are known (else their residuals are compared)."""
+    return (getattr(inc, "force_n", None) is not None
+            and getattr(cause, "force_n", None) is not None)
 
 
 def aftermath_text(mark: dict[str, Any]) -> str:
@@ -242,7 +254,8 @@ def close_behind(incidents: Sequence[Any], settle_s: float, measured_checked: bo
                  ) -> list[Any]:
     """The incidents, each counted one (``number`` set) without an ``aftermath`` mark that
     starts within ``settle_s`` after the end of the counted one before it, its force no larger
-    than the first of that chain's, marked ``close_behind`` (module docstring): ``incident``
+    than the first of that chain's (where a force is unknown: its peak residuals no larger),
+    marked ``close_behind`` (module docstring): ``incident``
     (the chain's first: its number, ``t_start`` [s], ``force_n``), ``after`` (the one it
     follows: its number, ``gap_s`` from that one's end) and ``text``. An aftermath-marked
     incident, one not counted or a stronger one starts a chain anew (or none).
@@ -267,14 +280,15 @@ def close_behind(incidents: Sequence[Any], settle_s: float, measured_checked: bo
         mark = {"incident": head.number, "t_start": float(head.t_start),
                 "force_n": getattr(head, "force_n", None), "after": prev.number,
                 "gap_s": gap, "settle_s": float(settle_s)}
-        out[k] = replace(inc, close_behind={**mark, "text": _close_text(mark,
-                                                                         measured_checked)})
+        out[k] = replace(inc, close_behind={**mark, "text": _close_text(
+            mark, measured_checked, by_force=_by_force(inc, head))})
         prev = inc
     return out
 
 
-def _close_text(mark: dict[str, Any], measured_checked: bool) -> str:
-    """The incident row's caveat for a :func:`close_behind` mark."""
+def _close_text(mark: dict[str, Any], measured_checked: bool, *, by_force: bool = True) -> str:
+    """The incident row's caveat for a :func:`close_behind` mark (``by_force``: both forces
+    known, else its peak residuals were compared)."""
     f = mark.get("force_n")
     first = (f"incident {mark['incident']} ("
              + ("" if f is None else f"{float(f):.3g} N ") + f"at {mark['t_start']:.3f} s)")
@@ -285,7 +299,9 @@ def _close_text(mark: dict[str, Any], measured_checked: bool) -> str:
            "calibration's ranges, so only the timing tells")
     return (f"close behind {first}: it began {mark['gap_s']:.3f} s after {via} ended, "
             f"within the detectors' settling time ({mark['settle_s']:.2f} s), and is no "
-            f"stronger, so this alarm may be that contact's ringing, not a new contact ({why})")
+            + ("stronger" if by_force else "stronger (its peak residual no larger on any "
+               "joint: the forces are not both known)")
+            + f", so this alarm may be that contact's ringing, not a new contact ({why})")
 
 
 def ringing_text(inc: Any) -> str | None:
