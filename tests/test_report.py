@@ -810,5 +810,15 @@ def test_the_alarm_of_a_payload_change_shows_the_mass_not_a_force() -> None:
             "~9.9 N), not a contact force</span>") in p2
     assert "25 N" not in p2 and "quasi-static" not in p2
     assert "≳25 N" in counted and "quasi-static" in counted
+    # a change whose inertia did not show, or whose release took off more than was carried,
+    # is taken for a load but not said to be no contact force
+    for odd, why in (({"inertia": "unseen"}, "its inertia did not show, so the end of a "
+                      "steady press of ~9.9 N down along gravity"),
+                     ({"mass_check": "more than carried"}, "it released more than the log "
+                      "was seen to carry, so its mass cannot be trusted")):
+        html = incident_table_html([row("p2", payload_change=2)], "log1", 0,
+                                   payload_changes=[changes[0], {**changes[1], **odd}])
+        assert "not a contact force" not in html
+        assert f"~9.9 N), taken for a load, not judged a contact: {why}" in html, html
     # without the timeline's payload changes (an older timeline) the row is as before
     assert "≳25 N" in incident_table_html([row("p2", payload_change=2)], "log1", 0)
