@@ -188,8 +188,9 @@ def remove_stale_parts(folder: str | os.PathLike[str]) -> list[Path]:
 
 
 #: The temporary folders this tool makes in TMPDIR: ``impactcli-<what>-<pid>-<8 random>``
-#: (:func:`temp_prefix`; ``tempfile.mkdtemp``'s 8 characters).
-_TEMP_NAME = re.compile(r"impactcli-[a-z]+-(?:(\d+)-)?[a-z0-9_]{8}")
+#: (:func:`temp_prefix`; ``tempfile.mkdtemp``'s 8 characters; ``<what>`` may hold hyphens:
+#: ``report-q``).
+_TEMP_NAME = re.compile(r"impactcli-[a-z]+(?:-[a-z]+)*-(?:(\d+)-)?[a-z0-9_]{8}")
 
 
 def temp_prefix(prefix: str) -> str:

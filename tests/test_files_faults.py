@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import errno
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -283,6 +284,17 @@ def test_temporary_folders_of_killed_runs_are_removed_and_said(
     assert not any(d.exists() for d in [*killed, old])
     assert all(d.exists() for d in keep)
     assert files.remove_stale_temp(tmp) == (0, 0)
+    # every prefix the tool makes a temporary folder with is told as a killed run's
+    said_prefixes = set()
+    for src in (Path(files.__file__).parent).rglob("*.py"):
+        said_prefixes |= set(re.findall(r'(?:ColumnFiles|temporary_folder)\("(impactcli-[^"]*)"',
+                                        src.read_text(encoding="utf-8")))
+    assert {"impactcli-report-q-", "impactcli-scan-", "impactcli-url-"} <= said_prefixes
+    made_dead = [tmp / f"{pre}{dead_pid}-a1b2c3d4" for pre in sorted(said_prefixes)]
+    for d in made_dead:
+        d.mkdir()
+    assert files.remove_stale_temp(tmp)[0] == len(made_dead)
+    assert not any(d.exists() for d in made_dead) and all(d.exists() for d in keep)
     # this process's folders carry its id
     with files.temporary_folder("impactcli-url-") as made:
         assert made.name.startswith(f"impactcli-url-{os.getpid()}-") and made.parent == tmp
