@@ -511,3 +511,12 @@ def test_labels_forces_in_another_unit_are_said_against_physics(
                                 "across that factor")
     else:
         assert f"peak_force written in {unit} rather than N (×{factor:g})?" in said[0]
+    # forces the physics checks did not trust (a log whose torque scale is off) say nothing
+    # of the labels' unit: no warning
+    tl = json.loads(pushes["timeline"].read_text())
+    for inc in tl["incidents"]:
+        inc["force_plausible"] = False
+    off = write(pushes["dir"], f"off_scale_{factor:g}.timeline.json", tl)
+    r = CliRunner().invoke(main, ["evaluate", str(off), "--labels", str(lab)])
+    assert r.exit_code == 0, info(r)
+    assert "the incidents' forces are a median" not in r.stderr, r.stderr

@@ -533,12 +533,15 @@ FORCE_UNITS: tuple[tuple[str, float], ...] = (("kN", 1000.0), ("kgf", 9.80665),
 
 def force_unit_note(inc_eval: IncidentEvaluation, least: int = 3) -> str | None:
     """What the labels' forces say against physics, or None: over at least ``least``
-    matched contacts with both forces, the median of the incidents' force over the
-    labelled peak force, when it lies beyond :data:`FORCE_RATIO_PLAUSIBLE` — the labels'
-    forces in another unit (the nearest of :data:`FORCE_UNITS` within 2× named) or
-    another log's labels; the force errors then compare across units."""
+    matched contacts with both forces (the incident's trusted: one the physics checks found
+    implausible, or of a log whose torque scale is off, says nothing of the labels), the
+    median of the incidents' force over the labelled peak force, when it lies beyond
+    :data:`FORCE_RATIO_PLAUSIBLE` — the labels' forces in another unit (the nearest of
+    :data:`FORCE_UNITS` within 2× named) or another log's labels; the force errors then
+    compare across units."""
     ratios = [c.force_n / c.force_label_n for c in inc_eval.contacts
-              if c.force_n is not None and c.force_label_n and c.force_label_n > 0]
+              if c.force_n is not None and c.force_trusted and c.force_label_n
+              and c.force_label_n > 0]
     if len(ratios) < least:
         return None
     med = float(np.median(ratios))

@@ -60,6 +60,7 @@ class _Inc:
     data_defect: bool = False
     candidates: tuple[int, ...] = ()
     resumes: bool = False
+    force_trusted: bool = True
 
 
 def _as_inc(x: Any, warmup_end_s: float, i: int) -> _Inc:
@@ -81,7 +82,7 @@ def _as_inc(x: Any, warmup_end_s: float, i: int) -> _Inc:
                      or get("close_behind") is not None),
                     bool(get("force_at_least", False)), get("data_defect") is not None,
                     tuple(int(c) for c in get("link_candidates") or ()),
-                    get("resumes_load") is not None)
+                    get("resumes_load") is not None, get("force_plausible") is not False)
     except (KeyError, TypeError, ValueError) as err:
         raise LogFormatError(f"incidents[{i}]: missing or bad field: {err}") from None
 
@@ -109,6 +110,9 @@ class IncidentOutcome:
         force_at_least: the incident's force is a lower bound (its ``force_at_least``).
         payload_change: the product's alarms on the contact are held by payload changes'
             alarms only (not counted): the contact was taken for a load.
+        force_trusted: the incident's force passed the physics checks (its
+            ``force_plausible`` is not false: beyond what the arm can exert, or a log whose
+            torque scale is off its description's gravity torque, is not).
     """
 
     label_index: int
@@ -129,6 +133,7 @@ class IncidentOutcome:
     force_at_least: bool = False
     link_candidates: tuple[int, ...] = ()
     payload_change: bool = False
+    force_trusted: bool = True
 
     @property
     def among(self) -> bool:
@@ -463,6 +468,7 @@ def evaluate_incidents(
             force_at_least=ans is not None and ans.force_n is not None and ans.force_at_least,
             link_candidates=() if ans is None else ans.candidates,
             payload_change=status[c_idx] == "counted" and as_load,
+            force_trusted=ans is None or ans.force_trusted,
         ))
     counted_rows = [r for r in rows if r.status == "counted"]
     per_link = {link: _answer_score([r for r in counted_rows if r.link_label == link])
