@@ -33,7 +33,7 @@ Pure functions of arrays; the replay applies them to each stretch of the log nea
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -256,15 +256,21 @@ def mark_resumed(incidents: Sequence[Incident], loads: Sequence[LastingLoad],
 OTHER_DETECTOR = {"static_loading": "adaptive", "adaptive": "static_loading"}
 
 
+def union_length(spans: Iterable[tuple[float, float]], lo: float = -np.inf,
+                 hi: float = np.inf) -> float:
+    """The length [s] of the union of ``spans`` (``(start, end)``, overlapping or not; an
+    empty or reversed one adds nothing) clipped to ``lo`` … ``hi``."""
+    total, end = 0.0, lo
+    for a, b in sorted((max(float(a), lo), min(float(b), hi)) for a, b in spans):
+        if b > max(a, end):
+            total, end = total + (b - max(a, end)), b
+    return total
+
+
 def blind_s(loads: Sequence[dict[str, Any]]) -> float:
     """How long the counted lasting loads (timeline dicts) held their detectors alarming
     [s]: the union of their spans (two detectors' may overlap)."""
-    total, end = 0.0, -np.inf
-    for a, b in sorted((float(x["t_start"]), float(x["t_end"])) for x in loads
-                       if not x.get("in_warmup")):
-        total += max(0.0, b - max(a, end))
-        end = max(end, b)
-    return total
+    return union_length((x["t_start"], x["t_end"]) for x in loads if not x.get("in_warmup"))
 
 
 def blind_text(loads: Sequence[dict[str, Any]], analysed_s: float | None = None, *,
@@ -634,14 +640,8 @@ def defect_blind_s(defects: Sequence[DataDefect], after_s: Sequence[float] | np.
     """How long [s] of ``t0`` … ``t1`` (the log after warm-up) lies within a defect or the
     ``after_s`` (one per defect) that follow it — where :func:`mark_defects` takes an alarm
     that starts for the defect's, not counted: a contact starting there is missed."""
-    spans = sorted((max(d.t_start, t0), min(d.t_end + float(a), t1))
-                   for d, a in zip(defects, after_s, strict=True))
-    total, end = 0.0, t0
-    for a, b in spans:
-        lo = max(a, end)
-        if b > lo:
-            total, end = total + (b - lo), b
-    return total
+    return union_length(((d.t_start, d.t_end + float(a))
+                         for d, a in zip(defects, after_s, strict=True)), t0, t1)
 
 
 def blind_of(defects: Sequence[DataDefect], settle: float, adaptive_settle: float,

@@ -22,12 +22,13 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..detect.incidents import union_length
 from ..errors import ConfigError, ImpactWarning, LabelsError, LogFormatError
 from ..types import DETECTORS, ContactLabel, Event, Labels
 from .incident_scores import IncidentEvaluation, evaluate_incidents
@@ -265,24 +266,6 @@ def with_payload_changes(ev: Evaluation, labels: Labels,
         list(found), list(labelled or ()))})
 
 
-def _union_length(intervals: Iterable[tuple[float, float]], lo: float, hi: float) -> float:
-    """Length of the union of ``intervals`` clipped to ``[lo, hi]`` [s]."""
-    clipped = sorted((max(a, lo), min(b, hi)) for a, b in intervals)
-    total, cur_a, cur_b = 0.0, None, None
-    for a, b in clipped:
-        if b <= a:
-            continue
-        if cur_b is None or a > cur_b:
-            if cur_b is not None and cur_a is not None:
-                total += cur_b - cur_a
-            cur_a, cur_b = a, b
-        else:
-            cur_b = max(cur_b, b)
-    if cur_b is not None and cur_a is not None:
-        total += cur_b - cur_a
-    return total
-
-
 def _match(
     evs: Sequence[ScoredEvent], win_lo: np.ndarray, win_hi: np.ndarray
 ) -> tuple[list[float | None], list[float | None], np.ndarray]:
@@ -420,7 +403,7 @@ def evaluate_events(
     windows = [tol.window(c) for c in contacts]
     win_lo = np.array([w[0] for w in windows], dtype=np.float64)
     win_hi = np.array([w[1] for w in windows], dtype=np.float64)
-    collision_free = max(0.0, duration_s - warmup_end_s) - _union_length(
+    collision_free = max(0.0, duration_s - warmup_end_s) - union_length(
         windows, warmup_end_s, duration_s)
     collision_free = max(0.0, collision_free)
 
