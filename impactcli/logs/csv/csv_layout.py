@@ -469,6 +469,12 @@ def iso_to_ns(arr: Any, where: str, what: str, label: Any) -> np.ndarray:
     return np.asarray(ns.to_numpy(), dtype=np.int64)
 
 
+def gzip_cut(path: Path, err: OSError) -> bool:
+    """Whether pyarrow's error reading ``path`` is a gzip stream that ends early
+    ("Truncated compressed stream"): one read up to its cut, not a failure."""
+    return is_gz(path) and "runcated" in str(err)
+
+
 class _Source:
     """The file's bytes (a ``.gz`` decompressed) read ``block`` at a time; a gzip stream
     that ends early is read up to its cut through Python's gzip (``cut``), where pyarrow's
@@ -485,8 +491,8 @@ class _Source:
         if self._rest is None:
             try:
                 data = self._src.read(block)
-            except OSError as err:  # pyarrow: "Truncated compressed stream"
-                if not (is_gz(self.path) and "runcated" in str(err)):
+            except OSError as err:
+                if not gzip_cut(self.path, err):
                     raise
                 self._rest = self._after(self.read_so_far, block)
                 return self.read(block)

@@ -42,7 +42,7 @@ from .csv_layout import (
     decimal_to_ns,
     first_bytes,
     guarded,
-    is_gz,
+    gzip_cut,
     is_parse_error,
     iso_to_ns,
     numbers,
@@ -322,7 +322,7 @@ def _header_reader(lay: CsvLayout, ropts: Any, popts: Any) -> Any:
         return pacsv.open_csv(lay.path, read_options=ropts, parse_options=popts,
                               convert_options=copts)
     except OSError as err:
-        if not (is_gz(lay.path) and "runcated" in str(err)):
+        if not gzip_cut(lay.path, err):
             raise
     return pacsv.open_csv(pa.BufferReader(first_bytes(lay.path, BLOCK_SIZE)),
                           read_options=ropts, parse_options=popts, convert_options=copts)
