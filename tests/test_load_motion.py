@@ -51,6 +51,8 @@ def test_spans_follow_the_start_and_the_changes_loads() -> None:
     assert carried_spans(("b.csv", 3.0), [Change(20.0, None), Change(40.0, "a.csv")], 60.0,
                          loads, []) == [(0.0, 20.0, "b.csv", 3.0), (40.0, 60.0, "a.csv", 1.0)]
     assert carried_spans((None, None), [], 60.0, loads, []) == []
+    # a load taken as a calibration log's has that log's fitted mass, not the one weighed
+    assert carried_spans(("a.csv", 0.96), [], 60.0, loads, []) == [(0.0, 60.0, "a.csv", 1.0)]
     # a load weighed but not taken as a calibration log's: the nearest in mass, its own mass
     assert carried_spans((None, 0.96), [Change(20.0, None, 2.7), Change(40.0, None, 0.1)],
                          60.0, loads, []) == [(0.0, 20.0, "a.csv", 0.96),
@@ -77,8 +79,8 @@ def test_an_incident_is_marked_only_under_that_logs_load_on_motion_outside_it() 
     assert got[0].load_motion == {
         "log": "a.csv", "mass_kg": 1.0,
         "text": "while the arm carried +1 kg beyond the model's load (taken as a.csv's load) "
-                "on motion that log did not cover: the thresholds' false-alarm rate was not "
-                "measured for that load on such motion"}
+                "on motion no calibration log with that load covered: the thresholds' "
+                "false-alarm rate was not measured for that load on such motion"}
     assert got[1] is incs[1] and got[2] is incs[2] and got[3] is incs[3]
     # a log without a recorded envelope marks nothing
     assert mark_load_motion(incs, [(20.0, 40.0, "b.csv", 1.0)], shares) == incs
@@ -95,7 +97,8 @@ def carried(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
                                  ("ms_pl", "free_multisine", {"payload_kg": 1.0}, 3),
                                  ("p2p_pl", "free_p2p", {"payload_kg": 1.0}, 4),
                                  ("ms_pl2", "free_multisine", {"payload_kg": 1.0}, 5),
-                                 ("p2p_pl6", "free_p2p", {"payload_kg": 1.0}, 6)):
+                                 ("p2p_pl6", "free_p2p", {"payload_kg": 1.0}, 6),
+                                 ("p2p_pl3", "free_p2p", {"payload_kg": 3.0}, 7)):
         res = simulate(scenario(scen, "assist_like", 60.0, robot_seed=7, **kw), seed=seed)
         write_log(res.log, d / f"{name}.csv.gz")
         write_robot(res.robot, d / "robot.json")
@@ -137,7 +140,8 @@ def test_the_loaded_logs_envelope_is_recorded_and_marks_its_load_on_unlike_motio
     assert tl["input"]["payload"]["as_log"] == entry["log"]
     (warned,) = [ln for ln in r.stderr.splitlines() if "(load_motion in the timeline)" in ln]
     assert f"{len(marked)} counted incident(s) came while the arm carried a calibration " \
-           f"log's load ({entry['log']}'s) on motion that log did not cover" in warned
+           f"log's load ({entry['log']}'s) on motion no calibration log with that load " \
+           "covered" in warned
     rows = [ln for ln in r.stdout.splitlines() if "(load_motion in the timeline)" in ln]
     assert len(rows) == sum(1 for i in counted[:20] if "load_motion" in i)  # 20 listed
     # the same load on the loaded log's own kind of motion: no incident at all
@@ -167,6 +171,18 @@ def test_a_load_weighed_apart_from_its_calibration_log_is_linked_by_mass(
                                                                        len(counted))
     assert {i["load_motion"]["log"] for i in marked} == {entry["log"]}
     assert {i["load_motion"]["mass_kg"] for i in marked} == {pay["mass_kg"]}
+
+
+def test_a_load_no_calibration_log_carried_is_linked_to_none(carried: dict[str, Any],
+                                                             ) -> None:
+    """3 kg, where the calibration carried 0 and 1 kg: the nearest calibrated load in mass
+    is 1 kg's log, but the load is one no calibration log carried (``unseen_load_kg``), not
+    that log's: no incident is said to be under it."""
+    _, tl = _detect(carried["dir"], "p2p_pl3")
+    assert tl["input"]["payload"]["mass_kg"] == pytest.approx(3.0, rel=0.1)
+    counted = [i for i in tl["incidents"] if i["number"] is not None]
+    assert counted and all(i.get("unseen_load_kg") for i in counted)
+    assert not [i for i in counted if "load_motion" in i]
 
 
 def test_logs_with_one_load_share_the_union_of_their_envelopes(

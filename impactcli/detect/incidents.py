@@ -108,7 +108,7 @@ class Incident:
         ``close_behind`` only when it starts, no stronger, within the detectors' settling
         time after a counted one and no aftermath tells (:func:`~impactcli.detect.aftermath.
         close_behind`), ``load_motion`` only when it starts while the arm carried a
-        calibration log's load on motion that log did not cover
+        calibration log's load on motion no calibration log with that load covered
         (:func:`impactcli.detect.load_motion.mark_load_motion`),
         ``unseen_load_kg`` only when it starts while the arm carried a load no calibration
         log carried (:func:`impactcli.run.loads.unseen_spans`), ``velocity_disagrees`` only
@@ -670,9 +670,12 @@ def defects_dict(defects: Sequence[DataDefect], settle: float, n_jumps: int,
             "listed": [d.to_dict() for d in defects[:MAX_LISTED_DEFECTS]]}
 
 
-def defect_blind_words(dd: dict[str, Any]) -> str:
+def defect_blind_words(dd: dict[str, Any]) -> str | None:
     """What a log's data defects hid (the timeline's ``data_defects`` with the blind times,
-    or a batch row's ``defect_blind``), in words: the terminal's and the report's."""
+    or a batch row's ``defect_blind``), in words: the terminal's and the report's; None
+    when they hid nothing (the adaptive detector's blind time, never the shorter, is 0)."""
+    if not dd.get("adaptive_blind_s"):
+        return None
     n = int(dd["defects"]) if "defects" in dd else int(dd["gaps"]) + int(dd["jumps"])
     after = "after its defect" if n == 1 else f"after one of its {n} defects"
     alone = (f" ({dd['adaptive_blind_s']:.3g} s for a contact only the adaptive detector "

@@ -1,4 +1,4 @@
-"""A carried load on motion its calibration log did not cover.
+"""A carried load on motion no calibration log with that load covered.
 
 The thresholds' false-alarm rate holds for motion like the calibration logs' (the motion
 envelope, :mod:`impactcli.detect.envelope`). With logs that carried different loads, the
@@ -71,7 +71,9 @@ def mark_load_motion(incidents: Sequence[Any], spans: Sequence[tuple[float, floa
     """The incidents (frozen dataclasses with a ``load_motion`` field), each counted one
     that starts in a span of :func:`carried_spans` and touches motion outside that log's
     envelope (``shares``: log → its :class:`~impactcli.detect.envelope.EnvelopeShare`)
-    marked ``{log, mass_kg, text}`` (the span's mass, beyond the model's load)."""
+    marked ``{log, mass_kg, text}`` (the span's mass, beyond the model's load: the
+    calibration log's fitted load when the weighing took it as that log's, else the mass
+    weighed in the log)."""
     out = []
     for inc in incidents:
         hit = next(((log, kg) for a, z, log, kg in spans if a <= inc.t_start < z
@@ -84,7 +86,7 @@ def mark_load_motion(incidents: Sequence[Any], spans: Sequence[tuple[float, floa
         out.append(dataclasses.replace(inc, load_motion={
             "log": log, "mass_kg": kg,
             "text": (f"while the arm carried {kg:+.3g} kg beyond the model's load "
-                     f"(taken as {log}'s load) on motion that log did not cover: the "
-                     "thresholds' false-alarm rate was not measured for that load on such "
-                     "motion")}))
+                     f"(taken as {log}'s load) on motion no calibration log with that load "
+                     "covered: the thresholds' false-alarm rate was not measured for that "
+                     "load on such motion")}))
     return out

@@ -49,7 +49,8 @@ def load_envelopes_of(model: RigidModel | None, replays: Sequence[Any],
                       keeps: Sequence[np.ndarray], joints: tuple[str, ...],
                       v_l: dict[str, float]) -> tuple[dict[str, Any], ...] | None:
     """Per calibration log whose load differs from the model's (:func:`~impactcli.model.
-    payload.loaded_logs`) and turns some joint, over that log's motion, to at least
+    payload.loaded_logs`) and whose mass and first moments turn some joint, over that log's
+    motion, to at least
     :data:`LOAD_TORQUE_SHARE` of its loading threshold (``v_l``): ``{log, mass_kg,
     envelope}``, the motion envelope of the kept samples of every calibration log whose
     load is alike (the difference of their mass and centre of mass turns no joint so far
@@ -79,7 +80,7 @@ def load_envelopes_of(model: RigidModel | None, replays: Sequence[Any],
     out = []
     for e in loaded_logs(model):
         pi = pis.get(e["log"])
-        if pi is None or not turns(pi, at(e["log"])):
+        if pi is None or not turns(np.where(static, pi, 0.0), at(e["log"])):
             continue
         ks = [k for f, pf in pis.items()
               if f == e["log"] or not turns(np.where(static, pi - pf, 0.0), at(e["log"]) + at(f))

@@ -471,8 +471,9 @@ def unseen_loads(where: str, model: RigidModel | None, changes: Any) -> str | No
 
 def load_motion(where: str, plan: Any, envelope: Any, incidents: list[Any],
                 start_index: int, changes: Any, t_end: float) -> list[Any]:
-    """The incidents marked where the arm carried a calibration log's load on motion that
-    log's load did not cover (:func:`impactcli.detect.load_motion.mark_load_motion`: the
+    """The incidents marked where the arm carried a calibration log's load on motion no
+    calibration log with that load covered (a load :func:`unseen_spans` finds no calibration
+    log carried is none's) (:func:`impactcli.detect.load_motion.mark_load_motion`: the
     load the log starts with, when its weighing used one, and after each payload change
     (``changes``) up to ``t_end``; ``envelope``: the
     :class:`~impactcli.detect.envelope.EnvelopeCheck` with its ``loads``, finished from
@@ -484,8 +485,10 @@ def load_motion(where: str, plan: Any, envelope: Any, incidents: list[Any],
                else (None, None))
     masses = {e["log"]: float(e["mass_kg"]) for e, _ in envelope.loads}
     _, cal = _calibration(plan.model) if plan.model is not None else (None, {})
-    spans = carried_spans(carried, changes,
-                          t_end, masses, [m for log, m in cal.items() if log not in masses])
+    unseen = {t for t, _, _ in unseen_spans(plan.model, start, changes, t_end)}
+    spans = [s for s in carried_spans(carried, changes, t_end, masses,
+                                      [m for log, m in cal.items() if log not in masses])
+             if s[0] not in unseen]  # a load no calibration log carried is not one's
     if not spans:
         return incidents
     shares = {e["log"]: check.finish(start_index) for e, check in envelope.loads}
@@ -495,8 +498,8 @@ def load_motion(where: str, plan: Any, envelope: Any, incidents: list[Any],
         logs = "; ".join(sorted({i.load_motion["log"] + "'s" for i in marked
                                  if i.load_motion is not None}))
         warnings.warn(f"{where}: {n} counted incident(s) came while the arm carried a "
-                      f"calibration log's load ({logs}) on motion "
-                      "that log did not cover: the thresholds' false-alarm rate was measured "
-                      "for that load on that log's motion only (load_motion in the timeline)",
+                      f"calibration log's load ({logs}) on motion no calibration log with "
+                      "that load covered: the thresholds' false-alarm rate was measured for "
+                      "that load on those logs' motion only (load_motion in the timeline)",
                       ImpactWarning, stacklevel=2)
     return marked

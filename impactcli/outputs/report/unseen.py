@@ -93,7 +93,7 @@ def _defects(result: DetectionResult) -> list[dict[str, Any]]:
     """The time after the log's data defects where an alarm was taken for a defect's (not
     counted: a contact starting there was missed), else nothing."""
     dd = result.data_defects or {}
-    if not dd.get("adaptive_blind_s"):  # the adaptive detector's is never the shorter
+    if (words := defect_blind_words(dd)) is None:
         return []
     n = int(dd["gaps"]) + int(dd["jumps"])
     return [{"code": "data-defects",
@@ -101,12 +101,12 @@ def _defects(result: DetectionResult) -> list[dict[str, Any]]:
              "data": {k: dd[k] for k in ("gaps", "jumps", "settle_s", "blind_s",
                                          "adaptive_settle_s", "adaptive_blind_s")},
              "text": (f"Data defects: {n} (gaps in the clock, jumps of the positions no "
-                      f"motion explains); {defect_blind_words(dd)}.")}]
+                      f"motion explains); {words}.")}]
 
 
 def _load_motion(incidents: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """The counted incidents that came while the arm carried a calibration log's load on
-    motion that log did not cover (``load_motion``), else nothing."""
+    motion no calibration log with that load covered (``load_motion``), else nothing."""
     there = [i for i in incidents if i.get("load_motion") and i.get("number")]
     if not there:
         return []
@@ -115,9 +115,9 @@ def _load_motion(incidents: list[dict[str, Any]]) -> list[dict[str, Any]]:
              "data": {"incidents": len(there), "logs": logs},
              "text": (f"A load on unlike motion: {len(there)} counted incident(s) came while "
                       f"the arm carried a calibration log's load ({'; '.join(logs)}) on "
-                      "motion that log did not cover; the thresholds' false-alarm rate was "
-                      "measured for that load on that log's motion only, so how many of them "
-                      "are contacts is not known.")}]
+                      "motion no calibration log with that load covered; the thresholds' "
+                      "false-alarm rate was measured for that load on those logs' motion "
+                      "only, so how many of them are contacts is not known.")}]
 
 
 def _left_out(result: DetectionResult, chain: tuple[str, ...]) -> dict[str, Any]:
