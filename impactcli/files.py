@@ -188,9 +188,11 @@ def remove_stale_parts(folder: str | os.PathLike[str]) -> list[Path]:
 
 
 #: The temporary folders this tool makes in TMPDIR: ``impactcli-<what>-<pid>-<8 random>``
-#: (:func:`temp_prefix`; ``tempfile.mkdtemp``'s 8 characters; ``<what>`` may hold hyphens:
-#: ``report-q``).
-_TEMP_NAME = re.compile(r"impactcli-[a-z]+(?:-[a-z]+)*-(?:(\d+)-)?[a-z0-9_]{8}")
+#: (:func:`temp_prefix`; ``tempfile.mkdtemp``'s 8 characters). ``<what>`` holds a hyphen
+#: (``report-q``) only in names with a process id: older versions made none such, and
+#: ``impactcli-release-notes-20240101`` is no folder of ours.
+_TEMP_NAME = re.compile(r"impactcli-(?:[a-z]+-(?:(\d+)-)?|[a-z]+(?:-[a-z]+)+-(\d+)-)"
+                        r"[a-z0-9_]{8}")
 
 
 def temp_prefix(prefix: str) -> str:
@@ -214,9 +216,10 @@ def remove_stale_temp(folder: str | os.PathLike[str] | None = None) -> tuple[int
     now = time.time()
     for p in names:
         m = _TEMP_NAME.fullmatch(p.name)
+        pid = None if m is None else (m[1] or m[2])
         try:
             if m is None or p.is_symlink() or not p.is_dir() or (
-                    process_running(int(m[1])) if m[1] is not None
+                    process_running(int(pid)) if pid is not None
                     else now - p.stat().st_mtime <= LEGACY_PART_AGE_S):
                 continue
         except OSError:  # gone meanwhile

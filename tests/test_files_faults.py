@@ -273,9 +273,11 @@ def test_temporary_folders_of_killed_runs_are_removed_and_said(
     keep = [tmp / f"impactcli-scan-{os.getpid()}-abcdefgh",  # this (running) process's
             tmp / "impactcli-islands-k3j4h5g6",            # an older version's, just made
             tmp / f"impactcli-scan-{dead_pid}-abc",         # not a name of ours
+            tmp / "impactcli-release-notes-20240101",       # nor this (hyphens, no pid)
             tmp / "other-tool-xyz"]
     for d in keep:
         d.mkdir()
+    os.utime(keep[-2], (0, 0))  # old enough to go, were it ours
     code, _, err = cli("inspect", str(LOG))
     assert code == 0, err
     said = [ln for ln in err.splitlines() if "temporary folder" in ln]
