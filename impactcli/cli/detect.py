@@ -528,9 +528,8 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
     if len(ok) == 1 and one.get("detection_floor_measured"):
         click.echo(f"detection floor of {shown(ok[0].log_path)}, measured{apart}: "
                    f"{one['detection_floor_measured']}")
-    if len(ok) == 1 and (blind := one.get("defect_blind")) and blind["adaptive_blind_s"] > 0:
-        click.echo(f"blind at data defects of {shown(ok[0].log_path)}: "
-                   f"{defect_blind_words(blind)}")
+    if len(ok) == 1 and (blind := defect_blind_words(one.get("defect_blind") or {})):
+        click.echo(f"blind at data defects of {shown(ok[0].log_path)}: {blind}")
     by_column = [o for o in ok if rows[o.log_path]["links"] == "column_order"
                  and (rows[o.log_path]["incident_list"] or loads[o.log_path])]
     if by_column:
