@@ -819,6 +819,6 @@ def test_the_alarm_of_a_payload_change_shows_the_mass_not_a_force() -> None:
         html = incident_table_html([row("p2", payload_change=2)], "log1", 0,
                                    payload_changes=[changes[0], {**changes[1], **odd}])
         assert "not a contact force" not in html
-        assert f"~9.9 N), taken for a load, not judged a contact: {why}" in html, html
+        assert f"~9.9 N), not told from a contact: {why}" in html, html
     # without the timeline's payload changes (an older timeline) the row is as before
     assert "≳25 N" in incident_table_html([row("p2", payload_change=2)], "log1", 0)

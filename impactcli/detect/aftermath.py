@@ -32,8 +32,9 @@ of its ranges, by construction — but they date the disturbance a contact leave
 - an incident that starts after that incident ended, while the span lasts or within
   ``settle_s`` after it, is in the first one's *aftermath*;
 - so is one that starts within ``settle_s`` after the end of an incident already in that
-  aftermath, when its force is no larger than the first one's (where both are known): the
-  detectors still showed the ringing that raised the one before (``follows``: its number).
+  aftermath, when it is no stronger than the first one (its force no larger where both are
+  known, else its peak residual no larger on any joint it alarmed on): the detectors still
+  showed the ringing that raised the one before (``follows``: its number).
   A trial's 30 N push rang as five alarms 0.38 s apart; the measured motion was back in
   its ranges before the last, which read as a new 12 N contact.
 

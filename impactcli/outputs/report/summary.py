@@ -444,7 +444,7 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
                      f'{"picked" if change["mass_kg"] > 0 else "released"} from '
                      f'{change["t_start"]:.3f} s (its weight ~{press_force_n(change):.2g} N), '
                      + ("not a contact force" if (press := press_text(change)) is None else
-                        f"taken for a load, not judged a contact: {e(press)}") + "</span>")
+                        f"not told from a contact: {e(press)}") + "</span>")
         if r.get("force_n") is None and str(r.get("force_method") or "").startswith(
                 FORCE_NOT_STATED):  # why not: the physics checks left it unstated
             force += f' <span class="note">{e(r["force_method"])}</span>'
