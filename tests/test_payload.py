@@ -485,6 +485,18 @@ def test_a_pick_and_a_release_are_payload_changes_not_contacts(
     assert not [i for i in counted if "payload_test" in i]
     for p in carrying:
         assert any(p.start - 0.02 <= i["t_start"] <= p.end + 0.25 for i in counted), p
+    # the report's table row and plot caption of a change's alarm both give its mass, not
+    # the force its alarm reads as (a trial's caption said "≳15 N, quasi-static" for P1)
+    rep = CliRunner().invoke(main, ["report", str(tmp_path / "out" / f"{log.name[:-7]}"
+                                                  ".timeline.json"), "-o",
+                                    str(tmp_path / "r.html")])
+    assert rep.exit_code == 0, rep.output
+    html = (tmp_path / "r.html").read_text("utf-8")
+    for k, c in enumerate(ch, 1):
+        (cap,) = re.findall(rf"<figcaption><b>Incident p{k}</b>(.*?)</figcaption>", html)
+        assert f"{c['mass_kg']:+.3g} kg, a load " in cap and "no contact type" in cap, cap
+        assert " N, " not in cap.split(" kg, a load ")[0], cap
+        assert f"the alarm of payload change P{k}" in cap
 
 
 def test_a_push_while_the_load_is_released_is_counted_not_hidden_in_the_change(

@@ -16,6 +16,7 @@ import numpy as np
 
 from ...detect.force import force_mark
 from ...detect.incidents import group_events, link_words
+from ...detect.payload_words import press_force_n, press_text
 from ...types import DETECTORS, DetectionResult, Labels
 from .. import svgplot
 from .common import (
@@ -33,6 +34,7 @@ from .common import (
     e,
 )
 from .samples import Samples, Stretch
+from .summary import change_of
 
 BAND_EVENT = "#f3b6ae"
 ALARM_ZONE = "#fdf1ef"
@@ -122,6 +124,15 @@ def incident_figures(result: DetectionResult, incidents: Sequence[dict[str, Any]
         joints = _plot_joints(result, inc.get("joints") or [], inc.get("link"), chain)
         how = (f"{force_mark(inc)}{approx(inc['force_n'])} N" if inc.get("force_n") is not None
                else "no force estimate")
+        kind = CONTACT_TEXT.get(inc.get("contact") or "unknown", inc.get("contact"))
+        change = change_of(inc, result.payload_changes or ())
+        if change is not None:  # a load, not a contact: as the incident table says it
+            how = (f"{change['mass_kg']:+.3g} kg, a load "
+                   f"{'picked' if change['mass_kg'] > 0 else 'released'} (its weight "
+                   f"~{press_force_n(change):.2g} N), "
+                   + ("not a contact force" if press_text(change) is None
+                      else "not told from a contact"))
+            kind = "no contact type"
         where = link_words(inc.get("link"), inc.get("link_candidates"))
         evs = ", ".join(f"#{k + 1}" for k in inc.get("events") or [])
         fig = _figure(result, samples, joints, inc["t_start"] - EVENT_WINDOW_S,
@@ -129,8 +140,7 @@ def incident_figures(result: DetectionResult, incidents: Sequence[dict[str, Any]
         p.append(
             f'<figure id="{anchor}-inc{inc["label"]}"><figcaption><b>Incident '
             f'{inc["label"]}</b>: {inc["t_start"]:.3f}–{inc["t_end"]:.3f} s, {e(where)}, '
-            f'{e(how)}, '
-            f'{e(CONTACT_TEXT.get(inc.get("contact") or "unknown", inc.get("contact")))}'
+            f'{e(how)}, {e(kind)}'
             + (", in warm-up (not counted)" if inc.get("in_warmup") else
                f", the alarm of payload change P{inc['payload_change']} (not counted)"
                if inc.get("payload_change") else

@@ -390,10 +390,10 @@ def _torques(inc: dict[str, Any]) -> str:
     return " · ".join(f"{e(j)} {approx(v)}" for j, v in pr.items()) + " N·m" if pr else "—"
 
 
-def _change_of(row: dict[str, Any], changes: Sequence[dict[str, Any]]
+def change_of(row: dict[str, Any], changes: Sequence[dict[str, Any]]
                ) -> dict[str, Any] | None:
-    """The payload change (the timeline's, 1-based ``payload_change``) a row is the alarm
-    of, or None."""
+    """The payload change (the timeline's, 1-based ``payload_change``) a row (or incident)
+    is the alarm of, or None."""
     k = row.get("payload_change")
     if not k or not 0 < int(k) <= len(changes):
         return None
@@ -438,7 +438,7 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
             when += f' <span class="note">{e(r["load_motion"]["text"])}</span>'
         force = (f'<b>{force_mark(r)}{approx(r["force_n"])} N</b>' if r.get("force_n") is not None
                  else '<span class="muted">no force estimate</span>')
-        change = _change_of(r, payload_changes)
+        change = change_of(r, payload_changes)
         if change is not None:  # a load, not a contact: its mass, not the alarm's "force"
             force = (f'<b>{change["mass_kg"]:+.3g} kg</b> <span class="note">a load '
                      f'{"picked" if change["mass_kg"] > 0 else "released"} from '
