@@ -147,3 +147,20 @@ def test_simulate_into_a_folder_it_cannot_make_is_a_usage_error(tmp_path):
         f"impactcli: error: cannot write {blocker / 'x' / 'free_p2p.csv.gz'}: a part of its "
         "folder path is a file, not a folder"], msg
     assert "Traceback" not in res.output and sorted(tmp_path.iterdir()) == [blocker]
+
+
+def test_simulate_says_the_load_it_carried(tmp_path):
+    """A trial could not score the start load: the summary line names it and the changes,
+    as the scenario sets them."""
+    res, msg = _run(["simulate", "--scenario", "pick_and_place", "--duration", "12",
+                     "--payload-kg", "0.5", "-o", str(tmp_path)])
+    assert res.exit_code == 0, msg
+    sc = scenario("pick_and_place", "assist_like", 12.0, payload_kg=0.5)
+    (pick, kg), (place, after) = sc.payload_changes
+    assert res.stdout.splitlines()[0].endswith(
+        f", carrying 0.5 kg at the flange from the start; the load set to {kg:g} kg at "
+        f"{pick:.3f} s, {after:g} kg at {place:.3f} s"), res.stdout
+    res, msg = _run(["simulate", "--scenario", "pushes", "--duration", "5", "-o",
+                     str(tmp_path / "p")])
+    assert res.exit_code == 0, msg
+    assert "carrying" not in res.stdout and "the load set" not in res.stdout

@@ -91,9 +91,14 @@ def simulate_cmd(arm: str, scenario_name: str, duration: float | None, seed: int
     write_labels(result.labels, labels_path)
     write_robot(result.robot, robot_path)
     written += [labels_path, robot_path]
+    load = (f", carrying {sc.payload_kg:g} kg at the flange from the start"
+            if sc.payload_kg else "")
+    moves = ("" if not sc.payload_changes else "; the load set to " + ", ".join(
+        f"{kg:g} kg at {t:.3f} s" for t, kg in sc.payload_changes))
     click.echo(
         f"simulated {arm}/{scenario_name}: {result.log.duration_s:.1f} s at "
         f"{result.log.sample_rate_hz:.0f} Hz, {len(result.labels.events)} labelled contact(s)"
+        f"{load}{moves}"
     )
     for p in written:
         click.echo(str(p))
