@@ -570,3 +570,30 @@ def test_every_log_left_out_above_its_bound_is_named() -> None:
     assert text.startswith("but 2 of the calibration logs, left out, false-alarmed above "
                            "the others' bound (p2p.mcap: 1.2e+03/h against 30/h")
     assert "; also tri.csv)" in text and "ms.csv" not in text
+
+
+def test_a_left_out_log_with_a_load_of_its_own_is_said_to_carry_it() -> None:
+    """A trial's calibration with one 2 kg log among unloaded ones: left out, it false-
+    alarmed at 2.85e3/h against 30/h, which calibrate put down to "its motion, or a load";
+    every log moved alike, so the load is named first — only where no other calibration
+    log carried a load within a quarter of it."""
+    from impactcli.cli.calibrate import _lone_loads, rate_lines
+
+    rows = [{"log": f"d/{n}.csv.gz", "minutes": 0.93, "per_hour": 30.0, "observed": k,
+             "predicted_per_hour": 5.0, "upper_per_hour": 30.0}
+            for n, k in (("free", 0), ("heavy", 44))]
+    rate = {"confidence": 0.9, "per_hour": 1.0, "predicted_per_hour": 1.9,
+            "upper_per_hour": 6.9, "free_minutes": 1.9, "channels": {},
+            "leave_one_log_out": rows}
+    lone = _lone_loads([{"log": "d/heavy.csv.gz", "mass_kg": 1.99}])
+    assert lone == {"heavy.csv.gz": 1.99}
+    (line,) = [ln for ln in rate_lines(rate, lone_loads=lone) if "observed above" in ln]
+    assert line.startswith("  heavy.csv.gz: observed above its bound")
+    assert ("what it holds is not in the other logs — its load (+1.99 kg beyond the "
+            "model's, carried by no other calibration log: the model's error under it is "
+            "not the others'), or its motion — and thresholds made without it") in line
+    (plain,) = [ln for ln in rate_lines(rate) if "observed above" in ln]
+    assert "its motion, or a load the model fits worse with that motion" in plain
+    # two logs with alike loads (within a quarter): neither load is a lone one
+    assert _lone_loads([{"log": "a.csv", "mass_kg": 1.0}, {"log": "b.csv", "mass_kg": 1.2},
+                        {"log": "c.csv", "mass_kg": 3.0}]) == {"c.csv": 3.0}

@@ -39,7 +39,7 @@ def threshold_lines(out: DetectorConfig) -> list[str]:
                      f"{th.v0[j]:>9.4f}   "
                      + " / ".join("—" if x is None else f"{x:.2f}" for x in m))
     if rate:
-        lines += rate_lines(rate, c.margin_rule)
+        lines += rate_lines(rate, c.margin_rule, _lone_loads(c.load_envelopes or ()))
     env = c.motion_envelope
     if env:
         from ..detect.envelope import MotionEnvelope
@@ -51,10 +51,21 @@ def threshold_lines(out: DetectorConfig) -> list[str]:
     return lines
 
 
-def rate_lines(rate: dict[str, Any], margin_rule: str = "leave-one-out") -> list[str]:
+def _lone_loads(entries: Any) -> dict[str, float]:
+    """The calibration logs (file name → load beyond the model's [kg]) whose load differs
+    from the model's enough to matter (``calibration.load_envelopes``) and from every other
+    such log's by more than a quarter: a load no other calibration log carried."""
+    kg = {Path(str(e["log"])).name: float(e["mass_kg"]) for e in entries}
+    return {n: m for n, m in kg.items()
+            if all(abs(m - o) > 0.25 * max(abs(m), abs(o)) for p, o in kg.items() if p != n)}
+
+
+def rate_lines(rate: dict[str, Any], margin_rule: str = "leave-one-out",
+               lone_loads: dict[str, float] | None = None) -> list[str]:
     """The rate's record as calibrate prints it: totals, one line per joint and detector
     (threshold, fit, predicted rate and bound), the support statement, notes, and the
-    leave-one-log-out rows."""
+    leave-one-log-out rows (``lone_loads``: :func:`_lone_loads`, whose left-out line names
+    the load first)."""
     from ..detect.tail import minutes_text
     from ..detect.tail import per_hour_text as ph
 
@@ -115,10 +126,14 @@ def rate_lines(rate: dict[str, Any], margin_rule: str = "leave-one-out") -> list
                          f"{r['per_hour']:>8g} {r['observed']:>9d} "
                          f"{r['observed'] / hours:>10.3g} {f'{lo:.3g}–{hi:.3g}':>17} "
                          f"{r['predicted_per_hour']:>9.3g} {r['upper_per_hour']:>7.3g}")
+        lone = lone_loads or {}
         lines += [f"  {name}: observed above its bound (the interval's low end {k:.3g}× it): "
-                  "what it holds is not in the other logs — its motion, or a load the "
-                  "model fits worse with that motion — and thresholds made without it "
-                  "false-alarm on such a log"
+                  "what it holds is not in the other logs — "
+                  + (f"its load ({lone[name]:+.3g} kg beyond the model's, carried by no other "
+                     "calibration log: the model's error under it is not the others'), or "
+                     "its motion —" if name in lone else "its motion, or a load the model "
+                     "fits worse with that motion —")
+                  + " and thresholds made without it false-alarm on such a log"
                   for name, k in ((Path(x["log"]).name, x["ratio"])
                                   for x in left_out_above(rate))]
         if not left_out_above(rate):
