@@ -99,7 +99,8 @@ def _incident_line(k: int, inc: IncidentRow, link_width: int = 7,
     if inc.get("outside_envelope"):
         flag += "  outside the calibrated motion (outside_envelope in the timeline)"
     if inc.get("load_motion"):
-        flag += "  its load on motion its calibration log lacked (load_motion in the timeline)"
+        flag += ("  its load on motion no calibration log with it covered (load_motion in "
+                 "the timeline)")
     if unseen_flag and "unseen_load_kg" in inc:  # said once above when all of them are
         flag += "  under a load no calibration log carried (unseen_load_kg in the timeline)"
     if inc.get("velocity_disagrees"):  # the residual there may be the data's
