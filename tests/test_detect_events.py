@@ -71,3 +71,42 @@ def test_alarm_straddling_warmup_end_is_split_and_counted() -> None:
     d = _dec((0, 5, 90))
     ev = extract_events("adaptive", d, np.ones((100, 2)), np.zeros((100, 2)), T, ("a", "b"), 0.5)
     assert [(e.i_start, e.i_end, e.in_warmup) for e in ev] == [(5, 49, True), (50, 90, False)]
+
+
+def test_an_incident_of_alarms_chained_over_ten_seconds_says_contacts_in_it_are_not_apart(
+        ) -> None:
+    """A trial's incident of 28 alarms chained over 17.7 s (each under 10 s, so no lasting
+    load) under a load no calibration log carried held a 30 N push: the terminal's row,
+    the batch row and the report's row say that contacts within it are not told apart."""
+    from types import SimpleNamespace
+
+    from impactcli.cli.detect import _incident_line
+    from impactcli.detect.events import LONG_EVENT_S, chained_text
+    from impactcli.outputs.report.summary import incident_table_html
+    from impactcli.run.batch import _incident_row
+
+    assert chained_text(LONG_EVENT_S - 0.01) is None
+    assert chained_text(17.684) == (
+        "alarms chained over 17.7 s (none 10 s alone): the contacts within it are not told "
+        "apart — a lasting condition (a load no calibration log carried, a model that no "
+        "longer fits?)")
+    inc = SimpleNamespace(t_start=5.604, t_end=23.288, link=2, link_candidates=(2,),
+                          force_n=22.1, contact="quasi_static",
+                          detectors=("adaptive", "static_loading"), force_plausible=True,
+                          force_method="", force_at_least=True, payload_test=None,
+                          outside_envelope=None, aftermath=None, close_behind=None,
+                          load_motion=None, unseen_load_kg=None, resumes_load=None,
+                          velocity_disagrees=None, held_before=None)
+    row = _incident_row(inc)
+    assert row["chained_s"] == 23.288 - 5.604
+    line = _incident_line(2, row)
+    assert line.endswith("  alarms chained over 17.7 s (none 10 s alone): contacts in it not "
+                         "told apart"), line
+    short = _incident_row(SimpleNamespace(**{**vars(inc), "t_end": 15.6}))
+    assert "chained_s" not in short and "chained" not in _incident_line(2, short)
+    html = incident_table_html([{"label": "2", "number": 2, "t_start": 5.604, "t_end": 23.288,
+                                 "duration_s": 17.688, "force_n": 22.1, "link": 2,
+                                 "contact": "quasi_static", "detectors": ["adaptive"],
+                                 "peak_ratio": 3.0, "peak_ratio_detector": "adaptive",
+                                 "peak_residual": {}}], "log1", 0)
+    assert '<span class="bad">alarms chained over 17.7 s (none 10 s alone)' in html

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from ..detect.events import LONG_EVENT_S
+from ..detect.events import LONG_EVENT_S, chained_text
 from ..detect.incidents import (
     baseline_alone_text,
     blind_text,
@@ -94,6 +94,9 @@ def _incident_line(k: int, inc: IncidentRow, link_width: int = 7,
     if inc.get("no_force"):  # up to its colon, or its first comma
         flag += (f"  {inc['no_force'].split(':')[0].split(', more than')[0]} (force_method "
                  "in the timeline)")
+    if "chained_s" in inc:  # up to its colon: "alarms chained over 17.7 s (none 10 s alone)"
+        flag += (f"  {str(chained_text(inc['chained_s'])).split(':')[0]}: contacts in it "
+                 "not told apart")
     if inc.get("payload_test"):  # up to its colon: "a contact beside payload change P2, …"
         flag += f"  {inc['payload_test'].split(':')[0]} (payload_test in the timeline)"
     if inc.get("outside_envelope"):

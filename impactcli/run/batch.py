@@ -37,6 +37,7 @@ from pathlib import Path
 from typing import Any, NotRequired, TypedDict
 
 from ..config import settings_changed
+from ..detect.events import chained_text
 from ..detect.floor import floor_line, payload_floor, probed_line
 from ..detect.force import FORCE_NOT_STATED, scale_untrusted
 from ..detect.incidents import baseline_alone, floor_apart
@@ -104,6 +105,7 @@ class IncidentRow(TypedDict):
     resumes_load: NotRequired[str]
     velocity_disagrees: NotRequired[dict[str, Any]]
     held_before: NotRequired[str]
+    chained_s: NotRequired[float]
 
 
 def _incident_row(i: Any) -> IncidentRow:
@@ -115,6 +117,8 @@ def _incident_row(i: Any) -> IncidentRow:
     row = IncidentRow(t_start=i.t_start, link=i.link, link_candidates=list(i.link_candidates),
                       force_n=i.force_n, contact=i.contact, detectors=list(i.detectors),
                       force_plausible=i.force_plausible)
+    if chained_text(i.t_end - i.t_start) is not None:
+        row["chained_s"] = i.t_end - i.t_start
     if i.payload_test:
         row["payload_test"] = i.payload_test
     if i.outside_envelope:

@@ -20,6 +20,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from ...detect.aftermath import ringing_text
+from ...detect.events import chained_text
 from ...detect.force import (
     AT_LEAST_TEXT,
     BEYOND_LOGGED,
@@ -436,6 +437,8 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
             when += f' <span class="note">{e(r["resumes_load"]["text"])}</span>'
         if r.get("load_motion"):
             when += f' <span class="note">{e(r["load_motion"]["text"])}</span>'
+        if (chained := chained_text(float(r.get("t_end", r["t_start"])) - r["t_start"])):
+            when += f' <span class="bad">{e(chained)}</span>'
         force = (f'<b>{force_mark(r)}{approx(r["force_n"])} N</b>' if r.get("force_n") is not None
                  else '<span class="muted">no force estimate</span>')
         change = change_of(r, payload_changes)
