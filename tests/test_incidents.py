@@ -3,6 +3,7 @@ contact type; end to end on the sample logs against their labels; the CLI's gate
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -391,9 +392,18 @@ def test_a_change_with_a_contact_beside_it_counts_the_alarm_holding_it() -> None
     assert out[0].payload_change == 1 and out[1].payload_change is None
     assert (out[1].t_start, out[1].i_start) == (12.0, 6000)
     # a change no incident holds (its alarm a lasting load): its contact is not counted
-    _, changes = mark_payload_changes(incs, [change(20.0, 23.0, seen)], 0.56)
+    _, changes = mark_payload_changes(incs, [change(20.0, 23.0, dict(seen, t_s=21.0))], 0.56)
     assert changes[0].contact["counted"] is False
     assert "counted" not in held[0].contact
+    # ... unless a counted incident that began long before the change spans its contact
+    # (a trial's 17.7 s incident held it, and P1 said "no incident holds it")
+    inside = dict(seen, i=10700, t_s=21.4)
+    long_one = [alarm(5.6, 23.3)]
+    out, changes = mark_payload_changes(long_one, [change(20.0, 23.0, inside)], 0.56)
+    assert "counted" not in changes[0].contact and out[0].payload_change is None
+    in_warmup = [dataclasses.replace(long_one[0], in_warmup=True)]
+    _, changes = mark_payload_changes(in_warmup, [change(20.0, 23.0, inside)], 0.56)
+    assert changes[0].contact["counted"] is False
 
 
 def test_an_alarm_already_on_at_a_change_s_onset_is_the_change_s() -> None:

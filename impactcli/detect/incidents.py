@@ -469,7 +469,8 @@ def mark_payload_changes(incidents: Sequence[Incident], changes: Sequence[Any],
     type from the contact apart from the load
     (:func:`impactcli.detect.incident_builder.beside`), or None, when the whole alarm's
     stand, said so. A change whose alarm is no incident (a lasting load) counts none: its
-    ``contact`` is marked ``counted: false``, so that no output says it counts.
+    ``contact`` is marked ``counted: false``, so that no output says it counts — unless a
+    counted incident that began before the change spans the contact (it holds it).
 
     Returns:
         the incidents, and the changes (those with a contact no incident holds marked)."""
@@ -490,7 +491,11 @@ def mark_payload_changes(incidents: Sequence[Incident], changes: Sequence[Any],
             t = float(seen["t_s"])
             beside[min(mine, key=lambda n: max(0.0, incidents[n].t_start - t,
                                                t - incidents[n].t_end))] = seen
-    counted = {hits[n] for n in beside}
+    counted = {hits[n] for n in beside} | {  # or within an earlier incident that spans it
+        k for k, c in enumerate(changes, 1) if getattr(c, "contact", None) is not None
+        and any(not i.in_warmup and i.data_defect is None
+                and i.t_start <= float(c.contact["t_s"]) <= i.t_end
+                for n, i in enumerate(incidents) if n not in hits)}
     return ([_from_contact(inc, hits[n], beside[n], None if place is None
                            else place(inc, changes[hits[n] - 1])) if n in beside
              else replace(inc, payload_change=hits[n]) if n in hits else inc
