@@ -68,8 +68,10 @@ def payload_text(score: dict[str, Any]) -> str:
     for a run that did not look for loads (``watched`` false), that it did not."""
     if score.get("watched") is False:
         return (f"payload changes: {score['labelled']} labelled, not scored: this run did "
-                "not look for loads (a calibrated config, a model with kinematics and the "
-                "inverse_dynamics generator on every joint: docs/method.md §5c)")
+                "not look for loads (it takes a calibrated config and a model with "
+                "kinematics whose residual can carry a load — the tool's own, or a "
+                "controller's channel corrected by it; detect said why it could not: "
+                "docs/method.md §5c)")
     rows = [f"{m['found_mass_kg']:+.3g} kg at {m['t_start']:.2f} s for {m['mass_kg']:+.3g} kg "
             f"at {m['t_s']:g} s" + ("" if m["right"] else " (mass off)")
             for m in score["matched"]]
