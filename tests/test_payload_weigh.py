@@ -220,3 +220,34 @@ def test_a_load_in_all_the_motion_kept_before_its_alarm_is_not_dated_at_the_alar
     own = change(1.0)
     assert abs(own["t_start"] - 5.0) < 0.01 and "carried_since_s" not in own
     assert "NOT a step" not in change_text(own)
+
+
+def test_a_load_beyond_the_described_last_link_is_said() -> None:
+    """A trial's robot file with its last link 0.25 m (the arm's: 0.4 m) fitted its 1 kg
+    at mx 0.4 kg·m — a centre of mass 0.15 m beyond the described flange — and nothing
+    said so. Known truth: a point mass m at c along the last link has mx = m·c."""
+    from types import SimpleNamespace
+
+    from impactcli.model.payload import describe
+
+    def model(length: float, logs: list[tuple[str, float, float]]) -> SimpleNamespace:
+        rec = {"relative_to": "a.csv", "parameters": ["m", "mx", "my", "J"],
+               "logs": [{"log": n, "values": {"m": m, "mx": m * c, "my": 0.0, "J": m * c * c},
+                         "se": {"m": 0.0005, "mx": 0.0005, "my": 0.0005, "J": 0.001}}
+                        for n, m, c in logs]}
+        return SimpleNamespace(kind="planar", structure={"link_lengths": [0.4, length]},
+                               fit={"payloads": rec})
+
+    logs = [("a.csv", 0.0, 0.0), ("b.csv", 1.0, 0.4), ("c.csv", 0.0015, -0.036)]
+    said = [ln for ln in describe(model(0.25, logs)) if "centre of mass" in ln]
+    assert said == ["  b.csv: its load's centre of mass lies 0.4 m along the last link, where "
+                    "the robot description ends that link at 0.25 m: a long tool — or a "
+                    "wrong link length in the description (forces and the loads' effects "
+                    "scale with it)"]
+    # the right length, or a tool within a quarter of it beyond the flange: nothing said;
+    # a 1.5 g "load" (three of its standard errors) has no centre of mass to judge
+    assert not [ln for ln in describe(model(0.4, logs)) if "centre of mass" in ln]
+    assert not [ln for ln in describe(model(0.34, logs)) if "centre of mass" in ln]
+    behind = [("a.csv", 0.0, 0.0), ("b.csv", 1.0, -0.1)]
+    assert [ln.split(":")[0] for ln in describe(model(0.4, behind))
+            if "centre of mass" in ln] == ["  b.csv"]
