@@ -43,3 +43,21 @@ def test_a_clamp_is_not_taken_for_a_release_of_a_load_never_carried(tmp_path: Pa
     last = counted[-1]
     assert "its inertia did not show: a press along gravity" in last["payload_test"]
     assert abs(last["force_n"] - 25.0) < 0.25 * 25.0
+
+
+def test_the_payload_changes_head_says_which_the_gates_cannot_judge() -> None:
+    """A trial's heavy arm: both changes said "its inertia not seen (a steady press along
+    gravity would look the same)" under a head that said they fail no gate, while
+    --fail-on-detect said it could not judge them."""
+    from impactcli.cli.detect import payload_changes_head
+
+    mass = {"mass_kg": 2.0, "mass_se_kg": 0.01, "explained": 0.99, "t_start": 20.0,
+            "t_classified": 23.0, "values": {"m": 2.0}}
+    assert payload_changes_head("a.csv", [mass, mass]) == (
+        "payload changes of a.csv (a load picked or released: not incidents, failing no "
+        "gate; the residual takes the new load from the classification on):")
+    assert payload_changes_head("a.csv", [mass, {**mass, "inertia": "unseen"}]) == (
+        "payload changes of a.csv (a load picked or released: not incidents, 1 of them not "
+        "told from a steady press, which the gates cannot judge (--fail-on-detect: exit 5; "
+        "--fail-on-force N: when its press would pass N); the residual takes the new load "
+        "from the classification on):")

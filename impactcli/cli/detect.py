@@ -144,6 +144,20 @@ def _lasting_line(k: int, x: dict[str, Any]) -> str:
             f"{test}")
 
 
+def payload_changes_head(name: str, changes: list[dict[str, Any]]) -> str:
+    """The line above a log's payload changes: not incidents, failing no gate — or, when
+    some were not told from a steady press (:func:`~impactcli.detect.payload_words.
+    press_text`), how many, which the gates cannot judge."""
+    from ..detect.payload_words import press_text
+
+    doubt = sum(1 for c in changes if press_text(c) is not None)
+    gates = ("failing no gate" if not doubt else
+             f"{doubt} of them not told from a steady press, which the gates cannot judge "
+             "(--fail-on-detect: exit 5; --fail-on-force N: when its press would pass N)")
+    return (f"payload changes of {name} (a load picked or released: not incidents, {gates}; "
+            "the residual takes the new load from the classification on):")
+
+
 def payload_change_line(k: int, c: dict[str, Any]) -> str:
     """``  P1   20.092 s  +0.994 kg (s.e. ≥ 0.004 kg; 99.7 % of the step a mass, …),
     classified at 23.092 s; now carrying …``."""
@@ -549,9 +563,7 @@ def _echo_rows(ok: list[JobOutcome], rows: dict[str, SummaryRow], out_dir: str,
                    "joint to its threshold at the log's median moment); a lower bound, not a "
                    "promise that a heavier one was seen")
     if len(ok) == 1 and one["payload_change_list"]:
-        click.echo(f"payload changes of {shown(ok[0].log_path)} (a load picked or released: "
-                   "not incidents, failing no gate; the residual takes the new load from the "
-                   "classification on):")
+        click.echo(payload_changes_head(shown(ok[0].log_path), one["payload_change_list"]))
         for k, c in enumerate(one["payload_change_list"], 1):
             click.echo(payload_change_line(k, c))
     if len(ok) == 1 and loads[ok[0].log_path]:
