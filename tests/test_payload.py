@@ -24,7 +24,7 @@ import pytest
 from click.testing import CliRunner
 
 from impactcli.cli import main
-from impactcli.model import IdentifyOptions, RigidModel, payload, structures
+from impactcli.model import IdentifyOptions, RigidModel, payload, payload_table, structures
 from impactcli.model.identification import prepare_rows
 from impactcli.model.selection import stacked
 
@@ -1259,10 +1259,10 @@ def test_loads_within_noise_of_the_lightest_are_not_called_different() -> None:
             {"log": lg, "values": {"m": m}, "se": {"m": se}} for lg, m, se in logs]}})
 
     light, near = ("a", 0.0, 0.004), ("b", 0.00484, 0.0047)
-    said = payload.differ_warning(model(light, near, ("c", 1.2, 0.003)))
+    said = payload_table.differ_warning(model(light, near, ("c", 1.2, 0.003)))
     assert said is not None and "(c +1.2 kg beyond a; b within three standard errors of " \
         "it)" in said, said
-    assert payload.differ_warning(model(light, near)) is None
+    assert payload_table.differ_warning(model(light, near)) is None
 
 
 

@@ -228,7 +228,7 @@ def test_a_load_beyond_the_described_last_link_is_said() -> None:
     said so. Known truth: a point mass m at c along the last link has mx = m·c."""
     from types import SimpleNamespace
 
-    from impactcli.model.payload import describe
+    from impactcli.model.payload_table import describe
 
     def model(length: float, logs: list[tuple[str, float, float]]) -> SimpleNamespace:
         rec = {"relative_to": "a.csv", "parameters": ["m", "mx", "my", "J"],

@@ -423,7 +423,7 @@ def calibrate_cmd(logs: tuple[Path, ...], out_path: Path, robot: Path | None, mo
             from ..model.selection import describe
 
             click.echo("\n".join(describe(fitted.fit["selection"])))
-        from ..model.payload import differ_warning
+        from ..model.payload_table import differ_warning
 
         if (differ := differ_warning(fitted)) is not None:
             click.echo(f"impactcli: warning: {differ}", err=True)

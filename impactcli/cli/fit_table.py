@@ -62,7 +62,7 @@ def format_fit_table(model: Any) -> str:
         lines.append(f"ridge penalty on the cross terms (off: decoupled): {pen}")
     if fit.get("unexcited_parameters"):
         lines.append(f"not excited (fixed at 0): {', '.join(fit['unexcited_parameters'])}")
-    from ..model.payload import describe
+    from ..model.payload_table import describe
 
     lines += describe(model)
     return "\n".join(lines)
