@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import tomllib
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -18,32 +19,43 @@ from impactcli.detect.incidents import settle_s
 from impactcli.schema import validate
 
 
-@pytest.fixture(scope="module")
-def rung(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
-    """Two free logs (one carrying the pick-and-place's 1 kg), calibrated; the 60 s
-    pick-and-place with its four pushes detected; the timeline, labels and output."""
+def _pick_and_place_run(d: Path, robot_seed: int, free: list[tuple[str, str, dict, int]],
+                        pp_seed: int, *detect_extra: str) -> dict[str, Any]:
+    """The free logs ``free`` ((name, scenario, overrides, seed) of the robot
+    ``robot_seed``) calibrated; the 60 s pick-and-place (seed ``pp_seed``) detected with
+    that config: the timeline, labels and output."""
     from impactcli.logs import write_log
     from impactcli.logs.robot_files import write_labels, write_robot
     from impactcli.sim import scenario, simulate
 
-    d = tmp_path_factory.mktemp("rung")
-    for name, kw, seed in (("free_a", {}, 1), ("free_b", {"payload_kg": 1.0}, 2)):
-        write_log(simulate(scenario("free_multisine", "assist_like", 60.0, robot_seed=23,
-                                    **kw), seed=seed).log, d / f"{name}.csv.gz")
-    res = simulate(scenario("pick_and_place", "assist_like", 60.0, robot_seed=23), seed=3)
+    for name, scen, kw, seed in free:
+        write_log(simulate(scenario(scen, "assist_like", 60.0, robot_seed=robot_seed, **kw),
+                           seed=seed).log, d / f"{name}.csv.gz")
+    res = simulate(scenario("pick_and_place", "assist_like", 60.0, robot_seed=robot_seed),
+                   seed=pp_seed)
     write_log(res.log, d / "pp.csv.gz")
     write_labels(res.labels, d / "pp.labels.json")
     write_robot(res.robot, d / "robot.json")
     run = CliRunner()
-    r = run.invoke(main, ["calibrate", str(d / "free_a.csv.gz"), str(d / "free_b.csv.gz"),
+    r = run.invoke(main, ["calibrate", *(str(d / f"{n}.csv.gz") for n, *_ in free),
                           "--robot", str(d / "robot.json"), "-o", str(d / "cal.toml")])
     assert r.exit_code == 0, r.output
     r = run.invoke(main, ["detect", str(d / "pp.csv.gz"), "--config", str(d / "cal.toml"),
-                          "--robot", str(d / "robot.json"), "-o", str(d / "out")])
+                          *detect_extra, "-o", str(d / "out")])
     assert r.exit_code == 0, r.output
     tl = json.loads((d / "out" / "pp.timeline.json").read_text())
     validate(tl, "timeline", AssertionError, "timeline")
     return {"dir": d, "timeline": tl, "labels": res.labels, "stdout": r.stdout}
+
+
+@pytest.fixture(scope="module")
+def rung(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    """Two free logs (one carrying the pick-and-place's 1 kg), calibrated; the 60 s
+    pick-and-place with its four pushes detected; the timeline, labels and output."""
+    d = tmp_path_factory.mktemp("rung")
+    return _pick_and_place_run(d, 23, [("free_a", "free_multisine", {}, 1),
+                                       ("free_b", "free_multisine", {"payload_kg": 1.0}, 2)],
+                               3, "--robot", str(d / "robot.json"))
 
 
 def test_alarms_in_a_pushs_ringing_say_so_and_the_pushes_do_not(rung: dict[str, Any]
@@ -109,29 +121,9 @@ def close(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     """A trial's robot (seed 53), calibrated on free point-to-point moves and a multi-sine
     carrying 1 kg — measured motion wide enough that a push's ringing stays inside it — and
     its pick-and-place (seed 94: pushes of 30, 20, 30, 20 N, the third while carrying)."""
-    from impactcli.logs import write_log
-    from impactcli.logs.robot_files import write_labels, write_robot
-    from impactcli.sim import scenario, simulate
-
-    d = tmp_path_factory.mktemp("close")
-    for name, kw, seed in (("p2p", {}, 61), ("loaded", {"payload_kg": 1.0}, 11)):
-        scen = "free_p2p" if name == "p2p" else "free_multisine"
-        write_log(simulate(scenario(scen, "assist_like", 60.0, robot_seed=53, **kw),
-                           seed=seed).log, d / f"{name}.csv.gz")
-    res = simulate(scenario("pick_and_place", "assist_like", 60.0, robot_seed=53), seed=94)
-    write_log(res.log, d / "pp.csv.gz")
-    write_labels(res.labels, d / "pp.labels.json")
-    write_robot(res.robot, d / "robot.json")
-    run = CliRunner()
-    r = run.invoke(main, ["calibrate", str(d / "p2p.csv.gz"), str(d / "loaded.csv.gz"),
-                          "--robot", str(d / "robot.json"), "-o", str(d / "cal.toml")])
-    assert r.exit_code == 0, r.output
-    r = run.invoke(main, ["detect", str(d / "pp.csv.gz"), "--config", str(d / "cal.toml"),
-                          "-o", str(d / "out")])
-    assert r.exit_code == 0, r.output
-    tl = json.loads((d / "out" / "pp.timeline.json").read_text())
-    validate(tl, "timeline", AssertionError, "timeline")
-    return {"dir": d, "timeline": tl, "labels": res.labels, "stdout": r.stdout}
+    return _pick_and_place_run(tmp_path_factory.mktemp("close"), 53,
+                               [("p2p", "free_p2p", {}, 61),
+                                ("loaded", "free_multisine", {"payload_kg": 1.0}, 11)], 94)
 
 
 def test_a_ringing_the_measured_motion_did_not_tell_is_close_behind_its_push(

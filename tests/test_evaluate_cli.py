@@ -446,18 +446,12 @@ def test_end_to_end_log_and_timeline_agree(tmp_path):
     assert from_log["incidents"]["n_contacts"] == 5
 
 
-def test_a_lower_bound_force_is_scored_and_shown_as_one(tmp_path: Path) -> None:
+def test_a_lower_bound_force_is_scored_and_shown_as_one(pushes: dict[str, Any]) -> None:
     """The sample pushes (their forces all lower bounds: the arm near stretched) through
     detect, then evaluate: each matched contact's force carries ``force_at_least`` in the
     JSON and '≳' in the text table, where a contact without it would read plain."""
-    repo = Path(__file__).resolve().parents[1]
-    log = repo / "sample_logs" / "csv" / "assist_pushes.csv.gz"
-    r = CliRunner().invoke(main, ["detect", str(log), "--config",
-                                  str(repo / "sample_logs" / "assist_like.config.toml"),
-                                  "-o", str(tmp_path)])
-    assert r.exit_code == 0, r.output
-    tl = tmp_path / "assist_pushes.timeline.json"
-    labels = str(log).replace(".csv.gz", ".labels.json")
+    tl = pushes["timeline"]
+    labels = str(pushes["labels_path"])
     r = CliRunner().invoke(main, ["evaluate", str(tl), "--labels", labels, "--json"])
     assert r.exit_code == 0, r.output
     contacts = json.loads(r.stdout)["incidents"]["contacts"]
@@ -478,8 +472,9 @@ def pushes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
                                   str(repo / "sample_logs" / "assist_like.config.toml"),
                                   "-o", str(d)])
     assert r.exit_code == 0, r.output
-    labels = json.loads(Path(str(log).replace(".csv.gz", ".labels.json")).read_text())
-    return {"dir": d, "timeline": d / "assist_pushes.timeline.json", "labels": labels}
+    labels_path = Path(str(log).replace(".csv.gz", ".labels.json"))
+    return {"dir": d, "timeline": d / "assist_pushes.timeline.json",
+            "labels": json.loads(labels_path.read_text()), "labels_path": labels_path}
 
 
 @pytest.mark.parametrize(("factor", "unit"), [(1000.0, "kN"), (9.80665, "kgf"),
