@@ -68,12 +68,17 @@ def load_envelopes_of(model: RigidModel | None, replays: Sequence[Any],
     def at(log: str) -> list[int]:
         return [k for k, rp in enumerate(replays) if rp.path == log]
 
+    base: dict[int, np.ndarray] = {}  # each log's torque under the model's own load
+
+    def own(k: int, m: Any) -> np.ndarray:
+        if k not in base:
+            base[k] = model.predict(m.position, m.velocity, m.acceleration)
+        return base[k]
+
     def turns(delta: np.ndarray, ks: list[int]) -> bool:
         heavy = carrying(model, delta)
         return any(bool(np.any(np.max(np.abs(heavy.predict(m.position, m.velocity,
-                                                               m.acceleration)
-                                                 - model.predict(m.position, m.velocity,
-                                                                 m.acceleration)),
+                                                               m.acceleration) - own(k, m)),
                                           axis=0) >= floor))
                    for k in ks if (m := replays[k].motion) is not None)
 

@@ -16,7 +16,6 @@ import numpy as np
 
 from ...detect.force import force_mark
 from ...detect.incidents import group_events, link_words
-from ...detect.payload_words import press_force_n, press_text
 from ...types import DETECTORS, DetectionResult, Labels
 from .. import svgplot
 from .common import (
@@ -34,7 +33,7 @@ from .common import (
     e,
 )
 from .samples import Samples, Stretch
-from .summary import change_of
+from .summary import change_of, load_words
 
 BAND_EVENT = "#f3b6ae"
 ALARM_ZONE = "#fdf1ef"
@@ -127,11 +126,8 @@ def incident_figures(result: DetectionResult, incidents: Sequence[dict[str, Any]
         kind = CONTACT_TEXT.get(inc.get("contact") or "unknown", inc.get("contact"))
         change = change_of(inc, result.payload_changes or ())
         if change is not None:  # a load, not a contact: as the incident table says it
-            how = (f"{change['mass_kg']:+.3g} kg, a load "
-                   f"{'picked' if change['mass_kg'] > 0 else 'released'} (its weight "
-                   f"~{press_force_n(change):.2g} N), "
-                   + ("not a contact force" if press_text(change) is None
-                      else "not told from a contact"))
+            how = (f"{change['mass_kg']:+.3g} kg, "
+                   f"{load_words(change, since=False, why=False)}")
             kind = "no contact type"
         where = link_words(inc.get("link"), inc.get("link_candidates"))
         evs = ", ".join(f"#{k + 1}" for k in inc.get("events") or [])

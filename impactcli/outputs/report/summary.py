@@ -391,6 +391,19 @@ def _torques(inc: dict[str, Any]) -> str:
     return " · ".join(f"{e(j)} {approx(v)}" for j, v in pr.items()) + " N·m" if pr else "—"
 
 
+def load_words(change: dict[str, Any], *, since: bool, why: bool) -> str:
+    """What a payload change's alarm is instead of a contact force, as the incident table
+    and its plot's caption say it: ``a load released from 40.016 s (its weight ~9.9 N), not
+    a contact force`` — or ``… not told from a contact`` (``why``: and why,
+    :func:`~impactcli.detect.payload_words.press_text`); ``since``: with its onset."""
+    verb = "picked" if change["mass_kg"] > 0 else "released"
+    onset = f" from {change['t_start']:.3f} s" if since else ""
+    press = press_text(change)
+    return (f"a load {verb}{onset} (its weight ~{press_force_n(change):.2g} N), "
+            + ("not a contact force" if press is None else "not told from a contact"
+               + (f": {press}" if why else "")))
+
+
 def change_of(row: dict[str, Any], changes: Sequence[dict[str, Any]]
                ) -> dict[str, Any] | None:
     """The payload change (the timeline's, 1-based ``payload_change``) a row (or incident)
@@ -443,11 +456,8 @@ def incident_table_html(rows: Sequence[dict[str, Any]], anchor: str, plotted: in
                  else '<span class="muted">no force estimate</span>')
         change = change_of(r, payload_changes)
         if change is not None:  # a load, not a contact: its mass, not the alarm's "force"
-            force = (f'<b>{change["mass_kg"]:+.3g} kg</b> <span class="note">a load '
-                     f'{"picked" if change["mass_kg"] > 0 else "released"} from '
-                     f'{change["t_start"]:.3f} s (its weight ~{press_force_n(change):.2g} N), '
-                     + ("not a contact force" if (press := press_text(change)) is None else
-                        f"not told from a contact: {e(press)}") + "</span>")
+            force = (f'<b>{change["mass_kg"]:+.3g} kg</b> <span class="note">'
+                     f'{e(load_words(change, since=True, why=True))}</span>')
         if r.get("force_n") is None and str(r.get("force_method") or "").startswith(
                 FORCE_NOT_STATED):  # why not: the physics checks left it unstated
             force += f' <span class="note">{e(r["force_method"])}</span>'
